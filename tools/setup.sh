@@ -29,7 +29,7 @@ want=$(cat requirements/*.txt | sha256sum | cut -d' ' -f1)
 if [ ! -x "$VENV/bin/python" ]; then "$PYTHON" -m venv "$VENV"; fi
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "setup: installing Python requirements into $VENV"
-  "$VENV/bin/python" -m pip install -q -r requirements/ros-jazzy.txt -r requirements/core.txt -r requirements/test.txt \
+  "$VENV/bin/python" -m pip install -q $(printf -- "-r %s " requirements/*.txt) \
     > "$VENV/pip-install.log" 2>&1 || { tail -30 "$VENV/pip-install.log" >&2; exit 1; }
   echo "$want" > "$stamp"
 fi
