@@ -1,0 +1,45 @@
+"""The `ceco` command: one verb per module, each module owning its argparse.
+
+    ceco run      run the node stack over DDS and record a rosbag2 bag
+    ceco play     republish a recorded bag on DDS
+    ceco report   metrics and figures from run directories
+    ceco sweep    scenario grids with the in-process simulator
+    ceco sim      one closed-loop run in-process (no ROS)
+    ceco identify identify the control-oriented model from plant data
+    ceco bench    solver benchmarks
+"""
+import importlib
+import sys
+
+VERBS = {
+    'run': ('ceco_bringup.run', 'run the node stack over DDS and record a rosbag2 bag'),
+    'play': ('ceco_bringup.play', 'republish a recorded bag on DDS'),
+    'report': ('ceco_bringup.report', 'metrics, figures and reports from run directories'),
+    'sweep': ('ceco_bringup.sweep', 'run a grid of scenarios with the in-process simulator'),
+    'sim': ('ceco_controller.closed_loop', 'one closed-loop run in-process (no ROS)'),
+    'identify': ('ceco_controller.identification', 'identify the control-oriented model'),
+    'bench': ('ceco_controller.bench', 'solver benchmarks (ceco bench nmpc)'),
+}
+
+
+def _usage() -> str:
+    lines = ['usage: ceco VERB [options]   (ceco VERB --help for a verb\'s options)', '']
+    lines += [f'  {verb:<9} {help_}' for verb, (_, help_) in VERBS.items()]
+    return '\n'.join(lines)
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ('-h', '--help'):
+        print(_usage())
+        return 0 if argv else 2
+    verb, rest = argv[0], argv[1:]
+    if verb not in VERBS:
+        print(f'ceco: unknown verb {verb!r}\n\n{_usage()}', file=sys.stderr)
+        return 2
+    module = importlib.import_module(VERBS[verb][0])
+    return int(module.main(rest) or 0)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
