@@ -1,0 +1,226 @@
+"""Data shared by every controller: what it observes and what it reports.
+
+A controller (baseline PI, any CECO NMPC) is called once per control period
+``Ts`` with an :class:`Observation` built from the measurements at ``t = k*Ts``
+and the V2X previews on the grid ``t, t + Ts, ..., t + Np*Ts``. It returns the
+command held over ``[t, t + Ts)`` and a :class:`Diagnostics` record (one row of
+``diagnostics.csv``, see ``docs/architecture.md``).
+
+Pure data: no solver, no ROS.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+__all__ = ["Observation", "Diagnostics", "DIAGNOSTICS_COLUMNS", "ACTUATOR_LIMITS"]
+
+
+@dataclasses.dataclass(frozen=True)
+class ActuatorLimits:
+    """Hard actuator bounds of the A/C (paper, Sec. 3.1)."""
+
+    mdot_bl_min_kgps: float = 0.05
+    """Lowest blower air mass flow [kg/s]."""
+    mdot_bl_max_kgps: float = 0.17
+    """Highest blower air mass flow [kg/s]."""
+    t_evap_sp_min_c: float = 3.0
+    """Lowest evaporator wall temperature set-point [degC] (frost margin)."""
+    t_evap_sp_max_c: float = 10.0
+    """Highest evaporator wall temperature set-point [degC]."""
+
+    def validate(self) -> None:
+        """Raise ValueError naming the field if a bound is not finite or ordered."""
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"ActuatorLimits.{f.name} must be a finite number, got {v!r}")
+        if not 0.0 < self.mdot_bl_min_kgps < self.mdot_bl_max_kgps:
+            raise ValueError("ActuatorLimits.mdot_bl_min_kgps must satisfy 0 < min < mdot_bl_max_kgps")
+        if not self.t_evap_sp_min_c < self.t_evap_sp_max_c:
+            raise ValueError("ActuatorLimits.t_evap_sp_min_c must be < t_evap_sp_max_c")
+
+    def contains(self, mdot_bl_kgps: float, t_evap_sp_c: float) -> bool:
+        """True if the command is finite and inside the bounds (inclusive)."""
+        return (
+            math.isfinite(mdot_bl_kgps)
+            and math.isfinite(t_evap_sp_c)
+            and self.mdot_bl_min_kgps <= mdot_bl_kgps <= self.mdot_bl_max_kgps
+            and self.t_evap_sp_min_c <= t_evap_sp_c <= self.t_evap_sp_max_c
+        )
+
+
+ACTUATOR_LIMITS = ActuatorLimits()
+"""The paper's actuator bounds: 0.05-0.17 kg/s, 3-10 degC."""
+
+
+def _as_array(x, name, n=None):
+    a = np.asarray(x, dtype=float).reshape(-1)
+    if n is not None and a.size != n:
+        raise ValueError(f"Observation.{name} must have {n} values, got {a.size}")
+    return a
+
+
+@dataclasses.dataclass(frozen=True)
+class Observation:
+    """What a controller sees at control step ``k`` (time ``t_s = k * Ts``).
+
+    Measurements are the plant outputs sampled at ``t_s``. Preview arrays are
+    on the grid ``t_s + i*Ts, i = 0..n-1`` (``n = Np + 1``); entries may be NaN
+    where ``preview_valid`` is False (missing or stale V2X data). The PMV
+    bounds are the comfort zone on the same grid (they come from the
+    occupant's settings, not from V2X, so they are always valid).
+    """
+
+    k: int
+    """Control step index [-]."""
+    t_s: float
+    """Time since the start of the run [s]."""
+    t_cab_c: float
+    """Measured cabin air temperature [degC]."""
+    t_int_c: float
+    """Measured cabin interior (seats, dashboard) surface temperature [degC]."""
+    t_shell_c: float
+    """Measured cabin shell (roof, doors, glazing) temperature [degC]."""
+    t_evap_c: float
+    """Measured evaporator wall temperature [degC]."""
+    t_vent_c: float
+    """Measured vent (discharge) air temperature [degC]."""
+    t_amb_c: float
+    """Measured ambient air temperature now [degC]."""
+    solar_wm2: float
+    """Measured/estimated solar load now [W/m2]."""
+    speed_mps: float
+    """Vehicle speed now [m/s]."""
+    mdot_bl_prev_kgps: float
+    """Blower flow applied over the previous control period [kg/s]."""
+    t_evap_sp_prev_c: float
+    """Evaporator set-point applied over the previous control period [degC]."""
+    preview_t_amb_c: np.ndarray
+    """Ambient temperature preview [degC], shape (n,)."""
+    preview_solar_wm2: np.ndarray
+    """Solar load preview [W/m2], shape (n,)."""
+    preview_speed_mps: np.ndarray
+    """Vehicle speed preview [m/s], shape (n,)."""
+    preview_valid: np.ndarray
+    """True where the preview entry is trustworthy, shape (n,)."""
+    pmv_lb: np.ndarray
+    """PMV lower bound on the preview grid [-], shape (n,)."""
+    pmv_ub: np.ndarray
+    """PMV upper bound on the preview grid [-], shape (n,)."""
+    met: float = 1.2
+    """Occupant metabolic rate [met] (seated driving, ISO 7730 Annex B)."""
+    clo: float = 0.5
+    """Occupant clothing insulation [clo] (summer clothing)."""
+
+    def __post_init__(self):
+        n = np.asarray(self.pmv_lb).size
+        for name in ("preview_t_amb_c", "preview_solar_wm2", "preview_speed_mps", "pmv_lb", "pmv_ub"):
+            object.__setattr__(self, name, _as_array(getattr(self, name), name, n))
+        object.__setattr__(
+            self, "preview_valid", np.asarray(self.preview_valid, dtype=bool).reshape(-1)
+        )
+        if self.preview_valid.size != n:
+            raise ValueError(f"Observation.preview_valid must have {n} values, got {self.preview_valid.size}")
+
+    @property
+    def n_preview(self) -> int:
+        """Number of points on the preview grid (Np + 1)."""
+        return int(self.pmv_lb.size)
+
+    def measurements_finite(self) -> bool:
+        """True if every scalar measurement the NMPC needs is finite."""
+        vals = (self.t_cab_c, self.t_int_c, self.t_shell_c, self.t_evap_c, self.t_vent_c,
+                self.t_amb_c, self.solar_wm2, self.speed_mps)
+        return all(math.isfinite(float(v)) for v in vals)
+
+
+DIAGNOSTICS_COLUMNS = (
+    "k", "t_s", "status", "success", "iterations", "solve_time_ms",
+    "cost_energy", "cost_comfort", "cost_ioch", "eps_mean", "fallback",
+    # extra columns (allowed after the contract's columns)
+    "cost_slack", "cost_total", "trusted_horizon", "pmv_pred_1", "t_cab_pred_1_c",
+    "mdot_bl_kgps", "t_evap_sp_c", "message",
+)
+"""Columns of ``diagnostics.csv``: the architecture contract's first, then extras."""
+
+
+@dataclasses.dataclass
+class Diagnostics:
+    """What a controller reports for one control step.
+
+    The baseline leaves the solver fields as None. ``fallback`` is ``""`` when
+    the strategy's own solution is applied, ``"shifted_plan"`` when the
+    previous plan (shifted by one step) is applied after a failed solve, and
+    ``"baseline"`` when the production law is applied.
+    """
+
+    k: int
+    """Control step index [-]."""
+    t_s: float
+    """Time [s]."""
+    status: str = ""
+    """Solver return status (e.g. IPOPT's 'Solve_Succeeded'), or the reason for a fallback."""
+    success: bool | None = None
+    """Whether the solver reported success (None for the baseline)."""
+    iterations: int | None = None
+    """Solver iterations (None for the baseline)."""
+    solve_time_ms: float | None = None
+    """Wall-clock time of the solve [ms] (measurement only; never used for a decision)."""
+    cost_energy: float | None = None
+    """Energy term of the optimal cost: predicted A/C energy over the horizon [kJ]."""
+    cost_comfort: float | None = None
+    """Comfort term gamma * sum PMV^2 * Ts [kJ-equivalent] (ceco-c)."""
+    cost_ioch: float | None = None
+    """IOCH term beta * sum (eta_AC - 1)/(eps + xi) * Ts [kJ-equivalent] (ceco-ioch)."""
+    cost_slack: float | None = None
+    """Exact-penalty slack term [kJ-equivalent]; > 0 only when the bounds cannot be met."""
+    cost_total: float | None = None
+    """Total optimal cost [kJ-equivalent]."""
+    eps: np.ndarray | None = None
+    """IOCH tightening eps over the horizon [PMV] (ceco-ioch)."""
+    fallback: str = ""
+    """'' (own solution), 'shifted_plan' or 'baseline'."""
+    trusted_horizon: int | None = None
+    """Number of leading preview points that were valid [-]."""
+    pred_pmv: np.ndarray | None = None
+    """Predicted PMV on the horizon grid [-]."""
+    pred_t_cab_c: np.ndarray | None = None
+    """Predicted cabin air temperature on the horizon grid [degC]."""
+    mdot_bl_kgps: float | None = None
+    """Applied blower flow [kg/s]."""
+    t_evap_sp_c: float | None = None
+    """Applied evaporator set-point [degC]."""
+    message: str = ""
+    """Free text (why a fallback happened, preview degradation, ...)."""
+
+    @property
+    def eps_mean(self) -> float | None:
+        """Mean of eps over the horizon [PMV], None if not an IOCH step."""
+        if self.eps is None or np.size(self.eps) == 0:
+            return None
+        return float(np.mean(self.eps))
+
+    def to_row(self) -> dict:
+        """One ``diagnostics.csv`` row (columns :data:`DIAGNOSTICS_COLUMNS`)."""
+        def first(a):
+            if a is None or np.size(a) < 2:
+                return None
+            return float(np.asarray(a)[1])
+
+        row = {
+            "k": self.k, "t_s": self.t_s, "status": self.status,
+            "success": "" if self.success is None else int(bool(self.success)),
+            "iterations": self.iterations, "solve_time_ms": self.solve_time_ms,
+            "cost_energy": self.cost_energy, "cost_comfort": self.cost_comfort,
+            "cost_ioch": self.cost_ioch, "eps_mean": self.eps_mean,
+            "fallback": self.fallback, "cost_slack": self.cost_slack,
+            "cost_total": self.cost_total, "trusted_horizon": self.trusted_horizon,
+            "pmv_pred_1": first(self.pred_pmv), "t_cab_pred_1_c": first(self.pred_t_cab_c),
+            "mdot_bl_kgps": self.mdot_bl_kgps, "t_evap_sp_c": self.t_evap_sp_c,
+            "message": self.message,
+        }
+        return {c: ("" if row[c] is None else row[c]) for c in DIAGNOSTICS_COLUMNS}

@@ -1,0 +1,290 @@
+"""Control-oriented A/C and cabin model: eqs. (1)-(3) of the method paper,
+the compressor and blower power models and the efficiency multiplier eta_AC(V).
+
+Written once; every function evaluates numpy arrays (broadcasting) and CasADi
+symbols alike (``ceco_plant_sim.mathops.backend``), so the closed-loop
+simulator, the identification and the NMPC share the same equations.
+
+Temperatures are in degC here (the paper writes kelvin; eqs. (1)-(3) are
+affine in temperature, so only the offsets tau_1..tau_3 depend on that choice,
+and they are identified in degC). One model step is ``ts_s`` seconds (the
+sample time the parameters were identified at, 5 s).
+
+Equations (Wang et al., DSCC 2019, Sec. 2; docs/controller.md):
+
+    (1) T_cab(k+1)  = T_cab + g1 (T_int - T_cab) + g2 (T_shell - T_cab)
+                      + g3 (T_ain - T_cab) mdot_bl + tau1 [+ d_cab]
+    (2) T_evap(k+1) = g4 T_evap + g5 (T_evap - T_evap_sp) + tau2
+    (3) T_ain(k)    = g6 T_evap + g7 mdot_bl + tau3 [+ d_ain]
+
+    Q_evap  = mdot_bl c_p softplus(T_mix - T_ain),  T_mix = T_cab + phi (T_amb - T_cab)
+    P_comp  = Q_evap (c0 + c1 softplus(T_amb - T_evap)) / eta_AC(V)
+    P_bl    = b0 + b1 mdot_bl + b3 mdot_bl^3
+    eta_AC  = 1 + a_eta (1 - exp(-V / v_eta))   >= 1
+
+where mdot_bl [kg/s] is the blower flow, T_evap_sp [degC] the evaporator
+set-point, T_int/T_shell [degC] the interior/shell temperatures (held at their
+measured values over the horizon: they have no dynamics in the paper), T_amb
+[degC] ambient, V [m/s] vehicle speed, phi [-] the fresh-air fraction of the
+evaporator inlet, c_p [J/(kg K)] the specific heat of air, c0 [-] the
+reciprocal of the COP at zero lift, c1 [1/K] its growth with the lift
+T_amb - T_evap (the condensing/evaporating temperature difference rises with
+it), b0/b1/b3 the blower fan-law coefficients [W, W s/kg, W s^3/kg^3], and
+a_eta [-], v_eta [m/s] the speed sensitivity of the A/C efficiency (condenser
+ram air). d_cab, d_ain [K] are optional output-bias corrections estimated
+online by the NMPC (offset-free MPC); 0 when identifying.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import pathlib
+
+import numpy as np
+import yaml
+
+from ceco_plant_sim.mathops import backend, softplus
+
+__all__ = [
+    "ControlModelParams",
+    "DEFAULT_PARAMS_PATH",
+    "t_ain_c",
+    "t_cab_next_c",
+    "t_evap_next_c",
+    "eta_ac",
+    "q_evap_w",
+    "p_comp_w",
+    "p_blower_w",
+    "step",
+    "simulate",
+    "load_params",
+    "save_params",
+]
+
+DEFAULT_PARAMS_PATH = pathlib.Path(__file__).resolve().parent.parent / "config" / "model_params.yaml"
+"""The identified parameter file in the source tree (``ceco_controller/config``)."""
+
+CP_AIR_JPKGK = 1006.0
+"""Specific heat of dry air at 25 degC [J/(kg K)] (Incropera, Table A.4)."""
+
+_SOFTPLUS_K = 2.0
+"""Sharpness of the smooth max(.,0) in the power model [1/K]: error <= ln2/2 = 0.35 K."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ControlModelParams:
+    """Parameters of the control-oriented model (identified, never hand-typed).
+
+    See ``docs/controller.md`` for the identification and the fit report.
+    """
+
+    ts_s: float = 5.0
+    """Model sample time the parameters are identified at [s]."""
+    gamma_1: float = 0.01
+    """Interior-to-cabin-air coupling per step [-] (eq. 1)."""
+    gamma_2: float = 0.01
+    """Shell-to-cabin-air coupling per step [-] (eq. 1)."""
+    gamma_3: float = 0.3
+    """Vent-air mixing gain per step and per unit blower flow [s/kg] (eq. 1)."""
+    gamma_4: float = 1.0
+    """Evaporator wall autoregressive coefficient [-] (eq. 2)."""
+    gamma_5: float = -0.3
+    """Evaporator set-point tracking gain [-] (eq. 2; negative: pulls T_evap to T_evap_sp)."""
+    gamma_6: float = 1.0
+    """Vent air temperature per evaporator wall temperature [-] (eq. 3)."""
+    gamma_7: float = 10.0
+    """Vent air temperature per blower flow [K s/kg] (eq. 3)."""
+    tau_1: float = 0.0
+    """Cabin air offset per step [K] (eq. 1; absorbs the mean direct solar and occupant gains)."""
+    tau_2: float = 0.0
+    """Evaporator offset per step [K] (eq. 2)."""
+    tau_3: float = 1.0
+    """Vent air offset [degC] (eq. 3)."""
+    fresh_air_fraction: float = 0.2
+    """Fresh-air share of the evaporator inlet air phi [-] (power model)."""
+    comp_c0: float = 0.2
+    """Compressor electrical power per evaporator heat at zero lift (1/COP) [-]."""
+    comp_c1_per_k: float = 0.01
+    """Growth of 1/COP with the lift T_amb - T_evap [1/K]."""
+    blower_b0_w: float = 20.0
+    """Blower power at zero flow (electronics) [W]."""
+    blower_b1_w_per_kgps: float = 100.0
+    """Linear blower power coefficient [W/(kg/s)]."""
+    blower_b3_w_per_kgps3: float = 50000.0
+    """Cubic (fan law) blower power coefficient [W/(kg/s)^3]."""
+    eta_gain: float = 0.3
+    """Largest relative A/C efficiency gain at high speed a_eta [-] (eta_AC <= 1 + a_eta)."""
+    eta_speed_scale_mps: float = 15.0
+    """Speed scale of the efficiency gain v_eta [m/s]."""
+    provenance: str = "defaults (not identified)"
+    """How the values were obtained (command and data); not used in computations."""
+
+    def validate(self) -> None:
+        """Raise ValueError naming the field if a value is not usable."""
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if f.name == "provenance":
+                if not isinstance(v, str):
+                    raise ValueError("ControlModelParams.provenance must be a string")
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"ControlModelParams.{f.name} must be a finite number, got {v!r}")
+        if not self.ts_s > 0:
+            raise ValueError(f"ControlModelParams.ts_s must be > 0, got {self.ts_s}")
+        if not 0.0 <= self.fresh_air_fraction <= 1.0:
+            raise ValueError("ControlModelParams.fresh_air_fraction must be in [0, 1]")
+        if not self.eta_gain >= 0.0:
+            raise ValueError("ControlModelParams.eta_gain must be >= 0 (eta_AC >= 1)")
+        if not self.eta_speed_scale_mps > 0.0:
+            raise ValueError("ControlModelParams.eta_speed_scale_mps must be > 0")
+        if not self.comp_c0 > 0.0:
+            raise ValueError("ControlModelParams.comp_c0 must be > 0")
+        for name in ("blower_b0_w", "blower_b1_w_per_kgps", "blower_b3_w_per_kgps3"):
+            if getattr(self, name) < 0.0:
+                raise ValueError(f"ControlModelParams.{name} must be >= 0")
+
+    def to_dict(self) -> dict:
+        """Plain dict of the fields (for YAML)."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "ControlModelParams":
+        """Build and validate from a mapping; unknown keys are an error."""
+        if not isinstance(data, dict):
+            raise ValueError("ControlModelParams: expected a mapping")
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise ValueError(f"ControlModelParams: unknown field(s) {unknown}")
+        kwargs = {}
+        for k, v in data.items():
+            kwargs[k] = v if k == "provenance" else float(v)
+        p = cls(**kwargs)
+        p.validate()
+        return p
+
+
+def load_params(path: str | pathlib.Path | None = None) -> ControlModelParams:
+    """Load the identified parameters (default: ``config/model_params.yaml``)."""
+    path = pathlib.Path(path) if path is not None else DEFAULT_PARAMS_PATH
+    with open(path, encoding="utf-8") as fh:
+        doc = yaml.safe_load(fh)
+    if not isinstance(doc, dict) or "params" not in doc:
+        raise ValueError(f"{path}: expected a mapping with a 'params' key")
+    return ControlModelParams.from_dict(doc["params"])
+
+
+def save_params(params: ControlModelParams, path: str | pathlib.Path, header: str = "",
+                extra: dict | None = None) -> None:
+    """Write the parameters (and optional extra mappings, e.g. the fit report) as YAML."""
+    params.validate()
+    doc = {"params": params.to_dict()}
+    if extra:
+        doc.update(extra)
+    text = yaml.safe_dump(doc, sort_keys=False, default_flow_style=False)
+    if header:
+        text = "".join(f"# {line}\n" if line else "#\n" for line in header.splitlines()) + text
+    pathlib.Path(path).write_text(text, encoding="utf-8")
+
+
+# ---------------------------------------------------------------------------
+# Equations (backend-neutral)
+# ---------------------------------------------------------------------------
+
+def t_ain_c(p: ControlModelParams, t_evap_c, mdot_bl_kgps, d_ain_k=0.0):
+    """Vent (discharge) air temperature, eq. (3) [degC]."""
+    return p.gamma_6 * t_evap_c + p.gamma_7 * mdot_bl_kgps + p.tau_3 + d_ain_k
+
+
+def t_cab_next_c(p: ControlModelParams, t_cab_c, t_int_c, t_shell_c, t_ain, mdot_bl_kgps, d_cab_k=0.0):
+    """Cabin air temperature one model step ahead, eq. (1) [degC]."""
+    return (t_cab_c + p.gamma_1 * (t_int_c - t_cab_c) + p.gamma_2 * (t_shell_c - t_cab_c)
+            + p.gamma_3 * (t_ain - t_cab_c) * mdot_bl_kgps + p.tau_1 + d_cab_k)
+
+
+def t_evap_next_c(p: ControlModelParams, t_evap_c, t_evap_sp_c):
+    """Evaporator wall temperature one model step ahead, eq. (2) [degC]."""
+    return p.gamma_4 * t_evap_c + p.gamma_5 * (t_evap_c - t_evap_sp_c) + p.tau_2
+
+
+def eta_ac(p: ControlModelParams, speed_mps):
+    """A/C efficiency multiplier eta_AC(V) = 1 + a_eta (1 - exp(-V/v_eta)) >= 1 [-].
+
+    Monotone in speed, 1 at standstill, saturating at 1 + a_eta (condenser
+    ram-air benefit, Wang et al. ACC 2018). ``speed_mps`` must be >= 0 (the
+    NMPC clips previews to >= 0 before they enter the NLP as parameters).
+    """
+    ops = backend(speed_mps)
+    return 1.0 + p.eta_gain * (1.0 - ops.exp(-speed_mps / p.eta_speed_scale_mps))
+
+
+def q_evap_w(p: ControlModelParams, t_cab_c, t_amb_c, t_ain, mdot_bl_kgps):
+    """Sensible evaporator heat from the air [W]: mdot c_p softplus(T_mix - T_ain)."""
+    t_mix_c = t_cab_c + p.fresh_air_fraction * (t_amb_c - t_cab_c)
+    return mdot_bl_kgps * CP_AIR_JPKGK * softplus(t_mix_c - t_ain, _SOFTPLUS_K)
+
+
+def p_comp_w(p: ControlModelParams, q_w, t_amb_c, t_evap_c, speed_mps):
+    """Compressor electrical power [W] from the evaporator heat and the lift, / eta_AC(V)."""
+    lift_k = softplus(t_amb_c - t_evap_c, _SOFTPLUS_K)
+    return q_w * (p.comp_c0 + p.comp_c1_per_k * lift_k) / eta_ac(p, speed_mps)
+
+
+def p_blower_w(p: ControlModelParams, mdot_bl_kgps):
+    """Blower electrical power [W]: b0 + b1 mdot + b3 mdot^3 (fan law)."""
+    return (p.blower_b0_w + p.blower_b1_w_per_kgps * mdot_bl_kgps
+            + p.blower_b3_w_per_kgps3 * mdot_bl_kgps ** 3)
+
+
+def substeps(p: ControlModelParams, dt_s: float) -> int:
+    """Number of model steps in ``dt_s``; ``dt_s`` must be a whole multiple of ``ts_s``."""
+    m = dt_s / p.ts_s
+    n = int(round(m))
+    if n < 1 or abs(m - n) > 1e-9:
+        raise ValueError(f"control period {dt_s} s must be a whole multiple of the model step {p.ts_s} s")
+    return n
+
+
+def step(p: ControlModelParams, t_cab_c, t_evap_c, mdot_bl_kgps, t_evap_sp_c, t_int_c, t_shell_c,
+         t_amb_c, speed_mps, n_sub: int = 1, d_cab_k=0.0, d_ain_k=0.0):
+    """Advance the model over ``n_sub`` model steps with the inputs held.
+
+    Returns ``(t_cab_next_c, t_evap_next_c, t_ain_c, p_comp_w, p_blower_w)``
+    where the temperatures are at the end of the interval and ``t_ain_c`` and
+    the powers are the means over the interval (sampled at each sub-step start).
+    """
+    t_ain_sum = 0.0
+    pc_sum = 0.0
+    for _ in range(int(n_sub)):
+        t_ain = t_ain_c(p, t_evap_c, mdot_bl_kgps, d_ain_k)
+        q = q_evap_w(p, t_cab_c, t_amb_c, t_ain, mdot_bl_kgps)
+        pc_sum = pc_sum + p_comp_w(p, q, t_amb_c, t_evap_c, speed_mps)
+        t_ain_sum = t_ain_sum + t_ain
+        t_cab_c, t_evap_c = (t_cab_next_c(p, t_cab_c, t_int_c, t_shell_c, t_ain, mdot_bl_kgps, d_cab_k),
+                             t_evap_next_c(p, t_evap_c, t_evap_sp_c))
+    return t_cab_c, t_evap_c, t_ain_sum / n_sub, pc_sum / n_sub, p_blower_w(p, mdot_bl_kgps)
+
+
+def simulate(p: ControlModelParams, t_cab0_c: float, t_evap0_c: float, mdot_bl_kgps, t_evap_sp_c,
+             t_int_c, t_shell_c, t_amb_c, speed_mps, n_sub: int = 1):
+    """Numpy multi-step prediction from an initial state over given input/exogenous sequences.
+
+    All sequence arguments are arrays of length N (or scalars, broadcast).
+    Returns a dict of arrays: ``t_cab_c`` and ``t_evap_c`` (N+1 values,
+    starting at the initial state), ``t_ain_c``, ``p_comp_w``, ``p_blower_w`` (N).
+    """
+    seqs = np.broadcast_arrays(*(np.atleast_1d(np.asarray(a, dtype=float)) for a in
+                                 (mdot_bl_kgps, t_evap_sp_c, t_int_c, t_shell_c, t_amb_c, speed_mps)))
+    n = seqs[0].size
+    t_cab = np.empty(n + 1)
+    t_evap = np.empty(n + 1)
+    t_ain = np.empty(n)
+    pc = np.empty(n)
+    pb = np.empty(n)
+    t_cab[0], t_evap[0] = t_cab0_c, t_evap0_c
+    for i in range(n):
+        m, sp, ti, ts, ta, v = (s[i] for s in seqs)
+        t_cab[i + 1], t_evap[i + 1], t_ain[i], pc[i], pb[i] = step(
+            p, t_cab[i], t_evap[i], m, sp, ti, ts, ta, v, n_sub=n_sub)
+    return {"t_cab_c": t_cab, "t_evap_c": t_evap, "t_ain_c": t_ain, "p_comp_w": pc, "p_blower_w": pb}

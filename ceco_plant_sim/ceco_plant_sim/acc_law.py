@@ -1,0 +1,151 @@
+"""The production automatic climate control (ACC) law: the baseline and the fallback.
+
+What a vehicle's HVAC ECU runs in cooling mode: a PI controller with
+anti-windup on the cabin air temperature against a constant set-point
+(26 degC, the paper's baseline), whose output, a cooling *demand*
+d in [0, 1], is mapped to the two A/C actuators the way production ACCs do
+(SAE J2765-style "economy-first" scheduling, e.g. Zhang, Li, Deng,
+*Automotive Air Conditioning*, Springer 2016, ch. 5; Kiss & Chaney, SAE
+2013-01-0850 for CoolSim's ACC):
+
+* Evaporator set-point first: at low demand the evaporator runs warm
+  (10 degC, least compressor work); it is lowered linearly to 3 degC as the
+  demand rises to ``d_evap_full``.
+* Blower curve: minimum flow up to ``d_blower_start``, then rising linearly
+  to the maximum flow at d = 1 (blower noise and draft are the other
+  constraints a production curve respects; the flow only rises once the
+  evaporator is already cold).
+* Pull-down: when the cabin is much warmer than the set-point
+  (error > ``pulldown_enter_k``) the ACC commands maximum cooling (d = 1: 3 degC,
+  0.17 kg/s) until the error falls below ``pulldown_exit_k``; it then hands
+  over to the PI bumplessly (integrator preset so the demand is continuous).
+* Anti-windup by back-calculation (Astrom & Hagglund, *Advanced PID control*,
+  2006, sec. 3.5) with tracking time ``tt_s``.
+
+Pure and deterministic, no ROS; stateful object with ``reset()`` and
+``step(t_cab_c, dt_s)``. A non-finite measurement never crashes the ECU: the
+last command is held and the output says ``mode='sensor_fault'``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+__all__ = ["AccSettings", "AccCommand", "AccLaw"]
+
+
+@dataclasses.dataclass(frozen=True)
+class AccSettings:
+    """Settings of the production ACC law (defaults: tuned on the ceco plant, docs/controller.md)."""
+
+    setpoint_c: float = 26.0
+    """Cabin air temperature set-point [degC] (the paper's baseline)."""
+    kp_per_k: float = 0.25
+    """Proportional gain: demand per kelvin of error [1/K]."""
+    ti_s: float = 120.0
+    """Integral time [s]."""
+    tt_s: float = 60.0
+    """Anti-windup back-calculation tracking time [s]."""
+    pulldown_enter_k: float = 4.0
+    """Error above which maximum cooling (pull-down mode) is commanded [K]."""
+    pulldown_exit_k: float = 2.0
+    """Error below which the pull-down mode hands over to the PI [K]."""
+    d_evap_full: float = 0.5
+    """Demand at which the evaporator set-point reaches its minimum [-]."""
+    d_blower_start: float = 0.3
+    """Demand above which the blower flow rises from its minimum [-]."""
+    mdot_bl_min_kgps: float = 0.05
+    """Minimum blower flow [kg/s] (paper's actuator bound)."""
+    mdot_bl_max_kgps: float = 0.17
+    """Maximum blower flow [kg/s] (paper's actuator bound)."""
+    t_evap_sp_min_c: float = 3.0
+    """Coldest evaporator set-point [degC] (frost protection)."""
+    t_evap_sp_max_c: float = 10.0
+    """Warmest evaporator set-point [degC]."""
+
+    def validate(self) -> None:
+        """Raise ValueError naming the field if a setting is not usable."""
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"AccSettings.{f.name} must be a finite number, got {v!r}")
+        for name in ("kp_per_k", "ti_s", "tt_s"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"AccSettings.{name} must be > 0")
+        if not 0.0 <= self.pulldown_exit_k < self.pulldown_enter_k:
+            raise ValueError("AccSettings.pulldown_exit_k must satisfy 0 <= exit < pulldown_enter_k")
+        if not 0.0 < self.d_evap_full <= 1.0:
+            raise ValueError("AccSettings.d_evap_full must be in (0, 1]")
+        if not 0.0 <= self.d_blower_start < 1.0:
+            raise ValueError("AccSettings.d_blower_start must be in [0, 1)")
+        if not 0.0 < self.mdot_bl_min_kgps < self.mdot_bl_max_kgps:
+            raise ValueError("AccSettings.mdot_bl_min_kgps must satisfy 0 < min < mdot_bl_max_kgps")
+        if not self.t_evap_sp_min_c < self.t_evap_sp_max_c:
+            raise ValueError("AccSettings.t_evap_sp_min_c must be < t_evap_sp_max_c")
+
+
+@dataclasses.dataclass(frozen=True)
+class AccCommand:
+    """Output of the ACC law: the two actuator commands and the internal demand."""
+
+    mdot_bl_kgps: float
+    """Blower air mass flow [kg/s]."""
+    t_evap_sp_c: float
+    """Evaporator wall temperature set-point [degC]."""
+    demand: float
+    """Cooling demand d in [0, 1] [-]."""
+    mode: str
+    """'pulldown', 'pi' or 'sensor_fault'."""
+
+
+class AccLaw:
+    """PI with anti-windup on cabin air temperature, mapped to blower and evaporator."""
+
+    def __init__(self, settings: AccSettings | None = None):
+        self.settings = settings or AccSettings()
+        self.settings.validate()
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the key-on state: integrator empty, pull-down armed."""
+        self._integral = 0.0
+        self._pulldown = False
+        self._last = self.map_demand(1.0, "pulldown")
+
+    def map_demand(self, demand: float, mode: str = "pi") -> AccCommand:
+        """Map a demand in [0, 1] to (blower flow, evaporator set-point)."""
+        s = self.settings
+        d = float(np.clip(demand, 0.0, 1.0))
+        f_evap = min(d / s.d_evap_full, 1.0)
+        t_sp = s.t_evap_sp_max_c - f_evap * (s.t_evap_sp_max_c - s.t_evap_sp_min_c)
+        f_bl = max(d - s.d_blower_start, 0.0) / (1.0 - s.d_blower_start)
+        mdot = s.mdot_bl_min_kgps + f_bl * (s.mdot_bl_max_kgps - s.mdot_bl_min_kgps)
+        return AccCommand(mdot_bl_kgps=mdot, t_evap_sp_c=t_sp, demand=d, mode=mode)
+
+    def step(self, t_cab_c: float, dt_s: float) -> AccCommand:
+        """One ECU step: measured cabin air temperature [degC], step length [s]."""
+        if not (isinstance(dt_s, (int, float)) and math.isfinite(dt_s) and dt_s > 0):
+            raise ValueError(f"AccLaw.step: dt_s must be a finite number > 0, got {dt_s!r}")
+        if t_cab_c is None or not math.isfinite(float(t_cab_c)):
+            self._last = dataclasses.replace(self._last, mode="sensor_fault")
+            return self._last
+        s = self.settings
+        err = float(t_cab_c) - s.setpoint_c  # > 0: cabin too warm
+        if self._pulldown and err < s.pulldown_exit_k:
+            self._pulldown = False
+            # bumpless hand-over: PI output equals the current demand (1)
+            self._integral = 1.0 - s.kp_per_k * err
+        elif not self._pulldown and err > s.pulldown_enter_k:
+            self._pulldown = True
+        if self._pulldown:
+            self._last = self.map_demand(1.0, "pulldown")
+            return self._last
+        v = s.kp_per_k * err + self._integral
+        d = min(max(v, 0.0), 1.0)
+        # integrate with back-calculation anti-windup
+        self._integral += dt_s * (s.kp_per_k / s.ti_s * err + (d - v) / s.tt_s)
+        self._last = self.map_demand(d, "pi")
+        return self._last
