@@ -1,0 +1,507 @@
+"""CECO nonlinear MPC (CasADi): ceco, ceco-e, ceco-c, ceco-ioch.
+
+The NLP (written out in docs/controller.md) is built once per controller,
+parametric in the initial state, the held interior/shell temperatures, the
+bias estimates, the previous command, the weather and speed previews and the
+PMV bounds; it is re-solved every control period, warm-started from the
+shifted previous primal-dual solution, and bounded in iterations and CPU time.
+
+Multiple shooting, stage-wise variable order (x_i, u_i, slacks_i), so the
+problem has the optimal-control structure that IPOPT's sparse linear algebra
+and fatrop exploit:
+
+    w = [x_0, u_0, s_0, x_1, u_1, s_1, ..., x_N, s_N]
+    x_i = (T_cab, T_evap) [degC],  u_i = (mdot_bl [kg/s], T_evap_sp [degC])
+    s_i = (s_lo, s_up [PMV], s_ev [K] (i >= 1), eps [PMV] (ceco-ioch))
+
+Fallbacks: a failed or invalid solve applies the previous plan shifted by
+one step; with no plan left, or no usable measurement, the production
+ACC law (run alongside so its integrator is warm) is applied. Every command
+is validated against the hard actuator bounds before it is returned.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import casadi
+import numpy as np
+
+from ceco_plant_sim.acc_law import AccLaw, AccSettings
+from ceco_plant_sim.comfort import ComfortParams, cabin_pmv
+from ceco_plant_sim.plant import AcInput
+
+from . import model as cm
+from .interface import ACTUATOR_LIMITS, Diagnostics, Observation
+from .strategies import StrategySettings, strategy_settings
+
+__all__ = ["NmpcController", "NlpData"]
+
+_BOUND_TOL = 1e-6
+"""Numerical tolerance on the solver's actuator bounds [same unit]: within it a
+command is clipped to the bound; beyond it the solve counts as failed."""
+
+_N_P_FIXED = 9
+"""Scalar parameters before the per-stage ones (x0[2], t_int, t_shell, d_cab, d_evap, d_ain, u_prev[2])."""
+
+
+@dataclasses.dataclass
+class NlpData:
+    """The numeric data of one NLP instance (for benchmarks and tests)."""
+
+    p: np.ndarray
+    """Parameter vector."""
+    x0: np.ndarray
+    """Primal initial guess."""
+    lam_x0: np.ndarray | None = None
+    """Initial guess of the bound multipliers."""
+    lam_g0: np.ndarray | None = None
+    """Initial guess of the constraint multipliers."""
+
+
+class NmpcController:
+    """One CECO strategy as a receding-horizon controller.
+
+    Args:
+        strategy: a name (``ceco``, ``ceco-e``, ``ceco-c``, ``ceco-ioch``) or
+            a :class:`StrategySettings`.
+        model_params: identified :class:`ControlModelParams` (default: the file).
+        comfort_params: :class:`ComfortParams` (met/clo of the occupant inside).
+        acc_settings: settings of the fallback ACC law.
+    """
+
+    def __init__(self, strategy: str | StrategySettings = "ceco",
+                 model_params: cm.ControlModelParams | None = None,
+                 comfort_params: ComfortParams | None = None,
+                 acc_settings: AccSettings | None = None):
+        self.settings = strategy_settings(strategy) if isinstance(strategy, str) else strategy
+        self.settings.validate()
+        self.model_params = model_params if model_params is not None else cm.load_params()
+        self.model_params.validate()
+        self.comfort_params = comfort_params if comfort_params is not None else ComfortParams()
+        self.comfort_params.validate()
+        self.n_sub = cm.substeps(self.model_params, self.settings.control_period_s)
+        self.lim = ACTUATOR_LIMITS
+        self._acc = AccLaw(acc_settings)
+        self._build()
+        self.reset()
+
+    # ------------------------------------------------------------------ build
+    def _build(self) -> None:
+        s, mp, cp = self.settings, self.model_params, self.comfort_params
+        n = s.horizon_steps
+        ts_kj = s.control_period_s / 1000.0  # W -> kJ over one control period
+        lim = self.lim
+        SX = casadi.SX
+
+        x0p = SX.sym("x0", 2)
+        t_int = SX.sym("t_int")
+        t_shell = SX.sym("t_shell")
+        d_cab = SX.sym("d_cab")
+        d_evap = SX.sym("d_evap")
+        d_ain = SX.sym("d_ain")
+        u_prev = SX.sym("u_prev", 2)
+        t_amb = SX.sym("t_amb", n + 1)
+        solar = SX.sym("solar", n + 1)
+        speed = SX.sym("speed", n + 1)
+        lb_pmv = SX.sym("pmv_lb", n + 1)
+        ub_pmv = SX.sym("pmv_ub", n + 1)
+        p = casadi.vertcat(x0p, t_int, t_shell, d_cab, d_evap, d_ain, u_prev, t_amb, solar, speed,
+                           lb_pmv, ub_pmv)
+        assert p.numel() == _N_P_FIXED + 5 * (n + 1)
+
+        w, lbw, ubw = [], [], []
+        g, lbg, ubg = [], [], []
+        idx = {"x": [], "u": [], "s_lo": [], "s_up": [], "s_ev": [], "eps": []}
+        e_terms, c_terms, i_terms, sl_terms, du_terms = [], [], [], [], []
+        pmv_all, tcab_all, tain_all = [], [], []
+        inf = np.inf
+
+        def add_var(sym, lo, hi, key):
+            idx[key].append(sum(v.numel() for v in w))
+            w.append(sym)
+            lbw.extend(np.atleast_1d(lo).tolist())
+            ubw.extend(np.atleast_1d(hi).tolist())
+
+        x_prev = u_prev_stage = None
+        u_list = []
+        for i in range(n + 1):
+            x = SX.sym(f"x_{i}", 2)
+            add_var(x, [-50.0, -50.0], [150.0, 150.0], "x")
+            if i == 0:
+                g.append(x - x0p)
+            else:
+                t_cab_n, t_evap_n, _, _, _ = cm.step(
+                    mp, x_prev[0], x_prev[1], u_prev_stage[0], u_prev_stage[1], t_int, t_shell,
+                    t_amb[i - 1], speed[i - 1], n_sub=self.n_sub,
+                    d_cab_k=d_cab / self.n_sub, d_ain_k=d_ain)
+                g.append(x - casadi.vertcat(t_cab_n, t_evap_n + d_evap))
+            lbg.extend([0.0, 0.0])
+            ubg.extend([0.0, 0.0])
+            if i < n:
+                u = SX.sym(f"u_{i}", 2)
+                add_var(u, [lim.mdot_bl_min_kgps, lim.t_evap_sp_min_c],
+                        [lim.mdot_bl_max_kgps, lim.t_evap_sp_max_c], "u")
+                u_list.append(u)
+            else:
+                u = u_list[-1]
+            # stage power (intervals 0..N-1)
+            if i < n:
+                _, _, _, pc, pb = cm.step(mp, x[0], x[1], u[0], u[1], t_int, t_shell, t_amb[i], speed[i],
+                                          n_sub=self.n_sub, d_cab_k=d_cab / self.n_sub, d_ain_k=d_ain)
+                e_terms.append(ts_kj * (pc + pb))
+                ref = u_prev if i == 0 else u_list[i - 1]
+                du = casadi.vertcat((u[0] - ref[0]) / (lim.mdot_bl_max_kgps - lim.mdot_bl_min_kgps),
+                                    (u[1] - ref[1]) / (lim.t_evap_sp_max_c - lim.t_evap_sp_min_c))
+                du_terms.append(s.du_weight_kj * casadi.sumsqr(du))
+            # comfort at stage i
+            tain = cm.t_ain_c(mp, x[1], u[0], d_ain)
+            pmv = cabin_pmv(t_cab_c=x[0], t_ain_c=tain, t_int_c=t_int, mdot_bl_kgps=u[0],
+                            solar_wm2=solar[i], params=cp)
+            pmv_all.append(pmv)
+            tcab_all.append(x[0])
+            tain_all.append(tain)
+            s_lo = SX.sym(f"s_lo_{i}")
+            s_up = SX.sym(f"s_up_{i}")
+            add_var(s_lo, 0.0, inf, "s_lo")
+            add_var(s_up, 0.0, inf, "s_up")
+            sl_terms.append(s.slack_weight_kj * (s_lo + s_up))
+            eps = 0.0
+            if s.ioch:
+                eps_sym = SX.sym(f"eps_{i}")
+                add_var(eps_sym, 0.0, s.eps_ub, "eps")
+                eps = eps_sym
+                eta = cm.eta_ac(mp, speed[i])
+                i_terms.append(ts_kj * s.beta_w * (eta - 1.0) / (eps_sym + s.xi))
+            g.append(pmv + s_lo - lb_pmv[i])
+            lbg.append(0.0)
+            ubg.append(inf)
+            g.append(pmv - s_up + eps - (ub_pmv[i] - s.pmv_margin))
+            lbg.append(-inf)
+            ubg.append(0.0)
+            if s.gamma_w > 0:
+                c_terms.append(ts_kj * s.gamma_w * pmv ** 2)
+            if i >= 1:
+                s_ev = SX.sym(f"s_ev_{i}")
+                add_var(s_ev, 0.0, inf, "s_ev")
+                sl_terms.append(s.slack_weight_kj * s_ev)
+                g.append(x[1] + s_ev - s.t_evap_lb_c)
+                lbg.append(0.0)
+                ubg.append(inf)
+                g.append(x[1] - s_ev - s.t_evap_ub_c)
+                lbg.append(-inf)
+                ubg.append(0.0)
+            x_prev, u_prev_stage = x, u
+
+        def total(terms):
+            return casadi.sum1(casadi.vertcat(*terms)) if terms else SX(0)
+
+        J_e, J_c, J_i, J_s, J_du = (total(t) for t in (e_terms, c_terms, i_terms, sl_terms, du_terms))
+        J = J_e + J_c + J_i + J_s + J_du
+        w_all = casadi.vertcat(*w)
+        g_all = casadi.vertcat(*g)
+        self._nw = w_all.numel()
+        self._ng = g_all.numel()
+        self._lbw = np.array(lbw)
+        self._ubw = np.array(ubw)
+        self._lbg = np.array(lbg)
+        self._ubg = np.array(ubg)
+        self._idx = {k: np.array(v, dtype=int) for k, v in idx.items()}
+        self._nlp = {"x": w_all, "p": p, "f": J, "g": g_all}
+        self._np = p.numel()
+        self._eval = casadi.Function(
+            "ceco_eval", [w_all, p],
+            [J_e, J_c, J_i, J_s, J_du, casadi.vertcat(*pmv_all), casadi.vertcat(*tcab_all),
+             casadi.vertcat(*tain_all)],
+            ["w", "p"], ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain"])
+        self.solver = self.make_solver(self.settings.solver)
+
+    def make_solver(self, solver_settings) -> casadi.Function:
+        """Build a CasADi nlpsol for this NLP with the given solver settings."""
+        ss = solver_settings
+        ss.validate()
+        opts: dict = {"print_time": False}
+        if ss.jit:
+            opts.update({"jit": True, "compiler": "shell",
+                         "jit_options": {"flags": ["-O2"], "verbose": False}})
+        if ss.name == "ipopt":
+            if ss.default_options:
+                ipopt = {"print_level": 0, "sb": "yes"}
+            else:
+                ipopt = {
+                    "print_level": 0, "sb": "yes",
+                    "max_iter": ss.max_iter, "max_cpu_time": ss.max_cpu_time_s,
+                    "tol": ss.tol, "acceptable_tol": 1e-6, "acceptable_iter": 5,
+                    "linear_solver": ss.linear_solver,
+                    "hessian_approximation": "exact",
+                    "mu_strategy": "adaptive", "mu_oracle": "quality-function",
+                    "nlp_scaling_method": "gradient-based",
+                }
+                if ss.warm_start:
+                    ipopt.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
+                                  "warm_start_bound_frac": 1e-9, "warm_start_slack_bound_frac": 1e-9,
+                                  "warm_start_slack_bound_push": 1e-9, "warm_start_mult_bound_push": 1e-9,
+                                  "mu_init": 1e-5})
+            opts["ipopt"] = ipopt
+            return casadi.nlpsol("ceco_nlp", "ipopt", self._nlp, opts)
+        if ss.name == "fatrop":
+            opts.update({"structure_detection": "auto", "expand": True,
+                         "fatrop": {"print_level": 0, "max_iter": ss.max_iter, "tol": ss.tol,
+                                    "mu_init": 1e-2}})
+            if ss.warm_start:
+                opts["fatrop"]["warm_start_init_point"] = True
+            return casadi.nlpsol("ceco_nlp", "fatrop", self._nlp, opts)
+        # sqpmethod with a QP solver
+        opts.update({"qpsol": "qrqp", "qpsol_options": {"print_iter": False, "print_header": False,
+                                                       "error_on_fail": False},
+                     "max_iter": max(ss.max_iter, 1), "print_iteration": False, "print_header": False,
+                     "print_status": False, "tol_pr": ss.tol, "tol_du": ss.tol,
+                     "convexify_strategy": "regularize", "error_on_fail": False})
+        return casadi.nlpsol("ceco_nlp", "sqpmethod", self._nlp, opts)
+
+    # ------------------------------------------------------------------ state
+    def reset(self) -> None:
+        """Forget the previous plan, the warm start and the bias estimates."""
+        self._plan_u: np.ndarray | None = None  # (N, 2) of the last successful solve
+        self._plan_age = 0
+        self._warm: tuple | None = None  # (w, lam_x, lam_g)
+        self._bias = np.zeros(3)  # d_cab [K per control step], d_evap [K per step], d_ain [K]
+        self._last_pred: tuple | None = None  # (t_cab_next, t_evap_next) predicted w/o bias
+        self._acc.reset()
+
+    @property
+    def horizon_steps(self) -> int:
+        """Np [steps]."""
+        return self.settings.horizon_steps
+
+    # -------------------------------------------------------------- internals
+    def _exogenous(self, obs: Observation):
+        """Fill the previews: hold the last trusted value, else the measured current value."""
+        n1 = self.settings.horizon_steps + 1
+        if obs.n_preview != n1:
+            raise ValueError(f"Observation previews have {obs.n_preview} points; this controller needs Np+1 = {n1}")
+        series = {"t_amb": (obs.preview_t_amb_c, obs.t_amb_c), "solar": (obs.preview_solar_wm2, obs.solar_wm2),
+                  "speed": (obs.preview_speed_mps, obs.speed_mps)}
+        ok = np.asarray(obs.preview_valid, bool).copy()
+        for arr, _ in series.values():
+            ok &= np.isfinite(arr)
+        trusted = int(np.argmin(ok)) if not ok.all() else n1
+        out = {}
+        for key, (arr, now) in series.items():
+            a = np.empty(n1)
+            if trusted > 0:
+                a[:trusted] = arr[:trusted]
+                a[trusted:] = arr[trusted - 1]
+            else:
+                a[:] = now
+            out[key] = a
+        if not self.settings.use_speed_preview:
+            out["speed"] = np.full(n1, float(obs.speed_mps))
+        out["speed"] = np.maximum(out["speed"], 0.0)
+        out["solar"] = np.maximum(out["solar"], 0.0)
+        return out, trusted
+
+    def _update_bias(self, obs: Observation) -> None:
+        s, mp = self.settings, self.model_params
+        if not s.offset_free:
+            return
+        a, lim = s.bias_filter, s.bias_limit_k
+        # vent air: measured vs model at the measured evaporator temperature and the applied flow
+        e_ain = obs.t_vent_c - float(cm.t_ain_c(mp, obs.t_evap_c, obs.mdot_bl_prev_kgps))
+        self._bias[2] = np.clip((1 - a) * self._bias[2] + a * e_ain, -lim, lim)
+        if self._last_pred is not None:
+            e_cab = obs.t_cab_c - self._last_pred[0]
+            e_evap = obs.t_evap_c - self._last_pred[1]
+            self._bias[0] = np.clip((1 - a) * self._bias[0] + a * e_cab, -lim, lim)
+            self._bias[1] = np.clip((1 - a) * self._bias[1] + a * e_evap, -lim, lim)
+
+    def _predict_unbiased(self, obs: Observation, mdot: float, sp: float, ex: dict) -> tuple:
+        """One control period of the model without the T_cab/T_evap biases (for the next bias update)."""
+        t_cab, t_evap, *_ = cm.step(self.model_params, obs.t_cab_c, obs.t_evap_c, mdot, sp, obs.t_int_c,
+                                    obs.t_shell_c, ex["t_amb"][0], ex["speed"][0], n_sub=self.n_sub,
+                                    d_ain_k=self._bias[2] if self.settings.offset_free else 0.0)
+        return float(t_cab), float(t_evap)
+
+    def parameters(self, obs: Observation, ex: dict) -> np.ndarray:
+        """The NLP parameter vector for an observation (previews already filled)."""
+        b = self._bias if self.settings.offset_free else np.zeros(3)
+        return np.concatenate([
+            [obs.t_cab_c, obs.t_evap_c, obs.t_int_c, obs.t_shell_c, b[0], b[1], b[2],
+             obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c],
+            ex["t_amb"], ex["solar"], ex["speed"], obs.pmv_lb, obs.pmv_ub])
+
+    def initial_guess(self, p: np.ndarray) -> np.ndarray:
+        """Primal guess: shifted previous solution, or the previous command held with the model rollout."""
+        if self._warm is not None:
+            return self._shift(self._warm[0])
+        n = self.settings.horizon_steps
+        w = np.zeros(self._nw)
+        u = np.array([np.clip(p[7], self.lim.mdot_bl_min_kgps, self.lim.mdot_bl_max_kgps),
+                      np.clip(p[8], self.lim.t_evap_sp_min_c, self.lim.t_evap_sp_max_c)])
+        x = p[0:2].copy()
+        off = _N_P_FIXED
+        for i in range(n + 1):
+            w[self._idx["x"][i]:self._idx["x"][i] + 2] = x
+            if i < n:
+                w[self._idx["u"][i]:self._idx["u"][i] + 2] = u
+                tc, te, *_ = cm.step(self.model_params, x[0], x[1], u[0], u[1], p[2], p[3], p[off + i],
+                                     p[off + 2 * (n + 1) + i], n_sub=self.n_sub, d_cab_k=p[4] / self.n_sub,
+                                     d_ain_k=p[6])
+                x = np.array([tc, te + p[5]])
+        if self.settings.ioch:
+            w[self._idx["eps"]] = 0.5 * self.settings.eps_ub
+        return np.clip(w, self._lbw, self._ubw)
+
+    def _shift(self, vec: np.ndarray) -> np.ndarray:
+        """Shift a stage-ordered primal (or bound-multiplier) vector one stage forward."""
+        out = vec.copy()
+        n = self.settings.horizon_steps
+        for key in ("x", "u", "s_lo", "s_up", "s_ev", "eps"):
+            ix = self._idx[key]
+            if ix.size == 0:
+                continue
+            width = 2 if key in ("x", "u") else 1
+            blocks = [vec[j:j + width] for j in ix]
+            shifted = blocks[1:] + [blocks[-1]]
+            for j, b in zip(ix, shifted):
+                out[j:j + width] = b
+        del n
+        return out
+
+    def _shift_g(self, lam_g: np.ndarray) -> np.ndarray:
+        """Shift constraint multipliers: the stage blocks have equal size except the first (no s_ev rows)."""
+        # stage 0 block: 2 dyn + 2 pmv = 4 rows; stages >= 1: 2 dyn + 2 pmv + 2 evap = 6 rows
+        out = lam_g.copy()
+        n = self.settings.horizon_steps
+        blocks = [lam_g[4 + 6 * (i - 1): 4 + 6 * i] for i in range(1, n + 1)]
+        for i in range(1, n):
+            out[4 + 6 * (i - 1): 4 + 6 * i] = blocks[i]
+        out[0:4] = np.concatenate([lam_g[4:6], lam_g[6:8]])
+        return out
+
+    def solve_nlp(self, data: NlpData, solver: casadi.Function | None = None) -> dict:
+        """Solve one NLP instance; return a dict with the solution, stats and wall time [ms]."""
+        solver = solver or self.solver
+        args = {"x0": data.x0, "p": data.p, "lbx": self._lbw, "ubx": self._ubw,
+                "lbg": self._lbg, "ubg": self._ubg}
+        if data.lam_x0 is not None:
+            args["lam_x0"] = data.lam_x0
+        if data.lam_g0 is not None:
+            args["lam_g0"] = data.lam_g0
+        t0 = time.perf_counter()
+        sol = solver(**args)
+        dt_ms = 1e3 * (time.perf_counter() - t0)
+        stats = solver.stats()
+        return {"w": np.array(sol["x"]).ravel(), "f": float(sol["f"]),
+                "lam_x": np.array(sol["lam_x"]).ravel(), "lam_g": np.array(sol["lam_g"]).ravel(),
+                "stats": stats, "time_ms": dt_ms,
+                "success": bool(stats.get("success", False)),
+                "status": str(stats.get("return_status", "unknown")),
+                "iterations": int(stats.get("iter_count", -1)) if "iter_count" in stats else None}
+
+    def evaluate(self, w: np.ndarray, p: np.ndarray) -> dict:
+        """Cost terms and predicted trajectories of a primal point."""
+        out = self._eval(w, p)
+        keys = ("J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain")
+        return {k: np.array(v).ravel() if k in ("pmv", "t_cab", "t_ain") else float(v)
+                for k, v in zip(keys, out)}
+
+    def last_nlp(self) -> NlpData | None:
+        """The data of the last NLP solved by :meth:`compute` (for benchmarks)."""
+        return getattr(self, "_last_nlp", None)
+
+    # ---------------------------------------------------------------- compute
+    def compute(self, obs: Observation):
+        """One control step: returns ``(AcInput, Diagnostics)``; never raises on solver trouble."""
+        s = self.settings
+        diag = Diagnostics(k=obs.k, t_s=obs.t_s)
+        acc_cmd = self._acc.step(obs.t_cab_c, s.control_period_s)  # keep the fallback law warm
+        if not obs.measurements_finite():
+            diag.status = "invalid_measurement"
+            diag.success = False
+            diag.message = "non-finite measurement: production ACC law applied"
+            return self._fallback_baseline(diag, acc_cmd)
+        ex, trusted = self._exogenous(obs)
+        diag.trusted_horizon = trusted
+        if trusted < obs.n_preview:
+            diag.message = (f"preview valid for {trusted}/{obs.n_preview} points; "
+                            + ("held last valid value" if trusted else "held measured values"))
+        self._update_bias(obs)
+        p = self.parameters(obs, ex)
+        if s.solver.warm_start and self._warm is not None and not s.solver.default_options:
+            data = NlpData(p=p, x0=self._shift(self._warm[0]), lam_x0=self._shift(self._warm[1]),
+                           lam_g0=self._shift_g(self._warm[2]))
+        else:
+            data = NlpData(p=p, x0=self.initial_guess(p))
+        self._last_nlp = data
+        try:
+            res = self.solve_nlp(data)
+        except RuntimeError as exc:  # CasADi evaluation errors
+            res = {"success": False, "status": f"exception: {exc}", "iterations": None, "time_ms": None,
+                   "w": None, "f": math.nan}
+        diag.status = res["status"]
+        diag.success = res["success"]
+        diag.iterations = res["iterations"]
+        diag.solve_time_ms = res["time_ms"]
+        cmd = None
+        if res["success"] and res["w"] is not None and np.all(np.isfinite(res["w"])):
+            u = self._plan_from(res["w"])
+            if self._valid_command(u[0]):
+                cmd = u[0]
+                self._plan_u, self._plan_age = u, 0
+                self._warm = (res["w"], res["lam_x"], res["lam_g"])
+                ev = self.evaluate(res["w"], p)
+                diag.cost_energy, diag.cost_comfort, diag.cost_ioch = ev["J_e"], ev["J_c"], ev["J_i"]
+                diag.cost_slack, diag.cost_total = ev["J_s"], res["f"]
+                diag.pred_pmv, diag.pred_t_cab_c = ev["pmv"], ev["t_cab"]
+                if s.ioch:
+                    diag.eps = res["w"][self._idx["eps"]]
+            else:
+                diag.message = (diag.message + "; " if diag.message else "") + "solution outside actuator bounds"
+        if cmd is None:
+            self._warm = None
+            if self._plan_u is not None and self._plan_age + 1 < len(self._plan_u):
+                self._plan_age += 1
+                cmd = self._plan_u[self._plan_age]
+                diag.fallback = "shifted_plan"
+                diag.message = (diag.message + "; " if diag.message else "") + \
+                    f"solve failed ({diag.status}): plan of step k-{self._plan_age} applied"
+            else:
+                diag.message = (diag.message + "; " if diag.message else "") + \
+                    f"solve failed ({diag.status}), no plan left: production ACC law applied"
+                return self._fallback_baseline(diag, acc_cmd, obs, ex)
+        cmd = self._clip_checked(cmd)
+        self._last_pred = self._predict_unbiased(obs, cmd[0], cmd[1], ex)
+        diag.mdot_bl_kgps, diag.t_evap_sp_c = float(cmd[0]), float(cmd[1])
+        return AcInput(mdot_bl_kgps=float(cmd[0]), t_evap_sp_c=float(cmd[1])), diag
+
+    def _plan_from(self, w: np.ndarray) -> np.ndarray:
+        return np.array([w[j:j + 2] for j in self._idx["u"]])
+
+    def _valid_command(self, u) -> bool:
+        lim = self.lim
+        return bool(np.all(np.isfinite(u))
+                    and lim.mdot_bl_min_kgps - _BOUND_TOL <= u[0] <= lim.mdot_bl_max_kgps + _BOUND_TOL
+                    and lim.t_evap_sp_min_c - _BOUND_TOL <= u[1] <= lim.t_evap_sp_max_c + _BOUND_TOL)
+
+    def _clip_checked(self, u) -> np.ndarray:
+        if not self._valid_command(u):
+            raise AssertionError(f"internal error: command {u} outside the actuator bounds")
+        lim = self.lim
+        return np.array([min(max(u[0], lim.mdot_bl_min_kgps), lim.mdot_bl_max_kgps),
+                         min(max(u[1], lim.t_evap_sp_min_c), lim.t_evap_sp_max_c)])
+
+    def _fallback_baseline(self, diag: Diagnostics, acc_cmd, obs: Observation | None = None,
+                           ex: dict | None = None):
+        diag.fallback = "baseline"
+        self._plan_u = None
+        self._warm = None
+        u = self._clip_checked(np.array([acc_cmd.mdot_bl_kgps, acc_cmd.t_evap_sp_c]))
+        if obs is not None and ex is not None:
+            self._last_pred = self._predict_unbiased(obs, u[0], u[1], ex)
+        else:
+            self._last_pred = None
+        diag.mdot_bl_kgps, diag.t_evap_sp_c = float(u[0]), float(u[1])
+        return AcInput(mdot_bl_kgps=float(u[0]), t_evap_sp_c=float(u[1])), diag

@@ -1,0 +1,165 @@
+"""Settings of every control strategy (frozen dataclasses) and their defaults.
+
+Strategies (Wang et al., DSCC 2019, Sec. 3; docs/controller.md writes every
+NLP out):
+
+* ``baseline``  production automatic climate control (PI + anti-windup on
+  T_cab vs 26 degC), :mod:`ceco_plant_sim.acc_law`.
+* ``ceco``      the general CECO problem: least A/C energy subject to the model,
+  the PMV comfort zone, T_evap and actuator bounds. It is the paper's
+  eq. (11) *made robust*: the upper PMV bound is backed off by
+  ``pmv_margin`` (0.1 PMV) so model mismatch does not push the plant out of
+  the zone (the paper observed exactly that for CECO-E).
+* ``ceco-e``    energy priority, eq. (12) with gamma = 0: the same problem
+  without back-off; it rides the upper bound.
+* ``ceco-c``    comfort priority, eq. (12) with a large gamma (see
+  ``COMFORT_GAMMA_W`` for its scaling).
+* ``ceco-ioch`` eq. (13): slack eps in [0, eps_UB] tightening the upper bound,
+  cost beta (eta_AC(V) - 1)/(eps + xi); uses the vehicle-speed preview.
+
+All CECO strategies share the exact-penalty softening of the comfort and
+T_evap bounds, the offset-free bias correction and the solver settings.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+__all__ = ["StrategySettings", "SolverSettings", "STRATEGIES", "CECO_STRATEGIES",
+           "strategy_settings", "COMFORT_GAMMA_W"]
+
+COMFORT_GAMMA_W = 20000.0
+"""ceco-c comfort weight gamma [W per PMV^2] (cost term gamma * PMV^2 next to watts).
+
+Scaling: on the identified model, keeping the PMV one unit lower in steady
+state costs about s = 0.3-0.6 kW of electrical power (docs/controller.md). With
+a quadratic penalty the optimum sits where 2 gamma PMV = s, i.e.
+PMV* = s / (2 gamma) = 0.008-0.015 for gamma = 20 kW: the comfort term
+dominates (PMV held at neutral) while staying within 2 orders of magnitude of
+the power terms, which keeps the NLP well conditioned. The paper's 1e5 was in
+its own (unstated) units.
+"""
+
+
+@dataclasses.dataclass(frozen=True)
+class SolverSettings:
+    """NLP solver settings (choice justified with numbers in docs/controller.md)."""
+
+    name: str = "ipopt"
+    """CasADi nlpsol plugin: 'ipopt', 'fatrop' or 'sqpmethod'."""
+    max_iter: int = 60
+    """Iteration limit per solve [-]."""
+    max_cpu_time_s: float = 1.0
+    """CPU-time limit per solve [s]; must be below the control period."""
+    tol: float = 1e-8
+    """Convergence tolerance (IPOPT ``tol``) [-]."""
+    warm_start: bool = True
+    """Warm start from the shifted previous primal-dual solution."""
+    jit: bool = False
+    """Compile the NLP functions to C with gcc (CasADi JIT) before the first solve."""
+    linear_solver: str = "mumps"
+    """IPOPT linear solver."""
+    default_options: bool = False
+    """Reference mode: IPOPT with its default settings, no warm start (what MPCTools did)."""
+
+    def validate(self) -> None:
+        """Raise ValueError naming the field if a setting is not usable."""
+        if self.name not in ("ipopt", "fatrop", "sqpmethod"):
+            raise ValueError(f"SolverSettings.name must be ipopt, fatrop or sqpmethod, got {self.name!r}")
+        if not (isinstance(self.max_iter, int) and self.max_iter >= 0):
+            raise ValueError("SolverSettings.max_iter must be an int >= 0")
+        if not (math.isfinite(self.max_cpu_time_s) and self.max_cpu_time_s > 0):
+            raise ValueError("SolverSettings.max_cpu_time_s must be > 0")
+        if not (math.isfinite(self.tol) and self.tol > 0):
+            raise ValueError("SolverSettings.tol must be > 0")
+
+
+@dataclasses.dataclass(frozen=True)
+class StrategySettings:
+    """One CECO strategy's NLP settings (see the module docstring)."""
+
+    name: str = "ceco"
+    """Strategy name: ceco, ceco-e, ceco-c or ceco-ioch."""
+    horizon_steps: int = 6
+    """Prediction horizon Np [steps] (paper: 6)."""
+    control_period_s: float = 5.0
+    """Control period Ts [s] (paper: 5 s); a whole multiple of the model step."""
+    gamma_w: float = 0.0
+    """Comfort weight gamma on PMV^2 [W per PMV^2] (0 except ceco-c)."""
+    pmv_margin: float = 0.0
+    """Back-off of the upper PMV bound [PMV] (robustness against model mismatch)."""
+    ioch: bool = False
+    """Use the IOCH slack eps and its cost (ceco-ioch)."""
+    beta_w: float = 300.0
+    """IOCH weight beta [W PMV] on (eta_AC - 1)/(eps + xi)."""
+    xi: float = 0.1
+    """IOCH regularity term xi [PMV]."""
+    eps_ub: float = 0.4
+    """Largest IOCH tightening eps_UB [PMV]."""
+    use_speed_preview: bool = False
+    """Use the previewed vehicle speed in eta_AC; otherwise hold the measured speed."""
+    slack_weight_kj: float = 1000.0
+    """Exact L1 penalty rho on comfort/T_evap bound violations [kJ per PMV (or K) per stage]."""
+    du_weight_kj: float = 0.02
+    """Move penalty on normalised input changes [kJ per (full range)^2] (regularisation)."""
+    t_evap_lb_c: float = 2.0
+    """Lower bound on the evaporator wall temperature [degC] (frost), soft."""
+    t_evap_ub_c: float = 60.0
+    """Upper bound on the evaporator wall temperature [degC], soft (system limit)."""
+    offset_free: bool = True
+    """Estimate additive biases on T_cab, T_evap and T_ain from the last prediction errors."""
+    bias_filter: float = 0.3
+    """First-order filter gain of the bias estimates per control step [-] (0..1]."""
+    bias_limit_k: float = 3.0
+    """Largest magnitude of a bias estimate [K] (per control step for T_cab/T_evap)."""
+    solver: SolverSettings = SolverSettings()
+    """NLP solver settings."""
+
+    def validate(self) -> None:
+        """Raise ValueError naming the field if a setting is not usable."""
+        if self.name not in CECO_STRATEGIES:
+            raise ValueError(f"StrategySettings.name must be one of {CECO_STRATEGIES}, got {self.name!r}")
+        if not (isinstance(self.horizon_steps, int) and 1 <= self.horizon_steps <= 200):
+            raise ValueError(f"StrategySettings.horizon_steps must be an int in [1, 200], got {self.horizon_steps!r}")
+        for name in ("control_period_s", "xi"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"StrategySettings.{name} must be finite and > 0, got {v!r}")
+        for name in ("gamma_w", "pmv_margin", "beta_w", "eps_ub", "slack_weight_kj", "du_weight_kj",
+                     "bias_limit_k"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"StrategySettings.{name} must be finite and >= 0, got {v!r}")
+        if not 0.0 < self.bias_filter <= 1.0:
+            raise ValueError("StrategySettings.bias_filter must be in (0, 1]")
+        if not self.t_evap_lb_c < self.t_evap_ub_c:
+            raise ValueError("StrategySettings.t_evap_lb_c must be < t_evap_ub_c")
+        if self.solver.max_cpu_time_s >= self.control_period_s:
+            raise ValueError("StrategySettings.solver.max_cpu_time_s must be below control_period_s")
+        self.solver.validate()
+
+
+CECO_STRATEGIES = ("ceco", "ceco-e", "ceco-c", "ceco-ioch")
+"""Names of the NMPC strategies."""
+
+STRATEGIES = ("baseline",) + CECO_STRATEGIES
+"""Every strategy, baseline first."""
+
+_DEFAULTS = {
+    "ceco": dict(pmv_margin=0.1),
+    "ceco-e": dict(),
+    "ceco-c": dict(gamma_w=COMFORT_GAMMA_W),
+    "ceco-ioch": dict(ioch=True, use_speed_preview=True),
+}
+
+
+def strategy_settings(name: str, **overrides) -> StrategySettings:
+    """Default settings of strategy ``name`` with keyword overrides; validated."""
+    if name not in _DEFAULTS:
+        raise ValueError(f"unknown CECO strategy {name!r}; choose from {CECO_STRATEGIES}")
+    kw = dict(_DEFAULTS[name])
+    kw.update(overrides)
+    s = StrategySettings(name=name, **kw)
+    s.validate()
+    return s
