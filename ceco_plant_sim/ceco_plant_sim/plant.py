@@ -1,0 +1,558 @@
+"""Cabin + A/C plant: the "truth" model the controllers are tested against.
+
+A lumped thermal network of the cabin (air with its humidity ratio, interior
+mass, shell, glazing) coupled to an A/C loop (blower, evaporator wall with
+condensation, electric scroll compressor held by the A/C ECU's PI on the
+evaporator wall temperature, condenser cooled by fan + ram air, refrigerant
+cycle from CoolProp properties). It has more states and effects than the
+control-oriented model of the method paper (eqs. 1-3: T_cab, T_evap, T_ain),
+so a controller built on that model meets real mismatch.
+
+States (all integrated together by classical RK4 at the fixed sub-step
+``PlantParams.substep_s``; the refrigerant loop is algebraic and solved by
+Newton at every stage, see :mod:`ceco_plant_sim.refrigerant`):
+
+=========================  ======================================  =======
+name                       meaning                                  unit
+=========================  ======================================  =======
+t_cab_c                    cabin air temperature                    degC
+t_int_c                    interior mass (seats, dashboard, trim)   degC
+t_shell_c                  shell (roof, doors, pillars, floor)      degC
+t_glass_c                  glazing                                  degC
+t_evap_c                   evaporator wall (fins + tubes)           degC
+w_cab_kgkg                 cabin humidity ratio                     kg/kg dry air
+comp_pi_integral_rpm       integral part of the compressor PI       rpm
+=========================  ======================================  =======
+
+Equations, units, references and the parameter table: ``docs/plant.md``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+from ceco_plant_sim.plant_params import (
+    MDOT_BL_MAX_KGPS,
+    MDOT_BL_MIN_KGPS,
+    T_EVAP_SP_MAX_C,
+    T_EVAP_SP_MIN_C,
+    PlantParams,
+)
+from ceco_plant_sim.refrigerant import (
+    CompressorModel,
+    CycleSolution,
+    build_cycle_tables,
+    solve_cycle,
+    water_saturation_table,
+)
+
+__all__ = [
+    "AcInput",
+    "PlantState",
+    "PlantOutputs",
+    "CabinPlant",
+    "validate_environment",
+    "humidity_ratio",
+    "relative_humidity",
+    "condenser_eps_c_wpk",
+    "steady_cycle_at_load",
+]
+
+_EPS_W = 0.621945
+"""Ratio of molar masses water/dry air [-] (ASHRAE Fundamentals 2017 ch. 1, eq. 22)."""
+
+
+def _check_finite(name: str, value) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{name}: must be finite, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class AcInput:
+    """Supervisory command to the A/C, held over one plant step."""
+
+    mdot_bl_kgps: float
+    """Blower (supply) air mass flow [kg/s], in [0.05, 0.17]."""
+    t_evap_sp_c: float
+    """Evaporator wall temperature set-point [degC], in [3, 10]."""
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> AcInput:
+        """Raise ValueError naming the field if it is not finite or outside the actuator bounds."""
+        m = _check_finite("mdot_bl_kgps", self.mdot_bl_kgps)
+        if not MDOT_BL_MIN_KGPS <= m <= MDOT_BL_MAX_KGPS:
+            raise ValueError(f"mdot_bl_kgps: must be in [{MDOT_BL_MIN_KGPS}, {MDOT_BL_MAX_KGPS}] kg/s, got {m}")
+        t = _check_finite("t_evap_sp_c", self.t_evap_sp_c)
+        if not T_EVAP_SP_MIN_C <= t <= T_EVAP_SP_MAX_C:
+            raise ValueError(f"t_evap_sp_c: must be in [{T_EVAP_SP_MIN_C}, {T_EVAP_SP_MAX_C}] degC, got {t}")
+        return self
+
+
+_ENV_RANGES = {
+    "t_amb_c": (-40.0, 60.0),
+    "solar_wm2": (0.0, 1500.0),
+    "speed_mps": (0.0, 80.0),
+    "rh": (0.0, 1.0),
+}
+
+
+def validate_environment(env) -> tuple[float, float, float, float]:
+    """Check an environment (any object with t_amb_c, solar_wm2, speed_mps, rh); return the four floats.
+
+    Raises ValueError naming ``env.<field>`` if missing, not finite or out of
+    range (t_amb_c [-40, 60] degC, solar_wm2 [0, 1500] W/m2, speed_mps
+    [0, 80] m/s, rh [0, 1]).
+    """
+    out = []
+    for name, (lo, hi) in _ENV_RANGES.items():
+        if not hasattr(env, name):
+            raise ValueError(f"env.{name}: missing")
+        v = _check_finite(f"env.{name}", getattr(env, name))
+        if not lo <= v <= hi:
+            raise ValueError(f"env.{name}: must be in [{lo}, {hi}], got {v}")
+        out.append(v)
+    return out[0], out[1], out[2], out[3]
+
+
+def humidity_ratio(t_c: float, rh: float, p_atm_pa: float = 101325.0) -> float:
+    """Humidity ratio [kg water / kg dry air] of moist air at t_c [degC] and relative humidity rh [0..1].
+
+    W = 0.621945 p_w / (p - p_w), p_w = rh * p_ws(t) (ASHRAE Fundamentals 2017 ch. 1, eqs. 20, 22);
+    p_ws from CoolProp (IAPWS-95), tabulated.
+    """
+    p_w = rh * water_saturation_table()(t_c)
+    return _EPS_W * p_w / (p_atm_pa - p_w)
+
+
+def relative_humidity(t_c: float, w_kgkg: float, p_atm_pa: float = 101325.0) -> float:
+    """Relative humidity [0..1] of moist air at t_c [degC] and humidity ratio w [kg/kg] (inverse of humidity_ratio)."""
+    p_w = p_atm_pa * w_kgkg / (_EPS_W + w_kgkg)
+    return p_w / water_saturation_table()(t_c)
+
+
+@dataclass(frozen=True)
+class PlantState:
+    """Complete dynamic state of the plant (see the module docstring for the meaning of each field)."""
+
+    t_cab_c: float
+    """Cabin air temperature [degC]."""
+    t_int_c: float
+    """Interior mass temperature (seats, dashboard, trim) [degC]."""
+    t_shell_c: float
+    """Shell temperature (roof, doors, pillars, floor) [degC]."""
+    t_glass_c: float
+    """Glazing temperature [degC]."""
+    t_evap_c: float
+    """Evaporator wall temperature [degC]."""
+    w_cab_kgkg: float
+    """Cabin humidity ratio [kg water / kg dry air]."""
+    comp_pi_integral_rpm: float = 0.0
+    """Integral part of the A/C ECU's compressor speed PI [rpm]."""
+
+    def validate(self) -> PlantState:
+        """Raise ValueError naming the field if it is not finite or physically impossible."""
+        for f in fields(self):
+            _check_finite(f.name, getattr(self, f.name))
+        for name in ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c"):
+            v = getattr(self, name)
+            if not -40.0 <= v <= 120.0:
+                raise ValueError(f"{name}: must be in [-40, 120] degC, got {v}")
+        if not 0.0 <= self.w_cab_kgkg <= 0.1:
+            raise ValueError(f"w_cab_kgkg: must be in [0, 0.1] kg/kg, got {self.w_cab_kgkg}")
+        return self
+
+    def as_tuple(self) -> tuple:
+        """The state in field order (the integrator's vector)."""
+        return tuple(float(getattr(self, f.name)) for f in fields(self))
+
+    @classmethod
+    def from_initial(cls, initial: dict, params: PlantParams, env) -> PlantState:
+        """Hot-soak (or any) initial state from a scenario's ``initial`` mapping.
+
+        Required keys: ``t_cab_c, t_int_c, t_shell_c`` [degC], ``rh_cab`` [0..1].
+        Optional: ``t_glass_c`` (default t_cab_c: in a soak the glazing sits
+        between the hot interior and the ambient, close to the cabin air),
+        ``t_evap_c`` (default t_cab_c: the HVAC module under the dashboard
+        soaks at cabin air temperature). The compressor PI starts empty.
+        ``env`` is validated (its ambient is not used for the defaults).
+        """
+        validate_environment(env)
+        for key in ("t_cab_c", "t_int_c", "t_shell_c", "rh_cab"):
+            if key not in initial:
+                raise ValueError(f"initial.{key}: missing")
+        t_cab = _check_finite("initial.t_cab_c", initial["t_cab_c"])
+        rh = _check_finite("initial.rh_cab", initial["rh_cab"])
+        if not 0.0 <= rh <= 1.0:
+            raise ValueError(f"initial.rh_cab: must be in [0, 1], got {rh}")
+        state = cls(
+            t_cab_c=t_cab,
+            t_int_c=_check_finite("initial.t_int_c", initial["t_int_c"]),
+            t_shell_c=_check_finite("initial.t_shell_c", initial["t_shell_c"]),
+            t_glass_c=_check_finite("initial.t_glass_c", initial.get("t_glass_c", t_cab)),
+            t_evap_c=_check_finite("initial.t_evap_c", initial.get("t_evap_c", t_cab)),
+            w_cab_kgkg=humidity_ratio(t_cab, rh, params.p_atm_pa),
+            comp_pi_integral_rpm=0.0,
+        )
+        return state.validate()
+
+
+@dataclass(frozen=True)
+class PlantOutputs:
+    """Physics snapshot after one plant step.
+
+    Temperatures, humidity, speeds and refrigerant states are the values at
+    the END of the step; powers are MEANS over the step (energy integrated
+    over the sub-steps / dt) and energies are the totals over the step.
+    """
+
+    t_cab_c: float
+    """Cabin air temperature [degC]."""
+    t_int_c: float
+    """Interior mass temperature [degC]."""
+    t_shell_c: float
+    """Shell temperature [degC]."""
+    t_glass_c: float
+    """Glazing temperature [degC]."""
+    t_evap_c: float
+    """Evaporator wall temperature [degC] (T_evap of the paper)."""
+    t_vent_c: float
+    """Air temperature at the vents [degC] (T_ain of the paper)."""
+    t_evap_out_c: float
+    """Air temperature leaving the evaporator [degC]."""
+    t_evap_sat_c: float
+    """Refrigerant evaporating temperature [degC]."""
+    t_cond_c: float
+    """Refrigerant condensing temperature [degC]."""
+    rh_cab: float
+    """Cabin relative humidity [0..1]."""
+    w_cab_kgkg: float
+    """Cabin humidity ratio [kg/kg dry air]."""
+    p_comp_w: float
+    """Compressor electrical power, step mean [W]."""
+    p_blower_w: float
+    """Blower electrical power, step mean [W]."""
+    p_cond_fan_w: float
+    """Condenser fan electrical power, step mean [W]."""
+    e_comp_j: float
+    """Compressor electrical energy over the step [J]."""
+    e_blower_j: float
+    """Blower electrical energy over the step [J]."""
+    q_evap_w: float
+    """Heat removed from the air by the evaporator (sensible + latent), step mean [W]."""
+    q_latent_w: float
+    """Latent part of q_evap_w (condensation), step mean [W]."""
+    q_evap_ref_w: float
+    """Heat absorbed by the refrigerant, step mean [W]."""
+    cop: float
+    """Step-mean refrigerant capacity / step-mean compressor electrical power [-] (0 if the compressor is off)."""
+    comp_speed_rpm: float
+    """Compressor speed at the end of the step [rpm] (min speed while duty-cycling, 0 when off)."""
+    comp_duty: float
+    """On-time fraction of the compressor at the end of the step [0..1] (< 1 only below min speed)."""
+    capacity_limited: bool
+    """True when the compressor PI demands more than the maximum speed at the end of the step."""
+    mop_active: bool
+    """True when the expansion valve MOP caps the evaporating temperature at the end of the step."""
+    mdot_ref_kgps: float
+    """Refrigerant mass flow (duty-averaged) at the end of the step [kg/s]."""
+    cycle_iterations: int
+    """Newton iterations of the last refrigerant-loop solve [-]."""
+
+
+def condenser_eps_c_wpk(params: PlantParams, speed_mps: float) -> float:
+    """Condenser effectiveness x air heat-capacity rate [W/K] at vehicle speed ``speed_mps``.
+
+    Face velocity v = sqrt(v_fan^2 + (k_ram V)^2) (fan and ram pressure add
+    across the quadratic core resistance), mdot_air = rho A v, UA = UA_ref
+    (v / v_ref)^n, eps = 1 - exp(-UA / (mdot_air cp)) (condensing side
+    isothermal, C_r = 0; Incropera & DeWitt, eq. 11.35a).
+    """
+    p = params
+    v = math.sqrt(p.v_face_fan_mps ** 2 + (p.ram_face_ratio * speed_mps) ** 2)
+    c_air = p.rho_air_kgm3 * p.a_cond_face_m2 * v * p.cp_air_jpkgk
+    ua = p.ua_cond_ref_wpk * (v / p.v_face_ref_mps) ** p.ua_cond_exp
+    return c_air * (1.0 - math.exp(-ua / c_air))
+
+
+def _compressor_model(p: PlantParams) -> CompressorModel:
+    return CompressorModel(
+        displacement_m3=p.displacement_m3,
+        eta_vol_0=p.eta_vol_0,
+        eta_vol_slope=p.eta_vol_slope,
+        eta_is_max=p.eta_is_max,
+        eta_is_curv=p.eta_is_curv,
+        pr_opt=p.pr_opt,
+        eta_motor_inverter=p.eta_motor_inverter,
+    )
+
+
+def _tables(p: PlantParams):
+    return build_cycle_tables(p.refrigerant, float(p.superheat_k), float(p.subcool_k))
+
+
+def steady_cycle_at_load(params: PlantParams, q_evap_w: float, t_wall_c: float, t_amb_c: float,
+                         speed_mps: float) -> tuple[float, CycleSolution]:
+    """Compressor speed and cycle state that deliver ``q_evap_w`` at a fixed evaporator wall temperature.
+
+    Used for the efficiency-versus-vehicle-speed map (fixed cooling load):
+    bisection on the compressor speed (60 halvings) between 1 rpm and
+    ``comp_speed_max_rpm``. Raises ValueError if the load exceeds the
+    capacity at maximum speed. Returns (speed_rpm, CycleSolution).
+    """
+    p = params.validate()
+    tab = _tables(p)
+    comp = _compressor_model(p)
+    epsc = condenser_eps_c_wpk(p, speed_mps)
+
+    def q_at(n):
+        s = solve_cycle(tab, comp, n, t_wall_c, p.ua_evap_ref_wpk, t_amb_c, epsc, p.te_mop_c,
+                        tol_k=p.cycle_tol_k, max_iter=p.cycle_max_iter)
+        return s.q_evap_ref_w, s
+
+    q_max, _ = q_at(p.comp_speed_max_rpm)
+    if q_evap_w > q_max:
+        raise ValueError(f"q_evap_w: {q_evap_w:.0f} W exceeds the capacity {q_max:.0f} W at maximum speed")
+    lo, hi = 1.0, p.comp_speed_max_rpm
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if q_at(mid)[0] < q_evap_w:
+            lo = mid
+        else:
+            hi = mid
+    n = 0.5 * (lo + hi)
+    return n, q_at(n)[1]
+
+
+class CabinPlant:
+    """The cabin + A/C plant. ``step(command, env, dt_s)`` advances time with the command held.
+
+    Parameters
+    ----------
+    params : PlantParams (validated here).
+    state : PlantState, e.g. ``PlantState.from_initial(scenario.initial, params, env)``.
+    """
+
+    def __init__(self, params: PlantParams, state: PlantState) -> None:
+        if not isinstance(params, PlantParams):
+            raise ValueError(f"params: must be PlantParams, got {type(params).__name__}")
+        if not isinstance(state, PlantState):
+            raise ValueError(f"state: must be PlantState, got {type(state).__name__}")
+        self.params = params.validate()
+        self._x = state.validate().as_tuple()
+        self._tab = _tables(params)
+        self._wsat = water_saturation_table()
+        self._comp = _compressor_model(params)
+        self._guess: tuple[float, float] | None = None
+        self._t_s = 0.0
+        self._last: PlantOutputs | None = None
+        p = params
+        self._m_air_kg = p.rho_air_kgm3 * p.cabin_volume_m3
+        self._c_cab_jpk = self._m_air_kg * p.cp_air_jpkgk
+
+    # ------------------------------------------------------------------ API
+    @property
+    def state(self) -> PlantState:
+        """Current state (a new frozen PlantState)."""
+        return PlantState(*self._x)
+
+    @property
+    def t_s(self) -> float:
+        """Simulated time since construction [s] (sum of dt_s)."""
+        return self._t_s
+
+    def outputs(self) -> PlantOutputs:
+        """Outputs of the last step; RuntimeError before the first step."""
+        if self._last is None:
+            raise RuntimeError("outputs: no step taken yet (call step() first)")
+        return self._last
+
+    def step(self, command: AcInput, env, dt_s: float) -> PlantOutputs:
+        """Advance the plant by ``dt_s`` seconds with ``command`` and ``env`` held; return the outputs.
+
+        The interval is split into ceil(dt_s / substep_s) equal RK4 sub-steps,
+        so dt_s = 1 and dt_s = 5 integrate the same way when substep_s
+        divides 1 s. Raises ValueError for a bad command, environment or dt_s.
+        """
+        if not isinstance(command, AcInput):
+            raise ValueError(f"command: must be AcInput, got {type(command).__name__}")
+        command.validate()
+        dt = _check_finite("dt_s", dt_s)
+        if dt <= 0.0:
+            raise ValueError(f"dt_s: must be > 0, got {dt}")
+        if dt > 3600.0:
+            raise ValueError(f"dt_s: must be <= 3600 s, got {dt}")
+        envt = validate_environment(env)
+        n_sub = max(1, math.ceil(dt / self.params.substep_s - 1e-9))
+        h = dt / n_sub
+        x = self._x
+        acc = [0.0] * 6  # e_comp, e_fan, q_evap_air, q_latent, q_ref, (unused)
+        u = (float(command.mdot_bl_kgps), float(command.t_evap_sp_c))
+        for _ in range(n_sub):
+            k1, a1 = self._rhs(x, u, envt)
+            x2 = tuple(xi + 0.5 * h * ki for xi, ki in zip(x, k1))
+            k2, a2 = self._rhs(x2, u, envt)
+            x3 = tuple(xi + 0.5 * h * ki for xi, ki in zip(x, k2))
+            k3, a3 = self._rhs(x3, u, envt)
+            x4 = tuple(xi + h * ki for xi, ki in zip(x, k3))
+            k4, a4 = self._rhs(x4, u, envt)
+            x = tuple(xi + h / 6.0 * (q1 + 2.0 * q2 + 2.0 * q3 + q4)
+                      for xi, q1, q2, q3, q4 in zip(x, k1, k2, k3, k4))
+            for j in range(5):
+                acc[j] += h / 6.0 * (a1[j] + 2.0 * a2[j] + 2.0 * a3[j] + a4[j])
+        for i, v in enumerate(x):
+            if not math.isfinite(v):
+                raise RuntimeError(f"plant state {fields(PlantState)[i].name} became non-finite")
+        self._x = x
+        self._t_s += dt
+        p_bl = self._blower_power_w(u[0])
+        _, alg = self._rhs(x, u, envt, final=True)
+        e_comp, e_fan, e_q, e_lat, e_ref = acc[:5]
+        t_cab, t_int, t_sh, t_gl, t_ev, w_cab, _ = x
+        out = PlantOutputs(
+            t_cab_c=t_cab,
+            t_int_c=t_int,
+            t_shell_c=t_sh,
+            t_glass_c=t_gl,
+            t_evap_c=t_ev,
+            t_vent_c=alg["t_vent_c"],
+            t_evap_out_c=alg["t_evap_out_c"],
+            t_evap_sat_c=alg["t_evap_sat_c"],
+            t_cond_c=alg["t_cond_c"],
+            rh_cab=relative_humidity(t_cab, w_cab, self.params.p_atm_pa),
+            w_cab_kgkg=w_cab,
+            p_comp_w=e_comp / dt,
+            p_blower_w=p_bl,
+            p_cond_fan_w=e_fan / dt,
+            e_comp_j=e_comp,
+            e_blower_j=p_bl * dt,
+            q_evap_w=e_q / dt,
+            q_latent_w=e_lat / dt,
+            q_evap_ref_w=e_ref / dt,
+            cop=(e_ref / e_comp) if e_comp > 0.0 else 0.0,
+            comp_speed_rpm=alg["comp_speed_rpm"],
+            comp_duty=alg["comp_duty"],
+            capacity_limited=alg["capacity_limited"],
+            mop_active=alg["mop_active"],
+            mdot_ref_kgps=alg["mdot_ref_kgps"],
+            cycle_iterations=alg["iterations"],
+        )
+        self._last = out
+        return out
+
+    # -------------------------------------------------------------- physics
+    def _blower_power_w(self, mdot_kgps: float) -> float:
+        """Fan law: P = dp(mdot) * Vdot / eta, dp = dp_ref (mdot/mdot_ref)^2  =>  P ~ mdot^3."""
+        p = self.params
+        r = mdot_kgps / p.mdot_bl_ref_kgps
+        return p.dp_blower_ref_pa * r * r * (mdot_kgps / p.rho_air_kgm3) / p.eta_blower
+
+    def _rhs(self, x, u, envt, final: bool = False):
+        p = self.params
+        t_cab, t_int, t_sh, t_gl, t_ev, w_cab, pi_i = x
+        mdot, t_sp = u
+        t_amb, solar, speed, rh_amb = envt
+        cp_a = p.cp_air_jpkgk
+        wsat = self._wsat
+        patm = p.p_atm_pa
+
+        # ambient humidity ratio
+        pw_amb = rh_amb * wsat(t_amb)
+        w_amb = _EPS_W * pw_amb / (patm - pw_amb)
+
+        # --- air loop: mixing box -> blower -> evaporator -> ducts -> vents
+        r = p.recirc_fraction
+        t_mix = r * t_cab + (1.0 - r) * t_amb
+        w_mix = r * w_cab + (1.0 - r) * w_amb
+        cp_m = cp_a + w_mix * p.cp_vap_jpkgk
+        c_air = mdot * cp_m
+        rr = mdot / p.mdot_bl_ref_kgps
+        p_bl = p.dp_blower_ref_pa * rr * rr * (mdot / p.rho_air_kgm3) / p.eta_blower
+        t_in = t_mix + p_bl / c_air  # blow-through module: all blower power ends as heat in the air
+        ua_air = p.ua_evap_air_ref_wpk * rr ** p.ua_evap_air_exp
+        bf = math.exp(-ua_air / c_air)  # bypass factor = 1 - effectiveness
+        t_out = t_ev + bf * (t_in - t_ev)
+        pws_w = wsat(t_ev)
+        w_sw = _EPS_W * pws_w / (patm - pws_w)
+        excess = w_mix - w_sw
+        w_out = w_mix - (1.0 - bf) * excess if excess > 0.0 else w_mix
+        q_sens = c_air * (t_in - t_out)
+        q_lat = mdot * (w_mix - w_out) * p.h_fg_jpkg
+        t_vent = t_out + (t_int - t_out) * (1.0 - math.exp(-p.ua_duct_wpk / c_air))
+        q_duct = c_air * (t_vent - t_out)
+
+        # --- compressor: A/C ECU PI on the evaporator wall temperature
+        err = t_ev - t_sp
+        n_cmd = p.comp_kp_rpm_per_k * err + pi_i
+        n_max = p.comp_speed_max_rpm
+        n_min = p.comp_speed_min_rpm
+        if (n_cmd >= n_max and err > 0.0) or (n_cmd <= 0.0 and err < 0.0):
+            dpi = 0.0  # conditional integration (anti-windup)
+        else:
+            dpi = p.comp_ki_rpm_per_ks * err
+        if n_cmd >= n_max:
+            n_run, duty = n_max, 1.0
+        elif n_cmd >= n_min:
+            n_run, duty = n_cmd, 1.0
+        elif n_cmd > 0.0:
+            n_run, duty = n_min, n_cmd / n_min
+        else:
+            n_run, duty = 0.0, 0.0
+        epsc = condenser_eps_c_wpk(p, speed)
+        sol = solve_cycle(self._tab, self._comp, n_run, t_ev, p.ua_evap_ref_wpk, t_amb, epsc, p.te_mop_c,
+                          guess=self._guess, tol_k=p.cycle_tol_k, max_iter=p.cycle_max_iter)
+        if n_run > 0.0:
+            self._guess = (sol.t_evap_sat_c, sol.t_cond_c)
+        q_ref = duty * sol.q_evap_ref_w
+        p_comp = duty * sol.p_comp_w
+        p_fan = duty * p.p_cond_fan_w if n_run > 0.0 else 0.0
+
+        # --- cabin network
+        h_in = p.h_in_natural_wm2k + (p.h_in_forced_wm2k - p.h_in_natural_wm2k) * rr ** 0.8
+        h_out = p.h_out_natural_wm2k + p.h_out_speed_coef * speed ** 0.8
+        m_inf = p.infiltration_0_kgps + p.infiltration_per_mps_kgps * speed
+        g_int = h_in * p.a_int_m2
+        g_sh_in = p.u_shell_in_wm2k * p.a_shell_m2
+        g_gl_in = h_in * p.a_glass_m2
+        q_int_cab = g_int * (t_int - t_cab)
+        q_sh_cab = g_sh_in * (t_sh - t_cab)
+        q_gl_cab = g_gl_in * (t_gl - t_cab)
+        q_rad_sh = p.g_rad_int_shell_wpk * (t_int - t_sh)
+        q_rad_gl = p.g_rad_int_glass_wpk * (t_int - t_gl)
+        n_occ = p.n_occupants
+        cp_cab = cp_a + w_cab * p.cp_vap_jpkgk
+        d_cab = (mdot * cp_cab * (t_vent - t_cab) + m_inf * cp_cab * (t_amb - t_cab) + q_int_cab + q_sh_cab
+                 + q_gl_cab + n_occ * p.occ_sensible_w) / (self._m_air_kg * cp_cab)
+        d_w = (mdot * (w_out - w_cab) + m_inf * (w_amb - w_cab)
+               + n_occ * p.occ_latent_w / p.h_fg_jpkg) / self._m_air_kg
+        d_int = (p.tau_glass * p.a_glass_sun_m2 * solar - q_int_cab - q_rad_sh - q_rad_gl - q_duct) / p.c_int_jpk
+        d_sh = (p.alpha_shell * p.a_shell_sun_m2 * solar + h_out * p.a_shell_m2 * (t_amb - t_sh) - q_sh_cab
+                + q_rad_sh) / p.c_shell_jpk
+        d_gl = (p.alpha_glass * p.a_glass_sun_m2 * solar + h_out * p.a_glass_m2 * (t_amb - t_gl) - q_gl_cab
+                + q_rad_gl) / p.c_glass_jpk
+        d_ev = (q_sens + q_lat - q_ref) / p.c_evap_jpk
+
+        dx = (d_cab, d_int, d_sh, d_gl, d_ev, d_w, dpi)
+        powers = (p_comp, p_fan, q_sens + q_lat, q_lat, q_ref)
+        if not final:
+            return dx, powers
+        alg = {
+            "t_vent_c": t_vent,
+            "t_evap_out_c": t_out,
+            "t_evap_sat_c": sol.t_evap_sat_c,
+            "t_cond_c": sol.t_cond_c,
+            "comp_speed_rpm": n_run,
+            "comp_duty": duty,
+            "capacity_limited": n_cmd >= n_max,
+            "mop_active": sol.mop_active,
+            "mdot_ref_kgps": duty * sol.mdot_ref_kgps,
+            "iterations": sol.iterations,
+        }
+        return dx, alg

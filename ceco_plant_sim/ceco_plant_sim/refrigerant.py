@@ -1,0 +1,432 @@
+"""Vapour-compression cycle of the plant's A/C, with CoolProp properties.
+
+The refrigerant loop is quasi-steady (its mass and energy storage are fast
+compared with the evaporator wall and the cabin): at every plant sub-step the
+evaporating and condensing temperatures are the solution of two algebraic
+balances (see :func:`solve_cycle` and ``docs/plant.md``)::
+
+    r1 = mdot_ref * (h1 - h3)              - UA_er * (T_wall - T_e)        = 0
+    r2 = mdot_ref * (h1 - h3 + dh_s/eta_is) - eps_c * C_c * (T_c - T_amb) = 0
+
+    mdot_ref = rho_1(T_e) * V_disp * N/60 * eta_vol(pr)       (compressor)
+    W_shaft  = mdot_ref * dh_s(T_e, T_c) / eta_is(pr),  P_el = W_shaft / eta_mi
+
+State points: 1 compressor suction (evaporator exit, superheat ``dT_sh``
+above T_e at the evaporating pressure, suction line losses neglected),
+2s isentropic discharge at the condensing pressure, 3 condenser exit
+(subcooled by ``dT_sc`` below T_c at the condensing pressure), 4 evaporator
+inlet after isenthalpic expansion (h4 = h3).
+
+Refrigerant properties come from CoolProp (Bell et al., Ind. Eng. Chem. Res.
+53 (2014) 2498) for R-1234yf (Richter et al. / Akasaka EOS as shipped in
+CoolProp). They are tabulated once per (fluid, superheat, subcooling, grid)
+by :func:`build_cycle_tables` (cached) and interpolated (linear in 1-D,
+bilinear in 2-D on uniform grids) in pure Python, which is what makes a
+600 s simulation run in a fraction of a second. ``tests/test_refrigerant.py``
+bounds the table error against direct CoolProp calls.
+
+A thermostatic expansion valve with a maximum operating pressure (MOP
+charge) caps the evaporating temperature at ``te_mop_c``: in a hot start the
+compressor then runs at the MOP suction density and the evaporator is
+compressor-limited (the refrigerant leaves more superheated; the
+superheat change is neglected in the enthalpies).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import CoolProp.CoolProp as CP
+import numpy as np
+
+from ceco_plant_sim.units import c_to_k
+
+__all__ = [
+    "CycleTables",
+    "CompressorModel",
+    "CycleSolution",
+    "build_cycle_tables",
+    "water_saturation_table",
+    "direct_cycle_properties",
+    "solve_cycle",
+]
+
+
+class _Table1D:
+    """Piecewise-linear interpolation on a uniform grid (linear extrapolation beyond the ends)."""
+
+    __slots__ = ("x0", "dx", "inv_dx", "y", "n")
+
+    def __init__(self, x0: float, dx: float, y) -> None:
+        self.x0 = float(x0)
+        self.dx = float(dx)
+        self.inv_dx = 1.0 / float(dx)
+        self.y = [float(v) for v in y]
+        self.n = len(self.y)
+
+    def __call__(self, x: float) -> float:
+        u = (x - self.x0) * self.inv_dx
+        i = int(math.floor(u))
+        if i < 0:
+            i = 0
+        elif i > self.n - 2:
+            i = self.n - 2
+        f = u - i
+        y = self.y
+        return y[i] + f * (y[i + 1] - y[i])
+
+    def value_slope(self, x: float) -> tuple[float, float]:
+        """Return (y(x), dy/dx) of the interpolant."""
+        u = (x - self.x0) * self.inv_dx
+        i = int(math.floor(u))
+        if i < 0:
+            i = 0
+        elif i > self.n - 2:
+            i = self.n - 2
+        f = u - i
+        y = self.y
+        d = y[i + 1] - y[i]
+        return y[i] + f * d, d * self.inv_dx
+
+
+class _Table2D:
+    """Bilinear interpolation on a uniform (x, y) grid (linear extrapolation beyond the edges)."""
+
+    __slots__ = ("x0", "inv_dx", "y0", "inv_dy", "z", "nx", "ny")
+
+    def __init__(self, x0, dx, y0, dy, z) -> None:
+        self.x0 = float(x0)
+        self.inv_dx = 1.0 / float(dx)
+        self.y0 = float(y0)
+        self.inv_dy = 1.0 / float(dy)
+        z = np.asarray(z, dtype=float)
+        self.nx, self.ny = z.shape
+        self.z = [[float(v) for v in row] for row in z]
+
+    def __call__(self, x: float, y: float) -> float:
+        u = (x - self.x0) * self.inv_dx
+        i = int(math.floor(u))
+        if i < 0:
+            i = 0
+        elif i > self.nx - 2:
+            i = self.nx - 2
+        v = (y - self.y0) * self.inv_dy
+        j = int(math.floor(v))
+        if j < 0:
+            j = 0
+        elif j > self.ny - 2:
+            j = self.ny - 2
+        f = u - i
+        g = v - j
+        r0 = self.z[i]
+        r1 = self.z[i + 1]
+        a = r0[j] + g * (r0[j + 1] - r0[j])
+        b = r1[j] + g * (r1[j + 1] - r1[j])
+        return a + f * (b - a)
+
+
+@dataclass(frozen=True)
+class CycleTables:
+    """Tabulated CoolProp properties of one refrigerant cycle configuration.
+
+    Evaporating-side tables are functions of the evaporating (saturation)
+    temperature ``t_e`` [degC], condensing-side tables of the condensing
+    temperature ``t_c`` [degC]; ``dh_is`` is a function of both.
+    """
+
+    fluid: str
+    """CoolProp fluid name (``R1234yf``)."""
+    superheat_k: float
+    """Evaporator-exit superheat [K]."""
+    subcool_k: float
+    """Condenser-exit subcooling [K]."""
+    p_evap_pa: _Table1D
+    """Saturation pressure at t_e [Pa]."""
+    rho_suc_kgm3: _Table1D
+    """Suction vapour density at (p_sat(t_e), t_e + superheat) [kg/m3]."""
+    h_suc_jpkg: _Table1D
+    """Suction enthalpy at (p_sat(t_e), t_e + superheat) [J/kg]."""
+    p_cond_pa: _Table1D
+    """Saturation pressure at t_c [Pa]."""
+    h_liq_jpkg: _Table1D
+    """Condenser-exit liquid enthalpy at (p_sat(t_c), t_c - subcooling) [J/kg]."""
+    dh_is_jpkg: _Table2D
+    """Isentropic compression work h(p_sat(t_c), s_1) - h_1 [J/kg] over (t_e, t_c)."""
+    te_range_c: tuple[float, float]
+    """Tabulated t_e range [degC] (linear extrapolation outside)."""
+    tc_range_c: tuple[float, float]
+    """Tabulated t_c range [degC] (linear extrapolation outside)."""
+
+
+def _grid(lo: float, hi: float, step: float) -> np.ndarray:
+    n = int(round((hi - lo) / step)) + 1
+    return lo + step * np.arange(n)
+
+
+def direct_cycle_properties(fluid: str, superheat_k: float, subcool_k: float, t_e_c: float, t_c_c: float) -> dict:
+    """Cycle state properties from direct CoolProp calls (the reference for the tables).
+
+    Returns a dict with ``p_evap_pa, rho_suc_kgm3, h_suc_jpkg, p_cond_pa,
+    h_liq_jpkg, dh_is_jpkg`` for evaporating temperature ``t_e_c`` [degC] and
+    condensing temperature ``t_c_c`` [degC].
+    """
+    te_k = c_to_k(t_e_c)
+    tc_k = c_to_k(t_c_c)
+    p_e = CP.PropsSI("P", "T", te_k, "Q", 1.0, fluid)
+    t1_k = te_k + superheat_k
+    rho1 = CP.PropsSI("D", "T", t1_k, "P", p_e, fluid)
+    h1 = CP.PropsSI("H", "T", t1_k, "P", p_e, fluid)
+    s1 = CP.PropsSI("S", "T", t1_k, "P", p_e, fluid)
+    p_c = CP.PropsSI("P", "T", tc_k, "Q", 0.0, fluid)
+    if subcool_k > 0.0:
+        h3 = CP.PropsSI("H", "T", tc_k - subcool_k, "P", p_c, fluid)
+    else:
+        h3 = CP.PropsSI("H", "T", tc_k, "Q", 0.0, fluid)
+    h2s = CP.PropsSI("H", "P", p_c, "S", s1, fluid)
+    return {
+        "p_evap_pa": p_e,
+        "rho_suc_kgm3": rho1,
+        "h_suc_jpkg": h1,
+        "p_cond_pa": p_c,
+        "h_liq_jpkg": h3,
+        "dh_is_jpkg": h2s - h1,
+    }
+
+
+@functools.lru_cache(maxsize=8)
+def build_cycle_tables(
+    fluid: str = "R1234yf",
+    superheat_k: float = 5.0,
+    subcool_k: float = 5.0,
+    te_min_c: float = -30.0,
+    te_max_c: float = 30.0,
+    tc_min_c: float = 10.0,
+    tc_max_c: float = 85.0,
+    step_1d_k: float = 0.5,
+    step_2d_k: float = 2.5,
+) -> CycleTables:
+    """Tabulate the cycle properties with CoolProp once (cached per argument set).
+
+    Cost: about (te span/step_2d) x (tc span/step_2d) CoolProp (p, s) flashes
+    (~0.35 ms each), i.e. ~0.3 s for the defaults.
+    """
+    if not CP.get_fluid_param_string(fluid, "CAS"):
+        raise ValueError(f"fluid: CoolProp does not know {fluid!r}")
+    te = _grid(te_min_c, te_max_c, step_1d_k)
+    tc = _grid(tc_min_c, tc_max_c, step_1d_k)
+    p_e, rho1, h1 = [], [], []
+    for t in te:
+        te_k = c_to_k(float(t))
+        p = CP.PropsSI("P", "T", te_k, "Q", 1.0, fluid)
+        p_e.append(p)
+        rho1.append(CP.PropsSI("D", "T", te_k + superheat_k, "P", p, fluid))
+        h1.append(CP.PropsSI("H", "T", te_k + superheat_k, "P", p, fluid))
+    p_c, h3 = [], []
+    for t in tc:
+        tc_k = c_to_k(float(t))
+        p = CP.PropsSI("P", "T", tc_k, "Q", 0.0, fluid)
+        p_c.append(p)
+        if subcool_k > 0.0:
+            h3.append(CP.PropsSI("H", "T", tc_k - subcool_k, "P", p, fluid))
+        else:
+            h3.append(CP.PropsSI("H", "T", tc_k, "Q", 0.0, fluid))
+    te2 = _grid(te_min_c, te_max_c, step_2d_k)
+    tc2 = _grid(tc_min_c, tc_max_c, step_2d_k)
+    dh = np.empty((te2.size, tc2.size))
+    for i, t in enumerate(te2):
+        te_k = c_to_k(float(t))
+        p = CP.PropsSI("P", "T", te_k, "Q", 1.0, fluid)
+        s1 = CP.PropsSI("S", "T", te_k + superheat_k, "P", p, fluid)
+        hh1 = CP.PropsSI("H", "T", te_k + superheat_k, "P", p, fluid)
+        for j, u in enumerate(tc2):
+            pc = CP.PropsSI("P", "T", c_to_k(float(u)), "Q", 0.0, fluid)
+            dh[i, j] = CP.PropsSI("H", "P", pc, "S", s1, fluid) - hh1
+    return CycleTables(
+        fluid=fluid,
+        superheat_k=float(superheat_k),
+        subcool_k=float(subcool_k),
+        p_evap_pa=_Table1D(te[0], step_1d_k, p_e),
+        rho_suc_kgm3=_Table1D(te[0], step_1d_k, rho1),
+        h_suc_jpkg=_Table1D(te[0], step_1d_k, h1),
+        p_cond_pa=_Table1D(tc[0], step_1d_k, p_c),
+        h_liq_jpkg=_Table1D(tc[0], step_1d_k, h3),
+        dh_is_jpkg=_Table2D(te2[0], step_2d_k, tc2[0], step_2d_k, dh),
+        te_range_c=(float(te_min_c), float(te_max_c)),
+        tc_range_c=(float(tc_min_c), float(tc_max_c)),
+    )
+
+
+@functools.lru_cache(maxsize=2)
+def water_saturation_table(t_min_c: float = 0.5, t_max_c: float = 95.0, step_k: float = 0.5) -> _Table1D:
+    """Saturation pressure of water over liquid [Pa] vs temperature [degC] (CoolProp IAPWS-95), tabulated.
+
+    Below ``t_min_c`` the table extrapolates linearly (a coil below 0 degC
+    would frost; the plant keeps the wall above 0 degC in normal operation).
+    """
+    t = _grid(t_min_c, t_max_c, step_k)
+    p = [CP.PropsSI("P", "T", c_to_k(float(x)), "Q", 0.0, "Water") for x in t]
+    return _Table1D(t[0], step_k, p)
+
+
+@dataclass(frozen=True)
+class CompressorModel:
+    """Electric scroll compressor efficiencies (pressure-ratio maps, typical of automotive scrolls)."""
+
+    displacement_m3: float
+    """Swept volume per revolution [m3]."""
+    eta_vol_0: float
+    """Volumetric efficiency extrapolated to pressure ratio 1 [-]."""
+    eta_vol_slope: float
+    """Volumetric efficiency loss per unit of pressure ratio above 1 [-]."""
+    eta_is_max: float
+    """Peak isentropic efficiency [-]."""
+    eta_is_curv: float
+    """Isentropic efficiency loss per (pressure ratio - optimum)^2 [-]."""
+    pr_opt: float
+    """Pressure ratio of peak isentropic efficiency (built-in volume ratio) [-]."""
+    eta_motor_inverter: float
+    """Motor and inverter efficiency (electrical -> shaft) [-]."""
+
+    def eta_vol(self, pr: float) -> float:
+        """Volumetric efficiency at pressure ratio ``pr`` (floored at 0.3)."""
+        return max(0.3, self.eta_vol_0 - self.eta_vol_slope * (max(pr, 1.0) - 1.0))
+
+    def eta_is(self, pr: float) -> float:
+        """Isentropic efficiency at pressure ratio ``pr`` (floored at 0.3)."""
+        d = max(pr, 1.0) - self.pr_opt
+        return max(0.3, self.eta_is_max - self.eta_is_curv * d * d)
+
+
+@dataclass(frozen=True)
+class CycleSolution:
+    """Quasi-steady refrigerant cycle at one instant."""
+
+    t_evap_sat_c: float
+    """Evaporating (saturation) temperature [degC]."""
+    t_cond_c: float
+    """Condensing temperature [degC]."""
+    mdot_ref_kgps: float
+    """Refrigerant mass flow [kg/s]."""
+    q_evap_ref_w: float
+    """Heat absorbed by the refrigerant in the evaporator [W]."""
+    w_shaft_w: float
+    """Compressor shaft power [W]."""
+    p_comp_w: float
+    """Compressor electrical power (shaft / motor-inverter efficiency) [W]."""
+    q_cond_w: float
+    """Heat rejected at the condenser [W]."""
+    pressure_ratio: float
+    """Discharge / suction pressure ratio [-]."""
+    mop_active: bool
+    """True when the expansion valve's MOP caps the evaporating temperature."""
+    iterations: int
+    """Newton iterations used."""
+
+
+def _cycle_residuals(tab: CycleTables, comp: CompressorModel, n_rps: float, t_e: float, t_c: float,
+                     t_wall_c: float, ua_er_wpk: float, t_air_c: float, epsc_wpk: float):
+    p_e = tab.p_evap_pa(t_e)
+    p_c = tab.p_cond_pa(t_c)
+    pr = p_c / p_e
+    mdot = tab.rho_suc_kgm3(t_e) * comp.displacement_m3 * n_rps * comp.eta_vol(pr)
+    dh_e = tab.h_suc_jpkg(t_e) - tab.h_liq_jpkg(t_c)
+    w = tab.dh_is_jpkg(t_e, t_c) / comp.eta_is(pr)
+    q_e = mdot * dh_e
+    r1 = q_e - ua_er_wpk * (t_wall_c - t_e)
+    r2 = mdot * (dh_e + w) - epsc_wpk * (t_c - t_air_c)
+    return r1, r2, mdot, q_e, mdot * w, pr
+
+
+def solve_cycle(
+    tab: CycleTables,
+    comp: CompressorModel,
+    speed_rpm: float,
+    t_wall_c: float,
+    ua_er_wpk: float,
+    t_air_cond_c: float,
+    epsc_cond_wpk: float,
+    te_mop_c: float,
+    guess: tuple[float, float] | None = None,
+    tol_k: float = 1e-7,
+    max_iter: int = 30,
+) -> CycleSolution:
+    """Solve the quasi-steady cycle for (T_e, T_c) by Newton's method.
+
+    Parameters
+    ----------
+    speed_rpm : compressor speed [rpm] (>= 0; 0 means off).
+    t_wall_c : evaporator wall temperature [degC].
+    ua_er_wpk : wall-to-refrigerant conductance of the evaporator [W/K].
+    t_air_cond_c : condenser inlet air temperature [degC].
+    epsc_cond_wpk : condenser effectiveness times air heat-capacity rate [W/K].
+    te_mop_c : expansion valve MOP cap on the evaporating temperature [degC].
+    guess : starting (T_e, T_c) [degC]; None for a built-in start.
+
+    Newton on (r1, r2) with a forward-difference Jacobian (step 1e-4 K) and
+    the step limited to 10 K; converged when the update is below ``tol_k``.
+    If the solution exceeds ``te_mop_c``, T_e is pinned at the MOP and only
+    r2 is solved for T_c. Raises RuntimeError if ``max_iter`` is reached.
+    """
+    if speed_rpm <= 0.0:
+        return CycleSolution(t_wall_c, t_air_cond_c, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, False, 0)
+    n_rps = speed_rpm / 60.0
+    if guess is None:
+        t_e = min(t_wall_c - 5.0, te_mop_c)
+        t_c = t_air_cond_c + 15.0
+    else:
+        t_e, t_c = guess
+    h = 1e-4
+    args = (t_wall_c, ua_er_wpk, t_air_cond_c, epsc_cond_wpk)
+    it = 0
+    mop = False
+    for it in range(1, max_iter + 1):
+        r1, r2, *_ = _cycle_residuals(tab, comp, n_rps, t_e, t_c, *args)
+        a1, a2, *_ = _cycle_residuals(tab, comp, n_rps, t_e + h, t_c, *args)
+        b1, b2, *_ = _cycle_residuals(tab, comp, n_rps, t_e, t_c + h, *args)
+        j11 = (a1 - r1) / h
+        j21 = (a2 - r2) / h
+        j12 = (b1 - r1) / h
+        j22 = (b2 - r2) / h
+        det = j11 * j22 - j12 * j21
+        de = -(j22 * r1 - j12 * r2) / det
+        dc = -(-j21 * r1 + j11 * r2) / det
+        de = max(-10.0, min(10.0, de))
+        dc = max(-10.0, min(10.0, dc))
+        t_e += de
+        t_c += dc
+        if abs(de) < tol_k and abs(dc) < tol_k:
+            break
+    else:
+        raise RuntimeError(f"refrigerant cycle did not converge in {max_iter} iterations "
+                           f"(speed {speed_rpm:.0f} rpm, wall {t_wall_c:.2f} degC)")
+    if t_e > te_mop_c:
+        mop = True
+        t_e = te_mop_c
+        for k in range(1, max_iter + 1):
+            r1, r2, *_ = _cycle_residuals(tab, comp, n_rps, t_e, t_c, *args)
+            b1, b2, *_ = _cycle_residuals(tab, comp, n_rps, t_e, t_c + h, *args)
+            dc = -r2 / ((b2 - r2) / h)
+            dc = max(-10.0, min(10.0, dc))
+            t_c += dc
+            if abs(dc) < tol_k:
+                break
+        else:
+            raise RuntimeError(f"refrigerant cycle (MOP) did not converge in {max_iter} iterations")
+        it += k
+    _, _, mdot, q_e, w_sh, pr = _cycle_residuals(tab, comp, n_rps, t_e, t_c, *args)
+    return CycleSolution(
+        t_evap_sat_c=t_e,
+        t_cond_c=t_c,
+        mdot_ref_kgps=mdot,
+        q_evap_ref_w=q_e,
+        w_shaft_w=w_sh,
+        p_comp_w=w_sh / comp.eta_motor_inverter,
+        q_cond_w=q_e + w_sh,
+        pressure_ratio=pr,
+        mop_active=mop,
+        iterations=it,
+    )
+
+
