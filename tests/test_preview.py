@@ -1,0 +1,174 @@
+"""V2X preview generation: perfect, noisy, delayed and missing previews."""
+
+import math
+
+import numpy as np
+import pytest
+
+from ceco_v2x_preview.preview import (
+    DEFAULT_NOISE,
+    PERFECT,
+    PreviewQuality,
+    make_previews,
+    parse_quality,
+    summarize,
+)
+from ceco_v2x_preview.scenario import load_scenario
+
+
+@pytest.fixture(scope="module")
+def sc03():
+    return load_scenario("sc03")
+
+
+def test_perfect_equals_truth(sc03):
+    p = make_previews(sc03, 100.0, 5.0, 7, PERFECT)
+    wp = sc03.weather_preview(100.0, 5.0, 7)
+    np.testing.assert_array_equal(p.solar_wm2, wp.solar_wm2)
+    np.testing.assert_array_equal(p.t_amb_c, wp.t_amb_c)
+    np.testing.assert_array_equal(p.rh, wp.rh)
+    np.testing.assert_array_equal(p.speed_mps, sc03.speed_preview(100.0, 5.0, 7))
+    assert p.valid.all() and p.trusted_steps == 7 and p.age_s == 0.0 and p.issued_s == 100.0
+    np.testing.assert_allclose(p.t_s, wp.t_s)
+    assert PERFECT.mode == "perfect" and PERFECT.describe() == "perfect"
+
+
+NOISY = PreviewQuality(noise_std_t_amb_c=0.5, noise_std_solar_wm2=50.0, noise_std_speed_mps=1.5, seed=3)
+
+
+def test_noise_deterministic_and_order_independent(sc03):
+    times = np.arange(0.0, 100.0, 5.0)
+    forward = [make_previews(sc03, t, 5.0, 7, NOISY).solar_wm2 for t in times]
+    backward = [make_previews(sc03, t, 5.0, 7, NOISY).solar_wm2 for t in times[::-1]][::-1]
+    for a, b in zip(forward, backward):
+        np.testing.assert_array_equal(a, b)
+    # The forecast issued at t0 does not depend on how many samples are asked.
+    long = make_previews(sc03, 50.0, 5.0, 13, NOISY)
+    short = make_previews(sc03, 50.0, 5.0, 4, NOISY)
+    np.testing.assert_array_equal(long.speed_mps[:4], short.speed_mps)
+    other = make_previews(sc03, 50.0, 5.0, 7, PreviewQuality(noise_std_solar_wm2=50.0, seed=4))
+    assert not np.array_equal(other.solar_wm2, forward[10])
+    # seed=None takes the scenario's seed (0 for sc03).
+    q_none = PreviewQuality(noise_std_solar_wm2=50.0)
+    q_zero = PreviewQuality(noise_std_solar_wm2=50.0, seed=0)
+    np.testing.assert_array_equal(make_previews(sc03, 50.0, 5.0, 7, q_none).solar_wm2,
+                                  make_previews(sc03, 50.0, 5.0, 7, q_zero).solar_wm2)
+
+
+def test_noise_grows_with_lead_time(sc03):
+    times = np.arange(0.0, 560.0, 1.0)
+    err = np.array([make_previews(sc03, t, 5.0, 7, NOISY).t_amb_c - 35.0 for t in times])
+    std = err.std(axis=0)
+    assert std[0] == 0.0  # the present is known
+    expected = 0.5 * np.sqrt(5.0 * np.arange(7) / 30.0)
+    # 560 overlapping forecasts: about 6 % standard error on each std.
+    np.testing.assert_allclose(std[1:], expected[1:], rtol=0.2)
+    assert std[6] > 2.0 * std[1]
+    assert abs(err[:, 6].mean()) < 0.15
+
+
+def test_physical_limits_with_large_noise(sc03):
+    q = PreviewQuality(noise_std_solar_wm2=2000.0, noise_std_speed_mps=50.0, noise_std_rh=2.0, seed=1)
+    clipped = 0
+    for t in np.arange(0.0, 300.0, 7.0):
+        p = make_previews(sc03, t, 5.0, 13, q)
+        assert np.all(p.solar_wm2 >= 0.0) and np.all(p.speed_mps >= 0.0)
+        assert np.all((p.rh >= 0.0) & (p.rh <= 1.0))
+        clipped += int(np.sum(p.solar_wm2 == 0.0))
+    assert clipped > 0  # the limit was actually exercised
+
+
+def test_delayed_preview_is_stale_and_shorter(sc03):
+    q = parse_quality("delayed:12")
+    p = make_previews(sc03, 100.0, 5.0, 6, q)
+    # Issued at 88 s, it covers 88..113 s: samples at 100, 105, 110 only.
+    assert p.issued_s == 88.0 and p.age_s == 12.0
+    np.testing.assert_array_equal(p.valid, [True, True, True, False, False, False])
+    assert p.trusted_steps == 3
+    # A perfect forecast stays right where it covers; the rest is NaN.
+    np.testing.assert_allclose(p.solar_wm2[:3], sc03.weather_preview(100.0, 5.0, 3).solar_wm2)
+    assert np.all(np.isnan(p.solar_wm2[3:])) and np.all(np.isnan(p.speed_mps[3:]))
+    # Nothing has been issued yet at the start.
+    p0 = make_previews(sc03, 5.0, 5.0, 6, q)
+    assert not p0.valid.any() and p0.age_s == math.inf and math.isnan(p0.issued_s)
+    # A stale noisy forecast carries the error of the longer lead.
+    qn = parse_quality("noisy:solar=50,seed=2+delayed:10")
+    pn = make_previews(sc03, 100.0, 5.0, 6, qn)
+    assert pn.solar_wm2[0] != sc03.env_at(100.0).solar_wm2
+
+
+def test_missing_span_hold_last_and_drop(sc03):
+    q = parse_quality("missing:100-200")
+    before = make_previews(sc03, 95.0, 5.0, 7, q)
+    assert before.valid.all() and before.age_s == 0.0
+    inside = make_previews(sc03, 110.0, 5.0, 7, q)
+    # Last forecast received: issued at 100 s, covering 100..130 s.
+    assert inside.issued_s == 100.0 and inside.age_s == 10.0
+    np.testing.assert_array_equal(inside.valid, [True] * 5 + [False] * 2)
+    np.testing.assert_allclose(inside.solar_wm2[:5], sc03.weather_preview(110.0, 5.0, 5).solar_wm2)
+    late = make_previews(sc03, 140.0, 5.0, 7, q)
+    assert late.trusted_steps == 0 and not late.valid.any()
+    after = make_previews(sc03, 200.0, 5.0, 7, q)  # half-open span: fresh again
+    assert after.valid.all() and after.age_s == 0.0
+
+    dropped = make_previews(sc03, 110.0, 5.0, 7, parse_quality("missing:100-200,policy=drop"))
+    assert not dropped.valid.any() and np.all(np.isnan(dropped.t_amb_c))
+
+    # Overlapping spans merge: the last forecast is the one before 100 s.
+    q2 = PreviewQuality(missing_spans_s=((100.0, 150.0), (140.0, 300.0)))
+    assert q2.merged_spans() == [(100.0, 300.0)]
+    assert make_previews(sc03, 250.0, 5.0, 7, q2).issued_s == 100.0
+
+
+def test_hold_filled_and_summary(sc03):
+    p = make_previews(sc03, 110.0, 5.0, 7, parse_quality("missing:100-200"))
+    f = p.hold_filled()
+    assert np.all(np.isfinite(f.solar_wm2))
+    assert f.solar_wm2[6] == f.solar_wm2[4] == p.solar_wm2[4]
+    np.testing.assert_array_equal(f.valid, p.valid)
+    s = summarize([p, make_previews(sc03, 0.0, 5.0, 7)])
+    assert s["valid_fraction"] == pytest.approx(12 / 14)
+    assert s["mean_age_s"] == pytest.approx(5.0)
+
+
+def test_parse_quality_and_round_trip():
+    q = parse_quality("noisy:solar=50,speed=1.5,seed=3")
+    assert (q.noise_std_solar_wm2, q.noise_std_speed_mps, q.noise_std_t_amb_c, q.seed) == (50.0, 1.5, 0.0, 3)
+    assert q.mode == "noisy"
+    bare = parse_quality("noisy")
+    assert bare.noise_std_solar_wm2 == DEFAULT_NOISE["noise_std_solar_wm2"]
+    combo = parse_quality("noisy:t_amb=0.3,ref=60+delayed:10+missing:100-200,300-350,policy=drop")
+    assert combo.mode == "noisy+delayed+missing"
+    assert combo.missing_spans_s == ((100.0, 200.0), (300.0, 350.0)) and combo.missing_policy == "drop"
+    assert combo.noise_ref_lead_s == 60.0
+    for quality in (q, bare, combo, parse_quality("perfect"), parse_quality("delayed:2.5")):
+        assert parse_quality(quality.describe()) == quality
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("fuzzy", "unknown part"),
+        ("noisy:solar=lots", "noisy solar"),
+        ("noisy:wind=3", "unknown key"),
+        ("delayed:-5", "delay_s"),
+        ("missing:200-100", "missing_spans_s[0]"),
+        ("missing:100", "START-END"),
+        ("missing:1-2,policy=maybe", "missing_policy"),
+        ("noisy:solar=-1", "noise_std_solar_wm2"),
+        ("", "empty"),
+    ],
+)
+def test_parse_quality_errors(text, message):
+    with pytest.raises(ValueError) as err:
+        parse_quality(text)
+    assert message in str(err.value)
+
+
+def test_bad_arguments(sc03):
+    with pytest.raises(ValueError, match="t0_s"):
+        make_previews(sc03, -1.0, 5.0, 6)
+    with pytest.raises(ValueError, match="n:"):
+        make_previews(sc03, 0.0, 5.0, 0)
+    with pytest.raises(ValueError, match="noise_ref_lead_s"):
+        make_previews(sc03, 0.0, 5.0, 6, PreviewQuality(noise_ref_lead_s=0.0))

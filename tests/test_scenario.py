@@ -1,0 +1,203 @@
+"""Scenario files: bundled data, interpolation conventions, validation."""
+
+import copy
+import math
+
+import numpy as np
+import pytest
+import yaml
+
+from ceco_v2x_preview.scenario import (
+    Environment,
+    ScenarioError,
+    list_drive_cycles,
+    list_scenarios,
+    load_drive_cycle,
+    load_scenario,
+    scenario_from_dict,
+)
+
+MI_M = 1609.344
+
+
+def test_bundled_names():
+    assert list_drive_cycles() == ["hwfet", "sc03", "udds", "us06"]
+    assert {"sc03", "udds", "hwfet", "us06", "sc03_mild"} <= set(list_scenarios())
+
+
+@pytest.mark.parametrize(
+    "name, duration_s, distance_mi, vmax_mph",
+    [("sc03", 600, 3.58, 54.8), ("udds", 1369, 7.45, 56.7), ("hwfet", 765, 10.26, 59.9), ("us06", 600, 8.01, 80.3)],
+)
+def test_drive_cycles_match_epa_figures(name, duration_s, distance_mi, vmax_mph):
+    cyc = load_drive_cycle(name)
+    assert cyc.duration_s == duration_s
+    assert np.all(np.diff(cyc.time_s) == 1.0)
+    assert cyc.distance_m / MI_M == pytest.approx(distance_mi, abs=0.006)
+    assert cyc.speed_mps.max() == pytest.approx(vmax_mph * 0.44704, rel=1e-12)
+    sc = load_scenario(name)
+    assert sc.duration_s == duration_s
+
+
+def test_sc03_conditions_and_interpolation():
+    sc = load_scenario("sc03")
+    e0 = sc.env_at(0.0)
+    assert isinstance(e0, Environment)
+    assert (e0.t_amb_c, e0.solar_wm2, e0.rh, e0.speed_mps) == (35.0, 850.0, 0.4, 0.0)
+    assert sc.env_at(300.0).solar_wm2 == pytest.approx(725.0)
+    assert sc.env_at(600.0).solar_wm2 == pytest.approx(600.0)
+    # Linear interpolation of the 1 Hz trace between two samples.
+    cyc = sc.drive_cycle
+    i = int(np.argmax(np.abs(np.diff(cyc.speed_mps))))  # steepest step of the cycle
+    v_mid = 0.5 * (cyc.speed_mps[i] + cyc.speed_mps[i + 1])
+    assert sc.env_at(cyc.time_s[i] + 0.5).speed_mps == pytest.approx(v_mid, rel=1e-12)
+    assert sc.speed_mps(cyc.time_s[i] + 0.25) == pytest.approx(0.75 * cyc.speed_mps[i] + 0.25 * cyc.speed_mps[i + 1])
+    # Beyond the end: everything holds the last value.
+    late = sc.env_at(700.0)
+    assert (late.t_amb_c, late.solar_wm2, late.speed_mps) == (35.0, 600.0, float(cyc.speed_mps[-1]))
+    assert sc.occupant.met == 1.2 and sc.occupant.clo == 0.5
+    assert sc.control.control_period_s == 5.0 and sc.control.horizon_steps == 6
+    assert sc.initial.t_int_c > sc.initial.t_cab_c > sc.env_at(0.0).t_amb_c
+
+
+def test_vectorised_env_and_previews():
+    sc = load_scenario("udds")
+    t = np.array([[0.0, 10.5], [100.0, 2000.0]])
+    env = sc.env_at(t)
+    assert env.speed_mps.shape == (2, 2) and env.solar_wm2.shape == (2, 2)
+    assert env.speed_mps[0, 1] == pytest.approx(sc.env_at(10.5).speed_mps)
+    series = sc.env_series(5.0)
+    assert series.t_amb_c.shape == (1,)
+    wp = sc.weather_preview(100.0, 5.0, 7)
+    np.testing.assert_allclose(wp.t_s, 100.0 + 5.0 * np.arange(7))
+    np.testing.assert_allclose(wp.solar_wm2, 850.0 - 250.0 * wp.t_s / 1369.0)
+    np.testing.assert_allclose(sc.speed_preview(100.0, 5.0, 7), [sc.speed_mps(x) for x in wp.t_s])
+    with pytest.raises(ValueError, match="t_s"):
+        sc.env_at(-1.0)
+    with pytest.raises(ValueError, match="step_s"):
+        sc.weather_preview(0.0, 0.0, 3)
+    assert sc.time_grid(1.0).size == 1369
+
+
+def test_pmv_bounds_piecewise_linear():
+    sc = load_scenario("sc03")
+    assert sc.pmv_bounds(0.0) == (-0.5, 3.0)
+    assert sc.pmv_bounds(60.0) == (-0.5, 3.0)
+    assert sc.pmv_bounds(180.0) == pytest.approx((-0.5, 1.75))
+    lb, ub = sc.pmv_bounds(np.array([300.0, 599.0]))
+    np.testing.assert_allclose(ub, [0.5, 0.5])
+    np.testing.assert_allclose(lb, [-0.5, -0.5])
+
+
+def test_mild_day_is_milder():
+    hot, mild = load_scenario("sc03"), load_scenario("sc03_mild")
+    assert mild.env_at(0.0).t_amb_c == 28.0 and mild.env_at(0.0).solar_wm2 == 400.0
+    assert mild.initial.t_cab_c < hot.initial.t_cab_c
+
+
+def _sc03_dict():
+    from importlib import resources
+
+    text = resources.files("ceco_v2x_preview").joinpath("data", "scenarios", "sc03.yaml").read_text()
+    return yaml.safe_load(text)
+
+
+# Water saturation pressure [Pa] (IAPWS-95 via CoolProp 8.0.0,
+# PropsSI('P', 'T', t + 273.15, 'Q', 0, 'Water')), kept as numbers so the test
+# does not pay CoolProp's import time.
+_PSAT_PA = {35.0: 5629.016, 57.0: 17335.643}
+
+
+def test_initial_defaults_and_humidity():
+    d = _sc03_dict()
+    d["initial"] = {"t_cab_c": 57.0}
+    sc = scenario_from_dict(d)
+    ini = sc.initial
+    assert ini.t_int_c == ini.t_shell_c == ini.t_evap_c == 57.0
+    # Same vapour pressure as the ambient air (35 degC, 40 %).
+    assert ini.rh_cab * _PSAT_PA[57.0] == pytest.approx(0.4 * _PSAT_PA[35.0], rel=0.005)
+    assert 0.12 < ini.rh_cab < 0.14
+
+
+def _mutate(path, value):
+    d = _sc03_dict()
+    node = d
+    for key in path[:-1]:
+        node = node[key]
+    if value is _DELETE:
+        del node[path[-1]]
+    else:
+        node[path[-1]] = value
+    return d
+
+
+_DELETE = object()
+
+
+@pytest.mark.parametrize(
+    "path, value, field",
+    [
+        (("weather",), _DELETE, "weather: missing"),
+        (("weather", "rh"), [0.4, 1.2], "weather.rh[1]"),
+        (("weather", "solar_wm2"), [850.0, 700.0, 600.0], "weather.solar_wm2: length"),
+        (("weather", "time_s"), [0, 0], "weather.time_s: must be strictly increasing"),
+        (("weather", "t_amb_c"), [35.0, float("nan")], "weather.t_amb_c[1]"),
+        (("weather", "t_amb_c"), [95.0, 95.0], "weather.t_amb_c[0]"),  # degF by mistake
+        (("occupant", "met"), 0.0, "occupant.met"),
+        (("occupant", "clo"), _DELETE, "occupant.clo: missing"),
+        (("drive_cycle",), "wltp", "drive_cycle: unknown drive cycle"),
+        (("comfort_bounds", "pmv_lb"), [-0.5, -0.5, 0.6, -0.5], "comfort_bounds.pmv_lb[2]"),
+        (("comfort_bounds", "time_s"), [0, 60, 50, 600], "comfort_bounds.time_s"),
+        (("initial", "t_cab_c"), _DELETE, "initial.t_cab_c: missing"),
+        (("initial", "rh_cab"), 40.0, "initial.rh_cab"),
+        (("control", "horizon_steps"), 0, "control.horizon_steps"),
+        (("control", "control_period_s"), -5, "control.control_period_s"),
+        (("seed",), -1, "seed"),
+        (("duration_s",), -10, "duration_s"),
+        (("weather", "wind_mps"), [1, 2], "weather.wind_mps: unknown field"),
+        (("name",), "", "name"),
+    ],
+)
+def test_invalid_scenarios_name_the_field(path, value, field):
+    d = _mutate(path, value)
+    with pytest.raises(ScenarioError) as err:
+        scenario_from_dict(d)
+    assert isinstance(err.value, ValueError)
+    assert str(err.value).startswith(field.split(":")[0])
+    assert field in str(err.value)
+
+
+def test_user_files_and_csv_cycles(tmp_path):
+    (tmp_path / "cycles").mkdir()
+    (tmp_path / "cycles" / "ramp.csv").write_text("time_s,speed_mps\n0,0\n10,10\n20,10\n")
+    d = _sc03_dict()
+    d.update(name="ramp", drive_cycle="cycles/ramp.csv")
+    del d["duration_s"]
+    (tmp_path / "ramp.yaml").write_text(yaml.safe_dump(d))
+    sc = load_scenario(tmp_path / "ramp.yaml")
+    assert sc.duration_s == 20.0  # defaults to the cycle's
+    assert sc.speed_mps(5.0) == pytest.approx(5.0)
+    assert sc.drive_cycle.distance_m == pytest.approx(150.0)
+
+    (tmp_path / "bad.csv").write_text("time_s,speed_kmh\n0,0\n1,1\n")
+    with pytest.raises(ScenarioError, match="header"):
+        load_drive_cycle(str(tmp_path / "bad.csv"))
+    (tmp_path / "neg.csv").write_text("time_s,speed_mph\n0,0\n1,-1\n")
+    with pytest.raises(ScenarioError, match="drive_cycle"):
+        load_drive_cycle(str(tmp_path / "neg.csv"))
+    (tmp_path / "back.csv").write_text("time_s,speed_mph\n0,0\n2,1\n1,1\n")
+    with pytest.raises(ScenarioError, match="strictly increasing"):
+        load_drive_cycle(str(tmp_path / "back.csv"))
+    (tmp_path / "broken.yaml").write_text("name: [unclosed\n")
+    with pytest.raises(ScenarioError, match="YAML"):
+        load_scenario(tmp_path / "broken.yaml")
+    with pytest.raises(ScenarioError, match="unknown scenario"):
+        load_scenario("no_such_scenario")
+
+
+def test_constant_written_as_one_number():
+    d = copy.deepcopy(_sc03_dict())
+    d["weather"]["rh"] = 0.3
+    sc = scenario_from_dict(d)
+    assert sc.env_at(123.0).rh == 0.3
+    assert math.isclose(sc.env_at(600.0).rh, 0.3)
