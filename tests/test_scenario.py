@@ -113,7 +113,11 @@ def test_initial_defaults_and_humidity():
     d["initial"] = {"t_cab_c": 57.0}
     sc = scenario_from_dict(d)
     ini = sc.initial
-    assert ini.t_int_c == ini.t_shell_c == ini.t_evap_c == 57.0
+    assert ini.t_int_c == ini.t_shell_c == ini.t_glass_c == ini.t_evap_c == 57.0
+    # InitialState is also a read-only mapping (the plant takes dicts too).
+    assert dict(ini) == {"t_cab_c": 57.0, "t_int_c": 57.0, "t_shell_c": 57.0, "t_glass_c": 57.0,
+                         "t_evap_c": 57.0, "rh_cab": ini.rh_cab}
+    assert "t_glass_c" in ini and ini.get("t_seat_c") is None
     # Same vapour pressure as the ambient air (35 degC, 40 %).
     assert ini.rh_cab * _PSAT_PA[57.0] == pytest.approx(0.4 * _PSAT_PA[35.0], rel=0.005)
     assert 0.12 < ini.rh_cab < 0.14

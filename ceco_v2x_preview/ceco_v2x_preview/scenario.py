@@ -26,7 +26,8 @@ import math
 import os
 from importlib import resources
 from pathlib import Path
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 import yaml
@@ -123,14 +124,18 @@ class Occupant:
 
 
 @dataclasses.dataclass(frozen=True)
-class InitialState:
+class InitialState(Mapping):
     """Plant temperatures at ``t_s = 0`` (the end of the hot soak).
 
+    Also a read-only mapping field name -> value (``initial["t_cab_c"]``,
+    ``"t_glass_c" in initial``, ``dict(initial)``), so plant code can take it
+    or a plain dict alike.
+
     Defaults when a field is omitted from the file (documented in
-    docs/scenarios.md): ``t_int_c`` = ``t_cab_c``; ``t_shell_c`` = ``t_cab_c``;
-    ``t_evap_c`` = ``t_cab_c`` (the HVAC module soaks with the cabin);
-    ``rh_cab`` from the ambient vapour pressure at ``t_cab_c`` (a closed car
-    keeps the outdoor moisture content).
+    docs/scenarios.md): ``t_int_c``, ``t_shell_c``, ``t_glass_c`` and
+    ``t_evap_c`` = ``t_cab_c`` (the interior, the body, the glazing and the
+    HVAC module soak with the cabin air); ``rh_cab`` from the ambient vapour
+    pressure at ``t_cab_c`` (a closed car keeps the outdoor moisture content).
     """
 
     t_cab_c: float
@@ -138,7 +143,9 @@ class InitialState:
     t_int_c: float
     """Cabin interior mass (seats, dashboard, trim) temperature [degC]."""
     t_shell_c: float
-    """Cabin shell (roof, body panels, glazing) temperature [degC]."""
+    """Cabin shell (roof, body panels) temperature [degC]."""
+    t_glass_c: float
+    """Glazing temperature [degC]."""
     t_evap_c: float
     """Evaporator wall temperature [degC]."""
     rh_cab: float
@@ -146,9 +153,24 @@ class InitialState:
 
     def validate(self) -> None:
         """Raise ScenarioError naming the first bad field."""
-        for name in ("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c"):
+        for name in _TEMPERATURE_FIELDS:
             _check_number(f"initial.{name}", getattr(self, name), _T_STATE_RANGE_C)
         _check_number("initial.rh_cab", self.rh_cab, (0.0, 1.0))
+
+    def __getitem__(self, key: str) -> float:
+        if key not in _INITIAL_FIELDS:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def __iter__(self):
+        return iter(_INITIAL_FIELDS)
+
+    def __len__(self) -> int:
+        return len(_INITIAL_FIELDS)
+
+
+_TEMPERATURE_FIELDS = ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c")
+_INITIAL_FIELDS = (*_TEMPERATURE_FIELDS, "rh_cab")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -491,7 +513,7 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
         raise ScenarioError(f"comfort_bounds.pmv_lb[{i}]: {lb[i]} exceeds pmv_ub[{i}] = {ub[i]}")
 
     ini = _section(data, "initial")
-    _reject_unknown("initial", ini, {"t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "rh_cab"})
+    _reject_unknown("initial", ini, set(_INITIAL_FIELDS))
     if "t_cab_c" not in ini:
         raise ScenarioError("initial.t_cab_c: missing")
     t_cab = _check_number("initial.t_cab_c", ini["t_cab_c"], _T_STATE_RANGE_C)
@@ -504,11 +526,12 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
         t_cab_c=t_cab,
         t_int_c=ini.get("t_int_c", t_cab),
         t_shell_c=ini.get("t_shell_c", t_cab),
+        t_glass_c=ini.get("t_glass_c", t_cab),
         t_evap_c=ini.get("t_evap_c", t_cab),
         rh_cab=rh_cab,
     )
     initial.validate()
-    initial = InitialState(**{f.name: float(getattr(initial, f.name)) for f in dataclasses.fields(initial)})
+    initial = InitialState(**{name: float(initial[name]) for name in _INITIAL_FIELDS})
 
     ctl = _section(data, "control", required=False)
     _reject_unknown("control", ctl, {"control_period_s", "horizon_steps"})
