@@ -1,0 +1,293 @@
+"""The paper's figures from run time series (matplotlib, Agg backend, PNG).
+
+Each function takes the runs of ONE scenario as ``{strategy: columns}``
+(``columns`` = dict of 1-D arrays with the ``timeseries.csv`` names, see
+docs/architecture.md), writes one PNG and returns its path. Colours are the
+Okabe-Ito colour-blind-safe palette, fixed per strategy so every figure of a
+report agrees; time axes are shared within a figure and labelled in seconds.
+
+Pure plotting: no ROS import; matplotlib is imported with the Agg backend so
+it never needs a display.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import matplotlib
+
+matplotlib.use('Agg')
+import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
+import numpy as np  # noqa: E402
+
+__all__ = ['STRATEGY_ORDER', 'ordered', 'strategy_style', 'fig_pmv', 'fig_temperatures', 'fig_powers',
+           'fig_inputs', 'fig_bars', 'fig_vehicle', 'fig_solver']
+
+STRATEGY_ORDER = ('baseline', 'ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
+"""Order in which strategies appear in legends, tables and bars."""
+
+_OKABE_ITO = ('#000000', '#E69F00', '#56B4E9', '#009E73', '#D55E00', '#0072B2', '#CC79A7', '#F0E442')
+_LABEL = {'baseline': 'Baseline (PI, 26 °C)', 'ceco': 'CECO', 'ceco-e': 'CECO-E', 'ceco-c': 'CECO-C',
+          'ceco-ioch': 'CECO-IOCH'}
+_DPI = 200
+_RC = {
+    'font.size': 9, 'axes.labelsize': 9, 'axes.titlesize': 10, 'legend.fontsize': 8,
+    'xtick.labelsize': 8, 'ytick.labelsize': 8, 'axes.grid': True, 'grid.alpha': 0.3,
+    'grid.linewidth': 0.5, 'lines.linewidth': 1.3, 'savefig.bbox': 'tight', 'figure.dpi': _DPI,
+}
+
+
+def ordered(names: Sequence[str]) -> list[str]:
+    """Strategies in :data:`STRATEGY_ORDER`, unknown names after, sorted."""
+    known = [s for s in STRATEGY_ORDER if s in names]
+    return known + sorted(n for n in names if n not in STRATEGY_ORDER)
+
+
+def strategy_style(name: str, index: int | None = None) -> dict:
+    """Colour, label and line style of a strategy (stable across figures)."""
+    if name in STRATEGY_ORDER:
+        i = STRATEGY_ORDER.index(name)
+    else:
+        i = len(STRATEGY_ORDER) + (index or 0)
+    dashes = '--' if name == 'baseline' else '-'
+    return {'color': _OKABE_ITO[i % len(_OKABE_ITO)], 'label': _LABEL.get(name, name), 'linestyle': dashes}
+
+
+def _save(fig, path: Path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=_DPI)
+    plt.close(fig)
+    return path
+
+
+def _time_axis(ax, runs: Mapping[str, Mapping]) -> None:
+    t_end = max(float(np.asarray(c['t_s'])[-1]) for c in runs.values())
+    ax.set_xlim(0.0, t_end)
+    ax.set_xlabel('Time t [s]')
+
+
+def _lines(ax, runs, key, scale=1.0):
+    for i, name in enumerate(ordered(list(runs))):
+        c = runs[name]
+        if key not in c:
+            continue
+        st = strategy_style(name, i)
+        ax.plot(c['t_s'], np.asarray(c[key], dtype=float) * scale, color=st['color'], ls=st['linestyle'],
+                label=st['label'])
+
+
+def fig_pmv(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
+    """PMV of every strategy with the scenario's lower/upper PMV bounds."""
+    with plt.rc_context(_RC):
+        fig, ax = plt.subplots(figsize=(6.5, 3.4))
+        first = runs[ordered(list(runs))[0]]
+        t = np.asarray(first['t_s'])
+        lb, ub = np.asarray(first['pmv_lb']), np.asarray(first['pmv_ub'])
+        ax.fill_between(t, lb, ub, color='0.85', alpha=0.6, lw=0, label='Comfort bounds (PMV$_{LB}$..PMV$_{UB}$)')
+        ax.plot(t, ub, color='0.35', lw=0.9, ls=':')
+        ax.plot(t, lb, color='0.35', lw=0.9, ls=':')
+        _lines(ax, runs, 'pmv')
+        ax.axhline(0.0, color='0.5', lw=0.6)
+        ymax = max(float(np.max(c['pmv'])) for c in runs.values())
+        ymin = min(float(np.min(c['pmv'])) for c in runs.values())
+        ax.set_ylim(min(-1.0, ymin - 0.2), max(1.0, min(ymax, 3.5) + 0.2))
+        ax.set_ylabel('PMV [-]')
+        _time_axis(ax, runs)
+        ax.set_title(title or 'Thermal comfort (PMV) and its bounds')
+        ax.legend(loc='upper right', ncol=2)
+        return _save(fig, path)
+
+
+def fig_temperatures(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
+    """Cabin air temperature (top) and vent air temperature (bottom)."""
+    with plt.rc_context(_RC):
+        fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 5.0), sharex=True)
+        _lines(a1, runs, 't_cab_c')
+        first = runs[ordered(list(runs))[0]]
+        if 't_amb_c' in first:
+            a1.plot(first['t_s'], first['t_amb_c'], color='0.5', lw=0.9, ls='-.', label='Ambient')
+        a1.set_ylabel('Cabin air T$_{cab}$ [°C]')
+        a1.legend(loc='upper right', ncol=2)
+        _lines(a2, runs, 't_vent_c')
+        a2.set_ylabel('Vent air T$_{ain}$ [°C]')
+        _time_axis(a2, runs)
+        a1.set_title(title or 'Cabin and vent air temperatures')
+        fig.align_ylabels()
+        return _save(fig, path)
+
+
+def fig_powers(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
+    """Compressor (top) and blower (bottom) electrical power [kW, W]."""
+    with plt.rc_context(_RC):
+        fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 5.0), sharex=True)
+        _lines(a1, runs, 'p_comp_w', 1e-3)
+        a1.set_ylabel('Compressor P$_{comp}$ [kW]')
+        a1.set_ylim(bottom=0.0)
+        a1.legend(loc='upper right', ncol=2)
+        _lines(a2, runs, 'p_blower_w')
+        a2.set_ylabel('Blower P$_{bl}$ [W]')
+        a2.set_ylim(bottom=0.0)
+        _time_axis(a2, runs)
+        a1.set_title(title or 'A/C electrical power')
+        fig.align_ylabels()
+        return _save(fig, path)
+
+
+def fig_inputs(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
+    """The two control inputs: blower air flow (top), evaporator set-point (bottom)."""
+    with plt.rc_context(_RC):
+        fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 5.0), sharex=True)
+        _lines(a1, runs, 'mdot_bl_kgps')
+        a1.set_ylabel('Blower air flow $\\dot m_{bl}$ [kg/s]')
+        a1.legend(loc='upper right', ncol=2)
+        _lines(a2, runs, 't_evap_sp_c')
+        a2.set_ylabel('Evaporator set-point T$_{evap,sp}$ [°C]')
+        _time_axis(a2, runs)
+        a1.set_title(title or 'Control inputs')
+        fig.align_ylabels()
+        return _save(fig, path)
+
+
+def _bar_labels(ax, bars, values, base, fmt='{:+.1f} %'):
+    for b, v in zip(bars, values):
+        if base is None or not math.isfinite(base) or base == 0 or not math.isfinite(v):
+            continue
+        ax.annotate(fmt.format(100.0 * (v - base) / abs(base)), (b.get_x() + b.get_width() / 2, b.get_height()),
+                    ha='center', va='bottom', fontsize=7, xytext=(0, 2), textcoords='offset points')
+
+
+def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: str = 'baseline') -> Path:
+    """A/C energy (compressor + blower, kWh), I_PMV and OTC violation per
+    strategy, each bar annotated with its change against the baseline."""
+    names = ordered(list(metrics))
+    x = np.arange(len(names))
+    labels = [strategy_style(n)['label'].split(' (')[0] for n in names]
+    colors = [strategy_style(n, i)['color'] for i, n in enumerate(names)]
+    with plt.rc_context(_RC):
+        fig, axes = plt.subplots(1, 3, figsize=(9.0, 3.3))
+        e_comp = np.array([metrics[n]['E_comp_J'] for n in names]) / 3.6e6
+        e_bl = np.array([metrics[n]['E_blower_J'] for n in names]) / 3.6e6
+        ax = axes[0]
+        ax.bar(x, e_comp, color=colors, edgecolor='k', lw=0.5, label='Compressor')
+        ax.bar(x, e_bl, bottom=e_comp, color=colors, edgecolor='k', lw=0.5, hatch='///', alpha=0.6,
+               label='Blower (hatched)')
+        tot = e_comp + e_bl
+        base_tot = tot[names.index(baseline)] if baseline in names else None
+        for xi, v in zip(x, tot):
+            if base_tot:
+                ax.annotate(f'{100 * (v - base_tot) / base_tot:+.1f} %', (xi, v), ha='center', va='bottom',
+                            fontsize=7, xytext=(0, 2), textcoords='offset points')
+        ax.set_ylabel('A/C energy E$_{tot}$ [kWh]')
+        ax.set_ylim(0, tot.max() * 1.32)
+        ax.legend(handles=[Patch(facecolor='white', edgecolor='k', lw=0.5, label='Compressor'),
+                           Patch(facecolor='white', edgecolor='k', lw=0.5, hatch='///', label='Blower')],
+                  loc='upper center', ncol=2, fontsize=7)
+        for ax, key, ylab in ((axes[1], 'I_pmv', 'Comfort index I$_{PMV}$ = ∫PMV² dt [s]'),
+                              (axes[2], 'otc_violation_pct', 'Comfort-bound violation [% of time]')):
+            vals = np.array([float(metrics[n][key]) for n in names])
+            bars = ax.bar(x, vals, color=colors, edgecolor='k', lw=0.5)
+            if key == 'I_pmv':
+                _bar_labels(ax, bars, vals, vals[names.index(baseline)] if baseline in names else None)
+            else:
+                for b, v in zip(bars, vals):
+                    ax.annotate(f'{v:.1f}', (b.get_x() + b.get_width() / 2, v), ha='center', va='bottom',
+                                fontsize=7, xytext=(0, 2), textcoords='offset points')
+            ax.set_ylabel(ylab)
+            top = np.nanmax(vals) if np.any(np.isfinite(vals)) else 1.0
+            ax.set_ylim(0, max(top, 1e-9) * 1.15 if top > 0 else 1.0)
+        for ax in axes:
+            ax.set_xticks(x, labels, rotation=30, ha='right')
+            ax.grid(axis='x', visible=False)
+        fig.suptitle(title or 'Energy and comfort per strategy (labels: change vs baseline)')
+        fig.tight_layout()
+        return _save(fig, path)
+
+
+def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
+    """Vehicle-level energy change against the baseline per strategy and
+    vehicle (load-averaged fit; error bar = 2x the fit's noise), with the
+    paper's Prius numbers; electric car: range lost to the A/C."""
+    vehicles = list(dict.fromkeys(r['vehicle'] for r in rows))
+    strategies = ordered(list(dict.fromkeys(r['strategy'] for r in rows)))
+    strategies = [s for s in strategies if s != 'baseline']
+    bev = [r for r in rows if r['powertrain'] == 'BEV']
+    with plt.rc_context(_RC):
+        ncols = 2 if bev else 1
+        fig, axes = plt.subplots(1, ncols, figsize=(4.8 * ncols, 3.4), squeeze=False)
+        ax = axes[0][0]
+        x = np.arange(len(strategies))
+        width = 0.8 / (len(vehicles) + 1)
+        for j, veh in enumerate(vehicles):
+            by = {r['strategy']: r for r in rows if r['vehicle'] == veh}
+            vals = np.array([by[s]['saving_fit_pct'] if s in by else np.nan for s in strategies])
+            err = np.array([2 * by[s]['noise_pct'] if s in by else 0 for s in strategies])
+            ax.bar(x + (j - len(vehicles) / 2) * width, vals, width, yerr=err, capsize=2,
+                   color=_OKABE_ITO[(j + 5) % len(_OKABE_ITO)], edgecolor='k', lw=0.5,
+                   label=veh.replace('_', ' '))
+        paper = [next((r['paper_saving_pct'] for r in rows if r['strategy'] == s
+                       and math.isfinite(r['paper_saving_pct'])), np.nan) for s in strategies]
+        ax.bar(x + (len(vehicles) / 2) * width, paper, width, color='white', edgecolor='k', hatch='xx', lw=0.5,
+               label='Paper (2017 Prius HEV, SC03)')
+        ax.axhline(0, color='k', lw=0.6)
+        lows = [r['saving_fit_pct'] - 2 * r['noise_pct'] for r in rows if math.isfinite(r['saving_fit_pct'])]
+        low = min(lows + [p for p in paper if math.isfinite(p)] + [-1.0])
+        ax.set_ylim(1.7 * low, 0.1 * abs(low))
+        ax.set_xticks(x, [strategy_style(s)['label'] for s in strategies], rotation=20, ha='right')
+        ax.set_ylabel('Vehicle energy vs baseline [%]')
+        ax.legend(fontsize=7, loc='lower left')
+        ax.grid(axis='x', visible=False)
+        ax.set_title('Vehicle-level saving')
+        if bev:
+            ax = axes[0][1]
+            names = ordered(list(dict.fromkeys(r['strategy'] for r in bev)))
+            by = {r['strategy']: r for r in bev}
+            vals = np.array([by[n]['range_lost_km'] for n in names])
+            bars = ax.bar(np.arange(len(names)), vals, color=[strategy_style(n, i)['color'] for i, n in enumerate(names)],
+                          edgecolor='k', lw=0.5)
+            for b, n in zip(bars, names):
+                ax.annotate(f"{by[n]['range_lost_pct']:.1f} %", (b.get_x() + b.get_width() / 2, b.get_height()),
+                            ha='center', va='bottom', fontsize=7, xytext=(0, 2), textcoords='offset points')
+            ax.set_xticks(np.arange(len(names)), [strategy_style(n)['label'].split(' (')[0] for n in names],
+                          rotation=20, ha='right')
+            ax.set_ylabel('Range lost to A/C [km]')
+            ax.set_ylim(0, np.nanmax(vals) * 1.15 if np.any(vals > 0) else 1)
+            ax.grid(axis='x', visible=False)
+            ax.set_title(f"{bev[0]['vehicle'].replace('_', ' ')}: range lost")
+        fig.suptitle(title or 'Vehicle level (FASTSim 3.1, mean A/C power as constant aux load)')
+        fig.tight_layout()
+        return _save(fig, path)
+
+
+def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
+    """Solve-time distribution per NMPC strategy (box plot, log scale) with
+    the number of fallbacks."""
+    names = [n for n in ordered(list(diags)) if np.any(np.isfinite(np.asarray(diags[n].get('solve_time_ms', []),
+                                                                             dtype=float)))]
+    with plt.rc_context(_RC):
+        fig, ax = plt.subplots(figsize=(6.5, 3.2))
+        data = []
+        for n in names:
+            st = np.asarray(diags[n]['solve_time_ms'], dtype=float)
+            data.append(st[np.isfinite(st)])
+        if data:
+            bp = ax.boxplot(data, whis=(5, 95), showfliers=True, patch_artist=True,
+                            flierprops={'markersize': 2})
+            for patch, n in zip(bp['boxes'], names):
+                patch.set_facecolor(strategy_style(n)['color'])
+                patch.set_alpha(0.6)
+            labels = []
+            for n in names:
+                fb = np.asarray(diags[n].get('fallback', []), dtype=float)
+                nfb = int(np.nansum(fb)) if fb.size else 0
+                labels.append(f"{strategy_style(n)['label']}\n{nfb} fallback{'s' if nfb != 1 else ''}")
+            ax.set_xticks(np.arange(1, len(names) + 1), labels)
+            ax.set_yscale('log')
+        else:
+            ax.text(0.5, 0.5, 'no solver data', ha='center', va='center', transform=ax.transAxes)
+        ax.set_ylabel('Solve time per control step [ms]')
+        ax.set_title(title or 'NMPC solve time (box 25-75 %, whiskers 5-95 %)')
+        return _save(fig, path)
