@@ -82,9 +82,9 @@ def test_vectorised_env_and_previews():
 def test_pmv_bounds_piecewise_linear():
     sc = load_scenario("sc03")
     assert sc.pmv_bounds(0.0) == (-0.5, 3.0)
-    assert sc.pmv_bounds(60.0) == (-0.5, 3.0)
-    assert sc.pmv_bounds(180.0) == pytest.approx((-0.5, 1.75))
-    lb, ub = sc.pmv_bounds(np.array([300.0, 599.0]))
+    assert sc.pmv_bounds(120.0) == (-0.5, 3.0)
+    assert sc.pmv_bounds(270.0) == pytest.approx((-0.5, 1.75))
+    lb, ub = sc.pmv_bounds(np.array([420.0, 599.0]))
     np.testing.assert_allclose(ub, [0.5, 0.5])
     np.testing.assert_allclose(lb, [-0.5, -0.5])
 
@@ -151,7 +151,7 @@ _DELETE = object()
         (("occupant", "clo"), _DELETE, "occupant.clo: missing"),
         (("drive_cycle",), "wltp", "drive_cycle: unknown drive cycle"),
         (("comfort_bounds", "pmv_lb"), [-0.5, -0.5, 0.6, -0.5], "comfort_bounds.pmv_lb[2]"),
-        (("comfort_bounds", "time_s"), [0, 60, 50, 600], "comfort_bounds.time_s"),
+        (("comfort_bounds", "time_s"), [0, 120, 50, 600], "comfort_bounds.time_s"),
         (("initial", "t_cab_c"), _DELETE, "initial.t_cab_c: missing"),
         (("initial", "rh_cab"), 40.0, "initial.rh_cab"),
         (("control", "horizon_steps"), 0, "control.horizon_steps"),
