@@ -30,6 +30,9 @@ def test_constant_power():
     assert m["P_mean_w"] == 2150.0
     assert m["I_pmv"] == 0.0 and m["otc_violation_pct"] == 0.0
     assert m["time_to_comfort_s"] == 0.0
+    assert m["E_aux_J"] == 0.0
+    with_fan = compute_metrics(T, 2000.0, 150.0, np.zeros(600), -0.5, 0.5, p_aux_w=np.full(600, 100.0))
+    assert with_fan["E_aux_J"] == 6.0e4 and with_fan["E_tot_J"] == 1.35e6
 
 
 def test_pmv_step():

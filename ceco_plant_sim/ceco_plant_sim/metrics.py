@@ -1,9 +1,10 @@
 """Metrics of a closed-loop run: energy, comfort, constraint violation.
 
 Equations, units and the reasoning behind each choice: ``docs/metrics.md``.
-The paper's three metrics (Wang et al., DSCC 2019, Sec. 5):
+The paper's three metrics (Wang et al., DSCC 2019, Sec. 4):
 
 * ``E_tot = integral_0^T (P_comp + P_bl) dt``                       [J]
+  (plus optional other auxiliaries such as the condenser fan)
 * ``I_PMV = integral_0^T PMV^2 dt``                                 [s]
 * ``OTC violation = T_viol / T * 100 %``, where T_viol is the time with
   PMV > PMV_UB or PMV < PMV_LB                                      [%]
@@ -40,7 +41,7 @@ COMFORT_HOLD_S = 60.0
 """Default time PMV must stay in the comfort zone for comfort to count as reached [s]."""
 
 METRIC_KEYS = (
-    "E_tot_J", "E_tot_kWh", "E_comp_J", "E_blower_J", "P_mean_w", "I_pmv",
+    "E_tot_J", "E_tot_kWh", "E_comp_J", "E_blower_J", "E_aux_J", "P_mean_w", "I_pmv",
     "otc_violation_pct", "otc_violation_s", "otc_above_ub_s", "otc_below_lb_s",
     "time_to_comfort_s", "pmv_mean", "pmv_max", "pmv_min", "duration_s",
 )
@@ -66,7 +67,7 @@ def _array(name: str, x, n: int | None) -> np.ndarray:
 
 def compute_metrics(t_s, p_comp_w, p_blower_w, pmv, pmv_lb, pmv_ub, *,
                     comfort_ub: float = 0.5, comfort_lb: float = -0.5,
-                    comfort_hold_s: float = COMFORT_HOLD_S) -> dict:
+                    comfort_hold_s: float = COMFORT_HOLD_S, p_aux_w=None) -> dict:
     """Energy and comfort metrics of one run (see module docstring).
 
     Args:
@@ -79,6 +80,10 @@ def compute_metrics(t_s, p_comp_w, p_blower_w, pmv, pmv_lb, pmv_ub, *,
         comfort_lb, comfort_ub: the comfort zone used for time to comfort
             (ISO 7730 category B: -0.5..+0.5) [-].
         comfort_hold_s: time PMV must stay in the zone to count [s].
+        p_aux_w: other A/C auxiliaries, e.g. the condenser fan, mean over
+            each interval [W]; optional (0 if None). The paper's P_aux is
+            blower + condenser fan; pass the plant's ``p_cond_fan_w`` here
+            to count the fan in ``E_tot_J``.
 
     Returns:
         dict with the keys :data:`METRIC_KEYS` (floats). ``time_to_comfort_s``
@@ -104,6 +109,7 @@ def compute_metrics(t_s, p_comp_w, p_blower_w, pmv, pmv_lb, pmv_ub, *,
         raise ValueError(f"t_s: must be uniformly spaced (step {dt} s), step {i} is {float(steps[i])} s")
     p_comp = _array("p_comp_w", p_comp_w, n)
     p_bl = _array("p_blower_w", p_blower_w, n)
+    p_aux = np.zeros(n) if p_aux_w is None else _array("p_aux_w", p_aux_w, n)
     y = _array("pmv", pmv, n)
     lb = _array("pmv_lb", pmv_lb, n)
     ub = _array("pmv_ub", pmv_ub, n)
@@ -118,7 +124,8 @@ def compute_metrics(t_s, p_comp_w, p_blower_w, pmv, pmv_lb, pmv_ub, *,
     duration_s = n * dt
     e_comp = float(np.sum(p_comp) * dt)
     e_bl = float(np.sum(p_bl) * dt)
-    e_tot = e_comp + e_bl
+    e_aux = float(np.sum(p_aux) * dt)
+    e_tot = e_comp + e_bl + e_aux
     above = y > ub
     below = y < lb
     viol_s = float(np.count_nonzero(above | below) * dt)
@@ -128,6 +135,7 @@ def compute_metrics(t_s, p_comp_w, p_blower_w, pmv, pmv_lb, pmv_ub, *,
         "E_tot_kWh": e_tot / J_PER_KWH,
         "E_comp_J": e_comp,
         "E_blower_J": e_bl,
+        "E_aux_J": e_aux,
         "P_mean_w": e_tot / duration_s,
         "I_pmv": float(np.sum(y * y) * dt),
         "otc_violation_pct": 100.0 * viol_s / duration_s,
