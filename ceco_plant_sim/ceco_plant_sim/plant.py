@@ -30,6 +30,7 @@ Equations, units, references and the parameter table: ``docs/plant.md``.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
 from ceco_plant_sim.plant_params import (
@@ -174,17 +175,22 @@ class PlantState:
         return tuple(float(getattr(self, f.name)) for f in fields(self))
 
     @classmethod
-    def from_initial(cls, initial: dict, params: PlantParams, env) -> PlantState:
+    def from_initial(cls, initial, params: PlantParams, env) -> PlantState:
         """Hot-soak (or any) initial state from a scenario's ``initial`` mapping.
 
-        Required keys: ``t_cab_c, t_int_c, t_shell_c`` [degC], ``rh_cab`` [0..1].
-        Optional: ``t_glass_c`` (default t_cab_c: in a soak the glazing sits
-        between the hot interior and the ambient, close to the cabin air),
+        ``initial`` is a mapping or an object with attributes (the scenario's
+        ``InitialState``). Required: ``t_cab_c, t_int_c, t_shell_c`` [degC],
+        ``rh_cab`` [0..1]. Optional: ``t_glass_c`` (default t_shell_c: the
+        scenario's shell temperature covers the glazing too),
         ``t_evap_c`` (default t_cab_c: the HVAC module under the dashboard
         soaks at cabin air temperature). The compressor PI starts empty.
         ``env`` is validated (its ambient is not used for the defaults).
         """
         validate_environment(env)
+        if not isinstance(initial, Mapping):
+            # a scenario's InitialState (or any object with the attributes)
+            initial = {k: getattr(initial, k) for k in ("t_cab_c", "t_int_c", "t_shell_c", "rh_cab",
+                                                         "t_glass_c", "t_evap_c") if hasattr(initial, k)}
         for key in ("t_cab_c", "t_int_c", "t_shell_c", "rh_cab"):
             if key not in initial:
                 raise ValueError(f"initial.{key}: missing")
@@ -196,7 +202,7 @@ class PlantState:
             t_cab_c=t_cab,
             t_int_c=_check_finite("initial.t_int_c", initial["t_int_c"]),
             t_shell_c=_check_finite("initial.t_shell_c", initial["t_shell_c"]),
-            t_glass_c=_check_finite("initial.t_glass_c", initial.get("t_glass_c", t_cab)),
+            t_glass_c=_check_finite("initial.t_glass_c", initial.get("t_glass_c", initial["t_shell_c"])),
             t_evap_c=_check_finite("initial.t_evap_c", initial.get("t_evap_c", t_cab)),
             w_cab_kgkg=humidity_ratio(t_cab, rh, params.p_atm_pa),
             comp_pi_integral_rpm=0.0,
@@ -394,7 +400,8 @@ class CabinPlant:
         h = dt / n_sub
         x = self._x
         acc = [0.0] * 6  # e_comp, e_fan, q_evap_air, q_latent, q_ref, (unused)
-        u = (float(command.mdot_bl_kgps), float(command.t_evap_sp_c))
+        p_bl = self._blower_power_w(float(command.mdot_bl_kgps))
+        u = (float(command.mdot_bl_kgps), float(command.t_evap_sp_c), p_bl)
         for _ in range(n_sub):
             k1, a1 = self._rhs(x, u, envt)
             x2 = tuple(xi + 0.5 * h * ki for xi, ki in zip(x, k1))
@@ -412,7 +419,6 @@ class CabinPlant:
                 raise RuntimeError(f"plant state {fields(PlantState)[i].name} became non-finite")
         self._x = x
         self._t_s += dt
-        p_bl = self._blower_power_w(u[0])
         _, alg = self._rhs(x, u, envt, final=True)
         e_comp, e_fan, e_q, e_lat, e_ref = acc[:5]
         t_cab, t_int, t_sh, t_gl, t_ev, w_cab, _ = x
@@ -449,15 +455,15 @@ class CabinPlant:
 
     # -------------------------------------------------------------- physics
     def _blower_power_w(self, mdot_kgps: float) -> float:
-        """Fan law: P = dp(mdot) * Vdot / eta, dp = dp_ref (mdot/mdot_ref)^2  =>  P ~ mdot^3."""
+        """Fan law: P = dp(mdot) * Vdot / eta + P_fixed, dp = dp_ref (mdot/mdot_ref)^2  =>  P ~ mdot^3."""
         p = self.params
         r = mdot_kgps / p.mdot_bl_ref_kgps
-        return p.dp_blower_ref_pa * r * r * (mdot_kgps / p.rho_air_kgm3) / p.eta_blower
+        return p.dp_blower_ref_pa * r * r * (mdot_kgps / p.rho_air_kgm3) / p.eta_blower + p.p_blower_fixed_w
 
     def _rhs(self, x, u, envt, final: bool = False):
         p = self.params
         t_cab, t_int, t_sh, t_gl, t_ev, w_cab, pi_i = x
-        mdot, t_sp = u
+        mdot, t_sp, p_bl = u
         t_amb, solar, speed, rh_amb = envt
         cp_a = p.cp_air_jpkgk
         wsat = self._wsat
@@ -474,7 +480,6 @@ class CabinPlant:
         cp_m = cp_a + w_mix * p.cp_vap_jpkgk
         c_air = mdot * cp_m
         rr = mdot / p.mdot_bl_ref_kgps
-        p_bl = p.dp_blower_ref_pa * rr * rr * (mdot / p.rho_air_kgm3) / p.eta_blower
         t_in = t_mix + p_bl / c_air  # blow-through module: all blower power ends as heat in the air
         ua_air = p.ua_evap_air_ref_wpk * rr ** p.ua_evap_air_exp
         bf = math.exp(-ua_air / c_air)  # bypass factor = 1 - effectiveness

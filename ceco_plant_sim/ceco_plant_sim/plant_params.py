@@ -30,7 +30,7 @@ class PlantParams:
 
     # --- integration -------------------------------------------------------
     substep_s: float = 0.5
-    """Fixed RK4 sub-step [s]; the step dt_s must be an integer multiple (within 1e-9 s)."""
+    """Largest RK4 sub-step [s]; a step dt_s is split into ceil(dt_s/substep_s) equal sub-steps."""
     cycle_tol_k: float = 1e-6
     """Newton tolerance of the refrigerant loop (update size) [K]."""
     cycle_max_iter: int = 30
@@ -67,13 +67,13 @@ class PlantParams:
     """Latent heat gain per occupant [W] (same source)."""
 
     # --- interior mass (seats, dashboard, trim) ----------------------------
-    c_int_jpk: float = 45000.0
-    """Heat capacity of the interior mass [J/K] (~35 kg of foam, plastics, fabric at ~1300 J/(kg K))."""
-    a_int_m2: float = 8.0
-    """Convective area of the interior mass [m2] (seats, dashboard, floor trim, parcel shelf)."""
+    c_int_jpk: float = 90000.0
+    """Effective heat capacity of the interior mass [J/K] (~70 kg of seats, dashboard, carpet, trim at ~1300 J/(kg K))."""
+    a_int_m2: float = 14.0
+    """Convective area of the interior mass [m2] (seats both faces, dashboard, carpet, parcel shelf)."""
     h_in_natural_wm2k: float = 3.0
     """Inside convection coefficient without blower flow [W/(m2 K)] (natural convection)."""
-    h_in_forced_wm2k: float = 9.0
+    h_in_forced_wm2k: float = 10.0
     """Inside convection coefficient at the reference blower flow [W/(m2 K)]."""
     mdot_bl_ref_kgps: float = 0.17
     """Reference blower flow for the inside convection and the evaporator UA [kg/s]."""
@@ -87,7 +87,7 @@ class PlantParams:
     """Shell area projected normal to the sun [m2] (roof + part of the sides)."""
     alpha_shell: float = 0.6
     """Solar absorptance of the painted shell [-] (mid-tone paint 0.5-0.7)."""
-    u_shell_in_wm2k: float = 2.5
+    u_shell_in_wm2k: float = 3.5
     """Conductance shell sheet -> cabin air through trim and insulation, incl. inner film [W/(m2 K)]."""
 
     # --- glazing -----------------------------------------------------------
@@ -119,6 +119,8 @@ class PlantParams:
     """HVAC module + duct pressure drop at the reference blower flow [Pa] (quadratic system curve)."""
     eta_blower: float = 0.33
     """Blower wheel x motor x controller efficiency [-]."""
+    p_blower_fixed_w: float = 15.0
+    """Speed-independent blower losses while running (motor friction, PWM controller) [W]."""
     ua_duct_wpk: float = 8.0
     """Conductance of the ducts to the instrument panel (interior mass) [W/K]."""
 
@@ -194,7 +196,7 @@ class PlantParams:
                 raise ValueError(f"{f.name}: must be finite, got {v!r}")
         nonneg = {"infiltration_0_kgps", "infiltration_per_mps_kgps", "n_occupants", "occ_sensible_w",
                   "occ_latent_w", "g_rad_int_shell_wpk", "g_rad_int_glass_wpk", "h_out_speed_coef",
-                  "ua_duct_wpk", "a_shell_sun_m2", "a_glass_sun_m2", "p_cond_fan_w", "eta_vol_slope",
+                  "ua_duct_wpk", "p_blower_fixed_w", "a_shell_sun_m2", "a_glass_sun_m2", "p_cond_fan_w", "eta_vol_slope",
                   "eta_is_curv", "comp_speed_min_rpm", "superheat_k", "subcool_k", "ram_face_ratio"}
         fractions = {"recirc_fraction", "alpha_shell", "tau_glass", "alpha_glass"}
         efficiencies = {"eta_blower", "eta_vol_0", "eta_is_max", "eta_motor_inverter"}

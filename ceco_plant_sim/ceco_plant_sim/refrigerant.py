@@ -126,6 +126,30 @@ class _Table2D:
         b = r1[j] + g * (r1[j + 1] - r1[j])
         return a + f * (b - a)
 
+    def value_grad(self, x: float, y: float) -> tuple[float, float, float]:
+        """Return (z(x, y), dz/dx, dz/dy) of the bilinear interpolant."""
+        u = (x - self.x0) * self.inv_dx
+        i = int(math.floor(u))
+        if i < 0:
+            i = 0
+        elif i > self.nx - 2:
+            i = self.nx - 2
+        v = (y - self.y0) * self.inv_dy
+        j = int(math.floor(v))
+        if j < 0:
+            j = 0
+        elif j > self.ny - 2:
+            j = self.ny - 2
+        f = u - i
+        g = v - j
+        r0 = self.z[i]
+        r1 = self.z[i + 1]
+        z00, z01, z10, z11 = r0[j], r0[j + 1], r1[j], r1[j + 1]
+        a = z00 + g * (z01 - z00)
+        b = z10 + g * (z11 - z10)
+        dzdy = ((1.0 - f) * (z01 - z00) + f * (z11 - z10)) * self.inv_dy
+        return a + f * (b - a), (b - a) * self.inv_dx, dzdy
+
 
 @dataclass(frozen=True)
 class CycleTables:
@@ -325,18 +349,49 @@ class CycleSolution:
     """Newton iterations used."""
 
 
-def _cycle_residuals(tab: CycleTables, comp: CompressorModel, n_rps: float, t_e: float, t_c: float,
-                     t_wall_c: float, ua_er_wpk: float, t_air_c: float, epsc_wpk: float):
-    p_e = tab.p_evap_pa(t_e)
-    p_c = tab.p_cond_pa(t_c)
+def _cycle_eval(tab: CycleTables, comp: CompressorModel, vn: float, t_e: float, t_c: float,
+                t_wall_c: float, ua_er_wpk: float, t_air_c: float, epsc_wpk: float):
+    """Residuals (r1, r2) [W], their analytic Jacobian, and the cycle quantities at (t_e, t_c).
+
+    The Jacobian is exact for the piecewise-linear / bilinear interpolants.
+    """
+    p_e, p_e1 = tab.p_evap_pa.value_slope(t_e)
+    rho, rho1 = tab.rho_suc_kgm3.value_slope(t_e)
+    h1, h11 = tab.h_suc_jpkg.value_slope(t_e)
+    p_c, p_c1 = tab.p_cond_pa.value_slope(t_c)
+    h3, h31 = tab.h_liq_jpkg.value_slope(t_c)
+    dhs, dhs_e, dhs_c = tab.dh_is_jpkg.value_grad(t_e, t_c)
     pr = p_c / p_e
-    mdot = tab.rho_suc_kgm3(t_e) * comp.displacement_m3 * n_rps * comp.eta_vol(pr)
-    dh_e = tab.h_suc_jpkg(t_e) - tab.h_liq_jpkg(t_c)
-    w = tab.dh_is_jpkg(t_e, t_c) / comp.eta_is(pr)
-    q_e = mdot * dh_e
+    pr_e = -p_c * p_e1 / (p_e * p_e)
+    pr_c = p_c1 / p_e
+    # volumetric efficiency and its slope in pr (0 where floored / pr < 1)
+    prc = pr if pr > 1.0 else 1.0
+    ev = comp.eta_vol_0 - comp.eta_vol_slope * (prc - 1.0)
+    if ev < 0.3:
+        ev, ev1 = 0.3, 0.0
+    else:
+        ev1 = -comp.eta_vol_slope if pr > 1.0 else 0.0
+    d = prc - comp.pr_opt
+    ei = comp.eta_is_max - comp.eta_is_curv * d * d
+    if ei < 0.3:
+        ei, ei1 = 0.3, 0.0
+    else:
+        ei1 = -2.0 * comp.eta_is_curv * d if pr > 1.0 else 0.0
+    m = rho * vn * ev
+    m_e = vn * (rho1 * ev + rho * ev1 * pr_e)
+    m_c = vn * rho * ev1 * pr_c
+    dh = h1 - h3
+    w = dhs / ei
+    w_e = dhs_e / ei - dhs * ei1 * pr_e / (ei * ei)
+    w_c = dhs_c / ei - dhs * ei1 * pr_c / (ei * ei)
+    q_e = m * dh
     r1 = q_e - ua_er_wpk * (t_wall_c - t_e)
-    r2 = mdot * (dh_e + w) - epsc_wpk * (t_c - t_air_c)
-    return r1, r2, mdot, q_e, mdot * w, pr
+    r2 = m * (dh + w) - epsc_wpk * (t_c - t_air_c)
+    j11 = m_e * dh + m * h11 + ua_er_wpk
+    j12 = m_c * dh - m * h31
+    j21 = m_e * (dh + w) + m * (h11 + w_e)
+    j22 = m_c * (dh + w) + m * (-h31 + w_c) - epsc_wpk
+    return r1, r2, j11, j12, j21, j22, m, q_e, m * w, pr
 
 
 def solve_cycle(
@@ -364,58 +419,52 @@ def solve_cycle(
     te_mop_c : expansion valve MOP cap on the evaporating temperature [degC].
     guess : starting (T_e, T_c) [degC]; None for a built-in start.
 
-    Newton on (r1, r2) with a forward-difference Jacobian (step 1e-4 K) and
-    the step limited to 10 K; converged when the update is below ``tol_k``.
+    Newton on (r1, r2) with the analytic Jacobian of the interpolated
+    properties, each update limited to 10 K; converged at the first iterate
+    whose Newton update is below ``tol_k`` in both temperatures (that iterate
+    and its evaluated flows are returned: it lies within ~tol_k of the root).
+    ``iterations`` counts property evaluations.
     If the solution exceeds ``te_mop_c``, T_e is pinned at the MOP and only
     r2 is solved for T_c. Raises RuntimeError if ``max_iter`` is reached.
     """
     if speed_rpm <= 0.0:
         return CycleSolution(t_wall_c, t_air_cond_c, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, False, 0)
-    n_rps = speed_rpm / 60.0
+    vn = comp.displacement_m3 * speed_rpm / 60.0
     if guess is None:
         t_e = min(t_wall_c - 5.0, te_mop_c)
         t_c = t_air_cond_c + 15.0
     else:
         t_e, t_c = guess
-    h = 1e-4
     args = (t_wall_c, ua_er_wpk, t_air_cond_c, epsc_cond_wpk)
-    it = 0
     mop = False
-    for it in range(1, max_iter + 1):
-        r1, r2, *_ = _cycle_residuals(tab, comp, n_rps, t_e, t_c, *args)
-        a1, a2, *_ = _cycle_residuals(tab, comp, n_rps, t_e + h, t_c, *args)
-        b1, b2, *_ = _cycle_residuals(tab, comp, n_rps, t_e, t_c + h, *args)
-        j11 = (a1 - r1) / h
-        j21 = (a2 - r2) / h
-        j12 = (b1 - r1) / h
-        j22 = (b2 - r2) / h
+    it = 0
+    converged = False
+    while it < max_iter:
+        r1, r2, j11, j12, j21, j22, mdot, q_e, w_sh, pr = _cycle_eval(tab, comp, vn, t_e, t_c, *args)
+        it += 1
         det = j11 * j22 - j12 * j21
         de = -(j22 * r1 - j12 * r2) / det
         dc = -(-j21 * r1 + j11 * r2) / det
-        de = max(-10.0, min(10.0, de))
-        dc = max(-10.0, min(10.0, dc))
-        t_e += de
-        t_c += dc
         if abs(de) < tol_k and abs(dc) < tol_k:
+            converged = True  # this point is within ~tol_k of the root: keep its evaluated quantities
             break
-    else:
-        raise RuntimeError(f"refrigerant cycle did not converge in {max_iter} iterations "
-                           f"(speed {speed_rpm:.0f} rpm, wall {t_wall_c:.2f} degC)")
-    if t_e > te_mop_c:
+        t_e += max(-10.0, min(10.0, de))
+        t_c += max(-10.0, min(10.0, dc))
+    if converged and t_e > te_mop_c:
         mop = True
         t_e = te_mop_c
-        for k in range(1, max_iter + 1):
-            r1, r2, *_ = _cycle_residuals(tab, comp, n_rps, t_e, t_c, *args)
-            b1, b2, *_ = _cycle_residuals(tab, comp, n_rps, t_e, t_c + h, *args)
-            dc = -r2 / ((b2 - r2) / h)
-            dc = max(-10.0, min(10.0, dc))
-            t_c += dc
+        converged = False
+        while it < max_iter:
+            _, r2, _, _, _, j22, mdot, q_e, w_sh, pr = _cycle_eval(tab, comp, vn, t_e, t_c, *args)
+            it += 1
+            dc = -r2 / j22
             if abs(dc) < tol_k:
+                converged = True
                 break
-        else:
-            raise RuntimeError(f"refrigerant cycle (MOP) did not converge in {max_iter} iterations")
-        it += k
-    _, _, mdot, q_e, w_sh, pr = _cycle_residuals(tab, comp, n_rps, t_e, t_c, *args)
+            t_c += max(-10.0, min(10.0, dc))
+    if not converged:
+        raise RuntimeError(f"refrigerant cycle did not converge in {max_iter} iterations "
+                           f"(speed {speed_rpm:.0f} rpm, wall {t_wall_c:.2f} degC)")
     return CycleSolution(
         t_evap_sat_c=t_e,
         t_cond_c=t_c,
