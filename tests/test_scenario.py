@@ -205,3 +205,17 @@ def test_constant_written_as_one_number():
     sc = scenario_from_dict(d)
     assert sc.env_at(123.0).rh == 0.3
     assert math.isclose(sc.env_at(600.0).rh, 0.3)
+
+
+def test_cli_validates_and_summarises(tmp_path, capsys):
+    from ceco_v2x_preview.scenario import main
+
+    assert main(["sc03"]) == 0
+    out = capsys.readouterr().out
+    assert "solar 850 -> 600 W/m2" in out and "t_cab_c=57" in out
+    bad = tmp_path / "bad.yaml"
+    d = _sc03_dict()
+    d["occupant"]["met"] = -1.0
+    bad.write_text(yaml.safe_dump(d))
+    assert main([str(bad)]) == 1
+    assert "occupant.met" in capsys.readouterr().err

@@ -46,6 +46,8 @@ __all__ = [
     "list_drive_cycles",
     "load_drive_cycle",
     "scenario_from_dict",
+    "describe",
+    "main",
 ]
 
 _MPH_TO_MPS = 0.44704
@@ -572,3 +574,49 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
     except yaml.YAMLError as exc:
         raise ScenarioError(f"scenario: {source}: not valid YAML: {exc}") from None
     return scenario_from_dict(data, source=source, base_dir=base_dir)
+
+
+def describe(scenario: Scenario) -> str:
+    """A short human-readable summary of a scenario (used by the CLI)."""
+    sc = scenario
+    env0, env1 = sc.env_at(0.0), sc.env_at(sc.duration_s)
+    lb0, ub0 = sc.pmv_bounds(0.0)
+    lb1, ub1 = sc.pmv_bounds(sc.duration_s)
+    ini = ", ".join(f"{k}={v:.3g}" for k, v in sc.initial.items())
+    return "\n".join([
+        f"scenario {sc.name} ({sc.source})",
+        f"  drive cycle {sc.drive_cycle.name}: {sc.drive_cycle.duration_s:.0f} s, "
+        f"{sc.drive_cycle.distance_m / 1000.0:.2f} km, max {float(np.max(sc.drive_cycle.speed_mps)):.1f} m/s; "
+        f"run {sc.duration_s:.0f} s",
+        f"  ambient {env0.t_amb_c:.1f} -> {env1.t_amb_c:.1f} degC, solar {env0.solar_wm2:.0f} -> "
+        f"{env1.solar_wm2:.0f} W/m2, rh {env0.rh:.2f} -> {env1.rh:.2f}",
+        f"  occupant met={sc.occupant.met:g} clo={sc.occupant.clo:g}; PMV bounds "
+        f"[{lb0:g}, {ub0:g}] at 0 s -> [{lb1:g}, {ub1:g}] at the end",
+        f"  initial {ini}",
+        f"  control Ts={sc.control.control_period_s:g} s Np={sc.control.horizon_steps}; seed {sc.seed}",
+    ])
+
+
+def main(argv=None) -> int:
+    """``python -m ceco_v2x_preview.scenario [NAME_OR_PATH ...]``: validate and
+    summarise scenarios (all bundled ones without arguments). Exit status 1
+    and the field-naming message on the first invalid one."""
+    import argparse  # noqa: PLC0415
+    import sys  # noqa: PLC0415
+
+    parser = argparse.ArgumentParser(prog="python -m ceco_v2x_preview.scenario",
+                                     description="Validate and summarise ceco scenario files.")
+    parser.add_argument("scenarios", nargs="*", help="bundled names or YAML paths (default: all bundled)")
+    args = parser.parse_args(argv)
+    status = 0
+    for name in args.scenarios or list_scenarios():
+        try:
+            print(describe(load_scenario(name)))
+        except ScenarioError as exc:
+            print(f"{name}: invalid: {exc}", file=sys.stderr)
+            status = 1
+    return status
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
