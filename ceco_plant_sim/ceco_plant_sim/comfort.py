@@ -12,11 +12,11 @@ References:
     ISO 7730:2005, Ergonomics of the thermal environment: analytical
     determination and interpretation of thermal comfort using calculation of
     the PMV and PPD indices and local thermal comfort criteria. Clause 4
-    (eqs. (1)-(5), applicability ranges), Annex D (computer program, the
+    (eqs. (1)-(4), applicability ranges), Clause 5 (PPD, eq. (5)), Annex D (computer program, the
     vapour-pressure formula and Table D.1 check values).
     ANSI/ASHRAE Standard 55-2020, Normative Appendix C (SolarCal: effective
     radiant field of solar gain on an occupant).
-    Wang et al., DSCC 2019 (``shared/papers/ceco-dscc2019.tex``), Sec. 3:
+    Wang et al., DSCC 2019 (``shared/papers/ceco-dscc2019.tex``), Sec. 3, eqs. (5)-(14):
     modified heat balance M + W_rad = H + E_c + C_res + E_res, T_a = a1 T_cab
     + a2 T_ain, T_mr = T_int, air speed linear in blower flow, p_a = 1700 Pa.
 """
@@ -56,7 +56,7 @@ CLO_TO_M2KPW = 0.155
 """1 clo in m2.K/W (ISO 7730:2005, 3.2 note)."""
 
 _ISO_KELVIN_OFFSET = 273.0
-"""ISO 7730 eqs. (2)-(4) write ``t + 273``. This is part of the empirical
+"""ISO 7730 eqs. (1)-(2) write ``t + 273``. This is part of the empirical
 formula whose radiation constant 3.96e-8 was fitted with it; it is kept
 literally so that the model reproduces ISO 7730 (using 273.15 moves PMV by
 about 1e-3). It is not a unit conversion (those live in ``units.py``)."""
@@ -66,7 +66,7 @@ _SIGMA_FCL = 3.96e-8
 Boltzmann 5.67e-8 x effective radiating fraction 0.72, per m2 of DuBois area)."""
 
 _ICL_FCL_BREAK = 0.078
-"""Clothing insulation at which ISO 7730 eq. (5) switches f_cl [m2.K/W]."""
+"""Clothing insulation at which ISO 7730 eq. (4) switches f_cl [m2.K/W]."""
 
 # ISO 7730:2005 Clause 4 applicability ranges (inclusive).
 _ISO_RANGES = {
@@ -173,7 +173,7 @@ _PMV_BOUNDS = {
 
 
 def _clothing_area_factor(ops, icl):
-    """ISO 7730 eq. (5): f_cl [-] from I_cl [m2.K/W].
+    """ISO 7730 eq. (4): f_cl [-] from I_cl [m2.K/W].
 
     Kept exact (piecewise): clo is an occupant parameter, never an NMPC
     decision variable. Note the ISO branches do not meet: at I_cl = 0.078
@@ -191,7 +191,7 @@ def _forced_hc(ops, vel_mps, sm):
 
 
 def _hc_and_slope(ops, tcl_c, ta_c, hc_forced, sm):
-    """h_c = max(2.38 |T_cl - T_a|^0.25, h_forced) and dh_c/dT_cl (ISO 7730 eq. (4))."""
+    """h_c = max(2.38 |T_cl - T_a|^0.25, h_forced) and dh_c/dT_cl (ISO 7730 eq. (3))."""
     d = tcl_c - ta_c
     if sm.exact:
         ad = ops.fabs(d)
@@ -288,7 +288,7 @@ def clothing_temperature_c(*, ta_c, tr_c, vel_mps, met, clo, w_rad_wm2=0.0,
 
 
 def pmv(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0, smoothing=DEFAULT_SMOOTHING):
-    """Predicted mean vote, ISO 7730:2005 eqs. (1)-(5), with the paper's solar term.
+    """Predicted mean vote, ISO 7730:2005 eqs. (1)-(4), with the paper's solar term.
 
     Args:
         ta_c: air temperature T_a [degC]; ISO range 10..30.
@@ -300,7 +300,7 @@ def pmv(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0, smoothing=DEFAUL
         clo: basic clothing insulation [clo] (1 clo = 0.155 m2.K/W), >= 0;
             ISO range 0..2.
         w_rad_wm2: absorbed short-wave (solar) flux per m2 of body surface
-            [W/m2], the paper's W_rad (eq. (9)); 0 gives ISO 7730 exactly.
+            [W/m2], the paper's W_rad (eqs. (12)-(13)); 0 gives ISO 7730 exactly.
             It is a heat gain at the clothing surface: it enters the surface
             balance that fixes T_cl and the gain side of the body balance;
             skin diffusion, sweating, respiration and the sensitivity
@@ -333,7 +333,7 @@ def pmv(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0, smoothing=DEFAUL
 
 
 def ppd(pmv):  # noqa: D417 - the argument shadows the function on purpose
-    """Predicted percentage dissatisfied [%], ISO 7730:2005 eq. (6).
+    """Predicted percentage dissatisfied [%], ISO 7730:2005 Clause 5, eq. (5).
 
     ``PPD = 100 - 95 exp(-0.03353 PMV^4 - 0.2179 PMV^2)``; minimum 5 % at PMV = 0.
     Accepts numpy arrays and CasADi expressions.
@@ -346,7 +346,7 @@ def ppd(pmv):  # noqa: D417 - the argument shadows the function on purpose
 
 
 def _explicit_tcl_c(m_wm2, icl, ta_c, pa_in_tcl, skin_slope=0.0275, resp_latent_coeff=0.0173):
-    """The paper's eq. (6) clothing temperature (Fanger's explicit form) [degC].
+    """The paper's eq. (10) clothing temperature (Fanger's explicit form) [degC].
 
     ``pa_in_tcl`` must be in kPa for the printed constants 3.05, 5.73,
     0.007, 0.0173, 5.87 to be consistent (ISO 7730 eq. (1) in kPa units).
@@ -366,7 +366,7 @@ def _explicit_tcl_c(m_wm2, icl, ta_c, pa_in_tcl, skin_slope=0.0275, resp_latent_
 
 def pmv_explicit_paper(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0,
                        smoothing=DEFAULT_SMOOTHING):
-    """PMV with the paper's explicit clothing temperature (eqs. (2)-(9)): NOT ISO 7730.
+    """PMV with the paper's explicit clothing temperature (eqs. (5)-(13)): NOT ISO 7730.
 
     For reproducing the method paper only. T_cl is Fanger's explicit
     expression, which assumes the body is already in heat balance; it equals
@@ -375,7 +375,7 @@ def pmv_explicit_paper(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0,
     converted to kPa inside the T_cl expression, whose constants need kPa
     (copied literally with Pa the result is off by orders of magnitude).
     h_c, the clip of the sweat term and v near 0 are smoothed as in
-    :func:`pmv`. W_rad enters only the gain side, as printed in eq. (9).
+    :func:`pmv`. W_rad enters only the gain side, as printed in eq. (13).
     Arguments and units as :func:`pmv`.
     """
     ops, a = _prepare(
@@ -481,7 +481,7 @@ class ComfortParams:
     f_eff: float = 0.696
     """Fraction of body surface exchanging radiation, seated (ASHRAE 55-2020 App. C) [-]."""
     f_projected: float = 0.262
-    """Projected area factor f_p of a seated person, sun high (~60 deg) ahead (ASHRAE 55 Table C2-1) [-]."""
+    """Projected area factor f_p of a seated person, sun at 60 deg altitude ahead (ASHRAE 55-2020 App. C) [-]."""
     f_sunlit: float = 0.5
     """Fraction of the body's projected area in direct sun inside the cabin, f_bes [-]."""
     glazing_tau: float = 0.5
@@ -544,7 +544,7 @@ class ComfortParams:
         return self
 
     def air_temperature_c(self, t_cab_c, t_ain_c):
-        """Air temperature at the occupant T_a = a1 T_cab + a2 T_ain [degC] (paper eq. (10))."""
+        """Air temperature at the occupant T_a = a1 T_cab + a2 T_ain [degC] (paper eq. (14))."""
         return self.a1 * t_cab_c + self.a2 * t_ain_c
 
     def air_speed_mps(self, mdot_bl_kgps):
