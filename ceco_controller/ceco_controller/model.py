@@ -17,7 +17,8 @@ Equations (Wang et al., DSCC 2019, Sec. 2; docs/controller.md):
     (2) T_evap(k+1) = g4 T_evap + g5 (T_evap - T_evap_sp) + tau2
     (3) T_ain(k)    = g6 T_evap + g7 mdot_bl + tau3 [+ d_ain]
 
-    Q_evap  = mdot_bl c_p softplus(T_mix - T_ain),  T_mix = T_cab + phi (T_amb - T_cab)
+    Q_evap  = softplus(mdot_bl c_p (T_mix - T_ain) + C_w (T_evap - T_evap(k+1)) / Ts),
+              T_mix = T_cab + phi (T_amb - T_cab)
     P_comp  = Q_evap (c0 + c1 softplus(T_amb - T_evap)) / eta_AC(V)
     P_bl    = b0 + b1 mdot_bl + b3 mdot_bl^3
     eta_AC  = 1 + a_eta (1 - exp(-V / v_eta))   >= 1
@@ -26,7 +27,9 @@ where mdot_bl [kg/s] is the blower flow, T_evap_sp [degC] the evaporator
 set-point, T_int/T_shell [degC] the interior/shell temperatures (held at their
 measured values over the horizon: they have no dynamics in the paper), T_amb
 [degC] ambient, V [m/s] vehicle speed, phi [-] the fresh-air fraction of the
-evaporator inlet, c_p [J/(kg K)] the specific heat of air, c0 [-] the
+evaporator inlet, C_w [J/K] the effective heat capacity of the evaporator wall
+and refrigerant charge (pulling the wall down to a lower set-point costs
+compressor work before the air sees it), c_p [J/(kg K)] the specific heat of air, c0 [-] the
 reciprocal of the COP at zero lift, c1 [1/K] its growth with the lift
 T_amb - T_evap (the condensing/evaporating temperature difference rises with
 it), b0/b1/b3 the blower fan-law coefficients [W, W s/kg, W s^3/kg^3], and
@@ -103,6 +106,8 @@ class ControlModelParams:
     """Vent air offset [degC] (eq. 3)."""
     fresh_air_fraction: float = 0.2
     """Fresh-air share of the evaporator inlet air phi [-] (power model)."""
+    comp_c_wall_jpk: float = 5000.0
+    """Effective evaporator wall heat capacity C_w in the refrigerant load [J/K]."""
     comp_c0: float = 0.2
     """Compressor electrical power per evaporator heat at zero lift (1/COP) [-]."""
     comp_c1_per_k: float = 0.01
@@ -145,8 +150,8 @@ class ControlModelParams:
                 raise ValueError(f"ControlModelParams.{name} must be >= 0")
 
     def to_dict(self) -> dict:
-        """Plain dict of the fields (for YAML)."""
-        return dataclasses.asdict(self)
+        """Plain dict of the fields (Python floats; for YAML)."""
+        return {k: (v if isinstance(v, str) else float(v)) for k, v in dataclasses.asdict(self).items()}
 
     @classmethod
     def from_dict(cls, data: dict) -> "ControlModelParams":
@@ -179,9 +184,16 @@ def save_params(params: ControlModelParams, path: str | pathlib.Path, header: st
                 extra: dict | None = None) -> None:
     """Write the parameters (and optional extra mappings, e.g. the fit report) as YAML."""
     params.validate()
-    doc = {"params": params.to_dict()}
+    def plain(v):
+        if isinstance(v, dict):
+            return {k: plain(x) for k, x in v.items()}
+        if isinstance(v, (np.floating, np.integer)):
+            return v.item()
+        return v
+
+    doc = {"params": plain(params.to_dict())}
     if extra:
-        doc.update(extra)
+        doc.update(plain(extra))
     text = yaml.safe_dump(doc, sort_keys=False, default_flow_style=False)
     if header:
         text = "".join(f"# {line}\n" if line else "#\n" for line in header.splitlines()) + text
@@ -219,10 +231,16 @@ def eta_ac(p: ControlModelParams, speed_mps):
     return 1.0 + p.eta_gain * (1.0 - ops.exp(-speed_mps / p.eta_speed_scale_mps))
 
 
-def q_evap_w(p: ControlModelParams, t_cab_c, t_amb_c, t_ain, mdot_bl_kgps):
-    """Sensible evaporator heat from the air [W]: mdot c_p softplus(T_mix - T_ain)."""
+def q_evap_w(p: ControlModelParams, t_cab_c, t_amb_c, t_ain, mdot_bl_kgps, t_evap_c, t_evap_next_c):
+    """Refrigerant-side evaporator load [W]: air-side sensible heat plus the wall cool-down, >= 0.
+
+    ``softplus(mdot c_p (T_mix - T_ain) + C_w (T_evap - T_evap_next)/ts, k)`` with the
+    softplus sharpness k = 2/(c_p * 0.1 kg/s) so its error is <= 0.35 K x 0.1 kg/s x c_p = 35 W.
+    """
     t_mix_c = t_cab_c + p.fresh_air_fraction * (t_amb_c - t_cab_c)
-    return mdot_bl_kgps * CP_AIR_JPKGK * softplus(t_mix_c - t_ain, _SOFTPLUS_K)
+    q = (mdot_bl_kgps * CP_AIR_JPKGK * (t_mix_c - t_ain)
+         + p.comp_c_wall_jpk * (t_evap_c - t_evap_next_c) / p.ts_s)
+    return softplus(q, _SOFTPLUS_K / (CP_AIR_JPKGK * 0.1))
 
 
 def p_comp_w(p: ControlModelParams, q_w, t_amb_c, t_evap_c, speed_mps):
@@ -247,7 +265,7 @@ def substeps(p: ControlModelParams, dt_s: float) -> int:
 
 
 def step(p: ControlModelParams, t_cab_c, t_evap_c, mdot_bl_kgps, t_evap_sp_c, t_int_c, t_shell_c,
-         t_amb_c, speed_mps, n_sub: int = 1, d_cab_k=0.0, d_ain_k=0.0):
+         t_amb_c, speed_mps, n_sub: int = 1, d_cab_k=0.0, d_ain_k=0.0, d_evap_k=0.0):
     """Advance the model over ``n_sub`` model steps with the inputs held.
 
     Returns ``(t_cab_next_c, t_evap_next_c, t_ain_c, p_comp_w, p_blower_w)``
@@ -258,11 +276,12 @@ def step(p: ControlModelParams, t_cab_c, t_evap_c, mdot_bl_kgps, t_evap_sp_c, t_
     pc_sum = 0.0
     for _ in range(int(n_sub)):
         t_ain = t_ain_c(p, t_evap_c, mdot_bl_kgps, d_ain_k)
-        q = q_evap_w(p, t_cab_c, t_amb_c, t_ain, mdot_bl_kgps)
+        t_evap_n = t_evap_next_c(p, t_evap_c, t_evap_sp_c) + d_evap_k
+        q = q_evap_w(p, t_cab_c, t_amb_c, t_ain, mdot_bl_kgps, t_evap_c, t_evap_n)
         pc_sum = pc_sum + p_comp_w(p, q, t_amb_c, t_evap_c, speed_mps)
         t_ain_sum = t_ain_sum + t_ain
         t_cab_c, t_evap_c = (t_cab_next_c(p, t_cab_c, t_int_c, t_shell_c, t_ain, mdot_bl_kgps, d_cab_k),
-                             t_evap_next_c(p, t_evap_c, t_evap_sp_c))
+                             t_evap_n)
     return t_cab_c, t_evap_c, t_ain_sum / n_sub, pc_sum / n_sub, p_blower_w(p, mdot_bl_kgps)
 
 

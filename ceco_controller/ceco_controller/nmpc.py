@@ -136,8 +136,8 @@ class NmpcController:
                 t_cab_n, t_evap_n, _, _, _ = cm.step(
                     mp, x_prev[0], x_prev[1], u_prev_stage[0], u_prev_stage[1], t_int, t_shell,
                     t_amb[i - 1], speed[i - 1], n_sub=self.n_sub,
-                    d_cab_k=d_cab / self.n_sub, d_ain_k=d_ain)
-                g.append(x - casadi.vertcat(t_cab_n, t_evap_n + d_evap))
+                    d_cab_k=d_cab / self.n_sub, d_ain_k=d_ain, d_evap_k=d_evap / self.n_sub)
+                g.append(x - casadi.vertcat(t_cab_n, t_evap_n))
             lbg.extend([0.0, 0.0])
             ubg.extend([0.0, 0.0])
             if i < n:
@@ -150,7 +150,8 @@ class NmpcController:
             # stage power (intervals 0..N-1)
             if i < n:
                 _, _, _, pc, pb = cm.step(mp, x[0], x[1], u[0], u[1], t_int, t_shell, t_amb[i], speed[i],
-                                          n_sub=self.n_sub, d_cab_k=d_cab / self.n_sub, d_ain_k=d_ain)
+                                          n_sub=self.n_sub, d_cab_k=d_cab / self.n_sub, d_ain_k=d_ain,
+                                          d_evap_k=d_evap / self.n_sub)
                 e_terms.append(ts_kj * (pc + pb))
                 ref = u_prev if i == 0 else u_list[i - 1]
                 du = casadi.vertcat((u[0] - ref[0]) / (lim.mdot_bl_max_kgps - lim.mdot_bl_min_kgps),
@@ -248,6 +249,7 @@ class NmpcController:
             return casadi.nlpsol("ceco_nlp", "ipopt", self._nlp, opts)
         if ss.name == "fatrop":
             opts.update({"structure_detection": "auto", "expand": True,
+                         "equality": [bool(a == b) for a, b in zip(self._lbg, self._ubg)],
                          "fatrop": {"print_level": 0, "max_iter": ss.max_iter, "tol": ss.tol,
                                     "mu_init": 1e-2}})
             if ss.warm_start:
@@ -348,8 +350,8 @@ class NmpcController:
                 w[self._idx["u"][i]:self._idx["u"][i] + 2] = u
                 tc, te, *_ = cm.step(self.model_params, x[0], x[1], u[0], u[1], p[2], p[3], p[off + i],
                                      p[off + 2 * (n + 1) + i], n_sub=self.n_sub, d_cab_k=p[4] / self.n_sub,
-                                     d_ain_k=p[6])
-                x = np.array([tc, te + p[5]])
+                                     d_ain_k=p[6], d_evap_k=p[5] / self.n_sub)
+                x = np.array([tc, te])
         if self.settings.ioch:
             w[self._idx["eps"]] = 0.5 * self.settings.eps_ub
         return np.clip(w, self._lbw, self._ubw)
@@ -357,7 +359,6 @@ class NmpcController:
     def _shift(self, vec: np.ndarray) -> np.ndarray:
         """Shift a stage-ordered primal (or bound-multiplier) vector one stage forward."""
         out = vec.copy()
-        n = self.settings.horizon_steps
         for key in ("x", "u", "s_lo", "s_up", "s_ev", "eps"):
             ix = self._idx[key]
             if ix.size == 0:
@@ -367,7 +368,6 @@ class NmpcController:
             shifted = blocks[1:] + [blocks[-1]]
             for j, b in zip(ix, shifted):
                 out[j:j + width] = b
-        del n
         return out
 
     def _shift_g(self, lam_g: np.ndarray) -> np.ndarray:

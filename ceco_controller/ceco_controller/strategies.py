@@ -48,7 +48,7 @@ class SolverSettings:
 
     name: str = "ipopt"
     """CasADi nlpsol plugin: 'ipopt', 'fatrop' or 'sqpmethod'."""
-    max_iter: int = 60
+    max_iter: int = 100
     """Iteration limit per solve [-]."""
     max_cpu_time_s: float = 1.0
     """CPU-time limit per solve [s]; must be below the control period."""

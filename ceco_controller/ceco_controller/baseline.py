@@ -1,0 +1,42 @@
+"""The baseline strategy: the production ACC law behind the common controller interface.
+
+The law itself (PI + anti-windup on T_cab vs 26 degC, demand mapped to the
+evaporator set-point and the blower curve) is :mod:`ceco_plant_sim.acc_law`:
+it is the vehicle ECU's code, which the plant side also uses as the fallback.
+This wrapper only converts an :class:`Observation` into its input and its
+output into ``(AcInput, Diagnostics)``. It uses no preview.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ceco_plant_sim.acc_law import AccLaw, AccSettings
+from ceco_plant_sim.plant import AcInput
+
+from .interface import ACTUATOR_LIMITS, Diagnostics, Observation
+
+__all__ = ["BaselineController"]
+
+
+class BaselineController:
+    """``compute(obs) -> (AcInput, Diagnostics)`` running the production ACC law every ``Ts``."""
+
+    def __init__(self, settings: AccSettings | None = None, control_period_s: float = 5.0):
+        if not (math.isfinite(control_period_s) and control_period_s > 0):
+            raise ValueError(f"control_period_s must be finite and > 0, got {control_period_s!r}")
+        self.law = AccLaw(settings)
+        self.control_period_s = float(control_period_s)
+
+    def reset(self) -> None:
+        """Back to the key-on state."""
+        self.law.reset()
+
+    def compute(self, obs: Observation):
+        """One control step from the measured cabin air temperature."""
+        cmd = self.law.step(obs.t_cab_c, self.control_period_s)
+        if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
+            raise AssertionError(f"ACC law produced an out-of-bounds command {cmd}")
+        diag = Diagnostics(k=obs.k, t_s=obs.t_s, status=cmd.mode, mdot_bl_kgps=cmd.mdot_bl_kgps,
+                           t_evap_sp_c=cmd.t_evap_sp_c, message=f"demand={cmd.demand:.3f}")
+        return AcInput(mdot_bl_kgps=cmd.mdot_bl_kgps, t_evap_sp_c=cmd.t_evap_sp_c), diag

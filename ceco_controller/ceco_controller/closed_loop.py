@@ -1,0 +1,305 @@
+"""In-process closed-loop simulator: plant + V2X preview + one controller, no ROS.
+
+Timing (docs/architecture.md): the plant steps every ``plant_dt_s = 1 s``;
+at ``t = k*Ts`` the controller gets the measurements at ``t`` and the
+previews on ``t, t+Ts, ..., t+Np*Ts`` and its command is held over
+``[k*Ts, (k+1)*Ts)``. Deterministic: the same scenario, strategy, settings and
+seed give the same numbers (the solver's wall-clock time is recorded but never
+used for a decision).
+
+Writes a run directory per strategy (``timeseries.csv``, ``diagnostics.csv``,
+``metrics.json``). CLI (also ``ceco sim``)::
+
+    python -m ceco_controller.closed_loop --scenario sc03 --strategy all --out runs/sc03
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import json
+import math
+import pathlib
+import sys
+
+import numpy as np
+
+from ceco_plant_sim.comfort import ComfortParams, cabin_pmv, ppd
+from ceco_plant_sim.metrics import compute_metrics, comparison_table
+from ceco_plant_sim.plant import AcInput, CabinPlant, PlantState
+from ceco_plant_sim.plant_params import PlantParams
+from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews, parse_quality
+from ceco_v2x_preview.scenario import Scenario, load_scenario
+
+from . import model as cm
+from .baseline import BaselineController
+from .interface import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS, Observation
+from .nmpc import NmpcController
+from .strategies import STRATEGIES, strategy_settings
+
+__all__ = ["SimSettings", "RunResult", "simulate", "make_controller", "comfort_params_for",
+           "write_run", "main", "TIMESERIES_COLUMNS"]
+
+TIMESERIES_COLUMNS = (
+    "t_s", "t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c", "t_amb_c", "solar_wm2",
+    "speed_mps", "rh", "mdot_bl_kgps", "t_evap_sp_c", "p_comp_w", "p_blower_w", "q_evap_w",
+    "cop", "pmv", "ppd", "pmv_lb", "pmv_ub",
+    # extras
+    "t_glass_c", "rh_cab", "p_cond_fan_w", "q_latent_w", "comp_speed_rpm", "capacity_limited",
+)
+"""Columns of ``timeseries.csv``: the architecture contract's first, then extras."""
+
+
+@dataclasses.dataclass(frozen=True)
+class SimSettings:
+    """Settings of one closed-loop run."""
+
+    control_period_s: float | None = None
+    """Control period Ts [s]; None: the scenario's (5 s)."""
+    horizon_steps: int | None = None
+    """Prediction horizon Np [steps]; None: the scenario's (6)."""
+    preview_quality: PreviewQuality = PERFECT
+    """Quality of the V2X previews (perfect as in the paper, noisy, delayed, missing spans)."""
+    seed: int | None = None
+    """Seed for the preview noise; None: the scenario's."""
+    plant_dt_s: float = 1.0
+    """Plant step and recording interval [s]."""
+    duration_s: float | None = None
+    """Run length [s]; None: the scenario's."""
+    progress: bool = True
+    """Show a tqdm progress bar."""
+    model_params_path: str | None = None
+    """Identified model parameter file; None: ceco_controller/config/model_params.yaml."""
+    strategy_overrides: tuple = ()
+    """((field, value), ...) overriding the CECO strategy settings (e.g. (('gamma_w', 1e4),))."""
+
+    def validate(self) -> None:
+        """Raise ValueError naming the field if a setting is not usable."""
+        if self.control_period_s is not None and not (math.isfinite(self.control_period_s)
+                                                      and self.control_period_s > 0):
+            raise ValueError("SimSettings.control_period_s must be finite and > 0")
+        if self.horizon_steps is not None and not (isinstance(self.horizon_steps, int) and self.horizon_steps >= 1):
+            raise ValueError("SimSettings.horizon_steps must be an int >= 1")
+        if not (math.isfinite(self.plant_dt_s) and self.plant_dt_s > 0):
+            raise ValueError("SimSettings.plant_dt_s must be finite and > 0")
+        if self.duration_s is not None and not (math.isfinite(self.duration_s) and self.duration_s > 0):
+            raise ValueError("SimSettings.duration_s must be finite and > 0")
+        self.preview_quality.validate()
+
+
+@dataclasses.dataclass
+class RunResult:
+    """A finished run: the recorded series, the per-step diagnostics and the metrics."""
+
+    scenario: str
+    strategy: str
+    timeseries: dict
+    """Column name -> numpy array (one value per plant step)."""
+    diagnostics: list
+    """One dict per control step (columns DIAGNOSTICS_COLUMNS)."""
+    diag_objects: list
+    """The Diagnostics objects (with predicted trajectories)."""
+    metrics: dict
+
+
+def comfort_params_for(scenario: Scenario) -> ComfortParams:
+    """Comfort parameters with the scenario's occupant (met, clo); p_a = 1700 Pa (paper)."""
+    return ComfortParams(met=scenario.occupant.met, clo=scenario.occupant.clo)
+
+
+def make_controller(strategy: str, scenario: Scenario, control_period_s: float, horizon_steps: int,
+                    model_params: cm.ControlModelParams | None = None, overrides: dict | None = None):
+    """Build the controller of a strategy for a scenario."""
+    if strategy == "baseline":
+        return BaselineController(control_period_s=control_period_s)
+    settings = strategy_settings(strategy, horizon_steps=horizon_steps, control_period_s=control_period_s,
+                                 **(overrides or {}))
+    return NmpcController(settings, model_params=model_params, comfort_params=comfort_params_for(scenario))
+
+
+def _observation(k, t, meas, cmd, scenario, ts, n_prev, quality):
+    pv = make_previews(scenario, t, ts, n_prev, quality)
+    lb, ub = scenario.pmv_bounds(pv.t_s)
+    env = scenario.env_at(t)
+    return Observation(
+        k=k, t_s=t, t_cab_c=meas["t_cab_c"], t_int_c=meas["t_int_c"], t_shell_c=meas["t_shell_c"],
+        t_evap_c=meas["t_evap_c"], t_vent_c=meas["t_vent_c"], t_amb_c=env.t_amb_c, solar_wm2=env.solar_wm2,
+        speed_mps=env.speed_mps, mdot_bl_prev_kgps=cmd.mdot_bl_kgps, t_evap_sp_prev_c=cmd.t_evap_sp_c,
+        preview_t_amb_c=pv.t_amb_c, preview_solar_wm2=pv.solar_wm2, preview_speed_mps=pv.speed_mps,
+        preview_valid=pv.valid, pmv_lb=lb, pmv_ub=ub, met=scenario.occupant.met, clo=scenario.occupant.clo)
+
+
+def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | None = None,
+             controller=None) -> RunResult:
+    """Run one strategy on one scenario in closed loop against the plant.
+
+    Args:
+        scenario: a :class:`Scenario` or a bundled name / YAML path.
+        strategy: ``baseline``, ``ceco``, ``ceco-e``, ``ceco-c`` or ``ceco-ioch``.
+        settings: :class:`SimSettings`.
+        controller: an already built controller to use (for tests); default: built here.
+    """
+    settings = settings or SimSettings()
+    settings.validate()
+    if isinstance(scenario, str):
+        scenario = load_scenario(scenario)
+    if strategy not in STRATEGIES:
+        raise ValueError(f"strategy must be one of {STRATEGIES}, got {strategy!r}")
+    ts = float(settings.control_period_s or scenario.control.control_period_s)
+    n_p = int(settings.horizon_steps or scenario.control.horizon_steps)
+    dt = float(settings.plant_dt_s)
+    ratio = ts / dt
+    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+        raise ValueError(f"control period {ts} s must be a whole multiple of the plant step {dt} s")
+    steps_per_ctrl = int(round(ratio))
+    quality = settings.preview_quality
+    if settings.seed is not None:
+        quality = dataclasses.replace(quality, seed=int(settings.seed))
+    duration = float(settings.duration_s or scenario.duration_s)
+    n = int(math.floor(duration / dt + 1e-9))
+    mp = cm.load_params(settings.model_params_path) if strategy != "baseline" else None
+    if controller is None:
+        controller = make_controller(strategy, scenario, ts, n_p, mp, dict(settings.strategy_overrides))
+    comfort = comfort_params_for(scenario)
+
+    pp = PlantParams()
+    initial = dataclasses.asdict(scenario.initial)
+    plant = CabinPlant(pp, PlantState.from_initial(initial, pp, scenario.env_at(0.0)))
+    st = plant.state
+    meas = {"t_cab_c": st.t_cab_c, "t_int_c": st.t_int_c, "t_shell_c": st.t_shell_c, "t_evap_c": st.t_evap_c,
+            "t_vent_c": st.t_evap_c, "t_glass_c": st.t_glass_c, "rh_cab": scenario.initial.rh_cab}
+    cmd = AcInput(mdot_bl_kgps=ACTUATOR_LIMITS.mdot_bl_max_kgps, t_evap_sp_c=ACTUATOR_LIMITS.t_evap_sp_min_c)
+    cols = {c: np.empty(n) for c in TIMESERIES_COLUMNS}
+    diags, diag_objs = [], []
+    iterator = range(n)
+    if settings.progress:
+        from tqdm import tqdm
+        iterator = tqdm(iterator, desc=f"{scenario.name}/{strategy}", unit="s", leave=False)
+    for i in iterator:
+        t = i * dt
+        if i % steps_per_ctrl == 0:
+            k = i // steps_per_ctrl
+            obs = _observation(k, t, meas, cmd, scenario, ts, n_p + 1, quality)
+            cmd, diag = controller.compute(obs)
+            if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
+                raise AssertionError(f"{strategy}: command {cmd} outside the actuator bounds at t={t}")
+            diags.append(diag.to_row())
+            diag_objs.append(diag)
+        env = scenario.env_at(t)
+        lb, ub = scenario.pmv_bounds(t)
+        y = float(cabin_pmv(t_cab_c=meas["t_cab_c"], t_ain_c=meas["t_vent_c"], t_int_c=meas["t_int_c"],
+                            mdot_bl_kgps=cmd.mdot_bl_kgps, solar_wm2=env.solar_wm2, params=comfort))
+        out = plant.step(cmd, env, dt)
+        row = {
+            "t_s": t, **{c: meas[c] for c in ("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c",
+                                               "t_glass_c", "rh_cab")},
+            "t_amb_c": env.t_amb_c, "solar_wm2": env.solar_wm2, "speed_mps": env.speed_mps, "rh": env.rh,
+            "mdot_bl_kgps": cmd.mdot_bl_kgps, "t_evap_sp_c": cmd.t_evap_sp_c,
+            "p_comp_w": out.p_comp_w, "p_blower_w": out.p_blower_w, "q_evap_w": out.q_evap_w, "cop": out.cop,
+            "pmv": y, "ppd": float(ppd(y)), "pmv_lb": lb, "pmv_ub": ub,
+            "p_cond_fan_w": out.p_cond_fan_w, "q_latent_w": out.q_latent_w,
+            "comp_speed_rpm": out.comp_speed_rpm, "capacity_limited": float(out.capacity_limited),
+        }
+        for c in TIMESERIES_COLUMNS:
+            cols[c][i] = row[c]
+        meas = {"t_cab_c": out.t_cab_c, "t_int_c": out.t_int_c, "t_shell_c": out.t_shell_c,
+                "t_evap_c": out.t_evap_c, "t_vent_c": out.t_vent_c, "t_glass_c": out.t_glass_c,
+                "rh_cab": out.rh_cab}
+    metrics = compute_metrics(cols["t_s"], cols["p_comp_w"], cols["p_blower_w"], cols["pmv"],
+                              cols["pmv_lb"], cols["pmv_ub"])
+    nd = [d for d in diag_objs if d.solve_time_ms is not None]
+    metrics.update({
+        "scenario": scenario.name, "strategy": strategy, "control_period_s": ts, "horizon_steps": n_p,
+        "seed": int(quality.seed if quality.seed is not None else scenario.seed),
+        "preview_quality": quality.describe(),
+        "n_control_steps": len(diag_objs),
+        "n_fallback_shifted": sum(d.fallback == "shifted_plan" for d in diag_objs),
+        "n_fallback_baseline": sum(d.fallback == "baseline" for d in diag_objs),
+        "solve_time_median_ms": float(np.median([d.solve_time_ms for d in nd])) if nd else None,
+        "solve_time_max_ms": float(np.max([d.solve_time_ms for d in nd])) if nd else None,
+    })
+    return RunResult(scenario=scenario.name, strategy=strategy, timeseries=cols, diagnostics=diags,
+                     diag_objects=diag_objs, metrics=metrics)
+
+
+def _fmt(v):
+    if isinstance(v, (float, np.floating)):
+        return "" if not math.isfinite(v) else repr(float(v))
+    return v
+
+
+def write_run(result: RunResult, run_dir: str | pathlib.Path) -> pathlib.Path:
+    """Write ``timeseries.csv``, ``diagnostics.csv`` and ``metrics.json`` into ``run_dir``."""
+    d = pathlib.Path(run_dir)
+    d.mkdir(parents=True, exist_ok=True)
+    with open(d / "timeseries.csv", "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(TIMESERIES_COLUMNS)
+        cols = [result.timeseries[c] for c in TIMESERIES_COLUMNS]
+        for row in zip(*cols):
+            w.writerow([f"{v:.6g}" for v in row])
+    with open(d / "diagnostics.csv", "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=DIAGNOSTICS_COLUMNS)
+        w.writeheader()
+        for r in result.diagnostics:
+            w.writerow({k: _fmt(v) for k, v in r.items()})
+    metrics = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in result.metrics.items()}
+    (d / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+    return d
+
+
+TABLE_COLUMNS = ("E_tot_kWh", "E_comp_J", "E_blower_J", "I_pmv", "otc_violation_pct", "time_to_comfort_s",
+                 "pmv_mean", "pmv_max")
+
+
+def main(argv=None) -> int:
+    """CLI: run one or all strategies on a scenario and print the comparison table."""
+    ap = argparse.ArgumentParser(prog="ceco sim", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenario", default="sc03", help="bundled scenario name or YAML path (default sc03)")
+    ap.add_argument("--strategy", default="all",
+                    help=f"'all' or a comma-separated list of {', '.join(STRATEGIES)}")
+    ap.add_argument("--out", required=True, help="output directory (one run directory per strategy)")
+    ap.add_argument("--preview-quality", default="perfect",
+                    help="perfect | noisy[:...] | delayed:S | missing:A-B[,..] joined by '+'")
+    ap.add_argument("--horizon", type=int, default=None, help="prediction horizon Np [steps]")
+    ap.add_argument("--control-period", type=float, default=None, help="control period Ts [s]")
+    ap.add_argument("--seed", type=int, default=None, help="seed of the preview noise")
+    ap.add_argument("--duration", type=float, default=None, help="run length [s] (default: the scenario's)")
+    ap.add_argument("--model-params", default=None, help="identified model parameter file")
+    ap.add_argument("--no-progress", action="store_true", help="disable the progress bar")
+    args = ap.parse_args(argv)
+    strategies = list(STRATEGIES) if args.strategy == "all" else [s.strip() for s in args.strategy.split(",")]
+    for s in strategies:
+        if s not in STRATEGIES:
+            ap.error(f"unknown strategy {s!r}")
+    try:
+        quality = parse_quality(args.preview_quality)
+    except ValueError as exc:
+        ap.error(f"--preview-quality: {exc}")
+    scenario = load_scenario(args.scenario)
+    settings = SimSettings(control_period_s=args.control_period, horizon_steps=args.horizon,
+                           preview_quality=quality, seed=args.seed, duration_s=args.duration,
+                           progress=not args.no_progress, model_params_path=args.model_params)
+    out = pathlib.Path(args.out)
+    rows = []
+    for s in strategies:
+        res = simulate(scenario, s, settings)
+        write_run(res, out / s)
+        rows.append(res.metrics)
+        m = res.metrics
+        print(f"{s}: E_tot {m['E_tot_kWh']:.4f} kWh, I_pmv {m['I_pmv']:.1f} s, "
+              f"violation {m['otc_violation_pct']:.1f} %, fallbacks {m['n_fallback_shifted']}"
+              f"+{m['n_fallback_baseline']}", file=sys.stderr)
+    table = comparison_table(rows, columns=TABLE_COLUMNS) if "baseline" in strategies else \
+        comparison_table(rows, baseline=strategies[0], columns=TABLE_COLUMNS)
+    header = (f"scenario {scenario.name}, Ts {settings.control_period_s or scenario.control.control_period_s} s, "
+              f"Np {settings.horizon_steps or scenario.control.horizon_steps}, preview {quality.describe()}")
+    print(header)
+    print(table)
+    (out / "comparison.txt").write_text(header + "\n" + table + "\n", encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

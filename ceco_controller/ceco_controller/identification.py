@@ -1,0 +1,381 @@
+"""Identification of the control-oriented model from plant data (least squares).
+
+As the paper identified eqs. (1)-(3) and the power models from NREL CoolSim,
+this module identifies them from the ceco plant:
+
+1. Excitation: the plant is simulated (1 s steps) over several drive cycles and
+   weather conditions with multi-level random steps of both inputs (blower
+   flow 0.05-0.17 kg/s, evaporator set-point 3-10 degC, held 15-120 s, aligned
+   with the 5 s model step), starting from a hot soak and from a pre-cooled
+   cabin. The recorded time series are saved as CSV (run-directory columns +
+   ``segment``), so the fit can be re-run from the data alone.
+2. The 1 s series are cut into model intervals of ``ts_s`` (5 s): states at the
+   interval start and end, interval means of the inputs, vent air, ambient,
+   speed and powers (:func:`intervals_from_series`). Any time series with the
+   run-directory columns works: a simulator run, or a rosbag2 recording once
+   read into arrays (:func:`fit` takes plain arrays).
+3. Least squares: eq. (3) (T_ain), eq. (2) (T_evap) and eq. (1) (T_cab) are
+   linear in their parameters (``numpy.linalg.lstsq``); the blower model by
+   non-negative linear least squares (``scipy.optimize.lsq_linear``); the
+   compressor model and eta_AC(V) by bounded nonlinear least squares
+   (``scipy.optimize.least_squares``).
+4. Fit report: one-step and multi-step (a whole horizon Np) prediction errors on
+   a validation drive (US06) that is not used for fitting.
+
+CLI (also ``ceco identify``)::
+
+    python -m ceco_controller.identification            # regenerate data, fit, write config/model_params.yaml
+    python -m ceco_controller.identification --from-csv data.csv [--validation-csv v.csv]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import hashlib
+import pathlib
+import sys
+
+import numpy as np
+from scipy.optimize import least_squares, lsq_linear
+
+from . import model as cm
+
+__all__ = ["SERIES_COLUMNS", "ExcitationSettings", "generate_excitation", "intervals_from_series", "fit",
+           "fit_intervals", "prediction_errors", "read_series_csv", "write_series_csv", "main"]
+
+SERIES_COLUMNS = ("segment", "t_s", "t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c", "t_amb_c",
+                  "solar_wm2", "speed_mps", "mdot_bl_kgps", "t_evap_sp_c", "p_comp_w", "p_blower_w")
+"""Columns the fit needs (a subset of the run directory's timeseries.csv, plus ``segment``)."""
+
+PACKAGE_DIR = pathlib.Path(__file__).resolve().parent.parent
+DEFAULT_DATA_DIR = PACKAGE_DIR / "ceco_controller" / "data" / "identification"
+TRAIN_DRIVES = (("sc03", "soak"), ("udds", "soak"), ("hwfet", "soak"), ("sc03_mild", "soak"),
+                ("sc03", "precooled"), ("hwfet", "precooled"))
+"""(scenario, initial condition) of the training drives."""
+VALIDATION_DRIVES = (("us06", "soak"), ("us06", "precooled"))
+"""Validation drives (never used for fitting)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ExcitationSettings:
+    """Input excitation used to generate identification data."""
+
+    seed: int = 1
+    """Seed of the random input levels and hold times."""
+    hold_min_s: float = 15.0
+    """Shortest hold of a level [s]."""
+    hold_max_s: float = 120.0
+    """Longest hold of a level [s]."""
+    ts_s: float = 5.0
+    """Model step; holds are whole multiples of it [s]."""
+
+    def validate(self) -> None:
+        """Raise ValueError naming the field if a setting is not usable."""
+        if not 0 < self.hold_min_s <= self.hold_max_s:
+            raise ValueError("ExcitationSettings.hold_min_s must satisfy 0 < min <= hold_max_s")
+        if not self.ts_s > 0:
+            raise ValueError("ExcitationSettings.ts_s must be > 0")
+
+
+_PRECOOLED = {"t_cab_c": 27.0, "t_int_c": 38.0, "t_shell_c": 36.0, "t_evap_c": 12.0}
+"""Initial state of a cabin that has already been cooled for a while [degC]."""
+
+
+def generate_excitation(drives=TRAIN_DRIVES, settings: ExcitationSettings = ExcitationSettings(),
+                        seed_offset: int = 0) -> dict:
+    """Simulate the plant under multi-level random input steps; return 1 s series (SERIES_COLUMNS)."""
+    from ceco_plant_sim.plant import AcInput, CabinPlant, PlantState
+    from ceco_plant_sim.plant_params import PlantParams
+    from ceco_v2x_preview.scenario import load_scenario
+
+    settings.validate()
+    rng = np.random.default_rng(settings.seed + seed_offset)
+    rows = {c: [] for c in SERIES_COLUMNS}
+    pp = PlantParams()
+    for seg, (name, init) in enumerate(drives):
+        sc = load_scenario(name)
+        ini = dataclasses.asdict(sc.initial)
+        if init == "precooled":
+            ini.update(_PRECOOLED)
+        plant = CabinPlant(pp, PlantState.from_initial(ini, pp, sc.env_at(0.0)))
+        st = plant.state
+        meas = (st.t_cab_c, st.t_int_c, st.t_shell_c, st.t_evap_c, st.t_evap_c)
+        n = int(sc.duration_s)
+        t_next = 0.0
+        cmd = None
+        for i in range(n):
+            t = float(i)
+            if t >= t_next:
+                # strong cooling during the first minute of a hot soak (what every controller does)
+                if init == "soak" and t < 60.0:
+                    cmd = AcInput(0.17, 3.0)
+                    hold = 60.0
+                else:
+                    cmd = AcInput(float(rng.uniform(0.05, 0.17)), float(rng.uniform(3.0, 10.0)))
+                    hold = settings.ts_s * rng.integers(int(settings.hold_min_s / settings.ts_s),
+                                                        int(settings.hold_max_s / settings.ts_s) + 1)
+                t_next = t + hold
+            env = sc.env_at(t)
+            out = plant.step(cmd, env, 1.0)
+            vals = dict(zip(("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c"), meas))
+            vals.update(segment=seg, t_s=t, t_amb_c=env.t_amb_c, solar_wm2=env.solar_wm2,
+                        speed_mps=env.speed_mps, mdot_bl_kgps=cmd.mdot_bl_kgps, t_evap_sp_c=cmd.t_evap_sp_c,
+                        p_comp_w=out.p_comp_w, p_blower_w=out.p_blower_w)
+            for c in SERIES_COLUMNS:
+                rows[c].append(vals[c])
+            meas = (out.t_cab_c, out.t_int_c, out.t_shell_c, out.t_evap_c, out.t_vent_c)
+    return {c: np.asarray(v, dtype=float) for c, v in rows.items()}
+
+
+def write_series_csv(series: dict, path) -> str:
+    """Write a series dict as CSV (SERIES_COLUMNS); return its sha256."""
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(SERIES_COLUMNS)
+        for row in zip(*(series[c] for c in SERIES_COLUMNS)):
+            w.writerow([f"{v:.6g}" for v in row])
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def read_series_csv(path) -> dict:
+    """Read a CSV with (at least) SERIES_COLUMNS; ``segment`` defaults to 0 (one run)."""
+    with open(path, newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        data = {c: [] for c in SERIES_COLUMNS}
+        for r in reader:
+            for c in SERIES_COLUMNS:
+                if c == "segment" and c not in r:
+                    data[c].append(0.0)
+                    continue
+                if c not in r:
+                    raise ValueError(f"{path}: missing column {c!r}")
+                data[c].append(float(r[c]))
+    return {c: np.asarray(v) for c, v in data.items()}
+
+
+def intervals_from_series(series: dict, ts_s: float = 5.0) -> dict:
+    """Cut 1 s series (run-directory sampling) into model intervals of ``ts_s``.
+
+    Row i of the series holds the temperatures at ``t_i`` and the inputs and
+    power means over ``[t_i, t_i + dt)``. An interval starting at row i covers
+    rows i .. i+m-1 (m = ts_s/dt); its end state is row i+m. Intervals whose
+    inputs change inside them are dropped. Returns arrays per interval:
+    ``t_cab0, t_cab1, t_evap0, t_evap1, t_int0, t_shell0, t_evap_mean, t_cab_mean,
+    t_ain_mean, mdot, sp, t_amb, speed, p_comp, p_bl, segment``.
+    """
+    for c in SERIES_COLUMNS:
+        if c not in series:
+            raise ValueError(f"series: missing column {c!r}")
+    t = np.asarray(series["t_s"], float)
+    if t.size < 3:
+        raise ValueError("series: need at least 3 samples")
+    dt = float(np.median(np.diff(t)))
+    m = int(round(ts_s / dt))
+    if m < 1 or abs(m * dt - ts_s) > 1e-6:
+        raise ValueError(f"ts_s {ts_s} must be a whole multiple of the sample step {dt}")
+    out = {k: [] for k in ("t_cab0", "t_cab1", "t_evap0", "t_evap1", "t_int0", "t_shell0", "t_evap_mean",
+                           "t_cab_mean", "t_ain_mean", "mdot", "sp", "t_amb", "speed", "p_comp", "p_bl",
+                           "segment")}
+    seg = np.asarray(series["segment"])
+    for s in np.unique(seg):
+        idx = np.flatnonzero(seg == s)
+        g = {c: np.asarray(series[c], float)[idx] for c in SERIES_COLUMNS}
+        for i in range(0, idx.size - m, m):
+            sl = slice(i, i + m)
+            if np.ptp(g["mdot_bl_kgps"][sl]) > 1e-9 or np.ptp(g["t_evap_sp_c"][sl]) > 1e-9:
+                continue
+            vals = {"t_cab0": g["t_cab_c"][i], "t_cab1": g["t_cab_c"][i + m], "t_evap0": g["t_evap_c"][i],
+                    "t_evap1": g["t_evap_c"][i + m], "t_int0": g["t_int_c"][i], "t_shell0": g["t_shell_c"][i],
+                    "t_evap_mean": np.mean(g["t_evap_c"][i + 1:i + m + 1]),
+                    "t_cab_mean": np.mean(g["t_cab_c"][sl]),
+                    "t_ain_mean": np.mean(g["t_vent_c"][i + 1:i + m + 1]),
+                    "mdot": g["mdot_bl_kgps"][i], "sp": g["t_evap_sp_c"][i],
+                    "t_amb": np.mean(g["t_amb_c"][sl]), "speed": np.mean(g["speed_mps"][sl]),
+                    "p_comp": np.mean(g["p_comp_w"][sl]), "p_bl": np.mean(g["p_blower_w"][sl]), "segment": s}
+            for k, v in vals.items():
+                out[k].append(float(v))
+    res = {k: np.asarray(v) for k, v in out.items()}
+    res["ts_s"] = float(ts_s)
+    return res
+
+
+def _lstsq(a, b):
+    coef, *_ = np.linalg.lstsq(a, b, rcond=None)
+    return coef
+
+
+def fit_intervals(iv: dict, ts_s: float | None = None) -> tuple[cm.ControlModelParams, dict]:
+    """Least-squares fit of every model parameter from interval data; returns (params, residual RMS)."""
+    ts_s = float(ts_s if ts_s is not None else iv["ts_s"])
+    n = iv["mdot"].size
+    if n < 20:
+        raise ValueError(f"need at least 20 intervals to fit, got {n}")
+    one = np.ones(n)
+    # eq. (3): T_ain = g6 T_evap + g7 mdot + tau3 (interval means)
+    a3 = np.column_stack([iv["t_evap_mean"], iv["mdot"], one])
+    g6, g7, tau3 = _lstsq(a3, iv["t_ain_mean"])
+    # eq. (2): T_evap+ = g4 T_evap + g5 (T_evap - sp) + tau2
+    a2 = np.column_stack([iv["t_evap0"], iv["t_evap0"] - iv["sp"], one])
+    g4, g5, tau2 = _lstsq(a2, iv["t_evap1"])
+    # eq. (1): T_cab+ - T_cab = g1 (T_int - T_cab) + g2 (T_shell - T_cab) + g3 (T_ain - T_cab) mdot + tau1
+    tc = iv["t_cab0"]
+    a1 = np.column_stack([iv["t_int0"] - tc, iv["t_shell0"] - tc, (iv["t_ain_mean"] - tc) * iv["mdot"], one])
+    g1, g2, g3, tau1 = _lstsq(a1, iv["t_cab1"] - tc)
+    # blower: b0 + b1 mdot + b3 mdot^3, coefficients >= 0
+    ab = np.column_stack([one, iv["mdot"], iv["mdot"] ** 3])
+    sb = np.array([1.0, 100.0, 1e4])  # column scaling for conditioning
+    rb = lsq_linear(ab * (1.0 / sb), iv["p_bl"], bounds=(0.0, np.inf))
+    b0, b1, b3 = rb.x / sb
+    # compressor + eta_AC: nonlinear, bounded
+    base = cm.ControlModelParams(ts_s=ts_s, gamma_1=g1, gamma_2=g2, gamma_3=g3, gamma_4=g4, gamma_5=g5,
+                                 gamma_6=g6, gamma_7=g7, tau_1=tau1, tau_2=tau2, tau_3=tau3,
+                                 blower_b0_w=b0, blower_b1_w_per_kgps=b1, blower_b3_w_per_kgps3=b3)
+
+    def comp_params(z):
+        return dataclasses.replace(base, fresh_air_fraction=z[0], comp_c0=z[1], comp_c1_per_k=z[2],
+                                   eta_gain=z[3], eta_speed_scale_mps=z[4], comp_c_wall_jpk=z[5])
+
+    def comp_resid(z):
+        p = comp_params(z)
+        q = cm.q_evap_w(p, iv["t_cab_mean"], iv["t_amb"], iv["t_ain_mean"], iv["mdot"], iv["t_evap0"],
+                        iv["t_evap1"])
+        return (cm.p_comp_w(p, q, iv["t_amb"], iv["t_evap_mean"], iv["speed"]) - iv["p_comp"]) / 1000.0
+
+    z0 = np.array([0.2, 0.2, 0.01, 0.2, 10.0, 5000.0])
+    lo = np.array([0.0, 1e-3, 0.0, 0.0, 1.0, 0.0])
+    hi = np.array([1.0, 5.0, 0.5, 3.0, 60.0, 1e5])
+    rc = least_squares(comp_resid, z0, bounds=(lo, hi), x_scale=np.array([0.1, 0.1, 0.01, 0.1, 5.0, 1000.0]))
+    params = comp_params(rc.x)
+    params.validate()
+    resid = {
+        "t_ain_rms_k": float(np.sqrt(np.mean((a3 @ [g6, g7, tau3] - iv["t_ain_mean"]) ** 2))),
+        "t_evap_rms_k": float(np.sqrt(np.mean((a2 @ [g4, g5, tau2] - iv["t_evap1"]) ** 2))),
+        "t_cab_rms_k": float(np.sqrt(np.mean((a1 @ [g1, g2, g3, tau1] - (iv["t_cab1"] - tc)) ** 2))),
+        "p_blower_rms_w": float(np.sqrt(np.mean((ab @ [b0, b1, b3] - iv["p_bl"]) ** 2))),
+        "p_comp_rms_w": float(1000.0 * np.sqrt(np.mean(rc.fun ** 2))),
+        "n_intervals": int(n),
+    }
+    return params, resid
+
+
+def fit(series: dict, ts_s: float = 5.0) -> tuple[cm.ControlModelParams, dict]:
+    """Fit from 1 s time-series arrays (SERIES_COLUMNS; e.g. read from CSV or a rosbag2 bag)."""
+    return fit_intervals(intervals_from_series(series, ts_s), ts_s)
+
+
+def prediction_errors(p: cm.ControlModelParams, iv: dict, horizon_steps: int = 6) -> dict:
+    """One-step and ``horizon_steps``-step open-loop prediction errors on interval data.
+
+    From every interval start k (with Np consecutive intervals in the same
+    segment), the model is run with the recorded inputs, ambient and speed,
+    with T_int and T_shell held at their values at k (as in the NMPC), and
+    T_ain and the powers predicted by the model. Errors: RMS and max |e| of
+    T_cab and T_evap after 1 and Np steps, RMS of T_ain and of the powers, and
+    the relative error of the predicted A/C energy over the horizon.
+    """
+    n = iv["mdot"].size
+    seg = iv["segment"]
+    starts = [k for k in range(n - horizon_steps + 1)
+              if np.all(seg[k:k + horizon_steps] == seg[k])
+              and np.allclose(iv["t_cab1"][k:k + horizon_steps - 1], iv["t_cab0"][k + 1:k + horizon_steps])]
+    e1_cab, eN_cab, e1_ev, eN_ev, e_ain, e_pc, e_pb, e_energy = [], [], [], [], [], [], [], []
+    for k in starts:
+        sl = slice(k, k + horizon_steps)
+        sim = cm.simulate(p, iv["t_cab0"][k], iv["t_evap0"][k], iv["mdot"][sl], iv["sp"][sl],
+                          iv["t_int0"][k], iv["t_shell0"][k], iv["t_amb"][sl], iv["speed"][sl])
+        e1_cab.append(sim["t_cab_c"][1] - iv["t_cab1"][k])
+        eN_cab.append(sim["t_cab_c"][-1] - iv["t_cab1"][k + horizon_steps - 1])
+        e1_ev.append(sim["t_evap_c"][1] - iv["t_evap1"][k])
+        eN_ev.append(sim["t_evap_c"][-1] - iv["t_evap1"][k + horizon_steps - 1])
+        e_ain.extend(sim["t_ain_c"] - iv["t_ain_mean"][sl])
+        e_pc.extend(sim["p_comp_w"] - iv["p_comp"][sl])
+        e_pb.extend(sim["p_blower_w"] - iv["p_bl"][sl])
+        e_true = np.sum(iv["p_comp"][sl] + iv["p_bl"][sl])
+        e_energy.append((np.sum(sim["p_comp_w"] + sim["p_blower_w"]) - e_true) / max(e_true, 1.0))
+
+    def rms(x):
+        return float(np.sqrt(np.mean(np.square(x)))) if len(x) else float("nan")
+
+    def mx(x):
+        return float(np.max(np.abs(x))) if len(x) else float("nan")
+
+    return {"horizon_steps": int(horizon_steps), "n_windows": len(starts),
+            "t_cab_1step_rms_k": rms(e1_cab), "t_cab_1step_max_k": mx(e1_cab),
+            f"t_cab_{horizon_steps}step_rms_k": rms(eN_cab), f"t_cab_{horizon_steps}step_max_k": mx(eN_cab),
+            "t_evap_1step_rms_k": rms(e1_ev), f"t_evap_{horizon_steps}step_rms_k": rms(eN_ev),
+            "t_ain_rms_k": rms(e_ain), "p_comp_rms_w": rms(e_pc), "p_blower_rms_w": rms(e_pb),
+            "horizon_energy_rel_err_rms": rms(e_energy),
+            "horizon_energy_rel_err_mean": float(np.mean(e_energy)) if e_energy else float("nan")}
+
+
+def _round_floats(d):
+    return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in d.items()}
+
+
+def main(argv=None) -> int:
+    """CLI: (re)generate the excitation data, fit, validate, write the parameter file."""
+    ap = argparse.ArgumentParser(prog="ceco identify", description="Identify the control-oriented model.")
+    ap.add_argument("--from-csv", nargs="*", default=None,
+                    help="fit from these 1 s series CSVs (SERIES_COLUMNS) instead of simulating the plant")
+    ap.add_argument("--validation-csv", default=None, help="validation series CSV (default: simulate US06)")
+    ap.add_argument("--data-dir", default=str(DEFAULT_DATA_DIR), help="where generated CSVs are written")
+    ap.add_argument("--out", default=str(cm.DEFAULT_PARAMS_PATH), help="parameter file to write")
+    ap.add_argument("--seed", type=int, default=1, help="excitation seed")
+    ap.add_argument("--ts", type=float, default=5.0, help="model step [s]")
+    ap.add_argument("--horizon", type=int, default=6, help="horizon for the multi-step error [steps]")
+    args = ap.parse_args(argv)
+    exc = ExcitationSettings(seed=args.seed, ts_s=args.ts)
+    data_dir = pathlib.Path(args.data_dir)
+    if args.from_csv:
+        parts = [read_series_csv(p) for p in args.from_csv]
+        for j, s in enumerate(parts):
+            s["segment"] = s["segment"] + 1000 * j
+        train = {c: np.concatenate([s[c] for s in parts]) for c in SERIES_COLUMNS}
+        train_src = ", ".join(args.from_csv)
+    else:
+        train = generate_excitation(TRAIN_DRIVES, exc)
+        path = data_dir / "train.csv"
+        sha = write_series_csv(train, path)
+        train_src = f"{path.name} (sha256 {sha[:16]}; drives {', '.join(f'{a}/{b}' for a, b in TRAIN_DRIVES)})"
+    if args.validation_csv:
+        valid = read_series_csv(args.validation_csv)
+        valid_src = args.validation_csv
+    else:
+        valid = generate_excitation(VALIDATION_DRIVES, exc, seed_offset=1000)
+        path = data_dir / "validation.csv"
+        sha = write_series_csv(valid, path)
+        valid_src = f"{path.name} (sha256 {sha[:16]}; drives {', '.join(f'{a}/{b}' for a, b in VALIDATION_DRIVES)})"
+    iv_train = intervals_from_series(train, args.ts)
+    iv_valid = intervals_from_series(valid, args.ts)
+    params, resid = fit_intervals(iv_train, args.ts)
+    cmd = "python -m ceco_controller.identification" + (" " + " ".join(argv) if argv else "")
+    params = dataclasses.replace(
+        params, provenance=f"{cmd}; excitation seed {args.seed}; training data {train_src}; "
+                           f"validation data {valid_src}")
+    rep_train = prediction_errors(params, iv_train, args.horizon)
+    rep_valid = prediction_errors(params, iv_valid, args.horizon)
+    report = {"fit_residuals_training": _round_floats(resid),
+              "prediction_training": _round_floats(rep_train),
+              "prediction_validation": _round_floats(rep_valid)}
+    header = ("Identified control-oriented model (ceco_controller/model.py), GENERATED - do not edit.\n"
+              f"Regenerate with: {cmd}\nFit method and report: docs/controller.md")
+    out = pathlib.Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    cm.save_params(params, out, header=header, extra={"fit_report": report})
+    print(f"wrote {out}")
+    for k, v in params.to_dict().items():
+        if k != "provenance":
+            print(f"  {k:24s} {v: .6g}")
+    for name, rep in report.items():
+        print(name)
+        for k, v in rep.items():
+            print(f"  {k:32s} {v}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
