@@ -70,20 +70,27 @@ def _time_axis(ax, runs: Mapping[str, Mapping]) -> None:
     ax.set_xlabel('Time t [s]')
 
 
-def _lines(ax, runs, key, scale=1.0):
+def _lines(ax, runs, key, scale=1.0, steps=False):
     for i, name in enumerate(ordered(list(runs))):
         c = runs[name]
         if key not in c:
             continue
         st = strategy_style(name, i)
         ax.plot(c['t_s'], np.asarray(c[key], dtype=float) * scale, color=st['color'], ls=st['linestyle'],
-                label=st['label'])
+                label=st['label'], drawstyle='steps-post' if steps else 'default')
+
+
+def _title_legend(fig, ax, title: str) -> None:
+    """Title on top and the legend in one band under the time axis (never over data)."""
+    handles, labels = ax.get_legend_handles_labels()
+    fig.suptitle(title)
+    fig.legend(handles, labels, loc='outside lower center', ncol=min(len(labels), 3), frameon=False)
 
 
 def fig_pmv(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
     """PMV of every strategy with the scenario's lower/upper PMV bounds."""
     with plt.rc_context(_RC):
-        fig, ax = plt.subplots(figsize=(6.5, 3.4))
+        fig, ax = plt.subplots(figsize=(6.5, 3.9), layout='constrained')
         first = runs[ordered(list(runs))[0]]
         t = np.asarray(first['t_s'])
         lb, ub = np.asarray(first['pmv_lb']), np.asarray(first['pmv_ub'])
@@ -97,25 +104,23 @@ def fig_pmv(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
         ax.set_ylim(min(-1.0, ymin - 0.2), max(1.0, min(ymax, 3.5) + 0.2))
         ax.set_ylabel('PMV [-]')
         _time_axis(ax, runs)
-        ax.set_title(title or 'Thermal comfort (PMV) and its bounds')
-        ax.legend(loc='upper right', ncol=2)
+        _title_legend(fig, ax, title or 'Thermal comfort (PMV) and its bounds')
         return _save(fig, path)
 
 
 def fig_temperatures(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
     """Cabin air temperature (top) and vent air temperature (bottom)."""
     with plt.rc_context(_RC):
-        fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 5.0), sharex=True)
+        fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 5.4), sharex=True, layout='constrained')
         _lines(a1, runs, 't_cab_c')
         first = runs[ordered(list(runs))[0]]
         if 't_amb_c' in first:
             a1.plot(first['t_s'], first['t_amb_c'], color='0.5', lw=0.9, ls='-.', label='Ambient')
         a1.set_ylabel('Cabin air T$_{cab}$ [°C]')
-        a1.legend(loc='upper right', ncol=2)
         _lines(a2, runs, 't_vent_c')
         a2.set_ylabel('Vent air T$_{ain}$ [°C]')
         _time_axis(a2, runs)
-        a1.set_title(title or 'Cabin and vent air temperatures')
+        _title_legend(fig, a1, title or 'Cabin and vent air temperatures')
         fig.align_ylabels()
         return _save(fig, path)
 
@@ -123,16 +128,15 @@ def fig_temperatures(runs: Mapping[str, Mapping], path, title: str = '') -> Path
 def fig_powers(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
     """Compressor (top) and blower (bottom) electrical power [kW, W]."""
     with plt.rc_context(_RC):
-        fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 5.0), sharex=True)
+        fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 5.4), sharex=True, layout='constrained')
         _lines(a1, runs, 'p_comp_w', 1e-3)
         a1.set_ylabel('Compressor P$_{comp}$ [kW]')
         a1.set_ylim(bottom=0.0)
-        a1.legend(loc='upper right', ncol=2)
         _lines(a2, runs, 'p_blower_w')
         a2.set_ylabel('Blower P$_{bl}$ [W]')
         a2.set_ylim(bottom=0.0)
         _time_axis(a2, runs)
-        a1.set_title(title or 'A/C electrical power')
+        _title_legend(fig, a1, title or 'A/C electrical power')
         fig.align_ylabels()
         return _save(fig, path)
 
@@ -140,14 +144,13 @@ def fig_powers(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
 def fig_inputs(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
     """The two control inputs: blower air flow (top), evaporator set-point (bottom)."""
     with plt.rc_context(_RC):
-        fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 5.0), sharex=True)
-        _lines(a1, runs, 'mdot_bl_kgps')
+        fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 5.4), sharex=True, layout='constrained')
+        _lines(a1, runs, 'mdot_bl_kgps', steps=True)
         a1.set_ylabel('Blower air flow $\\dot m_{bl}$ [kg/s]')
-        a1.legend(loc='upper right', ncol=2)
-        _lines(a2, runs, 't_evap_sp_c')
+        _lines(a2, runs, 't_evap_sp_c', steps=True)
         a2.set_ylabel('Evaporator set-point T$_{evap,sp}$ [°C]')
         _time_axis(a2, runs)
-        a1.set_title(title or 'Control inputs')
+        _title_legend(fig, a1, title or 'Control inputs (held over each control period)')
         fig.align_ylabels()
         return _save(fig, path)
 
@@ -275,7 +278,7 @@ def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
             data.append(st[np.isfinite(st)])
         if data:
             bp = ax.boxplot(data, whis=(5, 95), showfliers=True, patch_artist=True,
-                            flierprops={'markersize': 2})
+                            flierprops={'markersize': 2}, medianprops={'color': 'k', 'linewidth': 1.2})
             for patch, n in zip(bp['boxes'], names):
                 patch.set_facecolor(strategy_style(n)['color'])
                 patch.set_alpha(0.6)

@@ -1,0 +1,630 @@
+"""``ceco sweep GRID.yaml --out DIR``: scenario grids with the in-process simulator.
+
+A grid file (YAML; example and every key: ``ceco_bringup/config/sweep_example.yaml``,
+docs/analysis.md) names the axes
+
+    strategies x scenarios x drive_cycles x climates x previews x occupants x seeds
+
+and every combination (a *cell*) is one closed-loop run
+(``ceco_controller.closed_loop.simulate``), no ROS. Cells run in parallel:
+
+* ``--backend local`` (default): ``concurrent.futures.ProcessPoolExecutor``
+  with the ``spawn`` start method on ``--workers`` processes (default: all
+  cores). CasADi objects are not picklable, so a worker receives only the
+  cell's plain description (a dict) and builds the scenario and the
+  controller itself.
+* ``--backend ray``: the same cell function as a Ray task, on a local Ray
+  instance (``ray.init(num_cpus=workers, include_dashboard=False)``) or on an
+  existing cluster with ``--address`` (whose nodes must have ceco and its
+  dependencies installed). Ray is an optional extra (requirements/analysis.txt).
+
+Resumable: every cell has a deterministic id, the SHA-256 of its full
+description (the scenario after the overrides, the strategy, the preview
+quality, the seed, the run length), so a cell whose definition did not
+change keeps its id. Each finished cell is appended to ``DIR/cells.jsonl``
+as one line written with a single ``write`` on an ``O_APPEND`` descriptor and
+``fsync``-ed; on start, cells already in it with status ``ok`` are not run
+again (failed cells are retried; a torn last line from a crash is ignored).
+
+Outputs in ``DIR``: ``cells.jsonl`` (the log), ``results.csv`` (the tidy table:
+one row per cell, its axes and every metric; also ``results.parquet`` when
+pyarrow is installed), ``summary.md`` and ``summary.csv`` (per scenario,
+climate, preview and occupant: each strategy's mean over seeds and its change
+against the baseline), ``grid.json`` (the resolved cells), and with
+``save_runs: true`` in the grid one run directory per cell under ``DIR/runs/``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures as cf
+import csv
+import dataclasses
+import hashlib
+import itertools
+import json
+import math
+import multiprocessing
+import os
+import socket
+import sys
+import time
+from pathlib import Path
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+import yaml
+
+__all__ = ['GridError', 'Cell', 'load_grid', 'expand_grid', 'scenario_dict', 'cell_id', 'run_cell',
+           'read_done', 'run_sweep', 'summarize', 'main', 'AXES', 'METRIC_COLUMNS']
+
+
+class GridError(ValueError):
+    """An invalid grid file; the message names the key."""
+
+
+AXES = ('scenario', 'drive_cycle', 'climate', 'preview', 'occupant', 'seed', 'strategy')
+"""Axis columns of the results table, in order."""
+
+METRIC_COLUMNS = ('E_tot_J', 'E_tot_kWh', 'E_comp_J', 'E_blower_J', 'P_mean_w', 'I_pmv', 'otc_violation_pct',
+                  'otc_violation_s', 'otc_above_ub_s', 'otc_below_lb_s', 'time_to_comfort_s', 'pmv_mean',
+                  'pmv_max', 'pmv_min', 'duration_s', 'n_control_steps', 'n_fallback_shifted',
+                  'n_fallback_baseline', 'solve_time_median_ms', 'solve_time_max_ms')
+"""Metric columns of the results table (those the simulator returns)."""
+
+_GRID_KEYS = {'name', 'description', 'strategies', 'scenarios', 'drive_cycles', 'climates', 'previews',
+              'occupants', 'seeds', 'duration_s', 'save_runs', 'control_period_s', 'horizon_steps'}
+_CLIMATE_KEYS = {'t_amb_c', 'solar_wm2', 'rh', 'initial', 'comfort_bounds'}
+
+
+@dataclasses.dataclass(frozen=True)
+class Cell:
+    """One closed-loop run of a sweep (plain data: picklable, JSON-able)."""
+
+    id: str
+    """Deterministic id: first 16 hex digits of SHA-256 of ``spec``."""
+    axes: dict
+    """Axis labels: scenario, drive_cycle, climate, preview, occupant, seed, strategy."""
+    spec: dict
+    """What the worker needs: ``scenario`` (a scenario mapping for
+    ``scenario_from_dict``), ``strategy``, ``preview`` (quality string),
+    ``seed``, ``duration_s`` (None: the scenario's), ``control_period_s``,
+    ``horizon_steps`` (None: the scenario's)."""
+
+
+# ------------------------------------------------------------------ grid file
+def load_grid(path: str | os.PathLike) -> dict:
+    """Read and check a grid YAML file (unknown keys and wrong types raise
+    GridError naming the key)."""
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text(encoding='utf-8'))
+    except (OSError, yaml.YAMLError) as exc:
+        raise GridError(f'{path}: cannot read grid: {exc}') from None
+    if not isinstance(data, Mapping):
+        raise GridError(f'{path}: top level must be a mapping')
+    unknown = sorted(set(data) - _GRID_KEYS)
+    if unknown:
+        raise GridError(f'{unknown[0]}: unknown grid key (allowed: {sorted(_GRID_KEYS)})')
+    data = dict(data)
+    data['_base_dir'] = str(path.parent.resolve())
+    return data
+
+
+def _named(key: str, value, default: Mapping) -> dict:
+    """An axis given as a list (labels = str(item)) or a mapping label -> value."""
+    if value is None:
+        return dict(default)
+    if isinstance(value, Mapping):
+        if not value:
+            raise GridError(f'{key}: must not be empty')
+        return {str(k): v for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        if not value:
+            raise GridError(f'{key}: must not be empty')
+        return {str(v): v for v in value}
+    raise GridError(f'{key}: must be a list or a mapping, got {type(value).__name__}')
+
+
+def scenario_dict(scenario) -> dict:
+    """A :class:`Scenario` as the mapping ``scenario_from_dict`` accepts."""
+    sc = scenario
+    ini = {k: float(sc.initial[k]) for k in sc.initial}
+    return {
+        'name': sc.name, 'description': sc.description, 'drive_cycle': sc.drive_cycle.name,
+        'duration_s': float(sc.duration_s),
+        'weather': {'time_s': [float(x) for x in sc.weather_time_s], 't_amb_c': [float(x) for x in sc.weather_t_amb_c],
+                    'solar_wm2': [float(x) for x in sc.weather_solar_wm2], 'rh': [float(x) for x in sc.weather_rh]},
+        'occupant': {'met': float(sc.occupant.met), 'clo': float(sc.occupant.clo)},
+        'comfort_bounds': {'time_s': [float(x) for x in sc.bounds_time_s],
+                           'pmv_lb': [float(x) for x in sc.bounds_pmv_lb],
+                           'pmv_ub': [float(x) for x in sc.bounds_pmv_ub]},
+        'initial': ini,
+        'control': {'control_period_s': float(sc.control.control_period_s),
+                    'horizon_steps': int(sc.control.horizon_steps)},
+        'seed': int(sc.seed),
+    }
+
+
+def _two_knots(key: str, value) -> list:
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return [float(value), float(value)]
+    if isinstance(value, (list, tuple)) and len(value) == 2 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        return [float(v) for v in value]
+    raise GridError(f'{key}: must be a number or [start, end], got {value!r}')
+
+
+def _apply_climate(d: dict, label: str, climate) -> None:
+    if climate is None:
+        return
+    if not isinstance(climate, Mapping):
+        raise GridError(f'climates.{label}: must be a mapping of {sorted(_CLIMATE_KEYS)} or null')
+    unknown = sorted(set(climate) - _CLIMATE_KEYS)
+    if unknown:
+        raise GridError(f'climates.{label}.{unknown[0]}: unknown key (allowed: {sorted(_CLIMATE_KEYS)})')
+    weather = dict(d['weather'])
+    if any(k in climate for k in ('t_amb_c', 'solar_wm2', 'rh')):
+        # The climate's values span the run: knots at 0 and at the run length.
+        weather = {'time_s': [0.0, float(d['duration_s'])]}
+        for k in ('t_amb_c', 'solar_wm2', 'rh'):
+            if k in climate:
+                weather[k] = _two_knots(f'climates.{label}.{k}', climate[k])
+            else:  # keep the base scenario's start and end values
+                base = d['weather'][k]
+                weather[k] = [float(base[0]), float(base[-1])]
+    d['weather'] = weather
+    if 'initial' in climate:
+        if not isinstance(climate['initial'], Mapping):
+            raise GridError(f'climates.{label}.initial: must be a mapping')
+        # The soak state is the climate's: fields it does not give default
+        # as in a scenario file (to t_cab_c, rh_cab from the ambient).
+        d['initial'] = dict(climate['initial'])
+    if 'comfort_bounds' in climate:
+        d['comfort_bounds'] = dict(climate['comfort_bounds'])
+
+
+def _canonical(obj) -> str:
+    return json.dumps(obj, sort_keys=True, separators=(',', ':'), allow_nan=True)
+
+
+def cell_id(spec: Mapping) -> str:
+    """Deterministic id of a cell: SHA-256 of its canonical JSON, 16 hex digits."""
+    return hashlib.sha256(_canonical(spec).encode('utf-8')).hexdigest()[:16]
+
+
+def expand_grid(grid: Mapping) -> list[Cell]:
+    """Every cell of a grid (axes in the order of :data:`AXES`, strategy
+    fastest). Each cell's scenario is validated here (``scenario_from_dict``),
+    so a bad grid fails before any run."""
+    from ceco_v2x_preview.preview import parse_quality  # noqa: PLC0415
+    from ceco_v2x_preview.scenario import load_drive_cycle, load_scenario, scenario_from_dict  # noqa: PLC0415
+
+    base_dir = grid.get('_base_dir')
+    strategies = grid.get('strategies')
+    if not isinstance(strategies, (list, tuple)) or not strategies or not all(isinstance(s, str) for s in strategies):
+        raise GridError('strategies: must be a non-empty list of strategy names')
+    try:
+        from ceco_controller.strategies import STRATEGIES  # noqa: PLC0415
+    except ImportError:
+        STRATEGIES = None
+    if STRATEGIES is not None:
+        bad = [s for s in strategies if s not in STRATEGIES]
+        if bad:
+            raise GridError(f'strategies: unknown strategy {bad[0]!r} (use {list(STRATEGIES)})')
+    scenarios = _named('scenarios', grid.get('scenarios'), {'sc03': 'sc03'})
+    cycles = _named('drive_cycles', grid.get('drive_cycles'), {'scenario': None})
+    climates = _named('climates', grid.get('climates'), {'scenario': None})
+    previews = _named('previews', grid.get('previews'), {'perfect': 'perfect'})
+    occupants = _named('occupants', grid.get('occupants'), {'scenario': None})
+    seeds = grid.get('seeds', [None])
+    if not isinstance(seeds, (list, tuple)) or not seeds or not all(
+            s is None or (isinstance(s, int) and not isinstance(s, bool) and s >= 0) for s in seeds):
+        raise GridError('seeds: must be a non-empty list of non-negative integers')
+    duration = grid.get('duration_s')
+    if duration is not None and not (isinstance(duration, (int, float)) and not isinstance(duration, bool)
+                                     and math.isfinite(duration) and duration > 0):
+        raise GridError(f'duration_s: must be a positive number, got {duration!r}')
+    for key in ('control_period_s', 'horizon_steps'):
+        v = grid.get(key)
+        if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0):
+            raise GridError(f'{key}: must be a positive number, got {v!r}')
+    for label, q in previews.items():
+        if not isinstance(q, str):
+            raise GridError(f'previews.{label}: must be a preview-quality string (e.g. "noisy:solar=50")')
+        try:
+            parse_quality(q)
+        except ValueError as exc:
+            raise GridError(f'previews.{label}: {exc}') from None
+    cells = []
+    for (sl, sv), (cl, cv), (kl, kv), (pl, pv), (ol, ov), seed in itertools.product(
+            scenarios.items(), cycles.items(), climates.items(), previews.items(), occupants.items(), seeds):
+        try:
+            src = str(sv)
+            if base_dir and src.endswith(('.yaml', '.yml')) and not Path(src).is_absolute():
+                src = str(Path(base_dir) / src)
+            d = scenario_dict(load_scenario(src))
+        except (ValueError, OSError) as exc:
+            raise GridError(f'scenarios.{sl}: {exc}') from None
+        if cv is not None:
+            try:
+                cyc_src = str(cv)
+                if base_dir and cyc_src.endswith('.csv') and not Path(cyc_src).is_absolute():
+                    cyc_src = str(Path(base_dir) / cyc_src)
+                cyc = load_drive_cycle(cyc_src)
+            except (ValueError, OSError) as exc:
+                raise GridError(f'drive_cycles.{cl}: {exc}') from None
+            d['drive_cycle'] = cyc.name
+            d['duration_s'] = float(cyc.duration_s)
+        _apply_climate(d, kl, kv)
+        if ov is not None:
+            if not isinstance(ov, Mapping) or set(ov) - {'met', 'clo'}:
+                raise GridError(f'occupants.{ol}: must be a mapping with met and/or clo')
+            d['occupant'] = {**d['occupant'], **{k: float(v) for k, v in ov.items()}}
+        d['name'] = d['name'] if cv is None and kv is None else f"{d['name']}[{cl},{kl}]"
+        try:
+            scenario_from_dict(d)
+        except ValueError as exc:
+            raise GridError(f'cell {sl}/{cl}/{kl}/{ol}: {exc}') from None
+        for strategy in strategies:
+            spec = {'scenario': d, 'strategy': strategy, 'preview': pv, 'seed': seed,
+                    'duration_s': None if duration is None else float(duration),
+                    'control_period_s': grid.get('control_period_s'), 'horizon_steps': grid.get('horizon_steps')}
+            axes = {'scenario': sl, 'drive_cycle': cl, 'climate': kl, 'preview': pl, 'occupant': ol,
+                    'seed': '' if seed is None else seed, 'strategy': strategy}
+            cells.append(Cell(id=cell_id(spec), axes=axes, spec=spec))
+    ids = [c.id for c in cells]
+    if len(set(ids)) != len(ids):
+        raise GridError('the grid holds the same cell twice (two axis labels with the same definition)')
+    return cells
+
+
+# ------------------------------------------------------------------ one cell
+def _settings_from_spec(spec: Mapping):
+    from ceco_controller.closed_loop import SimSettings  # noqa: PLC0415
+    from ceco_v2x_preview.preview import parse_quality  # noqa: PLC0415
+
+    hs = spec.get('horizon_steps')
+    return SimSettings(control_period_s=spec.get('control_period_s'),
+                       horizon_steps=None if hs is None else int(hs),
+                       preview_quality=parse_quality(spec['preview']), seed=spec.get('seed'),
+                       duration_s=spec.get('duration_s'), progress=False)
+
+
+def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
+    """Run one cell in this process and return its results row: the cell id,
+    axes, every metric, ``status`` ('ok' or 'error'), ``error``,
+    ``sim_time_s`` (scenario build + simulation), ``wall_time_s`` (also the
+    first imports in a fresh worker), ``host``, ``pid``. Never raises for a failing run (the
+    error is in the row). ``cell`` is :class:`Cell` as a dict."""
+    t0 = time.perf_counter()
+    row = {'cell_id': cell['id'], **cell['axes'], 'status': 'ok', 'error': '', 'sim_time_s': float('nan')}
+    try:
+        from ceco_controller.closed_loop import simulate, write_run  # noqa: PLC0415
+        from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
+
+        spec = cell['spec']
+        t_sim = time.perf_counter()
+        scenario = scenario_from_dict(spec['scenario'])
+        result = simulate(scenario, spec['strategy'], _settings_from_spec(spec))
+        row['sim_time_s'] = time.perf_counter() - t_sim
+        for k in METRIC_COLUMNS:
+            v = result.metrics.get(k)
+            row[k] = float('nan') if v is None else float(v)
+        row['scenario_name'] = result.metrics.get('scenario', scenario.name)
+        row['preview_quality'] = result.metrics.get('preview_quality', spec['preview'])
+        if runs_dir:
+            write_run(result, Path(runs_dir) / cell['id'])
+    except Exception as exc:  # noqa: BLE001 (a failed cell is data, the sweep goes on)
+        row['status'] = 'error'
+        row['error'] = f'{type(exc).__name__}: {exc}'
+    row['wall_time_s'] = time.perf_counter() - t0
+    row['host'] = socket.gethostname()
+    row['pid'] = os.getpid()
+    return row
+
+
+# ------------------------------------------------------------------ the log
+def read_done(log_path: str | os.PathLike) -> dict:
+    """``{cell_id: row}`` of the cells with status 'ok' in a ``cells.jsonl``
+    (later lines win; an unreadable line, e.g. torn by a crash, is skipped)."""
+    done: dict = {}
+    p = Path(log_path)
+    if not p.is_file():
+        return done
+    for line in p.read_text(encoding='utf-8').splitlines():
+        try:
+            row = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(row, dict) and row.get('status') == 'ok' and 'cell_id' in row:
+            done[row['cell_id']] = row
+    return done
+
+
+def _append_row(log_path: Path, row: Mapping) -> None:
+    """Append one JSON line atomically: one write() on an O_APPEND fd, fsync."""
+    data = (json.dumps(row, allow_nan=True, separators=(',', ':')) + '\n').encode('utf-8')
+    fd = os.open(log_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    try:
+        # A torn last line (crash mid-write) is skipped by read_done; start on a new line.
+        if os.fstat(fd).st_size:
+            with open(log_path, 'rb') as fh:
+                fh.seek(-1, os.SEEK_END)
+                if fh.read(1) != b'\n':
+                    data = b'\n' + data
+        written = os.write(fd, data)
+        if written != len(data):
+            raise OSError(f'{log_path}: short write ({written} of {len(data)} bytes)')
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+# ------------------------------------------------------------------ backends
+def _pythonpath() -> str:
+    """Source dirs of the ceco packages as imported here (so spawned or Ray
+    workers import the same code)."""
+    dirs = []
+    for mod in ('ceco_bringup', 'ceco_controller', 'ceco_plant_sim', 'ceco_v2x_preview'):
+        try:
+            m = __import__(mod)
+        except ImportError:
+            continue
+        dirs.append(str(Path(m.__file__).resolve().parent.parent))
+    extra = os.environ.get('PYTHONPATH', '')
+    return os.pathsep.join(dict.fromkeys(dirs + ([extra] if extra else [])))
+
+
+def _run_local(cells: Sequence[dict], workers: int, runs_dir, on_done: Callable) -> None:
+    if workers == 1:
+        for c in cells:
+            on_done(run_cell(c, runs_dir))
+        return
+    ctx = multiprocessing.get_context('spawn')
+    with cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+        futures = [pool.submit(run_cell, c, runs_dir) for c in cells]
+        try:
+            for fut in cf.as_completed(futures):
+                on_done(fut.result())
+        except KeyboardInterrupt:
+            for f in futures:
+                f.cancel()
+            raise
+
+
+def _run_ray(cells: Sequence[dict], workers: int, address: str | None, runs_dir, on_done: Callable) -> None:
+    try:
+        import ray  # noqa: PLC0415 (optional extra)
+    except ImportError as exc:
+        raise RuntimeError('--backend ray needs the optional Ray extra: '
+                           'pip install -r requirements/analysis.txt (ray==2.60.0)') from exc
+    runtime_env = {'env_vars': {'PYTHONPATH': _pythonpath()}}
+    started = False
+    if not ray.is_initialized():
+        if address:
+            ray.init(address=address, runtime_env=runtime_env, include_dashboard=False,
+                     log_to_driver=False)
+        else:
+            ray.init(num_cpus=workers, runtime_env=runtime_env, include_dashboard=False, log_to_driver=False)
+        started = True
+    try:
+        remote = ray.remote(num_cpus=1, max_retries=0)(run_cell)
+        pending = [remote.remote(c, runs_dir) for c in cells]
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            for ref in ready:
+                on_done(ray.get(ref))
+    finally:
+        if started:
+            ray.shutdown()
+
+
+# ------------------------------------------------------------------ outputs
+def _write_table(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) -> None:
+    tmp = path.with_suffix(path.suffix + '.tmp')
+    with open(tmp, 'w', newline='', encoding='utf-8') as fh:
+        w = csv.DictWriter(fh, fieldnames=list(columns), extrasaction='ignore')
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in r.items()})
+    os.replace(tmp, path)
+
+
+def _write_parquet(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) -> bool:
+    try:
+        import pyarrow as pa  # noqa: PLC0415
+        import pyarrow.parquet as pq  # noqa: PLC0415
+    except ImportError:
+        return False
+    table = pa.table({c: [r.get(c) for r in rows] for c in columns})
+    tmp = path.with_suffix('.parquet.tmp')
+    pq.write_table(table, tmp)
+    os.replace(tmp, path)
+    return True
+
+
+def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]:
+    """Per (scenario, drive_cycle, climate, preview, occupant, strategy): the
+    mean over seeds of the main metrics, the number of seeds, and the change
+    against the baseline strategy of the same group (means compared)."""
+    keys = ('E_tot_kWh', 'I_pmv', 'otc_violation_pct', 'time_to_comfort_s', 'pmv_max', 'sim_time_s')
+    groups: dict = {}
+    for r in rows:
+        if r.get('status') != 'ok':
+            continue
+        g = tuple(r[a] for a in AXES if a not in ('seed', 'strategy'))
+        groups.setdefault(g, {}).setdefault(r['strategy'], []).append(r)
+    out = []
+    for g, by_strategy in groups.items():
+        means = {s: {k: float(np.nanmean([float(x[k]) for x in rs])) if any(
+            math.isfinite(float(x[k])) for x in rs) else float('nan') for k in keys} for s, rs in by_strategy.items()}
+        base = means.get(baseline)
+        for s, m in means.items():
+            row = dict(zip([a for a in AXES if a not in ('seed', 'strategy')], g))
+            row['strategy'] = s
+            row['n_seeds'] = len(by_strategy[s])
+            row.update({f'{k}_mean': v for k, v in m.items()})
+            for k in ('E_tot_kWh', 'I_pmv'):
+                row[f'd{k}_pct'] = (100.0 * (m[k] - base[k]) / abs(base[k])
+                                    if base and base[k] not in (0.0,) and math.isfinite(base[k]) else float('nan'))
+            out.append(row)
+    return out
+
+
+def _summary_markdown(summary: Sequence[Mapping], timing: Mapping, grid_name: str) -> str:
+    lines = [f'# Sweep summary: {grid_name}', '',
+             f"{timing['cells']} cells ({timing['ran']} run now, {timing['skipped']} already done, "
+             f"{timing['failed']} failed) with backend `{timing['backend']}` on {timing['workers']} worker(s). "
+             f"Wall time of this invocation {timing['wall_s']:.1f} s ({timing['cells_per_hour']:.0f} cells/h). "
+             f"Simulation time per cell (scenario build + closed loop, cells run now): mean "
+             f"{timing['sim_mean_s']:.2f} s, median {timing['sim_median_s']:.2f} s; worker time per cell incl. "
+             f"imports in a fresh worker {timing['cell_mean_s']:.2f} s (sum {timing['cell_sum_s']:.1f} s, "
+             f"{timing['speedup']:.2f}x the wall time).", '',
+             '| scenario | cycle | climate | preview | occupant | strategy | seeds | E_tot [kWh] | ΔE [%] | '
+             'I_PMV [s] | ΔI_PMV [%] | OTC viol. [%] | t_comfort [s] |',
+             '|---|---|---|---|---|---|---|---|---|---|---|---|---|']
+
+    def f(x, fmt):
+        return 'n/a' if x is None or not math.isfinite(float(x)) else format(float(x), fmt)
+
+    from ceco_bringup.figures import ordered  # noqa: PLC0415
+
+    rows = sorted(summary, key=lambda r: (r['scenario'], r['drive_cycle'], r['climate'], r['preview'],
+                                          r['occupant']))
+    groups: dict = {}
+    for r in rows:
+        groups.setdefault(tuple(r[a] for a in ('scenario', 'drive_cycle', 'climate', 'preview', 'occupant')),
+                          {})[r['strategy']] = r
+    for g, by in groups.items():
+        for s in ordered(list(by)):
+            r = by[s]
+            lines.append(f"| {' | '.join(map(str, g))} | {s} | {r['n_seeds']} | {f(r['E_tot_kWh_mean'], '.4f')} | "
+                         f"{f(r['dE_tot_kWh_pct'], '+.1f')} | {f(r['I_pmv_mean'], '.1f')} | "
+                         f"{f(r['dI_pmv_pct'], '+.1f')} | {f(r['otc_violation_pct_mean'], '.2f')} | "
+                         f"{f(r['time_to_comfort_s_mean'], '.0f')} |")
+    return '\n'.join(lines) + '\n'
+
+
+def run_sweep(grid_path: str | os.PathLike, out_dir: str | os.PathLike, *, backend: str = 'local',
+              workers: int | None = None, address: str | None = None, progress: bool = True,
+              log=print) -> dict:
+    """Run (or resume) the sweep of ``grid_path`` into ``out_dir``. Returns
+    ``{'rows': [...], 'summary': [...], 'timing': {...}, 'paths': {...}}``."""
+    if backend not in ('local', 'ray'):
+        raise ValueError(f'backend: must be local or ray, got {backend!r}')
+    workers = int(workers or os.cpu_count() or 1)
+    if workers < 1:
+        raise ValueError(f'workers: must be >= 1, got {workers}')
+    grid = load_grid(grid_path)
+    cells = expand_grid(grid)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / 'grid.json').write_text(json.dumps({'grid': {k: v for k, v in grid.items() if k != '_base_dir'},
+                                               'cells': [dataclasses.asdict(c) for c in cells]},
+                                              indent=1, default=str) + '\n', encoding='utf-8')
+    log_path = out / 'cells.jsonl'
+    done = read_done(log_path)
+    todo = [dataclasses.asdict(c) for c in cells if c.id not in done]
+    runs_dir = str(out / 'runs') if grid.get('save_runs') else None
+    log(f'ceco sweep: {len(cells)} cells, {len(cells) - len(todo)} already done, {len(todo)} to run '
+        f'({backend}, {workers} worker(s))', file=sys.stderr)
+    bar = None
+    if progress and todo:
+        from tqdm import tqdm  # noqa: PLC0415
+
+        bar = tqdm(total=len(todo), desc='sweep', unit='cell', file=sys.stderr)
+    new_rows: list = []
+
+    def on_done(row):
+        _append_row(log_path, row)
+        new_rows.append(row)
+        if row['status'] != 'ok':
+            log(f"ceco sweep: cell {row['cell_id']} {row['strategy']} failed: {row['error']}", file=sys.stderr)
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix_str(f"{row['strategy']}/{row['climate']}")
+
+    t0 = time.perf_counter()
+    try:
+        if todo:
+            n = min(workers, len(todo))
+            if backend == 'local':
+                _run_local(todo, n, runs_dir, on_done)
+            else:
+                _run_ray(todo, n, address, runs_dir, on_done)
+    finally:
+        if bar is not None:
+            bar.close()
+    wall_s = time.perf_counter() - t0
+    done = read_done(log_path)
+    rows = [done[c.id] for c in cells if c.id in done]
+    failed = [r for r in new_rows if r['status'] != 'ok']
+    columns = ['cell_id', *AXES, *METRIC_COLUMNS, 'scenario_name', 'preview_quality', 'status', 'error',
+               'sim_time_s', 'wall_time_s', 'host', 'pid']
+    _write_table(out / 'results.csv', rows, columns)
+    parquet = _write_parquet(out / 'results.parquet', rows, columns)
+    summary = summarize(rows)
+    s_cols: list = []
+    for r in summary:
+        s_cols += [k for k in r if k not in s_cols]
+    _write_table(out / 'summary.csv', summary, s_cols)
+    ran_ok = [r for r in new_rows if r['status'] == 'ok']
+    cell_sum = float(sum(r['wall_time_s'] for r in new_rows))
+    sim_times = [r['sim_time_s'] for r in ran_ok]
+    timing = {'cells': len(cells), 'ran': len(new_rows), 'skipped': len(cells) - len(todo),
+              'failed': len(failed), 'backend': backend, 'workers': workers, 'wall_s': wall_s,
+              'cell_sum_s': cell_sum, 'cell_mean_s': cell_sum / len(new_rows) if new_rows else float('nan'),
+              'speedup': cell_sum / wall_s if new_rows and wall_s > 0 else float('nan'),
+              'ok_total': len(rows), 'ran_ok': len(ran_ok),
+              'sim_mean_s': float(np.mean(sim_times)) if sim_times else float('nan'),
+              'sim_median_s': float(np.median(sim_times)) if sim_times else float('nan'),
+              'cells_per_hour': 3600.0 * len(new_rows) / wall_s if new_rows and wall_s > 0 else float('nan')}
+    (out / 'summary.md').write_text(_summary_markdown(summary, timing, str(grid.get('name', grid_path))),
+                                    encoding='utf-8')
+    (out / 'timing.json').write_text(json.dumps(timing, indent=1) + '\n', encoding='utf-8')
+    return {'rows': rows, 'summary': summary, 'timing': timing, 'failed': failed,
+            'paths': {'log': log_path, 'csv': out / 'results.csv',
+                      'parquet': out / 'results.parquet' if parquet else None,
+                      'summary_md': out / 'summary.md', 'summary_csv': out / 'summary.csv'}}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(
+        prog='ceco sweep', description='Run a grid of closed-loop simulations (strategies x scenarios x drive '
+        'cycles x climates x previews x occupants x seeds) in parallel; resumable.')
+    parser.add_argument('grid', help='grid YAML file (see ceco_bringup/config/sweep_example.yaml)')
+    parser.add_argument('--out', required=True, help='output directory (reuse it to resume)')
+    parser.add_argument('--backend', choices=('local', 'ray'), default='local',
+                        help='local process pool (default) or Ray')
+    parser.add_argument('--address', default=None,
+                        help='Ray cluster address (e.g. auto or ray://host:10001); default: a local Ray instance')
+    parser.add_argument('--workers', type=int, default=None,
+                        help=f'parallel workers (default: all cores, {os.cpu_count()} here)')
+    parser.add_argument('--no-progress', action='store_true', help='no progress bar')
+    args = parser.parse_args(argv)
+    if args.workers is not None and args.workers < 1:
+        parser.error(f'--workers: must be >= 1, got {args.workers}')
+    if args.address and args.backend != 'ray':
+        parser.error('--address needs --backend ray')
+    try:
+        res = run_sweep(args.grid, args.out, backend=args.backend, workers=args.workers, address=args.address,
+                        progress=not args.no_progress)
+    except (GridError, ValueError, RuntimeError, OSError) as exc:
+        print(f'ceco sweep: error: {exc}', file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print('ceco sweep: interrupted; finished cells are kept, rerun the same command to resume',
+              file=sys.stderr)
+        return 130
+    t = res['timing']
+    print(f"ceco sweep: {t['ok_total']}/{t['cells']} cells done ({t['ran']} run now, {t['failed']} failed) in "
+          f"{t['wall_s']:.1f} s; simulation {t['sim_mean_s']:.2f} s per cell (mean); worker time "
+          f"{t['cell_sum_s']:.1f} s = {t['speedup']:.2f}x the wall time")
+    print(f"table: {res['paths']['csv']}" + (f" and {res['paths']['parquet']}" if res['paths']['parquet'] else ''))
+    print(f"summary: {res['paths']['summary_md']}")
+    return 1 if res['failed'] else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
