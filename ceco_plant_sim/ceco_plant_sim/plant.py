@@ -264,7 +264,7 @@ class PlantOutputs:
     comp_duty: float
     """On-time fraction of the compressor at the end of the step [0..1] (< 1 only below min speed)."""
     capacity_limited: bool
-    """True when the compressor PI demands more than the maximum speed at the end of the step."""
+    """True when the compressor PI demands more than the maximum speed or the inverter power limit allows (end of step)."""
     mop_active: bool
     """True when the expansion valve MOP caps the evaporating temperature at the end of the step."""
     mdot_ref_kgps: float
@@ -498,10 +498,6 @@ class CabinPlant:
         n_cmd = p.comp_kp_rpm_per_k * err + pi_i
         n_max = p.comp_speed_max_rpm
         n_min = p.comp_speed_min_rpm
-        if (n_cmd >= n_max and err > 0.0) or (n_cmd <= 0.0 and err < 0.0):
-            dpi = 0.0  # conditional integration (anti-windup)
-        else:
-            dpi = p.comp_ki_rpm_per_ks * err
         if n_cmd >= n_max:
             n_run, duty = n_max, 1.0
         elif n_cmd >= n_min:
@@ -513,7 +509,29 @@ class CabinPlant:
         epsc = condenser_eps_c_wpk(p, speed)
         sol = solve_cycle(self._tab, self._comp, n_run, t_ev, p.ua_evap_ref_wpk, t_amb, epsc, p.te_mop_c,
                           guess=self._guess, tol_k=p.cycle_tol_k, max_iter=p.cycle_max_iter)
-        if n_run > 0.0:
+        power_limited = False
+        if duty == 1.0 and sol.p_comp_w > p.p_comp_max_w:
+            # inverter power limit: the ECU lowers the speed until P_el = P_max. Secant iteration on
+            # P_el(N) - P_max from N and N*P_max/P_el(N); stops within 0.05 % of the limit (cap 6).
+            power_limited = True
+            n0, f0 = n_run, sol.p_comp_w - p.p_comp_max_w
+            n_run = n_run * p.p_comp_max_w / sol.p_comp_w
+            for _ in range(6):
+                sol = solve_cycle(self._tab, self._comp, n_run, t_ev, p.ua_evap_ref_wpk, t_amb, epsc,
+                                  p.te_mop_c, guess=(sol.t_evap_sat_c, sol.t_cond_c), tol_k=p.cycle_tol_k,
+                                  max_iter=p.cycle_max_iter)
+                f1 = sol.p_comp_w - p.p_comp_max_w
+                if abs(f1) < 5e-4 * p.p_comp_max_w or f1 == f0:
+                    break
+                n0, f0, n_run = n_run, f1, n_run - f1 * (n_run - n0) / (f1 - f0)
+        saturated_high = n_cmd >= n_max or power_limited
+        if (saturated_high and err > 0.0) or (n_cmd <= 0.0 and err < 0.0):
+            dpi = 0.0  # conditional integration (anti-windup)
+        else:
+            dpi = p.comp_ki_rpm_per_ks * err
+        if n_run > 0.0 and not final:
+            # warm start of the next solve; the end-of-step report does not touch it, so splitting
+            # an interval into more calls of step() reproduces the same sub-step sequence bit for bit
             self._guess = (sol.t_evap_sat_c, sol.t_cond_c)
         q_ref = duty * sol.q_evap_ref_w
         p_comp = duty * sol.p_comp_w
@@ -555,7 +573,7 @@ class CabinPlant:
             "t_cond_c": sol.t_cond_c,
             "comp_speed_rpm": n_run,
             "comp_duty": duty,
-            "capacity_limited": n_cmd >= n_max,
+            "capacity_limited": saturated_high,
             "mop_active": sol.mop_active,
             "mdot_ref_kgps": duty * sol.mdot_ref_kgps,
             "iterations": sol.iterations,

@@ -153,6 +153,8 @@ class PlantParams:
     """Isentropic efficiency loss per (pr - pr_opt)^2 [-]."""
     pr_opt: float = 3.0
     """Pressure ratio of peak isentropic efficiency [-]."""
+    p_comp_max_w: float = 3500.0
+    """Electrical power limit of the compressor inverter [W]; the ECU lowers the speed to respect it."""
     eta_motor_inverter: float = 0.90
     """Motor x inverter efficiency [-] (PMSM + SiC/IGBT inverter)."""
     superheat_k: float = 5.0

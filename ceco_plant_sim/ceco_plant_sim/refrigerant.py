@@ -236,8 +236,10 @@ def build_cycle_tables(
     Cost: about (te span/step_2d) x (tc span/step_2d) CoolProp (p, s) flashes
     (~0.35 ms each), i.e. ~0.3 s for the defaults.
     """
-    if not CP.get_fluid_param_string(fluid, "CAS"):
-        raise ValueError(f"fluid: CoolProp does not know {fluid!r}")
+    try:
+        CP.get_fluid_param_string(fluid, "CAS")
+    except ValueError:
+        raise ValueError(f"fluid: CoolProp does not know {fluid!r}") from None
     te = _grid(te_min_c, te_max_c, step_1d_k)
     tc = _grid(tc_min_c, tc_max_c, step_1d_k)
     p_e, rho1, h1 = [], [], []
