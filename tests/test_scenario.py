@@ -82,10 +82,11 @@ def test_vectorised_env_and_previews():
 def test_pmv_bounds_piecewise_linear():
     sc = load_scenario("sc03")
     assert sc.pmv_bounds(0.0) == (-0.5, 3.0)
-    assert sc.pmv_bounds(120.0) == (-0.5, 3.0)
-    assert sc.pmv_bounds(270.0) == pytest.approx((-0.5, 1.75))
-    lb, ub = sc.pmv_bounds(np.array([420.0, 599.0]))
-    np.testing.assert_allclose(ub, [0.5, 0.5])
+    assert sc.pmv_bounds(270.0) == (-0.5, 3.0)
+    assert sc.pmv_bounds(465.0) == pytest.approx((-0.5, 1.75))
+    lb, ub = sc.pmv_bounds(np.array([600.0, 660.0]))
+    np.testing.assert_allclose(ub, [0.5 + 2.5 * 60.0 / 390.0, 0.5])
+    assert load_scenario("udds").pmv_bounds(1000.0) == (-0.5, 0.5)
     np.testing.assert_allclose(lb, [-0.5, -0.5])
 
 
@@ -150,8 +151,9 @@ _DELETE = object()
         (("occupant", "met"), 0.0, "occupant.met"),
         (("occupant", "clo"), _DELETE, "occupant.clo: missing"),
         (("drive_cycle",), "wltp", "drive_cycle: unknown drive cycle"),
-        (("comfort_bounds", "pmv_lb"), [-0.5, -0.5, 0.6, -0.5], "comfort_bounds.pmv_lb[2]"),
-        (("comfort_bounds", "time_s"), [0, 120, 50, 600], "comfort_bounds.time_s"),
+        (("comfort_bounds", "pmv_lb"), [-0.5, -0.5, 0.6], "comfort_bounds.pmv_lb[2]"),
+        (("comfort_bounds", "pmv_ub"), [3.0, 0.5], "comfort_bounds.pmv_ub: length"),
+        (("comfort_bounds", "time_s"), [0, 270, 50], "comfort_bounds.time_s"),
         (("initial", "t_cab_c"), _DELETE, "initial.t_cab_c: missing"),
         (("initial", "rh_cab"), 40.0, "initial.rh_cab"),
         (("control", "horizon_steps"), 0, "control.horizon_steps"),
