@@ -172,3 +172,5 @@ def test_bad_arguments(sc03):
         make_previews(sc03, 0.0, 5.0, 0)
     with pytest.raises(ValueError, match="noise_ref_lead_s"):
         make_previews(sc03, 0.0, 5.0, 6, PreviewQuality(noise_ref_lead_s=0.0))
+    with pytest.raises(ValueError, match="missing_spans_s"):
+        PreviewQuality(missing_spans_s=(100.0, 200.0))  # a pair, not a list of pairs

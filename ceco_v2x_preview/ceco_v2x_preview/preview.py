@@ -106,7 +106,11 @@ class PreviewQuality:
     """Noise seed, >= 0; None uses the scenario's seed."""
 
     def __post_init__(self):
-        spans = tuple((float(a), float(b)) for a, b in self.missing_spans_s)
+        try:
+            spans = tuple((float(a), float(b)) for a, b in self.missing_spans_s)
+        except (TypeError, ValueError):
+            raise ValueError("missing_spans_s: must be a sequence of (start_s, end_s) number pairs, "
+                             f"got {self.missing_spans_s!r}") from None
         object.__setattr__(self, "missing_spans_s", spans)
 
     def validate(self) -> None:

@@ -523,6 +523,8 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
         rh_cab = ini["rh_cab"]
     else:  # same vapour pressure as the ambient air at t = 0
         p_v_pa = float(rh[0]) * _saturation_pressure_pa(float(t_amb[0]))
+        # A cabin colder than the ambient dew point is saturated (the excess
+        # moisture has condensed): rh_cab = 1, a physical limit.
         rh_cab = min(1.0, p_v_pa / _saturation_pressure_pa(t_cab))
     initial = InitialState(
         t_cab_c=t_cab,
