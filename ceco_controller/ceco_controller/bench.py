@@ -1,0 +1,141 @@
+"""``ceco bench nmpc``: NMPC solve times in closed loop against a reference solver.
+
+For each CECO strategy and horizon Np in (6, 12, 24, 60), a closed-loop SC03
+run is simulated with the product solver settings. At every control step the
+very same NLP instance (same parameters) is also solved by the reference:
+CasADi + IPOPT with its default settings and no warm start (what the paper's
+MPCTools did), started from the same model-rollout guess a cold solve gets.
+Printed: per-step solve time (median, p95, max) of both, the speed-up of the
+medians, and the largest relative difference of the optimal costs over the
+steps where both solvers report success. Last line: one JSON object.
+
+This is a benchmark, not a test: wall-clock times depend on the machine and
+its load (2 shared cores here); nothing in the controller uses them.
+
+    python -m ceco_controller.bench nmpc [--quick] [--jit] [--horizons 6,12] [--strategies ceco,ceco-c]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+
+import numpy as np
+
+from ceco_v2x_preview.scenario import load_scenario
+
+from . import closed_loop as cl
+from . import model as cm
+from .nmpc import NlpData
+from .strategies import CECO_STRATEGIES, SolverSettings
+
+__all__ = ["main", "bench_nmpc"]
+
+
+def _stats(x):
+    x = np.asarray(x, float)
+    if x.size == 0:
+        return {"median": float("nan"), "p95": float("nan"), "max": float("nan")}
+    return {"median": float(np.median(x)), "p95": float(np.percentile(x, 95)), "max": float(np.max(x))}
+
+
+def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03", progress=False) -> list[dict]:
+    """Run the benchmark; return one dict per (strategy, horizon)."""
+    sc = load_scenario(scenario)
+    mp = cm.load_params()
+    rows = []
+    for np_ in horizons:
+        for strat in strategies:
+            overrides = {}
+            if jit:
+                overrides["solver"] = SolverSettings(jit=True)
+            ctrl = cl.make_controller(strat, sc, sc.control.control_period_s, np_, mp, overrides)
+            ref_solver = ctrl.make_solver(SolverSettings(default_options=True))
+            ours_t, ref_t, diffs, ours_it, ref_it = [], [], [], [], []
+            n_fail = n_ref_fail = 0
+            orig = ctrl.compute
+
+            def compute(obs, _orig=orig, _ctrl=ctrl):
+                nonlocal n_fail, n_ref_fail
+                cmd, diag = _orig(obs)
+                data = _ctrl.last_nlp()
+                if diag.solve_time_ms is not None:
+                    ours_t.append(diag.solve_time_ms)
+                    ours_it.append(diag.iterations)
+                if not diag.success:
+                    n_fail += 1
+                # the reference solves the same instance from the cold model-rollout guess
+                saved = _ctrl._warm
+                _ctrl._warm = None
+                x0 = _ctrl.initial_guess(data.p)
+                _ctrl._warm = saved
+                ref = _ctrl.solve_nlp(NlpData(p=data.p, x0=x0), ref_solver)
+                ref_t.append(ref["time_ms"])
+                ref_it.append(ref["iterations"])
+                if not ref["success"]:
+                    n_ref_fail += 1
+                if ref["success"] and diag.success and diag.cost_total is not None:
+                    diffs.append(abs(diag.cost_total - ref["f"]) / max(abs(ref["f"]), 1e-9))
+                return cmd, diag
+
+            ctrl.compute = compute
+            cl.simulate(sc, strat, cl.SimSettings(horizon_steps=np_, duration_s=duration_s, progress=progress),
+                        controller=ctrl)
+            o, r = _stats(ours_t), _stats(ref_t)
+            rows.append({"strategy": strat, "np": np_, "steps": len(ours_t),
+                         "ours_median_ms": o["median"], "ours_p95_ms": o["p95"], "ours_max_ms": o["max"],
+                         "ours_iter_median": float(np.median(ours_it)) if ours_it else float("nan"),
+                         "ref_median_ms": r["median"], "ref_p95_ms": r["p95"], "ref_max_ms": r["max"],
+                         "ref_iter_median": float(np.median(ref_it)) if ref_it else float("nan"),
+                         "speedup_median": r["median"] / o["median"] if o["median"] > 0 else float("nan"),
+                         "max_rel_cost_diff": max(diffs) if diffs else float("nan"),
+                         "n_fail": n_fail, "n_ref_fail": n_ref_fail})
+            rr = rows[-1]
+            print(f"{strat:10s} Np={np_:3d} steps={rr['steps']:4d}  ours median {rr['ours_median_ms']:7.2f} ms "
+                  f"p95 {rr['ours_p95_ms']:7.2f} max {rr['ours_max_ms']:7.2f} (it {rr['ours_iter_median']:.0f})  |  "
+                  f"IPOPT default median {rr['ref_median_ms']:7.2f} p95 {rr['ref_p95_ms']:7.2f} "
+                  f"max {rr['ref_max_ms']:7.2f} (it {rr['ref_iter_median']:.0f})  speed-up "
+                  f"{rr['speedup_median']:5.1f}x  max rel cost diff {rr['max_rel_cost_diff']:.1e}  "
+                  f"fails {n_fail}/{n_ref_fail}", flush=True)
+    return rows
+
+
+def main(argv=None) -> int:
+    """CLI entry: ``nmpc`` is the only benchmark."""
+    ap = argparse.ArgumentParser(prog="ceco bench", description="solver benchmarks")
+    ap.add_argument("what", choices=["nmpc"], help="benchmark to run")
+    ap.add_argument("--quick", action="store_true", help="Np 6 and 12 only, first 200 s of SC03")
+    ap.add_argument("--jit", action="store_true", help="compile the NLP functions with gcc (slow to build)")
+    ap.add_argument("--horizons", default=None, help="comma-separated horizons (default 6,12,24,60)")
+    ap.add_argument("--strategies", default=None, help=f"comma-separated subset of {','.join(CECO_STRATEGIES)}")
+    ap.add_argument("--duration", type=float, default=None, help="run length [s] (default: whole SC03)")
+    ap.add_argument("--progress", action="store_true", help="show progress bars")
+    args = ap.parse_args(argv)
+    horizons = [int(h) for h in args.horizons.split(",")] if args.horizons else ([6, 12] if args.quick
+                                                                                 else [6, 12, 24, 60])
+    strategies = args.strategies.split(",") if args.strategies else list(CECO_STRATEGIES)
+    duration = args.duration if args.duration is not None else (200.0 if args.quick else None)
+    rows = bench_nmpc(strategies, horizons, duration, jit=args.jit, progress=args.progress)
+    np6 = [r for r in rows if r["np"] == 6] or rows
+    summary = {
+        "np6_median_ms": float(np.median([r["ours_median_ms"] for r in np6])),
+        "np6_p95_ms": float(np.max([r["ours_p95_ms"] for r in np6])),
+        "np6_max_ms": float(np.max([r["ours_max_ms"] for r in np6])),
+        "np6_ref_median_ms": float(np.median([r["ref_median_ms"] for r in np6])),
+        "np6_speedup_vs_ipopt_default": float(np.median([r["ref_median_ms"] for r in np6])
+                                              / np.median([r["ours_median_ms"] for r in np6])),
+        "max_rel_cost_diff": float(np.nanmax([r["max_rel_cost_diff"] for r in rows])),
+        "solver": "ipopt-warm" + ("+jit" if args.jit else ""),
+        "horizons": horizons,
+        "strategies": strategies,
+        "duration_s": duration,
+        "per_case": [{k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()} for r in rows],
+    }
+    print(json.dumps(summary))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

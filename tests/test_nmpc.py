@@ -1,0 +1,109 @@
+"""CECO NMPC: valid commands, forced solver failures fall back, IOCH eps follows speed, missing previews."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from ceco_controller.interface import ACTUATOR_LIMITS, Observation
+from ceco_controller.nmpc import NmpcController
+from ceco_controller.strategies import SolverSettings, strategy_settings
+
+N1 = 7  # Np + 1
+
+
+def _obs(k=0, speed=10.0, valid=None, t_cab=28.0, **kw):
+    d = dict(k=k, t_s=5.0 * k, t_cab_c=t_cab, t_int_c=40.0, t_shell_c=38.0, t_evap_c=6.0, t_vent_c=9.0,
+             t_amb_c=35.0, solar_wm2=800.0, speed_mps=speed, mdot_bl_prev_kgps=0.1, t_evap_sp_prev_c=5.0,
+             preview_t_amb_c=np.full(N1, 35.0), preview_solar_wm2=np.full(N1, 800.0),
+             preview_speed_mps=np.full(N1, speed), preview_valid=np.ones(N1, bool) if valid is None else valid,
+             pmv_lb=np.full(N1, -0.5), pmv_ub=np.full(N1, 0.5))
+    d.update(kw)
+    return Observation(**d)
+
+
+def _valid(cmd):
+    return ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c)
+
+
+def test_forced_failure_falls_back_to_baseline_then_shifted_plan():
+    # max_iter = 0: IPOPT cannot converge -> no plan yet -> the production ACC law
+    bad = NmpcController(strategy_settings("ceco", solver=SolverSettings(max_iter=0)))
+    cmd, diag = bad.compute(_obs(0))
+    assert diag.fallback == "baseline" and not diag.success and _valid(cmd)
+    assert "ACC law" in diag.message
+    # a working controller, then a poisoned solve: the shifted previous plan is applied
+    ctrl = NmpcController("ceco")
+    cmd0, d0 = ctrl.compute(_obs(0))
+    assert d0.success and d0.fallback == ""
+    plan = ctrl._plan_u.copy()
+    ctrl.solver = ctrl.solver_cold = bad.solver  # same NLP structure, solver that always fails
+    cmd1, d1 = ctrl.compute(_obs(1))
+    assert d1.fallback == "shifted_plan" and _valid(cmd1)
+    assert (cmd1.mdot_bl_kgps, cmd1.t_evap_sp_c) == pytest.approx(tuple(plan[1]))
+    # after Np-1 failures the plan is exhausted: baseline
+    fallbacks = [ctrl.compute(_obs(k))[1].fallback for k in range(2, 8)]
+    assert fallbacks[-1] == "baseline" and "shifted_plan" in fallbacks
+
+
+def test_nan_measurement_uses_baseline():
+    ctrl = NmpcController("ceco-c")
+    cmd, diag = ctrl.compute(_obs(0, t_cab=float("nan")))
+    assert diag.fallback == "baseline" and diag.status == "invalid_measurement" and _valid(cmd)
+
+
+def test_ioch_eps_larger_at_high_speed():
+    eps = {}
+    for speed in (0.0, 30.0):
+        ctrl = NmpcController("ceco-ioch")
+        vals = []
+        for k in range(4):
+            cmd, diag = ctrl.compute(_obs(k, speed=speed, t_cab=26.0))
+            assert diag.success and _valid(cmd)
+            vals.append(diag.eps_mean)
+        eps[speed] = float(np.mean(vals))
+    assert eps[0.0] < 0.02  # eta_AC(0) = 1: no incentive to tighten at standstill
+    assert eps[30.0] > eps[0.0] + 0.05
+
+
+def test_missing_preview_degrades_gracefully():
+    for strat in ("ceco", "ceco-e", "ceco-c", "ceco-ioch"):
+        ctrl = NmpcController(strat)
+        partial = np.array([True, True, True, False, False, False, False])
+        nan_tail = np.where(partial, 35.0, np.nan)
+        cmd, diag = ctrl.compute(_obs(0, valid=partial, preview_t_amb_c=nan_tail))
+        assert _valid(cmd) and diag.trusted_horizon == 3 and "preview valid for 3/7" in diag.message
+        none = np.zeros(N1, bool)
+        cmd, diag = ctrl.compute(_obs(1, valid=none, preview_t_amb_c=np.full(N1, np.nan),
+                                      preview_solar_wm2=np.full(N1, np.nan),
+                                      preview_speed_mps=np.full(N1, np.nan)))
+        assert _valid(cmd) and diag.trusted_horizon == 0 and diag.success
+
+
+def test_long_horizon_builds_and_solves():
+    ctrl = NmpcController(strategy_settings("ceco-ioch", horizon_steps=60))
+    n1 = 61
+    obs = _obs(0, preview_t_amb_c=np.full(n1, 35.0), preview_solar_wm2=np.full(n1, 800.0),
+               preview_speed_mps=np.linspace(0, 30, n1), preview_valid=np.ones(n1, bool),
+               pmv_lb=np.full(n1, -0.5), pmv_ub=np.full(n1, 0.5))
+    cmd, diag = ctrl.compute(obs)
+    assert diag.success and _valid(cmd) and diag.pred_pmv.size == n1
+
+
+def test_wrong_preview_length_is_an_error():
+    ctrl = NmpcController("ceco")
+    n1 = 5
+    obs = _obs(0, preview_t_amb_c=np.full(n1, 35.0), preview_solar_wm2=np.full(n1, 800.0),
+               preview_speed_mps=np.full(n1, 1.0), preview_valid=np.ones(n1, bool),
+               pmv_lb=np.full(n1, -0.5), pmv_ub=np.full(n1, 0.5))
+    with pytest.raises(ValueError, match="Np\\+1"):
+        ctrl.compute(obs)
+
+
+def test_settings_validation_names_field():
+    with pytest.raises(ValueError, match="horizon_steps"):
+        strategy_settings("ceco", horizon_steps=0)
+    with pytest.raises(ValueError, match="max_cpu_time_s"):
+        strategy_settings("ceco", solver=SolverSettings(max_cpu_time_s=10.0))
+    with pytest.raises(ValueError, match="unknown CECO strategy"):
+        strategy_settings("ceco-x")
+    assert dataclasses.replace(strategy_settings("ceco-c")).gamma_w > 0
