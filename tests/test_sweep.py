@@ -1,0 +1,142 @@
+"""ceco sweep: grid expansion, deterministic cell ids, resume, and cells equal
+to direct closed-loop runs, on the local process pool and on a local Ray
+instance. Runs are shortened (duration_s) to keep the suite fast."""
+
+import csv
+import json
+import math
+
+import pytest
+
+from ceco_bringup import sweep
+from ceco_controller.closed_loop import SimSettings, simulate
+from ceco_v2x_preview.preview import parse_quality
+from ceco_v2x_preview.scenario import scenario_from_dict
+
+GRID = """
+name: test grid
+strategies: [baseline, ceco]
+scenarios: [sc03]
+climates:
+  hot: null
+  mild: {t_amb_c: 28.0, solar_wm2: [400, 300], rh: 0.5, initial: {t_cab_c: 40.0}}
+duration_s: {duration}
+"""
+
+
+def _grid(tmp_path, text=GRID, duration=20, name='grid.yaml'):
+    p = tmp_path / name
+    p.write_text(text.replace('{duration}', str(duration)), encoding='utf-8')
+    return p
+
+
+def _direct(cell):
+    """The same run as the cell, by a direct simulate() call in this process."""
+    spec = cell.spec
+    settings = SimSettings(preview_quality=parse_quality(spec['preview']), seed=spec['seed'],
+                           duration_s=spec['duration_s'], progress=False)
+    return simulate(scenario_from_dict(spec['scenario']), spec['strategy'], settings).metrics
+
+
+def test_expand_grid_counts_ids_and_overrides(tmp_path):
+    text = GRID + 'previews: {perfect: perfect, noisy: "noisy:solar=50"}\nseeds: [0, 1]\n' \
+                  'occupants: {light: {met: 1.1}, heavy: {met: 1.6, clo: 0.7}}\n'
+    cells = sweep.expand_grid(sweep.load_grid(_grid(tmp_path, text)))
+    assert len(cells) == 2 * 2 * 2 * 2 * 2  # strategies x climates x previews x seeds x occupants
+    assert len({c.id for c in cells}) == len(cells)
+    again = sweep.expand_grid(sweep.load_grid(_grid(tmp_path, text)))
+    assert [c.id for c in again] == [c.id for c in cells]          # deterministic
+    mild = next(c for c in cells if c.axes['climate'] == 'mild' and c.axes['occupant'] == 'heavy')
+    sc = mild.spec['scenario']
+    assert sc['weather']['t_amb_c'] == [28.0, 28.0]
+    assert sc['weather']['solar_wm2'] == [400.0, 300.0]
+    assert sc['weather']['time_s'] == [0.0, 600.0]                 # spans the run
+    assert sc['initial'] == {'t_cab_c': 40.0}
+    assert sc['occupant'] == {'met': 1.6, 'clo': 0.7}
+    hot = next(c for c in cells if c.axes['climate'] == 'hot')
+    assert hot.spec['scenario']['weather']['t_amb_c'] == [35.0, 35.0]  # the scenario's own
+    assert hot.spec['duration_s'] == 20.0
+    # Editing one climate changes the ids of its cells only.
+    edited = sweep.expand_grid(sweep.load_grid(_grid(tmp_path, text.replace('t_amb_c: 28.0', 't_amb_c: 29.0'),
+                                                     name='g2.yaml')))
+    changed = {c.id for c in edited} ^ {c.id for c in cells}
+    assert len(changed) == 2 * 16
+    assert all(c.axes['climate'] == 'mild' for c in edited if c.id in changed)
+
+
+@pytest.mark.parametrize('text, key', [
+    ('strategies: [baseline]\nbogus: 1\n', 'bogus'),
+    ('strategies: [warp-drive]\n', 'strategies'),
+    ('strategies: [baseline]\nclimates: {x: {t_amb_c: "hot"}}\n', 'climates.x.t_amb_c'),
+    ('strategies: [baseline]\nclimates: {x: {wind: 3}}\n', 'climates.x.wind'),
+    ('strategies: [baseline]\npreviews: {p: "foggy"}\n', 'previews.p'),
+    ('strategies: [baseline]\nseeds: [-1]\n', 'seeds'),
+    ('strategies: [baseline]\nduration_s: .nan\n', 'duration_s'),
+    ('strategies: [baseline]\nclimates: {x: {t_amb_c: 95.0}}\n', 'weather.t_amb_c'),
+])
+def test_bad_grid_names_the_key(tmp_path, text, key):
+    with pytest.raises(sweep.GridError, match=key.replace('.', r'\.')):
+        sweep.expand_grid(sweep.load_grid(_grid(tmp_path, text)))
+
+
+def test_local_sweep_equals_direct_runs_and_resumes(tmp_path):
+    grid = _grid(tmp_path)
+    out = tmp_path / 'out'
+    res = sweep.run_sweep(grid, out, workers=2, progress=False, log=lambda *a, **k: None)
+    assert res['timing']['ran'] == 4 and res['timing']['failed'] == 0
+    with open(out / 'results.csv', newline='') as fh:
+        table = list(csv.DictReader(fh))
+    assert len(table) == 4
+    assert {(r['strategy'], r['climate']) for r in table} == {
+        ('baseline', 'hot'), ('ceco', 'hot'), ('baseline', 'mild'), ('ceco', 'mild')}
+    # Two cells against direct simulate() calls in this process: equal exactly.
+    cells = {c.id: c for c in sweep.expand_grid(sweep.load_grid(grid))}
+    for row in table[:2]:
+        direct = _direct(cells[row['cell_id']])
+        for key in ('E_tot_J', 'E_comp_J', 'E_blower_J', 'I_pmv', 'otc_violation_pct', 'pmv_max'):
+            assert float(row[key]) == direct[key], key
+    # The mild climate is mild: less A/C energy than the hot one for the baseline.
+    e = {(r['strategy'], r['climate']): float(r['E_tot_J']) for r in table}
+    assert e[('baseline', 'mild')] < e[('baseline', 'hot')]
+    summary = (out / 'summary.md').read_text()
+    assert '| sc03 | scenario | mild | perfect | scenario | ceco |' in summary
+    # Resume: nothing is rerun; a torn last line (crash mid-write) is ignored.
+    with open(out / 'cells.jsonl', 'a') as fh:
+        fh.write('{"cell_id": "deadbeef", "status": "ok", "E_tot')
+    again = sweep.run_sweep(grid, out, workers=2, progress=False, log=lambda *a, **k: None)
+    assert again['timing']['ran'] == 0 and again['timing']['skipped'] == 4
+    assert len(again['rows']) == 4
+    assert sweep.main([str(grid), '--out', str(out), '--no-progress']) == 0   # the CLI resumes too
+    # A new cell in the grid runs alone; the log keeps every line parseable.
+    grid3 = _grid(tmp_path, GRID.replace('[baseline, ceco]', '[baseline, ceco, ceco-e]'), name='g3.yaml')
+    third = sweep.run_sweep(grid3, out, workers=1, progress=False, log=lambda *a, **k: None)
+    assert third['timing']['ran'] == 2 and len(third['rows']) == 6
+    lines = (out / 'cells.jsonl').read_text().splitlines()
+    parsed = [json.loads(ln) for ln in lines if not ln.startswith('{"cell_id": "deadbeef"')]
+    assert len(parsed) == 6
+
+
+def test_failed_cell_is_recorded_and_retried(tmp_path, monkeypatch):
+    cell = sweep.expand_grid(sweep.load_grid(_grid(tmp_path)))[0]
+    bad = {'id': cell.id, 'axes': cell.axes, 'spec': {**cell.spec, 'preview': 'foggy'}}
+    row = sweep.run_cell(bad)
+    assert row['status'] == 'error' and 'preview quality' in row['error']
+    assert math.isnan(row['sim_time_s'])
+    log = tmp_path / 'cells.jsonl'
+    sweep._append_row(log, row)
+    assert sweep.read_done(log) == {}                                   # errors are retried
+
+
+def test_ray_backend_matches_local(tmp_path):
+    import ray  # noqa: F401  (the analysis extra; tools/setup.sh installs requirements/analysis.txt)
+    grid = _grid(tmp_path, GRID.replace('  mild: {t_amb_c: 28.0, solar_wm2: [400, 300], rh: 0.5, '
+                                        'initial: {t_cab_c: 40.0}}\n', ''), duration=15)
+    ray_res = sweep.run_sweep(grid, tmp_path / 'ray', backend='ray', workers=2, progress=False,
+                              log=lambda *a, **k: None)
+    assert ray_res['timing']['ran'] == 2 and ray_res['timing']['failed'] == 0
+    local = sweep.run_sweep(grid, tmp_path / 'local', workers=1, progress=False, log=lambda *a, **k: None)
+    by_axes = {r['strategy']: r for r in local['rows']}
+    assert len(by_axes) == 2
+    for r in ray_res['rows']:
+        for key in ('E_tot_J', 'I_pmv', 'otc_violation_pct'):
+            assert r[key] == by_axes[r['strategy']][key]
