@@ -170,9 +170,22 @@ class ControlModelParams:
         return p
 
 
+def default_params_path() -> pathlib.Path:
+    """The parameter file: the source tree's ``config/``, else an installed ``share/ceco_controller/config``."""
+    if DEFAULT_PARAMS_PATH.exists():
+        return DEFAULT_PARAMS_PATH
+    import os
+    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        cand = pathlib.Path(prefix) / "share" / "ceco_controller" / "config" / "model_params.yaml"
+        if prefix and cand.exists():
+            return cand
+    raise FileNotFoundError(f"model_params.yaml not found at {DEFAULT_PARAMS_PATH} nor under AMENT_PREFIX_PATH; "
+                            "run `ceco identify` or pass the path")
+
+
 def load_params(path: str | pathlib.Path | None = None) -> ControlModelParams:
-    """Load the identified parameters (default: ``config/model_params.yaml``)."""
-    path = pathlib.Path(path) if path is not None else DEFAULT_PARAMS_PATH
+    """Load the identified parameters (default: :func:`default_params_path`)."""
+    path = pathlib.Path(path) if path is not None else default_params_path()
     with open(path, encoding="utf-8") as fh:
         doc = yaml.safe_load(fh)
     if not isinstance(doc, dict) or "params" not in doc:
