@@ -107,3 +107,9 @@ def test_settings_validation_names_field():
     with pytest.raises(ValueError, match="unknown CECO strategy"):
         strategy_settings("ceco-x")
     assert dataclasses.replace(strategy_settings("ceco-c")).gamma_w > 0
+
+
+def test_controller_yaml_matches_code_defaults():
+    from ceco_controller.strategies import load_strategy_settings
+    for name in ("ceco", "ceco-e", "ceco-c", "ceco-ioch"):
+        assert load_strategy_settings(name) == strategy_settings(name)

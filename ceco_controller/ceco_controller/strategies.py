@@ -163,3 +163,32 @@ def strategy_settings(name: str, **overrides) -> StrategySettings:
     s = StrategySettings(name=name, **kw)
     s.validate()
     return s
+
+
+def load_strategy_settings(name: str, path=None, **overrides) -> StrategySettings:
+    """Settings of strategy ``name`` from ``config/controller.yaml`` (common + per-strategy keys), then overrides."""
+    import pathlib
+
+    import yaml
+
+    path = pathlib.Path(path) if path is not None else (
+        pathlib.Path(__file__).resolve().parent.parent / "config" / "controller.yaml")
+    doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    if not isinstance(doc, dict):
+        raise ValueError(f"{path}: expected a mapping")
+    kw = dict(doc.get("common") or {})
+    kw.update((doc.get("strategies") or {}).get(name) or {})
+    solver = kw.pop("solver", None)
+    if solver is not None:
+        try:
+            kw["solver"] = SolverSettings(**solver)
+        except TypeError as exc:
+            raise ValueError(f"{path}: solver: {exc}") from None
+    kw.update(overrides)
+    names = {f.name for f in dataclasses.fields(StrategySettings)}
+    unknown = sorted(set(kw) - names)
+    if unknown:
+        raise ValueError(f"{path}: unknown setting(s) {unknown}")
+    s = StrategySettings(name=name, **kw)
+    s.validate()
+    return s
