@@ -80,7 +80,7 @@ def test_vectorised_env_and_previews():
 
 
 def test_pmv_bounds_piecewise_linear():
-    sc = load_scenario("sc03")
+    sc = load_scenario("sc03_hotsoak")
     assert sc.pmv_bounds(0.0) == (-0.5, 3.0)
     assert sc.pmv_bounds(270.0) == (-0.5, 3.0)
     assert sc.pmv_bounds(465.0) == pytest.approx((-0.5, 1.75))
@@ -88,6 +88,10 @@ def test_pmv_bounds_piecewise_linear():
     np.testing.assert_allclose(ub, [0.5 + 2.5 * 60.0 / 390.0, 0.5])
     assert load_scenario("udds").pmv_bounds(1000.0) == (-0.5, 0.5)
     np.testing.assert_allclose(lb, [-0.5, -0.5])
+    # sc03 (10-minute soak): 3 to 30 s, linear to 0.5 at 300 s, then 0.5.
+    sc03 = load_scenario("sc03")
+    assert sc03.pmv_bounds(165.0) == pytest.approx((-0.5, 1.75))
+    assert sc03.pmv_bounds(450.0) == (-0.5, 0.5)
 
 
 def test_mild_day_is_milder():
@@ -151,7 +155,7 @@ _DELETE = object()
         (("occupant", "met"), 0.0, "occupant.met"),
         (("occupant", "clo"), _DELETE, "occupant.clo: missing"),
         (("drive_cycle",), "wltp", "drive_cycle: unknown drive cycle"),
-        (("comfort_bounds", "pmv_lb"), [-0.5, -0.5, 0.6], "comfort_bounds.pmv_lb[2]"),
+        (("comfort_bounds", "pmv_lb"), [-0.5, -0.5, 0.6, -0.5], "comfort_bounds.pmv_lb[2]"),
         (("comfort_bounds", "pmv_ub"), [3.0, 0.5], "comfort_bounds.pmv_ub: length"),
         (("comfort_bounds", "time_s"), [0, 270, 50], "comfort_bounds.time_s"),
         (("initial", "t_cab_c"), _DELETE, "initial.t_cab_c: missing"),
@@ -214,7 +218,7 @@ def test_cli_validates_and_summarises(tmp_path, capsys):
 
     assert main(["sc03"]) == 0
     out = capsys.readouterr().out
-    assert "solar 850 -> 600 W/m2" in out and "t_cab_c=57" in out
+    assert "solar 850 -> 600 W/m2" in out and "t_cab_c=43" in out
     bad = tmp_path / "bad.yaml"
     d = _sc03_dict()
     d["occupant"]["met"] = -1.0
