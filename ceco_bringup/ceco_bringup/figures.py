@@ -282,10 +282,12 @@ def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
             for patch, n in zip(bp['boxes'], names):
                 patch.set_facecolor(strategy_style(n)['color'])
                 patch.set_alpha(0.6)
+            from ceco_bringup.report import fallback_mask  # noqa: PLC0415
+
             labels = []
             for n in names:
-                fb = np.asarray(diags[n].get('fallback', []), dtype=float)
-                nfb = int(np.nansum(fb)) if fb.size else 0
+                fb = diags[n].get('fallback')
+                nfb = int(fallback_mask(fb).sum()) if fb is not None else 0
                 labels.append(f"{strategy_style(n)['label']}\n{nfb} fallback{'s' if nfb != 1 else ''}")
             ax.set_xticks(np.arange(1, len(names) + 1), labels)
             ax.set_yscale('log')

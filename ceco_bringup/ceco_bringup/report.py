@@ -74,7 +74,10 @@ class RunData:
     max_rel_diff: float
     """Largest relative difference over the compared metrics."""
     diagnostics: dict | None
-    """diagnostics.csv columns, or None when absent."""
+    """diagnostics.csv columns (or the bag's diagnostics), or None when absent."""
+    check_rtol: float = 0.0
+    """Relative tolerance the check used (looser than asked when
+    timeseries.csv was written with fewer significant digits)."""
 
 
 def discover_runs(paths: Sequence[str | Path]) -> list[Path]:
@@ -117,6 +120,22 @@ def read_csv_columns(path: str | Path) -> dict:
         except ValueError:
             cols[name] = np.array(cells, dtype=str)
     return cols
+
+
+def csv_precision_digits(path: str | Path, columns: Sequence[str] = _METRIC_INPUTS[1:]) -> int:
+    """Significant digits the writer of a CSV file used for ``columns``: the
+    largest count found in any cell (``%g`` drops trailing zeros, so the
+    maximum is the format's precision; 17 for Python's ``repr``)."""
+    best = 0
+    with open(path, newline='', encoding='utf-8') as fh:
+        reader = csv.reader(fh)
+        header = [h.strip() for h in next(reader)]
+        idx = [header.index(c) for c in columns if c in header]
+        for row in reader:
+            for i in idx:
+                mant = row[i].strip().lstrip('+-').lower().split('e')[0].replace('.', '').lstrip('0')
+                best = max(best, len(mant))
+    return best
 
 
 def recompute_metrics(columns: Mapping, count_aux: bool = False) -> dict:
@@ -177,22 +196,49 @@ def load_run(run_dir: str | Path, rtol: float = 1e-6) -> RunData:
     # (E_aux_J > 0); the recomputation follows and E_aux_J itself is checked.
     count_aux = bool(stored.get('E_aux_J')) and float(stored.get('E_aux_J') or 0.0) != 0.0
     recomputed = recompute_metrics(columns, count_aux=count_aux)
-    mism, worst = compare_metrics(stored, recomputed, rtol=rtol)
-    diag = read_csv_columns(run_dir / 'diagnostics.csv') if (run_dir / 'diagnostics.csv').is_file() else None
+    check_rtol = rtol
+    if source == 'timeseries.csv':
+        # A value written with d significant digits is off by up to
+        # 0.5e(1-d) relative; the sums and extrema of the metrics inherit
+        # that bound, so the check cannot be tighter than the file.
+        digits = csv_precision_digits(run_dir / 'timeseries.csv')
+        if digits:
+            check_rtol = max(rtol, 10.0 ** (1 - digits))
+    mism, worst = compare_metrics(stored, recomputed, rtol=check_rtol)
+    diag = None
+    if (run_dir / 'diagnostics.csv').is_file():
+        diag = read_csv_columns(run_dir / 'diagnostics.csv')
+    elif source == 'bag':
+        from ceco_bringup import bagio  # noqa: PLC0415
+
+        diag = {k: np.asarray(v) for k, v in bagio.load_diagnostics(run_dir / 'bag').items()} or None
     return RunData(path=run_dir, strategy=str(stored.get('strategy') or run_dir.name),
                    scenario=str(stored.get('scenario') or 'unknown'), stored=stored, columns=columns,
-                   source=source, recomputed=recomputed, mismatches=mism, max_rel_diff=worst, diagnostics=diag)
+                   source=source, recomputed=recomputed, mismatches=mism, max_rel_diff=worst, diagnostics=diag,
+                   check_rtol=check_rtol)
+
+
+def fallback_mask(column) -> np.ndarray:
+    """Which control steps fell back: the ``fallback`` column is the fallback
+    kind ('' = none, 'shifted_plan', 'baseline', ...) or a 0/1 flag."""
+    col = np.asarray(column)
+    if col.dtype.kind in 'fiub':
+        f = col.astype(float)
+        return np.isfinite(f) & (f != 0.0)
+    text = np.char.lower(np.char.strip(col.astype(str)))
+    return ~np.isin(text, ('', '0', '0.0', 'false', 'none', 'no', 'nan'))
 
 
 def solver_stats(diag: Mapping | None) -> dict:
     """Summary of one run's ``diagnostics.csv``: ``steps``, ``solver_steps``
-    (rows with a solve time), ``success_pct``, ``fallbacks``,
+    (rows with a solve time), ``success_pct``, ``fallbacks`` (count),
+    ``fallback_kinds`` ({kind: count}),
     ``solve_ms_median/p95/max/mean``, ``iter_median/max``, ``statuses``
     ({status: count}). Empty solver columns (baseline) give NaN."""
     nan = float('nan')
     out = {'steps': 0, 'solver_steps': 0, 'success_pct': nan, 'fallbacks': 0, 'solve_ms_median': nan,
            'solve_ms_p95': nan, 'solve_ms_max': nan, 'solve_ms_mean': nan, 'iter_median': nan,
-           'iter_max': nan, 'statuses': {}}
+           'iter_max': nan, 'statuses': {}, 'fallback_kinds': {}}
     if not diag:
         return out
     n = len(next(iter(diag.values())))
@@ -201,10 +247,12 @@ def solver_stats(diag: Mapping | None) -> dict:
     ok = np.isfinite(st)
     out['solver_steps'] = int(ok.sum())
     if 'fallback' in diag:
-        fb = diag['fallback']
-        fb = np.asarray(fb, dtype=float) if fb.dtype.kind == 'f' else np.array(
-            [str(x).strip().lower() in ('1', 'true', 'yes') for x in fb], dtype=float)
-        out['fallbacks'] = int(np.nansum(fb))
+        mask = fallback_mask(diag['fallback'])
+        out['fallbacks'] = int(mask.sum())
+        kinds = np.asarray(diag['fallback']).astype(str)[mask] if np.asarray(diag['fallback']).dtype.kind in 'US' \
+            else np.array([])
+        vals, counts = np.unique(kinds, return_counts=True)
+        out['fallback_kinds'] = {str(v): int(c) for v, c in zip(vals, counts)}
     if ok.any():
         out.update(solve_ms_median=float(np.median(st[ok])), solve_ms_p95=float(np.percentile(st[ok], 95)),
                    solve_ms_max=float(np.max(st[ok])), solve_ms_mean=float(np.mean(st[ok])))
@@ -312,7 +360,8 @@ def build_report(run_dirs: Sequence[str | Path], out_dir: str | Path, *, vehicle
     blocks.append(Paragraph(
         f'{len(runs)} run(s) from: ' + ', '.join(f'`{r.path}`' for r in runs) + '. Metrics were recomputed '
         'from each run\'s time series (the rosbag2 bag alone when the run has one, else timeseries.csv) and '
-        f'compared with its metrics.json (relative tolerance {rtol:g}).'))
+        f'compared with its metrics.json (relative tolerance {rtol:g}; for a timeseries.csv written with d '
+        'significant digits, 10^(1-d), the precision the file holds).'))
     for r in runs:
         if r.mismatches:
             any_mismatch = True
@@ -340,7 +389,7 @@ def build_report(run_dirs: Sequence[str | Path], out_dir: str | Path, *, vehicle
                          _f(x['I_pmv'], 1), _pct(_change(x['I_pmv'], b['I_pmv'])) if b else 'n/a',
                          _f(x['otc_violation_pct'], 2), _f(x['time_to_comfort_s'], 0), _f(x['pmv_mean'], 3),
                          _f(x['pmv_max'], 3), r.source,
-                         'OK' if not r.mismatches else f'MISMATCH ({len(r.mismatches)})'))
+                         (f'OK (≤ {r.check_rtol:.0e})' if not r.mismatches else f'MISMATCH ({len(r.mismatches)})')))
             metric_rows.append({'scenario': scenario, 'strategy': r.strategy, 'run_dir': str(r.path),
                                 'source': r.source, 'metrics_match': not r.mismatches,
                                 'max_rel_diff': r.max_rel_diff, **x})
@@ -367,7 +416,7 @@ def build_report(run_dirs: Sequence[str | Path], out_dir: str | Path, *, vehicle
              'A/C energy (compressor solid, blower hatched), comfort index I_PMV and bound violation; labels '
              'give the change against the baseline.'),
         ]
-        diags = {lab: group[lab].diagnostics for lab in labels if group[lab].diagnostics}
+        diags = {lab: group[lab].diagnostics for lab in labels if group[lab].diagnostics is not None}
         stats = {lab: solver_stats(group[lab].diagnostics) for lab in labels}
         if any(s['solver_steps'] for s in stats.values()):
             figs.append((figures.fig_solver(diags, fig_dir / f'{slug}_solver.png', f'NMPC solve time, {scenario}'),
@@ -437,8 +486,9 @@ def build_report(run_dirs: Sequence[str | Path], out_dir: str | Path, *, vehicle
         for lab in labels:
             s = stats[lab]
             status = ', '.join(f'{k}: {v}' for k, v in sorted(s['statuses'].items(), key=lambda kv: -kv[1])[:4])
+            kinds = ', '.join(f'{k}: {v}' for k, v in s['fallback_kinds'].items())
             srows.append((lab, str(s['steps']), str(s['solver_steps']), _f(s['success_pct'], 1),
-                          str(s['fallbacks']), _f(s['solve_ms_median'], 1), _f(s['solve_ms_p95'], 1),
+                          str(s['fallbacks']) + (f' ({kinds})' if kinds else ''), _f(s['solve_ms_median'], 1), _f(s['solve_ms_p95'], 1),
                           _f(s['solve_ms_max'], 1), _f(s['iter_median'], 0), _f(s['iter_max'], 0),
                           status or ('no diagnostics.csv' if group[lab].diagnostics is None else '')))
         blocks.append(Table(('strategy', 'control steps', 'solves', 'success [%]', 'fallbacks',
@@ -501,7 +551,7 @@ def main(argv=None) -> int:
     for r in res['runs']:
         state = 'OK' if not r.mismatches else 'MISMATCH'
         print(f'{r.path}: {r.strategy} on {r.scenario}, metrics from {r.source}: {state} '
-              f'(max rel. diff {r.max_rel_diff:.1e})')
+              f'(max rel. diff {r.max_rel_diff:.1e}, tolerance {r.check_rtol:.0e})')
     print(f"report: {res['html']}\nsummary: {res['markdown']}\nfigures: {len(res['figures'])} PNG in "
           f"{Path(res['html']).parent / 'figures'}")
     if res['mismatch']:
