@@ -148,3 +148,21 @@ def test_csv_precision_digits(tmp_path):
     assert report.csv_precision_digits(p) == 6
     p.write_text(f't_s,p_comp_w\n0,{2 / 3!r}\n')
     assert report.csv_precision_digits(p) == 16
+
+
+def test_report_vehicle_level(runs, tmp_path):
+    from ceco_bringup import vehicle_energy as ve
+
+    res = report.build_report([runs], tmp_path / 'rep', vehicle=True, log=lambda *a, **k: None,
+                              vehicle_settings=ve.VehicleEnergySettings(fit_points=3))
+    rows = res['vehicle_rows']['sc03']
+    assert {(r['vehicle'], r['strategy']) for r in rows} == {
+        (v, s) for v in (ve.PRIUS, ve.ZOE) for s in ('baseline', 'ceco-ioch')}
+    by = {r['strategy']: r for r in rows if r['vehicle'] == ve.ZOE}
+    m = {r.strategy: r.recomputed for r in res['runs']}
+    # The A/C load is each run's mean A/C power, E_tot / T.
+    assert by['ceco-ioch']['p_ac_mean_w'] == pytest.approx(m['ceco-ioch']['E_tot_J'] / DURATION_S, rel=1e-12)
+    assert math.isfinite(by['ceco-ioch']['saving_fit_pct'])
+    assert (tmp_path / 'rep' / 'figures' / 'sc03_vehicle.png').read_bytes()[:8] == PNG_MAGIC
+    assert len((tmp_path / 'rep' / 'vehicle.csv').read_text().splitlines()) == 1 + 4
+    assert 'Vehicle-level energy (FASTSim 3.1)' in res['markdown'].read_text()
