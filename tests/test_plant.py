@@ -31,7 +31,8 @@ def _env(t_amb_c=35.0, solar_wm2=850.0, speed_mps=10.0, rh=0.4):
 
 @pytest.fixture(scope="module")
 def sc03():
-    return load_scenario("sc03")
+    """SC03 conditions after a one-hour hot soak (cabin air 57, interior 62, shell 60 degC)."""
+    return load_scenario("sc03_hotsoak")
 
 
 def _sc03_env(sc, t_s):
