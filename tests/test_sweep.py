@@ -140,3 +140,18 @@ def test_ray_backend_matches_local(tmp_path):
     for r in ray_res['rows']:
         for key in ('E_tot_J', 'I_pmv', 'otc_violation_pct'):
             assert r[key] == by_axes[r['strategy']][key]
+
+
+def test_verify_reruns_cells_exactly(tmp_path):
+    grid = _grid(tmp_path, GRID.replace('[baseline, ceco]', '[ceco-ioch]'), duration=15)
+    sweep.run_sweep(grid, tmp_path / 'out', workers=1, progress=False, log=lambda *a, **k: None)
+    checks = sweep.verify_cells(tmp_path / 'out', 5, grid)
+    assert len(checks) == 2 and all(c['equal'] for c in checks), checks
+    # A table value that differs from the rerun is reported.
+    log = tmp_path / 'out' / 'cells.jsonl'
+    rows = [json.loads(x) for x in log.read_text().splitlines()]
+    rows[0]['E_tot_J'] *= 1.0 + 1e-12
+    log.write_text(''.join(json.dumps(r) + '\n' for r in rows))
+    checks = sweep.verify_cells(tmp_path / 'out', 5, grid)
+    assert sorted(c['equal'] for c in checks) == [False, True]
+    assert list(next(c for c in checks if not c['equal'])['differences']) == ['E_tot_J']

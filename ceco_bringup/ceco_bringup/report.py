@@ -334,7 +334,8 @@ def _vehicle_rows(scenario: str, runs: Mapping[str, RunData], settings):
 
     durations = {r.recomputed['duration_s'] for r in runs.values()}
     duration_s = max(durations)
-    p_mean = {label: r.recomputed['E_tot_J'] / r.recomputed['duration_s'] for label, r in runs.items()}
+    p_mean = {label: runs[label].recomputed['E_tot_J'] / runs[label].recomputed['duration_s']
+              for label in figures.ordered(list(runs))}
     try:
         t, v = ve.drive_cycle_for_run(scenario, duration_s)
         note = f'drive cycle of scenario `{scenario}` over 0..{duration_s:.0f} s'

@@ -56,7 +56,7 @@ import numpy as np
 import yaml
 
 __all__ = ['GridError', 'Cell', 'load_grid', 'expand_grid', 'scenario_dict', 'cell_id', 'run_cell',
-           'read_done', 'run_sweep', 'summarize', 'main', 'AXES', 'METRIC_COLUMNS']
+           'read_done', 'run_sweep', 'summarize', 'verify_cells', 'main', 'AXES', 'METRIC_COLUMNS']
 
 
 class GridError(ValueError):
@@ -71,6 +71,9 @@ METRIC_COLUMNS = ('E_tot_J', 'E_tot_kWh', 'E_comp_J', 'E_blower_J', 'P_mean_w', 
                   'pmv_max', 'pmv_min', 'duration_s', 'n_control_steps', 'n_fallback_shifted',
                   'n_fallback_baseline', 'solve_time_median_ms', 'solve_time_max_ms')
 """Metric columns of the results table (those the simulator returns)."""
+
+TIMING_COLUMNS = ('solve_time_median_ms', 'solve_time_max_ms')
+"""Metric columns that are wall-clock measurements (not reproducible)."""
 
 _GRID_KEYS = {'name', 'description', 'strategies', 'scenarios', 'drive_cycles', 'climates', 'previews',
               'occupants', 'seeds', 'duration_s', 'save_runs', 'control_period_s', 'horizon_steps'}
@@ -589,6 +592,32 @@ def run_sweep(grid_path: str | os.PathLike, out_dir: str | os.PathLike, *, backe
                       'summary_md': out / 'summary.md', 'summary_csv': out / 'summary.csv'}}
 
 
+def verify_cells(out_dir: str | os.PathLike, n: int, grid_path: str | os.PathLike) -> list[dict]:
+    """Rerun ``n`` finished cells of a sweep in this process (one after
+    another, no pool) and compare every metric with the table's value for
+    exact equality (wall-clock solve times, :data:`TIMING_COLUMNS`, excepted). The cells are the first ``n`` by id, so the choice is
+    deterministic and spread over the grid. Returns one dict per cell:
+    ``cell_id, axes, equal (bool), differences ({metric: (table, rerun)})``."""
+    cells = {c.id: c for c in expand_grid(load_grid(grid_path))}
+    done = read_done(Path(out_dir) / 'cells.jsonl')
+    ids = sorted(i for i in done if i in cells)[:max(0, int(n))]
+    out = []
+    for i in ids:
+        row = run_cell(dataclasses.asdict(cells[i]))
+        diffs = {}
+        for k in METRIC_COLUMNS:
+            if k in TIMING_COLUMNS:
+                continue
+            a, b = done[i].get(k), row.get(k)
+            same = (a == b) or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
+            if not same:
+                diffs[k] = (a, b)
+        if row['status'] != 'ok':
+            diffs['status'] = (done[i]['status'], row['error'])
+        out.append({'cell_id': i, 'axes': cells[i].axes, 'equal': not diffs, 'differences': diffs})
+    return out
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         prog='ceco sweep', description='Run a grid of closed-loop simulations (strategies x scenarios x drive '
@@ -602,6 +631,9 @@ def main(argv=None) -> int:
     parser.add_argument('--workers', type=int, default=None,
                         help=f'parallel workers (default: all cores, {os.cpu_count()} here)')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar')
+    parser.add_argument('--verify', type=int, default=0, metavar='N',
+                        help='afterwards, rerun N finished cells in this process and check the table equals '
+                             'them exactly')
     args = parser.parse_args(argv)
     if args.workers is not None and args.workers < 1:
         parser.error(f'--workers: must be >= 1, got {args.workers}')
@@ -623,7 +655,14 @@ def main(argv=None) -> int:
           f"{t['cell_sum_s']:.1f} s = {t['speedup']:.2f}x the wall time")
     print(f"table: {res['paths']['csv']}" + (f" and {res['paths']['parquet']}" if res['paths']['parquet'] else ''))
     print(f"summary: {res['paths']['summary_md']}")
-    return 1 if res['failed'] else 0
+    bad = False
+    if args.verify:
+        for v in verify_cells(args.out, args.verify, args.grid):
+            ax = '/'.join(str(v['axes'][a]) for a in AXES)
+            print(f"verify {v['cell_id']} {ax}: " + ('table == direct run (all metrics identical)' if v['equal']
+                                                      else f"DIFFERS {v['differences']}"))
+            bad |= not v['equal']
+    return 1 if res['failed'] or bad else 0
 
 
 if __name__ == '__main__':
