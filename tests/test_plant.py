@@ -276,3 +276,17 @@ def test_every_parameter_documented():
     rows = {m.group(1) for m in re.finditer(r"^\|\s*`(\w+)`\s*\|", text, re.M)}
     missing = [f.name for f in dataclasses.fields(PlantParams) if f.name not in rows]
     assert not missing, f"parameters missing from the docs/plant.md table: {missing}"
+
+
+def test_snapshot_does_not_advance(sc03):
+    a = _plant(sc03)
+    b = _plant(sc03)
+    env = sc03.env_at(0.0)
+    snap = a.snapshot(FULL, env)
+    assert snap.t_cab_c == sc03.initial.t_cab_c and snap.e_comp_j == 0.0 and a.t_s == 0.0
+    # hot soaked module: the vent air starts near the cabin temperature, blower heat and duct included
+    assert sc03.initial.t_cab_c - 5.0 < snap.t_vent_c < sc03.initial.t_cab_c + 5.0
+    assert snap.p_comp_w == pytest.approx(PlantParams().p_comp_max_w, rel=1e-3)  # hot start at the limit
+    assert a.step(FULL, env, 1.0) == b.step(FULL, env, 1.0)  # bit-identical with and without the snapshot
+    with pytest.raises(ValueError, match="env.rh"):
+        a.snapshot(FULL, _env(rh=float("nan")))

@@ -419,10 +419,39 @@ class CabinPlant:
                 raise RuntimeError(f"plant state {fields(PlantState)[i].name} became non-finite")
         self._x = x
         self._t_s += dt
-        _, alg = self._rhs(x, u, envt, final=True)
         e_comp, e_fan, e_q, e_lat, e_ref = acc[:5]
+        out = self._outputs(x, u, envt, dt, e_comp, e_fan, e_q, e_lat, e_ref)
+        self._last = out
+        return out
+
+    def snapshot(self, command: AcInput, env) -> PlantOutputs:
+        """Instantaneous outputs at the current state for ``command`` and ``env``, without advancing time.
+
+        Same fields as :meth:`step`; powers are instantaneous values (not step
+        means), energies are 0 and ``cop`` is the instantaneous ratio. Useful
+        for the measurements at t = 0 (e.g. the vent temperature before the
+        first step). Does not change the plant (state, time, warm start).
+        """
+        if not isinstance(command, AcInput):
+            raise ValueError(f"command: must be AcInput, got {type(command).__name__}")
+        command.validate()
+        envt = validate_environment(env)
+        p_bl = self._blower_power_w(float(command.mdot_bl_kgps))
+        u = (float(command.mdot_bl_kgps), float(command.t_evap_sp_c), p_bl)
+        return self._outputs(self._x, u, envt, 0.0, *self._rhs(self._x, u, envt, final=True)[0])
+
+    def _outputs(self, x, u, envt, dt, e_comp, e_fan, e_q, e_lat, e_ref) -> PlantOutputs:
+        """Build PlantOutputs at state x: energies over dt (dt = 0: the arguments are instantaneous powers)."""
+        powers, alg = self._rhs(x, u, envt, final=True)
+        p_bl = u[2]
+        if dt > 0.0:
+            mean = (e_comp / dt, e_fan / dt, e_q / dt, e_lat / dt, e_ref / dt)
+            energies = (e_comp, p_bl * dt)
+        else:
+            mean = (e_comp, e_fan, e_q, e_lat, e_ref)
+            energies = (0.0, 0.0)
         t_cab, t_int, t_sh, t_gl, t_ev, w_cab, _ = x
-        out = PlantOutputs(
+        return PlantOutputs(
             t_cab_c=t_cab,
             t_int_c=t_int,
             t_shell_c=t_sh,
@@ -434,15 +463,15 @@ class CabinPlant:
             t_cond_c=alg["t_cond_c"],
             rh_cab=relative_humidity(t_cab, w_cab, self.params.p_atm_pa),
             w_cab_kgkg=w_cab,
-            p_comp_w=e_comp / dt,
+            p_comp_w=mean[0],
             p_blower_w=p_bl,
-            p_cond_fan_w=e_fan / dt,
-            e_comp_j=e_comp,
-            e_blower_j=p_bl * dt,
-            q_evap_w=e_q / dt,
-            q_latent_w=e_lat / dt,
-            q_evap_ref_w=e_ref / dt,
-            cop=(e_ref / e_comp) if e_comp > 0.0 else 0.0,
+            p_cond_fan_w=mean[1],
+            e_comp_j=energies[0],
+            e_blower_j=energies[1],
+            q_evap_w=mean[2],
+            q_latent_w=mean[3],
+            q_evap_ref_w=mean[4],
+            cop=(mean[4] / mean[0]) if mean[0] > 0.0 else 0.0,
             comp_speed_rpm=alg["comp_speed_rpm"],
             comp_duty=alg["comp_duty"],
             capacity_limited=alg["capacity_limited"],
@@ -450,8 +479,6 @@ class CabinPlant:
             mdot_ref_kgps=alg["mdot_ref_kgps"],
             cycle_iterations=alg["iterations"],
         )
-        self._last = out
-        return out
 
     # -------------------------------------------------------------- physics
     def _blower_power_w(self, mdot_kgps: float) -> float:
@@ -566,6 +593,7 @@ class CabinPlant:
         powers = (p_comp, p_fan, q_sens + q_lat, q_lat, q_ref)
         if not final:
             return dx, powers
+        # final=True: the end-of-step / snapshot report (powers and algebraic variables, no derivatives)
         alg = {
             "t_vent_c": t_vent,
             "t_evap_out_c": t_out,
@@ -578,4 +606,4 @@ class CabinPlant:
             "mdot_ref_kgps": duty * sol.mdot_ref_kgps,
             "iterations": sol.iterations,
         }
-        return dx, alg
+        return powers, alg
