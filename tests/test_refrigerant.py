@@ -165,3 +165,20 @@ def test_nonconvergence_raises(tab, comp):
     with pytest.raises(RuntimeError, match="did not converge"):
         solve_cycle(tab, comp, 4000.0, 5.0, 1500.0, 35.0, 400.0, 12.0, max_iter=1, tol_k=1e-12)
     assert math.isfinite(_solve(tab, comp, 4000.0).t_cond_c)
+
+
+def test_head_pressure_control_at_low_ambient(tab, comp):
+    """Cold condenser air: the pressure ratio is held at pr_min instead of falling below 1."""
+    p = PlantParams()
+    epsc = condenser_eps_c_wpk(p, 10.0)
+    free = solve_cycle(tab, comp, 3000.0, 8.0, p.ua_evap_ref_wpk, 2.0, epsc, p.te_mop_c, tol_k=1e-8)
+    held = solve_cycle(tab, comp, 3000.0, 8.0, p.ua_evap_ref_wpk, 2.0, epsc, p.te_mop_c, tol_k=1e-8,
+                       pr_min=p.pr_min)
+    assert free.pressure_ratio < p.pr_min and not free.head_pressure_control
+    assert held.head_pressure_control and held.pressure_ratio == pytest.approx(p.pr_min, rel=1e-6)
+    assert held.t_cond_c > held.t_evap_sat_c + 10.0
+    assert held.p_comp_w > 0.0 and 3.0 < held.q_evap_ref_w / held.p_comp_w < 10.0
+    # the evaporator balance still holds
+    assert held.q_evap_ref_w == pytest.approx(p.ua_evap_ref_wpk * (8.0 - held.t_evap_sat_c), rel=1e-6)
+    # at 35 degC it is inactive
+    assert not _solve(tab, comp, 3000.0).head_pressure_control

@@ -166,8 +166,8 @@ class PlantState:
             v = getattr(self, name)
             if not -40.0 <= v <= 120.0:
                 raise ValueError(f"{name}: must be in [-40, 120] degC, got {v}")
-        if not 0.0 <= self.w_cab_kgkg <= 0.1:
-            raise ValueError(f"w_cab_kgkg: must be in [0, 0.1] kg/kg, got {self.w_cab_kgkg}")
+        if not 0.0 <= self.w_cab_kgkg <= 0.3:  # saturation at 70 degC is 0.28 kg/kg
+            raise ValueError(f"w_cab_kgkg: must be in [0, 0.3] kg/kg, got {self.w_cab_kgkg}")
         return self
 
     def as_tuple(self) -> tuple:
@@ -320,7 +320,7 @@ def steady_cycle_at_load(params: PlantParams, q_evap_w: float, t_wall_c: float, 
 
     def q_at(n):
         s = solve_cycle(tab, comp, n, t_wall_c, p.ua_evap_ref_wpk, t_amb_c, epsc, p.te_mop_c,
-                        tol_k=p.cycle_tol_k, max_iter=p.cycle_max_iter)
+                        tol_k=p.cycle_tol_k, max_iter=p.cycle_max_iter, pr_min=p.pr_min)
         return s.q_evap_ref_w, s
 
     q_max, _ = q_at(p.comp_speed_max_rpm)
@@ -535,7 +535,7 @@ class CabinPlant:
             n_run, duty = 0.0, 0.0
         epsc = condenser_eps_c_wpk(p, speed)
         sol = solve_cycle(self._tab, self._comp, n_run, t_ev, p.ua_evap_ref_wpk, t_amb, epsc, p.te_mop_c,
-                          guess=self._guess, tol_k=p.cycle_tol_k, max_iter=p.cycle_max_iter)
+                          guess=self._guess, tol_k=p.cycle_tol_k, max_iter=p.cycle_max_iter, pr_min=p.pr_min)
         power_limited = False
         if duty == 1.0 and sol.p_comp_w > p.p_comp_max_w:
             # inverter power limit: the ECU lowers the speed until P_el = P_max. Secant iteration on
@@ -546,7 +546,7 @@ class CabinPlant:
             for _ in range(6):
                 sol = solve_cycle(self._tab, self._comp, n_run, t_ev, p.ua_evap_ref_wpk, t_amb, epsc,
                                   p.te_mop_c, guess=(sol.t_evap_sat_c, sol.t_cond_c), tol_k=p.cycle_tol_k,
-                                  max_iter=p.cycle_max_iter)
+                                  max_iter=p.cycle_max_iter, pr_min=p.pr_min)
                 f1 = sol.p_comp_w - p.p_comp_max_w
                 if abs(f1) < 5e-4 * p.p_comp_max_w or f1 == f0:
                     break

@@ -161,6 +161,8 @@ class PlantParams:
     """Evaporator-exit superheat held by the TXV [K]."""
     subcool_k: float = 5.0
     """Condenser-exit subcooling [K]."""
+    pr_min: float = 2.0
+    """Minimum pressure ratio held by head-pressure control (condenser air throttled) at low ambient [-]."""
     te_mop_c: float = 12.0
     """MOP cap of the evaporating temperature by the expansion valve [degC]."""
     comp_kp_rpm_per_k: float = 600.0
@@ -225,6 +227,8 @@ class PlantParams:
             raise ValueError("comp_speed_min_rpm: must be below comp_speed_max_rpm")
         if not -20.0 <= self.te_mop_c <= 25.0:
             raise ValueError(f"te_mop_c: must be in [-20, 25] degC, got {self.te_mop_c}")
+        if self.pr_min < 1.0:
+            raise ValueError(f"pr_min: must be >= 1, got {self.pr_min}")
         if self.substep_s > 2.0:
             raise ValueError(f"substep_s: must be <= 2 s for the explicit RK4 scheme, got {self.substep_s}")
         if int(self.cycle_max_iter) != self.cycle_max_iter:

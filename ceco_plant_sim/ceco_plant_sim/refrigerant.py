@@ -347,6 +347,8 @@ class CycleSolution:
     """Discharge / suction pressure ratio [-]."""
     mop_active: bool
     """True when the expansion valve's MOP caps the evaporating temperature."""
+    head_pressure_control: bool
+    """True when head-pressure control holds the pressure ratio at its minimum (cold condenser air)."""
     iterations: int
     """Newton iterations used."""
 
@@ -393,7 +395,7 @@ def _cycle_eval(tab: CycleTables, comp: CompressorModel, vn: float, t_e: float, 
     j12 = m_c * dh - m * h31
     j21 = m_e * (dh + w) + m * (h11 + w_e)
     j22 = m_c * (dh + w) + m * (-h31 + w_c) - epsc_wpk
-    return r1, r2, j11, j12, j21, j22, m, q_e, m * w, pr
+    return r1, r2, j11, j12, j21, j22, m, q_e, m * w, pr, p_e, p_e1, p_c, p_c1
 
 
 def solve_cycle(
@@ -408,6 +410,7 @@ def solve_cycle(
     guess: tuple[float, float] | None = None,
     tol_k: float = 1e-7,
     max_iter: int = 30,
+    pr_min: float = 1.0,
 ) -> CycleSolution:
     """Solve the quasi-steady cycle for (T_e, T_c) by Newton's method.
 
@@ -420,6 +423,7 @@ def solve_cycle(
     epsc_cond_wpk : condenser effectiveness times air heat-capacity rate [W/K].
     te_mop_c : expansion valve MOP cap on the evaporating temperature [degC].
     guess : starting (T_e, T_c) [degC]; None for a built-in start.
+    pr_min : minimum pressure ratio held by head-pressure control [-] (1 = none).
 
     Newton on (r1, r2) with the analytic Jacobian of the interpolated
     properties, each update limited to 10 K; converged at the first iterate
@@ -427,10 +431,15 @@ def solve_cycle(
     and its evaluated flows are returned: it lies within ~tol_k of the root).
     ``iterations`` counts property evaluations.
     If the solution exceeds ``te_mop_c``, T_e is pinned at the MOP and only
-    r2 is solved for T_c. Raises RuntimeError if ``max_iter`` is reached.
+    the condenser equation is solved for T_c. If the pressure ratio falls
+    below ``pr_min`` (condenser air colder than the evaporator), the
+    condenser balance r2 is replaced by p_c = pr_min p_e (head-pressure
+    control throttles the condenser air; the condenser then rejects
+    Q_ref + W at that pressure). Raises RuntimeError if ``max_iter``
+    evaluations are reached.
     """
     if speed_rpm <= 0.0:
-        return CycleSolution(t_wall_c, t_air_cond_c, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, False, 0)
+        return CycleSolution(t_wall_c, t_air_cond_c, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, False, False, 0)
     vn = comp.displacement_m3 * speed_rpm / 60.0
     if guess is None:
         t_e = min(t_wall_c - 5.0, te_mop_c)
@@ -439,34 +448,40 @@ def solve_cycle(
         t_e, t_c = guess
     args = (t_wall_c, ua_er_wpk, t_air_cond_c, epsc_cond_wpk)
     mop = False
+    hp = False
     it = 0
-    converged = False
-    while it < max_iter:
-        r1, r2, j11, j12, j21, j22, mdot, q_e, w_sh, pr = _cycle_eval(tab, comp, vn, t_e, t_c, *args)
-        it += 1
-        det = j11 * j22 - j12 * j21
-        de = -(j22 * r1 - j12 * r2) / det
-        dc = -(-j21 * r1 + j11 * r2) / det
-        if abs(de) < tol_k and abs(dc) < tol_k:
-            converged = True  # this point is within ~tol_k of the root: keep its evaluated quantities
-            break
-        t_e += max(-10.0, min(10.0, de))
-        t_c += max(-10.0, min(10.0, dc))
-    if converged and t_e > te_mop_c:
-        mop = True
-        t_e = te_mop_c
+    for _ in range(3):  # constraint flags only get added: at most 3 solves
         converged = False
         while it < max_iter:
-            _, r2, _, _, _, j22, mdot, q_e, w_sh, pr = _cycle_eval(tab, comp, vn, t_e, t_c, *args)
+            (r1, r2, j11, j12, j21, j22, mdot, q_e, w_sh, pr,
+             p_e, p_e1, p_c, p_c1) = _cycle_eval(tab, comp, vn, t_e, t_c, *args)
             it += 1
-            dc = -r2 / j22
-            if abs(dc) < tol_k:
-                converged = True
+            if hp:  # head-pressure control: condenser air reduced so that p_c = pr_min p_e
+                r2 = p_c - pr_min * p_e
+                j21 = -pr_min * p_e1
+                j22 = p_c1
+            if mop:  # T_e pinned at the MOP: the condenser (or head-pressure) equation alone
+                de = 0.0
+                dc = -r2 / j22
+            else:
+                det = j11 * j22 - j12 * j21
+                de = -(j22 * r1 - j12 * r2) / det
+                dc = -(-j21 * r1 + j11 * r2) / det
+            if abs(de) < tol_k and abs(dc) < tol_k:
+                converged = True  # this point is within ~tol_k of the root: keep its evaluated quantities
                 break
+            t_e += max(-10.0, min(10.0, de))
             t_c += max(-10.0, min(10.0, dc))
-    if not converged:
-        raise RuntimeError(f"refrigerant cycle did not converge in {max_iter} iterations "
-                           f"(speed {speed_rpm:.0f} rpm, wall {t_wall_c:.2f} degC)")
+        if not converged:
+            raise RuntimeError(f"refrigerant cycle did not converge in {max_iter} iterations "
+                               f"(speed {speed_rpm:.0f} rpm, wall {t_wall_c:.2f} degC)")
+        new_mop = mop or t_e > te_mop_c
+        new_hp = hp or pr < pr_min * (1.0 - 1e-9)
+        if new_mop == mop and new_hp == hp:
+            break
+        if new_mop:
+            t_e = te_mop_c
+        mop, hp = new_mop, new_hp
     return CycleSolution(
         t_evap_sat_c=t_e,
         t_cond_c=t_c,
@@ -477,6 +492,7 @@ def solve_cycle(
         q_cond_w=q_e + w_sh,
         pressure_ratio=pr,
         mop_active=mop,
+        head_pressure_control=hp,
         iterations=it,
     )
 
