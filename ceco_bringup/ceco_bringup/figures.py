@@ -101,7 +101,11 @@ def fig_pmv(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
         ax.axhline(0.0, color='0.5', lw=0.6)
         ymax = max(float(np.max(c['pmv'])) for c in runs.values())
         ymin = min(float(np.min(c['pmv'])) for c in runs.values())
-        ax.set_ylim(min(-1.0, ymin - 0.2), max(1.0, min(ymax, 3.5) + 0.2))
+        top = max(1.0, min(ymax, 3.5) + 0.2)
+        ax.set_ylim(min(-1.0, ymin - 0.2), top)
+        if ymax > top:  # the hot-soaked start is off the PMV scale; say so instead of squashing the plot
+            ax.text(0.99, 0.97, f'axis cut at {top:.1f}; max PMV {ymax:.1f} (hot-soaked start)',
+                    transform=ax.transAxes, ha='right', va='top', fontsize=7, color='0.3')
         ax.set_ylabel('PMV [-]')
         _time_axis(ax, runs)
         _title_legend(fig, ax, title or 'Thermal comfort (PMV) and its bounds')
