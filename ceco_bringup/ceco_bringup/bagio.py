@@ -33,7 +33,8 @@ TIMESERIES_COLUMNS = (
     'p_blower_w', 'q_evap_w', 'cop', 'pmv', 'ppd', 'pmv_lb', 'pmv_ub')
 """Columns of timeseries.csv (docs/architecture.md); extra columns follow."""
 
-TIMESERIES_EXTRA = ('step_index', 'fallback')
+TIMESERIES_EXTRA = ('t_glass_c', 'rh_cab', 'p_cond_fan_w', 'q_latent_w', 'comp_speed_rpm',
+                    'capacity_limited', 'step_index', 'fallback')
 
 DIAGNOSTICS_COLUMNS = (
     'k', 't_s', 'status', 'success', 'iterations', 'solve_time_ms', 'cost_energy',
@@ -83,6 +84,16 @@ class BagWriter:
         self.path = Path(path)
         self._writer = Writer(self.path, version=BAG_VERSION)
         self._writer.open()
+        # rosbags opens sqlite bound to the creating thread; a recorder writes
+        # from its executor thread and closes from the main thread (callers
+        # serialise access), so reopen the (already initialised) database
+        # without the same-thread check.
+        import sqlite3
+        st = self._writer.storage
+        st.conn.commit()
+        st.conn.close()
+        st.conn = sqlite3.connect(f'file:{st.path}', uri=True, check_same_thread=False)
+        st.cursor = st.conn.cursor()
         self._connections = {}
         self._store = typestore()
         self._closed = False
@@ -211,8 +222,7 @@ def _stamp_s(stamp) -> float:
 
 def load_run_timeseries(bag_dir) -> dict[str, np.ndarray]:
     """One row per plant step n for which the bag holds the state at t_n, the
-    comfort at t_n and the power over [t_n, t_n + dt) (so the final state,
-    which no step follows, is not a row). Columns: TIMESERIES_COLUMNS plus
+    comfort at t_n and the power (and applied command) over [t_n, t_n + dt). Columns: TIMESERIES_COLUMNS plus
     `step_index` and `fallback`; rows sorted by step index; a step index seen
     twice keeps its first message."""
     state, comfort, power = {}, {}, {}
@@ -225,10 +235,12 @@ def load_run_timeseries(bag_dir) -> dict[str, np.ndarray]:
         s, c, p = state[n], comfort[n], power[n]
         rows['t_s'].append(s.scenario_time_s)
         for col in ('t_cab_c', 't_int_c', 't_shell_c', 't_evap_c', 't_vent_c', 't_amb_c',
-                    'solar_wm2', 'speed_mps', 'rh', 'mdot_bl_kgps', 't_evap_sp_c'):
+                    'solar_wm2', 'speed_mps', 'rh', 't_glass_c', 'rh_cab'):
             rows[col].append(getattr(s, col))
-        for col in ('p_comp_w', 'p_blower_w', 'q_evap_w', 'cop'):
+        for col in ('mdot_bl_kgps', 't_evap_sp_c', 'p_comp_w', 'p_blower_w', 'q_evap_w', 'cop',
+                    'p_cond_fan_w', 'q_latent_w', 'comp_speed_rpm'):
             rows[col].append(getattr(p, col))
+        rows['capacity_limited'].append(float(p.capacity_limited))
         for col in ('pmv', 'ppd', 'pmv_lb', 'pmv_ub'):
             rows[col].append(getattr(c, col))
         rows['step_index'].append(n)

@@ -28,14 +28,15 @@ TOPIC_CLOCK = '/clock'
 TOPIC_ROSOUT = '/rosout'
 
 # --- QoS profiles ------------------------------------------------------------
-# States and commands: reliable, keep-last, volatile. The depth covers the
-# burst of one control period in lockstep (Ts / dt = 5 states, with margin),
-# so a subscriber that falls a few messages behind (the recorder) loses none.
+# States and commands: reliable, keep-last, volatile. In lockstep the plant
+# publishes as fast as the loop turns (hundreds of messages a second); the
+# depth keeps several seconds of them in the writer so a subscriber that
+# falls behind (the recorder) gets every one repaired by the reliable protocol.
 QOS_STATE = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=100,
+    history=HistoryPolicy.KEEP_LAST, depth=1000,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
 QOS_COMMAND = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=20,
+    history=HistoryPolicy.KEEP_LAST, depth=100,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
 # Previews: reliable + transient-local, depth 1: a late joiner (a restarted
 # controller) gets the latest forecast at once.
@@ -45,12 +46,16 @@ QOS_PREVIEW = QoSProfile(
 # /clock as published by the plant (a best-effort subscriber, as rclpy's
 # TimeSource uses, matches a reliable publisher).
 QOS_CLOCK = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=100,
+    history=HistoryPolicy.KEEP_LAST, depth=1000,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
-# The recorder's view of the previews: transient-local so it gets the latest
-# one even when it subscribes late; keep-last deep enough to lose none.
-QOS_PREVIEW_RECORD = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=20,
+# The recorder's subscriptions: reliable KEEP_ALL, so a recorder that falls
+# behind back-pressures instead of losing samples (transient-local where the
+# publisher offers it, to get the latest preview even when subscribing late).
+QOS_RECORD = QoSProfile(
+    history=HistoryPolicy.KEEP_ALL,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+QOS_RECORD_LATCHED = QoSProfile(
+    history=HistoryPolicy.KEEP_ALL,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 QOS_ROSOUT = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1000,
@@ -58,15 +63,15 @@ QOS_ROSOUT = QoSProfile(
 
 # Every topic of the stack: name -> (ROS type name, publisher QoS, recorder QoS).
 STACK_TOPICS: dict[str, tuple[str, QoSProfile, QoSProfile]] = {
-    TOPIC_STATE: ('ceco_msgs/msg/CabinState', QOS_STATE, QOS_STATE),
-    TOPIC_COMFORT: ('ceco_msgs/msg/Comfort', QOS_STATE, QOS_STATE),
-    TOPIC_POWER: ('ceco_msgs/msg/AcPower', QOS_STATE, QOS_STATE),
-    TOPIC_COMMAND: ('ceco_msgs/msg/AcCommand', QOS_COMMAND, QOS_COMMAND),
-    TOPIC_DIAGNOSTICS: ('ceco_msgs/msg/ControllerDiagnostics', QOS_COMMAND, QOS_COMMAND),
-    TOPIC_WEATHER: ('ceco_msgs/msg/WeatherPreview', QOS_PREVIEW, QOS_PREVIEW_RECORD),
-    TOPIC_TRAFFIC: ('ceco_msgs/msg/TrafficPreview', QOS_PREVIEW, QOS_PREVIEW_RECORD),
-    TOPIC_CLOCK: ('rosgraph_msgs/msg/Clock', QOS_CLOCK, QOS_CLOCK),
-    TOPIC_ROSOUT: ('rcl_interfaces/msg/Log', QOS_ROSOUT, QOS_ROSOUT),
+    TOPIC_STATE: ('ceco_msgs/msg/CabinState', QOS_STATE, QOS_RECORD),
+    TOPIC_COMFORT: ('ceco_msgs/msg/Comfort', QOS_STATE, QOS_RECORD),
+    TOPIC_POWER: ('ceco_msgs/msg/AcPower', QOS_STATE, QOS_RECORD),
+    TOPIC_COMMAND: ('ceco_msgs/msg/AcCommand', QOS_COMMAND, QOS_RECORD),
+    TOPIC_DIAGNOSTICS: ('ceco_msgs/msg/ControllerDiagnostics', QOS_COMMAND, QOS_RECORD),
+    TOPIC_WEATHER: ('ceco_msgs/msg/WeatherPreview', QOS_PREVIEW, QOS_RECORD_LATCHED),
+    TOPIC_TRAFFIC: ('ceco_msgs/msg/TrafficPreview', QOS_PREVIEW, QOS_RECORD_LATCHED),
+    TOPIC_CLOCK: ('rosgraph_msgs/msg/Clock', QOS_CLOCK, QOS_RECORD),
+    TOPIC_ROSOUT: ('rcl_interfaces/msg/Log', QOS_ROSOUT, QOS_RECORD_LATCHED),
 }
 
 STRATEGIES = ('baseline', 'ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')

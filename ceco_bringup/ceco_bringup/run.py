@@ -1,0 +1,312 @@
+"""`ceco run`: the node stack over DDS, recorded into a rosbag2 bag.
+
+    ceco run --scenario sc03 --strategy ceco-ioch --out DIR
+    ceco run --scenario sc03 --strategy all --out DIR     # baseline + every CECO strategy
+
+Per strategy: starts preview_node, the controller (mpc_node or baseline_node)
+and plant_node as separate OS processes on a private ROS_DOMAIN_ID with
+localhost-only discovery, records every topic (in-process recorder node,
+rosbags, sqlite3, metadata version 9) into DIR/bag, and when the scenario
+is done writes DIR/metrics.json (compute_metrics on the recorded data),
+DIR/timeseries.csv, DIR/diagnostics.csv and DIR/logs/<node>.log.
+
+Timing: `--timing lockstep` (default; accelerated, deterministic: the plant
+advances a control period only when the command of that step has arrived)
+or `--timing realtime` (wall-clock timers, as on a vehicle).
+
+Ctrl-C (SIGINT) or SIGTERM at any moment: every child is stopped, the bag
+is closed with its metadata, and `ceco run` exits with status 130; the bag
+reads back completely up to the stop.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+STRATEGIES = ('baseline', 'ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
+
+
+class Interrupted(Exception):
+    """SIGINT/SIGTERM received."""
+
+
+class _StopFlag:
+    def __init__(self):
+        self.event = threading.Event()
+        self.signum = None
+
+    def install(self):
+        def handler(signum, _frame):
+            self.signum = signum
+            self.event.set()
+        self._old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+
+    def restore(self):
+        for s, h in getattr(self, '_old', {}).items():
+            signal.signal(s, h)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog='ceco run', description=__doc__.split('\n\n')[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument('--scenario', default='sc03', help='scenario name or YAML path (default sc03)')
+    p.add_argument('--strategy', default='ceco-ioch', choices=STRATEGIES + ('all',),
+                   help='strategy, or all (baseline + every CECO strategy into DIR/<strategy>/)')
+    p.add_argument('--out', required=True, help='output run directory')
+    p.add_argument('--preview', default='perfect',
+                   help='preview quality (grammar of ceco_v2x_preview.preview.parse_quality), '
+                        'e.g. perfect, noisy, delayed:10, missing:100-200')
+    p.add_argument('--control-period-s', type=float, default=None, help='Ts [s] (default: the scenario\'s)')
+    p.add_argument('--horizon-steps', type=int, default=None, help='Np [steps] (default: the scenario\'s)')
+    p.add_argument('--duration-s', type=float, default=None,
+                   help='run only the first DURATION seconds of the scenario [s]')
+    p.add_argument('--timing', default='lockstep', choices=('lockstep', 'realtime'))
+    p.add_argument('--command-timeout-s', type=float, default=5.0,
+                   help='lockstep: wall-clock wait for a command before the plant applies its '
+                        'fallback law [s]')
+    p.add_argument('--startup-timeout-s', type=float, default=120.0,
+                   help='wall-clock limit for the nodes to start and discover each other [s]')
+    p.add_argument('--run-timeout-s', type=float, default=1800.0, help='wall-clock limit of one run [s]')
+    p.add_argument('--domain-id', type=int, default=None, help='ROS_DOMAIN_ID (default: a private one)')
+    p.add_argument('--no-progress', action='store_true', help='no progress bar')
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    from ceco_v2x_preview.preview import parse_quality
+    from ceco_v2x_preview.scenario import load_scenario
+    try:
+        scenario = load_scenario(args.scenario)
+        quality = parse_quality(args.preview)
+    except ValueError as err:
+        print(f'ceco run: {err}', file=sys.stderr)
+        return 2
+    strategies = list(STRATEGIES) if args.strategy == 'all' else [args.strategy]
+    out = Path(args.out)
+    stop = _StopFlag()
+    stop.install()
+    rows = []
+    try:
+        for i, strategy in enumerate(strategies):
+            run_dir = out / strategy if args.strategy == 'all' else out
+            try:
+                metrics = run_one(args, scenario, quality, strategy, run_dir, stop, index=i)
+            except Interrupted:
+                print(f'\nceco run: interrupted; the bag in {run_dir / "bag"} is closed and readable '
+                      'up to the stop', file=sys.stderr)
+                return 130
+            except RuntimeError as err:
+                print(f'ceco run: {strategy}: {err}', file=sys.stderr)
+                return 1
+            rows.append(metrics)
+            print_summary(metrics, run_dir)
+    finally:
+        stop.restore()
+    if len(rows) > 1:
+        from ceco_plant_sim.metrics import comparison_table
+        print()
+        print(f'Scenario {scenario.name} over DDS ({args.timing}), {out}:')
+        print(comparison_table(rows))
+    return 0
+
+
+def print_summary(m: dict, run_dir: Path) -> None:
+    print(f"{m['strategy']:>10}: E_tot {m['E_tot_J'] / 1e3:8.1f} kJ (comp {m['E_comp_J'] / 1e3:.1f}, "
+          f"blower {m['E_blower_J'] / 1e3:.1f}), I_pmv {m['I_pmv']:.2f}, OTC violation "
+          f"{m['otc_violation_pct']:.2f} %; wall {m['wall_time_s']:.1f} s, loop "
+          f"{m['loop_wall_time_s']:.1f} s ({m['realtime_factor']:.0f}x real time) -> {run_dir}", flush=True)
+
+
+def _params(args, scenario, quality, strategy, duration_s, n_steps_ctrl):
+    ts = args.control_period_s or scenario.control.control_period_s
+    np_ = args.horizon_steps or scenario.control.horizon_steps
+    common = {'scenario': args.scenario, 'timing': args.timing, 'control_period_s': float(ts)}
+    spans = [x for span in quality.missing_spans_s for x in span] or [0.0]
+    preview = dict(common, horizon_steps=int(np_), **{
+        'faults.noise_std_t_amb_c': float(quality.noise_std_t_amb_c),
+        'faults.noise_std_solar_wm2': float(quality.noise_std_solar_wm2),
+        'faults.noise_std_speed_mps': float(quality.noise_std_speed_mps),
+        'faults.noise_std_rh': float(quality.noise_std_rh),
+        'faults.noise_ref_lead_s': float(quality.noise_ref_lead_s),
+        'faults.delay_s': float(quality.delay_s),
+        'faults.missing_spans_s': [float(x) for x in spans],
+        'faults.missing_policy': quality.missing_policy,
+        'faults.seed': -1 if quality.seed is None else int(quality.seed)})
+    controller = dict(common, horizon_steps=int(np_))
+    if strategy != 'baseline':
+        controller['strategy'] = strategy
+    plant = dict(common, duration_s=float(duration_s), **{
+        'lockstep.command_timeout_s': float(args.command_timeout_s),
+        'lockstep.min_state_subscribers': 3,
+        'lockstep.min_output_subscribers': 1,
+        'lockstep.min_command_subscribers': 2})
+    return ts, np_, preview, controller, plant
+
+
+def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, index: int = 0) -> dict:
+    """One strategy over DDS into run_dir; returns the metrics dict."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    from ceco_bringup import bagio, supervisor
+    from ceco_bringup.recorder import Recorder
+    from ceco_v2x_preview import ros_common as rc
+
+    dt_s = 1.0
+    duration_s = min(args.duration_s or scenario.duration_s, scenario.duration_s)
+    n_plant = int(math.floor(duration_s / dt_s + 1e-9))
+    ts, np_, p_prev, p_ctrl, p_plant = _params(args, scenario, quality, strategy, duration_s, None)
+
+    run_dir.mkdir(parents=True, exist_ok=True)
+    bag_dir = run_dir / 'bag'
+    if bag_dir.exists():
+        raise RuntimeError(f'{bag_dir} exists: choose a new --out directory')
+    log_dir = run_dir / 'logs'
+    domain = (args.domain_id if args.domain_id is not None else supervisor.pick_domain_id()) + index
+    domain = 1 + (domain - 1) % 101
+    env = supervisor.dds_env(domain)
+    os.environ.update({k: env[k] for k in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE',
+                                           'FASTDDS_BUILTIN_TRANSPORTS',
+                                           'FASTRTPS_DEFAULT_PROFILES_FILE')})
+    os.environ.pop('ROS_LOCALHOST_ONLY', None)
+
+    ctrl_exe = ('ceco_controller', 'baseline_node') if strategy == 'baseline' else ('ceco_controller', 'mpc_node')
+    procs = {
+        'preview_node': supervisor.NodeProcess(
+            'preview_node', 'ceco_v2x_preview', 'preview_node', env=env, log_dir=log_dir,
+            params_files=[supervisor.share_file('ceco_v2x_preview', 'config/preview_node.yaml')],
+            params=p_prev),
+        'controller': supervisor.NodeProcess(
+            ctrl_exe[1], *ctrl_exe, env=env, log_dir=log_dir,
+            params_files=[supervisor.share_file('ceco_controller', f'config/{ctrl_exe[1]}.yaml')],
+            params=p_ctrl),
+        'plant_node': supervisor.NodeProcess(
+            'plant_node', 'ceco_plant_sim', 'plant_node', env=env, log_dir=log_dir,
+            params_files=[supervisor.share_file('ceco_plant_sim', 'config/plant_node.yaml')],
+            params=p_plant),
+    }
+    custom = {'scenario': scenario.name, 'strategy': strategy, 'control_period_s': repr(float(ts)),
+              'horizon_steps': str(np_), 'preview_quality': quality.describe(),
+              'timing': args.timing, 'duration_s': repr(float(duration_s)), 'ros_domain_id': str(domain)}
+
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
+    recorder = None
+    executor = None
+    spin_stop = threading.Event()
+    thread = None
+    t_wall0 = time.monotonic()
+    interrupted = False
+    try:
+        recorder = Recorder(bag_dir, custom_data=custom, context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(recorder)
+
+        def spin():
+            while not spin_stop.is_set() and context.ok():
+                executor.spin_once(timeout_sec=0.05)
+        thread = threading.Thread(target=spin, name='recorder', daemon=True)
+        thread.start()
+
+        # All nodes start together (their imports overlap); the plant holds step 0
+        # until every subscriber it needs is matched (preview node, controller and
+        # recorder on cabin/state, the recorder on its other outputs, and the
+        # recorder's subscription to hvac/command is in its graph).
+        for name in ('preview_node', 'controller', 'plant_node'):
+            procs[name].start()
+        _wait(lambda: recorder.first_state_wall is not None, args.startup_timeout_s, stop, procs,
+              'the nodes to start and discover each other')
+        t_start = time.monotonic()
+
+        bar = None
+        if not args.no_progress:
+            from tqdm import tqdm
+            bar = tqdm(total=n_plant, desc=f'{strategy} over DDS', unit='s sim', file=sys.stderr,
+                       mininterval=0.5, leave=False)
+        done = lambda: recorder.last_power_step >= n_plant - 1  # noqa: E731
+        try:
+            while not done():
+                if stop.event.wait(0.1):
+                    raise Interrupted()
+                for name, proc in procs.items():
+                    if not proc.running():
+                        raise RuntimeError(f'{name} exited with status {proc.returncode()}; '
+                                           f'log: {proc.log_path}\n' + _tail(proc.log_text()))
+                if time.monotonic() - t_start > args.run_timeout_s:
+                    raise RuntimeError(f'run timeout ({args.run_timeout_s} s) at plant step '
+                                       f'{recorder.last_power_step + 1}/{n_plant}')
+                if bar is not None:
+                    bar.n = recorder.last_power_step + 1
+                    bar.refresh()
+        finally:
+            if bar is not None:
+                bar.close()
+        t_run = recorder.last_power_wall - recorder.first_state_wall
+        time.sleep(0.2)  # let the last diagnostics and log lines arrive
+    except Interrupted:
+        interrupted = True
+    finally:
+        # every stop path: children first (plant first: it drives the loop), then the bag
+        for name in ('plant_node', 'controller', 'preview_node'):
+            procs[name].stop()
+        spin_stop.set()
+        if thread is not None:
+            thread.join(timeout=5.0)
+        counts = recorder.close() if recorder is not None else {}
+        if executor is not None:
+            executor.shutdown()
+        if recorder is not None:
+            recorder.destroy_node()
+        rclpy.try_shutdown(context=context)
+    if interrupted:
+        raise Interrupted()
+
+    wall = time.monotonic() - t_wall0
+    ts_data = bagio.load_run_timeseries(bag_dir)
+    if ts_data['t_s'].size != n_plant:
+        raise RuntimeError(f'bag holds {ts_data["t_s"].size} complete plant steps, expected {n_plant}')
+    from ceco_plant_sim.metrics import compute_metrics
+    metrics = compute_metrics(ts_data['t_s'], ts_data['p_comp_w'], ts_data['p_blower_w'],
+                              ts_data['pmv'], ts_data['pmv_lb'], ts_data['pmv_ub'])
+    metrics.update({
+        'scenario': scenario.name, 'strategy': strategy, 'control_period_s': float(ts),
+        'horizon_steps': int(np_), 'seed': int(scenario.seed if quality.seed is None else quality.seed),
+        'preview_quality': quality.describe(), 'source': 'dds', 'timing': args.timing,
+        'wall_time_s': wall, 'loop_wall_time_s': t_run, 'realtime_factor': duration_s / t_run,
+        'ros_domain_id': domain, 'bag_message_counts': counts,
+        'fallback_steps': int(ts_data['fallback'].sum()),
+    })
+    bagio.write_timeseries_csv(run_dir / 'timeseries.csv', ts_data)
+    bagio.write_diagnostics_csv(run_dir / 'diagnostics.csv', bagio.load_diagnostics(bag_dir))
+    (run_dir / 'metrics.json').write_text(json.dumps(metrics, indent=2, sort_keys=True) + '\n')
+    return metrics
+
+
+def _wait(cond, timeout_s, stop, procs, what):
+    t0 = time.monotonic()
+    while not cond():
+        if stop.event.wait(0.05):
+            raise Interrupted()
+        for name, proc in procs.items():
+            if proc.proc is not None and not proc.running():
+                raise RuntimeError(f'{name} exited with status {proc.returncode()} while waiting for '
+                                   f'{what}; log: {proc.log_path}\n' + _tail(proc.log_text()))
+        if time.monotonic() - t0 > timeout_s:
+            raise RuntimeError(f'timeout ({timeout_s} s) waiting for {what}')
+
+
+def _tail(text: str, n: int = 15) -> str:
+    return '\n'.join(text.strip().splitlines()[-n:])
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,169 @@
+"""Start and stop the stack's node processes (what `ros2 launch` would do on a
+full install; here there is no launch, so we supervise them ourselves).
+
+Each node runs as its own OS process in its own session (so the terminal's
+Ctrl-C reaches only `ceco run`, which then stops the children in order),
+on a private ROS_DOMAIN_ID with localhost-only discovery, its output in
+`<log_dir>/<name>.log`. Stopping is SIGINT (rclpy shuts down cleanly), then
+SIGKILL after a grace period.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+# Fast DDS participant profile: a short lease announcement so late joiners
+# (a restarted controller) are discovered in ~0.3 s instead of ~3 s, and a
+# short lease so a killed participant's endpoints disappear within ~2 s.
+FASTDDS_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
+<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <participant profile_name="ceco_fast_discovery" is_default_profile="true">
+    <rtps>
+      <builtin>
+        <discovery_config>
+          <leaseDuration><sec>2</sec><nanosec>0</nanosec></leaseDuration>
+          <leaseAnnouncement><sec>0</sec><nanosec>250000000</nanosec></leaseAnnouncement>
+          <initialAnnouncements><count>5</count><period><sec>0</sec><nanosec>100000000</nanosec></period></initialAnnouncements>
+        </discovery_config>
+      </builtin>
+    </rtps>
+  </participant>
+</profiles>
+"""
+
+
+def pick_domain_id() -> int:
+    """A ROS_DOMAIN_ID for a private run: the pid spread over 1..100 (valid
+    ids with localhost discovery are 0..101), overridable with CECO_DOMAIN_ID."""
+    if os.environ.get('CECO_DOMAIN_ID'):
+        return int(os.environ['CECO_DOMAIN_ID'])
+    return 1 + (os.getpid() * 7919 + int(time.time())) % 100
+
+
+def dds_env(domain_id: int, base: dict | None = None) -> dict:
+    """Environment for a private, localhost-only, shared-memory-free DDS run.
+
+    UDP-only transport (FASTDDS_BUILTIN_TRANSPORTS=UDPv4): a killed process
+    then leaves no /dev/shm/fastrtps_* segments behind.
+    """
+    env = dict(os.environ if base is None else base)
+    env['ROS_DOMAIN_ID'] = str(domain_id)
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env.pop('ROS_LOCALHOST_ONLY', None)
+    env.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+    env['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'
+    profile = Path(tempfile.gettempdir()) / 'ceco_fastdds_profile.xml'
+    if not profile.exists() or profile.read_text() != FASTDDS_PROFILE:
+        tmp = profile.with_suffix(f'.{os.getpid()}.tmp')
+        tmp.write_text(FASTDDS_PROFILE)
+        tmp.replace(profile)
+    env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(profile)
+    env['PYTHONUNBUFFERED'] = '1'
+    env['RCUTILS_COLORIZED_OUTPUT'] = '0'
+    return env
+
+
+def find_executable(package: str, executable: str) -> str:
+    """`<prefix>/lib/<package>/<executable>` on AMENT_PREFIX_PATH (where
+    `ros2 run` looks)."""
+    for prefix in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep):
+        if prefix:
+            path = Path(prefix) / 'lib' / package / executable
+            if path.is_file() and os.access(path, os.X_OK):
+                return str(path)
+    raise FileNotFoundError(
+        f'{package}/{executable} not found on AMENT_PREFIX_PATH: build the workspace '
+        '(bash tools/setup.sh) and `source tools/env.sh`')
+
+
+def share_file(package: str, relpath: str) -> str:
+    """A file in `<prefix>/share/<package>/` on AMENT_PREFIX_PATH."""
+    for prefix in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep):
+        if prefix:
+            path = Path(prefix) / 'share' / package / relpath
+            if path.is_file():
+                return str(path)
+    raise FileNotFoundError(f'share/{package}/{relpath} not found on AMENT_PREFIX_PATH')
+
+
+class NodeProcess:
+    """One node executable as a child process."""
+
+    def __init__(self, name: str, package: str, executable: str, *, params_files=(),
+                 params: dict | None = None, env: dict, log_dir: Path, node_name: str | None = None):
+        self.name = name
+        self.cmd = [find_executable(package, executable), '--ros-args']
+        if node_name:
+            self.cmd += ['-r', f'__node:={node_name}']
+        for f in params_files:
+            self.cmd += ['--params-file', str(f)]
+        for key, value in (params or {}).items():
+            self.cmd += ['-p', f'{key}:={_param_text(value)}']
+        self.env = env
+        self.log_path = Path(log_dir) / f'{name}.log'
+        self.proc: subprocess.Popen | None = None
+        self.starts = 0
+
+    def start(self) -> None:
+        self.log_path.parent.mkdir(parents=True, exist_ok=True)
+        log = open(self.log_path, 'ab')
+        log.write(f'--- start {self.starts + 1}: {" ".join(self.cmd)}\n'.encode())
+        log.flush()
+        self.proc = subprocess.Popen(self.cmd, env=self.env, stdout=log, stderr=subprocess.STDOUT,
+                                     stdin=subprocess.DEVNULL, start_new_session=True)
+        log.close()
+        self.starts += 1
+
+    @property
+    def pid(self) -> int | None:
+        return None if self.proc is None else self.proc.pid
+
+    def running(self) -> bool:
+        return self.proc is not None and self.proc.poll() is None
+
+    def returncode(self):
+        return None if self.proc is None else self.proc.poll()
+
+    def signal(self, sig) -> None:
+        if self.running():
+            try:
+                os.kill(self.proc.pid, sig)
+            except ProcessLookupError:
+                pass
+
+    def stop(self, timeout_s: float = 5.0) -> int | None:
+        """SIGINT, wait, then SIGKILL. Returns the exit code."""
+        if self.proc is None:
+            return None
+        self.signal(signal.SIGINT)
+        try:
+            return self.proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            self.signal(signal.SIGKILL)
+            return self.proc.wait()
+
+    def kill(self) -> None:
+        """SIGKILL (fault injection)."""
+        self.signal(signal.SIGKILL)
+        if self.proc is not None:
+            self.proc.wait()
+
+    def log_text(self) -> str:
+        try:
+            return self.log_path.read_text(errors='replace')
+        except FileNotFoundError:
+            return ''
+
+
+def _param_text(value) -> str:
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, (list, tuple)):
+        return '[' + ','.join(_param_text(v) for v in value) + ']'
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)

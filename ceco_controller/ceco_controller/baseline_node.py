@@ -1,0 +1,23 @@
+"""baseline_node: the production automatic climate control law (PI with
+anti-windup on the cabin air temperature, ceco_plant_sim.acc_law) as a node,
+with the same topics, timing modes and checks as mpc_node (it reuses its
+node class with the strategy fixed to ``baseline``; it uses no preview for
+its decisions but waits for them in lockstep so both nodes step alike).
+"""
+from __future__ import annotations
+
+from ceco_controller.mpc_node import ControllerNode
+from ceco_v2x_preview import ros_common as rc
+
+
+class BaselineNode(ControllerNode):
+    def __init__(self):
+        super().__init__('baseline_node', fixed_strategy='baseline')
+
+
+def main(args=None) -> int:
+    return rc.run_node(BaselineNode, args, 'baseline_node')
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

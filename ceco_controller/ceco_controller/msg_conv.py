@@ -1,0 +1,111 @@
+"""Messages <-> controller core data (Observation, AcInput, Diagnostics).
+
+The one adapter between ceco_msgs and the controller core: checks each
+incoming message (finite numbers, equal-length arrays of the expected length,
+matching time grids) and returns a clear reason when it rejects one.
+No node logic; imports message types but not rclpy's Node.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ceco_controller.interface import Diagnostics, Observation
+from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficPreview, WeatherPreview
+
+STATE_FIELDS = ('scenario_time_s', 't_cab_c', 't_int_c', 't_shell_c', 't_evap_c', 't_vent_c',
+                't_amb_c', 'solar_wm2', 'rh', 'speed_mps', 'mdot_bl_kgps', 't_evap_sp_c')
+
+
+def stamp_s(stamp) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def check_state(msg: CabinState) -> str | None:
+    """None if usable, else the reason (names the field and value)."""
+    for name in STATE_FIELDS:
+        v = getattr(msg, name)
+        if not math.isfinite(v):
+            return f'{name}={v!r} is not finite'
+    if msg.scenario_time_s < 0.0:
+        return f'scenario_time_s={msg.scenario_time_s!r} is negative'
+    return None
+
+
+def check_previews(w: WeatherPreview, s: TrafficPreview, n_expected: int, step_s: float) -> str | None:
+    """None if the two previews are usable together, else the reason."""
+    for name, msg in (('weather', w), ('traffic', s)):
+        if not (math.isfinite(msg.step_s) and abs(msg.step_s - step_s) <= 1e-9 * step_s):
+            return f'{name} preview step_s={msg.step_s!r} differs from the control period {step_s}'
+    arrays = {'t_amb_c': w.t_amb_c, 'solar_wm2': w.solar_wm2, 'rh': w.rh, 'weather.valid': w.valid,
+              'speed_mps': s.speed_mps, 'traffic.valid': s.valid}
+    for name, a in arrays.items():
+        if len(a) != n_expected:
+            return f'preview array {name} has {len(a)} values, expected {n_expected} (Np + 1)'
+    if stamp_s(w.start) != stamp_s(s.start):
+        return f'weather and traffic previews start at different times ({stamp_s(w.start)} vs {stamp_s(s.start)})'
+    valid = np.asarray(w.valid, dtype=bool) & np.asarray(s.valid, dtype=bool)
+    for name in ('t_amb_c', 'solar_wm2', 'rh', 'speed_mps'):
+        a = np.asarray(arrays[name], dtype=float)
+        if np.any(np.isinf(a)):
+            return f'preview array {name} holds an infinite value'
+        if np.any(np.isnan(a[valid])):
+            return f'preview array {name} holds NaN where marked valid'
+    return None
+
+
+def observation(k: int, t_s: float, state: CabinState, w: WeatherPreview, s: TrafficPreview,
+                pmv_lb, pmv_ub, met: float, clo: float,
+                mdot_bl_prev_kgps: float, t_evap_sp_prev_c: float) -> Observation:
+    """Observation for step k from checked messages; pmv bounds on the grid."""
+    valid = np.asarray(w.valid, dtype=bool) & np.asarray(s.valid, dtype=bool)
+    return Observation(
+        k=int(k), t_s=float(t_s),
+        t_cab_c=state.t_cab_c, t_int_c=state.t_int_c, t_shell_c=state.t_shell_c,
+        t_evap_c=state.t_evap_c, t_vent_c=state.t_vent_c, t_amb_c=state.t_amb_c,
+        solar_wm2=state.solar_wm2, speed_mps=state.speed_mps,
+        mdot_bl_prev_kgps=float(mdot_bl_prev_kgps), t_evap_sp_prev_c=float(t_evap_sp_prev_c),
+        preview_t_amb_c=np.asarray(w.t_amb_c, dtype=float),
+        preview_solar_wm2=np.asarray(w.solar_wm2, dtype=float),
+        preview_speed_mps=np.asarray(s.speed_mps, dtype=float),
+        preview_valid=valid, pmv_lb=pmv_lb, pmv_ub=pmv_ub, met=float(met), clo=float(clo))
+
+
+def command_msg(cmd, k: int, stamp, control_period_s: float, strategy: str, fallback: bool) -> AcCommand:
+    m = AcCommand()
+    m.header.stamp = stamp
+    m.step_index = int(k)
+    m.control_period_s = float(control_period_s)
+    m.blower_flow_kgps = float(cmd.mdot_bl_kgps)
+    m.evap_setpoint_c = float(cmd.t_evap_sp_c)
+    m.strategy = strategy
+    m.fallback = bool(fallback)
+    return m
+
+
+def _f(x) -> float:
+    return math.nan if x is None else float(x)
+
+
+def diagnostics_msg(d: Diagnostics, stamp, strategy: str, control_period_s: float) -> ControllerDiagnostics:
+    m = ControllerDiagnostics()
+    m.header.stamp = stamp
+    m.step_index = int(d.k)
+    m.strategy = strategy
+    m.status = str(d.status)
+    m.success = bool(d.success) if d.success is not None else False
+    m.iterations = -1 if d.iterations is None else int(d.iterations)
+    m.solve_time_s = _f(d.solve_time_ms) * 1e-3
+    m.cost_total = _f(d.cost_total)
+    m.cost_energy = _f(d.cost_energy)
+    m.cost_comfort = _f(d.cost_comfort)
+    m.cost_ioch = _f(d.cost_ioch)
+    m.prediction_step_s = float(control_period_s)
+    m.predicted_pmv = [] if d.pred_pmv is None else [float(x) for x in np.ravel(d.pred_pmv)]
+    m.predicted_t_cab_c = [] if d.pred_t_cab_c is None else [float(x) for x in np.ravel(d.pred_t_cab_c)]
+    m.eps = [] if d.eps is None else [float(x) for x in np.ravel(d.eps)]
+    m.eps_mean = _f(d.eps_mean)
+    m.fallback = bool(d.fallback)
+    m.fallback_reason = str(d.fallback) + (f': {d.message}' if d.message and d.fallback else '')
+    return m
