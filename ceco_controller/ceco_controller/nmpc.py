@@ -10,8 +10,9 @@ Multiple shooting, stage-wise variable order (x_i, u_i, slacks_i), so the
 problem has the optimal-control structure that IPOPT's sparse linear algebra
 and fatrop exploit:
 
-    w = [x_0, u_0, s_0, x_1, u_1, s_1, ..., x_N, s_N]
-    x_i = (T_cab, T_evap) [degC],  u_i = (mdot_bl [kg/s], T_evap_sp [degC])
+    w = [u_0, s_0, x_1, u_1, s_1, ..., x_N, s_N]   (x_0 is the measured state, a parameter)
+    x_i = (T_cab, T_evap [degC], mdot_{i-1} [kg/s], T_evap_sp_{i-1} [degC]),
+    u_i = (mdot_bl [kg/s], T_evap_sp [degC])
     s_i = (s_lo, s_up [PMV], s_ev [K] (i >= 1), eps [PMV] (ceco-ioch))
 
 Fallbacks: a failed or invalid solve applies the previous plan shifted by
@@ -119,43 +120,46 @@ class NmpcController:
         pmv_all, tcab_all, tain_all = [], [], []
         inf = np.inf
 
+        cons = []  # (stage, order, kind, expr, lo, hi); sorted so each stage starts with its gap constraint
+
+        def add_con(stage, order, kind, expr, lo, hi):
+            cons.append((stage, order, len(cons), kind, expr, lo, hi))
+
         def add_var(sym, lo, hi, key):
             idx[key].append(sum(v.numel() for v in w))
             w.append(sym)
             lbw.extend(np.atleast_1d(lo).tolist())
             ubw.extend(np.atleast_1d(hi).tolist())
 
+        # Augmented state x_i = (T_cab, T_evap, mdot_{i-1}, sp_{i-1}): the move penalty and the comfort at
+        # the last grid point (which uses u_{N-1}) stay stage-local, so the NLP has the exact
+        # optimal-control structure (needed by fatrop/hpipm, harmless for IPOPT).
         x_prev = u_prev_stage = None
-        u_list = []
         for i in range(n + 1):
-            x = SX.sym(f"x_{i}", 2)
-            add_var(x, [-50.0, -50.0], [150.0, 150.0], "x")
             if i == 0:
-                g.append(x - x0p)
+                x = casadi.vertcat(x0p, u_prev)  # the initial state is a parameter, not a variable
             else:
+                x = SX.sym(f"x_{i}", 4)
+                add_var(x, [-50.0, -50.0, -inf, -inf], [150.0, 150.0, inf, inf], "x")
                 t_cab_n, t_evap_n, _, _, _ = cm.step(
                     mp, x_prev[0], x_prev[1], u_prev_stage[0], u_prev_stage[1], t_int, t_shell,
                     t_amb[i - 1], speed[i - 1], n_sub=self.n_sub,
                     d_cab_k=d_cab / self.n_sub, d_ain_k=d_ain, d_evap_k=d_evap / self.n_sub)
-                g.append(x - casadi.vertcat(t_cab_n, t_evap_n))
-            lbg.extend([0.0, 0.0])
-            ubg.extend([0.0, 0.0])
+                add_con(i - 1, 0, "gap", x - casadi.vertcat(t_cab_n, t_evap_n, u_prev_stage), [0.0] * 4, [0.0] * 4)
             if i < n:
                 u = SX.sym(f"u_{i}", 2)
                 add_var(u, [lim.mdot_bl_min_kgps, lim.t_evap_sp_min_c],
                         [lim.mdot_bl_max_kgps, lim.t_evap_sp_max_c], "u")
-                u_list.append(u)
             else:
-                u = u_list[-1]
+                u = x[2:4]  # u_{N-1}, carried in the state
             # stage power (intervals 0..N-1)
             if i < n:
                 _, _, _, pc, pb = cm.step(mp, x[0], x[1], u[0], u[1], t_int, t_shell, t_amb[i], speed[i],
                                           n_sub=self.n_sub, d_cab_k=d_cab / self.n_sub, d_ain_k=d_ain,
                                           d_evap_k=d_evap / self.n_sub)
                 e_terms.append(ts_kj * (pc + pb))
-                ref = u_prev if i == 0 else u_list[i - 1]
-                du = casadi.vertcat((u[0] - ref[0]) / (lim.mdot_bl_max_kgps - lim.mdot_bl_min_kgps),
-                                    (u[1] - ref[1]) / (lim.t_evap_sp_max_c - lim.t_evap_sp_min_c))
+                du = casadi.vertcat((u[0] - x[2]) / (lim.mdot_bl_max_kgps - lim.mdot_bl_min_kgps),
+                                    (u[1] - x[3]) / (lim.t_evap_sp_max_c - lim.t_evap_sp_min_c))
                 du_terms.append(s.du_weight_kj * casadi.sumsqr(du))
             # comfort at stage i
             tain = cm.t_ain_c(mp, x[1], u[0], d_ain)
@@ -176,24 +180,16 @@ class NmpcController:
                 eps = eps_sym
                 eta = cm.eta_ac(mp, speed[i])
                 i_terms.append(ts_kj * s.beta_w * (eta - 1.0) / (eps_sym + s.xi))
-            g.append(pmv + s_lo - lb_pmv[i])
-            lbg.append(0.0)
-            ubg.append(inf)
-            g.append(pmv - s_up + eps - (ub_pmv[i] - s.pmv_margin))
-            lbg.append(-inf)
-            ubg.append(0.0)
+            add_con(i, 1, "pmv", casadi.vertcat(pmv + s_lo - lb_pmv[i], pmv - s_up + eps - (ub_pmv[i] - s.pmv_margin)),
+                    [0.0, -inf], [inf, 0.0])
             if s.gamma_w > 0:
                 c_terms.append(ts_kj * s.gamma_w * pmv ** 2)
             if i >= 1:
                 s_ev = SX.sym(f"s_ev_{i}")
                 add_var(s_ev, 0.0, inf, "s_ev")
                 sl_terms.append(s.slack_weight_kj * s_ev)
-                g.append(x[1] + s_ev - s.t_evap_lb_c)
-                lbg.append(0.0)
-                ubg.append(inf)
-                g.append(x[1] - s_ev - s.t_evap_ub_c)
-                lbg.append(-inf)
-                ubg.append(0.0)
+                add_con(i, 2, "evap", casadi.vertcat(x[1] + s_ev - s.t_evap_lb_c, x[1] - s_ev - s.t_evap_ub_c),
+                        [0.0, -inf], [inf, 0.0])
             x_prev, u_prev_stage = x, u
 
         def total(terms):
@@ -201,6 +197,15 @@ class NmpcController:
 
         J_e, J_c, J_i, J_s, J_du = (total(t) for t in (e_terms, c_terms, i_terms, sl_terms, du_terms))
         J = J_e + J_c + J_i + J_s + J_du
+        rows = {"gap": [], "pmv": [], "evap": []}
+        r = 0
+        for _, _, _, kind, expr, lo, hi in sorted(cons, key=lambda c: c[:3]):
+            rows[kind].append(np.arange(r, r + expr.numel()))
+            r += expr.numel()
+            g.append(expr)
+            lbg.extend(lo)
+            ubg.extend(hi)
+        self._grows = rows
         w_all = casadi.vertcat(*w)
         g_all = casadi.vertcat(*g)
         self._nw = w_all.numel()
@@ -259,8 +264,7 @@ class NmpcController:
                          "equality": [bool(a == b) for a, b in zip(self._lbg, self._ubg)],
                          "fatrop": {"print_level": 0, "max_iter": ss.max_iter, "tol": ss.tol,
                                     "mu_init": 1e-2}})
-            if ss.warm_start:
-                opts["fatrop"]["warm_start_init_point"] = True
+            # (fatrop 0.0.x in CasADi 3.8 accepts no warm-start option; the primal guess is still used)
             return casadi.nlpsol("ceco_nlp", "fatrop", self._nlp, opts)
         # sqpmethod with a QP solver
         opts.update({"qpsol": "qrqp", "qpsol_options": {"print_iter": False, "print_header": False,
@@ -351,8 +355,12 @@ class NmpcController:
                       np.clip(p[8], self.lim.t_evap_sp_min_c, self.lim.t_evap_sp_max_c)])
         x = p[0:2].copy()
         off = _N_P_FIXED
+        u_last = p[7:9]
         for i in range(n + 1):
-            w[self._idx["x"][i]:self._idx["x"][i] + 2] = x
+            if i >= 1:
+                j = self._idx["x"][i - 1]
+                w[j:j + 4] = np.concatenate([x, u_last])
+            u_last = u
             if i < n:
                 w[self._idx["u"][i]:self._idx["u"][i] + 2] = u
                 tc, te, *_ = cm.step(self.model_params, x[0], x[1], u[0], u[1], p[2], p[3], p[off + i],
@@ -370,7 +378,7 @@ class NmpcController:
             ix = self._idx[key]
             if ix.size == 0:
                 continue
-            width = 2 if key in ("x", "u") else 1
+            width = {"x": 4, "u": 2}.get(key, 1)
             blocks = [vec[j:j + width] for j in ix]
             shifted = blocks[1:] + [blocks[-1]]
             for j, b in zip(ix, shifted):
@@ -378,14 +386,11 @@ class NmpcController:
         return out
 
     def _shift_g(self, lam_g: np.ndarray) -> np.ndarray:
-        """Shift constraint multipliers: the stage blocks have equal size except the first (no s_ev rows)."""
-        # stage 0 block: 2 dyn + 2 pmv = 4 rows; stages >= 1: 2 dyn + 2 pmv + 2 evap = 6 rows
+        """Shift constraint multipliers one stage forward (per constraint kind; the last stage is kept)."""
         out = lam_g.copy()
-        n = self.settings.horizon_steps
-        blocks = [lam_g[4 + 6 * (i - 1): 4 + 6 * i] for i in range(1, n + 1)]
-        for i in range(1, n):
-            out[4 + 6 * (i - 1): 4 + 6 * i] = blocks[i]
-        out[0:4] = np.concatenate([lam_g[4:6], lam_g[6:8]])
+        for blocks in self._grows.values():
+            for a, b in zip(blocks[:-1], blocks[1:]):
+                out[a] = lam_g[b]
         return out
 
     def solve_nlp(self, data: NlpData, solver: casadi.Function | None = None) -> dict:

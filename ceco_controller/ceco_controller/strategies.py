@@ -91,7 +91,7 @@ class StrategySettings:
     """Back-off of the upper PMV bound [PMV] (robustness against model mismatch)."""
     ioch: bool = False
     """Use the IOCH slack eps and its cost (ceco-ioch)."""
-    beta_w: float = 300.0
+    beta_w: float = 1000.0
     """IOCH weight beta [W PMV] on (eta_AC - 1)/(eps + xi)."""
     xi: float = 0.1
     """IOCH regularity term xi [PMV]."""
@@ -101,7 +101,7 @@ class StrategySettings:
     """Use the previewed vehicle speed in eta_AC; otherwise hold the measured speed."""
     slack_weight_kj: float = 1000.0
     """Exact L1 penalty rho on comfort/T_evap bound violations [kJ per PMV (or K) per stage]."""
-    du_weight_kj: float = 0.02
+    du_weight_kj: float = 1.0
     """Move penalty on normalised input changes [kJ per (full range)^2] (regularisation)."""
     t_evap_lb_c: float = 2.0
     """Lower bound on the evaporator wall temperature [degC] (frost), soft."""
@@ -150,7 +150,7 @@ _DEFAULTS = {
     "ceco": dict(pmv_margin=0.1),
     "ceco-e": dict(),
     "ceco-c": dict(gamma_w=COMFORT_GAMMA_W),
-    "ceco-ioch": dict(ioch=True, use_speed_preview=True),
+    "ceco-ioch": dict(ioch=True, use_speed_preview=True, pmv_margin=0.1, beta_w=1000.0),
 }
 
 
