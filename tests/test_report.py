@@ -166,3 +166,13 @@ def test_report_vehicle_level(runs, tmp_path):
     assert (tmp_path / 'rep' / 'figures' / 'sc03_vehicle.png').read_bytes()[:8] == PNG_MAGIC
     assert len((tmp_path / 'rep' / 'vehicle.csv').read_text().splitlines()) == 1 + 4
     assert 'Vehicle-level energy (FASTSim 3.1)' in res['markdown'].read_text()
+
+
+def test_unreadable_bag_is_a_clear_error(runs, tmp_path, capsys):
+    import shutil
+    bad = tmp_path / 'run'
+    shutil.copytree(runs / 'ceco-ioch', bad)
+    (bad / 'bag').mkdir()
+    (bad / 'bag' / 'metadata.yaml').write_text('not: a bag\n')
+    assert report.main([str(bad), '--out', str(tmp_path / 'rep')]) == 2
+    assert 'cannot read the bag' in capsys.readouterr().err

@@ -179,7 +179,13 @@ def compare_metrics(stored: Mapping, recomputed: Mapping, rtol: float = 1e-9, at
 def _load_bag(bag_dir: Path) -> dict:
     from ceco_bringup import bagio  # noqa: PLC0415 (needs rosbags only; imported when a bag exists)
 
-    return {k: np.asarray(v) for k, v in bagio.load_run_timeseries(bag_dir).items()}
+    try:
+        cols = {k: np.asarray(v) for k, v in bagio.load_run_timeseries(bag_dir).items()}
+    except Exception as exc:  # noqa: BLE001 (rosbags raises its own types; say which bag)
+        raise ValueError(f'{bag_dir}: cannot read the bag: {type(exc).__name__}: {exc}') from exc
+    if not len(cols.get('t_s', ())) >= 2:
+        raise ValueError(f'{bag_dir}: the bag holds fewer than 2 complete plant steps')
+    return cols
 
 
 def load_run(run_dir: str | Path, rtol: float = 1e-6) -> RunData:
