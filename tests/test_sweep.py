@@ -89,6 +89,9 @@ def test_local_sweep_equals_direct_runs_and_resumes(tmp_path):
     assert len(table) == 4
     assert {(r['strategy'], r['climate']) for r in table} == {
         ('baseline', 'hot'), ('ceco', 'hot'), ('baseline', 'mild'), ('ceco', 'mild')}
+    import polars as pl   # with the analysis extra (fastsim depends on it): Parquet written too
+    pq = pl.read_parquet(out / 'results.parquet')
+    assert pq.height == 4 and pq['E_tot_J'].to_list() == [float(r['E_tot_J']) for r in table]
     # Two cells against direct simulate() calls in this process: equal exactly.
     cells = {c.id: c for c in sweep.expand_grid(sweep.load_grid(grid))}
     for row in table[:2]:

@@ -28,7 +28,7 @@ again (failed cells are retried; a torn last line from a crash is ignored).
 
 Outputs in ``DIR``: ``cells.jsonl`` (the log), ``results.csv`` (the tidy table:
 one row per cell, its axes and every metric; also ``results.parquet`` when
-pyarrow is installed), ``summary.md`` and ``summary.csv`` (per scenario,
+pyarrow or polars is installed), ``summary.md`` and ``summary.csv`` (per scenario,
 climate, preview and occupant: each strategy's mean over seeds and its change
 against the baseline), ``grid.json`` (the resolved cells), and with
 ``save_runs: true`` in the grid one run directory per cell under ``DIR/runs/``.
@@ -434,17 +434,36 @@ def _write_table(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) ->
     os.replace(tmp, path)
 
 
-def _write_parquet(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) -> bool:
+def _typed(values: Sequence) -> list:
+    """One column with one type: int, float or str (None stays missing)."""
+    kinds = {type(v) for v in values if v is not None}
+    if kinds and kinds <= {int}:
+        return list(values)
+    if kinds and kinds <= {int, float}:
+        return [None if v is None else float(v) for v in values]
+    return [None if v is None else str(v) for v in values]
+
+
+def _write_parquet(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) -> str | None:
+    """The table as Parquet with pyarrow, else polars (a FASTSim dependency);
+    returns the engine used, None if neither is installed."""
+    data = {c: _typed([r.get(c) for r in rows]) for c in columns}
+    tmp = path.with_suffix('.parquet.tmp')
     try:
         import pyarrow as pa  # noqa: PLC0415
         import pyarrow.parquet as pq  # noqa: PLC0415
+
+        pq.write_table(pa.table(data), tmp)
+        engine = 'pyarrow'
     except ImportError:
-        return False
-    table = pa.table({c: [r.get(c) for r in rows] for c in columns})
-    tmp = path.with_suffix('.parquet.tmp')
-    pq.write_table(table, tmp)
+        try:
+            import polars as pl  # noqa: PLC0415
+        except ImportError:
+            return None
+        pl.DataFrame(data).write_parquet(tmp)
+        engine = 'polars'
     os.replace(tmp, path)
-    return True
+    return engine
 
 
 def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]:
