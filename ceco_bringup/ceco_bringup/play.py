@@ -1,0 +1,258 @@
+"""`ceco play`: republish a recorded bag on DDS (rosbag2 playback without rosbag2).
+
+    ceco play DIR/bag [--rate R]               # original timing (R = 1) or R times faster
+    ceco play DIR/bag --compare                # feed a fresh mpc_node, compare its commands
+
+Plain playback publishes every recorded topic (except /rosout) with the
+recorded QoS profile of the stack, spacing the messages as recorded (bag
+timestamps are receive times) divided by --rate (--rate 0: as fast as
+possible). Other nodes on the same ROS_DOMAIN_ID (default: the environment's)
+receive the drive as it happened: `ros2 run ceco_controller mpc_node` (or
+this machine's install/lib equivalent) started with the run's parameters
+then computes new commands from the recorded states and previews.
+
+--compare does exactly that in one command: it starts the controller of the
+recorded strategy (bag metadata: scenario, strategy, Ts, Np) in lockstep
+timing on a private domain, republishes the recorded states, previews and
+/clock (not the recorded commands), paced by the new controller's answers
+(step k+1 is sent once command k came back), and compares the new commands
+with the recorded ones step by step. Exit status 0 when every step's command
+matches within --tol.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import threading
+import time
+from pathlib import Path
+
+
+def build_parser():
+    p = argparse.ArgumentParser(prog='ceco play', description=__doc__.split('\n\n')[0])
+    p.add_argument('bag', type=Path, help='bag directory (DIR/bag of a ceco run)')
+    p.add_argument('--rate', type=float, default=1.0,
+                   help='playback rate: 1 = recorded timing, R = R times faster, 0 = as fast as possible')
+    p.add_argument('--topics', nargs='*', default=None, help='topics to publish (default: all but /rosout)')
+    p.add_argument('--compare', action='store_true',
+                   help='start the recorded strategy\'s controller, feed it the recorded drive, compare commands')
+    p.add_argument('--strategy', default=None, help='--compare: controller strategy (default: the recorded one)')
+    p.add_argument('--tol', type=float, default=1e-9, help='--compare: tolerance on |command difference|')
+    p.add_argument('--domain-id', type=int, default=None,
+                   help='ROS_DOMAIN_ID (default: the environment\'s; --compare: a private one)')
+    p.add_argument('--step-timeout-s', type=float, default=30.0,
+                   help='--compare: wall-clock wait for each new command [s]')
+    return p
+
+
+def _custom_data(bag: Path) -> dict:
+    import yaml
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    return dict(meta.get('custom_data') or {})
+
+
+def _raw_messages(bag: Path, topics):
+    from rosbags.rosbag2 import Reader
+    with Reader(bag) as reader:
+        conns = [c for c in reader.connections if c.topic in topics]
+        types = {c.topic: c.msgtype for c in conns}
+        yield types
+        for conn, t_ns, raw in reader.messages(connections=conns):
+            yield conn.topic, t_ns, bytes(raw)
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    if not (args.bag / 'metadata.yaml').is_file():
+        print(f'ceco play: {args.bag} is not a rosbag2 directory (no metadata.yaml)', file=sys.stderr)
+        return 2
+    if args.rate < 0:
+        print('ceco play: --rate must be >= 0', file=sys.stderr)
+        return 2
+    return compare(args) if args.compare else play(args)
+
+
+def _make_node(name, domain_id):
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+    context = rclpy.Context()
+    kw = {} if domain_id is None else {'domain_id': domain_id}
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO, **kw)
+    node = rclpy.create_node(name, context=context)
+    return context, node
+
+
+def _publishers(node, types):
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    from ceco_bringup.recorder import message_class
+    from ceco_v2x_preview import ros_common as rc
+    pubs = {}
+    for topic, type_name in types.items():
+        qos = rc.STACK_TOPICS[topic][1] if topic in rc.STACK_TOPICS else \
+            QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        pubs[topic] = node.create_publisher(message_class(type_name), topic, qos)
+    return pubs
+
+
+def play(args) -> int:
+    import rclpy
+    from ceco_v2x_preview import ros_common as rc
+    from rosbags.rosbag2 import Reader
+    with Reader(args.bag) as r:
+        available = {c.topic for c in r.connections}
+    topics = set(args.topics) if args.topics else available - {rc.TOPIC_ROSOUT}
+    context, node = _make_node('ceco_play', args.domain_id)
+    n = 0
+    try:
+        gen = _raw_messages(args.bag, topics)
+        pubs = _publishers(node, next(gen))
+        time.sleep(1.0)  # let subscribers discover the publishers
+        t_wall0 = time.monotonic()
+        t_bag0 = None
+        for topic, t_ns, raw in gen:
+            if t_bag0 is None:
+                t_bag0 = t_ns
+            if args.rate > 0:
+                delay = t_wall0 + (t_ns - t_bag0) * 1e-9 / args.rate - time.monotonic()
+                if delay > 0:
+                    time.sleep(delay)
+            pubs[topic].publish(raw)
+            n += 1
+        time.sleep(0.5)
+        print(f'ceco play: published {n} messages from {args.bag} in {time.monotonic() - t_wall0:.1f} s')
+    except KeyboardInterrupt:
+        print(f'ceco play: interrupted after {n} messages', file=sys.stderr)
+        return 130
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+    return 0
+
+
+def compare(args) -> int:
+    import numpy as np
+    import rclpy
+
+    from ceco_bringup import bagio, supervisor
+    from ceco_msgs.msg import AcCommand
+    from ceco_v2x_preview import ros_common as rc
+    info = _custom_data(args.bag)
+    strategy = args.strategy or info.get('strategy')
+    if not strategy:
+        print('ceco play: the bag names no strategy; pass --strategy', file=sys.stderr)
+        return 2
+    recorded = bagio.load_commands(args.bag)
+    rec_by_k = {int(k): (m, s) for k, m, s in zip(recorded['k'], recorded['mdot_bl_kgps'], recorded['t_evap_sp_c'])}
+    domain = args.domain_id if args.domain_id is not None else supervisor.pick_domain_id()
+    env = supervisor.dds_env(domain)
+    import os
+    for key in ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'FASTDDS_BUILTIN_TRANSPORTS', 'FASTRTPS_DEFAULT_PROFILES_FILE'):
+        os.environ[key] = env[key]
+    exe = 'baseline_node' if strategy == 'baseline' else 'mpc_node'
+    params = {'scenario': info.get('scenario', 'sc03'), 'timing': 'lockstep',
+              'control_period_s': float(info.get('control_period_s', 5.0)),
+              'horizon_steps': int(info.get('horizon_steps', 6))}
+    if exe == 'mpc_node':
+        params['strategy'] = strategy
+    log_dir = args.bag.parent / 'play_logs'
+    proc = supervisor.NodeProcess(exe, 'ceco_controller', exe, env=env, log_dir=log_dir,
+                                  params_files=[supervisor.share_file('ceco_controller', f'config/{exe}.yaml')],
+                                  params=params)
+    inputs = {rc.TOPIC_STATE, rc.TOPIC_WEATHER, rc.TOPIC_TRAFFIC, rc.TOPIC_CLOCK}
+    context, node = _make_node('ceco_play', domain)
+    new = {}
+    got = threading.Condition()
+
+    def on_cmd(msg):
+        with got:
+            new[int(msg.step_index)] = (msg.blower_flow_kgps, msg.evap_setpoint_c)
+            got.notify_all()
+    node.create_subscription(AcCommand, rc.TOPIC_COMMAND, on_cmd, rc.QOS_COMMAND)
+    from rclpy.executors import SingleThreadedExecutor
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    stop = threading.Event()
+
+    def spin_loop():
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=0.05)
+    spin = threading.Thread(target=spin_loop, daemon=True)
+    spin.start()
+    proc.start()
+    ts = float(params['control_period_s'])
+    try:
+        gen = _raw_messages(args.bag, inputs)
+        pubs = _publishers(node, next(gen))
+        t0 = time.monotonic()
+        while pubs[rc.TOPIC_STATE].get_subscription_count() < 1 or node.count_publishers(rc.TOPIC_COMMAND) < 1:
+            if not proc.running():
+                print(f'ceco play: {exe} exited:\n{proc.log_text()[-2000:]}', file=sys.stderr)
+                return 1
+            if time.monotonic() - t0 > 120:
+                print('ceco play: the controller did not come up within 120 s', file=sys.stderr)
+                return 1
+            time.sleep(0.05)
+        # Causal order per control step k (the bag's receive order across topics
+        # is not causal): every state of the period, then previews k, then wait
+        # for the new command k.
+        from ceco_msgs.msg import CabinState
+        from rclpy.serialization import deserialize_message
+        steps: dict[int, dict] = {}
+        for topic, _, raw in gen:
+            if topic == rc.TOPIC_STATE:
+                msg = deserialize_message(raw, CabinState)
+                k = int(msg.scenario_time_s // ts + 1e-9)
+                on_grid = abs(msg.scenario_time_s - round(msg.scenario_time_s / ts) * ts) < 1e-6 * ts
+                steps.setdefault(k, {}).setdefault('states', []).append((not on_grid, msg.step_index, raw))
+            elif topic in (rc.TOPIC_WEATHER, rc.TOPIC_TRAFFIC):
+                k = int(deserialize_message(raw, _cls(topic)).step_index)
+                steps.setdefault(k, {})[topic] = raw
+            elif topic == rc.TOPIC_CLOCK:
+                pass  # the lockstep controller needs no clock; plain playback republishes it
+        for k in sorted(steps):
+            step = steps[k]
+            for _, _, raw in sorted(step.get('states', []), key=lambda x: (x[0], x[1])):
+                pubs[rc.TOPIC_STATE].publish(raw)
+            for topic in (rc.TOPIC_WEATHER, rc.TOPIC_TRAFFIC):
+                if topic in step:
+                    pubs[topic].publish(step[topic])
+            if k in rec_by_k:
+                with got:
+                    if not got.wait_for(lambda: k in new, timeout=args.step_timeout_s):
+                        print(f'ceco play: no new command for step {k} within {args.step_timeout_s} s',
+                              file=sys.stderr)
+                        break
+    except KeyboardInterrupt:
+        print('ceco play: interrupted', file=sys.stderr)
+        return 130
+    finally:
+        proc.stop()
+        stop.set()
+        spin.join(timeout=2.0)
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+    ks = sorted(k for k in rec_by_k if k in new)
+    if not ks:
+        print('ceco play: no command to compare', file=sys.stderr)
+        return 1
+    d_m = np.array([abs(new[k][0] - rec_by_k[k][0]) for k in ks])
+    d_s = np.array([abs(new[k][1] - rec_by_k[k][1]) for k in ks])
+    worst = int(ks[int(np.argmax(np.maximum(d_m / 0.12, d_s / 7.0)))])
+    print(f'ceco play --compare: {strategy} re-run on the recorded drive of {args.bag}: '
+          f'{len(ks)}/{len(rec_by_k)} steps compared; max |d blower| {d_m.max():.3e} kg/s, '
+          f'max |d set-point| {d_s.max():.3e} K (worst step {worst})')
+    ok = len(ks) == len(rec_by_k) and d_m.max() <= args.tol and d_s.max() <= args.tol
+    print('commands identical to the recording' if ok else 'commands differ from the recording')
+    return 0 if ok else 1
+
+
+def _cls(topic):
+    from ceco_msgs.msg import TrafficPreview, WeatherPreview
+    from ceco_v2x_preview import ros_common as rc
+    return WeatherPreview if topic == rc.TOPIC_WEATHER else TrafficPreview
+
+
+if __name__ == '__main__':
+    sys.exit(main())
