@@ -145,9 +145,15 @@ def test_ray_backend_matches_local(tmp_path):
             assert r[key] == by_axes[r['strategy']][key]
 
 
-def test_verify_reruns_cells_exactly(tmp_path):
-    grid = _grid(tmp_path, GRID.replace('[baseline, ceco]', '[ceco-ioch]'), duration=15)
-    sweep.run_sweep(grid, tmp_path / 'out', workers=1, progress=False, log=lambda *a, **k: None)
+def test_verify_reruns_cells_exactly_and_vehicle_level(tmp_path):
+    grid = _grid(tmp_path, GRID.replace('[baseline, ceco]', '[ceco-ioch]') + 'vehicle: true\n', duration=40)
+    res = sweep.run_sweep(grid, tmp_path / 'out', workers=1, progress=False, log=lambda *a, **k: None)
+    # Vehicle level per group: each strategy's mean A/C power over the group's cycle.
+    assert len(res['vehicle']) == 2 * 2                                 # climates x vehicles
+    p = {r['climate']: r['P_mean_w'] for r in res['rows']}
+    assert all(v['p_ac_mean_w'] == p[v['climate']] for v in res['vehicle'])
+    assert all(0.02 < v['distance_km'] < 0.1 for v in res['vehicle'])   # SC03 creeps from 19 s on
+    assert len((tmp_path / 'out' / 'vehicle.csv').read_text().splitlines()) == 5
     checks = sweep.verify_cells(tmp_path / 'out', 5, grid)
     assert len(checks) == 2 and all(c['equal'] for c in checks), checks
     # A table value that differs from the rerun is reported.

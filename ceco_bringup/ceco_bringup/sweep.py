@@ -30,8 +30,10 @@ Outputs in ``DIR``: ``cells.jsonl`` (the log), ``results.csv`` (the tidy table:
 one row per cell, its axes and every metric; also ``results.parquet`` when
 pyarrow or polars is installed), ``summary.md`` and ``summary.csv`` (per scenario,
 climate, preview and occupant: each strategy's mean over seeds and its change
-against the baseline), ``grid.json`` (the resolved cells), and with
-``save_runs: true`` in the grid one run directory per cell under ``DIR/runs/``.
+against the baseline), ``grid.json`` (the resolved cells), with
+``save_runs: true`` in the grid one run directory per cell under ``DIR/runs/``,
+and with ``vehicle: true`` ``vehicle.csv`` (FASTSim vehicle-level energy of
+each group's strategies; the FASTSim extra).
 """
 
 from __future__ import annotations
@@ -56,7 +58,8 @@ import numpy as np
 import yaml
 
 __all__ = ['GridError', 'Cell', 'load_grid', 'expand_grid', 'scenario_dict', 'cell_id', 'run_cell',
-           'read_done', 'run_sweep', 'summarize', 'verify_cells', 'main', 'AXES', 'METRIC_COLUMNS']
+           'read_done', 'run_sweep', 'summarize', 'vehicle_rows', 'verify_cells', 'main', 'AXES',
+           'METRIC_COLUMNS']
 
 
 class GridError(ValueError):
@@ -76,7 +79,7 @@ TIMING_COLUMNS = ('solve_time_median_ms', 'solve_time_max_ms')
 """Metric columns that are wall-clock measurements (not reproducible)."""
 
 _GRID_KEYS = {'name', 'description', 'strategies', 'scenarios', 'drive_cycles', 'climates', 'previews',
-              'occupants', 'seeds', 'duration_s', 'save_runs', 'control_period_s', 'horizon_steps'}
+              'occupants', 'seeds', 'duration_s', 'save_runs', 'control_period_s', 'horizon_steps', 'vehicle'}
 _CLIMATE_KEYS = {'t_amb_c', 'solar_wm2', 'rh', 'initial', 'comfort_bounds'}
 
 
@@ -494,7 +497,44 @@ def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]
     return out
 
 
-def _summary_markdown(summary: Sequence[Mapping], timing: Mapping, grid_name: str) -> str:
+_GROUP_AXES = ('scenario', 'drive_cycle', 'climate', 'preview', 'occupant')
+
+
+def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) -> list[dict]:
+    """Vehicle-level energy (FASTSim, :mod:`ceco_bringup.vehicle_energy`) of
+    every group (scenario, cycle, climate, preview, occupant) whose cells
+    are done: each strategy's A/C load is its mean ``P_mean_w`` over seeds,
+    over the group's drive cycle and run length. One row per group, vehicle
+    and strategy, with the group's axes."""
+    from ceco_bringup import vehicle_energy as ve  # noqa: PLC0415
+    from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
+
+    settings = settings or ve.VehicleEnergySettings()
+    spec_of = {c.id: c.spec for c in cells}
+    groups: dict = {}
+    for r in rows:
+        if r.get('status') == 'ok' and r['cell_id'] in spec_of:
+            groups.setdefault(tuple(r[a] for a in _GROUP_AXES), []).append(r)
+    out = []
+    for g, rs in groups.items():
+        p_mean: dict = {}
+        for r in rs:
+            p_mean.setdefault(r['strategy'], []).append(float(r['P_mean_w']))
+        spec = spec_of[rs[0]['cell_id']]
+        sc = scenario_from_dict(spec['scenario'])
+        duration_s = float(rs[0]['duration_s'])
+        t = np.arange(0.0, math.floor(duration_s) + 1.0)
+        v = np.asarray(sc.speed_mps(t), dtype=float)
+        from ceco_bringup.figures import ordered  # noqa: PLC0415
+
+        loads = {s: float(np.mean(p_mean[s])) for s in ordered(list(p_mean))}
+        for vr in ve.vehicle_energy_table(loads, t, v, settings):
+            out.append({**dict(zip(_GROUP_AXES, g)), **vr})
+    return out
+
+
+def _summary_markdown(summary: Sequence[Mapping], timing: Mapping, grid_name: str,
+                      vehicle: Sequence[Mapping] = ()) -> str:
     lines = [f'# Sweep summary: {grid_name}', '',
              f"{timing['cells']} cells ({timing['ran']} run now, {timing['skipped']} already done, "
              f"{timing['failed']} failed) with backend `{timing['backend']}` on {timing['workers']} worker(s). "
@@ -525,6 +565,16 @@ def _summary_markdown(summary: Sequence[Mapping], timing: Mapping, grid_name: st
                          f"{f(r['dE_tot_kWh_pct'], '+.1f')} | {f(r['I_pmv_mean'], '.1f')} | "
                          f"{f(r['dI_pmv_pct'], '+.1f')} | {f(r['otc_violation_pct_mean'], '.2f')} | "
                          f"{f(r['time_to_comfort_s_mean'], '.0f')} |")
+    if vehicle:
+        lines += ['', '## Vehicle level (FASTSim 3.1, load-averaged line; see docs/analysis.md)', '',
+                  '| scenario | cycle | climate | preview | occupant | vehicle | strategy | P_A/C [W] | '
+                  'Δ vehicle energy [%] | noise 1σ [%] | paper [%] | range lost [km] |',
+                  '|---|---|---|---|---|---|---|---|---|---|---|---|']
+        for r in vehicle:
+            lines.append(f"| {' | '.join(str(r[a]) for a in _GROUP_AXES)} | {r['vehicle']} | {r['strategy']} | "
+                         f"{f(r['p_ac_mean_w'], '.0f')} | {f(r['saving_fit_pct'], '+.2f')} | "
+                         f"{f(r['noise_pct'], '.2f')} | {f(r['paper_saving_pct'], '+.1f')} | "
+                         f"{f(r['range_lost_km'], '.1f')} |")
     return '\n'.join(lines) + '\n'
 
 
@@ -602,10 +652,17 @@ def run_sweep(grid_path: str | os.PathLike, out_dir: str | os.PathLike, *, backe
               'sim_mean_s': float(np.mean(sim_times)) if sim_times else float('nan'),
               'sim_median_s': float(np.median(sim_times)) if sim_times else float('nan'),
               'cells_per_hour': 3600.0 * len(new_rows) / wall_s if new_rows and wall_s > 0 else float('nan')}
-    (out / 'summary.md').write_text(_summary_markdown(summary, timing, str(grid.get('name', grid_path))),
+    vrows: list = []
+    if grid.get('vehicle'):
+        vrows = vehicle_rows(rows, cells)
+        v_cols: list = []
+        for r in vrows:
+            v_cols += [k for k in r if k not in v_cols]
+        _write_table(out / 'vehicle.csv', vrows, v_cols)
+    (out / 'summary.md').write_text(_summary_markdown(summary, timing, str(grid.get('name', grid_path)), vrows),
                                     encoding='utf-8')
     (out / 'timing.json').write_text(json.dumps(timing, indent=1) + '\n', encoding='utf-8')
-    return {'rows': rows, 'summary': summary, 'timing': timing, 'failed': failed,
+    return {'rows': rows, 'summary': summary, 'timing': timing, 'failed': failed, 'vehicle': vrows,
             'paths': {'log': log_path, 'csv': out / 'results.csv',
                       'parquet': out / 'results.parquet' if parquet else None,
                       'summary_md': out / 'summary.md', 'summary_csv': out / 'summary.csv'}}
