@@ -279,8 +279,9 @@ class PlantNode(Node):
         if self.finished:
             return
         if not self.started:
-            self.started = True
-            self._publish_state()
+            if self._ready():
+                self.started = True
+                self._publish_state()
             return
         if self.n % self.m == 0:
             now = self.get_clock().now().nanoseconds * 1e-9
