@@ -476,7 +476,7 @@ def build_report(run_dirs: Sequence[str | Path], out_dir: str | Path, *, vehicle
                            _f(r['l_per_100km'], 2) if r['powertrain'] != 'BEV' else _f(r['kwh_per_100km'], 2),
                            _f(r['range_km'], 0), _f(r['range_lost_km'], 1), _f(r['range_lost_pct'], 1)))
             blocks.append(Table(('vehicle', 'strategy', 'P_A/C mean [W]', 'E_veh fit [MJ]', 'E_veh direct [MJ]',
-                                 'Δ fit', 'Δ direct', 'Δ paper', 'noise (1σ)', 'A/C share [%]',
+                                 'Δ fit', 'Δ direct', 'Δ paper (SC03)', 'noise (1σ)', 'A/C share [%]',
                                  'L/100 km | kWh/100 km', 'range [km]', 'range lost [km]', 'range lost [%]'),
                                 vt, caption='Vehicle energy per strategy (fuel for the hybrid, battery energy '
                                             'for the electric car).'))

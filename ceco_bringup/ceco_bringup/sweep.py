@@ -568,7 +568,7 @@ def _summary_markdown(summary: Sequence[Mapping], timing: Mapping, grid_name: st
     if vehicle:
         lines += ['', '## Vehicle level (FASTSim 3.1, load-averaged line; see docs/analysis.md)', '',
                   '| scenario | cycle | climate | preview | occupant | vehicle | strategy | P_A/C [W] | '
-                  'Δ vehicle energy [%] | noise 1σ [%] | paper [%] | range lost [km] |',
+                  'Δ vehicle energy [%] | noise 1σ [%] | paper, SC03 [%] | range lost [km] |',
                   '|---|---|---|---|---|---|---|---|---|---|---|---|']
         for r in vehicle:
             lines.append(f"| {' | '.join(str(r[a]) for a in _GROUP_AXES)} | {r['vehicle']} | {r['strategy']} | "
