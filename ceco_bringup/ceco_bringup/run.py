@@ -30,6 +30,8 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
+
 STRATEGIES = ('baseline', 'ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
 
 
@@ -285,9 +287,19 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
         'ros_domain_id': domain, 'bag_message_counts': counts,
         'fallback_steps': int(ts_data['fallback'].sum()),
     })
+    diag = bagio.load_diagnostics(bag_dir)
+    solve_ms = diag['solve_time_ms'][np.isfinite(diag['solve_time_ms'])]
+    metrics.update({
+        'n_control_steps': int(diag['k'].size),
+        'n_fallback_shifted': int(sum(r.startswith('shifted_plan') for r in diag['fallback_reason'])),
+        'n_fallback_baseline': int(sum(r.startswith('baseline') for r in diag['fallback_reason'])),
+        'solve_time_median_ms': float(np.median(solve_ms)) if solve_ms.size else None,
+        'solve_time_max_ms': float(np.max(solve_ms)) if solve_ms.size else None,
+    })
     bagio.write_timeseries_csv(run_dir / 'timeseries.csv', ts_data)
-    bagio.write_diagnostics_csv(run_dir / 'diagnostics.csv', bagio.load_diagnostics(bag_dir))
-    (run_dir / 'metrics.json').write_text(json.dumps(metrics, indent=2, sort_keys=True) + '\n')
+    bagio.write_diagnostics_csv(run_dir / 'diagnostics.csv', diag)
+    clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in metrics.items()}
+    (run_dir / 'metrics.json').write_text(json.dumps(clean, indent=2, sort_keys=True) + '\n')
     return metrics
 
 

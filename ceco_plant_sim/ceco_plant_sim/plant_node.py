@@ -283,11 +283,13 @@ class PlantNode(Node):
                 self.started = True
                 self._publish_state()
             return
-        if self.n % self.m == 0:
-            now = self.get_clock().now().nanoseconds * 1e-9
-            limit = self.config.command_timeout_periods * self.config.control_period_s
-            latest = self._latest_cmd
-            if latest is not None and now - latest[2] <= limit:
+        now = self.get_clock().now().nanoseconds * 1e-9
+        limit = self.config.command_timeout_periods * self.config.control_period_s
+        latest = self._latest_cmd
+        fresh = latest is not None and now - latest[2] <= limit
+        # a new command is taken at control steps; a stale one is dropped at once
+        if self.n % self.m == 0 or (not fresh and not self.in_fallback):
+            if fresh:
                 self._leave_fallback(self.n // self.m, latest[1])
                 self._rt_cmd, self._rt_fb = latest[0], False
             else:
