@@ -70,10 +70,7 @@ def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03"
                 if not diag.success:
                     n_fail += 1
                 # the reference solves the same instance from the cold model-rollout guess
-                saved = _ctrl._warm
-                _ctrl._warm = None
                 x0 = _ctrl.initial_guess(data.p)
-                _ctrl._warm = saved
                 ref = _ctrl.solve_nlp(NlpData(p=data.p, x0=x0), ref_solver)
                 ref_t.append(ref["time_ms"])
                 ref_it.append(ref["iterations"])

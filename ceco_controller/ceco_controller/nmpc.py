@@ -345,30 +345,50 @@ class NmpcController:
              obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c],
             ex["t_amb"], ex["solar"], ex["speed"], obs.pmv_lb, obs.pmv_ub])
 
-    def initial_guess(self, p: np.ndarray) -> np.ndarray:
-        """Primal guess: shifted previous solution, or the previous command held with the model rollout."""
-        if self._warm is not None:
-            return self._shift(self._warm[0])
+    def initial_guess(self, p: np.ndarray, w_prev: np.ndarray | None = None) -> np.ndarray:
+        """Primal guess, consistent with the dynamics and the comfort constraints at ``p``.
+
+        Inputs: the previous solution shifted by one stage if ``w_prev`` is given, else the
+        previous command held. States: rolled out by the model from the measured state (so the
+        guess closes every gap). Slacks: the smallest values that satisfy the comfort and T_evap
+        constraints at the guess (plus a small margin). ``eps`` (ioch): shifted, or eps_UB/2.
+        """
         n = self.settings.horizon_steps
-        w = np.zeros(self._nw)
-        u = np.array([np.clip(p[7], self.lim.mdot_bl_min_kgps, self.lim.mdot_bl_max_kgps),
-                      np.clip(p[8], self.lim.t_evap_sp_min_c, self.lim.t_evap_sp_max_c)])
+        if w_prev is not None:
+            w = self._shift(w_prev)
+        else:
+            w = np.zeros(self._nw)
+            u = np.array([np.clip(p[7], self.lim.mdot_bl_min_kgps, self.lim.mdot_bl_max_kgps),
+                          np.clip(p[8], self.lim.t_evap_sp_min_c, self.lim.t_evap_sp_max_c)])
+            for i in range(n):
+                w[self._idx["u"][i]:self._idx["u"][i] + 2] = u
+            if self.settings.ioch:
+                w[self._idx["eps"]] = 0.5 * self.settings.eps_ub
+        w = np.clip(w, self._lbw, self._ubw)
         x = p[0:2].copy()
         off = _N_P_FIXED
         u_last = p[7:9]
-        for i in range(n + 1):
-            if i >= 1:
-                j = self._idx["x"][i - 1]
-                w[j:j + 4] = np.concatenate([x, u_last])
+        for i in range(n):
+            u = w[self._idx["u"][i]:self._idx["u"][i] + 2]
+            tc, te, *_ = cm.step(self.model_params, x[0], x[1], u[0], u[1], p[2], p[3], p[off + i],
+                                 p[off + 2 * (n + 1) + i], n_sub=self.n_sub, d_cab_k=p[4] / self.n_sub,
+                                 d_ain_k=p[6], d_evap_k=p[5] / self.n_sub)
+            x = np.array([tc, te])
+            j = self._idx["x"][i]
+            w[j:j + 4] = np.concatenate([x, u])
             u_last = u
-            if i < n:
-                w[self._idx["u"][i]:self._idx["u"][i] + 2] = u
-                tc, te, *_ = cm.step(self.model_params, x[0], x[1], u[0], u[1], p[2], p[3], p[off + i],
-                                     p[off + 2 * (n + 1) + i], n_sub=self.n_sub, d_cab_k=p[4] / self.n_sub,
-                                     d_ain_k=p[6], d_evap_k=p[5] / self.n_sub)
-                x = np.array([tc, te])
-        if self.settings.ioch:
-            w[self._idx["eps"]] = 0.5 * self.settings.eps_ub
+        del u_last
+        ev = self.evaluate(w, p)
+        pmv = ev["pmv"]
+        lb = p[off + 3 * (n + 1): off + 4 * (n + 1)]
+        ub = p[off + 4 * (n + 1): off + 5 * (n + 1)] - self.settings.pmv_margin
+        eps = w[self._idx["eps"]] if self.settings.ioch else 0.0
+        margin = 1e-3
+        w[self._idx["s_lo"]] = np.maximum(lb - pmv, 0.0) + margin
+        w[self._idx["s_up"]] = np.maximum(pmv + eps - ub, 0.0) + margin
+        t_evap = np.array([w[j + 1] for j in self._idx["x"]])
+        w[self._idx["s_ev"]] = np.maximum(np.maximum(self.settings.t_evap_lb_c - t_evap,
+                                                     t_evap - self.settings.t_evap_ub_c), 0.0) + margin
         return np.clip(w, self._lbw, self._ubw)
 
     def _shift(self, vec: np.ndarray) -> np.ndarray:
@@ -443,7 +463,7 @@ class NmpcController:
         self._update_bias(obs)
         p = self.parameters(obs, ex)
         if s.solver.warm_start and self._warm is not None and not s.solver.default_options:
-            data = NlpData(p=p, x0=self._shift(self._warm[0]), lam_x0=self._shift(self._warm[1]),
+            data = NlpData(p=p, x0=self.initial_guess(p, self._warm[0]), lam_x0=self._shift(self._warm[1]),
                            lam_g0=self._shift_g(self._warm[2]))
         else:
             data = NlpData(p=p, x0=self.initial_guess(p))
