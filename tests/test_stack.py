@@ -126,6 +126,12 @@ def test_short_closed_loop_over_dds_matches_simulator(tmp_path):
         assert metrics[key] == pytest.approx(sim[key], rel=1e-6, abs=1e-12), key
     assert metrics['strategy'] == 'ceco-ioch' and metrics['scenario'] == 'sc03'
 
+    # the recorded drive fed to a fresh mpc_node (ceco play --compare) gives the same commands
+    p = _cli('play', str(bag), '--compare', '--domain-id', str(_domain()))
+    text, _ = p.communicate(timeout=300)
+    assert p.returncode == 0, text
+    assert '12/12 steps compared; max |d blower| 0.000e+00 kg/s, max |d set-point| 0.000e+00 K' in text
+
 
 # ----------------------------------------------------------------------------
 def _state_msg(k_plant: int, t_s: float, **override):
