@@ -32,7 +32,6 @@ from rclpy.node import Node
 from ceco_controller import msg_conv
 from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficPreview, WeatherPreview
 from ceco_v2x_preview import ros_common as rc
-from ceco_v2x_preview.scenario import load_scenario
 
 CECO_STRATEGIES = ('ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
 TIMING_MODES = ('lockstep', 'realtime')
@@ -73,7 +72,7 @@ class ControllerNode(Node):
         super().__init__(node_name)
         self.config = self._read_config(fixed_strategy)
         cfg = self.config
-        self.scenario = load_scenario(cfg.scenario)
+        self.scenario = rc.load_scenario_param(cfg.scenario)
         self.core = make_core(cfg.strategy, self.scenario, cfg.control_period_s, cfg.horizon_steps)
         self.n_grid = cfg.horizon_steps + 1
         self._states: dict[int, CabinState] = {}

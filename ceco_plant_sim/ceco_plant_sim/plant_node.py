@@ -40,7 +40,6 @@ from ceco_plant_sim.comfort import ComfortParams, cabin_pmv, iso7730_validity, p
 from ceco_plant_sim.plant import AcInput, CabinPlant, PlantState
 from ceco_plant_sim.plant_params import MDOT_BL_MAX_KGPS, T_EVAP_SP_MIN_C, PlantParams
 from ceco_v2x_preview import ros_common as rc
-from ceco_v2x_preview.scenario import load_scenario
 
 TIMING_MODES = ('lockstep', 'realtime')
 
@@ -85,7 +84,7 @@ class PlantNode(Node):
     def __init__(self):
         super().__init__('plant_node')
         cfg = self.config = self._read_config()
-        self.scenario = sc = load_scenario(cfg.scenario)
+        self.scenario = sc = rc.load_scenario_param(cfg.scenario)
         self.comfort = ComfortParams(met=sc.occupant.met, clo=sc.occupant.clo)
         pp = PlantParams()
         self.plant = CabinPlant(pp, PlantState.from_initial(dataclasses.asdict(sc.initial), pp, sc.env_at(0.0)))

@@ -24,7 +24,6 @@ from rclpy.node import Node
 from ceco_msgs.msg import CabinState, TrafficPreview, WeatherPreview
 from ceco_v2x_preview import ros_common as rc
 from ceco_v2x_preview.preview import Previews, PreviewQuality, make_previews
-from ceco_v2x_preview.scenario import load_scenario
 
 TIMING_MODES = ('lockstep', 'realtime')
 
@@ -85,7 +84,7 @@ class PreviewNode(Node):
     def __init__(self):
         super().__init__('preview_node')
         self.config = self._read_config()
-        self.scenario = load_scenario(self.config.scenario)
+        self.scenario = rc.load_scenario_param(self.config.scenario)
         self.quality_text = self.config.quality.describe()
         self._pub_w = self.create_publisher(WeatherPreview, rc.TOPIC_WEATHER, rc.QOS_PREVIEW)
         self._pub_s = self.create_publisher(TrafficPreview, rc.TOPIC_TRAFFIC, rc.QOS_PREVIEW)

@@ -138,6 +138,15 @@ def declare(node, name: str, default: Any, description: str, *,
     return value
 
 
+def load_scenario_param(name: str):
+    """load_scenario for a node's `scenario` parameter; errors name the parameter."""
+    from ceco_v2x_preview.scenario import load_scenario
+    try:
+        return load_scenario(name)
+    except (ValueError, OSError) as err:
+        raise ValueError(f'invalid parameter scenario={name!r}: {err}') from None
+
+
 def run_node(node_factory, argv=None, name: str = 'node') -> int:
     """The Jazzy main: init, construct, spin; on any stop path destroy the node
     and shut down. A ValueError while constructing (an invalid parameter) is
