@@ -114,7 +114,8 @@ class NodeProcess:
         log.write(f'--- start {self.starts + 1}: {" ".join(self.cmd)}\n'.encode())
         log.flush()
         self.proc = subprocess.Popen(self.cmd, env=self.env, stdout=log, stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL, start_new_session=True)
+                                     stdin=subprocess.DEVNULL, start_new_session=True,
+                                     preexec_fn=_die_with_parent)
         log.close()
         self.starts += 1
 
@@ -157,6 +158,16 @@ class NodeProcess:
             return self.log_path.read_text(errors='replace')
         except FileNotFoundError:
             return ''
+
+
+def _die_with_parent() -> None:
+    """In the child before exec: get SIGINT when the supervising process dies
+    (even by SIGKILL), so no node outlives `ceco run` (Linux prctl PR_SET_PDEATHSIG)."""
+    try:
+        import ctypes
+        ctypes.CDLL('libc.so.6', use_errno=True).prctl(1, int(signal.SIGINT), 0, 0, 0)
+    except OSError:
+        pass
 
 
 def _param_text(value) -> str:

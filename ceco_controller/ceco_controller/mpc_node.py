@@ -219,6 +219,12 @@ class ControllerNode(Node):
             if err:
                 self.get_logger().error(f'rejected previews for step {k}: {err}')
                 w = s = None
+        if w is not None and s is not None and self.config.timing == 'realtime':
+            aligned = msg_conv.align_previews(w, s, t_s, ts)
+            if aligned is None:
+                self.get_logger().warn(f'previews starting at {msg_conv.stamp_s(w.start):.1f} s do not cover '
+                                       f't = {t_s:.1f} s: solving without previews')
+            w, s = aligned if aligned is not None else (None, None)
         if w is None or s is None:
             w, s = _empty_previews(self.n_grid, ts)
         lb, ub = self.scenario.pmv_bounds(t_s + ts * np.arange(self.n_grid, dtype=float))

@@ -55,6 +55,34 @@ def check_previews(w: WeatherPreview, s: TrafficPreview, n_expected: int, step_s
     return None
 
 
+def align_previews(w: WeatherPreview, s: TrafficPreview, t_s: float, step_s: float):
+    """Previews re-gridded to start at t_s (real-time mode, where a preview may
+    be older than the state): shifted by the whole number of steps it is late,
+    the tail it does not cover marked invalid (NaN). Returns (w, s), or None
+    when the preview starts after t_s or does not reach it."""
+    lag = (t_s - stamp_s(w.start)) / step_s
+    j = int(round(lag))
+    n = len(w.valid)
+    if abs(lag - j) > 1e-6 and lag > 0:
+        j = int(math.floor(lag))
+    if j < 0 or j >= n:
+        return None
+    if j == 0:
+        return w, s
+
+    def shift(a, fill):
+        a = list(a)
+        return a[j:] + [fill] * j
+    w2 = WeatherPreview(header=w.header, start=w.start, step_s=w.step_s, step_index=w.step_index,
+                        t_amb_c=shift(w.t_amb_c, math.nan), solar_wm2=shift(w.solar_wm2, math.nan),
+                        rh=shift(w.rh, math.nan), valid=shift(w.valid, False), age_s=w.age_s + j * step_s,
+                        quality=w.quality)
+    s2 = TrafficPreview(header=s.header, start=s.start, step_s=s.step_s, step_index=s.step_index,
+                        speed_mps=shift(s.speed_mps, math.nan), valid=shift(s.valid, False),
+                        age_s=s.age_s + j * step_s, quality=s.quality)
+    return w2, s2
+
+
 def observation(k: int, t_s: float, state: CabinState, w: WeatherPreview, s: TrafficPreview,
                 pmv_lb, pmv_ub, met: float, clo: float,
                 mdot_bl_prev_kgps: float, t_evap_sp_prev_c: float) -> Observation:
