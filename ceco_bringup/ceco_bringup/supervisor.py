@@ -16,13 +16,24 @@ import tempfile
 import time
 from pathlib import Path
 
-# Fast DDS participant profile: a short lease announcement so late joiners
-# (a restarted controller) are discovered in ~0.3 s instead of ~3 s, and a
-# short lease so a killed participant's endpoints disappear within ~2 s.
+# Fast DDS participant profile: UDPv4 only (no shared-memory segments that a
+# killed process would leave in /dev/shm), a short lease announcement so late
+# joiners (a restarted controller) are discovered in ~0.3 s instead of ~3 s,
+# and a short lease so a killed participant's endpoints disappear within ~2 s.
 FASTDDS_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
 <profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <transport_descriptors>
+    <transport_descriptor>
+      <transport_id>ceco_udp</transport_id>
+      <type>UDPv4</type>
+    </transport_descriptor>
+  </transport_descriptors>
   <participant profile_name="ceco_fast_discovery" is_default_profile="true">
     <rtps>
+      <userTransports>
+        <transport_id>ceco_udp</transport_id>
+      </userTransports>
+      <useBuiltinTransports>false</useBuiltinTransports>
       <builtin>
         <discovery_config>
           <leaseDuration><sec>2</sec><nanosec>0</nanosec></leaseDuration>
