@@ -131,8 +131,11 @@ def _params(args, scenario, quality, strategy, duration_s, n_steps_ctrl):
     ts = args.control_period_s or scenario.control.control_period_s
     np_ = args.horizon_steps or scenario.control.horizon_steps
     common = {'scenario': args.scenario, 'timing': args.timing, 'control_period_s': float(ts)}
+    # Lockstep: the plant drives /clock; the other nodes follow it (their decisions
+    # use the simulation-time stamps the messages carry, never a wall clock).
+    sim_time = {'use_sim_time': True} if args.timing == 'lockstep' else {}
     spans = [x for span in quality.missing_spans_s for x in span] or [0.0]
-    preview = dict(common, horizon_steps=int(np_), **{
+    preview = dict(common, horizon_steps=int(np_), **sim_time, **{
         'faults.noise_std_t_amb_c': float(quality.noise_std_t_amb_c),
         'faults.noise_std_solar_wm2': float(quality.noise_std_solar_wm2),
         'faults.noise_std_speed_mps': float(quality.noise_std_speed_mps),
@@ -142,7 +145,7 @@ def _params(args, scenario, quality, strategy, duration_s, n_steps_ctrl):
         'faults.missing_spans_s': [float(x) for x in spans],
         'faults.missing_policy': quality.missing_policy,
         'faults.seed': -1 if quality.seed is None else int(quality.seed)})
-    controller = dict(common, horizon_steps=int(np_))
+    controller = dict(common, horizon_steps=int(np_), **sim_time)
     if strategy != 'baseline':
         controller['strategy'] = strategy
     plant = dict(common, duration_s=float(duration_s), **{
