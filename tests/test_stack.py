@@ -356,3 +356,30 @@ def test_sigint_to_ceco_run_leaves_complete_bag(tmp_path):
     assert len(states) >= 3 and states == list(range(len(states)))
     for log in (out / 'logs').glob('*.log'):      # every child went through its shutdown path
         assert 'Traceback' not in log.read_text(), log
+
+
+# ----------------------------------------------------------------------------
+def test_preview_faults_over_dds_match_simulator(tmp_path):
+    """Noise, delay and a dropout span set as preview_node parameters: the bag's
+    previews carry them (invalid before the first delayed forecast, stale ages
+    in the span) and the closed loop still equals the simulator's."""
+    quality = 'noisy:solar=80,speed=2,seed=3+delayed:10+missing:20-40'
+    out = tmp_path / 'run'
+    p = _cli('run', '--scenario', 'sc03', '--strategy', 'ceco-ioch', '--duration-s', '60', '--preview', quality,
+             '--out', str(out), '--no-progress', '--domain-id', str(_domain()))
+    text, _ = p.communicate(timeout=300)
+    assert p.returncode == 0, text
+    prev = {m.step_index: m for _, _, m in bagio.read_messages(out / 'bag', ('v2x/weather_preview',))}
+    assert sorted(prev) == list(range(12))
+    assert not any(prev[0].valid) and not any(prev[1].valid)          # nothing issued before t = 10 s
+    assert prev[2].age_s == 10.0 and list(prev[2].valid) == [True] * 5 + [False] * 2
+    assert [prev[k].age_s for k in (4, 5, 6, 7)] == [10.0, 15.0, 20.0, 25.0]   # held during 20-40 s
+    assert '+delayed:10+missing:20-40' in prev[3].quality
+
+    from ceco_controller.closed_loop import SimSettings, simulate
+    from ceco_v2x_preview.preview import parse_quality
+    sim = simulate('sc03', 'ceco-ioch', SimSettings(duration_s=60.0, preview_quality=parse_quality(quality),
+                                                     progress=False)).metrics
+    metrics = json.loads((out / 'metrics.json').read_text())
+    for key in ('E_tot_J', 'I_pmv', 'otc_violation_pct'):
+        assert metrics[key] == pytest.approx(sim[key], rel=1e-6, abs=1e-12), key
