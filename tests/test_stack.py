@@ -16,7 +16,6 @@ import subprocess
 import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -52,7 +51,9 @@ class DdsPeer:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.signals import SignalHandlerOptions
         env = supervisor.dds_env(domain)
-        for key in ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'FASTDDS_BUILTIN_TRANSPORTS', 'FASTRTPS_DEFAULT_PROFILES_FILE'):
+        keys = ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'FASTDDS_BUILTIN_TRANSPORTS', 'FASTRTPS_DEFAULT_PROFILES_FILE')
+        self._saved_env = {key: os.environ.get(key) for key in keys}
+        for key in keys:   # read by the rmw when this process's participant is created
             os.environ[key] = env[key]
         self.env = env
         self.context = rclpy.Context()
@@ -80,6 +81,11 @@ class DdsPeer:
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
+        for key, value in self._saved_env.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
 
 
 def _proc(name, pkg, exe, env, log_dir, params):

@@ -127,7 +127,7 @@ def print_summary(m: dict, run_dir: Path) -> None:
           f"{m['loop_wall_time_s']:.1f} s ({m['realtime_factor']:.0f}x real time) -> {run_dir}", flush=True)
 
 
-def _params(args, scenario, quality, strategy, duration_s, n_steps_ctrl):
+def _params(args, scenario, quality, strategy, duration_s):
     ts = args.control_period_s or scenario.control.control_period_s
     np_ = args.horizon_steps or scenario.control.horizon_steps
     common = {'scenario': args.scenario, 'timing': args.timing, 'control_period_s': float(ts)}
@@ -164,12 +164,11 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
 
     from ceco_bringup import bagio, supervisor
     from ceco_bringup.recorder import Recorder
-    from ceco_v2x_preview import ros_common as rc
 
     dt_s = 1.0
     duration_s = min(args.duration_s or scenario.duration_s, scenario.duration_s)
     n_plant = int(math.floor(duration_s / dt_s + 1e-9))
-    ts, np_, p_prev, p_ctrl, p_plant = _params(args, scenario, quality, strategy, duration_s, None)
+    ts, np_, p_prev, p_ctrl, p_plant = _params(args, scenario, quality, strategy, duration_s)
 
     run_dir.mkdir(parents=True, exist_ok=True)
     bag_dir = run_dir / 'bag'
