@@ -164,3 +164,16 @@ def test_verify_reruns_cells_exactly_and_vehicle_level(tmp_path):
     checks = sweep.verify_cells(tmp_path / 'out', 5, grid)
     assert sorted(c['equal'] for c in checks) == [False, True]
     assert list(next(c for c in checks if not c['equal'])['differences']) == ['E_tot_J']
+
+
+def test_code_fingerprint_is_part_of_the_id(tmp_path, monkeypatch):
+    grid = sweep.load_grid(_grid(tmp_path))
+    cells = sweep.expand_grid(grid)
+    assert all(c.spec['code'] == sweep.code_fingerprint() for c in cells)
+    monkeypatch.setattr(sweep, 'code_fingerprint', lambda: '0' * 16)
+    other = sweep.expand_grid(grid)
+    assert not {c.id for c in other} & {c.id for c in cells}       # changed simulator: every cell reruns
+    monkeypatch.undo()
+    # A worker whose code differs from the driver's refuses to produce a result.
+    row = sweep.run_cell({'id': other[0].id, 'axes': other[0].axes, 'spec': other[0].spec})
+    assert row['status'] == 'error' and 'differs from the sweep' in row['error']

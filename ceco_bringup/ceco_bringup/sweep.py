@@ -20,8 +20,9 @@ and every combination (a *cell*) is one closed-loop run
 
 Resumable: every cell has a deterministic id, the SHA-256 of its full
 description (the scenario after the overrides, the strategy, the preview
-quality, the seed, the run length), so a cell whose definition did not
-change keeps its id. Each finished cell is appended to ``DIR/cells.jsonl``
+quality, the seed, the run length, and a fingerprint of the simulator's code
+and configuration), so a cell whose definition and code did not change
+keeps its id, and a changed simulator reruns it. Each finished cell is appended to ``DIR/cells.jsonl``
 as one line written with a single ``write`` on an ``O_APPEND`` descriptor and
 ``fsync``-ed; on start, cells already in it with status ``ok`` are not run
 again (failed cells are retried; a torn last line from a crash is ignored).
@@ -57,7 +58,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 import yaml
 
-__all__ = ['GridError', 'Cell', 'load_grid', 'expand_grid', 'scenario_dict', 'cell_id', 'run_cell',
+__all__ = ['GridError', 'Cell', 'load_grid', 'expand_grid', 'scenario_dict', 'cell_id', 'code_fingerprint', 'run_cell',
            'read_done', 'run_sweep', 'summarize', 'vehicle_rows', 'verify_cells', 'main', 'AXES',
            'METRIC_COLUMNS']
 
@@ -92,7 +93,8 @@ class Cell:
     axes: dict
     """Axis labels: scenario, drive_cycle, climate, preview, occupant, seed, strategy."""
     spec: dict
-    """What the worker needs: ``scenario`` (a scenario mapping for
+    """What the worker needs: ``code`` (:func:`code_fingerprint` of the
+    driver), ``scenario`` (a scenario mapping for
     ``scenario_from_dict``), ``strategy``, ``preview`` (quality string),
     ``seed``, ``duration_s`` (None: the scenario's), ``control_period_s``,
     ``horizon_steps`` (None: the scenario's)."""
@@ -190,6 +192,36 @@ def _apply_climate(d: dict, label: str, climate) -> None:
         d['comfort_bounds'] = dict(climate['comfort_bounds'])
 
 
+_CODE_PACKAGES = ('ceco_v2x_preview', 'ceco_plant_sim', 'ceco_controller')
+_CODE_SUFFIXES = ('.py', '.yaml', '.yml', '.csv', '.json')
+
+
+def code_fingerprint() -> str:
+    """SHA-256 (16 hex digits) of the simulator's code and configuration as
+    importable here: every ``.py/.yaml/.csv/.json`` file of the scenario,
+    plant and controller packages, their ``config/`` directories and the
+    identified model parameter file. Part of every cell's id, so a changed
+    simulator reruns the cells instead of mixing results of two versions."""
+    h = hashlib.sha256()
+    files: list = []
+    for name in _CODE_PACKAGES:
+        mod = __import__(name)
+        pkg = Path(mod.__file__).resolve().parent
+        for root in (pkg, pkg.parent / 'config'):
+            if root.is_dir():
+                files += [(f'{name}/{root.name}/{p.relative_to(root)}', p) for p in root.rglob('*')
+                          if p.suffix in _CODE_SUFFIXES and p.is_file() and '__pycache__' not in p.parts]
+    try:
+        from ceco_controller.model import default_params_path  # noqa: PLC0415
+
+        files.append(('model_params', default_params_path()))
+    except (ImportError, FileNotFoundError):
+        pass
+    for rel, path in sorted(files, key=lambda x: x[0]):
+        h.update(rel.encode('utf-8') + b'\0' + Path(path).read_bytes() + b'\0')
+    return h.hexdigest()[:16]
+
+
 def _canonical(obj) -> str:
     return json.dumps(obj, sort_keys=True, separators=(',', ':'), allow_nan=True)
 
@@ -242,6 +274,7 @@ def expand_grid(grid: Mapping) -> list[Cell]:
             parse_quality(q)
         except ValueError as exc:
             raise GridError(f'previews.{label}: {exc}') from None
+    code = code_fingerprint()
     cells = []
     for (sl, sv), (cl, cv), (kl, kv), (pl, pv), (ol, ov), seed in itertools.product(
             scenarios.items(), cycles.items(), climates.items(), previews.items(), occupants.items(), seeds):
@@ -273,7 +306,7 @@ def expand_grid(grid: Mapping) -> list[Cell]:
         except ValueError as exc:
             raise GridError(f'cell {sl}/{cl}/{kl}/{ol}: {exc}') from None
         for strategy in strategies:
-            spec = {'scenario': d, 'strategy': strategy, 'preview': pv, 'seed': seed,
+            spec = {'code': code, 'scenario': d, 'strategy': strategy, 'preview': pv, 'seed': seed,
                     'duration_s': None if duration is None else float(duration),
                     'control_period_s': grid.get('control_period_s'), 'horizon_steps': grid.get('horizon_steps')}
             axes = {'scenario': sl, 'drive_cycle': cl, 'climate': kl, 'preview': pl, 'occupant': ol,
@@ -300,6 +333,8 @@ def _settings_from_spec(spec: Mapping):
 def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
     """Run one cell in this process and return its results row: the cell id,
     axes, every metric, ``status`` ('ok' or 'error'), ``error``,
+    ``code`` (this process's :func:`code_fingerprint`; a cell whose
+    fingerprint differs from the driver's is an error, not a result),
     ``sim_time_s`` (scenario build + simulation), ``wall_time_s`` (also the
     first imports in a fresh worker), ``host``, ``pid``. Never raises for a failing run (the
     error is in the row). ``cell`` is :class:`Cell` as a dict."""
@@ -310,6 +345,11 @@ def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
         from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
 
         spec = cell['spec']
+        row['code'] = code_fingerprint()
+        if spec.get('code') and row['code'] != spec['code']:
+            raise RuntimeError(f"the simulator's code here ({row['code']}) differs from the sweep's "
+                               f"({spec['code']}): code changed during the sweep, or a Ray node runs another "
+                               'version; rerun the sweep')
         t_sim = time.perf_counter()
         scenario = scenario_from_dict(spec['scenario'])
         result = simulate(scenario, spec['strategy'], _settings_from_spec(spec))
@@ -632,7 +672,7 @@ def run_sweep(grid_path: str | os.PathLike, out_dir: str | os.PathLike, *, backe
     done = read_done(log_path)
     rows = [done[c.id] for c in cells if c.id in done]
     failed = [r for r in new_rows if r['status'] != 'ok']
-    columns = ['cell_id', *AXES, *METRIC_COLUMNS, 'scenario_name', 'preview_quality', 'status', 'error',
+    columns = ['cell_id', *AXES, *METRIC_COLUMNS, 'scenario_name', 'preview_quality', 'code', 'status', 'error',
                'sim_time_s', 'wall_time_s', 'host', 'pid']
     _write_table(out / 'results.csv', rows, columns)
     parquet = _write_parquet(out / 'results.parquet', rows, columns)
