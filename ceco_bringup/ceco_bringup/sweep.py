@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures as cf
+import contextlib
 import csv
 import dataclasses
 import hashlib
@@ -422,13 +423,33 @@ def _pythonpath() -> str:
     return os.pathsep.join(dict.fromkeys(dirs + ([extra] if extra else [])))
 
 
+WORKER_THREAD_ENV = {'OMP_NUM_THREADS': '1', 'OPENBLAS_NUM_THREADS': '1', 'MKL_NUM_THREADS': '1'}
+"""Environment of parallel workers: one BLAS/OpenMP thread each. The solver
+(IPOPT/MUMPS) and numpy otherwise start a thread per core in every worker;
+two workers on two cores then ran a cell 2-3x slower than one worker alone
+(measured: docs/analysis.md). A value the user set is kept."""
+
+
+@contextlib.contextmanager
+def _worker_env():
+    """Set :data:`WORKER_THREAD_ENV` (where unset) while workers start:
+    spawned processes copy the environment at start."""
+    added = {k: v for k, v in WORKER_THREAD_ENV.items() if k not in os.environ}
+    os.environ.update(added)
+    try:
+        yield {k: os.environ[k] for k in WORKER_THREAD_ENV}
+    finally:
+        for k in added:
+            os.environ.pop(k, None)
+
+
 def _run_local(cells: Sequence[dict], workers: int, runs_dir, on_done: Callable) -> None:
     if workers == 1:
         for c in cells:
             on_done(run_cell(c, runs_dir))
         return
     ctx = multiprocessing.get_context('spawn')
-    with cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+    with _worker_env(), cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
         futures = [pool.submit(run_cell, c, runs_dir) for c in cells]
         try:
             for fut in cf.as_completed(futures):
@@ -445,7 +466,8 @@ def _run_ray(cells: Sequence[dict], workers: int, address: str | None, runs_dir,
     except ImportError as exc:
         raise RuntimeError('--backend ray needs the optional Ray extra: '
                            'pip install -r requirements/analysis.txt (ray==2.60.0)') from exc
-    runtime_env = {'env_vars': {'PYTHONPATH': _pythonpath()}}
+    with _worker_env() as thread_env:
+        runtime_env = {'env_vars': {'PYTHONPATH': _pythonpath(), **thread_env}}
     started = False
     if not ray.is_initialized():
         if address:
