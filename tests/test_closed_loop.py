@@ -35,7 +35,15 @@ def test_run_directory_format_and_determinism(tmp_path):
         header = next(csv.reader(fh))
     assert tuple(header[:20]) == cl.TIMESERIES_COLUMNS[:20]
     with open(d / "diagnostics.csv") as fh:
-        assert tuple(next(csv.reader(fh))) == DIAGNOSTICS_COLUMNS
+        rows = list(csv.reader(fh))
+    assert tuple(rows[0]) == DIAGNOSTICS_COLUMNS + ("pmv_pred", "t_cab_pred_c")
+    # predicted PMV and T_cab over the grid points 0..Np of every successful solve
+    for row in rows[1:]:
+        r = dict(zip(rows[0], row))
+        if r["success"] == "True":
+            pmv = [float(v) for v in r["pmv_pred"].split(";")]
+            tcab = [float(v) for v in r["t_cab_pred_c"].split(";")]
+            assert len(pmv) == len(tcab) == 7 and 20.0 < tcab[0] < 70.0 and abs(float(r["pmv_pred_1"]) - pmv[1]) < 1e-4
     m = json.loads((d / "metrics.json").read_text())
     for key in ("E_tot_J", "I_pmv", "otc_violation_pct", "scenario", "strategy", "control_period_s",
                 "horizon_steps", "seed", "preview_quality"):
@@ -53,15 +61,19 @@ def test_missing_preview_span_does_not_crash(strategy):
 
 
 def test_ceco_inside_pmv_bounds_after_pulldown():
-    """ceco keeps PMV inside the comfort zone once the pull-down relaxation ends (tolerance 0.05 PMV).
+    """SC03: ceco keeps the plant's PMV inside the bounds from t = 300 s on (tolerance 0.02 PMV).
 
-    Run on sc03_mild: with the current plant the SC03 comfort zone is not reachable
-    by any controller within 600 s (max cooling still has PMV > 0.5 at the end;
-    docs/results.md), so the claim is tested where the zone is reachable.
+    SC03 starts after the regulation's 10-minute soak; the scenario's upper bound
+    relaxes the pull-down (3.0 at 60 s, linearly to +0.5 at 300 s), so from 300 s
+    on the bounds are the comfort zone [-0.5, +0.5]. Tolerance 0.02 PMV: the
+    plant/model mismatch the robust back-off (0.1 PMV) has to absorb, with a
+    margin; measured worst case: 0.087 PMV *below* the upper bound.
     """
-    res = cl.simulate("sc03_mild", "ceco", cl.SimSettings(progress=False))
+    res = cl.simulate("sc03", "ceco", cl.SimSettings(progress=False))
     ts = res.timeseries
-    after = ts["t_s"] >= 240.0
-    assert np.all(ts["pmv"][after] <= ts["pmv_ub"][after] + 0.05)
-    assert np.all(ts["pmv"][after] >= ts["pmv_lb"][after] - 0.05)
+    after = ts["t_s"] >= 300.0
+    assert after.sum() > 250
+    assert np.all(ts["pmv"][after] <= ts["pmv_ub"][after] + 0.02)
+    assert np.all(ts["pmv"][after] >= ts["pmv_lb"][after] - 0.02)
+    assert np.max(ts["pmv_ub"][after]) <= 0.5 + 1e-9  # the bound really is the comfort zone there
     assert res.metrics["n_fallback_baseline"] == 0

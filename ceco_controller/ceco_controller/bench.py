@@ -15,7 +15,11 @@ Last line: one JSON object.
 This is a benchmark, not a test: wall-clock times depend on the machine and
 its load (2 shared cores here); nothing in the controller uses them.
 
-    python -m ceco_controller.bench nmpc [--quick] [--jit] [--horizons 6,12] [--strategies ceco,ceco-c]
+    python -m ceco_controller.bench nmpc [--quick] [--jit | --no-codegen] [--horizons 6,12] [--strategies ceco,ceco-c]
+
+The product solver runs with ``codegen`` (compiled NLP functions from the on-disk
+cache; the first run compiles each NLP once). The reference always uses the
+in-process functions, as MPCTools did.
 """
 
 from __future__ import annotations
@@ -44,16 +48,15 @@ def _stats(x):
     return {"median": float(np.median(x)), "p95": float(np.percentile(x, 95)), "max": float(np.max(x))}
 
 
-def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03", progress=False) -> list[dict]:
+def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03", progress=False,
+               codegen=True) -> list[dict]:
     """Run the benchmark; return one dict per (strategy, horizon)."""
     sc = load_scenario(scenario)
     mp = cm.load_params()
     rows = []
     for np_ in horizons:
         for strat in strategies:
-            overrides = {}
-            if jit:
-                overrides["solver"] = SolverSettings(jit=True)
+            overrides = {"solver": SolverSettings(jit=jit, codegen=codegen and not jit)}
             ctrl = cl.make_controller(strat, sc, sc.control.control_period_s, np_, mp, overrides)
             ref_solver = ctrl.make_solver(SolverSettings(default_options=True))
             ours_t, ref_t, diffs, sdiffs, ours_it, ref_it = [], [], [], [], [], []
@@ -112,6 +115,8 @@ def main(argv=None) -> int:
     ap.add_argument("what", choices=["nmpc"], help="benchmark to run")
     ap.add_argument("--quick", action="store_true", help="Np 6 and 12 only, first 200 s of SC03")
     ap.add_argument("--jit", action="store_true", help="compile the NLP functions with gcc (slow to build)")
+    ap.add_argument("--no-codegen", action="store_true",
+                    help="in-process NLP functions (default: compiled, cached, as solver.codegen: true)")
     ap.add_argument("--horizons", default=None, help="comma-separated horizons (default 6,12,24,60)")
     ap.add_argument("--strategies", default=None, help=f"comma-separated subset of {','.join(CECO_STRATEGIES)}")
     ap.add_argument("--duration", type=float, default=None, help="run length [s] (default: whole SC03)")
@@ -121,7 +126,8 @@ def main(argv=None) -> int:
                                                                                  else [6, 12, 24, 60])
     strategies = args.strategies.split(",") if args.strategies else list(CECO_STRATEGIES)
     duration = args.duration if args.duration is not None else (200.0 if args.quick else None)
-    rows = bench_nmpc(strategies, horizons, duration, jit=args.jit, progress=args.progress)
+    codegen = not args.no_codegen and not args.jit
+    rows = bench_nmpc(strategies, horizons, duration, jit=args.jit, progress=args.progress, codegen=codegen)
     np6 = [r for r in rows if r["np"] == 6] or rows
     summary = {
         "np6_median_ms": float(np.median([r["ours_median_ms"] for r in np6])),
@@ -134,7 +140,7 @@ def main(argv=None) -> int:
         "max_rel_cost_excess": float(np.nanmax([r["max_rel_cost_excess"] for r in rows])),
         "n_steps_rel_cost_diff_gt_1e-4": int(sum(r["n_rel_cost_diff_gt_1e-4"] for r in rows)),
         "n_steps": int(sum(r["steps"] for r in rows)),
-        "solver": "ipopt-warm" + ("+jit" if args.jit else ""),
+        "solver": "ipopt-warm" + ("+jit" if args.jit else "") + ("+codegen" if codegen else ""),
         "horizons": horizons,
         "strategies": strategies,
         "duration_s": duration,

@@ -39,7 +39,7 @@ from .nmpc import NmpcController
 from .strategies import STRATEGIES, strategy_settings
 
 __all__ = ["SimSettings", "RunResult", "simulate", "make_controller", "comfort_params_for",
-           "write_run", "main", "TIMESERIES_COLUMNS"]
+           "write_run", "main", "TIMESERIES_COLUMNS", "DIAGNOSTICS_CSV_COLUMNS"]
 
 TIMESERIES_COLUMNS = (
     "t_s", "t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c", "t_amb_c", "solar_wm2",
@@ -49,6 +49,10 @@ TIMESERIES_COLUMNS = (
     "t_glass_c", "rh_cab", "p_cond_fan_w", "q_latent_w", "comp_speed_rpm", "capacity_limited",
 )
 """Columns of ``timeseries.csv``: the architecture contract's first, then extras."""
+
+DIAGNOSTICS_CSV_COLUMNS = DIAGNOSTICS_COLUMNS + ("pmv_pred", "t_cab_pred_c")
+"""Columns of ``diagnostics.csv``: :data:`DIAGNOSTICS_COLUMNS`, then the predicted PMV [-] and T_cab [degC]
+trajectories over the horizon (grid points 0..Np, ``;``-joined; empty without a successful solve)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -241,6 +245,14 @@ def _fmt(v):
     return v
 
 
+def _joined(a) -> str:
+    """A predicted trajectory as ``;``-joined numbers (empty if there is none)."""
+    if a is None:
+        return ""
+    a = np.atleast_1d(np.asarray(a, float))
+    return ";".join("" if not math.isfinite(v) else f"{v:.6g}" for v in a)
+
+
 def write_run(result: RunResult, run_dir: str | pathlib.Path) -> pathlib.Path:
     """Write ``timeseries.csv``, ``diagnostics.csv`` and ``metrics.json`` into ``run_dir``."""
     d = pathlib.Path(run_dir)
@@ -251,11 +263,17 @@ def write_run(result: RunResult, run_dir: str | pathlib.Path) -> pathlib.Path:
         cols = [result.timeseries[c] for c in TIMESERIES_COLUMNS]
         for row in zip(*cols):
             w.writerow([f"{v:.6g}" for v in row])
+    objs = list(getattr(result, "diag_objects", None) or [])
+    if len(objs) != len(result.diagnostics):
+        objs = [None] * len(result.diagnostics)
     with open(d / "diagnostics.csv", "w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, fieldnames=DIAGNOSTICS_COLUMNS)
+        w = csv.DictWriter(fh, fieldnames=DIAGNOSTICS_CSV_COLUMNS)
         w.writeheader()
-        for r in result.diagnostics:
-            w.writerow({k: _fmt(v) for k, v in r.items()})
+        for r, o in zip(result.diagnostics, objs):
+            row = {k: _fmt(v) for k, v in r.items()}
+            row["pmv_pred"] = _joined(getattr(o, "pred_pmv", None))
+            row["t_cab_pred_c"] = _joined(getattr(o, "pred_t_cab_c", None))
+            w.writerow(row)
     metrics = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in result.metrics.items()}
     (d / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n", encoding="utf-8")
     return d

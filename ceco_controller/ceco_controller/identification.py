@@ -17,8 +17,16 @@ this module identifies them from the ceco plant:
 3. Least squares: eq. (3) (T_ain), eq. (2) (T_evap) and eq. (1) (T_cab) are
    linear in their parameters (``numpy.linalg.lstsq``); the blower model by
    non-negative linear least squares (``scipy.optimize.lsq_linear``); the
-   compressor model and eta_AC(V) by bounded nonlinear least squares
+   compressor model by bounded nonlinear least squares
    (``scipy.optimize.least_squares``).
+   eta_AC(V) is identified separately from the plant's steady refrigerant
+   cycle (:func:`eta_ac_points`, :func:`fit_eta_ac`): the COP ratio
+   COP(V)/COP(0) at fixed cooling load and evaporator wall temperature, at
+   the loads the closed loop runs at (SC03 comfort-zone phase: q_evap
+   2.9-3.9 kW, 10th-90th percentile, baseline run), fitted by
+   1 + a (1 - exp(-V/v)). Fitting it jointly with the compressor from the
+   drive data let speed absorb load and ambient effects (v at its 60 m/s
+   bound, +24 % at 20 m/s against the plant's +15-20 %).
 4. Fit report: one-step and multi-step (a whole horizon Np) prediction errors on
    a validation drive (US06) that is not used for fitting.
 
@@ -34,6 +42,7 @@ import argparse
 import csv
 import dataclasses
 import hashlib
+import math
 import pathlib
 import sys
 
@@ -43,7 +52,7 @@ from scipy.optimize import least_squares, lsq_linear
 from . import model as cm
 
 __all__ = ["SERIES_COLUMNS", "ExcitationSettings", "generate_excitation", "intervals_from_series", "fit",
-           "fit_intervals", "prediction_errors", "read_series_csv", "write_series_csv", "main"]
+           "fit_intervals", "eta_ac_points", "fit_eta_ac", "EtaMapSettings", "prediction_errors", "read_series_csv", "write_series_csv", "main"]
 
 SERIES_COLUMNS = ("segment", "t_s", "t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c", "t_amb_c",
                   "solar_wm2", "speed_mps", "mdot_bl_kgps", "t_evap_sp_c", "p_comp_w", "p_blower_w")
@@ -77,6 +86,70 @@ class ExcitationSettings:
             raise ValueError("ExcitationSettings.hold_min_s must satisfy 0 < min <= hold_max_s")
         if not self.ts_s > 0:
             raise ValueError("ExcitationSettings.ts_s must be > 0")
+
+
+@dataclasses.dataclass(frozen=True)
+class EtaMapSettings:
+    """Steady-cycle points of the plant used to identify eta_AC(V) (:func:`eta_ac_points`)."""
+
+    loads_w: tuple = (2500.0, 3000.0, 3500.0)
+    """Cooling loads Q_evap [W]: the closed loop's comfort-zone range on SC03/UDDS (2.1-3.9 kW)."""
+    t_amb_c: float = 35.0
+    """Ambient [degC] (SC03, UDDS, HWFET, US06)."""
+    t_wall_c: float = 5.0
+    """Evaporator wall temperature [degC] (baseline 3 degC, CECO 6-7 degC in the zone phase)."""
+    speeds_mps: tuple = tuple(np.arange(0.0, 35.01, 2.5).tolist())
+    """Vehicle speeds of the map [m/s] (0 to the top of US06)."""
+
+    def validate(self) -> None:
+        """Raise ValueError naming the field if a setting is not usable."""
+        if not (len(self.loads_w) >= 1 and all(math.isfinite(q) and q > 0 for q in self.loads_w)):
+            raise ValueError("EtaMapSettings.loads_w must be positive loads [W]")
+        if not (len(self.speeds_mps) >= 3 and self.speeds_mps[0] == 0.0
+                and all(math.isfinite(v) and v >= 0 for v in self.speeds_mps)):
+            raise ValueError("EtaMapSettings.speeds_mps must start at 0 and have >= 3 finite speeds >= 0")
+        if not math.isfinite(self.t_amb_c) or not math.isfinite(self.t_wall_c) or self.t_wall_c >= self.t_amb_c:
+            raise ValueError("EtaMapSettings.t_wall_c must be finite and below t_amb_c")
+
+
+def eta_ac_points(settings: EtaMapSettings = EtaMapSettings(), plant_params=None) -> dict:
+    """COP(V)/COP(0) of the plant's steady cycle at each load and speed.
+
+    ``ceco_plant_sim.plant.steady_cycle_at_load``: the compressor speed that delivers the load at
+    the fixed wall temperature; COP = Q_evap / P_comp. Returns ``speeds_mps`` (S,), ``loads_w`` (L,),
+    ``cop`` (L, S) and ``ratio`` (L, S).
+    """
+    from ceco_plant_sim.plant import steady_cycle_at_load
+    from ceco_plant_sim.plant_params import PlantParams
+
+    settings.validate()
+    pp = plant_params if plant_params is not None else PlantParams()
+    v = np.asarray(settings.speeds_mps, float)
+    cop = np.empty((len(settings.loads_w), v.size))
+    for i, q in enumerate(settings.loads_w):
+        for j, vj in enumerate(v):
+            _, sol = steady_cycle_at_load(pp, float(q), settings.t_wall_c, settings.t_amb_c, float(vj))
+            cop[i, j] = sol.q_evap_ref_w / sol.p_comp_w
+    return {"speeds_mps": v, "loads_w": np.asarray(settings.loads_w, float), "cop": cop,
+            "ratio": cop / cop[:, :1]}
+
+
+def fit_eta_ac(speeds_mps, ratio) -> tuple[float, float, float]:
+    """Fit eta_AC(V) = 1 + a (1 - exp(-V/v)) to COP ratios (rows: loads, averaged in the fit).
+
+    Bounded least squares, a in [0, 3], v in [1, 60] m/s. Returns (a, v [m/s], RMS residual [-]).
+    """
+    v = np.asarray(speeds_mps, float)
+    r = np.atleast_2d(np.asarray(ratio, float))
+    if r.shape[1] != v.size or not np.all(np.isfinite(r)):
+        raise ValueError("fit_eta_ac: ratio must be finite with one column per speed")
+
+    def resid(z):
+        return (1.0 + z[0] * (1.0 - np.exp(-v / z[1])) - r).ravel()
+
+    res = least_squares(resid, np.array([0.3, 15.0]), bounds=([0.0, 1.0], [3.0, 60.0]),
+                        x_scale=np.array([0.1, 5.0]))
+    return float(res.x[0]), float(res.x[1]), float(np.sqrt(np.mean(res.fun ** 2)))
 
 
 _PRECOOLED = {"t_cab_c": 27.0, "t_int_c": 38.0, "t_shell_c": 36.0, "t_evap_c": 12.0}
@@ -208,8 +281,14 @@ def _lstsq(a, b):
     return coef
 
 
-def fit_intervals(iv: dict, ts_s: float | None = None) -> tuple[cm.ControlModelParams, dict]:
-    """Least-squares fit of every model parameter from interval data; returns (params, residual RMS)."""
+def fit_intervals(iv: dict, ts_s: float | None = None,
+                  eta: tuple[float, float] | None = None) -> tuple[cm.ControlModelParams, dict]:
+    """Least-squares fit of every model parameter from interval data; returns (params, residual RMS).
+
+    ``eta`` = (a_eta, v_eta [m/s]) fixes eta_AC(V) (identified from the plant's steady cycle,
+    :func:`fit_eta_ac`); None fits it jointly with the compressor (the old method, which lets
+    speed absorb load and ambient effects).
+    """
     ts_s = float(ts_s if ts_s is not None else iv["ts_s"])
     n = iv["mdot"].size
     if n < 20:
@@ -236,6 +315,8 @@ def fit_intervals(iv: dict, ts_s: float | None = None) -> tuple[cm.ControlModelP
                                  blower_b0_w=b0, blower_b1_w_per_kgps=b1, blower_b3_w_per_kgps3=b3)
 
     def comp_params(z):
+        if eta is not None:
+            z = np.concatenate([z[:3], eta, z[3:]])
         return dataclasses.replace(base, fresh_air_fraction=z[0], comp_c0=z[1], comp_c1_per_k=z[2],
                                    eta_gain=z[3], eta_speed_scale_mps=z[4], comp_c_wall_jpk=z[5])
 
@@ -248,7 +329,11 @@ def fit_intervals(iv: dict, ts_s: float | None = None) -> tuple[cm.ControlModelP
     z0 = np.array([0.2, 0.2, 0.01, 0.2, 10.0, 5000.0])
     lo = np.array([0.0, 1e-3, 0.0, 0.0, 1.0, 0.0])
     hi = np.array([1.0, 5.0, 0.5, 3.0, 60.0, 1e5])
-    rc = least_squares(comp_resid, z0, bounds=(lo, hi), x_scale=np.array([0.1, 0.1, 0.01, 0.1, 5.0, 1000.0]))
+    xs = np.array([0.1, 0.1, 0.01, 0.1, 5.0, 1000.0])
+    if eta is not None:
+        keep = [0, 1, 2, 5]
+        z0, lo, hi, xs = z0[keep], lo[keep], hi[keep], xs[keep]
+    rc = least_squares(comp_resid, z0, bounds=(lo, hi), x_scale=xs)
     params = comp_params(rc.x)
     params.validate()
     resid = {
@@ -262,9 +347,10 @@ def fit_intervals(iv: dict, ts_s: float | None = None) -> tuple[cm.ControlModelP
     return params, resid
 
 
-def fit(series: dict, ts_s: float = 5.0) -> tuple[cm.ControlModelParams, dict]:
-    """Fit from 1 s time-series arrays (SERIES_COLUMNS; e.g. read from CSV or a rosbag2 bag)."""
-    return fit_intervals(intervals_from_series(series, ts_s), ts_s)
+def fit(series: dict, ts_s: float = 5.0, eta: tuple[float, float] | None = None) -> tuple[cm.ControlModelParams, dict]:
+    """Fit from 1 s time-series arrays (SERIES_COLUMNS; e.g. read from CSV or a rosbag2 bag); ``eta`` as in
+    :func:`fit_intervals`."""
+    return fit_intervals(intervals_from_series(series, ts_s), ts_s, eta)
 
 
 def prediction_errors(p: cm.ControlModelParams, iv: dict, horizon_steps: int = 6) -> dict:
@@ -351,14 +437,22 @@ def main(argv=None) -> int:
         valid_src = f"{path.name} (sha256 {sha[:16]}; drives {', '.join(f'{a}/{b}' for a, b in VALIDATION_DRIVES)})"
     iv_train = intervals_from_series(train, args.ts)
     iv_valid = intervals_from_series(valid, args.ts)
-    params, resid = fit_intervals(iv_train, args.ts)
+    emap = eta_ac_points(EtaMapSettings())
+    a_eta, v_eta, eta_rms = fit_eta_ac(emap["speeds_mps"], emap["ratio"])
+    params, resid = fit_intervals(iv_train, args.ts, eta=(a_eta, v_eta))
+    v20 = int(np.argmin(np.abs(emap["speeds_mps"] - 20.0)))
+    eta_report = {"method": "plant steady cycle COP(V)/COP(0), EtaMapSettings defaults",
+                  "loads_w": [float(q) for q in emap["loads_w"]], "rms_ratio": eta_rms,
+                  "plant_ratio_at_20mps": [float(x) for x in np.round(emap["ratio"][:, v20], 4)],
+                  "model_eta_at_20mps": float(cm.eta_ac(params, 20.0))}
     cmd = "python -m ceco_controller.identification" + (" " + " ".join(argv) if argv else "")
     params = dataclasses.replace(
         params, provenance=f"{cmd}; excitation seed {args.seed}; training data {train_src}; "
                            f"validation data {valid_src}")
     rep_train = prediction_errors(params, iv_train, args.horizon)
     rep_valid = prediction_errors(params, iv_valid, args.horizon)
-    report = {"fit_residuals_training": _round_floats(resid),
+    report = {"eta_ac_fit": _round_floats(eta_report),
+              "fit_residuals_training": _round_floats(resid),
               "prediction_training": _round_floats(rep_train),
               "prediction_validation": _round_floats(rep_valid)}
     header = ("Identified control-oriented model (ceco_controller/model.py), GENERATED - do not edit.\n"

@@ -24,7 +24,14 @@ is validated against the hard actuator bounds before it is returned.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import logging
 import math
+import os
+import pathlib
+import shutil
+import subprocess
+import tempfile
 import time
 
 import casadi
@@ -38,7 +45,9 @@ from . import model as cm
 from .interface import ACTUATOR_LIMITS, Diagnostics, Observation
 from .strategies import StrategySettings, strategy_settings
 
-__all__ = ["NmpcController", "NlpData"]
+__all__ = ["NmpcController", "NlpData", "codegen_cache_dir", "compile_nlp"]
+
+_LOG = logging.getLogger(__name__)
 
 _BOUND_TOL = 1e-6
 """Numerical tolerance on the solver's actuator bounds [same unit]: within it a
@@ -83,6 +92,10 @@ class NmpcController:
         self.model_params.validate()
         self.comfort_params = comfort_params if comfort_params is not None else ComfortParams()
         self.comfort_params.validate()
+        # the NLP's PMV: the same function as the plant's, with settings.pmv_newton_steps on T_cl
+        self._nlp_comfort_params = dataclasses.replace(
+            self.comfort_params, smoothing=dataclasses.replace(self.comfort_params.smoothing,
+                                                               newton_steps=self.settings.pmv_newton_steps))
         self.n_sub = cm.substeps(self.model_params, self.settings.control_period_s)
         self.lim = ACTUATOR_LIMITS
         self._acc = AccLaw(acc_settings)
@@ -91,7 +104,7 @@ class NmpcController:
 
     # ------------------------------------------------------------------ build
     def _build(self) -> None:
-        s, mp, cp = self.settings, self.model_params, self.comfort_params
+        s, mp, cp = self.settings, self.model_params, self._nlp_comfort_params
         n = s.horizon_steps
         ts_kj = s.control_period_s / 1000.0  # W -> kJ over one control period
         lim = self.lim
@@ -222,6 +235,7 @@ class NmpcController:
             [J_e, J_c, J_i, J_s, J_du, casadi.vertcat(*pmv_all), casadi.vertcat(*tcab_all),
              casadi.vertcat(*tain_all)],
             ["w", "p"], ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain"])
+        self._compiled: dict = {}  # codegen flags -> path of the compiled NLP functions (or None)
         self.solver = self.make_solver(self.settings.solver)
         # cold solves (first step, after a failure): robust IPOPT settings, no warm start
         self.solver_cold = (self.make_solver(dataclasses.replace(self.settings.solver, warm_start=False))
@@ -233,7 +247,12 @@ class NmpcController:
         ss = solver_settings
         ss.validate()
         opts: dict = {"print_time": False}
-        if ss.jit:
+        nlp = self._nlp
+        if ss.codegen and ss.name == "ipopt" and not ss.default_options:
+            so = self._compiled_nlp(ss)
+            if so is not None:
+                nlp = so
+        if ss.jit and not isinstance(nlp, str):
             opts.update({"jit": True, "compiler": "shell",
                          "jit_options": {"flags": ["-O2"], "verbose": False}})
         if ss.name == "ipopt":
@@ -243,22 +262,30 @@ class NmpcController:
                 ipopt = {
                     "print_level": 0, "sb": "yes",
                     "max_iter": ss.max_iter, "max_cpu_time": ss.max_cpu_time_s,
-                    "tol": ss.tol, "acceptable_tol": 1e-6, "acceptable_iter": 5,
+                    "tol": ss.tol, "acceptable_tol": min(ss.acceptable_tol, 1e-6), "acceptable_iter": 5,
                     "linear_solver": ss.linear_solver,
                     "hessian_approximation": "exact",
                     "mu_strategy": "adaptive", "mu_oracle": "quality-function",
                     "nlp_scaling_method": "gradient-based",
                 }
                 if ss.warm_start:
-                    # warm-started re-solves start near the optimum: a small monotone barrier and
-                    # no gradient scaling (measured fastest with the same optimum, docs/controller.md)
+                    # warm-started re-solves start near the optimum: a small adaptive barrier, no
+                    # gradient scaling, stop at the first point optimal to acceptable_tol with the
+                    # constraints met to 1e-6 (measured fastest with the same optimum, docs/controller.md)
                     ipopt.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
                                   "warm_start_bound_frac": 1e-9, "warm_start_slack_bound_frac": 1e-9,
                                   "warm_start_slack_bound_push": 1e-9, "warm_start_mult_bound_push": 1e-9,
-                                  "mu_strategy": "monotone", "mu_init": 1e-5, "nlp_scaling_method": "none"})
-                    ipopt.pop("mu_oracle")
+                                  "mu_init": 1e-5, "nlp_scaling_method": "none",
+                                  "acceptable_tol": ss.acceptable_tol, "acceptable_iter": 1,
+                                  "acceptable_constr_viol_tol": 1e-6, "acceptable_compl_inf_tol": 1e-4})
             opts["ipopt"] = ipopt
-            return casadi.nlpsol("ceco_nlp", "ipopt", self._nlp, opts)
+            if isinstance(nlp, str):
+                try:
+                    return casadi.nlpsol("ceco_nlp", "ipopt", nlp, opts)
+                except RuntimeError as exc:  # unloadable object: the in-process functions
+                    _LOG.warning("NMPC codegen: cannot load %s (%s); using the in-process NLP functions", nlp, exc)
+                    nlp = self._nlp
+            return casadi.nlpsol("ceco_nlp", "ipopt", nlp, opts)
         if ss.name == "fatrop":
             opts.update({"structure_detection": "auto", "expand": True,
                          "equality": [bool(a == b) for a, b in zip(self._lbg, self._ubg)],
@@ -273,6 +300,13 @@ class NmpcController:
                      "print_status": False, "tol_pr": ss.tol, "tol_du": ss.tol,
                      "convexify_strategy": "regularize", "error_on_fail": False})
         return casadi.nlpsol("ceco_nlp", "sqpmethod", self._nlp, opts)
+
+    def _compiled_nlp(self, ss) -> str | None:
+        """Path of the compiled NLP functions for ``ss.codegen_flags`` (cached), or None (logged)."""
+        key = tuple(ss.codegen_flags)
+        if key not in self._compiled:
+            self._compiled[key] = compile_nlp(self._nlp, ss.codegen_flags, ss.codegen_cache_dir)
+        return self._compiled[key]
 
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
@@ -538,3 +572,60 @@ class NmpcController:
             self._last_pred = None
         diag.mdot_bl_kgps, diag.t_evap_sp_c = float(u[0]), float(u[1])
         return AcInput(mdot_bl_kgps=float(u[0]), t_evap_sp_c=float(u[1])), diag
+
+
+def codegen_cache_dir(path: str | None = None) -> pathlib.Path:
+    """Directory of compiled NLPs: ``path``, else $CECO_CACHE_DIR, else $XDG_CACHE_HOME/ceco, else ~/.cache/ceco."""
+    if path:
+        return pathlib.Path(path)
+    if os.environ.get("CECO_CACHE_DIR"):
+        return pathlib.Path(os.environ["CECO_CACHE_DIR"])
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return pathlib.Path(base) / "ceco"
+
+
+def compile_nlp(nlp: dict, flags=("-O1",), cache_dir: str | None = None) -> str | None:
+    """Generate C for an NLP's IPOPT functions and compile it into a cached shared object.
+
+    The file name is a hash of the generated C code, the flags and the CasADi version, so a
+    changed NLP never loads a stale object. Concurrent processes do not race: each compiles to
+    its own temporary name and renames it into place atomically (``os.replace``). Returns the
+    path, or None (with a log warning) when no C compiler is found or anything fails; the
+    caller then uses the in-process functions.
+    """
+    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
+    if cc is None:
+        _LOG.warning("NMPC codegen: no C compiler found (gcc/cc/$CC); using the in-process NLP functions")
+        return None
+    try:
+        with tempfile.TemporaryDirectory(prefix="ceco_cg_") as tmp:
+            gen = casadi.nlpsol("ceco_nlp", "ipopt", nlp, {"print_time": False})
+            src = os.path.join(tmp, "ceco_nlp.c")
+            cwd = os.getcwd()
+            os.chdir(tmp)  # generate_dependencies writes relative to the working directory
+            try:
+                gen.generate_dependencies("ceco_nlp.c")
+            finally:
+                os.chdir(cwd)
+            code = pathlib.Path(src).read_bytes()
+            digest = hashlib.sha256(code + repr((list(flags), casadi.__version__, cc)).encode()).hexdigest()[:20]
+            cache = codegen_cache_dir(cache_dir)
+            target = cache / f"ceco_nlp_{digest}.so"
+            if target.is_file():
+                return str(target)
+            cache.mkdir(parents=True, exist_ok=True)
+            part = cache / f".ceco_nlp_{digest}.{os.getpid()}.tmp.so"
+            t0 = time.perf_counter()
+            res = subprocess.run([cc, "-shared", "-fPIC", *flags, src, "-o", str(part), "-lm"],
+                                 capture_output=True, text=True, timeout=600)
+            if res.returncode != 0:
+                part.unlink(missing_ok=True)
+                _LOG.warning("NMPC codegen: compilation failed (%s); using the in-process NLP functions",
+                             res.stderr.strip()[-500:])
+                return None
+            os.replace(part, target)
+            _LOG.info("NMPC codegen: compiled %s in %.1f s", target, time.perf_counter() - t0)
+            return str(target)
+    except (OSError, RuntimeError, subprocess.SubprocessError) as exc:
+        _LOG.warning("NMPC codegen failed (%s); using the in-process NLP functions", exc)
+        return None

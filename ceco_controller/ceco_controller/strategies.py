@@ -52,14 +52,26 @@ class SolverSettings:
     """Iteration limit per solve [-]."""
     max_cpu_time_s: float = 1.0
     """CPU-time limit per solve [s]; must be below the control period."""
-    tol: float = 1e-8
-    """Convergence tolerance (IPOPT ``tol``) [-]."""
+    tol: float = 1e-6
+    """Convergence tolerance (IPOPT ``tol``) [-] (1e-6: optimal cost within 1e-5 of the reference, docs/controller.md)."""
     warm_start: bool = True
     """Warm start from the shifted previous primal-dual solution."""
     jit: bool = False
     """Compile the NLP functions to C with gcc (CasADi JIT) before the first solve."""
     linear_solver: str = "mumps"
-    """IPOPT linear solver."""
+    """IPOPT linear solver (the only one in the CasADi wheel; ma27/ma57 need HSL)."""
+    acceptable_tol: float = 1e-4
+    """IPOPT ``acceptable_tol`` [-] of the warm-started solver (with ``acceptable_iter`` 1 and
+    acceptable constraint violation 1e-6: stops once the point is optimal to this level)."""
+    codegen: bool = False
+    """Generate C code of the NLP functions, compile it with the C compiler into a shared object
+    kept in an on-disk cache (keyed by a hash of the code) and solve with it. Falls back to the
+    in-process functions (with a log warning) when no compiler is found or compilation fails.
+    Off by default: a fresh machine would compile each distinct NLP once (10-25 s at -O1)."""
+    codegen_flags: tuple = ("-O1",)
+    """C compiler flags for ``codegen`` (-O1: half the -O2 compile time, same solve time)."""
+    codegen_cache_dir: str | None = None
+    """Cache directory of compiled NLPs; None: $CECO_CACHE_DIR, else $XDG_CACHE_HOME/ceco, else ~/.cache/ceco."""
     default_options: bool = False
     """Reference mode: IPOPT with its default settings, no warm start (what MPCTools did)."""
 
@@ -73,6 +85,10 @@ class SolverSettings:
             raise ValueError("SolverSettings.max_cpu_time_s must be > 0")
         if not (math.isfinite(self.tol) and self.tol > 0):
             raise ValueError("SolverSettings.tol must be > 0")
+        if not (math.isfinite(self.acceptable_tol) and self.acceptable_tol >= self.tol):
+            raise ValueError("SolverSettings.acceptable_tol must be finite and >= tol")
+        if not (isinstance(self.codegen_flags, (tuple, list)) and all(isinstance(f, str) for f in self.codegen_flags)):
+            raise ValueError("SolverSettings.codegen_flags must be a tuple of strings")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -113,6 +129,9 @@ class StrategySettings:
     """First-order filter gain of the bias estimates per control step [-] (0..1]."""
     bias_limit_k: float = 3.0
     """Largest magnitude of a bias estimate [K] (per control step for T_cab/T_evap)."""
+    pmv_newton_steps: int = 3
+    """Newton steps on the clothing temperature in the NLP's PMV (the plant uses 4; the 3-step
+    value differs by 6e-10 K in T_cl, docs/controller.md) [-]."""
     solver: SolverSettings = SolverSettings()
     """NLP solver settings."""
 
@@ -135,6 +154,8 @@ class StrategySettings:
             raise ValueError("StrategySettings.bias_filter must be in (0, 1]")
         if not self.t_evap_lb_c < self.t_evap_ub_c:
             raise ValueError("StrategySettings.t_evap_lb_c must be < t_evap_ub_c")
+        if not (isinstance(self.pmv_newton_steps, int) and 1 <= self.pmv_newton_steps <= 50):
+            raise ValueError("StrategySettings.pmv_newton_steps must be an int in [1, 50]")
         if self.solver.max_cpu_time_s >= self.control_period_s:
             raise ValueError("StrategySettings.solver.max_cpu_time_s must be below control_period_s")
         self.solver.validate()
@@ -181,6 +202,8 @@ def load_strategy_settings(name: str, path=None, **overrides) -> StrategySetting
     solver = kw.pop("solver", None)
     if solver is not None:
         try:
+            if "codegen_flags" in solver:
+                solver = dict(solver, codegen_flags=tuple(solver["codegen_flags"]))
             kw["solver"] = SolverSettings(**solver)
         except TypeError as exc:
             raise ValueError(f"{path}: solver: {exc}") from None
