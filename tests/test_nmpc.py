@@ -113,3 +113,34 @@ def test_controller_yaml_matches_code_defaults():
     from ceco_controller.strategies import load_strategy_settings
     for name in ("ceco", "ceco-e", "ceco-c", "ceco-ioch"):
         assert load_strategy_settings(name) == strategy_settings(name)
+
+
+def test_codegen_falls_back_without_compiler(monkeypatch, tmp_path, caplog):
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
+    ss = SolverSettings(codegen=True, codegen_cache_dir=str(tmp_path / "cache"))
+    with caplog.at_level("WARNING", logger="ceco_controller.nmpc"):
+        ctrl = NmpcController(strategy_settings("ceco", solver=ss))
+    assert "in-process NLP functions" in caplog.text
+    cmd, diag = ctrl.compute(_obs(0))
+    assert diag.success and _valid(cmd)
+    assert not list((tmp_path / "cache").glob("*.so"))
+
+
+def test_codegen_compiles_once_and_matches_in_process(tmp_path):
+    """Compiled NLP functions (cached by code hash) give the in-process solution; a second
+    controller with the same NLP reuses the cached object."""
+    cache = tmp_path / "cache"
+    ss = SolverSettings(codegen=True, codegen_flags=("-O0",), codegen_cache_dir=str(cache))
+    comp = NmpcController(strategy_settings("ceco-ioch", solver=ss))
+    objs = list(cache.glob("ceco_nlp_*.so"))
+    assert len(objs) == 1 and not list(cache.glob(".*tmp*"))
+    ref = NmpcController("ceco-ioch")
+    for k in range(3):
+        c1, d1 = comp.compute(_obs(k, speed=20.0))
+        c2, d2 = ref.compute(_obs(k, speed=20.0))
+        assert d1.success and d2.success
+        assert abs(c1.mdot_bl_kgps - c2.mdot_bl_kgps) < 1e-6 and abs(c1.t_evap_sp_c - c2.t_evap_sp_c) < 1e-5
+        assert d1.cost_total == pytest.approx(d2.cost_total, rel=1e-8)
+    mtime = objs[0].stat().st_mtime_ns
+    NmpcController(strategy_settings("ceco-ioch", solver=ss))
+    assert list(cache.glob("ceco_nlp_*.so")) == objs and objs[0].stat().st_mtime_ns == mtime
