@@ -211,8 +211,12 @@ class DriveCycle:
 
     @property
     def distance_m(self) -> float:
-        """Distance driven [m], trapezoidal integral of the (linear) trace."""
-        return float(np.trapezoid(self.speed_mps, self.time_s))
+        """Distance driven [m], trapezoidal integral of the (linear) trace.
+
+        Written out rather than ``np.trapezoid`` so it also runs on numpy 1.26
+        (the ROS apt image, docker/)."""
+        v, t = self.speed_mps, self.time_s
+        return float(0.5 * np.sum((v[1:] + v[:-1]) * np.diff(t)))
 
 
 def _data_dir(kind: str):
