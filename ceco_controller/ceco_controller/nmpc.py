@@ -53,6 +53,11 @@ _BOUND_TOL = 1e-6
 """Numerical tolerance on the solver's actuator bounds [same unit]: within it a
 command is clipped to the bound; beyond it the solve counts as failed."""
 
+_SLACK_GUESS_MARGIN = 1e-5
+"""Margin of the guessed comfort/T_evap slacks above their smallest feasible value [PMV or K]: near
+the warm solver's barrier (slack x multiplier ~ 1e-5 x rho); 1e-3 started the warm solves with a
+complementarity of ~1 and cost one IPOPT iteration (docs/controller.md 4.6)."""
+
 _N_P_FIXED = 9
 """Scalar parameters before the per-stage ones (x0[2], t_int, t_shell, d_cab, d_evap, d_ain, u_prev[2])."""
 
@@ -417,7 +422,7 @@ class NmpcController:
         lb = p[off + 3 * (n + 1): off + 4 * (n + 1)]
         ub = p[off + 4 * (n + 1): off + 5 * (n + 1)] - self.settings.pmv_margin
         eps = w[self._idx["eps"]] if self.settings.ioch else 0.0
-        margin = 1e-3
+        margin = _SLACK_GUESS_MARGIN
         w[self._idx["s_lo"]] = np.maximum(lb - pmv, 0.0) + margin
         w[self._idx["s_up"]] = np.maximum(pmv + eps - ub, 0.0) + margin
         t_evap = np.array([w[j + 1] for j in self._idx["x"]])
