@@ -240,9 +240,13 @@ def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
         ax.bar(x + (len(vehicles) / 2) * width, paper, width, color='white', edgecolor='k', hatch='xx', lw=0.5,
                label='Paper (2017 Prius HEV, SC03)')
         ax.axhline(0, color='k', lw=0.6)
-        lows = [r['saving_fit_pct'] - 2 * r['noise_pct'] for r in rows if math.isfinite(r['saving_fit_pct'])]
+        fin = [r for r in rows if math.isfinite(r['saving_fit_pct'])]
+        lows = [r['saving_fit_pct'] - 2 * r['noise_pct'] for r in fin]
+        highs = [r['saving_fit_pct'] + 2 * r['noise_pct'] for r in fin]
         low = min(lows + [p for p in paper if math.isfinite(p)] + [-1.0])
-        ax.set_ylim(1.7 * low, 0.1 * abs(low))
+        high = max(highs + [0.0])
+        # Room under the bars for the legend; above zero for strategies that cost energy.
+        ax.set_ylim(1.7 * low, 1.25 * high + 0.1 * abs(low))
         ax.set_xticks(x, [strategy_style(s)['label'] for s in strategies], rotation=20, ha='right')
         ax.set_ylabel('Vehicle energy vs baseline [%]')
         ax.legend(fontsize=7, loc='lower left')
