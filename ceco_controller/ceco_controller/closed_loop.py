@@ -25,17 +25,16 @@ import sys
 
 import numpy as np
 
-from ceco_plant_sim.comfort import ComfortParams, cabin_pmv, ppd
 from ceco_plant_sim.metrics import compute_metrics, comparison_table
-from ceco_plant_sim.plant import AcInput, CabinPlant, PlantState
-from ceco_plant_sim.plant_params import PlantParams
+from ceco_plant_sim.scenario_plant import ScenarioPlant, comfort_params_for, n_plant_steps, steps_per_control
 from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews, parse_quality
 from ceco_v2x_preview.scenario import Scenario, load_scenario
 
 from . import model as cm
 from .baseline import BaselineController
-from .interface import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS, Observation
+from .interface import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS
 from .nmpc import NmpcController
+from .observation import observation
 from .strategies import STRATEGIES, strategy_settings
 
 __all__ = ["SimSettings", "RunResult", "simulate", "make_controller", "comfort_params_for",
@@ -107,11 +106,6 @@ class RunResult:
     metrics: dict
 
 
-def comfort_params_for(scenario: Scenario) -> ComfortParams:
-    """Comfort parameters with the scenario's occupant (met, clo); p_a = 1700 Pa (paper)."""
-    return ComfortParams(met=scenario.occupant.met, clo=scenario.occupant.clo)
-
-
 def make_controller(strategy: str, scenario: Scenario, control_period_s: float, horizon_steps: int,
                     model_params: cm.ControlModelParams | None = None, overrides: dict | None = None):
     """Build the controller of a strategy for a scenario."""
@@ -120,18 +114,6 @@ def make_controller(strategy: str, scenario: Scenario, control_period_s: float, 
     settings = strategy_settings(strategy, horizon_steps=horizon_steps, control_period_s=control_period_s,
                                  **(overrides or {}))
     return NmpcController(settings, model_params=model_params, comfort_params=comfort_params_for(scenario))
-
-
-def _observation(k, t, meas, cmd, scenario, ts, n_prev, quality):
-    pv = make_previews(scenario, t, ts, n_prev, quality)
-    lb, ub = scenario.pmv_bounds(pv.t_s)
-    env = scenario.env_at(t)
-    return Observation(
-        k=k, t_s=t, t_cab_c=meas["t_cab_c"], t_int_c=meas["t_int_c"], t_shell_c=meas["t_shell_c"],
-        t_evap_c=meas["t_evap_c"], t_vent_c=meas["t_vent_c"], t_amb_c=env.t_amb_c, solar_wm2=env.solar_wm2,
-        speed_mps=env.speed_mps, mdot_bl_prev_kgps=cmd.mdot_bl_kgps, t_evap_sp_prev_c=cmd.t_evap_sp_c,
-        preview_t_amb_c=pv.t_amb_c, preview_solar_wm2=pv.solar_wm2, preview_speed_mps=pv.speed_mps,
-        preview_valid=pv.valid, pmv_lb=lb, pmv_ub=ub, met=scenario.occupant.met, clo=scenario.occupant.clo)
 
 
 def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | None = None,
@@ -153,27 +135,16 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
     ts = float(settings.control_period_s or scenario.control.control_period_s)
     n_p = int(settings.horizon_steps or scenario.control.horizon_steps)
     dt = float(settings.plant_dt_s)
-    ratio = ts / dt
-    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
-        raise ValueError(f"control period {ts} s must be a whole multiple of the plant step {dt} s")
-    steps_per_ctrl = int(round(ratio))
+    steps_per_ctrl = steps_per_control(ts, dt)
     quality = settings.preview_quality
     if settings.seed is not None:
         quality = dataclasses.replace(quality, seed=int(settings.seed))
     duration = float(settings.duration_s or scenario.duration_s)
-    n = int(math.floor(duration / dt + 1e-9))
+    n = n_plant_steps(duration, dt)
     mp = cm.load_params(settings.model_params_path) if strategy != "baseline" else None
     if controller is None:
         controller = make_controller(strategy, scenario, ts, n_p, mp, dict(settings.strategy_overrides))
-    comfort = comfort_params_for(scenario)
-
-    pp = PlantParams()
-    initial = dataclasses.asdict(scenario.initial)
-    plant = CabinPlant(pp, PlantState.from_initial(initial, pp, scenario.env_at(0.0)))
-    st = plant.state
-    meas = {"t_cab_c": st.t_cab_c, "t_int_c": st.t_int_c, "t_shell_c": st.t_shell_c, "t_evap_c": st.t_evap_c,
-            "t_vent_c": st.t_evap_c, "t_glass_c": st.t_glass_c, "rh_cab": scenario.initial.rh_cab}
-    cmd = AcInput(mdot_bl_kgps=ACTUATOR_LIMITS.mdot_bl_max_kgps, t_evap_sp_c=ACTUATOR_LIMITS.t_evap_sp_min_c)
+    sp = ScenarioPlant(scenario, dt)
     cols = {c: np.empty(n) for c in TIMESERIES_COLUMNS}
     diags, diag_objs = [], []
     iterator = range(n)
@@ -184,32 +155,27 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
         t = i * dt
         if i % steps_per_ctrl == 0:
             k = i // steps_per_ctrl
-            obs = _observation(k, t, meas, cmd, scenario, ts, n_p + 1, quality)
+            pv = make_previews(scenario, t, ts, n_p + 1, quality)
+            obs = observation(k, t, sp.meas, scenario.env_at(t), sp.cmd, pv, scenario)
             cmd, diag = controller.compute(obs)
             if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
                 raise AssertionError(f"{strategy}: command {cmd} outside the actuator bounds at t={t}")
             diags.append(diag.to_row())
             diag_objs.append(diag)
-        env = scenario.env_at(t)
-        lb, ub = scenario.pmv_bounds(t)
-        y = float(cabin_pmv(t_cab_c=meas["t_cab_c"], t_ain_c=meas["t_vent_c"], t_int_c=meas["t_int_c"],
-                            mdot_bl_kgps=cmd.mdot_bl_kgps, solar_wm2=env.solar_wm2, params=comfort))
-        out = plant.step(cmd, env, dt)
+        r = sp.step(cmd)
+        env, out = r.env, r.out
         row = {
-            "t_s": t, **{c: meas[c] for c in ("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c",
-                                               "t_glass_c", "rh_cab")},
+            "t_s": r.t_s, **{c: r.meas[c] for c in ("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c",
+                                                    "t_glass_c", "rh_cab")},
             "t_amb_c": env.t_amb_c, "solar_wm2": env.solar_wm2, "speed_mps": env.speed_mps, "rh": env.rh,
-            "mdot_bl_kgps": cmd.mdot_bl_kgps, "t_evap_sp_c": cmd.t_evap_sp_c,
+            "mdot_bl_kgps": r.u.mdot_bl_kgps, "t_evap_sp_c": r.u.t_evap_sp_c,
             "p_comp_w": out.p_comp_w, "p_blower_w": out.p_blower_w, "q_evap_w": out.q_evap_w, "cop": out.cop,
-            "pmv": y, "ppd": float(ppd(y)), "pmv_lb": lb, "pmv_ub": ub,
+            "pmv": r.pmv, "ppd": r.ppd, "pmv_lb": r.pmv_lb, "pmv_ub": r.pmv_ub,
             "p_cond_fan_w": out.p_cond_fan_w, "q_latent_w": out.q_latent_w,
             "comp_speed_rpm": out.comp_speed_rpm, "capacity_limited": float(out.capacity_limited),
         }
         for c in TIMESERIES_COLUMNS:
             cols[c][i] = row[c]
-        meas = {"t_cab_c": out.t_cab_c, "t_int_c": out.t_int_c, "t_shell_c": out.t_shell_c,
-                "t_evap_c": out.t_evap_c, "t_vent_c": out.t_vent_c, "t_glass_c": out.t_glass_c,
-                "rh_cab": out.rh_cab}
     metrics = compute_metrics(cols["t_s"], cols["p_comp_w"], cols["p_blower_w"], cols["pmv"],
                               cols["pmv_lb"], cols["pmv_ub"])
     nd = [d for d in diag_objs if d.solve_time_ms is not None]

@@ -7,9 +7,7 @@ import math
 
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort
 from ceco_plant_sim.plant import AcInput
-
-MEAS_FIELDS = ('t_cab_c', 't_int_c', 't_shell_c', 't_glass_c', 't_evap_c', 't_vent_c', 'rh_cab')
-"""Plant measurements carried by CabinState (closed_loop's ``meas`` dict)."""
+from ceco_plant_sim.scenario_plant import MEASUREMENTS as MEAS_FIELDS  # carried by CabinState
 
 
 def state_msg(n: int, t_s: float, stamp, meas: dict, env, u_prev: AcInput, fallback: bool) -> CabinState:

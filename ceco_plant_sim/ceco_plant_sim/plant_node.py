@@ -2,13 +2,12 @@
 CabinState per plant step), ``cabin/comfort`` (modified PMV, computed here),
 ``hvac/power`` and the simulation time on ``/clock``; takes ``hvac/command``.
 
-Per plant step n (t_n = n * dt) it runs exactly the closed-loop simulator's
-sequence (ceco_controller.closed_loop.simulate): PMV at t_n from the
-measurements at t_n and the command held over [t_n, t_n + dt); plant.step
-over dt with the truth environment at t_n; the outputs become the
-measurements at t_{n+1}. Key-on: measurements from the scenario's initial
-state (vent air = evaporator wall), previous command = pull-down
-(0.17 kg/s, 3 degC).
+Per plant step n (t_n = n * dt) it calls the same core as the closed-loop
+simulator (ceco_controller.closed_loop.simulate):
+``ceco_plant_sim.scenario_plant.ScenarioPlant`` (key-on state and command,
+PMV at t_n from the measurements at t_n and the command held over
+[t_n, t_n + dt), plant.step over dt with the truth environment at t_n; the
+outputs become the measurements at t_{n+1}).
 
 Timing (parameter ``timing``):
 * ``lockstep``: once its subscribers are matched, the plant publishes the
@@ -27,7 +26,6 @@ Timing (parameter ``timing``):
 from __future__ import annotations
 
 import dataclasses
-import math
 
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -36,9 +34,9 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort
 from ceco_plant_sim import msg_conv
 from ceco_plant_sim.acc_law import AccLaw
-from ceco_plant_sim.comfort import ComfortParams, cabin_pmv, iso7730_validity, ppd
-from ceco_plant_sim.plant import AcInput, CabinPlant, PlantState
-from ceco_plant_sim.plant_params import MDOT_BL_MAX_KGPS, T_EVAP_SP_MIN_C, PlantParams
+from ceco_plant_sim.comfort import iso7730_validity
+from ceco_plant_sim.plant import AcInput
+from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
 from ceco_v2x_preview import ros_common as rc
 
 TIMING_MODES = ('lockstep', 'realtime')
@@ -72,10 +70,10 @@ class PlantNodeConfig:
     def validate(self) -> None:
         if self.timing not in TIMING_MODES:
             raise ValueError(f'invalid parameter timing={self.timing!r}: must be one of {TIMING_MODES}')
-        ratio = self.control_period_s / self.plant_dt_s
-        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
-            raise ValueError(f'invalid parameter control_period_s={self.control_period_s}: must be a whole '
-                             f'multiple of plant_dt_s={self.plant_dt_s}')
+        try:
+            steps_per_control(self.control_period_s, self.plant_dt_s)
+        except ValueError as err:
+            raise ValueError(f'invalid parameter control_period_s={self.control_period_s}: {err}') from None
 
 
 class PlantNode(Node):
@@ -85,19 +83,11 @@ class PlantNode(Node):
         super().__init__('plant_node')
         cfg = self.config = self._read_config()
         self.scenario = sc = rc.load_scenario_param(cfg.scenario)
-        self.comfort = ComfortParams(met=sc.occupant.met, clo=sc.occupant.clo)
-        pp = PlantParams()
-        self.plant = CabinPlant(pp, PlantState.from_initial(dataclasses.asdict(sc.initial), pp, sc.env_at(0.0)))
-        st = self.plant.state
-        self.meas = {'t_cab_c': st.t_cab_c, 't_int_c': st.t_int_c, 't_shell_c': st.t_shell_c,
-                     't_evap_c': st.t_evap_c, 't_vent_c': st.t_evap_c, 't_glass_c': st.t_glass_c,
-                     'rh_cab': sc.initial.rh_cab}
-        self.cmd = AcInput(mdot_bl_kgps=MDOT_BL_MAX_KGPS, t_evap_sp_c=T_EVAP_SP_MIN_C)
+        self.sp = ScenarioPlant(sc, cfg.plant_dt_s)
         self.dt = cfg.plant_dt_s
-        self.m = int(round(cfg.control_period_s / cfg.plant_dt_s))
+        self.m = steps_per_control(cfg.control_period_s, cfg.plant_dt_s)
         duration = cfg.duration_s if cfg.duration_s > 0 else sc.duration_s
-        self.n_steps = int(math.floor(min(duration, sc.duration_s) / self.dt + 1e-9))
-        self.n = 0
+        self.n_steps = n_plant_steps(min(duration, sc.duration_s), self.dt)
         self.e_comp_j = 0.0
         self.e_blower_j = 0.0
         self.acc = AccLaw()
@@ -150,6 +140,11 @@ class PlantNode(Node):
         return cfg
 
     # ---------------------------------------------------------------- helpers
+    @property
+    def n(self) -> int:
+        """Current plant step index (measurements at t_n)."""
+        return self.sp.n
+
     def _t(self, n: int) -> float:
         return n * self.dt
 
@@ -164,34 +159,24 @@ class PlantNode(Node):
         stamp = self._stamp(n)
         if self.config.timing == 'lockstep':
             self.pub_clock.publish(ClockMsg(clock=stamp))
-        self.pub_state.publish(msg_conv.state_msg(n, t, stamp, self.meas, self.scenario.env_at(t),
-                                                  self.cmd, self.in_fallback))
+        self.pub_state.publish(msg_conv.state_msg(n, t, stamp, self.sp.meas, self.scenario.env_at(t),
+                                                  self.sp.cmd, self.in_fallback))
 
     def _plant_step(self, u: AcInput, fallback: bool) -> None:
-        """One plant step n with u held, as closed_loop.simulate does it."""
-        n, t = self.n, self._t(self.n)
-        stamp = self._stamp(n)
-        env = self.scenario.env_at(t)
-        lb, ub = self.scenario.pmv_bounds(t)
-        meas = self.meas
-        y = float(cabin_pmv(t_cab_c=meas['t_cab_c'], t_ain_c=meas['t_vent_c'], t_int_c=meas['t_int_c'],
-                            mdot_bl_kgps=u.mdot_bl_kgps, solar_wm2=env.solar_wm2, params=self.comfort))
-        out = self.plant.step(u, env, self.dt)
+        """One plant step n with u held (the simulator's core step), then publish comfort and power."""
+        stamp = self._stamp(self.n)
+        r = self.sp.step(u)
+        out, meas = r.out, r.meas
         self.e_comp_j += out.e_comp_j
         self.e_blower_j += out.e_blower_j
-        c = self.comfort
+        c = self.sp.comfort
         valid = bool(iso7730_validity(c.air_temperature_c(meas['t_cab_c'], meas['t_vent_c']), meas['t_int_c'],
                                       c.air_speed_mps(u.mdot_bl_kgps), c.pa_pa if c.pa_pa is not None else 0.0,
-                                      c.met, c.clo, y).all)
-        self.pub_comfort.publish(msg_conv.comfort_msg(n, stamp, y, float(ppd(y)), lb, ub, meas, u,
-                                                      env.solar_wm2, c.met, c.clo, valid))
-        self.pub_power.publish(msg_conv.power_msg(n, stamp, self.dt, u, out, self.e_comp_j,
+                                      c.met, c.clo, r.pmv).all)
+        self.pub_comfort.publish(msg_conv.comfort_msg(r.n, stamp, r.pmv, r.ppd, r.pmv_lb, r.pmv_ub, meas, u,
+                                                      r.env.solar_wm2, c.met, c.clo, valid))
+        self.pub_power.publish(msg_conv.power_msg(r.n, stamp, self.dt, u, out, self.e_comp_j,
                                                   self.e_blower_j, fallback))
-        self.cmd = u
-        self.meas = {'t_cab_c': out.t_cab_c, 't_int_c': out.t_int_c, 't_shell_c': out.t_shell_c,
-                     't_evap_c': out.t_evap_c, 't_vent_c': out.t_vent_c, 't_glass_c': out.t_glass_c,
-                     'rh_cab': out.rh_cab}
-        self.n += 1
 
     def _finish(self) -> None:
         self.finished = True
@@ -199,7 +184,7 @@ class PlantNode(Node):
                                f'E_blower {self.e_blower_j:.0f} J')
 
     def _fallback_command(self) -> AcInput:
-        a = self.acc.step(self.meas['t_cab_c'], self.config.control_period_s)
+        a = self.acc.step(self.sp.meas['t_cab_c'], self.config.control_period_s)
         return AcInput(mdot_bl_kgps=a.mdot_bl_kgps, t_evap_sp_c=a.t_evap_sp_c)
 
     def _enter_fallback(self, why: str) -> None:

@@ -1,0 +1,133 @@
+"""The plant side of a closed-loop run on a scenario: key-on and the per-plant-step
+sequence, written once and called by both the in-process simulator
+(``ceco_controller.closed_loop.simulate``) and ``plant_node``, so that a DDS run
+equals the simulator bit for bit.
+
+Timing (docs/architecture.md): plant step n covers [t_n, t_n + dt) with
+t_n = n * dt. :meth:`ScenarioPlant.step` evaluates, in this order, the truth
+environment at t_n, the occupant's PMV bounds at t_n, the modified PMV at t_n
+from the measurements at t_n and the command held over the step
+(``comfort.cabin_pmv``), then ``CabinPlant.step`` over dt; the outputs become the
+measurements at t_{n+1}.
+
+Key-on: the measurements come from the scenario's initial state, with the vent
+air at the evaporator wall temperature (no flow before key-on), and the previous
+command is the pull-down command (``KEY_ON_COMMAND``: full blower
+``MDOT_BL_MAX_KGPS`` = 0.17 kg/s, coldest set-point ``T_EVAP_SP_MIN_C`` = 3 degC;
+docs/plant.md).
+
+Pure logic: no rclpy, no message types.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from ceco_v2x_preview.scenario import Scenario
+
+from .comfort import ComfortParams, cabin_pmv, ppd
+from .plant import AcInput, CabinPlant, PlantOutputs, PlantState
+from .plant_params import MDOT_BL_MAX_KGPS, T_EVAP_SP_MIN_C, PlantParams
+
+__all__ = ["MEASUREMENTS", "KEY_ON_COMMAND", "comfort_params_for", "steps_per_control", "n_plant_steps",
+           "PlantStepRecord", "ScenarioPlant"]
+
+MEASUREMENTS = ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c", "t_vent_c", "rh_cab")
+"""Keys of the measurement mapping [degC, rh_cab in 0..1] that the plant hands to a controller
+(``ScenarioPlant.meas``; the fields of ceco_msgs/CabinState)."""
+
+KEY_ON_COMMAND = AcInput(mdot_bl_kgps=MDOT_BL_MAX_KGPS, t_evap_sp_c=T_EVAP_SP_MIN_C)
+"""The command taken as "previous" at key-on: pull-down (0.17 kg/s, 3 degC)."""
+
+
+def comfort_params_for(scenario: Scenario) -> ComfortParams:
+    """Comfort parameters with the scenario's occupant (met [met], clo [clo]); p_a = 1700 Pa (paper)."""
+    return ComfortParams(met=scenario.occupant.met, clo=scenario.occupant.clo)
+
+
+def steps_per_control(control_period_s: float, plant_dt_s: float) -> int:
+    """Plant steps per control period Ts / dt [-]; ValueError unless Ts is a whole multiple (>= 1) of dt."""
+    ratio = control_period_s / plant_dt_s
+    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+        raise ValueError(f"control period {control_period_s} s must be a whole multiple of the plant step "
+                         f"{plant_dt_s} s")
+    return int(round(ratio))
+
+
+def n_plant_steps(duration_s: float, plant_dt_s: float) -> int:
+    """Plant steps in a run of ``duration_s`` [s] (floor, with 1e-9 tolerance for float grids)."""
+    return int(math.floor(duration_s / plant_dt_s + 1e-9))
+
+
+def _measurements(out: PlantOutputs) -> dict:
+    return {k: getattr(out, k) for k in MEASUREMENTS}
+
+
+@dataclasses.dataclass(frozen=True)
+class PlantStepRecord:
+    """What one plant step produced (everything the simulator records and plant_node publishes)."""
+
+    n: int
+    """Plant step index [-]."""
+    t_s: float
+    """Step start t_n = n * dt [s]."""
+    meas: dict
+    """Measurements at t_n (keys :data:`MEASUREMENTS`)."""
+    u: AcInput
+    """Command held over [t_n, t_n + dt)."""
+    env: object
+    """Truth environment at t_n (``Scenario.env_at``)."""
+    pmv: float
+    """Modified PMV at t_n [-]."""
+    ppd: float
+    """PPD of that PMV [%]."""
+    pmv_lb: float
+    """Lower PMV comfort bound at t_n [-]."""
+    pmv_ub: float
+    """Upper PMV comfort bound at t_n [-]."""
+    out: PlantOutputs
+    """Plant outputs of the step (powers, energies, state at t_{n+1})."""
+
+
+class ScenarioPlant:
+    """The cabin + A/C plant driven by a scenario's truth environment, from key-on.
+
+    ``meas`` holds the measurements at t_n and ``cmd`` the last command applied
+    (``KEY_ON_COMMAND`` before the first step).
+    """
+
+    def __init__(self, scenario: Scenario, plant_dt_s: float, params: PlantParams | None = None):
+        if not (math.isfinite(plant_dt_s) and plant_dt_s > 0):
+            raise ValueError(f"plant_dt_s must be finite and > 0, got {plant_dt_s!r}")
+        self.scenario = scenario
+        self.dt_s = plant_dt_s
+        self.comfort = comfort_params_for(scenario)
+        pp = params or PlantParams()
+        self.plant = CabinPlant(pp, PlantState.from_initial(dataclasses.asdict(scenario.initial), pp,
+                                                            scenario.env_at(0.0)))
+        st = self.plant.state
+        self.meas = {"t_cab_c": st.t_cab_c, "t_int_c": st.t_int_c, "t_shell_c": st.t_shell_c,
+                     "t_evap_c": st.t_evap_c, "t_vent_c": st.t_evap_c, "t_glass_c": st.t_glass_c,
+                     "rh_cab": scenario.initial.rh_cab}
+        self.cmd = KEY_ON_COMMAND
+        self.n = 0
+
+    @property
+    def t_s(self) -> float:
+        """Time of the current measurements t_n = n * dt [s]."""
+        return self.n * self.dt_s
+
+    def step(self, u: AcInput) -> PlantStepRecord:
+        """One plant step with ``u`` held over [t_n, t_n + dt) (sequence in the module docstring)."""
+        meas, t = self.meas, self.t_s
+        env = self.scenario.env_at(t)
+        lb, ub = self.scenario.pmv_bounds(t)
+        y = float(cabin_pmv(t_cab_c=meas["t_cab_c"], t_ain_c=meas["t_vent_c"], t_int_c=meas["t_int_c"],
+                            mdot_bl_kgps=u.mdot_bl_kgps, solar_wm2=env.solar_wm2, params=self.comfort))
+        out = self.plant.step(u, env, self.dt_s)
+        rec = PlantStepRecord(n=self.n, t_s=t, meas=meas, u=u, env=env, pmv=y, ppd=float(ppd(y)),
+                              pmv_lb=lb, pmv_ub=ub, out=out)
+        self.cmd = u
+        self.meas = _measurements(out)
+        self.n += 1
+        return rec
