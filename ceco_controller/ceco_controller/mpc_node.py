@@ -15,8 +15,9 @@ Timing (parameter ``timing``):
 * ``realtime``: a timer every Ts on the node clock computes from the latest
   state (rejected when older than ``max_state_age_s``) and previews.
 
-Glue only: the observation is built from the messages exactly as the
-closed-loop simulator builds it from the plant, and the same core object
+Glue only: the observation is built by the same core function as in the
+closed-loop simulator (``ceco_controller.observation.observation``, from the
+messages via ``msg_conv.previews``), and the same core object
 (``ceco_controller.closed_loop.make_controller``) computes the command.
 """
 from __future__ import annotations
@@ -30,7 +31,10 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from ceco_controller import msg_conv
+from ceco_controller.observation import observation
 from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficPreview, WeatherPreview
+from ceco_plant_sim.plant import AcInput
+from ceco_plant_sim.scenario_plant import MEASUREMENTS
 from ceco_v2x_preview import ros_common as rc
 
 CECO_STRATEGIES = ('ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
@@ -227,15 +231,12 @@ class ControllerNode(Node):
             w, s = aligned if aligned is not None else (None, None)
         if w is None or s is None:
             w, s = _empty_previews(self.n_grid, ts)
-        lb, ub = self.scenario.pmv_bounds(t_s + ts * np.arange(self.n_grid, dtype=float))
-        if self._prev_cmd is None:
-            prev = (state.mdot_bl_kgps, state.t_evap_sp_c)
-        else:
-            prev = self._prev_cmd
-        occ = self.scenario.occupant
-        obs = msg_conv.observation(k, t_s, state, w, s, lb, ub, occ.met, occ.clo, *prev)
+        # the previous command: the plant's (key-on command) until this node has commanded
+        prev = self._prev_cmd or AcInput(mdot_bl_kgps=state.mdot_bl_kgps, t_evap_sp_c=state.t_evap_sp_c)
+        meas = {f: getattr(state, f) for f in MEASUREMENTS}
+        obs = observation(k, t_s, meas, state, prev, msg_conv.previews(w, s, t_s, ts), self.scenario)
         cmd, diag = self.core.compute(obs)
-        self._prev_cmd = (cmd.mdot_bl_kgps, cmd.t_evap_sp_c)
+        self._prev_cmd = cmd
         stamp = state.header.stamp
         fallback = bool(diag.fallback)
         self._pub_cmd.publish(msg_conv.command_msg(cmd, k, stamp, ts, self.config.strategy, fallback))

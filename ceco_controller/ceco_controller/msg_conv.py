@@ -1,4 +1,4 @@
-"""Messages <-> controller core data (Observation, AcInput, Diagnostics).
+"""Messages <-> controller core data (Previews, AcInput, Diagnostics).
 
 The one adapter between ceco_msgs and the controller core: checks each
 incoming message (finite numbers, equal-length arrays of the expected length,
@@ -11,8 +11,9 @@ import math
 
 import numpy as np
 
-from ceco_controller.interface import Diagnostics, Observation
+from ceco_controller.interface import Diagnostics
 from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficPreview, WeatherPreview
+from ceco_v2x_preview.preview import Previews
 
 STATE_FIELDS = ('scenario_time_s', 't_cab_c', 't_int_c', 't_shell_c', 't_evap_c', 't_vent_c',
                 't_amb_c', 'solar_wm2', 'rh', 'speed_mps', 'mdot_bl_kgps', 't_evap_sp_c')
@@ -83,21 +84,16 @@ def align_previews(w: WeatherPreview, s: TrafficPreview, t_s: float, step_s: flo
     return w2, s2
 
 
-def observation(k: int, t_s: float, state: CabinState, w: WeatherPreview, s: TrafficPreview,
-                pmv_lb, pmv_ub, met: float, clo: float,
-                mdot_bl_prev_kgps: float, t_evap_sp_prev_c: float) -> Observation:
-    """Observation for step k from checked messages; pmv bounds on the grid."""
-    valid = np.asarray(w.valid, dtype=bool) & np.asarray(s.valid, dtype=bool)
-    return Observation(
-        k=int(k), t_s=float(t_s),
-        t_cab_c=state.t_cab_c, t_int_c=state.t_int_c, t_shell_c=state.t_shell_c,
-        t_evap_c=state.t_evap_c, t_vent_c=state.t_vent_c, t_amb_c=state.t_amb_c,
-        solar_wm2=state.solar_wm2, speed_mps=state.speed_mps,
-        mdot_bl_prev_kgps=float(mdot_bl_prev_kgps), t_evap_sp_prev_c=float(t_evap_sp_prev_c),
-        preview_t_amb_c=np.asarray(w.t_amb_c, dtype=float),
-        preview_solar_wm2=np.asarray(w.solar_wm2, dtype=float),
-        preview_speed_mps=np.asarray(s.speed_mps, dtype=float),
-        preview_valid=valid, pmv_lb=pmv_lb, pmv_ub=pmv_ub, met=float(met), clo=float(clo))
+def previews(w: WeatherPreview, s: TrafficPreview, t_s: float, step_s: float) -> Previews:
+    """Checked (and, in real-time mode, aligned) preview messages -> the core's Previews on the grid
+    t_s + i * step_s (the inverse of ``preview_node.previews_to_msgs``); a sample is valid when it
+    is valid in both messages."""
+    age_s = float(w.age_s) if w.age_s >= 0.0 else math.inf
+    return Previews(t0_s=t_s, step_s=step_s, t_amb_c=np.asarray(w.t_amb_c, dtype=float),
+                    solar_wm2=np.asarray(w.solar_wm2, dtype=float),
+                    speed_mps=np.asarray(s.speed_mps, dtype=float), rh=np.asarray(w.rh, dtype=float),
+                    valid=np.asarray(w.valid, dtype=bool) & np.asarray(s.valid, dtype=bool),
+                    age_s=age_s, issued_s=t_s - age_s if math.isfinite(age_s) else math.nan)
 
 
 def command_msg(cmd, k: int, stamp, control_period_s: float, strategy: str, fallback: bool) -> AcCommand:
