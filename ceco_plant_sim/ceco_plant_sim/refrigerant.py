@@ -67,18 +67,11 @@ class _Table1D:
         self.n = len(self.y)
 
     def __call__(self, x: float) -> float:
-        u = (x - self.x0) * self.inv_dx
-        i = int(math.floor(u))
-        if i < 0:
-            i = 0
-        elif i > self.n - 2:
-            i = self.n - 2
-        f = u - i
-        y = self.y
-        return y[i] + f * (y[i + 1] - y[i])
+        """Return y(x) (the value of :meth:`value_slope`, which holds the one cell lookup)."""
+        return self.value_slope(x)[0]
 
     def value_slope(self, x: float) -> tuple[float, float]:
-        """Return (y(x), dy/dx) of the interpolant."""
+        """Return (y(x), dy/dx) of the interpolant (the plant's hot path: kept inline)."""
         u = (x - self.x0) * self.inv_dx
         i = int(math.floor(u))
         if i < 0:
@@ -106,28 +99,11 @@ class _Table2D:
         self.z = [[float(v) for v in row] for row in z]
 
     def __call__(self, x: float, y: float) -> float:
-        u = (x - self.x0) * self.inv_dx
-        i = int(math.floor(u))
-        if i < 0:
-            i = 0
-        elif i > self.nx - 2:
-            i = self.nx - 2
-        v = (y - self.y0) * self.inv_dy
-        j = int(math.floor(v))
-        if j < 0:
-            j = 0
-        elif j > self.ny - 2:
-            j = self.ny - 2
-        f = u - i
-        g = v - j
-        r0 = self.z[i]
-        r1 = self.z[i + 1]
-        a = r0[j] + g * (r0[j + 1] - r0[j])
-        b = r1[j] + g * (r1[j + 1] - r1[j])
-        return a + f * (b - a)
+        """Return z(x, y) (the value of :meth:`value_grad`, which holds the one cell lookup)."""
+        return self.value_grad(x, y)[0]
 
     def value_grad(self, x: float, y: float) -> tuple[float, float, float]:
-        """Return (z(x, y), dz/dx, dz/dy) of the bilinear interpolant."""
+        """Return (z(x, y), dz/dx, dz/dy) of the bilinear interpolant (the plant's hot path: kept inline)."""
         u = (x - self.x0) * self.inv_dx
         i = int(math.floor(u))
         if i < 0:
