@@ -36,6 +36,7 @@ from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficP
 from ceco_plant_sim.plant import AcInput
 from ceco_plant_sim.scenario_plant import MEASUREMENTS
 from ceco_v2x_preview import ros_common as rc
+from ceco_v2x_preview.control_grid import control_step_index
 
 CECO_STRATEGIES = ('ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
 TIMING_MODES = ('lockstep', 'realtime')
@@ -130,11 +131,6 @@ class ControllerNode(Node):
         return cfg
 
     # ---------------------------------------------------------------- inputs
-    def _k_of(self, t_s: float) -> int | None:
-        ts = self.config.control_period_s
-        k = int(round(t_s / ts))
-        return k if abs(t_s - k * ts) <= 1e-6 * ts else None
-
     def _on_state(self, msg: CabinState) -> None:
         err = msg_conv.check_state(msg)
         if err:
@@ -143,7 +139,7 @@ class ControllerNode(Node):
         if self.config.timing == 'realtime':
             self._latest_state = msg
             return
-        k = self._k_of(msg.scenario_time_s)
+        k = control_step_index(msg.scenario_time_s, self.config.control_period_s)
         if k is None:
             return  # between control steps
         if k <= self._last_k:

@@ -23,6 +23,7 @@ from rclpy.node import Node
 
 from ceco_msgs.msg import CabinState, TrafficPreview, WeatherPreview
 from ceco_v2x_preview import ros_common as rc
+from ceco_v2x_preview.control_grid import control_step_index
 from ceco_v2x_preview.preview import Previews, PreviewQuality, make_previews
 
 TIMING_MODES = ('lockstep', 'realtime')
@@ -160,9 +161,8 @@ class PreviewNode(Node):
         self._latest_t_s = t_s
         if self.config.timing != 'lockstep':
             return
-        ts = self.config.control_period_s
-        k = int(round(t_s / ts))
-        if abs(t_s - k * ts) > 1e-6 * ts:
+        k = control_step_index(t_s, self.config.control_period_s)
+        if k is None:
             return  # not a control step time
         if k <= self._last_k:
             if k < self._last_k:

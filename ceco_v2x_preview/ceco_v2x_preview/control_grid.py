@@ -1,0 +1,17 @@
+"""The control-step grid t_k = k * Ts shared by every node of the lockstep
+stack: preview_node publishes the previews of step k and mpc_node solves step k
+on the same states, so both must agree on which scenario times are control
+steps. Pure logic: no rclpy, no message types.
+"""
+from __future__ import annotations
+
+__all__ = ["control_step_index"]
+
+GRID_TOL = 1e-6
+"""Tolerance of a control-step time, relative to Ts [-] (scenario times n * dt carry float rounding)."""
+
+
+def control_step_index(t_s: float, control_period_s: float) -> int | None:
+    """Index k of the control step at ``t_s`` = k * Ts [s], or None when ``t_s`` lies between control steps."""
+    k = int(round(t_s / control_period_s))
+    return k if abs(t_s - k * control_period_s) <= GRID_TOL * control_period_s else None
