@@ -27,6 +27,8 @@ import threading
 import time
 from pathlib import Path
 
+from ceco_v2x_preview.control_grid import control_step_index
+
 
 def build_parser():
     p = argparse.ArgumentParser(prog='ceco play', description=__doc__.split('\n\n')[0])
@@ -203,7 +205,7 @@ def compare(args) -> int:
             if topic == rc.TOPIC_STATE:
                 msg = deserialize_message(raw, CabinState)
                 k = int(msg.scenario_time_s // ts + 1e-9)
-                on_grid = abs(msg.scenario_time_s - round(msg.scenario_time_s / ts) * ts) < 1e-6 * ts
+                on_grid = control_step_index(msg.scenario_time_s, ts) is not None
                 steps.setdefault(k, {}).setdefault('states', []).append((not on_grid, msg.step_index, raw))
             elif topic in (rc.TOPIC_WEATHER, rc.TOPIC_TRAFFIC):
                 k = int(deserialize_message(raw, _cls(topic)).step_index)

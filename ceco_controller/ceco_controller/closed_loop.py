@@ -228,7 +228,9 @@ def write_run(result: RunResult, run_dir: str | pathlib.Path) -> pathlib.Path:
         w.writerow(TIMESERIES_COLUMNS)
         cols = [result.timeseries[c] for c in TIMESERIES_COLUMNS]
         for row in zip(*cols):
-            w.writerow([f"{v:.6g}" for v in row])
+            # repr: round-trip precision, so metrics recomputed from the CSV
+            # equal metrics.json (ceco report checks them).
+            w.writerow([_fmt(v) for v in row])
     objs = list(getattr(result, "diag_objects", None) or [])
     if len(objs) != len(result.diagnostics):
         objs = [None] * len(result.diagnostics)

@@ -16,6 +16,8 @@ import math
 
 import numpy as np
 
+from ceco_plant_sim import plant_params
+
 __all__ = ["Observation", "Diagnostics", "DIAGNOSTICS_COLUMNS", "ACTUATOR_LIMITS"]
 
 
@@ -23,13 +25,13 @@ __all__ = ["Observation", "Diagnostics", "DIAGNOSTICS_COLUMNS", "ACTUATOR_LIMITS
 class ActuatorLimits:
     """Hard actuator bounds of the A/C (paper, Sec. 3.1)."""
 
-    mdot_bl_min_kgps: float = 0.05
+    mdot_bl_min_kgps: float = plant_params.MDOT_BL_MIN_KGPS
     """Lowest blower air mass flow [kg/s]."""
-    mdot_bl_max_kgps: float = 0.17
+    mdot_bl_max_kgps: float = plant_params.MDOT_BL_MAX_KGPS
     """Highest blower air mass flow [kg/s]."""
-    t_evap_sp_min_c: float = 3.0
+    t_evap_sp_min_c: float = plant_params.T_EVAP_SP_MIN_C
     """Lowest evaporator wall temperature set-point [degC] (frost margin)."""
-    t_evap_sp_max_c: float = 10.0
+    t_evap_sp_max_c: float = plant_params.T_EVAP_SP_MAX_C
     """Highest evaporator wall temperature set-point [degC]."""
 
     def validate(self) -> None:
