@@ -144,3 +144,36 @@ def test_codegen_compiles_once_and_matches_in_process(tmp_path):
     mtime = objs[0].stat().st_mtime_ns
     NmpcController(strategy_settings("ceco-ioch", solver=ss))
     assert list(cache.glob("ceco_nlp_*.so")) == objs and objs[0].stat().st_mtime_ns == mtime
+
+
+def test_sqpmethod_matches_ipopt_and_falls_back_to_ipopt():
+    # warm sqpmethod (exact Hessian, eigen-clip, dense qpOASES) reaches IPOPT's optimum on a warm instance
+    sqp = NmpcController(strategy_settings("ceco-ioch", solver=SolverSettings(name="sqpmethod", max_iter=20)))
+    ipo = NmpcController("ceco-ioch")
+    costs = {}
+    for name, ctrl in (("sqp", sqp), ("ipopt", ipo)):
+        for k in range(3):
+            cmd, diag = ctrl.compute(_obs(k, t_cab=27.0 - 0.3 * k))
+            assert diag.success and _valid(cmd)
+        costs[name] = diag.cost_total
+    assert sqp.n_ipopt_fallbacks == 0  # step 0 is a cold (IPOPT) solve, steps 1-2 warm sqpmethod
+    assert abs(costs["sqp"] - costs["ipopt"]) <= 1e-4 * abs(costs["ipopt"])
+    # the same warm instance solved by both solvers directly: same optimum
+    data = sqp.last_nlp()
+    f_sqp = sqp.solve_nlp(data, sqp.solver)
+    f_ipo = sqp.solve_nlp(data, sqp.solver_fallback)
+    assert f_sqp["success"] and f_ipo["success"]
+    assert abs(f_sqp["f"] - f_ipo["f"]) <= 1e-4 * abs(f_ipo["f"])
+    # a failing sqpmethod (1 iteration) is retried by warm IPOPT: valid command, counted
+    sqp.solver = NmpcController(strategy_settings(
+        "ceco-ioch", solver=SolverSettings(name="sqpmethod", max_iter=1, ipopt_fallback=False))).solver
+    cmd, diag = sqp.compute(_obs(3, t_cab=26.0))
+    assert sqp.n_ipopt_fallbacks == 1 and diag.success and diag.fallback == "" and _valid(cmd)
+    assert diag.status.startswith("sqpmethod: ") and "retried with IPOPT" in diag.message
+
+
+def test_solver_settings_reject_unknown_qpsol():
+    with pytest.raises(ValueError, match="qpsol"):
+        SolverSettings(name="sqpmethod", qpsol="nope").validate()
+    with pytest.raises(ValueError, match="convexify_strategy"):
+        SolverSettings(convexify_strategy="none").validate()

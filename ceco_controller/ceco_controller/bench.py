@@ -16,6 +16,12 @@ This is a benchmark, not a test: wall-clock times depend on the machine and
 its load (2 shared cores here); nothing in the controller uses them.
 
     python -m ceco_controller.bench nmpc [--quick] [--jit | --no-codegen] [--horizons 6,12] [--strategies ceco,ceco-c]
+                                         [--method ipopt|sqpmethod|fatrop]
+
+``--method`` picks the product solver (``SolverSettings.name``; default ipopt, the
+controller's default). sqpmethod/fatrop run with their IPOPT fallback: a failed warm
+solve is retried with warm IPOPT, and its time counts in the product's; the number of
+retries is printed (``ipopt fallbacks``).
 
 The product solver runs with ``codegen`` (compiled NLP functions from the on-disk
 cache; the first run compiles each NLP once). The reference always uses the
@@ -40,6 +46,9 @@ from .strategies import CECO_STRATEGIES, SolverSettings
 
 __all__ = ["main", "bench_nmpc"]
 
+_SQP_MAX_ITER = 20
+"""SQP iteration bound in the benchmark's sqpmethod runs (SC03: median 3-5, at most 7 iterations)."""
+
 
 def _stats(x):
     x = np.asarray(x, float)
@@ -49,14 +58,15 @@ def _stats(x):
 
 
 def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03", progress=False,
-               codegen=True) -> list[dict]:
+               codegen=True, method="ipopt") -> list[dict]:
     """Run the benchmark; return one dict per (strategy, horizon)."""
     sc = load_scenario(scenario)
     mp = cm.load_params()
     rows = []
     for np_ in horizons:
         for strat in strategies:
-            overrides = {"solver": SolverSettings(jit=jit, codegen=codegen and not jit)}
+            extra = {"max_iter": _SQP_MAX_ITER} if method == "sqpmethod" else {}
+            overrides = {"solver": SolverSettings(name=method, jit=jit, codegen=codegen and not jit, **extra)}
             ctrl = cl.make_controller(strat, sc, sc.control.control_period_s, np_, mp, overrides)
             ref_solver = ctrl.make_solver(SolverSettings(default_options=True))
             ours_t, ref_t, diffs, sdiffs, ours_it, ref_it = [], [], [], [], [], []
@@ -97,7 +107,8 @@ def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03"
                          "max_rel_cost_diff": max(diffs) if diffs else float("nan"),
                          "max_rel_cost_excess": max(max(sdiffs), 0.0) if sdiffs else float("nan"),
                          "n_rel_cost_diff_gt_1e-4": int(sum(d > 1e-4 for d in diffs)),
-                         "n_fail": n_fail, "n_ref_fail": n_ref_fail})
+                         "n_fail": n_fail, "n_ref_fail": n_ref_fail,
+                         "n_ipopt_fallbacks": ctrl.n_ipopt_fallbacks})
             rr = rows[-1]
             print(f"{strat:10s} Np={np_:3d} steps={rr['steps']:4d}  ours median {rr['ours_median_ms']:7.2f} ms "
                   f"p95 {rr['ours_p95_ms']:7.2f} max {rr['ours_max_ms']:7.2f} (it {rr['ours_iter_median']:.0f})  |  "
@@ -105,7 +116,7 @@ def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03"
                   f"max {rr['ref_max_ms']:7.2f} (it {rr['ref_iter_median']:.0f})  speed-up "
                   f"{rr['speedup_median']:5.1f}x  max rel cost diff {rr['max_rel_cost_diff']:.1e} "
                   f"(ours higher by <= {rr['max_rel_cost_excess']:.1e}; {rr['n_rel_cost_diff_gt_1e-4']} steps > 1e-4)  "
-                  f"fails {n_fail}/{n_ref_fail}", flush=True)
+                  f"fails {n_fail}/{n_ref_fail}  [{method}; ipopt fallbacks {ctrl.n_ipopt_fallbacks}]", flush=True)
     return rows
 
 
@@ -120,6 +131,8 @@ def main(argv=None) -> int:
     ap.add_argument("--horizons", default=None, help="comma-separated horizons (default 6,12,24,60)")
     ap.add_argument("--strategies", default=None, help=f"comma-separated subset of {','.join(CECO_STRATEGIES)}")
     ap.add_argument("--duration", type=float, default=None, help="run length [s] (default: whole SC03)")
+    ap.add_argument("--method", choices=["ipopt", "sqpmethod", "fatrop"], default="ipopt",
+                    help="product solver (SolverSettings.name; default ipopt)")
     ap.add_argument("--progress", action="store_true", help="show progress bars")
     args = ap.parse_args(argv)
     horizons = [int(h) for h in args.horizons.split(",")] if args.horizons else ([6, 12] if args.quick
@@ -127,7 +140,10 @@ def main(argv=None) -> int:
     strategies = args.strategies.split(",") if args.strategies else list(CECO_STRATEGIES)
     duration = args.duration if args.duration is not None else (200.0 if args.quick else None)
     codegen = not args.no_codegen and not args.jit
-    rows = bench_nmpc(strategies, horizons, duration, jit=args.jit, progress=args.progress, codegen=codegen)
+    print(f"ceco bench nmpc: product solver {args.method}" + (" (fallback: warm IPOPT)" if args.method != "ipopt" else "")
+          + (", compiled functions" if codegen else ""), flush=True)
+    rows = bench_nmpc(strategies, horizons, duration, jit=args.jit, progress=args.progress, codegen=codegen,
+                      method=args.method)
     np6 = [r for r in rows if r["np"] == 6] or rows
     summary = {
         "np6_median_ms": float(np.median([r["ours_median_ms"] for r in np6])),
@@ -140,7 +156,8 @@ def main(argv=None) -> int:
         "max_rel_cost_excess": float(np.nanmax([r["max_rel_cost_excess"] for r in rows])),
         "n_steps_rel_cost_diff_gt_1e-4": int(sum(r["n_rel_cost_diff_gt_1e-4"] for r in rows)),
         "n_steps": int(sum(r["steps"] for r in rows)),
-        "solver": "ipopt-warm" + ("+jit" if args.jit else "") + ("+codegen" if codegen else ""),
+        "solver": (args.method + "-warm") + ("+jit" if args.jit else "") + ("+codegen" if codegen else ""),
+        "n_ipopt_fallbacks": int(sum(r["n_ipopt_fallbacks"] for r in rows)),
         "horizons": horizons,
         "strategies": strategies,
         "duration_s": duration,

@@ -241,10 +241,19 @@ class NmpcController:
              casadi.vertcat(*tain_all)],
             ["w", "p"], ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain"])
         self._compiled: dict = {}  # codegen flags -> path of the compiled NLP functions (or None)
-        self.solver = self.make_solver(self.settings.solver)
+        ss = self.settings.solver
+        self.solver = self.make_solver(ss)
+        self.n_ipopt_fallbacks = 0
+        """Warm sqpmethod/fatrop solves that failed and were retried with warm IPOPT (since construction)."""
+        self.solver_fallback = None
+        if ss.name != "ipopt" and ss.ipopt_fallback:
+            # the default IPOPT path, same codegen: retries failed warm solves and does the cold ones
+            ipopt_ss = dataclasses.replace(ss, name="ipopt")
+            self.solver_fallback = self.make_solver(ipopt_ss)
+            ss = ipopt_ss
         # cold solves (first step, after a failure): robust IPOPT settings, no warm start
-        self.solver_cold = (self.make_solver(dataclasses.replace(self.settings.solver, warm_start=False))
-                            if self.settings.solver.warm_start and self.settings.solver.name == "ipopt"
+        self.solver_cold = (self.make_solver(dataclasses.replace(ss, warm_start=False))
+                            if ss.warm_start and ss.name == "ipopt"
                             else self.solver)
 
     def make_solver(self, solver_settings) -> casadi.Function:
@@ -253,7 +262,7 @@ class NmpcController:
         ss.validate()
         opts: dict = {"print_time": False}
         nlp = self._nlp
-        if ss.codegen and ss.name == "ipopt" and not ss.default_options:
+        if ss.codegen and ss.name in ("ipopt", "sqpmethod") and not ss.default_options:
             so = self._compiled_nlp(ss)
             if so is not None:
                 nlp = so
@@ -298,19 +307,32 @@ class NmpcController:
                                     "mu_init": 1e-2}})
             # (fatrop 0.0.x in CasADi 3.8 accepts no warm-start option; the primal guess is still used)
             return casadi.nlpsol("ceco_nlp", "fatrop", self._nlp, opts)
-        # sqpmethod with a QP solver
-        opts.update({"qpsol": "qrqp", "qpsol_options": {"print_iter": False, "print_header": False,
-                                                       "error_on_fail": False},
+        # sqpmethod: exact Hessian convexified (eigen-clip), one dense QP per iteration, line search;
+        # bounded by max_iter SQP iterations and a CPU-time limit per QP (qpOASES). Like the warm IPOPT:
+        # constraints met to tol (1e-6), stationarity to acceptable_tol (1e-4; 3 instead of 5 median
+        # iterations on SC03 with the same optimum, docs/controller.md 4.6)
+        if ss.qpsol == "qpoases":
+            qp_opts = {"printLevel": "none", "sparse": False, "error_on_fail": False,
+                       "CPUtime": ss.max_cpu_time_s / max(ss.max_iter, 1)}
+        else:
+            qp_opts = {"print_iter": False, "print_header": False, "error_on_fail": False}
+        opts.update({"qpsol": ss.qpsol, "qpsol_options": qp_opts,
                      "max_iter": max(ss.max_iter, 1), "print_iteration": False, "print_header": False,
-                     "print_status": False, "tol_pr": ss.tol, "tol_du": ss.tol,
-                     "convexify_strategy": "regularize", "error_on_fail": False})
-        return casadi.nlpsol("ceco_nlp", "sqpmethod", self._nlp, opts)
+                     "print_status": False, "tol_pr": ss.tol, "tol_du": ss.acceptable_tol if ss.warm_start else ss.tol,
+                     "convexify_strategy": ss.convexify_strategy, "error_on_fail": False})
+        if isinstance(nlp, str):
+            try:
+                return casadi.nlpsol("ceco_nlp", "sqpmethod", nlp, opts)
+            except RuntimeError as exc:
+                _LOG.warning("NMPC codegen: cannot load %s (%s); using the in-process NLP functions", nlp, exc)
+                nlp = self._nlp
+        return casadi.nlpsol("ceco_nlp", "sqpmethod", nlp, opts)
 
     def _compiled_nlp(self, ss) -> str | None:
         """Path of the compiled NLP functions for ``ss.codegen_flags`` (cached), or None (logged)."""
-        key = tuple(ss.codegen_flags)
+        key = (ss.name, tuple(ss.codegen_flags))
         if key not in self._compiled:
-            self._compiled[key] = compile_nlp(self._nlp, ss.codegen_flags, ss.codegen_cache_dir)
+            self._compiled[key] = compile_nlp(self._nlp, ss.codegen_flags, ss.codegen_cache_dir, plugin=ss.name)
         return self._compiled[key]
 
     # ------------------------------------------------------------------ state
@@ -508,11 +530,17 @@ class NmpcController:
             data = NlpData(p=p, x0=self.initial_guess(p))
         self._last_nlp = data
         solver = self.solver if data.lam_g0 is not None else self.solver_cold
-        try:
-            res = self.solve_nlp(data, solver)
-        except RuntimeError as exc:  # CasADi evaluation errors
-            res = {"success": False, "status": f"exception: {exc}", "iterations": None, "time_ms": None,
-                   "w": None, "f": math.nan}
+        res = self._try_solve(data, solver)
+        if not res["success"] and self.solver_fallback is not None and solver is self.solver:
+            # sqpmethod/fatrop failed: the same instance with the warm IPOPT solver
+            self.n_ipopt_fallbacks += 1
+            first = res
+            res = self._try_solve(data, self.solver_fallback)
+            res["status"] = f"{s.solver.name}: {first['status']}; ipopt: {res['status']}"
+            if first["time_ms"] is not None and res["time_ms"] is not None:
+                res["time_ms"] += first["time_ms"]
+            diag.message = (diag.message + "; " if diag.message else "") + \
+                f"{s.solver.name} failed ({first['status']}): retried with IPOPT"
         diag.status = res["status"]
         diag.success = res["success"]
         diag.iterations = res["iterations"]
@@ -548,6 +576,14 @@ class NmpcController:
         self._last_pred = self._predict_unbiased(obs, cmd[0], cmd[1], ex)
         diag.mdot_bl_kgps, diag.t_evap_sp_c = float(cmd[0]), float(cmd[1])
         return AcInput(mdot_bl_kgps=float(cmd[0]), t_evap_sp_c=float(cmd[1])), diag
+
+    def _try_solve(self, data: NlpData, solver: casadi.Function) -> dict:
+        """:meth:`solve_nlp`, with CasADi evaluation errors returned as a failed result."""
+        try:
+            return self.solve_nlp(data, solver)
+        except RuntimeError as exc:
+            return {"success": False, "status": f"exception: {exc}", "iterations": None, "time_ms": None,
+                    "w": None, "f": math.nan}
 
     def _plan_from(self, w: np.ndarray) -> np.ndarray:
         return np.array([w[j:j + 2] for j in self._idx["u"]])
@@ -589,8 +625,10 @@ def codegen_cache_dir(path: str | None = None) -> pathlib.Path:
     return pathlib.Path(base) / "ceco"
 
 
-def compile_nlp(nlp: dict, flags=("-O1",), cache_dir: str | None = None) -> str | None:
-    """Generate C for an NLP's IPOPT functions and compile it into a cached shared object.
+def compile_nlp(nlp: dict, flags=("-O1",), cache_dir: str | None = None, plugin: str = "ipopt") -> str | None:
+    """Generate C for an NLP's functions as ``plugin`` needs them and compile it into a cached shared object.
+
+    ``plugin``: 'ipopt' (f, g, grad_f, jac_g, hess_l) or 'sqpmethod' (fg, grad, jac_fg, hess_l).
 
     The file name is a hash of the generated C code, the flags and the CasADi version, so a
     changed NLP never loads a stale object. Concurrent processes do not race: each compiles to
@@ -604,7 +642,7 @@ def compile_nlp(nlp: dict, flags=("-O1",), cache_dir: str | None = None) -> str 
         return None
     try:
         with tempfile.TemporaryDirectory(prefix="ceco_cg_") as tmp:
-            gen = casadi.nlpsol("ceco_nlp", "ipopt", nlp, {"print_time": False})
+            gen = casadi.nlpsol("ceco_nlp", plugin, nlp, {"print_time": False})
             src = os.path.join(tmp, "ceco_nlp.c")
             cwd = os.getcwd()
             os.chdir(tmp)  # generate_dependencies writes relative to the working directory
@@ -613,7 +651,7 @@ def compile_nlp(nlp: dict, flags=("-O1",), cache_dir: str | None = None) -> str 
             finally:
                 os.chdir(cwd)
             code = pathlib.Path(src).read_bytes()
-            digest = hashlib.sha256(code + repr((list(flags), casadi.__version__, cc)).encode()).hexdigest()[:20]
+            digest = hashlib.sha256(code + repr((list(flags), casadi.__version__, cc, plugin)).encode()).hexdigest()[:20]
             cache = codegen_cache_dir(cache_dir)
             target = cache / f"ceco_nlp_{digest}.so"
             if target.is_file():

@@ -74,6 +74,15 @@ class SolverSettings:
     """Cache directory of compiled NLPs; None: $CECO_CACHE_DIR, else $XDG_CACHE_HOME/ceco, else ~/.cache/ceco."""
     default_options: bool = False
     """Reference mode: IPOPT with its default settings, no warm start (what MPCTools did)."""
+    qpsol: str = "qpoases"
+    """QP solver of ``sqpmethod`` ('qpoases', dense, or 'qrqp'); measured in docs/controller.md 4.6."""
+    convexify_strategy: str = "eigen-clip"
+    """Hessian convexification of ``sqpmethod`` ('eigen-clip', 'eigen-reflect' or 'regularize';
+    'regularize' left qpOASES failing on most SC03 steps, docs/controller.md 4.6)."""
+    ipopt_fallback: bool = True
+    """For ``name`` 'sqpmethod'/'fatrop': a failed warm solve is retried at once with the warm
+    IPOPT solver (same data), and cold solves (first step, after a failure) use the cold IPOPT
+    solver; the retries are counted (``NmpcController.n_ipopt_fallbacks``)."""
 
     def validate(self) -> None:
         """Raise ValueError naming the field if a setting is not usable."""
@@ -87,6 +96,11 @@ class SolverSettings:
             raise ValueError("SolverSettings.tol must be > 0")
         if not (math.isfinite(self.acceptable_tol) and self.acceptable_tol >= self.tol):
             raise ValueError("SolverSettings.acceptable_tol must be finite and >= tol")
+        if self.qpsol not in ("qpoases", "qrqp"):
+            raise ValueError(f"SolverSettings.qpsol must be qpoases or qrqp, got {self.qpsol!r}")
+        if self.convexify_strategy not in ("eigen-clip", "eigen-reflect", "regularize"):
+            raise ValueError("SolverSettings.convexify_strategy must be eigen-clip, eigen-reflect or regularize, "
+                             f"got {self.convexify_strategy!r}")
         if not (isinstance(self.codegen_flags, (tuple, list)) and all(isinstance(f, str) for f in self.codegen_flags)):
             raise ValueError("SolverSettings.codegen_flags must be a tuple of strings")
 
