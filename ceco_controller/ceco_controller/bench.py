@@ -18,8 +18,8 @@ its load (2 shared cores here); nothing in the controller uses them.
     python -m ceco_controller.bench nmpc [--quick] [--jit | --no-codegen] [--horizons 6,12] [--strategies ceco,ceco-c]
                                          [--method ipopt|sqpmethod|fatrop]
 
-``--method`` picks the product solver (``SolverSettings.name``; default ipopt, the
-controller's default). sqpmethod/fatrop run with their IPOPT fallback: a failed warm
+``--method`` picks the product solver (``SolverSettings.name``; default: the
+controller's default, ipopt). sqpmethod/fatrop run with their IPOPT fallback: a failed warm
 solve is retried with warm IPOPT, and its time counts in the product's; the number of
 retries is printed (``ipopt fallbacks``).
 
@@ -46,9 +46,6 @@ from .strategies import CECO_STRATEGIES, SolverSettings
 
 __all__ = ["main", "bench_nmpc"]
 
-_SQP_MAX_ITER = 20
-"""SQP iteration bound in the benchmark's sqpmethod runs (SC03: median 3-5, at most 7 iterations)."""
-
 
 def _stats(x):
     x = np.asarray(x, float)
@@ -58,17 +55,16 @@ def _stats(x):
 
 
 def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03", progress=False,
-               codegen=True, method="ipopt") -> list[dict]:
+               codegen=True, method=SolverSettings().name) -> list[dict]:
     """Run the benchmark; return one dict per (strategy, horizon)."""
     sc = load_scenario(scenario)
     mp = cm.load_params()
     rows = []
     for np_ in horizons:
         for strat in strategies:
-            extra = {"max_iter": _SQP_MAX_ITER} if method == "sqpmethod" else {}
-            overrides = {"solver": SolverSettings(name=method, jit=jit, codegen=codegen and not jit, **extra)}
+            overrides = {"solver": SolverSettings(name=method, jit=jit, codegen=codegen and not jit)}
             ctrl = cl.make_controller(strat, sc, sc.control.control_period_s, np_, mp, overrides)
-            ref_solver = ctrl.make_solver(SolverSettings(default_options=True))
+            ref_solver = ctrl.make_solver(SolverSettings(name="ipopt", default_options=True))
             ours_t, ref_t, diffs, sdiffs, ours_it, ref_it = [], [], [], [], [], []
             n_fail = n_ref_fail = 0
             orig = ctrl.compute
@@ -131,8 +127,8 @@ def main(argv=None) -> int:
     ap.add_argument("--horizons", default=None, help="comma-separated horizons (default 6,12,24,60)")
     ap.add_argument("--strategies", default=None, help=f"comma-separated subset of {','.join(CECO_STRATEGIES)}")
     ap.add_argument("--duration", type=float, default=None, help="run length [s] (default: whole SC03)")
-    ap.add_argument("--method", choices=["ipopt", "sqpmethod", "fatrop"], default="ipopt",
-                    help="product solver (SolverSettings.name; default ipopt)")
+    ap.add_argument("--method", choices=["ipopt", "sqpmethod", "fatrop"], default=SolverSettings().name,
+                    help=f"product solver (SolverSettings.name; default {SolverSettings().name})")
     ap.add_argument("--progress", action="store_true", help="show progress bars")
     args = ap.parse_args(argv)
     horizons = [int(h) for h in args.horizons.split(",")] if args.horizons else ([6, 12] if args.quick
@@ -141,7 +137,7 @@ def main(argv=None) -> int:
     duration = args.duration if args.duration is not None else (200.0 if args.quick else None)
     codegen = not args.no_codegen and not args.jit
     print(f"ceco bench nmpc: product solver {args.method}" + (" (fallback: warm IPOPT)" if args.method != "ipopt" else "")
-          + (", compiled functions" if codegen else ""), flush=True)
+          + (", compiled functions" if codegen and args.method != "fatrop" else ", in-process functions"), flush=True)
     rows = bench_nmpc(strategies, horizons, duration, jit=args.jit, progress=args.progress, codegen=codegen,
                       method=args.method)
     np6 = [r for r in rows if r["np"] == 6] or rows
@@ -156,7 +152,8 @@ def main(argv=None) -> int:
         "max_rel_cost_excess": float(np.nanmax([r["max_rel_cost_excess"] for r in rows])),
         "n_steps_rel_cost_diff_gt_1e-4": int(sum(r["n_rel_cost_diff_gt_1e-4"] for r in rows)),
         "n_steps": int(sum(r["steps"] for r in rows)),
-        "solver": (args.method + "-warm") + ("+jit" if args.jit else "") + ("+codegen" if codegen else ""),
+        "solver": (args.method + "-warm") + ("+jit" if args.jit else "")
+                  + ("+codegen" if codegen and args.method != "fatrop" else ""),
         "n_ipopt_fallbacks": int(sum(r["n_ipopt_fallbacks"] for r in rows)),
         "horizons": horizons,
         "strategies": strategies,

@@ -308,16 +308,16 @@ class NmpcController:
             # (fatrop 0.0.x in CasADi 3.8 accepts no warm-start option; the primal guess is still used)
             return casadi.nlpsol("ceco_nlp", "fatrop", self._nlp, opts)
         # sqpmethod: exact Hessian convexified (eigen-clip), one dense QP per iteration, line search;
-        # bounded by max_iter SQP iterations and a CPU-time limit per QP (qpOASES). Like the warm IPOPT:
+        # bounded by sqp_max_iter SQP iterations and a CPU-time limit per QP (qpOASES). Like the warm IPOPT:
         # constraints met to tol (1e-6), stationarity to acceptable_tol (1e-4; 3 instead of 5 median
         # iterations on SC03 with the same optimum, docs/controller.md 4.6)
         if ss.qpsol == "qpoases":
             qp_opts = {"printLevel": "none", "sparse": False, "error_on_fail": False,
-                       "CPUtime": ss.max_cpu_time_s / max(ss.max_iter, 1)}
+                       "CPUtime": ss.max_cpu_time_s / ss.sqp_max_iter}
         else:
             qp_opts = {"print_iter": False, "print_header": False, "error_on_fail": False}
         opts.update({"qpsol": ss.qpsol, "qpsol_options": qp_opts,
-                     "max_iter": max(ss.max_iter, 1), "print_iteration": False, "print_header": False,
+                     "max_iter": ss.sqp_max_iter, "print_iteration": False, "print_header": False,
                      "print_status": False, "tol_pr": ss.tol, "tol_du": ss.acceptable_tol if ss.warm_start else ss.tol,
                      "convexify_strategy": ss.convexify_strategy, "error_on_fail": False})
         if isinstance(nlp, str):

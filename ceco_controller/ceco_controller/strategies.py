@@ -47,9 +47,12 @@ class SolverSettings:
     """NLP solver settings (choice justified with numbers in docs/controller.md)."""
 
     name: str = "ipopt"
-    """CasADi nlpsol plugin: 'ipopt', 'fatrop' or 'sqpmethod'."""
+    """CasADi nlpsol plugin of the warm solves: 'ipopt' (default), 'sqpmethod' (warm SQP with qpOASES,
+    IPOPT for cold solves and failed SQP solves; 4.4-5.1x the reference, docs/controller.md 4.6) or 'fatrop'."""
     max_iter: int = 100
-    """Iteration limit per solve [-]."""
+    """IPOPT/fatrop iteration limit per solve [-]."""
+    sqp_max_iter: int = 20
+    """sqpmethod iteration limit per solve [-] (SC03: median 3, at most 7)."""
     max_cpu_time_s: float = 1.0
     """CPU-time limit per solve [s]; must be below the control period."""
     tol: float = 1e-6
@@ -96,6 +99,10 @@ class SolverSettings:
             raise ValueError("SolverSettings.tol must be > 0")
         if not (math.isfinite(self.acceptable_tol) and self.acceptable_tol >= self.tol):
             raise ValueError("SolverSettings.acceptable_tol must be finite and >= tol")
+        if self.default_options and self.name != "ipopt":
+            raise ValueError("SolverSettings.default_options (the IPOPT reference) needs name 'ipopt'")
+        if not (isinstance(self.sqp_max_iter, int) and self.sqp_max_iter >= 1):
+            raise ValueError("SolverSettings.sqp_max_iter must be an int >= 1")
         if self.qpsol not in ("qpoases", "qrqp"):
             raise ValueError(f"SolverSettings.qpsol must be qpoases or qrqp, got {self.qpsol!r}")
         if self.convexify_strategy not in ("eigen-clip", "eigen-reflect", "regularize"):
