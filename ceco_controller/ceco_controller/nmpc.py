@@ -15,6 +15,10 @@ and fatrop exploit:
     u_i = (mdot_bl [kg/s], T_evap_sp [degC])
     s_i = (s_lo, s_up [PMV], s_ev [K] (i >= 1), eps [PMV] (ceco-ioch))
 
+Solvers (``SolverSettings.name``): warm IPOPT (default); or warm ``sqpmethod``
+(exact Hessian, eigen-clip, dense qpOASES) or fatrop, with IPOPT doing the cold
+solves and retrying at once any warm solve they fail (``n_ipopt_fallbacks``).
+
 Fallbacks: a failed or invalid solve applies the previous plan shifted by
 one step; with no plan left, or no usable measurement, the production
 ACC law (run alongside so its integrator is warm) is applied. Every command
@@ -651,7 +655,8 @@ def compile_nlp(nlp: dict, flags=("-O1",), cache_dir: str | None = None, plugin:
             finally:
                 os.chdir(cwd)
             code = pathlib.Path(src).read_bytes()
-            digest = hashlib.sha256(code + repr((list(flags), casadi.__version__, cc, plugin)).encode()).hexdigest()[:20]
+            # (the plugin is in the code: IPOPT's and sqpmethod's function sets differ)
+            digest = hashlib.sha256(code + repr((list(flags), casadi.__version__, cc)).encode()).hexdigest()[:20]
             cache = codegen_cache_dir(cache_dir)
             target = cache / f"ceco_nlp_{digest}.so"
             if target.is_file():
