@@ -23,10 +23,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ceco_controller.strategies import STRATEGIES  # noqa: E402
+
 __all__ = ['STRATEGY_ORDER', 'ordered', 'strategy_style', 'fig_pmv', 'fig_temperatures', 'fig_powers',
            'fig_inputs', 'fig_bars', 'fig_vehicle', 'fig_solver']
 
-STRATEGY_ORDER = ('baseline', 'ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
+STRATEGY_ORDER = STRATEGIES
 """Order in which strategies appear in legends, tables and bars."""
 
 _OKABE_ITO = ('#000000', '#E69F00', '#56B4E9', '#009E73', '#D55E00', '#0072B2', '#CC79A7', '#F0E442')

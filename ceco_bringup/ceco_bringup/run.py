@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-STRATEGIES = ('baseline', 'ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
+from ceco_controller.strategies import STRATEGIES
+from ceco_v2x_preview.control_grid import TIMING_MODES
 
 
 class Interrupted(Exception):
@@ -69,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--horizon-steps', type=int, default=None, help='Np [steps] (default: the scenario\'s)')
     p.add_argument('--duration-s', type=float, default=None,
                    help='run only the first DURATION seconds of the scenario [s]')
-    p.add_argument('--timing', default='lockstep', choices=('lockstep', 'realtime'))
+    p.add_argument('--timing', default='lockstep', choices=TIMING_MODES)
     p.add_argument('--command-timeout-s', type=float, default=5.0,
                    help='lockstep: wall-clock wait for a command before the plant applies its '
                         'fallback law [s]')

@@ -32,14 +32,14 @@ from rclpy.node import Node
 
 from ceco_controller import msg_conv
 from ceco_controller.observation import observation
+from ceco_controller.strategies import CECO_STRATEGIES
 from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficPreview, WeatherPreview
 from ceco_plant_sim.plant import AcInput
 from ceco_plant_sim.scenario_plant import MEASUREMENTS
 from ceco_v2x_preview import ros_common as rc
 from ceco_v2x_preview.control_grid import control_step_index
 
-CECO_STRATEGIES = ('ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
-TIMING_MODES = ('lockstep', 'realtime')
+TIMING_MODES = rc.TIMING_MODES
 
 
 @dataclasses.dataclass(frozen=True)

@@ -8,6 +8,7 @@ import math
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort
 from ceco_plant_sim.plant import AcInput
 from ceco_plant_sim.scenario_plant import MEASUREMENTS as MEAS_FIELDS  # carried by CabinState
+from ceco_v2x_preview.ros_common import STRATEGIES as KNOWN_STRATEGIES
 
 
 def state_msg(n: int, t_s: float, stamp, meas: dict, env, u_prev: AcInput, fallback: bool) -> CabinState:
@@ -70,7 +71,6 @@ def comfort_msg(n: int, stamp, pmv: float, ppd: float, lb: float, ub: float, mea
     return m
 
 
-KNOWN_STRATEGIES = ('baseline', 'ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
 
 
 def command_input(msg: AcCommand) -> AcInput:

@@ -39,7 +39,7 @@ from ceco_plant_sim.plant import AcInput
 from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
 from ceco_v2x_preview import ros_common as rc
 
-TIMING_MODES = ('lockstep', 'realtime')
+TIMING_MODES = rc.TIMING_MODES
 
 
 @dataclasses.dataclass(frozen=True)

@@ -5,7 +5,10 @@ steps. Pure logic: no rclpy, no message types.
 """
 from __future__ import annotations
 
-__all__ = ["control_step_index"]
+__all__ = ["control_step_index", "TIMING_MODES"]
+
+TIMING_MODES = ("lockstep", "realtime")
+"""The nodes' timing modes: deterministic lockstep on /clock, or wall-clock timers."""
 
 GRID_TOL = 1e-6
 """Tolerance of a control-step time, relative to Ts [-] (scenario times n * dt carry float rounding)."""

@@ -26,7 +26,7 @@ from ceco_v2x_preview import ros_common as rc
 from ceco_v2x_preview.control_grid import control_step_index
 from ceco_v2x_preview.preview import Previews, PreviewQuality, make_previews
 
-TIMING_MODES = ('lockstep', 'realtime')
+TIMING_MODES = rc.TIMING_MODES
 
 
 @dataclasses.dataclass(frozen=True)

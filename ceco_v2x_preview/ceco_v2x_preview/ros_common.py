@@ -16,6 +16,8 @@ from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from ceco_v2x_preview import control_grid
+
 # --- Topics (relative, so namespaces and remapping work) -------------------
 TOPIC_STATE = 'cabin/state'
 TOPIC_COMFORT = 'cabin/comfort'
@@ -75,7 +77,12 @@ STACK_TOPICS: dict[str, tuple[str, QoSProfile, QoSProfile]] = {
 }
 
 STRATEGIES = ('baseline', 'ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
-"""Strategy names on the wire (AcCommand.strategy)."""
+"""Strategy names on the wire (AcCommand.strategy); equal to
+ceco_controller.strategies.STRATEGIES (tests/test_msgs.py checks it: this
+package sits below ceco_controller and cannot import it)."""
+
+TIMING_MODES = control_grid.TIMING_MODES
+"""The nodes' timing modes (defined with the control-step grid)."""
 
 PLANT_FALLBACK_STRATEGY = 'plant-fallback'
 """AcCommand.strategy of the commands the plant's own fallback law produces."""
