@@ -177,3 +177,84 @@ def test_code_fingerprint_is_part_of_the_id(tmp_path, monkeypatch):
     # A worker whose code differs from the driver's refuses to produce a result.
     row = sweep.run_cell({'id': other[0].id, 'axes': other[0].axes, 'spec': other[0].spec})
     assert row['status'] == 'error' and 'differs from the sweep' in row['error']
+
+
+# ------------------------------------------------------------ settings axis
+SETTINGS_GRID = """
+name: gamma test grid
+strategies: [baseline, ceco-c]
+scenarios: [sc03_mild]
+duration_s: 120
+settings:
+  g1k:  {ceco-c: {gamma_w: 1000}}
+  g50k: {ceco-c: {gamma_w: 50000.0}}
+"""
+
+
+def test_settings_axis_expands_per_strategy_and_keeps_other_ids(tmp_path):
+    cells = sweep.expand_grid(sweep.load_grid(_grid(tmp_path, SETTINGS_GRID)))
+    # The baseline runs once (label "default"), ceco-c once per label naming it.
+    assert [(c.axes['strategy'], c.axes['settings']) for c in cells] == [
+        ('baseline', 'default'), ('ceco-c', 'g1k'), ('ceco-c', 'g50k')]
+    assert cells[1].spec['strategy_overrides'] == {'gamma_w': 1000.0}     # int in YAML -> float field
+    assert isinstance(cells[1].spec['strategy_overrides']['gamma_w'], float)
+    assert 'strategy_overrides' not in cells[0].spec
+    # The same grid without the axis gives the baseline the same id (old sweeps resume).
+    plain = sweep.expand_grid(sweep.load_grid(_grid(tmp_path, SETTINGS_GRID.split('settings:')[0], name='p.yaml')))
+    assert plain[0].id == cells[0].id and plain[1].axes['settings'] == 'default'
+    assert plain[1].id not in {c.id for c in cells}
+    # 1000 and 1000.0 are one cell; two labels with the same overrides are an error naming both.
+    dup = SETTINGS_GRID + '  again: {ceco-c: {gamma_w: 1000.0}}\n'
+    with pytest.raises(sweep.GridError, match=r"settings 'g1k' / 'again'"):
+        sweep.expand_grid(sweep.load_grid(_grid(tmp_path, dup, name='d.yaml')))
+
+
+@pytest.mark.parametrize('entry, match', [
+    ('g: {ceco-c: {gama_w: 1000.0}}', r'settings\.g\.ceco-c\.gama_w: unknown StrategySettings field'),
+    ('g: {ceco-c: {gamma_w: -5.0}}', r'settings\.g\.ceco-c: StrategySettings\.gamma_w must be finite and >= 0'),
+    ('g: {ceco-c: {gamma_w: "high"}}', r'settings\.g\.ceco-c\.gamma_w: must be of the type'),
+    ('g: {ceco-c: {solver: {max_itr: 5}}}', r'settings\.g\.ceco-c\.solver\.max_itr: unknown SolverSettings field'),
+    ('g: {ceco-c: {solver: {max_cpu_time_s: 9.0}}}', r'settings\.g\.ceco-c: .*max_cpu_time_s must be below'),
+    ('g: {ceco-c: {horizon_steps: 12}}', r"settings\.g\.ceco-c\.horizon_steps: set by the grid key 'horizon_steps'"),
+    ('g: {ceco-ioch: {beta_w: 10.0}}', r"settings\.g\.ceco-ioch: strategy 'ceco-ioch' is not in the grid"),
+    ('g: {baseline: {gamma_w: 1.0}}', r'settings\.g\.baseline: baseline has no StrategySettings'),
+    ('default: {ceco-c: {gamma_w: 1.0}}', r"settings\.default: the label 'default' is reserved"),
+])
+def test_bad_settings_fail_before_any_run_naming_the_field(tmp_path, monkeypatch, entry, match):
+    monkeypatch.setattr(sweep, 'run_cell', lambda *a, **k: pytest.fail('a cell ran'))
+    text = SETTINGS_GRID.split('settings:')[0] + 'settings:\n  ' + entry + '\n'
+    with pytest.raises(ValueError, match=match):
+        sweep.run_sweep(_grid(tmp_path, text), tmp_path / 'out', workers=1, progress=False,
+                        log=lambda *a, **k: None)
+    assert not (tmp_path / 'out' / 'cells.jsonl').exists()
+
+
+def test_settings_override_changes_ceco_c_and_equals_direct_run(tmp_path):
+    res = sweep.run_sweep(_grid(tmp_path, SETTINGS_GRID), tmp_path / 'out', workers=1, progress=False,
+                          log=lambda *a, **k: None)
+    assert res['timing']['ran'] == 3 and res['timing']['failed'] == 0
+    by = {(r['strategy'], r['settings']): r for r in res['rows']}
+    e1, e50 = by[('ceco-c', 'g1k')]['E_tot_J'], by[('ceco-c', 'g50k')]['E_tot_J']
+    # A 50x comfort weight cools harder: > 5 % more energy in 120 s (measured +10.3 %), lower I_PMV.
+    assert e50 > 1.05 * e1
+    assert by[('ceco-c', 'g50k')]['I_pmv'] < by[('ceco-c', 'g1k')]['I_pmv']
+    # The cell equals a direct simulate() with the same override, exactly.
+    direct = simulate('sc03_mild', 'ceco-c', SimSettings(duration_s=120.0, progress=False,
+                                                         strategy_overrides=(('gamma_w', 1000.0),))).metrics
+    for key in ('E_tot_J', 'I_pmv', 'otc_violation_pct', 'E_zone_J', 'I_pmv_zone'):
+        assert by[('ceco-c', 'g1k')][key] == direct[key], key
+    # Both labels are compared with the one baseline cell of the group.
+    summ = {(r['strategy'], r['settings']): r for r in res['summary']}
+    base = by[('baseline', 'default')]['E_tot_J']
+    assert summ[('ceco-c', 'g50k')]['dE_tot_kWh_pct'] == pytest.approx(100.0 * (e50 - base) / base, rel=1e-12)
+    dom = {d['settings']: d for d in sweep.dominance_rows(res['summary'])}
+    assert set(dom) == {'g1k', 'g50k'}
+    for d in dom.values():
+        assert d['dominates'] == (d['dE_tot_kWh_pct'] < 0 and d['dI_pmv_pct'] <= 0)
+    text = (tmp_path / 'out' / 'summary.md').read_text()
+    assert '| sc03_mild | scenario | scenario | perfect | scenario | ceco-c | g50k | 1 |' in text
+    assert 'Pareto-dominating points' in text
+    # Resume: nothing reruns.
+    again = sweep.run_sweep(_grid(tmp_path, SETTINGS_GRID), tmp_path / 'out', workers=1, progress=False,
+                            log=lambda *a, **k: None)
+    assert again['timing']['ran'] == 0 and len(again['rows']) == 3

@@ -4,9 +4,15 @@ A grid file (YAML; example and every key: ``ceco_bringup/config/sweep_example.ya
 docs/analysis.md) names the axes
 
     strategies x scenarios x drive_cycles x climates x previews x occupants x seeds
+    (x settings: per-strategy controller-setting overrides, e.g. ceco-c's gamma_w)
 
 and every combination (a *cell*) is one closed-loop run
-(``ceco_controller.closed_loop.simulate``), no ROS. Cells run in parallel:
+(``ceco_controller.closed_loop.simulate``), no ROS. The ``settings`` axis
+applies per strategy: a strategy named under a settings label runs once per
+label naming it, with those :class:`StrategySettings` fields overridden; a
+strategy no label names (always ``baseline``) runs once per group with its
+defaults, label ``default``, and every other cell of the group is compared
+with that one baseline cell. Cells run in parallel:
 
 * ``--backend local`` (default): ``concurrent.futures.ProcessPoolExecutor``
   with the ``spawn`` start method on ``--workers`` processes (default: all
@@ -19,8 +25,8 @@ and every combination (a *cell*) is one closed-loop run
   dependencies installed). Ray is an optional extra (requirements/analysis.txt).
 
 Resumable: every cell has a deterministic id, the SHA-256 of its full
-description (the scenario after the overrides, the strategy, the preview
-quality, the seed, the run length, and a fingerprint of the simulator's code
+description (the scenario after the overrides, the strategy and its setting
+overrides, the preview quality, the seed, the run length, and a fingerprint of the simulator's code
 and configuration), so a cell whose definition and code did not change
 keeps its id, and a changed simulator reruns it. Each finished cell is appended to ``DIR/cells.jsonl``
 as one line written with a single ``write`` on an ``O_APPEND`` descriptor and
@@ -61,27 +67,41 @@ import yaml
 
 __all__ = ['GridError', 'Cell', 'load_grid', 'expand_grid', 'scenario_dict', 'cell_id', 'code_fingerprint', 'run_cell',
            'read_done', 'run_sweep', 'summarize', 'vehicle_rows', 'verify_cells', 'main', 'AXES',
-           'METRIC_COLUMNS']
+           'METRIC_COLUMNS', 'DEFAULT_SETTINGS', 'strategy_setting_overrides', 'runtime_overrides',
+           'dominance_rows', 'front_figure']
 
 
 class GridError(ValueError):
     """An invalid grid file; the message names the key."""
 
 
-AXES = ('scenario', 'drive_cycle', 'climate', 'preview', 'occupant', 'seed', 'strategy')
-"""Axis columns of the results table, in order."""
+AXES = ('scenario', 'drive_cycle', 'climate', 'preview', 'occupant', 'seed', 'strategy', 'settings')
+"""Axis columns of the results table, in order (``settings``: the label of the
+strategy's setting overrides, :data:`DEFAULT_SETTINGS` for none)."""
+
+DEFAULT_SETTINGS = 'default'
+"""Settings label of a cell run with its strategy's default settings
+(every baseline cell, and strategies no ``settings`` label names)."""
+
+_FIXED_SETTING_FIELDS = {'name': 'strategies', 'horizon_steps': 'horizon_steps',
+                         'control_period_s': 'control_period_s'}
+"""StrategySettings fields the settings axis may not set (the grid key that sets them)."""
 
 METRIC_COLUMNS = ('E_tot_J', 'E_tot_kWh', 'E_comp_J', 'E_blower_J', 'P_mean_w', 'I_pmv', 'otc_violation_pct',
                   'otc_violation_s', 'otc_above_ub_s', 'otc_below_lb_s', 'time_to_comfort_s', 'pmv_mean',
                   'pmv_max', 'pmv_min', 'duration_s', 'n_control_steps', 'n_fallback_shifted',
-                  'n_fallback_baseline', 'solve_time_median_ms', 'solve_time_max_ms')
-"""Metric columns of the results table (those the simulator returns)."""
+                  'n_fallback_baseline', 'solve_time_median_ms', 'solve_time_max_ms',
+                  'zone_start_s', 'E_zone_J', 'I_pmv_zone', 'otc_violation_zone_pct', 'pmv_mean_zone')
+"""Metric columns of the results table (those the simulator returns; ``*_zone``:
+the comfort-zone phase, where the upper PMV bound is at its tightest, from
+``zone_start_s`` on; ``closed_loop.simulate``)."""
 
 TIMING_COLUMNS = ('solve_time_median_ms', 'solve_time_max_ms')
 """Metric columns that are wall-clock measurements (not reproducible)."""
 
 _GRID_KEYS = {'name', 'description', 'strategies', 'scenarios', 'drive_cycles', 'climates', 'previews',
-              'occupants', 'seeds', 'duration_s', 'save_runs', 'control_period_s', 'horizon_steps', 'vehicle'}
+              'occupants', 'seeds', 'duration_s', 'save_runs', 'control_period_s', 'horizon_steps', 'vehicle',
+              'settings'}
 _CLIMATE_KEYS = {'t_amb_c', 'solar_wm2', 'rh', 'initial', 'comfort_bounds'}
 
 
@@ -98,7 +118,10 @@ class Cell:
     driver), ``scenario`` (a scenario mapping for
     ``scenario_from_dict``), ``strategy``, ``preview`` (quality string),
     ``seed``, ``duration_s`` (None: the scenario's), ``control_period_s``,
-    ``horizon_steps`` (None: the scenario's)."""
+    ``horizon_steps`` (None: the scenario's), and only for a cell with
+    setting overrides ``strategy_overrides`` ({StrategySettings field:
+    plain value}; absent for default settings, so grids without the
+    settings axis keep their ids)."""
 
 
 # ------------------------------------------------------------------ grid file
@@ -193,6 +216,112 @@ def _apply_climate(d: dict, label: str, climate) -> None:
         d['comfort_bounds'] = dict(climate['comfort_bounds'])
 
 
+def _plain_setting(where: str, default, value):
+    """A setting value from the grid as plain JSON data of the default's type
+    (an int for a float field becomes a float, so ``2000`` and ``2000.0``
+    give the same cell id). Wrong types raise GridError naming ``where``."""
+    if dataclasses.is_dataclass(default):
+        if not isinstance(value, Mapping):
+            raise GridError(f'{where}: must be a mapping of {type(default).__name__} fields, got {value!r}')
+        return _plain_fields(where, default, value)
+    if isinstance(default, bool):
+        ok = isinstance(value, bool)
+    elif isinstance(default, int):
+        ok = isinstance(value, int) and not isinstance(value, bool)
+    elif isinstance(default, float):
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        value = float(value) if ok else value
+    elif isinstance(default, tuple):
+        ok = isinstance(value, (list, tuple))
+        value = list(value) if ok else value
+    else:   # str, or str | None
+        ok = isinstance(value, str) or (default is None and value is None)
+    if not ok:
+        raise GridError(f'{where}: must be of the type of its default {default!r}, got {value!r}')
+    return value
+
+
+def _plain_fields(where: str, default, mapping: Mapping) -> dict:
+    names = [f.name for f in dataclasses.fields(default)]
+    out = {}
+    for key, value in mapping.items():
+        if key not in names:
+            raise GridError(f'{where}.{key}: unknown {type(default).__name__} field (allowed: {names})')
+        out[str(key)] = _plain_setting(f'{where}.{key}', getattr(default, key), value)
+    return out
+
+
+def runtime_overrides(plain: Mapping) -> dict:
+    """Setting overrides as stored in a cell's spec (plain JSON data) ->
+    keyword overrides of ``strategy_settings`` (a ``solver`` mapping becomes
+    a :class:`SolverSettings`, lists become tuples)."""
+    from ceco_controller.strategies import SolverSettings  # noqa: PLC0415
+
+    out = {}
+    for key, value in plain.items():
+        if key == 'solver':
+            base = SolverSettings()
+            value = dataclasses.replace(base, **{k: tuple(v) if isinstance(v, list) else v
+                                                 for k, v in value.items()})
+        elif isinstance(value, list):
+            value = tuple(value)
+        out[key] = value
+    return out
+
+
+def strategy_setting_overrides(grid: Mapping, strategies: Sequence[str]) -> dict:
+    """The ``settings`` axis of a grid, checked: ``{strategy: {label:
+    overrides}}`` for the strategies some label names, ``overrides`` being
+    ``{StrategySettings field: plain value}``. Every override set is
+    validated now (``strategy_settings(name, **overrides).validate()``, with
+    the grid's Ts and Np if it sets them), so a bad field or value fails
+    before any run with a GridError (a ValueError) naming
+    ``settings.<label>.<strategy>.<field>``. A label naming a strategy not in
+    ``strategies``, the baseline (it has no StrategySettings), the reserved
+    label ``default``, or one of the fields the grid sets elsewhere (name,
+    horizon_steps, control_period_s) is an error."""
+    raw = grid.get('settings')
+    if raw is None:
+        return {}
+    if not isinstance(raw, Mapping) or not raw:
+        raise GridError('settings: must be a non-empty mapping {label: {strategy: {field: value}}}')
+    from ceco_controller.strategies import CECO_STRATEGIES, StrategySettings, strategy_settings  # noqa: PLC0415
+
+    fixed = {k: grid[k] for k in ('control_period_s', 'horizon_steps') if grid.get(k) is not None}
+    if 'horizon_steps' in fixed:
+        fixed['horizon_steps'] = int(fixed['horizon_steps'])
+    if 'control_period_s' in fixed:
+        fixed['control_period_s'] = float(fixed['control_period_s'])
+    out: dict = {}
+    for label, per_strategy in raw.items():
+        label = str(label)
+        if label == DEFAULT_SETTINGS:
+            raise GridError(f'settings.{label}: the label {DEFAULT_SETTINGS!r} is reserved for default settings')
+        if not isinstance(per_strategy, Mapping) or not per_strategy:
+            raise GridError(f'settings.{label}: must be a non-empty mapping {{strategy: {{field: value}}}}')
+        for strategy, fields in per_strategy.items():
+            where = f'settings.{label}.{strategy}'
+            if strategy not in strategies:
+                raise GridError(f'{where}: strategy {strategy!r} is not in the grid\'s strategies {list(strategies)}')
+            if strategy not in CECO_STRATEGIES:
+                raise GridError(f'{where}: {strategy} has no StrategySettings (use one of {list(CECO_STRATEGIES)})')
+            if fields is None:
+                fields = {}
+            if not isinstance(fields, Mapping):
+                raise GridError(f'{where}: must be a mapping {{StrategySettings field: value}}, got {fields!r}')
+            for key in fields:
+                if key in _FIXED_SETTING_FIELDS:
+                    raise GridError(f'{where}.{key}: set by the grid key {_FIXED_SETTING_FIELDS[key]!r}, '
+                                    'not by the settings axis')
+            plain = _plain_fields(where, StrategySettings(), fields)
+            try:
+                strategy_settings(strategy, **fixed, **runtime_overrides(plain))
+            except (ValueError, TypeError) as exc:
+                raise GridError(f'{where}: {exc}') from None
+            out.setdefault(strategy, {})[label] = plain
+    return out
+
+
 _CODE_PACKAGES = ('ceco_v2x_preview', 'ceco_plant_sim', 'ceco_controller')
 _CODE_SUFFIXES = ('.py', '.yaml', '.yml', '.csv', '.json')
 
@@ -275,6 +404,7 @@ def expand_grid(grid: Mapping) -> list[Cell]:
             parse_quality(q)
         except ValueError as exc:
             raise GridError(f'previews.{label}: {exc}') from None
+    overrides = strategy_setting_overrides(grid, strategies)
     code = code_fingerprint()
     cells = []
     for (sl, sv), (cl, cv), (kl, kv), (pl, pv), (ol, ov), seed in itertools.product(
@@ -307,15 +437,24 @@ def expand_grid(grid: Mapping) -> list[Cell]:
         except ValueError as exc:
             raise GridError(f'cell {sl}/{cl}/{kl}/{ol}: {exc}') from None
         for strategy in strategies:
-            spec = {'code': code, 'scenario': d, 'strategy': strategy, 'preview': pv, 'seed': seed,
-                    'duration_s': None if duration is None else float(duration),
-                    'control_period_s': grid.get('control_period_s'), 'horizon_steps': grid.get('horizon_steps')}
-            axes = {'scenario': sl, 'drive_cycle': cl, 'climate': kl, 'preview': pl, 'occupant': ol,
-                    'seed': '' if seed is None else seed, 'strategy': strategy}
-            cells.append(Cell(id=cell_id(spec), axes=axes, spec=spec))
-    ids = [c.id for c in cells]
-    if len(set(ids)) != len(ids):
-        raise GridError('the grid holds the same cell twice (two axis labels with the same definition)')
+            for label, ovr in overrides.get(strategy, {DEFAULT_SETTINGS: None}).items():
+                spec = {'code': code, 'scenario': d, 'strategy': strategy, 'preview': pv, 'seed': seed,
+                        'duration_s': None if duration is None else float(duration),
+                        'control_period_s': grid.get('control_period_s'),
+                        'horizon_steps': grid.get('horizon_steps')}
+                if ovr is not None:
+                    spec['strategy_overrides'] = ovr
+                axes = {'scenario': sl, 'drive_cycle': cl, 'climate': kl, 'preview': pl, 'occupant': ol,
+                        'seed': '' if seed is None else seed, 'strategy': strategy, 'settings': label}
+                cells.append(Cell(id=cell_id(spec), axes=axes, spec=spec))
+    seen: dict = {}
+    for c in cells:
+        if c.id in seen:
+            a, b = seen[c.id].axes, c.axes
+            diff = [f'{k} {a[k]!r} / {b[k]!r}' for k in AXES if a[k] != b[k]]
+            raise GridError('the grid holds the same cell twice (two axis labels with the same definition: '
+                            f"{', '.join(diff)})")
+        seen[c.id] = c
     return cells
 
 
@@ -325,10 +464,12 @@ def _settings_from_spec(spec: Mapping):
     from ceco_v2x_preview.preview import parse_quality  # noqa: PLC0415
 
     hs = spec.get('horizon_steps')
+    ovr = runtime_overrides(spec.get('strategy_overrides') or {})
     return SimSettings(control_period_s=spec.get('control_period_s'),
                        horizon_steps=None if hs is None else int(hs),
                        preview_quality=parse_quality(spec['preview']), seed=spec.get('seed'),
-                       duration_s=spec.get('duration_s'), progress=False)
+                       duration_s=spec.get('duration_s'), progress=False,
+                       strategy_overrides=tuple(sorted(ovr.items())))
 
 
 def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
@@ -531,35 +672,92 @@ def _write_parquet(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) 
     return engine
 
 
+SUMMARY_KEYS = ('E_tot_kWh', 'I_pmv', 'otc_violation_pct', 'time_to_comfort_s', 'pmv_max', 'sim_time_s',
+                'E_zone_J', 'I_pmv_zone', 'otc_violation_zone_pct', 'pmv_mean_zone')
+"""Metrics averaged over seeds in the summary."""
+
+CHANGE_KEYS = ('E_tot_kWh', 'I_pmv', 'E_zone_J', 'I_pmv_zone')
+"""Metrics whose change against the baseline [%] the summary gives (``d<key>_pct``)."""
+
+
+def _settings_of(row: Mapping) -> str:
+    return str(row.get('settings') or DEFAULT_SETTINGS)   # rows logged before the settings axis: defaults
+
+
 def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]:
-    """Per (scenario, drive_cycle, climate, preview, occupant, strategy): the
-    mean over seeds of the main metrics, the number of seeds, and the change
-    against the baseline strategy of the same group (means compared)."""
-    keys = ('E_tot_kWh', 'I_pmv', 'otc_violation_pct', 'time_to_comfort_s', 'pmv_max', 'sim_time_s')
+    """Per (scenario, drive_cycle, climate, preview, occupant, strategy,
+    settings): the mean over seeds of the main metrics (:data:`SUMMARY_KEYS`),
+    the number of seeds, and the change against the baseline of the same
+    group (scenario, drive_cycle, climate, preview, occupant; means compared,
+    :data:`CHANGE_KEYS`). The baseline runs once per group with its default
+    settings; every (strategy, settings) of the group is compared with that
+    one baseline. Rows keep the order of first appearance."""
+    group_axes = [a for a in AXES if a not in ('seed', 'strategy', 'settings')]
     groups: dict = {}
     for r in rows:
         if r.get('status') != 'ok':
             continue
-        g = tuple(r[a] for a in AXES if a not in ('seed', 'strategy'))
-        groups.setdefault(g, {}).setdefault(r['strategy'], []).append(r)
+        g = tuple(r[a] for a in group_axes)
+        groups.setdefault(g, {}).setdefault((r['strategy'], _settings_of(r)), []).append(r)
+
+    def mean(rs, k):
+        vals = [float(x.get(k, float('nan'))) for x in rs]
+        return float(np.nanmean(vals)) if any(math.isfinite(v) for v in vals) else float('nan')
+
     out = []
-    for g, by_strategy in groups.items():
-        means = {s: {k: float(np.nanmean([float(x[k]) for x in rs])) if any(
-            math.isfinite(float(x[k])) for x in rs) else float('nan') for k in keys} for s, rs in by_strategy.items()}
-        base = means.get(baseline)
-        for s, m in means.items():
-            row = dict(zip([a for a in AXES if a not in ('seed', 'strategy')], g))
+    for g, by_key in groups.items():
+        means = {key: {k: mean(rs, k) for k in SUMMARY_KEYS} for key, rs in by_key.items()}
+        base = means.get((baseline, DEFAULT_SETTINGS))
+        for (s, label), m in means.items():
+            row = dict(zip(group_axes, g))
             row['strategy'] = s
-            row['n_seeds'] = len(by_strategy[s])
+            row['settings'] = label
+            row['n_seeds'] = len(by_key[(s, label)])
             row.update({f'{k}_mean': v for k, v in m.items()})
-            for k in ('E_tot_kWh', 'I_pmv'):
+            for k in CHANGE_KEYS:
                 row[f'd{k}_pct'] = (100.0 * (m[k] - base[k]) / abs(base[k])
                                     if base and base[k] not in (0.0,) and math.isfinite(base[k]) else float('nan'))
             out.append(row)
     return out
 
 
+def dominance_rows(summary: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]:
+    """Against the baseline of its group, for every other (strategy,
+    settings) of a summary: does it use less energy AND have a lower or equal
+    I_PMV (a Pareto-dominating point; ``dominates``), over the whole run and
+    in the comfort-zone phase (``dominates_zone``)? The changes are the
+    summary's ``dE_tot_kWh_pct, dI_pmv_pct, dE_zone_J_pct, dI_pmv_zone_pct``
+    (NaN where the group has no baseline: ``dominates`` is then False)."""
+    out = []
+    for r in summary:
+        if r['strategy'] == baseline and r.get('settings', DEFAULT_SETTINGS) == DEFAULT_SETTINGS:
+            continue
+        de, di = float(r['dE_tot_kWh_pct']), float(r['dI_pmv_pct'])
+        dez, diz = float(r.get('dE_zone_J_pct', float('nan'))), float(r.get('dI_pmv_zone_pct', float('nan')))
+        out.append({**{a: r[a] for a in _GROUP_AXES}, 'strategy': r['strategy'],
+                    'settings': r.get('settings', DEFAULT_SETTINGS),
+                    'dE_tot_kWh_pct': de, 'dI_pmv_pct': di, 'otc_violation_pct': r['otc_violation_pct_mean'],
+                    'dE_zone_J_pct': dez, 'dI_pmv_zone_pct': diz,
+                    'otc_violation_zone_pct': r.get('otc_violation_zone_pct_mean', float('nan')),
+                    'dominates': bool(de < 0.0 and di <= 0.0),
+                    'dominates_zone': bool(dez < 0.0 and diz <= 0.0)})
+    return out
+
+
 _GROUP_AXES = ('scenario', 'drive_cycle', 'climate', 'preview', 'occupant')
+
+
+def point_name(strategy: str, settings: str = DEFAULT_SETTINGS) -> str:
+    """``strategy`` for default settings, else ``strategy[label]``."""
+    return strategy if settings == DEFAULT_SETTINGS else f'{strategy}[{settings}]'
+
+
+def _ordered_points(keys) -> list:
+    """(strategy, settings) keys: strategies in figures.ordered order, labels in first-appearance order."""
+    from ceco_bringup.figures import ordered  # noqa: PLC0415
+
+    keys = list(keys)
+    return [k for s in ordered(list(dict.fromkeys(k[0] for k in keys))) for k in keys if k[0] == s]
 
 
 def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) -> list[dict]:
@@ -567,7 +765,8 @@ def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) 
     every group (scenario, cycle, climate, preview, occupant) whose cells
     are done: each strategy's A/C load is its mean ``P_mean_w`` over seeds,
     over the group's drive cycle and run length. One row per group, vehicle
-    and strategy, with the group's axes."""
+    and strategy, with the group's axes (``strategy``: :func:`point_name`,
+    e.g. ``ceco-c[g2k]`` for a settings label)."""
     from ceco_bringup import vehicle_energy as ve  # noqa: PLC0415
     from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
 
@@ -581,7 +780,7 @@ def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) 
     for g, rs in groups.items():
         p_mean: dict = {}
         for r in rs:
-            p_mean.setdefault(r['strategy'], []).append(float(r['P_mean_w']))
+            p_mean.setdefault(point_name(r['strategy'], _settings_of(r)), []).append(float(r['P_mean_w']))
         spec = spec_of[rs[0]['cell_id']]
         sc = scenario_from_dict(spec['scenario'])
         duration_s = float(rs[0]['duration_s'])
@@ -605,28 +804,41 @@ def _summary_markdown(summary: Sequence[Mapping], timing: Mapping, grid_name: st
              f"{timing['sim_mean_s']:.2f} s, median {timing['sim_median_s']:.2f} s; worker time per cell incl. "
              f"imports in a fresh worker {timing['cell_mean_s']:.2f} s (sum {timing['cell_sum_s']:.1f} s, "
              f"{timing['speedup']:.2f}x the wall time).", '',
-             '| scenario | cycle | climate | preview | occupant | strategy | seeds | E_tot [kWh] | ΔE [%] | '
-             'I_PMV [s] | ΔI_PMV [%] | OTC viol. [%] | t_comfort [s] |',
-             '|---|---|---|---|---|---|---|---|---|---|---|---|---|']
+             '| scenario | cycle | climate | preview | occupant | strategy | settings | seeds | E_tot [kWh] | '
+             'ΔE [%] | I_PMV [s] | ΔI_PMV [%] | OTC viol. [%] | t_comfort [s] | ΔE zone [%] | ΔI_PMV zone [%] | '
+             'OTC viol. zone [%] |',
+             '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
 
     def f(x, fmt):
         return 'n/a' if x is None or not math.isfinite(float(x)) else format(float(x), fmt)
-
-    from ceco_bringup.figures import ordered  # noqa: PLC0415
 
     rows = sorted(summary, key=lambda r: (r['scenario'], r['drive_cycle'], r['climate'], r['preview'],
                                           r['occupant']))
     groups: dict = {}
     for r in rows:
-        groups.setdefault(tuple(r[a] for a in ('scenario', 'drive_cycle', 'climate', 'preview', 'occupant')),
-                          {})[r['strategy']] = r
+        groups.setdefault(tuple(r[a] for a in _GROUP_AXES), {})[(r['strategy'], r.get('settings', DEFAULT_SETTINGS))] = r
     for g, by in groups.items():
-        for s in ordered(list(by)):
-            r = by[s]
-            lines.append(f"| {' | '.join(map(str, g))} | {s} | {r['n_seeds']} | {f(r['E_tot_kWh_mean'], '.4f')} | "
+        for key in _ordered_points(by):
+            r = by[key]
+            lines.append(f"| {' | '.join(map(str, g))} | {key[0]} | {key[1]} | {r['n_seeds']} | "
+                         f"{f(r['E_tot_kWh_mean'], '.4f')} | "
                          f"{f(r['dE_tot_kWh_pct'], '+.1f')} | {f(r['I_pmv_mean'], '.1f')} | "
                          f"{f(r['dI_pmv_pct'], '+.1f')} | {f(r['otc_violation_pct_mean'], '.2f')} | "
-                         f"{f(r['time_to_comfort_s_mean'], '.0f')} |")
+                         f"{f(r['time_to_comfort_s_mean'], '.0f')} | {f(r.get('dE_zone_J_pct'), '+.1f')} | "
+                         f"{f(r.get('dI_pmv_zone_pct'), '+.1f')} | {f(r.get('otc_violation_zone_pct_mean'), '.2f')} |")
+    dom = dominance_rows(summary)
+    if dom:
+        lines += ['', '## Against the baseline: Pareto-dominating points', '',
+                  'A point dominates the baseline of its group when it uses less energy and has a lower or '
+                  'equal I_PMV (ΔE < 0 and ΔI_PMV <= 0), over the whole run or in the comfort-zone phase.', '']
+        for g in groups:
+            here = [d for d in dom if tuple(d[a] for a in _GROUP_AXES) == g]
+            if not here:
+                continue
+            tot = [point_name(d['strategy'], d['settings']) for d in here if d['dominates']]
+            zone = [point_name(d['strategy'], d['settings']) for d in here if d['dominates_zone']]
+            lines.append(f"- {'/'.join(map(str, g))}: whole run: {', '.join(tot) or 'none'}; "
+                         f"zone phase: {', '.join(zone) or 'none'}")
     if vehicle:
         lines += ['', '## Vehicle level (FASTSim 3.1, load-averaged line; see docs/analysis.md)', '',
                   '| scenario | cycle | climate | preview | occupant | vehicle | strategy | P_A/C [W] | '
@@ -674,7 +886,8 @@ def run_sweep(grid_path: str | os.PathLike, out_dir: str | os.PathLike, *, backe
         _append_row(log_path, row)
         new_rows.append(row)
         if row['status'] != 'ok':
-            log(f"ceco sweep: cell {row['cell_id']} {row['strategy']} failed: {row['error']}", file=sys.stderr)
+            log(f"ceco sweep: cell {row['cell_id']} {point_name(row['strategy'], _settings_of(row))} failed: "
+                f"{row['error']}", file=sys.stderr)
         if bar is not None:
             bar.update(1)
             bar.set_postfix_str(f"{row['strategy']}/{row['climate']}")
@@ -746,7 +959,7 @@ def verify_cells(out_dir: str | os.PathLike, n: int, grid_path: str | os.PathLik
     """Rerun ``n`` finished cells of a sweep in this process (one after
     another, no pool) and compare every metric with the table's value for
     exact equality (wall-clock solve times, :data:`TIMING_COLUMNS`,
-    excepted). The cells are the first ``n`` by id, so the choice is
+    excepted; metrics a log written by an older version lacks are skipped). The cells are the first ``n`` by id, so the choice is
     deterministic and spread over the grid. Returns one dict per cell:
     ``cell_id, axes, equal (bool), differences ({metric: (table, rerun)})``."""
     cells = {c.id: c for c in expand_grid(load_grid(grid_path))}
@@ -757,7 +970,7 @@ def verify_cells(out_dir: str | os.PathLike, n: int, grid_path: str | os.PathLik
         row = run_cell(dataclasses.asdict(cells[i]))
         diffs = {}
         for k in METRIC_COLUMNS:
-            if k in TIMING_COLUMNS:
+            if k in TIMING_COLUMNS or k not in done[i]:   # not recorded (a log from an older sweep.py)
                 continue
             a, b = done[i].get(k), row.get(k)
             same = (a == b) or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
