@@ -258,3 +258,30 @@ def test_settings_override_changes_ceco_c_and_equals_direct_run(tmp_path):
     again = sweep.run_sweep(_grid(tmp_path, SETTINGS_GRID), tmp_path / 'out', workers=1, progress=False,
                             log=lambda *a, **k: None)
     assert again['timing']['ran'] == 0 and len(again['rows']) == 3
+
+
+def test_dominance_pairs_every_point_with_its_groups_one_baseline(tmp_path):
+    def row(scenario, strategy, settings, e, i, ez, iz):
+        return {'status': 'ok', 'scenario': scenario, 'drive_cycle': 'scenario', 'climate': 'scenario',
+                'preview': 'perfect', 'occupant': 'scenario', 'seed': 0, 'strategy': strategy,
+                'settings': settings, 'E_tot_kWh': e, 'I_pmv': i, 'E_zone_J': ez, 'I_pmv_zone': iz,
+                'otc_violation_pct': 1.0, 'otc_violation_zone_pct': 0.0}
+    rows = [row('a', 'baseline', 'default', 1.0, 100.0, 10.0, 10.0),
+            row('a', 'ceco-c', 'lo', 0.9, 99.0, 11.0, 9.0),      # dominates over the run, not in the zone
+            row('a', 'ceco-c', 'eq', 0.99, 100.0, 9.0, 10.0),    # equal I_PMV counts; zone too
+            row('a', 'ceco-c', 'hi', 1.1, 90.0, 9.0, 11.0),      # costs energy
+            row('b', 'baseline', 'default', 2.0, 50.0, 20.0, 5.0),
+            row('b', 'ceco-c', 'lo', 1.9, 55.0, 19.0, 4.0)]      # same label, other group: its own baseline
+    summary = sweep.summarize(rows)
+    dom = {(d['scenario'], d['settings']): d for d in sweep.dominance_rows(summary)}
+    assert len(dom) == 4
+    assert dom[('a', 'lo')]['dE_tot_kWh_pct'] == pytest.approx(-10.0)
+    assert dom[('a', 'lo')]['dI_pmv_pct'] == pytest.approx(-1.0)
+    assert [(dom[k]['dominates'], dom[k]['dominates_zone']) for k in
+            [('a', 'lo'), ('a', 'eq'), ('a', 'hi'), ('b', 'lo')]] == [
+        (True, False), (True, True), (False, False), (False, True)]
+    assert dom[('b', 'lo')]['dI_pmv_zone_pct'] == pytest.approx(-20.0)
+    import matplotlib.image as mpimg
+    png = sweep.front_figure(summary, tmp_path / 'front.png')
+    h, w = mpimg.imread(png).shape[:2]
+    assert w > 1000 and h > 1000                  # two groups x two phases at 200 dpi

@@ -794,6 +794,87 @@ def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) 
     return out
 
 
+def front_figure(summary: Sequence[Mapping], path: str | os.PathLike, baseline: str = 'baseline') -> Path:
+    """The energy-comfort plane of every group of a summary, against its
+    baseline: top row the whole run (ΔE_tot vs ΔI_PMV [%]), bottom row the
+    comfort-zone phase (ΔE_zone vs ΔI_PMV,zone [%]); one column per group.
+    The baseline is the origin (black cross); the shaded lower-left quadrant
+    is where a point dominates it (less energy, lower or equal I_PMV). The
+    points of a strategy with settings labels are joined in label order (the
+    grid's order) and annotated with the label; strategies with default
+    settings are single markers. Writes a PNG (200 dpi) and returns its path."""
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    from ceco_bringup.figures import strategy_style  # noqa: PLC0415
+
+    groups: dict = {}
+    for r in summary:
+        groups.setdefault(tuple(r[a] for a in _GROUP_AXES), []).append(r)
+    if not groups:
+        raise ValueError('front_figure: the summary has no rows')
+    n = len(groups)
+    panels = (('dE_tot_kWh_pct', 'dI_pmv_pct', 'whole run', 'ΔE_tot [%]', 'ΔI_PMV [%]'),
+              ('dE_zone_J_pct', 'dI_pmv_zone_pct', 'comfort-zone phase', 'ΔE_zone [%]', 'ΔI_PMV,zone [%]'))
+    with plt.rc_context({'font.size': 8, 'axes.grid': True, 'grid.alpha': 0.3, 'savefig.bbox': 'tight'}):
+        fig, axes = plt.subplots(2, n, figsize=(3.6 * n, 6.4), squeeze=False)
+        for j, (g, rs) in enumerate(groups.items()):
+            name = ' / '.join(str(x) for x, a in zip(g, _GROUP_AXES) if x not in ('scenario', 'perfect') or a == 'scenario')
+            for i, (kx, ky, phase, xl, yl) in enumerate(panels):
+                ax = axes[i][j]
+                pts = [r for r in rs if not (r['strategy'] == baseline and r.get('settings') == DEFAULT_SETTINGS)]
+                xs = [float(r.get(kx, float('nan'))) for r in pts] + [0.0]
+                ys = [float(r.get(ky, float('nan'))) for r in pts] + [0.0]
+                fin = [(x, y) for x, y in zip(xs, ys) if math.isfinite(x) and math.isfinite(y)]
+                x0 = min(x for x, _ in fin)
+                y0 = min(y for _, y in fin)
+                pad_x = 0.08 * (max(x for x, _ in fin) - x0 or 1.0)
+                pad_y = 0.08 * (max(y for _, y in fin) - y0 or 1.0)
+                ax.fill_between([min(x0, 0.0) - 2 * pad_x, 0.0], min(y0, 0.0) - 2 * pad_y, 0.0, color='#009E73',
+                                alpha=0.12, lw=0, label='dominates the baseline')
+                ax.axhline(0.0, color='k', lw=0.6)
+                ax.axvline(0.0, color='k', lw=0.6)
+                ax.plot([0.0], [0.0], 'kx', ms=8, mew=2, label=strategy_style(baseline)['label'])
+                by_strategy: dict = {}
+                for r in pts:
+                    by_strategy.setdefault(r['strategy'], []).append(r)
+                for k, (st, srs) in enumerate(by_strategy.items()):
+                    style = strategy_style(st, k)
+                    x = [float(r.get(kx, float('nan'))) for r in srs]
+                    y = [float(r.get(ky, float('nan'))) for r in srs]
+                    labelled = len(srs) > 1 or srs[0].get('settings') != DEFAULT_SETTINGS
+                    ax.plot(x, y, marker='o', ms=4, color=style['color'], lw=1.0 if labelled else 0,
+                            label=style['label'] + (' (settings labels)' if labelled else ''))
+                    if labelled:   # labels of points closer than 4 % of the axes to the last labelled one are left out
+                        span_x = (max(x for x, _ in fin) - min(x0, 0.0)) or 1.0
+                        span_y = (max(y for _, y in fin) - min(y0, 0.0)) or 1.0
+                        last = None
+                        for r, xv, yv in zip(srs, x, y):
+                            if not (math.isfinite(xv) and math.isfinite(yv)):
+                                continue
+                            if last and math.hypot((xv - last[0]) / span_x, (yv - last[1]) / span_y) < 0.04:
+                                continue
+                            last = (xv, yv)
+                            ax.annotate(str(r.get('settings')), (xv, yv), textcoords='offset points',
+                                        xytext=(3, 3), fontsize=6.5, color=style['color'])
+                ax.set_xlim(min(x0, 0.0) - pad_x, max(x for x, _ in fin) + pad_x)
+                ax.set_ylim(min(y0, 0.0) - pad_y, max(y for _, y in fin) + pad_y)
+                ax.set_xlabel(xl + ' vs baseline')
+                ax.set_ylabel(yl + ' vs baseline')
+                ax.set_title(f'{name}: {phase}')
+        handles, labels = axes[0][0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc='lower center', ncol=len(labels), frameon=False,
+                   bbox_to_anchor=(0.5, -0.04))
+        fig.tight_layout()
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=200)
+        plt.close(fig)
+    return path
+
+
 def _summary_markdown(summary: Sequence[Mapping], timing: Mapping, grid_name: str,
                       vehicle: Sequence[Mapping] = ()) -> str:
     lines = [f'# Sweep summary: {grid_name}', '',
@@ -995,6 +1076,9 @@ def main(argv=None) -> int:
     parser.add_argument('--workers', type=int, default=None,
                         help=f'parallel workers (default: all cores, {os.cpu_count()} here)')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar')
+    parser.add_argument('--front-figure', default=None, metavar='PNG',
+                        help='afterwards, draw the energy-comfort plane of every group against its baseline '
+                             '(ΔE vs ΔI_PMV, whole run and comfort-zone phase) to this PNG')
     parser.add_argument('--verify', type=int, default=0, metavar='N',
                         help='afterwards, rerun N finished cells in this process and check the table equals '
                              'them exactly')
@@ -1019,6 +1103,8 @@ def main(argv=None) -> int:
           f"{t['cell_sum_s']:.1f} s = {t['speedup']:.2f}x the wall time")
     print(f"table: {res['paths']['csv']}" + (f" and {res['paths']['parquet']}" if res['paths']['parquet'] else ''))
     print(f"summary: {res['paths']['summary_md']}")
+    if args.front_figure:
+        print(f"front figure: {front_figure(res['summary'], args.front_figure)}")
     bad = False
     if args.verify:
         for v in verify_cells(args.out, args.verify, args.grid):
