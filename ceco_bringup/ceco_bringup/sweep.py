@@ -794,10 +794,13 @@ def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) 
     return out
 
 
-def front_figure(summary: Sequence[Mapping], path: str | os.PathLike, baseline: str = 'baseline') -> Path:
+def front_figure(summary: Sequence[Mapping], path: str | os.PathLike, baseline: str = 'baseline',
+                 zoom_pct: tuple | None = (4.0, 8.0)) -> Path:
     """The energy-comfort plane of every group of a summary, against its
-    baseline: top row the whole run (ΔE_tot vs ΔI_PMV [%]), bottom row the
-    comfort-zone phase (ΔE_zone vs ΔI_PMV,zone [%]); one column per group.
+    baseline: top row the whole run (ΔE_tot vs ΔI_PMV [%]), middle row the
+    same near the baseline (half-widths ``zoom_pct`` = (energy, I_PMV) [%];
+    None: no such row), bottom row the comfort-zone phase (ΔE_zone vs
+    ΔI_PMV,zone [%]); one column per group.
     The baseline is the origin (black cross); the shaded lower-left quadrant
     is where a point dominates it (less energy, lower or equal I_PMV). The
     points of a strategy with settings labels are joined in label order (the
@@ -816,18 +819,23 @@ def front_figure(summary: Sequence[Mapping], path: str | os.PathLike, baseline: 
     if not groups:
         raise ValueError('front_figure: the summary has no rows')
     n = len(groups)
-    panels = (('dE_tot_kWh_pct', 'dI_pmv_pct', 'whole run', 'ΔE_tot [%]', 'ΔI_PMV [%]'),
-              ('dE_zone_J_pct', 'dI_pmv_zone_pct', 'comfort-zone phase', 'ΔE_zone [%]', 'ΔI_PMV,zone [%]'))
+    panels = [('dE_tot_kWh_pct', 'dI_pmv_pct', 'whole run', 'ΔE_tot [%]', 'ΔI_PMV [%]', None),
+              ('dE_zone_J_pct', 'dI_pmv_zone_pct', 'comfort-zone phase', 'ΔE_zone [%]', 'ΔI_PMV,zone [%]', None)]
+    if zoom_pct is not None:
+        panels.insert(1, ('dE_tot_kWh_pct', 'dI_pmv_pct', 'whole run, near the baseline', 'ΔE_tot [%]',
+                          'ΔI_PMV [%]', (float(zoom_pct[0]), float(zoom_pct[1]))))
     with plt.rc_context({'font.size': 8, 'axes.grid': True, 'grid.alpha': 0.3, 'savefig.bbox': 'tight'}):
-        fig, axes = plt.subplots(2, n, figsize=(3.6 * n, 6.4), squeeze=False)
+        fig, axes = plt.subplots(len(panels), n, figsize=(3.6 * n, 3.2 * len(panels)), squeeze=False)
         for j, (g, rs) in enumerate(groups.items()):
             name = ' / '.join(str(x) for x, a in zip(g, _GROUP_AXES) if x not in ('scenario', 'perfect') or a == 'scenario')
-            for i, (kx, ky, phase, xl, yl) in enumerate(panels):
+            for i, (kx, ky, phase, xl, yl, zoom) in enumerate(panels):
                 ax = axes[i][j]
                 pts = [r for r in rs if not (r['strategy'] == baseline and r.get('settings') == DEFAULT_SETTINGS)]
                 xs = [float(r.get(kx, float('nan'))) for r in pts] + [0.0]
                 ys = [float(r.get(ky, float('nan'))) for r in pts] + [0.0]
                 fin = [(x, y) for x, y in zip(xs, ys) if math.isfinite(x) and math.isfinite(y)]
+                if zoom:
+                    fin = [(-zoom[0], -zoom[1]), (zoom[0], zoom[1])]
                 x0 = min(x for x, _ in fin)
                 y0 = min(y for _, y in fin)
                 pad_x = 0.08 * (max(x for x, _ in fin) - x0 or 1.0)
