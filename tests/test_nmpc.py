@@ -134,7 +134,7 @@ def test_codegen_compiles_once_and_matches_in_process(tmp_path):
     comp = NmpcController(strategy_settings("ceco-ioch", solver=ss))
     objs = list(cache.glob("ceco_nlp_*.so"))
     # one object per plugin used: IPOPT's, plus sqpmethod's when that is the warm solver
-    assert len(objs) == (2 if ss.name == "sqpmethod" else 1) and not list(cache.glob(".*tmp*"))
+    assert len(objs) == (2 if comp.settings.solver.name == "sqpmethod" else 1) and not list(cache.glob(".*tmp*"))
     ref = NmpcController("ceco-ioch")
     for k in range(3):
         c1, d1 = comp.compute(_obs(k, speed=20.0))
@@ -178,3 +178,61 @@ def test_solver_settings_reject_unknown_qpsol():
         SolverSettings(name="sqpmethod", qpsol="nope").validate()
     with pytest.raises(ValueError, match="convexify_strategy"):
         SolverSettings(convexify_strategy="none").validate()
+
+
+def test_single_and_multiple_shooting_reach_the_same_optimum():
+    """The single-shooting NLP (states eliminated) and the multiple-shooting one are the same
+    problem: same commands and costs in closed-loop steps, the same optimum on one instance."""
+    ctrls = {t: NmpcController(strategy_settings("ceco-ioch", solver=SolverSettings(transcription=t)))
+             for t in ("single-shooting", "multiple-shooting")}
+    assert ctrls["single-shooting"]._nw == ctrls["multiple-shooting"]._nw - 4 * 6  # no state variables
+    assert ctrls["single-shooting"]._ng == ctrls["multiple-shooting"]._ng - 4 * 6  # no gap constraints
+    out = {}
+    for t, ctrl in ctrls.items():
+        for k in range(4):
+            cmd, diag = ctrl.compute(_obs(k, speed=5.0 * k, t_cab=27.0 - 0.3 * k))
+            assert diag.success and _valid(cmd) and diag.fallback == ""
+        out[t] = (cmd, diag)
+    (c1, d1), (c2, d2) = out["single-shooting"], out["multiple-shooting"]
+    assert abs(d1.cost_total - d2.cost_total) <= 1e-5 * abs(d2.cost_total)
+    assert abs(c1.mdot_bl_kgps - c2.mdot_bl_kgps) < 1e-3 and abs(c1.t_evap_sp_c - c2.t_evap_sp_c) < 2e-2
+    np.testing.assert_allclose(d1.pred_t_cab_c, d2.pred_t_cab_c, atol=2e-3)
+    # IPOPT (the cold/fallback solver) on the single-shooting instance: the SQP's optimum
+    ss = ctrls["single-shooting"]
+    data = ss.last_nlp()
+    f_sqp, f_ipo = ss.solve_nlp(data, ss.solver), ss.solve_nlp(data, ss.solver_fallback)
+    assert f_sqp["success"] and f_ipo["success"]
+    assert abs(f_sqp["f"] - f_ipo["f"]) <= 1e-4 * abs(f_ipo["f"])
+
+
+def test_transcription_settings_are_validated():
+    with pytest.raises(ValueError, match="transcription"):
+        SolverSettings(transcription="collocation").validate()
+    with pytest.raises(ValueError, match="fatrop"):
+        SolverSettings(name="fatrop").validate()  # auto may pick single shooting: no stage structure
+    SolverSettings(name="fatrop", transcription="multiple-shooting").validate()
+    with pytest.raises(ValueError, match="max_iter_eig"):
+        SolverSettings(max_iter_eig=0).validate()
+
+
+def test_building_the_sqp_controller_prints_nothing(capfd):
+    # qpOASES writes a licence banner to C stdout when a solver is created; the build silences it
+    ctrl = NmpcController(strategy_settings("ceco", solver=SolverSettings(name="sqpmethod")))
+    cmd, diag = ctrl.compute(_obs(0))
+    cmd, diag = ctrl.compute(_obs(1))
+    out = capfd.readouterr().out
+    assert diag.success and _valid(cmd)
+    assert "qpOASES" not in out and out == ""
+
+
+def test_auto_solver_follows_the_horizon():
+    """'auto': SQP on the single-shooting NLP up to single_shooting_max_steps, warm IPOPT on the
+    multiple-shooting NLP beyond (the dense SQP's cost grows cubically with Np)."""
+    short = NmpcController(strategy_settings("ceco", horizon_steps=12))
+    long_ = NmpcController(strategy_settings("ceco", horizon_steps=13))
+    assert (short.settings.solver.name, short.transcription) == ("sqpmethod", "single-shooting")
+    assert (long_.settings.solver.name, long_.transcription) == ("ipopt", "multiple-shooting")
+    assert long_.solver_fallback is None and short.solver_fallback is not None
+    explicit = NmpcController(strategy_settings("ceco", horizon_steps=13, solver=SolverSettings(
+        name="sqpmethod", transcription="single-shooting")))
+    assert (explicit.settings.solver.name, explicit.transcription) == ("sqpmethod", "single-shooting")

@@ -313,7 +313,9 @@ def test_kill_mpc_node_plant_falls_back_and_restart_takes_over(tmp_path):
     states = [m.step_index for _, _, m in bagio.read_messages(bag, ('cabin/state',))]
     assert sorted(states) == list(range(n_steps))
     fb = ts['fallback']
-    assert fb.any() and not fb[:50].any() and not fb[-5:].any()    # fallback only between kill and takeover
+    # fallback only between kill and takeover
+    assert fb.any() and not fb[:50].any() and not fb[-5:].any(), (
+        f'fallback at plant steps {np.flatnonzero(fb).tolist()[:20]}; plant log tail:\n{log[-3000:]}')
     first_fb = int(np.flatnonzero(fb)[0])
     cmds = bagio.load_commands(bag)
     before = cmds['k'][cmds['k'] * 5 < first_fb]

@@ -6,18 +6,21 @@ bias estimates, the previous command, the weather and speed previews and the
 PMV bounds; it is re-solved every control period, warm-started from the
 shifted previous primal-dual solution, and bounded in iterations and CPU time.
 
-Multiple shooting, stage-wise variable order (x_i, u_i, slacks_i), so the
+Transcription (``SolverSettings.transcription``, default 'auto'): single
+shooting up to Np = 12 (the states are the model's rollout expressions of the
+inputs), multiple shooting beyond, with stage-wise variable order so the
 problem has the optimal-control structure that IPOPT's sparse linear algebra
 and fatrop exploit:
 
-    w = [u_0, s_0, x_1, u_1, s_1, ..., x_N, s_N]   (x_0 is the measured state, a parameter)
+    w = [u_0, s_0, x_1, u_1, s_1, ..., x_N, s_N]   (x_0 is the measured state, a parameter;
+                                                    single shooting: no x_i)
     x_i = (T_cab, T_evap [degC], mdot_{i-1} [kg/s], T_evap_sp_{i-1} [degC]),
     u_i = (mdot_bl [kg/s], T_evap_sp [degC])
     s_i = (s_lo, s_up [PMV], s_ev [K] (i >= 1), eps [PMV] (ceco-ioch))
 
-Solvers (``SolverSettings.name``): warm IPOPT (default); or warm ``sqpmethod``
-(exact Hessian, eigen-clip, dense qpOASES) or fatrop, with IPOPT doing the cold
-solves and retrying at once any warm solve they fail (``n_ipopt_fallbacks``).
+Solvers (``SolverSettings.name``): warm ``sqpmethod`` (default: exact Hessian,
+eigen-clip, dense qpOASES) or fatrop, with IPOPT doing the cold solves and
+retrying at once any warm solve they fail (``n_ipopt_fallbacks``); or warm IPOPT.
 
 Fallbacks: a failed or invalid solve applies the previous plan shifted by
 one step; with no plan left, or no usable measurement, the production
@@ -27,8 +30,11 @@ is validated against the hard actuator bounds before it is returned.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import dataclasses
 import hashlib
+import io
 import logging
 import math
 import os
@@ -47,7 +53,7 @@ from ceco_plant_sim.plant import AcInput
 
 from . import model as cm
 from .interface import ACTUATOR_LIMITS, Diagnostics, Observation
-from .strategies import StrategySettings, strategy_settings
+from .strategies import StrategySettings, resolve_auto, strategy_settings
 
 __all__ = ["NmpcController", "NlpData", "codegen_cache_dir", "compile_nlp"]
 
@@ -95,8 +101,10 @@ class NmpcController:
                  model_params: cm.ControlModelParams | None = None,
                  comfort_params: ComfortParams | None = None,
                  acc_settings: AccSettings | None = None):
-        self.settings = strategy_settings(strategy) if isinstance(strategy, str) else strategy
-        self.settings.validate()
+        settings = strategy_settings(strategy) if isinstance(strategy, str) else strategy
+        settings.validate()
+        self.settings = resolve_auto(settings)
+        """The settings with the solver's 'auto' choices resolved (concrete name and transcription)."""
         self.model_params = model_params if model_params is not None else cm.load_params()
         self.model_params.validate()
         self.comfort_params = comfort_params if comfort_params is not None else ComfortParams()
@@ -106,6 +114,8 @@ class NmpcController:
             self.comfort_params, smoothing=dataclasses.replace(self.comfort_params.smoothing,
                                                                newton_steps=self.settings.pmv_newton_steps))
         self.n_sub = cm.substeps(self.model_params, self.settings.control_period_s)
+        self.transcription = self.settings.solver.transcription
+        """The NLP transcription built: 'single-shooting' or 'multiple-shooting'."""
         self.lim = ACTUATOR_LIMITS
         self._acc = AccLaw(acc_settings)
         self._build()
@@ -139,7 +149,7 @@ class NmpcController:
         g, lbg, ubg = [], [], []
         idx = {"x": [], "u": [], "s_lo": [], "s_up": [], "s_ev": [], "eps": []}
         e_terms, c_terms, i_terms, sl_terms, du_terms = [], [], [], [], []
-        pmv_all, tcab_all, tain_all = [], [], []
+        pmv_all, tcab_all, tain_all, tevap_all = [], [], [], []
         inf = np.inf
 
         cons = []  # (stage, order, kind, expr, lo, hi); sorted so each stage starts with its gap constraint
@@ -154,35 +164,35 @@ class NmpcController:
             ubw.extend(np.atleast_1d(hi).tolist())
 
         # Augmented state x_i = (T_cab, T_evap, mdot_{i-1}, sp_{i-1}): the move penalty and the comfort at
-        # the last grid point (which uses u_{N-1}) stay stage-local, so the NLP has the exact
-        # optimal-control structure (needed by fatrop/hpipm, harmless for IPOPT).
-        x_prev = u_prev_stage = None
+        # the last grid point (which uses u_{N-1}) stay stage-local, so the multiple-shooting NLP has the
+        # exact optimal-control structure (needed by fatrop, harmless for IPOPT). Single shooting: x_i is
+        # the model's rollout expression of (x_0, u_0..u_{i-1}), no state variables, no gap constraints.
+        single = self.transcription == "single-shooting"
+        x_next = None
         for i in range(n + 1):
             if i == 0:
                 x = casadi.vertcat(x0p, u_prev)  # the initial state is a parameter, not a variable
+            elif single:
+                x = x_next
             else:
                 x = SX.sym(f"x_{i}", 4)
                 add_var(x, [-50.0, -50.0, -inf, -inf], [150.0, 150.0, inf, inf], "x")
-                t_cab_n, t_evap_n, _, _, _ = cm.step(
-                    mp, x_prev[0], x_prev[1], u_prev_stage[0], u_prev_stage[1], t_int, t_shell,
-                    t_amb[i - 1], speed[i - 1], n_sub=self.n_sub,
-                    d_cab_k=d_cab / self.n_sub, d_ain_k=d_ain, d_evap_k=d_evap / self.n_sub)
-                add_con(i - 1, 0, "gap", x - casadi.vertcat(t_cab_n, t_evap_n, u_prev_stage), [0.0] * 4, [0.0] * 4)
+                add_con(i - 1, 0, "gap", x - x_next, [0.0] * 4, [0.0] * 4)
             if i < n:
                 u = SX.sym(f"u_{i}", 2)
                 add_var(u, [lim.mdot_bl_min_kgps, lim.t_evap_sp_min_c],
                         [lim.mdot_bl_max_kgps, lim.t_evap_sp_max_c], "u")
-            else:
-                u = x[2:4]  # u_{N-1}, carried in the state
-            # stage power (intervals 0..N-1)
-            if i < n:
-                _, _, _, pc, pb = cm.step(mp, x[0], x[1], u[0], u[1], t_int, t_shell, t_amb[i], speed[i],
-                                          n_sub=self.n_sub, d_cab_k=d_cab / self.n_sub, d_ain_k=d_ain,
-                                          d_evap_k=d_evap / self.n_sub)
+                # one model step over interval i: the next state and the interval's power
+                t_cab_n, t_evap_n, _, pc, pb = cm.step(
+                    mp, x[0], x[1], u[0], u[1], t_int, t_shell, t_amb[i], speed[i], n_sub=self.n_sub,
+                    d_cab_k=d_cab / self.n_sub, d_ain_k=d_ain, d_evap_k=d_evap / self.n_sub)
+                x_next = casadi.vertcat(t_cab_n, t_evap_n, u)
                 e_terms.append(ts_kj * (pc + pb))
                 du = casadi.vertcat((u[0] - x[2]) / (lim.mdot_bl_max_kgps - lim.mdot_bl_min_kgps),
                                     (u[1] - x[3]) / (lim.t_evap_sp_max_c - lim.t_evap_sp_min_c))
                 du_terms.append(s.du_weight_kj * casadi.sumsqr(du))
+            else:
+                u = x[2:4]  # u_{N-1}, carried in the state
             # comfort at stage i
             tain = cm.t_ain_c(mp, x[1], u[0], d_ain)
             pmv = cabin_pmv(t_cab_c=x[0], t_ain_c=tain, t_int_c=t_int, mdot_bl_kgps=u[0],
@@ -207,12 +217,12 @@ class NmpcController:
             if s.gamma_w > 0:
                 c_terms.append(ts_kj * s.gamma_w * pmv ** 2)
             if i >= 1:
+                tevap_all.append(x[1])
                 s_ev = SX.sym(f"s_ev_{i}")
                 add_var(s_ev, 0.0, inf, "s_ev")
                 sl_terms.append(s.slack_weight_kj * s_ev)
                 add_con(i, 2, "evap", casadi.vertcat(x[1] + s_ev - s.t_evap_lb_c, x[1] - s_ev - s.t_evap_ub_c),
                         [0.0, -inf], [inf, 0.0])
-            x_prev, u_prev_stage = x, u
 
         def total(terms):
             return casadi.sum1(casadi.vertcat(*terms)) if terms else SX(0)
@@ -242,8 +252,8 @@ class NmpcController:
         self._eval = casadi.Function(
             "ceco_eval", [w_all, p],
             [J_e, J_c, J_i, J_s, J_du, casadi.vertcat(*pmv_all), casadi.vertcat(*tcab_all),
-             casadi.vertcat(*tain_all)],
-            ["w", "p"], ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain"])
+             casadi.vertcat(*tain_all), casadi.vertcat(*tevap_all)],
+            ["w", "p"], ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain", "t_evap"])
         self._compiled: dict = {}  # codegen flags -> path of the compiled NLP functions (or None)
         ss = self.settings.solver
         self.solver = self.make_solver(ss)
@@ -264,6 +274,8 @@ class NmpcController:
         """Build a CasADi nlpsol for this NLP with the given solver settings."""
         ss = solver_settings
         ss.validate()
+        if ss.name == "auto":
+            ss = dataclasses.replace(ss, name="sqpmethod" if self.transcription == "single-shooting" else "ipopt")
         opts: dict = {"print_time": False}
         nlp = self._nlp
         if ss.codegen and ss.name in ("ipopt", "sqpmethod") and not ss.default_options:
@@ -323,14 +335,17 @@ class NmpcController:
         opts.update({"qpsol": ss.qpsol, "qpsol_options": qp_opts,
                      "max_iter": ss.sqp_max_iter, "print_iteration": False, "print_header": False,
                      "print_status": False, "tol_pr": ss.tol, "tol_du": ss.acceptable_tol if ss.warm_start else ss.tol,
-                     "convexify_strategy": ss.convexify_strategy, "error_on_fail": False})
+                     "convexify_strategy": ss.convexify_strategy, "max_iter_eig": float(ss.max_iter_eig),
+                     "error_on_fail": False})
         if isinstance(nlp, str):
             try:
-                return casadi.nlpsol("ceco_nlp", "sqpmethod", nlp, opts)
+                with _c_stdout_silenced():
+                    return casadi.nlpsol("ceco_nlp", "sqpmethod", nlp, opts)
             except RuntimeError as exc:
                 _LOG.warning("NMPC codegen: cannot load %s (%s); using the in-process NLP functions", nlp, exc)
                 nlp = self._nlp
-        return casadi.nlpsol("ceco_nlp", "sqpmethod", nlp, opts)
+        with _c_stdout_silenced():
+            return casadi.nlpsol("ceco_nlp", "sqpmethod", nlp, opts)
 
     def _compiled_nlp(self, ss) -> str | None:
         """Path of the compiled NLP functions for ``ss.codegen_flags`` (cached), or None (logged)."""
@@ -414,8 +429,8 @@ class NmpcController:
         """Primal guess, consistent with the dynamics and the comfort constraints at ``p``.
 
         Inputs: the previous solution shifted by one stage if ``w_prev`` is given, else the
-        previous command held. States: rolled out by the model from the measured state (so the
-        guess closes every gap). Slacks: the smallest values that satisfy the comfort and T_evap
+        previous command held. States (multiple shooting): rolled out by the model from the
+        measured state (so the guess closes every gap). Slacks: the smallest values that satisfy the comfort and T_evap
         constraints at the guess (plus a small margin). ``eps`` (ioch): shifted, or eps_UB/2.
         """
         n = self.settings.horizon_steps
@@ -430,19 +445,17 @@ class NmpcController:
             if self.settings.ioch:
                 w[self._idx["eps"]] = 0.5 * self.settings.eps_ub
         w = np.clip(w, self._lbw, self._ubw)
-        x = p[0:2].copy()
         off = _N_P_FIXED
-        u_last = p[7:9]
-        for i in range(n):
-            u = w[self._idx["u"][i]:self._idx["u"][i] + 2]
-            tc, te, *_ = cm.step(self.model_params, x[0], x[1], u[0], u[1], p[2], p[3], p[off + i],
-                                 p[off + 2 * (n + 1) + i], n_sub=self.n_sub, d_cab_k=p[4] / self.n_sub,
-                                 d_ain_k=p[6], d_evap_k=p[5] / self.n_sub)
-            x = np.array([tc, te])
-            j = self._idx["x"][i]
-            w[j:j + 4] = np.concatenate([x, u])
-            u_last = u
-        del u_last
+        if self._idx["x"].size:  # multiple shooting: the states rolled out by the model
+            x = p[0:2].copy()
+            for i in range(n):
+                u = w[self._idx["u"][i]:self._idx["u"][i] + 2]
+                tc, te, *_ = cm.step(self.model_params, x[0], x[1], u[0], u[1], p[2], p[3], p[off + i],
+                                     p[off + 2 * (n + 1) + i], n_sub=self.n_sub, d_cab_k=p[4] / self.n_sub,
+                                     d_ain_k=p[6], d_evap_k=p[5] / self.n_sub)
+                x = np.array([tc, te])
+                j = self._idx["x"][i]
+                w[j:j + 4] = np.concatenate([x, u])
         ev = self.evaluate(w, p)
         pmv = ev["pmv"]
         lb = p[off + 3 * (n + 1): off + 4 * (n + 1)]
@@ -451,7 +464,7 @@ class NmpcController:
         margin = _SLACK_GUESS_MARGIN
         w[self._idx["s_lo"]] = np.maximum(lb - pmv, 0.0) + margin
         w[self._idx["s_up"]] = np.maximum(pmv + eps - ub, 0.0) + margin
-        t_evap = np.array([w[j + 1] for j in self._idx["x"]])
+        t_evap = ev["t_evap"]
         w[self._idx["s_ev"]] = np.maximum(np.maximum(self.settings.t_evap_lb_c - t_evap,
                                                      t_evap - self.settings.t_evap_ub_c), 0.0) + margin
         return np.clip(w, self._lbw, self._ubw)
@@ -490,7 +503,10 @@ class NmpcController:
         t0 = time.perf_counter()
         sol = solver(**args)
         dt_ms = 1e3 * (time.perf_counter() - t0)
-        stats = solver.stats()
+        try:
+            stats = solver.stats()
+        except RuntimeError as exc:  # CasADi 3.8.2 sqpmethod: no stats after an error in iteration 0
+            stats = {"success": False, "return_status": f"no solver statistics ({str(exc).splitlines()[-1]})"}
         return {"w": np.array(sol["x"]).ravel(), "f": float(sol["f"]),
                 "lam_x": np.array(sol["lam_x"]).ravel(), "lam_g": np.array(sol["lam_g"]).ravel(),
                 "stats": stats, "time_ms": dt_ms,
@@ -501,8 +517,8 @@ class NmpcController:
     def evaluate(self, w: np.ndarray, p: np.ndarray) -> dict:
         """Cost terms and predicted trajectories of a primal point."""
         out = self._eval(w, p)
-        keys = ("J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain")
-        return {k: np.array(v).ravel() if k in ("pmv", "t_cab", "t_ain") else float(v)
+        keys = ("J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain", "t_evap")
+        return {k: np.array(v).ravel() if k in ("pmv", "t_cab", "t_ain", "t_evap") else float(v)
                 for k, v in zip(keys, out)}
 
     def last_nlp(self) -> NlpData | None:
@@ -619,6 +635,41 @@ class NmpcController:
         return AcInput(mdot_bl_kgps=float(u[0]), t_evap_sp_c=float(u[1])), diag
 
 
+@contextlib.contextmanager
+def _c_stdout_silenced():
+    """Silence standard output for the block: Python's ``sys.stdout`` and the process's fd 1.
+
+    qpOASES prints its licence banner whenever a solver object is created, whatever
+    ``printLevel`` is set; CasADi routes that text to Python's ``sys.stdout`` (and C code may
+    write to fd 1 directly). In a node it would interleave with the node's output on every
+    controller build. Only solver construction is wrapped, never a solve.
+    """
+    with contextlib.redirect_stdout(io.StringIO()):
+        try:
+            saved = os.dup(1)
+        except OSError:  # no usable fd 1 (e.g. closed): the Python-level redirect is all we can do
+            yield
+            return
+        try:
+            with open(os.devnull, "wb") as devnull:
+                os.dup2(devnull.fileno(), 1)
+                try:
+                    yield
+                finally:
+                    _libc_fflush()  # what C stdio buffered inside the block goes to /dev/null too
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
+def _libc_fflush() -> None:
+    """fflush(NULL): flush every C stdio output stream (no-op where libc cannot be loaded)."""
+    try:
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):
+        pass
+
+
 def codegen_cache_dir(path: str | None = None) -> pathlib.Path:
     """Directory of compiled NLPs: ``path``, else $CECO_CACHE_DIR, else $XDG_CACHE_HOME/ceco, else ~/.cache/ceco."""
     if path:
@@ -646,7 +697,9 @@ def compile_nlp(nlp: dict, flags=("-O1",), cache_dir: str | None = None, plugin:
         return None
     try:
         with tempfile.TemporaryDirectory(prefix="ceco_cg_") as tmp:
-            gen = casadi.nlpsol("ceco_nlp", plugin, nlp, {"print_time": False})
+            quiet = {"print_header": False, "qpsol_options": {"printLevel": "none"}} if plugin == "sqpmethod" else {}
+            with _c_stdout_silenced():
+                gen = casadi.nlpsol("ceco_nlp", plugin, nlp, {"print_time": False, **quiet})
             src = os.path.join(tmp, "ceco_nlp.c")
             cwd = os.getcwd()
             os.chdir(tmp)  # generate_dependencies writes relative to the working directory

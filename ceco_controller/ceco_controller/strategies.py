@@ -27,7 +27,7 @@ import dataclasses
 import math
 
 __all__ = ["StrategySettings", "SolverSettings", "STRATEGIES", "CECO_STRATEGIES",
-           "strategy_settings", "COMFORT_GAMMA_W"]
+           "strategy_settings", "resolved_transcription", "resolve_auto", "COMFORT_GAMMA_W"]
 
 COMFORT_GAMMA_W = 20000.0
 """ceco-c comfort weight gamma [W per PMV^2] (cost term gamma * PMV^2 next to watts).
@@ -46,9 +46,14 @@ its own (unstated) units.
 class SolverSettings:
     """NLP solver settings (choice justified with numbers in docs/controller.md)."""
 
-    name: str = "ipopt"
-    """CasADi nlpsol plugin of the warm solves: 'ipopt' (default), 'sqpmethod' (warm SQP with qpOASES,
-    IPOPT for cold solves and failed SQP solves; 4.4-5.1x the reference, docs/controller.md 4.6) or 'fatrop'."""
+    name: str = "auto"
+    """CasADi nlpsol plugin of the warm solves: 'auto' (default: 'sqpmethod' when the transcription
+    is single shooting, i.e. Np <= ``single_shooting_max_steps``, else 'ipopt'), 'sqpmethod'
+    (exact-Hessian SQP, eigen-clip, dense qpOASES; IPOPT does the cold solves and retries any
+    failed SQP solve), 'ipopt' (warm IPOPT) or 'fatrop' (multiple shooting only). Measured in
+    docs/controller.md 4.6: at Np = 6 the SQP on the single-shooting NLP is 5.9-6.5x the
+    reference; on multiple-shooting NLPs its dense QPs grow cubically (Np = 24: 113 ms, Np = 60:
+    3.1 s median per solve, against the warm IPOPT's 25 and 74 ms)."""
     max_iter: int = 100
     """IPOPT/fatrop iteration limit per solve [-]."""
     sqp_max_iter: int = 20
@@ -82,6 +87,20 @@ class SolverSettings:
     convexify_strategy: str = "eigen-clip"
     """Hessian convexification of ``sqpmethod`` ('eigen-clip', 'eigen-reflect' or 'regularize';
     'regularize' left qpOASES failing on most SC03 steps, docs/controller.md 4.6)."""
+    transcription: str = "auto"
+    """How the horizon becomes an NLP: 'single-shooting' (the states are the model's rollout
+    expressions of the inputs: no state variables, no gap constraints; at Np = 6 the dense QPs of
+    sqpmethod have 32-39 instead of 56-63 variables), 'multiple-shooting' (states as variables
+    with gap constraints: the sparse optimal-control structure, needed by fatrop) or 'auto'
+    (single shooting up to ``single_shooting_max_steps``, multiple shooting beyond: the
+    single-shooting derivatives grow quadratically with Np). Same optimum (docs/controller.md 4.6)."""
+    single_shooting_max_steps: int = 12
+    """Longest horizon [steps] that 'auto' transcribes by single shooting (the Hessian of the
+    Lagrangian has 40 k / 133 k / 479 k SX instructions at Np = 6 / 12 / 24, against 19 k / 37 k /
+    73 k for multiple shooting)."""
+    max_iter_eig: int = 5000
+    """sqpmethod: iteration limit of the eigenvalue decomposition that convexifies the Hessian
+    ('eigen-clip'); CasADi's default 200 is too few for the dense single-shooting Hessian block."""
     ipopt_fallback: bool = True
     """For ``name`` 'sqpmethod'/'fatrop': a failed warm solve is retried at once with the warm
     IPOPT solver (same data), and cold solves (first step, after a failure) use the cold IPOPT
@@ -89,8 +108,8 @@ class SolverSettings:
 
     def validate(self) -> None:
         """Raise ValueError naming the field if a setting is not usable."""
-        if self.name not in ("ipopt", "fatrop", "sqpmethod"):
-            raise ValueError(f"SolverSettings.name must be ipopt, fatrop or sqpmethod, got {self.name!r}")
+        if self.name not in ("auto", "ipopt", "fatrop", "sqpmethod"):
+            raise ValueError(f"SolverSettings.name must be auto, ipopt, fatrop or sqpmethod, got {self.name!r}")
         if not (isinstance(self.max_iter, int) and self.max_iter >= 0):
             raise ValueError("SolverSettings.max_iter must be an int >= 0")
         if not (math.isfinite(self.max_cpu_time_s) and self.max_cpu_time_s > 0):
@@ -105,6 +124,15 @@ class SolverSettings:
             raise ValueError("SolverSettings.sqp_max_iter must be an int >= 1")
         if self.qpsol not in ("qpoases", "qrqp"):
             raise ValueError(f"SolverSettings.qpsol must be qpoases or qrqp, got {self.qpsol!r}")
+        if self.transcription not in ("auto", "single-shooting", "multiple-shooting"):
+            raise ValueError("SolverSettings.transcription must be auto, single-shooting or multiple-shooting, "
+                             f"got {self.transcription!r}")
+        if not (isinstance(self.single_shooting_max_steps, int) and self.single_shooting_max_steps >= 0):
+            raise ValueError("SolverSettings.single_shooting_max_steps must be an int >= 0")
+        if self.name == "fatrop" and self.transcription != "multiple-shooting":
+            raise ValueError("SolverSettings.name 'fatrop' needs transcription 'multiple-shooting'")
+        if not (isinstance(self.max_iter_eig, int) and self.max_iter_eig >= 1):
+            raise ValueError("SolverSettings.max_iter_eig must be an int >= 1")
         if self.convexify_strategy not in ("eigen-clip", "eigen-reflect", "regularize"):
             raise ValueError("SolverSettings.convexify_strategy must be eigen-clip, eigen-reflect or regularize, "
                              f"got {self.convexify_strategy!r}")
@@ -194,6 +222,29 @@ _DEFAULTS = {
     "ceco-c": dict(gamma_w=COMFORT_GAMMA_W),
     "ceco-ioch": dict(ioch=True, use_speed_preview=True, pmv_margin=0.1, beta_w=1000.0),
 }
+
+
+def resolved_transcription(settings: StrategySettings) -> str:
+    """The transcription a controller with ``settings`` builds ('auto' resolved by the horizon)."""
+    t = settings.solver.transcription
+    if t != "auto":
+        return t
+    return ("single-shooting" if settings.horizon_steps <= settings.solver.single_shooting_max_steps
+            else "multiple-shooting")
+
+
+def resolve_auto(settings: StrategySettings) -> StrategySettings:
+    """``settings`` with the solver's 'auto' choices made concrete (see ``SolverSettings.name``,
+    ``SolverSettings.transcription``): single shooting + sqpmethod up to
+    ``single_shooting_max_steps``, multiple shooting + IPOPT beyond."""
+    transcription = resolved_transcription(settings)
+    name = settings.solver.name
+    if name == "auto":
+        name = "sqpmethod" if transcription == "single-shooting" else "ipopt"
+    out = dataclasses.replace(settings, solver=dataclasses.replace(settings.solver, name=name,
+                                                                   transcription=transcription))
+    out.validate()
+    return out
 
 
 def strategy_settings(name: str, **overrides) -> StrategySettings:
