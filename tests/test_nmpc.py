@@ -36,7 +36,9 @@ def test_forced_failure_falls_back_to_baseline_then_shifted_plan():
     cmd0, d0 = ctrl.compute(_obs(0))
     assert d0.success and d0.fallback == ""
     plan = ctrl._plan_u.copy()
-    ctrl.solver = ctrl.solver_cold = ctrl.solver_fallback = bad.solver  # same NLP, a solver that always fails
+    # same NLPs, solvers that always fail (the cold one works on the multiple-shooting NLP)
+    ctrl.solver = ctrl.solver_fallback = bad.solver
+    ctrl.solver_cold = bad.solver_cold
     cmd1, d1 = ctrl.compute(_obs(1))
     assert d1.fallback == "shifted_plan" and _valid(cmd1)
     assert (cmd1.mdot_bl_kgps, cmd1.t_evap_sp_c) == pytest.approx(tuple(plan[1]))
@@ -133,8 +135,10 @@ def test_codegen_compiles_once_and_matches_in_process(tmp_path):
     ss = SolverSettings(codegen=True, codegen_flags=("-O0",), codegen_cache_dir=str(cache))
     comp = NmpcController(strategy_settings("ceco-ioch", solver=ss))
     objs = list(cache.glob("ceco_nlp_*.so"))
-    # one object per plugin used: IPOPT's, plus sqpmethod's when that is the warm solver
-    assert len(objs) == (2 if comp.settings.solver.name == "sqpmethod" else 1) and not list(cache.glob(".*tmp*"))
+    # one object per plugin and NLP: IPOPT's, sqpmethod's when that is the warm solver, and the cold
+    # solver's multiple-shooting NLP (IPOPT) when the controller's NLP is single shooting
+    n_expected = 1 + (comp.settings.solver.name == "sqpmethod") + (comp.transcription == "single-shooting")
+    assert len(objs) == n_expected == 3 and not list(cache.glob(".*tmp*"))
     ref = NmpcController("ceco-ioch")
     for k in range(3):
         c1, d1 = comp.compute(_obs(k, speed=20.0))
@@ -236,3 +240,18 @@ def test_auto_solver_follows_the_horizon():
     explicit = NmpcController(strategy_settings("ceco", horizon_steps=13, solver=SolverSettings(
         name="sqpmethod", transcription="single-shooting")))
     assert (explicit.settings.solver.name, explicit.transcription) == ("sqpmethod", "single-shooting")
+
+
+def test_cold_solves_use_the_multiple_shooting_nlp():
+    """A single-shooting controller's cold solve (first step) runs IPOPT on the multiple-shooting
+    NLP and maps the solution back: the same command and cost as a multiple-shooting controller."""
+    ss = NmpcController("ceco")
+    ms = NmpcController(strategy_settings("ceco", solver=SolverSettings(transcription="multiple-shooting")))
+    assert ss.transcription == "single-shooting" and ss._cold_ctrl.transcription == "multiple-shooting"
+    (c1, d1), (c2, d2) = ss.compute(_obs(0, t_cab=30.0)), ms.compute(_obs(0, t_cab=30.0))
+    assert d1.success and d2.success
+    assert d1.cost_total == pytest.approx(d2.cost_total, rel=1e-9)
+    assert (c1.mdot_bl_kgps, c1.t_evap_sp_c) == pytest.approx((c2.mdot_bl_kgps, c2.t_evap_sp_c), rel=1e-9)
+    # the mapped primal-dual point warm-starts the SQP at once
+    c1, d1 = ss.compute(_obs(1, t_cab=29.8))
+    assert d1.success and ss.n_ipopt_fallbacks == 0 and d1.status == "Solve_Succeeded"

@@ -98,9 +98,11 @@ class SolverSettings:
     """Longest horizon [steps] that 'auto' transcribes by single shooting (the Hessian of the
     Lagrangian has 40 k / 133 k / 479 k SX instructions at Np = 6 / 12 / 24, against 19 k / 37 k /
     73 k for multiple shooting)."""
-    max_iter_eig: int = 5000
-    """sqpmethod: iteration limit of the eigenvalue decomposition that convexifies the Hessian
-    ('eigen-clip'); CasADi's default 200 is too few for the dense single-shooting Hessian block."""
+    max_iter_eig: int = 100000
+    """sqpmethod: iteration limit of the (Jacobi) eigenvalue decomposition that convexifies the
+    Hessian ('eigen-clip'). CasADi's default 200 stops short on the dense single-shooting block;
+    5000 still did on 7 of 240 SC03 steps of ceco-c at gamma = 650 / 2000 (sqpmethod then stops in
+    iteration 0, the IPOPT retry took over); 100 000 costs nothing when fewer are needed."""
     ipopt_fallback: bool = True
     """For ``name`` 'sqpmethod'/'fatrop': a failed warm solve is retried at once with the warm
     IPOPT solver (same data), and cold solves (first step, after a failure) use the cold IPOPT
