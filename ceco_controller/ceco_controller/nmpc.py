@@ -246,6 +246,9 @@ class NmpcController:
         self._ubw = np.array(ubw)
         self._lbg = np.array(lbg)
         self._ubg = np.array(ubg)
+        # the constant bounds as CasADi matrices, converted once (not on every solve: ~0.1 ms)
+        self._bounds_dm = {"lbx": casadi.DM(self._lbw), "ubx": casadi.DM(self._ubw),
+                           "lbg": casadi.DM(self._lbg), "ubg": casadi.DM(self._ubg)}
         self._idx = {k: np.array(v, dtype=int) for k, v in idx.items()}
         self._nlp = {"x": w_all, "p": p, "f": J, "g": g_all}
         self._np = p.numel()
@@ -511,8 +514,7 @@ class NmpcController:
     def solve_nlp(self, data: NlpData, solver: casadi.Function | None = None) -> dict:
         """Solve one NLP instance; return a dict with the solution, stats and wall time [ms]."""
         solver = solver or self.solver
-        args = {"x0": data.x0, "p": data.p, "lbx": self._lbw, "ubx": self._ubw,
-                "lbg": self._lbg, "ubg": self._ubg}
+        args = {"x0": data.x0, "p": data.p, **self._bounds_dm}
         if data.lam_x0 is not None:
             args["lam_x0"] = data.lam_x0
         if data.lam_g0 is not None:

@@ -98,11 +98,13 @@ class SolverSettings:
     """Longest horizon [steps] that 'auto' transcribes by single shooting (the Hessian of the
     Lagrangian has 40 k / 133 k / 479 k SX instructions at Np = 6 / 12 / 24, against 19 k / 37 k /
     73 k for multiple shooting)."""
-    max_iter_eig: int = 100000
+    max_iter_eig: int = 10000
     """sqpmethod: iteration limit of the (Jacobi) eigenvalue decomposition that convexifies the
-    Hessian ('eigen-clip'). CasADi's default 200 stops short on the dense single-shooting block;
-    5000 still did on 7 of 240 SC03 steps of ceco-c at gamma = 650 / 2000 (sqpmethod then stops in
-    iteration 0, the IPOPT retry took over); 100 000 costs nothing when fewer are needed."""
+    Hessian ('eigen-clip'). CasADi's default 200 stops short on the dense single-shooting block
+    (sqpmethod then stops in iteration 0 and the IPOPT retry takes over); 5000 still did on 7 of
+    240 SC03 steps of ceco-c at gamma = 650 / 2000; 10 000 on none of ~800 steps of six test runs
+    (docs/controller.md 4.6). Not free: CasADi's work space grows with it, ~0.025 ms per solve
+    per 1000 (SC03 ceco median solve 2.2 / 2.4 / 3.5 ms at 5000 / 10 000 / 50 000)."""
     ipopt_fallback: bool = True
     """For ``name`` 'sqpmethod'/'fatrop': a failed warm solve is retried at once with the warm
     IPOPT solver (same data), and cold solves (first step, after a failure) use the cold IPOPT
