@@ -6,7 +6,7 @@ import pytest
 
 from ceco_controller.interface import ACTUATOR_LIMITS, Observation
 from ceco_controller.nmpc import NmpcController
-from ceco_controller.strategies import SolverSettings, strategy_settings
+from ceco_controller.strategies import SolverSettings, resolve_auto, strategy_settings
 
 N1 = 7  # Np + 1
 
@@ -27,7 +27,8 @@ def _valid(cmd):
 
 def test_forced_failure_falls_back_to_baseline_then_shifted_plan():
     # max_iter = 0: IPOPT cannot converge -> no plan yet -> the production ACC law
-    bad = NmpcController(strategy_settings("ceco", solver=SolverSettings(name="ipopt", max_iter=0)))
+    bad = NmpcController(strategy_settings("ceco", solver=SolverSettings(name="ipopt", max_iter=0,
+                                                                        transcription="single-shooting")))
     cmd, diag = bad.compute(_obs(0))
     assert diag.fallback == "baseline" and not diag.success and _valid(cmd)
     assert "ACC law" in diag.message
@@ -213,10 +214,21 @@ def test_transcription_settings_are_validated():
     with pytest.raises(ValueError, match="transcription"):
         SolverSettings(transcription="collocation").validate()
     with pytest.raises(ValueError, match="fatrop"):
-        SolverSettings(name="fatrop").validate()  # auto may pick single shooting: no stage structure
-    SolverSettings(name="fatrop", transcription="multiple-shooting").validate()
+        SolverSettings(name="fatrop", transcription="single-shooting").validate()  # no stage structure
+    assert resolve_auto(strategy_settings("ceco", solver=SolverSettings(name="fatrop"))).solver.transcription \
+        == "multiple-shooting"
     with pytest.raises(ValueError, match="max_iter_eig"):
         SolverSettings(max_iter_eig=0).validate()
+    with pytest.raises(ValueError, match="max_iter_eig"):
+        SolverSettings(max_iter_eig=True).validate()
+    # an SQP solve and then its IPOPT retry must both fit in the control period
+    with pytest.raises(ValueError, match="control_period_s / 2"):
+        strategy_settings("ceco", solver=SolverSettings(max_cpu_time_s=3.0))
+    strategy_settings("ceco", solver=SolverSettings(name="ipopt", max_cpu_time_s=3.0))
+    # a solver for another transcription than the controller's NLP is refused, not silently rebuilt
+    ctrl = NmpcController("ceco")
+    with pytest.raises(ValueError, match="does not match"):
+        ctrl.make_solver(SolverSettings(transcription="multiple-shooting"))
 
 
 def test_building_the_sqp_controller_prints_nothing(capfd):
@@ -240,6 +252,9 @@ def test_auto_solver_follows_the_horizon():
     explicit = NmpcController(strategy_settings("ceco", horizon_steps=13, solver=SolverSettings(
         name="sqpmethod", transcription="single-shooting")))
     assert (explicit.settings.solver.name, explicit.transcription) == ("sqpmethod", "single-shooting")
+    # an explicit sparse solver gets the sparse (multiple-shooting) NLP at any horizon
+    ipo = NmpcController(strategy_settings("ceco", solver=SolverSettings(name="ipopt")))
+    assert ipo.transcription == "multiple-shooting" and ipo._cold_ctrl is ipo
 
 
 def test_cold_solves_use_the_multiple_shooting_nlp():
@@ -255,3 +270,28 @@ def test_cold_solves_use_the_multiple_shooting_nlp():
     # the mapped primal-dual point warm-starts the SQP at once
     c1, d1 = ss.compute(_obs(1, t_cab=29.8))
     assert d1.success and ss.n_ipopt_fallbacks == 0 and d1.status == "Solve_Succeeded"
+
+
+def test_controller_file_is_what_the_simulator_and_nodes_build_from(tmp_path):
+    """make_controller (used by the simulator and mpc_node) reads the controller file: a copy with
+    another setting changes the built controller; a bad key fails with the file and key named."""
+    import yaml
+
+    from ceco_controller import closed_loop
+    from ceco_controller.model import package_config_path
+    from ceco_v2x_preview.scenario import load_scenario
+    sc = load_scenario("sc03")
+    default = closed_loop.make_controller("ceco-c", sc, 5.0, 6)
+    assert default.settings.gamma_w == strategy_settings("ceco-c").gamma_w
+    doc = yaml.safe_load(package_config_path("controller.yaml").read_text())
+    doc["strategies"]["ceco-c"]["gamma_w"] = 2000.0
+    doc["common"]["solver"]["name"] = "ipopt"
+    cfg = tmp_path / "controller.yaml"
+    cfg.write_text(yaml.safe_dump(doc))
+    ctrl = closed_loop.make_controller("ceco-c", sc, 5.0, 6, config_path=str(cfg))
+    assert ctrl.settings.gamma_w == 2000.0 and ctrl.settings.solver.name == "ipopt"
+    assert ctrl.transcription == "multiple-shooting"  # an explicit IPOPT gets the sparse NLP
+    doc["common"]["gama_w"] = 1.0
+    cfg.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ValueError, match="gama_w"):
+        closed_loop.make_controller("ceco-c", sc, 5.0, 6, config_path=str(cfg))

@@ -61,6 +61,11 @@ def _stats(x):
     return {"median": float(np.median(x)), "p95": float(np.percentile(x, 95)), "max": float(np.max(x))}
 
 
+def _json_float(v: float) -> float | None:
+    """NaN (a statistic with no sample, e.g. no same-NLP reference) as JSON null, not the invalid NaN."""
+    return None if v != v else v
+
+
 def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03", progress=False,
                codegen=True, method=SolverSettings().name,
                transcription=SolverSettings().transcription) -> list[dict]:
@@ -80,11 +85,11 @@ def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03"
             same_solver = (ctrl.make_solver(SolverSettings(name="ipopt", default_options=True))
                            if ctrl.transcription != "multiple-shooting" else None)
             ours_t, ref_t, diffs, sdiffs, ours_it, ref_it, same_t = [], [], [], [], [], [], []
-            n_fail = n_ref_fail = 0
+            n_fail = n_ref_fail = n_same_fail = 0
             orig = ctrl.compute
 
             def compute(obs, _orig=orig, _ctrl=ctrl):
-                nonlocal n_fail, n_ref_fail
+                nonlocal n_fail, n_ref_fail, n_same_fail
                 cmd, diag = _orig(obs)
                 data = _ctrl.last_nlp()
                 if diag.solve_time_ms is not None:
@@ -95,8 +100,9 @@ def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03"
                 # the reference solves the same instance from the cold model-rollout guess
                 ref = ref_ctrl.solve_nlp(NlpData(p=data.p, x0=ref_ctrl.initial_guess(data.p)), ref_ctrl.solver)
                 if same_solver is not None:
-                    same_t.append(_ctrl.solve_nlp(NlpData(p=data.p, x0=_ctrl.initial_guess(data.p)),
-                                                  same_solver)["time_ms"])
+                    same = _ctrl.solve_nlp(NlpData(p=data.p, x0=_ctrl.initial_guess(data.p)), same_solver)
+                    same_t.append(same["time_ms"])
+                    n_same_fail += not same["success"]
                 ref_t.append(ref["time_ms"])
                 ref_it.append(ref["iterations"])
                 if not ref["success"]:
@@ -121,7 +127,7 @@ def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03"
                          "max_rel_cost_diff": max(diffs) if diffs else float("nan"),
                          "max_rel_cost_excess": max(max(sdiffs), 0.0) if sdiffs else float("nan"),
                          "n_rel_cost_diff_gt_1e-4": int(sum(d > 1e-4 for d in diffs)),
-                         "n_fail": n_fail, "n_ref_fail": n_ref_fail,
+                         "n_fail": n_fail, "n_ref_fail": n_ref_fail, "n_ref_same_nlp_fail": n_same_fail,
                          "n_ipopt_fallbacks": ctrl.n_ipopt_fallbacks})
             rr = rows[-1]
             print(f"{strat:10s} Np={np_:3d} steps={rr['steps']:4d}  ours median {rr['ours_median_ms']:7.2f} ms "
@@ -190,9 +196,11 @@ def main(argv=None) -> int:
         "horizons": horizons,
         "strategies": strategies,
         "duration_s": duration,
-        "per_case": [{k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()} for r in rows],
+        "per_case": [{k: (_json_float(round(v, 4)) if isinstance(v, float) else v) for k, v in r.items()}
+                     for r in rows],
     }
-    print(json.dumps(summary))
+    summary = {k: (_json_float(v) if isinstance(v, float) else v) for k, v in summary.items()}
+    print(json.dumps(summary, allow_nan=False))
     return 0
 
 

@@ -35,7 +35,7 @@ from .baseline import BaselineController
 from .interface import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS
 from .nmpc import NmpcController
 from .observation import observation
-from .strategies import STRATEGIES, strategy_settings
+from .strategies import STRATEGIES, load_strategy_settings
 
 __all__ = ["SimSettings", "RunResult", "simulate", "make_controller", "comfort_params_for",
            "write_run", "main", "TIMESERIES_COLUMNS", "DIAGNOSTICS_CSV_COLUMNS"]
@@ -76,6 +76,8 @@ class SimSettings:
     """Identified model parameter file; None: ceco_controller/config/model_params.yaml."""
     strategy_overrides: tuple = ()
     """((field, value), ...) overriding the CECO strategy settings (e.g. (('gamma_w', 1e4),))."""
+    controller_config_path: str | None = None
+    """Controller settings file; None: ceco_controller/config/controller.yaml."""
 
     def validate(self) -> None:
         """Raise ValueError naming the field if a setting is not usable."""
@@ -107,12 +109,17 @@ class RunResult:
 
 
 def make_controller(strategy: str, scenario: Scenario, control_period_s: float, horizon_steps: int,
-                    model_params: cm.ControlModelParams | None = None, overrides: dict | None = None):
-    """Build the controller of a strategy for a scenario."""
+                    model_params: cm.ControlModelParams | None = None, overrides: dict | None = None,
+                    config_path: str | None = None):
+    """Build the controller of a strategy for a scenario.
+
+    NMPC settings: the controller file (``config_path``, default the package's
+    ``config/controller.yaml``), then ``horizon_steps``/``control_period_s``, then ``overrides``.
+    """
     if strategy == "baseline":
         return BaselineController(control_period_s=control_period_s)
-    settings = strategy_settings(strategy, horizon_steps=horizon_steps, control_period_s=control_period_s,
-                                 **(overrides or {}))
+    settings = load_strategy_settings(strategy, config_path, horizon_steps=horizon_steps,
+                                      control_period_s=control_period_s, **(overrides or {}))
     return NmpcController(settings, model_params=model_params, comfort_params=comfort_params_for(scenario))
 
 
@@ -143,7 +150,8 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
     n = n_plant_steps(duration, dt)
     mp = cm.load_params(settings.model_params_path) if strategy != "baseline" else None
     if controller is None:
-        controller = make_controller(strategy, scenario, ts, n_p, mp, dict(settings.strategy_overrides))
+        controller = make_controller(strategy, scenario, ts, n_p, mp, dict(settings.strategy_overrides),
+                                     config_path=settings.controller_config_path)
     sp = ScenarioPlant(scenario, dt)
     cols = {c: np.empty(n) for c in TIMESERIES_COLUMNS}
     diags, diag_objs = [], []
@@ -268,6 +276,8 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=None, help="seed of the preview noise")
     ap.add_argument("--duration", type=float, default=None, help="run length [s] (default: the scenario's)")
     ap.add_argument("--model-params", default=None, help="identified model parameter file")
+    ap.add_argument("--controller-config", default=None,
+                    help="controller settings file (default: ceco_controller/config/controller.yaml)")
     ap.add_argument("--no-progress", action="store_true", help="disable the progress bar")
     args = ap.parse_args(argv)
     strategies = list(STRATEGIES) if args.strategy == "all" else [s.strip() for s in args.strategy.split(",")]
@@ -281,7 +291,8 @@ def main(argv=None) -> int:
     scenario = load_scenario(args.scenario)
     settings = SimSettings(control_period_s=args.control_period, horizon_steps=args.horizon,
                            preview_quality=quality, seed=args.seed, duration_s=args.duration,
-                           progress=not args.no_progress, model_params_path=args.model_params)
+                           progress=not args.no_progress, model_params_path=args.model_params,
+                           controller_config_path=args.controller_config)
     out = pathlib.Path(args.out)
     rows = []
     for s in strategies:

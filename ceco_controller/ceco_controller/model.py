@@ -52,6 +52,7 @@ from ceco_plant_sim.mathops import backend, softplus
 __all__ = [
     "ControlModelParams",
     "DEFAULT_PARAMS_PATH",
+    "package_config_path",
     "t_ain_c",
     "t_cab_next_c",
     "t_evap_next_c",
@@ -170,17 +171,27 @@ class ControlModelParams:
         return p
 
 
-def default_params_path() -> pathlib.Path:
-    """The parameter file: the source tree's ``config/``, else an installed ``share/ceco_controller/config``."""
-    if DEFAULT_PARAMS_PATH.exists():
-        return DEFAULT_PARAMS_PATH
+def package_config_path(filename: str) -> pathlib.Path:
+    """A file of the package's ``config/``: the source tree's, else an installed
+    ``share/ceco_controller/config`` on AMENT_PREFIX_PATH; FileNotFoundError if neither has it."""
+    src = DEFAULT_PARAMS_PATH.parent / filename
+    if src.exists():
+        return src
     import os
     for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
-        cand = pathlib.Path(prefix) / "share" / "ceco_controller" / "config" / "model_params.yaml"
+        cand = pathlib.Path(prefix) / "share" / "ceco_controller" / "config" / filename
         if prefix and cand.exists():
             return cand
-    raise FileNotFoundError(f"model_params.yaml not found at {DEFAULT_PARAMS_PATH} nor under AMENT_PREFIX_PATH; "
-                            "run `ceco identify` or pass the path")
+    raise FileNotFoundError(f"{filename} not found in {src.parent} nor under AMENT_PREFIX_PATH "
+                            "(share/ceco_controller/config)")
+
+
+def default_params_path() -> pathlib.Path:
+    """The parameter file: the source tree's ``config/``, else an installed ``share/ceco_controller/config``."""
+    try:
+        return package_config_path("model_params.yaml")
+    except FileNotFoundError as exc:
+        raise FileNotFoundError(f"{exc}; run `ceco identify` or pass the path") from None
 
 
 def load_params(path: str | pathlib.Path | None = None) -> ControlModelParams:

@@ -60,6 +60,8 @@ class ControllerNodeConfig:
     """lockstep: wall-clock wait for the previews of a step before solving without them [s]."""
     max_state_age_s: float
     """realtime: oldest usable state [s]."""
+    controller_config: str = ''
+    """NMPC settings file ('' : the package's config/controller.yaml)."""
 
     def validate(self) -> None:
         allowed = CECO_STRATEGIES + ('baseline',)
@@ -78,7 +80,8 @@ class ControllerNode(Node):
         self.config = self._read_config(fixed_strategy)
         cfg = self.config
         self.scenario = rc.load_scenario_param(cfg.scenario)
-        self.core = make_core(cfg.strategy, self.scenario, cfg.control_period_s, cfg.horizon_steps)
+        self.core = make_core(cfg.strategy, self.scenario, cfg.control_period_s, cfg.horizon_steps,
+                              cfg.controller_config or None)
         self.n_grid = cfg.horizon_steps + 1
         self._states: dict[int, CabinState] = {}
         self._weather: dict[int, WeatherPreview] = {}
@@ -126,6 +129,8 @@ class ControllerNode(Node):
                                 'of a step before solving without them [s]', float_range=(0.01, 600.0)),
             max_state_age_s=d(self, 'max_state_age_s', 10.0, 'realtime: oldest usable cabin state [s]',
                               float_range=(0.01, 3600.0)),
+            controller_config=d(self, 'controller_config', '', 'NMPC settings file (solver, weights, '
+                                'bounds; empty: the package\'s config/controller.yaml)'),
         )
         cfg.validate()
         return cfg
@@ -252,11 +257,12 @@ def _empty_previews(n: int, step_s: float):
     return w, s
 
 
-def make_core(strategy: str, scenario, control_period_s: float, horizon_steps: int):
+def make_core(strategy: str, scenario, control_period_s: float, horizon_steps: int,
+              config_path: str | None = None):
     """The controller core, built as the closed-loop simulator builds it."""
     from ceco_controller import closed_loop
     return closed_loop.make_controller(strategy, scenario, control_period_s=control_period_s,
-                                       horizon_steps=horizon_steps)
+                                       horizon_steps=horizon_steps, config_path=config_path)
 
 
 def main(args=None) -> int:

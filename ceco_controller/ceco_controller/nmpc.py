@@ -294,6 +294,9 @@ class NmpcController:
         """Build a CasADi nlpsol for this NLP with the given solver settings."""
         ss = solver_settings
         ss.validate()
+        if ss.transcription not in ("auto", self.transcription):
+            raise ValueError(f"SolverSettings.transcription {ss.transcription!r} does not match this controller's "
+                             f"NLP ({self.transcription}); build another controller for it")
         if ss.name == "auto":
             ss = dataclasses.replace(ss, name="sqpmethod" if self.transcription == "single-shooting" else "ipopt")
         opts: dict = {"print_time": False}
@@ -525,7 +528,8 @@ class NmpcController:
         try:
             stats = solver.stats()
         except RuntimeError as exc:  # CasADi 3.8.2 sqpmethod: no stats after an error in iteration 0
-            stats = {"success": False, "return_status": f"no solver statistics ({str(exc).splitlines()[-1]})"}
+            last = (str(exc).splitlines() or [type(exc).__name__])[-1]
+            stats = {"success": False, "return_status": f"no solver statistics ({last})"}
         return {"w": np.array(sol["x"]).ravel(), "f": float(sol["f"]),
                 "lam_x": np.array(sol["lam_x"]).ravel(), "lam_g": np.array(sol["lam_g"]).ravel(),
                 "stats": stats, "time_ms": dt_ms,
@@ -674,15 +678,20 @@ def _c_stdout_silenced():
     qpOASES prints its licence banner whenever a solver object is created, whatever
     ``printLevel`` is set; CasADi routes that text to Python's ``sys.stdout`` (and C code may
     write to fd 1 directly). In a node it would interleave with the node's output on every
-    controller build. Only solver construction is wrapped, never a solve.
+    controller build. Only solver construction is wrapped, never a solve. fd 1 is process-wide:
+    output other threads write to stdout during the construction (a few hundred ms at start-up)
+    is lost too; ROS 2 logs go to stderr unless RCUTILS_LOGGING_USE_STDOUT=1.
     """
     with contextlib.redirect_stdout(io.StringIO()):
         try:
             saved = os.dup(1)
         except OSError:  # no usable fd 1 (e.g. closed): the Python-level redirect is all we can do
+            saved = None
+        if saved is None:
             yield
             return
         try:
+            _libc_fflush()  # what C stdio buffered before the block still goes to the real stdout
             with open(os.devnull, "wb") as devnull:
                 os.dup2(devnull.fileno(), 1)
                 try:
@@ -698,7 +707,7 @@ def _libc_fflush() -> None:
     """fflush(NULL): flush every C stdio output stream (no-op where libc cannot be loaded)."""
     try:
         ctypes.CDLL(None).fflush(None)
-    except (OSError, AttributeError):
+    except (OSError, AttributeError, TypeError):  # TypeError: no CDLL(None) on Windows
         pass
 
 

@@ -51,8 +51,8 @@ class SolverSettings:
     is single shooting, i.e. Np <= ``single_shooting_max_steps``, else 'ipopt'), 'sqpmethod'
     (exact-Hessian SQP, eigen-clip, dense qpOASES; IPOPT does the cold solves and retries any
     failed SQP solve), 'ipopt' (warm IPOPT) or 'fatrop' (multiple shooting only). Measured in
-    docs/controller.md 4.6: at Np = 6 the SQP on the single-shooting NLP is 5.9-6.5x the
-    reference; on multiple-shooting NLPs its dense QPs grow cubically (Np = 24: 113 ms, Np = 60:
+    docs/results.md: at Np = 6 the SQP on the single-shooting NLP is 5.5-6.2x the
+    reference (compiled functions); on multiple-shooting NLPs its dense QPs grow cubically (Np = 24: 113 ms, Np = 60:
     3.1 s median per solve, against the warm IPOPT's 25 and 74 ms)."""
     max_iter: int = 100
     """IPOPT/fatrop iteration limit per solve [-]."""
@@ -131,11 +131,11 @@ class SolverSettings:
         if self.transcription not in ("auto", "single-shooting", "multiple-shooting"):
             raise ValueError("SolverSettings.transcription must be auto, single-shooting or multiple-shooting, "
                              f"got {self.transcription!r}")
-        if not (isinstance(self.single_shooting_max_steps, int) and self.single_shooting_max_steps >= 0):
+        if not (type(self.single_shooting_max_steps) is int and self.single_shooting_max_steps >= 0):
             raise ValueError("SolverSettings.single_shooting_max_steps must be an int >= 0")
-        if self.name == "fatrop" and self.transcription != "multiple-shooting":
-            raise ValueError("SolverSettings.name 'fatrop' needs transcription 'multiple-shooting'")
-        if not (isinstance(self.max_iter_eig, int) and self.max_iter_eig >= 1):
+        if self.name == "fatrop" and self.transcription == "single-shooting":
+            raise ValueError("SolverSettings.name 'fatrop' needs transcription 'multiple-shooting' (or 'auto')")
+        if not (type(self.max_iter_eig) is int and self.max_iter_eig >= 1):
             raise ValueError("SolverSettings.max_iter_eig must be an int >= 1")
         if self.convexify_strategy not in ("eigen-clip", "eigen-reflect", "regularize"):
             raise ValueError("SolverSettings.convexify_strategy must be eigen-clip, eigen-reflect or regularize, "
@@ -211,6 +211,11 @@ class StrategySettings:
             raise ValueError("StrategySettings.pmv_newton_steps must be an int in [1, 50]")
         if self.solver.max_cpu_time_s >= self.control_period_s:
             raise ValueError("StrategySettings.solver.max_cpu_time_s must be below control_period_s")
+        if (self.solver.name != "ipopt" and self.solver.ipopt_fallback
+                and 2.0 * self.solver.max_cpu_time_s >= self.control_period_s):
+            # an SQP/fatrop solve (QPs limited to max_cpu_time_s in all) and then its IPOPT retry
+            raise ValueError("StrategySettings.solver.max_cpu_time_s must be below control_period_s / 2 "
+                             "when a failed SQP/fatrop solve is retried by IPOPT (ipopt_fallback)")
         self.solver.validate()
 
 
@@ -229,10 +234,14 @@ _DEFAULTS = {
 
 
 def resolved_transcription(settings: StrategySettings) -> str:
-    """The transcription a controller with ``settings`` builds ('auto' resolved by the horizon)."""
+    """The transcription a controller with ``settings`` builds. 'auto': multiple shooting for an
+    explicit 'ipopt' or 'fatrop' (sparse solvers; IPOPT is slower on the condensed NLP, docs/controller.md
+    4.6), else (SQP) single shooting up to ``single_shooting_max_steps`` and multiple shooting beyond."""
     t = settings.solver.transcription
     if t != "auto":
         return t
+    if settings.solver.name in ("ipopt", "fatrop"):
+        return "multiple-shooting"
     return ("single-shooting" if settings.horizon_steps <= settings.solver.single_shooting_max_steps
             else "multiple-shooting")
 
@@ -263,13 +272,19 @@ def strategy_settings(name: str, **overrides) -> StrategySettings:
 
 
 def load_strategy_settings(name: str, path=None, **overrides) -> StrategySettings:
-    """Settings of strategy ``name`` from ``config/controller.yaml`` (common + per-strategy keys), then overrides."""
+    """Settings of strategy ``name`` from a controller file (common + per-strategy keys), then overrides.
+
+    ``path`` None: the package's ``config/controller.yaml`` (source tree, else the installed share
+    directory; :func:`ceco_controller.model.package_config_path`). The closed-loop simulator and
+    ``mpc_node`` (parameter ``controller_config``) build their controllers from it.
+    """
     import pathlib
 
     import yaml
 
-    path = pathlib.Path(path) if path is not None else (
-        pathlib.Path(__file__).resolve().parent.parent / "config" / "controller.yaml")
+    from .model import package_config_path
+
+    path = pathlib.Path(path) if path is not None else package_config_path("controller.yaml")
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     if not isinstance(doc, dict):
         raise ValueError(f"{path}: expected a mapping")
