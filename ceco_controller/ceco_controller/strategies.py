@@ -101,10 +101,12 @@ class SolverSettings:
     max_iter_eig: int = 10000
     """sqpmethod: iteration limit of the (Jacobi) eigenvalue decomposition that convexifies the
     Hessian ('eigen-clip'). CasADi's default 200 stops short on the dense single-shooting block
-    (sqpmethod then stops in iteration 0 and the IPOPT retry takes over); 5000 still did on 7 of
-    240 SC03 steps of ceco-c at gamma = 650 / 2000; 10 000 on none of ~800 steps of six test runs
-    (docs/controller.md 4.6). Not free: CasADi's work space grows with it, ~0.025 ms per solve
-    per 1000 (SC03 ceco median solve 2.2 / 2.4 / 3.5 ms at 5000 / 10 000 / 50 000)."""
+    (sqpmethod then stops in iteration 0 and the IPOPT retry takes over). Six test runs (~800
+    steps: ceco-c at gamma = 650 / 2000 / 1200 / 1000, ceco-ioch, ceco-e): 7 retries at 5000, 2 at
+    10 000 (ceco-c only), 0 at 20 000 and 50 000; the default strategies had none at any of these.
+    Not free: CasADi's work space grows with it, ~0.025 ms per solve per 1000 (SC03 ceco median
+    solve 2.2 / 2.4 / 2.7 / 3.5 ms at 5000 / 10 000 / 20 000 / 50 000), so 10 000 trades a rare
+    ~10 ms IPOPT retry for 0.3 ms on every solve (docs/controller.md 4.6)."""
     ipopt_fallback: bool = True
     """For ``name`` 'sqpmethod'/'fatrop': a failed warm solve is retried at once with the warm
     IPOPT solver (same data), and cold solves (first step, after a failure) use the cold IPOPT
