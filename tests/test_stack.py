@@ -92,6 +92,16 @@ class DdsPeer:
                 os.environ[key] = value
 
 
+def _recording_peer(tmp_path):
+    """A test peer on a fresh domain with a rosbag2 Recorder spinning in it: (peer, recorder, log dir, bag)."""
+    from ceco_bringup.recorder import Recorder
+    tn = DdsPeer(_domain(), 'unused')
+    bag = tmp_path / 'bag'
+    rec = Recorder(bag, context=tn.context)
+    tn.executor.add_node(rec)
+    return tn, rec, tmp_path / 'logs', bag
+
+
 def _proc(name, pkg, exe, env, log_dir, params):
     return supervisor.NodeProcess(name, pkg, exe, env=env, log_dir=log_dir, params=params,
                                   params_files=[supervisor.share_file(pkg, f'config/{exe}.yaml')])
@@ -273,13 +283,7 @@ def test_kill_mpc_node_plant_falls_back_and_restart_takes_over(tmp_path):
     (lockstep: a wall-clock timeout, within the next control step), logs it and
     applies the production ACC law; a restarted mpc_node takes over again.
     The bag holds every state exactly once, before and after the fault."""
-    from ceco_bringup.recorder import Recorder
-    dom = _domain()
-    tn = DdsPeer(dom, 'unused')
-    log_dir = tmp_path / 'logs'
-    bag = tmp_path / 'bag'
-    rec = Recorder(bag, context=tn.context)
-    tn.executor.add_node(rec)
+    tn, rec, log_dir, bag = _recording_peer(tmp_path)
     n_steps = 600
     common = {'scenario': 'sc03', 'timing': 'lockstep', 'control_period_s': 5.0}
     preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', tn.env, log_dir,
@@ -410,14 +414,8 @@ def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
     controller is baseline_node: the NMPC's model step (5 s) would make a
     real-time test last minutes; the plant-side logic under test is the same
     (the lockstep test above kills mpc_node)."""
-    from ceco_bringup.recorder import Recorder
     from ceco_msgs.msg import AcPower
-    dom = _domain()
-    tn = DdsPeer(dom, 'unused')
-    log_dir = tmp_path / 'logs'
-    bag = tmp_path / 'bag'
-    rec = Recorder(bag, context=tn.context)
-    tn.executor.add_node(rec)
+    tn, rec, log_dir, bag = _recording_peer(tmp_path)
     powers = tn.collect(AcPower, rc.TOPIC_POWER, rc.QOS_STATE)
     common = {'scenario': 'sc03', 'timing': 'realtime', 'control_period_s': 2.0}
     preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', tn.env, log_dir,

@@ -53,7 +53,7 @@ from ceco_plant_sim.plant import AcInput
 
 from . import model as cm
 from .interface import ACTUATOR_LIMITS, Diagnostics, Observation
-from .strategies import StrategySettings, resolve_auto, strategy_settings
+from .strategies import StrategySettings, auto_solver_name, resolve_auto, strategy_settings
 
 __all__ = ["NmpcController", "NlpData", "codegen_cache_dir", "compile_nlp"]
 
@@ -298,7 +298,7 @@ class NmpcController:
             raise ValueError(f"SolverSettings.transcription {ss.transcription!r} does not match this controller's "
                              f"NLP ({self.transcription}); build another controller for it")
         if ss.name == "auto":
-            ss = dataclasses.replace(ss, name="sqpmethod" if self.transcription == "single-shooting" else "ipopt")
+            ss = dataclasses.replace(ss, name=auto_solver_name(self.transcription))
         opts: dict = {"print_time": False}
         nlp = self._nlp
         if ss.codegen and ss.name in ("ipopt", "sqpmethod") and not ss.default_options:
@@ -572,9 +572,9 @@ class NmpcController:
         else:
             data = NlpData(p=p, x0=self.initial_guess(p))
         self._last_nlp = data
-        solver = self.solver if data.lam_g0 is not None else self.solver_cold
-        res = self._try_solve(data, solver) if solver is not self.solver_cold else self._cold_solve(data)
-        if not res["success"] and self.solver_fallback is not None and solver is self.solver:
+        warm = data.lam_g0 is not None
+        res = self._try_solve(data, self.solver) if warm else self._cold_solve(data)
+        if not res["success"] and self.solver_fallback is not None and warm:
             # sqpmethod/fatrop failed: the same instance with the warm IPOPT solver
             self.n_ipopt_fallbacks += 1
             first = res

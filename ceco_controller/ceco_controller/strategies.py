@@ -27,7 +27,8 @@ import dataclasses
 import math
 
 __all__ = ["StrategySettings", "SolverSettings", "STRATEGIES", "CECO_STRATEGIES",
-           "strategy_settings", "resolved_transcription", "resolve_auto", "COMFORT_GAMMA_W"]
+           "strategy_settings", "resolved_transcription", "resolve_auto", "auto_solver_name",
+           "COMFORT_GAMMA_W"]
 
 COMFORT_GAMMA_W = 20000.0
 """ceco-c comfort weight gamma [W per PMV^2] (cost term gamma * PMV^2 next to watts).
@@ -51,9 +52,9 @@ class SolverSettings:
     is single shooting, i.e. Np <= ``single_shooting_max_steps``, else 'ipopt'), 'sqpmethod'
     (exact-Hessian SQP, eigen-clip, dense qpOASES; IPOPT does the cold solves and retries any
     failed SQP solve), 'ipopt' (warm IPOPT) or 'fatrop' (multiple shooting only). Measured in
-    docs/results.md: at Np = 6 the SQP on the single-shooting NLP is 5.5-6.2x the
-    reference (compiled functions); on multiple-shooting NLPs its dense QPs grow cubically (Np = 24: 113 ms, Np = 60:
-    3.1 s median per solve, against the warm IPOPT's 25 and 74 ms)."""
+    docs/results.md: at Np = 6 the SQP on the single-shooting NLP is 5.5-6.2x the reference
+    (compiled functions); on multiple-shooting NLPs its dense QPs grow too fast (ceco-ioch, Np = 24:
+    113 ms, Np = 60: 3.1 s median per solve, against the warm IPOPT's 25 and 74 ms)."""
     max_iter: int = 100
     """IPOPT/fatrop iteration limit per solve [-]."""
     sqp_max_iter: int = 20
@@ -105,8 +106,8 @@ class SolverSettings:
     steps: ceco-c at gamma = 650 / 2000 / 1200 / 1000, ceco-ioch, ceco-e): 7 retries at 5000, 2 at
     10 000 (ceco-c only), 0 at 20 000 and 50 000; the default strategies had none at any of these.
     Not free: CasADi's work space grows with it, ~0.025 ms per solve per 1000 (SC03 ceco median
-    solve 2.2 / 2.4 / 2.7 / 3.5 ms at 5000 / 10 000 / 20 000 / 50 000), so 10 000 trades a rare
-    ~10 ms IPOPT retry for 0.3 ms on every solve (docs/controller.md 4.6)."""
+    solve 2.2 / 2.4 / 2.7 / 3.5 ms at 5000 / 10 000 / 20 000 / 50 000): 10 000 accepts a rare IPOPT
+    retry (warm IPOPT at Np = 6: 6-9 ms median) to save 0.3 ms on every solve (docs/controller.md 4.6)."""
     ipopt_fallback: bool = True
     """For ``name`` 'sqpmethod'/'fatrop': a failed warm solve is retried at once with the warm
     IPOPT solver (same data), and cold solves (first step, after a failure) use the cold IPOPT
@@ -248,6 +249,11 @@ def resolved_transcription(settings: StrategySettings) -> str:
             else "multiple-shooting")
 
 
+def auto_solver_name(transcription: str) -> str:
+    """The solver 'auto' picks for an NLP transcription: the SQP for single shooting, IPOPT otherwise."""
+    return "sqpmethod" if transcription == "single-shooting" else "ipopt"
+
+
 def resolve_auto(settings: StrategySettings) -> StrategySettings:
     """``settings`` with the solver's 'auto' choices made concrete (see ``SolverSettings.name``,
     ``SolverSettings.transcription``): single shooting + sqpmethod up to
@@ -255,7 +261,7 @@ def resolve_auto(settings: StrategySettings) -> StrategySettings:
     transcription = resolved_transcription(settings)
     name = settings.solver.name
     if name == "auto":
-        name = "sqpmethod" if transcription == "single-shooting" else "ipopt"
+        name = auto_solver_name(transcription)
     out = dataclasses.replace(settings, solver=dataclasses.replace(settings.solver, name=name,
                                                                    transcription=transcription))
     out.validate()
