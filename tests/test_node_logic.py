@@ -475,3 +475,25 @@ def test_warm_up_leaves_no_state_behind():
         (a, _), (b, _) = fresh.compute(obs), warm.compute(obs)
         assert (a.mdot_bl_kgps, a.t_evap_sp_c) == (b.mdot_bl_kgps, b.t_evap_sp_c)
     assert np.isfinite(a.mdot_bl_kgps)
+
+
+@pytest.mark.parametrize('path, table', [
+    ('ceco_controller/config/mpc_node.yaml', controller_parameters()),
+    ('ceco_controller/config/baseline_node.yaml', controller_parameters('baseline')),
+    ('ceco_plant_sim/config/plant_node.yaml', 'plant'),
+    ('ceco_v2x_preview/config/preview_node.yaml', PREVIEW_PARAMETERS),
+])
+def test_parameter_files_hold_declared_parameters_at_their_defaults(path, table):
+    """The installed parameter files name only declared parameters, at the table's defaults."""
+    import pathlib
+
+    import yaml
+    if table == 'plant':
+        from ceco_plant_sim.plant_io import PLANT_PARAMETERS as table
+    root = pathlib.Path(__file__).resolve().parents[1]
+    doc = yaml.safe_load((root / path).read_text())
+    (values,) = [v['ros__parameters'] for v in doc.values()]
+    specs = {s.name: s for s in table}
+    assert set(values) <= set(specs), set(values) - set(specs)
+    for name, value in values.items():
+        assert value == specs[name].default, name
