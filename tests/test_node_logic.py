@@ -109,6 +109,22 @@ def test_gate_follows_a_restart_and_a_confirmed_new_time_base():
     assert [g.offer(t).accepted for t in (300.0, 301.0, 302.0)] == [False, False, True]
 
 
+def test_gate_new_time_base_only_after_silence():
+    """Beside a live source, agreeing stale or key-on messages (a storm, a second publisher) move nothing."""
+    g = SequenceGate(ahead=60.0, confirm=3, silence_s=3.0)
+    wall = 0.0
+    for t in range(100, 120):
+        wall = t - 100.0
+        assert g.offer(float(t), wall).accepted
+    for i, x in enumerate((0.0, 10.0, 11.0, 12.0, 13.0, 0.0)):     # within 1 s of the last real state
+        assert not g.offer(x, wall + 0.1 * i).accepted
+    assert g.offer(120.0, wall + 1.0).accepted
+    # the source stops; 3 s later a restart is taken
+    assert not g.offer(0.0, wall + 2.5).accepted
+    v = g.offer(0.0, wall + 4.1)
+    assert v.accepted and v.reset
+
+
 def test_gate_validates_its_settings():
     with pytest.raises(ValueError, match='ahead'):
         SequenceGate(ahead=0.0)
@@ -445,7 +461,8 @@ def test_preview_inputs_reject_crash_and_wedge_cases():
     assert pi.offer_state(state(1e6 + 19.0, stamp_s=1e6 + 19.0), 20.0, 0.0) is None   # the wedge case
     assert pi.offer_state(state(20.0), 21.0, 0.0) is not None and pi.gate.last == 20.0
     assert pi.rejections.total == 2
-    v = pi.offer_state(state(0.0), 22.0, 0.0)
+    assert pi.offer_state(state(0.0), 22.0, 0.0) is None         # key-on while the plant speaks: no
+    v = pi.offer_state(state(0.0), 30.0, 0.0)                     # after 9 s of silence: a restart
     assert v.reset and pi.n_resets == 1
     h = preview_health(cfg=cfg, inputs=pi, last_k=0, n_published=5, n_failed=0, last_error='', wall_s=22.0,
                        new_rejections=0)

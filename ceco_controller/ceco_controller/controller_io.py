@@ -51,6 +51,9 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
                   'scenario time [s]', float_range=(0.01, 1e6)),
         ParamSpec('inputs.confirm_count', 3, 'consecutive agreeing out-of-window states that establish a new '
                   'time base (restart, new playback) [-]', int_range=(1, 100)),
+        ParamSpec('inputs.restart_silence_s', 3.0, 'a new time base (key-on or confirmed) is taken only after no '
+                  'state was accepted for this long (wall clock); longer than the plant step [s]',
+                  float_range=(0.0, 3600.0)),
         ParamSpec('inputs.max_clock_ahead_s', 1.0, 'realtime: a stamp may lead the node clock by this much '
                   '[s]', float_range=(0.0, 3600.0), read_only=False),
         ParamSpec('inputs.log_throttle_s', 2.0, 'shortest time between two log lines about one kind of '
@@ -97,6 +100,8 @@ class ControllerNodeConfig:
     """How far ahead of the last accepted scenario time a state is accepted [s]."""
     confirm_count: int = 3
     """Consecutive agreeing out-of-window states that establish a new time base [-]."""
+    restart_silence_s: float = 3.0
+    """A new time base only after no state was accepted for this long [s, wall clock]."""
     max_clock_ahead_s: float = 1.0
     """realtime: how far a stamp may lead the node clock [s]."""
     log_throttle_s: float = 2.0
@@ -109,6 +114,7 @@ class ControllerNodeConfig:
     """WARN above this fraction of Ts per step [-]."""
 
     _PARAM_FIELDS = {'inputs.window_s': 'window_s', 'inputs.confirm_count': 'confirm_count',
+                     'inputs.restart_silence_s': 'restart_silence_s',
                      'inputs.max_clock_ahead_s': 'max_clock_ahead_s', 'inputs.log_throttle_s': 'log_throttle_s',
                      'qos.command_deadline_periods': 'command_deadline_periods',
                      'diagnostics.period_s': 'diagnostics_period_s',
@@ -183,7 +189,7 @@ class ControllerInputs:
         self._log = log
         self._on_reset = on_reset
         self.rejections = Rejections(cfg.log_throttle_s)
-        self.gate = SequenceGate(cfg.window_s, cfg.confirm_count)
+        self.gate = SequenceGate(cfg.window_s, cfg.confirm_count, silence_s=cfg.restart_silence_s)
         self.buffer = LockstepBuffer(cfg.window_steps)
         self.latest: dict[str, Any] = {'state': None, 'weather': None, 'traffic': None}
         """realtime: the newest accepted message of each input."""
@@ -223,7 +229,7 @@ class ControllerInputs:
         if why:
             self.reject(TOPIC_STATE, what, why, wall_s)
             return None
-        verdict = self.gate.offer(msg.scenario_time_s)
+        verdict = self.gate.offer(msg.scenario_time_s, wall_s)
         if not verdict.accepted:
             self.reject(TOPIC_STATE, what, verdict.reason, wall_s)
             return None

@@ -78,10 +78,10 @@ class ControllerNode(ManagedNode):
                                      qos_overriding_options=interfaces.qos_overrides()),
             self.create_subscription(WeatherPreview, interfaces.TOPIC_WEATHER,
                                      lambda m: self._run(self.inputs.offer_preview('weather', m, self.wall_s())),
-                                     interfaces.QOS_PREVIEW),
+                                     interfaces.QOS_PREVIEW, qos_overriding_options=interfaces.qos_overrides()),
             self.create_subscription(TrafficPreview, interfaces.TOPIC_TRAFFIC,
                                      lambda m: self._run(self.inputs.offer_preview('traffic', m, self.wall_s())),
-                                     interfaces.QOS_PREVIEW)]
+                                     interfaces.QOS_PREVIEW, qos_overriding_options=interfaces.qos_overrides())]
         overdue = lambda: self._run(self.inputs.overdue(self.wall_s()))  # noqa: E731
         self._timer = (self.create_timer(cfg.control_period_s, self._on_timer) if rt else
                        self.create_timer(0.05, overdue, clock=self.steady))

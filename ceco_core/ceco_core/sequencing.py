@@ -41,7 +41,10 @@ class SequenceGate:
     base (``Verdict.reset``): the origin (key-on) when the gate is past it, and any position
     once ``confirm`` consecutive rejected positions formed a forward sequence of their own
     (each in ``(previous, previous + ahead]``), so one bad message never moves the gate but a
-    restart or a new playback is followed within ``confirm`` messages.
+    restart or a new playback is followed within ``confirm`` messages. Both only once the
+    accepted stream has been silent for ``silence_s`` (the times passed to :meth:`offer`): a
+    new time base replaces a source that stopped, never one that still speaks, so a storm of
+    stale or key-on messages beside a live plant moves nothing.
 
     Args:
         ahead: how far ahead of the last accepted position a position is accepted
@@ -50,9 +53,12 @@ class SequenceGate:
             base [-]; >= 1.
         origin: the key-on position (scenario time 0) [s or steps].
         tol: positions within ``tol`` of each other are equal (same unit).
+        silence_s: how long no position must have been accepted before a new time base is
+            adopted [s] (0: at once).
     """
 
-    def __init__(self, ahead: float, confirm: int = 3, origin: float = 0.0, tol: float = 1e-9):
+    def __init__(self, ahead: float, confirm: int = 3, origin: float = 0.0, tol: float = 1e-9,
+                 silence_s: float = 0.0):
         if not (math.isfinite(ahead) and ahead > 0):
             raise ValueError(f'ahead: must be finite and > 0, got {ahead!r}')
         if int(confirm) < 1:
@@ -61,42 +67,48 @@ class SequenceGate:
         self.confirm = int(confirm)
         self.origin = float(origin)
         self.tol = float(tol)
+        if not (math.isfinite(silence_s) and silence_s >= 0):
+            raise ValueError(f'silence_s: must be finite and >= 0, got {silence_s!r}')
+        self.silence_s = float(silence_s)
         self.reset()
 
     def reset(self) -> None:
         """Forget every position (the next one is accepted as the first)."""
         self.last: float | None = None
         """Last accepted position; None before the first."""
+        self.last_s = -math.inf
+        """Time the last position was accepted [s]."""
         self._chain: list[float] = []
 
-    def offer(self, x: float) -> Verdict:
-        """Accept or reject position ``x`` (finite; a NaN/inf is rejected as invalid)."""
+    def offer(self, x: float, now_s: float = 0.0) -> Verdict:
+        """Accept or reject position ``x`` (finite; a NaN/inf is rejected as invalid) at time ``now_s`` [s]."""
         if not math.isfinite(x):
             return Verdict(False, reason=f'invalid: position {x!r} is not finite')
         last = self.last
         if last is None:
-            return self._take(x, False, '')
+            return self._take(x, now_s, False, '')
         if abs(x - last) <= self.tol:
             self._chain.clear()
             return Verdict(False, reason=f'duplicate: {_fmt(x)} is the last accepted position')
         if last < x <= last + self.ahead + self.tol:
-            return self._take(x, False, '')
-        if abs(x - self.origin) <= self.tol:
-            return self._take(x, True, f'key-on ({_fmt(x)} after {_fmt(last)}): restart')
+            return self._take(x, now_s, False, '')
+        silent = now_s - self.last_s >= self.silence_s
+        if abs(x - self.origin) <= self.tol and silent:
+            return self._take(x, now_s, True, f'key-on ({_fmt(x)} after {_fmt(last)}): restart')
         chain = self._chain
         if chain and chain[-1] < x <= chain[-1] + self.ahead + self.tol:
             chain.append(x)
         else:
             chain[:] = [x]
-        if len(chain) >= self.confirm:
-            return self._take(x, True, f'new time base {_fmt(x)} (was {_fmt(last)}), confirmed by '
-                                       f'{self.confirm} consecutive messages')
+        if len(chain) >= self.confirm and silent:
+            return self._take(x, now_s, True, f'new time base {_fmt(x)} (was {_fmt(last)}), confirmed by '
+                                              f'{self.confirm} consecutive messages')
         if x < last:
             return Verdict(False, reason=f'stale: {_fmt(x)} is behind the last accepted {_fmt(last)}')
         return Verdict(False, reason=f'future: {_fmt(x)} is beyond the window {_fmt(last)} + {_fmt(self.ahead)}')
 
-    def _take(self, x: float, reset: bool, reason: str) -> Verdict:
-        self.last = float(x)
+    def _take(self, x: float, now_s: float, reset: bool, reason: str) -> Verdict:
+        self.last, self.last_s = float(x), float(now_s)
         self._chain.clear()
         return Verdict(True, reset=reset, reason=reason)
 

@@ -15,10 +15,11 @@ from typing import Any
 
 import ceco_ros.checks as checks
 from ceco_core.control_grid import TIMING_MODES
-from ceco_core.supervision import FallbackSupervisor, Health, Rejections, reason_kind
+from ceco_core.supervision import FallbackSupervisor, Health, Rejections, Watchdog, reason_kind
 from ceco_ros.params import ParamSpec
 
-__all__ = ['PLANT_PARAMETERS', 'PlantNodeConfig', 'CommandPolicy', 'plant_health', 'DYNAMIC']
+__all__ = ['PLANT_PARAMETERS', 'PlantNodeConfig', 'CommandPolicy', 'RealtimeCommands', 'start_gate', 'plant_health',
+           'DYNAMIC']
 
 TOPIC_COMMAND = 'hvac/command'
 
@@ -215,3 +216,61 @@ def plant_health(*, cfg: PlantNodeConfig, started: bool, finished: bool, n: int,
     if events.get('incompatible_qos'):
         h.error(f'{events["incompatible_qos"]} incompatible QoS events on hvac/command (a controller does not match)')
     return h
+
+
+def start_gate(cfg: PlantNodeConfig, state_subs: int, output_subs: tuple[int, ...], command_subs: int,
+               command_pubs: int) -> str:
+    """What step 0 still waits for ('' when the plant may start).
+
+    The matched subscribers of cabin/state and of every other output, the hvac/command
+    subscriptions in the graph and a matched command publisher (unless no state subscriber
+    is required).
+    """
+    missing = []
+    if state_subs < cfg.min_state_subscribers:
+        missing.append(f'cabin/state subscribers {state_subs}/{cfg.min_state_subscribers}')
+    if min(output_subs, default=0) < cfg.min_output_subscribers:
+        missing.append(f'output subscribers {min(output_subs)}/{cfg.min_output_subscribers}')
+    if command_subs < cfg.min_command_subscribers:
+        missing.append(f'hvac/command subscriptions {command_subs}/{cfg.min_command_subscribers}')
+    if command_pubs < 1 and cfg.min_state_subscribers > 0:
+        missing.append('a hvac/command publisher')
+    return ', '.join(missing)
+
+
+class RealtimeCommands:
+    """realtime: which input drives each plant tick.
+
+    The latest accepted command while it is fresh (younger than the command timeout by the
+    watchdog, and no QoS deadline missed since it came); a new command is taken at control
+    step boundaries only; a stale one is dropped at once (the ACC law takes over).
+    """
+
+    def __init__(self, timeout_s: float):
+        self.watchdog = Watchdog(timeout_s)
+        self.latest = None
+        """The latest accepted command (an AcInput), None before the first."""
+        self.deadline_missed = False
+        self.applied: tuple[Any, bool] = (None, True)
+        """(input, from the fallback law) applied at the last tick."""
+
+    def accepted(self, u, now_s: float) -> None:
+        """A command was accepted at ``now_s`` [s, node clock]."""
+        self.latest, self.deadline_missed = u, False
+        self.watchdog.kick(now_s)
+
+    def fresh(self, now_s: float) -> bool:
+        """True while the latest command may drive the plant."""
+        return self.latest is not None and not self.watchdog.expired(now_s) and not self.deadline_missed
+
+    def why_stale(self, now_s: float) -> str:
+        """Why the ACC law drives (for the log and /diagnostics)."""
+        if self.deadline_missed:
+            return 'QoS deadline on hvac/command missed'
+        age = self.watchdog.age(now_s)
+        latest = 'none yet' if age == math.inf else f'{age:.1f} s old'
+        return f'no fresh command (latest {latest}, limit {self.watchdog.timeout_s:.1f} s)'
+
+    def must_choose(self, at_boundary: bool, now_s: float, in_fallback: bool) -> bool:
+        """True when this tick picks its input anew: at a control step, or when the command went stale."""
+        return at_boundary or (not self.fresh(now_s) and not in_fallback)

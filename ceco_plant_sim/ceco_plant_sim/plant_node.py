@@ -1,20 +1,16 @@
 """plant_node: the cabin + A/C plant as a node.
 
-Publishes ``cabin/state`` (one per plant step),
-``cabin/comfort``, ``hvac/power``, ``/clock`` (lockstep) and ``/diagnostics``; takes
-``hvac/command``.
-
-Per plant step it calls the simulator's own core (``ScenarioPlant.step``: PMV at t_n from the
-measurements at t_n and the command held over [t_n, t_n + dt), plant step with the truth
-environment at t_n), so a DDS run equals ``closed_loop.simulate``.
+Publishes ``cabin/state`` (one per plant step), ``cabin/comfort``, ``hvac/power``, ``/clock``
+(lockstep) and ``/diagnostics``; takes ``hvac/command``. Per plant step it calls the
+simulator's own core (``ScenarioPlant.step``), so a DDS run equals ``closed_loop.simulate``.
 
 Timing: ``lockstep``: once its subscribers are matched it publishes the state at t_k and waits
 for the command of step k, then advances Ts / dt plant steps; without a command within
 ``lockstep.command_timeout_s`` (wall clock) the production ACC law drives that period.
 ``realtime``: a timer every dt of the node clock applies the latest command; when it is older
-than ``fallback.command_timeout_periods`` control periods (watchdog) or the requested QoS
-deadline on hvac/command is missed, the ACC law takes over until commands resume. Which
-command applies, and the health rules: the pure :mod:`ceco_plant_sim.plant_io`.
+than ``fallback.command_timeout_periods`` control periods, or the QoS deadline requested on
+hvac/command is missed, the ACC law takes over until commands resume. Which command applies
+and the health rules: the pure :mod:`ceco_plant_sim.plant_io`.
 """
 from __future__ import annotations
 
@@ -27,7 +23,14 @@ from ceco_core.comfort import iso7730_validity
 from ceco_core.contracts import AcInput
 from ceco_core.supervision import FallbackSupervisor, Watchdog
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort
-from ceco_plant_sim.plant_io import PLANT_PARAMETERS, CommandPolicy, PlantNodeConfig, plant_health
+from ceco_plant_sim.plant_io import (
+    PLANT_PARAMETERS,
+    CommandPolicy,
+    PlantNodeConfig,
+    RealtimeCommands,
+    plant_health,
+    start_gate,
+)
 from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
 from ceco_ros import conversions, interfaces, params
 from ceco_ros.diagnostics import DiagnosticsTimer
@@ -49,14 +52,11 @@ class PlantNode(NodeTools, Node):
         self.m = steps_per_control(cfg.control_period_s, cfg.plant_dt_s)
         self.n_steps = n_plant_steps(min(cfg.duration_s or sc.duration_s, sc.duration_s), self.dt)
         self.e_comp_j = self.e_blower_j = 0.0
-        self.acc, self.fallback = AccLaw(), FallbackSupervisor()
-        self.policy = CommandPolicy(cfg, self.log)
-        rt = cfg.timing == 'realtime'
-        self.cmd_wd = Watchdog(cfg.command_timeout_rt_s if rt else cfg.command_timeout_s)
+        self.acc, self.fallback, self.policy = AccLaw(), FallbackSupervisor(), CommandPolicy(cfg, self.log)
+        self.rt, self.wait = RealtimeCommands(cfg.command_timeout_rt_s), Watchdog(cfg.command_timeout_s)
         self.started = self.finished = False
-        self._latest, self._u, self._u_fb, self._deadline_missed, self._reported = None, None, True, False, 0
-        self._events = {'deadline_missed': 0, 'incompatible_qos': 0}
-        out_qos = interfaces.state_qos(cfg.timing)
+        self._reported, self._events = 0, {'deadline_missed': 0, 'incompatible_qos': 0}
+        rt, out_qos = cfg.timing == 'realtime', interfaces.state_qos(cfg.timing)
         self.pub_state = self.create_publisher(CabinState, interfaces.TOPIC_STATE, out_qos,
                                                qos_overriding_options=interfaces.qos_overrides())
         self.pub_comfort = self.create_publisher(Comfort, interfaces.TOPIC_COMFORT, out_qos)
@@ -65,11 +65,13 @@ class PlantNode(NodeTools, Node):
         self.sub_cmd = self.create_subscription(
             AcCommand, interfaces.TOPIC_COMMAND, self._on_command,
             interfaces.command_qos(cfg.timing, cfg.command_timeout_rt_s),
-            event_callbacks=SubscriptionEventCallbacks(deadline=self._on_deadline,
+            event_callbacks=SubscriptionEventCallbacks(deadline=lambda _e: self._event('deadline_missed'),
                                                        incompatible_qos=lambda _e: self._event('incompatible_qos')),
             qos_overriding_options=interfaces.qos_overrides(deadline=rt))
-        self.create_timer(self.dt, self._on_tick) if rt else self.create_timer(0.02, self._on_watchdog,
-                                                                                 clock=self.steady)
+        if rt:
+            self.create_timer(self.dt, self._on_tick)
+        else:
+            self.create_timer(0.02, self._on_watchdog, clock=self.steady)
         DiagnosticsTimer(self, self._health, cfg.diagnostics_period_s)
         self.get_logger().info(f'scenario {sc.name}: {self.n_steps} plant steps of {self.dt} s, '
                                f'Ts {cfg.control_period_s} s, timing {cfg.timing}')
@@ -79,12 +81,12 @@ class PlantNode(NodeTools, Node):
         """Current plant step index (measurements at t_n)."""
         return self.sp.n
 
-    def _stamp(self, n: int):
-        return conversions.stamp_from_s(n * self.dt) if self.config.timing == 'lockstep' else \
+    def _stamp(self):
+        return conversions.stamp_from_s(self.n * self.dt) if self.config.timing == 'lockstep' else \
             self.get_clock().now().to_msg()
 
     def _publish_state(self) -> None:
-        t, stamp = self.n * self.dt, self._stamp(self.n)
+        t, stamp = self.n * self.dt, self._stamp()
         if self.config.timing == 'lockstep':
             self.pub_clock.publish(ClockMsg(clock=stamp))
         self.pub_state.publish(conversions.state_msg(self.n, t, stamp, self.sp.meas, self.scenario.env_at(t),
@@ -92,9 +94,8 @@ class PlantNode(NodeTools, Node):
         self.policy.published(stamp, t)
 
     def _plant_step(self, u: AcInput, fallback: bool) -> None:
-        """One plant step n with u held (the simulator's core step), then comfort and power."""
-        stamp = self._stamp(self.n)
-        r = self.sp.step(u)
+        """One plant step n with u held (the simulator's core step), then comfort, power and the next state."""
+        stamp, r = self._stamp(), self.sp.step(u)
         self.e_comp_j += r.out.e_comp_j
         self.e_blower_j += r.out.e_blower_j
         c, meas = self.sp.comfort, r.meas
@@ -105,12 +106,12 @@ class PlantNode(NodeTools, Node):
                                                          r.env.solar_wm2, c.met, c.clo, valid))
         self.pub_power.publish(conversions.power_msg(r.n, stamp, self.dt, u, r.out, self.e_comp_j,
                                                      self.e_blower_j, fallback))
-        if self.n >= self.n_steps:
-            self.finished = True
-            self.get_logger().info(f'scenario complete: {self.n} plant steps, E_comp {self.e_comp_j:.0f} J, '
-                                   f'E_blower {self.e_blower_j:.0f} J')
-        else:
+        if self.n < self.n_steps:
             self._publish_state()
+            return
+        self.finished = True
+        self.get_logger().info(f'scenario complete: {self.n} plant steps, E_comp {self.e_comp_j:.0f} J, '
+                               f'E_blower {self.e_blower_j:.0f} J')
 
     def _fallback_command(self, why: str) -> AcInput:
         line = self.fallback.command_missing(f'step {self.n} (t={self.n * self.dt:.1f} s)', why)
@@ -120,77 +121,59 @@ class PlantNode(NodeTools, Node):
         a = self.acc.step(self.sp.meas['t_cab_c'], self.config.control_period_s)
         return AcInput(mdot_bl_kgps=a.mdot_bl_kgps, t_evap_sp_c=a.t_evap_sp_c)
 
-    def _ready(self) -> bool:
-        cfg = self.config
-        outs = (self.pub_comfort, self.pub_power, self.pub_clock)
-        return (self.pub_state.get_subscription_count() >= cfg.min_state_subscribers
-                and all(p.get_subscription_count() >= cfg.min_output_subscribers for p in outs)
-                and self.count_subscribers(interfaces.TOPIC_COMMAND) >= cfg.min_command_subscribers
-                and (self.sub_cmd.get_publisher_count() >= 1 or cfg.min_state_subscribers == 0))
+    def _waiting_for(self) -> str:
+        return start_gate(self.config, self.pub_state.get_subscription_count(),
+                          tuple(p.get_subscription_count() for p in (self.pub_comfort, self.pub_power, self.pub_clock)),
+                          self.count_subscribers(interfaces.TOPIC_COMMAND), self.sub_cmd.get_publisher_count())
 
     def _start(self) -> bool:
-        if not self.started and not self._ready():
-            return False
-        if not self.started:
+        if not self.started and not self._waiting_for():
             self.started = True
             self.get_logger().info('subscribers matched: starting at step 0')
             self._publish_state()
-            self.cmd_wd.kick(self.wall_s())
-        return True
+            self.wait.kick(self.wall_s())
+        return self.started and not self.finished
 
-    # --------------------------------------------------------------- lockstep
+    # -------------------------------------------------------------- lockstep
     def _control_period(self, u: AcInput, fallback: bool) -> None:
         for _ in range(self.m):
             self._plant_step(u, fallback)
             if self.finished:
                 return
-        self.cmd_wd.kick(self.wall_s())
+        self.wait.kick(self.wall_s())
 
     def _on_watchdog(self) -> None:
-        if self.finished or not self._start() or not self.cmd_wd.expired(self.wall_s()):
-            return
-        why = f'no command for control step {self.n // self.m} within {self.config.command_timeout_s} s (wall clock)'
-        self._control_period(self._fallback_command(why), True)
+        if self._start() and self.wait.expired(self.wall_s()):
+            why = f'no command for control step {self.n // self.m} within {self.wait.timeout_s} s (wall clock)'
+            self._control_period(self._fallback_command(why), True)
 
     def _on_command(self, msg: AcCommand) -> None:
-        if self.finished or not self.started:
-            return
-        if not self.policy.accept(msg, self.n // self.m, self.wall_s()):
+        if not self.started or self.finished or not self.policy.accept(msg, self.n // self.m, self.wall_s()):
             return
         u = conversions.command_input(msg)
         line = self.fallback.command_accepted(int(msg.step_index), msg.strategy)
         if line:
             self.get_logger().info(line)
         if self.config.timing == 'realtime':
-            self._latest, self._deadline_missed = u, False
-            self.cmd_wd.kick(self.clock_s())
+            self.rt.accepted(u, self.clock_s())
         else:
             self._control_period(u, False)
 
-    # --------------------------------------------------------------- realtime
+    # -------------------------------------------------------------- realtime
     def _on_tick(self) -> None:
-        if self.finished or not self._start():
+        if not self._start():
             return
-        fresh = self._latest is not None and not self.cmd_wd.expired(self.clock_s()) and not self._deadline_missed
-        # a new command is taken at control steps; a stale one is dropped at once
-        if self.n % self.m == 0 or (not fresh and not self.fallback.in_fallback):
-            if fresh:
-                self._u, self._u_fb = self._latest, False
-            else:
-                age = self.cmd_wd.age(self.clock_s())
-                why = 'QoS deadline on hvac/command missed' if self._deadline_missed else \
-                    f'no fresh command (latest {"none yet" if age == float("inf") else f"{age:.1f} s old"}, ' \
-                    f'limit {self.config.command_timeout_rt_s:.1f} s)'
-                self._u, self._u_fb = self._fallback_command(why), True
-        self._plant_step(self._u, self._u_fb)
+        now = self.clock_s()
+        if self.rt.must_choose(self.n % self.m == 0, now, self.fallback.in_fallback):
+            fresh = self.rt.fresh(now)
+            self.rt.applied = ((self.rt.latest, False) if fresh else
+                               (self._fallback_command(self.rt.why_stale(now)), True))
+        self._plant_step(*self.rt.applied)
 
-    # ------------------------------------------------------------------- glue
-    def _on_deadline(self, _event) -> None:
-        self._deadline_missed = True
-        self._event('deadline_missed')
-
+    # ------------------------------------------------------------------ glue
     def _event(self, name: str) -> None:
         self._events[name] += 1
+        self.rt.deadline_missed |= name == 'deadline_missed'
         self.notice(name, f'QoS event on hvac/command: {name} (total {self._events[name]})')
 
     def _set_params(self, changes: dict) -> str | None:
@@ -198,20 +181,18 @@ class PlantNode(NodeTools, Node):
             self.config = self.config.replaced(changes)
         except ValueError as err:
             return str(err)
-        self.policy.cfg = self.config
+        self.policy.cfg, self.wait.timeout_s = self.config, self.config.command_timeout_s
         self.policy.rejections.throttle_s = self.notices.throttle_s = self.config.log_throttle_s
-        if self.config.timing == 'lockstep':
-            self.cmd_wd.timeout_s = self.config.command_timeout_s
         return None
 
     def _health(self):
-        rej = self.policy.rejections
+        rej, rt = self.policy.rejections, self.config.timing == 'realtime'
         new, self._reported = rej.total - self._reported, rej.total
-        age = self.cmd_wd.age(self.wall_s() if self.config.timing == 'lockstep' else self.clock_s())
+        age = self.rt.watchdog.age(self.clock_s()) if rt else self.wait.age(self.wall_s())
         return [('plant', plant_health(cfg=self.config, started=self.started, finished=self.finished, n=self.n,
                                        t_s=self.n * self.dt, supervisor=self.fallback, policy=self.policy,
-                                       command_age_s=None if age == float('inf') else age,
-                                       new_rejections=new, events=self._events))]
+                                       command_age_s=None if age == float('inf') else age, new_rejections=new,
+                                       events=self._events, waiting_for='' if self.started else self._waiting_for()))]
 
 
 def main(args=None) -> int:

@@ -123,3 +123,21 @@ def on_set(node, specs: Sequence[ParamSpec], apply: Callable[[dict[str, Any]], s
         why = apply(changes) if changes else None
         return SetParametersResult(successful=why is None, reason=why or '')
     node.add_on_set_parameters_callback(callback)
+
+
+def markdown_table(specs: Sequence[ParamSpec]) -> str:
+    """The parameter table of a node for docs/ros.md: name, default, range or choices, run-time, description."""
+    rows = ['| parameter | default | range | set at run time | description |', '|---|---|---|---|---|']
+    for s in specs:
+        if s.float_range is not None or s.int_range is not None:
+            lo, hi = s.float_range or s.int_range  # type: ignore[misc]
+            allowed = f'{lo} .. {hi}'
+        elif s.choices is not None:
+            allowed = ', '.join(s.choices)
+        else:
+            allowed = ''
+        default = repr(s.default) if isinstance(s.default, str) else str(s.default).lower() \
+            if isinstance(s.default, bool) else str(s.default)
+        rows.append(f'| `{s.name}` | `{default}` | {allowed} | {"no" if s.read_only else "yes"} | '
+                    f'{s.description} |')
+    return '\n'.join(rows)

@@ -52,6 +52,8 @@ PREVIEW_PARAMETERS: tuple[ParamSpec, ...] = (
               'time [s]', float_range=(0.01, 1e6)),
     ParamSpec('inputs.confirm_count', 3, 'consecutive agreeing out-of-window states that establish a new time base '
               '(restart, new playback) [-]', int_range=(1, 100)),
+    ParamSpec('inputs.restart_silence_s', 3.0, 'a new time base (key-on or confirmed) is taken only after no state '
+              'was accepted for this long (wall clock); longer than the plant step [s]', float_range=(0.0, 3600.0)),
     ParamSpec('inputs.max_state_age_s', 10.0, 'realtime: oldest usable cabin state, by its stamp [s]',
               float_range=(0.01, 3600.0), read_only=False),
     ParamSpec('inputs.max_clock_ahead_s', 1.0, 'realtime: a stamp may lead the node clock by this much [s]',
@@ -87,6 +89,8 @@ class PreviewNodeConfig:
     """How far ahead of the last accepted scenario time a state is accepted [s]."""
     confirm_count: int = 3
     """Consecutive agreeing out-of-window states that establish a new time base [-]."""
+    restart_silence_s: float = 3.0
+    """A new time base only after no state was accepted for this long [s, wall clock]."""
     max_state_age_s: float = 10.0
     """realtime: oldest usable state [s]."""
     max_clock_ahead_s: float = 1.0
@@ -97,6 +101,7 @@ class PreviewNodeConfig:
     """/diagnostics period [s]."""
 
     _FIELDS = {'inputs.window_s': 'window_s', 'inputs.confirm_count': 'confirm_count',
+                     'inputs.restart_silence_s': 'restart_silence_s',
                'inputs.max_state_age_s': 'max_state_age_s', 'inputs.max_clock_ahead_s': 'max_clock_ahead_s',
                'inputs.log_throttle_s': 'log_throttle_s', 'diagnostics.period_s': 'diagnostics_period_s'}
 
@@ -149,7 +154,7 @@ class PreviewInputs:
         self.cfg = cfg
         self._log = log
         self.rejections = Rejections(cfg.log_throttle_s)
-        self.gate = SequenceGate(cfg.window_s, cfg.confirm_count)
+        self.gate = SequenceGate(cfg.window_s, cfg.confirm_count, silence_s=cfg.restart_silence_s)
         self.n_resets = 0
         self.received_s: float | None = None
         """Wall-clock time of the last accepted state [s]."""
@@ -163,7 +168,7 @@ class PreviewInputs:
         elif why is None:
             why = checks.check_stamp_age('header.stamp', msg.header.stamp, clock_s, cfg.max_state_age_s,
                                          cfg.max_clock_ahead_s)
-        verdict = self.gate.offer(msg.scenario_time_s) if why is None else None
+        verdict = self.gate.offer(msg.scenario_time_s, wall_s) if why is None else None
         if verdict is not None and not verdict.accepted:
             why = verdict.reason
         if why or verdict is None:
