@@ -195,7 +195,8 @@ def test_bad_input_rejected_nodes_keep_commanding(tmp_path):
     dom_a, dom_b = _domain(), _domain()
     ta = DdsPeer(dom_a, 'fake_plant')
     common = {'scenario': 'sc03', 'timing': 'lockstep', 'control_period_s': 5.0, 'horizon_steps': 6}
-    preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', ta.env, log_dir, dict(common, **_VERBOSE_INPUTS))
+    preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', ta.env, log_dir,
+                    dict(common, **_VERBOSE_INPUTS))
     mpc = _proc('mpc_node', 'ceco_controller', 'mpc_node', ta.env, log_dir,
                 dict(common, strategy='ceco-ioch', preview_timeout_s=30.0, autostart=True, **_VERBOSE_INPUTS))
     bad = _proc('mpc_bad', 'ceco_controller', 'mpc_node', ta.env, log_dir, dict(common, strategy='ceco-turbo'))
@@ -563,7 +564,8 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
 
     def set_param(name, value, kind):
         field = {ParameterType.PARAMETER_DOUBLE: 'double_value', ParameterType.PARAMETER_STRING: 'string_value'}[kind]
-        req = SetParameters.Request(parameters=[Parameter(name=name, value=ParameterValue(type=kind, **{field: value}))])
+        value = ParameterValue(type=kind, **{field: value})
+        req = SetParameters.Request(parameters=[Parameter(name=name, value=value)])
         return supervisor.LifecycleClient._call(params, req, 30.0).results[0]
     try:
         for p in (preview, mpc):
@@ -615,7 +617,8 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
     assert mpc.returncode() == 0
     log = mpc.log_text()
     assert 'Traceback' not in log
-    assert log.count('active: commanding') == 2 and "inactive: not commanding; the plant's fallback law takes over" in log
+    assert log.count('active: commanding') == 2
+    assert "inactive: not commanding; the plant's fallback law takes over" in log
     # every plant step's input within the actuator bounds, the bag complete
     ts = bagio.load_run_timeseries(bag)
     assert ts['step_index'].tolist() == list(range(ts['step_index'].size))
@@ -842,11 +845,13 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
     control of mpc_node within two control periods; previews are not wedged (the latch case)."""
     from diagnostic_msgs.msg import DiagnosticArray
 
-    from ceco_msgs.msg import AcCommand, AcPower, WeatherPreview
+    from ceco_msgs.msg import AcCommand, AcPower, ControllerDiagnostics, WeatherPreview
     fuzz_s, ts = 30.0, 5.0
     tn = DdsPeer(_domain(), 'fuzzer')
     log_dir = tmp_path / 'logs'
-    powers, cmds, prevs, diags = [], [], [], []
+    powers, cmds, prevs, diags, ctrl = [], [], [], [], []
+    tn.node.create_subscription(ControllerDiagnostics, interfaces.TOPIC_DIAGNOSTICS,
+                                lambda m: ctrl.append((time.monotonic(), m)), interfaces.QOS_COMMAND)
     tn.node.create_subscription(AcPower, interfaces.TOPIC_POWER, lambda m: powers.append((time.monotonic(), m)),
                                 interfaces.state_qos('realtime'))
     tn.node.create_subscription(AcCommand, interfaces.TOPIC_COMMAND, lambda m: cmds.append((time.monotonic(), m)),
@@ -911,6 +916,10 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
     assert steps_to_recover <= 2 * int(ts)                  # within two control periods of plant steps
     assert not any(m.fallback for t, m in powers if t > t_rec + 1.0)
     assert n_real_during >= int(fuzz_s / ts) - 1            # mpc_node kept commanding through the storm
+    # the controller itself is not degraded after the storm: no fallback, every solve succeeds
+    after = [m for t, m in ctrl if t > t_end]
+    assert after and not any(m.fallback for m in after) and all(m.success for m in after), \
+        [(m.status, m.fallback_reason) for m in after]
     # not wedged: the latest previews start at the plant's recent time, not 1e6 s ahead
     assert abs(conversions.s_from_stamp(prevs[-1].start) - powers[-1][1].step_index) <= 2 * ts
     rejected = {}
@@ -928,4 +937,5 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
     print(f'\nfuzz {fuzz_s:.0f} s: injected {injected} ({sum(injected.values())} messages); rejected {rejected}; '
           f'crashes 0; applied inputs out of bounds 0 of {len(applied)}; mpc_node commands during the storm '
           f'{n_real_during} (before: {n_real_before}); plant fallback steps during the storm {fb_during}; '
-          f'recovered {steps_to_recover} plant steps ({t_rec - t_end:.1f} s) after the storm')
+          f'recovered {steps_to_recover} plant steps ({t_rec - t_end:.1f} s) after the storm; controller steps after '
+          f'it {len(after)}, statuses {sorted({m.status for m in after})}')
