@@ -331,11 +331,12 @@ def test_controller_lockstep_latch_case_recovers():
     done = []
     for k in range(4):
         if k == 2:
-            assert ci.offer_state(state(1e6 + 10.0, n=1_000_010), 0.0, 0.0) is None
+            assert not ci.offer_state(state(1e6 + 10.0, n=1_000_010), 0.0, 0.0)
         for n in range(5 * k, 5 * k + 5):
-            si = ci.offer_state(state(float(n)), wall_s=float(n), clock_s=0.0)
+            assert ci.offer_state(state(float(n)), wall_s=float(n), clock_s=0.0)
             if n == 5 * k:    # the preview node answers the state of step k
-                si = ci.offer_preview('weather', weather(k), n) or ci.offer_preview('traffic', traffic(k), n)
+                assert ci.offer_preview('weather', weather(k), n) and ci.offer_preview('traffic', traffic(k), n)
+            si = ci.ready()
             if si is not None:
                 done.append((si.k, si.weather is not None))
     assert done == [(0, True), (1, True), (2, True), (3, True)]
@@ -348,14 +349,14 @@ def test_controller_restart_resets_and_rejects_inconsistent_previews():
     ci = ControllerInputs(_ctrl_cfg(), rec.log, rec.reset)
     for n in range(50, 56):
         ci.offer_state(state(float(n)), float(n), 0.0)
-    assert ci.offer_preview('weather', weather(10, start=stamp(49.0)), 1.0) is None      # start is not t_10
-    assert ci.offer_preview('traffic', traffic(10, speed_mps=[math.nan] * 7), 1.0) is None
+    assert not ci.offer_preview('weather', weather(10, start=stamp(49.0)), 1.0)      # start is not t_10
+    assert not ci.offer_preview('traffic', traffic(10, speed_mps=[math.nan] * 7), 1.0)
     assert ci.rejections.by_topic == {'v2x/weather_preview': 1, 'v2x/traffic_preview': 1}
     ci.offer_state(state(0.0), 60.0, 0.0)                          # plant restarted: key-on
     assert rec.resets == 1 and ci.gate.last == 0.0
-    ci.offer_preview('weather', weather(0), 61.0)
-    si = ci.offer_preview('traffic', traffic(0), 61.0)
-    assert si is not None and si.k == 0 and si.weather is not None
+    assert ci.offer_preview('weather', weather(0), 61.0) and ci.offer_preview('traffic', traffic(0), 61.0)
+    si = ci.ready()
+    assert si is not None and si.k == 0 and si.weather is not None and ci.ready() is None
     # a state without previews comes out after the preview timeout, marked
     ci.offer_state(state(5.0), 100.0, 0.0)
     assert ci.overdue(101.0) is None

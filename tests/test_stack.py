@@ -556,10 +556,12 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
     mpc = _proc('mpc_node', 'ceco_controller', 'mpc_node', tn.env, log_dir,
                 dict(common, horizon_steps=6, strategy='ceco', preview_timeout_s=0.5))
     plant = _proc('plant_node', 'ceco_plant_sim', 'plant_node', tn.env, log_dir, dict(
-        common, duration_s=3600.0, **{'lockstep.command_timeout_s': 0.5, 'lockstep.min_state_subscribers': 3,
+        common, duration_s=3600.0, **{'lockstep.command_timeout_s': 3.0, 'lockstep.min_state_subscribers': 3,
                                       'lockstep.min_output_subscribers': 1, 'lockstep.min_command_subscribers': 2}))
     procs = [preview, mpc, plant]
     lc = supervisor.LifecycleClient(tn.node, '/mpc_node')
+    from ceco_msgs.msg import CabinState
+    states = tn.collect(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
     params = tn.node.create_client(SetParameters, '/mpc_node/set_parameters')
 
     def set_param(name, value, kind):
@@ -576,11 +578,14 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
         assert lc.change('configure') and lc.state() == 'inactive'
         assert 'first solve done' in mpc.log_text()
         plant.start()
-        # inactive: the plant starts (the command publisher exists) and falls back, no command comes
-        _wait_for(lambda: any(p.fallback for p in powers), 120, 'the plant in fallback while inactive', procs)
-        assert not cmds
+        # inactive: the plant starts (the command publisher exists) and waits for command 0, which
+        # does not come; on activation the waiting step 0 is computed at once
+        _wait_for(lambda: states, 120, 'the state of step 0', procs)
+        time.sleep(0.5)
+        assert not cmds and not powers
         assert lc.change('activate') and lc.state() == 'active'
         _wait_for(lambda: len(cmds) >= 10, 60, 'ten commands once active', procs)
+        assert cmds[0].step_index == 0 and not powers[0].fallback       # no fallback period at the start
         n_active = len(powers)
         assert lc.change('deactivate') and lc.state() == 'inactive'
         n_cmds = len(cmds)

@@ -190,8 +190,11 @@ def run_node(name: str, domain: int, timeout_s: float) -> dict:
         for t in threads:
             t.join(timeout=2)
         peer.close()
-    first_log = next((t for t, text in lines if '[INFO]' in text or '[WARN]' in text), None)
-    return {'first_log_s': None if first_log is None else first_log - t0,
+    def first(*needles):
+        t = next((t for t, text in lines if any(n in text for n in needles)), None)
+        return None if t is None else t - t0
+    return {'first_log_s': first('[INFO]', '[WARN]'), 'configured_s': first('configured in'),
+            'active_s': first('active: commanding'),
             'first_output_s': None if peer.first_output is None else peer.first_output - t0,
             'log_head': [text for _, text in lines[:3]]}
 
@@ -232,17 +235,23 @@ def main(argv=None) -> int:
     ref_med = statistics.median(ref) if ref else float('nan')
     result = {'reference_first_message_s': ref_med, 'nodes': {}}
     print(f'reference (minimal rclpy talker, first message): median {ref_med:.3f} s over {len(ref)} runs')
-    print(f'{"node":<14} {"first log [s]":>14} {"first output [s]":>17} {"output / ref":>13}')
+    print(f'{"node":<14} {"first log [s]":>14} {"configured [s]":>15} {"active [s]":>10} {"first output [s]":>17} '
+          f'{"output / ref":>13}')
     for name in args.nodes:
         runs = [run_node(name, domain, args.timeout_s) for _ in range(args.repeat)]
         logs = [r['first_log_s'] for r in runs if r['first_log_s'] is not None]
         outs = [r['first_output_s'] for r in runs if r['first_output_s'] is not None]
         med_log = statistics.median(logs) if logs else float('nan')
         med_out = statistics.median(outs) if outs else float('nan')
-        result['nodes'][name] = {'first_log_s': logs, 'first_output_s': outs,
+        cfg = [r['configured_s'] for r in runs if r['configured_s'] is not None]
+        act = [r['active_s'] for r in runs if r['active_s'] is not None]
+        med_cfg = statistics.median(cfg) if cfg else float('nan')
+        med_act = statistics.median(act) if act else float('nan')
+        result['nodes'][name] = {'first_log_s': logs, 'first_output_s': outs, 'configured_s': cfg, 'active_s': act,
                                  'median_first_log_s': med_log, 'median_first_output_s': med_out,
                                  'missing_outputs': len(runs) - len(outs)}
-        print(f'{name:<14} {med_log:>14.3f} {med_out:>17.3f} {med_out / ref_med:>13.1f}'
+        print(f'{name:<14} {med_log:>14.3f} {med_cfg:>15.3f} {med_act:>10.3f} {med_out:>17.3f} '
+              f'{med_out / ref_med:>13.1f}'
               + ('' if len(outs) == len(runs) else f'  ({len(runs) - len(outs)} runs without output: '
                  f'{runs[0]["log_head"]})'), flush=True)
     if args.json:

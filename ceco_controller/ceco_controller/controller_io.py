@@ -215,8 +215,8 @@ class ControllerInputs:
             self._log('warn', line)
 
     # ----------------------------------------------------------------- states
-    def offer_state(self, msg, wall_s: float, clock_s: float) -> StepInputs | None:
-        """A CabinState: the step to compute now (lockstep, when its previews are here), else None."""
+    def offer_state(self, msg, wall_s: float, clock_s: float) -> bool:
+        """A CabinState; True when accepted (lockstep: then see :meth:`ready`)."""
         cfg = self.cfg
         what = f'step {msg.step_index}'
         why = checks.check_state(msg)
@@ -228,11 +228,11 @@ class ControllerInputs:
                                              cfg.max_clock_ahead_s)
         if why:
             self.reject(TOPIC_STATE, what, why, wall_s)
-            return None
+            return False
         verdict = self.gate.offer(msg.scenario_time_s, wall_s)
         if not verdict.accepted:
             self.reject(TOPIC_STATE, what, verdict.reason, wall_s)
-            return None
+            return False
         if verdict.reset:
             self.n_resets += 1
             self._log('warn', f'cabin/state {what}: {verdict.reason}: inputs and controller state reset')
@@ -242,19 +242,19 @@ class ControllerInputs:
         self.received_s['state'] = wall_s
         if cfg.timing == 'realtime':
             self.latest['state'] = msg
-            return None
+            return True
         k = control_step_index(msg.scenario_time_s, cfg.control_period_s)
         if k is None:
-            return None   # between control steps
+            return True   # between control steps
         why = self.buffer.put_state(k, msg, wall_s)
         if why:
             self.reject(TOPIC_STATE, what, why, wall_s)
-            return None
-        return self.ready()
+            return False
+        return True
 
     # --------------------------------------------------------------- previews
-    def offer_preview(self, kind: str, msg, wall_s: float) -> StepInputs | None:
-        """A WeatherPreview ('weather') or TrafficPreview ('traffic'): the step to compute now, else None."""
+    def offer_preview(self, kind: str, msg, wall_s: float) -> bool:
+        """A WeatherPreview ('weather') or TrafficPreview ('traffic'); True when accepted."""
         cfg = self.cfg
         topic = _PREVIEW_TOPIC[kind]
         what = f'step {msg.step_index}'
@@ -267,12 +267,12 @@ class ControllerInputs:
             why = self.buffer.put_preview(kind, int(msg.step_index), msg)
         if why:
             self.reject(topic, what, why, wall_s)
-            return None
+            return False
         self.received_s[kind] = wall_s
         if cfg.timing == 'realtime':
             self.latest[kind] = msg
-            return None
-        return self.ready()
+            return True
+        return True
 
     def _covers_latest_state(self, msg) -> str | None:
         state = self.latest['state']
@@ -288,7 +288,7 @@ class ControllerInputs:
 
     # ------------------------------------------------------------------ steps
     def ready(self) -> StepInputs | None:
-        """lockstep: the waiting step with both previews, taken out of the buffer."""
+        """lockstep: the waiting step with both previews, taken out of the buffer (call only when it is computed)."""
         k = self.buffer.ready()
         if k is None:
             return None

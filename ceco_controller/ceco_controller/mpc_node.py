@@ -76,15 +76,12 @@ class ControllerNode(ManagedNode):
                                      interfaces.state_qos(cfg.timing),
                                      event_callbacks=SubscriptionEventCallbacks(**events),
                                      qos_overriding_options=interfaces.qos_overrides()),
-            self.create_subscription(WeatherPreview, interfaces.TOPIC_WEATHER,
-                                     lambda m: self._run(self.inputs.offer_preview('weather', m, self.wall_s())),
+            self.create_subscription(WeatherPreview, interfaces.TOPIC_WEATHER, lambda m: self._on_preview('weather', m),
                                      interfaces.QOS_PREVIEW, qos_overriding_options=interfaces.qos_overrides()),
-            self.create_subscription(TrafficPreview, interfaces.TOPIC_TRAFFIC,
-                                     lambda m: self._run(self.inputs.offer_preview('traffic', m, self.wall_s())),
+            self.create_subscription(TrafficPreview, interfaces.TOPIC_TRAFFIC, lambda m: self._on_preview('traffic', m),
                                      interfaces.QOS_PREVIEW, qos_overriding_options=interfaces.qos_overrides())]
-        overdue = lambda: self._run(self.inputs.overdue(self.wall_s()))  # noqa: E731
         self._timer = (self.create_timer(cfg.control_period_s, self._on_timer) if rt else
-                       self.create_timer(0.05, overdue, clock=self.steady))
+                       self.create_timer(0.05, self._run_ready, clock=self.steady))
         self.get_logger().info(f'configured in {time.perf_counter() - t0:.2f} s (controller built, first solve done): '
                                f'{cfg.strategy}, Ts {cfg.control_period_s} s, Np {cfg.horizon_steps}, timing '
                                f'{cfg.timing}, scenario {self.scenario.name}')
@@ -96,7 +93,7 @@ class ControllerNode(ManagedNode):
         ret = super().on_activate(state)
         self.get_logger().info('active: commanding')
         if self.config.timing == 'lockstep':   # a state that came while inactive is computed now
-            self._run(self.inputs.ready() or self.inputs.overdue(self.wall_s()))
+            self._run_ready()
         return ret
 
     def on_deactivate(self, state):
@@ -116,7 +113,17 @@ class ControllerNode(ManagedNode):
 
     # ----------------------------------------------------------------- inputs
     def _on_state(self, msg: CabinState) -> None:
-        self._run(self.inputs.offer_state(msg, self.wall_s(), self.clock_s()))
+        if self.inputs.offer_state(msg, self.wall_s(), self.clock_s()) and self.config.timing == 'lockstep':
+            self._run_ready()
+
+    def _on_preview(self, kind: str, msg) -> None:
+        if self.inputs.offer_preview(kind, msg, self.wall_s()) and self.config.timing == 'lockstep':
+            self._run_ready()
+
+    def _run_ready(self) -> None:
+        """lockstep: compute the waiting step if it is complete (or overdue); inactive, inputs wait in the buffer."""
+        if self.lifecycle == 'active':
+            self._run(self.inputs.ready() or self.inputs.overdue(self.wall_s()))
 
     def _on_timer(self) -> None:
         si, why = self.inputs.realtime_step(self.clock_s())
