@@ -515,3 +515,15 @@ def test_parameter_files_hold_declared_parameters_at_their_defaults(path, table)
     assert set(values) <= set(specs), set(values) - set(specs)
     for name, value in values.items():
         assert value == specs[name].default, name
+
+
+def test_parameter_tables_in_docs_are_current():
+    """docs/ros.md holds the tables tools/param_tables.py generates from the ParamSpec tables."""
+    import importlib.util
+    import pathlib
+    root = pathlib.Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location('param_tables', root / 'tools' / 'param_tables.py')
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    doc = (root / 'docs' / 'ros.md').read_text()
+    assert mod.rewrite(doc) == doc, 'run: python tools/param_tables.py --write'
