@@ -21,7 +21,8 @@ from ceco_core.sequencing import LockstepBuffer, SequenceGate
 from ceco_core.supervision import Health, Rejections, reason_kind
 from ceco_ros.params import ParamSpec
 
-__all__ = ['controller_parameters', 'ControllerNodeConfig', 'ControllerInputs', 'StepInputs', 'controller_health',
+__all__ = ['controller_parameters', 'ControllerNodeConfig', 'ControllerInputs', 'StepInputs', 'ControllerRecord',
+           'controller_health',
            'DYNAMIC']
 
 TOPIC_STATE, TOPIC_WEATHER, TOPIC_TRAFFIC = 'cabin/state', 'v2x/weather_preview', 'v2x/traffic_preview'
@@ -326,6 +327,38 @@ class ControllerInputs:
     def ages_s(self, wall_s: float) -> dict[str, float | None]:
         """Wall-clock age of each input's last accepted message [s] (None: none yet)."""
         return {k: (None if t is None else wall_s - t) for k, t in self.received_s.items()}
+
+
+class ControllerRecord:
+    """What the controller node reports: its last step, counts, QoS events (pure bookkeeping)."""
+
+    def __init__(self):
+        self.last: dict | None = None
+        """The last step (see :func:`controller_health`), None before the first."""
+        self.counts = dict.fromkeys(('steps', 'fallback_steps', 'steps_without_previews', 'step_errors'), 0)
+        self.events = {'deadline_missed': 0, 'incompatible_qos': 0}
+        self._reported = 0
+
+    def step(self, k: int, step_time_ms: float, diag, no_previews: str) -> None:
+        """A computed step (``diag``: the core's Diagnostics)."""
+        self.counts['steps'] += 1
+        self.counts['fallback_steps'] += bool(diag.fallback)
+        self.counts['steps_without_previews'] += bool(no_previews)
+        self.last = {'k': k, 'step_time_ms': step_time_ms, 'solve_time_ms': diag.solve_time_ms,
+                     'fallback': diag.fallback, 'reason': diag.message, 'no_previews': no_previews}
+
+    def error(self, k: int, err: Exception) -> None:
+        """A step that raised."""
+        self.counts['step_errors'] += 1
+        self.last = {'k': k, 'error': repr(err)}
+
+    def health(self, lifecycle: str, cfg: ControllerNodeConfig, inputs: ControllerInputs, wall_s: float) -> Health:
+        """:func:`controller_health` of now; the rejections since the previous call are the new ones."""
+        rej = inputs.rejections
+        new, self._reported = rej.total - self._reported, rej.total
+        return controller_health(lifecycle=lifecycle, cfg=cfg, last=self.last,
+                                 counts=dict(self.counts, resets=inputs.n_resets), ages_s=inputs.ages_s(wall_s),
+                                 rejections=rej, new_rejections=new, events=self.events)
 
 
 def controller_health(*, lifecycle: str, cfg: ControllerNodeConfig, last: dict | None, counts: dict,

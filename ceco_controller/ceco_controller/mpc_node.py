@@ -1,14 +1,13 @@
 """mpc_node: a CECO NMPC strategy (ceco, ceco-e, ceco-c, ceco-ioch) as a managed node.
 
-baseline_node is the same class with the production ACC law.
-
-Inputs ``cabin/state``, ``v2x/weather_preview``, ``v2x/traffic_preview``; outputs
-``hvac/command`` (tagged with the control step k), ``controller/diagnostics``, ``/diagnostics``.
-Lifecycle: configure loads the scenario, builds the controller (NLP) and solves one throw-away
-step; activate starts commanding; deactivate stops (the plant's fallback law takes over);
-cleanup/shutdown release everything. Timing: ``lockstep`` computes step k once its state and
-both previews are here (without previews after ``preview_timeout_s``); ``realtime`` computes
-every Ts of the node clock from the latest inputs. Checks, ordering and health rules: the pure
+baseline_node is the same class with the production ACC law. Inputs ``cabin/state``,
+``v2x/weather_preview``, ``v2x/traffic_preview``; outputs ``hvac/command`` (tagged with the
+control step k), ``controller/diagnostics``, ``/diagnostics``. Lifecycle: configure loads the
+scenario, builds the controller (NLP) and solves one throw-away step; activate starts
+commanding; deactivate stops (the plant's fallback law takes over); cleanup/shutdown release
+everything. Timing: ``lockstep`` computes step k once its state and both previews are here
+(without previews after ``preview_timeout_s``); ``realtime`` every Ts of the node clock from
+the latest inputs. Checks, ordering, bookkeeping and health rules: the pure
 :mod:`ceco_controller.controller_io`; observation and controller: the simulator's.
 """
 from __future__ import annotations
@@ -17,14 +16,7 @@ import time
 
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 
-from ceco_controller.controller_io import (
-    ControllerInputs,
-    ControllerNodeConfig,
-    StepInputs,
-    controller_health,
-    controller_parameters,
-    warm_up,
-)
+import ceco_controller.controller_io as cio
 from ceco_controller.step_adapter import step_observation
 from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficPreview, WeatherPreview
 from ceco_ros import conversions, interfaces, params
@@ -39,30 +31,32 @@ class ControllerNode(ManagedNode):
 
     def __init__(self, node_name: str = 'mpc_node', fixed_strategy: str | None = None):
         super().__init__(node_name)
-        specs = controller_parameters(fixed_strategy)
-        self.config = cfg = ControllerNodeConfig.from_params(params.declare_all(self, specs), fixed_strategy)
+        specs = cio.controller_parameters(fixed_strategy)
+        self.config = cfg = cio.ControllerNodeConfig.from_params(params.declare_all(self, specs), fixed_strategy)
         params.on_set(self, specs, self._set_params)
         self.setup_tools(cfg.log_throttle_s)
-        self.core, self._last, self._prev_cmd, self._reported = None, None, None, 0
-        self.inputs = ControllerInputs(cfg, self.log, self._reset_core)
-        self._counts = dict.fromkeys(('steps', 'fallback_steps', 'steps_without_previews', 'step_errors'), 0)
-        self._events = {'deadline_missed': 0, 'incompatible_qos': 0}
-        DiagnosticsTimer(self, self._health, cfg.diagnostics_period_s)
+        self.core, self._prev_cmd, self.record = None, None, cio.ControllerRecord()
+        self.inputs = cio.ControllerInputs(cfg, self.log, self._reset_core)
+        DiagnosticsTimer(self, lambda: [('control', self.record.health(self.lifecycle, self.config, self.inputs,
+                                                                      self.wall_s()))], cfg.diagnostics_period_s)
         self.start_managed(cfg.autostart)
         self.get_logger().info(f'{cfg.strategy}: unconfigured (autostart {cfg.autostart})')
 
     def on_configure(self, state):
         """Load the scenario, build the controller, solve once; create the entities."""
+        from ceco_controller import factory  # here: baseline_node never imports the NMPC (CasADi)
+
         cfg, t0 = self.config, time.perf_counter()
         try:
             self.scenario = load_scenario_param(cfg.scenario)
-            self.core = make_core(cfg.strategy, self.scenario, cfg.control_period_s, cfg.horizon_steps,
-                                  cfg.controller_config or None)
-            warm_up(self.core, self.scenario, cfg.control_period_s, cfg.horizon_steps)
+            self.core = factory.make_controller(cfg.strategy, self.scenario, control_period_s=cfg.control_period_s,
+                                                horizon_steps=cfg.horizon_steps,
+                                                config_path=cfg.controller_config or None)
+            cio.warm_up(self.core, self.scenario, cfg.control_period_s, cfg.horizon_steps)
         except (ValueError, RuntimeError, OSError) as err:
             self.get_logger().error(f'configure failed: {err}')
             return FAILURE
-        rt = cfg.timing == 'realtime'
+        rt, ovr = cfg.timing == 'realtime', interfaces.qos_overrides()
         events = {'incompatible_qos': lambda _e: self._event('incompatible_qos')}
         self._pubs = [self.create_lifecycle_publisher(
             AcCommand, interfaces.TOPIC_COMMAND,
@@ -73,13 +67,12 @@ class ControllerNode(ManagedNode):
                                             interfaces.QOS_COMMAND)]
         self._subs = [
             self.create_subscription(CabinState, interfaces.TOPIC_STATE, self._on_state,
-                                     interfaces.state_qos(cfg.timing),
-                                     event_callbacks=SubscriptionEventCallbacks(**events),
-                                     qos_overriding_options=interfaces.qos_overrides()),
+                                     interfaces.state_qos(cfg.timing), qos_overriding_options=ovr,
+                                     event_callbacks=SubscriptionEventCallbacks(**events)),
             self.create_subscription(WeatherPreview, interfaces.TOPIC_WEATHER, lambda m: self._on_preview('weather', m),
-                                     interfaces.QOS_PREVIEW, qos_overriding_options=interfaces.qos_overrides()),
+                                     interfaces.QOS_PREVIEW, qos_overriding_options=ovr),
             self.create_subscription(TrafficPreview, interfaces.TOPIC_TRAFFIC, lambda m: self._on_preview('traffic', m),
-                                     interfaces.QOS_PREVIEW, qos_overriding_options=interfaces.qos_overrides())]
+                                     interfaces.QOS_PREVIEW, qos_overriding_options=ovr)]
         self._timer = (self.create_timer(cfg.control_period_s, self._on_timer) if rt else
                        self.create_timer(0.05, self._run_ready, clock=self.steady))
         self.get_logger().info(f'configured in {time.perf_counter() - t0:.2f} s (controller built, first solve done): '
@@ -88,11 +81,11 @@ class ControllerNode(ManagedNode):
         return self.configured()
 
     def on_activate(self, state):
-        """Start commanding (from a fresh controller state)."""
+        """Start commanding (from a fresh controller state); a state that came while inactive is computed now."""
         self._reset_core()
         ret = super().on_activate(state)
         self.get_logger().info('active: commanding')
-        if self.config.timing == 'lockstep':   # a state that came while inactive is computed now
+        if self.config.timing == 'lockstep':
             self._run_ready()
         return ret
 
@@ -121,7 +114,7 @@ class ControllerNode(ManagedNode):
             self._run_ready()
 
     def _run_ready(self) -> None:
-        """lockstep: compute the waiting step if it is complete (or overdue); inactive, inputs wait in the buffer."""
+        """Lockstep: compute the waiting step when complete or overdue; inactive, inputs wait in the buffer."""
         if self.lifecycle == 'active':
             self._run(self.inputs.ready() or self.inputs.overdue(self.wall_s()))
 
@@ -131,33 +124,25 @@ class ControllerNode(ManagedNode):
             self.notice('no-state', f'not commanding: {why}')
         self._run(si)
 
-    def _run(self, si: StepInputs | None) -> None:
+    def _run(self, si: cio.StepInputs | None) -> None:
         if si is None or self.lifecycle != 'active':
             return
-        t0 = time.perf_counter()
+        t0, cfg, stamp = time.perf_counter(), self.config, si.state.header.stamp
         try:
-            self._step(si, t0)
+            obs, note = step_observation(si, cfg, self.scenario, self._prev_cmd)
+            if note:
+                self.notice('no-previews', f'step {si.k}: {note}: solving without previews')
+            cmd, diag = self.core.compute(obs)
+            self._prev_cmd, fallback = cmd, bool(diag.fallback)
+            ts = cfg.control_period_s
+            self._pubs[0].publish(conversions.command_msg(cmd, si.k, stamp, ts, cfg.strategy, fallback))
+            self._pubs[1].publish(conversions.diagnostics_msg(diag, stamp, cfg.strategy, ts))
+            self.record.step(si.k, (time.perf_counter() - t0) * 1e3, diag, note)
+            if fallback:
+                self.notice('fallback', f'step {si.k}: fallback {diag.fallback}: {diag.message}')
         except Exception as err:   # one bad step must not take the node down
-            self._counts['step_errors'] += 1
-            self._last = {'k': si.k, 'error': repr(err)}
+            self.record.error(si.k, err)
             self.get_logger().error(f'step {si.k} failed: {err!r}')
-
-    def _step(self, si: StepInputs, t0: float) -> None:
-        cfg, ts, stamp = self.config, self.config.control_period_s, si.state.header.stamp
-        obs, note = step_observation(si, cfg, self.scenario, self._prev_cmd)
-        if note:
-            self._counts['steps_without_previews'] += 1
-            self.notice('no-previews', f'step {si.k}: {note}: solving without previews')
-        cmd, diag = self.core.compute(obs)
-        self._prev_cmd, fallback = cmd, bool(diag.fallback)
-        self._pubs[0].publish(conversions.command_msg(cmd, si.k, stamp, ts, cfg.strategy, fallback))
-        self._pubs[1].publish(conversions.diagnostics_msg(diag, stamp, cfg.strategy, ts))
-        self._counts['steps'] += 1
-        self._counts['fallback_steps'] += fallback
-        self._last = {'k': si.k, 'step_time_ms': (time.perf_counter() - t0) * 1e3, 'solve_time_ms': diag.solve_time_ms,
-                      'fallback': diag.fallback, 'reason': diag.message, 'no_previews': note}
-        if fallback:
-            self.notice('fallback', f'step {si.k}: fallback {diag.fallback}: {diag.message}')
 
     # ------------------------------------------------------------------ glue
     def _reset_core(self) -> None:
@@ -176,23 +161,8 @@ class ControllerNode(ManagedNode):
         return None
 
     def _event(self, name: str) -> None:
-        self._events[name] += 1
-        self.notice(name, f'QoS event: {name} (total {self._events[name]})')
-
-    def _health(self):
-        rej = self.inputs.rejections
-        new, self._reported = rej.total - self._reported, rej.total
-        counts = dict(self._counts, resets=self.inputs.n_resets)
-        return [('control', controller_health(
-            lifecycle=self.lifecycle, cfg=self.config, last=self._last, counts=counts,
-            ages_s=self.inputs.ages_s(self.wall_s()), rejections=rej, new_rejections=new, events=self._events))]
-
-
-def make_core(strategy: str, scenario, control_period_s: float, horizon_steps: int, config_path: str | None = None):
-    """The controller core, built as the closed-loop simulator builds it."""
-    from ceco_controller import factory
-    return factory.make_controller(strategy, scenario, control_period_s=control_period_s,
-                                   horizon_steps=horizon_steps, config_path=config_path)
+        self.record.events[name] += 1
+        self.notice(name, f'QoS event: {name} (total {self.record.events[name]})')
 
 
 def main(args=None) -> int:

@@ -18,19 +18,12 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 
+import ceco_plant_sim.plant_io as pio
 from ceco_core.acc_law import AccLaw
 from ceco_core.comfort import iso7730_validity
 from ceco_core.contracts import AcInput
 from ceco_core.supervision import FallbackSupervisor, Watchdog
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort
-from ceco_plant_sim.plant_io import (
-    PLANT_PARAMETERS,
-    CommandPolicy,
-    PlantNodeConfig,
-    RealtimeCommands,
-    plant_health,
-    start_gate,
-)
 from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
 from ceco_ros import conversions, interfaces, params
 from ceco_ros.diagnostics import DiagnosticsTimer
@@ -44,16 +37,16 @@ class PlantNode(NodeTools, Node):
 
     def __init__(self):
         super().__init__('plant_node')
-        cfg = self.config = PlantNodeConfig.from_params(params.declare_all(self, PLANT_PARAMETERS))
-        params.on_set(self, PLANT_PARAMETERS, self._set_params)
+        cfg = self.config = pio.PlantNodeConfig.from_params(params.declare_all(self, pio.PLANT_PARAMETERS))
+        params.on_set(self, pio.PLANT_PARAMETERS, self._set_params)
         self.setup_tools(cfg.log_throttle_s)
         self.scenario = sc = load_scenario_param(cfg.scenario)
         self.sp, self.dt = ScenarioPlant(sc, cfg.plant_dt_s), cfg.plant_dt_s
         self.m = steps_per_control(cfg.control_period_s, cfg.plant_dt_s)
         self.n_steps = n_plant_steps(min(cfg.duration_s or sc.duration_s, sc.duration_s), self.dt)
         self.e_comp_j = self.e_blower_j = 0.0
-        self.acc, self.fallback, self.policy = AccLaw(), FallbackSupervisor(), CommandPolicy(cfg, self.log)
-        self.rt, self.wait = RealtimeCommands(cfg.command_timeout_rt_s), Watchdog(cfg.command_timeout_s)
+        self.acc, self.fallback, self.policy = AccLaw(), FallbackSupervisor(), pio.CommandPolicy(cfg, self.log)
+        self.rt, self.wait = pio.RealtimeCommands(cfg.command_timeout_rt_s), Watchdog(cfg.command_timeout_s)
         self.started = self.finished = False
         self._reported, self._events = 0, {'deadline_missed': 0, 'incompatible_qos': 0}
         rt, out_qos = cfg.timing == 'realtime', interfaces.state_qos(cfg.timing)
@@ -122,7 +115,7 @@ class PlantNode(NodeTools, Node):
         return AcInput(mdot_bl_kgps=a.mdot_bl_kgps, t_evap_sp_c=a.t_evap_sp_c)
 
     def _waiting_for(self) -> str:
-        return start_gate(self.config, self.pub_state.get_subscription_count(),
+        return pio.start_gate(self.config, self.pub_state.get_subscription_count(),
                           tuple(p.get_subscription_count() for p in (self.pub_comfort, self.pub_power, self.pub_clock)),
                           self.count_subscribers(interfaces.TOPIC_COMMAND), self.sub_cmd.get_publisher_count())
 
@@ -189,7 +182,7 @@ class PlantNode(NodeTools, Node):
         rej, rt = self.policy.rejections, self.config.timing == 'realtime'
         new, self._reported = rej.total - self._reported, rej.total
         age = self.rt.watchdog.age(self.clock_s()) if rt else self.wait.age(self.wall_s())
-        return [('plant', plant_health(cfg=self.config, started=self.started, finished=self.finished, n=self.n,
+        return [('plant', pio.plant_health(cfg=self.config, started=self.started, finished=self.finished, n=self.n,
                                        t_s=self.n * self.dt, supervisor=self.fallback, policy=self.policy,
                                        command_age_s=None if age == float('inf') else age, new_rejections=new,
                                        events=self._events, waiting_for='' if self.started else self._waiting_for()))]
