@@ -110,3 +110,28 @@ def test_bad_models_are_rejected(kwargs, field):
         fe.ErrorModel(**kwargs).validate()
     with pytest.raises(ValueError, match="lead_s"):
         fe.lead_errors(fe.ErrorModel(1.0), [-1.0], np.random.default_rng(0))
+
+
+def test_previews_with_an_uncertainty_level():
+    from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews, parse_quality
+    from ceco_v2x_preview.scenario import load_scenario
+
+    sc = load_scenario("sc03")
+    q = parse_quality("uncertain:medium,seed=3")
+    assert q == PreviewQuality(uncertainty="medium", seed=3) and parse_quality(q.describe()) == q
+    assert q.mode == "uncertain" and parse_quality("uncertain:high+delayed:10").mode == "uncertain+delayed"
+    p = make_previews(sc, 100.0, 5.0, 7, q)
+    truth = make_previews(sc, 100.0, 5.0, 7, PERFECT)
+    e = fe.forecast_errors("medium", 3, 100.0, truth.t_s - 100.0)
+    np.testing.assert_allclose(p.t_amb_c - truth.t_amb_c, e["t_amb_c"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(p.speed_mps, np.maximum(truth.speed_mps + e["speed_mps"], 0.0), atol=1e-12)
+    assert p.t_amb_c[0] == truth.t_amb_c[0] and np.any(p.solar_wm2[1:] != truth.solar_wm2[1:])
+    np.testing.assert_array_equal(p.rh, truth.rh)
+    # the level's seed falls back to the scenario's seed
+    np.testing.assert_array_equal(make_previews(sc, 100.0, 5.0, 7, PreviewQuality(uncertainty="medium")).t_amb_c,
+                                  make_previews(sc, 100.0, 5.0, 7, PreviewQuality(uncertainty="medium",
+                                                                                  seed=sc.seed)).t_amb_c)
+    with pytest.raises(ValueError, match="uncertain"):
+        parse_quality("uncertain:extreme")
+    with pytest.raises(ValueError, match="uncertainty"):
+        PreviewQuality(uncertainty="huge").validate()

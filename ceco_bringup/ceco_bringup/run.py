@@ -145,7 +145,8 @@ def _params(args, scenario, quality, strategy, duration_s):
         'faults.delay_s': float(quality.delay_s),
         'faults.missing_spans_s': [float(x) for x in spans],
         'faults.missing_policy': quality.missing_policy,
-        'faults.seed': -1 if quality.seed is None else int(quality.seed)})
+        'faults.seed': -1 if quality.seed is None else int(quality.seed),
+        'faults.uncertainty_level': quality.uncertainty})
     controller = dict(common, horizon_steps=int(np_), **sim_time)
     if strategy != 'baseline':
         controller['strategy'] = strategy

@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -90,7 +90,7 @@ class ErrorModel:
     ref_lead_s: float = REF_LEAD_S
     """Lead time at which sigma_ref and bias_ref hold [s], > 0."""
 
-    def validate(self) -> "ErrorModel":
+    def validate(self) -> ErrorModel:
         """Raise ValueError naming the first bad field; return self."""
         for name in ("sigma_ref", "bias_ref", "corr_time_s", "ref_lead_s"):
             v = getattr(self, name)
@@ -194,9 +194,11 @@ def lead_errors(model: ErrorModel, lead_s, rng: np.random.Generator) -> np.ndarr
 
 
 def forecast_errors(level: str, seed: int, t_issue_s: float, lead_s) -> dict:
-    """The errors of every quantity of the forecast issued at ``t_issue_s`` [s], at
-    ``lead_s`` [s], for ``level`` and ``seed`` (deterministic; module docstring).
-    Returns ``{quantity: array}`` for :data:`QUANTITIES`."""
+    """The errors of every quantity of one forecast (deterministic; module docstring).
+
+    The forecast issued at ``t_issue_s`` [s], at the lead times ``lead_s`` [s], for
+    ``level`` and ``seed``. Returns ``{quantity: array}`` for :data:`QUANTITIES`.
+    """
     models = level_models(level)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
@@ -212,10 +214,12 @@ def forecast_errors(level: str, seed: int, t_issue_s: float, lead_s) -> dict:
 
 def apply_errors(values: Mapping[str, np.ndarray], level: str, seed: int, t_issue_s: float,
                  lead_s) -> dict:
-    """Forecast = truth + error for the quantities in :data:`QUANTITIES` present in
-    ``values`` (true values at the preview's sample times), with the physical limits:
-    solar and speed floored at 0, no solar error where the true irradiance is 0.
-    Other entries of ``values`` are returned unchanged (copies)."""
+    """Forecast = truth + error, with the physical limits.
+
+    For the quantities of :data:`QUANTITIES` present in ``values`` (true values at the
+    preview's sample times): solar and speed floored at 0, no solar error where the true
+    irradiance is 0. Other entries of ``values`` are returned unchanged (copies).
+    """
     out = {k: np.array(v, dtype=float) for k, v in values.items()}
     if level == "none":
         level_models(level)

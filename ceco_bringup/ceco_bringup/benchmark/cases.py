@@ -30,9 +30,9 @@ import hashlib
 import json
 import math
 import os
+from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
-from typing import Mapping
 
 import yaml
 
