@@ -56,7 +56,8 @@ def _style(name: str, kind: str, index: int) -> dict:
         return {'color': st['color'], 'marker': 'o', 'label': st['label']}
     if kind == 'external':
         return {'color': '#CC79A7', 'marker': '*', 'label': name}
-    return {'color': '#7f7f7f' if kind == 'compensated' else '#56B4E9', 'marker': 's', 'label': name}
+    # the compensated production law: grey squares, hollow for its allowance variant
+    return {'color': '#7f7f7f', 'marker': 's', 'label': name, 'mfc': 'none' if kind == 'compensated-allowance' else None}
 
 
 def fig_plane(case: Mapping, path, settings: Mapping, title: str = '') -> Path:
@@ -88,6 +89,7 @@ def fig_plane(case: Mapping, path, settings: Mapping, title: str = '') -> Path:
             xerr = [[m[0] - arr[:, 0].min()], [arr[:, 0].max() - m[0]]]
             yerr = [[m[1] - arr[:, 1].min()], [arr[:, 1].max() - m[1]]]
             ax.errorbar([m[0]], [m[1]], xerr=xerr, yerr=yerr, color=st['color'], marker=st['marker'], ms=6,
+                        mfc=st.get('mfc') or st['color'],
                         lw=0.9, capsize=2, ls='none', label=st['label'] + (f' ({len(pts)} seeds)' if len(pts) > 1 else ''),
                         zorder=3)
             if len(pts) > 1:
