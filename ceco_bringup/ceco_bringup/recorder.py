@@ -52,15 +52,20 @@ class Recorder(Node):
         self.first_state_wall = None   # monotonic time of the first cabin/state [s]
         self.last_power_wall = None    # monotonic time of the latest hvac/power [s]
         self.n_messages = 0
+        # publisher-side wall-clock stamps (rmw source_timestamp [ns]) of the states and commands, in
+        # arrival order: the benchmark's computational time ratio (command k sent - state t_k sent)
+        self.source_ns = {interfaces.TOPIC_STATE: [], interfaces.TOPIC_COMMAND: []}
         self.create_timer(flush_period_s, self.flush)
 
     def _make_cb(self, topic):
-        def cb(data: bytes) -> None:
+        def cb(data: bytes, info) -> None:   # two arguments: rclpy passes the message info
             with self._lock:
                 if self.writer is None:
                     return
                 self.writer.write(topic, time.time_ns(), data)
                 self.n_messages += 1
+                if topic in self.source_ns:
+                    self.source_ns[topic].append(int(info['source_timestamp']))
                 if topic == interfaces.TOPIC_POWER:
                     self.last_power_step = int(deserialize_message(data, AcPower).step_index)
                     self.last_power_wall = time.monotonic()
