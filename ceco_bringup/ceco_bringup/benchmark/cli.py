@@ -75,13 +75,20 @@ def _kpi_table(path: Path, doc: dict) -> None:
 def run_benchmark(case_names: Sequence[str], out_dir, *, quick: bool = False, workers: int | None = None,
                   backend: str = 'local', address: str | None = None, sensitivity: bool = True,
                   controller_cmd: str | None = None, controller_name: str = 'external', save_runs: bool = False,
-                  progress: bool = True, command: str = '', log=print) -> dict:
-    """Run (or resume) the benchmark into ``out_dir``; return the results document (also written)."""
+                  progress: bool = True, command: str = '', log=print, setpoints_c: Sequence[float] | None = None,
+                  sensitivity_path=None) -> dict:
+    """Run (or resume) the benchmark into ``out_dir``; return the results document (also written).
+
+    ``setpoints_c`` and ``sensitivity_path`` replace the family's set-points and the tornado's
+    table (tests and studies; the published benchmark uses the defaults).
+    """
     t0 = time.perf_counter()
     workers = int(workers or os.cpu_count() or 1)
     cases = [load_case(n) for n in (case_names or (QUICK_CASES if quick else DEFAULT_CASES))]
     baselines = runner.load_baselines()
-    specs = runner.controllers(baselines, runner.QUICK_SETPOINTS_C if quick else runner.SETPOINTS_C)
+    if setpoints_c is None:
+        setpoints_c = runner.QUICK_SETPOINTS_C if quick else runner.SETPOINTS_C
+    specs = runner.controllers(baselines, setpoints_c)
     code = code_fingerprint()
     seeds = {c.name: (c.seeds[:1] if quick else c.seeds) for c in cases}
     cells, by_case = [], {}
@@ -90,7 +97,7 @@ def run_benchmark(case_names: Sequence[str], out_dir, *, quick: bool = False, wo
         by_case[c.name] = cc
         cells += cc
     sens_plan = []
-    sens_case_name, params = runner.load_sensitivity()
+    sens_case_name, params = runner.load_sensitivity(sensitivity_path)
     if sensitivity and not quick and any(c.name == sens_case_name for c in cases):
         case = next(c for c in cases if c.name == sens_case_name)
         for p in params:
@@ -174,7 +181,7 @@ def run_benchmark(case_names: Sequence[str], out_dir, *, quick: bool = False, wo
            'code_fingerprint': code, 'command': command, 'quick': bool(quick),
            'settings': {'band': [-0.5, 0.5], 'front_axis': runner.FRONT_AXIS, 'energy_axis': runner.ENERGY_AXIS,
                         'secondary_axes': list(runner.SECONDARY_AXES),
-                        'setpoints_c': list(runner.QUICK_SETPOINTS_C if quick else runner.SETPOINTS_C),
+                        'setpoints_c': [float(x) for x in setpoints_c],
                         'allowance_k_per_pmv': baselines.allowance_k_per_pmv,
                         'compensation': dict(baselines.compensation), 'baselines_tuned_on': baselines.tuned_on,
                         'baselines_sha': baselines.sha, 'strategies': list(runner.STRATEGY_NAMES)},
