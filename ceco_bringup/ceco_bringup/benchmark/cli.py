@@ -177,7 +177,7 @@ def run_benchmark(case_names: Sequence[str], out_dir, *, quick: bool = False, wo
               'workers': workers, 'backend': backend, 'host': socket.gethostname(),
               'sim_time_sum_s': float(sum(sim)), 'sim_time_mean_s': float(sum(sim) / len(sim)) if sim else None}
     doc = {'schema': SCHEMA, 'ceco_version': ceco_version(), 'benchmark_version': BENCHMARK_VERSION,
-           'created_utc': datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%dT%H:%M:%SZ'),
+           'created_utc': datetime.datetime.now(datetime.UTC).strftime('%Y-%m-%dT%H:%M:%SZ'),
            'code_fingerprint': code, 'command': command, 'quick': bool(quick),
            'settings': {'band': [-0.5, 0.5], 'front_axis': runner.FRONT_AXIS, 'energy_axis': runner.ENERGY_AXIS,
                         'secondary_axes': list(runner.SECONDARY_AXES),

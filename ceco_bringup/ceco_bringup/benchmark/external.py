@@ -38,8 +38,10 @@ def controller_env(spec: Mapping, scenario_path: Path, ts: float, n_p: int) -> d
 
 
 def step_times_from_bag(run_dir, control_period_s: float, plant_dt_s: float = 1.0) -> np.ndarray:
-    """Per control step k: the publisher-side send time of ``hvac/command`` k minus that of the
-    ``cabin/state`` at t_k [s]: the controller's whole step including the DDS transport.
+    """Per control step k: the controller's whole step over DDS [s].
+
+    The publisher-side send time of ``hvac/command`` k minus that of the ``cabin/state``
+    at t_k, DDS transport included.
 
     The send times are the rmw source timestamps the recorder kept (``send_times.json``, in
     arrival order, which for one reliable publisher is its publish order); the bag's messages in

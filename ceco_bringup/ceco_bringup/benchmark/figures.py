@@ -37,8 +37,11 @@ _LOW, _HIGH = '#56B4E9', '#D55E00'
 
 
 def controller_points(case: Mapping, fx: str, ex: str) -> dict:
-    """``{controller: (kind, [(discomfort, energy) per seed, sorted by seed])}`` of the finished
-    runs of the scored kinds (strategies, compensated laws, external controllers)."""
+    """The scored controllers' points: ``{controller: (kind, [(discomfort, energy) per seed])}``.
+
+    Finished runs of the scored kinds (strategies, compensated laws, external
+    controllers), sorted by seed.
+    """
     out: dict = {}
     for r in sorted(case['runs'], key=lambda r: (-1 if r['seed'] is None else r['seed'])):
         if r['status'] != 'ok' or r['kind'] not in _SCORED_KINDS:
@@ -57,13 +60,17 @@ def _style(name: str, kind: str, index: int) -> dict:
     if kind == 'external':
         return {'color': '#CC79A7', 'marker': '*', 'label': name}
     # the compensated production law: grey squares, hollow for its allowance variant
-    return {'color': '#7f7f7f', 'marker': 's', 'label': name, 'mfc': 'none' if kind == 'compensated-allowance' else None}
+    return {'color': '#7f7f7f', 'marker': 's', 'label': name,
+            'mfc': 'none' if kind == 'compensated-allowance' else None}
 
 
 def fig_plane(case: Mapping, path, settings: Mapping, title: str = '') -> Path:
-    """Energy over discomfort: both baseline fronts as lines through their efficient
-    points (inefficient family members hollow, set-points annotated), every scored
-    controller at its mean over seeds with min-max whiskers and its seeds as dots."""
+    """Energy over discomfort of one case.
+
+    Both baseline fronts as lines through their efficient points (inefficient family
+    members hollow, set-points annotated), every scored controller at its mean over
+    seeds with min-max whiskers and its seeds as dots.
+    """
     fx, ex = settings['front_axis'], settings['energy_axis']
     with plt.rc_context(_RC):
         fig, ax = plt.subplots(figsize=(6.4, 4.4))
@@ -91,7 +98,8 @@ def fig_plane(case: Mapping, path, settings: Mapping, title: str = '') -> Path:
             yerr = None if one else [[m[1] - arr[:, 1].min()], [arr[:, 1].max() - m[1]]]
             ax.errorbar([m[0]], [m[1]], xerr=xerr, yerr=yerr, color=st['color'], marker=st['marker'], ms=6,
                         mfc=st.get('mfc') or st['color'],
-                        lw=0.9, capsize=2, ls='none', label=st['label'] + (f' ({len(pts)} seeds)' if len(pts) > 1 else ''),
+                        lw=0.9, capsize=2, ls='none',
+                        label=st['label'] + (f' ({len(pts)} seeds)' if len(pts) > 1 else ''),
                         zorder=3)
             if len(pts) > 1:
                 ax.plot(arr[:, 0], arr[:, 1], ls='none', marker='.', ms=2.5, color=st['color'], alpha=0.6, zorder=3)
@@ -109,11 +117,13 @@ def fig_plane(case: Mapping, path, settings: Mapping, title: str = '') -> Path:
 
 
 def fig_tornado(case: Mapping, path, controllers=None, title: str = '') -> Path:
-    """Per controller a panel: for each sensitivity parameter a bar from the
-    matched-comfort energy saving [%] at its low end to that at its high end, the
-    nominal saving as a vertical line; two half-bars per parameter (low end,
-    high end), parameters sorted by swing. A saving that is undefined at an end
-    (outside the front) is marked 'n/a' at the nominal value."""
+    """The tornado: how the matched-comfort energy saving moves with each parameter.
+
+    Per controller a panel: for each sensitivity parameter two half-bars from the
+    nominal saving [%] (vertical line) to the saving at its low and at its high end,
+    parameters sorted by swing. A saving that is undefined at an end (outside the
+    front) is marked 'n/a' at the nominal value.
+    """
     sens = case.get('sensitivity') or []
     if not sens:
         raise ValueError(f"fig_tornado: case {case.get('case')!r} has no sensitivity results")
@@ -132,7 +142,7 @@ def fig_tornado(case: Mapping, path, controllers=None, title: str = '') -> Path:
                 rows.append((swing, s['parameter'], lo, hi))
             rows.sort(key=lambda r: r[0])
             ref = nominal if nominal is not None else 0.0
-            for k, (_, label, lo, hi) in enumerate(rows):
+            for k, (_, _label, lo, hi) in enumerate(rows):
                 for v, colour, dy in ((lo, _LOW, -0.17), (hi, _HIGH, 0.17)):
                     if v is None:
                         ax.annotate('n/a', (ref, k + dy), ha='center', va='center', fontsize=5.5, color='#666666')

@@ -144,10 +144,13 @@ def _finite_point(name, d, e):
 
 
 def build_front(points: Mapping[str, tuple] | Iterable[tuple]) -> Front:
-    """The front of a family: ``points`` is ``{name: (discomfort, energy)}`` or an
-    iterable of ``(name, discomfort, energy)``. At least one point; every value
-    finite and >= 0 (ValueError naming the point). Points equal to an earlier
-    one on both axes are kept but only the first is a vertex."""
+    """The front of a family.
+
+    ``points`` is ``{name: (discomfort, energy)}`` or an iterable of ``(name,
+    discomfort, energy)``: at least one point, every value finite and >= 0
+    (ValueError naming the point). Points equal to an earlier one on both axes are
+    kept but only the first is a vertex.
+    """
     items = ([(k, *v) for k, v in points.items()] if isinstance(points, Mapping) else list(points))
     if not items:
         raise ValueError("build_front: the family has no points")
@@ -209,11 +212,13 @@ def match(front: Front, discomfort: float, energy: float) -> Matched:
 
 
 def match_seeds(front: Front, points: Sequence[tuple]) -> dict:
-    """A controller with one point per seed: the match of the mean point (means of
-    discomfort and energy over ``points`` = [(discomfort, energy), ...]) and, per
-    seed, the same three quantities. Returns ``Matched.as_dict()`` of the mean plus
-    ``seeds``: {energy_saving_pct: [...], discomfort_reduction_pct: [...],
-    dominated: [...]} in the order given, and ``n_seeds``."""
+    """A controller with one point per seed against a front.
+
+    The match of the mean point (means of discomfort and energy over ``points`` =
+    [(discomfort, energy), ...]) and, per seed, the same three quantities. Returns
+    ``Matched.as_dict()`` of the mean plus ``seeds``: {energy_saving_pct: [...],
+    discomfort_reduction_pct: [...], dominated: [...]} in the order given, and ``n_seeds``.
+    """
     if not points:
         raise ValueError("match_seeds: no points")
     arr = np.array([(float(a), float(b)) for a, b in points])

@@ -156,8 +156,8 @@ def report_blocks(doc: Mapping, fig_dir: Path) -> list:
                     Paragraph(f"Schema `{doc['schema']}`, benchmark version {doc['benchmark_version']}, ceco "
                               f"{doc['ceco_version']}, code `{doc['code_fingerprint']}`, created {doc['created_utc']}. "
                               f"{t['runs']} runs ({t['ran_now']} run now) in {t['wall_s']:.1f} s wall"
-                              + (f" on {t.get('workers')} worker(s), backend {t.get('backend')}" if 'workers' in t else '')
-                              + '.')]
+                              + (f" on {t.get('workers')} worker(s), backend {t.get('backend')}"
+                                 if 'workers' in t else '') + '.')]
     if doc['quick']:
         blocks.append(Warning('quick run (one seed, three cases, set-points 24/25/26 degC only): a smoke test, '
                               'not comparable to a full benchmark'))

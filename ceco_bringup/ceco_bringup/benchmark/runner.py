@@ -108,8 +108,11 @@ class Sensitivity:
 
 
 def load_sensitivity(path: str | Path | None = None) -> tuple[str, list[Sensitivity]]:
-    """The tornado's case and parameters; ValueError when a field is unknown or its nominal
-    value is not the code's default (the table must follow the code)."""
+    """The tornado's case and parameters.
+
+    ValueError when a field is unknown or its nominal value is not the code's default
+    (the table must follow the code).
+    """
     if path is None:
         text = resources.files('ceco_bringup').joinpath('data', 'benchmark', 'sensitivity.yaml').read_text('utf-8')
     else:
@@ -302,8 +305,11 @@ def _matched(runs: Sequence[Mapping], fx: str, ex: str) -> dict:
 
 
 def assemble_case(case: Case, rows: Sequence[Mapping], sensitivity: Sequence[tuple] = ()) -> dict:
-    """One case of results.json from its finished rows (nominal variant) and, optionally,
-    ``sensitivity`` = [(Sensitivity, low rows, high rows), ...]."""
+    """One case of results.json.
+
+    From its finished rows (nominal variant) and, optionally, ``sensitivity`` =
+    [(Sensitivity, low rows, high rows), ...].
+    """
     runs = [_run_entry(r) for r in rows]
     runs.sort(key=lambda r: (r['controller'], -1 if r['seed'] is None else r['seed']))
     fronts = _fronts(runs, FRONT_AXIS, ENERGY_AXIS)

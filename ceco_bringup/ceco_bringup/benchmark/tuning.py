@@ -25,7 +25,6 @@ Nothing here looks at a CECO strategy.
 from __future__ import annotations
 
 import argparse
-
 import sys
 from pathlib import Path
 
@@ -89,7 +88,8 @@ def tune(case_name: str = 'sc03-paper', log=print) -> dict:
         r = run(f'allowance {k:g} at 26.0', sc, {'setpoint_c': 26.0, 'allowance_k_per_pmv': k})
         if r['violation_pct'] <= plain['violation_pct'] + 1e-9:
             k_allow = k
-    g = run('plain 26.5', sc, {'setpoint_c': 26.5})['pmv_band'] - run('plain 25.5', sc, {'setpoint_c': 25.5})['pmv_band']
+    g = (run('plain 26.5', sc, {'setpoint_c': 26.5})['pmv_band']
+         - run('plain 25.5', sc, {'setpoint_c': 25.5})['pmv_band'])
     lo, hi = run('solar x0.9', _scaled(case, solar=0.9), {'setpoint_c': 26.0}), \
         run('solar x1.1', _scaled(case, solar=1.1), {'setpoint_c': 26.0})
     k_sun = 1000.0 * (hi['pmv_band'] - lo['pmv_band']) / (hi['solar_band_wm2'] - lo['solar_band_wm2']) / g
