@@ -62,3 +62,38 @@ def test_a_controller_that_never_answers_is_scored_with_the_plant_fallback(tmp_p
                                      [sys.executable, str(silent)], tmp_path / 'ext', command_timeout_s=0.5)
     assert row['status'] == 'ok', row['error']
     assert row['kpis']['fallback_steps'] == 4.0                     # 20 s / Ts 5 s, all from the plant's law
+
+
+def test_uncertainty_level_over_dds_equals_the_simulator(tmp_path):
+    """The benchmark's forecast-uncertainty level set as a preview_node parameter: the DDS
+    previews equal make_previews' and the ceco-ioch closed loop equals the simulator's."""
+    import json
+    import subprocess
+
+    import numpy as np
+
+    from ceco_bringup import bagio
+    from ceco_controller.closed_loop import SimSettings, simulate
+    from ceco_v2x_preview.preview import make_previews, parse_quality
+    from ceco_v2x_preview.scenario import load_scenario
+
+    quality = 'uncertain:high,seed=4'
+    out = tmp_path / 'run'
+    p = subprocess.run([sys.executable, '-m', 'ceco_bringup.cli', 'run', '--scenario', 'sc03', '--strategy',
+                        'ceco-ioch', '--duration-s', '40', '--preview', quality, '--out', str(out), '--no-progress'],
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stdout + p.stderr
+    sc, q = load_scenario('sc03'), parse_quality(quality)
+    for _, _, m in bagio.read_messages(out / 'bag', ('v2x/weather_preview', 'v2x/traffic_preview')):
+        ref = make_previews(sc, 5.0 * m.step_index, 5.0, 7, q)
+        if hasattr(m, 't_amb_c'):
+            np.testing.assert_array_equal(np.asarray(m.t_amb_c), ref.t_amb_c)
+            np.testing.assert_array_equal(np.asarray(m.solar_wm2), ref.solar_wm2)
+        else:
+            np.testing.assert_array_equal(np.asarray(m.speed_mps), ref.speed_mps)
+    sim = simulate('sc03', 'ceco-ioch', SimSettings(duration_s=40.0, preview_quality=q, progress=False)).metrics
+    metrics = json.loads((out / 'metrics.json').read_text())
+    assert any(make_previews(sc, 5.0, 5.0, 7, q).t_amb_c != make_previews(sc, 5.0, 5.0, 7, parse_quality(
+        'perfect')).t_amb_c)                                          # the level does change the previews
+    for key in ('E_tot_J', 'I_pmv', 'otc_violation_pct'):
+        assert metrics[key] == sim[key], key
