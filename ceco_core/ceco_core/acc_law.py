@@ -161,7 +161,7 @@ class AccLaw:
         """Back to the key-on state: integrator empty, pull-down armed, sun filter empty."""
         self._integral = 0.0
         self._pulldown = False
-        self._sun_f = None
+        self._sun_f: float | None = None
         self._mdot_min = self.settings.mdot_bl_min_kgps
         self._last = self.map_demand(1.0, "pulldown")
 
