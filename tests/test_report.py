@@ -11,7 +11,7 @@ import re
 import numpy as np
 import pytest
 
-from ceco_bringup import bagio, report
+from ceco_bringup import bag_writer, bagio, report
 from ceco_controller.closed_loop import SimSettings, simulate, write_run
 
 DURATION_S = 40.0
@@ -46,9 +46,9 @@ def _write_bag(result, bag_dir):
     """Record a simulated run as the plant node does: state and comfort at
     t_n, power over [t_n, t_n + dt), one message each per plant step."""
     store = bagio.typestore()
-    w = bagio.BagWriter(bag_dir)
-    topics = {'cabin/state': 'ceco_msgs/msg/CabinState', 'cabin/comfort': 'ceco_msgs/msg/Comfort',
-              'hvac/power': 'ceco_msgs/msg/AcPower'}
+    w = bag_writer.BagWriter(bag_dir)
+    topics = {'/cabin/state': 'ceco_msgs/msg/CabinState', '/cabin/comfort': 'ceco_msgs/msg/Comfort',
+              '/hvac/power': 'ceco_msgs/msg/AcPower'}
     for topic, typ in topics.items():
         w.add_topic(topic, typ)
     ts = result.timeseries
@@ -57,7 +57,7 @@ def _write_bag(result, bag_dir):
         row = {k: float(v[n]) for k, v in ts.items()}
         common = {'step_index': n, 'scenario_time_s': t}
         for topic, typ in topics.items():
-            w.write(topic, int(t * 1e9) + 1, _msg(store, typ, {**row, **common}, t))
+            w.write(topic, int(round(t * 1e9)), _msg(store, typ, {**row, **common}, t))
     w.close()
 
 
