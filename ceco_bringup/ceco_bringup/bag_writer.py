@@ -192,11 +192,13 @@ class BagWriter:
         _write_atomically(self._writer.metapath, _yaml_text(meta))
 
     def close(self) -> None:
-        """Finalise the bag as rosbags does (idempotent)."""
+        """Finalise the bag as rosbags does (idempotent); metadata.yaml as :meth:`flush` writes it."""
         if self._closed:
             return
         self._closed = True
+        meta = _metadata(self._writer)
         self._writer.close()
+        _write_atomically(self._writer.metapath, _yaml_text(meta))
 
 
 class SimTimeStamps:
@@ -303,6 +305,7 @@ def _metadata(writer) -> dict:
 def _yaml_text(data) -> str:
     yaml = YAML(typ='safe')
     yaml.default_flow_style = False
+    yaml.width = 4096   # no folded lines (a type hash on one line, as rosbag2 writes it)
     text = StringIO()
     yaml.dump(data, text)
     return text.getvalue()
