@@ -362,6 +362,7 @@ def test_independent_mcap_reader_gets_the_same_messages(tmp_path):
     for ch in summary.channels.values():
         assert ch.message_encoding == 'cdr' and summary.schemas[ch.schema_id].encoding == 'ros2msg'
         check_qos_v9(yaml.safe_load(ch.metadata['offered_qos_profiles']), ch.topic)
+        assert ch.metadata['topic_type_hash'] == store.hash_rihs01(types[ch.topic])
     by_key = {(t, ts): v for t, ts, v in decoded}
     assert len(by_key) == len(written)
     for topic, t_ns, values in written:

@@ -24,13 +24,13 @@ from __future__ import annotations
 import os
 import sqlite3
 import struct
-from io import StringIO
+from io import BytesIO, StringIO
 from pathlib import Path
 
 from rosbags.interfaces import ConnectionExtRosbag2
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.metadata import dump_qos_v9
-from rosbags.rosbag2.storage_mcap import McapWriter
+from rosbags.rosbag2.storage_mcap import Channel, McapWriter, write_channel, write_string
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 from ruamel.yaml import YAML
 
@@ -81,6 +81,21 @@ class _FlushableMcapWriter(McapWriter):
         super().__init__(path, compression)
         self._tail_at: int | None = None   # file offset of the summary tail on disk, if any
         self._meta: tuple[int, str] = (BAG_VERSION, '')
+
+    def add_connection(self, connection, offered_qos_profiles: str) -> None:
+        """Register a channel as rosbag2's MCAP plugin writes it.
+
+        Its metadata holds ``offered_qos_profiles`` and ``topic_type_hash``
+        (rosbags writes the first only).
+        """
+        metadata = BytesIO()
+        for key, value in (('offered_qos_profiles', offered_qos_profiles), ('topic_type_hash', connection.digest)):
+            write_string(metadata, key)
+            write_string(metadata, value)
+        self.channels.append(Channel(connection.id, connection.msgtype, connection.topic,
+                                     connection.ext.serialization_format, metadata.getvalue()))
+        self.channel_stats[connection.id] = 0
+        write_channel(self.chunk.bio, self.channels[-1], self.schemas)
 
     def _drop_tail(self) -> None:
         if self._tail_at is not None:
