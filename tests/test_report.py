@@ -217,6 +217,7 @@ def test_csv_precision_digits(tmp_path):
     assert rundata.csv_precision_digits(p) == 16
 
 
+@pytest.mark.extra('fastsim')
 def test_report_vehicle_level(runs, tmp_path):
     from ceco_bringup import vehicle_energy as ve
 
