@@ -19,7 +19,6 @@ import dataclasses
 import math
 import os
 import time
-import types
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -41,30 +40,19 @@ def step_times_from_bag(run_dir, control_period_s: float, plant_dt_s: float = 1.
     """Per control step k: the controller's whole step over DDS [s].
 
     The publisher-side send time of ``hvac/command`` k minus that of the ``cabin/state``
-    at t_k, DDS transport included.
-
-    The send times are the rmw source timestamps the recorder kept (``send_times.json``, in
-    arrival order, which for one reliable publisher is its publish order); the bag's messages in
-    the same order give their step indices. The first command of each step counts.
+    at t_k, DDS transport included: the rmw source timestamps the recorder kept with each
+    message's step index (``send_times.json`` next to the bag). The first command of each
+    step counts.
     """
     import json  # noqa: PLC0415
 
-    from ceco_bringup import bagio  # noqa: PLC0415
-
-    run_dir = Path(run_dir)
-    sent = json.loads((run_dir / 'send_times.json').read_text(encoding='utf-8'))
+    sent = json.loads((Path(run_dir) / 'send_times.json').read_text(encoding='utf-8'))
     per = int(round(control_period_s / plant_dt_s))
-    index: dict = {'cabin/state': [], 'hvac/command': []}
-    for topic, _, msg in bagio.read_messages(run_dir / 'bag', tuple(index)):
-        index[topic].append(int(msg.step_index))
-    for topic in index:
-        if len(index[topic]) != len(sent[topic]):
-            raise RuntimeError(f'{topic}: {len(index[topic])} messages in the bag, {len(sent[topic])} send times')
     state, cmd = {}, {}
-    for n, t_ns in zip(index['cabin/state'], sent['cabin/state']):
+    for n, t_ns in sent['cabin/state']:
         if n % per == 0:
             state.setdefault(n // per, t_ns)
-    for k, t_ns in zip(index['hvac/command'], sent['hvac/command']):
+    for k, t_ns in sent['hvac/command']:
         cmd.setdefault(k, t_ns)
     ks = sorted(set(state) & set(cmd))
     return np.array([(cmd[k] - state[k]) * 1e-9 for k in ks], dtype=float)
@@ -106,10 +94,12 @@ def run_external_cell(cell: Mapping, command: Sequence[str], run_dir: Path, *, c
             quality = dataclasses.replace(quality, seed=int(spec['seed']))
         ts = float(spec['control_period_s'] or scenario.control.control_period_s)
         n_p = int(spec['horizon_steps'] or scenario.control.horizon_steps)
-        args = types.SimpleNamespace(scenario=str(scenario_path), timing='lockstep', control_period_s=ts,
-                                     horizon_steps=n_p, duration_s=spec['duration_s'],
-                                     command_timeout_s=command_timeout_s, startup_timeout_s=startup_timeout_s,
-                                     run_timeout_s=run_timeout_s, domain_id=None, no_progress=True)
+        # `ceco run`'s own defaults (bag storage, ...), then what this run sets
+        args = run.build_parser().parse_args(['--out', str(run_dir), '--no-progress'])
+        for key, value in dict(scenario=str(scenario_path), timing='lockstep', control_period_s=ts,
+                               horizon_steps=n_p, duration_s=spec['duration_s'], command_timeout_s=command_timeout_s,
+                               startup_timeout_s=startup_timeout_s, run_timeout_s=run_timeout_s).items():
+            setattr(args, key, value)
         stop = run._StopFlag()
         t_sim = time.perf_counter()
         metrics = run.run_one(args, scenario, quality, 'external', run_dir, stop, controller_cmd=list(command),
