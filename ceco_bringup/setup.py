@@ -13,7 +13,7 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
     ],
-    package_data={package_name: ['data/*', 'data/*/*']},
+    package_data={package_name: ['data/*', 'data/*/*', 'data/*/*/*']},
     include_package_data=True,
     install_requires=['setuptools'],
     zip_safe=False,

@@ -1,5 +1,6 @@
 """Closed loop on the real plant, scenarios and comfort: bounds, run directory, determinism, faults."""
 import csv
+import math
 import json
 
 import numpy as np
@@ -36,7 +37,9 @@ def test_run_directory_format_and_determinism(tmp_path):
     assert tuple(header[:20]) == cl.TIMESERIES_COLUMNS[:20]
     with open(d / "diagnostics.csv") as fh:
         rows = list(csv.reader(fh))
-    assert tuple(rows[0]) == DIAGNOSTICS_COLUMNS + ("pmv_pred", "t_cab_pred_c")
+    assert tuple(rows[0]) == DIAGNOSTICS_COLUMNS + ("pmv_pred", "t_cab_pred_c", "step_time_ms")
+    # every control step's wall time is recorded (a positive finite number; its size is not tested)
+    assert all(0.0 < float(dict(zip(rows[0], r))["step_time_ms"]) < math.inf for r in rows[1:])
     # predicted PMV and T_cab over the grid points 0..Np of every successful solve
     checked = 0
     for row in rows[1:]:

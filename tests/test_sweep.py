@@ -175,7 +175,7 @@ def test_code_fingerprint_is_part_of_the_id(tmp_path, monkeypatch):
     grid = sweep.load_grid(_grid(tmp_path))
     cells = sweep.expand_grid(grid)
     assert all(c.spec['code'] == sweep.code_fingerprint() for c in cells)
-    monkeypatch.setattr(sweep, 'code_fingerprint', lambda: '0' * 16)
+    monkeypatch.setattr(sweep.cells, 'code_fingerprint', lambda: '0' * 16)
     other = sweep.expand_grid(grid)
     assert not {c.id for c in other} & {c.id for c in cells}       # changed simulator: every cell reruns
     monkeypatch.undo()
@@ -226,7 +226,7 @@ def test_settings_axis_expands_per_strategy_and_keeps_other_ids(tmp_path):
     ('default: {ceco-c: {gamma_w: 1.0}}', r"settings\.default: the label 'default' is reserved"),
 ])
 def test_bad_settings_fail_before_any_run_naming_the_field(tmp_path, monkeypatch, entry, match):
-    monkeypatch.setattr(sweep, 'run_cell', lambda *a, **k: pytest.fail('a cell ran'))
+    monkeypatch.setattr(sweep.cells, 'run_cell', lambda *a, **k: pytest.fail('a cell ran'))
     text = SETTINGS_GRID.split('settings:')[0] + 'settings:\n  ' + entry + '\n'
     with pytest.raises(ValueError, match=match):
         sweep.run_sweep(_grid(tmp_path, text), tmp_path / 'out', workers=1, progress=False,

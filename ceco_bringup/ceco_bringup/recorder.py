@@ -31,7 +31,7 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
 from ceco_bringup.bag_writer import STORAGES, TIMESTAMP_MODES, BagWriter, SimTimeStamps
-from ceco_msgs.msg import AcPower
+from ceco_msgs.msg import AcCommand, AcPower, CabinState
 from ceco_ros import interfaces
 
 
@@ -70,10 +70,14 @@ class Recorder(Node):
         self.first_state_wall = None   # monotonic time of the first cabin/state [s]
         self.last_power_wall = None    # monotonic time of the latest hvac/power [s]
         self.n_messages = 0
+        # (step_index, publisher-side wall-clock stamp = rmw source_timestamp [ns]) of every state and
+        # command, in arrival order: the benchmark's computational time ratio (command k sent - state t_k sent)
+        self.source_ns = {interfaces.TOPIC_STATE: [], interfaces.TOPIC_COMMAND: []}
+        self._step_type = {interfaces.TOPIC_STATE: CabinState, interfaces.TOPIC_COMMAND: AcCommand}
         self.create_timer(flush_period_s, self.flush)
 
     def _make_cb(self, topic, type_name):
-        def cb(data: bytes) -> None:
+        def cb(data: bytes, info) -> None:   # two arguments: rclpy passes the message info
             t_recv_ns = time.time_ns()
             with self._lock:
                 if self.writer is None:
@@ -81,6 +85,9 @@ class Recorder(Node):
                 t_ns = t_recv_ns if self._sim_stamps is None else self._sim_stamps(type_name, data)
                 self.writer.write(self.bag_topics[topic], t_ns, data)
                 self.n_messages += 1
+                if topic in self.source_ns:
+                    n = int(deserialize_message(data, self._step_type[topic]).step_index)
+                    self.source_ns[topic].append((n, int(info['source_timestamp'])))
                 if topic == interfaces.TOPIC_POWER:
                     self.last_power_step = int(deserialize_message(data, AcPower).step_index)
                     self.last_power_wall = time.monotonic()

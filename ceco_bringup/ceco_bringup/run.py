@@ -150,7 +150,8 @@ def _params(args, scenario, quality, strategy, duration_s):
         'faults.delay_s': float(quality.delay_s),
         'faults.missing_spans_s': [float(x) for x in spans],
         'faults.missing_policy': quality.missing_policy,
-        'faults.seed': -1 if quality.seed is None else int(quality.seed)})
+        'faults.seed': -1 if quality.seed is None else int(quality.seed),
+        'faults.uncertainty_level': quality.uncertainty})
     controller = dict(common, horizon_steps=int(np_), **sim_time)
     if strategy != 'baseline':
         controller['strategy'] = strategy
@@ -162,8 +163,14 @@ def _params(args, scenario, quality, strategy, duration_s):
     return ts, np_, preview, controller, plant
 
 
-def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, index: int = 0) -> dict:
-    """One strategy over DDS into run_dir; returns the metrics dict."""
+def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, index: int = 0, *,
+            controller_cmd: list[str] | None = None, controller_env: dict | None = None) -> dict:
+    """One strategy over DDS into run_dir; returns the metrics dict.
+
+    ``controller_cmd``: a third-party controller's command line, started in place of
+    mpc_node/baseline_node with the DDS environment plus ``controller_env`` (``ceco
+    benchmark --controller-cmd``; the contract is in docs/benchmark.md).
+    """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
@@ -198,7 +205,9 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
         'controller': supervisor.NodeProcess(
             ctrl_exe[1], *ctrl_exe, env=env, log_dir=log_dir,
             params_files=[supervisor.share_file('ceco_controller', f'config/{ctrl_exe[1]}.yaml')],
-            params=p_ctrl),
+            params=p_ctrl) if controller_cmd is None else supervisor.NodeProcess(
+            'external_controller', None, None, env={**env, **(controller_env or {})}, log_dir=log_dir,
+            command=controller_cmd),
         'plant_node': supervisor.NodeProcess(
             'plant_node', 'ceco_plant_sim', 'plant_node', env=env, log_dir=log_dir,
             params_files=[supervisor.share_file('ceco_plant_sim', 'config/plant_node.yaml')],
@@ -273,6 +282,8 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
         if thread is not None:
             thread.join(timeout=5.0)
         counts = recorder.close() if recorder is not None else {}
+        if recorder is not None:    # publisher-side send times of states and commands (benchmark time ratio)
+            (run_dir / 'send_times.json').write_text(json.dumps(recorder.source_ns) + '\n')
         if executor is not None:
             executor.shutdown()
         if recorder is not None:

@@ -104,16 +104,24 @@ def share_file(package: str, relpath: str) -> str:
 class NodeProcess:
     """One node executable as a child process."""
 
-    def __init__(self, name: str, package: str, executable: str, *, params_files=(),
-                 params: dict | None = None, env: dict, log_dir: Path, node_name: str | None = None):
+    def __init__(self, name: str, package: str | None, executable: str | None, *, params_files=(),
+                 params: dict | None = None, env: dict, log_dir: Path, node_name: str | None = None,
+                 command: list[str] | None = None):
+        """A ceco node ``package/executable`` with ROS arguments, or any ``command`` (a third-party
+        controller in any language: run as given, without ROS arguments)."""
         self.name = name
-        self.cmd = [find_executable(package, executable), '--ros-args']
-        if node_name:
-            self.cmd += ['-r', f'__node:={node_name}']
-        for f in params_files:
-            self.cmd += ['--params-file', str(f)]
-        for key, value in (params or {}).items():
-            self.cmd += ['-p', f'{key}:={_param_text(value)}']
+        if command is not None:
+            if not command:
+                raise ValueError(f'{name}: empty command')
+            self.cmd = list(command)
+        else:
+            self.cmd = [find_executable(package, executable), '--ros-args']
+            if node_name:
+                self.cmd += ['-r', f'__node:={node_name}']
+            for f in params_files:
+                self.cmd += ['--params-file', str(f)]
+            for key, value in (params or {}).items():
+                self.cmd += ['-p', f'{key}:={_param_text(value)}']
         self.env = env
         self.log_path = Path(log_dir) / f'{name}.log'
         self.proc: subprocess.Popen | None = None
