@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from ceco_plant_sim.acc_law import AccLaw, AccSettings
+from ceco_core.acc_law import AccLaw, AccSettings
 
 
 def test_pulldown_commands_max_cooling():

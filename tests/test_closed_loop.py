@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from ceco_controller import closed_loop as cl
-from ceco_controller.interface import DIAGNOSTICS_COLUMNS
-from ceco_controller.strategies import STRATEGIES
+from ceco_core.contracts import DIAGNOSTICS_COLUMNS
+from ceco_core.contracts import STRATEGIES
 from ceco_v2x_preview.preview import parse_quality
 
 SHORT = cl.SimSettings(duration_s=60.0, progress=False)

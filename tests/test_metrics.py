@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from ceco_plant_sim.metrics import (
+from ceco_core.metrics import (
     METRIC_KEYS,
     comparison_rows,
     comparison_table,

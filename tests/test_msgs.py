@@ -68,10 +68,3 @@ def test_definitions_parse_and_register_in_a_rosbags_typestore():
     assert names[:3] == ['header', 'step_index', 'control_period_s']
     assert 'blower_flow_kgps' in names and 'evap_setpoint_c' in names and 'fallback' in names
 
-
-def test_wire_strategy_names_equal_the_controller_strategies():
-    # ros_common sits below ceco_controller and keeps its own copy of the names.
-    from ceco_controller.strategies import STRATEGIES
-    from ceco_v2x_preview import ros_common
-    assert ros_common.STRATEGIES == STRATEGIES
-    assert ros_common.TIMING_MODES == ('lockstep', 'realtime')

@@ -4,7 +4,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ceco_controller.interface import ACTUATOR_LIMITS, Observation
+from ceco_core.contracts import ACTUATOR_LIMITS, Observation
 from ceco_controller.nmpc import NmpcController
 from ceco_controller.strategies import SolverSettings, resolve_auto, strategy_settings
 

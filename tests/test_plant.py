@@ -9,13 +9,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from ceco_core.contracts import AcInput
+from ceco_core.psychro import humidity_ratio, relative_humidity
 from ceco_plant_sim.plant import (
-    AcInput,
     CabinPlant,
     PlantOutputs,
     PlantState,
-    humidity_ratio,
-    relative_humidity,
     steady_cycle_at_load,
 )
 from ceco_plant_sim.plant_params import PlantParams

@@ -11,11 +11,10 @@ from ceco_plant_sim.refrigerant import (
     build_cycle_tables,
     direct_cycle_properties,
     solve_cycle,
-    water_saturation_table,
 )
 from ceco_plant_sim.plant_params import PlantParams
 from ceco_plant_sim.plant import _compressor_model, condenser_eps_c_wpk
-from ceco_plant_sim.units import c_to_k
+from ceco_core.units import c_to_k
 
 FLUID = "R1234yf"
 
@@ -64,13 +63,6 @@ def test_table_error_against_direct_coolprop(tab):
     for k in ("h_suc_jpkg", "h_liq_jpkg", "dh_evap_jpkg"):
         assert worst[k] < 1e-5, (k, worst[k])
     assert worst["dh_is_jpkg"] < 1e-3, worst["dh_is_jpkg"]
-
-
-def test_water_saturation_table():
-    t = water_saturation_table()
-    # ASHRAE Fundamentals 2017 ch. 1 table 3: 3.1699 kPa at 25 degC, 5.6291 kPa at 35 degC
-    assert t(25.0) == pytest.approx(3169.9, rel=1e-3)
-    assert t(35.0) == pytest.approx(5629.1, rel=1e-3)
 
 
 def _solve(tab, comp, n_rpm, t_wall=5.0, speed=0.0, guess=None):

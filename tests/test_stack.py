@@ -25,7 +25,7 @@ pytestmark = pytest.mark.stack
 rclpy = pytest.importorskip('rclpy', reason='stack tests need the sourced ROS 2 workspace')
 
 from ceco_bringup import bagio, supervisor  # noqa: E402
-from ceco_v2x_preview import ros_common as rc  # noqa: E402
+from ceco_ros import conversions, interfaces  # noqa: E402
 
 _DOMAIN_COUNTER = [0]
 
@@ -159,7 +159,7 @@ def _state_msg(k_plant: int, t_s: float, **override):
     m = CabinState(step_index=k_plant, scenario_time_s=t_s, t_cab_c=45.0, t_int_c=50.0, t_shell_c=55.0,
                    t_glass_c=55.0, t_evap_c=45.0, t_vent_c=45.0, rh_cab=0.2, t_amb_c=35.0, solar_wm2=800.0,
                    rh=0.4, speed_mps=10.0, mdot_bl_kgps=0.17, t_evap_sp_c=3.0)
-    m.header.stamp = rc.stamp_from_s(t_s if math.isfinite(t_s) else 0.0)
+    m.header.stamp = conversions.stamp_from_s(t_s if math.isfinite(t_s) else 0.0)
     for key, value in override.items():
         setattr(m, key, value)
     return m
@@ -193,20 +193,20 @@ def test_bad_input_rejected_nodes_keep_commanding(tmp_path):
     try:
         for p in procs:
             p.start()
-        pub_state = ta.node.create_publisher(CabinState, rc.TOPIC_STATE, rc.QOS_STATE)
-        pub_w = ta.node.create_publisher(WeatherPreview, rc.TOPIC_WEATHER, rc.QOS_PREVIEW)
-        pub_s = ta.node.create_publisher(TrafficPreview, rc.TOPIC_TRAFFIC, rc.QOS_PREVIEW)
-        cmds = ta.collect(AcCommand, rc.TOPIC_COMMAND, rc.QOS_COMMAND)
-        states_b = tb.collect(CabinState, rc.TOPIC_STATE, rc.QOS_STATE)
-        powers_b = tb.collect(AcPower, rc.TOPIC_POWER, rc.QOS_STATE)
-        pub_cmd = tb.node.create_publisher(AcCommand, rc.TOPIC_COMMAND, rc.QOS_COMMAND)
+        pub_state = ta.node.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
+        pub_w = ta.node.create_publisher(WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.QOS_PREVIEW)
+        pub_s = ta.node.create_publisher(TrafficPreview, interfaces.TOPIC_TRAFFIC, interfaces.QOS_PREVIEW)
+        cmds = ta.collect(AcCommand, interfaces.TOPIC_COMMAND, interfaces.QOS_COMMAND)
+        states_b = tb.collect(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
+        powers_b = tb.collect(AcPower, interfaces.TOPIC_POWER, interfaces.QOS_STATE)
+        pub_cmd = tb.node.create_publisher(AcCommand, interfaces.TOPIC_COMMAND, interfaces.QOS_COMMAND)
 
         # unknown strategy name: refuses to start, says why
         _wait_for(lambda: not bad.running() and bad.returncode() is not None, 120, 'mpc_bad to exit')
         assert bad.returncode() == 2
         assert "invalid parameter strategy='ceco-turbo': unknown strategy" in bad.log_text()
 
-        _wait_for(lambda: ta.node.count_publishers(rc.TOPIC_COMMAND) >= 1
+        _wait_for(lambda: ta.node.count_publishers(interfaces.TOPIC_COMMAND) >= 1
                   and pub_state.get_subscription_count() >= 2, 120, 'mpc_node and preview_node up')
         # --- controller and preview node: bad states
         pub_state.publish(_state_msg(0, 0.0, t_cab_c=math.nan))
@@ -416,7 +416,7 @@ def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
     (the lockstep test above kills mpc_node)."""
     from ceco_msgs.msg import AcPower
     tn, rec, log_dir, bag = _recording_peer(tmp_path)
-    powers = tn.collect(AcPower, rc.TOPIC_POWER, rc.QOS_STATE)
+    powers = tn.collect(AcPower, interfaces.TOPIC_POWER, interfaces.QOS_STATE)
     common = {'scenario': 'sc03', 'timing': 'realtime', 'control_period_s': 2.0}
     preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', tn.env, log_dir,
                     dict(common, horizon_steps=6, publish_period_s=2.0))

@@ -4,12 +4,15 @@ one load-averaged line, bad input is rejected, and the module imports without
 fastsim."""
 
 import math
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import ceco_core
 from ceco_bringup import vehicle_energy as ve
 
 
@@ -95,5 +98,5 @@ def test_import_without_fastsim():
             'from ceco_bringup import vehicle_energy as ve\n'
             'try:\n    ve.import_fastsim()\nexcept ve.FastsimMissingError as e:\n    print("MISSING", e)\n')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True,
-                         env={'PYTHONPATH': ve.__file__.rsplit('/ceco_bringup/', 1)[0]})
+                         env={'PYTHONPATH': os.pathsep.join(str(Path(m.__file__).parents[1]) for m in (ve, ceco_core))})
     assert 'MISSING' in out.stdout and 'requirements/analysis.txt' in out.stdout

@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ceco_plant_sim.plant import AcInput, CabinPlant, PlantState, steady_cycle_at_load
+from ceco_core.contracts import AcInput
+from ceco_plant_sim.plant import CabinPlant, PlantState, steady_cycle_at_load
 from ceco_plant_sim.plant_params import PlantParams
 from ceco_v2x_preview.scenario import Environment, load_scenario
 

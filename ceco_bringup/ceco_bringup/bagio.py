@@ -17,9 +17,7 @@ Public API:
 """
 from __future__ import annotations
 
-import csv
 import functools
-import math
 import os
 from io import StringIO
 from pathlib import Path
@@ -27,19 +25,15 @@ from typing import Iterable, Iterator
 
 import numpy as np
 
-TIMESERIES_COLUMNS = (
-    't_s', 't_cab_c', 't_int_c', 't_shell_c', 't_evap_c', 't_vent_c', 't_amb_c',
-    'solar_wm2', 'speed_mps', 'rh', 'mdot_bl_kgps', 't_evap_sp_c', 'p_comp_w',
-    'p_blower_w', 'q_evap_w', 'cop', 'pmv', 'ppd', 'pmv_lb', 'pmv_ub')
+from ceco_core import rundir
+from ceco_core.units import s_from_sec_nanosec
+from ceco_core.contracts import DIAGNOSTICS_CONTRACT_COLUMNS as DIAGNOSTICS_COLUMNS
+
+TIMESERIES_COLUMNS = rundir.TIMESERIES_COLUMNS
 """Columns of timeseries.csv (docs/architecture.md); extra columns follow."""
 
-TIMESERIES_EXTRA = ('t_glass_c', 'rh_cab', 'p_cond_fan_w', 'q_latent_w', 'comp_speed_rpm',
-                    'capacity_limited', 'step_index', 'fallback')
-
-DIAGNOSTICS_COLUMNS = (
-    'k', 't_s', 'status', 'success', 'iterations', 'solve_time_ms', 'cost_energy',
-    'cost_comfort', 'cost_ioch', 'eps_mean', 'fallback')
-"""Columns of diagnostics.csv (docs/architecture.md)."""
+TIMESERIES_EXTRA = rundir.TIMESERIES_EXTRA + ('step_index', 'fallback')
+"""The extras of a stack run: the simulator's, then the plant step index and the fallback flag."""
 
 BAG_VERSION = 9
 """rosbag2 metadata version written (Jazzy's rosbag2 writes 9)."""
@@ -216,10 +210,6 @@ def topic_counts(bag_dir) -> dict[str, int]:
         return out
 
 
-def _stamp_s(stamp) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
-
-
 def load_run_timeseries(bag_dir) -> dict[str, np.ndarray]:
     """One row per plant step n for which the bag holds the state at t_n, the
     comfort at t_n and the power (and applied command) over [t_n, t_n + dt). Columns: TIMESERIES_COLUMNS plus
@@ -258,7 +248,7 @@ def load_commands(bag_dir, topic: str = 'hvac/command') -> dict[str, np.ndarray]
     cols = {c: [] for c in ('k', 't_s', 'mdot_bl_kgps', 't_evap_sp_c', 'strategy', 'fallback', 't_recv_ns')}
     for _, t_ns, m in read_messages(bag_dir, (topic,)):
         cols['k'].append(m.step_index)
-        cols['t_s'].append(_stamp_s(m.header.stamp))
+        cols['t_s'].append(s_from_sec_nanosec(m.header.stamp.sec, m.header.stamp.nanosec))
         cols['mdot_bl_kgps'].append(m.blower_flow_kgps)
         cols['t_evap_sp_c'].append(m.evap_setpoint_c)
         cols['strategy'].append(m.strategy)
@@ -283,7 +273,7 @@ def load_diagnostics(bag_dir) -> dict[str, np.ndarray]:
     cols = {c: [] for c in DIAGNOSTICS_COLUMNS + ('strategy', 'fallback_reason')}
     for _, _, m in read_messages(bag_dir, ('controller/diagnostics',)):
         cols['k'].append(m.step_index)
-        cols['t_s'].append(_stamp_s(m.header.stamp))
+        cols['t_s'].append(s_from_sec_nanosec(m.header.stamp.sec, m.header.stamp.nanosec))
         cols['status'].append(m.status)
         cols['success'].append(m.success)
         cols['iterations'].append(m.iterations)
@@ -308,18 +298,10 @@ def load_diagnostics(bag_dir) -> dict[str, np.ndarray]:
     return out
 
 
-def _fmt(v) -> str:
-    if isinstance(v, (bool, np.bool_)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        return '' if not math.isfinite(v) else repr(float(v))
-    return str(v)
-
-
 def write_timeseries_csv(path, ts: dict[str, np.ndarray]) -> None:
     """timeseries.csv from load_run_timeseries' dict (columns in contract order)."""
     cols = list(TIMESERIES_COLUMNS) + [c for c in ts if c not in TIMESERIES_COLUMNS]
-    _write_csv(path, cols, ts)
+    rundir.write_csv(path, cols, ts)
 
 
 def write_diagnostics_csv(path, diag: dict[str, np.ndarray]) -> None:
@@ -328,13 +310,4 @@ def write_diagnostics_csv(path, diag: dict[str, np.ndarray]) -> None:
     it = diag['iterations']
     diag['iterations'] = np.asarray([('' if i < 0 else int(i)) for i in it], dtype=object)
     cols = list(DIAGNOSTICS_COLUMNS) + ['strategy', 'fallback_reason']
-    _write_csv(path, cols, diag)
-
-
-def _write_csv(path, cols, data) -> None:
-    n = len(next(iter(data.values()))) if data else 0
-    with open(path, 'w', newline='') as f:
-        w = csv.writer(f)
-        w.writerow(cols)
-        for i in range(n):
-            w.writerow([_fmt(data[c][i]) for c in cols])
+    rundir.write_csv(path, cols, diag)

@@ -34,7 +34,7 @@ def check(run_dir: Path, rtol: float) -> tuple[bool, str]:
 
     from ceco_bringup import bagio
     from ceco_controller.closed_loop import SimSettings, simulate
-    from ceco_plant_sim.metrics import compute_metrics
+    from ceco_core.metrics import compute_metrics
     from ceco_v2x_preview.preview import parse_quality
     m = json.loads((run_dir / 'metrics.json').read_text())
     bag = run_dir / 'bag'

@@ -23,7 +23,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 import numpy as np  # noqa: E402
 
-from ceco_controller.strategies import STRATEGIES  # noqa: E402
+from ceco_core.contracts import STRATEGIES  # noqa: E402
+from ceco_core.metrics import relative_change_pct  # noqa: E402
 
 __all__ = ['STRATEGY_ORDER', 'ordered', 'strategy_style', 'fig_pmv', 'fig_temperatures', 'fig_powers',
            'fig_inputs', 'fig_bars', 'fig_vehicle', 'fig_solver']
@@ -163,9 +164,10 @@ def fig_inputs(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
 
 def _bar_labels(ax, bars, values, base, fmt='{:+.1f} %'):
     for b, v in zip(bars, values):
-        if base is None or not math.isfinite(base) or base == 0 or not math.isfinite(v):
+        change = math.nan if base is None else relative_change_pct(v, base)
+        if not math.isfinite(change):
             continue
-        ax.annotate(fmt.format(100.0 * (v - base) / abs(base)), (b.get_x() + b.get_width() / 2, b.get_height()),
+        ax.annotate(fmt.format(change), (b.get_x() + b.get_width() / 2, b.get_height()),
                     ha='center', va='bottom', fontsize=7, xytext=(0, 2), textcoords='offset points')
 
 
@@ -187,8 +189,9 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
         tot = e_comp + e_bl
         base_tot = tot[names.index(baseline)] if baseline in names else None
         for xi, v in zip(x, tot):
-            if base_tot:
-                ax.annotate(f'{100 * (v - base_tot) / base_tot:+.1f} %', (xi, v), ha='center', va='bottom',
+            change = math.nan if base_tot is None else relative_change_pct(v, base_tot)
+            if math.isfinite(change):
+                ax.annotate(f'{change:+.1f} %', (xi, v), ha='center', va='bottom',
                             fontsize=7, xytext=(0, 2), textcoords='offset points')
         ax.set_ylabel('A/C energy E$_{tot}$ [kWh]')
         ax.set_ylim(0, tot.max() * 1.32)

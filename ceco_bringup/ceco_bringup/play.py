@@ -27,7 +27,7 @@ import threading
 import time
 from pathlib import Path
 
-from ceco_v2x_preview.control_grid import control_step_index
+from ceco_core.control_grid import control_step_index
 
 
 def build_parser():
@@ -88,10 +88,10 @@ def _publishers(node, types):
     from rclpy.qos import QoSProfile, ReliabilityPolicy
 
     from ceco_bringup.recorder import message_class
-    from ceco_v2x_preview import ros_common as rc
+    from ceco_ros import interfaces
     pubs = {}
     for topic, type_name in types.items():
-        qos = rc.STACK_TOPICS[topic][1] if topic in rc.STACK_TOPICS else \
+        qos = interfaces.STACK_TOPICS[topic][1] if topic in interfaces.STACK_TOPICS else \
             QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         pubs[topic] = node.create_publisher(message_class(type_name), topic, qos)
     return pubs
@@ -99,11 +99,11 @@ def _publishers(node, types):
 
 def play(args) -> int:
     import rclpy
-    from ceco_v2x_preview import ros_common as rc
+    from ceco_ros import interfaces
     from rosbags.rosbag2 import Reader
     with Reader(args.bag) as r:
         available = {c.topic for c in r.connections}
-    topics = set(args.topics) if args.topics else available - {rc.TOPIC_ROSOUT}
+    topics = set(args.topics) if args.topics else available - {interfaces.TOPIC_ROSOUT}
     context, node = _make_node('ceco_play', args.domain_id)
     n = 0
     try:
@@ -138,7 +138,7 @@ def compare(args) -> int:
 
     from ceco_bringup import bagio, supervisor
     from ceco_msgs.msg import AcCommand
-    from ceco_v2x_preview import ros_common as rc
+    from ceco_ros import interfaces
     info = _custom_data(args.bag)
     strategy = args.strategy or info.get('strategy')
     if not strategy:
@@ -161,7 +161,7 @@ def compare(args) -> int:
     proc = supervisor.NodeProcess(exe, 'ceco_controller', exe, env=env, log_dir=log_dir,
                                   params_files=[supervisor.share_file('ceco_controller', f'config/{exe}.yaml')],
                                   params=params)
-    inputs = {rc.TOPIC_STATE, rc.TOPIC_WEATHER, rc.TOPIC_TRAFFIC, rc.TOPIC_CLOCK}
+    inputs = {interfaces.TOPIC_STATE, interfaces.TOPIC_WEATHER, interfaces.TOPIC_TRAFFIC, interfaces.TOPIC_CLOCK}
     context, node = _make_node('ceco_play', domain)
     new = {}
     got = threading.Condition()
@@ -170,7 +170,7 @@ def compare(args) -> int:
         with got:
             new[int(msg.step_index)] = (msg.blower_flow_kgps, msg.evap_setpoint_c)
             got.notify_all()
-    node.create_subscription(AcCommand, rc.TOPIC_COMMAND, on_cmd, rc.QOS_COMMAND)
+    node.create_subscription(AcCommand, interfaces.TOPIC_COMMAND, on_cmd, interfaces.QOS_COMMAND)
     from rclpy.executors import SingleThreadedExecutor
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
@@ -187,7 +187,7 @@ def compare(args) -> int:
         gen = _raw_messages(args.bag, inputs)
         pubs = _publishers(node, next(gen))
         t0 = time.monotonic()
-        while pubs[rc.TOPIC_STATE].get_subscription_count() < 1 or node.count_publishers(rc.TOPIC_COMMAND) < 1:
+        while pubs[interfaces.TOPIC_STATE].get_subscription_count() < 1 or node.count_publishers(interfaces.TOPIC_COMMAND) < 1:
             if not proc.running():
                 print(f'ceco play: {exe} exited:\n{proc.log_text()[-2000:]}', file=sys.stderr)
                 return 1
@@ -202,21 +202,21 @@ def compare(args) -> int:
         from rclpy.serialization import deserialize_message
         steps: dict[int, dict] = {}
         for topic, _, raw in gen:
-            if topic == rc.TOPIC_STATE:
+            if topic == interfaces.TOPIC_STATE:
                 msg = deserialize_message(raw, CabinState)
                 k = int(msg.scenario_time_s // ts + 1e-9)
                 on_grid = control_step_index(msg.scenario_time_s, ts) is not None
                 steps.setdefault(k, {}).setdefault('states', []).append((not on_grid, msg.step_index, raw))
-            elif topic in (rc.TOPIC_WEATHER, rc.TOPIC_TRAFFIC):
+            elif topic in (interfaces.TOPIC_WEATHER, interfaces.TOPIC_TRAFFIC):
                 k = int(deserialize_message(raw, _cls(topic)).step_index)
                 steps.setdefault(k, {})[topic] = raw
-            elif topic == rc.TOPIC_CLOCK:
+            elif topic == interfaces.TOPIC_CLOCK:
                 pass  # the lockstep controller needs no clock; plain playback republishes it
         for k in sorted(steps):
             step = steps[k]
             for _, _, raw in sorted(step.get('states', []), key=lambda x: (x[0], x[1])):
-                pubs[rc.TOPIC_STATE].publish(raw)
-            for topic in (rc.TOPIC_WEATHER, rc.TOPIC_TRAFFIC):
+                pubs[interfaces.TOPIC_STATE].publish(raw)
+            for topic in (interfaces.TOPIC_WEATHER, interfaces.TOPIC_TRAFFIC):
                 if topic in step:
                     pubs[topic].publish(step[topic])
             if k in rec_by_k:
@@ -252,8 +252,8 @@ def compare(args) -> int:
 
 def _cls(topic):
     from ceco_msgs.msg import TrafficPreview, WeatherPreview
-    from ceco_v2x_preview import ros_common as rc
-    return WeatherPreview if topic == rc.TOPIC_WEATHER else TrafficPreview
+    from ceco_ros import interfaces
+    return WeatherPreview if topic == interfaces.TOPIC_WEATHER else TrafficPreview
 
 
 if __name__ == '__main__':

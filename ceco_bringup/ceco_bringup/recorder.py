@@ -22,7 +22,7 @@ from rclpy.serialization import deserialize_message
 
 from ceco_bringup.bagio import BagWriter
 from ceco_msgs.msg import AcPower
-from ceco_v2x_preview import ros_common as rc
+from ceco_ros import interfaces
 
 
 def message_class(type_name: str):
@@ -42,7 +42,7 @@ class Recorder(Node):
         for key, value in (custom_data or {}).items():
             self.writer._writer.set_custom_data(str(key), str(value))
         self._lock = threading.Lock()
-        self.topics = dict(rc.STACK_TOPICS if topics is None else topics)
+        self.topics = dict(interfaces.STACK_TOPICS if topics is None else topics)
         self.subs = {}
         for topic, (type_name, offered, qos) in self.topics.items():
             self.writer.add_topic(topic, type_name, offered)
@@ -61,10 +61,10 @@ class Recorder(Node):
                     return
                 self.writer.write(topic, time.time_ns(), data)
                 self.n_messages += 1
-                if topic == rc.TOPIC_POWER:
+                if topic == interfaces.TOPIC_POWER:
                     self.last_power_step = int(deserialize_message(data, AcPower).step_index)
                     self.last_power_wall = time.monotonic()
-                elif topic == rc.TOPIC_STATE and self.first_state_wall is None:
+                elif topic == interfaces.TOPIC_STATE and self.first_state_wall is None:
                     self.first_state_wall = time.monotonic()
         return cb
 

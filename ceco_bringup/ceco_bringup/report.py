@@ -6,7 +6,7 @@ or found one level below a ``--strategy all`` parent:
 1. Load the time series: from the rosbag2 bag alone when ``DIR/bag`` exists
    (``ceco_bringup.bagio.load_run_timeseries``), else from
    ``DIR/timeseries.csv``.
-2. Recompute the metrics with ``ceco_plant_sim.metrics.compute_metrics`` and
+2. Recompute the metrics with ``ceco_core.metrics.compute_metrics`` and
    check they equal ``DIR/metrics.json`` (relative tolerance ``--rtol``,
    NaN equals NaN). A mismatch is printed to stderr, shown as a red warning
    in the report, and makes the command exit with status 1.
@@ -35,6 +35,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ceco_bringup import figures
+from ceco_core.metrics import relative_change_pct
+from ceco_core.rundir import TIMESERIES_COLUMNS, read_csv_columns
 from ceco_bringup.report_html import Figure, Heading, Paragraph, Table, Warning, render_html, render_markdown
 
 __all__ = ['PAPER_AC_SAVING_PCT', 'TIMESERIES_COLUMNS', 'RunData', 'discover_runs', 'read_csv_columns',
@@ -42,11 +44,6 @@ __all__ = ['PAPER_AC_SAVING_PCT', 'TIMESERIES_COLUMNS', 'RunData', 'discover_run
 
 PAPER_AC_SAVING_PCT = {'ceco-e': -15.9, 'ceco-c': -4.1, 'ceco-ioch': -7.6}
 """A/C energy change against the baseline on SC03 [%] (paper, Sec. 5)."""
-
-TIMESERIES_COLUMNS = ('t_s', 't_cab_c', 't_int_c', 't_shell_c', 't_evap_c', 't_vent_c', 't_amb_c', 'solar_wm2',
-                      'speed_mps', 'rh', 'mdot_bl_kgps', 't_evap_sp_c', 'p_comp_w', 'p_blower_w', 'q_evap_w',
-                      'cop', 'pmv', 'ppd', 'pmv_lb', 'pmv_ub')
-"""Required columns of ``timeseries.csv`` (docs/architecture.md)."""
 
 _METRIC_INPUTS = ('t_s', 'p_comp_w', 'p_blower_w', 'pmv', 'pmv_lb', 'pmv_ub')
 
@@ -98,30 +95,6 @@ def discover_runs(paths: Sequence[str | Path]) -> list[Path]:
     return runs
 
 
-def read_csv_columns(path: str | Path) -> dict:
-    """A CSV file with a header row as ``{column: array}``: float arrays for
-    columns whose every non-empty cell parses as a number (empty -> NaN),
-    string arrays otherwise."""
-    with open(path, newline='', encoding='utf-8') as fh:
-        reader = csv.reader(fh)
-        try:
-            header = [h.strip() for h in next(reader)]
-        except StopIteration:
-            raise ValueError(f'{path}: empty file') from None
-        raw = [row for row in reader if row]
-    for i, row in enumerate(raw, start=2):
-        if len(row) != len(header):
-            raise ValueError(f'{path}: line {i}: {len(row)} cells for {len(header)} columns')
-    cols = {}
-    for j, name in enumerate(header):
-        cells = [r[j].strip() for r in raw]
-        try:
-            cols[name] = np.array([float(c) if c else np.nan for c in cells], dtype=float)
-        except ValueError:
-            cols[name] = np.array(cells, dtype=str)
-    return cols
-
-
 def csv_precision_digits(path: str | Path, columns: Sequence[str] = _METRIC_INPUTS[1:]) -> int:
     """Significant digits the writer of a CSV file used for ``columns``: the
     largest count found in any cell (``%g`` drops trailing zeros, so the
@@ -142,7 +115,7 @@ def recompute_metrics(columns: Mapping, count_aux: bool = False) -> dict:
     """``compute_metrics`` over the run's time series columns; with
     ``count_aux`` the condenser fan (column ``p_cond_fan_w``) is counted in
     ``E_tot`` as the other A/C auxiliary (``E_aux_J``)."""
-    from ceco_plant_sim.metrics import compute_metrics  # noqa: PLC0415
+    from ceco_core.metrics import compute_metrics  # noqa: PLC0415
 
     missing = [c for c in _METRIC_INPUTS if c not in columns]
     if count_aux and 'p_cond_fan_w' not in columns:
@@ -297,11 +270,7 @@ def _pct(x) -> str:
     return 'n/a' if math.isnan(x) else f'{x:+.1f} %'
 
 
-def _change(value, base) -> float:
-    value, base = float(value), float(base)
-    if math.isnan(value) or math.isnan(base) or base == 0:
-        return float('nan')
-    return 100.0 * (value - base) / abs(base)
+_change = relative_change_pct
 
 
 def _group(runs: Sequence[RunData]) -> dict:

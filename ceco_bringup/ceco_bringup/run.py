@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ceco_controller.strategies import STRATEGIES
-from ceco_v2x_preview.control_grid import TIMING_MODES
+from ceco_core.contracts import STRATEGIES
+from ceco_core.control_grid import TIMING_MODES
 
 
 class Interrupted(Exception):
@@ -114,7 +114,7 @@ def main(argv=None) -> int:
     finally:
         stop.restore()
     if len(rows) > 1:
-        from ceco_plant_sim.metrics import comparison_table
+        from ceco_core.metrics import comparison_table
         print()
         print(f'Scenario {scenario.name} over DDS ({args.timing}), {out}:')
         print(comparison_table(rows))
@@ -279,7 +279,7 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
     ts_data = bagio.load_run_timeseries(bag_dir)
     if ts_data['t_s'].size != n_plant:
         raise RuntimeError(f'bag holds {ts_data["t_s"].size} complete plant steps, expected {n_plant}')
-    from ceco_plant_sim.metrics import compute_metrics
+    from ceco_core.metrics import compute_metrics
     metrics = compute_metrics(ts_data['t_s'], ts_data['p_comp_w'], ts_data['p_blower_w'],
                               ts_data['pmv'], ts_data['pmv_lb'], ts_data['pmv_ub'])
     metrics.update({

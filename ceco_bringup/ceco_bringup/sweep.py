@@ -65,6 +65,8 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 import yaml
 
+from ceco_core.metrics import relative_change_pct
+
 __all__ = ['GridError', 'Cell', 'load_grid', 'expand_grid', 'scenario_dict', 'cell_id', 'code_fingerprint', 'run_cell',
            'read_done', 'run_sweep', 'summarize', 'vehicle_rows', 'verify_cells', 'main', 'AXES',
            'METRIC_COLUMNS', 'DEFAULT_SETTINGS', 'strategy_setting_overrides', 'runtime_overrides',
@@ -715,8 +717,7 @@ def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]
             row['n_seeds'] = len(by_key[(s, label)])
             row.update({f'{k}_mean': v for k, v in m.items()})
             for k in CHANGE_KEYS:
-                row[f'd{k}_pct'] = (100.0 * (m[k] - base[k]) / abs(base[k])
-                                    if base and base[k] not in (0.0,) and math.isfinite(base[k]) else float('nan'))
+                row[f'd{k}_pct'] = relative_change_pct(m[k], base[k]) if base else float('nan')
             out.append(row)
     return out
 

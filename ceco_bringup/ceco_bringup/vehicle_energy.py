@@ -49,6 +49,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from ceco_core.metrics import relative_change_pct
+
 __all__ = [
     'PRIUS', 'ZOE', 'PAPER_VEHICLE_SAVING_PCT', 'GASOLINE_J_PER_L',
     'VehicleEnergySettings', 'VehicleRun', 'FastsimMissingError',
@@ -339,8 +341,8 @@ def vehicle_energy_table(p_ac_mean_w: Mapping[str, float], time_s, speed_mps,
                 'n_soc_unbalanced': sum(r.soc_balance == 'corrected' for r in runs),
             }
             if base in e_fit and name != base:
-                row['saving_fit_pct'] = 100.0 * (e_fit[name] - e_fit[base]) / e_fit[base]
-                row['saving_direct_pct'] = 100.0 * (run.energy_j - direct[base].energy_j) / direct[base].energy_j
+                row['saving_fit_pct'] = relative_change_pct(e_fit[name], e_fit[base])
+                row['saving_direct_pct'] = relative_change_pct(run.energy_j, direct[base].energy_j)
             elif name == base:
                 row['saving_fit_pct'] = row['saving_direct_pct'] = 0.0
             dist_km = run.distance_m / 1e3

@@ -1,7 +1,7 @@
 """The baseline strategy: the production ACC law behind the common controller interface.
 
 The law itself (PI + anti-windup on T_cab vs 26 degC, demand mapped to the
-evaporator set-point and the blower curve) is :mod:`ceco_plant_sim.acc_law`:
+evaporator set-point and the blower curve) is :mod:`ceco_core.acc_law`:
 it is the vehicle ECU's code, which the plant side also uses as the fallback.
 This wrapper only converts an :class:`Observation` into its input and its
 output into ``(AcInput, Diagnostics)``. It uses no preview.
@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import math
 
-from ceco_plant_sim.acc_law import AccLaw, AccSettings
-from ceco_plant_sim.plant import AcInput
+from ceco_core.acc_law import AccLaw, AccSettings
+from ceco_core.contracts import AcInput
 
-from .interface import ACTUATOR_LIMITS, Diagnostics, Observation
+from ceco_core.contracts import ACTUATOR_LIMITS, Diagnostics, Observation
 
 __all__ = ["BaselineController"]
 

@@ -1,5 +1,5 @@
 """baseline_node: the production automatic climate control law (PI with
-anti-windup on the cabin air temperature, ceco_plant_sim.acc_law) as a node,
+anti-windup on the cabin air temperature, ceco_core.acc_law) as a node,
 with the same topics, timing modes and checks as mpc_node (it reuses its
 node class with the strategy fixed to ``baseline``; it uses no preview for
 its decisions but waits for them in lockstep so both nodes step alike).
@@ -7,7 +7,7 @@ its decisions but waits for them in lockstep so both nodes step alike).
 from __future__ import annotations
 
 from ceco_controller.mpc_node import ControllerNode
-from ceco_v2x_preview import ros_common as rc
+from ceco_ros.node_main import run_node
 
 
 class BaselineNode(ControllerNode):
@@ -16,7 +16,7 @@ class BaselineNode(ControllerNode):
 
 
 def main(args=None) -> int:
-    return rc.run_node(BaselineNode, args, 'baseline_node')
+    return run_node(BaselineNode, args, 'baseline_node')
 
 
 if __name__ == '__main__':

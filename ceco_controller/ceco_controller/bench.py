@@ -38,7 +38,6 @@ in-process functions, as MPCTools did.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 

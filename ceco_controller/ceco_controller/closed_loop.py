@@ -16,38 +16,30 @@ Writes a run directory per strategy (``timeseries.csv``, ``diagnostics.csv``,
 from __future__ import annotations
 
 import argparse
-import csv
 import dataclasses
-import json
 import math
 import pathlib
 import sys
 
 import numpy as np
 
-from ceco_plant_sim.metrics import compute_metrics, comparison_table
-from ceco_plant_sim.scenario_plant import ScenarioPlant, comfort_params_for, n_plant_steps, steps_per_control
+from ceco_core import rundir
+from ceco_core.metrics import compute_metrics, comparison_table
+from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
 from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews, parse_quality
 from ceco_v2x_preview.scenario import Scenario, load_scenario
 
 from . import model as cm
-from .baseline import BaselineController
-from .interface import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS
-from .nmpc import NmpcController
+from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS
+from .factory import make_controller
 from .observation import observation
-from .strategies import STRATEGIES, load_strategy_settings
+from .strategies import STRATEGIES
 
-__all__ = ["SimSettings", "RunResult", "simulate", "make_controller", "comfort_params_for",
+__all__ = ["SimSettings", "RunResult", "simulate", "make_controller",
            "write_run", "main", "TIMESERIES_COLUMNS", "DIAGNOSTICS_CSV_COLUMNS"]
 
-TIMESERIES_COLUMNS = (
-    "t_s", "t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c", "t_amb_c", "solar_wm2",
-    "speed_mps", "rh", "mdot_bl_kgps", "t_evap_sp_c", "p_comp_w", "p_blower_w", "q_evap_w",
-    "cop", "pmv", "ppd", "pmv_lb", "pmv_ub",
-    # extras
-    "t_glass_c", "rh_cab", "p_cond_fan_w", "q_latent_w", "comp_speed_rpm", "capacity_limited",
-)
-"""Columns of ``timeseries.csv``: the architecture contract's first, then extras."""
+TIMESERIES_COLUMNS = rundir.TIMESERIES_COLUMNS + rundir.TIMESERIES_EXTRA
+"""Columns of the simulator's ``timeseries.csv``: the contract's (``ceco_core.rundir``), then extras."""
 
 DIAGNOSTICS_CSV_COLUMNS = DIAGNOSTICS_COLUMNS + ("pmv_pred", "t_cab_pred_c")
 """Columns of ``diagnostics.csv``: :data:`DIAGNOSTICS_COLUMNS`, then the predicted PMV [-] and T_cab [degC]
@@ -106,21 +98,6 @@ class RunResult:
     diag_objects: list
     """The Diagnostics objects (with predicted trajectories)."""
     metrics: dict
-
-
-def make_controller(strategy: str, scenario: Scenario, control_period_s: float, horizon_steps: int,
-                    model_params: cm.ControlModelParams | None = None, overrides: dict | None = None,
-                    config_path: str | None = None):
-    """Build the controller of a strategy for a scenario.
-
-    NMPC settings: the controller file (``config_path``, default the package's
-    ``config/controller.yaml``), then ``horizon_steps``/``control_period_s``, then ``overrides``.
-    """
-    if strategy == "baseline":
-        return BaselineController(control_period_s=control_period_s)
-    settings = load_strategy_settings(strategy, config_path, horizon_steps=horizon_steps,
-                                      control_period_s=control_period_s, **(overrides or {}))
-    return NmpcController(settings, model_params=model_params, comfort_params=comfort_params_for(scenario))
 
 
 def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | None = None,
@@ -213,12 +190,6 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
                      diag_objects=diag_objs, metrics=metrics)
 
 
-def _fmt(v):
-    if isinstance(v, (float, np.floating)):
-        return "" if not math.isfinite(v) else repr(float(v))
-    return v
-
-
 def _joined(a) -> str:
     """A predicted trajectory as ``;``-joined numbers (empty if there is none)."""
     if a is None:
@@ -228,30 +199,18 @@ def _joined(a) -> str:
 
 
 def write_run(result: RunResult, run_dir: str | pathlib.Path) -> pathlib.Path:
-    """Write ``timeseries.csv``, ``diagnostics.csv`` and ``metrics.json`` into ``run_dir``."""
+    """Write ``timeseries.csv``, ``diagnostics.csv`` and ``metrics.json`` into ``run_dir`` (``ceco_core.rundir``)."""
     d = pathlib.Path(run_dir)
     d.mkdir(parents=True, exist_ok=True)
-    with open(d / "timeseries.csv", "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(TIMESERIES_COLUMNS)
-        cols = [result.timeseries[c] for c in TIMESERIES_COLUMNS]
-        for row in zip(*cols):
-            # repr: round-trip precision, so metrics recomputed from the CSV
-            # equal metrics.json (ceco report checks them).
-            w.writerow([_fmt(v) for v in row])
+    rundir.write_csv(d / "timeseries.csv", TIMESERIES_COLUMNS, result.timeseries)
     objs = list(getattr(result, "diag_objects", None) or [])
     if len(objs) != len(result.diagnostics):
         objs = [None] * len(result.diagnostics)
-    with open(d / "diagnostics.csv", "w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, fieldnames=DIAGNOSTICS_CSV_COLUMNS)
-        w.writeheader()
-        for r, o in zip(result.diagnostics, objs):
-            row = {k: _fmt(v) for k, v in r.items()}
-            row["pmv_pred"] = _joined(getattr(o, "pred_pmv", None))
-            row["t_cab_pred_c"] = _joined(getattr(o, "pred_t_cab_c", None))
-            w.writerow(row)
-    metrics = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in result.metrics.items()}
-    (d / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+    rows = {c: [r.get(c, "") for r in result.diagnostics] for c in DIAGNOSTICS_COLUMNS}
+    rows["pmv_pred"] = [_joined(getattr(o, "pred_pmv", None)) for o in objs]
+    rows["t_cab_pred_c"] = [_joined(getattr(o, "pred_t_cab_c", None)) for o in objs]
+    rundir.write_csv(d / "diagnostics.csv", DIAGNOSTICS_CSV_COLUMNS, rows)
+    rundir.write_metrics_json(d / "metrics.json", result.metrics)
     return d
 
 

@@ -159,7 +159,8 @@ _PRECOOLED = {"t_cab_c": 27.0, "t_int_c": 38.0, "t_shell_c": 36.0, "t_evap_c": 1
 def generate_excitation(drives=TRAIN_DRIVES, settings: ExcitationSettings = ExcitationSettings(),
                         seed_offset: int = 0) -> dict:
     """Simulate the plant under multi-level random input steps; return 1 s series (SERIES_COLUMNS)."""
-    from ceco_plant_sim.plant import AcInput, CabinPlant, PlantState
+    from ceco_core.contracts import AcInput
+    from ceco_plant_sim.plant import CabinPlant, PlantState
     from ceco_plant_sim.plant_params import PlantParams
     from ceco_v2x_preview.scenario import load_scenario
 

@@ -2,7 +2,7 @@
 the compressor and blower power models and the efficiency multiplier eta_AC(V).
 
 Written once; every function evaluates numpy arrays (broadcasting) and CasADi
-symbols alike (``ceco_plant_sim.mathops.backend``), so the closed-loop
+symbols alike (``ceco_core.mathops.backend``), so the closed-loop
 simulator, the identification and the NMPC share the same equations.
 
 Temperatures are in degC here (the paper writes kelvin; eqs. (1)-(3) are
@@ -47,7 +47,7 @@ import pathlib
 import numpy as np
 import yaml
 
-from ceco_plant_sim.mathops import backend, softplus
+from ceco_core.mathops import backend, softplus
 
 __all__ = [
     "ControlModelParams",

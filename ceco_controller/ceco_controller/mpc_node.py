@@ -17,8 +17,8 @@ Timing (parameter ``timing``):
 
 Glue only: the observation is built by the same core function as in the
 closed-loop simulator (``ceco_controller.observation.observation``, from the
-messages via ``msg_conv.previews``), and the same core object
-(``ceco_controller.closed_loop.make_controller``) computes the command.
+messages via ``conversions.previews``), and the same core object
+(``ceco_controller.factory.make_controller``) computes the command.
 """
 from __future__ import annotations
 
@@ -30,16 +30,15 @@ import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
-from ceco_controller import msg_conv
 from ceco_controller.observation import observation
-from ceco_controller.strategies import CECO_STRATEGIES
+from ceco_core.contracts import CECO_STRATEGIES, AcInput
+from ceco_core.control_grid import control_step_index
 from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficPreview, WeatherPreview
-from ceco_plant_sim.plant import AcInput
-from ceco_plant_sim.scenario_plant import MEASUREMENTS
-from ceco_v2x_preview import ros_common as rc
-from ceco_v2x_preview.control_grid import control_step_index
+from ceco_ros import conversions, interfaces, params
+from ceco_ros.node_main import run_node
+from ceco_v2x_preview.scenario import load_scenario_param
 
-TIMING_MODES = rc.TIMING_MODES
+TIMING_MODES = interfaces.TIMING_MODES
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,7 +78,7 @@ class ControllerNode(Node):
         super().__init__(node_name)
         self.config = self._read_config(fixed_strategy)
         cfg = self.config
-        self.scenario = rc.load_scenario_param(cfg.scenario)
+        self.scenario = load_scenario_param(cfg.scenario)
         self.core = make_core(cfg.strategy, self.scenario, cfg.control_period_s, cfg.horizon_steps,
                               cfg.controller_config or None)
         self.n_grid = cfg.horizon_steps + 1
@@ -92,11 +91,11 @@ class ControllerNode(Node):
         self._latest_state = None
         self._k_rt = 0
         # publishers/subscriptions last: once they are discovered the node is ready
-        self._pub_cmd = self.create_publisher(AcCommand, rc.TOPIC_COMMAND, rc.QOS_COMMAND)
-        self._pub_diag = self.create_publisher(ControllerDiagnostics, rc.TOPIC_DIAGNOSTICS, rc.QOS_COMMAND)
-        self.create_subscription(CabinState, rc.TOPIC_STATE, self._on_state, rc.QOS_STATE)
-        self.create_subscription(WeatherPreview, rc.TOPIC_WEATHER, self._on_weather, rc.QOS_PREVIEW)
-        self.create_subscription(TrafficPreview, rc.TOPIC_TRAFFIC, self._on_traffic, rc.QOS_PREVIEW)
+        self._pub_cmd = self.create_publisher(AcCommand, interfaces.TOPIC_COMMAND, interfaces.QOS_COMMAND)
+        self._pub_diag = self.create_publisher(ControllerDiagnostics, interfaces.TOPIC_DIAGNOSTICS, interfaces.QOS_COMMAND)
+        self.create_subscription(CabinState, interfaces.TOPIC_STATE, self._on_state, interfaces.QOS_STATE)
+        self.create_subscription(WeatherPreview, interfaces.TOPIC_WEATHER, self._on_weather, interfaces.QOS_PREVIEW)
+        self.create_subscription(TrafficPreview, interfaces.TOPIC_TRAFFIC, self._on_traffic, interfaces.QOS_PREVIEW)
         if cfg.timing == 'lockstep':
             self._steady = Clock(clock_type=ClockType.STEADY_TIME)
             self.create_timer(0.05, self._on_watchdog, clock=self._steady)
@@ -106,7 +105,7 @@ class ControllerNode(Node):
                                f'timing {cfg.timing}, scenario {self.scenario.name}')
 
     def _read_config(self, fixed_strategy) -> ControllerNodeConfig:
-        d = rc.declare
+        d = params.declare
         if fixed_strategy is None:
             strategy = d(self, 'strategy', 'ceco-ioch',
                          'CECO strategy: ceco (general), ceco-e (energy), ceco-c (comfort), '
@@ -137,7 +136,7 @@ class ControllerNode(Node):
 
     # ---------------------------------------------------------------- inputs
     def _on_state(self, msg: CabinState) -> None:
-        err = msg_conv.check_state(msg)
+        err = conversions.check_state(msg)
         if err:
             self.get_logger().error(f'rejected cabin/state step {msg.step_index}: {err}')
             return
@@ -208,7 +207,7 @@ class ControllerNode(Node):
         s = self._latest_state
         if s is None:
             return
-        age = (self.get_clock().now().nanoseconds * 1e-9) - msg_conv.stamp_s(s.header.stamp)
+        age = (self.get_clock().now().nanoseconds * 1e-9) - conversions.s_from_stamp(s.header.stamp)
         if age > self.config.max_state_age_s:
             self.get_logger().warn(f'rejected cabin/state step {s.step_index}: stale ({age:.1f} s old)')
             return
@@ -220,28 +219,28 @@ class ControllerNode(Node):
         ts = self.config.control_period_s
         t_s = state.scenario_time_s  # n * dt, exactly the simulator's t
         if w is not None and s is not None:
-            err = msg_conv.check_previews(w, s, self.n_grid, ts)
+            err = conversions.check_previews(w, s, self.n_grid, ts)
             if err:
                 self.get_logger().error(f'rejected previews for step {k}: {err}')
                 w = s = None
         if w is not None and s is not None and self.config.timing == 'realtime':
-            aligned = msg_conv.align_previews(w, s, t_s, ts)
+            aligned = conversions.align_previews(w, s, t_s, ts)
             if aligned is None:
-                self.get_logger().warn(f'previews starting at {msg_conv.stamp_s(w.start):.1f} s do not cover '
+                self.get_logger().warn(f'previews starting at {conversions.s_from_stamp(w.start):.1f} s do not cover '
                                        f't = {t_s:.1f} s: solving without previews')
             w, s = aligned if aligned is not None else (None, None)
         if w is None or s is None:
-            w, s = _empty_previews(self.n_grid, ts)
+            w, s = conversions.empty_previews(self.n_grid, ts)
         # the previous command: the plant's (key-on command) until this node has commanded
         prev = self._prev_cmd or AcInput(mdot_bl_kgps=state.mdot_bl_kgps, t_evap_sp_c=state.t_evap_sp_c)
-        meas = {f: getattr(state, f) for f in MEASUREMENTS}
-        obs = observation(k, t_s, meas, state, prev, msg_conv.previews(w, s, t_s, ts), self.scenario)
+        meas = conversions.state_measurements(state)
+        obs = observation(k, t_s, meas, state, prev, conversions.previews(w, s, t_s, ts), self.scenario)
         cmd, diag = self.core.compute(obs)
         self._prev_cmd = cmd
         stamp = state.header.stamp
         fallback = bool(diag.fallback)
-        self._pub_cmd.publish(msg_conv.command_msg(cmd, k, stamp, ts, self.config.strategy, fallback))
-        self._pub_diag.publish(msg_conv.diagnostics_msg(diag, stamp, self.config.strategy, ts))
+        self._pub_cmd.publish(conversions.command_msg(cmd, k, stamp, ts, self.config.strategy, fallback))
+        self._pub_diag.publish(conversions.diagnostics_msg(diag, stamp, self.config.strategy, ts))
         if fallback:
             self.get_logger().warn(f'step {k}: fallback {diag.fallback}: {diag.message}')
         self._last_k = max(self._last_k, k)
@@ -250,23 +249,16 @@ class ControllerNode(Node):
                 del store[old]
 
 
-def _empty_previews(n: int, step_s: float):
-    nan = [math.nan] * n
-    w = WeatherPreview(step_s=step_s, t_amb_c=nan, solar_wm2=nan, rh=nan, valid=[False] * n)
-    s = TrafficPreview(step_s=step_s, speed_mps=nan, valid=[False] * n)
-    return w, s
-
-
 def make_core(strategy: str, scenario, control_period_s: float, horizon_steps: int,
               config_path: str | None = None):
     """The controller core, built as the closed-loop simulator builds it."""
-    from ceco_controller import closed_loop
-    return closed_loop.make_controller(strategy, scenario, control_period_s=control_period_s,
+    from ceco_controller import factory
+    return factory.make_controller(strategy, scenario, control_period_s=control_period_s,
                                        horizon_steps=horizon_steps, config_path=config_path)
 
 
 def main(args=None) -> int:
-    return rc.run_node(ControllerNode, args, 'mpc_node')
+    return run_node(ControllerNode, args, 'mpc_node')
 
 
 if __name__ == '__main__':

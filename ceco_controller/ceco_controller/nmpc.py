@@ -47,12 +47,12 @@ import time
 import casadi
 import numpy as np
 
-from ceco_plant_sim.acc_law import AccLaw, AccSettings
-from ceco_plant_sim.comfort import ComfortParams, cabin_pmv
-from ceco_plant_sim.plant import AcInput
+from ceco_core.acc_law import AccLaw, AccSettings
+from ceco_core.comfort import ComfortParams, cabin_pmv
+from ceco_core.contracts import AcInput
 
 from . import model as cm
-from .interface import ACTUATOR_LIMITS, Diagnostics, Observation
+from ceco_core.contracts import ACTUATOR_LIMITS, Diagnostics, Observation
 from .strategies import StrategySettings, auto_solver_name, resolve_auto, strategy_settings
 
 __all__ = ["NmpcController", "NlpData", "codegen_cache_dir", "compile_nlp"]

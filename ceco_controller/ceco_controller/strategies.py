@@ -4,7 +4,7 @@ Strategies (Wang et al., DSCC 2019, Sec. 3; docs/controller.md writes every
 NLP out):
 
 * ``baseline``  production automatic climate control (PI + anti-windup on
-  T_cab vs 26 degC), :mod:`ceco_plant_sim.acc_law`.
+  T_cab vs 26 degC), :mod:`ceco_core.acc_law`.
 * ``ceco``      the general CECO problem: least A/C energy subject to the model,
   the PMV comfort zone, T_evap and actuator bounds. It is the paper's
   eq. (11) *made robust*: the upper PMV bound is backed off by
@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+
+from ceco_core.contracts import CECO_STRATEGIES, STRATEGIES
 
 __all__ = ["StrategySettings", "SolverSettings", "STRATEGIES", "CECO_STRATEGIES",
            "strategy_settings", "resolved_transcription", "resolve_auto", "auto_solver_name",
@@ -221,12 +223,6 @@ class StrategySettings:
                              "when a failed SQP/fatrop solve is retried by IPOPT (ipopt_fallback)")
         self.solver.validate()
 
-
-CECO_STRATEGIES = ("ceco", "ceco-e", "ceco-c", "ceco-ioch")
-"""Names of the NMPC strategies."""
-
-STRATEGIES = ("baseline",) + CECO_STRATEGIES
-"""Every strategy, baseline first."""
 
 _DEFAULTS = {
     "ceco": dict(pmv_margin=0.1),

@@ -33,69 +33,26 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
-from ceco_plant_sim.plant_params import (
-    MDOT_BL_MAX_KGPS,
-    MDOT_BL_MIN_KGPS,
-    T_EVAP_SP_MAX_C,
-    T_EVAP_SP_MIN_C,
-    PlantParams,
-)
+from ceco_core.contracts import AcInput
+from ceco_core.psychro import EPS_W as _EPS_W
+from ceco_core.psychro import humidity_ratio, relative_humidity, saturation_vapour_pressure_pa
+from ceco_core.contracts import check_finite as _check_finite
+from ceco_plant_sim.plant_params import PlantParams
 from ceco_plant_sim.refrigerant import (
     CompressorModel,
     CycleSolution,
     build_cycle_tables,
     solve_cycle,
-    water_saturation_table,
 )
 
 __all__ = [
-    "AcInput",
     "PlantState",
     "PlantOutputs",
     "CabinPlant",
     "validate_environment",
-    "humidity_ratio",
-    "relative_humidity",
     "condenser_eps_c_wpk",
     "steady_cycle_at_load",
 ]
-
-_EPS_W = 0.621945
-"""Ratio of molar masses water/dry air [-] (ASHRAE Fundamentals 2017 ch. 1, eq. 22)."""
-
-
-def _check_finite(name: str, value) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{name}: must be finite, got {value!r}")
-    return v
-
-
-@dataclass(frozen=True)
-class AcInput:
-    """Supervisory command to the A/C, held over one plant step."""
-
-    mdot_bl_kgps: float
-    """Blower (supply) air mass flow [kg/s], in [0.05, 0.17]."""
-    t_evap_sp_c: float
-    """Evaporator wall temperature set-point [degC], in [3, 10]."""
-
-    def __post_init__(self) -> None:
-        self.validate()
-
-    def validate(self) -> AcInput:
-        """Raise ValueError naming the field if it is not finite or outside the actuator bounds."""
-        m = _check_finite("mdot_bl_kgps", self.mdot_bl_kgps)
-        if not MDOT_BL_MIN_KGPS <= m <= MDOT_BL_MAX_KGPS:
-            raise ValueError(f"mdot_bl_kgps: must be in [{MDOT_BL_MIN_KGPS}, {MDOT_BL_MAX_KGPS}] kg/s, got {m}")
-        t = _check_finite("t_evap_sp_c", self.t_evap_sp_c)
-        if not T_EVAP_SP_MIN_C <= t <= T_EVAP_SP_MAX_C:
-            raise ValueError(f"t_evap_sp_c: must be in [{T_EVAP_SP_MIN_C}, {T_EVAP_SP_MAX_C}] degC, got {t}")
-        return self
-
 
 _ENV_RANGES = {
     "t_amb_c": (-40.0, 60.0),
@@ -121,22 +78,6 @@ def validate_environment(env) -> tuple[float, float, float, float]:
             raise ValueError(f"env.{name}: must be in [{lo}, {hi}], got {v}")
         out.append(v)
     return out[0], out[1], out[2], out[3]
-
-
-def humidity_ratio(t_c: float, rh: float, p_atm_pa: float = 101325.0) -> float:
-    """Humidity ratio [kg water / kg dry air] of moist air at t_c [degC] and relative humidity rh [0..1].
-
-    W = 0.621945 p_w / (p - p_w), p_w = rh * p_ws(t) (ASHRAE Fundamentals 2017 ch. 1, eqs. 20, 22);
-    p_ws from CoolProp (IAPWS-95), tabulated.
-    """
-    p_w = rh * water_saturation_table()(t_c)
-    return _EPS_W * p_w / (p_atm_pa - p_w)
-
-
-def relative_humidity(t_c: float, w_kgkg: float, p_atm_pa: float = 101325.0) -> float:
-    """Relative humidity [0..1] of moist air at t_c [degC] and humidity ratio w [kg/kg] (inverse of humidity_ratio)."""
-    p_w = p_atm_pa * w_kgkg / (_EPS_W + w_kgkg)
-    return p_w / water_saturation_table()(t_c)
 
 
 @dataclass(frozen=True)
@@ -354,7 +295,6 @@ class CabinPlant:
         self.params = params.validate()
         self._x = state.validate().as_tuple()
         self._tab = _tables(params)
-        self._wsat = water_saturation_table()
         self._comp = _compressor_model(params)
         self._guess: tuple[float, float] | None = None
         self._t_s = 0.0
@@ -493,7 +433,7 @@ class CabinPlant:
         mdot, t_sp, p_bl = u
         t_amb, solar, speed, rh_amb = envt
         cp_a = p.cp_air_jpkgk
-        wsat = self._wsat
+        wsat = saturation_vapour_pressure_pa
         patm = p.p_atm_pa
 
         # ambient humidity ratio

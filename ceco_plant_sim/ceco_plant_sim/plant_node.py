@@ -15,7 +15,7 @@ Timing (parameter ``timing``):
   it advances Ts / dt plant steps. A command for any other step is rejected
   as stale/future, so no step is lost or duplicated however slow a process
   is. If no command arrives within ``lockstep.command_timeout_s`` (wall
-  clock), the plant applies the production ACC law (ceco_plant_sim.acc_law)
+  clock), the plant applies the production ACC law (ceco_core.acc_law)
   for that control period, logs it, and keeps waiting for commands at every
   following step, so a restarted controller takes over again.
 * ``realtime``: a timer every dt on the node clock steps the plant with the
@@ -31,15 +31,16 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 
+from ceco_core.acc_law import AccLaw
+from ceco_core.comfort import iso7730_validity
+from ceco_core.contracts import AcInput
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort
-from ceco_plant_sim import msg_conv
-from ceco_plant_sim.acc_law import AccLaw
-from ceco_plant_sim.comfort import iso7730_validity
-from ceco_plant_sim.plant import AcInput
 from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
-from ceco_v2x_preview import ros_common as rc
+from ceco_ros import conversions, interfaces, params
+from ceco_ros.node_main import run_node
+from ceco_v2x_preview.scenario import load_scenario_param
 
-TIMING_MODES = rc.TIMING_MODES
+TIMING_MODES = interfaces.TIMING_MODES
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,7 +83,7 @@ class PlantNode(Node):
     def __init__(self):
         super().__init__('plant_node')
         cfg = self.config = self._read_config()
-        self.scenario = sc = rc.load_scenario_param(cfg.scenario)
+        self.scenario = sc = load_scenario_param(cfg.scenario)
         self.sp = ScenarioPlant(sc, cfg.plant_dt_s)
         self.dt = cfg.plant_dt_s
         self.m = steps_per_control(cfg.control_period_s, cfg.plant_dt_s)
@@ -97,11 +98,11 @@ class PlantNode(Node):
         self._latest_cmd = None      # realtime: (AcInput, strategy, receipt time [s])
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._wait_start = None
-        self.pub_state = self.create_publisher(CabinState, rc.TOPIC_STATE, rc.QOS_STATE)
-        self.pub_comfort = self.create_publisher(Comfort, rc.TOPIC_COMFORT, rc.QOS_STATE)
-        self.pub_power = self.create_publisher(AcPower, rc.TOPIC_POWER, rc.QOS_STATE)
-        self.pub_clock = self.create_publisher(ClockMsg, rc.TOPIC_CLOCK, rc.QOS_CLOCK)
-        self.sub_cmd = self.create_subscription(AcCommand, rc.TOPIC_COMMAND, self._on_command, rc.QOS_COMMAND)
+        self.pub_state = self.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
+        self.pub_comfort = self.create_publisher(Comfort, interfaces.TOPIC_COMFORT, interfaces.QOS_STATE)
+        self.pub_power = self.create_publisher(AcPower, interfaces.TOPIC_POWER, interfaces.QOS_STATE)
+        self.pub_clock = self.create_publisher(ClockMsg, interfaces.TOPIC_CLOCK, interfaces.QOS_CLOCK)
+        self.sub_cmd = self.create_subscription(AcCommand, interfaces.TOPIC_COMMAND, self._on_command, interfaces.QOS_COMMAND)
         if cfg.timing == 'lockstep':
             self.create_timer(0.02, self._on_watchdog, clock=self._steady)
         else:
@@ -110,7 +111,7 @@ class PlantNode(Node):
                                f'Ts {cfg.control_period_s} s, timing {cfg.timing}')
 
     def _read_config(self) -> PlantNodeConfig:
-        d = rc.declare
+        d = params.declare
         cfg = PlantNodeConfig(
             scenario=d(self, 'scenario', 'sc03', 'scenario name or YAML path (environment, initial state, '
                        'occupant, PMV bounds)'),
@@ -150,7 +151,7 @@ class PlantNode(Node):
 
     def _stamp(self, n: int):
         if self.config.timing == 'lockstep':
-            return rc.stamp_from_s(self._t(n))
+            return conversions.stamp_from_s(self._t(n))
         return self.get_clock().now().to_msg()
 
     def _publish_state(self) -> None:
@@ -159,7 +160,7 @@ class PlantNode(Node):
         stamp = self._stamp(n)
         if self.config.timing == 'lockstep':
             self.pub_clock.publish(ClockMsg(clock=stamp))
-        self.pub_state.publish(msg_conv.state_msg(n, t, stamp, self.sp.meas, self.scenario.env_at(t),
+        self.pub_state.publish(conversions.state_msg(n, t, stamp, self.sp.meas, self.scenario.env_at(t),
                                                   self.sp.cmd, self.in_fallback))
 
     def _plant_step(self, u: AcInput, fallback: bool) -> None:
@@ -173,9 +174,9 @@ class PlantNode(Node):
         valid = bool(iso7730_validity(c.air_temperature_c(meas['t_cab_c'], meas['t_vent_c']), meas['t_int_c'],
                                       c.air_speed_mps(u.mdot_bl_kgps), c.pa_pa if c.pa_pa is not None else 0.0,
                                       c.met, c.clo, r.pmv).all)
-        self.pub_comfort.publish(msg_conv.comfort_msg(r.n, stamp, r.pmv, r.ppd, r.pmv_lb, r.pmv_ub, meas, u,
+        self.pub_comfort.publish(conversions.comfort_msg(r.n, stamp, r.pmv, r.ppd, r.pmv_lb, r.pmv_ub, meas, u,
                                                       r.env.solar_wm2, c.met, c.clo, valid))
-        self.pub_power.publish(msg_conv.power_msg(r.n, stamp, self.dt, u, out, self.e_comp_j,
+        self.pub_power.publish(conversions.power_msg(r.n, stamp, self.dt, u, out, self.e_comp_j,
                                                   self.e_blower_j, fallback))
 
     def _finish(self) -> None:
@@ -217,7 +218,7 @@ class PlantNode(Node):
         outs = (self.pub_comfort, self.pub_power, self.pub_clock)
         if any(p.get_subscription_count() < cfg.min_output_subscribers for p in outs):
             return False
-        if self.count_subscribers(rc.TOPIC_COMMAND) < cfg.min_command_subscribers:
+        if self.count_subscribers(interfaces.TOPIC_COMMAND) < cfg.min_command_subscribers:
             return False
         return self.sub_cmd.get_publisher_count() >= 1 or cfg.min_state_subscribers == 0
 
@@ -240,7 +241,7 @@ class PlantNode(Node):
 
     def _on_command(self, msg: AcCommand) -> None:
         try:
-            u = msg_conv.command_input(msg)
+            u = conversions.command_input(msg)
         except ValueError as err:
             self.get_logger().error(f'rejected hvac/command step {msg.step_index}: {err}')
             return
@@ -288,7 +289,7 @@ class PlantNode(Node):
 
 
 def main(args=None) -> int:
-    return rc.run_node(PlantNode, args, 'plant_node')
+    return run_node(PlantNode, args, 'plant_node')
 
 
 if __name__ == '__main__':

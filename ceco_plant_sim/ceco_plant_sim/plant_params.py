@@ -12,17 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-__all__ = ["PlantParams", "MDOT_BL_MIN_KGPS", "MDOT_BL_MAX_KGPS", "T_EVAP_SP_MIN_C", "T_EVAP_SP_MAX_C"]
-
-MDOT_BL_MIN_KGPS = 0.05
-"""Lower actuator bound of the blower air flow [kg/s] (method paper, eq. 13)."""
-MDOT_BL_MAX_KGPS = 0.17
-"""Upper actuator bound of the blower air flow [kg/s] (method paper, eq. 13)."""
-T_EVAP_SP_MIN_C = 3.0
-"""Lower bound of the evaporator wall temperature set-point [degC] (method paper, eq. 13)."""
-T_EVAP_SP_MAX_C = 10.0
-"""Upper bound of the evaporator wall temperature set-point [degC] (method paper, eq. 13)."""
-
+__all__ = ["PlantParams"]
 
 @dataclass(frozen=True)
 class PlantParams:

@@ -41,14 +41,13 @@ from dataclasses import dataclass
 import CoolProp.CoolProp as CP
 import numpy as np
 
-from ceco_plant_sim.units import c_to_k
+from ceco_core.units import c_to_k
 
 __all__ = [
     "CycleTables",
     "CompressorModel",
     "CycleSolution",
     "build_cycle_tables",
-    "water_saturation_table",
     "direct_cycle_properties",
     "solve_cycle",
 ]
@@ -258,18 +257,6 @@ def build_cycle_tables(
         te_range_c=(float(te_min_c), float(te_max_c)),
         tc_range_c=(float(tc_min_c), float(tc_max_c)),
     )
-
-
-@functools.lru_cache(maxsize=2)
-def water_saturation_table(t_min_c: float = 0.5, t_max_c: float = 95.0, step_k: float = 0.5) -> _Table1D:
-    """Saturation pressure of water over liquid [Pa] vs temperature [degC] (CoolProp IAPWS-95), tabulated.
-
-    Below ``t_min_c`` the table extrapolates linearly (a coil below 0 degC
-    would frost; the plant keeps the wall above 0 degC in normal operation).
-    """
-    t = _grid(t_min_c, t_max_c, step_k)
-    p = [CP.PropsSI("P", "T", c_to_k(float(x)), "Q", 0.0, "Water") for x in t]
-    return _Table1D(t[0], step_k, p)
 
 
 @dataclass(frozen=True)

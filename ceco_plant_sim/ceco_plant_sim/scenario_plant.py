@@ -25,24 +25,17 @@ import math
 
 from ceco_v2x_preview.scenario import Scenario
 
-from .comfort import ComfortParams, cabin_pmv, ppd
-from .plant import AcInput, CabinPlant, PlantOutputs, PlantState
-from .plant_params import MDOT_BL_MAX_KGPS, T_EVAP_SP_MIN_C, PlantParams
+from ceco_core.comfort import cabin_pmv, comfort_params_for, ppd
+from ceco_core.contracts import MDOT_BL_MAX_KGPS, MEASUREMENTS, T_EVAP_SP_MIN_C, AcInput
+
+from .plant import CabinPlant, PlantOutputs, PlantState
+from .plant_params import PlantParams
 
 __all__ = ["MEASUREMENTS", "KEY_ON_COMMAND", "comfort_params_for", "steps_per_control", "n_plant_steps",
            "PlantStepRecord", "ScenarioPlant"]
 
-MEASUREMENTS = ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c", "t_vent_c", "rh_cab")
-"""Keys of the measurement mapping [degC, rh_cab in 0..1] that the plant hands to a controller
-(``ScenarioPlant.meas``; the fields of ceco_msgs/CabinState)."""
-
 KEY_ON_COMMAND = AcInput(mdot_bl_kgps=MDOT_BL_MAX_KGPS, t_evap_sp_c=T_EVAP_SP_MIN_C)
 """The command taken as "previous" at key-on: pull-down (0.17 kg/s, 3 degC)."""
-
-
-def comfort_params_for(scenario: Scenario) -> ComfortParams:
-    """Comfort parameters with the scenario's occupant (met [met], clo [clo]); p_a = 1700 Pa (paper)."""
-    return ComfortParams(met=scenario.occupant.met, clo=scenario.occupant.clo)
 
 
 def steps_per_control(control_period_s: float, plant_dt_s: float) -> int:

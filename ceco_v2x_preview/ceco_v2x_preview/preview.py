@@ -52,6 +52,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ceco_core.contracts import PREVIEW_QUANTITIES, Previews
 from ceco_v2x_preview.scenario import Scenario
 
 __all__ = [
@@ -70,7 +71,7 @@ MISSING_POLICIES = ("hold_last", "drop")
 _NOISE_GRID_S = 1.0
 """Lead-time resolution of the simulated forecast error [s]."""
 
-_QUANTITIES = ("t_amb_c", "solar_wm2", "speed_mps", "rh")
+_QUANTITIES = PREVIEW_QUANTITIES
 """Previewed quantities, in the order used as the noise stream index."""
 
 _KEYS = {"t_amb": "noise_std_t_amb_c", "solar": "noise_std_solar_wm2",
@@ -180,64 +181,6 @@ DEFAULT_NOISE = {"noise_std_t_amb_c": 0.5, "noise_std_solar_wm2": 50.0, "noise_s
 """Noise used by ``parse_quality('noisy')`` (at the 30 s reference lead):
 illustrative values for a short-range V2X forecast (docs/scenarios.md), not
 measured forecast statistics."""
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class Previews:
-    """What the controller receives at ``t0_s``: values on ``t0_s + i*step_s``.
-
-    Entries that are not available are NaN in every array and False in
-    ``valid``.
-    """
-
-    t0_s: float
-    """Time of the first sample (the time the preview is used) [s]."""
-    step_s: float
-    """Sample spacing [s]."""
-    t_amb_c: np.ndarray
-    """Forecast ambient temperature [degC]."""
-    solar_wm2: np.ndarray
-    """Forecast solar irradiance [W/m2]."""
-    speed_mps: np.ndarray
-    """Forecast vehicle speed [m/s]."""
-    rh: np.ndarray
-    """Forecast ambient relative humidity [-]."""
-    valid: np.ndarray
-    """Per-sample availability (bool)."""
-    age_s: float
-    """Age of the forecast used (t0_s - issue time) [s]; inf if none was received."""
-    issued_s: float
-    """Issue time of the forecast used [s]; NaN if none was received."""
-
-    @property
-    def n(self) -> int:
-        """Number of samples."""
-        return int(self.valid.size)
-
-    @property
-    def t_s(self) -> np.ndarray:
-        """Sample times [s]."""
-        return self.t0_s + self.step_s * np.arange(self.n, dtype=float)
-
-    @property
-    def trusted_steps(self) -> int:
-        """Number of leading valid samples (the usable horizon)."""
-        bad = np.flatnonzero(~self.valid)
-        return int(bad[0]) if bad.size else self.n
-
-    def hold_filled(self) -> "Previews":
-        """A copy in which invalid samples after the trusted part repeat the
-        last valid sample (``valid`` is unchanged, so the caller still knows).
-        If no sample is valid the arrays stay NaN."""
-        k = self.trusted_steps
-        if k == 0 or k == self.n:
-            return self
-        arrays = {}
-        for q in _QUANTITIES:
-            a = np.array(getattr(self, q))
-            a[k:] = a[k - 1]
-            arrays[q] = a
-        return dataclasses.replace(self, **arrays)
 
 
 def make_previews(scenario: Scenario, t0_s: float, step_s: float, n: int,

@@ -21,12 +21,14 @@ import math
 
 from rclpy.node import Node
 
+from ceco_core.control_grid import control_step_index
 from ceco_msgs.msg import CabinState, TrafficPreview, WeatherPreview
-from ceco_v2x_preview import ros_common as rc
-from ceco_v2x_preview.control_grid import control_step_index
-from ceco_v2x_preview.preview import Previews, PreviewQuality, make_previews
+from ceco_ros import conversions, interfaces, params
+from ceco_ros.node_main import run_node
+from ceco_v2x_preview.preview import PreviewQuality, make_previews
+from ceco_v2x_preview.scenario import load_scenario_param
 
-TIMING_MODES = rc.TIMING_MODES
+TIMING_MODES = interfaces.TIMING_MODES
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,44 +54,17 @@ class PreviewNodeConfig:
         self.quality.validate()
 
 
-def previews_to_msgs(p: Previews, k: int, stamp, quality_text: str) -> tuple[WeatherPreview, TrafficPreview]:
-    """Core Previews -> (WeatherPreview, TrafficPreview) messages (same grid)."""
-    start = rc.stamp_from_s(p.t0_s)
-    age_s = float(p.age_s) if math.isfinite(p.age_s) else -1.0
-    w = WeatherPreview()
-    w.header.stamp = stamp
-    w.start = start
-    w.step_s = float(p.step_s)
-    w.step_index = int(k)
-    w.t_amb_c = [float(x) for x in p.t_amb_c]
-    w.solar_wm2 = [float(x) for x in p.solar_wm2]
-    w.rh = [float(x) for x in p.rh]
-    w.valid = [bool(x) for x in p.valid]
-    w.age_s = age_s
-    w.quality = quality_text
-    s = TrafficPreview()
-    s.header.stamp = stamp
-    s.start = start
-    s.step_s = float(p.step_s)
-    s.step_index = int(k)
-    s.speed_mps = [float(x) for x in p.speed_mps]
-    s.valid = [bool(x) for x in p.valid]
-    s.age_s = age_s
-    s.quality = quality_text
-    return w, s
-
-
 class PreviewNode(Node):
     """Publishes v2x/weather_preview and v2x/traffic_preview."""
 
     def __init__(self):
         super().__init__('preview_node')
         self.config = self._read_config()
-        self.scenario = rc.load_scenario_param(self.config.scenario)
+        self.scenario = load_scenario_param(self.config.scenario)
         self.quality_text = self.config.quality.describe()
-        self._pub_w = self.create_publisher(WeatherPreview, rc.TOPIC_WEATHER, rc.QOS_PREVIEW)
-        self._pub_s = self.create_publisher(TrafficPreview, rc.TOPIC_TRAFFIC, rc.QOS_PREVIEW)
-        self.create_subscription(CabinState, rc.TOPIC_STATE, self._on_state, rc.QOS_STATE)
+        self._pub_w = self.create_publisher(WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.QOS_PREVIEW)
+        self._pub_s = self.create_publisher(TrafficPreview, interfaces.TOPIC_TRAFFIC, interfaces.QOS_PREVIEW)
+        self.create_subscription(CabinState, interfaces.TOPIC_STATE, self._on_state, interfaces.QOS_STATE)
         self._last_k = -1
         self._latest_t_s = None
         if self.config.timing == 'realtime':
@@ -99,7 +74,7 @@ class PreviewNode(Node):
             f'{self.config.horizon_steps + 1} x {self.config.control_period_s} s, quality {self.quality_text}')
 
     def _read_config(self) -> PreviewNodeConfig:
-        d = rc.declare
+        d = params.declare
         scenario = d(self, 'scenario', 'sc03', 'scenario name (bundled) or path of a scenario YAML file')
         timing = d(self, 'timing', 'lockstep', 'lockstep (accelerated simulation, driven by cabin/state) '
                    'or realtime (timer on the node clock)', choices=TIMING_MODES)
@@ -183,14 +158,14 @@ class PreviewNode(Node):
         except ValueError as err:
             self.get_logger().error(f'no preview for t={t0_s} s: {err}')
             return
-        w, s = previews_to_msgs(p, k, stamp, self.quality_text)
+        w, s = conversions.previews_to_msgs(p, k, stamp, self.quality_text)
         self._pub_w.publish(w)
         self._pub_s.publish(s)
         self._last_k = max(self._last_k, k)
 
 
 def main(args=None) -> int:
-    return rc.run_node(PreviewNode, args, 'preview_node')
+    return run_node(PreviewNode, args, 'preview_node')
 
 
 if __name__ == '__main__':

@@ -21,16 +21,32 @@ Pure Python (numpy, pyyaml); no ROS import.
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import os
+from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
-from collections.abc import Mapping
-from typing import Any
 
 import numpy as np
 import yaml
+from ceco_core.scenario_types import (
+    INITIAL_FIELDS,
+    PMV_BOUND_RANGE,
+    SOLAR_RANGE_WM2,
+    SPEED_MAX_MPS,
+    T_AMB_RANGE_C,
+    T_STATE_RANGE_C,
+    ControlDefaults,
+    DriveCycle,
+    Environment,
+    InitialState,
+    Occupant,
+    Scenario,
+    ScenarioError,
+    WeatherPreview,
+    check_number,
+)
+
+from ceco_core import psychro, units
 
 __all__ = [
     "ScenarioError",
@@ -42,6 +58,7 @@ __all__ = [
     "DriveCycle",
     "Scenario",
     "load_scenario",
+    "load_scenario_param",
     "list_scenarios",
     "list_drive_cycles",
     "load_drive_cycle",
@@ -49,175 +66,6 @@ __all__ = [
     "describe",
     "main",
 ]
-
-_MPH_TO_MPS = 0.44704
-"""1 mile/h in m/s (exact). Kept here so this package does not import
-ceco_plant_sim (dependencies point the other way); equals
-``ceco_plant_sim.units.mph_to_mps(1.0)``."""
-
-# Accepted ranges for scenario values (inclusive unless noted). Chosen to catch
-# typos and unit mix-ups (degF for degC, % for fractions), not to restrict
-# physics: the wider climate envelope a vehicle HVAC is tested in.
-_T_AMB_RANGE_C = (-40.0, 60.0)
-"""Ambient air temperature: the range of automotive climate testing."""
-_SOLAR_RANGE_WM2 = (0.0, 1400.0)
-"""Global irradiance: 0 to just above the solar constant (1361 W/m2)."""
-_T_STATE_RANGE_C = (-40.0, 120.0)
-"""Initial plant temperatures: sun-soaked dashboards reach about 100 degC."""
-_MET_RANGE = (0.0, 4.0)
-"""Metabolic rate [met], lower bound exclusive; 4 met is ISO 7730's top."""
-_CLO_RANGE = (0.0, 2.0)
-"""Clothing insulation [clo]; ISO 7730 validity range 0..2 clo."""
-_PMV_BOUND_RANGE = (-10.0, 10.0)
-"""PMV bounds: the scale is -3..+3 but a relaxed pull-down bound may exceed it."""
-_SPEED_MAX_MPS = 70.0
-"""Drive-cycle speed sanity limit (252 km/h)."""
-
-
-class ScenarioError(ValueError):
-    """An invalid scenario file or drive cycle; the message names the field."""
-
-
-@dataclasses.dataclass(frozen=True)
-class Environment:
-    """Boundary conditions of the cabin at one time (or a vector of times).
-
-    Fields are floats from :meth:`Scenario.env_at` with a scalar time, numpy
-    arrays of the time array's shape otherwise.
-    """
-
-    t_amb_c: Any
-    """Ambient (outdoor) air temperature [degC]."""
-    solar_wm2: Any
-    """Solar irradiance on the vehicle [W/m2], >= 0."""
-    speed_mps: Any
-    """Vehicle speed [m/s], >= 0."""
-    rh: Any
-    """Ambient relative humidity [-], fraction 0..1."""
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class WeatherPreview:
-    """Weather sampled on a uniform grid ``t_s = t0_s + i*step_s``, i = 0..n-1."""
-
-    t_s: np.ndarray
-    """Sample times [s]."""
-    t_amb_c: np.ndarray
-    """Ambient air temperature [degC]."""
-    solar_wm2: np.ndarray
-    """Solar irradiance [W/m2]."""
-    rh: np.ndarray
-    """Ambient relative humidity [-], 0..1."""
-
-
-@dataclasses.dataclass(frozen=True)
-class Occupant:
-    """The occupant whose comfort is evaluated."""
-
-    met: float = 1.2
-    """Metabolic rate [met] (1 met = 58.15 W/m2), 0 < met <= 4."""
-    clo: float = 0.5
-    """Clothing insulation [clo] (1 clo = 0.155 m2K/W), 0..2."""
-
-    def validate(self) -> None:
-        """Raise ScenarioError naming the first bad field."""
-        _check_number("occupant.met", self.met, _MET_RANGE, low_open=True)
-        _check_number("occupant.clo", self.clo, _CLO_RANGE)
-
-
-@dataclasses.dataclass(frozen=True)
-class InitialState(Mapping):
-    """Plant temperatures at ``t_s = 0`` (the end of the hot soak).
-
-    Also a read-only mapping field name -> value (``initial["t_cab_c"]``,
-    ``"t_glass_c" in initial``, ``dict(initial)``), so plant code can take it
-    or a plain dict alike.
-
-    Defaults when a field is omitted from the file (documented in
-    docs/scenarios.md): ``t_int_c``, ``t_shell_c``, ``t_glass_c`` and
-    ``t_evap_c`` = ``t_cab_c`` (the interior, the body, the glazing and the
-    HVAC module soak with the cabin air); ``rh_cab`` from the ambient vapour
-    pressure at ``t_cab_c`` (a closed car keeps the outdoor moisture content).
-    """
-
-    t_cab_c: float
-    """Cabin air temperature [degC]."""
-    t_int_c: float
-    """Cabin interior mass (seats, dashboard, trim) temperature [degC]."""
-    t_shell_c: float
-    """Cabin shell (roof, body panels) temperature [degC]."""
-    t_glass_c: float
-    """Glazing temperature [degC]."""
-    t_evap_c: float
-    """Evaporator wall temperature [degC]."""
-    rh_cab: float
-    """Cabin air relative humidity [-], 0..1."""
-
-    def validate(self) -> None:
-        """Raise ScenarioError naming the first bad field."""
-        for name in _TEMPERATURE_FIELDS:
-            _check_number(f"initial.{name}", getattr(self, name), _T_STATE_RANGE_C)
-        _check_number("initial.rh_cab", self.rh_cab, (0.0, 1.0))
-
-    def __getitem__(self, key: str) -> float:
-        if key not in _INITIAL_FIELDS:
-            raise KeyError(key)
-        return getattr(self, key)
-
-    def __iter__(self):
-        return iter(_INITIAL_FIELDS)
-
-    def __len__(self) -> int:
-        return len(_INITIAL_FIELDS)
-
-
-_TEMPERATURE_FIELDS = ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c")
-_INITIAL_FIELDS = (*_TEMPERATURE_FIELDS, "rh_cab")
-
-
-@dataclasses.dataclass(frozen=True)
-class ControlDefaults:
-    """Controller timing suggested by the scenario (controllers may override)."""
-
-    control_period_s: float = 5.0
-    """Control period Ts [s] (the paper: 5 s), > 0."""
-    horizon_steps: int = 6
-    """Prediction horizon Np [steps] (the paper: 6), >= 1."""
-
-    def validate(self) -> None:
-        """Raise ScenarioError naming the first bad field."""
-        _check_number("control.control_period_s", self.control_period_s, (0.0, 3600.0), low_open=True)
-        if isinstance(self.horizon_steps, bool) or not isinstance(self.horizon_steps, (int, np.integer)):
-            raise ScenarioError(f"control.horizon_steps: must be an integer, got {self.horizon_steps!r}")
-        if not 1 <= self.horizon_steps <= 1000:
-            raise ScenarioError(f"control.horizon_steps: must be in 1..1000, got {self.horizon_steps}")
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class DriveCycle:
-    """A speed trace: strictly increasing times and non-negative speeds."""
-
-    name: str
-    """Bundled name or the CSV path it was read from."""
-    time_s: np.ndarray
-    """Sample times [s], strictly increasing, starting at 0."""
-    speed_mps: np.ndarray
-    """Vehicle speed [m/s], >= 0."""
-
-    @property
-    def duration_s(self) -> float:
-        """Time of the last sample [s]."""
-        return float(self.time_s[-1])
-
-    @property
-    def distance_m(self) -> float:
-        """Distance driven [m], trapezoidal integral of the (linear) trace.
-
-        Written out rather than ``np.trapezoid`` so it also runs on numpy 1.26
-        (the ROS apt image, docker/)."""
-        v, t = self.speed_mps, self.time_s
-        return float(0.5 * np.sum((v[1:] + v[:-1]) * np.diff(t)))
-
 
 def _data_dir(kind: str):
     return resources.files("ceco_v2x_preview").joinpath("data", kind)
@@ -266,9 +114,9 @@ def _parse_cycle_csv(text: str, name: str) -> DriveCycle:
         raise ScenarioError(f"drive_cycle: {name}: time_s must start at 0, got {time_s[0]}")
     if np.any(np.diff(time_s) <= 0.0):
         raise ScenarioError(f"drive_cycle: {name}: time_s must be strictly increasing")
-    speed_mps = speed * _MPH_TO_MPS if header[1] == "speed_mph" else speed
-    if np.any(speed_mps < 0.0) or np.any(speed_mps > _SPEED_MAX_MPS):
-        raise ScenarioError(f"drive_cycle: {name}: {header[1]} must be within 0..{_SPEED_MAX_MPS} m/s")
+    speed_mps = units.mph_to_mps(speed) if header[1] == "speed_mph" else speed
+    if np.any(speed_mps < 0.0) or np.any(speed_mps > SPEED_MAX_MPS):
+        raise ScenarioError(f"drive_cycle: {name}: {header[1]} must be within 0..{SPEED_MAX_MPS} m/s")
     time_s.setflags(write=False)
     speed_mps.setflags(write=False)
     return DriveCycle(name=name, time_s=time_s, speed_mps=speed_mps)
@@ -294,19 +142,6 @@ def load_drive_cycle(name_or_path: str | os.PathLike, base_dir: str | os.PathLik
     return _parse_cycle_csv(path.read_text(encoding="utf-8"), str(path))
 
 
-def _check_number(field: str, value, bounds, low_open: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ScenarioError(f"{field}: must be a number, got {value!r}")
-    x = float(value)
-    if not math.isfinite(x):
-        raise ScenarioError(f"{field}: must be finite, got {value!r}")
-    lo, hi = bounds
-    if (x <= lo if low_open else x < lo) or x > hi:
-        op = "<" if low_open else "<="
-        raise ScenarioError(f"{field}: must satisfy {lo} {op} value <= {hi}, got {x}")
-    return x
-
-
 def _series(section: str, block: Mapping, key: str, n: int | None, bounds) -> np.ndarray:
     field = f"{section}.{key}"
     if key not in block:
@@ -316,7 +151,7 @@ def _series(section: str, block: Mapping, key: str, n: int | None, bounds) -> np
         raw = [raw] * n  # a constant written as one number
     if not isinstance(raw, (list, tuple)):
         raise ScenarioError(f"{field}: must be a list of numbers (or one number), got {raw!r}")
-    vals = [_check_number(f"{field}[{i}]", v, bounds) for i, v in enumerate(raw)]
+    vals = [check_number(f"{field}[{i}]", v, bounds) for i, v in enumerate(raw)]
     if n is not None and len(vals) != n:
         raise ScenarioError(f"{field}: length {len(vals)} differs from {section}.time_s length {n}")
     arr = np.asarray(vals, dtype=float)
@@ -352,121 +187,6 @@ def _reject_unknown(section: str, block: Mapping, allowed) -> None:
         raise ScenarioError(f"{section}.{extra[0]}: unknown field (allowed: {sorted(allowed)})")
 
 
-def _saturation_pressure_pa(t_c: float) -> float:
-    """Water saturation pressure [Pa], Magnus form (Alduchov & Eskridge 1996),
-    within 0.4 % of IAPWS over -40..60 degC; used only for the rh_cab default."""
-    return 610.94 * math.exp(17.625 * t_c / (t_c + 243.04))
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class Scenario:
-    """A validated scenario. Build with :func:`load_scenario`."""
-
-    name: str
-    """Scenario name."""
-    description: str
-    """Free text."""
-    drive_cycle: DriveCycle
-    """The speed trace."""
-    duration_s: float
-    """Run length [s] (defaults to the cycle's)."""
-    weather_time_s: np.ndarray
-    """Weather knots [s]."""
-    weather_t_amb_c: np.ndarray
-    """Ambient temperature at the knots [degC]."""
-    weather_solar_wm2: np.ndarray
-    """Solar irradiance at the knots [W/m2]."""
-    weather_rh: np.ndarray
-    """Ambient relative humidity at the knots [-]."""
-    occupant: Occupant
-    """Occupant metabolic rate and clothing."""
-    bounds_time_s: np.ndarray
-    """Comfort-bound knots [s]."""
-    bounds_pmv_lb: np.ndarray
-    """Lower PMV bound at the knots [-]."""
-    bounds_pmv_ub: np.ndarray
-    """Upper PMV bound at the knots [-]."""
-    initial: InitialState
-    """Plant temperatures at t = 0."""
-    control: ControlDefaults = ControlDefaults()
-    """Suggested control period and horizon."""
-    seed: int = 0
-    """Seed for everything random in a run (preview noise)."""
-    source: str = ""
-    """Where the scenario was loaded from (bundled name or file path)."""
-
-    # ------------------------------------------------------------------ truth
-    def _check_t(self, t_s):
-        t = np.asarray(t_s, dtype=float)
-        if np.any(~np.isfinite(t)):
-            raise ValueError("t_s: must be finite")
-        if np.any(t < 0.0):
-            raise ValueError(f"t_s: must be >= 0, got min {float(np.min(t))}")
-        return t
-
-    def _out(self, t_s, arr):
-        return float(arr) if np.ndim(t_s) == 0 else arr
-
-    def speed_mps(self, t_s):
-        """Vehicle speed [m/s] at ``t_s`` (scalar or array): linear
-        interpolation of the cycle, holding the last value after its end."""
-        t = self._check_t(t_s)
-        v = np.interp(t, self.drive_cycle.time_s, self.drive_cycle.speed_mps)
-        return self._out(t_s, v)
-
-    def env_at(self, t_s) -> Environment:
-        """The true boundary conditions at ``t_s`` [s] (scalar -> floats,
-        array -> arrays of the same shape)."""
-        t = self._check_t(t_s)
-        wt = self.weather_time_s
-        return Environment(
-            t_amb_c=self._out(t_s, np.interp(t, wt, self.weather_t_amb_c)),
-            solar_wm2=self._out(t_s, np.interp(t, wt, self.weather_solar_wm2)),
-            speed_mps=self._out(t_s, np.interp(t, self.drive_cycle.time_s, self.drive_cycle.speed_mps)),
-            rh=self._out(t_s, np.interp(t, wt, self.weather_rh)),
-        )
-
-    def env_series(self, t_s) -> Environment:
-        """Vectorised :meth:`env_at`: always returns arrays (1-D at least)."""
-        return self.env_at(np.atleast_1d(np.asarray(t_s, dtype=float)))
-
-    @staticmethod
-    def _grid(t0_s: float, step_s: float, n: int) -> np.ndarray:
-        if not (math.isfinite(t0_s) and t0_s >= 0.0):
-            raise ValueError(f"t0_s: must be finite and >= 0, got {t0_s}")
-        if not (math.isfinite(step_s) and step_s > 0.0):
-            raise ValueError(f"step_s: must be finite and > 0, got {step_s}")
-        if isinstance(n, bool) or int(n) != n or n < 1:
-            raise ValueError(f"n: must be an integer >= 1, got {n}")
-        return t0_s + step_s * np.arange(int(n), dtype=float)
-
-    def weather_preview(self, t0_s: float, step_s: float, n: int) -> WeatherPreview:
-        """True weather at ``t0_s + i*step_s``, i = 0..n-1 (a perfect forecast).
-
-        Noisy, delayed or missing forecasts: :mod:`ceco_v2x_preview.preview`.
-        """
-        t = self._grid(t0_s, step_s, n)
-        env = self.env_at(t)
-        return WeatherPreview(t_s=t, t_amb_c=env.t_amb_c, solar_wm2=env.solar_wm2, rh=env.rh)
-
-    def speed_preview(self, t0_s: float, step_s: float, n: int) -> np.ndarray:
-        """True vehicle speed [m/s] at ``t0_s + i*step_s``, i = 0..n-1."""
-        return self.speed_mps(self._grid(t0_s, step_s, n))
-
-    def pmv_bounds(self, t_s):
-        """(lower, upper) PMV bounds at ``t_s`` (scalar -> floats, array -> arrays)."""
-        t = self._check_t(t_s)
-        lb = np.interp(t, self.bounds_time_s, self.bounds_pmv_lb)
-        ub = np.interp(t, self.bounds_time_s, self.bounds_pmv_ub)
-        return self._out(t_s, lb), self._out(t_s, ub)
-
-    def time_grid(self, dt_s: float = 1.0) -> np.ndarray:
-        """Sample times ``0, dt, 2dt, ... < duration_s`` of a run [s]."""
-        if not (math.isfinite(dt_s) and dt_s > 0.0):
-            raise ValueError(f"dt_s: must be finite and > 0, got {dt_s}")
-        return dt_s * np.arange(int(math.floor(self.duration_s / dt_s + 1e-9)), dtype=float)
-
-
 def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.PathLike | None = None) -> Scenario:
     """Validate a parsed scenario mapping and build a :class:`Scenario`.
 
@@ -490,13 +210,13 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
 
     duration_s = cycle.duration_s
     if data.get("duration_s") is not None:
-        duration_s = _check_number("duration_s", data["duration_s"], (0.0, 1.0e6), low_open=True)
+        duration_s = check_number("duration_s", data["duration_s"], (0.0, 1.0e6), low_open=True)
 
     weather = _section(data, "weather")
     _reject_unknown("weather", weather, {"time_s", "t_amb_c", "solar_wm2", "rh"})
     wt = _time_grid("weather", weather)
-    t_amb = _series("weather", weather, "t_amb_c", wt.size, _T_AMB_RANGE_C)
-    solar = _series("weather", weather, "solar_wm2", wt.size, _SOLAR_RANGE_WM2)
+    t_amb = _series("weather", weather, "t_amb_c", wt.size, T_AMB_RANGE_C)
+    solar = _series("weather", weather, "solar_wm2", wt.size, SOLAR_RANGE_WM2)
     rh = _series("weather", weather, "rh", wt.size, (0.0, 1.0))
 
     occ_block = _section(data, "occupant")
@@ -511,25 +231,25 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
     cb = _section(data, "comfort_bounds")
     _reject_unknown("comfort_bounds", cb, {"time_s", "pmv_lb", "pmv_ub"})
     bt = _time_grid("comfort_bounds", cb)
-    lb = _series("comfort_bounds", cb, "pmv_lb", bt.size, _PMV_BOUND_RANGE)
-    ub = _series("comfort_bounds", cb, "pmv_ub", bt.size, _PMV_BOUND_RANGE)
+    lb = _series("comfort_bounds", cb, "pmv_lb", bt.size, PMV_BOUND_RANGE)
+    ub = _series("comfort_bounds", cb, "pmv_ub", bt.size, PMV_BOUND_RANGE)
     bad = np.flatnonzero(lb > ub)
     if bad.size:
         i = int(bad[0])
         raise ScenarioError(f"comfort_bounds.pmv_lb[{i}]: {lb[i]} exceeds pmv_ub[{i}] = {ub[i]}")
 
     ini = _section(data, "initial")
-    _reject_unknown("initial", ini, set(_INITIAL_FIELDS))
+    _reject_unknown("initial", ini, set(INITIAL_FIELDS))
     if "t_cab_c" not in ini:
         raise ScenarioError("initial.t_cab_c: missing")
-    t_cab = _check_number("initial.t_cab_c", ini["t_cab_c"], _T_STATE_RANGE_C)
+    t_cab = check_number("initial.t_cab_c", ini["t_cab_c"], T_STATE_RANGE_C)
     if "rh_cab" in ini:
         rh_cab = ini["rh_cab"]
     else:  # same vapour pressure as the ambient air at t = 0
-        p_v_pa = float(rh[0]) * _saturation_pressure_pa(float(t_amb[0]))
+        p_v_pa = float(rh[0]) * psychro.saturation_vapour_pressure_pa(float(t_amb[0]))
         # A cabin colder than the ambient dew point is saturated (the excess
         # moisture has condensed): rh_cab = 1, a physical limit.
-        rh_cab = min(1.0, p_v_pa / _saturation_pressure_pa(t_cab))
+        rh_cab = min(1.0, p_v_pa / psychro.saturation_vapour_pressure_pa(t_cab))
     initial = InitialState(
         t_cab_c=t_cab,
         t_int_c=ini.get("t_int_c", t_cab),
@@ -539,7 +259,7 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
         rh_cab=rh_cab,
     )
     initial.validate()
-    initial = InitialState(**{name: float(initial[name]) for name in _INITIAL_FIELDS})
+    initial = InitialState(**{name: float(initial[name]) for name in INITIAL_FIELDS})
 
     ctl = _section(data, "control", required=False)
     _reject_unknown("control", ctl, {"control_period_s", "horizon_steps"})
@@ -580,6 +300,14 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
     except yaml.YAMLError as exc:
         raise ScenarioError(f"scenario: {source}: not valid YAML: {exc}") from None
     return scenario_from_dict(data, source=source, base_dir=base_dir)
+
+
+def load_scenario_param(name: str, parameter: str = "scenario") -> Scenario:
+    """:func:`load_scenario` for a node parameter: ValueError naming the parameter and the reason."""
+    try:
+        return load_scenario(name)
+    except (ValueError, OSError) as err:
+        raise ValueError(f"invalid parameter {parameter}={name!r}: {err}") from None
 
 
 def describe(scenario: Scenario) -> str:

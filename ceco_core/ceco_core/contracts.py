@@ -1,10 +1,16 @@
-"""Data shared by every controller: what it observes and what it reports.
+"""Contracts shared by the plant, the V2X preview, every controller and the nodes.
+
+* the actuator bounds and the supervisory command :class:`AcInput`;
+* what the plant hands a controller (:data:`MEASUREMENTS`) and what V2X
+  delivers (:class:`Previews`);
+* what a controller sees (:class:`Observation`) and reports
+  (:class:`Diagnostics`, one row of ``diagnostics.csv``, docs/architecture.md);
+* the strategy names (:data:`STRATEGIES`).
 
 A controller (baseline PI, any CECO NMPC) is called once per control period
 ``Ts`` with an :class:`Observation` built from the measurements at ``t = k*Ts``
 and the V2X previews on the grid ``t, t + Ts, ..., t + Np*Ts``. It returns the
-command held over ``[t, t + Ts)`` and a :class:`Diagnostics` record (one row of
-``diagnostics.csv``, see ``docs/architecture.md``).
+command held over ``[t, t + Ts)`` and a :class:`Diagnostics` record.
 
 Pure data: no solver, no ROS.
 """
@@ -16,22 +22,84 @@ import math
 
 import numpy as np
 
-from ceco_plant_sim import plant_params
+__all__ = ["MDOT_BL_MIN_KGPS", "MDOT_BL_MAX_KGPS", "T_EVAP_SP_MIN_C", "T_EVAP_SP_MAX_C", "AcInput",
+           "ActuatorLimits", "ACTUATOR_LIMITS", "MEASUREMENTS", "PREVIEW_QUANTITIES", "Previews",
+           "Observation", "Diagnostics", "DIAGNOSTICS_CONTRACT_COLUMNS", "DIAGNOSTICS_COLUMNS", "STRATEGIES", "CECO_STRATEGIES",
+           "BASELINE_STRATEGY", "check_finite"]
 
-__all__ = ["Observation", "Diagnostics", "DIAGNOSTICS_COLUMNS", "ACTUATOR_LIMITS"]
+MDOT_BL_MIN_KGPS = 0.05
+"""Lower actuator bound of the blower air flow [kg/s] (method paper, eq. 13)."""
+MDOT_BL_MAX_KGPS = 0.17
+"""Upper actuator bound of the blower air flow [kg/s] (method paper, eq. 13)."""
+T_EVAP_SP_MIN_C = 3.0
+"""Lower bound of the evaporator wall temperature set-point [degC] (method paper, eq. 13)."""
+T_EVAP_SP_MAX_C = 10.0
+"""Upper bound of the evaporator wall temperature set-point [degC] (method paper, eq. 13)."""
+
+
+CECO_STRATEGIES = ("ceco", "ceco-e", "ceco-c", "ceco-ioch")
+"""Names of the NMPC strategies (settings in ``ceco_controller.strategies``)."""
+
+BASELINE_STRATEGY = "baseline"
+"""Name of the production climate control used as the baseline."""
+
+STRATEGIES = (BASELINE_STRATEGY,) + CECO_STRATEGIES
+"""Every strategy, baseline first (also the values of AcCommand.strategy on the wire)."""
+
+MEASUREMENTS = ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c", "t_vent_c", "rh_cab")
+"""Keys of the measurement mapping [degC, rh_cab in 0..1] that the plant hands to a controller
+(``ScenarioPlant.meas``; the fields of ceco_msgs/CabinState)."""
+
+PREVIEW_QUANTITIES = ("t_amb_c", "solar_wm2", "speed_mps", "rh")
+"""The previewed quantities (arrays of :class:`Previews`)."""
+
+
+def check_finite(name: str, value) -> float:
+    """``float(value)``; ValueError naming ``name`` if it is not a finite number."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{name}: must be finite, got {value!r}")
+    return v
+
+
+@dataclasses.dataclass(frozen=True)
+class AcInput:
+    """Supervisory command to the A/C, held over one plant step."""
+
+    mdot_bl_kgps: float
+    """Blower (supply) air mass flow [kg/s], in [0.05, 0.17]."""
+    t_evap_sp_c: float
+    """Evaporator wall temperature set-point [degC], in [3, 10]."""
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> AcInput:
+        """Raise ValueError naming the field if it is not finite or outside the actuator bounds."""
+        m = check_finite("mdot_bl_kgps", self.mdot_bl_kgps)
+        if not MDOT_BL_MIN_KGPS <= m <= MDOT_BL_MAX_KGPS:
+            raise ValueError(f"mdot_bl_kgps: must be in [{MDOT_BL_MIN_KGPS}, {MDOT_BL_MAX_KGPS}] kg/s, got {m}")
+        t = check_finite("t_evap_sp_c", self.t_evap_sp_c)
+        if not T_EVAP_SP_MIN_C <= t <= T_EVAP_SP_MAX_C:
+            raise ValueError(f"t_evap_sp_c: must be in [{T_EVAP_SP_MIN_C}, {T_EVAP_SP_MAX_C}] degC, got {t}")
+        return self
+
 
 
 @dataclasses.dataclass(frozen=True)
 class ActuatorLimits:
     """Hard actuator bounds of the A/C (paper, Sec. 3.1)."""
 
-    mdot_bl_min_kgps: float = plant_params.MDOT_BL_MIN_KGPS
+    mdot_bl_min_kgps: float = MDOT_BL_MIN_KGPS
     """Lowest blower air mass flow [kg/s]."""
-    mdot_bl_max_kgps: float = plant_params.MDOT_BL_MAX_KGPS
+    mdot_bl_max_kgps: float = MDOT_BL_MAX_KGPS
     """Highest blower air mass flow [kg/s]."""
-    t_evap_sp_min_c: float = plant_params.T_EVAP_SP_MIN_C
+    t_evap_sp_min_c: float = T_EVAP_SP_MIN_C
     """Lowest evaporator wall temperature set-point [degC] (frost margin)."""
-    t_evap_sp_max_c: float = plant_params.T_EVAP_SP_MAX_C
+    t_evap_sp_max_c: float = T_EVAP_SP_MAX_C
     """Highest evaporator wall temperature set-point [degC]."""
 
     def validate(self) -> None:
@@ -57,6 +125,64 @@ class ActuatorLimits:
 
 ACTUATOR_LIMITS = ActuatorLimits()
 """The paper's actuator bounds: 0.05-0.17 kg/s, 3-10 degC."""
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Previews:
+    """What the controller receives at ``t0_s``: values on ``t0_s + i*step_s``.
+
+    Entries that are not available are NaN in every array and False in
+    ``valid``.
+    """
+
+    t0_s: float
+    """Time of the first sample (the time the preview is used) [s]."""
+    step_s: float
+    """Sample spacing [s]."""
+    t_amb_c: np.ndarray
+    """Forecast ambient temperature [degC]."""
+    solar_wm2: np.ndarray
+    """Forecast solar irradiance [W/m2]."""
+    speed_mps: np.ndarray
+    """Forecast vehicle speed [m/s]."""
+    rh: np.ndarray
+    """Forecast ambient relative humidity [-]."""
+    valid: np.ndarray
+    """Per-sample availability (bool)."""
+    age_s: float
+    """Age of the forecast used (t0_s - issue time) [s]; inf if none was received."""
+    issued_s: float
+    """Issue time of the forecast used [s]; NaN if none was received."""
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return int(self.valid.size)
+
+    @property
+    def t_s(self) -> np.ndarray:
+        """Sample times [s]."""
+        return self.t0_s + self.step_s * np.arange(self.n, dtype=float)
+
+    @property
+    def trusted_steps(self) -> int:
+        """Number of leading valid samples (the usable horizon)."""
+        bad = np.flatnonzero(~self.valid)
+        return int(bad[0]) if bad.size else self.n
+
+    def hold_filled(self) -> "Previews":
+        """A copy in which invalid samples after the trusted part repeat the
+        last valid sample (``valid`` is unchanged, so the caller still knows).
+        If no sample is valid the arrays stay NaN."""
+        k = self.trusted_steps
+        if k == 0 or k == self.n:
+            return self
+        arrays = {}
+        for q in PREVIEW_QUANTITIES:
+            a = np.array(getattr(self, q))
+            a[k:] = a[k - 1]
+            arrays[q] = a
+        return dataclasses.replace(self, **arrays)
 
 
 def _as_array(x, name, n=None):
@@ -140,9 +266,13 @@ class Observation:
         return all(math.isfinite(float(v)) for v in vals)
 
 
-DIAGNOSTICS_COLUMNS = (
+DIAGNOSTICS_CONTRACT_COLUMNS = (
     "k", "t_s", "status", "success", "iterations", "solve_time_ms",
     "cost_energy", "cost_comfort", "cost_ioch", "eps_mean", "fallback",
+)
+"""The contract's columns of ``diagnostics.csv`` (docs/architecture.md); every writer puts them first."""
+
+DIAGNOSTICS_COLUMNS = DIAGNOSTICS_CONTRACT_COLUMNS + (
     # extra columns (allowed after the contract's columns)
     "cost_slack", "cost_total", "trusted_horizon", "pmv_pred_1", "t_cab_pred_1_c",
     "mdot_bl_kgps", "t_evap_sp_c", "message",

@@ -1,9 +1,12 @@
 """Unit conversions for ceco: the one place where they live.
 
-Every function works elementwise on Python floats, numpy arrays
-(broadcasting) and CasADi symbols (``SX``/``MX``/``DM``): the bodies use only
-``+``, ``-`` and ``*``, which all three overload identically.
+The temperature, speed and pressure conversions work elementwise on Python
+floats, numpy arrays (broadcasting) and CasADi symbols (``SX``/``MX``/``DM``):
+the bodies use only ``+``, ``-`` and ``*``, which all three overload
+identically. The time-stamp conversions take Python scalars.
 """
+
+import math
 
 __all__ = [
     "ZERO_C_K",
@@ -14,6 +17,9 @@ __all__ = [
     "mps_to_kmh",
     "kpa_to_pa",
     "pa_to_kpa",
+    "STAMP_MAX_S",
+    "sec_nanosec_from_s",
+    "s_from_sec_nanosec",
 ]
 
 ZERO_C_K = 273.15
@@ -59,3 +65,24 @@ def kpa_to_pa(p_kpa):
 def pa_to_kpa(p_pa):
     """Convert a pressure from Pa to kPa."""
     return p_pa * 1.0e-3
+
+
+STAMP_MAX_S = 2**31 - 1
+"""Largest time a builtin_interfaces/Time can hold [s] (``sec`` is an int32)."""
+
+
+def sec_nanosec_from_s(t_s: float) -> tuple[int, int]:
+    """Split a time [s] into (sec, nanosec) as builtin_interfaces/Time holds it, exact to the nanosecond.
+
+    ValueError (naming the value) unless ``0 <= t_s <= STAMP_MAX_S`` and finite: a stamp is never
+    silently wrapped or clamped.
+    """
+    if not (isinstance(t_s, (int, float)) and math.isfinite(t_s) and 0.0 <= t_s <= STAMP_MAX_S):
+        raise ValueError(f"time {t_s!r} s cannot be a stamp (must be finite, in [0, {STAMP_MAX_S}] s)")
+    ns = int(round(t_s * 1e9))
+    return ns // 1_000_000_000, ns % 1_000_000_000
+
+
+def s_from_sec_nanosec(sec: int, nanosec: int) -> float:
+    """Seconds from a stamp's (sec, nanosec) [s] (any object's fields: rclpy, rosbags)."""
+    return sec + nanosec * 1e-9

@@ -1,0 +1,32 @@
+"""Building a strategy's controller core: the one constructor the simulator and the nodes call.
+
+Imports no plant code (no CoolProp): ``mpc_node`` and ``baseline_node`` start
+from here.
+"""
+
+from __future__ import annotations
+
+from ceco_core.comfort import comfort_params_for
+from ceco_core.scenario_types import Scenario
+
+from . import model as cm
+from .baseline import BaselineController
+from .nmpc import NmpcController
+from .strategies import load_strategy_settings
+
+__all__ = ["make_controller"]
+
+
+def make_controller(strategy: str, scenario: Scenario, control_period_s: float, horizon_steps: int,
+                    model_params: cm.ControlModelParams | None = None, overrides: dict | None = None,
+                    config_path: str | None = None):
+    """Build the controller of a strategy for a scenario.
+
+    NMPC settings: the controller file (``config_path``, default the package's
+    ``config/controller.yaml``), then ``horizon_steps``/``control_period_s``, then ``overrides``.
+    """
+    if strategy == "baseline":
+        return BaselineController(control_period_s=control_period_s)
+    settings = load_strategy_settings(strategy, config_path, horizon_steps=horizon_steps,
+                                      control_period_s=control_period_s, **(overrides or {}))
+    return NmpcController(settings, model_params=model_params, comfort_params=comfort_params_for(scenario))

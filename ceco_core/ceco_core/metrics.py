@@ -1,0 +1,239 @@
+"""Metrics of a closed-loop run: energy, comfort, constraint violation.
+
+Equations, units and the reasoning behind each choice: ``docs/metrics.md``.
+The paper's three metrics (Wang et al., DSCC 2019, Sec. 4):
+
+* ``E_tot = integral_0^T (P_comp + P_bl) dt``                       [J]
+  (plus optional other auxiliaries such as the condenser fan)
+* ``I_PMV = integral_0^T PMV^2 dt``                                 [s]
+* ``OTC violation = T_viol / T * 100 %``, where T_viol is the time with
+  PMV > PMV_UB or PMV < PMV_LB                                      [%]
+
+Sampling convention (the run directory's, docs/architecture.md): sample i
+stands for the interval ``[t_i, t_i + dt)`` with ``dt = t_1 - t_0``, so every
+integral is the rectangle sum ``sum_i x_i * dt`` and ``T = n * dt``. Powers
+are the interval means, so the energy sums are exact; PMV is a sample at
+``t_i`` held over its interval.
+
+Pure numpy; no ROS import.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+
+__all__ = [
+    "J_PER_KWH",
+    "METRIC_KEYS",
+    "compute_metrics",
+    "relative_change_pct",
+    "comparison_rows",
+    "comparison_table",
+]
+
+J_PER_KWH = 3.6e6
+"""Joules in one kilowatt-hour (exact)."""
+
+COMFORT_HOLD_S = 60.0
+"""Default time PMV must stay in the comfort zone for comfort to count as reached [s]."""
+
+METRIC_KEYS = (
+    "E_tot_J", "E_tot_kWh", "E_comp_J", "E_blower_J", "E_aux_J", "P_mean_w", "I_pmv",
+    "otc_violation_pct", "otc_violation_s", "otc_above_ub_s", "otc_below_lb_s",
+    "time_to_comfort_s", "pmv_mean", "pmv_max", "pmv_min", "duration_s",
+)
+"""Keys of the dict returned by :func:`compute_metrics`, in order."""
+
+_UNIFORM_RTOL = 1e-6
+"""Relative tolerance on the spacing of the time samples."""
+
+
+def _array(name: str, x, n: int | None) -> np.ndarray:
+    a = np.asarray(x, dtype=float)
+    if n is not None and a.ndim == 0:
+        a = np.full(n, float(a))
+    if a.ndim != 1:
+        raise ValueError(f"{name}: must be 1-D, got shape {a.shape}")
+    if n is not None and a.size != n:
+        raise ValueError(f"{name}: length {a.size} differs from t_s length {n}")
+    if not np.all(np.isfinite(a)):
+        i = int(np.flatnonzero(~np.isfinite(a))[0])
+        raise ValueError(f"{name}: NaN or infinite value at index {i}")
+    return a
+
+
+def compute_metrics(t_s, p_comp_w, p_blower_w, pmv, pmv_lb, pmv_ub, *,
+                    comfort_ub: float = 0.5, comfort_lb: float = -0.5,
+                    comfort_hold_s: float = COMFORT_HOLD_S, p_aux_w=None) -> dict:
+    """Energy and comfort metrics of one run (see module docstring).
+
+    Args:
+        t_s: sample times [s], uniformly spaced, at least 2 samples.
+        p_comp_w: compressor electrical power, mean over each interval [W].
+        p_blower_w: blower electrical power, mean over each interval [W].
+        pmv: PMV at each sample [-].
+        pmv_lb, pmv_ub: the scenario's PMV bounds at each sample (arrays or
+            scalars) [-]; used for the OTC violation.
+        comfort_lb, comfort_ub: the comfort zone used for time to comfort
+            (ISO 7730 category B: -0.5..+0.5) [-].
+        comfort_hold_s: time PMV must stay in the zone to count [s].
+        p_aux_w: other A/C auxiliaries, e.g. the condenser fan, mean over
+            each interval [W]; optional (0 if None). The paper's P_aux is
+            blower + condenser fan; pass the plant's ``p_cond_fan_w`` here
+            to count the fan in ``E_tot_J``.
+
+    Returns:
+        dict with the keys :data:`METRIC_KEYS` (floats). ``time_to_comfort_s``
+        is the time since ``t_s[0]`` of the first sample from which PMV stays
+        inside ``[comfort_lb, comfort_ub]`` for ``comfort_hold_s``; NaN if that
+        never happens within the run (including when PMV enters the zone less
+        than ``comfort_hold_s`` before the end).
+
+    Raises:
+        ValueError naming the argument: NaN, length mismatch, non-uniform or
+        non-increasing time, fewer than 2 samples, comfort_lb > comfort_ub.
+    """
+    t = _array("t_s", t_s, None)
+    n = t.size
+    if n < 2:
+        raise ValueError(f"t_s: need at least 2 samples, got {n}")
+    steps = np.diff(t)
+    dt = float(steps[0])
+    if dt <= 0.0:
+        raise ValueError(f"t_s: must be increasing, first step {dt}")
+    if np.any(np.abs(steps - dt) > _UNIFORM_RTOL * dt):
+        i = int(np.flatnonzero(np.abs(steps - dt) > _UNIFORM_RTOL * dt)[0])
+        raise ValueError(f"t_s: must be uniformly spaced (step {dt} s), step {i} is {float(steps[i])} s")
+    p_comp = _array("p_comp_w", p_comp_w, n)
+    p_bl = _array("p_blower_w", p_blower_w, n)
+    p_aux = np.zeros(n) if p_aux_w is None else _array("p_aux_w", p_aux_w, n)
+    y = _array("pmv", pmv, n)
+    lb = _array("pmv_lb", pmv_lb, n)
+    ub = _array("pmv_ub", pmv_ub, n)
+    for name, v in (("comfort_lb", comfort_lb), ("comfort_ub", comfort_ub), ("comfort_hold_s", comfort_hold_s)):
+        if not math.isfinite(v):
+            raise ValueError(f"{name}: must be finite, got {v}")
+    if comfort_lb > comfort_ub:
+        raise ValueError(f"comfort_lb: {comfort_lb} exceeds comfort_ub {comfort_ub}")
+    if comfort_hold_s < 0.0:
+        raise ValueError(f"comfort_hold_s: must be >= 0, got {comfort_hold_s}")
+
+    duration_s = n * dt
+    e_comp = float(np.sum(p_comp) * dt)
+    e_bl = float(np.sum(p_bl) * dt)
+    e_aux = float(np.sum(p_aux) * dt)
+    e_tot = e_comp + e_bl + e_aux
+    above = y > ub
+    below = y < lb
+    viol_s = float(np.count_nonzero(above | below) * dt)
+
+    return {
+        "E_tot_J": e_tot,
+        "E_tot_kWh": e_tot / J_PER_KWH,
+        "E_comp_J": e_comp,
+        "E_blower_J": e_bl,
+        "E_aux_J": e_aux,
+        "P_mean_w": e_tot / duration_s,
+        "I_pmv": float(np.sum(y * y) * dt),
+        "otc_violation_pct": 100.0 * viol_s / duration_s,
+        "otc_violation_s": viol_s,
+        "otc_above_ub_s": float(np.count_nonzero(above) * dt),
+        "otc_below_lb_s": float(np.count_nonzero(below) * dt),
+        "time_to_comfort_s": _time_to_comfort(t, dt, y, comfort_lb, comfort_ub, comfort_hold_s),
+        "pmv_mean": float(np.mean(y)),
+        "pmv_max": float(np.max(y)),
+        "pmv_min": float(np.min(y)),
+        "duration_s": duration_s,
+    }
+
+
+def _time_to_comfort(t, dt, y, lo, hi, hold_s) -> float:
+    # Samples needed to cover hold_s: intervals [t_i, t_i + dt) of samples
+    # i..i+m-1 cover [t_i, t_i + m*dt).
+    m = max(1, int(math.ceil(hold_s / dt - 1e-9)))
+    inside = (y >= lo) & (y <= hi)
+    if inside.size < m:
+        return math.nan
+    # run[i] = number of consecutive in-zone samples starting at i.
+    run = np.zeros(inside.size + 1, dtype=int)
+    for i in range(inside.size - 1, -1, -1):
+        run[i] = run[i + 1] + 1 if inside[i] else 0
+    ok = np.flatnonzero(run[:-1] >= m)
+    return float(t[ok[0]] - t[0]) if ok.size else math.nan
+
+
+def relative_change_pct(value: float, baseline: float) -> float:
+    """``100 * (value - baseline) / |baseline|`` [%].
+
+    Returns 0.0 when both are 0 and NaN when only the baseline is 0 (a
+    relative change from nothing is undefined) or either is NaN.
+    """
+    value, baseline = float(value), float(baseline)
+    if math.isnan(value) or math.isnan(baseline):
+        return math.nan
+    if baseline == 0.0:
+        return 0.0 if value == 0.0 else math.nan
+    return 100.0 * (value - baseline) / abs(baseline)
+
+
+_DEFAULT_COLUMNS = ("E_tot_kWh", "E_comp_J", "E_blower_J", "I_pmv", "otc_violation_pct",
+                    "time_to_comfort_s", "pmv_mean", "pmv_max")
+_CHANGE_COLUMNS = ("E_tot_kWh", "I_pmv", "otc_violation_pct")
+
+
+def comparison_rows(rows: Sequence[Mapping], baseline: str = "baseline", *, name_key: str = "strategy",
+                    change_keys: Iterable[str] = _CHANGE_COLUMNS) -> list[dict]:
+    """Copies of ``rows`` with ``<key>_change_pct`` added for every key in
+    ``change_keys``: the relative change against the row whose ``name_key``
+    equals ``baseline`` (NaN for every row if there is no baseline row)."""
+    change_keys = tuple(change_keys)
+    base = next((r for r in rows if r.get(name_key) == baseline), None)
+    out = []
+    for r in rows:
+        d = dict(r)
+        for k in change_keys:
+            d[f"{k}_change_pct"] = relative_change_pct(r[k], base[k]) if base is not None else math.nan
+        out.append(d)
+    return out
+
+
+def _cell(x) -> str:
+    if isinstance(x, str):
+        return x
+    x = float(x)
+    if math.isnan(x):
+        return "n/a"
+    return f"{x:.0f}" if abs(x) >= 100.0 else f"{x:.3f}"
+
+
+def comparison_table(rows: Sequence[Mapping], baseline: str = "baseline", *, name_key: str = "strategy",
+                     columns: Sequence[str] = _DEFAULT_COLUMNS,
+                     change_keys: Iterable[str] = _CHANGE_COLUMNS) -> str:
+    """An aligned text table of ``rows`` (one dict per strategy, e.g. the
+    :func:`compute_metrics` output plus ``strategy``), with a ``d<key> %``
+    column after each key in ``change_keys``: the relative change against
+    the ``baseline`` row (:func:`relative_change_pct`)."""
+    change_keys = tuple(k for k in change_keys if k in columns)
+    full = comparison_rows(rows, baseline, name_key=name_key, change_keys=change_keys)
+    header = [name_key]
+    for c in columns:
+        header.append(c)
+        if c in change_keys:
+            header.append(f"d{c} %")
+    body = []
+    for r in full:
+        line = [str(r.get(name_key, ""))]
+        for c in columns:
+            line.append(_cell(r.get(c, math.nan)))
+            if c in change_keys:
+                ch = r[f"{c}_change_pct"]
+                line.append("n/a" if math.isnan(ch) else f"{ch:+.1f}")
+        body.append(line)
+    widths = [max(len(row[i]) for row in [header] + body) for i in range(len(header))]
+    fmt = lambda row: "  ".join(cell.ljust(w) if i == 0 else cell.rjust(w)  # noqa: E731
+                                for i, (cell, w) in enumerate(zip(row, widths)))
+    lines = [fmt(header), "  ".join("-" * w for w in widths)] + [fmt(b) for b in body]
+    return "\n".join(lines)

@@ -1,0 +1,325 @@
+"""Scenario data types: drive cycle, weather, occupant, comfort bounds, hot-soak state.
+
+The dataclasses a scenario is made of and the truth it answers (environment,
+perfect previews, PMV bounds at any time). Files are read and validated by
+``ceco_v2x_preview.scenario`` (``load_scenario``), which re-exports these types.
+
+Time conventions
+----------------
+* ``t_s`` is the time since the start of the run [s], ``t_s >= 0``.
+* Weather and comfort bounds are piecewise linear between their knots and
+  hold the first/last knot's value outside the knot range (``numpy.interp``).
+* Vehicle speed is the 1 Hz drive-cycle trace interpolated linearly; after the
+  end of the cycle it holds the last value.
+* Negative times are rejected (ValueError): nothing exists before the run.
+
+Pure Python (numpy); no ROS import.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "ScenarioError",
+    "Environment",
+    "WeatherPreview",
+    "Occupant",
+    "InitialState",
+    "ControlDefaults",
+    "DriveCycle",
+    "Scenario",
+    "check_number",
+    "INITIAL_FIELDS",
+    "TEMPERATURE_FIELDS",
+]
+
+# Accepted ranges for scenario values (inclusive unless noted). Chosen to catch
+# typos and unit mix-ups (degF for degC, % for fractions), not to restrict
+# physics: the wider climate envelope a vehicle HVAC is tested in.
+T_AMB_RANGE_C = (-40.0, 60.0)
+"""Ambient air temperature: the range of automotive climate testing."""
+SOLAR_RANGE_WM2 = (0.0, 1400.0)
+"""Global irradiance: 0 to just above the solar constant (1361 W/m2)."""
+T_STATE_RANGE_C = (-40.0, 120.0)
+"""Initial plant temperatures: sun-soaked dashboards reach about 100 degC."""
+MET_RANGE = (0.0, 4.0)
+"""Metabolic rate [met], lower bound exclusive; 4 met is ISO 7730's top."""
+CLO_RANGE = (0.0, 2.0)
+"""Clothing insulation [clo]; ISO 7730 validity range 0..2 clo."""
+PMV_BOUND_RANGE = (-10.0, 10.0)
+"""PMV bounds: the scale is -3..+3 but a relaxed pull-down bound may exceed it."""
+SPEED_MAX_MPS = 70.0
+"""Drive-cycle speed sanity limit (252 km/h)."""
+
+
+class ScenarioError(ValueError):
+    """An invalid scenario file or drive cycle; the message names the field."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Environment:
+    """Boundary conditions of the cabin at one time (or a vector of times).
+
+    Fields are floats from :meth:`Scenario.env_at` with a scalar time, numpy
+    arrays of the time array's shape otherwise.
+    """
+
+    t_amb_c: Any
+    """Ambient (outdoor) air temperature [degC]."""
+    solar_wm2: Any
+    """Solar irradiance on the vehicle [W/m2], >= 0."""
+    speed_mps: Any
+    """Vehicle speed [m/s], >= 0."""
+    rh: Any
+    """Ambient relative humidity [-], fraction 0..1."""
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class WeatherPreview:
+    """Weather sampled on a uniform grid ``t_s = t0_s + i*step_s``, i = 0..n-1."""
+
+    t_s: np.ndarray
+    """Sample times [s]."""
+    t_amb_c: np.ndarray
+    """Ambient air temperature [degC]."""
+    solar_wm2: np.ndarray
+    """Solar irradiance [W/m2]."""
+    rh: np.ndarray
+    """Ambient relative humidity [-], 0..1."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Occupant:
+    """The occupant whose comfort is evaluated."""
+
+    met: float = 1.2
+    """Metabolic rate [met] (1 met = 58.15 W/m2), 0 < met <= 4."""
+    clo: float = 0.5
+    """Clothing insulation [clo] (1 clo = 0.155 m2K/W), 0..2."""
+
+    def validate(self) -> None:
+        """Raise ScenarioError naming the first bad field."""
+        check_number("occupant.met", self.met, MET_RANGE, low_open=True)
+        check_number("occupant.clo", self.clo, CLO_RANGE)
+
+
+@dataclasses.dataclass(frozen=True)
+class InitialState(Mapping):
+    """Plant temperatures at ``t_s = 0`` (the end of the hot soak).
+
+    Also a read-only mapping field name -> value (``initial["t_cab_c"]``,
+    ``"t_glass_c" in initial``, ``dict(initial)``), so plant code can take it
+    or a plain dict alike.
+
+    Defaults when a field is omitted from the file (documented in
+    docs/scenarios.md): ``t_int_c``, ``t_shell_c``, ``t_glass_c`` and
+    ``t_evap_c`` = ``t_cab_c`` (the interior, the body, the glazing and the
+    HVAC module soak with the cabin air); ``rh_cab`` from the ambient vapour
+    pressure at ``t_cab_c`` (a closed car keeps the outdoor moisture content).
+    """
+
+    t_cab_c: float
+    """Cabin air temperature [degC]."""
+    t_int_c: float
+    """Cabin interior mass (seats, dashboard, trim) temperature [degC]."""
+    t_shell_c: float
+    """Cabin shell (roof, body panels) temperature [degC]."""
+    t_glass_c: float
+    """Glazing temperature [degC]."""
+    t_evap_c: float
+    """Evaporator wall temperature [degC]."""
+    rh_cab: float
+    """Cabin air relative humidity [-], 0..1."""
+
+    def validate(self) -> None:
+        """Raise ScenarioError naming the first bad field."""
+        for name in TEMPERATURE_FIELDS:
+            check_number(f"initial.{name}", getattr(self, name), T_STATE_RANGE_C)
+        check_number("initial.rh_cab", self.rh_cab, (0.0, 1.0))
+
+    def __getitem__(self, key: str) -> float:
+        if key not in INITIAL_FIELDS:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def __iter__(self):
+        return iter(INITIAL_FIELDS)
+
+    def __len__(self) -> int:
+        return len(INITIAL_FIELDS)
+
+
+TEMPERATURE_FIELDS = ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c")
+INITIAL_FIELDS = (*TEMPERATURE_FIELDS, "rh_cab")
+
+
+@dataclasses.dataclass(frozen=True)
+class ControlDefaults:
+    """Controller timing suggested by the scenario (controllers may override)."""
+
+    control_period_s: float = 5.0
+    """Control period Ts [s] (the paper: 5 s), > 0."""
+    horizon_steps: int = 6
+    """Prediction horizon Np [steps] (the paper: 6), >= 1."""
+
+    def validate(self) -> None:
+        """Raise ScenarioError naming the first bad field."""
+        check_number("control.control_period_s", self.control_period_s, (0.0, 3600.0), low_open=True)
+        if isinstance(self.horizon_steps, bool) or not isinstance(self.horizon_steps, (int, np.integer)):
+            raise ScenarioError(f"control.horizon_steps: must be an integer, got {self.horizon_steps!r}")
+        if not 1 <= self.horizon_steps <= 1000:
+            raise ScenarioError(f"control.horizon_steps: must be in 1..1000, got {self.horizon_steps}")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class DriveCycle:
+    """A speed trace: strictly increasing times and non-negative speeds."""
+
+    name: str
+    """Bundled name or the CSV path it was read from."""
+    time_s: np.ndarray
+    """Sample times [s], strictly increasing, starting at 0."""
+    speed_mps: np.ndarray
+    """Vehicle speed [m/s], >= 0."""
+
+    @property
+    def duration_s(self) -> float:
+        """Time of the last sample [s]."""
+        return float(self.time_s[-1])
+
+    @property
+    def distance_m(self) -> float:
+        """Distance driven [m], trapezoidal integral of the (linear) trace.
+
+        Written out rather than ``np.trapezoid`` so it also runs on numpy 1.26
+        (the ROS apt image, docker/)."""
+        v, t = self.speed_mps, self.time_s
+        return float(0.5 * np.sum((v[1:] + v[:-1]) * np.diff(t)))
+
+
+def check_number(field: str, value, bounds, low_open: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ScenarioError(f"{field}: must be a number, got {value!r}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise ScenarioError(f"{field}: must be finite, got {value!r}")
+    lo, hi = bounds
+    if (x <= lo if low_open else x < lo) or x > hi:
+        op = "<" if low_open else "<="
+        raise ScenarioError(f"{field}: must satisfy {lo} {op} value <= {hi}, got {x}")
+    return x
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Scenario:
+    """A validated scenario. Build with :func:`load_scenario`."""
+
+    name: str
+    """Scenario name."""
+    description: str
+    """Free text."""
+    drive_cycle: DriveCycle
+    """The speed trace."""
+    duration_s: float
+    """Run length [s] (defaults to the cycle's)."""
+    weather_time_s: np.ndarray
+    """Weather knots [s]."""
+    weather_t_amb_c: np.ndarray
+    """Ambient temperature at the knots [degC]."""
+    weather_solar_wm2: np.ndarray
+    """Solar irradiance at the knots [W/m2]."""
+    weather_rh: np.ndarray
+    """Ambient relative humidity at the knots [-]."""
+    occupant: Occupant
+    """Occupant metabolic rate and clothing."""
+    bounds_time_s: np.ndarray
+    """Comfort-bound knots [s]."""
+    bounds_pmv_lb: np.ndarray
+    """Lower PMV bound at the knots [-]."""
+    bounds_pmv_ub: np.ndarray
+    """Upper PMV bound at the knots [-]."""
+    initial: InitialState
+    """Plant temperatures at t = 0."""
+    control: ControlDefaults = ControlDefaults()
+    """Suggested control period and horizon."""
+    seed: int = 0
+    """Seed for everything random in a run (preview noise)."""
+    source: str = ""
+    """Where the scenario was loaded from (bundled name or file path)."""
+
+    # ------------------------------------------------------------------ truth
+    def _check_t(self, t_s):
+        t = np.asarray(t_s, dtype=float)
+        if np.any(~np.isfinite(t)):
+            raise ValueError("t_s: must be finite")
+        if np.any(t < 0.0):
+            raise ValueError(f"t_s: must be >= 0, got min {float(np.min(t))}")
+        return t
+
+    def _out(self, t_s, arr):
+        return float(arr) if np.ndim(t_s) == 0 else arr
+
+    def speed_mps(self, t_s):
+        """Vehicle speed [m/s] at ``t_s`` (scalar or array): linear
+        interpolation of the cycle, holding the last value after its end."""
+        t = self._check_t(t_s)
+        v = np.interp(t, self.drive_cycle.time_s, self.drive_cycle.speed_mps)
+        return self._out(t_s, v)
+
+    def env_at(self, t_s) -> Environment:
+        """The true boundary conditions at ``t_s`` [s] (scalar -> floats,
+        array -> arrays of the same shape)."""
+        t = self._check_t(t_s)
+        wt = self.weather_time_s
+        return Environment(
+            t_amb_c=self._out(t_s, np.interp(t, wt, self.weather_t_amb_c)),
+            solar_wm2=self._out(t_s, np.interp(t, wt, self.weather_solar_wm2)),
+            speed_mps=self._out(t_s, np.interp(t, self.drive_cycle.time_s, self.drive_cycle.speed_mps)),
+            rh=self._out(t_s, np.interp(t, wt, self.weather_rh)),
+        )
+
+    def env_series(self, t_s) -> Environment:
+        """Vectorised :meth:`env_at`: always returns arrays (1-D at least)."""
+        return self.env_at(np.atleast_1d(np.asarray(t_s, dtype=float)))
+
+    @staticmethod
+    def _grid(t0_s: float, step_s: float, n: int) -> np.ndarray:
+        if not (math.isfinite(t0_s) and t0_s >= 0.0):
+            raise ValueError(f"t0_s: must be finite and >= 0, got {t0_s}")
+        if not (math.isfinite(step_s) and step_s > 0.0):
+            raise ValueError(f"step_s: must be finite and > 0, got {step_s}")
+        if isinstance(n, bool) or int(n) != n or n < 1:
+            raise ValueError(f"n: must be an integer >= 1, got {n}")
+        return t0_s + step_s * np.arange(int(n), dtype=float)
+
+    def weather_preview(self, t0_s: float, step_s: float, n: int) -> WeatherPreview:
+        """True weather at ``t0_s + i*step_s``, i = 0..n-1 (a perfect forecast).
+
+        Noisy, delayed or missing forecasts: :mod:`ceco_v2x_preview.preview`.
+        """
+        t = self._grid(t0_s, step_s, n)
+        env = self.env_at(t)
+        return WeatherPreview(t_s=t, t_amb_c=env.t_amb_c, solar_wm2=env.solar_wm2, rh=env.rh)
+
+    def speed_preview(self, t0_s: float, step_s: float, n: int) -> np.ndarray:
+        """True vehicle speed [m/s] at ``t0_s + i*step_s``, i = 0..n-1."""
+        return self.speed_mps(self._grid(t0_s, step_s, n))
+
+    def pmv_bounds(self, t_s):
+        """(lower, upper) PMV bounds at ``t_s`` (scalar -> floats, array -> arrays)."""
+        t = self._check_t(t_s)
+        lb = np.interp(t, self.bounds_time_s, self.bounds_pmv_lb)
+        ub = np.interp(t, self.bounds_time_s, self.bounds_pmv_ub)
+        return self._out(t_s, lb), self._out(t_s, ub)
+
+    def time_grid(self, dt_s: float = 1.0) -> np.ndarray:
+        """Sample times ``0, dt, 2dt, ... < duration_s`` of a run [s]."""
+        if not (math.isfinite(dt_s) and dt_s > 0.0):
+            raise ValueError(f"dt_s: must be finite and > 0, got {dt_s}")
+        return dt_s * np.arange(int(math.floor(self.duration_s / dt_s + 1e-9)), dtype=float)

@@ -1,0 +1,281 @@
+"""ceco_msgs messages <-> the pure core's data, both directions of each, in one place.
+
+| message            | from the core                 | to the core                             |
+|--------------------|-------------------------------|-----------------------------------------|
+| CabinState         | :func:`state_msg`             | :func:`state_measurements`, :func:`check_state` |
+| AcCommand          | :func:`command_msg`           | :func:`command_input`                   |
+| Weather/TrafficPreview | :func:`previews_to_msgs`, :func:`empty_previews` | :func:`previews`, :func:`check_previews`, :func:`align_previews` |
+| AcPower            | :func:`power_msg`             |                                         |
+| Comfort            | :func:`comfort_msg`           |                                         |
+| ControllerDiagnostics | :func:`diagnostics_msg`    |                                         |
+| builtin_interfaces/Time | :func:`stamp_from_s`     | :func:`s_from_stamp`                    |
+
+Checks of incoming messages return a reason (naming the field and the value)
+or None; conversions into the core raise ValueError. No node logic: imports
+message types, not rclpy's Node.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from builtin_interfaces.msg import Time
+
+from ceco_core.contracts import MEASUREMENTS, STRATEGIES, AcInput, Diagnostics, Previews
+from ceco_core.units import s_from_sec_nanosec, sec_nanosec_from_s
+from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort, ControllerDiagnostics, TrafficPreview, WeatherPreview
+
+__all__ = ['STATE_FIELDS', 'stamp_from_s', 's_from_stamp', 'state_msg', 'state_measurements', 'check_state',
+           'command_msg', 'command_input', 'previews_to_msgs', 'empty_previews', 'previews', 'check_previews',
+           'align_previews', 'power_msg', 'comfort_msg', 'diagnostics_msg']
+
+STATE_FIELDS = ('scenario_time_s', 't_cab_c', 't_int_c', 't_shell_c', 't_evap_c', 't_vent_c',
+                't_amb_c', 'solar_wm2', 'rh', 'speed_mps', 'mdot_bl_kgps', 't_evap_sp_c')
+"""The float fields of CabinState a controller needs finite."""
+
+
+# --- time stamps ------------------------------------------------------------------------------
+def stamp_from_s(t_s: float) -> Time:
+    """builtin_interfaces/Time from seconds, exact to the nanosecond; ValueError outside [0, 2^31 - 1] s."""
+    sec, nanosec = sec_nanosec_from_s(t_s)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def s_from_stamp(stamp) -> float:
+    """Seconds [s] from a builtin_interfaces/Time (or any object with ``sec`` and ``nanosec``)."""
+    return s_from_sec_nanosec(stamp.sec, stamp.nanosec)
+
+
+# --- CabinState -------------------------------------------------------------------------------
+def state_msg(n: int, t_s: float, stamp, meas: dict, env, u_prev: AcInput, fallback: bool) -> CabinState:
+    """The plant's measurements at step ``n`` (t_s [s]), the environment and the previous command."""
+    m = CabinState()
+    m.header.stamp = stamp
+    m.step_index = int(n)
+    m.scenario_time_s = float(t_s)
+    for f in MEASUREMENTS:
+        setattr(m, f, float(meas[f]))
+    m.t_amb_c = float(env.t_amb_c)
+    m.solar_wm2 = float(env.solar_wm2)
+    m.rh = float(env.rh)
+    m.speed_mps = float(env.speed_mps)
+    m.mdot_bl_kgps = float(u_prev.mdot_bl_kgps)
+    m.t_evap_sp_c = float(u_prev.t_evap_sp_c)
+    m.fallback = bool(fallback)
+    return m
+
+
+def state_measurements(msg: CabinState) -> dict:
+    """The measurement mapping (keys :data:`ceco_core.contracts.MEASUREMENTS`) a CabinState carries."""
+    return {f: float(getattr(msg, f)) for f in MEASUREMENTS}
+
+
+def check_state(msg: CabinState) -> str | None:
+    """None if usable, else the reason (names the field and value)."""
+    for name in STATE_FIELDS:
+        v = getattr(msg, name)
+        if not math.isfinite(v):
+            return f'{name}={v!r} is not finite'
+    if msg.scenario_time_s < 0.0:
+        return f'scenario_time_s={msg.scenario_time_s!r} is negative'
+    return None
+
+
+# --- AcCommand --------------------------------------------------------------------------------
+def command_msg(cmd, k: int, stamp, control_period_s: float, strategy: str, fallback: bool) -> AcCommand:
+    """An AcCommand for control step ``k`` from an :class:`AcInput`."""
+    m = AcCommand()
+    m.header.stamp = stamp
+    m.step_index = int(k)
+    m.control_period_s = float(control_period_s)
+    m.blower_flow_kgps = float(cmd.mdot_bl_kgps)
+    m.evap_setpoint_c = float(cmd.t_evap_sp_c)
+    m.strategy = strategy
+    m.fallback = bool(fallback)
+    return m
+
+
+def command_input(msg: AcCommand) -> AcInput:
+    """AcCommand -> AcInput; ValueError naming the field when it is not a finite value inside the
+    actuator bounds or the strategy is unknown (never clamped)."""
+    if msg.strategy not in STRATEGIES:
+        raise ValueError(f'unknown strategy {msg.strategy!r} (expected one of {", ".join(STRATEGIES)})')
+    for name in ('blower_flow_kgps', 'evap_setpoint_c'):
+        v = getattr(msg, name)
+        if not math.isfinite(v):
+            raise ValueError(f'{name}={v!r} is not finite')
+    return AcInput(mdot_bl_kgps=msg.blower_flow_kgps, t_evap_sp_c=msg.evap_setpoint_c)
+
+
+# --- previews ---------------------------------------------------------------------------------
+def previews_to_msgs(p: Previews, k: int, stamp, quality_text: str) -> tuple[WeatherPreview, TrafficPreview]:
+    """Core Previews -> (WeatherPreview, TrafficPreview) messages on the same grid, tagged with step ``k``."""
+    start = stamp_from_s(p.t0_s)
+    age_s = float(p.age_s) if math.isfinite(p.age_s) else -1.0
+    w = WeatherPreview()
+    w.header.stamp = stamp
+    w.start = start
+    w.step_s = float(p.step_s)
+    w.step_index = int(k)
+    w.t_amb_c = [float(x) for x in p.t_amb_c]
+    w.solar_wm2 = [float(x) for x in p.solar_wm2]
+    w.rh = [float(x) for x in p.rh]
+    w.valid = [bool(x) for x in p.valid]
+    w.age_s = age_s
+    w.quality = quality_text
+    s = TrafficPreview()
+    s.header.stamp = stamp
+    s.start = start
+    s.step_s = float(p.step_s)
+    s.step_index = int(k)
+    s.speed_mps = [float(x) for x in p.speed_mps]
+    s.valid = [bool(x) for x in p.valid]
+    s.age_s = age_s
+    s.quality = quality_text
+    return w, s
+
+
+def empty_previews(n: int, step_s: float) -> tuple[WeatherPreview, TrafficPreview]:
+    """Previews of ``n`` samples that are all invalid (NaN): what a controller solves with when none came."""
+    nan = [math.nan] * n
+    w = WeatherPreview(step_s=step_s, t_amb_c=nan, solar_wm2=nan, rh=nan, valid=[False] * n)
+    s = TrafficPreview(step_s=step_s, speed_mps=nan, valid=[False] * n)
+    return w, s
+
+
+def check_previews(w: WeatherPreview, s: TrafficPreview, n_expected: int, step_s: float) -> str | None:
+    """None if the two previews are usable together, else the reason."""
+    for name, msg in (('weather', w), ('traffic', s)):
+        if not (math.isfinite(msg.step_s) and abs(msg.step_s - step_s) <= 1e-9 * step_s):
+            return f'{name} preview step_s={msg.step_s!r} differs from the control period {step_s}'
+    arrays = {'t_amb_c': w.t_amb_c, 'solar_wm2': w.solar_wm2, 'rh': w.rh, 'weather.valid': w.valid,
+              'speed_mps': s.speed_mps, 'traffic.valid': s.valid}
+    for name, a in arrays.items():
+        if len(a) != n_expected:
+            return f'preview array {name} has {len(a)} values, expected {n_expected} (Np + 1)'
+    if s_from_stamp(w.start) != s_from_stamp(s.start):
+        return (f'weather and traffic previews start at different times ({s_from_stamp(w.start)} vs '
+                f'{s_from_stamp(s.start)})')
+    valid = np.asarray(w.valid, dtype=bool) & np.asarray(s.valid, dtype=bool)
+    for name in ('t_amb_c', 'solar_wm2', 'rh', 'speed_mps'):
+        a = np.asarray(arrays[name], dtype=float)
+        if np.any(np.isinf(a)):
+            return f'preview array {name} holds an infinite value'
+        if np.any(np.isnan(a[valid])):
+            return f'preview array {name} holds NaN where marked valid'
+    return None
+
+
+def align_previews(w: WeatherPreview, s: TrafficPreview, t_s: float, step_s: float):
+    """Previews re-gridded to start at t_s (real-time mode, where a preview may
+    be older than the state): shifted by the whole number of steps it is late,
+    the tail it does not cover marked invalid (NaN). Returns (w, s), or None
+    when the preview starts after t_s or does not reach it."""
+    lag = (t_s - s_from_stamp(w.start)) / step_s
+    j = int(round(lag))
+    n = len(w.valid)
+    if abs(lag - j) > 1e-6 and lag > 0:
+        j = int(math.floor(lag))
+    if j < 0 or j >= n:
+        return None
+    if j == 0:
+        return w, s
+
+    def shift(a, fill):
+        a = list(a)
+        return a[j:] + [fill] * j
+    w2 = WeatherPreview(header=w.header, start=w.start, step_s=w.step_s, step_index=w.step_index,
+                        t_amb_c=shift(w.t_amb_c, math.nan), solar_wm2=shift(w.solar_wm2, math.nan),
+                        rh=shift(w.rh, math.nan), valid=shift(w.valid, False), age_s=w.age_s + j * step_s,
+                        quality=w.quality)
+    s2 = TrafficPreview(header=s.header, start=s.start, step_s=s.step_s, step_index=s.step_index,
+                        speed_mps=shift(s.speed_mps, math.nan), valid=shift(s.valid, False),
+                        age_s=s.age_s + j * step_s, quality=s.quality)
+    return w2, s2
+
+
+def previews(w: WeatherPreview, s: TrafficPreview, t_s: float, step_s: float) -> Previews:
+    """Checked (and, in real-time mode, aligned) preview messages -> the core's Previews on the grid
+    t_s + i * step_s (the inverse of :func:`previews_to_msgs`); a sample is valid when it is valid in
+    both messages."""
+    age_s = float(w.age_s) if w.age_s >= 0.0 else math.inf
+    return Previews(t0_s=t_s, step_s=step_s, t_amb_c=np.asarray(w.t_amb_c, dtype=float),
+                    solar_wm2=np.asarray(w.solar_wm2, dtype=float),
+                    speed_mps=np.asarray(s.speed_mps, dtype=float), rh=np.asarray(w.rh, dtype=float),
+                    valid=np.asarray(w.valid, dtype=bool) & np.asarray(s.valid, dtype=bool),
+                    age_s=age_s, issued_s=t_s - age_s if math.isfinite(age_s) else math.nan)
+
+
+# --- plant outputs ----------------------------------------------------------------------------
+def power_msg(n: int, stamp, dt_s: float, u: AcInput, out, e_comp_j: float, e_blower_j: float,
+              fallback: bool) -> AcPower:
+    """The A/C powers of plant step ``n`` (step means over dt_s [s]) and the cumulative energies [J]."""
+    m = AcPower()
+    m.header.stamp = stamp
+    m.step_index = int(n)
+    m.interval_s = float(dt_s)
+    m.mdot_bl_kgps = float(u.mdot_bl_kgps)
+    m.t_evap_sp_c = float(u.t_evap_sp_c)
+    m.p_comp_w = float(out.p_comp_w)
+    m.p_blower_w = float(out.p_blower_w)
+    m.p_cond_fan_w = float(out.p_cond_fan_w)
+    m.q_evap_w = float(out.q_evap_w)
+    m.q_latent_w = float(out.q_latent_w)
+    m.comp_speed_rpm = float(out.comp_speed_rpm)
+    m.capacity_limited = bool(out.capacity_limited)
+    m.cop = float(out.cop)
+    m.e_comp_j = float(e_comp_j)
+    m.e_blower_j = float(e_blower_j)
+    m.e_total_j = float(e_comp_j + e_blower_j)
+    m.fallback = bool(fallback)
+    return m
+
+
+def comfort_msg(n: int, stamp, pmv: float, ppd: float, lb: float, ub: float, meas: dict, u: AcInput,
+                solar_wm2: float, met: float, clo: float, iso_valid: bool) -> Comfort:
+    """The occupant's comfort at plant step ``n``."""
+    m = Comfort()
+    m.header.stamp = stamp
+    m.step_index = int(n)
+    m.pmv = float(pmv)
+    m.ppd = float(ppd)
+    m.pmv_lb = float(lb)
+    m.pmv_ub = float(ub)
+    m.t_cab_c = float(meas['t_cab_c'])
+    m.t_vent_c = float(meas['t_vent_c'])
+    m.t_int_c = float(meas['t_int_c'])
+    m.mdot_bl_kgps = float(u.mdot_bl_kgps)
+    m.solar_wm2 = float(solar_wm2)
+    m.met = float(met)
+    m.clo = float(clo)
+    m.iso_valid = bool(iso_valid)
+    return m
+
+
+# --- controller diagnostics -------------------------------------------------------------------
+def _f(x) -> float:
+    return math.nan if x is None else float(x)
+
+
+def diagnostics_msg(d: Diagnostics, stamp, strategy: str, control_period_s: float) -> ControllerDiagnostics:
+    """A controller's :class:`Diagnostics` of one step as a ControllerDiagnostics message."""
+    m = ControllerDiagnostics()
+    m.header.stamp = stamp
+    m.step_index = int(d.k)
+    m.strategy = strategy
+    m.status = str(d.status)
+    m.success = bool(d.success) if d.success is not None else False
+    m.iterations = -1 if d.iterations is None else int(d.iterations)
+    m.solve_time_s = _f(d.solve_time_ms) * 1e-3
+    m.cost_total = _f(d.cost_total)
+    m.cost_energy = _f(d.cost_energy)
+    m.cost_comfort = _f(d.cost_comfort)
+    m.cost_ioch = _f(d.cost_ioch)
+    m.prediction_step_s = float(control_period_s)
+    m.predicted_pmv = [] if d.pred_pmv is None else [float(x) for x in np.ravel(d.pred_pmv)]
+    m.predicted_t_cab_c = [] if d.pred_t_cab_c is None else [float(x) for x in np.ravel(d.pred_t_cab_c)]
+    m.eps = [] if d.eps is None else [float(x) for x in np.ravel(d.eps)]
+    m.eps_mean = _f(d.eps_mean)
+    m.fallback = bool(d.fallback)
+    m.fallback_reason = str(d.fallback) + (f': {d.message}' if d.message and d.fallback else '')
+    return m
