@@ -1,4 +1,4 @@
-"""Tests of the ISO 7730:2005 draught rating (ceco_plant_sim.draught).
+"""Tests of the ISO 7730:2005 draught rating (ceco_core.draught).
 
 Reference data: tests/data/iso7730_draught.csv (the DR = 20 % / Tu = 40 %
 speed limits of ISO 7730 Figure A.2 as tabulated in the Danish BR18 guidance).
@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from ceco_plant_sim.draught import (DR_CATEGORY_LIMITS_PCT, DR_EXACT, DraughtSmoothing, draught_rating,
-                                    draught_validity)
+from ceco_core.draught import DR_CATEGORY_LIMITS_PCT, DR_EXACT, DraughtSmoothing, draught_rating, draught_validity
 
 DATA = pathlib.Path(__file__).parent / "data"
 
@@ -30,8 +29,10 @@ def test_speed_limits_for_category_b_match_the_published_table(smoothing):
     rows = _worked_values()
     assert len(rows) == 11
     for r in rows:
-        v = brentq(lambda v: float(draught_rating(r["ta_c"], v, r["tu_pct"], smoothing=smoothing)) - r["dr_pct"],
-                   0.06, 1.0, xtol=1e-9)
+        def excess(v, r=r):
+            return float(draught_rating(r["ta_c"], v, r["tu_pct"], smoothing=smoothing)) - r["dr_pct"]
+
+        v = brentq(excess, 0.06, 1.0, xtol=1e-9)
         assert abs(v - r["vel_max_mps"]) <= 0.0051, (r, v)
     # category B is the 20 % line
     assert DR_CATEGORY_LIMITS_PCT["B"] == 20.0

@@ -1,4 +1,4 @@
-"""Tests of the environment at the occupant (ceco_plant_sim.occupant): vent jets, body-average air, T_mr."""
+"""Tests of the environment at the occupant (ceco_core.occupant): vent jets, body-average air, T_mr."""
 
 import dataclasses
 
@@ -6,8 +6,14 @@ import casadi
 import numpy as np
 import pytest
 
-from ceco_plant_sim.occupant import (OccupantAirParams, RadiantParams, mean_radiant_temperature_c, occupant_air,
-                                     shell_inside_surface_c, vent_speed_mps)
+from ceco_core.occupant import (
+    OccupantAirParams,
+    RadiantParams,
+    mean_radiant_temperature_c,
+    occupant_air,
+    shell_inside_surface_c,
+    vent_speed_mps,
+)
 
 
 def test_vent_speed_and_the_documented_ranges():

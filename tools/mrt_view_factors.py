@@ -14,7 +14,7 @@ the default weights of the mean radiant temperature (docs/comfort.md):
 Method: directions from the driver's chest are sampled on a Fibonacci sphere
 (200 000 directions, deterministic); each direction is weighted by the
 projected area factor f_p(altitude, SHARP) of a seated person (ASHRAE
-55-2020 App. C table, ``ceco_plant_sim.solarcal.FP_TABLES``; for directions
+55-2020 App. C table, ``ceco_core.solarcal.FP_TABLES``; for directions
 below the horizon the table is mirrored, f_p(-beta) = f_p(beta)), i.e. by the
 share of the body's radiating area that faces it, and cast against a
 polygon model of a mid-size sedan cabin (dimensions below, metres, x forward,
@@ -36,7 +36,7 @@ and cushion z = -0.25.
 
 import numpy as np
 
-from ceco_plant_sim.solarcal import FP_TABLES, projected_area_factor
+from ceco_core.solarcal import FP_TABLES, projected_area_factor
 
 N_DIRECTIONS = 200_000
 

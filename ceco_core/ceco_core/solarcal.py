@@ -39,7 +39,7 @@ import dataclasses
 import casadi
 import numpy as np
 
-from ceco_plant_sim import mathops  # after the restructure: from ceco_core import mathops
+from ceco_core import mathops
 
 __all__ = [
     "ALPHA_LW",

@@ -1,5 +1,4 @@
-"""The thermal environment at the occupant: air speed and air temperature from the vent jets,
-mean radiant temperature from the cabin surfaces.
+"""The thermal environment at the occupant: vent-jet air speed and temperature, mean radiant temperature.
 
 These turn the plant's lumped states (mean cabin air, vent air, blower flow,
 interior / shell / glazing nodes) into the inputs of the PMV (body-average
@@ -44,7 +43,7 @@ Parameter values, sources and the measured consequences: docs/comfort.md.
 import dataclasses
 import math
 
-from ceco_plant_sim import mathops, units  # after the restructure: from ceco_core import mathops, units
+from ceco_core import mathops, units
 
 __all__ = [
     "R_DRY_AIR_JPKGK",

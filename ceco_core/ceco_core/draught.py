@@ -20,7 +20,7 @@ import math
 import casadi
 import numpy as np
 
-from ceco_plant_sim import mathops  # after the restructure: from ceco_core import mathops
+from ceco_core import mathops
 
 __all__ = [
     "DR_VEL_FLOOR_MPS",
@@ -58,7 +58,7 @@ class DraughtSmoothing:
     """Smoothing of the two non-differentiable corners of the DR formula."""
 
     k_vel_spm: float = 2000.0
-    """Softplus sharpness of the speed floor, v - 0.05 -> softplus(v - 0.05) [s/m]; v error <= ln2/k = 3.5e-4 m/s at 0.05 m/s."""
+    """Softplus sharpness of the speed floor v - 0.05 -> softplus(v - 0.05) [s/m]; v error <= ln2/k = 3.5e-4 m/s."""
     k_cap_per_pct: float = 2.0
     """Log-sum-exp sharpness of the clip of DR into [0, 100] [1/%]; DR error <= ln2/k = 0.35 %-points at 0 and 100 %."""
     exact: bool = False
