@@ -18,6 +18,7 @@ Public API:
 from __future__ import annotations
 
 import functools
+import math
 import os
 from io import StringIO
 from pathlib import Path
@@ -233,6 +234,8 @@ def load_run_timeseries(bag_dir) -> dict[str, np.ndarray]:
         rows['capacity_limited'].append(float(p.capacity_limited))
         for col in ('pmv', 'ppd', 'pmv_lb', 'pmv_ub'):
             rows[col].append(getattr(c, col))
+        for col in rundir.COMFORT_COLUMNS:
+            rows[col].append(float(c.iso_valid) if col == 'iso7730_valid' else getattr(c, col, math.nan))
         rows['step_index'].append(n)
         rows['fallback'].append(bool(s.fallback or p.fallback))
     out = {k: np.asarray(v, dtype=float) for k, v in rows.items()}

@@ -24,7 +24,7 @@ import sys
 import numpy as np
 
 from ceco_core import rundir
-from ceco_core.metrics import compute_metrics, comparison_table
+from ceco_core.metrics import comfort_series_metrics, compute_metrics, comparison_table
 from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
 from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews, parse_quality
 from ceco_v2x_preview.scenario import Scenario, load_scenario
@@ -156,6 +156,7 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
             "mdot_bl_kgps": r.u.mdot_bl_kgps, "t_evap_sp_c": r.u.t_evap_sp_c,
             "p_comp_w": out.p_comp_w, "p_blower_w": out.p_blower_w, "q_evap_w": out.q_evap_w, "cop": out.cop,
             "pmv": r.pmv, "ppd": r.ppd, "pmv_lb": r.pmv_lb, "pmv_ub": r.pmv_ub,
+            **{c: float(getattr(r.comfort, c)) for c in rundir.COMFORT_COLUMNS},
             "p_cond_fan_w": out.p_cond_fan_w, "q_latent_w": out.q_latent_w,
             "comp_speed_rpm": out.comp_speed_rpm, "capacity_limited": float(out.capacity_limited),
         }
@@ -176,6 +177,7 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
         "otc_violation_zone_pct": float(100.0 * np.count_nonzero(viol & zone) / max(np.count_nonzero(zone), 1)),
         "pmv_mean_zone": float(np.mean(cols["pmv"][zone])),
     })
+    metrics.update(comfort_series_metrics(cols, dt, zone))
     metrics.update({
         "scenario": scenario.name, "strategy": strategy, "control_period_s": ts, "horizon_steps": n_p,
         "seed": int(quality.seed if quality.seed is not None else scenario.seed),
@@ -214,9 +216,11 @@ def write_run(result: RunResult, run_dir: str | pathlib.Path) -> pathlib.Path:
     return d
 
 
-TABLE_COLUMNS = ("E_tot_kWh", "I_pmv", "otc_violation_pct", "time_to_comfort_s", "pmv_mean",
-                 "E_zone_J", "I_pmv_zone", "otc_violation_zone_pct", "pmv_mean_zone")
-"""Columns of the printed comparison (``*_zone``: only the comfort-zone phase after the pull-down relaxation)."""
+TABLE_COLUMNS = ("E_tot_kWh", "I_pmv", "I_pmv_clipped", "otc_violation_pct", "iso7730_invalid_pct",
+                 "time_to_comfort_s", "pmv_mean", "E_zone_J", "I_pmv_zone", "otc_violation_zone_pct", "pmv_mean_zone",
+                 "iso7730_invalid_pct_zone", "dr_above_pct_zone", "rh_cab_mean_zone", "fog_margin_min_k")
+"""Columns of the printed comparison (``*_zone``: only the comfort-zone phase after the pull-down relaxation);
+the share of samples outside ISO 7730 validity next to the comfort metrics."""
 CHANGE_COLUMNS = ("E_tot_kWh", "I_pmv", "otc_violation_pct", "E_zone_J", "I_pmv_zone")
 """Columns shown with their change against the baseline [%]."""
 

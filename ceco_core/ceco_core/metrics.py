@@ -32,6 +32,13 @@ __all__ = [
     "relative_change_pct",
     "comparison_rows",
     "comparison_table",
+    "PMV_SCALE_LIMIT",
+    "i_pmv_clipped",
+    "iso7730_invalid_pct",
+    "draught_stats",
+    "fog_margin_stats",
+    "COMFORT_SERIES_METRIC_KEYS",
+    "comfort_series_metrics",
 ]
 
 J_PER_KWH = 3.6e6
@@ -237,3 +244,78 @@ def comparison_table(rows: Sequence[Mapping], baseline: str = "baseline", *, nam
                                 for i, (cell, w) in enumerate(zip(row, widths)))
     lines = [fmt(header), "  ".join("-" * w for w in widths)] + [fmt(b) for b in body]
     return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------------------------------
+# comfort-series metrics (issue 9): pure functions of the timeseries columns pmv, dr_pct,
+# fog_margin_k, iso7730_valid (ceco_core.rundir.COMFORT_COLUMNS); docs/metrics.md
+
+PMV_SCALE_LIMIT = 3.0
+"""End of ISO 7730's seven-point thermal sensation scale (+3 hot, -3 cold) [-]."""
+
+
+def i_pmv_clipped(pmv, dt_s: float, limit: float = PMV_SCALE_LIMIT) -> float:
+    """``sum_i clip(PMV_i, -limit, limit)^2 dt`` [s]: the paper's I_PMV with PMV held on the 7-point scale.
+
+    Beyond +-3 a PMV is no longer a vote (and outside ISO 7730's validity): a hot-soaked cabin's PMV of
+    5-7 would otherwise dominate the integral.
+    """
+    y = np.clip(_array("pmv", pmv, None), -limit, limit)
+    return float(np.sum(y * y) * dt_s)
+
+
+def iso7730_invalid_pct(valid) -> float:
+    """Share of samples whose PMV inputs or PMV lie outside ISO 7730 Clause 4 ranges [%] (``valid`` 1/0)."""
+    v = _array("iso7730_valid", valid, None)
+    return float(100.0 * np.count_nonzero(v < 0.5) / v.size) if v.size else math.nan
+
+
+def draught_stats(dr_pct, limit_pct: float = 20.0) -> dict:
+    """Draught rating statistics: ``dr_mean_pct``, ``dr_max_pct`` and ``dr_above_pct``, the share of
+    samples with DR above ``limit_pct`` (ISO 7730 category B: 20 %) [%]."""
+    d = _array("dr_pct", dr_pct, None)
+    if not d.size:
+        return {"dr_mean_pct": math.nan, "dr_max_pct": math.nan, "dr_above_pct": math.nan}
+    return {"dr_mean_pct": float(np.mean(d)), "dr_max_pct": float(np.max(d)),
+            "dr_above_pct": float(100.0 * np.count_nonzero(d > limit_pct) / d.size)}
+
+
+def fog_margin_stats(fog_margin_k) -> dict:
+    """Windscreen fog margin statistics (glass minus dew point): ``fog_margin_min_k``, ``fog_margin_mean_k``
+    [K] and ``fog_risk_pct``, the share of samples with a margin below 0 (condensation on the glass) [%]."""
+    f = _array("fog_margin_k", fog_margin_k, None)
+    if not f.size:
+        return {"fog_margin_min_k": math.nan, "fog_margin_mean_k": math.nan, "fog_risk_pct": math.nan}
+    return {"fog_margin_min_k": float(np.min(f)), "fog_margin_mean_k": float(np.mean(f)),
+            "fog_risk_pct": float(100.0 * np.count_nonzero(f < 0.0) / f.size)}
+
+
+COMFORT_SERIES_METRIC_KEYS = (
+    "I_pmv_clipped", "iso7730_invalid_pct", "dr_mean_pct", "dr_max_pct", "dr_above_pct",
+    "fog_margin_min_k", "fog_margin_mean_k", "fog_risk_pct", "rh_cab_mean", "pa_mean_pa",
+)
+"""Keys of :func:`comfort_series_metrics` (each also with the suffix ``_zone``)."""
+
+
+def comfort_series_metrics(columns: Mapping, dt_s: float, zone=None) -> dict:
+    """The comfort-series metrics of a run, whole run and (``zone``: boolean mask) the comfort-zone phase.
+
+    ``columns`` holds ``pmv, dr_pct, fog_margin_k, iso7730_valid, rh_cab, pa_pa`` (timeseries.csv);
+    returns :data:`COMFORT_SERIES_METRIC_KEYS` and the same keys suffixed ``_zone`` (NaN without a zone).
+    """
+    n = np.asarray(columns["pmv"]).size
+    masks = {"": np.ones(n, dtype=bool),
+             "_zone": np.zeros(n, dtype=bool) if zone is None else np.asarray(zone, dtype=bool)}
+    out = {}
+    for suffix, m in masks.items():
+        if not m.any():
+            out.update({k + suffix: math.nan for k in COMFORT_SERIES_METRIC_KEYS})
+            continue
+        col = {k: np.asarray(columns[k], dtype=float)[m] for k in ("pmv", "dr_pct", "fog_margin_k",
+                                                                    "iso7730_valid", "rh_cab", "pa_pa")}
+        vals = {"I_pmv_clipped": i_pmv_clipped(col["pmv"], dt_s),
+                "iso7730_invalid_pct": iso7730_invalid_pct(col["iso7730_valid"]),
+                **draught_stats(col["dr_pct"]), **fog_margin_stats(col["fog_margin_k"]),
+                "rh_cab_mean": float(np.mean(col["rh_cab"])), "pa_mean_pa": float(np.mean(col["pa_pa"]))}
+        out.update({k + suffix: vals[k] for k in COMFORT_SERIES_METRIC_KEYS})
+    return out
