@@ -211,7 +211,8 @@ class StrategySettings:
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"StrategySettings.{name} must be finite and > 0, got {v!r}")
         if self.pmv_pa_source not in ("paper", "measured"):
-            raise ValueError(f"StrategySettings.pmv_pa_source must be 'paper' or 'measured', got {self.pmv_pa_source!r}")
+            raise ValueError("StrategySettings.pmv_pa_source must be 'paper' or 'measured', "
+                             f"got {self.pmv_pa_source!r}")
         for name in ("gamma_w", "pmv_margin", "beta_w", "eps_ub", "slack_weight_kj", "du_weight_kj",
                      "bias_limit_k", "draught_weight_kj"):
             v = getattr(self, name)

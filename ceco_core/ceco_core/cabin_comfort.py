@@ -140,8 +140,10 @@ class ComfortParams:
 
 
 def comfort_params_for(scenario, *, glazing_tau=GLAZING_TAU, u_shell_in_wm2k=SHELL_U_IN_WM2K) -> ComfortParams:
-    """Comfort parameters of a scenario: its occupant (met, clo) and its sun (altitude, and SHARP from
-    the sun's azimuth and the car's heading, :func:`ceco_core.solarcal.relative_azimuth_deg`).
+    """Comfort parameters of a scenario: its occupant (met, clo) and its sun.
+
+    The sun: altitude, and SHARP from the sun's azimuth and the car's heading
+    (:func:`ceco_core.solarcal.relative_azimuth_deg`).
 
     ``glazing_tau`` and ``u_shell_in_wm2k`` are the plant's (``PlantParams.tau_glass``,
     ``PlantParams.u_shell_in_wm2k``); the defaults are the plant's defaults.
@@ -177,7 +179,8 @@ def cabin_pmv(*, t_cab_c, t_vent_c, mdot_bl_kgps, t_mr_c, w_rad_wm2, pa_pa, para
         w_rad_wm2: absorbed sun per body area [W/m2] (:func:`cabin_w_rad_wm2`).
         pa_pa: cabin water vapour pressure [Pa] (measured, or :data:`PAPER_PA_PA`).
         params: :class:`ComfortParams` (validated here).
-        met, clo: override params.met / params.clo.
+        met: metabolic rate [met]; default params.met.
+        clo: clothing insulation [clo]; default params.clo.
 
     Returns:
         PMV [-] (numpy array or CasADi expression).

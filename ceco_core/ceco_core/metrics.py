@@ -271,8 +271,10 @@ def iso7730_invalid_pct(valid) -> float:
 
 
 def draught_stats(dr_pct, limit_pct: float = 20.0) -> dict:
-    """Draught rating statistics: ``dr_mean_pct``, ``dr_max_pct`` and ``dr_above_pct``, the share of
-    samples with DR above ``limit_pct`` (ISO 7730 category B: 20 %) [%]."""
+    """Draught rating statistics ``dr_mean_pct``, ``dr_max_pct``, ``dr_above_pct`` [%].
+
+    ``dr_above_pct`` is the share of samples with DR above ``limit_pct`` (ISO 7730 category B: 20 %).
+    """
     d = _array("dr_pct", dr_pct, None)
     if not d.size:
         return {"dr_mean_pct": math.nan, "dr_max_pct": math.nan, "dr_above_pct": math.nan}
@@ -281,8 +283,10 @@ def draught_stats(dr_pct, limit_pct: float = 20.0) -> dict:
 
 
 def fog_margin_stats(fog_margin_k) -> dict:
-    """Windscreen fog margin statistics (glass minus dew point): ``fog_margin_min_k``, ``fog_margin_mean_k``
-    [K] and ``fog_risk_pct``, the share of samples with a margin below 0 (condensation on the glass) [%]."""
+    """Windscreen fog margin (glass minus dew point) statistics ``fog_margin_min_k``, ``fog_margin_mean_k`` [K].
+
+    ``fog_risk_pct`` is the share of samples with a margin below 0 (condensation on the glass) [%].
+    """
     f = _array("fog_margin_k", fog_margin_k, None)
     if not f.size:
         return {"fog_margin_min_k": math.nan, "fog_margin_mean_k": math.nan, "fog_risk_pct": math.nan}

@@ -238,8 +238,11 @@ COMFORT_SERIES_FIELDS = ("ta_occ_c", "vel_occ_mps", "t_mr_c", "w_rad_wm2", "pa_p
 
 def comfort_msg(n: int, stamp, pmv: float, ppd: float, lb: float, ub: float, meas: dict, u: AcInput,
                 solar_wm2: float, met: float, clo: float, iso_valid: bool, series=None) -> Comfort:
-    """The occupant's comfort at plant step ``n``; ``series`` (an ``OccupantComfort``) fills the
-    occupant-environment, draught and fog fields (NaN without it)."""
+    """The occupant's comfort at plant step ``n``.
+
+    ``series`` (a ``ceco_core.cabin_comfort.OccupantComfort``) fills the occupant-environment, draught
+    and fog fields (NaN without it).
+    """
     m = Comfort()
     m.header.stamp = stamp
     m.step_index = int(n)
