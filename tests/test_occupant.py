@@ -92,3 +92,14 @@ def test_parameter_validation():
         dataclasses.replace(RadiantParams(), f_glass=0.5).validate()
     with pytest.raises(ValueError, match="h_film"):
         shell_inside_surface_c(26.0, 40.0, 9.0, 8.0)
+
+
+def test_draught_location_follows_the_vent_aim():
+    aimed = occupant_air(t_cab_c=25.0, t_vent_c=7.0, mdot_bl_kgps=0.1, params=OccupantAirParams())
+    assert float(aimed.ta_dr_c) == float(aimed.ta_jet_c) and float(aimed.vel_dr_mps) == float(aimed.vel_jet_mps)
+    away_p = dataclasses.replace(OccupantAirParams(), jet_body_fraction=0.0, dr_in_jet=False)
+    away = occupant_air(t_cab_c=25.0, t_vent_c=7.0, mdot_bl_kgps=0.1, params=away_p)
+    assert float(away.ta_dr_c) == 25.0 and float(away.vel_dr_mps) == pytest.approx(float(away.vel_room_mps))
+    # no jet on the body: the PMV sees the cabin air at the room speed
+    assert float(away.ta_occ_c) == pytest.approx(25.0, abs=1e-9)
+    assert float(away.vel_occ_mps) == pytest.approx(float(away.vel_room_mps), rel=1e-9)

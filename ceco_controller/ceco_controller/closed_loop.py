@@ -242,7 +242,19 @@ def main(argv=None) -> int:
     ap.add_argument("--controller-config", default=None,
                     help="controller settings file (default: ceco_controller/config/controller.yaml)")
     ap.add_argument("--no-progress", action="store_true", help="disable the progress bar")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                    help="override a CECO strategy setting (StrategySettings field), e.g. pmv_pa_source=measured; "
+                         "repeatable; numbers are read as floats")
     args = ap.parse_args(argv)
+    overrides = []
+    for item in args.set:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            ap.error(f"--set: expected FIELD=VALUE, got {item!r}")
+        try:
+            overrides.append((key, float(value)))
+        except ValueError:
+            overrides.append((key, value))
     strategies = list(STRATEGIES) if args.strategy == "all" else [s.strip() for s in args.strategy.split(",")]
     for s in strategies:
         if s not in STRATEGIES:
@@ -255,7 +267,7 @@ def main(argv=None) -> int:
     settings = SimSettings(control_period_s=args.control_period, horizon_steps=args.horizon,
                            preview_quality=quality, seed=args.seed, duration_s=args.duration,
                            progress=not args.no_progress, model_params_path=args.model_params,
-                           controller_config_path=args.controller_config)
+                           controller_config_path=args.controller_config, strategy_overrides=tuple(overrides))
     out = pathlib.Path(args.out)
     rows = []
     for s in strategies:

@@ -193,15 +193,16 @@ def cabin_pmv(*, t_cab_c, t_vent_c, mdot_bl_kgps, t_mr_c, w_rad_wm2, pa_pa, para
 
 
 def cabin_draught_pct(*, t_cab_c, t_vent_c, mdot_bl_kgps, params, cap=True, smoothing=None):
-    """ISO 7730 draught rating [%] in the vent jet at the occupant's upper body (neck and face).
+    """ISO 7730 draught rating [%] at the occupant: in the vent jet at the upper body (neck and face).
 
-    Local air temperature and mean speed of the jet (:func:`ceco_core.occupant.occupant_air`),
-    turbulence intensity ``params.air.tu_pct``. ``cap=False`` gives the uncapped intensity for a
+    Local air temperature and mean speed of the jet (:func:`ceco_core.occupant.occupant_air`; in the
+    recirculating cabin air instead if ``params.air.dr_in_jet`` is False), turbulence intensity
+    ``params.air.tu_pct``. ``cap=False`` gives the uncapped intensity for a
     penalty with a gradient beyond 100 %; ``smoothing`` defaults to the smooth DR (NLP use).
     """
     air = occupant_air(t_cab_c=t_cab_c, t_vent_c=t_vent_c, mdot_bl_kgps=mdot_bl_kgps, params=params.air)
     kw = {} if smoothing is None else {"smoothing": smoothing}
-    return draught_rating(air.ta_jet_c, air.vel_jet_mps, params.air.tu_pct, cap=cap, **kw)
+    return draught_rating(air.ta_dr_c, air.vel_dr_mps, params.air.tu_pct, cap=cap, **kw)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -219,7 +220,7 @@ class OccupantComfort:
     fog_margin_k: object
     """Inner glazing temperature minus cabin dew point [K] (fogging where < 0)."""
     dr_pct: object
-    """ISO 7730 draught rating in the jet at the occupant (exact ISO corners) [%]."""
+    """ISO 7730 draught rating at the occupant (jet at the upper body by default; exact ISO corners) [%]."""
     ta_occ_c: object
     """PMV air temperature at the occupant (body average) [degC]."""
     vel_occ_mps: object
@@ -258,7 +259,7 @@ def evaluate_cabin_comfort(*, t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, 
             w_rad_wm2=w_rad, smoothing=params.smoothing)
     t_dew = psychro.dew_point_c(pa)
     valid = iso7730_validity(air.ta_occ_c, t_mr, air.vel_occ_mps, pa, params.met, params.clo, y).all
-    dr = draught_rating(air.ta_jet_c, air.vel_jet_mps, params.air.tu_pct, smoothing=DR_EXACT)
+    dr = draught_rating(air.ta_dr_c, air.vel_dr_mps, params.air.tu_pct, smoothing=DR_EXACT)
     return OccupantComfort(pmv=y, ppd=ppd(y), pa_pa=pa, t_dew_c=t_dew,
                            fog_margin_k=np.asarray(t_glass_c, dtype=float) - t_dew, dr_pct=dr,
                            ta_occ_c=air.ta_occ_c, vel_occ_mps=air.vel_occ_mps, t_mr_c=t_mr, w_rad_wm2=w_rad,

@@ -98,7 +98,11 @@ class OccupantAirParams:
     c_room: float = 0.04
     """Speed of the recirculating cabin air over the outlet speed [-]."""
     tu_pct: float = 30.0
-    """Turbulence intensity of the jet at the occupant, for the draught rating [%]."""
+    """Turbulence intensity at the draught-rating location, for the draught rating [%]."""
+    dr_in_jet: bool = True
+    """Where the draught rating is evaluated: True, in the jet at the upper body (panel vents aimed at
+    the occupant); False, in the recirculating cabin air (vents aimed away; then also set
+    jet_body_fraction = 0)."""
     p_atm_pa: float = 101325.0
     """Pressure of the vent air for its density [Pa]."""
     k_smooth: float = 50.0
@@ -116,6 +120,8 @@ class OccupantAirParams:
             raise ValueError("OccupantAirParams.a_outlet_m2 must not exceed a_vents_m2")
         if not (isinstance(self.tu_pct, (int, float)) and 0.0 <= self.tu_pct <= 100.0):
             raise ValueError(f"OccupantAirParams.tu_pct must be in [0, 100] %, got {self.tu_pct!r}")
+        if not isinstance(self.dr_in_jet, bool):
+            raise ValueError(f"OccupantAirParams.dr_in_jet must be a bool, got {self.dr_in_jet!r}")
         return self
 
     @property
@@ -161,6 +167,12 @@ class OccupantAir:
     """Local mean air speed of the jet at the upper body, the draught rating's v_a,l [m/s]."""
     vel_vent_mps: object
     """Outlet speed of the panel vents U_0 [m/s]."""
+    vel_room_mps: object
+    """Speed of the recirculating cabin air on the body outside the jets [m/s]."""
+    ta_dr_c: object
+    """The draught rating's local air temperature [degC]: the jet's, or T_cab (``dr_in_jet``)."""
+    vel_dr_mps: object
+    """The draught rating's local mean air speed [m/s]: the jet's, or the room air's (``dr_in_jet``)."""
 
 
 def vent_speed_mps(mdot_bl_kgps, t_vent_c, params):
@@ -196,7 +208,9 @@ def occupant_air(*, t_cab_c, t_vent_c, mdot_bl_kgps, params):
     sr = (1.0 - p.jet_body_fraction) * ops.sqrt(v_room)
     s = sj + sr
     return OccupantAir(ta_occ_c=t_cab_c + (sj / s) * (t_jet - t_cab_c), vel_occ_mps=s * s, ta_jet_c=t_jet,
-                       vel_jet_mps=v_jet, vel_vent_mps=u0)
+                       vel_jet_mps=v_jet, vel_vent_mps=u0, vel_room_mps=v_room,
+                       ta_dr_c=t_jet if p.dr_in_jet else t_cab_c + 0.0 * u0,
+                       vel_dr_mps=v_jet if p.dr_in_jet else v_room)
 
 
 def shell_inside_surface_c(t_cab_c, t_shell_c, u_shell_in_wm2k, h_film_wm2k):
