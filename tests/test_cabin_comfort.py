@@ -96,3 +96,12 @@ def test_draught_in_the_jet_and_its_uncapped_intensity():
     # no flow: the still air at 25 degC is not a draught
     still = cc.cabin_draught_pct(t_cab_c=25.0, t_vent_c=8.0, mdot_bl_kgps=0.0, params=params)
     assert float(still) < 15.0
+
+
+def test_public_api_of_the_simulator_package():
+    from ceco_plant_sim import comfort
+
+    for name in ("pmv", "ppd", "cabin_pmv", "draught_rating", "evaluate_cabin_comfort", "ComfortParams",
+                 "comfort_params_for", "iso7730_validity"):
+        assert name in comfort.__all__ and callable(getattr(comfort, name))
+    assert comfort.draught_rating(21.0, 0.7, 40.0) == pytest.approx(100.0)
