@@ -1,4 +1,4 @@
-"""Humidity and fog margin on SC03 for the baseline and ceco-c (closed loop, in-process simulator)."""
+"""Humidity and fog margin on SC03 for the baseline and ceco-c (closed loop, in-process simulator, ~10 s)."""
 
 import numpy as np
 import pytest
@@ -7,8 +7,6 @@ from ceco_controller import closed_loop as cl
 from ceco_core import psychro
 from ceco_core.cabin_comfort import PAPER_PA_PA, cabin_pmv, comfort_params_for
 from ceco_v2x_preview.scenario import load_scenario
-
-pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")

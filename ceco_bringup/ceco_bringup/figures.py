@@ -23,6 +23,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ceco_bringup.rundata import fallback_mask  # noqa: E402
 from ceco_core.contracts import STRATEGIES  # noqa: E402
 from ceco_core.metrics import relative_change_pct  # noqa: E402
 
@@ -295,8 +296,6 @@ def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
             for patch, n in zip(bp['boxes'], names):
                 patch.set_facecolor(strategy_style(n)['color'])
                 patch.set_alpha(0.6)
-            from ceco_bringup.report import fallback_mask  # noqa: PLC0415
-
             labels = []
             for n in names:
                 fb = diags[n].get('fallback')

@@ -6,7 +6,9 @@
 Per strategy: starts preview_node, the controller (mpc_node or baseline_node)
 and plant_node as separate OS processes on a private ROS_DOMAIN_ID with
 localhost-only discovery, records every topic (in-process recorder node,
-rosbags, sqlite3, metadata version 9) into DIR/bag, and when the scenario
+rosbags, MCAP or `--storage sqlite3`, metadata version 9, fully qualified topic
+names; bag timestamps: simulation time in lockstep, receive time in real time)
+into DIR/bag, and when the scenario
 is done writes DIR/metrics.json (compute_metrics on the recorded data),
 DIR/timeseries.csv, DIR/diagnostics.csv and DIR/logs/<node>.log.
 
@@ -32,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ceco_bringup.bag_writer import STORAGES
 from ceco_core.contracts import STRATEGIES
 from ceco_core.control_grid import TIMING_MODES
 
@@ -78,6 +81,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help='wall-clock limit for the nodes to start and discover each other [s]')
     p.add_argument('--run-timeout-s', type=float, default=1800.0, help='wall-clock limit of one run [s]')
     p.add_argument('--domain-id', type=int, default=None, help='ROS_DOMAIN_ID (default: a private one)')
+    p.add_argument('--storage', default=STORAGES[0], choices=STORAGES,
+                   help='rosbag2 storage of DIR/bag (default mcap, as ros2 bag record on Jazzy)')
     p.add_argument('--no-progress', action='store_true', help='no progress bar')
     return p
 
@@ -212,7 +217,8 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
     t_wall0 = time.monotonic()
     interrupted = False
     try:
-        recorder = Recorder(bag_dir, custom_data=custom, context=context)
+        recorder = Recorder(bag_dir, custom_data=custom, context=context, storage=args.storage,
+                            timestamps='sim' if args.timing == 'lockstep' else 'receive')
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(recorder)
 
