@@ -118,7 +118,7 @@ def load_sensitivity(path: str | Path | None = None) -> tuple[str, list[Sensitiv
     else:
         text = Path(path).read_text(encoding='utf-8')
     d = yaml.safe_load(text)
-    from ceco_core.comfort import ComfortParams  # noqa: PLC0415
+    from ceco_core.cabin_comfort import ComfortParams  # noqa: PLC0415
     from ceco_plant_sim.plant_params import PlantParams  # noqa: PLC0415
 
     defaults = {'comfort': ComfortParams(), 'plant': PlantParams()}
