@@ -20,7 +20,6 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 
 import ceco_plant_sim.plant_io as pio
 from ceco_core.acc_law import AccLaw
-from ceco_core.comfort import iso7730_validity
 from ceco_core.contracts import AcInput
 from ceco_core.supervision import FallbackSupervisor, Watchdog
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort
@@ -91,12 +90,10 @@ class PlantNode(NodeTools, Node):
         stamp, r = self._stamp(), self.sp.step(u)
         self.e_comp_j += r.out.e_comp_j
         self.e_blower_j += r.out.e_blower_j
-        c, meas = self.sp.comfort, r.meas
-        valid = bool(iso7730_validity(c.air_temperature_c(meas['t_cab_c'], meas['t_vent_c']), meas['t_int_c'],
-                                      c.air_speed_mps(u.mdot_bl_kgps), c.pa_pa if c.pa_pa is not None else 0.0,
-                                      c.met, c.clo, r.pmv).all)
-        self.pub_comfort.publish(conversions.comfort_msg(r.n, stamp, r.pmv, r.ppd, r.pmv_lb, r.pmv_ub, meas, u,
-                                                         r.env.solar_wm2, c.met, c.clo, valid))
+        c = self.sp.comfort
+        self.pub_comfort.publish(conversions.comfort_msg(r.n, stamp, r.pmv, r.ppd, r.pmv_lb, r.pmv_ub, r.meas, u,
+                                                         r.env.solar_wm2, c.met, c.clo, r.comfort.iso7730_valid,
+                                                         series=r.comfort))
         self.pub_power.publish(conversions.power_msg(r.n, stamp, self.dt, u, r.out, self.e_comp_j,
                                                      self.e_blower_j, fallback))
         if self.n < self.n_steps:

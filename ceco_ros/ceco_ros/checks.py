@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from ceco_core.contracts import MDOT_BL_MAX_KGPS, MDOT_BL_MIN_KGPS, STRATEGIES, T_EVAP_SP_MAX_C, T_EVAP_SP_MIN_C
+from ceco_core.contracts import MDOT_BL_MAX_KGPS, MDOT_BL_MIN_KGPS, T_EVAP_SP_MAX_C, T_EVAP_SP_MIN_C, WIRE_STRATEGIES
 from ceco_core.units import STAMP_MAX_S, s_from_sec_nanosec
 
 __all__ = ['STATE_RANGES', 'PREVIEW_RANGES', 'COMMAND_RANGES', 'stamp_s', 'check_stamp', 'check_stamp_equals',
@@ -125,11 +125,11 @@ def check_grid_step(name: str, value: float, control_period_s: float) -> str | N
 def check_command(msg, control_period_s: float) -> str | None:
     """Check an AcCommand: strategy, header stamp, Ts, both inputs.
 
-    The strategy is a controller's, the stamp well formed, Ts equal to the plant's, both
+    The strategy is a controller's (WIRE_STRATEGIES: the strategies and 'external'), the stamp well formed, Ts equal to the plant's, both
     inputs finite and inside the actuator bounds (:data:`COMMAND_RANGES`).
     """
-    if msg.strategy not in STRATEGIES:
-        return f'unknown strategy {msg.strategy!r} (expected one of {", ".join(STRATEGIES)})'
+    if msg.strategy not in WIRE_STRATEGIES:
+        return f'unknown strategy {msg.strategy!r} (expected one of {", ".join(WIRE_STRATEGIES)})'
     return (check_stamp('header.stamp', msg.header.stamp)
             or check_grid_step('control_period_s', msg.control_period_s, control_period_s)
             or _check_ranges(msg, COMMAND_RANGES))

@@ -19,6 +19,7 @@ from ceco_core.sequencing import SequenceGate, Verdict
 from ceco_core.supervision import Health, Rejections, reason_kind
 from ceco_ros.params import ParamSpec
 
+from . import forecast_error
 from .preview import PreviewQuality
 
 __all__ = ['PREVIEW_PARAMETERS', 'PreviewNodeConfig', 'PreviewInputs', 'preview_health', 'DYNAMIC']
@@ -48,6 +49,8 @@ PREVIEW_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('faults.delay_s', 0.0, 'age of the forecast when received [s]', float_range=(0.0, 86400.0)),
     ParamSpec('faults.missing_policy', 'hold_last', 'while missing: hold_last (keep the last forecast) or drop',
               choices=('hold_last', 'drop')),
+    ParamSpec('faults.uncertainty_level', 'none', 'benchmark forecast-uncertainty level (AR(1) errors, '
+              'ceco_v2x_preview.forecast_error)', choices=forecast_error.LEVELS),
     ParamSpec('inputs.window_s', 60.0, 'a state is accepted up to this far ahead of the last accepted scenario '
               'time [s]', float_range=(0.01, 1e6)),
     ParamSpec('inputs.confirm_count', 3, 'consecutive agreeing out-of-window states that establish a new time base '
@@ -117,7 +120,8 @@ class PreviewNodeConfig:
         q = {k.split('.', 1)[1]: v[k] for k in v if k.startswith('faults.noise') or k == 'faults.delay_s'}
         quality = PreviewQuality(**q, missing_spans_s=tuple(zip(spans[0::2], spans[1::2])),
                                  missing_policy=v['faults.missing_policy'],
-                                 seed=None if v['faults.seed'] < 0 else int(v['faults.seed']))
+                                 seed=None if v['faults.seed'] < 0 else int(v['faults.seed']),
+                                 uncertainty=v['faults.uncertainty_level'])
         cfg = cls(scenario=v['scenario'], timing=v['timing'], control_period_s=v['control_period_s'],
                   horizon_steps=v['horizon_steps'], publish_period_s=v['publish_period_s'], quality=quality,
                   **{f: v[p] for p, f in cls._FIELDS.items() if p in v})
