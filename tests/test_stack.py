@@ -23,6 +23,8 @@ import pytest
 pytestmark = pytest.mark.stack
 
 rclpy = pytest.importorskip('rclpy', reason='stack tests need the sourced ROS 2 workspace')
+if not hasattr(pytest.importorskip('ceco_msgs.msg', reason='stack tests need the built ceco_msgs'), 'AcCommand'):
+    pytest.skip('stack tests need the sourced ROS 2 workspace (ceco_msgs is not built here)', allow_module_level=True)
 
 from ceco_bringup import bagio, supervisor  # noqa: E402
 from ceco_ros import conversions, interfaces  # noqa: E402
