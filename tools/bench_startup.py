@@ -146,7 +146,7 @@ NODES = {
 }
 
 
-def run_node(name: str, domain: int, timeout_s: float) -> dict:
+def run_node(name: str, domain: int, timeout_s: float, extra: dict | None = None) -> dict:
     from ceco_bringup import supervisor
     from ceco_msgs.msg import AcCommand, CabinState, WeatherPreview
     from ceco_ros import interfaces
@@ -165,7 +165,7 @@ def run_node(name: str, domain: int, timeout_s: float) -> dict:
         threads.append(threading.Thread(target=_feed, args=(peer, feeder(peer), stop), daemon=True))
     cmd = [supervisor.find_executable(pkg, exe), '--ros-args',
            '--params-file', supervisor.share_file(pkg, f'config/{exe}.yaml')]
-    for key, value in params.items():
+    for key, value in dict(params, **(extra or {})).items():
         cmd += ['-p', f'{key}:={value}']
     lines: list = []
     time.sleep(0.3)   # peers up and announced before the node starts
@@ -196,7 +196,7 @@ def run_node(name: str, domain: int, timeout_s: float) -> dict:
     return {'first_log_s': first('[INFO]', '[WARN]'), 'configured_s': first('configured in'),
             'active_s': first('active: commanding'),
             'first_output_s': None if peer.first_output is None else peer.first_output - t0,
-            'log_head': [text for _, text in lines[:3]]}
+            'log_head': [text for _, text in lines[:3]], 'log': [text for _, text in lines]}
 
 
 def run_reference(domain: int, timeout_s: float) -> float | None:
@@ -227,6 +227,8 @@ def main(argv=None) -> int:
     p.add_argument('--timeout-s', type=float, default=60.0)
     p.add_argument('--domain-id', type=int, default=None)
     p.add_argument('--json', default=None, help='write the numbers to this file')
+    p.add_argument('--autostart', action='store_true',
+                   help='managed nodes configure and activate themselves (parameter autostart:=true)')
     args = p.parse_args(argv)
     from ceco_bringup import supervisor
     domain = args.domain_id if args.domain_id is not None else supervisor.pick_domain_id()
@@ -238,7 +240,8 @@ def main(argv=None) -> int:
     print(f'{"node":<14} {"first log [s]":>14} {"configured [s]":>15} {"active [s]":>10} {"first output [s]":>17} '
           f'{"output / ref":>13}')
     for name in args.nodes:
-        runs = [run_node(name, domain, args.timeout_s) for _ in range(args.repeat)]
+        extra = {'autostart': 'true'} if args.autostart and name in ('mpc_node', 'baseline_node') else None
+        runs = [run_node(name, domain, args.timeout_s, extra) for _ in range(args.repeat)]
         logs = [r['first_log_s'] for r in runs if r['first_log_s'] is not None]
         outs = [r['first_output_s'] for r in runs if r['first_output_s'] is not None]
         med_log = statistics.median(logs) if logs else float('nan')

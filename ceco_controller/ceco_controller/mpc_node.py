@@ -35,7 +35,7 @@ class ControllerNode(ManagedNode):
         self.config = cfg = cio.ControllerNodeConfig.from_params(params.declare_all(self, specs), fixed_strategy)
         params.on_set(self, specs, self._set_params)
         self.setup_tools(cfg.log_throttle_s)
-        self.core, self._prev_cmd, self.record = None, None, cio.ControllerRecord()
+        self.core, self._prev_cmd, self._held, self.record = None, None, None, cio.ControllerRecord()
         self.inputs = cio.ControllerInputs(cfg, self.log, self._reset_core)
         DiagnosticsTimer(self, lambda: [('control', self.record.health(self.lifecycle, self.config, self.inputs,
                                                                       self.wall_s()))], cfg.diagnostics_period_s)
@@ -114,8 +114,15 @@ class ControllerNode(ManagedNode):
             self._run_ready()
 
     def _run_ready(self) -> None:
-        """Lockstep: compute the waiting step when complete or overdue; inactive, inputs wait in the buffer."""
+        """Lockstep: compute the waiting step when complete or overdue; inactive, inputs wait in the buffer.
+
+        A command computed before any subscriber matched the publisher (a plant that discovered
+        this node first) is held and sent once one has: lockstep sends each command once.
+        """
         if self.lifecycle == 'active':
+            if self._held is not None and self._pubs[0].get_subscription_count() > 0:
+                self._pubs[0].publish(self._held)
+                self._held = None
             self._run(self.inputs.ready() or self.inputs.overdue(self.wall_s()))
 
     def _on_timer(self) -> None:
@@ -135,7 +142,11 @@ class ControllerNode(ManagedNode):
             cmd, diag = self.core.compute(obs)
             self._prev_cmd, fallback = cmd, bool(diag.fallback)
             ts = cfg.control_period_s
-            self._pubs[0].publish(conversions.command_msg(cmd, si.k, stamp, ts, cfg.strategy, fallback))
+            msg = conversions.command_msg(cmd, si.k, stamp, ts, cfg.strategy, fallback)
+            held = cfg.timing == 'lockstep' and self._pubs[0].get_subscription_count() == 0
+            self._held = msg if held else None
+            if not held:
+                self._pubs[0].publish(msg)
             self._pubs[1].publish(conversions.diagnostics_msg(diag, stamp, cfg.strategy, ts))
             self.record.step(si.k, (time.perf_counter() - t0) * 1e3, diag, note)
             if fallback:
@@ -146,7 +157,7 @@ class ControllerNode(ManagedNode):
 
     # ------------------------------------------------------------------ glue
     def _reset_core(self) -> None:
-        self._prev_cmd = None
+        self._prev_cmd = self._held = None
         if self.core is not None:
             self.core.reset()
 

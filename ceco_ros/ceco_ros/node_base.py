@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 from rclpy.clock import Clock, ClockType
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 
 from ceco_core.supervision import Rejections
@@ -61,6 +62,24 @@ class ManagedNode(NodeTools, LifecycleNode):
 
     lifecycle = 'unconfigured'
     """'unconfigured', 'inactive', 'active' or 'finalized'."""
+
+    def __init__(self, node_name: str, **kwargs):
+        super().__init__(node_name, **kwargs)
+        # rclpy 7.1 (Jazzy) raises out of the change_state service for a transition the current
+        # state does not have (ros2/rclpy#1209, fixed upstream by #1319): the node would die on a
+        # wrong `ros2 lifecycle set` or a second manager. Answer success=false instead, as rclcpp.
+        service = self._service_change_state
+        unsafe = service.callback
+
+        def change_state(request, response):
+            try:
+                return unsafe(request, response)
+            except _rclpy.RCLError as err:
+                self.get_logger().warn(f'lifecycle transition {request.transition.id} '
+                                       f'{request.transition.label!r} refused in state {self.lifecycle}: {err}')
+                response.success = False
+                return response
+        service.callback = change_state
 
     def start_managed(self, autostart: bool) -> None:
         """Call at the end of the constructor.
