@@ -125,8 +125,9 @@ def check_grid_step(name: str, value: float, control_period_s: float) -> str | N
 def check_command(msg, control_period_s: float) -> str | None:
     """Check an AcCommand: strategy, header stamp, Ts, both inputs.
 
-    The strategy is a controller's (WIRE_STRATEGIES: the strategies and 'external'), the stamp well formed, Ts equal to the plant's, both
-    inputs finite and inside the actuator bounds (:data:`COMMAND_RANGES`).
+    The strategy is a controller's (WIRE_STRATEGIES: the strategies and 'external'), the stamp
+    well formed, Ts equal to the plant's, both inputs finite and inside the actuator bounds
+    (:data:`COMMAND_RANGES`).
     """
     if msg.strategy not in WIRE_STRATEGIES:
         return f'unknown strategy {msg.strategy!r} (expected one of {", ".join(WIRE_STRATEGIES)})'
