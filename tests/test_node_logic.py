@@ -378,8 +378,16 @@ def test_controller_realtime_inputs():
     ci.offer_preview('weather', weather(1_000_000, start=stamp(5e6)), 0.0)     # wedged-preview case: rejected
     ci.offer_preview('weather', weather(8, start=stamp(40.0)), 0.0)
     ci.offer_preview('traffic', traffic(8, start=stamp(40.0)), 0.0)
-    si, _ = ci.realtime_step(1001.0)
-    assert si.weather is not None and si.note == '' and ci.rejections.by_topic['v2x/weather_preview'] == 1
+    # one command per control step: a tick on a state of step 8 again is due for step 9's first state
+    assert ci.realtime_step(1003.0) == (None, '') and not ci.due()
+    ci.offer_state(state(44.0, stamp_s=1004.0), wall_s=1.0, clock_s=1004.0)
+    assert not ci.due()                                          # 44 s is still step 8
+    ci.offer_state(state(45.0, stamp_s=1005.0), wall_s=2.0, clock_s=1005.0)
+    assert ci.due()
+    si, _ = ci.realtime_step(1005.1)
+    assert si.k == 9 and si.weather is not None and si.note == '' and not ci.due()
+    assert ci.rejections.by_topic['v2x/weather_preview'] == 1
+    ci.offer_state(state(50.0, stamp_s=1000.0), wall_s=3.0, clock_s=1000.1)
     si, why = ci.realtime_step(1011.0)                          # the state is now 11 s old
     assert si is None and '11.0 s old' in why
 

@@ -197,6 +197,9 @@ class ControllerInputs:
         self.received_s: dict[str, float | None] = {'state': None, 'weather': None, 'traffic': None}
         """Wall-clock time each input was last accepted [s] (for the input ages)."""
         self.n_resets = 0
+        self.last_rt_k: int | None = None
+        """realtime: the control step of the last step handed out."""
+        self.rt_due = False
 
     def configure(self, cfg: ControllerNodeConfig) -> None:
         """Apply run-time parameter changes (the throttle; the other limits are read per message)."""
@@ -208,6 +211,7 @@ class ControllerInputs:
         self.gate.reset()
         self.buffer.reset()
         self.latest = dict.fromkeys(self.latest)
+        self.last_rt_k, self.rt_due = None, False
 
     def reject(self, topic: str, what: str, reason: str, now_s: float) -> None:
         """Count a rejected message (``what``: e.g. 'step 12') and log it unless throttled."""
@@ -239,6 +243,7 @@ class ControllerInputs:
             self._log('warn', f'cabin/state {what}: {verdict.reason}: inputs and controller state reset')
             self.buffer.reset()
             self.latest = dict.fromkeys(self.latest)
+            self.last_rt_k, self.rt_due = None, False
             self._on_reset()
         self.received_s['state'] = wall_s
         if cfg.timing == 'realtime':
@@ -307,14 +312,24 @@ class ControllerInputs:
         return StepInputs(k, state, None, None, f'no {missing} preview within {self.cfg.preview_timeout_s} s')
 
     def realtime_step(self, clock_s: float) -> tuple[StepInputs | None, str]:
-        """realtime: the inputs of the step at ``clock_s`` [s, node clock], or (None, why not)."""
+        """realtime: the inputs of the step at ``clock_s`` [s, node clock], or (None, why not).
+
+        One command per control step k = floor(t / Ts) of the latest state: when the timer fires
+        while the latest state still belongs to the step already commanded (the timer is not
+        synchronised with the plant), the step is *due* and is computed on the first state of
+        the next control step (:meth:`due`).
+        """
         state = self.latest['state']
         if state is None:
             return None, 'no valid cabin/state received yet'
         age = clock_s - checks.stamp_s(state.header.stamp)
         if age > self.cfg.max_state_age_s:
             return None, f'the latest cabin/state is {age:.1f} s old (limit {self.cfg.max_state_age_s} s)'
-        k = int(math.floor(state.scenario_time_s / self.cfg.control_period_s + 1e-9))
+        k = self._k(state)
+        if self.last_rt_k is not None and k <= self.last_rt_k:
+            self.rt_due = True
+            return None, ''
+        self.last_rt_k, self.rt_due = k, False
         w, s = self.latest['weather'], self.latest['traffic']
         if w is None or s is None:
             missing = ' and '.join(kind for kind in ('weather', 'traffic') if self.latest[kind] is None)
@@ -323,6 +338,14 @@ class ControllerInputs:
         if why:
             return StepInputs(k, state, None, None, why), ''
         return StepInputs(k, state, w, s), ''
+
+    def due(self) -> bool:
+        """realtime: a timer tick is waiting for the first state of a new control step, which is here."""
+        state = self.latest['state']
+        return self.rt_due and state is not None and (self.last_rt_k is None or self._k(state) > self.last_rt_k)
+
+    def _k(self, state) -> int:
+        return int(math.floor(state.scenario_time_s / self.cfg.control_period_s + 1e-9))
 
     def ages_s(self, wall_s: float) -> dict[str, float | None]:
         """Wall-clock age of each input's last accepted message [s] (None: none yet)."""

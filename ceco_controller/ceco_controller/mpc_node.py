@@ -106,8 +106,11 @@ class ControllerNode(ManagedNode):
 
     # ----------------------------------------------------------------- inputs
     def _on_state(self, msg: CabinState) -> None:
-        if self.inputs.offer_state(msg, self.wall_s(), self.clock_s()) and self.config.timing == 'lockstep':
-            self._run_ready()
+        if self.inputs.offer_state(msg, self.wall_s(), self.clock_s()):
+            if self.config.timing == 'lockstep':
+                self._run_ready()
+            elif self.inputs.due():        # realtime: a tick came before this control step's first state
+                self._on_timer()
 
     def _on_preview(self, kind: str, msg) -> None:
         if self.inputs.offer_preview(kind, msg, self.wall_s()) and self.config.timing == 'lockstep':
@@ -127,7 +130,7 @@ class ControllerNode(ManagedNode):
 
     def _on_timer(self) -> None:
         si, why = self.inputs.realtime_step(self.clock_s())
-        if si is None and self.lifecycle == 'active':
+        if si is None and why and self.lifecycle == 'active':
             self.notice('no-state', f'not commanding: {why}')
         self._run(si)
 
