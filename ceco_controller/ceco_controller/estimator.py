@@ -10,7 +10,7 @@ Kalman filter (EKF) on the control-oriented model augmented with two
 first-order thermal states, so that a complete :class:`Observation` can be
 handed to the unchanged NMPC or baseline (:class:`EstimatingController`).
 
-State x = (T_cab, T_int, T_shell) [degC]; one model step is ``ts_s`` = 5 s
+State x = (T_cab, T_int, T_shell [degC], b_vent [K]); one model step is ``ts_s`` = 5 s
 (the step the model was identified at). Over step k -> k+1 the inputs are held:
 the blower flow m = mdot_bl,k [kg/s] (the command applied over the step), the
 evaporator temperature (measured at both ends, T_ev,k and T_ev,k+1 [degC]),
@@ -24,8 +24,15 @@ the ambient T_amb [degC], the sun load G [W/m2] and the speed V [m/s].
                       + a3 (T_shell - T_int) + a4 G + a5 (T_ev,mid - T_int)
     (E2) T_shell(k+1) = T_shell + b1 (T_cab - T_shell) + b2 (T_int - T_shell)
                       + b3 (T_amb - T_shell) + b4 (T_amb - T_shell) V^0.8 + b5 G
+    (B)  b_vent(k+1) = b_vent                                              (random walk)
 
-Measurements at k+1: y = (T_cab, T_vent), h(x) = (T_cab, E3 at T_ev,k+1 with m = mdot_bl,k).
+Measurements at k+1: y = (T_cab, T_vent), h(x) = (T_cab, E3 at T_ev,k+1 with m = mdot_bl,k + b_vent).
+
+b_vent is the offset of the vent-air channel: the vent and evaporator sensors'
+tolerances (NTC, +-0.5 K) and the local error of E3. Without it the filter
+reads T_int from the duct pick-up alone (dT_vent/dT_int = v5/m = 0.04-0.14)
+and a 0.5 K vent-sensor offset becomes a 5 K interior error; with it, T_int and
+the offset are told apart by the flow dependence (1/m) and by eq. (1).
 
 Where: g1, g2 [-], g3 [s/kg], tau1 [K] are the identified eq. (1) of the NMPC
 (``ControlModelParams``); E1: the interior mass (seats, dashboard, trim) gains
@@ -48,8 +55,10 @@ cabin 20-60 degC).
 
 Noise (additive, Gaussian, white): process std per model step
 q = (q_cab, q_int, q_shell) identified from the model's prediction errors on the
-training data (docs/controller.md §5.3), measurement std r = (r_cab, r_vent)
-from the sensor accuracy and, for T_vent, E3's residual (``EstimatorSettings``).
+training data (``ceco_controller.estimator_id``; docs/controller.md section 5),
+q_b and the prior of b_vent from the sensor tolerance, measurement std
+r = (r_cab, r_vent) from the sensor accuracy and, for T_vent, E3's residual and
+the evaporator sensor's noise through dE3/dT_ev (``EstimatorSettings``).
 
 Every model function evaluates numpy and CasADi alike (``ceco_core.mathops``);
 the filter builds CasADi Functions of the step and its Jacobians once and
@@ -86,8 +95,8 @@ VEHICLE_SENSORS = ("t_cab_c", "t_vent_c", "t_evap_c", "t_amb_c", "solar_wm2", "s
 """What a production car measures [degC, W/m2, m/s, rh_cab 0..1]: cabin air (aspirated sensor),
 vent (duct) air, evaporator, ambient, the sun-load sensor, the vehicle speed, cabin RH."""
 
-ESTIMATED_STATES = ("t_cab_c", "t_int_c", "t_shell_c")
-"""The filter's state vector x [degC]."""
+ESTIMATED_STATES = ("t_cab_c", "t_int_c", "t_shell_c", "b_vent_k")
+"""The filter's state vector x [degC, degC, degC, K]."""
 
 MEASUREMENT_MODES = ("full", "vehicle")
 """``full``: the controller reads every plant state it models (the default, as before);
@@ -217,6 +226,8 @@ class EstimatorSettings:
     """Cabin air temperature sensor noise, 1 sigma [K] (aspirated NTC, 0.1 K resolution)."""
     sensor_std_t_vent_k: float = 0.2
     """Vent air temperature sensor noise, 1 sigma [K] (NTC in the turbulent duct stream)."""
+    sensor_std_t_evap_k: float = 0.1
+    """Evaporator temperature sensor noise, 1 sigma [K] (enters the vent update through E3)."""
     process_std_scale: float = 1.0
     """Factor on the identified process noise std [-] (> 1: less trust in the model)."""
     init_offset_int_k: float = 0.0
@@ -225,6 +236,10 @@ class EstimatorSettings:
     """Key-on prior of T_shell relative to the measured cabin air temperature [K]."""
     init_std_k: float = 5.0
     """Key-on prior std of T_int and T_shell [K] (soak offsets of the bundled scenarios: 1.5-5 K)."""
+    vent_bias_std_k: float = 0.5
+    """Key-on prior std of the vent-channel offset b_vent [K] (vent and evaporator NTC tolerance)."""
+    vent_bias_drift_k: float = 0.005
+    """Random-walk std of b_vent per model step [K] (0.13 K per hour: slow sensor and duct drift)."""
     max_dead_reckoning_s: float = 60.0
     """Longest time the cabin air temperature may be predicted without a valid sample before the
     estimate is declared invalid (``Estimate.valid`` False) [s]."""
@@ -241,8 +256,9 @@ class EstimatorSettings:
             v = getattr(self, f.name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ValueError(f"EstimatorSettings.{f.name} must be a finite number, got {v!r}")
-        for name in ("sensor_std_t_cab_k", "sensor_std_t_vent_k", "process_std_scale", "init_std_k",
-                     "max_dead_reckoning_s", "max_gap_s"):
+        for name in ("sensor_std_t_cab_k", "sensor_std_t_vent_k", "sensor_std_t_evap_k", "process_std_scale",
+                     "init_std_k",
+                     "vent_bias_std_k", "vent_bias_drift_k", "max_dead_reckoning_s", "max_gap_s"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"EstimatorSettings.{name} must be > 0")
         if not -40.0 <= self.default_t_c <= 60.0:
@@ -329,8 +345,10 @@ class Estimate:
     """Blower flow taken as applied over the last step [kg/s] (the last valid one if the input was not)."""
     t_evap_sp_prev_c: float
     """Evaporator set-point taken as applied over the last step [degC] (idem)."""
+    vent_bias_k: float
+    """Estimated offset of the vent-air channel b_vent [K]."""
     std_k: tuple
-    """1-sigma uncertainty of (T_cab, T_int, T_shell) [K] (square roots of the covariance diagonal)."""
+    """1-sigma uncertainty of (T_cab, T_int, T_shell, b_vent) [K] (square roots of the covariance diagonal)."""
     missing: tuple
     """Names of the inputs that were missing or invalid this step (sensors and previous command)."""
     valid: bool
@@ -379,15 +397,17 @@ class CabinStateEstimator:
         self.n_sub = cm.substeps(self.model_params, control_period_s)
         self.control_period_s = float(control_period_s)
         p, q, s = self.model_params, self.params, self.settings
-        x = casadi.SX.sym("x", 3)
+        x = casadi.SX.sym("x", 4)
         u = casadi.SX.sym("u", 6)  # mdot, t_evap0, t_evap1, t_amb, solar, speed
-        xn = casadi.vertcat(*process_step(p, q, x, u[0], u[1], u[2], u[3], u[4], u[5]))
+        xn = casadi.vertcat(*process_step(p, q, x, u[0], u[1], u[2], u[3], u[4], u[5]), x[3])
         self._f = casadi.Function("est_f", [x, u], [xn, casadi.jacobian(xn, x)])
-        yv = t_vent_c(q, u[2], x[0], x[1], u[3], u[0])
-        self._h_vent = casadi.Function("est_h_vent", [x, u], [yv, casadi.jacobian(yv, x)])
-        self._q = np.diag((s.process_std_scale * np.array([q.q_cab_k, q.q_int_k, q.q_shell_k])) ** 2)
+        yv = t_vent_c(q, u[2], x[0], x[1], u[3], u[0]) + x[3]
+        self._h_vent = casadi.Function("est_h_vent", [x, u], [yv, casadi.jacobian(yv, x),
+                                                              casadi.jacobian(yv, u[2])])
+        self._q = np.diag(np.append(s.process_std_scale * np.array([q.q_cab_k, q.q_int_k, q.q_shell_k]),
+                                    s.vent_bias_drift_k) ** 2)
         self._r_cab = s.sensor_std_t_cab_k ** 2
-        self._r_vent = s.sensor_std_t_vent_k ** 2 + q.vent_residual_k ** 2
+        self._r_vent = s.sensor_std_t_vent_k ** 2 + q.vent_residual_k ** 2  # + the evaporator sensor's, per step
         self.reset()
 
     def reset(self) -> None:
@@ -401,7 +421,7 @@ class CabinStateEstimator:
 
     @property
     def state(self) -> np.ndarray | None:
-        """The filter state (T_cab, T_int, T_shell) [degC], None before initialization."""
+        """The filter state (T_cab, T_int, T_shell [degC], b_vent [K]), None before initialization."""
         return None if self._x is None else self._x.copy()
 
     @property
@@ -500,22 +520,24 @@ class CabinStateEstimator:
         else:
             self._t_last = t_s_ref
         if self._x is not None:
-            self._x = np.clip(self._x, -40.0, 120.0)
+            self._x = np.clip(self._x, [-40.0, -40.0, -40.0, -10.0], [120.0, 120.0, 120.0, 10.0])
         if y["t_cab_c"] is not None:
             self._t_cab_valid_s = t_s
         dead = 0.0 if y["t_cab_c"] is not None else (
             t_s - self._t_cab_valid_s if self._t_cab_valid_s is not None else math.inf)
         valid = self._x is not None and dead <= s.max_dead_reckoning_s
-        x = self._x if self._x is not None else np.full(3, ex["t_amb_c"])
-        pdiag = np.diag(self._p) if self._p is not None else np.full(3, s.init_std_k ** 2)
+        x = self._x if self._x is not None else np.array([ex["t_amb_c"]] * 3 + [0.0])
+        pdiag = (np.diag(self._p) if self._p is not None
+                 else np.array([s.init_std_k ** 2] * 3 + [s.vent_bias_std_k ** 2]))
         t_vent = y["t_vent_c"]
         if t_vent is None:
-            t_vent = float(t_vent_c(self.params, t_evap, x[0], x[1], ex["t_amb_c"], m))
+            t_vent = float(t_vent_c(self.params, t_evap, x[0], x[1], ex["t_amb_c"], m) + x[3])
         return Estimate(
             t_s=t_s, t_cab_c=float(y["t_cab_c"] if y["t_cab_c"] is not None else x[0]),
             t_int_c=float(x[1]), t_shell_c=float(x[2]), t_evap_c=float(t_evap), t_vent_c=float(t_vent),
             t_amb_c=float(ex["t_amb_c"]), solar_wm2=float(ex["solar_wm2"]), speed_mps=float(ex["speed_mps"]),
             rh_cab=float(ex["rh_cab"]), mdot_bl_prev_kgps=float(m), t_evap_sp_prev_c=float(sp),
+            vent_bias_k=float(x[3]),
             std_k=tuple(float(v) for v in np.sqrt(np.maximum(pdiag, 0.0))), missing=tuple(missing),
             valid=bool(valid), dead_reckoning_s=float(min(dead, 1e9)), initialized=initialized)
 
@@ -526,8 +548,8 @@ class CabinStateEstimator:
             self._x = self._p = None
             return False
         t = y["t_cab_c"]
-        self._x = np.array([t, t + s.init_offset_int_k, t + s.init_offset_shell_k])
-        self._p = np.diag([s.sensor_std_t_cab_k ** 2, s.init_std_k ** 2, s.init_std_k ** 2])
+        self._x = np.array([t, t + s.init_offset_int_k, t + s.init_offset_shell_k, 0.0])
+        self._p = np.diag([s.sensor_std_t_cab_k ** 2, s.init_std_k ** 2, s.init_std_k ** 2, s.vent_bias_std_k ** 2])
         return True
 
     def _predict(self, n_steps: int, m: float, t_evap0: float, t_evap1: float, ex: dict) -> None:
@@ -549,16 +571,17 @@ class CabinStateEstimator:
         equals the joint update.
         """
         if y["t_cab_c"] is not None:
-            self._scalar_update(y["t_cab_c"], float(self._x[0]), np.array([1.0, 0.0, 0.0]), self._r_cab)
+            self._scalar_update(y["t_cab_c"], float(self._x[0]), np.array([1.0, 0.0, 0.0, 0.0]), self._r_cab)
         if y["t_vent_c"] is not None:
-            hv, hj = self._h_vent(self._x, [m, t_evap, t_evap, ex["t_amb_c"], ex["solar_wm2"], ex["speed_mps"]])
-            self._scalar_update(y["t_vent_c"], float(hv), np.array(hj).ravel(), self._r_vent)
+            hv, hj, he = self._h_vent(self._x, [m, t_evap, t_evap, ex["t_amb_c"], ex["solar_wm2"], ex["speed_mps"]])
+            r = self._r_vent + (float(he) * self.settings.sensor_std_t_evap_k) ** 2
+            self._scalar_update(y["t_vent_c"], float(hv), np.array(hj).ravel(), r)
 
     def _scalar_update(self, y: float, y_pred: float, h: np.ndarray, r: float) -> None:
         s_inn = float(h @ self._p @ h) + r
         k = (self._p @ h) / s_inn
         self._x = self._x + k * (y - y_pred)
-        ikh = np.eye(3) - np.outer(k, h)
+        ikh = np.eye(4) - np.outer(k, h)
         pc = ikh @ self._p @ ikh.T + r * np.outer(k, k)
         self._p = 0.5 * (pc + pc.T)
 

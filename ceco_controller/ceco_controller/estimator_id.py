@@ -20,7 +20,8 @@ shell temperatures a test vehicle instrumented with thermocouples would record:
    replayed from the key-on prior, :func:`replay`): a white-noise filter that treats a correlated
    error as white must be told it is larger.
 4. Report: the same errors on the validation data, and the filter replayed on every training and
-   validation drive from the key-on prior (:func:`replay`): RMSE of T_int and T_shell.
+   validation drive from the key-on prior (:func:`replay`): RMSE of T_int and T_shell; and on the
+   validation drives with each sensor offset of :data:`SENSOR_OFFSETS`.
 
 CLI (also ``ceco identify-estimator``)::
 
@@ -41,13 +42,16 @@ from . import estimator as est
 from . import model as cm
 from .identification import DEFAULT_DATA_DIR, SERIES_COLUMNS, read_series_csv
 
-__all__ = ["Q_CAB_FACTORS", "Q_SLOW_FACTORS", "estimator_intervals", "fit_estimator", "replay", "replay_errors",
-           "main"]
+__all__ = ["Q_CAB_FACTORS", "Q_SLOW_FACTORS", "SENSOR_OFFSETS", "estimator_intervals", "fit_estimator", "replay",
+           "replay_errors", "main"]
 
 Q_CAB_FACTORS = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
 """Candidate factors on the residual std of eq. (1) [-] (step 3 of the method)."""
 Q_SLOW_FACTORS = (1.0, 2.0, 4.0, 8.0)
 """Candidate factors on the residual std of E1 and E2 [-]."""
+SENSOR_OFFSETS = (("t_vent_c", 0.5), ("t_vent_c", -0.5), ("t_evap_c", 0.5), ("t_evap_c", -0.5), ("t_cab_c", 0.3),
+                  ("t_cab_c", -0.3))
+"""Sensor offsets [K] (NTC tolerances) the report replays the filter with, one at a time."""
 TUNE_AFTER_S = 60.0
 """The covariance search scores the filter from this time after key-on on [s]."""
 
@@ -253,8 +257,16 @@ def main(argv=None) -> int:
     for name, data in (("training", train), ("validation", valid)):
         rep = replay(data, est.CabinStateEstimator(mp, q, control_period_s=mp.ts_s))
         ekf[name] = _round(replay_errors(rep))
+    offsets = {}
+    for sensor, off in SENSOR_OFFSETS:
+        rep = replay(valid, est.CabinStateEstimator(mp, q, control_period_s=mp.ts_s),
+                     meas_filter=lambda t, m, s=sensor, o=off: {**m, s: m[s] + o})
+        e = replay_errors(rep)
+        offsets[f"{sensor}{off:+g}"] = [round(e["t_int_rmse_after_120s_k"], 4),
+                                        round(e["t_shell_rmse_after_120s_k"], 4)]
     report = {"model_errors_training": _round(err_train), "model_errors_validation": _round(err_valid),
-              "filter_replay_default_prior": ekf}
+              "filter_replay_default_prior": ekf,
+              "filter_replay_validation_sensor_offsets_rmse_after_120s_k_int_shell": offsets}
     header = ("Identified state-estimator models E1-E3 (ceco_controller/estimator.py), GENERATED - do not edit.\n"
               f"Regenerate with: {cmd}\nMethod and report: docs/controller.md section 5")
     out = pathlib.Path(args.out)
