@@ -11,9 +11,15 @@ interior and shell temperatures against the plant truth [K] (whole run and from 
 Optionally (``--naive``) a third mode without an estimator, T_int = T_shell = T_cab (what the NMPC
 would get from a car's sensors with no estimator), to show what the estimator buys.
 
+Sensor offsets (``--offsets``): the vehicle mode with a constant offset on one sensor (what the
+sensors' tolerance allows), with the default estimator and with the vent-offset state switched off
+(``EstimatorSettings.vent_bias_std_k`` ~ 0), to show why the filter carries that state.
+
 CLI::
 
     python -m ceco_controller.estimation_cost --out runs/estimation_cost.json [--naive]
+    python -m ceco_controller.estimation_cost --cases sc03 --strategies ceco,ceco-ioch \
+        --offsets t_vent_c+0.5,t_vent_c-0.5,t_cab_c+0.3 --out runs/estimation_offsets.json
 """
 
 from __future__ import annotations
@@ -28,10 +34,15 @@ import time
 
 import numpy as np
 
+from . import estimator as est
 from .closed_loop import SimSettings, simulate
 from .strategies import STRATEGIES
 
-__all__ = ["CASES", "NaiveVehicleController", "discomfort_pmvh", "estimation_cost", "markdown_table", "main"]
+__all__ = ["CASES", "NaiveVehicleController", "SensorOffsetController", "discomfort_pmvh", "estimation_cost",
+           "offset_study", "markdown_table", "offset_table", "main"]
+
+NO_VENT_OFFSET_STATE = est.EstimatorSettings(vent_bias_std_k=1e-4, vent_bias_drift_k=1e-6)
+"""The estimator without its vent-offset state (prior std 1e-4 K, drift 1e-6 K per step)."""
 
 CASES = ("sc03", "sc03_mild", "udds", "hwfet", "us06", "sc03_hotsoak")
 """The benchmark cases (bundled scenarios)."""
@@ -64,6 +75,55 @@ class NaiveVehicleController:
     def compute(self, obs):
         """One control step with the interior and shell temperatures replaced by T_cab."""
         return self.inner.compute(dataclasses.replace(obs, t_int_c=obs.t_cab_c, t_shell_c=obs.t_cab_c))
+
+
+class SensorOffsetController(est.EstimatingController):
+    """The vehicle mode with constant offsets added to the sensors of every observation (fault study)."""
+
+    def __init__(self, inner, estimator: est.CabinStateEstimator, offsets: dict):
+        super().__init__(inner, estimator)
+        self.offsets = dict(offsets)
+        """Sensor name (a field of the observation) -> offset [its unit]."""
+
+    def estimated_observation(self, obs):
+        """The observation with the offsets applied, then the estimator."""
+        shifted = {k: getattr(obs, k) + v for k, v in self.offsets.items()}
+        return super().estimated_observation(dataclasses.replace(obs, **shifted))
+
+
+def _parse_offset(text: str) -> tuple[str, float]:
+    for i in range(len(text) - 1, 0, -1):
+        if text[i] in "+-":
+            return text[:i], float(text[i:])
+    raise ValueError(f"offset {text!r}: expected <sensor>+<value> or <sensor>-<value>, e.g. t_vent_c+0.5")
+
+
+def offset_study(cases, strategies, offsets, progress=None) -> list[dict]:
+    """Rows of the vehicle mode with each sensor offset, with and without the vent-offset state."""
+    from ceco_v2x_preview.scenario import load_scenario
+
+    from . import model as cm
+    from .factory import make_controller
+    rows = []
+    for case in cases:
+        sc = load_scenario(case)
+        ts, n_p = sc.control.control_period_s, sc.control.horizon_steps
+        for strategy in strategies:
+            mp = cm.load_params()
+            for text in offsets:
+                sensor, off = _parse_offset(text)
+                for label, settings in (("default", None), ("no vent-offset state", NO_VENT_OFFSET_STATE)):
+                    t0 = time.perf_counter()
+                    ctrl = SensorOffsetController(make_controller(strategy, sc, ts, n_p, mp),
+                                                  est.CabinStateEstimator(mp, settings=settings, control_period_s=ts),
+                                                  {sensor: off})
+                    res = simulate(case, strategy, SimSettings(progress=False), controller=ctrl)
+                    row = _row(case, strategy, f"vehicle {text} ({label})", res, time.perf_counter() - t0)
+                    row.update(offset=text, estimator=label)
+                    rows.append(row)
+                    if progress:
+                        progress(row)
+    return rows
 
 
 def _row(case: str, strategy: str, mode: str, res, wall_s: float) -> dict:
@@ -143,12 +203,30 @@ def markdown_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def offset_table(rows: list[dict], reference: list[dict]) -> str:
+    """Markdown table of :func:`offset_study` rows against the offset-free full and vehicle rows."""
+    ref = {(r["case"], r["strategy"], r["mode"]): r for r in reference}
+    lines = ["| case | strategy | sensor offset | estimator | ΔE vs full [%] | discomfort [PMV h] (full) | "
+             "zone violation [%] | RMSE T_int / T_shell [K] (from 120 s) |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        f = ref.get((r["case"], r["strategy"], "full"))
+        de = _pct(r["E_tot_kWh"], f["E_tot_kWh"]) if f else "n/a"
+        dfull = f"{f['discomfort_pmvh']:.4f}" if f else "n/a"
+        lines.append(f"| {r['case']} | {r['strategy']} | {r['offset']} | {r['estimator']} | {de} | "
+                     f"{r['discomfort_pmvh']:.4f} ({dfull}) | {r['otc_violation_zone_pct']:.1f} | "
+                     f"{_f(r['est_t_int_rmse_k'])} / {_f(r['est_t_shell_rmse_k'])} "
+                     f"({_f(r['est_t_int_rmse_late_k'])} / {_f(r['est_t_shell_rmse_late_k'])}) |")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
     """CLI: run the study, print the Markdown table, write the rows as JSON."""
     ap = argparse.ArgumentParser(prog="python -m ceco_controller.estimation_cost", description=__doc__.split("\n\n")[0])
     ap.add_argument("--cases", default=",".join(CASES), help="comma-separated scenarios")
     ap.add_argument("--strategies", default=",".join(STRATEGIES), help="comma-separated strategies")
     ap.add_argument("--naive", action="store_true", help="also run without an estimator (T_int = T_shell = T_cab)")
+    ap.add_argument("--offsets", default="", help="comma-separated sensor offsets, e.g. t_vent_c+0.5,t_cab_c-0.3: "
+                    "run the sensor-offset study (vehicle mode, with and without the vent-offset state) instead")
     ap.add_argument("--out", default=None, help="JSON file for the rows")
     args = ap.parse_args(argv)
 
@@ -158,13 +236,26 @@ def main(argv=None) -> int:
         print(f"{r['case']}/{r['strategy']}/{r['mode']}: E {r['E_tot_kWh']:.4f} kWh, I_pmv {r['I_pmv']:.0f} s, "
               f"discomfort {r['discomfort_pmvh']:.4f} PMV h{extra} ({r['wall_s']:.1f} s)", file=sys.stderr)
 
-    rows = estimation_cost(args.cases.split(","), args.strategies.split(","), args.naive, progress=show)
+    cases, strategies = args.cases.split(","), args.strategies.split(",")
+    offsets = [o for o in args.offsets.split(",") if o]
+    for o in offsets:
+        try:
+            _parse_offset(o)
+        except ValueError as exc:
+            ap.error(str(exc))
+    rows = estimation_cost(cases, strategies, args.naive, progress=show)
+    ref = rows
+    if offsets:
+        rows = rows + offset_study(cases, strategies, offsets, progress=show)
     if args.out:
         clean = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()}
                  for r in rows]
         pathlib.Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         pathlib.Path(args.out).write_text(json.dumps(clean, indent=1) + "\n", encoding="utf-8")
-    print(markdown_table(rows))
+    print(markdown_table(ref))
+    if offsets:
+        print()
+        print(offset_table([r for r in rows if "offset" in r], ref))
     return 0
 
 
