@@ -23,7 +23,7 @@ shell temperatures a test vehicle instrumented with thermocouples would record:
    validation drive from the key-on prior (:func:`replay`): RMSE of T_int and T_shell; and on the
    validation drives with each sensor offset of :data:`SENSOR_OFFSETS`.
 
-CLI (also ``ceco identify-estimator``)::
+CLI::
 
     python -m ceco_controller.estimator_id     # fit, write config/estimator_params.yaml
 """
