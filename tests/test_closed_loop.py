@@ -1,5 +1,6 @@
 """Closed loop on the real plant, scenarios and comfort: bounds, run directory, determinism, faults."""
 import csv
+import math
 import json
 
 import numpy as np
@@ -36,14 +37,19 @@ def test_run_directory_format_and_determinism(tmp_path):
     assert tuple(header[:20]) == cl.TIMESERIES_COLUMNS[:20]
     with open(d / "diagnostics.csv") as fh:
         rows = list(csv.reader(fh))
-    assert tuple(rows[0]) == DIAGNOSTICS_COLUMNS + ("pmv_pred", "t_cab_pred_c")
+    assert tuple(rows[0]) == DIAGNOSTICS_COLUMNS + ("pmv_pred", "t_cab_pred_c", "step_time_ms")
+    # every control step's wall time is recorded (a positive finite number; its size is not tested)
+    assert all(0.0 < float(dict(zip(rows[0], r))["step_time_ms"]) < math.inf for r in rows[1:])
     # predicted PMV and T_cab over the grid points 0..Np of every successful solve
+    checked = 0
     for row in rows[1:]:
         r = dict(zip(rows[0], row))
-        if r["success"] == "True":
+        if r["success"] == "1":
             pmv = [float(v) for v in r["pmv_pred"].split(";")]
             tcab = [float(v) for v in r["t_cab_pred_c"].split(";")]
             assert len(pmv) == len(tcab) == 7 and 20.0 < tcab[0] < 70.0 and abs(float(r["pmv_pred_1"]) - pmv[1]) < 1e-4
+            checked += 1
+    assert checked == len(rows) - 1 == 12  # every one of the 12 solves succeeded and was checked
     m = json.loads((d / "metrics.json").read_text())
     for key in ("E_tot_J", "I_pmv", "otc_violation_pct", "scenario", "strategy", "control_period_s",
                 "horizon_steps", "seed", "preview_quality"):

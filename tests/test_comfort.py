@@ -50,7 +50,6 @@ def test_units_conversions_numbers_and_symbols():
     assert units.c_to_k(25.0) == pytest.approx(298.15, abs=1e-12)
     assert units.k_to_c(units.c_to_k(np.array([-40.0, 0.0, 55.5]))) == pytest.approx(
         [-40.0, 0.0, 55.5], abs=1e-12)
-    assert units.ZERO_C_K == 273.15
     assert units.mph_to_mps(60.0) == pytest.approx(26.8224, abs=1e-12)
     assert units.kmh_to_mps(36.0) == pytest.approx(10.0, abs=1e-12)
     x = casadi.SX.sym("x")

@@ -33,10 +33,16 @@ class BaselineController:
         self.law.reset()
 
     def compute(self, obs: Observation):
-        """One control step from the measured cabin air temperature."""
-        cmd = self.law.step(obs.t_cab_c, self.control_period_s)
+        """One control step from the measured cabin air temperature.
+
+        The ambient and sun-load sensors and the occupant's current upper PMV bound
+        go to the law too; the plain law (the default settings) ignores them.
+        """
+        cmd = self.law.step(obs.t_cab_c, self.control_period_s, t_amb_c=obs.t_amb_c, solar_wm2=obs.solar_wm2,
+                            pmv_ub=float(obs.pmv_ub[0]))
         if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
             raise AssertionError(f"ACC law produced an out-of-bounds command {cmd}")
         diag = Diagnostics(k=obs.k, t_s=obs.t_s, status=cmd.mode, mdot_bl_kgps=cmd.mdot_bl_kgps,
-                           t_evap_sp_c=cmd.t_evap_sp_c, message=f"demand={cmd.demand:.3f}")
+                           t_evap_sp_c=cmd.t_evap_sp_c,
+                           message=f"demand={cmd.demand:.3f} setpoint_c={cmd.setpoint_c:.3f}")
         return AcInput(mdot_bl_kgps=cmd.mdot_bl_kgps, t_evap_sp_c=cmd.t_evap_sp_c), diag

@@ -20,6 +20,7 @@ import dataclasses
 import math
 import pathlib
 import sys
+import time
 
 import numpy as np
 
@@ -42,9 +43,10 @@ __all__ = ["SimSettings", "RunResult", "simulate", "make_controller",
 TIMESERIES_COLUMNS = rundir.TIMESERIES_COLUMNS + rundir.TIMESERIES_EXTRA
 """Columns of the simulator's ``timeseries.csv``: the contract's (``ceco_core.rundir``), then extras."""
 
-DIAGNOSTICS_CSV_COLUMNS = DIAGNOSTICS_COLUMNS + ("pmv_pred", "t_cab_pred_c")
+DIAGNOSTICS_CSV_COLUMNS = DIAGNOSTICS_COLUMNS + ("pmv_pred", "t_cab_pred_c", "step_time_ms")
 """Columns of ``diagnostics.csv``: :data:`DIAGNOSTICS_COLUMNS`, then the predicted PMV [-] and T_cab [degC]
-trajectories over the horizon (grid points 0..Np, ``;``-joined; empty without a successful solve)."""
+trajectories over the horizon (grid points 0..Np, ``;``-joined; empty without a successful solve) and the
+wall time of the whole control step, the controller's ``compute`` call [ms] (the benchmark's time ratio)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,7 +70,13 @@ class SimSettings:
     model_params_path: str | None = None
     """Identified model parameter file; None: ceco_controller/config/model_params.yaml."""
     strategy_overrides: tuple = ()
-    """((field, value), ...) overriding the CECO strategy settings (e.g. (('gamma_w', 1e4),))."""
+    """((field, value), ...) overriding the strategy's settings: StrategySettings fields for a CECO
+    strategy (e.g. (('gamma_w', 1e4),)), AccSettings fields for the baseline (e.g. (('setpoint_c', 25.0),))."""
+    plant_overrides: tuple = ()
+    """((field, value), ...) overriding the simulated car's PlantParams (the controllers keep their models)."""
+    comfort_overrides: tuple = ()
+    """((field, value), ...) overriding the ComfortParams of the scored PMV (plant side only; the NMPC keeps
+    its nominal comfort model)."""
     controller_config_path: str | None = None
     """Controller settings file; None: ceco_controller/config/controller.yaml."""
     measurements: str = "full"
@@ -104,6 +112,8 @@ class RunResult:
     diag_objects: list
     """The Diagnostics objects (with predicted trajectories)."""
     metrics: dict
+    step_time_s: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    """Wall time of each control step's ``controller.compute`` call [s]."""
     estimates: dict | None = None
     """measurements='vehicle': per control step the estimates and the plant truth (column -> array);
     None in full mode."""
@@ -143,9 +153,10 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
         controller = with_measurements(controller, settings.measurements, ts, model_params=mp)
     vehicle = isinstance(controller, EstimatingController)
     est_rows = {c: [] for c in ESTIMATOR_CSV_COLUMNS} if vehicle else None
-    sp = ScenarioPlant(scenario, dt)
+    sp = ScenarioPlant(scenario, dt, plant_overrides=dict(settings.plant_overrides),
+                       comfort_overrides=dict(settings.comfort_overrides))
     cols = {c: np.empty(n) for c in TIMESERIES_COLUMNS}
-    diags, diag_objs = [], []
+    diags, diag_objs, step_times = [], [], []
     iterator = range(n)
     if settings.progress:
         from tqdm import tqdm
@@ -156,7 +167,9 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
             k = i // steps_per_ctrl
             pv = make_previews(scenario, t, ts, n_p + 1, quality)
             obs = observation(k, t, sp.meas, scenario.env_at(t), sp.cmd, pv, scenario)
+            t_step = time.perf_counter()
             cmd, diag = controller.compute(obs)
+            step_times.append(time.perf_counter() - t_step)
             if vehicle:
                 _record_estimate(est_rows, controller.last_estimate, sp.meas)
             if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
@@ -207,7 +220,8 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
         estimates = {c: np.asarray(v) for c, v in est_rows.items()}
         metrics.update(estimation_metrics(estimates))
     return RunResult(scenario=scenario.name, strategy=strategy, timeseries=cols, diagnostics=diags,
-                     diag_objects=diag_objs, metrics=metrics, estimates=estimates)
+                     diag_objects=diag_objs, metrics=metrics, step_time_s=np.asarray(step_times, dtype=float),
+                     estimates=estimates)
 
 
 ESTIMATOR_CSV_COLUMNS = ("t_s", "t_int_c", "t_int_est_c", "t_shell_c", "t_shell_est_c", "std_t_int_k",
@@ -266,6 +280,9 @@ def write_run(result: RunResult, run_dir: str | pathlib.Path) -> pathlib.Path:
     rows = {c: [r.get(c, "") for r in result.diagnostics] for c in DIAGNOSTICS_COLUMNS}
     rows["pmv_pred"] = [_joined(getattr(o, "pred_pmv", None)) for o in objs]
     rows["t_cab_pred_c"] = [_joined(getattr(o, "pred_t_cab_c", None)) for o in objs]
+    st = np.asarray(getattr(result, "step_time_s", ()), dtype=float)
+    rows["step_time_ms"] = [1e3 * float(x) for x in st] if st.size == len(result.diagnostics) else \
+        [math.nan] * len(result.diagnostics)
     rundir.write_csv(d / "diagnostics.csv", DIAGNOSTICS_CSV_COLUMNS, rows)
     rundir.write_metrics_json(d / "metrics.json", result.metrics)
     if getattr(result, "estimates", None) is not None:

@@ -5,7 +5,7 @@ Every benchmark case and strategy with full state and with vehicle measurements
 
 For each case and strategy: energy E_tot [kWh], I_PMV [s], thermal discomfort [PMV h] (time
 integral of the distance of PMV outside the ISO 7730 category B band [-0.5, 0.5], PMV clipped to
-+-3: ``ceco_core.metrics.pmv_band_distance`` where present, else the same definition here), the
++-3: ``ceco_core.metrics.pmv_band_distance``, the benchmark's ``discomfort_pmvh``), the
 OTC violation in the comfort-zone phase [%] and, in vehicle mode, the RMSE of the estimated
 interior and shell temperatures against the plant truth [K] (whole run and from 120 s on).
 Optionally (``--naive``) a third mode without an estimator, T_int = T_shell = T_cab (what the NMPC
@@ -34,6 +34,8 @@ import time
 
 import numpy as np
 
+from ceco_core.metrics import pmv_band_distance
+
 from . import estimator as est
 from .closed_loop import SimSettings, simulate
 from .strategies import STRATEGIES
@@ -47,19 +49,11 @@ NO_VENT_OFFSET_STATE = est.EstimatorSettings(vent_bias_std_k=1e-4, vent_bias_dri
 CASES = ("sc03", "sc03_mild", "udds", "hwfet", "us06", "sc03_hotsoak")
 """The benchmark cases (bundled scenarios)."""
 
-try:  # the benchmark KPI definition (issue 10), once it is on this branch
-    from ceco_core.metrics import pmv_band_distance as _band_distance
-except ImportError:  # pragma: no cover - the same definition
-    def _band_distance(pmv, band=(-0.5, 0.5), limit=3.0):
-        y = np.clip(np.asarray(pmv, dtype=float), -limit, limit)
-        return np.maximum(0.0, np.maximum(y - band[1], band[0] - y))
-
-
 def discomfort_pmvh(t_s, pmv) -> float:
     """Time integral of the distance of PMV outside [-0.5, 0.5] (PMV clipped to +-3) [PMV h]."""
     t = np.asarray(t_s, float)
     dt = float(t[1] - t[0])
-    return float(np.sum(_band_distance(pmv)) * dt / 3600.0)
+    return float(np.sum(pmv_band_distance(pmv)) * dt / 3600.0)
 
 
 class NaiveVehicleController:

@@ -6,6 +6,7 @@ from here.
 
 from __future__ import annotations
 
+from ceco_core.acc_law import AccSettings
 from ceco_core.comfort import comfort_params_for
 from ceco_core.scenario_types import Scenario
 
@@ -26,12 +27,14 @@ def make_controller(strategy: str, scenario: Scenario, control_period_s: float, 
 
     NMPC settings: the controller file (``config_path``, default the package's
     ``config/controller.yaml``), then ``horizon_steps``/``control_period_s``, then ``overrides``.
+    Baseline: ``overrides`` are :class:`~ceco_core.acc_law.AccSettings` fields.
     ``measurements``: 'full' (every modelled state read from the observation) or 'vehicle' (only the
     production sensors; the controller behind ``estimator.EstimatingController``, with
     ``estimator_settings``/``estimator_params``, default the package's identified file).
     """
     if strategy == "baseline":
-        ctrl = BaselineController(control_period_s=control_period_s)
+        # overrides: AccSettings fields (set-point, allowance, sun/ambient compensation)
+        ctrl = BaselineController(AccSettings(**(overrides or {})), control_period_s=control_period_s)
     else:
         settings = load_strategy_settings(strategy, config_path, horizon_steps=horizon_steps,
                                           control_period_s=control_period_s, **(overrides or {}))

@@ -89,13 +89,28 @@ class ScenarioPlant:
     (``KEY_ON_COMMAND`` before the first step).
     """
 
-    def __init__(self, scenario: Scenario, plant_dt_s: float, params: PlantParams | None = None):
+    def __init__(self, scenario: Scenario, plant_dt_s: float, params: PlantParams | None = None, *,
+                 plant_overrides: dict | None = None, comfort_overrides: dict | None = None):
+        """Key-on state of ``scenario``.
+
+        Args:
+            scenario: the scenario (truth environment, bounds, initial state, occupant).
+            plant_dt_s: plant step [s].
+            params: plant parameters (default :class:`PlantParams`).
+            plant_overrides: ``{PlantParams field: value}`` applied to ``params`` (sensitivity runs).
+            comfort_overrides: ``{ComfortParams field: value}`` applied to the scored PMV's parameters.
+        """
         if not (math.isfinite(plant_dt_s) and plant_dt_s > 0):
             raise ValueError(f"plant_dt_s must be finite and > 0, got {plant_dt_s!r}")
         self.scenario = scenario
         self.dt_s = plant_dt_s
         self.comfort = comfort_params_for(scenario)
+        if comfort_overrides:
+            self.comfort = dataclasses.replace(self.comfort, **comfort_overrides)
+            self.comfort.validate()
         pp = params or PlantParams()
+        if plant_overrides:
+            pp = dataclasses.replace(pp, **plant_overrides).validate()
         self.plant = CabinPlant(pp, PlantState.from_initial(dataclasses.asdict(scenario.initial), pp,
                                                             scenario.env_at(0.0)))
         st = self.plant.state

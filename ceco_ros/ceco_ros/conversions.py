@@ -21,7 +21,7 @@ import math
 import numpy as np
 from builtin_interfaces.msg import Time
 
-from ceco_core.contracts import MEASUREMENTS, STRATEGIES, AcInput, Diagnostics, Previews
+from ceco_core.contracts import MEASUREMENTS, WIRE_STRATEGIES, AcInput, Diagnostics, Previews
 from ceco_core.units import s_from_sec_nanosec, sec_nanosec_from_s
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort, ControllerDiagnostics, TrafficPreview, WeatherPreview
 
@@ -98,8 +98,8 @@ def command_msg(cmd, k: int, stamp, control_period_s: float, strategy: str, fall
 def command_input(msg: AcCommand) -> AcInput:
     """AcCommand -> AcInput; ValueError naming the field when it is not a finite value inside the
     actuator bounds or the strategy is unknown (never clamped)."""
-    if msg.strategy not in STRATEGIES:
-        raise ValueError(f'unknown strategy {msg.strategy!r} (expected one of {", ".join(STRATEGIES)})')
+    if msg.strategy not in WIRE_STRATEGIES:
+        raise ValueError(f'unknown strategy {msg.strategy!r} (expected one of {", ".join(WIRE_STRATEGIES)})')
     for name in ('blower_flow_kgps', 'evap_setpoint_c'):
         v = getattr(msg, name)
         if not math.isfinite(v):
