@@ -152,7 +152,7 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
     else:
         controller = with_measurements(controller, settings.measurements, ts, model_params=mp)
     vehicle = isinstance(controller, EstimatingController)
-    est_rows = {c: [] for c in ESTIMATOR_CSV_COLUMNS} if vehicle else None
+    est_rows: dict[str, list] = {c: [] for c in ESTIMATOR_CSV_COLUMNS}  # filled in vehicle mode only
     sp = ScenarioPlant(scenario, dt, plant_overrides=dict(settings.plant_overrides),
                        comfort_overrides=dict(settings.comfort_overrides))
     cols = {c: np.empty(n) for c in TIMESERIES_COLUMNS}
@@ -231,7 +231,7 @@ of the interior and shell temperatures [degC], their 1-sigma uncertainty [K], th
 number of missing inputs."""
 
 
-def _record_estimate(rows: dict, est, truth: dict) -> None:
+def _record_estimate(rows: dict[str, list], est, truth: dict) -> None:
     vals = {"t_s": est.t_s, "t_int_c": truth["t_int_c"], "t_int_est_c": est.t_int_c, "t_shell_c": truth["t_shell_c"],
             "t_shell_est_c": est.t_shell_c, "std_t_int_k": est.std_k[1], "std_t_shell_k": est.std_k[2],
             "valid": float(est.valid), "n_missing": float(len(est.missing))}
@@ -251,7 +251,7 @@ def estimation_metrics(est: dict) -> dict:
     estimate.
     """
     late = est["t_s"] >= ESTIMATION_SETTLE_S
-    out = {"measurements": "vehicle"}
+    out: dict[str, object] = {"measurements": "vehicle"}
     for q in ("t_int", "t_shell"):
         e = est[f"{q}_est_c"] - est[f"{q}_c"]
         out[f"est_{q}_rmse_k"] = float(np.sqrt(np.mean(e ** 2)))
@@ -285,8 +285,9 @@ def write_run(result: RunResult, run_dir: str | pathlib.Path) -> pathlib.Path:
         [math.nan] * len(result.diagnostics)
     rundir.write_csv(d / "diagnostics.csv", DIAGNOSTICS_CSV_COLUMNS, rows)
     rundir.write_metrics_json(d / "metrics.json", result.metrics)
-    if getattr(result, "estimates", None) is not None:
-        rundir.write_csv(d / "estimator.csv", ESTIMATOR_CSV_COLUMNS, result.estimates)
+    estimates = getattr(result, "estimates", None)
+    if estimates is not None:
+        rundir.write_csv(d / "estimator.csv", ESTIMATOR_CSV_COLUMNS, estimates)
     return d
 
 

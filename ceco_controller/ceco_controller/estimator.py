@@ -77,6 +77,7 @@ import dataclasses
 import math
 import pathlib
 from collections.abc import Mapping
+from typing import Any
 
 import casadi
 import numpy as np
@@ -194,7 +195,8 @@ class EstimatorParams:
         unknown = sorted(set(data) - names)
         if unknown:
             raise ValueError(f"EstimatorParams: unknown field(s) {unknown}")
-        return cls(**{k: (v if k == "provenance" else float(v)) for k, v in data.items()}).validate()
+        kwargs: dict[str, Any] = {k: (v if k == "provenance" else float(v)) for k, v in data.items()}
+        return cls(**kwargs).validate()
 
 
 def load_estimator_params(path: str | pathlib.Path | None = None) -> EstimatorParams:
@@ -512,7 +514,8 @@ class CabinStateEstimator:
             self._predict(n_steps, m, t_evap0, t_evap, ex)
             # without an evaporator sample E3 has no reliable input: no vent update either
             self._correct(y if y["t_evap_c"] is not None else {**y, "t_vent_c": None}, m, t_evap, ex)
-        if self._x is not None and not (np.all(np.isfinite(self._x)) and np.all(np.isfinite(self._p))):
+        if self._x is not None and self._p is not None and not (np.all(np.isfinite(self._x))
+                                                                and np.all(np.isfinite(self._p))):
             initialized = self._initialize(y, ex)  # defensive: never carry a non-finite state
         if n_steps != 0 or initialized:
             self._held["t_evap_c"] = t_evap
@@ -553,13 +556,14 @@ class CabinStateEstimator:
         return True
 
     def _predict(self, n_steps: int, m: float, t_evap0: float, t_evap1: float, ex: dict) -> None:
+        assert self._x is not None and self._p is not None
         x, pc = self._x, self._p
         for i in range(n_steps):
             a0 = t_evap0 + (t_evap1 - t_evap0) * i / n_steps
             a1 = t_evap0 + (t_evap1 - t_evap0) * (i + 1) / n_steps
-            u = [m, a0, a1, ex["t_amb_c"], ex["solar_wm2"], ex["speed_mps"]]
-            xn, fx = self._f(x, u)
-            fx = np.array(fx)
+            u = np.array([m, a0, a1, ex["t_amb_c"], ex["solar_wm2"], ex["speed_mps"]])
+            xn, jac = self._f(x, u)
+            fx = np.array(jac)
             x = np.array(xn).ravel()
             pc = fx @ pc @ fx.T + self._q
         self._x, self._p = x, 0.5 * (pc + pc.T)
@@ -570,19 +574,23 @@ class CabinStateEstimator:
         Sequential scalar updates in Joseph form; with independent sensor noise and h linear in x this
         equals the joint update.
         """
+        assert self._x is not None
         if y["t_cab_c"] is not None:
             self._scalar_update(y["t_cab_c"], float(self._x[0]), np.array([1.0, 0.0, 0.0, 0.0]), self._r_cab)
         if y["t_vent_c"] is not None:
-            hv, hj, he = self._h_vent(self._x, [m, t_evap, t_evap, ex["t_amb_c"], ex["solar_wm2"], ex["speed_mps"]])
+            u = np.array([m, t_evap, t_evap, ex["t_amb_c"], ex["solar_wm2"], ex["speed_mps"]])
+            hv, hj, he = self._h_vent(self._x, u)
             r = self._r_vent + (float(he) * self.settings.sensor_std_t_evap_k) ** 2
             self._scalar_update(y["t_vent_c"], float(hv), np.array(hj).ravel(), r)
 
     def _scalar_update(self, y: float, y_pred: float, h: np.ndarray, r: float) -> None:
-        s_inn = float(h @ self._p @ h) + r
-        k = (self._p @ h) / s_inn
+        assert self._x is not None and self._p is not None
+        p = self._p
+        s_inn = float(h @ p @ h) + r
+        k = (p @ h) / s_inn
         self._x = self._x + k * (y - y_pred)
         ikh = np.eye(4) - np.outer(k, h)
-        pc = ikh @ self._p @ ikh.T + r * np.outer(k, k)
+        pc = ikh @ p @ ikh.T + r * np.outer(k, k)
         self._p = 0.5 * (pc + pc.T)
 
 
@@ -638,7 +646,9 @@ class EstimatingController:
 
     def compute(self, obs: Observation):
         """One control step: estimate, then the wrapped controller's ``compute``."""
-        cmd, diag = self.inner.compute(self.estimated_observation(obs))
+        obs_est = self.estimated_observation(obs)
+        cmd, diag = self.inner.compute(obs_est)
+        assert self.last_estimate is not None
         note = self.last_estimate.describe()
         if note:
             diag.message = f"{diag.message}; {note}" if diag.message else note

@@ -73,7 +73,7 @@ def estimator_intervals(series: dict, ts_s: float = 5.0) -> dict:
     if m < 1 or abs(m * dt - ts_s) > 1e-6:
         raise ValueError(f"ts_s {ts_s} must be a whole multiple of the sample step {dt}")
     keys = ("tc0", "tc1", "ti0", "ti1", "ts0", "ts1", "te0", "te1", "tv1", "m", "ta", "ta1", "sol", "v", "seg")
-    out = {k: [] for k in keys}
+    out: dict[str, list] = {k: [] for k in keys}
     seg = np.asarray(series["segment"])
     for s in np.unique(seg):
         idx = np.flatnonzero(seg == s)
@@ -176,6 +176,7 @@ def fit_estimator(series: dict, model_params: cm.ControlModelParams, ts_s: float
                          + np.mean((rep["t_shell_est_c"] - rep["t_shell_c"])[late] ** 2))
             if best is None or cost < best[0]:
                 best = (cost, fc, fs, cand)
+    assert best is not None
     err.update({"q_cab_residual_k": q.q_cab_k, "q_int_residual_k": q.q_int_k, "q_shell_residual_k": q.q_shell_k,
                 "q_cab_factor": best[1], "q_slow_factor": best[2],
                 "tuned_rms_k": float(np.sqrt(best[0]))})
@@ -193,7 +194,7 @@ def replay(series: dict, estimator: est.CabinStateEstimator, meas_filter=None) -
     t = np.asarray(series["t_s"], float)
     dt = float(np.median(np.diff(t)))
     every = int(round(estimator.control_period_s / dt))
-    out = {k: [] for k in ("t_s", "segment", "t_int_est_c", "t_shell_est_c", "t_int_c", "t_shell_c",
+    out: dict[str, list] = {k: [] for k in ("t_s", "segment", "t_int_est_c", "t_shell_est_c", "t_int_c", "t_shell_c",
                            "t_cab_est_c", "t_cab_c", "valid")}
     seg = np.asarray(series["segment"])
     for s in np.unique(seg):

@@ -32,6 +32,7 @@ def make_controller(strategy: str, scenario: Scenario, control_period_s: float, 
     production sensors; the controller behind ``estimator.EstimatingController``, with
     ``estimator_settings``/``estimator_params``, default the package's identified file).
     """
+    ctrl: BaselineController | NmpcController
     if strategy == "baseline":
         # overrides: AccSettings fields (set-point, allowance, sun/ambient compensation)
         ctrl = BaselineController(AccSettings(**(overrides or {})), control_period_s=control_period_s)
