@@ -67,17 +67,25 @@ def test_missing_preview_span_does_not_crash(strategy):
 
 
 def test_ceco_inside_pmv_bounds_after_pulldown():
-    """SC03: ceco keeps the plant's PMV inside the bounds from t = 300 s on (tolerance 0.02 PMV).
+    """SC03: ceco keeps the plant's PMV inside the bounds once the pull-down allows it (tolerance 0.02 PMV).
 
     SC03 starts after the regulation's 10-minute soak; the scenario's upper bound
-    relaxes the pull-down (3.0 at 60 s, linearly to +0.5 at 300 s), so from 300 s
-    on the bounds are the comfort zone [-0.5, +0.5]. Tolerance 0.02 PMV: the
-    plant/model mismatch the robust back-off (0.1 PMV) has to absorb, with a
-    margin; measured worst case: 0.087 PMV *below* the upper bound.
+    relaxes the pull-down (3.0 at 30 s, linearly to +0.5 at 300 s). With the
+    occupant's environment in the scored PMV (docs/comfort.md: T_mr of the
+    sun-heated surfaces, body-average air speed) and the HVAC case/duct mass, the
+    cabin cannot follow that ramp: until t = 319 s every CECO strategy holds the
+    coldest command the actuator bounds allow (0.17 kg/s, 3 degC; measured) and PMV
+    is still above the bound (0.63 at 300 s). From 330 s on the bounds hold.
+    Tolerance 0.02 PMV: the plant/model mismatch the robust back-off (0.1 PMV) has
+    to absorb, with a margin.
     """
     res = cl.simulate("sc03", "ceco", cl.SimSettings(progress=False))
     ts = res.timeseries
-    after = ts["t_s"] >= 300.0
+    # after the first control period (t < 5 s: the vent air is the soaked 43 degC HVAC air, so the NMPC
+    # starts at low flow), every violation of the upper bound happens at full cooling
+    over = (ts["pmv"] > ts["pmv_ub"] + 0.02) & (ts["t_s"] >= 5.0)
+    assert np.all(ts["mdot_bl_kgps"][over] >= 0.17 - 1e-3) and np.all(ts["t_evap_sp_c"][over] <= 3.0 + 1e-3)
+    after = ts["t_s"] >= 330.0
     assert after.sum() > 250
     assert np.all(ts["pmv"][after] <= ts["pmv_ub"][after] + 0.02)
     assert np.all(ts["pmv"][after] >= ts["pmv_lb"][after] - 0.02)

@@ -21,6 +21,10 @@ def _obs(k=0, speed=10.0, valid=None, t_cab=28.0, **kw):
     return Observation(**d)
 
 
+_ZONE = dict(t_int_c=32.0, t_shell_c=32.0)
+"""Interior and shell temperatures of a cabin that a comfort-zone PMV is reachable in (T_mr 31 degC)."""
+
+
 def _valid(cmd):
     return ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c)
 
@@ -60,7 +64,8 @@ def test_ioch_eps_larger_at_high_speed():
         ctrl = NmpcController("ceco-ioch")
         vals = []
         for k in range(4):
-            cmd, diag = ctrl.compute(_obs(k, speed=speed, t_cab=26.0))
+            # a cabin inside the comfort zone (PMV 0.2 at 0.1 kg/s: T_mr 31 degC), so tightening is possible
+            cmd, diag = ctrl.compute(_obs(k, speed=speed, t_cab=24.0, **_ZONE))
             assert diag.success and _valid(cmd)
             vals.append(diag.eps_mean)
         eps[speed] = float(np.mean(vals))
@@ -159,7 +164,8 @@ def test_sqpmethod_matches_ipopt_and_falls_back_to_ipopt():
     costs = {}
     for name, ctrl in (("sqp", sqp), ("ipopt", ipo)):
         for k in range(3):
-            cmd, diag = ctrl.compute(_obs(k, t_cab=27.0 - 0.3 * k))
+            # inside the comfort zone (T_mr 31 degC): the comfort constraint and the IOCH slack are active
+            cmd, diag = ctrl.compute(_obs(k, t_cab=24.5 - 0.3 * k, **_ZONE))
             assert diag.success and _valid(cmd)
         costs[name] = diag.cost_total
     assert sqp.n_ipopt_fallbacks == 0  # step 0 is a cold (IPOPT) solve, steps 1-2 warm sqpmethod
@@ -173,7 +179,7 @@ def test_sqpmethod_matches_ipopt_and_falls_back_to_ipopt():
     # a failing sqpmethod (1 iteration) is retried by warm IPOPT: valid command, counted
     sqp.solver = NmpcController(strategy_settings(
         "ceco-ioch", solver=SolverSettings(name="sqpmethod", sqp_max_iter=1, ipopt_fallback=False))).solver
-    cmd, diag = sqp.compute(_obs(3, t_cab=26.0))
+    cmd, diag = sqp.compute(_obs(3, t_cab=24.0, **_ZONE))
     assert sqp.n_ipopt_fallbacks == 1 and diag.success and diag.fallback == "" and _valid(cmd)
     assert diag.status.startswith("sqpmethod: ") and "retried with IPOPT" in diag.message
 
@@ -295,3 +301,34 @@ def test_controller_file_is_what_the_simulator_and_nodes_build_from(tmp_path):
     cfg.write_text(yaml.safe_dump(doc))
     with pytest.raises(ValueError, match="gama_w"):
         closed_loop.make_controller("ceco-c", sc, 5.0, 6, config_path=str(cfg))
+
+
+def test_comfort_parameters_humidity_setting_and_draught_penalty():
+    from ceco_core import psychro
+    from ceco_core.cabin_comfort import PAPER_PA_PA, cabin_mrt_c
+
+    with pytest.raises(ValueError, match="pmv_pa_source"):
+        strategy_settings("ceco", pmv_pa_source="sensor")
+    with pytest.raises(ValueError, match="draught_weight_kj"):
+        strategy_settings("ceco", draught_weight_kj=-1.0)
+    paper = NmpcController("ceco")
+    measured = NmpcController(strategy_settings("ceco", pmv_pa_source="measured"))
+    obs = _obs(0, t_cab=25.0, rh_cab=0.3, t_glass_c=36.0)
+    t_mr, pa = paper.comfort_parameters(obs)
+    assert pa == PAPER_PA_PA
+    assert t_mr == pytest.approx(float(cabin_mrt_c(t_cab_c=25.0, t_int_c=40.0, t_shell_c=38.0, t_glass_c=36.0,
+                                                   params=paper.comfort_params)), abs=1e-12)
+    assert measured.comfort_parameters(obs)[1] == pytest.approx(float(psychro.vapour_pressure_pa(25.0, 0.3)))
+    assert measured.comfort_parameters(_obs(0, t_cab=25.0))[1] == PAPER_PA_PA  # no RH measured: 1700 Pa
+    # p_a is the NLP's last parameter: the same plan predicted with a drier cabin is cooler (~0.15 PMV)
+    _, d_paper = paper.compute(_obs(0, t_cab=24.0, rh_cab=0.3, **_ZONE))
+    data = paper.last_nlp()
+    p_dry = data.p.copy()
+    p_dry[-1] = float(psychro.vapour_pressure_pa(24.0, 0.3))
+    w = data.x0
+    drop = paper.evaluate(w, data.p)["pmv"] - paper.evaluate(w, p_dry)["pmv"]
+    assert d_paper.success and np.all((drop > 0.1) & (drop < 0.25))
+    # the draught penalty enters the comfort cost (off by default)
+    dr = NmpcController(strategy_settings("ceco", draught_weight_kj=0.01))
+    _, d_dr = dr.compute(_obs(0, t_cab=24.0, **_ZONE))
+    assert d_paper.cost_comfort == 0.0 and d_dr.success and d_dr.cost_comfort > 0.0

@@ -138,7 +138,11 @@ def test_figures_draw_each_run_in_its_strategy_colour(runs, tmp_path):
     for p in res['figures']:
         assert p.read_bytes()[:8] == PNG_MAGIC
         alpha = 0.6 if p.name.endswith('_solver.png') else 1.0         # the solver boxes are translucent
-        assert _colour_pixels(p, colour['ceco-ioch'], alpha) > 1000, p.name
+        # the PMV figure: from 5 s on both strategies run the pull-down at full cooling under the
+        # occupant-environment PMV (docs/comfort.md), so ceco-ioch's line lies mostly under the baseline's
+        # (592 pixels measured); the others show thousands
+        least = 300 if p.name.endswith('_pmv.png') else 1000
+        assert _colour_pixels(p, colour['ceco-ioch'], alpha) > least, p.name
         for s in ('ceco', 'ceco-e', 'ceco-c'):
             assert _colour_pixels(p, colour[s], alpha) == 0, (p.name, s)
     base_only = {r.strategy: r.columns for r in res['runs'] if r.strategy == 'baseline'}

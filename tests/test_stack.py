@@ -140,7 +140,12 @@ def test_short_closed_loop_over_dds_matches_simulator(tmp_path):
     assert ts['mdot_bl_kgps'].tolist() == [by_k[i // 5] for i in range(60)]
 
     from ceco_controller.closed_loop import SimSettings, simulate
-    sim = simulate('sc03', 'ceco-ioch', SimSettings(duration_s=60.0, progress=False)).metrics
+    sim_run = simulate('sc03', 'ceco-ioch', SimSettings(duration_s=60.0, progress=False))
+    sim = sim_run.metrics
+    # the comfort series published in cabin/comfort rebuild the simulator's columns (issue 9)
+    for col in ('pa_pa', 't_dew_c', 'fog_margin_k', 'dr_pct', 'ta_occ_c', 'vel_occ_mps', 't_mr_c', 'w_rad_wm2',
+                'iso7730_valid'):
+        np.testing.assert_allclose(ts[col], sim_run.timeseries[col], rtol=1e-12, atol=1e-12, err_msg=col)
     metrics = json.loads((out / 'metrics.json').read_text())
     for key in ('E_tot_J', 'E_comp_J', 'E_blower_J', 'I_pmv', 'otc_violation_pct', 'pmv_mean'):
         assert metrics[key] == pytest.approx(sim[key], rel=1e-6, abs=1e-12), key

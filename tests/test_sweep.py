@@ -189,7 +189,7 @@ SETTINGS_GRID = """
 name: gamma test grid
 strategies: [baseline, ceco-c]
 scenarios: [sc03_mild]
-duration_s: 120
+duration_s: 240
 settings:
   g1k:  {ceco-c: {gamma_w: 1000}}
   g50k: {ceco-c: {gamma_w: 50000.0}}
@@ -240,11 +240,12 @@ def test_settings_override_changes_ceco_c_and_equals_direct_run(tmp_path):
     assert res['timing']['ran'] == 3 and res['timing']['failed'] == 0
     by = {(r['strategy'], r['settings']): r for r in res['rows']}
     e1, e50 = by[('ceco-c', 'g1k')]['E_tot_J'], by[('ceco-c', 'g50k')]['E_tot_J']
-    # A 50x comfort weight cools harder: > 5 % more energy in 120 s (measured +10.3 %), lower I_PMV.
+    # A 50x comfort weight cools harder: > 5 % more energy in 240 s (measured +10.4 %; over the first 120 s
+    # both weights run the pull-down at full cooling under the occupant-environment PMV), lower I_PMV.
     assert e50 > 1.05 * e1
     assert by[('ceco-c', 'g50k')]['I_pmv'] < by[('ceco-c', 'g1k')]['I_pmv']
     # The cell equals a direct simulate() with the same override, exactly.
-    direct = simulate('sc03_mild', 'ceco-c', SimSettings(duration_s=120.0, progress=False,
+    direct = simulate('sc03_mild', 'ceco-c', SimSettings(duration_s=240.0, progress=False,
                                                          strategy_overrides=(('gamma_w', 1000.0),))).metrics
     for key in ('E_tot_J', 'I_pmv', 'otc_violation_pct', 'E_zone_J', 'I_pmv_zone'):
         assert by[('ceco-c', 'g1k')][key] == direct[key], key

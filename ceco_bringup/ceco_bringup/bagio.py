@@ -28,6 +28,7 @@ Public API:
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
@@ -218,6 +219,8 @@ def load_run_timeseries(bag_dir, namespace: str | None = None) -> dict[str, np.n
         rows['capacity_limited'].append(float(p.capacity_limited))
         for col in ('pmv', 'ppd', 'pmv_lb', 'pmv_ub'):
             rows[col].append(getattr(c, col))
+        for col in rundir.COMFORT_COLUMNS:
+            rows[col].append(float(c.iso_valid) if col == 'iso7730_valid' else getattr(c, col, math.nan))
         rows['step_index'].append(n)
         rows['fallback'].append(bool(s.fallback or p.fallback))
     out = {k: np.asarray(v, dtype=float) for k, v in rows.items()}

@@ -25,7 +25,7 @@ import time
 import numpy as np
 
 from ceco_core import rundir
-from ceco_core.metrics import compute_metrics, comparison_table
+from ceco_core.metrics import comfort_series_metrics, compute_metrics, comparison_table
 from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
 from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews, parse_quality
 from ceco_v2x_preview.scenario import Scenario, load_scenario
@@ -185,6 +185,7 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
             "mdot_bl_kgps": r.u.mdot_bl_kgps, "t_evap_sp_c": r.u.t_evap_sp_c,
             "p_comp_w": out.p_comp_w, "p_blower_w": out.p_blower_w, "q_evap_w": out.q_evap_w, "cop": out.cop,
             "pmv": r.pmv, "ppd": r.ppd, "pmv_lb": r.pmv_lb, "pmv_ub": r.pmv_ub,
+            **{c: float(getattr(r.comfort, c)) for c in rundir.COMFORT_COLUMNS},
             "p_cond_fan_w": out.p_cond_fan_w, "q_latent_w": out.q_latent_w,
             "comp_speed_rpm": out.comp_speed_rpm, "capacity_limited": float(out.capacity_limited),
         }
@@ -205,6 +206,7 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
         "otc_violation_zone_pct": float(100.0 * np.count_nonzero(viol & zone) / max(np.count_nonzero(zone), 1)),
         "pmv_mean_zone": float(np.mean(cols["pmv"][zone])),
     })
+    metrics.update(comfort_series_metrics(cols, dt, zone))
     metrics.update({
         "scenario": scenario.name, "strategy": strategy, "control_period_s": ts, "horizon_steps": n_p,
         "seed": int(quality.seed if quality.seed is not None else scenario.seed),
@@ -291,9 +293,11 @@ def write_run(result: RunResult, run_dir: str | pathlib.Path) -> pathlib.Path:
     return d
 
 
-TABLE_COLUMNS = ("E_tot_kWh", "I_pmv", "otc_violation_pct", "time_to_comfort_s", "pmv_mean",
-                 "E_zone_J", "I_pmv_zone", "otc_violation_zone_pct", "pmv_mean_zone")
-"""Columns of the printed comparison (``*_zone``: only the comfort-zone phase after the pull-down relaxation)."""
+TABLE_COLUMNS = ("E_tot_kWh", "I_pmv", "I_pmv_clipped", "otc_violation_pct", "iso7730_invalid_pct",
+                 "time_to_comfort_s", "pmv_mean", "E_zone_J", "I_pmv_zone", "otc_violation_zone_pct", "pmv_mean_zone",
+                 "iso7730_invalid_pct_zone", "dr_above_pct_zone", "rh_cab_mean_zone", "fog_margin_min_k")
+"""Columns of the printed comparison (``*_zone``: only the comfort-zone phase after the pull-down relaxation);
+the share of samples outside ISO 7730 validity next to the comfort metrics."""
 CHANGE_COLUMNS = ("E_tot_kWh", "I_pmv", "otc_violation_pct", "E_zone_J", "I_pmv_zone")
 """Columns shown with their change against the baseline [%]."""
 
@@ -318,7 +322,19 @@ def main(argv=None) -> int:
                     help="full: the controller reads every modelled state; vehicle: production sensors only, "
                          "interior/shell temperatures estimated (default full)")
     ap.add_argument("--no-progress", action="store_true", help="disable the progress bar")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                    help="override a CECO strategy setting (StrategySettings field), e.g. pmv_pa_source=measured; "
+                         "repeatable; numbers are read as floats")
     args = ap.parse_args(argv)
+    overrides = []
+    for item in args.set:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            ap.error(f"--set: expected FIELD=VALUE, got {item!r}")
+        try:
+            overrides.append((key, float(value)))
+        except ValueError:
+            overrides.append((key, value))
     strategies = list(STRATEGIES) if args.strategy == "all" else [s.strip() for s in args.strategy.split(",")]
     for s in strategies:
         if s not in STRATEGIES:
@@ -331,7 +347,8 @@ def main(argv=None) -> int:
     settings = SimSettings(control_period_s=args.control_period, horizon_steps=args.horizon,
                            preview_quality=quality, seed=args.seed, duration_s=args.duration,
                            progress=not args.no_progress, model_params_path=args.model_params,
-                           controller_config_path=args.controller_config, measurements=args.measurements)
+                           controller_config_path=args.controller_config, strategy_overrides=tuple(overrides),
+                           measurements=args.measurements)
     out = pathlib.Path(args.out)
     rows = []
     for s in strategies:

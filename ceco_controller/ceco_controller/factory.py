@@ -7,7 +7,7 @@ from here.
 from __future__ import annotations
 
 from ceco_core.acc_law import AccSettings
-from ceco_core.comfort import comfort_params_for
+from ceco_core.cabin_comfort import comfort_params_for
 from ceco_core.scenario_types import Scenario
 
 from . import model as cm

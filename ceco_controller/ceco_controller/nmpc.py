@@ -48,7 +48,15 @@ import casadi
 import numpy as np
 
 from ceco_core.acc_law import AccLaw, AccSettings
-from ceco_core.comfort import ComfortParams, cabin_pmv
+from ceco_core import psychro
+from ceco_core.cabin_comfort import (
+    PAPER_PA_PA,
+    ComfortParams,
+    cabin_draught_pct,
+    cabin_mrt_c,
+    cabin_pmv,
+    cabin_w_rad_wm2,
+)
 from ceco_core.contracts import AcInput
 
 from . import model as cm
@@ -69,7 +77,11 @@ the warm solver's barrier (slack x multiplier ~ 1e-5 x rho); 1e-3 started the wa
 complementarity of ~1 and cost one IPOPT iteration (docs/controller.md 4.6)."""
 
 _N_P_FIXED = 9
-"""Scalar parameters before the per-stage ones (x0[2], t_int, t_shell, d_cab, d_evap, d_ain, u_prev[2])."""
+"""Scalar parameters before the per-stage ones (x0[2], t_int, t_shell, d_cab, d_evap, d_ain, u_prev[2]).
+After the per-stage ones come the comfort scalars t_mr [degC] and p_a [Pa] (``_N_P_COMFORT``)."""
+
+_N_P_COMFORT = 2
+"""Scalar parameters after the per-stage ones: the mean radiant temperature and the vapour pressure."""
 
 
 @dataclasses.dataclass
@@ -141,9 +153,11 @@ class NmpcController:
         speed = SX.sym("speed", n + 1)
         lb_pmv = SX.sym("pmv_lb", n + 1)
         ub_pmv = SX.sym("pmv_ub", n + 1)
+        t_mr = SX.sym("t_mr")
+        pa = SX.sym("pa_pa")
         p = casadi.vertcat(x0p, t_int, t_shell, d_cab, d_evap, d_ain, u_prev, t_amb, solar, speed,
-                           lb_pmv, ub_pmv)
-        assert p.numel() == _N_P_FIXED + 5 * (n + 1)
+                           lb_pmv, ub_pmv, t_mr, pa)
+        assert p.numel() == _N_P_FIXED + 5 * (n + 1) + _N_P_COMFORT
 
         w, lbw, ubw = [], [], []
         g, lbg, ubg = [], [], []
@@ -195,8 +209,8 @@ class NmpcController:
                 u = x[2:4]  # u_{N-1}, carried in the state
             # comfort at stage i
             tain = cm.t_ain_c(mp, x[1], u[0], d_ain)
-            pmv = cabin_pmv(t_cab_c=x[0], t_ain_c=tain, t_int_c=t_int, mdot_bl_kgps=u[0],
-                            solar_wm2=solar[i], params=cp)
+            pmv = cabin_pmv(t_cab_c=x[0], t_vent_c=tain, mdot_bl_kgps=u[0], t_mr_c=t_mr,
+                            w_rad_wm2=cabin_w_rad_wm2(solar[i], cp), pa_pa=pa, params=cp)
             pmv_all.append(pmv)
             tcab_all.append(x[0])
             tain_all.append(tain)
@@ -216,6 +230,9 @@ class NmpcController:
                     [0.0, -inf], [inf, 0.0])
             if s.gamma_w > 0:
                 c_terms.append(ts_kj * s.gamma_w * pmv ** 2)
+            if s.draught_weight_kj > 0:
+                dr = cabin_draught_pct(t_cab_c=x[0], t_vent_c=tain, mdot_bl_kgps=u[0], params=cp, cap=False)
+                c_terms.append(s.draught_weight_kj * (dr / 100.0) ** 2)
             if i >= 1:
                 tevap_all.append(x[1])
                 s_ev = SX.sym(f"s_ev_{i}")
@@ -446,7 +463,24 @@ class NmpcController:
         return np.concatenate([
             [obs.t_cab_c, obs.t_evap_c, obs.t_int_c, obs.t_shell_c, b[0], b[1], b[2],
              obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c],
-            ex["t_amb"], ex["solar"], ex["speed"], obs.pmv_lb, obs.pmv_ub])
+            ex["t_amb"], ex["solar"], ex["speed"], obs.pmv_lb, obs.pmv_ub,
+            self.comfort_parameters(obs)])
+
+    def comfort_parameters(self, obs: Observation) -> np.ndarray:
+        """The NLP's comfort scalars [t_mr (degC), p_a (Pa)] held over the horizon.
+
+        t_mr: from the measured glazing, shell and interior temperatures
+        (:func:`ceco_core.cabin_comfort.cabin_mrt_c`; T_int alone while the glazing is not
+        measured). p_a: ``settings.pmv_pa_source`` ('paper': 1700 Pa; 'measured': RH x p_ws(T_cab),
+        1700 Pa while the RH is not measured).
+        """
+        t_glass = obs.t_glass_c if math.isfinite(obs.t_glass_c) else obs.t_int_c
+        t_mr = float(cabin_mrt_c(t_cab_c=obs.t_cab_c, t_int_c=obs.t_int_c, t_shell_c=obs.t_shell_c,
+                                 t_glass_c=t_glass, params=self.comfort_params))
+        pa = PAPER_PA_PA
+        if self.settings.pmv_pa_source == "measured" and math.isfinite(obs.rh_cab) and 0.0 <= obs.rh_cab <= 1.0:
+            pa = float(psychro.vapour_pressure_pa(obs.t_cab_c, obs.rh_cab))
+        return np.array([t_mr, pa])
 
     def initial_guess(self, p: np.ndarray, w_prev: np.ndarray | None = None) -> np.ndarray:
         """Primal guess, consistent with the dynamics and the comfort constraints at ``p``.

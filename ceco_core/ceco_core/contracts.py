@@ -249,6 +249,10 @@ class Observation:
     """Occupant metabolic rate [met] (seated driving, ISO 7730 Annex B)."""
     clo: float = 0.5
     """Occupant clothing insulation [clo] (summer clothing)."""
+    t_glass_c: float = math.nan
+    """Measured glazing temperature [degC] (for the mean radiant temperature; NaN if not measured)."""
+    rh_cab: float = math.nan
+    """Measured cabin relative humidity [0..1] (for the PMV's vapour pressure; NaN if not measured)."""
 
     def __post_init__(self):
         n = np.asarray(self.pmv_lb).size

@@ -46,6 +46,12 @@ __all__ = [
     "relative_change_pct",
     "comparison_rows",
     "comparison_table",
+    "i_pmv_clipped",
+    "iso7730_invalid_pct",
+    "draught_stats",
+    "fog_margin_stats",
+    "COMFORT_SERIES_METRIC_KEYS",
+    "comfort_series_metrics",
 ]
 
 J_PER_KWH = 3.6e6
@@ -253,18 +259,94 @@ def comparison_table(rows: Sequence[Mapping], baseline: str = "baseline", *, nam
     return "\n".join(lines)
 
 
+# --------------------------------------------------------------------------------------------------
+# comfort-series metrics (issue 9): pure functions of the timeseries columns pmv, dr_pct,
+# fog_margin_k, iso7730_valid (ceco_core.rundir.COMFORT_COLUMNS); docs/metrics.md
+
+PMV_SCALE_LIMIT = 3.0
+"""End of ISO 7730's seven-point thermal sensation scale (+3 hot, -3 cold) [-]: PMV is clipped to +-3
+in ``i_pmv_clipped`` and the ``discomfort_*`` KPIs (beyond it PMV is no vote)."""
+
+DRAUGHT_LIMIT_PCT = 20.0
+"""ISO 7730:2005 Table A.1 category B limit of the draught rating DR [%]."""
+
+
+def i_pmv_clipped(pmv, dt_s: float, limit: float = PMV_SCALE_LIMIT) -> float:
+    """``sum_i clip(PMV_i, -limit, limit)^2 dt`` [s]: the paper's I_PMV with PMV held on the 7-point scale.
+
+    Beyond +-3 a PMV is no longer a vote (and outside ISO 7730's validity): a hot-soaked cabin's PMV of
+    5-7 would otherwise dominate the integral.
+    """
+    y = np.clip(_array("pmv", pmv, None), -limit, limit)
+    return float(np.sum(y * y) * dt_s)
+
+
+def iso7730_invalid_pct(valid) -> float:
+    """Share of samples whose PMV inputs or PMV lie outside ISO 7730 Clause 4 ranges [%] (``valid`` 1/0)."""
+    v = _array("iso7730_valid", valid, None)
+    return float(100.0 * np.count_nonzero(v < 0.5) / v.size) if v.size else math.nan
+
+
+def draught_stats(dr_pct, limit_pct: float = DRAUGHT_LIMIT_PCT) -> dict:
+    """Draught rating statistics ``dr_mean_pct``, ``dr_max_pct``, ``dr_above_pct`` [%].
+
+    ``dr_above_pct`` is the share of samples with DR above ``limit_pct`` (ISO 7730 category B: 20 %).
+    """
+    d = _array("dr_pct", dr_pct, None)
+    if not d.size:
+        return {"dr_mean_pct": math.nan, "dr_max_pct": math.nan, "dr_above_pct": math.nan}
+    return {"dr_mean_pct": float(np.mean(d)), "dr_max_pct": float(np.max(d)),
+            "dr_above_pct": float(100.0 * np.count_nonzero(d > limit_pct) / d.size)}
+
+
+def fog_margin_stats(fog_margin_k) -> dict:
+    """Windscreen fog margin (glass minus dew point) statistics ``fog_margin_min_k``, ``fog_margin_mean_k`` [K].
+
+    ``fog_risk_pct`` is the share of samples with a margin below 0 (condensation on the glass) [%].
+    """
+    f = _array("fog_margin_k", fog_margin_k, None)
+    if not f.size:
+        return {"fog_margin_min_k": math.nan, "fog_margin_mean_k": math.nan, "fog_risk_pct": math.nan}
+    return {"fog_margin_min_k": float(np.min(f)), "fog_margin_mean_k": float(np.mean(f)),
+            "fog_risk_pct": float(100.0 * np.count_nonzero(f < 0.0) / f.size)}
+
+
+COMFORT_SERIES_METRIC_KEYS = (
+    "I_pmv_clipped", "iso7730_invalid_pct", "dr_mean_pct", "dr_max_pct", "dr_above_pct",
+    "fog_margin_min_k", "fog_margin_mean_k", "fog_risk_pct", "rh_cab_mean", "pa_mean_pa",
+)
+"""Keys of :func:`comfort_series_metrics` (each also with the suffix ``_zone``)."""
+
+
+def comfort_series_metrics(columns: Mapping, dt_s: float, zone=None) -> dict:
+    """The comfort-series metrics of a run, whole run and (``zone``: boolean mask) the comfort-zone phase.
+
+    ``columns`` holds ``pmv, dr_pct, fog_margin_k, iso7730_valid, rh_cab, pa_pa`` (timeseries.csv);
+    returns :data:`COMFORT_SERIES_METRIC_KEYS` and the same keys suffixed ``_zone`` (NaN without a zone).
+    """
+    n = np.asarray(columns["pmv"]).size
+    masks = {"": np.ones(n, dtype=bool),
+             "_zone": np.zeros(n, dtype=bool) if zone is None else np.asarray(zone, dtype=bool)}
+    out = {}
+    for suffix, m in masks.items():
+        if not m.any():
+            out.update({k + suffix: math.nan for k in COMFORT_SERIES_METRIC_KEYS})
+            continue
+        col = {k: np.asarray(columns[k], dtype=float)[m] for k in ("pmv", "dr_pct", "fog_margin_k",
+                                                                    "iso7730_valid", "rh_cab", "pa_pa")}
+        vals = {"I_pmv_clipped": i_pmv_clipped(col["pmv"], dt_s),
+                "iso7730_invalid_pct": iso7730_invalid_pct(col["iso7730_valid"]),
+                **draught_stats(col["dr_pct"]), **fog_margin_stats(col["fog_margin_k"]),
+                "rh_cab_mean": float(np.mean(col["rh_cab"])), "pa_mean_pa": float(np.mean(col["pa_pa"]))}
+        out.update({k + suffix: vals[k] for k in COMFORT_SERIES_METRIC_KEYS})
+    return out
+
+
 # ---------------------------------------------------------------------------
 # Benchmark KPIs (issue 10; docs/metrics.md "Benchmark KPIs", docs/benchmark.md)
 
 COMFORT_BAND_PMV = (-0.5, 0.5)
 """ISO 7730:2005 category B comfort band of PMV [-]: the fixed band of the discomfort KPI."""
-
-PMV_SCALE_LIMIT = 3.0
-"""End of the ISO 7730 seven-point thermal sensation scale [-]: PMV is clipped to +-3 in
-``discomfort_*`` and ``i_pmv_clipped`` (beyond it PMV is no vote)."""
-
-DRAUGHT_LIMIT_PCT = 20.0
-"""ISO 7730:2005 Table A.1 category B limit of the draught rating DR [%]."""
 
 ACTUATOR_RANGES = {"mdot_bl_kgps": 0.12, "t_evap_sp_c": 7.0}
 """Full range of each A/C input (0.05-0.17 kg/s, 3-10 degC): actuator travel is counted in strokes."""
@@ -382,9 +464,8 @@ def compute_kpis(columns: Mapping, *, step_time_s=None, control_period_s: float 
     else:
         for key in ("band_start_s", "discomfort_band_pmvh", "pmv_mean_band"):
             notes[key] = "the scenario's bounds never lie inside the comfort band in this run"
-    yc = np.clip(y, -PMV_SCALE_LIMIT, PMV_SCALE_LIMIT)
     k["i_pmv"] = float(np.sum(y * y) * dt)
-    k["i_pmv_clipped"] = float(np.sum(yc * yc) * dt)
+    k["i_pmv_clipped"] = i_pmv_clipped(y, dt)
     k["otc_violation_pct"] = 100.0 * float(np.count_nonzero((y > ub) | (y < lb))) / n
     ttc = _time_to_comfort(t, dt, y, band[0], band[1], COMFORT_HOLD_S)
     k["time_to_comfort_s"] = None if math.isnan(ttc) else ttc
@@ -394,17 +475,18 @@ def compute_kpis(columns: Mapping, *, step_time_s=None, control_period_s: float 
     if dr is None:
         notes["draught_mean_pct"] = notes["draught_max_pct"] = notes["draught_pct"]
     else:
-        k["draught_pct"] = 100.0 * float(np.count_nonzero(dr > DRAUGHT_LIMIT_PCT)) / n
-        k["draught_mean_pct"], k["draught_max_pct"] = float(np.mean(dr)), float(np.max(dr))
+        st = draught_stats(dr)
+        k["draught_pct"], k["draught_mean_pct"], k["draught_max_pct"] = (
+            st["dr_above_pct"], st["dr_mean_pct"], st["dr_max_pct"])
     fog = _column(columns, "fog_margin_k", n, notes, "fog_margin_min_k")
     if fog is None:
         notes["fog_risk_pct"] = notes["fog_margin_min_k"]
     else:
-        k["fog_margin_min_k"] = float(np.min(fog))
-        k["fog_risk_pct"] = 100.0 * float(np.count_nonzero(fog < 0.0)) / n
+        st = fog_margin_stats(fog)
+        k["fog_margin_min_k"], k["fog_risk_pct"] = st["fog_margin_min_k"], st["fog_risk_pct"]
     valid = _column(columns, "iso7730_valid", n, notes, "iso7730_invalid_pct")
     if valid is not None:
-        k["iso7730_invalid_pct"] = 100.0 * float(np.count_nonzero(valid < 0.5)) / n
+        k["iso7730_invalid_pct"] = iso7730_invalid_pct(valid)
     m = _array("mdot_bl_kgps", columns["mdot_bl_kgps"], n)
     s = _array("t_evap_sp_c", columns["t_evap_sp_c"], n)
     k["actuator_travel"], k["travel_mdot_kgps"], k["travel_t_evap_sp_k"] = actuator_travel(m, s)
