@@ -18,7 +18,7 @@ from ceco_v2x_preview.scenario import load_scenario
 
 MP = cm.load_params()
 Q = est.load_estimator_params()
-VALID = read_series_csv(DEFAULT_DATA_DIR / "validation.csv")  # US06 from hot soak and pre-cooled: never fitted
+VALID = eid.read_data_csv(eid.VALIDATION_CSV)  # US06 from hot soak and pre-cooled: never fitted
 BAD_VALUES = (math.nan, math.inf, -math.inf, 1e9, -300.0, None, "x")
 
 
@@ -32,19 +32,32 @@ def _errors_after(rep, t0_s):
 
 
 def test_committed_parameters_are_what_the_committed_data_give():
-    q, err = eid.fit_estimator(read_series_csv(DEFAULT_DATA_DIR / "train.csv"), MP)
+    train = eid.read_data_csv(eid.TRAIN_CSV)
+    # the estimator's data are the NMPC model's excitation runs, with the glazing and duct temperatures
+    for data, ref in ((train, DEFAULT_DATA_DIR / "train.csv"), (VALID, DEFAULT_DATA_DIR / "validation.csv")):
+        nmpc = read_series_csv(ref)
+        for c in nmpc:
+            np.testing.assert_allclose(data[c], nmpc[c], rtol=0, atol=1e-9, err_msg=c)
+    q, err = eid.fit_estimator(train, MP)
     for f in dataclasses.fields(est.EstimatorParams):
         if f.name != "provenance":
             assert getattr(q, f.name) == pytest.approx(getattr(Q, f.name), rel=1e-9, abs=1e-12), f.name
     # the grey-box models describe the plant on the validation drives (not fitted)
     ev = eid._model_errors(MP, Q, eid.estimator_intervals(VALID), 60)
-    assert ev["t_vent_rms_k"] < 0.05 and ev["t_int_1step_rms_k"] < 0.01 and ev["t_shell_1step_rms_k"] < 0.01
-    assert ev["t_int_drift_rms_k"] < 0.3 and ev["t_shell_drift_rms_k"] < 0.3  # 5 min open loop
-    # physically signed: couplings and solar gains > 0; the duct term is the plant's UA_duct / c_p (8/1006)
-    for name in ("int_cab_forced", "int_shell", "int_solar_k_per_wm2", "shell_cab", "shell_int", "shell_amb",
-                 "shell_amb_speed", "shell_solar_k_per_wm2"):
+    assert ev["t_vent_rms_k"] < 0.05  # measured 0.015 K
+    for name in ("t_int", "t_shell", "t_glass", "t_duct"):
+        assert ev[f"{name}_1step_rms_k"] < 0.01, name  # measured <= 0.003 K
+        assert ev[f"{name}_drift_rms_k"] < 0.1, name  # 5 min open loop; measured <= 0.027 K
+    # physically signed: couplings and solar gains > 0
+    for name in ("int_cab", "int_cab_forced", "int_shell", "int_glass", "int_solar_k_per_wm2", "int_duct",
+                 "shell_cab", "shell_int", "shell_amb", "shell_amb_speed", "shell_solar_k_per_wm2", "glass_cab",
+                 "glass_cab_forced", "glass_int", "glass_amb", "glass_amb_speed", "glass_solar_k_per_wm2",
+                 "duct_int", "duct_air_s_per_kg", "vent_duct"):
         assert getattr(Q, name) > 0, name
-    assert 0.006 < Q.vent_duct_kgps < 0.009
+    # the panel -> duct-wall conductance is the plant's UA 8 W/K over C 7000 J/K, x 5 s; the duct wall's share
+    # in the vent air 1 - exp(-UA_air/(m c_p)) (UA_air = 35 (m/0.1)^0.8 W/K, plant.md): 0.29 at 0.1 kg/s
+    assert Q.duct_int == pytest.approx(8.0 * 5.0 / 7000.0, rel=0.25)
+    assert 0.15 < Q.vent_duct + 0.1 * Q.vent_duct_flow_s_per_kg < 0.35
     # the covariance search picked an interior optimum of eq. (1)'s factor (not the grid's edge)
     assert err["q_cab_factor"] not in (eid.Q_CAB_FACTORS[0], eid.Q_CAB_FACTORS[-1])
 
@@ -64,12 +77,12 @@ def test_converges_from_a_wrong_initial_state_on_a_plant_run(seg, delta_k):
     rep = eid.replay(data, _estimator(init_offset_int_k=off_int, init_offset_shell_k=off_shell))
     assert rep["t_int_est_c"][0] - rep["t_int_c"][0] == pytest.approx(delta_k)
     assert rep["t_shell_est_c"][0] - rep["t_shell_c"][0] == pytest.approx(-delta_k)
-    # measured (the four cases): |e_int| <= 0.97 K and |e_shell| <= 0.10 K from 300 s on, <= 0.81 K from 450 s
+    # measured (the four cases): |e_int| <= 1.19 K and |e_shell| <= 0.11 K from 300 s on, <= 0.93 K from 450 s
     e_int, e_shell = _errors_after(rep, 300.0)
-    assert e_int.max() < 1.2 and e_shell.max() < 0.2
+    assert e_int.max() < 1.4 and e_shell.max() < 0.2
     e_int, _ = _errors_after(rep, 450.0)
-    assert e_int.max() < 1.0
-    # the measurements do the work: predicting alone from the same prior keeps most of the error (>= 3.87 K)
+    assert e_int.max() < 1.1
+    # the measurements do the work: predicting alone from the same prior keeps most of the error (>= 3.76 K)
     blind = eid.replay(data, _estimator(init_offset_int_k=off_int, init_offset_shell_k=off_shell),
                        meas_filter=lambda t, m: {**m, "t_cab_c": m["t_cab_c"] if t == 0 else math.nan,
                                                  "t_vent_c": math.nan})
@@ -80,21 +93,21 @@ def test_converges_from_a_wrong_initial_state_on_a_plant_run(seg, delta_k):
 @pytest.mark.parametrize("offset_k", [0.5, -0.5])
 def test_vent_sensor_offset_is_absorbed_by_the_bias_state(offset_k):
     """A vent-sensor offset within the NTC tolerance (0.5 K): with the offset state b_vent the interior error
-    stays small; without it (prior std ~0) the filter reads the offset as T_int (dT_vent/dT_int = 0.04-0.14)."""
+    stays small; without it (prior std ~0) the filter reads the offset as a duct-wall and so an interior error."""
     def shifted(t, m):
         return {**m, "t_vent_c": m["t_vent_c"] + offset_k}
 
     with_b = eid.replay_errors(eid.replay(VALID, _estimator(), meas_filter=shifted))
     without = eid.replay_errors(eid.replay(VALID, _estimator(vent_bias_std_k=1e-4, vent_bias_drift_k=1e-6),
                                            meas_filter=shifted))
-    assert with_b["t_int_rmse_after_120s_k"] < 0.35  # measured 0.21 / 0.27 K
-    assert without["t_int_rmse_after_120s_k"] > 3.0  # measured 4.0 / 4.1 K
+    assert with_b["t_int_rmse_after_120s_k"] < 0.35  # measured 0.28 / 0.30 K
+    assert without["t_int_rmse_after_120s_k"] > 1.5  # measured 1.72 / 1.87 K
 
 
 def _finite_estimate(e: est.Estimate) -> None:
     for f in dataclasses.fields(e):
         v = getattr(e, f.name)
-        if isinstance(v, float):
+        if isinstance(v, float) and f.name != "rh_cab":  # rh_cab: NaN until measured (not given here)
             assert math.isfinite(v), f.name
     assert all(math.isfinite(v) for v in e.std_k)
 
@@ -124,10 +137,10 @@ def test_missing_or_invalid_samples_give_finite_flagged_estimates(sensor):
         assert (sensor in e.missing) == (100.0 <= t < 150.0), (t, e.missing)
         assert e.valid  # 50 s of dead reckoning at most
     # inside the span the estimate stays near the clean one; after it, the two agree again
-    # (measured: T_int at most 0.31 K apart, 0.08 K from 300 s on; a held speed moves the shell by 1.2 K)
+    # (measured: T_int at most 0.38 K apart, 0.10 K from 300 s on; a held speed moves the shell by 1.3 K)
     gap = np.abs(rep["t_int_est_c"] - clean["t_int_est_c"])
     assert gap.max() < 0.5
-    assert gap[rep["t_s"] >= 300.0].max() < 0.1
+    assert gap[rep["t_s"] >= 300.0].max() < 0.15
     gap = np.abs(rep["t_shell_est_c"] - clean["t_shell_est_c"])
     assert gap.max() < 1.5 and gap[rep["t_s"] >= 300.0].max() < 0.05
 
@@ -199,7 +212,7 @@ def test_estimator_is_deterministic_and_never_reads_the_unmeasured_fields():
     b = eid.replay(VALID, _estimator())
     for k in a:
         np.testing.assert_array_equal(a[k], b[k])
-    # the wrapper ignores t_int_c / t_shell_c of the observation: garbage there changes nothing
+    # the wrapper ignores t_int_c / t_shell_c / t_glass_c of the observation: garbage there changes nothing
     sc = load_scenario("sc03")
     ctrls = [make_controller("ceco", sc, 5.0, 6, MP, measurements="vehicle") for _ in range(2)]
     meas = {"t_cab_c": 43.0, "t_int_c": 46.0, "t_shell_c": 48.0, "t_evap_c": 43.0, "t_vent_c": 43.0,
@@ -208,7 +221,7 @@ def test_estimator_is_deterministic_and_never_reads_the_unmeasured_fields():
     for k in range(4):
         cmds = []
         for j, garbage in enumerate((None, 1e6 if k % 2 else math.nan)):
-            m = dict(meas) if garbage is None else dict(meas, t_int_c=garbage, t_shell_c=-garbage)
+            m = dict(meas) if garbage is None else dict(meas, t_int_c=garbage, t_shell_c=-garbage, t_glass_c=garbage)
             cmd, _ = ctrls[j].compute(_obs(sc, 5.0 * k, k, m, u[j]))
             u[j] = cmd
             cmds.append(cmd)

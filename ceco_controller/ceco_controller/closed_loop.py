@@ -81,7 +81,7 @@ class SimSettings:
     """Controller settings file; None: ceco_controller/config/controller.yaml."""
     measurements: str = "full"
     """'full': the controller reads every state it models; 'vehicle': only the production sensors,
-    T_int/T_shell estimated (``ceco_controller.estimator``; docs/controller.md section 5)."""
+    T_int, T_shell and T_glass estimated (``ceco_controller.estimator``; docs/controller.md section 5)."""
 
     def validate(self) -> None:
         """Raise ValueError naming the field if a setting is not usable."""
@@ -226,16 +226,17 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
                      estimates=estimates)
 
 
-ESTIMATOR_CSV_COLUMNS = ("t_s", "t_int_c", "t_int_est_c", "t_shell_c", "t_shell_est_c", "std_t_int_k",
-                         "std_t_shell_k", "valid", "n_missing")
+ESTIMATOR_CSV_COLUMNS = ("t_s", "t_int_c", "t_int_est_c", "t_shell_c", "t_shell_est_c", "t_glass_c", "t_glass_est_c",
+                         "std_t_int_k", "std_t_shell_k", "std_t_glass_k", "valid", "n_missing")
 """Columns of ``estimator.csv`` (measurements='vehicle'): per control step the plant truth and the estimate
-of the interior and shell temperatures [degC], their 1-sigma uncertainty [K], the validity flag and the
-number of missing inputs."""
+of the interior, shell and glazing temperatures [degC], their 1-sigma uncertainty [K], the validity flag and
+the number of missing inputs."""
 
 
 def _record_estimate(rows: dict[str, list], est, truth: dict) -> None:
     vals = {"t_s": est.t_s, "t_int_c": truth["t_int_c"], "t_int_est_c": est.t_int_c, "t_shell_c": truth["t_shell_c"],
-            "t_shell_est_c": est.t_shell_c, "std_t_int_k": est.std_k[1], "std_t_shell_k": est.std_k[2],
+            "t_shell_est_c": est.t_shell_c, "t_glass_c": truth["t_glass_c"], "t_glass_est_c": est.t_glass_c,
+            "std_t_int_k": est.std_k[1], "std_t_shell_k": est.std_k[2], "std_t_glass_k": est.std_k[3],
             "valid": float(est.valid), "n_missing": float(len(est.missing))}
     for c in ESTIMATOR_CSV_COLUMNS:
         rows[c].append(vals[c])
@@ -248,13 +249,13 @@ ESTIMATION_SETTLE_S = 120.0
 def estimation_metrics(est: dict) -> dict:
     """Estimation errors of a vehicle-mode run.
 
-    RMSE and max |error| of T_int and T_shell [K] against the plant truth, over the whole run and from
+    RMSE and max |error| of T_int, T_shell and T_glass [K] against the plant truth, over the whole run and from
     :data:`ESTIMATION_SETTLE_S` on (after the key-on transient), and the number of steps with an invalid
     estimate.
     """
     late = est["t_s"] >= ESTIMATION_SETTLE_S
     out: dict[str, object] = {"measurements": "vehicle"}
-    for q in ("t_int", "t_shell"):
+    for q in ("t_int", "t_shell", "t_glass"):
         e = est[f"{q}_est_c"] - est[f"{q}_c"]
         out[f"est_{q}_rmse_k"] = float(np.sqrt(np.mean(e ** 2)))
         out[f"est_{q}_rmse_late_k"] = float(np.sqrt(np.mean(e[late] ** 2))) if late.any() else None

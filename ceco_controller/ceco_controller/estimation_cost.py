@@ -126,8 +126,9 @@ def _row(case: str, strategy: str, mode: str, res, wall_s: float) -> dict:
            "discomfort_pmvh": discomfort_pmvh(ts["t_s"], ts["pmv"]),
            "otc_violation_zone_pct": m["otc_violation_zone_pct"], "otc_violation_pct": m["otc_violation_pct"],
            "n_fallback": m["n_fallback_shifted"] + m["n_fallback_baseline"], "wall_s": wall_s}
-    for k in ("est_t_int_rmse_k", "est_t_shell_rmse_k", "est_t_int_rmse_late_k", "est_t_shell_rmse_late_k",
-              "est_t_int_max_abs_k", "est_t_shell_max_abs_k"):
+    for k in ("est_t_int_rmse_k", "est_t_shell_rmse_k", "est_t_glass_rmse_k", "est_t_int_rmse_late_k",
+              "est_t_shell_rmse_late_k", "est_t_glass_rmse_late_k", "est_t_int_max_abs_k", "est_t_shell_max_abs_k",
+              "est_t_glass_max_abs_k"):
         row[k] = m.get(k)
     return row
 
@@ -171,8 +172,9 @@ def markdown_table(rows: list[dict]) -> str:
     by = {(r["case"], r["strategy"], r["mode"]): r for r in rows}
     naive = any(r["mode"] == "naive" for r in rows)
     head = ("| case | strategy | E_tot full / vehicle [kWh] | ΔE [%] | I_PMV full / vehicle [s] | "
-            "discomfort full / vehicle [PMV h] | zone violation full / vehicle [%] | RMSE T_int / T_shell [K] "
-            "(from 120 s) |" + (" naive: ΔE [%], discomfort [PMV h], zone violation [%] |" if naive else ""))
+            "discomfort full / vehicle [PMV h] | zone violation full / vehicle [%] | "
+            "RMSE T_int / T_shell / T_glass [K] (from 120 s) |"
+            + (" naive: ΔE [%], discomfort [PMV h], zone violation [%] |" if naive else ""))
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     seen = []
     for r in rows:
@@ -187,8 +189,9 @@ def markdown_table(rows: list[dict]) -> str:
                 f"{_pct(v['E_tot_kWh'], f['E_tot_kWh'])} | {f['I_pmv']:.0f} / {v['I_pmv']:.0f} | "
                 f"{f['discomfort_pmvh']:.4f} / {v['discomfort_pmvh']:.4f} | "
                 f"{f['otc_violation_zone_pct']:.1f} / {v['otc_violation_zone_pct']:.1f} | "
-                f"{_f(v['est_t_int_rmse_k'])} / {_f(v['est_t_shell_rmse_k'])} "
-                f"({_f(v['est_t_int_rmse_late_k'])} / {_f(v['est_t_shell_rmse_late_k'])}) |")
+                f"{_f(v['est_t_int_rmse_k'])} / {_f(v['est_t_shell_rmse_k'])} / {_f(v['est_t_glass_rmse_k'])} "
+                f"({_f(v['est_t_int_rmse_late_k'])} / {_f(v['est_t_shell_rmse_late_k'])} / "
+                f"{_f(v['est_t_glass_rmse_late_k'])}) |")
         n = by.get(key + ("naive",))
         if naive and n is not None:
             cell += (f" {_pct(n['E_tot_kWh'], f['E_tot_kWh'])}, {n['discomfort_pmvh']:.4f}, "
@@ -201,15 +204,17 @@ def offset_table(rows: list[dict], reference: list[dict]) -> str:
     """Markdown table of :func:`offset_study` rows against the offset-free full and vehicle rows."""
     ref = {(r["case"], r["strategy"], r["mode"]): r for r in reference}
     lines = ["| case | strategy | sensor offset | estimator | ΔE vs full [%] | discomfort [PMV h] (full) | "
-             "zone violation [%] | RMSE T_int / T_shell [K] (from 120 s) |", "|---|---|---|---|---|---|---|---|"]
+             "zone violation [%] | RMSE T_int / T_shell / T_glass [K] (from 120 s) |",
+             "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         f = ref.get((r["case"], r["strategy"], "full"))
         de = _pct(r["E_tot_kWh"], f["E_tot_kWh"]) if f else "n/a"
         dfull = f"{f['discomfort_pmvh']:.4f}" if f else "n/a"
         lines.append(f"| {r['case']} | {r['strategy']} | {r['offset']} | {r['estimator']} | {de} | "
                      f"{r['discomfort_pmvh']:.4f} ({dfull}) | {r['otc_violation_zone_pct']:.1f} | "
-                     f"{_f(r['est_t_int_rmse_k'])} / {_f(r['est_t_shell_rmse_k'])} "
-                     f"({_f(r['est_t_int_rmse_late_k'])} / {_f(r['est_t_shell_rmse_late_k'])}) |")
+                     f"{_f(r['est_t_int_rmse_k'])} / {_f(r['est_t_shell_rmse_k'])} / {_f(r['est_t_glass_rmse_k'])} "
+                     f"({_f(r['est_t_int_rmse_late_k'])} / {_f(r['est_t_shell_rmse_late_k'])} / "
+                     f"{_f(r['est_t_glass_rmse_late_k'])}) |")
     return "\n".join(lines)
 
 
@@ -225,7 +230,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     def show(r):
-        extra = (f", RMSE T_int {r['est_t_int_rmse_k']:.2f} K, T_shell {r['est_t_shell_rmse_k']:.2f} K"
+        extra = (f", RMSE T_int {r['est_t_int_rmse_k']:.2f} K, T_shell {r['est_t_shell_rmse_k']:.2f} K, "
+                 f"T_glass {r['est_t_glass_rmse_k']:.2f} K"
                  if r["est_t_int_rmse_k"] is not None else "")
         print(f"{r['case']}/{r['strategy']}/{r['mode']}: E {r['E_tot_kWh']:.4f} kWh, I_pmv {r['I_pmv']:.0f} s, "
               f"discomfort {r['discomfort_pmvh']:.4f} PMV h{extra} ({r['wall_s']:.1f} s)", file=sys.stderr)
