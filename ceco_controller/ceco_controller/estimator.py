@@ -680,9 +680,9 @@ class CabinStateEstimator:
 class EstimatingController:
     """A controller that sees only the vehicle sensors.
 
-    ``compute(obs)`` ignores ``obs.t_int_c`` and ``obs.t_shell_c``, runs :class:`CabinStateEstimator`
-    on the vehicle sensors of ``obs`` and the previous command, and calls the wrapped controller with
-    the estimated observation.
+    ``compute(obs)`` ignores ``obs.t_int_c``, ``obs.t_shell_c`` and ``obs.t_glass_c``, runs
+    :class:`CabinStateEstimator` on the vehicle sensors of ``obs`` (cabin RH passed through) and the
+    previous command, and calls the wrapped controller with the estimated observation.
 
     Sensors that were valid are passed unchanged (so without faults the wrapped controller sees the
     same cabin, evaporator, vent, ambient, sun-load and speed values as in full mode); missing ones are
@@ -715,19 +715,15 @@ class EstimatingController:
         """Run the estimator on the vehicle sensors of ``obs``; the observation the controller gets."""
         meas = {"t_cab_c": obs.t_cab_c, "t_vent_c": obs.t_vent_c, "t_evap_c": obs.t_evap_c,
                 "t_amb_c": obs.t_amb_c, "solar_wm2": obs.solar_wm2, "speed_mps": obs.speed_mps}
-        if math.isfinite(getattr(obs, "rh_cab", math.nan)):
+        if math.isfinite(obs.rh_cab):
             meas["rh_cab"] = obs.rh_cab  # NaN there means "not measured": not a sensor fault
         est = self.estimator.update(obs.t_s, meas, (obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c))
         self.last_estimate = est
-        fields = {"t_cab_c": est.t_cab_c if est.valid else math.nan, "t_int_c": est.t_int_c,
-                  "t_shell_c": est.t_shell_c, "t_evap_c": est.t_evap_c, "t_vent_c": est.t_vent_c,
-                  "t_amb_c": est.t_amb_c, "solar_wm2": est.solar_wm2, "speed_mps": est.speed_mps,
-                  "mdot_bl_prev_kgps": est.mdot_bl_prev_kgps, "t_evap_sp_prev_c": est.t_evap_sp_prev_c}
-        names = {f.name for f in dataclasses.fields(obs)}
-        if "t_glass_c" in names:  # no car measures the glazing: estimated
-            fields["t_glass_c"] = est.t_glass_c
-        if "rh_cab" in names:
-            fields["rh_cab"] = est.rh_cab
+        fields: dict[str, Any] = {
+            "t_cab_c": est.t_cab_c if est.valid else math.nan, "t_int_c": est.t_int_c, "t_shell_c": est.t_shell_c,
+            "t_glass_c": est.t_glass_c, "t_evap_c": est.t_evap_c, "t_vent_c": est.t_vent_c, "t_amb_c": est.t_amb_c,
+            "solar_wm2": est.solar_wm2, "speed_mps": est.speed_mps, "rh_cab": est.rh_cab,
+            "mdot_bl_prev_kgps": est.mdot_bl_prev_kgps, "t_evap_sp_prev_c": est.t_evap_sp_prev_c}
         return dataclasses.replace(obs, **fields)
 
     def compute(self, obs: Observation):
