@@ -26,7 +26,7 @@ import numpy as np
 
 from ceco_core import rundir
 from ceco_core.metrics import comfort_series_metrics, compute_metrics, comparison_table
-from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
+from ceco_plant_sim.scenario_plant import ScenarioPlant, check_overrides, n_plant_steps, steps_per_control
 from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews, parse_quality
 from ceco_v2x_preview.scenario import Scenario, load_scenario
 
@@ -75,8 +75,9 @@ class SimSettings:
     plant_overrides: tuple = ()
     """((field, value), ...) overriding the simulated car's PlantParams (the controllers keep their models)."""
     comfort_overrides: tuple = ()
-    """((field, value), ...) overriding the ComfortParams of the scored PMV (plant side only; the NMPC keeps
-    its nominal comfort model)."""
+    """((field, value), ...) overriding the ComfortParams of the scored PMV, nested parts by dotted name
+    (e.g. (('air.jet_body_fraction', 0.2),)), or 'pa_pa' (a fixed scored vapour pressure [Pa]); plant side
+    only: the NMPC keeps its nominal comfort model."""
     controller_config_path: str | None = None
     """Controller settings file; None: ceco_controller/config/controller.yaml."""
     measurements: str = "full"
@@ -96,6 +97,14 @@ class SimSettings:
             raise ValueError("SimSettings.duration_s must be finite and > 0")
         if self.measurements not in MEASUREMENT_MODES:
             raise ValueError(f"SimSettings.measurements must be one of {MEASUREMENT_MODES}, got {self.measurements!r}")
+        for name in ("plant_overrides", "comfort_overrides"):
+            value = getattr(self, name)
+            if not (isinstance(value, tuple) and all(isinstance(p, tuple) and len(p) == 2 for p in value)):
+                raise ValueError(f"SimSettings.{name} must be a tuple of (field, value) pairs, got {value!r}")
+        try:
+            check_overrides(dict(self.plant_overrides), dict(self.comfort_overrides))
+        except ValueError as exc:
+            raise ValueError(f"SimSettings.plant_overrides/comfort_overrides: {exc}") from exc
         self.preview_quality.validate()
 
 
