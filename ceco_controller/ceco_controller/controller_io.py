@@ -26,6 +26,8 @@ __all__ = ['controller_parameters', 'ControllerNodeConfig', 'ControllerInputs', 
            'DYNAMIC']
 
 TOPIC_STATE, TOPIC_WEATHER, TOPIC_TRAFFIC = 'cabin/state', 'v2x/weather_preview', 'v2x/traffic_preview'
+MEASUREMENT_MODES = ('full', 'vehicle')
+"""The controller's measurement modes (``ceco_controller.estimator.MEASUREMENT_MODES``, tested equal)."""
 _PREVIEW_TOPIC = {'weather': TOPIC_WEATHER, 'traffic': TOPIC_TRAFFIC}
 
 
@@ -42,6 +44,9 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
         ParamSpec('horizon_steps', 6, 'prediction horizon Np [steps]', int_range=(1, 200)),
         ParamSpec('controller_config', '', "NMPC settings file (solver, weights, bounds; empty: the package's "
                   'config/controller.yaml)'),
+        ParamSpec('measurements', 'full', 'full (every modelled state from cabin/state) or vehicle (only the '
+                  'production sensors; an EKF estimates the rest, ceco_controller.estimator)',
+                  choices=MEASUREMENT_MODES),
         ParamSpec('autostart', False, 'configure and activate by itself after start (true), or wait for a '
                   'lifecycle manager (false: ceco run, the launch file)'),
         ParamSpec('preview_timeout_s', 2.0, 'lockstep: wall-clock wait for the previews of a step before solving '
@@ -95,6 +100,8 @@ class ControllerNodeConfig:
     """realtime: oldest usable state [s]."""
     controller_config: str = ''
     """NMPC settings file ('' : the package's config/controller.yaml)."""
+    measurements: str = 'full'
+    """'full' or 'vehicle' (production sensors + estimator)."""
     autostart: bool = False
     """Configure and activate without a lifecycle manager."""
     window_s: float = 60.0

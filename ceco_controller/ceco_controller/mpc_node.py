@@ -51,7 +51,8 @@ class ControllerNode(ManagedNode):
             self.scenario = load_scenario_param(cfg.scenario)
             self.core = factory.make_controller(cfg.strategy, self.scenario, control_period_s=cfg.control_period_s,
                                                 horizon_steps=cfg.horizon_steps,
-                                                config_path=cfg.controller_config or None)
+                                                config_path=cfg.controller_config or None,
+                                                measurements=cfg.measurements)
             cio.warm_up(self.core, self.scenario, cfg.control_period_s, cfg.horizon_steps)
         except (ValueError, RuntimeError, OSError) as err:
             self.get_logger().error(f'configure failed: {err}')
@@ -77,7 +78,7 @@ class ControllerNode(ManagedNode):
                        self.create_timer(0.05, self._run_ready, clock=self.steady))
         self.get_logger().info(f'configured in {time.perf_counter() - t0:.2f} s (controller built, first solve done): '
                                f'{cfg.strategy}, Ts {cfg.control_period_s} s, Np {cfg.horizon_steps}, timing '
-                               f'{cfg.timing}, scenario {self.scenario.name}')
+                               f'{cfg.timing}, measurements {cfg.measurements}, scenario {self.scenario.name}')
         return self.configured()
 
     def on_activate(self, state):
