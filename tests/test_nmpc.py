@@ -121,7 +121,7 @@ def test_controller_yaml_matches_code_defaults():
 def test_codegen_falls_back_without_compiler(monkeypatch, tmp_path, caplog):
     monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
     ss = SolverSettings(codegen=True, codegen_cache_dir=str(tmp_path / "cache"))
-    with caplog.at_level("WARNING", logger="ceco_controller.nmpc"):
+    with caplog.at_level("WARNING", logger="ceco_controller"):
         ctrl = NmpcController(strategy_settings("ceco", solver=ss))
     assert "in-process NLP functions" in caplog.text
     cmd, diag = ctrl.compute(_obs(0))
@@ -168,8 +168,8 @@ def test_sqpmethod_matches_ipopt_and_falls_back_to_ipopt():
     data = sqp.last_nlp()
     f_sqp = sqp.solve_nlp(data, sqp.solver)
     f_ipo = sqp.solve_nlp(data, sqp.solver_fallback)
-    assert f_sqp["success"] and f_ipo["success"]
-    assert abs(f_sqp["f"] - f_ipo["f"]) <= 1e-4 * abs(f_ipo["f"])
+    assert f_sqp.success and f_ipo.success
+    assert abs(f_sqp.f - f_ipo.f) <= 1e-4 * abs(f_ipo.f)
     # a failing sqpmethod (1 iteration) is retried by warm IPOPT: valid command, counted
     sqp.solver = NmpcController(strategy_settings(
         "ceco-ioch", solver=SolverSettings(name="sqpmethod", sqp_max_iter=1, ipopt_fallback=False))).solver
@@ -190,8 +190,8 @@ def test_single_and_multiple_shooting_reach_the_same_optimum():
     problem: same commands and costs in closed-loop steps, the same optimum on one instance."""
     ctrls = {t: NmpcController(strategy_settings("ceco-ioch", solver=SolverSettings(transcription=t)))
              for t in ("single-shooting", "multiple-shooting")}
-    assert ctrls["single-shooting"]._nw == ctrls["multiple-shooting"]._nw - 4 * 6  # no state variables
-    assert ctrls["single-shooting"]._ng == ctrls["multiple-shooting"]._ng - 4 * 6  # no gap constraints
+    assert ctrls["single-shooting"].problem.nw == ctrls["multiple-shooting"].problem.nw - 4 * 6  # no states
+    assert ctrls["single-shooting"].problem.ng == ctrls["multiple-shooting"].problem.ng - 4 * 6  # no gaps
     out = {}
     for t, ctrl in ctrls.items():
         for k in range(4):
@@ -206,8 +206,8 @@ def test_single_and_multiple_shooting_reach_the_same_optimum():
     ss = ctrls["single-shooting"]
     data = ss.last_nlp()
     f_sqp, f_ipo = ss.solve_nlp(data, ss.solver), ss.solve_nlp(data, ss.solver_fallback)
-    assert f_sqp["success"] and f_ipo["success"]
-    assert abs(f_sqp["f"] - f_ipo["f"]) <= 1e-4 * abs(f_ipo["f"])
+    assert f_sqp.success and f_ipo.success
+    assert abs(f_sqp.f - f_ipo.f) <= 1e-4 * abs(f_ipo.f)
 
 
 def test_transcription_settings_are_validated():
@@ -254,7 +254,7 @@ def test_auto_solver_follows_the_horizon():
     assert (explicit.settings.solver.name, explicit.transcription) == ("sqpmethod", "single-shooting")
     # an explicit sparse solver gets the sparse (multiple-shooting) NLP at any horizon
     ipo = NmpcController(strategy_settings("ceco", solver=SolverSettings(name="ipopt")))
-    assert ipo.transcription == "multiple-shooting" and ipo._cold_ctrl is ipo
+    assert ipo.transcription == "multiple-shooting" and ipo.cold_path is None
 
 
 def test_cold_solves_use_the_multiple_shooting_nlp():
@@ -262,7 +262,7 @@ def test_cold_solves_use_the_multiple_shooting_nlp():
     NLP and maps the solution back: the same command and cost as a multiple-shooting controller."""
     ss = NmpcController("ceco")
     ms = NmpcController(strategy_settings("ceco", solver=SolverSettings(transcription="multiple-shooting")))
-    assert ss.transcription == "single-shooting" and ss._cold_ctrl.transcription == "multiple-shooting"
+    assert ss.transcription == "single-shooting" and ss.cold_path.transcription == "multiple-shooting"
     (c1, d1), (c2, d2) = ss.compute(_obs(0, t_cab=30.0)), ms.compute(_obs(0, t_cab=30.0))
     assert d1.success and d2.success
     assert d1.cost_total == pytest.approx(d2.cost_total, rel=1e-9)

@@ -47,7 +47,7 @@ from ceco_v2x_preview.scenario import load_scenario
 
 from . import closed_loop as cl
 from . import model as cm
-from .nmpc import NlpData
+from .solvers import NlpData
 from .strategies import CECO_STRATEGIES, SolverSettings
 
 __all__ = ["main", "bench_nmpc"]
@@ -100,14 +100,14 @@ def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03"
                 ref = ref_ctrl.solve_nlp(NlpData(p=data.p, x0=ref_ctrl.initial_guess(data.p)), ref_ctrl.solver)
                 if same_solver is not None:
                     same = _ctrl.solve_nlp(NlpData(p=data.p, x0=_ctrl.initial_guess(data.p)), same_solver)
-                    same_t.append(same["time_ms"])
-                    n_same_fail += not same["success"]
-                ref_t.append(ref["time_ms"])
-                ref_it.append(ref["iterations"])
-                if not ref["success"]:
+                    same_t.append(same.time_ms)
+                    n_same_fail += not same.success
+                ref_t.append(ref.time_ms)
+                ref_it.append(ref.iterations)
+                if not ref.success:
                     n_ref_fail += 1
-                if ref["success"] and diag.success and diag.cost_total is not None:
-                    sdiffs.append((diag.cost_total - ref["f"]) / max(abs(ref["f"]), 1e-9))
+                if ref.success and diag.success and diag.cost_total is not None:
+                    sdiffs.append((diag.cost_total - ref.f) / max(abs(ref.f), 1e-9))
                     diffs.append(abs(sdiffs[-1]))
                 return cmd, diag
 
