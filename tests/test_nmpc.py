@@ -6,6 +6,7 @@ import pytest
 
 from ceco_core.contracts import ACTUATOR_LIMITS, Observation
 from ceco_controller.nmpc import NmpcController
+from ceco_controller.solvers import SolveResult
 from ceco_controller.strategies import SolverSettings, resolve_auto, strategy_settings
 
 N1 = 7  # Np + 1
@@ -36,7 +37,7 @@ def test_forced_failure_falls_back_to_baseline_then_shifted_plan():
     ctrl = NmpcController("ceco")
     cmd0, d0 = ctrl.compute(_obs(0))
     assert d0.success and d0.fallback == ""
-    plan = ctrl._plan_u.copy()
+    plan = ctrl._good.plan.copy()
     # same NLPs, solvers that always fail (the cold one works on the multiple-shooting NLP)
     ctrl.solver = ctrl.solver_fallback = bad.solver
     ctrl.solver_cold = bad.solver_cold
@@ -92,14 +93,15 @@ def test_long_horizon_builds_and_solves():
     assert diag.success and _valid(cmd) and diag.pred_pmv.size == n1
 
 
-def test_wrong_preview_length_is_an_error():
+def test_wrong_preview_length_hands_the_step_to_the_acc_law():
     ctrl = NmpcController("ceco")
     n1 = 5
     obs = _obs(0, preview_t_amb_c=np.full(n1, 35.0), preview_solar_wm2=np.full(n1, 800.0),
                preview_speed_mps=np.full(n1, 1.0), preview_valid=np.ones(n1, bool),
                pmv_lb=np.full(n1, -0.5), pmv_ub=np.full(n1, 0.5))
-    with pytest.raises(ValueError, match="Np\\+1"):
-        ctrl.compute(obs)
+    cmd, diag = ctrl.compute(obs)
+    assert diag.fallback == "baseline" and diag.status == "invalid_measurement" and _valid(cmd)
+    assert "previews have 5 points" in diag.message and "Np+1 = 7" in diag.message
 
 
 def test_settings_validation_names_field():
@@ -135,10 +137,12 @@ def test_codegen_compiles_once_and_matches_in_process(tmp_path):
     cache = tmp_path / "cache"
     ss = SolverSettings(codegen=True, codegen_flags=("-O0",), codegen_cache_dir=str(cache))
     comp = NmpcController(strategy_settings("ceco-ioch", solver=ss))
-    objs = list(cache.glob("ceco_nlp_*.so"))
-    # one object per plugin and NLP: IPOPT's, sqpmethod's when that is the warm solver, and the cold
-    # solver's multiple-shooting NLP (IPOPT) when the controller's NLP is single shooting
-    n_expected = 1 + (comp.settings.solver.name == "sqpmethod") + (comp.transcription == "single-shooting")
+    objs = sorted(cache.glob("ceco_*.so"))
+    # one object per solver and NLP: the SQP's functions when that is the warm solver, IPOPT's (its
+    # retry), and the cold solver's multiple-shooting NLP (IPOPT) when the controller's NLP is single shooting
+    n_sqp = int(comp.settings.solver.name == "sqp")
+    assert len(list(cache.glob("ceco_sqp_*.so"))) == n_sqp == 1
+    n_expected = n_sqp + 1 + (comp.transcription == "single-shooting")
     assert len(objs) == n_expected == 3 and not list(cache.glob(".*tmp*"))
     ref = NmpcController("ceco-ioch")
     for k in range(3):
@@ -149,12 +153,21 @@ def test_codegen_compiles_once_and_matches_in_process(tmp_path):
         assert d1.cost_total == pytest.approx(d2.cost_total, rel=1e-8)
     mtime = objs[0].stat().st_mtime_ns
     NmpcController(strategy_settings("ceco-ioch", solver=ss))
-    assert sorted(cache.glob("ceco_nlp_*.so")) == sorted(objs) and objs[0].stat().st_mtime_ns == mtime
+    assert sorted(cache.glob("ceco_*.so")) == objs and objs[0].stat().st_mtime_ns == mtime
 
 
-def test_sqpmethod_matches_ipopt_and_falls_back_to_ipopt():
-    # warm sqpmethod (exact Hessian, eigen-clip, dense qpOASES) reaches IPOPT's optimum on a warm instance
-    sqp = NmpcController(strategy_settings("ceco-ioch", solver=SolverSettings(name="sqpmethod")))
+class _FailingSolver:
+    """A solver stub that always fails (the chain must retry, then fall back)."""
+
+    name = "sqp"
+
+    def solve(self, data, deadline=None):
+        return SolveResult.failed("sqp", "QP_Failed (stub)")
+
+
+def test_sqp_matches_ipopt_and_falls_back_to_ipopt():
+    # warm SQP (exact Hessian, exact eigenvalue convexification, dense qpOASES) reaches IPOPT's optimum
+    sqp = NmpcController(strategy_settings("ceco-ioch", solver=SolverSettings(name="sqp")))
     ipo = NmpcController(strategy_settings("ceco-ioch", solver=SolverSettings(name="ipopt")))
     costs = {}
     for name, ctrl in (("sqp", sqp), ("ipopt", ipo)):
@@ -170,19 +183,25 @@ def test_sqpmethod_matches_ipopt_and_falls_back_to_ipopt():
     f_ipo = sqp.solve_nlp(data, sqp.solver_fallback)
     assert f_sqp.success and f_ipo.success
     assert abs(f_sqp.f - f_ipo.f) <= 1e-4 * abs(f_ipo.f)
-    # a failing sqpmethod (1 iteration) is retried by warm IPOPT: valid command, counted
-    sqp.solver = NmpcController(strategy_settings(
-        "ceco-ioch", solver=SolverSettings(name="sqpmethod", sqp_max_iter=1, ipopt_fallback=False))).solver
+    # a failing SQP is retried by warm IPOPT from the same start: valid command, counted
+    sqp.solver = _FailingSolver()
     cmd, diag = sqp.compute(_obs(3, t_cab=26.0))
-    assert sqp.n_ipopt_fallbacks == 1 and diag.success and diag.fallback == "" and _valid(cmd)
-    assert diag.status.startswith("sqpmethod: ") and "retried with IPOPT" in diag.message
+    assert sqp.n_ipopt_fallbacks == 1 and sqp.counters.retries == 1 and diag.success and diag.fallback == ""
+    assert _valid(cmd) and diag.status.startswith("sqp: QP_Failed (stub); ipopt: ")
+    assert "not used: warm sqp: no finite primal-dual point (QP_Failed (stub))" in diag.message
 
 
-def test_solver_settings_reject_unknown_qpsol():
+def test_solver_settings_reject_unknown_qpsol_and_the_replaced_sqpmethod():
     with pytest.raises(ValueError, match="qpsol"):
-        SolverSettings(name="sqpmethod", qpsol="nope").validate()
-    with pytest.raises(ValueError, match="convexify_strategy"):
-        SolverSettings(convexify_strategy="none").validate()
+        SolverSettings(name="sqp", qpsol="nope").validate()
+    with pytest.raises(ValueError, match="'sqpmethod' .* replaced by 'sqp'"):
+        SolverSettings(name="sqpmethod").validate()
+    with pytest.raises(ValueError, match="rti"):
+        SolverSettings(name="ipopt", rti=True).validate()
+    with pytest.raises(ValueError, match="step_reserve_s"):
+        SolverSettings(step_budget_s=0.1, step_reserve_s=0.2).validate()
+    with pytest.raises(ValueError, match="step_budget_s must be below control_period_s"):
+        strategy_settings("ceco", solver=SolverSettings(step_budget_s=5.0))
 
 
 def test_single_and_multiple_shooting_reach_the_same_optimum():
@@ -217,10 +236,8 @@ def test_transcription_settings_are_validated():
         SolverSettings(name="fatrop", transcription="single-shooting").validate()  # no stage structure
     assert resolve_auto(strategy_settings("ceco", solver=SolverSettings(name="fatrop"))).solver.transcription \
         == "multiple-shooting"
-    with pytest.raises(ValueError, match="max_iter_eig"):
-        SolverSettings(max_iter_eig=0).validate()
-    with pytest.raises(ValueError, match="max_iter_eig"):
-        SolverSettings(max_iter_eig=True).validate()
+    with pytest.raises(ValueError, match="eig_floor"):
+        SolverSettings(eig_floor=0.0).validate()
     # an SQP solve and then its IPOPT retry must both fit in the control period
     with pytest.raises(ValueError, match="control_period_s / 2"):
         strategy_settings("ceco", solver=SolverSettings(max_cpu_time_s=3.0))
@@ -233,7 +250,7 @@ def test_transcription_settings_are_validated():
 
 def test_building_the_sqp_controller_prints_nothing(capfd):
     # qpOASES writes a licence banner to C stdout when a solver is created; the build silences it
-    ctrl = NmpcController(strategy_settings("ceco", solver=SolverSettings(name="sqpmethod")))
+    ctrl = NmpcController(strategy_settings("ceco", solver=SolverSettings(name="sqp")))
     cmd, diag = ctrl.compute(_obs(0))
     cmd, diag = ctrl.compute(_obs(1))
     out = capfd.readouterr().out
@@ -246,12 +263,12 @@ def test_auto_solver_follows_the_horizon():
     multiple-shooting NLP beyond (the dense SQP's cost grows cubically with Np)."""
     short = NmpcController(strategy_settings("ceco", horizon_steps=12))
     long_ = NmpcController(strategy_settings("ceco", horizon_steps=13))
-    assert (short.settings.solver.name, short.transcription) == ("sqpmethod", "single-shooting")
+    assert (short.settings.solver.name, short.transcription) == ("sqp", "single-shooting")
     assert (long_.settings.solver.name, long_.transcription) == ("ipopt", "multiple-shooting")
     assert long_.solver_fallback is None and short.solver_fallback is not None
     explicit = NmpcController(strategy_settings("ceco", horizon_steps=13, solver=SolverSettings(
-        name="sqpmethod", transcription="single-shooting")))
-    assert (explicit.settings.solver.name, explicit.transcription) == ("sqpmethod", "single-shooting")
+        name="sqp", transcription="single-shooting")))
+    assert (explicit.settings.solver.name, explicit.transcription) == ("sqp", "single-shooting")
     # an explicit sparse solver gets the sparse (multiple-shooting) NLP at any horizon
     ipo = NmpcController(strategy_settings("ceco", solver=SolverSettings(name="ipopt")))
     assert ipo.transcription == "multiple-shooting" and ipo.cold_path is None

@@ -1,8 +1,9 @@
 """Compiled NLP functions: C code generated from the CasADi NLP, compiled once into an on-disk cache.
 
-``compile_nlp`` writes the functions a solver plugin needs (IPOPT: f, g, grad_f, jac_g, hess_l;
-sqpmethod: fg, grad, jac_fg, hess_l) as C, compiles them with the C compiler into a shared object
-named by a hash of the code, and returns its path (or None, logged, when no compiler works).
+``compile_nlp`` writes the functions IPOPT needs (f, g, grad_f, jac_g, hess_l) as C,
+``compile_functions`` any CasADi Functions (the SQP's); both compile with the C compiler into a
+shared object named by a hash of the code and return its path (or None, logged, when no
+compiler works).
 ``stdout_silenced`` keeps qpOASES' licence banner out of a node's output.
 """
 
@@ -22,7 +23,7 @@ import time
 
 import casadi
 
-__all__ = ["compile_nlp", "codegen_cache_dir", "stdout_silenced"]
+__all__ = ["compile_nlp", "compile_functions", "codegen_cache_dir", "stdout_silenced"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -78,9 +79,9 @@ def codegen_cache_dir(path: str | None = None) -> pathlib.Path:
 
 
 def compile_nlp(nlp: dict, flags=("-O1",), cache_dir: str | None = None, plugin: str = "ipopt") -> str | None:
-    """Generate C for an NLP's functions as ``plugin`` needs them and compile it into a cached shared object.
+    """Generate C for an NLP's functions as IPOPT needs them (f, g, grad_f, jac_g, hess_l) and compile it.
 
-    ``plugin``: 'ipopt' (f, g, grad_f, jac_g, hess_l) or 'sqpmethod' (fg, grad, jac_fg, hess_l).
+    ``plugin``: the nlpsol plugin whose function set is generated ('ipopt').
 
     The file name is a hash of the generated C code, the flags and the CasADi version, so a
     changed NLP never loads a stale object. Concurrent processes do not race: each compiles to
@@ -88,31 +89,59 @@ def compile_nlp(nlp: dict, flags=("-O1",), cache_dir: str | None = None, plugin:
     path, or None (with a log warning) when no C compiler is found or anything fails; the
     caller then uses the in-process functions.
     """
+
+    def generate(tmp: str) -> str:
+        with stdout_silenced():
+            gen = casadi.nlpsol("ceco_nlp", plugin, nlp, {"print_time": False})
+        cwd = os.getcwd()
+        os.chdir(tmp)  # generate_dependencies writes relative to the working directory
+        try:
+            gen.generate_dependencies("ceco_nlp.c")
+        finally:
+            os.chdir(cwd)
+        return os.path.join(tmp, "ceco_nlp.c")
+
+    return _compile_cached("ceco_nlp", generate, flags, cache_dir)
+
+
+def compile_functions(functions, flags=("-O1",), cache_dir: str | None = None, prefix: str = "ceco_sqp") -> str | None:
+    """Generate C for CasADi Functions and compile it into a cached shared object (as :func:`compile_nlp`).
+
+    Load a function from the returned path with ``casadi.external(function.name(), path)``.
+    """
+
+    def generate(tmp: str) -> str:
+        cg = casadi.CodeGenerator(f"{prefix}.c")
+        for f in functions:
+            cg.add(f)
+        cwd = os.getcwd()
+        os.chdir(tmp)
+        try:
+            cg.generate()
+        finally:
+            os.chdir(cwd)
+        return os.path.join(tmp, f"{prefix}.c")
+
+    return _compile_cached(prefix, generate, flags, cache_dir)
+
+
+def _compile_cached(prefix: str, generate, flags, cache_dir: str | None) -> str | None:
+    """Compile the C file ``generate(tmp_dir)`` writes into ``<cache>/<prefix>_<hash>.so`` unless it is there."""
     cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
     if cc is None:
         _LOG.warning("NMPC codegen: no C compiler found (gcc/cc/$CC); using the in-process NLP functions")
         return None
     try:
         with tempfile.TemporaryDirectory(prefix="ceco_cg_") as tmp:
-            quiet = {"print_header": False, "qpsol_options": {"printLevel": "none"}} if plugin == "sqpmethod" else {}
-            with stdout_silenced():
-                gen = casadi.nlpsol("ceco_nlp", plugin, nlp, {"print_time": False, **quiet})
-            src = os.path.join(tmp, "ceco_nlp.c")
-            cwd = os.getcwd()
-            os.chdir(tmp)  # generate_dependencies writes relative to the working directory
-            try:
-                gen.generate_dependencies("ceco_nlp.c")
-            finally:
-                os.chdir(cwd)
+            src = generate(tmp)
             code = pathlib.Path(src).read_bytes()
-            # (the plugin is in the code: IPOPT's and sqpmethod's function sets differ)
             digest = hashlib.sha256(code + repr((list(flags), casadi.__version__, cc)).encode()).hexdigest()[:20]
             cache = codegen_cache_dir(cache_dir)
-            target = cache / f"ceco_nlp_{digest}.so"
+            target = cache / f"{prefix}_{digest}.so"
             if target.is_file():
                 return str(target)
             cache.mkdir(parents=True, exist_ok=True)
-            part = cache / f".ceco_nlp_{digest}.{os.getpid()}.tmp.so"
+            part = cache / f".{prefix}_{digest}.{os.getpid()}.tmp.so"
             t0 = time.perf_counter()
             res = subprocess.run([cc, "-shared", "-fPIC", *flags, src, "-o", str(part), "-lm"],
                                  capture_output=True, text=True, timeout=600)

@@ -5,79 +5,98 @@ The pieces (docs/controller.md 4):
 * :mod:`.nlp_layout`    named slices of the NLP's parameter, variable and constraint vectors;
 * :mod:`.transcription` the NLP (model, cost, constraints) by single or multiple shooting;
 * :mod:`.warmstart`     the cold model-rollout guess and the shifted warm start;
+* :mod:`.sqp`           ceco's dense SQP (exact eigenvalue convexification, real-time iteration);
 * :mod:`.solvers`       the solvers built once per NLP, each returning a :class:`SolveResult`;
+* :mod:`.chain`         which solver tries an instance from which start, and what is usable;
 * :mod:`.offset_free`   the bias estimates;
-* this module           the control step and its fallback chain.
+* this module           the control step: checks, fallbacks, hand-over, deadline.
 
-Solvers (``SolverSettings.name``): warm ``sqpmethod`` (default: exact Hessian, eigen-clip, dense
-qpOASES) or fatrop, with IPOPT doing the cold solves and retrying at once any warm solve they
-fail (``n_ipopt_fallbacks``); or warm IPOPT.
+One control step (:meth:`NmpcController.compute`), bounded by the wall-clock budget
+``SolverSettings.step_budget_s`` counted from ``t_start``:
 
-Fallbacks: a failed or invalid solve applies the previous plan shifted by one step; with no plan
-left, or no usable measurement, the production ACC law (run alongside so its integrator is warm)
-is applied. Every command is validated against the hard actuator bounds before it is returned.
+1. every :class:`Observation` field is checked (:func:`ceco_core.observation_check.check_observation`);
+   an implausible measurement or comfort zone hands this step to the ACC law; an implausible
+   previous command is replaced by the command this controller applied; implausible preview
+   entries count as not valid;
+2. bias estimates updated, parameters built, the solve chain run (:class:`~.chain.SolveChain`);
+3. a usable result is applied; otherwise the last good plan shifted by the steps since it was
+   computed (``fallback='shifted_plan'``) while it lasts, then the production ACC law
+   (``fallback='baseline'``). While the NMPC is in charge the law tracks the applied command, so
+   it takes over without a bump (:meth:`ceco_core.acc_law.AccLaw.track`).
+
+Every command is validated against the hard actuator bounds before it is returned.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
+import math
+import time
+from collections.abc import Callable
 
 import numpy as np
 
 from ceco_core.acc_law import AccLaw, AccSettings
 from ceco_core.comfort import ComfortParams
 from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
+from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits, check_observation
 
 from . import model as cm
+from .chain import BOUND_TOL, ColdPath, GoodSolution, SolveChain
 from .codegen import codegen_cache_dir, compile_nlp
 from .offset_free import BiasEstimator
 from .solvers import NlpData, NlpSolver, SolveResult, build_solver
 from .strategies import SolverSettings, StrategySettings, resolve_auto, strategy_settings
-from .transcription import Evaluation, NlpProblem, build_problem
+from .transcription import Evaluation, build_problem
 from .warmstart import initial_guess
 
-__all__ = ["NmpcController", "NlpData", "SolveResult", "codegen_cache_dir", "compile_nlp", "fill_previews"]
-
-_BOUND_TOL = 1e-6
-"""Numerical tolerance on the solver's actuator bounds [same unit]: within it a
-command is clipped to the bound; beyond it the solve counts as failed."""
+__all__ = ["NmpcController", "StepCounters", "NlpData", "SolveResult", "codegen_cache_dir", "compile_nlp",
+           "fill_previews", "nominal_observation"]
 
 
 @dataclasses.dataclass
-class ColdPath:
-    """Cold solves of a single-shooting controller.
+class StepCounters:
+    """What the control steps since construction (or :meth:`NmpcController.reset`) did, by name."""
 
-    IPOPT on the multiple-shooting NLP of the same problem, its solution mapped back (state
-    variables and gap rows dropped).
-    """
+    steps: int = 0
+    """Calls of compute."""
+    converged: int = 0
+    """Steps applying a converged solution."""
+    accepted_iterates: int = 0
+    """Steps applying an iterate returned on a time or iteration limit (small violation)."""
+    rti_steps: int = 0
+    """Steps applying a real-time iteration."""
+    retries: int = 0
+    """Warm solves that failed and were retried by the warm IPOPT."""
+    cold_solves: int = 0
+    """Cold solves attempted."""
+    shifted_plan: int = 0
+    """Steps applying the last good plan shifted."""
+    acc_law: int = 0
+    """Steps applying the production ACC law."""
+    invalid_observations: int = 0
+    """Steps whose observation was not usable (ACC law)."""
+    substituted_commands: int = 0
+    """Steps whose implausible previous command was replaced by the one this controller applied."""
+    deadline_hits: int = 0
+    """Steps in which an attempt stopped on, or was skipped because of, the deadline."""
 
-    problem: NlpProblem
-    """The multiple-shooting problem."""
-    solver: NlpSolver
-    """Cold IPOPT on it."""
-    w_map: np.ndarray
-    """Indices of the single-shooting variables in the multiple-shooting vector."""
-    g_map: np.ndarray
-    """Indices of the single-shooting constraint rows in the multiple-shooting vector."""
 
-    @property
-    def transcription(self) -> str:
-        """'multiple-shooting'."""
-        return self.problem.transcription
-
-
-def fill_previews(obs: Observation, n1: int, use_speed_preview: bool) -> tuple[dict, int]:
+def fill_previews(obs: Observation, n1: int, use_speed_preview: bool,
+                  valid: np.ndarray | None = None) -> tuple[dict, int]:
     """Exogenous series on the N + 1 grid and the number of leading trusted preview points.
 
-    The previews' leading trusted run, the last trusted value held beyond it, the measured
-    current value where nothing is trusted. Returns ``(series, trusted)`` with series ``t_amb``
-    [degC], ``solar`` [W/m2] (>= 0), ``speed`` [m/s] (>= 0).
+    The previews' leading trusted run (``valid``, default ``obs.preview_valid``, and finite), the
+    last trusted value held beyond it, the measured current value where nothing is trusted.
+    Returns ``(series, trusted)`` with series ``t_amb`` [degC], ``solar`` [W/m2] (>= 0),
+    ``speed`` [m/s] (>= 0).
     """
     if obs.n_preview != n1:
         raise ValueError(f"Observation previews have {obs.n_preview} points; this controller needs Np+1 = {n1}")
     series = {"t_amb": (obs.preview_t_amb_c, obs.t_amb_c), "solar": (obs.preview_solar_wm2, obs.solar_wm2),
               "speed": (obs.preview_speed_mps, obs.speed_mps)}
-    ok = np.asarray(obs.preview_valid, bool).copy()
+    ok = np.asarray(obs.preview_valid if valid is None else valid, bool).copy()
     for arr, _ in series.values():
         ok &= np.isfinite(arr)
     trusted = int(np.argmin(ok)) if not ok.all() else n1
@@ -97,6 +116,16 @@ def fill_previews(obs: Observation, n1: int, use_speed_preview: bool) -> tuple[d
     return out, trusted
 
 
+def nominal_observation(n1: int, k: int = 0) -> Observation:
+    """A plausible mid-range observation (warm cabin, sun, moving): for :meth:`NmpcController.warm_up`."""
+    def full(v):
+        return np.full(n1, v)
+    return Observation(k=k, t_s=0.0, t_cab_c=27.0, t_int_c=35.0, t_shell_c=33.0, t_evap_c=6.0, t_vent_c=9.0,
+                       t_amb_c=32.0, solar_wm2=700.0, speed_mps=15.0, mdot_bl_prev_kgps=0.1, t_evap_sp_prev_c=6.0,
+                       preview_t_amb_c=full(32.0), preview_solar_wm2=full(700.0), preview_speed_mps=full(15.0),
+                       preview_valid=np.ones(n1, bool), pmv_lb=full(-0.5), pmv_ub=full(0.5))
+
+
 def _note(diag: Diagnostics, text: str) -> None:
     diag.message = (diag.message + "; " if diag.message else "") + text
 
@@ -110,12 +139,16 @@ class NmpcController:
         model_params: identified :class:`ControlModelParams` (default: the file).
         comfort_params: :class:`ComfortParams` (met/clo of the occupant inside).
         acc_settings: settings of the fallback ACC law.
+        observation_limits: plausibility ranges of the observation's fields.
+        clock: monotonic clock [s] of the step deadline (``time.perf_counter``; tests inject one).
     """
 
     def __init__(self, strategy: str | StrategySettings = "ceco",
                  model_params: cm.ControlModelParams | None = None,
                  comfort_params: ComfortParams | None = None,
-                 acc_settings: AccSettings | None = None):
+                 acc_settings: AccSettings | None = None,
+                 observation_limits: ObservationLimits = OBSERVATION_LIMITS,
+                 clock: Callable[[], float] = time.perf_counter):
         settings = strategy_settings(strategy) if isinstance(strategy, str) else strategy
         settings.validate()
         self.settings = resolve_auto(settings)
@@ -124,6 +157,10 @@ class NmpcController:
         self.model_params.validate()
         self.comfort_params = comfort_params if comfort_params is not None else ComfortParams()
         self.comfort_params.validate()
+        observation_limits.validate()
+        self.observation_limits = observation_limits
+        self.clock = clock
+        """The clock of ``compute``'s ``t_start`` and of every deadline [s]."""
         # the NLP's PMV: the same function as the plant's, with settings.pmv_newton_steps on T_cl
         self._nlp_comfort_params = dataclasses.replace(
             self.comfort_params, smoothing=dataclasses.replace(self.comfort_params.smoothing,
@@ -133,58 +170,96 @@ class NmpcController:
         """The NLP transcription built: 'single-shooting' or 'multiple-shooting'."""
         self.lim = ACTUATOR_LIMITS
         self._acc = AccLaw(acc_settings)
+        t0 = time.perf_counter()
         self.problem = build_problem(self.settings, self.model_params, self._nlp_comfort_params,
                                      self.transcription, self.lim)
         """The transcribed NLP."""
         self._bias = BiasEstimator(self.model_params, self.settings.bias_filter, self.settings.bias_limit_k,
                                    self.n_sub, enabled=self.settings.offset_free)
-        self._build_solvers()
+        self.chain = self._build_chain()
+        """The solve chain (warm solver, IPOPT retry, cold path)."""
+        self.build_time_s = time.perf_counter() - t0
+        """Wall time of building the NLP and its solvers [s] (compilation included when codegen compiles)."""
+        self.n_ipopt_fallbacks = 0
+        """Warm SQP/fatrop solves that failed and were retried with warm IPOPT (since construction)."""
         self.reset()
 
     # ------------------------------------------------------------------ build
-    def _build_solvers(self) -> None:
+    def _build_chain(self) -> SolveChain:
         ss = self.settings.solver
-        self.solver = self.make_solver(ss)
-        """The warm solver."""
-        self.n_ipopt_fallbacks = 0
-        """Warm sqpmethod/fatrop solves that failed and were retried with warm IPOPT (since construction)."""
-        self.solver_fallback: NlpSolver | None = None
-        """The warm IPOPT that retries a failed sqpmethod/fatrop solve (None: no retry)."""
+        solver = self.make_solver(ss)
+        retry = None
         if ss.name != "ipopt" and ss.ipopt_fallback:
             # the default IPOPT path, same codegen: retries failed warm solves and does the cold ones
-            ss = dataclasses.replace(ss, name="ipopt")
-            self.solver_fallback = self.make_solver(ss)
-        # cold solves (first step, after a failure): robust IPOPT settings, no warm start, on the
-        # multiple-shooting NLP: from a cold guess single shooting is more nonlinear and IPOPT can stop
-        # in a worse local optimum (sc03_mild k = 0: 2.3 % higher cost); its solution is mapped back
-        self.cold_path: ColdPath | None = None
-        """Single shooting: the multiple-shooting companion of the cold solves (None: cold solves on this NLP)."""
+            ss = dataclasses.replace(ss, name="ipopt", rti=False)
+            retry = self.make_solver(ss)
+        # cold solves: robust IPOPT settings, no warm start, on the multiple-shooting NLP: from a cold
+        # guess single shooting is more nonlinear and IPOPT can stop in a worse local optimum
+        # (sc03_mild k = 0: 2.3 % higher cost); its solution is mapped back
+        cold_path = None
         if self.transcription == "single-shooting":
-            cold_ss = dataclasses.replace(ss, name="ipopt", transcription="multiple-shooting", warm_start=False)
+            cold_ss = dataclasses.replace(ss, name="ipopt", rti=False, transcription="multiple-shooting",
+                                          warm_start=False)
             ms = build_problem(dataclasses.replace(self.settings, solver=cold_ss), self.model_params,
                                self._nlp_comfort_params, "multiple-shooting", self.lim)
             w_map = np.setdiff1d(np.arange(ms.nw), ms.vars.indices("x"))
             g_map = np.setdiff1d(np.arange(ms.ng), ms.rows.indices("gap"))
             assert w_map.size == self.problem.nw and g_map.size == self.problem.ng
-            self.cold_path = ColdPath(ms, build_solver(ms, cold_ss), w_map, g_map)
-            self.solver_cold = self.cold_path.solver
+            cold_path = ColdPath(ms, build_solver(ms, cold_ss, self.clock), w_map, g_map)
+            cold = cold_path.solver
         else:
-            self.solver_cold = (self.make_solver(dataclasses.replace(ss, warm_start=False))
-                                if ss.warm_start and ss.name == "ipopt" else self.solver)
-        """The cold solver (IPOPT): on the multiple-shooting NLP when this controller's is single shooting."""
+            cold = (self.make_solver(dataclasses.replace(ss, warm_start=False))
+                    if ss.warm_start and ss.name == "ipopt" else solver)
+        s = self.settings.solver
+        return SolveChain(self.problem, solver, retry, cold, cold_path, self.lim, s.accept_violation,
+                          s.warm_start and not s.default_options, self.clock)
 
     def make_solver(self, solver_settings: SolverSettings) -> NlpSolver:
         """Build a solver for this controller's NLP with the given solver settings."""
-        return build_solver(self.problem, solver_settings)
+        return build_solver(self.problem, solver_settings, self.clock)
+
+    @property
+    def solver(self) -> NlpSolver:
+        """The warm solver."""
+        return self.chain.solver
+
+    @solver.setter
+    def solver(self, value: NlpSolver) -> None:
+        self.chain.solver = value
+
+    @property
+    def solver_fallback(self) -> NlpSolver | None:
+        """The warm IPOPT that retries a failed SQP/fatrop solve (None: no retry)."""
+        return self.chain.retry
+
+    @solver_fallback.setter
+    def solver_fallback(self, value: NlpSolver | None) -> None:
+        self.chain.retry = value
+
+    @property
+    def solver_cold(self) -> NlpSolver:
+        """The cold solver (IPOPT): on the multiple-shooting NLP when this controller's is single shooting."""
+        return self.chain.cold
+
+    @solver_cold.setter
+    def solver_cold(self, value: NlpSolver) -> None:
+        self.chain.cold = value
+
+    @property
+    def cold_path(self) -> ColdPath | None:
+        """Single shooting: the multiple-shooting companion of the cold solves (None: cold solves on this NLP)."""
+        return self.chain.cold_path
 
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
-        """Forget the previous plan, the warm start and the bias estimates."""
-        self._plan_u: np.ndarray | None = None  # (N, 2) of the last successful solve
-        self._plan_age = 0
-        self._warm: tuple | None = None  # (w, lam_x, lam_g)
+        """Back to the key-on state: no plan, no warm start, no bias estimates, the ACC law reset."""
+        self._good: GoodSolution | None = None
+        self._prepared_t_s: float | None = None
+        self._last_cmd: np.ndarray | None = None
         self._bias.reset()
         self._acc.reset()
+        self.counters = StepCounters()
+        """What the steps did since construction or the last reset."""
 
     @property
     def horizon_steps(self) -> int:
@@ -192,13 +267,14 @@ class NmpcController:
         return self.settings.horizon_steps
 
     # ------------------------------------------------------------ NLP access
-    def parameters(self, obs: Observation, ex: dict) -> np.ndarray:
-        """The NLP parameter vector for an observation (previews already filled)."""
+    def parameters(self, obs: Observation, ex: dict, u_prev=None) -> np.ndarray:
+        """The NLP parameter vector for an observation (previews filled; ``u_prev`` overrides its previous command)."""
         b = self._bias.values
+        u_prev = (obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c) if u_prev is None else u_prev
         return self.problem.params.pack(
             x0=[obs.t_cab_c, obs.t_evap_c], t_int=obs.t_int_c, t_shell=obs.t_shell_c, d_cab=b[0], d_evap=b[1],
-            d_ain=b[2], u_prev=[obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c], t_amb=ex["t_amb"],
-            solar=ex["solar"], speed=ex["speed"], pmv_lb=obs.pmv_lb, pmv_ub=obs.pmv_ub)
+            d_ain=b[2], u_prev=u_prev, t_amb=ex["t_amb"], solar=ex["solar"], speed=ex["speed"],
+            pmv_lb=obs.pmv_lb, pmv_ub=obs.pmv_ub)
 
     def initial_guess(self, p: np.ndarray, w_prev: np.ndarray | None = None) -> np.ndarray:
         """Primal guess at ``p`` (:func:`ceco_controller.warmstart.initial_guess`)."""
@@ -208,126 +284,192 @@ class NmpcController:
         """Cost terms and predicted trajectories of a primal point."""
         return self.problem.evaluate(w, p)
 
-    def solve_nlp(self, data: NlpData, solver: NlpSolver | None = None) -> SolveResult:
+    def solve_nlp(self, data: NlpData, solver: NlpSolver | None = None, deadline: float | None = None) -> SolveResult:
         """Solve one NLP instance of this controller's NLP (default: the warm solver)."""
-        return (solver or self.solver).solve(data)
+        return (solver or self.solver).solve(data, deadline)
 
     def last_nlp(self) -> NlpData | None:
         """The data of the last NLP solved by :meth:`compute` (for benchmarks)."""
         return getattr(self, "_last_nlp", None)
 
+    # ------------------------------------------------------------ start-up
+    def warm_up(self) -> float:
+        """Solve a nominal instance once with every solver of the chain, then forget it (key-on).
+
+        Takes the one-time costs of a first solve (allocations, first factorisations) before the
+        controller is in charge; leaves the controller as after :meth:`reset`. Returns the wall
+        time [s].
+        """
+        t0 = time.perf_counter()
+        obs = nominal_observation(self.horizon_steps + 1)
+        ex, _ = fill_previews(obs, self.horizon_steps + 1, self.settings.use_speed_preview)
+        p = self.parameters(obs, ex)
+        cold = self.chain._cold_solve(self.chain.cold_data(p), None)
+        if self.chain.why_unusable(cold) is None:
+            good = GoodSolution(cold.w, cold.lam_x, cold.lam_g, self.problem.plan(cold.w), age=0)
+            data = self.chain.warm_data(p, good)
+            if data is not None:
+                for solver in (self.solver, self.solver_fallback):
+                    if solver is not None:
+                        solver.solve(data)
+        self.reset()
+        return time.perf_counter() - t0
+
+    def prepare(self, obs: Observation) -> SolveResult | None:
+        """The first solve, done before the controller takes control (no step deadline).
+
+        Solves the instance of ``obs`` (the bias estimator is not advanced) and keeps a usable
+        solution as the warm start of the first :meth:`compute`, shifted by the control steps
+        between ``obs.t_s`` and that step's ``t_s``. Returns the result (None if ``obs`` is not
+        usable).
+        """
+        chk = check_observation(obs, self.observation_limits)
+        n1 = self.horizon_steps + 1
+        if not chk.measurements_ok or not chk.command_ok or obs.n_preview != n1:
+            return None
+        bias = copy.deepcopy(self._bias)
+        self._bias.update(obs.t_cab_c, obs.t_evap_c, obs.t_vent_c, obs.mdot_bl_prev_kgps)
+        ex, _ = fill_previews(obs, n1, self.settings.use_speed_preview, obs.preview_valid & chk.preview_plausible)
+        p = self.parameters(obs, ex)
+        self._bias = bias
+        out = self.chain.run(p, None, math.inf)
+        if out.result is not None:
+            self._good = GoodSolution(out.result.w, out.result.lam_x, out.result.lam_g,
+                                      self.problem.plan(out.result.w), age=-1)
+            self._prepared_t_s = float(obs.t_s)
+        return out.result
+
     # ---------------------------------------------------------------- compute
-    def compute(self, obs: Observation):
-        """One control step: returns ``(AcInput, Diagnostics)``; never raises on solver trouble."""
-        s = self.settings
+    def compute(self, obs: Observation, t_start: float | None = None):
+        """One control step: returns ``(AcInput, Diagnostics)``; never raises on solver trouble or bad input.
+
+        ``t_start``: when the step began on :attr:`clock` (e.g. before the node converted the
+        messages; default: now); the step's work after it is bounded by ``step_budget_s``.
+        """
+        t0 = self.clock() if t_start is None else float(t_start)
+        s, ss, cnt = self.settings, self.settings.solver, self.counters
+        deadline = t0 + ss.step_budget_s - ss.step_reserve_s
+        cnt.steps += 1
         diag = Diagnostics(k=obs.k, t_s=obs.t_s)
-        acc_cmd = self._acc.step(obs.t_cab_c, s.control_period_s)  # keep the fallback law warm
-        if not obs.measurements_finite():
+        self._age_good(obs)
+        n1 = s.horizon_steps + 1
+        chk = check_observation(obs, self.observation_limits)
+        problems = list(chk.measurement_problems)
+        if obs.n_preview != n1:
+            problems.append(f"previews have {obs.n_preview} points, this controller needs Np+1 = {n1}")
+        u_prev = (obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c)
+        if not chk.command_ok:
+            if self._last_cmd is not None:
+                u_prev = (float(self._last_cmd[0]), float(self._last_cmd[1]))
+                cnt.substituted_commands += 1
+                _note(diag, f"{'; '.join(chk.command_problems)}: the command applied last used instead")
+            else:
+                problems.extend(chk.command_problems)
+        if chk.info_problems:
+            _note(diag, "; ".join(chk.info_problems))
+        if problems:
+            cnt.invalid_observations += 1
             diag.status = "invalid_measurement"
             diag.success = False
-            diag.message = "non-finite measurement: production ACC law applied"
-            return self._fallback_baseline(diag, acc_cmd)
-        ex, trusted = fill_previews(obs, s.horizon_steps + 1, s.use_speed_preview)
+            _note(diag, f"{'; '.join(problems)}: production ACC law applied")
+            lo, hi = self.observation_limits.temperature_c
+            t_cab = float(obs.t_cab_c)
+            return self._apply_acc(diag, t_cab if lo <= t_cab <= hi else math.nan, None, None)
+        valid = np.asarray(obs.preview_valid, bool) & chk.preview_plausible
+        ex, trusted = fill_previews(obs, n1, s.use_speed_preview, valid)
         diag.trusted_horizon = trusted
-        if trusted < obs.n_preview:
-            diag.message = (f"preview valid for {trusted}/{obs.n_preview} points; "
-                            + ("held last valid value" if trusted else "held measured values"))
-        self._bias.update(obs.t_cab_c, obs.t_evap_c, obs.t_vent_c, obs.mdot_bl_prev_kgps)
-        p = self.parameters(obs, ex)
-        prob = self.problem
-        if s.solver.warm_start and self._warm is not None and not s.solver.default_options:
-            data = NlpData(p=p, x0=self.initial_guess(p, self._warm[0]), lam_x0=prob.vars.shift(self._warm[1]),
-                           lam_g0=prob.rows.shift(self._warm[2]))
+        if trusted < n1:
+            _note(diag, f"preview valid for {trusted}/{n1} points; "
+                  + ("held last valid value" if trusted else "held measured values"))
+        self._bias.update(obs.t_cab_c, obs.t_evap_c, obs.t_vent_c, u_prev[0])
+        p = self.parameters(obs, ex, u_prev)
+        out = self.chain.run(p, self._good, deadline)
+        self._last_nlp = out.data
+        self._count(out, deadline)
+        res = out.result
+        diag.status = out.status
+        diag.solve_time_ms = out.time_ms
+        final = res if res is not None else (out.attempts[-1][1] if out.attempts else None)
+        diag.success = bool(final.success) if final is not None else False
+        diag.iterations = final.iterations if final is not None else None
+        for why in out.rejected:
+            _note(diag, f"not used: {why}")
+        if res is None and not out.attempts:
+            _note(diag, "no time left for a solve")
+        if res is not None:
+            if not res.success:
+                cnt.accepted_iterates += 1
+                _note(diag, f"{res.solver} iterate applied at its limit (violation {res.violation:.1e})")
+            elif res.status == "RTI_Step":
+                cnt.rti_steps += 1
+            else:
+                cnt.converged += 1
+            plan = self.problem.plan(res.w)
+            self._good = GoodSolution(res.w, res.lam_x, res.lam_g, plan, age=0)
+            ev = self.problem.evaluate(res.w, p)
+            diag.cost_energy, diag.cost_comfort, diag.cost_ioch = ev.J_e, ev.J_c, ev.J_i
+            diag.cost_slack, diag.cost_total = ev.J_s, res.f
+            diag.pred_pmv, diag.pred_t_cab_c = ev.pmv, ev.t_cab
+            if s.ioch:
+                diag.eps = res.w[self.problem.vars.indices("eps")]
+            cmd = plan[0]
+        elif self._good is not None and 1 <= self._good.age < len(self._good.plan):
+            cmd = self._good.plan[self._good.age]
+            cnt.shifted_plan += 1
+            diag.fallback = "shifted_plan"
+            _note(diag, f"solve failed ({diag.status}): plan of step k-{self._good.age} applied")
         else:
-            data = NlpData(p=p, x0=self.initial_guess(p))
-        self._last_nlp = data
-        warm = data.lam_g0 is not None
-        res = self.solver.solve(data) if warm else self._cold_solve(data)
-        if not res.success and self.solver_fallback is not None and warm:
-            # sqpmethod/fatrop failed: the same instance with the warm IPOPT solver
-            self.n_ipopt_fallbacks += 1
-            first = res
-            res = self.solver_fallback.solve(data)
-            res.status = f"{s.solver.name}: {first.status}; ipopt: {res.status}"
-            if first.time_ms is not None and res.time_ms is not None:
-                res.time_ms += first.time_ms
-            _note(diag, f"{s.solver.name} failed ({first.status}): retried with IPOPT")
-        diag.status = res.status
-        diag.success = res.success
-        diag.iterations = res.iterations
-        diag.solve_time_ms = res.time_ms
-        cmd = None
-        if res.success and res.finite():
-            u = prob.plan(res.w)
-            if self._valid_command(u[0]):
-                cmd = u[0]
-                self._plan_u, self._plan_age = u, 0
-                self._warm = (res.w, res.lam_x, res.lam_g)
-                ev = prob.evaluate(res.w, p)
-                diag.cost_energy, diag.cost_comfort, diag.cost_ioch = ev.J_e, ev.J_c, ev.J_i
-                diag.cost_slack, diag.cost_total = ev.J_s, res.f
-                diag.pred_pmv, diag.pred_t_cab_c = ev.pmv, ev.t_cab
-                if s.ioch:
-                    diag.eps = res.w[prob.vars.indices("eps")]
-            else:
-                _note(diag, "solution outside actuator bounds")
-        if cmd is None:
-            self._warm = None
-            if self._plan_u is not None and self._plan_age + 1 < len(self._plan_u):
-                self._plan_age += 1
-                cmd = self._plan_u[self._plan_age]
-                diag.fallback = "shifted_plan"
-                _note(diag, f"solve failed ({diag.status}): plan of step k-{self._plan_age} applied")
-            else:
-                _note(diag, f"solve failed ({diag.status}), no plan left: production ACC law applied")
-                return self._fallback_baseline(diag, acc_cmd, obs, ex)
+            _note(diag, f"solve failed ({diag.status}), no plan left: production ACC law applied")
+            return self._apply_acc(diag, float(obs.t_cab_c), obs, ex)
         cmd = self._clip_checked(cmd)
-        self._predict(obs, cmd, ex)
-        diag.mdot_bl_kgps, diag.t_evap_sp_c = float(cmd[0]), float(cmd[1])
-        return AcInput(mdot_bl_kgps=float(cmd[0]), t_evap_sp_c=float(cmd[1])), diag
+        self._acc.track(cmd[0], cmd[1], obs.t_cab_c)
+        return self._finish(diag, cmd, obs, ex)
 
-    def _predict(self, obs: Observation, cmd, ex: dict) -> None:
-        self._bias.predict(obs.t_cab_c, obs.t_evap_c, cmd[0], cmd[1], obs.t_int_c, obs.t_shell_c,
-                           ex["t_amb"][0], ex["speed"][0])
+    # -------------------------------------------------------------- internals
+    def _age_good(self, obs: Observation) -> None:
+        """One more step since the last good solution (a prepared one: the steps since its t_s)."""
+        good = self._good
+        if good is None:
+            return
+        if self._prepared_t_s is not None:
+            d = (float(obs.t_s) - self._prepared_t_s) / self.settings.control_period_s
+            good.age = int(round(d)) if math.isfinite(d) else -1
+            self._prepared_t_s = None
+        else:
+            good.age += 1
+        if not 0 <= good.age < len(good.plan):
+            self._good = None
 
-    def _cold_solve(self, data: NlpData) -> SolveResult:
-        """A cold solve of ``data`` (this controller's NLP) by ``solver_cold``.
-
-        On the multiple-shooting NLP when this one is single shooting (guess: its model rollout;
-        solution mapped back).
-        """
-        cold = self.cold_path
-        if cold is None:
-            return self.solver_cold.solve(data)
-        res = self.solver_cold.solve(NlpData(p=data.p, x0=initial_guess(cold.problem, data.p)))
-        if res.w is not None:
-            res.w = res.w[cold.w_map]
-            res.lam_x = res.lam_x[cold.w_map]
-            res.lam_g = res.lam_g[cold.g_map]
-        return res
-
-    def _valid_command(self, u) -> bool:
-        lim = self.lim
-        return bool(np.all(np.isfinite(u))
-                    and lim.mdot_bl_min_kgps - _BOUND_TOL <= u[0] <= lim.mdot_bl_max_kgps + _BOUND_TOL
-                    and lim.t_evap_sp_min_c - _BOUND_TOL <= u[1] <= lim.t_evap_sp_max_c + _BOUND_TOL)
+    def _count(self, out, deadline: float) -> None:
+        cnt = self.counters
+        for role, _ in out.attempts:
+            cnt.retries += role == "retry"
+            cnt.cold_solves += role == "cold"
+            if role == "retry":
+                self.n_ipopt_fallbacks += 1
+        if any(r.status == "Maximum_Wall_Time_Exceeded" for _, r in out.attempts) or \
+                (out.result is None and self.clock() >= deadline):
+            cnt.deadline_hits += 1
 
     def _clip_checked(self, u) -> np.ndarray:
-        if not self._valid_command(u):
-            raise AssertionError(f"internal error: command {u} outside the actuator bounds")
+        if not self.chain.valid_command(u):
+            raise AssertionError(f"internal error: command {u} outside the actuator bounds (tol {BOUND_TOL})")
         lim = self.lim
         return np.array([min(max(u[0], lim.mdot_bl_min_kgps), lim.mdot_bl_max_kgps),
                          min(max(u[1], lim.t_evap_sp_min_c), lim.t_evap_sp_max_c)])
 
-    def _fallback_baseline(self, diag: Diagnostics, acc_cmd, obs: Observation | None = None,
-                           ex: dict | None = None):
-        diag.fallback = "baseline"
-        self._plan_u = None
-        self._warm = None
-        u = self._clip_checked(np.array([acc_cmd.mdot_bl_kgps, acc_cmd.t_evap_sp_c]))
+    def _finish(self, diag: Diagnostics, cmd: np.ndarray, obs: Observation | None, ex: dict | None):
         if obs is not None and ex is not None:
-            self._predict(obs, u, ex)
+            self._bias.predict(obs.t_cab_c, obs.t_evap_c, cmd[0], cmd[1], obs.t_int_c, obs.t_shell_c,
+                               ex["t_amb"][0], ex["speed"][0])
         else:
             self._bias.forget_prediction()
-        diag.mdot_bl_kgps, diag.t_evap_sp_c = float(u[0]), float(u[1])
-        return AcInput(mdot_bl_kgps=float(u[0]), t_evap_sp_c=float(u[1])), diag
+        self._last_cmd = cmd
+        diag.mdot_bl_kgps, diag.t_evap_sp_c = float(cmd[0]), float(cmd[1])
+        return AcInput(mdot_bl_kgps=float(cmd[0]), t_evap_sp_c=float(cmd[1])), diag
+
+    def _apply_acc(self, diag: Diagnostics, t_cab_c: float, obs: Observation | None, ex: dict | None):
+        self.counters.acc_law += 1
+        diag.fallback = "baseline"
+        acc = self._acc.step(t_cab_c, self.settings.control_period_s)
+        return self._finish(diag, self._clip_checked(np.array([acc.mdot_bl_kgps, acc.t_evap_sp_c])), obs, ex)

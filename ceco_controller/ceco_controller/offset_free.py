@@ -12,6 +12,8 @@ where e [K] is the error, a = ``StrategySettings.bias_filter`` [-] and d_max =
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import model as cm
@@ -50,19 +52,22 @@ class BiasEstimator:
         a, lim, mp = self.gain, self.limit_k, self.model_params
         # vent air: measured vs model at the measured evaporator temperature and the applied flow
         e_ain = t_vent_c - float(cm.t_ain_c(mp, t_evap_c, mdot_bl_prev_kgps))
-        self.bias[2] = np.clip((1 - a) * self.bias[2] + a * e_ain, -lim, lim)
+        if math.isfinite(e_ain):  # a non-finite error never enters the state (the caller checks too)
+            self.bias[2] = np.clip((1 - a) * self.bias[2] + a * e_ain, -lim, lim)
         if self.last_pred is not None:
             e_cab = t_cab_c - self.last_pred[0]
             e_evap = t_evap_c - self.last_pred[1]
-            self.bias[0] = np.clip((1 - a) * self.bias[0] + a * e_cab, -lim, lim)
-            self.bias[1] = np.clip((1 - a) * self.bias[1] + a * e_evap, -lim, lim)
+            if math.isfinite(e_cab) and math.isfinite(e_evap):
+                self.bias[0] = np.clip((1 - a) * self.bias[0] + a * e_cab, -lim, lim)
+                self.bias[1] = np.clip((1 - a) * self.bias[1] + a * e_evap, -lim, lim)
 
     def predict(self, t_cab_c: float, t_evap_c: float, mdot: float, sp: float, t_int_c: float,
                 t_shell_c: float, t_amb_c: float, speed_mps: float) -> None:
         """Remember the model's one-period prediction (without the T_cab/T_evap biases) for the next update."""
         t_cab, t_evap, *_ = cm.step(self.model_params, t_cab_c, t_evap_c, mdot, sp, t_int_c, t_shell_c, t_amb_c,
                                     speed_mps, n_sub=self.n_sub, d_ain_k=self.bias[2] if self.enabled else 0.0)
-        self.last_pred = (float(t_cab), float(t_evap))
+        pred = (float(t_cab), float(t_evap))
+        self.last_pred = pred if all(math.isfinite(v) for v in pred) else None
 
     def forget_prediction(self) -> None:
         """No prediction for the next update (e.g. after an unusable observation)."""

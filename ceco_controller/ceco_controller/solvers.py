@@ -1,9 +1,18 @@
 """Solvers of the CECO NLP, built once per problem, each returning a :class:`SolveResult`.
 
-``build_solver(problem, solver_settings)`` makes a CasADi ``nlpsol`` (IPOPT, sqpmethod or fatrop)
-for an :class:`~ceco_controller.transcription.NlpProblem`, with compiled NLP functions when
-``codegen`` is set (:mod:`ceco_controller.codegen`). :meth:`NlpSolver.solve` solves one instance
-(:class:`NlpData`) and reports success, status, iterations and wall time by name.
+``build_solver(problem, solver_settings)`` makes, for an
+:class:`~ceco_controller.transcription.NlpProblem`:
+
+* ``sqp``    ceco's dense SQP (:mod:`ceco_controller.sqp`), optionally one QP per call (``rti``);
+* ``ipopt``  CasADi's IPOPT interface (warm or cold options, or IPOPT's defaults as the reference);
+* ``fatrop`` CasADi's fatrop interface (multiple shooting).
+
+Compiled NLP functions when ``codegen`` is set (:mod:`ceco_controller.codegen`). Every
+:meth:`NlpSolver.solve` takes an optional wall-clock ``deadline`` (absolute, on the solver's
+clock): the SQP checks it before every QP and line-search trial, IPOPT in its iteration callback
+(``User_Requested_Stop`` is reported as ``Maximum_Wall_Time_Exceeded``); fatrop ignores it (its
+iteration limit bounds it). The result reports success, status, iterations, wall time and the
+largest constraint violation of the returned point by name.
 """
 
 from __future__ import annotations
@@ -12,17 +21,23 @@ import dataclasses
 import logging
 import math
 import time
+from collections.abc import Callable
 
 import casadi
 import numpy as np
 
-from .codegen import compile_nlp, stdout_silenced
+from .codegen import compile_functions, compile_nlp, stdout_silenced
+from .sqp import DenseSqp, SqpOptions, sqp_functions
 from .strategies import SolverSettings, auto_solver_name
 from .transcription import NlpProblem
 
-__all__ = ["NlpData", "SolveResult", "NlpSolver", "build_solver"]
+__all__ = ["NlpData", "SolveResult", "NlpSolver", "build_solver", "LIMIT_STATUSES"]
 
 _LOG = logging.getLogger(__name__)
+
+LIMIT_STATUSES = ("Maximum_Iterations_Exceeded", "Maximum_Wall_Time_Exceeded", "Maximum_CpuTime_Exceeded",
+                  "RTI_Step")
+"""Statuses of a solver that stopped on a limit with a usable iterate (applied if its violation is small)."""
 
 
 @dataclasses.dataclass
@@ -44,23 +59,25 @@ class SolveResult:
     """What one solver call gave: the same fields on every path."""
 
     solver: str
-    """Solver that produced it ('ipopt', 'sqpmethod', 'fatrop'; 'a: ..; b: ..' after a retry)."""
+    """Solver that produced it ('sqp', 'ipopt', 'fatrop')."""
     success: bool
-    """The solver reported success."""
+    """The solver reported success (the SQP in ``rti`` mode: the QP step was taken)."""
     status: str
     """The solver's return status, or why there is no solution."""
     iterations: int | None = None
-    """Solver iterations (None when unknown)."""
+    """Solver iterations (SQP: QPs solved; None when unknown)."""
     time_ms: float | None = None
     """Wall-clock time of the solver call(s) [ms] (None when the call raised)."""
     w: np.ndarray | None = None
-    """Primal solution (None when the call raised)."""
+    """Primal point returned (None when the call raised)."""
     f: float = math.nan
     """Objective at ``w``."""
     lam_x: np.ndarray | None = None
     """Bound multipliers."""
     lam_g: np.ndarray | None = None
     """Constraint multipliers."""
+    violation: float = math.inf
+    """Largest violation of the variable and constraint bounds at ``w`` [constraint units]."""
     stats: dict = dataclasses.field(default_factory=dict, repr=False)
     """The solver's raw statistics."""
 
@@ -70,56 +87,148 @@ class SolveResult:
         return cls(solver=solver, success=False, status=status)
 
     def finite(self) -> bool:
-        """True if there is a primal solution and every entry is finite."""
-        return self.w is not None and bool(np.all(np.isfinite(self.w)))
+        """True if there is a primal-dual point and every entry is finite."""
+        return all(a is not None and bool(np.all(np.isfinite(a))) for a in (self.w, self.lam_x, self.lam_g))
+
+    @property
+    def limited(self) -> bool:
+        """The solver stopped on a time or iteration limit (or made its one RTI step)."""
+        return self.status in LIMIT_STATUSES
 
 
 class NlpSolver:
-    """A CasADi nlpsol built for one problem; :meth:`solve` never raises on solver trouble."""
+    """A solver built for one problem; :meth:`solve` never raises on solver trouble."""
 
-    def __init__(self, problem: NlpProblem, settings: SolverSettings, function: casadi.Function):
+    def __init__(self, problem: NlpProblem, settings: SolverSettings, clock: Callable[[], float]):
         self.problem = problem
         self.settings = settings
         """The solver settings it was built with ('auto' resolved)."""
         self.name = settings.name
-        """Plugin name."""
-        self.function = function
-        """The CasADi nlpsol."""
+        """Solver name."""
+        self.clock = clock
+        """Clock of the deadlines [s] (``time.perf_counter`` unless injected)."""
 
-    def solve(self, data: NlpData) -> SolveResult:
-        """Solve one instance; CasADi evaluation errors become a failed result."""
+    def solve(self, data: NlpData, deadline: float | None = None) -> SolveResult:
+        """Solve one instance (no iteration starts after ``deadline``); evaluation errors become a failed result."""
         try:
-            return self._solve(data)
+            return self._solve(data, deadline)
         except RuntimeError as exc:
             return SolveResult.failed(self.name, f"exception: {exc}")
 
-    def _solve(self, data: NlpData) -> SolveResult:
+    def _solve(self, data: NlpData, deadline: float | None) -> SolveResult:
+        raise NotImplementedError
+
+
+class SqpSolver(NlpSolver):
+    """ceco's dense SQP (:class:`~ceco_controller.sqp.DenseSqp`)."""
+
+    def __init__(self, problem: NlpProblem, settings: SolverSettings, clock: Callable[[], float]):
+        super().__init__(problem, settings, clock)
+        fns, pattern = sqp_functions(problem.nlp)
+        if settings.codegen:
+            so = _compiled(problem, ("sqp", tuple(settings.codegen_flags)),
+                           lambda: compile_functions(list(fns.values()), settings.codegen_flags,
+                                                     settings.codegen_cache_dir, prefix="ceco_sqp"))
+            if so is not None:
+                try:
+                    fns = {k: casadi.external(f.name(), so) for k, f in fns.items()}
+                except RuntimeError as exc:
+                    _LOG.warning("NMPC codegen: cannot load %s (%s); using the in-process NLP functions", so, exc)
+        elif settings.jit:
+            jit = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"], "verbose": False}}
+            fns = {k: casadi.Function(f.name(), f.sx_in(), f.sx_out(), f.name_in(), f.name_out(), jit)
+                   for k, f in fns.items()}
+        opts = SqpOptions(max_iter=settings.sqp_max_iter, tol_pr=settings.tol,
+                          tol_du=settings.acceptable_tol if settings.warm_start else settings.tol,
+                          eig_floor=settings.eig_floor, rti=settings.rti, qpsol=settings.qpsol,
+                          qp_cpu_time_s=settings.max_cpu_time_s / settings.sqp_max_iter)
+        self.sqp = DenseSqp(fns, pattern, problem.lbw, problem.ubw, problem.lbg, problem.ubg, opts, clock)
+
+    def _solve(self, data: NlpData, deadline: float | None) -> SolveResult:
+        t0 = time.perf_counter()
+        out = self.sqp.solve(data.x0, data.p, data.lam_x0, data.lam_g0, deadline=deadline)
+        dt_ms = 1e3 * (time.perf_counter() - t0)
+        violation = self.problem.max_violation(out.w, out.g) if np.all(np.isfinite(out.g)) else math.inf
+        return SolveResult(solver=self.name, success=out.success, status=out.status, iterations=out.iterations,
+                           time_ms=dt_ms, w=out.w, f=out.f, lam_x=out.lam_x, lam_g=out.lam_g,
+                           violation=violation,
+                           stats={"dual_infeasibility": out.dual_infeasibility,
+                                  "line_search_failures": out.line_search_failures})
+
+
+class _DeadlineCallback(casadi.Callback):
+    """IPOPT iteration callback: asks IPOPT to stop once ``deadline`` has passed on ``clock``.
+
+    Its inputs are declared empty, so IPOPT hands it no data (no copy per iteration).
+    """
+
+    def __init__(self, clock: Callable[[], float]):
+        casadi.Callback.__init__(self)
+        self.clock = clock
+        self.deadline = math.inf
+        self.construct("ceco_deadline", {})
+
+    def get_n_in(self):  # noqa: D102 (CasADi Callback interface)
+        return casadi.nlpsol_n_out()
+
+    def get_n_out(self):  # noqa: D102
+        return 1
+
+    def get_name_in(self, i):  # noqa: D102
+        return casadi.nlpsol_out(i)
+
+    def get_name_out(self, i):  # noqa: D102
+        return "ret"
+
+    def get_sparsity_in(self, i):  # noqa: D102
+        return casadi.Sparsity(0, 0)
+
+    def has_eval_buffer(self):  # noqa: D102
+        return True
+
+    def eval_buffer(self, arg, res):  # noqa: D102
+        memoryview(res[0]).cast("d")[0] = 1.0 if self.clock() >= self.deadline else 0.0
+        return 0
+
+
+class CasadiSolver(NlpSolver):
+    """A CasADi ``nlpsol`` (IPOPT or fatrop)."""
+
+    def __init__(self, problem: NlpProblem, settings: SolverSettings, clock: Callable[[], float],
+                 function: casadi.Function, callback: _DeadlineCallback | None):
+        super().__init__(problem, settings, clock)
+        self.function = function
+        """The CasADi nlpsol."""
+        self._callback = callback
+
+    def _solve(self, data: NlpData, deadline: float | None) -> SolveResult:
         args = {"x0": data.x0, "p": data.p, **self.problem.bounds_dm}
         if data.lam_x0 is not None:
             args["lam_x0"] = data.lam_x0
         if data.lam_g0 is not None:
             args["lam_g0"] = data.lam_g0
+        if self._callback is not None:
+            self._callback.deadline = math.inf if deadline is None else deadline
         t0 = time.perf_counter()
         sol = self.function(**args)
         dt_ms = 1e3 * (time.perf_counter() - t0)
-        try:
-            stats = self.function.stats()
-        except RuntimeError as exc:  # CasADi 3.8.2 sqpmethod: no stats after an error in iteration 0
-            last = (str(exc).splitlines() or [type(exc).__name__])[-1]
-            stats = {"success": False, "return_status": f"no solver statistics ({last})"}
-        return SolveResult(solver=self.name, success=bool(stats.get("success", False)),
-                           status=str(stats.get("return_status", "unknown")),
+        stats = self.function.stats()
+        status = str(stats.get("return_status", "unknown"))
+        if status == "User_Requested_Stop":  # our deadline callback
+            status = "Maximum_Wall_Time_Exceeded"
+        w = np.array(sol["x"]).ravel()
+        g = np.array(sol["g"]).ravel()
+        violation = self.problem.max_violation(w, g) if np.all(np.isfinite(g)) else math.inf
+        return SolveResult(solver=self.name, success=bool(stats.get("success", False)), status=status,
                            iterations=int(stats["iter_count"]) if "iter_count" in stats else None,
-                           time_ms=dt_ms, w=np.array(sol["x"]).ravel(), f=float(sol["f"]),
-                           lam_x=np.array(sol["lam_x"]).ravel(), lam_g=np.array(sol["lam_g"]).ravel(),
-                           stats=stats)
+                           time_ms=dt_ms, w=w, f=float(sol["f"]), lam_x=np.array(sol["lam_x"]).ravel(),
+                           lam_g=np.array(sol["lam_g"]).ravel(), violation=violation, stats=stats)
 
 
-def _compiled_nlp(problem: NlpProblem, ss: SolverSettings) -> str | None:
-    """Path of the compiled NLP functions for ``ss`` (cached per problem), or None (logged)."""
-    key = (ss.name, tuple(ss.codegen_flags))
+def _compiled(problem: NlpProblem, key: tuple, compile_fn) -> str | None:
+    """Path of compiled NLP functions (cached per problem and key), or None (logged)."""
     if key not in problem.compiled:
-        problem.compiled[key] = compile_nlp(problem.nlp, ss.codegen_flags, ss.codegen_cache_dir, plugin=ss.name)
+        problem.compiled[key] = compile_fn()
     return problem.compiled[key]
 
 
@@ -148,41 +257,8 @@ def _ipopt_options(ss: SolverSettings) -> dict:
     return ipopt
 
 
-def _sqpmethod_options(ss: SolverSettings) -> dict:
-    # sqpmethod: exact Hessian convexified (eigen-clip), one dense QP per iteration, line search;
-    # bounded by sqp_max_iter SQP iterations and a CPU-time limit per QP (qpOASES). Like the warm IPOPT:
-    # constraints met to tol (1e-6), stationarity to acceptable_tol (1e-4; 3 instead of 5 median
-    # iterations on SC03 with the same optimum, docs/controller.md 4.6)
-    if ss.qpsol == "qpoases":
-        qp_opts = {"printLevel": "none", "sparse": False, "error_on_fail": False,
-                   "CPUtime": ss.max_cpu_time_s / ss.sqp_max_iter}
-    else:
-        qp_opts = {"print_iter": False, "print_header": False, "error_on_fail": False}
-    return {"qpsol": ss.qpsol, "qpsol_options": qp_opts,
-            "max_iter": ss.sqp_max_iter, "print_iteration": False, "print_header": False,
-            "print_status": False, "tol_pr": ss.tol, "tol_du": ss.acceptable_tol if ss.warm_start else ss.tol,
-            "convexify_strategy": ss.convexify_strategy, "max_iter_eig": float(ss.max_iter_eig),
-            "error_on_fail": False}
-
-
-def _nlpsol(plugin: str, nlp, opts: dict, fallback_nlp: dict) -> casadi.Function:
-    """``nlpsol`` from a compiled object path (or the in-process NLP).
-
-    An unloadable object falls back to ``fallback_nlp`` with a log warning. Construction runs
-    with stdout silenced (qpOASES).
-    """
-    if isinstance(nlp, str):
-        try:
-            with stdout_silenced():
-                return casadi.nlpsol("ceco_nlp", plugin, nlp, opts)
-        except RuntimeError as exc:
-            _LOG.warning("NMPC codegen: cannot load %s (%s); using the in-process NLP functions", nlp, exc)
-            nlp = fallback_nlp
-    with stdout_silenced():
-        return casadi.nlpsol("ceco_nlp", plugin, nlp, opts)
-
-
-def build_solver(problem: NlpProblem, solver_settings: SolverSettings) -> NlpSolver:
+def build_solver(problem: NlpProblem, solver_settings: SolverSettings,
+                 clock: Callable[[], float] = time.perf_counter) -> NlpSolver:
     """Build a solver for ``problem`` with the given settings ('auto' name resolved for its transcription)."""
     ss = solver_settings
     ss.validate()
@@ -191,22 +267,32 @@ def build_solver(problem: NlpProblem, solver_settings: SolverSettings) -> NlpSol
                          f"NLP ({problem.transcription}); build another controller for it")
     if ss.name == "auto":
         ss = dataclasses.replace(ss, name=auto_solver_name(problem.transcription))
+    if ss.name == "sqp":
+        return SqpSolver(problem, ss, clock)
     opts: dict = {"print_time": False}
-    nlp = problem.nlp
-    if ss.codegen and ss.name in ("ipopt", "sqpmethod") and not ss.default_options:
-        so = _compiled_nlp(problem, ss)
-        if so is not None:
-            nlp = so
-    if ss.jit and not isinstance(nlp, str):
-        opts.update({"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"], "verbose": False}})
-    if ss.name == "ipopt":
-        opts["ipopt"] = _ipopt_options(ss)
-        return NlpSolver(problem, ss, _nlpsol("ipopt", nlp, opts, problem.nlp))
     if ss.name == "fatrop":
         opts.update({"structure_detection": "auto", "expand": True,
                      "equality": [bool(a == b) for a, b in zip(problem.lbg, problem.ubg)],
                      "fatrop": {"print_level": 0, "max_iter": ss.max_iter, "tol": ss.tol, "mu_init": 1e-2}})
         # (fatrop 0.0.x in CasADi 3.8 accepts no warm-start option; the primal guess is still used)
-        return NlpSolver(problem, ss, casadi.nlpsol("ceco_nlp", "fatrop", problem.nlp, opts))
-    opts.update(_sqpmethod_options(ss))
-    return NlpSolver(problem, ss, _nlpsol("sqpmethod", nlp, opts, problem.nlp))
+        return CasadiSolver(problem, ss, clock, casadi.nlpsol("ceco_nlp", "fatrop", problem.nlp, opts), None)
+    nlp = problem.nlp
+    if ss.codegen and not ss.default_options:
+        so = _compiled(problem, ("ipopt", tuple(ss.codegen_flags)),
+                       lambda: compile_nlp(problem.nlp, ss.codegen_flags, ss.codegen_cache_dir, plugin="ipopt"))
+        if so is not None:
+            nlp = so
+    if ss.jit and not isinstance(nlp, str):
+        opts.update({"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"], "verbose": False}})
+    opts["ipopt"] = _ipopt_options(ss)
+    callback = None if ss.default_options else _DeadlineCallback(clock)
+    if callback is not None:
+        opts["iteration_callback"] = callback
+    if isinstance(nlp, str):
+        try:
+            with stdout_silenced():
+                return CasadiSolver(problem, ss, clock, casadi.nlpsol("ceco_nlp", "ipopt", nlp, opts), callback)
+        except RuntimeError as exc:  # unloadable object: the in-process functions
+            _LOG.warning("NMPC codegen: cannot load %s (%s); using the in-process NLP functions", nlp, exc)
+            nlp = problem.nlp
+    return CasadiSolver(problem, ss, clock, casadi.nlpsol("ceco_nlp", "ipopt", nlp, opts), callback)
