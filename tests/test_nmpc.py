@@ -312,3 +312,108 @@ def test_controller_file_is_what_the_simulator_and_nodes_build_from(tmp_path):
     cfg.write_text(yaml.safe_dump(doc))
     with pytest.raises(ValueError, match="gama_w"):
         closed_loop.make_controller("ceco-c", sc, 5.0, 6, config_path=str(cfg))
+
+
+class _Clock:
+    """An injected clock the test advances by hand [s]."""
+
+    def __init__(self):
+        self.t = 0.0
+
+    def __call__(self):
+        return self.t
+
+
+def _poison(ctrl):
+    real = (ctrl.solver, ctrl.solver_fallback, ctrl.solver_cold)
+    ctrl.solver = ctrl.solver_fallback = ctrl.solver_cold = _FailingSolver()
+    return real
+
+
+def _restore(ctrl, real):
+    ctrl.solver, ctrl.solver_fallback, ctrl.solver_cold = real
+
+
+def test_after_a_failed_step_the_next_solve_is_warm_from_the_last_good_plan():
+    """Issue 12 'Cold path under pressure': a failed step does not drop the warm start; the next
+    solve starts from the last good solution shifted by two stages (not cold)."""
+    from ceco_controller.warmstart import initial_guess
+    ctrl = NmpcController("ceco")
+    for k in range(3):
+        ctrl.compute(_obs(k, t_cab=27.0 - 0.1 * k))
+    good = ctrl._good
+    real = _poison(ctrl)
+    cmd, diag = ctrl.compute(_obs(3, t_cab=26.7))
+    assert diag.fallback == "shifted_plan" and (cmd.mdot_bl_kgps, cmd.t_evap_sp_c) == tuple(good.plan[1])
+    _restore(ctrl, real)
+    cold = ctrl.counters.cold_solves
+    cmd, diag = ctrl.compute(_obs(4, t_cab=26.6))
+    assert diag.fallback == "" and diag.success and diag.status == "Solve_Succeeded"
+    assert ctrl.counters.cold_solves == cold
+    data = ctrl.last_nlp()
+    np.testing.assert_array_equal(data.x0, initial_guess(ctrl.problem, data.p, good.w, 2))
+    np.testing.assert_array_equal(data.lam_g0, ctrl.problem.rows.shift(good.lam_g, 2))
+
+
+class _SlowQp:
+    """Wraps the SQP's QP so that each QP 'takes' ``dt`` seconds on the injected clock."""
+
+    def __init__(self, qp, clock, dt):
+        self.qp, self.clock, self.dt, self.buf = qp, clock, dt, qp.buf
+
+    def __call__(self, *args):
+        self.clock.t += self.dt
+        return self.qp(*args)
+
+
+def test_an_iterate_cut_by_the_deadline_is_applied_when_its_violation_is_small():
+    clock = _Clock()
+    ctrl = NmpcController("ceco", clock=clock)
+    for k in range(2):
+        ctrl.compute(_obs(k, t_cab=28.0))
+    sqp = ctrl.solver.sqp
+    sqp._qp = _SlowQp(sqp._qp, clock, 10.0)  # the first QP ends after the 1 s budget
+    cmd, diag = ctrl.compute(_obs(2, t_cab=25.0, speed=25.0))
+    assert diag.status == "Maximum_Wall_Time_Exceeded" and diag.iterations == 1 and not diag.success
+    assert diag.fallback == "" and _valid(cmd) and "sqp iterate applied at its limit" in diag.message
+    c = ctrl.counters
+    assert c.accepted_iterates == 1 and c.retries == 0 and c.cold_solves == 1 and c.deadline_hits == 1
+    # no time at all: no iteration, no retry, no cold solve: the last good plan shifted
+    cmd, diag = ctrl.compute(_obs(3, t_cab=25.0), t_start=clock() - 10.0)
+    assert diag.fallback == "shifted_plan" and "no iteration before the limit" in diag.message
+    assert c.retries == 0 and c.cold_solves == 1 and c.deadline_hits == 2
+
+
+def test_hand_over_to_the_acc_law_and_back_is_bumpless():
+    """The ACC law tracks the applied command while the NMPC is in charge: its first command after the
+    shifted plan runs out is the last applied one; the NMPC then takes back control."""
+    ctrl = NmpcController("ceco")
+    for k in range(3):
+        ctrl.compute(_obs(k, t_cab=26.5))
+    real = _poison(ctrl)
+    cmds, fallbacks = [], []
+    for k in range(3, 12):
+        cmd, diag = ctrl.compute(_obs(k, t_cab=26.5))
+        cmds.append((cmd.mdot_bl_kgps, cmd.t_evap_sp_c))
+        fallbacks.append(diag.fallback)
+    assert fallbacks == ["shifted_plan"] * 5 + ["baseline"] * 4
+    assert cmds[5] == cmds[4]  # the take-over: no bump
+    steps = np.abs(np.diff(np.array(cmds[4:]), axis=0))
+    assert np.all(steps[:, 0] <= 0.02) and np.all(steps[:, 1] <= 1.0)  # then it moves gradually
+    _restore(ctrl, real)
+    cmd, diag = ctrl.compute(_obs(12, t_cab=26.5))
+    assert diag.fallback == "" and diag.success and _valid(cmd)
+
+
+def test_prepare_makes_the_first_step_warm_and_warm_up_leaves_no_trace():
+    fresh, prepared, warmed = NmpcController("ceco"), NmpcController("ceco"), NmpcController("ceco")
+    res = prepared.prepare(_obs(0, t_cab=30.0))
+    assert res is not None and res.success
+    assert warmed.warm_up() > 0 and warmed.counters.steps == 0 and warmed._good is None
+    (c1, d1), (c2, d2), (c3, d3) = (c.compute(_obs(0, t_cab=30.0)) for c in (fresh, prepared, warmed))
+    # the first step starts from the prepared (cold IPOPT) solution of the same instance: one QP polishes it
+    assert prepared.counters.cold_solves == 0 and d2.iterations <= 1 and d2.status == "Solve_Succeeded"
+    assert d2.cost_total == pytest.approx(d1.cost_total, rel=1e-6)
+    assert (c2.mdot_bl_kgps, c2.t_evap_sp_c) == pytest.approx((c1.mdot_bl_kgps, c1.t_evap_sp_c), abs=1e-5)
+    # warm_up changed nothing: bit-identical first step
+    assert (c3.mdot_bl_kgps, c3.t_evap_sp_c) == (c1.mdot_bl_kgps, c1.t_evap_sp_c) and d3.cost_total == d1.cost_total

@@ -74,10 +74,12 @@ class SolverSettings:
     step_reserve_s: float = 0.1
     """Part of ``step_budget_s`` kept for the work after the solve (evaluation, fallback, the node's
     message conversion and publish) [s]."""
-    accept_violation: float = 1e-3
+    accept_violation: float = 0.05
     """Largest constraint violation of an iterate that is applied although the solver stopped on
     its time or iteration limit (or a real-time iteration) [PMV, K] (comfort/T_evap rows and, in
-    multiple shooting, the model's gaps)."""
+    multiple shooting, the model's gaps): a twentieth of the comfort band (1 PMV wide), a third of
+    the model's one-step T_cab error (0.16 K RMS); the real-time iteration's steps reach 0.036
+    (SC03, ceco-ioch; docs/controller.md 4.6)."""
     rti: bool = False
     """Bounded-cost mode ('sqp' only): one QP per control step from the shifted warm start (SQP
     real-time iteration) instead of iterating to convergence; optimality loss measured in

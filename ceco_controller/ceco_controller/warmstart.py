@@ -10,7 +10,7 @@ import numpy as np
 from . import model as cm
 from .transcription import NlpProblem
 
-__all__ = ["SLACK_GUESS_MARGIN", "initial_guess"]
+__all__ = ["SLACK_GUESS_MARGIN", "initial_guess", "repair_slacks"]
 
 SLACK_GUESS_MARGIN = 1e-5
 """Margin of the guessed comfort/T_evap slacks above their smallest feasible value [PMV or K]: near
@@ -56,13 +56,36 @@ def initial_guess(problem: NlpProblem, p: np.ndarray, w_prev: np.ndarray | None 
             x = np.array([tc, te])
             xs[i] = np.concatenate([x, u])
         vl.set_blocks(w, "x", xs)
+    lo, up, ev = _smallest_slacks(problem, w, p)
+    margin = SLACK_GUESS_MARGIN
+    w[vl.indices("s_lo")] = lo + margin
+    w[vl.indices("s_up")] = up + margin
+    w[vl.indices("s_ev")] = ev + margin
+    return np.clip(w, problem.lbw, problem.ubw)
+
+
+def _smallest_slacks(problem: NlpProblem, w: np.ndarray, p: np.ndarray):
+    """The smallest comfort (s_lo, s_up) and T_evap (s_ev) slacks that satisfy their rows at ``w``."""
+    s, pl, vl = problem.settings, problem.params, problem.vars
     ev = problem.evaluate(w, p)
     lb = pl.get(p, "pmv_lb")
     ub = pl.get(p, "pmv_ub") - s.pmv_margin
     eps = w[vl.indices("eps")] if s.ioch else 0.0
-    margin = SLACK_GUESS_MARGIN
-    w[vl.indices("s_lo")] = np.maximum(lb - ev.pmv, 0.0) + margin
-    w[vl.indices("s_up")] = np.maximum(ev.pmv + eps - ub, 0.0) + margin
-    w[vl.indices("s_ev")] = np.maximum(np.maximum(s.t_evap_lb_c - ev.t_evap, ev.t_evap - s.t_evap_ub_c),
-                                       0.0) + margin
-    return np.clip(w, problem.lbw, problem.ubw)
+    return (np.maximum(lb - ev.pmv, 0.0), np.maximum(ev.pmv + eps - ub, 0.0),
+            np.maximum(np.maximum(s.t_evap_lb_c - ev.t_evap, ev.t_evap - s.t_evap_ub_c), 0.0))
+
+
+def repair_slacks(problem: NlpProblem, w: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """``w`` with every comfort/T_evap slack raised to the smallest value that satisfies its row.
+
+    For single shooting this makes any point within the variable bounds feasible; the objective at
+    the result is the true cost of applying its inputs (used to measure the optimality loss of the
+    real-time iteration, docs/controller.md 4.6). Multiple shooting: the gap rows stay as they are.
+    """
+    out = np.array(w, float)
+    vl = problem.vars
+    lo, up, ev = _smallest_slacks(problem, out, p)
+    for key, need in (("s_lo", lo), ("s_up", up), ("s_ev", ev)):
+        ix = vl.indices(key)
+        out[ix] = np.maximum(out[ix], need)
+    return out
