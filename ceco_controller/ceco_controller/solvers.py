@@ -18,6 +18,7 @@ largest constraint violation of the returned point by name.
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import logging
 import math
 import time
@@ -26,7 +27,7 @@ from collections.abc import Callable
 import casadi
 import numpy as np
 
-from .codegen import compile_functions, compile_nlp, stdout_silenced
+from .codegen import compile_functions, compile_nlp, nlp_key, stdout_silenced
 from .sqp import DenseSqp, SqpOptions, sqp_functions
 from .strategies import SolverSettings, auto_solver_name
 from .transcription import NlpProblem
@@ -126,8 +127,10 @@ class SqpSolver(NlpSolver):
         super().__init__(problem, settings, clock)
         fns, pattern = sqp_functions(problem.nlp)
         if settings.codegen:
+            # the functions are a deterministic product of the NLP and of sqp_functions' code
+            key = nlp_key(problem.nlp) + inspect.getsource(sqp_functions).encode()
             so = _compiled(problem, ("sqp", tuple(settings.codegen_flags)),
-                           lambda: compile_functions(list(fns.values()), settings.codegen_flags,
+                           lambda: compile_functions(list(fns.values()), key, settings.codegen_flags,
                                                      settings.codegen_cache_dir, prefix="ceco_sqp"))
             if so is not None:
                 try:
