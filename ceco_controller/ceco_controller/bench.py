@@ -265,7 +265,11 @@ def main(argv=None) -> int:
              "rti_loss_median": _median_or_none([r["rti_loss_median"] for r in table if r["factor"] == f
                                                  and r["mode"] == mode and r["rti_loss_median"] is not None]),
              "rti_loss_max": max((r["rti_loss_max"] for r in table if r["factor"] == f and r["mode"] == mode
-                                  and r["rti_loss_max"] is not None), default=None)}
+                                  and r["rti_loss_max"] is not None), default=None),
+             "dE_vs_full_1x_pct_max": max((r.get("dE_vs_full_1x_pct", 0.0) for r in table if r["factor"] == f
+                                           and r["mode"] == mode), default=None),
+             "dI_pmv_vs_full_1x_pct_max": max((r.get("dI_pmv_vs_full_1x_pct", 0.0) for r in table
+                                               if r["factor"] == f and r["mode"] == mode), default=None)}
             for f in factors for mode in ("full", "rti")]
         summary["slowdown_cases"] = table
     if args.rti_cases:

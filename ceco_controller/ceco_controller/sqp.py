@@ -156,11 +156,13 @@ class DenseSqp:
         blocks = [b for b in blocks if has_curv[b].any()]
         self._diag1 = np.array([b[0] for b in blocks if b.size == 1], dtype=int)
         self._dense = [(b, np.ix_(b, b)) for b in blocks if b.size > 1]
+        self._eyes = {b.size: np.eye(b.size) for b, _ in self._dense}
         o = self.options
+        # error_on_fail: a failed QP raises (caught below), so a solved one needs no stats() call
         if o.qpsol == "qpoases":
-            qp_opts = {"printLevel": "none", "sparse": False, "error_on_fail": False, "CPUtime": o.qp_cpu_time_s}
+            qp_opts = {"printLevel": "none", "sparse": False, "error_on_fail": True, "CPUtime": o.qp_cpu_time_s}
         else:
-            qp_opts = {"print_iter": False, "print_header": False, "error_on_fail": False}
+            qp_opts = {"print_iter": False, "print_header": False, "error_on_fail": True}
         from .codegen import stdout_silenced  # qpOASES prints its banner when the QP is created
 
         with stdout_silenced():
@@ -177,9 +179,16 @@ class DenseSqp:
         floor = self.options.eig_floor
         d1 = self._diag1
         out[d1, d1] = np.maximum(h[d1, d1], floor)
+        eye = self._eyes
         for b, ix in self._dense:
             hb = h[ix]
             hb = 0.5 * (hb + hb.T)
+            try:  # already >= floor (a Cholesky factor of H - floor I exists): H unchanged, no eigenvectors needed
+                np.linalg.cholesky(hb - floor * eye[b.size])
+                out[ix] = hb
+                continue
+            except np.linalg.LinAlgError:
+                pass
             try:
                 lam, vec = np.linalg.eigh(hb)
                 out[ix] = (vec * np.maximum(lam, floor)) @ vec.T
@@ -196,7 +205,8 @@ class DenseSqp:
     def _linearise(self, w, p):
         f, g, gf, jac = self._jac(w, p)
         f = float(f[0])
-        ok = math.isfinite(f) and bool(np.all(np.isfinite(g)) and np.all(np.isfinite(gf)) and np.all(np.isfinite(jac)))
+        # one sum per array: NaN and inf propagate (an overflow of huge finite values is flagged too)
+        ok = math.isfinite(f + float(np.sum(g)) + float(np.sum(gf)) + float(np.sum(jac)))
         return ok, f, g.copy(), gf.copy(), jac.reshape(self.nw, self.ng).T.copy()
 
     def _merit_eval(self, w, p):
@@ -242,12 +252,15 @@ class DenseSqp:
                 status = "Invalid_Number_Detected"
                 break
             # (a, column-major, is the jac buffer's layout: jac.T.ravel())
-            x_qp, _, lam_a_qp, lam_x_qp = self._qp(self.convexify(hess).ravel(), gf, jac.T.ravel(), self.lbg - g,
-                                                    self.ubg - g, self.lbw - w, self.ubw - w)
-            qp_stats = self._qp.buf.stats()
+            try:
+                x_qp, _, lam_a_qp, lam_x_qp = self._qp(self.convexify(hess).ravel(), gf, jac.T.ravel(),
+                                                        self.lbg - g, self.ubg - g, self.lbw - w, self.ubw - w)
+            except RuntimeError:
+                status = f"QP_Failed ({self._qp.buf.stats().get('return_status', 'unknown')})"
+                break
             d = x_qp.copy()
-            if not qp_stats.get("success", False) or not np.all(np.isfinite(d)):
-                status = f"QP_Failed ({qp_stats.get('return_status', 'unknown')})"
+            if not np.all(np.isfinite(d)):
+                status = "QP_Failed (non-finite step)"
                 break
             lam_g_qp, lam_x_qp = lam_a_qp.copy(), lam_x_qp.copy()
             it += 1
