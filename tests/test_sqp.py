@@ -62,6 +62,7 @@ def test_convexification_falls_back_to_a_gershgorin_shift(monkeypatch):
         raise np.linalg.LinAlgError("Eigenvalues did not converge")
 
     monkeypatch.setattr(np.linalg, "eigh", fail)
+    monkeypatch.setattr(np.linalg, "cholesky", fail)  # (the shortcut for blocks already above the floor)
     (block, ix), = sqp._dense
     hc = sqp.convexify(hessians[0])[ix]
     assert np.linalg.eigvalsh(hc).min() > 0 and sqp.n_eig_fallbacks == 1
