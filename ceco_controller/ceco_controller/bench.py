@@ -262,6 +262,8 @@ def main(argv=None) -> int:
              "steps_acc_law": sum(r["acc_law"] for r in table if r["factor"] == f and r["mode"] == mode),
              "accepted_iterates": sum(r["accepted_iterates"] for r in table if r["factor"] == f and r["mode"] == mode),
              "step_p99_ms": max(r["step_p99_ms"] for r in table if r["factor"] == f and r["mode"] == mode),
+             "max_cpu_past_deadline_ms": max(r["max_cpu_past_deadline_ms"] for r in table
+                                             if r["factor"] == f and r["mode"] == mode),
              "rti_loss_median": _median_or_none([r["rti_loss_median"] for r in table if r["factor"] == f
                                                  and r["mode"] == mode and r["rti_loss_median"] is not None]),
              "rti_loss_max": max((r["rti_loss_max"] for r in table if r["factor"] == f and r["mode"] == mode

@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
+import time
 
 import numpy as np
 
@@ -49,13 +50,13 @@ def budget_settings(factor: float, **solver) -> SolverSettings:
 
 
 @contextlib.contextmanager
-def _timed_steps(ctrl, times: list, on_step=None, prepare: bool = True):
+def _timed_steps(ctrl, times: list, cpu_times: list, on_step=None, prepare: bool = True):
     orig_obs = cl.observation
     orig_compute = ctrl.compute
-    state = {"t0": None, "first": True}
+    state = {"t0": None, "c0": None, "first": True}
 
     def observation(*args, **kwargs):
-        state["t0"] = ctrl.clock()
+        state["t0"], state["c0"] = ctrl.clock(), time.thread_time()
         return orig_obs(*args, **kwargs)
 
     def compute(obs):
@@ -63,9 +64,10 @@ def _timed_steps(ctrl, times: list, on_step=None, prepare: bool = True):
             state["first"] = False
             if prepare and hasattr(ctrl, "prepare"):
                 ctrl.prepare(obs)  # the node's first solve before it takes control: not a control step
-                state["t0"] = ctrl.clock()
+                state["t0"], state["c0"] = ctrl.clock(), time.thread_time()
         cmd, diag = orig_compute(obs, t_start=state["t0"])
         times.append(1e3 * (ctrl.clock() - state["t0"]))
+        cpu_times.append(1e3 * (time.thread_time() - state["c0"]))
         if on_step is not None:
             on_step(obs, cmd, diag)
         return cmd, diag
@@ -79,10 +81,16 @@ def _timed_steps(ctrl, times: list, on_step=None, prepare: bool = True):
         del ctrl.compute
 
 
-def timed_run(ctrl, scenario, strategy: str, settings: cl.SimSettings, on_step=None, prepare: bool = True):
-    """Simulate with ``ctrl``, timing each whole control step [ms]; returns ``(RunResult, step_ms)``."""
+def timed_run(ctrl, scenario, strategy: str, settings: cl.SimSettings, on_step=None, prepare: bool = True,
+              cpu_ms: list | None = None):
+    """Simulate with ``ctrl``, timing each whole control step [ms]; returns ``(RunResult, step_ms)``.
+
+    ``cpu_ms``: if given, receives each step's CPU time of this thread [ms] (wall minus it is the
+    time the thread waited, e.g. preempted by other processes on a loaded machine).
+    """
     times: list[float] = []
-    with _timed_steps(ctrl, times, on_step, prepare):
+    cpu: list[float] = [] if cpu_ms is None else cpu_ms
+    with _timed_steps(ctrl, times, cpu, on_step, prepare):
         res = cl.simulate(scenario, strategy, settings, controller=ctrl)
     return res, np.array(times)
 
@@ -121,7 +129,10 @@ def slowdown_table(strategies, factors=(1, 10, 100), scenario: str = "sc03", hor
                         e_ref = prob.evaluate(ref.w, data.p).J_e
                         _e.append((ev.J_e - e_ref) / max(abs(e_ref), 1e-9))
 
-                res, step_ms = timed_run(ctrl, sc, strat, sim, on_step, prepare)
+                cpu: list[float] = []
+                res, step_ms = timed_run(ctrl, sc, strat, sim, on_step, prepare, cpu)
+                cpu_ms = np.array(cpu)
+                deadline_ms = 1e3 * (ctrl.settings.solver.step_budget_s - ctrl.settings.solver.step_reserve_s)
                 c = ctrl.counters
                 m = res.metrics
                 budget_ms = 1e3 * ctrl.settings.solver.step_budget_s
@@ -131,6 +142,9 @@ def slowdown_table(strategies, factors=(1, 10, 100), scenario: str = "sc03", hor
                        "budget_ms": budget_ms, "step_median_ms": float(np.median(step_ms)),
                        "step_p99_ms": float(np.percentile(step_ms, 99)), "step_max_ms": float(np.max(step_ms)),
                        "overruns": int(np.sum(step_ms > budget_ms)),
+                       "max_past_deadline_ms": float(np.max(step_ms) - deadline_ms),
+                       "step_cpu_max_ms": float(np.max(cpu_ms)),
+                       "max_cpu_past_deadline_ms": float(np.max(cpu_ms) - deadline_ms),
                        "E_tot_kWh": m["E_tot_kWh"], "I_pmv": m["I_pmv"],
                        "rti_loss_median": float(np.median(losses)) if losses else None,
                        "rti_loss_max": float(np.max(losses)) if losses else None,
@@ -144,12 +158,15 @@ def slowdown_table(strategies, factors=(1, 10, 100), scenario: str = "sc03", hor
                     row["dE_vs_full_1x_pct"] = 100.0 * (m["E_tot_kWh"] / ref["E_tot_kWh"] - 1.0)
                     row["dI_pmv_vs_full_1x_pct"] = 100.0 * (m["I_pmv"] / ref["I_pmv"] - 1.0)
                 rows.append(row)
-                loss = (f"RTI loss median {row['rti_loss_median']:.1e} max {row['rti_loss_max']:.1e} ({len(losses)})"
-                        if losses else "")
+                loss = (f"RTI loss median {row['rti_loss_median']:.1e} max {row['rti_loss_max']:.1e} ({len(losses)}); "
+                        f"energy term median {row['rti_energy_term_diff_median']:+.1e} "
+                        f"max |.| {row['rti_energy_term_diff_max_abs']:.1e}" if losses else "")
                 print(f"{factor:4g}x {mode:4s} {strat:10s} budget {budget_ms:7.1f} ms: NMPC {row['nmpc']:3d}/"
                       f"{row['steps']} (converged {c.converged}, iterates {c.accepted_iterates}, rti {c.rti_steps}), "
                       f"shifted {row['shifted_plan']}, ACC {row['acc_law']}; step median {row['step_median_ms']:.2f}"
-                      f" p99 {row['step_p99_ms']:.2f} max {row['step_max_ms']:.2f} ms, overruns {row['overruns']}; "
+                      f" p99 {row['step_p99_ms']:.2f} max {row['step_max_ms']:.2f} ms, overruns {row['overruns']} "
+                      f"(max {row['max_past_deadline_ms']:+.2f} ms past the deadline, CPU time "
+                      f"{row['max_cpu_past_deadline_ms']:+.2f} ms); "
                       f"dE {row.get('dE_vs_full_1x_pct', 0.0):+.3f} % "
                       f"dI_pmv {row.get('dI_pmv_vs_full_1x_pct', 0.0):+.3f} %"
                       f"  {loss}", flush=True)

@@ -70,6 +70,9 @@ class SimSettings:
     """((field, value), ...) overriding the CECO strategy settings (e.g. (('gamma_w', 1e4),))."""
     controller_config_path: str | None = None
     """Controller settings file; None: ceco_controller/config/controller.yaml."""
+    prepare_first_step: bool = False
+    """Before the first step, let an NMPC solve it without deadline (``NmpcController.prepare``), as
+    a node that does so before taking control; off: the first step is a cold solve inside it."""
 
     def validate(self) -> None:
         """Raise ValueError naming the field if a setting is not usable."""
@@ -142,6 +145,8 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
             k = i // steps_per_ctrl
             pv = make_previews(scenario, t, ts, n_p + 1, quality)
             obs = observation(k, t, sp.meas, scenario.env_at(t), sp.cmd, pv, scenario)
+            if k == 0 and settings.prepare_first_step and hasattr(controller, "prepare"):
+                controller.prepare(obs)
             cmd, diag = controller.compute(obs)
             if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
                 raise AssertionError(f"{strategy}: command {cmd} outside the actuator bounds at t={t}")
