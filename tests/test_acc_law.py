@@ -110,3 +110,40 @@ def test_a_sensor_fault_at_take_over_holds_the_applied_command():
     for _ in range(3):
         c = law.step(math.nan, 5.0)
         assert c.mode == "sensor_fault" and (c.mdot_bl_kgps, c.t_evap_sp_c) == pytest.approx((0.08, 5.0))
+
+
+def test_allowance_ramps_the_setpoint_over_the_relaxed_bound():
+    law = AccLaw(AccSettings(allowance_k_per_pmv=2.0))
+    assert law.step(27.0, 5.0, pmv_ub=3.0).setpoint_c == pytest.approx(26.0 + 2.0 * 2.5)
+    assert law.step(27.0, 5.0, pmv_ub=1.5).setpoint_c == pytest.approx(28.0)
+    assert law.step(27.0, 5.0, pmv_ub=0.5).setpoint_c == 26.0        # in the band: no allowance
+    assert law.step(27.0, 5.0).setpoint_c == 26.0                    # no bound given
+    plain = AccLaw()
+    assert plain.step(27.0, 5.0, pmv_ub=3.0).setpoint_c == 26.0       # off by default
+
+
+def test_sun_and_ambient_compensation():
+    s = AccSettings(sun_gain_k_per_kwm2=1.5, ambient_gain_k_per_k=0.1, sun_blower_gain_kgps_per_kwm2=0.03,
+                    sun_filter_tau_s=20.0)
+    law = AccLaw(s)
+    c = law.step(20.0, 5.0, t_amb_c=35.0, solar_wm2=800.0)           # cabin cold: demand 0, blower at its floor
+    assert c.setpoint_c == pytest.approx(26.0 - 1.5 * 0.8 - 0.1 * 10.0)
+    assert c.mdot_bl_kgps == pytest.approx(0.05 + 0.03 * 0.8)
+    # first-order filter: a step from 800 to 0 W/m2 decays with exp(-dt/tau) per step
+    c = law.step(20.0, 5.0, t_amb_c=35.0, solar_wm2=0.0)
+    sf = 800.0 * math.exp(-5.0 / 20.0)
+    assert c.setpoint_c == pytest.approx(26.0 - 1.5 * sf / 1000 - 1.0)
+    # a missing reading keeps the filter and compensates nothing from that sensor
+    c = law.step(20.0, 5.0, t_amb_c=None, solar_wm2=math.nan)
+    assert c.setpoint_c == pytest.approx(26.0 - 1.5 * sf / 1000)
+    # the blower floor never exceeds the maximum flow
+    big = AccLaw(AccSettings(sun_blower_gain_kgps_per_kwm2=1.0))
+    assert big.step(20.0, 5.0, solar_wm2=1000.0).mdot_bl_kgps == pytest.approx(0.17)
+    assert not AccSettings().compensated and s.compensated
+
+
+@pytest.mark.parametrize("field, value", [("allowance_k_per_pmv", -1.0), ("sun_filter_tau_s", 0.0),
+                                          ("sun_blower_gain_kgps_per_kwm2", -0.1), ("sun_gain_k_per_kwm2", math.nan)])
+def test_bad_compensation_settings(field, value):
+    with pytest.raises(ValueError, match=field):
+        AccSettings(**{field: value}).validate()

@@ -1,17 +1,32 @@
-"""Bag writing/reading without ROS: rosbags-serialized ceco messages through
-BagWriter (sqlite3, metadata version 9) and back through bagio's loaders."""
+"""Bags without ROS: rosbags-serialized ceco messages written by bag_writer.BagWriter
+(MCAP and SQLite 3, metadata version 9), read back by bagio under every topic naming,
+read by an independent reader (the `mcap` package with mcap_ros2), and a bag written
+the way `ros2 bag record` writes one read by bagio."""
 import csv
+import json
 import math
+import shutil
+import struct
 
 import numpy as np
 import pytest
 import yaml
+from bag_helpers import (
+    assert_same_fields,
+    check_jazzy_metadata,
+    check_qos_v9,
+    plain,
+    sample,
+    write_ros2_bag_record_style,
+)
 
-from ceco_bringup import bagio
+from ceco_bringup import bag_writer, bagio
 
-TOPICS = {'cabin/state': 'ceco_msgs/msg/CabinState', 'cabin/comfort': 'ceco_msgs/msg/Comfort',
-          'hvac/power': 'ceco_msgs/msg/AcPower', 'hvac/command': 'ceco_msgs/msg/AcCommand',
-          'controller/diagnostics': 'ceco_msgs/msg/ControllerDiagnostics'}
+TYPES = {'cabin/state': 'ceco_msgs/msg/CabinState', 'cabin/comfort': 'ceco_msgs/msg/Comfort',
+         'hvac/power': 'ceco_msgs/msg/AcPower', 'hvac/command': 'ceco_msgs/msg/AcCommand',
+         'controller/diagnostics': 'ceco_msgs/msg/ControllerDiagnostics',
+         'v2x/weather_preview': 'ceco_msgs/msg/WeatherPreview', 'v2x/traffic_preview': 'ceco_msgs/msg/TrafficPreview'}
+SEC = 1_000_000_000
 
 
 def _msg(type_name, **fields):
@@ -39,81 +54,152 @@ def _ser(msg):
     return bagio.typestore().serialize_cdr(msg, msg.__msgtype__)
 
 
-def _writer(path):
-    w = bagio.BagWriter(path)
-    for topic, type_name in TOPICS.items():
-        w.add_topic(topic, type_name)
+def _writer(path, storage='mcap', ns='/'):
+    w = bag_writer.BagWriter(path, storage=storage)
+    for topic, type_name in TYPES.items():
+        w.add_topic(ns + topic if ns is not None else topic, type_name)
     return w
 
 
-def _write_steps(w, steps, *, skip_power=()):
+def _write_steps(w, steps, *, ns='/', skip_power=(), scale=1.0):
+    pre = ns if ns is not None else ''
     for n in steps:
-        w.write('cabin/state', 1_000, _ser(_msg('ceco_msgs/msg/CabinState', t=float(n), step_index=n,
-                                                 scenario_time_s=float(n), t_cab_c=40.0 - n, t_vent_c=10.0 + n)))
-        w.write('cabin/comfort', 1_000, _ser(_msg('ceco_msgs/msg/Comfort', t=float(n), step_index=n,
-                                                   pmv=1.0 - 0.1 * n, pmv_lb=-0.5, pmv_ub=0.5)))
+        t_ns = n * SEC
+        w.write(pre + 'cabin/state', t_ns, _ser(_msg('ceco_msgs/msg/CabinState', t=float(n), step_index=n,
+                                                     scenario_time_s=float(n), t_cab_c=scale * (40.0 - n),
+                                                     t_vent_c=10.0 + n)))
+        w.write(pre + 'cabin/comfort', t_ns, _ser(_msg('ceco_msgs/msg/Comfort', t=float(n), step_index=n,
+                                                       pmv=1.0 - 0.1 * n, pmv_lb=-0.5, pmv_ub=0.5)))
         if n not in skip_power:
-            w.write('hvac/power', 1_000, _ser(_msg('ceco_msgs/msg/AcPower', t=float(n), step_index=n,
-                                                    p_comp_w=1000.0 + n, p_blower_w=50.0, mdot_bl_kgps=0.1,
-                                                    t_evap_sp_c=5.0)))
+            w.write(pre + 'hvac/power', t_ns, _ser(_msg('ceco_msgs/msg/AcPower', t=float(n), step_index=n,
+                                                        p_comp_w=scale * (1000.0 + n), p_blower_w=50.0,
+                                                        mdot_bl_kgps=0.1, t_evap_sp_c=5.0)))
 
 
-def test_round_trip_rows_are_the_complete_plant_steps(tmp_path):
-    w = _writer(tmp_path / 'bag')
+@pytest.mark.parametrize('storage', bag_writer.STORAGES)
+def test_round_trip_rows_are_the_complete_plant_steps(tmp_path, storage):
+    w = _writer(tmp_path / 'bag', storage)
     _write_steps(w, [2, 0, 1, 3], skip_power={3})
-    w.write('cabin/state', 1_000, _ser(_msg('ceco_msgs/msg/CabinState', step_index=1, t_cab_c=99.0)))  # duplicate
+    w.write('/cabin/state', 5 * SEC, _ser(_msg('ceco_msgs/msg/CabinState', step_index=1, t_cab_c=99.0)))  # duplicate
     w.close()
+    assert (tmp_path / 'bag' / f'bag.{"mcap" if storage == "mcap" else "db3"}').is_file()
     ts = bagio.load_run_timeseries(tmp_path / 'bag')
     assert list(ts)[:len(bagio.TIMESERIES_COLUMNS)] == list(bagio.TIMESERIES_COLUMNS)
     assert ts['step_index'].tolist() == [0, 1, 2]               # sorted; step 3 has no power: no row
-    assert ts['t_cab_c'].tolist() == [40.0, 39.0, 38.0]         # first message of a duplicated step kept
+    assert ts['t_cab_c'].tolist() == [40.0, 39.0, 38.0]         # first message (bag order) of a duplicated step
     assert ts['p_comp_w'].tolist() == [1000.0, 1001.0, 1002.0]
     assert ts['pmv'].tolist() == pytest.approx([1.0, 0.9, 0.8])
     assert ts['mdot_bl_kgps'].tolist() == [0.1] * 3
     counts = bagio.topic_counts(tmp_path / 'bag')
-    assert counts['cabin/state'] == 5 and counts['hvac/power'] == 3
+    assert counts['/cabin/state'] == 5 and counts['/hvac/power'] == 3
 
 
-def test_metadata_is_rosbag2_version_9_sqlite3(tmp_path):
+@pytest.mark.parametrize('storage', bag_writer.STORAGES)
+def test_metadata_decodes_under_jazzy_rosbag2_rules(tmp_path, storage):
+    """metadata.yaml as `ros2 bag info` (Jazzy, version 9) reads it: every key it decodes,
+    with its type; QoS as a sequence of rmw policy strings; infinite durations as rmw's."""
+    from ceco_ros import interfaces
+    w = bag_writer.BagWriter(tmp_path / 'bag', storage=storage)
+    w.set_custom_data('strategy', 'ceco-ioch')
+    for topic, (type_name, offered, _) in interfaces.STACK_TOPICS.items():
+        w.add_topic(topic if topic.startswith('/') else '/' + topic, type_name, offered)
+    _write_steps(w, [0, 1])
+    w.close()
+    meta = yaml.safe_load((tmp_path / 'bag' / 'metadata.yaml').read_text())
+    info = check_jazzy_metadata(meta, tmp_path / 'bag')
+    assert info['storage_identifier'] == storage and info['message_count'] == 6
+    assert info['starting_time']['nanoseconds_since_epoch'] == 0 and info['duration']['nanoseconds'] == SEC
+    assert info['custom_data'] == {'strategy': 'ceco-ioch'}
+    topics = {t['topic_metadata']['name']: t for t in info['topics_with_message_count']}
+    assert set(topics) == {'/cabin/state', '/cabin/comfort', '/hvac/power', '/hvac/command', '/controller/diagnostics',
+                           '/v2x/weather_preview', '/v2x/traffic_preview', '/clock', '/rosout'}
+    assert topics['/cabin/state']['message_count'] == 2 and topics['/hvac/command']['message_count'] == 0
+    (state_qos,) = topics['/cabin/state']['topic_metadata']['offered_qos_profiles']
+    assert (state_qos['history'], state_qos['depth'], state_qos['reliability'], state_qos['durability']) == (
+        'keep_last', 1000, 'reliable', 'volatile')
+    assert state_qos['deadline'] == {'sec': 9223372036, 'nsec': 854775807}
+    (preview_qos,) = topics['/v2x/weather_preview']['topic_metadata']['offered_qos_profiles']
+    assert (preview_qos['depth'], preview_qos['durability']) == (1, 'transient_local')
+
+
+def test_type_hashes_equal_rosidl_generated_ones(tmp_path):
+    """The type_description_hash of every ceco_msgs topic equals the RIHS01 hash rosidl
+    generated at build time (share/ceco_msgs/msg/<Type>.json), which Jazzy compares."""
+    ament = pytest.importorskip('ament_index_python.packages', reason='needs the sourced workspace')
+    try:
+        share = ament.get_package_share_directory('ceco_msgs')
+    except Exception:  # noqa: BLE001 (PackageNotFoundError and friends)
+        pytest.skip('ceco_msgs is not installed: build the workspace (colcon build)')
     w = _writer(tmp_path / 'bag')
-    _write_steps(w, [0])
     w.close()
     meta = yaml.safe_load((tmp_path / 'bag' / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
-    assert meta['version'] == 9 and meta['storage_identifier'] == 'sqlite3'
-    assert meta['message_count'] == 3
-    names = {t['topic_metadata']['name']: t['message_count'] for t in meta['topics_with_message_count']}
-    assert names['cabin/state'] == 1 and names['hvac/command'] == 0
+    for t in meta['topics_with_message_count']:
+        tm = t['topic_metadata']
+        rosidl = json.loads(open(f"{share}/msg/{tm['type'].split('/')[-1]}.json").read())['type_hashes'][0]
+        assert rosidl['type_name'] == tm['type'] and rosidl['hash_string'] == tm['type_description_hash']
 
 
-def test_timestamps_strictly_increase_in_arrival_order(tmp_path):
+def test_equal_timestamps_are_kept_and_read_in_write_order(tmp_path):
+    """Lockstep bags stamp a state, its comfort and its power with the same simulation time."""
     w = _writer(tmp_path / 'bag')
-    used = [w.write('hvac/command', t, _ser(_msg('ceco_msgs/msg/AcCommand', step_index=k)))
-            for k, t in enumerate([500, 500, 100, 800])]
+    for k, t in enumerate([5, 5, 0, 10, 5]):
+        w.write('/hvac/command', t * SEC, _ser(_msg('ceco_msgs/msg/AcCommand', step_index=k)))
     w.close()
-    assert used == [500, 501, 502, 800]
-    assert bagio.load_commands(tmp_path / 'bag')['k'].tolist() == [0, 1, 2, 3]
+    c = bagio.load_commands(tmp_path / 'bag')
+    assert c['t_recv_ns'].tolist() == [0, 5 * SEC, 5 * SEC, 5 * SEC, 10 * SEC]
+    assert c['k'].tolist() == [2, 0, 1, 4, 3]
 
 
-def test_flushed_bag_reads_back_without_close(tmp_path):
-    """What a SIGKILLed recorder leaves: everything up to the last flush."""
-    w = _writer(tmp_path / 'bag')
+@pytest.mark.parametrize('storage', bag_writer.STORAGES)
+def test_flushed_bag_is_complete_on_disk_without_close(tmp_path, storage):
+    """What a SIGKILLed recorder leaves: a copy of the files taken after a flush and
+    more (unflushed) writes reads back exactly what was flushed."""
+    w = _writer(tmp_path / 'bag', storage)
     _write_steps(w, range(4))
     w.flush()
-    ts = bagio.load_run_timeseries(tmp_path / 'bag')
-    assert ts['step_index'].tolist() == [0, 1, 2, 3]
+    assert bagio.load_run_timeseries(tmp_path / 'bag')['step_index'].tolist() == [0, 1, 2, 3]
     _write_steps(w, range(4, 6))
     w.flush()
-    assert bagio.load_run_timeseries(tmp_path / 'bag')['step_index'].tolist() == list(range(6))
-    assert bagio.topic_counts(tmp_path / 'bag')['cabin/state'] == 6
+    _write_steps(w, range(6, 9))                       # not flushed: lost by a SIGKILL now
+    shutil.copytree(tmp_path / 'bag', tmp_path / 'killed')
+    assert bagio.load_run_timeseries(tmp_path / 'killed')['step_index'].tolist() == list(range(6))
+    assert bagio.topic_counts(tmp_path / 'killed')['/cabin/state'] == 6
     w.close()
-    assert bagio.topic_counts(tmp_path / 'bag')['cabin/state'] == 6
+    assert bagio.load_run_timeseries(tmp_path / 'bag')['step_index'].tolist() == list(range(9))
+    assert bagio.topic_counts(tmp_path / 'bag')['/cabin/state'] == 9
+    if storage == 'mcap':                              # and a reader that is not rosbags agrees
+        from mcap.reader import make_reader
+        with open(tmp_path / 'killed' / 'bag.mcap', 'rb') as fh:
+            r = make_reader(fh)
+            assert r.get_summary().statistics.message_count == 18
+            assert sum(1 for _ in r.iter_messages()) == 18
+
+
+def test_full_mcap_chunk_between_flushes_leaves_a_complete_file(tmp_path):
+    """rosbags closes an MCAP chunk at 1 MiB; between two flushes the file then still ends
+    with a valid summary and footer, holding every message of the closed chunks."""
+    w = _writer(tmp_path / 'bag')
+    w.flush()
+    big = sample(bagio.typestore(), 'ceco_msgs/msg/WeatherPreview', 0)
+    big.t_amb_c = np.arange(4000.0)
+    for k in range(40):                                # 40 x 32 kB: one chunk closes past 1 MiB
+        big.step_index = k
+        w.write('/v2x/weather_preview', k * SEC, _ser(big))
+    shutil.copytree(tmp_path / 'bag', tmp_path / 'killed')
+    from mcap.reader import make_reader
+    with open(tmp_path / 'killed' / 'bag.mcap', 'rb') as fh:
+        n_on_disk = sum(1 for _ in make_reader(fh).iter_messages())
+    assert 30 <= n_on_disk < 40                        # the closed chunk, not the open one
+    got = [m.step_index for _, _, m in bagio.read_messages(tmp_path / 'killed', ['v2x/weather_preview'])]
+    assert got == list(range(n_on_disk))
+    w.close()
 
 
 def test_commands_and_diagnostics_loaders(tmp_path):
     w = _writer(tmp_path / 'bag')
-    w.write('hvac/command', 1, _ser(_msg('ceco_msgs/msg/AcCommand', t=5.0, step_index=1, blower_flow_kgps=0.12,
-                                          evap_setpoint_c=4.5, strategy='ceco-ioch', fallback=True)))
-    w.write('controller/diagnostics', 2, _ser(_msg(
+    w.write('/hvac/command', 1, _ser(_msg('ceco_msgs/msg/AcCommand', t=5.0, step_index=1, blower_flow_kgps=0.12,
+                                           evap_setpoint_c=4.5, strategy='ceco-ioch', fallback=True)))
+    w.write('/controller/diagnostics', 2, _ser(_msg(
         'ceco_msgs/msg/ControllerDiagnostics', t=5.0, step_index=1, strategy='baseline', status='pi',
         iterations=-1, solve_time_s=0.0015, cost_energy=math.nan, cost_comfort=math.nan, cost_ioch=math.nan,
         eps_mean=math.nan, cost_total=math.nan)))
@@ -128,3 +214,199 @@ def test_commands_and_diagnostics_loaders(tmp_path):
     rows = list(csv.DictReader(open(tmp_path / 'diagnostics.csv')))
     assert list(rows[0])[:len(bagio.DIAGNOSTICS_COLUMNS)] == list(bagio.DIAGNOSTICS_COLUMNS)
     assert rows[0]['iterations'] == '' and rows[0]['cost_energy'] == '' and rows[0]['status'] == 'pi'
+
+
+# --- names ---------------------------------------------------------------------------
+def test_topic_namespace_of_each_naming():
+    assert bagio.topic_namespace('cabin/state', 'cabin/state') == ''           # relative (older ceco bags)
+    assert bagio.topic_namespace('/cabin/state', 'cabin/state') == ''          # fully qualified
+    assert bagio.topic_namespace('/veh1/cabin/state', 'cabin/state') == '/veh1'
+    assert bagio.topic_namespace('/fleet/veh1/cabin/state', 'cabin/state') == '/fleet/veh1'
+    assert bagio.topic_namespace('/veh1/cabin/state_raw', 'cabin/state') is None
+    assert bagio.topic_namespace('/veh1/xcabin/state', 'cabin/state') is None
+    assert bagio.topic_namespace('veh1/cabin/state', 'cabin/state') is None     # relative names carry no namespace
+    assert bagio.topic_namespace('/clock', '/clock') == ''
+    assert bagio.topic_namespace('/veh1/clock', '/clock') is None
+
+
+def test_bag_topic_map_picks_one_namespace():
+    bag = ['/veh1/cabin/state', '/veh1/hvac/power', '/veh2/cabin/state', '/clock', '/rosout']
+    names = ['cabin/state', 'hvac/power', '/clock']
+    with pytest.raises(ValueError, match="several namespaces .*'/veh1', '/veh2'"):
+        bagio.bag_topic_map(bag, names)
+    assert bagio.bag_topic_map(bag, names, 'veh1') == {
+        '/veh1/cabin/state': 'cabin/state', '/veh1/hvac/power': 'hvac/power', '/clock': '/clock'}
+    assert bagio.bag_topic_map(bag, names, '/veh2/') == {'/veh2/cabin/state': 'cabin/state', '/clock': '/clock'}
+    assert bagio.bag_topic_map(bag, names, '/') == {'/clock': '/clock'}
+    assert bagio.bag_topic_map(['/cabin/state', '/clock'], names) == {'/cabin/state': 'cabin/state',
+                                                                       '/clock': '/clock'}
+
+
+@pytest.mark.parametrize('ns', [None, '/', '/veh1/'], ids=['relative', 'fully-qualified', 'namespaced'])
+def test_loaders_read_every_naming(tmp_path, ns):
+    w = _writer(tmp_path / 'bag', 'sqlite3', ns)
+    _write_steps(w, range(3), ns=ns)
+    w.write((ns or '') + 'hvac/command', 0, _ser(_msg('ceco_msgs/msg/AcCommand', step_index=0, blower_flow_kgps=0.1)))
+    w.close()
+    ts = bagio.load_run_timeseries(tmp_path / 'bag')
+    assert ts['step_index'].tolist() == [0, 1, 2] and ts['t_cab_c'].tolist() == [40.0, 39.0, 38.0]
+    assert bagio.load_commands(tmp_path / 'bag')['mdot_bl_kgps'].tolist() == [0.1]
+    assert set(bagio.topic_types(tmp_path / 'bag', ['cabin/state', 'hvac/power'])) == {'cabin/state', 'hvac/power'}
+
+
+def test_two_vehicle_bag_needs_a_namespace(tmp_path):
+    w = bag_writer.BagWriter(tmp_path / 'bag')
+    for ns in ('/veh1/', '/veh2/'):
+        for topic in ('cabin/state', 'cabin/comfort', 'hvac/power'):
+            w.add_topic(ns + topic, TYPES[topic])
+    _write_steps(w, range(3), ns='/veh1/')
+    _write_steps(w, range(2), ns='/veh2/', scale=2.0)
+    w.close()
+    with pytest.raises(ValueError, match='several namespaces'):
+        bagio.load_run_timeseries(tmp_path / 'bag')
+    v1 = bagio.load_run_timeseries(tmp_path / 'bag', namespace='veh1')
+    v2 = bagio.load_run_timeseries(tmp_path / 'bag', namespace='/veh2')
+    assert v1['t_cab_c'].tolist() == [40.0, 39.0, 38.0]
+    assert v2['t_cab_c'].tolist() == [80.0, 78.0] and v2['p_comp_w'].tolist() == [2000.0, 2002.0]
+
+
+# --- bag timestamps ------------------------------------------------------------------------
+def test_sim_time_stamps_are_the_header_stamps():
+    store = bagio.typestore()
+    stamps = bag_writer.SimTimeStamps()
+    log = store.serialize_cdr(sample(store, 'rcl_interfaces/msg/Log', 1, stamp_ns=1_700_000_000 * SEC),
+                              'rcl_interfaces/msg/Log')
+    assert stamps('rcl_interfaces/msg/Log', log) == 0                        # before any simulation time
+    for n, typ in enumerate(['ceco_msgs/msg/CabinState', 'ceco_msgs/msg/WeatherPreview', 'rosgraph_msgs/msg/Clock',
+                             'ceco_msgs/msg/ControllerDiagnostics']):
+        t_ns = 5 * n * SEC + 250_000_000
+        assert stamps(typ, store.serialize_cdr(sample(store, typ, n, stamp_ns=t_ns), typ)) == t_ns
+    assert stamps('rcl_interfaces/msg/Log', log) == 15 * SEC + 250_000_000    # wall-clock stamp ignored
+    # an older state after a newer one keeps its own stamp; the latest time does not go back
+    state = 'ceco_msgs/msg/CabinState'
+    old = store.serialize_cdr(sample(store, state, 0, stamp_ns=3 * SEC), state)
+    assert stamps('ceco_msgs/msg/CabinState', old) == 3 * SEC and stamps.latest_ns == 15 * SEC + 250_000_000
+
+
+def test_cdr_leading_time_little_and_big_endian():
+    assert bag_writer.cdr_leading_time_ns(b'\x00\x01\x00\x00' + struct.pack('<iI', 7, 5)) == 7 * SEC + 5
+    assert bag_writer.cdr_leading_time_ns(b'\x00\x00\x00\x00' + struct.pack('>iI', 7, 5)) == 7 * SEC + 5
+    with pytest.raises(ValueError, match='too short'):
+        bag_writer.cdr_leading_time_ns(b'\x00\x01\x00\x00')
+
+
+def test_lockstep_stamps_pace_the_bag_at_the_drive(tmp_path):
+    """Bag timestamps from SimTimeStamps: every stamped message at its header stamp
+    n * dt, so the bag lasts the drive (N - 1) * dt and `ros2 bag play` replays it at
+    its pace; /rosout at the simulation time it arrived in."""
+    store = bagio.typestore()
+    stamps = bag_writer.SimTimeStamps()
+    w = bag_writer.BagWriter(tmp_path / 'bag')
+    w.add_topic('/cabin/state', TYPES['cabin/state'])
+    w.add_topic('/clock', 'rosgraph_msgs/msg/Clock')
+    w.add_topic('/rosout', 'rcl_interfaces/msg/Log')
+    dt_ns, n_steps = SEC, 30
+    for n in range(n_steps):
+        for topic, typ in (('/clock', 'rosgraph_msgs/msg/Clock'), ('/cabin/state', TYPES['cabin/state'])):
+            data = store.serialize_cdr(sample(store, typ, n, stamp_ns=n * dt_ns), typ)
+            w.write(topic, stamps(typ, data), data)
+        if n % 10 == 5:
+            data = store.serialize_cdr(sample(store, 'rcl_interfaces/msg/Log', n, stamp_ns=1_700_000_000 * SEC),
+                                       'rcl_interfaces/msg/Log')
+            w.write('/rosout', stamps('rcl_interfaces/msg/Log', data), data)
+    w.close()
+    got = {}
+    for topic, t_ns, msg in bagio.read_messages(tmp_path / 'bag'):
+        got.setdefault(topic, []).append(t_ns)
+        if topic == '/cabin/state':
+            assert t_ns == msg.header.stamp.sec * SEC + msg.header.stamp.nanosec
+    assert got['/cabin/state'] == [n * dt_ns for n in range(n_steps)]
+    assert got['/clock'] == got['/cabin/state']
+    assert got['/rosout'] == [5 * SEC, 15 * SEC, 25 * SEC]
+    info = yaml.safe_load((tmp_path / 'bag' / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert info['duration']['nanoseconds'] == (n_steps - 1) * dt_ns
+    assert info['starting_time']['nanoseconds_since_epoch'] == 0
+
+
+# --- independent reader and writer -----------------------------------------------------------
+def test_independent_mcap_reader_gets_the_same_messages(tmp_path):
+    """Every ceco_msgs type (plus Clock and Log) written by BagWriter is decoded by the
+    `mcap` package with mcap_ros2 (its own CDR decoder, from the schema in the file) to
+    the same field values; log times are the bag timestamps; the channel metadata and
+    the embedded rosbag2 metadata are Jazzy's version 9."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    store = bagio.typestore()
+    types = {'/' + t: m for t, m in TYPES.items()} | {'/clock': 'rosgraph_msgs/msg/Clock',
+                                                     '/rosout': 'rcl_interfaces/msg/Log'}
+    from ceco_ros import interfaces
+    w = bag_writer.BagWriter(tmp_path / 'bag')
+    for topic, typ in types.items():
+        w.add_topic(topic, typ, interfaces.QOS_STATE)
+    written = []
+    for n in range(3):
+        for topic, typ in types.items():
+            msg = sample(store, typ, 10 * n + len(topic), stamp_ns=n * SEC)
+            w.write(topic, n * SEC + len(topic), store.serialize_cdr(msg, typ))
+            written.append((topic, n * SEC + len(topic), plain(msg)))
+    w.close()
+    with open(tmp_path / 'bag' / 'bag.mcap', 'rb') as fh:
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+        summary = reader.get_summary()
+        decoded = [(ch.topic, m.log_time, plain(d))
+                   for _, ch, m, d in reader.iter_decoded_messages(log_time_order=False)]
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+    assert summary.statistics.message_count == len(written) == 27
+    assert {ch.topic: sch.name for ch in summary.channels.values()
+            for sch in [summary.schemas[ch.schema_id]]} == types
+    for ch in summary.channels.values():
+        assert ch.message_encoding == 'cdr' and summary.schemas[ch.schema_id].encoding == 'ros2msg'
+        check_qos_v9(yaml.safe_load(ch.metadata['offered_qos_profiles']), ch.topic)
+        assert ch.metadata['topic_type_hash'] == store.hash_rihs01(types[ch.topic])
+    by_key = {(t, ts): v for t, ts, v in decoded}
+    assert len(by_key) == len(written)
+    for topic, t_ns, values in written:
+        assert_same_fields(values, by_key[(topic, t_ns)], f'{topic}@{t_ns}')
+    check_jazzy_metadata({'rosbag2_bagfile_information': yaml.safe_load(meta['rosbag2']['serialized_metadata'])},
+                         tmp_path / 'bag')
+    # and rosbags reads the same values back
+    back = [(t, ts, plain(m)) for t, ts, m in bagio.read_messages(tmp_path / 'bag')]
+    for topic, t_ns, values in back:
+        assert_same_fields(values, by_key[(topic, t_ns)], f'rosbags {topic}@{t_ns}')
+
+
+def _ros2_bag_record_bag(bag_dir, steps, ns=''):
+    """A `ros2 bag record`-style bag (independent writer) of plant steps 0..steps-1."""
+    store = bagio.typestore()
+    topics = {f'{ns}/cabin/state': TYPES['cabin/state'], f'{ns}/cabin/comfort': TYPES['cabin/comfort'],
+              f'{ns}/hvac/power': TYPES['hvac/power'], f'{ns}/hvac/command': TYPES['hvac/command']}
+    msgs = []
+    for n in range(steps):
+        t_wall = 1_764_000_000 * SEC + n * 20_000_000           # receive times of an accelerated loop
+        for topic, typ in topics.items():
+            if typ == TYPES['hvac/command'] and n % 5:
+                continue
+            m = plain(sample(store, typ, n, stamp_ns=n * SEC))
+            m['step_index'] = n // 5 if typ == TYPES['hvac/command'] else n
+            if typ == TYPES['cabin/state']:
+                m['scenario_time_s'], m['t_cab_c'] = float(n), 45.0 - 0.5 * n
+            if typ == TYPES['hvac/power']:
+                m['p_comp_w'], m['p_blower_w'] = 1500.0 - n, 60.0
+            msgs.append((topic, t_wall, m))
+    hashes = {t: store.hash_rihs01(t) for t in topics.values()}
+    from ceco_bringup.bagio import _msg_dir
+    write_ros2_bag_record_style(bag_dir, topics, msgs, _msg_dir(), hashes)
+
+
+@pytest.mark.parametrize('ns', ['', '/veh1'], ids=['root', 'namespaced'])
+def test_reads_a_bag_as_ros2_bag_record_writes_it(tmp_path, ns):
+    _ros2_bag_record_bag(tmp_path / 'rec', 10, ns)
+    meta = yaml.safe_load((tmp_path / 'rec' / 'metadata.yaml').read_text())
+    check_jazzy_metadata(meta, tmp_path / 'rec')              # the emulation follows the same rules
+    ts = bagio.load_run_timeseries(tmp_path / 'rec')
+    assert ts['step_index'].tolist() == list(range(10))
+    assert ts['t_cab_c'].tolist() == [45.0 - 0.5 * n for n in range(10)]
+    assert ts['p_comp_w'].tolist() == [1500.0 - n for n in range(10)]
+    cmds = bagio.load_commands(tmp_path / 'rec')
+    assert cmds['k'].tolist() == [0, 1] and cmds['t_s'].tolist() == [0.0, 5.0]
+    assert bagio.topic_counts(tmp_path / 'rec')[f'{ns}/cabin/state'] == 10

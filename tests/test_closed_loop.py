@@ -1,5 +1,6 @@
 """Closed loop on the real plant, scenarios and comfort: bounds, run directory, determinism, faults."""
 import csv
+import math
 import json
 
 import numpy as np
@@ -36,14 +37,19 @@ def test_run_directory_format_and_determinism(tmp_path):
     assert tuple(header[:20]) == cl.TIMESERIES_COLUMNS[:20]
     with open(d / "diagnostics.csv") as fh:
         rows = list(csv.reader(fh))
-    assert tuple(rows[0]) == DIAGNOSTICS_COLUMNS + ("pmv_pred", "t_cab_pred_c")
+    assert tuple(rows[0]) == DIAGNOSTICS_COLUMNS + ("pmv_pred", "t_cab_pred_c", "step_time_ms")
+    # every control step's wall time is recorded (a positive finite number; its size is not tested)
+    assert all(0.0 < float(dict(zip(rows[0], r))["step_time_ms"]) < math.inf for r in rows[1:])
     # predicted PMV and T_cab over the grid points 0..Np of every successful solve
+    checked = 0
     for row in rows[1:]:
         r = dict(zip(rows[0], row))
-        if r["success"] == "True":
+        if r["success"] == "1":
             pmv = [float(v) for v in r["pmv_pred"].split(";")]
             tcab = [float(v) for v in r["t_cab_pred_c"].split(";")]
             assert len(pmv) == len(tcab) == 7 and 20.0 < tcab[0] < 70.0 and abs(float(r["pmv_pred_1"]) - pmv[1]) < 1e-4
+            checked += 1
+    assert checked == len(rows) - 1 == 12  # every one of the 12 solves succeeded and was checked
     m = json.loads((d / "metrics.json").read_text())
     for key in ("E_tot_J", "I_pmv", "otc_violation_pct", "scenario", "strategy", "control_period_s",
                 "horizon_steps", "seed", "preview_quality"):
@@ -61,17 +67,25 @@ def test_missing_preview_span_does_not_crash(strategy):
 
 
 def test_ceco_inside_pmv_bounds_after_pulldown():
-    """SC03: ceco keeps the plant's PMV inside the bounds from t = 300 s on (tolerance 0.02 PMV).
+    """SC03: ceco keeps the plant's PMV inside the bounds once the pull-down allows it (tolerance 0.02 PMV).
 
     SC03 starts after the regulation's 10-minute soak; the scenario's upper bound
-    relaxes the pull-down (3.0 at 60 s, linearly to +0.5 at 300 s), so from 300 s
-    on the bounds are the comfort zone [-0.5, +0.5]. Tolerance 0.02 PMV: the
-    plant/model mismatch the robust back-off (0.1 PMV) has to absorb, with a
-    margin; measured worst case: 0.087 PMV *below* the upper bound.
+    relaxes the pull-down (3.0 at 30 s, linearly to +0.5 at 300 s). With the
+    occupant's environment in the scored PMV (docs/comfort.md: T_mr of the
+    sun-heated surfaces, body-average air speed) and the HVAC case/duct mass, the
+    cabin cannot follow that ramp: until t = 319 s every CECO strategy holds the
+    coldest command the actuator bounds allow (0.17 kg/s, 3 degC; measured) and PMV
+    is still above the bound (0.63 at 300 s). From 330 s on the bounds hold.
+    Tolerance 0.02 PMV: the plant/model mismatch the robust back-off (0.1 PMV) has
+    to absorb, with a margin.
     """
     res = cl.simulate("sc03", "ceco", cl.SimSettings(progress=False))
     ts = res.timeseries
-    after = ts["t_s"] >= 300.0
+    # after the first control period (t < 5 s: the vent air is the soaked 43 degC HVAC air, so the NMPC
+    # starts at low flow), every violation of the upper bound happens at full cooling
+    over = (ts["pmv"] > ts["pmv_ub"] + 0.02) & (ts["t_s"] >= 5.0)
+    assert np.all(ts["mdot_bl_kgps"][over] >= 0.17 - 1e-3) and np.all(ts["t_evap_sp_c"][over] <= 3.0 + 1e-3)
+    after = ts["t_s"] >= 330.0
     assert after.sum() > 250
     assert np.all(ts["pmv"][after] <= ts["pmv_ub"][after] + 0.02)
     assert np.all(ts["pmv"][after] >= ts["pmv_lb"][after] - 0.02)

@@ -22,6 +22,10 @@ def _obs(k=0, speed=10.0, valid=None, t_cab=28.0, **kw):
     return Observation(**d)
 
 
+_ZONE = dict(t_int_c=32.0, t_shell_c=32.0)
+"""Interior and shell temperatures of a cabin that a comfort-zone PMV is reachable in (T_mr 31 degC)."""
+
+
 def _valid(cmd):
     return ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c)
 
@@ -61,7 +65,8 @@ def test_ioch_eps_larger_at_high_speed():
         ctrl = NmpcController("ceco-ioch")
         vals = []
         for k in range(4):
-            cmd, diag = ctrl.compute(_obs(k, speed=speed, t_cab=26.0))
+            # a cabin inside the comfort zone (PMV 0.2 at 0.1 kg/s: T_mr 31 degC), so tightening is possible
+            cmd, diag = ctrl.compute(_obs(k, speed=speed, t_cab=24.0, **_ZONE))
             assert diag.success and _valid(cmd)
             vals.append(diag.eps_mean)
         eps[speed] = float(np.mean(vals))
@@ -172,7 +177,8 @@ def test_sqp_matches_ipopt_and_falls_back_to_ipopt():
     costs = {}
     for name, ctrl in (("sqp", sqp), ("ipopt", ipo)):
         for k in range(3):
-            cmd, diag = ctrl.compute(_obs(k, t_cab=27.0 - 0.3 * k))
+            # inside the comfort zone (T_mr 31 degC): the comfort constraint and the IOCH slack are active
+            cmd, diag = ctrl.compute(_obs(k, t_cab=24.5 - 0.3 * k, **_ZONE))
             assert diag.success and _valid(cmd)
         costs[name] = diag.cost_total
     assert sqp.n_ipopt_fallbacks == 0  # step 0 is a cold (IPOPT) solve, steps 1-2 warm sqpmethod
@@ -185,7 +191,7 @@ def test_sqp_matches_ipopt_and_falls_back_to_ipopt():
     assert abs(f_sqp.f - f_ipo.f) <= 1e-4 * abs(f_ipo.f)
     # a failing SQP is retried by warm IPOPT from the same start: valid command, counted
     sqp.solver = _FailingSolver()
-    cmd, diag = sqp.compute(_obs(3, t_cab=26.0))
+    cmd, diag = sqp.compute(_obs(3, t_cab=24.0, **_ZONE))
     assert sqp.n_ipopt_fallbacks == 1 and sqp.counters.retries == 1 and diag.success and diag.fallback == ""
     assert _valid(cmd) and diag.status.startswith("sqp: QP_Failed (stub); ipopt: ")
     assert "not used: warm sqp: no finite primal-dual point (QP_Failed (stub))" in diag.message
@@ -369,17 +375,17 @@ class _SlowQp:
 def test_an_iterate_cut_by_the_deadline_is_applied_when_its_violation_is_small():
     clock = _Clock()
     ctrl = NmpcController("ceco", clock=clock)
-    for k in range(2):
-        ctrl.compute(_obs(k, t_cab=28.0))
+    for k in range(2):  # inside the comfort zone: the comfort constraint is active (3 QPs per solve)
+        ctrl.compute(_obs(k, t_cab=24.5, **_ZONE))
     sqp = ctrl.solver.sqp
     sqp._qp = _SlowQp(sqp._qp, clock, 10.0)  # the first QP ends after the 1 s budget
-    cmd, diag = ctrl.compute(_obs(2, t_cab=25.0, speed=25.0))
+    cmd, diag = ctrl.compute(_obs(2, t_cab=23.5, speed=25.0, **_ZONE))
     assert diag.status == "Maximum_Wall_Time_Exceeded" and diag.iterations == 1 and not diag.success
     assert diag.fallback == "" and _valid(cmd) and "sqp iterate applied at its limit" in diag.message
     c = ctrl.counters
     assert c.accepted_iterates == 1 and c.retries == 0 and c.cold_solves == 1 and c.deadline_hits == 1
     # no time at all: no iteration, no retry, no cold solve: the last good plan shifted
-    cmd, diag = ctrl.compute(_obs(3, t_cab=25.0), t_start=clock() - 10.0)
+    cmd, diag = ctrl.compute(_obs(3, t_cab=23.5, **_ZONE), t_start=clock() - 10.0)
     assert diag.fallback == "shifted_plan" and "no iteration before the limit" in diag.message
     assert c.retries == 0 and c.cold_solves == 1 and c.deadline_hits == 2
 
@@ -417,3 +423,34 @@ def test_prepare_makes_the_first_step_warm_and_warm_up_leaves_no_trace():
     assert (c2.mdot_bl_kgps, c2.t_evap_sp_c) == pytest.approx((c1.mdot_bl_kgps, c1.t_evap_sp_c), abs=1e-5)
     # warm_up changed nothing: bit-identical first step
     assert (c3.mdot_bl_kgps, c3.t_evap_sp_c) == (c1.mdot_bl_kgps, c1.t_evap_sp_c) and d3.cost_total == d1.cost_total
+
+
+def test_comfort_parameters_humidity_setting_and_draught_penalty():
+    from ceco_core import psychro
+    from ceco_core.cabin_comfort import PAPER_PA_PA, cabin_mrt_c
+
+    with pytest.raises(ValueError, match="pmv_pa_source"):
+        strategy_settings("ceco", pmv_pa_source="sensor")
+    with pytest.raises(ValueError, match="draught_weight_kj"):
+        strategy_settings("ceco", draught_weight_kj=-1.0)
+    paper = NmpcController("ceco")
+    measured = NmpcController(strategy_settings("ceco", pmv_pa_source="measured"))
+    obs = _obs(0, t_cab=25.0, rh_cab=0.3, t_glass_c=36.0)
+    t_mr, pa = paper.comfort_parameters(obs)
+    assert pa == PAPER_PA_PA
+    assert t_mr == pytest.approx(float(cabin_mrt_c(t_cab_c=25.0, t_int_c=40.0, t_shell_c=38.0, t_glass_c=36.0,
+                                                   params=paper.comfort_params)), abs=1e-12)
+    assert measured.comfort_parameters(obs)[1] == pytest.approx(float(psychro.vapour_pressure_pa(25.0, 0.3)))
+    assert measured.comfort_parameters(_obs(0, t_cab=25.0))[1] == PAPER_PA_PA  # no RH measured: 1700 Pa
+    # p_a (the named slice 'pa'): the same plan predicted with a drier cabin is cooler (~0.15 PMV)
+    _, d_paper = paper.compute(_obs(0, t_cab=24.0, rh_cab=0.3, **_ZONE))
+    data = paper.last_nlp()
+    p_dry = data.p.copy()
+    p_dry[paper.problem.params.slices["pa"]] = float(psychro.vapour_pressure_pa(24.0, 0.3))
+    w = data.x0
+    drop = paper.evaluate(w, data.p).pmv - paper.evaluate(w, p_dry).pmv
+    assert d_paper.success and np.all((drop > 0.1) & (drop < 0.25))
+    # the draught penalty enters the comfort cost (off by default)
+    dr = NmpcController(strategy_settings("ceco", draught_weight_kj=0.01))
+    _, d_dr = dr.compute(_obs(0, t_cab=24.0, **_ZONE))
+    assert d_paper.cost_comfort == 0.0 and d_dr.success and d_dr.cost_comfort > 0.0

@@ -10,6 +10,7 @@ import yaml
 from ceco_v2x_preview.scenario import (
     Environment,
     ScenarioError,
+    SunGeometry,
     list_drive_cycles,
     list_scenarios,
     load_drive_cycle,
@@ -225,3 +226,17 @@ def test_cli_validates_and_summarises(tmp_path, capsys):
     bad.write_text(yaml.safe_dump(d))
     assert main([str(bad)]) == 1
     assert "occupant.met" in capsys.readouterr().err
+
+
+def test_sun_geometry_block():
+    d = _sc03_dict()
+    assert scenario_from_dict(d).sun == SunGeometry(60.0, 180.0, 180.0)  # defaults: sun ahead, 60 deg
+    d["sun"] = {"altitude_deg": 35, "azimuth_deg": 250.0}
+    sc = scenario_from_dict(d)
+    assert (sc.sun.altitude_deg, sc.sun.azimuth_deg, sc.sun.heading_deg) == (35.0, 250.0, 180.0)
+    assert isinstance(sc.sun.altitude_deg, float)
+    for bad, field in (({"altitude_deg": 95.0}, "sun.altitude_deg"), ({"heading_deg": -1.0}, "sun.heading_deg"),
+                       ({"zenith_deg": 10.0}, "sun.zenith_deg: unknown field")):
+        d["sun"] = bad
+        with pytest.raises(ScenarioError, match=field):
+            scenario_from_dict(d)

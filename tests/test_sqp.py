@@ -46,7 +46,7 @@ def test_convexification_is_exact_on_the_ill_conditioned_input_block():
         conds.append(abs(lam).max() / max(abs(lam).min(), 1e-300))
         hc = sqp.convexify(h)[ix]
         lam_c = np.linalg.eigvalsh(hc)
-        assert lam_c.min() >= floor * (1 - 1e-6)
+        assert lam_c.min() >= floor - 1e-12 * abs(lam).max()  # (rounding of V diag(lam) V')
         keep = lam >= floor
         np.testing.assert_allclose(hc @ vec[:, keep], vec[:, keep] * lam[keep], atol=1e-9 * abs(lam).max())
         # entries outside the blocks with curvature stay zero (the linear slacks)
@@ -96,10 +96,11 @@ def test_real_time_iteration_is_one_full_qp_step():
 def test_parameter_layout_names_every_slice():
     pl = ParamLayout(4)
     assert pl.names() == ("x0", "t_int", "t_shell", "d_cab", "d_evap", "d_ain", "u_prev", "t_amb", "solar", "speed",
-                          "pmv_lb", "pmv_ub")
-    assert pl.size == 9 + 5 * 4
+                          "pmv_lb", "pmv_ub", "t_mr", "pa")
+    assert pl.size == 9 + 5 * 4 + 2
     p = pl.pack(x0=[1, 2], t_int=3, t_shell=4, d_cab=5, d_evap=6, d_ain=7, u_prev=[8, 9], t_amb=np.arange(4),
-                solar=10 + np.arange(4), speed=20 + np.arange(4), pmv_lb=-1, pmv_ub=1)
+                solar=10 + np.arange(4), speed=20 + np.arange(4), pmv_lb=-1, pmv_ub=1, t_mr=30, pa=1700)
+    assert pl.scalar(p, "pa") == 1700 and p[-1] == 1700
     assert pl.scalar(p, "t_shell") == 4 and list(pl.get(p, "speed")) == [20, 21, 22, 23]
     assert list(pl.get(p, "u_prev")) == [8, 9] and list(pl.get(p, "pmv_lb")) == [-1] * 4
     with pytest.raises(ValueError, match="missing"):

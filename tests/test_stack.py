@@ -92,12 +92,12 @@ class DdsPeer:
                 os.environ[key] = value
 
 
-def _recording_peer(tmp_path):
+def _recording_peer(tmp_path, **recorder_kw):
     """A test peer on a fresh domain with a rosbag2 Recorder spinning in it: (peer, recorder, log dir, bag)."""
     from ceco_bringup.recorder import Recorder
     tn = DdsPeer(_domain(), 'unused')
     bag = tmp_path / 'bag'
-    rec = Recorder(bag, context=tn.context)
+    rec = Recorder(bag, context=tn.context, **recorder_kw)
     tn.executor.add_node(rec)
     return tn, rec, tmp_path / 'logs', bag
 
@@ -132,7 +132,7 @@ def test_short_closed_loop_over_dds_matches_simulator(tmp_path):
     assert np.all((cmds['t_evap_sp_c'] >= 3.0) & (cmds['t_evap_sp_c'] <= 10.0))
     assert set(cmds['strategy']) == {'ceco-ioch'}
     counts = bagio.topic_counts(bag)
-    assert counts['cabin/state'] == 60 and counts['hvac/power'] == 60 and counts['cabin/comfort'] == 60
+    assert counts['/cabin/state'] == 60 and counts['/hvac/power'] == 60 and counts['/cabin/comfort'] == 60
     states = [m.step_index for _, _, m in bagio.read_messages(bag, ('cabin/state',))]
     assert sorted(states) == list(range(60))
     # the applied input of every plant step is the command of its control step
@@ -140,7 +140,12 @@ def test_short_closed_loop_over_dds_matches_simulator(tmp_path):
     assert ts['mdot_bl_kgps'].tolist() == [by_k[i // 5] for i in range(60)]
 
     from ceco_controller.closed_loop import SimSettings, simulate
-    sim = simulate('sc03', 'ceco-ioch', SimSettings(duration_s=60.0, progress=False)).metrics
+    sim_run = simulate('sc03', 'ceco-ioch', SimSettings(duration_s=60.0, progress=False))
+    sim = sim_run.metrics
+    # the comfort series published in cabin/comfort rebuild the simulator's columns (issue 9)
+    for col in ('pa_pa', 't_dew_c', 'fog_margin_k', 'dr_pct', 'ta_occ_c', 'vel_occ_mps', 't_mr_c', 'w_rad_wm2',
+                'iso7730_valid'):
+        np.testing.assert_allclose(ts[col], sim_run.timeseries[col], rtol=1e-12, atol=1e-12, err_msg=col)
     metrics = json.loads((out / 'metrics.json').read_text())
     for key in ('E_tot_J', 'E_comp_J', 'E_blower_J', 'I_pmv', 'otc_violation_pct', 'pmv_mean'):
         assert metrics[key] == pytest.approx(sim[key], rel=1e-6, abs=1e-12), key
@@ -151,6 +156,44 @@ def test_short_closed_loop_over_dds_matches_simulator(tmp_path):
     text, _ = p.communicate(timeout=300)
     assert p.returncode == 0, text
     assert '12/12 steps compared; max |d blower| 0.000e+00 kg/s, max |d set-point| 0.000e+00 K' in text
+    _check_lockstep_bag(bag, n_steps=60)
+
+
+def _check_lockstep_bag(bag, n_steps: int, dt_s: float = 1.0):
+    """A lockstep bag of `ceco run`: MCAP, fully qualified names, bag timestamps = the
+    simulation time (header stamps, /clock's clock; states at n * dt), the duration of
+    the drive; the `mcap` package with mcap_ros2 decodes the same messages as rosbags."""
+    import yaml
+    from bag_helpers import assert_same_fields, check_jazzy_metadata, plain
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    info = check_jazzy_metadata(yaml.safe_load((bag / 'metadata.yaml').read_text()), bag)
+    assert info['storage_identifier'] == 'mcap'
+    assert {t['topic_metadata']['name'] for t in info['topics_with_message_count']} == {
+        '/cabin/state', '/cabin/comfort', '/hvac/power', '/hvac/command', '/controller/diagnostics',
+        '/v2x/weather_preview', '/v2x/traffic_preview', '/clock', '/rosout'}
+    assert info['starting_time']['nanoseconds_since_epoch'] == 0
+    assert info['duration']['nanoseconds'] == round((n_steps - 1) * dt_s * 1e9)
+    ours = {}
+    for topic, t_ns, msg in bagio.read_messages(bag):
+        if topic == '/clock':
+            assert t_ns == msg.clock.sec * 10**9 + msg.clock.nanosec
+        elif topic != '/rosout':
+            assert t_ns == msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec, topic
+        if topic == '/cabin/state':
+            assert t_ns == round(msg.step_index * dt_s * 1e9)
+        ours.setdefault(topic, []).append((t_ns, plain(msg)))
+    (mcap_file,) = info['relative_file_paths']
+    theirs = {}
+    with open(bag / mcap_file, 'rb') as fh:
+        for _, ch, m, d in make_reader(fh, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            theirs.setdefault(ch.topic, []).append((m.log_time, plain(d)))
+    assert {t: len(v) for t, v in theirs.items()} == {t: len(v) for t, v in ours.items()}
+    for topic in ours:   # (ties in time, several /rosout lines at one simulation time, in any order)
+        for (t_a, a), (t_b, b) in zip(sorted(ours[topic], key=repr), sorted(theirs[topic], key=repr)):
+            assert t_a == t_b
+            assert_same_fields(a, b, topic)
 
 
 # ----------------------------------------------------------------------------
@@ -163,6 +206,42 @@ def _state_msg(k_plant: int, t_s: float, **override):
     for key, value in override.items():
         setattr(m, key, value)
     return m
+
+
+def test_recorder_records_a_namespaced_stack_fully_qualified(tmp_path):
+    """A stack under /veh1 beside one in the root namespace, one domain: the Recorder
+    for namespace /veh1 (SQLite 3, simulation-time stamps) records /veh1/cabin/state and
+    the global /clock under their fully qualified names, nothing of the root stack, each
+    state at its header stamp; bagio reads it back by the stack names."""
+    from rosgraph_msgs.msg import Clock
+
+    from ceco_msgs.msg import CabinState
+    tn, rec, _, bag = _recording_peer(tmp_path, namespace='/veh1', storage='sqlite3', timestamps='sim')
+    veh1 = rclpy.create_node('plant_node', namespace='/veh1', context=tn.context)
+    root = rclpy.create_node('plant_node', context=tn.context)
+    pub_veh1 = veh1.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
+    pub_root = root.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
+    pub_clock = root.create_publisher(Clock, interfaces.TOPIC_CLOCK, interfaces.QOS_CLOCK)
+    try:
+        assert rec.bag_topics[interfaces.TOPIC_STATE] == '/veh1/cabin/state'
+        _wait_for(lambda: pub_veh1.get_subscription_count() >= 1 and pub_clock.get_subscription_count() >= 1,
+                  30, 'the recorder to match /veh1/cabin/state and /clock')
+        assert pub_root.get_subscription_count() == 0
+        for n in range(10):
+            pub_clock.publish(Clock(clock=conversions.stamp_from_s(0.5 * n)))
+            pub_veh1.publish(_state_msg(n, 0.5 * n))
+            pub_root.publish(_state_msg(n, 0.5 * n, t_cab_c=99.0))
+        _wait_for(lambda: rec.n_messages >= 20, 30, 'the recorder to receive 10 states and 10 clocks')
+        time.sleep(0.3)
+    finally:
+        counts = rec.close()
+        veh1.destroy_node()
+        root.destroy_node()
+        tn.close()
+    assert counts['/veh1/cabin/state'] == 10 and counts['/clock'] == 10 and '/cabin/state' not in counts
+    got = [(t, m.step_index, m.t_cab_c) for _, t, m in bagio.read_messages(bag, ('cabin/state',))]
+    assert got == [(n * 500_000_000, n, 45.0) for n in range(10)]
+    assert (bag / 'bag.db3').is_file()
 
 
 def _log_has(proc, text, timeout_s=20.0):
@@ -283,7 +362,7 @@ def test_kill_mpc_node_plant_falls_back_and_restart_takes_over(tmp_path):
     (lockstep: a wall-clock timeout, within the next control step), logs it and
     applies the production ACC law; a restarted mpc_node takes over again.
     The bag holds every state exactly once, before and after the fault."""
-    tn, rec, log_dir, bag = _recording_peer(tmp_path)
+    tn, rec, log_dir, bag = _recording_peer(tmp_path, timestamps='sim')
     n_steps = 600
     common = {'scenario': 'sc03', 'timing': 'lockstep', 'control_period_s': 5.0}
     preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', tn.env, log_dir,
@@ -352,10 +431,11 @@ def test_sigint_to_ceco_run_leaves_complete_bag(tmp_path):
     p = _cli('run', '--scenario', 'sc03', '--strategy', 'baseline', '--timing', 'realtime', '--duration-s', '60',
              '--out', str(out), '--no-progress', '--domain-id', str(_domain()))
     meta = out / 'bag' / 'metadata.yaml'
+    t_wall_start_ns = time.time_ns()
 
     def n_states():
         try:
-            return bagio.topic_counts(out / 'bag').get('cabin/state', 0)
+            return bagio.topic_counts(out / 'bag').get('/cabin/state', 0)
         except Exception:
             return 0
     try:
@@ -365,6 +445,7 @@ def test_sigint_to_ceco_run_leaves_complete_bag(tmp_path):
     finally:
         if p.poll() is None:
             p.kill()
+    t_wall_end_ns = time.time_ns()
     assert p.returncode == 130, text
     assert 'interrupted' in text
     counts = bagio.topic_counts(out / 'bag')
@@ -374,6 +455,9 @@ def test_sigint_to_ceco_run_leaves_complete_bag(tmp_path):
     assert {t: c for t, c in counts.items() if c} == read
     states = [m.step_index for _, _, m in bagio.read_messages(out / 'bag', ('cabin/state',))]
     assert len(states) >= 3 and states == list(range(len(states)))
+    # real time: bag timestamps are the wall-clock receive times (as rosbag2 records by default)
+    stamps = [t for _, t, _ in bagio.read_messages(out / 'bag')]
+    assert t_wall_start_ns < min(stamps) and max(stamps) < t_wall_end_ns
     for log in (out / 'logs').glob('*.log'):      # every child went through its shutdown path
         assert 'Traceback' not in log.read_text(), log
 

@@ -3,6 +3,7 @@ to direct closed-loop runs, on the local process pool and on a local Ray
 instance. Runs are shortened (duration_s) to keep the suite fast."""
 
 import csv
+import importlib.util
 import json
 import math
 
@@ -89,9 +90,12 @@ def test_local_sweep_equals_direct_runs_and_resumes(tmp_path):
     assert len(table) == 4
     assert {(r['strategy'], r['climate']) for r in table} == {
         ('baseline', 'hot'), ('ceco', 'hot'), ('baseline', 'mild'), ('ceco', 'mild')}
-    import polars as pl   # with the analysis extra (fastsim depends on it): Parquet written too
-    pq = pl.read_parquet(out / 'results.parquet')
-    assert pq.height == 4 and pq['E_tot_J'].to_list() == [float(r['E_tot_J']) for r in table]
+    if importlib.util.find_spec('polars') is not None:   # the analysis extra (fastsim pulls it): Parquet too
+        import polars as pl
+        pq = pl.read_parquet(out / 'results.parquet')
+        assert pq.height == 4 and pq['E_tot_J'].to_list() == [float(r['E_tot_J']) for r in table]
+    elif importlib.util.find_spec('pyarrow') is None:
+        assert not (out / 'results.parquet').exists()
     # Two cells against direct simulate() calls in this process: equal exactly.
     cells = {c.id: c for c in sweep.expand_grid(sweep.load_grid(grid))}
     for row in table[:2]:
@@ -130,8 +134,8 @@ def test_failed_cell_is_recorded_and_retried(tmp_path, monkeypatch):
     assert sweep.read_done(log) == {}                                   # errors are retried
 
 
+@pytest.mark.extra('ray')
 def test_ray_backend_matches_local(tmp_path):
-    import ray  # noqa: F401  (the analysis extra; tools/setup.sh installs requirements/analysis.txt)
     grid = _grid(tmp_path, GRID.replace('  mild: {t_amb_c: 28.0, solar_wm2: [400, 300], rh: 0.5, '
                                         'initial: {t_cab_c: 40.0}}\n', ''), duration=15)
     ray_res = sweep.run_sweep(grid, tmp_path / 'ray', backend='ray', workers=2, progress=False,
@@ -145,6 +149,7 @@ def test_ray_backend_matches_local(tmp_path):
             assert r[key] == by_axes[r['strategy']][key]
 
 
+@pytest.mark.extra('fastsim')
 def test_verify_reruns_cells_exactly_and_vehicle_level(tmp_path):
     grid = _grid(tmp_path, GRID.replace('[baseline, ceco]', '[ceco-ioch]') + 'vehicle: true\n', duration=40)
     res = sweep.run_sweep(grid, tmp_path / 'out', workers=1, progress=False, log=lambda *a, **k: None)
@@ -170,7 +175,7 @@ def test_code_fingerprint_is_part_of_the_id(tmp_path, monkeypatch):
     grid = sweep.load_grid(_grid(tmp_path))
     cells = sweep.expand_grid(grid)
     assert all(c.spec['code'] == sweep.code_fingerprint() for c in cells)
-    monkeypatch.setattr(sweep, 'code_fingerprint', lambda: '0' * 16)
+    monkeypatch.setattr(sweep.cells, 'code_fingerprint', lambda: '0' * 16)
     other = sweep.expand_grid(grid)
     assert not {c.id for c in other} & {c.id for c in cells}       # changed simulator: every cell reruns
     monkeypatch.undo()
@@ -184,7 +189,7 @@ SETTINGS_GRID = """
 name: gamma test grid
 strategies: [baseline, ceco-c]
 scenarios: [sc03_mild]
-duration_s: 120
+duration_s: 240
 settings:
   g1k:  {ceco-c: {gamma_w: 1000}}
   g50k: {ceco-c: {gamma_w: 50000.0}}
@@ -221,7 +226,7 @@ def test_settings_axis_expands_per_strategy_and_keeps_other_ids(tmp_path):
     ('default: {ceco-c: {gamma_w: 1.0}}', r"settings\.default: the label 'default' is reserved"),
 ])
 def test_bad_settings_fail_before_any_run_naming_the_field(tmp_path, monkeypatch, entry, match):
-    monkeypatch.setattr(sweep, 'run_cell', lambda *a, **k: pytest.fail('a cell ran'))
+    monkeypatch.setattr(sweep.cells, 'run_cell', lambda *a, **k: pytest.fail('a cell ran'))
     text = SETTINGS_GRID.split('settings:')[0] + 'settings:\n  ' + entry + '\n'
     with pytest.raises(ValueError, match=match):
         sweep.run_sweep(_grid(tmp_path, text), tmp_path / 'out', workers=1, progress=False,
@@ -235,11 +240,12 @@ def test_settings_override_changes_ceco_c_and_equals_direct_run(tmp_path):
     assert res['timing']['ran'] == 3 and res['timing']['failed'] == 0
     by = {(r['strategy'], r['settings']): r for r in res['rows']}
     e1, e50 = by[('ceco-c', 'g1k')]['E_tot_J'], by[('ceco-c', 'g50k')]['E_tot_J']
-    # A 50x comfort weight cools harder: > 5 % more energy in 120 s (measured +10.3 %), lower I_PMV.
+    # A 50x comfort weight cools harder: > 5 % more energy in 240 s (measured +10.4 %; over the first 120 s
+    # both weights run the pull-down at full cooling under the occupant-environment PMV), lower I_PMV.
     assert e50 > 1.05 * e1
     assert by[('ceco-c', 'g50k')]['I_pmv'] < by[('ceco-c', 'g1k')]['I_pmv']
     # The cell equals a direct simulate() with the same override, exactly.
-    direct = simulate('sc03_mild', 'ceco-c', SimSettings(duration_s=120.0, progress=False,
+    direct = simulate('sc03_mild', 'ceco-c', SimSettings(duration_s=240.0, progress=False,
                                                          strategy_overrides=(('gamma_w', 1000.0),))).metrics
     for key in ('E_tot_J', 'I_pmv', 'otc_violation_pct', 'E_zone_J', 'I_pmv_zone'):
         assert by[('ceco-c', 'g1k')][key] == direct[key], key

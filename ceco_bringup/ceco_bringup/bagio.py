@@ -1,15 +1,25 @@
-"""Read and write the stack's rosbag2 bags with rosbags (no rclpy needed).
+"""Read the stack's rosbag2 bags with rosbags (no rclpy needed).
 
-Bags are rosbag2 directories (sqlite3 storage, metadata version 9, the
-format Jazzy's rosbag2 writes). The ceco_msgs types are registered in a
-rosbags typestore from the ``.msg`` text (installed share directory of
-ceco_msgs, or the source tree).
+Bags are rosbag2 directories (metadata version 9, MCAP or SQLite 3 storage:
+the formats Jazzy's rosbag2 writes; writing is ``ceco_bringup.bag_writer``).
+The ceco_msgs types are registered in a rosbags typestore from the ``.msg``
+text (installed share directory of ceco_msgs, or the source tree).
+
+Topic names: the readers take the stack's names (``cabin/state``, relative, as
+in ``ceco_ros.interfaces``; ``/clock`` absolute) and find them in a bag under
+any naming: relative (ceco bags before fully qualified names), fully
+qualified (``/cabin/state``, what ``ros2 bag record`` and the recorder write)
+or namespaced (``/veh1/cabin/state``). A bag holding the stack under several
+namespaces needs ``namespace=`` to say which one.
 
 Public API:
     typestore() -> rosbags Typestore with ROS 2 Jazzy + ceco_msgs types
-    BagWriter(path)               crash-tolerant writer (periodic flush)
-    read_messages(bag_dir, topics=None) -> iterator of (topic, t_ns, msg)
-    topic_counts(bag_dir) -> {topic: message count}
+    topic_namespace(bag_topic, name) -> namespace under which bag_topic carries name, or None
+    bag_topic_map(bag_topics, names, namespace=None) -> {bag topic: requested name}
+    topic_types(bag_dir, topics=None, namespace=None) -> {name: message type}
+    read_raw(bag_dir, topics=None, namespace=None) -> iterator of (name, t_ns, raw CDR bytes)
+    read_messages(bag_dir, topics=None, namespace=None) -> iterator of (name, t_ns, msg)
+    topic_counts(bag_dir) -> {bag topic: message count}
     load_run_timeseries(bag_dir) -> dict of numpy arrays (timeseries.csv columns)
     load_commands(bag_dir) -> dict of numpy arrays (one entry per command message)
     load_diagnostics(bag_dir) -> dict of numpy arrays (diagnostics.csv columns)
@@ -18,16 +28,15 @@ Public API:
 from __future__ import annotations
 
 import functools
-import os
-from io import StringIO
+import math
+from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import Iterable, Iterator
 
 import numpy as np
 
 from ceco_core import rundir
-from ceco_core.units import s_from_sec_nanosec
 from ceco_core.contracts import DIAGNOSTICS_CONTRACT_COLUMNS as DIAGNOSTICS_COLUMNS
+from ceco_core.units import s_from_sec_nanosec
 
 TIMESERIES_COLUMNS = rundir.TIMESERIES_COLUMNS
 """Columns of timeseries.csv (docs/architecture.md); extra columns follow."""
@@ -35,8 +44,10 @@ TIMESERIES_COLUMNS = rundir.TIMESERIES_COLUMNS
 TIMESERIES_EXTRA = rundir.TIMESERIES_EXTRA + ('step_index', 'fallback')
 """The extras of a stack run: the simulator's, then the plant step index and the fallback flag."""
 
-BAG_VERSION = 9
-"""rosbag2 metadata version written (Jazzy's rosbag2 writes 9)."""
+TOPIC_STATE, TOPIC_COMFORT, TOPIC_POWER = 'cabin/state', 'cabin/comfort', 'hvac/power'
+TOPIC_COMMAND, TOPIC_DIAGNOSTICS = 'hvac/command', 'controller/diagnostics'
+# The stack names the loaders read (ceco_ros.interfaces names them for the nodes;
+# that module imports rclpy, which a bag reader must not need).
 
 
 def _msg_dir() -> Path:
@@ -66,158 +77,133 @@ def typestore():
     return store
 
 
-class BagWriter:
-    """rosbag2 writer (rosbags, sqlite3, version 9) that stays readable if the
-    process dies: `flush()` commits the database and rewrites metadata.yaml
-    atomically with the counts committed so far. `close()` finalises as
-    rosbags does. Messages are raw CDR bytes.
+# --- Names ---------------------------------------------------------------------
+def normalize_namespace(namespace: str | None) -> str:
+    """'' for the root namespace (None, '', '/'), else '/a/b' (leading slash, none trailing)."""
+    ns = (namespace or '').strip('/')
+    return '/' + ns if ns else ''
+
+
+def topic_namespace(bag_topic: str, name: str) -> str | None:
+    """The namespace under which bag topic ``bag_topic`` carries stack topic ``name``.
+
+    '' is the root namespace; None means it does not carry it. An absolute ``name``
+    (``/clock``) matches only itself; a relative one (``cabin/state``) matches
+    ``cabin/state`` and ``/cabin/state`` ('') and ``/ns/cabin/state`` ('/ns').
     """
-
-    def __init__(self, path: str | os.PathLike):
-        from rosbags.rosbag2 import Writer
-        self.path = Path(path)
-        self._writer = Writer(self.path, version=BAG_VERSION)
-        self._writer.open()
-        # rosbags opens sqlite bound to the creating thread; a recorder writes
-        # from its executor thread and closes from the main thread (callers
-        # serialise access), so reopen the (already initialised) database
-        # without the same-thread check.
-        import sqlite3
-        st = self._writer.storage
-        st.conn.commit()
-        st.conn.close()
-        st.conn = sqlite3.connect(f'file:{st.path}', uri=True, check_same_thread=False)
-        st.cursor = st.conn.cursor()
-        self._connections = {}
-        self._store = typestore()
-        self._closed = False
-        self.last_t_ns = 0
-
-    def add_topic(self, topic: str, msgtype: str, qos=None) -> None:
-        """Register a topic (idempotent). `qos` is an rclpy QoSProfile or None."""
-        if topic in self._connections:
-            return
-        offered = [] if qos is None else [_qos_to_rosbags(qos)]
-        self._connections[topic] = self._writer.add_connection(
-            topic, msgtype, typestore=self._store, offered_qos_profiles=offered)
-
-    def write(self, topic: str, t_ns: int, data: bytes) -> int:
-        """Write one serialized message; timestamps are made strictly increasing
-        (ties of the receive clock get +1 ns) so the bag order is the arrival
-        order. Returns the timestamp used."""
-        t_ns = max(int(t_ns), self.last_t_ns + 1)
-        self._writer.write(self._connections[topic], t_ns, bytes(data))
-        self.last_t_ns = t_ns
-        return t_ns
-
-    @property
-    def counts(self) -> dict[str, int]:
-        return {topic: self._writer.counts[c.id] for topic, c in self._connections.items()}
-
-    def flush(self) -> None:
-        """Commit everything written so far and write a metadata.yaml that
-        describes exactly that (so a reader sees a complete bag up to here)."""
-        if self._closed:
-            return
-        self._writer.storage.conn.commit()
-        _write_metadata_yaml(self._writer)
-
-    def close(self) -> None:
-        """Commit, write the final metadata (idempotent)."""
-        if self._closed:
-            return
-        self._closed = True
-        self._writer.close()
+    if name.startswith('/'):
+        return '' if bag_topic == name else None
+    if bag_topic == name:
+        return ''
+    if bag_topic.startswith('/') and bag_topic.endswith('/' + name):
+        return bag_topic[:-len(name) - 1]
+    return None
 
 
-def _qos_to_rosbags(qos):
-    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
-    never = QosTime(sec=0x7FFFFFFF, nsec=0xFFFFFFFF)
-    return Qos(
-        history=QosHistory(int(qos.history)),
-        depth=int(qos.depth),
-        reliability=QosReliability(int(qos.reliability)),
-        durability=QosDurability(int(qos.durability)),
-        deadline=never, lifespan=never,
-        liveliness=QosLiveliness(int(qos.liveliness)),
-        liveliness_lease_duration=never,
-        avoid_ros_namespace_conventions=False,
-    )
+def bag_topic_map(bag_topics: Iterable[str], names: Iterable[str], namespace: str | None = None) -> dict[str, str]:
+    """{bag topic: stack name} for the stack ``names`` found among ``bag_topics``.
 
-
-def _write_metadata_yaml(writer) -> None:
-    """metadata.yaml for what a rosbags Writer holds so far (same layout as
-    rosbags' Writer.close), written atomically."""
-    from rosbags.interfaces import ConnectionExtRosbag2
-    from rosbags.rosbag2.metadata import dump_qos_v9
-    from ruamel.yaml import YAML
-    count = sum(writer.counts.values())
-    start = writer.min_timestamp if count else 0
-    duration = max(0, writer.max_timestamp - writer.min_timestamp) if count else 0
-    name = writer.storage.path.name
-    meta = {'rosbag2_bagfile_information': {
-        'version': writer.version,
-        'storage_identifier': 'sqlite3',
-        'relative_file_paths': [name],
-        'duration': {'nanoseconds': duration},
-        'starting_time': {'nanoseconds_since_epoch': start},
-        'message_count': count,
-        'topics_with_message_count': [
-            {'topic_metadata': {
-                'name': c.topic, 'type': c.msgtype,
-                'serialization_format': c.ext.serialization_format,
-                'offered_qos_profiles': dump_qos_v9(c.ext.offered_qos_profiles),
-                'type_description_hash': c.digest},
-             'message_count': writer.counts[c.id]}
-            for c in writer.connections if isinstance(c.ext, ConnectionExtRosbag2)],
-        'compression_format': '',
-        'compression_mode': '',
-        'files': [{'path': name, 'starting_time': {'nanoseconds_since_epoch': start},
-                   'duration': {'nanoseconds': duration}, 'message_count': count}],
-        'custom_data': writer.custom_data or None,
-        'ros_distro': 'rosbags',
-    }}
-    yaml = YAML(typ='safe')
-    yaml.default_flow_style = False
-    text = StringIO()
-    yaml.dump(meta, text)
-    tmp = writer.metapath.with_suffix('.yaml.tmp')
-    tmp.write_text(text.getvalue(), 'utf8')
-    tmp.replace(writer.metapath)
+    Relative names are taken from one namespace: ``namespace`` when given, else the
+    only one the bag holds them under. Raises ValueError when the bag holds them
+    under several namespaces and ``namespace`` is None.
+    """
+    names = list(names)
+    absolute: dict[str, str] = {}
+    by_ns: dict[str, dict[str, str]] = {}
+    for topic in bag_topics:
+        for name in names:
+            ns = topic_namespace(topic, name)
+            if ns is None:
+                continue
+            if name.startswith('/'):
+                absolute[topic] = name
+            else:
+                by_ns.setdefault(ns, {})[topic] = name
+    if namespace is not None:
+        chosen = by_ns.get(normalize_namespace(namespace), {})
+    elif len(by_ns) > 1:
+        raise ValueError(f'the bag holds {sorted(set(by_ns[next(iter(by_ns))].values()))} under several '
+                         f'namespaces ({", ".join(repr(ns or "/") for ns in sorted(by_ns))}): say which one')
+    else:
+        chosen = next(iter(by_ns.values()), {})
+    return {**absolute, **chosen}
 
 
 # --- Reading ---------------------------------------------------------------------
-def read_messages(bag_dir, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, object]]:
-    """Yield (topic, bag timestamp [ns], deserialized message) in bag order."""
+def _open(bag_dir):
     from rosbags.rosbag2 import Reader
-    store = typestore()
-    with Reader(Path(bag_dir)) as reader:
-        wanted = None if topics is None else set(topics)
-        conns = [c for c in reader.connections if wanted is None or c.topic in wanted]
+    return Reader(Path(bag_dir))
+
+
+def _selected(reader, topics, namespace) -> dict[str, str]:
+    bag_topics = {c.topic for c in reader.connections}
+    if topics is None:
+        return {t: t for t in bag_topics}
+    return bag_topic_map(bag_topics, topics, namespace)
+
+
+def topic_types(bag_dir, topics: Iterable[str] | None = None, namespace: str | None = None) -> dict[str, str]:
+    """{name: message type} of the requested stack topics found in the bag.
+
+    All its topics under their bag names when ``topics`` is None.
+    """
+    with _open(bag_dir) as reader:
+        names = _selected(reader, topics, namespace)
+        return {names[c.topic]: c.msgtype for c in reader.connections if c.topic in names}
+
+
+def read_raw(bag_dir, topics: Iterable[str] | None = None,
+             namespace: str | None = None) -> Iterator[tuple[str, int, bytes]]:
+    """Yield (name, bag timestamp [ns], serialized CDR bytes) in bag (timestamp) order.
+
+    ``name`` is the requested stack name (the bag name when ``topics`` is None).
+    """
+    with _open(bag_dir) as reader:
+        names = _selected(reader, topics, namespace)
+        conns = [c for c in reader.connections if c.topic in names]
         if not conns:
             return
         for conn, t_ns, raw in reader.messages(connections=conns):
-            yield conn.topic, t_ns, store.deserialize_cdr(raw, conn.msgtype)
+            yield names[conn.topic], t_ns, bytes(raw)
+
+
+def read_messages(bag_dir, topics: Iterable[str] | None = None,
+                  namespace: str | None = None) -> Iterator[tuple[str, int, object]]:
+    """Yield (name, bag timestamp [ns], deserialized message) in bag (timestamp) order.
+
+    ``name`` as in :func:`read_raw`.
+    """
+    store = typestore()
+    with _open(bag_dir) as reader:
+        names = _selected(reader, topics, namespace)
+        conns = [c for c in reader.connections if c.topic in names]
+        if not conns:
+            return
+        for conn, t_ns, raw in reader.messages(connections=conns):
+            yield names[conn.topic], t_ns, store.deserialize_cdr(raw, conn.msgtype)
 
 
 def topic_counts(bag_dir) -> dict[str, int]:
-    """Message count per topic, as read from the bag's metadata."""
-    from rosbags.rosbag2 import Reader
-    with Reader(Path(bag_dir)) as reader:
+    """Message count per topic under its name in the bag, as read from the bag's metadata."""
+    with _open(bag_dir) as reader:
         out: dict[str, int] = {}
         for c in reader.connections:
             out[c.topic] = out.get(c.topic, 0) + c.msgcount
         return out
 
 
-def load_run_timeseries(bag_dir) -> dict[str, np.ndarray]:
-    """One row per plant step n for which the bag holds the state at t_n, the
-    comfort at t_n and the power (and applied command) over [t_n, t_n + dt). Columns: TIMESERIES_COLUMNS plus
+def load_run_timeseries(bag_dir, namespace: str | None = None) -> dict[str, np.ndarray]:
+    """The run's time series: one row per complete plant step.
+
+    A row for plant step n needs the state at t_n, the comfort at t_n and the power
+    (and applied command) over [t_n, t_n + dt). Columns: TIMESERIES_COLUMNS plus
     `step_index` and `fallback`; rows sorted by step index; a step index seen
-    twice keeps its first message."""
+    twice keeps its first message in bag order.
+    """
     state, comfort, power = {}, {}, {}
-    for topic, _, msg in read_messages(bag_dir, ('cabin/state', 'cabin/comfort', 'hvac/power')):
-        table = {'cabin/state': state, 'cabin/comfort': comfort, 'hvac/power': power}[topic]
+    tables = {TOPIC_STATE: state, TOPIC_COMFORT: comfort, TOPIC_POWER: power}
+    for topic, _, msg in read_messages(bag_dir, tuple(tables), namespace):
+        table = tables[topic]
         table.setdefault(int(msg.step_index), msg)
     steps = sorted(set(state) & set(comfort) & set(power))
     rows = {c: [] for c in TIMESERIES_COLUMNS + TIMESERIES_EXTRA}
@@ -233,6 +219,8 @@ def load_run_timeseries(bag_dir) -> dict[str, np.ndarray]:
         rows['capacity_limited'].append(float(p.capacity_limited))
         for col in ('pmv', 'ppd', 'pmv_lb', 'pmv_ub'):
             rows[col].append(getattr(c, col))
+        for col in rundir.COMFORT_COLUMNS:
+            rows[col].append(float(c.iso_valid) if col == 'iso7730_valid' else getattr(c, col, math.nan))
         rows['step_index'].append(n)
         rows['fallback'].append(bool(s.fallback or p.fallback))
     out = {k: np.asarray(v, dtype=float) for k, v in rows.items()}
@@ -241,12 +229,14 @@ def load_run_timeseries(bag_dir) -> dict[str, np.ndarray]:
     return out
 
 
-def load_commands(bag_dir, topic: str = 'hvac/command') -> dict[str, np.ndarray]:
-    """Every AcCommand in the bag, in bag order: `k`, `t_s` (header stamp),
-    `mdot_bl_kgps`, `t_evap_sp_c`, `strategy` (str array), `fallback`,
-    `t_recv_ns` (bag timestamp)."""
+def load_commands(bag_dir, topic: str = TOPIC_COMMAND, namespace: str | None = None) -> dict[str, np.ndarray]:
+    """Every AcCommand in the bag, in bag order.
+
+    Columns `k`, `t_s` (header stamp), `mdot_bl_kgps`, `t_evap_sp_c`, `strategy`
+    (str array), `fallback`, `t_recv_ns` (bag timestamp).
+    """
     cols = {c: [] for c in ('k', 't_s', 'mdot_bl_kgps', 't_evap_sp_c', 'strategy', 'fallback', 't_recv_ns')}
-    for _, t_ns, m in read_messages(bag_dir, (topic,)):
+    for _, t_ns, m in read_messages(bag_dir, (topic,), namespace):
         cols['k'].append(m.step_index)
         cols['t_s'].append(s_from_sec_nanosec(m.header.stamp.sec, m.header.stamp.nanosec))
         cols['mdot_bl_kgps'].append(m.blower_flow_kgps)
@@ -265,13 +255,15 @@ def load_commands(bag_dir, topic: str = 'hvac/command') -> dict[str, np.ndarray]
     }
 
 
-def load_diagnostics(bag_dir) -> dict[str, np.ndarray]:
-    """Every ControllerDiagnostics in bag order, as the diagnostics.csv columns
-    (`k, t_s, status, success, iterations, solve_time_ms, cost_energy,
-    cost_comfort, cost_ioch, eps_mean, fallback`; iterations -1 and NaN costs
-    where not applicable) plus `strategy` and `fallback_reason`."""
+def load_diagnostics(bag_dir, namespace: str | None = None) -> dict[str, np.ndarray]:
+    """Every ControllerDiagnostics in bag order, as the diagnostics.csv columns.
+
+    Columns `k, t_s, status, success, iterations, solve_time_ms, cost_energy,
+    cost_comfort, cost_ioch, eps_mean, fallback` (iterations -1 and NaN costs
+    where not applicable) plus `strategy` and `fallback_reason`.
+    """
     cols = {c: [] for c in DIAGNOSTICS_COLUMNS + ('strategy', 'fallback_reason')}
-    for _, _, m in read_messages(bag_dir, ('controller/diagnostics',)):
+    for _, _, m in read_messages(bag_dir, (TOPIC_DIAGNOSTICS,), namespace):
         cols['k'].append(m.step_index)
         cols['t_s'].append(s_from_sec_nanosec(m.header.stamp.sec, m.header.stamp.nanosec))
         cols['status'].append(m.status)

@@ -4,6 +4,7 @@
     ceco play     republish a recorded bag on DDS
     ceco report   metrics and figures from run directories
     ceco sweep    scenario grids with the in-process simulator
+    ceco benchmark  named test cases, baseline family, savings at matched comfort
     ceco sim      one closed-loop run in-process (no ROS)
     ceco identify identify the control-oriented model from plant data
     ceco bench    solver benchmarks
@@ -16,6 +17,7 @@ VERBS = {
     'play': ('ceco_bringup.play', 'republish a recorded bag on DDS'),
     'report': ('ceco_bringup.report', 'metrics, figures and reports from run directories'),
     'sweep': ('ceco_bringup.sweep', 'run a grid of scenarios with the in-process simulator'),
+    'benchmark': ('ceco_bringup.benchmark.cli', 'savings at matched comfort on the named test cases'),
     'sim': ('ceco_controller.closed_loop', 'one closed-loop run in-process (no ROS)'),
     'identify': ('ceco_controller.identification', 'identify the control-oriented model'),
     'bench': ('ceco_controller.bench', 'solver benchmarks (ceco bench nmpc)'),

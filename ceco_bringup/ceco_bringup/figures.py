@@ -13,6 +13,7 @@ it never needs a display.
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -20,9 +21,10 @@ import matplotlib
 
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
 
+from ceco_bringup.rundata import fallback_mask  # noqa: E402
 from ceco_core.contracts import STRATEGIES  # noqa: E402
 from ceco_core.metrics import relative_change_pct  # noqa: E402
 
@@ -295,8 +297,6 @@ def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
             for patch, n in zip(bp['boxes'], names):
                 patch.set_facecolor(strategy_style(n)['color'])
                 patch.set_alpha(0.6)
-            from ceco_bringup.report import fallback_mask  # noqa: PLC0415
-
             labels = []
             for n in names:
                 fb = diags[n].get('fallback')
@@ -309,3 +309,87 @@ def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
         ax.set_ylabel('Solve time per control step [ms]')
         ax.set_title(title or 'NMPC solve time (box 25-75 %, whiskers 5-95 %)')
         return _save(fig, path)
+
+
+def front_figure(summary: Sequence[Mapping], path: str | os.PathLike, baseline: str = 'baseline',
+                 zoom_pct: tuple | None = (4.0, 8.0)) -> Path:
+    """The energy-comfort plane of every group of a summary, against its
+    baseline: top row the whole run (ΔE_tot vs ΔI_PMV [%]), middle row the
+    same near the baseline (half-widths ``zoom_pct`` = (energy, I_PMV) [%];
+    None: no such row), bottom row the comfort-zone phase (ΔE_zone vs
+    ΔI_PMV,zone [%]); one column per group.
+    The baseline is the origin (black cross); the shaded lower-left quadrant
+    is where a point dominates it (less energy, lower or equal I_PMV). The
+    points of a strategy with settings labels are joined in label order (the
+    grid's order) and annotated with the label; strategies with default
+    settings are single markers. Writes a PNG (200 dpi) and returns its path."""
+    from ceco_bringup.sweep.grid import DEFAULT_SETTINGS, GROUP_AXES  # noqa: PLC0415
+
+    groups: dict = {}
+    for r in summary:
+        groups.setdefault(tuple(r[a] for a in GROUP_AXES), []).append(r)
+    if not groups:
+        raise ValueError('front_figure: the summary has no rows')
+    n = len(groups)
+    panels = [('dE_tot_kWh_pct', 'dI_pmv_pct', 'whole run', 'ΔE_tot [%]', 'ΔI_PMV [%]', None),
+              ('dE_zone_J_pct', 'dI_pmv_zone_pct', 'comfort-zone phase', 'ΔE_zone [%]', 'ΔI_PMV,zone [%]', None)]
+    if zoom_pct is not None:
+        panels.insert(1, ('dE_tot_kWh_pct', 'dI_pmv_pct', 'whole run, near the baseline', 'ΔE_tot [%]',
+                          'ΔI_PMV [%]', (float(zoom_pct[0]), float(zoom_pct[1]))))
+    with plt.rc_context({'font.size': 8, 'axes.grid': True, 'grid.alpha': 0.3, 'savefig.bbox': 'tight'}):
+        fig, axes = plt.subplots(len(panels), n, figsize=(3.6 * n, 3.2 * len(panels)), squeeze=False)
+        for j, (g, rs) in enumerate(groups.items()):
+            name = ' / '.join(str(x) for x, a in zip(g, GROUP_AXES) if x not in ('scenario', 'perfect') or a == 'scenario')
+            for i, (kx, ky, phase, xl, yl, zoom) in enumerate(panels):
+                ax = axes[i][j]
+                pts = [r for r in rs if not (r['strategy'] == baseline and r.get('settings') == DEFAULT_SETTINGS)]
+                xs = [float(r.get(kx, float('nan'))) for r in pts] + [0.0]
+                ys = [float(r.get(ky, float('nan'))) for r in pts] + [0.0]
+                fin = [(x, y) for x, y in zip(xs, ys) if math.isfinite(x) and math.isfinite(y)]
+                if zoom:
+                    fin = [(-zoom[0], -zoom[1]), (zoom[0], zoom[1])]
+                x0 = min(x for x, _ in fin)
+                y0 = min(y for _, y in fin)
+                pad_x = 0.08 * (max(x for x, _ in fin) - x0 or 1.0)
+                pad_y = 0.08 * (max(y for _, y in fin) - y0 or 1.0)
+                ax.fill_between([min(x0, 0.0) - 2 * pad_x, 0.0], min(y0, 0.0) - 2 * pad_y, 0.0, color='#009E73',
+                                alpha=0.12, lw=0, label='dominates the baseline')
+                ax.axhline(0.0, color='k', lw=0.6)
+                ax.axvline(0.0, color='k', lw=0.6)
+                ax.plot([0.0], [0.0], 'kx', ms=8, mew=2, label=strategy_style(baseline)['label'])
+                by_strategy: dict = {}
+                for r in pts:
+                    by_strategy.setdefault(r['strategy'], []).append(r)
+                for k, (st, srs) in enumerate(by_strategy.items()):
+                    style = strategy_style(st, k)
+                    x = [float(r.get(kx, float('nan'))) for r in srs]
+                    y = [float(r.get(ky, float('nan'))) for r in srs]
+                    labelled = len(srs) > 1 or srs[0].get('settings') != DEFAULT_SETTINGS
+                    ax.plot(x, y, marker='o', ms=4, color=style['color'], lw=1.0 if labelled else 0,
+                            label=style['label'] + (' (settings labels)' if labelled else ''))
+                    if labelled:   # labels of points closer than 4 % of the axes to the last labelled one are left out
+                        span_x = (max(x for x, _ in fin) - min(x0, 0.0)) or 1.0
+                        span_y = (max(y for _, y in fin) - min(y0, 0.0)) or 1.0
+                        last = None
+                        for r, xv, yv in zip(srs, x, y):
+                            if not (math.isfinite(xv) and math.isfinite(yv)):
+                                continue
+                            if last and math.hypot((xv - last[0]) / span_x, (yv - last[1]) / span_y) < 0.04:
+                                continue
+                            last = (xv, yv)
+                            ax.annotate(str(r.get('settings')), (xv, yv), textcoords='offset points',
+                                        xytext=(3, 3), fontsize=6.5, color=style['color'])
+                ax.set_xlim(min(x0, 0.0) - pad_x, max(x for x, _ in fin) + pad_x)
+                ax.set_ylim(min(y0, 0.0) - pad_y, max(y for _, y in fin) + pad_y)
+                ax.set_xlabel(xl + ' vs baseline')
+                ax.set_ylabel(yl + ' vs baseline')
+                ax.set_title(f'{name}: {phase}')
+        handles, labels = axes[0][0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc='lower center', ncol=len(labels), frameon=False,
+                   bbox_to_anchor=(0.5, -0.04))
+        fig.tight_layout()
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=200)
+        plt.close(fig)
+    return path

@@ -3,21 +3,27 @@
     ceco play DIR/bag [--rate R]               # original timing (R = 1) or R times faster
     ceco play DIR/bag --compare                # feed a fresh mpc_node, compare its commands
 
-Plain playback publishes every recorded topic (except /rosout) with the
-recorded QoS profile of the stack, spacing the messages as recorded (bag
-timestamps are receive times) divided by --rate (--rate 0: as fast as
-possible). Other nodes on the same ROS_DOMAIN_ID (default: the environment's)
+Plain playback publishes every recorded topic (except /rosout and
+/parameter_events) under its recorded name with the stack's QoS profile,
+spacing the messages as their bag timestamps are spaced (simulation time for a
+lockstep run, so a 600 s drive plays in 600 s; receive time otherwise), divided
+by --rate (--rate 0: as fast as possible). Other nodes on the same ROS_DOMAIN_ID (default: the environment's)
 receive the drive as it happened: `ros2 run ceco_controller mpc_node` (or
 this machine's install/lib equivalent) started with the run's parameters
 then computes new commands from the recorded states and previews.
 
 --compare does exactly that in one command: it starts the controller of the
 recorded strategy (bag metadata: scenario, strategy, Ts, Np) in lockstep
-timing on a private domain, republishes the recorded states, previews and
+timing on a private domain (in its root namespace), republishes the recorded states, previews and
 /clock (not the recorded commands), paced by the new controller's answers
 (step k+1 is sent once command k came back), and compares the new commands
 with the recorded ones step by step. Exit status 0 when every step's command
 matches within --tol.
+
+Bags with either naming are read: relative names (older ceco bags), fully
+qualified (`/cabin/state`, ceco's recorder and `ros2 bag record`) and
+namespaced (`/veh1/cabin/state`; --namespace picks one vehicle of a bag that
+holds several).
 """
 from __future__ import annotations
 
@@ -31,6 +37,7 @@ from ceco_core.control_grid import control_step_index
 
 
 def build_parser():
+    """The argument parser of `ceco play`."""
     p = argparse.ArgumentParser(prog='ceco play', description=__doc__.split('\n\n')[0])
     p.add_argument('bag', type=Path, help='bag directory (DIR/bag of a ceco run)')
     p.add_argument('--rate', type=float, default=1.0,
@@ -40,6 +47,8 @@ def build_parser():
                    help='start the recorded strategy\'s controller, feed it the recorded drive, compare commands')
     p.add_argument('--strategy', default=None, help='--compare: controller strategy (default: the recorded one)')
     p.add_argument('--tol', type=float, default=1e-9, help='--compare: tolerance on |command difference|')
+    p.add_argument('--namespace', default=None,
+                   help='--compare: namespace of the recorded stack (default: the only one in the bag)')
     p.add_argument('--domain-id', type=int, default=None,
                    help='ROS_DOMAIN_ID (default: the environment\'s; --compare: a private one)')
     p.add_argument('--step-timeout-s', type=float, default=30.0,
@@ -53,17 +62,8 @@ def _custom_data(bag: Path) -> dict:
     return dict(meta.get('custom_data') or {})
 
 
-def _raw_messages(bag: Path, topics):
-    from rosbags.rosbag2 import Reader
-    with Reader(bag) as reader:
-        conns = [c for c in reader.connections if c.topic in topics]
-        types = {c.topic: c.msgtype for c in conns}
-        yield types
-        for conn, t_ns, raw in reader.messages(connections=conns):
-            yield conn.topic, t_ns, bytes(raw)
-
-
 def main(argv=None) -> int:
+    """`ceco play`: plain playback, or --compare."""
     args = build_parser().parse_args(argv)
     if not (args.bag / 'metadata.yaml').is_file():
         print(f'ceco play: {args.bag} is not a rosbag2 directory (no metadata.yaml)', file=sys.stderr)
@@ -85,34 +85,47 @@ def _make_node(name, domain_id):
 
 
 def _publishers(node, types):
+    """A publisher per topic of ``types`` ({name: message type}).
+
+    The stack's QoS where the name is a stack topic under any namespace, else
+    reliable depth 100.
+    """
     from rclpy.qos import QoSProfile, ReliabilityPolicy
 
+    from ceco_bringup import bagio
     from ceco_bringup.recorder import message_class
     from ceco_ros import interfaces
     pubs = {}
     for topic, type_name in types.items():
-        qos = interfaces.STACK_TOPICS[topic][1] if topic in interfaces.STACK_TOPICS else \
+        stack = [n for n in interfaces.STACK_TOPICS if bagio.topic_namespace(topic, n) is not None]
+        qos = interfaces.STACK_TOPICS[stack[0]][1] if stack else \
             QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         pubs[topic] = node.create_publisher(message_class(type_name), topic, qos)
     return pubs
 
 
+_NOT_REPLAYED = ('/rosout', '/parameter_events')
+"""Infrastructure topics a bag may hold that plain playback does not republish."""
+
+
 def play(args) -> int:
+    """Republish the bag with its recorded spacing divided by --rate."""
     import rclpy
-    from ceco_ros import interfaces
-    from rosbags.rosbag2 import Reader
-    with Reader(args.bag) as r:
-        available = {c.topic for c in r.connections}
-    topics = set(args.topics) if args.topics else available - {interfaces.TOPIC_ROSOUT}
+
+    from ceco_bringup import bagio
+    types = bagio.topic_types(args.bag)
+    if args.topics:
+        types = {t: types[t] for t in args.topics if t in types}
+    else:
+        types = {t: m for t, m in types.items() if t not in _NOT_REPLAYED}
     context, node = _make_node('ceco_play', args.domain_id)
     n = 0
     try:
-        gen = _raw_messages(args.bag, topics)
-        pubs = _publishers(node, next(gen))
+        pubs = _publishers(node, types)
         time.sleep(1.0)  # let subscribers discover the publishers
         t_wall0 = time.monotonic()
         t_bag0 = None
-        for topic, t_ns, raw in gen:
+        for topic, t_ns, raw in bagio.read_raw(args.bag, list(types)):
             if t_bag0 is None:
                 t_bag0 = t_ns
             if args.rate > 0:
@@ -133,6 +146,7 @@ def play(args) -> int:
 
 
 def compare(args) -> int:
+    """Feed the recorded drive to a fresh controller and compare its commands with the recorded ones."""
     import numpy as np
     import rclpy
 
@@ -144,7 +158,13 @@ def compare(args) -> int:
     if not strategy:
         print('ceco play: the bag names no strategy; pass --strategy', file=sys.stderr)
         return 2
-    recorded = bagio.load_commands(args.bag)
+    try:
+        recorded = bagio.load_commands(args.bag, namespace=args.namespace)
+        types = bagio.topic_types(args.bag, (interfaces.TOPIC_STATE, interfaces.TOPIC_WEATHER,
+                                             interfaces.TOPIC_TRAFFIC), args.namespace)
+    except ValueError as err:
+        print(f'ceco play: {err} (--namespace)', file=sys.stderr)
+        return 2
     rec_by_k = {int(k): (m, s) for k, m, s in zip(recorded['k'], recorded['mdot_bl_kgps'], recorded['t_evap_sp_c'])}
     domain = args.domain_id if args.domain_id is not None else supervisor.pick_domain_id()
     env = supervisor.dds_env(domain)
@@ -161,7 +181,6 @@ def compare(args) -> int:
     proc = supervisor.NodeProcess(exe, 'ceco_controller', exe, env=env, log_dir=log_dir,
                                   params_files=[supervisor.share_file('ceco_controller', f'config/{exe}.yaml')],
                                   params=params)
-    inputs = {interfaces.TOPIC_STATE, interfaces.TOPIC_WEATHER, interfaces.TOPIC_TRAFFIC, interfaces.TOPIC_CLOCK}
     context, node = _make_node('ceco_play', domain)
     new = {}
     got = threading.Condition()
@@ -184,10 +203,10 @@ def compare(args) -> int:
     proc.start()
     ts = float(params['control_period_s'])
     try:
-        gen = _raw_messages(args.bag, inputs)
-        pubs = _publishers(node, next(gen))
+        pubs = _publishers(node, types)   # the stack names, in this node's (root) namespace
         t0 = time.monotonic()
-        while pubs[interfaces.TOPIC_STATE].get_subscription_count() < 1 or node.count_publishers(interfaces.TOPIC_COMMAND) < 1:
+        while (pubs[interfaces.TOPIC_STATE].get_subscription_count() < 1
+               or node.count_publishers(interfaces.TOPIC_COMMAND) < 1):
             if not proc.running():
                 print(f'ceco play: {exe} exited:\n{proc.log_text()[-2000:]}', file=sys.stderr)
                 return 1
@@ -198,10 +217,11 @@ def compare(args) -> int:
         # Causal order per control step k (the bag's receive order across topics
         # is not causal): every state of the period, then previews k, then wait
         # for the new command k.
-        from ceco_msgs.msg import CabinState
         from rclpy.serialization import deserialize_message
+
+        from ceco_msgs.msg import CabinState
         steps: dict[int, dict] = {}
-        for topic, _, raw in gen:
+        for topic, _, raw in bagio.read_raw(args.bag, list(types), args.namespace):
             if topic == interfaces.TOPIC_STATE:
                 msg = deserialize_message(raw, CabinState)
                 k = int(msg.scenario_time_s // ts + 1e-9)
@@ -210,8 +230,6 @@ def compare(args) -> int:
             elif topic in (interfaces.TOPIC_WEATHER, interfaces.TOPIC_TRAFFIC):
                 k = int(deserialize_message(raw, _cls(topic)).step_index)
                 steps.setdefault(k, {})[topic] = raw
-            elif topic == interfaces.TOPIC_CLOCK:
-                pass  # the lockstep controller needs no clock; plain playback republishes it
         for k in sorted(steps):
             step = steps[k]
             for _, _, raw in sorted(step.get('states', []), key=lambda x: (x[0], x[1])):
@@ -221,7 +239,7 @@ def compare(args) -> int:
                     pubs[topic].publish(step[topic])
             if k in rec_by_k:
                 with got:
-                    if not got.wait_for(lambda: k in new, timeout=args.step_timeout_s):
+                    if not got.wait_for(lambda k=k: k in new, timeout=args.step_timeout_s):
                         print(f'ceco play: no new command for step {k} within {args.step_timeout_s} s',
                               file=sys.stderr)
                         break

@@ -4,9 +4,13 @@
     ceco run --scenario sc03 --strategy all --out DIR     # baseline + every CECO strategy
 
 Per strategy: starts preview_node, the controller (mpc_node or baseline_node)
-and plant_node as separate OS processes on a private ROS_DOMAIN_ID with
-localhost-only discovery, records every topic (in-process recorder node,
-rosbags, sqlite3, metadata version 9) into DIR/bag, and when the scenario
+and plant_node as separate OS processes on a private ROS_DOMAIN_ID (or the
+user's: --domain-id, else ROS_DOMAIN_ID when set) with localhost-only
+discovery, optionally all in one ROS namespace (--namespace veh1: nodes,
+topics and the recorder under /veh1), records every topic (in-process recorder node,
+rosbags, MCAP or `--storage sqlite3`, metadata version 9, fully qualified topic
+names; bag timestamps: simulation time in lockstep, receive time in real time)
+into DIR/bag, and when the scenario
 is done writes DIR/metrics.json (compute_metrics on the recorded data),
 DIR/timeseries.csv, DIR/diagnostics.csv and DIR/logs/<node>.log.
 
@@ -32,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ceco_bringup.bag_writer import STORAGES
 from ceco_core.contracts import STRATEGIES
 from ceco_core.control_grid import TIMING_MODES
 
@@ -77,7 +82,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--startup-timeout-s', type=float, default=120.0,
                    help='wall-clock limit for the nodes to start and discover each other [s]')
     p.add_argument('--run-timeout-s', type=float, default=1800.0, help='wall-clock limit of one run [s]')
-    p.add_argument('--domain-id', type=int, default=None, help='ROS_DOMAIN_ID (default: a private one)')
+    p.add_argument('--domain-id', type=int, default=None,
+                   help='ROS_DOMAIN_ID of every run (default: the environment\'s ROS_DOMAIN_ID when set, '
+                        'else a private one per strategy)')
+    p.add_argument('--namespace', default='',
+                   help='ROS namespace of the nodes, their topics and the recorder, e.g. veh1 '
+                        '(default: the root namespace); /clock and /rosout stay global')
+    p.add_argument('--storage', default=STORAGES[0], choices=STORAGES,
+                   help='rosbag2 storage of DIR/bag (default mcap, as ros2 bag record on Jazzy)')
     p.add_argument('--no-progress', action='store_true', help='no progress bar')
     return p
 
@@ -86,9 +98,12 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     from ceco_v2x_preview.preview import parse_quality
     from ceco_v2x_preview.scenario import load_scenario
+    from ceco_bringup import supervisor
     try:
         scenario = load_scenario(args.scenario)
         quality = parse_quality(args.preview)
+        args.namespace = supervisor.normalize_namespace(args.namespace)
+        supervisor.resolve_domain_id(args.domain_id)      # an invalid user id fails here
     except ValueError as err:
         print(f'ceco run: {err}', file=sys.stderr)
         return 2
@@ -145,7 +160,8 @@ def _params(args, scenario, quality, strategy, duration_s):
         'faults.delay_s': float(quality.delay_s),
         'faults.missing_spans_s': [float(x) for x in spans],
         'faults.missing_policy': quality.missing_policy,
-        'faults.seed': -1 if quality.seed is None else int(quality.seed)})
+        'faults.seed': -1 if quality.seed is None else int(quality.seed),
+        'faults.uncertainty_level': quality.uncertainty})
     controller = dict(common, horizon_steps=int(np_), **sim_time)
     if strategy != 'baseline':
         controller['strategy'] = strategy
@@ -157,8 +173,14 @@ def _params(args, scenario, quality, strategy, duration_s):
     return ts, np_, preview, controller, plant
 
 
-def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, index: int = 0) -> dict:
-    """One strategy over DDS into run_dir; returns the metrics dict."""
+def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, index: int = 0, *,
+            controller_cmd: list[str] | None = None, controller_env: dict | None = None) -> dict:
+    """One strategy over DDS into run_dir; returns the metrics dict.
+
+    ``controller_cmd``: a third-party controller's command line, started in place of
+    mpc_node/baseline_node with the DDS environment plus ``controller_env`` (``ceco
+    benchmark --controller-cmd``; the contract is in docs/benchmark.md).
+    """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
@@ -176,8 +198,7 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
     if bag_dir.exists():
         raise RuntimeError(f'{bag_dir} exists: choose a new --out directory')
     log_dir = run_dir / 'logs'
-    domain = (args.domain_id if args.domain_id is not None else supervisor.pick_domain_id()) + index
-    domain = 1 + (domain - 1) % 101
+    domain, _ = supervisor.resolve_domain_id(args.domain_id, index)
     env = supervisor.dds_env(domain)
     os.environ.update({k: env[k] for k in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE',
                                            'FASTDDS_BUILTIN_TRANSPORTS',
@@ -185,23 +206,27 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
 
     ctrl_exe = ('ceco_controller', 'baseline_node') if strategy == 'baseline' else ('ceco_controller', 'mpc_node')
+    ns = args.namespace     # '' or '/veh1': nodes, relative topics and the recorder under it
     procs = {
         'preview_node': supervisor.NodeProcess(
-            'preview_node', 'ceco_v2x_preview', 'preview_node', env=env, log_dir=log_dir,
+            'preview_node', 'ceco_v2x_preview', 'preview_node', env=env, log_dir=log_dir, namespace=ns,
             params_files=[supervisor.share_file('ceco_v2x_preview', 'config/preview_node.yaml')],
             params=p_prev),
         'controller': supervisor.NodeProcess(
-            ctrl_exe[1], *ctrl_exe, env=env, log_dir=log_dir,
+            ctrl_exe[1], *ctrl_exe, env=env, log_dir=log_dir, namespace=ns,
             params_files=[supervisor.share_file('ceco_controller', f'config/{ctrl_exe[1]}.yaml')],
-            params=p_ctrl),
+            params=p_ctrl) if controller_cmd is None else supervisor.NodeProcess(
+            'external_controller', None, None, env={**env, **(controller_env or {})}, log_dir=log_dir,
+            command=controller_cmd),
         'plant_node': supervisor.NodeProcess(
-            'plant_node', 'ceco_plant_sim', 'plant_node', env=env, log_dir=log_dir,
+            'plant_node', 'ceco_plant_sim', 'plant_node', env=env, log_dir=log_dir, namespace=ns,
             params_files=[supervisor.share_file('ceco_plant_sim', 'config/plant_node.yaml')],
             params=p_plant),
     }
     custom = {'scenario': scenario.name, 'strategy': strategy, 'control_period_s': repr(float(ts)),
               'horizon_steps': str(np_), 'preview_quality': quality.describe(),
-              'timing': args.timing, 'duration_s': repr(float(duration_s)), 'ros_domain_id': str(domain)}
+              'timing': args.timing, 'duration_s': repr(float(duration_s)), 'ros_domain_id': str(domain),
+              'ros_namespace': args.namespace}
 
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
@@ -212,7 +237,9 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
     t_wall0 = time.monotonic()
     interrupted = False
     try:
-        recorder = Recorder(bag_dir, custom_data=custom, context=context)
+        recorder = Recorder(bag_dir, custom_data=custom, context=context, storage=args.storage,
+                            timestamps='sim' if args.timing == 'lockstep' else 'receive',
+                            **({'namespace': ns} if ns else {}))
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(recorder)
 
@@ -267,6 +294,8 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
         if thread is not None:
             thread.join(timeout=5.0)
         counts = recorder.close() if recorder is not None else {}
+        if recorder is not None:    # publisher-side send times of states and commands (benchmark time ratio)
+            (run_dir / 'send_times.json').write_text(json.dumps(recorder.source_ns) + '\n')
         if executor is not None:
             executor.shutdown()
         if recorder is not None:
@@ -287,7 +316,7 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
         'horizon_steps': int(np_), 'seed': int(scenario.seed if quality.seed is None else quality.seed),
         'preview_quality': quality.describe(), 'source': 'dds', 'timing': args.timing,
         'wall_time_s': wall, 'loop_wall_time_s': t_run, 'realtime_factor': duration_s / t_run,
-        'ros_domain_id': domain, 'bag_message_counts': counts,
+        'ros_domain_id': domain, 'ros_namespace': args.namespace, 'bag_message_counts': counts,
         'fallback_steps': int(ts_data['fallback'].sum()),
     })
     diag = bagio.load_diagnostics(bag_dir)

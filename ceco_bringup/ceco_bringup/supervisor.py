@@ -3,13 +3,21 @@ full install; here there is no launch, so we supervise them ourselves).
 
 Each node runs as its own OS process in its own session (so the terminal's
 Ctrl-C reaches only `ceco run`, which then stops the children in order),
-on a private ROS_DOMAIN_ID with localhost-only discovery, its output in
-`<log_dir>/<name>.log`. Stopping is SIGINT (rclpy shuts down cleanly), then
-SIGKILL after a grace period.
+on a private ROS_DOMAIN_ID with localhost-only discovery, optionally in a ROS
+namespace (`-r __ns:=/veh1`), its output in `<log_dir>/<name>.log`. Stopping
+is SIGINT (rclpy shuts down cleanly), then SIGKILL after a grace period.
+
+Children are started without a `preexec_fn` (not safe while the recorder's
+spin thread runs): `start_new_session=True` gives the session, and util-linux
+`setpriv --pdeathsig SIGINT` (where installed; it is on Debian and Ubuntu)
+sets the parent-death signal in the child before it execs the node, so no node
+outlives a SIGKILLed `ceco run`.
 """
 from __future__ import annotations
 
 import os
+import re
+import shutil
 import signal
 import subprocess
 import tempfile
@@ -53,6 +61,49 @@ def pick_domain_id() -> int:
     if os.environ.get('CECO_DOMAIN_ID'):
         return int(os.environ['CECO_DOMAIN_ID'])
     return 1 + (os.getpid() * 7919 + int(time.time())) % 100
+
+
+DOMAIN_ID_MAX = 232
+"""Largest ROS_DOMAIN_ID Fast DDS's default port mapping allows (0..101 are
+also clear of Linux's ephemeral ports; docs.ros.org, "The ROS_DOMAIN_ID")."""
+
+
+def resolve_domain_id(explicit: int | None = None, index: int = 0, environ=None) -> tuple[int, bool]:
+    """The ROS_DOMAIN_ID of run number `index` of one `ceco run`, and whether
+    the user chose it.
+
+    `explicit` (the --domain-id flag) first, then the user's ROS_DOMAIN_ID
+    (non-empty), used as is for every run (the runs are sequential; each
+    stops its nodes before the next starts); otherwise a private id per run,
+    `pick_domain_id() + index` folded into 1..101. Raises ValueError for an
+    id that is not an integer in 0..DOMAIN_ID_MAX.
+    """
+    environ = os.environ if environ is None else environ
+    if explicit is not None:
+        chosen, source = explicit, '--domain-id'
+    elif environ.get('ROS_DOMAIN_ID', '').strip():
+        text = environ['ROS_DOMAIN_ID'].strip()
+        if not re.fullmatch(r'\d+', text):
+            raise ValueError(f'ROS_DOMAIN_ID={text!r}: must be an integer in 0..{DOMAIN_ID_MAX}')
+        chosen, source = int(text), 'ROS_DOMAIN_ID'
+    else:
+        return 1 + (pick_domain_id() + index - 1) % 101, False
+    if not 0 <= chosen <= DOMAIN_ID_MAX:
+        raise ValueError(f'{source}={chosen}: must be an integer in 0..{DOMAIN_ID_MAX}')
+    return chosen, True
+
+
+def normalize_namespace(namespace: str | None) -> str:
+    """'' / None -> '' (the root namespace); 'veh1', '/veh1/' -> '/veh1'.
+    Raises ValueError for a name ROS 2 would reject (tokens of letters,
+    digits and underscores, not starting with a digit)."""
+    if not namespace or namespace.strip('/') == '':
+        return ''
+    ns = '/' + namespace.strip('/')
+    if not re.fullmatch(r'(/[A-Za-z_][A-Za-z0-9_]*)+', ns) or '__' in ns:
+        raise ValueError(f'invalid namespace {namespace!r}: tokens of letters, digits and '
+                         'underscores, not starting with a digit, separated by /')
+    return ns
 
 
 def dds_env(domain_id: int, base: dict | None = None) -> dict:
@@ -104,16 +155,26 @@ def share_file(package: str, relpath: str) -> str:
 class NodeProcess:
     """One node executable as a child process."""
 
-    def __init__(self, name: str, package: str, executable: str, *, params_files=(),
-                 params: dict | None = None, env: dict, log_dir: Path, node_name: str | None = None):
+    def __init__(self, name: str, package: str | None, executable: str | None, *, params_files=(),
+                 params: dict | None = None, env: dict, log_dir: Path, node_name: str | None = None,
+                 namespace: str | None = None, command: list[str] | None = None):
+        """A ceco node ``package/executable`` with ROS arguments (under ``namespace`` if given), or any
+        ``command`` (a third-party controller in any language: run as given, without ROS arguments)."""
         self.name = name
-        self.cmd = [find_executable(package, executable), '--ros-args']
-        if node_name:
-            self.cmd += ['-r', f'__node:={node_name}']
-        for f in params_files:
-            self.cmd += ['--params-file', str(f)]
-        for key, value in (params or {}).items():
-            self.cmd += ['-p', f'{key}:={_param_text(value)}']
+        if command is not None:
+            if not command:
+                raise ValueError(f'{name}: empty command')
+            self.cmd = list(command)
+        else:
+            self.cmd = [find_executable(package, executable), '--ros-args']
+            if node_name:
+                self.cmd += ['-r', f'__node:={node_name}']
+            if normalize_namespace(namespace):
+                self.cmd += ['-r', f'__ns:={normalize_namespace(namespace)}']
+            for f in params_files:
+                self.cmd += ['--params-file', str(f)]
+            for key, value in (params or {}).items():
+                self.cmd += ['-p', f'{key}:={_param_text(value)}']
         self.env = env
         self.log_path = Path(log_dir) / f'{name}.log'
         self.proc: subprocess.Popen | None = None
@@ -124,9 +185,9 @@ class NodeProcess:
         log = open(self.log_path, 'ab')
         log.write(f'--- start {self.starts + 1}: {" ".join(self.cmd)}\n'.encode())
         log.flush()
-        self.proc = subprocess.Popen(self.cmd, env=self.env, stdout=log, stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL, start_new_session=True,
-                                     preexec_fn=_die_with_parent)
+        self.proc = subprocess.Popen(_die_with_parent_prefix() + self.cmd, env=self.env, stdout=log,
+                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                     start_new_session=True)
         log.close()
         self.starts += 1
 
@@ -171,14 +232,13 @@ class NodeProcess:
             return ''
 
 
-def _die_with_parent() -> None:
-    """In the child before exec: get SIGINT when the supervising process dies
-    (even by SIGKILL), so no node outlives `ceco run` (Linux prctl PR_SET_PDEATHSIG)."""
-    try:
-        import ctypes
-        ctypes.CDLL('libc.so.6', use_errno=True).prctl(1, int(signal.SIGINT), 0, 0, 0)
-    except OSError:
-        pass
+def _die_with_parent_prefix() -> list[str]:
+    """`setpriv --pdeathsig SIGINT --`: the child gets SIGINT when the thread
+    that started it dies (even by SIGKILL), so no node outlives `ceco run`
+    (Linux prctl PR_SET_PDEATHSIG, kept across the exec into the node). Empty
+    where util-linux's setpriv is missing: the nodes then outlive a SIGKILL."""
+    setpriv = shutil.which('setpriv')
+    return [setpriv, '--pdeathsig', 'SIGINT', '--'] if setpriv else []
 
 
 def _param_text(value) -> str:

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ceco_core.acc_law import AccLaw, AccSettings
 from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
 from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits
@@ -37,15 +39,22 @@ class BaselineController:
         self.law.reset()
 
     def compute(self, obs: Observation):
-        """One control step from the measured cabin air temperature (never raises on its value)."""
+        """One control step from the measured cabin air temperature (never raises on its value).
+
+        The ambient and sun-load sensors and the occupant's current upper PMV bound
+        go to the law too; the plain law (the default settings) ignores them.
+        """
         lo, hi = self.observation_limits.temperature_c
         try:
             t_cab = float(obs.t_cab_c)
         except (TypeError, ValueError, OverflowError):
             t_cab = math.nan
-        cmd = self.law.step(t_cab if lo <= t_cab <= hi else math.nan, self.control_period_s)
+        pmv_ub = float(obs.pmv_ub[0]) if np.size(obs.pmv_ub) else None
+        cmd = self.law.step(t_cab if lo <= t_cab <= hi else math.nan, self.control_period_s, t_amb_c=obs.t_amb_c,
+                            solar_wm2=obs.solar_wm2, pmv_ub=pmv_ub)
         if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
             raise AssertionError(f"ACC law produced an out-of-bounds command {cmd}")
         diag = Diagnostics(k=obs.k, t_s=obs.t_s, status=cmd.mode, mdot_bl_kgps=cmd.mdot_bl_kgps,
-                           t_evap_sp_c=cmd.t_evap_sp_c, message=f"demand={cmd.demand:.3f}")
+                           t_evap_sp_c=cmd.t_evap_sp_c,
+                           message=f"demand={cmd.demand:.3f} setpoint_c={cmd.setpoint_c:.3f}")
         return AcInput(mdot_bl_kgps=cmd.mdot_bl_kgps, t_evap_sp_c=cmd.t_evap_sp_c), diag

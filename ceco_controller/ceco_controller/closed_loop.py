@@ -20,11 +20,12 @@ import dataclasses
 import math
 import pathlib
 import sys
+import time
 
 import numpy as np
 
 from ceco_core import rundir
-from ceco_core.metrics import compute_metrics, comparison_table
+from ceco_core.metrics import comfort_series_metrics, compute_metrics, comparison_table
 from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
 from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews, parse_quality
 from ceco_v2x_preview.scenario import Scenario, load_scenario
@@ -41,9 +42,10 @@ __all__ = ["SimSettings", "RunResult", "simulate", "make_controller",
 TIMESERIES_COLUMNS = rundir.TIMESERIES_COLUMNS + rundir.TIMESERIES_EXTRA
 """Columns of the simulator's ``timeseries.csv``: the contract's (``ceco_core.rundir``), then extras."""
 
-DIAGNOSTICS_CSV_COLUMNS = DIAGNOSTICS_COLUMNS + ("pmv_pred", "t_cab_pred_c")
+DIAGNOSTICS_CSV_COLUMNS = DIAGNOSTICS_COLUMNS + ("pmv_pred", "t_cab_pred_c", "step_time_ms")
 """Columns of ``diagnostics.csv``: :data:`DIAGNOSTICS_COLUMNS`, then the predicted PMV [-] and T_cab [degC]
-trajectories over the horizon (grid points 0..Np, ``;``-joined; empty without a successful solve)."""
+trajectories over the horizon (grid points 0..Np, ``;``-joined; empty without a successful solve) and the
+wall time of the whole control step, the controller's ``compute`` call [ms] (the benchmark's time ratio)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,7 +69,13 @@ class SimSettings:
     model_params_path: str | None = None
     """Identified model parameter file; None: ceco_controller/config/model_params.yaml."""
     strategy_overrides: tuple = ()
-    """((field, value), ...) overriding the CECO strategy settings (e.g. (('gamma_w', 1e4),))."""
+    """((field, value), ...) overriding the strategy's settings: StrategySettings fields for a CECO
+    strategy (e.g. (('gamma_w', 1e4),)), AccSettings fields for the baseline (e.g. (('setpoint_c', 25.0),))."""
+    plant_overrides: tuple = ()
+    """((field, value), ...) overriding the simulated car's PlantParams (the controllers keep their models)."""
+    comfort_overrides: tuple = ()
+    """((field, value), ...) overriding the ComfortParams of the scored PMV (plant side only; the NMPC keeps
+    its nominal comfort model)."""
     controller_config_path: str | None = None
     """Controller settings file; None: ceco_controller/config/controller.yaml."""
     prepare_first_step: bool = False
@@ -101,6 +109,8 @@ class RunResult:
     diag_objects: list
     """The Diagnostics objects (with predicted trajectories)."""
     metrics: dict
+    step_time_s: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    """Wall time of each control step's ``controller.compute`` call [s]."""
 
 
 def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | None = None,
@@ -132,9 +142,10 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
     if controller is None:
         controller = make_controller(strategy, scenario, ts, n_p, mp, dict(settings.strategy_overrides),
                                      config_path=settings.controller_config_path)
-    sp = ScenarioPlant(scenario, dt)
+    sp = ScenarioPlant(scenario, dt, plant_overrides=dict(settings.plant_overrides),
+                       comfort_overrides=dict(settings.comfort_overrides))
     cols = {c: np.empty(n) for c in TIMESERIES_COLUMNS}
-    diags, diag_objs = [], []
+    diags, diag_objs, step_times = [], [], []
     iterator = range(n)
     if settings.progress:
         from tqdm import tqdm
@@ -147,7 +158,9 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
             obs = observation(k, t, sp.meas, scenario.env_at(t), sp.cmd, pv, scenario)
             if k == 0 and settings.prepare_first_step and hasattr(controller, "prepare"):
                 controller.prepare(obs)
+            t_step = time.perf_counter()
             cmd, diag = controller.compute(obs)
+            step_times.append(time.perf_counter() - t_step)
             if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
                 raise AssertionError(f"{strategy}: command {cmd} outside the actuator bounds at t={t}")
             diags.append(diag.to_row())
@@ -161,6 +174,7 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
             "mdot_bl_kgps": r.u.mdot_bl_kgps, "t_evap_sp_c": r.u.t_evap_sp_c,
             "p_comp_w": out.p_comp_w, "p_blower_w": out.p_blower_w, "q_evap_w": out.q_evap_w, "cop": out.cop,
             "pmv": r.pmv, "ppd": r.ppd, "pmv_lb": r.pmv_lb, "pmv_ub": r.pmv_ub,
+            **{c: float(getattr(r.comfort, c)) for c in rundir.COMFORT_COLUMNS},
             "p_cond_fan_w": out.p_cond_fan_w, "q_latent_w": out.q_latent_w,
             "comp_speed_rpm": out.comp_speed_rpm, "capacity_limited": float(out.capacity_limited),
         }
@@ -181,6 +195,7 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
         "otc_violation_zone_pct": float(100.0 * np.count_nonzero(viol & zone) / max(np.count_nonzero(zone), 1)),
         "pmv_mean_zone": float(np.mean(cols["pmv"][zone])),
     })
+    metrics.update(comfort_series_metrics(cols, dt, zone))
     metrics.update({
         "scenario": scenario.name, "strategy": strategy, "control_period_s": ts, "horizon_steps": n_p,
         "seed": int(quality.seed if quality.seed is not None else scenario.seed),
@@ -192,7 +207,7 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
         "solve_time_max_ms": float(np.max([d.solve_time_ms for d in nd])) if nd else None,
     })
     return RunResult(scenario=scenario.name, strategy=strategy, timeseries=cols, diagnostics=diags,
-                     diag_objects=diag_objs, metrics=metrics)
+                     diag_objects=diag_objs, metrics=metrics, step_time_s=np.asarray(step_times, dtype=float))
 
 
 def _joined(a) -> str:
@@ -214,14 +229,19 @@ def write_run(result: RunResult, run_dir: str | pathlib.Path) -> pathlib.Path:
     rows = {c: [r.get(c, "") for r in result.diagnostics] for c in DIAGNOSTICS_COLUMNS}
     rows["pmv_pred"] = [_joined(getattr(o, "pred_pmv", None)) for o in objs]
     rows["t_cab_pred_c"] = [_joined(getattr(o, "pred_t_cab_c", None)) for o in objs]
+    st = np.asarray(getattr(result, "step_time_s", ()), dtype=float)
+    rows["step_time_ms"] = [1e3 * float(x) for x in st] if st.size == len(result.diagnostics) else \
+        [math.nan] * len(result.diagnostics)
     rundir.write_csv(d / "diagnostics.csv", DIAGNOSTICS_CSV_COLUMNS, rows)
     rundir.write_metrics_json(d / "metrics.json", result.metrics)
     return d
 
 
-TABLE_COLUMNS = ("E_tot_kWh", "I_pmv", "otc_violation_pct", "time_to_comfort_s", "pmv_mean",
-                 "E_zone_J", "I_pmv_zone", "otc_violation_zone_pct", "pmv_mean_zone")
-"""Columns of the printed comparison (``*_zone``: only the comfort-zone phase after the pull-down relaxation)."""
+TABLE_COLUMNS = ("E_tot_kWh", "I_pmv", "I_pmv_clipped", "otc_violation_pct", "iso7730_invalid_pct",
+                 "time_to_comfort_s", "pmv_mean", "E_zone_J", "I_pmv_zone", "otc_violation_zone_pct", "pmv_mean_zone",
+                 "iso7730_invalid_pct_zone", "dr_above_pct_zone", "rh_cab_mean_zone", "fog_margin_min_k")
+"""Columns of the printed comparison (``*_zone``: only the comfort-zone phase after the pull-down relaxation);
+the share of samples outside ISO 7730 validity next to the comfort metrics."""
 CHANGE_COLUMNS = ("E_tot_kWh", "I_pmv", "otc_violation_pct", "E_zone_J", "I_pmv_zone")
 """Columns shown with their change against the baseline [%]."""
 
@@ -243,7 +263,19 @@ def main(argv=None) -> int:
     ap.add_argument("--controller-config", default=None,
                     help="controller settings file (default: ceco_controller/config/controller.yaml)")
     ap.add_argument("--no-progress", action="store_true", help="disable the progress bar")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                    help="override a CECO strategy setting (StrategySettings field), e.g. pmv_pa_source=measured; "
+                         "repeatable; numbers are read as floats")
     args = ap.parse_args(argv)
+    overrides = []
+    for item in args.set:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            ap.error(f"--set: expected FIELD=VALUE, got {item!r}")
+        try:
+            overrides.append((key, float(value)))
+        except ValueError:
+            overrides.append((key, value))
     strategies = list(STRATEGIES) if args.strategy == "all" else [s.strip() for s in args.strategy.split(",")]
     for s in strategies:
         if s not in STRATEGIES:
@@ -256,7 +288,7 @@ def main(argv=None) -> int:
     settings = SimSettings(control_period_s=args.control_period, horizon_steps=args.horizon,
                            preview_quality=quality, seed=args.seed, duration_s=args.duration,
                            progress=not args.no_progress, model_params_path=args.model_params,
-                           controller_config_path=args.controller_config)
+                           controller_config_path=args.controller_config, strategy_overrides=tuple(overrides))
     out = pathlib.Path(args.out)
     rows = []
     for s in strategies:

@@ -6,7 +6,8 @@ from here.
 
 from __future__ import annotations
 
-from ceco_core.comfort import comfort_params_for
+from ceco_core.acc_law import AccSettings
+from ceco_core.cabin_comfort import comfort_params_for
 from ceco_core.scenario_types import Scenario
 
 from . import model as cm
@@ -24,9 +25,11 @@ def make_controller(strategy: str, scenario: Scenario, control_period_s: float, 
 
     NMPC settings: the controller file (``config_path``, default the package's
     ``config/controller.yaml``), then ``horizon_steps``/``control_period_s``, then ``overrides``.
+    Baseline: ``overrides`` are :class:`~ceco_core.acc_law.AccSettings` fields.
     """
     if strategy == "baseline":
-        return BaselineController(control_period_s=control_period_s)
+        # overrides: AccSettings fields (set-point, allowance, sun/ambient compensation)
+        return BaselineController(AccSettings(**(overrides or {})), control_period_s=control_period_s)
     settings = load_strategy_settings(strategy, config_path, horizon_steps=horizon_steps,
                                       control_period_s=control_period_s, **(overrides or {}))
     return NmpcController(settings, model_params=model_params, comfort_params=comfort_params_for(scenario))

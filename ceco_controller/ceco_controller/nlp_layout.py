@@ -9,7 +9,8 @@ Parameters (one instance per NLP, :class:`ParamLayout`):
 
     x0 (T_cab, T_evap) [degC], t_int, t_shell [degC], d_cab, d_evap [K per control step],
     d_ain [K], u_prev (mdot_bl [kg/s], T_evap_sp [degC]), then on the N + 1 grid points:
-    t_amb [degC], solar [W/m2], speed [m/s], pmv_lb, pmv_ub [-].
+    t_amb [degC], solar [W/m2], speed [m/s], pmv_lb, pmv_ub [-], then the comfort scalars
+    held over the horizon: t_mr (mean radiant temperature) [degC], pa (vapour pressure) [Pa].
 
 Variables (:class:`VariableLayout`), stage-ordered as the transcription adds them:
 
@@ -24,8 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ParamLayout", "VariableLayout", "RowLayout", "PARAM_SCALARS", "PARAM_SERIES", "VAR_KEYS",
-           "ROW_KINDS"]
+__all__ = ["ParamLayout", "VariableLayout", "RowLayout", "PARAM_SCALARS", "PARAM_SERIES", "PARAM_TAIL",
+           "VAR_KEYS", "ROW_KINDS"]
 
 PARAM_SCALARS = (("x0", 2), ("t_int", 1), ("t_shell", 1), ("d_cab", 1), ("d_evap", 1), ("d_ain", 1),
                  ("u_prev", 2))
@@ -33,6 +34,9 @@ PARAM_SCALARS = (("x0", 2), ("t_int", 1), ("t_shell", 1), ("d_cab", 1), ("d_evap
 
 PARAM_SERIES = ("t_amb", "solar", "speed", "pmv_lb", "pmv_ub")
 """Parameters with one value per grid point (N + 1), in vector order after :data:`PARAM_SCALARS`."""
+
+PARAM_TAIL = (("t_mr", 1), ("pa", 1))
+"""Comfort scalars after the series: mean radiant temperature [degC], cabin vapour pressure [Pa]."""
 
 VAR_KEYS = ("x", "u", "s_lo", "s_up", "s_ev", "eps")
 """Kinds of stage-wise variable blocks."""
@@ -48,7 +52,7 @@ class ParamLayout:
         self.n_grid = int(n_grid)
         self.slices: dict[str, slice] = {}
         off = 0
-        for name, size in PARAM_SCALARS + tuple((s, self.n_grid) for s in PARAM_SERIES):
+        for name, size in PARAM_SCALARS + tuple((s, self.n_grid) for s in PARAM_SERIES) + PARAM_TAIL:
             self.slices[name] = slice(off, off + size)
             off += size
         self.size = off

@@ -37,8 +37,9 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ceco_core import psychro
 from ceco_core.acc_law import AccLaw, AccSettings
-from ceco_core.comfort import ComfortParams
+from ceco_core.cabin_comfort import PAPER_PA_PA, ComfortParams, cabin_mrt_c
 from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
 from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits, check_observation
 
@@ -267,14 +268,39 @@ class NmpcController:
         return self.settings.horizon_steps
 
     # ------------------------------------------------------------ NLP access
-    def parameters(self, obs: Observation, ex: dict, u_prev=None) -> np.ndarray:
-        """The NLP parameter vector for an observation (previews filled; ``u_prev`` overrides its previous command)."""
+    def parameters(self, obs: Observation, ex: dict, u_prev=None, t_glass_c: float | None = None,
+                   rh_cab: float | None = None) -> np.ndarray:
+        """The NLP parameter vector for an observation (previews filled).
+
+        ``u_prev`` overrides the observation's previous command; ``t_glass_c`` and ``rh_cab`` its
+        glazing temperature and cabin RH (the checked values: NaN where not measured or implausible).
+        """
         b = self._bias.values
         u_prev = (obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c) if u_prev is None else u_prev
+        t_mr, pa = self.comfort_parameters(obs, t_glass_c, rh_cab)
         return self.problem.params.pack(
             x0=[obs.t_cab_c, obs.t_evap_c], t_int=obs.t_int_c, t_shell=obs.t_shell_c, d_cab=b[0], d_evap=b[1],
             d_ain=b[2], u_prev=u_prev, t_amb=ex["t_amb"], solar=ex["solar"], speed=ex["speed"],
-            pmv_lb=obs.pmv_lb, pmv_ub=obs.pmv_ub)
+            pmv_lb=obs.pmv_lb, pmv_ub=obs.pmv_ub, t_mr=t_mr, pa=pa)
+
+    def comfort_parameters(self, obs: Observation, t_glass_c: float | None = None,
+                           rh_cab: float | None = None) -> np.ndarray:
+        """The NLP's comfort scalars [t_mr (degC), p_a (Pa)] held over the horizon.
+
+        t_mr: from the measured glazing, shell and interior temperatures
+        (:func:`ceco_core.cabin_comfort.cabin_mrt_c`; T_int alone while the glazing is not
+        measured). p_a: ``settings.pmv_pa_source`` ('paper': 1700 Pa; 'measured': RH x p_ws(T_cab),
+        1700 Pa while the RH is not measured). ``t_glass_c``/``rh_cab`` default to the observation's.
+        """
+        t_glass = obs.t_glass_c if t_glass_c is None else t_glass_c
+        rh = obs.rh_cab if rh_cab is None else rh_cab
+        t_glass = t_glass if math.isfinite(t_glass) else obs.t_int_c
+        t_mr = float(cabin_mrt_c(t_cab_c=obs.t_cab_c, t_int_c=obs.t_int_c, t_shell_c=obs.t_shell_c,
+                                 t_glass_c=t_glass, params=self.comfort_params))
+        pa = PAPER_PA_PA
+        if self.settings.pmv_pa_source == "measured" and math.isfinite(rh) and 0.0 <= rh <= 1.0:
+            pa = float(psychro.vapour_pressure_pa(obs.t_cab_c, rh))
+        return np.array([t_mr, pa])
 
     def initial_guess(self, p: np.ndarray, w_prev: np.ndarray | None = None) -> np.ndarray:
         """Primal guess at ``p`` (:func:`ceco_controller.warmstart.initial_guess`)."""
@@ -330,7 +356,7 @@ class NmpcController:
         bias = copy.deepcopy(self._bias)
         self._bias.update(obs.t_cab_c, obs.t_evap_c, obs.t_vent_c, obs.mdot_bl_prev_kgps)
         ex, _ = fill_previews(obs, n1, self.settings.use_speed_preview, obs.preview_valid & chk.preview_plausible)
-        p = self.parameters(obs, ex)
+        p = self.parameters(obs, ex, None, chk.t_glass_c, chk.rh_cab)
         self._bias = bias
         out = self.chain.run(p, None, math.inf)
         if out.result is not None:
@@ -382,7 +408,7 @@ class NmpcController:
             _note(diag, f"preview valid for {trusted}/{n1} points; "
                   + ("held last valid value" if trusted else "held measured values"))
         self._bias.update(obs.t_cab_c, obs.t_evap_c, obs.t_vent_c, u_prev[0])
-        p = self.parameters(obs, ex, u_prev)
+        p = self.parameters(obs, ex, u_prev, chk.t_glass_c, chk.rh_cab)
         out = self.chain.run(p, self._good, deadline)
         self._last_nlp = out.data
         self._count(out, deadline)

@@ -42,4 +42,5 @@ def observation(k: int, t_s: float, meas: Mapping, env, u_prev, previews: Previe
         speed_mps=env.speed_mps, mdot_bl_prev_kgps=u_prev.mdot_bl_kgps, t_evap_sp_prev_c=u_prev.t_evap_sp_c,
         preview_t_amb_c=previews.t_amb_c, preview_solar_wm2=previews.solar_wm2,
         preview_speed_mps=previews.speed_mps, preview_valid=previews.valid, pmv_lb=lb, pmv_ub=ub,
-        met=occ.met, clo=occ.clo)
+        met=occ.met, clo=occ.clo, t_glass_c=meas.get("t_glass_c", float("nan")),
+        rh_cab=meas.get("rh_cab", float("nan")))

@@ -202,6 +202,13 @@ class StrategySettings:
     """First-order filter gain of the bias estimates per control step [-] (0..1]."""
     bias_limit_k: float = 3.0
     """Largest magnitude of a bias estimate [K] (per control step for T_cab/T_evap)."""
+    pmv_pa_source: str = "paper"
+    """Cabin vapour pressure in the NLP's PMV: 'paper' (the paper's constant 1700 Pa: deliberate model
+    mismatch, the plant scores with the cabin's own moisture) or 'measured' (the measured cabin RH at the
+    measured T_cab, held over the horizon; 1700 Pa while the measurement is missing) (docs/controller.md)."""
+    draught_weight_kj: float = 0.0
+    """Weight of the ISO 7730 draught penalty [kJ per (DR/100)^2 per control period], on the uncapped
+    smooth draught intensity in the vent jet at the occupant (0: off, as for the paper's strategies)."""
     pmv_newton_steps: int = 3
     """Newton steps on the clothing temperature in the NLP's PMV (the plant uses 4; the 3-step
     value differs by 6e-10 K in T_cl, docs/controller.md) [-]."""
@@ -218,8 +225,11 @@ class StrategySettings:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"StrategySettings.{name} must be finite and > 0, got {v!r}")
+        if self.pmv_pa_source not in ("paper", "measured"):
+            raise ValueError("StrategySettings.pmv_pa_source must be 'paper' or 'measured', "
+                             f"got {self.pmv_pa_source!r}")
         for name in ("gamma_w", "pmv_margin", "beta_w", "eps_ub", "slack_weight_kj", "du_weight_kj",
-                     "bias_limit_k"):
+                     "bias_limit_k", "draught_weight_kj"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"StrategySettings.{name} must be finite and >= 0, got {v!r}")

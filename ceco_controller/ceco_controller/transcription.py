@@ -25,7 +25,7 @@ import dataclasses
 import casadi
 import numpy as np
 
-from ceco_core.comfort import ComfortParams, cabin_pmv
+from ceco_core.cabin_comfort import ComfortParams, cabin_draught_pct, cabin_pmv, cabin_w_rad_wm2
 from ceco_core.contracts import ACTUATOR_LIMITS, ActuatorLimits
 
 from . import model as cm
@@ -49,7 +49,7 @@ class Evaluation:
     J_e: float
     """Energy term [kJ]."""
     J_c: float
-    """Comfort term gamma sum PMV^2 Ts [kJ-equivalent]."""
+    """Comfort terms: gamma sum PMV^2 Ts and the draught penalty [kJ-equivalent]."""
     J_i: float
     """IOCH term [kJ-equivalent]."""
     J_s: float
@@ -200,8 +200,8 @@ def build_problem(settings: StrategySettings, model_params: cm.ControlModelParam
             u = x[2:4]  # u_{N-1}, carried in the state
         # comfort at stage i
         tain = cm.t_ain_c(mp, x[1], u[0], P["d_ain"])
-        pmv = cabin_pmv(t_cab_c=x[0], t_ain_c=tain, t_int_c=P["t_int"], mdot_bl_kgps=u[0],
-                        solar_wm2=P["solar"][i], params=cp)
+        pmv = cabin_pmv(t_cab_c=x[0], t_vent_c=tain, mdot_bl_kgps=u[0], t_mr_c=P["t_mr"],
+                        w_rad_wm2=cabin_w_rad_wm2(P["solar"][i], cp), pa_pa=P["pa"], params=cp)
         pmv_all.append(pmv)
         tcab_all.append(x[0])
         tain_all.append(tain)
@@ -222,6 +222,9 @@ def build_problem(settings: StrategySettings, model_params: cm.ControlModelParam
                  [0.0, -inf], [inf, 0.0])
         if s.gamma_w > 0:
             c_terms.append(ts_kj * s.gamma_w * pmv ** 2)
+        if s.draught_weight_kj > 0:
+            dr = cabin_draught_pct(t_cab_c=x[0], t_vent_c=tain, mdot_bl_kgps=u[0], params=cp, cap=False)
+            c_terms.append(s.draught_weight_kj * (dr / 100.0) ** 2)
         if i >= 1:
             tevap_all.append(x[1])
             s_ev = SX.sym(f"s_ev_{i}")

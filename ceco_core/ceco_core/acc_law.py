@@ -29,6 +29,28 @@ d in [0, 1], is mapped to the two A/C actuators the way production ACCs do
   its own first output is added to its outputs and decays as exp(-t / ``handover_tau_s``), so the
   actuators move continuously.
 
+Two optional additions, off by default (the plain law above is the paper's
+baseline and the plant's fallback; docs/benchmark.md, "Baselines"):
+
+* Sun-load and ambient compensation, as production ACCs do (target outlet
+  temperature from set-point, cabin, ambient and sun-load sensors, e.g. Mazda's
+  "K1 T_set - K2 T_cab - K3 T_amb - K4 solar + C"; Ford EATC: "compensates high
+  sun load with higher blower and reduced discharge temperatures"; Nissan: the
+  sun-load reading is filtered so that a tunnel changes it slowly):
+
+      S_f(k) = S_f(k-1) + (1 - exp(-dt/tau_sun)) (S(k) - S_f(k-1)),  S_f(0) = S(0)
+      T_sp,eff = T_sp - k_sun S_f / 1000 - k_amb (T_amb - T_amb,ref)
+      mdot_min,eff = min(mdot_min + k_bl S_f / 1000, mdot_max)
+
+  with S the sun-load sensor [W/m2], T_amb the ambient sensor [degC].
+* The pull-down allowance: the same permission the CECO strategies have (PMV
+  may follow the occupant's relaxed upper bound ub(t) during the pull-down),
+  given to the ECU as a set-point ramp over the relaxed-bound phase:
+
+      T_sp,eff += k_allow max(0, ub(t) - ub_band)
+
+  with k_allow [K/PMV] converting the PMV allowance into air temperature.
+
 Pure and deterministic, no ROS; stateful object with ``reset()`` and
 ``step(t_cab_c, dt_s)``. A non-finite measurement never crashes the ECU: the
 last command is held and the output says ``mode='sensor_fault'``.
@@ -72,8 +94,27 @@ class AccSettings:
     """Coldest evaporator set-point [degC] (frost protection)."""
     t_evap_sp_max_c: float = 10.0
     """Warmest evaporator set-point [degC]."""
+    allowance_k_per_pmv: float = 0.0
+    """Pull-down allowance k_allow: set-point rise per PMV of relaxation of the upper bound [K/PMV] (0: off)."""
+    band_ub_pmv: float = 0.5
+    """Upper PMV bound of the comfort band; only a bound above it is a relaxation [-]."""
+    sun_gain_k_per_kwm2: float = 0.0
+    """Sun-load compensation k_sun: set-point lowered per kW/m2 of filtered sun load [K/(kW/m2)] (0: off)."""
+    ambient_gain_k_per_k: float = 0.0
+    """Ambient compensation k_amb: set-point lowered per kelvin of ambient above ambient_ref_c [K/K] (0: off)."""
+    ambient_ref_c: float = 25.0
+    """Ambient temperature at which the ambient compensation is zero [degC]."""
+    sun_blower_gain_kgps_per_kwm2: float = 0.0
+    """Sun-load blower compensation k_bl: rise of the minimum blower flow per kW/m2 [(kg/s)/(kW/m2)] (0: off)."""
+    sun_filter_tau_s: float = 20.0
+    """Time constant of the first-order filter on the sun-load sensor [s]."""
     handover_tau_s: float = 30.0
     """Time constant of the decay of the command difference at a bumpless take-over [s]."""
+
+    @property
+    def compensated(self) -> bool:
+        """True when any sun-load or ambient compensation gain is non-zero."""
+        return bool(self.sun_gain_k_per_kwm2 or self.ambient_gain_k_per_k or self.sun_blower_gain_kgps_per_kwm2)
 
     def validate(self) -> None:
         """Raise ValueError naming the field if a setting is not usable."""
@@ -94,6 +135,11 @@ class AccSettings:
             raise ValueError("AccSettings.mdot_bl_min_kgps must satisfy 0 < min < mdot_bl_max_kgps")
         if not self.t_evap_sp_min_c < self.t_evap_sp_max_c:
             raise ValueError("AccSettings.t_evap_sp_min_c must be < t_evap_sp_max_c")
+        for name in ("allowance_k_per_pmv", "sun_blower_gain_kgps_per_kwm2"):
+            if getattr(self, name) < 0.0:
+                raise ValueError(f"AccSettings.{name} must be >= 0")
+        if not self.sun_filter_tau_s > 0.0:
+            raise ValueError("AccSettings.sun_filter_tau_s must be > 0")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,6 +154,8 @@ class AccCommand:
     """Cooling demand d in [0, 1] [-]."""
     mode: str
     """'pulldown', 'pi', 'sensor_fault' or 'tracking' (another controller in charge)."""
+    setpoint_c: float = math.nan
+    """Effective cabin set-point of this step (after compensation and allowance) [degC]."""
 
 
 class AccLaw:
@@ -119,9 +167,11 @@ class AccLaw:
         self.reset()
 
     def reset(self) -> None:
-        """Back to the key-on state: integrator empty, pull-down armed."""
+        """Back to the key-on state: integrator empty, pull-down armed, sun filter empty."""
         self._integral = 0.0
         self._pulldown = False
+        self._sun_f: float | None = None
+        self._mdot_min = self.settings.mdot_bl_min_kgps
         self._last = self.map_demand(1.0, "pulldown")
         self._raw = self._last  # the law's own last output (without the take-over offset)
         self._tracking = False  # another controller applied the last command
@@ -134,8 +184,33 @@ class AccLaw:
         f_evap = min(d / s.d_evap_full, 1.0)
         t_sp = s.t_evap_sp_max_c - f_evap * (s.t_evap_sp_max_c - s.t_evap_sp_min_c)
         f_bl = max(d - s.d_blower_start, 0.0) / (1.0 - s.d_blower_start)
-        mdot = s.mdot_bl_min_kgps + f_bl * (s.mdot_bl_max_kgps - s.mdot_bl_min_kgps)
+        mdot = self._mdot_min + f_bl * (s.mdot_bl_max_kgps - self._mdot_min)
         return AccCommand(mdot_bl_kgps=mdot, t_evap_sp_c=t_sp, demand=d, mode=mode)
+
+    def effective_setpoint_c(self, dt_s: float, t_amb_c=None, solar_wm2=None, pmv_ub=None) -> float:
+        """The set-point of this step after compensation and allowance [degC] (module docstring).
+
+        Updates the sun-load filter and the compensated blower floor. A missing or
+        non-finite sensor reading contributes no compensation; no term is evaluated
+        when its gain is 0, so the plain law is unchanged bit for bit.
+        """
+        s = self.settings
+        sp = s.setpoint_c
+        if s.sun_gain_k_per_kwm2 or s.sun_blower_gain_kgps_per_kwm2:
+            if solar_wm2 is not None and math.isfinite(float(solar_wm2)):
+                if self._sun_f is None:
+                    self._sun_f = float(solar_wm2)
+                else:
+                    self._sun_f += -math.expm1(-dt_s / s.sun_filter_tau_s) * (float(solar_wm2) - self._sun_f)
+            if self._sun_f is not None:
+                sp -= s.sun_gain_k_per_kwm2 * self._sun_f / 1000.0
+                self._mdot_min = min(s.mdot_bl_min_kgps + s.sun_blower_gain_kgps_per_kwm2 * self._sun_f / 1000.0,
+                                     s.mdot_bl_max_kgps)
+        if s.ambient_gain_k_per_k and t_amb_c is not None and math.isfinite(float(t_amb_c)):
+            sp -= s.ambient_gain_k_per_k * (float(t_amb_c) - s.ambient_ref_c)
+        if s.allowance_k_per_pmv and pmv_ub is not None and math.isfinite(float(pmv_ub)):
+            sp += s.allowance_k_per_pmv * max(0.0, float(pmv_ub) - s.band_ub_pmv)
+        return sp
 
     def demand_of(self, mdot_bl_kgps: float, t_evap_sp_c: float) -> float:
         """The demand whose mapped command is nearest to (mdot_bl [kg/s], T_evap_sp [degC]).
@@ -144,8 +219,7 @@ class AccLaw:
         minimum is exact per piece.
         """
         s = self.settings
-        target = np.array([(mdot_bl_kgps - s.mdot_bl_min_kgps) / (s.mdot_bl_max_kgps - s.mdot_bl_min_kgps),
-                           (s.t_evap_sp_max_c - t_evap_sp_c) / (s.t_evap_sp_max_c - s.t_evap_sp_min_c)])
+        target = self._normalised(mdot_bl_kgps, t_evap_sp_c)
         knots = sorted({0.0, s.d_blower_start, s.d_evap_full, 1.0})
 
         def point(d):
@@ -167,32 +241,48 @@ class AccLaw:
         return np.array([(mdot - s.mdot_bl_min_kgps) / (s.mdot_bl_max_kgps - s.mdot_bl_min_kgps),
                          (s.t_evap_sp_max_c - sp) / (s.t_evap_sp_max_c - s.t_evap_sp_min_c)])
 
-    def track(self, mdot_bl_kgps: float, t_evap_sp_c: float, t_cab_c: float | None = None) -> None:
+    def track(self, mdot_bl_kgps: float, t_evap_sp_c: float, t_cab_c: float | None = None, *,
+              dt_s: float | None = None, t_amb_c: float | None = None, solar_wm2: float | None = None,
+              pmv_ub: float | None = None) -> None:
         """Follow a command another controller applied, so that a later :meth:`step` takes over without a bump.
 
-        (mdot_bl [kg/s], T_evap_sp [degC]) applied at cabin air temperature ``t_cab_c`` [degC].
-        Non-finite commands are ignored; a non-finite ``t_cab_c`` leaves the integrator as it is.
+        (mdot_bl [kg/s], T_evap_sp [degC]) applied at cabin air temperature ``t_cab_c`` [degC];
+        with ``dt_s`` the compensations' sensors are followed too (the sun filter stays warm) and
+        the integrator is preset against the effective set-point. Non-finite commands are
+        ignored; a non-finite ``t_cab_c`` leaves the integrator as it is.
         """
         if not (math.isfinite(float(mdot_bl_kgps)) and math.isfinite(float(t_evap_sp_c))):
             return
         s = self.settings
+        sp_eff = (self.effective_setpoint_c(dt_s, t_amb_c, solar_wm2, pmv_ub)
+                  if dt_s is not None and math.isfinite(dt_s) and dt_s > 0 else s.setpoint_c)
         mdot = min(max(float(mdot_bl_kgps), s.mdot_bl_min_kgps), s.mdot_bl_max_kgps)
         sp = min(max(float(t_evap_sp_c), s.t_evap_sp_min_c), s.t_evap_sp_max_c)
         d = self.demand_of(mdot, sp)
         self._pulldown = False
         if t_cab_c is not None and math.isfinite(float(t_cab_c)):
-            self._integral = d - s.kp_per_k * (float(t_cab_c) - s.setpoint_c)
-        self._last = self._raw = AccCommand(mdot_bl_kgps=mdot, t_evap_sp_c=sp, demand=d, mode="tracking")
+            self._integral = d - s.kp_per_k * (float(t_cab_c) - sp_eff)
+        self._last = self._raw = AccCommand(mdot_bl_kgps=mdot, t_evap_sp_c=sp, demand=d, mode="tracking",
+                                            setpoint_c=sp_eff)
         self._tracking = True
         self._offset = np.zeros(2)
 
-    def step(self, t_cab_c: float, dt_s: float) -> AccCommand:
-        """One ECU step: measured cabin air temperature [degC], step length [s]."""
+    def step(self, t_cab_c: float, dt_s: float, *, t_amb_c: float | None = None, solar_wm2: float | None = None,
+             pmv_ub: float | None = None) -> AccCommand:
+        """One ECU step.
+
+        Args:
+            t_cab_c: measured cabin air temperature [degC].
+            dt_s: step length [s].
+            t_amb_c: ambient temperature sensor [degC] (used by the ambient compensation only).
+            solar_wm2: sun-load sensor [W/m2] (used by the sun-load compensation only).
+            pmv_ub: the occupant's upper PMV bound now [-] (used by the allowance only).
+        """
         if not (isinstance(dt_s, (int, float)) and math.isfinite(dt_s) and dt_s > 0):
             raise ValueError(f"AccLaw.step: dt_s must be a finite number > 0, got {dt_s!r}")
         applied = self._last if self._tracking else None
         self._tracking = False
-        cmd = self._raw = self._law_step(t_cab_c, dt_s)
+        cmd = self._raw = self._law_step(t_cab_c, dt_s, t_amb_c, solar_wm2, pmv_ub)
         if applied is not None:  # take-over: start from the applied command
             self._offset = np.array([applied.mdot_bl_kgps - cmd.mdot_bl_kgps, applied.t_evap_sp_c - cmd.t_evap_sp_c])
         elif np.any(self._offset):
@@ -207,12 +297,13 @@ class AccLaw:
         self._last = cmd
         return cmd
 
-    def _law_step(self, t_cab_c: float, dt_s: float) -> AccCommand:
+    def _law_step(self, t_cab_c, dt_s, t_amb_c, solar_wm2, pmv_ub) -> AccCommand:
         """The law itself (PI, pull-down, sensor fault), without the take-over offset."""
         if t_cab_c is None or not math.isfinite(float(t_cab_c)):
             return dataclasses.replace(self._raw, mode="sensor_fault")
         s = self.settings
-        err = float(t_cab_c) - s.setpoint_c  # > 0: cabin too warm
+        sp = self.effective_setpoint_c(dt_s, t_amb_c, solar_wm2, pmv_ub)
+        err = float(t_cab_c) - sp  # > 0: cabin too warm
         if self._pulldown and err < s.pulldown_exit_k:
             self._pulldown = False
             # bumpless hand-over: PI output equals the current demand (1)
@@ -220,9 +311,9 @@ class AccLaw:
         elif not self._pulldown and err > s.pulldown_enter_k:
             self._pulldown = True
         if self._pulldown:
-            return self.map_demand(1.0, "pulldown")
+            return dataclasses.replace(self.map_demand(1.0, "pulldown"), setpoint_c=sp)
         v = s.kp_per_k * err + self._integral
         d = min(max(v, 0.0), 1.0)
         # integrate with back-calculation anti-windup
         self._integral += dt_s * (s.kp_per_k / s.ti_s * err + (d - v) / s.tt_s)
-        return self.map_demand(d, "pi")
+        return dataclasses.replace(self.map_demand(d, "pi"), setpoint_c=sp)

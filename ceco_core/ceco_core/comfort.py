@@ -1,4 +1,7 @@
-"""Occupant thermal comfort: ISO 7730:2005 PMV/PPD and the automotive modified PMV.
+"""Occupant thermal comfort: ISO 7730:2005 PMV/PPD (with the paper's solar term) and its validity.
+
+The automotive layer (the environment at the occupant in a cabin, the scored
+PMV, draught and fog) is :mod:`ceco_core.cabin_comfort`.
 
 One implementation evaluates numpy arrays (with broadcasting) and CasADi
 ``SX``/``MX`` symbols (for the NMPC): the maths namespace is chosen by
@@ -16,9 +19,8 @@ References:
     vapour-pressure formula and Table D.1 check values).
     ANSI/ASHRAE Standard 55-2020, Normative Appendix C (SolarCal: effective
     radiant field of solar gain on an occupant).
-    Wang et al., DSCC 2019 (``shared/papers/ceco-dscc2019.tex``), Sec. 3, eqs. (5)-(14):
-    modified heat balance M + W_rad = H + E_c + C_res + E_res, T_a = a1 T_cab
-    + a2 T_ain, T_mr = T_int, air speed linear in blower flow, p_a = 1700 Pa.
+    Wang et al., DSCC 2019 (``shared/papers/ceco-dscc2019.tex``), Sec. 3, eqs. (5)-(13):
+    modified heat balance M + W_rad = H + E_c + C_res + E_res.
 """
 
 import dataclasses
@@ -45,9 +47,6 @@ __all__ = [
     "vapour_pressure_pa",
     "Iso7730Validity",
     "iso7730_validity",
-    "ComfortParams",
-    "cabin_pmv",
-    "comfort_params_for",
 ]
 
 MET_TO_WM2 = 58.15
@@ -436,147 +435,6 @@ def iso7730_validity(ta_c, tr_c, vel_mps, pa_pa, met, clo, pmv):
         lo, hi = _ISO_RANGES[name]
         flags[name] = (arr >= lo) & (arr <= hi)
     return Iso7730Validity(**flags)
-
-
-# --------------------------------------------------------------------------
-# automotive modified PMV
-
-
-@dataclasses.dataclass(frozen=True)
-class ComfortParams:
-    """Parameters of the automotive modified PMV (values justified in docs/comfort.md)."""
-
-    a1: float = 0.75
-    """Weight of the mean cabin air temperature in T_a = a1 T_cab + a2 T_ain [-]."""
-    a2: float = 0.25
-    """Weight of the vent (discharge) air temperature in T_a [-]; a1 + a2 = 1."""
-    vel_min_mps: float = 0.1
-    """Air speed at the occupant with the blower off (still cabin) [m/s]."""
-    vel_gain_mps_per_kgps: float = 5.3
-    """Slope of the air speed at the occupant over blower mass flow [(m/s)/(kg/s)]."""
-    sw_absorptivity: float = 0.67
-    """Short-wave absorptivity of skin and clothing, alpha_sw [-] (ASHRAE 55-2020 App. C)."""
-    f_eff: float = 0.696
-    """Fraction of body surface exchanging radiation, seated (ASHRAE 55-2020 App. C) [-]."""
-    f_projected: float = 0.262
-    """Projected area factor f_p of a seated person, sun at 60 deg altitude ahead (ASHRAE 55-2020 App. C) [-]."""
-    f_sunlit: float = 0.5
-    """Fraction of the body's projected area in direct sun inside the cabin, f_bes [-]."""
-    glazing_tau: float = 0.5
-    """Total solar transmittance of the glazing between sun and occupant [-]."""
-    met: float = 1.2
-    """Default metabolic rate of a driver [met]."""
-    clo: float = 0.5
-    """Default clothing insulation, summer [clo]."""
-    pa_pa: float | None = 1700.0
-    """Cabin water vapour pressure [Pa] (paper: 1700 Pa); None to use rh."""
-    rh: float | None = None
-    """Cabin relative humidity (0..1 fraction, at T_cab) used when pa_pa is None."""
-    smoothing: PmvSmoothing = DEFAULT_SMOOTHING
-    """Smoothing of the ISO 7730 non-differentiable terms."""
-
-    @property
-    def w_rad_per_solar(self):
-        """Absorbed solar flux per body area per unit irradiance [-]:
-        alpha_sw * f_eff * f_p * f_sunlit * tau_glazing."""
-        return (self.sw_absorptivity * self.f_eff * self.f_projected * self.f_sunlit
-                * self.glazing_tau)
-
-    def validate(self):
-        """Raise ValueError naming the first invalid field; return self."""
-        def number(name):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not math.isfinite(value):
-                raise ValueError(f"ComfortParams.{name} must be a finite number, got {value!r}")
-            return float(value)
-
-        for name in ("a1", "a2"):
-            if not 0.0 <= number(name) <= 1.0:
-                raise ValueError(f"ComfortParams.{name} must be in [0, 1], got {getattr(self, name)!r}")
-        if abs(self.a1 + self.a2 - 1.0) > 1e-9:
-            raise ValueError(f"ComfortParams.a2 must equal 1 - a1 (a1 + a2 = 1), got "
-                             f"a1={self.a1!r}, a2={self.a2!r}")
-        if not number("vel_min_mps") > 0.0:
-            raise ValueError(f"ComfortParams.vel_min_mps must be > 0, got {self.vel_min_mps!r}")
-        if not number("vel_gain_mps_per_kgps") >= 0.0:
-            raise ValueError("ComfortParams.vel_gain_mps_per_kgps must be >= 0, got "
-                             f"{self.vel_gain_mps_per_kgps!r}")
-        for name in ("sw_absorptivity", "f_eff", "f_projected", "f_sunlit", "glazing_tau"):
-            if not 0.0 <= number(name) <= 1.0:
-                raise ValueError(f"ComfortParams.{name} must be in [0, 1], got {getattr(self, name)!r}")
-        if not number("met") > 0.0:
-            raise ValueError(f"ComfortParams.met must be > 0, got {self.met!r}")
-        if not number("clo") >= 0.0:
-            raise ValueError(f"ComfortParams.clo must be >= 0, got {self.clo!r}")
-        if (self.pa_pa is None) == (self.rh is None):
-            raise ValueError("ComfortParams.pa_pa: set exactly one of pa_pa and rh, got "
-                             f"pa_pa={self.pa_pa!r}, rh={self.rh!r}")
-        if self.pa_pa is not None and not number("pa_pa") >= 0.0:
-            raise ValueError(f"ComfortParams.pa_pa must be >= 0, got {self.pa_pa!r}")
-        if self.rh is not None and not 0.0 <= number("rh") <= 1.0:
-            raise ValueError(f"ComfortParams.rh must be a fraction in [0, 1], got {self.rh!r}")
-        if not isinstance(self.smoothing, PmvSmoothing):
-            raise ValueError(f"ComfortParams.smoothing must be a PmvSmoothing, got {self.smoothing!r}")
-        self.smoothing.validate()
-        return self
-
-    def air_temperature_c(self, t_cab_c, t_ain_c):
-        """Air temperature at the occupant T_a = a1 T_cab + a2 T_ain [degC] (paper eq. (14))."""
-        return self.a1 * t_cab_c + self.a2 * t_ain_c
-
-    def air_speed_mps(self, mdot_bl_kgps):
-        """Air speed at the occupant v = v_min + k mdot_bl [m/s] (paper, assumption 3)."""
-        return self.vel_min_mps + self.vel_gain_mps_per_kgps * mdot_bl_kgps
-
-    def w_rad_wm2(self, solar_wm2):
-        """Absorbed solar flux per m2 of body surface W_rad [W/m2] from irradiance [W/m2]."""
-        return self.w_rad_per_solar * solar_wm2
-
-
-def comfort_params_for(scenario) -> ComfortParams:
-    """Comfort parameters with a scenario's occupant (``scenario.occupant.met`` [met], ``.clo`` [clo]);
-    p_a = 1700 Pa (the paper's constant cabin vapour pressure)."""
-    return ComfortParams(met=scenario.occupant.met, clo=scenario.occupant.clo)
-
-
-def cabin_pmv(*, t_cab_c, t_ain_c, t_int_c, mdot_bl_kgps, solar_wm2, params,
-              met=None, clo=None, pa_pa=None):
-    """Automotive modified PMV (paper Sec. 3), used by the plant and by the NMPC.
-
-    ``T_a = a1 T_cab + a2 T_ain``, ``T_r = T_int``, ``v = v_min + k mdot_bl``,
-    ``W_rad = alpha_sw f_eff f_p f_sunlit tau solar``, then :func:`pmv`.
-
-    Args:
-        t_cab_c: mean cabin air temperature [degC].
-        t_ain_c: vent (discharge) air temperature [degC].
-        t_int_c: cabin interior surface temperature, used as mean radiant [degC].
-        mdot_bl_kgps: blower air mass flow [kg/s], >= 0.
-        solar_wm2: solar irradiance on the vehicle [W/m2], >= 0.
-        params: :class:`ComfortParams` (validated here).
-        met, clo: override the occupant's params.met / params.clo.
-        pa_pa: override the vapour pressure [Pa]; default params.pa_pa, or
-            rh at T_cab if params.rh is set.
-    Returns:
-        PMV [-] (numpy array or CasADi expression).
-    """
-    params.validate()
-    ops, a = _prepare(dict(mdot_bl_kgps=mdot_bl_kgps, solar_wm2=solar_wm2),
-                      {"mdot_bl_kgps": (0.0, True), "solar_wm2": (0.0, True)})
-    met = params.met if met is None else met
-    clo = params.clo if clo is None else clo
-    if pa_pa is None:
-        pa_pa = params.pa_pa if params.pa_pa is not None else vapour_pressure_pa(t_cab_c, params.rh)
-    return pmv(
-        ta_c=params.air_temperature_c(t_cab_c, t_ain_c),
-        tr_c=t_int_c,
-        vel_mps=params.air_speed_mps(a["mdot_bl_kgps"]),
-        pa_pa=pa_pa,
-        met=met,
-        clo=clo,
-        w_rad_wm2=params.w_rad_wm2(a["solar_wm2"]),
-        smoothing=params.smoothing,
-    )
 
 
 # --------------------------------------------------------------------------

@@ -25,7 +25,7 @@ import numpy as np
 __all__ = ["MDOT_BL_MIN_KGPS", "MDOT_BL_MAX_KGPS", "T_EVAP_SP_MIN_C", "T_EVAP_SP_MAX_C", "AcInput",
            "ActuatorLimits", "ACTUATOR_LIMITS", "MEASUREMENTS", "PREVIEW_QUANTITIES", "Previews",
            "Observation", "Diagnostics", "DIAGNOSTICS_CONTRACT_COLUMNS", "DIAGNOSTICS_COLUMNS", "STRATEGIES", "CECO_STRATEGIES",
-           "BASELINE_STRATEGY", "check_finite"]
+           "BASELINE_STRATEGY", "EXTERNAL_STRATEGY", "WIRE_STRATEGIES", "check_finite"]
 
 MDOT_BL_MIN_KGPS = 0.05
 """Lower actuator bound of the blower air flow [kg/s] (method paper, eq. 13)."""
@@ -45,6 +45,12 @@ BASELINE_STRATEGY = "baseline"
 
 STRATEGIES = (BASELINE_STRATEGY,) + CECO_STRATEGIES
 """Every strategy, baseline first (also the values of AcCommand.strategy on the wire)."""
+
+EXTERNAL_STRATEGY = "external"
+"""AcCommand.strategy of a third-party controller scored by ``ceco benchmark --controller-cmd``."""
+
+WIRE_STRATEGIES = STRATEGIES + (EXTERNAL_STRATEGY,)
+"""Every AcCommand.strategy the plant accepts."""
 
 MEASUREMENTS = ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c", "t_vent_c", "rh_cab")
 """Keys of the measurement mapping [degC, rh_cab in 0..1] that the plant hands to a controller
@@ -243,6 +249,10 @@ class Observation:
     """Occupant metabolic rate [met] (seated driving, ISO 7730 Annex B)."""
     clo: float = 0.5
     """Occupant clothing insulation [clo] (summer clothing)."""
+    t_glass_c: float = math.nan
+    """Measured glazing temperature [degC] (for the mean radiant temperature; NaN if not measured)."""
+    rh_cab: float = math.nan
+    """Measured cabin relative humidity [0..1] (for the PMV's vapour pressure; NaN if not measured)."""
 
     def __post_init__(self):
         n = np.asarray(self.pmv_lb).size

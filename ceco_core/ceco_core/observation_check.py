@@ -10,6 +10,9 @@ problem by what a controller can still do:
   or not finite): the controller substitutes the command it applied itself, if any;
 * ``preview`` entries marked valid but not plausible: treated as not valid (the controller holds
   the last trusted value, docs/controller.md 4.5);
+* optional measurements (``t_glass_c``, ``rh_cab``; NaN when the car has no such sensor): an
+  implausible value is reported and treated as not measured (:attr:`ObservationCheck.t_glass_c`,
+  :attr:`ObservationCheck.rh_cab` are the values to use);
 * ``info`` (``k``, ``t_s``, ``met``, ``clo``: not used by any computation of the NMPC): reported.
 
 Pure; no ROS, no solver.
@@ -41,6 +44,8 @@ class ObservationLimits:
     tolerated; the NMPC clips to >= 0)."""
     speed_mps: tuple[float, float] = (-10.0, 90.0)
     """Vehicle speed, measured and previewed [m/s] (reverse tolerated; the NMPC clips to >= 0)."""
+    rh: tuple[float, float] = (0.0, 1.0)
+    """Cabin relative humidity [-] (a 0-1 fraction)."""
     pmv: tuple[float, float] = (-3.0, 3.0)
     """PMV comfort bounds [-] (ISO 7730 scale)."""
     met: tuple[float, float] = (0.8, 4.0)
@@ -78,6 +83,10 @@ class ObservationCheck:
     """Implausible fields no NMPC computation uses (k, t_s, met, clo)."""
     preview_plausible: np.ndarray
     """Per grid point: every previewed quantity plausible (bool, shape (n,))."""
+    t_glass_c: float = math.nan
+    """The glazing temperature to use [degC]: the measurement if plausible, else NaN (not measured)."""
+    rh_cab: float = math.nan
+    """The cabin RH to use [-]: the measurement if plausible, else NaN (not measured)."""
 
     @property
     def measurements_ok(self) -> bool:
@@ -138,7 +147,19 @@ def check_observation(obs: Observation, limits: ObservationLimits = OBSERVATION_
         info.append(f"met={obs.met!r} outside {limits.met} (not used by the NMPC)")
     if not _in(obs.clo, limits.clo):
         info.append(f"clo={obs.clo!r} outside {limits.clo} (not used by the NMPC)")
+    optional = {}
+    for name, lim in (("t_glass_c", limits.temperature_c), ("rh_cab", limits.rh)):
+        v = getattr(obs, name, math.nan)
+        try:
+            missing = math.isnan(float(v))
+        except (TypeError, ValueError, OverflowError):
+            missing = False
+        if missing or _in(v, lim):
+            optional[name] = math.nan if missing else float(v)
+        else:
+            optional[name] = math.nan
+            info.append(f"{name}={v!r} outside {lim}: treated as not measured")
     plausible = (_arr_in(obs.preview_t_amb_c, limits.ambient_c) & _arr_in(obs.preview_solar_wm2, limits.solar_wm2)
                  & _arr_in(obs.preview_speed_mps, limits.speed_mps))
     return ObservationCheck(measurement_problems=meas, command_problems=cmd, info_problems=info,
-                            preview_plausible=plausible)
+                            preview_plausible=plausible, **optional)

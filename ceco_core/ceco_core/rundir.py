@@ -27,6 +27,7 @@ import numpy as np
 __all__ = [
     "TIMESERIES_COLUMNS",
     "TIMESERIES_EXTRA",
+    "COMFORT_COLUMNS",
     "format_cell",
     "write_csv",
     "read_csv_columns",
@@ -41,9 +42,18 @@ TIMESERIES_COLUMNS = (
 )
 """The contract's columns of ``timeseries.csv``, in order (docs/architecture.md)."""
 
+COMFORT_COLUMNS = (
+    "pa_pa", "t_dew_c", "fog_margin_k", "dr_pct", "ta_occ_c", "vel_occ_mps", "t_mr_c", "w_rad_wm2",
+    "iso7730_valid",
+)
+"""The occupant comfort series (ceco_core.cabin_comfort.OccupantComfort, docs/comfort.md): cabin vapour
+pressure used in the scored PMV [Pa], cabin dew point [degC], inner glazing minus dew point [K], ISO 7730
+draught rating at the occupant [%], the PMV inputs at the occupant (air temperature [degC], air speed
+[m/s], mean radiant temperature [degC], absorbed sun [W/m2]) and ISO 7730 validity (1/0)."""
+
 TIMESERIES_EXTRA = (
     "t_glass_c", "rh_cab", "p_cond_fan_w", "q_latent_w", "comp_speed_rpm", "capacity_limited",
-)
+) + COMFORT_COLUMNS
 """Extra columns the simulator and the stack both write after the contract's."""
 
 

@@ -32,6 +32,7 @@ __all__ = [
     "Occupant",
     "InitialState",
     "ControlDefaults",
+    "SunGeometry",
     "DriveCycle",
     "Scenario",
     "check_number",
@@ -216,6 +217,30 @@ def check_number(field: str, value, bounds, low_open: bool = False) -> float:
     return x
 
 
+@dataclasses.dataclass(frozen=True)
+class SunGeometry:
+    """Where the sun is relative to the car (constant over a run): the SolarCal geometry.
+
+    Defaults (docs/scenarios.md): the sun 60 deg above the horizon, due south,
+    and the car heading south, i.e. the sun straight ahead through the
+    windshield (SHARP 0): the midday summer sun of an SC03 day, and the
+    direction of the overhead lamp bank's beam through the windshield.
+    """
+
+    altitude_deg: float = 60.0
+    """Solar altitude above the horizon [deg], 0..90."""
+    azimuth_deg: float = 180.0
+    """Compass bearing of the sun [deg], 0..360 (0 north, 90 east)."""
+    heading_deg: float = 180.0
+    """Compass bearing of the car's direction of travel [deg], 0..360."""
+
+    def validate(self) -> None:
+        """Raise ScenarioError naming the first bad field."""
+        check_number("sun.altitude_deg", self.altitude_deg, (0.0, 90.0))
+        check_number("sun.azimuth_deg", self.azimuth_deg, (0.0, 360.0))
+        check_number("sun.heading_deg", self.heading_deg, (0.0, 360.0))
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Scenario:
     """A validated scenario. Build with :func:`load_scenario`."""
@@ -248,6 +273,8 @@ class Scenario:
     """Plant temperatures at t = 0."""
     control: ControlDefaults = ControlDefaults()
     """Suggested control period and horizon."""
+    sun: SunGeometry = SunGeometry()
+    """Sun position and car heading (SolarCal geometry of the occupant's solar gain)."""
     seed: int = 0
     """Seed for everything random in a run (preview noise)."""
     source: str = ""

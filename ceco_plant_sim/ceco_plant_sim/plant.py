@@ -20,6 +20,7 @@ t_int_c                    interior mass (seats, dashboard, trim)   degC
 t_shell_c                  shell (roof, doors, pillars, floor)      degC
 t_glass_c                  glazing                                  degC
 t_evap_c                   evaporator wall (fins + tubes)           degC
+t_duct_c                   HVAC case + ducts after the evaporator   degC
 w_cab_kgkg                 cabin humidity ratio                     kg/kg dry air
 comp_pi_integral_rpm       integral part of the compressor PI       rpm
 =========================  ======================================  =======
@@ -29,6 +30,7 @@ Equations, units, references and the parameter table: ``docs/plant.md``.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
@@ -94,6 +96,8 @@ class PlantState:
     """Glazing temperature [degC]."""
     t_evap_c: float
     """Evaporator wall temperature [degC]."""
+    t_duct_c: float
+    """Wall temperature of the HVAC case, doors, ducts and outlets downstream of the evaporator [degC]."""
     w_cab_kgkg: float
     """Cabin humidity ratio [kg water / kg dry air]."""
     comp_pi_integral_rpm: float = 0.0
@@ -103,7 +107,7 @@ class PlantState:
         """Raise ValueError naming the field if it is not finite or physically impossible."""
         for f in fields(self):
             _check_finite(f.name, getattr(self, f.name))
-        for name in ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c"):
+        for name in ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c", "t_duct_c"):
             v = getattr(self, name)
             if not -40.0 <= v <= 120.0:
                 raise ValueError(f"{name}: must be in [-40, 120] degC, got {v}")
@@ -124,14 +128,16 @@ class PlantState:
         ``rh_cab`` [0..1]. Optional: ``t_glass_c`` (default t_shell_c: the
         scenario's shell temperature covers the glazing too),
         ``t_evap_c`` (default t_cab_c: the HVAC module under the dashboard
-        soaks at cabin air temperature). The compressor PI starts empty.
+        soaks at cabin air temperature), ``t_duct_c`` (default t_evap_c: the
+        case and ducts soak with the module). The compressor PI starts empty.
         ``env`` is validated (its ambient is not used for the defaults).
         """
         validate_environment(env)
         if not isinstance(initial, Mapping):
             # a scenario's InitialState (or any object with the attributes)
             initial = {k: getattr(initial, k) for k in ("t_cab_c", "t_int_c", "t_shell_c", "rh_cab",
-                                                         "t_glass_c", "t_evap_c") if hasattr(initial, k)}
+                                                         "t_glass_c", "t_evap_c", "t_duct_c")
+                       if hasattr(initial, k)}
         for key in ("t_cab_c", "t_int_c", "t_shell_c", "rh_cab"):
             if key not in initial:
                 raise ValueError(f"initial.{key}: missing")
@@ -145,6 +151,7 @@ class PlantState:
             t_shell_c=_check_finite("initial.t_shell_c", initial["t_shell_c"]),
             t_glass_c=_check_finite("initial.t_glass_c", initial.get("t_glass_c", initial["t_shell_c"])),
             t_evap_c=_check_finite("initial.t_evap_c", initial.get("t_evap_c", t_cab)),
+            t_duct_c=_check_finite("initial.t_duct_c", initial.get("t_duct_c", initial.get("t_evap_c", t_cab))),
             w_cab_kgkg=humidity_ratio(t_cab, rh, params.p_atm_pa),
             comp_pi_integral_rpm=0.0,
         )
@@ -170,6 +177,8 @@ class PlantOutputs:
     """Glazing temperature [degC]."""
     t_evap_c: float
     """Evaporator wall temperature [degC] (T_evap of the paper)."""
+    t_duct_c: float
+    """HVAC case and duct wall temperature [degC]."""
     t_vent_c: float
     """Air temperature at the vents [degC] (T_ain of the paper)."""
     t_evap_out_c: float
@@ -212,6 +221,12 @@ class PlantOutputs:
     """Refrigerant mass flow (duty-averaged) at the end of the step [kg/s]."""
     cycle_iterations: int
     """Newton iterations of the last refrigerant-loop solve [-]."""
+    m_water_in_kg: float = 0.0
+    """Water entering the cabin air over the step: fresh air, infiltration, occupants [kg]."""
+    m_water_out_kg: float = 0.0
+    """Water leaving with the exfiltrated air (the fresh share of the supply and the leakage) over the step [kg]."""
+    m_condensate_kg: float = 0.0
+    """Water condensed on the evaporator (drained) over the step [kg]."""
 
 
 def condenser_eps_c_wpk(params: PlantParams, speed_mps: float) -> float:
@@ -339,7 +354,7 @@ class CabinPlant:
         n_sub = max(1, math.ceil(dt / self.params.substep_s - 1e-9))
         h = dt / n_sub
         x = self._x
-        acc = [0.0] * 6  # e_comp, e_fan, q_evap_air, q_latent, q_ref, (unused)
+        acc = [0.0] * 8  # e_comp, e_fan, q_evap_air, q_latent, q_ref [J]; water in, out, condensate [kg]
         p_bl = self._blower_power_w(float(command.mdot_bl_kgps))
         u = (float(command.mdot_bl_kgps), float(command.t_evap_sp_c), p_bl)
         for _ in range(n_sub):
@@ -352,7 +367,7 @@ class CabinPlant:
             k4, a4 = self._rhs(x4, u, envt)
             x = tuple(xi + h / 6.0 * (q1 + 2.0 * q2 + 2.0 * q3 + q4)
                       for xi, q1, q2, q3, q4 in zip(x, k1, k2, k3, k4))
-            for j in range(5):
+            for j in range(8):
                 acc[j] += h / 6.0 * (a1[j] + 2.0 * a2[j] + 2.0 * a3[j] + a4[j])
         for i, v in enumerate(x):
             if not math.isfinite(v):
@@ -360,7 +375,8 @@ class CabinPlant:
         self._x = x
         self._t_s += dt
         e_comp, e_fan, e_q, e_lat, e_ref = acc[:5]
-        out = self._outputs(x, u, envt, dt, e_comp, e_fan, e_q, e_lat, e_ref)
+        out = dataclasses.replace(self._outputs(x, u, envt, dt, e_comp, e_fan, e_q, e_lat, e_ref),
+                                  m_water_in_kg=acc[5], m_water_out_kg=acc[6], m_condensate_kg=acc[7])
         self._last = out
         return out
 
@@ -378,7 +394,7 @@ class CabinPlant:
         envt = validate_environment(env)
         p_bl = self._blower_power_w(float(command.mdot_bl_kgps))
         u = (float(command.mdot_bl_kgps), float(command.t_evap_sp_c), p_bl)
-        return self._outputs(self._x, u, envt, 0.0, *self._rhs(self._x, u, envt, final=True)[0])
+        return self._outputs(self._x, u, envt, 0.0, *self._rhs(self._x, u, envt, final=True)[0][:5])
 
     def _outputs(self, x, u, envt, dt, e_comp, e_fan, e_q, e_lat, e_ref) -> PlantOutputs:
         """Build PlantOutputs at state x: energies over dt (dt = 0: the arguments are instantaneous powers)."""
@@ -390,13 +406,14 @@ class CabinPlant:
         else:
             mean = (e_comp, e_fan, e_q, e_lat, e_ref)
             energies = (0.0, 0.0)
-        t_cab, t_int, t_sh, t_gl, t_ev, w_cab, _ = x
+        t_cab, t_int, t_sh, t_gl, t_ev, t_du, w_cab, _ = x
         return PlantOutputs(
             t_cab_c=t_cab,
             t_int_c=t_int,
             t_shell_c=t_sh,
             t_glass_c=t_gl,
             t_evap_c=t_ev,
+            t_duct_c=t_du,
             t_vent_c=alg["t_vent_c"],
             t_evap_out_c=alg["t_evap_out_c"],
             t_evap_sat_c=alg["t_evap_sat_c"],
@@ -429,7 +446,7 @@ class CabinPlant:
 
     def _rhs(self, x, u, envt, final: bool = False):
         p = self.params
-        t_cab, t_int, t_sh, t_gl, t_ev, w_cab, pi_i = x
+        t_cab, t_int, t_sh, t_gl, t_ev, t_du, w_cab, pi_i = x
         mdot, t_sp, p_bl = u
         t_amb, solar, speed, rh_amb = envt
         cp_a = p.cp_air_jpkgk
@@ -457,8 +474,11 @@ class CabinPlant:
         w_out = w_mix - (1.0 - bf) * excess if excess > 0.0 else w_mix
         q_sens = c_air * (t_in - t_out)
         q_lat = mdot * (w_mix - w_out) * p.h_fg_jpkg
-        t_vent = t_out + (t_int - t_out) * (1.0 - math.exp(-p.ua_duct_wpk / c_air))
-        q_duct = c_air * (t_vent - t_out)
+        # HVAC case and ducts: the supply air exchanges with their wall, which exchanges with the panel
+        ua_da = p.ua_duct_air_ref_wpk * rr ** p.ua_evap_air_exp
+        t_vent = t_out + (t_du - t_out) * (1.0 - math.exp(-ua_da / c_air))
+        q_duct = c_air * (t_vent - t_out)  # duct wall -> supply air
+        q_duct_int = p.ua_duct_wpk * (t_int - t_du)  # instrument panel (interior mass) -> duct wall
 
         # --- compressor: A/C ECU PI on the evaporator wall temperature
         err = t_ev - t_sp
@@ -520,17 +540,24 @@ class CabinPlant:
         cp_cab = cp_a + w_cab * p.cp_vap_jpkgk
         d_cab = (mdot * cp_cab * (t_vent - t_cab) + m_inf * cp_cab * (t_amb - t_cab) + q_int_cab + q_sh_cab
                  + q_gl_cab + n_occ * p.occ_sensible_w) / (self._m_air_kg * cp_cab)
-        d_w = (mdot * (w_out - w_cab) + m_inf * (w_amb - w_cab)
-               + n_occ * p.occ_latent_w / p.h_fg_jpkg) / self._m_air_kg
-        d_int = (p.tau_glass * p.a_glass_sun_m2 * solar - q_int_cab - q_rad_sh - q_rad_gl - q_duct) / p.c_int_jpk
+        # water balance of the cabin air [kg/s]: in with the fresh share of the supply, the leakage and
+        # the occupants; out with the exfiltrated air (both leave at the cabin state); the condensate
+        # leaves the supply air on the coil. (Identical to mdot (W_out - W_cab) + mdot_inf (W_amb - W_cab) + ...)
+        fresh = (1.0 - r) * mdot + m_inf
+        water_in = fresh * w_amb + n_occ * p.occ_latent_w / p.h_fg_jpkg
+        water_out = fresh * w_cab
+        condensate = mdot * (w_mix - w_out)
+        d_w = (water_in - water_out - condensate) / self._m_air_kg
+        d_int = (p.tau_glass * p.a_glass_sun_m2 * solar - q_int_cab - q_rad_sh - q_rad_gl - q_duct_int) / p.c_int_jpk
+        d_du = (q_duct_int - q_duct) / p.c_duct_jpk
         d_sh = (p.alpha_shell * p.a_shell_sun_m2 * solar + h_out * p.a_shell_m2 * (t_amb - t_sh) - q_sh_cab
                 + q_rad_sh) / p.c_shell_jpk
         d_gl = (p.alpha_glass * p.a_glass_sun_m2 * solar + h_out * p.a_glass_m2 * (t_amb - t_gl) - q_gl_cab
                 + q_rad_gl) / p.c_glass_jpk
         d_ev = (q_sens + q_lat - q_ref) / p.c_evap_jpk
 
-        dx = (d_cab, d_int, d_sh, d_gl, d_ev, d_w, dpi)
-        powers = (p_comp, p_fan, q_sens + q_lat, q_lat, q_ref)
+        dx = (d_cab, d_int, d_sh, d_gl, d_ev, d_du, d_w, dpi)
+        powers = (p_comp, p_fan, q_sens + q_lat, q_lat, q_ref, water_in, water_out, condensate)
         if not final:
             return dx, powers
         # final=True: the end-of-step / snapshot report (powers and algebraic variables, no derivatives)

@@ -32,7 +32,6 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 
 from ceco_core.acc_law import AccLaw
-from ceco_core.comfort import iso7730_validity
 from ceco_core.contracts import AcInput
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort
 from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
@@ -171,11 +170,9 @@ class PlantNode(Node):
         self.e_comp_j += out.e_comp_j
         self.e_blower_j += out.e_blower_j
         c = self.sp.comfort
-        valid = bool(iso7730_validity(c.air_temperature_c(meas['t_cab_c'], meas['t_vent_c']), meas['t_int_c'],
-                                      c.air_speed_mps(u.mdot_bl_kgps), c.pa_pa if c.pa_pa is not None else 0.0,
-                                      c.met, c.clo, r.pmv).all)
         self.pub_comfort.publish(conversions.comfort_msg(r.n, stamp, r.pmv, r.ppd, r.pmv_lb, r.pmv_ub, meas, u,
-                                                      r.env.solar_wm2, c.met, c.clo, valid))
+                                                      r.env.solar_wm2, c.met, c.clo, r.comfort.iso7730_valid,
+                                                      series=r.comfort))
         self.pub_power.publish(conversions.power_msg(r.n, stamp, self.dt, u, out, self.e_comp_j,
                                                   self.e_blower_j, fallback))
 

@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from ceco_core.cabin_comfort import GLAZING_TAU, SHELL_U_IN_WM2K
+
 __all__ = ["PlantParams"]
 
 @dataclass(frozen=True)
@@ -77,7 +79,7 @@ class PlantParams:
     """Shell area projected normal to the sun [m2] (roof + part of the sides)."""
     alpha_shell: float = 0.6
     """Solar absorptance of the painted shell [-] (mid-tone paint 0.5-0.7)."""
-    u_shell_in_wm2k: float = 3.5
+    u_shell_in_wm2k: float = SHELL_U_IN_WM2K
     """Conductance shell sheet -> cabin air through trim and insulation, incl. inner film [W/(m2 K)]."""
 
     # --- glazing -----------------------------------------------------------
@@ -87,8 +89,8 @@ class PlantParams:
     """Glazing area [m2] (windshield 1.1, backlight 0.7, side windows 1.8)."""
     a_glass_sun_m2: float = 1.6
     """Glazing area projected normal to the sun [m2]."""
-    tau_glass: float = 0.45
-    """Solar transmittance of the glazing [-] (laminated windshield ~0.45, tempered side glass ~0.6)."""
+    tau_glass: float = GLAZING_TAU
+    """Solar transmittance of the glazing [-], 0.45 (the one value shared with the comfort model)."""
     alpha_glass: float = 0.30
     """Solar absorptance of the glazing [-]."""
 
@@ -112,7 +114,11 @@ class PlantParams:
     p_blower_fixed_w: float = 15.0
     """Speed-independent blower losses while running (motor friction, PWM controller) [W]."""
     ua_duct_wpk: float = 8.0
-    """Conductance of the ducts to the instrument panel (interior mass) [W/K]."""
+    """Conductance of the HVAC case and duct walls to the instrument panel (interior mass) [W/K]."""
+    c_duct_jpk: float = 7000.0
+    """Heat capacity of the HVAC case, doors, ducts and outlets downstream of the evaporator [J/K]."""
+    ua_duct_air_ref_wpk: float = 35.0
+    """Supply air -> case and duct wall conductance at the reference blower flow [W/K] (scales with mdot^0.8)."""
 
     # --- evaporator --------------------------------------------------------
     c_evap_jpk: float = 2500.0

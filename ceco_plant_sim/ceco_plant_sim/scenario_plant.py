@@ -5,10 +5,12 @@ equals the simulator bit for bit.
 
 Timing (docs/architecture.md): plant step n covers [t_n, t_n + dt) with
 t_n = n * dt. :meth:`ScenarioPlant.step` evaluates, in this order, the truth
-environment at t_n, the occupant's PMV bounds at t_n, the modified PMV at t_n
-from the measurements at t_n and the command held over the step
-(``comfort.cabin_pmv``), then ``CabinPlant.step`` over dt; the outputs become the
-measurements at t_{n+1}.
+environment at t_n, the occupant's PMV bounds at t_n, the occupant's comfort at
+t_n (scored PMV, draught, fog margin, ISO 7730 validity) from the measurements at
+t_n and the command held over the step
+(``ceco_core.cabin_comfort.evaluate_cabin_comfort``, with the cabin's own vapour
+pressure), then ``CabinPlant.step`` over dt; the outputs become the measurements
+at t_{n+1}.
 
 Key-on: the measurements come from the scenario's initial state, with the vent
 air at the evaporator wall temperature (no flow before key-on), and the previous
@@ -25,7 +27,7 @@ import math
 
 from ceco_v2x_preview.scenario import Scenario
 
-from ceco_core.comfort import cabin_pmv, comfort_params_for, ppd
+from ceco_core.cabin_comfort import OccupantComfort, comfort_params_for, evaluate_cabin_comfort
 from ceco_core.contracts import MDOT_BL_MAX_KGPS, MEASUREMENTS, T_EVAP_SP_MIN_C, AcInput
 
 from .plant import CabinPlant, PlantOutputs, PlantState
@@ -78,6 +80,8 @@ class PlantStepRecord:
     """Lower PMV comfort bound at t_n [-]."""
     pmv_ub: float
     """Upper PMV comfort bound at t_n [-]."""
+    comfort: OccupantComfort
+    """Every comfort series at t_n (floats): PMV inputs at the occupant, draught, fog margin, validity."""
     out: PlantOutputs
     """Plant outputs of the step (powers, energies, state at t_{n+1})."""
 
@@ -89,13 +93,29 @@ class ScenarioPlant:
     (``KEY_ON_COMMAND`` before the first step).
     """
 
-    def __init__(self, scenario: Scenario, plant_dt_s: float, params: PlantParams | None = None):
+    def __init__(self, scenario: Scenario, plant_dt_s: float, params: PlantParams | None = None, *,
+                 plant_overrides: dict | None = None, comfort_overrides: dict | None = None):
+        """Key-on state of ``scenario``.
+
+        Args:
+            scenario: the scenario (truth environment, bounds, initial state, occupant).
+            plant_dt_s: plant step [s].
+            params: plant parameters (default :class:`PlantParams`).
+            plant_overrides: ``{PlantParams field: value}`` applied to ``params`` (sensitivity runs).
+            comfort_overrides: ``{ComfortParams field: value}`` applied to the scored PMV's parameters.
+        """
         if not (math.isfinite(plant_dt_s) and plant_dt_s > 0):
             raise ValueError(f"plant_dt_s must be finite and > 0, got {plant_dt_s!r}")
         self.scenario = scenario
         self.dt_s = plant_dt_s
-        self.comfort = comfort_params_for(scenario)
         pp = params or PlantParams()
+        if plant_overrides:
+            pp = dataclasses.replace(pp, **plant_overrides).validate()
+        # the plant's glazing transmittance and shell conductance: one value for physics and comfort
+        self.comfort = comfort_params_for(scenario, glazing_tau=pp.tau_glass, u_shell_in_wm2k=pp.u_shell_in_wm2k)
+        if comfort_overrides:
+            self.comfort = dataclasses.replace(self.comfort, **comfort_overrides)
+            self.comfort.validate()
         self.plant = CabinPlant(pp, PlantState.from_initial(dataclasses.asdict(scenario.initial), pp,
                                                             scenario.env_at(0.0)))
         st = self.plant.state
@@ -115,11 +135,14 @@ class ScenarioPlant:
         meas, t = self.meas, self.t_s
         env = self.scenario.env_at(t)
         lb, ub = self.scenario.pmv_bounds(t)
-        y = float(cabin_pmv(t_cab_c=meas["t_cab_c"], t_ain_c=meas["t_vent_c"], t_int_c=meas["t_int_c"],
-                            mdot_bl_kgps=u.mdot_bl_kgps, solar_wm2=env.solar_wm2, params=self.comfort))
+        c = evaluate_cabin_comfort(t_cab_c=meas["t_cab_c"], t_vent_c=meas["t_vent_c"], t_int_c=meas["t_int_c"],
+                                   t_shell_c=meas["t_shell_c"], t_glass_c=meas["t_glass_c"], rh_cab=meas["rh_cab"],
+                                   mdot_bl_kgps=u.mdot_bl_kgps, solar_wm2=env.solar_wm2, params=self.comfort)
+        c = OccupantComfort(**{f.name: (bool(getattr(c, f.name)) if f.name == "iso7730_valid"
+                                        else float(getattr(c, f.name))) for f in dataclasses.fields(c)})
         out = self.plant.step(u, env, self.dt_s)
-        rec = PlantStepRecord(n=self.n, t_s=t, meas=meas, u=u, env=env, pmv=y, ppd=float(ppd(y)),
-                              pmv_lb=lb, pmv_ub=ub, out=out)
+        rec = PlantStepRecord(n=self.n, t_s=t, meas=meas, u=u, env=env, pmv=c.pmv, ppd=c.ppd,
+                              pmv_lb=lb, pmv_ub=ub, comfort=c, out=out)
         self.cmd = u
         self.meas = _measurements(out)
         self.n += 1

@@ -21,7 +21,7 @@ import math
 import numpy as np
 from builtin_interfaces.msg import Time
 
-from ceco_core.contracts import MEASUREMENTS, STRATEGIES, AcInput, Diagnostics, Previews
+from ceco_core.contracts import MEASUREMENTS, WIRE_STRATEGIES, AcInput, Diagnostics, Previews
 from ceco_core.units import s_from_sec_nanosec, sec_nanosec_from_s
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort, ControllerDiagnostics, TrafficPreview, WeatherPreview
 
@@ -98,8 +98,8 @@ def command_msg(cmd, k: int, stamp, control_period_s: float, strategy: str, fall
 def command_input(msg: AcCommand) -> AcInput:
     """AcCommand -> AcInput; ValueError naming the field when it is not a finite value inside the
     actuator bounds or the strategy is unknown (never clamped)."""
-    if msg.strategy not in STRATEGIES:
-        raise ValueError(f'unknown strategy {msg.strategy!r} (expected one of {", ".join(STRATEGIES)})')
+    if msg.strategy not in WIRE_STRATEGIES:
+        raise ValueError(f'unknown strategy {msg.strategy!r} (expected one of {", ".join(WIRE_STRATEGIES)})')
     for name in ('blower_flow_kgps', 'evap_setpoint_c'):
         v = getattr(msg, name)
         if not math.isfinite(v):
@@ -231,9 +231,18 @@ def power_msg(n: int, stamp, dt_s: float, u: AcInput, out, e_comp_j: float, e_bl
     return m
 
 
+COMFORT_SERIES_FIELDS = ("ta_occ_c", "vel_occ_mps", "t_mr_c", "w_rad_wm2", "pa_pa", "t_dew_c", "fog_margin_k",
+                         "dr_pct")
+"""Comfort message fields copied from ``ceco_core.cabin_comfort.OccupantComfort`` (same names)."""
+
+
 def comfort_msg(n: int, stamp, pmv: float, ppd: float, lb: float, ub: float, meas: dict, u: AcInput,
-                solar_wm2: float, met: float, clo: float, iso_valid: bool) -> Comfort:
-    """The occupant's comfort at plant step ``n``."""
+                solar_wm2: float, met: float, clo: float, iso_valid: bool, series=None) -> Comfort:
+    """The occupant's comfort at plant step ``n``.
+
+    ``series`` (a ``ceco_core.cabin_comfort.OccupantComfort``) fills the occupant-environment, draught
+    and fog fields (NaN without it).
+    """
     m = Comfort()
     m.header.stamp = stamp
     m.step_index = int(n)
@@ -249,6 +258,8 @@ def comfort_msg(n: int, stamp, pmv: float, ppd: float, lb: float, ub: float, mea
     m.met = float(met)
     m.clo = float(clo)
     m.iso_valid = bool(iso_valid)
+    for name in COMFORT_SERIES_FIELDS:
+        setattr(m, name, float(getattr(series, name)) if series is not None else math.nan)
     return m
 
 

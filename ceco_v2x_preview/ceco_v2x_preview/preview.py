@@ -15,6 +15,9 @@ Model (docs/scenarios.md, "Preview quality")
   present, ``noise_std_x`` at the reference lead, correlated along the
   horizon (a forecast that is too high now stays too high a little later).
   W is drawn on a 1 s lead grid and interpolated linearly.
+* ``uncertainty`` (the benchmark's levels none/low/medium/high): BOPTEST-style
+  seeded AR(1) errors along the lead time, :mod:`ceco_v2x_preview.forecast_error`
+  (applied to the truth first; the ``noise_std_*`` errors above add to them).
 * ``delay_s``: the forecast received at ``t0_s`` was issued at
   ``t0_s - delay_s`` (stale). It is re-sampled on the controller's grid
   ``t0_s + i*step_s``: its errors are those of the longer lead times, and the
@@ -48,11 +51,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
 from ceco_core.contracts import PREVIEW_QUANTITIES, Previews
+from ceco_v2x_preview import forecast_error
 from ceco_v2x_preview.scenario import Scenario
 
 __all__ = [
@@ -105,6 +109,10 @@ class PreviewQuality:
     """'hold_last' (keep the last forecast received) or 'drop' (nothing available)."""
     seed: int | None = None
     """Noise seed, >= 0; None uses the scenario's seed."""
+    uncertainty: str = "none"
+    """Forecast-uncertainty level of the benchmark (``forecast_error.LEVELS``: none, low, medium,
+    high): seeded AR(1) errors of ambient temperature, solar irradiance and speed along the lead
+    time (:mod:`ceco_v2x_preview.forecast_error`); composes with the other faults."""
 
     def __post_init__(self):
         try:
@@ -130,6 +138,8 @@ class PreviewQuality:
             raise ValueError(f"missing_policy: must be one of {MISSING_POLICIES}, got {self.missing_policy!r}")
         if self.seed is not None and (isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0):
             raise ValueError(f"seed: must be a non-negative integer or None, got {self.seed!r}")
+        if self.uncertainty not in forecast_error.LEVELS:
+            raise ValueError(f"uncertainty: must be one of {forecast_error.LEVELS}, got {self.uncertainty!r}")
 
     @property
     def noisy(self) -> bool:
@@ -139,14 +149,18 @@ class PreviewQuality:
     @property
     def mode(self) -> str:
         """'perfect', or the faults present joined by '+' ('noisy+delayed')."""
-        parts = [name for name, on in (("noisy", self.noisy), ("delayed", self.delay_s > 0.0),
-                                       ("missing", bool(self.missing_spans_s))) if on]
+        parts = [name for name, on in (("uncertain", self.uncertainty != "none"), ("noisy", self.noisy),
+                                       ("delayed", self.delay_s > 0.0), ("missing", bool(self.missing_spans_s)))
+                 if on]
         return "+".join(parts) or "perfect"
 
     def describe(self) -> str:
         """Canonical text form; ``parse_quality(q.describe()) == q``."""
         parts = []
-        if self.noisy or self.seed is not None:
+        if self.uncertainty != "none":
+            seed = f",seed={self.seed}" if self.seed is not None and not self.noisy else ""
+            parts.append(f"uncertain:{self.uncertainty}{seed}")
+        if self.noisy or (self.seed is not None and self.uncertainty == "none"):
             kv = [f"{k}={_fmt(getattr(self, f))}" for k, f in _KEYS.items()]
             kv.append(f"ref={_fmt(self.noise_ref_lead_s)}")
             if self.seed is not None:
@@ -214,6 +228,10 @@ def make_previews(scenario: Scenario, t0_s: float, step_s: float, n: int,
     env = scenario.env_series(t_s)
     values = {q: np.array(getattr(env, q), dtype=float) for q in _QUANTITIES}
 
+    if quality.uncertainty != "none":
+        seed = scenario.seed if quality.seed is None else quality.seed
+        values = forecast_error.apply_errors(values, quality.uncertainty, seed, t_issue, lead_s)
+
     if quality.noisy:
         seed = scenario.seed if quality.seed is None else quality.seed
         issue_key = int(round(t_issue * 1000.0))
@@ -244,6 +262,8 @@ def parse_quality(text: str) -> PreviewQuality:
     Grammar: parts joined by ``+``; each part one of
 
     * ``perfect``
+    * ``uncertain:LEVEL[,seed=N]`` with LEVEL in none, low, medium, high (the benchmark's
+      forecast-uncertainty levels, :mod:`ceco_v2x_preview.forecast_error`)
     * ``noisy`` or ``noisy:KEY=VALUE,...`` with KEY in t_amb [K], solar
       [W/m2], speed [m/s], rh [-], ref (reference lead, s), seed; keys not
       given are 0 except that a bare ``noisy`` uses :data:`DEFAULT_NOISE`
@@ -281,6 +301,17 @@ def parse_quality(text: str) -> PreviewQuality:
                 else:
                     raise ValueError(f"preview quality: noisy: unknown key {key!r} "
                                      f"(use {sorted(_KEYS)} , ref, seed)")
+        elif kind == "uncertain":
+            level, *rest = [x.strip() for x in arg.split(",")]
+            if level not in forecast_error.LEVELS:
+                raise ValueError(f"preview quality: uncertain: level must be one of {forecast_error.LEVELS}, "
+                                 f"got {level!r}")
+            fields["uncertainty"] = level
+            for item in rest:
+                key, eq, value = item.partition("=")
+                if key.strip() != "seed" or not eq:
+                    raise ValueError(f"preview quality: uncertain: expected seed=N after the level, got {item!r}")
+                fields["seed"] = _parse_int(value, "uncertain seed")
         elif kind == "delayed":
             fields["delay_s"] = _parse_float(arg, "delayed")
         elif kind == "missing":
@@ -297,7 +328,7 @@ def parse_quality(text: str) -> PreviewQuality:
                 raise ValueError("preview quality: missing: needs at least one START-END span")
         else:
             raise ValueError(f"preview quality: unknown part {part.strip()!r} "
-                             "(use perfect, noisy[:...], delayed:S, missing:A-B)")
+                             "(use perfect, uncertain:LEVEL, noisy[:...], delayed:S, missing:A-B)")
     quality = PreviewQuality(missing_spans_s=tuple(spans), **fields)
     quality.validate()
     return quality

@@ -25,6 +25,7 @@ from ceco_core.control_grid import control_step_index
 from ceco_msgs.msg import CabinState, TrafficPreview, WeatherPreview
 from ceco_ros import conversions, interfaces, params
 from ceco_ros.node_main import run_node
+from ceco_v2x_preview import forecast_error
 from ceco_v2x_preview.preview import PreviewQuality, make_previews
 from ceco_v2x_preview.scenario import load_scenario_param
 
@@ -117,6 +118,9 @@ class PreviewNode(Node):
                              'while missing: hold_last (keep the last forecast) or drop',
                              choices=('hold_last', 'drop')),
             seed=None if seed < 0 else int(seed),
+            uncertainty=d(self, 'faults.uncertainty_level', 'none',
+                          'benchmark forecast-uncertainty level (AR(1) errors, ceco_v2x_preview.forecast_error)',
+                          choices=forecast_error.LEVELS),
         )
         cfg = PreviewNodeConfig(scenario=scenario, timing=timing, control_period_s=ts,
                                 horizon_steps=np_, publish_period_s=pub, quality=quality)

@@ -36,6 +36,7 @@ from ceco_core.scenario_types import (
     T_AMB_RANGE_C,
     T_STATE_RANGE_C,
     ControlDefaults,
+    SunGeometry,
     DriveCycle,
     Environment,
     InitialState,
@@ -55,6 +56,7 @@ __all__ = [
     "Occupant",
     "InitialState",
     "ControlDefaults",
+    "SunGeometry",
     "DriveCycle",
     "Scenario",
     "load_scenario",
@@ -196,7 +198,7 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
     if not isinstance(data, Mapping):
         raise ScenarioError(f"scenario: top level must be a mapping, got {type(data).__name__}")
     allowed = {"name", "description", "drive_cycle", "duration_s", "weather", "occupant",
-               "comfort_bounds", "initial", "control", "seed"}
+               "comfort_bounds", "initial", "control", "sun", "seed"}
     _reject_unknown("scenario", data, allowed)
     name = data.get("name")
     if not isinstance(name, str) or not name.strip():
@@ -270,6 +272,13 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
     control.validate()
     control = ControlDefaults(float(control.control_period_s), int(control.horizon_steps))
 
+    sun_block = _section(data, "sun", required=False)
+    _reject_unknown("sun", sun_block, {"altitude_deg", "azimuth_deg", "heading_deg"})
+    sun = SunGeometry(**{k: sun_block.get(k, getattr(SunGeometry, k))
+                         for k in ("altitude_deg", "azimuth_deg", "heading_deg")})
+    sun.validate()
+    sun = SunGeometry(float(sun.altitude_deg), float(sun.azimuth_deg), float(sun.heading_deg))
+
     seed = data.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ScenarioError(f"seed: must be a non-negative integer, got {seed!r}")
@@ -278,7 +287,7 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
         name=name.strip(), description=description.strip(), drive_cycle=cycle, duration_s=float(duration_s),
         weather_time_s=wt, weather_t_amb_c=t_amb, weather_solar_wm2=solar, weather_rh=rh,
         occupant=occupant, bounds_time_s=bt, bounds_pmv_lb=lb, bounds_pmv_ub=ub,
-        initial=initial, control=control, seed=int(seed), source=source,
+        initial=initial, control=control, sun=sun, seed=int(seed), source=source,
     )
 
 
@@ -327,6 +336,8 @@ def describe(scenario: Scenario) -> str:
         f"  occupant met={sc.occupant.met:g} clo={sc.occupant.clo:g}; PMV bounds "
         f"[{lb0:g}, {ub0:g}] at 0 s -> [{lb1:g}, {ub1:g}] at the end",
         f"  initial {ini}",
+        f"  sun altitude {sc.sun.altitude_deg:g} deg, azimuth {sc.sun.azimuth_deg:g} deg; heading "
+        f"{sc.sun.heading_deg:g} deg",
         f"  control Ts={sc.control.control_period_s:g} s Np={sc.control.horizon_steps}; seed {sc.seed}",
     ])
 

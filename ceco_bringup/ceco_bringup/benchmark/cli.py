@@ -1,0 +1,271 @@
+"""``ceco benchmark [CASE...] --out DIR``: run (or resume) the benchmark, write results and the report.
+
+    ceco benchmark --out runs/bench                       # every bundled case, the sensitivity, the report
+    ceco benchmark sc03-paper udds-hot --out runs/b2      # some cases (names or case-file paths)
+    ceco benchmark --quick --out runs/quick               # 3 cases, seed 0, 24/25/26 degC: CI smoke test
+    ceco benchmark --controller-cmd "python my_node.py" --controller-name mine --out runs/mine
+    ceco benchmark --validate runs/bench/results.json
+
+Writes ``DIR/results.json`` (``ceco-benchmark/1``, validated before it is written),
+``DIR/kpis.csv``, ``DIR/report.md``, ``DIR/report.html``, ``DIR/figures/``; the run log
+``DIR/cells.jsonl`` makes a rerun resume (docs/benchmark.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime
+import json
+import os
+import shlex
+import socket
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from ceco_bringup.sweep import backends
+from ceco_bringup.sweep.cells import code_fingerprint
+
+from . import runner
+from .cases import DEFAULT_CASES, QUICK_CASES, CaseError, list_cases, load_case
+from .schema import BENCHMARK_VERSION, SCHEMA, ResultsError, check_results, validate_results
+
+__all__ = ['run_benchmark', 'ceco_version', 'main']
+
+
+def ceco_version() -> str:
+    """The package version (``ceco_bringup/package.xml``) plus ``+g<commit>`` (and ``.dirty``) in a git checkout."""
+    import re  # noqa: PLC0415
+    import subprocess  # noqa: PLC0415
+
+    here = Path(__file__).resolve()
+    version = '0'
+    for xml in (here.parents[2] / 'package.xml', here.parents[1] / 'package.xml'):
+        if xml.is_file():
+            m = re.search(r'<version>([^<]+)</version>', xml.read_text(encoding='utf-8'))
+            version = m.group(1) if m else version
+            break
+    try:
+        sha = subprocess.run(['git', '-C', str(here.parent), 'rev-parse', '--short', 'HEAD'], capture_output=True,
+                             text=True, timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(['git', '-C', str(here.parent), 'status', '--porcelain', '--untracked-files=no'],
+                               capture_output=True, text=True, timeout=10, check=True).stdout.strip()
+        return f'{version}+g{sha}' + ('.dirty' if dirty else '')
+    except (OSError, subprocess.SubprocessError):
+        return version
+
+
+def _kpi_table(path: Path, doc: dict) -> None:
+    keys: list = []
+    for case in doc['cases']:
+        for r in case['runs']:
+            keys += [k for k in r['kpis'] if k not in keys]
+    with open(path, 'w', newline='', encoding='utf-8') as fh:
+        w = csv.writer(fh)
+        w.writerow(['case', 'controller', 'kind', 'seed', 'setpoint_c', 'source', 'status', *keys])
+        for case in doc['cases']:
+            for r in case['runs']:
+                w.writerow([case['case'], r['controller'], r['kind'], '' if r['seed'] is None else r['seed'],
+                            '' if r['setpoint_c'] is None else repr(r['setpoint_c']), r['source'], r['status'],
+                            *['' if r['kpis'].get(k) is None else repr(r['kpis'][k]) for k in keys]])
+
+
+def run_benchmark(case_names: Sequence[str], out_dir, *, quick: bool = False, workers: int | None = None,
+                  backend: str = 'local', address: str | None = None, sensitivity: bool = True,
+                  controller_cmd: str | None = None, controller_name: str = 'external', save_runs: bool = False,
+                  progress: bool = True, command: str = '', log=print, setpoints_c: Sequence[float] | None = None,
+                  sensitivity_path=None) -> dict:
+    """Run (or resume) the benchmark into ``out_dir``; return the results document (also written).
+
+    ``setpoints_c`` and ``sensitivity_path`` replace the family's set-points and the tornado's
+    table (tests and studies; the published benchmark uses the defaults).
+    """
+    t0 = time.perf_counter()
+    workers = int(workers or os.cpu_count() or 1)
+    cases = [load_case(n) for n in (case_names or (QUICK_CASES if quick else DEFAULT_CASES))]
+    baselines = runner.load_baselines()
+    if setpoints_c is None:
+        setpoints_c = runner.QUICK_SETPOINTS_C if quick else runner.SETPOINTS_C
+    specs = runner.controllers(baselines, setpoints_c)
+    code = code_fingerprint()
+    seeds = {c.name: (c.seeds[:1] if quick else c.seeds) for c in cases}
+    cells, by_case = [], {}
+    for c in cases:
+        cc = runner.case_cells(c, specs, code, seeds=seeds[c.name])
+        by_case[c.name] = cc
+        cells += cc
+    sens_plan = []
+    sens_case_name, params = runner.load_sensitivity(sensitivity_path)
+    if sensitivity and not quick and any(c.name == sens_case_name for c in cases):
+        case = next(c for c in cases if c.name == sens_case_name)
+        for p in params:
+            ends = []
+            for end in ('low', 'high'):
+                kw = {'plant_overrides': getattr(p, end)} if p.target == 'plant' else \
+                    {'comfort_overrides': getattr(p, end)}
+                ends.append(runner.case_cells(case, specs, code, seeds=seeds[case.name],
+                                              variant=f'sens:{p.parameter}:{end}', **kw))
+            sens_plan.append((p, *ends))
+            cells += ends[0] + ends[1]
+    external = []
+    if controller_cmd:
+        from . import external as ext  # noqa: PLC0415 (DDS: needs the built workspace)
+
+        ext_spec = runner.ControllerSpec(f'external:{controller_name}', 'external', 'external')
+        for c in cases:
+            ec = runner.case_cells(c, [ext_spec], code, seeds=seeds[c.name])
+            by_case[c.name] = by_case[c.name] + ec
+            external += ec
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    log_path = out / 'cells.jsonl'
+    done = backends.read_done(log_path)
+    todo = [c for c in cells if c.id not in done]
+    todo_ext = [c for c in external if c.id not in done]
+    log(f'ceco benchmark: {len(cases)} case(s), {len(cells) + len(external)} runs, '
+        f'{len(cells) + len(external) - len(todo) - len(todo_ext)} already done, {len(todo) + len(todo_ext)} to run '
+        f'({backend}, {workers} worker(s))', file=sys.stderr)
+    bar = None
+    if progress and (todo or todo_ext):
+        from tqdm import tqdm  # noqa: PLC0415
+
+        bar = tqdm(total=len(todo) + len(todo_ext), desc='benchmark', unit='run', file=sys.stderr)
+    ran: list = []
+
+    def on_done(row):
+        backends.append_row(log_path, row)
+        ran.append(row)
+        if row['status'] != 'ok':
+            log(f"ceco benchmark: {row['case']}/{row['controller']}/seed {row['seed']} ({row['variant']}) failed: "
+                f"{row['error']}", file=sys.stderr)
+        if bar is not None:
+            bar.update(1)
+
+    runs_dir = str(out / 'runs') if save_runs else None
+    items = [dict(id=c.id, axes=c.axes, spec=c.spec) for c in todo]
+    try:
+        if items:
+            n = min(workers, len(items))
+            if backend == 'local':
+                backends.run_local(items, n, on_done, runner.run_benchmark_cell, runs_dir)
+            elif backend == 'ray':
+                backends.run_ray(items, n, address, on_done, runner.run_benchmark_cell, runs_dir)
+            else:
+                raise ValueError(f'backend: must be local or ray, got {backend!r}')
+        for c in todo_ext:
+            on_done(ext.run_external_cell(dict(id=c.id, axes=c.axes, spec=c.spec), shlex.split(controller_cmd),
+                                          out / 'external' / c.id))
+    finally:
+        if bar is not None:
+            bar.close()
+    done = backends.read_done(log_path)
+    failed = {r['cell_id']: r for r in ran if r['status'] != 'ok'}
+
+    def rows(cs):
+        return [done.get(c.id) or failed.get(c.id) or _missing(c) for c in cs]
+
+    case_docs = []
+    for c in cases:
+        sens = [(p, rows(lo), rows(hi)) for p, lo, hi in sens_plan] if c.name == sens_case_name else []
+        case_docs.append(runner.assemble_case(c, rows(by_case[c.name]), sens))
+    all_cells = cells + external
+    wall = time.perf_counter() - t0
+    sim = [r['sim_time_s'] for r in ran if r['status'] == 'ok']
+    timing = {'wall_s': wall, 'runs': len(all_cells), 'ran_now': len(ran), 'failed_now': len(failed),
+              'workers': workers, 'backend': backend, 'host': socket.gethostname(),
+              'sim_time_sum_s': float(sum(sim)), 'sim_time_mean_s': float(sum(sim) / len(sim)) if sim else None}
+    doc = {'schema': SCHEMA, 'ceco_version': ceco_version(), 'benchmark_version': BENCHMARK_VERSION,
+           'created_utc': datetime.datetime.now(datetime.UTC).strftime('%Y-%m-%dT%H:%M:%SZ'),
+           'code_fingerprint': code, 'command': command, 'quick': bool(quick),
+           'settings': {'band': [-0.5, 0.5], 'front_axis': runner.FRONT_AXIS, 'energy_axis': runner.ENERGY_AXIS,
+                        'secondary_axes': list(runner.SECONDARY_AXES),
+                        'setpoints_c': [float(x) for x in setpoints_c],
+                        'allowance_k_per_pmv': baselines.allowance_k_per_pmv,
+                        'compensation': dict(baselines.compensation), 'baselines_tuned_on': baselines.tuned_on,
+                        'baselines_sha': baselines.sha, 'strategies': list(runner.STRATEGY_NAMES)},
+           'timing': timing, 'cases': case_docs}
+    validate_results(doc)
+    (out / 'results.json').write_text(json.dumps(doc, indent=1, allow_nan=False) + '\n', encoding='utf-8')
+    with open(out / 'timing.jsonl', 'a', encoding='utf-8') as fh:
+        fh.write(json.dumps(timing) + '\n')
+    _kpi_table(out / 'kpis.csv', doc)
+    from .report import write_report  # noqa: PLC0415
+
+    write_report(doc, out)
+    return doc
+
+
+def _missing(cell) -> dict:
+    return {'cell_id': cell.id, **cell.axes, 'status': 'error', 'error': 'not run (interrupted?)', 'kpis': None,
+            'kpi_notes': {}, 'source': 'simulator'}
+
+
+def main(argv=None) -> int:
+    """CLI of ``ceco benchmark``."""
+    p = argparse.ArgumentParser(prog='ceco benchmark', description=__doc__.split('\n\n')[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument('cases', nargs='*', help=f'case names or case-file paths (default: all bundled: {list_cases()})')
+    p.add_argument('--out', help='output directory (reuse it to resume)')
+    p.add_argument('--quick', action='store_true',
+                   help=f'CI smoke test: cases {", ".join(QUICK_CASES)}, seed 0, set-points 24/25/26 degC, '
+                        'no sensitivity')
+    p.add_argument('--workers', type=int, default=None, help=f'parallel workers (default: all cores, {os.cpu_count()})')
+    p.add_argument('--backend', choices=('local', 'ray'), default='local', help='local process pool or Ray')
+    p.add_argument('--address', default=None, help='Ray cluster address (default: a local Ray instance)')
+    p.add_argument('--no-sensitivity', action='store_true', help='skip the tornado runs')
+    p.add_argument('--controller-cmd', default=None, metavar='CMD',
+                   help='run your own controller node (any language) in place of mpc_node over DDS and score it')
+    p.add_argument('--controller-name', default='external', help='name of that controller in the results')
+    p.add_argument('--save-runs', action='store_true', help='also write a run directory per run to DIR/runs/')
+    p.add_argument('--validate', metavar='FILE', default=None, help='only check FILE against ceco-benchmark/1')
+    p.add_argument('--no-progress', action='store_true', help='no progress bar')
+    args = p.parse_args(argv)
+    if args.validate:
+        try:
+            doc = json.loads(Path(args.validate).read_text(encoding='utf-8'))
+        except (OSError, json.JSONDecodeError) as exc:
+            print(f'ceco benchmark: {args.validate}: {exc}', file=sys.stderr)
+            return 2
+        errors = check_results(doc)
+        for e in errors:
+            print(e, file=sys.stderr)
+        print(f"{args.validate}: {'valid ' + SCHEMA if not errors else f'{len(errors)} problem(s)'}")
+        return 1 if errors else 0
+    if not args.out:
+        p.error('--out is required (unless --validate)')
+    if args.workers is not None and args.workers < 1:
+        p.error(f'--workers: must be >= 1, got {args.workers}')
+    if args.address and args.backend != 'ray':
+        p.error('--address needs --backend ray')
+    cmd = 'ceco benchmark ' + ' '.join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
+    try:
+        doc = run_benchmark(args.cases, args.out, quick=args.quick, workers=args.workers, backend=args.backend,
+                            address=args.address, sensitivity=not args.no_sensitivity,
+                            controller_cmd=args.controller_cmd, controller_name=args.controller_name,
+                            save_runs=args.save_runs, progress=not args.no_progress, command=cmd)
+    except (CaseError, ResultsError, ValueError, RuntimeError, OSError) as exc:
+        print(f'ceco benchmark: error: {exc}', file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print('ceco benchmark: interrupted; finished runs are kept, rerun the same command to resume',
+              file=sys.stderr)
+        return 130
+    t = doc['timing']
+    print(f"ceco benchmark: {t['runs']} runs ({t['ran_now']} run now, {t['failed_now']} failed) in {t['wall_s']:.1f} s "
+          f"on {t['workers']} worker(s); results {Path(args.out) / 'results.json'}, report "
+          f"{Path(args.out) / 'report.html'}")
+    for case in doc['cases']:
+        for name, m in case['matched'].items():
+            def f(x):
+                return 'n/a' if x is None else f'{x:+.1f} %'
+            print(f"  {case['case']:<18} {name:<32} dE@comfort {f(m['energy_saving_pct']):>8} (allowance "
+                  f"{f(m['allowance']['energy_saving_pct']):>8}), dD@energy {f(m['discomfort_reduction_pct']):>8}"
+                  f"{', dominated' if m['dominated'] else ''}")
+    failed = sum(r['status'] != 'ok' for c in doc['cases'] for r in c['runs'])
+    return 1 if failed else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,186 @@
+"""The results format ``ceco-benchmark/1`` and its validator.
+
+``DIR/results.json`` of ``ceco benchmark`` (docs/benchmark.md, "Results format").
+Two layers:
+
+1. the JSON Schema ``ceco_bringup/data/benchmark/results.schema.json`` (Draft
+   2020-12; usable from any language) for structure and types;
+2. :func:`validate_results` adds what a schema cannot express: runs are unique per
+   (controller, seed); ``seed`` is null exactly for the seed-invariant baselines and
+   one of the case's seeds otherwise; every null KPI of a finished run is explained
+   in ``kpi_notes``; each front member is a finished run of its family with the
+   front's values, and the ``efficient`` flags recompute; every ``matched`` value
+   recomputes from the fronts and the runs (:mod:`.front`, tolerance 1e-9).
+
+Pure Python (jsonschema); no ROS import.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from importlib import resources
+from typing import Any
+
+from . import front as fr
+
+__all__ = ["SCHEMA", "BENCHMARK_VERSION", "REQUIRED_KPIS", "KINDS", "SEED_INVARIANT_KINDS", "FAMILIES",
+           "load_json_schema", "validate_results", "check_results", "ResultsError"]
+
+SCHEMA = "ceco-benchmark/1"
+"""Value of results.json's ``schema`` key."""
+
+BENCHMARK_VERSION = 1
+"""Version of the benchmark's definition (KPIs, baseline family, levels, matched-comfort method)."""
+
+REQUIRED_KPIS = ("energy_kwh", "discomfort_pmvh", "i_pmv", "i_pmv_clipped", "otc_violation_pct", "draught_pct",
+                 "actuator_travel", "peak_comp_kw", "time_ratio_mean", "time_ratio_max", "fallback_steps")
+"""KPIs every run reports (a number or null with a note)."""
+
+KINDS = ("strategy", "baseline", "baseline-allowance", "compensated", "compensated-allowance", "external")
+"""Kinds of controller in a case's runs."""
+
+SEED_INVARIANT_KINDS = ("baseline", "baseline-allowance", "compensated", "compensated-allowance")
+"""Kinds that use no preview: run once per case, ``seed`` null."""
+
+FAMILIES = {"plain": "baseline", "allowance": "baseline-allowance"}
+"""Front name -> the kind of its members."""
+
+_TOL = 1e-9
+
+
+class ResultsError(ValueError):
+    """results.json does not conform to ceco-benchmark/1; the message lists the problems."""
+
+
+def load_json_schema() -> dict:
+    """The JSON Schema document of ceco-benchmark/1."""
+    text = resources.files("ceco_bringup").joinpath("data", "benchmark", "results.schema.json").read_text(
+        encoding="utf-8")
+    return json.loads(text)
+
+
+def _same(a, b) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    if isinstance(a, bool) or isinstance(b, bool):
+        return a is b
+    return abs(float(a) - float(b)) <= _TOL * max(1.0, abs(float(a)), abs(float(b)))
+
+
+def _schema_errors(doc: Any) -> list[str]:
+    import jsonschema  # noqa: PLC0415
+
+    validator = jsonschema.Draft202012Validator(load_json_schema())
+    out = []
+    for err in sorted(validator.iter_errors(doc), key=lambda e: list(e.absolute_path)):
+        where = "/".join(str(p) for p in err.absolute_path) or "(top level)"
+        out.append(f"{where}: {err.message}")
+    return out
+
+
+def _check_match(where: str, stored: Mapping, expect: Mapping) -> list[str]:
+    out = []
+    for key in ("energy_saving_pct", "discomfort_reduction_pct", "dominated", "n_seeds"):
+        if not _same(stored.get(key), expect[key]):
+            out.append(f"{where}.{key}: {stored.get(key)!r} does not recompute ({expect[key]!r})")
+    for key in ("energy_saving_pct", "discomfort_reduction_pct", "dominated"):
+        a, b = stored.get("seeds", {}).get(key), expect["seeds"][key]
+        if not isinstance(a, list) or len(a) != len(b) or not all(_same(x, y) for x, y in zip(a, b)):
+            out.append(f"{where}.seeds.{key}: {a!r} does not recompute ({b!r})")
+    return out
+
+
+def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
+    out: list[str] = []
+    tag = f"cases/{i} ({case.get('case')})"
+    seeds = set(case.get("seeds", []))
+    ok_runs: dict = {}
+    seen = set()
+    for j, run in enumerate(case.get("runs", [])):
+        where = f"{tag}/runs/{j} ({run['controller']}, seed {run['seed']})"
+        key = (run["controller"], run["seed"])
+        if key in seen:
+            out.append(f"{where}: duplicate run")
+        seen.add(key)
+        invariant = run["kind"] in SEED_INVARIANT_KINDS
+        if invariant and run["seed"] is not None:
+            out.append(f"{where}: seed must be null for the seed-invariant kind {run['kind']!r}")
+        if not invariant and run["seed"] not in seeds:
+            out.append(f"{where}: seed must be one of the case's seeds {sorted(seeds)}")
+        if run["status"] == "error":
+            if not run.get("error"):
+                out.append(f"{where}: status error without an error message")
+            continue
+        for k, v in run["kpis"].items():
+            if v is None and k not in run["kpi_notes"]:
+                out.append(f"{where}: KPI {k} is null without a note in kpi_notes")
+        ok_runs.setdefault(run["controller"], []).append(run)
+    fx, ex = settings["front_axis"], settings["energy_axis"]
+    fronts = {}
+    for family, kind in FAMILIES.items():
+        members = case["fronts"][family]
+        pts = []
+        for j, p in enumerate(members):
+            where = f"{tag}/fronts/{family}/{j} ({p['controller']})"
+            runs = ok_runs.get(p["controller"], [])
+            if len(runs) != 1 or runs[0]["kind"] != kind:
+                out.append(f"{where}: not a finished run of kind {kind!r}")
+                continue
+            k = runs[0]["kpis"]
+            if not (_same(p["discomfort"], k.get(fx)) and _same(p["energy"], k.get(ex))):
+                out.append(f"{where}: values differ from the run's {fx}/{ex}")
+            pts.append((p["controller"], p["discomfort"], p["energy"]))
+        if not pts:
+            fronts[family] = None
+            continue
+        front = fr.build_front(pts)
+        fronts[family] = front
+        eff = {p.name: p.efficient for p in front.points}
+        for j, p in enumerate(members):
+            if p["controller"] in eff and eff[p["controller"]] != p["efficient"]:
+                out.append(f"{tag}/fronts/{family}/{j} ({p['controller']}): efficient flag does not recompute")
+    for name, entry in case.get("matched", {}).items():
+        runs = ok_runs.get(name)
+        where = f"{tag}/matched/{name}"
+        if not runs:
+            out.append(f"{where}: no finished run of this controller")
+            continue
+        if runs[0]["kind"] in FAMILIES.values():
+            out.append(f"{where}: a family member is not matched against its own front")
+            continue
+        pts = [(r["kpis"].get(fx), r["kpis"].get(ex))
+               for r in sorted(runs, key=lambda r: (-1 if r["seed"] is None else r["seed"]))]
+        if any(a is None or b is None for a, b in pts):
+            out.append(f"{where}: a run has no {fx} or {ex}")
+            continue
+        for family, sub in (("plain", entry), ("allowance", entry.get("allowance", {}))):
+            if fronts.get(family) is None:
+                out.append(f"{where}: the {family} front is empty")
+                continue
+            out += _check_match(where if family == "plain" else f"{where}.allowance", sub,
+                                fr.match_seeds(fronts[family], pts))
+    return out
+
+
+def check_results(doc: Any) -> list[str]:
+    """All problems of a parsed results document (empty list: valid ceco-benchmark/1)."""
+    errors = _schema_errors(doc)
+    if errors:
+        return errors
+    out = []
+    for i, case in enumerate(doc["cases"]):
+        out += _check_case(i, case, doc["settings"])
+    for name in ("timing",):
+        for k, v in doc[name].items():
+            if isinstance(v, float) and not math.isfinite(v):
+                out.append(f"{name}/{k}: not finite")
+    return out
+
+
+def validate_results(doc: Any) -> None:
+    """Raise :class:`ResultsError` listing every problem of ``doc`` (see :func:`check_results`)."""
+    errors = check_results(doc)
+    if errors:
+        raise ResultsError(f"{len(errors)} problem(s) in the benchmark results:\n  " + "\n  ".join(errors))

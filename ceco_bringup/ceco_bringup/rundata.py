@@ -1,0 +1,278 @@
+"""Run directories loaded and checked: the data behind ``ceco report`` (no figures, no rendering).
+
+A run directory (docs/architecture.md, "Run directory format") holds
+``metrics.json`` and the time series, as a rosbag2 bag (``DIR/bag``, read with
+``ceco_bringup.bagio``; any topic naming) or as ``DIR/timeseries.csv``;
+optionally ``diagnostics.csv``. :func:`load_run` reads one, recomputes its
+metrics with ``ceco_core.metrics.compute_metrics`` and compares them with
+``metrics.json``; :func:`solver_stats` summarises its solver diagnostics.
+
+Public API:
+    RunData                        one loaded, checked run
+    discover_runs(paths)           run directories among paths (or one level below)
+    load_run(run_dir, rtol, namespace) -> RunData
+    recompute_metrics(columns, count_aux) / compare_metrics(stored, recomputed, rtol, atol)
+    csv_precision_digits(path)     significant digits a CSV's writer used
+    fallback_mask(column)          which control steps fell back
+    solver_stats(diagnostics)      summary statistics of the solver diagnostics
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ceco_core.rundir import read_csv_columns
+
+__all__ = ['RunData', 'discover_runs', 'csv_precision_digits', 'recompute_metrics', 'compare_metrics', 'load_run',
+           'fallback_mask', 'solver_stats']
+
+METRIC_INPUTS = ('t_s', 'p_comp_w', 'p_blower_w', 'pmv', 'pmv_lb', 'pmv_ub')
+"""Time-series columns compute_metrics needs."""
+
+
+@dataclasses.dataclass
+class RunData:
+    """One run directory, loaded and checked."""
+
+    path: Path
+    """The run directory."""
+    strategy: str
+    """From metrics.json (else the directory name)."""
+    scenario: str
+    """From metrics.json (else 'unknown')."""
+    stored: dict
+    """metrics.json as read."""
+    columns: dict
+    """Time series: name -> 1-D array (``timeseries.csv`` names)."""
+    source: str
+    """'bag' or 'timeseries.csv': where ``columns`` came from."""
+    recomputed: dict
+    """compute_metrics over ``columns``."""
+    mismatches: list
+    """(key, stored, recomputed) for every metric that differs."""
+    max_rel_diff: float
+    """Largest relative difference over the compared metrics."""
+    diagnostics: dict | None
+    """diagnostics.csv columns (or the bag's diagnostics), or None when absent."""
+    check_rtol: float = 0.0
+    """Relative tolerance the check used (looser than asked when timeseries.csv was
+    written with fewer significant digits)."""
+
+
+def discover_runs(paths: Sequence[str | Path]) -> list[Path]:
+    """Run directories among ``paths``.
+
+    A directory holding ``metrics.json`` is a run; otherwise its immediate
+    subdirectories holding one are (a ``--strategy all`` parent). Raises ValueError
+    for a path that is neither.
+    """
+    runs: list[Path] = []
+    for p in map(Path, paths):
+        if not p.is_dir():
+            raise ValueError(f'{p}: not a directory')
+        if (p / 'metrics.json').is_file():
+            runs.append(p)
+            continue
+        subs = sorted(d for d in p.iterdir() if d.is_dir() and (d / 'metrics.json').is_file())
+        if not subs:
+            raise ValueError(f'{p}: no metrics.json in it nor in its subdirectories: not a run directory')
+        runs.extend(subs)
+    return runs
+
+
+def csv_precision_digits(path: str | Path, columns: Sequence[str] = METRIC_INPUTS[1:]) -> int:
+    """Significant digits the writer of a CSV file used for ``columns``.
+
+    The largest count found in any cell: ``%g`` drops trailing zeros, so the maximum
+    is the format's precision (17 for Python's ``repr``).
+    """
+    best = 0
+    with open(path, newline='', encoding='utf-8') as fh:
+        reader = csv.reader(fh)
+        header = [h.strip() for h in next(reader)]
+        idx = [header.index(c) for c in columns if c in header]
+        for row in reader:
+            for i in idx:
+                mant = row[i].strip().lstrip('+-').lower().split('e')[0].replace('.', '').lstrip('0')
+                best = max(best, len(mant))
+    return best
+
+
+def recompute_metrics(columns: Mapping, count_aux: bool = False) -> dict:
+    """``compute_metrics`` over the run's time series columns.
+
+    With ``count_aux`` the condenser fan (column ``p_cond_fan_w``) is counted in
+    ``E_tot`` as the other A/C auxiliary (``E_aux_J``).
+    """
+    from ceco_core.metrics import compute_metrics
+
+    missing = [c for c in METRIC_INPUTS if c not in columns]
+    if count_aux and 'p_cond_fan_w' not in columns:
+        missing.append('p_cond_fan_w')
+    if missing:
+        raise ValueError(f'time series: missing columns {missing}')
+    args = [np.asarray(columns[c], dtype=float) for c in METRIC_INPUTS]
+    if count_aux:
+        return compute_metrics(*args, p_aux_w=np.asarray(columns['p_cond_fan_w'], dtype=float))
+    return compute_metrics(*args)
+
+
+def compare_metrics(stored: Mapping, recomputed: Mapping, rtol: float = 1e-9, atol: float = 1e-9):
+    """Compare every numeric metric present in both; ``(mismatches, max_rel_diff)``.
+
+    NaN equals NaN; ``|a - b| <= atol + rtol |b|`` passes.
+    """
+    mism, worst = [], 0.0
+    for key, new in recomputed.items():
+        if key not in stored or isinstance(stored[key], (str, bool)) or stored[key] is None:
+            continue
+        old, new = float(stored[key]), float(new)
+        if math.isnan(old) and math.isnan(new):
+            continue
+        if math.isnan(old) != math.isnan(new):
+            mism.append((key, old, new))
+            worst = math.inf
+            continue
+        diff = abs(old - new)
+        worst = max(worst, diff / abs(new) if new != 0 else (0.0 if diff == 0 else math.inf))
+        if diff > atol + rtol * abs(new):
+            mism.append((key, old, new))
+    return mism, worst
+
+
+def _load_bag(bag_dir: Path, namespace: str | None) -> dict:
+    from ceco_bringup import bagio  # needs rosbags only; imported when a bag exists
+
+    try:
+        cols = {k: np.asarray(v) for k, v in bagio.load_run_timeseries(bag_dir, namespace).items()}
+    except Exception as exc:  # noqa: BLE001 (rosbags raises its own types; say which bag)
+        raise ValueError(f'{bag_dir}: cannot read the bag: {type(exc).__name__}: {exc}') from exc
+    if not len(cols.get('t_s', ())) >= 2:
+        raise ValueError(f'{bag_dir}: the bag holds fewer than 2 complete plant steps')
+    return cols
+
+
+def _time_series(run_dir: Path, namespace: str | None) -> tuple[dict, str]:
+    """(columns, source): the bag alone when the run has one, else timeseries.csv."""
+    if (run_dir / 'bag').is_dir():
+        return _load_bag(run_dir / 'bag', namespace), 'bag'
+    if (run_dir / 'timeseries.csv').is_file():
+        return read_csv_columns(run_dir / 'timeseries.csv'), 'timeseries.csv'
+    raise ValueError(f'{run_dir}: neither bag/ nor timeseries.csv')
+
+
+def _diagnostics(run_dir: Path, source: str, namespace: str | None) -> dict | None:
+    if (run_dir / 'diagnostics.csv').is_file():
+        return read_csv_columns(run_dir / 'diagnostics.csv')
+    if source == 'bag':
+        from ceco_bringup import bagio
+
+        return {k: np.asarray(v) for k, v in bagio.load_diagnostics(run_dir / 'bag', namespace).items()} or None
+    return None
+
+
+def load_run(run_dir: str | Path, rtol: float = 1e-6, namespace: str | None = None) -> RunData:
+    """Load one run directory, recompute its metrics and check them against metrics.json.
+
+    ``namespace`` picks the stack of a bag that holds several (default: the only one).
+    """
+    run_dir = Path(run_dir)
+    stored = json.loads((run_dir / 'metrics.json').read_text(encoding='utf-8'))
+    columns, source = _time_series(run_dir, namespace)
+    # The run counted the condenser fan in E_tot if its metrics.json says so
+    # (E_aux_J > 0); the recomputation follows and E_aux_J itself is checked.
+    count_aux = bool(stored.get('E_aux_J')) and float(stored.get('E_aux_J') or 0.0) != 0.0
+    recomputed = recompute_metrics(columns, count_aux=count_aux)
+    check_rtol = rtol
+    if source == 'timeseries.csv':
+        # A value written with d significant digits is off by up to
+        # 0.5e(1-d) relative; the sums and extrema of the metrics inherit
+        # that bound, so the check cannot be tighter than the file.
+        digits = csv_precision_digits(run_dir / 'timeseries.csv')
+        if digits:
+            check_rtol = max(rtol, 10.0 ** (1 - digits))
+    mism, worst = compare_metrics(stored, recomputed, rtol=check_rtol)
+    return RunData(path=run_dir, strategy=str(stored.get('strategy') or run_dir.name),
+                   scenario=str(stored.get('scenario') or 'unknown'), stored=stored, columns=columns,
+                   source=source, recomputed=recomputed, mismatches=mism, max_rel_diff=worst,
+                   diagnostics=_diagnostics(run_dir, source, namespace), check_rtol=check_rtol)
+
+
+def fallback_mask(column) -> np.ndarray:
+    """Which control steps fell back.
+
+    The ``fallback`` column is the fallback kind ('' = none, 'shifted_plan',
+    'baseline', ...) or a 0/1 flag.
+    """
+    col = np.asarray(column)
+    if col.dtype.kind in 'fiub':
+        f = col.astype(float)
+        return np.isfinite(f) & (f != 0.0)
+    text = np.char.lower(np.char.strip(col.astype(str)))
+    return ~np.isin(text, ('', '0', '0.0', 'false', 'none', 'no', 'nan'))
+
+
+def _fallback_stats(column) -> dict:
+    mask = fallback_mask(column)
+    col = np.asarray(column)
+    kinds = col.astype(str)[mask] if col.dtype.kind in 'US' else np.array([])
+    vals, counts = np.unique(kinds, return_counts=True)
+    return {'fallbacks': int(mask.sum()), 'fallback_kinds': {str(v): int(c) for v, c in zip(vals, counts)}}
+
+
+def _success_flags(column) -> np.ndarray:
+    col = np.asarray(column)
+    if col.dtype.kind == 'f':
+        return col.astype(float)
+    return np.array([str(x).strip().lower() in ('1', 'true', 'yes') for x in col], dtype=float)
+
+
+def _solve_stats(diag: Mapping, n: int) -> dict:
+    """Solve-time, success and iteration statistics over the rows with a solve time."""
+    nan = float('nan')
+    st = np.asarray(diag.get('solve_time_ms', np.full(n, nan)), dtype=float)
+    ok = np.isfinite(st)
+    out: dict = {'solver_steps': int(ok.sum())}
+    if not ok.any():
+        return out
+    out.update(solve_ms_median=float(np.median(st[ok])), solve_ms_p95=float(np.percentile(st[ok], 95)),
+               solve_ms_max=float(np.max(st[ok])), solve_ms_mean=float(np.mean(st[ok])))
+    if 'success' in diag:
+        out['success_pct'] = 100.0 * float(np.nansum(_success_flags(diag['success'])[ok])) / int(ok.sum())
+    it = np.asarray(diag.get('iterations', np.full(n, nan)), dtype=float)[ok]
+    if np.any(np.isfinite(it)):
+        out['iter_median'] = float(np.nanmedian(it))
+        out['iter_max'] = float(np.nanmax(it))
+    return out
+
+
+def solver_stats(diag: Mapping | None) -> dict:
+    """Summary of one run's ``diagnostics.csv``.
+
+    Keys: ``steps``, ``solver_steps`` (rows with a solve time), ``success_pct``,
+    ``fallbacks`` (count), ``fallback_kinds`` ({kind: count}),
+    ``solve_ms_median/p95/max/mean``, ``iter_median/max``, ``statuses``
+    ({status: count}). Empty solver columns (baseline) give NaN.
+    """
+    nan = float('nan')
+    out = {'steps': 0, 'solver_steps': 0, 'success_pct': nan, 'fallbacks': 0, 'solve_ms_median': nan,
+           'solve_ms_p95': nan, 'solve_ms_max': nan, 'solve_ms_mean': nan, 'iter_median': nan,
+           'iter_max': nan, 'statuses': {}, 'fallback_kinds': {}}
+    if not diag:
+        return out
+    n = len(next(iter(diag.values())))
+    out['steps'] = n
+    if 'fallback' in diag:
+        out.update(_fallback_stats(diag['fallback']))
+    out.update(_solve_stats(diag, n))
+    if 'status' in diag:
+        vals, counts = np.unique(np.asarray(diag['status']).astype(str), return_counts=True)
+        out['statuses'] = {str(v): int(c) for v, c in zip(vals, counts) if v and v != 'nan'}
+    return out

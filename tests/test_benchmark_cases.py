@@ -1,0 +1,73 @@
+"""Benchmark test-case files (ceco_bringup.benchmark.cases)."""
+
+import pytest
+import yaml
+
+from ceco_bringup.benchmark import cases as bc
+
+
+def test_every_bundled_case_loads_and_the_lists_agree():
+    names = bc.list_cases()
+    assert sorted(bc.DEFAULT_CASES) == names
+    assert set(bc.QUICK_CASES) <= set(names)
+    for name in names:
+        c = bc.load_case(name)
+        assert c.name == name and c.version >= 1
+        sc = c.load_scenario()
+        if c.forecast_uncertainty == "none":
+            assert c.seeds == (0,)
+        else:
+            assert len(c.seeds) >= bc.MIN_UNCERTAIN_SEEDS
+        assert len(c.sha()) == 16
+        assert sc.duration_s > 0
+
+
+def test_overrides_and_sha():
+    hot = bc.load_case("hotsoak-pulldown")
+    assert hot.load_scenario().duration_s == 900.0
+    # the band (upper bound 0.5) is reached inside the run
+    lb, ub = hot.load_scenario().pmv_bounds(700.0)
+    assert ub == pytest.approx(0.5)
+    a, b = bc.load_case("sc03-low"), bc.load_case("sc03-medium")
+    assert a.scenario_dict() == b.scenario_dict() and a.sha() != b.sha()
+    assert bc.load_case("sc03-paper").sha() == bc.load_case("sc03-paper").sha()
+
+
+def _write(tmp_path, **over):
+    d = {"schema": bc.CASE_SCHEMA, "name": "my-case", "version": 1, "scenario": "sc03",
+         "forecast_uncertainty": "low", "seeds": [0, 1, 2, 3, 4]}
+    d.update(over)
+    d = {k: v for k, v in d.items() if v is not ...}
+    p = tmp_path / "my-case.yaml"
+    p.write_text(yaml.safe_dump(d))
+    return p
+
+
+def test_a_user_case_file_with_a_relative_scenario(tmp_path):
+    sc = tmp_path / "hot.yaml"
+    sc.write_text(yaml.safe_dump(yaml.safe_load(
+        (bc.resources.files("ceco_v2x_preview") / "data" / "scenarios" / "sc03.yaml").read_text())
+        | {"name": "hot"}))
+    c = bc.load_case(_write(tmp_path, scenario="hot.yaml", duration_s=120))
+    assert c.load_scenario().name == "hot" and c.load_scenario().duration_s == 120.0
+
+
+@pytest.mark.parametrize("over, field", [
+    ({"schema": "ceco-benchmark-case/2"}, "schema"),
+    ({"name": "has space"}, "name"),
+    ({"version": 0}, "version"),
+    ({"version": 1.5}, "version"),
+    ({"forecast_uncertainty": "extreme"}, "forecast_uncertainty"),
+    ({"seeds": [0, 1]}, "seeds"),
+    ({"seeds": [0, 0, 1, 2, 3]}, "seeds"),
+    ({"forecast_uncertainty": "none", "seeds": [0, 1]}, "seeds"),
+    ({"duration_s": -5}, "duration_s"),
+    ({"scenario": "no_such_scenario"}, "scenario"),
+    ({"colour": "red"}, "colour"),
+    ({"seeds": ...}, "seeds"),
+])
+def test_bad_case_files_name_the_field(tmp_path, over, field):
+    with pytest.raises(bc.CaseError, match=f"^{field}"):
+        bc.load_case(_write(tmp_path, **over))
+    with pytest.raises(bc.CaseError, match="unknown case"):
+        bc.load_case("no-such-case")
