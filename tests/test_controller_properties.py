@@ -40,7 +40,8 @@ def observations(draw, n=N1):
         preview_t_amb_c=draw(_series(10.0, 45.0, n)), preview_solar_wm2=draw(_series(0.0, 1100.0, n)),
         preview_speed_mps=draw(_series(0.0, 40.0, n)),
         preview_valid=np.array(draw(st.lists(st.booleans(), min_size=n, max_size=n))),
-        pmv_lb=lb, pmv_ub=draw(_series(0.0, 3.0, n)), met=draw(_mixed(1.0, 2.0)), clo=draw(_mixed(0.3, 1.0)))
+        pmv_lb=lb, pmv_ub=draw(_series(0.0, 3.0, n)), met=draw(_mixed(1.0, 2.0)), clo=draw(_mixed(0.3, 1.0)),
+        t_glass_c=draw(_mixed(15.0, 70.0)), rh_cab=draw(_mixed(0.1, 0.9)))
 
 
 def _in_bounds(cmd) -> bool:

@@ -454,3 +454,14 @@ def test_comfort_parameters_humidity_setting_and_draught_penalty():
     dr = NmpcController(strategy_settings("ceco", draught_weight_kj=0.01))
     _, d_dr = dr.compute(_obs(0, t_cab=24.0, **_ZONE))
     assert d_paper.cost_comfort == 0.0 and d_dr.success and d_dr.cost_comfort > 0.0
+
+
+def test_an_implausible_humidity_is_not_used_in_the_nlp():
+    """rh_cab = 40 (per cent, not a fraction) is treated as not measured: the NLP gets 1700 Pa."""
+    from ceco_core.cabin_comfort import PAPER_PA_PA
+    ctrl = NmpcController(strategy_settings("ceco", pmv_pa_source="measured"))
+    cmd, diag = ctrl.compute(_obs(0, t_cab=24.0, rh_cab=40.0, **_ZONE))
+    assert diag.fallback == "" and "rh_cab=40.0" in diag.message
+    assert ctrl.problem.params.scalar(ctrl.last_nlp().p, "pa") == PAPER_PA_PA
+    cmd, diag = ctrl.compute(_obs(1, t_cab=24.0, rh_cab=0.4, **_ZONE))
+    assert ctrl.problem.params.scalar(ctrl.last_nlp().p, "pa") != PAPER_PA_PA

@@ -54,3 +54,12 @@ def test_limits_are_validated():
         ObservationLimits(ambient_c=(10.0, 5.0)).validate()
     with pytest.raises(ValueError, match="command_tol"):
         ObservationLimits(command_tol=-1.0).validate()
+
+
+def test_optional_measurements_are_used_only_when_plausible():
+    c = check_observation(_obs(t_glass_c=36.0, rh_cab=0.4))
+    assert (c.t_glass_c, c.rh_cab) == (36.0, 0.4) and not c.info_problems
+    c = check_observation(_obs())  # not measured: NaN, no problem
+    assert math.isnan(c.t_glass_c) and math.isnan(c.rh_cab) and not c.info_problems
+    c = check_observation(_obs(t_glass_c=1e6, rh_cab=40.0))  # e.g. RH in percent: treated as not measured
+    assert math.isnan(c.t_glass_c) and math.isnan(c.rh_cab) and len(c.info_problems) == 2 and c.measurements_ok
