@@ -53,7 +53,7 @@ def budget_settings(factor: float, **solver) -> SolverSettings:
 def _timed_steps(ctrl, times: list, cpu_times: list, on_step=None, prepare: bool = True):
     orig_obs = cl.observation
     orig_compute = ctrl.compute
-    state = {"t0": None, "c0": None, "first": True}
+    state: dict = {"t0": None, "c0": None, "first": True}
 
     def observation(*args, **kwargs):
         state["t0"], state["c0"] = ctrl.clock(), time.thread_time()

@@ -55,6 +55,14 @@ class GoodSolution:
     age: int = 0
     """Control steps since it was computed (0: for the current step)."""
 
+    @classmethod
+    def of(cls, result: SolveResult, problem: NlpProblem, age: int = 0) -> GoodSolution:
+        """From a usable result (ValueError if it has no primal-dual point)."""
+        w, lam_x, lam_g = result.w, result.lam_x, result.lam_g
+        if w is None or lam_x is None or lam_g is None:
+            raise ValueError("GoodSolution.of: the result has no primal-dual point")
+        return cls(w, lam_x, lam_g, problem.plan(w), age)
+
 
 @dataclasses.dataclass
 class ColdPath:
@@ -140,9 +148,10 @@ class SolveChain:
 
     def why_unusable(self, r: SolveResult) -> str | None:
         """None if ``r`` is usable, else the reason."""
-        if not r.finite():
+        w, lam_x, lam_g = r.w, r.lam_x, r.lam_g
+        if w is None or lam_x is None or lam_g is None or not r.finite():
             return "no finite primal-dual point"
-        if max(float(np.max(np.abs(r.lam_x), initial=0.0)), float(np.max(np.abs(r.lam_g), initial=0.0))) \
+        if max(float(np.max(np.abs(lam_x), initial=0.0)), float(np.max(np.abs(lam_g), initial=0.0))) \
                 > MAX_MULTIPLIER:
             return "multipliers beyond 1e9"
         if not (r.success or r.limited):
@@ -151,7 +160,7 @@ class SolveChain:
             return "no iteration before the limit"
         if not r.violation <= self.accept_violation:
             return f"constraint violation {r.violation:.1e} > {self.accept_violation:g}"
-        if not self.valid_command(self.problem.plan(r.w)[0]):
+        if not self.valid_command(self.problem.plan(w)[0]):
             return "first input outside the actuator bounds"
         return None
 
@@ -188,7 +197,7 @@ class SolveChain:
         if cold is None:
             return self.cold.solve(data, deadline)
         res = self.cold.solve(NlpData(p=data.p, x0=initial_guess(cold.problem, data.p)), deadline)
-        if res.w is not None:
+        if res.w is not None and res.lam_x is not None and res.lam_g is not None:
             res.w = res.w[cold.w_map]
             res.lam_x = res.lam_x[cold.w_map]
             res.lam_g = res.lam_g[cold.g_map]

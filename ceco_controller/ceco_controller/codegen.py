@@ -142,7 +142,7 @@ def _compile_cached(prefix: str, key: bytes, generate, flags, cache_dir: str | N
     if cc is None:
         _LOG.warning("NMPC codegen: no C compiler found (gcc/cc/$CC); using the in-process NLP functions")
         return None
-    digest = hashlib.sha256(key + repr((list(flags), casadi.__version__, cc)).encode()).hexdigest()[:20]
+    digest = hashlib.sha256(key + repr((list(flags), casadi.CasadiMeta.version(), cc)).encode()).hexdigest()[:20]
     cache = codegen_cache_dir(cache_dir)
     target = cache / f"{prefix}_{digest}.so"
     if target.is_file():

@@ -332,7 +332,7 @@ class NmpcController:
         p = self.parameters(obs, ex)
         cold = self.chain._cold_solve(self.chain.cold_data(p), None)
         if self.chain.why_unusable(cold) is None:
-            good = GoodSolution(cold.w, cold.lam_x, cold.lam_g, self.problem.plan(cold.w), age=0)
+            good = GoodSolution.of(cold, self.problem)
             data = self.chain.warm_data(p, good)
             if data is not None:
                 for solver in (self.solver, self.solver_fallback):
@@ -360,8 +360,7 @@ class NmpcController:
         self._bias = bias
         out = self.chain.run(p, None, math.inf)
         if out.result is not None:
-            self._good = GoodSolution(out.result.w, out.result.lam_x, out.result.lam_g,
-                                      self.problem.plan(out.result.w), age=-1)
+            self._good = GoodSolution.of(out.result, self.problem, age=-1)
             self._prepared_t_s = float(obs.t_s)
         return out.result
 
@@ -430,14 +429,14 @@ class NmpcController:
                 cnt.rti_steps += 1
             else:
                 cnt.converged += 1
-            plan = self.problem.plan(res.w)
-            self._good = GoodSolution(res.w, res.lam_x, res.lam_g, plan, age=0)
-            ev = self.problem.evaluate(res.w, p)
+            good = self._good = GoodSolution.of(res, self.problem)
+            plan = good.plan
+            ev = self.problem.evaluate(good.w, p)
             diag.cost_energy, diag.cost_comfort, diag.cost_ioch = ev.J_e, ev.J_c, ev.J_i
             diag.cost_slack, diag.cost_total = ev.J_s, res.f
             diag.pred_pmv, diag.pred_t_cab_c = ev.pmv, ev.t_cab
             if s.ioch:
-                diag.eps = res.w[self.problem.vars.indices("eps")]
+                diag.eps = good.w[self.problem.vars.indices("eps")]
             cmd = plan[0]
         elif self._good is not None and 1 <= self._good.age < len(self._good.plan):
             cmd = self._good.plan[self._good.age]

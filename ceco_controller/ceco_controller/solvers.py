@@ -279,7 +279,7 @@ def build_solver(problem: NlpProblem, solver_settings: SolverSettings,
                      "fatrop": {"print_level": 0, "max_iter": ss.max_iter, "tol": ss.tol, "mu_init": 1e-2}})
         # (fatrop 0.0.x in CasADi 3.8 accepts no warm-start option; the primal guess is still used)
         return CasadiSolver(problem, ss, clock, casadi.nlpsol("ceco_nlp", "fatrop", problem.nlp, opts), None)
-    nlp = problem.nlp
+    nlp: dict | str = problem.nlp
     if ss.codegen and not ss.default_options:
         so = _compiled(problem, ("ipopt", tuple(ss.codegen_flags)),
                        lambda: compile_nlp(problem.nlp, ss.codegen_flags, ss.codegen_cache_dir, plugin="ipopt"))

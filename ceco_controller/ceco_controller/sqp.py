@@ -203,15 +203,15 @@ class DenseSqp:
         return np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0)
 
     def _linearise(self, w, p):
-        f, g, gf, jac = self._jac(w, p)
-        f = float(f[0])
+        f_buf, g, gf, jac = self._jac(w, p)
+        f = float(f_buf[0])
         # one sum per array: NaN and inf propagate (an overflow of huge finite values is flagged too)
         ok = math.isfinite(f + float(np.sum(g)) + float(np.sum(gf)) + float(np.sum(jac)))
         return ok, f, g.copy(), gf.copy(), jac.reshape(self.nw, self.ng).T.copy()
 
     def _merit_eval(self, w, p):
-        f, g = self._fg(w, p)
-        return float(f[0]), g.copy()
+        f_buf, g = self._fg(w, p)
+        return float(f_buf[0]), g.copy()
 
     # ------------------------------------------------------------ solve
     def solve(self, w0, p, lam_x0=None, lam_g0=None, deadline: float | None = None) -> SqpOutcome:

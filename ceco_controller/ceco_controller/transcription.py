@@ -120,7 +120,10 @@ class NlpProblem:
     def evaluate(self, w: np.ndarray, p: np.ndarray) -> Evaluation:
         """Cost terms and predicted trajectories of a primal point."""
         out = self.evaluator(w, p)
-        return Evaluation(*(float(v) for v in out[:5]), *(np.array(v).ravel() for v in out[5:]))
+        j = [float(v) for v in out[:5]]
+        pmv, t_cab, t_ain, t_evap = (np.array(v).ravel() for v in out[5:])
+        return Evaluation(J_e=j[0], J_c=j[1], J_i=j[2], J_s=j[3], J_du=j[4], pmv=pmv, t_cab=t_cab, t_ain=t_ain,
+                          t_evap=t_evap)
 
     def plan(self, w: np.ndarray) -> np.ndarray:
         """The input sequence u_0..u_{N-1} of a primal point, shape (N, 2)."""
@@ -180,6 +183,7 @@ def build_problem(settings: StrategySettings, model_params: cm.ControlModelParam
         elif single:
             x = x_next
         else:
+            assert x_next is not None  # (set by stage i - 1)
             x = SX.sym(f"x_{i}", 4)
             add_var(x, [_STATE_BOUNDS_C[0]] * 2 + [-inf] * 2, [_STATE_BOUNDS_C[1]] * 2 + [inf] * 2, "x")
             rows.add(i - 1, 0, "gap", x - x_next, [0.0] * 4, [0.0] * 4)
@@ -210,7 +214,7 @@ def build_problem(settings: StrategySettings, model_params: cm.ControlModelParam
         add_var(s_lo, 0.0, inf, "s_lo")
         add_var(s_up, 0.0, inf, "s_up")
         sl_terms.append(s.slack_weight_kj * (s_lo + s_up))
-        eps = 0.0
+        eps: object = 0.0
         if s.ioch:
             eps_sym = SX.sym(f"eps_{i}")
             add_var(eps_sym, 0.0, s.eps_ub, "eps")

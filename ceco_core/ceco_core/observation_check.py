@@ -134,10 +134,10 @@ def check_observation(obs: Observation, limits: ObservationLimits = OBSERVATION_
         with np.errstate(invalid="ignore"):
             if np.any(np.asarray(obs.pmv_lb) > np.asarray(obs.pmv_ub)):
                 meas.append("pmv_lb above pmv_ub")
-    lim, tol = ACTUATOR_LIMITS, limits.command_tol
-    if not _in(obs.mdot_bl_prev_kgps, (lim.mdot_bl_min_kgps - tol, lim.mdot_bl_max_kgps + tol)):
+    act, tol = ACTUATOR_LIMITS, limits.command_tol
+    if not _in(obs.mdot_bl_prev_kgps, (act.mdot_bl_min_kgps - tol, act.mdot_bl_max_kgps + tol)):
         cmd.append(f"mdot_bl_prev_kgps={obs.mdot_bl_prev_kgps!r} outside the actuator bounds")
-    if not _in(obs.t_evap_sp_prev_c, (lim.t_evap_sp_min_c - tol, lim.t_evap_sp_max_c + tol)):
+    if not _in(obs.t_evap_sp_prev_c, (act.t_evap_sp_min_c - tol, act.t_evap_sp_max_c + tol)):
         cmd.append(f"t_evap_sp_prev_c={obs.t_evap_sp_prev_c!r} outside the actuator bounds")
     if not (isinstance(obs.k, (int, np.integer)) and obs.k >= 0):
         info.append(f"k={obs.k!r} not an int >= 0")
