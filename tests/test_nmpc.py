@@ -392,23 +392,31 @@ def test_an_iterate_cut_by_the_deadline_is_applied_when_its_violation_is_small()
 
 def test_hand_over_to_the_acc_law_and_back_is_bumpless():
     """The ACC law tracks the applied command while the NMPC is in charge: its first command after the
-    shifted plan runs out is the last applied one; the NMPC then takes back control."""
+    shifted plan runs out is the last applied one, the difference to its own output then decays with
+    handover_tau_s (30 s); the NMPC then takes back control from the applied command."""
+    import math
     ctrl = NmpcController("ceco")
-    for k in range(3):
-        ctrl.compute(_obs(k, t_cab=26.5))
+    for k in range(3):  # inside the comfort zone: an interior command, far from the law's own (0.05, 10)
+        ctrl.compute(_obs(k, t_cab=24.5, **_ZONE))
     real = _poison(ctrl)
-    cmds, fallbacks = [], []
+    cmds, fallbacks, raw = [], [], []
     for k in range(3, 12):
-        cmd, diag = ctrl.compute(_obs(k, t_cab=26.5))
-        cmds.append((cmd.mdot_bl_kgps, cmd.t_evap_sp_c))
+        cmd, diag = ctrl.compute(_obs(k, t_cab=24.5, **_ZONE))
+        cmds.append(np.array([cmd.mdot_bl_kgps, cmd.t_evap_sp_c]))
         fallbacks.append(diag.fallback)
+        raw.append(np.array([ctrl._acc._raw.mdot_bl_kgps, ctrl._acc._raw.t_evap_sp_c]))
     assert fallbacks == ["shifted_plan"] * 5 + ["baseline"] * 4
-    assert cmds[5] == cmds[4]  # the take-over: no bump
-    steps = np.abs(np.diff(np.array(cmds[4:]), axis=0))
-    assert np.all(steps[:, 0] <= 0.02) and np.all(steps[:, 1] <= 1.0)  # then it moves gradually
+    np.testing.assert_array_equal(cmds[5], cmds[4])  # the take-over: no bump
+    assert abs(cmds[5][0] - raw[5][0]) > 0.03  # ... although the law's own output is elsewhere
+    decay = math.exp(-5.0 / 30.0)
+    for i in range(6, 9):
+        np.testing.assert_allclose(cmds[i] - raw[i], (cmds[i - 1] - raw[i - 1]) * decay, atol=1e-12)
     _restore(ctrl, real)
-    cmd, diag = ctrl.compute(_obs(12, t_cab=26.5))
+    cmd, diag = ctrl.compute(_obs(12, t_cab=24.5, mdot_bl_prev_kgps=cmds[-1][0], t_evap_sp_prev_c=cmds[-1][1],
+                                  **_ZONE))
     assert diag.fallback == "" and diag.success and _valid(cmd)
+    # the NMPC plans from the applied command (its u_prev, move penalty); its first move is its own decision
+    assert ctrl.problem.params.get(ctrl.last_nlp().p, "u_prev") == pytest.approx(cmds[-1])
 
 
 def test_prepare_makes_the_first_step_warm_and_warm_up_leaves_no_trace():
