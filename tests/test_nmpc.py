@@ -473,3 +473,12 @@ def test_an_implausible_humidity_is_not_used_in_the_nlp():
     assert ctrl.problem.params.scalar(ctrl.last_nlp().p, "pa") == PAPER_PA_PA
     cmd, diag = ctrl.compute(_obs(1, t_cab=24.0, rh_cab=0.4, **_ZONE))
     assert ctrl.problem.params.scalar(ctrl.last_nlp().p, "pa") != PAPER_PA_PA
+
+
+def test_a_failed_cold_ipopt_is_followed_by_the_sqp_from_the_same_guess():
+    ctrl = NmpcController("ceco")
+    ctrl.solver_cold = _FailingSolver()
+    cmd, diag = ctrl.compute(_obs(0, t_cab=24.5, **_ZONE))
+    assert diag.fallback == "" and diag.success and _valid(cmd)
+    assert diag.status.startswith("cold sqp: QP_Failed (stub); cold sqp: Solve_Succeeded")
+    assert ctrl.counters.cold_solves == 2 and ctrl.counters.converged == 1

@@ -7,7 +7,9 @@ shifted by the steps elapsed since it was computed), within a wall-clock deadlin
    (the SQP, one QP in ``rti`` mode, or warm IPOPT);
 2. if that gave nothing usable and a retry solver exists: the warm IPOPT, from the same start;
 3. if still nothing usable, or there was no warm start: the cold IPOPT from the model-rollout
-   guess (on the multiple-shooting NLP for a single-shooting controller, mapped back).
+   guess (on the multiple-shooting NLP for a single-shooting controller, mapped back), with half
+   of the time left when the warm solver is the SQP;
+4. if that gave nothing usable either: the SQP from the same guess, with the rest of the time.
 
 No attempt starts after the deadline. A result is *usable* when its primal-dual point is finite
 with multipliers below ``MAX_MULTIPLIER``, its largest constraint violation is at most
@@ -20,6 +22,7 @@ attempt never replaces the last good solution.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -94,7 +97,7 @@ class ChainOutcome:
     result: SolveResult | None
     """The usable result (None: no attempt gave one)."""
     attempts: list[tuple[str, SolveResult]]
-    """(role, result) of every attempt in order; role 'warm', 'retry' or 'cold'."""
+    """(role, result) of every attempt in order; role 'warm', 'retry', 'cold' or 'cold-sqp'."""
     data: NlpData
     """The instance as the first attempt saw it."""
     rejected: list[str] = dataclasses.field(default_factory=list)
@@ -111,7 +114,8 @@ class ChainOutcome:
         """The single attempt's status, or 'solver: status; ...' over all attempts."""
         if len(self.attempts) == 1:
             return self.attempts[0][1].status
-        return "; ".join(f"{'cold ' if role == 'cold' else ''}{r.solver}: {r.status}" for role, r in self.attempts)
+        return "; ".join(f"{'cold ' if role.startswith('cold') else ''}{r.solver}: {r.status}"
+                         for role, r in self.attempts)
 
 
 class SolveChain:
@@ -188,7 +192,16 @@ class SolveChain:
                     return out
             if self.clock() >= deadline:
                 return out
-        self._attempt(out, "cold", self.cold, out.data if warm is None else self.cold_data(p), deadline)
+        cold = out.data if warm is None else self.cold_data(p)
+        sqp = self.solver if self.solver.name == "sqp" else None
+        # the cold IPOPT gets half of the time left, so that a tight budget still leaves the SQP (from the
+        # same model-rollout guess, always feasible in single shooting) time for a step
+        now = self.clock()
+        half = now + 0.5 * (deadline - now) if sqp is not None and math.isfinite(deadline) else deadline
+        if self._attempt(out, "cold", self.cold, cold, half):
+            return out
+        if sqp is not None and self.clock() < deadline:
+            self._attempt(out, "cold-sqp", sqp, cold, deadline)
         return out
 
     def _cold_solve(self, data: NlpData, deadline: float | None) -> SolveResult:

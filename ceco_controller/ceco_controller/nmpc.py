@@ -469,7 +469,7 @@ class NmpcController:
         cnt = self.counters
         for role, _ in out.attempts:
             cnt.retries += role == "retry"
-            cnt.cold_solves += role == "cold"
+            cnt.cold_solves += role.startswith("cold")
             if role == "retry":
                 self.n_ipopt_fallbacks += 1
         if any(r.status == "Maximum_Wall_Time_Exceeded" for _, r in out.attempts) or \
