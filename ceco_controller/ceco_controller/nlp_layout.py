@@ -100,6 +100,8 @@ class VariableLayout:
         self._width: dict[str, int] = {}
         self._lb: list[float] = []
         self._ub: list[float] = []
+        self._indices: dict[str, np.ndarray] = {}
+        self._shift_perm: dict[int, np.ndarray] = {}
         self.n = 0
         """Number of variables."""
 
@@ -110,6 +112,8 @@ class VariableLayout:
         if self._width.setdefault(key, size) != size:
             raise ValueError(f"variable kind {key!r} has blocks of {self._width[key]}, not {size}")
         start = self.n
+        self._indices.clear()
+        self._shift_perm.clear()
         self._starts[key].append(start)
         self._lb.extend(np.broadcast_to(np.asarray(lb, float), (size,)).tolist())
         self._ub.extend(np.broadcast_to(np.asarray(ub, float), (size,)).tolist())
@@ -139,9 +143,12 @@ class VariableLayout:
         return len(self._starts[key])
 
     def indices(self, key: str) -> np.ndarray:
-        """Every index of kind ``key``, block after block."""
-        w = self.width(key)
-        return np.array([j + i for j in self._starts[key] for i in range(w)], dtype=int)
+        """Every index of kind ``key``, block after block (do not modify the returned array)."""
+        ix = self._indices.get(key)
+        if ix is None:
+            w = self.width(key)
+            ix = self._indices[key] = np.array([j + i for j in self._starts[key] for i in range(w)], dtype=int)
+        return ix
 
     def blocks(self, vec: np.ndarray, key: str) -> np.ndarray:
         """The blocks of kind ``key`` of ``vec`` as an array (count, width)."""
@@ -157,15 +164,17 @@ class VariableLayout:
 
         The last block is repeated into the freed stages.
         """
-        out = vec.copy()
-        for key in VAR_KEYS:
-            m = self.count(key)
-            if m == 0 or stages <= 0:
-                continue
-            b = self.blocks(vec, key)
-            src = np.minimum(np.arange(m) + stages, m - 1)
-            self.set_blocks(out, key, b[src])
-        return out
+        perm = self._shift_perm.get(stages)
+        if perm is None:  # the gather index of the shift, built once per number of stages
+            perm = np.arange(self.n)
+            for key in VAR_KEYS:
+                m, w = self.count(key), self.width(key)
+                if m == 0 or stages <= 0:
+                    continue
+                ix = self.indices(key).reshape(m, w)
+                perm[ix] = ix[np.minimum(np.arange(m) + stages, m - 1)]
+            self._shift_perm[stages] = perm
+        return np.asarray(vec)[perm].copy()
 
 
 class RowLayout:
@@ -182,6 +191,7 @@ class RowLayout:
         """Row indices of each block, per kind, in stage order (after :meth:`finalize`)."""
         self.n = 0
         """Number of constraint rows (after :meth:`finalize`)."""
+        self._shift_perm: dict[int, np.ndarray] = {}
 
     def add(self, stage: int, order: int, kind: str, expr, lo, hi) -> None:
         """Declare a constraint block lo <= expr <= hi of ``kind`` at ``stage``."""
@@ -201,6 +211,7 @@ class RowLayout:
             ubg.extend(hi)
         self.n = r
         self._pending = []
+        self._shift_perm.clear()
         return exprs, lbg, ubg
 
     def indices(self, kind: str) -> np.ndarray:
@@ -210,9 +221,12 @@ class RowLayout:
 
     def shift(self, lam_g: np.ndarray, stages: int = 1) -> np.ndarray:
         """Constraint multipliers moved ``stages`` stages forward per kind (the last block kept)."""
-        out = lam_g.copy()
-        for blocks in self.rows.values():
-            m = len(blocks)
-            for i in range(m - 1):
-                out[blocks[i]] = lam_g[blocks[min(i + stages, m - 1)]]
-        return out
+        perm = self._shift_perm.get(stages)
+        if perm is None:  # the gather index of the shift, built once per number of stages
+            perm = np.arange(self.n)
+            for blocks in self.rows.values():
+                m = len(blocks)
+                for i in range(m - 1):
+                    perm[blocks[i]] = blocks[min(i + stages, m - 1)]
+            self._shift_perm[stages] = perm
+        return np.asarray(lam_g)[perm].copy()
