@@ -111,7 +111,7 @@ def test_parameter_layout_names_every_slice():
 
 def test_variable_and_row_layouts_shift_stage_blocks():
     vl = VariableLayout()
-    for i in range(3):
+    for _ in range(3):
         vl.add("u", 2, 0.0, 1.0)
         vl.add("s_lo", 1, 0.0, np.inf)
     w = np.arange(vl.n, dtype=float)  # u blocks at 0, 3, 6; slacks at 2, 5, 8

@@ -76,8 +76,8 @@ def main() -> int:
         cl.simulate("sc03", strat, cl.SimSettings(progress=False, duration_s=args.duration), controller=ctrl)
         prob = ctrl.problem
         ref = casadi.nlpsol("ref", "ipopt", prob.nlp, {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes"}})
-        solvers = {"sqp": None, "sqpmethod-10k": _sqpmethod(prob.nlp, 10000), "sqpmethod-200": _sqpmethod(prob.nlp, 200),
-                   "ipopt-default": ref}
+        solvers = {"sqp": None, "sqpmethod-10k": _sqpmethod(prob.nlp, 10000),
+                   "sqpmethod-200": _sqpmethod(prob.nlp, 200), "ipopt-default": ref}
         res = {k: [] for k in solvers}
         for data in recorded:
             for name, fn in solvers.items():
@@ -97,8 +97,9 @@ def main() -> int:
             both = ok & np.array([x[0] for x in res["sqp"]])
             dc = np.max(np.abs(f[both] - f_sqp[both]) / np.abs(f_sqp[both])) if both.any() else np.nan
             t = np.median([x[3] for x in rows])
+            its = [x[2] for x in rows if x[2] == x[2]]
             print(f"{strat:10s} {name:14s} instances {len(rows):4d} failures {int(np.sum(~ok)):4d}  iterations median "
-                  f"{np.nanmedian([x[2] for x in rows]):4.0f}  time median {t:6.2f} ms = {t / t_ref:5.3f} x IPOPT "
+                  f"{(np.median(its) if its else np.nan):4.0f}  time median {t:6.2f} ms = {t / t_ref:5.3f} x IPOPT "
                   f"default  max rel cost diff to sqp {dc:.1e}", flush=True)
     print(f"load {os.getloadavg()}")
     return 0
