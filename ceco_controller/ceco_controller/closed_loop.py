@@ -26,12 +26,13 @@ import numpy as np
 
 from ceco_core import rundir
 from ceco_core.metrics import comfort_series_metrics, compute_metrics, comparison_table
-from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
+from ceco_plant_sim.scenario_plant import ScenarioPlant, check_overrides, n_plant_steps, steps_per_control
 from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews, parse_quality
 from ceco_v2x_preview.scenario import Scenario, load_scenario
 
 from . import model as cm
 from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS
+from .estimator import MEASUREMENT_MODES, EstimatingController, with_measurements
 from .factory import make_controller
 from .observation import observation
 from .strategies import STRATEGIES
@@ -74,13 +75,17 @@ class SimSettings:
     plant_overrides: tuple = ()
     """((field, value), ...) overriding the simulated car's PlantParams (the controllers keep their models)."""
     comfort_overrides: tuple = ()
-    """((field, value), ...) overriding the ComfortParams of the scored PMV (plant side only; the NMPC keeps
-    its nominal comfort model)."""
+    """((field, value), ...) overriding the ComfortParams of the scored PMV, nested parts by dotted name
+    (e.g. (('air.jet_body_fraction', 0.2),)), or 'pa_pa' (a fixed scored vapour pressure [Pa]); plant side
+    only: the NMPC keeps its nominal comfort model."""
     controller_config_path: str | None = None
     """Controller settings file; None: ceco_controller/config/controller.yaml."""
     prepare_first_step: bool = False
     """Before the first step, let an NMPC solve it without deadline (``NmpcController.prepare``), as
     a node that does so before taking control; off: the first step is a cold solve inside it."""
+    measurements: str = "full"
+    """'full': the controller reads every state it models; 'vehicle': only the production sensors,
+    T_int, T_shell and T_glass estimated (``ceco_controller.estimator``; docs/controller.md section 5)."""
 
     def validate(self) -> None:
         """Raise ValueError naming the field if a setting is not usable."""
@@ -93,6 +98,16 @@ class SimSettings:
             raise ValueError("SimSettings.plant_dt_s must be finite and > 0")
         if self.duration_s is not None and not (math.isfinite(self.duration_s) and self.duration_s > 0):
             raise ValueError("SimSettings.duration_s must be finite and > 0")
+        if self.measurements not in MEASUREMENT_MODES:
+            raise ValueError(f"SimSettings.measurements must be one of {MEASUREMENT_MODES}, got {self.measurements!r}")
+        for name in ("plant_overrides", "comfort_overrides"):
+            value = getattr(self, name)
+            if not (isinstance(value, tuple) and all(isinstance(p, tuple) and len(p) == 2 for p in value)):
+                raise ValueError(f"SimSettings.{name} must be a tuple of (field, value) pairs, got {value!r}")
+        try:
+            check_overrides(dict(self.plant_overrides), dict(self.comfort_overrides))
+        except ValueError as exc:
+            raise ValueError(f"SimSettings.plant_overrides/comfort_overrides: {exc}") from exc
         self.preview_quality.validate()
 
 
@@ -111,6 +126,9 @@ class RunResult:
     metrics: dict
     step_time_s: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     """Wall time of each control step's ``controller.compute`` call [s]."""
+    estimates: dict | None = None
+    """measurements='vehicle': per control step the estimates and the plant truth (column -> array);
+    None in full mode."""
 
 
 def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | None = None,
@@ -141,7 +159,12 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
     mp = cm.load_params(settings.model_params_path) if strategy != "baseline" else None
     if controller is None:
         controller = make_controller(strategy, scenario, ts, n_p, mp, dict(settings.strategy_overrides),
-                                     config_path=settings.controller_config_path)
+                                     config_path=settings.controller_config_path,
+                                     measurements=settings.measurements)
+    else:
+        controller = with_measurements(controller, settings.measurements, ts, model_params=mp)
+    vehicle = isinstance(controller, EstimatingController)
+    est_rows: dict[str, list] = {c: [] for c in ESTIMATOR_CSV_COLUMNS}  # filled in vehicle mode only
     sp = ScenarioPlant(scenario, dt, plant_overrides=dict(settings.plant_overrides),
                        comfort_overrides=dict(settings.comfort_overrides))
     cols = {c: np.empty(n) for c in TIMESERIES_COLUMNS}
@@ -161,6 +184,8 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
             t_step = time.perf_counter()
             cmd, diag = controller.compute(obs)
             step_times.append(time.perf_counter() - t_step)
+            if vehicle:
+                _record_estimate(est_rows, controller.last_estimate, sp.meas)
             if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
                 raise AssertionError(f"{strategy}: command {cmd} outside the actuator bounds at t={t}")
             diags.append(diag.to_row())
@@ -206,8 +231,51 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
         "solve_time_median_ms": float(np.median([d.solve_time_ms for d in nd])) if nd else None,
         "solve_time_max_ms": float(np.max([d.solve_time_ms for d in nd])) if nd else None,
     })
+    estimates = None
+    if vehicle:
+        estimates = {c: np.asarray(v) for c, v in est_rows.items()}
+        metrics.update(estimation_metrics(estimates))
     return RunResult(scenario=scenario.name, strategy=strategy, timeseries=cols, diagnostics=diags,
-                     diag_objects=diag_objs, metrics=metrics, step_time_s=np.asarray(step_times, dtype=float))
+                     diag_objects=diag_objs, metrics=metrics, step_time_s=np.asarray(step_times, dtype=float),
+                     estimates=estimates)
+
+
+ESTIMATOR_CSV_COLUMNS = ("t_s", "t_int_c", "t_int_est_c", "t_shell_c", "t_shell_est_c", "t_glass_c", "t_glass_est_c",
+                         "std_t_int_k", "std_t_shell_k", "std_t_glass_k", "valid", "n_missing")
+"""Columns of ``estimator.csv`` (measurements='vehicle'): per control step the plant truth and the estimate
+of the interior, shell and glazing temperatures [degC], their 1-sigma uncertainty [K], the validity flag and
+the number of missing inputs."""
+
+
+def _record_estimate(rows: dict[str, list], est, truth: dict) -> None:
+    vals = {"t_s": est.t_s, "t_int_c": truth["t_int_c"], "t_int_est_c": est.t_int_c, "t_shell_c": truth["t_shell_c"],
+            "t_shell_est_c": est.t_shell_c, "t_glass_c": truth["t_glass_c"], "t_glass_est_c": est.t_glass_c,
+            "std_t_int_k": est.std_k[1], "std_t_shell_k": est.std_k[2], "std_t_glass_k": est.std_k[3],
+            "valid": float(est.valid), "n_missing": float(len(est.missing))}
+    for c in ESTIMATOR_CSV_COLUMNS:
+        rows[c].append(vals[c])
+
+
+ESTIMATION_SETTLE_S = 120.0
+"""Key-on transient of the estimator excluded from the ``est_*_rmse_late_k`` metrics [s]."""
+
+
+def estimation_metrics(est: dict) -> dict:
+    """Estimation errors of a vehicle-mode run.
+
+    RMSE and max |error| of T_int, T_shell and T_glass [K] against the plant truth, over the whole run and from
+    :data:`ESTIMATION_SETTLE_S` on (after the key-on transient), and the number of steps with an invalid
+    estimate.
+    """
+    late = est["t_s"] >= ESTIMATION_SETTLE_S
+    out: dict[str, object] = {"measurements": "vehicle"}
+    for q in ("t_int", "t_shell", "t_glass"):
+        e = est[f"{q}_est_c"] - est[f"{q}_c"]
+        out[f"est_{q}_rmse_k"] = float(np.sqrt(np.mean(e ** 2)))
+        out[f"est_{q}_rmse_late_k"] = float(np.sqrt(np.mean(e[late] ** 2))) if late.any() else None
+        out[f"est_{q}_max_abs_k"] = float(np.max(np.abs(e)))
+    out["est_invalid_steps"] = int(np.count_nonzero(est["valid"] == 0))
+    return out
 
 
 def _joined(a) -> str:
@@ -234,6 +302,9 @@ def write_run(result: RunResult, run_dir: str | pathlib.Path) -> pathlib.Path:
         [math.nan] * len(result.diagnostics)
     rundir.write_csv(d / "diagnostics.csv", DIAGNOSTICS_CSV_COLUMNS, rows)
     rundir.write_metrics_json(d / "metrics.json", result.metrics)
+    estimates = getattr(result, "estimates", None)
+    if estimates is not None:
+        rundir.write_csv(d / "estimator.csv", ESTIMATOR_CSV_COLUMNS, estimates)
     return d
 
 
@@ -262,6 +333,9 @@ def main(argv=None) -> int:
     ap.add_argument("--model-params", default=None, help="identified model parameter file")
     ap.add_argument("--controller-config", default=None,
                     help="controller settings file (default: ceco_controller/config/controller.yaml)")
+    ap.add_argument("--measurements", choices=MEASUREMENT_MODES, default="full",
+                    help="full: the controller reads every modelled state; vehicle: production sensors only, "
+                         "interior/shell temperatures estimated (default full)")
     ap.add_argument("--no-progress", action="store_true", help="disable the progress bar")
     ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
                     help="override a CECO strategy setting (StrategySettings field), e.g. pmv_pa_source=measured; "
@@ -288,7 +362,8 @@ def main(argv=None) -> int:
     settings = SimSettings(control_period_s=args.control_period, horizon_steps=args.horizon,
                            preview_quality=quality, seed=args.seed, duration_s=args.duration,
                            progress=not args.no_progress, model_params_path=args.model_params,
-                           controller_config_path=args.controller_config, strategy_overrides=tuple(overrides))
+                           controller_config_path=args.controller_config, strategy_overrides=tuple(overrides),
+                           measurements=args.measurements)
     out = pathlib.Path(args.out)
     rows = []
     for s in strategies:
@@ -302,7 +377,8 @@ def main(argv=None) -> int:
     table = comparison_table(rows, baseline="baseline" if "baseline" in strategies else strategies[0],
                              columns=TABLE_COLUMNS, change_keys=CHANGE_COLUMNS)
     header = (f"scenario {scenario.name}, Ts {settings.control_period_s or scenario.control.control_period_s} s, "
-              f"Np {settings.horizon_steps or scenario.control.horizon_steps}, preview {quality.describe()}")
+              f"Np {settings.horizon_steps or scenario.control.horizon_steps}, preview {quality.describe()}"
+              + (", measurements vehicle" if settings.measurements == "vehicle" else ""))
     print(header)
     print(table)
     (out / "comparison.txt").write_text(header + "\n" + table + "\n", encoding="utf-8")

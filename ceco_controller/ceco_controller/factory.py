@@ -12,6 +12,7 @@ from ceco_core.scenario_types import Scenario
 
 from . import model as cm
 from .baseline import BaselineController
+from .estimator import with_measurements
 from .nmpc import NmpcController
 from .strategies import load_strategy_settings
 
@@ -20,16 +21,24 @@ __all__ = ["make_controller"]
 
 def make_controller(strategy: str, scenario: Scenario, control_period_s: float, horizon_steps: int,
                     model_params: cm.ControlModelParams | None = None, overrides: dict | None = None,
-                    config_path: str | None = None):
+                    config_path: str | None = None, measurements: str = "full", estimator_settings=None,
+                    estimator_params=None):
     """Build the controller of a strategy for a scenario.
 
     NMPC settings: the controller file (``config_path``, default the package's
     ``config/controller.yaml``), then ``horizon_steps``/``control_period_s``, then ``overrides``.
     Baseline: ``overrides`` are :class:`~ceco_core.acc_law.AccSettings` fields.
+    ``measurements``: 'full' (every modelled state read from the observation) or 'vehicle' (only the
+    production sensors; the controller behind ``estimator.EstimatingController``, with
+    ``estimator_settings``/``estimator_params``, default the package's identified file).
     """
+    ctrl: BaselineController | NmpcController
     if strategy == "baseline":
         # overrides: AccSettings fields (set-point, allowance, sun/ambient compensation)
-        return BaselineController(AccSettings(**(overrides or {})), control_period_s=control_period_s)
-    settings = load_strategy_settings(strategy, config_path, horizon_steps=horizon_steps,
-                                      control_period_s=control_period_s, **(overrides or {}))
-    return NmpcController(settings, model_params=model_params, comfort_params=comfort_params_for(scenario))
+        ctrl = BaselineController(AccSettings(**(overrides or {})), control_period_s=control_period_s)
+    else:
+        settings = load_strategy_settings(strategy, config_path, horizon_steps=horizon_steps,
+                                          control_period_s=control_period_s, **(overrides or {}))
+        ctrl = NmpcController(settings, model_params=model_params, comfort_params=comfort_params_for(scenario))
+    return with_measurements(ctrl, measurements, control_period_s, model_params=model_params,
+                             params=estimator_params, settings=estimator_settings)

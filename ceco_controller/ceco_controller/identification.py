@@ -157,8 +157,13 @@ _PRECOOLED = {"t_cab_c": 27.0, "t_int_c": 38.0, "t_shell_c": 36.0, "t_evap_c": 1
 
 
 def generate_excitation(drives=TRAIN_DRIVES, settings: ExcitationSettings = ExcitationSettings(),
-                        seed_offset: int = 0) -> dict:
-    """Simulate the plant under multi-level random input steps; return 1 s series (SERIES_COLUMNS)."""
+                        seed_offset: int = 0, extra_states: tuple = ()) -> dict:
+    """Simulate the plant under multi-level random input steps; return 1 s series (SERIES_COLUMNS).
+
+    ``extra_states``: further plant temperatures recorded as columns after SERIES_COLUMNS (fields of
+    ``PlantState``/``PlantOutputs``, e.g. ``("t_glass_c", "t_duct_c")`` for the state estimator's
+    data, ``estimator_id``); the other columns do not depend on it.
+    """
     from ceco_core.contracts import AcInput
     from ceco_plant_sim.plant import CabinPlant, PlantState
     from ceco_plant_sim.plant_params import PlantParams
@@ -166,7 +171,7 @@ def generate_excitation(drives=TRAIN_DRIVES, settings: ExcitationSettings = Exci
 
     settings.validate()
     rng = np.random.default_rng(settings.seed + seed_offset)
-    rows = {c: [] for c in SERIES_COLUMNS}
+    rows: dict[str, list] = {c: [] for c in SERIES_COLUMNS + tuple(extra_states)}
     pp = PlantParams()
     for seg, (name, init) in enumerate(drives):
         sc = load_scenario(name)
@@ -176,6 +181,7 @@ def generate_excitation(drives=TRAIN_DRIVES, settings: ExcitationSettings = Exci
         plant = CabinPlant(pp, PlantState.from_initial(ini, pp, sc.env_at(0.0)))
         st = plant.state
         meas = (st.t_cab_c, st.t_int_c, st.t_shell_c, st.t_evap_c, st.t_evap_c)
+        extra = tuple(getattr(st, c) for c in extra_states)
         n = int(sc.duration_s)
         t_next = 0.0
         cmd = None
@@ -196,10 +202,11 @@ def generate_excitation(drives=TRAIN_DRIVES, settings: ExcitationSettings = Exci
             vals = dict(zip(("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c"), meas))
             vals.update(segment=seg, t_s=t, t_amb_c=env.t_amb_c, solar_wm2=env.solar_wm2,
                         speed_mps=env.speed_mps, mdot_bl_kgps=cmd.mdot_bl_kgps, t_evap_sp_c=cmd.t_evap_sp_c,
-                        p_comp_w=out.p_comp_w, p_blower_w=out.p_blower_w)
-            for c in SERIES_COLUMNS:
+                        p_comp_w=out.p_comp_w, p_blower_w=out.p_blower_w, **dict(zip(extra_states, extra)))
+            for c in rows:
                 rows[c].append(vals[c])
             meas = (out.t_cab_c, out.t_int_c, out.t_shell_c, out.t_evap_c, out.t_vent_c)
+            extra = tuple(getattr(out, c) for c in extra_states)
     return {c: np.asarray(v, dtype=float) for c, v in rows.items()}
 
 

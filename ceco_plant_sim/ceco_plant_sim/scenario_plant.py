@@ -27,17 +27,47 @@ import math
 
 from ceco_v2x_preview.scenario import Scenario
 
-from ceco_core.cabin_comfort import OccupantComfort, comfort_params_for, evaluate_cabin_comfort
+from ceco_core import psychro
+from ceco_core.cabin_comfort import ComfortParams, OccupantComfort, comfort_params_for, evaluate_cabin_comfort
 from ceco_core.contracts import MDOT_BL_MAX_KGPS, MEASUREMENTS, T_EVAP_SP_MIN_C, AcInput
+from ceco_core.overrides import with_overrides
 
 from .plant import CabinPlant, PlantOutputs, PlantState
 from .plant_params import PlantParams
 
-__all__ = ["MEASUREMENTS", "KEY_ON_COMMAND", "comfort_params_for", "steps_per_control", "n_plant_steps",
-           "PlantStepRecord", "ScenarioPlant"]
+__all__ = ["MEASUREMENTS", "KEY_ON_COMMAND", "SCORED_PA_OVERRIDE", "comfort_params_for", "steps_per_control",
+           "n_plant_steps", "check_overrides", "PlantStepRecord", "ScenarioPlant"]
 
 KEY_ON_COMMAND = AcInput(mdot_bl_kgps=MDOT_BL_MAX_KGPS, t_evap_sp_c=T_EVAP_SP_MIN_C)
 """The command taken as "previous" at key-on: pull-down (0.17 kg/s, 3 degC)."""
+
+
+SCORED_PA_OVERRIDE = "pa_pa"
+"""Comfort-override key (not a ComfortParams field): score the PMV with this fixed cabin water vapour
+pressure [Pa] instead of the plant's moisture balance, as the method paper does (1700 Pa). The dew point
+and fog margin keep the plant's humidity."""
+
+
+def _split_comfort_overrides(comfort_overrides) -> tuple[dict, float | None]:
+    co = dict(comfort_overrides or {})
+    pa = co.pop(SCORED_PA_OVERRIDE, None)
+    if pa is not None and (isinstance(pa, bool) or not isinstance(pa, (int, float)) or not math.isfinite(pa)
+                           or not 0.0 <= pa <= 10000.0):
+        raise ValueError(f"comfort override {SCORED_PA_OVERRIDE} (scored cabin vapour pressure) must be a number "
+                         f"in [0, 10000] Pa or None, got {pa!r}")
+    return co, (None if pa is None else float(pa))
+
+
+def check_overrides(plant_overrides=None, comfort_overrides=None) -> None:
+    """Raise ValueError naming the field if the overrides of a sensitivity run are not usable.
+
+    ``plant_overrides``: ``{PlantParams field: value}``; ``comfort_overrides``: ``{ComfortParams field or
+    dotted part field (e.g. "air.jet_body_fraction"): value}`` plus :data:`SCORED_PA_OVERRIDE`. Checked
+    against the defaults (a scenario's comfort parameters differ only in met, clo and the sun geometry).
+    """
+    with_overrides(PlantParams(), plant_overrides, owner="PlantParams")
+    co, _ = _split_comfort_overrides(comfort_overrides)
+    with_overrides(ComfortParams(), co, owner="ComfortParams")
 
 
 def steps_per_control(control_period_s: float, plant_dt_s: float) -> int:
@@ -102,20 +132,20 @@ class ScenarioPlant:
             plant_dt_s: plant step [s].
             params: plant parameters (default :class:`PlantParams`).
             plant_overrides: ``{PlantParams field: value}`` applied to ``params`` (sensitivity runs).
-            comfort_overrides: ``{ComfortParams field: value}`` applied to the scored PMV's parameters.
+            comfort_overrides: ``{ComfortParams field or "part.field": value}`` applied to the scored PMV's
+                parameters (``ceco_core.overrides.with_overrides``), and optionally
+                :data:`SCORED_PA_OVERRIDE` (a fixed vapour pressure for the scored PMV).
         """
         if not (math.isfinite(plant_dt_s) and plant_dt_s > 0):
             raise ValueError(f"plant_dt_s must be finite and > 0, got {plant_dt_s!r}")
         self.scenario = scenario
         self.dt_s = plant_dt_s
-        pp = params or PlantParams()
-        if plant_overrides:
-            pp = dataclasses.replace(pp, **plant_overrides).validate()
+        pp = with_overrides(params or PlantParams(), plant_overrides, owner="PlantParams")
+        co, self.scored_pa_pa = _split_comfort_overrides(comfort_overrides)
         # the plant's glazing transmittance and shell conductance: one value for physics and comfort
-        self.comfort = comfort_params_for(scenario, glazing_tau=pp.tau_glass, u_shell_in_wm2k=pp.u_shell_in_wm2k)
-        if comfort_overrides:
-            self.comfort = dataclasses.replace(self.comfort, **comfort_overrides)
-            self.comfort.validate()
+        self.comfort = with_overrides(comfort_params_for(scenario, glazing_tau=pp.tau_glass,
+                                                         u_shell_in_wm2k=pp.u_shell_in_wm2k), co,
+                                      owner="ComfortParams")
         self.plant = CabinPlant(pp, PlantState.from_initial(dataclasses.asdict(scenario.initial), pp,
                                                             scenario.env_at(0.0)))
         st = self.plant.state
@@ -137,7 +167,11 @@ class ScenarioPlant:
         lb, ub = self.scenario.pmv_bounds(t)
         c = evaluate_cabin_comfort(t_cab_c=meas["t_cab_c"], t_vent_c=meas["t_vent_c"], t_int_c=meas["t_int_c"],
                                    t_shell_c=meas["t_shell_c"], t_glass_c=meas["t_glass_c"], rh_cab=meas["rh_cab"],
-                                   mdot_bl_kgps=u.mdot_bl_kgps, solar_wm2=env.solar_wm2, params=self.comfort)
+                                   mdot_bl_kgps=u.mdot_bl_kgps, solar_wm2=env.solar_wm2, params=self.comfort,
+                                   pa_pa=self.scored_pa_pa)
+        if self.scored_pa_pa is not None:       # fixed p_a in the score only: dew point from the plant's humidity
+            t_dew = psychro.dew_point_c(psychro.vapour_pressure_pa(meas["t_cab_c"], meas["rh_cab"]))
+            c = dataclasses.replace(c, t_dew_c=t_dew, fog_margin_k=meas["t_glass_c"] - t_dew)
         c = OccupantComfort(**{f.name: (bool(getattr(c, f.name)) if f.name == "iso7730_valid"
                                         else float(getattr(c, f.name))) for f in dataclasses.fields(c)})
         out = self.plant.step(u, env, self.dt_s)

@@ -143,8 +143,9 @@ def _case_blocks(case: Mapping, settings: Mapping, fig_dir: Path) -> list:
         blocks.append(Figure(fig, 'How the energy saving at matched comfort (plain front) moves when one plant '
                                   'or comfort parameter of the simulated car goes to the end of its documented '
                                   'range (controllers keep their nominal models)'))
-        rows = [[s['parameter'], _fmt(s.get('low'), 'g'), _fmt(s.get('nominal'), 'g'), _fmt(s.get('high'), 'g'),
-                 s.get('source', '')] for s in case['sensitivity']]
+        rows = [[s['parameter'], _fmt(s.get('low'), 'g'),
+                 _fmt(s['nominal'], 'g') if s.get('nominal') is not None else 'plant',  # p_a: the moisture balance
+                 _fmt(s.get('high'), 'g'), s.get('source', '')] for s in case['sensitivity']]
         blocks.append(Table(('parameter', 'low', 'nominal', 'high', 'range source'), rows))
     return blocks
 

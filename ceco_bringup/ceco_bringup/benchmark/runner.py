@@ -107,35 +107,70 @@ class Sensitivity:
     """Where the range comes from."""
 
 
+def _default_value(target: str, name: str):
+    """The code's default of a sensitivity field: PlantParams / ComfortParams (dotted parts), or pa_pa."""
+    from ceco_core.cabin_comfort import ComfortParams  # noqa: PLC0415
+    from ceco_plant_sim.plant_params import PlantParams  # noqa: PLC0415
+    from ceco_plant_sim.scenario_plant import SCORED_PA_OVERRIDE  # noqa: PLC0415
+
+    if target == 'comfort' and name == SCORED_PA_OVERRIDE:
+        return None                      # default: the plant's moisture balance, no fixed value
+    obj = ComfortParams() if target == 'comfort' else PlantParams()
+    for part in name.split('.'):
+        obj = getattr(obj, part)
+    return obj
+
+
 def load_sensitivity(path: str | Path | None = None) -> tuple[str, list[Sensitivity]]:
     """The tornado's case and parameters.
 
-    ValueError when a field is unknown or its nominal value is not the code's default
-    (the table must follow the code).
+    Field names are PlantParams fields (target ``plant``) or ComfortParams fields with nested parts
+    by dotted name, e.g. ``air.jet_body_fraction`` (target ``comfort``), or ``pa_pa`` (a fixed scored
+    vapour pressure; its nominal is ``null``: the plant's moisture balance). ValueError naming the
+    parameter and the field when a field is unknown, an end is not usable
+    (``ceco_plant_sim.scenario_plant.check_overrides``), the nominal fields differ from the ends'
+    fields, or a nominal value is not the code's default (the table must follow the code).
     """
     if path is None:
         text = resources.files('ceco_bringup').joinpath('data', 'benchmark', 'sensitivity.yaml').read_text('utf-8')
     else:
         text = Path(path).read_text(encoding='utf-8')
     d = yaml.safe_load(text)
-    from ceco_core.cabin_comfort import ComfortParams  # noqa: PLC0415
-    from ceco_plant_sim.plant_params import PlantParams  # noqa: PLC0415
+    from ceco_plant_sim.scenario_plant import check_overrides  # noqa: PLC0415
 
-    defaults = {'comfort': ComfortParams(), 'plant': PlantParams()}
+    if not isinstance(d, Mapping) or d.get('schema') != 'ceco-benchmark-sensitivity/1':
+        raise ValueError('sensitivity: not a ceco-benchmark-sensitivity/1 file')
     out = []
     for i, p in enumerate(d['parameters']):
+        where = f"sensitivity.parameters[{i}] ({p.get('parameter')!r})"
+        if p.get('target') not in ('plant', 'comfort'):
+            raise ValueError(f"{where}.target: must be plant or comfort, got {p.get('target')!r}")
+        for end in ('nominal', 'low', 'high'):
+            if not isinstance(p.get(end), Mapping) or not p[end]:
+                raise ValueError(f'{where}.{end}: must be a non-empty mapping of fields to values')
         s = Sensitivity(parameter=p['parameter'], target=p['target'], nominal=dict(p['nominal']),
                         low=dict(p['low']), high=dict(p['high']), source=' '.join(str(p.get('source', '')).split()))
-        if s.target not in defaults:
-            raise ValueError(f"sensitivity.parameters[{i}].target: must be plant or comfort, got {s.target!r}")
-        base = defaults[s.target]
-        for end in ('nominal', 'low', 'high'):
-            for k, v in getattr(s, end).items():
-                if not hasattr(base, k):
-                    raise ValueError(f'sensitivity {s.parameter}: {type(base).__name__} has no field {k!r}')
-                if end == 'nominal' and not math.isclose(float(getattr(base, k)), float(v), rel_tol=1e-12):
-                    raise ValueError(f'sensitivity {s.parameter}: nominal {k} = {v} differs from the code\'s '
-                                     f'default {getattr(base, k)}: update data/benchmark/sensitivity.yaml')
+        if not set(s.low) == set(s.high) == set(s.nominal):
+            raise ValueError(f'{where}: nominal, low and high must set the same fields')
+        for end in ('low', 'high'):
+            kw = {'plant_overrides': getattr(s, end)} if s.target == 'plant' else \
+                {'comfort_overrides': getattr(s, end)}
+            try:
+                check_overrides(**kw)
+            except ValueError as exc:
+                raise ValueError(f'{where}.{end}: {exc}') from exc
+        for k, v in s.nominal.items():
+            try:
+                default = _default_value(s.target, k)
+            except AttributeError as exc:
+                raise ValueError(f'{where}.nominal: no field {k!r} ({exc})') from exc
+            same = (v is None and default is None) or (
+                v is not None and default is not None and math.isclose(float(default), float(v), rel_tol=1e-12))
+            if not same:
+                raise ValueError(f"{where}.nominal: {k} = {v} differs from the code's default {default}: "
+                                 'update data/benchmark/sensitivity.yaml')
+        if s.low == s.high:
+            raise ValueError(f'{where}: low and high are the same')
         out.append(s)
     return str(d['case']), out
 
@@ -341,5 +376,9 @@ def assemble_case(case: Case, rows: Sequence[Mapping], sensitivity: Sequence[tup
 
 
 def _scalar(fields: Mapping):
-    """The first field's value (the parameter itself; coupled fields such as a1 follow it)."""
-    return float(next(iter(fields.values())))
+    """The first field's value: the parameter itself (coupled fields such as a second angle factor follow it).
+
+    None where the nominal is "no fixed value" (the scored p_a from the plant's moisture balance).
+    """
+    v = next(iter(fields.values()))
+    return None if v is None else float(v)

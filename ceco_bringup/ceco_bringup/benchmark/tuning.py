@@ -5,13 +5,23 @@
 of every run the rule looked at. The rules (docs/benchmark.md, "Baselines"), all on the
 tuning case, in-process runs of the production law:
 
-1. **Allowance** ``k_allow`` [K/PMV]: the largest of 0.5, 1.0, ..., 4.0 for which the
-   26 degC law with the allowance violates the scenario's bounds no longer than the
-   plain 26 degC law: it uses the permission without breaking it.
+0. **Neutral set-point** S_0 [degC]: the set-point at which the plain law's band-phase mean
+   PMV is 0 (bisection in 18..32 degC, rounded to 1 mK): the comfort-neutral calibration of
+   the production law on this case.
+1. **Allowance** ``k_allow`` [K/PMV]: the largest of 0.5, 1.0, ..., 4.0 for which the law
+   at S_0 with the allowance violates the scenario's bounds no longer than the plain law at
+   S_0: it uses the permission without breaking it. (At a set-point whose plain law
+   violates the band all through the comfort phase, as 26 degC does under the comfort model
+   of issue 9, "no longer than the plain law" says nothing about the allowance.)
 2. **Set-point sensitivity** g [PMV/K]: band-phase mean PMV of the plain law at
-   26.5 degC minus that at 25.5 degC.
-3. **Sun-load gain** ``k_sun`` [K/(kW/m2)]: the case's irradiance scaled by 0.9 and 1.1;
-   the set-point change that cancels the band-phase mean PMV change:
+   S_d + 0.5 K minus that at S_d - 0.5 K, at the law's default set-point S_d
+   (``AccSettings().setpoint_c``, 26 degC), where the law regulates. (Near S_0 the law
+   runs at its actuator limit for much of the comfort phase, so local gains there measure
+   the limit, not the law: on sc03-paper g = 0.073 PMV/K at S_0 against 0.32 at 26 degC,
+   which would make k_sun 18.6 K/(kW/m2) and saturate the compensated law at every
+   set-point.)
+3. **Sun-load gain** ``k_sun`` [K/(kW/m2)]: the case's irradiance scaled by 0.9 and 1.1 (law
+   at S_d); the set-point change that cancels the band-phase mean PMV change:
    ``k_sun = 1000 (dPMV/dS) / g`` with dS the change of the band-phase mean irradiance.
 4. **Ambient gain** ``k_amb`` [K/K]: the same with the ambient temperature -1 K and +1 K.
 5. **Blower gain and set-point**: for ``k_bl`` in 0, 0.01, 0.02, 0.03 (kg/s)/(kW/m2) the
@@ -82,40 +92,50 @@ def tune(case_name: str = 'sc03-paper', log=print) -> dict:
             f"E_band {r['energy_band_kwh']:.4f} kWh")
         return r
 
-    plain = run('plain 26.0', sc, {'setpoint_c': 26.0})
+    def neutral(label, overrides):
+        """Set-point in 18..32 degC at which the band-phase mean PMV is 0 (bisection to ~1 mK)."""
+        a, b = 18.0, 32.0
+        for _ in range(14):
+            mid = 0.5 * (a + b)
+            r = run(f'{label} at {mid:.4f}', sc, {**overrides, 'setpoint_c': mid})
+            a, b = (mid, b) if r['pmv_band'] < 0.0 else (a, mid)
+        sp = round(0.5 * (a + b), 3)
+        r = run(f'{label} neutral', sc, {**overrides, 'setpoint_c': sp})
+        if abs(r['pmv_band']) > 0.01:
+            raise RuntimeError(f'{label}: no set-point in 18..32 degC gives a band-phase mean PMV of 0 '
+                               f"(at {sp} degC: {r['pmv_band']:+.3f}); the law is saturated on this case")
+        return sp, r
+
+    s0, plain = neutral('plain', {})
     k_allow = 0.0
     for k in ALLOWANCE_GRID:
-        r = run(f'allowance {k:g} at 26.0', sc, {'setpoint_c': 26.0, 'allowance_k_per_pmv': k})
+        r = run(f'allowance {k:g} at S_0', sc, {'setpoint_c': s0, 'allowance_k_per_pmv': k})
         if r['violation_pct'] <= plain['violation_pct'] + 1e-9:
             k_allow = k
-    g = (run('plain 26.5', sc, {'setpoint_c': 26.5})['pmv_band']
-         - run('plain 25.5', sc, {'setpoint_c': 25.5})['pmv_band'])
-    lo, hi = run('solar x0.9', _scaled(case, solar=0.9), {'setpoint_c': 26.0}), \
-        run('solar x1.1', _scaled(case, solar=1.1), {'setpoint_c': 26.0})
+    from ceco_core.acc_law import AccSettings  # noqa: PLC0415
+
+    s_d = float(AccSettings().setpoint_c)
+    g = (run(f'plain {s_d + 0.5:g}', sc, {'setpoint_c': s_d + 0.5})['pmv_band']
+         - run(f'plain {s_d - 0.5:g}', sc, {'setpoint_c': s_d - 0.5})['pmv_band'])
+    lo, hi = run('solar x0.9', _scaled(case, solar=0.9), {'setpoint_c': s_d}), \
+        run('solar x1.1', _scaled(case, solar=1.1), {'setpoint_c': s_d})
     k_sun = 1000.0 * (hi['pmv_band'] - lo['pmv_band']) / (hi['solar_band_wm2'] - lo['solar_band_wm2']) / g
-    lo, hi = run('ambient -1 K', _scaled(case, d_amb_k=-1.0), {'setpoint_c': 26.0}), \
-        run('ambient +1 K', _scaled(case, d_amb_k=1.0), {'setpoint_c': 26.0})
+    lo, hi = run('ambient -1 K', _scaled(case, d_amb_k=-1.0), {'setpoint_c': s_d}), \
+        run('ambient +1 K', _scaled(case, d_amb_k=1.0), {'setpoint_c': s_d})
     k_amb = (hi['pmv_band'] - lo['pmv_band']) / (hi['t_amb_band_c'] - lo['t_amb_band_c']) / g
     best = None
     for k_bl in BLOWER_GRID:
         comp = {'sun_gain_k_per_kwm2': k_sun, 'ambient_gain_k_per_k': k_amb, 'ambient_ref_c': _AMBIENT_REF_C,
                 'sun_blower_gain_kgps_per_kwm2': k_bl, 'sun_filter_tau_s': _FILTER_TAU_S}
-        a, b = 22.0, 32.0
-        for _ in range(14):                       # bisection to ~0.6 mK
-            mid = 0.5 * (a + b)
-            r = run(f'compensated k_bl {k_bl:g} at {mid:.4f}', sc, {**comp, 'setpoint_c': mid})
-            a, b = (mid, b) if r['pmv_band'] < 0.0 else (a, mid)
-        sp = round(0.5 * (a + b), 3)
-        r = run(f'compensated k_bl {k_bl:g} neutral', sc, {**comp, 'setpoint_c': sp})
+        sp, r = neutral(f'compensated k_bl {k_bl:g}', comp)
         if best is None or r['energy_band_kwh'] < best[0] - 1e-12:
             best = (r['energy_band_kwh'], {**comp, 'setpoint_c': sp})
-    from ceco_core.acc_law import AccSettings  # noqa: PLC0415
-
     comp = {k: float(v) for k, v in best[1].items()}
     AccSettings(**comp, allowance_k_per_pmv=k_allow).validate()
     return {'schema': 'ceco-benchmark-baselines/1', 'tuned_on': case.name, 'tuned_on_sha': case.sha(),
             'rules': 'ceco_bringup/benchmark/tuning.py (docs/benchmark.md, "Baselines")',
-            'allowance_k_per_pmv': float(k_allow), 'setpoint_sensitivity_pmv_per_k': float(g),
+            'neutral_setpoint_c': float(s0), 'allowance_k_per_pmv': float(k_allow),
+            'gain_setpoint_c': s_d, 'setpoint_sensitivity_pmv_per_k': float(g),
             'compensation': comp, 'runs': table}
 
 

@@ -1,0 +1,749 @@
+"""Cabin state estimator for the vehicle-sensor measurement mode (``measurements: vehicle``).
+
+A production car measures the cabin air temperature, the vent (duct) air
+temperature, the evaporator temperature, the ambient temperature, the sun load,
+the vehicle speed and the cabin relative humidity (:data:`VEHICLE_SENSORS`). The
+NMPC's model (docs/controller.md, eqs. 1-3) and its comfort model (T_mr from the
+interior, shell-trim and glazing temperatures) also need the interior-mass
+temperature T_int, the shell temperature T_shell and the glazing temperature
+T_glass, which no production car measures. This module estimates them with an
+extended Kalman filter (EKF) on the control-oriented model augmented with
+first-order thermal states, so that a complete :class:`Observation` can be
+handed to the unchanged NMPC or baseline (:class:`EstimatingController`).
+
+State x = (T_cab, T_int, T_shell, T_glass, T_duct [degC], b_vent [K]); one model
+step is ``ts_s`` = 5 s (the step the model was identified at). Over step k -> k+1
+the inputs are held: the blower flow m = mdot_bl,k [kg/s] (the command applied
+over the step), the evaporator temperature (measured at both ends, T_ev,k and
+T_ev,k+1; T_ev,mid their mean [degC]), the ambient T_amb [degC], the sun load G
+[W/m2] and the speed V [m/s]; f(m) = (m / m_ref)^0.8, m_ref = 0.1 kg/s.
+
+    (E3) T_vent = T_ev + v1 (T_cab - T_ev) + v2 (T_cab - T_ev) m + v3 (T_amb - T_ev) + v4 (T_amb - T_ev) m
+                  + v5 (T_duct - T_ev) + v6 (T_duct - T_ev) m + v7 / m + v8 + v9 m^2
+    (1)  T_cab(k+1) = T_cab + g1 (T_int - T_cab) + g2 (T_shell - T_cab) + g3 (T_ain - T_cab) m + tau1,
+                      T_ain = E3 at T_ev,mid                                    (model.t_cab_next_c)
+    (E1) T_int(k+1) = T_int + (a1 + a2 f(m)) (T_cab - T_int) + a3 (T_shell - T_int) + a4 (T_glass - T_int)
+                      + a5 G + a6 (T_duct - T_int)
+    (E2) T_shell(k+1) = T_shell + b1 (T_cab - T_shell) + b2 (T_int - T_shell) + (b3 + b4 V^0.8)(T_amb - T_shell)
+                      + b5 G
+    (E4) T_glass(k+1) = T_glass + (c1 + c2 f(m)) (T_cab - T_glass) + c3 (T_int - T_glass)
+                      + (c4 + c5 V^0.8)(T_amb - T_glass) + c6 G
+    (E5) T_duct(k+1) = T_duct + e1 (T_int - T_duct) + (e2 m + e3 m^2)(T_ev,mid - T_duct)
+                      + e4 m (T_cab - T_ev,mid) + e5 m (T_amb - T_ev,mid)
+    (B)  b_vent(k+1) = b_vent                                                  (random walk)
+
+Measurements at k+1: y = (T_cab, T_vent), h(x) = (T_cab, E3 at T_ev,k+1 with m = mdot_bl,k, + b_vent).
+
+Where: g1, g2 [-], g3 [s/kg], tau1 [K] are the identified eq. (1) of the NMPC
+(``ControlModelParams``). E1, the interior mass (seats, instrument panel, trim):
+solar gain through the glazing (a5 [K/(W/m2)] per step), natural + forced
+convection with the cabin air (a1, a2 [-]; h ~ m^0.8), radiation to the shell
+and glazing (a3, a4 [-]), conduction to the HVAC case and ducts behind the panel
+(a6 [-]). E2, the shell: solar gain (b5), the cabin air (b1), radiation from the
+interior (b2), natural and speed-driven convection to the ambient (b3 [-],
+b4 [(m/s)^-0.8]; h_out ~ V^0.8). E4, the glazing: the same terms (c1..c6). E5,
+the HVAC case and duct walls: heated by the panel (e1 [-]), cooled by the supply
+air, whose exchange grows with the flow (e2 [s/kg], e3 [s^2/kg^2]; the
+evaporator-outlet air is T_ev plus the bypassed share of the recirculated and
+fresh air, e4, e5 [s/kg]). E3, the vent air: the evaporator-outlet air (bypass
+v1..v4 [-, s/kg]) that picks up a flow-dependent share of the duct-wall
+temperature (v5 [-], v6 [s/kg]) and the blower heat (v7 [K kg/s], v9 [K s^2/kg^2]),
+v8 [K] an offset. E3 and E5 are what make T_int observable apart from T_shell:
+T_cab (eq. 1) sees only g1 T_int + g2 T_shell, the vent air sees the duct wall
+(dT_vent/dT_duct = v5 + v6 m = 0.18-0.22), whose temperature follows the panel.
+b_vent is the offset of the vent-air channel: the vent and evaporator sensors'
+tolerances (NTC, +-0.5 K) and E3's local error; without it a 0.5 K vent-sensor
+offset is read as several kelvin of T_int (docs/controller.md section 5.4).
+The coefficients are identified by least squares from the excitation runs of
+the NMPC model, recorded with the glazing and duct temperatures
+(``ceco_controller.estimator_id``), like a calibration on a test vehicle
+instrumented with thermocouples. Validity: the identification range (blower
+0.05-0.17 kg/s, T_amb 28-35 degC, G 300-850 W/m2, V 0-36 m/s, cabin 20-60 degC).
+
+Noise (additive, Gaussian, white): process std per model step q = (q_cab,
+q_int, q_shell, q_glass, q_duct) identified from the models' prediction errors on
+the training data (``ceco_controller.estimator_id``; docs/controller.md section
+5), q_b and the prior of b_vent from the sensor tolerance, measurement std
+r = (r_cab, r_vent) from the sensor accuracy and, for T_vent, E3's residual and
+the evaporator sensor's noise through dE3/dT_ev (``EstimatorSettings``).
+
+Every model function evaluates numpy and CasADi alike (``ceco_core.mathops``);
+the filter builds CasADi Functions of the step and its Jacobians once and
+evaluates them numerically. Deterministic: no randomness, no clock.
+Missing data (NaN, inf, outside the physical range) never produce NaN
+estimates: a missing T_cab or T_vent skips that measurement update, a missing
+T_evap is predicted by eq. (2) (and the vent update skipped), a missing ambient,
+sun load or speed holds the last valid value, and every substitution is flagged
+in :class:`Estimate`.
+
+Pure logic: numpy, CasADi, dataclasses; no ROS, no plant.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import pathlib
+from collections.abc import Mapping
+from typing import Any
+
+import casadi
+import numpy as np
+import yaml
+
+from ceco_core.contracts import ACTUATOR_LIMITS, Observation
+
+from . import model as cm
+
+__all__ = ["VEHICLE_SENSORS", "ESTIMATED_STATES", "MEASUREMENT_MODES", "EstimatorParams", "EstimatorSettings",
+           "Estimate", "CabinStateEstimator", "EstimatingController", "t_vent_c", "t_int_next_c",
+           "t_shell_next_c", "t_glass_next_c", "t_duct_next_c", "process_step", "load_estimator_params",
+           "save_estimator_params", "DEFAULT_ESTIMATOR_PARAMS_PATH", "with_measurements"]
+
+VEHICLE_SENSORS = ("t_cab_c", "t_vent_c", "t_evap_c", "t_amb_c", "solar_wm2", "speed_mps", "rh_cab")
+"""What a production car measures [degC, W/m2, m/s, rh_cab 0..1]: cabin air (aspirated sensor),
+vent (duct) air, evaporator, ambient, the sun-load sensor, the vehicle speed, cabin RH."""
+
+ESTIMATED_STATES = ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_duct_c", "b_vent_k")
+"""The filter's state vector x [degC x 5, K]."""
+_N = len(ESTIMATED_STATES)
+_B = _N - 1  # index of b_vent
+
+MEASUREMENT_MODES = ("full", "vehicle")
+"""``full``: the controller reads every plant state it models (the default, as before);
+``vehicle``: only :data:`VEHICLE_SENSORS`, the rest estimated here."""
+
+DEFAULT_ESTIMATOR_PARAMS_PATH = cm.DEFAULT_PARAMS_PATH.parent / "estimator_params.yaml"
+"""The identified estimator parameter file in the source tree (``ceco_controller/config``)."""
+
+M_REF_KGPS = 0.1
+"""Reference blower flow of the forced-convection term of E1 [kg/s]."""
+
+_RANGES = {"t_cab_c": (-40.0, 120.0), "t_vent_c": (-40.0, 120.0), "t_evap_c": (-40.0, 120.0),
+           "t_amb_c": (-40.0, 60.0), "solar_wm2": (0.0, 1500.0), "speed_mps": (0.0, 80.0), "rh_cab": (0.0, 1.0)}
+"""Physical range of each sensor (the plant's validity ranges); outside it a sample counts as missing."""
+
+
+@dataclasses.dataclass(frozen=True)
+class EstimatorParams:
+    """Identified coefficients of E1-E3 and the identified process noise (``ceco_controller.estimator_id``)."""
+
+    ts_s: float = 5.0
+    """Model step the coefficients are identified at [s]."""
+    int_cab: float = 0.002
+    """a1: natural convection interior <-> cabin air per step [-]."""
+    int_cab_forced: float = 0.004
+    """a2: forced convection interior <-> cabin air per step at m_ref [-]."""
+    int_shell: float = 0.0014
+    """a3: radiation interior <-> shell per step [-]."""
+    int_glass: float = 0.001
+    """a4: radiation interior <-> glazing per step [-]."""
+    int_solar_k_per_wm2: float = 3.6e-5
+    """a5: solar gain of the interior through the glazing per step [K/(W/m2)]."""
+    int_duct: float = 0.0004
+    """a6: conduction interior (instrument panel) <-> HVAC case and ducts per step [-]."""
+    shell_cab: float = 0.005
+    """b1: shell <-> cabin air per step [-]."""
+    shell_int: float = 0.004
+    """b2: shell <-> interior (radiation) per step [-]."""
+    shell_amb: float = 0.007
+    """b3: shell <-> ambient, natural convection, per step [-]."""
+    shell_amb_speed: float = 0.007
+    """b4: shell <-> ambient, speed-driven convection, per step per (m/s)^0.8 [(m/s)^-0.8]."""
+    shell_solar_k_per_wm2: float = 2.4e-4
+    """b5: solar gain of the shell per step [K/(W/m2)]."""
+    glass_cab: float = 0.0012
+    """c1: natural convection glazing <-> cabin air per step [-]."""
+    glass_cab_forced: float = 0.0026
+    """c2: forced convection glazing <-> cabin air per step at m_ref [-]."""
+    glass_int: float = 0.0022
+    """c3: glazing <-> interior (radiation) per step [-]."""
+    glass_amb: float = 0.0028
+    """c4: glazing <-> ambient, natural convection, per step [-]."""
+    glass_amb_speed: float = 0.0026
+    """c5: glazing <-> ambient, speed-driven convection, per step per (m/s)^0.8 [(m/s)^-0.8]."""
+    glass_solar_k_per_wm2: float = 6.7e-5
+    """c6: solar absorption of the glazing per step [K/(W/m2)]."""
+    duct_int: float = 0.005
+    """e1: HVAC case/duct walls <-> instrument panel per step [-]."""
+    duct_air_s_per_kg: float = 0.17
+    """e2: duct walls <-> supply air per step, linear in the flow [s/kg]."""
+    duct_air2_s2_per_kg2: float = -0.22
+    """e3: its curvature in the flow [s^2/kg^2]."""
+    duct_cab_s_per_kg: float = 0.012
+    """e4: bypassed recirculated air in the supply air per step [s/kg]."""
+    duct_amb_s_per_kg: float = 0.005
+    """e5: bypassed fresh air in the supply air per step [s/kg]."""
+    vent_cab: float = 0.0024
+    """v1: bypass share of the recirculated cabin air in the vent air [-]."""
+    vent_cab_flow_s_per_kg: float = 0.34
+    """v2: its growth with the blower flow [s/kg]."""
+    vent_amb: float = 0.011
+    """v3: bypass share of the fresh air [-]."""
+    vent_amb_flow_s_per_kg: float = 0.008
+    """v4: its growth with the blower flow [s/kg]."""
+    vent_duct: float = 0.24
+    """v5: share of the duct-wall temperature picked up by the supply air [-]."""
+    vent_duct_flow_s_per_kg: float = -0.35
+    """v6: its change with the blower flow [s/kg]."""
+    vent_heat_k_kgps: float = 0.013
+    """v7: flow-inverse offset (blower heat) [K kg/s]."""
+    vent_offset_k: float = -0.16
+    """v8: vent offset [K]."""
+    vent_flow2_k_s2_per_kg2: float = 7.1
+    """v9: blower heat growing with the flow [K s^2/kg^2]."""
+    q_cab_k: float = 0.4
+    """Process noise std of eq. (1) per model step [K] (identified)."""
+    q_int_k: float = 0.01
+    """Process noise std of E1 per model step [K] (identified)."""
+    q_shell_k: float = 0.01
+    """Process noise std of E2 per model step [K] (identified)."""
+    q_glass_k: float = 0.01
+    """Process noise std of E4 per model step [K] (identified)."""
+    q_duct_k: float = 0.01
+    """Process noise std of E5 per model step [K] (identified)."""
+    vent_residual_k: float = 0.015
+    """RMS residual of E3 [K] (identified; added to the vent sensor noise)."""
+    provenance: str = "defaults (not identified)"
+    """How the values were obtained (command and data); not used in computations."""
+
+    def validate(self) -> EstimatorParams:
+        """Raise ValueError naming the field if a value is not usable."""
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if f.name == "provenance":
+                if not isinstance(v, str):
+                    raise ValueError("EstimatorParams.provenance must be a string")
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"EstimatorParams.{f.name} must be a finite number, got {v!r}")
+        if not self.ts_s > 0:
+            raise ValueError(f"EstimatorParams.ts_s must be > 0, got {self.ts_s}")
+        for name in ("q_cab_k", "q_int_k", "q_shell_k", "q_glass_k", "q_duct_k", "vent_residual_k"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"EstimatorParams.{name} must be > 0")
+        return self
+
+    def to_dict(self) -> dict:
+        """Plain dict of the fields (Python floats; for YAML)."""
+        return {k: (v if isinstance(v, str) else float(v)) for k, v in dataclasses.asdict(self).items()}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> EstimatorParams:
+        """Build and validate from a mapping; unknown keys are an error."""
+        if not isinstance(data, dict):
+            raise ValueError("EstimatorParams: expected a mapping")
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise ValueError(f"EstimatorParams: unknown field(s) {unknown}")
+        kwargs: dict[str, Any] = {k: (v if k == "provenance" else float(v)) for k, v in data.items()}
+        return cls(**kwargs).validate()
+
+
+def load_estimator_params(path: str | pathlib.Path | None = None) -> EstimatorParams:
+    """Load the identified estimator parameters (default: the package's ``config/estimator_params.yaml``)."""
+    path = pathlib.Path(path) if path is not None else cm.package_config_path("estimator_params.yaml")
+    with open(path, encoding="utf-8") as fh:
+        doc = yaml.safe_load(fh)
+    if not isinstance(doc, dict) or "params" not in doc:
+        raise ValueError(f"{path}: expected a mapping with a 'params' key")
+    return EstimatorParams.from_dict(doc["params"])
+
+
+def save_estimator_params(params: EstimatorParams, path: str | pathlib.Path, header: str = "",
+                          extra: dict | None = None) -> None:
+    """Write the parameters (and optional extra mappings, e.g. the fit report) as YAML."""
+    params.validate()
+    doc = {"params": params.to_dict(), **(extra or {})}
+    text = yaml.safe_dump(doc, sort_keys=False, default_flow_style=False)
+    if header:
+        text = "".join(f"# {line}\n" if line else "#\n" for line in header.splitlines()) + text
+    pathlib.Path(path).write_text(text, encoding="utf-8")
+
+
+@dataclasses.dataclass(frozen=True)
+class EstimatorSettings:
+    """Tuning of the filter that is not identified (sensor accuracy, key-on prior, fault handling)."""
+
+    sensor_std_t_cab_k: float = 0.1
+    """Cabin air temperature sensor noise, 1 sigma [K] (aspirated NTC, 0.1 K resolution)."""
+    sensor_std_t_vent_k: float = 0.2
+    """Vent air temperature sensor noise, 1 sigma [K] (NTC in the turbulent duct stream)."""
+    sensor_std_t_evap_k: float = 0.1
+    """Evaporator temperature sensor noise, 1 sigma [K] (enters the vent update through E3)."""
+    process_std_scale: float = 1.0
+    """Factor on the identified process noise std [-] (> 1: less trust in the model)."""
+    init_offset_int_k: float = 0.0
+    """Key-on prior of T_int relative to the measured cabin air temperature [K]."""
+    init_offset_shell_k: float = 0.0
+    """Key-on prior of T_shell relative to the measured cabin air temperature [K]."""
+    init_offset_glass_k: float = 0.0
+    """Key-on prior of T_glass relative to the measured cabin air temperature [K]."""
+    init_std_k: float = 5.0
+    """Key-on prior std of T_int, T_shell and T_glass [K] (soak offsets of the bundled scenarios: 1.5-5 K)."""
+    init_std_duct_k: float = 2.0
+    """Key-on prior std of T_duct [K]; its mean is the evaporator sample (the case and ducts soak with the
+    HVAC module under the instrument panel)."""
+    vent_bias_std_k: float = 0.5
+    """Key-on prior std of the vent-channel offset b_vent [K] (vent and evaporator NTC tolerance)."""
+    vent_bias_drift_k: float = 0.005
+    """Random-walk std of b_vent per model step [K] (0.13 K per hour: slow sensor and duct drift)."""
+    max_dead_reckoning_s: float = 60.0
+    """Longest time the cabin air temperature may be predicted without a valid sample before the
+    estimate is declared invalid (``Estimate.valid`` False) [s]."""
+    max_gap_s: float = 300.0
+    """A gap between two updates longer than this (or time going backwards) re-initializes [s]."""
+    default_t_c: float = 25.0
+    """Temperature reported before any valid cabin/ambient sample (estimate invalid) [degC]."""
+
+    def validate(self) -> EstimatorSettings:
+        """Raise ValueError naming the field if a setting is not usable."""
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"EstimatorSettings.{f.name} must be a finite number, got {v!r}")
+        for name in ("sensor_std_t_cab_k", "sensor_std_t_vent_k", "sensor_std_t_evap_k", "process_std_scale",
+                     "init_std_k", "init_std_duct_k",
+                     "vent_bias_std_k", "vent_bias_drift_k", "max_dead_reckoning_s", "max_gap_s"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"EstimatorSettings.{name} must be > 0")
+        if not -40.0 <= self.default_t_c <= 60.0:
+            raise ValueError("EstimatorSettings.default_t_c must be in [-40, 60] degC")
+        return self
+
+
+# ---------------------------------------------------------------------------
+# Equations (backend-neutral)
+# ---------------------------------------------------------------------------
+
+def _forced(mdot_bl_kgps):
+    """f(m) = (m / m_ref)^0.8 [-] (forced convection, h ~ m^0.8)."""
+    return (mdot_bl_kgps / M_REF_KGPS) ** 0.8
+
+
+def t_vent_c(q: EstimatorParams, t_evap_c, t_cab_c, t_duct_c, t_amb_c, mdot_bl_kgps):
+    """Vent air temperature, E3 [degC] (module docstring; mdot_bl_kgps > 0, in practice >= 0.05)."""
+    m = mdot_bl_kgps
+    d_cab = t_cab_c - t_evap_c
+    d_amb = t_amb_c - t_evap_c
+    d_duct = t_duct_c - t_evap_c
+    return (t_evap_c + (q.vent_cab + q.vent_cab_flow_s_per_kg * m) * d_cab
+            + (q.vent_amb + q.vent_amb_flow_s_per_kg * m) * d_amb
+            + (q.vent_duct + q.vent_duct_flow_s_per_kg * m) * d_duct
+            + q.vent_heat_k_kgps / m + q.vent_offset_k + q.vent_flow2_k_s2_per_kg2 * m * m)
+
+
+def t_int_next_c(q: EstimatorParams, t_int_c, t_cab_c, t_shell_c, t_glass_c, t_duct_c, mdot_bl_kgps, solar_wm2):
+    """Interior-mass temperature one model step ahead, E1 [degC] (mdot_bl_kgps >= 0)."""
+    return (t_int_c + (q.int_cab + q.int_cab_forced * _forced(mdot_bl_kgps)) * (t_cab_c - t_int_c)
+            + q.int_shell * (t_shell_c - t_int_c) + q.int_glass * (t_glass_c - t_int_c)
+            + q.int_solar_k_per_wm2 * solar_wm2 + q.int_duct * (t_duct_c - t_int_c))
+
+
+def t_shell_next_c(q: EstimatorParams, t_shell_c, t_cab_c, t_int_c, t_amb_c, speed_mps, solar_wm2):
+    """Shell temperature one model step ahead, E2 [degC] (speed_mps >= 0)."""
+    return (t_shell_c + q.shell_cab * (t_cab_c - t_shell_c) + q.shell_int * (t_int_c - t_shell_c)
+            + (q.shell_amb + q.shell_amb_speed * speed_mps ** 0.8) * (t_amb_c - t_shell_c)
+            + q.shell_solar_k_per_wm2 * solar_wm2)
+
+
+def t_glass_next_c(q: EstimatorParams, t_glass_c, t_cab_c, t_int_c, t_amb_c, mdot_bl_kgps, speed_mps, solar_wm2):
+    """Glazing temperature one model step ahead, E4 [degC] (mdot_bl_kgps, speed_mps >= 0)."""
+    return (t_glass_c + (q.glass_cab + q.glass_cab_forced * _forced(mdot_bl_kgps)) * (t_cab_c - t_glass_c)
+            + q.glass_int * (t_int_c - t_glass_c)
+            + (q.glass_amb + q.glass_amb_speed * speed_mps ** 0.8) * (t_amb_c - t_glass_c)
+            + q.glass_solar_k_per_wm2 * solar_wm2)
+
+
+def t_duct_next_c(q: EstimatorParams, t_duct_c, t_int_c, t_cab_c, t_amb_c, t_evap_c, mdot_bl_kgps):
+    """HVAC case and duct wall temperature one model step ahead, E5 [degC] (t_evap_c: the step's mean)."""
+    m = mdot_bl_kgps
+    return (t_duct_c + q.duct_int * (t_int_c - t_duct_c)
+            + (q.duct_air_s_per_kg * m + q.duct_air2_s2_per_kg2 * m * m) * (t_evap_c - t_duct_c)
+            + q.duct_cab_s_per_kg * m * (t_cab_c - t_evap_c) + q.duct_amb_s_per_kg * m * (t_amb_c - t_evap_c))
+
+
+def process_step(p: cm.ControlModelParams, q: EstimatorParams, x, mdot_bl_kgps, t_evap0_c, t_evap1_c,
+                 t_amb_c, solar_wm2, speed_mps):
+    """One model step of the thermal states x = (T_cab, T_int, T_shell, T_glass, T_duct) [degC].
+
+    Eq. (1), E1, E2, E4, E5. ``t_evap0_c``/``t_evap1_c``: evaporator temperature at the start/end of the
+    step [degC]; the vent air over the step is E3 at their mean. Returns a tuple of the five next temperatures.
+    """
+    t_cab, t_int, t_shell, t_glass, t_duct = x[0], x[1], x[2], x[3], x[4]
+    t_ev = 0.5 * (t_evap0_c + t_evap1_c)
+    t_ain = t_vent_c(q, t_ev, t_cab, t_duct, t_amb_c, mdot_bl_kgps)
+    return (cm.t_cab_next_c(p, t_cab, t_int, t_shell, t_ain, mdot_bl_kgps),
+            t_int_next_c(q, t_int, t_cab, t_shell, t_glass, t_duct, mdot_bl_kgps, solar_wm2),
+            t_shell_next_c(q, t_shell, t_cab, t_int, t_amb_c, speed_mps, solar_wm2),
+            t_glass_next_c(q, t_glass, t_cab, t_int, t_amb_c, mdot_bl_kgps, speed_mps, solar_wm2),
+            t_duct_next_c(q, t_duct, t_int, t_cab, t_amb_c, t_ev, mdot_bl_kgps))
+
+
+# ---------------------------------------------------------------------------
+# The filter
+# ---------------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class Estimate:
+    """The estimator's output at one control step.
+
+    Every value is finite (``rh_cab``: NaN until measured); substitutions are flagged.
+    """
+
+    t_s: float
+    """Time of the estimate [s]."""
+    t_cab_c: float
+    """Cabin air temperature [degC]: the sample if valid, else the filter's prediction."""
+    t_int_c: float
+    """Estimated interior-mass temperature [degC]."""
+    t_shell_c: float
+    """Estimated shell temperature [degC]."""
+    t_glass_c: float
+    """Estimated glazing temperature [degC]."""
+    t_duct_c: float
+    """Estimated HVAC case and duct wall temperature [degC]."""
+    t_evap_c: float
+    """Evaporator temperature [degC]: the sample if valid, else predicted by eq. (2)."""
+    t_vent_c: float
+    """Vent air temperature [degC]: the sample if valid, else predicted by E3."""
+    t_amb_c: float
+    """Ambient temperature [degC]: the sample if valid, else the last valid one."""
+    solar_wm2: float
+    """Sun load [W/m2]: the sample if valid, else the last valid one."""
+    speed_mps: float
+    """Vehicle speed [m/s]: the sample if valid, else the last valid one."""
+    rh_cab: float
+    """Cabin relative humidity [0..1]: the sample if valid, else the last valid one; NaN before the first
+    valid sample (the Observation's "not measured"; the only field that can be NaN). Not used by the filter."""
+    mdot_bl_prev_kgps: float
+    """Blower flow taken as applied over the last step [kg/s] (the last valid one if the input was not)."""
+    t_evap_sp_prev_c: float
+    """Evaporator set-point taken as applied over the last step [degC] (idem)."""
+    vent_bias_k: float
+    """Estimated offset of the vent-air channel b_vent [K]."""
+    std_k: tuple
+    """1-sigma uncertainty of the state (T_cab, T_int, T_shell, T_glass, T_duct, b_vent) [K]."""
+    missing: tuple
+    """Names of the inputs that were missing or invalid this step (sensors and previous command)."""
+    valid: bool
+    """False before the first valid cabin air sample and after ``max_dead_reckoning_s`` without one."""
+    dead_reckoning_s: float
+    """Time since the last valid cabin air temperature sample [s] (0 when this one is valid)."""
+    initialized: bool
+    """True on the step the filter was (re)initialized from the sample (key-on, gap, time jump)."""
+
+    def describe(self) -> str:
+        """One line for diagnostics ('' when nothing is flagged)."""
+        parts = []
+        if self.missing:
+            parts.append("missing " + ",".join(self.missing))
+        if self.dead_reckoning_s > 0:
+            parts.append(f"cabin air predicted for {self.dead_reckoning_s:.0f} s")
+        if not self.valid:
+            parts.append("estimate invalid")
+        if self.initialized and self.t_s > 0:
+            parts.append("re-initialized")
+        return "estimator: " + "; ".join(parts) if parts else ""
+
+
+class CabinStateEstimator:
+    """Extended Kalman filter for (T_cab, T_int, T_shell) from the vehicle sensors.
+
+    Args:
+        model_params: the NMPC's identified :class:`ControlModelParams` (eq. 1, eq. 2).
+        params: identified :class:`EstimatorParams` (E1-E3, process noise); default: the file.
+        settings: :class:`EstimatorSettings`.
+        control_period_s: period of :meth:`update` calls [s], a whole multiple of the model step.
+
+    Call :meth:`update` once per control step with the samples at ``t_s`` and the command
+    applied since the previous call; it returns an :class:`Estimate`.
+    """
+
+    def __init__(self, model_params: cm.ControlModelParams | None = None, params: EstimatorParams | None = None,
+                 settings: EstimatorSettings | None = None, control_period_s: float = 5.0):
+        self.model_params = (model_params if model_params is not None else cm.load_params())
+        self.model_params.validate()
+        self.params = (params if params is not None else load_estimator_params()).validate()
+        self.settings = (settings or EstimatorSettings()).validate()
+        if abs(self.params.ts_s - self.model_params.ts_s) > 1e-9:
+            raise ValueError(f"EstimatorParams.ts_s {self.params.ts_s} s differs from the model step "
+                             f"{self.model_params.ts_s} s")
+        self.n_sub = cm.substeps(self.model_params, control_period_s)
+        self.control_period_s = float(control_period_s)
+        p, q, s = self.model_params, self.params, self.settings
+        x = casadi.SX.sym("x", _N)
+        u = casadi.SX.sym("u", 6)  # mdot, t_evap0, t_evap1, t_amb, solar, speed
+        xn = casadi.vertcat(*process_step(p, q, x, u[0], u[1], u[2], u[3], u[4], u[5]), x[_B])
+        self._f = casadi.Function("est_f", [x, u], [xn, casadi.jacobian(xn, x)])
+        yv = t_vent_c(q, u[2], x[0], x[4], u[3], u[0]) + x[_B]
+        self._h_vent = casadi.Function("est_h_vent", [x, u], [yv, casadi.jacobian(yv, x),
+                                                              casadi.jacobian(yv, u[2])])
+        self._q = np.diag(np.append(s.process_std_scale * np.array([q.q_cab_k, q.q_int_k, q.q_shell_k,
+                                                                     q.q_glass_k, q.q_duct_k]),
+                                    s.vent_bias_drift_k) ** 2)
+        self._r_cab = s.sensor_std_t_cab_k ** 2
+        self._r_vent = s.sensor_std_t_vent_k ** 2 + q.vent_residual_k ** 2  # + the evaporator sensor's, per step
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to key-on: no state, no held values."""
+        self._x: np.ndarray | None = None
+        self._p: np.ndarray | None = None
+        self._t_last: float | None = None
+        self._t_cab_valid_s: float | None = None
+        self._held: dict = {}
+        self._u_prev = (ACTUATOR_LIMITS.mdot_bl_max_kgps, ACTUATOR_LIMITS.t_evap_sp_min_c)
+
+    @property
+    def state(self) -> np.ndarray | None:
+        """The filter state (:data:`ESTIMATED_STATES`), None before initialization."""
+        return None if self._x is None else self._x.copy()
+
+    @property
+    def covariance(self) -> np.ndarray | None:
+        """The state covariance [K^2], None before initialization."""
+        return None if self._p is None else self._p.copy()
+
+    # -------------------------------------------------------------- inputs
+    @staticmethod
+    def _sample(meas: Mapping, name: str) -> float | None:
+        """The sample as a float, or None if absent, not a number, not finite or out of range."""
+        try:
+            v = float(meas.get(name, math.nan))
+        except (TypeError, ValueError):
+            return None
+        lo, hi = _RANGES[name]
+        return v if math.isfinite(v) and lo <= v <= hi else None
+
+    def _command(self, u_prev, missing: list) -> tuple[float, float]:
+        lim = ACTUATOR_LIMITS
+        try:
+            m, sp = float(u_prev[0]), float(u_prev[1])
+        except (TypeError, ValueError, IndexError):
+            m = sp = math.nan
+        tol = 1e-6
+        if (math.isfinite(m) and math.isfinite(sp) and lim.mdot_bl_min_kgps - tol <= m <= lim.mdot_bl_max_kgps + tol
+                and lim.t_evap_sp_min_c - tol <= sp <= lim.t_evap_sp_max_c + tol):
+            self._u_prev = (min(max(m, lim.mdot_bl_min_kgps), lim.mdot_bl_max_kgps),
+                            min(max(sp, lim.t_evap_sp_min_c), lim.t_evap_sp_max_c))
+        else:
+            missing.append("u_prev")
+        return self._u_prev
+
+    # ------------------------------------------------------------- update
+    def update(self, t_s: float, meas: Mapping, u_prev) -> Estimate:
+        """One filter step at ``t_s`` [s].
+
+        Args:
+            t_s: time of the samples [s].
+            meas: the samples at ``t_s`` (keys of :data:`VEHICLE_SENSORS`; absent or non-finite
+                keys count as missing; other keys, e.g. ``t_int_c``, are ignored).
+            u_prev: (blower flow [kg/s], evaporator set-point [degC]) applied since the last call.
+        """
+        s, p = self.settings, self.model_params
+        missing: list[str] = []
+        y = {name: self._sample(meas, name) for name in VEHICLE_SENSORS}
+        for name in VEHICLE_SENSORS:
+            # cabin RH is optional (the filter does not use it): flagged only when given and invalid
+            if y[name] is None and (name != "rh_cab" or name in meas):
+                missing.append(name)
+        m, sp = self._command(u_prev, missing)
+        try:
+            t_s = float(t_s)
+        except (TypeError, ValueError):
+            t_s = math.nan
+        if not math.isfinite(t_s):
+            missing.append("t_s")
+            t_s = (self._t_last + self.control_period_s) if self._t_last is not None else 0.0
+        # exogenous inputs: the sample, else the last valid one, else a default
+        ex = {}
+        for name, default in (("t_amb_c", s.default_t_c), ("solar_wm2", 0.0), ("speed_mps", 0.0),
+                              ("rh_cab", math.nan)):
+            if y[name] is not None:
+                self._held[name] = y[name]
+            ex[name] = self._held.get(name, default)
+        n_steps = None  # model steps since the last update; None: (re)initialize
+        if self._x is not None and self._t_last is not None:
+            dt = t_s - self._t_last
+            if 0 <= dt <= s.max_gap_s:
+                n_steps = int(round(dt / p.ts_s))
+        initialized = False
+        if n_steps is None:
+            initialized = self._initialize(y, ex)
+            t_evap = y["t_evap_c"] if y["t_evap_c"] is not None else self._held.get("t_evap_c", ex["t_amb_c"])
+        elif n_steps == 0:
+            # less than half a model step since the last update: a correction without time propagation;
+            # the elapsed time is propagated by the next update (the reference time stays)
+            t_evap = y["t_evap_c"] if y["t_evap_c"] is not None else self._held["t_evap_c"]
+            self._correct(y if y["t_evap_c"] is not None else {**y, "t_vent_c": None}, m, t_evap, ex)
+            t_s_ref = self._t_last
+        else:
+            t_evap0 = self._held.get("t_evap_c", ex["t_amb_c"])
+            t_evap = y["t_evap_c"]
+            if t_evap is None:  # eq. (2) from the last value with the held set-point
+                t_evap = t_evap0
+                for _ in range(n_steps):
+                    t_evap = float(cm.t_evap_next_c(p, t_evap, sp))
+            self._predict(n_steps, m, t_evap0, t_evap, ex)
+            # without an evaporator sample E3 has no reliable input: no vent update either
+            self._correct(y if y["t_evap_c"] is not None else {**y, "t_vent_c": None}, m, t_evap, ex)
+        if self._x is not None and self._p is not None and not (np.all(np.isfinite(self._x))
+                                                                and np.all(np.isfinite(self._p))):
+            initialized = self._initialize(y, ex)  # defensive: never carry a non-finite state
+        if n_steps != 0 or initialized:
+            self._held["t_evap_c"] = t_evap
+            self._t_last = t_s
+        else:
+            self._t_last = t_s_ref
+        if self._x is not None:
+            self._x = np.clip(self._x, [-40.0] * (_N - 1) + [-10.0], [120.0] * (_N - 1) + [10.0])
+        if y["t_cab_c"] is not None:
+            self._t_cab_valid_s = t_s
+        dead = 0.0 if y["t_cab_c"] is not None else (
+            t_s - self._t_cab_valid_s if self._t_cab_valid_s is not None else math.inf)
+        valid = self._x is not None and dead <= s.max_dead_reckoning_s
+        x = self._x if self._x is not None else np.array([ex["t_amb_c"]] * (_N - 1) + [0.0])
+        pdiag = (np.diag(self._p) if self._p is not None
+                 else np.array([s.init_std_k ** 2] * (_N - 1) + [s.vent_bias_std_k ** 2]))
+        t_vent = y["t_vent_c"]
+        if t_vent is None:
+            t_vent = float(t_vent_c(self.params, t_evap, x[0], x[4], ex["t_amb_c"], m) + x[_B])
+        return Estimate(
+            t_s=t_s, t_cab_c=float(y["t_cab_c"] if y["t_cab_c"] is not None else x[0]),
+            t_int_c=float(x[1]), t_shell_c=float(x[2]), t_glass_c=float(x[3]), t_duct_c=float(x[4]),
+            t_evap_c=float(t_evap), t_vent_c=float(t_vent),
+            t_amb_c=float(ex["t_amb_c"]), solar_wm2=float(ex["solar_wm2"]), speed_mps=float(ex["speed_mps"]),
+            rh_cab=float(ex["rh_cab"]), mdot_bl_prev_kgps=float(m), t_evap_sp_prev_c=float(sp),
+            vent_bias_k=float(x[_B]),
+            std_k=tuple(float(v) for v in np.sqrt(np.maximum(pdiag, 0.0))), missing=tuple(missing),
+            valid=bool(valid), dead_reckoning_s=float(min(dead, 1e9)), initialized=initialized)
+
+    def _initialize(self, y: dict, ex: dict) -> bool:
+        """Key-on prior from the cabin air sample; without one, stay uninitialized."""
+        s = self.settings
+        if y["t_cab_c"] is None:
+            self._x = self._p = None
+            return False
+        t = y["t_cab_c"]
+        t_duct = y["t_evap_c"] if y["t_evap_c"] is not None else t
+        self._x = np.array([t, t + s.init_offset_int_k, t + s.init_offset_shell_k, t + s.init_offset_glass_k,
+                            t_duct, 0.0])
+        self._p = np.diag([s.sensor_std_t_cab_k ** 2, s.init_std_k ** 2, s.init_std_k ** 2, s.init_std_k ** 2,
+                           s.init_std_duct_k ** 2, s.vent_bias_std_k ** 2])
+        return True
+
+    def _predict(self, n_steps: int, m: float, t_evap0: float, t_evap1: float, ex: dict) -> None:
+        assert self._x is not None and self._p is not None
+        x, pc = self._x, self._p
+        for i in range(n_steps):
+            a0 = t_evap0 + (t_evap1 - t_evap0) * i / n_steps
+            a1 = t_evap0 + (t_evap1 - t_evap0) * (i + 1) / n_steps
+            u = np.array([m, a0, a1, ex["t_amb_c"], ex["solar_wm2"], ex["speed_mps"]])
+            xn, jac = self._f(x, u)
+            fx = np.array(jac)
+            x = np.array(xn).ravel()
+            pc = fx @ pc @ fx.T + self._q
+        self._x, self._p = x, 0.5 * (pc + pc.T)
+
+    def _correct(self, y: dict, m: float, t_evap: float, ex: dict) -> None:
+        """Measurement update with the valid samples: T_cab, then T_vent at the updated state.
+
+        Sequential scalar updates in Joseph form; with independent sensor noise and h linear in x this
+        equals the joint update.
+        """
+        assert self._x is not None
+        if y["t_cab_c"] is not None:
+            self._scalar_update(y["t_cab_c"], float(self._x[0]), np.eye(_N)[0], self._r_cab)
+        if y["t_vent_c"] is not None:
+            u = np.array([m, t_evap, t_evap, ex["t_amb_c"], ex["solar_wm2"], ex["speed_mps"]])
+            hv, hj, he = self._h_vent(self._x, u)
+            r = self._r_vent + (float(he) * self.settings.sensor_std_t_evap_k) ** 2
+            self._scalar_update(y["t_vent_c"], float(hv), np.array(hj).ravel(), r)
+
+    def _scalar_update(self, y: float, y_pred: float, h: np.ndarray, r: float) -> None:
+        assert self._x is not None and self._p is not None
+        p = self._p
+        s_inn = float(h @ p @ h) + r
+        k = (p @ h) / s_inn
+        self._x = self._x + k * (y - y_pred)
+        ikh = np.eye(_N) - np.outer(k, h)
+        pc = ikh @ p @ ikh.T + r * np.outer(k, k)
+        self._p = 0.5 * (pc + pc.T)
+
+
+# ---------------------------------------------------------------------------
+# In front of a controller
+# ---------------------------------------------------------------------------
+
+class EstimatingController:
+    """A controller that sees only the vehicle sensors.
+
+    ``compute(obs)`` ignores ``obs.t_int_c``, ``obs.t_shell_c`` and ``obs.t_glass_c``, runs
+    :class:`CabinStateEstimator` on the vehicle sensors of ``obs`` (cabin RH passed through) and the
+    previous command, and calls the wrapped controller with the estimated observation.
+
+    Sensors that were valid are passed unchanged (so without faults the wrapped controller sees the
+    same cabin, evaporator, vent, ambient, sun-load and speed values as in full mode); missing ones are
+    replaced by the estimate. When the estimate is invalid (no valid cabin air sample for
+    ``max_dead_reckoning_s``), the wrapped controller gets a non-finite cabin air temperature, i.e. its
+    own sensor-fault handling (NMPC: the ACC law; the ACC law: hold the last command). The estimator's
+    flags are appended to ``Diagnostics.message``. Other attributes are the wrapped controller's.
+    """
+
+    def __init__(self, inner, estimator: CabinStateEstimator):
+        self.inner = inner
+        """The wrapped controller (``NmpcController`` or ``BaselineController``)."""
+        self.estimator = estimator
+        """The :class:`CabinStateEstimator`."""
+        self.last_estimate: Estimate | None = None
+        """The estimate of the last :meth:`compute` call."""
+
+    def __getattr__(self, name):
+        if name in ("inner", "estimator"):  # not yet set (copy/pickle): no recursion
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+    def reset(self) -> None:
+        """Reset the wrapped controller and the estimator (key-on)."""
+        self.inner.reset()
+        self.estimator.reset()
+        self.last_estimate = None
+
+    def estimated_observation(self, obs: Observation) -> Observation:
+        """Run the estimator on the vehicle sensors of ``obs``; the observation the controller gets."""
+        meas = {"t_cab_c": obs.t_cab_c, "t_vent_c": obs.t_vent_c, "t_evap_c": obs.t_evap_c,
+                "t_amb_c": obs.t_amb_c, "solar_wm2": obs.solar_wm2, "speed_mps": obs.speed_mps}
+        if math.isfinite(obs.rh_cab):
+            meas["rh_cab"] = obs.rh_cab  # NaN there means "not measured": not a sensor fault
+        est = self.estimator.update(obs.t_s, meas, (obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c))
+        self.last_estimate = est
+        fields: dict[str, Any] = {
+            "t_cab_c": est.t_cab_c if est.valid else math.nan, "t_int_c": est.t_int_c, "t_shell_c": est.t_shell_c,
+            "t_glass_c": est.t_glass_c, "t_evap_c": est.t_evap_c, "t_vent_c": est.t_vent_c, "t_amb_c": est.t_amb_c,
+            "solar_wm2": est.solar_wm2, "speed_mps": est.speed_mps, "rh_cab": est.rh_cab,
+            "mdot_bl_prev_kgps": est.mdot_bl_prev_kgps, "t_evap_sp_prev_c": est.t_evap_sp_prev_c}
+        return dataclasses.replace(obs, **fields)
+
+    def compute(self, obs: Observation):
+        """One control step: estimate, then the wrapped controller's ``compute``."""
+        obs_est = self.estimated_observation(obs)
+        cmd, diag = self.inner.compute(obs_est)
+        assert self.last_estimate is not None
+        note = self.last_estimate.describe()
+        if note:
+            diag.message = f"{diag.message}; {note}" if diag.message else note
+        return cmd, diag
+
+
+def with_measurements(controller, measurements: str, control_period_s: float,
+                      model_params: cm.ControlModelParams | None = None,
+                      params: EstimatorParams | None = None, settings: EstimatorSettings | None = None):
+    """``controller`` for ``measurements='full'``; wrapped in :class:`EstimatingController` for 'vehicle'."""
+    if measurements not in MEASUREMENT_MODES:
+        raise ValueError(f"measurements must be one of {MEASUREMENT_MODES}, got {measurements!r}")
+    if measurements == "full" or isinstance(controller, EstimatingController):
+        return controller
+    mp = model_params if model_params is not None else getattr(controller, "model_params", None)
+    return EstimatingController(controller, CabinStateEstimator(mp, params, settings, control_period_s))
