@@ -38,8 +38,11 @@ class BaselineController:
         """Back to the key-on state."""
         self.law.reset()
 
-    def compute(self, obs: Observation):
+    def compute(self, obs: Observation, t_start: float | None = None):
         """One control step from the measured cabin air temperature (never raises on its value).
+
+        ``t_start`` is accepted for the controllers' common interface (the NMPC's step deadline);
+        the law's cost is bounded and fixed, so it is not used.
 
         The ambient and sun-load sensors and the occupant's current upper PMV bound
         go to the law too; the plain law (the default settings) ignores them.
