@@ -58,6 +58,60 @@ def test_settings_validation_names_field():
         AccSettings(pulldown_exit_k=5.0, pulldown_enter_k=4.0).validate()
 
 
+def test_demand_of_inverts_the_map_and_projects_off_map_commands():
+    law = AccLaw()
+    for d in (0.0, 0.1, 0.3, 0.45, 0.5, 0.8, 1.0):
+        c = law.map_demand(d)
+        assert law.demand_of(c.mdot_bl_kgps, c.t_evap_sp_c) == pytest.approx(d, abs=1e-12)
+    # (0.05 kg/s, 3 degC) is off the map: the nearest map point in normalised units is at d = 0.5 - ...
+    d = law.demand_of(0.05, 3.0)
+    c = law.map_demand(d)
+    assert 0.3 < d < 0.5 and c.mdot_bl_kgps > 0.05 and c.t_evap_sp_c > 3.0
+
+
+def test_take_over_after_tracking_is_bumpless_and_then_the_law_rules():
+    """While another controller is in charge the law tracks its command; at take-over its first
+    output equals the last applied command, and the difference to its own output decays with
+    handover_tau_s (30 s: e^-1 after 30 s)."""
+    law = AccLaw()
+    for _ in range(10):  # a CECO-like command: low blower, evaporator at 7 degC, cabin 27.5 degC
+        law.track(0.05, 7.0, 27.5)
+    c0 = law.step(27.5, 5.0)
+    assert (c0.mdot_bl_kgps, c0.t_evap_sp_c) == pytest.approx((0.05, 7.0), abs=1e-12)
+    # the law's own output from here: PI preset to the tracked demand (its map point of (0.05, 7))
+    d_tracked = law.demand_of(0.05, 7.0)
+    assert law.map_demand(d_tracked).t_evap_sp_c == pytest.approx(7.0)
+    assert not np.any(law._offset)  # a command on the law's map leaves no offset to decay
+    # from here the PI integrates: dd = Ts kp / Ti e = 5 * 0.25 / 120 * 1.5 per step, i.e. the set-point
+    # falls by dd * 7 K / 0.5 = 0.21875 K per step
+    outs = [law.step(27.5, 5.0) for _ in range(3)]
+    np.testing.assert_allclose([c.t_evap_sp_c for c in outs], 7.0 - 0.21875 * np.arange(1, 4), atol=1e-12)
+    # a command off the map (3 degC at minimum flow): the offset decays as exp(-t / 30 s)
+    law2 = AccLaw()
+    law2.track(0.05, 3.0, 26.0)
+    first = law2.step(26.0, 5.0)
+    assert (first.mdot_bl_kgps, first.t_evap_sp_c) == pytest.approx((0.05, 3.0), abs=1e-12)
+    off0 = law2._offset.copy()
+    for _ in range(6):
+        law2.step(26.0, 5.0)
+    np.testing.assert_allclose(law2._offset, off0 * math.exp(-30.0 / 30.0), rtol=1e-9)
+    # a hot cabin at take-over: pull-down mode, entered without a jump
+    law3 = AccLaw()
+    law3.track(0.1, 6.0, 35.0)
+    c = law3.step(35.0, 5.0)
+    assert c.mode == "pulldown" and (c.mdot_bl_kgps, c.t_evap_sp_c) == pytest.approx((0.1, 6.0))
+    later = [law3.step(35.0, 5.0) for _ in range(40)]
+    assert later[-1].mdot_bl_kgps == pytest.approx(0.17, abs=1e-3) and later[-1].t_evap_sp_c == pytest.approx(3.0, abs=0.02)
+
+
+def test_a_sensor_fault_at_take_over_holds_the_applied_command():
+    law = AccLaw()
+    law.track(0.08, 5.0, 26.5)
+    for _ in range(3):
+        c = law.step(math.nan, 5.0)
+        assert c.mode == "sensor_fault" and (c.mdot_bl_kgps, c.t_evap_sp_c) == pytest.approx((0.08, 5.0))
+
+
 def test_allowance_ramps_the_setpoint_over_the_relaxed_bound():
     law = AccLaw(AccSettings(allowance_k_per_pmv=2.0))
     assert law.step(27.0, 5.0, pmv_ub=3.0).setpoint_c == pytest.approx(26.0 + 2.0 * 2.5)

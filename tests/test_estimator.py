@@ -270,3 +270,22 @@ def test_vehicle_mode_closed_loop_stays_within_bounds_of_the_full_state_run(tmp_
     d = cl.write_run(veh, tmp_path / "run")
     assert (d / "estimator.csv").read_text().splitlines()[0] == ",".join(cl.ESTIMATOR_CSV_COLUMNS)
     assert not (cl.write_run(full, tmp_path / "full") / "estimator.csv").exists()
+
+
+def test_prepare_sees_the_estimated_observation_and_updates_the_estimator_once():
+    """``prepare`` (before taking control) probes a copy of the estimator: the following ``compute`` gives
+    the same estimate and command as a controller that was never prepared (prepare only warm-starts)."""
+    sc = load_scenario("sc03")
+    meas = {"t_cab_c": 43.0, "t_int_c": math.nan, "t_shell_c": math.nan, "t_evap_c": 43.0, "t_vent_c": 43.0,
+            "t_glass_c": math.nan, "rh_cab": 0.4}
+    prepared, plain = (make_controller("ceco", sc, 5.0, 6, MP, measurements="vehicle") for _ in range(2))
+    obs = _obs(sc, 0.0, 0, meas, sc_key_on())
+    assert prepared.prepare(obs) is not None          # the NMPC solved the estimated first instance
+    assert prepared.last_estimate is None             # ... without touching the real estimator
+    (c1, d1), (c2, d2) = prepared.compute(obs, t_start=None), plain.compute(obs)
+    assert prepared.last_estimate == plain.last_estimate
+    assert c1.mdot_bl_kgps == pytest.approx(c2.mdot_bl_kgps, abs=1e-6)
+    assert c1.t_evap_sp_c == pytest.approx(c2.t_evap_sp_c, abs=1e-4)
+    base = est.with_measurements(BaselineController(control_period_s=5.0), "vehicle", 5.0, MP)
+    assert base.prepare(obs) is None and base.compute(obs, t_start=0.0)[0] == BaselineController(
+        control_period_s=5.0).compute(obs)[0]

@@ -6,6 +6,7 @@ import pytest
 
 from ceco_core.contracts import ACTUATOR_LIMITS, Observation
 from ceco_controller.nmpc import NmpcController
+from ceco_controller.solvers import SolveResult
 from ceco_controller.strategies import SolverSettings, resolve_auto, strategy_settings
 
 N1 = 7  # Np + 1
@@ -40,7 +41,7 @@ def test_forced_failure_falls_back_to_baseline_then_shifted_plan():
     ctrl = NmpcController("ceco")
     cmd0, d0 = ctrl.compute(_obs(0))
     assert d0.success and d0.fallback == ""
-    plan = ctrl._plan_u.copy()
+    plan = ctrl._good.plan.copy()
     # same NLPs, solvers that always fail (the cold one works on the multiple-shooting NLP)
     ctrl.solver = ctrl.solver_fallback = bad.solver
     ctrl.solver_cold = bad.solver_cold
@@ -97,14 +98,15 @@ def test_long_horizon_builds_and_solves():
     assert diag.success and _valid(cmd) and diag.pred_pmv.size == n1
 
 
-def test_wrong_preview_length_is_an_error():
+def test_wrong_preview_length_hands_the_step_to_the_acc_law():
     ctrl = NmpcController("ceco")
     n1 = 5
     obs = _obs(0, preview_t_amb_c=np.full(n1, 35.0), preview_solar_wm2=np.full(n1, 800.0),
                preview_speed_mps=np.full(n1, 1.0), preview_valid=np.ones(n1, bool),
                pmv_lb=np.full(n1, -0.5), pmv_ub=np.full(n1, 0.5))
-    with pytest.raises(ValueError, match="Np\\+1"):
-        ctrl.compute(obs)
+    cmd, diag = ctrl.compute(obs)
+    assert diag.fallback == "baseline" and diag.status == "invalid_measurement" and _valid(cmd)
+    assert "previews have 5 points" in diag.message and "Np+1 = 7" in diag.message
 
 
 def test_settings_validation_names_field():
@@ -126,7 +128,7 @@ def test_controller_yaml_matches_code_defaults():
 def test_codegen_falls_back_without_compiler(monkeypatch, tmp_path, caplog):
     monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
     ss = SolverSettings(codegen=True, codegen_cache_dir=str(tmp_path / "cache"))
-    with caplog.at_level("WARNING", logger="ceco_controller.nmpc"):
+    with caplog.at_level("WARNING", logger="ceco_controller"):
         ctrl = NmpcController(strategy_settings("ceco", solver=ss))
     assert "in-process NLP functions" in caplog.text
     cmd, diag = ctrl.compute(_obs(0))
@@ -140,10 +142,12 @@ def test_codegen_compiles_once_and_matches_in_process(tmp_path):
     cache = tmp_path / "cache"
     ss = SolverSettings(codegen=True, codegen_flags=("-O0",), codegen_cache_dir=str(cache))
     comp = NmpcController(strategy_settings("ceco-ioch", solver=ss))
-    objs = list(cache.glob("ceco_nlp_*.so"))
-    # one object per plugin and NLP: IPOPT's, sqpmethod's when that is the warm solver, and the cold
-    # solver's multiple-shooting NLP (IPOPT) when the controller's NLP is single shooting
-    n_expected = 1 + (comp.settings.solver.name == "sqpmethod") + (comp.transcription == "single-shooting")
+    objs = sorted(cache.glob("ceco_*.so"))
+    # one object per solver and NLP: the SQP's functions when that is the warm solver, IPOPT's (its
+    # retry), and the cold solver's multiple-shooting NLP (IPOPT) when the controller's NLP is single shooting
+    n_sqp = int(comp.settings.solver.name == "sqp")
+    assert len(list(cache.glob("ceco_sqp_*.so"))) == n_sqp == 1
+    n_expected = n_sqp + 1 + (comp.transcription == "single-shooting")
     assert len(objs) == n_expected == 3 and not list(cache.glob(".*tmp*"))
     ref = NmpcController("ceco-ioch")
     for k in range(3):
@@ -154,12 +158,21 @@ def test_codegen_compiles_once_and_matches_in_process(tmp_path):
         assert d1.cost_total == pytest.approx(d2.cost_total, rel=1e-8)
     mtime = objs[0].stat().st_mtime_ns
     NmpcController(strategy_settings("ceco-ioch", solver=ss))
-    assert sorted(cache.glob("ceco_nlp_*.so")) == sorted(objs) and objs[0].stat().st_mtime_ns == mtime
+    assert sorted(cache.glob("ceco_*.so")) == objs and objs[0].stat().st_mtime_ns == mtime
 
 
-def test_sqpmethod_matches_ipopt_and_falls_back_to_ipopt():
-    # warm sqpmethod (exact Hessian, eigen-clip, dense qpOASES) reaches IPOPT's optimum on a warm instance
-    sqp = NmpcController(strategy_settings("ceco-ioch", solver=SolverSettings(name="sqpmethod")))
+class _FailingSolver:
+    """A solver stub that always fails (the chain must retry, then fall back)."""
+
+    name = "sqp"
+
+    def solve(self, data, deadline=None):
+        return SolveResult.failed("sqp", "QP_Failed (stub)")
+
+
+def test_sqp_matches_ipopt_and_falls_back_to_ipopt():
+    # warm SQP (exact Hessian, exact eigenvalue convexification, dense qpOASES) reaches IPOPT's optimum
+    sqp = NmpcController(strategy_settings("ceco-ioch", solver=SolverSettings(name="sqp")))
     ipo = NmpcController(strategy_settings("ceco-ioch", solver=SolverSettings(name="ipopt")))
     costs = {}
     for name, ctrl in (("sqp", sqp), ("ipopt", ipo)):
@@ -174,21 +187,27 @@ def test_sqpmethod_matches_ipopt_and_falls_back_to_ipopt():
     data = sqp.last_nlp()
     f_sqp = sqp.solve_nlp(data, sqp.solver)
     f_ipo = sqp.solve_nlp(data, sqp.solver_fallback)
-    assert f_sqp["success"] and f_ipo["success"]
-    assert abs(f_sqp["f"] - f_ipo["f"]) <= 1e-4 * abs(f_ipo["f"])
-    # a failing sqpmethod (1 iteration) is retried by warm IPOPT: valid command, counted
-    sqp.solver = NmpcController(strategy_settings(
-        "ceco-ioch", solver=SolverSettings(name="sqpmethod", sqp_max_iter=1, ipopt_fallback=False))).solver
+    assert f_sqp.success and f_ipo.success
+    assert abs(f_sqp.f - f_ipo.f) <= 1e-4 * abs(f_ipo.f)
+    # a failing SQP is retried by warm IPOPT from the same start: valid command, counted
+    sqp.solver = _FailingSolver()
     cmd, diag = sqp.compute(_obs(3, t_cab=24.0, **_ZONE))
-    assert sqp.n_ipopt_fallbacks == 1 and diag.success and diag.fallback == "" and _valid(cmd)
-    assert diag.status.startswith("sqpmethod: ") and "retried with IPOPT" in diag.message
+    assert sqp.n_ipopt_fallbacks == 1 and sqp.counters.retries == 1 and diag.success and diag.fallback == ""
+    assert _valid(cmd) and diag.status.startswith("sqp: QP_Failed (stub); ipopt: ")
+    assert "not used: warm sqp: no finite primal-dual point (QP_Failed (stub))" in diag.message
 
 
-def test_solver_settings_reject_unknown_qpsol():
+def test_solver_settings_reject_unknown_qpsol_and_the_replaced_sqpmethod():
     with pytest.raises(ValueError, match="qpsol"):
-        SolverSettings(name="sqpmethod", qpsol="nope").validate()
-    with pytest.raises(ValueError, match="convexify_strategy"):
-        SolverSettings(convexify_strategy="none").validate()
+        SolverSettings(name="sqp", qpsol="nope").validate()
+    with pytest.raises(ValueError, match="'sqpmethod' .* replaced by 'sqp'"):
+        SolverSettings(name="sqpmethod").validate()
+    with pytest.raises(ValueError, match="rti"):
+        SolverSettings(name="ipopt", rti=True).validate()
+    with pytest.raises(ValueError, match="step_reserve_s"):
+        SolverSettings(step_budget_s=0.1, step_reserve_s=0.2).validate()
+    with pytest.raises(ValueError, match="step_budget_s must be below control_period_s"):
+        strategy_settings("ceco", solver=SolverSettings(step_budget_s=5.0))
 
 
 def test_single_and_multiple_shooting_reach_the_same_optimum():
@@ -196,8 +215,8 @@ def test_single_and_multiple_shooting_reach_the_same_optimum():
     problem: same commands and costs in closed-loop steps, the same optimum on one instance."""
     ctrls = {t: NmpcController(strategy_settings("ceco-ioch", solver=SolverSettings(transcription=t)))
              for t in ("single-shooting", "multiple-shooting")}
-    assert ctrls["single-shooting"]._nw == ctrls["multiple-shooting"]._nw - 4 * 6  # no state variables
-    assert ctrls["single-shooting"]._ng == ctrls["multiple-shooting"]._ng - 4 * 6  # no gap constraints
+    assert ctrls["single-shooting"].problem.nw == ctrls["multiple-shooting"].problem.nw - 4 * 6  # no states
+    assert ctrls["single-shooting"].problem.ng == ctrls["multiple-shooting"].problem.ng - 4 * 6  # no gaps
     out = {}
     for t, ctrl in ctrls.items():
         for k in range(4):
@@ -212,8 +231,8 @@ def test_single_and_multiple_shooting_reach_the_same_optimum():
     ss = ctrls["single-shooting"]
     data = ss.last_nlp()
     f_sqp, f_ipo = ss.solve_nlp(data, ss.solver), ss.solve_nlp(data, ss.solver_fallback)
-    assert f_sqp["success"] and f_ipo["success"]
-    assert abs(f_sqp["f"] - f_ipo["f"]) <= 1e-4 * abs(f_ipo["f"])
+    assert f_sqp.success and f_ipo.success
+    assert abs(f_sqp.f - f_ipo.f) <= 1e-4 * abs(f_ipo.f)
 
 
 def test_transcription_settings_are_validated():
@@ -223,10 +242,8 @@ def test_transcription_settings_are_validated():
         SolverSettings(name="fatrop", transcription="single-shooting").validate()  # no stage structure
     assert resolve_auto(strategy_settings("ceco", solver=SolverSettings(name="fatrop"))).solver.transcription \
         == "multiple-shooting"
-    with pytest.raises(ValueError, match="max_iter_eig"):
-        SolverSettings(max_iter_eig=0).validate()
-    with pytest.raises(ValueError, match="max_iter_eig"):
-        SolverSettings(max_iter_eig=True).validate()
+    with pytest.raises(ValueError, match="eig_floor"):
+        SolverSettings(eig_floor=0.0).validate()
     # an SQP solve and then its IPOPT retry must both fit in the control period
     with pytest.raises(ValueError, match="control_period_s / 2"):
         strategy_settings("ceco", solver=SolverSettings(max_cpu_time_s=3.0))
@@ -239,7 +256,7 @@ def test_transcription_settings_are_validated():
 
 def test_building_the_sqp_controller_prints_nothing(capfd):
     # qpOASES writes a licence banner to C stdout when a solver is created; the build silences it
-    ctrl = NmpcController(strategy_settings("ceco", solver=SolverSettings(name="sqpmethod")))
+    ctrl = NmpcController(strategy_settings("ceco", solver=SolverSettings(name="sqp")))
     cmd, diag = ctrl.compute(_obs(0))
     cmd, diag = ctrl.compute(_obs(1))
     out = capfd.readouterr().out
@@ -252,15 +269,15 @@ def test_auto_solver_follows_the_horizon():
     multiple-shooting NLP beyond (the dense SQP's cost grows cubically with Np)."""
     short = NmpcController(strategy_settings("ceco", horizon_steps=12))
     long_ = NmpcController(strategy_settings("ceco", horizon_steps=13))
-    assert (short.settings.solver.name, short.transcription) == ("sqpmethod", "single-shooting")
+    assert (short.settings.solver.name, short.transcription) == ("sqp", "single-shooting")
     assert (long_.settings.solver.name, long_.transcription) == ("ipopt", "multiple-shooting")
     assert long_.solver_fallback is None and short.solver_fallback is not None
     explicit = NmpcController(strategy_settings("ceco", horizon_steps=13, solver=SolverSettings(
-        name="sqpmethod", transcription="single-shooting")))
-    assert (explicit.settings.solver.name, explicit.transcription) == ("sqpmethod", "single-shooting")
+        name="sqp", transcription="single-shooting")))
+    assert (explicit.settings.solver.name, explicit.transcription) == ("sqp", "single-shooting")
     # an explicit sparse solver gets the sparse (multiple-shooting) NLP at any horizon
     ipo = NmpcController(strategy_settings("ceco", solver=SolverSettings(name="ipopt")))
-    assert ipo.transcription == "multiple-shooting" and ipo._cold_ctrl is ipo
+    assert ipo.transcription == "multiple-shooting" and ipo.cold_path is None
 
 
 def test_cold_solves_use_the_multiple_shooting_nlp():
@@ -268,7 +285,7 @@ def test_cold_solves_use_the_multiple_shooting_nlp():
     NLP and maps the solution back: the same command and cost as a multiple-shooting controller."""
     ss = NmpcController("ceco")
     ms = NmpcController(strategy_settings("ceco", solver=SolverSettings(transcription="multiple-shooting")))
-    assert ss.transcription == "single-shooting" and ss._cold_ctrl.transcription == "multiple-shooting"
+    assert ss.transcription == "single-shooting" and ss.cold_path.transcription == "multiple-shooting"
     (c1, d1), (c2, d2) = ss.compute(_obs(0, t_cab=30.0)), ms.compute(_obs(0, t_cab=30.0))
     assert d1.success and d2.success
     assert d1.cost_total == pytest.approx(d2.cost_total, rel=1e-9)
@@ -303,6 +320,119 @@ def test_controller_file_is_what_the_simulator_and_nodes_build_from(tmp_path):
         closed_loop.make_controller("ceco-c", sc, 5.0, 6, config_path=str(cfg))
 
 
+class _Clock:
+    """An injected clock the test advances by hand [s]."""
+
+    def __init__(self):
+        self.t = 0.0
+
+    def __call__(self):
+        return self.t
+
+
+def _poison(ctrl):
+    real = (ctrl.solver, ctrl.solver_fallback, ctrl.solver_cold)
+    ctrl.solver = ctrl.solver_fallback = ctrl.solver_cold = _FailingSolver()
+    return real
+
+
+def _restore(ctrl, real):
+    ctrl.solver, ctrl.solver_fallback, ctrl.solver_cold = real
+
+
+def test_after_a_failed_step_the_next_solve_is_warm_from_the_last_good_plan():
+    """Issue 12 'Cold path under pressure': a failed step does not drop the warm start; the next
+    solve starts from the last good solution shifted by two stages (not cold)."""
+    from ceco_controller.warmstart import initial_guess
+    ctrl = NmpcController("ceco")
+    for k in range(3):
+        ctrl.compute(_obs(k, t_cab=27.0 - 0.1 * k))
+    good = ctrl._good
+    real = _poison(ctrl)
+    cmd, diag = ctrl.compute(_obs(3, t_cab=26.7))
+    assert diag.fallback == "shifted_plan" and (cmd.mdot_bl_kgps, cmd.t_evap_sp_c) == tuple(good.plan[1])
+    _restore(ctrl, real)
+    cold = ctrl.counters.cold_solves
+    cmd, diag = ctrl.compute(_obs(4, t_cab=26.6))
+    assert diag.fallback == "" and diag.success and diag.status == "Solve_Succeeded"
+    assert ctrl.counters.cold_solves == cold
+    data = ctrl.last_nlp()
+    np.testing.assert_array_equal(data.x0, initial_guess(ctrl.problem, data.p, good.w, 2))
+    np.testing.assert_array_equal(data.lam_g0, ctrl.problem.rows.shift(good.lam_g, 2))
+
+
+class _SlowQp:
+    """Wraps the SQP's QP so that each QP 'takes' ``dt`` seconds on the injected clock."""
+
+    def __init__(self, qp, clock, dt):
+        self.qp, self.clock, self.dt, self.buf = qp, clock, dt, qp.buf
+
+    def __call__(self, *args):
+        self.clock.t += self.dt
+        return self.qp(*args)
+
+
+def test_an_iterate_cut_by_the_deadline_is_applied_when_its_violation_is_small():
+    clock = _Clock()
+    ctrl = NmpcController("ceco", clock=clock)
+    for k in range(2):  # inside the comfort zone: the comfort constraint is active (3 QPs per solve)
+        ctrl.compute(_obs(k, t_cab=24.5, **_ZONE))
+    sqp = ctrl.solver.sqp
+    sqp._qp = _SlowQp(sqp._qp, clock, 10.0)  # the first QP ends after the 1 s budget
+    cmd, diag = ctrl.compute(_obs(2, t_cab=23.5, speed=25.0, **_ZONE))
+    assert diag.status == "Maximum_Wall_Time_Exceeded" and diag.iterations == 1 and not diag.success
+    assert diag.fallback == "" and _valid(cmd) and "sqp iterate applied at its limit" in diag.message
+    c = ctrl.counters
+    assert c.accepted_iterates == 1 and c.retries == 0 and c.cold_solves == 1 and c.deadline_hits == 1
+    # no time at all: no iteration, no retry, no cold solve: the last good plan shifted
+    cmd, diag = ctrl.compute(_obs(3, t_cab=23.5, **_ZONE), t_start=clock() - 10.0)
+    assert diag.fallback == "shifted_plan" and "no iteration before the limit" in diag.message
+    assert c.retries == 0 and c.cold_solves == 1 and c.deadline_hits == 2
+
+
+def test_hand_over_to_the_acc_law_and_back_is_bumpless():
+    """The ACC law tracks the applied command while the NMPC is in charge: its first command after the
+    shifted plan runs out is the last applied one, the difference to its own output then decays with
+    handover_tau_s (30 s); the NMPC then takes back control from the applied command."""
+    import math
+    ctrl = NmpcController("ceco")
+    for k in range(3):  # inside the comfort zone: an interior command, far from the law's own (0.05, 10)
+        ctrl.compute(_obs(k, t_cab=24.5, **_ZONE))
+    real = _poison(ctrl)
+    cmds, fallbacks, raw = [], [], []
+    for k in range(3, 12):
+        cmd, diag = ctrl.compute(_obs(k, t_cab=24.5, **_ZONE))
+        cmds.append(np.array([cmd.mdot_bl_kgps, cmd.t_evap_sp_c]))
+        fallbacks.append(diag.fallback)
+        raw.append(np.array([ctrl._acc._raw.mdot_bl_kgps, ctrl._acc._raw.t_evap_sp_c]))
+    assert fallbacks == ["shifted_plan"] * 5 + ["baseline"] * 4
+    np.testing.assert_array_equal(cmds[5], cmds[4])  # the take-over: no bump
+    assert abs(cmds[5][0] - raw[5][0]) > 0.03  # ... although the law's own output is elsewhere
+    decay = math.exp(-5.0 / 30.0)
+    for i in range(6, 9):
+        np.testing.assert_allclose(cmds[i] - raw[i], (cmds[i - 1] - raw[i - 1]) * decay, atol=1e-12)
+    _restore(ctrl, real)
+    cmd, diag = ctrl.compute(_obs(12, t_cab=24.5, mdot_bl_prev_kgps=cmds[-1][0], t_evap_sp_prev_c=cmds[-1][1],
+                                  **_ZONE))
+    assert diag.fallback == "" and diag.success and _valid(cmd)
+    # the NMPC plans from the applied command (its u_prev, move penalty); its first move is its own decision
+    assert ctrl.problem.params.get(ctrl.last_nlp().p, "u_prev") == pytest.approx(cmds[-1])
+
+
+def test_prepare_makes_the_first_step_warm_and_warm_up_leaves_no_trace():
+    fresh, prepared, warmed = NmpcController("ceco"), NmpcController("ceco"), NmpcController("ceco")
+    res = prepared.prepare(_obs(0, t_cab=30.0))
+    assert res is not None and res.success
+    assert warmed.warm_up() > 0 and warmed.counters.steps == 0 and warmed._good is None
+    (c1, d1), (c2, d2), (c3, d3) = (c.compute(_obs(0, t_cab=30.0)) for c in (fresh, prepared, warmed))
+    # the first step starts from the prepared (cold IPOPT) solution of the same instance: one QP polishes it
+    assert prepared.counters.cold_solves == 0 and d2.iterations <= 1 and d2.status == "Solve_Succeeded"
+    assert d2.cost_total == pytest.approx(d1.cost_total, rel=1e-6)
+    assert (c2.mdot_bl_kgps, c2.t_evap_sp_c) == pytest.approx((c1.mdot_bl_kgps, c1.t_evap_sp_c), abs=1e-5)
+    # warm_up changed nothing: bit-identical first step
+    assert (c3.mdot_bl_kgps, c3.t_evap_sp_c) == (c1.mdot_bl_kgps, c1.t_evap_sp_c) and d3.cost_total == d1.cost_total
+
+
 def test_comfort_parameters_humidity_setting_and_draught_penalty():
     from ceco_core import psychro
     from ceco_core.cabin_comfort import PAPER_PA_PA, cabin_mrt_c
@@ -320,15 +450,35 @@ def test_comfort_parameters_humidity_setting_and_draught_penalty():
                                                    params=paper.comfort_params)), abs=1e-12)
     assert measured.comfort_parameters(obs)[1] == pytest.approx(float(psychro.vapour_pressure_pa(25.0, 0.3)))
     assert measured.comfort_parameters(_obs(0, t_cab=25.0))[1] == PAPER_PA_PA  # no RH measured: 1700 Pa
-    # p_a is the NLP's last parameter: the same plan predicted with a drier cabin is cooler (~0.15 PMV)
+    # p_a (the named slice 'pa'): the same plan predicted with a drier cabin is cooler (~0.15 PMV)
     _, d_paper = paper.compute(_obs(0, t_cab=24.0, rh_cab=0.3, **_ZONE))
     data = paper.last_nlp()
     p_dry = data.p.copy()
-    p_dry[-1] = float(psychro.vapour_pressure_pa(24.0, 0.3))
+    p_dry[paper.problem.params.slices["pa"]] = float(psychro.vapour_pressure_pa(24.0, 0.3))
     w = data.x0
-    drop = paper.evaluate(w, data.p)["pmv"] - paper.evaluate(w, p_dry)["pmv"]
+    drop = paper.evaluate(w, data.p).pmv - paper.evaluate(w, p_dry).pmv
     assert d_paper.success and np.all((drop > 0.1) & (drop < 0.25))
     # the draught penalty enters the comfort cost (off by default)
     dr = NmpcController(strategy_settings("ceco", draught_weight_kj=0.01))
     _, d_dr = dr.compute(_obs(0, t_cab=24.0, **_ZONE))
     assert d_paper.cost_comfort == 0.0 and d_dr.success and d_dr.cost_comfort > 0.0
+
+
+def test_an_implausible_humidity_is_not_used_in_the_nlp():
+    """rh_cab = 40 (per cent, not a fraction) is treated as not measured: the NLP gets 1700 Pa."""
+    from ceco_core.cabin_comfort import PAPER_PA_PA
+    ctrl = NmpcController(strategy_settings("ceco", pmv_pa_source="measured"))
+    cmd, diag = ctrl.compute(_obs(0, t_cab=24.0, rh_cab=40.0, **_ZONE))
+    assert diag.fallback == "" and "rh_cab=40.0" in diag.message
+    assert ctrl.problem.params.scalar(ctrl.last_nlp().p, "pa") == PAPER_PA_PA
+    cmd, diag = ctrl.compute(_obs(1, t_cab=24.0, rh_cab=0.4, **_ZONE))
+    assert ctrl.problem.params.scalar(ctrl.last_nlp().p, "pa") != PAPER_PA_PA
+
+
+def test_a_failed_cold_ipopt_is_followed_by_the_sqp_from_the_same_guess():
+    ctrl = NmpcController("ceco")
+    ctrl.solver_cold = _FailingSolver()
+    cmd, diag = ctrl.compute(_obs(0, t_cab=24.5, **_ZONE))
+    assert diag.fallback == "" and diag.success and _valid(cmd)
+    assert diag.status.startswith("cold sqp: QP_Failed (stub); cold sqp: Solve_Succeeded")
+    assert ctrl.counters.cold_solves == 2 and ctrl.counters.converged == 1

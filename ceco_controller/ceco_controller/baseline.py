@@ -4,17 +4,20 @@ The law itself (PI + anti-windup on T_cab vs 26 degC, demand mapped to the
 evaporator set-point and the blower curve) is :mod:`ceco_core.acc_law`:
 it is the vehicle ECU's code, which the plant side also uses as the fallback.
 This wrapper only converts an :class:`Observation` into its input and its
-output into ``(AcInput, Diagnostics)``. It uses no preview.
+output into ``(AcInput, Diagnostics)``. It uses no preview. A cabin air temperature outside the
+plausible range (:class:`ceco_core.observation_check.ObservationLimits`) counts as a sensor fault:
+the law holds its last command.
 """
 
 from __future__ import annotations
 
 import math
 
-from ceco_core.acc_law import AccLaw, AccSettings
-from ceco_core.contracts import AcInput
+import numpy as np
 
-from ceco_core.contracts import ACTUATOR_LIMITS, Diagnostics, Observation
+from ceco_core.acc_law import AccLaw, AccSettings
+from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
+from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits
 
 __all__ = ["BaselineController"]
 
@@ -22,24 +25,36 @@ __all__ = ["BaselineController"]
 class BaselineController:
     """``compute(obs) -> (AcInput, Diagnostics)`` running the production ACC law every ``Ts``."""
 
-    def __init__(self, settings: AccSettings | None = None, control_period_s: float = 5.0):
+    def __init__(self, settings: AccSettings | None = None, control_period_s: float = 5.0,
+                 observation_limits: ObservationLimits = OBSERVATION_LIMITS):
         if not (math.isfinite(control_period_s) and control_period_s > 0):
             raise ValueError(f"control_period_s must be finite and > 0, got {control_period_s!r}")
         self.law = AccLaw(settings)
         self.control_period_s = float(control_period_s)
+        observation_limits.validate()
+        self.observation_limits = observation_limits
 
     def reset(self) -> None:
         """Back to the key-on state."""
         self.law.reset()
 
-    def compute(self, obs: Observation):
-        """One control step from the measured cabin air temperature.
+    def compute(self, obs: Observation, t_start: float | None = None):
+        """One control step from the measured cabin air temperature (never raises on its value).
+
+        ``t_start`` is accepted for the controllers' common interface (the NMPC's step deadline);
+        the law's cost is bounded and fixed, so it is not used.
 
         The ambient and sun-load sensors and the occupant's current upper PMV bound
         go to the law too; the plain law (the default settings) ignores them.
         """
-        cmd = self.law.step(obs.t_cab_c, self.control_period_s, t_amb_c=obs.t_amb_c, solar_wm2=obs.solar_wm2,
-                            pmv_ub=float(obs.pmv_ub[0]))
+        lo, hi = self.observation_limits.temperature_c
+        try:
+            t_cab = float(obs.t_cab_c)
+        except (TypeError, ValueError, OverflowError):
+            t_cab = math.nan
+        pmv_ub = float(obs.pmv_ub[0]) if np.size(obs.pmv_ub) else None
+        cmd = self.law.step(t_cab if lo <= t_cab <= hi else math.nan, self.control_period_s, t_amb_c=obs.t_amb_c,
+                            solar_wm2=obs.solar_wm2, pmv_ub=pmv_ub)
         if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
             raise AssertionError(f"ACC law produced an out-of-bounds command {cmd}")
         diag = Diagnostics(k=obs.k, t_s=obs.t_s, status=cmd.mode, mdot_bl_kgps=cmd.mdot_bl_kgps,

@@ -1,44 +1,45 @@
-"""``ceco bench nmpc``: NMPC solve times in closed loop against a reference solver.
+"""``ceco bench nmpc``: NMPC solve and step times in closed loop against a reference solver.
 
-For each CECO strategy and horizon Np in (6, 12, 24, 60), a closed-loop SC03
-run is simulated with the product solver settings. At every control step the
-very same NLP instance (same parameters) is also solved by the reference:
-CasADi + IPOPT with its default settings and no warm start (what the paper's
-MPCTools did), started from the same model-rollout guess a cold solve gets.
-Printed: per-step solve time (median, p95, max) of both, the speed-up of the
-medians, and the largest relative difference of the optimal costs over the
-steps where both solvers report success, with its sign (the NLP is
-non-convex: during the pull-down the two solvers can end in different local
-optima; ``max_rel_cost_excess`` is how much *worse* the product's optimum was).
-Last line: one JSON object.
+For each CECO strategy and horizon Np in (6, 12, 24, 60), a closed-loop SC03 run is simulated
+with the product solver settings. At every control step the very same NLP instance (same
+parameters) is also solved by the reference: CasADi + IPOPT with its default settings and no
+warm start (what the paper's MPCTools did), started from the same model-rollout guess a cold
+solve gets. Printed per case: solve time (median, p95, max) of both and the speed-up of the
+medians; the whole control step (observation built, checks, solve chain, command; median,
+p99); the largest relative difference of the optimal costs over the steps where both solvers
+report success, with its sign (the NLP is non-convex: ``max_rel_cost_excess`` is how much *worse*
+the product's optimum was); the steps without a usable NMPC solution (``failures``).
 
-This is a benchmark, not a test: wall-clock times depend on the machine and
-its load (2 shared cores here); nothing in the controller uses them.
+Then the slow-down table (:func:`ceco_controller.bench_cases.slowdown_table`, SC03, Np = 6):
+the time budgets divided by 1, 10 and 100, full SQP and the bounded-cost mode (one QP per step),
+steps under NMPC control and the bounded-cost mode's optimality loss. Last line: one JSON object.
 
-    python -m ceco_controller.bench nmpc [--quick] [--jit | --no-codegen] [--horizons 6,12] [--strategies ceco,ceco-c]
-                                         [--method auto|ipopt|sqpmethod|fatrop]
-                                         [--transcription auto|single-shooting|multiple-shooting]
+This is a benchmark, not a test: wall-clock times depend on the machine and its load (2 shared
+cores here, ``os.getloadavg`` printed); only ratios measured in the same run compare.
 
-``--method`` / ``--transcription`` pick the product solver and NLP transcription
-(``SolverSettings.name`` / ``.transcription``; default: the controller's defaults, 'auto':
-SQP on the single-shooting NLP up to Np = 12, warm IPOPT on the multiple-shooting NLP beyond).
-sqpmethod/fatrop run with their IPOPT fallback: a failed warm solve is retried with warm IPOPT,
-and its time counts in the product's; the number of retries is printed (``ipopt fallbacks``).
+    python -m ceco_controller.bench nmpc [--quick] [--jit | --no-codegen] [--horizons 6,12]
+        [--strategies ceco,ceco-c] [--method auto|ipopt|sqp|fatrop]
+        [--transcription auto|single-shooting|multiple-shooting] [--cpu-slowdown 100]
+        [--slowdown-factors 1,10,100 | --slowdown-factors ''] [--no-prepare] [--robustness] [--rti-cases]
+
+``--cpu-slowdown F`` runs the main cases with every time budget divided by F (an ECU F times
+slower). ``--robustness`` adds the sweep over every benchmark scenario and preview fault
+(:func:`~ceco_controller.bench_cases.robustness`); ``--rti-cases`` the bounded-cost mode against the
+full SQP on every benchmark scenario. ``--no-prepare``: the first step is solved
+inside its budget instead of by :meth:`NmpcController.prepare` before the controller takes over.
 
 The reference is always the multiple-shooting NLP (MPCTools' transcription) with IPOPT's
-defaults. When the product's NLP is the single-shooting one, IPOPT's defaults on that NLP are
-timed as well (``ref_same_nlp_median_ms``), so the speed-up can be read against either
-formulation.
-
-The product solver runs with ``codegen`` (compiled NLP functions from the on-disk
-cache; the first run compiles each NLP once). The reference always uses the
-in-process functions, as MPCTools did.
+defaults, in-process functions; when the product's NLP is the single-shooting one, IPOPT's
+defaults on that NLP are timed as well (``ref_same_nlp_median_ms``). The product solver runs
+with ``codegen`` (compiled functions from the on-disk cache; ``python -m
+ceco_controller.nlp_cache --fill`` compiles them ahead of time).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 
 import numpy as np
@@ -47,17 +48,21 @@ from ceco_v2x_preview.scenario import load_scenario
 
 from . import closed_loop as cl
 from . import model as cm
-from .nmpc import NlpData
-from .strategies import CECO_STRATEGIES, SolverSettings
+from .bench_cases import BENCH_SCENARIOS, budget_settings, robustness, slowdown_table, timed_run
+from .solvers import NlpData
+from .strategies import CECO_STRATEGIES, SOLVER_NAMES, SolverSettings
 
 __all__ = ["main", "bench_nmpc"]
+
+_DEFAULT = SolverSettings()
 
 
 def _stats(x):
     x = np.asarray(x, float)
     if x.size == 0:
-        return {"median": float("nan"), "p95": float("nan"), "max": float("nan")}
-    return {"median": float(np.median(x)), "p95": float(np.percentile(x, 95)), "max": float(np.max(x))}
+        return {"median": float("nan"), "p95": float("nan"), "p99": float("nan"), "max": float("nan")}
+    return {"median": float(np.median(x)), "p95": float(np.percentile(x, 95)), "p99": float(np.percentile(x, 99)),
+            "max": float(np.max(x))}
 
 
 def _json_float(v: float) -> float | None:
@@ -65,81 +70,140 @@ def _json_float(v: float) -> float | None:
     return None if v != v else v
 
 
+def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) -> tuple[dict, np.ndarray]:
+    ctrl = cl.make_controller(strat, sc, sc.control.control_period_s, np_, mp, overrides)
+    # the reference: MPCTools' transcription (multiple shooting), IPOPT defaults, in-process functions
+    ref_ctrl = cl.make_controller(strat, sc, sc.control.control_period_s, np_, mp, {
+        "solver": SolverSettings(name="ipopt", default_options=True, transcription="multiple-shooting")})
+    # and, if the product's transcription differs, IPOPT defaults on the product's own NLP
+    same_solver = (ctrl.make_solver(SolverSettings(name="ipopt", default_options=True))
+                   if ctrl.transcription != "multiple-shooting" else None)
+    acc = {k: [] for k in ("ours_t", "ref_t", "diffs", "sdiffs", "ours_it", "ref_it", "same_t")}
+    fails = {"n_fail": 0, "n_ref_fail": 0, "n_ref_same_nlp_fail": 0}
+
+    def on_step(obs, cmd, diag):
+        data = ctrl.last_nlp()
+        if diag.solve_time_ms is not None:
+            acc["ours_t"].append(diag.solve_time_ms)
+            acc["ours_it"].append(diag.iterations if diag.iterations is not None else np.nan)
+        fails["n_fail"] += diag.fallback != ""
+        if data is None:
+            return
+        # the reference solves the same instance from the cold model-rollout guess
+        ref = ref_ctrl.solve_nlp(NlpData(p=data.p, x0=ref_ctrl.initial_guess(data.p)), ref_ctrl.solver)
+        if same_solver is not None:
+            same = ctrl.solve_nlp(NlpData(p=data.p, x0=ctrl.initial_guess(data.p)), same_solver)
+            acc["same_t"].append(same.time_ms)
+            fails["n_ref_same_nlp_fail"] += not same.success
+        acc["ref_t"].append(ref.time_ms)
+        acc["ref_it"].append(ref.iterations)
+        fails["n_ref_fail"] += not ref.success
+        if ref.success and diag.success and diag.cost_total is not None:
+            acc["sdiffs"].append((diag.cost_total - ref.f) / max(abs(ref.f), 1e-9))
+            acc["diffs"].append(abs(acc["sdiffs"][-1]))
+
+    res, step_ms = timed_run(ctrl, sc, strat, cl.SimSettings(horizon_steps=np_, duration_s=duration_s,
+                                                             progress=progress), on_step, prepare)
+    o, r, sm, st = _stats(acc["ours_t"]), _stats(acc["ref_t"]), _stats(acc["same_t"]), _stats(step_ms)
+    diffs, sdiffs, c = acc["diffs"], acc["sdiffs"], ctrl.counters
+    row = {"strategy": strat, "np": np_, "solver": ctrl.settings.solver.name + ("-rti" if ctrl.settings.solver.rti
+                                                                                else ""),
+           "transcription": ctrl.transcription, "steps": len(step_ms),
+           "budget_ms": 1e3 * ctrl.settings.solver.step_budget_s,
+           "ours_median_ms": o["median"], "ours_p95_ms": o["p95"], "ours_max_ms": o["max"],
+           "ours_iter_median": float(np.nanmedian(acc["ours_it"])) if acc["ours_it"] else float("nan"),
+           "step_median_ms": st["median"], "step_p99_ms": st["p99"], "step_max_ms": st["max"],
+           "ref_median_ms": r["median"], "ref_p95_ms": r["p95"], "ref_max_ms": r["max"],
+           "ref_iter_median": float(np.median(acc["ref_it"])) if acc["ref_it"] else float("nan"),
+           "ref_same_nlp_median_ms": sm["median"],
+           "speedup_median": r["median"] / o["median"] if o["median"] > 0 else float("nan"),
+           "max_rel_cost_diff": max(diffs) if diffs else float("nan"),
+           "max_rel_cost_excess": max(max(sdiffs), 0.0) if sdiffs else float("nan"),
+           "n_rel_cost_diff_gt_1e-4": int(sum(d > 1e-4 for d in diffs)),
+           **fails, "failures": fails["n_fail"], "n_ipopt_fallbacks": ctrl.n_ipopt_fallbacks,
+           "accepted_iterates": c.accepted_iterates, "deadline_hits": c.deadline_hits,
+           "load_1min": os.getloadavg()[0]}
+    return row, step_ms
+
+
 def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03", progress=False,
-               codegen=True, method=SolverSettings().name,
-               transcription=SolverSettings().transcription) -> list[dict]:
-    """Run the benchmark; return one dict per (strategy, horizon)."""
+               codegen=True, method=_DEFAULT.name, transcription=_DEFAULT.transcription,
+               cpu_slowdown: float = 1.0, prepare: bool = True) -> tuple[list[dict], dict]:
+    """Run the benchmark; return one dict per (strategy, horizon) and the whole-step times per horizon [ms]."""
     sc = load_scenario(scenario)
     mp = cm.load_params()
-    rows = []
+    rows, steps = [], {}
     for np_ in horizons:
         for strat in strategies:
-            overrides = {"solver": SolverSettings(name=method, jit=jit, codegen=codegen and not jit,
-                                                  transcription=transcription)}
-            ctrl = cl.make_controller(strat, sc, sc.control.control_period_s, np_, mp, overrides)
-            # the reference: MPCTools' transcription (multiple shooting), IPOPT defaults, in-process functions
-            ref_ctrl = cl.make_controller(strat, sc, sc.control.control_period_s, np_, mp, {
-                "solver": SolverSettings(name="ipopt", default_options=True, transcription="multiple-shooting")})
-            # and, if the product's transcription differs, IPOPT defaults on the product's own NLP
-            same_solver = (ctrl.make_solver(SolverSettings(name="ipopt", default_options=True))
-                           if ctrl.transcription != "multiple-shooting" else None)
-            ours_t, ref_t, diffs, sdiffs, ours_it, ref_it, same_t = [], [], [], [], [], [], []
-            n_fail = n_ref_fail = n_same_fail = 0
-            orig = ctrl.compute
-
-            def compute(obs, _orig=orig, _ctrl=ctrl):
-                nonlocal n_fail, n_ref_fail, n_same_fail
-                cmd, diag = _orig(obs)
-                data = _ctrl.last_nlp()
-                if diag.solve_time_ms is not None:
-                    ours_t.append(diag.solve_time_ms)
-                    ours_it.append(diag.iterations)
-                if not diag.success:
-                    n_fail += 1
-                # the reference solves the same instance from the cold model-rollout guess
-                ref = ref_ctrl.solve_nlp(NlpData(p=data.p, x0=ref_ctrl.initial_guess(data.p)), ref_ctrl.solver)
-                if same_solver is not None:
-                    same = _ctrl.solve_nlp(NlpData(p=data.p, x0=_ctrl.initial_guess(data.p)), same_solver)
-                    same_t.append(same["time_ms"])
-                    n_same_fail += not same["success"]
-                ref_t.append(ref["time_ms"])
-                ref_it.append(ref["iterations"])
-                if not ref["success"]:
-                    n_ref_fail += 1
-                if ref["success"] and diag.success and diag.cost_total is not None:
-                    sdiffs.append((diag.cost_total - ref["f"]) / max(abs(ref["f"]), 1e-9))
-                    diffs.append(abs(sdiffs[-1]))
-                return cmd, diag
-
-            ctrl.compute = compute
-            cl.simulate(sc, strat, cl.SimSettings(horizon_steps=np_, duration_s=duration_s, progress=progress),
-                        controller=ctrl)
-            o, r, sm = _stats(ours_t), _stats(ref_t), _stats(same_t)
-            rows.append({"strategy": strat, "np": np_, "solver": ctrl.settings.solver.name,
-                         "transcription": ctrl.transcription, "steps": len(ours_t),
-                         "ours_median_ms": o["median"], "ours_p95_ms": o["p95"], "ours_max_ms": o["max"],
-                         "ours_iter_median": float(np.median(ours_it)) if ours_it else float("nan"),
-                         "ref_median_ms": r["median"], "ref_p95_ms": r["p95"], "ref_max_ms": r["max"],
-                         "ref_iter_median": float(np.median(ref_it)) if ref_it else float("nan"),
-                         "ref_same_nlp_median_ms": sm["median"],
-                         "speedup_median": r["median"] / o["median"] if o["median"] > 0 else float("nan"),
-                         "max_rel_cost_diff": max(diffs) if diffs else float("nan"),
-                         "max_rel_cost_excess": max(max(sdiffs), 0.0) if sdiffs else float("nan"),
-                         "n_rel_cost_diff_gt_1e-4": int(sum(d > 1e-4 for d in diffs)),
-                         "n_fail": n_fail, "n_ref_fail": n_ref_fail, "n_ref_same_nlp_fail": n_same_fail,
-                         "n_ipopt_fallbacks": ctrl.n_ipopt_fallbacks})
-            rr = rows[-1]
+            overrides = {"solver": budget_settings(cpu_slowdown, name=method, jit=jit, codegen=codegen and not jit,
+                                                   transcription=transcription)}
+            rr, step_ms = _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare)
+            rows.append(rr)
+            steps.setdefault(np_, []).extend(step_ms.tolist())
             print(f"{strat:10s} Np={np_:3d} steps={rr['steps']:4d}  ours median {rr['ours_median_ms']:7.2f} ms "
-                  f"p95 {rr['ours_p95_ms']:7.2f} max {rr['ours_max_ms']:7.2f} (it {rr['ours_iter_median']:.0f})  |  "
+                  f"p95 {rr['ours_p95_ms']:7.2f} max {rr['ours_max_ms']:7.2f} (it {rr['ours_iter_median']:.0f}); "
+                  f"whole step median {rr['step_median_ms']:6.2f} p99 {rr['step_p99_ms']:6.2f}  |  "
                   f"IPOPT default median {rr['ref_median_ms']:7.2f} p95 {rr['ref_p95_ms']:7.2f} "
                   f"max {rr['ref_max_ms']:7.2f} (it {rr['ref_iter_median']:.0f})"
-                  + (f" [on our NLP: median {rr['ref_same_nlp_median_ms']:.2f}]" if same_t else "")
-                  + f"  speed-up "
-                  f"{rr['speedup_median']:5.1f}x  max rel cost diff {rr['max_rel_cost_diff']:.1e} "
+                  + (f" [on our NLP: median {rr['ref_same_nlp_median_ms']:.2f}]" if rr["ref_same_nlp_median_ms"]
+                     == rr["ref_same_nlp_median_ms"] else "")
+                  + f"  speed-up {rr['speedup_median']:5.1f}x  max rel cost diff {rr['max_rel_cost_diff']:.1e} "
                   f"(ours higher by <= {rr['max_rel_cost_excess']:.1e}; {rr['n_rel_cost_diff_gt_1e-4']} steps > 1e-4)  "
-                  f"fails {n_fail}/{n_ref_fail}  [{rr['solver']}, {rr['transcription']}; "
-                  f"ipopt fallbacks {ctrl.n_ipopt_fallbacks}]", flush=True)
-    return rows
+                  f"failures {rr['failures']} (ref fails {rr['n_ref_fail']})  [{rr['solver']}, {rr['transcription']}; "
+                  f"ipopt retries {rr['n_ipopt_fallbacks']}, iterates {rr['accepted_iterates']}; budget "
+                  f"{rr['budget_ms']:.0f} ms; load {rr['load_1min']:.1f}]", flush=True)
+    return rows, steps
+
+
+def _summary(rows, steps, args, codegen, horizons, strategies, duration) -> dict:
+    # The np6_* keys summarise Np = 6 only; without an Np = 6 run they are null
+    # (never the numbers of another horizon under the np6 name).
+    np6 = [r for r in rows if r["np"] == 6]
+
+    def _np6(values, reduce):
+        return float(reduce(values)) if np6 else None
+
+    s6 = np.asarray(steps.get(6, []), float)
+    return {
+        "np6_median_ms": _np6([r["ours_median_ms"] for r in np6], np.median),
+        "np6_p95_ms": _np6([r["ours_p95_ms"] for r in np6], np.max),
+        "np6_max_ms": _np6([r["ours_max_ms"] for r in np6], np.max),
+        "np6_step_median_ms": float(np.median(s6)) if s6.size else None,
+        "np6_step_p99_ms": float(np.percentile(s6, 99)) if s6.size else None,
+        "np6_ref_median_ms": _np6([r["ref_median_ms"] for r in np6], np.median),
+        "np6_speedup_vs_ipopt_default": (float(np.median([r["ref_median_ms"] for r in np6])
+                                               / np.median([r["ours_median_ms"] for r in np6])) if np6 else None),
+        "max_rel_cost_diff": float(np.nanmax([r["max_rel_cost_diff"] for r in rows])),
+        "max_rel_cost_excess": float(np.nanmax([r["max_rel_cost_excess"] for r in rows])),
+        "n_steps_rel_cost_diff_gt_1e-4": int(sum(r["n_rel_cost_diff_gt_1e-4"] for r in rows)),
+        "n_steps": int(sum(r["steps"] for r in rows)),
+        "failures": int(sum(r["failures"] for r in rows)),
+        "solver": (args.method + "-warm-" + args.transcription) + ("+jit" if args.jit else "")
+                  + ("+codegen" if codegen and args.method != "fatrop" else ""),
+        "np6_solver": sorted({f"{r['solver']}/{r['transcription']}" for r in np6}),
+        "n_ipopt_fallbacks": int(sum(r["n_ipopt_fallbacks"] for r in rows)),
+        "accepted_iterates": int(sum(r["accepted_iterates"] for r in rows)),
+        "cpu_slowdown": args.cpu_slowdown,
+        "prepare": not args.no_prepare,
+        "horizons": horizons,
+        "strategies": strategies,
+        "duration_s": duration,
+        "load_1min": os.getloadavg()[0],
+    }
+
+
+def _median_or_none(values) -> float | None:
+    return float(np.median(values)) if len(values) else None
+
+
+def _clean(v):
+    if isinstance(v, float):
+        return _json_float(round(v, 6))
+    if isinstance(v, dict):
+        return {k: _clean(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_clean(x) for x in v]
+    return v
 
 
 def main(argv=None) -> int:
@@ -153,53 +217,80 @@ def main(argv=None) -> int:
     ap.add_argument("--horizons", default=None, help="comma-separated horizons (default 6,12,24,60)")
     ap.add_argument("--strategies", default=None, help=f"comma-separated subset of {','.join(CECO_STRATEGIES)}")
     ap.add_argument("--duration", type=float, default=None, help="run length [s] (default: whole SC03)")
-    ap.add_argument("--method", choices=["auto", "ipopt", "sqpmethod", "fatrop"], default=SolverSettings().name,
-                    help=f"product solver (SolverSettings.name; default {SolverSettings().name})")
+    ap.add_argument("--method", choices=list(SOLVER_NAMES), default=_DEFAULT.name,
+                    help=f"product solver (SolverSettings.name; default {_DEFAULT.name})")
     ap.add_argument("--transcription", choices=["auto", "single-shooting", "multiple-shooting"],
-                    default=SolverSettings().transcription,
-                    help=f"product NLP transcription (default {SolverSettings().transcription}); the reference is "
+                    default=_DEFAULT.transcription,
+                    help=f"product NLP transcription (default {_DEFAULT.transcription}); the reference is "
                          "always multiple shooting")
+    ap.add_argument("--cpu-slowdown", type=float, default=1.0,
+                    help="divide every time budget of the main cases by this (an ECU that many times slower)")
+    ap.add_argument("--slowdown-factors", default="1,10,100",
+                    help="factors of the slow-down table (SC03, Np = 6); '' skips it")
+    ap.add_argument("--no-prepare", action="store_true", help="no first solve before the controller takes over")
+    ap.add_argument("--robustness", action="store_true",
+                    help="also run every benchmark scenario x preview fault and count failures")
+    ap.add_argument("--rti-cases", action="store_true",
+                    help="also compare the bounded-cost mode with the full SQP on every benchmark scenario")
     ap.add_argument("--progress", action="store_true", help="show progress bars")
     args = ap.parse_args(argv)
+    if not args.cpu_slowdown > 0:
+        ap.error("--cpu-slowdown must be > 0")
     horizons = [int(h) for h in args.horizons.split(",")] if args.horizons else ([6, 12] if args.quick
                                                                                  else [6, 12, 24, 60])
     strategies = args.strategies.split(",") if args.strategies else list(CECO_STRATEGIES)
     duration = args.duration if args.duration is not None else (200.0 if args.quick else None)
     codegen = not args.no_codegen and not args.jit
     print(f"ceco bench nmpc: product solver {args.method}, transcription {args.transcription}"
-          + (", compiled functions" if codegen and args.method != "fatrop" else ", in-process functions"), flush=True)
-    rows = bench_nmpc(strategies, horizons, duration, jit=args.jit, progress=args.progress, codegen=codegen,
-                      method=args.method, transcription=args.transcription)
-    # The np6_* keys summarise Np = 6 only; without an Np = 6 run they are null
-    # (never the numbers of another horizon under the np6 name).
-    np6 = [r for r in rows if r["np"] == 6]
-
-    def _np6(values, reduce):
-        return float(reduce(values)) if np6 else None
-
-    summary = {
-        "np6_median_ms": _np6([r["ours_median_ms"] for r in np6], np.median),
-        "np6_p95_ms": _np6([r["ours_p95_ms"] for r in np6], np.max),
-        "np6_max_ms": _np6([r["ours_max_ms"] for r in np6], np.max),
-        "np6_ref_median_ms": _np6([r["ref_median_ms"] for r in np6], np.median),
-        "np6_speedup_vs_ipopt_default": (float(np.median([r["ref_median_ms"] for r in np6])
-                                               / np.median([r["ours_median_ms"] for r in np6])) if np6 else None),
-        "max_rel_cost_diff": float(np.nanmax([r["max_rel_cost_diff"] for r in rows])),
-        "max_rel_cost_excess": float(np.nanmax([r["max_rel_cost_excess"] for r in rows])),
-        "n_steps_rel_cost_diff_gt_1e-4": int(sum(r["n_rel_cost_diff_gt_1e-4"] for r in rows)),
-        "n_steps": int(sum(r["steps"] for r in rows)),
-        "solver": (args.method + "-warm-" + args.transcription) + ("+jit" if args.jit else "")
-                  + ("+codegen" if codegen and args.method != "fatrop" else ""),
-        "np6_solver": sorted({f"{r['solver']}/{r['transcription']}" for r in np6}),
-        "n_ipopt_fallbacks": int(sum(r["n_ipopt_fallbacks"] for r in rows)),
-        "horizons": horizons,
-        "strategies": strategies,
-        "duration_s": duration,
-        "per_case": [{k: (_json_float(round(v, 4)) if isinstance(v, float) else v) for k, v in r.items()}
-                     for r in rows],
-    }
-    summary = {k: (_json_float(v) if isinstance(v, float) else v) for k, v in summary.items()}
-    print(json.dumps(summary, allow_nan=False))
+          + (", compiled functions" if codegen and args.method != "fatrop" else ", in-process functions")
+          + f", budgets / {args.cpu_slowdown:g}; load {os.getloadavg()[0]:.1f}", flush=True)
+    rows, steps = bench_nmpc(strategies, horizons, duration, jit=args.jit, progress=args.progress, codegen=codegen,
+                             method=args.method, transcription=args.transcription, cpu_slowdown=args.cpu_slowdown,
+                             prepare=not args.no_prepare)
+    summary = _summary(rows, steps, args, codegen, horizons, strategies, duration)
+    factors = [float(f) for f in args.slowdown_factors.split(",") if f.strip()]
+    if factors:
+        print(f"slow-down table (SC03, Np = 6, budgets / factor; load {os.getloadavg()[0]:.1f}):", flush=True)
+        table = slowdown_table(strategies, factors, duration_s=duration, codegen=codegen,
+                               prepare=not args.no_prepare, progress=args.progress)
+        summary["slowdown"] = [
+            {"factor": f, "mode": mode,
+             "budget_ms": next(r["budget_ms"] for r in table if r["factor"] == f),
+             "steps": sum(r["steps"] for r in table if r["factor"] == f and r["mode"] == mode),
+             "steps_nmpc": sum(r["nmpc"] for r in table if r["factor"] == f and r["mode"] == mode),
+             "steps_shifted_plan": sum(r["shifted_plan"] for r in table if r["factor"] == f and r["mode"] == mode),
+             "steps_acc_law": sum(r["acc_law"] for r in table if r["factor"] == f and r["mode"] == mode),
+             "accepted_iterates": sum(r["accepted_iterates"] for r in table if r["factor"] == f and r["mode"] == mode),
+             "step_p99_ms": max(r["step_p99_ms"] for r in table if r["factor"] == f and r["mode"] == mode),
+             "max_cpu_past_deadline_ms": max(r["max_cpu_past_deadline_ms"] for r in table
+                                             if r["factor"] == f and r["mode"] == mode),
+             "rti_loss_median": _median_or_none([r["rti_loss_median"] for r in table if r["factor"] == f
+                                                 and r["mode"] == mode and r["rti_loss_median"] is not None]),
+             "rti_loss_max": max((r["rti_loss_max"] for r in table if r["factor"] == f and r["mode"] == mode
+                                  and r["rti_loss_max"] is not None), default=None),
+             "dE_vs_full_1x_pct_max": max((r.get("dE_vs_full_1x_pct", 0.0) for r in table if r["factor"] == f
+                                           and r["mode"] == mode), default=None),
+             "dI_pmv_vs_full_1x_pct_max": max((r.get("dI_pmv_vs_full_1x_pct", 0.0) for r in table
+                                               if r["factor"] == f and r["mode"] == mode), default=None)}
+            for f in factors for mode in ("full", "rti")]
+        summary["slowdown_cases"] = table
+    if args.rti_cases:
+        print(f"bounded-cost mode on every benchmark scenario (budget 1x; load {os.getloadavg()[0]:.1f}):", flush=True)
+        cases = []
+        for name in BENCH_SCENARIOS:
+            for r in slowdown_table(strategies, (1.0,), scenario=name, codegen=codegen, prepare=not args.no_prepare,
+                                    progress=args.progress):
+                cases.append({"scenario": name, **r})
+        summary["rti_cases"] = cases
+    if args.robustness:
+        print(f"robustness (every scenario x preview fault; load {os.getloadavg()[0]:.1f}):", flush=True)
+        rob = robustness(strategies, codegen=codegen, progress=args.progress)
+        summary["robustness"] = {"runs": len(rob), "steps": sum(r["steps"] for r in rob),
+                                 "failures": sum(r["failures"] for r in rob),
+                                 "retries": sum(r["retries"] for r in rob),
+                                 "accepted_iterates": sum(r["accepted_iterates"] for r in rob)}
+    summary["per_case"] = rows
+    print(json.dumps(_clean(summary), allow_nan=False))
     return 0
 
 

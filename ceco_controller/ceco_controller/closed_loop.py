@@ -80,6 +80,9 @@ class SimSettings:
     only: the NMPC keeps its nominal comfort model."""
     controller_config_path: str | None = None
     """Controller settings file; None: ceco_controller/config/controller.yaml."""
+    prepare_first_step: bool = False
+    """Before the first step, let an NMPC solve it without deadline (``NmpcController.prepare``), as
+    a node that does so before taking control; off: the first step is a cold solve inside it."""
     measurements: str = "full"
     """'full': the controller reads every state it models; 'vehicle': only the production sensors,
     T_int, T_shell and T_glass estimated (``ceco_controller.estimator``; docs/controller.md section 5)."""
@@ -176,6 +179,8 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
             k = i // steps_per_ctrl
             pv = make_previews(scenario, t, ts, n_p + 1, quality)
             obs = observation(k, t, sp.meas, scenario.env_at(t), sp.cmd, pv, scenario)
+            if k == 0 and settings.prepare_first_step and hasattr(controller, "prepare"):
+                controller.prepare(obs)
             t_step = time.perf_counter()
             cmd, diag = controller.compute(obs)
             step_times.append(time.perf_counter() - t_step)

@@ -81,6 +81,7 @@ Pure logic: numpy, CasADi, dataclasses; no ROS, no plant.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 import pathlib
@@ -726,10 +727,22 @@ class EstimatingController:
             "mdot_bl_prev_kgps": est.mdot_bl_prev_kgps, "t_evap_sp_prev_c": est.t_evap_sp_prev_c}
         return dataclasses.replace(obs, **fields)
 
-    def compute(self, obs: Observation):
-        """One control step: estimate, then the wrapped controller's ``compute``."""
+    def prepare(self, obs: Observation):
+        """The wrapped controller's ``prepare`` on the observation :meth:`compute` will see for ``obs``.
+
+        The estimate is taken from a copy of the estimator, so the following ``compute(obs)``
+        updates the real one exactly once for that sample.
+        """
+        if not hasattr(self.inner, "prepare"):  # the ACC law has nothing to prepare
+            return None
+        probe = EstimatingController(self.inner, copy.deepcopy(self.estimator))
+        return self.inner.prepare(probe.estimated_observation(obs))
+
+    def compute(self, obs: Observation, t_start: float | None = None):
+        """One control step: estimate, then the wrapped controller's ``compute`` (``t_start``: the
+        step's start on the controller's clock, passed on so the estimate counts against the deadline)."""
         obs_est = self.estimated_observation(obs)
-        cmd, diag = self.inner.compute(obs_est)
+        cmd, diag = self.inner.compute(obs_est, t_start=t_start)
         assert self.last_estimate is not None
         note = self.last_estimate.describe()
         if note:

@@ -1,101 +1,134 @@
-"""CECO nonlinear MPC (CasADi): ceco, ceco-e, ceco-c, ceco-ioch.
+"""CECO nonlinear MPC (CasADi): ceco, ceco-e, ceco-c, ceco-ioch, as a receding-horizon controller.
 
-The NLP (written out in docs/controller.md) is built once per controller,
-parametric in the initial state, the held interior/shell temperatures, the
-bias estimates, the previous command, the weather and speed previews and the
-PMV bounds; it is re-solved every control period, warm-started from the
-shifted previous primal-dual solution, and bounded in iterations and CPU time.
+The pieces (docs/controller.md 4):
 
-Transcription (``SolverSettings.transcription``, default 'auto'): single
-shooting up to Np = 12 (the states are the model's rollout expressions of the
-inputs), multiple shooting beyond, with stage-wise variable order so the
-problem has the optimal-control structure that IPOPT's sparse linear algebra
-and fatrop exploit:
+* :mod:`.nlp_layout`    named slices of the NLP's parameter, variable and constraint vectors;
+* :mod:`.transcription` the NLP (model, cost, constraints) by single or multiple shooting;
+* :mod:`.warmstart`     the cold model-rollout guess and the shifted warm start;
+* :mod:`.sqp`           ceco's dense SQP (exact eigenvalue convexification, real-time iteration);
+* :mod:`.solvers`       the solvers built once per NLP, each returning a :class:`SolveResult`;
+* :mod:`.chain`         which solver tries an instance from which start, and what is usable;
+* :mod:`.offset_free`   the bias estimates;
+* this module           the control step: checks, fallbacks, hand-over, deadline.
 
-    w = [u_0, s_0, x_1, u_1, s_1, ..., x_N, s_N]   (x_0 is the measured state, a parameter;
-                                                    single shooting: no x_i)
-    x_i = (T_cab, T_evap [degC], mdot_{i-1} [kg/s], T_evap_sp_{i-1} [degC]),
-    u_i = (mdot_bl [kg/s], T_evap_sp [degC])
-    s_i = (s_lo, s_up [PMV], s_ev [K] (i >= 1), eps [PMV] (ceco-ioch))
+One control step (:meth:`NmpcController.compute`), bounded by the wall-clock budget
+``SolverSettings.step_budget_s`` counted from ``t_start``:
 
-Solvers (``SolverSettings.name``): warm ``sqpmethod`` (default: exact Hessian,
-eigen-clip, dense qpOASES) or fatrop, with IPOPT doing the cold solves and
-retrying at once any warm solve they fail (``n_ipopt_fallbacks``); or warm IPOPT.
+1. every :class:`Observation` field is checked (:func:`ceco_core.observation_check.check_observation`);
+   an implausible measurement or comfort zone hands this step to the ACC law; an implausible
+   previous command is replaced by the command this controller applied; implausible preview
+   entries count as not valid;
+2. bias estimates updated, parameters built, the solve chain run (:class:`~.chain.SolveChain`);
+3. a usable result is applied; otherwise the last good plan shifted by the steps since it was
+   computed (``fallback='shifted_plan'``) while it lasts, then the production ACC law
+   (``fallback='baseline'``). While the NMPC is in charge the law tracks the applied command, so
+   it takes over without a bump (:meth:`ceco_core.acc_law.AccLaw.track`).
 
-Fallbacks: a failed or invalid solve applies the previous plan shifted by
-one step; with no plan left, or no usable measurement, the production
-ACC law (run alongside so its integrator is warm) is applied. Every command
-is validated against the hard actuator bounds before it is returned.
+Every command is validated against the hard actuator bounds before it is returned.
 """
 
 from __future__ import annotations
 
-import contextlib
-import ctypes
+import copy
 import dataclasses
-import hashlib
-import io
-import logging
 import math
-import os
-import pathlib
-import shutil
-import subprocess
-import tempfile
 import time
+from collections.abc import Callable
 
-import casadi
 import numpy as np
 
-from ceco_core.acc_law import AccLaw, AccSettings
 from ceco_core import psychro
-from ceco_core.cabin_comfort import (
-    PAPER_PA_PA,
-    ComfortParams,
-    cabin_draught_pct,
-    cabin_mrt_c,
-    cabin_pmv,
-    cabin_w_rad_wm2,
-)
-from ceco_core.contracts import AcInput
+from ceco_core.acc_law import AccLaw, AccSettings
+from ceco_core.cabin_comfort import PAPER_PA_PA, ComfortParams, cabin_mrt_c
+from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
+from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits, check_observation
 
 from . import model as cm
-from ceco_core.contracts import ACTUATOR_LIMITS, Diagnostics, Observation
-from .strategies import StrategySettings, auto_solver_name, resolve_auto, strategy_settings
+from .chain import BOUND_TOL, ColdPath, GoodSolution, SolveChain
+from .codegen import codegen_cache_dir, compile_nlp
+from .offset_free import BiasEstimator
+from .solvers import NlpData, NlpSolver, SolveResult, build_solver
+from .strategies import SolverSettings, StrategySettings, resolve_auto, strategy_settings
+from .transcription import Evaluation, build_problem
+from .warmstart import initial_guess
 
-__all__ = ["NmpcController", "NlpData", "codegen_cache_dir", "compile_nlp"]
-
-_LOG = logging.getLogger(__name__)
-
-_BOUND_TOL = 1e-6
-"""Numerical tolerance on the solver's actuator bounds [same unit]: within it a
-command is clipped to the bound; beyond it the solve counts as failed."""
-
-_SLACK_GUESS_MARGIN = 1e-5
-"""Margin of the guessed comfort/T_evap slacks above their smallest feasible value [PMV or K]: near
-the warm solver's barrier (slack x multiplier ~ 1e-5 x rho); 1e-3 started the warm solves with a
-complementarity of ~1 and cost one IPOPT iteration (docs/controller.md 4.6)."""
-
-_N_P_FIXED = 9
-"""Scalar parameters before the per-stage ones (x0[2], t_int, t_shell, d_cab, d_evap, d_ain, u_prev[2]).
-After the per-stage ones come the comfort scalars t_mr [degC] and p_a [Pa] (``_N_P_COMFORT``)."""
-
-_N_P_COMFORT = 2
-"""Scalar parameters after the per-stage ones: the mean radiant temperature and the vapour pressure."""
+__all__ = ["NmpcController", "StepCounters", "NlpData", "SolveResult", "codegen_cache_dir", "compile_nlp",
+           "fill_previews", "nominal_observation"]
 
 
 @dataclasses.dataclass
-class NlpData:
-    """The numeric data of one NLP instance (for benchmarks and tests)."""
+class StepCounters:
+    """What the control steps since construction (or :meth:`NmpcController.reset`) did, by name."""
 
-    p: np.ndarray
-    """Parameter vector."""
-    x0: np.ndarray
-    """Primal initial guess."""
-    lam_x0: np.ndarray | None = None
-    """Initial guess of the bound multipliers."""
-    lam_g0: np.ndarray | None = None
-    """Initial guess of the constraint multipliers."""
+    steps: int = 0
+    """Calls of compute."""
+    converged: int = 0
+    """Steps applying a converged solution."""
+    accepted_iterates: int = 0
+    """Steps applying an iterate returned on a time or iteration limit (small violation)."""
+    rti_steps: int = 0
+    """Steps applying a real-time iteration."""
+    retries: int = 0
+    """Warm solves that failed and were retried by the warm IPOPT."""
+    cold_solves: int = 0
+    """Cold solves attempted."""
+    shifted_plan: int = 0
+    """Steps applying the last good plan shifted."""
+    acc_law: int = 0
+    """Steps applying the production ACC law."""
+    invalid_observations: int = 0
+    """Steps whose observation was not usable (ACC law)."""
+    substituted_commands: int = 0
+    """Steps whose implausible previous command was replaced by the one this controller applied."""
+    deadline_hits: int = 0
+    """Steps in which an attempt stopped on, or was skipped because of, the deadline."""
+
+
+def fill_previews(obs: Observation, n1: int, use_speed_preview: bool,
+                  valid: np.ndarray | None = None) -> tuple[dict, int]:
+    """Exogenous series on the N + 1 grid and the number of leading trusted preview points.
+
+    The previews' leading trusted run (``valid``, default ``obs.preview_valid``, and finite), the
+    last trusted value held beyond it, the measured current value where nothing is trusted.
+    Returns ``(series, trusted)`` with series ``t_amb`` [degC], ``solar`` [W/m2] (>= 0),
+    ``speed`` [m/s] (>= 0).
+    """
+    if obs.n_preview != n1:
+        raise ValueError(f"Observation previews have {obs.n_preview} points; this controller needs Np+1 = {n1}")
+    series = {"t_amb": (obs.preview_t_amb_c, obs.t_amb_c), "solar": (obs.preview_solar_wm2, obs.solar_wm2),
+              "speed": (obs.preview_speed_mps, obs.speed_mps)}
+    ok = np.asarray(obs.preview_valid if valid is None else valid, bool).copy()
+    for arr, _ in series.values():
+        ok &= np.isfinite(arr)
+    trusted = int(np.argmin(ok)) if not ok.all() else n1
+    out = {}
+    for key, (arr, now) in series.items():
+        a = np.empty(n1)
+        if trusted > 0:
+            a[:trusted] = arr[:trusted]
+            a[trusted:] = arr[trusted - 1]
+        else:
+            a[:] = now
+        out[key] = a
+    if not use_speed_preview:
+        out["speed"] = np.full(n1, float(obs.speed_mps))
+    out["speed"] = np.maximum(out["speed"], 0.0)
+    out["solar"] = np.maximum(out["solar"], 0.0)
+    return out, trusted
+
+
+def nominal_observation(n1: int, k: int = 0) -> Observation:
+    """A plausible mid-range observation (warm cabin, sun, moving): for :meth:`NmpcController.warm_up`."""
+    def full(v):
+        return np.full(n1, v)
+    return Observation(k=k, t_s=0.0, t_cab_c=27.0, t_int_c=35.0, t_shell_c=33.0, t_evap_c=6.0, t_vent_c=9.0,
+                       t_amb_c=32.0, solar_wm2=700.0, speed_mps=15.0, mdot_bl_prev_kgps=0.1, t_evap_sp_prev_c=6.0,
+                       preview_t_amb_c=full(32.0), preview_solar_wm2=full(700.0), preview_speed_mps=full(15.0),
+                       preview_valid=np.ones(n1, bool), pmv_lb=full(-0.5), pmv_ub=full(0.5))
+
+
+def _note(diag: Diagnostics, text: str) -> None:
+    diag.message = (diag.message + "; " if diag.message else "") + text
 
 
 class NmpcController:
@@ -107,12 +140,16 @@ class NmpcController:
         model_params: identified :class:`ControlModelParams` (default: the file).
         comfort_params: :class:`ComfortParams` (met/clo of the occupant inside).
         acc_settings: settings of the fallback ACC law.
+        observation_limits: plausibility ranges of the observation's fields.
+        clock: monotonic clock [s] of the step deadline (``time.perf_counter``; tests inject one).
     """
 
     def __init__(self, strategy: str | StrategySettings = "ceco",
                  model_params: cm.ControlModelParams | None = None,
                  comfort_params: ComfortParams | None = None,
-                 acc_settings: AccSettings | None = None):
+                 acc_settings: AccSettings | None = None,
+                 observation_limits: ObservationLimits = OBSERVATION_LIMITS,
+                 clock: Callable[[], float] = time.perf_counter):
         settings = strategy_settings(strategy) if isinstance(strategy, str) else strategy
         settings.validate()
         self.settings = resolve_auto(settings)
@@ -121,6 +158,10 @@ class NmpcController:
         self.model_params.validate()
         self.comfort_params = comfort_params if comfort_params is not None else ComfortParams()
         self.comfort_params.validate()
+        observation_limits.validate()
+        self.observation_limits = observation_limits
+        self.clock = clock
+        """The clock of ``compute``'s ``t_start`` and of every deadline [s]."""
         # the NLP's PMV: the same function as the plant's, with settings.pmv_newton_steps on T_cl
         self._nlp_comfort_params = dataclasses.replace(
             self.comfort_params, smoothing=dataclasses.replace(self.comfort_params.smoothing,
@@ -130,678 +171,330 @@ class NmpcController:
         """The NLP transcription built: 'single-shooting' or 'multiple-shooting'."""
         self.lim = ACTUATOR_LIMITS
         self._acc = AccLaw(acc_settings)
-        self._build()
+        t0 = time.perf_counter()
+        self.problem = build_problem(self.settings, self.model_params, self._nlp_comfort_params,
+                                     self.transcription, self.lim)
+        """The transcribed NLP."""
+        self._bias = BiasEstimator(self.model_params, self.settings.bias_filter, self.settings.bias_limit_k,
+                                   self.n_sub, enabled=self.settings.offset_free)
+        self.chain = self._build_chain()
+        """The solve chain (warm solver, IPOPT retry, cold path)."""
+        self.build_time_s = time.perf_counter() - t0
+        """Wall time of building the NLP and its solvers [s] (compilation included when codegen compiles)."""
+        self.n_ipopt_fallbacks = 0
+        """Warm SQP/fatrop solves that failed and were retried with warm IPOPT (since construction)."""
         self.reset()
 
     # ------------------------------------------------------------------ build
-    def _build(self) -> None:
-        s, mp, cp = self.settings, self.model_params, self._nlp_comfort_params
-        n = s.horizon_steps
-        ts_kj = s.control_period_s / 1000.0  # W -> kJ over one control period
-        lim = self.lim
-        SX = casadi.SX
-
-        x0p = SX.sym("x0", 2)
-        t_int = SX.sym("t_int")
-        t_shell = SX.sym("t_shell")
-        d_cab = SX.sym("d_cab")
-        d_evap = SX.sym("d_evap")
-        d_ain = SX.sym("d_ain")
-        u_prev = SX.sym("u_prev", 2)
-        t_amb = SX.sym("t_amb", n + 1)
-        solar = SX.sym("solar", n + 1)
-        speed = SX.sym("speed", n + 1)
-        lb_pmv = SX.sym("pmv_lb", n + 1)
-        ub_pmv = SX.sym("pmv_ub", n + 1)
-        t_mr = SX.sym("t_mr")
-        pa = SX.sym("pa_pa")
-        p = casadi.vertcat(x0p, t_int, t_shell, d_cab, d_evap, d_ain, u_prev, t_amb, solar, speed,
-                           lb_pmv, ub_pmv, t_mr, pa)
-        assert p.numel() == _N_P_FIXED + 5 * (n + 1) + _N_P_COMFORT
-
-        w, lbw, ubw = [], [], []
-        g, lbg, ubg = [], [], []
-        idx = {"x": [], "u": [], "s_lo": [], "s_up": [], "s_ev": [], "eps": []}
-        e_terms, c_terms, i_terms, sl_terms, du_terms = [], [], [], [], []
-        pmv_all, tcab_all, tain_all, tevap_all = [], [], [], []
-        inf = np.inf
-
-        cons = []  # (stage, order, kind, expr, lo, hi); sorted so each stage starts with its gap constraint
-
-        def add_con(stage, order, kind, expr, lo, hi):
-            cons.append((stage, order, len(cons), kind, expr, lo, hi))
-
-        def add_var(sym, lo, hi, key):
-            idx[key].append(sum(v.numel() for v in w))
-            w.append(sym)
-            lbw.extend(np.atleast_1d(lo).tolist())
-            ubw.extend(np.atleast_1d(hi).tolist())
-
-        # Augmented state x_i = (T_cab, T_evap, mdot_{i-1}, sp_{i-1}): the move penalty and the comfort at
-        # the last grid point (which uses u_{N-1}) stay stage-local, so the multiple-shooting NLP has the
-        # exact optimal-control structure (needed by fatrop, harmless for IPOPT). Single shooting: x_i is
-        # the model's rollout expression of (x_0, u_0..u_{i-1}), no state variables, no gap constraints.
-        single = self.transcription == "single-shooting"
-        x_next = None
-        for i in range(n + 1):
-            if i == 0:
-                x = casadi.vertcat(x0p, u_prev)  # the initial state is a parameter, not a variable
-            elif single:
-                x = x_next
-            else:
-                x = SX.sym(f"x_{i}", 4)
-                add_var(x, [-50.0, -50.0, -inf, -inf], [150.0, 150.0, inf, inf], "x")
-                add_con(i - 1, 0, "gap", x - x_next, [0.0] * 4, [0.0] * 4)
-            if i < n:
-                u = SX.sym(f"u_{i}", 2)
-                add_var(u, [lim.mdot_bl_min_kgps, lim.t_evap_sp_min_c],
-                        [lim.mdot_bl_max_kgps, lim.t_evap_sp_max_c], "u")
-                # one model step over interval i: the next state and the interval's power
-                t_cab_n, t_evap_n, _, pc, pb = cm.step(
-                    mp, x[0], x[1], u[0], u[1], t_int, t_shell, t_amb[i], speed[i], n_sub=self.n_sub,
-                    d_cab_k=d_cab / self.n_sub, d_ain_k=d_ain, d_evap_k=d_evap / self.n_sub)
-                x_next = casadi.vertcat(t_cab_n, t_evap_n, u)
-                e_terms.append(ts_kj * (pc + pb))
-                du = casadi.vertcat((u[0] - x[2]) / (lim.mdot_bl_max_kgps - lim.mdot_bl_min_kgps),
-                                    (u[1] - x[3]) / (lim.t_evap_sp_max_c - lim.t_evap_sp_min_c))
-                du_terms.append(s.du_weight_kj * casadi.sumsqr(du))
-            else:
-                u = x[2:4]  # u_{N-1}, carried in the state
-            # comfort at stage i
-            tain = cm.t_ain_c(mp, x[1], u[0], d_ain)
-            pmv = cabin_pmv(t_cab_c=x[0], t_vent_c=tain, mdot_bl_kgps=u[0], t_mr_c=t_mr,
-                            w_rad_wm2=cabin_w_rad_wm2(solar[i], cp), pa_pa=pa, params=cp)
-            pmv_all.append(pmv)
-            tcab_all.append(x[0])
-            tain_all.append(tain)
-            s_lo = SX.sym(f"s_lo_{i}")
-            s_up = SX.sym(f"s_up_{i}")
-            add_var(s_lo, 0.0, inf, "s_lo")
-            add_var(s_up, 0.0, inf, "s_up")
-            sl_terms.append(s.slack_weight_kj * (s_lo + s_up))
-            eps = 0.0
-            if s.ioch:
-                eps_sym = SX.sym(f"eps_{i}")
-                add_var(eps_sym, 0.0, s.eps_ub, "eps")
-                eps = eps_sym
-                eta = cm.eta_ac(mp, speed[i])
-                i_terms.append(ts_kj * s.beta_w * (eta - 1.0) / (eps_sym + s.xi))
-            add_con(i, 1, "pmv", casadi.vertcat(pmv + s_lo - lb_pmv[i], pmv - s_up + eps - (ub_pmv[i] - s.pmv_margin)),
-                    [0.0, -inf], [inf, 0.0])
-            if s.gamma_w > 0:
-                c_terms.append(ts_kj * s.gamma_w * pmv ** 2)
-            if s.draught_weight_kj > 0:
-                dr = cabin_draught_pct(t_cab_c=x[0], t_vent_c=tain, mdot_bl_kgps=u[0], params=cp, cap=False)
-                c_terms.append(s.draught_weight_kj * (dr / 100.0) ** 2)
-            if i >= 1:
-                tevap_all.append(x[1])
-                s_ev = SX.sym(f"s_ev_{i}")
-                add_var(s_ev, 0.0, inf, "s_ev")
-                sl_terms.append(s.slack_weight_kj * s_ev)
-                add_con(i, 2, "evap", casadi.vertcat(x[1] + s_ev - s.t_evap_lb_c, x[1] - s_ev - s.t_evap_ub_c),
-                        [0.0, -inf], [inf, 0.0])
-
-        def total(terms):
-            return casadi.sum1(casadi.vertcat(*terms)) if terms else SX(0)
-
-        J_e, J_c, J_i, J_s, J_du = (total(t) for t in (e_terms, c_terms, i_terms, sl_terms, du_terms))
-        J = J_e + J_c + J_i + J_s + J_du
-        rows = {"gap": [], "pmv": [], "evap": []}
-        r = 0
-        for _, _, _, kind, expr, lo, hi in sorted(cons, key=lambda c: c[:3]):
-            rows[kind].append(np.arange(r, r + expr.numel()))
-            r += expr.numel()
-            g.append(expr)
-            lbg.extend(lo)
-            ubg.extend(hi)
-        self._grows = rows
-        w_all = casadi.vertcat(*w)
-        g_all = casadi.vertcat(*g)
-        self._nw = w_all.numel()
-        self._ng = g_all.numel()
-        self._lbw = np.array(lbw)
-        self._ubw = np.array(ubw)
-        self._lbg = np.array(lbg)
-        self._ubg = np.array(ubg)
-        # the constant bounds as CasADi matrices, converted once (not on every solve: ~0.1 ms)
-        self._bounds_dm = {"lbx": casadi.DM(self._lbw), "ubx": casadi.DM(self._ubw),
-                           "lbg": casadi.DM(self._lbg), "ubg": casadi.DM(self._ubg)}
-        self._idx = {k: np.array(v, dtype=int) for k, v in idx.items()}
-        self._nlp = {"x": w_all, "p": p, "f": J, "g": g_all}
-        self._np = p.numel()
-        self._eval = casadi.Function(
-            "ceco_eval", [w_all, p],
-            [J_e, J_c, J_i, J_s, J_du, casadi.vertcat(*pmv_all), casadi.vertcat(*tcab_all),
-             casadi.vertcat(*tain_all), casadi.vertcat(*tevap_all)],
-            ["w", "p"], ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain", "t_evap"])
-        self._compiled: dict = {}  # codegen flags -> path of the compiled NLP functions (or None)
+    def _build_chain(self) -> SolveChain:
         ss = self.settings.solver
-        self.solver = self.make_solver(ss)
-        self.n_ipopt_fallbacks = 0
-        """Warm sqpmethod/fatrop solves that failed and were retried with warm IPOPT (since construction)."""
-        self.solver_fallback = None
+        solver = self.make_solver(ss)
+        retry = None
         if ss.name != "ipopt" and ss.ipopt_fallback:
             # the default IPOPT path, same codegen: retries failed warm solves and does the cold ones
-            ipopt_ss = dataclasses.replace(ss, name="ipopt")
-            self.solver_fallback = self.make_solver(ipopt_ss)
-            ss = ipopt_ss
-        # cold solves (first step, after a failure): robust IPOPT settings, no warm start, on the
-        # multiple-shooting NLP: from a cold guess single shooting is more nonlinear and IPOPT can stop
-        # in a worse local optimum (sc03_mild k = 0: 2.3 % higher cost); its solution is mapped back
-        self._cold_ctrl = self
+            ss = dataclasses.replace(ss, name="ipopt", rti=False)
+            retry = self.make_solver(ss)
+        # cold solves: robust IPOPT settings, no warm start, on the multiple-shooting NLP: from a cold
+        # guess single shooting is more nonlinear and IPOPT can stop in a worse local optimum
+        # (sc03_mild k = 0: 2.3 % higher cost); its solution is mapped back
+        cold_path = None
         if self.transcription == "single-shooting":
-            self._cold_ctrl = NmpcController(
-                dataclasses.replace(self.settings, solver=dataclasses.replace(
-                    ss, name="ipopt", transcription="multiple-shooting", warm_start=False)),
-                self.model_params, self.comfort_params, self._acc.settings)
-            self.solver_cold = self._cold_ctrl.solver
-            ms_idx = self._cold_ctrl._idx
-            self._cold_w_map = np.setdiff1d(np.arange(self._cold_ctrl._nw),
-                                            np.concatenate([np.arange(j, j + 4) for j in ms_idx["x"]]))
-            self._cold_g_map = np.setdiff1d(np.arange(self._cold_ctrl._ng),
-                                            np.concatenate(self._cold_ctrl._grows["gap"]))
-            assert self._cold_w_map.size == self._nw and self._cold_g_map.size == self._ng
+            cold_ss = dataclasses.replace(ss, name="ipopt", rti=False, transcription="multiple-shooting",
+                                          warm_start=False)
+            ms = build_problem(dataclasses.replace(self.settings, solver=cold_ss), self.model_params,
+                               self._nlp_comfort_params, "multiple-shooting", self.lim)
+            w_map = np.setdiff1d(np.arange(ms.nw), ms.vars.indices("x"))
+            g_map = np.setdiff1d(np.arange(ms.ng), ms.rows.indices("gap"))
+            assert w_map.size == self.problem.nw and g_map.size == self.problem.ng
+            cold_path = ColdPath(ms, build_solver(ms, cold_ss, self.clock), w_map, g_map)
+            cold = cold_path.solver
         else:
-            self.solver_cold = (self.make_solver(dataclasses.replace(ss, warm_start=False))
-                                if ss.warm_start and ss.name == "ipopt"
-                                else self.solver)
+            cold = (self.make_solver(dataclasses.replace(ss, warm_start=False))
+                    if ss.warm_start and ss.name == "ipopt" else solver)
+        s = self.settings.solver
+        return SolveChain(self.problem, solver, retry, cold, cold_path, self.lim, s.accept_violation,
+                          s.warm_start and not s.default_options, self.clock)
+
+    def make_solver(self, solver_settings: SolverSettings) -> NlpSolver:
+        """Build a solver for this controller's NLP with the given solver settings."""
+        return build_solver(self.problem, solver_settings, self.clock)
+
+    @property
+    def solver(self) -> NlpSolver:
+        """The warm solver."""
+        return self.chain.solver
+
+    @solver.setter
+    def solver(self, value: NlpSolver) -> None:
+        self.chain.solver = value
+
+    @property
+    def solver_fallback(self) -> NlpSolver | None:
+        """The warm IPOPT that retries a failed SQP/fatrop solve (None: no retry)."""
+        return self.chain.retry
+
+    @solver_fallback.setter
+    def solver_fallback(self, value: NlpSolver | None) -> None:
+        self.chain.retry = value
+
+    @property
+    def solver_cold(self) -> NlpSolver:
         """The cold solver (IPOPT): on the multiple-shooting NLP when this controller's is single shooting."""
+        return self.chain.cold
 
-    def make_solver(self, solver_settings) -> casadi.Function:
-        """Build a CasADi nlpsol for this NLP with the given solver settings."""
-        ss = solver_settings
-        ss.validate()
-        if ss.transcription not in ("auto", self.transcription):
-            raise ValueError(f"SolverSettings.transcription {ss.transcription!r} does not match this controller's "
-                             f"NLP ({self.transcription}); build another controller for it")
-        if ss.name == "auto":
-            ss = dataclasses.replace(ss, name=auto_solver_name(self.transcription))
-        opts: dict = {"print_time": False}
-        nlp = self._nlp
-        if ss.codegen and ss.name in ("ipopt", "sqpmethod") and not ss.default_options:
-            so = self._compiled_nlp(ss)
-            if so is not None:
-                nlp = so
-        if ss.jit and not isinstance(nlp, str):
-            opts.update({"jit": True, "compiler": "shell",
-                         "jit_options": {"flags": ["-O2"], "verbose": False}})
-        if ss.name == "ipopt":
-            if ss.default_options:
-                ipopt = {"print_level": 0, "sb": "yes"}
-            else:
-                ipopt = {
-                    "print_level": 0, "sb": "yes",
-                    "max_iter": ss.max_iter, "max_cpu_time": ss.max_cpu_time_s,
-                    "tol": ss.tol, "acceptable_tol": min(ss.acceptable_tol, 1e-6), "acceptable_iter": 5,
-                    "linear_solver": ss.linear_solver,
-                    "hessian_approximation": "exact",
-                    "mu_strategy": "adaptive", "mu_oracle": "quality-function",
-                    "nlp_scaling_method": "gradient-based",
-                }
-                if ss.warm_start:
-                    # warm-started re-solves start near the optimum: a small adaptive barrier, no
-                    # gradient scaling, stop at the first point optimal to acceptable_tol with the
-                    # constraints met to 1e-6 (measured fastest with the same optimum, docs/controller.md)
-                    ipopt.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
-                                  "warm_start_bound_frac": 1e-9, "warm_start_slack_bound_frac": 1e-9,
-                                  "warm_start_slack_bound_push": 1e-9, "warm_start_mult_bound_push": 1e-9,
-                                  "mu_init": 1e-5, "nlp_scaling_method": "none",
-                                  "acceptable_tol": ss.acceptable_tol, "acceptable_iter": 1,
-                                  "acceptable_constr_viol_tol": 1e-6, "acceptable_compl_inf_tol": 1e-4})
-            opts["ipopt"] = ipopt
-            if isinstance(nlp, str):
-                try:
-                    return casadi.nlpsol("ceco_nlp", "ipopt", nlp, opts)
-                except RuntimeError as exc:  # unloadable object: the in-process functions
-                    _LOG.warning("NMPC codegen: cannot load %s (%s); using the in-process NLP functions", nlp, exc)
-                    nlp = self._nlp
-            return casadi.nlpsol("ceco_nlp", "ipopt", nlp, opts)
-        if ss.name == "fatrop":
-            opts.update({"structure_detection": "auto", "expand": True,
-                         "equality": [bool(a == b) for a, b in zip(self._lbg, self._ubg)],
-                         "fatrop": {"print_level": 0, "max_iter": ss.max_iter, "tol": ss.tol,
-                                    "mu_init": 1e-2}})
-            # (fatrop 0.0.x in CasADi 3.8 accepts no warm-start option; the primal guess is still used)
-            return casadi.nlpsol("ceco_nlp", "fatrop", self._nlp, opts)
-        # sqpmethod: exact Hessian convexified (eigen-clip), one dense QP per iteration, line search;
-        # bounded by sqp_max_iter SQP iterations and a CPU-time limit per QP (qpOASES). Like the warm IPOPT:
-        # constraints met to tol (1e-6), stationarity to acceptable_tol (1e-4; 3 instead of 5 median
-        # iterations on SC03 with the same optimum, docs/controller.md 4.6)
-        if ss.qpsol == "qpoases":
-            qp_opts = {"printLevel": "none", "sparse": False, "error_on_fail": False,
-                       "CPUtime": ss.max_cpu_time_s / ss.sqp_max_iter}
-        else:
-            qp_opts = {"print_iter": False, "print_header": False, "error_on_fail": False}
-        opts.update({"qpsol": ss.qpsol, "qpsol_options": qp_opts,
-                     "max_iter": ss.sqp_max_iter, "print_iteration": False, "print_header": False,
-                     "print_status": False, "tol_pr": ss.tol, "tol_du": ss.acceptable_tol if ss.warm_start else ss.tol,
-                     "convexify_strategy": ss.convexify_strategy, "max_iter_eig": float(ss.max_iter_eig),
-                     "error_on_fail": False})
-        if isinstance(nlp, str):
-            try:
-                with _c_stdout_silenced():
-                    return casadi.nlpsol("ceco_nlp", "sqpmethod", nlp, opts)
-            except RuntimeError as exc:
-                _LOG.warning("NMPC codegen: cannot load %s (%s); using the in-process NLP functions", nlp, exc)
-                nlp = self._nlp
-        with _c_stdout_silenced():
-            return casadi.nlpsol("ceco_nlp", "sqpmethod", nlp, opts)
+    @solver_cold.setter
+    def solver_cold(self, value: NlpSolver) -> None:
+        self.chain.cold = value
 
-    def _compiled_nlp(self, ss) -> str | None:
-        """Path of the compiled NLP functions for ``ss.codegen_flags`` (cached), or None (logged)."""
-        key = (ss.name, tuple(ss.codegen_flags))
-        if key not in self._compiled:
-            self._compiled[key] = compile_nlp(self._nlp, ss.codegen_flags, ss.codegen_cache_dir, plugin=ss.name)
-        return self._compiled[key]
+    @property
+    def cold_path(self) -> ColdPath | None:
+        """Single shooting: the multiple-shooting companion of the cold solves (None: cold solves on this NLP)."""
+        return self.chain.cold_path
 
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
-        """Forget the previous plan, the warm start and the bias estimates."""
-        self._plan_u: np.ndarray | None = None  # (N, 2) of the last successful solve
-        self._plan_age = 0
-        self._warm: tuple | None = None  # (w, lam_x, lam_g)
-        self._bias = np.zeros(3)  # d_cab [K per control step], d_evap [K per step], d_ain [K]
-        self._last_pred: tuple | None = None  # (t_cab_next, t_evap_next) predicted w/o bias
+        """Back to the key-on state: no plan, no warm start, no bias estimates, the ACC law reset."""
+        self._good: GoodSolution | None = None
+        self._prepared_t_s: float | None = None
+        self._last_cmd: np.ndarray | None = None
+        self._bias.reset()
         self._acc.reset()
+        self.counters = StepCounters()
+        """What the steps did since construction or the last reset."""
 
     @property
     def horizon_steps(self) -> int:
         """Np [steps]."""
         return self.settings.horizon_steps
 
-    # -------------------------------------------------------------- internals
-    def _exogenous(self, obs: Observation):
-        """Fill the previews: hold the last trusted value, else the measured current value."""
-        n1 = self.settings.horizon_steps + 1
-        if obs.n_preview != n1:
-            raise ValueError(f"Observation previews have {obs.n_preview} points; this controller needs Np+1 = {n1}")
-        series = {"t_amb": (obs.preview_t_amb_c, obs.t_amb_c), "solar": (obs.preview_solar_wm2, obs.solar_wm2),
-                  "speed": (obs.preview_speed_mps, obs.speed_mps)}
-        ok = np.asarray(obs.preview_valid, bool).copy()
-        for arr, _ in series.values():
-            ok &= np.isfinite(arr)
-        trusted = int(np.argmin(ok)) if not ok.all() else n1
-        out = {}
-        for key, (arr, now) in series.items():
-            a = np.empty(n1)
-            if trusted > 0:
-                a[:trusted] = arr[:trusted]
-                a[trusted:] = arr[trusted - 1]
-            else:
-                a[:] = now
-            out[key] = a
-        if not self.settings.use_speed_preview:
-            out["speed"] = np.full(n1, float(obs.speed_mps))
-        out["speed"] = np.maximum(out["speed"], 0.0)
-        out["solar"] = np.maximum(out["solar"], 0.0)
-        return out, trusted
+    # ------------------------------------------------------------ NLP access
+    def parameters(self, obs: Observation, ex: dict, u_prev=None, t_glass_c: float | None = None,
+                   rh_cab: float | None = None) -> np.ndarray:
+        """The NLP parameter vector for an observation (previews filled).
 
-    def _update_bias(self, obs: Observation) -> None:
-        s, mp = self.settings, self.model_params
-        if not s.offset_free:
-            return
-        a, lim = s.bias_filter, s.bias_limit_k
-        # vent air: measured vs model at the measured evaporator temperature and the applied flow
-        e_ain = obs.t_vent_c - float(cm.t_ain_c(mp, obs.t_evap_c, obs.mdot_bl_prev_kgps))
-        self._bias[2] = np.clip((1 - a) * self._bias[2] + a * e_ain, -lim, lim)
-        if self._last_pred is not None:
-            e_cab = obs.t_cab_c - self._last_pred[0]
-            e_evap = obs.t_evap_c - self._last_pred[1]
-            self._bias[0] = np.clip((1 - a) * self._bias[0] + a * e_cab, -lim, lim)
-            self._bias[1] = np.clip((1 - a) * self._bias[1] + a * e_evap, -lim, lim)
+        ``u_prev`` overrides the observation's previous command; ``t_glass_c`` and ``rh_cab`` its
+        glazing temperature and cabin RH (the checked values: NaN where not measured or implausible).
+        """
+        b = self._bias.values
+        u_prev = (obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c) if u_prev is None else u_prev
+        t_mr, pa = self.comfort_parameters(obs, t_glass_c, rh_cab)
+        return self.problem.params.pack(
+            x0=[obs.t_cab_c, obs.t_evap_c], t_int=obs.t_int_c, t_shell=obs.t_shell_c, d_cab=b[0], d_evap=b[1],
+            d_ain=b[2], u_prev=u_prev, t_amb=ex["t_amb"], solar=ex["solar"], speed=ex["speed"],
+            pmv_lb=obs.pmv_lb, pmv_ub=obs.pmv_ub, t_mr=t_mr, pa=pa)
 
-    def _predict_unbiased(self, obs: Observation, mdot: float, sp: float, ex: dict) -> tuple:
-        """One control period of the model without the T_cab/T_evap biases (for the next bias update)."""
-        t_cab, t_evap, *_ = cm.step(self.model_params, obs.t_cab_c, obs.t_evap_c, mdot, sp, obs.t_int_c,
-                                    obs.t_shell_c, ex["t_amb"][0], ex["speed"][0], n_sub=self.n_sub,
-                                    d_ain_k=self._bias[2] if self.settings.offset_free else 0.0)
-        return float(t_cab), float(t_evap)
-
-    def parameters(self, obs: Observation, ex: dict) -> np.ndarray:
-        """The NLP parameter vector for an observation (previews already filled)."""
-        b = self._bias if self.settings.offset_free else np.zeros(3)
-        return np.concatenate([
-            [obs.t_cab_c, obs.t_evap_c, obs.t_int_c, obs.t_shell_c, b[0], b[1], b[2],
-             obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c],
-            ex["t_amb"], ex["solar"], ex["speed"], obs.pmv_lb, obs.pmv_ub,
-            self.comfort_parameters(obs)])
-
-    def comfort_parameters(self, obs: Observation) -> np.ndarray:
+    def comfort_parameters(self, obs: Observation, t_glass_c: float | None = None,
+                           rh_cab: float | None = None) -> np.ndarray:
         """The NLP's comfort scalars [t_mr (degC), p_a (Pa)] held over the horizon.
 
         t_mr: from the measured glazing, shell and interior temperatures
         (:func:`ceco_core.cabin_comfort.cabin_mrt_c`; T_int alone while the glazing is not
         measured). p_a: ``settings.pmv_pa_source`` ('paper': 1700 Pa; 'measured': RH x p_ws(T_cab),
-        1700 Pa while the RH is not measured).
+        1700 Pa while the RH is not measured). ``t_glass_c``/``rh_cab`` default to the observation's.
         """
-        t_glass = obs.t_glass_c if math.isfinite(obs.t_glass_c) else obs.t_int_c
+        t_glass = obs.t_glass_c if t_glass_c is None else t_glass_c
+        rh = obs.rh_cab if rh_cab is None else rh_cab
+        t_glass = t_glass if math.isfinite(t_glass) else obs.t_int_c
         t_mr = float(cabin_mrt_c(t_cab_c=obs.t_cab_c, t_int_c=obs.t_int_c, t_shell_c=obs.t_shell_c,
                                  t_glass_c=t_glass, params=self.comfort_params))
         pa = PAPER_PA_PA
-        if self.settings.pmv_pa_source == "measured" and math.isfinite(obs.rh_cab) and 0.0 <= obs.rh_cab <= 1.0:
-            pa = float(psychro.vapour_pressure_pa(obs.t_cab_c, obs.rh_cab))
+        if self.settings.pmv_pa_source == "measured" and math.isfinite(rh) and 0.0 <= rh <= 1.0:
+            pa = float(psychro.vapour_pressure_pa(obs.t_cab_c, rh))
         return np.array([t_mr, pa])
 
     def initial_guess(self, p: np.ndarray, w_prev: np.ndarray | None = None) -> np.ndarray:
-        """Primal guess, consistent with the dynamics and the comfort constraints at ``p``.
+        """Primal guess at ``p`` (:func:`ceco_controller.warmstart.initial_guess`)."""
+        return initial_guess(self.problem, p, w_prev)
 
-        Inputs: the previous solution shifted by one stage if ``w_prev`` is given, else the
-        previous command held. States (multiple shooting): rolled out by the model from the
-        measured state (so the guess closes every gap). Slacks: the smallest values that satisfy the comfort and T_evap
-        constraints at the guess (plus a small margin). ``eps`` (ioch): shifted, or eps_UB/2.
-        """
-        n = self.settings.horizon_steps
-        if w_prev is not None:
-            w = self._shift(w_prev)
-        else:
-            w = np.zeros(self._nw)
-            u = np.array([np.clip(p[7], self.lim.mdot_bl_min_kgps, self.lim.mdot_bl_max_kgps),
-                          np.clip(p[8], self.lim.t_evap_sp_min_c, self.lim.t_evap_sp_max_c)])
-            for i in range(n):
-                w[self._idx["u"][i]:self._idx["u"][i] + 2] = u
-            if self.settings.ioch:
-                w[self._idx["eps"]] = 0.5 * self.settings.eps_ub
-        w = np.clip(w, self._lbw, self._ubw)
-        off = _N_P_FIXED
-        if self._idx["x"].size:  # multiple shooting: the states rolled out by the model
-            x = p[0:2].copy()
-            for i in range(n):
-                u = w[self._idx["u"][i]:self._idx["u"][i] + 2]
-                tc, te, *_ = cm.step(self.model_params, x[0], x[1], u[0], u[1], p[2], p[3], p[off + i],
-                                     p[off + 2 * (n + 1) + i], n_sub=self.n_sub, d_cab_k=p[4] / self.n_sub,
-                                     d_ain_k=p[6], d_evap_k=p[5] / self.n_sub)
-                x = np.array([tc, te])
-                j = self._idx["x"][i]
-                w[j:j + 4] = np.concatenate([x, u])
-        ev = self.evaluate(w, p)
-        pmv = ev["pmv"]
-        lb = p[off + 3 * (n + 1): off + 4 * (n + 1)]
-        ub = p[off + 4 * (n + 1): off + 5 * (n + 1)] - self.settings.pmv_margin
-        eps = w[self._idx["eps"]] if self.settings.ioch else 0.0
-        margin = _SLACK_GUESS_MARGIN
-        w[self._idx["s_lo"]] = np.maximum(lb - pmv, 0.0) + margin
-        w[self._idx["s_up"]] = np.maximum(pmv + eps - ub, 0.0) + margin
-        t_evap = ev["t_evap"]
-        w[self._idx["s_ev"]] = np.maximum(np.maximum(self.settings.t_evap_lb_c - t_evap,
-                                                     t_evap - self.settings.t_evap_ub_c), 0.0) + margin
-        return np.clip(w, self._lbw, self._ubw)
-
-    def _shift(self, vec: np.ndarray) -> np.ndarray:
-        """Shift a stage-ordered primal (or bound-multiplier) vector one stage forward."""
-        out = vec.copy()
-        for key in ("x", "u", "s_lo", "s_up", "s_ev", "eps"):
-            ix = self._idx[key]
-            if ix.size == 0:
-                continue
-            width = {"x": 4, "u": 2}.get(key, 1)
-            blocks = [vec[j:j + width] for j in ix]
-            shifted = blocks[1:] + [blocks[-1]]
-            for j, b in zip(ix, shifted):
-                out[j:j + width] = b
-        return out
-
-    def _shift_g(self, lam_g: np.ndarray) -> np.ndarray:
-        """Shift constraint multipliers one stage forward (per constraint kind; the last stage is kept)."""
-        out = lam_g.copy()
-        for blocks in self._grows.values():
-            for a, b in zip(blocks[:-1], blocks[1:]):
-                out[a] = lam_g[b]
-        return out
-
-    def solve_nlp(self, data: NlpData, solver: casadi.Function | None = None) -> dict:
-        """Solve one NLP instance; return a dict with the solution, stats and wall time [ms]."""
-        solver = solver or self.solver
-        args = {"x0": data.x0, "p": data.p, **self._bounds_dm}
-        if data.lam_x0 is not None:
-            args["lam_x0"] = data.lam_x0
-        if data.lam_g0 is not None:
-            args["lam_g0"] = data.lam_g0
-        t0 = time.perf_counter()
-        sol = solver(**args)
-        dt_ms = 1e3 * (time.perf_counter() - t0)
-        try:
-            stats = solver.stats()
-        except RuntimeError as exc:  # CasADi 3.8.2 sqpmethod: no stats after an error in iteration 0
-            last = (str(exc).splitlines() or [type(exc).__name__])[-1]
-            stats = {"success": False, "return_status": f"no solver statistics ({last})"}
-        return {"w": np.array(sol["x"]).ravel(), "f": float(sol["f"]),
-                "lam_x": np.array(sol["lam_x"]).ravel(), "lam_g": np.array(sol["lam_g"]).ravel(),
-                "stats": stats, "time_ms": dt_ms,
-                "success": bool(stats.get("success", False)),
-                "status": str(stats.get("return_status", "unknown")),
-                "iterations": int(stats.get("iter_count", -1)) if "iter_count" in stats else None}
-
-    def evaluate(self, w: np.ndarray, p: np.ndarray) -> dict:
+    def evaluate(self, w: np.ndarray, p: np.ndarray) -> Evaluation:
         """Cost terms and predicted trajectories of a primal point."""
-        out = self._eval(w, p)
-        keys = ("J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain", "t_evap")
-        return {k: np.array(v).ravel() if k in ("pmv", "t_cab", "t_ain", "t_evap") else float(v)
-                for k, v in zip(keys, out)}
+        return self.problem.evaluate(w, p)
+
+    def solve_nlp(self, data: NlpData, solver: NlpSolver | None = None, deadline: float | None = None) -> SolveResult:
+        """Solve one NLP instance of this controller's NLP (default: the warm solver)."""
+        return (solver or self.solver).solve(data, deadline)
 
     def last_nlp(self) -> NlpData | None:
         """The data of the last NLP solved by :meth:`compute` (for benchmarks)."""
         return getattr(self, "_last_nlp", None)
 
+    # ------------------------------------------------------------ start-up
+    def warm_up(self) -> float:
+        """Solve a nominal instance once with every solver of the chain, then forget it (key-on).
+
+        Takes the one-time costs of a first solve (allocations, first factorisations) before the
+        controller is in charge; leaves the controller as after :meth:`reset`. Returns the wall
+        time [s].
+        """
+        t0 = time.perf_counter()
+        obs = nominal_observation(self.horizon_steps + 1)
+        ex, _ = fill_previews(obs, self.horizon_steps + 1, self.settings.use_speed_preview)
+        p = self.parameters(obs, ex)
+        cold = self.chain._cold_solve(self.chain.cold_data(p), None)
+        if self.chain.why_unusable(cold) is None:
+            good = GoodSolution.of(cold, self.problem)
+            data = self.chain.warm_data(p, good)
+            if data is not None:
+                for solver in (self.solver, self.solver_fallback):
+                    if solver is not None:
+                        solver.solve(data)
+        self.reset()
+        return time.perf_counter() - t0
+
+    def prepare(self, obs: Observation) -> SolveResult | None:
+        """The first solve, done before the controller takes control (no step deadline).
+
+        Solves the instance of ``obs`` (the bias estimator is not advanced) and keeps a usable
+        solution as the warm start of the first :meth:`compute`, shifted by the control steps
+        between ``obs.t_s`` and that step's ``t_s``. Returns the result (None if ``obs`` is not
+        usable).
+        """
+        chk = check_observation(obs, self.observation_limits)
+        n1 = self.horizon_steps + 1
+        if not chk.measurements_ok or not chk.command_ok or obs.n_preview != n1:
+            return None
+        bias = copy.deepcopy(self._bias)
+        self._bias.update(obs.t_cab_c, obs.t_evap_c, obs.t_vent_c, obs.mdot_bl_prev_kgps)
+        ex, _ = fill_previews(obs, n1, self.settings.use_speed_preview, obs.preview_valid & chk.preview_plausible)
+        p = self.parameters(obs, ex, None, chk.t_glass_c, chk.rh_cab)
+        self._bias = bias
+        out = self.chain.run(p, None, math.inf)
+        if out.result is not None:
+            self._good = GoodSolution.of(out.result, self.problem, age=-1)
+            self._prepared_t_s = float(obs.t_s)
+        return out.result
+
     # ---------------------------------------------------------------- compute
-    def compute(self, obs: Observation):
-        """One control step: returns ``(AcInput, Diagnostics)``; never raises on solver trouble."""
-        s = self.settings
+    def compute(self, obs: Observation, t_start: float | None = None):
+        """One control step: returns ``(AcInput, Diagnostics)``; never raises on solver trouble or bad input.
+
+        ``t_start``: when the step began on :attr:`clock` (e.g. before the node converted the
+        messages; default: now); the step's work after it is bounded by ``step_budget_s``.
+        """
+        t0 = self.clock() if t_start is None else float(t_start)
+        s, ss, cnt = self.settings, self.settings.solver, self.counters
+        deadline = t0 + ss.step_budget_s - ss.step_reserve_s
+        cnt.steps += 1
         diag = Diagnostics(k=obs.k, t_s=obs.t_s)
-        acc_cmd = self._acc.step(obs.t_cab_c, s.control_period_s)  # keep the fallback law warm
-        if not obs.measurements_finite():
+        self._age_good(obs)
+        n1 = s.horizon_steps + 1
+        chk = check_observation(obs, self.observation_limits)
+        problems = list(chk.measurement_problems)
+        if obs.n_preview != n1:
+            problems.append(f"previews have {obs.n_preview} points, this controller needs Np+1 = {n1}")
+        u_prev = (obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c)
+        if not chk.command_ok:
+            if self._last_cmd is not None:
+                u_prev = (float(self._last_cmd[0]), float(self._last_cmd[1]))
+                cnt.substituted_commands += 1
+                _note(diag, f"{'; '.join(chk.command_problems)}: the command applied last used instead")
+            else:
+                problems.extend(chk.command_problems)
+        if chk.info_problems:
+            _note(diag, "; ".join(chk.info_problems))
+        if problems:
+            cnt.invalid_observations += 1
             diag.status = "invalid_measurement"
             diag.success = False
-            diag.message = "non-finite measurement: production ACC law applied"
-            return self._fallback_baseline(diag, acc_cmd)
-        ex, trusted = self._exogenous(obs)
+            _note(diag, f"{'; '.join(problems)}: production ACC law applied")
+            lo, hi = self.observation_limits.temperature_c
+            t_cab = float(obs.t_cab_c)
+            return self._apply_acc(diag, t_cab if lo <= t_cab <= hi else math.nan, None, None)
+        valid = np.asarray(obs.preview_valid, bool) & chk.preview_plausible
+        ex, trusted = fill_previews(obs, n1, s.use_speed_preview, valid)
         diag.trusted_horizon = trusted
-        if trusted < obs.n_preview:
-            diag.message = (f"preview valid for {trusted}/{obs.n_preview} points; "
-                            + ("held last valid value" if trusted else "held measured values"))
-        self._update_bias(obs)
-        p = self.parameters(obs, ex)
-        if s.solver.warm_start and self._warm is not None and not s.solver.default_options:
-            data = NlpData(p=p, x0=self.initial_guess(p, self._warm[0]), lam_x0=self._shift(self._warm[1]),
-                           lam_g0=self._shift_g(self._warm[2]))
+        if trusted < n1:
+            _note(diag, f"preview valid for {trusted}/{n1} points; "
+                  + ("held last valid value" if trusted else "held measured values"))
+        self._bias.update(obs.t_cab_c, obs.t_evap_c, obs.t_vent_c, u_prev[0])
+        p = self.parameters(obs, ex, u_prev, chk.t_glass_c, chk.rh_cab)
+        out = self.chain.run(p, self._good, deadline)
+        self._last_nlp = out.data
+        self._count(out, deadline)
+        res = out.result
+        diag.status = out.status
+        diag.solve_time_ms = out.time_ms
+        final = res if res is not None else (out.attempts[-1][1] if out.attempts else None)
+        diag.success = bool(final.success) if final is not None else False
+        diag.iterations = final.iterations if final is not None else None
+        for why in out.rejected:
+            _note(diag, f"not used: {why}")
+        if res is None and not out.attempts:
+            _note(diag, "no time left for a solve")
+        if res is not None:
+            if not res.success:
+                cnt.accepted_iterates += 1
+                _note(diag, f"{res.solver} iterate applied at its limit (violation {res.violation:.1e})")
+            elif res.status == "RTI_Step":
+                cnt.rti_steps += 1
+            else:
+                cnt.converged += 1
+            good = self._good = GoodSolution.of(res, self.problem)
+            plan = good.plan
+            ev = self.problem.evaluate(good.w, p)
+            diag.cost_energy, diag.cost_comfort, diag.cost_ioch = ev.J_e, ev.J_c, ev.J_i
+            diag.cost_slack, diag.cost_total = ev.J_s, res.f
+            diag.pred_pmv, diag.pred_t_cab_c = ev.pmv, ev.t_cab
+            if s.ioch:
+                diag.eps = good.w[self.problem.vars.indices("eps")]
+            cmd = plan[0]
+        elif self._good is not None and 1 <= self._good.age < len(self._good.plan):
+            cmd = self._good.plan[self._good.age]
+            cnt.shifted_plan += 1
+            diag.fallback = "shifted_plan"
+            _note(diag, f"solve failed ({diag.status}): plan of step k-{self._good.age} applied")
         else:
-            data = NlpData(p=p, x0=self.initial_guess(p))
-        self._last_nlp = data
-        warm = data.lam_g0 is not None
-        res = self._try_solve(data, self.solver) if warm else self._cold_solve(data)
-        if not res["success"] and self.solver_fallback is not None and warm:
-            # sqpmethod/fatrop failed: the same instance with the warm IPOPT solver
-            self.n_ipopt_fallbacks += 1
-            first = res
-            res = self._try_solve(data, self.solver_fallback)
-            res["status"] = f"{s.solver.name}: {first['status']}; ipopt: {res['status']}"
-            if first["time_ms"] is not None and res["time_ms"] is not None:
-                res["time_ms"] += first["time_ms"]
-            diag.message = (diag.message + "; " if diag.message else "") + \
-                f"{s.solver.name} failed ({first['status']}): retried with IPOPT"
-        diag.status = res["status"]
-        diag.success = res["success"]
-        diag.iterations = res["iterations"]
-        diag.solve_time_ms = res["time_ms"]
-        cmd = None
-        if res["success"] and res["w"] is not None and np.all(np.isfinite(res["w"])):
-            u = self._plan_from(res["w"])
-            if self._valid_command(u[0]):
-                cmd = u[0]
-                self._plan_u, self._plan_age = u, 0
-                self._warm = (res["w"], res["lam_x"], res["lam_g"])
-                ev = self.evaluate(res["w"], p)
-                diag.cost_energy, diag.cost_comfort, diag.cost_ioch = ev["J_e"], ev["J_c"], ev["J_i"]
-                diag.cost_slack, diag.cost_total = ev["J_s"], res["f"]
-                diag.pred_pmv, diag.pred_t_cab_c = ev["pmv"], ev["t_cab"]
-                if s.ioch:
-                    diag.eps = res["w"][self._idx["eps"]]
-            else:
-                diag.message = (diag.message + "; " if diag.message else "") + "solution outside actuator bounds"
-        if cmd is None:
-            self._warm = None
-            if self._plan_u is not None and self._plan_age + 1 < len(self._plan_u):
-                self._plan_age += 1
-                cmd = self._plan_u[self._plan_age]
-                diag.fallback = "shifted_plan"
-                diag.message = (diag.message + "; " if diag.message else "") + \
-                    f"solve failed ({diag.status}): plan of step k-{self._plan_age} applied"
-            else:
-                diag.message = (diag.message + "; " if diag.message else "") + \
-                    f"solve failed ({diag.status}), no plan left: production ACC law applied"
-                return self._fallback_baseline(diag, acc_cmd, obs, ex)
+            _note(diag, f"solve failed ({diag.status}), no plan left: production ACC law applied")
+            return self._apply_acc(diag, float(obs.t_cab_c), obs, ex)
         cmd = self._clip_checked(cmd)
-        self._last_pred = self._predict_unbiased(obs, cmd[0], cmd[1], ex)
-        diag.mdot_bl_kgps, diag.t_evap_sp_c = float(cmd[0]), float(cmd[1])
-        return AcInput(mdot_bl_kgps=float(cmd[0]), t_evap_sp_c=float(cmd[1])), diag
+        self._acc.track(cmd[0], cmd[1], obs.t_cab_c)
+        return self._finish(diag, cmd, obs, ex)
 
-    def _cold_solve(self, data: NlpData) -> dict:
-        """A cold solve of ``data`` (this controller's NLP) by ``solver_cold``, on the multiple-shooting
-        NLP when this one is single shooting (guess: its model rollout; solution mapped back)."""
-        cold = self._cold_ctrl
-        if cold is self:
-            return self._try_solve(data, self.solver_cold)
-        res = cold._try_solve(NlpData(p=data.p, x0=cold.initial_guess(data.p)), self.solver_cold)
-        if res["w"] is not None:
-            res["w"] = res["w"][self._cold_w_map]
-            res["lam_x"] = res["lam_x"][self._cold_w_map]
-            res["lam_g"] = res["lam_g"][self._cold_g_map]
-        return res
+    # -------------------------------------------------------------- internals
+    def _age_good(self, obs: Observation) -> None:
+        """One more step since the last good solution (a prepared one: the steps since its t_s)."""
+        good = self._good
+        if good is None:
+            return
+        if self._prepared_t_s is not None:
+            d = (float(obs.t_s) - self._prepared_t_s) / self.settings.control_period_s
+            good.age = int(round(d)) if math.isfinite(d) else -1
+            self._prepared_t_s = None
+        else:
+            good.age += 1
+        if not 0 <= good.age < len(good.plan):
+            self._good = None
 
-    def _try_solve(self, data: NlpData, solver: casadi.Function) -> dict:
-        """:meth:`solve_nlp`, with CasADi evaluation errors returned as a failed result."""
-        try:
-            return self.solve_nlp(data, solver)
-        except RuntimeError as exc:
-            return {"success": False, "status": f"exception: {exc}", "iterations": None, "time_ms": None,
-                    "w": None, "f": math.nan}
-
-    def _plan_from(self, w: np.ndarray) -> np.ndarray:
-        return np.array([w[j:j + 2] for j in self._idx["u"]])
-
-    def _valid_command(self, u) -> bool:
-        lim = self.lim
-        return bool(np.all(np.isfinite(u))
-                    and lim.mdot_bl_min_kgps - _BOUND_TOL <= u[0] <= lim.mdot_bl_max_kgps + _BOUND_TOL
-                    and lim.t_evap_sp_min_c - _BOUND_TOL <= u[1] <= lim.t_evap_sp_max_c + _BOUND_TOL)
+    def _count(self, out, deadline: float) -> None:
+        cnt = self.counters
+        for role, _ in out.attempts:
+            cnt.retries += role == "retry"
+            cnt.cold_solves += role.startswith("cold")
+            if role == "retry":
+                self.n_ipopt_fallbacks += 1
+        if any(r.status == "Maximum_Wall_Time_Exceeded" for _, r in out.attempts) or \
+                (out.result is None and self.clock() >= deadline):
+            cnt.deadline_hits += 1
 
     def _clip_checked(self, u) -> np.ndarray:
-        if not self._valid_command(u):
-            raise AssertionError(f"internal error: command {u} outside the actuator bounds")
+        if not self.chain.valid_command(u):
+            raise AssertionError(f"internal error: command {u} outside the actuator bounds (tol {BOUND_TOL})")
         lim = self.lim
         return np.array([min(max(u[0], lim.mdot_bl_min_kgps), lim.mdot_bl_max_kgps),
                          min(max(u[1], lim.t_evap_sp_min_c), lim.t_evap_sp_max_c)])
 
-    def _fallback_baseline(self, diag: Diagnostics, acc_cmd, obs: Observation | None = None,
-                           ex: dict | None = None):
-        diag.fallback = "baseline"
-        self._plan_u = None
-        self._warm = None
-        u = self._clip_checked(np.array([acc_cmd.mdot_bl_kgps, acc_cmd.t_evap_sp_c]))
+    def _finish(self, diag: Diagnostics, cmd: np.ndarray, obs: Observation | None, ex: dict | None):
         if obs is not None and ex is not None:
-            self._last_pred = self._predict_unbiased(obs, u[0], u[1], ex)
+            self._bias.predict(obs.t_cab_c, obs.t_evap_c, cmd[0], cmd[1], obs.t_int_c, obs.t_shell_c,
+                               ex["t_amb"][0], ex["speed"][0])
         else:
-            self._last_pred = None
-        diag.mdot_bl_kgps, diag.t_evap_sp_c = float(u[0]), float(u[1])
-        return AcInput(mdot_bl_kgps=float(u[0]), t_evap_sp_c=float(u[1])), diag
+            self._bias.forget_prediction()
+        self._last_cmd = cmd
+        diag.mdot_bl_kgps, diag.t_evap_sp_c = float(cmd[0]), float(cmd[1])
+        return AcInput(mdot_bl_kgps=float(cmd[0]), t_evap_sp_c=float(cmd[1])), diag
 
-
-@contextlib.contextmanager
-def _c_stdout_silenced():
-    """Silence standard output for the block: Python's ``sys.stdout`` and the process's fd 1.
-
-    qpOASES prints its licence banner whenever a solver object is created, whatever
-    ``printLevel`` is set; CasADi routes that text to Python's ``sys.stdout`` (and C code may
-    write to fd 1 directly). In a node it would interleave with the node's output on every
-    controller build. Only solver construction is wrapped, never a solve. fd 1 is process-wide:
-    output other threads write to stdout during the construction (a few hundred ms at start-up)
-    is lost too; ROS 2 logs go to stderr unless RCUTILS_LOGGING_USE_STDOUT=1.
-    """
-    with contextlib.redirect_stdout(io.StringIO()):
-        try:
-            saved = os.dup(1)
-        except OSError:  # no usable fd 1 (e.g. closed): the Python-level redirect is all we can do
-            saved = None
-        if saved is None:
-            yield
-            return
-        try:
-            _libc_fflush()  # what C stdio buffered before the block still goes to the real stdout
-            with open(os.devnull, "wb") as devnull:
-                os.dup2(devnull.fileno(), 1)
-                try:
-                    yield
-                finally:
-                    _libc_fflush()  # what C stdio buffered inside the block goes to /dev/null too
-        finally:
-            os.dup2(saved, 1)
-            os.close(saved)
-
-
-def _libc_fflush() -> None:
-    """fflush(NULL): flush every C stdio output stream (no-op where libc cannot be loaded)."""
-    try:
-        ctypes.CDLL(None).fflush(None)
-    except (OSError, AttributeError, TypeError):  # TypeError: no CDLL(None) on Windows
-        pass
-
-
-def codegen_cache_dir(path: str | None = None) -> pathlib.Path:
-    """Directory of compiled NLPs: ``path``, else $CECO_CACHE_DIR, else $XDG_CACHE_HOME/ceco, else ~/.cache/ceco."""
-    if path:
-        return pathlib.Path(path)
-    if os.environ.get("CECO_CACHE_DIR"):
-        return pathlib.Path(os.environ["CECO_CACHE_DIR"])
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return pathlib.Path(base) / "ceco"
-
-
-def compile_nlp(nlp: dict, flags=("-O1",), cache_dir: str | None = None, plugin: str = "ipopt") -> str | None:
-    """Generate C for an NLP's functions as ``plugin`` needs them and compile it into a cached shared object.
-
-    ``plugin``: 'ipopt' (f, g, grad_f, jac_g, hess_l) or 'sqpmethod' (fg, grad, jac_fg, hess_l).
-
-    The file name is a hash of the generated C code, the flags and the CasADi version, so a
-    changed NLP never loads a stale object. Concurrent processes do not race: each compiles to
-    its own temporary name and renames it into place atomically (``os.replace``). Returns the
-    path, or None (with a log warning) when no C compiler is found or anything fails; the
-    caller then uses the in-process functions.
-    """
-    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
-    if cc is None:
-        _LOG.warning("NMPC codegen: no C compiler found (gcc/cc/$CC); using the in-process NLP functions")
-        return None
-    try:
-        with tempfile.TemporaryDirectory(prefix="ceco_cg_") as tmp:
-            quiet = {"print_header": False, "qpsol_options": {"printLevel": "none"}} if plugin == "sqpmethod" else {}
-            with _c_stdout_silenced():
-                gen = casadi.nlpsol("ceco_nlp", plugin, nlp, {"print_time": False, **quiet})
-            src = os.path.join(tmp, "ceco_nlp.c")
-            cwd = os.getcwd()
-            os.chdir(tmp)  # generate_dependencies writes relative to the working directory
-            try:
-                gen.generate_dependencies("ceco_nlp.c")
-            finally:
-                os.chdir(cwd)
-            code = pathlib.Path(src).read_bytes()
-            # (the plugin is in the code: IPOPT's and sqpmethod's function sets differ)
-            digest = hashlib.sha256(code + repr((list(flags), casadi.__version__, cc)).encode()).hexdigest()[:20]
-            cache = codegen_cache_dir(cache_dir)
-            target = cache / f"ceco_nlp_{digest}.so"
-            if target.is_file():
-                return str(target)
-            cache.mkdir(parents=True, exist_ok=True)
-            part = cache / f".ceco_nlp_{digest}.{os.getpid()}.tmp.so"
-            t0 = time.perf_counter()
-            res = subprocess.run([cc, "-shared", "-fPIC", *flags, src, "-o", str(part), "-lm"],
-                                 capture_output=True, text=True, timeout=600)
-            if res.returncode != 0:
-                part.unlink(missing_ok=True)
-                _LOG.warning("NMPC codegen: compilation failed (%s); using the in-process NLP functions",
-                             res.stderr.strip()[-500:])
-                return None
-            os.replace(part, target)
-            _LOG.info("NMPC codegen: compiled %s in %.1f s", target, time.perf_counter() - t0)
-            return str(target)
-    except (OSError, RuntimeError, subprocess.SubprocessError) as exc:
-        _LOG.warning("NMPC codegen failed (%s); using the in-process NLP functions", exc)
-        return None
+    def _apply_acc(self, diag: Diagnostics, t_cab_c: float, obs: Observation | None, ex: dict | None):
+        self.counters.acc_law += 1
+        diag.fallback = "baseline"
+        acc = self._acc.step(t_cab_c, self.settings.control_period_s)
+        return self._finish(diag, self._clip_checked(np.array([acc.mdot_bl_kgps, acc.t_evap_sp_c])), obs, ex)

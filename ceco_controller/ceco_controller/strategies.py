@@ -28,7 +28,7 @@ import math
 
 from ceco_core.contracts import CECO_STRATEGIES, STRATEGIES
 
-__all__ = ["StrategySettings", "SolverSettings", "STRATEGIES", "CECO_STRATEGIES",
+__all__ = ["StrategySettings", "SolverSettings", "SOLVER_NAMES", "STRATEGIES", "CECO_STRATEGIES",
            "strategy_settings", "resolved_transcription", "resolve_auto", "auto_solver_name",
            "COMFORT_GAMMA_W"]
 
@@ -45,26 +45,47 @@ its own (unstated) units.
 """
 
 
+SOLVER_NAMES = ("auto", "sqp", "ipopt", "fatrop")
+"""Values of ``SolverSettings.name``."""
+
+
 @dataclasses.dataclass(frozen=True)
 class SolverSettings:
-    """NLP solver settings (choice justified with numbers in docs/controller.md)."""
+    """NLP solver settings (choice justified with numbers in docs/controller.md 4.6)."""
 
     name: str = "auto"
-    """CasADi nlpsol plugin of the warm solves: 'auto' (default: 'sqpmethod' when the transcription
-    is single shooting, i.e. Np <= ``single_shooting_max_steps``, else 'ipopt'), 'sqpmethod'
-    (exact-Hessian SQP, eigen-clip, dense qpOASES; IPOPT does the cold solves and retries any
-    failed SQP solve), 'ipopt' (warm IPOPT) or 'fatrop' (multiple shooting only). Measured in
-    docs/results.md: at Np = 6 the SQP on the single-shooting NLP is 5.5-6.2x the reference
-    (compiled functions); on multiple-shooting NLPs its dense QPs grow too fast (ceco-ioch, Np = 24:
-    113 ms, Np = 60: 3.1 s median per solve, against the warm IPOPT's 25 and 74 ms)."""
+    """Solver of the warm solves: 'auto' (default: 'sqp' when the transcription is single shooting,
+    i.e. Np <= ``single_shooting_max_steps``, else 'ipopt'), 'sqp' (ceco's dense SQP,
+    :mod:`ceco_controller.sqp`: exact Hessian convexified by an exact eigendecomposition, dense
+    qpOASES; IPOPT does the cold solves and retries a failed SQP solve), 'ipopt' (warm IPOPT) or
+    'fatrop' (multiple shooting only). CasADi's 'sqpmethod' was replaced by 'sqp' (its Jacobi
+    eigen-solver could stop short, docs/controller.md 4.6)."""
     max_iter: int = 100
     """IPOPT/fatrop iteration limit per solve [-]."""
     sqp_max_iter: int = 20
-    """sqpmethod iteration limit per solve [-] (SC03: median 3, at most 7)."""
+    """SQP iteration (QP) limit per solve [-] (SC03: median 3, at most 6)."""
     max_cpu_time_s: float = 1.0
-    """CPU-time limit per solve [s]; must be below the control period."""
+    """CPU-time limit per IPOPT solve [s] and, divided by ``sqp_max_iter``, per SQP QP (qpOASES);
+    a guard below the wall-clock ``step_budget_s``, which bounds the whole control step."""
+    step_budget_s: float = 1.0
+    """Wall-clock budget of one whole control step [s], counted from ``NmpcController.compute``'s
+    ``t_start`` (default: its entry): no solver iteration starts after ``step_budget_s -
+    step_reserve_s``; must be below the control period (docs/controller.md 4.3: worst case)."""
+    step_reserve_s: float = 0.1
+    """Part of ``step_budget_s`` kept for the work after the solve (evaluation, fallback, the node's
+    message conversion and publish) [s]."""
+    accept_violation: float = 0.05
+    """Largest constraint violation of an iterate that is applied although the solver stopped on
+    its time or iteration limit (or a real-time iteration) [PMV, K] (comfort/T_evap rows and, in
+    multiple shooting, the model's gaps): a twentieth of the comfort band (1 PMV wide), a third of
+    the model's one-step T_cab error (0.16 K RMS); the real-time iteration's steps reach 0.036
+    (SC03, ceco-ioch; docs/controller.md 4.6)."""
+    rti: bool = False
+    """Bounded-cost mode ('sqp' only): one QP per control step from the shifted warm start (SQP
+    real-time iteration) instead of iterating to convergence; optimality loss measured in
+    docs/controller.md 4.6."""
     tol: float = 1e-6
-    """Convergence tolerance (IPOPT ``tol``) [-] (1e-6: optimal cost within 1e-5 of the reference, docs/controller.md)."""
+    """Convergence tolerance (IPOPT ``tol``; the SQP's constraint tolerance) [-]."""
     warm_start: bool = True
     """Warm start from the shifted previous primal-dual solution."""
     jit: bool = False
@@ -73,12 +94,14 @@ class SolverSettings:
     """IPOPT linear solver (the only one in the CasADi wheel; ma27/ma57 need HSL)."""
     acceptable_tol: float = 1e-4
     """IPOPT ``acceptable_tol`` [-] of the warm-started solver (with ``acceptable_iter`` 1 and
-    acceptable constraint violation 1e-6: stops once the point is optimal to this level)."""
+    acceptable constraint violation 1e-6: stops once the point is optimal to this level); the
+    SQP's stationarity tolerance."""
     codegen: bool = False
     """Generate C code of the NLP functions, compile it with the C compiler into a shared object
     kept in an on-disk cache (keyed by a hash of the code) and solve with it. Falls back to the
     in-process functions (with a log warning) when no compiler is found or compilation fails.
-    Off by default: a fresh machine would compile each distinct NLP once (10-25 s at -O1)."""
+    Off by default: a fresh machine would compile each distinct NLP once (10-25 s at -O1);
+    ``python -m ceco_controller.nlp_cache`` fills the cache ahead of time."""
     codegen_flags: tuple = ("-O1",)
     """C compiler flags for ``codegen`` (-O1: half the -O2 compile time, same solve time)."""
     codegen_cache_dir: str | None = None
@@ -86,14 +109,13 @@ class SolverSettings:
     default_options: bool = False
     """Reference mode: IPOPT with its default settings, no warm start (what MPCTools did)."""
     qpsol: str = "qpoases"
-    """QP solver of ``sqpmethod`` ('qpoases', dense, or 'qrqp'); measured in docs/controller.md 4.6."""
-    convexify_strategy: str = "eigen-clip"
-    """Hessian convexification of ``sqpmethod`` ('eigen-clip', 'eigen-reflect' or 'regularize';
-    'regularize' left qpOASES failing on most SC03 steps, docs/controller.md 4.6)."""
+    """QP solver of the SQP ('qpoases', dense active set, or CasADi's 'qrqp')."""
+    eig_floor: float = 1e-7
+    """SQP: smallest eigenvalue of each convexified Hessian block [kJ per variable unit^2]."""
     transcription: str = "auto"
     """How the horizon becomes an NLP: 'single-shooting' (the states are the model's rollout
     expressions of the inputs: no state variables, no gap constraints; at Np = 6 the dense QPs of
-    sqpmethod have 32-39 instead of 56-63 variables), 'multiple-shooting' (states as variables
+    the SQP have 32-39 instead of 56-63 variables), 'multiple-shooting' (states as variables
     with gap constraints: the sparse optimal-control structure, needed by fatrop) or 'auto'
     (single shooting up to ``single_shooting_max_steps``, multiple shooting beyond: the
     single-shooting derivatives grow quadratically with Np). Same optimum (docs/controller.md 4.6)."""
@@ -101,30 +123,26 @@ class SolverSettings:
     """Longest horizon [steps] that 'auto' transcribes by single shooting (the Hessian of the
     Lagrangian has 40 k / 133 k / 479 k SX instructions at Np = 6 / 12 / 24, against 19 k / 37 k /
     73 k for multiple shooting)."""
-    max_iter_eig: int = 10000
-    """sqpmethod: iteration limit of the (Jacobi) eigenvalue decomposition that convexifies the
-    Hessian ('eigen-clip'). CasADi's default 200 stops short on the dense single-shooting block
-    (sqpmethod then stops in iteration 0 and the IPOPT retry takes over). Six test runs (~800
-    steps: ceco-c at gamma = 650 / 2000 / 1200 / 1000, ceco-ioch, ceco-e): 7 retries at 5000, 2 at
-    10 000 (ceco-c only), 0 at 20 000 and 50 000; the default strategies had none at any of these.
-    Not free: CasADi's work space grows with it, ~0.025 ms per solve per 1000 (SC03 ceco median
-    solve 2.2 / 2.4 / 2.7 / 3.5 ms at 5000 / 10 000 / 20 000 / 50 000): 10 000 accepts a rare IPOPT
-    retry (warm IPOPT at Np = 6: 6-9 ms median) to save 0.3 ms on every solve (docs/controller.md 4.6)."""
     ipopt_fallback: bool = True
-    """For ``name`` 'sqpmethod'/'fatrop': a failed warm solve is retried at once with the warm
-    IPOPT solver (same data), and cold solves (first step, after a failure) use the cold IPOPT
-    solver; the retries are counted (``NmpcController.n_ipopt_fallbacks``)."""
+    """For ``name`` 'sqp'/'fatrop': a failed warm solve is retried at once with the warm IPOPT
+    solver (same data, if the step budget allows), and cold solves (first step, no usable warm
+    start) use the cold IPOPT solver; the retries are counted (``NmpcController.n_ipopt_fallbacks``)."""
 
     def validate(self) -> None:
         """Raise ValueError naming the field if a setting is not usable."""
-        if self.name not in ("auto", "ipopt", "fatrop", "sqpmethod"):
-            raise ValueError(f"SolverSettings.name must be auto, ipopt, fatrop or sqpmethod, got {self.name!r}")
+        if self.name == "sqpmethod":
+            raise ValueError("SolverSettings.name 'sqpmethod' (CasADi's SQP) was replaced by 'sqp' "
+                             "(docs/controller.md 4.6)")
+        if self.name not in SOLVER_NAMES:
+            raise ValueError(f"SolverSettings.name must be one of {SOLVER_NAMES}, got {self.name!r}")
         if not (isinstance(self.max_iter, int) and self.max_iter >= 0):
             raise ValueError("SolverSettings.max_iter must be an int >= 0")
-        if not (math.isfinite(self.max_cpu_time_s) and self.max_cpu_time_s > 0):
-            raise ValueError("SolverSettings.max_cpu_time_s must be > 0")
-        if not (math.isfinite(self.tol) and self.tol > 0):
-            raise ValueError("SolverSettings.tol must be > 0")
+        for f in ("max_cpu_time_s", "step_budget_s", "tol", "accept_violation", "eig_floor"):
+            v = getattr(self, f)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"SolverSettings.{f} must be finite and > 0, got {v!r}")
+        if not (isinstance(self.step_reserve_s, (int, float)) and 0 <= self.step_reserve_s < self.step_budget_s):
+            raise ValueError("SolverSettings.step_reserve_s must be >= 0 and below step_budget_s")
         if not (math.isfinite(self.acceptable_tol) and self.acceptable_tol >= self.tol):
             raise ValueError("SolverSettings.acceptable_tol must be finite and >= tol")
         if self.default_options and self.name != "ipopt":
@@ -140,11 +158,8 @@ class SolverSettings:
             raise ValueError("SolverSettings.single_shooting_max_steps must be an int >= 0")
         if self.name == "fatrop" and self.transcription == "single-shooting":
             raise ValueError("SolverSettings.name 'fatrop' needs transcription 'multiple-shooting' (or 'auto')")
-        if not (type(self.max_iter_eig) is int and self.max_iter_eig >= 1):
-            raise ValueError("SolverSettings.max_iter_eig must be an int >= 1")
-        if self.convexify_strategy not in ("eigen-clip", "eigen-reflect", "regularize"):
-            raise ValueError("SolverSettings.convexify_strategy must be eigen-clip, eigen-reflect or regularize, "
-                             f"got {self.convexify_strategy!r}")
+        if self.rti and self.name not in ("auto", "sqp"):
+            raise ValueError("SolverSettings.rti (one QP per step) needs name 'sqp' (or 'auto')")
         if not (isinstance(self.codegen_flags, (tuple, list)) and all(isinstance(f, str) for f in self.codegen_flags)):
             raise ValueError("SolverSettings.codegen_flags must be a tuple of strings")
 
@@ -226,11 +241,16 @@ class StrategySettings:
             raise ValueError("StrategySettings.pmv_newton_steps must be an int in [1, 50]")
         if self.solver.max_cpu_time_s >= self.control_period_s:
             raise ValueError("StrategySettings.solver.max_cpu_time_s must be below control_period_s")
+        if self.solver.step_budget_s >= self.control_period_s:
+            raise ValueError("StrategySettings.solver.step_budget_s must be below control_period_s")
         if (self.solver.name != "ipopt" and self.solver.ipopt_fallback
                 and 2.0 * self.solver.max_cpu_time_s >= self.control_period_s):
             # an SQP/fatrop solve (QPs limited to max_cpu_time_s in all) and then its IPOPT retry
             raise ValueError("StrategySettings.solver.max_cpu_time_s must be below control_period_s / 2 "
                              "when a failed SQP/fatrop solve is retried by IPOPT (ipopt_fallback)")
+        if self.solver.rti and resolved_transcription(self) != "single-shooting" and self.solver.name == "auto":
+            raise ValueError("StrategySettings.solver.rti with name 'auto' needs the single-shooting NLP "
+                             "(horizon_steps <= single_shooting_max_steps); set name 'sqp' explicitly")
         self.solver.validate()
 
 
@@ -243,9 +263,12 @@ _DEFAULTS = {
 
 
 def resolved_transcription(settings: StrategySettings) -> str:
-    """The transcription a controller with ``settings`` builds. 'auto': multiple shooting for an
-    explicit 'ipopt' or 'fatrop' (sparse solvers; IPOPT is slower on the condensed NLP, docs/controller.md
-    4.6), else (SQP) single shooting up to ``single_shooting_max_steps`` and multiple shooting beyond."""
+    """The transcription a controller with ``settings`` builds.
+
+    'auto': multiple shooting for an explicit 'ipopt' or 'fatrop' (sparse solvers; IPOPT is slower
+    on the condensed NLP, docs/controller.md 4.6), else (SQP) single shooting up to
+    ``single_shooting_max_steps`` and multiple shooting beyond.
+    """
     t = settings.solver.transcription
     if t != "auto":
         return t
@@ -257,13 +280,15 @@ def resolved_transcription(settings: StrategySettings) -> str:
 
 def auto_solver_name(transcription: str) -> str:
     """The solver 'auto' picks for an NLP transcription: the SQP for single shooting, IPOPT otherwise."""
-    return "sqpmethod" if transcription == "single-shooting" else "ipopt"
+    return "sqp" if transcription == "single-shooting" else "ipopt"
 
 
 def resolve_auto(settings: StrategySettings) -> StrategySettings:
-    """``settings`` with the solver's 'auto' choices made concrete (see ``SolverSettings.name``,
-    ``SolverSettings.transcription``): single shooting + sqpmethod up to
-    ``single_shooting_max_steps``, multiple shooting + IPOPT beyond."""
+    """``settings`` with the solver's 'auto' choices made concrete.
+
+    See ``SolverSettings.name`` and ``SolverSettings.transcription``: single shooting + the SQP up
+    to ``single_shooting_max_steps``, multiple shooting + IPOPT beyond.
+    """
     transcription = resolved_transcription(settings)
     name = settings.solver.name
     if name == "auto":

@@ -21,6 +21,13 @@ d in [0, 1], is mapped to the two A/C actuators the way production ACCs do
   over to the PI bumplessly (integrator preset so the demand is continuous).
 * Anti-windup by back-calculation (Astrom & Hagglund, *Advanced PID control*,
   2006, sec. 3.5) with tracking time ``tt_s``.
+* Bumpless transfer (Astrom & Hagglund 2006, sec. 3.6) when the law is the fallback of another
+  controller: while that controller is in charge, :meth:`AccLaw.track` is given every applied
+  command; the law leaves pull-down mode and presets its integrator so that its PI output is the
+  demand d_a that reproduces the applied command best on its own actuator map (least squares in
+  normalised units). When it takes over, the difference between the last applied command and
+  its own first output is added to its outputs and decays as exp(-t / ``handover_tau_s``), so the
+  actuators move continuously.
 
 Two optional additions, off by default (the plain law above is the paper's
 baseline and the plant's fallback; docs/benchmark.md, "Baselines"):
@@ -101,6 +108,8 @@ class AccSettings:
     """Sun-load blower compensation k_bl: rise of the minimum blower flow per kW/m2 [(kg/s)/(kW/m2)] (0: off)."""
     sun_filter_tau_s: float = 20.0
     """Time constant of the first-order filter on the sun-load sensor [s]."""
+    handover_tau_s: float = 30.0
+    """Time constant of the decay of the command difference at a bumpless take-over [s]."""
 
     @property
     def compensated(self) -> bool:
@@ -113,7 +122,7 @@ class AccSettings:
             v = getattr(self, f.name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ValueError(f"AccSettings.{f.name} must be a finite number, got {v!r}")
-        for name in ("kp_per_k", "ti_s", "tt_s"):
+        for name in ("kp_per_k", "ti_s", "tt_s", "handover_tau_s"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"AccSettings.{name} must be > 0")
         if not 0.0 <= self.pulldown_exit_k < self.pulldown_enter_k:
@@ -144,7 +153,7 @@ class AccCommand:
     demand: float
     """Cooling demand d in [0, 1] [-]."""
     mode: str
-    """'pulldown', 'pi' or 'sensor_fault'."""
+    """'pulldown', 'pi', 'sensor_fault' or 'tracking' (another controller in charge)."""
     setpoint_c: float = math.nan
     """Effective cabin set-point of this step (after compensation and allowance) [degC]."""
 
@@ -164,6 +173,9 @@ class AccLaw:
         self._sun_f: float | None = None
         self._mdot_min = self.settings.mdot_bl_min_kgps
         self._last = self.map_demand(1.0, "pulldown")
+        self._raw = self._last  # the law's own last output (without the take-over offset)
+        self._tracking = False  # another controller applied the last command
+        self._offset = np.zeros(2)  # bumpless take-over: decaying (mdot, sp) difference
 
     def map_demand(self, demand: float, mode: str = "pi") -> AccCommand:
         """Map a demand in [0, 1] to (blower flow, evaporator set-point)."""
@@ -200,6 +212,61 @@ class AccLaw:
             sp += s.allowance_k_per_pmv * max(0.0, float(pmv_ub) - s.band_ub_pmv)
         return sp
 
+    def demand_of(self, mdot_bl_kgps: float, t_evap_sp_c: float) -> float:
+        """The demand whose mapped command is nearest to (mdot_bl [kg/s], T_evap_sp [degC]).
+
+        Distance in units normalised by the actuator ranges; the map is piecewise linear, so the
+        minimum is exact per piece.
+        """
+        s = self.settings
+        target = self._normalised(mdot_bl_kgps, t_evap_sp_c)
+        knots = sorted({0.0, s.d_blower_start, s.d_evap_full, 1.0})
+
+        def point(d):
+            c = self.map_demand(d)
+            return self._normalised(c.mdot_bl_kgps, c.t_evap_sp_c)
+
+        best_d, best_e = 0.0, math.inf
+        for a, b in zip(knots[:-1], knots[1:]):
+            pa, pb = point(a), point(b)
+            seg = pb - pa
+            t = float(np.clip(np.dot(target - pa, seg) / max(float(np.dot(seg, seg)), 1e-300), 0.0, 1.0))
+            e = float(np.sum((pa + t * seg - target) ** 2))
+            if e < best_e:
+                best_d, best_e = a + t * (b - a), e
+        return best_d
+
+    def _normalised(self, mdot, sp) -> np.ndarray:
+        s = self.settings
+        return np.array([(mdot - s.mdot_bl_min_kgps) / (s.mdot_bl_max_kgps - s.mdot_bl_min_kgps),
+                         (s.t_evap_sp_max_c - sp) / (s.t_evap_sp_max_c - s.t_evap_sp_min_c)])
+
+    def track(self, mdot_bl_kgps: float, t_evap_sp_c: float, t_cab_c: float | None = None, *,
+              dt_s: float | None = None, t_amb_c: float | None = None, solar_wm2: float | None = None,
+              pmv_ub: float | None = None) -> None:
+        """Follow a command another controller applied, so that a later :meth:`step` takes over without a bump.
+
+        (mdot_bl [kg/s], T_evap_sp [degC]) applied at cabin air temperature ``t_cab_c`` [degC];
+        with ``dt_s`` the compensations' sensors are followed too (the sun filter stays warm) and
+        the integrator is preset against the effective set-point. Non-finite commands are
+        ignored; a non-finite ``t_cab_c`` leaves the integrator as it is.
+        """
+        if not (math.isfinite(float(mdot_bl_kgps)) and math.isfinite(float(t_evap_sp_c))):
+            return
+        s = self.settings
+        sp_eff = (self.effective_setpoint_c(dt_s, t_amb_c, solar_wm2, pmv_ub)
+                  if dt_s is not None and math.isfinite(dt_s) and dt_s > 0 else s.setpoint_c)
+        mdot = min(max(float(mdot_bl_kgps), s.mdot_bl_min_kgps), s.mdot_bl_max_kgps)
+        sp = min(max(float(t_evap_sp_c), s.t_evap_sp_min_c), s.t_evap_sp_max_c)
+        d = self.demand_of(mdot, sp)
+        self._pulldown = False
+        if t_cab_c is not None and math.isfinite(float(t_cab_c)):
+            self._integral = d - s.kp_per_k * (float(t_cab_c) - sp_eff)
+        self._last = self._raw = AccCommand(mdot_bl_kgps=mdot, t_evap_sp_c=sp, demand=d, mode="tracking",
+                                            setpoint_c=sp_eff)
+        self._tracking = True
+        self._offset = np.zeros(2)
+
     def step(self, t_cab_c: float, dt_s: float, *, t_amb_c: float | None = None, solar_wm2: float | None = None,
              pmv_ub: float | None = None) -> AccCommand:
         """One ECU step.
@@ -213,9 +280,27 @@ class AccLaw:
         """
         if not (isinstance(dt_s, (int, float)) and math.isfinite(dt_s) and dt_s > 0):
             raise ValueError(f"AccLaw.step: dt_s must be a finite number > 0, got {dt_s!r}")
+        applied = self._last if self._tracking else None
+        self._tracking = False
+        cmd = self._raw = self._law_step(t_cab_c, dt_s, t_amb_c, solar_wm2, pmv_ub)
+        if applied is not None:  # take-over: start from the applied command
+            self._offset = np.array([applied.mdot_bl_kgps - cmd.mdot_bl_kgps, applied.t_evap_sp_c - cmd.t_evap_sp_c])
+        elif np.any(self._offset):
+            self._offset = self._offset * math.exp(-dt_s / self.settings.handover_tau_s)
+            if np.all(np.abs(self._offset) < 1e-9):
+                self._offset = np.zeros(2)
+        if np.any(self._offset):
+            s = self.settings
+            cmd = dataclasses.replace(
+                cmd, mdot_bl_kgps=min(max(cmd.mdot_bl_kgps + self._offset[0], s.mdot_bl_min_kgps), s.mdot_bl_max_kgps),
+                t_evap_sp_c=min(max(cmd.t_evap_sp_c + self._offset[1], s.t_evap_sp_min_c), s.t_evap_sp_max_c))
+        self._last = cmd
+        return cmd
+
+    def _law_step(self, t_cab_c, dt_s, t_amb_c, solar_wm2, pmv_ub) -> AccCommand:
+        """The law itself (PI, pull-down, sensor fault), without the take-over offset."""
         if t_cab_c is None or not math.isfinite(float(t_cab_c)):
-            self._last = dataclasses.replace(self._last, mode="sensor_fault")
-            return self._last
+            return dataclasses.replace(self._raw, mode="sensor_fault")
         s = self.settings
         sp = self.effective_setpoint_c(dt_s, t_amb_c, solar_wm2, pmv_ub)
         err = float(t_cab_c) - sp  # > 0: cabin too warm
@@ -226,11 +311,9 @@ class AccLaw:
         elif not self._pulldown and err > s.pulldown_enter_k:
             self._pulldown = True
         if self._pulldown:
-            self._last = dataclasses.replace(self.map_demand(1.0, "pulldown"), setpoint_c=sp)
-            return self._last
+            return dataclasses.replace(self.map_demand(1.0, "pulldown"), setpoint_c=sp)
         v = s.kp_per_k * err + self._integral
         d = min(max(v, 0.0), 1.0)
         # integrate with back-calculation anti-windup
         self._integral += dt_s * (s.kp_per_k / s.ti_s * err + (d - v) / s.tt_s)
-        self._last = dataclasses.replace(self.map_demand(d, "pi"), setpoint_c=sp)
-        return self._last
+        return dataclasses.replace(self.map_demand(d, "pi"), setpoint_c=sp)

@@ -1,0 +1,256 @@
+"""The CECO NLP (docs/controller.md 4.1) as a CasADi problem: model, cost, constraints, layout.
+
+Built once per controller, parametric in the initial state, the held interior/shell
+temperatures, the bias estimates, the previous command, the weather and speed previews and the
+PMV bounds (:class:`~ceco_controller.nlp_layout.ParamLayout`). Two transcriptions of the same
+problem, stage-wise ordered so the multiple-shooting NLP has the optimal-control structure:
+
+    w = [u_0, s_0, x_1, u_1, s_1, ..., x_N, s_N]   (x_0 is the measured state, a parameter;
+                                                    single shooting: no x_i)
+    x_i = (T_cab, T_evap [degC], mdot_{i-1} [kg/s], T_evap_sp_{i-1} [degC]),
+    u_i = (mdot_bl [kg/s], T_evap_sp [degC])
+    s_i = (s_lo, s_up [PMV], s_ev [K] (i >= 1), eps [PMV] (ceco-ioch))
+
+* ``multiple-shooting``: the x_i are variables tied by gap constraints x_i - f(x_{i-1}, u_{i-1}) = 0.
+* ``single-shooting``: the x_i are the model's rollout expressions of (x_0, u_0 .. u_{i-1}).
+
+The problem knows nothing about solvers (:mod:`ceco_controller.solvers`) or the control loop
+(:mod:`ceco_controller.nmpc`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import casadi
+import numpy as np
+
+from ceco_core.cabin_comfort import ComfortParams, cabin_draught_pct, cabin_pmv, cabin_w_rad_wm2
+from ceco_core.contracts import ACTUATOR_LIMITS, ActuatorLimits
+
+from . import model as cm
+from .nlp_layout import ParamLayout, RowLayout, VariableLayout
+from .strategies import StrategySettings
+
+__all__ = ["NlpProblem", "Evaluation", "build_problem", "TRANSCRIPTIONS"]
+
+TRANSCRIPTIONS = ("single-shooting", "multiple-shooting")
+"""The transcriptions :func:`build_problem` knows."""
+
+_STATE_BOUNDS_C = (-50.0, 150.0)
+"""Box on the temperature states of the multiple-shooting NLP [degC] (never active; keeps IPOPT's
+iterates in the model's range)."""
+
+
+@dataclasses.dataclass
+class Evaluation:
+    """Cost terms and predicted trajectories at one primal point."""
+
+    J_e: float
+    """Energy term [kJ]."""
+    J_c: float
+    """Comfort terms: gamma sum PMV^2 Ts and the draught penalty [kJ-equivalent]."""
+    J_i: float
+    """IOCH term [kJ-equivalent]."""
+    J_s: float
+    """Exact-penalty slack term [kJ-equivalent]."""
+    J_du: float
+    """Move penalty [kJ-equivalent]."""
+    pmv: np.ndarray
+    """Predicted PMV on the N + 1 grid points [-]."""
+    t_cab: np.ndarray
+    """Predicted cabin air temperature on the grid [degC]."""
+    t_ain: np.ndarray
+    """Predicted vent air temperature on the grid [degC]."""
+    t_evap: np.ndarray
+    """Predicted evaporator wall temperature at grid points 1..N [degC]."""
+
+
+@dataclasses.dataclass
+class NlpProblem:
+    """One transcribed NLP: the CasADi expressions, their bounds and the named layout."""
+
+    settings: StrategySettings
+    """The strategy settings the problem was built from (solver 'auto' choices resolved)."""
+    transcription: str
+    """'single-shooting' or 'multiple-shooting'."""
+    model_params: cm.ControlModelParams
+    """The control-oriented model's parameters."""
+    n_sub: int
+    """Model steps per control period."""
+    nlp: dict
+    """CasADi NLP: {'x': w, 'p': p, 'f': J, 'g': g}."""
+    params: ParamLayout
+    """Named slices of p."""
+    vars: VariableLayout
+    """Stage-wise blocks of w."""
+    rows: RowLayout
+    """Stage-wise blocks of g."""
+    lbw: np.ndarray
+    ubw: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    evaluator: casadi.Function
+    """(w, p) -> cost terms and trajectories (:meth:`evaluate`)."""
+    limits: ActuatorLimits = ACTUATOR_LIMITS
+    """Hard actuator bounds on u."""
+    compiled: dict = dataclasses.field(default_factory=dict, repr=False)
+    """Compiled NLP functions per (plugin, flags): path or None (filled by the solver builder)."""
+
+    def __post_init__(self) -> None:
+        # the constant bounds as CasADi matrices, converted once (not on every solve: ~0.1 ms)
+        self.bounds_dm = {"lbx": casadi.DM(self.lbw), "ubx": casadi.DM(self.ubw),
+                          "lbg": casadi.DM(self.lbg), "ubg": casadi.DM(self.ubg)}
+
+    @property
+    def horizon_steps(self) -> int:
+        """N [steps]."""
+        return self.params.n_grid - 1
+
+    @property
+    def nw(self) -> int:
+        """Number of variables."""
+        return self.vars.n
+
+    @property
+    def ng(self) -> int:
+        """Number of constraint rows."""
+        return self.rows.n
+
+    def evaluate(self, w: np.ndarray, p: np.ndarray) -> Evaluation:
+        """Cost terms and predicted trajectories of a primal point."""
+        out = self.evaluator(w, p)
+        j = [float(v) for v in out[:5]]
+        pmv, t_cab, t_ain, t_evap = (np.array(v).ravel() for v in out[5:])
+        return Evaluation(J_e=j[0], J_c=j[1], J_i=j[2], J_s=j[3], J_du=j[4], pmv=pmv, t_cab=t_cab, t_ain=t_ain,
+                          t_evap=t_evap)
+
+    def plan(self, w: np.ndarray) -> np.ndarray:
+        """The input sequence u_0..u_{N-1} of a primal point, shape (N, 2)."""
+        return self.vars.blocks(w, "u")
+
+    def max_violation(self, w: np.ndarray, g: np.ndarray) -> float:
+        """Largest violation of the variable bounds and the constraint bounds at (w, g(w))."""
+        v = max(float(np.max(self.lbw - w, initial=0.0)), float(np.max(w - self.ubw, initial=0.0)))
+        if g.size:
+            v = max(v, float(np.max(self.lbg - g, initial=0.0)), float(np.max(g - self.ubg, initial=0.0)))
+        return v
+
+
+def build_problem(settings: StrategySettings, model_params: cm.ControlModelParams,
+                  comfort_params: ComfortParams, transcription: str,
+                  limits: ActuatorLimits = ACTUATOR_LIMITS) -> NlpProblem:
+    """Transcribe the strategy's NLP (docs/controller.md 4.1).
+
+    Args:
+        settings: validated strategy settings (horizon, weights, bounds).
+        model_params: the identified control-oriented model.
+        comfort_params: the NLP's PMV parameters (met, clo, smoothing with the NLP's Newton steps).
+        transcription: 'single-shooting' or 'multiple-shooting'.
+        limits: the hard actuator bounds.
+    """
+    if transcription not in TRANSCRIPTIONS:
+        raise ValueError(f"transcription must be one of {TRANSCRIPTIONS}, got {transcription!r}")
+    s, mp, cp = settings, model_params, comfort_params
+    n = s.horizon_steps
+    n_sub = cm.substeps(mp, s.control_period_s)
+    ts_kj = s.control_period_s / 1000.0  # W -> kJ over one control period
+    SX = casadi.SX
+    inf = np.inf
+
+    params = ParamLayout(n + 1)
+    P, p = params.symbols(SX.sym)
+    vars_ = VariableLayout()
+    rows = RowLayout()
+    w: list = []
+
+    def add_var(sym, lo, hi, key):
+        vars_.add(key, sym.numel(), lo, hi)
+        w.append(sym)
+
+    e_terms, c_terms, i_terms, sl_terms, du_terms = [], [], [], [], []
+    pmv_all, tcab_all, tain_all, tevap_all = [], [], [], []
+
+    # Augmented state x_i = (T_cab, T_evap, mdot_{i-1}, sp_{i-1}): the move penalty and the comfort at
+    # the last grid point (which uses u_{N-1}) stay stage-local, so the multiple-shooting NLP has the
+    # exact optimal-control structure (needed by fatrop, harmless for IPOPT). Single shooting: x_i is
+    # the model's rollout expression of (x_0, u_0..u_{i-1}), no state variables, no gap constraints.
+    single = transcription == "single-shooting"
+    x_next = None
+    for i in range(n + 1):
+        if i == 0:
+            x = casadi.vertcat(P["x0"], P["u_prev"])  # the initial state is a parameter, not a variable
+        elif single:
+            x = x_next
+        else:
+            assert x_next is not None  # (set by stage i - 1)
+            x = SX.sym(f"x_{i}", 4)
+            add_var(x, [_STATE_BOUNDS_C[0]] * 2 + [-inf] * 2, [_STATE_BOUNDS_C[1]] * 2 + [inf] * 2, "x")
+            rows.add(i - 1, 0, "gap", x - x_next, [0.0] * 4, [0.0] * 4)
+        if i < n:
+            u = SX.sym(f"u_{i}", 2)
+            add_var(u, [limits.mdot_bl_min_kgps, limits.t_evap_sp_min_c],
+                    [limits.mdot_bl_max_kgps, limits.t_evap_sp_max_c], "u")
+            # one model step over interval i: the next state and the interval's power
+            t_cab_n, t_evap_n, _, pc, pb = cm.step(
+                mp, x[0], x[1], u[0], u[1], P["t_int"], P["t_shell"], P["t_amb"][i], P["speed"][i],
+                n_sub=n_sub, d_cab_k=P["d_cab"] / n_sub, d_ain_k=P["d_ain"], d_evap_k=P["d_evap"] / n_sub)
+            x_next = casadi.vertcat(t_cab_n, t_evap_n, u)
+            e_terms.append(ts_kj * (pc + pb))
+            du = casadi.vertcat((u[0] - x[2]) / (limits.mdot_bl_max_kgps - limits.mdot_bl_min_kgps),
+                                (u[1] - x[3]) / (limits.t_evap_sp_max_c - limits.t_evap_sp_min_c))
+            du_terms.append(s.du_weight_kj * casadi.sumsqr(du))
+        else:
+            u = x[2:4]  # u_{N-1}, carried in the state
+        # comfort at stage i
+        tain = cm.t_ain_c(mp, x[1], u[0], P["d_ain"])
+        pmv = cabin_pmv(t_cab_c=x[0], t_vent_c=tain, mdot_bl_kgps=u[0], t_mr_c=P["t_mr"],
+                        w_rad_wm2=cabin_w_rad_wm2(P["solar"][i], cp), pa_pa=P["pa"], params=cp)
+        pmv_all.append(pmv)
+        tcab_all.append(x[0])
+        tain_all.append(tain)
+        s_lo = SX.sym(f"s_lo_{i}")
+        s_up = SX.sym(f"s_up_{i}")
+        add_var(s_lo, 0.0, inf, "s_lo")
+        add_var(s_up, 0.0, inf, "s_up")
+        sl_terms.append(s.slack_weight_kj * (s_lo + s_up))
+        eps: object = 0.0
+        if s.ioch:
+            eps_sym = SX.sym(f"eps_{i}")
+            add_var(eps_sym, 0.0, s.eps_ub, "eps")
+            eps = eps_sym
+            eta = cm.eta_ac(mp, P["speed"][i])
+            i_terms.append(ts_kj * s.beta_w * (eta - 1.0) / (eps_sym + s.xi))
+        rows.add(i, 1, "pmv", casadi.vertcat(pmv + s_lo - P["pmv_lb"][i],
+                                             pmv - s_up + eps - (P["pmv_ub"][i] - s.pmv_margin)),
+                 [0.0, -inf], [inf, 0.0])
+        if s.gamma_w > 0:
+            c_terms.append(ts_kj * s.gamma_w * pmv ** 2)
+        if s.draught_weight_kj > 0:
+            dr = cabin_draught_pct(t_cab_c=x[0], t_vent_c=tain, mdot_bl_kgps=u[0], params=cp, cap=False)
+            c_terms.append(s.draught_weight_kj * (dr / 100.0) ** 2)
+        if i >= 1:
+            tevap_all.append(x[1])
+            s_ev = SX.sym(f"s_ev_{i}")
+            add_var(s_ev, 0.0, inf, "s_ev")
+            sl_terms.append(s.slack_weight_kj * s_ev)
+            rows.add(i, 2, "evap", casadi.vertcat(x[1] + s_ev - s.t_evap_lb_c, x[1] - s_ev - s.t_evap_ub_c),
+                     [0.0, -inf], [inf, 0.0])
+
+    def total(terms):
+        return casadi.sum1(casadi.vertcat(*terms)) if terms else SX(0)
+
+    J_e, J_c, J_i, J_s, J_du = (total(t) for t in (e_terms, c_terms, i_terms, sl_terms, du_terms))
+    J = J_e + J_c + J_i + J_s + J_du
+    g, lbg, ubg = rows.finalize()
+    w_all = casadi.vertcat(*w)
+    g_all = casadi.vertcat(*g)
+    evaluator = casadi.Function(
+        "ceco_eval", [w_all, p],
+        [J_e, J_c, J_i, J_s, J_du, casadi.vertcat(*pmv_all), casadi.vertcat(*tcab_all),
+         casadi.vertcat(*tain_all), casadi.vertcat(*tevap_all)],
+        ["w", "p"], ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain", "t_evap"])
+    return NlpProblem(settings=settings, transcription=transcription, model_params=mp, n_sub=n_sub,
+                      nlp={"x": w_all, "p": p, "f": J, "g": g_all}, params=params, vars=vars_, rows=rows,
+                      lbw=vars_.lb, ubw=vars_.ub, lbg=np.array(lbg), ubg=np.array(ubg),
+                      evaluator=evaluator, limits=limits)

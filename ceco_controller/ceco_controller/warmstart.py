@@ -1,0 +1,91 @@
+"""Initial guesses of the CECO NLP: the cold model-rollout guess and the shifted warm start.
+
+Pure numpy on top of an :class:`~ceco_controller.transcription.NlpProblem`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import model as cm
+from .transcription import NlpProblem
+
+__all__ = ["SLACK_GUESS_MARGIN", "initial_guess", "repair_slacks"]
+
+SLACK_GUESS_MARGIN = 1e-5
+"""Margin of the guessed comfort/T_evap slacks above their smallest feasible value [PMV or K]: near
+the warm solver's barrier (slack x multiplier ~ 1e-5 x rho); 1e-3 started the warm solves with a
+complementarity of ~1 and cost one IPOPT iteration (docs/controller.md 4.6)."""
+
+
+def initial_guess(problem: NlpProblem, p: np.ndarray, w_prev: np.ndarray | None = None,
+                  stages: int = 1) -> np.ndarray:
+    """Primal guess, consistent with the dynamics and the comfort constraints at ``p``.
+
+    Inputs: the previous solution ``w_prev`` shifted by ``stages`` stages if given, else the
+    previous command (parameter ``u_prev``) held. States (multiple shooting): rolled out by the
+    model from the measured state (so the guess closes every gap). Slacks: the smallest values
+    that satisfy the comfort and T_evap constraints at the guess (plus a small margin).
+    ``eps`` (ioch): shifted, or eps_UB/2.
+    """
+    s, pl, vl, lim = problem.settings, problem.params, problem.vars, problem.limits
+    n = s.horizon_steps
+    if w_prev is not None:
+        w = vl.shift(w_prev, stages)
+    else:
+        w = np.zeros(vl.n)
+        u_prev = pl.get(p, "u_prev")
+        u = np.array([np.clip(u_prev[0], lim.mdot_bl_min_kgps, lim.mdot_bl_max_kgps),
+                      np.clip(u_prev[1], lim.t_evap_sp_min_c, lim.t_evap_sp_max_c)])
+        vl.set_blocks(w, "u", u)
+        if s.ioch:
+            vl.set_blocks(w, "eps", 0.5 * s.eps_ub)
+    w = np.clip(w, problem.lbw, problem.ubw)
+    if vl.count("x"):  # multiple shooting: the states rolled out by the model
+        x = pl.get(p, "x0").copy()
+        t_int, t_shell = pl.scalar(p, "t_int"), pl.scalar(p, "t_shell")
+        t_amb, speed = pl.get(p, "t_amb"), pl.get(p, "speed")
+        d_cab, d_evap, d_ain = pl.scalar(p, "d_cab"), pl.scalar(p, "d_evap"), pl.scalar(p, "d_ain")
+        us = vl.blocks(w, "u")
+        xs = np.empty((n, 4))
+        for i in range(n):
+            u = us[i]
+            tc, te, *_ = cm.step(problem.model_params, x[0], x[1], u[0], u[1], t_int, t_shell, t_amb[i],
+                                 speed[i], n_sub=problem.n_sub, d_cab_k=d_cab / problem.n_sub,
+                                 d_ain_k=d_ain, d_evap_k=d_evap / problem.n_sub)
+            x = np.array([tc, te])
+            xs[i] = np.concatenate([x, u])
+        vl.set_blocks(w, "x", xs)
+    lo, up, ev = _smallest_slacks(problem, w, p)
+    margin = SLACK_GUESS_MARGIN
+    w[vl.indices("s_lo")] = lo + margin
+    w[vl.indices("s_up")] = up + margin
+    w[vl.indices("s_ev")] = ev + margin
+    return np.clip(w, problem.lbw, problem.ubw)
+
+
+def _smallest_slacks(problem: NlpProblem, w: np.ndarray, p: np.ndarray):
+    """The smallest comfort (s_lo, s_up) and T_evap (s_ev) slacks that satisfy their rows at ``w``."""
+    s, pl, vl = problem.settings, problem.params, problem.vars
+    ev = problem.evaluate(w, p)
+    lb = pl.get(p, "pmv_lb")
+    ub = pl.get(p, "pmv_ub") - s.pmv_margin
+    eps = w[vl.indices("eps")] if s.ioch else 0.0
+    return (np.maximum(lb - ev.pmv, 0.0), np.maximum(ev.pmv + eps - ub, 0.0),
+            np.maximum(np.maximum(s.t_evap_lb_c - ev.t_evap, ev.t_evap - s.t_evap_ub_c), 0.0))
+
+
+def repair_slacks(problem: NlpProblem, w: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """``w`` with every comfort/T_evap slack raised to the smallest value that satisfies its row.
+
+    For single shooting this makes any point within the variable bounds feasible; the objective at
+    the result is the true cost of applying its inputs (used to measure the optimality loss of the
+    real-time iteration, docs/controller.md 4.6). Multiple shooting: the gap rows stay as they are.
+    """
+    out = np.array(w, float)
+    vl = problem.vars
+    lo, up, ev = _smallest_slacks(problem, out, p)
+    for key, need in (("s_lo", lo), ("s_up", up), ("s_ev", ev)):
+        ix = vl.indices(key)
+        out[ix] = np.maximum(out[ix], need)
+    return out

@@ -1,0 +1,132 @@
+"""ceco's dense SQP and the NLP layout: exact convexification, deadline, real-time iteration, named slices."""
+import numpy as np
+import pytest
+
+from ceco_controller.nlp_layout import ParamLayout, RowLayout, VariableLayout
+from ceco_controller.nmpc import NmpcController
+from ceco_controller.strategies import SolverSettings, strategy_settings
+from ceco_core.contracts import Observation
+
+N1 = 7
+
+
+def _obs(k=0, t_cab=27.0, speed=10.0):
+    return Observation(k=k, t_s=5.0 * k, t_cab_c=t_cab, t_int_c=40.0, t_shell_c=38.0, t_evap_c=6.0, t_vent_c=9.0,
+                       t_amb_c=35.0, solar_wm2=800.0, speed_mps=speed, mdot_bl_prev_kgps=0.1, t_evap_sp_prev_c=5.0,
+                       preview_t_amb_c=np.full(N1, 35.0), preview_solar_wm2=np.full(N1, 800.0),
+                       preview_speed_mps=np.full(N1, speed), preview_valid=np.ones(N1, bool),
+                       pmv_lb=np.full(N1, -0.5), pmv_ub=np.full(N1, 0.5))
+
+
+def _optimum_hessians(strategy, steps=6):
+    """Hessians of the Lagrangian at the solutions of a few closed-loop-like steps."""
+    ctrl = NmpcController(strategy)
+    sqp = ctrl.solver.sqp
+    out = []
+    for k in range(steps):
+        ctrl.compute(_obs(k, t_cab=27.0 - 0.2 * k, speed=3.0 * k))
+        good = ctrl._good
+        (h,) = sqp._hess(good.w, ctrl.last_nlp().p, good.lam_g)
+        out.append(h.reshape(sqp.nw, sqp.nw).copy())
+    return sqp, out
+
+
+def test_convexification_is_exact_on_the_ill_conditioned_input_block():
+    """ceco-c's optimum Hessians (the 12 x 12 input block that CasADi's 50-rotation Jacobi eigen-clip
+    could not decompose): the convexified matrix has every eigenvalue >= eig_floor and leaves each
+    eigen-direction with eigenvalue >= eig_floor unchanged."""
+    sqp, hessians = _optimum_hessians("ceco-c")
+    floor = sqp.options.eig_floor
+    (block, ix), = sqp._dense  # one dense block: the inputs
+    assert block.size == 12
+    conds = []
+    for h in hessians:
+        hb = 0.5 * (h[ix] + h[ix].T)
+        lam, vec = np.linalg.eigh(hb)
+        conds.append(abs(lam).max() / max(abs(lam).min(), 1e-300))
+        hc = sqp.convexify(h)[ix]
+        lam_c = np.linalg.eigvalsh(hc)
+        assert lam_c.min() >= floor - 1e-12 * abs(lam).max()  # (rounding of V diag(lam) V')
+        keep = lam >= floor
+        np.testing.assert_allclose(hc @ vec[:, keep], vec[:, keep] * lam[keep], atol=1e-9 * abs(lam).max())
+        # entries outside the blocks with curvature stay zero (the linear slacks)
+        rest = np.setdiff1d(np.arange(sqp.nw), np.concatenate([block, sqp._diag1]))
+        assert not np.any(sqp.convexify(h)[np.ix_(rest, rest)])
+    assert max(conds) > 1e6  # ill-conditioned indeed
+
+
+def test_convexification_falls_back_to_a_gershgorin_shift(monkeypatch):
+    sqp, hessians = _optimum_hessians("ceco", steps=1)
+
+    def fail(_):
+        raise np.linalg.LinAlgError("Eigenvalues did not converge")
+
+    monkeypatch.setattr(np.linalg, "eigh", fail)
+    monkeypatch.setattr(np.linalg, "cholesky", fail)  # (the shortcut for blocks already above the floor)
+    (block, ix), = sqp._dense
+    hc = sqp.convexify(hessians[0])[ix]
+    assert np.linalg.eigvalsh(hc).min() > 0 and sqp.n_eig_fallbacks == 1
+
+
+def test_sqp_from_its_own_solution_needs_no_qp_and_stops_at_the_deadline():
+    ctrl = NmpcController("ceco-ioch")
+    for k in range(3):
+        ctrl.compute(_obs(k))
+    sqp, data, good = ctrl.solver.sqp, ctrl.last_nlp(), ctrl._good
+    out = sqp.solve(good.w, data.p, good.lam_x, good.lam_g)
+    assert out.success and out.status == "Solve_Succeeded" and out.iterations == 0
+    # from the shifted guess with the deadline already passed: no QP, the guess returned, named status
+    out = sqp.solve(data.x0, data.p, data.lam_x0, data.lam_g0, deadline=sqp.clock() - 1.0)
+    assert not out.success and out.status == "Maximum_Wall_Time_Exceeded" and out.iterations == 0
+    np.testing.assert_array_equal(out.w, np.clip(data.x0, sqp.lbw, sqp.ubw))
+
+
+def test_real_time_iteration_is_one_full_qp_step():
+    rti = NmpcController(strategy_settings("ceco", solver=SolverSettings(rti=True)))
+    full = NmpcController("ceco")
+    for k in range(4):
+        c_r, d_r = rti.compute(_obs(k, t_cab=27.0 - 0.3 * k))
+        c_f, d_f = full.compute(_obs(k, t_cab=27.0 - 0.3 * k))
+    assert d_r.status == "RTI_Step" and d_r.iterations == 1 and d_r.success and d_r.fallback == ""
+    assert rti.counters.rti_steps == 3 and rti.counters.cold_solves == 1
+    # one QP from the shifted solution lands close to the converged optimum of the same instance
+    assert abs(d_r.cost_total - d_f.cost_total) <= 1e-2 * abs(d_f.cost_total)
+
+
+def test_parameter_layout_names_every_slice():
+    pl = ParamLayout(4)
+    assert pl.names() == ("x0", "t_int", "t_shell", "d_cab", "d_evap", "d_ain", "u_prev", "t_amb", "solar", "speed",
+                          "pmv_lb", "pmv_ub", "t_mr", "pa")
+    assert pl.size == 9 + 5 * 4 + 2
+    p = pl.pack(x0=[1, 2], t_int=3, t_shell=4, d_cab=5, d_evap=6, d_ain=7, u_prev=[8, 9], t_amb=np.arange(4),
+                solar=10 + np.arange(4), speed=20 + np.arange(4), pmv_lb=-1, pmv_ub=1, t_mr=30, pa=1700)
+    assert pl.scalar(p, "pa") == 1700 and p[-1] == 1700
+    assert pl.scalar(p, "t_shell") == 4 and list(pl.get(p, "speed")) == [20, 21, 22, 23]
+    assert list(pl.get(p, "u_prev")) == [8, 9] and list(pl.get(p, "pmv_lb")) == [-1] * 4
+    with pytest.raises(ValueError, match="missing"):
+        pl.pack(x0=[1, 2])
+    with pytest.raises(ValueError, match="not 1"):
+        pl.scalar(p, "x0")
+
+
+def test_variable_and_row_layouts_shift_stage_blocks():
+    vl = VariableLayout()
+    for _ in range(3):
+        vl.add("u", 2, 0.0, 1.0)
+        vl.add("s_lo", 1, 0.0, np.inf)
+    w = np.arange(vl.n, dtype=float)  # u blocks at 0, 3, 6; slacks at 2, 5, 8
+    assert list(vl.starts("u")) == [0, 3, 6] and list(vl.indices("s_lo")) == [2, 5, 8]
+    np.testing.assert_array_equal(vl.shift(w, 1), [3, 4, 5, 6, 7, 8, 6, 7, 8])
+    np.testing.assert_array_equal(vl.shift(w, 2), [6, 7, 8, 6, 7, 8, 6, 7, 8])
+    with pytest.raises(ValueError, match="blocks of 2"):
+        vl.add("u", 3, 0.0, 1.0)
+    import casadi
+    rows = RowLayout()
+    x = casadi.SX.sym("x", 2)
+    for i in range(3):
+        rows.add(i, 1, "pmv", x, [0, 0], [1, 1])
+        rows.add(i, 0, "gap", x[0], [0], [0])
+    rows.finalize()
+    assert [list(b) for b in rows.rows["gap"]] == [[0], [3], [6]]
+    lam = np.arange(9, dtype=float)
+    np.testing.assert_array_equal(rows.shift(lam, 1), [3, 4, 5, 6, 7, 8, 6, 7, 8])
