@@ -402,7 +402,11 @@ def test_controller_health_levels():
     ok = controller_health(lifecycle='active', last={'k': 3, 'step_time_ms': 4.0, 'fallback': ''}, **common)
     assert ok.level == OK and ok.values['deadline_ms'] == '5000' and ok.values['last_step'] == '3'
     slow = controller_health(lifecycle='active', last={'k': 3, 'step_time_ms': 3000.0, 'fallback': ''}, **common)
-    assert slow.level == WARN and 'above 50% of the control period' in slow.message
+    assert slow.level == WARN and 'above 50% of the step deadline (5000 ms)' in slow.message
+    budget = controller_health(lifecycle='active', last={'k': 3, 'step_time_ms': 10.8, 'fallback': ''},
+                               deadline_s=0.002, **common)     # the NMPC's own step budget
+    assert budget.level == ERROR and 'beyond the step deadline (2 ms)' in budget.message
+    assert budget.values['deadline_ms'] == '2'
     late = controller_health(lifecycle='active', last={'k': 3, 'step_time_ms': 6000.0, 'fallback': ''}, **common)
     assert late.level == ERROR
     fb = controller_health(lifecycle='active', last={'k': 3, 'step_time_ms': 4.0, 'fallback': 'baseline',

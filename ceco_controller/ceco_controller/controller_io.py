@@ -382,17 +382,19 @@ class ControllerRecord:
         self.counts['step_errors'] += 1
         self.last = {'k': k, 'error': repr(err)}
 
-    def health(self, lifecycle: str, cfg: ControllerNodeConfig, inputs: ControllerInputs, wall_s: float) -> Health:
+    def health(self, lifecycle: str, cfg: ControllerNodeConfig, inputs: ControllerInputs, wall_s: float,
+               deadline_s: float | None = None) -> Health:
         """:func:`controller_health` of now; the rejections since the previous call are the new ones."""
         rej = inputs.rejections
         new, self._reported = rej.total - self._reported, rej.total
         return controller_health(lifecycle=lifecycle, cfg=cfg, last=self.last,
                                  counts=dict(self.counts, resets=inputs.n_resets), ages_s=inputs.ages_s(wall_s),
-                                 rejections=rej, new_rejections=new, events=self.events)
+                                 rejections=rej, new_rejections=new, events=self.events, deadline_s=deadline_s)
 
 
 def controller_health(*, lifecycle: str, cfg: ControllerNodeConfig, last: dict | None, counts: dict,
-                      ages_s: dict, rejections: Rejections, new_rejections: int, events: dict) -> Health:
+                      ages_s: dict, rejections: Rejections, new_rejections: int, events: dict,
+                      deadline_s: float | None = None) -> Health:
     """The controller's status for /diagnostics.
 
     Args:
@@ -405,10 +407,12 @@ def controller_health(*, lifecycle: str, cfg: ControllerNodeConfig, last: dict |
         rejections: the rejection counts.
         new_rejections: rejections since the previous report [-].
         events: QoS event counts (``deadline_missed``, ``incompatible_qos``).
+        deadline_s: the whole step's deadline [s]: the controller's own step budget (the NMPC's
+            ``SolverSettings.step_budget_s``) when it has one, else (None) the control period.
     """
     h = Health()
     h.set('lifecycle', lifecycle).set('strategy', cfg.strategy).set('timing', cfg.timing)
-    deadline_ms = cfg.control_period_s * 1e3
+    deadline_ms = (cfg.control_period_s if deadline_s is None else min(deadline_s, cfg.control_period_s)) * 1e3
     h.set('deadline_ms', deadline_ms)
     if lifecycle != 'active':
         h.warn(f'{lifecycle}: not commanding (the plant\'s fallback law drives)')
@@ -420,10 +424,10 @@ def controller_health(*, lifecycle: str, cfg: ControllerNodeConfig, last: dict |
         h.set('solve_time_ms', last.get('solve_time_ms')).set('fallback', last.get('fallback') or 'none')
         step_ms = last.get('step_time_ms')
         if step_ms is not None and step_ms > deadline_ms:
-            h.error(f'step {last["k"]} took {step_ms:.1f} ms, beyond the control period ({deadline_ms:.0f} ms)')
+            h.error(f'step {last["k"]} took {step_ms:.1f} ms, beyond the step deadline ({deadline_ms:.4g} ms)')
         elif step_ms is not None and step_ms > cfg.solve_time_warn_fraction * deadline_ms:
             h.warn(f'step {last["k"]} took {step_ms:.1f} ms, above {cfg.solve_time_warn_fraction:.0%} of '
-                   f'the control period')
+                   f'the step deadline ({deadline_ms:.4g} ms)')
         if last.get('fallback') == 'baseline':
             h.error(f'fallback at step {last["k"]}: production ACC law applied ({last.get("reason", "")})')
         elif last.get('fallback'):
@@ -452,12 +456,18 @@ def controller_health(*, lifecycle: str, cfg: ControllerNodeConfig, last: dict |
     return h
 
 
-def warm_up(core, scenario, control_period_s: float, horizon_steps: int) -> None:
-    """One throw-away step on the scenario's key-on state (perfect previews), then ``core.reset()``.
+def warm_up(core, scenario, control_period_s: float, horizon_steps: int) -> str:
+    """The one-time costs of a first solve, paid before the node takes control; returns how.
 
-    The solvers' first call (allocation, the cold solve's first iterations) is paid before the
-    node takes control, and no state of it survives. Called in the lifecycle configure transition.
+    The NMPC's own key-on API when the core has it (``NmpcController.warm_up``: a nominal
+    instance through every solver of its chain, also through the estimator wrapper), else one
+    throw-away step on the scenario's key-on state (perfect previews); then ``core.reset()``, so
+    no state of it survives. Called in the lifecycle configure transition.
     """
+    if callable(getattr(core, 'warm_up', None)):
+        core.warm_up()
+        core.reset()
+        return 'NmpcController.warm_up'
     from ceco_core.contracts import MDOT_BL_MAX_KGPS, T_EVAP_SP_MIN_C, AcInput
     from ceco_v2x_preview.preview import PreviewQuality, make_previews
 
@@ -469,3 +479,4 @@ def warm_up(core, scenario, control_period_s: float, horizon_steps: int) -> None
     previews = make_previews(scenario, 0.0, control_period_s, horizon_steps + 1, PreviewQuality())
     core.compute(observation(0, 0.0, meas, scenario.env_at(0.0), prev, previews, scenario))
     core.reset()
+    return 'a key-on step'

@@ -37,8 +37,8 @@ class ControllerNode(ManagedNode):
         self.setup_tools(cfg.log_throttle_s)
         self.core, self._prev_cmd, self._held, self.record = None, None, None, cio.ControllerRecord()
         self.inputs = cio.ControllerInputs(cfg, self.log, self._reset_core)
-        DiagnosticsTimer(self, lambda: [('control', self.record.health(self.lifecycle, self.config, self.inputs,
-                                                                      self.wall_s()))], cfg.diagnostics_period_s)
+        DiagnosticsTimer(self, lambda: [('control', self.record.health(
+            self.lifecycle, self.config, self.inputs, self.wall_s(), self._step_budget()))], cfg.diagnostics_period_s)
         self.start_managed(cfg.autostart)
         self.get_logger().info(f'{cfg.strategy}: unconfigured (autostart {cfg.autostart})')
 
@@ -53,7 +53,7 @@ class ControllerNode(ManagedNode):
                                                 horizon_steps=cfg.horizon_steps,
                                                 config_path=cfg.controller_config or None,
                                                 measurements=cfg.measurements)
-            cio.warm_up(self.core, self.scenario, cfg.control_period_s, cfg.horizon_steps)
+            how = cio.warm_up(self.core, self.scenario, cfg.control_period_s, cfg.horizon_steps)
         except (ValueError, RuntimeError, OSError) as err:
             self.get_logger().error(f'configure failed: {err}')
             return FAILURE
@@ -76,8 +76,8 @@ class ControllerNode(ManagedNode):
                                      interfaces.QOS_PREVIEW, qos_overriding_options=ovr)]
         self._timer = (self.create_timer(cfg.control_period_s, self._on_timer) if rt else
                        self.create_timer(0.05, self._run_ready, clock=self.steady))
-        self.get_logger().info(f'configured in {time.perf_counter() - t0:.2f} s (controller built, first solve done): '
-                               f'{cfg.strategy}, Ts {cfg.control_period_s} s, Np {cfg.horizon_steps}, timing '
+        self.get_logger().info(f'configured in {time.perf_counter() - t0:.2f} s (controller built, first solve by '
+                               f'{how}): {cfg.strategy}, Ts {cfg.control_period_s} s, Np {cfg.horizon_steps}, timing '
                                f'{cfg.timing}, measurements {cfg.measurements}, scenario {self.scenario.name}')
         return self.configured()
 
@@ -139,11 +139,12 @@ class ControllerNode(ManagedNode):
         if si is None or self.lifecycle != 'active':
             return
         t0, cfg, stamp = time.perf_counter(), self.config, si.state.header.stamp
+        t_start = self.core.clock() if callable(getattr(self.core, 'clock', None)) else None   # the NMPC's deadline
         try:
             obs, note = step_observation(si, cfg, self.scenario, self._prev_cmd)
             if note:
                 self.notice('no-previews', f'step {si.k}: {note}: solving without previews')
-            cmd, diag = self.core.compute(obs)
+            cmd, diag = self.core.compute(obs, t_start=t_start)
             self._prev_cmd, fallback = cmd, bool(diag.fallback)
             ts = cfg.control_period_s
             msg = conversions.command_msg(cmd, si.k, stamp, ts, cfg.strategy, fallback)
@@ -174,6 +175,11 @@ class ControllerNode(ManagedNode):
         self.notices.throttle_s = self.config.log_throttle_s
         self.get_logger().info(f'parameters set: {changes}')
         return None
+
+    def _step_budget(self) -> float | None:
+        """The core's own deadline of a whole step [s] (the NMPC's step budget), None without one."""
+        solver = getattr(getattr(self.core, 'settings', None), 'solver', None)
+        return getattr(solver, 'step_budget_s', None)
 
     def _event(self, name: str) -> None:
         self.record.events[name] += 1
