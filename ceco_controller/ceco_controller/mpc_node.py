@@ -44,7 +44,7 @@ class ControllerNode(ManagedNode):
 
     def on_configure(self, state):
         """Load the scenario, build the controller, solve once; create the entities."""
-        from ceco_controller import factory  # here: baseline_node never imports the NMPC (CasADi)
+        from ceco_controller import factory  # here: baseline_node never imports the NMPC modules
 
         cfg, t0 = self.config, time.perf_counter()
         try:
