@@ -78,7 +78,7 @@ def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) ->
     # and, if the product's transcription differs, IPOPT defaults on the product's own NLP
     same_solver = (ctrl.make_solver(SolverSettings(name="ipopt", default_options=True))
                    if ctrl.transcription != "multiple-shooting" else None)
-    acc = {k: [] for k in ("ours_t", "ref_t", "diffs", "sdiffs", "ours_it", "ref_it", "same_t")}
+    acc: dict[str, list] = {k: [] for k in ("ours_t", "ref_t", "diffs", "sdiffs", "ours_it", "ref_it", "same_t")}
     fails = {"n_fail": 0, "n_ref_fail": 0, "n_ref_same_nlp_fail": 0}
 
     def on_step(obs, cmd, diag):
@@ -132,7 +132,8 @@ def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03"
     """Run the benchmark; return one dict per (strategy, horizon) and the whole-step times per horizon [ms]."""
     sc = load_scenario(scenario)
     mp = cm.load_params()
-    rows, steps = [], {}
+    rows: list = []
+    steps: dict = {}
     for np_ in horizons:
         for strat in strategies:
             overrides = {"solver": budget_settings(cpu_slowdown, name=method, jit=jit, codegen=codegen and not jit,

@@ -217,7 +217,7 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
         "zone_start_s": float(cols["t_s"][np.argmax(zone)]),
         "E_zone_J": float(np.sum(cols["p_comp_w"][zone] + cols["p_blower_w"][zone]) * dt),
         "I_pmv_zone": float(np.sum(cols["pmv"][zone] ** 2) * dt),
-        "otc_violation_zone_pct": float(100.0 * np.count_nonzero(viol & zone) / max(np.count_nonzero(zone), 1)),
+        "otc_violation_zone_pct": float(100.0 * np.count_nonzero(viol & zone) / max(int(np.count_nonzero(zone)), 1)),
         "pmv_mean_zone": float(np.mean(cols["pmv"][zone])),
     })
     metrics.update(comfort_series_metrics(cols, dt, zone))

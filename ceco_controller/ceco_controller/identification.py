@@ -38,6 +38,8 @@ CLI (also ``ceco identify``)::
 
 from __future__ import annotations
 
+from typing import Any
+
 import argparse
 import csv
 import dataclasses
@@ -197,9 +199,10 @@ def generate_excitation(drives=TRAIN_DRIVES, settings: ExcitationSettings = Exci
                     hold = settings.ts_s * rng.integers(int(settings.hold_min_s / settings.ts_s),
                                                         int(settings.hold_max_s / settings.ts_s) + 1)
                 t_next = t + hold
+            assert cmd is not None  # set at t = 0 (t_next = 0)
             env = sc.env_at(t)
             out = plant.step(cmd, env, 1.0)
-            vals = dict(zip(("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c"), meas))
+            vals: dict[str, Any] = dict(zip(("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c"), meas))
             vals.update(segment=seg, t_s=t, t_amb_c=env.t_amb_c, solar_wm2=env.solar_wm2,
                         speed_mps=env.speed_mps, mdot_bl_kgps=cmd.mdot_bl_kgps, t_evap_sp_c=cmd.t_evap_sp_c,
                         p_comp_w=out.p_comp_w, p_blower_w=out.p_blower_w, **dict(zip(extra_states, extra)))
@@ -226,7 +229,7 @@ def read_series_csv(path) -> dict:
     """Read a CSV with (at least) SERIES_COLUMNS; ``segment`` defaults to 0 (one run)."""
     with open(path, newline="", encoding="utf-8") as fh:
         reader = csv.DictReader(fh)
-        data = {c: [] for c in SERIES_COLUMNS}
+        data: dict[str, list] = {c: [] for c in SERIES_COLUMNS}
         for r in reader:
             for c in SERIES_COLUMNS:
                 if c == "segment" and c not in r:
@@ -258,7 +261,7 @@ def intervals_from_series(series: dict, ts_s: float = 5.0) -> dict:
     m = int(round(ts_s / dt))
     if m < 1 or abs(m * dt - ts_s) > 1e-6:
         raise ValueError(f"ts_s {ts_s} must be a whole multiple of the sample step {dt}")
-    out = {k: [] for k in ("t_cab0", "t_cab1", "t_evap0", "t_evap1", "t_int0", "t_shell0", "t_evap_mean",
+    out: dict[str, list] = {k: [] for k in ("t_cab0", "t_cab1", "t_evap0", "t_evap1", "t_int0", "t_shell0", "t_evap_mean",
                            "t_cab_mean", "t_ain_mean", "mdot", "sp", "t_amb", "speed", "p_comp", "p_bl",
                            "segment")}
     seg = np.asarray(series["segment"])
@@ -279,7 +282,7 @@ def intervals_from_series(series: dict, ts_s: float = 5.0) -> dict:
                     "p_comp": np.mean(g["p_comp_w"][sl]), "p_bl": np.mean(g["p_blower_w"][sl]), "segment": s}
             for k, v in vals.items():
                 out[k].append(float(v))
-    res = {k: np.asarray(v) for k, v in out.items()}
+    res: dict[str, Any] = {k: np.asarray(v) for k, v in out.items()}
     res["ts_s"] = float(ts_s)
     return res
 

@@ -40,6 +40,8 @@ online by the NMPC (offset-free MPC); 0 when identifying.
 
 from __future__ import annotations
 
+from typing import Any
+
 import dataclasses
 import math
 import pathlib
@@ -163,7 +165,7 @@ class ControlModelParams:
         unknown = sorted(set(data) - names)
         if unknown:
             raise ValueError(f"ControlModelParams: unknown field(s) {unknown}")
-        kwargs = {}
+        kwargs: dict[str, Any] = {}
         for k, v in data.items():
             kwargs[k] = v if k == "provenance" else float(v)
         p = cls(**kwargs)

@@ -23,6 +23,8 @@ Constraint rows (:class:`RowLayout`): ``gap`` (4 per stage, multiple shooting), 
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 __all__ = ["ParamLayout", "VariableLayout", "RowLayout", "PARAM_SCALARS", "PARAM_SERIES", "PARAM_TAIL",
@@ -84,7 +86,7 @@ class ParamLayout:
             p[sl] = values[name]
         return p
 
-    def symbols(self, sym) -> tuple[dict, object]:
+    def symbols(self, sym) -> tuple[dict, Any]:
         """Symbols per name (``sym(name, size)``, e.g. ``casadi.SX.sym``) and their vertical concatenation."""
         import casadi
 

@@ -17,6 +17,8 @@ largest constraint violation of the returned point by name.
 
 from __future__ import annotations
 
+from typing import Any
+
 import dataclasses
 import inspect
 import logging
@@ -138,7 +140,7 @@ class SqpSolver(NlpSolver):
                 except RuntimeError as exc:
                     _LOG.warning("NMPC codegen: cannot load %s (%s); using the in-process NLP functions", so, exc)
         elif settings.jit:
-            jit = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"], "verbose": False}}
+            jit: dict[str, Any] = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"], "verbose": False}}
             fns = {k: casadi.Function(f.name(), f.sx_in(), f.sx_out(), f.name_in(), f.name_out(), jit)
                    for k, f in fns.items()}
         opts = SqpOptions(max_iter=settings.sqp_max_iter, tol_pr=settings.tol,
@@ -205,7 +207,7 @@ class CasadiSolver(NlpSolver):
         self._callback = callback
 
     def _solve(self, data: NlpData, deadline: float | None) -> SolveResult:
-        args = {"x0": data.x0, "p": data.p, **self.problem.bounds_dm}
+        args: dict[str, Any] = {"x0": data.x0, "p": data.p, **self.problem.bounds_dm}
         if data.lam_x0 is not None:
             args["lam_x0"] = data.lam_x0
         if data.lam_g0 is not None:

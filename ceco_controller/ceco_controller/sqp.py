@@ -32,6 +32,8 @@ from compiled C (:mod:`ceco_controller.codegen`).
 
 from __future__ import annotations
 
+from typing import Any
+
 import dataclasses
 import math
 import time
@@ -103,9 +105,9 @@ class _Buffered:
         self.args = [np.zeros(fn.sparsity_in(i).nnz()) for i in range(n_in)]
         self.res = [np.zeros(fn.sparsity_out(i).nnz()) for i in range(fn.n_out())]
         for i, a in enumerate(self.args):
-            self.buf.set_arg(i, memoryview(a))
+            self.buf.set_arg(i, memoryview(a))  # type: ignore[call-arg, arg-type]  # CasADi stub: size is taken from the buffer
         for i, r in enumerate(self.res):
-            self.buf.set_res(i, memoryview(r))
+            self.buf.set_res(i, memoryview(r))  # type: ignore[call-arg, arg-type]  # CasADi stub: size is taken from the buffer
 
     def __call__(self, *args) -> list[np.ndarray]:
         for a, v in zip(self.args, args):
@@ -159,6 +161,7 @@ class DenseSqp:
         self._eyes = {b.size: np.eye(b.size) for b, _ in self._dense}
         o = self.options
         # error_on_fail: a failed QP raises (caught below), so a solved one needs no stats() call
+        qp_opts: dict[str, Any]
         if o.qpsol == "qpoases":
             qp_opts = {"printLevel": "none", "sparse": False, "error_on_fail": True, "CPUtime": o.qp_cpu_time_s}
         else:

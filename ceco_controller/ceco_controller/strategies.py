@@ -23,6 +23,8 @@ T_evap bounds, the offset-free bias correction and the solver settings.
 
 from __future__ import annotations
 
+from typing import Any
+
 import dataclasses
 import math
 
@@ -303,7 +305,7 @@ def strategy_settings(name: str, **overrides) -> StrategySettings:
     """Default settings of strategy ``name`` with keyword overrides; validated."""
     if name not in _DEFAULTS:
         raise ValueError(f"unknown CECO strategy {name!r}; choose from {CECO_STRATEGIES}")
-    kw = dict(_DEFAULTS[name])
+    kw: dict[str, Any] = dict(_DEFAULTS[name])
     kw.update(overrides)
     s = StrategySettings(name=name, **kw)
     s.validate()

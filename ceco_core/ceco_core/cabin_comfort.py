@@ -24,6 +24,8 @@ docs/comfort.md.
 import dataclasses
 import math
 
+from typing import Any
+
 import numpy as np
 
 from ceco_core import psychro
@@ -209,31 +211,31 @@ def cabin_draught_pct(*, t_cab_c, t_vent_c, mdot_bl_kgps, params, cap=True, smoo
 class OccupantComfort:
     """The comfort series of one evaluation (numpy scalars or arrays)."""
 
-    pmv: object
+    pmv: Any
     """Scored PMV [-]."""
-    ppd: object
+    ppd: Any
     """PPD of that PMV [%]."""
-    pa_pa: object
+    pa_pa: Any
     """Cabin water vapour pressure used in the PMV [Pa]."""
-    t_dew_c: object
+    t_dew_c: Any
     """Cabin dew point [degC]."""
-    fog_margin_k: object
+    fog_margin_k: Any
     """Inner glazing temperature minus cabin dew point [K] (fogging where < 0)."""
-    dr_pct: object
+    dr_pct: Any
     """ISO 7730 draught rating at the occupant (jet at the upper body by default; exact ISO corners) [%]."""
-    ta_occ_c: object
+    ta_occ_c: Any
     """PMV air temperature at the occupant (body average) [degC]."""
-    vel_occ_mps: object
+    vel_occ_mps: Any
     """PMV air speed at the occupant (body average) [m/s]."""
-    t_mr_c: object
+    t_mr_c: Any
     """PMV mean radiant temperature [degC]."""
-    w_rad_wm2: object
+    w_rad_wm2: Any
     """PMV absorbed sun [W/m2]."""
-    iso7730_valid: object
+    iso7730_valid: Any
     """True where every PMV input and the PMV lie inside ISO 7730 Clause 4 ranges."""
-    ta_jet_c: object
+    ta_jet_c: Any
     """Draught rating's local air temperature (jet at the upper body) [degC]."""
-    vel_jet_mps: object
+    vel_jet_mps: Any
     """Draught rating's local mean air speed (jet at the upper body) [m/s]."""
 
 

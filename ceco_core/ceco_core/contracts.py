@@ -20,6 +20,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from typing import Any
+
 import numpy as np
 
 __all__ = ["MDOT_BL_MIN_KGPS", "MDOT_BL_MAX_KGPS", "T_EVAP_SP_MIN_C", "T_EVAP_SP_MAX_C", "AcInput",
@@ -183,7 +185,7 @@ class Previews:
         k = self.trusted_steps
         if k == 0 or k == self.n:
             return self
-        arrays = {}
+        arrays: dict[str, Any] = {}
         for q in PREVIEW_QUANTITIES:
             a = np.array(getattr(self, q))
             a[k:] = a[k - 1]

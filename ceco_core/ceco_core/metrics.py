@@ -475,15 +475,15 @@ def compute_kpis(columns: Mapping, *, step_time_s=None, control_period_s: float 
     if dr is None:
         notes["draught_mean_pct"] = notes["draught_max_pct"] = notes["draught_pct"]
     else:
-        st = draught_stats(dr)
+        dstat = draught_stats(dr)
         k["draught_pct"], k["draught_mean_pct"], k["draught_max_pct"] = (
-            st["dr_above_pct"], st["dr_mean_pct"], st["dr_max_pct"])
+            dstat["dr_above_pct"], dstat["dr_mean_pct"], dstat["dr_max_pct"])
     fog = _column(columns, "fog_margin_k", n, notes, "fog_margin_min_k")
     if fog is None:
         notes["fog_risk_pct"] = notes["fog_margin_min_k"]
     else:
-        st = fog_margin_stats(fog)
-        k["fog_margin_min_k"], k["fog_risk_pct"] = st["fog_margin_min_k"], st["fog_risk_pct"]
+        fstat = fog_margin_stats(fog)
+        k["fog_margin_min_k"], k["fog_risk_pct"] = fstat["fog_margin_min_k"], fstat["fog_risk_pct"]
     valid = _column(columns, "iso7730_valid", n, notes, "iso7730_invalid_pct")
     if valid is not None:
         k["iso7730_invalid_pct"] = iso7730_invalid_pct(valid)

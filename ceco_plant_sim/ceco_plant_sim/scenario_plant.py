@@ -31,6 +31,7 @@ from ceco_core import psychro
 from ceco_core.cabin_comfort import ComfortParams, OccupantComfort, comfort_params_for, evaluate_cabin_comfort
 from ceco_core.contracts import MDOT_BL_MAX_KGPS, MEASUREMENTS, T_EVAP_SP_MIN_C, AcInput
 from ceco_core.overrides import with_overrides
+from ceco_core.scenario_types import Environment
 
 from .plant import CabinPlant, PlantOutputs, PlantState
 from .plant_params import PlantParams
@@ -100,7 +101,7 @@ class PlantStepRecord:
     """Measurements at t_n (keys :data:`MEASUREMENTS`)."""
     u: AcInput
     """Command held over [t_n, t_n + dt)."""
-    env: object
+    env: Environment
     """Truth environment at t_n (``Scenario.env_at``)."""
     pmv: float
     """Modified PMV at t_n [-]."""
@@ -175,7 +176,7 @@ class ScenarioPlant:
         c = OccupantComfort(**{f.name: (bool(getattr(c, f.name)) if f.name == "iso7730_valid"
                                         else float(getattr(c, f.name))) for f in dataclasses.fields(c)})
         out = self.plant.step(u, env, self.dt_s)
-        rec = PlantStepRecord(n=self.n, t_s=t, meas=meas, u=u, env=env, pmv=c.pmv, ppd=c.ppd,
+        rec = PlantStepRecord(n=self.n, t_s=t, meas=meas, u=u, env=env, pmv=float(c.pmv), ppd=float(c.ppd),
                               pmv_lb=lb, pmv_ub=ub, comfort=c, out=out)
         self.cmd = u
         self.meas = _measurements(out)
