@@ -164,7 +164,7 @@ def test_default_launch_starts_preview_mpc_and_plant_on_sim_time(launch):
     nodes = _nodes(actions)
     assert list(nodes) == ['preview_node', 'mpc_node', 'plant_node'] and len(actions) == 3
     assert nodes['mpc_node'] == ('', {'scenario': 'sc03', 'timing': 'lockstep', 'use_sim_time': True,
-                                      'strategy': 'ceco-ioch'})
+                                      'autostart': True, 'strategy': 'ceco-ioch'})   # managed: self-activates
     assert nodes['preview_node'] == ('', {'scenario': 'sc03', 'timing': 'lockstep', 'use_sim_time': True})
     assert nodes['plant_node'] == ('', {'scenario': 'sc03', 'timing': 'lockstep'})   # drives /clock
 
@@ -173,7 +173,7 @@ def test_launch_arguments_select_controller_clock_and_namespace(launch):
     nodes = _nodes(launch(strategy='baseline', timing='realtime', namespace='/veh1/', scenario='sc03_mild'))
     assert list(nodes) == ['preview_node', 'baseline_node', 'plant_node']
     assert nodes['baseline_node'] == ('veh1', {'scenario': 'sc03_mild', 'timing': 'realtime',
-                                               'use_sim_time': False})
+                                               'use_sim_time': False, 'autostart': True})
     assert {ns for ns, _ in nodes.values()} == {'veh1'}
     assert _nodes(launch(timing='realtime', use_sim_time='true'))['mpc_node'][1]['use_sim_time'] is True
     assert _nodes(launch(use_sim_time='false'))['preview_node'][1]['use_sim_time'] is False

@@ -174,7 +174,7 @@ def compare(args) -> int:
     exe = 'baseline_node' if strategy == 'baseline' else 'mpc_node'
     params = {'scenario': info.get('scenario', 'sc03'), 'timing': 'lockstep',
               'control_period_s': float(info.get('control_period_s', 5.0)),
-              'horizon_steps': int(info.get('horizon_steps', 6))}
+              'horizon_steps': int(info.get('horizon_steps', 6)), 'autostart': True}  # managed node: self-activate
     if exe == 'mpc_node':
         params['strategy'] = strategy
     log_dir = args.bag.parent / 'play_logs'

@@ -234,6 +234,7 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
     executor = None
     spin_stop = threading.Event()
     thread = None
+    lifecycle = None
     t_wall0 = time.monotonic()
     interrupted = False
     try:
@@ -255,6 +256,12 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
         # recorder's subscription to hvac/command is in its graph).
         for name in ('preview_node', 'controller', 'plant_node'):
             procs[name].start()
+        # The controller is a managed node: configure (build the controller, first solve),
+        # then activate (start commanding); the plant's start gate waits for its command
+        # publisher, created in configure.
+        if controller_cmd is None:
+            lifecycle = _managed_controller(context, executor, f'{ns}/{ctrl_exe[1]}', args.startup_timeout_s, stop,
+                                            procs)
         _wait(lambda: recorder.first_state_wall is not None, args.startup_timeout_s, stop, procs,
               'the nodes to start and discover each other')
         t_start = time.monotonic()
@@ -288,7 +295,11 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
         interrupted = True
     finally:
         # every stop path: children first (plant first: it drives the loop), then the bag
-        for name in ('plant_node', 'controller', 'preview_node'):
+        procs['plant_node'].stop()
+        if lifecycle is not None and procs['controller'].running():   # a clean managed-node stop
+            for transition in ('deactivate', 'shutdown'):
+                lifecycle.change(transition, timeout_s=5.0)
+        for name in ('controller', 'preview_node'):
             procs[name].stop()
         spin_stop.set()
         if thread is not None:
@@ -333,6 +344,22 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in metrics.items()}
     (run_dir / 'metrics.json').write_text(json.dumps(clean, indent=2, sort_keys=True) + '\n')
     return metrics
+
+
+def _managed_controller(context, executor, name, timeout_s, stop, procs):
+    """Configure and activate the managed controller ``name``; its LifecycleClient."""
+    import rclpy
+
+    from ceco_bringup import supervisor
+    node = rclpy.create_node('ceco_run_lifecycle', context=context)
+    executor.add_node(node)
+    client = supervisor.LifecycleClient(node, name)
+    _wait(lambda: client.wait(0.05), timeout_s, stop, procs, f'the lifecycle services of {name}')
+    for transition in ('configure', 'activate'):
+        if not client.change(transition, timeout_s=timeout_s):
+            raise RuntimeError(f'{name}: lifecycle transition {transition} failed; log: '
+                               f'{procs["controller"].log_path}\n' + _tail(procs['controller'].log_text()))
+    return client
 
 
 def _wait(cond, timeout_s, stop, procs, what):

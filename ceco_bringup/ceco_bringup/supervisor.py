@@ -249,3 +249,62 @@ def _param_text(value) -> str:
     if isinstance(value, float):
         return repr(value)
     return str(value)
+
+
+class LifecycleClient:
+    """Drives a managed node's transitions through its ``<node>/change_state`` service.
+
+    What ``ros2 lifecycle set`` and launch_ros' lifecycle events do, from a node that some
+    executor spins in another thread.
+
+    Args:
+        node: the rclpy node to create the service clients on (spun elsewhere).
+        target: the managed node's fully qualified name, e.g. ``/mpc_node`` or ``/veh1/mpc_node``.
+    """
+
+    TRANSITIONS = ('configure', 'activate', 'deactivate', 'cleanup', 'shutdown')
+
+    def __init__(self, node, target: str):
+        from lifecycle_msgs.srv import ChangeState, GetState
+        self.target = target if target.startswith('/') else '/' + target
+        self._change = node.create_client(ChangeState, f'{self.target}/change_state')
+        self._get = node.create_client(GetState, f'{self.target}/get_state')
+
+    def wait(self, timeout_s: float) -> bool:
+        """True once the lifecycle services are up (within ``timeout_s`` [s])."""
+        return self._change.wait_for_service(timeout_sec=timeout_s) and self._get.wait_for_service(timeout_sec=1.0)
+
+    def state(self, timeout_s: float = 5.0) -> str | None:
+        """The node's current state label ('unconfigured', 'inactive', 'active', 'finalized'), None on timeout."""
+        from lifecycle_msgs.srv import GetState
+        res = self._call(self._get, GetState.Request(), timeout_s)
+        return None if res is None else res.current_state.label
+
+    def change(self, transition: str, timeout_s: float = 30.0) -> bool:
+        """Request a transition by name (:data:`TRANSITIONS`); True when the node made it.
+
+        For 'shutdown' the node's current state picks the transition id (from unconfigured,
+        inactive or active).
+        """
+        from lifecycle_msgs.msg import Transition
+        from lifecycle_msgs.srv import ChangeState
+        if transition == 'shutdown':
+            label = self.state(timeout_s) or 'active'
+            ids = {'unconfigured': Transition.TRANSITION_UNCONFIGURED_SHUTDOWN,
+                   'inactive': Transition.TRANSITION_INACTIVE_SHUTDOWN}
+            tid = ids.get(label, Transition.TRANSITION_ACTIVE_SHUTDOWN)
+        else:
+            tid = getattr(Transition, f'TRANSITION_{transition.upper()}')
+        res = self._call(self._change, ChangeState.Request(transition=Transition(id=tid)), timeout_s)
+        return bool(res is not None and res.success)
+
+    @staticmethod
+    def _call(client, request, timeout_s: float):
+        future = client.call_async(request)
+        t0 = time.monotonic()
+        while not future.done():
+            if time.monotonic() - t0 > timeout_s:
+                client.remove_pending_request(future)
+                return None
+            time.sleep(0.005)
+        return future.result()

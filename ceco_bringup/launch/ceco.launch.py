@@ -7,7 +7,8 @@
 Starts the nodes `ceco run` starts with the same parameter files
 (share/<package>/config/<node>.yaml, keyed `/**/<node>` so they apply in
 any namespace): preview_node, the controller (mpc_node; baseline_node for
-strategy:=baseline) and plant_node. In lockstep the plant drives /clock and
+strategy:=baseline; a managed node, started with autostart:=true) and
+plant_node. In lockstep the plant drives /clock and
 the other two follow it (use_sim_time). record:=true adds `ros2 bag record`
 (mcap) of the stack's topics, fully qualified, and makes the plant wait for
 the recorder's subscriptions as under `ceco run`, so the bag starts at step 0
@@ -78,10 +79,13 @@ def _stack(context):
     record = arg('record') == 'true'
     common = {'scenario': arg('scenario'), 'timing': timing}
     follower = dict(common, use_sim_time=use_sim_time)      # the plant publishes /clock, never follows it
+    # The controllers are managed (lifecycle) nodes: autostart makes them configure and activate
+    # themselves (`ros2 lifecycle get /mpc_node` then says active); `ceco run` drives them instead.
+    managed = dict(follower, autostart=True)
     if arg('strategy') == 'baseline':
-        controller = _node('baseline_node', ns, follower)
+        controller = _node('baseline_node', ns, managed)
     else:
-        controller = _node('mpc_node', ns, dict(follower, strategy=arg('strategy')))
+        controller = _node('mpc_node', ns, dict(managed, strategy=arg('strategy')))
     actions = [
         _node('preview_node', ns, follower),
         controller,

@@ -1,263 +1,193 @@
-"""mpc_node: a CECO NMPC strategy (ceco, ceco-e, ceco-c, ceco-ioch) as a node;
-baseline_node reuses this node class with the production ACC law.
+"""mpc_node: a CECO NMPC strategy (ceco, ceco-e, ceco-c, ceco-ioch) as a managed node.
 
-Inputs: ``cabin/state`` (CabinState), ``v2x/weather_preview``,
-``v2x/traffic_preview``. Outputs: ``hvac/command`` (AcCommand, tagged with
-the control step index k) and ``controller/diagnostics``.
-
-Timing (parameter ``timing``):
-* ``lockstep``: event driven. When the state for t_k = k * Ts *and* both
-  previews issued for step k are at hand, compute once and publish command k.
-  No clock is involved, so the run is deterministic however slow a process
-  is. If the previews of step k do not come within ``preview_timeout_s``
-  (wall clock), the step is solved without previews (the core degrades to
-  the measured values), with a warning.
-* ``realtime``: a timer every Ts on the node clock computes from the latest
-  state (rejected when older than ``max_state_age_s``) and previews.
-
-Glue only: the observation is built by the same core function as in the
-closed-loop simulator (``ceco_controller.observation.observation``, from the
-messages via ``conversions.previews``), and the same core object
-(``ceco_controller.factory.make_controller``) computes the command.
+baseline_node is the same class with the production ACC law. Inputs ``cabin/state``,
+``v2x/weather_preview``, ``v2x/traffic_preview``; outputs ``hvac/command`` (tagged with the
+control step k), ``controller/diagnostics``, ``/diagnostics``. Lifecycle: configure loads the
+scenario, builds the controller (NLP) and solves one throw-away step; activate starts
+commanding; deactivate stops (the plant's fallback law takes over); cleanup/shutdown release
+everything. Timing: ``lockstep`` computes step k once its state and both previews are here
+(without previews after ``preview_timeout_s``); ``realtime`` every Ts of the node clock from
+the latest inputs. Checks, ordering, bookkeeping and health rules: the pure
+:mod:`ceco_controller.controller_io`; observation and controller: the simulator's.
 """
 from __future__ import annotations
 
-import dataclasses
-import math
 import time
 
-import numpy as np
-from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 
-from ceco_controller.observation import observation
-from ceco_core.contracts import CECO_STRATEGIES, AcInput
-from ceco_core.control_grid import control_step_index
+import ceco_controller.controller_io as cio
+from ceco_controller.step_adapter import step_observation
 from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficPreview, WeatherPreview
 from ceco_ros import conversions, interfaces, params
+from ceco_ros.diagnostics import DiagnosticsTimer
+from ceco_ros.node_base import FAILURE, ManagedNode
 from ceco_ros.node_main import run_node
 from ceco_v2x_preview.scenario import load_scenario_param
 
-TIMING_MODES = interfaces.TIMING_MODES
 
-
-@dataclasses.dataclass(frozen=True)
-class ControllerNodeConfig:
-    """Validated parameters of mpc_node / baseline_node."""
-
-    strategy: str
-    """baseline, ceco, ceco-e, ceco-c or ceco-ioch."""
-    scenario: str
-    """Scenario: the occupant (met, clo) and the PMV comfort bounds (the occupant's settings)."""
-    timing: str
-    """lockstep or realtime."""
-    control_period_s: float
-    """Control period Ts [s]."""
-    horizon_steps: int
-    """Prediction horizon Np [steps]."""
-    preview_timeout_s: float
-    """lockstep: wall-clock wait for the previews of a step before solving without them [s]."""
-    max_state_age_s: float
-    """realtime: oldest usable state [s]."""
-    controller_config: str = ''
-    """NMPC settings file ('' : the package's config/controller.yaml)."""
-
-    def validate(self) -> None:
-        allowed = CECO_STRATEGIES + ('baseline',)
-        if self.strategy not in allowed:
-            raise ValueError(f'invalid parameter strategy={self.strategy!r}: unknown strategy, '
-                             f'must be one of {", ".join(CECO_STRATEGIES)}')
-        if self.timing not in TIMING_MODES:
-            raise ValueError(f'invalid parameter timing={self.timing!r}: must be one of {TIMING_MODES}')
-
-
-class ControllerNode(Node):
-    """Supervisory A/C controller node (one strategy)."""
+class ControllerNode(ManagedNode):
+    """Supervisory A/C controller node (one strategy), managed."""
 
     def __init__(self, node_name: str = 'mpc_node', fixed_strategy: str | None = None):
         super().__init__(node_name)
-        self.config = self._read_config(fixed_strategy)
-        cfg = self.config
-        self.scenario = load_scenario_param(cfg.scenario)
-        self.core = make_core(cfg.strategy, self.scenario, cfg.control_period_s, cfg.horizon_steps,
-                              cfg.controller_config or None)
-        self.n_grid = cfg.horizon_steps + 1
-        self._states: dict[int, CabinState] = {}
-        self._weather: dict[int, WeatherPreview] = {}
-        self._traffic: dict[int, TrafficPreview] = {}
-        self._state_wall: dict[int, float] = {}
-        self._last_k = -1
-        self._prev_cmd = None
-        self._latest_state = None
-        self._k_rt = 0
-        # publishers/subscriptions last: once they are discovered the node is ready
-        self._pub_cmd = self.create_publisher(AcCommand, interfaces.TOPIC_COMMAND, interfaces.QOS_COMMAND)
-        self._pub_diag = self.create_publisher(ControllerDiagnostics, interfaces.TOPIC_DIAGNOSTICS, interfaces.QOS_COMMAND)
-        self.create_subscription(CabinState, interfaces.TOPIC_STATE, self._on_state, interfaces.QOS_STATE)
-        self.create_subscription(WeatherPreview, interfaces.TOPIC_WEATHER, self._on_weather, interfaces.QOS_PREVIEW)
-        self.create_subscription(TrafficPreview, interfaces.TOPIC_TRAFFIC, self._on_traffic, interfaces.QOS_PREVIEW)
-        if cfg.timing == 'lockstep':
-            self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-            self.create_timer(0.05, self._on_watchdog, clock=self._steady)
-        else:
-            self.create_timer(cfg.control_period_s, self._on_timer)
-        self.get_logger().info(f'strategy {cfg.strategy}, Ts {cfg.control_period_s} s, Np {cfg.horizon_steps}, '
-                               f'timing {cfg.timing}, scenario {self.scenario.name}')
+        specs = cio.controller_parameters(fixed_strategy)
+        self.config = cfg = cio.ControllerNodeConfig.from_params(params.declare_all(self, specs), fixed_strategy)
+        params.on_set(self, specs, self._set_params)
+        self.setup_tools(cfg.log_throttle_s)
+        self.core, self._prev_cmd, self._held, self.record = None, None, None, cio.ControllerRecord()
+        self.inputs = cio.ControllerInputs(cfg, self.log, self._reset_core)
+        DiagnosticsTimer(self, lambda: [('control', self.record.health(
+            self.lifecycle, self.config, self.inputs, self.wall_s(), self._step_budget()))], cfg.diagnostics_period_s)
+        self.start_managed(cfg.autostart)
+        self.get_logger().info(f'{cfg.strategy}: unconfigured (autostart {cfg.autostart})')
 
-    def _read_config(self, fixed_strategy) -> ControllerNodeConfig:
-        d = params.declare
-        if fixed_strategy is None:
-            strategy = d(self, 'strategy', 'ceco-ioch',
-                         'CECO strategy: ceco (general), ceco-e (energy), ceco-c (comfort), '
-                         'ceco-ioch (speed-aware slack)')
-            if strategy not in CECO_STRATEGIES:
-                raise ValueError(f'invalid parameter strategy={strategy!r}: unknown strategy, '
-                                 f'must be one of {", ".join(CECO_STRATEGIES)}')
-        else:
-            strategy = fixed_strategy
-        cfg = ControllerNodeConfig(
-            strategy=strategy,
-            scenario=d(self, 'scenario', 'sc03', 'scenario name or YAML path: occupant (met, clo) and '
-                       'PMV comfort bounds'),
-            timing=d(self, 'timing', 'lockstep', 'lockstep (event driven, deterministic) or realtime '
-                     '(timer every Ts on the node clock)', choices=TIMING_MODES),
-            control_period_s=d(self, 'control_period_s', 5.0, 'control period Ts [s]',
-                               float_range=(0.1, 3600.0)),
-            horizon_steps=d(self, 'horizon_steps', 6, 'prediction horizon Np [steps]', int_range=(1, 200)),
-            preview_timeout_s=d(self, 'preview_timeout_s', 2.0, 'lockstep: wall-clock wait for the previews '
-                                'of a step before solving without them [s]', float_range=(0.01, 600.0)),
-            max_state_age_s=d(self, 'max_state_age_s', 10.0, 'realtime: oldest usable cabin state [s]',
-                              float_range=(0.01, 3600.0)),
-            controller_config=d(self, 'controller_config', '', 'NMPC settings file (solver, weights, '
-                                'bounds; empty: the package\'s config/controller.yaml)'),
-        )
-        cfg.validate()
-        return cfg
+    def on_configure(self, state):
+        """Load the scenario, build the controller, solve once; create the entities."""
+        from ceco_controller import factory  # here: baseline_node never imports the NMPC modules
 
-    # ---------------------------------------------------------------- inputs
+        cfg, t0 = self.config, time.perf_counter()
+        try:
+            self.scenario = load_scenario_param(cfg.scenario)
+            self.core = factory.make_controller(cfg.strategy, self.scenario, control_period_s=cfg.control_period_s,
+                                                horizon_steps=cfg.horizon_steps,
+                                                config_path=cfg.controller_config or None,
+                                                measurements=cfg.measurements)
+            how = cio.warm_up(self.core, self.scenario, cfg.control_period_s, cfg.horizon_steps)
+        except (ValueError, RuntimeError, OSError) as err:
+            self.get_logger().error(f'configure failed: {err}')
+            return FAILURE
+        rt, ovr = cfg.timing == 'realtime', interfaces.qos_overrides()
+        events = {'incompatible_qos': lambda _e: self._event('incompatible_qos')}
+        self._pubs = [self.create_lifecycle_publisher(
+            AcCommand, interfaces.TOPIC_COMMAND,
+            interfaces.command_qos(cfg.timing, cfg.command_deadline_periods * cfg.control_period_s),
+            event_callbacks=PublisherEventCallbacks(deadline=lambda _e: self._event('deadline_missed'), **events),
+            qos_overriding_options=interfaces.qos_overrides(deadline=rt)),
+            self.create_lifecycle_publisher(ControllerDiagnostics, interfaces.TOPIC_DIAGNOSTICS,
+                                            interfaces.QOS_COMMAND)]
+        self._subs = [
+            self.create_subscription(CabinState, interfaces.TOPIC_STATE, self._on_state,
+                                     interfaces.state_qos(cfg.timing), qos_overriding_options=ovr,
+                                     event_callbacks=SubscriptionEventCallbacks(**events)),
+            self.create_subscription(WeatherPreview, interfaces.TOPIC_WEATHER, lambda m: self._on_preview('weather', m),
+                                     interfaces.QOS_PREVIEW, qos_overriding_options=ovr),
+            self.create_subscription(TrafficPreview, interfaces.TOPIC_TRAFFIC, lambda m: self._on_preview('traffic', m),
+                                     interfaces.QOS_PREVIEW, qos_overriding_options=ovr)]
+        self._timer = (self.create_timer(cfg.control_period_s, self._on_timer) if rt else
+                       self.create_timer(0.05, self._run_ready, clock=self.steady))
+        self.get_logger().info(f'configured in {time.perf_counter() - t0:.2f} s (controller built, first solve by '
+                               f'{how}): {cfg.strategy}, Ts {cfg.control_period_s} s, Np {cfg.horizon_steps}, timing '
+                               f'{cfg.timing}, measurements {cfg.measurements}, scenario {self.scenario.name}')
+        return self.configured()
+
+    def on_activate(self, state):
+        """Start commanding (from a fresh controller state); a state that came while inactive is computed now."""
+        self._reset_core()
+        ret = super().on_activate(state)
+        self.get_logger().info('active: commanding')
+        if self.config.timing == 'lockstep':
+            self._run_ready()
+        return ret
+
+    def on_deactivate(self, state):
+        """Stop commanding."""
+        self.get_logger().info("inactive: not commanding; the plant's fallback law takes over")
+        return super().on_deactivate(state)
+
+    def release(self) -> None:
+        """Destroy what on_configure created."""
+        self.destroy_timer(self._timer)
+        for sub in self._subs:
+            self.destroy_subscription(sub)
+        for pub in self._pubs:
+            self.destroy_lifecycle_publisher(pub)
+        self.core = None
+        self.inputs.clear()
+
+    # ----------------------------------------------------------------- inputs
     def _on_state(self, msg: CabinState) -> None:
-        err = conversions.check_state(msg)
-        if err:
-            self.get_logger().error(f'rejected cabin/state step {msg.step_index}: {err}')
-            return
-        if self.config.timing == 'realtime':
-            self._latest_state = msg
-            return
-        k = control_step_index(msg.scenario_time_s, self.config.control_period_s)
-        if k is None:
-            return  # between control steps
-        if k <= self._last_k:
-            self.get_logger().warn(f'rejected cabin/state for step {k}: stale (step {self._last_k} done)')
-            return
-        self._states[k] = msg
-        self._state_wall[k] = time.monotonic()
-        self._try(k)
+        if self.inputs.offer_state(msg, self.wall_s(), self.clock_s()):
+            if self.config.timing == 'lockstep':
+                self._run_ready()
+            elif self.inputs.due():        # realtime: a tick came before this control step's first state
+                self._on_timer()
 
-    def _check_preview(self, msg, kind: str) -> str | None:
-        arrays = (msg.t_amb_c, msg.solar_wm2, msg.rh, msg.valid) if kind == 'weather' else (msg.speed_mps, msg.valid)
-        lengths = {len(a) for a in arrays}
-        if lengths != {self.n_grid}:
-            return f'arrays of lengths {sorted(lengths)}, expected {self.n_grid} (Np + 1) each'
-        ts = self.config.control_period_s
-        if not (math.isfinite(msg.step_s) and abs(msg.step_s - ts) <= 1e-9 * ts):
-            return f'step_s={msg.step_s!r}, expected the control period {ts}'
-        valid = np.asarray(msg.valid, dtype=bool)
-        for a in arrays[:-1]:
-            x = np.asarray(a, dtype=float)
-            if np.any(np.isinf(x)) or np.any(np.isnan(x[valid])):
-                return 'non-finite value where marked valid'
-        return None
+    def _on_preview(self, kind: str, msg) -> None:
+        if self.inputs.offer_preview(kind, msg, self.wall_s()) and self.config.timing == 'lockstep':
+            self._run_ready()
 
-    def _on_preview(self, msg, kind: str, store: dict) -> None:
-        err = self._check_preview(msg, kind)
-        if err:
-            self.get_logger().error(f'rejected v2x/{kind}_preview step {msg.step_index}: {err}')
-            return
-        if self.config.timing == 'realtime':
-            store.clear()
-            store[0] = msg
-            return
-        k = int(msg.step_index)
-        if k <= self._last_k:
-            self.get_logger().warn(f'rejected v2x/{kind}_preview for step {k}: stale (step {self._last_k} done)')
-            return
-        store[k] = msg
-        self._try(k)
+    def _run_ready(self) -> None:
+        """Lockstep: compute the waiting step when complete or overdue; inactive, inputs wait in the buffer.
 
-    def _on_weather(self, msg: WeatherPreview) -> None:
-        self._on_preview(msg, 'weather', self._weather)
-
-    def _on_traffic(self, msg: TrafficPreview) -> None:
-        self._on_preview(msg, 'traffic', self._traffic)
-
-    # ----------------------------------------------------------------- steps
-    def _try(self, k: int) -> None:
-        if k in self._states and k in self._weather and k in self._traffic:
-            self._step(k, self._states[k], self._weather[k], self._traffic[k])
-
-    def _on_watchdog(self) -> None:
-        now = time.monotonic()
-        for k in sorted(self._states):
-            if k > self._last_k and now - self._state_wall[k] > self.config.preview_timeout_s:
-                self.get_logger().warn(f'no previews for step {k} within {self.config.preview_timeout_s} s: '
-                                       'solving without previews')
-                self._step(k, self._states[k], None, None)
+        A command computed before any subscriber matched the publisher (a plant that discovered
+        this node first) is held and sent once one has: lockstep sends each command once.
+        """
+        if self.lifecycle == 'active':
+            if self._held is not None and self._pubs[0].get_subscription_count() > 0:
+                self._pubs[0].publish(self._held)
+                self._held = None
+            self._run(self.inputs.ready() or self.inputs.overdue(self.wall_s()))
 
     def _on_timer(self) -> None:
-        s = self._latest_state
-        if s is None:
+        si, why = self.inputs.realtime_step(self.clock_s())
+        if si is None and why and self.lifecycle == 'active':
+            self.notice('no-state', f'not commanding: {why}')
+        self._run(si)
+
+    def _run(self, si: cio.StepInputs | None) -> None:
+        if si is None or self.lifecycle != 'active':
             return
-        age = (self.get_clock().now().nanoseconds * 1e-9) - conversions.s_from_stamp(s.header.stamp)
-        if age > self.config.max_state_age_s:
-            self.get_logger().warn(f'rejected cabin/state step {s.step_index}: stale ({age:.1f} s old)')
-            return
-        w, t = self._weather.get(0), self._traffic.get(0)
-        self._step(self._k_rt, s, w, t)
-        self._k_rt += 1
+        t0, cfg, stamp = time.perf_counter(), self.config, si.state.header.stamp
+        t_start = self.core.clock() if callable(getattr(self.core, 'clock', None)) else None   # the NMPC's deadline
+        try:
+            obs, note = step_observation(si, cfg, self.scenario, self._prev_cmd)
+            if note:
+                self.notice('no-previews', f'step {si.k}: {note}: solving without previews')
+            cmd, diag = self.core.compute(obs, t_start=t_start)
+            self._prev_cmd, fallback = cmd, bool(diag.fallback)
+            ts = cfg.control_period_s
+            msg = conversions.command_msg(cmd, si.k, stamp, ts, cfg.strategy, fallback)
+            held = cfg.timing == 'lockstep' and self._pubs[0].get_subscription_count() == 0
+            self._held = msg if held else None
+            if not held:
+                self._pubs[0].publish(msg)
+            self._pubs[1].publish(conversions.diagnostics_msg(diag, stamp, cfg.strategy, ts))
+            self.record.step(si.k, (time.perf_counter() - t0) * 1e3, diag, note)
+            if fallback:
+                self.notice('fallback', f'step {si.k}: fallback {diag.fallback}: {diag.message}')
+        except Exception as err:   # one bad step must not take the node down
+            self.record.error(si.k, err)
+            self.get_logger().error(f'step {si.k} failed: {err!r}')
 
-    def _step(self, k: int, state: CabinState, w, s) -> None:
-        ts = self.config.control_period_s
-        t_s = state.scenario_time_s  # n * dt, exactly the simulator's t
-        if w is not None and s is not None:
-            err = conversions.check_previews(w, s, self.n_grid, ts)
-            if err:
-                self.get_logger().error(f'rejected previews for step {k}: {err}')
-                w = s = None
-        if w is not None and s is not None and self.config.timing == 'realtime':
-            aligned = conversions.align_previews(w, s, t_s, ts)
-            if aligned is None:
-                self.get_logger().warn(f'previews starting at {conversions.s_from_stamp(w.start):.1f} s do not cover '
-                                       f't = {t_s:.1f} s: solving without previews')
-            w, s = aligned if aligned is not None else (None, None)
-        if w is None or s is None:
-            w, s = conversions.empty_previews(self.n_grid, ts)
-        # the previous command: the plant's (key-on command) until this node has commanded
-        prev = self._prev_cmd or AcInput(mdot_bl_kgps=state.mdot_bl_kgps, t_evap_sp_c=state.t_evap_sp_c)
-        meas = conversions.state_measurements(state)
-        obs = observation(k, t_s, meas, state, prev, conversions.previews(w, s, t_s, ts), self.scenario)
-        cmd, diag = self.core.compute(obs)
-        self._prev_cmd = cmd
-        stamp = state.header.stamp
-        fallback = bool(diag.fallback)
-        self._pub_cmd.publish(conversions.command_msg(cmd, k, stamp, ts, self.config.strategy, fallback))
-        self._pub_diag.publish(conversions.diagnostics_msg(diag, stamp, self.config.strategy, ts))
-        if fallback:
-            self.get_logger().warn(f'step {k}: fallback {diag.fallback}: {diag.message}')
-        self._last_k = max(self._last_k, k)
-        for store in (self._states, self._weather, self._traffic, self._state_wall):
-            for old in [j for j in store if j <= self._last_k]:
-                del store[old]
+    # ------------------------------------------------------------------ glue
+    def _reset_core(self) -> None:
+        self._prev_cmd = self._held = None
+        if self.core is not None:
+            self.core.reset()
 
+    def _set_params(self, changes: dict) -> str | None:
+        try:
+            self.config = self.config.replaced(changes)
+        except ValueError as err:
+            return str(err)
+        self.inputs.configure(self.config)
+        self.notices.throttle_s = self.config.log_throttle_s
+        self.get_logger().info(f'parameters set: {changes}')
+        return None
 
-def make_core(strategy: str, scenario, control_period_s: float, horizon_steps: int,
-              config_path: str | None = None):
-    """The controller core, built as the closed-loop simulator builds it."""
-    from ceco_controller import factory
-    return factory.make_controller(strategy, scenario, control_period_s=control_period_s,
-                                       horizon_steps=horizon_steps, config_path=config_path)
+    def _step_budget(self) -> float | None:
+        """The core's own deadline of a whole step [s] (the NMPC's step budget), None without one."""
+        solver = getattr(getattr(self.core, 'settings', None), 'solver', None)
+        return getattr(solver, 'step_budget_s', None)
+
+    def _event(self, name: str) -> None:
+        self.record.events[name] += 1
+        self.notice(name, f'QoS event: {name} (total {self.record.events[name]})')
 
 
 def main(args=None) -> int:
+    """Entry point of the mpc_node executable."""
     return run_node(ControllerNode, args, 'mpc_node')
 
 

@@ -1,291 +1,192 @@
-"""plant_node: the cabin + A/C plant as a node. Publishes ``cabin/state`` (one
-CabinState per plant step), ``cabin/comfort`` (modified PMV, computed here),
-``hvac/power`` and the simulation time on ``/clock``; takes ``hvac/command``.
+"""plant_node: the cabin + A/C plant as a node.
 
-Per plant step n (t_n = n * dt) it calls the same core as the closed-loop
-simulator (ceco_controller.closed_loop.simulate):
-``ceco_plant_sim.scenario_plant.ScenarioPlant`` (key-on state and command,
-PMV at t_n from the measurements at t_n and the command held over
-[t_n, t_n + dt), plant.step over dt with the truth environment at t_n; the
-outputs become the measurements at t_{n+1}).
+Publishes ``cabin/state`` (one per plant step), ``cabin/comfort``, ``hvac/power``, ``/clock``
+(lockstep) and ``/diagnostics``; takes ``hvac/command``. Per plant step it calls the
+simulator's own core (``ScenarioPlant.step``), so a DDS run equals ``closed_loop.simulate``.
 
-Timing (parameter ``timing``):
-* ``lockstep``: once its subscribers are matched, the plant publishes the
-  state at t_k = k * Ts and waits for the AcCommand with step_index k; then
-  it advances Ts / dt plant steps. A command for any other step is rejected
-  as stale/future, so no step is lost or duplicated however slow a process
-  is. If no command arrives within ``lockstep.command_timeout_s`` (wall
-  clock), the plant applies the production ACC law (ceco_core.acc_law)
-  for that control period, logs it, and keeps waiting for commands at every
-  following step, so a restarted controller takes over again.
-* ``realtime``: a timer every dt on the node clock steps the plant with the
-  latest valid command; when the latest command is older than
-  ``fallback.command_timeout_periods`` control periods, the ACC law takes
-  over until commands resume.
+Timing: ``lockstep``: once its subscribers are matched it publishes the state at t_k and waits
+for the command of step k, then advances Ts / dt plant steps; without a command within
+``lockstep.command_timeout_s`` (wall clock) the production ACC law drives that period.
+``realtime``: a timer every dt of the node clock applies the latest command; when it is older
+than ``fallback.command_timeout_periods`` control periods, or the QoS deadline requested on
+hvac/command is missed, the ACC law takes over until commands resume. Which command applies
+and the health rules: the pure :mod:`ceco_plant_sim.plant_io`.
 """
 from __future__ import annotations
 
-import dataclasses
-
-from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 
+import ceco_plant_sim.plant_io as pio
 from ceco_core.acc_law import AccLaw
 from ceco_core.contracts import AcInput
+from ceco_core.supervision import FallbackSupervisor, Watchdog
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort
 from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
 from ceco_ros import conversions, interfaces, params
+from ceco_ros.diagnostics import DiagnosticsTimer
+from ceco_ros.node_base import NodeTools
 from ceco_ros.node_main import run_node
 from ceco_v2x_preview.scenario import load_scenario_param
 
-TIMING_MODES = interfaces.TIMING_MODES
 
-
-@dataclasses.dataclass(frozen=True)
-class PlantNodeConfig:
-    """Validated parameters of plant_node."""
-
-    scenario: str
-    """Scenario name or YAML path (environment truth, initial state, occupant, bounds)."""
-    timing: str
-    """lockstep or realtime."""
-    plant_dt_s: float
-    """Plant step [s]."""
-    control_period_s: float
-    """Control period Ts [s]; a whole multiple of plant_dt_s."""
-    duration_s: float
-    """Run length [s]; 0 = the scenario's."""
-    command_timeout_s: float
-    """lockstep: wall-clock wait for a command before the fallback law [s]."""
-    min_state_subscribers: int
-    """lockstep: start once cabin/state has this many subscribers."""
-    min_output_subscribers: int
-    """lockstep: ... and every other output this many (a recorder)."""
-    min_command_subscribers: int
-    """lockstep: ... and hvac/command this many subscriptions in the graph (plant + recorder)."""
-    command_timeout_periods: float
-    """realtime: command age (in control periods) after which the fallback law applies."""
-
-    def validate(self) -> None:
-        if self.timing not in TIMING_MODES:
-            raise ValueError(f'invalid parameter timing={self.timing!r}: must be one of {TIMING_MODES}')
-        try:
-            steps_per_control(self.control_period_s, self.plant_dt_s)
-        except ValueError as err:
-            raise ValueError(f'invalid parameter control_period_s={self.control_period_s}: {err}') from None
-
-
-class PlantNode(Node):
+class PlantNode(NodeTools, Node):
     """Cabin + A/C plant simulation."""
 
     def __init__(self):
         super().__init__('plant_node')
-        cfg = self.config = self._read_config()
+        cfg = self.config = pio.PlantNodeConfig.from_params(params.declare_all(self, pio.PLANT_PARAMETERS))
+        params.on_set(self, pio.PLANT_PARAMETERS, self._set_params)
+        self.setup_tools(cfg.log_throttle_s)
         self.scenario = sc = load_scenario_param(cfg.scenario)
-        self.sp = ScenarioPlant(sc, cfg.plant_dt_s)
-        self.dt = cfg.plant_dt_s
+        self.sp, self.dt = ScenarioPlant(sc, cfg.plant_dt_s), cfg.plant_dt_s
         self.m = steps_per_control(cfg.control_period_s, cfg.plant_dt_s)
-        duration = cfg.duration_s if cfg.duration_s > 0 else sc.duration_s
-        self.n_steps = n_plant_steps(min(duration, sc.duration_s), self.dt)
-        self.e_comp_j = 0.0
-        self.e_blower_j = 0.0
-        self.acc = AccLaw()
-        self.in_fallback = False
-        self.started = False
-        self.finished = False
-        self._latest_cmd = None      # realtime: (AcInput, strategy, receipt time [s])
-        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._wait_start = None
-        self.pub_state = self.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
-        self.pub_comfort = self.create_publisher(Comfort, interfaces.TOPIC_COMFORT, interfaces.QOS_STATE)
-        self.pub_power = self.create_publisher(AcPower, interfaces.TOPIC_POWER, interfaces.QOS_STATE)
+        self.n_steps = n_plant_steps(min(cfg.duration_s or sc.duration_s, sc.duration_s), self.dt)
+        self.e_comp_j = self.e_blower_j = 0.0
+        self.acc, self.fallback, self.policy = AccLaw(), FallbackSupervisor(), pio.CommandPolicy(cfg, self.log)
+        self.rt, self.wait = pio.RealtimeCommands(cfg.command_timeout_rt_s), Watchdog(cfg.command_timeout_s)
+        self.started = self.finished = False
+        self._reported, self._events = 0, {'deadline_missed': 0, 'incompatible_qos': 0}
+        rt, out_qos = cfg.timing == 'realtime', interfaces.state_qos(cfg.timing)
+        self.pub_state = self.create_publisher(CabinState, interfaces.TOPIC_STATE, out_qos,
+                                               qos_overriding_options=interfaces.qos_overrides())
+        self.pub_comfort = self.create_publisher(Comfort, interfaces.TOPIC_COMFORT, out_qos)
+        self.pub_power = self.create_publisher(AcPower, interfaces.TOPIC_POWER, out_qos)
         self.pub_clock = self.create_publisher(ClockMsg, interfaces.TOPIC_CLOCK, interfaces.QOS_CLOCK)
-        self.sub_cmd = self.create_subscription(AcCommand, interfaces.TOPIC_COMMAND, self._on_command, interfaces.QOS_COMMAND)
-        if cfg.timing == 'lockstep':
-            self.create_timer(0.02, self._on_watchdog, clock=self._steady)
-        else:
+        self.sub_cmd = self.create_subscription(
+            AcCommand, interfaces.TOPIC_COMMAND, self._on_command,
+            interfaces.command_qos(cfg.timing, cfg.command_timeout_rt_s),
+            event_callbacks=SubscriptionEventCallbacks(deadline=lambda _e: self._event('deadline_missed'),
+                                                       incompatible_qos=lambda _e: self._event('incompatible_qos')),
+            qos_overriding_options=interfaces.qos_overrides(deadline=rt))
+        if rt:
             self.create_timer(self.dt, self._on_tick)
+        else:
+            self.create_timer(0.02, self._on_watchdog, clock=self.steady)
+        DiagnosticsTimer(self, self._health, cfg.diagnostics_period_s)
         self.get_logger().info(f'scenario {sc.name}: {self.n_steps} plant steps of {self.dt} s, '
                                f'Ts {cfg.control_period_s} s, timing {cfg.timing}')
 
-    def _read_config(self) -> PlantNodeConfig:
-        d = params.declare
-        cfg = PlantNodeConfig(
-            scenario=d(self, 'scenario', 'sc03', 'scenario name or YAML path (environment, initial state, '
-                       'occupant, PMV bounds)'),
-            timing=d(self, 'timing', 'lockstep', 'lockstep (advance a control period per command) or '
-                     'realtime (timer every plant step on the node clock)', choices=TIMING_MODES),
-            plant_dt_s=d(self, 'plant_dt_s', 1.0, 'plant step and recording interval [s]',
-                         float_range=(0.01, 60.0)),
-            control_period_s=d(self, 'control_period_s', 5.0, 'control period Ts [s], a whole multiple of '
-                               'plant_dt_s', float_range=(0.01, 3600.0)),
-            duration_s=d(self, 'duration_s', 0.0, 'run length [s]; 0 = the scenario\'s',
-                         float_range=(0.0, 1e7)),
-            command_timeout_s=d(self, 'lockstep.command_timeout_s', 5.0, 'lockstep: wall-clock wait for the '
-                                'command of a step before the fallback ACC law applies [s]',
-                                float_range=(0.01, 3600.0)),
-            min_state_subscribers=d(self, 'lockstep.min_state_subscribers', 2, 'lockstep: cabin/state '
-                                    'subscribers to wait for before step 0 [-]', int_range=(0, 100)),
-            min_output_subscribers=d(self, 'lockstep.min_output_subscribers', 0, 'lockstep: subscribers of '
-                                     'every other output to wait for before step 0 [-]', int_range=(0, 100)),
-            min_command_subscribers=d(self, 'lockstep.min_command_subscribers', 1, 'lockstep: hvac/command '
-                                      'subscriptions (this node included) to see in the graph before '
-                                      'step 0 [-]', int_range=(0, 100)),
-            command_timeout_periods=d(self, 'fallback.command_timeout_periods', 2.0, 'realtime: command '
-                                      'age after which the fallback ACC law applies [control periods]',
-                                      float_range=(0.1, 1000.0)),
-        )
-        cfg.validate()
-        return cfg
-
-    # ---------------------------------------------------------------- helpers
     @property
     def n(self) -> int:
         """Current plant step index (measurements at t_n)."""
         return self.sp.n
 
-    def _t(self, n: int) -> float:
-        return n * self.dt
-
-    def _stamp(self, n: int):
-        if self.config.timing == 'lockstep':
-            return conversions.stamp_from_s(self._t(n))
-        return self.get_clock().now().to_msg()
+    def _stamp(self):
+        return conversions.stamp_from_s(self.n * self.dt) if self.config.timing == 'lockstep' else \
+            self.get_clock().now().to_msg()
 
     def _publish_state(self) -> None:
-        n = self.n
-        t = self._t(n)
-        stamp = self._stamp(n)
+        t, stamp = self.n * self.dt, self._stamp()
         if self.config.timing == 'lockstep':
             self.pub_clock.publish(ClockMsg(clock=stamp))
-        self.pub_state.publish(conversions.state_msg(n, t, stamp, self.sp.meas, self.scenario.env_at(t),
-                                                  self.sp.cmd, self.in_fallback))
+        self.pub_state.publish(conversions.state_msg(self.n, t, stamp, self.sp.meas, self.scenario.env_at(t),
+                                                     self.sp.cmd, self.fallback.in_fallback))
+        self.policy.published(stamp, t)
 
     def _plant_step(self, u: AcInput, fallback: bool) -> None:
-        """One plant step n with u held (the simulator's core step), then publish comfort and power."""
-        stamp = self._stamp(self.n)
-        r = self.sp.step(u)
-        out, meas = r.out, r.meas
-        self.e_comp_j += out.e_comp_j
-        self.e_blower_j += out.e_blower_j
+        """One plant step n with u held (the simulator's core step), then comfort, power and the next state."""
+        stamp, r = self._stamp(), self.sp.step(u)
+        self.e_comp_j += r.out.e_comp_j
+        self.e_blower_j += r.out.e_blower_j
         c = self.sp.comfort
-        self.pub_comfort.publish(conversions.comfort_msg(r.n, stamp, r.pmv, r.ppd, r.pmv_lb, r.pmv_ub, meas, u,
-                                                      r.env.solar_wm2, c.met, c.clo, r.comfort.iso7730_valid,
-                                                      series=r.comfort))
-        self.pub_power.publish(conversions.power_msg(r.n, stamp, self.dt, u, out, self.e_comp_j,
-                                                  self.e_blower_j, fallback))
-
-    def _finish(self) -> None:
+        self.pub_comfort.publish(conversions.comfort_msg(r.n, stamp, r.pmv, r.ppd, r.pmv_lb, r.pmv_ub, r.meas, u,
+                                                         r.env.solar_wm2, c.met, c.clo, r.comfort.iso7730_valid,
+                                                         series=r.comfort))
+        self.pub_power.publish(conversions.power_msg(r.n, stamp, self.dt, u, r.out, self.e_comp_j,
+                                                     self.e_blower_j, fallback))
+        if self.n < self.n_steps:
+            self._publish_state()
+            return
         self.finished = True
         self.get_logger().info(f'scenario complete: {self.n} plant steps, E_comp {self.e_comp_j:.0f} J, '
                                f'E_blower {self.e_blower_j:.0f} J')
 
-    def _fallback_command(self) -> AcInput:
+    def _fallback_command(self, why: str) -> AcInput:
+        line = self.fallback.command_missing(f'step {self.n} (t={self.n * self.dt:.1f} s)', why)
+        if line:
+            self.acc.reset()
+            self.get_logger().warn(line)
         a = self.acc.step(self.sp.meas['t_cab_c'], self.config.control_period_s)
         return AcInput(mdot_bl_kgps=a.mdot_bl_kgps, t_evap_sp_c=a.t_evap_sp_c)
 
-    def _enter_fallback(self, why: str) -> None:
-        if not self.in_fallback:
-            self.in_fallback = True
-            self.acc.reset()
-            self.get_logger().warn(f'FALLBACK at step {self.n} (t={self._t(self.n):.1f} s): {why}; '
-                                   'applying the production ACC law until commands resume')
+    def _waiting_for(self) -> str:
+        return pio.start_gate(self.config, self.pub_state.get_subscription_count(),
+                          tuple(p.get_subscription_count() for p in (self.pub_comfort, self.pub_power, self.pub_clock)),
+                          self.count_subscribers(interfaces.TOPIC_COMMAND), self.sub_cmd.get_publisher_count())
 
-    def _leave_fallback(self, k: int, strategy: str) -> None:
-        if self.in_fallback:
-            self.in_fallback = False
-            self.get_logger().info(f'commands resumed at control step {k} from {strategy}: leaving fallback')
+    def _start(self) -> bool:
+        if not self.started and not self._waiting_for():
+            self.started = True
+            self.get_logger().info('subscribers matched: starting at step 0')
+            self._publish_state()
+            self.wait.kick(self.wall_s())
+        return self.started and not self.finished
 
-    # ---------------------------------------------------------------- lockstep
+    # -------------------------------------------------------------- lockstep
     def _control_period(self, u: AcInput, fallback: bool) -> None:
-        """Advance one control period (Ts / dt plant steps) with u held."""
         for _ in range(self.m):
             self._plant_step(u, fallback)
-            if self.n >= self.n_steps:
-                self._finish()
+            if self.finished:
                 return
-            self._publish_state()
-        self._wait_start = self._steady.now()
-
-    def _ready(self) -> bool:
-        cfg = self.config
-        if self.pub_state.get_subscription_count() < cfg.min_state_subscribers:
-            return False
-        outs = (self.pub_comfort, self.pub_power, self.pub_clock)
-        if any(p.get_subscription_count() < cfg.min_output_subscribers for p in outs):
-            return False
-        if self.count_subscribers(interfaces.TOPIC_COMMAND) < cfg.min_command_subscribers:
-            return False
-        return self.sub_cmd.get_publisher_count() >= 1 or cfg.min_state_subscribers == 0
+        self.wait.kick(self.wall_s())
 
     def _on_watchdog(self) -> None:
-        if self.finished:
-            return
-        if not self.started:
-            if self._ready():
-                self.started = True
-                self.get_logger().info('subscribers matched: starting at step 0')
-                self._publish_state()
-                self._wait_start = self._steady.now()
-            return
-        waited = (self._steady.now() - self._wait_start).nanoseconds * 1e-9
-        if waited > self.config.command_timeout_s:
-            k = self.n // self.m
-            self._enter_fallback(f'no command for control step {k} within {self.config.command_timeout_s} s '
-                                 '(wall clock)')
-            self._control_period(self._fallback_command(), True)
+        if self._start() and self.wait.expired(self.wall_s()):
+            why = f'no command for control step {self.n // self.m} within {self.wait.timeout_s} s (wall clock)'
+            self._control_period(self._fallback_command(why), True)
 
     def _on_command(self, msg: AcCommand) -> None:
-        try:
-            u = conversions.command_input(msg)
-        except ValueError as err:
-            self.get_logger().error(f'rejected hvac/command step {msg.step_index}: {err}')
+        if not self.started or self.finished or not self.policy.accept(msg, self.n // self.m, self.wall_s()):
             return
+        u = conversions.command_input(msg)
+        line = self.fallback.command_accepted(int(msg.step_index), msg.strategy)
+        if line:
+            self.get_logger().info(line)
         if self.config.timing == 'realtime':
-            self._latest_cmd = (u, msg.strategy, self.get_clock().now().nanoseconds * 1e-9)
-            return
-        if self.finished or not self.started:
-            return
-        k = self.n // self.m
-        if msg.step_index != k:
-            what = 'stale' if msg.step_index < k else 'future'
-            self.get_logger().warn(f'rejected hvac/command step {msg.step_index}: {what} '
-                                   f'(waiting for step {k})')
-            return
-        self._leave_fallback(k, msg.strategy)
-        self._control_period(u, False)
+            self.rt.accepted(u, self.clock_s())
+        else:
+            self._control_period(u, False)
 
-    # ---------------------------------------------------------------- realtime
+    # -------------------------------------------------------------- realtime
     def _on_tick(self) -> None:
-        if self.finished:
+        if not self._start():
             return
-        if not self.started:
-            if self._ready():
-                self.started = True
-                self._publish_state()
-            return
-        now = self.get_clock().now().nanoseconds * 1e-9
-        limit = self.config.command_timeout_periods * self.config.control_period_s
-        latest = self._latest_cmd
-        fresh = latest is not None and now - latest[2] <= limit
-        # a new command is taken at control steps; a stale one is dropped at once
-        if self.n % self.m == 0 or (not fresh and not self.in_fallback):
-            if fresh:
-                self._leave_fallback(self.n // self.m, latest[1])
-                self._rt_cmd, self._rt_fb = latest[0], False
-            else:
-                age = 'none yet' if latest is None else f'{now - latest[2]:.1f} s old'
-                self._enter_fallback(f'no fresh command (latest {age}, limit {limit:.1f} s)')
-                self._rt_cmd, self._rt_fb = self._fallback_command(), True
-        self._plant_step(self._rt_cmd, self._rt_fb)
-        if self.n >= self.n_steps:
-            self._finish()
-            return
-        self._publish_state()
+        now = self.clock_s()
+        if self.rt.must_choose(self.n % self.m == 0, now, self.fallback.in_fallback):
+            fresh = self.rt.fresh(now)
+            self.rt.applied = ((self.rt.latest, False) if fresh else
+                               (self._fallback_command(self.rt.why_stale(now)), True))
+        self._plant_step(*self.rt.applied)
+
+    # ------------------------------------------------------------------ glue
+    def _event(self, name: str) -> None:
+        self._events[name] += 1
+        self.rt.deadline_missed |= name == 'deadline_missed'
+        self.notice(name, f'QoS event on hvac/command: {name} (total {self._events[name]})')
+
+    def _set_params(self, changes: dict) -> str | None:
+        try:
+            self.config = self.config.replaced(changes)
+        except ValueError as err:
+            return str(err)
+        self.policy.cfg, self.wait.timeout_s = self.config, self.config.command_timeout_s
+        self.policy.rejections.throttle_s = self.notices.throttle_s = self.config.log_throttle_s
+        return None
+
+    def _health(self):
+        rej, rt = self.policy.rejections, self.config.timing == 'realtime'
+        new, self._reported = rej.total - self._reported, rej.total
+        age = self.rt.watchdog.age(self.clock_s()) if rt else self.wait.age(self.wall_s())
+        return [('plant', pio.plant_health(cfg=self.config, started=self.started, finished=self.finished, n=self.n,
+                                       t_s=self.n * self.dt, supervisor=self.fallback, policy=self.policy,
+                                       command_age_s=None if age == float('inf') else age, new_rejections=new,
+                                       events=self._events, waiting_for='' if self.started else self._waiting_for()))]
 
 
 def main(args=None) -> int:
+    """Entry point of the plant_node executable."""
     return run_node(PlantNode, args, 'plant_node')
 
 

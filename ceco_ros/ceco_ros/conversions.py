@@ -2,17 +2,17 @@
 
 | message            | from the core                 | to the core                             |
 |--------------------|-------------------------------|-----------------------------------------|
-| CabinState         | :func:`state_msg`             | :func:`state_measurements`, :func:`check_state` |
+| CabinState         | :func:`state_msg`             | :func:`state_measurements`              |
 | AcCommand          | :func:`command_msg`           | :func:`command_input`                   |
-| Weather/TrafficPreview | :func:`previews_to_msgs`, :func:`empty_previews` | :func:`previews`, :func:`check_previews`, :func:`align_previews` |
+| Weather/TrafficPreview | :func:`previews_to_msgs`, :func:`empty_previews` | :func:`previews`, :func:`align_previews` |
 | AcPower            | :func:`power_msg`             |                                         |
 | Comfort            | :func:`comfort_msg`           |                                         |
 | ControllerDiagnostics | :func:`diagnostics_msg`    |                                         |
 | builtin_interfaces/Time | :func:`stamp_from_s`     | :func:`s_from_stamp`                    |
 
-Checks of incoming messages return a reason (naming the field and the value)
-or None; conversions into the core raise ValueError. No node logic: imports
-message types, not rclpy's Node.
+Incoming messages are checked field by field first (:mod:`ceco_ros.checks`);
+conversions into the core raise ValueError. No node logic: imports message
+types, not rclpy's Node.
 """
 from __future__ import annotations
 
@@ -21,18 +21,13 @@ import math
 import numpy as np
 from builtin_interfaces.msg import Time
 
-from ceco_core.contracts import MEASUREMENTS, WIRE_STRATEGIES, AcInput, Diagnostics, Previews
+from ceco_core.contracts import MEASUREMENTS, AcInput, Diagnostics, Previews
 from ceco_core.units import s_from_sec_nanosec, sec_nanosec_from_s
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort, ControllerDiagnostics, TrafficPreview, WeatherPreview
 
-__all__ = ['STATE_FIELDS', 'stamp_from_s', 's_from_stamp', 'state_msg', 'state_measurements', 'check_state',
-           'command_msg', 'command_input', 'previews_to_msgs', 'empty_previews', 'previews', 'check_previews',
+__all__ = ['stamp_from_s', 's_from_stamp', 'state_msg', 'state_measurements',
+           'command_msg', 'command_input', 'previews_to_msgs', 'empty_previews', 'previews',
            'align_previews', 'power_msg', 'comfort_msg', 'diagnostics_msg']
-
-STATE_FIELDS = ('scenario_time_s', 't_cab_c', 't_int_c', 't_shell_c', 't_evap_c', 't_vent_c',
-                't_amb_c', 'solar_wm2', 'rh', 'speed_mps', 'mdot_bl_kgps', 't_evap_sp_c')
-"""The float fields of CabinState a controller needs finite."""
-
 
 # --- time stamps ------------------------------------------------------------------------------
 def stamp_from_s(t_s: float) -> Time:
@@ -70,17 +65,6 @@ def state_measurements(msg: CabinState) -> dict:
     return {f: float(getattr(msg, f)) for f in MEASUREMENTS}
 
 
-def check_state(msg: CabinState) -> str | None:
-    """None if usable, else the reason (names the field and value)."""
-    for name in STATE_FIELDS:
-        v = getattr(msg, name)
-        if not math.isfinite(v):
-            return f'{name}={v!r} is not finite'
-    if msg.scenario_time_s < 0.0:
-        return f'scenario_time_s={msg.scenario_time_s!r} is negative'
-    return None
-
-
 # --- AcCommand --------------------------------------------------------------------------------
 def command_msg(cmd, k: int, stamp, control_period_s: float, strategy: str, fallback: bool) -> AcCommand:
     """An AcCommand for control step ``k`` from an :class:`AcInput`."""
@@ -96,14 +80,11 @@ def command_msg(cmd, k: int, stamp, control_period_s: float, strategy: str, fall
 
 
 def command_input(msg: AcCommand) -> AcInput:
-    """AcCommand -> AcInput; ValueError naming the field when it is not a finite value inside the
-    actuator bounds or the strategy is unknown (never clamped)."""
-    if msg.strategy not in WIRE_STRATEGIES:
-        raise ValueError(f'unknown strategy {msg.strategy!r} (expected one of {", ".join(WIRE_STRATEGIES)})')
-    for name in ('blower_flow_kgps', 'evap_setpoint_c'):
-        v = getattr(msg, name)
-        if not math.isfinite(v):
-            raise ValueError(f'{name}={v!r} is not finite')
+    """AcCommand -> AcInput (the inverse of :func:`command_msg`).
+
+    Check the message first with :func:`ceco_ros.checks.check_command` (AcInput raises
+    ValueError outside the actuator bounds).
+    """
     return AcInput(mdot_bl_kgps=msg.blower_flow_kgps, t_evap_sp_c=msg.evap_setpoint_c)
 
 
@@ -143,34 +124,13 @@ def empty_previews(n: int, step_s: float) -> tuple[WeatherPreview, TrafficPrevie
     return w, s
 
 
-def check_previews(w: WeatherPreview, s: TrafficPreview, n_expected: int, step_s: float) -> str | None:
-    """None if the two previews are usable together, else the reason."""
-    for name, msg in (('weather', w), ('traffic', s)):
-        if not (math.isfinite(msg.step_s) and abs(msg.step_s - step_s) <= 1e-9 * step_s):
-            return f'{name} preview step_s={msg.step_s!r} differs from the control period {step_s}'
-    arrays = {'t_amb_c': w.t_amb_c, 'solar_wm2': w.solar_wm2, 'rh': w.rh, 'weather.valid': w.valid,
-              'speed_mps': s.speed_mps, 'traffic.valid': s.valid}
-    for name, a in arrays.items():
-        if len(a) != n_expected:
-            return f'preview array {name} has {len(a)} values, expected {n_expected} (Np + 1)'
-    if s_from_stamp(w.start) != s_from_stamp(s.start):
-        return (f'weather and traffic previews start at different times ({s_from_stamp(w.start)} vs '
-                f'{s_from_stamp(s.start)})')
-    valid = np.asarray(w.valid, dtype=bool) & np.asarray(s.valid, dtype=bool)
-    for name in ('t_amb_c', 'solar_wm2', 'rh', 'speed_mps'):
-        a = np.asarray(arrays[name], dtype=float)
-        if np.any(np.isinf(a)):
-            return f'preview array {name} holds an infinite value'
-        if np.any(np.isnan(a[valid])):
-            return f'preview array {name} holds NaN where marked valid'
-    return None
-
-
 def align_previews(w: WeatherPreview, s: TrafficPreview, t_s: float, step_s: float):
-    """Previews re-gridded to start at t_s (real-time mode, where a preview may
-    be older than the state): shifted by the whole number of steps it is late,
+    """Previews re-gridded to start at t_s.
+
+    Real-time mode, where a preview may be older than the state: shifted by the whole number of steps it is late,
     the tail it does not cover marked invalid (NaN). Returns (w, s), or None
-    when the preview starts after t_s or does not reach it."""
+    when the preview starts after t_s or does not reach it.
+    """
     lag = (t_s - s_from_stamp(w.start)) / step_s
     j = int(round(lag))
     n = len(w.valid)
@@ -195,9 +155,11 @@ def align_previews(w: WeatherPreview, s: TrafficPreview, t_s: float, step_s: flo
 
 
 def previews(w: WeatherPreview, s: TrafficPreview, t_s: float, step_s: float) -> Previews:
-    """Checked (and, in real-time mode, aligned) preview messages -> the core's Previews on the grid
-    t_s + i * step_s (the inverse of :func:`previews_to_msgs`); a sample is valid when it is valid in
-    both messages."""
+    """Checked (and, in real time, aligned) preview messages -> the core's Previews.
+
+    The grid is t_s + i * step_s (the inverse of :func:`previews_to_msgs`); a sample is valid
+    when it is valid in both messages.
+    """
     age_s = float(w.age_s) if w.age_s >= 0.0 else math.inf
     return Previews(t0_s=t_s, step_s=step_s, t_amb_c=np.asarray(w.t_amb_c, dtype=float),
                     solar_wm2=np.asarray(w.solar_wm2, dtype=float),

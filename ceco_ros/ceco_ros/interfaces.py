@@ -5,7 +5,9 @@ only (the pure cores never import it).
 """
 from __future__ import annotations
 
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.duration import Duration
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSPolicyKind, QoSProfile, ReliabilityPolicy
+from rclpy.qos_overriding_options import QoSOverridingOptions
 
 from ceco_core import control_grid
 
@@ -19,6 +21,8 @@ TOPIC_TRAFFIC = 'v2x/traffic_preview'
 TOPIC_DIAGNOSTICS = 'controller/diagnostics'
 TOPIC_CLOCK = '/clock'
 TOPIC_ROSOUT = '/rosout'
+TOPIC_ROS_DIAGNOSTICS = '/diagnostics'
+"""diagnostic_msgs/DiagnosticArray of every node (absolute, as diagnostic_updater and the aggregator use)."""
 
 # --- QoS profiles ------------------------------------------------------------
 # States and commands: reliable, keep-last, volatile. In lockstep the plant
@@ -53,6 +57,53 @@ QOS_RECORD_LATCHED = QoSProfile(
 QOS_ROSOUT = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1000,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+# Real time (timing: realtime, as on a vehicle): the latest states, not a backlog: keep-last
+# 10 on both sides (a recorder that lags a little still gets every sample; a burst of other
+# messages on the topic does not push the plant's newest state out of a reader's history).
+# Commands carry a deadline (command_qos), so a dead controller is seen by the plant's QoS
+# event as well as by its watchdog.
+QOS_STATE_LATEST = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+# /diagnostics: what diagnostic_updater offers (reliable, keep-last 10, volatile).
+QOS_DIAGNOSTICS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+
+
+def state_qos(timing: str) -> QoSProfile:
+    """QoS of cabin/state and the plant's other outputs, both sides.
+
+    Lockstep keeps its reliable history (:data:`QOS_STATE`); real time the latest states
+    (:data:`QOS_STATE_LATEST`).
+    """
+    return QOS_STATE if timing == 'lockstep' else QOS_STATE_LATEST
+
+
+def command_qos(timing: str, deadline_s: float | None = None) -> QoSProfile:
+    """QoS of hvac/command: :data:`QOS_COMMAND`, in real time with a deadline.
+
+    The deadline ``deadline_s`` [s] is offered by the controller and requested by the plant;
+    DDS matches them only when the offered deadline is not longer than the requested one.
+    """
+    if timing == 'lockstep' or deadline_s is None:
+        return QOS_COMMAND
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE, deadline=Duration(nanoseconds=int(deadline_s * 1e9)))
+
+
+def qos_overrides(deadline: bool = False) -> QoSOverridingOptions:
+    """QoS policies overridable from parameters: history, depth, reliability (and deadline).
+
+    The parameters are ``qos_overrides.<topic>.<publisher|subscription>.<policy>``, read-only,
+    set with ``--ros-args -p`` or a parameter file; the deadline only where the profile has one.
+    """
+    kinds = [QoSPolicyKind.HISTORY, QoSPolicyKind.DEPTH, QoSPolicyKind.RELIABILITY]
+    if deadline:
+        kinds.append(QoSPolicyKind.DEADLINE)
+    return QoSOverridingOptions(kinds)
+
 
 # Every topic of the stack: name -> (ROS type name, publisher QoS, recorder QoS).
 STACK_TOPICS: dict[str, tuple[str, QoSProfile, QoSProfile]] = {

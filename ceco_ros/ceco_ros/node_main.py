@@ -5,9 +5,11 @@ __all__ = ['run_node']
 
 
 def run_node(node_factory, argv=None, name: str = 'node') -> int:
-    """The Jazzy main: init, construct, spin; on any stop path destroy the node
-    and shut down. A ValueError while constructing (an invalid parameter) is
-    reported as one clear line and exits with status 2."""
+    """The Jazzy main: init, construct, spin; on any stop path destroy the node and shut down.
+
+    A ValueError while constructing (an invalid parameter) is
+    reported as one clear line and exits with status 2.
+    """
     import sys
 
     import rclpy

@@ -1,15 +1,59 @@
-"""Parameter declaration with full descriptors (unit in the description, declared ranges, choices).
+"""Parameter declaration with full descriptors, from one table per node.
 
-Used by every node's ``_read_config``; a ValueError names the parameter.
+Descriptors carry the unit in the description, declared ranges, choices, read-only or
+settable at run time.
+
+Each node module keeps one tuple of :class:`ParamSpec` (in its pure config module); it is
+the single source of the declared parameters, of their checks (at start and on
+``ros2 param set``) and of the parameter tables in docs/ros.md. Importable without ROS
+(rcl_interfaces is imported where a node declares).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
-from typing import Any, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+__all__ = ['ParamSpec', 'check_value', 'declare', 'declare_all', 'on_set']
 
-__all__ = ['declare']
+
+@dataclasses.dataclass(frozen=True)
+class ParamSpec:
+    """One declared parameter."""
+
+    name: str
+    """Parameter name (dots group: ``lockstep.command_timeout_s``)."""
+    default: Any
+    """Default value; its type is the parameter's type."""
+    description: str
+    """What it sets, with the unit in brackets."""
+    float_range: tuple[float, float] | None = None
+    """Inclusive range of a float parameter."""
+    int_range: tuple[int, int] | None = None
+    """Inclusive range of an integer parameter."""
+    choices: Sequence[str] | None = None
+    """Allowed values of a string parameter."""
+    read_only: bool = True
+    """False: settable at run time (``ros2 param set``); the node applies it at once."""
+
+
+def check_value(spec: ParamSpec, value: Any) -> tuple[Any, str | None]:
+    """``(value, None)`` with ints widened for float parameters, or ``(value, reason)``."""
+    if isinstance(spec.default, float):
+        if isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if not isinstance(value, float) or not math.isfinite(value):
+            return value, f'invalid parameter {spec.name}={value!r}: must be a finite number'
+    if spec.float_range is not None and not spec.float_range[0] <= value <= spec.float_range[1]:
+        return value, (f'invalid parameter {spec.name}={value!r}: must lie in '
+                       f'[{spec.float_range[0]}, {spec.float_range[1]}]')
+    if spec.int_range is not None and not spec.int_range[0] <= value <= spec.int_range[1]:
+        return value, (f'invalid parameter {spec.name}={value!r}: must lie in '
+                       f'[{spec.int_range[0]}, {spec.int_range[1]}]')
+    if spec.choices is not None and value not in spec.choices:
+        return value, f'invalid parameter {spec.name}={value!r}: must be one of {", ".join(spec.choices)}'
+    return value, None
 
 
 def declare(node, name: str, default: Any, description: str, *,
@@ -24,33 +68,76 @@ def declare(node, name: str, default: Any, description: str, *,
     with a message naming the parameter). `choices` is checked here.
     Raises ValueError with the parameter name on any invalid value.
     """
-    desc = ParameterDescriptor(name=name, description=description, read_only=read_only)
-    if float_range is not None:
+    spec = ParamSpec(name, default, description, float_range, int_range, choices, read_only)
+    return _declare(node, spec)
+
+
+def _declare(node, spec: ParamSpec) -> Any:
+    from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+    name = spec.name
+    desc = ParameterDescriptor(name=name, description=spec.description, read_only=spec.read_only)
+    if spec.float_range is not None:
         desc.floating_point_range = [FloatingPointRange(
-            from_value=float(float_range[0]), to_value=float(float_range[1]), step=0.0)]
-        desc.additional_constraints = f'{float_range[0]} <= {name} <= {float_range[1]}'
-    if int_range is not None:
+            from_value=float(spec.float_range[0]), to_value=float(spec.float_range[1]), step=0.0)]
+        desc.additional_constraints = f'{spec.float_range[0]} <= {name} <= {spec.float_range[1]}'
+    if spec.int_range is not None:
         desc.integer_range = [IntegerRange(
-            from_value=int(int_range[0]), to_value=int(int_range[1]), step=1)]
-        desc.additional_constraints = f'{int_range[0]} <= {name} <= {int_range[1]}'
-    if choices is not None:
-        desc.additional_constraints = f'one of {", ".join(choices)}'
+            from_value=int(spec.int_range[0]), to_value=int(spec.int_range[1]), step=1)]
+        desc.additional_constraints = f'{spec.int_range[0]} <= {name} <= {spec.int_range[1]}'
+    if spec.choices is not None:
+        desc.additional_constraints = f'one of {", ".join(spec.choices)}'
     try:
-        value = node.declare_parameter(name, default, desc).value
+        value = node.declare_parameter(name, spec.default, desc).value
     except Exception as err:  # rclpy: InvalidParameterValueException, type errors
         raise ValueError(f'invalid parameter {name}: {err}') from None
-    if isinstance(default, float):
-        if isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if not isinstance(value, float) or not math.isfinite(value):
-            raise ValueError(f'invalid parameter {name}={value!r}: must be a finite number')
-    if float_range is not None and not float_range[0] <= value <= float_range[1]:
-        raise ValueError(f'invalid parameter {name}={value!r}: must lie in '
-                         f'[{float_range[0]}, {float_range[1]}]')
-    if int_range is not None and not int_range[0] <= value <= int_range[1]:
-        raise ValueError(f'invalid parameter {name}={value!r}: must lie in '
-                         f'[{int_range[0]}, {int_range[1]}]')
-    if choices is not None and value not in choices:
-        raise ValueError(f'invalid parameter {name}={value!r}: must be one of '
-                         f'{", ".join(choices)}')
+    value, why = check_value(spec, value)
+    if why:
+        raise ValueError(why)
     return value
+
+
+def declare_all(node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
+    """Declare every parameter of the table; ``{name: value}``. ValueError names the first bad one."""
+    return {spec.name: _declare(node, spec) for spec in specs}
+
+
+def on_set(node, specs: Sequence[ParamSpec], apply: Callable[[dict[str, Any]], str | None]) -> None:
+    """Accept ``ros2 param set`` on the table's settable parameters.
+
+    Each value is checked against its spec, then ``apply({name: value})`` (returns a reason to refuse, or None)
+    makes the change take effect. Read-only parameters are refused by rclpy itself.
+    """
+    from rcl_interfaces.msg import SetParametersResult
+    by_name = {s.name: s for s in specs if not s.read_only}
+
+    def callback(parameters) -> SetParametersResult:
+        changes = {}
+        for p in parameters:
+            spec = by_name.get(p.name)
+            if spec is None:
+                continue   # another parameter (use_sim_time, qos_overrides.*): rclpy's own rules
+            value, why = check_value(spec, p.value)
+            if why:
+                return SetParametersResult(successful=False, reason=why)
+            changes[p.name] = value
+        why = apply(changes) if changes else None
+        return SetParametersResult(successful=why is None, reason=why or '')
+    node.add_on_set_parameters_callback(callback)
+
+
+def markdown_table(specs: Sequence[ParamSpec]) -> str:
+    """The parameter table of a node for docs/ros.md: name, default, range or choices, run-time, description."""
+    rows = ['| parameter | default | range | set at run time | description |', '|---|---|---|---|---|']
+    for s in specs:
+        if s.float_range is not None or s.int_range is not None:
+            lo, hi = s.float_range or s.int_range  # type: ignore[misc]
+            allowed = f'{lo} .. {hi}'
+        elif s.choices is not None:
+            allowed = ', '.join(s.choices)
+        else:
+            allowed = ''
+        default = repr(s.default) if isinstance(s.default, str) else str(s.default).lower() \
+            if isinstance(s.default, bool) else str(s.default)
+        rows.append(f'| `{s.name}` | `{default}` | {allowed} | {"no" if s.read_only else "yes"} | '
+                    f'{s.description} |')
+    return '\n'.join(rows)

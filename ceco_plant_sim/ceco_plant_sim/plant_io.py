@@ -1,0 +1,276 @@
+"""What plant_node does with its input and how it reports, without ROS.
+
+The parameter table, the validated configuration, the command policy (field checks, which
+control step a command may be for, its stamp) and the health rules behind /diagnostics.
+
+Pure logic: commands are read by attribute (ceco_msgs/AcCommand in the node,
+``types.SimpleNamespace`` in the tests); times are floats the node passes in.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from typing import Any
+
+import ceco_ros.checks as checks
+from ceco_core.control_grid import TIMING_MODES
+from ceco_core.supervision import FallbackSupervisor, Health, Rejections, Watchdog, reason_kind
+from ceco_ros.params import ParamSpec
+
+__all__ = ['PLANT_PARAMETERS', 'PlantNodeConfig', 'CommandPolicy', 'RealtimeCommands', 'start_gate', 'plant_health',
+           'DYNAMIC']
+
+TOPIC_COMMAND = 'hvac/command'
+
+PLANT_PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec('scenario', 'sc03', 'scenario name or YAML path (environment, initial state, occupant, PMV bounds)'),
+    ParamSpec('timing', 'lockstep', 'lockstep (advance a control period per command) or realtime (timer every '
+              'plant step on the node clock)', choices=TIMING_MODES),
+    ParamSpec('plant_dt_s', 1.0, 'plant step and recording interval [s]', float_range=(0.01, 60.0)),
+    ParamSpec('control_period_s', 5.0, 'control period Ts [s], a whole multiple of plant_dt_s',
+              float_range=(0.01, 3600.0)),
+    ParamSpec('duration_s', 0.0, "run length [s]; 0 = the scenario's", float_range=(0.0, 1e7)),
+    ParamSpec('lockstep.command_timeout_s', 5.0, 'lockstep: wall-clock wait for the command of a step before the '
+              'fallback ACC law applies [s]', float_range=(0.01, 3600.0), read_only=False),
+    ParamSpec('lockstep.min_state_subscribers', 2, 'lockstep: cabin/state subscribers to wait for before step 0 '
+              '[-]', int_range=(0, 100)),
+    ParamSpec('lockstep.min_output_subscribers', 0, 'lockstep: subscribers of every other output to wait for '
+              'before step 0 [-]', int_range=(0, 100)),
+    ParamSpec('lockstep.min_command_subscribers', 1, 'lockstep: hvac/command subscriptions (this node included) '
+              'to see in the graph before step 0 [-]', int_range=(0, 100)),
+    ParamSpec('fallback.command_timeout_periods', 2.0, 'realtime: command age after which the fallback ACC law '
+              'applies; also the deadline requested on hvac/command [control periods]', float_range=(0.1, 1000.0)),
+    ParamSpec('inputs.log_throttle_s', 2.0, 'shortest time between two log lines about one kind of rejected '
+              'command [s]', float_range=(0.0, 3600.0), read_only=False),
+    ParamSpec('diagnostics.period_s', 1.0, '/diagnostics publication period (steady clock) [s]',
+              float_range=(0.05, 60.0)),
+)
+"""The parameter table of plant_node."""
+
+DYNAMIC = {s.name for s in PLANT_PARAMETERS if not s.read_only}
+"""Parameters that ``ros2 param set`` changes at run time."""
+
+_FIELDS = {'lockstep.command_timeout_s': 'command_timeout_s', 'lockstep.min_state_subscribers': 'min_state_subscribers',
+           'lockstep.min_output_subscribers': 'min_output_subscribers',
+           'lockstep.min_command_subscribers': 'min_command_subscribers',
+           'fallback.command_timeout_periods': 'command_timeout_periods',
+           'inputs.log_throttle_s': 'log_throttle_s',
+           'diagnostics.period_s': 'diagnostics_period_s'}
+
+
+@dataclasses.dataclass(frozen=True)
+class PlantNodeConfig:
+    """Validated parameters of plant_node."""
+
+    scenario: str
+    """Scenario name or YAML path (environment truth, initial state, occupant, bounds)."""
+    timing: str
+    """lockstep or realtime."""
+    plant_dt_s: float
+    """Plant step [s]."""
+    control_period_s: float
+    """Control period Ts [s]; a whole multiple of plant_dt_s."""
+    duration_s: float = 0.0
+    """Run length [s]; 0 = the scenario's."""
+    command_timeout_s: float = 5.0
+    """lockstep: wall-clock wait for a command before the fallback law [s]."""
+    min_state_subscribers: int = 2
+    """lockstep: start once cabin/state has this many subscribers."""
+    min_output_subscribers: int = 0
+    """lockstep: ... and every other output this many (a recorder)."""
+    min_command_subscribers: int = 1
+    """lockstep: ... and hvac/command this many subscriptions in the graph (plant + recorder)."""
+    command_timeout_periods: float = 2.0
+    """realtime: command age (in control periods) after which the fallback law applies."""
+    log_throttle_s: float = 2.0
+    """Shortest time between two log lines about one kind of rejected command [s]."""
+    diagnostics_period_s: float = 1.0
+    """/diagnostics period [s]."""
+
+    @classmethod
+    def from_params(cls, values: dict[str, Any]) -> PlantNodeConfig:
+        """From the declared parameters (``{name: value}``), validated."""
+        cfg = cls(**{_FIELDS.get(k, k): v for k, v in values.items()})
+        cfg.validate()
+        return cfg
+
+    def replaced(self, values: dict[str, Any]) -> PlantNodeConfig:
+        """A copy with some parameters (``{name: value}``) changed, validated."""
+        cfg = dataclasses.replace(self, **{_FIELDS.get(k, k): v for k, v in values.items()})
+        cfg.validate()
+        return cfg
+
+    def validate(self) -> None:
+        """Raise ValueError naming the parameter."""
+        from .scenario_plant import steps_per_control
+        if self.timing not in TIMING_MODES:
+            raise ValueError(f'invalid parameter timing={self.timing!r}: must be one of {TIMING_MODES}')
+        try:
+            steps_per_control(self.control_period_s, self.plant_dt_s)
+        except ValueError as err:
+            raise ValueError(f'invalid parameter control_period_s={self.control_period_s}: {err}') from None
+
+    @property
+    def command_timeout_rt_s(self) -> float:
+        """realtime: the command age limit [s]."""
+        return self.command_timeout_periods * self.control_period_s
+
+    @property
+    def max_lag_steps(self) -> int:
+        """realtime: how many control steps a command may lag the plant's current one [-]."""
+        return int(math.ceil(self.command_timeout_periods)) + 1
+
+
+class CommandPolicy:
+    """Which AcCommand the plant applies.
+
+    Every field is checked (:func:`ceco_ros.checks.check_command`: known strategy, Ts, bounds,
+    stamp well formed). Lockstep: only the command of the awaited control step k, stamped t_k.
+    Real time: the stamp must be that of a state the plant published recently (a controller
+    stamps its command with the state it computed from), the step index the control step of
+    that state, and that step at most ``max_lag_steps`` behind the plant's. A command marked
+    ``fallback`` (the controller's own fallback) is applied and counted. Rejections are counted
+    and logged (throttled) through ``log(level, text)``.
+    """
+
+    def __init__(self, cfg: PlantNodeConfig, log: Callable[[str, str], None]):
+        self.cfg = cfg
+        self._log = log
+        self.rejections = Rejections(cfg.log_throttle_s)
+        self.n_controller_fallback = 0
+        """Accepted commands marked fallback=true [-]."""
+        self.last_fallback_flag = False
+        self._published: dict[tuple[int, int], float] = {}   # realtime: state stamp -> scenario time [s]
+        steps_per_period = max(1, round(cfg.control_period_s / cfg.plant_dt_s))
+        self._keep = (self.cfg.max_lag_steps + 2) * steps_per_period
+
+    def published(self, stamp, t_s: float) -> None:
+        """realtime: the plant published a state stamped ``stamp`` for scenario time ``t_s`` [s]."""
+        self._published[(stamp.sec, stamp.nanosec)] = t_s
+        while len(self._published) > self._keep:
+            del self._published[next(iter(self._published))]
+
+    def accept(self, msg, k_now: int, wall_s: float) -> bool:
+        """True when the command applies to control step ``k_now`` (``wall_s``: for the log throttle)."""
+        cfg, k = self.cfg, int(msg.step_index)
+        why = checks.check_command(msg, cfg.control_period_s)
+        if why is None and cfg.timing == 'lockstep':
+            if k != k_now:
+                why = f'{"stale" if k < k_now else "future"}: waiting for step {k_now}'
+            else:
+                why = checks.check_stamp_equals('header.stamp', msg.header.stamp, k * cfg.control_period_s)
+        elif why is None:
+            why = self._check_realtime(msg, k, k_now)
+        if why:
+            line = self.rejections.add(TOPIC_COMMAND, reason_kind(why), f'rejected hvac/command step {k}: {why}',
+                                       wall_s)
+            if line:
+                self._log('warn', line)
+            return False
+        self.last_fallback_flag = bool(msg.fallback)
+        self.n_controller_fallback += bool(msg.fallback)
+        return True
+
+    def _check_realtime(self, msg, k: int, k_now: int) -> str | None:
+        cfg = self.cfg
+        t_s = self._published.get((msg.header.stamp.sec, msg.header.stamp.nanosec))
+        if t_s is None:
+            return (f'header.stamp={checks.stamp_s(msg.header.stamp):.9g} s is not the stamp of a recent '
+                    'cabin/state of this plant')
+        k_state = int(math.floor(t_s / cfg.control_period_s + 1e-9))
+        if k != k_state:
+            return f'step_index {k} is not the control step {k_state} of the state it is stamped with'
+        if k < k_now - cfg.max_lag_steps:
+            return f'stale: the plant is at control step {k_now} (a command may lag {cfg.max_lag_steps} steps)'
+        return None
+
+
+def plant_health(*, cfg: PlantNodeConfig, started: bool, finished: bool, n: int, t_s: float,
+                 supervisor: FallbackSupervisor, command_age_s: float | None, policy: CommandPolicy,
+                 new_rejections: int, events: dict, waiting_for: str = '') -> Health:
+    """The plant's status for /diagnostics.
+
+    ``command_age_s``: since the last accepted command (wall clock in lockstep, node clock in
+    real time); None: none yet.
+    """
+    h = Health().set('timing', cfg.timing).set('plant_step', n).set('t_s', t_s)
+    h.set('control_step', n * cfg.plant_dt_s // cfg.control_period_s)
+    if finished:
+        h.set('state', 'finished')
+    elif not started:
+        h.warn(f'waiting for subscribers before step 0{": " + waiting_for if waiting_for else ""}')
+    h.set('in_fallback', supervisor.in_fallback).set('fallback_entries', supervisor.n_entered)
+    h.set('fallback_periods', supervisor.n_fallback_periods).set('command_age_s', command_age_s)
+    if supervisor.in_fallback and not finished:
+        h.warn(f'fallback: the production ACC law drives ({supervisor.reason})')
+    h.set('controller_fallback_commands', policy.n_controller_fallback)
+    if policy.last_fallback_flag and not supervisor.in_fallback:
+        h.warn('the controller reports its own fallback in its last command')
+    h.set('rejected_total', policy.rejections.total)
+    if new_rejections:
+        h.warn(f'{new_rejections} hvac/command messages rejected since the last report '
+               f'({policy.rejections.total} in all)')
+    for name, count in events.items():
+        h.set(f'qos_{name}', count)
+    if events.get('incompatible_qos'):
+        h.error(f'{events["incompatible_qos"]} incompatible QoS events on hvac/command (a controller does not match)')
+    return h
+
+
+def start_gate(cfg: PlantNodeConfig, state_subs: int, output_subs: tuple[int, ...], command_subs: int,
+               command_pubs: int) -> str:
+    """What step 0 still waits for ('' when the plant may start).
+
+    The matched subscribers of cabin/state and of every other output, the hvac/command
+    subscriptions in the graph and a matched command publisher (unless no state subscriber
+    is required).
+    """
+    missing = []
+    if state_subs < cfg.min_state_subscribers:
+        missing.append(f'cabin/state subscribers {state_subs}/{cfg.min_state_subscribers}')
+    if min(output_subs, default=0) < cfg.min_output_subscribers:
+        missing.append(f'output subscribers {min(output_subs)}/{cfg.min_output_subscribers}')
+    if command_subs < cfg.min_command_subscribers:
+        missing.append(f'hvac/command subscriptions {command_subs}/{cfg.min_command_subscribers}')
+    if command_pubs < 1 and cfg.min_state_subscribers > 0:
+        missing.append('a hvac/command publisher')
+    return ', '.join(missing)
+
+
+class RealtimeCommands:
+    """realtime: which input drives each plant tick.
+
+    The latest accepted command while it is fresh (younger than the command timeout by the
+    watchdog, and no QoS deadline missed since it came); a new command is taken at control
+    step boundaries only; a stale one is dropped at once (the ACC law takes over).
+    """
+
+    def __init__(self, timeout_s: float):
+        self.watchdog = Watchdog(timeout_s)
+        self.latest = None
+        """The latest accepted command (an AcInput), None before the first."""
+        self.deadline_missed = False
+        self.applied: tuple[Any, bool] = (None, True)
+        """(input, from the fallback law) applied at the last tick."""
+
+    def accepted(self, u, now_s: float) -> None:
+        """A command was accepted at ``now_s`` [s, node clock]."""
+        self.latest, self.deadline_missed = u, False
+        self.watchdog.kick(now_s)
+
+    def fresh(self, now_s: float) -> bool:
+        """True while the latest command may drive the plant."""
+        return self.latest is not None and not self.watchdog.expired(now_s) and not self.deadline_missed
+
+    def why_stale(self, now_s: float) -> str:
+        """Why the ACC law drives (for the log and /diagnostics)."""
+        if self.deadline_missed:
+            return 'QoS deadline on hvac/command missed'
+        age = self.watchdog.age(now_s)
+        latest = 'none yet' if age == math.inf else f'{age:.1f} s old'
+        return f'no fresh command (latest {latest}, limit {self.watchdog.timeout_s:.1f} s)'
+
+    def must_choose(self, at_boundary: bool, now_s: float, in_fallback: bool) -> bool:
+        """True when this tick picks its input anew: at a control step, or when the command went stale."""
+        return at_boundary or (not self.fresh(now_s) and not in_fallback)
