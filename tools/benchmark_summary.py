@@ -112,6 +112,29 @@ def matched_table(doc):
     return '\n'.join(lines)
 
 
+def stronger_front(m):
+    """ΔE against the stronger of the two fronts: the smaller defined saving, dominated by either."""
+    vals = [x['energy_saving_pct'] for x in (m, m['allowance']) if x['energy_saving_pct'] is not None]
+    return (min(vals) if vals else None), bool(m['dominated'] or m['allowance']['dominated'])
+
+
+def headline_table(doc):
+    """Strategies x cases: ΔE at matched comfort against the stronger front (mean over seeds)."""
+    cases = [c['case'] for c in doc['cases']]
+    lines = ['| strategy | ' + ' | '.join(cases) + ' |', '|---|' + '---|' * len(cases)]
+    for name in STRATEGIES + COMPENSATED:
+        cells = []
+        for case in doc['cases']:
+            m = case['matched'].get(name)
+            if m is None:
+                cells.append('')
+                continue
+            v, dom = stronger_front(m)
+            cells.append(('n/a' if v is None else f'{v:+.1f}') + (' (dom.)' if dom else ''))
+        lines.append(f'| {name} | ' + ' | '.join(cells) + ' |')
+    return '\n'.join(lines)
+
+
 def front_text(case, family):
     """The efficient front as 'S: D / E' items."""
     pts = [p for p in case['fronts'][family] if p['efficient']]
@@ -265,10 +288,13 @@ def sensitivity_tables(doc):
     return '\n\n'.join(out)
 
 
-def timing_table(doc):
+def timing_table(doc, log_lines=()):
     """Wall time and the controllers' step times."""
     t = doc['timing']
-    lines = [f"Wall time {t['wall_s']:.1f} s for {t['runs']} runs ({t['ran_now']} run now, {t.get('failed_now', 0)} "
+    inv = [json.loads(x) for x in log_lines if x.strip()]
+    lines = [f"timing.jsonl invocation {i + 1}: {x['wall_s']:.1f} s wall, {x['ran_now']} runs run"
+             for i, x in enumerate(inv)]
+    lines += [f"Wall time {t['wall_s']:.1f} s for {t['runs']} runs ({t['ran_now']} run now, {t.get('failed_now', 0)} "
              f"failed) on {t['workers']} worker(s), backend {t['backend']}, host {t.get('host', '?')}; sum of the "
              f"runs' simulation times {t.get('sim_time_sum_s', float('nan')):.0f} s.", '',
              '| controller | runs | t_c/Ts mean (mean over runs) | t_c/Ts max (max over runs) | '
@@ -300,7 +326,9 @@ def main(argv=None) -> int:
         doc = json.load(f)
     print(f"<!-- {args.results}: {doc['schema']}, ceco {doc['ceco_version']}, code {doc['code_fingerprint']}, "
           f"created {doc['created_utc']}, quick {doc['quick']}, command: {doc['command']} -->\n")
-    print('## Matched comfort\n')
+    print('## Headline: ΔE at matched comfort against the stronger front [%]\n')
+    print(headline_table(doc))
+    print('\n## Matched comfort\n')
     print(matched_table(doc))
     print('\n## Fronts (efficient set-points: discomfort [PMV·h] / energy [kWh])\n')
     for case in doc['cases']:
@@ -314,7 +342,10 @@ def main(argv=None) -> int:
     print('\n## Sensitivity\n')
     print(sensitivity_tables(doc))
     print('\n## Timing\n')
-    print(timing_table(doc))
+    import pathlib
+
+    log = pathlib.Path(args.results).with_name('timing.jsonl')
+    print(timing_table(doc, log.read_text(encoding='utf-8').splitlines() if log.exists() else ()))
     for case in doc['cases']:
         print(f"\n## KPIs {case['case']} ({case['forecast_uncertainty']}, seeds {case['seeds']})\n")
         print(kpi_table(case))
