@@ -43,7 +43,7 @@ from ceco_plant_sim.plant_params import PlantParams
 from ceco_plant_sim.refrigerant import (
     CompressorModel,
     CycleSolution,
-    build_cycle_tables,
+    cycle_tables,
     solve_cycle,
 )
 
@@ -257,7 +257,7 @@ def _compressor_model(p: PlantParams) -> CompressorModel:
 
 
 def _tables(p: PlantParams):
-    return build_cycle_tables(p.refrigerant, float(p.superheat_k), float(p.subcool_k))
+    return cycle_tables(p.refrigerant, float(p.superheat_k), float(p.subcool_k))
 
 
 def steady_cycle_at_load(params: PlantParams, q_evap_w: float, t_wall_c: float, t_amb_c: float,
