@@ -325,7 +325,7 @@ sp = ScenarioPlant(load_scenario('sc03'), 1.0)
 for _ in range(20):
     r = sp.step(AcInput(mdot_bl_kgps=0.17, t_evap_sp_c=3.0))
 print('T_CAB', repr(float(r.meas['t_cab_c'])), 'P_COMP', repr(float(r.out.p_comp_w)))
-print('SOURCE', ceco_plant_sim.refrigerant.cycle_tables().source)
+print('SOURCE', sp.plant.tables_source)
 try:
     ceco_plant_sim.refrigerant.cycle_tables('R1234yf', 7.0, 5.0)
 except ImportError as e:

@@ -329,6 +329,11 @@ class CabinPlant:
         """Simulated time since construction [s] (sum of dt_s)."""
         return self._t_s
 
+    @property
+    def tables_source(self) -> str:
+        """Where the refrigerant property tables come from (the shipped file or a CoolProp build)."""
+        return self._tab.source
+
     def outputs(self) -> PlantOutputs:
         """Outputs of the last step; RuntimeError before the first step."""
         if self._last is None:
