@@ -51,6 +51,7 @@ import logging
 import math
 import os
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -421,8 +422,10 @@ def write_tables_file(path: str, fluid: str = "R1234yf", superheat_k: float = 5.
                   "h_liq_jpkg": "J/kg", "dh_is_jpkg": "J/kg"},
         **(extra or {}),
     }
+    members = {"provenance": np.array(json.dumps(prov, sort_keys=True)), **tables_arrays(tab)}
+    savez: Any = np.savez            # numpy's stubs type **kwds as its own keyword arguments
     with open(path, "wb") as f:
-        np.savez(f, provenance=np.array(json.dumps(prov, sort_keys=True)), **tables_arrays(tab))
+        savez(f, **members)
     return prov
 
 
