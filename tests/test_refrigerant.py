@@ -2,19 +2,19 @@
 
 import math
 
+import CoolProp.CoolProp as CP
 import numpy as np
 import pytest
-import CoolProp.CoolProp as CP
 
+from ceco_core.units import c_to_k
+from ceco_plant_sim.plant import _compressor_model, condenser_eps_c_wpk
+from ceco_plant_sim.plant_params import PlantParams
 from ceco_plant_sim.refrigerant import (
     CompressorModel,
     build_cycle_tables,
     direct_cycle_properties,
     solve_cycle,
 )
-from ceco_plant_sim.plant_params import PlantParams
-from ceco_plant_sim.plant import _compressor_model, condenser_eps_c_wpk
-from ceco_core.units import c_to_k
 
 FLUID = "R1234yf"
 

@@ -1,13 +1,13 @@
 """The `ceco` command: one verb per module, each module owning its argparse.
 
-    ceco run      run the node stack over DDS and record a rosbag2 bag
-    ceco play     republish a recorded bag on DDS
-    ceco report   metrics and figures from run directories
-    ceco sweep    scenario grids with the in-process simulator
-    ceco benchmark  named test cases, baseline family, savings at matched comfort
-    ceco sim      one closed-loop run in-process (no ROS)
-    ceco identify identify the control-oriented model from plant data
-    ceco bench    solver benchmarks
+ceco run      run the node stack over DDS and record a rosbag2 bag
+ceco play     republish a recorded bag on DDS
+ceco report   metrics and figures from run directories
+ceco sweep    scenario grids with the in-process simulator
+ceco benchmark  named test cases, baseline family, savings at matched comfort
+ceco sim      one closed-loop run in-process (no ROS)
+ceco identify identify the control-oriented model from plant data
+ceco bench    solver benchmarks
 """
 import importlib
 import sys

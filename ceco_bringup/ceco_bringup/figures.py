@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import matplotlib
 
@@ -175,7 +175,8 @@ def _bar_labels(ax, bars, values, base, fmt='{:+.1f} %'):
 
 def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: str = 'baseline') -> Path:
     """A/C energy (compressor + blower, kWh), I_PMV and OTC violation per
-    strategy, each bar annotated with its change against the baseline."""
+    strategy, each bar annotated with its change against the baseline.
+    """
     names = ordered(list(metrics))
     x = np.arange(len(names))
     labels = [strategy_style(n)['label'].split(' (')[0] for n in names]
@@ -224,7 +225,8 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
 def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
     """Vehicle-level energy change against the baseline per strategy and
     vehicle (load-averaged fit; error bar = 2x the fit's noise), with the
-    paper's Prius numbers; electric car: range lost to the A/C."""
+    paper's Prius numbers; electric car: range lost to the A/C.
+    """
     vehicles = list(dict.fromkeys(r['vehicle'] for r in rows))
     strategies = ordered(list(dict.fromkeys(r['strategy'] for r in rows)))
     strategies = [s for s in strategies if s != 'baseline']
@@ -282,7 +284,8 @@ def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
 
 def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
     """Solve-time distribution per NMPC strategy (box plot, log scale) with
-    the number of fallbacks."""
+    the number of fallbacks.
+    """
     names = [n for n in ordered(list(diags)) if np.any(np.isfinite(np.asarray(diags[n].get('solve_time_ms', []),
                                                                              dtype=float)))]
     with plt.rc_context(_RC):
@@ -322,7 +325,8 @@ def front_figure(summary: Sequence[Mapping], path: str | os.PathLike, baseline: 
     is where a point dominates it (less energy, lower or equal I_PMV). The
     points of a strategy with settings labels are joined in label order (the
     grid's order) and annotated with the label; strategies with default
-    settings are single markers. Writes a PNG (200 dpi) and returns its path."""
+    settings are single markers. Writes a PNG (200 dpi) and returns its path.
+    """
     from ceco_bringup.sweep.grid import DEFAULT_SETTINGS, GROUP_AXES  # noqa: PLC0415
 
     groups: dict = {}

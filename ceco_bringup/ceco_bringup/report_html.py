@@ -19,8 +19,9 @@ import base64
 import dataclasses
 import html
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence, Union
+from typing import Union
 
 __all__ = ['Heading', 'Paragraph', 'Warning', 'Table', 'Figure', 'Block', 'render_markdown', 'render_html']
 

@@ -96,9 +96,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    from ceco_bringup import supervisor
     from ceco_v2x_preview.preview import parse_quality
     from ceco_v2x_preview.scenario import load_scenario
-    from ceco_bringup import supervisor
     try:
         scenario = load_scenario(args.scenario)
         quality = parse_quality(args.preview)

@@ -57,7 +57,8 @@ FASTDDS_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
 
 def pick_domain_id() -> int:
     """A ROS_DOMAIN_ID for a private run: the pid spread over 1..100 (valid
-    ids with localhost discovery are 0..101), overridable with CECO_DOMAIN_ID."""
+    ids with localhost discovery are 0..101), overridable with CECO_DOMAIN_ID.
+    """
     if os.environ.get('CECO_DOMAIN_ID'):
         return int(os.environ['CECO_DOMAIN_ID'])
     return 1 + (os.getpid() * 7919 + int(time.time())) % 100
@@ -96,7 +97,8 @@ def resolve_domain_id(explicit: int | None = None, index: int = 0, environ=None)
 def normalize_namespace(namespace: str | None) -> str:
     """'' / None -> '' (the root namespace); 'veh1', '/veh1/' -> '/veh1'.
     Raises ValueError for a name ROS 2 would reject (tokens of letters,
-    digits and underscores, not starting with a digit)."""
+    digits and underscores, not starting with a digit).
+    """
     if not namespace or namespace.strip('/') == '':
         return ''
     ns = '/' + namespace.strip('/')
@@ -131,7 +133,8 @@ def dds_env(domain_id: int, base: dict | None = None) -> dict:
 
 def find_executable(package: str, executable: str) -> str:
     """`<prefix>/lib/<package>/<executable>` on AMENT_PREFIX_PATH (where
-    `ros2 run` looks)."""
+    `ros2 run` looks).
+    """
     for prefix in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep):
         if prefix:
             path = Path(prefix) / 'lib' / package / executable
@@ -159,7 +162,8 @@ class NodeProcess:
                  params: dict | None = None, env: dict, log_dir: Path, node_name: str | None = None,
                  namespace: str | None = None, command: list[str] | None = None):
         """A ceco node ``package/executable`` with ROS arguments (under ``namespace`` if given), or any
-        ``command`` (a third-party controller in any language: run as given, without ROS arguments)."""
+        ``command`` (a third-party controller in any language: run as given, without ROS arguments).
+        """
         self.name = name
         if command is not None:
             if not command:
@@ -236,7 +240,8 @@ def _die_with_parent_prefix() -> list[str]:
     """`setpriv --pdeathsig SIGINT --`: the child gets SIGINT when the thread
     that started it dies (even by SIGKILL), so no node outlives `ceco run`
     (Linux prctl PR_SET_PDEATHSIG, kept across the exec into the node). Empty
-    where util-linux's setpriv is missing: the nodes then outlive a SIGKILL."""
+    where util-linux's setpriv is missing: the nodes then outlive a SIGKILL.
+    """
     setpriv = shutil.which('setpriv')
     return [setpriv, '--pdeathsig', 'SIGINT', '--'] if setpriv else []
 

@@ -45,7 +45,7 @@ import dataclasses
 import math
 import time
 import warnings
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -77,7 +77,8 @@ class FastsimMissingError(ImportError):
 
 def import_fastsim():
     """Import ``fastsim`` or raise :class:`FastsimMissingError` saying how to
-    install it (``pip install -r requirements/analysis.txt``)."""
+    install it (``pip install -r requirements/analysis.txt``).
+    """
     try:
         import fastsim  # noqa: PLC0415 (lazy: optional extra)
     except ImportError as exc:

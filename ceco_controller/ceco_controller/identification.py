@@ -38,8 +38,6 @@ CLI (also ``ceco identify``)::
 
 from __future__ import annotations
 
-from typing import Any
-
 import argparse
 import csv
 import dataclasses
@@ -47,6 +45,7 @@ import hashlib
 import math
 import pathlib
 import sys
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
@@ -360,7 +359,8 @@ def fit_intervals(iv: dict, ts_s: float | None = None,
 
 def fit(series: dict, ts_s: float = 5.0, eta: tuple[float, float] | None = None) -> tuple[cm.ControlModelParams, dict]:
     """Fit from 1 s time-series arrays (SERIES_COLUMNS; e.g. read from CSV or a rosbag2 bag); ``eta`` as in
-    :func:`fit_intervals`."""
+    :func:`fit_intervals`.
+    """
     return fit_intervals(intervals_from_series(series, ts_s), ts_s, eta)
 
 

@@ -40,11 +40,10 @@ online by the NMPC (offset-free MPC); 0 when identifying.
 
 from __future__ import annotations
 
-from typing import Any
-
 import dataclasses
 import math
 import pathlib
+from typing import Any
 
 import numpy as np
 import yaml
@@ -157,7 +156,7 @@ class ControlModelParams:
         return {k: (v if isinstance(v, str) else float(v)) for k, v in dataclasses.asdict(self).items()}
 
     @classmethod
-    def from_dict(cls, data: dict) -> "ControlModelParams":
+    def from_dict(cls, data: dict) -> ControlModelParams:
         """Build and validate from a mapping; unknown keys are an error."""
         if not isinstance(data, dict):
             raise ValueError("ControlModelParams: expected a mapping")
@@ -175,7 +174,8 @@ class ControlModelParams:
 
 def package_config_path(filename: str) -> pathlib.Path:
     """A file of the package's ``config/``: the source tree's, else an installed
-    ``share/ceco_controller/config`` on AMENT_PREFIX_PATH; FileNotFoundError if neither has it."""
+    ``share/ceco_controller/config`` on AMENT_PREFIX_PATH; FileNotFoundError if neither has it.
+    """
     src = DEFAULT_PARAMS_PATH.parent / filename
     if src.exists():
         return src

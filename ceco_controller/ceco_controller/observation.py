@@ -9,10 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from ceco_core.contracts import Previews
+from ceco_core.contracts import Observation, Previews
 from ceco_v2x_preview.scenario import Scenario
-
-from ceco_core.contracts import Observation
 
 __all__ = ["observation"]
 

@@ -17,14 +17,13 @@ largest constraint violation of the returned point by name.
 
 from __future__ import annotations
 
-from typing import Any
-
 import dataclasses
 import inspect
 import logging
 import math
 import time
 from collections.abc import Callable
+from typing import Any
 
 import casadi
 import numpy as np

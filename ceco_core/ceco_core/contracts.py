@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-
 from typing import Any
 
 import numpy as np
@@ -178,10 +177,11 @@ class Previews:
         bad = np.flatnonzero(~self.valid)
         return int(bad[0]) if bad.size else self.n
 
-    def hold_filled(self) -> "Previews":
+    def hold_filled(self) -> Previews:
         """A copy in which invalid samples after the trusted part repeat the
         last valid sample (``valid`` is unchanged, so the caller still knows).
-        If no sample is valid the arrays stay NaN."""
+        If no sample is valid the arrays stay NaN.
+        """
         k = self.trusted_steps
         if k == 0 or k == self.n:
             return self

@@ -26,7 +26,7 @@ Pure numpy; no ROS import.
 from __future__ import annotations
 
 import math
-from typing import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -208,7 +208,8 @@ def comparison_rows(rows: Sequence[Mapping], baseline: str = "baseline", *, name
                     change_keys: Iterable[str] = _CHANGE_COLUMNS) -> list[dict]:
     """Copies of ``rows`` with ``<key>_change_pct`` added for every key in
     ``change_keys``: the relative change against the row whose ``name_key``
-    equals ``baseline`` (NaN for every row if there is no baseline row)."""
+    equals ``baseline`` (NaN for every row if there is no baseline row).
+    """
     change_keys = tuple(change_keys)
     base = next((r for r in rows if r.get(name_key) == baseline), None)
     out = []
@@ -235,7 +236,8 @@ def comparison_table(rows: Sequence[Mapping], baseline: str = "baseline", *, nam
     """An aligned text table of ``rows`` (one dict per strategy, e.g. the
     :func:`compute_metrics` output plus ``strategy``), with a ``d<key> %``
     column after each key in ``change_keys``: the relative change against
-    the ``baseline`` row (:func:`relative_change_pct`)."""
+    the ``baseline`` row (:func:`relative_change_pct`).
+    """
     change_keys = tuple(k for k in change_keys if k in columns)
     full = comparison_rows(rows, baseline, name_key=name_key, change_keys=change_keys)
     header = [name_key]

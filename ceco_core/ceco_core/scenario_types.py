@@ -199,7 +199,8 @@ class DriveCycle:
         """Distance driven [m], trapezoidal integral of the (linear) trace.
 
         Written out rather than ``np.trapezoid`` so it also runs on numpy 1.26
-        (the ROS apt image, docker/)."""
+        (the ROS apt image, docker/).
+        """
         v, t = self.speed_mps, self.time_s
         return float(0.5 * np.sum((v[1:] + v[:-1]) * np.diff(t)))
 
@@ -294,14 +295,16 @@ class Scenario:
 
     def speed_mps(self, t_s):
         """Vehicle speed [m/s] at ``t_s`` (scalar or array): linear
-        interpolation of the cycle, holding the last value after its end."""
+        interpolation of the cycle, holding the last value after its end.
+        """
         t = self._check_t(t_s)
         v = np.interp(t, self.drive_cycle.time_s, self.drive_cycle.speed_mps)
         return self._out(t_s, v)
 
     def env_at(self, t_s) -> Environment:
         """The true boundary conditions at ``t_s`` [s] (scalar -> floats,
-        array -> arrays of the same shape)."""
+        array -> arrays of the same shape).
+        """
         t = self._check_t(t_s)
         wt = self.weather_time_s
         return Environment(

@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+
+from ceco_core import psychro, units
 from ceco_core.scenario_types import (
     INITIAL_FIELDS,
     PMV_BOUND_RANGE,
@@ -36,18 +38,16 @@ from ceco_core.scenario_types import (
     T_AMB_RANGE_C,
     T_STATE_RANGE_C,
     ControlDefaults,
-    SunGeometry,
     DriveCycle,
     Environment,
     InitialState,
     Occupant,
     Scenario,
     ScenarioError,
+    SunGeometry,
     WeatherPreview,
     check_number,
 )
-
-from ceco_core import psychro, units
 
 __all__ = [
     "ScenarioError",
@@ -293,7 +293,8 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
 
 def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
     """Load a bundled scenario by name (``sc03``, see :func:`list_scenarios`)
-    or a YAML file by path. Raises ScenarioError naming the bad field."""
+    or a YAML file by path. Raises ScenarioError naming the bad field.
+    """
     text_name = str(name_or_path)
     if text_name in list_scenarios():
         text = _read_text(_data_dir("scenarios").joinpath(text_name + ".yaml"))
@@ -345,7 +346,8 @@ def describe(scenario: Scenario) -> str:
 def main(argv=None) -> int:
     """``python -m ceco_v2x_preview.scenario [NAME_OR_PATH ...]``: validate and
     summarise scenarios (all bundled ones without arguments). Exit status 1
-    and the field-naming message on the first invalid one."""
+    and the field-naming message on the first invalid one.
+    """
     import argparse  # noqa: PLC0415
     import sys  # noqa: PLC0415
 

@@ -60,7 +60,8 @@ def code_fingerprint() -> str:
     importable here: every ``.py/.yaml/.csv/.json`` file of the scenario,
     plant and controller packages, their ``config/`` directories and the
     identified model parameter file. Part of every cell's id, so a changed
-    simulator reruns the cells instead of mixing results of two versions."""
+    simulator reruns the cells instead of mixing results of two versions.
+    """
     h = hashlib.sha256()
     files: list = []
     for name in _CODE_PACKAGES:
@@ -94,7 +95,8 @@ def cell_id(spec: Mapping) -> str:
 def runtime_overrides(plain: Mapping) -> dict:
     """Setting overrides as stored in a cell's spec (plain JSON data) ->
     keyword overrides of ``strategy_settings`` (a ``solver`` mapping becomes
-    a :class:`SolverSettings`, lists become tuples)."""
+    a :class:`SolverSettings`, lists become tuples).
+    """
     from ceco_controller.strategies import SolverSettings  # noqa: PLC0415
 
     out = {}
@@ -129,7 +131,8 @@ def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
     fingerprint differs from the driver's is an error, not a result),
     ``sim_time_s`` (scenario build + simulation), ``wall_time_s`` (also the
     first imports in a fresh worker), ``host``, ``pid``. Never raises for a failing run (the
-    error is in the row). ``cell`` is :class:`Cell` as a dict."""
+    error is in the row). ``cell`` is :class:`Cell` as a dict.
+    """
     t0 = time.perf_counter()
     row = {'cell_id': cell['id'], **cell['axes'], 'status': 'ok', 'error': '', 'sim_time_s': float('nan')}
     try:

@@ -26,7 +26,8 @@ def run_sweep(grid_path: str | os.PathLike, out_dir: str | os.PathLike, *, backe
               workers: int | None = None, address: str | None = None, progress: bool = True,
               log=print) -> dict:
     """Run (or resume) the sweep of ``grid_path`` into ``out_dir``. Returns
-    ``{'rows': [...], 'summary': [...], 'timing': {...}, 'paths': {...}}``."""
+    ``{'rows': [...], 'summary': [...], 'timing': {...}, 'paths': {...}}``.
+    """
     if backend not in ('local', 'ray'):
         raise ValueError(f'backend: must be local or ray, got {backend!r}')
     workers = int(workers or os.cpu_count() or 1)
@@ -131,7 +132,8 @@ def verify_cells(out_dir: str | os.PathLike, n: int, grid_path: str | os.PathLik
     exact equality (wall-clock solve times, :data:`TIMING_COLUMNS`,
     excepted; metrics a log written by an older version lacks are skipped). The cells are the first ``n`` by id, so the choice is
     deterministic and spread over the grid. Returns one dict per cell:
-    ``cell_id, axes, equal (bool), differences ({metric: (table, rerun)})``."""
+    ``cell_id, axes, equal (bool), differences ({metric: (table, rerun)})``.
+    """
     cells = {c.id: c for c in expand_grid(load_grid(grid_path))}
     done = read_done(Path(out_dir) / 'cells.jsonl')
     ids = sorted(i for i in done if i in cells)[:max(0, int(n))]

@@ -51,7 +51,8 @@ _CLIMATE_KEYS = {'t_amb_c', 'solar_wm2', 'rh', 'initial', 'comfort_bounds'}
 
 def load_grid(path: str | os.PathLike) -> dict:
     """Read and check a grid YAML file (unknown keys and wrong types raise
-    GridError naming the key)."""
+    GridError naming the key).
+    """
     path = Path(path)
     try:
         data = yaml.safe_load(path.read_text(encoding='utf-8'))
@@ -143,7 +144,8 @@ def _apply_climate(d: dict, label: str, climate) -> None:
 def _plain_setting(where: str, default, value):
     """A setting value from the grid as plain JSON data of the default's type
     (an int for a float field becomes a float, so ``2000`` and ``2000.0``
-    give the same cell id). Wrong types raise GridError naming ``where``."""
+    give the same cell id). Wrong types raise GridError naming ``where``.
+    """
     if dataclasses.is_dataclass(default):
         if not isinstance(value, Mapping):
             raise GridError(f'{where}: must be a mapping of {type(default).__name__} fields, got {value!r}')
@@ -185,7 +187,8 @@ def strategy_setting_overrides(grid: Mapping, strategies: Sequence[str]) -> dict
     ``settings.<label>.<strategy>.<field>``. A label naming a strategy not in
     ``strategies``, the baseline (it has no StrategySettings), the reserved
     label ``default``, or one of the fields the grid sets elsewhere (name,
-    horizon_steps, control_period_s) is an error."""
+    horizon_steps, control_period_s) is an error.
+    """
     raw = grid.get('settings')
     if raw is None:
         return {}
@@ -231,7 +234,8 @@ def strategy_setting_overrides(grid: Mapping, strategies: Sequence[str]) -> dict
 def expand_grid(grid: Mapping) -> list[Cell]:
     """Every cell of a grid (axes in the order of :data:`AXES`, strategy
     fastest). Each cell's scenario is validated here (``scenario_from_dict``),
-    so a bad grid fails before any run."""
+    so a bad grid fails before any run.
+    """
     from ceco_v2x_preview.preview import parse_quality  # noqa: PLC0415
     from ceco_v2x_preview.scenario import load_drive_cycle, load_scenario, scenario_from_dict  # noqa: PLC0415
 

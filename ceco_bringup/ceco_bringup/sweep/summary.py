@@ -44,7 +44,8 @@ def _typed(values: Sequence) -> list:
 
 def _write_parquet(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) -> str | None:
     """The table as Parquet with pyarrow, else polars (a FASTSim dependency);
-    returns the engine used, None if neither is installed."""
+    returns the engine used, None if neither is installed.
+    """
     data = {c: _typed([r.get(c) for r in rows]) for c in columns}
     tmp = path.with_suffix('.parquet.tmp')
     try:
@@ -83,7 +84,8 @@ def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]
     group (scenario, drive_cycle, climate, preview, occupant; means compared,
     :data:`CHANGE_KEYS`). The baseline runs once per group with its default
     settings; every (strategy, settings) of the group is compared with that
-    one baseline. Rows keep the order of first appearance."""
+    one baseline. Rows keep the order of first appearance.
+    """
     group_axes = [a for a in AXES if a not in ('seed', 'strategy', 'settings')]
     groups: dict = {}
     for r in rows:
@@ -118,7 +120,8 @@ def dominance_rows(summary: Sequence[Mapping], baseline: str = 'baseline') -> li
     I_PMV (a Pareto-dominating point; ``dominates``), over the whole run and
     in the comfort-zone phase (``dominates_zone``)? The changes are the
     summary's ``dE_tot_kWh_pct, dI_pmv_pct, dE_zone_J_pct, dI_pmv_zone_pct``
-    (NaN where the group has no baseline: ``dominates`` is then False)."""
+    (NaN where the group has no baseline: ``dominates`` is then False).
+    """
     out = []
     for r in summary:
         if r['strategy'] == baseline and r.get('settings', DEFAULT_SETTINGS) == DEFAULT_SETTINGS:
@@ -154,7 +157,8 @@ def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) 
     are done: each strategy's A/C load is its mean ``P_mean_w`` over seeds,
     over the group's drive cycle and run length. One row per group, vehicle
     and strategy, with the group's axes (``strategy``: :func:`point_name`,
-    e.g. ``ceco-c[g2k]`` for a settings label)."""
+    e.g. ``ceco-c[g2k]`` for a settings label).
+    """
     from ceco_bringup import vehicle_energy as ve  # noqa: PLC0415
     from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
 
