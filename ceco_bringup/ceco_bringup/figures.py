@@ -20,13 +20,13 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use('Agg')
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import Patch
 
-from ceco_bringup.rundata import fallback_mask  # noqa: E402
-from ceco_core.contracts import STRATEGIES  # noqa: E402
-from ceco_core.metrics import relative_change_pct  # noqa: E402
+from ceco_bringup.rundata import fallback_mask
+from ceco_core.contracts import STRATEGIES
+from ceco_core.metrics import relative_change_pct
 
 __all__ = ['STRATEGY_ORDER', 'ordered', 'strategy_style', 'fig_pmv', 'fig_temperatures', 'fig_powers',
            'fig_inputs', 'fig_bars', 'fig_vehicle', 'fig_solver']
@@ -327,7 +327,7 @@ def front_figure(summary: Sequence[Mapping], path: str | os.PathLike, baseline: 
     grid's order) and annotated with the label; strategies with default
     settings are single markers. Writes a PNG (200 dpi) and returns its path.
     """
-    from ceco_bringup.sweep.grid import DEFAULT_SETTINGS, GROUP_AXES  # noqa: PLC0415
+    from ceco_bringup.sweep.grid import DEFAULT_SETTINGS, GROUP_AXES
 
     groups: dict = {}
     for r in summary:

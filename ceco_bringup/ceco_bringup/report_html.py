@@ -45,7 +45,7 @@ class Paragraph:
 
 
 @dataclasses.dataclass(frozen=True)
-class Warning:  # noqa: A001 (a report block, not the builtin exception)
+class Warning:  # a report block, not the builtin exception
     """A problem the reader must see (metrics mismatch, missing data)."""
 
     text: str

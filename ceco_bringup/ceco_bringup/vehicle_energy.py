@@ -80,7 +80,7 @@ def import_fastsim():
     install it (``pip install -r requirements/analysis.txt``).
     """
     try:
-        import fastsim  # noqa: PLC0415 (lazy: optional extra)
+        import fastsim  # lazy: optional extra
     except ImportError as exc:
         raise FastsimMissingError(
             'vehicle-level energy needs the optional FASTSim extra: '
@@ -273,7 +273,7 @@ def drive_cycle_for_run(scenario_name: str, duration_s: float):
     Returns ``(time_s, speed_mps)``; the speed holds its last value past the
     cycle's end, as in the simulator (``Scenario.speed_mps``).
     """
-    from ceco_v2x_preview.scenario import load_scenario  # noqa: PLC0415
+    from ceco_v2x_preview.scenario import load_scenario
 
     if not (math.isfinite(duration_s) and duration_s >= 1.0):
         raise ValueError(f'duration_s: must be finite and >= 1, got {duration_s!r}')

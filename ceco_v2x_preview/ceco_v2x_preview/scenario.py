@@ -348,8 +348,8 @@ def main(argv=None) -> int:
     summarise scenarios (all bundled ones without arguments). Exit status 1
     and the field-naming message on the first invalid one.
     """
-    import argparse  # noqa: PLC0415
-    import sys  # noqa: PLC0415
+    import argparse
+    import sys
 
     parser = argparse.ArgumentParser(prog="python -m ceco_v2x_preview.scenario",
                                      description="Validate and summarise ceco scenario files.")

@@ -123,7 +123,7 @@ def run_ray(items: Sequence, workers: int, address: str | None, on_done: Callabl
     down at the end; with ``address`` the cluster is used and left running.
     """
     try:
-        import ray  # noqa: PLC0415 (optional extra)
+        import ray  # optional extra
     except ImportError as exc:
         raise RuntimeError('--backend ray needs the optional Ray extra: '
                            'pip install -r requirements/analysis.txt (ray==2.60.0)') from exc

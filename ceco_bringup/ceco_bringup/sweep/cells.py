@@ -72,7 +72,7 @@ def code_fingerprint() -> str:
                 files += [(f'{name}/{root.name}/{p.relative_to(root)}', p) for p in root.rglob('*')
                           if p.suffix in _CODE_SUFFIXES and p.is_file() and '__pycache__' not in p.parts]
     try:
-        from ceco_controller.model import default_params_path  # noqa: PLC0415
+        from ceco_controller.model import default_params_path
 
         files.append(('model_params', default_params_path()))
     except (ImportError, FileNotFoundError):
@@ -97,7 +97,7 @@ def runtime_overrides(plain: Mapping) -> dict:
     keyword overrides of ``strategy_settings`` (a ``solver`` mapping becomes
     a :class:`SolverSettings`, lists become tuples).
     """
-    from ceco_controller.strategies import SolverSettings  # noqa: PLC0415
+    from ceco_controller.strategies import SolverSettings
 
     out = {}
     for key, value in plain.items():
@@ -112,8 +112,8 @@ def runtime_overrides(plain: Mapping) -> dict:
 
 
 def settings_from_spec(spec: Mapping):
-    from ceco_controller.closed_loop import SimSettings  # noqa: PLC0415
-    from ceco_v2x_preview.preview import parse_quality  # noqa: PLC0415
+    from ceco_controller.closed_loop import SimSettings
+    from ceco_v2x_preview.preview import parse_quality
 
     hs = spec.get('horizon_steps')
     ovr = runtime_overrides(spec.get('strategy_overrides') or {})
@@ -136,8 +136,8 @@ def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
     t0 = time.perf_counter()
     row = {'cell_id': cell['id'], **cell['axes'], 'status': 'ok', 'error': '', 'sim_time_s': float('nan')}
     try:
-        from ceco_controller.closed_loop import simulate, write_run  # noqa: PLC0415
-        from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
+        from ceco_controller.closed_loop import simulate, write_run
+        from ceco_v2x_preview.scenario import scenario_from_dict
 
         spec = cell['spec']
         row['code'] = code_fingerprint()
@@ -156,7 +156,7 @@ def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
         row['preview_quality'] = result.metrics.get('preview_quality', spec['preview'])
         if runs_dir:
             write_run(result, Path(runs_dir) / cell['id'])
-    except Exception as exc:  # noqa: BLE001 (a failed cell is data, the sweep goes on)
+    except Exception as exc:  # a failed cell is data, the sweep goes on
         row['status'] = 'error'
         row['error'] = f'{type(exc).__name__}: {exc}'
     row['wall_time_s'] = time.perf_counter() - t0

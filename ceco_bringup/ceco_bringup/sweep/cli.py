@@ -48,7 +48,7 @@ def run_sweep(grid_path: str | os.PathLike, out_dir: str | os.PathLike, *, backe
         f'({backend}, {workers} worker(s))', file=sys.stderr)
     bar = None
     if progress and todo:
-        from tqdm import tqdm  # noqa: PLC0415
+        from tqdm import tqdm
 
         bar = tqdm(total=len(todo), desc='sweep', unit='cell', file=sys.stderr)
     new_rows: list = []
@@ -195,7 +195,7 @@ def main(argv=None) -> int:
     print(f"table: {res['paths']['csv']}" + (f" and {res['paths']['parquet']}" if res['paths']['parquet'] else ''))
     print(f"summary: {res['paths']['summary_md']}")
     if args.front_figure:
-        from ceco_bringup.figures import front_figure  # noqa: PLC0415
+        from ceco_bringup.figures import front_figure
 
         print(f"front figure: {front_figure(res['summary'], args.front_figure)}")
     bad = False

@@ -194,7 +194,7 @@ def strategy_setting_overrides(grid: Mapping, strategies: Sequence[str]) -> dict
         return {}
     if not isinstance(raw, Mapping) or not raw:
         raise GridError('settings: must be a non-empty mapping {label: {strategy: {field: value}}}')
-    from ceco_controller.strategies import CECO_STRATEGIES, StrategySettings, strategy_settings  # noqa: PLC0415
+    from ceco_controller.strategies import CECO_STRATEGIES, StrategySettings, strategy_settings
 
     fixed = {k: grid[k] for k in ('control_period_s', 'horizon_steps') if grid.get(k) is not None}
     if 'horizon_steps' in fixed:
@@ -236,15 +236,15 @@ def expand_grid(grid: Mapping) -> list[Cell]:
     fastest). Each cell's scenario is validated here (``scenario_from_dict``),
     so a bad grid fails before any run.
     """
-    from ceco_v2x_preview.preview import parse_quality  # noqa: PLC0415
-    from ceco_v2x_preview.scenario import load_drive_cycle, load_scenario, scenario_from_dict  # noqa: PLC0415
+    from ceco_v2x_preview.preview import parse_quality
+    from ceco_v2x_preview.scenario import load_drive_cycle, load_scenario, scenario_from_dict
 
     base_dir = grid.get('_base_dir')
     strategies = grid.get('strategies')
     if not isinstance(strategies, (list, tuple)) or not strategies or not all(isinstance(s, str) for s in strategies):
         raise GridError('strategies: must be a non-empty list of strategy names')
     try:
-        from ceco_controller.strategies import STRATEGIES  # noqa: PLC0415
+        from ceco_controller.strategies import STRATEGIES
     except ImportError:
         STRATEGIES = None
     if STRATEGIES is not None:

@@ -49,14 +49,14 @@ def _write_parquet(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) 
     data = {c: _typed([r.get(c) for r in rows]) for c in columns}
     tmp = path.with_suffix('.parquet.tmp')
     try:
-        import pyarrow as pa  # noqa: PLC0415
-        import pyarrow.parquet as pq  # noqa: PLC0415
+        import pyarrow as pa
+        import pyarrow.parquet as pq
 
         pq.write_table(pa.table(data), tmp)
         engine = 'pyarrow'
     except ImportError:
         try:
-            import polars as pl  # noqa: PLC0415
+            import polars as pl
         except ImportError:
             return None
         pl.DataFrame(data).write_parquet(tmp)
@@ -145,7 +145,7 @@ def point_name(strategy: str, settings: str = DEFAULT_SETTINGS) -> str:
 
 def _ordered_points(keys) -> list:
     """(strategy, settings) keys: strategies in figures.ordered order, labels in first-appearance order."""
-    from ceco_bringup.figures import ordered  # noqa: PLC0415
+    from ceco_bringup.figures import ordered
 
     keys = list(keys)
     return [k for s in ordered(list(dict.fromkeys(k[0] for k in keys))) for k in keys if k[0] == s]
@@ -159,8 +159,8 @@ def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) 
     and strategy, with the group's axes (``strategy``: :func:`point_name`,
     e.g. ``ceco-c[g2k]`` for a settings label).
     """
-    from ceco_bringup import vehicle_energy as ve  # noqa: PLC0415
-    from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
+    from ceco_bringup import vehicle_energy as ve
+    from ceco_v2x_preview.scenario import scenario_from_dict
 
     settings = settings or ve.VehicleEnergySettings()
     spec_of = {c.id: c.spec for c in cells}
@@ -178,7 +178,7 @@ def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) 
         duration_s = float(rs[0]['duration_s'])
         t = np.arange(0.0, math.floor(duration_s) + 1.0)
         v = np.asarray(sc.speed_mps(t), dtype=float)
-        from ceco_bringup.figures import ordered  # noqa: PLC0415
+        from ceco_bringup.figures import ordered
 
         loads = {s: float(np.mean(p_mean[s])) for s in ordered(list(p_mean))}
         for vr in ve.vehicle_energy_table(loads, t, v, settings):
