@@ -139,7 +139,8 @@ class SqpSolver(NlpSolver):
                 except RuntimeError as exc:
                     _LOG.warning("NMPC codegen: cannot load %s (%s); using the in-process NLP functions", so, exc)
         elif settings.jit:
-            jit: dict[str, Any] = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"], "verbose": False}}
+            jit: dict[str, Any] = {"jit": True, "compiler": "shell",
+                                   "jit_options": {"flags": ["-O2"], "verbose": False}}
             fns = {k: casadi.Function(f.name(), f.sx_in(), f.sx_out(), f.name_in(), f.name_out(), jit)
                    for k, f in fns.items()}
         opts = SqpOptions(max_iter=settings.sqp_max_iter, tol_pr=settings.tol,
