@@ -21,7 +21,6 @@ import html
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Union
 
 __all__ = ['Heading', 'Paragraph', 'Warning', 'Table', 'Figure', 'Block', 'render_markdown', 'render_html']
 
@@ -81,7 +80,7 @@ class Figure:
     """Caption under the figure."""
 
 
-Block = Union[Heading, Paragraph, Warning, Table, Figure]
+Block = Heading | Paragraph | Warning | Table | Figure
 
 
 def _md_cell(text: str) -> str:

@@ -56,8 +56,9 @@ _CODE_SUFFIXES = ('.py', '.yaml', '.yml', '.csv', '.json')
 
 
 def code_fingerprint() -> str:
-    """SHA-256 (16 hex digits) of the simulator's code and configuration as
-    importable here: every ``.py/.yaml/.csv/.json`` file of the scenario,
+    """SHA-256 (16 hex digits) of the simulator's code and configuration as importable here.
+
+    It covers every ``.py/.yaml/.csv/.json`` file of the scenario,
     plant and controller packages, their ``config/`` directories and the
     identified model parameter file. Part of every cell's id, so a changed
     simulator reruns the cells instead of mixing results of two versions.
@@ -93,9 +94,9 @@ def cell_id(spec: Mapping) -> str:
 
 
 def runtime_overrides(plain: Mapping) -> dict:
-    """Setting overrides as stored in a cell's spec (plain JSON data) ->
-    keyword overrides of ``strategy_settings`` (a ``solver`` mapping becomes
-    a :class:`SolverSettings`, lists become tuples).
+    """Setting overrides as stored in a cell's spec (plain JSON data) -> keyword overrides of ``strategy_settings``.
+
+    A ``solver`` mapping becomes a :class:`SolverSettings`, lists become tuples.
     """
     from ceco_controller.strategies import SolverSettings
 
@@ -112,6 +113,16 @@ def runtime_overrides(plain: Mapping) -> dict:
 
 
 def settings_from_spec(spec: Mapping):
+    """The :class:`~ceco_controller.closed_loop.SimSettings` of a cell's spec.
+
+    Args:
+        spec: the cell's spec (plain JSON data): ``preview`` (preview quality text),
+            optional ``control_period_s`` [s], ``horizon_steps``, ``seed``, ``duration_s`` [s]
+            (None: the scenario's) and ``strategy_overrides`` (see :func:`runtime_overrides`).
+
+    Returns:
+        The simulator settings, without a progress bar.
+    """
     from ceco_controller.closed_loop import SimSettings
     from ceco_v2x_preview.preview import parse_quality
 
@@ -125,13 +136,14 @@ def settings_from_spec(spec: Mapping):
 
 
 def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
-    """Run one cell in this process and return its results row: the cell id,
-    axes, every metric, ``status`` ('ok' or 'error'), ``error``,
+    """Run one cell in this process and return its results row; never raises for a failing run.
+
+    The row holds the cell id, axes, every metric, ``status`` ('ok' or 'error'), ``error``,
     ``code`` (this process's :func:`code_fingerprint`; a cell whose
     fingerprint differs from the driver's is an error, not a result),
     ``sim_time_s`` (scenario build + simulation), ``wall_time_s`` (also the
-    first imports in a fresh worker), ``host``, ``pid``. Never raises for a failing run (the
-    error is in the row). ``cell`` is :class:`Cell` as a dict.
+    first imports in a fresh worker), ``host``, ``pid``. A failing run's
+    error is in the row. ``cell`` is :class:`Cell` as a dict.
     """
     t0 = time.perf_counter()
     row = {'cell_id': cell['id'], **cell['axes'], 'status': 'ok', 'error': '', 'sim_time_s': float('nan')}

@@ -43,8 +43,9 @@ def _typed(values: Sequence) -> list:
 
 
 def _write_parquet(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) -> str | None:
-    """The table as Parquet with pyarrow, else polars (a FASTSim dependency);
-    returns the engine used, None if neither is installed.
+    """Write the table as Parquet with pyarrow, else polars (a FASTSim dependency).
+
+    Returns the engine used, None if neither is installed.
     """
     data = {c: _typed([r.get(c) for r in rows]) for c in columns}
     tmp = path.with_suffix('.parquet.tmp')
@@ -78,7 +79,9 @@ def _settings_of(row: Mapping) -> str:
 
 
 def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]:
-    """Per (scenario, drive_cycle, climate, preview, occupant, strategy,
+    """The sweep's summary rows: per-point means over seeds and the change against the group's baseline.
+
+    Per (scenario, drive_cycle, climate, preview, occupant, strategy,
     settings): the mean over seeds of the main metrics (:data:`SUMMARY_KEYS`),
     the number of seeds, and the change against the baseline of the same
     group (scenario, drive_cycle, climate, preview, occupant; means compared,
@@ -115,7 +118,9 @@ def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]
 
 
 def dominance_rows(summary: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]:
-    """Against the baseline of its group, for every other (strategy,
+    """Which points of a summary Pareto-dominate the baseline of their group.
+
+    Against the baseline of its group, for every other (strategy,
     settings) of a summary: does it use less energy AND have a lower or equal
     I_PMV (a Pareto-dominating point; ``dominates``), over the whole run and
     in the comfort-zone phase (``dominates_zone``)? The changes are the
@@ -152,9 +157,10 @@ def _ordered_points(keys) -> list:
 
 
 def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) -> list[dict]:
-    """Vehicle-level energy (FASTSim, :mod:`ceco_bringup.vehicle_energy`) of
-    every group (scenario, cycle, climate, preview, occupant) whose cells
-    are done: each strategy's A/C load is its mean ``P_mean_w`` over seeds,
+    """Vehicle-level energy (FASTSim) of every group of a sweep whose cells are done.
+
+    Computed with :mod:`ceco_bringup.vehicle_energy`. A group is (scenario, cycle,
+    climate, preview, occupant); each strategy's A/C load is its mean ``P_mean_w`` over seeds,
     over the group's drive cycle and run length. One row per group, vehicle
     and strategy, with the group's axes (``strategy``: :func:`point_name`,
     e.g. ``ceco-c[g2k]`` for a settings label).
@@ -188,6 +194,19 @@ def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) 
 
 def summary_markdown(summary: Sequence[Mapping], timing: Mapping, grid_name: str,
                       vehicle: Sequence[Mapping] = ()) -> str:
+    """The sweep's ``summary.md``: timing, one table row per summary point, dominance and vehicle level.
+
+    Args:
+        summary: the rows of :func:`summarize` (energy [kWh], I_PMV [s], changes [%]).
+        timing: the sweep's timing record (``cells``, ``ran``, ``skipped``, ``failed``, ``backend``,
+            ``workers``, ``wall_s`` [s], ``cells_per_hour``, ``sim_mean_s``, ``sim_median_s``,
+            ``cell_mean_s``, ``cell_sum_s`` [s] and ``speedup``).
+        grid_name: the grid's name, used in the title.
+        vehicle: the rows of :func:`vehicle_rows` (no vehicle-level section when empty).
+
+    Returns:
+        The Markdown text, ending with a newline.
+    """
     lines = [f'# Sweep summary: {grid_name}', '',
              f"{timing['cells']} cells ({timing['ran']} run now, {timing['skipped']} already done, "
              f"{timing['failed']} failed) with backend `{timing['backend']}` on {timing['workers']} worker(s). "
