@@ -31,6 +31,15 @@ def _usage() -> str:
 
 
 def main(argv=None) -> int:
+    """Run the ``ceco`` command: hand the arguments after the verb to that verb's module ``main``.
+
+    Args:
+        argv: the command-line arguments after ``ceco``, verb first (default ``sys.argv[1:]``).
+
+    Returns:
+        The exit status: the verb's own, 0 for ``--help``, 2 without a verb or for an unknown verb
+        (the usage is printed in those cases).
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ('-h', '--help'):
         print(_usage())

@@ -739,8 +739,10 @@ class EstimatingController:
         return self.inner.prepare(probe.estimated_observation(obs))
 
     def compute(self, obs: Observation, t_start: float | None = None):
-        """One control step: estimate, then the wrapped controller's ``compute`` (``t_start``: the
-        step's start on the controller's clock, passed on so the estimate counts against the deadline).
+        """One control step: estimate, then the wrapped controller's ``compute``.
+
+        ``t_start`` is the step's start on the controller's clock [s], passed on so the
+        estimate counts against the deadline.
         """
         obs_est = self.estimated_observation(obs)
         cmd, diag = self.inner.compute(obs_est, t_start=t_start)

@@ -1,5 +1,7 @@
-"""Control-oriented A/C and cabin model: eqs. (1)-(3) of the method paper,
-the compressor and blower power models and the efficiency multiplier eta_AC(V).
+"""Control-oriented A/C and cabin model (method paper eqs. (1)-(3), power models, eta_AC(V)).
+
+It holds eqs. (1)-(3) of the method paper, the compressor and blower power
+models and the efficiency multiplier eta_AC(V).
 
 Written once; every function evaluates numpy arrays (broadcasting) and CasADi
 symbols alike (``ceco_core.mathops.backend``), so the closed-loop
@@ -173,8 +175,10 @@ class ControlModelParams:
 
 
 def package_config_path(filename: str) -> pathlib.Path:
-    """A file of the package's ``config/``: the source tree's, else an installed
-    ``share/ceco_controller/config`` on AMENT_PREFIX_PATH; FileNotFoundError if neither has it.
+    """A file of the package's ``config/``.
+
+    The source tree's, else an installed ``share/ceco_controller/config`` on
+    AMENT_PREFIX_PATH; FileNotFoundError if neither has it.
     """
     src = DEFAULT_PARAMS_PATH.parent / filename
     if src.exists():

@@ -25,8 +25,8 @@ import numpy as np
 
 __all__ = ["MDOT_BL_MIN_KGPS", "MDOT_BL_MAX_KGPS", "T_EVAP_SP_MIN_C", "T_EVAP_SP_MAX_C", "AcInput",
            "ActuatorLimits", "ACTUATOR_LIMITS", "MEASUREMENTS", "PREVIEW_QUANTITIES", "Previews",
-           "Observation", "Diagnostics", "DIAGNOSTICS_CONTRACT_COLUMNS", "DIAGNOSTICS_COLUMNS", "STRATEGIES", "CECO_STRATEGIES",
-           "BASELINE_STRATEGY", "EXTERNAL_STRATEGY", "WIRE_STRATEGIES", "check_finite"]
+           "Observation", "Diagnostics", "DIAGNOSTICS_CONTRACT_COLUMNS", "DIAGNOSTICS_COLUMNS", "STRATEGIES",
+           "CECO_STRATEGIES", "BASELINE_STRATEGY", "EXTERNAL_STRATEGY", "WIRE_STRATEGIES", "check_finite"]
 
 MDOT_BL_MIN_KGPS = 0.05
 """Lower actuator bound of the blower air flow [kg/s] (method paper, eq. 13)."""
@@ -178,9 +178,9 @@ class Previews:
         return int(bad[0]) if bad.size else self.n
 
     def hold_filled(self) -> Previews:
-        """A copy in which invalid samples after the trusted part repeat the
-        last valid sample (``valid`` is unchanged, so the caller still knows).
-        If no sample is valid the arrays stay NaN.
+        """A copy in which invalid samples after the trusted part repeat the last valid sample.
+
+        ``valid`` is unchanged, so the caller still knows. If no sample is valid the arrays stay NaN.
         """
         k = self.trusted_steps
         if k == 0 or k == self.n:

@@ -1,5 +1,6 @@
-"""The plant side of a closed-loop run on a scenario: key-on and the per-plant-step
-sequence, written once and called by both the in-process simulator
+"""The plant side of a closed-loop run on a scenario: key-on and the per-plant-step sequence.
+
+Written once and called by both the in-process simulator
 (``ceco_controller.closed_loop.simulate``) and ``plant_node``, so that a DDS run
 equals the simulator bit for bit.
 
