@@ -68,7 +68,7 @@ def check(run_dir: Path, rtol: float) -> tuple[bool, str]:
         ok &= d_sim <= rtol and d_json == 0.0
         lines.append(f'  {key:<18} sim {sim[key]:>16.10g}  dds {from_bag[key]:>16.10g}  rel diff {d_sim:.1e}'
                      f'  (metrics.json vs bag {d_json:.1e})')
-    states = bagio.read_messages(bag, ('cabin/state',))
+    states = bagio.read_messages(bag, (bagio.TOPIC_STATE,))
     n_state = np.bincount([msg.step_index for _, _, msg in states], minlength=ts['t_s'].size)
     cmds = bagio.load_commands(bag)
     n_cmd = np.bincount(cmds['k'], minlength=int(round(duration / m['control_period_s'])))

@@ -25,6 +25,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ceco_ros.topics import TOPIC_COMMAND, TOPIC_STATE
+
 __all__ = ['controller_env', 'step_times_from_bag', 'run_external_cell']
 
 
@@ -49,10 +51,10 @@ def step_times_from_bag(run_dir, control_period_s: float, plant_dt_s: float = 1.
     sent = json.loads((Path(run_dir) / 'send_times.json').read_text(encoding='utf-8'))
     per = int(round(control_period_s / plant_dt_s))
     state, cmd = {}, {}
-    for n, t_ns in sent['cabin/state']:
+    for n, t_ns in sent[TOPIC_STATE]:
         if n % per == 0:
             state.setdefault(n // per, t_ns)
-    for k, t_ns in sent['hvac/command']:
+    for k, t_ns in sent[TOPIC_COMMAND]:
         cmd.setdefault(k, t_ns)
     ks = sorted(set(state) & set(cmd))
     return np.array([(cmd[k] - state[k]) * 1e-9 for k in ks], dtype=float)
