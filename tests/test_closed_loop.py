@@ -1,14 +1,13 @@
 """Closed loop on the real plant, scenarios and comfort: bounds, run directory, determinism, faults."""
 import csv
-import math
 import json
+import math
 
 import numpy as np
 import pytest
 
 from ceco_controller import closed_loop as cl
-from ceco_core.contracts import DIAGNOSTICS_COLUMNS
-from ceco_core.contracts import STRATEGIES
+from ceco_core.contracts import DIAGNOSTICS_COLUMNS, STRATEGIES
 from ceco_v2x_preview.preview import parse_quality
 
 SHORT = cl.SimSettings(duration_s=60.0, progress=False)

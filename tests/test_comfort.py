@@ -291,7 +291,7 @@ def test_explicit_paper_form_equals_iso_only_at_neutral():
         tr, v = rng.uniform(15, 40), rng.uniform(0.05, 1.0)
         met, clo = rng.uniform(1.0, 1.4), rng.uniform(0.3, 1.0)
         common = dict(tr_c=tr, vel_mps=v, pa_pa=1700.0, met=met, clo=clo)
-        ta0 = brentq(lambda ta: float(comfort.pmv(ta_c=ta, **common)), -20.0, 60.0, xtol=1e-10)
+        ta0 = brentq(lambda ta, common=common: float(comfort.pmv(ta_c=ta, **common)), -20.0, 60.0, xtol=1e-10)
         at_neutral.append(float(comfort.pmv_explicit_paper(ta_c=ta0, **common)))
         # with ISO's constants (0.028, 0.017) the explicit T_cl is the ISO T_cl
         tcl_iso = float(comfort.clothing_temperature_c(ta_c=ta0, tr_c=tr, vel_mps=v, met=met, clo=clo))

@@ -282,7 +282,7 @@ def test_prepare_sees_the_estimated_observation_and_updates_the_estimator_once()
     obs = _obs(sc, 0.0, 0, meas, sc_key_on())
     assert prepared.prepare(obs) is not None          # the NMPC solved the estimated first instance
     assert prepared.last_estimate is None             # ... without touching the real estimator
-    (c1, d1), (c2, d2) = prepared.compute(obs, t_start=None), plain.compute(obs)
+    (c1, _), (c2, _) = prepared.compute(obs, t_start=None), plain.compute(obs)
     assert prepared.last_estimate == plain.last_estimate
     assert c1.mdot_bl_kgps == pytest.approx(c2.mdot_bl_kgps, abs=1e-6)
     assert c1.t_evap_sp_c == pytest.approx(c2.t_evap_sp_c, abs=1e-4)

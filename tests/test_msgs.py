@@ -40,7 +40,7 @@ def test_stamped_with_a_header_first(name):
 
 @pytest.mark.parametrize('name', MSGS)
 def test_names_carry_si_unit_suffixes(name):
-    for ftype, fname, rest in _fields(name):
+    for _ftype, fname, rest in _fields(name):
         unit = re.search(r'\[([^\]]+)\]', rest)
         if unit and unit.group(1) == 'degC':
             assert fname.endswith('_c'), f'{name}.{fname}: degC field without _c suffix'

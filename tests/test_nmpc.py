@@ -4,10 +4,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ceco_core.contracts import ACTUATOR_LIMITS, Observation
 from ceco_controller.nmpc import NmpcController
 from ceco_controller.solvers import SolveResult
 from ceco_controller.strategies import SolverSettings, resolve_auto, strategy_settings
+from ceco_core.contracts import ACTUATOR_LIMITS, Observation
 
 N1 = 7  # Np + 1
 

@@ -222,7 +222,7 @@ def test_cop_rises_with_vehicle_speed_at_fixed_load():
 
 def test_dynamic_plant_more_efficient_at_speed(sc03):
     ref = _plant(sc03)
-    for k in range(300):
+    for _ in range(300):
         ref.step(FULL, _env(speed_mps=0.0), 1.0)
     state = ref.state
     res = {}

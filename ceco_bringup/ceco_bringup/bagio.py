@@ -37,6 +37,7 @@ import numpy as np
 from ceco_core import rundir
 from ceco_core.contracts import DIAGNOSTICS_CONTRACT_COLUMNS as DIAGNOSTICS_COLUMNS
 from ceco_core.units import s_from_sec_nanosec
+from ceco_ros.topics import TOPIC_COMFORT, TOPIC_COMMAND, TOPIC_DIAGNOSTICS, TOPIC_POWER, TOPIC_STATE
 
 TIMESERIES_COLUMNS = rundir.TIMESERIES_COLUMNS
 """Columns of timeseries.csv (docs/architecture.md); extra columns follow."""
@@ -44,10 +45,6 @@ TIMESERIES_COLUMNS = rundir.TIMESERIES_COLUMNS
 TIMESERIES_EXTRA = rundir.TIMESERIES_EXTRA + ('step_index', 'fallback')
 """The extras of a stack run: the simulator's, then the plant step index and the fallback flag."""
 
-TOPIC_STATE, TOPIC_COMFORT, TOPIC_POWER = 'cabin/state', 'cabin/comfort', 'hvac/power'
-TOPIC_COMMAND, TOPIC_DIAGNOSTICS = 'hvac/command', 'controller/diagnostics'
-# The stack names the loaders read (ceco_ros.interfaces names them for the nodes;
-# that module imports rclpy, which a bag reader must not need).
 
 
 def _msg_dir() -> Path:

@@ -22,6 +22,10 @@ KEYS = ('E_tot_J', 'E_comp_J', 'E_blower_J', 'I_pmv', 'otc_violation_pct', 'time
 
 
 def rel_diff(a: float, b: float) -> float:
+    """Relative difference ``|a - b| / max(|a|, |b|)`` of two metric values [-].
+
+    0.0 when ``a == b`` (including both 0) or both are NaN.
+    """
     if (isinstance(a, float) and math.isnan(a)) and (isinstance(b, float) and math.isnan(b)):
         return 0.0
     if a == b:
@@ -30,6 +34,18 @@ def rel_diff(a: float, b: float) -> float:
 
 
 def check(run_dir: Path, rtol: float) -> tuple[bool, str]:
+    """Compare one ``ceco run`` directory with a re-run of the in-process simulator.
+
+    Args:
+        run_dir: a run directory holding ``metrics.json`` and the rosbag2 bag ``bag/``.
+        rtol: the largest relative difference [-] allowed between a simulator metric and the
+            same metric recomputed from the bag (``metrics.json`` must equal the bag exactly).
+
+    Returns:
+        ``(ok, report)``: ``ok`` is True if every metric agrees and every plant step has exactly
+        one state and every control step exactly one command in the bag; ``report`` is the
+        per-metric comparison and the message counts, as printed text.
+    """
     import numpy as np
 
     from ceco_bringup import bagio
@@ -52,7 +68,7 @@ def check(run_dir: Path, rtol: float) -> tuple[bool, str]:
         ok &= d_sim <= rtol and d_json == 0.0
         lines.append(f'  {key:<18} sim {sim[key]:>16.10g}  dds {from_bag[key]:>16.10g}  rel diff {d_sim:.1e}'
                      f'  (metrics.json vs bag {d_json:.1e})')
-    states = bagio.read_messages(bag, ('cabin/state',))
+    states = bagio.read_messages(bag, (bagio.TOPIC_STATE,))
     n_state = np.bincount([msg.step_index for _, _, msg in states], minlength=ts['t_s'].size)
     cmds = bagio.load_commands(bag)
     n_cmd = np.bincount(cmds['k'], minlength=int(round(duration / m['control_period_s'])))
@@ -65,6 +81,14 @@ def check(run_dir: Path, rtol: float) -> tuple[bool, str]:
 
 
 def main(argv=None) -> int:
+    """Command line (module docstring): compare each run directory, print the reports and a verdict.
+
+    Args:
+        argv: the command-line arguments (default ``sys.argv[1:]``).
+
+    Returns:
+        The exit status: 0 if every run equals the simulator, 1 otherwise.
+    """
     p = argparse.ArgumentParser(prog='python -m ceco_bringup.compare_sim', description=__doc__.split('\n\n')[0])
     p.add_argument('run_dirs', nargs='+', type=Path)
     p.add_argument('--rtol', type=float, default=1e-6)

@@ -14,19 +14,19 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import matplotlib
 
 matplotlib.use('Agg')
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import Patch
 
-from ceco_bringup.rundata import fallback_mask  # noqa: E402
-from ceco_core.contracts import STRATEGIES  # noqa: E402
-from ceco_core.metrics import relative_change_pct  # noqa: E402
+from ceco_bringup.rundata import fallback_mask
+from ceco_core.contracts import STRATEGIES
+from ceco_core.metrics import relative_change_pct
 
 __all__ = ['STRATEGY_ORDER', 'ordered', 'strategy_style', 'fig_pmv', 'fig_temperatures', 'fig_powers',
            'fig_inputs', 'fig_bars', 'fig_vehicle', 'fig_solver']
@@ -174,8 +174,10 @@ def _bar_labels(ax, bars, values, base, fmt='{:+.1f} %'):
 
 
 def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: str = 'baseline') -> Path:
-    """A/C energy (compressor + blower, kWh), I_PMV and OTC violation per
-    strategy, each bar annotated with its change against the baseline."""
+    """A/C energy (compressor + blower, kWh), I_PMV and OTC violation per strategy.
+
+    Each bar is annotated with its change against the baseline.
+    """
     names = ordered(list(metrics))
     x = np.arange(len(names))
     labels = [strategy_style(n)['label'].split(' (')[0] for n in names]
@@ -222,9 +224,11 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
 
 
 def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
-    """Vehicle-level energy change against the baseline per strategy and
-    vehicle (load-averaged fit; error bar = 2x the fit's noise), with the
-    paper's Prius numbers; electric car: range lost to the A/C."""
+    """Vehicle-level energy change against the baseline per strategy and vehicle.
+
+    Load-averaged fit; error bar = 2x the fit's noise; with the paper's Prius
+    numbers; electric car: range lost to the A/C.
+    """
     vehicles = list(dict.fromkeys(r['vehicle'] for r in rows))
     strategies = ordered(list(dict.fromkeys(r['strategy'] for r in rows)))
     strategies = [s for s in strategies if s != 'baseline']
@@ -264,7 +268,8 @@ def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
             names = ordered(list(dict.fromkeys(r['strategy'] for r in bev)))
             by = {r['strategy']: r for r in bev}
             vals = np.array([by[n]['range_lost_km'] for n in names])
-            bars = ax.bar(np.arange(len(names)), vals, color=[strategy_style(n, i)['color'] for i, n in enumerate(names)],
+            bars = ax.bar(np.arange(len(names)), vals,
+                          color=[strategy_style(n, i)['color'] for i, n in enumerate(names)],
                           edgecolor='k', lw=0.5)
             for b, n in zip(bars, names):
                 ax.annotate(f"{by[n]['range_lost_pct']:.1f} %", (b.get_x() + b.get_width() / 2, b.get_height()),
@@ -281,8 +286,7 @@ def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
 
 
 def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
-    """Solve-time distribution per NMPC strategy (box plot, log scale) with
-    the number of fallbacks."""
+    """Solve-time distribution per NMPC strategy (box plot, log scale) with the number of fallbacks."""
     names = [n for n in ordered(list(diags)) if np.any(np.isfinite(np.asarray(diags[n].get('solve_time_ms', []),
                                                                              dtype=float)))]
     with plt.rc_context(_RC):
@@ -313,17 +317,19 @@ def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
 
 def front_figure(summary: Sequence[Mapping], path: str | os.PathLike, baseline: str = 'baseline',
                  zoom_pct: tuple | None = (4.0, 8.0)) -> Path:
-    """The energy-comfort plane of every group of a summary, against its
-    baseline: top row the whole run (ΔE_tot vs ΔI_PMV [%]), middle row the
+    """The energy-comfort plane of every group of a summary, against its baseline; one column per group.
+
+    Top row the whole run (ΔE_tot vs ΔI_PMV [%]), middle row the
     same near the baseline (half-widths ``zoom_pct`` = (energy, I_PMV) [%];
     None: no such row), bottom row the comfort-zone phase (ΔE_zone vs
-    ΔI_PMV,zone [%]); one column per group.
+    ΔI_PMV,zone [%]).
     The baseline is the origin (black cross); the shaded lower-left quadrant
     is where a point dominates it (less energy, lower or equal I_PMV). The
     points of a strategy with settings labels are joined in label order (the
     grid's order) and annotated with the label; strategies with default
-    settings are single markers. Writes a PNG (200 dpi) and returns its path."""
-    from ceco_bringup.sweep.grid import DEFAULT_SETTINGS, GROUP_AXES  # noqa: PLC0415
+    settings are single markers. Writes a PNG (200 dpi) and returns its path.
+    """
+    from ceco_bringup.sweep.grid import DEFAULT_SETTINGS, GROUP_AXES
 
     groups: dict = {}
     for r in summary:
@@ -339,7 +345,8 @@ def front_figure(summary: Sequence[Mapping], path: str | os.PathLike, baseline: 
     with plt.rc_context({'font.size': 8, 'axes.grid': True, 'grid.alpha': 0.3, 'savefig.bbox': 'tight'}):
         fig, axes = plt.subplots(len(panels), n, figsize=(3.6 * n, 3.2 * len(panels)), squeeze=False)
         for j, (g, rs) in enumerate(groups.items()):
-            name = ' / '.join(str(x) for x, a in zip(g, GROUP_AXES) if x not in ('scenario', 'perfect') or a == 'scenario')
+            name = ' / '.join(str(x) for x, a in zip(g, GROUP_AXES)
+                              if x not in ('scenario', 'perfect') or a == 'scenario')
             for i, (kx, ky, phase, xl, yl, zoom) in enumerate(panels):
                 ax = axes[i][j]
                 pts = [r for r in rs if not (r['strategy'] == baseline and r.get('settings') == DEFAULT_SETTINGS)]

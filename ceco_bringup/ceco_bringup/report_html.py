@@ -19,8 +19,8 @@ import base64
 import dataclasses
 import html
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence, Union
 
 __all__ = ['Heading', 'Paragraph', 'Warning', 'Table', 'Figure', 'Block', 'render_markdown', 'render_html']
 
@@ -44,7 +44,7 @@ class Paragraph:
 
 
 @dataclasses.dataclass(frozen=True)
-class Warning:  # noqa: A001 (a report block, not the builtin exception)
+class Warning:  # a report block, not the builtin exception
     """A problem the reader must see (metrics mismatch, missing data)."""
 
     text: str
@@ -80,7 +80,7 @@ class Figure:
     """Caption under the figure."""
 
 
-Block = Union[Heading, Paragraph, Warning, Table, Figure]
+Block = Heading | Paragraph | Warning | Table | Figure
 
 
 def _md_cell(text: str) -> str:

@@ -62,6 +62,7 @@ class _StopFlag:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``ceco run`` argument parser (options as in the module docstring; ``ceco run --help``)."""
     p = argparse.ArgumentParser(prog='ceco run', description=__doc__.split('\n\n')[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('--scenario', default='sc03', help='scenario name or YAML path (default sc03)')
@@ -95,10 +96,21 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    """``ceco run``: run each requested strategy over DDS into its run directory and print its summary.
+
+    With ``--strategy all`` the strategies go into ``DIR/<strategy>/`` and a comparison table follows.
+
+    Args:
+        argv: the arguments after ``ceco run`` (default ``sys.argv[1:]``).
+
+    Returns:
+        The exit status: 0 when every run finished, 2 for an invalid scenario, preview, namespace
+        or domain id, 1 when a run failed, 130 when interrupted by SIGINT/SIGTERM.
+    """
     args = build_parser().parse_args(argv)
+    from ceco_bringup import supervisor
     from ceco_v2x_preview.preview import parse_quality
     from ceco_v2x_preview.scenario import load_scenario
-    from ceco_bringup import supervisor
     try:
         scenario = load_scenario(args.scenario)
         quality = parse_quality(args.preview)
@@ -137,6 +149,12 @@ def main(argv=None) -> int:
 
 
 def print_summary(m: dict, run_dir: Path) -> None:
+    """Print one run's line: energy [kJ], I_pmv, OTC violation [%], wall and loop times [s], real-time factor.
+
+    Args:
+        m: the run's metrics dict (as returned by :func:`run_one`).
+        run_dir: the run directory, printed at the end of the line.
+    """
     print(f"{m['strategy']:>10}: E_tot {m['E_tot_J'] / 1e3:8.1f} kJ (comp {m['E_comp_J'] / 1e3:.1f}, "
           f"blower {m['E_blower_J'] / 1e3:.1f}), I_pmv {m['I_pmv']:.2f}, OTC violation "
           f"{m['otc_violation_pct']:.2f} %; wall {m['wall_time_s']:.1f} s, loop "

@@ -152,7 +152,7 @@ def _load_bag(bag_dir: Path, namespace: str | None) -> dict:
 
     try:
         cols = {k: np.asarray(v) for k, v in bagio.load_run_timeseries(bag_dir, namespace).items()}
-    except Exception as exc:  # noqa: BLE001 (rosbags raises its own types; say which bag)
+    except Exception as exc:  # rosbags raises its own types; say which bag
         raise ValueError(f'{bag_dir}: cannot read the bag: {type(exc).__name__}: {exc}') from exc
     if not len(cols.get('t_s', ())) >= 2:
         raise ValueError(f'{bag_dir}: the bag holds fewer than 2 complete plant steps')

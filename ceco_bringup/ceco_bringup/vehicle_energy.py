@@ -45,7 +45,7 @@ import dataclasses
 import math
 import time
 import warnings
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -76,10 +76,12 @@ class FastsimMissingError(ImportError):
 
 
 def import_fastsim():
-    """Import ``fastsim`` or raise :class:`FastsimMissingError` saying how to
-    install it (``pip install -r requirements/analysis.txt``)."""
+    """Import ``fastsim`` or raise :class:`FastsimMissingError` saying how to install it.
+
+    The install command is ``pip install -r requirements/analysis.txt``.
+    """
     try:
-        import fastsim  # noqa: PLC0415 (lazy: optional extra)
+        import fastsim  # lazy: optional extra
     except ImportError as exc:
         raise FastsimMissingError(
             'vehicle-level energy needs the optional FASTSim extra: '
@@ -101,6 +103,7 @@ class VehicleEnergySettings:
     """Strategy the savings are taken against."""
 
     def validate(self) -> None:
+        """Check every field; raise ValueError naming the first bad one."""
         if not self.vehicles or not all(isinstance(v, str) and v for v in self.vehicles):
             raise ValueError('vehicles: must be a non-empty tuple of FASTSim resource names')
         if isinstance(self.fit_points, bool) or int(self.fit_points) != self.fit_points or self.fit_points < 2:
@@ -183,8 +186,9 @@ def _with_soc_balance(vdict: dict, attempt: str) -> dict:
 
 
 def simulate_vehicle(vehicle: str, time_s, speed_mps, p_ac_w: float) -> VehicleRun:
-    """Run FASTSim 3.1 for ``vehicle`` over the cycle ``(time_s [s], speed_mps
-    [m/s])`` with ``p_ac_w`` [W] added to the vehicle's base aux load.
+    """Run FASTSim 3.1 for ``vehicle`` over a drive cycle with ``p_ac_w`` [W] added to its base aux load.
+
+    The cycle is ``(time_s [s], speed_mps [m/s])``.
 
     A hybrid's charge is sustained as in :data:`_SOC_BALANCE_ATTEMPTS`.
     Speed-trace misses are allowed within FASTSim's checked tolerance
@@ -272,7 +276,7 @@ def drive_cycle_for_run(scenario_name: str, duration_s: float):
     Returns ``(time_s, speed_mps)``; the speed holds its last value past the
     cycle's end, as in the simulator (``Scenario.speed_mps``).
     """
-    from ceco_v2x_preview.scenario import load_scenario  # noqa: PLC0415
+    from ceco_v2x_preview.scenario import load_scenario
 
     if not (math.isfinite(duration_s) and duration_s >= 1.0):
         raise ValueError(f'duration_s: must be finite and >= 1, got {duration_s!r}')

@@ -48,6 +48,10 @@ RECORDER_GATE = {
 
 
 def generate_launch_description() -> LaunchDescription:
+    """The launch arguments (namespace, strategy, timing, use_sim_time, scenario, record) and the stack.
+
+    The processes are built by :func:`_stack` once the arguments are resolved (module docstring).
+    """
     return LaunchDescription([
         DeclareLaunchArgument('namespace', default_value='',
                               description='ROS namespace of the nodes and their topics, e.g. veh1 '

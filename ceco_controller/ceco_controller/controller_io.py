@@ -15,19 +15,17 @@ from collections.abc import Callable
 from typing import Any
 
 import ceco_ros.checks as checks
-from ceco_core.contracts import CECO_STRATEGIES
+from ceco_core.contracts import CECO_STRATEGIES, MEASUREMENT_MODES
 from ceco_core.control_grid import TIMING_MODES, control_step_index
 from ceco_core.sequencing import LockstepBuffer, SequenceGate
 from ceco_core.supervision import Health, Rejections, reason_kind
 from ceco_ros.params import ParamSpec
+from ceco_ros.topics import TOPIC_STATE, TOPIC_TRAFFIC, TOPIC_WEATHER
 
 __all__ = ['controller_parameters', 'ControllerNodeConfig', 'ControllerInputs', 'StepInputs', 'ControllerRecord',
            'controller_health',
            'DYNAMIC']
 
-TOPIC_STATE, TOPIC_WEATHER, TOPIC_TRAFFIC = 'cabin/state', 'v2x/weather_preview', 'v2x/traffic_preview'
-MEASUREMENT_MODES = ('full', 'vehicle')
-"""The controller's measurement modes (``ceco_controller.estimator.MEASUREMENT_MODES``, tested equal)."""
 _PREVIEW_TOPIC = {'weather': TOPIC_WEATHER, 'traffic': TOPIC_TRAFFIC}
 
 

@@ -38,8 +38,6 @@ CLI (also ``ceco identify``)::
 
 from __future__ import annotations
 
-from typing import Any
-
 import argparse
 import csv
 import dataclasses
@@ -47,6 +45,7 @@ import hashlib
 import math
 import pathlib
 import sys
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
@@ -54,7 +53,8 @@ from scipy.optimize import least_squares, lsq_linear
 from . import model as cm
 
 __all__ = ["SERIES_COLUMNS", "ExcitationSettings", "generate_excitation", "intervals_from_series", "fit",
-           "fit_intervals", "eta_ac_points", "fit_eta_ac", "EtaMapSettings", "prediction_errors", "read_series_csv", "write_series_csv", "main"]
+           "fit_intervals", "eta_ac_points", "fit_eta_ac", "EtaMapSettings", "prediction_errors", "read_series_csv",
+           "write_series_csv", "main"]
 
 SERIES_COLUMNS = ("segment", "t_s", "t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c", "t_amb_c",
                   "solar_wm2", "speed_mps", "mdot_bl_kgps", "t_evap_sp_c", "p_comp_w", "p_blower_w")
@@ -261,9 +261,9 @@ def intervals_from_series(series: dict, ts_s: float = 5.0) -> dict:
     m = int(round(ts_s / dt))
     if m < 1 or abs(m * dt - ts_s) > 1e-6:
         raise ValueError(f"ts_s {ts_s} must be a whole multiple of the sample step {dt}")
-    out: dict[str, list] = {k: [] for k in ("t_cab0", "t_cab1", "t_evap0", "t_evap1", "t_int0", "t_shell0", "t_evap_mean",
-                           "t_cab_mean", "t_ain_mean", "mdot", "sp", "t_amb", "speed", "p_comp", "p_bl",
-                           "segment")}
+    out: dict[str, list] = {k: [] for k in ("t_cab0", "t_cab1", "t_evap0", "t_evap1", "t_int0", "t_shell0",
+                                            "t_evap_mean", "t_cab_mean", "t_ain_mean", "mdot", "sp", "t_amb",
+                                            "speed", "p_comp", "p_bl", "segment")}
     seg = np.asarray(series["segment"])
     for s in np.unique(seg):
         idx = np.flatnonzero(seg == s)
@@ -359,8 +359,10 @@ def fit_intervals(iv: dict, ts_s: float | None = None,
 
 
 def fit(series: dict, ts_s: float = 5.0, eta: tuple[float, float] | None = None) -> tuple[cm.ControlModelParams, dict]:
-    """Fit from 1 s time-series arrays (SERIES_COLUMNS; e.g. read from CSV or a rosbag2 bag); ``eta`` as in
-    :func:`fit_intervals`."""
+    """Fit the control model from 1 s time-series arrays (SERIES_COLUMNS; e.g. read from CSV or a rosbag2 bag).
+
+    ``ts_s`` is the model step [s]; ``eta`` as in :func:`fit_intervals`.
+    """
     return fit_intervals(intervals_from_series(series, ts_s), ts_s, eta)
 
 

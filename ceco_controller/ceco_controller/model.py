@@ -1,5 +1,7 @@
-"""Control-oriented A/C and cabin model: eqs. (1)-(3) of the method paper,
-the compressor and blower power models and the efficiency multiplier eta_AC(V).
+"""Control-oriented A/C and cabin model (method paper eqs. (1)-(3), power models, eta_AC(V)).
+
+It holds eqs. (1)-(3) of the method paper, the compressor and blower power
+models and the efficiency multiplier eta_AC(V).
 
 Written once; every function evaluates numpy arrays (broadcasting) and CasADi
 symbols alike (``ceco_core.mathops.backend``), so the closed-loop
@@ -40,11 +42,10 @@ online by the NMPC (offset-free MPC); 0 when identifying.
 
 from __future__ import annotations
 
-from typing import Any
-
 import dataclasses
 import math
 import pathlib
+from typing import Any
 
 import numpy as np
 import yaml
@@ -157,7 +158,7 @@ class ControlModelParams:
         return {k: (v if isinstance(v, str) else float(v)) for k, v in dataclasses.asdict(self).items()}
 
     @classmethod
-    def from_dict(cls, data: dict) -> "ControlModelParams":
+    def from_dict(cls, data: dict) -> ControlModelParams:
         """Build and validate from a mapping; unknown keys are an error."""
         if not isinstance(data, dict):
             raise ValueError("ControlModelParams: expected a mapping")
@@ -174,8 +175,11 @@ class ControlModelParams:
 
 
 def package_config_path(filename: str) -> pathlib.Path:
-    """A file of the package's ``config/``: the source tree's, else an installed
-    ``share/ceco_controller/config`` on AMENT_PREFIX_PATH; FileNotFoundError if neither has it."""
+    """A file of the package's ``config/``.
+
+    The source tree's, else an installed ``share/ceco_controller/config`` on
+    AMENT_PREFIX_PATH; FileNotFoundError if neither has it.
+    """
     src = DEFAULT_PARAMS_PATH.parent / filename
     if src.exists():
         return src

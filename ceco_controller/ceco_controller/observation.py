@@ -1,5 +1,6 @@
-"""The controller's :class:`~ceco_core.contracts.Observation` at a control
-step, built once for the in-process simulator (``closed_loop.simulate``: from the
+"""The controller's :class:`~ceco_core.contracts.Observation` at a control step.
+
+Built once for the in-process simulator (``closed_loop.simulate``: from the
 plant and ``make_previews``) and for ``mpc_node`` (from the checked CabinState and
 preview messages, via ``msg_conv``), so a DDS run equals the simulator bit for bit.
 
@@ -9,10 +10,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from ceco_core.contracts import Previews
+from ceco_core.contracts import Observation, Previews
 from ceco_v2x_preview.scenario import Scenario
-
-from ceco_core.contracts import Observation
 
 __all__ = ["observation"]
 

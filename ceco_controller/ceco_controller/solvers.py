@@ -17,14 +17,13 @@ largest constraint violation of the returned point by name.
 
 from __future__ import annotations
 
-from typing import Any
-
 import dataclasses
 import inspect
 import logging
 import math
 import time
 from collections.abc import Callable
+from typing import Any
 
 import casadi
 import numpy as np
@@ -140,7 +139,8 @@ class SqpSolver(NlpSolver):
                 except RuntimeError as exc:
                     _LOG.warning("NMPC codegen: cannot load %s (%s); using the in-process NLP functions", so, exc)
         elif settings.jit:
-            jit: dict[str, Any] = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"], "verbose": False}}
+            jit: dict[str, Any] = {"jit": True, "compiler": "shell",
+                                   "jit_options": {"flags": ["-O2"], "verbose": False}}
             fns = {k: casadi.Function(f.name(), f.sx_in(), f.sx_out(), f.name_in(), f.name_out(), jit)
                    for k, f in fns.items()}
         opts = SqpOptions(max_iter=settings.sqp_max_iter, tol_pr=settings.tol,
@@ -173,25 +173,26 @@ class _DeadlineCallback(casadi.Callback):
         self.deadline = math.inf
         self.construct("ceco_deadline", {})
 
-    def get_n_in(self):  # noqa: D102 (CasADi Callback interface)
+    # the CasADi Callback interface
+    def get_n_in(self):
         return casadi.nlpsol_n_out()
 
-    def get_n_out(self):  # noqa: D102
+    def get_n_out(self):
         return 1
 
-    def get_name_in(self, i):  # noqa: D102
+    def get_name_in(self, i):
         return casadi.nlpsol_out(i)
 
-    def get_name_out(self, i):  # noqa: D102
+    def get_name_out(self, i):
         return "ret"
 
-    def get_sparsity_in(self, i):  # noqa: D102
+    def get_sparsity_in(self, i):
         return casadi.Sparsity(0, 0)
 
-    def has_eval_buffer(self):  # noqa: D102
+    def has_eval_buffer(self):
         return True
 
-    def eval_buffer(self, arg, res):  # noqa: D102
+    def eval_buffer(self, arg, res):
         memoryview(res[0]).cast("d")[0] = 1.0 if self.clock() >= self.deadline else 0.0
         return 0
 

@@ -32,12 +32,11 @@ from compiled C (:mod:`ceco_controller.codegen`).
 
 from __future__ import annotations
 
-from typing import Any
-
 import dataclasses
 import math
 import time
 from collections.abc import Callable
+from typing import Any
 
 import casadi
 import numpy as np

@@ -23,10 +23,9 @@ T_evap bounds, the offset-free bias correction and the solver settings.
 
 from __future__ import annotations
 
-from typing import Any
-
 import dataclasses
 import math
+from typing import Any
 
 from ceco_core.contracts import CECO_STRATEGIES, STRATEGIES
 

@@ -23,7 +23,6 @@ docs/comfort.md.
 
 import dataclasses
 import math
-
 from typing import Any
 
 import numpy as np

@@ -332,7 +332,7 @@ def pmv(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0, smoothing=DEFAUL
                          pa_pa=a["pa_pa"], m_wm2=m, w_rad_wm2=a["w_rad_wm2"], sm=smoothing)
 
 
-def ppd(pmv):  # noqa: D417 - the argument shadows the function on purpose
+def ppd(pmv):  # the argument shadows the function on purpose
     """Predicted percentage dissatisfied [%], ISO 7730:2005 Clause 5, eq. (5).
 
     ``PPD = 100 - 95 exp(-0.03353 PMV^4 - 0.2179 PMV^2)``; minimum 5 % at PMV = 0.

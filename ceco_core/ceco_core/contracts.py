@@ -19,15 +19,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-
 from typing import Any
 
 import numpy as np
 
 __all__ = ["MDOT_BL_MIN_KGPS", "MDOT_BL_MAX_KGPS", "T_EVAP_SP_MIN_C", "T_EVAP_SP_MAX_C", "AcInput",
            "ActuatorLimits", "ACTUATOR_LIMITS", "MEASUREMENTS", "PREVIEW_QUANTITIES", "Previews",
-           "Observation", "Diagnostics", "DIAGNOSTICS_CONTRACT_COLUMNS", "DIAGNOSTICS_COLUMNS", "STRATEGIES", "CECO_STRATEGIES",
-           "BASELINE_STRATEGY", "EXTERNAL_STRATEGY", "WIRE_STRATEGIES", "check_finite"]
+           "Observation", "Diagnostics", "DIAGNOSTICS_CONTRACT_COLUMNS", "DIAGNOSTICS_COLUMNS", "STRATEGIES",
+           "CECO_STRATEGIES", "BASELINE_STRATEGY", "MEASUREMENT_MODES", "EXTERNAL_STRATEGY", "WIRE_STRATEGIES", "check_finite"]
 
 MDOT_BL_MIN_KGPS = 0.05
 """Lower actuator bound of the blower air flow [kg/s] (method paper, eq. 13)."""
@@ -57,6 +56,10 @@ WIRE_STRATEGIES = STRATEGIES + (EXTERNAL_STRATEGY,)
 MEASUREMENTS = ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c", "t_vent_c", "rh_cab")
 """Keys of the measurement mapping [degC, rh_cab in 0..1] that the plant hands to a controller
 (``ScenarioPlant.meas``; the fields of ceco_msgs/CabinState)."""
+
+MEASUREMENT_MODES = ("full", "vehicle")
+"""What a controller reads: ``full``, every plant state it models (the default); ``vehicle``, only the
+sensors a production car has, the rest estimated (``ceco_controller.estimator``)."""
 
 PREVIEW_QUANTITIES = ("t_amb_c", "solar_wm2", "speed_mps", "rh")
 """The previewed quantities (arrays of :class:`Previews`)."""
@@ -178,10 +181,11 @@ class Previews:
         bad = np.flatnonzero(~self.valid)
         return int(bad[0]) if bad.size else self.n
 
-    def hold_filled(self) -> "Previews":
-        """A copy in which invalid samples after the trusted part repeat the
-        last valid sample (``valid`` is unchanged, so the caller still knows).
-        If no sample is valid the arrays stay NaN."""
+    def hold_filled(self) -> Previews:
+        """A copy in which invalid samples after the trusted part repeat the last valid sample.
+
+        ``valid`` is unchanged, so the caller still knows. If no sample is valid the arrays stay NaN.
+        """
         k = self.trusted_steps
         if k == 0 or k == self.n:
             return self

@@ -26,7 +26,7 @@ Pure numpy; no ROS import.
 from __future__ import annotations
 
 import math
-from typing import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -95,10 +95,13 @@ def compute_metrics(t_s, p_comp_w, p_blower_w, pmv, pmv_lb, pmv_ub, *,
         p_comp_w: compressor electrical power, mean over each interval [W].
         p_blower_w: blower electrical power, mean over each interval [W].
         pmv: PMV at each sample [-].
-        pmv_lb, pmv_ub: the scenario's PMV bounds at each sample (arrays or
-            scalars) [-]; used for the OTC violation.
-        comfort_lb, comfort_ub: the comfort zone used for time to comfort
-            (ISO 7730 category B: -0.5..+0.5) [-].
+        pmv_lb: the scenario's lower PMV bound at each sample (array or
+            scalar) [-]; used for the OTC violation.
+        pmv_ub: the scenario's upper PMV bound at each sample (array or
+            scalar) [-]; used for the OTC violation.
+        comfort_ub: upper edge of the comfort zone used for time to comfort
+            (ISO 7730 category B: +0.5) [-].
+        comfort_lb: lower edge of that comfort zone (category B: -0.5) [-].
         comfort_hold_s: time PMV must stay in the zone to count [s].
         p_aux_w: other A/C auxiliaries, e.g. the condenser fan, mean over
             each interval [W]; optional (0 if None). The paper's P_aux is
@@ -206,9 +209,11 @@ _CHANGE_COLUMNS = ("E_tot_kWh", "I_pmv", "otc_violation_pct")
 
 def comparison_rows(rows: Sequence[Mapping], baseline: str = "baseline", *, name_key: str = "strategy",
                     change_keys: Iterable[str] = _CHANGE_COLUMNS) -> list[dict]:
-    """Copies of ``rows`` with ``<key>_change_pct`` added for every key in
-    ``change_keys``: the relative change against the row whose ``name_key``
-    equals ``baseline`` (NaN for every row if there is no baseline row)."""
+    """Copies of ``rows`` with ``<key>_change_pct`` added for every key in ``change_keys``.
+
+    The added value is the relative change against the row whose ``name_key``
+    equals ``baseline`` (NaN for every row if there is no baseline row).
+    """
     change_keys = tuple(change_keys)
     base = next((r for r in rows if r.get(name_key) == baseline), None)
     out = []
@@ -232,10 +237,12 @@ def _cell(x) -> str:
 def comparison_table(rows: Sequence[Mapping], baseline: str = "baseline", *, name_key: str = "strategy",
                      columns: Sequence[str] = _DEFAULT_COLUMNS,
                      change_keys: Iterable[str] = _CHANGE_COLUMNS) -> str:
-    """An aligned text table of ``rows`` (one dict per strategy, e.g. the
-    :func:`compute_metrics` output plus ``strategy``), with a ``d<key> %``
-    column after each key in ``change_keys``: the relative change against
-    the ``baseline`` row (:func:`relative_change_pct`)."""
+    """An aligned text table of ``rows``, with a ``d<key> %`` column after each key in ``change_keys``.
+
+    ``rows`` holds one dict per strategy, e.g. the :func:`compute_metrics` output
+    plus ``strategy``; the ``d<key> %`` column is the relative change against
+    the ``baseline`` row (:func:`relative_change_pct`).
+    """
     change_keys = tuple(k for k in change_keys if k in columns)
     full = comparison_rows(rows, baseline, name_key=name_key, change_keys=change_keys)
     header = [name_key]

@@ -82,9 +82,11 @@ def write_csv(path: str | Path, columns: Sequence[str], data: Mapping[str, Seque
 
 
 def read_csv_columns(path: str | Path) -> dict:
-    """A CSV file with a header row as ``{column: array}``: float arrays for
-    columns whose every non-empty cell parses as a number (empty -> NaN),
-    string arrays otherwise. ValueError on an empty file or a ragged row."""
+    """A CSV file with a header row as ``{column: array}``.
+
+    Float arrays for columns whose every non-empty cell parses as a number
+    (empty -> NaN), string arrays otherwise. ValueError on an empty file or a ragged row.
+    """
     with open(path, newline="", encoding="utf-8") as fh:
         reader = csv.reader(fh)
         try:

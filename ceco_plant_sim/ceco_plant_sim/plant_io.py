@@ -17,11 +17,10 @@ import ceco_ros.checks as checks
 from ceco_core.control_grid import TIMING_MODES
 from ceco_core.supervision import FallbackSupervisor, Health, Rejections, Watchdog, reason_kind
 from ceco_ros.params import ParamSpec
+from ceco_ros.topics import TOPIC_COMMAND
 
 __all__ = ['PLANT_PARAMETERS', 'PlantNodeConfig', 'CommandPolicy', 'RealtimeCommands', 'start_gate', 'plant_health',
            'DYNAMIC']
-
-TOPIC_COMMAND = 'hvac/command'
 
 PLANT_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('scenario', 'sc03', 'scenario name or YAML path (environment, initial state, occupant, PMV bounds)'),

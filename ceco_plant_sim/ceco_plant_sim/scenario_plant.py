@@ -1,5 +1,6 @@
-"""The plant side of a closed-loop run on a scenario: key-on and the per-plant-step
-sequence, written once and called by both the in-process simulator
+"""The plant side of a closed-loop run on a scenario: key-on and the per-plant-step sequence.
+
+Written once and called by both the in-process simulator
 (``ceco_controller.closed_loop.simulate``) and ``plant_node``, so that a DDS run
 equals the simulator bit for bit.
 
@@ -25,13 +26,12 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from ceco_v2x_preview.scenario import Scenario
-
 from ceco_core import psychro
 from ceco_core.cabin_comfort import ComfortParams, OccupantComfort, comfort_params_for, evaluate_cabin_comfort
 from ceco_core.contracts import MDOT_BL_MAX_KGPS, MEASUREMENTS, T_EVAP_SP_MIN_C, AcInput
 from ceco_core.overrides import with_overrides
 from ceco_core.scenario_types import Environment
+from ceco_v2x_preview.scenario import Scenario
 
 from .plant import CabinPlant, PlantOutputs, PlantState
 from .plant_params import PlantParams

@@ -12,17 +12,18 @@ from rclpy.qos_overriding_options import QoSOverridingOptions
 from ceco_core import control_grid
 
 # --- Topics (relative, so namespaces and remapping work) -------------------
-TOPIC_STATE = 'cabin/state'
-TOPIC_COMFORT = 'cabin/comfort'
-TOPIC_POWER = 'hvac/power'
-TOPIC_COMMAND = 'hvac/command'
-TOPIC_WEATHER = 'v2x/weather_preview'
-TOPIC_TRAFFIC = 'v2x/traffic_preview'
-TOPIC_DIAGNOSTICS = 'controller/diagnostics'
-TOPIC_CLOCK = '/clock'
-TOPIC_ROSOUT = '/rosout'
-TOPIC_ROS_DIAGNOSTICS = '/diagnostics'
-"""diagnostic_msgs/DiagnosticArray of every node (absolute, as diagnostic_updater and the aggregator use)."""
+from ceco_ros.topics import (  # noqa: F401 - the names, re-exported beside their QoS
+    TOPIC_CLOCK,
+    TOPIC_COMFORT,
+    TOPIC_COMMAND,
+    TOPIC_DIAGNOSTICS,
+    TOPIC_POWER,
+    TOPIC_ROS_DIAGNOSTICS,
+    TOPIC_ROSOUT,
+    TOPIC_STATE,
+    TOPIC_TRAFFIC,
+    TOPIC_WEATHER,
+)
 
 # --- QoS profiles ------------------------------------------------------------
 # States and commands: reliable, keep-last, volatile. In lockstep the plant

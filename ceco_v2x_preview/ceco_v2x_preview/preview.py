@@ -199,8 +199,9 @@ measured forecast statistics."""
 
 def make_previews(scenario: Scenario, t0_s: float, step_s: float, n: int,
                   quality: PreviewQuality = PERFECT) -> Previews:
-    """The previews a controller receives at ``t0_s`` on the grid
-    ``t0_s + i*step_s``, i = 0..n-1, for the given quality (module docstring).
+    """The previews a controller receives at ``t0_s`` [s], for the given quality (module docstring).
+
+    They lie on the grid ``t0_s + i*step_s``, i = 0..n-1.
     """
     quality.validate()
     if not (isinstance(t0_s, (int, float, np.floating, np.integer)) and math.isfinite(t0_s) and t0_s >= 0.0):

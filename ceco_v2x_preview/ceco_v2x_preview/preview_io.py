@@ -18,13 +18,12 @@ from ceco_core.control_grid import TIMING_MODES
 from ceco_core.sequencing import SequenceGate, Verdict
 from ceco_core.supervision import Health, Rejections, reason_kind
 from ceco_ros.params import ParamSpec
+from ceco_ros.topics import TOPIC_STATE
 
 from . import forecast_error
 from .preview import PreviewQuality
 
 __all__ = ['PREVIEW_PARAMETERS', 'PreviewNodeConfig', 'PreviewInputs', 'preview_health', 'DYNAMIC']
-
-TOPIC_STATE = 'cabin/state'
 
 PREVIEW_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('scenario', 'sc03', 'scenario name (bundled) or path of a scenario YAML file'),

@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+
+from ceco_core import psychro, units
 from ceco_core.scenario_types import (
     INITIAL_FIELDS,
     PMV_BOUND_RANGE,
@@ -36,18 +38,16 @@ from ceco_core.scenario_types import (
     T_AMB_RANGE_C,
     T_STATE_RANGE_C,
     ControlDefaults,
-    SunGeometry,
     DriveCycle,
     Environment,
     InitialState,
     Occupant,
     Scenario,
     ScenarioError,
+    SunGeometry,
     WeatherPreview,
     check_number,
 )
-
-from ceco_core import psychro, units
 
 __all__ = [
     "ScenarioError",
@@ -292,8 +292,10 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
 
 
 def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
-    """Load a bundled scenario by name (``sc03``, see :func:`list_scenarios`)
-    or a YAML file by path. Raises ScenarioError naming the bad field."""
+    """Load a bundled scenario by name (``sc03``, see :func:`list_scenarios`) or a YAML file by path.
+
+    Raises ScenarioError naming the bad field.
+    """
     text_name = str(name_or_path)
     if text_name in list_scenarios():
         text = _read_text(_data_dir("scenarios").joinpath(text_name + ".yaml"))
@@ -301,7 +303,8 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
     else:
         path = Path(text_name).expanduser()
         if not path.is_file():
-            raise ScenarioError(f"scenario: unknown scenario {text_name!r}: use one of {list_scenarios()} or a YAML path")
+            raise ScenarioError(
+                f"scenario: unknown scenario {text_name!r}: use one of {list_scenarios()} or a YAML path")
         text = path.read_text(encoding="utf-8")
         source, base_dir = str(path), path.parent
     try:
@@ -343,11 +346,13 @@ def describe(scenario: Scenario) -> str:
 
 
 def main(argv=None) -> int:
-    """``python -m ceco_v2x_preview.scenario [NAME_OR_PATH ...]``: validate and
-    summarise scenarios (all bundled ones without arguments). Exit status 1
-    and the field-naming message on the first invalid one."""
-    import argparse  # noqa: PLC0415
-    import sys  # noqa: PLC0415
+    """``python -m ceco_v2x_preview.scenario [NAME_OR_PATH ...]``: validate and summarise scenarios.
+
+    Without arguments, all bundled ones. Exit status 1 and the field-naming
+    message on the first invalid one.
+    """
+    import argparse
+    import sys
 
     parser = argparse.ArgumentParser(prog="python -m ceco_v2x_preview.scenario",
                                      description="Validate and summarise ceco scenario files.")

@@ -97,7 +97,7 @@ class Case:
 
     def load_scenario(self):
         """The :class:`~ceco_v2x_preview.scenario.Scenario` of the case, run length override applied."""
-        from ceco_v2x_preview.scenario import load_scenario, scenario_from_dict  # noqa: PLC0415
+        from ceco_v2x_preview.scenario import load_scenario, scenario_from_dict
 
         sc = load_scenario(self.scenario_path())
         if self.duration_s is None:
@@ -107,8 +107,8 @@ class Case:
 
     def scenario_dict(self) -> dict:
         """The scenario as a mapping (``scenario_from_dict`` form) with the case's overrides applied."""
-        from ceco_bringup.sweep import scenario_dict  # noqa: PLC0415
-        from ceco_v2x_preview.scenario import load_scenario  # noqa: PLC0415
+        from ceco_bringup.sweep import scenario_dict
+        from ceco_v2x_preview.scenario import load_scenario
 
         d = scenario_dict(load_scenario(self.scenario_path()))
         if self.duration_s is not None:
@@ -117,7 +117,7 @@ class Case:
 
     def resolved(self) -> dict:
         """Everything that determines the case's runs, as plain data (what :meth:`sha` hashes)."""
-        from ceco_v2x_preview.forecast_error import level_models  # noqa: PLC0415
+        from ceco_v2x_preview.forecast_error import level_models
 
         levels = {q: dataclasses.asdict(m) for q, m in level_models(self.forecast_uncertainty).items()}
         return {"name": self.name, "version": self.version, "scenario": self.scenario_dict(),
@@ -153,7 +153,7 @@ def _number(field: str, value, *, integer: bool = False, low_open: float | None 
 def case_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.PathLike | None = None,
                    expected_name: str | None = None) -> Case:
     """Validate a parsed case mapping (CaseError naming the field) and build a :class:`Case`."""
-    from ceco_v2x_preview.forecast_error import LEVELS  # noqa: PLC0415
+    from ceco_v2x_preview.forecast_error import LEVELS
 
     if not isinstance(data, Mapping):
         raise CaseError(f"case: top level must be a mapping, got {type(data).__name__}")

@@ -37,8 +37,8 @@ __all__ = ['run_benchmark', 'ceco_version', 'main']
 
 def ceco_version() -> str:
     """The package version (``ceco_bringup/package.xml``) plus ``+g<commit>`` (and ``.dirty``) in a git checkout."""
-    import re  # noqa: PLC0415
-    import subprocess  # noqa: PLC0415
+    import re
+    import subprocess
 
     here = Path(__file__).resolve()
     version = '0'
@@ -111,7 +111,7 @@ def run_benchmark(case_names: Sequence[str], out_dir, *, quick: bool = False, wo
             cells += ends[0] + ends[1]
     external = []
     if controller_cmd:
-        from . import external as ext  # noqa: PLC0415 (DDS: needs the built workspace)
+        from . import external as ext  # DDS: needs the built workspace
 
         ext_spec = runner.ControllerSpec(f'external:{controller_name}', 'external', 'external')
         for c in cases:
@@ -129,7 +129,7 @@ def run_benchmark(case_names: Sequence[str], out_dir, *, quick: bool = False, wo
         f'({backend}, {workers} worker(s))', file=sys.stderr)
     bar = None
     if progress and (todo or todo_ext):
-        from tqdm import tqdm  # noqa: PLC0415
+        from tqdm import tqdm
 
         bar = tqdm(total=len(todo) + len(todo_ext), desc='benchmark', unit='run', file=sys.stderr)
     ran: list = []
@@ -191,7 +191,7 @@ def run_benchmark(case_names: Sequence[str], out_dir, *, quick: bool = False, wo
     with open(out / 'timing.jsonl', 'a', encoding='utf-8') as fh:
         fh.write(json.dumps(timing) + '\n')
     _kpi_table(out / 'kpis.csv', doc)
-    from .report import write_report  # noqa: PLC0415
+    from .report import write_report
 
     write_report(doc, out)
     return doc

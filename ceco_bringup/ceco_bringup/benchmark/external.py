@@ -25,6 +25,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ceco_ros.topics import TOPIC_COMMAND, TOPIC_STATE
+
 __all__ = ['controller_env', 'step_times_from_bag', 'run_external_cell']
 
 
@@ -44,15 +46,15 @@ def step_times_from_bag(run_dir, control_period_s: float, plant_dt_s: float = 1.
     message's step index (``send_times.json`` next to the bag). The first command of each
     step counts.
     """
-    import json  # noqa: PLC0415
+    import json
 
     sent = json.loads((Path(run_dir) / 'send_times.json').read_text(encoding='utf-8'))
     per = int(round(control_period_s / plant_dt_s))
     state, cmd = {}, {}
-    for n, t_ns in sent['cabin/state']:
+    for n, t_ns in sent[TOPIC_STATE]:
         if n % per == 0:
             state.setdefault(n // per, t_ns)
-    for k, t_ns in sent['hvac/command']:
+    for k, t_ns in sent[TOPIC_COMMAND]:
         cmd.setdefault(k, t_ns)
     ks = sorted(set(state) & set(cmd))
     return np.array([(cmd[k] - state[k]) * 1e-9 for k in ks], dtype=float)
@@ -61,28 +63,28 @@ def step_times_from_bag(run_dir, control_period_s: float, plant_dt_s: float = 1.
 def run_external_cell(cell: Mapping, command: Sequence[str], run_dir: Path, *, command_timeout_s: float = 5.0,
                       startup_timeout_s: float = 120.0, run_timeout_s: float = 1800.0) -> dict:
     """Run one external-controller cell over DDS into ``run_dir``; return its log row (never raises)."""
-    from ceco_bringup.sweep import cells as sweep_cells  # noqa: PLC0415
+    from ceco_bringup.sweep import cells as sweep_cells
 
     t0 = time.perf_counter()
     row = {'cell_id': cell['id'], **cell['axes'], 'status': 'ok', 'error': '', 'kpis': None, 'kpi_notes': {},
            'source': 'dds', 'sim_time_s': math.nan}
     try:
-        import rclpy  # noqa: F401, PLC0415 (fail early and clearly without ROS)
+        import rclpy  # noqa: F401 (fail early and clearly without ROS)
     except ImportError as exc:
         row.update(status='error', error=f'--controller-cmd needs ROS 2 (rclpy): {exc}; source the workspace')
         row['wall_time_s'] = time.perf_counter() - t0
         return row
     try:
-        from ceco_bringup import bagio, run  # noqa: PLC0415
-        from ceco_core.metrics import compute_kpis  # noqa: PLC0415
-        from ceco_v2x_preview.preview import parse_quality  # noqa: PLC0415
-        from ceco_v2x_preview.scenario import load_scenario  # noqa: PLC0415
+        from ceco_bringup import bagio, run
+        from ceco_core.metrics import compute_kpis
+        from ceco_v2x_preview.preview import parse_quality
+        from ceco_v2x_preview.scenario import load_scenario
 
         spec = cell['spec']
         row['code'] = sweep_cells.code_fingerprint()
         run_dir = Path(run_dir)
         if run_dir.exists():                      # a previous, unfinished attempt: start afresh
-            import shutil  # noqa: PLC0415
+            import shutil
 
             shutil.rmtree(run_dir)
         run_dir.mkdir(parents=True)
@@ -113,7 +115,7 @@ def run_external_cell(cell: Mapping, command: Sequence[str], run_dir: Path, *, c
         kpis, notes = compute_kpis(ts_data, step_time_s=step_times_from_bag(run_dir, ts),
                                    control_period_s=ts, fallback_steps=fallbacks)
         row['kpis'], row['kpi_notes'] = kpis, notes
-    except Exception as exc:  # noqa: BLE001 (a failed run is data)
+    except Exception as exc:  # a failed run is data
         row.update(status='error', error=f'{type(exc).__name__}: {exc}')
     row['wall_time_s'] = time.perf_counter() - t0
     row['pid'] = os.getpid()

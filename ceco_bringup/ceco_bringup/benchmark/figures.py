@@ -16,11 +16,11 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use('Agg')
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import Patch
 
-from ceco_bringup.figures import strategy_style  # noqa: E402
+from ceco_bringup.figures import strategy_style
 
 __all__ = ['fig_plane', 'fig_tornado', 'controller_points']
 

@@ -71,7 +71,7 @@ class BaselineConstants:
 
 def load_baselines(path: str | Path | None = None) -> BaselineConstants:
     """Read the frozen baseline constants (default: the bundled file)."""
-    import hashlib  # noqa: PLC0415
+    import hashlib
 
     if path is None:
         text = resources.files('ceco_bringup').joinpath('data', 'benchmark', 'baselines.yaml').read_text('utf-8')
@@ -80,7 +80,7 @@ def load_baselines(path: str | Path | None = None) -> BaselineConstants:
     d = yaml.safe_load(text)
     if not isinstance(d, Mapping) or d.get('schema') != 'ceco-benchmark-baselines/1':
         raise ValueError('baselines: not a ceco-benchmark-baselines/1 file')
-    from ceco_core.acc_law import AccSettings  # noqa: PLC0415
+    from ceco_core.acc_law import AccSettings
 
     comp = dict(d['compensation'])
     AccSettings(**comp, allowance_k_per_pmv=float(d['allowance_k_per_pmv'])).validate()
@@ -109,9 +109,9 @@ class Sensitivity:
 
 def _default_value(target: str, name: str):
     """The code's default of a sensitivity field: PlantParams / ComfortParams (dotted parts), or pa_pa."""
-    from ceco_core.cabin_comfort import ComfortParams  # noqa: PLC0415
-    from ceco_plant_sim.plant_params import PlantParams  # noqa: PLC0415
-    from ceco_plant_sim.scenario_plant import SCORED_PA_OVERRIDE  # noqa: PLC0415
+    from ceco_core.cabin_comfort import ComfortParams
+    from ceco_plant_sim.plant_params import PlantParams
+    from ceco_plant_sim.scenario_plant import SCORED_PA_OVERRIDE
 
     if target == 'comfort' and name == SCORED_PA_OVERRIDE:
         return None                      # default: the plant's moisture balance, no fixed value
@@ -136,7 +136,7 @@ def load_sensitivity(path: str | Path | None = None) -> tuple[str, list[Sensitiv
     else:
         text = Path(path).read_text(encoding='utf-8')
     d = yaml.safe_load(text)
-    from ceco_plant_sim.scenario_plant import check_overrides  # noqa: PLC0415
+    from ceco_plant_sim.scenario_plant import check_overrides
 
     if not isinstance(d, Mapping) or d.get('schema') != 'ceco-benchmark-sensitivity/1':
         raise ValueError('sensitivity: not a ceco-benchmark-sensitivity/1 file')
@@ -248,19 +248,19 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
     Returns the row logged in ``cells.jsonl``: ``cell_id``, the axes, ``status``, ``error``,
     ``kpis``, ``kpi_notes``, ``code``, ``sim_time_s``, ``wall_time_s``, ``source``.
     """
-    import os  # noqa: PLC0415
-    import socket  # noqa: PLC0415
-    import time  # noqa: PLC0415
+    import os
+    import socket
+    import time
 
     t0 = time.perf_counter()
     row = {'cell_id': cell['id'], **cell['axes'], 'status': 'ok', 'error': '', 'kpis': None, 'kpi_notes': {},
            'source': 'simulator', 'sim_time_s': math.nan}
     try:
-        from ceco_bringup.sweep import cells as sweep_cells  # noqa: PLC0415
-        from ceco_controller.closed_loop import SimSettings, simulate, write_run  # noqa: PLC0415
-        from ceco_core.metrics import compute_kpis  # noqa: PLC0415
-        from ceco_v2x_preview.preview import parse_quality  # noqa: PLC0415
-        from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
+        from ceco_bringup.sweep import cells as sweep_cells
+        from ceco_controller.closed_loop import SimSettings, simulate, write_run
+        from ceco_core.metrics import compute_kpis
+        from ceco_v2x_preview.preview import parse_quality
+        from ceco_v2x_preview.scenario import scenario_from_dict
 
         spec = cell['spec']
         row['code'] = sweep_cells.code_fingerprint()
@@ -283,7 +283,7 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
         row['kpis'], row['kpi_notes'] = kpis, notes
         if runs_dir:
             write_run(res, Path(runs_dir) / cell['id'])
-    except Exception as exc:  # noqa: BLE001 (a failed run is data, the benchmark goes on)
+    except Exception as exc:  # a failed run is data, the benchmark goes on
         row['status'], row['error'] = 'error', f'{type(exc).__name__}: {exc}'
     row['wall_time_s'] = time.perf_counter() - t0
     row['host'], row['pid'] = socket.gethostname(), os.getpid()
@@ -292,7 +292,7 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
 
 def _run_entry(row: Mapping) -> dict:
     kpis = row.get('kpis') or {}
-    from .schema import REQUIRED_KPIS  # noqa: PLC0415
+    from .schema import REQUIRED_KPIS
 
     if row['status'] != 'ok':
         kpis = {k: None for k in REQUIRED_KPIS}

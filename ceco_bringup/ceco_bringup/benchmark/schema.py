@@ -70,7 +70,7 @@ def _same(a, b) -> bool:
 
 
 def _schema_errors(doc: Any) -> list[str]:
-    import jsonschema  # noqa: PLC0415
+    import jsonschema
 
     validator = jsonschema.Draft202012Validator(load_json_schema())
     out = []

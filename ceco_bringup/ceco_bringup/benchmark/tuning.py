@@ -54,8 +54,8 @@ _AMBIENT_REF_C = 25.0
 
 
 def _run(scenario, overrides: dict) -> dict:
-    from ceco_controller.closed_loop import SimSettings, simulate  # noqa: PLC0415
-    from ceco_core.metrics import band_phase  # noqa: PLC0415
+    from ceco_controller.closed_loop import SimSettings, simulate
+    from ceco_core.metrics import band_phase
 
     r = simulate(scenario, 'baseline', SimSettings(progress=False,
                                                    strategy_overrides=tuple(sorted(overrides.items()))))
@@ -68,7 +68,7 @@ def _run(scenario, overrides: dict) -> dict:
 
 
 def _scaled(case, solar: float = 1.0, d_amb_k: float = 0.0):
-    from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
+    from ceco_v2x_preview.scenario import scenario_from_dict
 
     d = case.scenario_dict()
     d['weather'] = dict(d['weather'])
@@ -79,7 +79,7 @@ def _scaled(case, solar: float = 1.0, d_amb_k: float = 0.0):
 
 def tune(case_name: str = 'sc03-paper', log=print) -> dict:
     """Apply the rules of the module docstring; return the baselines document."""
-    from .cases import load_case  # noqa: PLC0415
+    from .cases import load_case
 
     case = load_case(case_name)
     sc = case.load_scenario()
@@ -112,7 +112,7 @@ def tune(case_name: str = 'sc03-paper', log=print) -> dict:
         r = run(f'allowance {k:g} at S_0', sc, {'setpoint_c': s0, 'allowance_k_per_pmv': k})
         if r['violation_pct'] <= plain['violation_pct'] + 1e-9:
             k_allow = k
-    from ceco_core.acc_law import AccSettings  # noqa: PLC0415
+    from ceco_core.acc_law import AccSettings
 
     s_d = float(AccSettings().setpoint_c)
     g = (run(f'plain {s_d + 0.5:g}', sc, {'setpoint_c': s_d + 0.5})['pmv_band']

@@ -56,11 +56,13 @@ _CODE_SUFFIXES = ('.py', '.yaml', '.yml', '.csv', '.json')
 
 
 def code_fingerprint() -> str:
-    """SHA-256 (16 hex digits) of the simulator's code and configuration as
-    importable here: every ``.py/.yaml/.csv/.json`` file of the scenario,
+    """SHA-256 (16 hex digits) of the simulator's code and configuration as importable here.
+
+    It covers every ``.py/.yaml/.csv/.json`` file of the scenario,
     plant and controller packages, their ``config/`` directories and the
     identified model parameter file. Part of every cell's id, so a changed
-    simulator reruns the cells instead of mixing results of two versions."""
+    simulator reruns the cells instead of mixing results of two versions.
+    """
     h = hashlib.sha256()
     files: list = []
     for name in _CODE_PACKAGES:
@@ -71,7 +73,7 @@ def code_fingerprint() -> str:
                 files += [(f'{name}/{root.name}/{p.relative_to(root)}', p) for p in root.rglob('*')
                           if p.suffix in _CODE_SUFFIXES and p.is_file() and '__pycache__' not in p.parts]
     try:
-        from ceco_controller.model import default_params_path  # noqa: PLC0415
+        from ceco_controller.model import default_params_path
 
         files.append(('model_params', default_params_path()))
     except (ImportError, FileNotFoundError):
@@ -92,10 +94,11 @@ def cell_id(spec: Mapping) -> str:
 
 
 def runtime_overrides(plain: Mapping) -> dict:
-    """Setting overrides as stored in a cell's spec (plain JSON data) ->
-    keyword overrides of ``strategy_settings`` (a ``solver`` mapping becomes
-    a :class:`SolverSettings`, lists become tuples)."""
-    from ceco_controller.strategies import SolverSettings  # noqa: PLC0415
+    """Setting overrides as stored in a cell's spec (plain JSON data) -> keyword overrides of ``strategy_settings``.
+
+    A ``solver`` mapping becomes a :class:`SolverSettings`, lists become tuples.
+    """
+    from ceco_controller.strategies import SolverSettings
 
     out = {}
     for key, value in plain.items():
@@ -110,8 +113,18 @@ def runtime_overrides(plain: Mapping) -> dict:
 
 
 def settings_from_spec(spec: Mapping):
-    from ceco_controller.closed_loop import SimSettings  # noqa: PLC0415
-    from ceco_v2x_preview.preview import parse_quality  # noqa: PLC0415
+    """The :class:`~ceco_controller.closed_loop.SimSettings` of a cell's spec.
+
+    Args:
+        spec: the cell's spec (plain JSON data): ``preview`` (preview quality text),
+            optional ``control_period_s`` [s], ``horizon_steps``, ``seed``, ``duration_s`` [s]
+            (None: the scenario's) and ``strategy_overrides`` (see :func:`runtime_overrides`).
+
+    Returns:
+        The simulator settings, without a progress bar.
+    """
+    from ceco_controller.closed_loop import SimSettings
+    from ceco_v2x_preview.preview import parse_quality
 
     hs = spec.get('horizon_steps')
     ovr = runtime_overrides(spec.get('strategy_overrides') or {})
@@ -123,18 +136,20 @@ def settings_from_spec(spec: Mapping):
 
 
 def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
-    """Run one cell in this process and return its results row: the cell id,
-    axes, every metric, ``status`` ('ok' or 'error'), ``error``,
+    """Run one cell in this process and return its results row; never raises for a failing run.
+
+    The row holds the cell id, axes, every metric, ``status`` ('ok' or 'error'), ``error``,
     ``code`` (this process's :func:`code_fingerprint`; a cell whose
     fingerprint differs from the driver's is an error, not a result),
     ``sim_time_s`` (scenario build + simulation), ``wall_time_s`` (also the
-    first imports in a fresh worker), ``host``, ``pid``. Never raises for a failing run (the
-    error is in the row). ``cell`` is :class:`Cell` as a dict."""
+    first imports in a fresh worker), ``host``, ``pid``. A failing run's
+    error is in the row. ``cell`` is :class:`Cell` as a dict.
+    """
     t0 = time.perf_counter()
     row = {'cell_id': cell['id'], **cell['axes'], 'status': 'ok', 'error': '', 'sim_time_s': float('nan')}
     try:
-        from ceco_controller.closed_loop import simulate, write_run  # noqa: PLC0415
-        from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
+        from ceco_controller.closed_loop import simulate, write_run
+        from ceco_v2x_preview.scenario import scenario_from_dict
 
         spec = cell['spec']
         row['code'] = code_fingerprint()
@@ -153,7 +168,7 @@ def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
         row['preview_quality'] = result.metrics.get('preview_quality', spec['preview'])
         if runs_dir:
             write_run(result, Path(runs_dir) / cell['id'])
-    except Exception as exc:  # noqa: BLE001 (a failed cell is data, the sweep goes on)
+    except Exception as exc:  # a failed cell is data, the sweep goes on
         row['status'] = 'error'
         row['error'] = f'{type(exc).__name__}: {exc}'
     row['wall_time_s'] = time.perf_counter() - t0

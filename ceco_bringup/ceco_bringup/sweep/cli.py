@@ -25,8 +25,12 @@ __all__ = ['run_sweep', 'verify_cells', 'main']
 def run_sweep(grid_path: str | os.PathLike, out_dir: str | os.PathLike, *, backend: str = 'local',
               workers: int | None = None, address: str | None = None, progress: bool = True,
               log=print) -> dict:
-    """Run (or resume) the sweep of ``grid_path`` into ``out_dir``. Returns
-    ``{'rows': [...], 'summary': [...], 'timing': {...}, 'paths': {...}}``."""
+    """Run (or resume) the sweep of ``grid_path`` into ``out_dir``.
+
+    Returns ``{'rows': [...], 'summary': [...], 'timing': {...}, 'paths': {...}}``, plus
+    ``'failed'`` (the rows of the cells that failed in this run) and ``'vehicle'`` (the
+    vehicle-level rows, empty when the grid has no ``vehicle`` entry).
+    """
     if backend not in ('local', 'ray'):
         raise ValueError(f'backend: must be local or ray, got {backend!r}')
     workers = int(workers or os.cpu_count() or 1)
@@ -47,7 +51,7 @@ def run_sweep(grid_path: str | os.PathLike, out_dir: str | os.PathLike, *, backe
         f'({backend}, {workers} worker(s))', file=sys.stderr)
     bar = None
     if progress and todo:
-        from tqdm import tqdm  # noqa: PLC0415
+        from tqdm import tqdm
 
         bar = tqdm(total=len(todo), desc='sweep', unit='cell', file=sys.stderr)
     new_rows: list = []
@@ -126,12 +130,15 @@ def run_sweep(grid_path: str | os.PathLike, out_dir: str | os.PathLike, *, backe
 
 
 def verify_cells(out_dir: str | os.PathLike, n: int, grid_path: str | os.PathLike) -> list[dict]:
-    """Rerun ``n`` finished cells of a sweep in this process (one after
-    another, no pool) and compare every metric with the table's value for
+    """Rerun ``n`` finished cells of a sweep in this process and compare every metric with the table's value.
+
+    The cells run one after another, no pool, and the comparison is for
     exact equality (wall-clock solve times, :data:`TIMING_COLUMNS`,
-    excepted; metrics a log written by an older version lacks are skipped). The cells are the first ``n`` by id, so the choice is
+    excepted; metrics a log written by an older version lacks are skipped).
+    The cells are the first ``n`` by id, so the choice is
     deterministic and spread over the grid. Returns one dict per cell:
-    ``cell_id, axes, equal (bool), differences ({metric: (table, rerun)})``."""
+    ``cell_id, axes, equal (bool), differences ({metric: (table, rerun)})``.
+    """
     cells = {c.id: c for c in expand_grid(load_grid(grid_path))}
     done = read_done(Path(out_dir) / 'cells.jsonl')
     ids = sorted(i for i in done if i in cells)[:max(0, int(n))]
@@ -153,6 +160,17 @@ def verify_cells(out_dir: str | os.PathLike, n: int, grid_path: str | os.PathLik
 
 
 def main(argv=None) -> int:
+    """``ceco sweep GRID --out DIR``: run or resume a sweep, print its timing and paths, optionally verify it.
+
+    Args:
+        argv: the arguments after ``ceco sweep`` (default ``sys.argv[1:]``).
+
+    Returns:
+        The exit status: 0 when every cell succeeded (and ``--verify`` found the table equal to
+        the reruns), 1 when a cell failed or a rerun differed, 2 for an invalid grid or options or
+        when the sweep cannot run (a file or backend error),
+        130 when interrupted (finished cells are kept).
+    """
     parser = argparse.ArgumentParser(
         prog='ceco sweep', description='Run a grid of closed-loop simulations (strategies x scenarios x drive '
         'cycles x climates x previews x occupants x seeds) in parallel; resumable.')
@@ -161,7 +179,8 @@ def main(argv=None) -> int:
     parser.add_argument('--backend', choices=('local', 'ray'), default='local',
                         help='local process pool (default) or Ray')
     parser.add_argument('--address', default=None,
-                        help='Ray cluster address (e.g. auto or ray://host:10001); default: a local Ray instance')
+                        help='Ray cluster address (e.g. auto or ray://host:10001); '
+                             'default: a local Ray instance')
     parser.add_argument('--workers', type=int, default=None,
                         help=f'parallel workers (default: all cores, {os.cpu_count()} here)')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar')
@@ -193,7 +212,7 @@ def main(argv=None) -> int:
     print(f"table: {res['paths']['csv']}" + (f" and {res['paths']['parquet']}" if res['paths']['parquet'] else ''))
     print(f"summary: {res['paths']['summary_md']}")
     if args.front_figure:
-        from ceco_bringup.figures import front_figure  # noqa: PLC0415
+        from ceco_bringup.figures import front_figure
 
         print(f"front figure: {front_figure(res['summary'], args.front_figure)}")
     bad = False

@@ -50,8 +50,10 @@ _CLIMATE_KEYS = {'t_amb_c', 'solar_wm2', 'rh', 'initial', 'comfort_bounds'}
 
 
 def load_grid(path: str | os.PathLike) -> dict:
-    """Read and check a grid YAML file (unknown keys and wrong types raise
-    GridError naming the key)."""
+    """Read and check a grid YAML file.
+
+    Unknown keys and wrong types raise GridError naming the key.
+    """
     path = Path(path)
     try:
         data = yaml.safe_load(path.read_text(encoding='utf-8'))
@@ -141,9 +143,11 @@ def _apply_climate(d: dict, label: str, climate) -> None:
 
 
 def _plain_setting(where: str, default, value):
-    """A setting value from the grid as plain JSON data of the default's type
-    (an int for a float field becomes a float, so ``2000`` and ``2000.0``
-    give the same cell id). Wrong types raise GridError naming ``where``."""
+    """A setting value from the grid as plain JSON data of the default's type.
+
+    An int for a float field becomes a float, so ``2000`` and ``2000.0``
+    give the same cell id. Wrong types raise GridError naming ``where``.
+    """
     if dataclasses.is_dataclass(default):
         if not isinstance(value, Mapping):
             raise GridError(f'{where}: must be a mapping of {type(default).__name__} fields, got {value!r}')
@@ -176,8 +180,9 @@ def _plain_fields(where: str, default, mapping: Mapping) -> dict:
 
 
 def strategy_setting_overrides(grid: Mapping, strategies: Sequence[str]) -> dict:
-    """The ``settings`` axis of a grid, checked: ``{strategy: {label:
-    overrides}}`` for the strategies some label names, ``overrides`` being
+    """The ``settings`` axis of a grid, checked: ``{strategy: {label: overrides}}``.
+
+    The keys are the strategies some label names, ``overrides`` being
     ``{StrategySettings field: plain value}``. Every override set is
     validated now (``strategy_settings(name, **overrides).validate()``, with
     the grid's Ts and Np if it sets them), so a bad field or value fails
@@ -185,13 +190,14 @@ def strategy_setting_overrides(grid: Mapping, strategies: Sequence[str]) -> dict
     ``settings.<label>.<strategy>.<field>``. A label naming a strategy not in
     ``strategies``, the baseline (it has no StrategySettings), the reserved
     label ``default``, or one of the fields the grid sets elsewhere (name,
-    horizon_steps, control_period_s) is an error."""
+    horizon_steps, control_period_s) is an error.
+    """
     raw = grid.get('settings')
     if raw is None:
         return {}
     if not isinstance(raw, Mapping) or not raw:
         raise GridError('settings: must be a non-empty mapping {label: {strategy: {field: value}}}')
-    from ceco_controller.strategies import CECO_STRATEGIES, StrategySettings, strategy_settings  # noqa: PLC0415
+    from ceco_controller.strategies import CECO_STRATEGIES, StrategySettings, strategy_settings
 
     fixed = {k: grid[k] for k in ('control_period_s', 'horizon_steps') if grid.get(k) is not None}
     if 'horizon_steps' in fixed:
@@ -229,18 +235,20 @@ def strategy_setting_overrides(grid: Mapping, strategies: Sequence[str]) -> dict
 
 
 def expand_grid(grid: Mapping) -> list[Cell]:
-    """Every cell of a grid (axes in the order of :data:`AXES`, strategy
-    fastest). Each cell's scenario is validated here (``scenario_from_dict``),
-    so a bad grid fails before any run."""
-    from ceco_v2x_preview.preview import parse_quality  # noqa: PLC0415
-    from ceco_v2x_preview.scenario import load_drive_cycle, load_scenario, scenario_from_dict  # noqa: PLC0415
+    """Every cell of a grid (axes in the order of :data:`AXES`, strategy fastest).
+
+    Each cell's scenario is validated here (``scenario_from_dict``),
+    so a bad grid fails before any run.
+    """
+    from ceco_v2x_preview.preview import parse_quality
+    from ceco_v2x_preview.scenario import load_drive_cycle, load_scenario, scenario_from_dict
 
     base_dir = grid.get('_base_dir')
     strategies = grid.get('strategies')
     if not isinstance(strategies, (list, tuple)) or not strategies or not all(isinstance(s, str) for s in strategies):
         raise GridError('strategies: must be a non-empty list of strategy names')
     try:
-        from ceco_controller.strategies import STRATEGIES  # noqa: PLC0415
+        from ceco_controller.strategies import STRATEGIES
     except ImportError:
         STRATEGIES = None
     if STRATEGIES is not None:

@@ -43,19 +43,21 @@ def _typed(values: Sequence) -> list:
 
 
 def _write_parquet(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) -> str | None:
-    """The table as Parquet with pyarrow, else polars (a FASTSim dependency);
-    returns the engine used, None if neither is installed."""
+    """Write the table as Parquet with pyarrow, else polars (a FASTSim dependency).
+
+    Returns the engine used, None if neither is installed.
+    """
     data = {c: _typed([r.get(c) for r in rows]) for c in columns}
     tmp = path.with_suffix('.parquet.tmp')
     try:
-        import pyarrow as pa  # noqa: PLC0415
-        import pyarrow.parquet as pq  # noqa: PLC0415
+        import pyarrow as pa
+        import pyarrow.parquet as pq
 
         pq.write_table(pa.table(data), tmp)
         engine = 'pyarrow'
     except ImportError:
         try:
-            import polars as pl  # noqa: PLC0415
+            import polars as pl
         except ImportError:
             return None
         pl.DataFrame(data).write_parquet(tmp)
@@ -77,13 +79,16 @@ def _settings_of(row: Mapping) -> str:
 
 
 def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]:
-    """Per (scenario, drive_cycle, climate, preview, occupant, strategy,
+    """The sweep's summary rows: per-point means over seeds and the change against the group's baseline.
+
+    Per (scenario, drive_cycle, climate, preview, occupant, strategy,
     settings): the mean over seeds of the main metrics (:data:`SUMMARY_KEYS`),
     the number of seeds, and the change against the baseline of the same
     group (scenario, drive_cycle, climate, preview, occupant; means compared,
     :data:`CHANGE_KEYS`). The baseline runs once per group with its default
     settings; every (strategy, settings) of the group is compared with that
-    one baseline. Rows keep the order of first appearance."""
+    one baseline. Rows keep the order of first appearance.
+    """
     group_axes = [a for a in AXES if a not in ('seed', 'strategy', 'settings')]
     groups: dict = {}
     for r in rows:
@@ -113,12 +118,15 @@ def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]
 
 
 def dominance_rows(summary: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]:
-    """Against the baseline of its group, for every other (strategy,
+    """Which points of a summary Pareto-dominate the baseline of their group.
+
+    Against the baseline of its group, for every other (strategy,
     settings) of a summary: does it use less energy AND have a lower or equal
     I_PMV (a Pareto-dominating point; ``dominates``), over the whole run and
     in the comfort-zone phase (``dominates_zone``)? The changes are the
     summary's ``dE_tot_kWh_pct, dI_pmv_pct, dE_zone_J_pct, dI_pmv_zone_pct``
-    (NaN where the group has no baseline: ``dominates`` is then False)."""
+    (NaN where the group has no baseline: ``dominates`` is then False).
+    """
     out = []
     for r in summary:
         if r['strategy'] == baseline and r.get('settings', DEFAULT_SETTINGS) == DEFAULT_SETTINGS:
@@ -142,21 +150,23 @@ def point_name(strategy: str, settings: str = DEFAULT_SETTINGS) -> str:
 
 def _ordered_points(keys) -> list:
     """(strategy, settings) keys: strategies in figures.ordered order, labels in first-appearance order."""
-    from ceco_bringup.figures import ordered  # noqa: PLC0415
+    from ceco_bringup.figures import ordered
 
     keys = list(keys)
     return [k for s in ordered(list(dict.fromkeys(k[0] for k in keys))) for k in keys if k[0] == s]
 
 
 def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) -> list[dict]:
-    """Vehicle-level energy (FASTSim, :mod:`ceco_bringup.vehicle_energy`) of
-    every group (scenario, cycle, climate, preview, occupant) whose cells
-    are done: each strategy's A/C load is its mean ``P_mean_w`` over seeds,
+    """Vehicle-level energy (FASTSim) of every group of a sweep whose cells are done.
+
+    Computed with :mod:`ceco_bringup.vehicle_energy`. A group is (scenario, cycle,
+    climate, preview, occupant); each strategy's A/C load is its mean ``P_mean_w`` over seeds,
     over the group's drive cycle and run length. One row per group, vehicle
     and strategy, with the group's axes (``strategy``: :func:`point_name`,
-    e.g. ``ceco-c[g2k]`` for a settings label)."""
-    from ceco_bringup import vehicle_energy as ve  # noqa: PLC0415
-    from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
+    e.g. ``ceco-c[g2k]`` for a settings label).
+    """
+    from ceco_bringup import vehicle_energy as ve
+    from ceco_v2x_preview.scenario import scenario_from_dict
 
     settings = settings or ve.VehicleEnergySettings()
     spec_of = {c.id: c.spec for c in cells}
@@ -174,7 +184,7 @@ def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) 
         duration_s = float(rs[0]['duration_s'])
         t = np.arange(0.0, math.floor(duration_s) + 1.0)
         v = np.asarray(sc.speed_mps(t), dtype=float)
-        from ceco_bringup.figures import ordered  # noqa: PLC0415
+        from ceco_bringup.figures import ordered
 
         loads = {s: float(np.mean(p_mean[s])) for s in ordered(list(p_mean))}
         for vr in ve.vehicle_energy_table(loads, t, v, settings):
@@ -184,6 +194,19 @@ def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) 
 
 def summary_markdown(summary: Sequence[Mapping], timing: Mapping, grid_name: str,
                       vehicle: Sequence[Mapping] = ()) -> str:
+    """The sweep's ``summary.md``: timing, one table row per summary point, dominance and vehicle level.
+
+    Args:
+        summary: the rows of :func:`summarize` (energy [kWh], I_PMV [s], changes [%]).
+        timing: the sweep's timing record (``cells``, ``ran``, ``skipped``, ``failed``, ``backend``,
+            ``workers``, ``wall_s`` [s], ``cells_per_hour``, ``sim_mean_s``, ``sim_median_s``,
+            ``cell_mean_s``, ``cell_sum_s`` [s] and ``speedup``).
+        grid_name: the grid's name, used in the title.
+        vehicle: the rows of :func:`vehicle_rows` (no vehicle-level section when empty).
+
+    Returns:
+        The Markdown text, ending with a newline.
+    """
     lines = [f'# Sweep summary: {grid_name}', '',
              f"{timing['cells']} cells ({timing['ran']} run now, {timing['skipped']} already done, "
              f"{timing['failed']} failed) with backend `{timing['backend']}` on {timing['workers']} worker(s). "
