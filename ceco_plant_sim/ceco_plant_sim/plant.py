@@ -43,7 +43,7 @@ from ceco_plant_sim.plant_params import PlantParams
 from ceco_plant_sim.refrigerant import (
     CompressorModel,
     CycleSolution,
-    build_cycle_tables,
+    cycle_tables,
     solve_cycle,
 )
 
@@ -257,7 +257,7 @@ def _compressor_model(p: PlantParams) -> CompressorModel:
 
 
 def _tables(p: PlantParams):
-    return build_cycle_tables(p.refrigerant, float(p.superheat_k), float(p.subcool_k))
+    return cycle_tables(p.refrigerant, float(p.superheat_k), float(p.subcool_k))
 
 
 def steady_cycle_at_load(params: PlantParams, q_evap_w: float, t_wall_c: float, t_amb_c: float,
@@ -328,6 +328,11 @@ class CabinPlant:
     def t_s(self) -> float:
         """Simulated time since construction [s] (sum of dt_s)."""
         return self._t_s
+
+    @property
+    def tables_source(self) -> str:
+        """Where the refrigerant property tables come from (the shipped file or a CoolProp build)."""
+        return self._tab.source
 
     def outputs(self) -> PlantOutputs:
         """Outputs of the last step; RuntimeError before the first step."""

@@ -66,7 +66,8 @@ class PlantNode(NodeTools, Node):
             self.create_timer(0.02, self._on_watchdog, clock=self.steady)
         DiagnosticsTimer(self, self._health, cfg.diagnostics_period_s)
         self.get_logger().info(f'scenario {sc.name}: {self.n_steps} plant steps of {self.dt} s, '
-                               f'Ts {cfg.control_period_s} s, timing {cfg.timing}')
+                               f'Ts {cfg.control_period_s} s, timing {cfg.timing}; refrigerant tables: '
+                               f'{self.sp.plant.tables_source}')
 
     @property
     def n(self) -> int:
