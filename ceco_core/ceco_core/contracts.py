@@ -26,7 +26,8 @@ import numpy as np
 __all__ = ["MDOT_BL_MIN_KGPS", "MDOT_BL_MAX_KGPS", "T_EVAP_SP_MIN_C", "T_EVAP_SP_MAX_C", "AcInput",
            "ActuatorLimits", "ACTUATOR_LIMITS", "MEASUREMENTS", "PREVIEW_QUANTITIES", "Previews",
            "Observation", "Diagnostics", "DIAGNOSTICS_CONTRACT_COLUMNS", "DIAGNOSTICS_COLUMNS", "STRATEGIES",
-           "CECO_STRATEGIES", "BASELINE_STRATEGY", "MEASUREMENT_MODES", "EXTERNAL_STRATEGY", "WIRE_STRATEGIES", "check_finite"]
+           "CECO_STRATEGIES", "BASELINE_STRATEGY", "MEASUREMENT_MODES", "EXTERNAL_STRATEGY", "WIRE_STRATEGIES",
+           "check_finite"]
 
 MDOT_BL_MIN_KGPS = 0.05
 """Lower actuator bound of the blower air flow [kg/s] (method paper, eq. 13)."""
