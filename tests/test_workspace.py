@@ -1,5 +1,6 @@
 """The workspace layout a ROS 2 user relies on: ament packages colcon recognises
 and executables where `ros2 run` looks for them."""
+
 import os
 import re
 import xml.etree.ElementTree as ET
@@ -91,8 +92,9 @@ def test_package_imports_follow_the_one_way_dependency_graph_and_its_manifest(pk
         ceco = {m.split('.')[0] for m in mods if m.startswith('ceco_')} - {pkg}
         assert ceco <= ALLOWED[pkg], f'{f} imports {sorted(ceco - ALLOWED[pkg])} against the graph'
         # nobody imports another package's node module
-        foreign_nodes = [m for m in mods if len(m.split('.')) > 1 and m.split('.')[1] in NODE_MODULES
-                         and m.split('.')[0] != pkg]
+        foreign_nodes = [
+            m for m in mods if len(m.split('.')) > 1 and m.split('.')[1] in NODE_MODULES and m.split('.')[0] != pkg
+        ]
         assert not foreign_nodes, (f, foreign_nodes)
         used |= ceco
     assert used <= declared, f'{pkg}/package.xml lacks exec_depend {sorted(used - declared)}'

@@ -18,6 +18,7 @@ loads it without importing CoolProp (``ceco_plant_sim.refrigerant.cycle_tables``
 its version with the one recorded), as tests/test_refrigerant.py does. Run this after
 changing CoolProp, the grid, the default superheat/subcooling or the table code.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -33,8 +34,12 @@ for pkg in ('ceco_core', 'ceco_plant_sim'):
 
 def _commit() -> str:
     try:
-        out = subprocess.run(['git', '-C', str(ROOT), 'describe', '--always', '--dirty', '--abbrev=12'],
-                             capture_output=True, text=True, timeout=10)
+        out = subprocess.run(
+            ['git', '-C', str(ROOT), 'describe', '--always', '--dirty', '--abbrev=12'],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
     except (OSError, subprocess.SubprocessError):
         return 'unknown'
     return out.stdout.strip() or 'unknown'
@@ -59,15 +64,26 @@ def main(argv=None) -> int:
         except r.StaleTablesError as err:
             print(f'STALE: {err}', file=sys.stderr)
             return 1
-        print(f'{args.out}: current (CoolProp {prov["coolprop_version"]}, generated {prov["date_utc"]}, '
-              f'equal bit for bit to a fresh build)')
+        print(
+            f'{args.out}: current (CoolProp {prov["coolprop_version"]}, generated {prov["date_utc"]}, '
+            f'equal bit for bit to a fresh build)'
+        )
         return 0
     pp = PlantParams()
-    prov = r.write_tables_file(args.out, pp.refrigerant, pp.superheat_k, pp.subcool_k, r.DEFAULT_GRID,
-                               command=r.REGENERATE_COMMAND, extra={'ceco_commit': _commit()})
+    prov = r.write_tables_file(
+        args.out,
+        pp.refrigerant,
+        pp.superheat_k,
+        pp.subcool_k,
+        r.DEFAULT_GRID,
+        command=r.REGENERATE_COMMAND,
+        extra={'ceco_commit': _commit()},
+    )
     r.check_tables_file(args.out)
-    print(f'wrote {args.out}: {prov["fluid"]}, superheat {prov["superheat_k"]} K, subcooling '
-          f'{prov["subcool_k"]} K, CoolProp {prov["coolprop_version"]}, grid {prov["grid"]}')
+    print(
+        f'wrote {args.out}: {prov["fluid"]}, superheat {prov["superheat_k"]} K, subcooling '
+        f'{prov["subcool_k"]} K, CoolProp {prov["coolprop_version"]}, grid {prov["grid"]}'
+    )
     return 0
 
 

@@ -9,6 +9,7 @@ ceco sim      one closed-loop run in-process (no ROS)
 ceco identify identify the control-oriented model from plant data
 ceco bench    solver benchmarks
 """
+
 import importlib
 import sys
 

@@ -9,6 +9,7 @@ alone, and prints the relative difference of every numeric metric and
 the bag's message counts per step. Exit status 1 if any metric differs by
 more than --rtol or a step has not exactly one state / one command.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,8 +18,17 @@ import math
 import sys
 from pathlib import Path
 
-KEYS = ('E_tot_J', 'E_comp_J', 'E_blower_J', 'I_pmv', 'otc_violation_pct', 'time_to_comfort_s',
-        'pmv_mean', 'pmv_max', 'pmv_min')
+KEYS = (
+    'E_tot_J',
+    'E_comp_J',
+    'E_blower_J',
+    'I_pmv',
+    'otc_violation_pct',
+    'time_to_comfort_s',
+    'pmv_mean',
+    'pmv_max',
+    'pmv_min',
+)
 
 
 def rel_diff(a: float, b: float) -> float:
@@ -52,22 +62,33 @@ def check(run_dir: Path, rtol: float) -> tuple[bool, str]:
     from ceco_controller.closed_loop import SimSettings, simulate
     from ceco_core.metrics import compute_metrics
     from ceco_v2x_preview.preview import parse_quality
+
     m = json.loads((run_dir / 'metrics.json').read_text())
     bag = run_dir / 'bag'
     ts = bagio.load_run_timeseries(bag)
     from_bag = compute_metrics(ts['t_s'], ts['p_comp_w'], ts['p_blower_w'], ts['pmv'], ts['pmv_lb'], ts['pmv_ub'])
     duration = float(ts['t_s'].size)  # plant_dt_s = 1 s
-    sim = simulate(m['scenario'], m['strategy'], SimSettings(
-        control_period_s=m['control_period_s'], horizon_steps=m['horizon_steps'],
-        preview_quality=parse_quality(m['preview_quality']), duration_s=duration, progress=False)).metrics
+    sim = simulate(
+        m['scenario'],
+        m['strategy'],
+        SimSettings(
+            control_period_s=m['control_period_s'],
+            horizon_steps=m['horizon_steps'],
+            preview_quality=parse_quality(m['preview_quality']),
+            duration_s=duration,
+            progress=False,
+        ),
+    ).metrics
     lines = [f'{run_dir} ({m["strategy"]}, {m["scenario"]}, {int(duration)} s):']
     ok = True
     for key in KEYS:
         d_sim = rel_diff(sim[key], from_bag[key])
         d_json = rel_diff(m[key] if m[key] is not None else math.nan, from_bag[key])
         ok &= d_sim <= rtol and d_json == 0.0
-        lines.append(f'  {key:<18} sim {sim[key]:>16.10g}  dds {from_bag[key]:>16.10g}  rel diff {d_sim:.1e}'
-                     f'  (metrics.json vs bag {d_json:.1e})')
+        lines.append(
+            f'  {key:<18} sim {sim[key]:>16.10g}  dds {from_bag[key]:>16.10g}  rel diff {d_sim:.1e}'
+            f'  (metrics.json vs bag {d_json:.1e})'
+        )
     states = bagio.read_messages(bag, (bagio.TOPIC_STATE,))
     n_state = np.bincount([msg.step_index for _, _, msg in states], minlength=ts['t_s'].size)
     cmds = bagio.load_commands(bag)
@@ -75,8 +96,10 @@ def check(run_dir: Path, rtol: float) -> tuple[bool, str]:
     one_state = bool(np.all(n_state == 1))
     one_cmd = bool(np.all(n_cmd == 1))
     ok &= one_state and one_cmd
-    lines.append(f'  bag: {n_state.size} plant steps, states per step min {n_state.min()} max {n_state.max()}; '
-                 f'{n_cmd.size} control steps, commands per step min {n_cmd.min()} max {n_cmd.max()}')
+    lines.append(
+        f'  bag: {n_state.size} plant steps, states per step min {n_state.min()} max {n_state.max()}; '
+        f'{n_cmd.size} control steps, commands per step min {n_cmd.min()} max {n_cmd.max()}'
+    )
     return ok, '\n'.join(lines)
 
 

@@ -15,6 +15,7 @@ spin thread runs): `start_new_session=True` gives the session, and util-linux
 sets the parent-death signal in the child before it execs the node, so no node
 outlives a SIGKILLed `ceco run`.
 """
+
 from __future__ import annotations
 
 import os
@@ -106,8 +107,10 @@ def normalize_namespace(namespace: str | None) -> str:
         return ''
     ns = '/' + namespace.strip('/')
     if not re.fullmatch(r'(/[A-Za-z_][A-Za-z0-9_]*)+', ns) or '__' in ns:
-        raise ValueError(f'invalid namespace {namespace!r}: tokens of letters, digits and '
-                         'underscores, not starting with a digit, separated by /')
+        raise ValueError(
+            f'invalid namespace {namespace!r}: tokens of letters, digits and '
+            'underscores, not starting with a digit, separated by /'
+        )
     return ns
 
 
@@ -146,7 +149,8 @@ def find_executable(package: str, executable: str) -> str:
                 return str(path)
     raise FileNotFoundError(
         f'{package}/{executable} not found on AMENT_PREFIX_PATH: build the workspace '
-        '(bash tools/setup.sh) and `source tools/env.sh`')
+        '(bash tools/setup.sh) and `source tools/env.sh`'
+    )
 
 
 def share_file(package: str, relpath: str) -> str:
@@ -162,9 +166,20 @@ def share_file(package: str, relpath: str) -> str:
 class NodeProcess:
     """One node executable as a child process."""
 
-    def __init__(self, name: str, package: str | None, executable: str | None, *, params_files=(),
-                 params: dict | None = None, env: dict, log_dir: Path, node_name: str | None = None,
-                 namespace: str | None = None, command: list[str] | None = None):
+    def __init__(
+        self,
+        name: str,
+        package: str | None,
+        executable: str | None,
+        *,
+        params_files=(),
+        params: dict | None = None,
+        env: dict,
+        log_dir: Path,
+        node_name: str | None = None,
+        namespace: str | None = None,
+        command: list[str] | None = None,
+    ):
         """A ceco node ``package/executable`` with ROS arguments, or any ``command``.
 
         The node runs under ``namespace`` if given. A ``command`` (a third-party controller in
@@ -199,9 +214,14 @@ class NodeProcess:
         log = open(self.log_path, 'ab')
         log.write(f'--- start {self.starts + 1}: {" ".join(self.cmd)}\n'.encode())
         log.flush()
-        self.proc = subprocess.Popen(_die_with_parent_prefix() + self.cmd, env=self.env, stdout=log,
-                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                     start_new_session=True)
+        self.proc = subprocess.Popen(
+            _die_with_parent_prefix() + self.cmd,
+            env=self.env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+        )
         log.close()
         self.starts += 1
 
@@ -287,6 +307,7 @@ class LifecycleClient:
 
     def __init__(self, node, target: str):
         from lifecycle_msgs.srv import ChangeState, GetState
+
         self.target = target if target.startswith('/') else '/' + target
         self._change = node.create_client(ChangeState, f'{self.target}/change_state')
         self._get = node.create_client(GetState, f'{self.target}/get_state')
@@ -298,6 +319,7 @@ class LifecycleClient:
     def state(self, timeout_s: float = 5.0) -> str | None:
         """The node's current state label ('unconfigured', 'inactive', 'active', 'finalized'), None on timeout."""
         from lifecycle_msgs.srv import GetState
+
         res = self._call(self._get, GetState.Request(), timeout_s)
         return None if res is None else res.current_state.label
 
@@ -309,10 +331,13 @@ class LifecycleClient:
         """
         from lifecycle_msgs.msg import Transition
         from lifecycle_msgs.srv import ChangeState
+
         if transition == 'shutdown':
             label = self.state(timeout_s) or 'active'
-            ids = {'unconfigured': Transition.TRANSITION_UNCONFIGURED_SHUTDOWN,
-                   'inactive': Transition.TRANSITION_INACTIVE_SHUTDOWN}
+            ids = {
+                'unconfigured': Transition.TRANSITION_UNCONFIGURED_SHUTDOWN,
+                'inactive': Transition.TRANSITION_INACTIVE_SHUTDOWN,
+            }
             tid = ids.get(label, Transition.TRANSITION_ACTIVE_SHUTDOWN)
         else:
             tid = getattr(Transition, f'TRANSITION_{transition.upper()}')

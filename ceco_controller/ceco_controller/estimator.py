@@ -108,10 +108,26 @@ from .estimator_model import (  # noqa: F401 - part of this module's API (__all_
     t_vent_c,
 )
 
-__all__ = ["VEHICLE_SENSORS", "ESTIMATED_STATES", "MEASUREMENT_MODES", "EstimatorParams", "EstimatorSettings",
-           "Estimate", "CabinStateEstimator", "EstimatingController", "t_vent_c", "t_int_next_c",
-           "t_shell_next_c", "t_glass_next_c", "t_duct_next_c", "process_step", "load_estimator_params",
-           "save_estimator_params", "DEFAULT_ESTIMATOR_PARAMS_PATH", "with_measurements"]
+__all__ = [
+    "VEHICLE_SENSORS",
+    "ESTIMATED_STATES",
+    "MEASUREMENT_MODES",
+    "EstimatorParams",
+    "EstimatorSettings",
+    "Estimate",
+    "CabinStateEstimator",
+    "EstimatingController",
+    "t_vent_c",
+    "t_int_next_c",
+    "t_shell_next_c",
+    "t_glass_next_c",
+    "t_duct_next_c",
+    "process_step",
+    "load_estimator_params",
+    "save_estimator_params",
+    "DEFAULT_ESTIMATOR_PARAMS_PATH",
+    "with_measurements",
+]
 
 VEHICLE_SENSORS = ("t_cab_c", "t_vent_c", "t_evap_c", "t_amb_c", "solar_wm2", "speed_mps", "rh_cab")
 """What a production car measures [degC, W/m2, m/s, rh_cab 0..1]: cabin air (aspirated sensor),
@@ -122,14 +138,22 @@ ESTIMATED_STATES = ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_duct_c", 
 _N = len(ESTIMATED_STATES)
 _B = _N - 1  # index of b_vent
 
-_RANGES = {"t_cab_c": (-40.0, 120.0), "t_vent_c": (-40.0, 120.0), "t_evap_c": (-40.0, 120.0),
-           "t_amb_c": (-40.0, 60.0), "solar_wm2": (0.0, 1500.0), "speed_mps": (0.0, 80.0), "rh_cab": (0.0, 1.0)}
+_RANGES = {
+    "t_cab_c": (-40.0, 120.0),
+    "t_vent_c": (-40.0, 120.0),
+    "t_evap_c": (-40.0, 120.0),
+    "t_amb_c": (-40.0, 60.0),
+    "solar_wm2": (0.0, 1500.0),
+    "speed_mps": (0.0, 80.0),
+    "rh_cab": (0.0, 1.0),
+}
 """Physical range of each sensor (the plant's validity ranges); outside it a sample counts as missing."""
 
 
 # ---------------------------------------------------------------------------
 # The filter
 # ---------------------------------------------------------------------------
+
 
 @dataclasses.dataclass(frozen=True)
 class Estimate:
@@ -207,15 +231,21 @@ class CabinStateEstimator:
     applied since the previous call; it returns an :class:`Estimate`.
     """
 
-    def __init__(self, model_params: cm.ControlModelParams | None = None, params: EstimatorParams | None = None,
-                 settings: EstimatorSettings | None = None, control_period_s: float = 5.0):
-        self.model_params = (model_params if model_params is not None else cm.load_params())
+    def __init__(
+        self,
+        model_params: cm.ControlModelParams | None = None,
+        params: EstimatorParams | None = None,
+        settings: EstimatorSettings | None = None,
+        control_period_s: float = 5.0,
+    ):
+        self.model_params = model_params if model_params is not None else cm.load_params()
         self.model_params.validate()
         self.params = (params if params is not None else load_estimator_params()).validate()
         self.settings = (settings or EstimatorSettings()).validate()
         if abs(self.params.ts_s - self.model_params.ts_s) > 1e-9:
-            raise ValueError(f"EstimatorParams.ts_s {self.params.ts_s} s differs from the model step "
-                             f"{self.model_params.ts_s} s")
+            raise ValueError(
+                f"EstimatorParams.ts_s {self.params.ts_s} s differs from the model step {self.model_params.ts_s} s"
+            )
         self.n_sub = cm.substeps(self.model_params, control_period_s)
         self.control_period_s = float(control_period_s)
         p, q, s = self.model_params, self.params, self.settings
@@ -224,13 +254,16 @@ class CabinStateEstimator:
         xn = casadi.vertcat(*process_step(p, q, x, u[0], u[1], u[2], u[3], u[4], u[5]), x[_B])
         self._f = casadi.Function("est_f", [x, u], [xn, casadi.jacobian(xn, x)])
         yv = t_vent_c(q, u[2], x[0], x[4], u[3], u[0]) + x[_B]
-        self._h_vent = casadi.Function("est_h_vent", [x, u], [yv, casadi.jacobian(yv, x),
-                                                              casadi.jacobian(yv, u[2])])
-        self._q = np.diag(np.append(s.process_std_scale * np.array([q.q_cab_k, q.q_int_k, q.q_shell_k,
-                                                                     q.q_glass_k, q.q_duct_k]),
-                                    s.vent_bias_drift_k) ** 2)
-        self._r_cab = s.sensor_std_t_cab_k ** 2
-        self._r_vent = s.sensor_std_t_vent_k ** 2 + q.vent_residual_k ** 2  # + the evaporator sensor's, per step
+        self._h_vent = casadi.Function("est_h_vent", [x, u], [yv, casadi.jacobian(yv, x), casadi.jacobian(yv, u[2])])
+        self._q = np.diag(
+            np.append(
+                s.process_std_scale * np.array([q.q_cab_k, q.q_int_k, q.q_shell_k, q.q_glass_k, q.q_duct_k]),
+                s.vent_bias_drift_k,
+            )
+            ** 2
+        )
+        self._r_cab = s.sensor_std_t_cab_k**2
+        self._r_vent = s.sensor_std_t_vent_k**2 + q.vent_residual_k**2  # + the evaporator sensor's, per step
         self.reset()
 
     def reset(self) -> None:
@@ -270,10 +303,16 @@ class CabinStateEstimator:
         except (TypeError, ValueError, IndexError):
             m = sp = math.nan
         tol = 1e-6
-        if (math.isfinite(m) and math.isfinite(sp) and lim.mdot_bl_min_kgps - tol <= m <= lim.mdot_bl_max_kgps + tol
-                and lim.t_evap_sp_min_c - tol <= sp <= lim.t_evap_sp_max_c + tol):
-            self._u_prev = (min(max(m, lim.mdot_bl_min_kgps), lim.mdot_bl_max_kgps),
-                            min(max(sp, lim.t_evap_sp_min_c), lim.t_evap_sp_max_c))
+        if (
+            math.isfinite(m)
+            and math.isfinite(sp)
+            and lim.mdot_bl_min_kgps - tol <= m <= lim.mdot_bl_max_kgps + tol
+            and lim.t_evap_sp_min_c - tol <= sp <= lim.t_evap_sp_max_c + tol
+        ):
+            self._u_prev = (
+                min(max(m, lim.mdot_bl_min_kgps), lim.mdot_bl_max_kgps),
+                min(max(sp, lim.t_evap_sp_min_c), lim.t_evap_sp_max_c),
+            )
         else:
             missing.append("u_prev")
         return self._u_prev
@@ -305,8 +344,7 @@ class CabinStateEstimator:
             t_s = (self._t_last + self.control_period_s) if self._t_last is not None else 0.0
         # exogenous inputs: the sample, else the last valid one, else a default
         ex = {}
-        for name, default in (("t_amb_c", s.default_t_c), ("solar_wm2", 0.0), ("speed_mps", 0.0),
-                              ("rh_cab", math.nan)):
+        for name, default in (("t_amb_c", s.default_t_c), ("solar_wm2", 0.0), ("speed_mps", 0.0), ("rh_cab", math.nan)):
             if y[name] is not None:
                 self._held[name] = y[name]
             ex[name] = self._held.get(name, default)
@@ -335,8 +373,11 @@ class CabinStateEstimator:
             self._predict(n_steps, m, t_evap0, t_evap, ex)
             # without an evaporator sample E3 has no reliable input: no vent update either
             self._correct(y if y["t_evap_c"] is not None else {**y, "t_vent_c": None}, m, t_evap, ex)
-        if self._x is not None and self._p is not None and not (np.all(np.isfinite(self._x))
-                                                                and np.all(np.isfinite(self._p))):
+        if (
+            self._x is not None
+            and self._p is not None
+            and not (np.all(np.isfinite(self._x)) and np.all(np.isfinite(self._p)))
+        ):
             initialized = self._initialize(y, ex)  # defensive: never carry a non-finite state
         if n_steps != 0 or initialized:
             self._held["t_evap_c"] = t_evap
@@ -347,24 +388,41 @@ class CabinStateEstimator:
             self._x = np.clip(self._x, [-40.0] * (_N - 1) + [-10.0], [120.0] * (_N - 1) + [10.0])
         if y["t_cab_c"] is not None:
             self._t_cab_valid_s = t_s
-        dead = 0.0 if y["t_cab_c"] is not None else (
-            t_s - self._t_cab_valid_s if self._t_cab_valid_s is not None else math.inf)
+        dead = (
+            0.0
+            if y["t_cab_c"] is not None
+            else (t_s - self._t_cab_valid_s if self._t_cab_valid_s is not None else math.inf)
+        )
         valid = self._x is not None and dead <= s.max_dead_reckoning_s
         x = self._x if self._x is not None else np.array([ex["t_amb_c"]] * (_N - 1) + [0.0])
-        pdiag = (np.diag(self._p) if self._p is not None
-                 else np.array([s.init_std_k ** 2] * (_N - 1) + [s.vent_bias_std_k ** 2]))
+        pdiag = (
+            np.diag(self._p) if self._p is not None else np.array([s.init_std_k**2] * (_N - 1) + [s.vent_bias_std_k**2])
+        )
         t_vent = y["t_vent_c"]
         if t_vent is None:
             t_vent = float(t_vent_c(self.params, t_evap, x[0], x[4], ex["t_amb_c"], m) + x[_B])
         return Estimate(
-            t_s=t_s, t_cab_c=float(y["t_cab_c"] if y["t_cab_c"] is not None else x[0]),
-            t_int_c=float(x[1]), t_shell_c=float(x[2]), t_glass_c=float(x[3]), t_duct_c=float(x[4]),
-            t_evap_c=float(t_evap), t_vent_c=float(t_vent),
-            t_amb_c=float(ex["t_amb_c"]), solar_wm2=float(ex["solar_wm2"]), speed_mps=float(ex["speed_mps"]),
-            rh_cab=float(ex["rh_cab"]), mdot_bl_prev_kgps=float(m), t_evap_sp_prev_c=float(sp),
+            t_s=t_s,
+            t_cab_c=float(y["t_cab_c"] if y["t_cab_c"] is not None else x[0]),
+            t_int_c=float(x[1]),
+            t_shell_c=float(x[2]),
+            t_glass_c=float(x[3]),
+            t_duct_c=float(x[4]),
+            t_evap_c=float(t_evap),
+            t_vent_c=float(t_vent),
+            t_amb_c=float(ex["t_amb_c"]),
+            solar_wm2=float(ex["solar_wm2"]),
+            speed_mps=float(ex["speed_mps"]),
+            rh_cab=float(ex["rh_cab"]),
+            mdot_bl_prev_kgps=float(m),
+            t_evap_sp_prev_c=float(sp),
             vent_bias_k=float(x[_B]),
-            std_k=tuple(float(v) for v in np.sqrt(np.maximum(pdiag, 0.0))), missing=tuple(missing),
-            valid=bool(valid), dead_reckoning_s=float(min(dead, 1e9)), initialized=initialized)
+            std_k=tuple(float(v) for v in np.sqrt(np.maximum(pdiag, 0.0))),
+            missing=tuple(missing),
+            valid=bool(valid),
+            dead_reckoning_s=float(min(dead, 1e9)),
+            initialized=initialized,
+        )
 
     def _initialize(self, y: dict, ex: dict) -> bool:
         """Key-on prior from the cabin air sample; without one, stay uninitialized."""
@@ -374,10 +432,19 @@ class CabinStateEstimator:
             return False
         t = y["t_cab_c"]
         t_duct = y["t_evap_c"] if y["t_evap_c"] is not None else t
-        self._x = np.array([t, t + s.init_offset_int_k, t + s.init_offset_shell_k, t + s.init_offset_glass_k,
-                            t_duct, 0.0])
-        self._p = np.diag([s.sensor_std_t_cab_k ** 2, s.init_std_k ** 2, s.init_std_k ** 2, s.init_std_k ** 2,
-                           s.init_std_duct_k ** 2, s.vent_bias_std_k ** 2])
+        self._x = np.array(
+            [t, t + s.init_offset_int_k, t + s.init_offset_shell_k, t + s.init_offset_glass_k, t_duct, 0.0]
+        )
+        self._p = np.diag(
+            [
+                s.sensor_std_t_cab_k**2,
+                s.init_std_k**2,
+                s.init_std_k**2,
+                s.init_std_k**2,
+                s.init_std_duct_k**2,
+                s.vent_bias_std_k**2,
+            ]
+        )
         return True
 
     def _predict(self, n_steps: int, m: float, t_evap0: float, t_evap1: float, ex: dict) -> None:
@@ -423,6 +490,7 @@ class CabinStateEstimator:
 # In front of a controller
 # ---------------------------------------------------------------------------
 
+
 class EstimatingController:
     """A controller that sees only the vehicle sensors.
 
@@ -459,17 +527,32 @@ class EstimatingController:
 
     def estimated_observation(self, obs: Observation) -> Observation:
         """Run the estimator on the vehicle sensors of ``obs``; the observation the controller gets."""
-        meas = {"t_cab_c": obs.t_cab_c, "t_vent_c": obs.t_vent_c, "t_evap_c": obs.t_evap_c,
-                "t_amb_c": obs.t_amb_c, "solar_wm2": obs.solar_wm2, "speed_mps": obs.speed_mps}
+        meas = {
+            "t_cab_c": obs.t_cab_c,
+            "t_vent_c": obs.t_vent_c,
+            "t_evap_c": obs.t_evap_c,
+            "t_amb_c": obs.t_amb_c,
+            "solar_wm2": obs.solar_wm2,
+            "speed_mps": obs.speed_mps,
+        }
         if math.isfinite(obs.rh_cab):
             meas["rh_cab"] = obs.rh_cab  # NaN there means "not measured": not a sensor fault
         est = self.estimator.update(obs.t_s, meas, (obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c))
         self.last_estimate = est
         fields: dict[str, Any] = {
-            "t_cab_c": est.t_cab_c if est.valid else math.nan, "t_int_c": est.t_int_c, "t_shell_c": est.t_shell_c,
-            "t_glass_c": est.t_glass_c, "t_evap_c": est.t_evap_c, "t_vent_c": est.t_vent_c, "t_amb_c": est.t_amb_c,
-            "solar_wm2": est.solar_wm2, "speed_mps": est.speed_mps, "rh_cab": est.rh_cab,
-            "mdot_bl_prev_kgps": est.mdot_bl_prev_kgps, "t_evap_sp_prev_c": est.t_evap_sp_prev_c}
+            "t_cab_c": est.t_cab_c if est.valid else math.nan,
+            "t_int_c": est.t_int_c,
+            "t_shell_c": est.t_shell_c,
+            "t_glass_c": est.t_glass_c,
+            "t_evap_c": est.t_evap_c,
+            "t_vent_c": est.t_vent_c,
+            "t_amb_c": est.t_amb_c,
+            "solar_wm2": est.solar_wm2,
+            "speed_mps": est.speed_mps,
+            "rh_cab": est.rh_cab,
+            "mdot_bl_prev_kgps": est.mdot_bl_prev_kgps,
+            "t_evap_sp_prev_c": est.t_evap_sp_prev_c,
+        }
         return dataclasses.replace(obs, **fields)
 
     def prepare(self, obs: Observation):
@@ -498,9 +581,14 @@ class EstimatingController:
         return cmd, diag
 
 
-def with_measurements(controller, measurements: str, control_period_s: float,
-                      model_params: cm.ControlModelParams | None = None,
-                      params: EstimatorParams | None = None, settings: EstimatorSettings | None = None):
+def with_measurements(
+    controller,
+    measurements: str,
+    control_period_s: float,
+    model_params: cm.ControlModelParams | None = None,
+    params: EstimatorParams | None = None,
+    settings: EstimatorSettings | None = None,
+):
     """``controller`` for ``measurements='full'``; wrapped in :class:`EstimatingController` for 'vehicle'."""
     if measurements not in MEASUREMENT_MODES:
         raise ValueError(f"measurements must be one of {MEASUREMENT_MODES}, got {measurements!r}")

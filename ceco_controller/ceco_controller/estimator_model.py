@@ -18,15 +18,27 @@ import yaml
 
 from . import model as cm
 
-__all__ = ["DEFAULT_ESTIMATOR_PARAMS_PATH", "M_REF_KGPS", "EstimatorParams", "EstimatorSettings",
-           "load_estimator_params", "save_estimator_params", "t_vent_c", "t_int_next_c", "t_shell_next_c",
-           "t_glass_next_c", "t_duct_next_c", "process_step"]
+__all__ = [
+    "DEFAULT_ESTIMATOR_PARAMS_PATH",
+    "M_REF_KGPS",
+    "EstimatorParams",
+    "EstimatorSettings",
+    "load_estimator_params",
+    "save_estimator_params",
+    "t_vent_c",
+    "t_int_next_c",
+    "t_shell_next_c",
+    "t_glass_next_c",
+    "t_duct_next_c",
+    "process_step",
+]
 
 DEFAULT_ESTIMATOR_PARAMS_PATH = cm.DEFAULT_PARAMS_PATH.parent / "estimator_params.yaml"
 """The identified estimator parameter file in the source tree (``ceco_controller/config``)."""
 
 M_REF_KGPS = 0.1
 """Reference blower flow of the forced-convection term of E1 [kg/s]."""
+
 
 @dataclasses.dataclass(frozen=True)
 class EstimatorParams:
@@ -155,8 +167,9 @@ def load_estimator_params(path: str | pathlib.Path | None = None) -> EstimatorPa
     return EstimatorParams.from_dict(doc["params"])
 
 
-def save_estimator_params(params: EstimatorParams, path: str | pathlib.Path, header: str = "",
-                          extra: dict | None = None) -> None:
+def save_estimator_params(
+    params: EstimatorParams, path: str | pathlib.Path, header: str = "", extra: dict | None = None
+) -> None:
     """Write the parameters (and optional extra mappings, e.g. the fit report) as YAML."""
     params.validate()
     doc = {"params": params.to_dict(), **(extra or {})}
@@ -207,9 +220,18 @@ class EstimatorSettings:
             v = getattr(self, f.name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ValueError(f"EstimatorSettings.{f.name} must be a finite number, got {v!r}")
-        for name in ("sensor_std_t_cab_k", "sensor_std_t_vent_k", "sensor_std_t_evap_k", "process_std_scale",
-                     "init_std_k", "init_std_duct_k",
-                     "vent_bias_std_k", "vent_bias_drift_k", "max_dead_reckoning_s", "max_gap_s"):
+        for name in (
+            "sensor_std_t_cab_k",
+            "sensor_std_t_vent_k",
+            "sensor_std_t_evap_k",
+            "process_std_scale",
+            "init_std_k",
+            "init_std_duct_k",
+            "vent_bias_std_k",
+            "vent_bias_drift_k",
+            "max_dead_reckoning_s",
+            "max_gap_s",
+        ):
             if not getattr(self, name) > 0:
                 raise ValueError(f"EstimatorSettings.{name} must be > 0")
         if not -40.0 <= self.default_t_c <= 60.0:
@@ -220,6 +242,7 @@ class EstimatorSettings:
 # ---------------------------------------------------------------------------
 # Equations (backend-neutral)
 # ---------------------------------------------------------------------------
+
 
 def _forced(mdot_bl_kgps):
     """f(m) = (m / m_ref)^0.8 [-] (forced convection, h ~ m^0.8)."""
@@ -232,44 +255,66 @@ def t_vent_c(q: EstimatorParams, t_evap_c, t_cab_c, t_duct_c, t_amb_c, mdot_bl_k
     d_cab = t_cab_c - t_evap_c
     d_amb = t_amb_c - t_evap_c
     d_duct = t_duct_c - t_evap_c
-    return (t_evap_c + (q.vent_cab + q.vent_cab_flow_s_per_kg * m) * d_cab
-            + (q.vent_amb + q.vent_amb_flow_s_per_kg * m) * d_amb
-            + (q.vent_duct + q.vent_duct_flow_s_per_kg * m) * d_duct
-            + q.vent_heat_k_kgps / m + q.vent_offset_k + q.vent_flow2_k_s2_per_kg2 * m * m)
+    return (
+        t_evap_c
+        + (q.vent_cab + q.vent_cab_flow_s_per_kg * m) * d_cab
+        + (q.vent_amb + q.vent_amb_flow_s_per_kg * m) * d_amb
+        + (q.vent_duct + q.vent_duct_flow_s_per_kg * m) * d_duct
+        + q.vent_heat_k_kgps / m
+        + q.vent_offset_k
+        + q.vent_flow2_k_s2_per_kg2 * m * m
+    )
 
 
 def t_int_next_c(q: EstimatorParams, t_int_c, t_cab_c, t_shell_c, t_glass_c, t_duct_c, mdot_bl_kgps, solar_wm2):
     """Interior-mass temperature one model step ahead, E1 [degC] (mdot_bl_kgps >= 0)."""
-    return (t_int_c + (q.int_cab + q.int_cab_forced * _forced(mdot_bl_kgps)) * (t_cab_c - t_int_c)
-            + q.int_shell * (t_shell_c - t_int_c) + q.int_glass * (t_glass_c - t_int_c)
-            + q.int_solar_k_per_wm2 * solar_wm2 + q.int_duct * (t_duct_c - t_int_c))
+    return (
+        t_int_c
+        + (q.int_cab + q.int_cab_forced * _forced(mdot_bl_kgps)) * (t_cab_c - t_int_c)
+        + q.int_shell * (t_shell_c - t_int_c)
+        + q.int_glass * (t_glass_c - t_int_c)
+        + q.int_solar_k_per_wm2 * solar_wm2
+        + q.int_duct * (t_duct_c - t_int_c)
+    )
 
 
 def t_shell_next_c(q: EstimatorParams, t_shell_c, t_cab_c, t_int_c, t_amb_c, speed_mps, solar_wm2):
     """Shell temperature one model step ahead, E2 [degC] (speed_mps >= 0)."""
-    return (t_shell_c + q.shell_cab * (t_cab_c - t_shell_c) + q.shell_int * (t_int_c - t_shell_c)
-            + (q.shell_amb + q.shell_amb_speed * speed_mps ** 0.8) * (t_amb_c - t_shell_c)
-            + q.shell_solar_k_per_wm2 * solar_wm2)
+    return (
+        t_shell_c
+        + q.shell_cab * (t_cab_c - t_shell_c)
+        + q.shell_int * (t_int_c - t_shell_c)
+        + (q.shell_amb + q.shell_amb_speed * speed_mps**0.8) * (t_amb_c - t_shell_c)
+        + q.shell_solar_k_per_wm2 * solar_wm2
+    )
 
 
 def t_glass_next_c(q: EstimatorParams, t_glass_c, t_cab_c, t_int_c, t_amb_c, mdot_bl_kgps, speed_mps, solar_wm2):
     """Glazing temperature one model step ahead, E4 [degC] (mdot_bl_kgps, speed_mps >= 0)."""
-    return (t_glass_c + (q.glass_cab + q.glass_cab_forced * _forced(mdot_bl_kgps)) * (t_cab_c - t_glass_c)
-            + q.glass_int * (t_int_c - t_glass_c)
-            + (q.glass_amb + q.glass_amb_speed * speed_mps ** 0.8) * (t_amb_c - t_glass_c)
-            + q.glass_solar_k_per_wm2 * solar_wm2)
+    return (
+        t_glass_c
+        + (q.glass_cab + q.glass_cab_forced * _forced(mdot_bl_kgps)) * (t_cab_c - t_glass_c)
+        + q.glass_int * (t_int_c - t_glass_c)
+        + (q.glass_amb + q.glass_amb_speed * speed_mps**0.8) * (t_amb_c - t_glass_c)
+        + q.glass_solar_k_per_wm2 * solar_wm2
+    )
 
 
 def t_duct_next_c(q: EstimatorParams, t_duct_c, t_int_c, t_cab_c, t_amb_c, t_evap_c, mdot_bl_kgps):
     """HVAC case and duct wall temperature one model step ahead, E5 [degC] (t_evap_c: the step's mean)."""
     m = mdot_bl_kgps
-    return (t_duct_c + q.duct_int * (t_int_c - t_duct_c)
-            + (q.duct_air_s_per_kg * m + q.duct_air2_s2_per_kg2 * m * m) * (t_evap_c - t_duct_c)
-            + q.duct_cab_s_per_kg * m * (t_cab_c - t_evap_c) + q.duct_amb_s_per_kg * m * (t_amb_c - t_evap_c))
+    return (
+        t_duct_c
+        + q.duct_int * (t_int_c - t_duct_c)
+        + (q.duct_air_s_per_kg * m + q.duct_air2_s2_per_kg2 * m * m) * (t_evap_c - t_duct_c)
+        + q.duct_cab_s_per_kg * m * (t_cab_c - t_evap_c)
+        + q.duct_amb_s_per_kg * m * (t_amb_c - t_evap_c)
+    )
 
 
-def process_step(p: cm.ControlModelParams, q: EstimatorParams, x, mdot_bl_kgps, t_evap0_c, t_evap1_c,
-                 t_amb_c, solar_wm2, speed_mps):
+def process_step(
+    p: cm.ControlModelParams, q: EstimatorParams, x, mdot_bl_kgps, t_evap0_c, t_evap1_c, t_amb_c, solar_wm2, speed_mps
+):
     """One model step of the thermal states x = (T_cab, T_int, T_shell, T_glass, T_duct) [degC].
 
     Eq. (1), E1, E2, E4, E5. ``t_evap0_c``/``t_evap1_c``: evaporator temperature at the start/end of the
@@ -278,8 +323,10 @@ def process_step(p: cm.ControlModelParams, q: EstimatorParams, x, mdot_bl_kgps, 
     t_cab, t_int, t_shell, t_glass, t_duct = x[0], x[1], x[2], x[3], x[4]
     t_ev = 0.5 * (t_evap0_c + t_evap1_c)
     t_ain = t_vent_c(q, t_ev, t_cab, t_duct, t_amb_c, mdot_bl_kgps)
-    return (cm.t_cab_next_c(p, t_cab, t_int, t_shell, t_ain, mdot_bl_kgps),
-            t_int_next_c(q, t_int, t_cab, t_shell, t_glass, t_duct, mdot_bl_kgps, solar_wm2),
-            t_shell_next_c(q, t_shell, t_cab, t_int, t_amb_c, speed_mps, solar_wm2),
-            t_glass_next_c(q, t_glass, t_cab, t_int, t_amb_c, mdot_bl_kgps, speed_mps, solar_wm2),
-            t_duct_next_c(q, t_duct, t_int, t_cab, t_amb_c, t_ev, mdot_bl_kgps))
+    return (
+        cm.t_cab_next_c(p, t_cab, t_int, t_shell, t_ain, mdot_bl_kgps),
+        t_int_next_c(q, t_int, t_cab, t_shell, t_glass, t_duct, mdot_bl_kgps, solar_wm2),
+        t_shell_next_c(q, t_shell, t_cab, t_int, t_amb_c, speed_mps, solar_wm2),
+        t_glass_next_c(q, t_glass, t_cab, t_int, t_amb_c, mdot_bl_kgps, speed_mps, solar_wm2),
+        t_duct_next_c(q, t_duct, t_int, t_cab, t_amb_c, t_ev, mdot_bl_kgps),
+    )

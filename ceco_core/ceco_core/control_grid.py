@@ -4,6 +4,7 @@ preview_node publishes the previews of step k and mpc_node solves step k
 on the same states, so both must agree on which scenario times are control
 steps. Pure logic: no rclpy, no message types.
 """
+
 from __future__ import annotations
 
 __all__ = ["control_step_index", "TIMING_MODES"]

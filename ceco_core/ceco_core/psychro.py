@@ -43,8 +43,14 @@ _T_C_K = 647.096
 """Critical temperature of water [K] (IAPWS)."""
 _P_C_PA = 22.064e6
 """Critical pressure of water [Pa] (IAPWS)."""
-_WP = ((-7.85951783, 1.0), (1.84408259, 1.5), (-11.7866497, 3.0), (22.6807411, 3.5),
-       (-15.9618719, 4.0), (1.80122502, 7.5))
+_WP = (
+    (-7.85951783, 1.0),
+    (1.84408259, 1.5),
+    (-11.7866497, 3.0),
+    (22.6807411, 3.5),
+    (-15.9618719, 4.0),
+    (1.80122502, 7.5),
+)
 """(a_i, exponent of tau) of the Wagner-Pruss saturation-pressure equation."""
 
 

@@ -56,6 +56,7 @@ __all__ = [
     "steady_cycle_at_load",
 ]
 
+
 def condenser_eps_c_wpk(params: PlantParams, speed_mps: float) -> float:
     """Condenser effectiveness x air heat-capacity rate [W/K] at vehicle speed ``speed_mps``.
 
@@ -65,7 +66,7 @@ def condenser_eps_c_wpk(params: PlantParams, speed_mps: float) -> float:
     isothermal, C_r = 0; Incropera & DeWitt, eq. 11.35a).
     """
     p = params
-    v = math.sqrt(p.v_face_fan_mps ** 2 + (p.ram_face_ratio * speed_mps) ** 2)
+    v = math.sqrt(p.v_face_fan_mps**2 + (p.ram_face_ratio * speed_mps) ** 2)
     c_air = p.rho_air_kgm3 * p.a_cond_face_m2 * v * p.cp_air_jpkgk
     ua = p.ua_cond_ref_wpk * (v / p.v_face_ref_mps) ** p.ua_cond_exp
     return c_air * (1.0 - math.exp(-ua / c_air))
@@ -87,8 +88,9 @@ def _tables(p: PlantParams):
     return cycle_tables(p.refrigerant, float(p.superheat_k), float(p.subcool_k))
 
 
-def steady_cycle_at_load(params: PlantParams, q_evap_w: float, t_wall_c: float, t_amb_c: float,
-                         speed_mps: float) -> tuple[float, CycleSolution]:
+def steady_cycle_at_load(
+    params: PlantParams, q_evap_w: float, t_wall_c: float, t_amb_c: float, speed_mps: float
+) -> tuple[float, CycleSolution]:
     """Compressor speed and cycle state that deliver ``q_evap_w`` at a fixed evaporator wall temperature.
 
     Used for the efficiency-versus-vehicle-speed map (fixed cooling load):
@@ -102,8 +104,19 @@ def steady_cycle_at_load(params: PlantParams, q_evap_w: float, t_wall_c: float, 
     epsc = condenser_eps_c_wpk(p, speed_mps)
 
     def q_at(n):
-        s = solve_cycle(tab, comp, n, t_wall_c, p.ua_evap_ref_wpk, t_amb_c, epsc, p.te_mop_c,
-                        tol_k=p.cycle_tol_k, max_iter=p.cycle_max_iter, pr_min=p.pr_min)
+        s = solve_cycle(
+            tab,
+            comp,
+            n,
+            t_wall_c,
+            p.ua_evap_ref_wpk,
+            t_amb_c,
+            epsc,
+            p.te_mop_c,
+            tol_k=p.cycle_tol_k,
+            max_iter=p.cycle_max_iter,
+            pr_min=p.pr_min,
+        )
         return s.q_evap_ref_w, s
 
     q_max, _ = q_at(p.comp_speed_max_rpm)
@@ -197,8 +210,7 @@ class CabinPlant:
             k3, a3 = self._rhs(x3, u, envt)
             x4 = tuple(xi + h * ki for xi, ki in zip(x, k3))
             k4, a4 = self._rhs(x4, u, envt)
-            x = tuple(xi + h / 6.0 * (q1 + 2.0 * q2 + 2.0 * q3 + q4)
-                      for xi, q1, q2, q3, q4 in zip(x, k1, k2, k3, k4))
+            x = tuple(xi + h / 6.0 * (q1 + 2.0 * q2 + 2.0 * q3 + q4) for xi, q1, q2, q3, q4 in zip(x, k1, k2, k3, k4))
             for j in range(8):
                 acc[j] += h / 6.0 * (a1[j] + 2.0 * a2[j] + 2.0 * a3[j] + a4[j])
         for i, v in enumerate(x):
@@ -207,8 +219,12 @@ class CabinPlant:
         self._x = x
         self._t_s += dt
         e_comp, e_fan, e_q, e_lat, e_ref = acc[:5]
-        out = dataclasses.replace(self._outputs(x, u, envt, dt, e_comp, e_fan, e_q, e_lat, e_ref),
-                                  m_water_in_kg=acc[5], m_water_out_kg=acc[6], m_condensate_kg=acc[7])
+        out = dataclasses.replace(
+            self._outputs(x, u, envt, dt, e_comp, e_fan, e_q, e_lat, e_ref),
+            m_water_in_kg=acc[5],
+            m_water_out_kg=acc[6],
+            m_condensate_kg=acc[7],
+        )
         self._last = out
         return out
 
@@ -297,7 +313,7 @@ class CabinPlant:
         c_air = mdot * cp_m
         rr = mdot / p.mdot_bl_ref_kgps
         t_in = t_mix + p_bl / c_air  # blow-through module: all blower power ends as heat in the air
-        ua_air = p.ua_evap_air_ref_wpk * rr ** p.ua_evap_air_exp
+        ua_air = p.ua_evap_air_ref_wpk * rr**p.ua_evap_air_exp
         bf = math.exp(-ua_air / c_air)  # bypass factor = 1 - effectiveness
         t_out = t_ev + bf * (t_in - t_ev)
         pws_w = wsat(t_ev)
@@ -307,7 +323,7 @@ class CabinPlant:
         q_sens = c_air * (t_in - t_out)
         q_lat = mdot * (w_mix - w_out) * p.h_fg_jpkg
         # HVAC case and ducts: the supply air exchanges with their wall, which exchanges with the panel
-        ua_da = p.ua_duct_air_ref_wpk * rr ** p.ua_evap_air_exp
+        ua_da = p.ua_duct_air_ref_wpk * rr**p.ua_evap_air_exp
         t_vent = t_out + (t_du - t_out) * (1.0 - math.exp(-ua_da / c_air))
         q_duct = c_air * (t_vent - t_out)  # duct wall -> supply air
         q_duct_int = p.ua_duct_wpk * (t_int - t_du)  # instrument panel (interior mass) -> duct wall
@@ -326,8 +342,20 @@ class CabinPlant:
         else:
             n_run, duty = 0.0, 0.0
         epsc = condenser_eps_c_wpk(p, speed)
-        sol = solve_cycle(self._tab, self._comp, n_run, t_ev, p.ua_evap_ref_wpk, t_amb, epsc, p.te_mop_c,
-                          guess=self._guess, tol_k=p.cycle_tol_k, max_iter=p.cycle_max_iter, pr_min=p.pr_min)
+        sol = solve_cycle(
+            self._tab,
+            self._comp,
+            n_run,
+            t_ev,
+            p.ua_evap_ref_wpk,
+            t_amb,
+            epsc,
+            p.te_mop_c,
+            guess=self._guess,
+            tol_k=p.cycle_tol_k,
+            max_iter=p.cycle_max_iter,
+            pr_min=p.pr_min,
+        )
         power_limited = False
         if duty == 1.0 and sol.p_comp_w > p.p_comp_max_w:
             # inverter power limit: the ECU lowers the speed until P_el = P_max. Secant iteration on
@@ -336,9 +364,20 @@ class CabinPlant:
             n0, f0 = n_run, sol.p_comp_w - p.p_comp_max_w
             n_run = n_run * p.p_comp_max_w / sol.p_comp_w
             for _ in range(6):
-                sol = solve_cycle(self._tab, self._comp, n_run, t_ev, p.ua_evap_ref_wpk, t_amb, epsc,
-                                  p.te_mop_c, guess=(sol.t_evap_sat_c, sol.t_cond_c), tol_k=p.cycle_tol_k,
-                                  max_iter=p.cycle_max_iter, pr_min=p.pr_min)
+                sol = solve_cycle(
+                    self._tab,
+                    self._comp,
+                    n_run,
+                    t_ev,
+                    p.ua_evap_ref_wpk,
+                    t_amb,
+                    epsc,
+                    p.te_mop_c,
+                    guess=(sol.t_evap_sat_c, sol.t_cond_c),
+                    tol_k=p.cycle_tol_k,
+                    max_iter=p.cycle_max_iter,
+                    pr_min=p.pr_min,
+                )
                 f1 = sol.p_comp_w - p.p_comp_max_w
                 if abs(f1) < 5e-4 * p.p_comp_max_w or f1 == f0:
                     break
@@ -357,8 +396,8 @@ class CabinPlant:
         p_fan = duty * p.p_cond_fan_w if n_run > 0.0 else 0.0
 
         # --- cabin network
-        h_in = p.h_in_natural_wm2k + (p.h_in_forced_wm2k - p.h_in_natural_wm2k) * rr ** 0.8
-        h_out = p.h_out_natural_wm2k + p.h_out_speed_coef * speed ** 0.8
+        h_in = p.h_in_natural_wm2k + (p.h_in_forced_wm2k - p.h_in_natural_wm2k) * rr**0.8
+        h_out = p.h_out_natural_wm2k + p.h_out_speed_coef * speed**0.8
         m_inf = p.infiltration_0_kgps + p.infiltration_per_mps_kgps * speed
         g_int = h_in * p.a_int_m2
         g_sh_in = p.u_shell_in_wm2k * p.a_shell_m2
@@ -370,8 +409,14 @@ class CabinPlant:
         q_rad_gl = p.g_rad_int_glass_wpk * (t_int - t_gl)
         n_occ = p.n_occupants
         cp_cab = cp_a + w_cab * p.cp_vap_jpkgk
-        d_cab = (mdot * cp_cab * (t_vent - t_cab) + m_inf * cp_cab * (t_amb - t_cab) + q_int_cab + q_sh_cab
-                 + q_gl_cab + n_occ * p.occ_sensible_w) / (self._m_air_kg * cp_cab)
+        d_cab = (
+            mdot * cp_cab * (t_vent - t_cab)
+            + m_inf * cp_cab * (t_amb - t_cab)
+            + q_int_cab
+            + q_sh_cab
+            + q_gl_cab
+            + n_occ * p.occ_sensible_w
+        ) / (self._m_air_kg * cp_cab)
         # water balance of the cabin air [kg/s]: in with the fresh share of the supply, the leakage and
         # the occupants; out with the exfiltrated air (both leave at the cabin state); the condensate
         # leaves the supply air on the coil. (Identical to mdot (W_out - W_cab) + mdot_inf (W_amb - W_cab) + ...)
@@ -382,10 +427,12 @@ class CabinPlant:
         d_w = (water_in - water_out - condensate) / self._m_air_kg
         d_int = (p.tau_glass * p.a_glass_sun_m2 * solar - q_int_cab - q_rad_sh - q_rad_gl - q_duct_int) / p.c_int_jpk
         d_du = (q_duct_int - q_duct) / p.c_duct_jpk
-        d_sh = (p.alpha_shell * p.a_shell_sun_m2 * solar + h_out * p.a_shell_m2 * (t_amb - t_sh) - q_sh_cab
-                + q_rad_sh) / p.c_shell_jpk
-        d_gl = (p.alpha_glass * p.a_glass_sun_m2 * solar + h_out * p.a_glass_m2 * (t_amb - t_gl) - q_gl_cab
-                + q_rad_gl) / p.c_glass_jpk
+        d_sh = (
+            p.alpha_shell * p.a_shell_sun_m2 * solar + h_out * p.a_shell_m2 * (t_amb - t_sh) - q_sh_cab + q_rad_sh
+        ) / p.c_shell_jpk
+        d_gl = (
+            p.alpha_glass * p.a_glass_sun_m2 * solar + h_out * p.a_glass_m2 * (t_amb - t_gl) - q_gl_cab + q_rad_gl
+        ) / p.c_glass_jpk
         d_ev = (q_sens + q_lat - q_ref) / p.c_evap_jpk
 
         dx = (d_cab, d_int, d_sh, d_gl, d_ev, d_du, d_w, dpi)

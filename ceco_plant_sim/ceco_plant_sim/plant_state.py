@@ -98,9 +98,11 @@ class PlantState:
         validate_environment(env)
         if not isinstance(initial, Mapping):
             # a scenario's InitialState (or any object with the attributes)
-            initial = {k: getattr(initial, k) for k in ("t_cab_c", "t_int_c", "t_shell_c", "rh_cab",
-                                                         "t_glass_c", "t_evap_c", "t_duct_c")
-                       if hasattr(initial, k)}
+            initial = {
+                k: getattr(initial, k)
+                for k in ("t_cab_c", "t_int_c", "t_shell_c", "rh_cab", "t_glass_c", "t_evap_c", "t_duct_c")
+                if hasattr(initial, k)
+            }
         for key in ("t_cab_c", "t_int_c", "t_shell_c", "rh_cab"):
             if key not in initial:
                 raise ValueError(f"initial.{key}: missing")

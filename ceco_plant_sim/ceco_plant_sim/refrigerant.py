@@ -47,7 +47,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .refrigerant_tables import (  # noqa: F401 - the tables are part of this module's API (__all__)
+from .refrigerant_tables import (
     DEFAULT_GRID,
     REGENERATE_COMMAND,
     SHIPPED_TABLES,
@@ -142,8 +142,17 @@ class CycleSolution:
     """Newton iterations used."""
 
 
-def _cycle_eval(tab: CycleTables, comp: CompressorModel, vn: float, t_e: float, t_c: float,
-                t_wall_c: float, ua_er_wpk: float, t_air_c: float, epsc_wpk: float):
+def _cycle_eval(
+    tab: CycleTables,
+    comp: CompressorModel,
+    vn: float,
+    t_e: float,
+    t_c: float,
+    t_wall_c: float,
+    ua_er_wpk: float,
+    t_air_c: float,
+    epsc_wpk: float,
+):
     """Residuals (r1, r2) [W], their analytic Jacobian, and the cycle quantities at (t_e, t_c).
 
     The Jacobian is exact for the piecewise-linear / bilinear interpolants.
@@ -245,8 +254,9 @@ def solve_cycle(
     for _ in range(3):  # constraint flags only get added: at most 3 solves
         converged = False
         while it < max_iter:
-            (r1, r2, j11, j12, j21, j22, mdot, q_e, w_sh, pr,
-             p_e, p_e1, p_c, p_c1) = _cycle_eval(tab, comp, vn, t_e, t_c, *args)
+            (r1, r2, j11, j12, j21, j22, mdot, q_e, w_sh, pr, p_e, p_e1, p_c, p_c1) = _cycle_eval(
+                tab, comp, vn, t_e, t_c, *args
+            )
             it += 1
             if hp:  # head-pressure control: condenser air reduced so that p_c = pr_min p_e
                 r2 = p_c - pr_min * p_e
@@ -265,8 +275,10 @@ def solve_cycle(
             t_e += max(-10.0, min(10.0, de))
             t_c += max(-10.0, min(10.0, dc))
         if not converged:
-            raise RuntimeError(f"refrigerant cycle did not converge in {max_iter} iterations "
-                               f"(speed {speed_rpm:.0f} rpm, wall {t_wall_c:.2f} degC)")
+            raise RuntimeError(
+                f"refrigerant cycle did not converge in {max_iter} iterations "
+                f"(speed {speed_rpm:.0f} rpm, wall {t_wall_c:.2f} degC)"
+            )
         new_mop = mop or t_e > te_mop_c
         new_hp = hp or pr < pr_min * (1.0 - 1e-9)
         if new_mop == mop and new_hp == hp:
@@ -287,5 +299,3 @@ def solve_cycle(
         head_pressure_control=hp,
         iterations=it,
     )
-
-

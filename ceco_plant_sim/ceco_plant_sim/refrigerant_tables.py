@@ -64,13 +64,16 @@ def _coolprop():
     try:
         import CoolProp.CoolProp as CP
     except ImportError as err:
-        raise ImportError(f"refrigerant tables: CoolProp is needed to build tables that the shipped file "
-                          f"{SHIPPED_TABLES} does not hold ({err})") from err
+        raise ImportError(
+            f"refrigerant tables: CoolProp is needed to build tables that the shipped file "
+            f"{SHIPPED_TABLES} does not hold ({err})"
+        ) from err
     return CP
 
 
 def _coolprop_version() -> str:
     import CoolProp
+
     return f"{CoolProp.__version__} ({CoolProp.__gitrevision__})"
 
 
@@ -115,10 +118,14 @@ class TableGrid:
 
     def shapes(self) -> dict[str, tuple[int, ...]]:
         """Shape of every table array on this grid."""
-        n_e, n_c = _grid(self.te_min_c, self.te_max_c, self.step_1d_k).size, \
-            _grid(self.tc_min_c, self.tc_max_c, self.step_1d_k).size
-        n2 = (_grid(self.te_min_c, self.te_max_c, self.step_2d_k).size,
-              _grid(self.tc_min_c, self.tc_max_c, self.step_2d_k).size)
+        n_e, n_c = (
+            _grid(self.te_min_c, self.te_max_c, self.step_1d_k).size,
+            _grid(self.tc_min_c, self.tc_max_c, self.step_1d_k).size,
+        )
+        n2 = (
+            _grid(self.te_min_c, self.te_max_c, self.step_2d_k).size,
+            _grid(self.tc_min_c, self.tc_max_c, self.step_2d_k).size,
+        )
         return {**{k: (n_e,) for k in _ARRAYS_1D_TE}, **{k: (n_c,) for k in _ARRAYS_1D_TC}, _ARRAY_2D: n2}
 
 
@@ -324,14 +331,22 @@ def build_cycle_tables(
         for j, u in enumerate(tc2):
             pc = CP.PropsSI("P", "T", c_to_k(float(u)), "Q", 0.0, fluid)
             dh[i, j] = CP.PropsSI("H", "P", pc, "S", s1, fluid) - hh1
-    arrays = {"p_evap_pa": p_e, "rho_suc_kgm3": rho1, "h_suc_jpkg": h1, "p_cond_pa": p_c, "h_liq_jpkg": h3,
-              "dh_is_jpkg": dh}
-    return _make_tables(fluid, superheat_k, subcool_k, grid, arrays,
-                        f"built with CoolProp {_coolprop_version()} at run time")
+    arrays = {
+        "p_evap_pa": p_e,
+        "rho_suc_kgm3": rho1,
+        "h_suc_jpkg": h1,
+        "p_cond_pa": p_c,
+        "h_liq_jpkg": h3,
+        "dh_is_jpkg": dh,
+    }
+    return _make_tables(
+        fluid, superheat_k, subcool_k, grid, arrays, f"built with CoolProp {_coolprop_version()} at run time"
+    )
 
 
-def _make_tables(fluid: str, superheat_k: float, subcool_k: float, grid: TableGrid, arrays: dict,
-                 source: str) -> CycleTables:
+def _make_tables(
+    fluid: str, superheat_k: float, subcool_k: float, grid: TableGrid, arrays: dict, source: str
+) -> CycleTables:
     """The interpolants of one configuration from its raw property values (one path for build and file)."""
     s1, s2 = grid.step_1d_k, grid.step_2d_k
     return CycleTables(
@@ -357,9 +372,15 @@ def tables_arrays(tab: CycleTables) -> dict[str, np.ndarray]:
     return out
 
 
-def write_tables_file(path: str, fluid: str = "R1234yf", superheat_k: float = 5.0, subcool_k: float = 5.0,
-                      grid: TableGrid = DEFAULT_GRID, command: str = REGENERATE_COMMAND,
-                      extra: dict | None = None) -> dict:
+def write_tables_file(
+    path: str,
+    fluid: str = "R1234yf",
+    superheat_k: float = 5.0,
+    subcool_k: float = 5.0,
+    grid: TableGrid = DEFAULT_GRID,
+    command: str = REGENERATE_COMMAND,
+    extra: dict | None = None,
+) -> dict:
     """Build the tables with CoolProp and write them with their provenance to ``path`` (NPZ). Returns the provenance.
 
     The arrays are the float64 values :func:`build_cycle_tables` computes (bit for bit); the
@@ -386,13 +407,19 @@ def write_tables_file(path: str, fluid: str = "R1234yf", superheat_k: float = 5.
         "command": command,
         "date_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "machine": f"{platform.machine()} {platform.system()}, Python {platform.python_version()}, "
-                   f"numpy {np.__version__}",
-        "units": {"p_evap_pa": "Pa", "rho_suc_kgm3": "kg/m3", "h_suc_jpkg": "J/kg", "p_cond_pa": "Pa",
-                  "h_liq_jpkg": "J/kg", "dh_is_jpkg": "J/kg"},
+        f"numpy {np.__version__}",
+        "units": {
+            "p_evap_pa": "Pa",
+            "rho_suc_kgm3": "kg/m3",
+            "h_suc_jpkg": "J/kg",
+            "p_cond_pa": "Pa",
+            "h_liq_jpkg": "J/kg",
+            "dh_is_jpkg": "J/kg",
+        },
         **(extra or {}),
     }
     members = {"provenance": np.array(json.dumps(prov, sort_keys=True)), **tables_arrays(tab)}
-    savez: Any = np.savez            # numpy's stubs type **kwds as its own keyword arguments
+    savez: Any = np.savez  # numpy's stubs type **kwds as its own keyword arguments
     with open(path, "wb") as f:
         savez(f, **members)
     return prov
@@ -411,24 +438,28 @@ def read_tables_file(path: str) -> tuple[dict, dict[str, np.ndarray]]:
     except (OSError, KeyError, ValueError) as err:
         raise StaleTablesError(f"refrigerant table file {path}: unreadable ({err}); {fix}") from err
     if prov.get("format") != TABLES_FORMAT:
-        raise StaleTablesError(f"refrigerant table file {path}: format {prov.get('format')!r}, this code reads "
-                               f"format {TABLES_FORMAT}; {fix}")
+        raise StaleTablesError(
+            f"refrigerant table file {path}: format {prov.get('format')!r}, this code reads "
+            f"format {TABLES_FORMAT}; {fix}"
+        )
     try:
         grid = TableGrid(**prov["grid"]).validate()
     except (KeyError, TypeError, ValueError) as err:
-        raise StaleTablesError(f"refrigerant table file {path}: bad grid {prov.get('grid')!r} ({err}); {fix}") \
-            from err
+        raise StaleTablesError(f"refrigerant table file {path}: bad grid {prov.get('grid')!r} ({err}); {fix}") from err
     for key, shape in grid.shapes().items():
         a = arrays.get(key)
         if a is None or a.shape != shape or a.dtype != np.float64 or not np.all(np.isfinite(a)):
             got = "missing" if a is None else f"{a.dtype} {a.shape}"
-            raise StaleTablesError(f"refrigerant table file {path}: {key} is {got}, the grid {asdict(grid)} "
-                                   f"needs finite float64 {shape}; {fix}")
+            raise StaleTablesError(
+                f"refrigerant table file {path}: {key} is {got}, the grid {asdict(grid)} "
+                f"needs finite float64 {shape}; {fix}"
+            )
     return prov, arrays
 
 
-def load_tables_file(path: str, fluid: str = "R1234yf", superheat_k: float = 5.0, subcool_k: float = 5.0,
-                     grid: TableGrid = DEFAULT_GRID) -> CycleTables:
+def load_tables_file(
+    path: str, fluid: str = "R1234yf", superheat_k: float = 5.0, subcool_k: float = 5.0, grid: TableGrid = DEFAULT_GRID
+) -> CycleTables:
     """The cycle tables of one configuration from a table file (no CoolProp import).
 
     Raises StaleTablesError if the file is unreadable, of another format, on another grid than
@@ -437,14 +468,20 @@ def load_tables_file(path: str, fluid: str = "R1234yf", superheat_k: float = 5.0
     prov, arrays = read_tables_file(path)
     held = (prov.get("fluid"), prov.get("superheat_k"), prov.get("subcool_k"))
     if held != (fluid, float(superheat_k), float(subcool_k)):
-        raise StaleTablesError(f"refrigerant table file {path} holds {held[0]} with superheat {held[1]} K and "
-                               f"subcooling {held[2]} K, not {fluid} with {float(superheat_k)} K and "
-                               f"{float(subcool_k)} K")
+        raise StaleTablesError(
+            f"refrigerant table file {path} holds {held[0]} with superheat {held[1]} K and "
+            f"subcooling {held[2]} K, not {fluid} with {float(superheat_k)} K and "
+            f"{float(subcool_k)} K"
+        )
     if prov["grid"] != asdict(grid):
-        raise StaleTablesError(f"refrigerant table file {path}: grid {prov['grid']} differs from the plant's "
-                               f"{asdict(grid)}; regenerate it with `{REGENERATE_COMMAND}`")
-    source = (f"shipped file {os.path.basename(path)} (CoolProp {prov.get('coolprop_version')}, "
-              f"generated {prov.get('date_utc')})")
+        raise StaleTablesError(
+            f"refrigerant table file {path}: grid {prov['grid']} differs from the plant's "
+            f"{asdict(grid)}; regenerate it with `{REGENERATE_COMMAND}`"
+        )
+    source = (
+        f"shipped file {os.path.basename(path)} (CoolProp {prov.get('coolprop_version')}, "
+        f"generated {prov.get('date_utc')})"
+    )
     return _make_tables(fluid, superheat_k, subcool_k, grid, arrays, source)
 
 
@@ -459,20 +496,25 @@ def check_tables_file(path: str = SHIPPED_TABLES) -> dict:
     prov, arrays = read_tables_file(path)
     fix = f"regenerate it with `{REGENERATE_COMMAND}`"
     if prov.get("coolprop_version") != CoolProp.__version__:
-        raise StaleTablesError(f"refrigerant table file {path} was generated with CoolProp "
-                               f"{prov.get('coolprop_version')}, the installed CoolProp is {CoolProp.__version__}; "
-                               f"{fix}")
+        raise StaleTablesError(
+            f"refrigerant table file {path} was generated with CoolProp "
+            f"{prov.get('coolprop_version')}, the installed CoolProp is {CoolProp.__version__}; "
+            f"{fix}"
+        )
     grid = TableGrid(**prov["grid"])
-    fresh = tables_arrays(build_cycle_tables(prov["fluid"], float(prov["superheat_k"]), float(prov["subcool_k"]),
-                                             *grid.build_args()))
+    fresh = tables_arrays(
+        build_cycle_tables(prov["fluid"], float(prov["superheat_k"]), float(prov["subcool_k"]), *grid.build_args())
+    )
     for key, ref in fresh.items():
         got = arrays[key]
         if not np.array_equal(got, ref):
             bad = np.flatnonzero(got.ravel() != ref.ravel())
             rel = float(np.max(np.abs(got.ravel()[bad] - ref.ravel()[bad]) / np.abs(ref.ravel()[bad])))
-            raise StaleTablesError(f"refrigerant table file {path}: {key} differs from a fresh CoolProp "
-                                   f"{CoolProp.__version__} build at {bad.size} of {ref.size} points "
-                                   f"(largest relative difference {rel:.3g}); {fix}")
+            raise StaleTablesError(
+                f"refrigerant table file {path}: {key} differs from a fresh CoolProp "
+                f"{CoolProp.__version__} build at {bad.size} of {ref.size} points "
+                f"(largest relative difference {rel:.3g}); {fix}"
+            )
     return prov
 
 

@@ -6,8 +6,18 @@ topic is in :mod:`ceco_ros.interfaces`; bag readers, the nodes' pure I/O logic a
 the tools take the names from here.
 """
 
-__all__ = ['TOPIC_STATE', 'TOPIC_COMFORT', 'TOPIC_POWER', 'TOPIC_COMMAND', 'TOPIC_WEATHER', 'TOPIC_TRAFFIC',
-           'TOPIC_DIAGNOSTICS', 'TOPIC_CLOCK', 'TOPIC_ROSOUT', 'TOPIC_ROS_DIAGNOSTICS']
+__all__ = [
+    'TOPIC_STATE',
+    'TOPIC_COMFORT',
+    'TOPIC_POWER',
+    'TOPIC_COMMAND',
+    'TOPIC_WEATHER',
+    'TOPIC_TRAFFIC',
+    'TOPIC_DIAGNOSTICS',
+    'TOPIC_CLOCK',
+    'TOPIC_ROSOUT',
+    'TOPIC_ROS_DIAGNOSTICS',
+]
 
 TOPIC_STATE = 'cabin/state'
 """ceco_msgs/CabinState: the plant's measurements, one per plant step."""

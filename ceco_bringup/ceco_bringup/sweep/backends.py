@@ -18,6 +18,7 @@ from pathlib import Path
 
 __all__ = ['read_done', 'append_row', 'WORKER_THREAD_ENV', 'run_local', 'run_ray']
 
+
 def read_done(log_path: str | os.PathLike) -> dict:
     """``{cell_id: row}`` of the cells with status 'ok' in a ``cells.jsonl``.
 
@@ -62,8 +63,7 @@ def _pythonpath() -> str:
     Spawned or Ray workers then import the same code.
     """
     dirs = []
-    for mod in ('ceco_bringup', 'ceco_controller', 'ceco_plant_sim', 'ceco_v2x_preview', 'ceco_core',
-                'ceco_ros'):
+    for mod in ('ceco_bringup', 'ceco_controller', 'ceco_plant_sim', 'ceco_v2x_preview', 'ceco_core', 'ceco_ros'):
         try:
             m = __import__(mod)
         except ImportError:
@@ -128,15 +128,15 @@ def run_ray(items: Sequence, workers: int, address: str | None, on_done: Callabl
     try:
         import ray  # optional extra
     except ImportError as exc:
-        raise RuntimeError('--backend ray needs the optional Ray extra: '
-                           'pip install -r requirements/analysis.txt (ray==2.60.0)') from exc
+        raise RuntimeError(
+            '--backend ray needs the optional Ray extra: pip install -r requirements/analysis.txt (ray==2.60.0)'
+        ) from exc
     with _worker_env() as thread_env:
         runtime_env = {'env_vars': {'PYTHONPATH': _pythonpath(), **thread_env}}
     started = False
     if not ray.is_initialized():
         if address:
-            ray.init(address=address, runtime_env=runtime_env, include_dashboard=False,
-                     log_to_driver=False)
+            ray.init(address=address, runtime_env=runtime_env, include_dashboard=False, log_to_driver=False)
         else:
             ray.init(num_cpus=workers, runtime_env=runtime_env, include_dashboard=False, log_to_driver=False)
         started = True
@@ -150,8 +150,6 @@ def run_ray(items: Sequence, workers: int, address: str | None, on_done: Callabl
     finally:
         if started:
             ray.shutdown()
-
-
 
 
 append_row = _append_row

@@ -17,20 +17,51 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
-__all__ = ['METRIC_COLUMNS', 'TIMING_COLUMNS', 'Cell', 'code_fingerprint', 'cell_id', 'runtime_overrides',
-           'settings_from_spec', 'run_cell']
+__all__ = [
+    'METRIC_COLUMNS',
+    'TIMING_COLUMNS',
+    'Cell',
+    'code_fingerprint',
+    'cell_id',
+    'runtime_overrides',
+    'settings_from_spec',
+    'run_cell',
+]
 
-METRIC_COLUMNS = ('E_tot_J', 'E_tot_kWh', 'E_comp_J', 'E_blower_J', 'P_mean_w', 'I_pmv', 'otc_violation_pct',
-                  'otc_violation_s', 'otc_above_ub_s', 'otc_below_lb_s', 'time_to_comfort_s', 'pmv_mean',
-                  'pmv_max', 'pmv_min', 'duration_s', 'n_control_steps', 'n_fallback_shifted',
-                  'n_fallback_baseline', 'solve_time_median_ms', 'solve_time_max_ms',
-                  'zone_start_s', 'E_zone_J', 'I_pmv_zone', 'otc_violation_zone_pct', 'pmv_mean_zone')
+METRIC_COLUMNS = (
+    'E_tot_J',
+    'E_tot_kWh',
+    'E_comp_J',
+    'E_blower_J',
+    'P_mean_w',
+    'I_pmv',
+    'otc_violation_pct',
+    'otc_violation_s',
+    'otc_above_ub_s',
+    'otc_below_lb_s',
+    'time_to_comfort_s',
+    'pmv_mean',
+    'pmv_max',
+    'pmv_min',
+    'duration_s',
+    'n_control_steps',
+    'n_fallback_shifted',
+    'n_fallback_baseline',
+    'solve_time_median_ms',
+    'solve_time_max_ms',
+    'zone_start_s',
+    'E_zone_J',
+    'I_pmv_zone',
+    'otc_violation_zone_pct',
+    'pmv_mean_zone',
+)
 """Metric columns of the results table (those the simulator returns; ``*_zone``:
 the comfort-zone phase, where the upper PMV bound is at its tightest, from
 ``zone_start_s`` on; ``closed_loop.simulate``)."""
 
 TIMING_COLUMNS = ('solve_time_median_ms', 'solve_time_max_ms')
 """Metric columns that are wall-clock measurements (not reproducible)."""
+
 
 @dataclasses.dataclass(frozen=True)
 class Cell:
@@ -70,8 +101,11 @@ def code_fingerprint() -> str:
         pkg = Path(mod.__file__).resolve().parent
         for root in (pkg, pkg.parent / 'config'):
             if root.is_dir():
-                files += [(f'{name}/{root.name}/{p.relative_to(root)}', p) for p in root.rglob('*')
-                          if p.suffix in _CODE_SUFFIXES and p.is_file() and '__pycache__' not in p.parts]
+                files += [
+                    (f'{name}/{root.name}/{p.relative_to(root)}', p)
+                    for p in root.rglob('*')
+                    if p.suffix in _CODE_SUFFIXES and p.is_file() and '__pycache__' not in p.parts
+                ]
     try:
         from ceco_controller.model import default_params_path
 
@@ -92,7 +126,6 @@ def cell_id(spec: Mapping) -> str:
     return hashlib.sha256(_canonical(spec).encode('utf-8')).hexdigest()[:16]
 
 
-
 def runtime_overrides(plain: Mapping) -> dict:
     """Setting overrides as stored in a cell's spec (plain JSON data) -> keyword overrides of ``strategy_settings``.
 
@@ -104,8 +137,7 @@ def runtime_overrides(plain: Mapping) -> dict:
     for key, value in plain.items():
         if key == 'solver':
             base = SolverSettings()
-            value = dataclasses.replace(base, **{k: tuple(v) if isinstance(v, list) else v
-                                                 for k, v in value.items()})
+            value = dataclasses.replace(base, **{k: tuple(v) if isinstance(v, list) else v for k, v in value.items()})
         elif isinstance(value, list):
             value = tuple(value)
         out[key] = value
@@ -128,11 +160,15 @@ def settings_from_spec(spec: Mapping):
 
     hs = spec.get('horizon_steps')
     ovr = runtime_overrides(spec.get('strategy_overrides') or {})
-    return SimSettings(control_period_s=spec.get('control_period_s'),
-                       horizon_steps=None if hs is None else int(hs),
-                       preview_quality=parse_quality(spec['preview']), seed=spec.get('seed'),
-                       duration_s=spec.get('duration_s'), progress=False,
-                       strategy_overrides=tuple(sorted(ovr.items())))
+    return SimSettings(
+        control_period_s=spec.get('control_period_s'),
+        horizon_steps=None if hs is None else int(hs),
+        preview_quality=parse_quality(spec['preview']),
+        seed=spec.get('seed'),
+        duration_s=spec.get('duration_s'),
+        progress=False,
+        strategy_overrides=tuple(sorted(ovr.items())),
+    )
 
 
 def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
@@ -154,9 +190,11 @@ def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
         spec = cell['spec']
         row['code'] = code_fingerprint()
         if spec.get('code') and row['code'] != spec['code']:
-            raise RuntimeError(f"the simulator's code here ({row['code']}) differs from the sweep's "
-                               f"({spec['code']}): code changed during the sweep, or a Ray node runs another "
-                               'version; rerun the sweep')
+            raise RuntimeError(
+                f"the simulator's code here ({row['code']}) differs from the sweep's "
+                f"({spec['code']}): code changed during the sweep, or a Ray node runs another "
+                'version; rerun the sweep'
+            )
         t_sim = time.perf_counter()
         scenario = scenario_from_dict(spec['scenario'])
         result = simulate(scenario, spec['strategy'], settings_from_spec(spec))
@@ -175,5 +213,3 @@ def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
     row['host'] = socket.gethostname()
     row['pid'] = os.getpid()
     return row
-
-

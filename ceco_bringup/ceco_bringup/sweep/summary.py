@@ -19,8 +19,18 @@ from ceco_core.metrics import relative_change_pct
 from .cells import Cell
 from .grid import AXES, DEFAULT_SETTINGS, GROUP_AXES
 
-__all__ = ['write_table', 'write_parquet', 'SUMMARY_KEYS', 'CHANGE_KEYS', 'summarize', 'dominance_rows',
-           'point_name', 'vehicle_rows', 'summary_markdown']
+__all__ = [
+    'write_table',
+    'write_parquet',
+    'SUMMARY_KEYS',
+    'CHANGE_KEYS',
+    'summarize',
+    'dominance_rows',
+    'point_name',
+    'vehicle_rows',
+    'summary_markdown',
+]
+
 
 def _write_table(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) -> None:
     tmp = path.with_suffix(path.suffix + '.tmp')
@@ -66,8 +76,18 @@ def _write_parquet(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) 
     return engine
 
 
-SUMMARY_KEYS = ('E_tot_kWh', 'I_pmv', 'otc_violation_pct', 'time_to_comfort_s', 'pmv_max', 'sim_time_s',
-                'E_zone_J', 'I_pmv_zone', 'otc_violation_zone_pct', 'pmv_mean_zone')
+SUMMARY_KEYS = (
+    'E_tot_kWh',
+    'I_pmv',
+    'otc_violation_pct',
+    'time_to_comfort_s',
+    'pmv_max',
+    'sim_time_s',
+    'E_zone_J',
+    'I_pmv_zone',
+    'otc_violation_zone_pct',
+    'pmv_mean_zone',
+)
 """Metrics averaged over seeds in the summary."""
 
 CHANGE_KEYS = ('E_tot_kWh', 'I_pmv', 'E_zone_J', 'I_pmv_zone')
@@ -75,7 +95,7 @@ CHANGE_KEYS = ('E_tot_kWh', 'I_pmv', 'E_zone_J', 'I_pmv_zone')
 
 
 def _settings_of(row: Mapping) -> str:
-    return str(row.get('settings') or DEFAULT_SETTINGS)   # rows logged before the settings axis: defaults
+    return str(row.get('settings') or DEFAULT_SETTINGS)  # rows logged before the settings axis: defaults
 
 
 def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]:
@@ -133,13 +153,21 @@ def dominance_rows(summary: Sequence[Mapping], baseline: str = 'baseline') -> li
             continue
         de, di = float(r['dE_tot_kWh_pct']), float(r['dI_pmv_pct'])
         dez, diz = float(r.get('dE_zone_J_pct', float('nan'))), float(r.get('dI_pmv_zone_pct', float('nan')))
-        out.append({**{a: r[a] for a in GROUP_AXES}, 'strategy': r['strategy'],
-                    'settings': r.get('settings', DEFAULT_SETTINGS),
-                    'dE_tot_kWh_pct': de, 'dI_pmv_pct': di, 'otc_violation_pct': r['otc_violation_pct_mean'],
-                    'dE_zone_J_pct': dez, 'dI_pmv_zone_pct': diz,
-                    'otc_violation_zone_pct': r.get('otc_violation_zone_pct_mean', float('nan')),
-                    'dominates': bool(de < 0.0 and di <= 0.0),
-                    'dominates_zone': bool(dez < 0.0 and diz <= 0.0)})
+        out.append(
+            {
+                **{a: r[a] for a in GROUP_AXES},
+                'strategy': r['strategy'],
+                'settings': r.get('settings', DEFAULT_SETTINGS),
+                'dE_tot_kWh_pct': de,
+                'dI_pmv_pct': di,
+                'otc_violation_pct': r['otc_violation_pct_mean'],
+                'dE_zone_J_pct': dez,
+                'dI_pmv_zone_pct': diz,
+                'otc_violation_zone_pct': r.get('otc_violation_zone_pct_mean', float('nan')),
+                'dominates': bool(de < 0.0 and di <= 0.0),
+                'dominates_zone': bool(dez < 0.0 and diz <= 0.0),
+            }
+        )
     return out
 
 
@@ -192,8 +220,9 @@ def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) 
     return out
 
 
-def summary_markdown(summary: Sequence[Mapping], timing: Mapping, grid_name: str,
-                      vehicle: Sequence[Mapping] = ()) -> str:
+def summary_markdown(
+    summary: Sequence[Mapping], timing: Mapping, grid_name: str, vehicle: Sequence[Mapping] = ()
+) -> str:
     """The sweep's ``summary.md``: timing, one table row per summary point, dominance and vehicle level.
 
     Args:
@@ -207,62 +236,78 @@ def summary_markdown(summary: Sequence[Mapping], timing: Mapping, grid_name: str
     Returns:
         The Markdown text, ending with a newline.
     """
-    lines = [f'# Sweep summary: {grid_name}', '',
-             f"{timing['cells']} cells ({timing['ran']} run now, {timing['skipped']} already done, "
-             f"{timing['failed']} failed) with backend `{timing['backend']}` on {timing['workers']} worker(s). "
-             f"Wall time of this invocation {timing['wall_s']:.1f} s ({timing['cells_per_hour']:.0f} cells/h). "
-             f"Simulation time per cell (scenario build + closed loop, cells run now): mean "
-             f"{timing['sim_mean_s']:.2f} s, median {timing['sim_median_s']:.2f} s; worker time per cell incl. "
-             f"imports in a fresh worker {timing['cell_mean_s']:.2f} s (sum {timing['cell_sum_s']:.1f} s, "
-             f"{timing['speedup']:.2f}x the wall time).", '',
-             '| scenario | cycle | climate | preview | occupant | strategy | settings | seeds | E_tot [kWh] | '
-             'ΔE [%] | I_PMV [s] | ΔI_PMV [%] | OTC viol. [%] | t_comfort [s] | ΔE zone [%] | ΔI_PMV zone [%] | '
-             'OTC viol. zone [%] |',
-             '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
+    lines = [
+        f'# Sweep summary: {grid_name}',
+        '',
+        f"{timing['cells']} cells ({timing['ran']} run now, {timing['skipped']} already done, "
+        f"{timing['failed']} failed) with backend `{timing['backend']}` on {timing['workers']} worker(s). "
+        f"Wall time of this invocation {timing['wall_s']:.1f} s ({timing['cells_per_hour']:.0f} cells/h). "
+        f"Simulation time per cell (scenario build + closed loop, cells run now): mean "
+        f"{timing['sim_mean_s']:.2f} s, median {timing['sim_median_s']:.2f} s; worker time per cell incl. "
+        f"imports in a fresh worker {timing['cell_mean_s']:.2f} s (sum {timing['cell_sum_s']:.1f} s, "
+        f"{timing['speedup']:.2f}x the wall time).",
+        '',
+        '| scenario | cycle | climate | preview | occupant | strategy | settings | seeds | E_tot [kWh] | '
+        'ΔE [%] | I_PMV [s] | ΔI_PMV [%] | OTC viol. [%] | t_comfort [s] | ΔE zone [%] | ΔI_PMV zone [%] | '
+        'OTC viol. zone [%] |',
+        '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|',
+    ]
 
     def f(x, fmt):
         return 'n/a' if x is None or not math.isfinite(float(x)) else format(float(x), fmt)
 
-    rows = sorted(summary, key=lambda r: (r['scenario'], r['drive_cycle'], r['climate'], r['preview'],
-                                          r['occupant']))
+    rows = sorted(summary, key=lambda r: (r['scenario'], r['drive_cycle'], r['climate'], r['preview'], r['occupant']))
     groups: dict = {}
     for r in rows:
         groups.setdefault(tuple(r[a] for a in GROUP_AXES), {})[(r['strategy'], r.get('settings', DEFAULT_SETTINGS))] = r
     for g, by in groups.items():
         for key in _ordered_points(by):
             r = by[key]
-            lines.append(f"| {' | '.join(map(str, g))} | {key[0]} | {key[1]} | {r['n_seeds']} | "
-                         f"{f(r['E_tot_kWh_mean'], '.4f')} | "
-                         f"{f(r['dE_tot_kWh_pct'], '+.1f')} | {f(r['I_pmv_mean'], '.1f')} | "
-                         f"{f(r['dI_pmv_pct'], '+.1f')} | {f(r['otc_violation_pct_mean'], '.2f')} | "
-                         f"{f(r['time_to_comfort_s_mean'], '.0f')} | {f(r.get('dE_zone_J_pct'), '+.1f')} | "
-                         f"{f(r.get('dI_pmv_zone_pct'), '+.1f')} | {f(r.get('otc_violation_zone_pct_mean'), '.2f')} |")
+            lines.append(
+                f"| {' | '.join(map(str, g))} | {key[0]} | {key[1]} | {r['n_seeds']} | "
+                f"{f(r['E_tot_kWh_mean'], '.4f')} | "
+                f"{f(r['dE_tot_kWh_pct'], '+.1f')} | {f(r['I_pmv_mean'], '.1f')} | "
+                f"{f(r['dI_pmv_pct'], '+.1f')} | {f(r['otc_violation_pct_mean'], '.2f')} | "
+                f"{f(r['time_to_comfort_s_mean'], '.0f')} | {f(r.get('dE_zone_J_pct'), '+.1f')} | "
+                f"{f(r.get('dI_pmv_zone_pct'), '+.1f')} | {f(r.get('otc_violation_zone_pct_mean'), '.2f')} |"
+            )
     dom = dominance_rows(summary)
     if dom:
-        lines += ['', '## Against the baseline: Pareto-dominating points', '',
-                  'A point dominates the baseline of its group when it uses less energy and has a lower or '
-                  'equal I_PMV (ΔE < 0 and ΔI_PMV <= 0), over the whole run or in the comfort-zone phase.', '']
+        lines += [
+            '',
+            '## Against the baseline: Pareto-dominating points',
+            '',
+            'A point dominates the baseline of its group when it uses less energy and has a lower or '
+            'equal I_PMV (ΔE < 0 and ΔI_PMV <= 0), over the whole run or in the comfort-zone phase.',
+            '',
+        ]
         for g in groups:
             here = [d for d in dom if tuple(d[a] for a in GROUP_AXES) == g]
             if not here:
                 continue
             tot = [point_name(d['strategy'], d['settings']) for d in here if d['dominates']]
             zone = [point_name(d['strategy'], d['settings']) for d in here if d['dominates_zone']]
-            lines.append(f"- {'/'.join(map(str, g))}: whole run: {', '.join(tot) or 'none'}; "
-                         f"zone phase: {', '.join(zone) or 'none'}")
+            lines.append(
+                f"- {'/'.join(map(str, g))}: whole run: {', '.join(tot) or 'none'}; "
+                f"zone phase: {', '.join(zone) or 'none'}"
+            )
     if vehicle:
-        lines += ['', '## Vehicle level (FASTSim 3.1, load-averaged line; see docs/analysis.md)', '',
-                  '| scenario | cycle | climate | preview | occupant | vehicle | strategy | P_A/C [W] | '
-                  'Δ vehicle energy [%] | noise 1σ [%] | paper, SC03 [%] | range lost [km] |',
-                  '|---|---|---|---|---|---|---|---|---|---|---|---|']
+        lines += [
+            '',
+            '## Vehicle level (FASTSim 3.1, load-averaged line; see docs/analysis.md)',
+            '',
+            '| scenario | cycle | climate | preview | occupant | vehicle | strategy | P_A/C [W] | '
+            'Δ vehicle energy [%] | noise 1σ [%] | paper, SC03 [%] | range lost [km] |',
+            '|---|---|---|---|---|---|---|---|---|---|---|---|',
+        ]
         for r in vehicle:
-            lines.append(f"| {' | '.join(str(r[a]) for a in GROUP_AXES)} | {r['vehicle']} | {r['strategy']} | "
-                         f"{f(r['p_ac_mean_w'], '.0f')} | {f(r['saving_fit_pct'], '+.2f')} | "
-                         f"{f(r['noise_pct'], '.2f')} | {f(r['paper_saving_pct'], '+.1f')} | "
-                         f"{f(r['range_lost_km'], '.1f')} |")
+            lines.append(
+                f"| {' | '.join(str(r[a]) for a in GROUP_AXES)} | {r['vehicle']} | {r['strategy']} | "
+                f"{f(r['p_ac_mean_w'], '.0f')} | {f(r['saving_fit_pct'], '+.2f')} | "
+                f"{f(r['noise_pct'], '.2f')} | {f(r['paper_saving_pct'], '+.1f')} | "
+                f"{f(r['range_lost_km'], '.1f')} |"
+            )
     return '\n'.join(lines) + '\n'
-
-
 
 
 write_table = _write_table
