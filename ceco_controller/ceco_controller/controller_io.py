@@ -20,7 +20,14 @@ from ceco_core.contracts import CECO_STRATEGIES, MEASUREMENT_MODES
 from ceco_core.control_grid import TIMING_MODES, control_step_index
 from ceco_core.sequencing import LockstepBuffer, SequenceGate
 from ceco_core.supervision import Health, Rejections, reason_kind
-from ceco_ros.params import ParamSpec
+from ceco_ros.params import (
+    CLOCK_AHEAD_PARAMETER,
+    DIAGNOSTICS_PERIOD_PARAMETER,
+    INPUT_WINDOW_PARAMETERS,
+    SHARED_FIELDS,
+    ParamSpec,
+    log_throttle_parameter,
+)
 from ceco_ros.topics import TOPIC_STATE, TOPIC_TRAFFIC, TOPIC_WEATHER
 
 __all__ = [
@@ -91,39 +98,9 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
             float_range=(0.01, 3600.0),
             read_only=False,
         ),
-        ParamSpec(
-            'inputs.window_s',
-            60.0,
-            'a state is accepted up to this far ahead of the last accepted scenario time [s]',
-            float_range=(0.01, 1e6),
-        ),
-        ParamSpec(
-            'inputs.confirm_count',
-            3,
-            'consecutive agreeing out-of-window states that establish a new time base (restart, new playback) [-]',
-            int_range=(1, 100),
-        ),
-        ParamSpec(
-            'inputs.restart_silence_s',
-            3.0,
-            'a new time base (key-on or confirmed) is taken only after no '
-            'state was accepted for this long (wall clock); longer than the plant step [s]',
-            float_range=(0.0, 3600.0),
-        ),
-        ParamSpec(
-            'inputs.max_clock_ahead_s',
-            1.0,
-            'realtime: a stamp may lead the node clock by this much [s]',
-            float_range=(0.0, 3600.0),
-            read_only=False,
-        ),
-        ParamSpec(
-            'inputs.log_throttle_s',
-            2.0,
-            'shortest time between two log lines about one kind of rejected input [s]',
-            float_range=(0.0, 3600.0),
-            read_only=False,
-        ),
+        *INPUT_WINDOW_PARAMETERS,
+        CLOCK_AHEAD_PARAMETER,
+        log_throttle_parameter(),
         ParamSpec(
             'qos.command_deadline_periods',
             2.0,
@@ -131,9 +108,7 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
             'periods]; must not exceed the plant\'s fallback.command_timeout_periods',
             float_range=(0.1, 1000.0),
         ),
-        ParamSpec(
-            'diagnostics.period_s', 1.0, '/diagnostics publication period (steady clock) [s]', float_range=(0.05, 60.0)
-        ),
+        DIAGNOSTICS_PERIOD_PARAMETER,
         ParamSpec(
             'diagnostics.solve_time_warn_fraction',
             0.5,
@@ -196,13 +171,8 @@ class ControllerNodeConfig:
     """WARN above this fraction of Ts per step [-]."""
 
     _PARAM_FIELDS = {
-        'inputs.window_s': 'window_s',
-        'inputs.confirm_count': 'confirm_count',
-        'inputs.restart_silence_s': 'restart_silence_s',
-        'inputs.max_clock_ahead_s': 'max_clock_ahead_s',
-        'inputs.log_throttle_s': 'log_throttle_s',
+        **SHARED_FIELDS,
         'qos.command_deadline_periods': 'command_deadline_periods',
-        'diagnostics.period_s': 'diagnostics_period_s',
         'diagnostics.solve_time_warn_fraction': 'solve_time_warn_fraction',
     }
 

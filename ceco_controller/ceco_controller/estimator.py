@@ -92,19 +92,14 @@ import numpy as np
 
 from ceco_core.contracts import ACTUATOR_LIMITS, MEASUREMENT_MODES, Observation
 
+from . import estimator_model as _estimator_model
 from . import model as cm
-from .estimator_model import (  # noqa: F401 - part of this module's API (__all__)
-    DEFAULT_ESTIMATOR_PARAMS_PATH,
-    M_REF_KGPS,
+from .estimator_model import *  # noqa: F403 - this module re-exports estimator_model's API (__all__)
+from .estimator_model import (
     EstimatorParams,
     EstimatorSettings,
     load_estimator_params,
     process_step,
-    save_estimator_params,
-    t_duct_next_c,
-    t_glass_next_c,
-    t_int_next_c,
-    t_shell_next_c,
     t_vent_c,
 )
 
@@ -112,21 +107,11 @@ __all__ = [
     "VEHICLE_SENSORS",
     "ESTIMATED_STATES",
     "MEASUREMENT_MODES",
-    "EstimatorParams",
-    "EstimatorSettings",
     "Estimate",
     "CabinStateEstimator",
     "EstimatingController",
-    "t_vent_c",
-    "t_int_next_c",
-    "t_shell_next_c",
-    "t_glass_next_c",
-    "t_duct_next_c",
-    "process_step",
-    "load_estimator_params",
-    "save_estimator_params",
-    "DEFAULT_ESTIMATOR_PARAMS_PATH",
     "with_measurements",
+    *_estimator_model.__all__,
 ]
 
 VEHICLE_SENSORS = ("t_cab_c", "t_vent_c", "t_evap_c", "t_amb_c", "solar_wm2", "speed_mps", "rh_cab")

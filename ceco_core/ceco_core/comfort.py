@@ -228,6 +228,26 @@ def _pmv_from_tcl(ops, *, tcl_c, ta_c, tr_c, hc, fcl, pa_pa, m_wm2, w_rad_wm2, s
     return sensitivity * load
 
 
+def _pmv_at_tcl(ops, a, *, tcl, fcl, m_wm2, hc_forced, sm):
+    """PMV (ISO 7730 eq. (1)) at the clothing temperature ``tcl`` [degC]: h_c there, then the heat balance.
+
+    ``a`` holds the prepared inputs (``ta_c``, ``tr_c``, ``pa_pa``, ``w_rad_wm2``) of :func:`pmv`.
+    """
+    hc, _ = _hc_and_slope(ops, tcl, a["ta_c"], hc_forced, sm)
+    return _pmv_from_tcl(
+        ops,
+        tcl_c=tcl,
+        ta_c=a["ta_c"],
+        tr_c=a["tr_c"],
+        hc=hc,
+        fcl=fcl,
+        pa_pa=a["pa_pa"],
+        m_wm2=m_wm2,
+        w_rad_wm2=a["w_rad_wm2"],
+        sm=sm,
+    )
+
+
 def _solve_tcl(ops, *, ta_c, tr_c, hc_forced, icl, fcl, m_wm2, w_rad_wm2, sm):
     """Clothing surface temperature [degC], ISO 7730 eq. (2) with W_rad at the surface.
 
@@ -334,19 +354,7 @@ def pmv(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0, smoothing=DEFAUL
         w_rad_wm2=a["w_rad_wm2"],
         sm=smoothing,
     )
-    hc, _ = _hc_and_slope(ops, tcl, a["ta_c"], hf, smoothing)
-    return _pmv_from_tcl(
-        ops,
-        tcl_c=tcl,
-        ta_c=a["ta_c"],
-        tr_c=a["tr_c"],
-        hc=hc,
-        fcl=fcl,
-        pa_pa=a["pa_pa"],
-        m_wm2=m,
-        w_rad_wm2=a["w_rad_wm2"],
-        sm=smoothing,
-    )
+    return _pmv_at_tcl(ops, a, tcl=tcl, fcl=fcl, m_wm2=m, hc_forced=hf, sm=smoothing)
 
 
 def ppd(pmv):  # the argument shadows the function on purpose
@@ -403,19 +411,7 @@ def pmv_explicit_paper(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0, s
     m = MET_TO_WM2 * a["met"]
     hf = _forced_hc(ops, a["vel_mps"], smoothing)
     tcl = _explicit_tcl_c(m, icl, a["ta_c"], units.pa_to_kpa(a["pa_pa"]))
-    hc, _ = _hc_and_slope(ops, tcl, a["ta_c"], hf, smoothing)
-    return _pmv_from_tcl(
-        ops,
-        tcl_c=tcl,
-        ta_c=a["ta_c"],
-        tr_c=a["tr_c"],
-        hc=hc,
-        fcl=fcl,
-        pa_pa=a["pa_pa"],
-        m_wm2=m,
-        w_rad_wm2=a["w_rad_wm2"],
-        sm=smoothing,
-    )
+    return _pmv_at_tcl(ops, a, tcl=tcl, fcl=fcl, m_wm2=m, hc_forced=hf, sm=smoothing)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -17,7 +17,7 @@ from typing import Any
 import ceco_ros.checks as checks
 from ceco_core.control_grid import TIMING_MODES
 from ceco_core.supervision import FallbackSupervisor, Health, Rejections, Watchdog, reason_kind
-from ceco_ros.params import ParamSpec
+from ceco_ros.params import DIAGNOSTICS_PERIOD_PARAMETER, SHARED_FIELDS, ParamSpec, log_throttle_parameter
 from ceco_ros.topics import TOPIC_COMMAND
 
 __all__ = [
@@ -75,16 +75,8 @@ PLANT_PARAMETERS: tuple[ParamSpec, ...] = (
         'applies; also the deadline requested on hvac/command [control periods]',
         float_range=(0.1, 1000.0),
     ),
-    ParamSpec(
-        'inputs.log_throttle_s',
-        2.0,
-        'shortest time between two log lines about one kind of rejected command [s]',
-        float_range=(0.0, 3600.0),
-        read_only=False,
-    ),
-    ParamSpec(
-        'diagnostics.period_s', 1.0, '/diagnostics publication period (steady clock) [s]', float_range=(0.05, 60.0)
-    ),
+    log_throttle_parameter('command'),
+    DIAGNOSTICS_PERIOD_PARAMETER,
 )
 """The parameter table of plant_node."""
 
@@ -97,8 +89,7 @@ _FIELDS = {
     'lockstep.min_output_subscribers': 'min_output_subscribers',
     'lockstep.min_command_subscribers': 'min_command_subscribers',
     'fallback.command_timeout_periods': 'command_timeout_periods',
-    'inputs.log_throttle_s': 'log_throttle_s',
-    'diagnostics.period_s': 'diagnostics_period_s',
+    **SHARED_FIELDS,
 }
 
 

@@ -47,41 +47,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .refrigerant_tables import (
-    DEFAULT_GRID,
-    REGENERATE_COMMAND,
-    SHIPPED_TABLES,
-    CycleTables,
-    StaleTablesError,
-    TableGrid,
-    build_cycle_tables,
-    check_tables_file,
-    cycle_tables,
-    direct_cycle_properties,
-    load_tables_file,
-    read_tables_file,
-    tables_arrays,
-    write_tables_file,
-)
+from . import refrigerant_tables as _refrigerant_tables
+from .refrigerant_tables import *  # noqa: F403 - this module re-exports refrigerant_tables's API (__all__)
+from .refrigerant_tables import CycleTables
 
 __all__ = [
-    "CycleTables",
     "CompressorModel",
     "CycleSolution",
-    "TableGrid",
-    "DEFAULT_GRID",
-    "SHIPPED_TABLES",
-    "REGENERATE_COMMAND",
-    "StaleTablesError",
-    "build_cycle_tables",
-    "cycle_tables",
-    "tables_arrays",
-    "write_tables_file",
-    "read_tables_file",
-    "load_tables_file",
-    "check_tables_file",
-    "direct_cycle_properties",
     "solve_cycle",
+    *_refrigerant_tables.__all__,
 ]
 
 

@@ -39,6 +39,68 @@ class ParamSpec:
     """False: settable at run time (``ros2 param set``); the node applies it at once."""
 
 
+INPUT_WINDOW_PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec(
+        'inputs.window_s',
+        60.0,
+        'a state is accepted up to this far ahead of the last accepted scenario time [s]',
+        float_range=(0.01, 1e6),
+    ),
+    ParamSpec(
+        'inputs.confirm_count',
+        3,
+        'consecutive agreeing out-of-window states that establish a new time base (restart, new playback) [-]',
+        int_range=(1, 100),
+    ),
+    ParamSpec(
+        'inputs.restart_silence_s',
+        3.0,
+        'a new time base (key-on or confirmed) is taken only after no state '
+        'was accepted for this long (wall clock); longer than the plant step [s]',
+        float_range=(0.0, 3600.0),
+    ),
+)
+"""The sequence gate's parameters (``ceco_core.sequencing.SequenceGate``), the same in every node that takes
+``cabin/state``."""
+
+CLOCK_AHEAD_PARAMETER = ParamSpec(
+    'inputs.max_clock_ahead_s',
+    1.0,
+    'realtime: a stamp may lead the node clock by this much [s]',
+    float_range=(0.0, 3600.0),
+    read_only=False,
+)
+"""How far a real-time stamp may lead the node clock."""
+
+
+def log_throttle_parameter(what: str = 'input') -> ParamSpec:
+    """The throttle of the rejection log lines (``what``: the rejected message, for the description)."""
+    return ParamSpec(
+        'inputs.log_throttle_s',
+        2.0,
+        f'shortest time between two log lines about one kind of rejected {what} [s]',
+        float_range=(0.0, 3600.0),
+        read_only=False,
+    )
+
+
+DIAGNOSTICS_PERIOD_PARAMETER = ParamSpec(
+    'diagnostics.period_s', 1.0, '/diagnostics publication period (steady clock) [s]', float_range=(0.05, 60.0)
+)
+"""The /diagnostics period of every node."""
+
+SHARED_FIELDS = {
+    'inputs.window_s': 'window_s',
+    'inputs.confirm_count': 'confirm_count',
+    'inputs.restart_silence_s': 'restart_silence_s',
+    'inputs.max_state_age_s': 'max_state_age_s',
+    'inputs.max_clock_ahead_s': 'max_clock_ahead_s',
+    'inputs.log_throttle_s': 'log_throttle_s',
+    'diagnostics.period_s': 'diagnostics_period_s',
+}
+"""Parameter name -> config field of the shared parameters (the nodes' own tables add theirs)."""
+
+
 def check_value(spec: ParamSpec, value: Any) -> tuple[Any, str | None]:
     """``(value, None)`` with ints widened for float parameters, or ``(value, reason)``."""
     if isinstance(spec.default, float):

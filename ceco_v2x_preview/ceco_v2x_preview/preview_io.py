@@ -18,7 +18,14 @@ import ceco_ros.checks as checks
 from ceco_core.control_grid import TIMING_MODES
 from ceco_core.sequencing import SequenceGate, Verdict
 from ceco_core.supervision import Health, Rejections, reason_kind
-from ceco_ros.params import ParamSpec
+from ceco_ros.params import (
+    CLOCK_AHEAD_PARAMETER,
+    DIAGNOSTICS_PERIOD_PARAMETER,
+    INPUT_WINDOW_PARAMETERS,
+    SHARED_FIELDS,
+    ParamSpec,
+    log_throttle_parameter,
+)
 from ceco_ros.topics import TOPIC_STATE
 
 from . import forecast_error
@@ -86,25 +93,7 @@ PREVIEW_PARAMETERS: tuple[ParamSpec, ...] = (
         'benchmark forecast-uncertainty level (AR(1) errors, ceco_v2x_preview.forecast_error)',
         choices=forecast_error.LEVELS,
     ),
-    ParamSpec(
-        'inputs.window_s',
-        60.0,
-        'a state is accepted up to this far ahead of the last accepted scenario time [s]',
-        float_range=(0.01, 1e6),
-    ),
-    ParamSpec(
-        'inputs.confirm_count',
-        3,
-        'consecutive agreeing out-of-window states that establish a new time base (restart, new playback) [-]',
-        int_range=(1, 100),
-    ),
-    ParamSpec(
-        'inputs.restart_silence_s',
-        3.0,
-        'a new time base (key-on or confirmed) is taken only after no state '
-        'was accepted for this long (wall clock); longer than the plant step [s]',
-        float_range=(0.0, 3600.0),
-    ),
+    *INPUT_WINDOW_PARAMETERS,
     ParamSpec(
         'inputs.max_state_age_s',
         10.0,
@@ -112,23 +101,9 @@ PREVIEW_PARAMETERS: tuple[ParamSpec, ...] = (
         float_range=(0.01, 3600.0),
         read_only=False,
     ),
-    ParamSpec(
-        'inputs.max_clock_ahead_s',
-        1.0,
-        'realtime: a stamp may lead the node clock by this much [s]',
-        float_range=(0.0, 3600.0),
-        read_only=False,
-    ),
-    ParamSpec(
-        'inputs.log_throttle_s',
-        2.0,
-        'shortest time between two log lines about one kind of rejected input [s]',
-        float_range=(0.0, 3600.0),
-        read_only=False,
-    ),
-    ParamSpec(
-        'diagnostics.period_s', 1.0, '/diagnostics publication period (steady clock) [s]', float_range=(0.05, 60.0)
-    ),
+    CLOCK_AHEAD_PARAMETER,
+    log_throttle_parameter(),
+    DIAGNOSTICS_PERIOD_PARAMETER,
 )
 """The parameter table of preview_node."""
 
@@ -167,15 +142,7 @@ class PreviewNodeConfig:
     diagnostics_period_s: float = 1.0
     """/diagnostics period [s]."""
 
-    _FIELDS = {
-        'inputs.window_s': 'window_s',
-        'inputs.confirm_count': 'confirm_count',
-        'inputs.restart_silence_s': 'restart_silence_s',
-        'inputs.max_state_age_s': 'max_state_age_s',
-        'inputs.max_clock_ahead_s': 'max_clock_ahead_s',
-        'inputs.log_throttle_s': 'log_throttle_s',
-        'diagnostics.period_s': 'diagnostics_period_s',
-    }
+    _FIELDS = SHARED_FIELDS
 
     @classmethod
     def from_params(cls, v: dict[str, Any]) -> PreviewNodeConfig:
