@@ -68,6 +68,13 @@ __all__ = [
     "main",
 ]
 
+INTERVAL_KEYS = (
+    "t_cab0", "t_cab1", "t_evap0", "t_evap1", "t_int0", "t_shell0", "t_evap_mean", "t_cab_mean", "t_ain_mean",
+    "mdot", "sp", "t_amb", "speed", "p_comp", "p_bl", "segment",
+)  # fmt: skip
+"""Keys of the per-interval regression data (:func:`intervals_from_series`): the start and end states of each
+control interval, its mean temperatures, inputs, disturbances, powers and its excitation segment."""
+
 SERIES_COLUMNS = (
     "segment",
     "t_s",
@@ -308,27 +315,7 @@ def intervals_from_series(series: dict, ts_s: float = 5.0) -> dict:
     m = int(round(ts_s / dt))
     if m < 1 or abs(m * dt - ts_s) > 1e-6:
         raise ValueError(f"ts_s {ts_s} must be a whole multiple of the sample step {dt}")
-    out: dict[str, list] = {
-        k: []
-        for k in (
-            "t_cab0",
-            "t_cab1",
-            "t_evap0",
-            "t_evap1",
-            "t_int0",
-            "t_shell0",
-            "t_evap_mean",
-            "t_cab_mean",
-            "t_ain_mean",
-            "mdot",
-            "sp",
-            "t_amb",
-            "speed",
-            "p_comp",
-            "p_bl",
-            "segment",
-        )
-    }
+    out: dict[str, list] = {k: [] for k in INTERVAL_KEYS}
     seg = np.asarray(series["segment"])
     for s in np.unique(seg):
         idx = np.flatnonzero(seg == s)
