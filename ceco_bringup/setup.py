@@ -20,7 +20,10 @@ setup(
     zip_safe=False,
     maintainer='ceco maintainers',
     maintainer_email='maintainers@ceco.dev',
-    description='The ceco command: runs the node stack as supervised processes, records rosbag2 bags, replays them, reports energy and comfort.',
+    description=(
+        'The ceco command: runs the node stack as supervised processes, records rosbag2 bags, replays them, '
+        'reports energy and comfort.'
+    ),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

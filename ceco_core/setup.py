@@ -14,6 +14,10 @@ setup(
     zip_safe=False,
     maintainer='ceco maintainers',
     maintainer_email='maintainers@ceco.dev',
-    description='Pure shared core of ceco (no ROS): units, psychrometrics, the numeric/CasADi maths backend, ISO 7730 comfort, scenario types, controller contracts, the production climate law, metrics and the run-directory format.',
+    description=(
+        'Pure shared core of ceco (no ROS): units, psychrometrics, the numeric/CasADi maths backend, '
+        'ISO 7730 comfort, scenario types, controller contracts, the production climate law, metrics '
+        'and the run-directory format.'
+    ),
     license='Apache-2.0',
 )

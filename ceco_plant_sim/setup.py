@@ -19,7 +19,10 @@ setup(
     zip_safe=False,
     maintainer='ceco maintainers',
     maintainer_email='maintainers@ceco.dev',
-    description='Cabin and A/C plant simulation (lumped thermal network, vapour-compression cycle with CoolProp) and ISO 7730 PMV comfort for ceco.',
+    description=(
+        'Cabin and A/C plant simulation (lumped thermal network, vapour-compression cycle with CoolProp) and '
+        'ISO 7730 PMV comfort for ceco.'
+    ),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -14,6 +14,9 @@ setup(
     zip_safe=False,
     maintainer='ceco maintainers',
     maintainer_email='maintainers@ceco.dev',
-    description='ROS 2 glue shared by the ceco nodes: topic names, QoS profiles, parameter declaration, message conversions in both directions, node main.',
+    description=(
+        'ROS 2 glue shared by the ceco nodes: topic names, QoS profiles, parameter declaration, message '
+        'conversions in both directions, node main.'
+    ),
     license='Apache-2.0',
 )

@@ -19,7 +19,10 @@ setup(
     zip_safe=False,
     maintainer='ceco maintainers',
     maintainer_email='maintainers@ceco.dev',
-    description='V2X weather and traffic preview publisher and the scenario files (drive cycles, weather, occupant, comfort bounds) for ceco.',
+    description=(
+        'V2X weather and traffic preview publisher and the scenario files (drive cycles, weather, occupant, '
+        'comfort bounds) for ceco.'
+    ),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -11,6 +11,7 @@ a YAML sequence of maps, policies as rmw strings, durations {sec, nsec}), and
 `rosbag2_storage_mcap/src/mcap_storage.cpp` (channel metadata `offered_qos_profiles`
 and `topic_type_hash`, metadata record `rosbag2` / `serialized_metadata`).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -83,8 +84,11 @@ def sample(store, msgtype: str, seed: float, stamp_ns: int | None = None):
 def plain(obj):
     """A message (rosbags dataclass or mcap_ros2 decoded object) as nested dicts and lists."""
     if dataclasses.is_dataclass(obj):
-        return {f.name: plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)
-                if not f.name.startswith('__') and not f.name.isupper()}   # ROS constants are upper case
+        return {
+            f.name: plain(getattr(obj, f.name))
+            for f in dataclasses.fields(obj)
+            if not f.name.startswith('__') and not f.name.isupper()
+        }  # ROS constants are upper case
     if hasattr(obj, '__slots__') and not isinstance(obj, (str, bytes)):
         return {k: plain(getattr(obj, k)) for k in obj.__slots__ if not k.startswith('_')}
     if isinstance(obj, np.ndarray):
@@ -109,8 +113,9 @@ def assert_same_fields(a, b, path='msg') -> None:
     elif isinstance(a, float) and math.isnan(a):
         assert isinstance(b, float) and math.isnan(b), f'{path}: NaN vs {b!r}'
     else:
-        assert a == b and type(a) is type(b) or (isinstance(a, (int, float)) and not isinstance(a, bool)
-                                                  and a == b), f'{path}: {a!r} vs {b!r}'
+        assert a == b and type(a) is type(b) or (isinstance(a, (int, float)) and not isinstance(a, bool) and a == b), (
+            f'{path}: {a!r} vs {b!r}'
+        )
 
 
 # --- Jazzy's metadata rules ------------------------------------------------------------
@@ -127,8 +132,17 @@ def _duration(d, what):
 def check_qos_v9(profiles, what='offered_qos_profiles') -> None:
     """A version 9 offered_qos_profiles value: a sequence of maps with rmw strings."""
     assert isinstance(profiles, list), f'{what}: version 9 stores a YAML sequence, got {type(profiles).__name__}'
-    keys = {'history', 'depth', 'reliability', 'durability', 'deadline', 'lifespan', 'liveliness',
-            'liveliness_lease_duration', 'avoid_ros_namespace_conventions'}
+    keys = {
+        'history',
+        'depth',
+        'reliability',
+        'durability',
+        'deadline',
+        'lifespan',
+        'liveliness',
+        'liveliness_lease_duration',
+        'avoid_ros_namespace_conventions',
+    }
     for i, q in enumerate(profiles):
         assert isinstance(q, dict) and set(q) == keys, f'{what}[{i}]: keys {sorted(q)}'
         for policy, allowed in QOS_POLICIES.items():
@@ -171,8 +185,10 @@ def check_jazzy_metadata(meta: dict, bag_dir: Path) -> dict:
         _uint64(f['duration']['nanoseconds'], 'files.duration')
         _uint64(f['message_count'], 'files.message_count')
     assert sum(f['message_count'] for f in info['files']) == info['message_count']
-    assert 'custom_data' in info and (info['custom_data'] is None or all(
-        isinstance(k, str) and isinstance(v, str) for k, v in info['custom_data'].items()))
+    assert 'custom_data' in info and (
+        info['custom_data'] is None
+        or all(isinstance(k, str) and isinstance(v, str) for k, v in info['custom_data'].items())
+    )
     assert isinstance(info['ros_distro'], str)
     return info
 
@@ -208,9 +224,19 @@ def write_ros2_bag_record_style(bag_dir: Path, topics: dict, messages, msg_dir: 
     bag_dir = Path(bag_dir)
     bag_dir.mkdir(parents=True)
     fname = f'{bag_dir.name}_0.mcap'
-    qos = [{'history': 'keep_last', 'depth': 1000, 'reliability': 'reliable', 'durability': 'volatile',
-            'deadline': INFINITE, 'lifespan': INFINITE, 'liveliness': 'automatic',
-            'liveliness_lease_duration': INFINITE, 'avoid_ros_namespace_conventions': False}]
+    qos = [
+        {
+            'history': 'keep_last',
+            'depth': 1000,
+            'reliability': 'reliable',
+            'durability': 'volatile',
+            'deadline': INFINITE,
+            'lifespan': INFINITE,
+            'liveliness': 'automatic',
+            'liveliness_lease_duration': INFINITE,
+            'avoid_ros_namespace_conventions': False,
+        }
+    ]
     counts = dict.fromkeys(topics, 0)
     t_min, t_max = None, None
     with open(bag_dir / fname, 'wb') as fh:
@@ -222,9 +248,15 @@ def write_ros2_bag_record_style(bag_dir: Path, topics: dict, messages, msg_dir: 
             if text is None:
                 raise ValueError(f'{msgtype}: only ceco_msgs types in this emulation')
             sid = w.register_schema(msgtype, 'ros2msg', text.encode())
-            channels[topic] = w.register_channel(topic, 'cdr', sid, metadata={
-                'offered_qos_profiles': yaml.safe_dump(qos, sort_keys=False),
-                'topic_type_hash': type_hashes.get(msgtype, '')})
+            channels[topic] = w.register_channel(
+                topic,
+                'cdr',
+                sid,
+                metadata={
+                    'offered_qos_profiles': yaml.safe_dump(qos, sort_keys=False),
+                    'topic_type_hash': type_hashes.get(msgtype, ''),
+                },
+            )
             encoders[topic] = serialize_dynamic(msgtype, text)[msgtype]
         for topic, t_ns, msg in messages:
             w.add_message(channels[topic], log_time=t_ns, publish_time=t_ns, data=encoders[topic](msg))
@@ -233,19 +265,42 @@ def write_ros2_bag_record_style(bag_dir: Path, topics: dict, messages, msg_dir: 
             t_max = t_ns if t_max is None else max(t_max, t_ns)
         n = sum(counts.values())
         info = {
-            'version': 9, 'storage_identifier': 'mcap',
+            'version': 9,
+            'storage_identifier': 'mcap',
             'duration': {'nanoseconds': (t_max - t_min) if n else 0},
-            'starting_time': {'nanoseconds_since_epoch': t_min if n else 0}, 'message_count': n,
+            'starting_time': {'nanoseconds_since_epoch': t_min if n else 0},
+            'message_count': n,
             'topics_with_message_count': [
-                {'topic_metadata': {'name': t, 'type': m, 'serialization_format': 'cdr',
-                                    'offered_qos_profiles': qos, 'type_description_hash': type_hashes.get(m, '')},
-                 'message_count': counts[t]} for t, m in topics.items()],
-            'compression_format': '', 'compression_mode': '', 'relative_file_paths': [fname],
-            'files': [{'path': fname, 'starting_time': {'nanoseconds_since_epoch': t_min if n else 0},
-                       'duration': {'nanoseconds': (t_max - t_min) if n else 0}, 'message_count': n}],
-            'custom_data': None, 'ros_distro': 'jazzy'}
+                {
+                    'topic_metadata': {
+                        'name': t,
+                        'type': m,
+                        'serialization_format': 'cdr',
+                        'offered_qos_profiles': qos,
+                        'type_description_hash': type_hashes.get(m, ''),
+                    },
+                    'message_count': counts[t],
+                }
+                for t, m in topics.items()
+            ],
+            'compression_format': '',
+            'compression_mode': '',
+            'relative_file_paths': [fname],
+            'files': [
+                {
+                    'path': fname,
+                    'starting_time': {'nanoseconds_since_epoch': t_min if n else 0},
+                    'duration': {'nanoseconds': (t_max - t_min) if n else 0},
+                    'message_count': n,
+                }
+            ],
+            'custom_data': None,
+            'ros_distro': 'jazzy',
+        }
         w.add_metadata('rosbag2', {'serialized_metadata': yaml.safe_dump(info, sort_keys=False)})
         w.finish()
     (bag_dir / 'metadata.yaml').write_text(
-        yaml.safe_dump({'rosbag2_bagfile_information': info}, sort_keys=False).replace('custom_data: null',
-                                                                                       'custom_data: ~'))
+        yaml.safe_dump({'rosbag2_bagfile_information': info}, sort_keys=False).replace(
+            'custom_data: null', 'custom_data: ~'
+        )
+    )

@@ -14,8 +14,9 @@ import pytest
 
 
 def pytest_configure(config):
-    config.addinivalue_line("markers", "extra(module): needs the optional package `module` "
-                                       "(requirements/analysis.txt); skipped without it")
+    config.addinivalue_line(
+        "markers", "extra(module): needs the optional package `module` (requirements/analysis.txt); skipped without it"
+    )
 
 
 def pytest_runtest_setup(item):

@@ -30,12 +30,27 @@ class ExternalBaseline(Node):
         super().__init__('external_controller')
         self.ts = float(os.environ['CECO_CONTROL_PERIOD_S'])
         self.integral, self.pulldown = 0.0, False
-        self.pub = self.create_publisher(AcCommand, 'hvac/command', QoSProfile(
-            history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.VOLATILE))
-        self.create_subscription(CabinState, 'cabin/state', self.on_state, QoSProfile(
-            history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.VOLATILE))
+        self.pub = self.create_publisher(
+            AcCommand,
+            'hvac/command',
+            QoSProfile(
+                history=HistoryPolicy.KEEP_LAST,
+                depth=100,
+                reliability=ReliabilityPolicy.RELIABLE,
+                durability=DurabilityPolicy.VOLATILE,
+            ),
+        )
+        self.create_subscription(
+            CabinState,
+            'cabin/state',
+            self.on_state,
+            QoSProfile(
+                history=HistoryPolicy.KEEP_LAST,
+                depth=1000,
+                reliability=ReliabilityPolicy.RELIABLE,
+                durability=DurabilityPolicy.VOLATILE,
+            ),
+        )
 
     def demand(self, t_cab_c):
         err = t_cab_c - SP
@@ -53,7 +68,7 @@ class ExternalBaseline(Node):
     def on_state(self, msg):
         k = round(msg.scenario_time_s / self.ts)
         if abs(msg.scenario_time_s - k * self.ts) > 1e-6:
-            return                                   # not a control step
+            return  # not a control step
         d = self.demand(msg.t_cab_c)
         cmd = AcCommand(step_index=k, control_period_s=self.ts, strategy='external', fallback=False)
         cmd.header.stamp = msg.header.stamp

@@ -1,4 +1,5 @@
 """Production ACC law (baseline and fallback): modes, bounds, anti-windup."""
+
 import math
 
 import numpy as np
@@ -101,7 +102,8 @@ def test_take_over_after_tracking_is_bumpless_and_then_the_law_rules():
     c = law3.step(35.0, 5.0)
     assert c.mode == "pulldown" and (c.mdot_bl_kgps, c.t_evap_sp_c) == pytest.approx((0.1, 6.0))
     later = [law3.step(35.0, 5.0) for _ in range(40)]
-    assert later[-1].mdot_bl_kgps == pytest.approx(0.17, abs=1e-3) and later[-1].t_evap_sp_c == pytest.approx(3.0, abs=0.02)
+    assert later[-1].mdot_bl_kgps == pytest.approx(0.17, abs=1e-3)
+    assert later[-1].t_evap_sp_c == pytest.approx(3.0, abs=0.02)
 
 
 def test_a_sensor_fault_at_take_over_holds_the_applied_command():
@@ -116,17 +118,18 @@ def test_allowance_ramps_the_setpoint_over_the_relaxed_bound():
     law = AccLaw(AccSettings(allowance_k_per_pmv=2.0))
     assert law.step(27.0, 5.0, pmv_ub=3.0).setpoint_c == pytest.approx(26.0 + 2.0 * 2.5)
     assert law.step(27.0, 5.0, pmv_ub=1.5).setpoint_c == pytest.approx(28.0)
-    assert law.step(27.0, 5.0, pmv_ub=0.5).setpoint_c == 26.0        # in the band: no allowance
-    assert law.step(27.0, 5.0).setpoint_c == 26.0                    # no bound given
+    assert law.step(27.0, 5.0, pmv_ub=0.5).setpoint_c == 26.0  # in the band: no allowance
+    assert law.step(27.0, 5.0).setpoint_c == 26.0  # no bound given
     plain = AccLaw()
-    assert plain.step(27.0, 5.0, pmv_ub=3.0).setpoint_c == 26.0       # off by default
+    assert plain.step(27.0, 5.0, pmv_ub=3.0).setpoint_c == 26.0  # off by default
 
 
 def test_sun_and_ambient_compensation():
-    s = AccSettings(sun_gain_k_per_kwm2=1.5, ambient_gain_k_per_k=0.1, sun_blower_gain_kgps_per_kwm2=0.03,
-                    sun_filter_tau_s=20.0)
+    s = AccSettings(
+        sun_gain_k_per_kwm2=1.5, ambient_gain_k_per_k=0.1, sun_blower_gain_kgps_per_kwm2=0.03, sun_filter_tau_s=20.0
+    )
     law = AccLaw(s)
-    c = law.step(20.0, 5.0, t_amb_c=35.0, solar_wm2=800.0)           # cabin cold: demand 0, blower at its floor
+    c = law.step(20.0, 5.0, t_amb_c=35.0, solar_wm2=800.0)  # cabin cold: demand 0, blower at its floor
     assert c.setpoint_c == pytest.approx(26.0 - 1.5 * 0.8 - 0.1 * 10.0)
     assert c.mdot_bl_kgps == pytest.approx(0.05 + 0.03 * 0.8)
     # first-order filter: a step from 800 to 0 W/m2 decays with exp(-dt/tau) per step
@@ -142,8 +145,15 @@ def test_sun_and_ambient_compensation():
     assert not AccSettings().compensated and s.compensated
 
 
-@pytest.mark.parametrize("field, value", [("allowance_k_per_pmv", -1.0), ("sun_filter_tau_s", 0.0),
-                                          ("sun_blower_gain_kgps_per_kwm2", -0.1), ("sun_gain_k_per_kwm2", math.nan)])
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("allowance_k_per_pmv", -1.0),
+        ("sun_filter_tau_s", 0.0),
+        ("sun_blower_gain_kgps_per_kwm2", -0.1),
+        ("sun_gain_k_per_kwm2", math.nan),
+    ],
+)
 def test_bad_compensation_settings(field, value):
     with pytest.raises(ValueError, match=field):
         AccSettings(**{field: value}).validate()

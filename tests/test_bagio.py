@@ -2,6 +2,7 @@
 (MCAP and SQLite 3, metadata version 9), read back by bagio under every topic naming,
 read by an independent reader (the `mcap` package with mcap_ros2), and a bag written
 the way `ros2 bag record` writes one read by bagio."""
+
 import csv
 import json
 import math
@@ -22,10 +23,15 @@ from bag_helpers import (
 
 from ceco_bringup import bag_writer, bagio
 
-TYPES = {'cabin/state': 'ceco_msgs/msg/CabinState', 'cabin/comfort': 'ceco_msgs/msg/Comfort',
-         'hvac/power': 'ceco_msgs/msg/AcPower', 'hvac/command': 'ceco_msgs/msg/AcCommand',
-         'controller/diagnostics': 'ceco_msgs/msg/ControllerDiagnostics',
-         'v2x/weather_preview': 'ceco_msgs/msg/WeatherPreview', 'v2x/traffic_preview': 'ceco_msgs/msg/TrafficPreview'}
+TYPES = {
+    'cabin/state': 'ceco_msgs/msg/CabinState',
+    'cabin/comfort': 'ceco_msgs/msg/Comfort',
+    'hvac/power': 'ceco_msgs/msg/AcPower',
+    'hvac/command': 'ceco_msgs/msg/AcCommand',
+    'controller/diagnostics': 'ceco_msgs/msg/ControllerDiagnostics',
+    'v2x/weather_preview': 'ceco_msgs/msg/WeatherPreview',
+    'v2x/traffic_preview': 'ceco_msgs/msg/TrafficPreview',
+}
 SEC = 1_000_000_000
 
 
@@ -45,8 +51,11 @@ def _msg(type_name, **fields):
             values[name] = fields[name]
         else:
             anno = cls.__dataclass_fields__[name].type
-            values[name] = {'str': '', 'bool': False, 'int': 0, 'float': 0.0}.get(anno) if anno in (
-                'str', 'bool', 'int', 'float') else np.zeros(0)
+            values[name] = (
+                {'str': '', 'bool': False, 'int': 0, 'float': 0.0}.get(anno)
+                if anno in ('str', 'bool', 'int', 'float')
+                else np.zeros(0)
+            )
     return cls(**values)
 
 
@@ -65,15 +74,41 @@ def _write_steps(w, steps, *, ns='/', skip_power=(), scale=1.0):
     pre = ns if ns is not None else ''
     for n in steps:
         t_ns = n * SEC
-        w.write(pre + 'cabin/state', t_ns, _ser(_msg('ceco_msgs/msg/CabinState', t=float(n), step_index=n,
-                                                     scenario_time_s=float(n), t_cab_c=scale * (40.0 - n),
-                                                     t_vent_c=10.0 + n)))
-        w.write(pre + 'cabin/comfort', t_ns, _ser(_msg('ceco_msgs/msg/Comfort', t=float(n), step_index=n,
-                                                       pmv=1.0 - 0.1 * n, pmv_lb=-0.5, pmv_ub=0.5)))
+        w.write(
+            pre + 'cabin/state',
+            t_ns,
+            _ser(
+                _msg(
+                    'ceco_msgs/msg/CabinState',
+                    t=float(n),
+                    step_index=n,
+                    scenario_time_s=float(n),
+                    t_cab_c=scale * (40.0 - n),
+                    t_vent_c=10.0 + n,
+                )
+            ),
+        )
+        w.write(
+            pre + 'cabin/comfort',
+            t_ns,
+            _ser(_msg('ceco_msgs/msg/Comfort', t=float(n), step_index=n, pmv=1.0 - 0.1 * n, pmv_lb=-0.5, pmv_ub=0.5)),
+        )
         if n not in skip_power:
-            w.write(pre + 'hvac/power', t_ns, _ser(_msg('ceco_msgs/msg/AcPower', t=float(n), step_index=n,
-                                                        p_comp_w=scale * (1000.0 + n), p_blower_w=50.0,
-                                                        mdot_bl_kgps=0.1, t_evap_sp_c=5.0)))
+            w.write(
+                pre + 'hvac/power',
+                t_ns,
+                _ser(
+                    _msg(
+                        'ceco_msgs/msg/AcPower',
+                        t=float(n),
+                        step_index=n,
+                        p_comp_w=scale * (1000.0 + n),
+                        p_blower_w=50.0,
+                        mdot_bl_kgps=0.1,
+                        t_evap_sp_c=5.0,
+                    )
+                ),
+            )
 
 
 @pytest.mark.parametrize('storage', bag_writer.STORAGES)
@@ -84,9 +119,9 @@ def test_round_trip_rows_are_the_complete_plant_steps(tmp_path, storage):
     w.close()
     assert (tmp_path / 'bag' / f'bag.{"mcap" if storage == "mcap" else "db3"}').is_file()
     ts = bagio.load_run_timeseries(tmp_path / 'bag')
-    assert list(ts)[:len(bagio.TIMESERIES_COLUMNS)] == list(bagio.TIMESERIES_COLUMNS)
-    assert ts['step_index'].tolist() == [0, 1, 2]               # sorted; step 3 has no power: no row
-    assert ts['t_cab_c'].tolist() == [40.0, 39.0, 38.0]         # first message (bag order) of a duplicated step
+    assert list(ts)[: len(bagio.TIMESERIES_COLUMNS)] == list(bagio.TIMESERIES_COLUMNS)
+    assert ts['step_index'].tolist() == [0, 1, 2]  # sorted; step 3 has no power: no row
+    assert ts['t_cab_c'].tolist() == [40.0, 39.0, 38.0]  # first message (bag order) of a duplicated step
     assert ts['p_comp_w'].tolist() == [1000.0, 1001.0, 1002.0]
     assert ts['pmv'].tolist() == pytest.approx([1.0, 0.9, 0.8])
     assert ts['mdot_bl_kgps'].tolist() == [0.1] * 3
@@ -98,7 +133,8 @@ def test_round_trip_rows_are_the_complete_plant_steps(tmp_path, storage):
 def test_metadata_decodes_under_jazzy_rosbag2_rules(tmp_path, storage):
     """metadata.yaml as `ros2 bag info` (Jazzy, version 9) reads it: every key it decodes,
     with its type; QoS as a sequence of rmw policy strings; infinite durations as rmw's."""
-    from ceco_ros import interfaces
+    interfaces = pytest.importorskip('ceco_ros.interfaces', reason='needs rclpy (the QoS profiles): the sourced workspace')
+
     w = bag_writer.BagWriter(tmp_path / 'bag', storage=storage)
     w.set_custom_data('strategy', 'ceco-ioch')
     for topic, (type_name, offered, _) in interfaces.STACK_TOPICS.items():
@@ -111,12 +147,25 @@ def test_metadata_decodes_under_jazzy_rosbag2_rules(tmp_path, storage):
     assert info['starting_time']['nanoseconds_since_epoch'] == 0 and info['duration']['nanoseconds'] == SEC
     assert info['custom_data'] == {'strategy': 'ceco-ioch'}
     topics = {t['topic_metadata']['name']: t for t in info['topics_with_message_count']}
-    assert set(topics) == {'/cabin/state', '/cabin/comfort', '/hvac/power', '/hvac/command', '/controller/diagnostics',
-                           '/v2x/weather_preview', '/v2x/traffic_preview', '/clock', '/rosout'}
+    assert set(topics) == {
+        '/cabin/state',
+        '/cabin/comfort',
+        '/hvac/power',
+        '/hvac/command',
+        '/controller/diagnostics',
+        '/v2x/weather_preview',
+        '/v2x/traffic_preview',
+        '/clock',
+        '/rosout',
+    }
     assert topics['/cabin/state']['message_count'] == 2 and topics['/hvac/command']['message_count'] == 0
     (state_qos,) = topics['/cabin/state']['topic_metadata']['offered_qos_profiles']
     assert (state_qos['history'], state_qos['depth'], state_qos['reliability'], state_qos['durability']) == (
-        'keep_last', 1000, 'reliable', 'volatile')
+        'keep_last',
+        1000,
+        'reliable',
+        'volatile',
+    )
     assert state_qos['deadline'] == {'sec': 9223372036, 'nsec': 854775807}
     (preview_qos,) = topics['/v2x/weather_preview']['topic_metadata']['offered_qos_profiles']
     assert (preview_qos['depth'], preview_qos['durability']) == (1, 'transient_local')
@@ -128,7 +177,7 @@ def test_type_hashes_equal_rosidl_generated_ones(tmp_path):
     ament = pytest.importorskip('ament_index_python.packages', reason='needs the sourced workspace')
     try:
         share = ament.get_package_share_directory('ceco_msgs')
-    except Exception:  # noqa: BLE001 (PackageNotFoundError and friends)
+    except Exception:  # PackageNotFoundError and friends
         pytest.skip('ceco_msgs is not installed: build the workspace (colcon build)')
     w = _writer(tmp_path / 'bag')
     w.close()
@@ -160,15 +209,16 @@ def test_flushed_bag_is_complete_on_disk_without_close(tmp_path, storage):
     assert bagio.load_run_timeseries(tmp_path / 'bag')['step_index'].tolist() == [0, 1, 2, 3]
     _write_steps(w, range(4, 6))
     w.flush()
-    _write_steps(w, range(6, 9))                       # not flushed: lost by a SIGKILL now
+    _write_steps(w, range(6, 9))  # not flushed: lost by a SIGKILL now
     shutil.copytree(tmp_path / 'bag', tmp_path / 'killed')
     assert bagio.load_run_timeseries(tmp_path / 'killed')['step_index'].tolist() == list(range(6))
     assert bagio.topic_counts(tmp_path / 'killed')['/cabin/state'] == 6
     w.close()
     assert bagio.load_run_timeseries(tmp_path / 'bag')['step_index'].tolist() == list(range(9))
     assert bagio.topic_counts(tmp_path / 'bag')['/cabin/state'] == 9
-    if storage == 'mcap':                              # and a reader that is not rosbags agrees
+    if storage == 'mcap':  # and a reader that is not rosbags agrees
         from mcap.reader import make_reader
+
         with open(tmp_path / 'killed' / 'bag.mcap', 'rb') as fh:
             r = make_reader(fh)
             assert r.get_summary().statistics.message_count == 18
@@ -182,14 +232,15 @@ def test_full_mcap_chunk_between_flushes_leaves_a_complete_file(tmp_path):
     w.flush()
     big = sample(bagio.typestore(), 'ceco_msgs/msg/WeatherPreview', 0)
     big.t_amb_c = np.arange(4000.0)
-    for k in range(40):                                # 40 x 32 kB: one chunk closes past 1 MiB
+    for k in range(40):  # 40 x 32 kB: one chunk closes past 1 MiB
         big.step_index = k
         w.write('/v2x/weather_preview', k * SEC, _ser(big))
     shutil.copytree(tmp_path / 'bag', tmp_path / 'killed')
     from mcap.reader import make_reader
+
     with open(tmp_path / 'killed' / 'bag.mcap', 'rb') as fh:
         n_on_disk = sum(1 for _ in make_reader(fh).iter_messages())
-    assert 30 <= n_on_disk < 40                        # the closed chunk, not the open one
+    assert 30 <= n_on_disk < 40  # the closed chunk, not the open one
     got = [m.step_index for _, _, m in bagio.read_messages(tmp_path / 'killed', ['v2x/weather_preview'])]
     assert got == list(range(n_on_disk))
     w.close()
@@ -197,12 +248,41 @@ def test_full_mcap_chunk_between_flushes_leaves_a_complete_file(tmp_path):
 
 def test_commands_and_diagnostics_loaders(tmp_path):
     w = _writer(tmp_path / 'bag')
-    w.write('/hvac/command', 1, _ser(_msg('ceco_msgs/msg/AcCommand', t=5.0, step_index=1, blower_flow_kgps=0.12,
-                                           evap_setpoint_c=4.5, strategy='ceco-ioch', fallback=True)))
-    w.write('/controller/diagnostics', 2, _ser(_msg(
-        'ceco_msgs/msg/ControllerDiagnostics', t=5.0, step_index=1, strategy='baseline', status='pi',
-        iterations=-1, solve_time_s=0.0015, cost_energy=math.nan, cost_comfort=math.nan, cost_ioch=math.nan,
-        eps_mean=math.nan, cost_total=math.nan)))
+    w.write(
+        '/hvac/command',
+        1,
+        _ser(
+            _msg(
+                'ceco_msgs/msg/AcCommand',
+                t=5.0,
+                step_index=1,
+                blower_flow_kgps=0.12,
+                evap_setpoint_c=4.5,
+                strategy='ceco-ioch',
+                fallback=True,
+            )
+        ),
+    )
+    w.write(
+        '/controller/diagnostics',
+        2,
+        _ser(
+            _msg(
+                'ceco_msgs/msg/ControllerDiagnostics',
+                t=5.0,
+                step_index=1,
+                strategy='baseline',
+                status='pi',
+                iterations=-1,
+                solve_time_s=0.0015,
+                cost_energy=math.nan,
+                cost_comfort=math.nan,
+                cost_ioch=math.nan,
+                eps_mean=math.nan,
+                cost_total=math.nan,
+            )
+        ),
+    )
     w.close()
     c = bagio.load_commands(tmp_path / 'bag')
     assert c['k'].tolist() == [1] and c['t_s'].tolist() == [5.0]
@@ -212,19 +292,19 @@ def test_commands_and_diagnostics_loaders(tmp_path):
     assert d['solve_time_ms'].tolist() == pytest.approx([1.5])
     bagio.write_diagnostics_csv(tmp_path / 'diagnostics.csv', d)
     rows = list(csv.DictReader(open(tmp_path / 'diagnostics.csv')))
-    assert list(rows[0])[:len(bagio.DIAGNOSTICS_COLUMNS)] == list(bagio.DIAGNOSTICS_COLUMNS)
+    assert list(rows[0])[: len(bagio.DIAGNOSTICS_COLUMNS)] == list(bagio.DIAGNOSTICS_COLUMNS)
     assert rows[0]['iterations'] == '' and rows[0]['cost_energy'] == '' and rows[0]['status'] == 'pi'
 
 
 # --- names ---------------------------------------------------------------------------
 def test_topic_namespace_of_each_naming():
-    assert bagio.topic_namespace('cabin/state', 'cabin/state') == ''           # relative (older ceco bags)
-    assert bagio.topic_namespace('/cabin/state', 'cabin/state') == ''          # fully qualified
+    assert bagio.topic_namespace('cabin/state', 'cabin/state') == ''  # relative (older ceco bags)
+    assert bagio.topic_namespace('/cabin/state', 'cabin/state') == ''  # fully qualified
     assert bagio.topic_namespace('/veh1/cabin/state', 'cabin/state') == '/veh1'
     assert bagio.topic_namespace('/fleet/veh1/cabin/state', 'cabin/state') == '/fleet/veh1'
     assert bagio.topic_namespace('/veh1/cabin/state_raw', 'cabin/state') is None
     assert bagio.topic_namespace('/veh1/xcabin/state', 'cabin/state') is None
-    assert bagio.topic_namespace('veh1/cabin/state', 'cabin/state') is None     # relative names carry no namespace
+    assert bagio.topic_namespace('veh1/cabin/state', 'cabin/state') is None  # relative names carry no namespace
     assert bagio.topic_namespace('/clock', '/clock') == ''
     assert bagio.topic_namespace('/veh1/clock', '/clock') is None
 
@@ -235,11 +315,13 @@ def test_bag_topic_map_picks_one_namespace():
     with pytest.raises(ValueError, match="several namespaces .*'/veh1', '/veh2'"):
         bagio.bag_topic_map(bag, names)
     assert bagio.bag_topic_map(bag, names, 'veh1') == {
-        '/veh1/cabin/state': 'cabin/state', '/veh1/hvac/power': 'hvac/power', '/clock': '/clock'}
+        '/veh1/cabin/state': 'cabin/state',
+        '/veh1/hvac/power': 'hvac/power',
+        '/clock': '/clock',
+    }
     assert bagio.bag_topic_map(bag, names, '/veh2/') == {'/veh2/cabin/state': 'cabin/state', '/clock': '/clock'}
     assert bagio.bag_topic_map(bag, names, '/') == {'/clock': '/clock'}
-    assert bagio.bag_topic_map(['/cabin/state', '/clock'], names) == {'/cabin/state': 'cabin/state',
-                                                                       '/clock': '/clock'}
+    assert bagio.bag_topic_map(['/cabin/state', '/clock'], names) == {'/cabin/state': 'cabin/state', '/clock': '/clock'}
 
 
 @pytest.mark.parametrize('ns', [None, '/', '/veh1/'], ids=['relative', 'fully-qualified', 'namespaced'])
@@ -274,14 +356,21 @@ def test_two_vehicle_bag_needs_a_namespace(tmp_path):
 def test_sim_time_stamps_are_the_header_stamps():
     store = bagio.typestore()
     stamps = bag_writer.SimTimeStamps()
-    log = store.serialize_cdr(sample(store, 'rcl_interfaces/msg/Log', 1, stamp_ns=1_700_000_000 * SEC),
-                              'rcl_interfaces/msg/Log')
-    assert stamps('rcl_interfaces/msg/Log', log) == 0                        # before any simulation time
-    for n, typ in enumerate(['ceco_msgs/msg/CabinState', 'ceco_msgs/msg/WeatherPreview', 'rosgraph_msgs/msg/Clock',
-                             'ceco_msgs/msg/ControllerDiagnostics']):
+    log = store.serialize_cdr(
+        sample(store, 'rcl_interfaces/msg/Log', 1, stamp_ns=1_700_000_000 * SEC), 'rcl_interfaces/msg/Log'
+    )
+    assert stamps('rcl_interfaces/msg/Log', log) == 0  # before any simulation time
+    for n, typ in enumerate(
+        [
+            'ceco_msgs/msg/CabinState',
+            'ceco_msgs/msg/WeatherPreview',
+            'rosgraph_msgs/msg/Clock',
+            'ceco_msgs/msg/ControllerDiagnostics',
+        ]
+    ):
         t_ns = 5 * n * SEC + 250_000_000
         assert stamps(typ, store.serialize_cdr(sample(store, typ, n, stamp_ns=t_ns), typ)) == t_ns
-    assert stamps('rcl_interfaces/msg/Log', log) == 15 * SEC + 250_000_000    # wall-clock stamp ignored
+    assert stamps('rcl_interfaces/msg/Log', log) == 15 * SEC + 250_000_000  # wall-clock stamp ignored
     # an older state after a newer one keeps its own stamp; the latest time does not go back
     state = 'ceco_msgs/msg/CabinState'
     old = store.serialize_cdr(sample(store, state, 0, stamp_ns=3 * SEC), state)
@@ -311,8 +400,9 @@ def test_lockstep_stamps_pace_the_bag_at_the_drive(tmp_path):
             data = store.serialize_cdr(sample(store, typ, n, stamp_ns=n * dt_ns), typ)
             w.write(topic, stamps(typ, data), data)
         if n % 10 == 5:
-            data = store.serialize_cdr(sample(store, 'rcl_interfaces/msg/Log', n, stamp_ns=1_700_000_000 * SEC),
-                                       'rcl_interfaces/msg/Log')
+            data = store.serialize_cdr(
+                sample(store, 'rcl_interfaces/msg/Log', n, stamp_ns=1_700_000_000 * SEC), 'rcl_interfaces/msg/Log'
+            )
             w.write('/rosout', stamps('rcl_interfaces/msg/Log', data), data)
     w.close()
     got = {}
@@ -336,10 +426,14 @@ def test_independent_mcap_reader_gets_the_same_messages(tmp_path):
     the embedded rosbag2 metadata are Jazzy's version 9."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
+
     store = bagio.typestore()
-    types = {'/' + t: m for t, m in TYPES.items()} | {'/clock': 'rosgraph_msgs/msg/Clock',
-                                                     '/rosout': 'rcl_interfaces/msg/Log'}
-    from ceco_ros import interfaces
+    types = {'/' + t: m for t, m in TYPES.items()} | {
+        '/clock': 'rosgraph_msgs/msg/Clock',
+        '/rosout': 'rcl_interfaces/msg/Log',
+    }
+    interfaces = pytest.importorskip('ceco_ros.interfaces', reason='needs rclpy (the QoS profiles): the sourced workspace')
+
     w = bag_writer.BagWriter(tmp_path / 'bag')
     for topic, typ in types.items():
         w.add_topic(topic, typ, interfaces.QOS_STATE)
@@ -353,12 +447,12 @@ def test_independent_mcap_reader_gets_the_same_messages(tmp_path):
     with open(tmp_path / 'bag' / 'bag.mcap', 'rb') as fh:
         reader = make_reader(fh, decoder_factories=[DecoderFactory()])
         summary = reader.get_summary()
-        decoded = [(ch.topic, m.log_time, plain(d))
-                   for _, ch, m, d in reader.iter_decoded_messages(log_time_order=False)]
+        decoded = [
+            (ch.topic, m.log_time, plain(d)) for _, ch, m, d in reader.iter_decoded_messages(log_time_order=False)
+        ]
         meta = {m.name: m.metadata for m in reader.iter_metadata()}
     assert summary.statistics.message_count == len(written) == 27
-    assert {ch.topic: sch.name for ch in summary.channels.values()
-            for sch in [summary.schemas[ch.schema_id]]} == types
+    assert {ch.topic: sch.name for ch in summary.channels.values() for sch in [summary.schemas[ch.schema_id]]} == types
     for ch in summary.channels.values():
         assert ch.message_encoding == 'cdr' and summary.schemas[ch.schema_id].encoding == 'ros2msg'
         check_qos_v9(yaml.safe_load(ch.metadata['offered_qos_profiles']), ch.topic)
@@ -367,8 +461,9 @@ def test_independent_mcap_reader_gets_the_same_messages(tmp_path):
     assert len(by_key) == len(written)
     for topic, t_ns, values in written:
         assert_same_fields(values, by_key[(topic, t_ns)], f'{topic}@{t_ns}')
-    check_jazzy_metadata({'rosbag2_bagfile_information': yaml.safe_load(meta['rosbag2']['serialized_metadata'])},
-                         tmp_path / 'bag')
+    check_jazzy_metadata(
+        {'rosbag2_bagfile_information': yaml.safe_load(meta['rosbag2']['serialized_metadata'])}, tmp_path / 'bag'
+    )
     # and rosbags reads the same values back
     back = [(t, ts, plain(m)) for t, ts, m in bagio.read_messages(tmp_path / 'bag')]
     for topic, t_ns, values in back:
@@ -378,11 +473,15 @@ def test_independent_mcap_reader_gets_the_same_messages(tmp_path):
 def _ros2_bag_record_bag(bag_dir, steps, ns=''):
     """A `ros2 bag record`-style bag (independent writer) of plant steps 0..steps-1."""
     store = bagio.typestore()
-    topics = {f'{ns}/cabin/state': TYPES['cabin/state'], f'{ns}/cabin/comfort': TYPES['cabin/comfort'],
-              f'{ns}/hvac/power': TYPES['hvac/power'], f'{ns}/hvac/command': TYPES['hvac/command']}
+    topics = {
+        f'{ns}/cabin/state': TYPES['cabin/state'],
+        f'{ns}/cabin/comfort': TYPES['cabin/comfort'],
+        f'{ns}/hvac/power': TYPES['hvac/power'],
+        f'{ns}/hvac/command': TYPES['hvac/command'],
+    }
     msgs = []
     for n in range(steps):
-        t_wall = 1_764_000_000 * SEC + n * 20_000_000           # receive times of an accelerated loop
+        t_wall = 1_764_000_000 * SEC + n * 20_000_000  # receive times of an accelerated loop
         for topic, typ in topics.items():
             if typ == TYPES['hvac/command'] and n % 5:
                 continue
@@ -395,6 +494,7 @@ def _ros2_bag_record_bag(bag_dir, steps, ns=''):
             msgs.append((topic, t_wall, m))
     hashes = {t: store.hash_rihs01(t) for t in topics.values()}
     from ceco_bringup.bagio import _msg_dir
+
     write_ros2_bag_record_style(bag_dir, topics, msgs, _msg_dir(), hashes)
 
 
@@ -402,7 +502,7 @@ def _ros2_bag_record_bag(bag_dir, steps, ns=''):
 def test_reads_a_bag_as_ros2_bag_record_writes_it(tmp_path, ns):
     _ros2_bag_record_bag(tmp_path / 'rec', 10, ns)
     meta = yaml.safe_load((tmp_path / 'rec' / 'metadata.yaml').read_text())
-    check_jazzy_metadata(meta, tmp_path / 'rec')              # the emulation follows the same rules
+    check_jazzy_metadata(meta, tmp_path / 'rec')  # the emulation follows the same rules
     ts = bagio.load_run_timeseries(tmp_path / 'rec')
     assert ts['step_index'].tolist() == list(range(10))
     assert ts['t_cab_c'].tolist() == [45.0 - 0.5 * n for n in range(10)]

@@ -20,12 +20,38 @@ def bench(tmp_path_factory):
     # the mild day (28 degC, 400 W/m2, cabin 39 degC at key-on): in its first 120 s the PI law at 25/27/29 degC
     # already regulates (on SC03's hot soak every set-point is still at full cooling then, issue 9's slower
     # pull-down), and the bound is relaxed all the time (3.0 until 60 s, 0.5 at 240 s)
-    case.write_text(yaml.safe_dump({'schema': CASE_SCHEMA, 'name': 'short', 'version': 1, 'scenario': 'sc03_mild',
-                                    'duration_s': 120, 'forecast_uncertainty': 'none', 'seeds': [0]}))
+    case.write_text(
+        yaml.safe_dump(
+            {
+                'schema': CASE_SCHEMA,
+                'name': 'short',
+                'version': 1,
+                'scenario': 'sc03_mild',
+                'duration_s': 120,
+                'forecast_uncertainty': 'none',
+                'seeds': [0],
+            }
+        )
+    )
     sens = d / 'sens.yaml'
-    sens.write_text(yaml.safe_dump({'schema': 'ceco-benchmark-sensitivity/1', 'case': 'short', 'parameters': [
-        {'parameter': 'plant.c_int_jpk', 'target': 'plant', 'nominal': {'c_int_jpk': 90000.0},
-         'low': {'c_int_jpk': 60000.0}, 'high': {'c_int_jpk': 120000.0}, 'source': 'test'}]}))
+    sens.write_text(
+        yaml.safe_dump(
+            {
+                'schema': 'ceco-benchmark-sensitivity/1',
+                'case': 'short',
+                'parameters': [
+                    {
+                        'parameter': 'plant.c_int_jpk',
+                        'target': 'plant',
+                        'nominal': {'c_int_jpk': 90000.0},
+                        'low': {'c_int_jpk': 60000.0},
+                        'high': {'c_int_jpk': 120000.0},
+                        'source': 'test',
+                    }
+                ],
+            }
+        )
+    )
     kw = dict(workers=1, progress=False, log=lambda *a, **k: None, setpoints_c=SETPOINTS, sensitivity_path=sens)
     first = cli.run_benchmark([str(case)], d / 'out', **kw)
     second = cli.run_benchmark([str(case)], d / 'out', **kw)
@@ -37,8 +63,11 @@ def test_results_document(bench):
     assert bs.check_results(json.loads((d / 'out' / 'results.json').read_text())) == []
     (case,) = doc['cases']
     names = {r['controller'] for r in case['runs']}
-    assert names == ({f'baseline@{s:.1f}' for s in SETPOINTS} | {f'baseline-allowance@{s:.1f}' for s in SETPOINTS}
-                     | {'baseline-compensated', 'baseline-compensated-allowance', *runner.STRATEGY_NAMES})
+    assert names == (
+        {f'baseline@{s:.1f}' for s in SETPOINTS}
+        | {f'baseline-allowance@{s:.1f}' for s in SETPOINTS}
+        | {'baseline-compensated', 'baseline-compensated-allowance', *runner.STRATEGY_NAMES}
+    )
     assert all(r['status'] == 'ok' and r['source'] == 'simulator' for r in case['runs'])
     assert {r['seed'] for r in case['runs'] if r['kind'] == 'strategy'} == {0}
     assert {r['seed'] for r in case['runs'] if r['kind'] != 'strategy'} == {None}
@@ -49,8 +78,11 @@ def test_results_document(bench):
     assert by['baseline-allowance@27.0']['energy_kwh'] < by['baseline@27.0']['energy_kwh']
     # a warmer set-point uses less energy and is less comfortable (the law regulates within 120 s on the mild day)
     assert by['baseline@29.0']['energy_kwh'] < by['baseline@27.0']['energy_kwh'] < by['baseline@25.0']['energy_kwh']
-    assert (by['baseline@29.0']['discomfort_pmvh'] > by['baseline@27.0']['discomfort_pmvh']
-            > by['baseline@25.0']['discomfort_pmvh'])
+    assert (
+        by['baseline@29.0']['discomfort_pmvh']
+        > by['baseline@27.0']['discomfort_pmvh']
+        > by['baseline@25.0']['discomfort_pmvh']
+    )
     # the strategies that follow the relaxed bound are compared with the allowance front (inside its range)
     for name in ('ceco', 'ceco-ioch'):
         m = case['matched'][name]
@@ -61,12 +93,12 @@ def test_results_document(bench):
     for name in ('baseline@27.0', 'ceco'):
         k = by[name]
         assert 0.0 <= k['draught_pct'] <= 100.0 and k['draught_max_pct'] == pytest.approx(100.0, abs=1.0)  # face jet
-        assert k['fog_margin_min_k'] > 5.0 and k['fog_risk_pct'] == 0.0       # a sunny day's warm glass
-        assert 0.0 < k['iso7730_invalid_pct'] <= 100.0                        # the pull-down is outside ISO 7730
-        assert k['i_pmv_clipped'] < k['i_pmv']                                # PMV above 3 at key-on
+        assert k['fog_margin_min_k'] > 5.0 and k['fog_risk_pct'] == 0.0  # a sunny day's warm glass
+        assert 0.0 < k['iso7730_invalid_pct'] <= 100.0  # the pull-down is outside ISO 7730
+        assert k['i_pmv_clipped'] < k['i_pmv']  # PMV above 3 at key-on
     notes = next(r for r in case['runs'] if r['controller'] == 'ceco')['kpi_notes']
     assert all(by['ceco'][k] is None for k in notes)
-    assert set(notes) >= {'discomfort_band_pmvh', 'pmv_mean_band'}           # the band applies from 240 s
+    assert set(notes) >= {'discomfort_band_pmvh', 'pmv_mean_band'}  # the band applies from 240 s
     assert not set(notes) & {'draught_pct', 'fog_margin_min_k', 'iso7730_invalid_pct'}
     assert doc['settings']['setpoints_c'] == list(SETPOINTS) and not doc['quick']
     lines = (d / 'out' / 'kpis.csv').read_text().splitlines()
@@ -75,7 +107,7 @@ def test_results_document(bench):
 
 def test_resume_runs_nothing_and_gives_the_same_results(bench):
     _, first, second = bench
-    assert first['timing']['ran_now'] == 36 and second['timing']['ran_now'] == 0      # 12 nominal + 2 x 12
+    assert first['timing']['ran_now'] == 36 and second['timing']['ran_now'] == 0  # 12 nominal + 2 x 12
     assert second['cases'][0]['matched'] == first['cases'][0]['matched']
     assert second['cases'][0]['sensitivity'] == first['cases'][0]['sensitivity']
 
@@ -86,7 +118,7 @@ def test_sensitivity_entries(bench):
     assert s['parameter'] == 'plant.c_int_jpk' and (s['low'], s['nominal'], s['high']) == (60000.0, 90000.0, 120000.0)
     assert s['failed_low'] == s['failed_high'] == 0
     assert set(s['matched_low']) == set(doc['cases'][0]['matched'])
-    assert s['matched_low'] != s['matched_high']                     # the interior's capacity matters
+    assert s['matched_low'] != s['matched_high']  # the interior's capacity matters
 
 
 def test_report_files(bench):
@@ -103,8 +135,11 @@ def test_validate_command(bench, tmp_path, capsys):
     d, _, _ = bench
     assert cli.main(['--validate', str(d / 'out' / 'results.json')]) == 0
     doc = json.loads((d / 'out' / 'results.json').read_text())
-    doc['cases'][0]['matched']['ceco']['energy_saving_pct'] = 99.0 if doc['cases'][0]['matched']['ceco'][
-        'energy_saving_pct'] is None else -doc['cases'][0]['matched']['ceco']['energy_saving_pct'] - 1.0
+    doc['cases'][0]['matched']['ceco']['energy_saving_pct'] = (
+        99.0
+        if doc['cases'][0]['matched']['ceco']['energy_saving_pct'] is None
+        else -doc['cases'][0]['matched']['ceco']['energy_saving_pct'] - 1.0
+    )
     bad = tmp_path / 'bad.json'
     bad.write_text(json.dumps(doc))
     assert cli.main(['--validate', str(bad)]) == 1
@@ -118,9 +153,10 @@ def test_baseline_constants_and_controllers():
 
     b = runner.load_baselines()
     assert b.tuned_on == 'sc03-paper' and b.allowance_k_per_pmv > 0 and len(b.sha) == 16
-    frozen = yaml.safe_load(resources.files('ceco_bringup').joinpath('data', 'benchmark', 'baselines.yaml')
-                            .read_text('utf-8'))
-    assert frozen['tuned_on_sha'] == load_case('sc03-paper').sha()        # tuned on the case as it is now
+    frozen = yaml.safe_load(
+        resources.files('ceco_bringup').joinpath('data', 'benchmark', 'baselines.yaml').read_text('utf-8')
+    )
+    assert frozen['tuned_on_sha'] == load_case('sc03-paper').sha()  # tuned on the case as it is now
     # the comfort-neutral set-point of the rule lies inside the family, the compensated law's too
     assert runner.SETPOINTS_C[0] <= frozen['neutral_setpoint_c'] <= runner.SETPOINTS_C[-1]
     assert runner.SETPOINTS_C[0] <= frozen['compensation']['setpoint_c'] <= runner.SETPOINTS_C[-1]
@@ -136,8 +172,9 @@ def test_baseline_constants_and_controllers():
 
 
 def _write_sens(path, params):
-    path.write_text(yaml.safe_dump({'schema': 'ceco-benchmark-sensitivity/1', 'case': 'sc03-paper',
-                                    'parameters': params}))
+    path.write_text(
+        yaml.safe_dump({'schema': 'ceco-benchmark-sensitivity/1', 'case': 'sc03-paper', 'parameters': params})
+    )
     return path
 
 
@@ -149,41 +186,72 @@ def test_sensitivity_table_names_the_new_comfort_model(tmp_path):
     names = {p.parameter for p in params}
     # issue 10's list on the physics of issue 9: jet exposure and mixing, air-speed map, sun, radiant weights,
     # the humidity source; the plant's least certain parameters incl. the new duct mass
-    assert names >= {'comfort.air.jet_body_fraction', 'comfort.air.r_jet_temperature', 'comfort.air.k_jet',
-                     'comfort.air.c_room', 'comfort.solar.f_bes', 'comfort.radiant.f_interior', 'comfort.pa_pa',
-                     'plant.c_int_jpk', 'plant.u_shell_in_wm2k', 'plant.ua_duct_wpk', 'plant.c_duct_jpk'}
+    assert names >= {
+        'comfort.air.jet_body_fraction',
+        'comfort.air.r_jet_temperature',
+        'comfort.air.k_jet',
+        'comfort.air.c_room',
+        'comfort.solar.f_bes',
+        'comfort.radiant.f_interior',
+        'comfort.pa_pa',
+        'plant.c_int_jpk',
+        'plant.u_shell_in_wm2k',
+        'plant.ua_duct_wpk',
+        'plant.c_duct_jpk',
+    }
     cp, pp = ComfortParams(), PlantParams()
     for p in params:
         assert p.parameter == f'{p.target}.{next(iter(p.nominal))}'
         for field, value in p.nominal.items():
             obj = cp if p.target == 'comfort' else pp
             if field == 'pa_pa':
-                assert value is None                   # nominal: the plant's moisture balance
+                assert value is None  # nominal: the plant's moisture balance
                 continue
             for part in field.split('.'):
                 obj = getattr(obj, part)
             assert obj == value
         assert p.low != p.nominal != p.high
     radiant = next(p for p in params if p.parameter == 'comfort.radiant.f_interior')
-    for end in (radiant.low, radiant.high):               # the angle factors still sum to 1
+    for end in (radiant.low, radiant.high):  # the angle factors still sum to 1
         assert end['radiant.f_interior'] + end['radiant.f_shell'] + cp.radiant.f_glass == pytest.approx(1.0)
 
 
-@pytest.mark.parametrize('entry, message', [
-    ({'nominal': {'a2': 0.25}, 'low': {'a2': 0.1}, 'high': {'a2': 0.4}}, 'ComfortParams.a2: no such field'),
-    ({'nominal': {'air.jet_bodyfraction': 0.1}, 'low': {'air.jet_bodyfraction': 0.05},
-      'high': {'air.jet_bodyfraction': 0.2}}, 'ComfortParams.air.jet_bodyfraction: no such field'),
-    ({'nominal': {'air.jet_body_fraction': 0.15}, 'low': {'air.jet_body_fraction': 0.05},
-      'high': {'air.jet_body_fraction': 0.2}}, "differs from the code's default 0.1"),
-    ({'nominal': {'radiant.f_glass': 0.22}, 'low': {'radiant.f_glass': 0.14}, 'high': {'radiant.f_glass': 0.3}},
-     'RadiantParams.f_interior: the angle factors must sum to 1'),
-    ({'nominal': {'air': 1.0}, 'low': {'air': 0.5}, 'high': {'air': 2.0}}, 'override its fields by dotted name'),
-    ({'nominal': {'pa_pa': 1700.0}, 'low': {'pa_pa': 860.0}, 'high': {'pa_pa': 1800.0}},
-     "differs from the code's default None"),
-    ({'nominal': {'pa_pa': None}, 'low': {'pa_pa': -5.0}, 'high': {'pa_pa': 1700.0}}, 'pa_pa (scored cabin vapour'),
-    ({'nominal': {'solar.f_bes': 0.5}, 'low': {'solar.asw': 0.57}, 'high': {'solar.f_bes': 0.75}},
-     'must set the same fields'),
-])
+@pytest.mark.parametrize(
+    'entry, message',
+    [
+        ({'nominal': {'a2': 0.25}, 'low': {'a2': 0.1}, 'high': {'a2': 0.4}}, 'ComfortParams.a2: no such field'),
+        (
+            {
+                'nominal': {'air.jet_bodyfraction': 0.1},
+                'low': {'air.jet_bodyfraction': 0.05},
+                'high': {'air.jet_bodyfraction': 0.2},
+            },
+            'ComfortParams.air.jet_bodyfraction: no such field',
+        ),
+        (
+            {
+                'nominal': {'air.jet_body_fraction': 0.15},
+                'low': {'air.jet_body_fraction': 0.05},
+                'high': {'air.jet_body_fraction': 0.2},
+            },
+            "differs from the code's default 0.1",
+        ),
+        (
+            {'nominal': {'radiant.f_glass': 0.22}, 'low': {'radiant.f_glass': 0.14}, 'high': {'radiant.f_glass': 0.3}},
+            'RadiantParams.f_interior: the angle factors must sum to 1',
+        ),
+        ({'nominal': {'air': 1.0}, 'low': {'air': 0.5}, 'high': {'air': 2.0}}, 'override its fields by dotted name'),
+        (
+            {'nominal': {'pa_pa': 1700.0}, 'low': {'pa_pa': 860.0}, 'high': {'pa_pa': 1800.0}},
+            "differs from the code's default None",
+        ),
+        ({'nominal': {'pa_pa': None}, 'low': {'pa_pa': -5.0}, 'high': {'pa_pa': 1700.0}}, 'pa_pa (scored cabin vapour'),
+        (
+            {'nominal': {'solar.f_bes': 0.5}, 'low': {'solar.asw': 0.57}, 'high': {'solar.f_bes': 0.75}},
+            'must set the same fields',
+        ),
+    ],
+)
 def test_sensitivity_table_errors_name_the_field(tmp_path, entry, message):
     path = _write_sens(tmp_path / 's.yaml', [{'parameter': 'comfort.x', 'target': 'comfort', **entry}])
     with pytest.raises(ValueError, match=message.replace('(', r'\(').replace('.', r'\.')):
@@ -191,8 +259,18 @@ def test_sensitivity_table_errors_name_the_field(tmp_path, entry, message):
 
 
 def test_plant_sensitivity_field_is_checked(tmp_path):
-    path = _write_sens(tmp_path / 's.yaml', [{'parameter': 'plant.c_int', 'target': 'plant', 'nominal': {'c_int': 1.0},
-                                              'low': {'c_int': 0.5}, 'high': {'c_int': 2.0}}])
+    path = _write_sens(
+        tmp_path / 's.yaml',
+        [
+            {
+                'parameter': 'plant.c_int',
+                'target': 'plant',
+                'nominal': {'c_int': 1.0},
+                'low': {'c_int': 0.5},
+                'high': {'c_int': 2.0},
+            }
+        ],
+    )
     with pytest.raises(ValueError, match=r'PlantParams\.c_int: no such field'):
         runner.load_sensitivity(path)
 
@@ -216,15 +294,17 @@ def test_comfort_overrides_reach_the_scored_pmv_only():
     nominal = last()
     jet = last(comfort_overrides={'air.jet_body_fraction': 0.2})
     pa = last(comfort_overrides={'pa_pa': 1700.0})
-    assert jet.meas == nominal.meas and pa.meas == nominal.meas              # the plant is untouched
-    assert jet.comfort.ta_occ_c < nominal.comfort.ta_occ_c - 0.5             # more of the body in the cold jet
+    assert jet.meas == nominal.meas and pa.meas == nominal.meas  # the plant is untouched
+    assert jet.comfort.ta_occ_c < nominal.comfort.ta_occ_c - 0.5  # more of the body in the cold jet
     assert jet.pmv < nominal.pmv - 0.3
-    assert nominal.comfort.pa_pa < 1200.0 and pa.comfort.pa_pa == 1700.0     # the moisture balance: ~860 Pa
-    assert pa.pmv > nominal.pmv + 0.05                                        # the paper's humid cabin is warmer
-    assert pa.comfort.t_dew_c == nominal.comfort.t_dew_c                     # dew point: the plant's humidity
+    assert nominal.comfort.pa_pa < 1200.0 and pa.comfort.pa_pa == 1700.0  # the moisture balance: ~860 Pa
+    assert pa.pmv > nominal.pmv + 0.05  # the paper's humid cabin is warmer
+    assert pa.comfort.t_dew_c == nominal.comfort.t_dew_c  # dew point: the plant's humidity
     assert ScenarioPlant(sc, 1.0, comfort_overrides={'solar.f_bes': 0.25}).comfort.solar.f_bes == 0.25
-    for bad, msg in (((('air.jet_bodyfraction', 0.2),), r'ComfortParams\.air\.jet_bodyfraction: no such field'),
-                     ((('solar.f_bes', 1.5),), r'SolarParams\.f_bes must be a finite number in \[0\.0, 1\.0\]')):
+    for bad, msg in (
+        ((('air.jet_bodyfraction', 0.2),), r'ComfortParams\.air\.jet_bodyfraction: no such field'),
+        ((('solar.f_bes', 1.5),), r'SolarParams\.f_bes must be a finite number in \[0\.0, 1\.0\]'),
+    ):
         with pytest.raises(ValueError, match=msg):
             SimSettings(comfort_overrides=bad).validate()
     with pytest.raises(ValueError, match=r'PlantParams\.c_intjpk: no such field'):
@@ -235,10 +315,19 @@ def test_plane_figure_with_equal_seeds(tmp_path):
     """Seeds with the same point: the mean can exceed their max by an ulp (0.1 * 3 / 3); no negative whisker."""
     from ceco_bringup.benchmark.figures import fig_plane
 
-    run = {'controller': 'ceco', 'kind': 'strategy', 'status': 'ok', 'kpis': {'discomfort_pmvh': 0.1,
-                                                                               'energy_kwh': 0.1}}
-    case = {'case': 'c', 'fronts': {'plain': [{'controller': 'baseline@25.0', 'discomfort': 0.05, 'energy': 0.2,
-                                               'efficient': True}], 'allowance': []},
-            'runs': [dict(run, seed=s) for s in range(3)]}
+    run = {
+        'controller': 'ceco',
+        'kind': 'strategy',
+        'status': 'ok',
+        'kpis': {'discomfort_pmvh': 0.1, 'energy_kwh': 0.1},
+    }
+    case = {
+        'case': 'c',
+        'fronts': {
+            'plain': [{'controller': 'baseline@25.0', 'discomfort': 0.05, 'energy': 0.2, 'efficient': True}],
+            'allowance': [],
+        },
+        'runs': [dict(run, seed=s) for s in range(3)],
+    }
     out = fig_plane(case, tmp_path / 'p.png', {'front_axis': 'discomfort_pmvh', 'energy_axis': 'energy_kwh'})
     assert out.stat().st_size > 1000

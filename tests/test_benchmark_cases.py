@@ -34,8 +34,14 @@ def test_overrides_and_sha():
 
 
 def _write(tmp_path, **over):
-    d = {"schema": bc.CASE_SCHEMA, "name": "my-case", "version": 1, "scenario": "sc03",
-         "forecast_uncertainty": "low", "seeds": [0, 1, 2, 3, 4]}
+    d = {
+        "schema": bc.CASE_SCHEMA,
+        "name": "my-case",
+        "version": 1,
+        "scenario": "sc03",
+        "forecast_uncertainty": "low",
+        "seeds": [0, 1, 2, 3, 4],
+    }
     d.update(over)
     d = {k: v for k, v in d.items() if v is not ...}
     p = tmp_path / "my-case.yaml"
@@ -45,27 +51,33 @@ def _write(tmp_path, **over):
 
 def test_a_user_case_file_with_a_relative_scenario(tmp_path):
     sc = tmp_path / "hot.yaml"
-    sc.write_text(yaml.safe_dump(yaml.safe_load(
-        (bc.resources.files("ceco_v2x_preview") / "data" / "scenarios" / "sc03.yaml").read_text())
-        | {"name": "hot"}))
+    sc.write_text(
+        yaml.safe_dump(
+            yaml.safe_load((bc.resources.files("ceco_v2x_preview") / "data" / "scenarios" / "sc03.yaml").read_text())
+            | {"name": "hot"}
+        )
+    )
     c = bc.load_case(_write(tmp_path, scenario="hot.yaml", duration_s=120))
     assert c.load_scenario().name == "hot" and c.load_scenario().duration_s == 120.0
 
 
-@pytest.mark.parametrize("over, field", [
-    ({"schema": "ceco-benchmark-case/2"}, "schema"),
-    ({"name": "has space"}, "name"),
-    ({"version": 0}, "version"),
-    ({"version": 1.5}, "version"),
-    ({"forecast_uncertainty": "extreme"}, "forecast_uncertainty"),
-    ({"seeds": [0, 1]}, "seeds"),
-    ({"seeds": [0, 0, 1, 2, 3]}, "seeds"),
-    ({"forecast_uncertainty": "none", "seeds": [0, 1]}, "seeds"),
-    ({"duration_s": -5}, "duration_s"),
-    ({"scenario": "no_such_scenario"}, "scenario"),
-    ({"colour": "red"}, "colour"),
-    ({"seeds": ...}, "seeds"),
-])
+@pytest.mark.parametrize(
+    "over, field",
+    [
+        ({"schema": "ceco-benchmark-case/2"}, "schema"),
+        ({"name": "has space"}, "name"),
+        ({"version": 0}, "version"),
+        ({"version": 1.5}, "version"),
+        ({"forecast_uncertainty": "extreme"}, "forecast_uncertainty"),
+        ({"seeds": [0, 1]}, "seeds"),
+        ({"seeds": [0, 0, 1, 2, 3]}, "seeds"),
+        ({"forecast_uncertainty": "none", "seeds": [0, 1]}, "seeds"),
+        ({"duration_s": -5}, "duration_s"),
+        ({"scenario": "no_such_scenario"}, "scenario"),
+        ({"colour": "red"}, "colour"),
+        ({"seeds": ...}, "seeds"),
+    ],
+)
 def test_bad_case_files_name_the_field(tmp_path, over, field):
     with pytest.raises(bc.CaseError, match=f"^{field}"):
         bc.load_case(_write(tmp_path, **over))

@@ -26,24 +26,36 @@ NODE = Path(__file__).with_name('ext_controller_baseline.py')
 
 
 def test_external_controller_over_dds_scores_as_the_builtin_baseline(tmp_path):
-    case = case_from_dict({'schema': 'ceco-benchmark-case/1', 'name': 'sc03-90s', 'version': 1, 'scenario': 'sc03',
-                           'duration_s': 90, 'forecast_uncertainty': 'none', 'seeds': [0]})
+    case = case_from_dict(
+        {
+            'schema': 'ceco-benchmark-case/1',
+            'name': 'sc03-90s',
+            'version': 1,
+            'scenario': 'sc03',
+            'duration_s': 90,
+            'forecast_uncertainty': 'none',
+            'seeds': [0],
+        }
+    )
     code = code_fingerprint()
     builtin = runner.ControllerSpec('baseline@26.0', 'baseline', 'baseline', (('setpoint_c', 26.0),), 26.0)
     ext = runner.ControllerSpec('external:pi', 'external', 'external')
     (cell_b,), (cell_e,) = runner.case_cells(case, [builtin], code), runner.case_cells(case, [ext], code)
     as_dict = lambda c: {'id': c.id, 'axes': c.axes, 'spec': c.spec}  # noqa: E731
     ref = runner.run_benchmark_cell(as_dict(cell_b))
-    row = external.run_external_cell(as_dict(cell_e), [sys.executable, str(NODE)], tmp_path / 'ext',
-                                     command_timeout_s=10.0)
+    row = external.run_external_cell(
+        as_dict(cell_e), [sys.executable, str(NODE)], tmp_path / 'ext', command_timeout_s=10.0
+    )
     assert ref['status'] == 'ok' and row['status'] == 'ok', row['error']
     assert row['source'] == 'dds' and row['kind'] == 'external'
     for key, value in ref['kpis'].items():
         if key.startswith('time_ratio'):
             continue
-        assert row['kpis'][key] == value, key                      # bit-identical over DDS
+        assert row['kpis'][key] == value, key  # bit-identical over DDS
     assert row['kpi_notes'].keys() - {'time_ratio_mean', 'time_ratio_max'} == ref['kpi_notes'].keys() - {
-        'time_ratio_mean', 'time_ratio_max'}
+        'time_ratio_mean',
+        'time_ratio_max',
+    }
     # the time ratio is measured over DDS: 18 control steps, each one finite and positive
     assert 0.0 < row['kpis']['time_ratio_mean'] <= row['kpis']['time_ratio_max'] < math.inf
     assert row['kpis']['fallback_steps'] == 0.0 and ref['kpis']['energy_kwh'] > 0.0
@@ -52,16 +64,30 @@ def test_external_controller_over_dds_scores_as_the_builtin_baseline(tmp_path):
 def test_a_controller_that_never_answers_is_scored_with_the_plant_fallback(tmp_path):
     """A node that subscribes but never publishes a command: the plant's watchdog applies the ACC law
     every control period and every step counts as a fallback step."""
-    case = case_from_dict({'schema': 'ceco-benchmark-case/1', 'name': 'sc03-20s', 'version': 1, 'scenario': 'sc03',
-                           'duration_s': 20, 'forecast_uncertainty': 'none', 'seeds': [0]})
+    case = case_from_dict(
+        {
+            'schema': 'ceco-benchmark-case/1',
+            'name': 'sc03-20s',
+            'version': 1,
+            'scenario': 'sc03',
+            'duration_s': 20,
+            'forecast_uncertainty': 'none',
+            'seeds': [0],
+        }
+    )
     silent = tmp_path / 'silent.py'
     silent.write_text(NODE.read_text().replace('        self.pub.publish(cmd)\n', '        pass\n'))
-    (cell,) = runner.case_cells(case, [runner.ControllerSpec('external:silent', 'external', 'external')],
-                                code_fingerprint())
-    row = external.run_external_cell({'id': cell.id, 'axes': cell.axes, 'spec': cell.spec},
-                                     [sys.executable, str(silent)], tmp_path / 'ext', command_timeout_s=0.5)
+    (cell,) = runner.case_cells(
+        case, [runner.ControllerSpec('external:silent', 'external', 'external')], code_fingerprint()
+    )
+    row = external.run_external_cell(
+        {'id': cell.id, 'axes': cell.axes, 'spec': cell.spec},
+        [sys.executable, str(silent)],
+        tmp_path / 'ext',
+        command_timeout_s=0.5,
+    )
     assert row['status'] == 'ok', row['error']
-    assert row['kpis']['fallback_steps'] == 4.0                     # 20 s / Ts 5 s, all from the plant's law
+    assert row['kpis']['fallback_steps'] == 4.0  # 20 s / Ts 5 s, all from the plant's law
 
 
 def test_uncertainty_level_over_dds_equals_the_simulator(tmp_path):
@@ -79,9 +105,28 @@ def test_uncertainty_level_over_dds_equals_the_simulator(tmp_path):
 
     quality = 'uncertain:high,seed=4'
     out = tmp_path / 'run'
-    p = subprocess.run([sys.executable, '-m', 'ceco_bringup.cli', 'run', '--scenario', 'sc03', '--strategy',
-                        'ceco-ioch', '--duration-s', '40', '--preview', quality, '--out', str(out), '--no-progress'],
-                       capture_output=True, text=True, timeout=300)
+    p = subprocess.run(
+        [
+            sys.executable,
+            '-m',
+            'ceco_bringup.cli',
+            'run',
+            '--scenario',
+            'sc03',
+            '--strategy',
+            'ceco-ioch',
+            '--duration-s',
+            '40',
+            '--preview',
+            quality,
+            '--out',
+            str(out),
+            '--no-progress',
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert p.returncode == 0, p.stdout + p.stderr
     sc, q = load_scenario('sc03'), parse_quality(quality)
     for _, _, m in bagio.read_messages(out / 'bag', ('v2x/weather_preview', 'v2x/traffic_preview')):
@@ -93,7 +138,8 @@ def test_uncertainty_level_over_dds_equals_the_simulator(tmp_path):
             np.testing.assert_array_equal(np.asarray(m.speed_mps), ref.speed_mps)
     sim = simulate('sc03', 'ceco-ioch', SimSettings(duration_s=40.0, preview_quality=q, progress=False)).metrics
     metrics = json.loads((out / 'metrics.json').read_text())
-    assert any(make_previews(sc, 5.0, 5.0, 7, q).t_amb_c != make_previews(sc, 5.0, 5.0, 7, parse_quality(
-        'perfect')).t_amb_c)                                          # the level does change the previews
+    assert any(
+        make_previews(sc, 5.0, 5.0, 7, q).t_amb_c != make_previews(sc, 5.0, 5.0, 7, parse_quality('perfect')).t_amb_c
+    )  # the level does change the previews
     for key in ('E_tot_J', 'I_pmv', 'otc_violation_pct'):
         assert metrics[key] == sim[key], key

@@ -50,13 +50,22 @@ def test_a_point_on_the_front_is_not_dominated_and_saves_nothing():
 
 def test_u_shaped_family_drops_its_cold_branch():
     # 22 degC: cold and expensive; 25 degC the comfort optimum; 27 degC warm and cheap.
-    fam = {"baseline@22.0": (0.08, 0.44), "baseline@24.0": (0.05, 0.40), "baseline@25.0": (0.04, 0.37),
-           "baseline@26.0": (0.05, 0.33), "baseline@27.0": (0.07, 0.30)}
+    fam = {
+        "baseline@22.0": (0.08, 0.44),
+        "baseline@24.0": (0.05, 0.40),
+        "baseline@25.0": (0.04, 0.37),
+        "baseline@26.0": (0.05, 0.33),
+        "baseline@27.0": (0.07, 0.30),
+    }
     f = fr.build_front(fam)
     assert [p.name for p in f.vertices] == ["baseline@25.0", "baseline@26.0", "baseline@27.0"]
     assert {p.name: p.efficient for p in f.points} == {
-        "baseline@22.0": False, "baseline@24.0": False, "baseline@25.0": True, "baseline@26.0": True,
-        "baseline@27.0": True}
+        "baseline@22.0": False,
+        "baseline@24.0": False,
+        "baseline@25.0": True,
+        "baseline@26.0": True,
+        "baseline@27.0": True,
+    }
     # between 26 and 27 degC: D = 0.06 -> E = 0.315
     m = fr.match(f, 0.06, 0.30)
     assert m.energy_saving_pct == pytest.approx(100.0 * 0.015 / 0.315)
@@ -66,11 +75,11 @@ def test_u_shaped_family_drops_its_cold_branch():
 
 def test_out_of_range_gives_none_with_a_reason_and_no_extrapolation():
     f = fr.build_front(LINE)
-    more = fr.match(f, 0.05, 0.45)            # more comfortable than 24 degC, more energy too
+    more = fr.match(f, 0.05, 0.45)  # more comfortable than 24 degC, more energy too
     assert more.energy_saving_pct is None and more.discomfort_reduction_pct is None
     assert fr.NOTE_MORE_COMFORTABLE in more.note and fr.NOTE_MORE_ENERGY in more.note
-    assert more.dominated is False            # nothing on the front is more comfortable
-    less = fr.match(f, 0.4, 0.1)              # less comfortable and cheaper than 26 degC
+    assert more.dominated is False  # nothing on the front is more comfortable
+    less = fr.match(f, 0.4, 0.1)  # less comfortable and cheaper than 26 degC
     assert less.energy_saving_pct is None and less.discomfort_reduction_pct is None
     assert fr.NOTE_LESS_COMFORTABLE in less.note and fr.NOTE_LESS_ENERGY in less.note
     assert less.dominated is False
@@ -96,7 +105,7 @@ def test_zero_discomfort_front_segment():
     f = fr.build_front({"baseline@25.0": (0.0, 0.37), "baseline@27.0": (0.1, 0.30)})
     m = fr.match(f, 0.0, 0.37)
     assert m.energy_saving_pct == pytest.approx(0.0) and m.discomfort_reduction_pct == 0.0
-    z = fr.match(f, 0.01, 0.37)               # front has D = 0 at this energy: % undefined
+    z = fr.match(f, 0.01, 0.37)  # front has D = 0 at this energy: % undefined
     assert z.discomfort_reduction_pct is None and fr.NOTE_ZERO_DISCOMFORT in z.note
     assert z.dominated is True
 
@@ -104,7 +113,7 @@ def test_zero_discomfort_front_segment():
 def test_match_seeds_uses_the_mean_point_and_reports_each_seed():
     f = fr.build_front(LINE)
     r = fr.match_seeds(f, [(0.2, 0.27), (0.2, 0.33)])
-    assert r["energy_saving_pct"] == pytest.approx(0.0, abs=1e-9)     # mean point (0.2, 0.30) on the front
+    assert r["energy_saving_pct"] == pytest.approx(0.0, abs=1e-9)  # mean point (0.2, 0.30) on the front
     assert r["seeds"]["energy_saving_pct"] == pytest.approx([10.0, -10.0])
     assert r["seeds"]["dominated"] == [False, True] and r["n_seeds"] == 2
 

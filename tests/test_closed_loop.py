@@ -1,14 +1,14 @@
 """Closed loop on the real plant, scenarios and comfort: bounds, run directory, determinism, faults."""
+
 import csv
-import math
 import json
+import math
 
 import numpy as np
 import pytest
 
 from ceco_controller import closed_loop as cl
-from ceco_core.contracts import DIAGNOSTICS_COLUMNS
-from ceco_core.contracts import STRATEGIES
+from ceco_core.contracts import DIAGNOSTICS_COLUMNS, STRATEGIES
 from ceco_v2x_preview.preview import parse_quality
 
 SHORT = cl.SimSettings(duration_s=60.0, progress=False)
@@ -51,8 +51,17 @@ def test_run_directory_format_and_determinism(tmp_path):
             checked += 1
     assert checked == len(rows) - 1 == 12  # every one of the 12 solves succeeded and was checked
     m = json.loads((d / "metrics.json").read_text())
-    for key in ("E_tot_J", "I_pmv", "otc_violation_pct", "scenario", "strategy", "control_period_s",
-                "horizon_steps", "seed", "preview_quality"):
+    for key in (
+        "E_tot_J",
+        "I_pmv",
+        "otc_violation_pct",
+        "scenario",
+        "strategy",
+        "control_period_s",
+        "horizon_steps",
+        "seed",
+        "preview_quality",
+    ):
         assert key in m
     assert m["strategy"] == "ceco-ioch" and m["horizon_steps"] == 6
 

@@ -48,8 +48,7 @@ def _subset(table, name):
 
 def test_units_conversions_numbers_and_symbols():
     assert units.c_to_k(25.0) == pytest.approx(298.15, abs=1e-12)
-    assert units.k_to_c(units.c_to_k(np.array([-40.0, 0.0, 55.5]))) == pytest.approx(
-        [-40.0, 0.0, 55.5], abs=1e-12)
+    assert units.k_to_c(units.c_to_k(np.array([-40.0, 0.0, 55.5]))) == pytest.approx([-40.0, 0.0, 55.5], abs=1e-12)
     assert units.mph_to_mps(60.0) == pytest.approx(26.8224, abs=1e-12)
     assert units.kmh_to_mps(36.0) == pytest.approx(10.0, abs=1e-12)
     x = casadi.SX.sym("x")
@@ -91,8 +90,7 @@ def test_backend_selection_and_casadi_agreement():
         val, grad = f(x)
         assert float(val) == pytest.approx(float(mathops.smooth_max(x, 1.0 - x, 7.0)), rel=1e-13)
         h = 1e-6
-        fd = (mathops.smooth_max(x + h, 1.0 - x - h, 7.0)
-              - mathops.smooth_max(x - h, 1.0 - x + h, 7.0)) / (2 * h)
+        fd = (mathops.smooth_max(x + h, 1.0 - x - h, 7.0) - mathops.smooth_max(x - h, 1.0 - x + h, 7.0)) / (2 * h)
         assert float(grad) == pytest.approx(fd, abs=1e-7)
 
 
@@ -128,29 +126,25 @@ def test_vapour_pressure_is_iapws_accurate_and_near_the_iso_formula(reference):
     d = _subset(reference, "iso")
     rel = comfort.vapour_pressure_pa(d["ta_c"], d["rh"]) / d["pa_pa"] - 1.0
     assert np.abs(rel[d["rh"] > 0.05]).max() < 4e-3
-    assert comfort.vapour_pressure_pa(35.0, 0.4) == pytest.approx(
-        0.4 * comfort.saturation_vapour_pressure_pa(35.0))
+    assert comfort.vapour_pressure_pa(35.0, 0.4) == pytest.approx(0.4 * comfort.saturation_vapour_pressure_pa(35.0))
     with pytest.raises(ValueError, match="rh"):
         comfort.vapour_pressure_pa(25.0, 40.0)  # percent instead of fraction
 
 
 def test_ppd_formula(reference):
     d = reference
-    assert comfort.ppd(d["pmv_ref"].astype(float)) == pytest.approx(
-        d["ppd_ref"].astype(float), abs=1e-7)
+    assert comfort.ppd(d["pmv_ref"].astype(float)) == pytest.approx(d["ppd_ref"].astype(float), abs=1e-7)
     assert comfort.ppd(0.0) == pytest.approx(5.0)
     assert comfort.ppd(np.array([-1.0, 1.0])) == pytest.approx([26.1, 26.1], abs=0.05)
     assert comfort.ppd(np.array([-2.0, 2.0])) == pytest.approx([76.8, 76.8], abs=0.05)
     s = casadi.SX.sym("p")
-    assert float(casadi.Function("f", [s], [comfort.ppd(s)])(0.5)) == pytest.approx(
-        float(comfort.ppd(0.5)))
+    assert float(casadi.Function("f", [s], [comfort.ppd(s)])(0.5)) == pytest.approx(float(comfort.ppd(0.5)))
 
 
 def test_iso7730_annex_d_table(annex_d):
     d = {k: annex_d[k].astype(float) for k in annex_d}
     pa = _iso7730_annex_d_pa(d["ta_c"], d["rh"])
-    got = comfort.pmv(ta_c=d["ta_c"], tr_c=d["tr_c"], vel_mps=d["vel_mps"], pa_pa=pa,
-                      met=d["met"], clo=d["clo"])
+    got = comfort.pmv(ta_c=d["ta_c"], tr_c=d["tr_c"], vel_mps=d["vel_mps"], pa_pa=pa, met=d["met"], clo=d["clo"])
     ok = d["reproducible"] == 1
     assert ok.sum() == 12 and len(ok) == 13
     # the table prints 2 decimals: allow its rounding (0.005) plus 0.005
@@ -167,9 +161,14 @@ def test_iso7730_annex_d_table(annex_d):
 def test_smoothing_error_against_exact_iso():
     rng = np.random.default_rng(11)
     n = 20000
-    x = dict(ta_c=rng.uniform(10, 45, n), tr_c=rng.uniform(10, 60, n),
-             vel_mps=rng.uniform(0.0, 1.5, n), pa_pa=rng.uniform(0, 3000, n),
-             met=rng.uniform(0.8, 2.0, n), clo=rng.uniform(0.0, 2.0, n))
+    x = dict(
+        ta_c=rng.uniform(10, 45, n),
+        tr_c=rng.uniform(10, 60, n),
+        vel_mps=rng.uniform(0.0, 1.5, n),
+        pa_pa=rng.uniform(0, 3000, n),
+        met=rng.uniform(0.8, 2.0, n),
+        clo=rng.uniform(0.0, 2.0, n),
+    )
     smooth = comfort.pmv(**x)
     exact = comfort.pmv(**x, smoothing=comfort.EXACT)
     inside = np.abs(exact) <= 3.0
@@ -184,12 +183,18 @@ def test_smoothing_error_against_exact_iso():
 def test_newton_steps_converge_over_wide_inputs():
     rng = np.random.default_rng(5)
     n = 20000
-    x = dict(ta_c=rng.uniform(5, 60, n), tr_c=rng.uniform(5, 80, n), vel_mps=rng.uniform(0, 2, n),
-             met=rng.uniform(0.8, 4, n), clo=rng.uniform(0, 2, n), w_rad_wm2=rng.uniform(0, 100, n))
-    ref = comfort.clothing_temperature_c(
-        **x, smoothing=dataclasses.replace(comfort.DEFAULT_SMOOTHING, newton_steps=30))
+    x = dict(
+        ta_c=rng.uniform(5, 60, n),
+        tr_c=rng.uniform(5, 80, n),
+        vel_mps=rng.uniform(0, 2, n),
+        met=rng.uniform(0.8, 4, n),
+        clo=rng.uniform(0, 2, n),
+        w_rad_wm2=rng.uniform(0, 100, n),
+    )
+    ref = comfort.clothing_temperature_c(**x, smoothing=dataclasses.replace(comfort.DEFAULT_SMOOTHING, newton_steps=30))
     three = comfort.clothing_temperature_c(
-        **x, smoothing=dataclasses.replace(comfort.DEFAULT_SMOOTHING, newton_steps=3))
+        **x, smoothing=dataclasses.replace(comfort.DEFAULT_SMOOTHING, newton_steps=3)
+    )
     four = comfort.clothing_temperature_c(**x)
     assert comfort.DEFAULT_SMOOTHING.newton_steps == 4
     assert np.abs(three - ref).max() < 1e-6
@@ -200,9 +205,16 @@ def test_newton_steps_converge_over_wide_inputs():
     hf = 12.1 * np.sqrt(np.logaddexp(500.0 * x["vel_mps"], 500.0 * 0.01) / 500.0)
     hn = 2.38 * ((four - x["ta_c"]) ** 2 + 0.01) ** 0.125
     hc = np.logaddexp(100 * hn, 100 * hf) / 100
-    rhs = 35.7 - 0.028 * 58.15 * x["met"] - icl * (
-        3.96e-8 * fcl * ((four + 273) ** 4 - (x["tr_c"] + 273) ** 4)
-        + fcl * hc * (four - x["ta_c"]) - x["w_rad_wm2"])
+    rhs = (
+        35.7
+        - 0.028 * 58.15 * x["met"]
+        - icl
+        * (
+            3.96e-8 * fcl * ((four + 273) ** 4 - (x["tr_c"] + 273) ** 4)
+            + fcl * hc * (four - x["ta_c"])
+            - x["w_rad_wm2"]
+        )
+    )
     assert np.abs(four - rhs).max() < 1e-9
 
 
@@ -214,10 +226,17 @@ def test_casadi_matches_numpy_and_has_finite_gradients():
     mx = [casadi.MX.sym(n) for n in names]
     fmx = casadi.Function("pmv_mx", mx, [comfort.pmv(**dict(zip(names, mx)))])
     rng = np.random.default_rng(3)
-    points = np.column_stack([rng.uniform(18, 45, 40), rng.uniform(18, 60, 40),
-                              rng.uniform(0.0, 1.5, 40), rng.uniform(500, 3000, 40),
-                              rng.uniform(1.0, 1.4, 40), rng.uniform(0.3, 1.0, 40),
-                              rng.uniform(0, 40, 40)])
+    points = np.column_stack(
+        [
+            rng.uniform(18, 45, 40),
+            rng.uniform(18, 60, 40),
+            rng.uniform(0.0, 1.5, 40),
+            rng.uniform(500, 3000, 40),
+            rng.uniform(1.0, 1.4, 40),
+            rng.uniform(0.3, 1.0, 40),
+            rng.uniform(0, 40, 40),
+        ]
+    )
     # include points on the ISO kinks: v = 0, T_cl = T_a, natural = forced
     points[0, 2] = 0.0
     points[1, :3] = [30.0, 30.0, 0.1]
@@ -235,8 +254,7 @@ def test_casadi_matches_numpy_and_has_finite_gradients():
             up, dn = p.copy(), p.copy()
             up[i] += h
             dn[i] = max(dn[i] - h, 0.0)  # v stays >= 0
-            fd = (comfort.pmv(**dict(zip(names, up)))
-                  - comfort.pmv(**dict(zip(names, dn)))) / (up[i] - dn[i])
+            fd = (comfort.pmv(**dict(zip(names, up))) - comfort.pmv(**dict(zip(names, dn)))) / (up[i] - dn[i])
             assert grad[i] == pytest.approx(fd, rel=1e-4, abs=1e-5)
     # a Hessian exists and is finite at the natural/forced kink
     hess = casadi.Function("h", sx, [casadi.hessian(expr, casadi.vertcat(*sx))[0]])
@@ -249,14 +267,17 @@ def test_broadcasting_and_numpy_input_errors():
     got = comfort.pmv(ta_c=ta, tr_c=tr, vel_mps=0.1, pa_pa=1700.0, met=1.2, clo=0.5)
     assert got.shape == (2, 3)
     assert got[1, 2] == pytest.approx(
-        comfort.pmv(ta_c=26.0, tr_c=30.0, vel_mps=0.1, pa_pa=1700.0, met=1.2, clo=0.5), abs=1e-13)
+        comfort.pmv(ta_c=26.0, tr_c=30.0, vel_mps=0.1, pa_pa=1700.0, met=1.2, clo=0.5), abs=1e-13
+    )
     ok = dict(ta_c=25.0, tr_c=25.0, vel_mps=0.1, pa_pa=1700.0, met=1.2, clo=0.5)
-    for field, bad, msg in (("ta_c", np.nan, "ta_c must be finite"),
-                            ("vel_mps", -0.1, "vel_mps must be >="),
-                            ("met", 0.0, "met must be >"),
-                            ("clo", -0.5, "clo must be >="),
-                            ("pa_pa", np.inf, "pa_pa must be finite"),
-                            ("tr_c", np.ones(4), "do not broadcast")):
+    for field, bad, msg in (
+        ("ta_c", np.nan, "ta_c must be finite"),
+        ("vel_mps", -0.1, "vel_mps must be >="),
+        ("met", 0.0, "met must be >"),
+        ("clo", -0.5, "clo must be >="),
+        ("pa_pa", np.inf, "pa_pa must be finite"),
+        ("tr_c", np.ones(4), "do not broadcast"),
+    ):
         args = dict(ok, **{field: bad})
         if field == "tr_c":
             args["ta_c"] = np.ones(3)
@@ -275,8 +296,7 @@ def test_w_rad_zero_is_iso_and_acts_like_a_radiant_rise():
     assert np.all(np.diff(p) > 0.2)
     # absorbed flux W at the clothing surface == raising T_r by W / (f_cl h_r),
     # h_r = 4 * 3.96e-8 * T^3 (ISO radiation linearised): check within 0.02 PMV
-    tcl = comfort.clothing_temperature_c(**{k: v for k, v in base.items() if k != "pa_pa"},
-                                         w_rad_wm2=20.0)
+    tcl = comfort.clothing_temperature_c(**{k: v for k, v in base.items() if k != "pa_pa"}, w_rad_wm2=20.0)
     fcl = 1.0 + 1.29 * 0.155 * 0.5
     t_mean = 0.5 * (float(tcl) + base["tr_c"]) + 273.0
     d_tr = 20.0 / (fcl * 4.0 * 3.96e-8 * t_mean**3)
@@ -291,7 +311,7 @@ def test_explicit_paper_form_equals_iso_only_at_neutral():
         tr, v = rng.uniform(15, 40), rng.uniform(0.05, 1.0)
         met, clo = rng.uniform(1.0, 1.4), rng.uniform(0.3, 1.0)
         common = dict(tr_c=tr, vel_mps=v, pa_pa=1700.0, met=met, clo=clo)
-        ta0 = brentq(lambda ta: float(comfort.pmv(ta_c=ta, **common)), -20.0, 60.0, xtol=1e-10)
+        ta0 = brentq(lambda ta, common=common: float(comfort.pmv(ta_c=ta, **common)), -20.0, 60.0, xtol=1e-10)
         at_neutral.append(float(comfort.pmv_explicit_paper(ta_c=ta0, **common)))
         # with ISO's constants (0.028, 0.017) the explicit T_cl is the ISO T_cl
         tcl_iso = float(comfort.clothing_temperature_c(ta_c=ta0, tr_c=tr, vel_mps=v, met=met, clo=clo))
@@ -300,8 +320,14 @@ def test_explicit_paper_form_equals_iso_only_at_neutral():
     # as printed (0.0275, 0.0173) it is near 0 at ISO neutrality
     assert np.abs(at_neutral).max() < 0.05
     n = 4000
-    x = dict(ta_c=rng.uniform(18, 30, n), tr_c=rng.uniform(18, 40, n), vel_mps=rng.uniform(0.05, 1, n),
-             pa_pa=rng.uniform(1000, 2500, n), met=rng.uniform(1.0, 1.4, n), clo=rng.uniform(0.3, 1, n))
+    x = dict(
+        ta_c=rng.uniform(18, 30, n),
+        tr_c=rng.uniform(18, 40, n),
+        vel_mps=rng.uniform(0.05, 1, n),
+        pa_pa=rng.uniform(1000, 2500, n),
+        met=rng.uniform(1.0, 1.4, n),
+        clo=rng.uniform(0.3, 1, n),
+    )
     iso = comfort.pmv(**x)
     paper = comfort.pmv_explicit_paper(**x)
     away = np.abs(iso) > 0.3
@@ -317,8 +343,9 @@ def test_explicit_paper_form_equals_iso_only_at_neutral():
 
 def test_iso7730_validity_flags():
     ta = np.array([25.0, 45.0, 25.0, np.nan])
-    flags = comfort.iso7730_validity(ta, 30.0, np.array([0.1, 0.1, 1.2, 0.1]), 1700.0, 1.2, 0.5,
-                                     np.array([0.3, 0.3, 0.3, 2.5]))
+    flags = comfort.iso7730_validity(
+        ta, 30.0, np.array([0.1, 0.1, 1.2, 0.1]), 1700.0, 1.2, 0.5, np.array([0.3, 0.3, 0.3, 2.5])
+    )
     assert flags.ta_c.tolist() == [True, False, True, False]
     assert flags.vel_mps.tolist() == [True, True, False, True]
     assert flags.pmv.tolist() == [True, True, True, False]

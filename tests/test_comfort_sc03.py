@@ -22,14 +22,28 @@ def test_scored_pmv_uses_the_cabin_humidity(runs):
     params = comfort_params_for(load_scenario("sc03"))
     for ts in runs.values():
         np.testing.assert_allclose(ts["pa_pa"], psychro.vapour_pressure_pa(ts["t_cab_c"], ts["rh_cab"]), rtol=1e-12)
-        recomputed = cabin_pmv(t_cab_c=ts["t_cab_c"], t_vent_c=ts["t_vent_c"], mdot_bl_kgps=ts["mdot_bl_kgps"],
-                               t_mr_c=ts["t_mr_c"], w_rad_wm2=ts["w_rad_wm2"], pa_pa=ts["pa_pa"], params=params)
+        recomputed = cabin_pmv(
+            t_cab_c=ts["t_cab_c"],
+            t_vent_c=ts["t_vent_c"],
+            mdot_bl_kgps=ts["mdot_bl_kgps"],
+            t_mr_c=ts["t_mr_c"],
+            w_rad_wm2=ts["w_rad_wm2"],
+            pa_pa=ts["pa_pa"],
+            params=params,
+        )
         np.testing.assert_allclose(ts["pmv"], recomputed, atol=1e-9)
         z = _zone(ts)
         # the plant's cabin air is far drier than the paper's 1700 Pa: scoring with it would add ~0.15-0.2 PMV
         assert np.all(ts["pa_pa"][z] < 1200.0)
-        paper = cabin_pmv(t_cab_c=ts["t_cab_c"][z], t_vent_c=ts["t_vent_c"][z], mdot_bl_kgps=ts["mdot_bl_kgps"][z],
-                          t_mr_c=ts["t_mr_c"][z], w_rad_wm2=ts["w_rad_wm2"][z], pa_pa=PAPER_PA_PA, params=params)
+        paper = cabin_pmv(
+            t_cab_c=ts["t_cab_c"][z],
+            t_vent_c=ts["t_vent_c"][z],
+            mdot_bl_kgps=ts["mdot_bl_kgps"][z],
+            t_mr_c=ts["t_mr_c"][z],
+            w_rad_wm2=ts["w_rad_wm2"][z],
+            pa_pa=PAPER_PA_PA,
+            params=params,
+        )
         assert 0.1 < np.mean(paper - ts["pmv"][z]) < 0.25
 
 

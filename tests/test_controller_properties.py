@@ -1,6 +1,7 @@
 """Property-based tests (hypothesis) of the pure controller cores: any Observation, finite or not,
 gives a finite command inside the actuator bounds and no exception (issue 12 item 7, core side);
 and the recoveries of issue 12 (storm, poisoned estimator) on seeded streams."""
+
 import math
 
 import numpy as np
@@ -19,8 +20,13 @@ _ANY = st.floats(allow_nan=True, allow_infinity=True, width=64)
 
 
 def _mixed(lo, hi):
-    return st.one_of(st.floats(lo, hi), st.floats(lo, hi), st.floats(lo, hi), _ANY,
-                     st.sampled_from([math.nan, math.inf, -math.inf, 1e308, -1e308, 0.0]))
+    return st.one_of(
+        st.floats(lo, hi),
+        st.floats(lo, hi),
+        st.floats(lo, hi),
+        _ANY,
+        st.sampled_from([math.nan, math.inf, -math.inf, 1e308, -1e308, 0.0]),
+    )
 
 
 def _series(lo, hi, n=N1):
@@ -32,21 +38,37 @@ def observations(draw, n=N1):
     """Any Observation with n preview points: scalars and series of any float, plausible more often."""
     lb = draw(_series(-3.0, 0.0, n))
     return Observation(
-        k=draw(st.integers(-10, 10**12)), t_s=draw(_mixed(0.0, 1e4)),
-        t_cab_c=draw(_mixed(15.0, 60.0)), t_int_c=draw(_mixed(15.0, 70.0)), t_shell_c=draw(_mixed(15.0, 70.0)),
-        t_evap_c=draw(_mixed(0.0, 50.0)), t_vent_c=draw(_mixed(0.0, 50.0)), t_amb_c=draw(_mixed(10.0, 45.0)),
-        solar_wm2=draw(_mixed(0.0, 1100.0)), speed_mps=draw(_mixed(0.0, 40.0)),
-        mdot_bl_prev_kgps=draw(_mixed(0.05, 0.17)), t_evap_sp_prev_c=draw(_mixed(3.0, 10.0)),
-        preview_t_amb_c=draw(_series(10.0, 45.0, n)), preview_solar_wm2=draw(_series(0.0, 1100.0, n)),
+        k=draw(st.integers(-10, 10**12)),
+        t_s=draw(_mixed(0.0, 1e4)),
+        t_cab_c=draw(_mixed(15.0, 60.0)),
+        t_int_c=draw(_mixed(15.0, 70.0)),
+        t_shell_c=draw(_mixed(15.0, 70.0)),
+        t_evap_c=draw(_mixed(0.0, 50.0)),
+        t_vent_c=draw(_mixed(0.0, 50.0)),
+        t_amb_c=draw(_mixed(10.0, 45.0)),
+        solar_wm2=draw(_mixed(0.0, 1100.0)),
+        speed_mps=draw(_mixed(0.0, 40.0)),
+        mdot_bl_prev_kgps=draw(_mixed(0.05, 0.17)),
+        t_evap_sp_prev_c=draw(_mixed(3.0, 10.0)),
+        preview_t_amb_c=draw(_series(10.0, 45.0, n)),
+        preview_solar_wm2=draw(_series(0.0, 1100.0, n)),
         preview_speed_mps=draw(_series(0.0, 40.0, n)),
         preview_valid=np.array(draw(st.lists(st.booleans(), min_size=n, max_size=n))),
-        pmv_lb=lb, pmv_ub=draw(_series(0.0, 3.0, n)), met=draw(_mixed(1.0, 2.0)), clo=draw(_mixed(0.3, 1.0)),
-        t_glass_c=draw(_mixed(15.0, 70.0)), rh_cab=draw(_mixed(0.1, 0.9)))
+        pmv_lb=lb,
+        pmv_ub=draw(_series(0.0, 3.0, n)),
+        met=draw(_mixed(1.0, 2.0)),
+        clo=draw(_mixed(0.3, 1.0)),
+        t_glass_c=draw(_mixed(15.0, 70.0)),
+        rh_cab=draw(_mixed(0.1, 0.9)),
+    )
 
 
 def _in_bounds(cmd) -> bool:
-    return (math.isfinite(cmd.mdot_bl_kgps) and math.isfinite(cmd.t_evap_sp_c)
-            and ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c))
+    return (
+        math.isfinite(cmd.mdot_bl_kgps)
+        and math.isfinite(cmd.t_evap_sp_c)
+        and ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c)
+    )
 
 
 _CTRLS: dict = {}
@@ -58,8 +80,12 @@ def _ctrl(name):
     return _CTRLS[name]
 
 
-_SETTINGS = settings(max_examples=60, deadline=None, derandomize=True,
-                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+_SETTINGS = settings(
+    max_examples=60,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
 
 
 @pytest.mark.parametrize("strategy", ["ceco", "ceco-c", "ceco-ioch"])
@@ -99,8 +125,18 @@ def test_a_storm_of_malformed_observations_leaves_no_trace():
     rng = np.random.default_rng(7)
     ctrl = NmpcController("ceco")
     bad = [math.nan, math.inf, -math.inf, 1e6, -1e6, 9e18]
-    fields = ("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c", "t_amb_c", "solar_wm2", "speed_mps",
-              "mdot_bl_prev_kgps", "t_evap_sp_prev_c")
+    fields = (
+        "t_cab_c",
+        "t_int_c",
+        "t_shell_c",
+        "t_evap_c",
+        "t_vent_c",
+        "t_amb_c",
+        "solar_wm2",
+        "speed_mps",
+        "mdot_bl_prev_kgps",
+        "t_evap_sp_prev_c",
+    )
     n_acc = 0
     for k in range(200):
         obs = _clean(k, 27.0).__dict__.copy()

@@ -29,6 +29,7 @@ def test_speed_limits_for_category_b_match_the_published_table(smoothing):
     rows = _worked_values()
     assert len(rows) == 11
     for r in rows:
+
         def excess(v, r=r):
             return float(draught_rating(r["ta_c"], v, r["tu_pct"], smoothing=smoothing)) - r["dr_pct"]
 

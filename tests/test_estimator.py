@@ -1,5 +1,6 @@
 """State estimator of the vehicle-sensor mode: identification, convergence from a wrong key-on state,
 missing and invalid samples, determinism, and the closed loop against the full-state run."""
+
 import dataclasses
 import math
 
@@ -49,10 +50,28 @@ def test_committed_parameters_are_what_the_committed_data_give():
         assert ev[f"{name}_1step_rms_k"] < 0.01, name  # measured <= 0.003 K
         assert ev[f"{name}_drift_rms_k"] < 0.1, name  # 5 min open loop; measured <= 0.027 K
     # physically signed: couplings and solar gains > 0
-    for name in ("int_cab", "int_cab_forced", "int_shell", "int_glass", "int_solar_k_per_wm2", "int_duct",
-                 "shell_cab", "shell_int", "shell_amb", "shell_amb_speed", "shell_solar_k_per_wm2", "glass_cab",
-                 "glass_cab_forced", "glass_int", "glass_amb", "glass_amb_speed", "glass_solar_k_per_wm2",
-                 "duct_int", "duct_air_s_per_kg", "vent_duct"):
+    for name in (
+        "int_cab",
+        "int_cab_forced",
+        "int_shell",
+        "int_glass",
+        "int_solar_k_per_wm2",
+        "int_duct",
+        "shell_cab",
+        "shell_int",
+        "shell_amb",
+        "shell_amb_speed",
+        "shell_solar_k_per_wm2",
+        "glass_cab",
+        "glass_cab_forced",
+        "glass_int",
+        "glass_amb",
+        "glass_amb_speed",
+        "glass_solar_k_per_wm2",
+        "duct_int",
+        "duct_air_s_per_kg",
+        "vent_duct",
+    ):
         assert getattr(Q, name) > 0, name
     # the panel -> duct-wall conductance is the plant's UA 8 W/K over C 7000 J/K, x 5 s; the duct wall's share
     # in the vent air 1 - exp(-UA_air/(m c_p)) (UA_air = 35 (m/0.1)^0.8 W/K, plant.md): 0.29 at 0.1 kg/s
@@ -83,9 +102,11 @@ def test_converges_from_a_wrong_initial_state_on_a_plant_run(seg, delta_k):
     e_int, _ = _errors_after(rep, 450.0)
     assert e_int.max() < 1.1
     # the measurements do the work: predicting alone from the same prior keeps most of the error (>= 3.76 K)
-    blind = eid.replay(data, _estimator(init_offset_int_k=off_int, init_offset_shell_k=off_shell),
-                       meas_filter=lambda t, m: {**m, "t_cab_c": m["t_cab_c"] if t == 0 else math.nan,
-                                                 "t_vent_c": math.nan})
+    blind = eid.replay(
+        data,
+        _estimator(init_offset_int_k=off_int, init_offset_shell_k=off_shell),
+        meas_filter=lambda t, m: {**m, "t_cab_c": m["t_cab_c"] if t == 0 else math.nan, "t_vent_c": math.nan},
+    )
     e_int, _ = _errors_after(blind, 300.0)
     assert e_int.min() > 3.0
 
@@ -94,12 +115,14 @@ def test_converges_from_a_wrong_initial_state_on_a_plant_run(seg, delta_k):
 def test_vent_sensor_offset_is_absorbed_by_the_bias_state(offset_k):
     """A vent-sensor offset within the NTC tolerance (0.5 K): with the offset state b_vent the interior error
     stays small; without it (prior std ~0) the filter reads the offset as a duct-wall and so an interior error."""
+
     def shifted(t, m):
         return {**m, "t_vent_c": m["t_vent_c"] + offset_k}
 
     with_b = eid.replay_errors(eid.replay(VALID, _estimator(), meas_filter=shifted))
-    without = eid.replay_errors(eid.replay(VALID, _estimator(vent_bias_std_k=1e-4, vent_bias_drift_k=1e-6),
-                                           meas_filter=shifted))
+    without = eid.replay_errors(
+        eid.replay(VALID, _estimator(vent_bias_std_k=1e-4, vent_bias_drift_k=1e-6), meas_filter=shifted)
+    )
     assert with_b["t_int_rmse_after_120s_k"] < 0.35  # measured 0.28 / 0.30 K
     assert without["t_int_rmse_after_120s_k"] > 1.5  # measured 1.72 / 1.87 K
 
@@ -147,8 +170,7 @@ def test_missing_or_invalid_samples_give_finite_flagged_estimates(sensor):
 
 def test_invalid_previous_command_and_time_are_flagged_not_propagated():
     e = _estimator()
-    meas = {"t_cab_c": 40.0, "t_vent_c": 20.0, "t_evap_c": 10.0, "t_amb_c": 35.0, "solar_wm2": 800.0,
-            "speed_mps": 10.0}
+    meas = {"t_cab_c": 40.0, "t_vent_c": 20.0, "t_evap_c": 10.0, "t_amb_c": 35.0, "solar_wm2": 800.0, "speed_mps": 10.0}
     e.update(0.0, meas, (0.17, 3.0))
     a = e.update(5.0, meas, (0.1, 5.0))
     for bad in ((math.nan, 5.0), (0.1, math.inf), (5.0, 5.0), None, "x"):
@@ -185,8 +207,15 @@ def test_dead_reckoning_then_the_controllers_own_sensor_fault_path():
     sc = load_scenario("sc03")
     ctrl = est.with_measurements(BaselineController(control_period_s=5.0), "vehicle", 5.0, MP)
     assert isinstance(ctrl, est.EstimatingController)
-    meas = {"t_cab_c": 30.0, "t_int_c": math.nan, "t_shell_c": math.nan, "t_evap_c": 8.0, "t_vent_c": 12.0,
-            "t_glass_c": math.nan, "rh_cab": 0.4}
+    meas = {
+        "t_cab_c": 30.0,
+        "t_int_c": math.nan,
+        "t_shell_c": math.nan,
+        "t_evap_c": 8.0,
+        "t_vent_c": 12.0,
+        "t_glass_c": math.nan,
+        "rh_cab": 0.4,
+    }
     u = None
     modes = []
     for k in range(30):
@@ -215,8 +244,15 @@ def test_estimator_is_deterministic_and_never_reads_the_unmeasured_fields():
     # the wrapper ignores t_int_c / t_shell_c / t_glass_c of the observation: garbage there changes nothing
     sc = load_scenario("sc03")
     ctrls = [make_controller("ceco", sc, 5.0, 6, MP, measurements="vehicle") for _ in range(2)]
-    meas = {"t_cab_c": 43.0, "t_int_c": 46.0, "t_shell_c": 48.0, "t_evap_c": 43.0, "t_vent_c": 43.0,
-            "t_glass_c": 48.0, "rh_cab": 0.4}
+    meas = {
+        "t_cab_c": 43.0,
+        "t_int_c": 46.0,
+        "t_shell_c": 48.0,
+        "t_evap_c": 43.0,
+        "t_vent_c": 43.0,
+        "t_glass_c": 48.0,
+        "rh_cab": 0.4,
+    }
     u = [sc_key_on(), sc_key_on()]
     for k in range(4):
         cmds = []
@@ -226,8 +262,12 @@ def test_estimator_is_deterministic_and_never_reads_the_unmeasured_fields():
             u[j] = cmd
             cmds.append(cmd)
         assert cmds[0] == cmds[1]
-        meas = dict(meas, t_cab_c=meas["t_cab_c"] - 1.0, t_evap_c=max(meas["t_evap_c"] - 8.0, 5.0),
-                    t_vent_c=max(meas["t_vent_c"] - 8.0, 9.0))
+        meas = dict(
+            meas,
+            t_cab_c=meas["t_cab_c"] - 1.0,
+            t_evap_c=max(meas["t_evap_c"] - 8.0, 5.0),
+            t_vent_c=max(meas["t_vent_c"] - 8.0, 9.0),
+        )
 
 
 def test_full_mode_is_the_default_and_settings_are_validated():
@@ -276,16 +316,25 @@ def test_prepare_sees_the_estimated_observation_and_updates_the_estimator_once()
     """``prepare`` (before taking control) probes a copy of the estimator: the following ``compute`` gives
     the same estimate and command as a controller that was never prepared (prepare only warm-starts)."""
     sc = load_scenario("sc03")
-    meas = {"t_cab_c": 43.0, "t_int_c": math.nan, "t_shell_c": math.nan, "t_evap_c": 43.0, "t_vent_c": 43.0,
-            "t_glass_c": math.nan, "rh_cab": 0.4}
+    meas = {
+        "t_cab_c": 43.0,
+        "t_int_c": math.nan,
+        "t_shell_c": math.nan,
+        "t_evap_c": 43.0,
+        "t_vent_c": 43.0,
+        "t_glass_c": math.nan,
+        "rh_cab": 0.4,
+    }
     prepared, plain = (make_controller("ceco", sc, 5.0, 6, MP, measurements="vehicle") for _ in range(2))
     obs = _obs(sc, 0.0, 0, meas, sc_key_on())
-    assert prepared.prepare(obs) is not None          # the NMPC solved the estimated first instance
-    assert prepared.last_estimate is None             # ... without touching the real estimator
-    (c1, d1), (c2, d2) = prepared.compute(obs, t_start=None), plain.compute(obs)
+    assert prepared.prepare(obs) is not None  # the NMPC solved the estimated first instance
+    assert prepared.last_estimate is None  # ... without touching the real estimator
+    (c1, _), (c2, _) = prepared.compute(obs, t_start=None), plain.compute(obs)
     assert prepared.last_estimate == plain.last_estimate
     assert c1.mdot_bl_kgps == pytest.approx(c2.mdot_bl_kgps, abs=1e-6)
     assert c1.t_evap_sp_c == pytest.approx(c2.t_evap_sp_c, abs=1e-4)
     base = est.with_measurements(BaselineController(control_period_s=5.0), "vehicle", 5.0, MP)
-    assert base.prepare(obs) is None and base.compute(obs, t_start=0.0)[0] == BaselineController(
-        control_period_s=5.0).compute(obs)[0]
+    assert (
+        base.prepare(obs) is None
+        and base.compute(obs, t_start=0.0)[0] == BaselineController(control_period_s=5.0).compute(obs)[0]
+    )

@@ -20,14 +20,17 @@ def _realisations(model, leads=LEADS, n=N):
     return np.array([fe.lead_errors(model, leads, np.random.default_rng([s, 7])) for s in range(n)])
 
 
-@pytest.mark.parametrize("model", [
-    fe.ErrorModel(1.2, -0.15, 3600.0, "normal"),
-    fe.ErrorModel(173.4, -15.0, 60.0, "laplace"),
-    fe.ErrorModel(2.5, 0.4, 20.0, "normal"),
-])
+@pytest.mark.parametrize(
+    "model",
+    [
+        fe.ErrorModel(1.2, -0.15, 3600.0, "normal"),
+        fe.ErrorModel(173.4, -15.0, 60.0, "laplace"),
+        fe.ErrorModel(2.5, 0.4, 20.0, "normal"),
+    ],
+)
 def test_moments_follow_the_ou_formulas(model):
     e = _realisations(model)
-    assert np.all(e[:, 0] == 0.0)                               # anchored at the measurement
+    assert np.all(e[:, 0] == 0.0)  # anchored at the measurement
     for j, tau in enumerate(LEADS[1:], start=1):
         sd = float(model.std(tau))
         assert abs(e[:, j].std() - sd) < 5 * sd / math.sqrt(2 * N) + 1e-12, (tau, e[:, j].std(), sd)
@@ -47,7 +50,7 @@ def test_reference_lead_statistics_are_the_stated_ones():
 def test_laplace_innovations_have_heavy_tails():
     e = _realisations(fe.ErrorModel(100.0, 0.0, 60.0, "laplace"), leads=np.array([1.0]))[:, 0]
     kurt = float(np.mean((e - e.mean()) ** 4) / e.var() ** 2)
-    assert kurt > 4.5          # Laplace: 6; normal: 3 (standard error ~0.5 here)
+    assert kurt > 4.5  # Laplace: 6; normal: 3 (standard error ~0.5 here)
     g = _realisations(fe.ErrorModel(100.0, 0.0, 60.0, "normal"), leads=np.array([1.0]))[:, 0]
     assert float(np.mean((g - g.mean()) ** 4) / g.var() ** 2) < 3.5
 
@@ -58,13 +61,13 @@ def test_errors_depend_only_on_seed_issue_time_quantity_and_lead():
     again = fe.forecast_errors("medium", 3, 125.0, np.arange(0.0, 31.0, 5.0))
     for q in fe.QUANTITIES:
         np.testing.assert_array_equal(short[q], again[q])
-        np.testing.assert_array_equal(short[q], long_[q][:7])   # the horizon length does not matter
+        np.testing.assert_array_equal(short[q], long_[q][:7])  # the horizon length does not matter
     other_seed = fe.forecast_errors("medium", 4, 125.0, np.arange(0.0, 31.0, 5.0))
     other_time = fe.forecast_errors("medium", 3, 130.0, np.arange(0.0, 31.0, 5.0))
     for q in fe.QUANTITIES:
         assert not np.array_equal(short[q][1:], other_seed[q][1:])
         assert not np.array_equal(short[q][1:], other_time[q][1:])
-    assert not np.array_equal(short["t_amb_c"][1:] / 1.2, short["speed_mps"][1:] / 2.5)   # separate streams
+    assert not np.array_equal(short["t_amb_c"][1:] / 1.2, short["speed_mps"][1:] / 2.5)  # separate streams
 
 
 def test_levels_are_ordered_and_none_is_perfect():
@@ -87,24 +90,33 @@ def test_levels_are_ordered_and_none_is_perfect():
 
 def test_apply_errors_keeps_the_physical_limits():
     leads = np.arange(0.0, 61.0, 5.0)
-    truth = {"t_amb_c": np.full(leads.size, 35.0), "solar_wm2": np.r_[np.full(6, 800.0), np.zeros(7)],
-             "speed_mps": np.full(leads.size, 0.5), "rh": np.full(leads.size, 0.4)}
+    truth = {
+        "t_amb_c": np.full(leads.size, 35.0),
+        "solar_wm2": np.r_[np.full(6, 800.0), np.zeros(7)],
+        "speed_mps": np.full(leads.size, 0.5),
+        "rh": np.full(leads.size, 0.4),
+    }
     lows = []
     for seed in range(200):
         f = fe.apply_errors(truth, "high", seed, 40.0, leads)
         assert f["t_amb_c"][0] == 35.0 and f["solar_wm2"][0] == 800.0 and f["speed_mps"][0] == 0.5
-        assert np.all(f["solar_wm2"][6:] == 0.0)                     # no error where the truth is 0
+        assert np.all(f["solar_wm2"][6:] == 0.0)  # no error where the truth is 0
         assert np.all(f["solar_wm2"] >= 0.0) and np.all(f["speed_mps"] >= 0.0)
         np.testing.assert_array_equal(f["rh"], truth["rh"])
         lows.append(f["speed_mps"].min())
-    assert min(lows) == 0.0                                          # the floor was needed
+    assert min(lows) == 0.0  # the floor was needed
     np.testing.assert_array_equal(fe.apply_errors(truth, "none", 0, 40.0, leads)["solar_wm2"], truth["solar_wm2"])
 
 
-@pytest.mark.parametrize("kwargs, field", [
-    ({"sigma_ref": -1.0}, "sigma_ref"), ({"sigma_ref": 1.0, "corr_time_s": 0.0}, "corr_time_s"),
-    ({"sigma_ref": 1.0, "distribution": "cauchy"}, "distribution"), ({"sigma_ref": math.nan}, "sigma_ref"),
-])
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        ({"sigma_ref": -1.0}, "sigma_ref"),
+        ({"sigma_ref": 1.0, "corr_time_s": 0.0}, "corr_time_s"),
+        ({"sigma_ref": 1.0, "distribution": "cauchy"}, "distribution"),
+        ({"sigma_ref": math.nan}, "sigma_ref"),
+    ],
+)
 def test_bad_models_are_rejected(kwargs, field):
     with pytest.raises(ValueError, match=field):
         fe.ErrorModel(**kwargs).validate()
@@ -128,9 +140,10 @@ def test_previews_with_an_uncertainty_level():
     assert p.t_amb_c[0] == truth.t_amb_c[0] and np.any(p.solar_wm2[1:] != truth.solar_wm2[1:])
     np.testing.assert_array_equal(p.rh, truth.rh)
     # the level's seed falls back to the scenario's seed
-    np.testing.assert_array_equal(make_previews(sc, 100.0, 5.0, 7, PreviewQuality(uncertainty="medium")).t_amb_c,
-                                  make_previews(sc, 100.0, 5.0, 7, PreviewQuality(uncertainty="medium",
-                                                                                  seed=sc.seed)).t_amb_c)
+    np.testing.assert_array_equal(
+        make_previews(sc, 100.0, 5.0, 7, PreviewQuality(uncertainty="medium")).t_amb_c,
+        make_previews(sc, 100.0, 5.0, 7, PreviewQuality(uncertainty="medium", seed=sc.seed)).t_amb_c,
+    )
     with pytest.raises(ValueError, match="uncertain"):
         parse_quality("uncertain:extreme")
     with pytest.raises(ValueError, match="uncertainty"):

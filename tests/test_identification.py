@@ -1,4 +1,5 @@
 """Identification: recovers known parameters from model-generated data; fit quality on plant data."""
+
 import dataclasses
 
 import numpy as np
@@ -18,16 +19,29 @@ def _model_intervals(p, n=600, seed=3):
     t_amb = 28 + 8 * rng.random(n)
     speed = 30 * rng.random(n)
     t_cab0, t_evap0 = 45.0, 30.0
-    rows = {k: [] for k in ("t_cab0", "t_cab1", "t_evap0", "t_evap1", "t_int0", "t_shell0", "t_evap_mean",
-                            "t_cab_mean", "t_ain_mean", "mdot", "sp", "t_amb", "speed", "p_comp", "p_bl",
-                            "segment")}
+    rows = {k: [] for k in idn.INTERVAL_KEYS}
     for i in range(n):
-        t_cab1, t_evap1, t_ain, pc, pb = cm.step(p, t_cab0, t_evap0, mdot[i], sp[i], t_int[i], t_shell[i],
-                                                 t_amb[i], speed[i])
-        for k, v in (("t_cab0", t_cab0), ("t_cab1", t_cab1), ("t_evap0", t_evap0), ("t_evap1", t_evap1),
-                     ("t_int0", t_int[i]), ("t_shell0", t_shell[i]), ("t_evap_mean", t_evap0),
-                     ("t_cab_mean", t_cab0), ("t_ain_mean", t_ain), ("mdot", mdot[i]), ("sp", sp[i]),
-                     ("t_amb", t_amb[i]), ("speed", speed[i]), ("p_comp", pc), ("p_bl", pb), ("segment", 0)):
+        t_cab1, t_evap1, t_ain, pc, pb = cm.step(
+            p, t_cab0, t_evap0, mdot[i], sp[i], t_int[i], t_shell[i], t_amb[i], speed[i]
+        )
+        for k, v in (
+            ("t_cab0", t_cab0),
+            ("t_cab1", t_cab1),
+            ("t_evap0", t_evap0),
+            ("t_evap1", t_evap1),
+            ("t_int0", t_int[i]),
+            ("t_shell0", t_shell[i]),
+            ("t_evap_mean", t_evap0),
+            ("t_cab_mean", t_cab0),
+            ("t_ain_mean", t_ain),
+            ("mdot", mdot[i]),
+            ("sp", sp[i]),
+            ("t_amb", t_amb[i]),
+            ("speed", speed[i]),
+            ("p_comp", pc),
+            ("p_bl", pb),
+            ("segment", 0),
+        ):
             rows[k].append(float(v))
         t_cab0, t_evap0 = t_cab1, t_evap1
     out = {k: np.asarray(v) for k, v in rows.items()}

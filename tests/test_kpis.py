@@ -12,10 +12,17 @@ from ceco_core import metrics as mt
 
 def _series(pmv, ub=None, dt=10.0, **extra):
     n = len(pmv)
-    cols = {"t_s": dt * np.arange(n), "p_comp_w": np.full(n, 1000.0), "p_blower_w": np.full(n, 100.0),
-            "p_cond_fan_w": np.full(n, 50.0), "pmv": np.asarray(pmv, float), "pmv_lb": np.full(n, -0.5),
-            "pmv_ub": np.full(n, 0.5) if ub is None else np.asarray(ub, float),
-            "mdot_bl_kgps": np.full(n, 0.1), "t_evap_sp_c": np.full(n, 5.0)}
+    cols = {
+        "t_s": dt * np.arange(n),
+        "p_comp_w": np.full(n, 1000.0),
+        "p_blower_w": np.full(n, 100.0),
+        "p_cond_fan_w": np.full(n, 50.0),
+        "pmv": np.asarray(pmv, float),
+        "pmv_lb": np.full(n, -0.5),
+        "pmv_ub": np.full(n, 0.5) if ub is None else np.asarray(ub, float),
+        "mdot_bl_kgps": np.full(n, 0.1),
+        "t_evap_sp_c": np.full(n, 5.0),
+    }
     cols.update(extra)
     return cols
 
@@ -63,8 +70,9 @@ def test_no_band_phase_gives_null_with_a_reason():
 
 
 def test_actuator_travel_counts_the_jumps_in_strokes():
-    s = _series([0.0] * 4, mdot_bl_kgps=np.array([0.05, 0.17, 0.17, 0.11]),
-                t_evap_sp_c=np.array([3.0, 3.0, 10.0, 10.0]))
+    s = _series(
+        [0.0] * 4, mdot_bl_kgps=np.array([0.05, 0.17, 0.17, 0.11]), t_evap_sp_c=np.array([3.0, 3.0, 10.0, 10.0])
+    )
     k, _ = mt.compute_kpis(s)
     assert k["travel_mdot_kgps"] == pytest.approx(0.18)
     assert k["travel_t_evap_sp_k"] == pytest.approx(7.0)
@@ -72,8 +80,9 @@ def test_actuator_travel_counts_the_jumps_in_strokes():
 
 
 def test_time_ratio_and_fallbacks():
-    k, notes = mt.compute_kpis(_series([0.0] * 4), step_time_s=[0.01, 0.05, np.nan], control_period_s=5.0,
-                               fallback_steps=2)
+    k, notes = mt.compute_kpis(
+        _series([0.0] * 4), step_time_s=[0.01, 0.05, np.nan], control_period_s=5.0, fallback_steps=2
+    )
     assert k["time_ratio_mean"] == pytest.approx(0.006) and k["time_ratio_max"] == pytest.approx(0.01)
     assert k["fallback_steps"] == 2.0
     k2, n2 = mt.compute_kpis(_series([0.0] * 4))
@@ -82,10 +91,14 @@ def test_time_ratio_and_fallbacks():
 
 
 def test_draught_fog_and_validity_from_the_comfort_columns():
-    s = _series([0.0] * 5, dr_pct=np.array([10.0, 25.0, 20.0, 35.0, 0.0]),
-                fog_margin_k=np.array([5.0, 2.0, -0.5, 1.0, 3.0]), iso7730_valid=np.array([1.0, 1, 0, 1, 1]))
+    s = _series(
+        [0.0] * 5,
+        dr_pct=np.array([10.0, 25.0, 20.0, 35.0, 0.0]),
+        fog_margin_k=np.array([5.0, 2.0, -0.5, 1.0, 3.0]),
+        iso7730_valid=np.array([1.0, 1, 0, 1, 1]),
+    )
     k, notes = mt.compute_kpis(s)
-    assert k["draught_pct"] == pytest.approx(40.0)          # 25 and 35 > 20 (20 itself is not)
+    assert k["draught_pct"] == pytest.approx(40.0)  # 25 and 35 > 20 (20 itself is not)
     assert k["draught_mean_pct"] == pytest.approx(18.0) and k["draught_max_pct"] == 35.0
     assert k["fog_margin_min_k"] == -0.5 and k["fog_risk_pct"] == pytest.approx(20.0)
     assert k["iso7730_invalid_pct"] == pytest.approx(20.0)
@@ -94,8 +107,13 @@ def test_draught_fog_and_validity_from_the_comfort_columns():
 
 def test_missing_comfort_columns_are_said_clearly():
     k, notes = mt.compute_kpis(_series([0.0] * 5))
-    for key, col in (("draught_pct", "dr_pct"), ("draught_max_pct", "dr_pct"), ("fog_margin_min_k", "fog_margin_k"),
-                     ("fog_risk_pct", "fog_margin_k"), ("iso7730_invalid_pct", "iso7730_valid")):
+    for key, col in (
+        ("draught_pct", "dr_pct"),
+        ("draught_max_pct", "dr_pct"),
+        ("fog_margin_min_k", "fog_margin_k"),
+        ("fog_risk_pct", "fog_margin_k"),
+        ("iso7730_invalid_pct", "iso7730_valid"),
+    ):
         assert k[key] is None and notes[key] == f"run has no {col} column", key
     assert set(k) == set(mt.KPI_KEYS)
     assert all(v is not None for key, v in k.items() if key not in notes)

@@ -47,9 +47,9 @@ def test_pmv_step():
 
 def test_violation_of_known_duration():
     pmv = np.full(600, 0.2)
-    pmv[320:350] = 1.0   # above ub = 0.5 for 30 s
+    pmv[320:350] = 1.0  # above ub = 0.5 for 30 s
     pmv[400:412] = -0.8  # below lb = -0.5 for 12 s
-    pmv[10:20] = 2.9     # below the relaxed ub = 3: no violation
+    pmv[10:20] = 2.9  # below the relaxed ub = 3: no violation
     m = compute_metrics(T, 0.0, 0.0, pmv, -0.5, _sc03_ub(T))
     assert m["otc_violation_s"] == 42.0
     assert m["otc_above_ub_s"] == 30.0 and m["otc_below_lb_s"] == 12.0
@@ -89,8 +89,7 @@ def test_time_to_comfort_hold_rule_and_sub_second_sampling():
     ],
 )
 def test_bad_input(kwargs, message):
-    args = dict(t_s=T, p_comp_w=np.zeros(600), p_blower_w=np.zeros(600), pmv=np.zeros(600),
-                pmv_lb=-0.5, pmv_ub=0.5)
+    args = dict(t_s=T, p_comp_w=np.zeros(600), p_blower_w=np.zeros(600), pmv=np.zeros(600), pmv_lb=-0.5, pmv_ub=0.5)
     args.update(kwargs)
     with pytest.raises(ValueError) as err:
         compute_metrics(**args)

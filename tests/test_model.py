@@ -1,4 +1,5 @@
 """Control-oriented model: numpy and CasADi give the same numbers; parameter file handling."""
+
 import dataclasses
 
 import casadi
@@ -16,9 +17,16 @@ def test_numpy_and_casadi_evaluate_identically():
     p = _params()
     rng = np.random.default_rng(0)
     n = 50
-    args = dict(t_cab_c=rng.uniform(20, 50, n), t_evap_c=rng.uniform(2, 40, n), mdot_bl_kgps=rng.uniform(0.05, 0.17, n),
-                t_evap_sp_c=rng.uniform(3, 10, n), t_int_c=rng.uniform(25, 65, n), t_shell_c=rng.uniform(25, 60, n),
-                t_amb_c=rng.uniform(25, 40, n), speed_mps=rng.uniform(0, 35, n))
+    args = dict(
+        t_cab_c=rng.uniform(20, 50, n),
+        t_evap_c=rng.uniform(2, 40, n),
+        mdot_bl_kgps=rng.uniform(0.05, 0.17, n),
+        t_evap_sp_c=rng.uniform(3, 10, n),
+        t_int_c=rng.uniform(25, 65, n),
+        t_shell_c=rng.uniform(25, 60, n),
+        t_amb_c=rng.uniform(25, 40, n),
+        speed_mps=rng.uniform(0, 35, n),
+    )
     order = ("t_cab_c", "t_evap_c", "mdot_bl_kgps", "t_evap_sp_c", "t_int_c", "t_shell_c", "t_amb_c", "speed_mps")
     ref = cm.step(p, *(args[k] for k in order), n_sub=2, d_cab_k=0.1, d_ain_k=-0.2, d_evap_k=0.05)
     syms = [casadi.SX.sym(k) for k in order]

@@ -1,5 +1,6 @@
 """ceco_msgs interface conventions (REP 103 units, headers, preview grids),
 checked on the .msg text; the definitions also parse with rosbags' msg parser."""
+
 import re
 from pathlib import Path
 
@@ -20,8 +21,15 @@ def _fields(name):
 
 
 def test_the_seven_interfaces_exist():
-    assert MSGS == ['AcCommand', 'AcPower', 'CabinState', 'Comfort', 'ControllerDiagnostics',
-                    'TrafficPreview', 'WeatherPreview']
+    assert MSGS == [
+        'AcCommand',
+        'AcPower',
+        'CabinState',
+        'Comfort',
+        'ControllerDiagnostics',
+        'TrafficPreview',
+        'WeatherPreview',
+    ]
 
 
 @pytest.mark.parametrize('name', MSGS)
@@ -40,7 +48,7 @@ def test_stamped_with_a_header_first(name):
 
 @pytest.mark.parametrize('name', MSGS)
 def test_names_carry_si_unit_suffixes(name):
-    for ftype, fname, rest in _fields(name):
+    for _ftype, fname, rest in _fields(name):
         unit = re.search(r'\[([^\]]+)\]', rest)
         if unit and unit.group(1) == 'degC':
             assert fname.endswith('_c'), f'{name}.{fname}: degC field without _c suffix'
@@ -58,6 +66,7 @@ def test_previews_carry_their_own_time_grid(name):
 
 def test_definitions_parse_and_register_in_a_rosbags_typestore():
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
     store = get_typestore(Stores.ROS2_JAZZY)
     types = {}
     for name in MSGS:
@@ -67,4 +76,3 @@ def test_definitions_parse_and_register_in_a_rosbags_typestore():
     names = [f[0] for f in cmd.__dataclass_fields__.items()]
     assert names[:3] == ['header', 'step_index', 'control_period_s']
     assert 'blower_flow_kgps' in names and 'evap_setpoint_c' in names and 'fallback' in names
-

@@ -1,23 +1,39 @@
 """CECO NMPC: valid commands, forced solver failures fall back, IOCH eps follows speed, missing previews."""
+
 import dataclasses
 
 import numpy as np
 import pytest
 
-from ceco_core.contracts import ACTUATOR_LIMITS, Observation
 from ceco_controller.nmpc import NmpcController
 from ceco_controller.solvers import SolveResult
 from ceco_controller.strategies import SolverSettings, resolve_auto, strategy_settings
+from ceco_core.contracts import ACTUATOR_LIMITS, Observation
 
 N1 = 7  # Np + 1
 
 
 def _obs(k=0, speed=10.0, valid=None, t_cab=28.0, **kw):
-    d = dict(k=k, t_s=5.0 * k, t_cab_c=t_cab, t_int_c=40.0, t_shell_c=38.0, t_evap_c=6.0, t_vent_c=9.0,
-             t_amb_c=35.0, solar_wm2=800.0, speed_mps=speed, mdot_bl_prev_kgps=0.1, t_evap_sp_prev_c=5.0,
-             preview_t_amb_c=np.full(N1, 35.0), preview_solar_wm2=np.full(N1, 800.0),
-             preview_speed_mps=np.full(N1, speed), preview_valid=np.ones(N1, bool) if valid is None else valid,
-             pmv_lb=np.full(N1, -0.5), pmv_ub=np.full(N1, 0.5))
+    d = dict(
+        k=k,
+        t_s=5.0 * k,
+        t_cab_c=t_cab,
+        t_int_c=40.0,
+        t_shell_c=38.0,
+        t_evap_c=6.0,
+        t_vent_c=9.0,
+        t_amb_c=35.0,
+        solar_wm2=800.0,
+        speed_mps=speed,
+        mdot_bl_prev_kgps=0.1,
+        t_evap_sp_prev_c=5.0,
+        preview_t_amb_c=np.full(N1, 35.0),
+        preview_solar_wm2=np.full(N1, 800.0),
+        preview_speed_mps=np.full(N1, speed),
+        preview_valid=np.ones(N1, bool) if valid is None else valid,
+        pmv_lb=np.full(N1, -0.5),
+        pmv_ub=np.full(N1, 0.5),
+    )
     d.update(kw)
     return Observation(**d)
 
@@ -32,8 +48,9 @@ def _valid(cmd):
 
 def test_forced_failure_falls_back_to_baseline_then_shifted_plan():
     # max_iter = 0: IPOPT cannot converge -> no plan yet -> the production ACC law
-    bad = NmpcController(strategy_settings("ceco", solver=SolverSettings(name="ipopt", max_iter=0,
-                                                                        transcription="single-shooting")))
+    bad = NmpcController(
+        strategy_settings("ceco", solver=SolverSettings(name="ipopt", max_iter=0, transcription="single-shooting"))
+    )
     cmd, diag = bad.compute(_obs(0))
     assert diag.fallback == "baseline" and not diag.success and _valid(cmd)
     assert "ACC law" in diag.message
@@ -82,18 +99,30 @@ def test_missing_preview_degrades_gracefully():
         cmd, diag = ctrl.compute(_obs(0, valid=partial, preview_t_amb_c=nan_tail))
         assert _valid(cmd) and diag.trusted_horizon == 3 and "preview valid for 3/7" in diag.message
         none = np.zeros(N1, bool)
-        cmd, diag = ctrl.compute(_obs(1, valid=none, preview_t_amb_c=np.full(N1, np.nan),
-                                      preview_solar_wm2=np.full(N1, np.nan),
-                                      preview_speed_mps=np.full(N1, np.nan)))
+        cmd, diag = ctrl.compute(
+            _obs(
+                1,
+                valid=none,
+                preview_t_amb_c=np.full(N1, np.nan),
+                preview_solar_wm2=np.full(N1, np.nan),
+                preview_speed_mps=np.full(N1, np.nan),
+            )
+        )
         assert _valid(cmd) and diag.trusted_horizon == 0 and diag.success
 
 
 def test_long_horizon_builds_and_solves():
     ctrl = NmpcController(strategy_settings("ceco-ioch", horizon_steps=60))
     n1 = 61
-    obs = _obs(0, preview_t_amb_c=np.full(n1, 35.0), preview_solar_wm2=np.full(n1, 800.0),
-               preview_speed_mps=np.linspace(0, 30, n1), preview_valid=np.ones(n1, bool),
-               pmv_lb=np.full(n1, -0.5), pmv_ub=np.full(n1, 0.5))
+    obs = _obs(
+        0,
+        preview_t_amb_c=np.full(n1, 35.0),
+        preview_solar_wm2=np.full(n1, 800.0),
+        preview_speed_mps=np.linspace(0, 30, n1),
+        preview_valid=np.ones(n1, bool),
+        pmv_lb=np.full(n1, -0.5),
+        pmv_ub=np.full(n1, 0.5),
+    )
     cmd, diag = ctrl.compute(obs)
     assert diag.success and _valid(cmd) and diag.pred_pmv.size == n1
 
@@ -101,9 +130,15 @@ def test_long_horizon_builds_and_solves():
 def test_wrong_preview_length_hands_the_step_to_the_acc_law():
     ctrl = NmpcController("ceco")
     n1 = 5
-    obs = _obs(0, preview_t_amb_c=np.full(n1, 35.0), preview_solar_wm2=np.full(n1, 800.0),
-               preview_speed_mps=np.full(n1, 1.0), preview_valid=np.ones(n1, bool),
-               pmv_lb=np.full(n1, -0.5), pmv_ub=np.full(n1, 0.5))
+    obs = _obs(
+        0,
+        preview_t_amb_c=np.full(n1, 35.0),
+        preview_solar_wm2=np.full(n1, 800.0),
+        preview_speed_mps=np.full(n1, 1.0),
+        preview_valid=np.ones(n1, bool),
+        pmv_lb=np.full(n1, -0.5),
+        pmv_ub=np.full(n1, 0.5),
+    )
     cmd, diag = ctrl.compute(obs)
     assert diag.fallback == "baseline" and diag.status == "invalid_measurement" and _valid(cmd)
     assert "previews have 5 points" in diag.message and "Np+1 = 7" in diag.message
@@ -121,6 +156,7 @@ def test_settings_validation_names_field():
 
 def test_controller_yaml_matches_code_defaults():
     from ceco_controller.strategies import load_strategy_settings
+
     for name in ("ceco", "ceco-e", "ceco-c", "ceco-ioch"):
         assert load_strategy_settings(name) == strategy_settings(name)
 
@@ -213,8 +249,10 @@ def test_solver_settings_reject_unknown_qpsol_and_the_replaced_sqpmethod():
 def test_single_and_multiple_shooting_reach_the_same_optimum():
     """The single-shooting NLP (states eliminated) and the multiple-shooting one are the same
     problem: same commands and costs in closed-loop steps, the same optimum on one instance."""
-    ctrls = {t: NmpcController(strategy_settings("ceco-ioch", solver=SolverSettings(transcription=t)))
-             for t in ("single-shooting", "multiple-shooting")}
+    ctrls = {
+        t: NmpcController(strategy_settings("ceco-ioch", solver=SolverSettings(transcription=t)))
+        for t in ("single-shooting", "multiple-shooting")
+    }
     assert ctrls["single-shooting"].problem.nw == ctrls["multiple-shooting"].problem.nw - 4 * 6  # no states
     assert ctrls["single-shooting"].problem.ng == ctrls["multiple-shooting"].problem.ng - 4 * 6  # no gaps
     out = {}
@@ -240,8 +278,10 @@ def test_transcription_settings_are_validated():
         SolverSettings(transcription="collocation").validate()
     with pytest.raises(ValueError, match="fatrop"):
         SolverSettings(name="fatrop", transcription="single-shooting").validate()  # no stage structure
-    assert resolve_auto(strategy_settings("ceco", solver=SolverSettings(name="fatrop"))).solver.transcription \
+    assert (
+        resolve_auto(strategy_settings("ceco", solver=SolverSettings(name="fatrop"))).solver.transcription
         == "multiple-shooting"
+    )
     with pytest.raises(ValueError, match="eig_floor"):
         SolverSettings(eig_floor=0.0).validate()
     # an SQP solve and then its IPOPT retry must both fit in the control period
@@ -272,8 +312,9 @@ def test_auto_solver_follows_the_horizon():
     assert (short.settings.solver.name, short.transcription) == ("sqp", "single-shooting")
     assert (long_.settings.solver.name, long_.transcription) == ("ipopt", "multiple-shooting")
     assert long_.solver_fallback is None and short.solver_fallback is not None
-    explicit = NmpcController(strategy_settings("ceco", horizon_steps=13, solver=SolverSettings(
-        name="sqp", transcription="single-shooting")))
+    explicit = NmpcController(
+        strategy_settings("ceco", horizon_steps=13, solver=SolverSettings(name="sqp", transcription="single-shooting"))
+    )
     assert (explicit.settings.solver.name, explicit.transcription) == ("sqp", "single-shooting")
     # an explicit sparse solver gets the sparse (multiple-shooting) NLP at any horizon
     ipo = NmpcController(strategy_settings("ceco", solver=SolverSettings(name="ipopt")))
@@ -303,6 +344,7 @@ def test_controller_file_is_what_the_simulator_and_nodes_build_from(tmp_path):
     from ceco_controller import closed_loop
     from ceco_controller.model import package_config_path
     from ceco_v2x_preview.scenario import load_scenario
+
     sc = load_scenario("sc03")
     default = closed_loop.make_controller("ceco-c", sc, 5.0, 6)
     assert default.settings.gamma_w == strategy_settings("ceco-c").gamma_w
@@ -344,6 +386,7 @@ def test_after_a_failed_step_the_next_solve_is_warm_from_the_last_good_plan():
     """Issue 12 'Cold path under pressure': a failed step does not drop the warm start; the next
     solve starts from the last good solution shifted by two stages (not cold)."""
     from ceco_controller.warmstart import initial_guess
+
     ctrl = NmpcController("ceco")
     for k in range(3):
         ctrl.compute(_obs(k, t_cab=27.0 - 0.1 * k))
@@ -395,6 +438,7 @@ def test_hand_over_to_the_acc_law_and_back_is_bumpless():
     shifted plan runs out is the last applied one, the difference to its own output then decays with
     handover_tau_s (30 s); the NMPC then takes back control from the applied command."""
     import math
+
     ctrl = NmpcController("ceco")
     for k in range(3):  # inside the comfort zone: an interior command, far from the law's own (0.05, 10)
         ctrl.compute(_obs(k, t_cab=24.5, **_ZONE))
@@ -412,8 +456,7 @@ def test_hand_over_to_the_acc_law_and_back_is_bumpless():
     for i in range(6, 9):
         np.testing.assert_allclose(cmds[i] - raw[i], (cmds[i - 1] - raw[i - 1]) * decay, atol=1e-12)
     _restore(ctrl, real)
-    cmd, diag = ctrl.compute(_obs(12, t_cab=24.5, mdot_bl_prev_kgps=cmds[-1][0], t_evap_sp_prev_c=cmds[-1][1],
-                                  **_ZONE))
+    cmd, diag = ctrl.compute(_obs(12, t_cab=24.5, mdot_bl_prev_kgps=cmds[-1][0], t_evap_sp_prev_c=cmds[-1][1], **_ZONE))
     assert diag.fallback == "" and diag.success and _valid(cmd)
     # the NMPC plans from the applied command (its u_prev, move penalty); its first move is its own decision
     assert ctrl.problem.params.get(ctrl.last_nlp().p, "u_prev") == pytest.approx(cmds[-1])
@@ -446,8 +489,10 @@ def test_comfort_parameters_humidity_setting_and_draught_penalty():
     obs = _obs(0, t_cab=25.0, rh_cab=0.3, t_glass_c=36.0)
     t_mr, pa = paper.comfort_parameters(obs)
     assert pa == PAPER_PA_PA
-    assert t_mr == pytest.approx(float(cabin_mrt_c(t_cab_c=25.0, t_int_c=40.0, t_shell_c=38.0, t_glass_c=36.0,
-                                                   params=paper.comfort_params)), abs=1e-12)
+    assert t_mr == pytest.approx(
+        float(cabin_mrt_c(t_cab_c=25.0, t_int_c=40.0, t_shell_c=38.0, t_glass_c=36.0, params=paper.comfort_params)),
+        abs=1e-12,
+    )
     assert measured.comfort_parameters(obs)[1] == pytest.approx(float(psychro.vapour_pressure_pa(25.0, 0.3)))
     assert measured.comfort_parameters(_obs(0, t_cab=25.0))[1] == PAPER_PA_PA  # no RH measured: 1700 Pa
     # p_a (the named slice 'pa'): the same plan predicted with a drier cabin is cooler (~0.15 PMV)
@@ -467,6 +512,7 @@ def test_comfort_parameters_humidity_setting_and_draught_penalty():
 def test_an_implausible_humidity_is_not_used_in_the_nlp():
     """rh_cab = 40 (per cent, not a fraction) is treated as not measured: the NLP gets 1700 Pa."""
     from ceco_core.cabin_comfort import PAPER_PA_PA
+
     ctrl = NmpcController(strategy_settings("ceco", pmv_pa_source="measured"))
     cmd, diag = ctrl.compute(_obs(0, t_cab=24.0, rh_cab=40.0, **_ZONE))
     assert diag.fallback == "" and "rh_cab=40.0" in diag.message

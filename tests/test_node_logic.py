@@ -2,6 +2,7 @@
 state machine, rejection counting, message field checks, the parameter tables, each node's
 input handling (controller, plant, preview) and health rules. Messages are SimpleNamespace
 objects with the ceco_msgs field names."""
+
 from __future__ import annotations
 
 import math
@@ -30,34 +31,74 @@ def stamp(t_s: float) -> NS:
 
 
 def state(t_s: float, n: int | None = None, stamp_s: float | None = None, **override) -> NS:
-    m = NS(header=NS(stamp=stamp(t_s if stamp_s is None else stamp_s)), step_index=int(t_s) if n is None else n,
-           scenario_time_s=t_s, t_cab_c=45.0, t_int_c=50.0, t_shell_c=55.0, t_glass_c=55.0, t_evap_c=45.0,
-           t_vent_c=45.0, rh_cab=0.2, t_amb_c=35.0, solar_wm2=800.0, rh=0.4, speed_mps=10.0, mdot_bl_kgps=0.17,
-           t_evap_sp_c=3.0, fallback=False)
+    m = NS(
+        header=NS(stamp=stamp(t_s if stamp_s is None else stamp_s)),
+        step_index=int(t_s) if n is None else n,
+        scenario_time_s=t_s,
+        t_cab_c=45.0,
+        t_int_c=50.0,
+        t_shell_c=55.0,
+        t_glass_c=55.0,
+        t_evap_c=45.0,
+        t_vent_c=45.0,
+        rh_cab=0.2,
+        t_amb_c=35.0,
+        solar_wm2=800.0,
+        rh=0.4,
+        speed_mps=10.0,
+        mdot_bl_kgps=0.17,
+        t_evap_sp_c=3.0,
+        fallback=False,
+    )
     for key, value in override.items():
         setattr(m, key, value)
     return m
 
 
 def weather(k: int, n: int = 7, ts: float = 5.0, **override) -> NS:
-    m = NS(header=NS(stamp=stamp(k * ts)), start=stamp(k * ts), step_s=ts, step_index=k, t_amb_c=[35.0] * n,
-           solar_wm2=[800.0] * n, rh=[0.4] * n, valid=[True] * n, age_s=0.0, quality='perfect')
+    m = NS(
+        header=NS(stamp=stamp(k * ts)),
+        start=stamp(k * ts),
+        step_s=ts,
+        step_index=k,
+        t_amb_c=[35.0] * n,
+        solar_wm2=[800.0] * n,
+        rh=[0.4] * n,
+        valid=[True] * n,
+        age_s=0.0,
+        quality='perfect',
+    )
     for key, value in override.items():
         setattr(m, key, value)
     return m
 
 
 def traffic(k: int, n: int = 7, ts: float = 5.0, **override) -> NS:
-    m = NS(header=NS(stamp=stamp(k * ts)), start=stamp(k * ts), step_s=ts, step_index=k, speed_mps=[10.0] * n,
-           valid=[True] * n, age_s=0.0, quality='perfect')
+    m = NS(
+        header=NS(stamp=stamp(k * ts)),
+        start=stamp(k * ts),
+        step_s=ts,
+        step_index=k,
+        speed_mps=[10.0] * n,
+        valid=[True] * n,
+        age_s=0.0,
+        quality='perfect',
+    )
     for key, value in override.items():
         setattr(m, key, value)
     return m
 
 
 def command(k: int, ts: float = 5.0, stamp_s: float | None = None, **override) -> NS:
-    m = NS(header=NS(stamp=stamp(k * ts if stamp_s is None else stamp_s)), step_index=k, control_period_s=ts,
-           blower_flow_kgps=0.1, evap_setpoint_c=5.0, strategy='ceco', fallback=False)
+    m = NS(
+        header=NS(stamp=stamp(k * ts if stamp_s is None else stamp_s)),
+        step_index=k,
+        control_period_s=ts,
+        blower_flow_kgps=0.1,
+        evap_setpoint_c=5.0,
+        strategy='ceco',
+        fallback=False,
+    )
     for key, value in override.items():
         setattr(m, key, value)
     return m
@@ -66,8 +107,8 @@ def command(k: int, ts: float = 5.0, stamp_s: float | None = None, **override) -
 # ------------------------------------------------------------------------------ sequence gate
 def test_gate_accepts_forward_steps_in_the_window_only():
     g = SequenceGate(ahead=10.0, confirm=3)
-    assert g.offer(5.0).accepted and g.last == 5.0          # the first position, wherever it is
-    assert g.offer(6.0).accepted and g.offer(16.0).accepted   # +1, then exactly +ahead
+    assert g.offer(5.0).accepted and g.last == 5.0  # the first position, wherever it is
+    assert g.offer(6.0).accepted and g.offer(16.0).accepted  # +1, then exactly +ahead
     v = g.offer(16.0)
     assert not v.accepted and reason_kind(v.reason) == 'duplicate'
     v = g.offer(12.0)
@@ -97,7 +138,7 @@ def test_gate_follows_a_restart_and_a_confirmed_new_time_base():
     g = SequenceGate(ahead=60.0, confirm=3)
     for t in range(100, 200):
         g.offer(float(t))
-    v = g.offer(0.0)                       # key-on: a restarted plant or a new playback from the start
+    v = g.offer(0.0)  # key-on: a restarted plant or a new playback from the start
     assert v.accepted and v.reset and 'key-on' in v.reason
     assert g.offer(1.0).accepted and not g.offer(1.0).accepted
     # a playback that starts elsewhere (t = 5000): rejected twice, adopted on the third agreeing state
@@ -116,7 +157,7 @@ def test_gate_new_time_base_only_after_silence():
     for t in range(100, 120):
         wall = t - 100.0
         assert g.offer(float(t), wall).accepted
-    for i, x in enumerate((0.0, 10.0, 11.0, 12.0, 13.0, 0.0)):     # within 1 s of the last real state
+    for i, x in enumerate((0.0, 10.0, 11.0, 12.0, 13.0, 0.0)):  # within 1 s of the last real state
         assert not g.offer(x, wall + 0.1 * i).accepted
     assert g.offer(120.0, wall + 1.0).accepted
     # the source stops; 3 s later a restart is taken
@@ -137,13 +178,13 @@ def test_lockstep_buffer_pairs_a_state_with_its_two_previews():
     b = LockstepBuffer(window=4)
     assert b.put_preview('weather', 0, 'w0') is None
     assert b.put_state(0, 's0', now_s=10.0) is None
-    assert b.ready() is None                              # traffic 0 missing
+    assert b.ready() is None  # traffic 0 missing
     assert b.put_preview('traffic', 0, 't0') is None
     assert b.ready() == 0
     assert b.take(0) == ('s0', 'w0', 't0')
     assert b.pending is None and b.last_done == 0
     assert b.put_state(0, 's0 again', 11.0).startswith('stale')
-    assert b.put_preview('weather', 5, 'w5').startswith('future')   # beyond 0 + 4
+    assert b.put_preview('weather', 5, 'w5').startswith('future')  # beyond 0 + 4
     assert b.put_preview('weather', 4, 'w4') is None
     with pytest.raises(KeyError):
         b.take(3)
@@ -153,7 +194,7 @@ def test_lockstep_buffer_overdue_and_superseded_states():
     b = LockstepBuffer(window=10)
     b.put_state(3, 's3', now_s=100.0)
     assert b.overdue(101.9, timeout_s=2.0) is None and b.overdue(102.1, timeout_s=2.0) == 3
-    assert b.put_state(4, 's4', now_s=103.0) is None       # the plant moved on: s4 supersedes s3
+    assert b.put_state(4, 's4', now_s=103.0) is None  # the plant moved on: s4 supersedes s3
     assert b.pending == 4
     assert b.put_state(3, 's3', now_s=103.5).startswith('stale')
     assert b.take(4) == ('s4', None, None)
@@ -170,7 +211,7 @@ def test_lockstep_buffer_overdue_and_superseded_states():
 # ------------------------------------------------------------------- watchdog, fallback, counts
 def test_watchdog_and_fallback_supervisor():
     w = Watchdog(2.0)
-    assert w.expired(0.0) and w.age(0.0) == math.inf        # never kicked
+    assert w.expired(0.0) and w.age(0.0) == math.inf  # never kicked
     w.kick(10.0)
     assert not w.expired(12.0) and w.expired(12.01) and w.age(11.5) == pytest.approx(1.5)
     with pytest.raises(ValueError):
@@ -179,22 +220,26 @@ def test_watchdog_and_fallback_supervisor():
     assert f.command_accepted(0, 'ceco') is None
     line = f.command_missing('step 35', 'no command')
     assert line.startswith('FALLBACK at step 35: no command') and f.in_fallback
-    assert f.command_missing('step 40', 'no command') is None   # one line per fallback span
+    assert f.command_missing('step 40', 'no command') is None  # one line per fallback span
     assert f.command_accepted(9, 'ceco') == 'commands resumed at control step 9 from ceco: leaving fallback'
     assert (f.n_entered, f.n_fallback_periods, f.in_fallback) == (1, 2, False)
 
 
 def test_rejections_counted_and_log_lines_throttled():
     r = Rejections(throttle_s=2.0)
-    lines = [r.add('cabin/state', 'invalid', f'bad {i}', now_s=0.1 * i) for i in range(30)]   # 3 s of bursts
+    lines = [r.add('cabin/state', 'invalid', f'bad {i}', now_s=0.1 * i) for i in range(30)]  # 3 s of bursts
     assert lines[0] == 'bad 0'
     logged = [x for x in lines if x]
     assert len(logged) == 2 and logged[1] == 'bad 20 (19 similar rejections since the last line)'
-    assert r.add('cabin/state', 'stale', 'old', 0.5) == 'old'   # another kind logs at once
+    assert r.add('cabin/state', 'stale', 'old', 0.5) == 'old'  # another kind logs at once
     assert r.total == 31 and r.by_topic == {'cabin/state': 31}
     assert r.summary() == 'cabin/state: 31' and Rejections().summary() == 'none'
-    assert [reason_kind(x) for x in ('stale: 1', 'future: 2', 'duplicate: 3', 't=nan is bad: x')] == \
-        ['stale', 'future', 'duplicate', 'invalid']
+    assert [reason_kind(x) for x in ('stale: 1', 'future: 2', 'duplicate: 3', 't=nan is bad: x')] == [
+        'stale',
+        'future',
+        'duplicate',
+        'invalid',
+    ]
 
 
 def test_health_levels_and_values():
@@ -206,18 +251,21 @@ def test_health_levels_and_values():
 
 
 # ------------------------------------------------------------------------------ field checks
-@pytest.mark.parametrize('field, value, expected', [
-    ('t_cab_c', math.nan, 't_cab_c=nan is not finite'),
-    ('t_glass_c', math.nan, 't_glass_c=nan is not finite'),
-    ('rh_cab', math.inf, 'rh_cab=inf is not finite'),
-    ('rh_cab', 1.5, 'rh_cab=1.5 is outside the plausible range [0, 1]'),
-    ('t_vent_c', 1e300, 't_vent_c=1e+300 is outside'),
-    ('speed_mps', -1.0, 'speed_mps=-1.0 is outside'),
-    ('mdot_bl_kgps', math.nan, 'mdot_bl_kgps=nan is not finite'),        # the previous command (estimator)
-    ('t_evap_sp_c', 2.0, 't_evap_sp_c=2.0 is outside'),
-    ('scenario_time_s', 9e18, 'scenario_time_s=9e+18 is outside'),      # preview_node's crash
-    ('scenario_time_s', -1.0, 'scenario_time_s=-1.0 is outside'),
-])
+@pytest.mark.parametrize(
+    'field, value, expected',
+    [
+        ('t_cab_c', math.nan, 't_cab_c=nan is not finite'),
+        ('t_glass_c', math.nan, 't_glass_c=nan is not finite'),
+        ('rh_cab', math.inf, 'rh_cab=inf is not finite'),
+        ('rh_cab', 1.5, 'rh_cab=1.5 is outside the plausible range [0, 1]'),
+        ('t_vent_c', 1e300, 't_vent_c=1e+300 is outside'),
+        ('speed_mps', -1.0, 'speed_mps=-1.0 is outside'),
+        ('mdot_bl_kgps', math.nan, 'mdot_bl_kgps=nan is not finite'),  # the previous command (estimator)
+        ('t_evap_sp_c', 2.0, 't_evap_sp_c=2.0 is outside'),
+        ('scenario_time_s', 9e18, 'scenario_time_s=9e+18 is outside'),  # preview_node's crash
+        ('scenario_time_s', -1.0, 'scenario_time_s=-1.0 is outside'),
+    ],
+)
 def test_check_state_names_the_field(field, value, expected):
     assert checks.check_state(state(10.0)) is None
     assert checks.check_state(state(10.0, **{field: value})).startswith(expected)
@@ -226,7 +274,7 @@ def test_check_state_names_the_field(field, value, expected):
 def test_check_stamps():
     assert checks.check_stamp('s', NS(sec=0, nanosec=10**9)).startswith('s.nanosec=1000000000')
     assert checks.check_stamp('s', NS(sec=-2_000_000_000, nanosec=0)).startswith('s.sec=-2000000000')  # 1906
-    assert checks.check_stamp('s', NS(sec=STAMP_MAX_S, nanosec=0)) is None                           # 2038
+    assert checks.check_stamp('s', NS(sec=STAMP_MAX_S, nanosec=0)) is None  # 2038
     st = state(10.0, stamp_s=11.0)
     assert 'does not match the scenario time 10' in checks.check_stamp_equals('header.stamp', st.header.stamp, 10.0)
     assert checks.check_stamp_age('h', stamp(100.0), now_s=105.0, max_age_s=10.0, max_ahead_s=1.0) is None
@@ -236,8 +284,12 @@ def test_check_stamps():
 
 def test_check_command_every_field():
     assert checks.check_command(command(3), 5.0) is None
-    cases = {'control_period_s': (0.0, -5.0, math.nan, 5.1), 'blower_flow_kgps': (math.nan, 0.5, 0.0, 1e300),
-             'evap_setpoint_c': (-math.inf, 11.0), 'strategy': ('turbo', 'plant-fallback', '')}
+    cases = {
+        'control_period_s': (0.0, -5.0, math.nan, 5.1),
+        'blower_flow_kgps': (math.nan, 0.5, 0.0, 1e300),
+        'evap_setpoint_c': (-math.inf, 11.0),
+        'strategy': ('turbo', 'plant-fallback', ''),
+    }
     for field, values in cases.items():
         for v in values:
             assert checks.check_command(command(3, **{field: v}), 5.0), (field, v)
@@ -251,13 +303,19 @@ def test_check_preview_every_field():
     assert checks.check_preview(traffic(2), 'traffic', 7, 5.0) is None
     nan7 = [math.nan] * 7
     assert checks.check_preview(weather(2, t_amb_c=nan7, valid=[False] * 7), 'weather', 7, 5.0) is None
-    bad = {'t_amb_c': [35.0] * 3, 'solar_wm2': [math.inf] + [800.0] * 6, 'rh': [math.nan] * 7,
-           'valid': [True] * 8, 'step_s': 0.0, 'age_s': math.nan}
+    bad = {
+        't_amb_c': [35.0] * 3,
+        'solar_wm2': [math.inf] + [800.0] * 6,
+        'rh': [math.nan] * 7,
+        'valid': [True] * 8,
+        'step_s': 0.0,
+        'age_s': math.nan,
+    }
     for field, v in bad.items():
         assert checks.check_preview(weather(2, **{field: v}), 'weather', 7, 5.0), field
     assert 'outside' in checks.check_preview(weather(2, t_amb_c=[1e6] * 7), 'weather', 7, 5.0)
     assert 'age_s' in checks.check_preview(traffic(2, age_s=-5.0), 'traffic', 7, 5.0)
-    assert checks.check_preview(traffic(2, age_s=-1.0), 'traffic', 7, 5.0) is None    # none received
+    assert checks.check_preview(traffic(2, age_s=-1.0), 'traffic', 7, 5.0) is None  # none received
     assert 'different times' in checks.check_preview_pair(weather(2), traffic(3))
 
 
@@ -267,13 +325,22 @@ def test_honest_plant_states_pass_the_checks():
     from ceco_core.contracts import AcInput
     from ceco_plant_sim.scenario_plant import ScenarioPlant
     from ceco_v2x_preview.scenario import load_scenario
+
     sc = load_scenario('sc03')
     sp, law = ScenarioPlant(sc, 1.0), AccLaw()
     u = sp.cmd
     for n in range(600):
         env = sc.env_at(float(n))
-        msg = state(float(n), **sp.meas, t_amb_c=env.t_amb_c, solar_wm2=env.solar_wm2, rh=env.rh,
-                    speed_mps=env.speed_mps, mdot_bl_kgps=u.mdot_bl_kgps, t_evap_sp_c=u.t_evap_sp_c)
+        msg = state(
+            float(n),
+            **sp.meas,
+            t_amb_c=env.t_amb_c,
+            solar_wm2=env.solar_wm2,
+            rh=env.rh,
+            speed_mps=env.speed_mps,
+            mdot_bl_kgps=u.mdot_bl_kgps,
+            t_evap_sp_c=u.t_evap_sp_c,
+        )
         assert checks.check_state(msg) is None, (n, checks.check_state(msg))
         if n % 5 == 0:
             a = law.step(sp.meas['t_cab_c'], 5.0)
@@ -284,6 +351,7 @@ def test_honest_plant_states_pass_the_checks():
 # -------------------------------------------------------------------------- parameter tables
 def test_parameter_tables_defaults_are_valid_and_named_once():
     from ceco_plant_sim.plant_io import PLANT_PARAMETERS
+
     for table in (controller_parameters(), controller_parameters('baseline'), PLANT_PARAMETERS, PREVIEW_PARAMETERS):
         names = [s.name for s in table]
         assert len(names) == len(set(names))
@@ -303,8 +371,6 @@ def _ctrl_cfg(**kw) -> ControllerNodeConfig:
 
 
 def test_controller_config_validation_and_runtime_changes():
-    from ceco_controller import controller_io, estimator
-    assert controller_io.MEASUREMENT_MODES == estimator.MEASUREMENT_MODES
     cfg = _ctrl_cfg()
     assert (cfg.strategy, cfg.window_steps) == ('ceco-ioch', 12)
     with pytest.raises(ValueError, match="strategy='ceco-turbo': unknown strategy"):
@@ -336,7 +402,7 @@ def test_controller_lockstep_latch_case_recovers():
             assert not ci.offer_state(state(1e6 + 10.0, n=1_000_010), 0.0, 0.0)
         for n in range(5 * k, 5 * k + 5):
             assert ci.offer_state(state(float(n)), wall_s=float(n), clock_s=0.0)
-            if n == 5 * k:    # the preview node answers the state of step k
+            if n == 5 * k:  # the preview node answers the state of step k
                 assert ci.offer_preview('weather', weather(k), n) and ci.offer_preview('traffic', traffic(k), n)
             si = ci.ready()
             if si is not None:
@@ -351,10 +417,10 @@ def test_controller_restart_resets_and_rejects_inconsistent_previews():
     ci = ControllerInputs(_ctrl_cfg(), rec.log, rec.reset)
     for n in range(50, 56):
         ci.offer_state(state(float(n)), float(n), 0.0)
-    assert not ci.offer_preview('weather', weather(10, start=stamp(49.0)), 1.0)      # start is not t_10
+    assert not ci.offer_preview('weather', weather(10, start=stamp(49.0)), 1.0)  # start is not t_10
     assert not ci.offer_preview('traffic', traffic(10, speed_mps=[math.nan] * 7), 1.0)
     assert ci.rejections.by_topic == {'v2x/weather_preview': 1, 'v2x/traffic_preview': 1}
-    ci.offer_state(state(0.0), 60.0, 0.0)                          # plant restarted: key-on
+    ci.offer_state(state(0.0), 60.0, 0.0)  # plant restarted: key-on
     assert rec.resets == 1 and ci.gate.last == 0.0
     assert ci.offer_preview('weather', weather(0), 61.0) and ci.offer_preview('traffic', traffic(0), 61.0)
     si = ci.ready()
@@ -372,56 +438,65 @@ def test_controller_realtime_inputs():
     si, why = ci.realtime_step(100.0)
     assert si is None and 'no valid cabin/state' in why
     ci.offer_state(state(43.0, stamp_s=1000.0), wall_s=0.0, clock_s=1000.2)
-    ci.offer_state(state(44.0, stamp_s=1500.0), wall_s=0.0, clock_s=1000.2)     # stamp 500 s ahead: rejected
-    ci.offer_state(state(1e6, stamp_s=1000.5), wall_s=0.0, clock_s=1000.6)      # far future time: rejected
+    ci.offer_state(state(44.0, stamp_s=1500.0), wall_s=0.0, clock_s=1000.2)  # stamp 500 s ahead: rejected
+    ci.offer_state(state(1e6, stamp_s=1000.5), wall_s=0.0, clock_s=1000.6)  # far future time: rejected
     assert ci.gate.last == 43.0 and ci.rejections.total == 2
     si, _ = ci.realtime_step(1001.0)
     assert si.k == 8 and si.weather is None and 'no valid weather and traffic preview' in si.note
-    ci.offer_preview('weather', weather(1_000_000, start=stamp(5e6)), 0.0)     # wedged-preview case: rejected
+    ci.offer_preview('weather', weather(1_000_000, start=stamp(5e6)), 0.0)  # wedged-preview case: rejected
     ci.offer_preview('weather', weather(8, start=stamp(40.0)), 0.0)
     ci.offer_preview('traffic', traffic(8, start=stamp(40.0)), 0.0)
     # one command per control step: a tick on a state of step 8 again is due for step 9's first state
     assert ci.realtime_step(1003.0) == (None, '') and not ci.due()
     ci.offer_state(state(44.0, stamp_s=1004.0), wall_s=1.0, clock_s=1004.0)
-    assert not ci.due()                                          # 44 s is still step 8
+    assert not ci.due()  # 44 s is still step 8
     ci.offer_state(state(45.0, stamp_s=1005.0), wall_s=2.0, clock_s=1005.0)
     assert ci.due()
     si, _ = ci.realtime_step(1005.1)
     assert si.k == 9 and si.weather is not None and si.note == '' and not ci.due()
     assert ci.rejections.by_topic['v2x/weather_preview'] == 1
     ci.offer_state(state(50.0, stamp_s=1000.0), wall_s=3.0, clock_s=1000.1)
-    si, why = ci.realtime_step(1011.0)                          # the state is now 11 s old
+    si, why = ci.realtime_step(1011.0)  # the state is now 11 s old
     assert si is None and '11.0 s old' in why
 
 
 def test_controller_health_levels():
     cfg = _ctrl_cfg()
-    common = dict(cfg=cfg, counts={'steps': 3}, ages_s={'state': 0.1}, rejections=Rejections(), new_rejections=0,
-                  events={})
+    common = dict(
+        cfg=cfg, counts={'steps': 3}, ages_s={'state': 0.1}, rejections=Rejections(), new_rejections=0, events={}
+    )
     assert controller_health(lifecycle='inactive', last=None, **common).level == WARN
     ok = controller_health(lifecycle='active', last={'k': 3, 'step_time_ms': 4.0, 'fallback': ''}, **common)
     assert ok.level == OK and ok.values['deadline_ms'] == '5000' and ok.values['last_step'] == '3'
     slow = controller_health(lifecycle='active', last={'k': 3, 'step_time_ms': 3000.0, 'fallback': ''}, **common)
     assert slow.level == WARN and 'above 50% of the step deadline (5000 ms)' in slow.message
-    budget = controller_health(lifecycle='active', last={'k': 3, 'step_time_ms': 10.8, 'fallback': ''},
-                               deadline_s=0.002, **common)     # the NMPC's own step budget
+    budget = controller_health(
+        lifecycle='active', last={'k': 3, 'step_time_ms': 10.8, 'fallback': ''}, deadline_s=0.002, **common
+    )  # the NMPC's own step budget
     assert budget.level == ERROR and 'beyond the step deadline (2 ms)' in budget.message
     assert budget.values['deadline_ms'] == '2'
     late = controller_health(lifecycle='active', last={'k': 3, 'step_time_ms': 6000.0, 'fallback': ''}, **common)
     assert late.level == ERROR
-    fb = controller_health(lifecycle='active', last={'k': 3, 'step_time_ms': 4.0, 'fallback': 'baseline',
-                                                     'reason': 'solve failed'}, **common)
+    fb = controller_health(
+        lifecycle='active',
+        last={'k': 3, 'step_time_ms': 4.0, 'fallback': 'baseline', 'reason': 'solve failed'},
+        **common,
+    )
     assert fb.level == ERROR and 'production ACC law applied (solve failed)' in fb.message
     r = Rejections()
     r.add('cabin/state', 'invalid', 'x', 0.0)
-    rej = controller_health(lifecycle='active', last={'k': 3, 'step_time_ms': 4.0, 'fallback': ''},
-                            **dict(common, rejections=r, new_rejections=1))
+    rej = controller_health(
+        lifecycle='active',
+        last={'k': 3, 'step_time_ms': 4.0, 'fallback': ''},
+        **dict(common, rejections=r, new_rejections=1),
+    )
     assert rej.level == WARN and rej.values['rejected cabin/state'] == '1'
 
 
 # ----------------------------------------------------------------------------- plant policy
 def _plant_cfg(**kw):
     from ceco_plant_sim.plant_io import PLANT_PARAMETERS, PlantNodeConfig
+
     values = {s.name: s.default for s in PLANT_PARAMETERS}
     values.update(kw)
     return PlantNodeConfig.from_params(values)
@@ -429,37 +504,62 @@ def _plant_cfg(**kw):
 
 def test_plant_command_policy_lockstep_and_realtime():
     from ceco_plant_sim.plant_io import CommandPolicy
+
     rec = Recorder()
     p = CommandPolicy(_plant_cfg(), rec.log)
     assert p.accept(command(3), 3, 0.0)
     assert not p.accept(command(200_003), 3, 0.0) and not p.accept(command(2), 3, 0.0)
-    assert not p.accept(command(3, stamp_s=14.0), 3, 0.0)              # stamp is not t_3
+    assert not p.accept(command(3, stamp_s=14.0), 3, 0.0)  # stamp is not t_3
     assert not p.accept(command(3, control_period_s=0.0), 3, 0.0)
     assert p.accept(command(3, fallback=True), 3, 0.0) and p.n_controller_fallback == 1
-    assert p.rejections.total == 4 and p.rejections.by_kind == {('hvac/command', 'future'): 1, (
-        'hvac/command', 'stale'): 1, ('hvac/command', 'invalid'): 2}
-    assert len(rec.lines) == 3              # the second invalid one within the throttle period
+    assert p.rejections.total == 4 and p.rejections.by_kind == {
+        ('hvac/command', 'future'): 1,
+        ('hvac/command', 'stale'): 1,
+        ('hvac/command', 'invalid'): 2,
+    }
+    assert len(rec.lines) == 3  # the second invalid one within the throttle period
     rt = CommandPolicy(_plant_cfg(timing='realtime', plant_dt_s=0.5, control_period_s=2.0), rec.log)
-    for n in range(40):                                             # states of plant steps 0..39 at clock 1000 + n/2
+    for n in range(40):  # states of plant steps 0..39 at clock 1000 + n/2
         rt.published(stamp(1000.0 + 0.5 * n), 0.5 * n)
-    assert rt.accept(command(9, ts=2.0, stamp_s=1000.0 + 0.5 * 37), 9, 0.0)        # t = 18.5 s: step 9
-    assert not rt.accept(command(10, ts=2.0, stamp_s=1000.0 + 0.5 * 37), 9, 0.0)   # index not the stamp's step
-    assert not rt.accept(command(9, ts=2.0, stamp_s=2038.0), 9, 0.0)               # a stamp the plant never sent
-    assert not rt.accept(command(0, ts=2.0, stamp_s=1000.0), 9, 0.0)               # the ring forgot it: too old
-    assert not rt.accept(command(4, ts=2.0, stamp_s=1000.0 + 0.5 * 19), 9, 0.0)    # 5 steps behind (limit 3)
+    assert rt.accept(command(9, ts=2.0, stamp_s=1000.0 + 0.5 * 37), 9, 0.0)  # t = 18.5 s: step 9
+    assert not rt.accept(command(10, ts=2.0, stamp_s=1000.0 + 0.5 * 37), 9, 0.0)  # index not the stamp's step
+    assert not rt.accept(command(9, ts=2.0, stamp_s=2038.0), 9, 0.0)  # a stamp the plant never sent
+    assert not rt.accept(command(0, ts=2.0, stamp_s=1000.0), 9, 0.0)  # the ring forgot it: too old
+    assert not rt.accept(command(4, ts=2.0, stamp_s=1000.0 + 0.5 * 19), 9, 0.0)  # 5 steps behind (limit 3)
 
 
 def test_plant_health():
     from ceco_plant_sim.plant_io import CommandPolicy, plant_health
+
     cfg = _plant_cfg()
     f = FallbackSupervisor()
     p = CommandPolicy(cfg, lambda *_: None)
-    h = plant_health(cfg=cfg, started=True, finished=False, n=10, t_s=10.0, supervisor=f, command_age_s=0.1,
-                     policy=p, new_rejections=0, events={})
+    h = plant_health(
+        cfg=cfg,
+        started=True,
+        finished=False,
+        n=10,
+        t_s=10.0,
+        supervisor=f,
+        command_age_s=0.1,
+        policy=p,
+        new_rejections=0,
+        events={},
+    )
     assert h.level == OK
     f.command_missing('step 10', 'no command for control step 2')
-    h = plant_health(cfg=cfg, started=True, finished=False, n=10, t_s=10.0, supervisor=f, command_age_s=6.0,
-                     policy=p, new_rejections=0, events={'incompatible_qos': 1})
+    h = plant_health(
+        cfg=cfg,
+        started=True,
+        finished=False,
+        n=10,
+        t_s=10.0,
+        supervisor=f,
+        command_age_s=6.0,
+        policy=p,
+        new_rejections=0,
+        events={'incompatible_qos': 1},
+    )
     assert h.level == ERROR and 'fallback: the production ACC law drives (no command for control step 2)' in h.message
     assert h.values['in_fallback'] == 'true'
 
@@ -472,15 +572,16 @@ def test_preview_inputs_reject_crash_and_wedge_cases():
     pi = PreviewInputs(cfg, rec.log)
     for t in range(20):
         assert pi.offer_state(state(float(t)), float(t), 0.0) is not None
-    assert pi.offer_state(state(9e18, stamp_s=0.0), 20.0, 0.0) is None        # the crash case
-    assert pi.offer_state(state(1e6 + 19.0, stamp_s=1e6 + 19.0), 20.0, 0.0) is None   # the wedge case
+    assert pi.offer_state(state(9e18, stamp_s=0.0), 20.0, 0.0) is None  # the crash case
+    assert pi.offer_state(state(1e6 + 19.0, stamp_s=1e6 + 19.0), 20.0, 0.0) is None  # the wedge case
     assert pi.offer_state(state(20.0), 21.0, 0.0) is not None and pi.gate.last == 20.0
     assert pi.rejections.total == 2
-    assert pi.offer_state(state(0.0), 22.0, 0.0) is None         # key-on while the plant speaks: no
-    v = pi.offer_state(state(0.0), 30.0, 0.0)                     # after 9 s of silence: a restart
+    assert pi.offer_state(state(0.0), 22.0, 0.0) is None  # key-on while the plant speaks: no
+    v = pi.offer_state(state(0.0), 30.0, 0.0)  # after 9 s of silence: a restart
     assert v.reset and pi.n_resets == 1
-    h = preview_health(cfg=cfg, inputs=pi, last_k=0, n_published=5, n_failed=0, last_error='', wall_s=22.0,
-                       new_rejections=0)
+    h = preview_health(
+        cfg=cfg, inputs=pi, last_k=0, n_published=5, n_failed=0, last_error='', wall_s=22.0, new_rejections=0
+    )
     assert h.level == OK
     with pytest.raises(ValueError, match='even number'):
         PreviewNodeConfig.from_params(dict(values, **{'faults.missing_spans_s': [1.0, 2.0, 3.0]}))
@@ -495,31 +596,50 @@ def test_warm_up_leaves_no_state_behind():
     from ceco_core.contracts import AcInput
     from ceco_v2x_preview.preview import PreviewQuality, make_previews
     from ceco_v2x_preview.scenario import load_scenario
+
     sc = load_scenario('sc03')
     fresh = factory.make_controller('ceco-ioch', sc, 5.0, 6)
     warm = factory.make_controller('ceco-ioch', sc, 5.0, 6)
     warm_up(warm, sc, 5.0, 6)
-    meas = {'t_cab_c': 40.0, 't_int_c': 48.0, 't_shell_c': 50.0, 't_glass_c': 50.0, 't_evap_c': 20.0,
-            't_vent_c': 22.0, 'rh_cab': 0.3}
+    meas = {
+        't_cab_c': 40.0,
+        't_int_c': 48.0,
+        't_shell_c': 50.0,
+        't_glass_c': 50.0,
+        't_evap_c': 20.0,
+        't_vent_c': 22.0,
+        'rh_cab': 0.3,
+    }
     for k in range(3):
-        obs = observation(k, 5.0 * k, meas, sc.env_at(5.0 * k), AcInput(0.12, 6.0),
-                          make_previews(sc, 5.0 * k, 5.0, 7, PreviewQuality()), sc)
+        obs = observation(
+            k,
+            5.0 * k,
+            meas,
+            sc.env_at(5.0 * k),
+            AcInput(0.12, 6.0),
+            make_previews(sc, 5.0 * k, 5.0, 7, PreviewQuality()),
+            sc,
+        )
         (a, _), (b, _) = fresh.compute(obs), warm.compute(obs)
         assert (a.mdot_bl_kgps, a.t_evap_sp_c) == (b.mdot_bl_kgps, b.t_evap_sp_c)
     assert np.isfinite(a.mdot_bl_kgps)
 
 
-@pytest.mark.parametrize('path, table', [
-    ('ceco_controller/config/mpc_node.yaml', controller_parameters()),
-    ('ceco_controller/config/baseline_node.yaml', controller_parameters('baseline')),
-    ('ceco_plant_sim/config/plant_node.yaml', 'plant'),
-    ('ceco_v2x_preview/config/preview_node.yaml', PREVIEW_PARAMETERS),
-])
+@pytest.mark.parametrize(
+    'path, table',
+    [
+        ('ceco_controller/config/mpc_node.yaml', controller_parameters()),
+        ('ceco_controller/config/baseline_node.yaml', controller_parameters('baseline')),
+        ('ceco_plant_sim/config/plant_node.yaml', 'plant'),
+        ('ceco_v2x_preview/config/preview_node.yaml', PREVIEW_PARAMETERS),
+    ],
+)
 def test_parameter_files_hold_declared_parameters_at_their_defaults(path, table):
     """The installed parameter files name only declared parameters, at the table's defaults."""
     import pathlib
 
     import yaml
+
     if table == 'plant':
         from ceco_plant_sim.plant_io import PLANT_PARAMETERS as table
     root = pathlib.Path(__file__).resolve().parents[1]
@@ -535,6 +655,7 @@ def test_parameter_tables_in_docs_are_current():
     """docs/ros.md holds the tables tools/param_tables.py generates from the ParamSpec tables."""
     import importlib.util
     import pathlib
+
     root = pathlib.Path(__file__).resolve().parents[1]
     spec = importlib.util.spec_from_file_location('param_tables', root / 'tools' / 'param_tables.py')
     mod = importlib.util.module_from_spec(spec)

@@ -1,4 +1,5 @@
 """Plausibility of every Observation field (ceco_core.observation_check)."""
+
 import math
 
 import numpy as np
@@ -11,11 +12,26 @@ N1 = 4
 
 
 def _obs(**kw):
-    d = dict(k=3, t_s=15.0, t_cab_c=28.0, t_int_c=40.0, t_shell_c=38.0, t_evap_c=6.0, t_vent_c=9.0, t_amb_c=35.0,
-             solar_wm2=800.0, speed_mps=10.0, mdot_bl_prev_kgps=0.1, t_evap_sp_prev_c=5.0,
-             preview_t_amb_c=np.full(N1, 35.0), preview_solar_wm2=np.full(N1, 800.0),
-             preview_speed_mps=np.full(N1, 10.0), preview_valid=np.ones(N1, bool),
-             pmv_lb=np.full(N1, -0.5), pmv_ub=np.full(N1, 0.5))
+    d = dict(
+        k=3,
+        t_s=15.0,
+        t_cab_c=28.0,
+        t_int_c=40.0,
+        t_shell_c=38.0,
+        t_evap_c=6.0,
+        t_vent_c=9.0,
+        t_amb_c=35.0,
+        solar_wm2=800.0,
+        speed_mps=10.0,
+        mdot_bl_prev_kgps=0.1,
+        t_evap_sp_prev_c=5.0,
+        preview_t_amb_c=np.full(N1, 35.0),
+        preview_solar_wm2=np.full(N1, 800.0),
+        preview_speed_mps=np.full(N1, 10.0),
+        preview_valid=np.ones(N1, bool),
+        pmv_lb=np.full(N1, -0.5),
+        pmv_ub=np.full(N1, 0.5),
+    )
     d.update(kw)
     return Observation(**d)
 
@@ -26,9 +42,19 @@ def test_a_plausible_observation_has_no_problem():
     assert c.summary() == ""
 
 
-@pytest.mark.parametrize("field, value", [("t_cab_c", math.nan), ("t_int_c", 1e6), ("t_shell_c", -math.inf),
-                                          ("t_evap_c", 9e18), ("t_vent_c", -60.0), ("t_amb_c", 70.0),
-                                          ("solar_wm2", 1e4), ("speed_mps", -30.0)])
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("t_cab_c", math.nan),
+        ("t_int_c", 1e6),
+        ("t_shell_c", -math.inf),
+        ("t_evap_c", 9e18),
+        ("t_vent_c", -60.0),
+        ("t_amb_c", 70.0),
+        ("solar_wm2", 1e4),
+        ("speed_mps", -30.0),
+    ],
+)
 def test_each_implausible_measurement_is_named(field, value):
     c = check_observation(_obs(**{field: value}))
     assert not c.measurements_ok and c.command_ok and len(c.measurement_problems) == 1
@@ -44,8 +70,11 @@ def test_previous_command_comfort_zone_info_and_previews():
     assert not check_observation(_obs(pmv_ub=np.full(N1, math.inf))).measurements_ok
     c = check_observation(_obs(k=-1, t_s=math.nan, met=9.0, clo=-1.0))
     assert c.measurements_ok and c.command_ok and len(c.info_problems) == 4
-    c = check_observation(_obs(preview_t_amb_c=np.array([35.0, 1e9, math.nan, 35.0]),
-                               preview_speed_mps=np.array([10.0, 10.0, 10.0, -40.0])))
+    c = check_observation(
+        _obs(
+            preview_t_amb_c=np.array([35.0, 1e9, math.nan, 35.0]), preview_speed_mps=np.array([10.0, 10.0, 10.0, -40.0])
+        )
+    )
     assert list(c.preview_plausible) == [True, False, False, False]
 
 

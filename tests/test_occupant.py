@@ -59,25 +59,28 @@ def test_casadi_matches_numpy():
     g = casadi.Function("g", [x], [casadi.jacobian(f(x), x)])
     for p in ([25.0, 7.0, 0.05], [40.0, 30.0, 0.17], [22.0, 12.0, 0.1]):
         n = occupant_air(t_cab_c=p[0], t_vent_c=p[1], mdot_bl_kgps=p[2], params=OccupantAirParams())
-        np.testing.assert_allclose(np.asarray(f(p)).ravel(),
-                                   [n.ta_occ_c, n.vel_occ_mps, n.ta_jet_c, n.vel_jet_mps], rtol=1e-12)
+        np.testing.assert_allclose(
+            np.asarray(f(p)).ravel(), [n.ta_occ_c, n.vel_occ_mps, n.ta_jet_c, n.vel_jet_mps], rtol=1e-12
+        )
         assert np.all(np.isfinite(np.asarray(g(p))))
 
 
 def test_mean_radiant_temperature_and_shell_surface():
     rp = RadiantParams()
-    assert float(mean_radiant_temperature_c(t_glass_c=30.0, t_shell_in_c=30.0, t_int_c=30.0, params=rp)) \
-        == pytest.approx(30.0, abs=1e-9)
+    assert float(
+        mean_radiant_temperature_c(t_glass_c=30.0, t_shell_in_c=30.0, t_int_c=30.0, params=rp)
+    ) == pytest.approx(30.0, abs=1e-9)
     # fourth-power mean: above the linear mean for spread temperatures
     t = float(mean_radiant_temperature_c(t_glass_c=20.0, t_shell_in_c=30.0, t_int_c=50.0, params=rp))
-    k4 = 0.22 * 293.15 ** 4 + 0.26 * 303.15 ** 4 + 0.52 * 323.15 ** 4
-    assert t == pytest.approx(k4 ** 0.25 - 273.15, abs=1e-9)
+    k4 = 0.22 * 293.15**4 + 0.26 * 303.15**4 + 0.52 * 323.15**4
+    assert t == pytest.approx(k4**0.25 - 273.15, abs=1e-9)
     assert t > 0.22 * 20.0 + 0.26 * 30.0 + 0.52 * 50.0 + 0.7  # 0.78 K above the linear mean here
     # trim surface: 3.5/8 of the way from the air to the sheet
     assert shell_inside_surface_c(26.0, 42.0, 3.5, 8.0) == pytest.approx(26.0 + 0.4375 * 16.0)
     x = casadi.SX.sym("x", 3)
-    f = casadi.Function("tmr", [x], [mean_radiant_temperature_c(t_glass_c=x[0], t_shell_in_c=x[1], t_int_c=x[2],
-                                                                params=rp)])
+    f = casadi.Function(
+        "tmr", [x], [mean_radiant_temperature_c(t_glass_c=x[0], t_shell_in_c=x[1], t_int_c=x[2], params=rp)]
+    )
     assert float(f([20.0, 30.0, 50.0])) == pytest.approx(t, abs=1e-12)
 
 

@@ -64,12 +64,14 @@ def pulldown_1800(sc03):
 def test_acinput_bounds_and_nan():
     AcInput(0.05, 3.0)
     AcInput(0.17, 10.0)
-    for kw, field in (({"mdot_bl_kgps": 0.04, "t_evap_sp_c": 5.0}, "mdot_bl_kgps"),
-                      ({"mdot_bl_kgps": 0.18, "t_evap_sp_c": 5.0}, "mdot_bl_kgps"),
-                      ({"mdot_bl_kgps": float("nan"), "t_evap_sp_c": 5.0}, "mdot_bl_kgps"),
-                      ({"mdot_bl_kgps": 0.1, "t_evap_sp_c": 2.9}, "t_evap_sp_c"),
-                      ({"mdot_bl_kgps": 0.1, "t_evap_sp_c": 10.5}, "t_evap_sp_c"),
-                      ({"mdot_bl_kgps": 0.1, "t_evap_sp_c": float("nan")}, "t_evap_sp_c")):
+    for kw, field in (
+        ({"mdot_bl_kgps": 0.04, "t_evap_sp_c": 5.0}, "mdot_bl_kgps"),
+        ({"mdot_bl_kgps": 0.18, "t_evap_sp_c": 5.0}, "mdot_bl_kgps"),
+        ({"mdot_bl_kgps": float("nan"), "t_evap_sp_c": 5.0}, "mdot_bl_kgps"),
+        ({"mdot_bl_kgps": 0.1, "t_evap_sp_c": 2.9}, "t_evap_sp_c"),
+        ({"mdot_bl_kgps": 0.1, "t_evap_sp_c": 10.5}, "t_evap_sp_c"),
+        ({"mdot_bl_kgps": 0.1, "t_evap_sp_c": float("nan")}, "t_evap_sp_c"),
+    ):
         with pytest.raises(ValueError, match=field):
             AcInput(**kw)
     with pytest.raises(dataclasses.FrozenInstanceError):
@@ -78,9 +80,16 @@ def test_acinput_bounds_and_nan():
 
 def test_params_validate_names_field():
     assert PlantParams().validate() == PlantParams()
-    for field, bad in (("c_int_jpk", -1.0), ("recirc_fraction", 1.5), ("cabin_volume_m3", float("nan")),
-                       ("eta_blower", 0.0), ("comp_speed_min_rpm", 9000.0), ("refrigerant", ""),
-                       ("substep_s", 5.0), ("n_occupants", 1.5)):
+    for field, bad in (
+        ("c_int_jpk", -1.0),
+        ("recirc_fraction", 1.5),
+        ("cabin_volume_m3", float("nan")),
+        ("eta_blower", 0.0),
+        ("comp_speed_min_rpm", 9000.0),
+        ("refrigerant", ""),
+        ("substep_s", 5.0),
+        ("n_occupants", 1.5),
+    ):
         with pytest.raises(ValueError, match=field):
             dataclasses.replace(PlantParams(), **{field: bad}).validate()
 
@@ -222,7 +231,7 @@ def test_cop_rises_with_vehicle_speed_at_fixed_load():
 
 def test_dynamic_plant_more_efficient_at_speed(sc03):
     ref = _plant(sc03)
-    for k in range(300):
+    for _ in range(300):
         ref.step(FULL, _env(speed_mps=0.0), 1.0)
     state = ref.state
     res = {}
@@ -280,9 +289,27 @@ def test_deterministic_bit_identical(sc03):
 
 def test_outputs_contract(pulldown_1800):
     names = {f.name for f in dataclasses.fields(PlantOutputs)}
-    for n in ("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c", "t_evap_sat_c", "t_cond_c", "rh_cab",
-              "p_comp_w", "p_blower_w", "p_cond_fan_w", "e_comp_j", "e_blower_j", "q_evap_w", "q_latent_w", "cop",
-              "comp_speed_rpm", "capacity_limited", "mdot_ref_kgps"):
+    for n in (
+        "t_cab_c",
+        "t_int_c",
+        "t_shell_c",
+        "t_evap_c",
+        "t_vent_c",
+        "t_evap_sat_c",
+        "t_cond_c",
+        "rh_cab",
+        "p_comp_w",
+        "p_blower_w",
+        "p_cond_fan_w",
+        "e_comp_j",
+        "e_blower_j",
+        "q_evap_w",
+        "q_latent_w",
+        "cop",
+        "comp_speed_rpm",
+        "capacity_limited",
+        "mdot_ref_kgps",
+    ):
         assert n in names
     o = pulldown_1800[10]
     assert all(math.isfinite(getattr(o, n)) for n in names if not isinstance(getattr(o, n), bool))

@@ -51,8 +51,9 @@ def test_noise_deterministic_and_order_independent(sc03):
     # seed=None takes the scenario's seed (0 for sc03).
     q_none = PreviewQuality(noise_std_solar_wm2=50.0)
     q_zero = PreviewQuality(noise_std_solar_wm2=50.0, seed=0)
-    np.testing.assert_array_equal(make_previews(sc03, 50.0, 5.0, 7, q_none).solar_wm2,
-                                  make_previews(sc03, 50.0, 5.0, 7, q_zero).solar_wm2)
+    np.testing.assert_array_equal(
+        make_previews(sc03, 50.0, 5.0, 7, q_none).solar_wm2, make_previews(sc03, 50.0, 5.0, 7, q_zero).solar_wm2
+    )
 
 
 def test_noise_grows_with_lead_time(sc03):

@@ -50,8 +50,11 @@ def _write_bag(result, bag_dir):
     t_n, power over [t_n, t_n + dt), one message each per plant step."""
     store = bagio.typestore()
     w = bag_writer.BagWriter(bag_dir)
-    topics = {'/cabin/state': 'ceco_msgs/msg/CabinState', '/cabin/comfort': 'ceco_msgs/msg/Comfort',
-              '/hvac/power': 'ceco_msgs/msg/AcPower'}
+    topics = {
+        '/cabin/state': 'ceco_msgs/msg/CabinState',
+        '/cabin/comfort': 'ceco_msgs/msg/Comfort',
+        '/hvac/power': 'ceco_msgs/msg/AcPower',
+    }
     for topic, typ in topics.items():
         w.add_topic(topic, typ)
     ts = result.timeseries
@@ -90,11 +93,17 @@ def test_report_from_bag_and_csv(runs, results, tmp_path):
     assert len(by['ceco-ioch'].columns['t_s']) == int(DURATION_S)
     # Files: PNGs (PMV, temperatures, powers, inputs, bars, solver), HTML, Markdown, CSV.
     names = sorted(p.name for p in res['figures'])
-    assert names == ['sc03_bars.png', 'sc03_inputs.png', 'sc03_pmv.png', 'sc03_powers.png', 'sc03_solver.png',
-                     'sc03_temperatures.png']
+    assert names == [
+        'sc03_bars.png',
+        'sc03_inputs.png',
+        'sc03_pmv.png',
+        'sc03_powers.png',
+        'sc03_solver.png',
+        'sc03_temperatures.png',
+    ]
     html = res['html'].read_text()
     assert html.count('src="data:image/png;base64,') == 6
-    assert not re.search(r'(src|href)="(?!data:)', html)          # self-contained
+    assert not re.search(r'(src|href)="(?!data:)', html)  # self-contained
     md = res['markdown'].read_text()
     assert 'figures/sc03_pmv.png' in md
     m = {s: r.metrics for s, r in results.items()}
@@ -125,7 +134,7 @@ def _colour_pixels(png, hex_colour: str, alpha: float = 1.0) -> int:
     import matplotlib.image as mpimg
 
     rgb = mpimg.imread(png)[..., :3]
-    c = np.array([int(hex_colour[i:i + 2], 16) / 255.0 for i in (1, 3, 5)]) * alpha + (1.0 - alpha)
+    c = np.array([int(hex_colour[i : i + 2], 16) / 255.0 for i in (1, 3, 5)]) * alpha + (1.0 - alpha)
     return int((np.abs(rgb - c).max(axis=-1) < 0.02).sum())
 
 
@@ -137,7 +146,7 @@ def test_figures_draw_each_run_in_its_strategy_colour(runs, tmp_path):
     colour = {s: figures.strategy_style(s)['color'] for s in ('ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')}
     for p in res['figures']:
         assert p.read_bytes()[:8] == PNG_MAGIC
-        alpha = 0.6 if p.name.endswith('_solver.png') else 1.0         # the solver boxes are translucent
+        alpha = 0.6 if p.name.endswith('_solver.png') else 1.0  # the solver boxes are translucent
         # the PMV figure: from 5 s on both strategies run the pull-down at full cooling under the
         # occupant-environment PMV (docs/comfort.md), so ceco-ioch's line lies mostly under the baseline's
         # (592 pixels measured); the others show thousands
@@ -178,6 +187,7 @@ def test_csv_check_follows_the_file_precision(runs, tmp_path):
 def test_tampered_metrics_are_reported_loudly(runs, tmp_path, capsys):
     bad = tmp_path / 'bad'
     import shutil
+
     shutil.copytree(runs / 'baseline', bad)
     m = json.loads((bad / 'metrics.json').read_text())
     m['E_tot_J'] *= 1.001
@@ -196,11 +206,14 @@ def test_discover_runs_rejects_a_non_run(tmp_path):
 
 
 def test_solver_stats_numbers():
-    diag = {'k': np.arange(5.0), 'solve_time_ms': np.array([10.0, 20.0, np.nan, 30.0, 40.0]),
-            'success': np.array([1.0, 1.0, np.nan, 0.0, 1.0]), 'iterations': np.array([5.0, 7.0, np.nan, 60.0, 9.0]),
-            'fallback': np.array(['', 'shifted_plan', '', 'baseline', '']),
-            'status': np.array(['Solve_Succeeded'] * 2 + ['baseline', 'Maximum_Iterations_Exceeded',
-                                                          'Solve_Succeeded'])}
+    diag = {
+        'k': np.arange(5.0),
+        'solve_time_ms': np.array([10.0, 20.0, np.nan, 30.0, 40.0]),
+        'success': np.array([1.0, 1.0, np.nan, 0.0, 1.0]),
+        'iterations': np.array([5.0, 7.0, np.nan, 60.0, 9.0]),
+        'fallback': np.array(['', 'shifted_plan', '', 'baseline', '']),
+        'status': np.array(['Solve_Succeeded'] * 2 + ['baseline', 'Maximum_Iterations_Exceeded', 'Solve_Succeeded']),
+    }
     s = rundata.solver_stats(diag)
     assert s['steps'] == 5 and s['solver_steps'] == 4
     assert s['solve_ms_median'] == 25.0 and s['solve_ms_max'] == 40.0
@@ -225,11 +238,17 @@ def test_csv_precision_digits(tmp_path):
 def test_report_vehicle_level(runs, tmp_path):
     from ceco_bringup import vehicle_energy as ve
 
-    res = report.build_report([runs], tmp_path / 'rep', vehicle=True, log=lambda *a, **k: None,
-                              vehicle_settings=ve.VehicleEnergySettings(fit_points=3))
+    res = report.build_report(
+        [runs],
+        tmp_path / 'rep',
+        vehicle=True,
+        log=lambda *a, **k: None,
+        vehicle_settings=ve.VehicleEnergySettings(fit_points=3),
+    )
     rows = res['vehicle_rows']['sc03']
     assert {(r['vehicle'], r['strategy']) for r in rows} == {
-        (v, s) for v in (ve.PRIUS, ve.ZOE) for s in ('baseline', 'ceco-ioch')}
+        (v, s) for v in (ve.PRIUS, ve.ZOE) for s in ('baseline', 'ceco-ioch')
+    }
     by = {r['strategy']: r for r in rows if r['vehicle'] == ve.ZOE}
     m = {r.strategy: r.recomputed for r in res['runs']}
     # The A/C load is each run's mean A/C power, E_tot / T.
@@ -253,6 +272,7 @@ def test_report_vehicle_level(runs, tmp_path):
 
 def test_unreadable_bag_is_a_clear_error(runs, tmp_path, capsys):
     import shutil
+
     bad = tmp_path / 'run'
     shutil.copytree(runs / 'ceco-ioch', bad)
     (bad / 'bag').mkdir()
@@ -268,11 +288,15 @@ def _ros2_bag_record_run(result, run_dir, namespaces):
     from bag_helpers import plain, sample, write_ros2_bag_record_style
 
     from ceco_bringup.bagio import _msg_dir
+
     write_run(result, run_dir)
     (run_dir / 'timeseries.csv').unlink()
     store = bagio.typestore()
-    types = {'cabin/state': 'ceco_msgs/msg/CabinState', 'cabin/comfort': 'ceco_msgs/msg/Comfort',
-             'hvac/power': 'ceco_msgs/msg/AcPower'}
+    types = {
+        'cabin/state': 'ceco_msgs/msg/CabinState',
+        'cabin/comfort': 'ceco_msgs/msg/Comfort',
+        'hvac/power': 'ceco_msgs/msg/AcPower',
+    }
     topics = {f'{ns}/{t}': typ for ns in namespaces for t, typ in types.items()}
     ts = result.timeseries
     msgs = []
@@ -281,12 +305,14 @@ def _ros2_bag_record_run(result, run_dir, namespaces):
             t = float(ts['t_s'][n])
             for topic, typ in types.items():
                 m = plain(sample(store, typ, n, stamp_ns=int(round(t * 1e9))))
-                m.update({k: (float(ts[k][n]) + 5.0 * i if k == 't_cab_c' else type(m[k])(ts[k][n]))
-                          for k in m if k in ts})
+                m.update(
+                    {k: (float(ts[k][n]) + 5.0 * i if k == 't_cab_c' else type(m[k])(ts[k][n])) for k in m if k in ts}
+                )
                 m.update(step_index=n, **({'scenario_time_s': t} if 'scenario_time_s' in m else {}))
                 msgs.append((f'{ns}/{topic}', 1_764_000_000 * 10**9 + n * 10**7 + i, m))
-    write_ros2_bag_record_style(run_dir / 'bag', topics, msgs, _msg_dir(),
-                                {t: store.hash_rihs01(t) for t in types.values()})
+    write_ros2_bag_record_style(
+        run_dir / 'bag', topics, msgs, _msg_dir(), {t: store.hash_rihs01(t) for t in types.values()}
+    )
 
 
 def test_report_reads_a_bag_recorded_by_ros2_bag_record(results, tmp_path):

@@ -121,8 +121,14 @@ def test_initial_defaults_and_humidity():
     ini = sc.initial
     assert ini.t_int_c == ini.t_shell_c == ini.t_glass_c == ini.t_evap_c == 57.0
     # InitialState is also a read-only mapping (the plant takes dicts too).
-    assert dict(ini) == {"t_cab_c": 57.0, "t_int_c": 57.0, "t_shell_c": 57.0, "t_glass_c": 57.0,
-                         "t_evap_c": 57.0, "rh_cab": ini.rh_cab}
+    assert dict(ini) == {
+        "t_cab_c": 57.0,
+        "t_int_c": 57.0,
+        "t_shell_c": 57.0,
+        "t_glass_c": 57.0,
+        "t_evap_c": 57.0,
+        "rh_cab": ini.rh_cab,
+    }
     assert "t_glass_c" in ini and ini.get("t_seat_c") is None
     # Same vapour pressure as the ambient air (35 degC, 40 %).
     assert ini.rh_cab * _PSAT_PA[57.0] == pytest.approx(0.4 * _PSAT_PA[35.0], rel=0.005)
@@ -235,8 +241,11 @@ def test_sun_geometry_block():
     sc = scenario_from_dict(d)
     assert (sc.sun.altitude_deg, sc.sun.azimuth_deg, sc.sun.heading_deg) == (35.0, 250.0, 180.0)
     assert isinstance(sc.sun.altitude_deg, float)
-    for bad, field in (({"altitude_deg": 95.0}, "sun.altitude_deg"), ({"heading_deg": -1.0}, "sun.heading_deg"),
-                       ({"zenith_deg": 10.0}, "sun.zenith_deg: unknown field")):
+    for bad, field in (
+        ({"altitude_deg": 95.0}, "sun.altitude_deg"),
+        ({"heading_deg": -1.0}, "sun.heading_deg"),
+        ({"zenith_deg": 10.0}, "sun.zenith_deg: unknown field"),
+    ):
         d["sun"] = bad
         with pytest.raises(ScenarioError, match=field):
             scenario_from_dict(d)

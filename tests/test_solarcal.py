@@ -14,8 +14,16 @@ import pytest
 from ceco_core.solarcal import ALPHA_LW, F_EFF, projected_area_factor, relative_azimuth_deg, solar_gain
 
 DATA = pathlib.Path(__file__).parent / "data"
-INPUTS = ("sol_altitude_deg", "sharp_deg", "sol_radiation_dir_wm2", "sol_transmittance", "f_svv", "f_bes", "asw",
-          "floor_reflectance")
+INPUTS = (
+    "sol_altitude_deg",
+    "sharp_deg",
+    "sol_radiation_dir_wm2",
+    "sol_transmittance",
+    "f_svv",
+    "f_bes",
+    "asw",
+    "floor_reflectance",
+)
 
 
 @pytest.fixture(scope="module")
@@ -25,8 +33,9 @@ def reference():
     return {k: np.array([r[k] for r in rows]) for k in rows[0]}
 
 
-@pytest.mark.parametrize("name,posture,n", [("sitting", "sitting", 300), ("standing", "standing", 100),
-                                            ("grid", "sitting", 9)])
+@pytest.mark.parametrize(
+    "name,posture,n", [("sitting", "sitting", 300), ("standing", "standing", 100), ("grid", "sitting", 9)]
+)
 def test_matches_pythermalcomfort_table(reference, name, posture, n):
     m = reference["set"] == name
     assert np.count_nonzero(m) == n
@@ -45,12 +54,26 @@ def test_matches_pythermalcomfort_table(reference, name, posture, n):
 
 def test_cabin_defaults_value_and_the_sun_behind():
     # seated driver, sun ahead at 60 deg, 850 W/m2, T_sol 0.45, half the body sunlit, asw 0.67, no sky view
-    r = solar_gain(sol_altitude_deg=60.0, sharp_deg=0.0, sol_radiation_dir_wm2=850.0, sol_transmittance=0.45,
-                   f_svv=0.0, f_bes=0.5, asw=0.67)
+    r = solar_gain(
+        sol_altitude_deg=60.0,
+        sharp_deg=0.0,
+        sol_radiation_dir_wm2=850.0,
+        sol_transmittance=0.45,
+        f_svv=0.0,
+        f_bes=0.5,
+        asw=0.67,
+    )
     # 0.67 * 0.696 * 0.262 * 0.45 * 0.5 * 850
     assert float(r.w_rad_wm2) == pytest.approx(23.366, abs=1e-3)
-    behind = solar_gain(sol_altitude_deg=60.0, sharp_deg=180.0, sol_radiation_dir_wm2=850.0,
-                        sol_transmittance=0.45, f_svv=0.0, f_bes=0.5, asw=0.67)
+    behind = solar_gain(
+        sol_altitude_deg=60.0,
+        sharp_deg=180.0,
+        sol_radiation_dir_wm2=850.0,
+        sol_transmittance=0.45,
+        f_svv=0.0,
+        f_bes=0.5,
+        asw=0.67,
+    )
     assert float(behind.w_rad_wm2) == pytest.approx(float(r.w_rad_wm2) * 0.152 / 0.262, rel=1e-12)
 
 
@@ -59,8 +82,16 @@ def test_casadi_matches_numpy():
     f = casadi.Function("sg", [x], [solar_gain(**dict(zip(INPUTS, [x[i] for i in range(8)]))).w_rad_wm2])
     rng = np.random.default_rng(3)
     for _ in range(40):
-        p = [rng.uniform(0, 90), rng.uniform(0, 180), rng.uniform(0, 1000), rng.uniform(0, 1), rng.uniform(0, 1),
-             rng.uniform(0, 1), rng.uniform(0.5, 0.9), rng.uniform(0, 1)]
+        p = [
+            rng.uniform(0, 90),
+            rng.uniform(0, 180),
+            rng.uniform(0, 1000),
+            rng.uniform(0, 1),
+            rng.uniform(0, 1),
+            rng.uniform(0, 1),
+            rng.uniform(0.5, 0.9),
+            rng.uniform(0, 1),
+        ]
         assert float(f(p)) == pytest.approx(float(solar_gain(**dict(zip(INPUTS, p))).w_rad_wm2), abs=1e-9)
     # bilinear on the grid nodes and between them
     assert float(projected_area_factor(60.0, 0.0)) == 0.262
@@ -68,12 +99,19 @@ def test_casadi_matches_numpy():
 
 
 def test_relative_azimuth_and_input_errors():
-    np.testing.assert_allclose(relative_azimuth_deg([0, 90, 270, 180, 350, 10], [0, 0, 0, 0, 20, 350]),
-                               [0, 90, 90, 180, 30, 20])
-    good = dict(sol_altitude_deg=60.0, sharp_deg=0.0, sol_radiation_dir_wm2=850.0, sol_transmittance=0.45,
-                f_svv=0.0, f_bes=0.5)
-    for key, bad in (("sol_altitude_deg", 95.0), ("sharp_deg", -1.0), ("sol_transmittance", 1.2),
-                     ("f_bes", float("nan")), ("sol_radiation_dir_wm2", -5.0)):
+    np.testing.assert_allclose(
+        relative_azimuth_deg([0, 90, 270, 180, 350, 10], [0, 0, 0, 0, 20, 350]), [0, 90, 90, 180, 30, 20]
+    )
+    good = dict(
+        sol_altitude_deg=60.0, sharp_deg=0.0, sol_radiation_dir_wm2=850.0, sol_transmittance=0.45, f_svv=0.0, f_bes=0.5
+    )
+    for key, bad in (
+        ("sol_altitude_deg", 95.0),
+        ("sharp_deg", -1.0),
+        ("sol_transmittance", 1.2),
+        ("f_bes", float("nan")),
+        ("sol_radiation_dir_wm2", -5.0),
+    ):
         with pytest.raises(ValueError, match=key):
             solar_gain(**{**good, key: bad})
     with pytest.raises(ValueError, match="posture"):

@@ -1,4 +1,5 @@
 """ceco's dense SQP and the NLP layout: exact convexification, deadline, real-time iteration, named slices."""
+
 import numpy as np
 import pytest
 
@@ -11,11 +12,26 @@ N1 = 7
 
 
 def _obs(k=0, t_cab=27.0, speed=10.0):
-    return Observation(k=k, t_s=5.0 * k, t_cab_c=t_cab, t_int_c=40.0, t_shell_c=38.0, t_evap_c=6.0, t_vent_c=9.0,
-                       t_amb_c=35.0, solar_wm2=800.0, speed_mps=speed, mdot_bl_prev_kgps=0.1, t_evap_sp_prev_c=5.0,
-                       preview_t_amb_c=np.full(N1, 35.0), preview_solar_wm2=np.full(N1, 800.0),
-                       preview_speed_mps=np.full(N1, speed), preview_valid=np.ones(N1, bool),
-                       pmv_lb=np.full(N1, -0.5), pmv_ub=np.full(N1, 0.5))
+    return Observation(
+        k=k,
+        t_s=5.0 * k,
+        t_cab_c=t_cab,
+        t_int_c=40.0,
+        t_shell_c=38.0,
+        t_evap_c=6.0,
+        t_vent_c=9.0,
+        t_amb_c=35.0,
+        solar_wm2=800.0,
+        speed_mps=speed,
+        mdot_bl_prev_kgps=0.1,
+        t_evap_sp_prev_c=5.0,
+        preview_t_amb_c=np.full(N1, 35.0),
+        preview_solar_wm2=np.full(N1, 800.0),
+        preview_speed_mps=np.full(N1, speed),
+        preview_valid=np.ones(N1, bool),
+        pmv_lb=np.full(N1, -0.5),
+        pmv_ub=np.full(N1, 0.5),
+    )
 
 
 def _optimum_hessians(strategy, steps=6):
@@ -37,7 +53,7 @@ def test_convexification_is_exact_on_the_ill_conditioned_input_block():
     eigen-direction with eigenvalue >= eig_floor unchanged."""
     sqp, hessians = _optimum_hessians("ceco-c")
     floor = sqp.options.eig_floor
-    (block, ix), = sqp._dense  # one dense block: the inputs
+    ((block, ix),) = sqp._dense  # one dense block: the inputs
     assert block.size == 12
     conds = []
     for h in hessians:
@@ -63,7 +79,7 @@ def test_convexification_falls_back_to_a_gershgorin_shift(monkeypatch):
 
     monkeypatch.setattr(np.linalg, "eigh", fail)
     monkeypatch.setattr(np.linalg, "cholesky", fail)  # (the shortcut for blocks already above the floor)
-    (block, ix), = sqp._dense
+    ((block, ix),) = sqp._dense
     hc = sqp.convexify(hessians[0])[ix]
     assert np.linalg.eigvalsh(hc).min() > 0 and sqp.n_eig_fallbacks == 1
 
@@ -95,11 +111,39 @@ def test_real_time_iteration_is_one_full_qp_step():
 
 def test_parameter_layout_names_every_slice():
     pl = ParamLayout(4)
-    assert pl.names() == ("x0", "t_int", "t_shell", "d_cab", "d_evap", "d_ain", "u_prev", "t_amb", "solar", "speed",
-                          "pmv_lb", "pmv_ub", "t_mr", "pa")
+    assert pl.names() == (
+        "x0",
+        "t_int",
+        "t_shell",
+        "d_cab",
+        "d_evap",
+        "d_ain",
+        "u_prev",
+        "t_amb",
+        "solar",
+        "speed",
+        "pmv_lb",
+        "pmv_ub",
+        "t_mr",
+        "pa",
+    )
     assert pl.size == 9 + 5 * 4 + 2
-    p = pl.pack(x0=[1, 2], t_int=3, t_shell=4, d_cab=5, d_evap=6, d_ain=7, u_prev=[8, 9], t_amb=np.arange(4),
-                solar=10 + np.arange(4), speed=20 + np.arange(4), pmv_lb=-1, pmv_ub=1, t_mr=30, pa=1700)
+    p = pl.pack(
+        x0=[1, 2],
+        t_int=3,
+        t_shell=4,
+        d_cab=5,
+        d_evap=6,
+        d_ain=7,
+        u_prev=[8, 9],
+        t_amb=np.arange(4),
+        solar=10 + np.arange(4),
+        speed=20 + np.arange(4),
+        pmv_lb=-1,
+        pmv_ub=1,
+        t_mr=30,
+        pa=1700,
+    )
     assert pl.scalar(p, "pa") == 1700 and p[-1] == 1700
     assert pl.scalar(p, "t_shell") == 4 and list(pl.get(p, "speed")) == [20, 21, 22, 23]
     assert list(pl.get(p, "u_prev")) == [8, 9] and list(pl.get(p, "pmv_lb")) == [-1] * 4
@@ -121,6 +165,7 @@ def test_variable_and_row_layouts_shift_stage_blocks():
     with pytest.raises(ValueError, match="blocks of 2"):
         vl.add("u", 3, 0.0, 1.0)
     import casadi
+
     rows = RowLayout()
     x = casadi.SX.sym("x", 2)
     for i in range(3):

@@ -6,6 +6,7 @@ Needs the built workspace (`bash tools/setup.sh; source tools/env.sh`, which
 tools/test.sh does). No timed assertions: waits are bounded only so a broken
 stack fails instead of hanging.
 """
+
 from __future__ import annotations
 
 import json
@@ -43,8 +44,9 @@ def _wait_for(cond, timeout_s: float, what: str, procs=()):
     while not cond():
         for p in procs:
             if p.proc is not None and not p.running():
-                raise AssertionError(f'{p.name} exited ({p.returncode()}) while waiting for {what}:\n'
-                                     + p.log_text()[-3000:])
+                raise AssertionError(
+                    f'{p.name} exited ({p.returncode()}) while waiting for {what}:\n' + p.log_text()[-3000:]
+                )
         if time.monotonic() - t0 > timeout_s:
             raise AssertionError(f'gave up waiting ({timeout_s} s) for {what}')
         time.sleep(0.02)
@@ -56,10 +58,11 @@ class DdsPeer:
     def __init__(self, domain: int, name: str = 'stack_test'):
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.signals import SignalHandlerOptions
+
         env = supervisor.dds_env(domain)
         keys = ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'FASTDDS_BUILTIN_TRANSPORTS', 'FASTRTPS_DEFAULT_PROFILES_FILE')
         self._saved_env = {key: os.environ.get(key) for key in keys}
-        for key in keys:   # read by the rmw when this process's participant is created
+        for key in keys:  # read by the rmw when this process's participant is created
             os.environ[key] = env[key]
         self.env = env
         self.context = rclpy.Context()
@@ -97,6 +100,7 @@ class DdsPeer:
 def _recording_peer(tmp_path, **recorder_kw):
     """A test peer on a fresh domain with a rosbag2 Recorder spinning in it: (peer, recorder, log dir, bag)."""
     from ceco_bringup.recorder import Recorder
+
     tn = DdsPeer(_domain(), 'unused')
     bag = tmp_path / 'bag'
     rec = Recorder(bag, context=tn.context, **recorder_kw)
@@ -105,13 +109,25 @@ def _recording_peer(tmp_path, **recorder_kw):
 
 
 def _proc(name, pkg, exe, env, log_dir, params):
-    return supervisor.NodeProcess(name, pkg, exe, env=env, log_dir=log_dir, params=params,
-                                  params_files=[supervisor.share_file(pkg, f'config/{exe}.yaml')])
+    return supervisor.NodeProcess(
+        name,
+        pkg,
+        exe,
+        env=env,
+        log_dir=log_dir,
+        params=params,
+        params_files=[supervisor.share_file(pkg, f'config/{exe}.yaml')],
+    )
 
 
 def _cli(*args, **kw):
-    return subprocess.Popen([sys.executable, '-m', 'ceco_bringup.cli', *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, **kw)
+    return subprocess.Popen(
+        [sys.executable, '-m', 'ceco_bringup.cli', *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        **kw,
+    )
 
 
 # ----------------------------------------------------------------------------
@@ -120,16 +136,28 @@ def test_short_closed_loop_over_dds_matches_simulator(tmp_path):
     is inside the actuator bounds, one command per control step and one state
     per plant step in the bag, and the metrics equal the in-process simulator's."""
     out = tmp_path / 'run'
-    p = _cli('run', '--scenario', 'sc03', '--strategy', 'ceco-ioch', '--duration-s', '60', '--out', str(out),
-             '--no-progress', '--domain-id', str(_domain()))
+    p = _cli(
+        'run',
+        '--scenario',
+        'sc03',
+        '--strategy',
+        'ceco-ioch',
+        '--duration-s',
+        '60',
+        '--out',
+        str(out),
+        '--no-progress',
+        '--domain-id',
+        str(_domain()),
+    )
     text, _ = p.communicate(timeout=300)
     assert p.returncode == 0, text
     bag = out / 'bag'
     ts = bagio.load_run_timeseries(bag)
     assert ts['t_s'].tolist() == [float(i) for i in range(60)]
-    assert ts['t_cab_c'][-1] < ts['t_cab_c'][0] - 3.0          # cabin pulled down by > 3 K in a minute
+    assert ts['t_cab_c'][-1] < ts['t_cab_c'][0] - 3.0  # cabin pulled down by > 3 K in a minute
     cmds = bagio.load_commands(bag)
-    assert sorted(cmds['k'].tolist()) == list(range(12))       # exactly one command per control step
+    assert sorted(cmds['k'].tolist()) == list(range(12))  # exactly one command per control step
     assert np.all((cmds['mdot_bl_kgps'] >= 0.05) & (cmds['mdot_bl_kgps'] <= 0.17))
     assert np.all((cmds['t_evap_sp_c'] >= 3.0) & (cmds['t_evap_sp_c'] <= 10.0))
     assert set(cmds['strategy']) == {'ceco-ioch'}
@@ -142,11 +170,21 @@ def test_short_closed_loop_over_dds_matches_simulator(tmp_path):
     assert ts['mdot_bl_kgps'].tolist() == [by_k[i // 5] for i in range(60)]
 
     from ceco_controller.closed_loop import SimSettings, simulate
+
     sim_run = simulate('sc03', 'ceco-ioch', SimSettings(duration_s=60.0, progress=False))
     sim = sim_run.metrics
     # the comfort series published in cabin/comfort rebuild the simulator's columns (issue 9)
-    for col in ('pa_pa', 't_dew_c', 'fog_margin_k', 'dr_pct', 'ta_occ_c', 'vel_occ_mps', 't_mr_c', 'w_rad_wm2',
-                'iso7730_valid'):
+    for col in (
+        'pa_pa',
+        't_dew_c',
+        'fog_margin_k',
+        'dr_pct',
+        'ta_occ_c',
+        'vel_occ_mps',
+        't_mr_c',
+        'w_rad_wm2',
+        'iso7730_valid',
+    ):
         np.testing.assert_allclose(ts[col], sim_run.timeseries[col], rtol=1e-12, atol=1e-12, err_msg=col)
     metrics = json.loads((out / 'metrics.json').read_text())
     for key in ('E_tot_J', 'E_comp_J', 'E_blower_J', 'I_pmv', 'otc_violation_pct', 'pmv_mean'):
@@ -173,8 +211,16 @@ def _check_lockstep_bag(bag, n_steps: int, dt_s: float = 1.0):
     info = check_jazzy_metadata(yaml.safe_load((bag / 'metadata.yaml').read_text()), bag)
     assert info['storage_identifier'] == 'mcap'
     assert {t['topic_metadata']['name'] for t in info['topics_with_message_count']} == {
-        '/cabin/state', '/cabin/comfort', '/hvac/power', '/hvac/command', '/controller/diagnostics',
-        '/v2x/weather_preview', '/v2x/traffic_preview', '/clock', '/rosout'}
+        '/cabin/state',
+        '/cabin/comfort',
+        '/hvac/power',
+        '/hvac/command',
+        '/controller/diagnostics',
+        '/v2x/weather_preview',
+        '/v2x/traffic_preview',
+        '/clock',
+        '/rosout',
+    }
     assert info['starting_time']['nanoseconds_since_epoch'] == 0
     assert info['duration']['nanoseconds'] == round((n_steps - 1) * dt_s * 1e9)
     ours = {}
@@ -192,7 +238,7 @@ def _check_lockstep_bag(bag, n_steps: int, dt_s: float = 1.0):
         for _, ch, m, d in make_reader(fh, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
             theirs.setdefault(ch.topic, []).append((m.log_time, plain(d)))
     assert {t: len(v) for t, v in theirs.items()} == {t: len(v) for t, v in ours.items()}
-    for topic in ours:   # (ties in time, several /rosout lines at one simulation time, in any order)
+    for topic in ours:  # (ties in time, several /rosout lines at one simulation time, in any order)
         for (t_a, a), (t_b, b) in zip(sorted(ours[topic], key=repr), sorted(theirs[topic], key=repr)):
             assert t_a == t_b
             assert_same_fields(a, b, topic)
@@ -201,9 +247,24 @@ def _check_lockstep_bag(bag, n_steps: int, dt_s: float = 1.0):
 # ----------------------------------------------------------------------------
 def _state_msg(k_plant: int, t_s: float, **override):
     from ceco_msgs.msg import CabinState
-    m = CabinState(step_index=k_plant, scenario_time_s=t_s, t_cab_c=45.0, t_int_c=50.0, t_shell_c=55.0,
-                   t_glass_c=55.0, t_evap_c=45.0, t_vent_c=45.0, rh_cab=0.2, t_amb_c=35.0, solar_wm2=800.0,
-                   rh=0.4, speed_mps=10.0, mdot_bl_kgps=0.17, t_evap_sp_c=3.0)
+
+    m = CabinState(
+        step_index=k_plant,
+        scenario_time_s=t_s,
+        t_cab_c=45.0,
+        t_int_c=50.0,
+        t_shell_c=55.0,
+        t_glass_c=55.0,
+        t_evap_c=45.0,
+        t_vent_c=45.0,
+        rh_cab=0.2,
+        t_amb_c=35.0,
+        solar_wm2=800.0,
+        rh=0.4,
+        speed_mps=10.0,
+        mdot_bl_kgps=0.17,
+        t_evap_sp_c=3.0,
+    )
     m.header.stamp = conversions.stamp_from_s(t_s if math.isfinite(t_s) and 0 <= t_s < 2**31 else 0.0)
     for key, value in override.items():
         setattr(m, key, value)
@@ -218,6 +279,7 @@ def test_recorder_records_a_namespaced_stack_fully_qualified(tmp_path):
     from rosgraph_msgs.msg import Clock
 
     from ceco_msgs.msg import CabinState
+
     tn, rec, _, bag = _recording_peer(tmp_path, namespace='/veh1', storage='sqlite3', timestamps='sim')
     veh1 = rclpy.create_node('plant_node', namespace='/veh1', context=tn.context)
     root = rclpy.create_node('plant_node', context=tn.context)
@@ -226,8 +288,11 @@ def test_recorder_records_a_namespaced_stack_fully_qualified(tmp_path):
     pub_clock = root.create_publisher(Clock, interfaces.TOPIC_CLOCK, interfaces.QOS_CLOCK)
     try:
         assert rec.bag_topics[interfaces.TOPIC_STATE] == '/veh1/cabin/state'
-        _wait_for(lambda: pub_veh1.get_subscription_count() >= 1 and pub_clock.get_subscription_count() >= 1,
-                  30, 'the recorder to match /veh1/cabin/state and /clock')
+        _wait_for(
+            lambda: pub_veh1.get_subscription_count() >= 1 and pub_clock.get_subscription_count() >= 1,
+            30,
+            'the recorder to match /veh1/cabin/state and /clock',
+        )
         assert pub_root.get_subscription_count() == 0
         for n in range(10):
             pub_clock.publish(Clock(clock=conversions.stamp_from_s(0.5 * n)))
@@ -252,6 +317,7 @@ def _log_has(proc, text, timeout_s=20.0):
 
 def _command(k: int, t_s: float, **override):
     from ceco_msgs.msg import AcCommand
+
     m = AcCommand(step_index=k, control_period_s=5.0, blower_flow_kgps=0.1, evap_setpoint_c=5.0, strategy='ceco')
     m.header.stamp = conversions.stamp_from_s(t_s)
     for key, value in override.items():
@@ -271,21 +337,42 @@ def test_bad_input_rejected_nodes_keep_commanding(tmp_path):
     survives a state at 9e18 s; a restarted plant (key-on after silence) resets the controller.
     An unknown strategy parameter stops mpc_node at start with a clear message."""
     from ceco_msgs.msg import AcCommand, AcPower, CabinState, TrafficPreview, WeatherPreview
+
     log_dir = tmp_path / 'logs'
     # Domain A: preview_node + mpc_node, the test plays the plant.
     dom_a, dom_b = _domain(), _domain()
     ta = DdsPeer(dom_a, 'fake_plant')
     common = {'scenario': 'sc03', 'timing': 'lockstep', 'control_period_s': 5.0, 'horizon_steps': 6}
-    preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', ta.env, log_dir,
-                    dict(common, **_VERBOSE_INPUTS))
-    mpc = _proc('mpc_node', 'ceco_controller', 'mpc_node', ta.env, log_dir,
-                dict(common, strategy='ceco-ioch', preview_timeout_s=30.0, autostart=True, **_VERBOSE_INPUTS))
+    preview = _proc(
+        'preview_node', 'ceco_v2x_preview', 'preview_node', ta.env, log_dir, dict(common, **_VERBOSE_INPUTS)
+    )
+    mpc = _proc(
+        'mpc_node',
+        'ceco_controller',
+        'mpc_node',
+        ta.env,
+        log_dir,
+        dict(common, strategy='ceco-ioch', preview_timeout_s=30.0, autostart=True, **_VERBOSE_INPUTS),
+    )
     bad = _proc('mpc_bad', 'ceco_controller', 'mpc_node', ta.env, log_dir, dict(common, strategy='ceco-turbo'))
     # Domain B: plant_node alone, the test plays the controller.
     tb = DdsPeer(dom_b, 'fake_controller')
-    plant = _proc('plant_node', 'ceco_plant_sim', 'plant_node', tb.env, log_dir, {
-        'scenario': 'sc03', 'timing': 'lockstep', 'duration_s': 60.0, 'lockstep.command_timeout_s': 600.0,
-        'lockstep.min_state_subscribers': 1, 'lockstep.min_command_subscribers': 1, 'inputs.log_throttle_s': 0.0})
+    plant = _proc(
+        'plant_node',
+        'ceco_plant_sim',
+        'plant_node',
+        tb.env,
+        log_dir,
+        {
+            'scenario': 'sc03',
+            'timing': 'lockstep',
+            'duration_s': 60.0,
+            'lockstep.command_timeout_s': 600.0,
+            'lockstep.min_state_subscribers': 1,
+            'lockstep.min_command_subscribers': 1,
+            'inputs.log_throttle_s': 0.0,
+        },
+    )
     procs = [preview, mpc, bad, plant]
     try:
         for p in procs:
@@ -304,16 +391,22 @@ def test_bad_input_rejected_nodes_keep_commanding(tmp_path):
         assert bad.returncode() == 2
         assert "invalid parameter strategy='ceco-turbo': unknown strategy" in bad.log_text()
 
-        _wait_for(lambda: ta.node.count_publishers(interfaces.TOPIC_COMMAND) >= 1
-                  and pub_state.get_subscription_count() >= 2 and 'active: commanding' in mpc.log_text(),
-                  120, 'mpc_node active and preview_node up')
+        _wait_for(
+            lambda: (
+                ta.node.count_publishers(interfaces.TOPIC_COMMAND) >= 1
+                and pub_state.get_subscription_count() >= 2
+                and 'active: commanding' in mpc.log_text()
+            ),
+            120,
+            'mpc_node active and preview_node up',
+        )
         # --- controller and preview node: bad states, every field
         bad_states = [
             (dict(t_cab_c=math.nan), 't_cab_c=nan is not finite'),
             (dict(t_vent_c=math.inf), 't_vent_c=inf is not finite'),
             (dict(t_glass_c=math.nan), 't_glass_c=nan is not finite'),
             (dict(rh_cab=math.inf), 'rh_cab=inf is not finite'),
-            (dict(mdot_bl_kgps=math.nan), 'mdot_bl_kgps=nan is not finite'),          # the previous command
+            (dict(mdot_bl_kgps=math.nan), 'mdot_bl_kgps=nan is not finite'),  # the previous command
             (dict(t_evap_sp_c=25.0), 't_evap_sp_c=25.0 is outside the plausible range'),
             (dict(t_int_c=1e300), 't_int_c=1e+300 is outside the plausible range'),
         ]
@@ -323,20 +416,26 @@ def test_bad_input_rejected_nodes_keep_commanding(tmp_path):
             _log_has(preview, f'rejected cabin/state step 0: {reason}')
         pub_state.publish(_state_msg(0, math.nan))
         _log_has(preview, 'rejected cabin/state step 0: scenario_time_s=nan is not finite')
-        pub_state.publish(_state_msg(3, 9e18))             # preview_node died on this in stamp_from_s
+        pub_state.publish(_state_msg(3, 9e18))  # preview_node died on this in stamp_from_s
         _log_has(preview, 'rejected cabin/state step 3: scenario_time_s=9e+18 is outside the plausible range')
         wrong_stamp = _state_msg(0, 0.0)
-        wrong_stamp.header.stamp = conversions.stamp_from_s(2e9)   # 2033: not the scenario time
+        wrong_stamp.header.stamp = conversions.stamp_from_s(2e9)  # 2033: not the scenario time
         pub_state.publish(wrong_stamp)
         _log_has(mpc, 'rejected cabin/state step 0: header.stamp=2e+09 s does not match the scenario time 0 s')
         # --- controller: bad previews (empty, wrong length, inf, NaN where valid, implausible, start, step)
         pub_w.publish(WeatherPreview(step_index=0, step_s=5.0))
         _log_has(mpc, 'rejected v2x/weather_preview step 0: t_amb_c has 0 values, expected 7 (Np + 1)')
-        pub_w.publish(WeatherPreview(step_index=0, step_s=5.0, t_amb_c=[35.0] * 3, solar_wm2=[800.0] * 3,
-                                     rh=[0.4] * 3, valid=[True] * 3))
+        pub_w.publish(
+            WeatherPreview(
+                step_index=0, step_s=5.0, t_amb_c=[35.0] * 3, solar_wm2=[800.0] * 3, rh=[0.4] * 3, valid=[True] * 3
+            )
+        )
         _log_has(mpc, 'rejected v2x/weather_preview step 0: t_amb_c has 3 values, expected 7')
-        pub_w.publish(WeatherPreview(step_index=0, step_s=5.0, t_amb_c=[1e6] * 7, solar_wm2=[800.0] * 7,
-                                     rh=[0.4] * 7, valid=[True] * 7))
+        pub_w.publish(
+            WeatherPreview(
+                step_index=0, step_s=5.0, t_amb_c=[1e6] * 7, solar_wm2=[800.0] * 7, rh=[0.4] * 7, valid=[True] * 7
+            )
+        )
         _log_has(mpc, 'rejected v2x/weather_preview step 0: t_amb_c holds 1e+06 where marked valid')
         pub_s.publish(TrafficPreview(step_index=0, step_s=5.0, speed_mps=[math.inf] * 7, valid=[True] * 7))
         _log_has(mpc, 'rejected v2x/traffic_preview step 0: speed_mps holds an infinite value')
@@ -358,7 +457,7 @@ def test_bad_input_rejected_nodes_keep_commanding(tmp_path):
         pub_state.publish(_state_msg(1_000_010, 1e6 + 10.0))
         _log_has(mpc, 'rejected cabin/state step 1000010: future: 1000010 is beyond the window 5 + 60')
         _log_has(preview, 'rejected cabin/state step 1000010: future')
-        for k in (2, 3):      # as a plant does: the states of a period, then it waits for the command
+        for k in (2, 3):  # as a plant does: the states of a period, then it waits for the command
             for n in range(5 * k - 4, 5 * k + 1):
                 pub_state.publish(_state_msg(n, float(n), t_cab_c=44.0))
             _wait_for(lambda k=k: any(c.step_index == k for c in cmds), 60, f'command {k} after the latch message')
@@ -395,13 +494,13 @@ def test_bad_input_rejected_nodes_keep_commanding(tmp_path):
         _log_has(plant, 'rejected hvac/command step 7: future: waiting for step 0')
         pub_cmd.publish(_command(200_000, 1e6))
         _log_has(plant, 'rejected hvac/command step 200000: future: waiting for step 0')
-        pub_cmd.publish(_command(0, 2**31 - 1))             # stamped 2038
+        pub_cmd.publish(_command(0, 2**31 - 1))  # stamped 2038
         _log_has(plant, 'rejected hvac/command step 0: header.stamp=2.14748365e+09 s does not match')
         old = _command(0, 0.0)
-        old.header.stamp.sec = -2_000_000_000               # 1906
+        old.header.stamp.sec = -2_000_000_000  # 1906
         pub_cmd.publish(old)
         _log_has(plant, 'rejected hvac/command step 0: header.stamp.sec=-2000000000 is not in [0, 2147483647]')
-        assert len(states_b) == 1 and not powers_b          # the plant did not move
+        assert len(states_b) == 1 and not powers_b  # the plant did not move
         pub_cmd.publish(_command(0, 0.0))
         _wait_for(lambda: len(states_b) >= 6, 30, 'states 1..5')
         pub_cmd.publish(_command(0, 0.0, blower_flow_kgps=0.12, evap_setpoint_c=6.0))
@@ -431,19 +530,30 @@ def test_kill_mpc_node_plant_falls_back_and_restart_takes_over(tmp_path):
     tn, rec, log_dir, bag = _recording_peer(tmp_path, timestamps='sim')
     n_steps = 600
     common = {'scenario': 'sc03', 'timing': 'lockstep', 'control_period_s': 5.0}
-    preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', tn.env, log_dir,
-                    dict(common, horizon_steps=6))
+    preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', tn.env, log_dir, dict(common, horizon_steps=6))
     # The mpc_node answers within 0.5 s even when a step's previews are late (it then solves
     # without them), well inside the plant's 1.5 s command timeout: a late preview or a load
     # spike on the shared cores must not look like the fault this test injects (with 0.6 s
     # against the default 2 s preview wait, one full-suite run saw a fallback before the kill).
     mpc_params = dict(common, horizon_steps=6, strategy='ceco', preview_timeout_s=0.5, autostart=True)
     mpc = _proc('mpc_node', 'ceco_controller', 'mpc_node', tn.env, log_dir, mpc_params)
-    plant = _proc('plant_node', 'ceco_plant_sim', 'plant_node', tn.env, log_dir, dict(
-        common, duration_s=float(n_steps), **{'lockstep.command_timeout_s': 1.5,
-                                              'lockstep.min_state_subscribers': 3,
-                                              'lockstep.min_output_subscribers': 1,
-                                              'lockstep.min_command_subscribers': 2}))
+    plant = _proc(
+        'plant_node',
+        'ceco_plant_sim',
+        'plant_node',
+        tn.env,
+        log_dir,
+        dict(
+            common,
+            duration_s=float(n_steps),
+            **{
+                'lockstep.command_timeout_s': 1.5,
+                'lockstep.min_state_subscribers': 3,
+                'lockstep.min_output_subscribers': 1,
+                'lockstep.min_command_subscribers': 2,
+            },
+        ),
+    )
     procs = [preview, mpc, plant]
     try:
         for p in procs:
@@ -451,7 +561,7 @@ def test_kill_mpc_node_plant_falls_back_and_restart_takes_over(tmp_path):
         _wait_for(lambda: rec.last_power_step >= 50, 180, 'plant step 50')
         mpc.kill()
         _log_has(plant, 'FALLBACK at step', 60)
-        mpc.start()     # restart: same log file, second start
+        mpc.start()  # restart: same log file, second start
         _wait_for(lambda: rec.last_power_step >= n_steps - 1, 300, 'the end of the run')
         time.sleep(0.3)
     finally:
@@ -462,22 +572,23 @@ def test_kill_mpc_node_plant_falls_back_and_restart_takes_over(tmp_path):
     log = plant.log_text()
     assert 'no command for control step' in log and 'commands resumed at control step' in log
     ts = bagio.load_run_timeseries(bag)
-    assert ts['step_index'].tolist() == list(range(n_steps))        # nothing lost, nothing doubled
+    assert ts['step_index'].tolist() == list(range(n_steps))  # nothing lost, nothing doubled
     states = [m.step_index for _, _, m in bagio.read_messages(bag, ('cabin/state',))]
     assert sorted(states) == list(range(n_steps))
     fb = ts['fallback']
     # fallback only between kill and takeover
     assert fb.any() and not fb[:50].any() and not fb[-5:].any(), (
-        f'fallback at plant steps {np.flatnonzero(fb).tolist()[:20]}; plant log tail:\n{log[-3000:]}')
+        f'fallback at plant steps {np.flatnonzero(fb).tolist()[:20]}; plant log tail:\n{log[-3000:]}'
+    )
     first_fb = int(np.flatnonzero(fb)[0])
     cmds = bagio.load_commands(bag)
     before = cmds['k'][cmds['k'] * 5 < first_fb]
     k_last = int(before.max())
-    assert first_fb // 5 - k_last <= 2          # noticed within two control periods (here: the next step)
+    assert first_fb // 5 - k_last <= 2  # noticed within two control periods (here: the next step)
     after = cmds['k'][cmds['k'] * 5 > first_fb]
     assert after.size > 0 and set(cmds['strategy']) == {'ceco'}
     fb_steps = np.flatnonzero(fb)
-    assert np.all(np.diff(fb_steps) == 1)       # one contiguous fallback span
+    assert np.all(np.diff(fb_steps) == 1)  # one contiguous fallback span
     # during the fallback the ACC law drove the plant; its inputs are within bounds
     assert np.all((ts['mdot_bl_kgps'] >= 0.05) & (ts['mdot_bl_kgps'] <= 0.17))
     assert np.all((ts['t_evap_sp_c'] >= 3.0) & (ts['t_evap_sp_c'] <= 10.0))
@@ -494,8 +605,22 @@ def test_sigint_to_ceco_run_leaves_complete_bag(tmp_path):
     metadata counts equal the stored messages and the states are contiguous
     from step 0 up to the stop."""
     out = tmp_path / 'run'
-    p = _cli('run', '--scenario', 'sc03', '--strategy', 'baseline', '--timing', 'realtime', '--duration-s', '60',
-             '--out', str(out), '--no-progress', '--domain-id', str(_domain()))
+    p = _cli(
+        'run',
+        '--scenario',
+        'sc03',
+        '--strategy',
+        'baseline',
+        '--timing',
+        'realtime',
+        '--duration-s',
+        '60',
+        '--out',
+        str(out),
+        '--no-progress',
+        '--domain-id',
+        str(_domain()),
+    )
     meta = out / 'bag' / 'metadata.yaml'
     t_wall_start_ns = time.time_ns()
 
@@ -504,6 +629,7 @@ def test_sigint_to_ceco_run_leaves_complete_bag(tmp_path):
             return bagio.topic_counts(out / 'bag').get('/cabin/state', 0)
         except Exception:
             return 0
+
     try:
         _wait_for(lambda: meta.exists() and n_states() >= 3, 180, 'a few real-time states in the bag')
         p.send_signal(signal.SIGINT)
@@ -524,7 +650,7 @@ def test_sigint_to_ceco_run_leaves_complete_bag(tmp_path):
     # real time: bag timestamps are the wall-clock receive times (as rosbag2 records by default)
     stamps = [t for _, t, _ in bagio.read_messages(out / 'bag')]
     assert t_wall_start_ns < min(stamps) and max(stamps) < t_wall_end_ns
-    for log in (out / 'logs').glob('*.log'):      # every child went through its shutdown path
+    for log in (out / 'logs').glob('*.log'):  # every child went through its shutdown path
         assert 'Traceback' not in log.read_text(), log
 
 
@@ -535,21 +661,37 @@ def test_preview_faults_over_dds_match_simulator(tmp_path):
     in the span) and the closed loop still equals the simulator's."""
     quality = 'noisy:solar=80,speed=2,seed=3+delayed:10+missing:20-40'
     out = tmp_path / 'run'
-    p = _cli('run', '--scenario', 'sc03', '--strategy', 'ceco-ioch', '--duration-s', '60', '--preview', quality,
-             '--out', str(out), '--no-progress', '--domain-id', str(_domain()))
+    p = _cli(
+        'run',
+        '--scenario',
+        'sc03',
+        '--strategy',
+        'ceco-ioch',
+        '--duration-s',
+        '60',
+        '--preview',
+        quality,
+        '--out',
+        str(out),
+        '--no-progress',
+        '--domain-id',
+        str(_domain()),
+    )
     text, _ = p.communicate(timeout=300)
     assert p.returncode == 0, text
     prev = {m.step_index: m for _, _, m in bagio.read_messages(out / 'bag', ('v2x/weather_preview',))}
     assert sorted(prev) == list(range(12))
-    assert not any(prev[0].valid) and not any(prev[1].valid)          # nothing issued before t = 10 s
+    assert not any(prev[0].valid) and not any(prev[1].valid)  # nothing issued before t = 10 s
     assert prev[2].age_s == 10.0 and list(prev[2].valid) == [True] * 5 + [False] * 2
-    assert [prev[k].age_s for k in (4, 5, 6, 7)] == [10.0, 15.0, 20.0, 25.0]   # held during 20-40 s
+    assert [prev[k].age_s for k in (4, 5, 6, 7)] == [10.0, 15.0, 20.0, 25.0]  # held during 20-40 s
     assert '+delayed:10+missing:20-40' in prev[3].quality
 
     from ceco_controller.closed_loop import SimSettings, simulate
     from ceco_v2x_preview.preview import parse_quality
-    sim = simulate('sc03', 'ceco-ioch', SimSettings(duration_s=60.0, preview_quality=parse_quality(quality),
-                                                     progress=False)).metrics
+
+    sim = simulate(
+        'sc03', 'ceco-ioch', SimSettings(duration_s=60.0, preview_quality=parse_quality(quality), progress=False)
+    ).metrics
     metrics = json.loads((out / 'metrics.json').read_text())
     for key in ('E_tot_J', 'I_pmv', 'otc_violation_pct'):
         assert metrics[key] == pytest.approx(sim[key], rel=1e-6, abs=1e-12), key
@@ -565,21 +707,48 @@ def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
     real-time test last minutes; the plant-side logic under test is the same
     (the lockstep test above kills mpc_node)."""
     from ceco_msgs.msg import AcPower
+
     tn, rec, log_dir, bag = _recording_peer(tmp_path)
     powers = tn.collect(AcPower, interfaces.TOPIC_POWER, interfaces.QOS_STATE)
     common = {'scenario': 'sc03', 'timing': 'realtime', 'control_period_s': 2.0}
-    preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', tn.env, log_dir,
-                    dict(common, horizon_steps=6, publish_period_s=2.0))
-    mpc = _proc('baseline_node', 'ceco_controller', 'baseline_node', tn.env, log_dir,
-                dict(common, horizon_steps=6, autostart=True))
-    plant = _proc('plant_node', 'ceco_plant_sim', 'plant_node', tn.env, log_dir, dict(
-        common, plant_dt_s=0.5, duration_s=600.0, **{'lockstep.min_state_subscribers': 3,
-                                                     'lockstep.min_output_subscribers': 1,
-                                                     'lockstep.min_command_subscribers': 2}))
+    preview = _proc(
+        'preview_node',
+        'ceco_v2x_preview',
+        'preview_node',
+        tn.env,
+        log_dir,
+        dict(common, horizon_steps=6, publish_period_s=2.0),
+    )
+    mpc = _proc(
+        'baseline_node',
+        'ceco_controller',
+        'baseline_node',
+        tn.env,
+        log_dir,
+        dict(common, horizon_steps=6, autostart=True),
+    )
+    plant = _proc(
+        'plant_node',
+        'ceco_plant_sim',
+        'plant_node',
+        tn.env,
+        log_dir,
+        dict(
+            common,
+            plant_dt_s=0.5,
+            duration_s=600.0,
+            **{
+                'lockstep.min_state_subscribers': 3,
+                'lockstep.min_output_subscribers': 1,
+                'lockstep.min_command_subscribers': 2,
+            },
+        ),
+    )
     procs = [preview, mpc, plant]
 
     def n_normal():
         return sum(not p.fallback for p in powers)
+
     try:
         for p in procs:
             p.start()
@@ -588,24 +757,28 @@ def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
         _wait_for(lambda: powers and powers[-1].fallback, 60, 'the plant to fall back', [preview, plant])
         mpc.start()
         n_fb_end = len(powers)
-        _wait_for(lambda: len(powers) > n_fb_end and sum(not p.fallback for p in powers[n_fb_end:]) >= 8,
-                  180, 'the restarted controller to take over', procs)
+        _wait_for(
+            lambda: len(powers) > n_fb_end and sum(not p.fallback for p in powers[n_fb_end:]) >= 8,
+            180,
+            'the restarted controller to take over',
+            procs,
+        )
     finally:
         for p in procs:
             p.stop()
         rec.close()
         tn.close()
-    m = 4                                                      # plant steps per control period
+    m = 4  # plant steps per control period
     fb = [p.fallback for p in sorted(powers, key=lambda p: p.step_index)]
     steps = sorted(p.step_index for p in powers)
-    assert steps == list(range(len(steps)))                    # no step lost
-    first_normal = fb.index(False)                             # key-on: ACC law until the first command
+    assert steps == list(range(len(steps)))  # no step lost
+    first_normal = fb.index(False)  # key-on: ACC law until the first command
     spans = [i for i in range(first_normal, len(fb)) if fb[i] and not fb[i - 1]]
-    assert len(spans) == 1                                     # one fallback span after the kill ...
+    assert len(spans) == 1  # one fallback span after the kill ...
     first_fb = spans[0]
     last_boundary = max(i for i in range(first_normal, first_fb) if i % m == 0)
-    assert first_fb - last_boundary <= 2 * m + 1               # ... noticed within two control periods
-    assert not any(fb[-8:])                                    # ... and the restarted node took over
+    assert first_fb - last_boundary <= 2 * m + 1  # ... noticed within two control periods
+    assert not any(fb[-8:])  # ... and the restarted node took over
     log = plant.log_text()
     assert 'no fresh command' in log and 'commands resumed' in log
     ts = bagio.load_run_timeseries(bag)
@@ -633,20 +806,42 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
     from rcl_interfaces.srv import SetParameters
 
     from ceco_msgs.msg import AcCommand, AcPower
+
     tn, rec, log_dir, bag = _recording_peer(tmp_path)
     cmds = tn.collect(AcCommand, interfaces.TOPIC_COMMAND, interfaces.QOS_COMMAND)
     powers = tn.collect(AcPower, interfaces.TOPIC_POWER, interfaces.QOS_STATE)
     diags = tn.collect(DiagnosticArray, interfaces.TOPIC_ROS_DIAGNOSTICS, interfaces.QOS_DIAGNOSTICS)
     common = {'scenario': 'sc03', 'timing': 'lockstep', 'control_period_s': 5.0}
     preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', tn.env, log_dir, dict(common, horizon_steps=6))
-    mpc = _proc('mpc_node', 'ceco_controller', 'mpc_node', tn.env, log_dir,
-                dict(common, horizon_steps=6, strategy='ceco', preview_timeout_s=0.5))
-    plant = _proc('plant_node', 'ceco_plant_sim', 'plant_node', tn.env, log_dir, dict(
-        common, duration_s=3600.0, **{'lockstep.command_timeout_s': 3.0, 'lockstep.min_state_subscribers': 3,
-                                      'lockstep.min_output_subscribers': 1, 'lockstep.min_command_subscribers': 2}))
+    mpc = _proc(
+        'mpc_node',
+        'ceco_controller',
+        'mpc_node',
+        tn.env,
+        log_dir,
+        dict(common, horizon_steps=6, strategy='ceco', preview_timeout_s=0.5),
+    )
+    plant = _proc(
+        'plant_node',
+        'ceco_plant_sim',
+        'plant_node',
+        tn.env,
+        log_dir,
+        dict(
+            common,
+            duration_s=3600.0,
+            **{
+                'lockstep.command_timeout_s': 3.0,
+                'lockstep.min_state_subscribers': 3,
+                'lockstep.min_output_subscribers': 1,
+                'lockstep.min_command_subscribers': 2,
+            },
+        ),
+    )
     procs = [preview, mpc, plant]
     lc = supervisor.LifecycleClient(tn.node, '/mpc_node')
     from ceco_msgs.msg import CabinState
+
     states = tn.collect(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
     params = tn.node.create_client(SetParameters, '/mpc_node/set_parameters')
 
@@ -655,12 +850,13 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
         value = ParameterValue(type=kind, **{field: value})
         req = SetParameters.Request(parameters=[Parameter(name=name, value=value)])
         return supervisor.LifecycleClient._call(params, req, 30.0).results[0]
+
     try:
         for p in (preview, mpc):
             p.start()
         _wait_for(lambda: lc.wait(0.1), 120, 'the lifecycle services of mpc_node', procs)
         assert lc.state() == 'unconfigured'
-        assert tn.node.count_publishers(interfaces.TOPIC_COMMAND) == 0      # nothing created before configure
+        assert tn.node.count_publishers(interfaces.TOPIC_COMMAND) == 0  # nothing created before configure
         # a transition the state does not have is refused, the node lives on (rclpy 7.1 would crash)
         assert not lc.change('activate') and lc.state() == 'unconfigured' and mpc.running()
         assert lc.change('configure') and lc.state() == 'inactive'
@@ -672,15 +868,15 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
         time.sleep(0.5)
         assert not cmds and not powers
         assert lc.change('activate') and lc.state() == 'active'
-        assert not lc.change('configure') and lc.state() == 'active'         # e.g. a second manager
+        assert not lc.change('configure') and lc.state() == 'active'  # e.g. a second manager
         _wait_for(lambda: len(cmds) >= 10, 60, 'ten commands once active', procs)
-        assert cmds[0].step_index == 0 and not powers[0].fallback       # no fallback period at the start
+        assert cmds[0].step_index == 0 and not powers[0].fallback  # no fallback period at the start
         n_active = len(powers)
         assert lc.change('deactivate') and lc.state() == 'inactive'
-        time.sleep(0.5)                                     # commands already in flight arrive
+        time.sleep(0.5)  # commands already in flight arrive
         n_cmds = len(cmds)
         _wait_for(lambda: len(powers) > n_active + 10 and powers[-1].fallback, 60, 'fallback after deactivate', procs)
-        assert len(cmds) == n_cmds                          # inactive: not one command more
+        assert len(cmds) == n_cmds  # inactive: not one command more
         assert lc.change('activate')
         n_back = len(cmds)
         _wait_for(lambda: len(cmds) >= n_back + 5 and not powers[-1].fallback, 60, 'commands resume', procs)
@@ -693,8 +889,14 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
         r = set_param('preview_timeout_s', -1.0, ParameterType.PARAMETER_DOUBLE)
         assert not r.successful
         # /diagnostics of the managed node follow its state
-        _wait_for(lambda: any(_values(st).get('lifecycle') == 'active' and st.level == b'\x00'
-                              for st in _diag_statuses(diags, 'mpc_node')), 30, 'mpc_node OK while active')
+        _wait_for(
+            lambda: any(
+                _values(st).get('lifecycle') == 'active' and st.level == b'\x00'
+                for st in _diag_statuses(diags, 'mpc_node')
+            ),
+            30,
+            'mpc_node OK while active',
+        )
         assert lc.change('deactivate') and lc.change('cleanup') and lc.state() == 'unconfigured'
         _wait_for(lambda: tn.node.count_publishers(interfaces.TOPIC_COMMAND) == 0, 30, 'publisher released')
         n_diag = len(diags)
@@ -729,33 +931,75 @@ def test_diagnostics_under_forced_fallback(tmp_path):
     fallback (WARN). Then the controller is killed: the plant's status turns to its own fallback
     law (WARN) with the reason (watchdog or the QoS deadline on hvac/command)."""
     from diagnostic_msgs.msg import DiagnosticArray
+
     tn, rec, log_dir, bag = _recording_peer(tmp_path)
     diags = tn.collect(DiagnosticArray, interfaces.TOPIC_ROS_DIAGNOSTICS, interfaces.QOS_DIAGNOSTICS)
     failing = tmp_path / 'failing_controller.yaml'
     # a 2 ms budget for the whole step: every solve is cut by the step deadline
     failing.write_text('common:\n  solver:\n    step_budget_s: 0.002\n    step_reserve_s: 0.001\n')
     common = {'scenario': 'sc03', 'timing': 'realtime', 'control_period_s': 5.0}
-    preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', tn.env, log_dir,
-                    dict(common, horizon_steps=6, publish_period_s=5.0))
-    mpc = _proc('mpc_node', 'ceco_controller', 'mpc_node', tn.env, log_dir, dict(
-        common, horizon_steps=6, strategy='ceco-ioch', controller_config=str(failing), autostart=True))
-    plant = _proc('plant_node', 'ceco_plant_sim', 'plant_node', tn.env, log_dir, dict(
-        common, plant_dt_s=1.0, duration_s=600.0, **{'lockstep.min_state_subscribers': 3,
-                                                     'lockstep.min_output_subscribers': 1,
-                                                     'lockstep.min_command_subscribers': 2}))
+    preview = _proc(
+        'preview_node',
+        'ceco_v2x_preview',
+        'preview_node',
+        tn.env,
+        log_dir,
+        dict(common, horizon_steps=6, publish_period_s=5.0),
+    )
+    mpc = _proc(
+        'mpc_node',
+        'ceco_controller',
+        'mpc_node',
+        tn.env,
+        log_dir,
+        dict(common, horizon_steps=6, strategy='ceco-ioch', controller_config=str(failing), autostart=True),
+    )
+    plant = _proc(
+        'plant_node',
+        'ceco_plant_sim',
+        'plant_node',
+        tn.env,
+        log_dir,
+        dict(
+            common,
+            plant_dt_s=1.0,
+            duration_s=600.0,
+            **{
+                'lockstep.min_state_subscribers': 3,
+                'lockstep.min_output_subscribers': 1,
+                'lockstep.min_command_subscribers': 2,
+            },
+        ),
+    )
     procs = [preview, mpc, plant]
     try:
         for p in procs:
             p.start()
-        _wait_for(lambda: any(st.level == b'\x02' for st in _diag_statuses(diags, 'mpc_node')), 120,
-                  'an ERROR status from mpc_node', procs)
-        _wait_for(lambda: any('controller reports its own fallback' in st.message
-                              for st in _diag_statuses(diags, 'plant_node')), 30, 'the plant seeing it', procs)
+        _wait_for(
+            lambda: any(st.level == b'\x02' for st in _diag_statuses(diags, 'mpc_node')),
+            120,
+            'an ERROR status from mpc_node',
+            procs,
+        )
+        _wait_for(
+            lambda: any(
+                'controller reports its own fallback' in st.message for st in _diag_statuses(diags, 'plant_node')
+            ),
+            30,
+            'the plant seeing it',
+            procs,
+        )
         t_kill = time.monotonic()
         n_before = len(diags)
         mpc.kill()
-        _wait_for(lambda: any('fallback: the production ACC law drives' in st.message
-                              for st in _diag_statuses(diags[n_before:], 'plant_node')), 30, 'plant fallback status')
+        _wait_for(
+            lambda: any(
+                'fallback: the production ACC law drives' in st.message
+                for st in _diag_statuses(diags[n_before:], 'plant_node')
+            ),
+            30,
+            'plant fallback status',
+        )
         t_seen = time.monotonic()
     finally:
         for p in procs:
@@ -766,7 +1010,7 @@ def test_diagnostics_under_forced_fallback(tmp_path):
     v = _values(err)
     assert 'production ACC law applied' in err.message and 'Maximum_Wall_Time_Exceeded' in err.message
     assert v['fallback'] == 'baseline' and int(v['fallback_steps']) >= 1 and v['lifecycle'] == 'active'
-    assert float(v['deadline_ms']) == 2.0 and float(v['solve_time_ms']) > 0.0     # the NMPC's step budget
+    assert float(v['deadline_ms']) == 2.0 and float(v['solve_time_ms']) > 0.0  # the NMPC's step budget
     assert 'beyond the step deadline (2 ms)' in err.message
     assert {'state_age_s', 'weather_age_s', 'traffic_age_s', 'rejected_total', 'step_time_ms'} <= set(v)
     assert err.hardware_id == '/' and err.name == 'mpc_node: control'
@@ -778,9 +1022,11 @@ def test_diagnostics_under_forced_fallback(tmp_path):
     # about 1 Hz per node (steady clock), whatever /clock does
     n_preview = len(_diag_statuses(diags, 'preview_node'))
     assert n_preview >= 2
-    print(f'\n/diagnostics under forced fallback: mpc_node {err.level!r} "{err.message}" {v}\n'
-          f'plant_node {plant_fb[-1].level!r} "{plant_fb[-1].message}" {_values(plant_fb[-1])}\n'
-          f'kill -> plant fallback status after {t_seen - t_kill:.1f} s')
+    print(
+        f'\n/diagnostics under forced fallback: mpc_node {err.level!r} "{err.message}" {v}\n'
+        f'plant_node {plant_fb[-1].level!r} "{plant_fb[-1].message}" {_values(plant_fb[-1])}\n'
+        f'kill -> plant fallback status after {t_seen - t_kill:.1f} s'
+    )
 
 
 # ----------------------------------------------------------------------------
@@ -798,26 +1044,33 @@ class _Fuzzer:
 
     def __init__(self, node, seed: int, ts: float = 5.0, n: int = 7):
         from ceco_msgs.msg import AcCommand, CabinState, TrafficPreview, WeatherPreview
+
         self.rng = np.random.default_rng(seed)
         self.node, self.ts, self.n = node, ts, n
         from rclpy.qos import QoSProfile
 
-        def deep(q: QoSProfile) -> QoSProfile:     # writer history for whole bursts: nothing lost before sending
-            return QoSProfile(history=q.history, depth=1000, reliability=q.reliability, durability=q.durability,
-                              deadline=q.deadline)
+        def deep(q: QoSProfile) -> QoSProfile:  # writer history for whole bursts: nothing lost before sending
+            return QoSProfile(
+                history=q.history, depth=1000, reliability=q.reliability, durability=q.durability, deadline=q.deadline
+            )
+
         self.pubs = {
-            interfaces.TOPIC_STATE: node.create_publisher(CabinState, interfaces.TOPIC_STATE,
-                                                          deep(interfaces.state_qos('realtime'))),
-            interfaces.TOPIC_WEATHER: node.create_publisher(WeatherPreview, interfaces.TOPIC_WEATHER,
-                                                            deep(interfaces.QOS_PREVIEW)),
-            interfaces.TOPIC_TRAFFIC: node.create_publisher(TrafficPreview, interfaces.TOPIC_TRAFFIC,
-                                                            deep(interfaces.QOS_PREVIEW)),
+            interfaces.TOPIC_STATE: node.create_publisher(
+                CabinState, interfaces.TOPIC_STATE, deep(interfaces.state_qos('realtime'))
+            ),
+            interfaces.TOPIC_WEATHER: node.create_publisher(
+                WeatherPreview, interfaces.TOPIC_WEATHER, deep(interfaces.QOS_PREVIEW)
+            ),
+            interfaces.TOPIC_TRAFFIC: node.create_publisher(
+                TrafficPreview, interfaces.TOPIC_TRAFFIC, deep(interfaces.QOS_PREVIEW)
+            ),
             # the plant requests a deadline: a publisher must offer one to be matched at all
-            interfaces.TOPIC_COMMAND: node.create_publisher(AcCommand, interfaces.TOPIC_COMMAND,
-                                                            deep(interfaces.command_qos('realtime', 2 * ts))),
+            interfaces.TOPIC_COMMAND: node.create_publisher(
+                AcCommand, interfaces.TOPIC_COMMAND, deep(interfaces.command_qos('realtime', 2 * ts))
+            ),
         }
         self.counts = dict.fromkeys(self.pubs, 0)
-        self.t_plant_s = 0.0          # the plant's latest scenario time (from hvac/power)
+        self.t_plant_s = 0.0  # the plant's latest scenario time (from hvac/power)
 
     def _pick(self, seq):
         return seq[int(self.rng.integers(len(seq)))]
@@ -840,18 +1093,31 @@ class _Fuzzer:
         m.header.stamp = self.node.get_clock().now().to_msg()
         kind = self._pick(('field', 'field', 'future', 'huge_time', 'stale', 'keyon', 'stamp', 'prev_cmd'))
         if kind == 'field':
-            field = self._pick(('t_cab_c', 't_int_c', 't_shell_c', 't_glass_c', 't_evap_c', 't_vent_c', 'rh_cab',
-                                't_amb_c', 'solar_wm2', 'rh', 'speed_mps'))
+            field = self._pick(
+                (
+                    't_cab_c',
+                    't_int_c',
+                    't_shell_c',
+                    't_glass_c',
+                    't_evap_c',
+                    't_vent_c',
+                    'rh_cab',
+                    't_amb_c',
+                    'solar_wm2',
+                    'rh',
+                    'speed_mps',
+                )
+            )
             setattr(m, field, float(self._pick(self.FLOAT_DEFECTS)))
-        elif kind == 'future':                      # the latch / wedge case: index and time 1e6 ahead
+        elif kind == 'future':  # the latch / wedge case: index and time 1e6 ahead
             m.step_index, m.scenario_time_s = int(t) + 1_000_000, t + 1e6
-        elif kind == 'huge_time':                   # preview_node's crash
+        elif kind == 'huge_time':  # preview_node's crash
             m.scenario_time_s = 9e18
         elif kind == 'stale':
             m.scenario_time_s = float(max(0.0, t - self.rng.uniform(5.0, 1000.0)))
             if m.scenario_time_s == 0.0:
                 m.scenario_time_s = 1.0
-        elif kind == 'keyon':                       # a second "plant" at key-on beside the live one
+        elif kind == 'keyon':  # a second "plant" at key-on beside the live one
             m.step_index, m.scenario_time_s = 0, 0.0
         elif kind == 'stamp':
             self._stamp_defect(m.header)
@@ -886,9 +1152,18 @@ class _Fuzzer:
 
     def weather(self):
         from ceco_msgs.msg import WeatherPreview
+
         n, k = self.n, int(self.t_plant_s // self.ts)
-        m = WeatherPreview(step_index=k, step_s=self.ts, t_amb_c=[35.0] * n, solar_wm2=[800.0] * n, rh=[0.4] * n,
-                           valid=[True] * n, age_s=0.0, quality='fuzz')
+        m = WeatherPreview(
+            step_index=k,
+            step_s=self.ts,
+            t_amb_c=[35.0] * n,
+            solar_wm2=[800.0] * n,
+            rh=[0.4] * n,
+            valid=[True] * n,
+            age_s=0.0,
+            quality='fuzz',
+        )
         m.start = conversions.stamp_from_s(k * self.ts)
         m.header.stamp = self.node.get_clock().now().to_msg()
         self._preview_defect(m, ('t_amb_c', 'solar_wm2', 'rh'))
@@ -896,9 +1171,11 @@ class _Fuzzer:
 
     def traffic(self):
         from ceco_msgs.msg import TrafficPreview
+
         n, k = self.n, int(self.t_plant_s // self.ts)
-        m = TrafficPreview(step_index=k, step_s=self.ts, speed_mps=[10.0] * n, valid=[True] * n, age_s=0.0,
-                           quality='fuzz')
+        m = TrafficPreview(
+            step_index=k, step_s=self.ts, speed_mps=[10.0] * n, valid=[True] * n, age_s=0.0, quality='fuzz'
+        )
         m.start = conversions.stamp_from_s(k * self.ts)
         m.header.stamp = self.node.get_clock().now().to_msg()
         self._preview_defect(m, ('speed_mps',))
@@ -907,7 +1184,7 @@ class _Fuzzer:
     def command(self):
         k = int(self.t_plant_s // self.ts)
         m = _command(k, 0.0)
-        m.header.stamp = self.node.get_clock().now().to_msg()   # no state of the plant carries this stamp
+        m.header.stamp = self.node.get_clock().now().to_msg()  # no state of the plant carries this stamp
         kind = self._pick(('value', 'value', 'period', 'index', 'stamp', 'strategy', 'fallback'))
         if kind == 'value':
             setattr(m, self._pick(('blower_flow_kgps', 'evap_setpoint_c')), float(self._pick(self.FLOAT_DEFECTS)))
@@ -926,8 +1203,12 @@ class _Fuzzer:
     def publish_some(self) -> None:
         """One message on a random topic, or a burst of 20-50 on one topic (5 %)."""
         topic = self._pick(list(self.pubs))
-        make = {interfaces.TOPIC_STATE: self.state, interfaces.TOPIC_WEATHER: self.weather,
-                interfaces.TOPIC_TRAFFIC: self.traffic, interfaces.TOPIC_COMMAND: self.command}[topic]
+        make = {
+            interfaces.TOPIC_STATE: self.state,
+            interfaces.TOPIC_WEATHER: self.weather,
+            interfaces.TOPIC_TRAFFIC: self.traffic,
+            interfaces.TOPIC_COMMAND: self.command,
+        }[topic]
         for _ in range(int(self.rng.integers(20, 51)) if self.rng.random() < 0.05 else 1):
             self.pubs[topic].publish(make())
             self.counts[topic] += 1
@@ -942,41 +1223,82 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
     from diagnostic_msgs.msg import DiagnosticArray
 
     from ceco_msgs.msg import AcCommand, AcPower, ControllerDiagnostics, WeatherPreview
+
     fuzz_s, ts = 30.0, 5.0
     tn = DdsPeer(_domain(), 'fuzzer')
     log_dir = tmp_path / 'logs'
     powers, cmds, prevs, diags, ctrl = [], [], [], [], []
-    tn.node.create_subscription(ControllerDiagnostics, interfaces.TOPIC_DIAGNOSTICS,
-                                lambda m: ctrl.append((time.monotonic(), m)), interfaces.QOS_COMMAND)
-    tn.node.create_subscription(AcPower, interfaces.TOPIC_POWER, lambda m: powers.append((time.monotonic(), m)),
-                                interfaces.state_qos('realtime'))
-    tn.node.create_subscription(AcCommand, interfaces.TOPIC_COMMAND, lambda m: cmds.append((time.monotonic(), m)),
-                                interfaces.QOS_COMMAND)
+    tn.node.create_subscription(
+        ControllerDiagnostics,
+        interfaces.TOPIC_DIAGNOSTICS,
+        lambda m: ctrl.append((time.monotonic(), m)),
+        interfaces.QOS_COMMAND,
+    )
+    tn.node.create_subscription(
+        AcPower,
+        interfaces.TOPIC_POWER,
+        lambda m: powers.append((time.monotonic(), m)),
+        interfaces.state_qos('realtime'),
+    )
+    tn.node.create_subscription(
+        AcCommand, interfaces.TOPIC_COMMAND, lambda m: cmds.append((time.monotonic(), m)), interfaces.QOS_COMMAND
+    )
     tn.node.create_subscription(WeatherPreview, interfaces.TOPIC_WEATHER, prevs.append, interfaces.QOS_PREVIEW)
-    tn.node.create_subscription(DiagnosticArray, interfaces.TOPIC_ROS_DIAGNOSTICS, diags.append,
-                                interfaces.QOS_DIAGNOSTICS)
+    tn.node.create_subscription(
+        DiagnosticArray, interfaces.TOPIC_ROS_DIAGNOSTICS, diags.append, interfaces.QOS_DIAGNOSTICS
+    )
     fuzzer = _Fuzzer(tn.node, seed=20261201, ts=ts)
     common = {'scenario': 'sc03', 'timing': 'realtime', 'control_period_s': ts}
     # Reader histories deep enough for the bursts (QoS overrides by parameter), so that every
     # injected message reaches a callback and the rejection counts can be compared with it.
-    deep = {f'qos_overrides./{t}.subscription.depth': 1000 for t in (interfaces.TOPIC_STATE, interfaces.TOPIC_WEATHER,
-                                                                    interfaces.TOPIC_TRAFFIC, interfaces.TOPIC_COMMAND)}
-    preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', tn.env, log_dir,
-                    dict(common, horizon_steps=6, publish_period_s=ts, **deep))
-    mpc = _proc('mpc_node', 'ceco_controller', 'mpc_node', tn.env, log_dir,
-                dict(common, horizon_steps=6, strategy='ceco-ioch', autostart=True, **deep))
-    plant = _proc('plant_node', 'ceco_plant_sim', 'plant_node', tn.env, log_dir, dict(
-        common, plant_dt_s=1.0, duration_s=600.0, **{'lockstep.min_state_subscribers': 2,
-                                                     'lockstep.min_command_subscribers': 2}, **deep))
+    deep = {
+        f'qos_overrides./{t}.subscription.depth': 1000
+        for t in (interfaces.TOPIC_STATE, interfaces.TOPIC_WEATHER, interfaces.TOPIC_TRAFFIC, interfaces.TOPIC_COMMAND)
+    }
+    preview = _proc(
+        'preview_node',
+        'ceco_v2x_preview',
+        'preview_node',
+        tn.env,
+        log_dir,
+        dict(common, horizon_steps=6, publish_period_s=ts, **deep),
+    )
+    mpc = _proc(
+        'mpc_node',
+        'ceco_controller',
+        'mpc_node',
+        tn.env,
+        log_dir,
+        dict(common, horizon_steps=6, strategy='ceco-ioch', autostart=True, **deep),
+    )
+    plant = _proc(
+        'plant_node',
+        'ceco_plant_sim',
+        'plant_node',
+        tn.env,
+        log_dir,
+        dict(
+            common,
+            plant_dt_s=1.0,
+            duration_s=600.0,
+            **{'lockstep.min_state_subscribers': 2, 'lockstep.min_command_subscribers': 2},
+            **deep,
+        ),
+    )
     procs = [preview, mpc, plant]
 
-    def real(m):        # mpc_node's commands (the fuzzer never claims ceco-ioch)
+    def real(m):  # mpc_node's commands (the fuzzer never claims ceco-ioch)
         return m.strategy == 'ceco-ioch'
+
     try:
         for p in procs:
             p.start()
-        _wait_for(lambda: sum(real(m) for _, m in cmds) >= 2 and powers and not powers[-1][1].fallback, 180,
-                  'two control steps under mpc_node', procs)
+        _wait_for(
+            lambda: sum(real(m) for _, m in cmds) >= 2 and powers and not powers[-1][1].fallback,
+            180,
+            'two control steps under mpc_node',
+            procs,
+        )
         t0 = time.monotonic()
         n_real_before = sum(real(m) for _, m in cmds)
         while time.monotonic() - t0 < fuzz_s:
@@ -996,9 +1318,10 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
                 if not m.fallback and last_cmd and not last_cmd[-1].fallback:
                     return i, t
             return None
+
         _wait_for(lambda: recovered_at() is not None, 4 * ts, 'non-fallback control after the storm', procs)
         steps_to_recover, t_rec = recovered_at()
-        time.sleep(2 * ts)                                  # two more control periods
+        time.sleep(2 * ts)  # two more control periods
     finally:
         for p in procs:
             p.stop()
@@ -1009,13 +1332,14 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
     assert applied and all(0.05 <= m.mdot_bl_kgps <= 0.17 and 3.0 <= m.t_evap_sp_c <= 10.0 for m in applied)
     assert all(0.05 <= m.blower_flow_kgps <= 0.17 and 3.0 <= m.evap_setpoint_c <= 10.0 for _, m in cmds if real(m))
     fb_during = sum(m.fallback for t, m in powers if t0 <= t <= t_end)
-    assert steps_to_recover <= 2 * int(ts)                  # within two control periods of plant steps
+    assert steps_to_recover <= 2 * int(ts)  # within two control periods of plant steps
     assert not any(m.fallback for t, m in powers if t > t_rec + 1.0)
-    assert n_real_during >= int(fuzz_s / ts) - 1            # mpc_node kept commanding through the storm
+    assert n_real_during >= int(fuzz_s / ts) - 1  # mpc_node kept commanding through the storm
     # the controller itself is not degraded after the storm: no fallback, every solve succeeds
     after = [m for t, m in ctrl if t > t_end]
-    assert after and not any(m.fallback for m in after) and all(m.success for m in after), \
-        [(m.status, m.fallback_reason) for m in after]
+    assert after and not any(m.fallback for m in after) and all(m.success for m in after), [
+        (m.status, m.fallback_reason) for m in after
+    ]
     # not wedged: the latest previews start at the plant's recent time, not 1e6 s ahead
     assert abs(conversions.s_from_stamp(prevs[-1].start) - powers[-1][1].step_index) <= 2 * ts
     rejected = {}
@@ -1030,8 +1354,10 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
         assert rejected['mpc_node'][f'rejected {topic}'] == injected[topic], (topic, rejected, injected)
     # no injected command was applied (their values are 0.1 kg/s, 5 degC; mpc_node's never are exactly)
     assert not any((m.mdot_bl_kgps, m.t_evap_sp_c) == (0.1, 5.0) for m in applied)
-    print(f'\nfuzz {fuzz_s:.0f} s: injected {injected} ({sum(injected.values())} messages); rejected {rejected}; '
-          f'crashes 0; applied inputs out of bounds 0 of {len(applied)}; mpc_node commands during the storm '
-          f'{n_real_during} (before: {n_real_before}); plant fallback steps during the storm {fb_during}; '
-          f'recovered {steps_to_recover} plant steps ({t_rec - t_end:.1f} s) after the storm; controller steps after '
-          f'it {len(after)}, statuses {sorted({m.status for m in after})}')
+    print(
+        f'\nfuzz {fuzz_s:.0f} s: injected {injected} ({sum(injected.values())} messages); rejected {rejected}; '
+        f'crashes 0; applied inputs out of bounds 0 of {len(applied)}; mpc_node commands during the storm '
+        f'{n_real_during} (before: {n_real_before}); plant fallback steps during the storm {fb_during}; '
+        f'recovered {steps_to_recover} plant steps ({t_rec - t_end:.1f} s) after the storm; controller steps after '
+        f'it {len(after)}, statuses {sorted({m.status for m in after})}'
+    )

@@ -1,6 +1,7 @@
 """Stack tests for namespaces and several vehicles: real node processes over
 real DDS (headless, localhost-only, each test its own ROS_DOMAIN_ID), as in
 tests/test_stack.py, whose helpers they use."""
+
 from __future__ import annotations
 
 import json
@@ -24,6 +25,7 @@ def _get_parameter(peer: DdsPeer, node: str, name: str, timeout_s: float = 60.0)
     """`ros2 param get NODE NAME` over DDS: the node's get_parameters service."""
     from rcl_interfaces.srv import GetParameters
     from rclpy.parameter import parameter_value_to_python
+
     client = peer.node.create_client(GetParameters, f'{node}/get_parameters')
     try:
         assert client.wait_for_service(timeout_sec=timeout_s), f'{node}/get_parameters not found'
@@ -47,14 +49,25 @@ def test_namespaced_node_reads_its_parameter_file(tmp_path):
     bare = tmp_path / 'preview_bare.yaml'
     bare.write_text(wildcard.read_text().replace('\n/**/preview_node:', '\npreview_node:'))
     peer = DdsPeer(_domain(), 'param_probe')
-    procs = [supervisor.NodeProcess(name, 'ceco_v2x_preview', 'preview_node', params_files=[f], env=peer.env,
-                                    log_dir=tmp_path / 'logs', namespace=ns)
-             for name, f, ns in (('veh1', wildcard, 'veh1'), ('root', wildcard, ''), ('veh2', bare, 'veh2'))]
+    procs = [
+        supervisor.NodeProcess(
+            name,
+            'ceco_v2x_preview',
+            'preview_node',
+            params_files=[f],
+            env=peer.env,
+            log_dir=tmp_path / 'logs',
+            namespace=ns,
+        )
+        for name, f, ns in (('veh1', wildcard, 'veh1'), ('root', wildcard, ''), ('veh2', bare, 'veh2'))
+    ]
     try:
         for p in procs:
             p.start()
-        values = {node: _get_parameter(peer, node, 'horizon_steps')
-                  for node in ('/veh1/preview_node', '/preview_node', '/veh2/preview_node')}
+        values = {
+            node: _get_parameter(peer, node, 'horizon_steps')
+            for node in ('/veh1/preview_node', '/preview_node', '/veh2/preview_node')
+        }
         assert values == {'/veh1/preview_node': 9, '/preview_node': 9, '/veh2/preview_node': 6}
         names = set(peer.node.get_node_names_and_namespaces())
         assert {('preview_node', '/veh1'), ('preview_node', '/'), ('preview_node', '/veh2')} <= names
@@ -79,17 +92,42 @@ def test_two_namespaced_vehicles_in_one_domain_no_cross_talk(tmp_path):
     procs = {}
     try:
         for ns, (strategy, scenario, _) in runs.items():
-            procs[ns] = _cli('run', '--scenario', scenario, '--strategy', strategy, '--timing', 'realtime',
-                             '--duration-s', str(n_steps), '--namespace', ns, '--out', str(tmp_path / ns),
-                             '--no-progress', env=env)
+            procs[ns] = _cli(
+                'run',
+                '--scenario',
+                scenario,
+                '--strategy',
+                strategy,
+                '--timing',
+                'realtime',
+                '--duration-s',
+                str(n_steps),
+                '--namespace',
+                ns,
+                '--out',
+                str(tmp_path / ns),
+                '--no-progress',
+                env=env,
+            )
 
         def graph():
             return set(peer.node.get_node_names_and_namespaces())
-        expected = {('plant_node', '/veh1'), ('preview_node', '/veh1'), ('baseline_node', '/veh1'),
-                    ('ceco_recorder', '/veh1'), ('plant_node', '/veh2'), ('preview_node', '/veh2'),
-                    ('mpc_node', '/veh2'), ('ceco_recorder', '/veh2')}
-        _wait_for(lambda: expected <= graph() or any(p.poll() is not None for p in procs.values()),
-                  180, 'both stacks in the graph')
+
+        expected = {
+            ('plant_node', '/veh1'),
+            ('preview_node', '/veh1'),
+            ('baseline_node', '/veh1'),
+            ('ceco_recorder', '/veh1'),
+            ('plant_node', '/veh2'),
+            ('preview_node', '/veh2'),
+            ('mpc_node', '/veh2'),
+            ('ceco_recorder', '/veh2'),
+        }
+        _wait_for(
+            lambda: expected <= graph() or any(p.poll() is not None for p in procs.values()),
+            180,
+            'both stacks in the graph',
+        )
         assert expected <= graph(), graph()
         texts = {ns: p.communicate(timeout=300)[0] for ns, p in procs.items()}
     finally:
@@ -104,10 +142,10 @@ def test_two_namespaced_vehicles_in_one_domain_no_cross_talk(tmp_path):
         assert (metrics['ros_domain_id'], metrics['ros_namespace']) == (domain, f'/{ns}')
         assert (metrics['strategy'], metrics['scenario']) == (strategy, scenario)
         states = [m for _, _, m in bagio.read_messages(out / 'bag', ('cabin/state',))]
-        assert [m.step_index for m in states] == list(range(n_steps))       # own states, each once
-        assert {m.t_amb_c for m in states} == {t_amb_c}                     # own scenario's weather
+        assert [m.step_index for m in states] == list(range(n_steps))  # own states, each once
+        assert {m.t_amb_c for m in states} == {t_amb_c}  # own scenario's weather
         cmds = bagio.load_commands(out / 'bag')
-        assert set(cmds['strategy']) == {strategy}                          # own controller only
+        assert set(cmds['strategy']) == {strategy}  # own controller only
         assert 4 <= cmds['k'].size <= 7 and len(set(cmds['k'].tolist())) == cmds['k'].size
         powers = [m for _, _, m in bagio.read_messages(out / 'bag', ('hvac/power',))]
         assert [m.step_index for m in powers] == list(range(n_steps))
@@ -130,13 +168,29 @@ def test_sigkill_to_ceco_run_stops_its_nodes(tmp_path):
     """SIGKILL to `ceco run` (no chance to clean up): its three node processes
     get the parent-death signal (setpriv --pdeathsig SIGINT) and exit."""
     ns = f'/kill{os.getpid()}'
-    p = _cli('run', '--scenario', 'sc03', '--strategy', 'baseline', '--timing', 'realtime', '--duration-s', '60',
-             '--namespace', ns, '--out', str(tmp_path / 'run'), '--no-progress', '--domain-id', str(_domain()))
+    p = _cli(
+        'run',
+        '--scenario',
+        'sc03',
+        '--strategy',
+        'baseline',
+        '--timing',
+        'realtime',
+        '--duration-s',
+        '60',
+        '--namespace',
+        ns,
+        '--out',
+        str(tmp_path / 'run'),
+        '--no-progress',
+        '--domain-id',
+        str(_domain()),
+    )
     try:
         _wait_for(lambda: len(_node_pids_in_namespace(ns)) == 3 or p.poll() is not None, 120, 'three nodes')
         pids = _node_pids_in_namespace(ns)
         assert len(pids) == 3, p.communicate()[0] if p.poll() is not None else pids
-        time.sleep(2.0)                                      # nodes up and spinning
+        time.sleep(2.0)  # nodes up and spinning
         p.send_signal(signal.SIGKILL)
         p.wait(timeout=10)
         _wait_for(lambda: not _node_pids_in_namespace(ns), 30, 'the nodes to exit')

@@ -1,5 +1,6 @@
 """Pure parts of ceco_bringup.supervisor: which ROS_DOMAIN_ID a `ceco run`
 uses, namespace names, and how children are started."""
+
 from __future__ import annotations
 
 import pytest
@@ -25,20 +26,25 @@ def test_private_domain_ids_differ_per_run_and_stay_in_range(monkeypatch):
     assert len(ids) == 5 and all(1 <= d <= 101 for d in ids)
 
 
-@pytest.mark.parametrize('environ, explicit, message', [
-    ({'ROS_DOMAIN_ID': 'abc'}, None, "ROS_DOMAIN_ID='abc': must be an integer in 0..232"),
-    ({'ROS_DOMAIN_ID': '-1'}, None, "ROS_DOMAIN_ID='-1': must be an integer in 0..232"),
-    ({'ROS_DOMAIN_ID': '233'}, None, 'ROS_DOMAIN_ID=233: must be an integer in 0..232'),
-    ({}, 500, '--domain-id=500: must be an integer in 0..232'),
-])
+@pytest.mark.parametrize(
+    'environ, explicit, message',
+    [
+        ({'ROS_DOMAIN_ID': 'abc'}, None, "ROS_DOMAIN_ID='abc': must be an integer in 0..232"),
+        ({'ROS_DOMAIN_ID': '-1'}, None, "ROS_DOMAIN_ID='-1': must be an integer in 0..232"),
+        ({'ROS_DOMAIN_ID': '233'}, None, 'ROS_DOMAIN_ID=233: must be an integer in 0..232'),
+        ({}, 500, '--domain-id=500: must be an integer in 0..232'),
+    ],
+)
 def test_invalid_domain_id_is_refused(environ, explicit, message):
     with pytest.raises(ValueError) as err:
         supervisor.resolve_domain_id(explicit, 0, environ)
     assert str(err.value) == message
 
 
-@pytest.mark.parametrize('given, expected', [
-    ('', ''), (None, ''), ('/', ''), ('veh1', '/veh1'), ('/veh1/', '/veh1'), ('fleet/veh_2', '/fleet/veh_2')])
+@pytest.mark.parametrize(
+    'given, expected',
+    [('', ''), (None, ''), ('/', ''), ('veh1', '/veh1'), ('/veh1/', '/veh1'), ('fleet/veh_2', '/fleet/veh_2')],
+)
 def test_namespace_normalized(given, expected):
     assert supervisor.normalize_namespace(given) == expected
 
@@ -53,11 +59,19 @@ def test_children_get_a_parent_death_signal_without_preexec_fn(tmp_path, monkeyp
     """The command line carries `setpriv --pdeathsig SIGINT --` where setpriv
     exists (Debian, Ubuntu), and the namespace remap; no preexec_fn."""
     import inspect
+
     assert 'preexec_fn' not in inspect.getsource(supervisor.NodeProcess.start)
     prefix = supervisor._die_with_parent_prefix()
     assert prefix[1:] == ['--pdeathsig', 'SIGINT', '--'] and prefix[0].endswith('setpriv')
     monkeypatch.setattr(supervisor, 'find_executable', lambda pkg, exe: f'/x/lib/{pkg}/{exe}')
-    proc = supervisor.NodeProcess('p', 'ceco_v2x_preview', 'preview_node', env={}, log_dir=tmp_path,
-                                  namespace='veh1', params={'horizon_steps': 9})
-    assert proc.cmd == ['/x/lib/ceco_v2x_preview/preview_node', '--ros-args', '-r', '__ns:=/veh1',
-                        '-p', 'horizon_steps:=9']
+    proc = supervisor.NodeProcess(
+        'p', 'ceco_v2x_preview', 'preview_node', env={}, log_dir=tmp_path, namespace='veh1', params={'horizon_steps': 9}
+    )
+    assert proc.cmd == [
+        '/x/lib/ceco_v2x_preview/preview_node',
+        '--ros-args',
+        '-r',
+        '__ns:=/veh1',
+        '-p',
+        'horizon_steps:=9',
+    ]

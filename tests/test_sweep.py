@@ -34,47 +34,54 @@ def _grid(tmp_path, text=GRID, duration=20, name='grid.yaml'):
 def _direct(cell):
     """The same run as the cell, by a direct simulate() call in this process."""
     spec = cell.spec
-    settings = SimSettings(preview_quality=parse_quality(spec['preview']), seed=spec['seed'],
-                           duration_s=spec['duration_s'], progress=False)
+    settings = SimSettings(
+        preview_quality=parse_quality(spec['preview']), seed=spec['seed'], duration_s=spec['duration_s'], progress=False
+    )
     return simulate(scenario_from_dict(spec['scenario']), spec['strategy'], settings).metrics
 
 
 def test_expand_grid_counts_ids_and_overrides(tmp_path):
-    text = GRID + 'previews: {perfect: perfect, noisy: "noisy:solar=50"}\nseeds: [0, 1]\n' \
-                  'occupants: {light: {met: 1.1}, heavy: {met: 1.6, clo: 0.7}}\n'
+    text = (
+        GRID + 'previews: {perfect: perfect, noisy: "noisy:solar=50"}\nseeds: [0, 1]\n'
+        'occupants: {light: {met: 1.1}, heavy: {met: 1.6, clo: 0.7}}\n'
+    )
     cells = sweep.expand_grid(sweep.load_grid(_grid(tmp_path, text)))
     assert len(cells) == 2 * 2 * 2 * 2 * 2  # strategies x climates x previews x seeds x occupants
     assert len({c.id for c in cells}) == len(cells)
     again = sweep.expand_grid(sweep.load_grid(_grid(tmp_path, text)))
-    assert [c.id for c in again] == [c.id for c in cells]          # deterministic
+    assert [c.id for c in again] == [c.id for c in cells]  # deterministic
     mild = next(c for c in cells if c.axes['climate'] == 'mild' and c.axes['occupant'] == 'heavy')
     sc = mild.spec['scenario']
     assert sc['weather']['t_amb_c'] == [28.0, 28.0]
     assert sc['weather']['solar_wm2'] == [400.0, 300.0]
-    assert sc['weather']['time_s'] == [0.0, 600.0]                 # spans the run
+    assert sc['weather']['time_s'] == [0.0, 600.0]  # spans the run
     assert sc['initial'] == {'t_cab_c': 40.0}
     assert sc['occupant'] == {'met': 1.6, 'clo': 0.7}
     hot = next(c for c in cells if c.axes['climate'] == 'hot')
     assert hot.spec['scenario']['weather']['t_amb_c'] == [35.0, 35.0]  # the scenario's own
     assert hot.spec['duration_s'] == 20.0
     # Editing one climate changes the ids of its cells only.
-    edited = sweep.expand_grid(sweep.load_grid(_grid(tmp_path, text.replace('t_amb_c: 28.0', 't_amb_c: 29.0'),
-                                                     name='g2.yaml')))
+    edited = sweep.expand_grid(
+        sweep.load_grid(_grid(tmp_path, text.replace('t_amb_c: 28.0', 't_amb_c: 29.0'), name='g2.yaml'))
+    )
     changed = {c.id for c in edited} ^ {c.id for c in cells}
     assert len(changed) == 2 * 16
     assert all(c.axes['climate'] == 'mild' for c in edited if c.id in changed)
 
 
-@pytest.mark.parametrize('text, key', [
-    ('strategies: [baseline]\nbogus: 1\n', 'bogus'),
-    ('strategies: [warp-drive]\n', 'strategies'),
-    ('strategies: [baseline]\nclimates: {x: {t_amb_c: "hot"}}\n', 'climates.x.t_amb_c'),
-    ('strategies: [baseline]\nclimates: {x: {wind: 3}}\n', 'climates.x.wind'),
-    ('strategies: [baseline]\npreviews: {p: "foggy"}\n', 'previews.p'),
-    ('strategies: [baseline]\nseeds: [-1]\n', 'seeds'),
-    ('strategies: [baseline]\nduration_s: .nan\n', 'duration_s'),
-    ('strategies: [baseline]\nclimates: {x: {t_amb_c: 95.0}}\n', 'weather.t_amb_c'),
-])
+@pytest.mark.parametrize(
+    'text, key',
+    [
+        ('strategies: [baseline]\nbogus: 1\n', 'bogus'),
+        ('strategies: [warp-drive]\n', 'strategies'),
+        ('strategies: [baseline]\nclimates: {x: {t_amb_c: "hot"}}\n', 'climates.x.t_amb_c'),
+        ('strategies: [baseline]\nclimates: {x: {wind: 3}}\n', 'climates.x.wind'),
+        ('strategies: [baseline]\npreviews: {p: "foggy"}\n', 'previews.p'),
+        ('strategies: [baseline]\nseeds: [-1]\n', 'seeds'),
+        ('strategies: [baseline]\nduration_s: .nan\n', 'duration_s'),
+        ('strategies: [baseline]\nclimates: {x: {t_amb_c: 95.0}}\n', 'weather.t_amb_c'),
+    ],
+)
 def test_bad_grid_names_the_key(tmp_path, text, key):
     with pytest.raises(sweep.GridError, match=key.replace('.', r'\.')):
         sweep.expand_grid(sweep.load_grid(_grid(tmp_path, text)))
@@ -89,9 +96,14 @@ def test_local_sweep_equals_direct_runs_and_resumes(tmp_path):
         table = list(csv.DictReader(fh))
     assert len(table) == 4
     assert {(r['strategy'], r['climate']) for r in table} == {
-        ('baseline', 'hot'), ('ceco', 'hot'), ('baseline', 'mild'), ('ceco', 'mild')}
-    if importlib.util.find_spec('polars') is not None:   # the analysis extra (fastsim pulls it): Parquet too
+        ('baseline', 'hot'),
+        ('ceco', 'hot'),
+        ('baseline', 'mild'),
+        ('ceco', 'mild'),
+    }
+    if importlib.util.find_spec('polars') is not None:  # the analysis extra (fastsim pulls it): Parquet too
         import polars as pl
+
         pq = pl.read_parquet(out / 'results.parquet')
         assert pq.height == 4 and pq['E_tot_J'].to_list() == [float(r['E_tot_J']) for r in table]
     elif importlib.util.find_spec('pyarrow') is None:
@@ -113,7 +125,7 @@ def test_local_sweep_equals_direct_runs_and_resumes(tmp_path):
     again = sweep.run_sweep(grid, out, workers=2, progress=False, log=lambda *a, **k: None)
     assert again['timing']['ran'] == 0 and again['timing']['skipped'] == 4
     assert len(again['rows']) == 4
-    assert sweep.main([str(grid), '--out', str(out), '--no-progress']) == 0   # the CLI resumes too
+    assert sweep.main([str(grid), '--out', str(out), '--no-progress']) == 0  # the CLI resumes too
     # A new cell in the grid runs alone; the log keeps every line parseable.
     grid3 = _grid(tmp_path, GRID.replace('[baseline, ceco]', '[baseline, ceco, ceco-e]'), name='g3.yaml')
     third = sweep.run_sweep(grid3, out, workers=1, progress=False, log=lambda *a, **k: None)
@@ -131,15 +143,19 @@ def test_failed_cell_is_recorded_and_retried(tmp_path, monkeypatch):
     assert math.isnan(row['sim_time_s'])
     log = tmp_path / 'cells.jsonl'
     sweep._append_row(log, row)
-    assert sweep.read_done(log) == {}                                   # errors are retried
+    assert sweep.read_done(log) == {}  # errors are retried
 
 
 @pytest.mark.extra('ray')
 def test_ray_backend_matches_local(tmp_path):
-    grid = _grid(tmp_path, GRID.replace('  mild: {t_amb_c: 28.0, solar_wm2: [400, 300], rh: 0.5, '
-                                        'initial: {t_cab_c: 40.0}}\n', ''), duration=15)
-    ray_res = sweep.run_sweep(grid, tmp_path / 'ray', backend='ray', workers=2, progress=False,
-                              log=lambda *a, **k: None)
+    grid = _grid(
+        tmp_path,
+        GRID.replace('  mild: {t_amb_c: 28.0, solar_wm2: [400, 300], rh: 0.5, initial: {t_cab_c: 40.0}}\n', ''),
+        duration=15,
+    )
+    ray_res = sweep.run_sweep(
+        grid, tmp_path / 'ray', backend='ray', workers=2, progress=False, log=lambda *a, **k: None
+    )
     assert ray_res['timing']['ran'] == 2 and ray_res['timing']['failed'] == 0
     local = sweep.run_sweep(grid, tmp_path / 'local', workers=1, progress=False, log=lambda *a, **k: None)
     by_axes = {r['strategy']: r for r in local['rows']}
@@ -154,10 +170,10 @@ def test_verify_reruns_cells_exactly_and_vehicle_level(tmp_path):
     grid = _grid(tmp_path, GRID.replace('[baseline, ceco]', '[ceco-ioch]') + 'vehicle: true\n', duration=40)
     res = sweep.run_sweep(grid, tmp_path / 'out', workers=1, progress=False, log=lambda *a, **k: None)
     # Vehicle level per group: each strategy's mean A/C power over the group's cycle.
-    assert len(res['vehicle']) == 2 * 2                                 # climates x vehicles
+    assert len(res['vehicle']) == 2 * 2  # climates x vehicles
     p = {r['climate']: r['P_mean_w'] for r in res['rows']}
     assert all(v['p_ac_mean_w'] == p[v['climate']] for v in res['vehicle'])
-    assert all(0.02 < v['distance_km'] < 0.1 for v in res['vehicle'])   # SC03 creeps from 19 s on
+    assert all(0.02 < v['distance_km'] < 0.1 for v in res['vehicle'])  # SC03 creeps from 19 s on
     assert len((tmp_path / 'out' / 'vehicle.csv').read_text().splitlines()) == 5
     checks = sweep.verify_cells(tmp_path / 'out', 5, grid)
     assert len(checks) == 2 and all(c['equal'] for c in checks), checks
@@ -177,7 +193,7 @@ def test_code_fingerprint_is_part_of_the_id(tmp_path, monkeypatch):
     assert all(c.spec['code'] == sweep.code_fingerprint() for c in cells)
     monkeypatch.setattr(sweep.cells, 'code_fingerprint', lambda: '0' * 16)
     other = sweep.expand_grid(grid)
-    assert not {c.id for c in other} & {c.id for c in cells}       # changed simulator: every cell reruns
+    assert not {c.id for c in other} & {c.id for c in cells}  # changed simulator: every cell reruns
     monkeypatch.undo()
     # A worker whose code differs from the driver's refuses to produce a result.
     row = sweep.run_cell({'id': other[0].id, 'axes': other[0].axes, 'spec': other[0].spec})
@@ -200,8 +216,11 @@ def test_settings_axis_expands_per_strategy_and_keeps_other_ids(tmp_path):
     cells = sweep.expand_grid(sweep.load_grid(_grid(tmp_path, SETTINGS_GRID)))
     # The baseline runs once (label "default"), ceco-c once per label naming it.
     assert [(c.axes['strategy'], c.axes['settings']) for c in cells] == [
-        ('baseline', 'default'), ('ceco-c', 'g1k'), ('ceco-c', 'g50k')]
-    assert cells[1].spec['strategy_overrides'] == {'gamma_w': 1000.0}     # int in YAML -> float field
+        ('baseline', 'default'),
+        ('ceco-c', 'g1k'),
+        ('ceco-c', 'g50k'),
+    ]
+    assert cells[1].spec['strategy_overrides'] == {'gamma_w': 1000.0}  # int in YAML -> float field
     assert isinstance(cells[1].spec['strategy_overrides']['gamma_w'], float)
     assert 'strategy_overrides' not in cells[0].spec
     # The same grid without the axis gives the baseline the same id (old sweeps resume).
@@ -214,29 +233,35 @@ def test_settings_axis_expands_per_strategy_and_keeps_other_ids(tmp_path):
         sweep.expand_grid(sweep.load_grid(_grid(tmp_path, dup, name='d.yaml')))
 
 
-@pytest.mark.parametrize('entry, match', [
-    ('g: {ceco-c: {gama_w: 1000.0}}', r'settings\.g\.ceco-c\.gama_w: unknown StrategySettings field'),
-    ('g: {ceco-c: {gamma_w: -5.0}}', r'settings\.g\.ceco-c: StrategySettings\.gamma_w must be finite and >= 0'),
-    ('g: {ceco-c: {gamma_w: "high"}}', r'settings\.g\.ceco-c\.gamma_w: must be of the type'),
-    ('g: {ceco-c: {solver: {max_itr: 5}}}', r'settings\.g\.ceco-c\.solver\.max_itr: unknown SolverSettings field'),
-    ('g: {ceco-c: {solver: {max_cpu_time_s: 9.0}}}', r'settings\.g\.ceco-c: .*max_cpu_time_s must be below'),
-    ('g: {ceco-c: {horizon_steps: 12}}', r"settings\.g\.ceco-c\.horizon_steps: set by the grid key 'horizon_steps'"),
-    ('g: {ceco-ioch: {beta_w: 10.0}}', r"settings\.g\.ceco-ioch: strategy 'ceco-ioch' is not in the grid"),
-    ('g: {baseline: {gamma_w: 1.0}}', r'settings\.g\.baseline: baseline has no StrategySettings'),
-    ('default: {ceco-c: {gamma_w: 1.0}}', r"settings\.default: the label 'default' is reserved"),
-])
+@pytest.mark.parametrize(
+    'entry, match',
+    [
+        ('g: {ceco-c: {gama_w: 1000.0}}', r'settings\.g\.ceco-c\.gama_w: unknown StrategySettings field'),
+        ('g: {ceco-c: {gamma_w: -5.0}}', r'settings\.g\.ceco-c: StrategySettings\.gamma_w must be finite and >= 0'),
+        ('g: {ceco-c: {gamma_w: "high"}}', r'settings\.g\.ceco-c\.gamma_w: must be of the type'),
+        ('g: {ceco-c: {solver: {max_itr: 5}}}', r'settings\.g\.ceco-c\.solver\.max_itr: unknown SolverSettings field'),
+        ('g: {ceco-c: {solver: {max_cpu_time_s: 9.0}}}', r'settings\.g\.ceco-c: .*max_cpu_time_s must be below'),
+        (
+            'g: {ceco-c: {horizon_steps: 12}}',
+            r"settings\.g\.ceco-c\.horizon_steps: set by the grid key 'horizon_steps'",
+        ),
+        ('g: {ceco-ioch: {beta_w: 10.0}}', r"settings\.g\.ceco-ioch: strategy 'ceco-ioch' is not in the grid"),
+        ('g: {baseline: {gamma_w: 1.0}}', r'settings\.g\.baseline: baseline has no StrategySettings'),
+        ('default: {ceco-c: {gamma_w: 1.0}}', r"settings\.default: the label 'default' is reserved"),
+    ],
+)
 def test_bad_settings_fail_before_any_run_naming_the_field(tmp_path, monkeypatch, entry, match):
     monkeypatch.setattr(sweep.cells, 'run_cell', lambda *a, **k: pytest.fail('a cell ran'))
     text = SETTINGS_GRID.split('settings:')[0] + 'settings:\n  ' + entry + '\n'
     with pytest.raises(ValueError, match=match):
-        sweep.run_sweep(_grid(tmp_path, text), tmp_path / 'out', workers=1, progress=False,
-                        log=lambda *a, **k: None)
+        sweep.run_sweep(_grid(tmp_path, text), tmp_path / 'out', workers=1, progress=False, log=lambda *a, **k: None)
     assert not (tmp_path / 'out' / 'cells.jsonl').exists()
 
 
 def test_settings_override_changes_ceco_c_and_equals_direct_run(tmp_path):
-    res = sweep.run_sweep(_grid(tmp_path, SETTINGS_GRID), tmp_path / 'out', workers=1, progress=False,
-                          log=lambda *a, **k: None)
+    res = sweep.run_sweep(
+        _grid(tmp_path, SETTINGS_GRID), tmp_path / 'out', workers=1, progress=False, log=lambda *a, **k: None
+    )
     assert res['timing']['ran'] == 3 and res['timing']['failed'] == 0
     by = {(r['strategy'], r['settings']): r for r in res['rows']}
     e1, e50 = by[('ceco-c', 'g1k')]['E_tot_J'], by[('ceco-c', 'g50k')]['E_tot_J']
@@ -245,8 +270,9 @@ def test_settings_override_changes_ceco_c_and_equals_direct_run(tmp_path):
     assert e50 > 1.05 * e1
     assert by[('ceco-c', 'g50k')]['I_pmv'] < by[('ceco-c', 'g1k')]['I_pmv']
     # The cell equals a direct simulate() with the same override, exactly.
-    direct = simulate('sc03_mild', 'ceco-c', SimSettings(duration_s=240.0, progress=False,
-                                                         strategy_overrides=(('gamma_w', 1000.0),))).metrics
+    direct = simulate(
+        'sc03_mild', 'ceco-c', SimSettings(duration_s=240.0, progress=False, strategy_overrides=(('gamma_w', 1000.0),))
+    ).metrics
     for key in ('E_tot_J', 'I_pmv', 'otc_violation_pct', 'E_zone_J', 'I_pmv_zone'):
         assert by[('ceco-c', 'g1k')][key] == direct[key], key
     # Both labels are compared with the one baseline cell of the group.
@@ -261,33 +287,51 @@ def test_settings_override_changes_ceco_c_and_equals_direct_run(tmp_path):
     assert '| sc03_mild | scenario | scenario | perfect | scenario | ceco-c | g50k | 1 |' in text
     assert 'Pareto-dominating points' in text
     # Resume: nothing reruns.
-    again = sweep.run_sweep(_grid(tmp_path, SETTINGS_GRID), tmp_path / 'out', workers=1, progress=False,
-                            log=lambda *a, **k: None)
+    again = sweep.run_sweep(
+        _grid(tmp_path, SETTINGS_GRID), tmp_path / 'out', workers=1, progress=False, log=lambda *a, **k: None
+    )
     assert again['timing']['ran'] == 0 and len(again['rows']) == 3
 
 
 def test_dominance_pairs_every_point_with_its_groups_one_baseline(tmp_path):
     def row(scenario, strategy, settings, e, i, ez, iz):
-        return {'status': 'ok', 'scenario': scenario, 'drive_cycle': 'scenario', 'climate': 'scenario',
-                'preview': 'perfect', 'occupant': 'scenario', 'seed': 0, 'strategy': strategy,
-                'settings': settings, 'E_tot_kWh': e, 'I_pmv': i, 'E_zone_J': ez, 'I_pmv_zone': iz,
-                'otc_violation_pct': 1.0, 'otc_violation_zone_pct': 0.0}
-    rows = [row('a', 'baseline', 'default', 1.0, 100.0, 10.0, 10.0),
-            row('a', 'ceco-c', 'lo', 0.9, 99.0, 11.0, 9.0),      # dominates over the run, not in the zone
-            row('a', 'ceco-c', 'eq', 0.99, 100.0, 9.0, 10.0),    # equal I_PMV counts; zone too
-            row('a', 'ceco-c', 'hi', 1.1, 90.0, 9.0, 11.0),      # costs energy
-            row('b', 'baseline', 'default', 2.0, 50.0, 20.0, 5.0),
-            row('b', 'ceco-c', 'lo', 1.9, 55.0, 19.0, 4.0)]      # same label, other group: its own baseline
+        return {
+            'status': 'ok',
+            'scenario': scenario,
+            'drive_cycle': 'scenario',
+            'climate': 'scenario',
+            'preview': 'perfect',
+            'occupant': 'scenario',
+            'seed': 0,
+            'strategy': strategy,
+            'settings': settings,
+            'E_tot_kWh': e,
+            'I_pmv': i,
+            'E_zone_J': ez,
+            'I_pmv_zone': iz,
+            'otc_violation_pct': 1.0,
+            'otc_violation_zone_pct': 0.0,
+        }
+
+    rows = [
+        row('a', 'baseline', 'default', 1.0, 100.0, 10.0, 10.0),
+        row('a', 'ceco-c', 'lo', 0.9, 99.0, 11.0, 9.0),  # dominates over the run, not in the zone
+        row('a', 'ceco-c', 'eq', 0.99, 100.0, 9.0, 10.0),  # equal I_PMV counts; zone too
+        row('a', 'ceco-c', 'hi', 1.1, 90.0, 9.0, 11.0),  # costs energy
+        row('b', 'baseline', 'default', 2.0, 50.0, 20.0, 5.0),
+        row('b', 'ceco-c', 'lo', 1.9, 55.0, 19.0, 4.0),
+    ]  # same label, other group: its own baseline
     summary = sweep.summarize(rows)
     dom = {(d['scenario'], d['settings']): d for d in sweep.dominance_rows(summary)}
     assert len(dom) == 4
     assert dom[('a', 'lo')]['dE_tot_kWh_pct'] == pytest.approx(-10.0)
     assert dom[('a', 'lo')]['dI_pmv_pct'] == pytest.approx(-1.0)
-    assert [(dom[k]['dominates'], dom[k]['dominates_zone']) for k in
-            [('a', 'lo'), ('a', 'eq'), ('a', 'hi'), ('b', 'lo')]] == [
-        (True, False), (True, True), (False, False), (False, True)]
+    assert [
+        (dom[k]['dominates'], dom[k]['dominates_zone']) for k in [('a', 'lo'), ('a', 'eq'), ('a', 'hi'), ('b', 'lo')]
+    ] == [(True, False), (True, True), (False, False), (False, True)]
     assert dom[('b', 'lo')]['dI_pmv_zone_pct'] == pytest.approx(-20.0)
     import matplotlib.image as mpimg
+
     png = sweep.front_figure(summary, tmp_path / 'front.png')
     h, w = mpimg.imread(png).shape[:2]
-    assert w > 1000 and h > 1000                  # two groups x two phases at 200 dpi
+    assert w > 1000 and h > 1000  # two groups x two phases at 200 dpi

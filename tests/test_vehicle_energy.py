@@ -35,14 +35,14 @@ def test_prius_fuel_per_joule_of_ac(sc03):
     a, b, noise_j, runs = ve.fit_energy_vs_aux(ve.PRIUS, t, v, [0.0, 1000.0, 2000.0, 3000.0])
     assert [r.powertrain for r in runs] == ['HEV'] * 4
     e = [r.energy_j for r in runs]
-    assert all(x < y for x, y in zip(e, e[1:]))                     # more A/C, more fuel
+    assert all(x < y for x, y in zip(e, e[1:]))  # more A/C, more fuel
     # Marginal fuel per joule of A/C electricity: about 2.8 (seed notes); an
     # engine at 30-40 % times the electrical path's losses: 2.2..3.5.
     assert 2.2 < b / 600.0 < 3.5
-    assert noise_j / np.mean(e) < 0.01                               # the non-smooth part: < 1 %
+    assert noise_j / np.mean(e) < 0.01  # the non-smooth part: < 1 %
     assert all(r.trace_miss_max_mps < 0.5 for r in runs)
     assert all(abs(r.res_net_out_j) < 0.01 * r.energy_j for r in runs)  # charge sustaining
-    assert runs[0].p_aux_base_w == 1050.0                            # shipped base load untouched
+    assert runs[0].p_aux_base_w == 1050.0  # shipped base load untouched
 
 
 @pytest.mark.extra('fastsim')
@@ -61,7 +61,7 @@ def test_table_savings_and_ev_range(sc03):
         assert e['saving_fit_pct'] / i['saving_fit_pct'] == pytest.approx(300.0 / 150.0, rel=1e-9)
     hev, bev = by[(ve.PRIUS, 'ceco-e')], by[(ve.ZOE, 'ceco-e')]
     assert hev['paper_saving_pct'] == -6.4 and math.isnan(bev['paper_saving_pct'])
-    assert 3.0 < hev['l_per_100km'] < 9.0                            # a Prius on a hot SC03 with A/C
+    assert 3.0 < hev['l_per_100km'] < 9.0  # a Prius on a hot SC03 with A/C
     # Electric car: ~1 J of battery energy per J of A/C (battery losses only).
     assert 0.95 < bev['j_per_j_ac'] < 1.2
     assert 10.0 < bev['kwh_per_100km'] < 30.0
@@ -72,12 +72,15 @@ def test_table_savings_and_ev_range(sc03):
     assert all(r['n_evals'] == 3 + 1 + 3 for r in rows)
 
 
-@pytest.mark.parametrize('kwargs, field', [
-    ({'fit_points': 1}, 'fit_points'),
-    ({'fit_margin_w': -1.0}, 'fit_margin_w'),
-    ({'vehicles': ()}, 'vehicles'),
-    ({'baseline': ''}, 'baseline'),
-])
+@pytest.mark.parametrize(
+    'kwargs, field',
+    [
+        ({'fit_points': 1}, 'fit_points'),
+        ({'fit_margin_w': -1.0}, 'fit_margin_w'),
+        ({'vehicles': ()}, 'vehicles'),
+        ({'baseline': ''}, 'baseline'),
+    ],
+)
 def test_settings_validate(kwargs, field):
     with pytest.raises(ValueError, match=field):
         ve.VehicleEnergySettings(**kwargs).validate()
@@ -96,9 +99,16 @@ def test_bad_input_rejected(sc03):
 
 
 def test_import_without_fastsim():
-    code = ('import sys; sys.modules["fastsim"] = None\n'
-            'from ceco_bringup import vehicle_energy as ve\n'
-            'try:\n    ve.import_fastsim()\nexcept ve.FastsimMissingError as e:\n    print("MISSING", e)\n')
-    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True,
-                         env={'PYTHONPATH': os.pathsep.join(str(Path(m.__file__).parents[1]) for m in (ve, ceco_core))})
+    code = (
+        'import sys; sys.modules["fastsim"] = None\n'
+        'from ceco_bringup import vehicle_energy as ve\n'
+        'try:\n    ve.import_fastsim()\nexcept ve.FastsimMissingError as e:\n    print("MISSING", e)\n'
+    )
+    out = subprocess.run(
+        [sys.executable, '-c', code],
+        capture_output=True,
+        text=True,
+        check=True,
+        env={'PYTHONPATH': os.pathsep.join(str(Path(m.__file__).parents[1]) for m in (ve, ceco_core))},
+    )
     assert 'MISSING' in out.stdout and 'requirements/analysis.txt' in out.stdout

@@ -1,5 +1,6 @@
 """The workspace layout a ROS 2 user relies on: ament packages colcon recognises
 and executables where `ros2 run` looks for them."""
+
 import os
 import re
 import xml.etree.ElementTree as ET
@@ -8,7 +9,9 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PYTHON_PKGS = ['ceco_v2x_preview', 'ceco_plant_sim', 'ceco_controller', 'ceco_bringup']
+PYTHON_PKGS = ['ceco_core', 'ceco_ros', 'ceco_v2x_preview', 'ceco_plant_sim', 'ceco_controller', 'ceco_bringup']
+NODE_PKGS = ['ceco_v2x_preview', 'ceco_plant_sim', 'ceco_controller', 'ceco_bringup']
+"""The packages with executables (nodes, the ceco command)."""
 EMAIL = re.compile(r'^[^@\s]+@[^@\s]+\.[a-z]{2,}$')
 
 
@@ -30,7 +33,7 @@ def test_workspace_src_links_every_package(pkg):
     assert link.is_symlink() and link.resolve() == (ROOT / pkg).resolve()
 
 
-@pytest.mark.parametrize('pkg', PYTHON_PKGS)
+@pytest.mark.parametrize('pkg', NODE_PKGS)
 def test_console_scripts_installed_where_ros2_run_looks(pkg):
     setup_py = (ROOT / pkg / 'setup.py').read_text()
     scripts = re.findall(r"'(\w+) = [\w.]+:\w+'", setup_py)
@@ -39,3 +42,78 @@ def test_console_scripts_installed_where_ros2_run_looks(pkg):
     for exe in scripts:
         path = Path(prefix) / pkg / 'lib' / pkg / exe
         assert path.is_file() and os.access(path, os.X_OK), path
+
+
+# --- the package dependency graph (docs/architecture.md) -----------------------------------------
+ALLOWED = {
+    'ceco_core': set(),
+    'ceco_ros': {'ceco_core', 'ceco_msgs'},
+    'ceco_v2x_preview': {'ceco_core', 'ceco_ros', 'ceco_msgs'},
+    'ceco_plant_sim': {'ceco_core', 'ceco_ros', 'ceco_msgs', 'ceco_v2x_preview'},
+    'ceco_controller': {'ceco_core', 'ceco_ros', 'ceco_msgs', 'ceco_v2x_preview', 'ceco_plant_sim'},
+    'ceco_bringup': {'ceco_core', 'ceco_ros', 'ceco_msgs', 'ceco_v2x_preview', 'ceco_plant_sim', 'ceco_controller'},
+}
+
+
+NODE_MODULES = {'preview_node', 'plant_node', 'mpc_node', 'baseline_node'}
+
+
+def _imports(path: Path, pkg: str) -> set[str]:
+    """Modules a Python file of package ``pkg`` imports, anywhere in the file (relative imports resolved)."""
+    import ast
+
+    base = '.'.join(path.relative_to(ROOT / pkg).parts[:-1])  # e.g. ceco_bringup.sweep
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level == 0:
+                out.add(node.module or '')
+                out.update(f'{node.module}.{a.name}' for a in node.names)  # `from pkg import module`
+                continue
+            parent = base.rsplit('.', node.level - 1)[0] if node.level > 1 else base
+            if node.module:
+                out.add(f'{parent}.{node.module}')
+            else:
+                out.update(f'{parent}.{a.name}' for a in node.names)
+    return out
+
+
+def _package_imports(pkg: str) -> dict[str, set[str]]:
+    return {str(f.relative_to(ROOT)): _imports(f, pkg) for f in sorted((ROOT / pkg / pkg).rglob('*.py'))}
+
+
+@pytest.mark.parametrize('pkg', PYTHON_PKGS)
+def test_package_imports_follow_the_one_way_dependency_graph_and_its_manifest(pkg):
+    declared = {e.text for e in ET.parse(ROOT / pkg / 'package.xml').getroot().iter('exec_depend')}
+    used = set()
+    for f, mods in _package_imports(pkg).items():
+        ceco = {m.split('.')[0] for m in mods if m.startswith('ceco_')} - {pkg}
+        assert ceco <= ALLOWED[pkg], f'{f} imports {sorted(ceco - ALLOWED[pkg])} against the graph'
+        # nobody imports another package's node module
+        foreign_nodes = [
+            m for m in mods if len(m.split('.')) > 1 and m.split('.')[1] in NODE_MODULES and m.split('.')[0] != pkg
+        ]
+        assert not foreign_nodes, (f, foreign_nodes)
+        used |= ceco
+    assert used <= declared, f'{pkg}/package.xml lacks exec_depend {sorted(used - declared)}'
+
+
+def test_the_pure_core_imports_no_ros_and_no_coolprop_and_the_controllers_no_plant():
+    for f, mods in _package_imports('ceco_core').items():
+        bad = {m for m in mods if m.split('.')[0] in ('rclpy', 'CoolProp', 'ceco_msgs', 'rosbags')}
+        assert not bad, (f, bad)
+    # what mpc_node / baseline_node import, transitively inside ceco_controller, reaches no plant code
+    ctrl = {f.split('/')[-1][:-3]: mods for f, mods in _package_imports('ceco_controller').items()}
+    seen, todo = set(), ['mpc_node', 'baseline_node']
+    while todo:
+        name = todo.pop()
+        if name in seen or name not in ctrl:
+            continue
+        seen.add(name)
+        for m in ctrl[name]:
+            assert not m.startswith('ceco_plant_sim') and not m.startswith('CoolProp'), (name, m)
+            if m.startswith('ceco_controller.'):
+                todo.append(m.split('.')[1])
+    assert {'mpc_node', 'nmpc', 'factory', 'estimator'} <= seen

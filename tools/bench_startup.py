@@ -15,6 +15,7 @@ Reference measured in the same run: a minimal rclpy talker started the same way
 (interpreter, rclpy, one publisher), from process start to its first message here; every
 time is also printed as a ratio to it. Nothing is asserted: numbers only.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -52,6 +53,7 @@ class Peer:
         from rclpy.signals import SignalHandlerOptions
 
         from ceco_bringup import supervisor
+
         self.env = supervisor.dds_env(domain)
         for key in ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'FASTDDS_BUILTIN_TRANSPORTS', 'FASTRTPS_DEFAULT_PROFILES_FILE'):
             os.environ[key] = self.env[key]
@@ -75,6 +77,7 @@ class Peer:
 
     def close(self):
         import rclpy
+
         self._stop.set()
         self._thread.join(timeout=2.0)
         self.executor.shutdown()
@@ -86,6 +89,7 @@ def _drive_lifecycle(peer: Peer, name: str, stop: threading.Event) -> None:
     """configure + activate ``name`` once its change_state service is up (no-op for a plain node)."""
     from lifecycle_msgs.msg import Transition
     from lifecycle_msgs.srv import ChangeState
+
     client = peer.node.create_client(ChangeState, f'/{name}/change_state')
     while not stop.is_set() and not client.wait_for_service(timeout_sec=0.01):
         pass
@@ -100,9 +104,24 @@ def _drive_lifecycle(peer: Peer, name: str, stop: threading.Event) -> None:
 def _state0():
     from ceco_msgs.msg import CabinState
     from ceco_ros import conversions
-    msg = CabinState(step_index=0, scenario_time_s=0.0, t_cab_c=45.0, t_int_c=50.0, t_shell_c=55.0,
-                     t_glass_c=55.0, t_evap_c=45.0, t_vent_c=45.0, rh_cab=0.2, t_amb_c=35.0, solar_wm2=800.0,
-                     rh=0.4, speed_mps=10.0, mdot_bl_kgps=0.17, t_evap_sp_c=3.0)
+
+    msg = CabinState(
+        step_index=0,
+        scenario_time_s=0.0,
+        t_cab_c=45.0,
+        t_int_c=50.0,
+        t_shell_c=55.0,
+        t_glass_c=55.0,
+        t_evap_c=45.0,
+        t_vent_c=45.0,
+        rh_cab=0.2,
+        t_amb_c=35.0,
+        solar_wm2=800.0,
+        rh=0.4,
+        speed_mps=10.0,
+        mdot_bl_kgps=0.17,
+        t_evap_sp_c=3.0,
+    )
     msg.header.stamp = conversions.stamp_from_s(0.0)
     return msg
 
@@ -113,17 +132,22 @@ def _controller_inputs(peer: Peer):
     from ceco_ros import conversions, interfaces
     from ceco_v2x_preview.preview import PreviewQuality, make_previews
     from ceco_v2x_preview.scenario import load_scenario
+
     stamp = conversions.stamp_from_s(0.0)
-    w, s = conversions.previews_to_msgs(make_previews(load_scenario('sc03'), 0.0, 5.0, 7, PreviewQuality()),
-                                        0, stamp, 'perfect')
-    return [(peer.node.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE), _state0()),
-            (peer.node.create_publisher(WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.QOS_PREVIEW), w),
-            (peer.node.create_publisher(TrafficPreview, interfaces.TOPIC_TRAFFIC, interfaces.QOS_PREVIEW), s)]
+    w, s = conversions.previews_to_msgs(
+        make_previews(load_scenario('sc03'), 0.0, 5.0, 7, PreviewQuality()), 0, stamp, 'perfect'
+    )
+    return [
+        (peer.node.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE), _state0()),
+        (peer.node.create_publisher(WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.QOS_PREVIEW), w),
+        (peer.node.create_publisher(TrafficPreview, interfaces.TOPIC_TRAFFIC, interfaces.QOS_PREVIEW), s),
+    ]
 
 
 def _preview_inputs(peer: Peer):
     from ceco_msgs.msg import CabinState
     from ceco_ros import interfaces
+
     return [(peer.node.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE), _state0())]
 
 
@@ -140,8 +164,13 @@ NODES = {
     # name: (package, executable, output topic key, parameters, feeder)
     'mpc_node': ('ceco_controller', 'mpc_node', 'command', {'strategy': 'ceco-ioch'}, _controller_inputs),
     'baseline_node': ('ceco_controller', 'baseline_node', 'command', {}, _controller_inputs),
-    'plant_node': ('ceco_plant_sim', 'plant_node', 'state', {
-        'lockstep.min_state_subscribers': 1, 'lockstep.min_command_subscribers': 1}, None),
+    'plant_node': (
+        'ceco_plant_sim',
+        'plant_node',
+        'state',
+        {'lockstep.min_state_subscribers': 1, 'lockstep.min_command_subscribers': 1},
+        None,
+    ),
     'preview_node': ('ceco_v2x_preview', 'preview_node', 'weather', {}, _preview_inputs),
 }
 
@@ -150,28 +179,36 @@ def run_node(name: str, domain: int, timeout_s: float, extra: dict | None = None
     from ceco_bringup import supervisor
     from ceco_msgs.msg import AcCommand, CabinState, WeatherPreview
     from ceco_ros import interfaces
+
     pkg, exe, out, params, feeder = NODES[name]
     peer = Peer(domain)
     stop = threading.Event()
-    topics = {'command': (AcCommand, interfaces.TOPIC_COMMAND, interfaces.QOS_COMMAND),
-              'state': (CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE),
-              'weather': (WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.QOS_PREVIEW)}
+    topics = {
+        'command': (AcCommand, interfaces.TOPIC_COMMAND, interfaces.QOS_COMMAND),
+        'state': (CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE),
+        'weather': (WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.QOS_PREVIEW),
+    }
     cls, topic, qos = topics[out]
     peer.node.create_subscription(cls, topic, peer.on_output, qos)
-    if name == 'plant_node':   # the plant starts once a command publisher is matched
+    if name == 'plant_node':  # the plant starts once a command publisher is matched
         peer.node.create_publisher(AcCommand, interfaces.TOPIC_COMMAND, interfaces.QOS_COMMAND)
     threads = [threading.Thread(target=_drive_lifecycle, args=(peer, name, stop), daemon=True)]
     if feeder is not None:
         threads.append(threading.Thread(target=_feed, args=(peer, feeder(peer), stop), daemon=True))
-    cmd = [supervisor.find_executable(pkg, exe), '--ros-args',
-           '--params-file', supervisor.share_file(pkg, f'config/{exe}.yaml')]
+    cmd = [
+        supervisor.find_executable(pkg, exe),
+        '--ros-args',
+        '--params-file',
+        supervisor.share_file(pkg, f'config/{exe}.yaml'),
+    ]
     for key, value in dict(params, **(extra or {})).items():
         cmd += ['-p', f'{key}:={value}']
     lines: list = []
-    time.sleep(0.3)   # peers up and announced before the node starts
+    time.sleep(0.3)  # peers up and announced before the node starts
     t0 = time.monotonic()
-    proc = subprocess.Popen(cmd, env=peer.env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            stdin=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        cmd, env=peer.env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL
+    )
     reader = threading.Thread(target=_reader, args=(proc.stdout, lines), daemon=True)
     reader.start()
     for t in threads:
@@ -190,23 +227,35 @@ def run_node(name: str, domain: int, timeout_s: float, extra: dict | None = None
         for t in threads:
             t.join(timeout=2)
         peer.close()
+
     def first(*needles):
         t = next((t for t, text in lines if any(n in text for n in needles)), None)
         return None if t is None else t - t0
-    return {'first_log_s': first('[INFO]', '[WARN]'), 'configured_s': first('configured in'),
-            'active_s': first('active: commanding'),
-            'first_output_s': None if peer.first_output is None else peer.first_output - t0,
-            'log_head': [text for _, text in lines[:3]], 'log': [text for _, text in lines]}
+
+    return {
+        'first_log_s': first('[INFO]', '[WARN]'),
+        'configured_s': first('configured in'),
+        'active_s': first('active: commanding'),
+        'first_output_s': None if peer.first_output is None else peer.first_output - t0,
+        'log_head': [text for _, text in lines[:3]],
+        'log': [text for _, text in lines],
+    }
 
 
 def run_reference(domain: int, timeout_s: float) -> float | None:
     from std_msgs.msg import String
+
     peer = Peer(domain)
     peer.node.create_subscription(String, 'bench_reference', peer.on_output, 10)
     time.sleep(0.3)
     t0 = time.monotonic()
-    proc = subprocess.Popen([sys.executable, '-c', REFERENCE], env=peer.env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [sys.executable, '-c', REFERENCE],
+        env=peer.env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        stdin=subprocess.DEVNULL,
+    )
     try:
         while peer.first_output is None and time.monotonic() - t0 < timeout_s:
             time.sleep(0.005)
@@ -227,18 +276,24 @@ def main(argv=None) -> int:
     p.add_argument('--timeout-s', type=float, default=60.0)
     p.add_argument('--domain-id', type=int, default=None)
     p.add_argument('--json', default=None, help='write the numbers to this file')
-    p.add_argument('--autostart', action='store_true',
-                   help='managed nodes configure and activate themselves (parameter autostart:=true)')
+    p.add_argument(
+        '--autostart',
+        action='store_true',
+        help='managed nodes configure and activate themselves (parameter autostart:=true)',
+    )
     args = p.parse_args(argv)
     from ceco_bringup import supervisor
+
     domain = args.domain_id if args.domain_id is not None else supervisor.pick_domain_id()
     ref = [run_reference(domain, args.timeout_s) for _ in range(args.repeat)]
     ref = [r for r in ref if r is not None]
     ref_med = statistics.median(ref) if ref else float('nan')
     result = {'reference_first_message_s': ref_med, 'nodes': {}}
     print(f'reference (minimal rclpy talker, first message): median {ref_med:.3f} s over {len(ref)} runs')
-    print(f'{"node":<14} {"first log [s]":>14} {"configured [s]":>15} {"active [s]":>10} {"first output [s]":>17} '
-          f'{"output / ref":>13}')
+    print(
+        f'{"node":<14} {"first log [s]":>14} {"configured [s]":>15} {"active [s]":>10} {"first output [s]":>17} '
+        f'{"output / ref":>13}'
+    )
     for name in args.nodes:
         extra = {'autostart': 'true'} if args.autostart and name in ('mpc_node', 'baseline_node') else None
         runs = [run_node(name, domain, args.timeout_s, extra) for _ in range(args.repeat)]
@@ -250,13 +305,25 @@ def main(argv=None) -> int:
         act = [r['active_s'] for r in runs if r['active_s'] is not None]
         med_cfg = statistics.median(cfg) if cfg else float('nan')
         med_act = statistics.median(act) if act else float('nan')
-        result['nodes'][name] = {'first_log_s': logs, 'first_output_s': outs, 'configured_s': cfg, 'active_s': act,
-                                 'median_first_log_s': med_log, 'median_first_output_s': med_out,
-                                 'missing_outputs': len(runs) - len(outs)}
-        print(f'{name:<14} {med_log:>14.3f} {med_cfg:>15.3f} {med_act:>10.3f} {med_out:>17.3f} '
-              f'{med_out / ref_med:>13.1f}'
-              + ('' if len(outs) == len(runs) else f'  ({len(runs) - len(outs)} runs without output: '
-                 f'{runs[0]["log_head"]})'), flush=True)
+        result['nodes'][name] = {
+            'first_log_s': logs,
+            'first_output_s': outs,
+            'configured_s': cfg,
+            'active_s': act,
+            'median_first_log_s': med_log,
+            'median_first_output_s': med_out,
+            'missing_outputs': len(runs) - len(outs),
+        }
+        print(
+            f'{name:<14} {med_log:>14.3f} {med_cfg:>15.3f} {med_act:>10.3f} {med_out:>17.3f} '
+            f'{med_out / ref_med:>13.1f}'
+            + (
+                ''
+                if len(outs) == len(runs)
+                else f'  ({len(runs) - len(outs)} runs without output: {runs[0]["log_head"]})'
+            ),
+            flush=True,
+        )
     if args.json:
         with open(args.json, 'w') as f:
             json.dump(result, f, indent=2)

@@ -88,10 +88,12 @@ def mean_kpi(runs, key):
 
 def matched_table(doc):
     """The headline: every case, the four strategies and the two compensated laws."""
-    lines = ['| case | controller | ΔE at matched comfort, plain [%] | ΔD at matched energy, plain [%] | '
-             'dominated, plain | ΔE at matched comfort, allowance [%] | ΔD at matched energy, allowance [%] | '
-             'dominated, allowance | why n/a |',
-             '|---|---|---|---|---|---|---|---|---|']
+    lines = [
+        '| case | controller | ΔE at matched comfort, plain [%] | ΔD at matched energy, plain [%] | '
+        'dominated, plain | ΔE at matched comfort, allowance [%] | ΔD at matched energy, allowance [%] | '
+        'dominated, allowance | why n/a |',
+        '|---|---|---|---|---|---|---|---|---|',
+    ]
     for case in doc['cases']:
         for name in STRATEGIES + COMPENSATED:
             m = case['matched'].get(name)
@@ -100,14 +102,20 @@ def matched_table(doc):
             a = m['allowance']
             cells = []
             for x in (m, a):
-                cells += [fmt(x['energy_saving_pct']) + spread(x['seeds']['energy_saving_pct']),
-                          fmt(x['discomfort_reduction_pct']) + spread(x['seeds']['discomfort_reduction_pct']),
-                          ('**yes**' if x['dominated'] else 'no')
-                          + (f" ({sum(x['seeds']['dominated'])}/{len(x['seeds']['dominated'])} seeds)"
-                             if len(x['seeds']['dominated']) > 1 and 0 < sum(x['seeds']['dominated'])
-                             < len(x['seeds']['dominated']) else '')]
-            why = '; '.join(f'{lab}: {short_note(x["note"])}' for lab, x in (('plain', m), ('allowance', a))
-                            if x.get('note'))
+                cells += [
+                    fmt(x['energy_saving_pct']) + spread(x['seeds']['energy_saving_pct']),
+                    fmt(x['discomfort_reduction_pct']) + spread(x['seeds']['discomfort_reduction_pct']),
+                    ('**yes**' if x['dominated'] else 'no')
+                    + (
+                        f" ({sum(x['seeds']['dominated'])}/{len(x['seeds']['dominated'])} seeds)"
+                        if len(x['seeds']['dominated']) > 1
+                        and 0 < sum(x['seeds']['dominated']) < len(x['seeds']['dominated'])
+                        else ''
+                    ),
+                ]
+            why = '; '.join(
+                f'{lab}: {short_note(x["note"])}' for lab, x in (('plain', m), ('allowance', a)) if x.get('note')
+            )
             lines.append(f"| {case['case']} | {name} | " + ' | '.join(cells) + f' | {why} |')
     return '\n'.join(lines)
 
@@ -144,12 +152,23 @@ def front_text(case, family):
 def kpi_table(case):
     """KPIs of the strategies, the compensated laws and a few family members."""
     by = runs_by(case)
-    keys = [('energy_kwh', '.4f'), ('energy_paper_kwh', '.4f'), ('discomfort_pmvh', '.4f'),
-            ('discomfort_band_pmvh', '.4f'), ('pmv_mean_band', '+.3f'), ('i_pmv_clipped', '.0f'),
-            ('otc_violation_pct', '.1f'), ('draught_pct', '.0f'), ('fog_margin_min_k', '.1f'),
-            ('iso7730_invalid_pct', '.1f'), ('actuator_travel', '.2f')]
-    head = ('| controller | seeds | E [kWh] | E paper [kWh] | D [PMV·h] | D band [PMV·h] | PMV band mean | '
-            'I_PMV clip [s] | OTC viol. [%] | DR>20 % [%] | fog min [K] | ISO invalid [%] | travel [-] |')
+    keys = [
+        ('energy_kwh', '.4f'),
+        ('energy_paper_kwh', '.4f'),
+        ('discomfort_pmvh', '.4f'),
+        ('discomfort_band_pmvh', '.4f'),
+        ('pmv_mean_band', '+.3f'),
+        ('i_pmv_clipped', '.0f'),
+        ('otc_violation_pct', '.1f'),
+        ('draught_pct', '.0f'),
+        ('fog_margin_min_k', '.1f'),
+        ('iso7730_invalid_pct', '.1f'),
+        ('actuator_travel', '.2f'),
+    ]
+    head = (
+        '| controller | seeds | E [kWh] | E paper [kWh] | D [PMV·h] | D band [PMV·h] | PMV band mean | '
+        'I_PMV clip [s] | OTC viol. [%] | DR>20 % [%] | fog min [K] | ISO invalid [%] | travel [-] |'
+    )
     lines = [head, '|' + '---|' * 13]
     fam = sorted((n for n in by if n.startswith('baseline@')), key=lambda n: float(n.split('@')[1]))
     show = [n for n in fam if float(n.split('@')[1]) in (22.0, 23.0, 24.0, 25.0, 26.0, 27.0)]
@@ -186,8 +205,11 @@ def interp_family(case, x_key, y_key, x):
 
 def band_pmv_table(doc):
     """Extra reading: energy against the plain family at the same band-phase mean PMV (not a KPI)."""
-    lines = ['| case | controller | PMV band mean | family set-point at that PMV [degC] | family E there [kWh] | '
-             'E [kWh] | ΔE [%] |', '|---|---|---|---|---|---|---|']
+    lines = [
+        '| case | controller | PMV band mean | family set-point at that PMV [degC] | family E there [kWh] | '
+        'E [kWh] | ΔE [%] |',
+        '|---|---|---|---|---|---|---|',
+    ]
     for case in doc['cases']:
         by = runs_by(case)
         for name in STRATEGIES + COMPENSATED:
@@ -199,16 +221,19 @@ def band_pmv_table(doc):
                 continue
             ef, sp = interp_family(case, 'pmv_mean_band', 'energy_kwh', p)
             d = None if ef is None else 100.0 * (ef - e) / ef
-            lines.append(f"| {case['case']} | {name} | {p:+.3f} | {fmt(sp, '.2f')} | {fmt(ef, '.4f')} | {e:.4f} | "
-                         f"{fmt(d)} |")
+            lines.append(
+                f"| {case['case']} | {name} | {p:+.3f} | {fmt(sp, '.2f')} | {fmt(ef, '.4f')} | {e:.4f} | {fmt(d)} |"
+            )
     return '\n'.join(lines)
 
 
 def axis_table(doc):
     """matched_by_axis: the energy saving on the secondary discomfort axes (plain front)."""
     axes = doc['settings'].get('secondary_axes', [])
-    lines = ['| case | controller | ' + ' | '.join(f'ΔE matched on {a} [%]' for a in axes) + ' |',
-             '|---|---|' + '---|' * len(axes)]
+    lines = [
+        '| case | controller | ' + ' | '.join(f'ΔE matched on {a} [%]' for a in axes) + ' |',
+        '|---|---|' + '---|' * len(axes),
+    ]
     for case in doc['cases']:
         for name in STRATEGIES:
             cells = []
@@ -235,8 +260,11 @@ def paper_table(doc):
     if not ref:
         return '(no baseline@26.0)'
     e0, i0 = ref[0]['kpis']['energy_paper_kwh'], ref[0]['kpis']['i_pmv']
-    lines = ['| strategy | paper: ΔE vs its baseline | here: ΔE_paper vs baseline@26.0 | ΔI_PMV vs baseline@26.0 | '
-             'ΔE at matched comfort, plain | ΔE at matched comfort, allowance |', '|---|---|---|---|---|---|']
+    lines = [
+        '| strategy | paper: ΔE vs its baseline | here: ΔE_paper vs baseline@26.0 | ΔI_PMV vs baseline@26.0 | '
+        'ΔE at matched comfort, plain | ΔE at matched comfort, allowance |',
+        '|---|---|---|---|---|---|',
+    ]
     for name in STRATEGIES:
         e = by[name][0]['kpis']['energy_paper_kwh']
         i = by[name][0]['kpis']['i_pmv']
@@ -245,12 +273,26 @@ def paper_table(doc):
         for x in (m, m['allowance']):
             v = x['energy_saving_pct']
             c = 'n/a' if v is None else f'{-v:+.1f} %'
-            cells.append(c + (' (dominated)' if x['dominated'] else '')
-                         + (f" ({short_note(x['note'])})" if v is None and x.get('note') else ''))
+            cells.append(
+                c
+                + (' (dominated)' if x['dominated'] else '')
+                + (f" ({short_note(x['note'])})" if v is None and x.get('note') else '')
+            )
         paper = PAPER.get(name)
-        lines.append(f"| {name} | {'–' if paper is None else f'{paper:+.1f} %'} | {100 * (e - e0) / e0:+.1f} % | "
-                     f"{100 * (i - i0) / i0:+.1f} % | {cells[0]} | {cells[1]} |")
+        lines.append(
+            f"| {name} | {'–' if paper is None else f'{paper:+.1f} %'} | {100 * (e - e0) / e0:+.1f} % | "
+            f"{100 * (i - i0) / i0:+.1f} % | {cells[0]} | {cells[1]} |"
+        )
     return '\n'.join(lines)
+
+
+def value_range(values) -> str:
+    """'min … max' of the numbers in ``values`` (and how many are n/a)."""
+    nums = [v for v in values if v is not None]
+    if not nums:
+        return 'n/a'
+    missing = len(values) - len(nums)
+    return f'{min(nums):+.1f} … {max(nums):+.1f}' + (f' ({missing} n/a)' if missing else '')
 
 
 def sensitivity_tables(doc):
@@ -261,11 +303,13 @@ def sensitivity_tables(doc):
         if not sens:
             continue
         names = [n for n in STRATEGIES + COMPENSATED if n in case['matched']]
-        lines = [f"Sensitivity on {case['case']} (energy saving at matched comfort, plain front, low / high end "
-                 '[%]; nominal: ' + ', '.join(f"{n} {fmt(case['matched'][n]['energy_saving_pct'])}"
-                                               for n in names) + ')', '',
-                 '| parameter | low | nominal | high | ' + ' | '.join(names) + ' |',
-                 '|---|---|---|---|' + '---|' * len(names)]
+        lines = [
+            f"Sensitivity on {case['case']} (energy saving at matched comfort, plain front, low / high end "
+            '[%]; nominal: ' + ', '.join(f"{n} {fmt(case['matched'][n]['energy_saving_pct'])}" for n in names) + ')',
+            '',
+            '| parameter | low | nominal | high | ' + ' | '.join(names) + ' |',
+            '|---|---|---|---|' + '---|' * len(names),
+        ]
         ranges: dict = {n: [case['matched'][n]['energy_saving_pct']] for n in names}
         for s in sens:
             cells = []
@@ -275,12 +319,8 @@ def sensitivity_tables(doc):
                 ranges[n] += [lo, hi]
                 cells.append(f'{fmt(lo)} / {fmt(hi)}')
             nominal = 'plant' if s['nominal'] is None else f"{s['nominal']:g}"
-            lines.append(f"| {s['parameter']} | {s['low']:g} | {nominal} | {s['high']:g} | " + ' | '.join(cells)
-                         + ' |')
-        lines.append('| **range over all ends** | | | | ' + ' | '.join(
-            (f"{min(v for v in ranges[n] if v is not None):+.1f} … {max(v for v in ranges[n] if v is not None):+.1f}"
-             + (f" ({sum(v is None for v in ranges[n])} n/a)" if any(v is None for v in ranges[n]) else ''))
-            if any(v is not None for v in ranges[n]) else 'n/a' for n in names) + ' |')
+            lines.append(f"| {s['parameter']} | {s['low']:g} | {nominal} | {s['high']:g} | " + ' | '.join(cells) + ' |')
+        lines.append('| **range over all ends** | | | | ' + ' | '.join(value_range(ranges[n]) for n in names) + ' |')
         failed = sum(s['failed_low'] + s['failed_high'] for s in sens)
         lines.append('')
         lines.append(f'Failed sensitivity runs: {failed}.')
@@ -292,14 +332,17 @@ def timing_table(doc, log_lines=()):
     """Wall time and the controllers' step times."""
     t = doc['timing']
     inv = [json.loads(x) for x in log_lines if x.strip()]
-    lines = [f"timing.jsonl invocation {i + 1}: {x['wall_s']:.1f} s wall, {x['ran_now']} runs run"
-             for i, x in enumerate(inv)]
-    lines += [f"Wall time {t['wall_s']:.1f} s for {t['runs']} runs ({t['ran_now']} run now, {t.get('failed_now', 0)} "
-             f"failed) on {t['workers']} worker(s), backend {t['backend']}, host {t.get('host', '?')}; sum of the "
-             f"runs' simulation times {t.get('sim_time_sum_s', float('nan')):.0f} s.", '',
-             '| controller | runs | t_c/Ts mean (mean over runs) | t_c/Ts max (max over runs) | '
-             'step time mean / max [ms] |',
-             '|---|---|---|---|---|']
+    lines = [
+        f"timing.jsonl invocation {i + 1}: {x['wall_s']:.1f} s wall, {x['ran_now']} runs run" for i, x in enumerate(inv)
+    ]
+    lines += [
+        f"Wall time {t['wall_s']:.1f} s for {t['runs']} runs ({t['ran_now']} run now, {t.get('failed_now', 0)} "
+        f"failed) on {t['workers']} worker(s), backend {t['backend']}, host {t.get('host', '?')}; sum of the "
+        f"runs' simulation times {t.get('sim_time_sum_s', float('nan')):.0f} s.",
+        '',
+        '| controller | runs | t_c/Ts mean (mean over runs) | t_c/Ts max (max over runs) | step time mean / max [ms] |',
+        '|---|---|---|---|---|',
+    ]
     for name in STRATEGIES:
         means, maxes, ts = [], [], []
         for case in doc['cases']:
@@ -312,8 +355,10 @@ def timing_table(doc, log_lines=()):
             continue
         mean_ms = 1000.0 * sum(m * t for m, t in zip(means, ts)) / len(means)
         max_ms = 1000.0 * max(m * t for m, t in zip(maxes, ts))
-        lines.append(f'| {name} | {len(means)} | {sum(means) / len(means):.2e} | {max(maxes):.2e} | '
-                     f'{mean_ms:.1f} / {max_ms:.1f} |')
+        lines.append(
+            f'| {name} | {len(means)} | {sum(means) / len(means):.2e} | {max(maxes):.2e} | '
+            f'{mean_ms:.1f} / {max_ms:.1f} |'
+        )
     return '\n'.join(lines)
 
 
@@ -324,8 +369,10 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     with open(args.results, encoding='utf-8') as f:
         doc = json.load(f)
-    print(f"<!-- {args.results}: {doc['schema']}, ceco {doc['ceco_version']}, code {doc['code_fingerprint']}, "
-          f"created {doc['created_utc']}, quick {doc['quick']}, command: {doc['command']} -->\n")
+    print(
+        f"<!-- {args.results}: {doc['schema']}, ceco {doc['ceco_version']}, code {doc['code_fingerprint']}, "
+        f"created {doc['created_utc']}, quick {doc['quick']}, command: {doc['command']} -->\n"
+    )
     print('## Headline: ΔE at matched comfort against the stronger front [%]\n')
     print(headline_table(doc))
     print('\n## Matched comfort\n')

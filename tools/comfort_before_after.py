@@ -56,17 +56,33 @@ def row(run_dir: Path, label: str, old_model: bool) -> dict:
         fog = ts["t_glass_c"] - psychro.dew_point_c(pa)
     else:
         dr, fog = ts["dr_pct"], ts["fog_margin_k"]
-    rescored = evaluate_cabin_comfort(t_cab_c=ts["t_cab_c"], t_vent_c=ts["t_vent_c"], t_int_c=ts["t_int_c"],
-                                      t_shell_c=ts["t_shell_c"], t_glass_c=ts["t_glass_c"], rh_cab=ts["rh_cab"],
-                                      mdot_bl_kgps=ts["mdot_bl_kgps"], solar_wm2=ts["solar_wm2"],
-                                      params=comfort_params_for(load_scenario("sc03"))).pmv
-    e = (ts["p_comp_w"] + ts["p_blower_w"])
-    return {"label": label, "pmv": float(np.mean(ts["pmv"][z])), "pmv_new": float(np.mean(rescored[z])),
-            "dr_share": float(100.0 * np.mean(dr[z] > 20.0)), "dr_mean": float(np.mean(dr[z])),
-            "rh": float(np.mean(ts["rh_cab"][z])), "fog_min": float(np.min(fog)), "fog_zone": float(np.mean(fog[z])),
-            "e_kwh": float(np.sum(e) / 3.6e6), "e_zone_kj": float(np.sum(e[z]) / 1e3),
-            "mdot": float(np.mean(ts["mdot_bl_kgps"][z])), "sp": float(np.mean(ts["t_evap_sp_c"][z])),
-            "t_cab": float(np.mean(ts["t_cab_c"][z]))}
+    rescored = evaluate_cabin_comfort(
+        t_cab_c=ts["t_cab_c"],
+        t_vent_c=ts["t_vent_c"],
+        t_int_c=ts["t_int_c"],
+        t_shell_c=ts["t_shell_c"],
+        t_glass_c=ts["t_glass_c"],
+        rh_cab=ts["rh_cab"],
+        mdot_bl_kgps=ts["mdot_bl_kgps"],
+        solar_wm2=ts["solar_wm2"],
+        params=comfort_params_for(load_scenario("sc03")),
+    ).pmv
+    e = ts["p_comp_w"] + ts["p_blower_w"]
+    return {
+        "label": label,
+        "pmv": float(np.mean(ts["pmv"][z])),
+        "pmv_new": float(np.mean(rescored[z])),
+        "dr_share": float(100.0 * np.mean(dr[z] > 20.0)),
+        "dr_mean": float(np.mean(dr[z])),
+        "rh": float(np.mean(ts["rh_cab"][z])),
+        "fog_min": float(np.min(fog)),
+        "fog_zone": float(np.mean(fog[z])),
+        "e_kwh": float(np.sum(e) / 3.6e6),
+        "e_zone_kj": float(np.sum(e[z]) / 1e3),
+        "mdot": float(np.mean(ts["mdot_bl_kgps"][z])),
+        "sp": float(np.mean(ts["t_evap_sp_c"][z])),
+        "t_cab": float(np.mean(ts["t_cab_c"][z])),
+    }
 
 
 def main(argv=None) -> int:
@@ -78,18 +94,22 @@ def main(argv=None) -> int:
     sets = [("before", args.before, True), ("after", args.after, False)]
     if args.after_rh is not None:
         sets.append(("after, RH", args.after_rh, False))
-    print("| strategy | code | PMV (own score) | PMV (new score) | DR > 20 % [%] | DR mean [%] | cabin RH | "
-          "fog margin min / zone mean [K] | mean mdot [kg/s] / set-point [degC] / T_cab [degC] | E [kWh] | "
-          "E zone [kJ] |")
+    print(
+        "| strategy | code | PMV (own score) | PMV (new score) | DR > 20 % [%] | DR mean [%] | cabin RH | "
+        "fog margin min / zone mean [K] | mean mdot [kg/s] / set-point [degC] / T_cab [degC] | E [kWh] | "
+        "E zone [kJ] |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for s in STRATEGIES:
         for label, d, old in sets:
             if label == "after, RH" and s == "baseline":
                 continue
             r = row(d / s, label, old)
-            print(f"| {s} | {label} | {r['pmv']:.3f} | {r['pmv_new']:.3f} | {r['dr_share']:.0f} | {r['dr_mean']:.0f} | "
-                  f"{r['rh']:.3f} | {r['fog_min']:.1f} / {r['fog_zone']:.1f} | {r['mdot']:.3f} / {r['sp']:.1f} / "
-                  f"{r['t_cab']:.1f} | {r['e_kwh']:.4f} | {r['e_zone_kj']:.0f} |")
+            print(
+                f"| {s} | {label} | {r['pmv']:.3f} | {r['pmv_new']:.3f} | {r['dr_share']:.0f} | {r['dr_mean']:.0f} | "
+                f"{r['rh']:.3f} | {r['fog_min']:.1f} / {r['fog_zone']:.1f} | {r['mdot']:.3f} / {r['sp']:.1f} / "
+                f"{r['t_cab']:.1f} | {r['e_kwh']:.4f} | {r['e_zone_kj']:.0f} |"
+            )
     return 0
 
 

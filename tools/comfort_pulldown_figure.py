@@ -44,8 +44,12 @@ FULL = AcInput(mdot_bl_kgps=0.17, t_evap_sp_c=3.0)
 N_S = 1800
 PRESS_TEST = ((0.0, 53.0), (600.0, 43.0), (900.0, 41.0), (1200.0, 39.0))
 """Informal press test (t [s], cabin air [degC]); not a test procedure."""
-GTR_TABLE = ((25.0, 8.4, 10.9, "50-60 % RH"), (30.0, 14.5, 17.5, "50-60 % RH"),
-             (25.0, 10.9, 13.4, "60-70 % RH"), (30.0, 17.5, 20.5, "60-70 % RH"))
+GTR_TABLE = (
+    (25.0, 8.4, 10.9, "50-60 % RH"),
+    (30.0, 14.5, 17.5, "50-60 % RH"),
+    (25.0, 10.9, 13.4, "60-70 % RH"),
+    (30.0, 17.5, 20.5, "60-70 % RH"),
+)
 """Nissan GT-R 2010 ESM: (recirculated inlet [degC], centre-vent discharge min, max [degC], inlet RH)."""
 
 
@@ -63,18 +67,48 @@ def pulldown(scenario: str, params: PlantParams | None = None, n_s: int = N_S) -
     plant = CabinPlant(p, PlantState.from_initial(sc.initial, p, sc.env_at(0.0)))
     cp = comfort_params_for(sc, glazing_tau=p.tau_glass, u_shell_in_wm2k=p.u_shell_in_wm2k)
     snap = plant.snapshot(FULL, sc.env_at(0.0))
-    rows = {k: [] for k in ("t_s", "t_cab_c", "t_vent_c", "t_duct_c", "t_mix_c", "ta_occ_c", "ta_jet_c", "t_mr_c",
-                            "pmv", "rh_cab")}
+    rows = {
+        k: []
+        for k in (
+            "t_s",
+            "t_cab_c",
+            "t_vent_c",
+            "t_duct_c",
+            "t_mix_c",
+            "ta_occ_c",
+            "ta_jet_c",
+            "t_mr_c",
+            "pmv",
+            "rh_cab",
+        )
+    }
     meas = snap
     for k in range(n_s):
         env = _env(sc, float(k))
-        c = evaluate_cabin_comfort(t_cab_c=meas.t_cab_c, t_vent_c=meas.t_vent_c, t_int_c=meas.t_int_c,
-                                   t_shell_c=meas.t_shell_c, t_glass_c=meas.t_glass_c, rh_cab=meas.rh_cab,
-                                   mdot_bl_kgps=FULL.mdot_bl_kgps, solar_wm2=env.solar_wm2, params=cp)
+        c = evaluate_cabin_comfort(
+            t_cab_c=meas.t_cab_c,
+            t_vent_c=meas.t_vent_c,
+            t_int_c=meas.t_int_c,
+            t_shell_c=meas.t_shell_c,
+            t_glass_c=meas.t_glass_c,
+            rh_cab=meas.rh_cab,
+            mdot_bl_kgps=FULL.mdot_bl_kgps,
+            solar_wm2=env.solar_wm2,
+            params=cp,
+        )
         r = p.recirc_fraction
-        vals = dict(t_s=float(k), t_cab_c=meas.t_cab_c, t_vent_c=meas.t_vent_c, t_duct_c=meas.t_duct_c,
-                    t_mix_c=r * meas.t_cab_c + (1 - r) * env.t_amb_c, ta_occ_c=float(c.ta_occ_c),
-                    ta_jet_c=float(c.ta_jet_c), t_mr_c=float(c.t_mr_c), pmv=float(c.pmv), rh_cab=meas.rh_cab)
+        vals = dict(
+            t_s=float(k),
+            t_cab_c=meas.t_cab_c,
+            t_vent_c=meas.t_vent_c,
+            t_duct_c=meas.t_duct_c,
+            t_mix_c=r * meas.t_cab_c + (1 - r) * env.t_amb_c,
+            ta_occ_c=float(c.ta_occ_c),
+            ta_jet_c=float(c.ta_jet_c),
+            t_mr_c=float(c.t_mr_c),
+            pmv=float(c.pmv),
+            rh_cab=meas.rh_cab,
+        )
         for key, v in vals.items():
             rows[key].append(v)
         meas = plant.step(FULL, env, 1.0)
@@ -91,16 +125,27 @@ def main(argv=None) -> int:
     marks = (30, 60, 120, 300, 600, 900, 1200, 1800)
     for name, (r, rl) in runs.items():
         print(f"{name}: t [s] " + " ".join(f"{t:>6d}" for t in marks))
-        for key, lab in (("t_cab_c", "cabin air"), ("ta_occ_c", "occupant air"), ("ta_jet_c", "jet air"),
-                         ("t_vent_c", "vent air"), ("t_duct_c", "duct wall"), ("t_mr_c", "T_mr"), ("pmv", "PMV")):
+        for key, lab in (
+            ("t_cab_c", "cabin air"),
+            ("ta_occ_c", "occupant air"),
+            ("ta_jet_c", "jet air"),
+            ("t_vent_c", "vent air"),
+            ("t_duct_c", "duct wall"),
+            ("t_mr_c", "T_mr"),
+            ("pmv", "PMV"),
+        ):
             print(f"  {lab:>14s} " + " ".join(f"{r[key][min(t, N_S - 1)]:6.1f}" for t in marks))
         print(f"  {'cabin, 0.7kJ/K':>14s} " + " ".join(f"{rl['t_cab_c'][min(t, N_S - 1)]:6.1f}" for t in marks))
         t25 = r["t_s"][np.argmax(r["t_cab_c"] <= 25.0)] if np.any(r["t_cab_c"] <= 25.0) else float("nan")
-        print(f"  cabin air reaches 25 degC at {t25:.0f} s; PMV first <= 0.5 at "
-              f"{r['t_s'][np.argmax(r['pmv'] <= 0.5)] if np.any(r['pmv'] <= 0.5) else float('nan'):.0f} s")
+        print(
+            f"  cabin air reaches 25 degC at {t25:.0f} s; PMV first <= 0.5 at "
+            f"{r['t_s'][np.argmax(r['pmv'] <= 0.5)] if np.any(r['pmv'] <= 0.5) else float('nan'):.0f} s"
+        )
         i600 = 600
-        print(f"  at 600 s: recirculated inlet {r['t_mix_c'][i600]:.1f} degC -> vent {r['t_vent_c'][i600]:.1f} degC "
-              f"(cabin RH {r['rh_cab'][i600]:.2f})")
+        print(
+            f"  at 600 s: recirculated inlet {r['t_mix_c'][i600]:.1f} degC -> vent {r['t_vent_c'][i600]:.1f} degC "
+            f"(cabin RH {r['rh_cab'][i600]:.2f})"
+        )
     if args.no_plot:
         return 0
     import matplotlib
@@ -132,8 +177,13 @@ def main(argv=None) -> int:
         sel = r["t_s"] >= 60
         ax.plot(r["t_mix_c"][sel], r["t_vent_c"][sel], label=f"plant, {name} (t >= 1 min)")
     for i, (t_in, lo, hi, rh) in enumerate(GTR_TABLE):
-        ax.plot([t_in + (0.3 if i >= 2 else -0.3)] * 2, [lo, hi], "C3" if i < 2 else "C4", lw=4,
-                label=f"GT-R 2010 ESM, {rh}" if i in (0, 2) else None)
+        ax.plot(
+            [t_in + (0.3 if i >= 2 else -0.3)] * 2,
+            [lo, hi],
+            "C3" if i < 2 else "C4",
+            lw=4,
+            label=f"GT-R 2010 ESM, {rh}" if i in (0, 2) else None,
+        )
     ax.set_xlabel("recirculated inlet air [degC]")
     ax.set_ylabel("vent (discharge) air [degC]")
     ax.set_title("vent air vs inlet air")

@@ -30,11 +30,20 @@ from ceco_controller.codegen import stdout_silenced
 
 
 def _sqpmethod(nlp, max_iter_eig: int):
-    opts = {"print_time": False, "qpsol": "qpoases",
-            "qpsol_options": {"printLevel": "none", "sparse": False, "error_on_fail": False, "CPUtime": 0.05},
-            "max_iter": 20, "print_iteration": False, "print_header": False, "print_status": False,
-            "tol_pr": 1e-6, "tol_du": 1e-4, "convexify_strategy": "eigen-clip", "max_iter_eig": float(max_iter_eig),
-            "error_on_fail": False}
+    opts = {
+        "print_time": False,
+        "qpsol": "qpoases",
+        "qpsol_options": {"printLevel": "none", "sparse": False, "error_on_fail": False, "CPUtime": 0.05},
+        "max_iter": 20,
+        "print_iteration": False,
+        "print_header": False,
+        "print_status": False,
+        "tol_pr": 1e-6,
+        "tol_du": 1e-4,
+        "convexify_strategy": "eigen-clip",
+        "max_iter_eig": float(max_iter_eig),
+        "error_on_fail": False,
+    }
     with stdout_silenced():
         return casadi.nlpsol("old", "sqpmethod", nlp, opts)
 
@@ -76,8 +85,12 @@ def main() -> int:
         cl.simulate("sc03", strat, cl.SimSettings(progress=False, duration_s=args.duration), controller=ctrl)
         prob = ctrl.problem
         ref = casadi.nlpsol("ref", "ipopt", prob.nlp, {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes"}})
-        solvers = {"sqp": None, "sqpmethod-10k": _sqpmethod(prob.nlp, 10000),
-                   "sqpmethod-200": _sqpmethod(prob.nlp, 200), "ipopt-default": ref}
+        solvers = {
+            "sqp": None,
+            "sqpmethod-10k": _sqpmethod(prob.nlp, 10000),
+            "sqpmethod-200": _sqpmethod(prob.nlp, 200),
+            "ipopt-default": ref,
+        }
         res = {k: [] for k in solvers}
         for data in recorded:
             for name, fn in solvers.items():
@@ -98,9 +111,12 @@ def main() -> int:
             dc = np.max(np.abs(f[both] - f_sqp[both]) / np.abs(f_sqp[both])) if both.any() else np.nan
             t = np.median([x[3] for x in rows])
             its = [x[2] for x in rows if x[2] == x[2]]
-            print(f"{strat:10s} {name:14s} instances {len(rows):4d} failures {int(np.sum(~ok)):4d}  iterations median "
-                  f"{(np.median(its) if its else np.nan):4.0f}  time median {t:6.2f} ms = {t / t_ref:5.3f} x IPOPT "
-                  f"default  max rel cost diff to sqp {dc:.1e}", flush=True)
+            print(
+                f"{strat:10s} {name:14s} instances {len(rows):4d} failures {int(np.sum(~ok)):4d}  iterations median "
+                f"{(np.median(its) if its else np.nan):4.0f}  time median {t:6.2f} ms = {t / t_ref:5.3f} x IPOPT "
+                f"default  max rel cost diff to sqp {dc:.1e}",
+                flush=True,
+            )
     print(f"load {os.getloadavg()}")
     return 0
 

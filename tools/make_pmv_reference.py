@@ -45,8 +45,16 @@ def _psat_pa(t_c):
 
 def _reference(ta, tr, vel, rh, met, clo):
     res = pmv_ppd_iso(
-        tdb=ta, tr=tr, vr=vel, rh=100.0 * rh, met=met, clo=clo, wme=0.0,
-        model="7730-2005", limit_inputs=False, round_output=False,
+        tdb=ta,
+        tr=tr,
+        vr=vel,
+        rh=100.0 * rh,
+        met=met,
+        clo=clo,
+        wme=0.0,
+        model="7730-2005",
+        limit_inputs=False,
+        round_output=False,
     )
     return np.asarray(res.pmv, dtype=float), np.asarray(res.ppd, dtype=float)
 
@@ -63,8 +71,7 @@ def iso_set():
     keep = np.flatnonzero((pa <= 2700.0) & (np.abs(pmv) <= 2.0))[:N_ISO]
     if keep.size < N_ISO:
         raise RuntimeError(f"only {keep.size} valid ISO points; raise the oversampling")
-    return ta[keep], tr[keep], vel[keep], rh[keep], pa[keep], met[keep], clo[keep], \
-        pmv[keep], ppd[keep]
+    return ta[keep], tr[keep], vel[keep], rh[keep], pa[keep], met[keep], clo[keep], pmv[keep], ppd[keep]
 
 
 def cabin_set():
@@ -81,9 +88,11 @@ def cabin_set():
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=pathlib.Path,
-                        default=pathlib.Path(__file__).resolve().parents[1]
-                        / "tests" / "data" / "pmv_reference.csv")
+    parser.add_argument(
+        "--out",
+        type=pathlib.Path,
+        default=pathlib.Path(__file__).resolve().parents[1] / "tests" / "data" / "pmv_reference.csv",
+    )
     args = parser.parse_args(argv)
 
     rows = []

@@ -34,16 +34,37 @@ N_SITTING = 300
 N_STANDING = 100
 SEED_SITTING = 55
 SEED_STANDING = 2020
-COLUMNS = ("set", "sol_altitude_deg", "sharp_deg", "sol_radiation_dir_wm2", "sol_transmittance", "f_svv",
-           "f_bes", "asw", "floor_reflectance", "erf_ref_wm2", "delta_mrt_ref_k")
+COLUMNS = (
+    "set",
+    "sol_altitude_deg",
+    "sharp_deg",
+    "sol_radiation_dir_wm2",
+    "sol_transmittance",
+    "f_svv",
+    "f_bes",
+    "asw",
+    "floor_reflectance",
+    "erf_ref_wm2",
+    "delta_mrt_ref_k",
+)
 _LO = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.57, 0.0])
 _HI = np.array([90.0, 180.0, 1100.0, 1.0, 1.0, 1.0, 0.84, 1.0])
 
 
 def _reference(x, posture):
     alt, sharp, idir, tau, fsvv, fbes, asw, rfl = x.T
-    res = solar_gain(sol_altitude=alt, sharp=sharp, sol_radiation_dir=idir, sol_transmittance=tau, f_svv=fsvv,
-                     f_bes=fbes, asw=asw, posture=posture, floor_reflectance=rfl, round_output=False)
+    res = solar_gain(
+        sol_altitude=alt,
+        sharp=sharp,
+        sol_radiation_dir=idir,
+        sol_transmittance=tau,
+        f_svv=fsvv,
+        f_bes=fbes,
+        asw=asw,
+        posture=posture,
+        floor_reflectance=rfl,
+        round_output=False,
+    )
     return np.asarray(res.erf, dtype=float), np.asarray(res.delta_mrt, dtype=float)
 
 
@@ -56,8 +77,7 @@ def lhs_set(n, seed, posture):
 
 def grid_set():
     """Table corners and edges at the cabin defaults (seated)."""
-    rows = [(alt, sharp, 850.0, 0.45, 0.0, 0.5, 0.67, 0.6)
-            for alt in (0.0, 45.0, 90.0) for sharp in (0.0, 90.0, 180.0)]
+    rows = [(alt, sharp, 850.0, 0.45, 0.0, 0.5, 0.67, 0.6) for alt in (0.0, 45.0, 90.0) for sharp in (0.0, 90.0, 180.0)]
     x = np.array(rows)
     erf, dmrt = _reference(x, "sitting")
     return x, erf, dmrt
@@ -65,15 +85,19 @@ def grid_set():
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=pathlib.Path,
-                        default=pathlib.Path(__file__).resolve().parents[1]
-                        / "tests" / "data" / "solarcal_reference.csv")
+    parser.add_argument(
+        "--out",
+        type=pathlib.Path,
+        default=pathlib.Path(__file__).resolve().parents[1] / "tests" / "data" / "solarcal_reference.csv",
+    )
     args = parser.parse_args(argv)
 
     rows = []
-    for name, (x, erf, dmrt) in (("sitting", lhs_set(N_SITTING, SEED_SITTING, "sitting")),
-                                 ("standing", lhs_set(N_STANDING, SEED_STANDING, "standing")),
-                                 ("grid", grid_set())):
+    for name, (x, erf, dmrt) in (
+        ("sitting", lhs_set(N_SITTING, SEED_SITTING, "sitting")),
+        ("standing", lhs_set(N_STANDING, SEED_STANDING, "standing")),
+        ("grid", grid_set()),
+    ):
         if not (np.all(np.isfinite(erf)) and np.all(np.isfinite(dmrt))):
             raise RuntimeError(f"non-finite reference values in set {name}")
         for xi, e, d in zip(x, erf, dmrt):

@@ -58,8 +58,16 @@ def _x_ws(z):
 def _side(y, group_glass, group_trim):
     xb = _x_ws(Z_BELT)
     polys = [
-        (group_trim, [(X_BACK, y, Z_FLOOR), (X_WS_BASE + 0.05, y, Z_FLOOR), (X_WS_BASE + 0.05, y, 0.0),
-                      (xb, y, Z_BELT), (X_BACK, y, Z_BELT)]),
+        (
+            group_trim,
+            [
+                (X_BACK, y, Z_FLOOR),
+                (X_WS_BASE + 0.05, y, Z_FLOOR),
+                (X_WS_BASE + 0.05, y, 0.0),
+                (xb, y, Z_BELT),
+                (X_BACK, y, Z_BELT),
+            ],
+        ),
         (group_glass, [(-0.30, y, Z_BELT), (xb, y, Z_BELT), (X_HEADER, y, Z_ROOF), (-0.30, y, Z_ROOF)]),
         (group_trim, [(-0.45, y, Z_BELT), (-0.30, y, Z_BELT), (-0.30, y, Z_ROOF), (-0.45, y, Z_ROOF)]),
         (group_glass, [(-1.05, y, Z_BELT), (-0.45, y, Z_BELT), (-0.45, y, Z_ROOF), (-1.05, y, Z_ROOF)]),
@@ -71,24 +79,57 @@ def _side(y, group_glass, group_trim):
 def cabin_polygons():
     """The cabin as labelled planar convex polygons."""
     P = [
-        ("interior", [(X_BACK, Y_RIGHT, Z_FLOOR), (X_WS_BASE + 0.05, Y_RIGHT, Z_FLOOR),
-                      (X_WS_BASE + 0.05, Y_LEFT, Z_FLOOR), (X_BACK, Y_LEFT, Z_FLOOR)]),       # floor
-        ("shell", [(X_BACK, Y_RIGHT, Z_ROOF), (X_HEADER, Y_RIGHT, Z_ROOF), (X_HEADER, Y_LEFT, Z_ROOF),
-                   (X_BACK, Y_LEFT, Z_ROOF)]),                                                # headliner
-        ("glass", [(X_WS_BASE, Y_RIGHT, 0.0), (X_HEADER, Y_RIGHT, Z_ROOF), (X_HEADER, Y_LEFT, Z_ROOF),
-                   (X_WS_BASE, Y_LEFT, 0.0)]),                                                # windshield
-        ("interior", [(X_IP, Y_RIGHT, 0.0), (X_WS_BASE, Y_RIGHT, 0.0), (X_WS_BASE, Y_LEFT, 0.0),
-                      (X_IP, Y_LEFT, 0.0)]),                                                  # dashboard top
-        ("interior", [(X_IP, Y_RIGHT, Z_FLOOR), (X_IP, Y_RIGHT, 0.0), (X_IP, Y_LEFT, 0.0),
-                      (X_IP, Y_LEFT, Z_FLOOR)]),                                              # IP face
-        ("interior", [(X_BACK, Y_RIGHT, Z_FLOOR), (X_BACK, Y_RIGHT, 0.10), (X_BACK, Y_LEFT, 0.10),
-                      (X_BACK, Y_LEFT, Z_FLOOR)]),                                            # rear seat back
-        ("glass", [(X_BACK, Y_RIGHT, 0.10), (X_BACK, Y_RIGHT, Z_ROOF), (X_BACK, Y_LEFT, Z_ROOF),
-                   (X_BACK, Y_LEFT, 0.10)]),                                                  # backlight
-        ("interior", [(-0.15, -0.27, -0.30), (-0.15, -0.27, 0.50), (-0.15, 0.27, 0.50),
-                      (-0.15, 0.27, -0.30)]),                                                 # own seat back
-        ("interior", [(-0.15, -0.27, -0.25), (0.35, -0.27, -0.25), (0.35, 0.27, -0.25),
-                      (-0.15, 0.27, -0.25)]),                                                 # own cushion
+        (
+            "interior",
+            [
+                (X_BACK, Y_RIGHT, Z_FLOOR),
+                (X_WS_BASE + 0.05, Y_RIGHT, Z_FLOOR),
+                (X_WS_BASE + 0.05, Y_LEFT, Z_FLOOR),
+                (X_BACK, Y_LEFT, Z_FLOOR),
+            ],
+        ),  # floor
+        (
+            "shell",
+            [
+                (X_BACK, Y_RIGHT, Z_ROOF),
+                (X_HEADER, Y_RIGHT, Z_ROOF),
+                (X_HEADER, Y_LEFT, Z_ROOF),
+                (X_BACK, Y_LEFT, Z_ROOF),
+            ],
+        ),  # headliner
+        (
+            "glass",
+            [
+                (X_WS_BASE, Y_RIGHT, 0.0),
+                (X_HEADER, Y_RIGHT, Z_ROOF),
+                (X_HEADER, Y_LEFT, Z_ROOF),
+                (X_WS_BASE, Y_LEFT, 0.0),
+            ],
+        ),  # windshield
+        (
+            "interior",
+            [(X_IP, Y_RIGHT, 0.0), (X_WS_BASE, Y_RIGHT, 0.0), (X_WS_BASE, Y_LEFT, 0.0), (X_IP, Y_LEFT, 0.0)],
+        ),  # dashboard top
+        (
+            "interior",
+            [(X_IP, Y_RIGHT, Z_FLOOR), (X_IP, Y_RIGHT, 0.0), (X_IP, Y_LEFT, 0.0), (X_IP, Y_LEFT, Z_FLOOR)],
+        ),  # IP face
+        (
+            "interior",
+            [(X_BACK, Y_RIGHT, Z_FLOOR), (X_BACK, Y_RIGHT, 0.10), (X_BACK, Y_LEFT, 0.10), (X_BACK, Y_LEFT, Z_FLOOR)],
+        ),  # rear seat back
+        (
+            "glass",
+            [(X_BACK, Y_RIGHT, 0.10), (X_BACK, Y_RIGHT, Z_ROOF), (X_BACK, Y_LEFT, Z_ROOF), (X_BACK, Y_LEFT, 0.10)],
+        ),  # backlight
+        (
+            "interior",
+            [(-0.15, -0.27, -0.30), (-0.15, -0.27, 0.50), (-0.15, 0.27, 0.50), (-0.15, 0.27, -0.30)],
+        ),  # own seat back
+        (
+            "interior",
+            [(-0.15, -0.27, -0.25), (0.35, -0.27, -0.25), (0.35, 0.27, -0.25), (-0.15, 0.27, -0.25)],
+        ),  # own cushion
     ]
     P += _side(Y_LEFT, "glass", "shell") + _side(Y_RIGHT, "glass", "shell")
     return P

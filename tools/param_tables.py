@@ -6,6 +6,7 @@
 Each block in docs/ros.md sits between ``<!-- params:<node> -->`` and ``<!-- /params -->``;
 tests/test_node_logic.py checks that the document holds exactly these tables.
 """
+
 from __future__ import annotations
 
 import pathlib
@@ -22,16 +23,23 @@ def tables() -> dict[str, str]:
     from ceco_plant_sim.plant_io import PLANT_PARAMETERS
     from ceco_ros.params import markdown_table
     from ceco_v2x_preview.preview_io import PREVIEW_PARAMETERS
-    return {'mpc_node': markdown_table(controller_parameters()),
-            'baseline_node': markdown_table(controller_parameters('baseline')),
-            'plant_node': markdown_table(PLANT_PARAMETERS),
-            'preview_node': markdown_table(PREVIEW_PARAMETERS)}
+
+    return {
+        'mpc_node': markdown_table(controller_parameters()),
+        'baseline_node': markdown_table(controller_parameters('baseline')),
+        'plant_node': markdown_table(PLANT_PARAMETERS),
+        'preview_node': markdown_table(PREVIEW_PARAMETERS),
+    }
 
 
 def rewrite(text: str) -> str:
     for node, table in tables().items():
-        text = re.sub(rf'(<!-- params:{node} -->\n).*?(<!-- /params -->)', lambda m, t=table: m[1] + t + '\n' + m[2],
-                      text, flags=re.S)
+        text = re.sub(
+            rf'(<!-- params:{node} -->\n).*?(<!-- /params -->)',
+            lambda m, t=table: m[1] + t + '\n' + m[2],
+            text,
+            flags=re.S,
+        )
     return text
 
 

@@ -63,8 +63,9 @@ def bench(params: PlantParams, repeats: int = 3) -> float:
     return best
 
 
-def speed_map(params: PlantParams, loads_w=(2000.0, 3000.0, 4000.0), t_wall_c: float = 5.0,
-              t_amb_c: float = 35.0, speeds_mps=None):
+def speed_map(
+    params: PlantParams, loads_w=(2000.0, 3000.0, 4000.0), t_wall_c: float = 5.0, t_amb_c: float = 35.0, speeds_mps=None
+):
     """Steady cycle at fixed cooling loads versus vehicle speed: dict load -> arrays (speed, P_comp, COP, T_c)."""
     speeds = np.arange(0.0, 35.01, 2.5) if speeds_mps is None else np.asarray(speeds_mps, float)
     out = {}
@@ -92,44 +93,58 @@ def main(argv=None) -> int:
     p_bl = np.array([o.p_blower_w for o in outs])
     q_ref = np.array([o.q_evap_ref_w for o in outs])
     print(f"sc03_hotsoak (one-hour soak; t_cab {outs[0].t_cab_c:.1f} degC after 1 s), full cooling:")
-    print(f"  cabin air reaches 25 degC after {t25:.0f} s ({t25 / 60:.1f} min); "
-          f"t_cab at 600/1200/1800 s: {t_cab[599]:.1f} / {t_cab[1199]:.1f} / {t_cab[-1]:.1f} degC")
+    print(
+        f"  cabin air reaches 25 degC after {t25:.0f} s ({t25 / 60:.1f} min); "
+        f"t_cab at 600/1200/1800 s: {t_cab[599]:.1f} / {t_cab[1199]:.1f} / {t_cab[-1]:.1f} degC"
+    )
     for a, b in ((0, 600), (0, 1800)):
-        print(f"  {a}-{b} s: mean P_comp {p_comp[a:b].mean():.0f} W, P_blower {p_bl[a:b].mean():.0f} W, "
-              f"P_comp+P_blower max {(p_comp + p_bl)[a:b].max():.0f} W, "
-              f"COP (energy ratio) {q_ref[a:b].sum() / p_comp[a:b].sum():.2f}, "
-              f"mean Q_evap {np.mean([o.q_evap_w for o in outs[a:b]]):.0f} W "
-              f"(latent {np.mean([o.q_latent_w for o in outs[a:b]]):.0f} W)")
+        print(
+            f"  {a}-{b} s: mean P_comp {p_comp[a:b].mean():.0f} W, P_blower {p_bl[a:b].mean():.0f} W, "
+            f"P_comp+P_blower max {(p_comp + p_bl)[a:b].max():.0f} W, "
+            f"COP (energy ratio) {q_ref[a:b].sum() / p_comp[a:b].sum():.2f}, "
+            f"mean Q_evap {np.mean([o.q_evap_w for o in outs[a:b]]):.0f} W "
+            f"(latent {np.mean([o.q_latent_w for o in outs[a:b]]):.0f} W)"
+        )
     cop = np.array([o.cop for o in outs])
-    print(f"  instantaneous COP after 60 s: {cop[60:].min():.2f} .. {cop[60:].max():.2f}; "
-          f"T_cond {min(o.t_cond_c for o in outs[60:]):.1f} .. {max(o.t_cond_c for o in outs[60:]):.1f} degC; "
-          f"T_vent after 900 s {min(o.t_vent_c for o in outs[900:]):.1f} .. "
-          f"{max(o.t_vent_c for o in outs[900:]):.1f} degC")
+    print(
+        f"  instantaneous COP after 60 s: {cop[60:].min():.2f} .. {cop[60:].max():.2f}; "
+        f"T_cond {min(o.t_cond_c for o in outs[60:]):.1f} .. {max(o.t_cond_c for o in outs[60:]):.1f} degC; "
+        f"T_vent after 900 s {min(o.t_vent_c for o in outs[900:]):.1f} .. "
+        f"{max(o.t_vent_c for o in outs[900:]):.1f} degC"
+    )
 
     _, o_reg, _ = pulldown(params, n_s=600, scenario="sc03")
     t_reg = np.array([o.t_cab_c for o in o_reg])
-    print(f"sc03 (the regulation's 10-minute soak; t_cab {o_reg[0].t_cab_c:.1f} degC after 1 s), full cooling: "
-          f"25 degC after {float(np.argmax(t_reg <= 25.0) + 1):.0f} s, {t_reg[-1]:.1f} degC at 600 s")
+    print(
+        f"sc03 (the regulation's 10-minute soak; t_cab {o_reg[0].t_cab_c:.1f} degC after 1 s), full cooling: "
+        f"25 degC after {float(np.argmax(t_reg <= 25.0) + 1):.0f} s, {t_reg[-1]:.1f} degC at 600 s"
+    )
 
     smap = speed_map(params)
     print("Fixed cooling load, 5 degC evaporator wall, 35 degC ambient (steady cycle):")
     for q, arr in smap.items():
         i25 = int(np.argmin(np.abs(arr[:, 0] - 25.0)))
-        print(f"  {q / 1000:.0f} kW: COP {arr[0, 2]:.2f} at 0 m/s -> {arr[i25, 2]:.2f} at 25 m/s "
-              f"(+{100 * (arr[i25, 2] / arr[0, 2] - 1):.0f} %), P_comp {arr[0, 1]:.0f} -> {arr[i25, 1]:.0f} W, "
-              f"T_cond {arr[0, 3]:.1f} -> {arr[i25, 3]:.1f} degC")
+        print(
+            f"  {q / 1000:.0f} kW: COP {arr[0, 2]:.2f} at 0 m/s -> {arr[i25, 2]:.2f} at 25 m/s "
+            f"(+{100 * (arr[i25, 2] / arr[0, 2] - 1):.0f} %), P_comp {arr[0, 1]:.0f} -> {arr[i25, 1]:.0f} W, "
+            f"T_cond {arr[0, 3]:.1f} -> {arr[i25, 3]:.1f} degC"
+        )
 
     for sub in (0.25,):
         _, o2, _ = pulldown(dataclasses.replace(params, substep_s=sub), n_s=600)
         d_cab = max(abs(a.t_cab_c - b.t_cab_c) for a, b in zip(outs[:600], o2))
         d_ev = max(abs(a.t_evap_c - b.t_evap_c) for a, b in zip(outs[:600], o2))
-        print(f"Sub-step {params.substep_s} s vs {sub} s over the 600 s SC03 pull-down: "
-              f"max |dT_cab| {d_cab:.4f} K, max |dT_evap| {d_ev:.4f} K")
+        print(
+            f"Sub-step {params.substep_s} s vs {sub} s over the 600 s SC03 pull-down: "
+            f"max |dT_cab| {d_cab:.4f} K, max |dT_evap| {d_ev:.4f} K"
+        )
     iters = [o.cycle_iterations for o in outs]
     print(f"Refrigerant loop: {np.mean(iters):.2f} Newton evaluations per solve at step ends (max {max(iters)})")
     wall = bench(params)
-    print(f"Wall time of 600 s simulated at 1 s steps (sub-step {params.substep_s} s): {wall:.3f} s "
-          f"(real-time factor {600.0 / wall:.0f}x)")
+    print(
+        f"Wall time of 600 s simulated at 1 s steps (sub-step {params.substep_s} s): {wall:.3f} s "
+        f"(real-time factor {600.0 / wall:.0f}x)"
+    )
 
     if args.no_plots:
         return 0
@@ -142,16 +157,23 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     tm = t_s / 60.0
     fig, ax = plt.subplots(3, 1, figsize=(8, 9), sharex=True)
-    for name, lab in (("t_cab_c", "cabin air"), ("t_int_c", "interior mass"), ("t_shell_c", "shell"),
-                      ("t_glass_c", "glazing"), ("t_vent_c", "vent air"), ("t_evap_c", "evaporator wall")):
+    for name, lab in (
+        ("t_cab_c", "cabin air"),
+        ("t_int_c", "interior mass"),
+        ("t_shell_c", "shell"),
+        ("t_glass_c", "glazing"),
+        ("t_vent_c", "vent air"),
+        ("t_evap_c", "evaporator wall"),
+    ):
         ax[0].plot(tm, [getattr(o, name) for o in outs], label=lab)
     ax[0].axhline(25.0, color="k", ls=":", lw=0.8)
     if np.isfinite(t25):
         ax[0].axvline(t25 / 60.0, color="k", ls=":", lw=0.8)
     ax[0].set_ylabel("temperature [degC]")
     ax[0].legend(ncol=3, fontsize=8)
-    ax[0].set_title("SC03 after a one-hour hot soak (sc03_hotsoak), full cooling (0.17 kg/s, 3 degC set-point)",
-                    fontsize=10)
+    ax[0].set_title(
+        "SC03 after a one-hour hot soak (sc03_hotsoak), full cooling (0.17 kg/s, 3 degC set-point)", fontsize=10
+    )
     ax[1].plot(tm, p_comp / 1000, label="compressor (electrical)")
     ax[1].plot(tm, p_bl / 1000, label="blower")
     ax[1].plot(tm, [o.q_evap_w / 1000 for o in outs], label="evaporator heat (air side)")
@@ -182,8 +204,10 @@ def main(argv=None) -> int:
         a.set_xlabel("vehicle speed [m/s]")
         a.grid(alpha=0.3)
         a.legend(title="cooling load", fontsize=8)
-    fig.suptitle("Fixed cooling load, 5 degC evaporator wall, 35 degC ambient: ram air lowers the condensing "
-                 "temperature", fontsize=10)
+    fig.suptitle(
+        "Fixed cooling load, 5 degC evaporator wall, 35 degC ambient: ram air lowers the condensing temperature",
+        fontsize=10,
+    )
     fig.tight_layout()
     fig.savefig(out / "plant_cop_vs_speed.png", dpi=110)
     plt.close(fig)

@@ -1,1 +1,4 @@
-"""The ceco command: runs the node stack as supervised processes, records rosbag2 bags, replays them, reports energy and comfort."""
+"""The ceco command: runs the node stack as supervised processes.
+
+It also records rosbag2 bags, replays them and reports energy and comfort.
+"""

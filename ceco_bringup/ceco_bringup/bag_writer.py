@@ -19,6 +19,7 @@ Public API:
     BagWriter(path, storage='mcap')
     SimTimeStamps()  -> bag timestamp [ns] of a serialized message in simulation time
 """
+
 from __future__ import annotations
 
 import os
@@ -36,8 +37,15 @@ from ruamel.yaml import YAML
 
 from ceco_bringup.bagio import typestore
 
-__all__ = ['STORAGES', 'TIMESTAMP_MODES', 'BAG_VERSION', 'RMW_DURATION_INFINITE', 'BagWriter', 'SimTimeStamps',
-           'cdr_leading_time_ns']
+__all__ = [
+    'STORAGES',
+    'TIMESTAMP_MODES',
+    'BAG_VERSION',
+    'RMW_DURATION_INFINITE',
+    'BagWriter',
+    'SimTimeStamps',
+    'cdr_leading_time_ns',
+]
 
 STORAGES = ('mcap', 'sqlite3')
 """Storage plugins a bag can be written with (rosbag2's storage identifiers); the first is the default."""
@@ -79,7 +87,7 @@ class _FlushableMcapWriter(McapWriter):
 
     def __init__(self, path: Path, compression) -> None:
         super().__init__(path, compression)
-        self._tail_at: int | None = None   # file offset of the summary tail on disk, if any
+        self._tail_at: int | None = None  # file offset of the summary tail on disk, if any
         self._meta: tuple[int, str] = (BAG_VERSION, '')
 
     def add_connection(self, connection, offered_qos_profiles: str) -> None:
@@ -92,8 +100,15 @@ class _FlushableMcapWriter(McapWriter):
         for key, value in (('offered_qos_profiles', offered_qos_profiles), ('topic_type_hash', connection.digest)):
             write_string(metadata, key)
             write_string(metadata, value)
-        self.channels.append(Channel(connection.id, connection.msgtype, connection.topic,
-                                     connection.ext.serialization_format, metadata.getvalue()))
+        self.channels.append(
+            Channel(
+                connection.id,
+                connection.msgtype,
+                connection.topic,
+                connection.ext.serialization_format,
+                metadata.getvalue(),
+            )
+        )
         self.channel_stats[connection.id] = 0
         write_channel(self.chunk.bio, self.channels[-1], self.schemas)
 
@@ -108,7 +123,7 @@ class _FlushableMcapWriter(McapWriter):
         fh = self.bio
         self.bio = _KeepOpen(fh)
         try:
-            McapWriter.close(self, *self._meta)   # the chunk is empty here: writes the tail only
+            McapWriter.close(self, *self._meta)  # the chunk is empty here: writes the tail only
         finally:
             self.bio = fh
         self._tail_at = tail_at
@@ -181,7 +196,8 @@ class BagWriter:
             return
         offered = [] if qos is None else [_qos_to_rosbags(qos)]
         self._connections[topic] = self._writer.add_connection(
-            topic, msgtype, typestore=self._store, offered_qos_profiles=offered)
+            topic, msgtype, typestore=self._store, offered_qos_profiles=offered
+        )
 
     def write(self, topic: str, t_ns: int, data: bytes) -> None:
         """Write one serialized message with bag timestamp ``t_ns`` [ns].
@@ -243,7 +259,9 @@ class SimTimeStamps:
             fields = store.fielddefs[msgtype][1] if msgtype in store.fielddefs else []
             first = fields[0][1][1] if fields else None
             self._leading_time[msgtype] = msgtype != 'rcl_interfaces/msg/Log' and first in (
-                'std_msgs/msg/Header', 'builtin_interfaces/msg/Time')
+                'std_msgs/msg/Header',
+                'builtin_interfaces/msg/Time',
+            )
         return self._leading_time[msgtype]
 
 
@@ -276,7 +294,8 @@ def _qos_to_rosbags(qos):
         depth=int(qos.depth),
         reliability=QosReliability(int(qos.reliability)),
         durability=QosDurability(int(qos.durability)),
-        deadline=duration(qos.deadline), lifespan=duration(qos.lifespan),
+        deadline=duration(qos.deadline),
+        lifespan=duration(qos.lifespan),
         liveliness=QosLiveliness(int(qos.liveliness)),
         liveliness_lease_duration=duration(qos.liveliness_lease_duration),
         avoid_ros_namespace_conventions=bool(qos.avoid_ros_namespace_conventions),
@@ -293,34 +312,48 @@ def _metadata(writer) -> dict:
     start = writer.min_timestamp if count else 0
     duration = max(0, writer.max_timestamp - writer.min_timestamp) if count else 0
     name = writer.storage.path.name
-    return {'rosbag2_bagfile_information': {
-        'version': writer.version,
-        'storage_identifier': writer.storage_plugin.name.lower(),
-        'relative_file_paths': [name],
-        'duration': {'nanoseconds': duration},
-        'starting_time': {'nanoseconds_since_epoch': start},
-        'message_count': count,
-        'topics_with_message_count': [
-            {'topic_metadata': {
-                'name': c.topic, 'type': c.msgtype,
-                'serialization_format': c.ext.serialization_format,
-                'offered_qos_profiles': dump_qos_v9(c.ext.offered_qos_profiles),
-                'type_description_hash': c.digest},
-             'message_count': writer.counts[c.id]}
-            for c in writer.connections if isinstance(c.ext, ConnectionExtRosbag2)],
-        'compression_format': '',
-        'compression_mode': '',
-        'files': [{'path': name, 'starting_time': {'nanoseconds_since_epoch': start},
-                   'duration': {'nanoseconds': duration}, 'message_count': count}],
-        'custom_data': writer.custom_data or None,
-        'ros_distro': 'rosbags',
-    }}
+    return {
+        'rosbag2_bagfile_information': {
+            'version': writer.version,
+            'storage_identifier': writer.storage_plugin.name.lower(),
+            'relative_file_paths': [name],
+            'duration': {'nanoseconds': duration},
+            'starting_time': {'nanoseconds_since_epoch': start},
+            'message_count': count,
+            'topics_with_message_count': [
+                {
+                    'topic_metadata': {
+                        'name': c.topic,
+                        'type': c.msgtype,
+                        'serialization_format': c.ext.serialization_format,
+                        'offered_qos_profiles': dump_qos_v9(c.ext.offered_qos_profiles),
+                        'type_description_hash': c.digest,
+                    },
+                    'message_count': writer.counts[c.id],
+                }
+                for c in writer.connections
+                if isinstance(c.ext, ConnectionExtRosbag2)
+            ],
+            'compression_format': '',
+            'compression_mode': '',
+            'files': [
+                {
+                    'path': name,
+                    'starting_time': {'nanoseconds_since_epoch': start},
+                    'duration': {'nanoseconds': duration},
+                    'message_count': count,
+                }
+            ],
+            'custom_data': writer.custom_data or None,
+            'ros_distro': 'rosbags',
+        }
+    }
 
 
 def _yaml_text(data) -> str:
     yaml = YAML(typ='safe')
     yaml.default_flow_style = False
-    yaml.width = 4096   # no folded lines (a type hash on one line, as rosbag2 writes it)
+    yaml.width = 4096  # no folded lines (a type hash on one line, as rosbag2 writes it)
     text = StringIO()
     yaml.dump(data, text)
     return text.getvalue()

@@ -25,6 +25,7 @@ Public API:
     load_diagnostics(bag_dir) -> dict of numpy arrays (diagnostics.csv columns)
     write_timeseries_csv / write_diagnostics_csv
 """
+
 from __future__ import annotations
 
 import functools
@@ -37,6 +38,7 @@ import numpy as np
 from ceco_core import rundir
 from ceco_core.contracts import DIAGNOSTICS_CONTRACT_COLUMNS as DIAGNOSTICS_COLUMNS
 from ceco_core.units import s_from_sec_nanosec
+from ceco_ros.topics import TOPIC_COMFORT, TOPIC_COMMAND, TOPIC_DIAGNOSTICS, TOPIC_POWER, TOPIC_STATE
 
 TIMESERIES_COLUMNS = rundir.TIMESERIES_COLUMNS
 """Columns of timeseries.csv (docs/architecture.md); extra columns follow."""
@@ -44,16 +46,12 @@ TIMESERIES_COLUMNS = rundir.TIMESERIES_COLUMNS
 TIMESERIES_EXTRA = rundir.TIMESERIES_EXTRA + ('step_index', 'fallback')
 """The extras of a stack run: the simulator's, then the plant step index and the fallback flag."""
 
-TOPIC_STATE, TOPIC_COMFORT, TOPIC_POWER = 'cabin/state', 'cabin/comfort', 'hvac/power'
-TOPIC_COMMAND, TOPIC_DIAGNOSTICS = 'hvac/command', 'controller/diagnostics'
-# The stack names the loaders read (ceco_ros.interfaces names them for the nodes;
-# that module imports rclpy, which a bag reader must not need).
-
 
 def _msg_dir() -> Path:
     """Directory of the ceco_msgs .msg files: installed share, else source tree."""
     try:
         from ament_index_python.packages import get_package_share_directory
+
         share = Path(get_package_share_directory('ceco_msgs')) / 'msg'
         if any(share.glob('*.msg')):
             return share
@@ -69,6 +67,7 @@ def _msg_dir() -> Path:
 def typestore():
     """A rosbags typestore with the ROS 2 Jazzy types plus every ceco_msgs type."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
     store = get_typestore(Stores.ROS2_JAZZY)
     types = {}
     for path in sorted(_msg_dir().glob('*.msg')):
@@ -96,7 +95,7 @@ def topic_namespace(bag_topic: str, name: str) -> str | None:
     if bag_topic == name:
         return ''
     if bag_topic.startswith('/') and bag_topic.endswith('/' + name):
-        return bag_topic[:-len(name) - 1]
+        return bag_topic[: -len(name) - 1]
     return None
 
 
@@ -122,8 +121,10 @@ def bag_topic_map(bag_topics: Iterable[str], names: Iterable[str], namespace: st
     if namespace is not None:
         chosen = by_ns.get(normalize_namespace(namespace), {})
     elif len(by_ns) > 1:
-        raise ValueError(f'the bag holds {sorted(set(by_ns[next(iter(by_ns))].values()))} under several '
-                         f'namespaces ({", ".join(repr(ns or "/") for ns in sorted(by_ns))}): say which one')
+        raise ValueError(
+            f'the bag holds {sorted(set(by_ns[next(iter(by_ns))].values()))} under several '
+            f'namespaces ({", ".join(repr(ns or "/") for ns in sorted(by_ns))}): say which one'
+        )
     else:
         chosen = next(iter(by_ns.values()), {})
     return {**absolute, **chosen}
@@ -132,6 +133,7 @@ def bag_topic_map(bag_topics: Iterable[str], names: Iterable[str], namespace: st
 # --- Reading ---------------------------------------------------------------------
 def _open(bag_dir):
     from rosbags.rosbag2 import Reader
+
     return Reader(Path(bag_dir))
 
 
@@ -152,8 +154,9 @@ def topic_types(bag_dir, topics: Iterable[str] | None = None, namespace: str | N
         return {names[c.topic]: c.msgtype for c in reader.connections if c.topic in names}
 
 
-def read_raw(bag_dir, topics: Iterable[str] | None = None,
-             namespace: str | None = None) -> Iterator[tuple[str, int, bytes]]:
+def read_raw(
+    bag_dir, topics: Iterable[str] | None = None, namespace: str | None = None
+) -> Iterator[tuple[str, int, bytes]]:
     """Yield (name, bag timestamp [ns], serialized CDR bytes) in bag (timestamp) order.
 
     ``name`` is the requested stack name (the bag name when ``topics`` is None).
@@ -167,8 +170,9 @@ def read_raw(bag_dir, topics: Iterable[str] | None = None,
             yield names[conn.topic], t_ns, bytes(raw)
 
 
-def read_messages(bag_dir, topics: Iterable[str] | None = None,
-                  namespace: str | None = None) -> Iterator[tuple[str, int, object]]:
+def read_messages(
+    bag_dir, topics: Iterable[str] | None = None, namespace: str | None = None
+) -> Iterator[tuple[str, int, object]]:
     """Yield (name, bag timestamp [ns], deserialized message) in bag (timestamp) order.
 
     ``name`` as in :func:`read_raw`.
@@ -210,11 +214,31 @@ def load_run_timeseries(bag_dir, namespace: str | None = None) -> dict[str, np.n
     for n in steps:
         s, c, p = state[n], comfort[n], power[n]
         rows['t_s'].append(s.scenario_time_s)
-        for col in ('t_cab_c', 't_int_c', 't_shell_c', 't_evap_c', 't_vent_c', 't_amb_c',
-                    'solar_wm2', 'speed_mps', 'rh', 't_glass_c', 'rh_cab'):
+        for col in (
+            't_cab_c',
+            't_int_c',
+            't_shell_c',
+            't_evap_c',
+            't_vent_c',
+            't_amb_c',
+            'solar_wm2',
+            'speed_mps',
+            'rh',
+            't_glass_c',
+            'rh_cab',
+        ):
             rows[col].append(getattr(s, col))
-        for col in ('mdot_bl_kgps', 't_evap_sp_c', 'p_comp_w', 'p_blower_w', 'q_evap_w', 'cop',
-                    'p_cond_fan_w', 'q_latent_w', 'comp_speed_rpm'):
+        for col in (
+            'mdot_bl_kgps',
+            't_evap_sp_c',
+            'p_comp_w',
+            'p_blower_w',
+            'q_evap_w',
+            'cop',
+            'p_cond_fan_w',
+            'q_latent_w',
+            'comp_speed_rpm',
+        ):
             rows[col].append(getattr(p, col))
         rows['capacity_limited'].append(float(p.capacity_limited))
         for col in ('pmv', 'ppd', 'pmv_lb', 'pmv_ub'):

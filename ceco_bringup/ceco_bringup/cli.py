@@ -1,14 +1,15 @@
 """The `ceco` command: one verb per module, each module owning its argparse.
 
-    ceco run      run the node stack over DDS and record a rosbag2 bag
-    ceco play     republish a recorded bag on DDS
-    ceco report   metrics and figures from run directories
-    ceco sweep    scenario grids with the in-process simulator
-    ceco benchmark  named test cases, baseline family, savings at matched comfort
-    ceco sim      one closed-loop run in-process (no ROS)
-    ceco identify identify the control-oriented model from plant data
-    ceco bench    solver benchmarks
+ceco run      run the node stack over DDS and record a rosbag2 bag
+ceco play     republish a recorded bag on DDS
+ceco report   metrics and figures from run directories
+ceco sweep    scenario grids with the in-process simulator
+ceco benchmark  named test cases, baseline family, savings at matched comfort
+ceco sim      one closed-loop run in-process (no ROS)
+ceco identify identify the control-oriented model from plant data
+ceco bench    solver benchmarks
 """
+
 import importlib
 import sys
 
@@ -31,6 +32,15 @@ def _usage() -> str:
 
 
 def main(argv=None) -> int:
+    """Run the ``ceco`` command: hand the arguments after the verb to that verb's module ``main``.
+
+    Args:
+        argv: the command-line arguments after ``ceco``, verb first (default ``sys.argv[1:]``).
+
+    Returns:
+        The exit status: the verb's own, 0 for ``--help``, 2 without a verb or for an unknown verb
+        (the usage is printed in those cases).
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ('-h', '--help'):
         print(_usage())

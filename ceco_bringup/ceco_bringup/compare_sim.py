@@ -9,6 +9,7 @@ alone, and prints the relative difference of every numeric metric and
 the bag's message counts per step. Exit status 1 if any metric differs by
 more than --rtol or a step has not exactly one state / one command.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,11 +18,24 @@ import math
 import sys
 from pathlib import Path
 
-KEYS = ('E_tot_J', 'E_comp_J', 'E_blower_J', 'I_pmv', 'otc_violation_pct', 'time_to_comfort_s',
-        'pmv_mean', 'pmv_max', 'pmv_min')
+KEYS = (
+    'E_tot_J',
+    'E_comp_J',
+    'E_blower_J',
+    'I_pmv',
+    'otc_violation_pct',
+    'time_to_comfort_s',
+    'pmv_mean',
+    'pmv_max',
+    'pmv_min',
+)
 
 
 def rel_diff(a: float, b: float) -> float:
+    """Relative difference ``|a - b| / max(|a|, |b|)`` of two metric values [-].
+
+    0.0 when ``a == b`` (including both 0) or both are NaN.
+    """
     if (isinstance(a, float) and math.isnan(a)) and (isinstance(b, float) and math.isnan(b)):
         return 0.0
     if a == b:
@@ -30,41 +44,74 @@ def rel_diff(a: float, b: float) -> float:
 
 
 def check(run_dir: Path, rtol: float) -> tuple[bool, str]:
+    """Compare one ``ceco run`` directory with a re-run of the in-process simulator.
+
+    Args:
+        run_dir: a run directory holding ``metrics.json`` and the rosbag2 bag ``bag/``.
+        rtol: the largest relative difference [-] allowed between a simulator metric and the
+            same metric recomputed from the bag (``metrics.json`` must equal the bag exactly).
+
+    Returns:
+        ``(ok, report)``: ``ok`` is True if every metric agrees and every plant step has exactly
+        one state and every control step exactly one command in the bag; ``report`` is the
+        per-metric comparison and the message counts, as printed text.
+    """
     import numpy as np
 
     from ceco_bringup import bagio
     from ceco_controller.closed_loop import SimSettings, simulate
     from ceco_core.metrics import compute_metrics
     from ceco_v2x_preview.preview import parse_quality
+
     m = json.loads((run_dir / 'metrics.json').read_text())
     bag = run_dir / 'bag'
     ts = bagio.load_run_timeseries(bag)
     from_bag = compute_metrics(ts['t_s'], ts['p_comp_w'], ts['p_blower_w'], ts['pmv'], ts['pmv_lb'], ts['pmv_ub'])
     duration = float(ts['t_s'].size)  # plant_dt_s = 1 s
-    sim = simulate(m['scenario'], m['strategy'], SimSettings(
-        control_period_s=m['control_period_s'], horizon_steps=m['horizon_steps'],
-        preview_quality=parse_quality(m['preview_quality']), duration_s=duration, progress=False)).metrics
+    sim = simulate(
+        m['scenario'],
+        m['strategy'],
+        SimSettings(
+            control_period_s=m['control_period_s'],
+            horizon_steps=m['horizon_steps'],
+            preview_quality=parse_quality(m['preview_quality']),
+            duration_s=duration,
+            progress=False,
+        ),
+    ).metrics
     lines = [f'{run_dir} ({m["strategy"]}, {m["scenario"]}, {int(duration)} s):']
     ok = True
     for key in KEYS:
         d_sim = rel_diff(sim[key], from_bag[key])
         d_json = rel_diff(m[key] if m[key] is not None else math.nan, from_bag[key])
         ok &= d_sim <= rtol and d_json == 0.0
-        lines.append(f'  {key:<18} sim {sim[key]:>16.10g}  dds {from_bag[key]:>16.10g}  rel diff {d_sim:.1e}'
-                     f'  (metrics.json vs bag {d_json:.1e})')
-    states = bagio.read_messages(bag, ('cabin/state',))
+        lines.append(
+            f'  {key:<18} sim {sim[key]:>16.10g}  dds {from_bag[key]:>16.10g}  rel diff {d_sim:.1e}'
+            f'  (metrics.json vs bag {d_json:.1e})'
+        )
+    states = bagio.read_messages(bag, (bagio.TOPIC_STATE,))
     n_state = np.bincount([msg.step_index for _, _, msg in states], minlength=ts['t_s'].size)
     cmds = bagio.load_commands(bag)
     n_cmd = np.bincount(cmds['k'], minlength=int(round(duration / m['control_period_s'])))
     one_state = bool(np.all(n_state == 1))
     one_cmd = bool(np.all(n_cmd == 1))
     ok &= one_state and one_cmd
-    lines.append(f'  bag: {n_state.size} plant steps, states per step min {n_state.min()} max {n_state.max()}; '
-                 f'{n_cmd.size} control steps, commands per step min {n_cmd.min()} max {n_cmd.max()}')
+    lines.append(
+        f'  bag: {n_state.size} plant steps, states per step min {n_state.min()} max {n_state.max()}; '
+        f'{n_cmd.size} control steps, commands per step min {n_cmd.min()} max {n_cmd.max()}'
+    )
     return ok, '\n'.join(lines)
 
 
 def main(argv=None) -> int:
+    """Command line (module docstring): compare each run directory, print the reports and a verdict.
+
+    Args:
+        argv: the command-line arguments (default ``sys.argv[1:]``).
+
+    Returns:
+        The exit status: 0 if every run equals the simulator, 1 otherwise.
+    """
     p = argparse.ArgumentParser(prog='python -m ceco_bringup.compare_sim', description=__doc__.split('\n\n')[0])
     p.add_argument('run_dirs', nargs='+', type=Path)
     p.add_argument('--rtol', type=float, default=1e-6)

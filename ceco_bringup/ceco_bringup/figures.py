@@ -14,34 +14,58 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import matplotlib
 
 matplotlib.use('Agg')
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import Patch
 
-from ceco_bringup.rundata import fallback_mask  # noqa: E402
-from ceco_core.contracts import STRATEGIES  # noqa: E402
-from ceco_core.metrics import relative_change_pct  # noqa: E402
+from ceco_bringup.rundata import fallback_mask
+from ceco_core.contracts import STRATEGIES
+from ceco_core.metrics import relative_change_pct
 
-__all__ = ['STRATEGY_ORDER', 'ordered', 'strategy_style', 'fig_pmv', 'fig_temperatures', 'fig_powers',
-           'fig_inputs', 'fig_bars', 'fig_vehicle', 'fig_solver']
+__all__ = [
+    'STRATEGY_ORDER',
+    'ordered',
+    'strategy_style',
+    'fig_pmv',
+    'fig_temperatures',
+    'fig_powers',
+    'fig_inputs',
+    'fig_bars',
+    'fig_vehicle',
+    'fig_solver',
+]
 
 STRATEGY_ORDER = STRATEGIES
 """Order in which strategies appear in legends, tables and bars."""
 
 _OKABE_ITO = ('#000000', '#E69F00', '#56B4E9', '#009E73', '#D55E00', '#0072B2', '#CC79A7', '#F0E442')
-_LABEL = {'baseline': 'Baseline (PI, 26 °C)', 'ceco': 'CECO', 'ceco-e': 'CECO-E', 'ceco-c': 'CECO-C',
-          'ceco-ioch': 'CECO-IOCH'}
+_LABEL = {
+    'baseline': 'Baseline (PI, 26 °C)',
+    'ceco': 'CECO',
+    'ceco-e': 'CECO-E',
+    'ceco-c': 'CECO-C',
+    'ceco-ioch': 'CECO-IOCH',
+}
 _DPI = 200
 _RC = {
-    'font.size': 9, 'axes.labelsize': 9, 'axes.titlesize': 10, 'legend.fontsize': 8,
-    'xtick.labelsize': 8, 'ytick.labelsize': 8, 'axes.grid': True, 'grid.alpha': 0.3,
-    'grid.linewidth': 0.5, 'lines.linewidth': 1.3, 'savefig.bbox': 'tight', 'figure.dpi': _DPI,
+    'font.size': 9,
+    'axes.labelsize': 9,
+    'axes.titlesize': 10,
+    'legend.fontsize': 8,
+    'xtick.labelsize': 8,
+    'ytick.labelsize': 8,
+    'axes.grid': True,
+    'grid.alpha': 0.3,
+    'grid.linewidth': 0.5,
+    'lines.linewidth': 1.3,
+    'savefig.bbox': 'tight',
+    'figure.dpi': _DPI,
 }
 
 
@@ -81,8 +105,14 @@ def _lines(ax, runs, key, scale=1.0, steps=False):
         if key not in c:
             continue
         st = strategy_style(name, i)
-        ax.plot(c['t_s'], np.asarray(c[key], dtype=float) * scale, color=st['color'], ls=st['linestyle'],
-                label=st['label'], drawstyle='steps-post' if steps else 'default')
+        ax.plot(
+            c['t_s'],
+            np.asarray(c[key], dtype=float) * scale,
+            color=st['color'],
+            ls=st['linestyle'],
+            label=st['label'],
+            drawstyle='steps-post' if steps else 'default',
+        )
 
 
 def _title_legend(fig, ax, title: str) -> None:
@@ -109,8 +139,16 @@ def fig_pmv(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
         top = max(1.0, min(ymax, 3.5) + 0.2)
         ax.set_ylim(min(-1.0, ymin - 0.2), top)
         if ymax > top:  # the hot-soaked start is off the PMV scale; say so instead of squashing the plot
-            ax.text(0.99, 0.97, f'axis cut at {top:.1f}; max PMV {ymax:.1f} (hot-soaked start)',
-                    transform=ax.transAxes, ha='right', va='top', fontsize=7, color='0.3')
+            ax.text(
+                0.99,
+                0.97,
+                f'axis cut at {top:.1f}; max PMV {ymax:.1f} (hot-soaked start)',
+                transform=ax.transAxes,
+                ha='right',
+                va='top',
+                fontsize=7,
+                color='0.3',
+            )
         ax.set_ylabel('PMV [-]')
         _time_axis(ax, runs)
         _title_legend(fig, ax, title or 'Thermal comfort (PMV) and its bounds')
@@ -169,13 +207,22 @@ def _bar_labels(ax, bars, values, base, fmt='{:+.1f} %'):
         change = math.nan if base is None else relative_change_pct(v, base)
         if not math.isfinite(change):
             continue
-        ax.annotate(fmt.format(change), (b.get_x() + b.get_width() / 2, b.get_height()),
-                    ha='center', va='bottom', fontsize=7, xytext=(0, 2), textcoords='offset points')
+        ax.annotate(
+            fmt.format(change),
+            (b.get_x() + b.get_width() / 2, b.get_height()),
+            ha='center',
+            va='bottom',
+            fontsize=7,
+            xytext=(0, 2),
+            textcoords='offset points',
+        )
 
 
 def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: str = 'baseline') -> Path:
-    """A/C energy (compressor + blower, kWh), I_PMV and OTC violation per
-    strategy, each bar annotated with its change against the baseline."""
+    """A/C energy (compressor + blower, kWh), I_PMV and OTC violation per strategy.
+
+    Each bar is annotated with its change against the baseline.
+    """
     names = ordered(list(metrics))
     x = np.arange(len(names))
     labels = [strategy_style(n)['label'].split(' (')[0] for n in names]
@@ -186,30 +233,61 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
         e_bl = np.array([metrics[n]['E_blower_J'] for n in names]) / 3.6e6
         ax = axes[0]
         ax.bar(x, e_comp, color=colors, edgecolor='k', lw=0.5, label='Compressor')
-        ax.bar(x, e_bl, bottom=e_comp, color=colors, edgecolor='k', lw=0.5, hatch='///', alpha=0.6,
-               label='Blower (hatched)')
+        ax.bar(
+            x,
+            e_bl,
+            bottom=e_comp,
+            color=colors,
+            edgecolor='k',
+            lw=0.5,
+            hatch='///',
+            alpha=0.6,
+            label='Blower (hatched)',
+        )
         tot = e_comp + e_bl
         base_tot = tot[names.index(baseline)] if baseline in names else None
         for xi, v in zip(x, tot):
             change = math.nan if base_tot is None else relative_change_pct(v, base_tot)
             if math.isfinite(change):
-                ax.annotate(f'{change:+.1f} %', (xi, v), ha='center', va='bottom',
-                            fontsize=7, xytext=(0, 2), textcoords='offset points')
+                ax.annotate(
+                    f'{change:+.1f} %',
+                    (xi, v),
+                    ha='center',
+                    va='bottom',
+                    fontsize=7,
+                    xytext=(0, 2),
+                    textcoords='offset points',
+                )
         ax.set_ylabel('A/C energy E$_{tot}$ [kWh]')
         ax.set_ylim(0, tot.max() * 1.32)
-        ax.legend(handles=[Patch(facecolor='white', edgecolor='k', lw=0.5, label='Compressor'),
-                           Patch(facecolor='white', edgecolor='k', lw=0.5, hatch='///', label='Blower')],
-                  loc='upper center', ncol=2, fontsize=7)
-        for ax, key, ylab in ((axes[1], 'I_pmv', 'Comfort index I$_{PMV}$ = ∫PMV² dt [s]'),
-                              (axes[2], 'otc_violation_pct', 'Comfort-bound violation [% of time]')):
+        ax.legend(
+            handles=[
+                Patch(facecolor='white', edgecolor='k', lw=0.5, label='Compressor'),
+                Patch(facecolor='white', edgecolor='k', lw=0.5, hatch='///', label='Blower'),
+            ],
+            loc='upper center',
+            ncol=2,
+            fontsize=7,
+        )
+        for ax, key, ylab in (
+            (axes[1], 'I_pmv', 'Comfort index I$_{PMV}$ = ∫PMV² dt [s]'),
+            (axes[2], 'otc_violation_pct', 'Comfort-bound violation [% of time]'),
+        ):
             vals = np.array([float(metrics[n][key]) for n in names])
             bars = ax.bar(x, vals, color=colors, edgecolor='k', lw=0.5)
             if key == 'I_pmv':
                 _bar_labels(ax, bars, vals, vals[names.index(baseline)] if baseline in names else None)
             else:
                 for b, v in zip(bars, vals):
-                    ax.annotate(f'{v:.1f}', (b.get_x() + b.get_width() / 2, v), ha='center', va='bottom',
-                                fontsize=7, xytext=(0, 2), textcoords='offset points')
+                    ax.annotate(
+                        f'{v:.1f}',
+                        (b.get_x() + b.get_width() / 2, v),
+                        ha='center',
+                        va='bottom',
+                        fontsize=7,
+                        xytext=(0, 2),
+                        textcoords='offset points',
+                    )
             ax.set_ylabel(ylab)
             top = np.nanmax(vals) if np.any(np.isfinite(vals)) else 1.0
             ax.set_ylim(0, max(top, 1e-9) * 1.15 if top > 0 else 1.0)
@@ -222,9 +300,11 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
 
 
 def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
-    """Vehicle-level energy change against the baseline per strategy and
-    vehicle (load-averaged fit; error bar = 2x the fit's noise), with the
-    paper's Prius numbers; electric car: range lost to the A/C."""
+    """Vehicle-level energy change against the baseline per strategy and vehicle.
+
+    Load-averaged fit; error bar = 2x the fit's noise; with the paper's Prius
+    numbers; electric car: range lost to the A/C.
+    """
     vehicles = list(dict.fromkeys(r['vehicle'] for r in rows))
     strategies = ordered(list(dict.fromkeys(r['strategy'] for r in rows)))
     strategies = [s for s in strategies if s != 'baseline']
@@ -239,13 +319,34 @@ def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
             by = {r['strategy']: r for r in rows if r['vehicle'] == veh}
             vals = np.array([by[s]['saving_fit_pct'] if s in by else np.nan for s in strategies])
             err = np.array([2 * by[s]['noise_pct'] if s in by else 0 for s in strategies])
-            ax.bar(x + (j - len(vehicles) / 2) * width, vals, width, yerr=err, capsize=2,
-                   color=_OKABE_ITO[(j + 5) % len(_OKABE_ITO)], edgecolor='k', lw=0.5,
-                   label=veh.replace('_', ' '))
-        paper = [next((r['paper_saving_pct'] for r in rows if r['strategy'] == s
-                       and math.isfinite(r['paper_saving_pct'])), np.nan) for s in strategies]
-        ax.bar(x + (len(vehicles) / 2) * width, paper, width, color='white', edgecolor='k', hatch='xx', lw=0.5,
-               label='Paper (2017 Prius HEV, SC03)')
+            ax.bar(
+                x + (j - len(vehicles) / 2) * width,
+                vals,
+                width,
+                yerr=err,
+                capsize=2,
+                color=_OKABE_ITO[(j + 5) % len(_OKABE_ITO)],
+                edgecolor='k',
+                lw=0.5,
+                label=veh.replace('_', ' '),
+            )
+        paper = [
+            next(
+                (r['paper_saving_pct'] for r in rows if r['strategy'] == s and math.isfinite(r['paper_saving_pct'])),
+                np.nan,
+            )
+            for s in strategies
+        ]
+        ax.bar(
+            x + (len(vehicles) / 2) * width,
+            paper,
+            width,
+            color='white',
+            edgecolor='k',
+            hatch='xx',
+            lw=0.5,
+            label='Paper (2017 Prius HEV, SC03)',
+        )
         ax.axhline(0, color='k', lw=0.6)
         fin = [r for r in rows if math.isfinite(r['saving_fit_pct'])]
         lows = [r['saving_fit_pct'] - 2 * r['noise_pct'] for r in fin]
@@ -264,13 +365,29 @@ def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
             names = ordered(list(dict.fromkeys(r['strategy'] for r in bev)))
             by = {r['strategy']: r for r in bev}
             vals = np.array([by[n]['range_lost_km'] for n in names])
-            bars = ax.bar(np.arange(len(names)), vals, color=[strategy_style(n, i)['color'] for i, n in enumerate(names)],
-                          edgecolor='k', lw=0.5)
+            bars = ax.bar(
+                np.arange(len(names)),
+                vals,
+                color=[strategy_style(n, i)['color'] for i, n in enumerate(names)],
+                edgecolor='k',
+                lw=0.5,
+            )
             for b, n in zip(bars, names):
-                ax.annotate(f"{by[n]['range_lost_pct']:.1f} %", (b.get_x() + b.get_width() / 2, b.get_height()),
-                            ha='center', va='bottom', fontsize=7, xytext=(0, 2), textcoords='offset points')
-            ax.set_xticks(np.arange(len(names)), [strategy_style(n)['label'].split(' (')[0] for n in names],
-                          rotation=20, ha='right')
+                ax.annotate(
+                    f"{by[n]['range_lost_pct']:.1f} %",
+                    (b.get_x() + b.get_width() / 2, b.get_height()),
+                    ha='center',
+                    va='bottom',
+                    fontsize=7,
+                    xytext=(0, 2),
+                    textcoords='offset points',
+                )
+            ax.set_xticks(
+                np.arange(len(names)),
+                [strategy_style(n)['label'].split(' (')[0] for n in names],
+                rotation=20,
+                ha='right',
+            )
             ax.set_ylabel('Range lost to A/C [km]')
             ax.set_ylim(0, np.nanmax(vals) * 1.15 if np.any(vals > 0) else 1)
             ax.grid(axis='x', visible=False)
@@ -281,10 +398,12 @@ def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
 
 
 def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
-    """Solve-time distribution per NMPC strategy (box plot, log scale) with
-    the number of fallbacks."""
-    names = [n for n in ordered(list(diags)) if np.any(np.isfinite(np.asarray(diags[n].get('solve_time_ms', []),
-                                                                             dtype=float)))]
+    """Solve-time distribution per NMPC strategy (box plot, log scale) with the number of fallbacks."""
+    names = [
+        n
+        for n in ordered(list(diags))
+        if np.any(np.isfinite(np.asarray(diags[n].get('solve_time_ms', []), dtype=float)))
+    ]
     with plt.rc_context(_RC):
         fig, ax = plt.subplots(figsize=(6.5, 3.2))
         data = []
@@ -292,8 +411,14 @@ def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
             st = np.asarray(diags[n]['solve_time_ms'], dtype=float)
             data.append(st[np.isfinite(st)])
         if data:
-            bp = ax.boxplot(data, whis=(5, 95), showfliers=True, patch_artist=True,
-                            flierprops={'markersize': 2}, medianprops={'color': 'k', 'linewidth': 1.2})
+            bp = ax.boxplot(
+                data,
+                whis=(5, 95),
+                showfliers=True,
+                patch_artist=True,
+                flierprops={'markersize': 2},
+                medianprops={'color': 'k', 'linewidth': 1.2},
+            )
             for patch, n in zip(bp['boxes'], names):
                 patch.set_facecolor(strategy_style(n)['color'])
                 patch.set_alpha(0.6)
@@ -311,19 +436,22 @@ def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
         return _save(fig, path)
 
 
-def front_figure(summary: Sequence[Mapping], path: str | os.PathLike, baseline: str = 'baseline',
-                 zoom_pct: tuple | None = (4.0, 8.0)) -> Path:
-    """The energy-comfort plane of every group of a summary, against its
-    baseline: top row the whole run (ΔE_tot vs ΔI_PMV [%]), middle row the
+def front_figure(
+    summary: Sequence[Mapping], path: str | os.PathLike, baseline: str = 'baseline', zoom_pct: tuple | None = (4.0, 8.0)
+) -> Path:
+    """The energy-comfort plane of every group of a summary, against its baseline; one column per group.
+
+    Top row the whole run (ΔE_tot vs ΔI_PMV [%]), middle row the
     same near the baseline (half-widths ``zoom_pct`` = (energy, I_PMV) [%];
     None: no such row), bottom row the comfort-zone phase (ΔE_zone vs
-    ΔI_PMV,zone [%]); one column per group.
+    ΔI_PMV,zone [%]).
     The baseline is the origin (black cross); the shaded lower-left quadrant
     is where a point dominates it (less energy, lower or equal I_PMV). The
     points of a strategy with settings labels are joined in label order (the
     grid's order) and annotated with the label; strategies with default
-    settings are single markers. Writes a PNG (200 dpi) and returns its path."""
-    from ceco_bringup.sweep.grid import DEFAULT_SETTINGS, GROUP_AXES  # noqa: PLC0415
+    settings are single markers. Writes a PNG (200 dpi) and returns its path.
+    """
+    from ceco_bringup.sweep.grid import DEFAULT_SETTINGS, GROUP_AXES
 
     groups: dict = {}
     for r in summary:
@@ -331,15 +459,28 @@ def front_figure(summary: Sequence[Mapping], path: str | os.PathLike, baseline: 
     if not groups:
         raise ValueError('front_figure: the summary has no rows')
     n = len(groups)
-    panels = [('dE_tot_kWh_pct', 'dI_pmv_pct', 'whole run', 'ΔE_tot [%]', 'ΔI_PMV [%]', None),
-              ('dE_zone_J_pct', 'dI_pmv_zone_pct', 'comfort-zone phase', 'ΔE_zone [%]', 'ΔI_PMV,zone [%]', None)]
+    panels = [
+        ('dE_tot_kWh_pct', 'dI_pmv_pct', 'whole run', 'ΔE_tot [%]', 'ΔI_PMV [%]', None),
+        ('dE_zone_J_pct', 'dI_pmv_zone_pct', 'comfort-zone phase', 'ΔE_zone [%]', 'ΔI_PMV,zone [%]', None),
+    ]
     if zoom_pct is not None:
-        panels.insert(1, ('dE_tot_kWh_pct', 'dI_pmv_pct', 'whole run, near the baseline', 'ΔE_tot [%]',
-                          'ΔI_PMV [%]', (float(zoom_pct[0]), float(zoom_pct[1]))))
+        panels.insert(
+            1,
+            (
+                'dE_tot_kWh_pct',
+                'dI_pmv_pct',
+                'whole run, near the baseline',
+                'ΔE_tot [%]',
+                'ΔI_PMV [%]',
+                (float(zoom_pct[0]), float(zoom_pct[1])),
+            ),
+        )
     with plt.rc_context({'font.size': 8, 'axes.grid': True, 'grid.alpha': 0.3, 'savefig.bbox': 'tight'}):
         fig, axes = plt.subplots(len(panels), n, figsize=(3.6 * n, 3.2 * len(panels)), squeeze=False)
         for j, (g, rs) in enumerate(groups.items()):
-            name = ' / '.join(str(x) for x, a in zip(g, GROUP_AXES) if x not in ('scenario', 'perfect') or a == 'scenario')
+            name = ' / '.join(
+                str(x) for x, a in zip(g, GROUP_AXES) if x not in ('scenario', 'perfect') or a == 'scenario'
+            )
             for i, (kx, ky, phase, xl, yl, zoom) in enumerate(panels):
                 ax = axes[i][j]
                 pts = [r for r in rs if not (r['strategy'] == baseline and r.get('settings') == DEFAULT_SETTINGS)]
@@ -352,8 +493,15 @@ def front_figure(summary: Sequence[Mapping], path: str | os.PathLike, baseline: 
                 y0 = min(y for _, y in fin)
                 pad_x = 0.08 * (max(x for x, _ in fin) - x0 or 1.0)
                 pad_y = 0.08 * (max(y for _, y in fin) - y0 or 1.0)
-                ax.fill_between([min(x0, 0.0) - 2 * pad_x, 0.0], min(y0, 0.0) - 2 * pad_y, 0.0, color='#009E73',
-                                alpha=0.12, lw=0, label='dominates the baseline')
+                ax.fill_between(
+                    [min(x0, 0.0) - 2 * pad_x, 0.0],
+                    min(y0, 0.0) - 2 * pad_y,
+                    0.0,
+                    color='#009E73',
+                    alpha=0.12,
+                    lw=0,
+                    label='dominates the baseline',
+                )
                 ax.axhline(0.0, color='k', lw=0.6)
                 ax.axvline(0.0, color='k', lw=0.6)
                 ax.plot([0.0], [0.0], 'kx', ms=8, mew=2, label=strategy_style(baseline)['label'])
@@ -365,9 +513,16 @@ def front_figure(summary: Sequence[Mapping], path: str | os.PathLike, baseline: 
                     x = [float(r.get(kx, float('nan'))) for r in srs]
                     y = [float(r.get(ky, float('nan'))) for r in srs]
                     labelled = len(srs) > 1 or srs[0].get('settings') != DEFAULT_SETTINGS
-                    ax.plot(x, y, marker='o', ms=4, color=style['color'], lw=1.0 if labelled else 0,
-                            label=style['label'] + (' (settings labels)' if labelled else ''))
-                    if labelled:   # labels of points closer than 4 % of the axes to the last labelled one are left out
+                    ax.plot(
+                        x,
+                        y,
+                        marker='o',
+                        ms=4,
+                        color=style['color'],
+                        lw=1.0 if labelled else 0,
+                        label=style['label'] + (' (settings labels)' if labelled else ''),
+                    )
+                    if labelled:  # labels of points closer than 4 % of the axes to the last labelled one are left out
                         span_x = (max(x for x, _ in fin) - min(x0, 0.0)) or 1.0
                         span_y = (max(y for _, y in fin) - min(y0, 0.0)) or 1.0
                         last = None
@@ -377,16 +532,21 @@ def front_figure(summary: Sequence[Mapping], path: str | os.PathLike, baseline: 
                             if last and math.hypot((xv - last[0]) / span_x, (yv - last[1]) / span_y) < 0.04:
                                 continue
                             last = (xv, yv)
-                            ax.annotate(str(r.get('settings')), (xv, yv), textcoords='offset points',
-                                        xytext=(3, 3), fontsize=6.5, color=style['color'])
+                            ax.annotate(
+                                str(r.get('settings')),
+                                (xv, yv),
+                                textcoords='offset points',
+                                xytext=(3, 3),
+                                fontsize=6.5,
+                                color=style['color'],
+                            )
                 ax.set_xlim(min(x0, 0.0) - pad_x, max(x for x, _ in fin) + pad_x)
                 ax.set_ylim(min(y0, 0.0) - pad_y, max(y for _, y in fin) + pad_y)
                 ax.set_xlabel(xl + ' vs baseline')
                 ax.set_ylabel(yl + ' vs baseline')
                 ax.set_title(f'{name}: {phase}')
         handles, labels = axes[0][0].get_legend_handles_labels()
-        fig.legend(handles, labels, loc='lower center', ncol=len(labels), frameon=False,
-                   bbox_to_anchor=(0.5, -0.04))
+        fig.legend(handles, labels, loc='lower center', ncol=len(labels), frameon=False, bbox_to_anchor=(0.5, -0.04))
         fig.tight_layout()
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)

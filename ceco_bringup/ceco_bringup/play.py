@@ -25,6 +25,7 @@ qualified (`/cabin/state`, ceco's recorder and `ros2 bag record`) and
 namespaced (`/veh1/cabin/state`; --namespace picks one vehicle of a bag that
 holds several).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -40,24 +41,40 @@ def build_parser():
     """The argument parser of `ceco play`."""
     p = argparse.ArgumentParser(prog='ceco play', description=__doc__.split('\n\n')[0])
     p.add_argument('bag', type=Path, help='bag directory (DIR/bag of a ceco run)')
-    p.add_argument('--rate', type=float, default=1.0,
-                   help='playback rate: 1 = recorded timing, R = R times faster, 0 = as fast as possible')
+    p.add_argument(
+        '--rate',
+        type=float,
+        default=1.0,
+        help='playback rate: 1 = recorded timing, R = R times faster, 0 = as fast as possible',
+    )
     p.add_argument('--topics', nargs='*', default=None, help='topics to publish (default: all but /rosout)')
-    p.add_argument('--compare', action='store_true',
-                   help='start the recorded strategy\'s controller, feed it the recorded drive, compare commands')
+    p.add_argument(
+        '--compare',
+        action='store_true',
+        help='start the recorded strategy\'s controller, feed it the recorded drive, compare commands',
+    )
     p.add_argument('--strategy', default=None, help='--compare: controller strategy (default: the recorded one)')
     p.add_argument('--tol', type=float, default=1e-9, help='--compare: tolerance on |command difference|')
-    p.add_argument('--namespace', default=None,
-                   help='--compare: namespace of the recorded stack (default: the only one in the bag)')
-    p.add_argument('--domain-id', type=int, default=None,
-                   help='ROS_DOMAIN_ID (default: the environment\'s; --compare: a private one)')
-    p.add_argument('--step-timeout-s', type=float, default=30.0,
-                   help='--compare: wall-clock wait for each new command [s]')
+    p.add_argument(
+        '--namespace',
+        default=None,
+        help='--compare: namespace of the recorded stack (default: the only one in the bag)',
+    )
+    p.add_argument(
+        '--domain-id',
+        type=int,
+        default=None,
+        help='ROS_DOMAIN_ID (default: the environment\'s; --compare: a private one)',
+    )
+    p.add_argument(
+        '--step-timeout-s', type=float, default=30.0, help='--compare: wall-clock wait for each new command [s]'
+    )
     return p
 
 
 def _custom_data(bag: Path) -> dict:
     import yaml
+
     meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
     return dict(meta.get('custom_data') or {})
 
@@ -77,6 +94,7 @@ def main(argv=None) -> int:
 def _make_node(name, domain_id):
     import rclpy
     from rclpy.signals import SignalHandlerOptions
+
     context = rclpy.Context()
     kw = {} if domain_id is None else {'domain_id': domain_id}
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO, **kw)
@@ -95,11 +113,15 @@ def _publishers(node, types):
     from ceco_bringup import bagio
     from ceco_bringup.recorder import message_class
     from ceco_ros import interfaces
+
     pubs = {}
     for topic, type_name in types.items():
         stack = [n for n in interfaces.STACK_TOPICS if bagio.topic_namespace(topic, n) is not None]
-        qos = interfaces.STACK_TOPICS[stack[0]][1] if stack else \
-            QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        qos = (
+            interfaces.STACK_TOPICS[stack[0]][1]
+            if stack
+            else QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        )
         pubs[topic] = node.create_publisher(message_class(type_name), topic, qos)
     return pubs
 
@@ -113,6 +135,7 @@ def play(args) -> int:
     import rclpy
 
     from ceco_bringup import bagio
+
     types = bagio.topic_types(args.bag)
     if args.topics:
         types = {t: types[t] for t in args.topics if t in types}
@@ -153,6 +176,7 @@ def compare(args) -> int:
     from ceco_bringup import bagio, supervisor
     from ceco_msgs.msg import AcCommand
     from ceco_ros import interfaces
+
     info = _custom_data(args.bag)
     strategy = args.strategy or info.get('strategy')
     if not strategy:
@@ -160,8 +184,9 @@ def compare(args) -> int:
         return 2
     try:
         recorded = bagio.load_commands(args.bag, namespace=args.namespace)
-        types = bagio.topic_types(args.bag, (interfaces.TOPIC_STATE, interfaces.TOPIC_WEATHER,
-                                             interfaces.TOPIC_TRAFFIC), args.namespace)
+        types = bagio.topic_types(
+            args.bag, (interfaces.TOPIC_STATE, interfaces.TOPIC_WEATHER, interfaces.TOPIC_TRAFFIC), args.namespace
+        )
     except ValueError as err:
         print(f'ceco play: {err} (--namespace)', file=sys.stderr)
         return 2
@@ -169,18 +194,29 @@ def compare(args) -> int:
     domain = args.domain_id if args.domain_id is not None else supervisor.pick_domain_id()
     env = supervisor.dds_env(domain)
     import os
+
     for key in ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'FASTDDS_BUILTIN_TRANSPORTS', 'FASTRTPS_DEFAULT_PROFILES_FILE'):
         os.environ[key] = env[key]
     exe = 'baseline_node' if strategy == 'baseline' else 'mpc_node'
-    params = {'scenario': info.get('scenario', 'sc03'), 'timing': 'lockstep',
-              'control_period_s': float(info.get('control_period_s', 5.0)),
-              'horizon_steps': int(info.get('horizon_steps', 6)), 'autostart': True}  # managed node: self-activate
+    params = {
+        'scenario': info.get('scenario', 'sc03'),
+        'timing': 'lockstep',
+        'control_period_s': float(info.get('control_period_s', 5.0)),
+        'horizon_steps': int(info.get('horizon_steps', 6)),
+        'autostart': True,
+    }  # managed node: self-activate
     if exe == 'mpc_node':
         params['strategy'] = strategy
     log_dir = args.bag.parent / 'play_logs'
-    proc = supervisor.NodeProcess(exe, 'ceco_controller', exe, env=env, log_dir=log_dir,
-                                  params_files=[supervisor.share_file('ceco_controller', f'config/{exe}.yaml')],
-                                  params=params)
+    proc = supervisor.NodeProcess(
+        exe,
+        'ceco_controller',
+        exe,
+        env=env,
+        log_dir=log_dir,
+        params_files=[supervisor.share_file('ceco_controller', f'config/{exe}.yaml')],
+        params=params,
+    )
     context, node = _make_node('ceco_play', domain)
     new = {}
     got = threading.Condition()
@@ -189,8 +225,10 @@ def compare(args) -> int:
         with got:
             new[int(msg.step_index)] = (msg.blower_flow_kgps, msg.evap_setpoint_c)
             got.notify_all()
+
     node.create_subscription(AcCommand, interfaces.TOPIC_COMMAND, on_cmd, interfaces.QOS_COMMAND)
     from rclpy.executors import SingleThreadedExecutor
+
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     stop = threading.Event()
@@ -198,15 +236,18 @@ def compare(args) -> int:
     def spin_loop():
         while not stop.is_set():
             executor.spin_once(timeout_sec=0.05)
+
     spin = threading.Thread(target=spin_loop, daemon=True)
     spin.start()
     proc.start()
     ts = float(params['control_period_s'])
     try:
-        pubs = _publishers(node, types)   # the stack names, in this node's (root) namespace
+        pubs = _publishers(node, types)  # the stack names, in this node's (root) namespace
         t0 = time.monotonic()
-        while (pubs[interfaces.TOPIC_STATE].get_subscription_count() < 1
-               or node.count_publishers(interfaces.TOPIC_COMMAND) < 1):
+        while (
+            pubs[interfaces.TOPIC_STATE].get_subscription_count() < 1
+            or node.count_publishers(interfaces.TOPIC_COMMAND) < 1
+        ):
             if not proc.running():
                 print(f'ceco play: {exe} exited:\n{proc.log_text()[-2000:]}', file=sys.stderr)
                 return 1
@@ -220,6 +261,7 @@ def compare(args) -> int:
         from rclpy.serialization import deserialize_message
 
         from ceco_msgs.msg import CabinState
+
         steps: dict[int, dict] = {}
         for topic, _, raw in bagio.read_raw(args.bag, list(types), args.namespace):
             if topic == interfaces.TOPIC_STATE:
@@ -240,8 +282,7 @@ def compare(args) -> int:
             if k in rec_by_k:
                 with got:
                     if not got.wait_for(lambda k=k: k in new, timeout=args.step_timeout_s):
-                        print(f'ceco play: no new command for step {k} within {args.step_timeout_s} s',
-                              file=sys.stderr)
+                        print(f'ceco play: no new command for step {k} within {args.step_timeout_s} s', file=sys.stderr)
                         break
     except KeyboardInterrupt:
         print('ceco play: interrupted', file=sys.stderr)
@@ -260,9 +301,11 @@ def compare(args) -> int:
     d_m = np.array([abs(new[k][0] - rec_by_k[k][0]) for k in ks])
     d_s = np.array([abs(new[k][1] - rec_by_k[k][1]) for k in ks])
     worst = int(ks[int(np.argmax(np.maximum(d_m / 0.12, d_s / 7.0)))])
-    print(f'ceco play --compare: {strategy} re-run on the recorded drive of {args.bag}: '
-          f'{len(ks)}/{len(rec_by_k)} steps compared; max |d blower| {d_m.max():.3e} kg/s, '
-          f'max |d set-point| {d_s.max():.3e} K (worst step {worst})')
+    print(
+        f'ceco play --compare: {strategy} re-run on the recorded drive of {args.bag}: '
+        f'{len(ks)}/{len(rec_by_k)} steps compared; max |d blower| {d_m.max():.3e} kg/s, '
+        f'max |d set-point| {d_s.max():.3e} K (worst step {worst})'
+    )
     ok = len(ks) == len(rec_by_k) and d_m.max() <= args.tol and d_s.max() <= args.tol
     print('commands identical to the recording' if ok else 'commands differ from the recording')
     return 0 if ok else 1
@@ -271,6 +314,7 @@ def compare(args) -> int:
 def _cls(topic):
     from ceco_msgs.msg import TrafficPreview, WeatherPreview
     from ceco_ros import interfaces
+
     return WeatherPreview if topic == interfaces.TOPIC_WEATHER else TrafficPreview
 
 

@@ -21,6 +21,7 @@ stop path) writes the rest.
 Run standalone: `python -m ceco_bringup.recorder OUT_BAG_DIR [--storage sqlite3]
 [--timestamps sim] [--namespace /veh1]` (Ctrl-C stops).
 """
+
 from __future__ import annotations
 
 import sys
@@ -38,6 +39,7 @@ from ceco_ros import interfaces
 def message_class(type_name: str):
     """The generated Python class of a 'pkg/msg/Name' type."""
     import importlib
+
     pkg, _, name = type_name.split('/')
     return getattr(importlib.import_module(f'{pkg}.msg'), name)
 
@@ -45,9 +47,19 @@ def message_class(type_name: str):
 class Recorder(Node):
     """Records STACK_TOPICS (or ``topics``) into ``bag_dir``."""
 
-    def __init__(self, bag_dir, *, topics=None, storage: str = STORAGES[0], timestamps: str = 'receive',
-                 namespace: str = '', flush_period_s: float = 0.5, custom_data: dict | None = None,
-                 node_name: str = 'ceco_recorder', **node_kwargs):
+    def __init__(
+        self,
+        bag_dir,
+        *,
+        topics=None,
+        storage: str = STORAGES[0],
+        timestamps: str = 'receive',
+        namespace: str = '',
+        flush_period_s: float = 0.5,
+        custom_data: dict | None = None,
+        node_name: str = 'ceco_recorder',
+        **node_kwargs,
+    ):
         if timestamps not in TIMESTAMP_MODES:
             raise ValueError(f'timestamps: {timestamps!r} is not one of {TIMESTAMP_MODES}')
         super().__init__(node_name, namespace=namespace, **node_kwargs)
@@ -62,13 +74,14 @@ class Recorder(Node):
         """Stack topic name -> fully qualified name in the bag."""
         for topic, (type_name, offered, qos) in self.topics.items():
             sub = self.create_subscription(
-                message_class(type_name), topic, self._make_cb(topic, type_name), qos, raw=True)
+                message_class(type_name), topic, self._make_cb(topic, type_name), qos, raw=True
+            )
             self.subs[topic] = sub
             self.bag_topics[topic] = sub.topic_name
             self.writer.add_topic(sub.topic_name, type_name, offered)
         self.last_power_step = -1
-        self.first_state_wall = None   # monotonic time of the first cabin/state [s]
-        self.last_power_wall = None    # monotonic time of the latest hvac/power [s]
+        self.first_state_wall = None  # monotonic time of the first cabin/state [s]
+        self.last_power_wall = None  # monotonic time of the latest hvac/power [s]
         self.n_messages = 0
         # (step_index, publisher-side wall-clock stamp = rmw source_timestamp [ns]) of every state and
         # command, in arrival order: the benchmark's computational time ratio (command k sent - state t_k sent)
@@ -77,7 +90,7 @@ class Recorder(Node):
         self.create_timer(flush_period_s, self.flush)
 
     def _make_cb(self, topic, type_name):
-        def cb(data: bytes, info) -> None:   # two arguments: rclpy passes the message info
+        def cb(data: bytes, info) -> None:  # two arguments: rclpy passes the message info
             t_recv_ns = time.time_ns()
             with self._lock:
                 if self.writer is None:
@@ -93,6 +106,7 @@ class Recorder(Node):
                     self.last_power_wall = time.monotonic()
                 elif topic == interfaces.TOPIC_STATE and self.first_state_wall is None:
                     self.first_state_wall = time.monotonic()
+
         return cb
 
     def publisher_counts(self) -> dict[str, int]:
@@ -125,19 +139,24 @@ def main(argv=None) -> int:
 
     import rclpy
     from rclpy.executors import ExternalShutdownException
-    parser = argparse.ArgumentParser(prog='python -m ceco_bringup.recorder',
-                                     description='record every ceco topic into a rosbag2 bag')
+
+    parser = argparse.ArgumentParser(
+        prog='python -m ceco_bringup.recorder', description='record every ceco topic into a rosbag2 bag'
+    )
     parser.add_argument('bag_dir')
     parser.add_argument('--storage', choices=STORAGES, default=STORAGES[0], help='storage plugin (default mcap)')
-    parser.add_argument('--timestamps', choices=TIMESTAMP_MODES, default='receive',
-                        help='bag timestamps: wall-clock receive time, or the simulation time (lockstep)')
+    parser.add_argument(
+        '--timestamps',
+        choices=TIMESTAMP_MODES,
+        default='receive',
+        help='bag timestamps: wall-clock receive time, or the simulation time (lockstep)',
+    )
     parser.add_argument('--namespace', default='', help='namespace of the stack to record (default: root)')
     args, ros_args = parser.parse_known_args(sys.argv[1:] if argv is None else argv)
     rclpy.init(args=['recorder'] + ros_args)
     node = None
     try:
-        node = Recorder(args.bag_dir, storage=args.storage, timestamps=args.timestamps,
-                        namespace=args.namespace)
+        node = Recorder(args.bag_dir, storage=args.storage, timestamps=args.timestamps, namespace=args.namespace)
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

@@ -90,12 +90,14 @@ def _scenario_text(name: str) -> str:
         sc = load_scenario(name)
     except (ImportError, ValueError, OSError):
         return f'Scenario `{name}` (not found among the bundled scenarios: description unavailable).'
-    return (f'Scenario `{sc.name}`: {sc.description} Drive cycle `{sc.drive_cycle.name}` '
-            f'({sc.drive_cycle.distance_m / 1e3:.2f} km over {sc.drive_cycle.duration_s:.0f} s); run length '
-            f'{sc.duration_s:.0f} s; ambient {sc.weather_t_amb_c.min():.1f}..{sc.weather_t_amb_c.max():.1f} °C, '
-            f'solar {sc.weather_solar_wm2.min():.0f}..{sc.weather_solar_wm2.max():.0f} W/m², '
-            f'RH {100 * sc.weather_rh.min():.0f}..{100 * sc.weather_rh.max():.0f} %; occupant '
-            f'{sc.occupant.met} met, {sc.occupant.clo} clo; initial cabin {sc.initial.t_cab_c:.1f} °C.')
+    return (
+        f'Scenario `{sc.name}`: {sc.description} Drive cycle `{sc.drive_cycle.name}` '
+        f'({sc.drive_cycle.distance_m / 1e3:.2f} km over {sc.drive_cycle.duration_s:.0f} s); run length '
+        f'{sc.duration_s:.0f} s; ambient {sc.weather_t_amb_c.min():.1f}..{sc.weather_t_amb_c.max():.1f} °C, '
+        f'solar {sc.weather_solar_wm2.min():.0f}..{sc.weather_solar_wm2.max():.0f} W/m², '
+        f'RH {100 * sc.weather_rh.min():.0f}..{100 * sc.weather_rh.max():.0f} %; occupant '
+        f'{sc.occupant.met} met, {sc.occupant.clo} clo; initial cabin {sc.initial.t_cab_c:.1f} °C.'
+    )
 
 
 def _slug(text: str) -> str:
@@ -105,11 +107,15 @@ def _slug(text: str) -> str:
 # ---------------------------------------------------------------- sections
 def _intro(runs: Sequence[RunData], rtol: float, log) -> tuple[list, bool]:
     """Title, provenance paragraph and one warning per run whose metrics differ; (blocks, any mismatch)."""
-    blocks: list = [Heading(1, 'ceco report: energy and comfort of predictive A/C control'), Paragraph(
-        f'{len(runs)} run(s) from: ' + ', '.join(f'`{r.path}`' for r in runs) + '. Metrics were recomputed '
-        'from each run\'s time series (the rosbag2 bag alone when the run has one, else timeseries.csv) and '
-        f'compared with its metrics.json (relative tolerance {rtol:g}; for a timeseries.csv written with d '
-        'significant digits, 10^(1-d), the precision the file holds).')]
+    blocks: list = [
+        Heading(1, 'ceco report: energy and comfort of predictive A/C control'),
+        Paragraph(
+            f'{len(runs)} run(s) from: ' + ', '.join(f'`{r.path}`' for r in runs) + '. Metrics were recomputed '
+            'from each run\'s time series (the rosbag2 bag alone when the run has one, else timeseries.csv) and '
+            f'compared with its metrics.json (relative tolerance {rtol:g}; for a timeseries.csv written with d '
+            'significant digits, 10^(1-d), the precision the file holds).'
+        ),
+    ]
     for r in runs:
         if r.mismatches:
             detail = '; '.join(f'{k}: metrics.json {a!r} vs recomputed {b!r}' for k, a, b in r.mismatches)
@@ -126,20 +132,57 @@ def _metrics_table(scenario: str, group: Mapping[str, RunData], labels: Sequence
     for lab in labels:
         r = group[lab]
         x = r.recomputed
-        rows.append((lab, _f(x['E_tot_kWh'], 4), _change_pct(x, base, 'E_tot_J'),
-                     _f(x['E_comp_J'] / 1e3, 1), _f(x['E_blower_J'] / 1e3, 1), _f(x['P_mean_w'], 0),
-                     _f(x['I_pmv'], 1), _change_pct(x, base, 'I_pmv'),
-                     _f(x['otc_violation_pct'], 2), _f(x['time_to_comfort_s'], 0), _f(x['pmv_mean'], 3),
-                     _f(x['pmv_max'], 3), r.source,
-                     (f'OK (≤ {r.check_rtol:.0e})' if not r.mismatches else f'MISMATCH ({len(r.mismatches)})')))
-        csv_rows.append({'scenario': scenario, 'strategy': r.strategy, 'run_dir': str(r.path), 'source': r.source,
-                         'metrics_match': not r.mismatches, 'max_rel_diff': r.max_rel_diff, **x})
-    table = Table(('strategy', 'E_tot [kWh]', 'ΔE_tot', 'E_comp [kJ]', 'E_bl [kJ]', 'P_mean [W]',
-                   'I_PMV [s]', 'ΔI_PMV', 'OTC viol. [%]', 't_comfort [s]', 'PMV mean', 'PMV max',
-                   'from', 'vs metrics.json'), rows,
-                  caption='Metrics per strategy (Δ: change against the baseline). I_PMV = ∫PMV² dt; '
-                          'OTC violation: share of time outside the PMV bounds; t_comfort: first time '
-                          'PMV stays in -0.5..0.5 for 60 s.')
+        rows.append(
+            (
+                lab,
+                _f(x['E_tot_kWh'], 4),
+                _change_pct(x, base, 'E_tot_J'),
+                _f(x['E_comp_J'] / 1e3, 1),
+                _f(x['E_blower_J'] / 1e3, 1),
+                _f(x['P_mean_w'], 0),
+                _f(x['I_pmv'], 1),
+                _change_pct(x, base, 'I_pmv'),
+                _f(x['otc_violation_pct'], 2),
+                _f(x['time_to_comfort_s'], 0),
+                _f(x['pmv_mean'], 3),
+                _f(x['pmv_max'], 3),
+                r.source,
+                (f'OK (≤ {r.check_rtol:.0e})' if not r.mismatches else f'MISMATCH ({len(r.mismatches)})'),
+            )
+        )
+        csv_rows.append(
+            {
+                'scenario': scenario,
+                'strategy': r.strategy,
+                'run_dir': str(r.path),
+                'source': r.source,
+                'metrics_match': not r.mismatches,
+                'max_rel_diff': r.max_rel_diff,
+                **x,
+            }
+        )
+    table = Table(
+        (
+            'strategy',
+            'E_tot [kWh]',
+            'ΔE_tot',
+            'E_comp [kJ]',
+            'E_bl [kJ]',
+            'P_mean [W]',
+            'I_PMV [s]',
+            'ΔI_PMV',
+            'OTC viol. [%]',
+            't_comfort [s]',
+            'PMV mean',
+            'PMV max',
+            'from',
+            'vs metrics.json',
+        ),
+        rows,
+        caption='Metrics per strategy (Δ: change against the baseline). I_PMV = ∫PMV² dt; '
+        'OTC violation: share of time outside the PMV bounds; t_comfort: first time '
+        'PMV stays in -0.5..0.5 for 60 s.',
+    )
     return table, csv_rows
 
 
@@ -149,24 +192,39 @@ def _time_figures(scenario: str, group: Mapping[str, RunData], labels: Sequence[
     cols = {lab: group[lab].columns for lab in labels}
     metrics = {lab: group[lab].recomputed for lab in labels}
     figs = [
-        (figures.fig_pmv(cols, fig_dir / f'{slug}_pmv.png', f'PMV and its bounds, {scenario}'),
-         'PMV of every strategy; grey band: the scenario\'s comfort bounds (relaxed upper bound during the '
-         'initial pull-down).'),
-        (figures.fig_temperatures(cols, fig_dir / f'{slug}_temperatures.png',
-                                  f'Cabin and vent air temperatures, {scenario}'),
-         'Cabin air temperature (top, with the ambient) and vent (evaporator outlet) air temperature.'),
-        (figures.fig_powers(cols, fig_dir / f'{slug}_powers.png', f'A/C electrical power, {scenario}'),
-         'Compressor (top) and blower (bottom) electrical power, means over each 1 s plant step.'),
-        (figures.fig_inputs(cols, fig_dir / f'{slug}_inputs.png', f'Control inputs, {scenario}'),
-         'The two inputs: blower air mass flow and evaporator temperature set-point.'),
-        (figures.fig_bars(metrics, fig_dir / f'{slug}_bars.png', f'Energy and comfort, {scenario}'),
-         'A/C energy (compressor solid, blower hatched), comfort index I_PMV and bound violation; labels '
-         'give the change against the baseline.'),
+        (
+            figures.fig_pmv(cols, fig_dir / f'{slug}_pmv.png', f'PMV and its bounds, {scenario}'),
+            'PMV of every strategy; grey band: the scenario\'s comfort bounds (relaxed upper bound during the '
+            'initial pull-down).',
+        ),
+        (
+            figures.fig_temperatures(
+                cols, fig_dir / f'{slug}_temperatures.png', f'Cabin and vent air temperatures, {scenario}'
+            ),
+            'Cabin air temperature (top, with the ambient) and vent (evaporator outlet) air temperature.',
+        ),
+        (
+            figures.fig_powers(cols, fig_dir / f'{slug}_powers.png', f'A/C electrical power, {scenario}'),
+            'Compressor (top) and blower (bottom) electrical power, means over each 1 s plant step.',
+        ),
+        (
+            figures.fig_inputs(cols, fig_dir / f'{slug}_inputs.png', f'Control inputs, {scenario}'),
+            'The two inputs: blower air mass flow and evaporator temperature set-point.',
+        ),
+        (
+            figures.fig_bars(metrics, fig_dir / f'{slug}_bars.png', f'Energy and comfort, {scenario}'),
+            'A/C energy (compressor solid, blower hatched), comfort index I_PMV and bound violation; labels '
+            'give the change against the baseline.',
+        ),
     ]
     diags = {lab: group[lab].diagnostics for lab in labels if group[lab].diagnostics is not None}
     if any(solver_stats(d)['solver_steps'] for d in diags.values()):
-        figs.append((figures.fig_solver(diags, fig_dir / f'{slug}_solver.png', f'NMPC solve time, {scenario}'),
-                     'Distribution of the NMPC solve time per control step (log scale) and fallbacks.'))
+        figs.append(
+            (
+                figures.fig_solver(diags, fig_dir / f'{slug}_solver.png', f'NMPC solve time, {scenario}'),
+                'Distribution of the NMPC solve time per control step (log scale) and fallbacks.',
+            )
+        )
     return figs
 
 
@@ -180,16 +238,35 @@ def _paper_comparison(scenario: str, group: Mapping[str, RunData], labels: Seque
             continue
         x = group[lab].recomputed
         pr = prius.get(lab)
-        rows.append((lab, _change_pct(x, base, 'E_tot_J'), _pct(PAPER_AC_SAVING_PCT.get(lab, float('nan'))),
-                     _pct(pr['saving_fit_pct']) if pr else 'not computed (use --vehicle)',
-                     _pct(pr['paper_saving_pct']) if pr else _pct(float('nan')),
-                     _change_pct(x, base, 'I_pmv'), _f(x['otc_violation_pct'], 2)))
-    blocks = [Heading(3, 'Comparison with the paper (SC03, Prius HEV)'), Table(
-        ('strategy', 'ΔE_A/C (ours)', 'ΔE_A/C (paper)', 'Δ vehicle energy (ours, Prius)',
-         'Δ vehicle energy (paper)', 'ΔI_PMV (ours)', 'OTC viol. [%] (ours)'), rows,
-        caption='Changes against the baseline. The paper reports A/C energy -15.9 / -4.1 / -7.6 % and vehicle '
-                'energy -6.4 / -1.8 / -3.1 % for CECO-E / CECO-C / CECO-IOCH on SC03 (CoolSim plant, 2017 '
-                'Prius HEV).')]
+        rows.append(
+            (
+                lab,
+                _change_pct(x, base, 'E_tot_J'),
+                _pct(PAPER_AC_SAVING_PCT.get(lab, float('nan'))),
+                _pct(pr['saving_fit_pct']) if pr else 'not computed (use --vehicle)',
+                _pct(pr['paper_saving_pct']) if pr else _pct(float('nan')),
+                _change_pct(x, base, 'I_pmv'),
+                _f(x['otc_violation_pct'], 2),
+            )
+        )
+    blocks = [
+        Heading(3, 'Comparison with the paper (SC03, Prius HEV)'),
+        Table(
+            (
+                'strategy',
+                'ΔE_A/C (ours)',
+                'ΔE_A/C (paper)',
+                'Δ vehicle energy (ours, Prius)',
+                'Δ vehicle energy (paper)',
+                'ΔI_PMV (ours)',
+                'OTC viol. [%] (ours)',
+            ),
+            rows,
+            caption='Changes against the baseline. The paper reports A/C energy -15.9 / -4.1 / -7.6 % and vehicle '
+            'energy -6.4 / -1.8 / -3.1 % for CECO-E / CECO-C / CECO-IOCH on SC03 (CoolSim plant, 2017 '
+            'Prius HEV).',
+        ),
+    ]
     if scenario != 'sc03':
         blocks.append(Paragraph('The paper\'s numbers are for SC03: they are shown for orientation only.'))
     return blocks
@@ -201,8 +278,10 @@ def _vehicle_rows(scenario: str, runs: Mapping[str, RunData], settings):
 
     durations = {r.recomputed['duration_s'] for r in runs.values()}
     duration_s = max(durations)
-    p_mean = {label: runs[label].recomputed['E_tot_J'] / runs[label].recomputed['duration_s']
-              for label in figures.ordered(list(runs))}
+    p_mean = {
+        label: runs[label].recomputed['E_tot_J'] / runs[label].recomputed['duration_s']
+        for label in figures.ordered(list(runs))
+    }
     try:
         t, v = ve.drive_cycle_for_run(scenario, duration_s)
         note = f'drive cycle of scenario `{scenario}` over 0..{duration_s:.0f} s'
@@ -216,31 +295,73 @@ def _vehicle_rows(scenario: str, runs: Mapping[str, RunData], settings):
 
 def _vehicle_section(scenario: str, vrows, note: str, mixed: bool, fig_dir: Path) -> tuple[list, tuple]:
     """The vehicle-level blocks and the (path, caption) of the vehicle figure."""
-    blocks: list = [Heading(3, 'Vehicle-level energy (FASTSim 3.1)'), Paragraph(
-        f'Over the {note}. Each strategy\'s mean A/C electrical power is added to the vehicle\'s base '
-        'auxiliary load as one constant; every strategy is read off one straight line fitted to FASTSim '
-        'runs at several loads around them (fuel versus aux load is not smooth: the fit\'s residual '
-        'scatter is given as noise; differences below about twice it are not significant). Hybrid fuel '
-        'is charge-corrected. Range: repeating the cycle on the usable battery energy.')]
+    blocks: list = [
+        Heading(3, 'Vehicle-level energy (FASTSim 3.1)'),
+        Paragraph(
+            f'Over the {note}. Each strategy\'s mean A/C electrical power is added to the vehicle\'s base '
+            'auxiliary load as one constant; every strategy is read off one straight line fitted to FASTSim '
+            'runs at several loads around them (fuel versus aux load is not smooth: the fit\'s residual '
+            'scatter is given as noise; differences below about twice it are not significant). Hybrid fuel '
+            'is charge-corrected. Range: repeating the cycle on the usable battery energy.'
+        ),
+    ]
     if mixed:
-        blocks.append(Warning('the runs of this scenario have different lengths; the longest was used '
-                              'for the drive cycle.'))
-    rows = [(r['vehicle'], r['strategy'], _f(r['p_ac_mean_w'], 0), _f(r['energy_fit_j'] / 1e6, 3),
-             _f(r['energy_direct_j'] / 1e6, 3), _pct(r['saving_fit_pct']), _pct(r['saving_direct_pct']),
-             _pct(r['paper_saving_pct']), f"{r['noise_pct']:.2f} %", _f(r['ac_share_pct'], 1),
-             _f(r['l_per_100km'], 2) if r['powertrain'] != 'BEV' else _f(r['kwh_per_100km'], 2),
-             _f(r['range_km'], 0), _f(r['range_lost_km'], 1), _f(r['range_lost_pct'], 1)) for r in vrows]
-    blocks.append(Table(('vehicle', 'strategy', 'P_A/C mean [W]', 'E_veh fit [MJ]', 'E_veh direct [MJ]',
-                         'Δ fit', 'Δ direct', 'Δ paper (SC03)', 'noise (1σ)', 'A/C share [%]',
-                         'L/100 km | kWh/100 km', 'range [km]', 'range lost [km]', 'range lost [%]'),
-                        rows, caption='Vehicle energy per strategy (fuel for the hybrid, battery energy '
-                                      'for the electric car).'))
+        blocks.append(
+            Warning('the runs of this scenario have different lengths; the longest was used for the drive cycle.')
+        )
+    rows = [
+        (
+            r['vehicle'],
+            r['strategy'],
+            _f(r['p_ac_mean_w'], 0),
+            _f(r['energy_fit_j'] / 1e6, 3),
+            _f(r['energy_direct_j'] / 1e6, 3),
+            _pct(r['saving_fit_pct']),
+            _pct(r['saving_direct_pct']),
+            _pct(r['paper_saving_pct']),
+            f"{r['noise_pct']:.2f} %",
+            _f(r['ac_share_pct'], 1),
+            _f(r['l_per_100km'], 2) if r['powertrain'] != 'BEV' else _f(r['kwh_per_100km'], 2),
+            _f(r['range_km'], 0),
+            _f(r['range_lost_km'], 1),
+            _f(r['range_lost_pct'], 1),
+        )
+        for r in vrows
+    ]
+    blocks.append(
+        Table(
+            (
+                'vehicle',
+                'strategy',
+                'P_A/C mean [W]',
+                'E_veh fit [MJ]',
+                'E_veh direct [MJ]',
+                'Δ fit',
+                'Δ direct',
+                'Δ paper (SC03)',
+                'noise (1σ)',
+                'A/C share [%]',
+                'L/100 km | kWh/100 km',
+                'range [km]',
+                'range lost [km]',
+                'range lost [%]',
+            ),
+            rows,
+            caption='Vehicle energy per strategy (fuel for the hybrid, battery energy for the electric car).',
+        )
+    )
     per_eval = [r['fit_wall_time_s'] / r['n_evals'] for r in vrows]
-    blocks.append(Paragraph(f'FASTSim time per evaluation: {1e3 * min(per_eval):.0f}-'
-                            f'{1e3 * max(per_eval):.0f} ms (vehicle build + drive, this machine).'))
-    fig = (figures.fig_vehicle(vrows, fig_dir / f'{_slug(scenario)}_vehicle.png', f'Vehicle-level energy, {scenario}'),
-           'Vehicle energy change against the baseline (error bars: ±2σ fit noise) next to the '
-           'paper\'s Prius numbers; range of the electric car lost to the A/C.')
+    blocks.append(
+        Paragraph(
+            f'FASTSim time per evaluation: {1e3 * min(per_eval):.0f}-'
+            f'{1e3 * max(per_eval):.0f} ms (vehicle build + drive, this machine).'
+        )
+    )
+    fig = (
+        figures.fig_vehicle(vrows, fig_dir / f'{_slug(scenario)}_vehicle.png', f'Vehicle-level energy, {scenario}'),
+        'Vehicle energy change against the baseline (error bars: ±2σ fit noise) next to the '
+        'paper\'s Prius numbers; range of the electric car lost to the A/C.',
+    )
     return blocks, fig
 
 
@@ -251,14 +372,41 @@ def _solver_table(group: Mapping[str, RunData], labels: Sequence[str]) -> list:
         s = solver_stats(group[lab].diagnostics)
         status = ', '.join(f'{k}: {v}' for k, v in sorted(s['statuses'].items(), key=lambda kv: -kv[1])[:4])
         kinds = ', '.join(f'{k}: {v}' for k, v in s['fallback_kinds'].items())
-        rows.append((lab, str(s['steps']), str(s['solver_steps']), _f(s['success_pct'], 1),
-                     str(s['fallbacks']) + (f' ({kinds})' if kinds else ''), _f(s['solve_ms_median'], 1),
-                     _f(s['solve_ms_p95'], 1), _f(s['solve_ms_max'], 1), _f(s['iter_median'], 0),
-                     _f(s['iter_max'], 0), status or ('no diagnostics.csv' if group[lab].diagnostics is None else '')))
-    return [Heading(3, 'Solver statistics'), Table(
-        ('strategy', 'control steps', 'solves', 'success [%]', 'fallbacks', 'solve median [ms]', 'p95 [ms]',
-         'max [ms]', 'iter. median', 'iter. max', 'statuses'), rows,
-        caption='From diagnostics.csv (the baseline has no solver).')]
+        rows.append(
+            (
+                lab,
+                str(s['steps']),
+                str(s['solver_steps']),
+                _f(s['success_pct'], 1),
+                str(s['fallbacks']) + (f' ({kinds})' if kinds else ''),
+                _f(s['solve_ms_median'], 1),
+                _f(s['solve_ms_p95'], 1),
+                _f(s['solve_ms_max'], 1),
+                _f(s['iter_median'], 0),
+                _f(s['iter_max'], 0),
+                status or ('no diagnostics.csv' if group[lab].diagnostics is None else ''),
+            )
+        )
+    return [
+        Heading(3, 'Solver statistics'),
+        Table(
+            (
+                'strategy',
+                'control steps',
+                'solves',
+                'success [%]',
+                'fallbacks',
+                'solve median [ms]',
+                'p95 [ms]',
+                'max [ms]',
+                'iter. median',
+                'iter. max',
+                'statuses',
+            ),
+            rows,
+            caption='From diagnostics.csv (the baseline has no solver).',
+        ),
+    ]
 
 
 def _scenario_section(scenario: str, group: Mapping[str, RunData], fig_dir: Path, vehicle_settings) -> dict:
@@ -292,8 +440,16 @@ def _write_rows(path: Path, rows: Sequence[Mapping]) -> None:
             w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in r.items()})
 
 
-def build_report(run_dirs: Sequence[str | Path], out_dir: str | Path, *, vehicle: bool = False,
-                 rtol: float = 1e-6, vehicle_settings=None, namespace: str | None = None, log=print) -> dict:
+def build_report(
+    run_dirs: Sequence[str | Path],
+    out_dir: str | Path,
+    *,
+    vehicle: bool = False,
+    rtol: float = 1e-6,
+    vehicle_settings=None,
+    namespace: str | None = None,
+    log=print,
+) -> dict:
     """Build the report.
 
     Returns ``{'html', 'markdown', 'metrics_csv', 'vehicle_csv', 'figures': [...],
@@ -325,27 +481,48 @@ def build_report(run_dirs: Sequence[str | Path], out_dir: str | Path, *, vehicle
     if vehicle_all:
         vehicle_csv = out / 'vehicle.csv'
         _write_rows(vehicle_csv, [{'scenario': s, **r} for s, rows in vehicle_all.items() for r in rows])
-    return {'html': out / 'report.html', 'markdown': out / 'summary.md', 'metrics_csv': out / 'metrics.csv',
-            'vehicle_csv': vehicle_csv, 'figures': all_figs, 'runs': runs, 'mismatch': any_mismatch,
-            'vehicle_rows': vehicle_all}
+    return {
+        'html': out / 'report.html',
+        'markdown': out / 'summary.md',
+        'metrics_csv': out / 'metrics.csv',
+        'vehicle_csv': vehicle_csv,
+        'figures': all_figs,
+        'runs': runs,
+        'mismatch': any_mismatch,
+        'vehicle_rows': vehicle_all,
+    }
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of `ceco report`."""
     parser = argparse.ArgumentParser(
-        prog='ceco report', description='Recompute the metrics of run directories (from the bag when present) '
-        'and write figures, a self-contained HTML report and a Markdown summary.')
-    parser.add_argument('dirs', nargs='+', metavar='DIR',
-                        help='run directories, or parents holding one run directory per strategy')
-    parser.add_argument('--out', default=None, help='report directory (default: DIR/report for one DIR, '
-                        'else ./ceco_report)')
-    parser.add_argument('--vehicle', action='store_true',
-                        help='add vehicle-level energy with FASTSim 3.1 (optional extra: requirements/analysis.txt)')
-    parser.add_argument('--rtol', type=float, default=1e-6,
-                        help='relative tolerance of the metrics.json check (default 1e-6, the stack\'s '
-                             'agreement criterion; a bag holds float64 and agrees far closer)')
-    parser.add_argument('--namespace', default=None,
-                        help='namespace of the recorded stack in the bags (default: the only one in each bag)')
+        prog='ceco report',
+        description='Recompute the metrics of run directories (from the bag when present) '
+        'and write figures, a self-contained HTML report and a Markdown summary.',
+    )
+    parser.add_argument(
+        'dirs', nargs='+', metavar='DIR', help='run directories, or parents holding one run directory per strategy'
+    )
+    parser.add_argument(
+        '--out', default=None, help='report directory (default: DIR/report for one DIR, else ./ceco_report)'
+    )
+    parser.add_argument(
+        '--vehicle',
+        action='store_true',
+        help='add vehicle-level energy with FASTSim 3.1 (optional extra: requirements/analysis.txt)',
+    )
+    parser.add_argument(
+        '--rtol',
+        type=float,
+        default=1e-6,
+        help='relative tolerance of the metrics.json check (default 1e-6, the stack\'s '
+        'agreement criterion; a bag holds float64 and agrees far closer)',
+    )
+    parser.add_argument(
+        '--namespace',
+        default=None,
+        help='namespace of the recorded stack in the bags (default: the only one in each bag)',
+    )
     return parser
 
 
@@ -355,8 +532,9 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if not (math.isfinite(args.rtol) and args.rtol >= 0):
         parser.error(f'--rtol: must be finite and >= 0, got {args.rtol}')
-    out = Path(args.out) if args.out else (Path(args.dirs[0]) / 'report' if len(args.dirs) == 1
-                                          else Path('ceco_report'))
+    out = (
+        Path(args.out) if args.out else (Path(args.dirs[0]) / 'report' if len(args.dirs) == 1 else Path('ceco_report'))
+    )
     try:
         res = build_report(args.dirs, out, vehicle=args.vehicle, rtol=args.rtol, namespace=args.namespace)
     except (ValueError, OSError, ImportError) as exc:
@@ -364,13 +542,19 @@ def main(argv=None) -> int:
         return 2
     for r in res['runs']:
         state = 'OK' if not r.mismatches else 'MISMATCH'
-        print(f'{r.path}: {r.strategy} on {r.scenario}, metrics from {r.source}: {state} '
-              f'(max rel. diff {r.max_rel_diff:.1e}, tolerance {r.check_rtol:.0e})')
-    print(f"report: {res['html']}\nsummary: {res['markdown']}\nfigures: {len(res['figures'])} PNG in "
-          f"{Path(res['html']).parent / 'figures'}")
+        print(
+            f'{r.path}: {r.strategy} on {r.scenario}, metrics from {r.source}: {state} '
+            f'(max rel. diff {r.max_rel_diff:.1e}, tolerance {r.check_rtol:.0e})'
+        )
+    print(
+        f"report: {res['html']}\nsummary: {res['markdown']}\nfigures: {len(res['figures'])} PNG in "
+        f"{Path(res['html']).parent / 'figures'}"
+    )
     if res['mismatch']:
-        print('ceco report: metrics recomputed from the recorded data differ from metrics.json (see above)',
-              file=sys.stderr)
+        print(
+            'ceco report: metrics recomputed from the recorded data differ from metrics.json (see above)',
+            file=sys.stderr,
+        )
         return 1
     return 0
 

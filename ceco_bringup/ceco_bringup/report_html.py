@@ -19,8 +19,8 @@ import base64
 import dataclasses
 import html
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence, Union
 
 __all__ = ['Heading', 'Paragraph', 'Warning', 'Table', 'Figure', 'Block', 'render_markdown', 'render_html']
 
@@ -44,7 +44,7 @@ class Paragraph:
 
 
 @dataclasses.dataclass(frozen=True)
-class Warning:  # noqa: A001 (a report block, not the builtin exception)
+class Warning:  # a report block, not the builtin exception
     """A problem the reader must see (metrics mismatch, missing data)."""
 
     text: str
@@ -80,7 +80,7 @@ class Figure:
     """Caption under the figure."""
 
 
-Block = Union[Heading, Paragraph, Warning, Table, Figure]
+Block = Heading | Paragraph | Warning | Table | Figure
 
 
 def _md_cell(text: str) -> str:
@@ -100,8 +100,10 @@ def render_markdown(blocks: Sequence[Block], base_dir: str | os.PathLike | None 
         elif isinstance(b, Table):
             if b.caption:
                 out.append(f'*{b.caption}*\n')
-            lines = ['| ' + ' | '.join(_md_cell(h) for h in b.header) + ' |',
-                     '|' + '|'.join('---' for _ in b.header) + '|']
+            lines = [
+                '| ' + ' | '.join(_md_cell(h) for h in b.header) + ' |',
+                '|' + '|'.join('---' for _ in b.header) + '|',
+            ]
             lines += ['| ' + ' | '.join(_md_cell(c) for c in r) + ' |' for r in b.rows]
             out.append('\n'.join(lines))
         elif isinstance(b, Figure):
@@ -154,10 +156,15 @@ def render_html(blocks: Sequence[Block], title: str = 'ceco report') -> str:
             body.append(f'{cap}<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>')
         elif isinstance(b, Figure):
             data = base64.b64encode(Path(b.path).read_bytes()).decode('ascii')
-            body.append(f'<figure><img alt="{html.escape(b.caption)}" src="data:image/png;base64,{data}">'
-                        f'<figcaption>{_inline(b.caption)}</figcaption></figure>')
+            body.append(
+                f'<figure><img alt="{html.escape(b.caption)}" src="data:image/png;base64,{data}">'
+                f'<figcaption>{_inline(b.caption)}</figcaption></figure>'
+            )
         else:
             raise TypeError(f'unknown block {type(b).__name__}')
-    return ('<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
-            f'<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>\n'
-            + '\n'.join(body) + '\n</body></html>\n')
+    return (
+        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+        f'<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>\n'
+        + '\n'.join(body)
+        + '\n</body></html>\n'
+    )

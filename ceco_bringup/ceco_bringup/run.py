@@ -22,6 +22,7 @@ Ctrl-C (SIGINT) or SIGTERM at any moment: every child is stopped, the bag
 is closed with its metadata, and `ceco run` exits with status 130; the bag
 reads back completely up to the stop.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -54,6 +55,7 @@ class _StopFlag:
         def handler(signum, _frame):
             self.signum = signum
             self.event.set()
+
         self._old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
 
     def restore(self):
@@ -62,48 +64,88 @@ class _StopFlag:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog='ceco run', description=__doc__.split('\n\n')[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    """The ``ceco run`` argument parser (options as in the module docstring; ``ceco run --help``)."""
+    p = argparse.ArgumentParser(
+        prog='ceco run', description=__doc__.split('\n\n')[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument('--scenario', default='sc03', help='scenario name or YAML path (default sc03)')
-    p.add_argument('--strategy', default='ceco-ioch', choices=STRATEGIES + ('all',),
-                   help='strategy, or all (baseline + every CECO strategy into DIR/<strategy>/)')
+    p.add_argument(
+        '--strategy',
+        default='ceco-ioch',
+        choices=STRATEGIES + ('all',),
+        help='strategy, or all (baseline + every CECO strategy into DIR/<strategy>/)',
+    )
     p.add_argument('--out', required=True, help='output run directory')
-    p.add_argument('--preview', default='perfect',
-                   help='preview quality (grammar of ceco_v2x_preview.preview.parse_quality), '
-                        'e.g. perfect, noisy, delayed:10, missing:100-200')
+    p.add_argument(
+        '--preview',
+        default='perfect',
+        help='preview quality (grammar of ceco_v2x_preview.preview.parse_quality), '
+        'e.g. perfect, noisy, delayed:10, missing:100-200',
+    )
     p.add_argument('--control-period-s', type=float, default=None, help='Ts [s] (default: the scenario\'s)')
     p.add_argument('--horizon-steps', type=int, default=None, help='Np [steps] (default: the scenario\'s)')
-    p.add_argument('--duration-s', type=float, default=None,
-                   help='run only the first DURATION seconds of the scenario [s]')
+    p.add_argument(
+        '--duration-s', type=float, default=None, help='run only the first DURATION seconds of the scenario [s]'
+    )
     p.add_argument('--timing', default='lockstep', choices=TIMING_MODES)
-    p.add_argument('--command-timeout-s', type=float, default=5.0,
-                   help='lockstep: wall-clock wait for a command before the plant applies its '
-                        'fallback law [s]')
-    p.add_argument('--startup-timeout-s', type=float, default=120.0,
-                   help='wall-clock limit for the nodes to start and discover each other [s]')
+    p.add_argument(
+        '--command-timeout-s',
+        type=float,
+        default=5.0,
+        help='lockstep: wall-clock wait for a command before the plant applies its fallback law [s]',
+    )
+    p.add_argument(
+        '--startup-timeout-s',
+        type=float,
+        default=120.0,
+        help='wall-clock limit for the nodes to start and discover each other [s]',
+    )
     p.add_argument('--run-timeout-s', type=float, default=1800.0, help='wall-clock limit of one run [s]')
-    p.add_argument('--domain-id', type=int, default=None,
-                   help='ROS_DOMAIN_ID of every run (default: the environment\'s ROS_DOMAIN_ID when set, '
-                        'else a private one per strategy)')
-    p.add_argument('--namespace', default='',
-                   help='ROS namespace of the nodes, their topics and the recorder, e.g. veh1 '
-                        '(default: the root namespace); /clock and /rosout stay global')
-    p.add_argument('--storage', default=STORAGES[0], choices=STORAGES,
-                   help='rosbag2 storage of DIR/bag (default mcap, as ros2 bag record on Jazzy)')
+    p.add_argument(
+        '--domain-id',
+        type=int,
+        default=None,
+        help='ROS_DOMAIN_ID of every run (default: the environment\'s ROS_DOMAIN_ID when set, '
+        'else a private one per strategy)',
+    )
+    p.add_argument(
+        '--namespace',
+        default='',
+        help='ROS namespace of the nodes, their topics and the recorder, e.g. veh1 '
+        '(default: the root namespace); /clock and /rosout stay global',
+    )
+    p.add_argument(
+        '--storage',
+        default=STORAGES[0],
+        choices=STORAGES,
+        help='rosbag2 storage of DIR/bag (default mcap, as ros2 bag record on Jazzy)',
+    )
     p.add_argument('--no-progress', action='store_true', help='no progress bar')
     return p
 
 
 def main(argv=None) -> int:
+    """``ceco run``: run each requested strategy over DDS into its run directory and print its summary.
+
+    With ``--strategy all`` the strategies go into ``DIR/<strategy>/`` and a comparison table follows.
+
+    Args:
+        argv: the arguments after ``ceco run`` (default ``sys.argv[1:]``).
+
+    Returns:
+        The exit status: 0 when every run finished, 2 for an invalid scenario, preview, namespace
+        or domain id, 1 when a run failed, 130 when interrupted by SIGINT/SIGTERM.
+    """
     args = build_parser().parse_args(argv)
+    from ceco_bringup import supervisor
     from ceco_v2x_preview.preview import parse_quality
     from ceco_v2x_preview.scenario import load_scenario
-    from ceco_bringup import supervisor
+
     try:
         scenario = load_scenario(args.scenario)
         quality = parse_quality(args.preview)
         args.namespace = supervisor.normalize_namespace(args.namespace)
-        supervisor.resolve_domain_id(args.domain_id)      # an invalid user id fails here
+        supervisor.resolve_domain_id(args.domain_id)  # an invalid user id fails here
     except ValueError as err:
         print(f'ceco run: {err}', file=sys.stderr)
         return 2
@@ -118,8 +160,10 @@ def main(argv=None) -> int:
             try:
                 metrics = run_one(args, scenario, quality, strategy, run_dir, stop, index=i)
             except Interrupted:
-                print(f'\nceco run: interrupted; the bag in {run_dir / "bag"} is closed and readable '
-                      'up to the stop', file=sys.stderr)
+                print(
+                    f'\nceco run: interrupted; the bag in {run_dir / "bag"} is closed and readable up to the stop',
+                    file=sys.stderr,
+                )
                 return 130
             except RuntimeError as err:
                 print(f'ceco run: {strategy}: {err}', file=sys.stderr)
@@ -130,6 +174,7 @@ def main(argv=None) -> int:
         stop.restore()
     if len(rows) > 1:
         from ceco_core.metrics import comparison_table
+
         print()
         print(f'Scenario {scenario.name} over DDS ({args.timing}), {out}:')
         print(comparison_table(rows))
@@ -137,10 +182,19 @@ def main(argv=None) -> int:
 
 
 def print_summary(m: dict, run_dir: Path) -> None:
-    print(f"{m['strategy']:>10}: E_tot {m['E_tot_J'] / 1e3:8.1f} kJ (comp {m['E_comp_J'] / 1e3:.1f}, "
-          f"blower {m['E_blower_J'] / 1e3:.1f}), I_pmv {m['I_pmv']:.2f}, OTC violation "
-          f"{m['otc_violation_pct']:.2f} %; wall {m['wall_time_s']:.1f} s, loop "
-          f"{m['loop_wall_time_s']:.1f} s ({m['realtime_factor']:.0f}x real time) -> {run_dir}", flush=True)
+    """Print one run's line: energy [kJ], I_pmv, OTC violation [%], wall and loop times [s], real-time factor.
+
+    Args:
+        m: the run's metrics dict (as returned by :func:`run_one`).
+        run_dir: the run directory, printed at the end of the line.
+    """
+    print(
+        f"{m['strategy']:>10}: E_tot {m['E_tot_J'] / 1e3:8.1f} kJ (comp {m['E_comp_J'] / 1e3:.1f}, "
+        f"blower {m['E_blower_J'] / 1e3:.1f}), I_pmv {m['I_pmv']:.2f}, OTC violation "
+        f"{m['otc_violation_pct']:.2f} %; wall {m['wall_time_s']:.1f} s, loop "
+        f"{m['loop_wall_time_s']:.1f} s ({m['realtime_factor']:.0f}x real time) -> {run_dir}",
+        flush=True,
+    )
 
 
 def _params(args, scenario, quality, strategy, duration_s):
@@ -151,30 +205,51 @@ def _params(args, scenario, quality, strategy, duration_s):
     # use the simulation-time stamps the messages carry, never a wall clock).
     sim_time = {'use_sim_time': True} if args.timing == 'lockstep' else {}
     spans = [x for span in quality.missing_spans_s for x in span] or [0.0]
-    preview = dict(common, horizon_steps=int(np_), **sim_time, **{
-        'faults.noise_std_t_amb_c': float(quality.noise_std_t_amb_c),
-        'faults.noise_std_solar_wm2': float(quality.noise_std_solar_wm2),
-        'faults.noise_std_speed_mps': float(quality.noise_std_speed_mps),
-        'faults.noise_std_rh': float(quality.noise_std_rh),
-        'faults.noise_ref_lead_s': float(quality.noise_ref_lead_s),
-        'faults.delay_s': float(quality.delay_s),
-        'faults.missing_spans_s': [float(x) for x in spans],
-        'faults.missing_policy': quality.missing_policy,
-        'faults.seed': -1 if quality.seed is None else int(quality.seed),
-        'faults.uncertainty_level': quality.uncertainty})
+    preview = dict(
+        common,
+        horizon_steps=int(np_),
+        **sim_time,
+        **{
+            'faults.noise_std_t_amb_c': float(quality.noise_std_t_amb_c),
+            'faults.noise_std_solar_wm2': float(quality.noise_std_solar_wm2),
+            'faults.noise_std_speed_mps': float(quality.noise_std_speed_mps),
+            'faults.noise_std_rh': float(quality.noise_std_rh),
+            'faults.noise_ref_lead_s': float(quality.noise_ref_lead_s),
+            'faults.delay_s': float(quality.delay_s),
+            'faults.missing_spans_s': [float(x) for x in spans],
+            'faults.missing_policy': quality.missing_policy,
+            'faults.seed': -1 if quality.seed is None else int(quality.seed),
+            'faults.uncertainty_level': quality.uncertainty,
+        },
+    )
     controller = dict(common, horizon_steps=int(np_), **sim_time)
     if strategy != 'baseline':
         controller['strategy'] = strategy
-    plant = dict(common, duration_s=float(duration_s), **{
-        'lockstep.command_timeout_s': float(args.command_timeout_s),
-        'lockstep.min_state_subscribers': 3,
-        'lockstep.min_output_subscribers': 1,
-        'lockstep.min_command_subscribers': 2})
+    plant = dict(
+        common,
+        duration_s=float(duration_s),
+        **{
+            'lockstep.command_timeout_s': float(args.command_timeout_s),
+            'lockstep.min_state_subscribers': 3,
+            'lockstep.min_output_subscribers': 1,
+            'lockstep.min_command_subscribers': 2,
+        },
+    )
     return ts, np_, preview, controller, plant
 
 
-def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, index: int = 0, *,
-            controller_cmd: list[str] | None = None, controller_env: dict | None = None) -> dict:
+def run_one(
+    args,
+    scenario,
+    quality,
+    strategy,
+    run_dir: Path,
+    stop: _StopFlag,
+    index: int = 0,
+    *,
+    controller_cmd: list[str] | None = None,
+    controller_env: dict | None = None,
+) -> dict:
     """One strategy over DDS into run_dir; returns the metrics dict.
 
     ``controller_cmd``: a third-party controller's command line, started in place of
@@ -200,33 +275,72 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
     log_dir = run_dir / 'logs'
     domain, _ = supervisor.resolve_domain_id(args.domain_id, index)
     env = supervisor.dds_env(domain)
-    os.environ.update({k: env[k] for k in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE',
-                                           'FASTDDS_BUILTIN_TRANSPORTS',
-                                           'FASTRTPS_DEFAULT_PROFILES_FILE')})
+    os.environ.update(
+        {
+            k: env[k]
+            for k in (
+                'ROS_DOMAIN_ID',
+                'ROS_AUTOMATIC_DISCOVERY_RANGE',
+                'FASTDDS_BUILTIN_TRANSPORTS',
+                'FASTRTPS_DEFAULT_PROFILES_FILE',
+            )
+        }
+    )
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
 
     ctrl_exe = ('ceco_controller', 'baseline_node') if strategy == 'baseline' else ('ceco_controller', 'mpc_node')
-    ns = args.namespace     # '' or '/veh1': nodes, relative topics and the recorder under it
+    ns = args.namespace  # '' or '/veh1': nodes, relative topics and the recorder under it
     procs = {
         'preview_node': supervisor.NodeProcess(
-            'preview_node', 'ceco_v2x_preview', 'preview_node', env=env, log_dir=log_dir, namespace=ns,
+            'preview_node',
+            'ceco_v2x_preview',
+            'preview_node',
+            env=env,
+            log_dir=log_dir,
+            namespace=ns,
             params_files=[supervisor.share_file('ceco_v2x_preview', 'config/preview_node.yaml')],
-            params=p_prev),
+            params=p_prev,
+        ),
         'controller': supervisor.NodeProcess(
-            ctrl_exe[1], *ctrl_exe, env=env, log_dir=log_dir, namespace=ns,
+            ctrl_exe[1],
+            *ctrl_exe,
+            env=env,
+            log_dir=log_dir,
+            namespace=ns,
             params_files=[supervisor.share_file('ceco_controller', f'config/{ctrl_exe[1]}.yaml')],
-            params=p_ctrl) if controller_cmd is None else supervisor.NodeProcess(
-            'external_controller', None, None, env={**env, **(controller_env or {})}, log_dir=log_dir,
-            command=controller_cmd),
+            params=p_ctrl,
+        )
+        if controller_cmd is None
+        else supervisor.NodeProcess(
+            'external_controller',
+            None,
+            None,
+            env={**env, **(controller_env or {})},
+            log_dir=log_dir,
+            command=controller_cmd,
+        ),
         'plant_node': supervisor.NodeProcess(
-            'plant_node', 'ceco_plant_sim', 'plant_node', env=env, log_dir=log_dir, namespace=ns,
+            'plant_node',
+            'ceco_plant_sim',
+            'plant_node',
+            env=env,
+            log_dir=log_dir,
+            namespace=ns,
             params_files=[supervisor.share_file('ceco_plant_sim', 'config/plant_node.yaml')],
-            params=p_plant),
+            params=p_plant,
+        ),
     }
-    custom = {'scenario': scenario.name, 'strategy': strategy, 'control_period_s': repr(float(ts)),
-              'horizon_steps': str(np_), 'preview_quality': quality.describe(),
-              'timing': args.timing, 'duration_s': repr(float(duration_s)), 'ros_domain_id': str(domain),
-              'ros_namespace': args.namespace}
+    custom = {
+        'scenario': scenario.name,
+        'strategy': strategy,
+        'control_period_s': repr(float(ts)),
+        'horizon_steps': str(np_),
+        'preview_quality': quality.describe(),
+        'timing': args.timing,
+        'duration_s': repr(float(duration_s)),
+        'ros_domain_id': str(domain),
+        'ros_namespace': args.namespace,
+    }
 
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
@@ -238,15 +352,21 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
     t_wall0 = time.monotonic()
     interrupted = False
     try:
-        recorder = Recorder(bag_dir, custom_data=custom, context=context, storage=args.storage,
-                            timestamps='sim' if args.timing == 'lockstep' else 'receive',
-                            **({'namespace': ns} if ns else {}))
+        recorder = Recorder(
+            bag_dir,
+            custom_data=custom,
+            context=context,
+            storage=args.storage,
+            timestamps='sim' if args.timing == 'lockstep' else 'receive',
+            **({'namespace': ns} if ns else {}),
+        )
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(recorder)
 
         def spin():
             while not spin_stop.is_set() and context.ok():
                 executor.spin_once(timeout_sec=0.05)
+
         thread = threading.Thread(target=spin, name='recorder', daemon=True)
         thread.start()
 
@@ -260,17 +380,25 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
         # then activate (start commanding); the plant's start gate waits for its command
         # publisher, created in configure.
         if controller_cmd is None:
-            lifecycle = _managed_controller(context, executor, f'{ns}/{ctrl_exe[1]}', args.startup_timeout_s, stop,
-                                            procs)
-        _wait(lambda: recorder.first_state_wall is not None, args.startup_timeout_s, stop, procs,
-              'the nodes to start and discover each other')
+            lifecycle = _managed_controller(
+                context, executor, f'{ns}/{ctrl_exe[1]}', args.startup_timeout_s, stop, procs
+            )
+        _wait(
+            lambda: recorder.first_state_wall is not None,
+            args.startup_timeout_s,
+            stop,
+            procs,
+            'the nodes to start and discover each other',
+        )
         t_start = time.monotonic()
 
         bar = None
         if not args.no_progress:
             from tqdm import tqdm
-            bar = tqdm(total=n_plant, desc=f'{strategy} over DDS', unit='s sim', file=sys.stderr,
-                       mininterval=0.5, leave=False)
+
+            bar = tqdm(
+                total=n_plant, desc=f'{strategy} over DDS', unit='s sim', file=sys.stderr, mininterval=0.5, leave=False
+            )
         done = lambda: recorder.last_power_step >= n_plant - 1  # noqa: E731
         try:
             while not done():
@@ -278,11 +406,14 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
                     raise Interrupted()
                 for name, proc in procs.items():
                     if not proc.running():
-                        raise RuntimeError(f'{name} exited with status {proc.returncode()}; '
-                                           f'log: {proc.log_path}\n' + _tail(proc.log_text()))
+                        raise RuntimeError(
+                            f'{name} exited with status {proc.returncode()}; '
+                            f'log: {proc.log_path}\n' + _tail(proc.log_text())
+                        )
                 if time.monotonic() - t_start > args.run_timeout_s:
-                    raise RuntimeError(f'run timeout ({args.run_timeout_s} s) at plant step '
-                                       f'{recorder.last_power_step + 1}/{n_plant}')
+                    raise RuntimeError(
+                        f'run timeout ({args.run_timeout_s} s) at plant step {recorder.last_power_step + 1}/{n_plant}'
+                    )
                 if bar is not None:
                     bar.n = recorder.last_power_step + 1
                     bar.refresh()
@@ -296,7 +427,7 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
     finally:
         # every stop path: children first (plant first: it drives the loop), then the bag
         procs['plant_node'].stop()
-        if lifecycle is not None and procs['controller'].running():   # a clean managed-node stop
+        if lifecycle is not None and procs['controller'].running():  # a clean managed-node stop
             for transition in ('deactivate', 'shutdown'):
                 lifecycle.change(transition, timeout_s=5.0)
         for name in ('controller', 'preview_node'):
@@ -305,7 +436,7 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
         if thread is not None:
             thread.join(timeout=5.0)
         counts = recorder.close() if recorder is not None else {}
-        if recorder is not None:    # publisher-side send times of states and commands (benchmark time ratio)
+        if recorder is not None:  # publisher-side send times of states and commands (benchmark time ratio)
             (run_dir / 'send_times.json').write_text(json.dumps(recorder.source_ns) + '\n')
         if executor is not None:
             executor.shutdown()
@@ -320,25 +451,40 @@ def run_one(args, scenario, quality, strategy, run_dir: Path, stop: _StopFlag, i
     if ts_data['t_s'].size != n_plant:
         raise RuntimeError(f'bag holds {ts_data["t_s"].size} complete plant steps, expected {n_plant}')
     from ceco_core.metrics import compute_metrics
-    metrics = compute_metrics(ts_data['t_s'], ts_data['p_comp_w'], ts_data['p_blower_w'],
-                              ts_data['pmv'], ts_data['pmv_lb'], ts_data['pmv_ub'])
-    metrics.update({
-        'scenario': scenario.name, 'strategy': strategy, 'control_period_s': float(ts),
-        'horizon_steps': int(np_), 'seed': int(scenario.seed if quality.seed is None else quality.seed),
-        'preview_quality': quality.describe(), 'source': 'dds', 'timing': args.timing,
-        'wall_time_s': wall, 'loop_wall_time_s': t_run, 'realtime_factor': duration_s / t_run,
-        'ros_domain_id': domain, 'ros_namespace': args.namespace, 'bag_message_counts': counts,
-        'fallback_steps': int(ts_data['fallback'].sum()),
-    })
+
+    metrics = compute_metrics(
+        ts_data['t_s'], ts_data['p_comp_w'], ts_data['p_blower_w'], ts_data['pmv'], ts_data['pmv_lb'], ts_data['pmv_ub']
+    )
+    metrics.update(
+        {
+            'scenario': scenario.name,
+            'strategy': strategy,
+            'control_period_s': float(ts),
+            'horizon_steps': int(np_),
+            'seed': int(scenario.seed if quality.seed is None else quality.seed),
+            'preview_quality': quality.describe(),
+            'source': 'dds',
+            'timing': args.timing,
+            'wall_time_s': wall,
+            'loop_wall_time_s': t_run,
+            'realtime_factor': duration_s / t_run,
+            'ros_domain_id': domain,
+            'ros_namespace': args.namespace,
+            'bag_message_counts': counts,
+            'fallback_steps': int(ts_data['fallback'].sum()),
+        }
+    )
     diag = bagio.load_diagnostics(bag_dir)
     solve_ms = diag['solve_time_ms'][np.isfinite(diag['solve_time_ms'])]
-    metrics.update({
-        'n_control_steps': int(diag['k'].size),
-        'n_fallback_shifted': int(sum(r.startswith('shifted_plan') for r in diag['fallback_reason'])),
-        'n_fallback_baseline': int(sum(r.startswith('baseline') for r in diag['fallback_reason'])),
-        'solve_time_median_ms': float(np.median(solve_ms)) if solve_ms.size else None,
-        'solve_time_max_ms': float(np.max(solve_ms)) if solve_ms.size else None,
-    })
+    metrics.update(
+        {
+            'n_control_steps': int(diag['k'].size),
+            'n_fallback_shifted': int(sum(r.startswith('shifted_plan') for r in diag['fallback_reason'])),
+            'n_fallback_baseline': int(sum(r.startswith('baseline') for r in diag['fallback_reason'])),
+            'solve_time_median_ms': float(np.median(solve_ms)) if solve_ms.size else None,
+            'solve_time_max_ms': float(np.max(solve_ms)) if solve_ms.size else None,
+        }
+    )
     bagio.write_timeseries_csv(run_dir / 'timeseries.csv', ts_data)
     bagio.write_diagnostics_csv(run_dir / 'diagnostics.csv', diag)
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in metrics.items()}
@@ -351,14 +497,17 @@ def _managed_controller(context, executor, name, timeout_s, stop, procs):
     import rclpy
 
     from ceco_bringup import supervisor
+
     node = rclpy.create_node('ceco_run_lifecycle', context=context)
     executor.add_node(node)
     client = supervisor.LifecycleClient(node, name)
     _wait(lambda: client.wait(0.05), timeout_s, stop, procs, f'the lifecycle services of {name}')
     for transition in ('configure', 'activate'):
         if not client.change(transition, timeout_s=timeout_s):
-            raise RuntimeError(f'{name}: lifecycle transition {transition} failed; log: '
-                               f'{procs["controller"].log_path}\n' + _tail(procs['controller'].log_text()))
+            raise RuntimeError(
+                f'{name}: lifecycle transition {transition} failed; log: '
+                f'{procs["controller"].log_path}\n' + _tail(procs['controller'].log_text())
+            )
     return client
 
 
@@ -369,8 +518,10 @@ def _wait(cond, timeout_s, stop, procs, what):
             raise Interrupted()
         for name, proc in procs.items():
             if proc.proc is not None and not proc.running():
-                raise RuntimeError(f'{name} exited with status {proc.returncode()} while waiting for '
-                                   f'{what}; log: {proc.log_path}\n' + _tail(proc.log_text()))
+                raise RuntimeError(
+                    f'{name} exited with status {proc.returncode()} while waiting for '
+                    f'{what}; log: {proc.log_path}\n' + _tail(proc.log_text())
+                )
         if time.monotonic() - t0 > timeout_s:
             raise RuntimeError(f'timeout ({timeout_s} s) waiting for {what}')
 

@@ -30,8 +30,16 @@ import numpy as np
 
 from ceco_core.rundir import read_csv_columns
 
-__all__ = ['RunData', 'discover_runs', 'csv_precision_digits', 'recompute_metrics', 'compare_metrics', 'load_run',
-           'fallback_mask', 'solver_stats']
+__all__ = [
+    'RunData',
+    'discover_runs',
+    'csv_precision_digits',
+    'recompute_metrics',
+    'compare_metrics',
+    'load_run',
+    'fallback_mask',
+    'solver_stats',
+]
 
 METRIC_INPUTS = ('t_s', 'p_comp_w', 'p_blower_w', 'pmv', 'pmv_lb', 'pmv_ub')
 """Time-series columns compute_metrics needs."""
@@ -152,7 +160,7 @@ def _load_bag(bag_dir: Path, namespace: str | None) -> dict:
 
     try:
         cols = {k: np.asarray(v) for k, v in bagio.load_run_timeseries(bag_dir, namespace).items()}
-    except Exception as exc:  # noqa: BLE001 (rosbags raises its own types; say which bag)
+    except Exception as exc:  # rosbags raises its own types; say which bag
         raise ValueError(f'{bag_dir}: cannot read the bag: {type(exc).__name__}: {exc}') from exc
     if not len(cols.get('t_s', ())) >= 2:
         raise ValueError(f'{bag_dir}: the bag holds fewer than 2 complete plant steps')
@@ -199,10 +207,19 @@ def load_run(run_dir: str | Path, rtol: float = 1e-6, namespace: str | None = No
         if digits:
             check_rtol = max(rtol, 10.0 ** (1 - digits))
     mism, worst = compare_metrics(stored, recomputed, rtol=check_rtol)
-    return RunData(path=run_dir, strategy=str(stored.get('strategy') or run_dir.name),
-                   scenario=str(stored.get('scenario') or 'unknown'), stored=stored, columns=columns,
-                   source=source, recomputed=recomputed, mismatches=mism, max_rel_diff=worst,
-                   diagnostics=_diagnostics(run_dir, source, namespace), check_rtol=check_rtol)
+    return RunData(
+        path=run_dir,
+        strategy=str(stored.get('strategy') or run_dir.name),
+        scenario=str(stored.get('scenario') or 'unknown'),
+        stored=stored,
+        columns=columns,
+        source=source,
+        recomputed=recomputed,
+        mismatches=mism,
+        max_rel_diff=worst,
+        diagnostics=_diagnostics(run_dir, source, namespace),
+        check_rtol=check_rtol,
+    )
 
 
 def fallback_mask(column) -> np.ndarray:
@@ -242,8 +259,12 @@ def _solve_stats(diag: Mapping, n: int) -> dict:
     out: dict = {'solver_steps': int(ok.sum())}
     if not ok.any():
         return out
-    out.update(solve_ms_median=float(np.median(st[ok])), solve_ms_p95=float(np.percentile(st[ok], 95)),
-               solve_ms_max=float(np.max(st[ok])), solve_ms_mean=float(np.mean(st[ok])))
+    out.update(
+        solve_ms_median=float(np.median(st[ok])),
+        solve_ms_p95=float(np.percentile(st[ok], 95)),
+        solve_ms_max=float(np.max(st[ok])),
+        solve_ms_mean=float(np.mean(st[ok])),
+    )
     if 'success' in diag:
         out['success_pct'] = 100.0 * float(np.nansum(_success_flags(diag['success'])[ok])) / int(ok.sum())
     it = np.asarray(diag.get('iterations', np.full(n, nan)), dtype=float)[ok]
@@ -262,9 +283,20 @@ def solver_stats(diag: Mapping | None) -> dict:
     ({status: count}). Empty solver columns (baseline) give NaN.
     """
     nan = float('nan')
-    out = {'steps': 0, 'solver_steps': 0, 'success_pct': nan, 'fallbacks': 0, 'solve_ms_median': nan,
-           'solve_ms_p95': nan, 'solve_ms_max': nan, 'solve_ms_mean': nan, 'iter_median': nan,
-           'iter_max': nan, 'statuses': {}, 'fallback_kinds': {}}
+    out = {
+        'steps': 0,
+        'solver_steps': 0,
+        'success_pct': nan,
+        'fallbacks': 0,
+        'solve_ms_median': nan,
+        'solve_ms_p95': nan,
+        'solve_ms_max': nan,
+        'solve_ms_mean': nan,
+        'iter_median': nan,
+        'iter_max': nan,
+        'statuses': {},
+        'fallback_kinds': {},
+    }
     if not diag:
         return out
     n = len(next(iter(diag.values())))

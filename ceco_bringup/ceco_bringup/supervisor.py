@@ -1,5 +1,7 @@
-"""Start and stop the stack's node processes (what `ros2 launch` would do on a
-full install; here there is no launch, so we supervise them ourselves).
+"""Start and stop the stack's node processes.
+
+This is what `ros2 launch` would do on a full install; here there is no launch,
+so we supervise them ourselves.
 
 Each node runs as its own OS process in its own session (so the terminal's
 Ctrl-C reaches only `ceco run`, which then stops the children in order),
@@ -13,6 +15,7 @@ spin thread runs): `start_new_session=True` gives the session, and util-linux
 sets the parent-death signal in the child before it execs the node, so no node
 outlives a SIGKILLed `ceco run`.
 """
+
 from __future__ import annotations
 
 import os
@@ -56,8 +59,10 @@ FASTDDS_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
 
 
 def pick_domain_id() -> int:
-    """A ROS_DOMAIN_ID for a private run: the pid spread over 1..100 (valid
-    ids with localhost discovery are 0..101), overridable with CECO_DOMAIN_ID."""
+    """A ROS_DOMAIN_ID for a private run: the pid spread over 1..100, overridable with CECO_DOMAIN_ID.
+
+    Valid ids with localhost discovery are 0..101.
+    """
     if os.environ.get('CECO_DOMAIN_ID'):
         return int(os.environ['CECO_DOMAIN_ID'])
     return 1 + (os.getpid() * 7919 + int(time.time())) % 100
@@ -69,8 +74,7 @@ also clear of Linux's ephemeral ports; docs.ros.org, "The ROS_DOMAIN_ID")."""
 
 
 def resolve_domain_id(explicit: int | None = None, index: int = 0, environ=None) -> tuple[int, bool]:
-    """The ROS_DOMAIN_ID of run number `index` of one `ceco run`, and whether
-    the user chose it.
+    """The ROS_DOMAIN_ID of run number `index` of one `ceco run`, and whether the user chose it.
 
     `explicit` (the --domain-id flag) first, then the user's ROS_DOMAIN_ID
     (non-empty), used as is for every run (the runs are sequential; each
@@ -94,15 +98,19 @@ def resolve_domain_id(explicit: int | None = None, index: int = 0, environ=None)
 
 
 def normalize_namespace(namespace: str | None) -> str:
-    """'' / None -> '' (the root namespace); 'veh1', '/veh1/' -> '/veh1'.
+    """A ROS namespace in its canonical form: '' / None -> '' (the root namespace); 'veh1', '/veh1/' -> '/veh1'.
+
     Raises ValueError for a name ROS 2 would reject (tokens of letters,
-    digits and underscores, not starting with a digit)."""
+    digits and underscores, not starting with a digit).
+    """
     if not namespace or namespace.strip('/') == '':
         return ''
     ns = '/' + namespace.strip('/')
     if not re.fullmatch(r'(/[A-Za-z_][A-Za-z0-9_]*)+', ns) or '__' in ns:
-        raise ValueError(f'invalid namespace {namespace!r}: tokens of letters, digits and '
-                         'underscores, not starting with a digit, separated by /')
+        raise ValueError(
+            f'invalid namespace {namespace!r}: tokens of letters, digits and '
+            'underscores, not starting with a digit, separated by /'
+        )
     return ns
 
 
@@ -130,8 +138,10 @@ def dds_env(domain_id: int, base: dict | None = None) -> dict:
 
 
 def find_executable(package: str, executable: str) -> str:
-    """`<prefix>/lib/<package>/<executable>` on AMENT_PREFIX_PATH (where
-    `ros2 run` looks)."""
+    """`<prefix>/lib/<package>/<executable>` on AMENT_PREFIX_PATH (where `ros2 run` looks).
+
+    Raises FileNotFoundError (saying how to build the workspace) if no prefix has it.
+    """
     for prefix in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep):
         if prefix:
             path = Path(prefix) / 'lib' / package / executable
@@ -139,7 +149,8 @@ def find_executable(package: str, executable: str) -> str:
                 return str(path)
     raise FileNotFoundError(
         f'{package}/{executable} not found on AMENT_PREFIX_PATH: build the workspace '
-        '(bash tools/setup.sh) and `source tools/env.sh`')
+        '(bash tools/setup.sh) and `source tools/env.sh`'
+    )
 
 
 def share_file(package: str, relpath: str) -> str:
@@ -155,11 +166,25 @@ def share_file(package: str, relpath: str) -> str:
 class NodeProcess:
     """One node executable as a child process."""
 
-    def __init__(self, name: str, package: str | None, executable: str | None, *, params_files=(),
-                 params: dict | None = None, env: dict, log_dir: Path, node_name: str | None = None,
-                 namespace: str | None = None, command: list[str] | None = None):
-        """A ceco node ``package/executable`` with ROS arguments (under ``namespace`` if given), or any
-        ``command`` (a third-party controller in any language: run as given, without ROS arguments)."""
+    def __init__(
+        self,
+        name: str,
+        package: str | None,
+        executable: str | None,
+        *,
+        params_files=(),
+        params: dict | None = None,
+        env: dict,
+        log_dir: Path,
+        node_name: str | None = None,
+        namespace: str | None = None,
+        command: list[str] | None = None,
+    ):
+        """A ceco node ``package/executable`` with ROS arguments, or any ``command``.
+
+        The node runs under ``namespace`` if given. A ``command`` (a third-party controller in
+        any language) is run as given, without ROS arguments.
+        """
         self.name = name
         if command is not None:
             if not command:
@@ -181,27 +206,40 @@ class NodeProcess:
         self.starts = 0
 
     def start(self) -> None:
+        """Start the process in its own session, appending its output to ``log_path``.
+
+        Each start is logged with its command line first; ``starts`` counts them.
+        """
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
         log = open(self.log_path, 'ab')
         log.write(f'--- start {self.starts + 1}: {" ".join(self.cmd)}\n'.encode())
         log.flush()
-        self.proc = subprocess.Popen(_die_with_parent_prefix() + self.cmd, env=self.env, stdout=log,
-                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                     start_new_session=True)
+        self.proc = subprocess.Popen(
+            _die_with_parent_prefix() + self.cmd,
+            env=self.env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+        )
         log.close()
         self.starts += 1
 
     @property
     def pid(self) -> int | None:
+        """The process id of the latest start, None before the first."""
         return None if self.proc is None else self.proc.pid
 
     def running(self) -> bool:
+        """True if the process has been started and has not exited."""
         return self.proc is not None and self.proc.poll() is None
 
     def returncode(self):
+        """The exit code, None if the process was never started or is still running."""
         return None if self.proc is None else self.proc.poll()
 
     def signal(self, sig) -> None:
+        """Send signal ``sig`` to the process if it is running (a process that just exited is ignored)."""
         if self.running():
             try:
                 os.kill(self.proc.pid, sig)
@@ -226,6 +264,7 @@ class NodeProcess:
             self.proc.wait()
 
     def log_text(self) -> str:
+        """The process's log file so far ('' if it does not exist yet)."""
         try:
             return self.log_path.read_text(errors='replace')
         except FileNotFoundError:
@@ -233,10 +272,12 @@ class NodeProcess:
 
 
 def _die_with_parent_prefix() -> list[str]:
-    """`setpriv --pdeathsig SIGINT --`: the child gets SIGINT when the thread
-    that started it dies (even by SIGKILL), so no node outlives `ceco run`
-    (Linux prctl PR_SET_PDEATHSIG, kept across the exec into the node). Empty
-    where util-linux's setpriv is missing: the nodes then outlive a SIGKILL."""
+    """The command prefix `setpriv --pdeathsig SIGINT --`, or [] where util-linux's setpriv is missing.
+
+    The child gets SIGINT when the thread that started it dies (even by SIGKILL),
+    so no node outlives `ceco run` (Linux prctl PR_SET_PDEATHSIG, kept across the
+    exec into the node). Without setpriv the nodes outlive a SIGKILL.
+    """
     setpriv = shutil.which('setpriv')
     return [setpriv, '--pdeathsig', 'SIGINT', '--'] if setpriv else []
 
@@ -266,6 +307,7 @@ class LifecycleClient:
 
     def __init__(self, node, target: str):
         from lifecycle_msgs.srv import ChangeState, GetState
+
         self.target = target if target.startswith('/') else '/' + target
         self._change = node.create_client(ChangeState, f'{self.target}/change_state')
         self._get = node.create_client(GetState, f'{self.target}/get_state')
@@ -277,6 +319,7 @@ class LifecycleClient:
     def state(self, timeout_s: float = 5.0) -> str | None:
         """The node's current state label ('unconfigured', 'inactive', 'active', 'finalized'), None on timeout."""
         from lifecycle_msgs.srv import GetState
+
         res = self._call(self._get, GetState.Request(), timeout_s)
         return None if res is None else res.current_state.label
 
@@ -288,10 +331,13 @@ class LifecycleClient:
         """
         from lifecycle_msgs.msg import Transition
         from lifecycle_msgs.srv import ChangeState
+
         if transition == 'shutdown':
             label = self.state(timeout_s) or 'active'
-            ids = {'unconfigured': Transition.TRANSITION_UNCONFIGURED_SHUTDOWN,
-                   'inactive': Transition.TRANSITION_INACTIVE_SHUTDOWN}
+            ids = {
+                'unconfigured': Transition.TRANSITION_UNCONFIGURED_SHUTDOWN,
+                'inactive': Transition.TRANSITION_INACTIVE_SHUTDOWN,
+            }
             tid = ids.get(label, Transition.TRANSITION_ACTIVE_SHUTDOWN)
         else:
             tid = getattr(Transition, f'TRANSITION_{transition.upper()}')

@@ -45,16 +45,24 @@ import dataclasses
 import math
 import time
 import warnings
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from ceco_core.metrics import relative_change_pct
 
 __all__ = [
-    'PRIUS', 'ZOE', 'PAPER_VEHICLE_SAVING_PCT', 'GASOLINE_J_PER_L',
-    'VehicleEnergySettings', 'VehicleRun', 'FastsimMissingError',
-    'import_fastsim', 'simulate_vehicle', 'fit_energy_vs_aux', 'vehicle_energy_table',
+    'PRIUS',
+    'ZOE',
+    'PAPER_VEHICLE_SAVING_PCT',
+    'GASOLINE_J_PER_L',
+    'VehicleEnergySettings',
+    'VehicleRun',
+    'FastsimMissingError',
+    'import_fastsim',
+    'simulate_vehicle',
+    'fit_energy_vs_aux',
+    'vehicle_energy_table',
     'drive_cycle_for_run',
 ]
 
@@ -76,14 +84,17 @@ class FastsimMissingError(ImportError):
 
 
 def import_fastsim():
-    """Import ``fastsim`` or raise :class:`FastsimMissingError` saying how to
-    install it (``pip install -r requirements/analysis.txt``)."""
+    """Import ``fastsim`` or raise :class:`FastsimMissingError` saying how to install it.
+
+    The install command is ``pip install -r requirements/analysis.txt``.
+    """
     try:
-        import fastsim  # noqa: PLC0415 (lazy: optional extra)
+        import fastsim  # lazy: optional extra
     except ImportError as exc:
         raise FastsimMissingError(
             'vehicle-level energy needs the optional FASTSim extra: '
-            'pip install -r requirements/analysis.txt (fastsim==3.1.0)') from exc
+            'pip install -r requirements/analysis.txt (fastsim==3.1.0)'
+        ) from exc
     return fastsim
 
 
@@ -101,6 +112,7 @@ class VehicleEnergySettings:
     """Strategy the savings are taken against."""
 
     def validate(self) -> None:
+        """Check every field; raise ValueError naming the first bad one."""
         if not self.vehicles or not all(isinstance(v, str) and v for v in self.vehicles):
             raise ValueError('vehicles: must be a non-empty tuple of FASTSim resource names')
         if isinstance(self.fit_points, bool) or int(self.fit_points) != self.fit_points or self.fit_points < 2:
@@ -157,7 +169,7 @@ def _check_cycle(time_s, speed_mps):
 
 
 def _powertrain(vdict: Mapping) -> tuple[str, Mapping]:
-    (kind, body), = vdict['pt_type'].items()
+    ((kind, body),) = vdict['pt_type'].items()
     return kind, body
 
 
@@ -183,8 +195,9 @@ def _with_soc_balance(vdict: dict, attempt: str) -> dict:
 
 
 def simulate_vehicle(vehicle: str, time_s, speed_mps, p_ac_w: float) -> VehicleRun:
-    """Run FASTSim 3.1 for ``vehicle`` over the cycle ``(time_s [s], speed_mps
-    [m/s])`` with ``p_ac_w`` [W] added to the vehicle's base aux load.
+    """Run FASTSim 3.1 for ``vehicle`` over a drive cycle with ``p_ac_w`` [W] added to its base aux load.
+
+    The cycle is ``(time_s [s], speed_mps [m/s])``.
 
     A hybrid's charge is sustained as in :data:`_SOC_BALANCE_ATTEMPTS`.
     Speed-trace misses are allowed within FASTSim's checked tolerance
@@ -224,7 +237,7 @@ def simulate_vehicle(vehicle: str, time_s, speed_mps, p_ac_w: float) -> VehicleR
     kind, pt = _powertrain(out['veh'])
     hist = out['veh']['history']
     v_ach = np.asarray(hist['speed_ach_meters_per_second'], dtype=float)
-    miss = float(np.max(v[:v_ach.size] - v_ach)) if v_ach.size else float('nan')
+    miss = float(np.max(v[: v_ach.size] - v_ach)) if v_ach.size else float('nan')
     distance_m = float(out['veh']['state']['dist_meters'])
     res_out_j, usable_j, fuel_raw_j = 0.0, float('nan'), float('nan')
     if 'res' in pt:
@@ -240,11 +253,20 @@ def simulate_vehicle(vehicle: str, time_s, speed_mps, p_ac_w: float) -> VehicleR
             usable_j = float('nan')
     else:
         energy_j = res_out_j
-    return VehicleRun(vehicle=vehicle, powertrain=kind, p_aux_added_w=float(p_ac_w), p_aux_base_w=base_w,
-                      energy_j=float(energy_j), fuel_raw_j=fuel_raw_j, res_net_out_j=res_out_j,
-                      distance_m=distance_m, trace_miss_max_mps=max(miss, 0.0),
-                      usable_battery_j=usable_j, wall_time_s=wall_s,
-                      soc_balance=balance if kind == 'HEV' else 'none')
+    return VehicleRun(
+        vehicle=vehicle,
+        powertrain=kind,
+        p_aux_added_w=float(p_ac_w),
+        p_aux_base_w=base_w,
+        energy_j=float(energy_j),
+        fuel_raw_j=fuel_raw_j,
+        res_net_out_j=res_out_j,
+        distance_m=distance_m,
+        trace_miss_max_mps=max(miss, 0.0),
+        usable_battery_j=usable_j,
+        wall_time_s=wall_s,
+        soc_balance=balance if kind == 'HEV' else 'none',
+    )
 
 
 def fit_energy_vs_aux(vehicle: str, time_s, speed_mps, loads_w: Sequence[float]):
@@ -262,7 +284,7 @@ def fit_energy_vs_aux(vehicle: str, time_s, speed_mps, loads_w: Sequence[float])
     b, a = np.polyfit(loads, e, 1)
     resid = e - (a + b * loads)
     dof = max(loads.size - 2, 1)
-    noise = float(np.sqrt(np.sum(resid ** 2) / dof)) if loads.size > 2 else 0.0
+    noise = float(np.sqrt(np.sum(resid**2) / dof)) if loads.size > 2 else 0.0
     return float(a), float(b), noise, runs
 
 
@@ -272,7 +294,7 @@ def drive_cycle_for_run(scenario_name: str, duration_s: float):
     Returns ``(time_s, speed_mps)``; the speed holds its last value past the
     cycle's end, as in the simulator (``Scenario.speed_mps``).
     """
-    from ceco_v2x_preview.scenario import load_scenario  # noqa: PLC0415
+    from ceco_v2x_preview.scenario import load_scenario
 
     if not (math.isfinite(duration_s) and duration_s >= 1.0):
         raise ValueError(f'duration_s: must be finite and >= 1, got {duration_s!r}')
@@ -281,8 +303,9 @@ def drive_cycle_for_run(scenario_name: str, duration_s: float):
     return t, np.asarray(sc.speed_mps(t), dtype=float)
 
 
-def vehicle_energy_table(p_ac_mean_w: Mapping[str, float], time_s, speed_mps,
-                         settings: VehicleEnergySettings = VehicleEnergySettings()) -> list[dict]:
+def vehicle_energy_table(
+    p_ac_mean_w: Mapping[str, float], time_s, speed_mps, settings: VehicleEnergySettings = VehicleEnergySettings()
+) -> list[dict]:
     """Vehicle energy and savings of each strategy, for each vehicle.
 
     ``p_ac_mean_w`` maps strategy -> mean A/C electrical power over the run
@@ -324,20 +347,30 @@ def vehicle_energy_table(p_ac_mean_w: Mapping[str, float], time_s, speed_mps,
         for name, p in p_ac_mean_w.items():
             run = direct[name]
             row = {
-                'vehicle': vehicle, 'powertrain': run.powertrain, 'strategy': name,
-                'p_ac_mean_w': float(p), 'energy_fit_j': e_fit[name], 'energy_direct_j': run.energy_j,
-                'saving_fit_pct': float('nan'), 'saving_direct_pct': float('nan'),
+                'vehicle': vehicle,
+                'powertrain': run.powertrain,
+                'strategy': name,
+                'p_ac_mean_w': float(p),
+                'energy_fit_j': e_fit[name],
+                'energy_direct_j': run.energy_j,
+                'saving_fit_pct': float('nan'),
+                'saving_direct_pct': float('nan'),
                 'paper_saving_pct': PAPER_VEHICLE_SAVING_PCT.get(name, float('nan'))
-                if run.powertrain == 'HEV' else float('nan'),
+                if run.powertrain == 'HEV'
+                else float('nan'),
                 'noise_pct': 100.0 * noise_j / float(np.mean([r.energy_j for r in fit_runs])),
                 'ac_share_pct': 100.0 * b * float(p) / e_fit[name] if e_fit[name] > 0 else float('nan'),
                 'j_per_j_ac': b / duration_s if duration_s > 0 else float('nan'),
                 'distance_km': run.distance_m / 1e3,
-                'l_per_100km': float('nan'), 'kwh_per_100km': float('nan'),
-                'range_km': float('nan'), 'range_no_ac_km': float('nan'),
-                'range_lost_km': float('nan'), 'range_lost_pct': float('nan'),
+                'l_per_100km': float('nan'),
+                'kwh_per_100km': float('nan'),
+                'range_km': float('nan'),
+                'range_no_ac_km': float('nan'),
+                'range_lost_km': float('nan'),
+                'range_lost_pct': float('nan'),
                 'trace_miss_max_mps': max(r.trace_miss_max_mps for r in runs),
-                'fit_wall_time_s': wall_s, 'n_evals': len(runs),
+                'fit_wall_time_s': wall_s,
+                'n_evals': len(runs),
                 'n_soc_unbalanced': sum(r.soc_balance == 'corrected' for r in runs),
             }
             if base in e_fit and name != base:

@@ -16,6 +16,7 @@ the recorder's subscriptions as under `ceco run`, so the bag starts at step 0
 Unlike `ceco run` it computes no metrics and keeps running after the drive
 (the plant idles); Ctrl-C stops every process. Arguments: docs/ros.md, "Launch".
 """
+
 import os
 
 from ament_index_python.packages import get_package_share_directory
@@ -28,8 +29,17 @@ from launch_ros.actions import Node
 # ceco_ros.interfaces.STACK_TOPICS (tests/test_launch.py checks all three).
 STRATEGIES = ('baseline', 'ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
 TIMING_MODES = ('lockstep', 'realtime')
-TOPICS = ('cabin/state', 'cabin/comfort', 'hvac/power', 'hvac/command', 'controller/diagnostics',
-          'v2x/weather_preview', 'v2x/traffic_preview', '/clock', '/rosout')
+TOPICS = (
+    'cabin/state',
+    'cabin/comfort',
+    'hvac/power',
+    'hvac/command',
+    'controller/diagnostics',
+    'v2x/weather_preview',
+    'v2x/traffic_preview',
+    '/clock',
+    '/rosout',
+)
 # node name = executable name -> package; its parameters in share/<package>/config/<node>.yaml
 NODES = {
     'preview_node': 'ceco_v2x_preview',
@@ -48,28 +58,54 @@ RECORDER_GATE = {
 
 
 def generate_launch_description() -> LaunchDescription:
-    return LaunchDescription([
-        DeclareLaunchArgument('namespace', default_value='',
-                              description='ROS namespace of the nodes and their topics, e.g. veh1 '
-                                          '(one vehicle of several in one domain; realtime timing)'),
-        DeclareLaunchArgument('strategy', default_value='ceco-ioch', choices=list(STRATEGIES),
-                              description='controller: baseline (baseline_node) or a CECO strategy (mpc_node)'),
-        DeclareLaunchArgument('timing', default_value='lockstep', choices=list(TIMING_MODES),
-                              description='lockstep: accelerated, the plant drives /clock; '
-                                          'realtime: wall-clock timers, as on a vehicle'),
-        DeclareLaunchArgument('use_sim_time', default_value='auto', choices=['auto', 'true', 'false'],
-                              description='preview node and controller on /clock; auto: true in lockstep'),
-        DeclareLaunchArgument('scenario', default_value='sc03',
-                              description='scenario name (bundled) or path of a scenario YAML file'),
-        DeclareLaunchArgument('record', default_value='false', choices=['true', 'false'],
-                              description='true: ros2 bag record (mcap) of the stack topics into '
-                                          './rosbag2_<date-time>'),
-        OpaqueFunction(function=_stack),
-    ])
+    """The launch arguments (namespace, strategy, timing, use_sim_time, scenario, record) and the stack.
+
+    The processes are built by :func:`_stack` once the arguments are resolved (module docstring).
+    """
+    return LaunchDescription(
+        [
+            DeclareLaunchArgument(
+                'namespace',
+                default_value='',
+                description='ROS namespace of the nodes and their topics, e.g. veh1 '
+                '(one vehicle of several in one domain; realtime timing)',
+            ),
+            DeclareLaunchArgument(
+                'strategy',
+                default_value='ceco-ioch',
+                choices=list(STRATEGIES),
+                description='controller: baseline (baseline_node) or a CECO strategy (mpc_node)',
+            ),
+            DeclareLaunchArgument(
+                'timing',
+                default_value='lockstep',
+                choices=list(TIMING_MODES),
+                description='lockstep: accelerated, the plant drives /clock; '
+                'realtime: wall-clock timers, as on a vehicle',
+            ),
+            DeclareLaunchArgument(
+                'use_sim_time',
+                default_value='auto',
+                choices=['auto', 'true', 'false'],
+                description='preview node and controller on /clock; auto: true in lockstep',
+            ),
+            DeclareLaunchArgument(
+                'scenario', default_value='sc03', description='scenario name (bundled) or path of a scenario YAML file'
+            ),
+            DeclareLaunchArgument(
+                'record',
+                default_value='false',
+                choices=['true', 'false'],
+                description='true: ros2 bag record (mcap) of the stack topics into ./rosbag2_<date-time>',
+            ),
+            OpaqueFunction(function=_stack),
+        ]
+    )
 
 
 def _stack(context):
     """The processes for the resolved launch arguments."""
+
     def arg(name):
         return LaunchConfiguration(name).perform(context)
 
@@ -78,7 +114,7 @@ def _stack(context):
     use_sim_time = timing == 'lockstep' if arg('use_sim_time') == 'auto' else arg('use_sim_time') == 'true'
     record = arg('record') == 'true'
     common = {'scenario': arg('scenario'), 'timing': timing}
-    follower = dict(common, use_sim_time=use_sim_time)      # the plant publishes /clock, never follows it
+    follower = dict(common, use_sim_time=use_sim_time)  # the plant publishes /clock, never follows it
     # The controllers are managed (lifecycle) nodes: autostart makes them configure and activate
     # themselves (`ros2 lifecycle get /mpc_node` then says active); `ceco run` drives them instead.
     managed = dict(follower, autostart=True)
@@ -94,12 +130,24 @@ def _stack(context):
     if record:
         prefix = f'/{ns}/' if ns else '/'
         topics = [t if t.startswith('/') else prefix + t for t in TOPICS]
-        actions.append(ExecuteProcess(
-            cmd=['ros2', 'bag', 'record', '-s', 'mcap', *(['--use-sim-time'] if use_sim_time else []),
-                 '--topics', *topics],
-            name='recorder', output='screen',
-            # the plant waits for the recorder: without it the stack would stall, so stop
-            on_exit=[Shutdown(reason='the recorder (ros2 bag record) exited')]))
+        actions.append(
+            ExecuteProcess(
+                cmd=[
+                    'ros2',
+                    'bag',
+                    'record',
+                    '-s',
+                    'mcap',
+                    *(['--use-sim-time'] if use_sim_time else []),
+                    '--topics',
+                    *topics,
+                ],
+                name='recorder',
+                output='screen',
+                # the plant waits for the recorder: without it the stack would stall, so stop
+                on_exit=[Shutdown(reason='the recorder (ros2 bag record) exited')],
+            )
+        )
     return actions
 
 
@@ -107,5 +155,11 @@ def _node(name, namespace, params):
     """`name` from its package with its installed parameter file, then `params`."""
     package = NODES[name]
     params_file = os.path.join(get_package_share_directory(package), 'config', f'{name}.yaml')
-    return Node(package=package, executable=name, name=name, namespace=namespace,
-                parameters=[params_file, params], output='screen')
+    return Node(
+        package=package,
+        executable=name,
+        name=name,
+        namespace=namespace,
+        parameters=[params_file, params],
+        output='screen',
+    )

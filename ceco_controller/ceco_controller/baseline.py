@@ -25,8 +25,12 @@ __all__ = ["BaselineController"]
 class BaselineController:
     """``compute(obs) -> (AcInput, Diagnostics)`` running the production ACC law every ``Ts``."""
 
-    def __init__(self, settings: AccSettings | None = None, control_period_s: float = 5.0,
-                 observation_limits: ObservationLimits = OBSERVATION_LIMITS):
+    def __init__(
+        self,
+        settings: AccSettings | None = None,
+        control_period_s: float = 5.0,
+        observation_limits: ObservationLimits = OBSERVATION_LIMITS,
+    ):
         if not (math.isfinite(control_period_s) and control_period_s > 0):
             raise ValueError(f"control_period_s must be finite and > 0, got {control_period_s!r}")
         self.law = AccLaw(settings)
@@ -53,11 +57,21 @@ class BaselineController:
         except (TypeError, ValueError, OverflowError):
             t_cab = math.nan
         pmv_ub = float(obs.pmv_ub[0]) if np.size(obs.pmv_ub) else None
-        cmd = self.law.step(t_cab if lo <= t_cab <= hi else math.nan, self.control_period_s, t_amb_c=obs.t_amb_c,
-                            solar_wm2=obs.solar_wm2, pmv_ub=pmv_ub)
+        cmd = self.law.step(
+            t_cab if lo <= t_cab <= hi else math.nan,
+            self.control_period_s,
+            t_amb_c=obs.t_amb_c,
+            solar_wm2=obs.solar_wm2,
+            pmv_ub=pmv_ub,
+        )
         if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
             raise AssertionError(f"ACC law produced an out-of-bounds command {cmd}")
-        diag = Diagnostics(k=obs.k, t_s=obs.t_s, status=cmd.mode, mdot_bl_kgps=cmd.mdot_bl_kgps,
-                           t_evap_sp_c=cmd.t_evap_sp_c,
-                           message=f"demand={cmd.demand:.3f} setpoint_c={cmd.setpoint_c:.3f}")
+        diag = Diagnostics(
+            k=obs.k,
+            t_s=obs.t_s,
+            status=cmd.mode,
+            mdot_bl_kgps=cmd.mdot_bl_kgps,
+            t_evap_sp_c=cmd.t_evap_sp_c,
+            message=f"demand={cmd.demand:.3f} setpoint_c={cmd.setpoint_c:.3f}",
+        )
         return AcInput(mdot_bl_kgps=cmd.mdot_bl_kgps, t_evap_sp_c=cmd.t_evap_sp_c), diag

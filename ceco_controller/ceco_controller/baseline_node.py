@@ -5,6 +5,7 @@ same topics, timing modes, checks and lifecycle as mpc_node (it reuses its
 node class with the strategy fixed to ``baseline``; it uses no preview for
 its decisions but waits for them in lockstep so both nodes step alike).
 """
+
 from __future__ import annotations
 
 from ceco_controller.mpc_node import ControllerNode

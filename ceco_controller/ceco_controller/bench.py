@@ -61,8 +61,12 @@ def _stats(x):
     x = np.asarray(x, float)
     if x.size == 0:
         return {"median": float("nan"), "p95": float("nan"), "p99": float("nan"), "max": float("nan")}
-    return {"median": float(np.median(x)), "p95": float(np.percentile(x, 95)), "p99": float(np.percentile(x, 99)),
-            "max": float(np.max(x))}
+    return {
+        "median": float(np.median(x)),
+        "p95": float(np.percentile(x, 95)),
+        "p99": float(np.percentile(x, 99)),
+        "max": float(np.max(x)),
+    }
 
 
 def _json_float(v: float) -> float | None:
@@ -73,11 +77,20 @@ def _json_float(v: float) -> float | None:
 def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) -> tuple[dict, np.ndarray]:
     ctrl = cl.make_controller(strat, sc, sc.control.control_period_s, np_, mp, overrides)
     # the reference: MPCTools' transcription (multiple shooting), IPOPT defaults, in-process functions
-    ref_ctrl = cl.make_controller(strat, sc, sc.control.control_period_s, np_, mp, {
-        "solver": SolverSettings(name="ipopt", default_options=True, transcription="multiple-shooting")})
+    ref_ctrl = cl.make_controller(
+        strat,
+        sc,
+        sc.control.control_period_s,
+        np_,
+        mp,
+        {"solver": SolverSettings(name="ipopt", default_options=True, transcription="multiple-shooting")},
+    )
     # and, if the product's transcription differs, IPOPT defaults on the product's own NLP
-    same_solver = (ctrl.make_solver(SolverSettings(name="ipopt", default_options=True))
-                   if ctrl.transcription != "multiple-shooting" else None)
+    same_solver = (
+        ctrl.make_solver(SolverSettings(name="ipopt", default_options=True))
+        if ctrl.transcription != "multiple-shooting"
+        else None
+    )
     acc: dict[str, list] = {k: [] for k in ("ours_t", "ref_t", "diffs", "sdiffs", "ours_it", "ref_it", "same_t")}
     fails = {"n_fail": 0, "n_ref_fail": 0, "n_ref_same_nlp_fail": 0}
 
@@ -102,33 +115,57 @@ def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) ->
             acc["sdiffs"].append((diag.cost_total - ref.f) / max(abs(ref.f), 1e-9))
             acc["diffs"].append(abs(acc["sdiffs"][-1]))
 
-    res, step_ms = timed_run(ctrl, sc, strat, cl.SimSettings(horizon_steps=np_, duration_s=duration_s,
-                                                             progress=progress), on_step, prepare)
+    res, step_ms = timed_run(
+        ctrl, sc, strat, cl.SimSettings(horizon_steps=np_, duration_s=duration_s, progress=progress), on_step, prepare
+    )
     o, r, sm, st = _stats(acc["ours_t"]), _stats(acc["ref_t"]), _stats(acc["same_t"]), _stats(step_ms)
     diffs, sdiffs, c = acc["diffs"], acc["sdiffs"], ctrl.counters
-    row = {"strategy": strat, "np": np_, "solver": ctrl.settings.solver.name + ("-rti" if ctrl.settings.solver.rti
-                                                                                else ""),
-           "transcription": ctrl.transcription, "steps": len(step_ms),
-           "budget_ms": 1e3 * ctrl.settings.solver.step_budget_s,
-           "ours_median_ms": o["median"], "ours_p95_ms": o["p95"], "ours_max_ms": o["max"],
-           "ours_iter_median": float(np.nanmedian(acc["ours_it"])) if acc["ours_it"] else float("nan"),
-           "step_median_ms": st["median"], "step_p99_ms": st["p99"], "step_max_ms": st["max"],
-           "ref_median_ms": r["median"], "ref_p95_ms": r["p95"], "ref_max_ms": r["max"],
-           "ref_iter_median": float(np.median(acc["ref_it"])) if acc["ref_it"] else float("nan"),
-           "ref_same_nlp_median_ms": sm["median"],
-           "speedup_median": r["median"] / o["median"] if o["median"] > 0 else float("nan"),
-           "max_rel_cost_diff": max(diffs) if diffs else float("nan"),
-           "max_rel_cost_excess": max(max(sdiffs), 0.0) if sdiffs else float("nan"),
-           "n_rel_cost_diff_gt_1e-4": int(sum(d > 1e-4 for d in diffs)),
-           **fails, "failures": fails["n_fail"], "n_ipopt_fallbacks": ctrl.n_ipopt_fallbacks,
-           "accepted_iterates": c.accepted_iterates, "deadline_hits": c.deadline_hits,
-           "load_1min": os.getloadavg()[0]}
+    row = {
+        "strategy": strat,
+        "np": np_,
+        "solver": ctrl.settings.solver.name + ("-rti" if ctrl.settings.solver.rti else ""),
+        "transcription": ctrl.transcription,
+        "steps": len(step_ms),
+        "budget_ms": 1e3 * ctrl.settings.solver.step_budget_s,
+        "ours_median_ms": o["median"],
+        "ours_p95_ms": o["p95"],
+        "ours_max_ms": o["max"],
+        "ours_iter_median": float(np.nanmedian(acc["ours_it"])) if acc["ours_it"] else float("nan"),
+        "step_median_ms": st["median"],
+        "step_p99_ms": st["p99"],
+        "step_max_ms": st["max"],
+        "ref_median_ms": r["median"],
+        "ref_p95_ms": r["p95"],
+        "ref_max_ms": r["max"],
+        "ref_iter_median": float(np.median(acc["ref_it"])) if acc["ref_it"] else float("nan"),
+        "ref_same_nlp_median_ms": sm["median"],
+        "speedup_median": r["median"] / o["median"] if o["median"] > 0 else float("nan"),
+        "max_rel_cost_diff": max(diffs) if diffs else float("nan"),
+        "max_rel_cost_excess": max(max(sdiffs), 0.0) if sdiffs else float("nan"),
+        "n_rel_cost_diff_gt_1e-4": int(sum(d > 1e-4 for d in diffs)),
+        **fails,
+        "failures": fails["n_fail"],
+        "n_ipopt_fallbacks": ctrl.n_ipopt_fallbacks,
+        "accepted_iterates": c.accepted_iterates,
+        "deadline_hits": c.deadline_hits,
+        "load_1min": os.getloadavg()[0],
+    }
     return row, step_ms
 
 
-def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03", progress=False,
-               codegen=True, method=_DEFAULT.name, transcription=_DEFAULT.transcription,
-               cpu_slowdown: float = 1.0, prepare: bool = True) -> tuple[list[dict], dict]:
+def bench_nmpc(
+    strategies,
+    horizons,
+    duration_s=None,
+    jit=False,
+    scenario="sc03",
+    progress=False,
+    codegen=True,
+    method=_DEFAULT.name,
+    transcription=_DEFAULT.transcription,
+    cpu_slowdown: float = 1.0,
+    prepare: bool = True,
+) -> tuple[list[dict], dict]:
     """Run the benchmark; return one dict per (strategy, horizon) and the whole-step times per horizon [ms]."""
     sc = load_scenario(scenario)
     mp = cm.load_params()
@@ -136,23 +173,32 @@ def bench_nmpc(strategies, horizons, duration_s=None, jit=False, scenario="sc03"
     steps: dict = {}
     for np_ in horizons:
         for strat in strategies:
-            overrides = {"solver": budget_settings(cpu_slowdown, name=method, jit=jit, codegen=codegen and not jit,
-                                                   transcription=transcription)}
+            overrides = {
+                "solver": budget_settings(
+                    cpu_slowdown, name=method, jit=jit, codegen=codegen and not jit, transcription=transcription
+                )
+            }
             rr, step_ms = _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare)
             rows.append(rr)
             steps.setdefault(np_, []).extend(step_ms.tolist())
-            print(f"{strat:10s} Np={np_:3d} steps={rr['steps']:4d}  ours median {rr['ours_median_ms']:7.2f} ms "
-                  f"p95 {rr['ours_p95_ms']:7.2f} max {rr['ours_max_ms']:7.2f} (it {rr['ours_iter_median']:.0f}); "
-                  f"whole step median {rr['step_median_ms']:6.2f} p99 {rr['step_p99_ms']:6.2f}  |  "
-                  f"IPOPT default median {rr['ref_median_ms']:7.2f} p95 {rr['ref_p95_ms']:7.2f} "
-                  f"max {rr['ref_max_ms']:7.2f} (it {rr['ref_iter_median']:.0f})"
-                  + (f" [on our NLP: median {rr['ref_same_nlp_median_ms']:.2f}]" if rr["ref_same_nlp_median_ms"]
-                     == rr["ref_same_nlp_median_ms"] else "")
-                  + f"  speed-up {rr['speedup_median']:5.1f}x  max rel cost diff {rr['max_rel_cost_diff']:.1e} "
-                  f"(ours higher by <= {rr['max_rel_cost_excess']:.1e}; {rr['n_rel_cost_diff_gt_1e-4']} steps > 1e-4)  "
-                  f"failures {rr['failures']} (ref fails {rr['n_ref_fail']})  [{rr['solver']}, {rr['transcription']}; "
-                  f"ipopt retries {rr['n_ipopt_fallbacks']}, iterates {rr['accepted_iterates']}; budget "
-                  f"{rr['budget_ms']:.0f} ms; load {rr['load_1min']:.1f}]", flush=True)
+            print(
+                f"{strat:10s} Np={np_:3d} steps={rr['steps']:4d}  ours median {rr['ours_median_ms']:7.2f} ms "
+                f"p95 {rr['ours_p95_ms']:7.2f} max {rr['ours_max_ms']:7.2f} (it {rr['ours_iter_median']:.0f}); "
+                f"whole step median {rr['step_median_ms']:6.2f} p99 {rr['step_p99_ms']:6.2f}  |  "
+                f"IPOPT default median {rr['ref_median_ms']:7.2f} p95 {rr['ref_p95_ms']:7.2f} "
+                f"max {rr['ref_max_ms']:7.2f} (it {rr['ref_iter_median']:.0f})"
+                + (
+                    f" [on our NLP: median {rr['ref_same_nlp_median_ms']:.2f}]"
+                    if rr["ref_same_nlp_median_ms"] == rr["ref_same_nlp_median_ms"]
+                    else ""
+                )
+                + f"  speed-up {rr['speedup_median']:5.1f}x  max rel cost diff {rr['max_rel_cost_diff']:.1e} "
+                f"(ours higher by <= {rr['max_rel_cost_excess']:.1e}; {rr['n_rel_cost_diff_gt_1e-4']} steps > 1e-4)  "
+                f"failures {rr['failures']} (ref fails {rr['n_ref_fail']})  [{rr['solver']}, {rr['transcription']}; "
+                f"ipopt retries {rr['n_ipopt_fallbacks']}, iterates {rr['accepted_iterates']}; budget "
+                f"{rr['budget_ms']:.0f} ms; load {rr['load_1min']:.1f}]",
+                flush=True,
+            )
     return rows, steps
 
 
@@ -172,15 +218,19 @@ def _summary(rows, steps, args, codegen, horizons, strategies, duration) -> dict
         "np6_step_median_ms": float(np.median(s6)) if s6.size else None,
         "np6_step_p99_ms": float(np.percentile(s6, 99)) if s6.size else None,
         "np6_ref_median_ms": _np6([r["ref_median_ms"] for r in np6], np.median),
-        "np6_speedup_vs_ipopt_default": (float(np.median([r["ref_median_ms"] for r in np6])
-                                               / np.median([r["ours_median_ms"] for r in np6])) if np6 else None),
+        "np6_speedup_vs_ipopt_default": (
+            float(np.median([r["ref_median_ms"] for r in np6]) / np.median([r["ours_median_ms"] for r in np6]))
+            if np6
+            else None
+        ),
         "max_rel_cost_diff": float(np.nanmax([r["max_rel_cost_diff"] for r in rows])),
         "max_rel_cost_excess": float(np.nanmax([r["max_rel_cost_excess"] for r in rows])),
         "n_steps_rel_cost_diff_gt_1e-4": int(sum(r["n_rel_cost_diff_gt_1e-4"] for r in rows)),
         "n_steps": int(sum(r["steps"] for r in rows)),
         "failures": int(sum(r["failures"] for r in rows)),
-        "solver": (args.method + "-warm-" + args.transcription) + ("+jit" if args.jit else "")
-                  + ("+codegen" if codegen and args.method != "fatrop" else ""),
+        "solver": (args.method + "-warm-" + args.transcription)
+        + ("+jit" if args.jit else "")
+        + ("+codegen" if codegen and args.method != "fatrop" else ""),
         "np6_solver": sorted({f"{r['solver']}/{r['transcription']}" for r in np6}),
         "n_ipopt_fallbacks": int(sum(r["n_ipopt_fallbacks"] for r in rows)),
         "accepted_iterates": int(sum(r["accepted_iterates"] for r in rows)),
@@ -213,83 +263,147 @@ def main(argv=None) -> int:
     ap.add_argument("what", choices=["nmpc"], help="benchmark to run")
     ap.add_argument("--quick", action="store_true", help="Np 6 and 12 only, first 200 s of SC03")
     ap.add_argument("--jit", action="store_true", help="compile the NLP functions with gcc (slow to build)")
-    ap.add_argument("--no-codegen", action="store_true",
-                    help="in-process NLP functions (default: compiled, cached, as solver.codegen: true)")
+    ap.add_argument(
+        "--no-codegen",
+        action="store_true",
+        help="in-process NLP functions (default: compiled, cached, as solver.codegen: true)",
+    )
     ap.add_argument("--horizons", default=None, help="comma-separated horizons (default 6,12,24,60)")
     ap.add_argument("--strategies", default=None, help=f"comma-separated subset of {','.join(CECO_STRATEGIES)}")
     ap.add_argument("--duration", type=float, default=None, help="run length [s] (default: whole SC03)")
-    ap.add_argument("--method", choices=list(SOLVER_NAMES), default=_DEFAULT.name,
-                    help=f"product solver (SolverSettings.name; default {_DEFAULT.name})")
-    ap.add_argument("--transcription", choices=["auto", "single-shooting", "multiple-shooting"],
-                    default=_DEFAULT.transcription,
-                    help=f"product NLP transcription (default {_DEFAULT.transcription}); the reference is "
-                         "always multiple shooting")
-    ap.add_argument("--cpu-slowdown", type=float, default=1.0,
-                    help="divide every time budget of the main cases by this (an ECU that many times slower)")
-    ap.add_argument("--slowdown-factors", default="1,10,100",
-                    help="factors of the slow-down table (SC03, Np = 6); '' skips it")
+    ap.add_argument(
+        "--method",
+        choices=list(SOLVER_NAMES),
+        default=_DEFAULT.name,
+        help=f"product solver (SolverSettings.name; default {_DEFAULT.name})",
+    )
+    ap.add_argument(
+        "--transcription",
+        choices=["auto", "single-shooting", "multiple-shooting"],
+        default=_DEFAULT.transcription,
+        help=f"product NLP transcription (default {_DEFAULT.transcription}); the reference is always multiple shooting",
+    )
+    ap.add_argument(
+        "--cpu-slowdown",
+        type=float,
+        default=1.0,
+        help="divide every time budget of the main cases by this (an ECU that many times slower)",
+    )
+    ap.add_argument(
+        "--slowdown-factors", default="1,10,100", help="factors of the slow-down table (SC03, Np = 6); '' skips it"
+    )
     ap.add_argument("--no-prepare", action="store_true", help="no first solve before the controller takes over")
-    ap.add_argument("--robustness", action="store_true",
-                    help="also run every benchmark scenario x preview fault and count failures")
-    ap.add_argument("--rti-cases", action="store_true",
-                    help="also compare the bounded-cost mode with the full SQP on every benchmark scenario")
+    ap.add_argument(
+        "--robustness", action="store_true", help="also run every benchmark scenario x preview fault and count failures"
+    )
+    ap.add_argument(
+        "--rti-cases",
+        action="store_true",
+        help="also compare the bounded-cost mode with the full SQP on every benchmark scenario",
+    )
     ap.add_argument("--progress", action="store_true", help="show progress bars")
     args = ap.parse_args(argv)
     if not args.cpu_slowdown > 0:
         ap.error("--cpu-slowdown must be > 0")
-    horizons = [int(h) for h in args.horizons.split(",")] if args.horizons else ([6, 12] if args.quick
-                                                                                 else [6, 12, 24, 60])
+    horizons = (
+        [int(h) for h in args.horizons.split(",")] if args.horizons else ([6, 12] if args.quick else [6, 12, 24, 60])
+    )
     strategies = args.strategies.split(",") if args.strategies else list(CECO_STRATEGIES)
     duration = args.duration if args.duration is not None else (200.0 if args.quick else None)
     codegen = not args.no_codegen and not args.jit
-    print(f"ceco bench nmpc: product solver {args.method}, transcription {args.transcription}"
-          + (", compiled functions" if codegen and args.method != "fatrop" else ", in-process functions")
-          + f", budgets / {args.cpu_slowdown:g}; load {os.getloadavg()[0]:.1f}", flush=True)
-    rows, steps = bench_nmpc(strategies, horizons, duration, jit=args.jit, progress=args.progress, codegen=codegen,
-                             method=args.method, transcription=args.transcription, cpu_slowdown=args.cpu_slowdown,
-                             prepare=not args.no_prepare)
+    print(
+        f"ceco bench nmpc: product solver {args.method}, transcription {args.transcription}"
+        + (", compiled functions" if codegen and args.method != "fatrop" else ", in-process functions")
+        + f", budgets / {args.cpu_slowdown:g}; load {os.getloadavg()[0]:.1f}",
+        flush=True,
+    )
+    rows, steps = bench_nmpc(
+        strategies,
+        horizons,
+        duration,
+        jit=args.jit,
+        progress=args.progress,
+        codegen=codegen,
+        method=args.method,
+        transcription=args.transcription,
+        cpu_slowdown=args.cpu_slowdown,
+        prepare=not args.no_prepare,
+    )
     summary = _summary(rows, steps, args, codegen, horizons, strategies, duration)
     factors = [float(f) for f in args.slowdown_factors.split(",") if f.strip()]
     if factors:
         print(f"slow-down table (SC03, Np = 6, budgets / factor; load {os.getloadavg()[0]:.1f}):", flush=True)
-        table = slowdown_table(strategies, factors, duration_s=duration, codegen=codegen,
-                               prepare=not args.no_prepare, progress=args.progress)
+        table = slowdown_table(
+            strategies,
+            factors,
+            duration_s=duration,
+            codegen=codegen,
+            prepare=not args.no_prepare,
+            progress=args.progress,
+        )
         summary["slowdown"] = [
-            {"factor": f, "mode": mode,
-             "budget_ms": next(r["budget_ms"] for r in table if r["factor"] == f),
-             "steps": sum(r["steps"] for r in table if r["factor"] == f and r["mode"] == mode),
-             "steps_nmpc": sum(r["nmpc"] for r in table if r["factor"] == f and r["mode"] == mode),
-             "steps_shifted_plan": sum(r["shifted_plan"] for r in table if r["factor"] == f and r["mode"] == mode),
-             "steps_acc_law": sum(r["acc_law"] for r in table if r["factor"] == f and r["mode"] == mode),
-             "accepted_iterates": sum(r["accepted_iterates"] for r in table if r["factor"] == f and r["mode"] == mode),
-             "step_p99_ms": max(r["step_p99_ms"] for r in table if r["factor"] == f and r["mode"] == mode),
-             "max_cpu_past_deadline_ms": max(r["max_cpu_past_deadline_ms"] for r in table
-                                             if r["factor"] == f and r["mode"] == mode),
-             "rti_loss_median": _median_or_none([r["rti_loss_median"] for r in table if r["factor"] == f
-                                                 and r["mode"] == mode and r["rti_loss_median"] is not None]),
-             "rti_loss_max": max((r["rti_loss_max"] for r in table if r["factor"] == f and r["mode"] == mode
-                                  and r["rti_loss_max"] is not None), default=None),
-             "dE_vs_full_1x_pct_max": max((r.get("dE_vs_full_1x_pct", 0.0) for r in table if r["factor"] == f
-                                           and r["mode"] == mode), default=None),
-             "dI_pmv_vs_full_1x_pct_max": max((r.get("dI_pmv_vs_full_1x_pct", 0.0) for r in table
-                                               if r["factor"] == f and r["mode"] == mode), default=None)}
-            for f in factors for mode in ("full", "rti")]
+            {
+                "factor": f,
+                "mode": mode,
+                "budget_ms": next(r["budget_ms"] for r in table if r["factor"] == f),
+                "steps": sum(r["steps"] for r in table if r["factor"] == f and r["mode"] == mode),
+                "steps_nmpc": sum(r["nmpc"] for r in table if r["factor"] == f and r["mode"] == mode),
+                "steps_shifted_plan": sum(r["shifted_plan"] for r in table if r["factor"] == f and r["mode"] == mode),
+                "steps_acc_law": sum(r["acc_law"] for r in table if r["factor"] == f and r["mode"] == mode),
+                "accepted_iterates": sum(
+                    r["accepted_iterates"] for r in table if r["factor"] == f and r["mode"] == mode
+                ),
+                "step_p99_ms": max(r["step_p99_ms"] for r in table if r["factor"] == f and r["mode"] == mode),
+                "max_cpu_past_deadline_ms": max(
+                    r["max_cpu_past_deadline_ms"] for r in table if r["factor"] == f and r["mode"] == mode
+                ),
+                "rti_loss_median": _median_or_none(
+                    [
+                        r["rti_loss_median"]
+                        for r in table
+                        if r["factor"] == f and r["mode"] == mode and r["rti_loss_median"] is not None
+                    ]
+                ),
+                "rti_loss_max": max(
+                    (
+                        r["rti_loss_max"]
+                        for r in table
+                        if r["factor"] == f and r["mode"] == mode and r["rti_loss_max"] is not None
+                    ),
+                    default=None,
+                ),
+                "dE_vs_full_1x_pct_max": max(
+                    (r.get("dE_vs_full_1x_pct", 0.0) for r in table if r["factor"] == f and r["mode"] == mode),
+                    default=None,
+                ),
+                "dI_pmv_vs_full_1x_pct_max": max(
+                    (r.get("dI_pmv_vs_full_1x_pct", 0.0) for r in table if r["factor"] == f and r["mode"] == mode),
+                    default=None,
+                ),
+            }
+            for f in factors
+            for mode in ("full", "rti")
+        ]
         summary["slowdown_cases"] = table
     if args.rti_cases:
         print(f"bounded-cost mode on every benchmark scenario (budget 1x; load {os.getloadavg()[0]:.1f}):", flush=True)
         cases = []
         for name in BENCH_SCENARIOS:
-            for r in slowdown_table(strategies, (1.0,), scenario=name, codegen=codegen, prepare=not args.no_prepare,
-                                    progress=args.progress):
+            for r in slowdown_table(
+                strategies, (1.0,), scenario=name, codegen=codegen, prepare=not args.no_prepare, progress=args.progress
+            ):
                 cases.append({"scenario": name, **r})
         summary["rti_cases"] = cases
     if args.robustness:
         print(f"robustness (every scenario x preview fault; load {os.getloadavg()[0]:.1f}):", flush=True)
         rob = robustness(strategies, codegen=codegen, progress=args.progress)
-        summary["robustness"] = {"runs": len(rob), "steps": sum(r["steps"] for r in rob),
-                                 "failures": sum(r["failures"] for r in rob),
-                                 "retries": sum(r["retries"] for r in rob),
-                                 "accepted_iterates": sum(r["accepted_iterates"] for r in rob)}
+        summary["robustness"] = {
+            "runs": len(rob),
+            "steps": sum(r["steps"] for r in rob),
+            "failures": sum(r["failures"] for r in rob),
+            "retries": sum(r["retries"] for r in rob),
+            "accepted_iterates": sum(r["accepted_iterates"] for r in rob),
+        }
     summary["per_case"] = rows
     print(json.dumps(_clean(summary), allow_nan=False))
     return 0

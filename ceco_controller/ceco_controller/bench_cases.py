@@ -45,8 +45,12 @@ PREVIEW_FAULTS = ("perfect", "noisy", "delayed:30", "missing:100-250,policy=drop
 def budget_settings(factor: float, **solver) -> SolverSettings:
     """Solver settings with every time budget divided by ``factor`` (an ECU ``factor`` times slower)."""
     base = SolverSettings()
-    return SolverSettings(step_budget_s=base.step_budget_s / factor, step_reserve_s=base.step_reserve_s / factor,
-                          max_cpu_time_s=base.max_cpu_time_s / factor, **solver)
+    return SolverSettings(
+        step_budget_s=base.step_budget_s / factor,
+        step_reserve_s=base.step_reserve_s / factor,
+        max_cpu_time_s=base.max_cpu_time_s / factor,
+        **solver,
+    )
 
 
 @contextlib.contextmanager
@@ -81,8 +85,15 @@ def _timed_steps(ctrl, times: list, cpu_times: list, on_step=None, prepare: bool
         del ctrl.compute
 
 
-def timed_run(ctrl, scenario, strategy: str, settings: cl.SimSettings, on_step=None, prepare: bool = True,
-              cpu_ms: list | None = None):
+def timed_run(
+    ctrl,
+    scenario,
+    strategy: str,
+    settings: cl.SimSettings,
+    on_step=None,
+    prepare: bool = True,
+    cpu_ms: list | None = None,
+):
     """Simulate with ``ctrl``, timing each whole control step [ms]; returns ``(RunResult, step_ms)``.
 
     ``cpu_ms``: if given, receives each step's CPU time of this thread [ms] (wall minus it is the
@@ -96,13 +107,24 @@ def timed_run(ctrl, scenario, strategy: str, settings: cl.SimSettings, on_step=N
 
 
 def _control_counts(diags) -> dict:
-    return {"steps": len(diags), "nmpc": sum(d.fallback == "" for d in diags),
-            "shifted_plan": sum(d.fallback == "shifted_plan" for d in diags),
-            "acc_law": sum(d.fallback == "baseline" for d in diags)}
+    return {
+        "steps": len(diags),
+        "nmpc": sum(d.fallback == "" for d in diags),
+        "shifted_plan": sum(d.fallback == "shifted_plan" for d in diags),
+        "acc_law": sum(d.fallback == "baseline" for d in diags),
+    }
 
 
-def slowdown_table(strategies, factors=(1, 10, 100), scenario: str = "sc03", horizon: int = 6,
-                   duration_s=None, codegen: bool = True, prepare: bool = True, progress: bool = False) -> list[dict]:
+def slowdown_table(
+    strategies,
+    factors=(1, 10, 100),
+    scenario: str = "sc03",
+    horizon: int = 6,
+    duration_s=None,
+    codegen: bool = True,
+    prepare: bool = True,
+    progress: bool = False,
+) -> list[dict]:
     """One row per (factor, mode, strategy); see the module docstring."""
     sc = load_scenario(scenario)
     sim = cl.SimSettings(horizon_steps=horizon, duration_s=duration_s, progress=progress)
@@ -110,8 +132,14 @@ def slowdown_table(strategies, factors=(1, 10, 100), scenario: str = "sc03", hor
     for factor in factors:
         for mode in ("full", "rti"):
             for strat in strategies:
-                ctrl = cl.make_controller(strat, sc, sc.control.control_period_s, horizon, None, {
-                    "solver": budget_settings(factor, rti=mode == "rti", codegen=codegen)})
+                ctrl = cl.make_controller(
+                    strat,
+                    sc,
+                    sc.control.control_period_s,
+                    horizon,
+                    None,
+                    {"solver": budget_settings(factor, rti=mode == "rti", codegen=codegen)},
+                )
                 full = ctrl.make_solver(dataclasses.replace(ctrl.settings.solver, rti=False)) if mode == "rti" else None
                 losses: list[float] = []
                 e_losses: list[float] = []
@@ -136,21 +164,33 @@ def slowdown_table(strategies, factors=(1, 10, 100), scenario: str = "sc03", hor
                 c = ctrl.counters
                 m = res.metrics
                 budget_ms = 1e3 * ctrl.settings.solver.step_budget_s
-                row = {"factor": factor, "mode": mode, "strategy": strat, **_control_counts(res.diag_objects),
-                       "converged": c.converged, "accepted_iterates": c.accepted_iterates, "rti_steps": c.rti_steps,
-                       "retries": c.retries, "cold_solves": c.cold_solves, "deadline_hits": c.deadline_hits,
-                       "budget_ms": budget_ms, "step_median_ms": float(np.median(step_ms)),
-                       "step_p99_ms": float(np.percentile(step_ms, 99)), "step_max_ms": float(np.max(step_ms)),
-                       "overruns": int(np.sum(step_ms > budget_ms)),
-                       "max_past_deadline_ms": float(np.max(step_ms) - deadline_ms),
-                       "step_cpu_max_ms": float(np.max(cpu_ms)),
-                       "max_cpu_past_deadline_ms": float(np.max(cpu_ms) - deadline_ms),
-                       "E_tot_kWh": m["E_tot_kWh"], "I_pmv": m["I_pmv"],
-                       "rti_loss_median": float(np.median(losses)) if losses else None,
-                       "rti_loss_max": float(np.max(losses)) if losses else None,
-                       "rti_loss_n": len(losses),
-                       "rti_energy_term_diff_median": float(np.median(e_losses)) if e_losses else None,
-                       "rti_energy_term_diff_max_abs": float(np.max(np.abs(e_losses))) if e_losses else None}
+                row = {
+                    "factor": factor,
+                    "mode": mode,
+                    "strategy": strat,
+                    **_control_counts(res.diag_objects),
+                    "converged": c.converged,
+                    "accepted_iterates": c.accepted_iterates,
+                    "rti_steps": c.rti_steps,
+                    "retries": c.retries,
+                    "cold_solves": c.cold_solves,
+                    "deadline_hits": c.deadline_hits,
+                    "budget_ms": budget_ms,
+                    "step_median_ms": float(np.median(step_ms)),
+                    "step_p99_ms": float(np.percentile(step_ms, 99)),
+                    "step_max_ms": float(np.max(step_ms)),
+                    "overruns": int(np.sum(step_ms > budget_ms)),
+                    "max_past_deadline_ms": float(np.max(step_ms) - deadline_ms),
+                    "step_cpu_max_ms": float(np.max(cpu_ms)),
+                    "max_cpu_past_deadline_ms": float(np.max(cpu_ms) - deadline_ms),
+                    "E_tot_kWh": m["E_tot_kWh"],
+                    "I_pmv": m["I_pmv"],
+                    "rti_loss_median": float(np.median(losses)) if losses else None,
+                    "rti_loss_max": float(np.max(losses)) if losses else None,
+                    "rti_loss_n": len(losses),
+                    "rti_energy_term_diff_median": float(np.median(e_losses)) if e_losses else None,
+                    "rti_energy_term_diff_max_abs": float(np.max(np.abs(e_losses))) if e_losses else None,
+                }
                 if factor == factors[0] and mode == "full":
                     ref_metrics[strat] = m
                 ref = ref_metrics.get(strat)
@@ -158,43 +198,74 @@ def slowdown_table(strategies, factors=(1, 10, 100), scenario: str = "sc03", hor
                     row["dE_vs_full_1x_pct"] = 100.0 * (m["E_tot_kWh"] / ref["E_tot_kWh"] - 1.0)
                     row["dI_pmv_vs_full_1x_pct"] = 100.0 * (m["I_pmv"] / ref["I_pmv"] - 1.0)
                 rows.append(row)
-                loss = (f"RTI loss median {row['rti_loss_median']:.1e} max {row['rti_loss_max']:.1e} ({len(losses)}); "
-                        f"energy term median {row['rti_energy_term_diff_median']:+.1e} "
-                        f"max |.| {row['rti_energy_term_diff_max_abs']:.1e}" if losses else "")
-                print(f"{factor:4g}x {mode:4s} {strat:10s} budget {budget_ms:7.1f} ms: NMPC {row['nmpc']:3d}/"
-                      f"{row['steps']} (converged {c.converged}, iterates {c.accepted_iterates}, rti {c.rti_steps}), "
-                      f"shifted {row['shifted_plan']}, ACC {row['acc_law']}; step median {row['step_median_ms']:.2f}"
-                      f" p99 {row['step_p99_ms']:.2f} max {row['step_max_ms']:.2f} ms, overruns {row['overruns']} "
-                      f"(max {row['max_past_deadline_ms']:+.2f} ms past the deadline, CPU time "
-                      f"{row['max_cpu_past_deadline_ms']:+.2f} ms); "
-                      f"dE {row.get('dE_vs_full_1x_pct', 0.0):+.3f} % "
-                      f"dI_pmv {row.get('dI_pmv_vs_full_1x_pct', 0.0):+.3f} %"
-                      f"  {loss}", flush=True)
+                loss = (
+                    f"RTI loss median {row['rti_loss_median']:.1e} max {row['rti_loss_max']:.1e} ({len(losses)}); "
+                    f"energy term median {row['rti_energy_term_diff_median']:+.1e} "
+                    f"max |.| {row['rti_energy_term_diff_max_abs']:.1e}"
+                    if losses
+                    else ""
+                )
+                print(
+                    f"{factor:4g}x {mode:4s} {strat:10s} budget {budget_ms:7.1f} ms: NMPC {row['nmpc']:3d}/"
+                    f"{row['steps']} (converged {c.converged}, iterates {c.accepted_iterates}, rti {c.rti_steps}), "
+                    f"shifted {row['shifted_plan']}, ACC {row['acc_law']}; step median {row['step_median_ms']:.2f}"
+                    f" p99 {row['step_p99_ms']:.2f} max {row['step_max_ms']:.2f} ms, overruns {row['overruns']} "
+                    f"(max {row['max_past_deadline_ms']:+.2f} ms past the deadline, CPU time "
+                    f"{row['max_cpu_past_deadline_ms']:+.2f} ms); "
+                    f"dE {row.get('dE_vs_full_1x_pct', 0.0):+.3f} % "
+                    f"dI_pmv {row.get('dI_pmv_vs_full_1x_pct', 0.0):+.3f} %"
+                    f"  {loss}",
+                    flush=True,
+                )
     return rows
 
 
-def robustness(strategies, scenarios=BENCH_SCENARIOS, qualities=PREVIEW_FAULTS, rti: bool = False,
-               codegen: bool = False, progress: bool = False) -> list[dict]:
+def robustness(
+    strategies,
+    scenarios=BENCH_SCENARIOS,
+    qualities=PREVIEW_FAULTS,
+    rti: bool = False,
+    codegen: bool = False,
+    progress: bool = False,
+) -> list[dict]:
     """One row per (scenario, preview quality, strategy): control counts and the solve chain's counters."""
     rows = []
     for name in scenarios:
         sc = load_scenario(name)
         for q in qualities:
             for strat in strategies:
-                ctrl = cl.make_controller(strat, sc, sc.control.control_period_s, sc.control.horizon_steps, None,
-                                          {"solver": SolverSettings(rti=rti, codegen=codegen)})
-                res = cl.simulate(sc, strat, cl.SimSettings(preview_quality=parse_quality(q), progress=progress),
-                                  controller=ctrl)
+                ctrl = cl.make_controller(
+                    strat,
+                    sc,
+                    sc.control.control_period_s,
+                    sc.control.horizon_steps,
+                    None,
+                    {"solver": SolverSettings(rti=rti, codegen=codegen)},
+                )
+                res = cl.simulate(
+                    sc, strat, cl.SimSettings(preview_quality=parse_quality(q), progress=progress), controller=ctrl
+                )
                 c = ctrl.counters
                 counts = _control_counts(res.diag_objects)
-                row = {"scenario": name, "preview": q, "strategy": strat, **counts,
-                       "failures": counts["steps"] - counts["nmpc"], "retries": c.retries,
-                       "accepted_iterates": c.accepted_iterates, "cold_solves": c.cold_solves,
-                       "invalid_observations": c.invalid_observations, "E_tot_kWh": res.metrics["E_tot_kWh"],
-                       "I_pmv": res.metrics["I_pmv"]}
+                row = {
+                    "scenario": name,
+                    "preview": q,
+                    "strategy": strat,
+                    **counts,
+                    "failures": counts["steps"] - counts["nmpc"],
+                    "retries": c.retries,
+                    "accepted_iterates": c.accepted_iterates,
+                    "cold_solves": c.cold_solves,
+                    "invalid_observations": c.invalid_observations,
+                    "E_tot_kWh": res.metrics["E_tot_kWh"],
+                    "I_pmv": res.metrics["I_pmv"],
+                }
                 rows.append(row)
-                print(f"{name:13s} {q:28s} {strat:10s} steps {row['steps']:4d} failures {row['failures']} "
-                      f"(shifted {row['shifted_plan']}, ACC {row['acc_law']}) retries {c.retries} "
-                      f"iterates {c.accepted_iterates} cold {c.cold_solves}  E {row['E_tot_kWh']:.4f} kWh "
-                      f"I_pmv {row['I_pmv']:.1f}; load {os.getloadavg()[0]:.1f}", flush=True)
+                print(
+                    f"{name:13s} {q:28s} {strat:10s} steps {row['steps']:4d} failures {row['failures']} "
+                    f"(shifted {row['shifted_plan']}, ACC {row['acc_law']}) retries {c.retries} "
+                    f"iterates {c.accepted_iterates} cold {c.cold_solves}  E {row['E_tot_kWh']:.4f} kWh "
+                    f"I_pmv {row['I_pmv']:.1f}; load {os.getloadavg()[0]:.1f}",
+                    flush=True,
+                )
     return rows

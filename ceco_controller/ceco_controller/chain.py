@@ -114,16 +114,26 @@ class ChainOutcome:
         """The single attempt's status, or 'solver: status; ...' over all attempts."""
         if len(self.attempts) == 1:
             return self.attempts[0][1].status
-        return "; ".join(f"{'cold ' if role.startswith('cold') else ''}{r.solver}: {r.status}"
-                         for role, r in self.attempts)
+        return "; ".join(
+            f"{'cold ' if role.startswith('cold') else ''}{r.solver}: {r.status}" for role, r in self.attempts
+        )
 
 
 class SolveChain:
     """The attempts of one control step (see the module docstring)."""
 
-    def __init__(self, problem: NlpProblem, solver: NlpSolver, retry: NlpSolver | None, cold: NlpSolver,
-                 cold_path: ColdPath | None, limits: ActuatorLimits, accept_violation: float,
-                 warm_start: bool, clock: Callable[[], float]):
+    def __init__(
+        self,
+        problem: NlpProblem,
+        solver: NlpSolver,
+        retry: NlpSolver | None,
+        cold: NlpSolver,
+        cold_path: ColdPath | None,
+        limits: ActuatorLimits,
+        accept_violation: float,
+        warm_start: bool,
+        clock: Callable[[], float],
+    ):
         self.problem, self.solver, self.retry, self.cold, self.cold_path = problem, solver, retry, cold, cold_path
         self.limits, self.accept_violation, self.warm_start, self.clock = limits, accept_violation, warm_start, clock
         self.n_retries = 0
@@ -135,8 +145,12 @@ class SolveChain:
         if good is None or not self.warm_start:
             return None
         vl, rows = self.problem.vars, self.problem.rows
-        return NlpData(p=p, x0=initial_guess(self.problem, p, good.w, good.age),
-                       lam_x0=vl.shift(good.lam_x, good.age), lam_g0=rows.shift(good.lam_g, good.age))
+        return NlpData(
+            p=p,
+            x0=initial_guess(self.problem, p, good.w, good.age),
+            lam_x0=vl.shift(good.lam_x, good.age),
+            lam_g0=rows.shift(good.lam_g, good.age),
+        )
 
     def cold_data(self, p: np.ndarray) -> NlpData:
         """The cold instance: the model-rollout guess with the previous command held."""
@@ -146,17 +160,18 @@ class SolveChain:
     def valid_command(self, u) -> bool:
         """``u`` finite and inside the actuator bounds up to :data:`BOUND_TOL`."""
         lim = self.limits
-        return bool(np.all(np.isfinite(u))
-                    and lim.mdot_bl_min_kgps - BOUND_TOL <= u[0] <= lim.mdot_bl_max_kgps + BOUND_TOL
-                    and lim.t_evap_sp_min_c - BOUND_TOL <= u[1] <= lim.t_evap_sp_max_c + BOUND_TOL)
+        return bool(
+            np.all(np.isfinite(u))
+            and lim.mdot_bl_min_kgps - BOUND_TOL <= u[0] <= lim.mdot_bl_max_kgps + BOUND_TOL
+            and lim.t_evap_sp_min_c - BOUND_TOL <= u[1] <= lim.t_evap_sp_max_c + BOUND_TOL
+        )
 
     def why_unusable(self, r: SolveResult) -> str | None:
         """None if ``r`` is usable, else the reason."""
         w, lam_x, lam_g = r.w, r.lam_x, r.lam_g
         if w is None or lam_x is None or lam_g is None or not r.finite():
             return "no finite primal-dual point"
-        if max(float(np.max(np.abs(lam_x), initial=0.0)), float(np.max(np.abs(lam_g), initial=0.0))) \
-                > MAX_MULTIPLIER:
+        if max(float(np.max(np.abs(lam_x), initial=0.0)), float(np.max(np.abs(lam_g), initial=0.0))) > MAX_MULTIPLIER:
             return "multipliers beyond 1e9"
         if not (r.success or r.limited):
             return "solver failed"

@@ -25,20 +25,28 @@ import time
 import numpy as np
 
 from ceco_core import rundir
-from ceco_core.metrics import comfort_series_metrics, compute_metrics, comparison_table
+from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS
+from ceco_core.metrics import comfort_series_metrics, comparison_table, compute_metrics
 from ceco_plant_sim.scenario_plant import ScenarioPlant, check_overrides, n_plant_steps, steps_per_control
 from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews, parse_quality
 from ceco_v2x_preview.scenario import Scenario, load_scenario
 
 from . import model as cm
-from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS
 from .estimator import MEASUREMENT_MODES, EstimatingController, with_measurements
 from .factory import make_controller
 from .observation import observation
 from .strategies import STRATEGIES
 
-__all__ = ["SimSettings", "RunResult", "simulate", "make_controller",
-           "write_run", "main", "TIMESERIES_COLUMNS", "DIAGNOSTICS_CSV_COLUMNS"]
+__all__ = [
+    "SimSettings",
+    "RunResult",
+    "simulate",
+    "make_controller",
+    "write_run",
+    "main",
+    "TIMESERIES_COLUMNS",
+    "DIAGNOSTICS_CSV_COLUMNS",
+]
 
 TIMESERIES_COLUMNS = rundir.TIMESERIES_COLUMNS + rundir.TIMESERIES_EXTRA
 """Columns of the simulator's ``timeseries.csv``: the contract's (``ceco_core.rundir``), then extras."""
@@ -89,8 +97,9 @@ class SimSettings:
 
     def validate(self) -> None:
         """Raise ValueError naming the field if a setting is not usable."""
-        if self.control_period_s is not None and not (math.isfinite(self.control_period_s)
-                                                      and self.control_period_s > 0):
+        if self.control_period_s is not None and not (
+            math.isfinite(self.control_period_s) and self.control_period_s > 0
+        ):
             raise ValueError("SimSettings.control_period_s must be finite and > 0")
         if self.horizon_steps is not None and not (isinstance(self.horizon_steps, int) and self.horizon_steps >= 1):
             raise ValueError("SimSettings.horizon_steps must be an int >= 1")
@@ -131,8 +140,9 @@ class RunResult:
     None in full mode."""
 
 
-def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | None = None,
-             controller=None) -> RunResult:
+def simulate(
+    scenario: Scenario | str, strategy: str, settings: SimSettings | None = None, controller=None
+) -> RunResult:
     """Run one strategy on one scenario in closed loop against the plant.
 
     Args:
@@ -158,20 +168,29 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
     n = n_plant_steps(duration, dt)
     mp = cm.load_params(settings.model_params_path) if strategy != "baseline" else None
     if controller is None:
-        controller = make_controller(strategy, scenario, ts, n_p, mp, dict(settings.strategy_overrides),
-                                     config_path=settings.controller_config_path,
-                                     measurements=settings.measurements)
+        controller = make_controller(
+            strategy,
+            scenario,
+            ts,
+            n_p,
+            mp,
+            dict(settings.strategy_overrides),
+            config_path=settings.controller_config_path,
+            measurements=settings.measurements,
+        )
     else:
         controller = with_measurements(controller, settings.measurements, ts, model_params=mp)
     vehicle = isinstance(controller, EstimatingController)
     est_rows: dict[str, list] = {c: [] for c in ESTIMATOR_CSV_COLUMNS}  # filled in vehicle mode only
-    sp = ScenarioPlant(scenario, dt, plant_overrides=dict(settings.plant_overrides),
-                       comfort_overrides=dict(settings.comfort_overrides))
+    sp = ScenarioPlant(
+        scenario, dt, plant_overrides=dict(settings.plant_overrides), comfort_overrides=dict(settings.comfort_overrides)
+    )
     cols = {c: np.empty(n) for c in TIMESERIES_COLUMNS}
     diags, diag_objs, step_times = [], [], []
     iterator = range(n)
     if settings.progress:
         from tqdm import tqdm
+
         iterator = tqdm(iterator, desc=f"{scenario.name}/{strategy}", unit="s", leave=False)
     for i in iterator:
         t = i * dt
@@ -193,65 +212,118 @@ def simulate(scenario: Scenario | str, strategy: str, settings: SimSettings | No
         r = sp.step(cmd)
         env, out = r.env, r.out
         row = {
-            "t_s": r.t_s, **{c: r.meas[c] for c in ("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c",
-                                                    "t_glass_c", "rh_cab")},
-            "t_amb_c": env.t_amb_c, "solar_wm2": env.solar_wm2, "speed_mps": env.speed_mps, "rh": env.rh,
-            "mdot_bl_kgps": r.u.mdot_bl_kgps, "t_evap_sp_c": r.u.t_evap_sp_c,
-            "p_comp_w": out.p_comp_w, "p_blower_w": out.p_blower_w, "q_evap_w": out.q_evap_w, "cop": out.cop,
-            "pmv": r.pmv, "ppd": r.ppd, "pmv_lb": r.pmv_lb, "pmv_ub": r.pmv_ub,
+            "t_s": r.t_s,
+            **{
+                c: r.meas[c] for c in ("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c", "t_glass_c", "rh_cab")
+            },
+            "t_amb_c": env.t_amb_c,
+            "solar_wm2": env.solar_wm2,
+            "speed_mps": env.speed_mps,
+            "rh": env.rh,
+            "mdot_bl_kgps": r.u.mdot_bl_kgps,
+            "t_evap_sp_c": r.u.t_evap_sp_c,
+            "p_comp_w": out.p_comp_w,
+            "p_blower_w": out.p_blower_w,
+            "q_evap_w": out.q_evap_w,
+            "cop": out.cop,
+            "pmv": r.pmv,
+            "ppd": r.ppd,
+            "pmv_lb": r.pmv_lb,
+            "pmv_ub": r.pmv_ub,
             **{c: float(getattr(r.comfort, c)) for c in rundir.COMFORT_COLUMNS},
-            "p_cond_fan_w": out.p_cond_fan_w, "q_latent_w": out.q_latent_w,
-            "comp_speed_rpm": out.comp_speed_rpm, "capacity_limited": float(out.capacity_limited),
+            "p_cond_fan_w": out.p_cond_fan_w,
+            "q_latent_w": out.q_latent_w,
+            "comp_speed_rpm": out.comp_speed_rpm,
+            "capacity_limited": float(out.capacity_limited),
         }
         for c in TIMESERIES_COLUMNS:
             cols[c][i] = row[c]
-    metrics = compute_metrics(cols["t_s"], cols["p_comp_w"], cols["p_blower_w"], cols["pmv"],
-                              cols["pmv_lb"], cols["pmv_ub"])
+    metrics = compute_metrics(
+        cols["t_s"], cols["p_comp_w"], cols["p_blower_w"], cols["pmv"], cols["pmv_lb"], cols["pmv_ub"]
+    )
     nd = [d for d in diag_objs if d.solve_time_ms is not None]
     # the comfort-zone phase: samples where the upper bound is at its tightest (after the pull-down
     # relaxation); the paper's metrics restricted to it separate "how the pull-down relaxation was
     # used" from "how comfortable the regulated cabin is"
     zone = cols["pmv_ub"] <= np.min(cols["pmv_ub"]) + 1e-9
     viol = (cols["pmv"] > cols["pmv_ub"]) | (cols["pmv"] < cols["pmv_lb"])
-    metrics.update({
-        "zone_start_s": float(cols["t_s"][np.argmax(zone)]),
-        "E_zone_J": float(np.sum(cols["p_comp_w"][zone] + cols["p_blower_w"][zone]) * dt),
-        "I_pmv_zone": float(np.sum(cols["pmv"][zone] ** 2) * dt),
-        "otc_violation_zone_pct": float(100.0 * np.count_nonzero(viol & zone) / max(int(np.count_nonzero(zone)), 1)),
-        "pmv_mean_zone": float(np.mean(cols["pmv"][zone])),
-    })
+    metrics.update(
+        {
+            "zone_start_s": float(cols["t_s"][np.argmax(zone)]),
+            "E_zone_J": float(np.sum(cols["p_comp_w"][zone] + cols["p_blower_w"][zone]) * dt),
+            "I_pmv_zone": float(np.sum(cols["pmv"][zone] ** 2) * dt),
+            "otc_violation_zone_pct": float(
+                100.0 * np.count_nonzero(viol & zone) / max(int(np.count_nonzero(zone)), 1)
+            ),
+            "pmv_mean_zone": float(np.mean(cols["pmv"][zone])),
+        }
+    )
     metrics.update(comfort_series_metrics(cols, dt, zone))
-    metrics.update({
-        "scenario": scenario.name, "strategy": strategy, "control_period_s": ts, "horizon_steps": n_p,
-        "seed": int(quality.seed if quality.seed is not None else scenario.seed),
-        "preview_quality": quality.describe(),
-        "n_control_steps": len(diag_objs),
-        "n_fallback_shifted": sum(d.fallback == "shifted_plan" for d in diag_objs),
-        "n_fallback_baseline": sum(d.fallback == "baseline" for d in diag_objs),
-        "solve_time_median_ms": float(np.median([d.solve_time_ms for d in nd])) if nd else None,
-        "solve_time_max_ms": float(np.max([d.solve_time_ms for d in nd])) if nd else None,
-    })
+    metrics.update(
+        {
+            "scenario": scenario.name,
+            "strategy": strategy,
+            "control_period_s": ts,
+            "horizon_steps": n_p,
+            "seed": int(quality.seed if quality.seed is not None else scenario.seed),
+            "preview_quality": quality.describe(),
+            "n_control_steps": len(diag_objs),
+            "n_fallback_shifted": sum(d.fallback == "shifted_plan" for d in diag_objs),
+            "n_fallback_baseline": sum(d.fallback == "baseline" for d in diag_objs),
+            "solve_time_median_ms": float(np.median([d.solve_time_ms for d in nd])) if nd else None,
+            "solve_time_max_ms": float(np.max([d.solve_time_ms for d in nd])) if nd else None,
+        }
+    )
     estimates = None
     if vehicle:
         estimates = {c: np.asarray(v) for c, v in est_rows.items()}
         metrics.update(estimation_metrics(estimates))
-    return RunResult(scenario=scenario.name, strategy=strategy, timeseries=cols, diagnostics=diags,
-                     diag_objects=diag_objs, metrics=metrics, step_time_s=np.asarray(step_times, dtype=float),
-                     estimates=estimates)
+    return RunResult(
+        scenario=scenario.name,
+        strategy=strategy,
+        timeseries=cols,
+        diagnostics=diags,
+        diag_objects=diag_objs,
+        metrics=metrics,
+        step_time_s=np.asarray(step_times, dtype=float),
+        estimates=estimates,
+    )
 
 
-ESTIMATOR_CSV_COLUMNS = ("t_s", "t_int_c", "t_int_est_c", "t_shell_c", "t_shell_est_c", "t_glass_c", "t_glass_est_c",
-                         "std_t_int_k", "std_t_shell_k", "std_t_glass_k", "valid", "n_missing")
+ESTIMATOR_CSV_COLUMNS = (
+    "t_s",
+    "t_int_c",
+    "t_int_est_c",
+    "t_shell_c",
+    "t_shell_est_c",
+    "t_glass_c",
+    "t_glass_est_c",
+    "std_t_int_k",
+    "std_t_shell_k",
+    "std_t_glass_k",
+    "valid",
+    "n_missing",
+)
 """Columns of ``estimator.csv`` (measurements='vehicle'): per control step the plant truth and the estimate
 of the interior, shell and glazing temperatures [degC], their 1-sigma uncertainty [K], the validity flag and
 the number of missing inputs."""
 
 
 def _record_estimate(rows: dict[str, list], est, truth: dict) -> None:
-    vals = {"t_s": est.t_s, "t_int_c": truth["t_int_c"], "t_int_est_c": est.t_int_c, "t_shell_c": truth["t_shell_c"],
-            "t_shell_est_c": est.t_shell_c, "t_glass_c": truth["t_glass_c"], "t_glass_est_c": est.t_glass_c,
-            "std_t_int_k": est.std_k[1], "std_t_shell_k": est.std_k[2], "std_t_glass_k": est.std_k[3],
-            "valid": float(est.valid), "n_missing": float(len(est.missing))}
+    vals = {
+        "t_s": est.t_s,
+        "t_int_c": truth["t_int_c"],
+        "t_int_est_c": est.t_int_c,
+        "t_shell_c": truth["t_shell_c"],
+        "t_shell_est_c": est.t_shell_c,
+        "t_glass_c": truth["t_glass_c"],
+        "t_glass_est_c": est.t_glass_c,
+        "std_t_int_k": est.std_k[1],
+        "std_t_shell_k": est.std_k[2],
+        "std_t_glass_k": est.std_k[3],
+        "valid": float(est.valid),
+        "n_missing": float(len(est.missing)),
+    }
     for c in ESTIMATOR_CSV_COLUMNS:
         rows[c].append(vals[c])
 
@@ -271,7 +343,7 @@ def estimation_metrics(est: dict) -> dict:
     out: dict[str, object] = {"measurements": "vehicle"}
     for q in ("t_int", "t_shell", "t_glass"):
         e = est[f"{q}_est_c"] - est[f"{q}_c"]
-        out[f"est_{q}_rmse_k"] = float(np.sqrt(np.mean(e ** 2)))
+        out[f"est_{q}_rmse_k"] = float(np.sqrt(np.mean(e**2)))
         out[f"est_{q}_rmse_late_k"] = float(np.sqrt(np.mean(e[late] ** 2))) if late.any() else None
         out[f"est_{q}_max_abs_k"] = float(np.max(np.abs(e)))
     out["est_invalid_steps"] = int(np.count_nonzero(est["valid"] == 0))
@@ -298,8 +370,9 @@ def write_run(result: RunResult, run_dir: str | pathlib.Path) -> pathlib.Path:
     rows["pmv_pred"] = [_joined(getattr(o, "pred_pmv", None)) for o in objs]
     rows["t_cab_pred_c"] = [_joined(getattr(o, "pred_t_cab_c", None)) for o in objs]
     st = np.asarray(getattr(result, "step_time_s", ()), dtype=float)
-    rows["step_time_ms"] = [1e3 * float(x) for x in st] if st.size == len(result.diagnostics) else \
-        [math.nan] * len(result.diagnostics)
+    rows["step_time_ms"] = (
+        [1e3 * float(x) for x in st] if st.size == len(result.diagnostics) else [math.nan] * len(result.diagnostics)
+    )
     rundir.write_csv(d / "diagnostics.csv", DIAGNOSTICS_CSV_COLUMNS, rows)
     rundir.write_metrics_json(d / "metrics.json", result.metrics)
     estimates = getattr(result, "estimates", None)
@@ -308,9 +381,23 @@ def write_run(result: RunResult, run_dir: str | pathlib.Path) -> pathlib.Path:
     return d
 
 
-TABLE_COLUMNS = ("E_tot_kWh", "I_pmv", "I_pmv_clipped", "otc_violation_pct", "iso7730_invalid_pct",
-                 "time_to_comfort_s", "pmv_mean", "E_zone_J", "I_pmv_zone", "otc_violation_zone_pct", "pmv_mean_zone",
-                 "iso7730_invalid_pct_zone", "dr_above_pct_zone", "rh_cab_mean_zone", "fog_margin_min_k")
+TABLE_COLUMNS = (
+    "E_tot_kWh",
+    "I_pmv",
+    "I_pmv_clipped",
+    "otc_violation_pct",
+    "iso7730_invalid_pct",
+    "time_to_comfort_s",
+    "pmv_mean",
+    "E_zone_J",
+    "I_pmv_zone",
+    "otc_violation_zone_pct",
+    "pmv_mean_zone",
+    "iso7730_invalid_pct_zone",
+    "dr_above_pct_zone",
+    "rh_cab_mean_zone",
+    "fog_margin_min_k",
+)
 """Columns of the printed comparison (``*_zone``: only the comfort-zone phase after the pull-down relaxation);
 the share of samples outside ISO 7730 validity next to the comfort metrics."""
 CHANGE_COLUMNS = ("E_tot_kWh", "I_pmv", "otc_violation_pct", "E_zone_J", "I_pmv_zone")
@@ -321,25 +408,39 @@ def main(argv=None) -> int:
     """CLI: run one or all strategies on a scenario and print the comparison table."""
     ap = argparse.ArgumentParser(prog="ceco sim", description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenario", default="sc03", help="bundled scenario name or YAML path (default sc03)")
-    ap.add_argument("--strategy", default="all",
-                    help=f"'all' or a comma-separated list of {', '.join(STRATEGIES)}")
+    ap.add_argument("--strategy", default="all", help=f"'all' or a comma-separated list of {', '.join(STRATEGIES)}")
     ap.add_argument("--out", required=True, help="output directory (one run directory per strategy)")
-    ap.add_argument("--preview-quality", default="perfect",
-                    help="perfect | noisy[:...] | delayed:S | missing:A-B[,..] joined by '+'")
+    ap.add_argument(
+        "--preview-quality",
+        default="perfect",
+        help="perfect | noisy[:...] | delayed:S | missing:A-B[,..] joined by '+'",
+    )
     ap.add_argument("--horizon", type=int, default=None, help="prediction horizon Np [steps]")
     ap.add_argument("--control-period", type=float, default=None, help="control period Ts [s]")
     ap.add_argument("--seed", type=int, default=None, help="seed of the preview noise")
     ap.add_argument("--duration", type=float, default=None, help="run length [s] (default: the scenario's)")
     ap.add_argument("--model-params", default=None, help="identified model parameter file")
-    ap.add_argument("--controller-config", default=None,
-                    help="controller settings file (default: ceco_controller/config/controller.yaml)")
-    ap.add_argument("--measurements", choices=MEASUREMENT_MODES, default="full",
-                    help="full: the controller reads every modelled state; vehicle: production sensors only, "
-                         "interior/shell temperatures estimated (default full)")
+    ap.add_argument(
+        "--controller-config",
+        default=None,
+        help="controller settings file (default: ceco_controller/config/controller.yaml)",
+    )
+    ap.add_argument(
+        "--measurements",
+        choices=MEASUREMENT_MODES,
+        default="full",
+        help="full: the controller reads every modelled state; vehicle: production sensors only, "
+        "interior/shell temperatures estimated (default full)",
+    )
     ap.add_argument("--no-progress", action="store_true", help="disable the progress bar")
-    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
-                    help="override a CECO strategy setting (StrategySettings field), e.g. pmv_pa_source=measured; "
-                         "repeatable; numbers are read as floats")
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="override a CECO strategy setting (StrategySettings field), e.g. pmv_pa_source=measured; "
+        "repeatable; numbers are read as floats",
+    )
     args = ap.parse_args(argv)
     overrides = []
     for item in args.set:
@@ -359,11 +460,18 @@ def main(argv=None) -> int:
     except ValueError as exc:
         ap.error(f"--preview-quality: {exc}")
     scenario = load_scenario(args.scenario)
-    settings = SimSettings(control_period_s=args.control_period, horizon_steps=args.horizon,
-                           preview_quality=quality, seed=args.seed, duration_s=args.duration,
-                           progress=not args.no_progress, model_params_path=args.model_params,
-                           controller_config_path=args.controller_config, strategy_overrides=tuple(overrides),
-                           measurements=args.measurements)
+    settings = SimSettings(
+        control_period_s=args.control_period,
+        horizon_steps=args.horizon,
+        preview_quality=quality,
+        seed=args.seed,
+        duration_s=args.duration,
+        progress=not args.no_progress,
+        model_params_path=args.model_params,
+        controller_config_path=args.controller_config,
+        strategy_overrides=tuple(overrides),
+        measurements=args.measurements,
+    )
     out = pathlib.Path(args.out)
     rows = []
     for s in strategies:
@@ -371,14 +479,23 @@ def main(argv=None) -> int:
         write_run(res, out / s)
         rows.append(res.metrics)
         m = res.metrics
-        print(f"{s}: E_tot {m['E_tot_kWh']:.4f} kWh, I_pmv {m['I_pmv']:.1f} s, "
-              f"violation {m['otc_violation_pct']:.1f} %, fallbacks {m['n_fallback_shifted']}"
-              f"+{m['n_fallback_baseline']}", file=sys.stderr)
-    table = comparison_table(rows, baseline="baseline" if "baseline" in strategies else strategies[0],
-                             columns=TABLE_COLUMNS, change_keys=CHANGE_COLUMNS)
-    header = (f"scenario {scenario.name}, Ts {settings.control_period_s or scenario.control.control_period_s} s, "
-              f"Np {settings.horizon_steps or scenario.control.horizon_steps}, preview {quality.describe()}"
-              + (", measurements vehicle" if settings.measurements == "vehicle" else ""))
+        print(
+            f"{s}: E_tot {m['E_tot_kWh']:.4f} kWh, I_pmv {m['I_pmv']:.1f} s, "
+            f"violation {m['otc_violation_pct']:.1f} %, fallbacks {m['n_fallback_shifted']}"
+            f"+{m['n_fallback_baseline']}",
+            file=sys.stderr,
+        )
+    table = comparison_table(
+        rows,
+        baseline="baseline" if "baseline" in strategies else strategies[0],
+        columns=TABLE_COLUMNS,
+        change_keys=CHANGE_COLUMNS,
+    )
+    header = (
+        f"scenario {scenario.name}, Ts {settings.control_period_s or scenario.control.control_period_s} s, "
+        f"Np {settings.horizon_steps or scenario.control.horizon_steps}, preview {quality.describe()}"
+        + (", measurements vehicle" if settings.measurements == "vehicle" else "")
+    )
     print(header)
     print(table)
     (out / "comparison.txt").write_text(header + "\n" + table + "\n", encoding="utf-8")

@@ -112,8 +112,9 @@ def compile_nlp(nlp: dict, flags=("-O1",), cache_dir: str | None = None, plugin:
     return _compile_cached("ceco_nlp", nlp_key(nlp) + plugin.encode(), generate, flags, cache_dir)
 
 
-def compile_functions(functions, key: bytes, flags=("-O1",), cache_dir: str | None = None,
-                      prefix: str = "ceco_sqp") -> str | None:
+def compile_functions(
+    functions, key: bytes, flags=("-O1",), cache_dir: str | None = None, prefix: str = "ceco_sqp"
+) -> str | None:
     """Generate C for CasADi Functions and compile it into a cached shared object (as :func:`compile_nlp`).
 
     ``key``: bytes that determine the functions' code (e.g. :func:`nlp_key` and the source of the
@@ -153,12 +154,18 @@ def _compile_cached(prefix: str, key: bytes, generate, flags, cache_dir: str | N
             cache.mkdir(parents=True, exist_ok=True)
             part = cache / f".{prefix}_{digest}.{os.getpid()}.tmp.so"
             t0 = time.perf_counter()
-            res = subprocess.run([cc, "-shared", "-fPIC", *flags, src, "-o", str(part), "-lm"],
-                                 capture_output=True, text=True, timeout=600)
+            res = subprocess.run(
+                [cc, "-shared", "-fPIC", *flags, src, "-o", str(part), "-lm"],
+                capture_output=True,
+                text=True,
+                timeout=600,
+            )
             if res.returncode != 0:
                 part.unlink(missing_ok=True)
-                _LOG.warning("NMPC codegen: compilation failed (%s); using the in-process NLP functions",
-                             res.stderr.strip()[-500:])
+                _LOG.warning(
+                    "NMPC codegen: compilation failed (%s); using the in-process NLP functions",
+                    res.stderr.strip()[-500:],
+                )
                 return None
             os.replace(part, target)
             _LOG.info("NMPC codegen: compiled %s in %.1f s", target, time.perf_counter() - t0)

@@ -7,6 +7,7 @@ behind /diagnostics.
 Pure logic: message objects are read by attribute only (ceco_msgs messages in the node,
 ``types.SimpleNamespace`` in the tests); times are floats the node passes in.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -15,68 +16,116 @@ from collections.abc import Callable
 from typing import Any
 
 import ceco_ros.checks as checks
-from ceco_core.contracts import CECO_STRATEGIES
+from ceco_core.contracts import CECO_STRATEGIES, MEASUREMENT_MODES
 from ceco_core.control_grid import TIMING_MODES, control_step_index
 from ceco_core.sequencing import LockstepBuffer, SequenceGate
 from ceco_core.supervision import Health, Rejections, reason_kind
-from ceco_ros.params import ParamSpec
+from ceco_ros.params import (
+    CLOCK_AHEAD_PARAMETER,
+    DIAGNOSTICS_PERIOD_PARAMETER,
+    INPUT_WINDOW_PARAMETERS,
+    SHARED_FIELDS,
+    ParamSpec,
+    log_throttle_parameter,
+)
+from ceco_ros.topics import TOPIC_STATE, TOPIC_TRAFFIC, TOPIC_WEATHER
 
-__all__ = ['controller_parameters', 'ControllerNodeConfig', 'ControllerInputs', 'StepInputs', 'ControllerRecord',
-           'controller_health',
-           'DYNAMIC']
+__all__ = [
+    'controller_parameters',
+    'ControllerNodeConfig',
+    'ControllerInputs',
+    'StepInputs',
+    'ControllerRecord',
+    'controller_health',
+    'DYNAMIC',
+]
 
-TOPIC_STATE, TOPIC_WEATHER, TOPIC_TRAFFIC = 'cabin/state', 'v2x/weather_preview', 'v2x/traffic_preview'
-MEASUREMENT_MODES = ('full', 'vehicle')
-"""The controller's measurement modes (``ceco_controller.estimator.MEASUREMENT_MODES``, tested equal)."""
 _PREVIEW_TOPIC = {'weather': TOPIC_WEATHER, 'traffic': TOPIC_TRAFFIC}
 
 
 def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec, ...]:
     """The parameter table of mpc_node (``fixed_strategy`` None) or baseline_node ('baseline')."""
-    strategy = () if fixed_strategy else (ParamSpec(
-        'strategy', 'ceco-ioch', 'CECO strategy: ceco (general), ceco-e (energy), ceco-c (comfort), ceco-ioch '
-        '(speed-aware slack)'),)
+    strategy = (
+        ()
+        if fixed_strategy
+        else (
+            ParamSpec(
+                'strategy',
+                'ceco-ioch',
+                'CECO strategy: ceco (general), ceco-e (energy), ceco-c (comfort), ceco-ioch (speed-aware slack)',
+            ),
+        )
+    )
     return strategy + (
         ParamSpec('scenario', 'sc03', 'scenario name or YAML path: occupant (met, clo) and PMV comfort bounds'),
-        ParamSpec('timing', 'lockstep', 'lockstep (event driven, deterministic) or realtime (timer every Ts on '
-                  'the node clock)', choices=TIMING_MODES),
+        ParamSpec(
+            'timing',
+            'lockstep',
+            'lockstep (event driven, deterministic) or realtime (timer every Ts on the node clock)',
+            choices=TIMING_MODES,
+        ),
         ParamSpec('control_period_s', 5.0, 'control period Ts [s]', float_range=(0.1, 3600.0)),
         ParamSpec('horizon_steps', 6, 'prediction horizon Np [steps]', int_range=(1, 200)),
-        ParamSpec('controller_config', '', "NMPC settings file (solver, weights, bounds; empty: the package's "
-                  'config/controller.yaml)'),
-        ParamSpec('measurements', 'full', 'full (every modelled state from cabin/state) or vehicle (only the '
-                  'production sensors; an EKF estimates the rest, ceco_controller.estimator)',
-                  choices=MEASUREMENT_MODES),
-        ParamSpec('autostart', False, 'configure and activate by itself after start (true), or wait for a '
-                  'lifecycle manager (false: ceco run, the launch file)'),
-        ParamSpec('preview_timeout_s', 2.0, 'lockstep: wall-clock wait for the previews of a step before solving '
-                  'without them [s]', float_range=(0.01, 600.0), read_only=False),
-        ParamSpec('max_state_age_s', 10.0, 'realtime: oldest usable cabin state, by its stamp [s]',
-                  float_range=(0.01, 3600.0), read_only=False),
-        ParamSpec('inputs.window_s', 60.0, 'a state is accepted up to this far ahead of the last accepted '
-                  'scenario time [s]', float_range=(0.01, 1e6)),
-        ParamSpec('inputs.confirm_count', 3, 'consecutive agreeing out-of-window states that establish a new '
-                  'time base (restart, new playback) [-]', int_range=(1, 100)),
-        ParamSpec('inputs.restart_silence_s', 3.0, 'a new time base (key-on or confirmed) is taken only after no '
-                  'state was accepted for this long (wall clock); longer than the plant step [s]',
-                  float_range=(0.0, 3600.0)),
-        ParamSpec('inputs.max_clock_ahead_s', 1.0, 'realtime: a stamp may lead the node clock by this much '
-                  '[s]', float_range=(0.0, 3600.0), read_only=False),
-        ParamSpec('inputs.log_throttle_s', 2.0, 'shortest time between two log lines about one kind of '
-                  'rejected input [s]', float_range=(0.0, 3600.0), read_only=False),
-        ParamSpec('qos.command_deadline_periods', 2.0, 'realtime: offered deadline of hvac/command [control '
-                  'periods]; must not exceed the plant\'s fallback.command_timeout_periods',
-                  float_range=(0.1, 1000.0)),
-        ParamSpec('diagnostics.period_s', 1.0, '/diagnostics publication period (steady clock) [s]',
-                  float_range=(0.05, 60.0)),
-        ParamSpec('diagnostics.solve_time_warn_fraction', 0.5, 'WARN when a step takes longer than this '
-                  'fraction of the control period (ERROR above the period) [-]', float_range=(0.01, 1.0),
-                  read_only=False),
+        ParamSpec(
+            'controller_config',
+            '',
+            "NMPC settings file (solver, weights, bounds; empty: the package's config/controller.yaml)",
+        ),
+        ParamSpec(
+            'measurements',
+            'full',
+            'full (every modelled state from cabin/state) or vehicle (only the '
+            'production sensors; an EKF estimates the rest, ceco_controller.estimator)',
+            choices=MEASUREMENT_MODES,
+        ),
+        ParamSpec(
+            'autostart',
+            False,
+            'configure and activate by itself after start (true), or wait for a '
+            'lifecycle manager (false: ceco run, the launch file)',
+        ),
+        ParamSpec(
+            'preview_timeout_s',
+            2.0,
+            'lockstep: wall-clock wait for the previews of a step before solving without them [s]',
+            float_range=(0.01, 600.0),
+            read_only=False,
+        ),
+        ParamSpec(
+            'max_state_age_s',
+            10.0,
+            'realtime: oldest usable cabin state, by its stamp [s]',
+            float_range=(0.01, 3600.0),
+            read_only=False,
+        ),
+        *INPUT_WINDOW_PARAMETERS,
+        CLOCK_AHEAD_PARAMETER,
+        log_throttle_parameter(),
+        ParamSpec(
+            'qos.command_deadline_periods',
+            2.0,
+            'realtime: offered deadline of hvac/command [control '
+            'periods]; must not exceed the plant\'s fallback.command_timeout_periods',
+            float_range=(0.1, 1000.0),
+        ),
+        DIAGNOSTICS_PERIOD_PARAMETER,
+        ParamSpec(
+            'diagnostics.solve_time_warn_fraction',
+            0.5,
+            'WARN when a step takes longer than this fraction of the control period (ERROR above the period) [-]',
+            float_range=(0.01, 1.0),
+            read_only=False,
+        ),
     )
 
 
-DYNAMIC = {'preview_timeout_s', 'max_state_age_s', 'inputs.max_clock_ahead_s', 'inputs.log_throttle_s',
-           'diagnostics.solve_time_warn_fraction'}
+DYNAMIC = {
+    'preview_timeout_s',
+    'max_state_age_s',
+    'inputs.max_clock_ahead_s',
+    'inputs.log_throttle_s',
+    'diagnostics.solve_time_warn_fraction',
+}
 """Parameters that ``ros2 param set`` changes at run time (the rest are read-only)."""
 
 
@@ -121,12 +170,11 @@ class ControllerNodeConfig:
     solve_time_warn_fraction: float = 0.5
     """WARN above this fraction of Ts per step [-]."""
 
-    _PARAM_FIELDS = {'inputs.window_s': 'window_s', 'inputs.confirm_count': 'confirm_count',
-                     'inputs.restart_silence_s': 'restart_silence_s',
-                     'inputs.max_clock_ahead_s': 'max_clock_ahead_s', 'inputs.log_throttle_s': 'log_throttle_s',
-                     'qos.command_deadline_periods': 'command_deadline_periods',
-                     'diagnostics.period_s': 'diagnostics_period_s',
-                     'diagnostics.solve_time_warn_fraction': 'solve_time_warn_fraction'}
+    _PARAM_FIELDS = {
+        **SHARED_FIELDS,
+        'qos.command_deadline_periods': 'command_deadline_periods',
+        'diagnostics.solve_time_warn_fraction': 'solve_time_warn_fraction',
+    }
 
     @classmethod
     def from_params(cls, values: dict[str, Any], fixed_strategy: str | None = None) -> ControllerNodeConfig:
@@ -147,12 +195,21 @@ class ControllerNodeConfig:
         """Raise ValueError naming the parameter."""
         allowed = CECO_STRATEGIES + ('baseline',)
         if self.strategy not in allowed:
-            raise ValueError(f'invalid parameter strategy={self.strategy!r}: unknown strategy, '
-                             f'must be one of {", ".join(CECO_STRATEGIES)}')
+            raise ValueError(
+                f'invalid parameter strategy={self.strategy!r}: unknown strategy, '
+                f'must be one of {", ".join(CECO_STRATEGIES)}'
+            )
         if self.timing not in TIMING_MODES:
             raise ValueError(f'invalid parameter timing={self.timing!r}: must be one of {TIMING_MODES}')
-        for name in ('control_period_s', 'preview_timeout_s', 'max_state_age_s', 'window_s',
-                     'command_deadline_periods', 'diagnostics_period_s', 'solve_time_warn_fraction'):
+        for name in (
+            'control_period_s',
+            'preview_timeout_s',
+            'max_state_age_s',
+            'window_s',
+            'command_deadline_periods',
+            'diagnostics_period_s',
+            'solve_time_warn_fraction',
+        ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f'invalid parameter {name}={v!r}: must be finite and > 0')
@@ -236,8 +293,9 @@ class ControllerInputs:
             if cfg.timing == 'lockstep':
                 why = checks.check_stamp_equals('header.stamp', msg.header.stamp, msg.scenario_time_s)
             else:
-                why = checks.check_stamp_age('header.stamp', msg.header.stamp, clock_s, cfg.max_state_age_s,
-                                             cfg.max_clock_ahead_s)
+                why = checks.check_stamp_age(
+                    'header.stamp', msg.header.stamp, clock_s, cfg.max_state_age_s, cfg.max_clock_ahead_s
+                )
         if why:
             self.reject(TOPIC_STATE, what, why, wall_s)
             return False
@@ -258,7 +316,7 @@ class ControllerInputs:
             return True
         k = control_step_index(msg.scenario_time_s, cfg.control_period_s)
         if k is None:
-            return True   # between control steps
+            return True  # between control steps
         why = self.buffer.put_state(k, msg, wall_s)
         if why:
             self.reject(TOPIC_STATE, what, why, wall_s)
@@ -374,27 +432,56 @@ class ControllerRecord:
         self.counts['steps'] += 1
         self.counts['fallback_steps'] += bool(diag.fallback)
         self.counts['steps_without_previews'] += bool(no_previews)
-        self.last = {'k': k, 'step_time_ms': step_time_ms, 'solve_time_ms': diag.solve_time_ms,
-                     'fallback': diag.fallback, 'reason': diag.message, 'no_previews': no_previews}
+        self.last = {
+            'k': k,
+            'step_time_ms': step_time_ms,
+            'solve_time_ms': diag.solve_time_ms,
+            'fallback': diag.fallback,
+            'reason': diag.message,
+            'no_previews': no_previews,
+        }
 
     def error(self, k: int, err: Exception) -> None:
         """A step that raised."""
         self.counts['step_errors'] += 1
         self.last = {'k': k, 'error': repr(err)}
 
-    def health(self, lifecycle: str, cfg: ControllerNodeConfig, inputs: ControllerInputs, wall_s: float,
-               deadline_s: float | None = None) -> Health:
+    def health(
+        self,
+        lifecycle: str,
+        cfg: ControllerNodeConfig,
+        inputs: ControllerInputs,
+        wall_s: float,
+        deadline_s: float | None = None,
+    ) -> Health:
         """:func:`controller_health` of now; the rejections since the previous call are the new ones."""
         rej = inputs.rejections
         new, self._reported = rej.total - self._reported, rej.total
-        return controller_health(lifecycle=lifecycle, cfg=cfg, last=self.last,
-                                 counts=dict(self.counts, resets=inputs.n_resets), ages_s=inputs.ages_s(wall_s),
-                                 rejections=rej, new_rejections=new, events=self.events, deadline_s=deadline_s)
+        return controller_health(
+            lifecycle=lifecycle,
+            cfg=cfg,
+            last=self.last,
+            counts=dict(self.counts, resets=inputs.n_resets),
+            ages_s=inputs.ages_s(wall_s),
+            rejections=rej,
+            new_rejections=new,
+            events=self.events,
+            deadline_s=deadline_s,
+        )
 
 
-def controller_health(*, lifecycle: str, cfg: ControllerNodeConfig, last: dict | None, counts: dict,
-                      ages_s: dict, rejections: Rejections, new_rejections: int, events: dict,
-                      deadline_s: float | None = None) -> Health:
+def controller_health(
+    *,
+    lifecycle: str,
+    cfg: ControllerNodeConfig,
+    last: dict | None,
+    counts: dict,
+    ages_s: dict,
+    rejections: Rejections,
+    new_rejections: int,
+    events: dict,
+    deadline_s: float | None = None,
+) -> Health:
     """The controller's status for /diagnostics.
 
     Args:
@@ -417,8 +504,10 @@ def controller_health(*, lifecycle: str, cfg: ControllerNodeConfig, last: dict |
     if lifecycle != 'active':
         h.warn(f'{lifecycle}: not commanding (the plant\'s fallback law drives)')
     elif last is None:
-        h.warn('active, no step computed yet (waiting for a valid cabin/state'
-               + (' and previews)' if cfg.timing == 'lockstep' else ')'))
+        h.warn(
+            'active, no step computed yet (waiting for a valid cabin/state'
+            + (' and previews)' if cfg.timing == 'lockstep' else ')')
+        )
     if last is not None:
         h.set('last_step', last['k']).set('step_time_ms', last.get('step_time_ms'))
         h.set('solve_time_ms', last.get('solve_time_ms')).set('fallback', last.get('fallback') or 'none')
@@ -426,8 +515,10 @@ def controller_health(*, lifecycle: str, cfg: ControllerNodeConfig, last: dict |
         if step_ms is not None and step_ms > deadline_ms:
             h.error(f'step {last["k"]} took {step_ms:.1f} ms, beyond the step deadline ({deadline_ms:.4g} ms)')
         elif step_ms is not None and step_ms > cfg.solve_time_warn_fraction * deadline_ms:
-            h.warn(f'step {last["k"]} took {step_ms:.1f} ms, above {cfg.solve_time_warn_fraction:.0%} of '
-                   f'the step deadline ({deadline_ms:.4g} ms)')
+            h.warn(
+                f'step {last["k"]} took {step_ms:.1f} ms, above {cfg.solve_time_warn_fraction:.0%} of '
+                f'the step deadline ({deadline_ms:.4g} ms)'
+            )
         if last.get('fallback') == 'baseline':
             h.error(f'fallback at step {last["k"]}: production ACC law applied ({last.get("reason", "")})')
         elif last.get('fallback'):
@@ -472,9 +563,17 @@ def warm_up(core, scenario, control_period_s: float, horizon_steps: int) -> str:
     from ceco_v2x_preview.preview import PreviewQuality, make_previews
 
     from .observation import observation
+
     ini = scenario.initial
-    meas = {'t_cab_c': ini.t_cab_c, 't_int_c': ini.t_int_c, 't_shell_c': ini.t_shell_c, 't_glass_c': ini.t_glass_c,
-            't_evap_c': ini.t_evap_c, 't_vent_c': ini.t_evap_c, 'rh_cab': ini.rh_cab}
+    meas = {
+        't_cab_c': ini.t_cab_c,
+        't_int_c': ini.t_int_c,
+        't_shell_c': ini.t_shell_c,
+        't_glass_c': ini.t_glass_c,
+        't_evap_c': ini.t_evap_c,
+        't_vent_c': ini.t_evap_c,
+        'rh_cab': ini.rh_cab,
+    }
     prev = AcInput(mdot_bl_kgps=MDOT_BL_MAX_KGPS, t_evap_sp_c=T_EVAP_SP_MIN_C)
     previews = make_previews(scenario, 0.0, control_period_s, horizon_steps + 1, PreviewQuality())
     core.compute(observation(0, 0.0, meas, scenario.env_at(0.0), prev, previews, scenario))

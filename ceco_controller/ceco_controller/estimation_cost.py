@@ -40,14 +40,24 @@ from . import estimator as est
 from .closed_loop import SimSettings, simulate
 from .strategies import STRATEGIES
 
-__all__ = ["CASES", "NaiveVehicleController", "SensorOffsetController", "discomfort_pmvh", "estimation_cost",
-           "offset_study", "markdown_table", "offset_table", "main"]
+__all__ = [
+    "CASES",
+    "NaiveVehicleController",
+    "SensorOffsetController",
+    "discomfort_pmvh",
+    "estimation_cost",
+    "offset_study",
+    "markdown_table",
+    "offset_table",
+    "main",
+]
 
 NO_VENT_OFFSET_STATE = est.EstimatorSettings(vent_bias_std_k=1e-4, vent_bias_drift_k=1e-6)
 """The estimator without its vent-offset state (prior std 1e-4 K, drift 1e-6 K per step)."""
 
 CASES = ("sc03", "sc03_mild", "udds", "hwfet", "us06", "sc03_hotsoak")
 """The benchmark cases (bundled scenarios)."""
+
 
 def discomfort_pmvh(t_s, pmv) -> float:
     """Time integral of the distance of PMV outside [-0.5, 0.5] (PMV clipped to +-3) [PMV h]."""
@@ -98,6 +108,7 @@ def offset_study(cases, strategies, offsets, progress=None) -> list[dict]:
 
     from . import model as cm
     from .factory import make_controller
+
     rows = []
     for case in cases:
         sc = load_scenario(case)
@@ -108,9 +119,11 @@ def offset_study(cases, strategies, offsets, progress=None) -> list[dict]:
                 sensor, off = _parse_offset(text)
                 for label, settings in (("default", None), ("no vent-offset state", NO_VENT_OFFSET_STATE)):
                     t0 = time.perf_counter()
-                    ctrl = SensorOffsetController(make_controller(strategy, sc, ts, n_p, mp),
-                                                  est.CabinStateEstimator(mp, settings=settings, control_period_s=ts),
-                                                  {sensor: off})
+                    ctrl = SensorOffsetController(
+                        make_controller(strategy, sc, ts, n_p, mp),
+                        est.CabinStateEstimator(mp, settings=settings, control_period_s=ts),
+                        {sensor: off},
+                    )
                     res = simulate(case, strategy, SimSettings(progress=False), controller=ctrl)
                     row = _row(case, strategy, f"vehicle {text} ({label})", res, time.perf_counter() - t0)
                     row.update(offset=text, estimator=label)
@@ -122,13 +135,29 @@ def offset_study(cases, strategies, offsets, progress=None) -> list[dict]:
 
 def _row(case: str, strategy: str, mode: str, res, wall_s: float) -> dict:
     m, ts = res.metrics, res.timeseries
-    row = {"case": case, "strategy": strategy, "mode": mode, "E_tot_kWh": m["E_tot_kWh"], "I_pmv": m["I_pmv"],
-           "discomfort_pmvh": discomfort_pmvh(ts["t_s"], ts["pmv"]),
-           "otc_violation_zone_pct": m["otc_violation_zone_pct"], "otc_violation_pct": m["otc_violation_pct"],
-           "n_fallback": m["n_fallback_shifted"] + m["n_fallback_baseline"], "wall_s": wall_s}
-    for k in ("est_t_int_rmse_k", "est_t_shell_rmse_k", "est_t_glass_rmse_k", "est_t_int_rmse_late_k",
-              "est_t_shell_rmse_late_k", "est_t_glass_rmse_late_k", "est_t_int_max_abs_k", "est_t_shell_max_abs_k",
-              "est_t_glass_max_abs_k"):
+    row = {
+        "case": case,
+        "strategy": strategy,
+        "mode": mode,
+        "E_tot_kWh": m["E_tot_kWh"],
+        "I_pmv": m["I_pmv"],
+        "discomfort_pmvh": discomfort_pmvh(ts["t_s"], ts["pmv"]),
+        "otc_violation_zone_pct": m["otc_violation_zone_pct"],
+        "otc_violation_pct": m["otc_violation_pct"],
+        "n_fallback": m["n_fallback_shifted"] + m["n_fallback_baseline"],
+        "wall_s": wall_s,
+    }
+    for k in (
+        "est_t_int_rmse_k",
+        "est_t_shell_rmse_k",
+        "est_t_glass_rmse_k",
+        "est_t_int_rmse_late_k",
+        "est_t_shell_rmse_late_k",
+        "est_t_glass_rmse_late_k",
+        "est_t_int_max_abs_k",
+        "est_t_shell_max_abs_k",
+        "est_t_glass_max_abs_k",
+    ):
         row[k] = m.get(k)
     return row
 
@@ -148,10 +177,12 @@ def estimation_cost(cases=CASES, strategies=STRATEGIES, naive: bool = False, pro
 
                     from . import model as cm
                     from .factory import make_controller
+
                     sc = load_scenario(case)
                     mp = cm.load_params() if strategy != "baseline" else None
-                    controller = NaiveVehicleController(make_controller(
-                        strategy, sc, sc.control.control_period_s, sc.control.horizon_steps, mp))
+                    controller = NaiveVehicleController(
+                        make_controller(strategy, sc, sc.control.control_period_s, sc.control.horizon_steps, mp)
+                    )
                 res = simulate(case, strategy, settings, controller=controller)
                 rows.append(_row(case, strategy, mode, res, time.perf_counter() - t0))
                 if progress:
@@ -171,10 +202,12 @@ def markdown_table(rows: list[dict]) -> str:
     """The estimator table: per case and strategy, full vs vehicle (and naive), with the differences."""
     by = {(r["case"], r["strategy"], r["mode"]): r for r in rows}
     naive = any(r["mode"] == "naive" for r in rows)
-    head = ("| case | strategy | E_tot full / vehicle [kWh] | ΔE [%] | I_PMV full / vehicle [s] | "
-            "discomfort full / vehicle [PMV h] | zone violation full / vehicle [%] | "
-            "RMSE T_int / T_shell / T_glass [K] (from 120 s) |"
-            + (" naive: ΔE [%], discomfort [PMV h], zone violation [%] |" if naive else ""))
+    head = (
+        "| case | strategy | E_tot full / vehicle [kWh] | ΔE [%] | I_PMV full / vehicle [s] | "
+        "discomfort full / vehicle [PMV h] | zone violation full / vehicle [%] | "
+        "RMSE T_int / T_shell / T_glass [K] (from 120 s) |"
+        + (" naive: ΔE [%], discomfort [PMV h], zone violation [%] |" if naive else "")
+    )
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     seen = []
     for r in rows:
@@ -185,17 +218,21 @@ def markdown_table(rows: list[dict]) -> str:
         f, v = by.get(key + ("full",)), by.get(key + ("vehicle",))
         if f is None or v is None:
             continue
-        cell = (f"| {key[0]} | {key[1]} | {f['E_tot_kWh']:.4f} / {v['E_tot_kWh']:.4f} | "
-                f"{_pct(v['E_tot_kWh'], f['E_tot_kWh'])} | {f['I_pmv']:.0f} / {v['I_pmv']:.0f} | "
-                f"{f['discomfort_pmvh']:.4f} / {v['discomfort_pmvh']:.4f} | "
-                f"{f['otc_violation_zone_pct']:.1f} / {v['otc_violation_zone_pct']:.1f} | "
-                f"{_f(v['est_t_int_rmse_k'])} / {_f(v['est_t_shell_rmse_k'])} / {_f(v['est_t_glass_rmse_k'])} "
-                f"({_f(v['est_t_int_rmse_late_k'])} / {_f(v['est_t_shell_rmse_late_k'])} / "
-                f"{_f(v['est_t_glass_rmse_late_k'])}) |")
+        cell = (
+            f"| {key[0]} | {key[1]} | {f['E_tot_kWh']:.4f} / {v['E_tot_kWh']:.4f} | "
+            f"{_pct(v['E_tot_kWh'], f['E_tot_kWh'])} | {f['I_pmv']:.0f} / {v['I_pmv']:.0f} | "
+            f"{f['discomfort_pmvh']:.4f} / {v['discomfort_pmvh']:.4f} | "
+            f"{f['otc_violation_zone_pct']:.1f} / {v['otc_violation_zone_pct']:.1f} | "
+            f"{_f(v['est_t_int_rmse_k'])} / {_f(v['est_t_shell_rmse_k'])} / {_f(v['est_t_glass_rmse_k'])} "
+            f"({_f(v['est_t_int_rmse_late_k'])} / {_f(v['est_t_shell_rmse_late_k'])} / "
+            f"{_f(v['est_t_glass_rmse_late_k'])}) |"
+        )
         n = by.get(key + ("naive",))
         if naive and n is not None:
-            cell += (f" {_pct(n['E_tot_kWh'], f['E_tot_kWh'])}, {n['discomfort_pmvh']:.4f}, "
-                     f"{n['otc_violation_zone_pct']:.1f} |")
+            cell += (
+                f" {_pct(n['E_tot_kWh'], f['E_tot_kWh'])}, {n['discomfort_pmvh']:.4f}, "
+                f"{n['otc_violation_zone_pct']:.1f} |"
+            )
         lines.append(cell)
     return "\n".join(lines)
 
@@ -203,18 +240,22 @@ def markdown_table(rows: list[dict]) -> str:
 def offset_table(rows: list[dict], reference: list[dict]) -> str:
     """Markdown table of :func:`offset_study` rows against the offset-free full and vehicle rows."""
     ref = {(r["case"], r["strategy"], r["mode"]): r for r in reference}
-    lines = ["| case | strategy | sensor offset | estimator | ΔE vs full [%] | discomfort [PMV h] (full) | "
-             "zone violation [%] | RMSE T_int / T_shell / T_glass [K] (from 120 s) |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| case | strategy | sensor offset | estimator | ΔE vs full [%] | discomfort [PMV h] (full) | "
+        "zone violation [%] | RMSE T_int / T_shell / T_glass [K] (from 120 s) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
         f = ref.get((r["case"], r["strategy"], "full"))
         de = _pct(r["E_tot_kWh"], f["E_tot_kWh"]) if f else "n/a"
         dfull = f"{f['discomfort_pmvh']:.4f}" if f else "n/a"
-        lines.append(f"| {r['case']} | {r['strategy']} | {r['offset']} | {r['estimator']} | {de} | "
-                     f"{r['discomfort_pmvh']:.4f} ({dfull}) | {r['otc_violation_zone_pct']:.1f} | "
-                     f"{_f(r['est_t_int_rmse_k'])} / {_f(r['est_t_shell_rmse_k'])} / {_f(r['est_t_glass_rmse_k'])} "
-                     f"({_f(r['est_t_int_rmse_late_k'])} / {_f(r['est_t_shell_rmse_late_k'])} / "
-                     f"{_f(r['est_t_glass_rmse_late_k'])}) |")
+        lines.append(
+            f"| {r['case']} | {r['strategy']} | {r['offset']} | {r['estimator']} | {de} | "
+            f"{r['discomfort_pmvh']:.4f} ({dfull}) | {r['otc_violation_zone_pct']:.1f} | "
+            f"{_f(r['est_t_int_rmse_k'])} / {_f(r['est_t_shell_rmse_k'])} / {_f(r['est_t_glass_rmse_k'])} "
+            f"({_f(r['est_t_int_rmse_late_k'])} / {_f(r['est_t_shell_rmse_late_k'])} / "
+            f"{_f(r['est_t_glass_rmse_late_k'])}) |"
+        )
     return "\n".join(lines)
 
 
@@ -224,17 +265,27 @@ def main(argv=None) -> int:
     ap.add_argument("--cases", default=",".join(CASES), help="comma-separated scenarios")
     ap.add_argument("--strategies", default=",".join(STRATEGIES), help="comma-separated strategies")
     ap.add_argument("--naive", action="store_true", help="also run without an estimator (T_int = T_shell = T_cab)")
-    ap.add_argument("--offsets", default="", help="comma-separated sensor offsets, e.g. t_vent_c+0.5,t_cab_c-0.3: "
-                    "run the sensor-offset study (vehicle mode, with and without the vent-offset state) instead")
+    ap.add_argument(
+        "--offsets",
+        default="",
+        help="comma-separated sensor offsets, e.g. t_vent_c+0.5,t_cab_c-0.3: "
+        "run the sensor-offset study (vehicle mode, with and without the vent-offset state) instead",
+    )
     ap.add_argument("--out", default=None, help="JSON file for the rows")
     args = ap.parse_args(argv)
 
     def show(r):
-        extra = (f", RMSE T_int {r['est_t_int_rmse_k']:.2f} K, T_shell {r['est_t_shell_rmse_k']:.2f} K, "
-                 f"T_glass {r['est_t_glass_rmse_k']:.2f} K"
-                 if r["est_t_int_rmse_k"] is not None else "")
-        print(f"{r['case']}/{r['strategy']}/{r['mode']}: E {r['E_tot_kWh']:.4f} kWh, I_pmv {r['I_pmv']:.0f} s, "
-              f"discomfort {r['discomfort_pmvh']:.4f} PMV h{extra} ({r['wall_s']:.1f} s)", file=sys.stderr)
+        extra = (
+            f", RMSE T_int {r['est_t_int_rmse_k']:.2f} K, T_shell {r['est_t_shell_rmse_k']:.2f} K, "
+            f"T_glass {r['est_t_glass_rmse_k']:.2f} K"
+            if r["est_t_int_rmse_k"] is not None
+            else ""
+        )
+        print(
+            f"{r['case']}/{r['strategy']}/{r['mode']}: E {r['E_tot_kWh']:.4f} kWh, I_pmv {r['I_pmv']:.0f} s, "
+            f"discomfort {r['discomfort_pmvh']:.4f} PMV h{extra} ({r['wall_s']:.1f} s)",
+            file=sys.stderr,
+        )
 
     cases, strategies = args.cases.split(","), args.strategies.split(",")
     offsets = [o for o in args.offsets.split(",") if o]
@@ -248,8 +299,9 @@ def main(argv=None) -> int:
     if offsets:
         rows = rows + offset_study(cases, strategies, offsets, progress=show)
     if args.out:
-        clean = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()}
-                 for r in rows]
+        clean = [
+            {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()} for r in rows
+        ]
         pathlib.Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         pathlib.Path(args.out).write_text(json.dumps(clean, indent=1) + "\n", encoding="utf-8")
     print(markdown_table(ref))

@@ -54,9 +54,22 @@ from .identification import (
     generate_excitation,
 )
 
-__all__ = ["EXTRA_STATES", "DATA_COLUMNS", "TRAIN_CSV", "VALIDATION_CSV", "Q_CAB_FACTORS", "Q_SLOW_FACTORS",
-           "SENSOR_OFFSETS", "generate_data", "read_data_csv", "estimator_intervals", "fit_estimator", "replay",
-           "replay_errors", "main"]
+__all__ = [
+    "EXTRA_STATES",
+    "DATA_COLUMNS",
+    "TRAIN_CSV",
+    "VALIDATION_CSV",
+    "Q_CAB_FACTORS",
+    "Q_SLOW_FACTORS",
+    "SENSOR_OFFSETS",
+    "generate_data",
+    "read_data_csv",
+    "estimator_intervals",
+    "fit_estimator",
+    "replay",
+    "replay_errors",
+    "main",
+]
 
 EXTRA_STATES = ("t_glass_c", "t_duct_c")
 """Plant temperatures recorded beyond ``identification.SERIES_COLUMNS`` [degC]."""
@@ -70,8 +83,14 @@ Q_CAB_FACTORS = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
 """Candidate factors on the residual std of eq. (1) [-] (step 3 of the method)."""
 Q_SLOW_FACTORS = (1.0, 2.0, 4.0, 8.0)
 """Candidate factors on the residual std of E1, E2, E4, E5 [-]."""
-SENSOR_OFFSETS = (("t_vent_c", 0.5), ("t_vent_c", -0.5), ("t_evap_c", 0.5), ("t_evap_c", -0.5), ("t_cab_c", 0.3),
-                  ("t_cab_c", -0.3))
+SENSOR_OFFSETS = (
+    ("t_vent_c", 0.5),
+    ("t_vent_c", -0.5),
+    ("t_evap_c", 0.5),
+    ("t_evap_c", -0.5),
+    ("t_cab_c", 0.3),
+    ("t_cab_c", -0.3),
+)
 """Sensor offsets [K] (NTC tolerances) the report replays the filter with, one at a time."""
 TUNE_AFTER_S = 60.0
 """The covariance search scores the filter from this time after key-on on [s]."""
@@ -82,8 +101,10 @@ _SLOW = ("ti", "ts", "tg", "td")
 def generate_data(seed: int = 1) -> tuple[dict, dict]:
     """The training and validation series (DATA_COLUMNS), simulated as ``identification`` does."""
     exc = ExcitationSettings(seed=seed)
-    return (generate_excitation(TRAIN_DRIVES, exc, extra_states=EXTRA_STATES),
-            generate_excitation(VALIDATION_DRIVES, exc, seed_offset=1000, extra_states=EXTRA_STATES))
+    return (
+        generate_excitation(TRAIN_DRIVES, exc, extra_states=EXTRA_STATES),
+        generate_excitation(VALIDATION_DRIVES, exc, seed_offset=1000, extra_states=EXTRA_STATES),
+    )
 
 
 def _write_csv(series: dict, path: pathlib.Path) -> str:
@@ -126,8 +147,14 @@ def estimator_intervals(series: dict, ts_s: float = 5.0) -> dict:
     m = int(round(ts_s / dt))
     if m < 1 or abs(m * dt - ts_s) > 1e-6:
         raise ValueError(f"ts_s {ts_s} must be a whole multiple of the sample step {dt}")
-    states = (("tc", "t_cab_c"), ("ti", "t_int_c"), ("ts", "t_shell_c"), ("tg", "t_glass_c"), ("td", "t_duct_c"),
-              ("te", "t_evap_c"))
+    states = (
+        ("tc", "t_cab_c"),
+        ("ti", "t_int_c"),
+        ("ts", "t_shell_c"),
+        ("tg", "t_glass_c"),
+        ("td", "t_duct_c"),
+        ("te", "t_evap_c"),
+    )
     keys = [k + e for k, _ in states for e in "01"] + ["tv1", "m", "ta", "ta1", "sol", "v", "seg"]
     out: dict[str, list] = {k: [] for k in keys}
     seg = np.asarray(series["segment"])
@@ -142,9 +169,15 @@ def estimator_intervals(series: dict, ts_s: float = 5.0) -> dict:
             for k, c in states:
                 out[k + "0"].append(float(g[c][i]))
                 out[k + "1"].append(float(g[c][j]))
-            for k, v in (("tv1", g["t_vent_c"][j]), ("m", g["mdot_bl_kgps"][i]), ("ta", np.mean(g["t_amb_c"][sl])),
-                         ("ta1", g["t_amb_c"][j]), ("sol", np.mean(g["solar_wm2"][sl])),
-                         ("v", np.mean(g["speed_mps"][sl])), ("seg", s)):
+            for k, v in (
+                ("tv1", g["t_vent_c"][j]),
+                ("m", g["mdot_bl_kgps"][i]),
+                ("ta", np.mean(g["t_amb_c"][sl])),
+                ("ta1", g["t_amb_c"][j]),
+                ("sol", np.mean(g["solar_wm2"][sl])),
+                ("v", np.mean(g["speed_mps"][sl])),
+                ("seg", s),
+            ):
                 out[k].append(float(v))
     return {k: np.asarray(v) for k, v in out.items()}
 
@@ -167,14 +200,20 @@ def _regressors(iv: dict) -> dict:
     ti, ts, tg, td, tc = iv["ti0"], iv["ts0"], iv["tg0"], iv["td0"], iv["tc0"]
     v08 = iv["v"] ** 0.8
     return {
-        "E3": (np.column_stack([d_cab, d_cab * m, d_amb, d_amb * m, d_duct, d_duct * m, 1.0 / m, np.ones_like(m),
-                                m * m]), iv["tv1"] - te1),
+        "E3": (
+            np.column_stack([d_cab, d_cab * m, d_amb, d_amb * m, d_duct, d_duct * m, 1.0 / m, np.ones_like(m), m * m]),
+            iv["tv1"] - te1,
+        ),
         "E1": (np.column_stack([tc - ti, (tc - ti) * f, ts - ti, tg - ti, iv["sol"], td - ti]), iv["ti1"] - ti),
         "E2": (np.column_stack([tc - ts, ti - ts, iv["ta"] - ts, (iv["ta"] - ts) * v08, iv["sol"]]), iv["ts1"] - ts),
-        "E4": (np.column_stack([tc - tg, (tc - tg) * f, ti - tg, iv["ta"] - tg, (iv["ta"] - tg) * v08, iv["sol"]]),
-               iv["tg1"] - tg),
-        "E5": (np.column_stack([ti - td, m * (te - td), m * m * (te - td), m * (tc - te), m * (iv["ta"] - te)]),
-               iv["td1"] - td),
+        "E4": (
+            np.column_stack([tc - tg, (tc - tg) * f, ti - tg, iv["ta"] - tg, (iv["ta"] - tg) * v08, iv["sol"]]),
+            iv["tg1"] - tg,
+        ),
+        "E5": (
+            np.column_stack([ti - td, m * (te - td), m * m * (te - td), m * (tc - te), m * (iv["ta"] - te)]),
+            iv["td1"] - td,
+        ),
     }
 
 
@@ -185,20 +224,31 @@ def _model_errors(p: cm.ControlModelParams, q: est.EstimatorParams, iv: dict, dr
     tv = est.t_vent_c(q, iv["te1"], iv["tc1"], iv["td1"], iv["ta1"], iv["m"])
     # open loop of (T_int, T_shell, T_glass, T_duct) from the true start of each window, true T_cab as input
     n = iv["m"].size
-    starts = [k for k in range(0, n - drift_steps, drift_steps)
-              if np.all(iv["seg"][k:k + drift_steps] == iv["seg"][k])
-              and np.allclose(iv["ti1"][k:k + drift_steps - 1], iv["ti0"][k + 1:k + drift_steps])]
+    starts = [
+        k
+        for k in range(0, n - drift_steps, drift_steps)
+        if np.all(iv["seg"][k : k + drift_steps] == iv["seg"][k])
+        and np.allclose(iv["ti1"][k : k + drift_steps - 1], iv["ti0"][k + 1 : k + drift_steps])
+    ]
     drift: dict[str, list] = {k: [] for k in _SLOW}
     for k in starts:
         x = [iv["tc0"][k], iv["ti0"][k], iv["ts0"][k], iv["tg0"][k], iv["td0"][k]]
         for j in range(k, k + drift_steps):
             x[0] = iv["tc0"][j]
-            x = [float(v) for v in est.process_step(p, q, x, iv["m"][j], iv["te0"][j], iv["te1"][j], iv["ta"][j],
-                                                    iv["sol"][j], iv["v"][j])]
+            x = [
+                float(v)
+                for v in est.process_step(
+                    p, q, x, iv["m"][j], iv["te0"][j], iv["te1"][j], iv["ta"][j], iv["sol"][j], iv["v"][j]
+                )
+            ]
         for i, key in enumerate(_SLOW, start=1):
             drift[key].append(x[i] - iv[key + "1"][k + drift_steps - 1])
-    out = {"t_cab_1step_rms_k": _rms(nxt[0] - iv["tc1"]), "t_vent_rms_k": _rms(tv - iv["tv1"]),
-           "drift_steps": int(drift_steps), "n_drift_windows": len(starts)}
+    out = {
+        "t_cab_1step_rms_k": _rms(nxt[0] - iv["tc1"]),
+        "t_vent_rms_k": _rms(tv - iv["tv1"]),
+        "drift_steps": int(drift_steps),
+        "n_drift_windows": len(starts),
+    }
     for i, (key, name) in enumerate(zip(_SLOW, ("t_int", "t_shell", "t_glass", "t_duct")), start=1):
         out[f"{name}_1step_rms_k"] = _rms(nxt[i] - iv[key + "1"])
         out[f"{name}_drift_rms_k"] = _rms(drift[key])
@@ -210,8 +260,9 @@ def _replay_cost(rep: dict) -> float:
     return float(sum(np.mean((rep[f"{q}_est_c"] - rep[f"{q}_c"])[late] ** 2) for q in ("t_int", "t_shell", "t_glass")))
 
 
-def fit_estimator(series: dict, model_params: cm.ControlModelParams, ts_s: float = 5.0,
-                  drift_steps: int = 60) -> tuple[est.EstimatorParams, dict]:
+def fit_estimator(
+    series: dict, model_params: cm.ControlModelParams, ts_s: float = 5.0, drift_steps: int = 60
+) -> tuple[est.EstimatorParams, dict]:
     """Least-squares fit of E1-E5 and the process noise; returns (params, training errors)."""
     iv = estimator_intervals(series, ts_s)
     if iv["m"].size < 20:
@@ -219,31 +270,79 @@ def fit_estimator(series: dict, model_params: cm.ControlModelParams, ts_s: float
     c = {k: _lstsq(a, b) for k, (a, b) in _regressors(iv).items()}
     v, a, b, g, d = c["E3"], c["E1"], c["E2"], c["E4"], c["E5"]
     q = est.EstimatorParams(
-        ts_s=ts_s, int_cab=a[0], int_cab_forced=a[1], int_shell=a[2], int_glass=a[3], int_solar_k_per_wm2=a[4],
-        int_duct=a[5], shell_cab=b[0], shell_int=b[1], shell_amb=b[2], shell_amb_speed=b[3],
-        shell_solar_k_per_wm2=b[4], glass_cab=g[0], glass_cab_forced=g[1], glass_int=g[2], glass_amb=g[3],
-        glass_amb_speed=g[4], glass_solar_k_per_wm2=g[5], duct_int=d[0], duct_air_s_per_kg=d[1],
-        duct_air2_s2_per_kg2=d[2], duct_cab_s_per_kg=d[3], duct_amb_s_per_kg=d[4], vent_cab=v[0],
-        vent_cab_flow_s_per_kg=v[1], vent_amb=v[2], vent_amb_flow_s_per_kg=v[3], vent_duct=v[4],
-        vent_duct_flow_s_per_kg=v[5], vent_heat_k_kgps=v[6], vent_offset_k=v[7], vent_flow2_k_s2_per_kg2=v[8])
+        ts_s=ts_s,
+        int_cab=a[0],
+        int_cab_forced=a[1],
+        int_shell=a[2],
+        int_glass=a[3],
+        int_solar_k_per_wm2=a[4],
+        int_duct=a[5],
+        shell_cab=b[0],
+        shell_int=b[1],
+        shell_amb=b[2],
+        shell_amb_speed=b[3],
+        shell_solar_k_per_wm2=b[4],
+        glass_cab=g[0],
+        glass_cab_forced=g[1],
+        glass_int=g[2],
+        glass_amb=g[3],
+        glass_amb_speed=g[4],
+        glass_solar_k_per_wm2=g[5],
+        duct_int=d[0],
+        duct_air_s_per_kg=d[1],
+        duct_air2_s2_per_kg2=d[2],
+        duct_cab_s_per_kg=d[3],
+        duct_amb_s_per_kg=d[4],
+        vent_cab=v[0],
+        vent_cab_flow_s_per_kg=v[1],
+        vent_amb=v[2],
+        vent_amb_flow_s_per_kg=v[3],
+        vent_duct=v[4],
+        vent_duct_flow_s_per_kg=v[5],
+        vent_heat_k_kgps=v[6],
+        vent_offset_k=v[7],
+        vent_flow2_k_s2_per_kg2=v[8],
+    )
     err = _model_errors(model_params, q, iv, drift_steps)
     root_n = float(np.sqrt(drift_steps))
-    slow = {name: max(err[f"{name}_1step_rms_k"], err[f"{name}_drift_rms_k"] / root_n)
-            for name in ("t_int", "t_shell", "t_glass", "t_duct")}
-    q = dataclasses.replace(q, q_cab_k=err["t_cab_1step_rms_k"], q_int_k=slow["t_int"], q_shell_k=slow["t_shell"],
-                            q_glass_k=slow["t_glass"], q_duct_k=slow["t_duct"], vent_residual_k=err["t_vent_rms_k"])
+    slow = {
+        name: max(err[f"{name}_1step_rms_k"], err[f"{name}_drift_rms_k"] / root_n)
+        for name in ("t_int", "t_shell", "t_glass", "t_duct")
+    }
+    q = dataclasses.replace(
+        q,
+        q_cab_k=err["t_cab_1step_rms_k"],
+        q_int_k=slow["t_int"],
+        q_shell_k=slow["t_shell"],
+        q_glass_k=slow["t_glass"],
+        q_duct_k=slow["t_duct"],
+        vent_residual_k=err["t_vent_rms_k"],
+    )
     err["n_intervals"] = int(iv["m"].size)
     best = None
     for fc in Q_CAB_FACTORS:
         for fs in Q_SLOW_FACTORS:
-            cand = dataclasses.replace(q, q_cab_k=fc * q.q_cab_k, q_int_k=fs * q.q_int_k, q_shell_k=fs * q.q_shell_k,
-                                       q_glass_k=fs * q.q_glass_k, q_duct_k=fs * q.q_duct_k)
+            cand = dataclasses.replace(
+                q,
+                q_cab_k=fc * q.q_cab_k,
+                q_int_k=fs * q.q_int_k,
+                q_shell_k=fs * q.q_shell_k,
+                q_glass_k=fs * q.q_glass_k,
+                q_duct_k=fs * q.q_duct_k,
+            )
             cost = _replay_cost(replay(series, est.CabinStateEstimator(model_params, cand, control_period_s=ts_s)))
             if best is None or cost < best[0]:
                 best = (cost, fc, fs, cand)
     assert best is not None
-    err.update({"q_cab_residual_k": q.q_cab_k, **{f"q_{n}_residual_k": slow[n] for n in slow},
-                "q_cab_factor": best[1], "q_slow_factor": best[2], "tuned_rms_k": float(np.sqrt(best[0] / 3.0))})
+    err.update(
+        {
+            "q_cab_residual_k": q.q_cab_k,
+            **{f"q_{n}_residual_k": slow[n] for n in slow},
+            "q_cab_factor": best[1],
+            "q_slow_factor": best[2],
+            "tuned_rms_k": float(np.sqrt(best[0] / 3.0)),
+        }
+    )
     return best[3].validate(), err
 
 
@@ -259,8 +358,9 @@ def replay(series: dict, estimator: est.CabinStateEstimator, meas_filter=None) -
     dt = float(np.median(np.diff(t)))
     every = int(round(estimator.control_period_s / dt))
     names = [n for n in ("t_cab", "t_int", "t_shell", "t_glass", "t_duct") if f"{n}_c" in series]
-    out: dict[str, list] = {k: [] for k in ["t_s", "segment", "valid"] + [f"{n}{e}" for n in names
-                                                                          for e in ("_est_c", "_c")]}
+    out: dict[str, list] = {
+        k: [] for k in ["t_s", "segment", "valid"] + [f"{n}{e}" for n in names for e in ("_est_c", "_c")]
+    }
     seg = np.asarray(series["segment"])
     for s in np.unique(seg):
         idx = np.flatnonzero(seg == s)
@@ -268,14 +368,22 @@ def replay(series: dict, estimator: est.CabinStateEstimator, meas_filter=None) -
         t0 = t[idx[0]]
         for j in range(0, idx.size, every):
             r = idx[j]
-            meas = {"t_cab_c": series["t_cab_c"][r], "t_vent_c": series["t_vent_c"][r],
-                    "t_evap_c": series["t_evap_c"][r], "t_amb_c": series["t_amb_c"][r],
-                    "solar_wm2": series["solar_wm2"][r], "speed_mps": series["speed_mps"][r]}
+            meas = {
+                "t_cab_c": series["t_cab_c"][r],
+                "t_vent_c": series["t_vent_c"][r],
+                "t_evap_c": series["t_evap_c"][r],
+                "t_amb_c": series["t_amb_c"][r],
+                "solar_wm2": series["solar_wm2"][r],
+                "speed_mps": series["speed_mps"][r],
+            }
             ts = float(t[r] - t0)
             if meas_filter is not None:
                 meas = meas_filter(ts, meas)
-            u = ((series["mdot_bl_kgps"][idx[j - 1]], series["t_evap_sp_c"][idx[j - 1]]) if j > 0
-                 else (series["mdot_bl_kgps"][r], series["t_evap_sp_c"][r]))
+            u = (
+                (series["mdot_bl_kgps"][idx[j - 1]], series["t_evap_sp_c"][idx[j - 1]])
+                if j > 0
+                else (series["mdot_bl_kgps"][r], series["t_evap_sp_c"][r])
+            )
             e = estimator.update(ts, meas, u)
             out["t_s"].append(ts)
             out["segment"].append(s)
@@ -294,8 +402,13 @@ def replay_errors(rep: dict, after_s: float = 120.0) -> dict:
         if f"{n}_c" not in rep:
             continue
         e = rep[f"{n}_est_c"] - rep[f"{n}_c"]
-        out.update({f"{n}_rmse_k": _rms(e), f"{n}_rmse_after_{after_s:g}s_k": _rms(e[late]),
-                    f"{n}_max_abs_k": float(np.max(np.abs(e)))})
+        out.update(
+            {
+                f"{n}_rmse_k": _rms(e),
+                f"{n}_rmse_after_{after_s:g}s_k": _rms(e[late]),
+                f"{n}_max_abs_k": float(np.max(np.abs(e))),
+            }
+        )
     return out
 
 
@@ -305,8 +418,9 @@ def _round(d: dict) -> dict:
 
 def main(argv=None) -> int:
     """CLI: (re)generate the data, fit E1-E5, validate, write the parameter file."""
-    ap = argparse.ArgumentParser(prog="python -m ceco_controller.estimator_id",
-                                 description="Identify the state estimator's models.")
+    ap = argparse.ArgumentParser(
+        prog="python -m ceco_controller.estimator_id", description="Identify the state estimator's models."
+    )
     ap.add_argument("--regenerate", action="store_true", help="re-simulate the identification data first")
     ap.add_argument("--train-csv", default=str(TRAIN_CSV), help="training series CSV (DATA_COLUMNS)")
     ap.add_argument("--validation-csv", default=str(VALIDATION_CSV), help="validation series CSV (not fitted)")
@@ -325,25 +439,37 @@ def main(argv=None) -> int:
     err_valid = _model_errors(mp, q, estimator_intervals(valid, mp.ts_s), args.drift_steps)
     sha = {p: hashlib.sha256(p.read_bytes()).hexdigest()[:16] for p in (train_path, valid_path)}
     cmd = "python -m ceco_controller.estimator_id" + (" " + " ".join(argv) if argv else "")
-    q = dataclasses.replace(q, provenance=(
-        f"{cmd}; training data {train_path.name} (sha256 {sha[train_path]}; the excitation of train.csv with "
-        f"{', '.join(EXTRA_STATES)}), validation data {valid_path.name} (sha256 {sha[valid_path]}); eq. (1) of "
-        f"{args.model_params or 'config/model_params.yaml'}"))
+    q = dataclasses.replace(
+        q,
+        provenance=(
+            f"{cmd}; training data {train_path.name} (sha256 {sha[train_path]}; the excitation of train.csv with "
+            f"{', '.join(EXTRA_STATES)}), validation data {valid_path.name} (sha256 {sha[valid_path]}); eq. (1) of "
+            f"{args.model_params or 'config/model_params.yaml'}"
+        ),
+    )
     ekf = {}
     for name, data in (("training", train), ("validation", valid)):
         rep = replay(data, est.CabinStateEstimator(mp, q, control_period_s=mp.ts_s))
         ekf[name] = _round(replay_errors(rep))
     offsets = {}
     for sensor, off in SENSOR_OFFSETS:
-        rep = replay(valid, est.CabinStateEstimator(mp, q, control_period_s=mp.ts_s),
-                     meas_filter=lambda t, m, s=sensor, o=off: {**m, s: m[s] + o})
+        rep = replay(
+            valid,
+            est.CabinStateEstimator(mp, q, control_period_s=mp.ts_s),
+            meas_filter=lambda t, m, s=sensor, o=off: {**m, s: m[s] + o},
+        )
         e = replay_errors(rep)
         offsets[f"{sensor}{off:+g}"] = [round(e[f"{n}_rmse_after_120s_k"], 4) for n in ("t_int", "t_shell", "t_glass")]
-    report = {"model_errors_training": _round(err_train), "model_errors_validation": _round(err_valid),
-              "filter_replay_default_prior": ekf,
-              "filter_replay_validation_sensor_offsets_rmse_after_120s_k_int_shell_glass": offsets}
-    header = ("Identified state-estimator models E1-E5 (ceco_controller/estimator.py), GENERATED - do not edit.\n"
-              f"Regenerate with: {cmd}\nMethod and report: docs/controller.md section 5")
+    report = {
+        "model_errors_training": _round(err_train),
+        "model_errors_validation": _round(err_valid),
+        "filter_replay_default_prior": ekf,
+        "filter_replay_validation_sensor_offsets_rmse_after_120s_k_int_shell_glass": offsets,
+    }
+    header = (
+        "Identified state-estimator models E1-E5 (ceco_controller/estimator.py), GENERATED - do not edit.\n"
+        f"Regenerate with: {cmd}\nMethod and report: docs/controller.md section 5"
+    )
     out = pathlib.Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     est.save_estimator_params(q, out, header=header, extra={"fit_report": report})

@@ -19,10 +19,18 @@ from .strategies import load_strategy_settings
 __all__ = ["make_controller"]
 
 
-def make_controller(strategy: str, scenario: Scenario, control_period_s: float, horizon_steps: int,
-                    model_params: cm.ControlModelParams | None = None, overrides: dict | None = None,
-                    config_path: str | None = None, measurements: str = "full", estimator_settings=None,
-                    estimator_params=None):
+def make_controller(
+    strategy: str,
+    scenario: Scenario,
+    control_period_s: float,
+    horizon_steps: int,
+    model_params: cm.ControlModelParams | None = None,
+    overrides: dict | None = None,
+    config_path: str | None = None,
+    measurements: str = "full",
+    estimator_settings=None,
+    estimator_params=None,
+):
     """Build the controller of a strategy for a scenario.
 
     NMPC settings: the controller file (``config_path``, default the package's
@@ -37,8 +45,15 @@ def make_controller(strategy: str, scenario: Scenario, control_period_s: float, 
         # overrides: AccSettings fields (set-point, allowance, sun/ambient compensation)
         ctrl = BaselineController(AccSettings(**(overrides or {})), control_period_s=control_period_s)
     else:
-        settings = load_strategy_settings(strategy, config_path, horizon_steps=horizon_steps,
-                                          control_period_s=control_period_s, **(overrides or {}))
+        settings = load_strategy_settings(
+            strategy, config_path, horizon_steps=horizon_steps, control_period_s=control_period_s, **(overrides or {})
+        )
         ctrl = NmpcController(settings, model_params=model_params, comfort_params=comfort_params_for(scenario))
-    return with_measurements(ctrl, measurements, control_period_s, model_params=model_params,
-                             params=estimator_params, settings=estimator_settings)
+    return with_measurements(
+        ctrl,
+        measurements,
+        control_period_s,
+        model_params=model_params,
+        params=estimator_params,
+        settings=estimator_settings,
+    )

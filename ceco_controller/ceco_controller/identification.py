@@ -38,8 +38,6 @@ CLI (also ``ceco identify``)::
 
 from __future__ import annotations
 
-from typing import Any
-
 import argparse
 import csv
 import dataclasses
@@ -47,23 +45,64 @@ import hashlib
 import math
 import pathlib
 import sys
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
 
 from . import model as cm
 
-__all__ = ["SERIES_COLUMNS", "ExcitationSettings", "generate_excitation", "intervals_from_series", "fit",
-           "fit_intervals", "eta_ac_points", "fit_eta_ac", "EtaMapSettings", "prediction_errors", "read_series_csv", "write_series_csv", "main"]
+__all__ = [
+    "SERIES_COLUMNS",
+    "ExcitationSettings",
+    "generate_excitation",
+    "intervals_from_series",
+    "fit",
+    "fit_intervals",
+    "eta_ac_points",
+    "fit_eta_ac",
+    "EtaMapSettings",
+    "prediction_errors",
+    "read_series_csv",
+    "write_series_csv",
+    "main",
+]
 
-SERIES_COLUMNS = ("segment", "t_s", "t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c", "t_amb_c",
-                  "solar_wm2", "speed_mps", "mdot_bl_kgps", "t_evap_sp_c", "p_comp_w", "p_blower_w")
+INTERVAL_KEYS = (
+    "t_cab0", "t_cab1", "t_evap0", "t_evap1", "t_int0", "t_shell0", "t_evap_mean", "t_cab_mean", "t_ain_mean",
+    "mdot", "sp", "t_amb", "speed", "p_comp", "p_bl", "segment",
+)  # fmt: skip
+"""Keys of the per-interval regression data (:func:`intervals_from_series`): the start and end states of each
+control interval, its mean temperatures, inputs, disturbances, powers and its excitation segment."""
+
+SERIES_COLUMNS = (
+    "segment",
+    "t_s",
+    "t_cab_c",
+    "t_int_c",
+    "t_shell_c",
+    "t_evap_c",
+    "t_vent_c",
+    "t_amb_c",
+    "solar_wm2",
+    "speed_mps",
+    "mdot_bl_kgps",
+    "t_evap_sp_c",
+    "p_comp_w",
+    "p_blower_w",
+)
 """Columns the fit needs (a subset of the run directory's timeseries.csv, plus ``segment``)."""
 
 PACKAGE_DIR = pathlib.Path(__file__).resolve().parent.parent
 DEFAULT_DATA_DIR = PACKAGE_DIR / "ceco_controller" / "data" / "identification"
-TRAIN_DRIVES = (("sc03", "soak"), ("udds", "soak"), ("hwfet", "soak"), ("sc03_mild", "soak"),
-                ("sc03", "precooled"), ("hwfet", "precooled"))
+TRAIN_DRIVES = (
+    ("sc03", "soak"),
+    ("udds", "soak"),
+    ("hwfet", "soak"),
+    ("sc03_mild", "soak"),
+    ("sc03", "precooled"),
+    ("hwfet", "precooled"),
+)
 """(scenario, initial condition) of the training drives."""
 VALIDATION_DRIVES = (("us06", "soak"), ("us06", "precooled"))
 """Validation drives (never used for fitting)."""
@@ -107,8 +146,11 @@ class EtaMapSettings:
         """Raise ValueError naming the field if a setting is not usable."""
         if not (len(self.loads_w) >= 1 and all(math.isfinite(q) and q > 0 for q in self.loads_w)):
             raise ValueError("EtaMapSettings.loads_w must be positive loads [W]")
-        if not (len(self.speeds_mps) >= 3 and self.speeds_mps[0] == 0.0
-                and all(math.isfinite(v) and v >= 0 for v in self.speeds_mps)):
+        if not (
+            len(self.speeds_mps) >= 3
+            and self.speeds_mps[0] == 0.0
+            and all(math.isfinite(v) and v >= 0 for v in self.speeds_mps)
+        ):
             raise ValueError("EtaMapSettings.speeds_mps must start at 0 and have >= 3 finite speeds >= 0")
         if not math.isfinite(self.t_amb_c) or not math.isfinite(self.t_wall_c) or self.t_wall_c >= self.t_amb_c:
             raise ValueError("EtaMapSettings.t_wall_c must be finite and below t_amb_c")
@@ -132,8 +174,7 @@ def eta_ac_points(settings: EtaMapSettings = EtaMapSettings(), plant_params=None
         for j, vj in enumerate(v):
             _, sol = steady_cycle_at_load(pp, float(q), settings.t_wall_c, settings.t_amb_c, float(vj))
             cop[i, j] = sol.q_evap_ref_w / sol.p_comp_w
-    return {"speeds_mps": v, "loads_w": np.asarray(settings.loads_w, float), "cop": cop,
-            "ratio": cop / cop[:, :1]}
+    return {"speeds_mps": v, "loads_w": np.asarray(settings.loads_w, float), "cop": cop, "ratio": cop / cop[:, :1]}
 
 
 def fit_eta_ac(speeds_mps, ratio) -> tuple[float, float, float]:
@@ -149,17 +190,20 @@ def fit_eta_ac(speeds_mps, ratio) -> tuple[float, float, float]:
     def resid(z):
         return (1.0 + z[0] * (1.0 - np.exp(-v / z[1])) - r).ravel()
 
-    res = least_squares(resid, np.array([0.3, 15.0]), bounds=([0.0, 1.0], [3.0, 60.0]),
-                        x_scale=np.array([0.1, 5.0]))
-    return float(res.x[0]), float(res.x[1]), float(np.sqrt(np.mean(res.fun ** 2)))
+    res = least_squares(resid, np.array([0.3, 15.0]), bounds=([0.0, 1.0], [3.0, 60.0]), x_scale=np.array([0.1, 5.0]))
+    return float(res.x[0]), float(res.x[1]), float(np.sqrt(np.mean(res.fun**2)))
 
 
 _PRECOOLED = {"t_cab_c": 27.0, "t_int_c": 38.0, "t_shell_c": 36.0, "t_evap_c": 12.0}
 """Initial state of a cabin that has already been cooled for a while [degC]."""
 
 
-def generate_excitation(drives=TRAIN_DRIVES, settings: ExcitationSettings = ExcitationSettings(),
-                        seed_offset: int = 0, extra_states: tuple = ()) -> dict:
+def generate_excitation(
+    drives=TRAIN_DRIVES,
+    settings: ExcitationSettings = ExcitationSettings(),
+    seed_offset: int = 0,
+    extra_states: tuple = (),
+) -> dict:
     """Simulate the plant under multi-level random input steps; return 1 s series (SERIES_COLUMNS).
 
     ``extra_states``: further plant temperatures recorded as columns after SERIES_COLUMNS (fields of
@@ -196,16 +240,26 @@ def generate_excitation(drives=TRAIN_DRIVES, settings: ExcitationSettings = Exci
                     hold = 60.0
                 else:
                     cmd = AcInput(float(rng.uniform(0.05, 0.17)), float(rng.uniform(3.0, 10.0)))
-                    hold = settings.ts_s * rng.integers(int(settings.hold_min_s / settings.ts_s),
-                                                        int(settings.hold_max_s / settings.ts_s) + 1)
+                    hold = settings.ts_s * rng.integers(
+                        int(settings.hold_min_s / settings.ts_s), int(settings.hold_max_s / settings.ts_s) + 1
+                    )
                 t_next = t + hold
             assert cmd is not None  # set at t = 0 (t_next = 0)
             env = sc.env_at(t)
             out = plant.step(cmd, env, 1.0)
             vals: dict[str, Any] = dict(zip(("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c"), meas))
-            vals.update(segment=seg, t_s=t, t_amb_c=env.t_amb_c, solar_wm2=env.solar_wm2,
-                        speed_mps=env.speed_mps, mdot_bl_kgps=cmd.mdot_bl_kgps, t_evap_sp_c=cmd.t_evap_sp_c,
-                        p_comp_w=out.p_comp_w, p_blower_w=out.p_blower_w, **dict(zip(extra_states, extra)))
+            vals.update(
+                segment=seg,
+                t_s=t,
+                t_amb_c=env.t_amb_c,
+                solar_wm2=env.solar_wm2,
+                speed_mps=env.speed_mps,
+                mdot_bl_kgps=cmd.mdot_bl_kgps,
+                t_evap_sp_c=cmd.t_evap_sp_c,
+                p_comp_w=out.p_comp_w,
+                p_blower_w=out.p_blower_w,
+                **dict(zip(extra_states, extra)),
+            )
             for c in rows:
                 rows[c].append(vals[c])
             meas = (out.t_cab_c, out.t_int_c, out.t_shell_c, out.t_evap_c, out.t_vent_c)
@@ -261,9 +315,7 @@ def intervals_from_series(series: dict, ts_s: float = 5.0) -> dict:
     m = int(round(ts_s / dt))
     if m < 1 or abs(m * dt - ts_s) > 1e-6:
         raise ValueError(f"ts_s {ts_s} must be a whole multiple of the sample step {dt}")
-    out: dict[str, list] = {k: [] for k in ("t_cab0", "t_cab1", "t_evap0", "t_evap1", "t_int0", "t_shell0", "t_evap_mean",
-                           "t_cab_mean", "t_ain_mean", "mdot", "sp", "t_amb", "speed", "p_comp", "p_bl",
-                           "segment")}
+    out: dict[str, list] = {k: [] for k in INTERVAL_KEYS}
     seg = np.asarray(series["segment"])
     for s in np.unique(seg):
         idx = np.flatnonzero(seg == s)
@@ -272,14 +324,24 @@ def intervals_from_series(series: dict, ts_s: float = 5.0) -> dict:
             sl = slice(i, i + m)
             if np.ptp(g["mdot_bl_kgps"][sl]) > 1e-9 or np.ptp(g["t_evap_sp_c"][sl]) > 1e-9:
                 continue
-            vals = {"t_cab0": g["t_cab_c"][i], "t_cab1": g["t_cab_c"][i + m], "t_evap0": g["t_evap_c"][i],
-                    "t_evap1": g["t_evap_c"][i + m], "t_int0": g["t_int_c"][i], "t_shell0": g["t_shell_c"][i],
-                    "t_evap_mean": np.mean(g["t_evap_c"][i + 1:i + m + 1]),
-                    "t_cab_mean": np.mean(g["t_cab_c"][sl]),
-                    "t_ain_mean": np.mean(g["t_vent_c"][i + 1:i + m + 1]),
-                    "mdot": g["mdot_bl_kgps"][i], "sp": g["t_evap_sp_c"][i],
-                    "t_amb": np.mean(g["t_amb_c"][sl]), "speed": np.mean(g["speed_mps"][sl]),
-                    "p_comp": np.mean(g["p_comp_w"][sl]), "p_bl": np.mean(g["p_blower_w"][sl]), "segment": s}
+            vals = {
+                "t_cab0": g["t_cab_c"][i],
+                "t_cab1": g["t_cab_c"][i + m],
+                "t_evap0": g["t_evap_c"][i],
+                "t_evap1": g["t_evap_c"][i + m],
+                "t_int0": g["t_int_c"][i],
+                "t_shell0": g["t_shell_c"][i],
+                "t_evap_mean": np.mean(g["t_evap_c"][i + 1 : i + m + 1]),
+                "t_cab_mean": np.mean(g["t_cab_c"][sl]),
+                "t_ain_mean": np.mean(g["t_vent_c"][i + 1 : i + m + 1]),
+                "mdot": g["mdot_bl_kgps"][i],
+                "sp": g["t_evap_sp_c"][i],
+                "t_amb": np.mean(g["t_amb_c"][sl]),
+                "speed": np.mean(g["speed_mps"][sl]),
+                "p_comp": np.mean(g["p_comp_w"][sl]),
+                "p_bl": np.mean(g["p_blower_w"][sl]),
+                "segment": s,
+            }
             for k, v in vals.items():
                 out[k].append(float(v))
     res: dict[str, Any] = {k: np.asarray(v) for k, v in out.items()}
@@ -292,8 +354,9 @@ def _lstsq(a, b):
     return coef
 
 
-def fit_intervals(iv: dict, ts_s: float | None = None,
-                  eta: tuple[float, float] | None = None) -> tuple[cm.ControlModelParams, dict]:
+def fit_intervals(
+    iv: dict, ts_s: float | None = None, eta: tuple[float, float] | None = None
+) -> tuple[cm.ControlModelParams, dict]:
     """Least-squares fit of every model parameter from interval data; returns (params, residual RMS).
 
     ``eta`` = (a_eta, v_eta [m/s]) fixes eta_AC(V) (identified from the plant's steady cycle,
@@ -321,20 +384,39 @@ def fit_intervals(iv: dict, ts_s: float | None = None,
     rb = lsq_linear(ab * (1.0 / sb), iv["p_bl"], bounds=(0.0, np.inf))
     b0, b1, b3 = rb.x / sb
     # compressor + eta_AC: nonlinear, bounded
-    base = cm.ControlModelParams(ts_s=ts_s, gamma_1=g1, gamma_2=g2, gamma_3=g3, gamma_4=g4, gamma_5=g5,
-                                 gamma_6=g6, gamma_7=g7, tau_1=tau1, tau_2=tau2, tau_3=tau3,
-                                 blower_b0_w=b0, blower_b1_w_per_kgps=b1, blower_b3_w_per_kgps3=b3)
+    base = cm.ControlModelParams(
+        ts_s=ts_s,
+        gamma_1=g1,
+        gamma_2=g2,
+        gamma_3=g3,
+        gamma_4=g4,
+        gamma_5=g5,
+        gamma_6=g6,
+        gamma_7=g7,
+        tau_1=tau1,
+        tau_2=tau2,
+        tau_3=tau3,
+        blower_b0_w=b0,
+        blower_b1_w_per_kgps=b1,
+        blower_b3_w_per_kgps3=b3,
+    )
 
     def comp_params(z):
         if eta is not None:
             z = np.concatenate([z[:3], eta, z[3:]])
-        return dataclasses.replace(base, fresh_air_fraction=z[0], comp_c0=z[1], comp_c1_per_k=z[2],
-                                   eta_gain=z[3], eta_speed_scale_mps=z[4], comp_c_wall_jpk=z[5])
+        return dataclasses.replace(
+            base,
+            fresh_air_fraction=z[0],
+            comp_c0=z[1],
+            comp_c1_per_k=z[2],
+            eta_gain=z[3],
+            eta_speed_scale_mps=z[4],
+            comp_c_wall_jpk=z[5],
+        )
 
     def comp_resid(z):
         p = comp_params(z)
-        q = cm.q_evap_w(p, iv["t_cab_mean"], iv["t_amb"], iv["t_ain_mean"], iv["mdot"], iv["t_evap0"],
-                        iv["t_evap1"])
+        q = cm.q_evap_w(p, iv["t_cab_mean"], iv["t_amb"], iv["t_ain_mean"], iv["mdot"], iv["t_evap0"], iv["t_evap1"])
         return (cm.p_comp_w(p, q, iv["t_amb"], iv["t_evap_mean"], iv["speed"]) - iv["p_comp"]) / 1000.0
 
     z0 = np.array([0.2, 0.2, 0.01, 0.2, 10.0, 5000.0])
@@ -352,15 +434,17 @@ def fit_intervals(iv: dict, ts_s: float | None = None,
         "t_evap_rms_k": float(np.sqrt(np.mean((a2 @ [g4, g5, tau2] - iv["t_evap1"]) ** 2))),
         "t_cab_rms_k": float(np.sqrt(np.mean((a1 @ [g1, g2, g3, tau1] - (iv["t_cab1"] - tc)) ** 2))),
         "p_blower_rms_w": float(np.sqrt(np.mean((ab @ [b0, b1, b3] - iv["p_bl"]) ** 2))),
-        "p_comp_rms_w": float(1000.0 * np.sqrt(np.mean(rc.fun ** 2))),
+        "p_comp_rms_w": float(1000.0 * np.sqrt(np.mean(rc.fun**2))),
         "n_intervals": int(n),
     }
     return params, resid
 
 
 def fit(series: dict, ts_s: float = 5.0, eta: tuple[float, float] | None = None) -> tuple[cm.ControlModelParams, dict]:
-    """Fit from 1 s time-series arrays (SERIES_COLUMNS; e.g. read from CSV or a rosbag2 bag); ``eta`` as in
-    :func:`fit_intervals`."""
+    """Fit the control model from 1 s time-series arrays (SERIES_COLUMNS; e.g. read from CSV or a rosbag2 bag).
+
+    ``ts_s`` is the model step [s]; ``eta`` as in :func:`fit_intervals`.
+    """
     return fit_intervals(intervals_from_series(series, ts_s), ts_s, eta)
 
 
@@ -376,14 +460,26 @@ def prediction_errors(p: cm.ControlModelParams, iv: dict, horizon_steps: int = 6
     """
     n = iv["mdot"].size
     seg = iv["segment"]
-    starts = [k for k in range(n - horizon_steps + 1)
-              if np.all(seg[k:k + horizon_steps] == seg[k])
-              and np.allclose(iv["t_cab1"][k:k + horizon_steps - 1], iv["t_cab0"][k + 1:k + horizon_steps])]
+    starts = [
+        k
+        for k in range(n - horizon_steps + 1)
+        if np.all(seg[k : k + horizon_steps] == seg[k])
+        and np.allclose(iv["t_cab1"][k : k + horizon_steps - 1], iv["t_cab0"][k + 1 : k + horizon_steps])
+    ]
     e1_cab, eN_cab, e1_ev, eN_ev, e_ain, e_pc, e_pb, e_energy = [], [], [], [], [], [], [], []
     for k in starts:
         sl = slice(k, k + horizon_steps)
-        sim = cm.simulate(p, iv["t_cab0"][k], iv["t_evap0"][k], iv["mdot"][sl], iv["sp"][sl],
-                          iv["t_int0"][k], iv["t_shell0"][k], iv["t_amb"][sl], iv["speed"][sl])
+        sim = cm.simulate(
+            p,
+            iv["t_cab0"][k],
+            iv["t_evap0"][k],
+            iv["mdot"][sl],
+            iv["sp"][sl],
+            iv["t_int0"][k],
+            iv["t_shell0"][k],
+            iv["t_amb"][sl],
+            iv["speed"][sl],
+        )
         e1_cab.append(sim["t_cab_c"][1] - iv["t_cab1"][k])
         eN_cab.append(sim["t_cab_c"][-1] - iv["t_cab1"][k + horizon_steps - 1])
         e1_ev.append(sim["t_evap_c"][1] - iv["t_evap1"][k])
@@ -400,13 +496,21 @@ def prediction_errors(p: cm.ControlModelParams, iv: dict, horizon_steps: int = 6
     def mx(x):
         return float(np.max(np.abs(x))) if len(x) else float("nan")
 
-    return {"horizon_steps": int(horizon_steps), "n_windows": len(starts),
-            "t_cab_1step_rms_k": rms(e1_cab), "t_cab_1step_max_k": mx(e1_cab),
-            f"t_cab_{horizon_steps}step_rms_k": rms(eN_cab), f"t_cab_{horizon_steps}step_max_k": mx(eN_cab),
-            "t_evap_1step_rms_k": rms(e1_ev), f"t_evap_{horizon_steps}step_rms_k": rms(eN_ev),
-            "t_ain_rms_k": rms(e_ain), "p_comp_rms_w": rms(e_pc), "p_blower_rms_w": rms(e_pb),
-            "horizon_energy_rel_err_rms": rms(e_energy),
-            "horizon_energy_rel_err_mean": float(np.mean(e_energy)) if e_energy else float("nan")}
+    return {
+        "horizon_steps": int(horizon_steps),
+        "n_windows": len(starts),
+        "t_cab_1step_rms_k": rms(e1_cab),
+        "t_cab_1step_max_k": mx(e1_cab),
+        f"t_cab_{horizon_steps}step_rms_k": rms(eN_cab),
+        f"t_cab_{horizon_steps}step_max_k": mx(eN_cab),
+        "t_evap_1step_rms_k": rms(e1_ev),
+        f"t_evap_{horizon_steps}step_rms_k": rms(eN_ev),
+        "t_ain_rms_k": rms(e_ain),
+        "p_comp_rms_w": rms(e_pc),
+        "p_blower_rms_w": rms(e_pb),
+        "horizon_energy_rel_err_rms": rms(e_energy),
+        "horizon_energy_rel_err_mean": float(np.mean(e_energy)) if e_energy else float("nan"),
+    }
 
 
 def _round_floats(d):
@@ -416,8 +520,12 @@ def _round_floats(d):
 def main(argv=None) -> int:
     """CLI: (re)generate the excitation data, fit, validate, write the parameter file."""
     ap = argparse.ArgumentParser(prog="ceco identify", description="Identify the control-oriented model.")
-    ap.add_argument("--from-csv", nargs="*", default=None,
-                    help="fit from these 1 s series CSVs (SERIES_COLUMNS) instead of simulating the plant")
+    ap.add_argument(
+        "--from-csv",
+        nargs="*",
+        default=None,
+        help="fit from these 1 s series CSVs (SERIES_COLUMNS) instead of simulating the plant",
+    )
     ap.add_argument("--validation-csv", default=None, help="validation series CSV (default: simulate US06)")
     ap.add_argument("--data-dir", default=str(DEFAULT_DATA_DIR), help="where generated CSVs are written")
     ap.add_argument("--out", default=str(cm.DEFAULT_PARAMS_PATH), help="parameter file to write")
@@ -452,22 +560,29 @@ def main(argv=None) -> int:
     a_eta, v_eta, eta_rms = fit_eta_ac(emap["speeds_mps"], emap["ratio"])
     params, resid = fit_intervals(iv_train, args.ts, eta=(a_eta, v_eta))
     v20 = int(np.argmin(np.abs(emap["speeds_mps"] - 20.0)))
-    eta_report = {"method": "plant steady cycle COP(V)/COP(0), EtaMapSettings defaults",
-                  "loads_w": [float(q) for q in emap["loads_w"]], "rms_ratio": eta_rms,
-                  "plant_ratio_at_20mps": [float(x) for x in np.round(emap["ratio"][:, v20], 4)],
-                  "model_eta_at_20mps": float(cm.eta_ac(params, 20.0))}
+    eta_report = {
+        "method": "plant steady cycle COP(V)/COP(0), EtaMapSettings defaults",
+        "loads_w": [float(q) for q in emap["loads_w"]],
+        "rms_ratio": eta_rms,
+        "plant_ratio_at_20mps": [float(x) for x in np.round(emap["ratio"][:, v20], 4)],
+        "model_eta_at_20mps": float(cm.eta_ac(params, 20.0)),
+    }
     cmd = "python -m ceco_controller.identification" + (" " + " ".join(argv) if argv else "")
     params = dataclasses.replace(
-        params, provenance=f"{cmd}; excitation seed {args.seed}; training data {train_src}; "
-                           f"validation data {valid_src}")
+        params, provenance=f"{cmd}; excitation seed {args.seed}; training data {train_src}; validation data {valid_src}"
+    )
     rep_train = prediction_errors(params, iv_train, args.horizon)
     rep_valid = prediction_errors(params, iv_valid, args.horizon)
-    report = {"eta_ac_fit": _round_floats(eta_report),
-              "fit_residuals_training": _round_floats(resid),
-              "prediction_training": _round_floats(rep_train),
-              "prediction_validation": _round_floats(rep_valid)}
-    header = ("Identified control-oriented model (ceco_controller/model.py), GENERATED - do not edit.\n"
-              f"Regenerate with: {cmd}\nFit method and report: docs/controller.md")
+    report = {
+        "eta_ac_fit": _round_floats(eta_report),
+        "fit_residuals_training": _round_floats(resid),
+        "prediction_training": _round_floats(rep_train),
+        "prediction_validation": _round_floats(rep_valid),
+    }
+    header = (
+        "Identified control-oriented model (ceco_controller/model.py), GENERATED - do not edit.\n"
+        f"Regenerate with: {cmd}\nFit method and report: docs/controller.md"
+    )
     out = pathlib.Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     cm.save_params(params, out, header=header, extra={"fit_report": report})

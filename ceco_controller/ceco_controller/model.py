@@ -1,5 +1,7 @@
-"""Control-oriented A/C and cabin model: eqs. (1)-(3) of the method paper,
-the compressor and blower power models and the efficiency multiplier eta_AC(V).
+"""Control-oriented A/C and cabin model (method paper eqs. (1)-(3), power models, eta_AC(V)).
+
+It holds eqs. (1)-(3) of the method paper, the compressor and blower power
+models and the efficiency multiplier eta_AC(V).
 
 Written once; every function evaluates numpy arrays (broadcasting) and CasADi
 symbols alike (``ceco_core.mathops.backend``), so the closed-loop
@@ -40,11 +42,10 @@ online by the NMPC (offset-free MPC); 0 when identifying.
 
 from __future__ import annotations
 
-from typing import Any
-
 import dataclasses
 import math
 import pathlib
+from typing import Any
 
 import numpy as np
 import yaml
@@ -157,7 +158,7 @@ class ControlModelParams:
         return {k: (v if isinstance(v, str) else float(v)) for k, v in dataclasses.asdict(self).items()}
 
     @classmethod
-    def from_dict(cls, data: dict) -> "ControlModelParams":
+    def from_dict(cls, data: dict) -> ControlModelParams:
         """Build and validate from a mapping; unknown keys are an error."""
         if not isinstance(data, dict):
             raise ValueError("ControlModelParams: expected a mapping")
@@ -174,18 +175,23 @@ class ControlModelParams:
 
 
 def package_config_path(filename: str) -> pathlib.Path:
-    """A file of the package's ``config/``: the source tree's, else an installed
-    ``share/ceco_controller/config`` on AMENT_PREFIX_PATH; FileNotFoundError if neither has it."""
+    """A file of the package's ``config/``.
+
+    The source tree's, else an installed ``share/ceco_controller/config`` on
+    AMENT_PREFIX_PATH; FileNotFoundError if neither has it.
+    """
     src = DEFAULT_PARAMS_PATH.parent / filename
     if src.exists():
         return src
     import os
+
     for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
         cand = pathlib.Path(prefix) / "share" / "ceco_controller" / "config" / filename
         if prefix and cand.exists():
             return cand
-    raise FileNotFoundError(f"{filename} not found in {src.parent} nor under AMENT_PREFIX_PATH "
-                            "(share/ceco_controller/config)")
+    raise FileNotFoundError(
+        f"{filename} not found in {src.parent} nor under AMENT_PREFIX_PATH (share/ceco_controller/config)"
+    )
 
 
 def default_params_path() -> pathlib.Path:
@@ -206,10 +212,12 @@ def load_params(path: str | pathlib.Path | None = None) -> ControlModelParams:
     return ControlModelParams.from_dict(doc["params"])
 
 
-def save_params(params: ControlModelParams, path: str | pathlib.Path, header: str = "",
-                extra: dict | None = None) -> None:
+def save_params(
+    params: ControlModelParams, path: str | pathlib.Path, header: str = "", extra: dict | None = None
+) -> None:
     """Write the parameters (and optional extra mappings, e.g. the fit report) as YAML."""
     params.validate()
+
     def plain(v):
         if isinstance(v, dict):
             return {k: plain(x) for k, x in v.items()}
@@ -230,6 +238,7 @@ def save_params(params: ControlModelParams, path: str | pathlib.Path, header: st
 # Equations (backend-neutral)
 # ---------------------------------------------------------------------------
 
+
 def t_ain_c(p: ControlModelParams, t_evap_c, mdot_bl_kgps, d_ain_k=0.0):
     """Vent (discharge) air temperature, eq. (3) [degC]."""
     return p.gamma_6 * t_evap_c + p.gamma_7 * mdot_bl_kgps + p.tau_3 + d_ain_k
@@ -237,8 +246,14 @@ def t_ain_c(p: ControlModelParams, t_evap_c, mdot_bl_kgps, d_ain_k=0.0):
 
 def t_cab_next_c(p: ControlModelParams, t_cab_c, t_int_c, t_shell_c, t_ain, mdot_bl_kgps, d_cab_k=0.0):
     """Cabin air temperature one model step ahead, eq. (1) [degC]."""
-    return (t_cab_c + p.gamma_1 * (t_int_c - t_cab_c) + p.gamma_2 * (t_shell_c - t_cab_c)
-            + p.gamma_3 * (t_ain - t_cab_c) * mdot_bl_kgps + p.tau_1 + d_cab_k)
+    return (
+        t_cab_c
+        + p.gamma_1 * (t_int_c - t_cab_c)
+        + p.gamma_2 * (t_shell_c - t_cab_c)
+        + p.gamma_3 * (t_ain - t_cab_c) * mdot_bl_kgps
+        + p.tau_1
+        + d_cab_k
+    )
 
 
 def t_evap_next_c(p: ControlModelParams, t_evap_c, t_evap_sp_c):
@@ -264,8 +279,7 @@ def q_evap_w(p: ControlModelParams, t_cab_c, t_amb_c, t_ain, mdot_bl_kgps, t_eva
     softplus sharpness k = 2/(c_p * 0.1 kg/s) so its error is <= 0.35 K x 0.1 kg/s x c_p = 35 W.
     """
     t_mix_c = t_cab_c + p.fresh_air_fraction * (t_amb_c - t_cab_c)
-    q = (mdot_bl_kgps * CP_AIR_JPKGK * (t_mix_c - t_ain)
-         + p.comp_c_wall_jpk * (t_evap_c - t_evap_next_c) / p.ts_s)
+    q = mdot_bl_kgps * CP_AIR_JPKGK * (t_mix_c - t_ain) + p.comp_c_wall_jpk * (t_evap_c - t_evap_next_c) / p.ts_s
     return softplus(q, _SOFTPLUS_K / (CP_AIR_JPKGK * 0.1))
 
 
@@ -277,8 +291,7 @@ def p_comp_w(p: ControlModelParams, q_w, t_amb_c, t_evap_c, speed_mps):
 
 def p_blower_w(p: ControlModelParams, mdot_bl_kgps):
     """Blower electrical power [W]: b0 + b1 mdot + b3 mdot^3 (fan law)."""
-    return (p.blower_b0_w + p.blower_b1_w_per_kgps * mdot_bl_kgps
-            + p.blower_b3_w_per_kgps3 * mdot_bl_kgps ** 3)
+    return p.blower_b0_w + p.blower_b1_w_per_kgps * mdot_bl_kgps + p.blower_b3_w_per_kgps3 * mdot_bl_kgps**3
 
 
 def substeps(p: ControlModelParams, dt_s: float) -> int:
@@ -290,8 +303,21 @@ def substeps(p: ControlModelParams, dt_s: float) -> int:
     return n
 
 
-def step(p: ControlModelParams, t_cab_c, t_evap_c, mdot_bl_kgps, t_evap_sp_c, t_int_c, t_shell_c,
-         t_amb_c, speed_mps, n_sub: int = 1, d_cab_k=0.0, d_ain_k=0.0, d_evap_k=0.0):
+def step(
+    p: ControlModelParams,
+    t_cab_c,
+    t_evap_c,
+    mdot_bl_kgps,
+    t_evap_sp_c,
+    t_int_c,
+    t_shell_c,
+    t_amb_c,
+    speed_mps,
+    n_sub: int = 1,
+    d_cab_k=0.0,
+    d_ain_k=0.0,
+    d_evap_k=0.0,
+):
     """Advance the model over ``n_sub`` model steps with the inputs held.
 
     Returns ``(t_cab_next_c, t_evap_next_c, t_ain_c, p_comp_w, p_blower_w)``
@@ -306,21 +332,34 @@ def step(p: ControlModelParams, t_cab_c, t_evap_c, mdot_bl_kgps, t_evap_sp_c, t_
         q = q_evap_w(p, t_cab_c, t_amb_c, t_ain, mdot_bl_kgps, t_evap_c, t_evap_n)
         pc_sum = pc_sum + p_comp_w(p, q, t_amb_c, t_evap_c, speed_mps)
         t_ain_sum = t_ain_sum + t_ain
-        t_cab_c, t_evap_c = (t_cab_next_c(p, t_cab_c, t_int_c, t_shell_c, t_ain, mdot_bl_kgps, d_cab_k),
-                             t_evap_n)
+        t_cab_c, t_evap_c = (t_cab_next_c(p, t_cab_c, t_int_c, t_shell_c, t_ain, mdot_bl_kgps, d_cab_k), t_evap_n)
     return t_cab_c, t_evap_c, t_ain_sum / n_sub, pc_sum / n_sub, p_blower_w(p, mdot_bl_kgps)
 
 
-def simulate(p: ControlModelParams, t_cab0_c: float, t_evap0_c: float, mdot_bl_kgps, t_evap_sp_c,
-             t_int_c, t_shell_c, t_amb_c, speed_mps, n_sub: int = 1):
+def simulate(
+    p: ControlModelParams,
+    t_cab0_c: float,
+    t_evap0_c: float,
+    mdot_bl_kgps,
+    t_evap_sp_c,
+    t_int_c,
+    t_shell_c,
+    t_amb_c,
+    speed_mps,
+    n_sub: int = 1,
+):
     """Numpy multi-step prediction from an initial state over given input/exogenous sequences.
 
     All sequence arguments are arrays of length N (or scalars, broadcast).
     Returns a dict of arrays: ``t_cab_c`` and ``t_evap_c`` (N+1 values,
     starting at the initial state), ``t_ain_c``, ``p_comp_w``, ``p_blower_w`` (N).
     """
-    seqs = np.broadcast_arrays(*(np.atleast_1d(np.asarray(a, dtype=float)) for a in
-                                 (mdot_bl_kgps, t_evap_sp_c, t_int_c, t_shell_c, t_amb_c, speed_mps)))
+    seqs = np.broadcast_arrays(
+        *(
+            np.atleast_1d(np.asarray(a, dtype=float))
+            for a in (mdot_bl_kgps, t_evap_sp_c, t_int_c, t_shell_c, t_amb_c, speed_mps)
+        )
+    )
     n = seqs[0].size
     t_cab = np.empty(n + 1)
     t_evap = np.empty(n + 1)
@@ -331,5 +370,6 @@ def simulate(p: ControlModelParams, t_cab0_c: float, t_evap0_c: float, mdot_bl_k
     for i in range(n):
         m, sp, ti, ts, ta, v = (s[i] for s in seqs)
         t_cab[i + 1], t_evap[i + 1], t_ain[i], pc[i], pb[i] = step(
-            p, t_cab[i], t_evap[i], m, sp, ti, ts, ta, v, n_sub=n_sub)
+            p, t_cab[i], t_evap[i], m, sp, ti, ts, ta, v, n_sub=n_sub
+        )
     return {"t_cab_c": t_cab, "t_evap_c": t_evap, "t_ain_c": t_ain, "p_comp_w": pc, "p_blower_w": pb}

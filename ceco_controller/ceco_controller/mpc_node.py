@@ -10,6 +10,7 @@ everything. Timing: ``lockstep`` computes step k once its state and both preview
 the latest inputs. Checks, ordering, bookkeeping and health rules: the pure
 :mod:`ceco_controller.controller_io`; observation and controller: the simulator's.
 """
+
 from __future__ import annotations
 
 import time
@@ -37,8 +38,16 @@ class ControllerNode(ManagedNode):
         self.setup_tools(cfg.log_throttle_s)
         self.core, self._prev_cmd, self._held, self.record = None, None, None, cio.ControllerRecord()
         self.inputs = cio.ControllerInputs(cfg, self.log, self._reset_core)
-        DiagnosticsTimer(self, lambda: [('control', self.record.health(
-            self.lifecycle, self.config, self.inputs, self.wall_s(), self._step_budget()))], cfg.diagnostics_period_s)
+        DiagnosticsTimer(
+            self,
+            lambda: [
+                (
+                    'control',
+                    self.record.health(self.lifecycle, self.config, self.inputs, self.wall_s(), self._step_budget()),
+                )
+            ],
+            cfg.diagnostics_period_s,
+        )
         self.start_managed(cfg.autostart)
         self.get_logger().info(f'{cfg.strategy}: unconfigured (autostart {cfg.autostart})')
 
@@ -49,36 +58,66 @@ class ControllerNode(ManagedNode):
         cfg, t0 = self.config, time.perf_counter()
         try:
             self.scenario = load_scenario_param(cfg.scenario)
-            self.core = factory.make_controller(cfg.strategy, self.scenario, control_period_s=cfg.control_period_s,
-                                                horizon_steps=cfg.horizon_steps,
-                                                config_path=cfg.controller_config or None,
-                                                measurements=cfg.measurements)
+            self.core = factory.make_controller(
+                cfg.strategy,
+                self.scenario,
+                control_period_s=cfg.control_period_s,
+                horizon_steps=cfg.horizon_steps,
+                config_path=cfg.controller_config or None,
+                measurements=cfg.measurements,
+            )
             how = cio.warm_up(self.core, self.scenario, cfg.control_period_s, cfg.horizon_steps)
         except (ValueError, RuntimeError, OSError) as err:
             self.get_logger().error(f'configure failed: {err}')
             return FAILURE
         rt, ovr = cfg.timing == 'realtime', interfaces.qos_overrides()
         events = {'incompatible_qos': lambda _e: self._event('incompatible_qos')}
-        self._pubs = [self.create_lifecycle_publisher(
-            AcCommand, interfaces.TOPIC_COMMAND,
-            interfaces.command_qos(cfg.timing, cfg.command_deadline_periods * cfg.control_period_s),
-            event_callbacks=PublisherEventCallbacks(deadline=lambda _e: self._event('deadline_missed'), **events),
-            qos_overriding_options=interfaces.qos_overrides(deadline=rt)),
-            self.create_lifecycle_publisher(ControllerDiagnostics, interfaces.TOPIC_DIAGNOSTICS,
-                                            interfaces.QOS_COMMAND)]
+        self._pubs = [
+            self.create_lifecycle_publisher(
+                AcCommand,
+                interfaces.TOPIC_COMMAND,
+                interfaces.command_qos(cfg.timing, cfg.command_deadline_periods * cfg.control_period_s),
+                event_callbacks=PublisherEventCallbacks(deadline=lambda _e: self._event('deadline_missed'), **events),
+                qos_overriding_options=interfaces.qos_overrides(deadline=rt),
+            ),
+            self.create_lifecycle_publisher(
+                ControllerDiagnostics, interfaces.TOPIC_DIAGNOSTICS, interfaces.QOS_COMMAND
+            ),
+        ]
         self._subs = [
-            self.create_subscription(CabinState, interfaces.TOPIC_STATE, self._on_state,
-                                     interfaces.state_qos(cfg.timing), qos_overriding_options=ovr,
-                                     event_callbacks=SubscriptionEventCallbacks(**events)),
-            self.create_subscription(WeatherPreview, interfaces.TOPIC_WEATHER, lambda m: self._on_preview('weather', m),
-                                     interfaces.QOS_PREVIEW, qos_overriding_options=ovr),
-            self.create_subscription(TrafficPreview, interfaces.TOPIC_TRAFFIC, lambda m: self._on_preview('traffic', m),
-                                     interfaces.QOS_PREVIEW, qos_overriding_options=ovr)]
-        self._timer = (self.create_timer(cfg.control_period_s, self._on_timer) if rt else
-                       self.create_timer(0.05, self._run_ready, clock=self.steady))
-        self.get_logger().info(f'configured in {time.perf_counter() - t0:.2f} s (controller built, first solve by '
-                               f'{how}): {cfg.strategy}, Ts {cfg.control_period_s} s, Np {cfg.horizon_steps}, timing '
-                               f'{cfg.timing}, measurements {cfg.measurements}, scenario {self.scenario.name}')
+            self.create_subscription(
+                CabinState,
+                interfaces.TOPIC_STATE,
+                self._on_state,
+                interfaces.state_qos(cfg.timing),
+                qos_overriding_options=ovr,
+                event_callbacks=SubscriptionEventCallbacks(**events),
+            ),
+            self.create_subscription(
+                WeatherPreview,
+                interfaces.TOPIC_WEATHER,
+                lambda m: self._on_preview('weather', m),
+                interfaces.QOS_PREVIEW,
+                qos_overriding_options=ovr,
+            ),
+            self.create_subscription(
+                TrafficPreview,
+                interfaces.TOPIC_TRAFFIC,
+                lambda m: self._on_preview('traffic', m),
+                interfaces.QOS_PREVIEW,
+                qos_overriding_options=ovr,
+            ),
+        ]
+        self._timer = (
+            self.create_timer(cfg.control_period_s, self._on_timer)
+            if rt
+            else self.create_timer(0.05, self._run_ready, clock=self.steady)
+        )
+        self.get_logger().info(
+            f'configured in {time.perf_counter() - t0:.2f} s (controller built, first solve by '
+            f'{how}): {cfg.strategy}, Ts {cfg.control_period_s} s, Np {cfg.horizon_steps}, timing '
+            f'{cfg.timing}, measurements {cfg.measurements}, scenario {self.scenario.name}'
+        )
         return self.configured()
 
     def on_activate(self, state):
@@ -110,7 +149,7 @@ class ControllerNode(ManagedNode):
         if self.inputs.offer_state(msg, self.wall_s(), self.clock_s()):
             if self.config.timing == 'lockstep':
                 self._run_ready()
-            elif self.inputs.due():        # realtime: a tick came before this control step's first state
+            elif self.inputs.due():  # realtime: a tick came before this control step's first state
                 self._on_timer()
 
     def _on_preview(self, kind: str, msg) -> None:
@@ -139,7 +178,7 @@ class ControllerNode(ManagedNode):
         if si is None or self.lifecycle != 'active':
             return
         t0, cfg, stamp = time.perf_counter(), self.config, si.state.header.stamp
-        t_start = self.core.clock() if callable(getattr(self.core, 'clock', None)) else None   # the NMPC's deadline
+        t_start = self.core.clock() if callable(getattr(self.core, 'clock', None)) else None  # the NMPC's deadline
         try:
             obs, note = step_observation(si, cfg, self.scenario, self._prev_cmd)
             if note:
@@ -156,7 +195,7 @@ class ControllerNode(ManagedNode):
             self.record.step(si.k, (time.perf_counter() - t0) * 1e3, diag, note)
             if fallback:
                 self.notice('fallback', f'step {si.k}: fallback {diag.fallback}: {diag.message}')
-        except Exception as err:   # one bad step must not take the node down
+        except Exception as err:  # one bad step must not take the node down
             self.record.error(si.k, err)
             self.get_logger().error(f'step {si.k} failed: {err!r}')
 

@@ -66,15 +66,27 @@ def fill_cache(strategies, horizons, config_path=None) -> list[dict]:
     for n in horizons:
         for s in strategies:
             t0 = time.perf_counter()
-            ctrl = make_controller(s, sc, 5.0, n, config_path=config_path,
-                                   overrides={"solver": SolverSettings(codegen=True)})
-            rows.append({"strategy": s, "np": n, "build_s": time.perf_counter() - t0,
-                         "objects": sorted({os.path.basename(str(v)) for v in
-                                            list(ctrl.problem.compiled.values())
-                                            + list((ctrl.cold_path.problem.compiled if ctrl.cold_path else {}).values())
-                                            if v})})
-            print(f"{s:10s} Np={n:3d} built in {rows[-1]['build_s']:6.2f} s: {', '.join(rows[-1]['objects'])}",
-                  flush=True)
+            ctrl = make_controller(
+                s, sc, 5.0, n, config_path=config_path, overrides={"solver": SolverSettings(codegen=True)}
+            )
+            rows.append(
+                {
+                    "strategy": s,
+                    "np": n,
+                    "build_s": time.perf_counter() - t0,
+                    "objects": sorted(
+                        {
+                            os.path.basename(str(v))
+                            for v in list(ctrl.problem.compiled.values())
+                            + list((ctrl.cold_path.problem.compiled if ctrl.cold_path else {}).values())
+                            if v
+                        }
+                    ),
+                }
+            )
+            print(
+                f"{s:10s} Np={n:3d} built in {rows[-1]['build_s']:6.2f} s: {', '.join(rows[-1]['objects'])}", flush=True
+            )
     return rows
 
 
@@ -86,20 +98,35 @@ def measure_startup(strategies, horizons, repeats: int = 1) -> list[dict]:
             for codegen in (False, True):
                 for _ in range(repeats):
                     t0 = time.perf_counter()
-                    out = subprocess.run([sys.executable, "-c", _CHILD, s, str(n), "1" if codegen else "0"],
-                                         capture_output=True, text=True, timeout=600, env=dict(os.environ))
+                    out = subprocess.run(
+                        [sys.executable, "-c", _CHILD, s, str(n), "1" if codegen else "0"],
+                        capture_output=True,
+                        text=True,
+                        timeout=600,
+                        env=dict(os.environ),
+                    )
                     wall = 1e3 * (time.perf_counter() - t0)
                     if out.returncode != 0:
                         raise RuntimeError(f"start-up child failed: {out.stderr[-2000:]}")
                     r = json.loads(out.stdout.strip().splitlines()[-1])
-                    r.update({"strategy": s, "np": n, "functions": "compiled" if codegen else "in-process",
-                              "process_wall_ms": wall, "load_1min": os.getloadavg()[0]})
+                    r.update(
+                        {
+                            "strategy": s,
+                            "np": n,
+                            "functions": "compiled" if codegen else "in-process",
+                            "process_wall_ms": wall,
+                            "load_1min": os.getloadavg()[0],
+                        }
+                    )
                     rows.append(r)
-                    print(f"{s:10s} Np={n:3d} {r['functions']:10s} process {wall:6.0f} ms = "
-                          f"import {r['import_ms']:5.0f} + build {r['build_ms']:5.0f} (NLP {r['nlp_build_ms']:5.0f})"
-                          f" + warm_up {r['warm_up_ms']:4.0f}"
-                          f" + prepare {r['prepare_ms']:4.0f} + first compute {r['first_compute_ms']:4.1f} ms"
-                          f" (+ interpreter start/exit); load {r['load_1min']:.1f}", flush=True)
+                    print(
+                        f"{s:10s} Np={n:3d} {r['functions']:10s} process {wall:6.0f} ms = "
+                        f"import {r['import_ms']:5.0f} + build {r['build_ms']:5.0f} (NLP {r['nlp_build_ms']:5.0f})"
+                        f" + warm_up {r['warm_up_ms']:4.0f}"
+                        f" + prepare {r['prepare_ms']:4.0f} + first compute {r['first_compute_ms']:4.1f} ms"
+                        f" (+ interpreter start/exit); load {r['load_1min']:.1f}",
+                        flush=True,
+                    )
     return rows
 
 

@@ -27,11 +27,18 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ParamLayout", "VariableLayout", "RowLayout", "PARAM_SCALARS", "PARAM_SERIES", "PARAM_TAIL",
-           "VAR_KEYS", "ROW_KINDS"]
+__all__ = [
+    "ParamLayout",
+    "VariableLayout",
+    "RowLayout",
+    "PARAM_SCALARS",
+    "PARAM_SERIES",
+    "PARAM_TAIL",
+    "VAR_KEYS",
+    "ROW_KINDS",
+]
 
-PARAM_SCALARS = (("x0", 2), ("t_int", 1), ("t_shell", 1), ("d_cab", 1), ("d_evap", 1), ("d_ain", 1),
-                 ("u_prev", 2))
+PARAM_SCALARS = (("x0", 2), ("t_int", 1), ("t_shell", 1), ("d_cab", 1), ("d_evap", 1), ("d_ain", 1), ("u_prev", 2))
 """Parameters that are not per grid point: (name, size), in vector order."""
 
 PARAM_SERIES = ("t_amb", "solar", "speed", "pmv_lb", "pmv_ub")

@@ -52,8 +52,16 @@ from .strategies import SolverSettings, StrategySettings, resolve_auto, strategy
 from .transcription import Evaluation, build_problem
 from .warmstart import initial_guess
 
-__all__ = ["NmpcController", "StepCounters", "NlpData", "SolveResult", "codegen_cache_dir", "compile_nlp",
-           "fill_previews", "nominal_observation"]
+__all__ = [
+    "NmpcController",
+    "StepCounters",
+    "NlpData",
+    "SolveResult",
+    "codegen_cache_dir",
+    "compile_nlp",
+    "fill_previews",
+    "nominal_observation",
+]
 
 
 @dataclasses.dataclass
@@ -84,8 +92,9 @@ class StepCounters:
     """Steps in which an attempt stopped on, or was skipped because of, the deadline."""
 
 
-def fill_previews(obs: Observation, n1: int, use_speed_preview: bool,
-                  valid: np.ndarray | None = None) -> tuple[dict, int]:
+def fill_previews(
+    obs: Observation, n1: int, use_speed_preview: bool, valid: np.ndarray | None = None
+) -> tuple[dict, int]:
     """Exogenous series on the N + 1 grid and the number of leading trusted preview points.
 
     The previews' leading trusted run (``valid``, default ``obs.preview_valid``, and finite), the
@@ -95,8 +104,11 @@ def fill_previews(obs: Observation, n1: int, use_speed_preview: bool,
     """
     if obs.n_preview != n1:
         raise ValueError(f"Observation previews have {obs.n_preview} points; this controller needs Np+1 = {n1}")
-    series = {"t_amb": (obs.preview_t_amb_c, obs.t_amb_c), "solar": (obs.preview_solar_wm2, obs.solar_wm2),
-              "speed": (obs.preview_speed_mps, obs.speed_mps)}
+    series = {
+        "t_amb": (obs.preview_t_amb_c, obs.t_amb_c),
+        "solar": (obs.preview_solar_wm2, obs.solar_wm2),
+        "speed": (obs.preview_speed_mps, obs.speed_mps),
+    }
     ok = np.asarray(obs.preview_valid if valid is None else valid, bool).copy()
     for arr, _ in series.values():
         ok &= np.isfinite(arr)
@@ -119,12 +131,30 @@ def fill_previews(obs: Observation, n1: int, use_speed_preview: bool,
 
 def nominal_observation(n1: int, k: int = 0) -> Observation:
     """A plausible mid-range observation (warm cabin, sun, moving): for :meth:`NmpcController.warm_up`."""
+
     def full(v):
         return np.full(n1, v)
-    return Observation(k=k, t_s=0.0, t_cab_c=27.0, t_int_c=35.0, t_shell_c=33.0, t_evap_c=6.0, t_vent_c=9.0,
-                       t_amb_c=32.0, solar_wm2=700.0, speed_mps=15.0, mdot_bl_prev_kgps=0.1, t_evap_sp_prev_c=6.0,
-                       preview_t_amb_c=full(32.0), preview_solar_wm2=full(700.0), preview_speed_mps=full(15.0),
-                       preview_valid=np.ones(n1, bool), pmv_lb=full(-0.5), pmv_ub=full(0.5))
+
+    return Observation(
+        k=k,
+        t_s=0.0,
+        t_cab_c=27.0,
+        t_int_c=35.0,
+        t_shell_c=33.0,
+        t_evap_c=6.0,
+        t_vent_c=9.0,
+        t_amb_c=32.0,
+        solar_wm2=700.0,
+        speed_mps=15.0,
+        mdot_bl_prev_kgps=0.1,
+        t_evap_sp_prev_c=6.0,
+        preview_t_amb_c=full(32.0),
+        preview_solar_wm2=full(700.0),
+        preview_speed_mps=full(15.0),
+        preview_valid=np.ones(n1, bool),
+        pmv_lb=full(-0.5),
+        pmv_ub=full(0.5),
+    )
 
 
 def _note(diag: Diagnostics, text: str) -> None:
@@ -144,12 +174,15 @@ class NmpcController:
         clock: monotonic clock [s] of the step deadline (``time.perf_counter``; tests inject one).
     """
 
-    def __init__(self, strategy: str | StrategySettings = "ceco",
-                 model_params: cm.ControlModelParams | None = None,
-                 comfort_params: ComfortParams | None = None,
-                 acc_settings: AccSettings | None = None,
-                 observation_limits: ObservationLimits = OBSERVATION_LIMITS,
-                 clock: Callable[[], float] = time.perf_counter):
+    def __init__(
+        self,
+        strategy: str | StrategySettings = "ceco",
+        model_params: cm.ControlModelParams | None = None,
+        comfort_params: ComfortParams | None = None,
+        acc_settings: AccSettings | None = None,
+        observation_limits: ObservationLimits = OBSERVATION_LIMITS,
+        clock: Callable[[], float] = time.perf_counter,
+    ):
         settings = strategy_settings(strategy) if isinstance(strategy, str) else strategy
         settings.validate()
         self.settings = resolve_auto(settings)
@@ -164,19 +197,26 @@ class NmpcController:
         """The clock of ``compute``'s ``t_start`` and of every deadline [s]."""
         # the NLP's PMV: the same function as the plant's, with settings.pmv_newton_steps on T_cl
         self._nlp_comfort_params = dataclasses.replace(
-            self.comfort_params, smoothing=dataclasses.replace(self.comfort_params.smoothing,
-                                                               newton_steps=self.settings.pmv_newton_steps))
+            self.comfort_params,
+            smoothing=dataclasses.replace(self.comfort_params.smoothing, newton_steps=self.settings.pmv_newton_steps),
+        )
         self.n_sub = cm.substeps(self.model_params, self.settings.control_period_s)
         self.transcription = self.settings.solver.transcription
         """The NLP transcription built: 'single-shooting' or 'multiple-shooting'."""
         self.lim = ACTUATOR_LIMITS
         self._acc = AccLaw(acc_settings)
         t0 = time.perf_counter()
-        self.problem = build_problem(self.settings, self.model_params, self._nlp_comfort_params,
-                                     self.transcription, self.lim)
+        self.problem = build_problem(
+            self.settings, self.model_params, self._nlp_comfort_params, self.transcription, self.lim
+        )
         """The transcribed NLP."""
-        self._bias = BiasEstimator(self.model_params, self.settings.bias_filter, self.settings.bias_limit_k,
-                                   self.n_sub, enabled=self.settings.offset_free)
+        self._bias = BiasEstimator(
+            self.model_params,
+            self.settings.bias_filter,
+            self.settings.bias_limit_k,
+            self.n_sub,
+            enabled=self.settings.offset_free,
+        )
         self.chain = self._build_chain()
         """The solve chain (warm solver, IPOPT retry, cold path)."""
         self.build_time_s = time.perf_counter() - t0
@@ -199,21 +239,39 @@ class NmpcController:
         # (sc03_mild k = 0: 2.3 % higher cost); its solution is mapped back
         cold_path = None
         if self.transcription == "single-shooting":
-            cold_ss = dataclasses.replace(ss, name="ipopt", rti=False, transcription="multiple-shooting",
-                                          warm_start=False)
-            ms = build_problem(dataclasses.replace(self.settings, solver=cold_ss), self.model_params,
-                               self._nlp_comfort_params, "multiple-shooting", self.lim)
+            cold_ss = dataclasses.replace(
+                ss, name="ipopt", rti=False, transcription="multiple-shooting", warm_start=False
+            )
+            ms = build_problem(
+                dataclasses.replace(self.settings, solver=cold_ss),
+                self.model_params,
+                self._nlp_comfort_params,
+                "multiple-shooting",
+                self.lim,
+            )
             w_map = np.setdiff1d(np.arange(ms.nw), ms.vars.indices("x"))
             g_map = np.setdiff1d(np.arange(ms.ng), ms.rows.indices("gap"))
             assert w_map.size == self.problem.nw and g_map.size == self.problem.ng
             cold_path = ColdPath(ms, build_solver(ms, cold_ss, self.clock), w_map, g_map)
             cold = cold_path.solver
         else:
-            cold = (self.make_solver(dataclasses.replace(ss, warm_start=False))
-                    if ss.warm_start and ss.name == "ipopt" else solver)
+            cold = (
+                self.make_solver(dataclasses.replace(ss, warm_start=False))
+                if ss.warm_start and ss.name == "ipopt"
+                else solver
+            )
         s = self.settings.solver
-        return SolveChain(self.problem, solver, retry, cold, cold_path, self.lim, s.accept_violation,
-                          s.warm_start and not s.default_options, self.clock)
+        return SolveChain(
+            self.problem,
+            solver,
+            retry,
+            cold,
+            cold_path,
+            self.lim,
+            s.accept_violation,
+            s.warm_start and not s.default_options,
+            self.clock,
+        )
 
     def make_solver(self, solver_settings: SolverSettings) -> NlpSolver:
         """Build a solver for this controller's NLP with the given solver settings."""
@@ -268,8 +326,9 @@ class NmpcController:
         return self.settings.horizon_steps
 
     # ------------------------------------------------------------ NLP access
-    def parameters(self, obs: Observation, ex: dict, u_prev=None, t_glass_c: float | None = None,
-                   rh_cab: float | None = None) -> np.ndarray:
+    def parameters(
+        self, obs: Observation, ex: dict, u_prev=None, t_glass_c: float | None = None, rh_cab: float | None = None
+    ) -> np.ndarray:
         """The NLP parameter vector for an observation (previews filled).
 
         ``u_prev`` overrides the observation's previous command; ``t_glass_c`` and ``rh_cab`` its
@@ -279,12 +338,25 @@ class NmpcController:
         u_prev = (obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c) if u_prev is None else u_prev
         t_mr, pa = self.comfort_parameters(obs, t_glass_c, rh_cab)
         return self.problem.params.pack(
-            x0=[obs.t_cab_c, obs.t_evap_c], t_int=obs.t_int_c, t_shell=obs.t_shell_c, d_cab=b[0], d_evap=b[1],
-            d_ain=b[2], u_prev=u_prev, t_amb=ex["t_amb"], solar=ex["solar"], speed=ex["speed"],
-            pmv_lb=obs.pmv_lb, pmv_ub=obs.pmv_ub, t_mr=t_mr, pa=pa)
+            x0=[obs.t_cab_c, obs.t_evap_c],
+            t_int=obs.t_int_c,
+            t_shell=obs.t_shell_c,
+            d_cab=b[0],
+            d_evap=b[1],
+            d_ain=b[2],
+            u_prev=u_prev,
+            t_amb=ex["t_amb"],
+            solar=ex["solar"],
+            speed=ex["speed"],
+            pmv_lb=obs.pmv_lb,
+            pmv_ub=obs.pmv_ub,
+            t_mr=t_mr,
+            pa=pa,
+        )
 
-    def comfort_parameters(self, obs: Observation, t_glass_c: float | None = None,
-                           rh_cab: float | None = None) -> np.ndarray:
+    def comfort_parameters(
+        self, obs: Observation, t_glass_c: float | None = None, rh_cab: float | None = None
+    ) -> np.ndarray:
         """The NLP's comfort scalars [t_mr (degC), p_a (Pa)] held over the horizon.
 
         t_mr: from the measured glazing, shell and interior temperatures
@@ -295,8 +367,15 @@ class NmpcController:
         t_glass = obs.t_glass_c if t_glass_c is None else t_glass_c
         rh = obs.rh_cab if rh_cab is None else rh_cab
         t_glass = t_glass if math.isfinite(t_glass) else obs.t_int_c
-        t_mr = float(cabin_mrt_c(t_cab_c=obs.t_cab_c, t_int_c=obs.t_int_c, t_shell_c=obs.t_shell_c,
-                                 t_glass_c=t_glass, params=self.comfort_params))
+        t_mr = float(
+            cabin_mrt_c(
+                t_cab_c=obs.t_cab_c,
+                t_int_c=obs.t_int_c,
+                t_shell_c=obs.t_shell_c,
+                t_glass_c=t_glass,
+                params=self.comfort_params,
+            )
+        )
         pa = PAPER_PA_PA
         if self.settings.pmv_pa_source == "measured" and math.isfinite(rh) and 0.0 <= rh <= 1.0:
             pa = float(psychro.vapour_pressure_pa(obs.t_cab_c, rh))
@@ -404,8 +483,11 @@ class NmpcController:
         ex, trusted = fill_previews(obs, n1, s.use_speed_preview, valid)
         diag.trusted_horizon = trusted
         if trusted < n1:
-            _note(diag, f"preview valid for {trusted}/{n1} points; "
-                  + ("held last valid value" if trusted else "held measured values"))
+            _note(
+                diag,
+                f"preview valid for {trusted}/{n1} points; "
+                + ("held last valid value" if trusted else "held measured values"),
+            )
         self._bias.update(obs.t_cab_c, obs.t_evap_c, obs.t_vent_c, u_prev[0])
         p = self.parameters(obs, ex, u_prev, chk.t_glass_c, chk.rh_cab)
         out = self.chain.run(p, self._good, deadline)
@@ -472,21 +554,27 @@ class NmpcController:
             cnt.cold_solves += role.startswith("cold")
             if role == "retry":
                 self.n_ipopt_fallbacks += 1
-        if any(r.status == "Maximum_Wall_Time_Exceeded" for _, r in out.attempts) or \
-                (out.result is None and self.clock() >= deadline):
+        if any(r.status == "Maximum_Wall_Time_Exceeded" for _, r in out.attempts) or (
+            out.result is None and self.clock() >= deadline
+        ):
             cnt.deadline_hits += 1
 
     def _clip_checked(self, u) -> np.ndarray:
         if not self.chain.valid_command(u):
             raise AssertionError(f"internal error: command {u} outside the actuator bounds (tol {BOUND_TOL})")
         lim = self.lim
-        return np.array([min(max(u[0], lim.mdot_bl_min_kgps), lim.mdot_bl_max_kgps),
-                         min(max(u[1], lim.t_evap_sp_min_c), lim.t_evap_sp_max_c)])
+        return np.array(
+            [
+                min(max(u[0], lim.mdot_bl_min_kgps), lim.mdot_bl_max_kgps),
+                min(max(u[1], lim.t_evap_sp_min_c), lim.t_evap_sp_max_c),
+            ]
+        )
 
     def _finish(self, diag: Diagnostics, cmd: np.ndarray, obs: Observation | None, ex: dict | None):
         if obs is not None and ex is not None:
-            self._bias.predict(obs.t_cab_c, obs.t_evap_c, cmd[0], cmd[1], obs.t_int_c, obs.t_shell_c,
-                               ex["t_amb"][0], ex["speed"][0])
+            self._bias.predict(
+                obs.t_cab_c, obs.t_evap_c, cmd[0], cmd[1], obs.t_int_c, obs.t_shell_c, ex["t_amb"][0], ex["speed"][0]
+            )
         else:
             self._bias.forget_prediction()
         self._last_cmd = cmd

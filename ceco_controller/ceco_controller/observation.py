@@ -1,24 +1,23 @@
-"""The controller's :class:`~ceco_core.contracts.Observation` at a control
-step, built once for the in-process simulator (``closed_loop.simulate``: from the
+"""The controller's :class:`~ceco_core.contracts.Observation` at a control step.
+
+Built once for the in-process simulator (``closed_loop.simulate``: from the
 plant and ``make_previews``) and for ``mpc_node`` (from the checked CabinState and
 preview messages, via ``msg_conv``), so a DDS run equals the simulator bit for bit.
 
 Pure logic: no rclpy, no message types.
 """
+
 from __future__ import annotations
 
 from collections.abc import Mapping
 
-from ceco_core.contracts import Previews
+from ceco_core.contracts import Observation, Previews
 from ceco_v2x_preview.scenario import Scenario
-
-from ceco_core.contracts import Observation
 
 __all__ = ["observation"]
 
 
-def observation(k: int, t_s: float, meas: Mapping, env, u_prev, previews: Previews,
-                scenario: Scenario) -> Observation:
+def observation(k: int, t_s: float, meas: Mapping, env, u_prev, previews: Previews, scenario: Scenario) -> Observation:
     """Observation for control step ``k`` at ``t_s`` [s].
 
     Args:
@@ -37,10 +36,26 @@ def observation(k: int, t_s: float, meas: Mapping, env, u_prev, previews: Previe
     lb, ub = scenario.pmv_bounds(previews.t_s)
     occ = scenario.occupant
     return Observation(
-        k=k, t_s=t_s, t_cab_c=meas["t_cab_c"], t_int_c=meas["t_int_c"], t_shell_c=meas["t_shell_c"],
-        t_evap_c=meas["t_evap_c"], t_vent_c=meas["t_vent_c"], t_amb_c=env.t_amb_c, solar_wm2=env.solar_wm2,
-        speed_mps=env.speed_mps, mdot_bl_prev_kgps=u_prev.mdot_bl_kgps, t_evap_sp_prev_c=u_prev.t_evap_sp_c,
-        preview_t_amb_c=previews.t_amb_c, preview_solar_wm2=previews.solar_wm2,
-        preview_speed_mps=previews.speed_mps, preview_valid=previews.valid, pmv_lb=lb, pmv_ub=ub,
-        met=occ.met, clo=occ.clo, t_glass_c=meas.get("t_glass_c", float("nan")),
-        rh_cab=meas.get("rh_cab", float("nan")))
+        k=k,
+        t_s=t_s,
+        t_cab_c=meas["t_cab_c"],
+        t_int_c=meas["t_int_c"],
+        t_shell_c=meas["t_shell_c"],
+        t_evap_c=meas["t_evap_c"],
+        t_vent_c=meas["t_vent_c"],
+        t_amb_c=env.t_amb_c,
+        solar_wm2=env.solar_wm2,
+        speed_mps=env.speed_mps,
+        mdot_bl_prev_kgps=u_prev.mdot_bl_kgps,
+        t_evap_sp_prev_c=u_prev.t_evap_sp_c,
+        preview_t_amb_c=previews.t_amb_c,
+        preview_solar_wm2=previews.solar_wm2,
+        preview_speed_mps=previews.speed_mps,
+        preview_valid=previews.valid,
+        pmv_lb=lb,
+        pmv_ub=ub,
+        met=occ.met,
+        clo=occ.clo,
+        t_glass_c=meas.get("t_glass_c", float("nan")),
+        rh_cab=meas.get("rh_cab", float("nan")),
+    )

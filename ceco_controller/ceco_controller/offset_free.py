@@ -24,8 +24,9 @@ __all__ = ["BiasEstimator"]
 class BiasEstimator:
     """The three bias estimates (d_cab [K per control step], d_evap [K per control step], d_ain [K])."""
 
-    def __init__(self, model_params: cm.ControlModelParams, gain: float, limit_k: float, n_sub: int,
-                 enabled: bool = True):
+    def __init__(
+        self, model_params: cm.ControlModelParams, gain: float, limit_k: float, n_sub: int, enabled: bool = True
+    ):
         self.model_params = model_params
         self.gain = float(gain)
         self.limit_k = float(limit_k)
@@ -61,11 +62,31 @@ class BiasEstimator:
                 self.bias[0] = np.clip((1 - a) * self.bias[0] + a * e_cab, -lim, lim)
                 self.bias[1] = np.clip((1 - a) * self.bias[1] + a * e_evap, -lim, lim)
 
-    def predict(self, t_cab_c: float, t_evap_c: float, mdot: float, sp: float, t_int_c: float,
-                t_shell_c: float, t_amb_c: float, speed_mps: float) -> None:
+    def predict(
+        self,
+        t_cab_c: float,
+        t_evap_c: float,
+        mdot: float,
+        sp: float,
+        t_int_c: float,
+        t_shell_c: float,
+        t_amb_c: float,
+        speed_mps: float,
+    ) -> None:
         """Remember the model's one-period prediction (without the T_cab/T_evap biases) for the next update."""
-        t_cab, t_evap, *_ = cm.step(self.model_params, t_cab_c, t_evap_c, mdot, sp, t_int_c, t_shell_c, t_amb_c,
-                                    speed_mps, n_sub=self.n_sub, d_ain_k=self.bias[2] if self.enabled else 0.0)
+        t_cab, t_evap, *_ = cm.step(
+            self.model_params,
+            t_cab_c,
+            t_evap_c,
+            mdot,
+            sp,
+            t_int_c,
+            t_shell_c,
+            t_amb_c,
+            speed_mps,
+            n_sub=self.n_sub,
+            d_ain_k=self.bias[2] if self.enabled else 0.0,
+        )
         pred = (float(t_cab), float(t_evap))
         self.last_pred = pred if all(math.isfinite(v) for v in pred) else None
 

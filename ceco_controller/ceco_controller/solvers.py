@@ -17,14 +17,13 @@ largest constraint violation of the returned point by name.
 
 from __future__ import annotations
 
-from typing import Any
-
 import dataclasses
 import inspect
 import logging
 import math
 import time
 from collections.abc import Callable
+from typing import Any
 
 import casadi
 import numpy as np
@@ -38,8 +37,7 @@ __all__ = ["NlpData", "SolveResult", "NlpSolver", "build_solver", "LIMIT_STATUSE
 
 _LOG = logging.getLogger(__name__)
 
-LIMIT_STATUSES = ("Maximum_Iterations_Exceeded", "Maximum_Wall_Time_Exceeded", "Maximum_CpuTime_Exceeded",
-                  "RTI_Step")
+LIMIT_STATUSES = ("Maximum_Iterations_Exceeded", "Maximum_Wall_Time_Exceeded", "Maximum_CpuTime_Exceeded", "RTI_Step")
 """Statuses of a solver that stopped on a limit with a usable iterate (applied if its violation is small)."""
 
 
@@ -131,22 +129,37 @@ class SqpSolver(NlpSolver):
         if settings.codegen:
             # the functions are a deterministic product of the NLP and of sqp_functions' code
             key = nlp_key(problem.nlp) + inspect.getsource(sqp_functions).encode()
-            so = _compiled(problem, ("sqp", tuple(settings.codegen_flags)),
-                           lambda: compile_functions(list(fns.values()), key, settings.codegen_flags,
-                                                     settings.codegen_cache_dir, prefix="ceco_sqp"))
+            so = _compiled(
+                problem,
+                ("sqp", tuple(settings.codegen_flags)),
+                lambda: compile_functions(
+                    list(fns.values()), key, settings.codegen_flags, settings.codegen_cache_dir, prefix="ceco_sqp"
+                ),
+            )
             if so is not None:
                 try:
                     fns = {k: casadi.external(f.name(), so) for k, f in fns.items()}
                 except RuntimeError as exc:
                     _LOG.warning("NMPC codegen: cannot load %s (%s); using the in-process NLP functions", so, exc)
         elif settings.jit:
-            jit: dict[str, Any] = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"], "verbose": False}}
-            fns = {k: casadi.Function(f.name(), f.sx_in(), f.sx_out(), f.name_in(), f.name_out(), jit)
-                   for k, f in fns.items()}
-        opts = SqpOptions(max_iter=settings.sqp_max_iter, tol_pr=settings.tol,
-                          tol_du=settings.acceptable_tol if settings.warm_start else settings.tol,
-                          eig_floor=settings.eig_floor, rti=settings.rti, qpsol=settings.qpsol,
-                          qp_cpu_time_s=settings.max_cpu_time_s / settings.sqp_max_iter)
+            jit: dict[str, Any] = {
+                "jit": True,
+                "compiler": "shell",
+                "jit_options": {"flags": ["-O2"], "verbose": False},
+            }
+            fns = {
+                k: casadi.Function(f.name(), f.sx_in(), f.sx_out(), f.name_in(), f.name_out(), jit)
+                for k, f in fns.items()
+            }
+        opts = SqpOptions(
+            max_iter=settings.sqp_max_iter,
+            tol_pr=settings.tol,
+            tol_du=settings.acceptable_tol if settings.warm_start else settings.tol,
+            eig_floor=settings.eig_floor,
+            rti=settings.rti,
+            qpsol=settings.qpsol,
+            qp_cpu_time_s=settings.max_cpu_time_s / settings.sqp_max_iter,
+        )
         self.sqp = DenseSqp(fns, pattern, problem.lbw, problem.ubw, problem.lbg, problem.ubg, opts, clock)
 
     def _solve(self, data: NlpData, deadline: float | None) -> SolveResult:
@@ -154,11 +167,19 @@ class SqpSolver(NlpSolver):
         out = self.sqp.solve(data.x0, data.p, data.lam_x0, data.lam_g0, deadline=deadline)
         dt_ms = 1e3 * (time.perf_counter() - t0)
         violation = self.problem.max_violation(out.w, out.g) if np.all(np.isfinite(out.g)) else math.inf
-        return SolveResult(solver=self.name, success=out.success, status=out.status, iterations=out.iterations,
-                           time_ms=dt_ms, w=out.w, f=out.f, lam_x=out.lam_x, lam_g=out.lam_g,
-                           violation=violation,
-                           stats={"dual_infeasibility": out.dual_infeasibility,
-                                  "line_search_failures": out.line_search_failures})
+        return SolveResult(
+            solver=self.name,
+            success=out.success,
+            status=out.status,
+            iterations=out.iterations,
+            time_ms=dt_ms,
+            w=out.w,
+            f=out.f,
+            lam_x=out.lam_x,
+            lam_g=out.lam_g,
+            violation=violation,
+            stats={"dual_infeasibility": out.dual_infeasibility, "line_search_failures": out.line_search_failures},
+        )
 
 
 class _DeadlineCallback(casadi.Callback):
@@ -173,25 +194,26 @@ class _DeadlineCallback(casadi.Callback):
         self.deadline = math.inf
         self.construct("ceco_deadline", {})
 
-    def get_n_in(self):  # noqa: D102 (CasADi Callback interface)
+    # the CasADi Callback interface
+    def get_n_in(self):
         return casadi.nlpsol_n_out()
 
-    def get_n_out(self):  # noqa: D102
+    def get_n_out(self):
         return 1
 
-    def get_name_in(self, i):  # noqa: D102
+    def get_name_in(self, i):
         return casadi.nlpsol_out(i)
 
-    def get_name_out(self, i):  # noqa: D102
+    def get_name_out(self, i):
         return "ret"
 
-    def get_sparsity_in(self, i):  # noqa: D102
+    def get_sparsity_in(self, i):
         return casadi.Sparsity(0, 0)
 
-    def has_eval_buffer(self):  # noqa: D102
+    def has_eval_buffer(self):
         return True
 
-    def eval_buffer(self, arg, res):  # noqa: D102
+    def eval_buffer(self, arg, res):
         memoryview(res[0]).cast("d")[0] = 1.0 if self.clock() >= self.deadline else 0.0
         return 0
 
@@ -199,8 +221,14 @@ class _DeadlineCallback(casadi.Callback):
 class CasadiSolver(NlpSolver):
     """A CasADi ``nlpsol`` (IPOPT or fatrop)."""
 
-    def __init__(self, problem: NlpProblem, settings: SolverSettings, clock: Callable[[], float],
-                 function: casadi.Function, callback: _DeadlineCallback | None):
+    def __init__(
+        self,
+        problem: NlpProblem,
+        settings: SolverSettings,
+        clock: Callable[[], float],
+        function: casadi.Function,
+        callback: _DeadlineCallback | None,
+    ):
         super().__init__(problem, settings, clock)
         self.function = function
         """The CasADi nlpsol."""
@@ -224,10 +252,19 @@ class CasadiSolver(NlpSolver):
         w = np.array(sol["x"]).ravel()
         g = np.array(sol["g"]).ravel()
         violation = self.problem.max_violation(w, g) if np.all(np.isfinite(g)) else math.inf
-        return SolveResult(solver=self.name, success=bool(stats.get("success", False)), status=status,
-                           iterations=int(stats["iter_count"]) if "iter_count" in stats else None,
-                           time_ms=dt_ms, w=w, f=float(sol["f"]), lam_x=np.array(sol["lam_x"]).ravel(),
-                           lam_g=np.array(sol["lam_g"]).ravel(), violation=violation, stats=stats)
+        return SolveResult(
+            solver=self.name,
+            success=bool(stats.get("success", False)),
+            status=status,
+            iterations=int(stats["iter_count"]) if "iter_count" in stats else None,
+            time_ms=dt_ms,
+            w=w,
+            f=float(sol["f"]),
+            lam_x=np.array(sol["lam_x"]).ravel(),
+            lam_g=np.array(sol["lam_g"]).ravel(),
+            violation=violation,
+            stats=stats,
+        )
 
 
 def _compiled(problem: NlpProblem, key: tuple, compile_fn) -> str | None:
@@ -241,50 +278,76 @@ def _ipopt_options(ss: SolverSettings) -> dict:
     if ss.default_options:
         return {"print_level": 0, "sb": "yes"}
     ipopt = {
-        "print_level": 0, "sb": "yes",
-        "max_iter": ss.max_iter, "max_cpu_time": ss.max_cpu_time_s,
-        "tol": ss.tol, "acceptable_tol": min(ss.acceptable_tol, 1e-6), "acceptable_iter": 5,
+        "print_level": 0,
+        "sb": "yes",
+        "max_iter": ss.max_iter,
+        "max_cpu_time": ss.max_cpu_time_s,
+        "tol": ss.tol,
+        "acceptable_tol": min(ss.acceptable_tol, 1e-6),
+        "acceptable_iter": 5,
         "linear_solver": ss.linear_solver,
         "hessian_approximation": "exact",
-        "mu_strategy": "adaptive", "mu_oracle": "quality-function",
+        "mu_strategy": "adaptive",
+        "mu_oracle": "quality-function",
         "nlp_scaling_method": "gradient-based",
     }
     if ss.warm_start:
         # warm-started re-solves start near the optimum: a small adaptive barrier, no
         # gradient scaling, stop at the first point optimal to acceptable_tol with the
         # constraints met to 1e-6 (measured fastest with the same optimum, docs/controller.md)
-        ipopt.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
-                      "warm_start_bound_frac": 1e-9, "warm_start_slack_bound_frac": 1e-9,
-                      "warm_start_slack_bound_push": 1e-9, "warm_start_mult_bound_push": 1e-9,
-                      "mu_init": 1e-5, "nlp_scaling_method": "none",
-                      "acceptable_tol": ss.acceptable_tol, "acceptable_iter": 1,
-                      "acceptable_constr_viol_tol": 1e-6, "acceptable_compl_inf_tol": 1e-4})
+        ipopt.update(
+            {
+                "warm_start_init_point": "yes",
+                "warm_start_bound_push": 1e-9,
+                "warm_start_bound_frac": 1e-9,
+                "warm_start_slack_bound_frac": 1e-9,
+                "warm_start_slack_bound_push": 1e-9,
+                "warm_start_mult_bound_push": 1e-9,
+                "mu_init": 1e-5,
+                "nlp_scaling_method": "none",
+                "acceptable_tol": ss.acceptable_tol,
+                "acceptable_iter": 1,
+                "acceptable_constr_viol_tol": 1e-6,
+                "acceptable_compl_inf_tol": 1e-4,
+            }
+        )
     return ipopt
 
 
-def build_solver(problem: NlpProblem, solver_settings: SolverSettings,
-                 clock: Callable[[], float] = time.perf_counter) -> NlpSolver:
+def build_solver(
+    problem: NlpProblem, solver_settings: SolverSettings, clock: Callable[[], float] = time.perf_counter
+) -> NlpSolver:
     """Build a solver for ``problem`` with the given settings ('auto' name resolved for its transcription)."""
     ss = solver_settings
     ss.validate()
     if ss.transcription not in ("auto", problem.transcription):
-        raise ValueError(f"SolverSettings.transcription {ss.transcription!r} does not match this controller's "
-                         f"NLP ({problem.transcription}); build another controller for it")
+        raise ValueError(
+            f"SolverSettings.transcription {ss.transcription!r} does not match this controller's "
+            f"NLP ({problem.transcription}); build another controller for it"
+        )
     if ss.name == "auto":
         ss = dataclasses.replace(ss, name=auto_solver_name(problem.transcription))
     if ss.name == "sqp":
         return SqpSolver(problem, ss, clock)
     opts: dict = {"print_time": False}
     if ss.name == "fatrop":
-        opts.update({"structure_detection": "auto", "expand": True,
-                     "equality": [bool(a == b) for a, b in zip(problem.lbg, problem.ubg)],
-                     "fatrop": {"print_level": 0, "max_iter": ss.max_iter, "tol": ss.tol, "mu_init": 1e-2}})
+        opts.update(
+            {
+                "structure_detection": "auto",
+                "expand": True,
+                "equality": [bool(a == b) for a, b in zip(problem.lbg, problem.ubg)],
+                "fatrop": {"print_level": 0, "max_iter": ss.max_iter, "tol": ss.tol, "mu_init": 1e-2},
+            }
+        )
         # (fatrop 0.0.x in CasADi 3.8 accepts no warm-start option; the primal guess is still used)
         return CasadiSolver(problem, ss, clock, casadi.nlpsol("ceco_nlp", "fatrop", problem.nlp, opts), None)
     nlp: dict | str = problem.nlp
     if ss.codegen and not ss.default_options:
-        so = _compiled(problem, ("ipopt", tuple(ss.codegen_flags)),
-                       lambda: compile_nlp(problem.nlp, ss.codegen_flags, ss.codegen_cache_dir, plugin="ipopt"))
+        so = _compiled(
+            problem,
+            ("ipopt", tuple(ss.codegen_flags)),
+            lambda: compile_nlp(problem.nlp, ss.codegen_flags, ss.codegen_cache_dir, plugin="ipopt"),
+        )
         if so is not None:
             nlp = so
     if ss.jit and not isinstance(nlp, str):

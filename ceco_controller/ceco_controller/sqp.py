@@ -32,12 +32,11 @@ from compiled C (:mod:`ceco_controller.codegen`).
 
 from __future__ import annotations
 
-from typing import Any
-
 import dataclasses
 import math
 import time
 from collections.abc import Callable
+from typing import Any
 
 import casadi
 import numpy as np
@@ -87,12 +86,20 @@ def sqp_functions(nlp: dict) -> tuple[dict[str, casadi.Function], casadi.Sparsit
     lam = casadi.SX.sym("lam_g", g.numel())
     hess, _ = casadi.hessian(f + casadi.dot(lam, g), w)
     d = casadi.densify
-    return ({
-        "jac": casadi.Function("ceco_sqp_jac", [w, p], [f, g, d(casadi.gradient(f, w)), d(casadi.jacobian(g, w))],
-                               ["w", "p"], ["f", "g", "grad_f", "jac_g"]),
-        "hess": casadi.Function("ceco_sqp_hess", [w, p, lam], [d(hess)], ["w", "p", "lam_g"], ["hess_l"]),
-        "fg": casadi.Function("ceco_sqp_fg", [w, p], [f, g], ["w", "p"], ["f", "g"]),
-    }, hess.sparsity())
+    return (
+        {
+            "jac": casadi.Function(
+                "ceco_sqp_jac",
+                [w, p],
+                [f, g, d(casadi.gradient(f, w)), d(casadi.jacobian(g, w))],
+                ["w", "p"],
+                ["f", "g", "grad_f", "jac_g"],
+            ),
+            "hess": casadi.Function("ceco_sqp_hess", [w, p, lam], [d(hess)], ["w", "p", "lam_g"], ["hess_l"]),
+            "fg": casadi.Function("ceco_sqp_fg", [w, p], [f, g], ["w", "p"], ["f", "g"]),
+        },
+        hess.sparsity(),
+    )
 
 
 class _Buffered:
@@ -136,8 +143,17 @@ class SqpOutcome:
 class DenseSqp:
     """The SQP for one NLP, built once; :meth:`solve` solves one instance."""
 
-    def __init__(self, functions: dict[str, casadi.Function], hess_pattern: casadi.Sparsity, lbw, ubw, lbg, ubg,
-                 options: SqpOptions | None = None, clock: Callable[[], float] = time.perf_counter):
+    def __init__(
+        self,
+        functions: dict[str, casadi.Function],
+        hess_pattern: casadi.Sparsity,
+        lbw,
+        ubw,
+        lbg,
+        ubg,
+        options: SqpOptions | None = None,
+        clock: Callable[[], float] = time.perf_counter,
+    ):
         self.options = options or SqpOptions()
         self.clock = clock
         self.lbw, self.ubw = np.asarray(lbw, float), np.asarray(ubw, float)
@@ -169,8 +185,12 @@ class DenseSqp:
         from .codegen import stdout_silenced  # qpOASES prints its banner when the QP is created
 
         with stdout_silenced():
-            self.qp = casadi.conic("ceco_sqp_qp", o.qpsol, {"h": casadi.Sparsity.dense(nw, nw),
-                                                            "a": casadi.Sparsity.dense(ng, nw)}, qp_opts)
+            self.qp = casadi.conic(
+                "ceco_sqp_qp",
+                o.qpsol,
+                {"h": casadi.Sparsity.dense(nw, nw), "a": casadi.Sparsity.dense(ng, nw)},
+                qp_opts,
+            )
             self._qp = _Buffered(self.qp, n_args=7)  # h, g, a, lba, uba, lbx, ubx (no initial guess)
         self.n_eig_fallbacks = 0
         """Blocks convexified by the Gershgorin shift because LAPACK reported non-convergence."""
@@ -256,8 +276,15 @@ class DenseSqp:
                 break
             # (a, column-major, is the jac buffer's layout: jac.T.ravel())
             try:
-                x_qp, _, lam_a_qp, lam_x_qp = self._qp(self.convexify(hess).ravel(), gf, jac.T.ravel(),
-                                                        self.lbg - g, self.ubg - g, self.lbw - w, self.ubw - w)
+                x_qp, _, lam_a_qp, lam_x_qp = self._qp(
+                    self.convexify(hess).ravel(),
+                    gf,
+                    jac.T.ravel(),
+                    self.lbg - g,
+                    self.ubg - g,
+                    self.lbw - w,
+                    self.ubw - w,
+                )
             except RuntimeError:
                 status = f"QP_Failed ({self._qp.buf.stats().get('return_status', 'unknown')})"
                 break
@@ -276,8 +303,10 @@ class DenseSqp:
                 success = math.isfinite(f) and math.isfinite(pr)
                 status = "RTI_Step" if success else "Invalid_Number_Detected"
                 break
-            if float(np.max(np.abs(d), initial=0.0)) <= o.min_step * (1.0 + float(np.max(np.abs(w)))) \
-                    and pr <= o.tol_pr:
+            if (
+                float(np.max(np.abs(d), initial=0.0)) <= o.min_step * (1.0 + float(np.max(np.abs(w))))
+                and pr <= o.tol_pr
+            ):
                 lam_g, lam_x = lam_g_qp, lam_x_qp
                 status, success = "Solve_Succeeded", True
                 break
@@ -285,7 +314,7 @@ class DenseSqp:
             sigma = max(sigma, 1.1 * float(np.max(np.abs(lam_g_qp), initial=0.0)) + 1e-8)
             theta = float(np.sum(self._violation(g)))
             phi = f + sigma * theta
-            merits = (merits + [phi])[-o.merit_memory:]
+            merits = (merits + [phi])[-o.merit_memory :]
             slope = float(gf @ d) - sigma * theta
             alpha, accepted = 1.0, False
             for _ in range(o.max_ls):
@@ -302,5 +331,16 @@ class DenseSqp:
             w = np.clip(w + alpha * d, self.lbw, self.ubw)
             lam_g = lam_g + alpha * (lam_g_qp - lam_g)
             lam_x = lam_x + alpha * (lam_x_qp - lam_x)
-        return SqpOutcome(success=success, status=status, iterations=it, w=w, f=f, lam_x=lam_x, lam_g=lam_g,
-                          g=g, primal_infeasibility=pr, dual_infeasibility=du, line_search_failures=n_ls_fail)
+        return SqpOutcome(
+            success=success,
+            status=status,
+            iterations=it,
+            w=w,
+            f=f,
+            lam_x=lam_x,
+            lam_g=lam_g,
+            g=g,
+            primal_infeasibility=pr,
+            dual_infeasibility=du,
+            line_search_failures=n_ls_fail,
+        )

@@ -4,6 +4,7 @@ The inputs are a CabinState and the two previews; the core's
 :class:`~ceco_core.contracts.Observation` is built by the simulator's own
 :func:`ceco_controller.observation.observation` so a DDS run equals the simulator bit for bit.
 """
+
 from __future__ import annotations
 
 import ceco_ros.conversions as conversions
@@ -15,8 +16,9 @@ from .observation import observation
 __all__ = ['step_observation']
 
 
-def step_observation(si: StepInputs, cfg: ControllerNodeConfig, scenario, prev_cmd: AcInput | None
-                     ) -> tuple[Observation, str]:
+def step_observation(
+    si: StepInputs, cfg: ControllerNodeConfig, scenario, prev_cmd: AcInput | None
+) -> tuple[Observation, str]:
     """``(observation, note)``; ``note`` says why the step is solved without previews ('' if with).
 
     Real time: the previews are re-gridded to the state's time (``conversions.align_previews``).
@@ -34,6 +36,7 @@ def step_observation(si: StepInputs, cfg: ControllerNodeConfig, scenario, prev_c
         w, s = conversions.empty_previews(cfg.horizon_steps + 1, ts)
         note = note or 'no previews'
     prev = prev_cmd or AcInput(mdot_bl_kgps=st.mdot_bl_kgps, t_evap_sp_c=st.t_evap_sp_c)
-    obs = observation(si.k, t_s, conversions.state_measurements(st), st, prev, conversions.previews(w, s, t_s, ts),
-                      scenario)
+    obs = observation(
+        si.k, t_s, conversions.state_measurements(st), st, prev, conversions.previews(w, s, t_s, ts), scenario
+    )
     return obs, note

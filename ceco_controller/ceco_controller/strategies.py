@@ -23,16 +23,24 @@ T_evap bounds, the offset-free bias correction and the solver settings.
 
 from __future__ import annotations
 
-from typing import Any
-
 import dataclasses
 import math
+from typing import Any
 
 from ceco_core.contracts import CECO_STRATEGIES, STRATEGIES
 
-__all__ = ["StrategySettings", "SolverSettings", "SOLVER_NAMES", "STRATEGIES", "CECO_STRATEGIES",
-           "strategy_settings", "resolved_transcription", "resolve_auto", "auto_solver_name",
-           "COMFORT_GAMMA_W"]
+__all__ = [
+    "StrategySettings",
+    "SolverSettings",
+    "SOLVER_NAMES",
+    "STRATEGIES",
+    "CECO_STRATEGIES",
+    "strategy_settings",
+    "resolved_transcription",
+    "resolve_auto",
+    "auto_solver_name",
+    "COMFORT_GAMMA_W",
+]
 
 COMFORT_GAMMA_W = 20000.0
 """ceco-c comfort weight gamma [W per PMV^2] (cost term gamma * PMV^2 next to watts).
@@ -133,8 +141,9 @@ class SolverSettings:
     def validate(self) -> None:
         """Raise ValueError naming the field if a setting is not usable."""
         if self.name == "sqpmethod":
-            raise ValueError("SolverSettings.name 'sqpmethod' (CasADi's SQP) was replaced by 'sqp' "
-                             "(docs/controller.md 4.6)")
+            raise ValueError(
+                "SolverSettings.name 'sqpmethod' (CasADi's SQP) was replaced by 'sqp' (docs/controller.md 4.6)"
+            )
         if self.name not in SOLVER_NAMES:
             raise ValueError(f"SolverSettings.name must be one of {SOLVER_NAMES}, got {self.name!r}")
         if not (isinstance(self.max_iter, int) and self.max_iter >= 0):
@@ -154,8 +163,10 @@ class SolverSettings:
         if self.qpsol not in ("qpoases", "qrqp"):
             raise ValueError(f"SolverSettings.qpsol must be qpoases or qrqp, got {self.qpsol!r}")
         if self.transcription not in ("auto", "single-shooting", "multiple-shooting"):
-            raise ValueError("SolverSettings.transcription must be auto, single-shooting or multiple-shooting, "
-                             f"got {self.transcription!r}")
+            raise ValueError(
+                "SolverSettings.transcription must be auto, single-shooting or multiple-shooting, "
+                f"got {self.transcription!r}"
+            )
         if not (type(self.single_shooting_max_steps) is int and self.single_shooting_max_steps >= 0):
             raise ValueError("SolverSettings.single_shooting_max_steps must be an int >= 0")
         if self.name == "fatrop" and self.transcription == "single-shooting":
@@ -228,10 +239,19 @@ class StrategySettings:
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"StrategySettings.{name} must be finite and > 0, got {v!r}")
         if self.pmv_pa_source not in ("paper", "measured"):
-            raise ValueError("StrategySettings.pmv_pa_source must be 'paper' or 'measured', "
-                             f"got {self.pmv_pa_source!r}")
-        for name in ("gamma_w", "pmv_margin", "beta_w", "eps_ub", "slack_weight_kj", "du_weight_kj",
-                     "bias_limit_k", "draught_weight_kj"):
+            raise ValueError(
+                f"StrategySettings.pmv_pa_source must be 'paper' or 'measured', got {self.pmv_pa_source!r}"
+            )
+        for name in (
+            "gamma_w",
+            "pmv_margin",
+            "beta_w",
+            "eps_ub",
+            "slack_weight_kj",
+            "du_weight_kj",
+            "bias_limit_k",
+            "draught_weight_kj",
+        ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"StrategySettings.{name} must be finite and >= 0, got {v!r}")
@@ -245,14 +265,21 @@ class StrategySettings:
             raise ValueError("StrategySettings.solver.max_cpu_time_s must be below control_period_s")
         if self.solver.step_budget_s >= self.control_period_s:
             raise ValueError("StrategySettings.solver.step_budget_s must be below control_period_s")
-        if (self.solver.name != "ipopt" and self.solver.ipopt_fallback
-                and 2.0 * self.solver.max_cpu_time_s >= self.control_period_s):
+        if (
+            self.solver.name != "ipopt"
+            and self.solver.ipopt_fallback
+            and 2.0 * self.solver.max_cpu_time_s >= self.control_period_s
+        ):
             # an SQP/fatrop solve (QPs limited to max_cpu_time_s in all) and then its IPOPT retry
-            raise ValueError("StrategySettings.solver.max_cpu_time_s must be below control_period_s / 2 "
-                             "when a failed SQP/fatrop solve is retried by IPOPT (ipopt_fallback)")
+            raise ValueError(
+                "StrategySettings.solver.max_cpu_time_s must be below control_period_s / 2 "
+                "when a failed SQP/fatrop solve is retried by IPOPT (ipopt_fallback)"
+            )
         if self.solver.rti and resolved_transcription(self) != "single-shooting" and self.solver.name == "auto":
-            raise ValueError("StrategySettings.solver.rti with name 'auto' needs the single-shooting NLP "
-                             "(horizon_steps <= single_shooting_max_steps); set name 'sqp' explicitly")
+            raise ValueError(
+                "StrategySettings.solver.rti with name 'auto' needs the single-shooting NLP "
+                "(horizon_steps <= single_shooting_max_steps); set name 'sqp' explicitly"
+            )
         self.solver.validate()
 
 
@@ -276,8 +303,11 @@ def resolved_transcription(settings: StrategySettings) -> str:
         return t
     if settings.solver.name in ("ipopt", "fatrop"):
         return "multiple-shooting"
-    return ("single-shooting" if settings.horizon_steps <= settings.solver.single_shooting_max_steps
-            else "multiple-shooting")
+    return (
+        "single-shooting"
+        if settings.horizon_steps <= settings.solver.single_shooting_max_steps
+        else "multiple-shooting"
+    )
 
 
 def auto_solver_name(transcription: str) -> str:
@@ -295,8 +325,9 @@ def resolve_auto(settings: StrategySettings) -> StrategySettings:
     name = settings.solver.name
     if name == "auto":
         name = auto_solver_name(transcription)
-    out = dataclasses.replace(settings, solver=dataclasses.replace(settings.solver, name=name,
-                                                                   transcription=transcription))
+    out = dataclasses.replace(
+        settings, solver=dataclasses.replace(settings.solver, name=name, transcription=transcription)
+    )
     out.validate()
     return out
 

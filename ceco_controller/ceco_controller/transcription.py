@@ -99,8 +99,12 @@ class NlpProblem:
 
     def __post_init__(self) -> None:
         # the constant bounds as CasADi matrices, converted once (not on every solve: ~0.1 ms)
-        self.bounds_dm = {"lbx": casadi.DM(self.lbw), "ubx": casadi.DM(self.ubw),
-                          "lbg": casadi.DM(self.lbg), "ubg": casadi.DM(self.ubg)}
+        self.bounds_dm = {
+            "lbx": casadi.DM(self.lbw),
+            "ubx": casadi.DM(self.ubw),
+            "lbg": casadi.DM(self.lbg),
+            "ubg": casadi.DM(self.ubg),
+        }
 
     @property
     def horizon_steps(self) -> int:
@@ -122,8 +126,9 @@ class NlpProblem:
         out = self.evaluator(w, p)
         j = [float(v) for v in out[:5]]
         pmv, t_cab, t_ain, t_evap = (np.array(v).ravel() for v in out[5:])
-        return Evaluation(J_e=j[0], J_c=j[1], J_i=j[2], J_s=j[3], J_du=j[4], pmv=pmv, t_cab=t_cab, t_ain=t_ain,
-                          t_evap=t_evap)
+        return Evaluation(
+            J_e=j[0], J_c=j[1], J_i=j[2], J_s=j[3], J_du=j[4], pmv=pmv, t_cab=t_cab, t_ain=t_ain, t_evap=t_evap
+        )
 
     def plan(self, w: np.ndarray) -> np.ndarray:
         """The input sequence u_0..u_{N-1} of a primal point, shape (N, 2)."""
@@ -137,9 +142,13 @@ class NlpProblem:
         return v
 
 
-def build_problem(settings: StrategySettings, model_params: cm.ControlModelParams,
-                  comfort_params: ComfortParams, transcription: str,
-                  limits: ActuatorLimits = ACTUATOR_LIMITS) -> NlpProblem:
+def build_problem(
+    settings: StrategySettings,
+    model_params: cm.ControlModelParams,
+    comfort_params: ComfortParams,
+    transcription: str,
+    limits: ActuatorLimits = ACTUATOR_LIMITS,
+) -> NlpProblem:
     """Transcribe the strategy's NLP (docs/controller.md 4.1).
 
     Args:
@@ -189,23 +198,48 @@ def build_problem(settings: StrategySettings, model_params: cm.ControlModelParam
             rows.add(i - 1, 0, "gap", x - x_next, [0.0] * 4, [0.0] * 4)
         if i < n:
             u = SX.sym(f"u_{i}", 2)
-            add_var(u, [limits.mdot_bl_min_kgps, limits.t_evap_sp_min_c],
-                    [limits.mdot_bl_max_kgps, limits.t_evap_sp_max_c], "u")
+            add_var(
+                u,
+                [limits.mdot_bl_min_kgps, limits.t_evap_sp_min_c],
+                [limits.mdot_bl_max_kgps, limits.t_evap_sp_max_c],
+                "u",
+            )
             # one model step over interval i: the next state and the interval's power
             t_cab_n, t_evap_n, _, pc, pb = cm.step(
-                mp, x[0], x[1], u[0], u[1], P["t_int"], P["t_shell"], P["t_amb"][i], P["speed"][i],
-                n_sub=n_sub, d_cab_k=P["d_cab"] / n_sub, d_ain_k=P["d_ain"], d_evap_k=P["d_evap"] / n_sub)
+                mp,
+                x[0],
+                x[1],
+                u[0],
+                u[1],
+                P["t_int"],
+                P["t_shell"],
+                P["t_amb"][i],
+                P["speed"][i],
+                n_sub=n_sub,
+                d_cab_k=P["d_cab"] / n_sub,
+                d_ain_k=P["d_ain"],
+                d_evap_k=P["d_evap"] / n_sub,
+            )
             x_next = casadi.vertcat(t_cab_n, t_evap_n, u)
             e_terms.append(ts_kj * (pc + pb))
-            du = casadi.vertcat((u[0] - x[2]) / (limits.mdot_bl_max_kgps - limits.mdot_bl_min_kgps),
-                                (u[1] - x[3]) / (limits.t_evap_sp_max_c - limits.t_evap_sp_min_c))
+            du = casadi.vertcat(
+                (u[0] - x[2]) / (limits.mdot_bl_max_kgps - limits.mdot_bl_min_kgps),
+                (u[1] - x[3]) / (limits.t_evap_sp_max_c - limits.t_evap_sp_min_c),
+            )
             du_terms.append(s.du_weight_kj * casadi.sumsqr(du))
         else:
             u = x[2:4]  # u_{N-1}, carried in the state
         # comfort at stage i
         tain = cm.t_ain_c(mp, x[1], u[0], P["d_ain"])
-        pmv = cabin_pmv(t_cab_c=x[0], t_vent_c=tain, mdot_bl_kgps=u[0], t_mr_c=P["t_mr"],
-                        w_rad_wm2=cabin_w_rad_wm2(P["solar"][i], cp), pa_pa=P["pa"], params=cp)
+        pmv = cabin_pmv(
+            t_cab_c=x[0],
+            t_vent_c=tain,
+            mdot_bl_kgps=u[0],
+            t_mr_c=P["t_mr"],
+            w_rad_wm2=cabin_w_rad_wm2(P["solar"][i], cp),
+            pa_pa=P["pa"],
+            params=cp,
+        )
         pmv_all.append(pmv)
         tcab_all.append(x[0])
         tain_all.append(tain)
@@ -221,11 +255,16 @@ def build_problem(settings: StrategySettings, model_params: cm.ControlModelParam
             eps = eps_sym
             eta = cm.eta_ac(mp, P["speed"][i])
             i_terms.append(ts_kj * s.beta_w * (eta - 1.0) / (eps_sym + s.xi))
-        rows.add(i, 1, "pmv", casadi.vertcat(pmv + s_lo - P["pmv_lb"][i],
-                                             pmv - s_up + eps - (P["pmv_ub"][i] - s.pmv_margin)),
-                 [0.0, -inf], [inf, 0.0])
+        rows.add(
+            i,
+            1,
+            "pmv",
+            casadi.vertcat(pmv + s_lo - P["pmv_lb"][i], pmv - s_up + eps - (P["pmv_ub"][i] - s.pmv_margin)),
+            [0.0, -inf],
+            [inf, 0.0],
+        )
         if s.gamma_w > 0:
-            c_terms.append(ts_kj * s.gamma_w * pmv ** 2)
+            c_terms.append(ts_kj * s.gamma_w * pmv**2)
         if s.draught_weight_kj > 0:
             dr = cabin_draught_pct(t_cab_c=x[0], t_vent_c=tain, mdot_bl_kgps=u[0], params=cp, cap=False)
             c_terms.append(s.draught_weight_kj * (dr / 100.0) ** 2)
@@ -234,8 +273,14 @@ def build_problem(settings: StrategySettings, model_params: cm.ControlModelParam
             s_ev = SX.sym(f"s_ev_{i}")
             add_var(s_ev, 0.0, inf, "s_ev")
             sl_terms.append(s.slack_weight_kj * s_ev)
-            rows.add(i, 2, "evap", casadi.vertcat(x[1] + s_ev - s.t_evap_lb_c, x[1] - s_ev - s.t_evap_ub_c),
-                     [0.0, -inf], [inf, 0.0])
+            rows.add(
+                i,
+                2,
+                "evap",
+                casadi.vertcat(x[1] + s_ev - s.t_evap_lb_c, x[1] - s_ev - s.t_evap_ub_c),
+                [0.0, -inf],
+                [inf, 0.0],
+            )
 
     def total(terms):
         return casadi.sum1(casadi.vertcat(*terms)) if terms else SX(0)
@@ -246,11 +291,35 @@ def build_problem(settings: StrategySettings, model_params: cm.ControlModelParam
     w_all = casadi.vertcat(*w)
     g_all = casadi.vertcat(*g)
     evaluator = casadi.Function(
-        "ceco_eval", [w_all, p],
-        [J_e, J_c, J_i, J_s, J_du, casadi.vertcat(*pmv_all), casadi.vertcat(*tcab_all),
-         casadi.vertcat(*tain_all), casadi.vertcat(*tevap_all)],
-        ["w", "p"], ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain", "t_evap"])
-    return NlpProblem(settings=settings, transcription=transcription, model_params=mp, n_sub=n_sub,
-                      nlp={"x": w_all, "p": p, "f": J, "g": g_all}, params=params, vars=vars_, rows=rows,
-                      lbw=vars_.lb, ubw=vars_.ub, lbg=np.array(lbg), ubg=np.array(ubg),
-                      evaluator=evaluator, limits=limits)
+        "ceco_eval",
+        [w_all, p],
+        [
+            J_e,
+            J_c,
+            J_i,
+            J_s,
+            J_du,
+            casadi.vertcat(*pmv_all),
+            casadi.vertcat(*tcab_all),
+            casadi.vertcat(*tain_all),
+            casadi.vertcat(*tevap_all),
+        ],
+        ["w", "p"],
+        ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain", "t_evap"],
+    )
+    return NlpProblem(
+        settings=settings,
+        transcription=transcription,
+        model_params=mp,
+        n_sub=n_sub,
+        nlp={"x": w_all, "p": p, "f": J, "g": g_all},
+        params=params,
+        vars=vars_,
+        rows=rows,
+        lbw=vars_.lb,
+        ubw=vars_.ub,
+        lbg=np.array(lbg),
+        ubg=np.array(ubg),
+        evaluator=evaluator,
+        limits=limits,
+    )

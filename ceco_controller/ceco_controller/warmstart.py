@@ -18,8 +18,7 @@ the warm solver's barrier (slack x multiplier ~ 1e-5 x rho); 1e-3 started the wa
 complementarity of ~1 and cost one IPOPT iteration (docs/controller.md 4.6)."""
 
 
-def initial_guess(problem: NlpProblem, p: np.ndarray, w_prev: np.ndarray | None = None,
-                  stages: int = 1) -> np.ndarray:
+def initial_guess(problem: NlpProblem, p: np.ndarray, w_prev: np.ndarray | None = None, stages: int = 1) -> np.ndarray:
     """Primal guess, consistent with the dynamics and the comfort constraints at ``p``.
 
     Inputs: the previous solution ``w_prev`` shifted by ``stages`` stages if given, else the
@@ -35,8 +34,12 @@ def initial_guess(problem: NlpProblem, p: np.ndarray, w_prev: np.ndarray | None 
     else:
         w = np.zeros(vl.n)
         u_prev = pl.get(p, "u_prev")
-        u = np.array([np.clip(u_prev[0], lim.mdot_bl_min_kgps, lim.mdot_bl_max_kgps),
-                      np.clip(u_prev[1], lim.t_evap_sp_min_c, lim.t_evap_sp_max_c)])
+        u = np.array(
+            [
+                np.clip(u_prev[0], lim.mdot_bl_min_kgps, lim.mdot_bl_max_kgps),
+                np.clip(u_prev[1], lim.t_evap_sp_min_c, lim.t_evap_sp_max_c),
+            ]
+        )
         vl.set_blocks(w, "u", u)
         if s.ioch:
             vl.set_blocks(w, "eps", 0.5 * s.eps_ub)
@@ -50,9 +53,21 @@ def initial_guess(problem: NlpProblem, p: np.ndarray, w_prev: np.ndarray | None 
         xs = np.empty((n, 4))
         for i in range(n):
             u = us[i]
-            tc, te, *_ = cm.step(problem.model_params, x[0], x[1], u[0], u[1], t_int, t_shell, t_amb[i],
-                                 speed[i], n_sub=problem.n_sub, d_cab_k=d_cab / problem.n_sub,
-                                 d_ain_k=d_ain, d_evap_k=d_evap / problem.n_sub)
+            tc, te, *_ = cm.step(
+                problem.model_params,
+                x[0],
+                x[1],
+                u[0],
+                u[1],
+                t_int,
+                t_shell,
+                t_amb[i],
+                speed[i],
+                n_sub=problem.n_sub,
+                d_cab_k=d_cab / problem.n_sub,
+                d_ain_k=d_ain,
+                d_evap_k=d_evap / problem.n_sub,
+            )
             x = np.array([tc, te])
             xs[i] = np.concatenate([x, u])
         vl.set_blocks(w, "x", xs)
@@ -71,8 +86,11 @@ def _smallest_slacks(problem: NlpProblem, w: np.ndarray, p: np.ndarray):
     lb = pl.get(p, "pmv_lb")
     ub = pl.get(p, "pmv_ub") - s.pmv_margin
     eps = w[vl.indices("eps")] if s.ioch else 0.0
-    return (np.maximum(lb - ev.pmv, 0.0), np.maximum(ev.pmv + eps - ub, 0.0),
-            np.maximum(np.maximum(s.t_evap_lb_c - ev.t_evap, ev.t_evap - s.t_evap_ub_c), 0.0))
+    return (
+        np.maximum(lb - ev.pmv, 0.0),
+        np.maximum(ev.pmv + eps - ub, 0.0),
+        np.maximum(np.maximum(s.t_evap_lb_c - ev.t_evap, ev.t_evap - s.t_evap_ub_c), 0.0),
+    )
 
 
 def repair_slacks(problem: NlpProblem, w: np.ndarray, p: np.ndarray) -> np.ndarray:

@@ -1,1 +1,4 @@
-"""Pure shared core of ceco (no ROS): units, psychrometrics, maths backend, comfort, contracts, metrics, run-directory format."""
+"""Pure shared core of ceco (no ROS).
+
+Units, psychrometrics, maths backend, comfort, contracts, metrics, run-directory format.
+"""

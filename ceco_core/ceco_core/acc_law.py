@@ -204,8 +204,9 @@ class AccLaw:
                     self._sun_f += -math.expm1(-dt_s / s.sun_filter_tau_s) * (float(solar_wm2) - self._sun_f)
             if self._sun_f is not None:
                 sp -= s.sun_gain_k_per_kwm2 * self._sun_f / 1000.0
-                self._mdot_min = min(s.mdot_bl_min_kgps + s.sun_blower_gain_kgps_per_kwm2 * self._sun_f / 1000.0,
-                                     s.mdot_bl_max_kgps)
+                self._mdot_min = min(
+                    s.mdot_bl_min_kgps + s.sun_blower_gain_kgps_per_kwm2 * self._sun_f / 1000.0, s.mdot_bl_max_kgps
+                )
         if s.ambient_gain_k_per_k and t_amb_c is not None and math.isfinite(float(t_amb_c)):
             sp -= s.ambient_gain_k_per_k * (float(t_amb_c) - s.ambient_ref_c)
         if s.allowance_k_per_pmv and pmv_ub is not None and math.isfinite(float(pmv_ub)):
@@ -238,12 +239,24 @@ class AccLaw:
 
     def _normalised(self, mdot, sp) -> np.ndarray:
         s = self.settings
-        return np.array([(mdot - s.mdot_bl_min_kgps) / (s.mdot_bl_max_kgps - s.mdot_bl_min_kgps),
-                         (s.t_evap_sp_max_c - sp) / (s.t_evap_sp_max_c - s.t_evap_sp_min_c)])
+        return np.array(
+            [
+                (mdot - s.mdot_bl_min_kgps) / (s.mdot_bl_max_kgps - s.mdot_bl_min_kgps),
+                (s.t_evap_sp_max_c - sp) / (s.t_evap_sp_max_c - s.t_evap_sp_min_c),
+            ]
+        )
 
-    def track(self, mdot_bl_kgps: float, t_evap_sp_c: float, t_cab_c: float | None = None, *,
-              dt_s: float | None = None, t_amb_c: float | None = None, solar_wm2: float | None = None,
-              pmv_ub: float | None = None) -> None:
+    def track(
+        self,
+        mdot_bl_kgps: float,
+        t_evap_sp_c: float,
+        t_cab_c: float | None = None,
+        *,
+        dt_s: float | None = None,
+        t_amb_c: float | None = None,
+        solar_wm2: float | None = None,
+        pmv_ub: float | None = None,
+    ) -> None:
         """Follow a command another controller applied, so that a later :meth:`step` takes over without a bump.
 
         (mdot_bl [kg/s], T_evap_sp [degC]) applied at cabin air temperature ``t_cab_c`` [degC];
@@ -254,21 +267,32 @@ class AccLaw:
         if not (math.isfinite(float(mdot_bl_kgps)) and math.isfinite(float(t_evap_sp_c))):
             return
         s = self.settings
-        sp_eff = (self.effective_setpoint_c(dt_s, t_amb_c, solar_wm2, pmv_ub)
-                  if dt_s is not None and math.isfinite(dt_s) and dt_s > 0 else s.setpoint_c)
+        sp_eff = (
+            self.effective_setpoint_c(dt_s, t_amb_c, solar_wm2, pmv_ub)
+            if dt_s is not None and math.isfinite(dt_s) and dt_s > 0
+            else s.setpoint_c
+        )
         mdot = min(max(float(mdot_bl_kgps), s.mdot_bl_min_kgps), s.mdot_bl_max_kgps)
         sp = min(max(float(t_evap_sp_c), s.t_evap_sp_min_c), s.t_evap_sp_max_c)
         d = self.demand_of(mdot, sp)
         self._pulldown = False
         if t_cab_c is not None and math.isfinite(float(t_cab_c)):
             self._integral = d - s.kp_per_k * (float(t_cab_c) - sp_eff)
-        self._last = self._raw = AccCommand(mdot_bl_kgps=mdot, t_evap_sp_c=sp, demand=d, mode="tracking",
-                                            setpoint_c=sp_eff)
+        self._last = self._raw = AccCommand(
+            mdot_bl_kgps=mdot, t_evap_sp_c=sp, demand=d, mode="tracking", setpoint_c=sp_eff
+        )
         self._tracking = True
         self._offset = np.zeros(2)
 
-    def step(self, t_cab_c: float, dt_s: float, *, t_amb_c: float | None = None, solar_wm2: float | None = None,
-             pmv_ub: float | None = None) -> AccCommand:
+    def step(
+        self,
+        t_cab_c: float,
+        dt_s: float,
+        *,
+        t_amb_c: float | None = None,
+        solar_wm2: float | None = None,
+        pmv_ub: float | None = None,
+    ) -> AccCommand:
         """One ECU step.
 
         Args:
@@ -292,8 +316,10 @@ class AccLaw:
         if np.any(self._offset):
             s = self.settings
             cmd = dataclasses.replace(
-                cmd, mdot_bl_kgps=min(max(cmd.mdot_bl_kgps + self._offset[0], s.mdot_bl_min_kgps), s.mdot_bl_max_kgps),
-                t_evap_sp_c=min(max(cmd.t_evap_sp_c + self._offset[1], s.t_evap_sp_min_c), s.t_evap_sp_max_c))
+                cmd,
+                mdot_bl_kgps=min(max(cmd.mdot_bl_kgps + self._offset[0], s.mdot_bl_min_kgps), s.mdot_bl_max_kgps),
+                t_evap_sp_c=min(max(cmd.t_evap_sp_c + self._offset[1], s.t_evap_sp_min_c), s.t_evap_sp_max_c),
+            )
         self._last = cmd
         return cmd
 

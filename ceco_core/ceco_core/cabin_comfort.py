@@ -23,7 +23,6 @@ docs/comfort.md.
 
 import dataclasses
 import math
-
 from typing import Any
 
 import numpy as np
@@ -68,8 +67,12 @@ defaults to it; the comfort model uses it for the trim surface temperature."""
 
 
 def _number(cls, name, value, lo, hi):
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or not lo <= value <= hi:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not math.isfinite(value)
+        or not lo <= value <= hi
+    ):
         raise ValueError(f"{cls}.{name} must be a finite number in [{lo}, {hi}], got {value!r}")
 
 
@@ -103,9 +106,18 @@ class SolarParams:
     @property
     def w_rad_per_irradiance(self):
         """Absorbed short-wave flux per body area per unit direct irradiance [-] (SolarCal at I_dir = 1 W/m2)."""
-        return float(solar_gain(sol_altitude_deg=self.altitude_deg, sharp_deg=self.sharp_deg,
-                                sol_radiation_dir_wm2=1.0, sol_transmittance=self.glazing_tau, f_svv=self.f_svv,
-                                f_bes=self.f_bes, asw=self.asw, floor_reflectance=self.floor_reflectance).w_rad_wm2)
+        return float(
+            solar_gain(
+                sol_altitude_deg=self.altitude_deg,
+                sharp_deg=self.sharp_deg,
+                sol_radiation_dir_wm2=1.0,
+                sol_transmittance=self.glazing_tau,
+                f_svv=self.f_svv,
+                f_bes=self.f_bes,
+                asw=self.asw,
+                floor_reflectance=self.floor_reflectance,
+            ).w_rad_wm2
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -132,8 +144,12 @@ class ComfortParams:
         _number("ComfortParams", "met", self.met, 1e-9, 4.0)
         _number("ComfortParams", "clo", self.clo, 0.0, 2.0)
         _number("ComfortParams", "u_shell_in_wm2k", self.u_shell_in_wm2k, 1e-9, self.radiant.h_shell_film_wm2k)
-        for name, cls in (("air", OccupantAirParams), ("radiant", RadiantParams), ("solar", SolarParams),
-                          ("smoothing", PmvSmoothing)):
+        for name, cls in (
+            ("air", OccupantAirParams),
+            ("radiant", RadiantParams),
+            ("solar", SolarParams),
+            ("smoothing", PmvSmoothing),
+        ):
             value = getattr(self, name)
             if not isinstance(value, cls):
                 raise ValueError(f"ComfortParams.{name} must be a {cls.__name__}, got {value!r}")
@@ -151,11 +167,14 @@ def comfort_params_for(scenario, *, glazing_tau=GLAZING_TAU, u_shell_in_wm2k=SHE
     ``PlantParams.u_shell_in_wm2k``); the defaults are the plant's defaults.
     """
     sun = scenario.sun
-    solar = SolarParams(altitude_deg=float(sun.altitude_deg),
-                        sharp_deg=float(relative_azimuth_deg(sun.azimuth_deg, sun.heading_deg)),
-                        glazing_tau=float(glazing_tau))
-    return ComfortParams(met=scenario.occupant.met, clo=scenario.occupant.clo, solar=solar,
-                         u_shell_in_wm2k=float(u_shell_in_wm2k)).validate()
+    solar = SolarParams(
+        altitude_deg=float(sun.altitude_deg),
+        sharp_deg=float(relative_azimuth_deg(sun.azimuth_deg, sun.heading_deg)),
+        glazing_tau=float(glazing_tau),
+    )
+    return ComfortParams(
+        met=scenario.occupant.met, clo=scenario.occupant.clo, solar=solar, u_shell_in_wm2k=float(u_shell_in_wm2k)
+    ).validate()
 
 
 def cabin_w_rad_wm2(solar_wm2, params):
@@ -166,8 +185,7 @@ def cabin_w_rad_wm2(solar_wm2, params):
 def cabin_mrt_c(*, t_cab_c, t_int_c, t_shell_c, t_glass_c, params):
     """Mean radiant temperature at the occupant [degC] from the cabin nodes (glazing, shell trim, interior)."""
     t_sh_in = shell_inside_surface_c(t_cab_c, t_shell_c, params.u_shell_in_wm2k, params.radiant.h_shell_film_wm2k)
-    return mean_radiant_temperature_c(t_glass_c=t_glass_c, t_shell_in_c=t_sh_in, t_int_c=t_int_c,
-                                      params=params.radiant)
+    return mean_radiant_temperature_c(t_glass_c=t_glass_c, t_shell_in_c=t_sh_in, t_int_c=t_int_c, params=params.radiant)
 
 
 def cabin_pmv(*, t_cab_c, t_vent_c, mdot_bl_kgps, t_mr_c, w_rad_wm2, pa_pa, params, met=None, clo=None):
@@ -189,9 +207,16 @@ def cabin_pmv(*, t_cab_c, t_vent_c, mdot_bl_kgps, t_mr_c, w_rad_wm2, pa_pa, para
     """
     params.validate()
     air = occupant_air(t_cab_c=t_cab_c, t_vent_c=t_vent_c, mdot_bl_kgps=mdot_bl_kgps, params=params.air)
-    return pmv(ta_c=air.ta_occ_c, tr_c=t_mr_c, vel_mps=air.vel_occ_mps, pa_pa=pa_pa,
-               met=params.met if met is None else met, clo=params.clo if clo is None else clo,
-               w_rad_wm2=w_rad_wm2, smoothing=params.smoothing)
+    return pmv(
+        ta_c=air.ta_occ_c,
+        tr_c=t_mr_c,
+        vel_mps=air.vel_occ_mps,
+        pa_pa=pa_pa,
+        met=params.met if met is None else met,
+        clo=params.clo if clo is None else clo,
+        w_rad_wm2=w_rad_wm2,
+        smoothing=params.smoothing,
+    )
 
 
 def cabin_draught_pct(*, t_cab_c, t_vent_c, mdot_bl_kgps, params, cap=True, smoothing=None):
@@ -239,8 +264,9 @@ class OccupantComfort:
     """Draught rating's local mean air speed (jet at the upper body) [m/s]."""
 
 
-def evaluate_cabin_comfort(*, t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, rh_cab, mdot_bl_kgps, solar_wm2,
-                           params, pa_pa=None):
+def evaluate_cabin_comfort(
+    *, t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, rh_cab, mdot_bl_kgps, solar_wm2, params, pa_pa=None
+):
     """Every comfort series from the plant's measurements (numpy; used by the plant and the metrics).
 
     ``pa_pa`` defaults to the cabin's vapour pressure rh_cab * p_ws(T_cab) (the plant's moisture
@@ -251,18 +277,45 @@ def evaluate_cabin_comfort(*, t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, 
     if pa_pa is None:
         pa_pa = psychro.vapour_pressure_pa(t_cab, np.asarray(rh_cab, dtype=float))
     pa = np.asarray(pa_pa, dtype=float)
-    air = occupant_air(t_cab_c=t_cab, t_vent_c=np.asarray(t_vent_c, dtype=float),
-                       mdot_bl_kgps=np.asarray(mdot_bl_kgps, dtype=float), params=params.air)
-    t_mr = cabin_mrt_c(t_cab_c=t_cab, t_int_c=np.asarray(t_int_c, dtype=float),
-                       t_shell_c=np.asarray(t_shell_c, dtype=float), t_glass_c=np.asarray(t_glass_c, dtype=float),
-                       params=params)
+    air = occupant_air(
+        t_cab_c=t_cab,
+        t_vent_c=np.asarray(t_vent_c, dtype=float),
+        mdot_bl_kgps=np.asarray(mdot_bl_kgps, dtype=float),
+        params=params.air,
+    )
+    t_mr = cabin_mrt_c(
+        t_cab_c=t_cab,
+        t_int_c=np.asarray(t_int_c, dtype=float),
+        t_shell_c=np.asarray(t_shell_c, dtype=float),
+        t_glass_c=np.asarray(t_glass_c, dtype=float),
+        params=params,
+    )
     w_rad = cabin_w_rad_wm2(np.asarray(solar_wm2, dtype=float), params)
-    y = pmv(ta_c=air.ta_occ_c, tr_c=t_mr, vel_mps=air.vel_occ_mps, pa_pa=pa, met=params.met, clo=params.clo,
-            w_rad_wm2=w_rad, smoothing=params.smoothing)
+    y = pmv(
+        ta_c=air.ta_occ_c,
+        tr_c=t_mr,
+        vel_mps=air.vel_occ_mps,
+        pa_pa=pa,
+        met=params.met,
+        clo=params.clo,
+        w_rad_wm2=w_rad,
+        smoothing=params.smoothing,
+    )
     t_dew = psychro.dew_point_c(pa)
     valid = iso7730_validity(air.ta_occ_c, t_mr, air.vel_occ_mps, pa, params.met, params.clo, y).all
     dr = draught_rating(air.ta_dr_c, air.vel_dr_mps, params.air.tu_pct, smoothing=DR_EXACT)
-    return OccupantComfort(pmv=y, ppd=ppd(y), pa_pa=pa, t_dew_c=t_dew,
-                           fog_margin_k=np.asarray(t_glass_c, dtype=float) - t_dew, dr_pct=dr,
-                           ta_occ_c=air.ta_occ_c, vel_occ_mps=air.vel_occ_mps, t_mr_c=t_mr, w_rad_wm2=w_rad,
-                           iso7730_valid=valid, ta_jet_c=air.ta_jet_c, vel_jet_mps=air.vel_jet_mps)
+    return OccupantComfort(
+        pmv=y,
+        ppd=ppd(y),
+        pa_pa=pa,
+        t_dew_c=t_dew,
+        fog_margin_k=np.asarray(t_glass_c, dtype=float) - t_dew,
+        dr_pct=dr,
+        ta_occ_c=air.ta_occ_c,
+        vel_occ_mps=air.vel_occ_mps,
+        t_mr_c=t_mr,
+        w_rad_wm2=w_rad,
+        iso7730_valid=valid,
+        ta_jet_c=air.ta_jet_c,
+        vel_jet_mps=air.vel_jet_mps,
+    )

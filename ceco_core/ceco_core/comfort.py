@@ -106,9 +106,7 @@ class PmvSmoothing:
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"PmvSmoothing.{name} must be a finite number > 0, got {value!r}")
         if not (isinstance(self.newton_steps, int) and 1 <= self.newton_steps <= 50):
-            raise ValueError(
-                f"PmvSmoothing.newton_steps must be an int in [1, 50], got {self.newton_steps!r}"
-            )
+            raise ValueError(f"PmvSmoothing.newton_steps must be an int in [1, 50], got {self.newton_steps!r}")
         return self
 
 
@@ -186,8 +184,7 @@ def _forced_hc(ops, vel_mps, sm):
     """Forced convection 12.1 sqrt(v) [W/(m2.K)], v kept away from 0 smoothly."""
     if sm.exact:
         return 12.1 * ops.sqrt(vel_mps)
-    return 12.1 * ops.sqrt(mathops.smooth_max(vel_mps, sm.vel_floor_mps + 0.0 * vel_mps,
-                                              sm.k_vel_spm))
+    return 12.1 * ops.sqrt(mathops.smooth_max(vel_mps, sm.vel_floor_mps + 0.0 * vel_mps, sm.k_vel_spm))
 
 
 def _hc_and_slope(ops, tcl_c, ta_c, hc_forced, sm):
@@ -224,15 +221,31 @@ def _pmv_from_tcl(ops, *, tcl_c, ta_c, tr_c, hc, fcl, pa_pa, m_wm2, w_rad_wm2, s
     sweat = _sweat_loss(ops, m_wm2, sm)
     resp_latent = 1.7e-5 * m_wm2 * (5867.0 - pa_pa)
     resp_dry = 0.0014 * m_wm2 * (34.0 - ta_c)
-    radiation = _SIGMA_FCL * fcl * (
-        ops.power(tcl_c + _ISO_KELVIN_OFFSET, 4) - ops.power(tr_c + _ISO_KELVIN_OFFSET, 4)
-    )
+    radiation = _SIGMA_FCL * fcl * (ops.power(tcl_c + _ISO_KELVIN_OFFSET, 4) - ops.power(tr_c + _ISO_KELVIN_OFFSET, 4))
     convection = fcl * hc * (tcl_c - ta_c)
     sensitivity = 0.303 * ops.exp(-0.036 * m_wm2) + 0.028
-    load = (m_wm2 + w_rad_wm2) - (
-        diffusion + sweat + resp_latent + resp_dry + radiation + convection
-    )
+    load = (m_wm2 + w_rad_wm2) - (diffusion + sweat + resp_latent + resp_dry + radiation + convection)
     return sensitivity * load
+
+
+def _pmv_at_tcl(ops, a, *, tcl, fcl, m_wm2, hc_forced, sm):
+    """PMV (ISO 7730 eq. (1)) at the clothing temperature ``tcl`` [degC]: h_c there, then the heat balance.
+
+    ``a`` holds the prepared inputs (``ta_c``, ``tr_c``, ``pa_pa``, ``w_rad_wm2``) of :func:`pmv`.
+    """
+    hc, _ = _hc_and_slope(ops, tcl, a["ta_c"], hc_forced, sm)
+    return _pmv_from_tcl(
+        ops,
+        tcl_c=tcl,
+        ta_c=a["ta_c"],
+        tr_c=a["tr_c"],
+        hc=hc,
+        fcl=fcl,
+        pa_pa=a["pa_pa"],
+        m_wm2=m_wm2,
+        w_rad_wm2=a["w_rad_wm2"],
+        sm=sm,
+    )
 
 
 def _solve_tcl(ops, *, ta_c, tr_c, hc_forced, icl, fcl, m_wm2, w_rad_wm2, sm):
@@ -257,9 +270,7 @@ def _solve_tcl(ops, *, ta_c, tr_c, hc_forced, icl, fcl, m_wm2, w_rad_wm2, sm):
     for _ in range(sm.newton_steps):
         tk = tcl + _ISO_KELVIN_OFFSET
         hc, dhc = _hc_and_slope(ops, tcl, ta_c, hc_forced, sm)
-        g = tcl - tsk_c + icl * (
-            _SIGMA_FCL * fcl * (tk * tk * tk * tk - tr_k4) + fcl * hc * (tcl - ta_c) - w_rad_wm2
-        )
+        g = tcl - tsk_c + icl * (_SIGMA_FCL * fcl * (tk * tk * tk * tk - tr_k4) + fcl * hc * (tcl - ta_c) - w_rad_wm2)
         dg = 1.0 + a * (4.0 * _SIGMA_FCL * tk * tk * tk + hc + dhc * (tcl - ta_c))
         tcl = tcl - g / dg
     return tcl
@@ -269,8 +280,7 @@ def _solve_tcl(ops, *, ta_c, tr_c, hc_forced, icl, fcl, m_wm2, w_rad_wm2, sm):
 # public functions
 
 
-def clothing_temperature_c(*, ta_c, tr_c, vel_mps, met, clo, w_rad_wm2=0.0,
-                           smoothing=DEFAULT_SMOOTHING):
+def clothing_temperature_c(*, ta_c, tr_c, vel_mps, met, clo, w_rad_wm2=0.0, smoothing=DEFAULT_SMOOTHING):
     """Clothing surface temperature T_cl [degC] (ISO 7730:2005 eq. (2) + W_rad).
 
     Same inputs as :func:`pmv` (``pa_pa`` does not enter T_cl in ISO 7730).
@@ -283,8 +293,17 @@ def clothing_temperature_c(*, ta_c, tr_c, vel_mps, met, clo, w_rad_wm2=0.0,
     fcl = _clothing_area_factor(ops, icl)
     m = MET_TO_WM2 * a["met"]
     hf = _forced_hc(ops, a["vel_mps"], smoothing)
-    return _solve_tcl(ops, ta_c=a["ta_c"], tr_c=a["tr_c"], hc_forced=hf, icl=icl, fcl=fcl,
-                      m_wm2=m, w_rad_wm2=a["w_rad_wm2"], sm=smoothing)
+    return _solve_tcl(
+        ops,
+        ta_c=a["ta_c"],
+        tr_c=a["tr_c"],
+        hc_forced=hf,
+        icl=icl,
+        fcl=fcl,
+        m_wm2=m,
+        w_rad_wm2=a["w_rad_wm2"],
+        sm=smoothing,
+    )
 
 
 def pmv(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0, smoothing=DEFAULT_SMOOTHING):
@@ -317,22 +336,28 @@ def pmv(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0, smoothing=DEFAUL
             broadcast, vel/pa/clo < 0, met <= 0.
     """
     ops, a = _prepare(
-        dict(ta_c=ta_c, tr_c=tr_c, vel_mps=vel_mps, pa_pa=pa_pa, met=met, clo=clo,
-             w_rad_wm2=w_rad_wm2),
+        dict(ta_c=ta_c, tr_c=tr_c, vel_mps=vel_mps, pa_pa=pa_pa, met=met, clo=clo, w_rad_wm2=w_rad_wm2),
         _PMV_BOUNDS,
     )
     icl = CLO_TO_M2KPW * a["clo"]
     fcl = _clothing_area_factor(ops, icl)
     m = MET_TO_WM2 * a["met"]
     hf = _forced_hc(ops, a["vel_mps"], smoothing)
-    tcl = _solve_tcl(ops, ta_c=a["ta_c"], tr_c=a["tr_c"], hc_forced=hf, icl=icl, fcl=fcl,
-                     m_wm2=m, w_rad_wm2=a["w_rad_wm2"], sm=smoothing)
-    hc, _ = _hc_and_slope(ops, tcl, a["ta_c"], hf, smoothing)
-    return _pmv_from_tcl(ops, tcl_c=tcl, ta_c=a["ta_c"], tr_c=a["tr_c"], hc=hc, fcl=fcl,
-                         pa_pa=a["pa_pa"], m_wm2=m, w_rad_wm2=a["w_rad_wm2"], sm=smoothing)
+    tcl = _solve_tcl(
+        ops,
+        ta_c=a["ta_c"],
+        tr_c=a["tr_c"],
+        hc_forced=hf,
+        icl=icl,
+        fcl=fcl,
+        m_wm2=m,
+        w_rad_wm2=a["w_rad_wm2"],
+        sm=smoothing,
+    )
+    return _pmv_at_tcl(ops, a, tcl=tcl, fcl=fcl, m_wm2=m, hc_forced=hf, sm=smoothing)
 
 
-def ppd(pmv):  # noqa: D417 - the argument shadows the function on purpose
+def ppd(pmv):  # the argument shadows the function on purpose
     """Predicted percentage dissatisfied [%], ISO 7730:2005 Clause 5, eq. (5).
 
     ``PPD = 100 - 95 exp(-0.03353 PMV^4 - 0.2179 PMV^2)``; minimum 5 % at PMV = 0.
@@ -364,8 +389,7 @@ def _explicit_tcl_c(m_wm2, icl, ta_c, pa_in_tcl, skin_slope=0.0275, resp_latent_
     return 35.7 - skin_slope * m_wm2 - icl * brace
 
 
-def pmv_explicit_paper(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0,
-                       smoothing=DEFAULT_SMOOTHING):
+def pmv_explicit_paper(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0, smoothing=DEFAULT_SMOOTHING):
     """PMV with the paper's explicit clothing temperature (eqs. (5)-(13)): NOT ISO 7730.
 
     For reproducing the method paper only. T_cl is Fanger's explicit
@@ -379,8 +403,7 @@ def pmv_explicit_paper(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0,
     Arguments and units as :func:`pmv`.
     """
     ops, a = _prepare(
-        dict(ta_c=ta_c, tr_c=tr_c, vel_mps=vel_mps, pa_pa=pa_pa, met=met, clo=clo,
-             w_rad_wm2=w_rad_wm2),
+        dict(ta_c=ta_c, tr_c=tr_c, vel_mps=vel_mps, pa_pa=pa_pa, met=met, clo=clo, w_rad_wm2=w_rad_wm2),
         _PMV_BOUNDS,
     )
     icl = CLO_TO_M2KPW * a["clo"]
@@ -388,9 +411,7 @@ def pmv_explicit_paper(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0,
     m = MET_TO_WM2 * a["met"]
     hf = _forced_hc(ops, a["vel_mps"], smoothing)
     tcl = _explicit_tcl_c(m, icl, a["ta_c"], units.pa_to_kpa(a["pa_pa"]))
-    hc, _ = _hc_and_slope(ops, tcl, a["ta_c"], hf, smoothing)
-    return _pmv_from_tcl(ops, tcl_c=tcl, ta_c=a["ta_c"], tr_c=a["tr_c"], hc=hc, fcl=fcl,
-                         pa_pa=a["pa_pa"], m_wm2=m, w_rad_wm2=a["w_rad_wm2"], sm=smoothing)
+    return _pmv_at_tcl(ops, a, tcl=tcl, fcl=fcl, m_wm2=m, hc_forced=hf, sm=smoothing)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -415,8 +436,9 @@ class Iso7730Validity:
     @property
     def all(self):
         """True where every input and the PMV are inside the ISO ranges."""
-        out = np.ones(np.broadcast_shapes(*(np.shape(getattr(self, f.name))
-                                            for f in dataclasses.fields(self))), dtype=bool)
+        out = np.ones(
+            np.broadcast_shapes(*(np.shape(getattr(self, f.name)) for f in dataclasses.fields(self))), dtype=bool
+        )
         for f in dataclasses.fields(self):
             out = out & getattr(self, f.name)
         return out
@@ -445,8 +467,12 @@ def _benchmark(n=10_000, repeats=20, seed=0):
     """Print the numpy cost per point and the CasADi Function evaluation time."""
     rng = np.random.default_rng(seed)
     args = dict(
-        ta_c=rng.uniform(18, 45, n), tr_c=rng.uniform(18, 60, n), vel_mps=rng.uniform(0.05, 1.5, n),
-        pa_pa=rng.uniform(500, 2500, n), met=rng.uniform(1.0, 1.4, n), clo=rng.uniform(0.3, 1.0, n),
+        ta_c=rng.uniform(18, 45, n),
+        tr_c=rng.uniform(18, 60, n),
+        vel_mps=rng.uniform(0.05, 1.5, n),
+        pa_pa=rng.uniform(500, 2500, n),
+        met=rng.uniform(1.0, 1.4, n),
+        clo=rng.uniform(0.3, 1.0, n),
         w_rad_wm2=rng.uniform(0, 40, n),
     )
     pmv(**args)
@@ -464,8 +490,10 @@ def _benchmark(n=10_000, repeats=20, seed=0):
     t0 = time.perf_counter()
     for _ in range(reps):
         f(*x)
-    print(f"casadi SX Function call (scalar, incl. Python overhead): "
-          f"{(time.perf_counter() - t0) / reps * 1e6:.1f} us; {f.n_instructions()} instructions")
+    print(
+        f"casadi SX Function call (scalar, incl. Python overhead): "
+        f"{(time.perf_counter() - t0) / reps * 1e6:.1f} us; {f.n_instructions()} instructions"
+    )
     fm = f.map(n)
     cols = [np.asarray(v).reshape(1, -1) for v in args.values()]
     fm(*cols)

@@ -19,15 +19,33 @@ from __future__ import annotations
 
 import dataclasses
 import math
-
 from typing import Any
 
 import numpy as np
 
-__all__ = ["MDOT_BL_MIN_KGPS", "MDOT_BL_MAX_KGPS", "T_EVAP_SP_MIN_C", "T_EVAP_SP_MAX_C", "AcInput",
-           "ActuatorLimits", "ACTUATOR_LIMITS", "MEASUREMENTS", "PREVIEW_QUANTITIES", "Previews",
-           "Observation", "Diagnostics", "DIAGNOSTICS_CONTRACT_COLUMNS", "DIAGNOSTICS_COLUMNS", "STRATEGIES", "CECO_STRATEGIES",
-           "BASELINE_STRATEGY", "EXTERNAL_STRATEGY", "WIRE_STRATEGIES", "check_finite"]
+__all__ = [
+    "MDOT_BL_MIN_KGPS",
+    "MDOT_BL_MAX_KGPS",
+    "T_EVAP_SP_MIN_C",
+    "T_EVAP_SP_MAX_C",
+    "AcInput",
+    "ActuatorLimits",
+    "ACTUATOR_LIMITS",
+    "MEASUREMENTS",
+    "PREVIEW_QUANTITIES",
+    "Previews",
+    "Observation",
+    "Diagnostics",
+    "DIAGNOSTICS_CONTRACT_COLUMNS",
+    "DIAGNOSTICS_COLUMNS",
+    "STRATEGIES",
+    "CECO_STRATEGIES",
+    "BASELINE_STRATEGY",
+    "MEASUREMENT_MODES",
+    "EXTERNAL_STRATEGY",
+    "WIRE_STRATEGIES",
+    "check_finite",
+]
 
 MDOT_BL_MIN_KGPS = 0.05
 """Lower actuator bound of the blower air flow [kg/s] (method paper, eq. 13)."""
@@ -57,6 +75,10 @@ WIRE_STRATEGIES = STRATEGIES + (EXTERNAL_STRATEGY,)
 MEASUREMENTS = ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c", "t_vent_c", "rh_cab")
 """Keys of the measurement mapping [degC, rh_cab in 0..1] that the plant hands to a controller
 (``ScenarioPlant.meas``; the fields of ceco_msgs/CabinState)."""
+
+MEASUREMENT_MODES = ("full", "vehicle")
+"""What a controller reads: ``full``, every plant state it models (the default); ``vehicle``, only the
+sensors a production car has, the rest estimated (``ceco_controller.estimator``)."""
 
 PREVIEW_QUANTITIES = ("t_amb_c", "solar_wm2", "speed_mps", "rh")
 """The previewed quantities (arrays of :class:`Previews`)."""
@@ -94,7 +116,6 @@ class AcInput:
         if not T_EVAP_SP_MIN_C <= t <= T_EVAP_SP_MAX_C:
             raise ValueError(f"t_evap_sp_c: must be in [{T_EVAP_SP_MIN_C}, {T_EVAP_SP_MAX_C}] degC, got {t}")
         return self
-
 
 
 @dataclasses.dataclass(frozen=True)
@@ -178,10 +199,11 @@ class Previews:
         bad = np.flatnonzero(~self.valid)
         return int(bad[0]) if bad.size else self.n
 
-    def hold_filled(self) -> "Previews":
-        """A copy in which invalid samples after the trusted part repeat the
-        last valid sample (``valid`` is unchanged, so the caller still knows).
-        If no sample is valid the arrays stay NaN."""
+    def hold_filled(self) -> Previews:
+        """A copy in which invalid samples after the trusted part repeat the last valid sample.
+
+        ``valid`` is unchanged, so the caller still knows. If no sample is valid the arrays stay NaN.
+        """
         k = self.trusted_steps
         if k == 0 or k == self.n:
             return self
@@ -260,9 +282,7 @@ class Observation:
         n = np.asarray(self.pmv_lb).size
         for name in ("preview_t_amb_c", "preview_solar_wm2", "preview_speed_mps", "pmv_lb", "pmv_ub"):
             object.__setattr__(self, name, _as_array(getattr(self, name), name, n))
-        object.__setattr__(
-            self, "preview_valid", np.asarray(self.preview_valid, dtype=bool).reshape(-1)
-        )
+        object.__setattr__(self, "preview_valid", np.asarray(self.preview_valid, dtype=bool).reshape(-1))
         if self.preview_valid.size != n:
             raise ValueError(f"Observation.preview_valid must have {n} values, got {self.preview_valid.size}")
 
@@ -273,21 +293,44 @@ class Observation:
 
     def measurements_finite(self) -> bool:
         """True if every scalar measurement the NMPC needs is finite."""
-        vals = (self.t_cab_c, self.t_int_c, self.t_shell_c, self.t_evap_c, self.t_vent_c,
-                self.t_amb_c, self.solar_wm2, self.speed_mps)
+        vals = (
+            self.t_cab_c,
+            self.t_int_c,
+            self.t_shell_c,
+            self.t_evap_c,
+            self.t_vent_c,
+            self.t_amb_c,
+            self.solar_wm2,
+            self.speed_mps,
+        )
         return all(math.isfinite(float(v)) for v in vals)
 
 
 DIAGNOSTICS_CONTRACT_COLUMNS = (
-    "k", "t_s", "status", "success", "iterations", "solve_time_ms",
-    "cost_energy", "cost_comfort", "cost_ioch", "eps_mean", "fallback",
+    "k",
+    "t_s",
+    "status",
+    "success",
+    "iterations",
+    "solve_time_ms",
+    "cost_energy",
+    "cost_comfort",
+    "cost_ioch",
+    "eps_mean",
+    "fallback",
 )
 """The contract's columns of ``diagnostics.csv`` (docs/architecture.md); every writer puts them first."""
 
 DIAGNOSTICS_COLUMNS = DIAGNOSTICS_CONTRACT_COLUMNS + (
     # extra columns (allowed after the contract's columns)
-    "cost_slack", "cost_total", "trusted_horizon", "pmv_pred_1", "t_cab_pred_1_c",
-    "mdot_bl_kgps", "t_evap_sp_c", "message",
+    "cost_slack",
+    "cost_total",
+    "trusted_horizon",
+    "pmv_pred_1",
+    "t_cab_pred_1_c",
+    "mdot_bl_kgps",
+    "t_evap_sp_c",
+    "message",
 )
 """Columns of ``diagnostics.csv``: the architecture contract's first, then extras."""
 
@@ -350,21 +393,31 @@ class Diagnostics:
 
     def to_row(self) -> dict:
         """One ``diagnostics.csv`` row (columns :data:`DIAGNOSTICS_COLUMNS`)."""
+
         def first(a):
             if a is None or np.size(a) < 2:
                 return None
             return float(np.asarray(a)[1])
 
         row = {
-            "k": self.k, "t_s": self.t_s, "status": self.status,
+            "k": self.k,
+            "t_s": self.t_s,
+            "status": self.status,
             "success": "" if self.success is None else int(bool(self.success)),
-            "iterations": self.iterations, "solve_time_ms": self.solve_time_ms,
-            "cost_energy": self.cost_energy, "cost_comfort": self.cost_comfort,
-            "cost_ioch": self.cost_ioch, "eps_mean": self.eps_mean,
-            "fallback": self.fallback, "cost_slack": self.cost_slack,
-            "cost_total": self.cost_total, "trusted_horizon": self.trusted_horizon,
-            "pmv_pred_1": first(self.pred_pmv), "t_cab_pred_1_c": first(self.pred_t_cab_c),
-            "mdot_bl_kgps": self.mdot_bl_kgps, "t_evap_sp_c": self.t_evap_sp_c,
+            "iterations": self.iterations,
+            "solve_time_ms": self.solve_time_ms,
+            "cost_energy": self.cost_energy,
+            "cost_comfort": self.cost_comfort,
+            "cost_ioch": self.cost_ioch,
+            "eps_mean": self.eps_mean,
+            "fallback": self.fallback,
+            "cost_slack": self.cost_slack,
+            "cost_total": self.cost_total,
+            "trusted_horizon": self.trusted_horizon,
+            "pmv_pred_1": first(self.pred_pmv),
+            "t_cab_pred_1_c": first(self.pred_t_cab_c),
+            "mdot_bl_kgps": self.mdot_bl_kgps,
+            "t_evap_sp_c": self.t_evap_sp_c,
             "message": self.message,
         }
         return {c: ("" if row[c] is None else row[c]) for c in DIAGNOSTICS_COLUMNS}

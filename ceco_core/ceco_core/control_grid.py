@@ -1,8 +1,10 @@
-"""The control-step grid t_k = k * Ts shared by every node of the lockstep
-stack: preview_node publishes the previews of step k and mpc_node solves step k
+"""The control-step grid t_k = k * Ts shared by every node of the lockstep stack.
+
+preview_node publishes the previews of step k and mpc_node solves step k
 on the same states, so both must agree on which scenario times are control
 steps. Pure logic: no rclpy, no message types.
 """
+
 from __future__ import annotations
 
 __all__ = ["control_step_index", "TIMING_MODES"]

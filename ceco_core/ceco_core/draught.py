@@ -68,8 +68,7 @@ class DraughtSmoothing:
         """Raise ValueError naming the first invalid field; return self."""
         for name in ("k_vel_spm", "k_cap_per_pct"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)
-                                               and value > 0):
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"DraughtSmoothing.{name} must be a finite number > 0, got {value!r}")
         if not isinstance(self.exact, bool):
             raise ValueError(f"DraughtSmoothing.exact must be a bool, got {self.exact!r}")
@@ -96,8 +95,9 @@ def _prepare(ta_c, vel_mps, tu_pct):
     try:
         np.broadcast_shapes(*(a.shape for a in out))
     except ValueError as exc:
-        raise ValueError("input shapes do not broadcast: "
-                         f"ta_c{out[0].shape}, vel_mps{out[1].shape}, tu_pct{out[2].shape}") from exc
+        raise ValueError(
+            f"input shapes do not broadcast: ta_c{out[0].shape}, vel_mps{out[1].shape}, tu_pct{out[2].shape}"
+        ) from exc
     if np.any(out[1] < 0.0):
         raise ValueError(f"vel_mps must be >= 0, got min {out[1].min()!r}")
     if np.any((out[2] < 0.0) | (out[2] > 100.0)):

@@ -104,8 +104,9 @@ def smooth_max(a, b, k):
     """Smooth maximum by log-sum-exp: ``log(exp(k a) + exp(k b)) / k``.
 
     Args:
-        a, b: operands (floats, numpy arrays broadcasting, or CasADi symbols),
-            in the same unit.
+        a: first operand (float, numpy array broadcasting with ``b``, or CasADi symbol),
+            in the same unit as ``b``.
+        b: second operand (float, numpy array broadcasting with ``a``, or CasADi symbol).
         k: sharpness [1/unit of a], ``k > 0``. Larger is closer to max.
 
     Returns:

@@ -26,7 +26,7 @@ Pure numpy; no ROS import.
 from __future__ import annotations
 
 import math
-from typing import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -61,9 +61,22 @@ COMFORT_HOLD_S = 60.0
 """Default time PMV must stay in the comfort zone for comfort to count as reached [s]."""
 
 METRIC_KEYS = (
-    "E_tot_J", "E_tot_kWh", "E_comp_J", "E_blower_J", "E_aux_J", "P_mean_w", "I_pmv",
-    "otc_violation_pct", "otc_violation_s", "otc_above_ub_s", "otc_below_lb_s",
-    "time_to_comfort_s", "pmv_mean", "pmv_max", "pmv_min", "duration_s",
+    "E_tot_J",
+    "E_tot_kWh",
+    "E_comp_J",
+    "E_blower_J",
+    "E_aux_J",
+    "P_mean_w",
+    "I_pmv",
+    "otc_violation_pct",
+    "otc_violation_s",
+    "otc_above_ub_s",
+    "otc_below_lb_s",
+    "time_to_comfort_s",
+    "pmv_mean",
+    "pmv_max",
+    "pmv_min",
+    "duration_s",
 )
 """Keys of the dict returned by :func:`compute_metrics`, in order."""
 
@@ -85,9 +98,19 @@ def _array(name: str, x, n: int | None) -> np.ndarray:
     return a
 
 
-def compute_metrics(t_s, p_comp_w, p_blower_w, pmv, pmv_lb, pmv_ub, *,
-                    comfort_ub: float = 0.5, comfort_lb: float = -0.5,
-                    comfort_hold_s: float = COMFORT_HOLD_S, p_aux_w=None) -> dict:
+def compute_metrics(
+    t_s,
+    p_comp_w,
+    p_blower_w,
+    pmv,
+    pmv_lb,
+    pmv_ub,
+    *,
+    comfort_ub: float = 0.5,
+    comfort_lb: float = -0.5,
+    comfort_hold_s: float = COMFORT_HOLD_S,
+    p_aux_w=None,
+) -> dict:
     """Energy and comfort metrics of one run (see module docstring).
 
     Args:
@@ -95,10 +118,13 @@ def compute_metrics(t_s, p_comp_w, p_blower_w, pmv, pmv_lb, pmv_ub, *,
         p_comp_w: compressor electrical power, mean over each interval [W].
         p_blower_w: blower electrical power, mean over each interval [W].
         pmv: PMV at each sample [-].
-        pmv_lb, pmv_ub: the scenario's PMV bounds at each sample (arrays or
-            scalars) [-]; used for the OTC violation.
-        comfort_lb, comfort_ub: the comfort zone used for time to comfort
-            (ISO 7730 category B: -0.5..+0.5) [-].
+        pmv_lb: the scenario's lower PMV bound at each sample (array or
+            scalar) [-]; used for the OTC violation.
+        pmv_ub: the scenario's upper PMV bound at each sample (array or
+            scalar) [-]; used for the OTC violation.
+        comfort_ub: upper edge of the comfort zone used for time to comfort
+            (ISO 7730 category B: +0.5) [-].
+        comfort_lb: lower edge of that comfort zone (category B: -0.5) [-].
         comfort_hold_s: time PMV must stay in the zone to count [s].
         p_aux_w: other A/C auxiliaries, e.g. the condenser fan, mean over
             each interval [W]; optional (0 if None). The paper's P_aux is
@@ -199,16 +225,31 @@ def relative_change_pct(value: float, baseline: float) -> float:
     return 100.0 * (value - baseline) / abs(baseline)
 
 
-_DEFAULT_COLUMNS = ("E_tot_kWh", "E_comp_J", "E_blower_J", "I_pmv", "otc_violation_pct",
-                    "time_to_comfort_s", "pmv_mean", "pmv_max")
+_DEFAULT_COLUMNS = (
+    "E_tot_kWh",
+    "E_comp_J",
+    "E_blower_J",
+    "I_pmv",
+    "otc_violation_pct",
+    "time_to_comfort_s",
+    "pmv_mean",
+    "pmv_max",
+)
 _CHANGE_COLUMNS = ("E_tot_kWh", "I_pmv", "otc_violation_pct")
 
 
-def comparison_rows(rows: Sequence[Mapping], baseline: str = "baseline", *, name_key: str = "strategy",
-                    change_keys: Iterable[str] = _CHANGE_COLUMNS) -> list[dict]:
-    """Copies of ``rows`` with ``<key>_change_pct`` added for every key in
-    ``change_keys``: the relative change against the row whose ``name_key``
-    equals ``baseline`` (NaN for every row if there is no baseline row)."""
+def comparison_rows(
+    rows: Sequence[Mapping],
+    baseline: str = "baseline",
+    *,
+    name_key: str = "strategy",
+    change_keys: Iterable[str] = _CHANGE_COLUMNS,
+) -> list[dict]:
+    """Copies of ``rows`` with ``<key>_change_pct`` added for every key in ``change_keys``.
+
+    The added value is the relative change against the row whose ``name_key``
+    equals ``baseline`` (NaN for every row if there is no baseline row).
+    """
     change_keys = tuple(change_keys)
     base = next((r for r in rows if r.get(name_key) == baseline), None)
     out = []
@@ -229,13 +270,20 @@ def _cell(x) -> str:
     return f"{x:.0f}" if abs(x) >= 100.0 else f"{x:.3f}"
 
 
-def comparison_table(rows: Sequence[Mapping], baseline: str = "baseline", *, name_key: str = "strategy",
-                     columns: Sequence[str] = _DEFAULT_COLUMNS,
-                     change_keys: Iterable[str] = _CHANGE_COLUMNS) -> str:
-    """An aligned text table of ``rows`` (one dict per strategy, e.g. the
-    :func:`compute_metrics` output plus ``strategy``), with a ``d<key> %``
-    column after each key in ``change_keys``: the relative change against
-    the ``baseline`` row (:func:`relative_change_pct`)."""
+def comparison_table(
+    rows: Sequence[Mapping],
+    baseline: str = "baseline",
+    *,
+    name_key: str = "strategy",
+    columns: Sequence[str] = _DEFAULT_COLUMNS,
+    change_keys: Iterable[str] = _CHANGE_COLUMNS,
+) -> str:
+    """An aligned text table of ``rows``, with a ``d<key> %`` column after each key in ``change_keys``.
+
+    ``rows`` holds one dict per strategy, e.g. the :func:`compute_metrics` output
+    plus ``strategy``; the ``d<key> %`` column is the relative change against
+    the ``baseline`` row (:func:`relative_change_pct`).
+    """
     change_keys = tuple(k for k in change_keys if k in columns)
     full = comparison_rows(rows, baseline, name_key=name_key, change_keys=change_keys)
     header = [name_key]
@@ -253,8 +301,10 @@ def comparison_table(rows: Sequence[Mapping], baseline: str = "baseline", *, nam
                 line.append("n/a" if math.isnan(ch) else f"{ch:+.1f}")
         body.append(line)
     widths = [max(len(row[i]) for row in [header] + body) for i in range(len(header))]
-    fmt = lambda row: "  ".join(cell.ljust(w) if i == 0 else cell.rjust(w)  # noqa: E731
-                                for i, (cell, w) in enumerate(zip(row, widths)))
+
+    def fmt(row):
+        return "  ".join(cell.ljust(w) if i == 0 else cell.rjust(w) for i, (cell, w) in enumerate(zip(row, widths)))
+
     lines = [fmt(header), "  ".join("-" * w for w in widths)] + [fmt(b) for b in body]
     return "\n".join(lines)
 
@@ -295,8 +345,11 @@ def draught_stats(dr_pct, limit_pct: float = DRAUGHT_LIMIT_PCT) -> dict:
     d = _array("dr_pct", dr_pct, None)
     if not d.size:
         return {"dr_mean_pct": math.nan, "dr_max_pct": math.nan, "dr_above_pct": math.nan}
-    return {"dr_mean_pct": float(np.mean(d)), "dr_max_pct": float(np.max(d)),
-            "dr_above_pct": float(100.0 * np.count_nonzero(d > limit_pct) / d.size)}
+    return {
+        "dr_mean_pct": float(np.mean(d)),
+        "dr_max_pct": float(np.max(d)),
+        "dr_above_pct": float(100.0 * np.count_nonzero(d > limit_pct) / d.size),
+    }
 
 
 def fog_margin_stats(fog_margin_k) -> dict:
@@ -307,13 +360,24 @@ def fog_margin_stats(fog_margin_k) -> dict:
     f = _array("fog_margin_k", fog_margin_k, None)
     if not f.size:
         return {"fog_margin_min_k": math.nan, "fog_margin_mean_k": math.nan, "fog_risk_pct": math.nan}
-    return {"fog_margin_min_k": float(np.min(f)), "fog_margin_mean_k": float(np.mean(f)),
-            "fog_risk_pct": float(100.0 * np.count_nonzero(f < 0.0) / f.size)}
+    return {
+        "fog_margin_min_k": float(np.min(f)),
+        "fog_margin_mean_k": float(np.mean(f)),
+        "fog_risk_pct": float(100.0 * np.count_nonzero(f < 0.0) / f.size),
+    }
 
 
 COMFORT_SERIES_METRIC_KEYS = (
-    "I_pmv_clipped", "iso7730_invalid_pct", "dr_mean_pct", "dr_max_pct", "dr_above_pct",
-    "fog_margin_min_k", "fog_margin_mean_k", "fog_risk_pct", "rh_cab_mean", "pa_mean_pa",
+    "I_pmv_clipped",
+    "iso7730_invalid_pct",
+    "dr_mean_pct",
+    "dr_max_pct",
+    "dr_above_pct",
+    "fog_margin_min_k",
+    "fog_margin_mean_k",
+    "fog_risk_pct",
+    "rh_cab_mean",
+    "pa_mean_pa",
 )
 """Keys of :func:`comfort_series_metrics` (each also with the suffix ``_zone``)."""
 
@@ -325,19 +389,27 @@ def comfort_series_metrics(columns: Mapping, dt_s: float, zone=None) -> dict:
     returns :data:`COMFORT_SERIES_METRIC_KEYS` and the same keys suffixed ``_zone`` (NaN without a zone).
     """
     n = np.asarray(columns["pmv"]).size
-    masks = {"": np.ones(n, dtype=bool),
-             "_zone": np.zeros(n, dtype=bool) if zone is None else np.asarray(zone, dtype=bool)}
+    masks = {
+        "": np.ones(n, dtype=bool),
+        "_zone": np.zeros(n, dtype=bool) if zone is None else np.asarray(zone, dtype=bool),
+    }
     out = {}
     for suffix, m in masks.items():
         if not m.any():
             out.update({k + suffix: math.nan for k in COMFORT_SERIES_METRIC_KEYS})
             continue
-        col = {k: np.asarray(columns[k], dtype=float)[m] for k in ("pmv", "dr_pct", "fog_margin_k",
-                                                                    "iso7730_valid", "rh_cab", "pa_pa")}
-        vals = {"I_pmv_clipped": i_pmv_clipped(col["pmv"], dt_s),
-                "iso7730_invalid_pct": iso7730_invalid_pct(col["iso7730_valid"]),
-                **draught_stats(col["dr_pct"]), **fog_margin_stats(col["fog_margin_k"]),
-                "rh_cab_mean": float(np.mean(col["rh_cab"])), "pa_mean_pa": float(np.mean(col["pa_pa"]))}
+        col = {
+            k: np.asarray(columns[k], dtype=float)[m]
+            for k in ("pmv", "dr_pct", "fog_margin_k", "iso7730_valid", "rh_cab", "pa_pa")
+        }
+        vals = {
+            "I_pmv_clipped": i_pmv_clipped(col["pmv"], dt_s),
+            "iso7730_invalid_pct": iso7730_invalid_pct(col["iso7730_valid"]),
+            **draught_stats(col["dr_pct"]),
+            **fog_margin_stats(col["fog_margin_k"]),
+            "rh_cab_mean": float(np.mean(col["rh_cab"])),
+            "pa_mean_pa": float(np.mean(col["pa_pa"])),
+        }
         out.update({k + suffix: vals[k] for k in COMFORT_SERIES_METRIC_KEYS})
     return out
 
@@ -352,11 +424,32 @@ ACTUATOR_RANGES = {"mdot_bl_kgps": 0.12, "t_evap_sp_c": 7.0}
 """Full range of each A/C input (0.05-0.17 kg/s, 3-10 degC): actuator travel is counted in strokes."""
 
 KPI_KEYS = (
-    "energy_kwh", "energy_comp_kwh", "energy_blower_kwh", "energy_fan_kwh", "energy_paper_kwh",
-    "discomfort_pmvh", "discomfort_band_pmvh", "band_start_s", "i_pmv", "i_pmv_clipped", "otc_violation_pct",
-    "time_to_comfort_s", "pmv_mean_band", "draught_pct", "draught_mean_pct", "draught_max_pct",
-    "fog_margin_min_k", "fog_risk_pct", "iso7730_invalid_pct", "actuator_travel", "travel_mdot_kgps",
-    "travel_t_evap_sp_k", "peak_comp_kw", "time_ratio_mean", "time_ratio_max", "fallback_steps",
+    "energy_kwh",
+    "energy_comp_kwh",
+    "energy_blower_kwh",
+    "energy_fan_kwh",
+    "energy_paper_kwh",
+    "discomfort_pmvh",
+    "discomfort_band_pmvh",
+    "band_start_s",
+    "i_pmv",
+    "i_pmv_clipped",
+    "otc_violation_pct",
+    "time_to_comfort_s",
+    "pmv_mean_band",
+    "draught_pct",
+    "draught_mean_pct",
+    "draught_max_pct",
+    "fog_margin_min_k",
+    "fog_risk_pct",
+    "iso7730_invalid_pct",
+    "actuator_travel",
+    "travel_mdot_kgps",
+    "travel_t_evap_sp_k",
+    "peak_comp_kw",
+    "time_ratio_mean",
+    "time_ratio_max",
+    "fallback_steps",
     "duration_s",
 )
 """Keys of the ``kpis`` dict of :func:`compute_kpis`, in order."""
@@ -383,7 +476,7 @@ def band_phase(pmv_lb, pmv_ub, band=COMFORT_BAND_PMV) -> np.ndarray:
     inside = (lb >= band[0] - 1e-9) & (ub <= band[1] + 1e-9)
     mask = np.zeros(inside.shape, dtype=bool)
     if inside.any():
-        mask[int(np.argmax(inside)):] = True
+        mask[int(np.argmax(inside)) :] = True
     return mask
 
 
@@ -408,8 +501,14 @@ def _column(columns: Mapping, key: str, n: int, notes: dict, why: str):
     return _array(key, columns[key], n)
 
 
-def compute_kpis(columns: Mapping, *, step_time_s=None, control_period_s: float | None = None,
-                 fallback_steps: int | None = None, band=COMFORT_BAND_PMV) -> tuple[dict, dict]:
+def compute_kpis(
+    columns: Mapping,
+    *,
+    step_time_s=None,
+    control_period_s: float | None = None,
+    fallback_steps: int | None = None,
+    band=COMFORT_BAND_PMV,
+) -> tuple[dict, dict]:
     """The benchmark KPIs of one run (docs/metrics.md, "Benchmark KPIs").
 
     Args:
@@ -477,7 +576,10 @@ def compute_kpis(columns: Mapping, *, step_time_s=None, control_period_s: float 
     else:
         dstat = draught_stats(dr)
         k["draught_pct"], k["draught_mean_pct"], k["draught_max_pct"] = (
-            dstat["dr_above_pct"], dstat["dr_mean_pct"], dstat["dr_max_pct"])
+            dstat["dr_above_pct"],
+            dstat["dr_mean_pct"],
+            dstat["dr_max_pct"],
+        )
     fog = _column(columns, "fog_margin_k", n, notes, "fog_margin_min_k")
     if fog is None:
         notes["fog_risk_pct"] = notes["fog_margin_min_k"]

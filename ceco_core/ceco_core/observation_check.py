@@ -123,8 +123,7 @@ def check_observation(obs: Observation, limits: ObservationLimits = OBSERVATION_
     for name in ("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c"):
         if not _in(getattr(obs, name), limits.temperature_c):
             meas.append(f"{name}={getattr(obs, name)!r} outside {limits.temperature_c}")
-    for name, lim in (("t_amb_c", limits.ambient_c), ("solar_wm2", limits.solar_wm2),
-                      ("speed_mps", limits.speed_mps)):
+    for name, lim in (("t_amb_c", limits.ambient_c), ("solar_wm2", limits.solar_wm2), ("speed_mps", limits.speed_mps)):
         if not _in(getattr(obs, name), lim):
             meas.append(f"{name}={getattr(obs, name)!r} outside {lim}")
     lb_ok, ub_ok = _arr_in(obs.pmv_lb, limits.pmv), _arr_in(obs.pmv_ub, limits.pmv)
@@ -159,7 +158,11 @@ def check_observation(obs: Observation, limits: ObservationLimits = OBSERVATION_
         else:
             optional[name] = math.nan
             info.append(f"{name}={v!r} outside {lim}: treated as not measured")
-    plausible = (_arr_in(obs.preview_t_amb_c, limits.ambient_c) & _arr_in(obs.preview_solar_wm2, limits.solar_wm2)
-                 & _arr_in(obs.preview_speed_mps, limits.speed_mps))
-    return ObservationCheck(measurement_problems=meas, command_problems=cmd, info_problems=info,
-                            preview_plausible=plausible, **optional)
+    plausible = (
+        _arr_in(obs.preview_t_amb_c, limits.ambient_c)
+        & _arr_in(obs.preview_solar_wm2, limits.solar_wm2)
+        & _arr_in(obs.preview_speed_mps, limits.speed_mps)
+    )
+    return ObservationCheck(
+        measurement_problems=meas, command_problems=cmd, info_problems=info, preview_plausible=plausible, **optional
+    )

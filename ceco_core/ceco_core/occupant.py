@@ -110,11 +110,26 @@ class OccupantAirParams:
 
     def validate(self):
         """Raise ValueError naming the first invalid field; return self."""
-        _positive(self, ("a_vents_m2", "a_outlet_m2", "x_occupant_m", "k_jet", "r_jet_temperature",
-                         "v_still_mps", "p_atm_pa", "k_smooth"))
+        _positive(
+            self,
+            (
+                "a_vents_m2",
+                "a_outlet_m2",
+                "x_occupant_m",
+                "k_jet",
+                "r_jet_temperature",
+                "v_still_mps",
+                "p_atm_pa",
+                "k_smooth",
+            ),
+        )
         _fraction(self, ("jet_body_fraction",))
-        if isinstance(self.c_room, bool) or not isinstance(self.c_room, (int, float)) \
-                or not math.isfinite(self.c_room) or self.c_room < 0:
+        if (
+            isinstance(self.c_room, bool)
+            or not isinstance(self.c_room, (int, float))
+            or not math.isfinite(self.c_room)
+            or self.c_room < 0
+        ):
             raise ValueError(f"OccupantAirParams.c_room must be a finite number >= 0, got {self.c_room!r}")
         if self.a_outlet_m2 > self.a_vents_m2:
             raise ValueError("OccupantAirParams.a_outlet_m2 must not exceed a_vents_m2")
@@ -207,10 +222,16 @@ def occupant_air(*, t_cab_c, t_vent_c, mdot_bl_kgps, params):
     sj = p.jet_body_fraction * ops.sqrt(v_jet + 1e-12)
     sr = (1.0 - p.jet_body_fraction) * ops.sqrt(v_room)
     s = sj + sr
-    return OccupantAir(ta_occ_c=t_cab_c + (sj / s) * (t_jet - t_cab_c), vel_occ_mps=s * s, ta_jet_c=t_jet,
-                       vel_jet_mps=v_jet, vel_vent_mps=u0, vel_room_mps=v_room,
-                       ta_dr_c=t_jet if p.dr_in_jet else t_cab_c + 0.0 * u0,
-                       vel_dr_mps=v_jet if p.dr_in_jet else v_room)
+    return OccupantAir(
+        ta_occ_c=t_cab_c + (sj / s) * (t_jet - t_cab_c),
+        vel_occ_mps=s * s,
+        ta_jet_c=t_jet,
+        vel_jet_mps=v_jet,
+        vel_vent_mps=u0,
+        vel_room_mps=v_room,
+        ta_dr_c=t_jet if p.dr_in_jet else t_cab_c + 0.0 * u0,
+        vel_dr_mps=v_jet if p.dr_in_jet else v_room,
+    )
 
 
 def shell_inside_surface_c(t_cab_c, t_shell_c, u_shell_in_wm2k, h_film_wm2k):
@@ -229,6 +250,9 @@ def mean_radiant_temperature_c(*, t_glass_c, t_shell_in_c, t_int_c, params):
     """Mean radiant temperature [degC]: T_mr^4 = sum F_i T_i^4 over glazing, shell trim, interior (absolute T)."""
     p = params.validate()
     ops = mathops.backend(t_glass_c, t_shell_in_c, t_int_c)
-    t4 = (p.f_glass * ops.power(t_glass_c + _KELVIN, 4) + p.f_shell * ops.power(t_shell_in_c + _KELVIN, 4)
-          + p.f_interior * ops.power(t_int_c + _KELVIN, 4))
+    t4 = (
+        p.f_glass * ops.power(t_glass_c + _KELVIN, 4)
+        + p.f_shell * ops.power(t_shell_in_c + _KELVIN, 4)
+        + p.f_interior * ops.power(t_int_c + _KELVIN, 4)
+    )
     return ops.power(t4, 0.25) - _KELVIN

@@ -30,8 +30,10 @@ def _check_value(owner: str, name: str, old, value):
             raise ValueError(f"{owner}.{name} must be a finite number, got {value!r}")
         return type(old)(value) if isinstance(old, float) else value
     if dataclasses.is_dataclass(old):
-        raise ValueError(f"{owner}.{name} is a {type(old).__name__}: override its fields by dotted name "
-                         f"({name}.<field>), not the whole part")
+        raise ValueError(
+            f"{owner}.{name} is a {type(old).__name__}: override its fields by dotted name "
+            f"({name}.<field>), not the whole part"
+        )
     raise ValueError(f"{owner}.{name}: a field of type {type(old).__name__} cannot be overridden")
 
 

@@ -43,13 +43,19 @@ _T_C_K = 647.096
 """Critical temperature of water [K] (IAPWS)."""
 _P_C_PA = 22.064e6
 """Critical pressure of water [Pa] (IAPWS)."""
-_WP = ((-7.85951783, 1.0), (1.84408259, 1.5), (-11.7866497, 3.0), (22.6807411, 3.5),
-       (-15.9618719, 4.0), (1.80122502, 7.5))
+_WP = (
+    (-7.85951783, 1.0),
+    (1.84408259, 1.5),
+    (-11.7866497, 3.0),
+    (22.6807411, 3.5),
+    (-15.9618719, 4.0),
+    (1.80122502, 7.5),
+)
 """(a_i, exponent of tau) of the Wagner-Pruss saturation-pressure equation."""
 
 
 def _ln_pws(ops, t_k):
-    """ln p_s [ln Pa] at T [K] and its derivative d ln p_s / dT [1/K] (Wagner-Pruss)."""
+    """Ln p_s [ln Pa] at T [K] and its derivative d ln p_s / dT [1/K] (Wagner-Pruss)."""
     tau = 1.0 - t_k / _T_C_K
     f = 0.0
     df = 0.0

@@ -36,14 +36,38 @@ __all__ = [
 ]
 
 TIMESERIES_COLUMNS = (
-    "t_s", "t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c", "t_amb_c", "solar_wm2",
-    "speed_mps", "rh", "mdot_bl_kgps", "t_evap_sp_c", "p_comp_w", "p_blower_w", "q_evap_w",
-    "cop", "pmv", "ppd", "pmv_lb", "pmv_ub",
+    "t_s",
+    "t_cab_c",
+    "t_int_c",
+    "t_shell_c",
+    "t_evap_c",
+    "t_vent_c",
+    "t_amb_c",
+    "solar_wm2",
+    "speed_mps",
+    "rh",
+    "mdot_bl_kgps",
+    "t_evap_sp_c",
+    "p_comp_w",
+    "p_blower_w",
+    "q_evap_w",
+    "cop",
+    "pmv",
+    "ppd",
+    "pmv_lb",
+    "pmv_ub",
 )
 """The contract's columns of ``timeseries.csv``, in order (docs/architecture.md)."""
 
 COMFORT_COLUMNS = (
-    "pa_pa", "t_dew_c", "fog_margin_k", "dr_pct", "ta_occ_c", "vel_occ_mps", "t_mr_c", "w_rad_wm2",
+    "pa_pa",
+    "t_dew_c",
+    "fog_margin_k",
+    "dr_pct",
+    "ta_occ_c",
+    "vel_occ_mps",
+    "t_mr_c",
+    "w_rad_wm2",
     "iso7730_valid",
 )
 """The occupant comfort series (ceco_core.cabin_comfort.OccupantComfort, docs/comfort.md): cabin vapour
@@ -52,7 +76,12 @@ draught rating at the occupant [%], the PMV inputs at the occupant (air temperat
 [m/s], mean radiant temperature [degC], absorbed sun [W/m2]) and ISO 7730 validity (1/0)."""
 
 TIMESERIES_EXTRA = (
-    "t_glass_c", "rh_cab", "p_cond_fan_w", "q_latent_w", "comp_speed_rpm", "capacity_limited",
+    "t_glass_c",
+    "rh_cab",
+    "p_cond_fan_w",
+    "q_latent_w",
+    "comp_speed_rpm",
+    "capacity_limited",
 ) + COMFORT_COLUMNS
 """Extra columns the simulator and the stack both write after the contract's."""
 
@@ -82,9 +111,11 @@ def write_csv(path: str | Path, columns: Sequence[str], data: Mapping[str, Seque
 
 
 def read_csv_columns(path: str | Path) -> dict:
-    """A CSV file with a header row as ``{column: array}``: float arrays for
-    columns whose every non-empty cell parses as a number (empty -> NaN),
-    string arrays otherwise. ValueError on an empty file or a ragged row."""
+    """A CSV file with a header row as ``{column: array}``.
+
+    Float arrays for columns whose every non-empty cell parses as a number
+    (empty -> NaN), string arrays otherwise. ValueError on an empty file or a ragged row.
+    """
     with open(path, newline="", encoding="utf-8") as fh:
         reader = csv.reader(fh)
         try:

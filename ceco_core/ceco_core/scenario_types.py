@@ -199,12 +199,27 @@ class DriveCycle:
         """Distance driven [m], trapezoidal integral of the (linear) trace.
 
         Written out rather than ``np.trapezoid`` so it also runs on numpy 1.26
-        (the ROS apt image, docker/)."""
+        (the ROS apt image, docker/).
+        """
         v, t = self.speed_mps, self.time_s
         return float(0.5 * np.sum((v[1:] + v[:-1]) * np.diff(t)))
 
 
 def check_number(field: str, value, bounds, low_open: bool = False) -> float:
+    """A scenario number checked against its range, as a float.
+
+    Args:
+        field: the field's name, used in the error message.
+        value: the value read from the scenario (int or float; bool is refused).
+        bounds: ``(lo, hi)``, in the field's unit; ``hi`` is inclusive.
+        low_open: if True, ``lo`` itself is refused (``lo < value``), else ``lo <= value``.
+
+    Returns:
+        ``float(value)``.
+
+    Raises:
+        ScenarioError naming ``field``: not a number, not finite, or out of range.
+    """
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise ScenarioError(f"{field}: must be a number, got {value!r}")
     x = float(value)
@@ -293,15 +308,19 @@ class Scenario:
         return float(arr) if np.ndim(t_s) == 0 else arr
 
     def speed_mps(self, t_s):
-        """Vehicle speed [m/s] at ``t_s`` (scalar or array): linear
-        interpolation of the cycle, holding the last value after its end."""
+        """Vehicle speed [m/s] at ``t_s`` [s] (scalar or array).
+
+        Linear interpolation of the cycle, holding the last value after its end.
+        """
         t = self._check_t(t_s)
         v = np.interp(t, self.drive_cycle.time_s, self.drive_cycle.speed_mps)
         return self._out(t_s, v)
 
     def env_at(self, t_s) -> Environment:
-        """The true boundary conditions at ``t_s`` [s] (scalar -> floats,
-        array -> arrays of the same shape)."""
+        """The true boundary conditions at ``t_s`` [s].
+
+        A scalar ``t_s`` gives floats, an array gives arrays of the same shape.
+        """
         t = self._check_t(t_s)
         wt = self.weather_time_s
         return Environment(

@@ -12,6 +12,7 @@ control step indices [-]) and payloads they have already validated field by fiel
 * :class:`LockstepBuffer` pairs the state of control step k with the two previews issued
   for k (lockstep timing), bounded to a window of steps.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -57,8 +58,7 @@ class SequenceGate:
             adopted [s] (0: at once).
     """
 
-    def __init__(self, ahead: float, confirm: int = 3, origin: float = 0.0, tol: float = 1e-9,
-                 silence_s: float = 0.0):
+    def __init__(self, ahead: float, confirm: int = 3, origin: float = 0.0, tol: float = 1e-9, silence_s: float = 0.0):
         if not (math.isfinite(ahead) and ahead > 0):
             raise ValueError(f'ahead: must be finite and > 0, got {ahead!r}')
         if int(confirm) < 1:
@@ -101,8 +101,12 @@ class SequenceGate:
         else:
             chain[:] = [x]
         if len(chain) >= self.confirm and silent:
-            return self._take(x, now_s, True, f'new time base {_fmt(x)} (was {_fmt(last)}), confirmed by '
-                                              f'{self.confirm} consecutive messages')
+            return self._take(
+                x,
+                now_s,
+                True,
+                f'new time base {_fmt(x)} (was {_fmt(last)}), confirmed by {self.confirm} consecutive messages',
+            )
         if x < last:
             return Verdict(False, reason=f'stale: {_fmt(x)} is behind the last accepted {_fmt(last)}')
         return Verdict(False, reason=f'future: {_fmt(x)} is beyond the window {_fmt(last)} + {_fmt(self.ahead)}')

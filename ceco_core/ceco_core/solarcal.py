@@ -163,8 +163,18 @@ def _check(name, value, lo, hi):
     return arr
 
 
-def solar_gain(*, sol_altitude_deg, sharp_deg, sol_radiation_dir_wm2, sol_transmittance, f_svv, f_bes,
-               asw=0.7, floor_reflectance=0.6, posture="sitting"):
+def solar_gain(
+    *,
+    sol_altitude_deg,
+    sharp_deg,
+    sol_radiation_dir_wm2,
+    sol_transmittance,
+    f_svv,
+    f_bes,
+    asw=0.7,
+    floor_reflectance=0.6,
+    posture="sitting",
+):
     """Solar gain on an occupant, ASHRAE 55-2020 App. C (SolarCal); equations in the module docstring.
 
     Args:
@@ -189,22 +199,37 @@ def solar_gain(*, sol_altitude_deg, sharp_deg, sol_radiation_dir_wm2, sol_transm
     """
     if posture not in F_EFF:
         raise ValueError(f"posture must be one of {sorted(F_EFF)}, got {posture!r}")
-    args = dict(sol_altitude_deg=sol_altitude_deg, sharp_deg=sharp_deg,
-                sol_radiation_dir_wm2=sol_radiation_dir_wm2, sol_transmittance=sol_transmittance,
-                f_svv=f_svv, f_bes=f_bes, asw=asw, floor_reflectance=floor_reflectance)
+    args = dict(
+        sol_altitude_deg=sol_altitude_deg,
+        sharp_deg=sharp_deg,
+        sol_radiation_dir_wm2=sol_radiation_dir_wm2,
+        sol_transmittance=sol_transmittance,
+        f_svv=f_svv,
+        f_bes=f_bes,
+        asw=asw,
+        floor_reflectance=floor_reflectance,
+    )
     ops = mathops.backend(*args.values())
     if ops.is_casadi:
         args = {k: (casadi.DM(v) if isinstance(v, np.ndarray) else v) for k, v in args.items()}
     else:
-        limits = dict(sol_altitude_deg=(0.0, 90.0), sharp_deg=(0.0, 180.0),
-                      sol_radiation_dir_wm2=(0.0, np.inf), sol_transmittance=(0.0, 1.0), f_svv=(0.0, 1.0),
-                      f_bes=(0.0, 1.0), asw=(0.0, 1.0), floor_reflectance=(0.0, 1.0))
+        limits = dict(
+            sol_altitude_deg=(0.0, 90.0),
+            sharp_deg=(0.0, 180.0),
+            sol_radiation_dir_wm2=(0.0, np.inf),
+            sol_transmittance=(0.0, 1.0),
+            f_svv=(0.0, 1.0),
+            f_bes=(0.0, 1.0),
+            asw=(0.0, 1.0),
+            floor_reflectance=(0.0, 1.0),
+        )
         args = {k: _check(k, v, *limits[k]) for k, v in args.items()}
         try:
             np.broadcast_shapes(*(a.shape for a in args.values()))
         except ValueError as exc:
-            raise ValueError("input shapes do not broadcast: "
-                             + ", ".join(f"{k}{a.shape}" for k, a in args.items())) from exc
+            raise ValueError(
+                "input shapes do not broadcast: " + ", ".join(f"{k}{a.shape}" for k, a in args.items())
+            ) from exc
     a = args
     f_eff = F_EFF[posture]
     i_dir = a["sol_radiation_dir_wm2"]
@@ -217,8 +242,9 @@ def solar_gain(*, sol_altitude_deg, sharp_deg, sol_radiation_dir_wm2, sol_transm
     e_refl = f_eff * a["f_svv"] * 0.5 * tau * (i_dir * sin_beta + i_diff) * a["floor_reflectance"]
     e_solar = e_diff + e_dir + e_refl
     erf = e_solar * (a["asw"] / ALPHA_LW)
-    return SolarGain(e_solar_wm2=e_solar, erf_wm2=erf, delta_mrt_k=erf / (H_R_SOLARCAL_WM2K * f_eff),
-                     w_rad_wm2=a["asw"] * e_solar)
+    return SolarGain(
+        e_solar_wm2=e_solar, erf_wm2=erf, delta_mrt_k=erf / (H_R_SOLARCAL_WM2K * f_eff), w_rad_wm2=a["asw"] * e_solar
+    )
 
 
 def relative_azimuth_deg(sun_azimuth_deg, heading_deg):

@@ -6,13 +6,24 @@ throttled logging) and the health summary that becomes a ``diagnostic_msgs/Diagn
 Pure logic (no rclpy, no message types): times are plain floats [s] the node reads from
 its clock (a steady clock for wall-clock limits); the node logs the texts returned here.
 """
+
 from __future__ import annotations
 
 import dataclasses
 import math
 
-__all__ = ['Watchdog', 'FallbackSupervisor', 'Rejections', 'reason_kind', 'Health', 'OK', 'WARN', 'ERROR', 'STALE',
-           'LEVEL_NAMES']
+__all__ = [
+    'Watchdog',
+    'FallbackSupervisor',
+    'Rejections',
+    'reason_kind',
+    'Health',
+    'OK',
+    'WARN',
+    'ERROR',
+    'STALE',
+    'LEVEL_NAMES',
+]
 
 
 class Watchdog:
@@ -70,7 +81,7 @@ class FallbackSupervisor:
         self.in_fallback = True
         self.n_entered += 1
         self.reason = reason
-        return (f'FALLBACK at {where}: {reason}; applying the production ACC law until commands resume')
+        return f'FALLBACK at {where}: {reason}; applying the production ACC law until commands resume'
 
     def command_accepted(self, k: int, strategy: str) -> str | None:
         """A command was accepted for control step ``k``."""

@@ -1,1 +1,4 @@
-"""Cabin and A/C plant simulation (lumped thermal network, vapour-compression cycle with CoolProp) and ISO 7730 PMV comfort for ceco."""
+"""Cabin and A/C plant simulation and ISO 7730 PMV comfort for ceco.
+
+The plant is a lumped thermal network with a vapour-compression cycle (CoolProp).
+"""

@@ -32,18 +32,18 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import fields
 
 from ceco_core.contracts import AcInput
-from ceco_core.psychro import EPS_W as _EPS_W
-from ceco_core.psychro import humidity_ratio, relative_humidity, saturation_vapour_pressure_pa
 from ceco_core.contracts import check_finite as _check_finite
+from ceco_core.psychro import EPS_W as _EPS_W
+from ceco_core.psychro import relative_humidity, saturation_vapour_pressure_pa
 from ceco_plant_sim.plant_params import PlantParams
+from ceco_plant_sim.plant_state import PlantOutputs, PlantState, validate_environment
 from ceco_plant_sim.refrigerant import (
     CompressorModel,
     CycleSolution,
-    build_cycle_tables,
+    cycle_tables,
     solve_cycle,
 )
 
@@ -56,178 +56,6 @@ __all__ = [
     "steady_cycle_at_load",
 ]
 
-_ENV_RANGES = {
-    "t_amb_c": (-40.0, 60.0),
-    "solar_wm2": (0.0, 1500.0),
-    "speed_mps": (0.0, 80.0),
-    "rh": (0.0, 1.0),
-}
-
-
-def validate_environment(env) -> tuple[float, float, float, float]:
-    """Check an environment (any object with t_amb_c, solar_wm2, speed_mps, rh); return the four floats.
-
-    Raises ValueError naming ``env.<field>`` if missing, not finite or out of
-    range (t_amb_c [-40, 60] degC, solar_wm2 [0, 1500] W/m2, speed_mps
-    [0, 80] m/s, rh [0, 1]).
-    """
-    out = []
-    for name, (lo, hi) in _ENV_RANGES.items():
-        if not hasattr(env, name):
-            raise ValueError(f"env.{name}: missing")
-        v = _check_finite(f"env.{name}", getattr(env, name))
-        if not lo <= v <= hi:
-            raise ValueError(f"env.{name}: must be in [{lo}, {hi}], got {v}")
-        out.append(v)
-    return out[0], out[1], out[2], out[3]
-
-
-@dataclass(frozen=True)
-class PlantState:
-    """Complete dynamic state of the plant (see the module docstring for the meaning of each field)."""
-
-    t_cab_c: float
-    """Cabin air temperature [degC]."""
-    t_int_c: float
-    """Interior mass temperature (seats, dashboard, trim) [degC]."""
-    t_shell_c: float
-    """Shell temperature (roof, doors, pillars, floor) [degC]."""
-    t_glass_c: float
-    """Glazing temperature [degC]."""
-    t_evap_c: float
-    """Evaporator wall temperature [degC]."""
-    t_duct_c: float
-    """Wall temperature of the HVAC case, doors, ducts and outlets downstream of the evaporator [degC]."""
-    w_cab_kgkg: float
-    """Cabin humidity ratio [kg water / kg dry air]."""
-    comp_pi_integral_rpm: float = 0.0
-    """Integral part of the A/C ECU's compressor speed PI [rpm]."""
-
-    def validate(self) -> PlantState:
-        """Raise ValueError naming the field if it is not finite or physically impossible."""
-        for f in fields(self):
-            _check_finite(f.name, getattr(self, f.name))
-        for name in ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c", "t_duct_c"):
-            v = getattr(self, name)
-            if not -40.0 <= v <= 120.0:
-                raise ValueError(f"{name}: must be in [-40, 120] degC, got {v}")
-        if not 0.0 <= self.w_cab_kgkg <= 0.3:  # saturation at 70 degC is 0.28 kg/kg
-            raise ValueError(f"w_cab_kgkg: must be in [0, 0.3] kg/kg, got {self.w_cab_kgkg}")
-        return self
-
-    def as_tuple(self) -> tuple:
-        """The state in field order (the integrator's vector)."""
-        return tuple(float(getattr(self, f.name)) for f in fields(self))
-
-    @classmethod
-    def from_initial(cls, initial, params: PlantParams, env) -> PlantState:
-        """Hot-soak (or any) initial state from a scenario's ``initial`` mapping.
-
-        ``initial`` is a mapping or an object with attributes (the scenario's
-        ``InitialState``). Required: ``t_cab_c, t_int_c, t_shell_c`` [degC],
-        ``rh_cab`` [0..1]. Optional: ``t_glass_c`` (default t_shell_c: the
-        scenario's shell temperature covers the glazing too),
-        ``t_evap_c`` (default t_cab_c: the HVAC module under the dashboard
-        soaks at cabin air temperature), ``t_duct_c`` (default t_evap_c: the
-        case and ducts soak with the module). The compressor PI starts empty.
-        ``env`` is validated (its ambient is not used for the defaults).
-        """
-        validate_environment(env)
-        if not isinstance(initial, Mapping):
-            # a scenario's InitialState (or any object with the attributes)
-            initial = {k: getattr(initial, k) for k in ("t_cab_c", "t_int_c", "t_shell_c", "rh_cab",
-                                                         "t_glass_c", "t_evap_c", "t_duct_c")
-                       if hasattr(initial, k)}
-        for key in ("t_cab_c", "t_int_c", "t_shell_c", "rh_cab"):
-            if key not in initial:
-                raise ValueError(f"initial.{key}: missing")
-        t_cab = _check_finite("initial.t_cab_c", initial["t_cab_c"])
-        rh = _check_finite("initial.rh_cab", initial["rh_cab"])
-        if not 0.0 <= rh <= 1.0:
-            raise ValueError(f"initial.rh_cab: must be in [0, 1], got {rh}")
-        state = cls(
-            t_cab_c=t_cab,
-            t_int_c=_check_finite("initial.t_int_c", initial["t_int_c"]),
-            t_shell_c=_check_finite("initial.t_shell_c", initial["t_shell_c"]),
-            t_glass_c=_check_finite("initial.t_glass_c", initial.get("t_glass_c", initial["t_shell_c"])),
-            t_evap_c=_check_finite("initial.t_evap_c", initial.get("t_evap_c", t_cab)),
-            t_duct_c=_check_finite("initial.t_duct_c", initial.get("t_duct_c", initial.get("t_evap_c", t_cab))),
-            w_cab_kgkg=humidity_ratio(t_cab, rh, params.p_atm_pa),
-            comp_pi_integral_rpm=0.0,
-        )
-        return state.validate()
-
-
-@dataclass(frozen=True)
-class PlantOutputs:
-    """Physics snapshot after one plant step.
-
-    Temperatures, humidity, speeds and refrigerant states are the values at
-    the END of the step; powers are MEANS over the step (energy integrated
-    over the sub-steps / dt) and energies are the totals over the step.
-    """
-
-    t_cab_c: float
-    """Cabin air temperature [degC]."""
-    t_int_c: float
-    """Interior mass temperature [degC]."""
-    t_shell_c: float
-    """Shell temperature [degC]."""
-    t_glass_c: float
-    """Glazing temperature [degC]."""
-    t_evap_c: float
-    """Evaporator wall temperature [degC] (T_evap of the paper)."""
-    t_duct_c: float
-    """HVAC case and duct wall temperature [degC]."""
-    t_vent_c: float
-    """Air temperature at the vents [degC] (T_ain of the paper)."""
-    t_evap_out_c: float
-    """Air temperature leaving the evaporator [degC]."""
-    t_evap_sat_c: float
-    """Refrigerant evaporating temperature [degC]."""
-    t_cond_c: float
-    """Refrigerant condensing temperature [degC]."""
-    rh_cab: float
-    """Cabin relative humidity [0..1]."""
-    w_cab_kgkg: float
-    """Cabin humidity ratio [kg/kg dry air]."""
-    p_comp_w: float
-    """Compressor electrical power, step mean [W]."""
-    p_blower_w: float
-    """Blower electrical power, step mean [W]."""
-    p_cond_fan_w: float
-    """Condenser fan electrical power, step mean [W]."""
-    e_comp_j: float
-    """Compressor electrical energy over the step [J]."""
-    e_blower_j: float
-    """Blower electrical energy over the step [J]."""
-    q_evap_w: float
-    """Heat removed from the air by the evaporator (sensible + latent), step mean [W]."""
-    q_latent_w: float
-    """Latent part of q_evap_w (condensation), step mean [W]."""
-    q_evap_ref_w: float
-    """Heat absorbed by the refrigerant, step mean [W]."""
-    cop: float
-    """Step-mean refrigerant capacity / step-mean compressor electrical power [-] (0 if the compressor is off)."""
-    comp_speed_rpm: float
-    """Compressor speed at the end of the step [rpm] (min speed while duty-cycling, 0 when off)."""
-    comp_duty: float
-    """On-time fraction of the compressor at the end of the step [0..1] (< 1 only below min speed)."""
-    capacity_limited: bool
-    """True when the compressor PI demands more than the maximum speed or the inverter power limit allows (end of step)."""
-    mop_active: bool
-    """True when the expansion valve MOP caps the evaporating temperature at the end of the step."""
-    mdot_ref_kgps: float
-    """Refrigerant mass flow (duty-averaged) at the end of the step [kg/s]."""
-    cycle_iterations: int
-    """Newton iterations of the last refrigerant-loop solve [-]."""
-    m_water_in_kg: float = 0.0
-    """Water entering the cabin air over the step: fresh air, infiltration, occupants [kg]."""
-    m_water_out_kg: float = 0.0
-    """Water leaving with the exfiltrated air (the fresh share of the supply and the leakage) over the step [kg]."""
-    m_condensate_kg: float = 0.0
-    """Water condensed on the evaporator (drained) over the step [kg]."""
-
 
 def condenser_eps_c_wpk(params: PlantParams, speed_mps: float) -> float:
     """Condenser effectiveness x air heat-capacity rate [W/K] at vehicle speed ``speed_mps``.
@@ -238,7 +66,7 @@ def condenser_eps_c_wpk(params: PlantParams, speed_mps: float) -> float:
     isothermal, C_r = 0; Incropera & DeWitt, eq. 11.35a).
     """
     p = params
-    v = math.sqrt(p.v_face_fan_mps ** 2 + (p.ram_face_ratio * speed_mps) ** 2)
+    v = math.sqrt(p.v_face_fan_mps**2 + (p.ram_face_ratio * speed_mps) ** 2)
     c_air = p.rho_air_kgm3 * p.a_cond_face_m2 * v * p.cp_air_jpkgk
     ua = p.ua_cond_ref_wpk * (v / p.v_face_ref_mps) ** p.ua_cond_exp
     return c_air * (1.0 - math.exp(-ua / c_air))
@@ -257,11 +85,12 @@ def _compressor_model(p: PlantParams) -> CompressorModel:
 
 
 def _tables(p: PlantParams):
-    return build_cycle_tables(p.refrigerant, float(p.superheat_k), float(p.subcool_k))
+    return cycle_tables(p.refrigerant, float(p.superheat_k), float(p.subcool_k))
 
 
-def steady_cycle_at_load(params: PlantParams, q_evap_w: float, t_wall_c: float, t_amb_c: float,
-                         speed_mps: float) -> tuple[float, CycleSolution]:
+def steady_cycle_at_load(
+    params: PlantParams, q_evap_w: float, t_wall_c: float, t_amb_c: float, speed_mps: float
+) -> tuple[float, CycleSolution]:
     """Compressor speed and cycle state that deliver ``q_evap_w`` at a fixed evaporator wall temperature.
 
     Used for the efficiency-versus-vehicle-speed map (fixed cooling load):
@@ -275,8 +104,19 @@ def steady_cycle_at_load(params: PlantParams, q_evap_w: float, t_wall_c: float, 
     epsc = condenser_eps_c_wpk(p, speed_mps)
 
     def q_at(n):
-        s = solve_cycle(tab, comp, n, t_wall_c, p.ua_evap_ref_wpk, t_amb_c, epsc, p.te_mop_c,
-                        tol_k=p.cycle_tol_k, max_iter=p.cycle_max_iter, pr_min=p.pr_min)
+        s = solve_cycle(
+            tab,
+            comp,
+            n,
+            t_wall_c,
+            p.ua_evap_ref_wpk,
+            t_amb_c,
+            epsc,
+            p.te_mop_c,
+            tol_k=p.cycle_tol_k,
+            max_iter=p.cycle_max_iter,
+            pr_min=p.pr_min,
+        )
         return s.q_evap_ref_w, s
 
     q_max, _ = q_at(p.comp_speed_max_rpm)
@@ -296,10 +136,10 @@ def steady_cycle_at_load(params: PlantParams, q_evap_w: float, t_wall_c: float, 
 class CabinPlant:
     """The cabin + A/C plant. ``step(command, env, dt_s)`` advances time with the command held.
 
-    Parameters
-    ----------
-    params : PlantParams (validated here).
-    state : PlantState, e.g. ``PlantState.from_initial(scenario.initial, params, env)``.
+    Args:
+        params: the plant's :class:`PlantParams` (validated here).
+        state: the initial :class:`PlantState`, e.g.
+            ``PlantState.from_initial(scenario.initial, params, env)``.
     """
 
     def __init__(self, params: PlantParams, state: PlantState) -> None:
@@ -328,6 +168,11 @@ class CabinPlant:
     def t_s(self) -> float:
         """Simulated time since construction [s] (sum of dt_s)."""
         return self._t_s
+
+    @property
+    def tables_source(self) -> str:
+        """Where the refrigerant property tables come from (the shipped file or a CoolProp build)."""
+        return self._tab.source
 
     def outputs(self) -> PlantOutputs:
         """Outputs of the last step; RuntimeError before the first step."""
@@ -365,8 +210,7 @@ class CabinPlant:
             k3, a3 = self._rhs(x3, u, envt)
             x4 = tuple(xi + h * ki for xi, ki in zip(x, k3))
             k4, a4 = self._rhs(x4, u, envt)
-            x = tuple(xi + h / 6.0 * (q1 + 2.0 * q2 + 2.0 * q3 + q4)
-                      for xi, q1, q2, q3, q4 in zip(x, k1, k2, k3, k4))
+            x = tuple(xi + h / 6.0 * (q1 + 2.0 * q2 + 2.0 * q3 + q4) for xi, q1, q2, q3, q4 in zip(x, k1, k2, k3, k4))
             for j in range(8):
                 acc[j] += h / 6.0 * (a1[j] + 2.0 * a2[j] + 2.0 * a3[j] + a4[j])
         for i, v in enumerate(x):
@@ -375,8 +219,12 @@ class CabinPlant:
         self._x = x
         self._t_s += dt
         e_comp, e_fan, e_q, e_lat, e_ref = acc[:5]
-        out = dataclasses.replace(self._outputs(x, u, envt, dt, e_comp, e_fan, e_q, e_lat, e_ref),
-                                  m_water_in_kg=acc[5], m_water_out_kg=acc[6], m_condensate_kg=acc[7])
+        out = dataclasses.replace(
+            self._outputs(x, u, envt, dt, e_comp, e_fan, e_q, e_lat, e_ref),
+            m_water_in_kg=acc[5],
+            m_water_out_kg=acc[6],
+            m_condensate_kg=acc[7],
+        )
         self._last = out
         return out
 
@@ -465,7 +313,7 @@ class CabinPlant:
         c_air = mdot * cp_m
         rr = mdot / p.mdot_bl_ref_kgps
         t_in = t_mix + p_bl / c_air  # blow-through module: all blower power ends as heat in the air
-        ua_air = p.ua_evap_air_ref_wpk * rr ** p.ua_evap_air_exp
+        ua_air = p.ua_evap_air_ref_wpk * rr**p.ua_evap_air_exp
         bf = math.exp(-ua_air / c_air)  # bypass factor = 1 - effectiveness
         t_out = t_ev + bf * (t_in - t_ev)
         pws_w = wsat(t_ev)
@@ -475,7 +323,7 @@ class CabinPlant:
         q_sens = c_air * (t_in - t_out)
         q_lat = mdot * (w_mix - w_out) * p.h_fg_jpkg
         # HVAC case and ducts: the supply air exchanges with their wall, which exchanges with the panel
-        ua_da = p.ua_duct_air_ref_wpk * rr ** p.ua_evap_air_exp
+        ua_da = p.ua_duct_air_ref_wpk * rr**p.ua_evap_air_exp
         t_vent = t_out + (t_du - t_out) * (1.0 - math.exp(-ua_da / c_air))
         q_duct = c_air * (t_vent - t_out)  # duct wall -> supply air
         q_duct_int = p.ua_duct_wpk * (t_int - t_du)  # instrument panel (interior mass) -> duct wall
@@ -494,8 +342,20 @@ class CabinPlant:
         else:
             n_run, duty = 0.0, 0.0
         epsc = condenser_eps_c_wpk(p, speed)
-        sol = solve_cycle(self._tab, self._comp, n_run, t_ev, p.ua_evap_ref_wpk, t_amb, epsc, p.te_mop_c,
-                          guess=self._guess, tol_k=p.cycle_tol_k, max_iter=p.cycle_max_iter, pr_min=p.pr_min)
+        sol = solve_cycle(
+            self._tab,
+            self._comp,
+            n_run,
+            t_ev,
+            p.ua_evap_ref_wpk,
+            t_amb,
+            epsc,
+            p.te_mop_c,
+            guess=self._guess,
+            tol_k=p.cycle_tol_k,
+            max_iter=p.cycle_max_iter,
+            pr_min=p.pr_min,
+        )
         power_limited = False
         if duty == 1.0 and sol.p_comp_w > p.p_comp_max_w:
             # inverter power limit: the ECU lowers the speed until P_el = P_max. Secant iteration on
@@ -504,9 +364,20 @@ class CabinPlant:
             n0, f0 = n_run, sol.p_comp_w - p.p_comp_max_w
             n_run = n_run * p.p_comp_max_w / sol.p_comp_w
             for _ in range(6):
-                sol = solve_cycle(self._tab, self._comp, n_run, t_ev, p.ua_evap_ref_wpk, t_amb, epsc,
-                                  p.te_mop_c, guess=(sol.t_evap_sat_c, sol.t_cond_c), tol_k=p.cycle_tol_k,
-                                  max_iter=p.cycle_max_iter, pr_min=p.pr_min)
+                sol = solve_cycle(
+                    self._tab,
+                    self._comp,
+                    n_run,
+                    t_ev,
+                    p.ua_evap_ref_wpk,
+                    t_amb,
+                    epsc,
+                    p.te_mop_c,
+                    guess=(sol.t_evap_sat_c, sol.t_cond_c),
+                    tol_k=p.cycle_tol_k,
+                    max_iter=p.cycle_max_iter,
+                    pr_min=p.pr_min,
+                )
                 f1 = sol.p_comp_w - p.p_comp_max_w
                 if abs(f1) < 5e-4 * p.p_comp_max_w or f1 == f0:
                     break
@@ -525,8 +396,8 @@ class CabinPlant:
         p_fan = duty * p.p_cond_fan_w if n_run > 0.0 else 0.0
 
         # --- cabin network
-        h_in = p.h_in_natural_wm2k + (p.h_in_forced_wm2k - p.h_in_natural_wm2k) * rr ** 0.8
-        h_out = p.h_out_natural_wm2k + p.h_out_speed_coef * speed ** 0.8
+        h_in = p.h_in_natural_wm2k + (p.h_in_forced_wm2k - p.h_in_natural_wm2k) * rr**0.8
+        h_out = p.h_out_natural_wm2k + p.h_out_speed_coef * speed**0.8
         m_inf = p.infiltration_0_kgps + p.infiltration_per_mps_kgps * speed
         g_int = h_in * p.a_int_m2
         g_sh_in = p.u_shell_in_wm2k * p.a_shell_m2
@@ -538,8 +409,14 @@ class CabinPlant:
         q_rad_gl = p.g_rad_int_glass_wpk * (t_int - t_gl)
         n_occ = p.n_occupants
         cp_cab = cp_a + w_cab * p.cp_vap_jpkgk
-        d_cab = (mdot * cp_cab * (t_vent - t_cab) + m_inf * cp_cab * (t_amb - t_cab) + q_int_cab + q_sh_cab
-                 + q_gl_cab + n_occ * p.occ_sensible_w) / (self._m_air_kg * cp_cab)
+        d_cab = (
+            mdot * cp_cab * (t_vent - t_cab)
+            + m_inf * cp_cab * (t_amb - t_cab)
+            + q_int_cab
+            + q_sh_cab
+            + q_gl_cab
+            + n_occ * p.occ_sensible_w
+        ) / (self._m_air_kg * cp_cab)
         # water balance of the cabin air [kg/s]: in with the fresh share of the supply, the leakage and
         # the occupants; out with the exfiltrated air (both leave at the cabin state); the condensate
         # leaves the supply air on the coil. (Identical to mdot (W_out - W_cab) + mdot_inf (W_amb - W_cab) + ...)
@@ -550,10 +427,12 @@ class CabinPlant:
         d_w = (water_in - water_out - condensate) / self._m_air_kg
         d_int = (p.tau_glass * p.a_glass_sun_m2 * solar - q_int_cab - q_rad_sh - q_rad_gl - q_duct_int) / p.c_int_jpk
         d_du = (q_duct_int - q_duct) / p.c_duct_jpk
-        d_sh = (p.alpha_shell * p.a_shell_sun_m2 * solar + h_out * p.a_shell_m2 * (t_amb - t_sh) - q_sh_cab
-                + q_rad_sh) / p.c_shell_jpk
-        d_gl = (p.alpha_glass * p.a_glass_sun_m2 * solar + h_out * p.a_glass_m2 * (t_amb - t_gl) - q_gl_cab
-                + q_rad_gl) / p.c_glass_jpk
+        d_sh = (
+            p.alpha_shell * p.a_shell_sun_m2 * solar + h_out * p.a_shell_m2 * (t_amb - t_sh) - q_sh_cab + q_rad_sh
+        ) / p.c_shell_jpk
+        d_gl = (
+            p.alpha_glass * p.a_glass_sun_m2 * solar + h_out * p.a_glass_m2 * (t_amb - t_gl) - q_gl_cab + q_rad_gl
+        ) / p.c_glass_jpk
         d_ev = (q_sens + q_lat - q_ref) / p.c_evap_jpk
 
         dx = (d_cab, d_int, d_sh, d_gl, d_ev, d_du, d_w, dpi)

@@ -6,6 +6,7 @@ control step a command may be for, its stamp) and the health rules behind /diagn
 Pure logic: commands are read by attribute (ceco_msgs/AcCommand in the node,
 ``types.SimpleNamespace`` in the tests); times are floats the node passes in.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -16,47 +17,80 @@ from typing import Any
 import ceco_ros.checks as checks
 from ceco_core.control_grid import TIMING_MODES
 from ceco_core.supervision import FallbackSupervisor, Health, Rejections, Watchdog, reason_kind
-from ceco_ros.params import ParamSpec
+from ceco_ros.params import DIAGNOSTICS_PERIOD_PARAMETER, SHARED_FIELDS, ParamSpec, log_throttle_parameter
+from ceco_ros.topics import TOPIC_COMMAND
 
-__all__ = ['PLANT_PARAMETERS', 'PlantNodeConfig', 'CommandPolicy', 'RealtimeCommands', 'start_gate', 'plant_health',
-           'DYNAMIC']
-
-TOPIC_COMMAND = 'hvac/command'
+__all__ = [
+    'PLANT_PARAMETERS',
+    'PlantNodeConfig',
+    'CommandPolicy',
+    'RealtimeCommands',
+    'start_gate',
+    'plant_health',
+    'DYNAMIC',
+]
 
 PLANT_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('scenario', 'sc03', 'scenario name or YAML path (environment, initial state, occupant, PMV bounds)'),
-    ParamSpec('timing', 'lockstep', 'lockstep (advance a control period per command) or realtime (timer every '
-              'plant step on the node clock)', choices=TIMING_MODES),
+    ParamSpec(
+        'timing',
+        'lockstep',
+        'lockstep (advance a control period per command) or realtime (timer every plant step on the node clock)',
+        choices=TIMING_MODES,
+    ),
     ParamSpec('plant_dt_s', 1.0, 'plant step and recording interval [s]', float_range=(0.01, 60.0)),
-    ParamSpec('control_period_s', 5.0, 'control period Ts [s], a whole multiple of plant_dt_s',
-              float_range=(0.01, 3600.0)),
+    ParamSpec(
+        'control_period_s', 5.0, 'control period Ts [s], a whole multiple of plant_dt_s', float_range=(0.01, 3600.0)
+    ),
     ParamSpec('duration_s', 0.0, "run length [s]; 0 = the scenario's", float_range=(0.0, 1e7)),
-    ParamSpec('lockstep.command_timeout_s', 5.0, 'lockstep: wall-clock wait for the command of a step before the '
-              'fallback ACC law applies [s]', float_range=(0.01, 3600.0), read_only=False),
-    ParamSpec('lockstep.min_state_subscribers', 2, 'lockstep: cabin/state subscribers to wait for before step 0 '
-              '[-]', int_range=(0, 100)),
-    ParamSpec('lockstep.min_output_subscribers', 0, 'lockstep: subscribers of every other output to wait for '
-              'before step 0 [-]', int_range=(0, 100)),
-    ParamSpec('lockstep.min_command_subscribers', 1, 'lockstep: hvac/command subscriptions (this node included) '
-              'to see in the graph before step 0 [-]', int_range=(0, 100)),
-    ParamSpec('fallback.command_timeout_periods', 2.0, 'realtime: command age after which the fallback ACC law '
-              'applies; also the deadline requested on hvac/command [control periods]', float_range=(0.1, 1000.0)),
-    ParamSpec('inputs.log_throttle_s', 2.0, 'shortest time between two log lines about one kind of rejected '
-              'command [s]', float_range=(0.0, 3600.0), read_only=False),
-    ParamSpec('diagnostics.period_s', 1.0, '/diagnostics publication period (steady clock) [s]',
-              float_range=(0.05, 60.0)),
+    ParamSpec(
+        'lockstep.command_timeout_s',
+        5.0,
+        'lockstep: wall-clock wait for the command of a step before the fallback ACC law applies [s]',
+        float_range=(0.01, 3600.0),
+        read_only=False,
+    ),
+    ParamSpec(
+        'lockstep.min_state_subscribers',
+        2,
+        'lockstep: cabin/state subscribers to wait for before step 0 [-]',
+        int_range=(0, 100),
+    ),
+    ParamSpec(
+        'lockstep.min_output_subscribers',
+        0,
+        'lockstep: subscribers of every other output to wait for before step 0 [-]',
+        int_range=(0, 100),
+    ),
+    ParamSpec(
+        'lockstep.min_command_subscribers',
+        1,
+        'lockstep: hvac/command subscriptions (this node included) to see in the graph before step 0 [-]',
+        int_range=(0, 100),
+    ),
+    ParamSpec(
+        'fallback.command_timeout_periods',
+        2.0,
+        'realtime: command age after which the fallback ACC law '
+        'applies; also the deadline requested on hvac/command [control periods]',
+        float_range=(0.1, 1000.0),
+    ),
+    log_throttle_parameter('command'),
+    DIAGNOSTICS_PERIOD_PARAMETER,
 )
 """The parameter table of plant_node."""
 
 DYNAMIC = {s.name for s in PLANT_PARAMETERS if not s.read_only}
 """Parameters that ``ros2 param set`` changes at run time."""
 
-_FIELDS = {'lockstep.command_timeout_s': 'command_timeout_s', 'lockstep.min_state_subscribers': 'min_state_subscribers',
-           'lockstep.min_output_subscribers': 'min_output_subscribers',
-           'lockstep.min_command_subscribers': 'min_command_subscribers',
-           'fallback.command_timeout_periods': 'command_timeout_periods',
-           'inputs.log_throttle_s': 'log_throttle_s',
-           'diagnostics.period_s': 'diagnostics_period_s'}
+_FIELDS = {
+    'lockstep.command_timeout_s': 'command_timeout_s',
+    'lockstep.min_state_subscribers': 'min_state_subscribers',
+    'lockstep.min_output_subscribers': 'min_output_subscribers',
+    'lockstep.min_command_subscribers': 'min_command_subscribers',
+    'fallback.command_timeout_periods': 'command_timeout_periods',
+    **SHARED_FIELDS,
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -104,6 +138,7 @@ class PlantNodeConfig:
     def validate(self) -> None:
         """Raise ValueError naming the parameter."""
         from .scenario_plant import steps_per_control
+
         if self.timing not in TIMING_MODES:
             raise ValueError(f'invalid parameter timing={self.timing!r}: must be one of {TIMING_MODES}')
         try:
@@ -141,7 +176,7 @@ class CommandPolicy:
         self.n_controller_fallback = 0
         """Accepted commands marked fallback=true [-]."""
         self.last_fallback_flag = False
-        self._published: dict[tuple[int, int], float] = {}   # realtime: state stamp -> scenario time [s]
+        self._published: dict[tuple[int, int], float] = {}  # realtime: state stamp -> scenario time [s]
         steps_per_period = max(1, round(cfg.control_period_s / cfg.plant_dt_s))
         self._keep = (self.cfg.max_lag_steps + 2) * steps_per_period
 
@@ -163,8 +198,9 @@ class CommandPolicy:
         elif why is None:
             why = self._check_realtime(msg, k, k_now)
         if why:
-            line = self.rejections.add(TOPIC_COMMAND, reason_kind(why), f'rejected hvac/command step {k}: {why}',
-                                       wall_s)
+            line = self.rejections.add(
+                TOPIC_COMMAND, reason_kind(why), f'rejected hvac/command step {k}: {why}', wall_s
+            )
             if line:
                 self._log('warn', line)
             return False
@@ -176,8 +212,10 @@ class CommandPolicy:
         cfg = self.cfg
         t_s = self._published.get((msg.header.stamp.sec, msg.header.stamp.nanosec))
         if t_s is None:
-            return (f'header.stamp={checks.stamp_s(msg.header.stamp):.9g} s is not the stamp of a recent '
-                    'cabin/state of this plant')
+            return (
+                f'header.stamp={checks.stamp_s(msg.header.stamp):.9g} s is not the stamp of a recent '
+                'cabin/state of this plant'
+            )
         k_state = int(math.floor(t_s / cfg.control_period_s + 1e-9))
         if k != k_state:
             return f'step_index {k} is not the control step {k_state} of the state it is stamped with'
@@ -186,9 +224,20 @@ class CommandPolicy:
         return None
 
 
-def plant_health(*, cfg: PlantNodeConfig, started: bool, finished: bool, n: int, t_s: float,
-                 supervisor: FallbackSupervisor, command_age_s: float | None, policy: CommandPolicy,
-                 new_rejections: int, events: dict, waiting_for: str = '') -> Health:
+def plant_health(
+    *,
+    cfg: PlantNodeConfig,
+    started: bool,
+    finished: bool,
+    n: int,
+    t_s: float,
+    supervisor: FallbackSupervisor,
+    command_age_s: float | None,
+    policy: CommandPolicy,
+    new_rejections: int,
+    events: dict,
+    waiting_for: str = '',
+) -> Health:
     """The plant's status for /diagnostics.
 
     ``command_age_s``: since the last accepted command (wall clock in lockstep, node clock in
@@ -209,8 +258,9 @@ def plant_health(*, cfg: PlantNodeConfig, started: bool, finished: bool, n: int,
         h.warn('the controller reports its own fallback in its last command')
     h.set('rejected_total', policy.rejections.total)
     if new_rejections:
-        h.warn(f'{new_rejections} hvac/command messages rejected since the last report '
-               f'({policy.rejections.total} in all)')
+        h.warn(
+            f'{new_rejections} hvac/command messages rejected since the last report ({policy.rejections.total} in all)'
+        )
     for name, count in events.items():
         h.set(f'qos_{name}', count)
     if events.get('incompatible_qos'):
@@ -218,8 +268,9 @@ def plant_health(*, cfg: PlantNodeConfig, started: bool, finished: bool, n: int,
     return h
 
 
-def start_gate(cfg: PlantNodeConfig, state_subs: int, output_subs: tuple[int, ...], command_subs: int,
-               command_pubs: int) -> str:
+def start_gate(
+    cfg: PlantNodeConfig, state_subs: int, output_subs: tuple[int, ...], command_subs: int, command_pubs: int
+) -> str:
     """What step 0 still waits for ('' when the plant may start).
 
     The matched subscribers of cabin/state and of every other output, the hvac/command

@@ -12,6 +12,7 @@ than ``fallback.command_timeout_periods`` control periods, or the QoS deadline r
 hvac/command is missed, the ACC law takes over until commands resume. Which command applies
 and the health rules: the pure :mod:`ceco_plant_sim.plant_io`.
 """
+
 from __future__ import annotations
 
 from rclpy.event_handler import SubscriptionEventCallbacks
@@ -49,24 +50,33 @@ class PlantNode(NodeTools, Node):
         self.started = self.finished = False
         self._reported, self._events = 0, {'deadline_missed': 0, 'incompatible_qos': 0}
         rt, out_qos = cfg.timing == 'realtime', interfaces.state_qos(cfg.timing)
-        self.pub_state = self.create_publisher(CabinState, interfaces.TOPIC_STATE, out_qos,
-                                               qos_overriding_options=interfaces.qos_overrides())
+        self.pub_state = self.create_publisher(
+            CabinState, interfaces.TOPIC_STATE, out_qos, qos_overriding_options=interfaces.qos_overrides()
+        )
         self.pub_comfort = self.create_publisher(Comfort, interfaces.TOPIC_COMFORT, out_qos)
         self.pub_power = self.create_publisher(AcPower, interfaces.TOPIC_POWER, out_qos)
         self.pub_clock = self.create_publisher(ClockMsg, interfaces.TOPIC_CLOCK, interfaces.QOS_CLOCK)
         self.sub_cmd = self.create_subscription(
-            AcCommand, interfaces.TOPIC_COMMAND, self._on_command,
+            AcCommand,
+            interfaces.TOPIC_COMMAND,
+            self._on_command,
             interfaces.command_qos(cfg.timing, cfg.command_timeout_rt_s),
-            event_callbacks=SubscriptionEventCallbacks(deadline=lambda _e: self._event('deadline_missed'),
-                                                       incompatible_qos=lambda _e: self._event('incompatible_qos')),
-            qos_overriding_options=interfaces.qos_overrides(deadline=rt))
+            event_callbacks=SubscriptionEventCallbacks(
+                deadline=lambda _e: self._event('deadline_missed'),
+                incompatible_qos=lambda _e: self._event('incompatible_qos'),
+            ),
+            qos_overriding_options=interfaces.qos_overrides(deadline=rt),
+        )
         if rt:
             self.create_timer(self.dt, self._on_tick)
         else:
             self.create_timer(0.02, self._on_watchdog, clock=self.steady)
         DiagnosticsTimer(self, self._health, cfg.diagnostics_period_s)
-        self.get_logger().info(f'scenario {sc.name}: {self.n_steps} plant steps of {self.dt} s, '
-                               f'Ts {cfg.control_period_s} s, timing {cfg.timing}')
+        self.get_logger().info(
+            f'scenario {sc.name}: {self.n_steps} plant steps of {self.dt} s, '
+            f'Ts {cfg.control_period_s} s, timing {cfg.timing}; refrigerant tables: '
+            f'{self.sp.plant.tables_source}'
+        )
 
     @property
     def n(self) -> int:
@@ -74,15 +84,21 @@ class PlantNode(NodeTools, Node):
         return self.sp.n
 
     def _stamp(self):
-        return conversions.stamp_from_s(self.n * self.dt) if self.config.timing == 'lockstep' else \
-            self.get_clock().now().to_msg()
+        return (
+            conversions.stamp_from_s(self.n * self.dt)
+            if self.config.timing == 'lockstep'
+            else self.get_clock().now().to_msg()
+        )
 
     def _publish_state(self) -> None:
         t, stamp = self.n * self.dt, self._stamp()
         if self.config.timing == 'lockstep':
             self.pub_clock.publish(ClockMsg(clock=stamp))
-        self.pub_state.publish(conversions.state_msg(self.n, t, stamp, self.sp.meas, self.scenario.env_at(t),
-                                                     self.sp.cmd, self.fallback.in_fallback))
+        self.pub_state.publish(
+            conversions.state_msg(
+                self.n, t, stamp, self.sp.meas, self.scenario.env_at(t), self.sp.cmd, self.fallback.in_fallback
+            )
+        )
         self.policy.published(stamp, t)
 
     def _plant_step(self, u: AcInput, fallback: bool) -> None:
@@ -91,17 +107,33 @@ class PlantNode(NodeTools, Node):
         self.e_comp_j += r.out.e_comp_j
         self.e_blower_j += r.out.e_blower_j
         c = self.sp.comfort
-        self.pub_comfort.publish(conversions.comfort_msg(r.n, stamp, r.pmv, r.ppd, r.pmv_lb, r.pmv_ub, r.meas, u,
-                                                         r.env.solar_wm2, c.met, c.clo, r.comfort.iso7730_valid,
-                                                         series=r.comfort))
-        self.pub_power.publish(conversions.power_msg(r.n, stamp, self.dt, u, r.out, self.e_comp_j,
-                                                     self.e_blower_j, fallback))
+        self.pub_comfort.publish(
+            conversions.comfort_msg(
+                r.n,
+                stamp,
+                r.pmv,
+                r.ppd,
+                r.pmv_lb,
+                r.pmv_ub,
+                r.meas,
+                u,
+                r.env.solar_wm2,
+                c.met,
+                c.clo,
+                r.comfort.iso7730_valid,
+                series=r.comfort,
+            )
+        )
+        self.pub_power.publish(
+            conversions.power_msg(r.n, stamp, self.dt, u, r.out, self.e_comp_j, self.e_blower_j, fallback)
+        )
         if self.n < self.n_steps:
             self._publish_state()
             return
         self.finished = True
-        self.get_logger().info(f'scenario complete: {self.n} plant steps, E_comp {self.e_comp_j:.0f} J, '
-                               f'E_blower {self.e_blower_j:.0f} J')
+        self.get_logger().info(
+            f'scenario complete: {self.n} plant steps, E_comp {self.e_comp_j:.0f} J, E_blower {self.e_blower_j:.0f} J'
+        )
 
     def _fallback_command(self, why: str) -> AcInput:
         line = self.fallback.command_missing(f'step {self.n} (t={self.n * self.dt:.1f} s)', why)
@@ -112,9 +144,13 @@ class PlantNode(NodeTools, Node):
         return AcInput(mdot_bl_kgps=a.mdot_bl_kgps, t_evap_sp_c=a.t_evap_sp_c)
 
     def _waiting_for(self) -> str:
-        return pio.start_gate(self.config, self.pub_state.get_subscription_count(),
-                          tuple(p.get_subscription_count() for p in (self.pub_comfort, self.pub_power, self.pub_clock)),
-                          self.count_subscribers(interfaces.TOPIC_COMMAND), self.sub_cmd.get_publisher_count())
+        return pio.start_gate(
+            self.config,
+            self.pub_state.get_subscription_count(),
+            tuple(p.get_subscription_count() for p in (self.pub_comfort, self.pub_power, self.pub_clock)),
+            self.count_subscribers(interfaces.TOPIC_COMMAND),
+            self.sub_cmd.get_publisher_count(),
+        )
 
     def _start(self) -> bool:
         if not self.started and not self._waiting_for():
@@ -156,8 +192,9 @@ class PlantNode(NodeTools, Node):
         now = self.clock_s()
         if self.rt.must_choose(self.n % self.m == 0, now, self.fallback.in_fallback):
             fresh = self.rt.fresh(now)
-            self.rt.applied = ((self.rt.latest, False) if fresh else
-                               (self._fallback_command(self.rt.why_stale(now)), True))
+            self.rt.applied = (
+                (self.rt.latest, False) if fresh else (self._fallback_command(self.rt.why_stale(now)), True)
+            )
         self._plant_step(*self.rt.applied)
 
     # ------------------------------------------------------------------ glue
@@ -179,10 +216,24 @@ class PlantNode(NodeTools, Node):
         rej, rt = self.policy.rejections, self.config.timing == 'realtime'
         new, self._reported = rej.total - self._reported, rej.total
         age = self.rt.watchdog.age(self.clock_s()) if rt else self.wait.age(self.wall_s())
-        return [('plant', pio.plant_health(cfg=self.config, started=self.started, finished=self.finished, n=self.n,
-                                       t_s=self.n * self.dt, supervisor=self.fallback, policy=self.policy,
-                                       command_age_s=None if age == float('inf') else age, new_rejections=new,
-                                       events=self._events, waiting_for='' if self.started else self._waiting_for()))]
+        return [
+            (
+                'plant',
+                pio.plant_health(
+                    cfg=self.config,
+                    started=self.started,
+                    finished=self.finished,
+                    n=self.n,
+                    t_s=self.n * self.dt,
+                    supervisor=self.fallback,
+                    policy=self.policy,
+                    command_age_s=None if age == float('inf') else age,
+                    new_rejections=new,
+                    events=self._events,
+                    waiting_for='' if self.started else self._waiting_for(),
+                ),
+            )
+        ]
 
 
 def main(args=None) -> int:

@@ -16,6 +16,7 @@ from ceco_core.cabin_comfort import GLAZING_TAU, SHELL_U_IN_WM2K
 
 __all__ = ["PlantParams"]
 
+
 @dataclass(frozen=True)
 class PlantParams:
     """Physical parameters of the cabin + A/C plant (defaults: mid-size sedan, R-1234yf electric A/C)."""
@@ -60,7 +61,7 @@ class PlantParams:
 
     # --- interior mass (seats, dashboard, trim) ----------------------------
     c_int_jpk: float = 90000.0
-    """Effective heat capacity of the interior mass [J/K] (~70 kg of seats, dashboard, carpet, trim at ~1300 J/(kg K))."""
+    """Effective heat capacity of the interior mass [J/K] (~70 kg of seats, dashboard, carpet, trim, ~1300 J/(kg K))."""
     a_int_m2: float = 14.0
     """Convective area of the interior mass [m2] (seats both faces, dashboard, carpet, parcel shelf)."""
     h_in_natural_wm2k: float = 3.0
@@ -194,10 +195,27 @@ class PlantParams:
                 raise ValueError(f"{f.name}: must be a number, got {v!r}")
             if not math.isfinite(v):
                 raise ValueError(f"{f.name}: must be finite, got {v!r}")
-        nonneg = {"infiltration_0_kgps", "infiltration_per_mps_kgps", "n_occupants", "occ_sensible_w",
-                  "occ_latent_w", "g_rad_int_shell_wpk", "g_rad_int_glass_wpk", "h_out_speed_coef",
-                  "ua_duct_wpk", "p_blower_fixed_w", "a_shell_sun_m2", "a_glass_sun_m2", "p_cond_fan_w", "eta_vol_slope",
-                  "eta_is_curv", "comp_speed_min_rpm", "superheat_k", "subcool_k", "ram_face_ratio"}
+        nonneg = {
+            "infiltration_0_kgps",
+            "infiltration_per_mps_kgps",
+            "n_occupants",
+            "occ_sensible_w",
+            "occ_latent_w",
+            "g_rad_int_shell_wpk",
+            "g_rad_int_glass_wpk",
+            "h_out_speed_coef",
+            "ua_duct_wpk",
+            "p_blower_fixed_w",
+            "a_shell_sun_m2",
+            "a_glass_sun_m2",
+            "p_cond_fan_w",
+            "eta_vol_slope",
+            "eta_is_curv",
+            "comp_speed_min_rpm",
+            "superheat_k",
+            "subcool_k",
+            "ram_face_ratio",
+        }
         fractions = {"recirc_fraction", "alpha_shell", "tau_glass", "alpha_glass"}
         efficiencies = {"eta_blower", "eta_vol_0", "eta_is_max", "eta_motor_inverter"}
         free = {"te_mop_c"}

@@ -25,6 +25,17 @@ bilinear in 2-D on uniform grids) in pure Python, which is what makes a
 600 s simulation run in a fraction of a second. ``tests/test_refrigerant.py``
 bounds the table error against direct CoolProp calls.
 
+The plant takes its tables from :func:`cycle_tables`: the configuration of the
+default ``PlantParams`` (R-1234yf, 5 K superheat, 5 K subcooling, the default
+grid) is shipped as a generated data file, ``data/cycle_tables_R1234yf.npz``
+(the raw CoolProp values of :func:`build_cycle_tables`, float64, with their
+provenance: CoolProp version, fluid, grid, superheat, subcooling, generation
+command and date), loaded in a few milliseconds without importing CoolProp
+(whose import alone takes ~2.3 s). Any other configuration is built with
+CoolProp, imported then, with a warning. Regenerate the file with
+``python tools/make_refrigerant_tables.py``; ``--check`` (and
+``tests/test_refrigerant.py``) compare it bit for bit with a fresh build.
+
 A thermostatic expansion valve with a maximum operating pressure (MOP
 charge) caps the evaporating temperature at ``te_mop_c``: in a hot start the
 compressor then runs at the MOP suction density and the evaporator is
@@ -34,229 +45,18 @@ superheat change is neglected in the enthalpies).
 
 from __future__ import annotations
 
-import functools
-import math
 from dataclasses import dataclass
 
-import CoolProp.CoolProp as CP
-import numpy as np
-
-from ceco_core.units import c_to_k
+from . import refrigerant_tables as _refrigerant_tables
+from .refrigerant_tables import *  # noqa: F403 - this module re-exports refrigerant_tables's API (__all__)
+from .refrigerant_tables import CycleTables
 
 __all__ = [
-    "CycleTables",
     "CompressorModel",
     "CycleSolution",
-    "build_cycle_tables",
-    "direct_cycle_properties",
     "solve_cycle",
+    *_refrigerant_tables.__all__,
 ]
-
-
-class _Table1D:
-    """Piecewise-linear interpolation on a uniform grid (linear extrapolation beyond the ends)."""
-
-    __slots__ = ("x0", "dx", "inv_dx", "y", "n")
-
-    def __init__(self, x0: float, dx: float, y) -> None:
-        self.x0 = float(x0)
-        self.dx = float(dx)
-        self.inv_dx = 1.0 / float(dx)
-        self.y = [float(v) for v in y]
-        self.n = len(self.y)
-
-    def __call__(self, x: float) -> float:
-        """Return y(x) (the value of :meth:`value_slope`, which holds the one cell lookup)."""
-        return self.value_slope(x)[0]
-
-    def value_slope(self, x: float) -> tuple[float, float]:
-        """Return (y(x), dy/dx) of the interpolant (the plant's hot path: kept inline)."""
-        u = (x - self.x0) * self.inv_dx
-        i = int(math.floor(u))
-        if i < 0:
-            i = 0
-        elif i > self.n - 2:
-            i = self.n - 2
-        f = u - i
-        y = self.y
-        d = y[i + 1] - y[i]
-        return y[i] + f * d, d * self.inv_dx
-
-
-class _Table2D:
-    """Bilinear interpolation on a uniform (x, y) grid (linear extrapolation beyond the edges)."""
-
-    __slots__ = ("x0", "inv_dx", "y0", "inv_dy", "z", "nx", "ny")
-
-    def __init__(self, x0, dx, y0, dy, z) -> None:
-        self.x0 = float(x0)
-        self.inv_dx = 1.0 / float(dx)
-        self.y0 = float(y0)
-        self.inv_dy = 1.0 / float(dy)
-        z = np.asarray(z, dtype=float)
-        self.nx, self.ny = z.shape
-        self.z = [[float(v) for v in row] for row in z]
-
-    def __call__(self, x: float, y: float) -> float:
-        """Return z(x, y) (the value of :meth:`value_grad`, which holds the one cell lookup)."""
-        return self.value_grad(x, y)[0]
-
-    def value_grad(self, x: float, y: float) -> tuple[float, float, float]:
-        """Return (z(x, y), dz/dx, dz/dy) of the bilinear interpolant (the plant's hot path: kept inline)."""
-        u = (x - self.x0) * self.inv_dx
-        i = int(math.floor(u))
-        if i < 0:
-            i = 0
-        elif i > self.nx - 2:
-            i = self.nx - 2
-        v = (y - self.y0) * self.inv_dy
-        j = int(math.floor(v))
-        if j < 0:
-            j = 0
-        elif j > self.ny - 2:
-            j = self.ny - 2
-        f = u - i
-        g = v - j
-        r0 = self.z[i]
-        r1 = self.z[i + 1]
-        z00, z01, z10, z11 = r0[j], r0[j + 1], r1[j], r1[j + 1]
-        a = z00 + g * (z01 - z00)
-        b = z10 + g * (z11 - z10)
-        dzdy = ((1.0 - f) * (z01 - z00) + f * (z11 - z10)) * self.inv_dy
-        return a + f * (b - a), (b - a) * self.inv_dx, dzdy
-
-
-@dataclass(frozen=True)
-class CycleTables:
-    """Tabulated CoolProp properties of one refrigerant cycle configuration.
-
-    Evaporating-side tables are functions of the evaporating (saturation)
-    temperature ``t_e`` [degC], condensing-side tables of the condensing
-    temperature ``t_c`` [degC]; ``dh_is`` is a function of both.
-    """
-
-    fluid: str
-    """CoolProp fluid name (``R1234yf``)."""
-    superheat_k: float
-    """Evaporator-exit superheat [K]."""
-    subcool_k: float
-    """Condenser-exit subcooling [K]."""
-    p_evap_pa: _Table1D
-    """Saturation pressure at t_e [Pa]."""
-    rho_suc_kgm3: _Table1D
-    """Suction vapour density at (p_sat(t_e), t_e + superheat) [kg/m3]."""
-    h_suc_jpkg: _Table1D
-    """Suction enthalpy at (p_sat(t_e), t_e + superheat) [J/kg]."""
-    p_cond_pa: _Table1D
-    """Saturation pressure at t_c [Pa]."""
-    h_liq_jpkg: _Table1D
-    """Condenser-exit liquid enthalpy at (p_sat(t_c), t_c - subcooling) [J/kg]."""
-    dh_is_jpkg: _Table2D
-    """Isentropic compression work h(p_sat(t_c), s_1) - h_1 [J/kg] over (t_e, t_c)."""
-    te_range_c: tuple[float, float]
-    """Tabulated t_e range [degC] (linear extrapolation outside)."""
-    tc_range_c: tuple[float, float]
-    """Tabulated t_c range [degC] (linear extrapolation outside)."""
-
-
-def _grid(lo: float, hi: float, step: float) -> np.ndarray:
-    n = int(round((hi - lo) / step)) + 1
-    return lo + step * np.arange(n)
-
-
-def direct_cycle_properties(fluid: str, superheat_k: float, subcool_k: float, t_e_c: float, t_c_c: float) -> dict:
-    """Cycle state properties from direct CoolProp calls (the reference for the tables).
-
-    Returns a dict with ``p_evap_pa, rho_suc_kgm3, h_suc_jpkg, p_cond_pa,
-    h_liq_jpkg, dh_is_jpkg`` for evaporating temperature ``t_e_c`` [degC] and
-    condensing temperature ``t_c_c`` [degC].
-    """
-    te_k = c_to_k(t_e_c)
-    tc_k = c_to_k(t_c_c)
-    p_e = CP.PropsSI("P", "T", te_k, "Q", 1.0, fluid)
-    t1_k = te_k + superheat_k
-    rho1 = CP.PropsSI("D", "T", t1_k, "P", p_e, fluid)
-    h1 = CP.PropsSI("H", "T", t1_k, "P", p_e, fluid)
-    s1 = CP.PropsSI("S", "T", t1_k, "P", p_e, fluid)
-    p_c = CP.PropsSI("P", "T", tc_k, "Q", 0.0, fluid)
-    if subcool_k > 0.0:
-        h3 = CP.PropsSI("H", "T", tc_k - subcool_k, "P", p_c, fluid)
-    else:
-        h3 = CP.PropsSI("H", "T", tc_k, "Q", 0.0, fluid)
-    h2s = CP.PropsSI("H", "P", p_c, "S", s1, fluid)
-    return {
-        "p_evap_pa": p_e,
-        "rho_suc_kgm3": rho1,
-        "h_suc_jpkg": h1,
-        "p_cond_pa": p_c,
-        "h_liq_jpkg": h3,
-        "dh_is_jpkg": h2s - h1,
-    }
-
-
-@functools.lru_cache(maxsize=8)
-def build_cycle_tables(
-    fluid: str = "R1234yf",
-    superheat_k: float = 5.0,
-    subcool_k: float = 5.0,
-    te_min_c: float = -30.0,
-    te_max_c: float = 30.0,
-    tc_min_c: float = 10.0,
-    tc_max_c: float = 85.0,
-    step_1d_k: float = 0.5,
-    step_2d_k: float = 2.5,
-) -> CycleTables:
-    """Tabulate the cycle properties with CoolProp once (cached per argument set).
-
-    Cost: about (te span/step_2d) x (tc span/step_2d) CoolProp (p, s) flashes
-    (~0.35 ms each), i.e. ~0.3 s for the defaults.
-    """
-    try:
-        CP.get_fluid_param_string(fluid, "CAS")
-    except ValueError:
-        raise ValueError(f"fluid: CoolProp does not know {fluid!r}") from None
-    te = _grid(te_min_c, te_max_c, step_1d_k)
-    tc = _grid(tc_min_c, tc_max_c, step_1d_k)
-    p_e, rho1, h1 = [], [], []
-    for t in te:
-        te_k = c_to_k(float(t))
-        p = CP.PropsSI("P", "T", te_k, "Q", 1.0, fluid)
-        p_e.append(p)
-        rho1.append(CP.PropsSI("D", "T", te_k + superheat_k, "P", p, fluid))
-        h1.append(CP.PropsSI("H", "T", te_k + superheat_k, "P", p, fluid))
-    p_c, h3 = [], []
-    for t in tc:
-        tc_k = c_to_k(float(t))
-        p = CP.PropsSI("P", "T", tc_k, "Q", 0.0, fluid)
-        p_c.append(p)
-        if subcool_k > 0.0:
-            h3.append(CP.PropsSI("H", "T", tc_k - subcool_k, "P", p, fluid))
-        else:
-            h3.append(CP.PropsSI("H", "T", tc_k, "Q", 0.0, fluid))
-    te2 = _grid(te_min_c, te_max_c, step_2d_k)
-    tc2 = _grid(tc_min_c, tc_max_c, step_2d_k)
-    dh = np.empty((te2.size, tc2.size))
-    for i, t in enumerate(te2):
-        te_k = c_to_k(float(t))
-        p = CP.PropsSI("P", "T", te_k, "Q", 1.0, fluid)
-        s1 = CP.PropsSI("S", "T", te_k + superheat_k, "P", p, fluid)
-        hh1 = CP.PropsSI("H", "T", te_k + superheat_k, "P", p, fluid)
-        for j, u in enumerate(tc2):
-            pc = CP.PropsSI("P", "T", c_to_k(float(u)), "Q", 0.0, fluid)
-            dh[i, j] = CP.PropsSI("H", "P", pc, "S", s1, fluid) - hh1
-    return CycleTables(
-        fluid=fluid,
-        superheat_k=float(superheat_k),
-        subcool_k=float(subcool_k),
-        p_evap_pa=_Table1D(te[0], step_1d_k, p_e),
-        rho_suc_kgm3=_Table1D(te[0], step_1d_k, rho1),
-        h_suc_jpkg=_Table1D(te[0], step_1d_k, h1),
-        p_cond_pa=_Table1D(tc[0], step_1d_k, p_c),
-        h_liq_jpkg=_Table1D(tc[0], step_1d_k, h3),
-        dh_is_jpkg=_Table2D(te2[0], step_2d_k, tc2[0], step_2d_k, dh),
-        te_range_c=(float(te_min_c), float(te_max_c)),
-        tc_range_c=(float(tc_min_c), float(tc_max_c)),
-    )
 
 
 @dataclass(frozen=True)
@@ -316,8 +116,17 @@ class CycleSolution:
     """Newton iterations used."""
 
 
-def _cycle_eval(tab: CycleTables, comp: CompressorModel, vn: float, t_e: float, t_c: float,
-                t_wall_c: float, ua_er_wpk: float, t_air_c: float, epsc_wpk: float):
+def _cycle_eval(
+    tab: CycleTables,
+    comp: CompressorModel,
+    vn: float,
+    t_e: float,
+    t_c: float,
+    t_wall_c: float,
+    ua_er_wpk: float,
+    t_air_c: float,
+    epsc_wpk: float,
+):
     """Residuals (r1, r2) [W], their analytic Jacobian, and the cycle quantities at (t_e, t_c).
 
     The Jacobian is exact for the piecewise-linear / bilinear interpolants.
@@ -377,16 +186,19 @@ def solve_cycle(
 ) -> CycleSolution:
     """Solve the quasi-steady cycle for (T_e, T_c) by Newton's method.
 
-    Parameters
-    ----------
-    speed_rpm : compressor speed [rpm] (>= 0; 0 means off).
-    t_wall_c : evaporator wall temperature [degC].
-    ua_er_wpk : wall-to-refrigerant conductance of the evaporator [W/K].
-    t_air_cond_c : condenser inlet air temperature [degC].
-    epsc_cond_wpk : condenser effectiveness times air heat-capacity rate [W/K].
-    te_mop_c : expansion valve MOP cap on the evaporating temperature [degC].
-    guess : starting (T_e, T_c) [degC]; None for a built-in start.
-    pr_min : minimum pressure ratio held by head-pressure control [-] (1 = none).
+    Args:
+        tab: the refrigerant property tables.
+        comp: the compressor's efficiencies and displacement.
+        speed_rpm: compressor speed [rpm] (>= 0; 0 means off).
+        t_wall_c: evaporator wall temperature [degC].
+        ua_er_wpk: wall-to-refrigerant conductance of the evaporator [W/K].
+        t_air_cond_c: condenser inlet air temperature [degC].
+        epsc_cond_wpk: condenser effectiveness times air heat-capacity rate [W/K].
+        te_mop_c: expansion valve MOP cap on the evaporating temperature [degC].
+        guess: starting (T_e, T_c) [degC]; None for a built-in start.
+        tol_k: convergence tolerance on the Newton update [K].
+        max_iter: largest number of property evaluations [-].
+        pr_min: minimum pressure ratio held by head-pressure control [-] (1 = none).
 
     Newton on (r1, r2) with the analytic Jacobian of the interpolated
     properties, each update limited to 10 K; converged at the first iterate
@@ -416,8 +228,9 @@ def solve_cycle(
     for _ in range(3):  # constraint flags only get added: at most 3 solves
         converged = False
         while it < max_iter:
-            (r1, r2, j11, j12, j21, j22, mdot, q_e, w_sh, pr,
-             p_e, p_e1, p_c, p_c1) = _cycle_eval(tab, comp, vn, t_e, t_c, *args)
+            (r1, r2, j11, j12, j21, j22, mdot, q_e, w_sh, pr, p_e, p_e1, p_c, p_c1) = _cycle_eval(
+                tab, comp, vn, t_e, t_c, *args
+            )
             it += 1
             if hp:  # head-pressure control: condenser air reduced so that p_c = pr_min p_e
                 r2 = p_c - pr_min * p_e
@@ -436,8 +249,10 @@ def solve_cycle(
             t_e += max(-10.0, min(10.0, de))
             t_c += max(-10.0, min(10.0, dc))
         if not converged:
-            raise RuntimeError(f"refrigerant cycle did not converge in {max_iter} iterations "
-                               f"(speed {speed_rpm:.0f} rpm, wall {t_wall_c:.2f} degC)")
+            raise RuntimeError(
+                f"refrigerant cycle did not converge in {max_iter} iterations "
+                f"(speed {speed_rpm:.0f} rpm, wall {t_wall_c:.2f} degC)"
+            )
         new_mop = mop or t_e > te_mop_c
         new_hp = hp or pr < pr_min * (1.0 - 1e-9)
         if new_mop == mop and new_hp == hp:
@@ -458,5 +273,3 @@ def solve_cycle(
         head_pressure_control=hp,
         iterations=it,
     )
-
-

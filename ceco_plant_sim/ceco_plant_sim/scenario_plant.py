@@ -1,5 +1,6 @@
-"""The plant side of a closed-loop run on a scenario: key-on and the per-plant-step
-sequence, written once and called by both the in-process simulator
+"""The plant side of a closed-loop run on a scenario: key-on and the per-plant-step sequence.
+
+Written once and called by both the in-process simulator
 (``ceco_controller.closed_loop.simulate``) and ``plant_node``, so that a DDS run
 equals the simulator bit for bit.
 
@@ -20,24 +21,33 @@ docs/plant.md).
 
 Pure logic: no rclpy, no message types.
 """
+
 from __future__ import annotations
 
 import dataclasses
 import math
-
-from ceco_v2x_preview.scenario import Scenario
 
 from ceco_core import psychro
 from ceco_core.cabin_comfort import ComfortParams, OccupantComfort, comfort_params_for, evaluate_cabin_comfort
 from ceco_core.contracts import MDOT_BL_MAX_KGPS, MEASUREMENTS, T_EVAP_SP_MIN_C, AcInput
 from ceco_core.overrides import with_overrides
 from ceco_core.scenario_types import Environment
+from ceco_v2x_preview.scenario import Scenario
 
 from .plant import CabinPlant, PlantOutputs, PlantState
 from .plant_params import PlantParams
 
-__all__ = ["MEASUREMENTS", "KEY_ON_COMMAND", "SCORED_PA_OVERRIDE", "comfort_params_for", "steps_per_control",
-           "n_plant_steps", "check_overrides", "PlantStepRecord", "ScenarioPlant"]
+__all__ = [
+    "MEASUREMENTS",
+    "KEY_ON_COMMAND",
+    "SCORED_PA_OVERRIDE",
+    "comfort_params_for",
+    "steps_per_control",
+    "n_plant_steps",
+    "check_overrides",
+    "PlantStepRecord",
+    "ScenarioPlant",
+]
 
 KEY_ON_COMMAND = AcInput(mdot_bl_kgps=MDOT_BL_MAX_KGPS, t_evap_sp_c=T_EVAP_SP_MIN_C)
 """The command taken as "previous" at key-on: pull-down (0.17 kg/s, 3 degC)."""
@@ -52,10 +62,13 @@ and fog margin keep the plant's humidity."""
 def _split_comfort_overrides(comfort_overrides) -> tuple[dict, float | None]:
     co = dict(comfort_overrides or {})
     pa = co.pop(SCORED_PA_OVERRIDE, None)
-    if pa is not None and (isinstance(pa, bool) or not isinstance(pa, (int, float)) or not math.isfinite(pa)
-                           or not 0.0 <= pa <= 10000.0):
-        raise ValueError(f"comfort override {SCORED_PA_OVERRIDE} (scored cabin vapour pressure) must be a number "
-                         f"in [0, 10000] Pa or None, got {pa!r}")
+    if pa is not None and (
+        isinstance(pa, bool) or not isinstance(pa, (int, float)) or not math.isfinite(pa) or not 0.0 <= pa <= 10000.0
+    ):
+        raise ValueError(
+            f"comfort override {SCORED_PA_OVERRIDE} (scored cabin vapour pressure) must be a number "
+            f"in [0, 10000] Pa or None, got {pa!r}"
+        )
     return co, (None if pa is None else float(pa))
 
 
@@ -75,8 +88,9 @@ def steps_per_control(control_period_s: float, plant_dt_s: float) -> int:
     """Plant steps per control period Ts / dt [-]; ValueError unless Ts is a whole multiple (>= 1) of dt."""
     ratio = control_period_s / plant_dt_s
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
-        raise ValueError(f"control period {control_period_s} s must be a whole multiple of the plant step "
-                         f"{plant_dt_s} s")
+        raise ValueError(
+            f"control period {control_period_s} s must be a whole multiple of the plant step {plant_dt_s} s"
+        )
     return int(round(ratio))
 
 
@@ -124,8 +138,15 @@ class ScenarioPlant:
     (``KEY_ON_COMMAND`` before the first step).
     """
 
-    def __init__(self, scenario: Scenario, plant_dt_s: float, params: PlantParams | None = None, *,
-                 plant_overrides: dict | None = None, comfort_overrides: dict | None = None):
+    def __init__(
+        self,
+        scenario: Scenario,
+        plant_dt_s: float,
+        params: PlantParams | None = None,
+        *,
+        plant_overrides: dict | None = None,
+        comfort_overrides: dict | None = None,
+    ):
         """Key-on state of ``scenario``.
 
         Args:
@@ -144,15 +165,24 @@ class ScenarioPlant:
         pp = with_overrides(params or PlantParams(), plant_overrides, owner="PlantParams")
         co, self.scored_pa_pa = _split_comfort_overrides(comfort_overrides)
         # the plant's glazing transmittance and shell conductance: one value for physics and comfort
-        self.comfort = with_overrides(comfort_params_for(scenario, glazing_tau=pp.tau_glass,
-                                                         u_shell_in_wm2k=pp.u_shell_in_wm2k), co,
-                                      owner="ComfortParams")
-        self.plant = CabinPlant(pp, PlantState.from_initial(dataclasses.asdict(scenario.initial), pp,
-                                                            scenario.env_at(0.0)))
+        self.comfort = with_overrides(
+            comfort_params_for(scenario, glazing_tau=pp.tau_glass, u_shell_in_wm2k=pp.u_shell_in_wm2k),
+            co,
+            owner="ComfortParams",
+        )
+        self.plant = CabinPlant(
+            pp, PlantState.from_initial(dataclasses.asdict(scenario.initial), pp, scenario.env_at(0.0))
+        )
         st = self.plant.state
-        self.meas = {"t_cab_c": st.t_cab_c, "t_int_c": st.t_int_c, "t_shell_c": st.t_shell_c,
-                     "t_evap_c": st.t_evap_c, "t_vent_c": st.t_evap_c, "t_glass_c": st.t_glass_c,
-                     "rh_cab": scenario.initial.rh_cab}
+        self.meas = {
+            "t_cab_c": st.t_cab_c,
+            "t_int_c": st.t_int_c,
+            "t_shell_c": st.t_shell_c,
+            "t_evap_c": st.t_evap_c,
+            "t_vent_c": st.t_evap_c,
+            "t_glass_c": st.t_glass_c,
+            "rh_cab": scenario.initial.rh_cab,
+        }
         self.cmd = KEY_ON_COMMAND
         self.n = 0
 
@@ -166,18 +196,41 @@ class ScenarioPlant:
         meas, t = self.meas, self.t_s
         env = self.scenario.env_at(t)
         lb, ub = self.scenario.pmv_bounds(t)
-        c = evaluate_cabin_comfort(t_cab_c=meas["t_cab_c"], t_vent_c=meas["t_vent_c"], t_int_c=meas["t_int_c"],
-                                   t_shell_c=meas["t_shell_c"], t_glass_c=meas["t_glass_c"], rh_cab=meas["rh_cab"],
-                                   mdot_bl_kgps=u.mdot_bl_kgps, solar_wm2=env.solar_wm2, params=self.comfort,
-                                   pa_pa=self.scored_pa_pa)
-        if self.scored_pa_pa is not None:       # fixed p_a in the score only: dew point from the plant's humidity
+        c = evaluate_cabin_comfort(
+            t_cab_c=meas["t_cab_c"],
+            t_vent_c=meas["t_vent_c"],
+            t_int_c=meas["t_int_c"],
+            t_shell_c=meas["t_shell_c"],
+            t_glass_c=meas["t_glass_c"],
+            rh_cab=meas["rh_cab"],
+            mdot_bl_kgps=u.mdot_bl_kgps,
+            solar_wm2=env.solar_wm2,
+            params=self.comfort,
+            pa_pa=self.scored_pa_pa,
+        )
+        if self.scored_pa_pa is not None:  # fixed p_a in the score only: dew point from the plant's humidity
             t_dew = psychro.dew_point_c(psychro.vapour_pressure_pa(meas["t_cab_c"], meas["rh_cab"]))
             c = dataclasses.replace(c, t_dew_c=t_dew, fog_margin_k=meas["t_glass_c"] - t_dew)
-        c = OccupantComfort(**{f.name: (bool(getattr(c, f.name)) if f.name == "iso7730_valid"
-                                        else float(getattr(c, f.name))) for f in dataclasses.fields(c)})
+        c = OccupantComfort(
+            **{
+                f.name: (bool(getattr(c, f.name)) if f.name == "iso7730_valid" else float(getattr(c, f.name)))
+                for f in dataclasses.fields(c)
+            }
+        )
         out = self.plant.step(u, env, self.dt_s)
-        rec = PlantStepRecord(n=self.n, t_s=t, meas=meas, u=u, env=env, pmv=float(c.pmv), ppd=float(c.ppd),
-                              pmv_lb=lb, pmv_ub=ub, comfort=c, out=out)
+        rec = PlantStepRecord(
+            n=self.n,
+            t_s=t,
+            meas=meas,
+            u=u,
+            env=env,
+            pmv=float(c.pmv),
+            ppd=float(c.ppd),
+            pmv_lb=lb,
+            pmv_ub=ub,
+            comfort=c,
+            out=out,
+        )
         self.cmd = u
         self.meas = _measurements(out)
         self.n += 1

@@ -19,6 +19,7 @@ ceco_msgs messages and on any object with the same fields (the pure tests use
 The order of positions (step indices, scenario times) is the sequence gate's business
 (:mod:`ceco_core.sequencing`), not a field check.
 """
+
 from __future__ import annotations
 
 import math
@@ -28,19 +29,37 @@ import numpy as np
 from ceco_core.contracts import MDOT_BL_MAX_KGPS, MDOT_BL_MIN_KGPS, T_EVAP_SP_MAX_C, T_EVAP_SP_MIN_C, WIRE_STRATEGIES
 from ceco_core.units import STAMP_MAX_S, s_from_sec_nanosec
 
-__all__ = ['STATE_RANGES', 'PREVIEW_RANGES', 'COMMAND_RANGES', 'stamp_s', 'check_stamp', 'check_stamp_equals',
-           'check_stamp_age', 'check_state', 'check_command', 'check_preview', 'check_preview_pair',
-           'check_grid_step']
+__all__ = [
+    'STATE_RANGES',
+    'PREVIEW_RANGES',
+    'COMMAND_RANGES',
+    'stamp_s',
+    'check_stamp',
+    'check_stamp_equals',
+    'check_stamp_age',
+    'check_state',
+    'check_command',
+    'check_preview',
+    'check_preview_pair',
+    'check_grid_step',
+]
 
 _TEMPERATURE_C = (-60.0, 150.0)
 _BOUND_TOL = 1e-9
 
 STATE_RANGES: dict[str, tuple[float, float]] = {
     'scenario_time_s': (0.0, float(STAMP_MAX_S)),
-    't_cab_c': _TEMPERATURE_C, 't_int_c': _TEMPERATURE_C, 't_shell_c': _TEMPERATURE_C,
-    't_glass_c': _TEMPERATURE_C, 't_evap_c': _TEMPERATURE_C, 't_vent_c': _TEMPERATURE_C,
+    't_cab_c': _TEMPERATURE_C,
+    't_int_c': _TEMPERATURE_C,
+    't_shell_c': _TEMPERATURE_C,
+    't_glass_c': _TEMPERATURE_C,
+    't_evap_c': _TEMPERATURE_C,
+    't_vent_c': _TEMPERATURE_C,
     'rh_cab': (0.0, 1.0),
-    't_amb_c': (-60.0, 70.0), 'solar_wm2': (0.0, 2000.0), 'rh': (0.0, 1.0), 'speed_mps': (0.0, 120.0),
+    't_amb_c': (-60.0, 70.0),
+    'solar_wm2': (0.0, 2000.0),
+    'rh': (0.0, 1.0),
+    'speed_mps': (0.0, 120.0),
     'mdot_bl_kgps': (MDOT_BL_MIN_KGPS - _BOUND_TOL, MDOT_BL_MAX_KGPS + _BOUND_TOL),
     't_evap_sp_c': (T_EVAP_SP_MIN_C - _BOUND_TOL, T_EVAP_SP_MAX_C + _BOUND_TOL),
 }
@@ -50,7 +69,9 @@ STATE_RANGES: dict[str, tuple[float, float]] = {
 actuator bounds, scenario time inside the stamp range."""
 
 PREVIEW_RANGES: dict[str, tuple[float, float]] = {
-    't_amb_c': STATE_RANGES['t_amb_c'], 'solar_wm2': STATE_RANGES['solar_wm2'], 'rh': STATE_RANGES['rh'],
+    't_amb_c': STATE_RANGES['t_amb_c'],
+    'solar_wm2': STATE_RANGES['solar_wm2'],
+    'rh': STATE_RANGES['rh'],
     'speed_mps': STATE_RANGES['speed_mps'],
 }
 """Plausible range of the preview samples marked valid (the same as the measured values)."""
@@ -131,9 +152,11 @@ def check_command(msg, control_period_s: float) -> str | None:
     """
     if msg.strategy not in WIRE_STRATEGIES:
         return f'unknown strategy {msg.strategy!r} (expected one of {", ".join(WIRE_STRATEGIES)})'
-    return (check_stamp('header.stamp', msg.header.stamp)
-            or check_grid_step('control_period_s', msg.control_period_s, control_period_s)
-            or _check_ranges(msg, COMMAND_RANGES))
+    return (
+        check_stamp('header.stamp', msg.header.stamp)
+        or check_grid_step('control_period_s', msg.control_period_s, control_period_s)
+        or _check_ranges(msg, COMMAND_RANGES)
+    )
 
 
 def check_preview(msg, kind: str, n_expected: int, control_period_s: float) -> str | None:
@@ -143,8 +166,11 @@ def check_preview(msg, kind: str, n_expected: int, control_period_s: float) -> s
     ``age_s`` finite and >= 0 (or -1: none received), samples marked valid finite and
     plausible, no infinite sample anywhere.
     """
-    why = (check_stamp('header.stamp', msg.header.stamp) or check_stamp('start', msg.start)
-           or check_grid_step('step_s', msg.step_s, control_period_s))
+    why = (
+        check_stamp('header.stamp', msg.header.stamp)
+        or check_stamp('start', msg.start)
+        or check_grid_step('step_s', msg.step_s, control_period_s)
+    )
     if why:
         return why
     names = PREVIEW_ARRAYS[kind] + ('valid',)

@@ -14,6 +14,7 @@ Incoming messages are checked field by field first (:mod:`ceco_ros.checks`);
 conversions into the core raise ValueError. No node logic: imports message
 types, not rclpy's Node.
 """
+
 from __future__ import annotations
 
 import math
@@ -25,9 +26,22 @@ from ceco_core.contracts import MEASUREMENTS, AcInput, Diagnostics, Previews
 from ceco_core.units import s_from_sec_nanosec, sec_nanosec_from_s
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort, ControllerDiagnostics, TrafficPreview, WeatherPreview
 
-__all__ = ['stamp_from_s', 's_from_stamp', 'state_msg', 'state_measurements',
-           'command_msg', 'command_input', 'previews_to_msgs', 'empty_previews', 'previews',
-           'align_previews', 'power_msg', 'comfort_msg', 'diagnostics_msg']
+__all__ = [
+    'stamp_from_s',
+    's_from_stamp',
+    'state_msg',
+    'state_measurements',
+    'command_msg',
+    'command_input',
+    'previews_to_msgs',
+    'empty_previews',
+    'previews',
+    'align_previews',
+    'power_msg',
+    'comfort_msg',
+    'diagnostics_msg',
+]
+
 
 # --- time stamps ------------------------------------------------------------------------------
 def stamp_from_s(t_s: float) -> Time:
@@ -144,13 +158,29 @@ def align_previews(w: WeatherPreview, s: TrafficPreview, t_s: float, step_s: flo
     def shift(a, fill):
         a = list(a)
         return a[j:] + [fill] * j
-    w2 = WeatherPreview(header=w.header, start=w.start, step_s=w.step_s, step_index=w.step_index,
-                        t_amb_c=shift(w.t_amb_c, math.nan), solar_wm2=shift(w.solar_wm2, math.nan),
-                        rh=shift(w.rh, math.nan), valid=shift(w.valid, False), age_s=w.age_s + j * step_s,
-                        quality=w.quality)
-    s2 = TrafficPreview(header=s.header, start=s.start, step_s=s.step_s, step_index=s.step_index,
-                        speed_mps=shift(s.speed_mps, math.nan), valid=shift(s.valid, False),
-                        age_s=s.age_s + j * step_s, quality=s.quality)
+
+    w2 = WeatherPreview(
+        header=w.header,
+        start=w.start,
+        step_s=w.step_s,
+        step_index=w.step_index,
+        t_amb_c=shift(w.t_amb_c, math.nan),
+        solar_wm2=shift(w.solar_wm2, math.nan),
+        rh=shift(w.rh, math.nan),
+        valid=shift(w.valid, False),
+        age_s=w.age_s + j * step_s,
+        quality=w.quality,
+    )
+    s2 = TrafficPreview(
+        header=s.header,
+        start=s.start,
+        step_s=s.step_s,
+        step_index=s.step_index,
+        speed_mps=shift(s.speed_mps, math.nan),
+        valid=shift(s.valid, False),
+        age_s=s.age_s + j * step_s,
+        quality=s.quality,
+    )
     return w2, s2
 
 
@@ -161,16 +191,23 @@ def previews(w: WeatherPreview, s: TrafficPreview, t_s: float, step_s: float) ->
     when it is valid in both messages.
     """
     age_s = float(w.age_s) if w.age_s >= 0.0 else math.inf
-    return Previews(t0_s=t_s, step_s=step_s, t_amb_c=np.asarray(w.t_amb_c, dtype=float),
-                    solar_wm2=np.asarray(w.solar_wm2, dtype=float),
-                    speed_mps=np.asarray(s.speed_mps, dtype=float), rh=np.asarray(w.rh, dtype=float),
-                    valid=np.asarray(w.valid, dtype=bool) & np.asarray(s.valid, dtype=bool),
-                    age_s=age_s, issued_s=t_s - age_s if math.isfinite(age_s) else math.nan)
+    return Previews(
+        t0_s=t_s,
+        step_s=step_s,
+        t_amb_c=np.asarray(w.t_amb_c, dtype=float),
+        solar_wm2=np.asarray(w.solar_wm2, dtype=float),
+        speed_mps=np.asarray(s.speed_mps, dtype=float),
+        rh=np.asarray(w.rh, dtype=float),
+        valid=np.asarray(w.valid, dtype=bool) & np.asarray(s.valid, dtype=bool),
+        age_s=age_s,
+        issued_s=t_s - age_s if math.isfinite(age_s) else math.nan,
+    )
 
 
 # --- plant outputs ----------------------------------------------------------------------------
-def power_msg(n: int, stamp, dt_s: float, u: AcInput, out, e_comp_j: float, e_blower_j: float,
-              fallback: bool) -> AcPower:
+def power_msg(
+    n: int, stamp, dt_s: float, u: AcInput, out, e_comp_j: float, e_blower_j: float, fallback: bool
+) -> AcPower:
     """The A/C powers of plant step ``n`` (step means over dt_s [s]) and the cumulative energies [J]."""
     m = AcPower()
     m.header.stamp = stamp
@@ -193,13 +230,25 @@ def power_msg(n: int, stamp, dt_s: float, u: AcInput, out, e_comp_j: float, e_bl
     return m
 
 
-COMFORT_SERIES_FIELDS = ("ta_occ_c", "vel_occ_mps", "t_mr_c", "w_rad_wm2", "pa_pa", "t_dew_c", "fog_margin_k",
-                         "dr_pct")
+COMFORT_SERIES_FIELDS = ("ta_occ_c", "vel_occ_mps", "t_mr_c", "w_rad_wm2", "pa_pa", "t_dew_c", "fog_margin_k", "dr_pct")
 """Comfort message fields copied from ``ceco_core.cabin_comfort.OccupantComfort`` (same names)."""
 
 
-def comfort_msg(n: int, stamp, pmv: float, ppd: float, lb: float, ub: float, meas: dict, u: AcInput,
-                solar_wm2: float, met: float, clo: float, iso_valid: bool, series=None) -> Comfort:
+def comfort_msg(
+    n: int,
+    stamp,
+    pmv: float,
+    ppd: float,
+    lb: float,
+    ub: float,
+    meas: dict,
+    u: AcInput,
+    solar_wm2: float,
+    met: float,
+    clo: float,
+    iso_valid: bool,
+    series=None,
+) -> Comfort:
     """The occupant's comfort at plant step ``n``.
 
     ``series`` (a ``ceco_core.cabin_comfort.OccupantComfort``) fills the occupant-environment, draught

@@ -3,6 +3,7 @@
 Imports rclpy's QoS types; used by the ``*_node.py`` modules and by ``ceco_bringup``
 only (the pure cores never import it).
 """
+
 from __future__ import annotations
 
 from rclpy.duration import Duration
@@ -12,17 +13,18 @@ from rclpy.qos_overriding_options import QoSOverridingOptions
 from ceco_core import control_grid
 
 # --- Topics (relative, so namespaces and remapping work) -------------------
-TOPIC_STATE = 'cabin/state'
-TOPIC_COMFORT = 'cabin/comfort'
-TOPIC_POWER = 'hvac/power'
-TOPIC_COMMAND = 'hvac/command'
-TOPIC_WEATHER = 'v2x/weather_preview'
-TOPIC_TRAFFIC = 'v2x/traffic_preview'
-TOPIC_DIAGNOSTICS = 'controller/diagnostics'
-TOPIC_CLOCK = '/clock'
-TOPIC_ROSOUT = '/rosout'
-TOPIC_ROS_DIAGNOSTICS = '/diagnostics'
-"""diagnostic_msgs/DiagnosticArray of every node (absolute, as diagnostic_updater and the aggregator use)."""
+from ceco_ros.topics import (  # noqa: F401 - the names, re-exported beside their QoS
+    TOPIC_CLOCK,
+    TOPIC_COMFORT,
+    TOPIC_COMMAND,
+    TOPIC_DIAGNOSTICS,
+    TOPIC_POWER,
+    TOPIC_ROS_DIAGNOSTICS,
+    TOPIC_ROSOUT,
+    TOPIC_STATE,
+    TOPIC_TRAFFIC,
+    TOPIC_WEATHER,
+)
 
 # --- QoS profiles ------------------------------------------------------------
 # States and commands: reliable, keep-last, volatile. In lockstep the plant
@@ -30,33 +32,48 @@ TOPIC_ROS_DIAGNOSTICS = '/diagnostics'
 # depth keeps several seconds of them in the writer so a subscriber that
 # falls behind (the recorder) gets every one repaired by the reliable protocol.
 QOS_STATE = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 QOS_COMMAND = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=100,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 # Previews: reliable + transient-local, depth 1: a late joiner (a restarted
 # controller) gets the latest forecast at once.
 QOS_PREVIEW = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 # /clock as published by the plant (a best-effort subscriber, as rclpy's
 # TimeSource uses, matches a reliable publisher).
 QOS_CLOCK = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 # The recorder's subscriptions: reliable KEEP_ALL, so a recorder that falls
 # behind back-pressures instead of losing samples (transient-local where the
 # publisher offers it, to get the latest preview even when subscribing late).
 QOS_RECORD = QoSProfile(
-    history=HistoryPolicy.KEEP_ALL,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+    history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE
+)
 QOS_RECORD_LATCHED = QoSProfile(
-    history=HistoryPolicy.KEEP_ALL,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
 QOS_ROSOUT = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 
 # Real time (timing: realtime, as on a vehicle): the latest states, not a backlog: keep-last
 # 10 on both sides (a recorder that lags a little still gets every sample; a burst of other
@@ -64,12 +81,18 @@ QOS_ROSOUT = QoSProfile(
 # Commands carry a deadline (command_qos), so a dead controller is seen by the plant's QoS
 # event as well as by its watchdog.
 QOS_STATE_LATEST = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 # /diagnostics: what diagnostic_updater offers (reliable, keep-last 10, volatile).
 QOS_DIAGNOSTICS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 
 
 def state_qos(timing: str) -> QoSProfile:
@@ -89,8 +112,13 @@ def command_qos(timing: str, deadline_s: float | None = None) -> QoSProfile:
     """
     if timing == 'lockstep' or deadline_s is None:
         return QOS_COMMAND
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.VOLATILE, deadline=Duration(nanoseconds=int(deadline_s * 1e9)))
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=10,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.VOLATILE,
+        deadline=Duration(nanoseconds=int(deadline_s * 1e9)),
+    )
 
 
 def qos_overrides(deadline: bool = False) -> QoSOverridingOptions:

@@ -7,6 +7,7 @@
   (``self.lifecycle``), configures and activates itself when asked to (``autostart``), and
   releases what ``on_configure`` created on cleanup, shutdown and error (``release()``).
 """
+
 from __future__ import annotations
 
 from rclpy.clock import Clock, ClockType
@@ -75,10 +76,13 @@ class ManagedNode(NodeTools, LifecycleNode):
             try:
                 return unsafe(request, response)
             except _rclpy.RCLError as err:
-                self.get_logger().warn(f'lifecycle transition {request.transition.id} '
-                                       f'{request.transition.label!r} refused in state {self.lifecycle}: {err}')
+                self.get_logger().warn(
+                    f'lifecycle transition {request.transition.id} '
+                    f'{request.transition.label!r} refused in state {self.lifecycle}: {err}'
+                )
                 response.success = False
                 return response
+
         service.callback = change_state
 
     def start_managed(self, autostart: bool) -> None:

@@ -1,4 +1,5 @@
 """The Jazzy ``main`` every ceco node runs."""
+
 from __future__ import annotations
 
 __all__ = ['run_node']

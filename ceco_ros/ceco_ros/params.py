@@ -8,6 +8,7 @@ the single source of the declared parameters, of their checks (at start and on
 ``ros2 param set``) and of the parameter tables in docs/ros.md. Importable without ROS
 (rcl_interfaces is imported where a node declares).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -38,6 +39,68 @@ class ParamSpec:
     """False: settable at run time (``ros2 param set``); the node applies it at once."""
 
 
+INPUT_WINDOW_PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec(
+        'inputs.window_s',
+        60.0,
+        'a state is accepted up to this far ahead of the last accepted scenario time [s]',
+        float_range=(0.01, 1e6),
+    ),
+    ParamSpec(
+        'inputs.confirm_count',
+        3,
+        'consecutive agreeing out-of-window states that establish a new time base (restart, new playback) [-]',
+        int_range=(1, 100),
+    ),
+    ParamSpec(
+        'inputs.restart_silence_s',
+        3.0,
+        'a new time base (key-on or confirmed) is taken only after no state '
+        'was accepted for this long (wall clock); longer than the plant step [s]',
+        float_range=(0.0, 3600.0),
+    ),
+)
+"""The sequence gate's parameters (``ceco_core.sequencing.SequenceGate``), the same in every node that takes
+``cabin/state``."""
+
+CLOCK_AHEAD_PARAMETER = ParamSpec(
+    'inputs.max_clock_ahead_s',
+    1.0,
+    'realtime: a stamp may lead the node clock by this much [s]',
+    float_range=(0.0, 3600.0),
+    read_only=False,
+)
+"""How far a real-time stamp may lead the node clock."""
+
+
+def log_throttle_parameter(what: str = 'input') -> ParamSpec:
+    """The throttle of the rejection log lines (``what``: the rejected message, for the description)."""
+    return ParamSpec(
+        'inputs.log_throttle_s',
+        2.0,
+        f'shortest time between two log lines about one kind of rejected {what} [s]',
+        float_range=(0.0, 3600.0),
+        read_only=False,
+    )
+
+
+DIAGNOSTICS_PERIOD_PARAMETER = ParamSpec(
+    'diagnostics.period_s', 1.0, '/diagnostics publication period (steady clock) [s]', float_range=(0.05, 60.0)
+)
+"""The /diagnostics period of every node."""
+
+SHARED_FIELDS = {
+    'inputs.window_s': 'window_s',
+    'inputs.confirm_count': 'confirm_count',
+    'inputs.restart_silence_s': 'restart_silence_s',
+    'inputs.max_state_age_s': 'max_state_age_s',
+    'inputs.max_clock_ahead_s': 'max_clock_ahead_s',
+    'inputs.log_throttle_s': 'log_throttle_s',
+    'diagnostics.period_s': 'diagnostics_period_s',
+}
+"""Parameter name -> config field of the shared parameters (the nodes' own tables add theirs)."""
+
+
 def check_value(spec: ParamSpec, value: Any) -> tuple[Any, str | None]:
     """``(value, None)`` with ints widened for float parameters, or ``(value, reason)``."""
     if isinstance(spec.default, float):
@@ -46,21 +109,29 @@ def check_value(spec: ParamSpec, value: Any) -> tuple[Any, str | None]:
         if not isinstance(value, float) or not math.isfinite(value):
             return value, f'invalid parameter {spec.name}={value!r}: must be a finite number'
     if spec.float_range is not None and not spec.float_range[0] <= value <= spec.float_range[1]:
-        return value, (f'invalid parameter {spec.name}={value!r}: must lie in '
-                       f'[{spec.float_range[0]}, {spec.float_range[1]}]')
+        return value, (
+            f'invalid parameter {spec.name}={value!r}: must lie in [{spec.float_range[0]}, {spec.float_range[1]}]'
+        )
     if spec.int_range is not None and not spec.int_range[0] <= value <= spec.int_range[1]:
-        return value, (f'invalid parameter {spec.name}={value!r}: must lie in '
-                       f'[{spec.int_range[0]}, {spec.int_range[1]}]')
+        return value, (
+            f'invalid parameter {spec.name}={value!r}: must lie in [{spec.int_range[0]}, {spec.int_range[1]}]'
+        )
     if spec.choices is not None and value not in spec.choices:
         return value, f'invalid parameter {spec.name}={value!r}: must be one of {", ".join(spec.choices)}'
     return value, None
 
 
-def declare(node, name: str, default: Any, description: str, *,
-            float_range: tuple[float, float] | None = None,
-            int_range: tuple[int, int] | None = None,
-            choices: Sequence[str] | None = None,
-            read_only: bool = True) -> Any:
+def declare(
+    node,
+    name: str,
+    default: Any,
+    description: str,
+    *,
+    float_range: tuple[float, float] | None = None,
+    int_range: tuple[int, int] | None = None,
+    choices: Sequence[str] | None = None,
+    read_only: bool = True,
+) -> Any:
     """Declare one parameter with a full descriptor and return its value.
 
     `description` carries the unit; `float_range`/`int_range` become the
@@ -74,15 +145,16 @@ def declare(node, name: str, default: Any, description: str, *,
 
 def _declare(node, spec: ParamSpec) -> Any:
     from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+
     name = spec.name
     desc = ParameterDescriptor(name=name, description=spec.description, read_only=spec.read_only)
     if spec.float_range is not None:
-        desc.floating_point_range = [FloatingPointRange(
-            from_value=float(spec.float_range[0]), to_value=float(spec.float_range[1]), step=0.0)]
+        desc.floating_point_range = [
+            FloatingPointRange(from_value=float(spec.float_range[0]), to_value=float(spec.float_range[1]), step=0.0)
+        ]
         desc.additional_constraints = f'{spec.float_range[0]} <= {name} <= {spec.float_range[1]}'
     if spec.int_range is not None:
-        desc.integer_range = [IntegerRange(
-            from_value=int(spec.int_range[0]), to_value=int(spec.int_range[1]), step=1)]
+        desc.integer_range = [IntegerRange(from_value=int(spec.int_range[0]), to_value=int(spec.int_range[1]), step=1)]
         desc.additional_constraints = f'{spec.int_range[0]} <= {name} <= {spec.int_range[1]}'
     if spec.choices is not None:
         desc.additional_constraints = f'one of {", ".join(spec.choices)}'
@@ -108,6 +180,7 @@ def on_set(node, specs: Sequence[ParamSpec], apply: Callable[[dict[str, Any]], s
     makes the change take effect. Read-only parameters are refused by rclpy itself.
     """
     from rcl_interfaces.msg import SetParametersResult
+
     by_name = {s.name: s for s in specs if not s.read_only}
 
     def callback(parameters) -> SetParametersResult:
@@ -115,13 +188,14 @@ def on_set(node, specs: Sequence[ParamSpec], apply: Callable[[dict[str, Any]], s
         for p in parameters:
             spec = by_name.get(p.name)
             if spec is None:
-                continue   # another parameter (use_sim_time, qos_overrides.*): rclpy's own rules
+                continue  # another parameter (use_sim_time, qos_overrides.*): rclpy's own rules
             value, why = check_value(spec, p.value)
             if why:
                 return SetParametersResult(successful=False, reason=why)
             changes[p.name] = value
         why = apply(changes) if changes else None
         return SetParametersResult(successful=why is None, reason=why or '')
+
     node.add_on_set_parameters_callback(callback)
 
 
@@ -136,8 +210,12 @@ def markdown_table(specs: Sequence[ParamSpec]) -> str:
             allowed = ', '.join(s.choices)
         else:
             allowed = ''
-        default = repr(s.default) if isinstance(s.default, str) else str(s.default).lower() \
-            if isinstance(s.default, bool) else str(s.default)
-        rows.append(f'| `{s.name}` | `{default}` | {allowed} | {"no" if s.read_only else "yes"} | '
-                    f'{s.description} |')
+        default = (
+            repr(s.default)
+            if isinstance(s.default, str)
+            else str(s.default).lower()
+            if isinstance(s.default, bool)
+            else str(s.default)
+        )
+        rows.append(f'| `{s.name}` | `{default}` | {allowed} | {"no" if s.read_only else "yes"} | {s.description} |')
     return '\n'.join(rows)

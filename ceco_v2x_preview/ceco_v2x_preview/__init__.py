@@ -1,1 +1,4 @@
-"""V2X weather and traffic preview publisher and the scenario files (drive cycles, weather, occupant, comfort bounds) for ceco."""
+"""V2X weather and traffic preview publisher and the scenario files for ceco.
+
+Scenario files hold drive cycles, weather, occupant and comfort bounds.
+"""

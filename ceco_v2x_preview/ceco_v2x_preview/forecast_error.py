@@ -53,8 +53,17 @@ from collections.abc import Mapping
 
 import numpy as np
 
-__all__ = ["LEVELS", "QUANTITIES", "REF_LEAD_S", "ErrorModel", "LEVEL_MODELS", "level_models",
-           "lead_errors", "forecast_errors", "apply_errors"]
+__all__ = [
+    "LEVELS",
+    "QUANTITIES",
+    "REF_LEAD_S",
+    "ErrorModel",
+    "LEVEL_MODELS",
+    "level_models",
+    "lead_errors",
+    "forecast_errors",
+    "apply_errors",
+]
 
 LEVELS = ("none", "low", "medium", "high")
 """Forecast-uncertainty levels, from perfect previews to the worst."""
@@ -136,17 +145,23 @@ _NONE = ErrorModel(0.0)
 LEVEL_MODELS: Mapping[str, Mapping[str, ErrorModel]] = {
     "none": {"t_amb_c": _NONE, "solar_wm2": _NONE, "speed_mps": _NONE},
     # BOPTEST temperature low: F0 = 0, K0 = 0.6 K; solar low: ag0 = 4.44, bg0 = 57.42 W/m2 (Laplace).
-    "low": {"t_amb_c": ErrorModel(0.6, 0.0, 3600.0, "normal"),
-            "solar_wm2": ErrorModel(math.sqrt(2.0) * 57.42, -4.44, 60.0, "laplace"),
-            "speed_mps": ErrorModel(1.0, 0.0, 20.0, "normal")},
+    "low": {
+        "t_amb_c": ErrorModel(0.6, 0.0, 3600.0, "normal"),
+        "solar_wm2": ErrorModel(math.sqrt(2.0) * 57.42, -4.44, 60.0, "laplace"),
+        "speed_mps": ErrorModel(1.0, 0.0, 20.0, "normal"),
+    },
     # BOPTEST temperature medium: F0 = 0.15, K0 = 1.2 K; solar medium: ag0 = 15.02, bg0 = 122.6 W/m2.
-    "medium": {"t_amb_c": ErrorModel(1.2, -0.15, 3600.0, "normal"),
-               "solar_wm2": ErrorModel(math.sqrt(2.0) * 122.6, -15.02, 60.0, "laplace"),
-               "speed_mps": ErrorModel(2.5, 0.0, 20.0, "normal")},
+    "medium": {
+        "t_amb_c": ErrorModel(1.2, -0.15, 3600.0, "normal"),
+        "solar_wm2": ErrorModel(math.sqrt(2.0) * 122.6, -15.02, 60.0, "laplace"),
+        "speed_mps": ErrorModel(2.5, 0.0, 20.0, "normal"),
+    },
     # BOPTEST temperature high: F0 = -0.58, K0 = 1.5 K; solar high: ag0 = 32.09, bg0 = 119.94 W/m2.
-    "high": {"t_amb_c": ErrorModel(1.5, 0.58, 3600.0, "normal"),
-             "solar_wm2": ErrorModel(math.sqrt(2.0) * 119.94, -32.09, 60.0, "laplace"),
-             "speed_mps": ErrorModel(4.0, -0.5, 20.0, "normal")},
+    "high": {
+        "t_amb_c": ErrorModel(1.5, 0.58, 3600.0, "normal"),
+        "solar_wm2": ErrorModel(math.sqrt(2.0) * 119.94, -32.09, 60.0, "laplace"),
+        "speed_mps": ErrorModel(4.0, -0.5, 20.0, "normal"),
+    },
 }
 """The error model of every quantity at every level (sources in the module docstring).
 BOPTEST's biases are of ``truth - forecast``; here they are of ``forecast - truth``.
@@ -212,8 +227,7 @@ def forecast_errors(level: str, seed: int, t_issue_s: float, lead_s) -> dict:
     return out
 
 
-def apply_errors(values: Mapping[str, np.ndarray], level: str, seed: int, t_issue_s: float,
-                 lead_s) -> dict:
+def apply_errors(values: Mapping[str, np.ndarray], level: str, seed: int, t_issue_s: float, lead_s) -> dict:
     """Forecast = truth + error, with the physical limits.
 
     For the quantities of :data:`QUANTITIES` present in ``values`` (true values at the

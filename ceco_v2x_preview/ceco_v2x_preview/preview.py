@@ -78,8 +78,12 @@ _NOISE_GRID_S = 1.0
 _QUANTITIES = PREVIEW_QUANTITIES
 """Previewed quantities, in the order used as the noise stream index."""
 
-_KEYS = {"t_amb": "noise_std_t_amb_c", "solar": "noise_std_solar_wm2",
-         "speed": "noise_std_speed_mps", "rh": "noise_std_rh"}
+_KEYS = {
+    "t_amb": "noise_std_t_amb_c",
+    "solar": "noise_std_solar_wm2",
+    "speed": "noise_std_speed_mps",
+    "rh": "noise_std_rh",
+}
 """Short names used by :func:`parse_quality` for the noise fields."""
 
 
@@ -118,8 +122,9 @@ class PreviewQuality:
         try:
             spans = tuple((float(a), float(b)) for a, b in self.missing_spans_s)
         except (TypeError, ValueError):
-            raise ValueError("missing_spans_s: must be a sequence of (start_s, end_s) number pairs, "
-                             f"got {self.missing_spans_s!r}") from None
+            raise ValueError(
+                f"missing_spans_s: must be a sequence of (start_s, end_s) number pairs, got {self.missing_spans_s!r}"
+            ) from None
         object.__setattr__(self, "missing_spans_s", spans)
 
     def validate(self) -> None:
@@ -149,9 +154,16 @@ class PreviewQuality:
     @property
     def mode(self) -> str:
         """'perfect', or the faults present joined by '+' ('noisy+delayed')."""
-        parts = [name for name, on in (("uncertain", self.uncertainty != "none"), ("noisy", self.noisy),
-                                       ("delayed", self.delay_s > 0.0), ("missing", bool(self.missing_spans_s)))
-                 if on]
+        parts = [
+            name
+            for name, on in (
+                ("uncertain", self.uncertainty != "none"),
+                ("noisy", self.noisy),
+                ("delayed", self.delay_s > 0.0),
+                ("missing", bool(self.missing_spans_s)),
+            )
+            if on
+        ]
         return "+".join(parts) or "perfect"
 
     def describe(self) -> str:
@@ -197,10 +209,12 @@ illustrative values for a short-range V2X forecast (docs/scenarios.md), not
 measured forecast statistics."""
 
 
-def make_previews(scenario: Scenario, t0_s: float, step_s: float, n: int,
-                  quality: PreviewQuality = PERFECT) -> Previews:
-    """The previews a controller receives at ``t0_s`` on the grid
-    ``t0_s + i*step_s``, i = 0..n-1, for the given quality (module docstring).
+def make_previews(
+    scenario: Scenario, t0_s: float, step_s: float, n: int, quality: PreviewQuality = PERFECT
+) -> Previews:
+    """The previews a controller receives at ``t0_s`` [s], for the given quality (module docstring).
+
+    They lie on the grid ``t0_s + i*step_s``, i = 0..n-1.
     """
     quality.validate()
     if not (isinstance(t0_s, (int, float, np.floating, np.integer)) and math.isfinite(t0_s) and t0_s >= 0.0):
@@ -219,8 +233,17 @@ def make_previews(scenario: Scenario, t0_s: float, step_s: float, n: int,
             break
     if t_issue < 0.0:  # nothing issued yet, or dropped
         nan = np.full(n, np.nan)
-        return Previews(t0_s=t0_s, step_s=step_s, t_amb_c=nan, solar_wm2=nan.copy(), speed_mps=nan.copy(),
-                        rh=nan.copy(), valid=np.zeros(n, dtype=bool), age_s=math.inf, issued_s=math.nan)
+        return Previews(
+            t0_s=t0_s,
+            step_s=step_s,
+            t_amb_c=nan,
+            solar_wm2=nan.copy(),
+            speed_mps=nan.copy(),
+            rh=nan.copy(),
+            valid=np.zeros(n, dtype=bool),
+            age_s=math.inf,
+            issued_s=math.nan,
+        )
 
     lead_s = t_s - t_issue
     horizon_s = (n - 1) * step_s
@@ -237,8 +260,9 @@ def make_previews(scenario: Scenario, t0_s: float, step_s: float, n: int,
         issue_key = int(round(t_issue * 1000.0))
         n_grid = int(math.ceil(float(np.max(lead_s)) / _NOISE_GRID_S)) + 1
         grid_s = _NOISE_GRID_S * np.arange(n_grid + 1, dtype=float)
-        for index, (q, field) in enumerate(zip(_QUANTITIES, (_KEYS["t_amb"], _KEYS["solar"],
-                                                            _KEYS["speed"], _KEYS["rh"]))):
+        for index, (q, field) in enumerate(
+            zip(_QUANTITIES, (_KEYS["t_amb"], _KEYS["solar"], _KEYS["speed"], _KEYS["rh"]))
+        ):
             sigma = getattr(quality, field)
             if sigma == 0.0:
                 continue
@@ -299,13 +323,13 @@ def parse_quality(text: str) -> PreviewQuality:
                 elif key in _KEYS:
                     fields[_KEYS[key]] = _parse_float(value, f"noisy {key}")
                 else:
-                    raise ValueError(f"preview quality: noisy: unknown key {key!r} "
-                                     f"(use {sorted(_KEYS)} , ref, seed)")
+                    raise ValueError(f"preview quality: noisy: unknown key {key!r} (use {sorted(_KEYS)} , ref, seed)")
         elif kind == "uncertain":
             level, *rest = [x.strip() for x in arg.split(",")]
             if level not in forecast_error.LEVELS:
-                raise ValueError(f"preview quality: uncertain: level must be one of {forecast_error.LEVELS}, "
-                                 f"got {level!r}")
+                raise ValueError(
+                    f"preview quality: uncertain: level must be one of {forecast_error.LEVELS}, got {level!r}"
+                )
             fields["uncertainty"] = level
             for item in rest:
                 key, eq, value = item.partition("=")
@@ -327,8 +351,10 @@ def parse_quality(text: str) -> PreviewQuality:
             if not spans:
                 raise ValueError("preview quality: missing: needs at least one START-END span")
         else:
-            raise ValueError(f"preview quality: unknown part {part.strip()!r} "
-                             "(use perfect, uncertain:LEVEL, noisy[:...], delayed:S, missing:A-B)")
+            raise ValueError(
+                f"preview quality: unknown part {part.strip()!r} "
+                "(use perfect, uncertain:LEVEL, noisy[:...], delayed:S, missing:A-B)"
+            )
     quality = PreviewQuality(missing_spans_s=tuple(spans), **fields)
     quality.validate()
     return quality

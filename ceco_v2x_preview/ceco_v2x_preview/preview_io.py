@@ -6,6 +6,7 @@ sequence gate on the scenario time) and the health rules behind /diagnostics.
 Pure logic: states are read by attribute (ceco_msgs/CabinState in the node,
 ``types.SimpleNamespace`` in the tests); times are floats the node passes in.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -17,54 +18,92 @@ import ceco_ros.checks as checks
 from ceco_core.control_grid import TIMING_MODES
 from ceco_core.sequencing import SequenceGate, Verdict
 from ceco_core.supervision import Health, Rejections, reason_kind
-from ceco_ros.params import ParamSpec
+from ceco_ros.params import (
+    CLOCK_AHEAD_PARAMETER,
+    DIAGNOSTICS_PERIOD_PARAMETER,
+    INPUT_WINDOW_PARAMETERS,
+    SHARED_FIELDS,
+    ParamSpec,
+    log_throttle_parameter,
+)
+from ceco_ros.topics import TOPIC_STATE
 
 from . import forecast_error
 from .preview import PreviewQuality
 
 __all__ = ['PREVIEW_PARAMETERS', 'PreviewNodeConfig', 'PreviewInputs', 'preview_health', 'DYNAMIC']
 
-TOPIC_STATE = 'cabin/state'
-
 PREVIEW_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('scenario', 'sc03', 'scenario name (bundled) or path of a scenario YAML file'),
-    ParamSpec('timing', 'lockstep', 'lockstep (accelerated simulation, driven by cabin/state) or realtime (timer '
-              'on the node clock)', choices=TIMING_MODES),
+    ParamSpec(
+        'timing',
+        'lockstep',
+        'lockstep (accelerated simulation, driven by cabin/state) or realtime (timer on the node clock)',
+        choices=TIMING_MODES,
+    ),
     ParamSpec('control_period_s', 5.0, 'preview grid step = controller period Ts [s]', float_range=(0.1, 3600.0)),
     ParamSpec('horizon_steps', 6, 'prediction horizon Np [steps]; the grid has Np + 1 points', int_range=(1, 1000)),
     ParamSpec('publish_period_s', 5.0, 'publication period in realtime mode [s]', float_range=(0.01, 3600.0)),
-    ParamSpec('faults.missing_spans_s', [0.0], 'spans of issue time without a new forecast, flattened [start, end, '
-              'start, end, ...] [s]; [0.0] = none'),
+    ParamSpec(
+        'faults.missing_spans_s',
+        [0.0],
+        'spans of issue time without a new forecast, flattened [start, end, start, end, ...] [s]; [0.0] = none',
+    ),
     ParamSpec('faults.seed', -1, 'preview noise seed; -1 uses the scenario seed [-]', int_range=(-1, 2**31 - 1)),
-    ParamSpec('faults.noise_std_t_amb_c', 0.0, 'std of the ambient-temperature forecast error at the reference '
-              'lead [K]', float_range=(0.0, 20.0)),
-    ParamSpec('faults.noise_std_solar_wm2', 0.0, 'std of the solar forecast error at the reference lead [W/m^2]',
-              float_range=(0.0, 1000.0)),
-    ParamSpec('faults.noise_std_speed_mps', 0.0, 'std of the speed forecast error at the reference lead [m/s]',
-              float_range=(0.0, 30.0)),
-    ParamSpec('faults.noise_std_rh', 0.0, 'std of the relative-humidity forecast error at the reference lead [-]',
-              float_range=(0.0, 1.0)),
-    ParamSpec('faults.noise_ref_lead_s', 30.0, 'lead time at which the error std equals noise_std_* [s]',
-              float_range=(0.1, 86400.0)),
+    ParamSpec(
+        'faults.noise_std_t_amb_c',
+        0.0,
+        'std of the ambient-temperature forecast error at the reference lead [K]',
+        float_range=(0.0, 20.0),
+    ),
+    ParamSpec(
+        'faults.noise_std_solar_wm2',
+        0.0,
+        'std of the solar forecast error at the reference lead [W/m^2]',
+        float_range=(0.0, 1000.0),
+    ),
+    ParamSpec(
+        'faults.noise_std_speed_mps',
+        0.0,
+        'std of the speed forecast error at the reference lead [m/s]',
+        float_range=(0.0, 30.0),
+    ),
+    ParamSpec(
+        'faults.noise_std_rh',
+        0.0,
+        'std of the relative-humidity forecast error at the reference lead [-]',
+        float_range=(0.0, 1.0),
+    ),
+    ParamSpec(
+        'faults.noise_ref_lead_s',
+        30.0,
+        'lead time at which the error std equals noise_std_* [s]',
+        float_range=(0.1, 86400.0),
+    ),
     ParamSpec('faults.delay_s', 0.0, 'age of the forecast when received [s]', float_range=(0.0, 86400.0)),
-    ParamSpec('faults.missing_policy', 'hold_last', 'while missing: hold_last (keep the last forecast) or drop',
-              choices=('hold_last', 'drop')),
-    ParamSpec('faults.uncertainty_level', 'none', 'benchmark forecast-uncertainty level (AR(1) errors, '
-              'ceco_v2x_preview.forecast_error)', choices=forecast_error.LEVELS),
-    ParamSpec('inputs.window_s', 60.0, 'a state is accepted up to this far ahead of the last accepted scenario '
-              'time [s]', float_range=(0.01, 1e6)),
-    ParamSpec('inputs.confirm_count', 3, 'consecutive agreeing out-of-window states that establish a new time base '
-              '(restart, new playback) [-]', int_range=(1, 100)),
-    ParamSpec('inputs.restart_silence_s', 3.0, 'a new time base (key-on or confirmed) is taken only after no state '
-              'was accepted for this long (wall clock); longer than the plant step [s]', float_range=(0.0, 3600.0)),
-    ParamSpec('inputs.max_state_age_s', 10.0, 'realtime: oldest usable cabin state, by its stamp [s]',
-              float_range=(0.01, 3600.0), read_only=False),
-    ParamSpec('inputs.max_clock_ahead_s', 1.0, 'realtime: a stamp may lead the node clock by this much [s]',
-              float_range=(0.0, 3600.0), read_only=False),
-    ParamSpec('inputs.log_throttle_s', 2.0, 'shortest time between two log lines about one kind of rejected input '
-              '[s]', float_range=(0.0, 3600.0), read_only=False),
-    ParamSpec('diagnostics.period_s', 1.0, '/diagnostics publication period (steady clock) [s]',
-              float_range=(0.05, 60.0)),
+    ParamSpec(
+        'faults.missing_policy',
+        'hold_last',
+        'while missing: hold_last (keep the last forecast) or drop',
+        choices=('hold_last', 'drop'),
+    ),
+    ParamSpec(
+        'faults.uncertainty_level',
+        'none',
+        'benchmark forecast-uncertainty level (AR(1) errors, ceco_v2x_preview.forecast_error)',
+        choices=forecast_error.LEVELS,
+    ),
+    *INPUT_WINDOW_PARAMETERS,
+    ParamSpec(
+        'inputs.max_state_age_s',
+        10.0,
+        'realtime: oldest usable cabin state, by its stamp [s]',
+        float_range=(0.01, 3600.0),
+        read_only=False,
+    ),
+    CLOCK_AHEAD_PARAMETER,
+    log_throttle_parameter(),
+    DIAGNOSTICS_PERIOD_PARAMETER,
 )
 """The parameter table of preview_node."""
 
@@ -103,10 +142,7 @@ class PreviewNodeConfig:
     diagnostics_period_s: float = 1.0
     """/diagnostics period [s]."""
 
-    _FIELDS = {'inputs.window_s': 'window_s', 'inputs.confirm_count': 'confirm_count',
-                     'inputs.restart_silence_s': 'restart_silence_s',
-               'inputs.max_state_age_s': 'max_state_age_s', 'inputs.max_clock_ahead_s': 'max_clock_ahead_s',
-               'inputs.log_throttle_s': 'log_throttle_s', 'diagnostics.period_s': 'diagnostics_period_s'}
+    _FIELDS = SHARED_FIELDS
 
     @classmethod
     def from_params(cls, v: dict[str, Any]) -> PreviewNodeConfig:
@@ -115,16 +151,26 @@ class PreviewNodeConfig:
         if len(spans) == 1 and spans[0] == 0.0:
             spans = []
         if len(spans) % 2:
-            raise ValueError(f'invalid parameter faults.missing_spans_s={spans!r}: '
-                             'needs an even number of values (start, end pairs)')
+            raise ValueError(
+                f'invalid parameter faults.missing_spans_s={spans!r}: needs an even number of values (start, end pairs)'
+            )
         q = {k.split('.', 1)[1]: v[k] for k in v if k.startswith('faults.noise') or k == 'faults.delay_s'}
-        quality = PreviewQuality(**q, missing_spans_s=tuple(zip(spans[0::2], spans[1::2])),
-                                 missing_policy=v['faults.missing_policy'],
-                                 seed=None if v['faults.seed'] < 0 else int(v['faults.seed']),
-                                 uncertainty=v['faults.uncertainty_level'])
-        cfg = cls(scenario=v['scenario'], timing=v['timing'], control_period_s=v['control_period_s'],
-                  horizon_steps=v['horizon_steps'], publish_period_s=v['publish_period_s'], quality=quality,
-                  **{f: v[p] for p, f in cls._FIELDS.items() if p in v})
+        quality = PreviewQuality(
+            **q,
+            missing_spans_s=tuple(zip(spans[0::2], spans[1::2])),
+            missing_policy=v['faults.missing_policy'],
+            seed=None if v['faults.seed'] < 0 else int(v['faults.seed']),
+            uncertainty=v['faults.uncertainty_level'],
+        )
+        cfg = cls(
+            scenario=v['scenario'],
+            timing=v['timing'],
+            control_period_s=v['control_period_s'],
+            horizon_steps=v['horizon_steps'],
+            publish_period_s=v['publish_period_s'],
+            quality=quality,
+            **{f: v[p] for p, f in cls._FIELDS.items() if p in v},
+        )
         cfg.validate()
         return cfg
 
@@ -170,14 +216,16 @@ class PreviewInputs:
         if why is None and cfg.timing == 'lockstep':
             why = checks.check_stamp_equals('header.stamp', msg.header.stamp, msg.scenario_time_s)
         elif why is None:
-            why = checks.check_stamp_age('header.stamp', msg.header.stamp, clock_s, cfg.max_state_age_s,
-                                         cfg.max_clock_ahead_s)
+            why = checks.check_stamp_age(
+                'header.stamp', msg.header.stamp, clock_s, cfg.max_state_age_s, cfg.max_clock_ahead_s
+            )
         verdict = self.gate.offer(msg.scenario_time_s, wall_s) if why is None else None
         if verdict is not None and not verdict.accepted:
             why = verdict.reason
         if why or verdict is None:
-            line = self.rejections.add(TOPIC_STATE, reason_kind(why), f'rejected cabin/state step {msg.step_index}: '
-                                       f'{why}', wall_s)
+            line = self.rejections.add(
+                TOPIC_STATE, reason_kind(why), f'rejected cabin/state step {msg.step_index}: {why}', wall_s
+            )
             if line:
                 self._log('warn', line)
             return None
@@ -188,8 +236,17 @@ class PreviewInputs:
         return verdict
 
 
-def preview_health(*, cfg: PreviewNodeConfig, inputs: PreviewInputs, last_k: int | None, n_published: int,
-                   n_failed: int, last_error: str, wall_s: float, new_rejections: int) -> Health:
+def preview_health(
+    *,
+    cfg: PreviewNodeConfig,
+    inputs: PreviewInputs,
+    last_k: int | None,
+    n_published: int,
+    n_failed: int,
+    last_error: str,
+    wall_s: float,
+    new_rejections: int,
+) -> Health:
     """The preview node's status for /diagnostics."""
     h = Health().set('timing', cfg.timing).set('quality', cfg.quality.describe())
     h.set('last_step', last_k).set('published', n_published).set('failed', n_failed)
@@ -202,6 +259,7 @@ def preview_health(*, cfg: PreviewNodeConfig, inputs: PreviewInputs, last_k: int
     if last_error:
         h.error(f'preview generation failed: {last_error}')
     if new_rejections:
-        h.warn(f'{new_rejections} cabin/state messages rejected since the last report '
-               f'({inputs.rejections.total} in all)')
+        h.warn(
+            f'{new_rejections} cabin/state messages rejected since the last report ({inputs.rejections.total} in all)'
+        )
     return h

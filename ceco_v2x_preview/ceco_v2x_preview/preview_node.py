@@ -15,6 +15,7 @@ States are checked and ordered by the pure :class:`~ceco_v2x_preview.preview_io.
 (a far-future or malformed state is rejected without moving anything, a restart is followed);
 every number comes from ``make_previews``.
 """
+
 from __future__ import annotations
 
 from rclpy.node import Node
@@ -44,14 +45,20 @@ class PreviewNode(NodeTools, Node):
         self._last_k, self._published, self._failed, self._error, self._reported = None, 0, 0, '', 0
         self._pub_w = self.create_publisher(WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.QOS_PREVIEW)
         self._pub_s = self.create_publisher(TrafficPreview, interfaces.TOPIC_TRAFFIC, interfaces.QOS_PREVIEW)
-        self.create_subscription(CabinState, interfaces.TOPIC_STATE, self._on_state,
-                                 interfaces.state_qos(cfg.timing),
-                                 qos_overriding_options=interfaces.qos_overrides())
+        self.create_subscription(
+            CabinState,
+            interfaces.TOPIC_STATE,
+            self._on_state,
+            interfaces.state_qos(cfg.timing),
+            qos_overriding_options=interfaces.qos_overrides(),
+        )
         if cfg.timing == 'realtime':
             self.create_timer(cfg.publish_period_s, self._on_timer)
         DiagnosticsTimer(self, self._health, cfg.diagnostics_period_s)
-        self.get_logger().info(f'scenario {self.scenario.name}, timing {cfg.timing}, grid {cfg.horizon_steps + 1} x '
-                               f'{cfg.control_period_s} s, quality {self.quality_text}')
+        self.get_logger().info(
+            f'scenario {self.scenario.name}, timing {cfg.timing}, grid {cfg.horizon_steps + 1} x '
+            f'{cfg.control_period_s} s, quality {self.quality_text}'
+        )
 
     def _on_state(self, msg: CabinState) -> None:
         verdict = self.inputs.offer_state(msg, self.wall_s(), self.clock_s())
@@ -73,10 +80,11 @@ class PreviewNode(NodeTools, Node):
 
     def _publish(self, k: int, t0_s: float, stamp) -> None:
         try:
-            p = make_previews(self.scenario, t0_s, self.config.control_period_s, self.config.horizon_steps + 1,
-                              self.config.quality)
+            p = make_previews(
+                self.scenario, t0_s, self.config.control_period_s, self.config.horizon_steps + 1, self.config.quality
+            )
             w, s = conversions.previews_to_msgs(p, k, stamp, self.quality_text)
-        except (ValueError, OverflowError) as err:   # never crash on a time the scenario cannot serve
+        except (ValueError, OverflowError) as err:  # never crash on a time the scenario cannot serve
             self._failed += 1
             self._error = f't={t0_s!r} s: {err}'
             self.notice('publish-failed', f'no preview for step {k}: {self._error}', 'error')
@@ -97,9 +105,21 @@ class PreviewNode(NodeTools, Node):
     def _health(self):
         rej = self.inputs.rejections
         new, self._reported = rej.total - self._reported, rej.total
-        return [('previews', preview_health(cfg=self.config, inputs=self.inputs, last_k=self._last_k,
-                                            n_published=self._published, n_failed=self._failed,
-                                            last_error=self._error, wall_s=self.wall_s(), new_rejections=new))]
+        return [
+            (
+                'previews',
+                preview_health(
+                    cfg=self.config,
+                    inputs=self.inputs,
+                    last_k=self._last_k,
+                    n_published=self._published,
+                    n_failed=self._failed,
+                    last_error=self._error,
+                    wall_s=self.wall_s(),
+                    new_rejections=new,
+                ),
+            )
+        ]
 
 
 def main(args=None) -> int:

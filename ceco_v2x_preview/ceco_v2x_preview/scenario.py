@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+
+from ceco_core import psychro, units
 from ceco_core.scenario_types import (
     INITIAL_FIELDS,
     PMV_BOUND_RANGE,
@@ -36,18 +38,16 @@ from ceco_core.scenario_types import (
     T_AMB_RANGE_C,
     T_STATE_RANGE_C,
     ControlDefaults,
-    SunGeometry,
     DriveCycle,
     Environment,
     InitialState,
     Occupant,
     Scenario,
     ScenarioError,
+    SunGeometry,
     WeatherPreview,
     check_number,
 )
-
-from ceco_core import psychro, units
 
 __all__ = [
     "ScenarioError",
@@ -68,6 +68,7 @@ __all__ = [
     "describe",
     "main",
 ]
+
 
 def _data_dir(kind: str):
     return resources.files("ceco_v2x_preview").joinpath("data", kind)
@@ -197,8 +198,19 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
     """
     if not isinstance(data, Mapping):
         raise ScenarioError(f"scenario: top level must be a mapping, got {type(data).__name__}")
-    allowed = {"name", "description", "drive_cycle", "duration_s", "weather", "occupant",
-               "comfort_bounds", "initial", "control", "sun", "seed"}
+    allowed = {
+        "name",
+        "description",
+        "drive_cycle",
+        "duration_s",
+        "weather",
+        "occupant",
+        "comfort_bounds",
+        "initial",
+        "control",
+        "sun",
+        "seed",
+    }
     _reject_unknown("scenario", data, allowed)
     name = data.get("name")
     if not isinstance(name, str) or not name.strip():
@@ -274,8 +286,9 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
 
     sun_block = _section(data, "sun", required=False)
     _reject_unknown("sun", sun_block, {"altitude_deg", "azimuth_deg", "heading_deg"})
-    sun = SunGeometry(**{k: sun_block.get(k, getattr(SunGeometry, k))
-                         for k in ("altitude_deg", "azimuth_deg", "heading_deg")})
+    sun = SunGeometry(
+        **{k: sun_block.get(k, getattr(SunGeometry, k)) for k in ("altitude_deg", "azimuth_deg", "heading_deg")}
+    )
     sun.validate()
     sun = SunGeometry(float(sun.altitude_deg), float(sun.azimuth_deg), float(sun.heading_deg))
 
@@ -284,16 +297,31 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
         raise ScenarioError(f"seed: must be a non-negative integer, got {seed!r}")
 
     return Scenario(
-        name=name.strip(), description=description.strip(), drive_cycle=cycle, duration_s=float(duration_s),
-        weather_time_s=wt, weather_t_amb_c=t_amb, weather_solar_wm2=solar, weather_rh=rh,
-        occupant=occupant, bounds_time_s=bt, bounds_pmv_lb=lb, bounds_pmv_ub=ub,
-        initial=initial, control=control, sun=sun, seed=int(seed), source=source,
+        name=name.strip(),
+        description=description.strip(),
+        drive_cycle=cycle,
+        duration_s=float(duration_s),
+        weather_time_s=wt,
+        weather_t_amb_c=t_amb,
+        weather_solar_wm2=solar,
+        weather_rh=rh,
+        occupant=occupant,
+        bounds_time_s=bt,
+        bounds_pmv_lb=lb,
+        bounds_pmv_ub=ub,
+        initial=initial,
+        control=control,
+        sun=sun,
+        seed=int(seed),
+        source=source,
     )
 
 
 def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
-    """Load a bundled scenario by name (``sc03``, see :func:`list_scenarios`)
-    or a YAML file by path. Raises ScenarioError naming the bad field."""
+    """Load a bundled scenario by name (``sc03``, see :func:`list_scenarios`) or a YAML file by path.
+
+    Raises ScenarioError naming the bad field.
+    """
     text_name = str(name_or_path)
     if text_name in list_scenarios():
         text = _read_text(_data_dir("scenarios").joinpath(text_name + ".yaml"))
@@ -301,7 +329,9 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
     else:
         path = Path(text_name).expanduser()
         if not path.is_file():
-            raise ScenarioError(f"scenario: unknown scenario {text_name!r}: use one of {list_scenarios()} or a YAML path")
+            raise ScenarioError(
+                f"scenario: unknown scenario {text_name!r}: use one of {list_scenarios()} or a YAML path"
+            )
         text = path.read_text(encoding="utf-8")
         source, base_dir = str(path), path.parent
     try:
@@ -326,31 +356,36 @@ def describe(scenario: Scenario) -> str:
     lb0, ub0 = sc.pmv_bounds(0.0)
     lb1, ub1 = sc.pmv_bounds(sc.duration_s)
     ini = ", ".join(f"{k}={v:.3g}" for k, v in sc.initial.items())
-    return "\n".join([
-        f"scenario {sc.name} ({sc.source})",
-        f"  drive cycle {sc.drive_cycle.name}: {sc.drive_cycle.duration_s:.0f} s, "
-        f"{sc.drive_cycle.distance_m / 1000.0:.2f} km, max {float(np.max(sc.drive_cycle.speed_mps)):.1f} m/s; "
-        f"run {sc.duration_s:.0f} s",
-        f"  ambient {env0.t_amb_c:.1f} -> {env1.t_amb_c:.1f} degC, solar {env0.solar_wm2:.0f} -> "
-        f"{env1.solar_wm2:.0f} W/m2, rh {env0.rh:.2f} -> {env1.rh:.2f}",
-        f"  occupant met={sc.occupant.met:g} clo={sc.occupant.clo:g}; PMV bounds "
-        f"[{lb0:g}, {ub0:g}] at 0 s -> [{lb1:g}, {ub1:g}] at the end",
-        f"  initial {ini}",
-        f"  sun altitude {sc.sun.altitude_deg:g} deg, azimuth {sc.sun.azimuth_deg:g} deg; heading "
-        f"{sc.sun.heading_deg:g} deg",
-        f"  control Ts={sc.control.control_period_s:g} s Np={sc.control.horizon_steps}; seed {sc.seed}",
-    ])
+    return "\n".join(
+        [
+            f"scenario {sc.name} ({sc.source})",
+            f"  drive cycle {sc.drive_cycle.name}: {sc.drive_cycle.duration_s:.0f} s, "
+            f"{sc.drive_cycle.distance_m / 1000.0:.2f} km, max {float(np.max(sc.drive_cycle.speed_mps)):.1f} m/s; "
+            f"run {sc.duration_s:.0f} s",
+            f"  ambient {env0.t_amb_c:.1f} -> {env1.t_amb_c:.1f} degC, solar {env0.solar_wm2:.0f} -> "
+            f"{env1.solar_wm2:.0f} W/m2, rh {env0.rh:.2f} -> {env1.rh:.2f}",
+            f"  occupant met={sc.occupant.met:g} clo={sc.occupant.clo:g}; PMV bounds "
+            f"[{lb0:g}, {ub0:g}] at 0 s -> [{lb1:g}, {ub1:g}] at the end",
+            f"  initial {ini}",
+            f"  sun altitude {sc.sun.altitude_deg:g} deg, azimuth {sc.sun.azimuth_deg:g} deg; heading "
+            f"{sc.sun.heading_deg:g} deg",
+            f"  control Ts={sc.control.control_period_s:g} s Np={sc.control.horizon_steps}; seed {sc.seed}",
+        ]
+    )
 
 
 def main(argv=None) -> int:
-    """``python -m ceco_v2x_preview.scenario [NAME_OR_PATH ...]``: validate and
-    summarise scenarios (all bundled ones without arguments). Exit status 1
-    and the field-naming message on the first invalid one."""
-    import argparse  # noqa: PLC0415
-    import sys  # noqa: PLC0415
+    """``python -m ceco_v2x_preview.scenario [NAME_OR_PATH ...]``: validate and summarise scenarios.
 
-    parser = argparse.ArgumentParser(prog="python -m ceco_v2x_preview.scenario",
-                                     description="Validate and summarise ceco scenario files.")
+    Without arguments, all bundled ones. Exit status 1 and the field-naming
+    message on the first invalid one.
+    """
+    import argparse
+    import sys
+
+    parser = argparse.ArgumentParser(
+        prog="python -m ceco_v2x_preview.scenario", description="Validate and summarise ceco scenario files."
+    )
     parser.add_argument("scenarios", nargs="*", help="bundled names or YAML paths (default: all bundled)")
     args = parser.parse_args(argv)
     status = 0

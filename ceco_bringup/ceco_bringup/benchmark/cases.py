@@ -36,8 +36,17 @@ from pathlib import Path
 
 import yaml
 
-__all__ = ["CASE_SCHEMA", "CaseError", "Case", "load_case", "case_from_dict", "list_cases",
-           "DEFAULT_CASES", "QUICK_CASES", "MIN_UNCERTAIN_SEEDS"]
+__all__ = [
+    "CASE_SCHEMA",
+    "CaseError",
+    "Case",
+    "load_case",
+    "case_from_dict",
+    "list_cases",
+    "DEFAULT_CASES",
+    "QUICK_CASES",
+    "MIN_UNCERTAIN_SEEDS",
+]
 
 CASE_SCHEMA = "ceco-benchmark-case/1"
 """Value of a case file's ``schema`` key."""
@@ -45,15 +54,34 @@ CASE_SCHEMA = "ceco-benchmark-case/1"
 MIN_UNCERTAIN_SEEDS = 5
 """Fewest seeds a case with forecast uncertainty may have (issue 10)."""
 
-DEFAULT_CASES = ("sc03-paper", "sc03-low", "sc03-medium", "sc03-high", "hotsoak-pulldown", "udds-hot",
-                 "hwfet-hot", "us06-hot", "mild-day")
+DEFAULT_CASES = (
+    "sc03-paper",
+    "sc03-low",
+    "sc03-medium",
+    "sc03-high",
+    "hotsoak-pulldown",
+    "udds-hot",
+    "hwfet-hot",
+    "us06-hot",
+    "mild-day",
+)
 """The cases of a full ``ceco benchmark`` run, in report order."""
 
 QUICK_CASES = ("sc03-paper", "us06-hot", "mild-day")
 """The three cases of ``ceco benchmark --quick`` (each 600 s; with seed 0 only)."""
 
-_KEYS = {"schema", "name", "version", "description", "scenario", "duration_s", "forecast_uncertainty", "seeds",
-         "control_period_s", "horizon_steps"}
+_KEYS = {
+    "schema",
+    "name",
+    "version",
+    "description",
+    "scenario",
+    "duration_s",
+    "forecast_uncertainty",
+    "seeds",
+    "control_period_s",
+    "horizon_steps",
+}
 _REQUIRED = ("schema", "name", "version", "scenario", "forecast_uncertainty", "seeds")
 
 
@@ -97,7 +125,7 @@ class Case:
 
     def load_scenario(self):
         """The :class:`~ceco_v2x_preview.scenario.Scenario` of the case, run length override applied."""
-        from ceco_v2x_preview.scenario import load_scenario, scenario_from_dict  # noqa: PLC0415
+        from ceco_v2x_preview.scenario import load_scenario, scenario_from_dict
 
         sc = load_scenario(self.scenario_path())
         if self.duration_s is None:
@@ -107,8 +135,8 @@ class Case:
 
     def scenario_dict(self) -> dict:
         """The scenario as a mapping (``scenario_from_dict`` form) with the case's overrides applied."""
-        from ceco_bringup.sweep import scenario_dict  # noqa: PLC0415
-        from ceco_v2x_preview.scenario import load_scenario  # noqa: PLC0415
+        from ceco_bringup.sweep import scenario_dict
+        from ceco_v2x_preview.scenario import load_scenario
 
         d = scenario_dict(load_scenario(self.scenario_path()))
         if self.duration_s is not None:
@@ -117,13 +145,19 @@ class Case:
 
     def resolved(self) -> dict:
         """Everything that determines the case's runs, as plain data (what :meth:`sha` hashes)."""
-        from ceco_v2x_preview.forecast_error import level_models  # noqa: PLC0415
+        from ceco_v2x_preview.forecast_error import level_models
 
         levels = {q: dataclasses.asdict(m) for q, m in level_models(self.forecast_uncertainty).items()}
-        return {"name": self.name, "version": self.version, "scenario": self.scenario_dict(),
-                "forecast_uncertainty": self.forecast_uncertainty, "error_models": levels,
-                "seeds": list(self.seeds), "control_period_s": self.control_period_s,
-                "horizon_steps": self.horizon_steps}
+        return {
+            "name": self.name,
+            "version": self.version,
+            "scenario": self.scenario_dict(),
+            "forecast_uncertainty": self.forecast_uncertainty,
+            "error_models": levels,
+            "seeds": list(self.seeds),
+            "control_period_s": self.control_period_s,
+            "horizon_steps": self.horizon_steps,
+        }
 
     def sha(self) -> str:
         """SHA-256 (16 hex digits) of :meth:`resolved` as canonical JSON."""
@@ -150,10 +184,11 @@ def _number(field: str, value, *, integer: bool = False, low_open: float | None 
     return int(value) if integer else float(value)
 
 
-def case_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.PathLike | None = None,
-                   expected_name: str | None = None) -> Case:
+def case_from_dict(
+    data: Mapping, *, source: str = "", base_dir: str | os.PathLike | None = None, expected_name: str | None = None
+) -> Case:
     """Validate a parsed case mapping (CaseError naming the field) and build a :class:`Case`."""
-    from ceco_v2x_preview.forecast_error import LEVELS  # noqa: PLC0415
+    from ceco_v2x_preview.forecast_error import LEVELS
 
     if not isinstance(data, Mapping):
         raise CaseError(f"case: top level must be a mapping, got {type(data).__name__}")
@@ -181,23 +216,36 @@ def case_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.PathLi
     if level not in LEVELS:
         raise CaseError(f"forecast_uncertainty: must be one of {list(LEVELS)}, got {level!r}")
     seeds = data["seeds"]
-    if not isinstance(seeds, (list, tuple)) or not seeds or not all(
-            isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds):
+    if (
+        not isinstance(seeds, (list, tuple))
+        or not seeds
+        or not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds)
+    ):
         raise CaseError(f"seeds: must be a non-empty list of non-negative integers, got {seeds!r}")
     if len(set(seeds)) != len(seeds):
         raise CaseError(f"seeds: must be distinct, got {list(seeds)}")
     if level == "none" and list(seeds) != [0]:
         raise CaseError("seeds: must be [0] for forecast_uncertainty none (perfect previews are deterministic)")
     if level != "none" and len(seeds) < MIN_UNCERTAIN_SEEDS:
-        raise CaseError(f"seeds: a case with forecast uncertainty needs at least {MIN_UNCERTAIN_SEEDS} seeds, "
-                        f"got {len(seeds)}")
+        raise CaseError(
+            f"seeds: a case with forecast uncertainty needs at least {MIN_UNCERTAIN_SEEDS} seeds, got {len(seeds)}"
+        )
     duration = _number("duration_s", data.get("duration_s"), low_open=0.0)
     ts = _number("control_period_s", data.get("control_period_s"), low_open=0.0)
     n_p = _number("horizon_steps", data.get("horizon_steps"), integer=True, low_open=0)
-    case = Case(name=name, version=version, description=description.strip(), scenario=scenario.strip(),
-                forecast_uncertainty=level, seeds=tuple(int(s) for s in seeds), duration_s=duration,
-                control_period_s=ts, horizon_steps=n_p, source=source,
-                base_dir=None if base_dir is None else str(base_dir))
+    case = Case(
+        name=name,
+        version=version,
+        description=description.strip(),
+        scenario=scenario.strip(),
+        forecast_uncertainty=level,
+        seeds=tuple(int(s) for s in seeds),
+        duration_s=duration,
+        control_period_s=ts,
+        horizon_steps=n_p,
+        source=source,
+        base_dir=None if base_dir is None else str(base_dir),
+    )
     try:
         case.load_scenario()
     except (ValueError, OSError) as exc:

@@ -37,8 +37,8 @@ __all__ = ['run_benchmark', 'ceco_version', 'main']
 
 def ceco_version() -> str:
     """The package version (``ceco_bringup/package.xml``) plus ``+g<commit>`` (and ``.dirty``) in a git checkout."""
-    import re  # noqa: PLC0415
-    import subprocess  # noqa: PLC0415
+    import re
+    import subprocess
 
     here = Path(__file__).resolve()
     version = '0'
@@ -48,10 +48,20 @@ def ceco_version() -> str:
             version = m.group(1) if m else version
             break
     try:
-        sha = subprocess.run(['git', '-C', str(here.parent), 'rev-parse', '--short', 'HEAD'], capture_output=True,
-                             text=True, timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(['git', '-C', str(here.parent), 'status', '--porcelain', '--untracked-files=no'],
-                               capture_output=True, text=True, timeout=10, check=True).stdout.strip()
+        sha = subprocess.run(
+            ['git', '-C', str(here.parent), 'rev-parse', '--short', 'HEAD'],
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ['git', '-C', str(here.parent), 'status', '--porcelain', '--untracked-files=no'],
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        ).stdout.strip()
         return f'{version}+g{sha}' + ('.dirty' if dirty else '')
     except (OSError, subprocess.SubprocessError):
         return version
@@ -67,16 +77,38 @@ def _kpi_table(path: Path, doc: dict) -> None:
         w.writerow(['case', 'controller', 'kind', 'seed', 'setpoint_c', 'source', 'status', *keys])
         for case in doc['cases']:
             for r in case['runs']:
-                w.writerow([case['case'], r['controller'], r['kind'], '' if r['seed'] is None else r['seed'],
-                            '' if r['setpoint_c'] is None else repr(r['setpoint_c']), r['source'], r['status'],
-                            *['' if r['kpis'].get(k) is None else repr(r['kpis'][k]) for k in keys]])
+                w.writerow(
+                    [
+                        case['case'],
+                        r['controller'],
+                        r['kind'],
+                        '' if r['seed'] is None else r['seed'],
+                        '' if r['setpoint_c'] is None else repr(r['setpoint_c']),
+                        r['source'],
+                        r['status'],
+                        *['' if r['kpis'].get(k) is None else repr(r['kpis'][k]) for k in keys],
+                    ]
+                )
 
 
-def run_benchmark(case_names: Sequence[str], out_dir, *, quick: bool = False, workers: int | None = None,
-                  backend: str = 'local', address: str | None = None, sensitivity: bool = True,
-                  controller_cmd: str | None = None, controller_name: str = 'external', save_runs: bool = False,
-                  progress: bool = True, command: str = '', log=print, setpoints_c: Sequence[float] | None = None,
-                  sensitivity_path=None) -> dict:
+def run_benchmark(
+    case_names: Sequence[str],
+    out_dir,
+    *,
+    quick: bool = False,
+    workers: int | None = None,
+    backend: str = 'local',
+    address: str | None = None,
+    sensitivity: bool = True,
+    controller_cmd: str | None = None,
+    controller_name: str = 'external',
+    save_runs: bool = False,
+    progress: bool = True,
+    command: str = '',
+    log=print,
+    setpoints_c: Sequence[float] | None = None,
+    sensitivity_path=None,
+) -> dict:
     """Run (or resume) the benchmark into ``out_dir``; return the results document (also written).
 
     ``setpoints_c`` and ``sensitivity_path`` replace the family's set-points and the tornado's
@@ -103,15 +135,21 @@ def run_benchmark(case_names: Sequence[str], out_dir, *, quick: bool = False, wo
         for p in params:
             ends = []
             for end in ('low', 'high'):
-                kw = {'plant_overrides': getattr(p, end)} if p.target == 'plant' else \
-                    {'comfort_overrides': getattr(p, end)}
-                ends.append(runner.case_cells(case, specs, code, seeds=seeds[case.name],
-                                              variant=f'sens:{p.parameter}:{end}', **kw))
+                kw = (
+                    {'plant_overrides': getattr(p, end)}
+                    if p.target == 'plant'
+                    else {'comfort_overrides': getattr(p, end)}
+                )
+                ends.append(
+                    runner.case_cells(
+                        case, specs, code, seeds=seeds[case.name], variant=f'sens:{p.parameter}:{end}', **kw
+                    )
+                )
             sens_plan.append((p, *ends))
             cells += ends[0] + ends[1]
     external = []
     if controller_cmd:
-        from . import external as ext  # noqa: PLC0415 (DDS: needs the built workspace)
+        from . import external as ext  # DDS: needs the built workspace
 
         ext_spec = runner.ControllerSpec(f'external:{controller_name}', 'external', 'external')
         for c in cases:
@@ -124,12 +162,15 @@ def run_benchmark(case_names: Sequence[str], out_dir, *, quick: bool = False, wo
     done = backends.read_done(log_path)
     todo = [c for c in cells if c.id not in done]
     todo_ext = [c for c in external if c.id not in done]
-    log(f'ceco benchmark: {len(cases)} case(s), {len(cells) + len(external)} runs, '
+    log(
+        f'ceco benchmark: {len(cases)} case(s), {len(cells) + len(external)} runs, '
         f'{len(cells) + len(external) - len(todo) - len(todo_ext)} already done, {len(todo) + len(todo_ext)} to run '
-        f'({backend}, {workers} worker(s))', file=sys.stderr)
+        f'({backend}, {workers} worker(s))',
+        file=sys.stderr,
+    )
     bar = None
     if progress and (todo or todo_ext):
-        from tqdm import tqdm  # noqa: PLC0415
+        from tqdm import tqdm
 
         bar = tqdm(total=len(todo) + len(todo_ext), desc='benchmark', unit='run', file=sys.stderr)
     ran: list = []
@@ -138,8 +179,11 @@ def run_benchmark(case_names: Sequence[str], out_dir, *, quick: bool = False, wo
         backends.append_row(log_path, row)
         ran.append(row)
         if row['status'] != 'ok':
-            log(f"ceco benchmark: {row['case']}/{row['controller']}/seed {row['seed']} ({row['variant']}) failed: "
-                f"{row['error']}", file=sys.stderr)
+            log(
+                f"ceco benchmark: {row['case']}/{row['controller']}/seed {row['seed']} ({row['variant']}) failed: "
+                f"{row['error']}",
+                file=sys.stderr,
+            )
         if bar is not None:
             bar.update(1)
 
@@ -155,8 +199,11 @@ def run_benchmark(case_names: Sequence[str], out_dir, *, quick: bool = False, wo
             else:
                 raise ValueError(f'backend: must be local or ray, got {backend!r}')
         for c in todo_ext:
-            on_done(ext.run_external_cell(dict(id=c.id, axes=c.axes, spec=c.spec), shlex.split(controller_cmd),
-                                          out / 'external' / c.id))
+            on_done(
+                ext.run_external_cell(
+                    dict(id=c.id, axes=c.axes, spec=c.spec), shlex.split(controller_cmd), out / 'external' / c.id
+                )
+            )
     finally:
         if bar is not None:
             bar.close()
@@ -173,50 +220,87 @@ def run_benchmark(case_names: Sequence[str], out_dir, *, quick: bool = False, wo
     all_cells = cells + external
     wall = time.perf_counter() - t0
     sim = [r['sim_time_s'] for r in ran if r['status'] == 'ok']
-    timing = {'wall_s': wall, 'runs': len(all_cells), 'ran_now': len(ran), 'failed_now': len(failed),
-              'workers': workers, 'backend': backend, 'host': socket.gethostname(),
-              'sim_time_sum_s': float(sum(sim)), 'sim_time_mean_s': float(sum(sim) / len(sim)) if sim else None}
-    doc = {'schema': SCHEMA, 'ceco_version': ceco_version(), 'benchmark_version': BENCHMARK_VERSION,
-           'created_utc': datetime.datetime.now(datetime.UTC).strftime('%Y-%m-%dT%H:%M:%SZ'),
-           'code_fingerprint': code, 'command': command, 'quick': bool(quick),
-           'settings': {'band': [-0.5, 0.5], 'front_axis': runner.FRONT_AXIS, 'energy_axis': runner.ENERGY_AXIS,
-                        'secondary_axes': list(runner.SECONDARY_AXES),
-                        'setpoints_c': [float(x) for x in setpoints_c],
-                        'allowance_k_per_pmv': baselines.allowance_k_per_pmv,
-                        'compensation': dict(baselines.compensation), 'baselines_tuned_on': baselines.tuned_on,
-                        'baselines_sha': baselines.sha, 'strategies': list(runner.STRATEGY_NAMES)},
-           'timing': timing, 'cases': case_docs}
+    timing = {
+        'wall_s': wall,
+        'runs': len(all_cells),
+        'ran_now': len(ran),
+        'failed_now': len(failed),
+        'workers': workers,
+        'backend': backend,
+        'host': socket.gethostname(),
+        'sim_time_sum_s': float(sum(sim)),
+        'sim_time_mean_s': float(sum(sim) / len(sim)) if sim else None,
+    }
+    doc = {
+        'schema': SCHEMA,
+        'ceco_version': ceco_version(),
+        'benchmark_version': BENCHMARK_VERSION,
+        'created_utc': datetime.datetime.now(datetime.UTC).strftime('%Y-%m-%dT%H:%M:%SZ'),
+        'code_fingerprint': code,
+        'command': command,
+        'quick': bool(quick),
+        'settings': {
+            'band': [-0.5, 0.5],
+            'front_axis': runner.FRONT_AXIS,
+            'energy_axis': runner.ENERGY_AXIS,
+            'secondary_axes': list(runner.SECONDARY_AXES),
+            'setpoints_c': [float(x) for x in setpoints_c],
+            'allowance_k_per_pmv': baselines.allowance_k_per_pmv,
+            'compensation': dict(baselines.compensation),
+            'baselines_tuned_on': baselines.tuned_on,
+            'baselines_sha': baselines.sha,
+            'strategies': list(runner.STRATEGY_NAMES),
+        },
+        'timing': timing,
+        'cases': case_docs,
+    }
     validate_results(doc)
     (out / 'results.json').write_text(json.dumps(doc, indent=1, allow_nan=False) + '\n', encoding='utf-8')
     with open(out / 'timing.jsonl', 'a', encoding='utf-8') as fh:
         fh.write(json.dumps(timing) + '\n')
     _kpi_table(out / 'kpis.csv', doc)
-    from .report import write_report  # noqa: PLC0415
+    from .report import write_report
 
     write_report(doc, out)
     return doc
 
 
 def _missing(cell) -> dict:
-    return {'cell_id': cell.id, **cell.axes, 'status': 'error', 'error': 'not run (interrupted?)', 'kpis': None,
-            'kpi_notes': {}, 'source': 'simulator'}
+    return {
+        'cell_id': cell.id,
+        **cell.axes,
+        'status': 'error',
+        'error': 'not run (interrupted?)',
+        'kpis': None,
+        'kpi_notes': {},
+        'source': 'simulator',
+    }
 
 
 def main(argv=None) -> int:
     """CLI of ``ceco benchmark``."""
-    p = argparse.ArgumentParser(prog='ceco benchmark', description=__doc__.split('\n\n')[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog='ceco benchmark',
+        description=__doc__.split('\n\n')[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument('cases', nargs='*', help=f'case names or case-file paths (default: all bundled: {list_cases()})')
     p.add_argument('--out', help='output directory (reuse it to resume)')
-    p.add_argument('--quick', action='store_true',
-                   help=f'CI smoke test: cases {", ".join(QUICK_CASES)}, seed 0, set-points 24/25/26 degC, '
-                        'no sensitivity')
+    p.add_argument(
+        '--quick',
+        action='store_true',
+        help=f'CI smoke test: cases {", ".join(QUICK_CASES)}, seed 0, set-points 24/25/26 degC, no sensitivity',
+    )
     p.add_argument('--workers', type=int, default=None, help=f'parallel workers (default: all cores, {os.cpu_count()})')
     p.add_argument('--backend', choices=('local', 'ray'), default='local', help='local process pool or Ray')
     p.add_argument('--address', default=None, help='Ray cluster address (default: a local Ray instance)')
     p.add_argument('--no-sensitivity', action='store_true', help='skip the tornado runs')
-    p.add_argument('--controller-cmd', default=None, metavar='CMD',
-                   help='run your own controller node (any language) in place of mpc_node over DDS and score it')
+    p.add_argument(
+        '--controller-cmd',
+        default=None,
+        metavar='CMD',
+        help='run your own controller node (any language) in place of mpc_node over DDS and score it',
+    )
     p.add_argument('--controller-name', default='external', help='name of that controller in the results')
     p.add_argument('--save-runs', action='store_true', help='also write a run directory per run to DIR/runs/')
     p.add_argument('--validate', metavar='FILE', default=None, help='only check FILE against ceco-benchmark/1')
@@ -241,28 +325,43 @@ def main(argv=None) -> int:
         p.error('--address needs --backend ray')
     cmd = 'ceco benchmark ' + ' '.join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
     try:
-        doc = run_benchmark(args.cases, args.out, quick=args.quick, workers=args.workers, backend=args.backend,
-                            address=args.address, sensitivity=not args.no_sensitivity,
-                            controller_cmd=args.controller_cmd, controller_name=args.controller_name,
-                            save_runs=args.save_runs, progress=not args.no_progress, command=cmd)
+        doc = run_benchmark(
+            args.cases,
+            args.out,
+            quick=args.quick,
+            workers=args.workers,
+            backend=args.backend,
+            address=args.address,
+            sensitivity=not args.no_sensitivity,
+            controller_cmd=args.controller_cmd,
+            controller_name=args.controller_name,
+            save_runs=args.save_runs,
+            progress=not args.no_progress,
+            command=cmd,
+        )
     except (CaseError, ResultsError, ValueError, RuntimeError, OSError) as exc:
         print(f'ceco benchmark: error: {exc}', file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print('ceco benchmark: interrupted; finished runs are kept, rerun the same command to resume',
-              file=sys.stderr)
+        print('ceco benchmark: interrupted; finished runs are kept, rerun the same command to resume', file=sys.stderr)
         return 130
     t = doc['timing']
-    print(f"ceco benchmark: {t['runs']} runs ({t['ran_now']} run now, {t['failed_now']} failed) in {t['wall_s']:.1f} s "
-          f"on {t['workers']} worker(s); results {Path(args.out) / 'results.json'}, report "
-          f"{Path(args.out) / 'report.html'}")
+    print(
+        f"ceco benchmark: {t['runs']} runs ({t['ran_now']} run now, {t['failed_now']} failed) in {t['wall_s']:.1f} s "
+        f"on {t['workers']} worker(s); results {Path(args.out) / 'results.json'}, report "
+        f"{Path(args.out) / 'report.html'}"
+    )
     for case in doc['cases']:
         for name, m in case['matched'].items():
+
             def f(x):
                 return 'n/a' if x is None else f'{x:+.1f} %'
-            print(f"  {case['case']:<18} {name:<32} dE@comfort {f(m['energy_saving_pct']):>8} (allowance "
-                  f"{f(m['allowance']['energy_saving_pct']):>8}), dD@energy {f(m['discomfort_reduction_pct']):>8}"
-                  f"{', dominated' if m['dominated'] else ''}")
+
+            print(
+                f"  {case['case']:<18} {name:<32} dE@comfort {f(m['energy_saving_pct']):>8} (allowance "
+                f"{f(m['allowance']['energy_saving_pct']):>8}), dD@energy {f(m['discomfort_reduction_pct']):>8}"
+                f"{', dominated' if m['dominated'] else ''}"
+            )
     failed = sum(r['status'] != 'ok' for c in doc['cases'] for r in c['runs'])
     return 1 if failed else 0
 

@@ -25,15 +25,21 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ceco_ros.topics import TOPIC_COMMAND, TOPIC_STATE
+
 __all__ = ['controller_env', 'step_times_from_bag', 'run_external_cell']
 
 
 def controller_env(spec: Mapping, scenario_path: Path, ts: float, n_p: int) -> dict:
     """Environment variables the external controller gets (besides the DDS ones)."""
-    return {'CECO_SCENARIO': str(scenario_path), 'CECO_CONTROL_PERIOD_S': repr(float(ts)),
-            'CECO_HORIZON_STEPS': str(int(n_p)), 'CECO_CASE': str(spec['case']),
-            'CECO_SEED': '' if spec['seed'] is None else str(spec['seed']),
-            'CECO_PREVIEW_QUALITY': str(spec['preview'])}
+    return {
+        'CECO_SCENARIO': str(scenario_path),
+        'CECO_CONTROL_PERIOD_S': repr(float(ts)),
+        'CECO_HORIZON_STEPS': str(int(n_p)),
+        'CECO_CASE': str(spec['case']),
+        'CECO_SEED': '' if spec['seed'] is None else str(spec['seed']),
+        'CECO_PREVIEW_QUALITY': str(spec['preview']),
+    }
 
 
 def step_times_from_bag(run_dir, control_period_s: float, plant_dt_s: float = 1.0) -> np.ndarray:
@@ -44,45 +50,60 @@ def step_times_from_bag(run_dir, control_period_s: float, plant_dt_s: float = 1.
     message's step index (``send_times.json`` next to the bag). The first command of each
     step counts.
     """
-    import json  # noqa: PLC0415
+    import json
 
     sent = json.loads((Path(run_dir) / 'send_times.json').read_text(encoding='utf-8'))
     per = int(round(control_period_s / plant_dt_s))
     state, cmd = {}, {}
-    for n, t_ns in sent['cabin/state']:
+    for n, t_ns in sent[TOPIC_STATE]:
         if n % per == 0:
             state.setdefault(n // per, t_ns)
-    for k, t_ns in sent['hvac/command']:
+    for k, t_ns in sent[TOPIC_COMMAND]:
         cmd.setdefault(k, t_ns)
     ks = sorted(set(state) & set(cmd))
     return np.array([(cmd[k] - state[k]) * 1e-9 for k in ks], dtype=float)
 
 
-def run_external_cell(cell: Mapping, command: Sequence[str], run_dir: Path, *, command_timeout_s: float = 5.0,
-                      startup_timeout_s: float = 120.0, run_timeout_s: float = 1800.0) -> dict:
+def run_external_cell(
+    cell: Mapping,
+    command: Sequence[str],
+    run_dir: Path,
+    *,
+    command_timeout_s: float = 5.0,
+    startup_timeout_s: float = 120.0,
+    run_timeout_s: float = 1800.0,
+) -> dict:
     """Run one external-controller cell over DDS into ``run_dir``; return its log row (never raises)."""
-    from ceco_bringup.sweep import cells as sweep_cells  # noqa: PLC0415
+    from ceco_bringup.sweep import cells as sweep_cells
 
     t0 = time.perf_counter()
-    row = {'cell_id': cell['id'], **cell['axes'], 'status': 'ok', 'error': '', 'kpis': None, 'kpi_notes': {},
-           'source': 'dds', 'sim_time_s': math.nan}
+    row = {
+        'cell_id': cell['id'],
+        **cell['axes'],
+        'status': 'ok',
+        'error': '',
+        'kpis': None,
+        'kpi_notes': {},
+        'source': 'dds',
+        'sim_time_s': math.nan,
+    }
     try:
-        import rclpy  # noqa: F401, PLC0415 (fail early and clearly without ROS)
+        import rclpy  # noqa: F401 (fail early and clearly without ROS)
     except ImportError as exc:
         row.update(status='error', error=f'--controller-cmd needs ROS 2 (rclpy): {exc}; source the workspace')
         row['wall_time_s'] = time.perf_counter() - t0
         return row
     try:
-        from ceco_bringup import bagio, run  # noqa: PLC0415
-        from ceco_core.metrics import compute_kpis  # noqa: PLC0415
-        from ceco_v2x_preview.preview import parse_quality  # noqa: PLC0415
-        from ceco_v2x_preview.scenario import load_scenario  # noqa: PLC0415
+        from ceco_bringup import bagio, run
+        from ceco_core.metrics import compute_kpis
+        from ceco_v2x_preview.preview import parse_quality
+        from ceco_v2x_preview.scenario import load_scenario
 
         spec = cell['spec']
         row['code'] = sweep_cells.code_fingerprint()
         run_dir = Path(run_dir)
-        if run_dir.exists():                      # a previous, unfinished attempt: start afresh
-            import shutil  # noqa: PLC0415
+        if run_dir.exists():  # a previous, unfinished attempt: start afresh
+            import shutil
 
             shutil.rmtree(run_dir)
         run_dir.mkdir(parents=True)
@@ -96,24 +117,40 @@ def run_external_cell(cell: Mapping, command: Sequence[str], run_dir: Path, *, c
         n_p = int(spec['horizon_steps'] or scenario.control.horizon_steps)
         # `ceco run`'s own defaults (bag storage, ...), then what this run sets
         args = run.build_parser().parse_args(['--out', str(run_dir), '--no-progress'])
-        for key, value in dict(scenario=str(scenario_path), timing='lockstep', control_period_s=ts,
-                               horizon_steps=n_p, duration_s=spec['duration_s'], command_timeout_s=command_timeout_s,
-                               startup_timeout_s=startup_timeout_s, run_timeout_s=run_timeout_s).items():
+        for key, value in dict(
+            scenario=str(scenario_path),
+            timing='lockstep',
+            control_period_s=ts,
+            horizon_steps=n_p,
+            duration_s=spec['duration_s'],
+            command_timeout_s=command_timeout_s,
+            startup_timeout_s=startup_timeout_s,
+            run_timeout_s=run_timeout_s,
+        ).items():
             setattr(args, key, value)
         stop = run._StopFlag()
         t_sim = time.perf_counter()
-        metrics = run.run_one(args, scenario, quality, 'external', run_dir, stop, controller_cmd=list(command),
-                              controller_env=controller_env(spec, scenario_path, ts, n_p))
+        metrics = run.run_one(
+            args,
+            scenario,
+            quality,
+            'external',
+            run_dir,
+            stop,
+            controller_cmd=list(command),
+            controller_env=controller_env(spec, scenario_path, ts, n_p),
+        )
         row['sim_time_s'] = time.perf_counter() - t_sim
         ts_data = bagio.load_run_timeseries(run_dir / 'bag')
-        per = max(1, int(round(ts / 1.0)))                       # plant steps (1 s) per control step
+        per = max(1, int(round(ts / 1.0)))  # plant steps (1 s) per control step
         fb = np.asarray(ts_data['fallback'], dtype=bool)
-        fallbacks = sum(bool(fb[i:i + per].any()) for i in range(0, fb.size, per))   # plant-side fallback steps
+        fallbacks = sum(bool(fb[i : i + per].any()) for i in range(0, fb.size, per))  # plant-side fallback steps
         row['dds_metrics'] = {k: metrics[k] for k in ('wall_time_s', 'loop_wall_time_s', 'realtime_factor')}
-        kpis, notes = compute_kpis(ts_data, step_time_s=step_times_from_bag(run_dir, ts),
-                                   control_period_s=ts, fallback_steps=fallbacks)
+        kpis, notes = compute_kpis(
+            ts_data, step_time_s=step_times_from_bag(run_dir, ts), control_period_s=ts, fallback_steps=fallbacks
+        )
         row['kpis'], row['kpi_notes'] = kpis, notes
-    except Exception as exc:  # noqa: BLE001 (a failed run is data)
+    except Exception as exc:  # a failed run is data
         row.update(status='error', error=f'{type(exc).__name__}: {exc}')
     row['wall_time_s'] = time.perf_counter() - t0
     row['pid'] = os.getpid()

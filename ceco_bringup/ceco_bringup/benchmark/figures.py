@@ -16,23 +16,28 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use('Agg')
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import Patch
 
-from ceco_bringup.figures import strategy_style  # noqa: E402
+from ceco_bringup.figures import strategy_style
 
 __all__ = ['fig_plane', 'fig_tornado', 'controller_points']
 
 _DPI = 200
 _RC = {'font.size': 8, 'axes.grid': True, 'grid.alpha': 0.3, 'savefig.bbox': 'tight', 'legend.fontsize': 7}
-_FAMILY_STYLE = {'plain': {'color': '#000000', 'ls': '-', 'label': 'baseline front (PI at set-point S)'},
-                 'allowance': {'color': '#0072B2', 'ls': '--', 'label': 'allowance baseline front'}}
+_FAMILY_STYLE = {
+    'plain': {'color': '#000000', 'ls': '-', 'label': 'baseline front (PI at set-point S)'},
+    'allowance': {'color': '#0072B2', 'ls': '--', 'label': 'allowance baseline front'},
+}
 _SCORED_KINDS = ('strategy', 'compensated', 'compensated-allowance', 'external')
-_AXIS_LABEL = {'discomfort_pmvh': 'Thermal discomfort, whole run (PMV outside -0.5..0.5) [PMV·h]',
-               'discomfort_band_pmvh': 'Thermal discomfort, band phase [PMV·h]',
-               'i_pmv_clipped': 'I_PMV with PMV clipped to ±3 [s]', 'i_pmv': 'I_PMV [s]',
-               'energy_kwh': 'A/C electrical energy (compressor + blower + fan) [kWh]'}
+_AXIS_LABEL = {
+    'discomfort_pmvh': 'Thermal discomfort, whole run (PMV outside -0.5..0.5) [PMV·h]',
+    'discomfort_band_pmvh': 'Thermal discomfort, band phase [PMV·h]',
+    'i_pmv_clipped': 'I_PMV with PMV clipped to ±3 [s]',
+    'i_pmv': 'I_PMV [s]',
+    'energy_kwh': 'A/C electrical energy (compressor + blower + fan) [kWh]',
+}
 _LOW, _HIGH = '#56B4E9', '#D55E00'
 
 
@@ -43,7 +48,7 @@ def controller_points(case: Mapping, fx: str, ex: str) -> dict:
     controllers), sorted by seed.
     """
     out: dict = {}
-    for r in sorted(case['runs'], key=lambda r: (-1 if r['seed'] is None else r['seed'])):
+    for r in sorted(case['runs'], key=lambda r: -1 if r['seed'] is None else r['seed']):
         if r['status'] != 'ok' or r['kind'] not in _SCORED_KINDS:
             continue
         d, e = r['kpis'].get(fx), r['kpis'].get(ex)
@@ -60,8 +65,12 @@ def _style(name: str, kind: str, index: int) -> dict:
     if kind == 'external':
         return {'color': '#CC79A7', 'marker': '*', 'label': name}
     # the compensated production law: grey squares, hollow for its allowance variant
-    return {'color': '#7f7f7f', 'marker': 's', 'label': name,
-            'mfc': 'none' if kind == 'compensated-allowance' else None}
+    return {
+        'color': '#7f7f7f',
+        'marker': 's',
+        'label': name,
+        'mfc': 'none' if kind == 'compensated-allowance' else None,
+    }
 
 
 def fig_plane(case: Mapping, path, settings: Mapping, title: str = '') -> Path:
@@ -79,29 +88,61 @@ def fig_plane(case: Mapping, path, settings: Mapping, title: str = '') -> Path:
             if not pts:
                 continue
             eff = sorted((p for p in pts if p['efficient']), key=lambda p: p['discomfort'])
-            ax.plot([p['discomfort'] for p in eff], [p['energy'] for p in eff], color=st['color'], ls=st['ls'],
-                    marker='o', ms=3.5, lw=1.1, label=st['label'])
+            ax.plot(
+                [p['discomfort'] for p in eff],
+                [p['energy'] for p in eff],
+                color=st['color'],
+                ls=st['ls'],
+                marker='o',
+                ms=3.5,
+                lw=1.1,
+                label=st['label'],
+            )
             off = [p for p in pts if not p['efficient']]
             if off:
-                ax.plot([p['discomfort'] for p in off], [p['energy'] for p in off], ls='none', marker='o', ms=3.5,
-                        mfc='none', color=st['color'], alpha=0.6)
+                ax.plot(
+                    [p['discomfort'] for p in off],
+                    [p['energy'] for p in off],
+                    ls='none',
+                    marker='o',
+                    ms=3.5,
+                    mfc='none',
+                    color=st['color'],
+                    alpha=0.6,
+                )
             for p in eff:
                 sp = p['controller'].split('@')[-1]
-                ax.annotate(sp, (p['discomfort'], p['energy']), textcoords='offset points', xytext=(3, 2),
-                            fontsize=5.5, color=st['color'])
+                ax.annotate(
+                    sp,
+                    (p['discomfort'], p['energy']),
+                    textcoords='offset points',
+                    xytext=(3, 2),
+                    fontsize=5.5,
+                    color=st['color'],
+                )
         for i, (name, (kind, pts)) in enumerate(controller_points(case, fx, ex).items()):
             st = _style(name, kind, i)
             arr = np.array(pts)
             m = arr.mean(axis=0)
-            one = len(pts) == 1            # no whiskers for a single run
+            one = len(pts) == 1  # no whiskers for a single run
             # min-max whiskers; clipped at 0: the mean of equal seeds can exceed their max by an ulp
             xerr = None if one else [[max(0.0, m[0] - arr[:, 0].min())], [max(0.0, arr[:, 0].max() - m[0])]]
             yerr = None if one else [[max(0.0, m[1] - arr[:, 1].min())], [max(0.0, arr[:, 1].max() - m[1])]]
-            ax.errorbar([m[0]], [m[1]], xerr=xerr, yerr=yerr, color=st['color'], marker=st['marker'], ms=6,
-                        mfc=st.get('mfc') or st['color'],
-                        lw=0.9, capsize=2, ls='none',
-                        label=st['label'] + (f' ({len(pts)} seeds)' if len(pts) > 1 else ''),
-                        zorder=3)
+            ax.errorbar(
+                [m[0]],
+                [m[1]],
+                xerr=xerr,
+                yerr=yerr,
+                color=st['color'],
+                marker=st['marker'],
+                ms=6,
+                mfc=st.get('mfc') or st['color'],
+                lw=0.9,
+                capsize=2,
+                ls='none',
+                label=st['label'] + (f' ({len(pts)} seeds)' if len(pts) > 1 else ''),
+                zorder=3,
+            )
             if len(pts) > 1:
                 ax.plot(arr[:, 0], arr[:, 1], ls='none', marker='.', ms=2.5, color=st['color'], alpha=0.6, zorder=3)
         ax.set_xlabel(_AXIS_LABEL.get(fx, fx))
@@ -130,8 +171,9 @@ def fig_tornado(case: Mapping, path, controllers=None, title: str = '') -> Path:
         raise ValueError(f"fig_tornado: case {case.get('case')!r} has no sensitivity results")
     names = list(controllers or [c for c in case['matched']])
     with plt.rc_context(_RC):
-        fig, axes = plt.subplots(1, len(names), figsize=(2.9 * len(names), 0.32 * len(sens) + 1.6), squeeze=False,
-                                 sharey=True)
+        fig, axes = plt.subplots(
+            1, len(names), figsize=(2.9 * len(names), 0.32 * len(sens) + 1.6), squeeze=False, sharey=True
+        )
         for ax, name in zip(axes[0], names):
             nominal = case['matched'].get(name, {}).get('energy_saving_pct')
             rows = []
@@ -157,9 +199,16 @@ def fig_tornado(case: Mapping, path, controllers=None, title: str = '') -> Path:
             st = strategy_style(name)
             ax.set_title(st['label'] if name in ('ceco', 'ceco-e', 'ceco-c', 'ceco-ioch') else name, loc='left')
             ax.set_xlabel('energy saving at matched comfort [%]')
-        fig.legend(handles=[Patch(color=_LOW, label='parameter at its low end'),
-                            Patch(color=_HIGH, label='parameter at its high end')],
-                   loc='upper center', bbox_to_anchor=(0.5, 0.0), ncol=2, frameon=False)
+        fig.legend(
+            handles=[
+                Patch(color=_LOW, label='parameter at its low end'),
+                Patch(color=_HIGH, label='parameter at its high end'),
+            ],
+            loc='upper center',
+            bbox_to_anchor=(0.5, 0.0),
+            ncol=2,
+            frameon=False,
+        )
         fig.suptitle(title or f"Sensitivity of the matched-comfort saving, {case['case']}")
         fig.tight_layout()
         path = Path(path)

@@ -151,7 +151,7 @@ def build_front(points: Mapping[str, tuple] | Iterable[tuple]) -> Front:
     (ValueError naming the point). Points equal to an earlier one on both axes are
     kept but only the first is a vertex.
     """
-    items = ([(k, *v) for k, v in points.items()] if isinstance(points, Mapping) else list(points))
+    items = [(k, *v) for k, v in points.items()] if isinstance(points, Mapping) else list(points)
     if not items:
         raise ValueError("build_front: the family has no points")
     pts = [(str(n), *_finite_point(n, d, e)) for n, d, e in items]
@@ -205,10 +205,11 @@ def match(front: Front, discomfort: float, energy: float) -> Matched:
         e_ref = front.energy_at(min(dc, d[-1])) if _le(dc, d[-1]) else float(e[-1])
         if _le(dc, d[-1]):
             dominated = _lt(e_ref, ec)
-        else:     # beyond the least comfortable vertex: it has strictly less discomfort
+        else:  # beyond the least comfortable vertex: it has strictly less discomfort
             dominated = _le(e_ref, ec)
-    return Matched(energy_saving_pct=saving, discomfort_reduction_pct=reduction, dominated=bool(dominated),
-                   note="; ".join(notes))
+    return Matched(
+        energy_saving_pct=saving, discomfort_reduction_pct=reduction, dominated=bool(dominated), note="; ".join(notes)
+    )
 
 
 def match_seeds(front: Front, points: Sequence[tuple]) -> dict:
@@ -224,8 +225,10 @@ def match_seeds(front: Front, points: Sequence[tuple]) -> dict:
     arr = np.array([(float(a), float(b)) for a, b in points])
     mean = match(front, float(arr[:, 0].mean()), float(arr[:, 1].mean())).as_dict()
     per = [match(front, a, b) for a, b in arr]
-    mean["seeds"] = {"energy_saving_pct": [m.energy_saving_pct for m in per],
-                     "discomfort_reduction_pct": [m.discomfort_reduction_pct for m in per],
-                     "dominated": [m.dominated for m in per]}
+    mean["seeds"] = {
+        "energy_saving_pct": [m.energy_saving_pct for m in per],
+        "discomfort_reduction_pct": [m.discomfort_reduction_pct for m in per],
+        "dominated": [m.dominated for m in per],
+    }
     mean["n_seeds"] = len(per)
     return mean

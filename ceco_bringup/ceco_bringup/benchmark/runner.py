@@ -29,9 +29,23 @@ from . import front as fr
 from .cases import Case
 from .schema import BENCHMARK_VERSION, FAMILIES
 
-__all__ = ['SETPOINTS_C', 'QUICK_SETPOINTS_C', 'FRONT_AXIS', 'ENERGY_AXIS', 'SECONDARY_AXES', 'STRATEGY_NAMES',
-           'BaselineConstants', 'load_baselines', 'Sensitivity', 'load_sensitivity', 'ControllerSpec',
-           'controllers', 'case_cells', 'run_benchmark_cell', 'assemble_case']
+__all__ = [
+    'SETPOINTS_C',
+    'QUICK_SETPOINTS_C',
+    'FRONT_AXIS',
+    'ENERGY_AXIS',
+    'SECONDARY_AXES',
+    'STRATEGY_NAMES',
+    'BaselineConstants',
+    'load_baselines',
+    'Sensitivity',
+    'load_sensitivity',
+    'ControllerSpec',
+    'controllers',
+    'case_cells',
+    'run_benchmark_cell',
+    'assemble_case',
+]
 
 SETPOINTS_C = tuple(22.0 + 0.5 * i for i in range(15))
 """Set-points of the baseline family [degC]: 22.0 ... 29.0 in 0.5 K steps (docs/benchmark.md, "Baselines")."""
@@ -71,7 +85,7 @@ class BaselineConstants:
 
 def load_baselines(path: str | Path | None = None) -> BaselineConstants:
     """Read the frozen baseline constants (default: the bundled file)."""
-    import hashlib  # noqa: PLC0415
+    import hashlib
 
     if path is None:
         text = resources.files('ceco_bringup').joinpath('data', 'benchmark', 'baselines.yaml').read_text('utf-8')
@@ -80,13 +94,16 @@ def load_baselines(path: str | Path | None = None) -> BaselineConstants:
     d = yaml.safe_load(text)
     if not isinstance(d, Mapping) or d.get('schema') != 'ceco-benchmark-baselines/1':
         raise ValueError('baselines: not a ceco-benchmark-baselines/1 file')
-    from ceco_core.acc_law import AccSettings  # noqa: PLC0415
+    from ceco_core.acc_law import AccSettings
 
     comp = dict(d['compensation'])
     AccSettings(**comp, allowance_k_per_pmv=float(d['allowance_k_per_pmv'])).validate()
-    return BaselineConstants(allowance_k_per_pmv=float(d['allowance_k_per_pmv']), compensation=comp,
-                             tuned_on=str(d.get('tuned_on', '')),
-                             sha=hashlib.sha256(text.encode('utf-8')).hexdigest()[:16])
+    return BaselineConstants(
+        allowance_k_per_pmv=float(d['allowance_k_per_pmv']),
+        compensation=comp,
+        tuned_on=str(d.get('tuned_on', '')),
+        sha=hashlib.sha256(text.encode('utf-8')).hexdigest()[:16],
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,12 +126,12 @@ class Sensitivity:
 
 def _default_value(target: str, name: str):
     """The code's default of a sensitivity field: PlantParams / ComfortParams (dotted parts), or pa_pa."""
-    from ceco_core.cabin_comfort import ComfortParams  # noqa: PLC0415
-    from ceco_plant_sim.plant_params import PlantParams  # noqa: PLC0415
-    from ceco_plant_sim.scenario_plant import SCORED_PA_OVERRIDE  # noqa: PLC0415
+    from ceco_core.cabin_comfort import ComfortParams
+    from ceco_plant_sim.plant_params import PlantParams
+    from ceco_plant_sim.scenario_plant import SCORED_PA_OVERRIDE
 
     if target == 'comfort' and name == SCORED_PA_OVERRIDE:
-        return None                      # default: the plant's moisture balance, no fixed value
+        return None  # default: the plant's moisture balance, no fixed value
     obj = ComfortParams() if target == 'comfort' else PlantParams()
     for part in name.split('.'):
         obj = getattr(obj, part)
@@ -136,7 +153,7 @@ def load_sensitivity(path: str | Path | None = None) -> tuple[str, list[Sensitiv
     else:
         text = Path(path).read_text(encoding='utf-8')
     d = yaml.safe_load(text)
-    from ceco_plant_sim.scenario_plant import check_overrides  # noqa: PLC0415
+    from ceco_plant_sim.scenario_plant import check_overrides
 
     if not isinstance(d, Mapping) or d.get('schema') != 'ceco-benchmark-sensitivity/1':
         raise ValueError('sensitivity: not a ceco-benchmark-sensitivity/1 file')
@@ -148,13 +165,18 @@ def load_sensitivity(path: str | Path | None = None) -> tuple[str, list[Sensitiv
         for end in ('nominal', 'low', 'high'):
             if not isinstance(p.get(end), Mapping) or not p[end]:
                 raise ValueError(f'{where}.{end}: must be a non-empty mapping of fields to values')
-        s = Sensitivity(parameter=p['parameter'], target=p['target'], nominal=dict(p['nominal']),
-                        low=dict(p['low']), high=dict(p['high']), source=' '.join(str(p.get('source', '')).split()))
+        s = Sensitivity(
+            parameter=p['parameter'],
+            target=p['target'],
+            nominal=dict(p['nominal']),
+            low=dict(p['low']),
+            high=dict(p['high']),
+            source=' '.join(str(p.get('source', '')).split()),
+        )
         if not set(s.low) == set(s.high) == set(s.nominal):
             raise ValueError(f'{where}: nominal, low and high must set the same fields')
         for end in ('low', 'high'):
-            kw = {'plant_overrides': getattr(s, end)} if s.target == 'plant' else \
-                {'comfort_overrides': getattr(s, end)}
+            kw = {'plant_overrides': getattr(s, end)} if s.target == 'plant' else {'comfort_overrides': getattr(s, end)}
             try:
                 check_overrides(**kw)
             except ValueError as exc:
@@ -165,10 +187,13 @@ def load_sensitivity(path: str | Path | None = None) -> tuple[str, list[Sensitiv
             except AttributeError as exc:
                 raise ValueError(f'{where}.nominal: no field {k!r} ({exc})') from exc
             same = (v is None and default is None) or (
-                v is not None and default is not None and math.isclose(float(default), float(v), rel_tol=1e-12))
+                v is not None and default is not None and math.isclose(float(default), float(v), rel_tol=1e-12)
+            )
             if not same:
-                raise ValueError(f"{where}.nominal: {k} = {v} differs from the code's default {default}: "
-                                 'update data/benchmark/sensitivity.yaml')
+                raise ValueError(
+                    f"{where}.nominal: {k} = {v} differs from the code's default {default}: "
+                    'update data/benchmark/sensitivity.yaml'
+                )
         if s.low == s.high:
             raise ValueError(f'{where}: low and high are the same')
         out.append(s)
@@ -196,8 +221,9 @@ class ControllerSpec:
         return self.kind not in SEED_INVARIANT
 
 
-def controllers(baselines: BaselineConstants, setpoints_c: Sequence[float] = SETPOINTS_C,
-                strategies: Sequence[str] = STRATEGY_NAMES) -> list[ControllerSpec]:
+def controllers(
+    baselines: BaselineConstants, setpoints_c: Sequence[float] = SETPOINTS_C, strategies: Sequence[str] = STRATEGY_NAMES
+) -> list[ControllerSpec]:
     """The benchmark's controllers: both baseline families, both compensated laws, the strategies."""
     out = []
     k = float(baselines.allowance_k_per_pmv)
@@ -206,13 +232,27 @@ def controllers(baselines: BaselineConstants, setpoints_c: Sequence[float] = SET
         out.append(ControllerSpec(f'baseline@{sp:.1f}', 'baseline', 'baseline', (('setpoint_c', sp),), sp))
     for sp in setpoints_c:
         sp = float(sp)
-        out.append(ControllerSpec(f'baseline-allowance@{sp:.1f}', 'baseline-allowance', 'baseline',
-                                  (('allowance_k_per_pmv', k), ('setpoint_c', sp)), sp))
+        out.append(
+            ControllerSpec(
+                f'baseline-allowance@{sp:.1f}',
+                'baseline-allowance',
+                'baseline',
+                (('allowance_k_per_pmv', k), ('setpoint_c', sp)),
+                sp,
+            )
+        )
     comp = tuple(sorted((str(a), float(b)) for a, b in baselines.compensation.items()))
     sp_c = float(dict(comp).get('setpoint_c', 26.0))
     out.append(ControllerSpec('baseline-compensated', 'compensated', 'baseline', comp, sp_c))
-    out.append(ControllerSpec('baseline-compensated-allowance', 'compensated-allowance', 'baseline',
-                              tuple(sorted(comp + (('allowance_k_per_pmv', k),))), sp_c))
+    out.append(
+        ControllerSpec(
+            'baseline-compensated-allowance',
+            'compensated-allowance',
+            'baseline',
+            tuple(sorted(comp + (('allowance_k_per_pmv', k),))),
+            sp_c,
+        )
+    )
     out += [ControllerSpec(s, 'strategy', s) for s in strategies]
     return out
 
@@ -221,23 +261,46 @@ def _preview(case: Case) -> str:
     return 'perfect' if case.forecast_uncertainty == 'none' else f'uncertain:{case.forecast_uncertainty}'
 
 
-def case_cells(case: Case, specs: Sequence[ControllerSpec], code: str, *, seeds: Sequence[int] | None = None,
-               variant: str = 'nominal', plant_overrides: Mapping | None = None,
-               comfort_overrides: Mapping | None = None) -> list[Cell]:
+def case_cells(
+    case: Case,
+    specs: Sequence[ControllerSpec],
+    code: str,
+    *,
+    seeds: Sequence[int] | None = None,
+    variant: str = 'nominal',
+    plant_overrides: Mapping | None = None,
+    comfort_overrides: Mapping | None = None,
+) -> list[Cell]:
     """The cells of one case (one per controller, and per seed for the seeded ones)."""
     scenario = case.scenario_dict()
     sha = case.sha()
     out = []
     for c in specs:
-        for seed in (list(seeds if seeds is not None else case.seeds) if c.seeded else [None]):
-            spec = {'benchmark_version': BENCHMARK_VERSION, 'code': code, 'case': case.name, 'case_sha': sha,
-                    'scenario': scenario, 'strategy': c.strategy, 'strategy_overrides': dict(c.overrides),
-                    'preview': _preview(case) if c.seeded else 'perfect', 'seed': seed,
-                    'duration_s': case.duration_s, 'control_period_s': case.control_period_s,
-                    'horizon_steps': case.horizon_steps,
-                    'plant_overrides': dict(plant_overrides or {}), 'comfort_overrides': dict(comfort_overrides or {})}
-            axes = {'case': case.name, 'controller': c.name, 'kind': c.kind, 'seed': seed, 'variant': variant,
-                    'setpoint_c': c.setpoint_c}
+        for seed in list(seeds if seeds is not None else case.seeds) if c.seeded else [None]:
+            spec = {
+                'benchmark_version': BENCHMARK_VERSION,
+                'code': code,
+                'case': case.name,
+                'case_sha': sha,
+                'scenario': scenario,
+                'strategy': c.strategy,
+                'strategy_overrides': dict(c.overrides),
+                'preview': _preview(case) if c.seeded else 'perfect',
+                'seed': seed,
+                'duration_s': case.duration_s,
+                'control_period_s': case.control_period_s,
+                'horizon_steps': case.horizon_steps,
+                'plant_overrides': dict(plant_overrides or {}),
+                'comfort_overrides': dict(comfort_overrides or {}),
+            }
+            axes = {
+                'case': case.name,
+                'controller': c.name,
+                'kind': c.kind,
+                'seed': seed,
+                'variant': variant,
+                'setpoint_c': c.setpoint_c,
+            }
             out.append(Cell(id=cell_id(spec), axes=axes, spec=spec))
     return out
 
@@ -248,42 +311,60 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
     Returns the row logged in ``cells.jsonl``: ``cell_id``, the axes, ``status``, ``error``,
     ``kpis``, ``kpi_notes``, ``code``, ``sim_time_s``, ``wall_time_s``, ``source``.
     """
-    import os  # noqa: PLC0415
-    import socket  # noqa: PLC0415
-    import time  # noqa: PLC0415
+    import os
+    import socket
+    import time
 
     t0 = time.perf_counter()
-    row = {'cell_id': cell['id'], **cell['axes'], 'status': 'ok', 'error': '', 'kpis': None, 'kpi_notes': {},
-           'source': 'simulator', 'sim_time_s': math.nan}
+    row = {
+        'cell_id': cell['id'],
+        **cell['axes'],
+        'status': 'ok',
+        'error': '',
+        'kpis': None,
+        'kpi_notes': {},
+        'source': 'simulator',
+        'sim_time_s': math.nan,
+    }
     try:
-        from ceco_bringup.sweep import cells as sweep_cells  # noqa: PLC0415
-        from ceco_controller.closed_loop import SimSettings, simulate, write_run  # noqa: PLC0415
-        from ceco_core.metrics import compute_kpis  # noqa: PLC0415
-        from ceco_v2x_preview.preview import parse_quality  # noqa: PLC0415
-        from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
+        from ceco_bringup.sweep import cells as sweep_cells
+        from ceco_controller.closed_loop import SimSettings, simulate, write_run
+        from ceco_core.metrics import compute_kpis
+        from ceco_v2x_preview.preview import parse_quality
+        from ceco_v2x_preview.scenario import scenario_from_dict
 
         spec = cell['spec']
         row['code'] = sweep_cells.code_fingerprint()
         if spec.get('code') and row['code'] != spec['code']:
-            raise RuntimeError(f"the simulator's code here ({row['code']}) differs from the benchmark's "
-                               f"({spec['code']}): code changed during the run; rerun")
+            raise RuntimeError(
+                f"the simulator's code here ({row['code']}) differs from the benchmark's "
+                f"({spec['code']}): code changed during the run; rerun"
+            )
         t_sim = time.perf_counter()
-        settings = SimSettings(control_period_s=spec['control_period_s'], horizon_steps=spec['horizon_steps'],
-                               preview_quality=parse_quality(spec['preview']), seed=spec['seed'],
-                               duration_s=spec['duration_s'], progress=False,
-                               strategy_overrides=tuple(sorted(spec['strategy_overrides'].items())),
-                               plant_overrides=tuple(sorted(spec['plant_overrides'].items())),
-                               comfort_overrides=tuple(sorted(spec['comfort_overrides'].items())))
+        settings = SimSettings(
+            control_period_s=spec['control_period_s'],
+            horizon_steps=spec['horizon_steps'],
+            preview_quality=parse_quality(spec['preview']),
+            seed=spec['seed'],
+            duration_s=spec['duration_s'],
+            progress=False,
+            strategy_overrides=tuple(sorted(spec['strategy_overrides'].items())),
+            plant_overrides=tuple(sorted(spec['plant_overrides'].items())),
+            comfort_overrides=tuple(sorted(spec['comfort_overrides'].items())),
+        )
         res = simulate(scenario_from_dict(spec['scenario']), spec['strategy'], settings)
         m = res.metrics
-        kpis, notes = compute_kpis(res.timeseries, step_time_s=res.step_time_s,
-                                   control_period_s=m['control_period_s'],
-                                   fallback_steps=m['n_fallback_shifted'] + m['n_fallback_baseline'])
+        kpis, notes = compute_kpis(
+            res.timeseries,
+            step_time_s=res.step_time_s,
+            control_period_s=m['control_period_s'],
+            fallback_steps=m['n_fallback_shifted'] + m['n_fallback_baseline'],
+        )
         row['sim_time_s'] = time.perf_counter() - t_sim
         row['kpis'], row['kpi_notes'] = kpis, notes
         if runs_dir:
             write_run(res, Path(runs_dir) / cell['id'])
-    except Exception as exc:  # noqa: BLE001 (a failed run is data, the benchmark goes on)
+    except Exception as exc:  # a failed run is data, the benchmark goes on
         row['status'], row['error'] = 'error', f'{type(exc).__name__}: {exc}'
     row['wall_time_s'] = time.perf_counter() - t0
     row['host'], row['pid'] = socket.gethostname(), os.getpid()
@@ -292,36 +373,50 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
 
 def _run_entry(row: Mapping) -> dict:
     kpis = row.get('kpis') or {}
-    from .schema import REQUIRED_KPIS  # noqa: PLC0415
+    from .schema import REQUIRED_KPIS
 
     if row['status'] != 'ok':
         kpis = {k: None for k in REQUIRED_KPIS}
         notes = {k: 'the run failed' for k in REQUIRED_KPIS}
     else:
         notes = dict(row.get('kpi_notes') or {})
-    clean = {k: (None if v is None or (isinstance(v, float) and not math.isfinite(v)) else float(v))
-             for k, v in kpis.items()}
+    clean = {
+        k: (None if v is None or (isinstance(v, float) and not math.isfinite(v)) else float(v)) for k, v in kpis.items()
+    }
     for k, v in kpis.items():
         if v is not None and clean[k] is None:
             notes.setdefault(k, 'not finite')
-    return {'controller': row['controller'], 'kind': row['kind'], 'seed': row['seed'],
-            'setpoint_c': row.get('setpoint_c'), 'source': row.get('source', 'simulator'), 'status': row['status'],
-            'error': row.get('error', ''), 'kpis': clean, 'kpi_notes': notes}
+    return {
+        'controller': row['controller'],
+        'kind': row['kind'],
+        'seed': row['seed'],
+        'setpoint_c': row.get('setpoint_c'),
+        'source': row.get('source', 'simulator'),
+        'status': row['status'],
+        'error': row.get('error', ''),
+        'kpis': clean,
+        'kpi_notes': notes,
+    }
 
 
 def _fronts(runs: Sequence[Mapping], fx: str, ex: str) -> dict:
     out = {}
     for family, kind in FAMILIES.items():
-        pts = [(r['controller'], r['kpis'][fx], r['kpis'][ex]) for r in runs
-               if r['kind'] == kind and r['status'] == 'ok' and r['kpis'].get(fx) is not None
-               and r['kpis'].get(ex) is not None]
+        pts = [
+            (r['controller'], r['kpis'][fx], r['kpis'][ex])
+            for r in runs
+            if r['kind'] == kind
+            and r['status'] == 'ok'
+            and r['kpis'].get(fx) is not None
+            and r['kpis'].get(ex) is not None
+        ]
         out[family] = fr.build_front(pts) if pts else None
     return out
 
 
 def _points(runs: Sequence[Mapping], fx: str, ex: str) -> dict:
     pts: dict = {}
-    for r in sorted(runs, key=lambda r: (-1 if r['seed'] is None else r['seed'])):
+    for r in sorted(runs, key=lambda r: -1 if r['seed'] is None else r['seed']):
         if r['kind'] in SCORED_KINDS and r['status'] == 'ok':
             d, e = r['kpis'].get(fx), r['kpis'].get(ex)
             if d is not None and e is not None:
@@ -349,27 +444,53 @@ def assemble_case(case: Case, rows: Sequence[Mapping], sensitivity: Sequence[tup
     runs.sort(key=lambda r: (r['controller'], -1 if r['seed'] is None else r['seed']))
     fronts = _fronts(runs, FRONT_AXIS, ENERGY_AXIS)
     sc = case.load_scenario()
-    out = {'case': case.name, 'version': case.version, 'case_sha': case.sha(), 'description': case.description,
-           'scenario': case.scenario, 'forecast_uncertainty': case.forecast_uncertainty, 'seeds': list(case.seeds),
-           'duration_s': float(sc.duration_s),
-           'control_period_s': float(case.control_period_s or sc.control.control_period_s),
-           'horizon_steps': int(case.horizon_steps or sc.control.horizon_steps), 'runs': runs,
-           'fronts': {fam: [] if f is None else [{'controller': p.name, 'discomfort': p.discomfort,
-                                                    'energy': p.energy, 'efficient': p.efficient} for p in f.points]
-                      for fam, f in fronts.items()},
-           'matched': _matched(runs, FRONT_AXIS, ENERGY_AXIS)}
-    out['matched_by_axis'] = {ax: {n: {k: m[k] for k in ('energy_saving_pct', 'discomfort_reduction_pct', 'dominated',
-                                                          'note')}
-                                   for n, m in _matched(runs, ax, ENERGY_AXIS).items()} for ax in SECONDARY_AXES}
+    out = {
+        'case': case.name,
+        'version': case.version,
+        'case_sha': case.sha(),
+        'description': case.description,
+        'scenario': case.scenario,
+        'forecast_uncertainty': case.forecast_uncertainty,
+        'seeds': list(case.seeds),
+        'duration_s': float(sc.duration_s),
+        'control_period_s': float(case.control_period_s or sc.control.control_period_s),
+        'horizon_steps': int(case.horizon_steps or sc.control.horizon_steps),
+        'runs': runs,
+        'fronts': {
+            fam: []
+            if f is None
+            else [
+                {'controller': p.name, 'discomfort': p.discomfort, 'energy': p.energy, 'efficient': p.efficient}
+                for p in f.points
+            ]
+            for fam, f in fronts.items()
+        },
+        'matched': _matched(runs, FRONT_AXIS, ENERGY_AXIS),
+    }
+    out['matched_by_axis'] = {
+        ax: {
+            n: {k: m[k] for k in ('energy_saving_pct', 'discomfort_reduction_pct', 'dominated', 'note')}
+            for n, m in _matched(runs, ax, ENERGY_AXIS).items()
+        }
+        for ax in SECONDARY_AXES
+    }
     if sensitivity:
         out['sensitivity'] = []
         for s, low_rows, high_rows in sensitivity:
-            entry = {'parameter': s.parameter, 'target': s.target, 'source': s.source,
-                     'nominal': _scalar(s.nominal), 'low': _scalar(s.low), 'high': _scalar(s.high)}
+            entry = {
+                'parameter': s.parameter,
+                'target': s.target,
+                'source': s.source,
+                'nominal': _scalar(s.nominal),
+                'low': _scalar(s.low),
+                'high': _scalar(s.high),
+            }
             for end, rs in (('low', low_rows), ('high', high_rows)):
                 m = _matched([_run_entry(r) for r in rs], FRONT_AXIS, ENERGY_AXIS)
-                entry[f'matched_{end}'] = {n: {k: v[k] for k in ('energy_saving_pct', 'discomfort_reduction_pct',
-                                                                  'dominated', 'note')} for n, v in m.items()}
+                entry[f'matched_{end}'] = {
+                    n: {k: v[k] for k in ('energy_saving_pct', 'discomfort_reduction_pct', 'dominated', 'note')}
+                    for n, v in m.items()
+                }
                 entry[f'failed_{end}'] = sum(r['status'] != 'ok' for r in rs)
             out['sensitivity'].append(entry)
     return out

@@ -25,8 +25,18 @@ from typing import Any
 
 from . import front as fr
 
-__all__ = ["SCHEMA", "BENCHMARK_VERSION", "REQUIRED_KPIS", "KINDS", "SEED_INVARIANT_KINDS", "FAMILIES",
-           "load_json_schema", "validate_results", "check_results", "ResultsError"]
+__all__ = [
+    "SCHEMA",
+    "BENCHMARK_VERSION",
+    "REQUIRED_KPIS",
+    "KINDS",
+    "SEED_INVARIANT_KINDS",
+    "FAMILIES",
+    "load_json_schema",
+    "validate_results",
+    "check_results",
+    "ResultsError",
+]
 
 SCHEMA = "ceco-benchmark/1"
 """Value of results.json's ``schema`` key."""
@@ -34,8 +44,19 @@ SCHEMA = "ceco-benchmark/1"
 BENCHMARK_VERSION = 1
 """Version of the benchmark's definition (KPIs, baseline family, levels, matched-comfort method)."""
 
-REQUIRED_KPIS = ("energy_kwh", "discomfort_pmvh", "i_pmv", "i_pmv_clipped", "otc_violation_pct", "draught_pct",
-                 "actuator_travel", "peak_comp_kw", "time_ratio_mean", "time_ratio_max", "fallback_steps")
+REQUIRED_KPIS = (
+    "energy_kwh",
+    "discomfort_pmvh",
+    "i_pmv",
+    "i_pmv_clipped",
+    "otc_violation_pct",
+    "draught_pct",
+    "actuator_travel",
+    "peak_comp_kw",
+    "time_ratio_mean",
+    "time_ratio_max",
+    "fallback_steps",
+)
 """KPIs every run reports (a number or null with a note)."""
 
 KINDS = ("strategy", "baseline", "baseline-allowance", "compensated", "compensated-allowance", "external")
@@ -56,8 +77,9 @@ class ResultsError(ValueError):
 
 def load_json_schema() -> dict:
     """The JSON Schema document of ceco-benchmark/1."""
-    text = resources.files("ceco_bringup").joinpath("data", "benchmark", "results.schema.json").read_text(
-        encoding="utf-8")
+    text = (
+        resources.files("ceco_bringup").joinpath("data", "benchmark", "results.schema.json").read_text(encoding="utf-8")
+    )
     return json.loads(text)
 
 
@@ -70,7 +92,7 @@ def _same(a, b) -> bool:
 
 
 def _schema_errors(doc: Any) -> list[str]:
-    import jsonschema  # noqa: PLC0415
+    import jsonschema
 
     validator = jsonschema.Draft202012Validator(load_json_schema())
     out = []
@@ -150,8 +172,10 @@ def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
         if runs[0]["kind"] in FAMILIES.values():
             out.append(f"{where}: a family member is not matched against its own front")
             continue
-        pts = [(r["kpis"].get(fx), r["kpis"].get(ex))
-               for r in sorted(runs, key=lambda r: (-1 if r["seed"] is None else r["seed"]))]
+        pts = [
+            (r["kpis"].get(fx), r["kpis"].get(ex))
+            for r in sorted(runs, key=lambda r: -1 if r["seed"] is None else r["seed"])
+        ]
         if any(a is None or b is None for a, b in pts):
             out.append(f"{where}: a run has no {fx} or {ex}")
             continue
@@ -159,8 +183,9 @@ def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
             if fronts.get(family) is None:
                 out.append(f"{where}: the {family} front is empty")
                 continue
-            out += _check_match(where if family == "plain" else f"{where}.allowance", sub,
-                                fr.match_seeds(fronts[family], pts))
+            out += _check_match(
+                where if family == "plain" else f"{where}.allowance", sub, fr.match_seeds(fronts[family], pts)
+            )
     return out
 
 

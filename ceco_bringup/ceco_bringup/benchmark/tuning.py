@@ -54,21 +54,25 @@ _AMBIENT_REF_C = 25.0
 
 
 def _run(scenario, overrides: dict) -> dict:
-    from ceco_controller.closed_loop import SimSettings, simulate  # noqa: PLC0415
-    from ceco_core.metrics import band_phase  # noqa: PLC0415
+    from ceco_controller.closed_loop import SimSettings, simulate
+    from ceco_core.metrics import band_phase
 
-    r = simulate(scenario, 'baseline', SimSettings(progress=False,
-                                                   strategy_overrides=tuple(sorted(overrides.items()))))
+    r = simulate(scenario, 'baseline', SimSettings(progress=False, strategy_overrides=tuple(sorted(overrides.items()))))
     ts = r.timeseries
     band = band_phase(ts['pmv_lb'], ts['pmv_ub'])
     e = ts['p_comp_w'] + ts['p_blower_w'] + ts['p_cond_fan_w']
-    return {'pmv_band': float(np.mean(ts['pmv'][band])), 'violation_pct': float(r.metrics['otc_violation_pct']),
-            'energy_band_kwh': float(np.sum(e[band])) / 3.6e6, 'solar_band_wm2': float(np.mean(ts['solar_wm2'][band])),
-            't_amb_band_c': float(np.mean(ts['t_amb_c'][band])), 'energy_kwh': float(np.sum(e)) / 3.6e6}
+    return {
+        'pmv_band': float(np.mean(ts['pmv'][band])),
+        'violation_pct': float(r.metrics['otc_violation_pct']),
+        'energy_band_kwh': float(np.sum(e[band])) / 3.6e6,
+        'solar_band_wm2': float(np.mean(ts['solar_wm2'][band])),
+        't_amb_band_c': float(np.mean(ts['t_amb_c'][band])),
+        'energy_kwh': float(np.sum(e)) / 3.6e6,
+    }
 
 
 def _scaled(case, solar: float = 1.0, d_amb_k: float = 0.0):
-    from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
+    from ceco_v2x_preview.scenario import scenario_from_dict
 
     d = case.scenario_dict()
     d['weather'] = dict(d['weather'])
@@ -79,7 +83,7 @@ def _scaled(case, solar: float = 1.0, d_amb_k: float = 0.0):
 
 def tune(case_name: str = 'sc03-paper', log=print) -> dict:
     """Apply the rules of the module docstring; return the baselines document."""
-    from .cases import load_case  # noqa: PLC0415
+    from .cases import load_case
 
     case = load_case(case_name)
     sc = case.load_scenario()
@@ -88,8 +92,10 @@ def tune(case_name: str = 'sc03-paper', log=print) -> dict:
     def run(label, scenario, overrides):
         r = _run(scenario, overrides)
         table.append({'run': label, **{k: float(v) for k, v in overrides.items()}, **r})
-        log(f"  {label}: PMV_band {r['pmv_band']:+.4f}, violation {r['violation_pct']:.2f} %, "
-            f"E_band {r['energy_band_kwh']:.4f} kWh")
+        log(
+            f"  {label}: PMV_band {r['pmv_band']:+.4f}, violation {r['violation_pct']:.2f} %, "
+            f"E_band {r['energy_band_kwh']:.4f} kWh"
+        )
         return r
 
     def neutral(label, overrides):
@@ -102,8 +108,10 @@ def tune(case_name: str = 'sc03-paper', log=print) -> dict:
         sp = round(0.5 * (a + b), 3)
         r = run(f'{label} neutral', sc, {**overrides, 'setpoint_c': sp})
         if abs(r['pmv_band']) > 0.01:
-            raise RuntimeError(f'{label}: no set-point in 18..32 degC gives a band-phase mean PMV of 0 '
-                               f"(at {sp} degC: {r['pmv_band']:+.3f}); the law is saturated on this case")
+            raise RuntimeError(
+                f'{label}: no set-point in 18..32 degC gives a band-phase mean PMV of 0 '
+                f"(at {sp} degC: {r['pmv_band']:+.3f}); the law is saturated on this case"
+            )
         return sp, r
 
     s0, plain = neutral('plain', {})
@@ -112,31 +120,49 @@ def tune(case_name: str = 'sc03-paper', log=print) -> dict:
         r = run(f'allowance {k:g} at S_0', sc, {'setpoint_c': s0, 'allowance_k_per_pmv': k})
         if r['violation_pct'] <= plain['violation_pct'] + 1e-9:
             k_allow = k
-    from ceco_core.acc_law import AccSettings  # noqa: PLC0415
+    from ceco_core.acc_law import AccSettings
 
     s_d = float(AccSettings().setpoint_c)
-    g = (run(f'plain {s_d + 0.5:g}', sc, {'setpoint_c': s_d + 0.5})['pmv_band']
-         - run(f'plain {s_d - 0.5:g}', sc, {'setpoint_c': s_d - 0.5})['pmv_band'])
-    lo, hi = run('solar x0.9', _scaled(case, solar=0.9), {'setpoint_c': s_d}), \
-        run('solar x1.1', _scaled(case, solar=1.1), {'setpoint_c': s_d})
+    g = (
+        run(f'plain {s_d + 0.5:g}', sc, {'setpoint_c': s_d + 0.5})['pmv_band']
+        - run(f'plain {s_d - 0.5:g}', sc, {'setpoint_c': s_d - 0.5})['pmv_band']
+    )
+    lo, hi = (
+        run('solar x0.9', _scaled(case, solar=0.9), {'setpoint_c': s_d}),
+        run('solar x1.1', _scaled(case, solar=1.1), {'setpoint_c': s_d}),
+    )
     k_sun = 1000.0 * (hi['pmv_band'] - lo['pmv_band']) / (hi['solar_band_wm2'] - lo['solar_band_wm2']) / g
-    lo, hi = run('ambient -1 K', _scaled(case, d_amb_k=-1.0), {'setpoint_c': s_d}), \
-        run('ambient +1 K', _scaled(case, d_amb_k=1.0), {'setpoint_c': s_d})
+    lo, hi = (
+        run('ambient -1 K', _scaled(case, d_amb_k=-1.0), {'setpoint_c': s_d}),
+        run('ambient +1 K', _scaled(case, d_amb_k=1.0), {'setpoint_c': s_d}),
+    )
     k_amb = (hi['pmv_band'] - lo['pmv_band']) / (hi['t_amb_band_c'] - lo['t_amb_band_c']) / g
     best = None
     for k_bl in BLOWER_GRID:
-        comp = {'sun_gain_k_per_kwm2': k_sun, 'ambient_gain_k_per_k': k_amb, 'ambient_ref_c': _AMBIENT_REF_C,
-                'sun_blower_gain_kgps_per_kwm2': k_bl, 'sun_filter_tau_s': _FILTER_TAU_S}
+        comp = {
+            'sun_gain_k_per_kwm2': k_sun,
+            'ambient_gain_k_per_k': k_amb,
+            'ambient_ref_c': _AMBIENT_REF_C,
+            'sun_blower_gain_kgps_per_kwm2': k_bl,
+            'sun_filter_tau_s': _FILTER_TAU_S,
+        }
         sp, r = neutral(f'compensated k_bl {k_bl:g}', comp)
         if best is None or r['energy_band_kwh'] < best[0] - 1e-12:
             best = (r['energy_band_kwh'], {**comp, 'setpoint_c': sp})
     comp = {k: float(v) for k, v in best[1].items()}
     AccSettings(**comp, allowance_k_per_pmv=k_allow).validate()
-    return {'schema': 'ceco-benchmark-baselines/1', 'tuned_on': case.name, 'tuned_on_sha': case.sha(),
-            'rules': 'ceco_bringup/benchmark/tuning.py (docs/benchmark.md, "Baselines")',
-            'neutral_setpoint_c': float(s0), 'allowance_k_per_pmv': float(k_allow),
-            'gain_setpoint_c': s_d, 'setpoint_sensitivity_pmv_per_k': float(g),
-            'compensation': comp, 'runs': table}
+    return {
+        'schema': 'ceco-benchmark-baselines/1',
+        'tuned_on': case.name,
+        'tuned_on_sha': case.sha(),
+        'rules': 'ceco_bringup/benchmark/tuning.py (docs/benchmark.md, "Baselines")',
+        'neutral_setpoint_c': float(s0),
+        'allowance_k_per_pmv': float(k_allow),
+        'gain_setpoint_c': s_d,
+        'setpoint_sensitivity_pmv_per_k': float(g),
+        'compensation': comp,
+        'runs': table,
+    }
 
 
 def main(argv=None) -> int:
@@ -147,8 +173,10 @@ def main(argv=None) -> int:
     ap.add_argument('--out', default=str(default), help=f'output file (default {default})')
     args = ap.parse_args(argv)
     doc = tune(args.case, log=lambda *a: print(*a, file=sys.stderr))
-    header = ('# Frozen constants of the benchmark baselines (docs/benchmark.md, "Baselines").\n'
-              '# Written by `python -m ceco_bringup.benchmark.tuning`; do not edit by hand: rerun the rule.\n')
+    header = (
+        '# Frozen constants of the benchmark baselines (docs/benchmark.md, "Baselines").\n'
+        '# Written by `python -m ceco_bringup.benchmark.tuning`; do not edit by hand: rerun the rule.\n'
+    )
     Path(args.out).write_text(header + yaml.safe_dump(doc, sort_keys=False, width=110), encoding='utf-8')
     print(f"k_allow {doc['allowance_k_per_pmv']:g} K/PMV; compensation {doc['compensation']} -> {args.out}")
     return 0
@@ -156,4 +184,3 @@ def main(argv=None) -> int:
 
 if __name__ == '__main__':
     sys.exit(main())
-

@@ -18,9 +18,12 @@ from pathlib import Path
 
 __all__ = ['read_done', 'append_row', 'WORKER_THREAD_ENV', 'run_local', 'run_ray']
 
+
 def read_done(log_path: str | os.PathLike) -> dict:
-    """``{cell_id: row}`` of the cells with status 'ok' in a ``cells.jsonl``
-    (later lines win; an unreadable line, e.g. torn by a crash, is skipped)."""
+    """``{cell_id: row}`` of the cells with status 'ok' in a ``cells.jsonl``.
+
+    Later lines win; an unreadable line, e.g. torn by a crash, is skipped.
+    """
     done: dict = {}
     p = Path(log_path)
     if not p.is_file():
@@ -55,11 +58,12 @@ def _append_row(log_path: Path, row: Mapping) -> None:
 
 
 def _pythonpath() -> str:
-    """Source dirs of the ceco packages as imported here (so spawned or Ray
-    workers import the same code)."""
+    """Source dirs of the ceco packages as imported here, as a PYTHONPATH value.
+
+    Spawned or Ray workers then import the same code.
+    """
     dirs = []
-    for mod in ('ceco_bringup', 'ceco_controller', 'ceco_plant_sim', 'ceco_v2x_preview', 'ceco_core',
-                'ceco_ros'):
+    for mod in ('ceco_bringup', 'ceco_controller', 'ceco_plant_sim', 'ceco_v2x_preview', 'ceco_core', 'ceco_ros'):
         try:
             m = __import__(mod)
         except ImportError:
@@ -78,8 +82,10 @@ two workers on two cores then ran a cell 2-3x slower than one worker alone
 
 @contextlib.contextmanager
 def _worker_env():
-    """Set :data:`WORKER_THREAD_ENV` (where unset) while workers start:
-    spawned processes copy the environment at start."""
+    """Set :data:`WORKER_THREAD_ENV` (where unset) while workers start.
+
+    Spawned processes copy the environment at start.
+    """
     added = {k: v for k, v in WORKER_THREAD_ENV.items() if k not in os.environ}
     os.environ.update(added)
     try:
@@ -120,17 +126,17 @@ def run_ray(items: Sequence, workers: int, address: str | None, on_done: Callabl
     down at the end; with ``address`` the cluster is used and left running.
     """
     try:
-        import ray  # noqa: PLC0415 (optional extra)
+        import ray  # optional extra
     except ImportError as exc:
-        raise RuntimeError('--backend ray needs the optional Ray extra: '
-                           'pip install -r requirements/analysis.txt (ray==2.60.0)') from exc
+        raise RuntimeError(
+            '--backend ray needs the optional Ray extra: pip install -r requirements/analysis.txt (ray==2.60.0)'
+        ) from exc
     with _worker_env() as thread_env:
         runtime_env = {'env_vars': {'PYTHONPATH': _pythonpath(), **thread_env}}
     started = False
     if not ray.is_initialized():
         if address:
-            ray.init(address=address, runtime_env=runtime_env, include_dashboard=False,
-                     log_to_driver=False)
+            ray.init(address=address, runtime_env=runtime_env, include_dashboard=False, log_to_driver=False)
         else:
             ray.init(num_cpus=workers, runtime_env=runtime_env, include_dashboard=False, log_to_driver=False)
         started = True
@@ -144,8 +150,6 @@ def run_ray(items: Sequence, workers: int, address: str | None, on_done: Callabl
     finally:
         if started:
             ray.shutdown()
-
-
 
 
 append_row = _append_row

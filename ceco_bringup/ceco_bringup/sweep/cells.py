@@ -17,20 +17,51 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
-__all__ = ['METRIC_COLUMNS', 'TIMING_COLUMNS', 'Cell', 'code_fingerprint', 'cell_id', 'runtime_overrides',
-           'settings_from_spec', 'run_cell']
+__all__ = [
+    'METRIC_COLUMNS',
+    'TIMING_COLUMNS',
+    'Cell',
+    'code_fingerprint',
+    'cell_id',
+    'runtime_overrides',
+    'settings_from_spec',
+    'run_cell',
+]
 
-METRIC_COLUMNS = ('E_tot_J', 'E_tot_kWh', 'E_comp_J', 'E_blower_J', 'P_mean_w', 'I_pmv', 'otc_violation_pct',
-                  'otc_violation_s', 'otc_above_ub_s', 'otc_below_lb_s', 'time_to_comfort_s', 'pmv_mean',
-                  'pmv_max', 'pmv_min', 'duration_s', 'n_control_steps', 'n_fallback_shifted',
-                  'n_fallback_baseline', 'solve_time_median_ms', 'solve_time_max_ms',
-                  'zone_start_s', 'E_zone_J', 'I_pmv_zone', 'otc_violation_zone_pct', 'pmv_mean_zone')
+METRIC_COLUMNS = (
+    'E_tot_J',
+    'E_tot_kWh',
+    'E_comp_J',
+    'E_blower_J',
+    'P_mean_w',
+    'I_pmv',
+    'otc_violation_pct',
+    'otc_violation_s',
+    'otc_above_ub_s',
+    'otc_below_lb_s',
+    'time_to_comfort_s',
+    'pmv_mean',
+    'pmv_max',
+    'pmv_min',
+    'duration_s',
+    'n_control_steps',
+    'n_fallback_shifted',
+    'n_fallback_baseline',
+    'solve_time_median_ms',
+    'solve_time_max_ms',
+    'zone_start_s',
+    'E_zone_J',
+    'I_pmv_zone',
+    'otc_violation_zone_pct',
+    'pmv_mean_zone',
+)
 """Metric columns of the results table (those the simulator returns; ``*_zone``:
 the comfort-zone phase, where the upper PMV bound is at its tightest, from
 ``zone_start_s`` on; ``closed_loop.simulate``)."""
 
 TIMING_COLUMNS = ('solve_time_median_ms', 'solve_time_max_ms')
 """Metric columns that are wall-clock measurements (not reproducible)."""
+
 
 @dataclasses.dataclass(frozen=True)
 class Cell:
@@ -56,11 +87,13 @@ _CODE_SUFFIXES = ('.py', '.yaml', '.yml', '.csv', '.json')
 
 
 def code_fingerprint() -> str:
-    """SHA-256 (16 hex digits) of the simulator's code and configuration as
-    importable here: every ``.py/.yaml/.csv/.json`` file of the scenario,
+    """SHA-256 (16 hex digits) of the simulator's code and configuration as importable here.
+
+    It covers every ``.py/.yaml/.csv/.json`` file of the scenario,
     plant and controller packages, their ``config/`` directories and the
     identified model parameter file. Part of every cell's id, so a changed
-    simulator reruns the cells instead of mixing results of two versions."""
+    simulator reruns the cells instead of mixing results of two versions.
+    """
     h = hashlib.sha256()
     files: list = []
     for name in _CODE_PACKAGES:
@@ -68,10 +101,13 @@ def code_fingerprint() -> str:
         pkg = Path(mod.__file__).resolve().parent
         for root in (pkg, pkg.parent / 'config'):
             if root.is_dir():
-                files += [(f'{name}/{root.name}/{p.relative_to(root)}', p) for p in root.rglob('*')
-                          if p.suffix in _CODE_SUFFIXES and p.is_file() and '__pycache__' not in p.parts]
+                files += [
+                    (f'{name}/{root.name}/{p.relative_to(root)}', p)
+                    for p in root.rglob('*')
+                    if p.suffix in _CODE_SUFFIXES and p.is_file() and '__pycache__' not in p.parts
+                ]
     try:
-        from ceco_controller.model import default_params_path  # noqa: PLC0415
+        from ceco_controller.model import default_params_path
 
         files.append(('model_params', default_params_path()))
     except (ImportError, FileNotFoundError):
@@ -90,19 +126,18 @@ def cell_id(spec: Mapping) -> str:
     return hashlib.sha256(_canonical(spec).encode('utf-8')).hexdigest()[:16]
 
 
-
 def runtime_overrides(plain: Mapping) -> dict:
-    """Setting overrides as stored in a cell's spec (plain JSON data) ->
-    keyword overrides of ``strategy_settings`` (a ``solver`` mapping becomes
-    a :class:`SolverSettings`, lists become tuples)."""
-    from ceco_controller.strategies import SolverSettings  # noqa: PLC0415
+    """Setting overrides as stored in a cell's spec (plain JSON data) -> keyword overrides of ``strategy_settings``.
+
+    A ``solver`` mapping becomes a :class:`SolverSettings`, lists become tuples.
+    """
+    from ceco_controller.strategies import SolverSettings
 
     out = {}
     for key, value in plain.items():
         if key == 'solver':
             base = SolverSettings()
-            value = dataclasses.replace(base, **{k: tuple(v) if isinstance(v, list) else v
-                                                 for k, v in value.items()})
+            value = dataclasses.replace(base, **{k: tuple(v) if isinstance(v, list) else v for k, v in value.items()})
         elif isinstance(value, list):
             value = tuple(value)
         out[key] = value
@@ -110,38 +145,56 @@ def runtime_overrides(plain: Mapping) -> dict:
 
 
 def settings_from_spec(spec: Mapping):
-    from ceco_controller.closed_loop import SimSettings  # noqa: PLC0415
-    from ceco_v2x_preview.preview import parse_quality  # noqa: PLC0415
+    """The :class:`~ceco_controller.closed_loop.SimSettings` of a cell's spec.
+
+    Args:
+        spec: the cell's spec (plain JSON data): ``preview`` (preview quality text),
+            optional ``control_period_s`` [s], ``horizon_steps``, ``seed``, ``duration_s`` [s]
+            (None: the scenario's) and ``strategy_overrides`` (see :func:`runtime_overrides`).
+
+    Returns:
+        The simulator settings, without a progress bar.
+    """
+    from ceco_controller.closed_loop import SimSettings
+    from ceco_v2x_preview.preview import parse_quality
 
     hs = spec.get('horizon_steps')
     ovr = runtime_overrides(spec.get('strategy_overrides') or {})
-    return SimSettings(control_period_s=spec.get('control_period_s'),
-                       horizon_steps=None if hs is None else int(hs),
-                       preview_quality=parse_quality(spec['preview']), seed=spec.get('seed'),
-                       duration_s=spec.get('duration_s'), progress=False,
-                       strategy_overrides=tuple(sorted(ovr.items())))
+    return SimSettings(
+        control_period_s=spec.get('control_period_s'),
+        horizon_steps=None if hs is None else int(hs),
+        preview_quality=parse_quality(spec['preview']),
+        seed=spec.get('seed'),
+        duration_s=spec.get('duration_s'),
+        progress=False,
+        strategy_overrides=tuple(sorted(ovr.items())),
+    )
 
 
 def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
-    """Run one cell in this process and return its results row: the cell id,
-    axes, every metric, ``status`` ('ok' or 'error'), ``error``,
+    """Run one cell in this process and return its results row; never raises for a failing run.
+
+    The row holds the cell id, axes, every metric, ``status`` ('ok' or 'error'), ``error``,
     ``code`` (this process's :func:`code_fingerprint`; a cell whose
     fingerprint differs from the driver's is an error, not a result),
     ``sim_time_s`` (scenario build + simulation), ``wall_time_s`` (also the
-    first imports in a fresh worker), ``host``, ``pid``. Never raises for a failing run (the
-    error is in the row). ``cell`` is :class:`Cell` as a dict."""
+    first imports in a fresh worker), ``host``, ``pid``. A failing run's
+    error is in the row. ``cell`` is :class:`Cell` as a dict.
+    """
     t0 = time.perf_counter()
     row = {'cell_id': cell['id'], **cell['axes'], 'status': 'ok', 'error': '', 'sim_time_s': float('nan')}
     try:
-        from ceco_controller.closed_loop import simulate, write_run  # noqa: PLC0415
-        from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
+        from ceco_controller.closed_loop import simulate, write_run
+        from ceco_v2x_preview.scenario import scenario_from_dict
 
         spec = cell['spec']
         row['code'] = code_fingerprint()
         if spec.get('code') and row['code'] != spec['code']:
-            raise RuntimeError(f"the simulator's code here ({row['code']}) differs from the sweep's "
-                               f"({spec['code']}): code changed during the sweep, or a Ray node runs another "
-                               'version; rerun the sweep')
+            raise RuntimeError(
+                f"the simulator's code here ({row['code']}) differs from the sweep's "
+                f"({spec['code']}): code changed during the sweep, or a Ray node runs another "
+                'version; rerun the sweep'
+            )
         t_sim = time.perf_counter()
         scenario = scenario_from_dict(spec['scenario'])
         result = simulate(scenario, spec['strategy'], settings_from_spec(spec))
@@ -153,12 +206,10 @@ def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
         row['preview_quality'] = result.metrics.get('preview_quality', spec['preview'])
         if runs_dir:
             write_run(result, Path(runs_dir) / cell['id'])
-    except Exception as exc:  # noqa: BLE001 (a failed cell is data, the sweep goes on)
+    except Exception as exc:  # a failed cell is data, the sweep goes on
         row['status'] = 'error'
         row['error'] = f'{type(exc).__name__}: {exc}'
     row['wall_time_s'] = time.perf_counter() - t0
     row['host'] = socket.gethostname()
     row['pid'] = os.getpid()
     return row
-
-

@@ -21,8 +21,17 @@ import yaml
 from . import cells as cells_mod
 from .cells import Cell, cell_id, runtime_overrides
 
-__all__ = ['GridError', 'AXES', 'GROUP_AXES', 'DEFAULT_SETTINGS', 'load_grid', 'scenario_dict',
-           'strategy_setting_overrides', 'expand_grid']
+__all__ = [
+    'GridError',
+    'AXES',
+    'GROUP_AXES',
+    'DEFAULT_SETTINGS',
+    'load_grid',
+    'scenario_dict',
+    'strategy_setting_overrides',
+    'expand_grid',
+]
+
 
 class GridError(ValueError):
     """An invalid grid file; the message names the key."""
@@ -36,22 +45,37 @@ DEFAULT_SETTINGS = 'default'
 """Settings label of a cell run with its strategy's default settings
 (every baseline cell, and strategies no ``settings`` label names)."""
 
-_FIXED_SETTING_FIELDS = {'name': 'strategies', 'horizon_steps': 'horizon_steps',
-                         'control_period_s': 'control_period_s'}
+_FIXED_SETTING_FIELDS = {'name': 'strategies', 'horizon_steps': 'horizon_steps', 'control_period_s': 'control_period_s'}
 """StrategySettings fields the settings axis may not set (the grid key that sets them)."""
 
 GROUP_AXES = ('scenario', 'drive_cycle', 'climate', 'preview', 'occupant')
 """The axes that make a group: every (strategy, settings) of a group is compared with its one baseline."""
 
-_GRID_KEYS = {'name', 'description', 'strategies', 'scenarios', 'drive_cycles', 'climates', 'previews',
-              'occupants', 'seeds', 'duration_s', 'save_runs', 'control_period_s', 'horizon_steps', 'vehicle',
-              'settings'}
+_GRID_KEYS = {
+    'name',
+    'description',
+    'strategies',
+    'scenarios',
+    'drive_cycles',
+    'climates',
+    'previews',
+    'occupants',
+    'seeds',
+    'duration_s',
+    'save_runs',
+    'control_period_s',
+    'horizon_steps',
+    'vehicle',
+    'settings',
+}
 _CLIMATE_KEYS = {'t_amb_c', 'solar_wm2', 'rh', 'initial', 'comfort_bounds'}
 
 
 def load_grid(path: str | os.PathLike) -> dict:
-    """Read and check a grid YAML file (unknown keys and wrong types raise
-    GridError naming the key)."""
+    """Read and check a grid YAML file.
+
+    Unknown keys and wrong types raise GridError naming the key.
+    """
     path = Path(path)
     try:
         data = yaml.safe_load(path.read_text(encoding='utf-8'))
@@ -87,17 +111,27 @@ def scenario_dict(scenario) -> dict:
     sc = scenario
     ini = {k: float(sc.initial[k]) for k in sc.initial}
     return {
-        'name': sc.name, 'description': sc.description, 'drive_cycle': sc.drive_cycle.name,
+        'name': sc.name,
+        'description': sc.description,
+        'drive_cycle': sc.drive_cycle.name,
         'duration_s': float(sc.duration_s),
-        'weather': {'time_s': [float(x) for x in sc.weather_time_s], 't_amb_c': [float(x) for x in sc.weather_t_amb_c],
-                    'solar_wm2': [float(x) for x in sc.weather_solar_wm2], 'rh': [float(x) for x in sc.weather_rh]},
+        'weather': {
+            'time_s': [float(x) for x in sc.weather_time_s],
+            't_amb_c': [float(x) for x in sc.weather_t_amb_c],
+            'solar_wm2': [float(x) for x in sc.weather_solar_wm2],
+            'rh': [float(x) for x in sc.weather_rh],
+        },
         'occupant': {'met': float(sc.occupant.met), 'clo': float(sc.occupant.clo)},
-        'comfort_bounds': {'time_s': [float(x) for x in sc.bounds_time_s],
-                           'pmv_lb': [float(x) for x in sc.bounds_pmv_lb],
-                           'pmv_ub': [float(x) for x in sc.bounds_pmv_ub]},
+        'comfort_bounds': {
+            'time_s': [float(x) for x in sc.bounds_time_s],
+            'pmv_lb': [float(x) for x in sc.bounds_pmv_lb],
+            'pmv_ub': [float(x) for x in sc.bounds_pmv_ub],
+        },
         'initial': ini,
-        'control': {'control_period_s': float(sc.control.control_period_s),
-                    'horizon_steps': int(sc.control.horizon_steps)},
+        'control': {
+            'control_period_s': float(sc.control.control_period_s),
+            'horizon_steps': int(sc.control.horizon_steps),
+        },
         'seed': int(sc.seed),
     }
 
@@ -105,8 +139,11 @@ def scenario_dict(scenario) -> dict:
 def _two_knots(key: str, value) -> list:
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         return [float(value), float(value)]
-    if isinstance(value, (list, tuple)) and len(value) == 2 and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+    if (
+        isinstance(value, (list, tuple))
+        and len(value) == 2
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+    ):
         return [float(v) for v in value]
     raise GridError(f'{key}: must be a number or [start, end], got {value!r}')
 
@@ -141,9 +178,11 @@ def _apply_climate(d: dict, label: str, climate) -> None:
 
 
 def _plain_setting(where: str, default, value):
-    """A setting value from the grid as plain JSON data of the default's type
-    (an int for a float field becomes a float, so ``2000`` and ``2000.0``
-    give the same cell id). Wrong types raise GridError naming ``where``."""
+    """A setting value from the grid as plain JSON data of the default's type.
+
+    An int for a float field becomes a float, so ``2000`` and ``2000.0``
+    give the same cell id. Wrong types raise GridError naming ``where``.
+    """
     if dataclasses.is_dataclass(default):
         if not isinstance(value, Mapping):
             raise GridError(f'{where}: must be a mapping of {type(default).__name__} fields, got {value!r}')
@@ -158,7 +197,7 @@ def _plain_setting(where: str, default, value):
     elif isinstance(default, tuple):
         ok = isinstance(value, (list, tuple))
         value = list(value) if ok else value
-    else:   # str, or str | None
+    else:  # str, or str | None
         ok = isinstance(value, str) or (default is None and value is None)
     if not ok:
         raise GridError(f'{where}: must be of the type of its default {default!r}, got {value!r}')
@@ -176,8 +215,9 @@ def _plain_fields(where: str, default, mapping: Mapping) -> dict:
 
 
 def strategy_setting_overrides(grid: Mapping, strategies: Sequence[str]) -> dict:
-    """The ``settings`` axis of a grid, checked: ``{strategy: {label:
-    overrides}}`` for the strategies some label names, ``overrides`` being
+    """The ``settings`` axis of a grid, checked: ``{strategy: {label: overrides}}``.
+
+    The keys are the strategies some label names, ``overrides`` being
     ``{StrategySettings field: plain value}``. Every override set is
     validated now (``strategy_settings(name, **overrides).validate()``, with
     the grid's Ts and Np if it sets them), so a bad field or value fails
@@ -185,13 +225,14 @@ def strategy_setting_overrides(grid: Mapping, strategies: Sequence[str]) -> dict
     ``settings.<label>.<strategy>.<field>``. A label naming a strategy not in
     ``strategies``, the baseline (it has no StrategySettings), the reserved
     label ``default``, or one of the fields the grid sets elsewhere (name,
-    horizon_steps, control_period_s) is an error."""
+    horizon_steps, control_period_s) is an error.
+    """
     raw = grid.get('settings')
     if raw is None:
         return {}
     if not isinstance(raw, Mapping) or not raw:
         raise GridError('settings: must be a non-empty mapping {label: {strategy: {field: value}}}')
-    from ceco_controller.strategies import CECO_STRATEGIES, StrategySettings, strategy_settings  # noqa: PLC0415
+    from ceco_controller.strategies import CECO_STRATEGIES, StrategySettings, strategy_settings
 
     fixed = {k: grid[k] for k in ('control_period_s', 'horizon_steps') if grid.get(k) is not None}
     if 'horizon_steps' in fixed:
@@ -217,8 +258,9 @@ def strategy_setting_overrides(grid: Mapping, strategies: Sequence[str]) -> dict
                 raise GridError(f'{where}: must be a mapping {{StrategySettings field: value}}, got {fields!r}')
             for key in fields:
                 if key in _FIXED_SETTING_FIELDS:
-                    raise GridError(f'{where}.{key}: set by the grid key {_FIXED_SETTING_FIELDS[key]!r}, '
-                                    'not by the settings axis')
+                    raise GridError(
+                        f'{where}.{key}: set by the grid key {_FIXED_SETTING_FIELDS[key]!r}, not by the settings axis'
+                    )
             plain = _plain_fields(where, StrategySettings(), fields)
             try:
                 strategy_settings(strategy, **fixed, **runtime_overrides(plain))
@@ -229,18 +271,20 @@ def strategy_setting_overrides(grid: Mapping, strategies: Sequence[str]) -> dict
 
 
 def expand_grid(grid: Mapping) -> list[Cell]:
-    """Every cell of a grid (axes in the order of :data:`AXES`, strategy
-    fastest). Each cell's scenario is validated here (``scenario_from_dict``),
-    so a bad grid fails before any run."""
-    from ceco_v2x_preview.preview import parse_quality  # noqa: PLC0415
-    from ceco_v2x_preview.scenario import load_drive_cycle, load_scenario, scenario_from_dict  # noqa: PLC0415
+    """Every cell of a grid (axes in the order of :data:`AXES`, strategy fastest).
+
+    Each cell's scenario is validated here (``scenario_from_dict``),
+    so a bad grid fails before any run.
+    """
+    from ceco_v2x_preview.preview import parse_quality
+    from ceco_v2x_preview.scenario import load_drive_cycle, load_scenario, scenario_from_dict
 
     base_dir = grid.get('_base_dir')
     strategies = grid.get('strategies')
     if not isinstance(strategies, (list, tuple)) or not strategies or not all(isinstance(s, str) for s in strategies):
         raise GridError('strategies: must be a non-empty list of strategy names')
     try:
-        from ceco_controller.strategies import STRATEGIES  # noqa: PLC0415
+        from ceco_controller.strategies import STRATEGIES
     except ImportError:
         STRATEGIES = None
     if STRATEGIES is not None:
@@ -253,12 +297,19 @@ def expand_grid(grid: Mapping) -> list[Cell]:
     previews = _named('previews', grid.get('previews'), {'perfect': 'perfect'})
     occupants = _named('occupants', grid.get('occupants'), {'scenario': None})
     seeds = grid.get('seeds', [None])
-    if not isinstance(seeds, (list, tuple)) or not seeds or not all(
-            s is None or (isinstance(s, int) and not isinstance(s, bool) and s >= 0) for s in seeds):
+    if (
+        not isinstance(seeds, (list, tuple))
+        or not seeds
+        or not all(s is None or (isinstance(s, int) and not isinstance(s, bool) and s >= 0) for s in seeds)
+    ):
         raise GridError('seeds: must be a non-empty list of non-negative integers')
     duration = grid.get('duration_s')
-    if duration is not None and not (isinstance(duration, (int, float)) and not isinstance(duration, bool)
-                                     and math.isfinite(duration) and duration > 0):
+    if duration is not None and not (
+        isinstance(duration, (int, float))
+        and not isinstance(duration, bool)
+        and math.isfinite(duration)
+        and duration > 0
+    ):
         raise GridError(f'duration_s: must be a positive number, got {duration!r}')
     for key in ('control_period_s', 'horizon_steps'):
         v = grid.get(key)
@@ -275,7 +326,8 @@ def expand_grid(grid: Mapping) -> list[Cell]:
     code = cells_mod.code_fingerprint()
     cells = []
     for (sl, sv), (cl, cv), (kl, kv), (pl, pv), (ol, ov), seed in itertools.product(
-            scenarios.items(), cycles.items(), climates.items(), previews.items(), occupants.items(), seeds):
+        scenarios.items(), cycles.items(), climates.items(), previews.items(), occupants.items(), seeds
+    ):
         try:
             src = str(sv)
             if base_dir and src.endswith(('.yaml', '.yml')) and not Path(src).is_absolute():
@@ -305,23 +357,36 @@ def expand_grid(grid: Mapping) -> list[Cell]:
             raise GridError(f'cell {sl}/{cl}/{kl}/{ol}: {exc}') from None
         for strategy in strategies:
             for label, ovr in overrides.get(strategy, {DEFAULT_SETTINGS: None}).items():
-                spec = {'code': code, 'scenario': d, 'strategy': strategy, 'preview': pv, 'seed': seed,
-                        'duration_s': None if duration is None else float(duration),
-                        'control_period_s': grid.get('control_period_s'),
-                        'horizon_steps': grid.get('horizon_steps')}
+                spec = {
+                    'code': code,
+                    'scenario': d,
+                    'strategy': strategy,
+                    'preview': pv,
+                    'seed': seed,
+                    'duration_s': None if duration is None else float(duration),
+                    'control_period_s': grid.get('control_period_s'),
+                    'horizon_steps': grid.get('horizon_steps'),
+                }
                 if ovr is not None:
                     spec['strategy_overrides'] = ovr
-                axes = {'scenario': sl, 'drive_cycle': cl, 'climate': kl, 'preview': pl, 'occupant': ol,
-                        'seed': '' if seed is None else seed, 'strategy': strategy, 'settings': label}
+                axes = {
+                    'scenario': sl,
+                    'drive_cycle': cl,
+                    'climate': kl,
+                    'preview': pl,
+                    'occupant': ol,
+                    'seed': '' if seed is None else seed,
+                    'strategy': strategy,
+                    'settings': label,
+                }
                 cells.append(Cell(id=cell_id(spec), axes=axes, spec=spec))
     seen: dict = {}
     for c in cells:
         if c.id in seen:
             a, b = seen[c.id].axes, c.axes
             diff = [f'{k} {a[k]!r} / {b[k]!r}' for k in AXES if a[k] != b[k]]
-            raise GridError('the grid holds the same cell twice (two axis labels with the same definition: '
-                            f"{', '.join(diff)})")
+            raise GridError(
+                f'the grid holds the same cell twice (two axis labels with the same definition: {", ".join(diff)})'
+            )
         seen[c.id] = c
     return cells
-
-

@@ -19,8 +19,18 @@ from ceco_core.metrics import relative_change_pct
 from .cells import Cell
 from .grid import AXES, DEFAULT_SETTINGS, GROUP_AXES
 
-__all__ = ['write_table', 'write_parquet', 'SUMMARY_KEYS', 'CHANGE_KEYS', 'summarize', 'dominance_rows',
-           'point_name', 'vehicle_rows', 'summary_markdown']
+__all__ = [
+    'write_table',
+    'write_parquet',
+    'SUMMARY_KEYS',
+    'CHANGE_KEYS',
+    'summarize',
+    'dominance_rows',
+    'point_name',
+    'vehicle_rows',
+    'summary_markdown',
+]
+
 
 def _write_table(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) -> None:
     tmp = path.with_suffix(path.suffix + '.tmp')
@@ -43,19 +53,21 @@ def _typed(values: Sequence) -> list:
 
 
 def _write_parquet(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) -> str | None:
-    """The table as Parquet with pyarrow, else polars (a FASTSim dependency);
-    returns the engine used, None if neither is installed."""
+    """Write the table as Parquet with pyarrow, else polars (a FASTSim dependency).
+
+    Returns the engine used, None if neither is installed.
+    """
     data = {c: _typed([r.get(c) for r in rows]) for c in columns}
     tmp = path.with_suffix('.parquet.tmp')
     try:
-        import pyarrow as pa  # noqa: PLC0415
-        import pyarrow.parquet as pq  # noqa: PLC0415
+        import pyarrow as pa
+        import pyarrow.parquet as pq
 
         pq.write_table(pa.table(data), tmp)
         engine = 'pyarrow'
     except ImportError:
         try:
-            import polars as pl  # noqa: PLC0415
+            import polars as pl
         except ImportError:
             return None
         pl.DataFrame(data).write_parquet(tmp)
@@ -64,8 +76,18 @@ def _write_parquet(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) 
     return engine
 
 
-SUMMARY_KEYS = ('E_tot_kWh', 'I_pmv', 'otc_violation_pct', 'time_to_comfort_s', 'pmv_max', 'sim_time_s',
-                'E_zone_J', 'I_pmv_zone', 'otc_violation_zone_pct', 'pmv_mean_zone')
+SUMMARY_KEYS = (
+    'E_tot_kWh',
+    'I_pmv',
+    'otc_violation_pct',
+    'time_to_comfort_s',
+    'pmv_max',
+    'sim_time_s',
+    'E_zone_J',
+    'I_pmv_zone',
+    'otc_violation_zone_pct',
+    'pmv_mean_zone',
+)
 """Metrics averaged over seeds in the summary."""
 
 CHANGE_KEYS = ('E_tot_kWh', 'I_pmv', 'E_zone_J', 'I_pmv_zone')
@@ -73,17 +95,20 @@ CHANGE_KEYS = ('E_tot_kWh', 'I_pmv', 'E_zone_J', 'I_pmv_zone')
 
 
 def _settings_of(row: Mapping) -> str:
-    return str(row.get('settings') or DEFAULT_SETTINGS)   # rows logged before the settings axis: defaults
+    return str(row.get('settings') or DEFAULT_SETTINGS)  # rows logged before the settings axis: defaults
 
 
 def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]:
-    """Per (scenario, drive_cycle, climate, preview, occupant, strategy,
+    """The sweep's summary rows: per-point means over seeds and the change against the group's baseline.
+
+    Per (scenario, drive_cycle, climate, preview, occupant, strategy,
     settings): the mean over seeds of the main metrics (:data:`SUMMARY_KEYS`),
     the number of seeds, and the change against the baseline of the same
     group (scenario, drive_cycle, climate, preview, occupant; means compared,
     :data:`CHANGE_KEYS`). The baseline runs once per group with its default
     settings; every (strategy, settings) of the group is compared with that
-    one baseline. Rows keep the order of first appearance."""
+    one baseline. Rows keep the order of first appearance.
+    """
     group_axes = [a for a in AXES if a not in ('seed', 'strategy', 'settings')]
     groups: dict = {}
     for r in rows:
@@ -113,25 +138,36 @@ def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]
 
 
 def dominance_rows(summary: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]:
-    """Against the baseline of its group, for every other (strategy,
+    """Which points of a summary Pareto-dominate the baseline of their group.
+
+    Against the baseline of its group, for every other (strategy,
     settings) of a summary: does it use less energy AND have a lower or equal
     I_PMV (a Pareto-dominating point; ``dominates``), over the whole run and
     in the comfort-zone phase (``dominates_zone``)? The changes are the
     summary's ``dE_tot_kWh_pct, dI_pmv_pct, dE_zone_J_pct, dI_pmv_zone_pct``
-    (NaN where the group has no baseline: ``dominates`` is then False)."""
+    (NaN where the group has no baseline: ``dominates`` is then False).
+    """
     out = []
     for r in summary:
         if r['strategy'] == baseline and r.get('settings', DEFAULT_SETTINGS) == DEFAULT_SETTINGS:
             continue
         de, di = float(r['dE_tot_kWh_pct']), float(r['dI_pmv_pct'])
         dez, diz = float(r.get('dE_zone_J_pct', float('nan'))), float(r.get('dI_pmv_zone_pct', float('nan')))
-        out.append({**{a: r[a] for a in GROUP_AXES}, 'strategy': r['strategy'],
-                    'settings': r.get('settings', DEFAULT_SETTINGS),
-                    'dE_tot_kWh_pct': de, 'dI_pmv_pct': di, 'otc_violation_pct': r['otc_violation_pct_mean'],
-                    'dE_zone_J_pct': dez, 'dI_pmv_zone_pct': diz,
-                    'otc_violation_zone_pct': r.get('otc_violation_zone_pct_mean', float('nan')),
-                    'dominates': bool(de < 0.0 and di <= 0.0),
-                    'dominates_zone': bool(dez < 0.0 and diz <= 0.0)})
+        out.append(
+            {
+                **{a: r[a] for a in GROUP_AXES},
+                'strategy': r['strategy'],
+                'settings': r.get('settings', DEFAULT_SETTINGS),
+                'dE_tot_kWh_pct': de,
+                'dI_pmv_pct': di,
+                'otc_violation_pct': r['otc_violation_pct_mean'],
+                'dE_zone_J_pct': dez,
+                'dI_pmv_zone_pct': diz,
+                'otc_violation_zone_pct': r.get('otc_violation_zone_pct_mean', float('nan')),
+                'dominates': bool(de < 0.0 and di <= 0.0),
+                'dominates_zone': bool(dez < 0.0 and diz <= 0.0),
+            }
+        )
     return out
 
 
@@ -142,21 +178,23 @@ def point_name(strategy: str, settings: str = DEFAULT_SETTINGS) -> str:
 
 def _ordered_points(keys) -> list:
     """(strategy, settings) keys: strategies in figures.ordered order, labels in first-appearance order."""
-    from ceco_bringup.figures import ordered  # noqa: PLC0415
+    from ceco_bringup.figures import ordered
 
     keys = list(keys)
     return [k for s in ordered(list(dict.fromkeys(k[0] for k in keys))) for k in keys if k[0] == s]
 
 
 def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) -> list[dict]:
-    """Vehicle-level energy (FASTSim, :mod:`ceco_bringup.vehicle_energy`) of
-    every group (scenario, cycle, climate, preview, occupant) whose cells
-    are done: each strategy's A/C load is its mean ``P_mean_w`` over seeds,
+    """Vehicle-level energy (FASTSim) of every group of a sweep whose cells are done.
+
+    Computed with :mod:`ceco_bringup.vehicle_energy`. A group is (scenario, cycle,
+    climate, preview, occupant); each strategy's A/C load is its mean ``P_mean_w`` over seeds,
     over the group's drive cycle and run length. One row per group, vehicle
     and strategy, with the group's axes (``strategy``: :func:`point_name`,
-    e.g. ``ceco-c[g2k]`` for a settings label)."""
-    from ceco_bringup import vehicle_energy as ve  # noqa: PLC0415
-    from ceco_v2x_preview.scenario import scenario_from_dict  # noqa: PLC0415
+    e.g. ``ceco-c[g2k]`` for a settings label).
+    """
+    from ceco_bringup import vehicle_energy as ve
+    from ceco_v2x_preview.scenario import scenario_from_dict
 
     settings = settings or ve.VehicleEnergySettings()
     spec_of = {c.id: c.spec for c in cells}
@@ -174,7 +212,7 @@ def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) 
         duration_s = float(rs[0]['duration_s'])
         t = np.arange(0.0, math.floor(duration_s) + 1.0)
         v = np.asarray(sc.speed_mps(t), dtype=float)
-        from ceco_bringup.figures import ordered  # noqa: PLC0415
+        from ceco_bringup.figures import ordered
 
         loads = {s: float(np.mean(p_mean[s])) for s in ordered(list(p_mean))}
         for vr in ve.vehicle_energy_table(loads, t, v, settings):
@@ -182,64 +220,94 @@ def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) 
     return out
 
 
-def summary_markdown(summary: Sequence[Mapping], timing: Mapping, grid_name: str,
-                      vehicle: Sequence[Mapping] = ()) -> str:
-    lines = [f'# Sweep summary: {grid_name}', '',
-             f"{timing['cells']} cells ({timing['ran']} run now, {timing['skipped']} already done, "
-             f"{timing['failed']} failed) with backend `{timing['backend']}` on {timing['workers']} worker(s). "
-             f"Wall time of this invocation {timing['wall_s']:.1f} s ({timing['cells_per_hour']:.0f} cells/h). "
-             f"Simulation time per cell (scenario build + closed loop, cells run now): mean "
-             f"{timing['sim_mean_s']:.2f} s, median {timing['sim_median_s']:.2f} s; worker time per cell incl. "
-             f"imports in a fresh worker {timing['cell_mean_s']:.2f} s (sum {timing['cell_sum_s']:.1f} s, "
-             f"{timing['speedup']:.2f}x the wall time).", '',
-             '| scenario | cycle | climate | preview | occupant | strategy | settings | seeds | E_tot [kWh] | '
-             'ΔE [%] | I_PMV [s] | ΔI_PMV [%] | OTC viol. [%] | t_comfort [s] | ΔE zone [%] | ΔI_PMV zone [%] | '
-             'OTC viol. zone [%] |',
-             '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
+def summary_markdown(
+    summary: Sequence[Mapping], timing: Mapping, grid_name: str, vehicle: Sequence[Mapping] = ()
+) -> str:
+    """The sweep's ``summary.md``: timing, one table row per summary point, dominance and vehicle level.
+
+    Args:
+        summary: the rows of :func:`summarize` (energy [kWh], I_PMV [s], changes [%]).
+        timing: the sweep's timing record (``cells``, ``ran``, ``skipped``, ``failed``, ``backend``,
+            ``workers``, ``wall_s`` [s], ``cells_per_hour``, ``sim_mean_s``, ``sim_median_s``,
+            ``cell_mean_s``, ``cell_sum_s`` [s] and ``speedup``).
+        grid_name: the grid's name, used in the title.
+        vehicle: the rows of :func:`vehicle_rows` (no vehicle-level section when empty).
+
+    Returns:
+        The Markdown text, ending with a newline.
+    """
+    lines = [
+        f'# Sweep summary: {grid_name}',
+        '',
+        f"{timing['cells']} cells ({timing['ran']} run now, {timing['skipped']} already done, "
+        f"{timing['failed']} failed) with backend `{timing['backend']}` on {timing['workers']} worker(s). "
+        f"Wall time of this invocation {timing['wall_s']:.1f} s ({timing['cells_per_hour']:.0f} cells/h). "
+        f"Simulation time per cell (scenario build + closed loop, cells run now): mean "
+        f"{timing['sim_mean_s']:.2f} s, median {timing['sim_median_s']:.2f} s; worker time per cell incl. "
+        f"imports in a fresh worker {timing['cell_mean_s']:.2f} s (sum {timing['cell_sum_s']:.1f} s, "
+        f"{timing['speedup']:.2f}x the wall time).",
+        '',
+        '| scenario | cycle | climate | preview | occupant | strategy | settings | seeds | E_tot [kWh] | '
+        'ΔE [%] | I_PMV [s] | ΔI_PMV [%] | OTC viol. [%] | t_comfort [s] | ΔE zone [%] | ΔI_PMV zone [%] | '
+        'OTC viol. zone [%] |',
+        '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|',
+    ]
 
     def f(x, fmt):
         return 'n/a' if x is None or not math.isfinite(float(x)) else format(float(x), fmt)
 
-    rows = sorted(summary, key=lambda r: (r['scenario'], r['drive_cycle'], r['climate'], r['preview'],
-                                          r['occupant']))
+    rows = sorted(summary, key=lambda r: (r['scenario'], r['drive_cycle'], r['climate'], r['preview'], r['occupant']))
     groups: dict = {}
     for r in rows:
         groups.setdefault(tuple(r[a] for a in GROUP_AXES), {})[(r['strategy'], r.get('settings', DEFAULT_SETTINGS))] = r
     for g, by in groups.items():
         for key in _ordered_points(by):
             r = by[key]
-            lines.append(f"| {' | '.join(map(str, g))} | {key[0]} | {key[1]} | {r['n_seeds']} | "
-                         f"{f(r['E_tot_kWh_mean'], '.4f')} | "
-                         f"{f(r['dE_tot_kWh_pct'], '+.1f')} | {f(r['I_pmv_mean'], '.1f')} | "
-                         f"{f(r['dI_pmv_pct'], '+.1f')} | {f(r['otc_violation_pct_mean'], '.2f')} | "
-                         f"{f(r['time_to_comfort_s_mean'], '.0f')} | {f(r.get('dE_zone_J_pct'), '+.1f')} | "
-                         f"{f(r.get('dI_pmv_zone_pct'), '+.1f')} | {f(r.get('otc_violation_zone_pct_mean'), '.2f')} |")
+            lines.append(
+                f"| {' | '.join(map(str, g))} | {key[0]} | {key[1]} | {r['n_seeds']} | "
+                f"{f(r['E_tot_kWh_mean'], '.4f')} | "
+                f"{f(r['dE_tot_kWh_pct'], '+.1f')} | {f(r['I_pmv_mean'], '.1f')} | "
+                f"{f(r['dI_pmv_pct'], '+.1f')} | {f(r['otc_violation_pct_mean'], '.2f')} | "
+                f"{f(r['time_to_comfort_s_mean'], '.0f')} | {f(r.get('dE_zone_J_pct'), '+.1f')} | "
+                f"{f(r.get('dI_pmv_zone_pct'), '+.1f')} | {f(r.get('otc_violation_zone_pct_mean'), '.2f')} |"
+            )
     dom = dominance_rows(summary)
     if dom:
-        lines += ['', '## Against the baseline: Pareto-dominating points', '',
-                  'A point dominates the baseline of its group when it uses less energy and has a lower or '
-                  'equal I_PMV (ΔE < 0 and ΔI_PMV <= 0), over the whole run or in the comfort-zone phase.', '']
+        lines += [
+            '',
+            '## Against the baseline: Pareto-dominating points',
+            '',
+            'A point dominates the baseline of its group when it uses less energy and has a lower or '
+            'equal I_PMV (ΔE < 0 and ΔI_PMV <= 0), over the whole run or in the comfort-zone phase.',
+            '',
+        ]
         for g in groups:
             here = [d for d in dom if tuple(d[a] for a in GROUP_AXES) == g]
             if not here:
                 continue
             tot = [point_name(d['strategy'], d['settings']) for d in here if d['dominates']]
             zone = [point_name(d['strategy'], d['settings']) for d in here if d['dominates_zone']]
-            lines.append(f"- {'/'.join(map(str, g))}: whole run: {', '.join(tot) or 'none'}; "
-                         f"zone phase: {', '.join(zone) or 'none'}")
+            lines.append(
+                f"- {'/'.join(map(str, g))}: whole run: {', '.join(tot) or 'none'}; "
+                f"zone phase: {', '.join(zone) or 'none'}"
+            )
     if vehicle:
-        lines += ['', '## Vehicle level (FASTSim 3.1, load-averaged line; see docs/analysis.md)', '',
-                  '| scenario | cycle | climate | preview | occupant | vehicle | strategy | P_A/C [W] | '
-                  'Δ vehicle energy [%] | noise 1σ [%] | paper, SC03 [%] | range lost [km] |',
-                  '|---|---|---|---|---|---|---|---|---|---|---|---|']
+        lines += [
+            '',
+            '## Vehicle level (FASTSim 3.1, load-averaged line; see docs/analysis.md)',
+            '',
+            '| scenario | cycle | climate | preview | occupant | vehicle | strategy | P_A/C [W] | '
+            'Δ vehicle energy [%] | noise 1σ [%] | paper, SC03 [%] | range lost [km] |',
+            '|---|---|---|---|---|---|---|---|---|---|---|---|',
+        ]
         for r in vehicle:
-            lines.append(f"| {' | '.join(str(r[a]) for a in GROUP_AXES)} | {r['vehicle']} | {r['strategy']} | "
-                         f"{f(r['p_ac_mean_w'], '.0f')} | {f(r['saving_fit_pct'], '+.2f')} | "
-                         f"{f(r['noise_pct'], '.2f')} | {f(r['paper_saving_pct'], '+.1f')} | "
-                         f"{f(r['range_lost_km'], '.1f')} |")
+            lines.append(
+                f"| {' | '.join(str(r[a]) for a in GROUP_AXES)} | {r['vehicle']} | {r['strategy']} | "
+                f"{f(r['p_ac_mean_w'], '.0f')} | {f(r['saving_fit_pct'], '+.2f')} | "
+                f"{f(r['noise_pct'], '.2f')} | {f(r['paper_saving_pct'], '+.1f')} | "
+                f"{f(r['range_lost_km'], '.1f')} |"
+            )
     return '\n'.join(lines) + '\n'
-
-
 
 
 write_table = _write_table
