@@ -133,7 +133,7 @@ def test_round_trip_rows_are_the_complete_plant_steps(tmp_path, storage):
 def test_metadata_decodes_under_jazzy_rosbag2_rules(tmp_path, storage):
     """metadata.yaml as `ros2 bag info` (Jazzy, version 9) reads it: every key it decodes,
     with its type; QoS as a sequence of rmw policy strings; infinite durations as rmw's."""
-    interfaces = pytest.importorskip('ceco_ros.interfaces', reason='needs rclpy (the QoS profiles): the sourced workspace')
+    interfaces = pytest.importorskip('ceco_ros.interfaces', reason='needs rclpy (its QoS profiles)')
 
     w = bag_writer.BagWriter(tmp_path / 'bag', storage=storage)
     w.set_custom_data('strategy', 'ceco-ioch')
@@ -432,7 +432,7 @@ def test_independent_mcap_reader_gets_the_same_messages(tmp_path):
         '/clock': 'rosgraph_msgs/msg/Clock',
         '/rosout': 'rcl_interfaces/msg/Log',
     }
-    interfaces = pytest.importorskip('ceco_ros.interfaces', reason='needs rclpy (the QoS profiles): the sourced workspace')
+    interfaces = pytest.importorskip('ceco_ros.interfaces', reason='needs rclpy (its QoS profiles)')
 
     w = bag_writer.BagWriter(tmp_path / 'bag')
     for topic, typ in types.items():
