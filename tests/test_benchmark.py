@@ -309,3 +309,25 @@ def test_comfort_overrides_reach_the_scored_pmv_only():
             SimSettings(comfort_overrides=bad).validate()
     with pytest.raises(ValueError, match=r'PlantParams\.c_intjpk: no such field'):
         SimSettings(plant_overrides=(('c_intjpk', 1.0),)).validate()
+
+
+def test_plane_figure_with_equal_seeds(tmp_path):
+    """Seeds with the same point: the mean can exceed their max by an ulp (0.1 * 3 / 3); no negative whisker."""
+    from ceco_bringup.benchmark.figures import fig_plane
+
+    run = {
+        'controller': 'ceco',
+        'kind': 'strategy',
+        'status': 'ok',
+        'kpis': {'discomfort_pmvh': 0.1, 'energy_kwh': 0.1},
+    }
+    case = {
+        'case': 'c',
+        'fronts': {
+            'plain': [{'controller': 'baseline@25.0', 'discomfort': 0.05, 'energy': 0.2, 'efficient': True}],
+            'allowance': [],
+        },
+        'runs': [dict(run, seed=s) for s in range(3)],
+    }
+    out = fig_plane(case, tmp_path / 'p.png', {'front_axis': 'discomfort_pmvh', 'energy_axis': 'energy_kwh'})
+    assert out.stat().st_size > 1000

@@ -120,6 +120,29 @@ def matched_table(doc):
     return '\n'.join(lines)
 
 
+def stronger_front(m):
+    """ΔE against the stronger of the two fronts: the smaller defined saving, dominated by either."""
+    vals = [x['energy_saving_pct'] for x in (m, m['allowance']) if x['energy_saving_pct'] is not None]
+    return (min(vals) if vals else None), bool(m['dominated'] or m['allowance']['dominated'])
+
+
+def headline_table(doc):
+    """Strategies x cases: ΔE at matched comfort against the stronger front (mean over seeds)."""
+    cases = [c['case'] for c in doc['cases']]
+    lines = ['| strategy | ' + ' | '.join(cases) + ' |', '|---|' + '---|' * len(cases)]
+    for name in STRATEGIES + COMPENSATED:
+        cells = []
+        for case in doc['cases']:
+            m = case['matched'].get(name)
+            if m is None:
+                cells.append('')
+                continue
+            v, dom = stronger_front(m)
+            cells.append(('n/a' if v is None else f'{v:+.1f}') + (' (dom.)' if dom else ''))
+        lines.append(f'| {name} | ' + ' | '.join(cells) + ' |')
+    return '\n'.join(lines)
+
+
 def front_text(case, family):
     """The efficient front as 'S: D / E' items."""
     pts = [p for p in case['fronts'][family] if p['efficient']]
@@ -263,6 +286,15 @@ def paper_table(doc):
     return '\n'.join(lines)
 
 
+def value_range(values) -> str:
+    """'min … max' of the numbers in ``values`` (and how many are n/a)."""
+    nums = [v for v in values if v is not None]
+    if not nums:
+        return 'n/a'
+    missing = len(values) - len(nums)
+    return f'{min(nums):+.1f} … {max(nums):+.1f}' + (f' ({missing} n/a)' if missing else '')
+
+
 def sensitivity_tables(doc):
     """The tornado as numbers."""
     out = []
@@ -288,20 +320,7 @@ def sensitivity_tables(doc):
                 cells.append(f'{fmt(lo)} / {fmt(hi)}')
             nominal = 'plant' if s['nominal'] is None else f"{s['nominal']:g}"
             lines.append(f"| {s['parameter']} | {s['low']:g} | {nominal} | {s['high']:g} | " + ' | '.join(cells) + ' |')
-        lines.append(
-            '| **range over all ends** | | | | '
-            + ' | '.join(
-                (
-                    f"{min(v for v in ranges[n] if v is not None):+.1f} … "
-                    f"{max(v for v in ranges[n] if v is not None):+.1f}"
-                    + (f" ({sum(v is None for v in ranges[n])} n/a)" if any(v is None for v in ranges[n]) else '')
-                )
-                if any(v is not None for v in ranges[n])
-                else 'n/a'
-                for n in names
-            )
-            + ' |'
-        )
+        lines.append('| **range over all ends** | | | | ' + ' | '.join(value_range(ranges[n]) for n in names) + ' |')
         failed = sum(s['failed_low'] + s['failed_high'] for s in sens)
         lines.append('')
         lines.append(f'Failed sensitivity runs: {failed}.')
@@ -309,10 +328,14 @@ def sensitivity_tables(doc):
     return '\n\n'.join(out)
 
 
-def timing_table(doc):
+def timing_table(doc, log_lines=()):
     """Wall time and the controllers' step times."""
     t = doc['timing']
+    inv = [json.loads(x) for x in log_lines if x.strip()]
     lines = [
+        f"timing.jsonl invocation {i + 1}: {x['wall_s']:.1f} s wall, {x['ran_now']} runs run" for i, x in enumerate(inv)
+    ]
+    lines += [
         f"Wall time {t['wall_s']:.1f} s for {t['runs']} runs ({t['ran_now']} run now, {t.get('failed_now', 0)} "
         f"failed) on {t['workers']} worker(s), backend {t['backend']}, host {t.get('host', '?')}; sum of the "
         f"runs' simulation times {t.get('sim_time_sum_s', float('nan')):.0f} s.",
@@ -350,7 +373,9 @@ def main(argv=None) -> int:
         f"<!-- {args.results}: {doc['schema']}, ceco {doc['ceco_version']}, code {doc['code_fingerprint']}, "
         f"created {doc['created_utc']}, quick {doc['quick']}, command: {doc['command']} -->\n"
     )
-    print('## Matched comfort\n')
+    print('## Headline: ΔE at matched comfort against the stronger front [%]\n')
+    print(headline_table(doc))
+    print('\n## Matched comfort\n')
     print(matched_table(doc))
     print('\n## Fronts (efficient set-points: discomfort [PMV·h] / energy [kWh])\n')
     for case in doc['cases']:
@@ -364,7 +389,10 @@ def main(argv=None) -> int:
     print('\n## Sensitivity\n')
     print(sensitivity_tables(doc))
     print('\n## Timing\n')
-    print(timing_table(doc))
+    import pathlib
+
+    log = pathlib.Path(args.results).with_name('timing.jsonl')
+    print(timing_table(doc, log.read_text(encoding='utf-8').splitlines() if log.exists() else ()))
     for case in doc['cases']:
         print(f"\n## KPIs {case['case']} ({case['forecast_uncertainty']}, seeds {case['seeds']})\n")
         print(kpi_table(case))

@@ -125,8 +125,9 @@ def fig_plane(case: Mapping, path, settings: Mapping, title: str = '') -> Path:
             arr = np.array(pts)
             m = arr.mean(axis=0)
             one = len(pts) == 1  # no whiskers for a single run
-            xerr = None if one else [[m[0] - arr[:, 0].min()], [arr[:, 0].max() - m[0]]]
-            yerr = None if one else [[m[1] - arr[:, 1].min()], [arr[:, 1].max() - m[1]]]
+            # min-max whiskers; clipped at 0: the mean of equal seeds can exceed their max by an ulp
+            xerr = None if one else [[max(0.0, m[0] - arr[:, 0].min())], [max(0.0, arr[:, 0].max() - m[0])]]
+            yerr = None if one else [[max(0.0, m[1] - arr[:, 1].min())], [max(0.0, arr[:, 1].max() - m[1])]]
             ax.errorbar(
                 [m[0]],
                 [m[1]],
