@@ -1,4 +1,4 @@
-"""Benchmark KPIs (ceco_core.metrics.compute_kpis) on hand-made series.
+"""Benchmark KPIs (ceco_core.kpis.compute_kpis) on hand-made series.
 
 Each expected value is worked out by hand from a few samples, so a wrong clip,
 band, sampling rule or unit conversion fails.
@@ -7,7 +7,7 @@ band, sampling rule or unit conversion fails.
 import numpy as np
 import pytest
 
-from ceco_core import metrics as mt
+from ceco_core import kpis as mt
 
 
 def _series(pmv, ub=None, dt=10.0, **extra):

@@ -5,7 +5,7 @@ Every benchmark case and strategy with full state and with vehicle measurements
 
 For each case and strategy: energy E_tot [kWh], I_PMV [s], thermal discomfort [PMV h] (time
 integral of the distance of PMV outside the ISO 7730 category B band [-0.5, 0.5], PMV clipped to
-+-3: ``ceco_core.metrics.pmv_band_distance``, the benchmark's ``discomfort_pmvh``), the
++-3: ``ceco_core.kpis.pmv_band_distance``, the benchmark's ``discomfort_pmvh``), the
 OTC violation in the comfort-zone phase [%] and, in vehicle mode, the RMSE of the estimated
 interior and shell temperatures against the plant truth [K] (whole run and from 120 s on).
 Optionally (``--naive``) a third mode without an estimator, T_int = T_shell = T_cab (what the NMPC
@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from ceco_core.metrics import pmv_band_distance
+from ceco_core.kpis import pmv_band_distance
 
 from . import estimator as est
 from .closed_loop import SimSettings, simulate

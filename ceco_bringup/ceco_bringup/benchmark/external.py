@@ -5,7 +5,7 @@ plant_node and the in-process recorder as separate processes on a private DDS
 domain, lockstep), with ``CMD`` started in place of mpc_node. The contract the
 node must keep (topics, QoS, timing, what to publish and when) is in
 docs/benchmark.md, "Your own controller over ROS 2". The run is scored from the
-recorded bag with the simulator's KPI functions (``ceco_core.metrics.compute_kpis``),
+recorded bag with the simulator's KPI functions (``ceco_core.kpis.compute_kpis``),
 ``source: dds``; the time ratio uses the publisher-side send times: command k minus
 the state at t_k, over Ts (like BOPTEST's, it includes the transport).
 
@@ -95,7 +95,7 @@ def run_external_cell(
         return row
     try:
         from ceco_bringup import bagio, run
-        from ceco_core.metrics import compute_kpis
+        from ceco_core.kpis import compute_kpis
         from ceco_v2x_preview.preview import parse_quality
         from ceco_v2x_preview.scenario import load_scenario
 

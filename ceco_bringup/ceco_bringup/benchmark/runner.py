@@ -7,7 +7,7 @@ the controller and its settings, the preview quality and seed, the plant/comfort
 overrides of a sensitivity run, the benchmark version and the simulator's code
 fingerprint), so a rerun of the same command runs nothing and a changed
 simulator reruns everything. Each cell runs ``closed_loop.simulate`` and scores
-the run with ``ceco_core.metrics.compute_kpis`` in the worker; the driver then
+the run with ``ceco_core.kpis.compute_kpis`` in the worker; the driver then
 builds the fronts and the matched-comfort results (:mod:`.front`).
 
 Pure Python (no ROS import; the DDS path for external controllers is :mod:`.external`).
@@ -329,7 +329,7 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
     try:
         from ceco_bringup.sweep import cells as sweep_cells
         from ceco_controller.closed_loop import SimSettings, simulate, write_run
-        from ceco_core.metrics import compute_kpis
+        from ceco_core.kpis import compute_kpis
         from ceco_v2x_preview.preview import parse_quality
         from ceco_v2x_preview.scenario import scenario_from_dict
 

@@ -55,7 +55,7 @@ _AMBIENT_REF_C = 25.0
 
 def _run(scenario, overrides: dict) -> dict:
     from ceco_controller.closed_loop import SimSettings, simulate
-    from ceco_core.metrics import band_phase
+    from ceco_core.kpis import band_phase
 
     r = simulate(scenario, 'baseline', SimSettings(progress=False, strategy_overrides=tuple(sorted(overrides.items()))))
     ts = r.timeseries

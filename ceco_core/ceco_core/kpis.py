@@ -1,0 +1,233 @@
+"""The benchmark's key performance indicators of one run (issue 10; docs/metrics.md, "Benchmark KPIs").
+
+:func:`compute_kpis`: energy of every A/C consumer, BOPTEST-style thermal discomfort in PMV h
+outside the fixed ISO 7730 category B band, I_PMV plain and clipped to the seven-point scale, draught
+and fog from the comfort model's series, actuator travel, peak compressor power, the computational
+time ratio and fallbacks. Built on the statistics of :mod:`ceco_core.metrics` (one definition each);
+``ceco_plant_sim.metrics`` re-exports both modules. Pure numpy; no ROS import.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from ceco_core.metrics import (
+    COMFORT_HOLD_S,
+    J_PER_KWH,
+    PMV_SCALE_LIMIT,
+    UNIFORM_RTOL,
+    as_series,
+    draught_stats,
+    fog_margin_stats,
+    i_pmv_clipped,
+    iso7730_invalid_pct,
+    time_to_comfort,
+)
+
+__all__ = [
+    "KPI_KEYS",
+    "COMFORT_BAND_PMV",
+    "ACTUATOR_RANGES",
+    "compute_kpis",
+    "pmv_band_distance",
+    "band_phase",
+    "actuator_travel",
+]
+
+
+COMFORT_BAND_PMV = (-0.5, 0.5)
+"""ISO 7730:2005 category B comfort band of PMV [-]: the fixed band of the discomfort KPI."""
+
+ACTUATOR_RANGES = {"mdot_bl_kgps": 0.12, "t_evap_sp_c": 7.0}
+"""Full range of each A/C input (0.05-0.17 kg/s, 3-10 degC): actuator travel is counted in strokes."""
+
+KPI_KEYS = (
+    "energy_kwh",
+    "energy_comp_kwh",
+    "energy_blower_kwh",
+    "energy_fan_kwh",
+    "energy_paper_kwh",
+    "discomfort_pmvh",
+    "discomfort_band_pmvh",
+    "band_start_s",
+    "i_pmv",
+    "i_pmv_clipped",
+    "otc_violation_pct",
+    "time_to_comfort_s",
+    "pmv_mean_band",
+    "draught_pct",
+    "draught_mean_pct",
+    "draught_max_pct",
+    "fog_margin_min_k",
+    "fog_risk_pct",
+    "iso7730_invalid_pct",
+    "actuator_travel",
+    "travel_mdot_kgps",
+    "travel_t_evap_sp_k",
+    "peak_comp_kw",
+    "time_ratio_mean",
+    "time_ratio_max",
+    "fallback_steps",
+    "duration_s",
+)
+"""Keys of the ``kpis`` dict of :func:`compute_kpis`, in order."""
+
+
+def pmv_band_distance(pmv, band=COMFORT_BAND_PMV, limit: float = PMV_SCALE_LIMIT) -> np.ndarray:
+    """Distance of PMV outside the band [-].
+
+    ``max(0, clip(PMV) - hi, lo - clip(PMV))`` with PMV clipped to ``[-limit, limit]``.
+    """
+    lo, hi = float(band[0]), float(band[1])
+    y = np.clip(np.asarray(pmv, dtype=float), -limit, limit)
+    return np.maximum(0.0, np.maximum(y - hi, lo - y))
+
+
+def band_phase(pmv_lb, pmv_ub, band=COMFORT_BAND_PMV) -> np.ndarray:
+    """Mask of the band phase: "from the moment the comfort band applies".
+
+    True from the first sample at which the scenario's bounds lie inside the band
+    (``lb >= lo`` and ``ub <= hi``, 1e-9 tolerance) to the end; all False if that never
+    happens.
+    """
+    lb, ub = np.asarray(pmv_lb, dtype=float), np.asarray(pmv_ub, dtype=float)
+    inside = (lb >= band[0] - 1e-9) & (ub <= band[1] + 1e-9)
+    mask = np.zeros(inside.shape, dtype=bool)
+    if inside.any():
+        mask[int(np.argmax(inside)) :] = True
+    return mask
+
+
+def actuator_travel(mdot_bl_kgps, t_evap_sp_c, ranges: Mapping[str, float] = ACTUATOR_RANGES) -> tuple:
+    """BOPTEST's actuator travel of the two held A/C inputs.
+
+    Returns ``(travel, travel_mdot, travel_sp)``: ``travel_x = sum_i |x_{i+1} - x_i|`` (the
+    integral of |dx/dt| of a held step signal) in the input's unit [kg/s, K], and ``travel``
+    the mean over the two inputs of ``travel_x / range_x`` [full-range strokes].
+    """
+    m = np.asarray(mdot_bl_kgps, dtype=float)
+    s = np.asarray(t_evap_sp_c, dtype=float)
+    tm = float(np.sum(np.abs(np.diff(m))))
+    tsp = float(np.sum(np.abs(np.diff(s))))
+    return 0.5 * (tm / ranges["mdot_bl_kgps"] + tsp / ranges["t_evap_sp_c"]), tm, tsp
+
+
+def _column(columns: Mapping, key: str, n: int, notes: dict, why: str):
+    if key not in columns or columns[key] is None:
+        notes[why] = f"run has no {key} column"
+        return None
+    return as_series(key, columns[key], n)
+
+
+def compute_kpis(
+    columns: Mapping,
+    *,
+    step_time_s=None,
+    control_period_s: float | None = None,
+    fallback_steps: int | None = None,
+    band=COMFORT_BAND_PMV,
+) -> tuple[dict, dict]:
+    """The benchmark KPIs of one run (docs/metrics.md, "Benchmark KPIs").
+
+    Args:
+        columns: the run's ``timeseries.csv`` columns (1-D arrays): needed ``t_s``,
+            ``p_comp_w``, ``p_blower_w``, ``pmv``, ``pmv_lb``, ``pmv_ub``,
+            ``mdot_bl_kgps``, ``t_evap_sp_c``; used when present ``p_cond_fan_w``,
+            ``dr_pct``, ``fog_margin_k``, ``iso7730_valid``.
+        step_time_s: wall time of each whole control step [s] (in-process: the
+            controller's compute call; over DDS: command receipt minus state receipt);
+            None: the time ratios are null.
+        control_period_s: Ts [s] for the time ratios.
+        fallback_steps: control steps whose command came from a fallback; None: null.
+        band: the fixed comfort band (ISO 7730 category B).
+
+    Returns:
+        ``(kpis, notes)``: ``kpis`` maps every key of :data:`KPI_KEYS` to a float or
+        None; ``notes`` maps each None KPI to the reason.
+    """
+    t = as_series("t_s", columns["t_s"], None)
+    n = t.size
+    if n < 2:
+        raise ValueError(f"t_s: need at least 2 samples, got {n}")
+    dt = float(t[1] - t[0])
+    if dt <= 0.0 or np.any(np.abs(np.diff(t) - dt) > UNIFORM_RTOL * dt):
+        raise ValueError("t_s: must be increasing and uniformly spaced")
+    notes: dict = {}
+    p_comp = as_series("p_comp_w", columns["p_comp_w"], n)
+    p_bl = as_series("p_blower_w", columns["p_blower_w"], n)
+    p_fan = _column(columns, "p_cond_fan_w", n, notes, "energy_fan_kwh")
+    y = as_series("pmv", columns["pmv"], n)
+    lb = as_series("pmv_lb", columns["pmv_lb"], n)
+    ub = as_series("pmv_ub", columns["pmv_ub"], n)
+    k: dict = {key: None for key in KPI_KEYS}
+    k["duration_s"] = n * dt
+    e_comp, e_bl = float(np.sum(p_comp) * dt), float(np.sum(p_bl) * dt)
+    e_fan = float(np.sum(p_fan) * dt) if p_fan is not None else 0.0
+    if p_fan is None:
+        notes["energy_fan_kwh"] += " (energy_kwh counts compressor and blower only)"
+    else:
+        k["energy_fan_kwh"] = e_fan / J_PER_KWH
+    k["energy_comp_kwh"] = e_comp / J_PER_KWH
+    k["energy_blower_kwh"] = e_bl / J_PER_KWH
+    k["energy_paper_kwh"] = (e_comp + e_bl) / J_PER_KWH
+    k["energy_kwh"] = (e_comp + e_bl + e_fan) / J_PER_KWH
+    dist = pmv_band_distance(y, band)
+    k["discomfort_pmvh"] = float(np.sum(dist) * dt / 3600.0)
+    zone = band_phase(lb, ub, band)
+    if zone.any():
+        k["band_start_s"] = float(t[int(np.argmax(zone))] - t[0])
+        k["discomfort_band_pmvh"] = float(np.sum(dist[zone]) * dt / 3600.0)
+        k["pmv_mean_band"] = float(np.mean(y[zone]))
+    else:
+        for key in ("band_start_s", "discomfort_band_pmvh", "pmv_mean_band"):
+            notes[key] = "the scenario's bounds never lie inside the comfort band in this run"
+    k["i_pmv"] = float(np.sum(y * y) * dt)
+    k["i_pmv_clipped"] = i_pmv_clipped(y, dt)
+    k["otc_violation_pct"] = 100.0 * float(np.count_nonzero((y > ub) | (y < lb))) / n
+    ttc = time_to_comfort(t, dt, y, band[0], band[1], COMFORT_HOLD_S)
+    k["time_to_comfort_s"] = None if math.isnan(ttc) else ttc
+    if math.isnan(ttc):
+        notes["time_to_comfort_s"] = f"PMV never stayed inside the band for {COMFORT_HOLD_S:g} s"
+    dr = _column(columns, "dr_pct", n, notes, "draught_pct")
+    if dr is None:
+        notes["draught_mean_pct"] = notes["draught_max_pct"] = notes["draught_pct"]
+    else:
+        dstat = draught_stats(dr)
+        k["draught_pct"], k["draught_mean_pct"], k["draught_max_pct"] = (
+            dstat["dr_above_pct"],
+            dstat["dr_mean_pct"],
+            dstat["dr_max_pct"],
+        )
+    fog = _column(columns, "fog_margin_k", n, notes, "fog_margin_min_k")
+    if fog is None:
+        notes["fog_risk_pct"] = notes["fog_margin_min_k"]
+    else:
+        fstat = fog_margin_stats(fog)
+        k["fog_margin_min_k"], k["fog_risk_pct"] = fstat["fog_margin_min_k"], fstat["fog_risk_pct"]
+    valid = _column(columns, "iso7730_valid", n, notes, "iso7730_invalid_pct")
+    if valid is not None:
+        k["iso7730_invalid_pct"] = iso7730_invalid_pct(valid)
+    m = as_series("mdot_bl_kgps", columns["mdot_bl_kgps"], n)
+    s = as_series("t_evap_sp_c", columns["t_evap_sp_c"], n)
+    k["actuator_travel"], k["travel_mdot_kgps"], k["travel_t_evap_sp_k"] = actuator_travel(m, s)
+    k["peak_comp_kw"] = float(np.max(p_comp)) / 1000.0
+    if step_time_s is None or control_period_s is None:
+        notes["time_ratio_mean"] = notes["time_ratio_max"] = "no per-step wall times recorded for this run"
+    else:
+        st = np.asarray(step_time_s, dtype=float)
+        st = st[np.isfinite(st)]
+        if st.size == 0:
+            notes["time_ratio_mean"] = notes["time_ratio_max"] = "no control step was timed"
+        else:
+            if not (math.isfinite(control_period_s) and control_period_s > 0):
+                raise ValueError(f"control_period_s: must be finite and > 0, got {control_period_s!r}")
+            r = st / float(control_period_s)
+            k["time_ratio_mean"], k["time_ratio_max"] = float(np.mean(r)), float(np.max(r))
+    if fallback_steps is None:
+        notes["fallback_steps"] = "fallbacks not recorded for this run"
+    else:
+        k["fallback_steps"] = float(fallback_steps)
+    return k, notes
