@@ -12,6 +12,7 @@ from ceco_controller import estimator as est
 from ceco_controller import estimator_id as eid
 from ceco_controller import model as cm
 from ceco_controller.baseline import BaselineController
+from ceco_controller.estimating_controller import EstimatingController, with_measurements
 from ceco_controller.estimation_cost import discomfort_pmvh
 from ceco_controller.factory import make_controller
 from ceco_controller.identification import DEFAULT_DATA_DIR, read_series_csv
@@ -205,8 +206,8 @@ def test_dead_reckoning_then_the_controllers_own_sensor_fault_path():
     """Without a cabin air sample the estimate is used for max_dead_reckoning_s (60 s), then the wrapped
     controller gets a non-finite cabin temperature: the ACC law holds its last command."""
     sc = load_scenario("sc03")
-    ctrl = est.with_measurements(BaselineController(control_period_s=5.0), "vehicle", 5.0, MP)
-    assert isinstance(ctrl, est.EstimatingController)
+    ctrl = with_measurements(BaselineController(control_period_s=5.0), "vehicle", 5.0, MP)
+    assert isinstance(ctrl, EstimatingController)
     meas = {
         "t_cab_c": 30.0,
         "t_int_c": math.nan,
@@ -333,7 +334,7 @@ def test_prepare_sees_the_estimated_observation_and_updates_the_estimator_once()
     assert prepared.last_estimate == plain.last_estimate
     assert c1.mdot_bl_kgps == pytest.approx(c2.mdot_bl_kgps, abs=1e-6)
     assert c1.t_evap_sp_c == pytest.approx(c2.t_evap_sp_c, abs=1e-4)
-    base = est.with_measurements(BaselineController(control_period_s=5.0), "vehicle", 5.0, MP)
+    base = with_measurements(BaselineController(control_period_s=5.0), "vehicle", 5.0, MP)
     assert (
         base.prepare(obs) is None
         and base.compute(obs, t_start=0.0)[0] == BaselineController(control_period_s=5.0).compute(obs)[0]

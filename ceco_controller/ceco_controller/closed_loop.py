@@ -25,14 +25,14 @@ import time
 import numpy as np
 
 from ceco_core import rundir
-from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS
+from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS, MEASUREMENT_MODES
 from ceco_core.metrics import comfort_series_metrics, comparison_table, compute_metrics
 from ceco_plant_sim.scenario_plant import ScenarioPlant, check_overrides, n_plant_steps, steps_per_control
 from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews, parse_quality
 from ceco_v2x_preview.scenario import Scenario, load_scenario
 
 from . import model as cm
-from .estimator import MEASUREMENT_MODES, EstimatingController, with_measurements
+from .estimating_controller import EstimatingController, with_measurements
 from .factory import make_controller
 from .observation import observation
 from .strategies import STRATEGIES

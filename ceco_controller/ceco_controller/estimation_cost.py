@@ -38,6 +38,7 @@ from ceco_core.kpis import pmv_band_distance
 
 from . import estimator as est
 from .closed_loop import SimSettings, simulate
+from .estimating_controller import EstimatingController
 from .strategies import STRATEGIES
 
 __all__ = [
@@ -81,7 +82,7 @@ class NaiveVehicleController:
         return self.inner.compute(dataclasses.replace(obs, t_int_c=obs.t_cab_c, t_shell_c=obs.t_cab_c))
 
 
-class SensorOffsetController(est.EstimatingController):
+class SensorOffsetController(EstimatingController):
     """The vehicle mode with constant offsets added to the sensors of every observation (fault study)."""
 
     def __init__(self, inner, estimator: est.CabinStateEstimator, offsets: dict):

@@ -12,7 +12,7 @@ from ceco_core.scenario_types import Scenario
 
 from . import model as cm
 from .baseline import BaselineController
-from .estimator import with_measurements
+from .estimating_controller import with_measurements
 from .nmpc import NmpcController
 from .strategies import load_strategy_settings
 
@@ -37,7 +37,7 @@ def make_controller(
     ``config/controller.yaml``), then ``horizon_steps``/``control_period_s``, then ``overrides``.
     Baseline: ``overrides`` are :class:`~ceco_core.acc_law.AccSettings` fields.
     ``measurements``: 'full' (every modelled state read from the observation) or 'vehicle' (only the
-    production sensors; the controller behind ``estimator.EstimatingController``, with
+    production sensors; the controller behind ``estimating_controller.EstimatingController``, with
     ``estimator_settings``/``estimator_params``, default the package's identified file).
     """
     ctrl: BaselineController | NmpcController

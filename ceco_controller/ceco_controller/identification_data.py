@@ -1,0 +1,184 @@
+"""Identification data: excitation drives of the plant recorded at 1 s, and their CSV files.
+
+The plant (``ceco_plant_sim``) is driven through soak and pre-cooled starts with random
+held inputs (:class:`ExcitationSettings`, :func:`generate_excitation`); the series are
+stored as CSV (:data:`SERIES_COLUMNS`, ``data/identification/``) so a fit can be repeated
+without the plant. The least-squares fit is :mod:`ceco_controller.identification`.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import hashlib
+import pathlib
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "SERIES_COLUMNS",
+    "PACKAGE_DIR",
+    "DEFAULT_DATA_DIR",
+    "TRAIN_DRIVES",
+    "VALIDATION_DRIVES",
+    "ExcitationSettings",
+    "generate_excitation",
+    "read_series_csv",
+    "write_series_csv",
+]
+
+
+SERIES_COLUMNS = (
+    "segment",
+    "t_s",
+    "t_cab_c",
+    "t_int_c",
+    "t_shell_c",
+    "t_evap_c",
+    "t_vent_c",
+    "t_amb_c",
+    "solar_wm2",
+    "speed_mps",
+    "mdot_bl_kgps",
+    "t_evap_sp_c",
+    "p_comp_w",
+    "p_blower_w",
+)
+"""Columns the fit needs (a subset of the run directory's timeseries.csv, plus ``segment``)."""
+
+PACKAGE_DIR = pathlib.Path(__file__).resolve().parent.parent
+DEFAULT_DATA_DIR = PACKAGE_DIR / "ceco_controller" / "data" / "identification"
+TRAIN_DRIVES = (
+    ("sc03", "soak"),
+    ("udds", "soak"),
+    ("hwfet", "soak"),
+    ("sc03_mild", "soak"),
+    ("sc03", "precooled"),
+    ("hwfet", "precooled"),
+)
+"""(scenario, initial condition) of the training drives."""
+VALIDATION_DRIVES = (("us06", "soak"), ("us06", "precooled"))
+"""Validation drives (never used for fitting)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ExcitationSettings:
+    """Input excitation used to generate identification data."""
+
+    seed: int = 1
+    """Seed of the random input levels and hold times."""
+    hold_min_s: float = 15.0
+    """Shortest hold of a level [s]."""
+    hold_max_s: float = 120.0
+    """Longest hold of a level [s]."""
+    ts_s: float = 5.0
+    """Model step; holds are whole multiples of it [s]."""
+
+    def validate(self) -> None:
+        """Raise ValueError naming the field if a setting is not usable."""
+        if not 0 < self.hold_min_s <= self.hold_max_s:
+            raise ValueError("ExcitationSettings.hold_min_s must satisfy 0 < min <= hold_max_s")
+        if not self.ts_s > 0:
+            raise ValueError("ExcitationSettings.ts_s must be > 0")
+
+
+_PRECOOLED = {"t_cab_c": 27.0, "t_int_c": 38.0, "t_shell_c": 36.0, "t_evap_c": 12.0}
+"""Initial state of a cabin that has already been cooled for a while [degC]."""
+
+
+def generate_excitation(
+    drives=TRAIN_DRIVES,
+    settings: ExcitationSettings = ExcitationSettings(),
+    seed_offset: int = 0,
+    extra_states: tuple = (),
+) -> dict:
+    """Simulate the plant under multi-level random input steps; return 1 s series (SERIES_COLUMNS).
+
+    ``extra_states``: further plant temperatures recorded as columns after SERIES_COLUMNS (fields of
+    ``PlantState``/``PlantOutputs``, e.g. ``("t_glass_c", "t_duct_c")`` for the state estimator's
+    data, ``estimator_id``); the other columns do not depend on it.
+    """
+    from ceco_core.contracts import AcInput
+    from ceco_plant_sim.plant import CabinPlant, PlantState
+    from ceco_plant_sim.plant_params import PlantParams
+    from ceco_v2x_preview.scenario import load_scenario
+
+    settings.validate()
+    rng = np.random.default_rng(settings.seed + seed_offset)
+    rows: dict[str, list] = {c: [] for c in SERIES_COLUMNS + tuple(extra_states)}
+    pp = PlantParams()
+    for seg, (name, init) in enumerate(drives):
+        sc = load_scenario(name)
+        ini = dataclasses.asdict(sc.initial)
+        if init == "precooled":
+            ini.update(_PRECOOLED)
+        plant = CabinPlant(pp, PlantState.from_initial(ini, pp, sc.env_at(0.0)))
+        st = plant.state
+        meas = (st.t_cab_c, st.t_int_c, st.t_shell_c, st.t_evap_c, st.t_evap_c)
+        extra = tuple(getattr(st, c) for c in extra_states)
+        n = int(sc.duration_s)
+        t_next = 0.0
+        cmd = None
+        for i in range(n):
+            t = float(i)
+            if t >= t_next:
+                # strong cooling during the first minute of a hot soak (what every controller does)
+                if init == "soak" and t < 60.0:
+                    cmd = AcInput(0.17, 3.0)
+                    hold = 60.0
+                else:
+                    cmd = AcInput(float(rng.uniform(0.05, 0.17)), float(rng.uniform(3.0, 10.0)))
+                    hold = settings.ts_s * rng.integers(
+                        int(settings.hold_min_s / settings.ts_s), int(settings.hold_max_s / settings.ts_s) + 1
+                    )
+                t_next = t + hold
+            assert cmd is not None  # set at t = 0 (t_next = 0)
+            env = sc.env_at(t)
+            out = plant.step(cmd, env, 1.0)
+            vals: dict[str, Any] = dict(zip(("t_cab_c", "t_int_c", "t_shell_c", "t_evap_c", "t_vent_c"), meas))
+            vals.update(
+                segment=seg,
+                t_s=t,
+                t_amb_c=env.t_amb_c,
+                solar_wm2=env.solar_wm2,
+                speed_mps=env.speed_mps,
+                mdot_bl_kgps=cmd.mdot_bl_kgps,
+                t_evap_sp_c=cmd.t_evap_sp_c,
+                p_comp_w=out.p_comp_w,
+                p_blower_w=out.p_blower_w,
+                **dict(zip(extra_states, extra)),
+            )
+            for c in rows:
+                rows[c].append(vals[c])
+            meas = (out.t_cab_c, out.t_int_c, out.t_shell_c, out.t_evap_c, out.t_vent_c)
+            extra = tuple(getattr(out, c) for c in extra_states)
+    return {c: np.asarray(v, dtype=float) for c, v in rows.items()}
+
+
+def write_series_csv(series: dict, path) -> str:
+    """Write a series dict as CSV (SERIES_COLUMNS); return its sha256."""
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(SERIES_COLUMNS)
+        for row in zip(*(series[c] for c in SERIES_COLUMNS)):
+            w.writerow([f"{v:.6g}" for v in row])
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def read_series_csv(path) -> dict:
+    """Read a CSV with (at least) SERIES_COLUMNS; ``segment`` defaults to 0 (one run)."""
+    with open(path, newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        data: dict[str, list] = {c: [] for c in SERIES_COLUMNS}
+        for r in reader:
+            for c in SERIES_COLUMNS:
+                if c == "segment" and c not in r:
+                    data[c].append(0.0)
+                    continue
+                if c not in r:
+                    raise ValueError(f"{path}: missing column {c!r}")
+                data[c].append(float(r[c]))
+    return {c: np.asarray(v) for c, v in data.items()}
