@@ -25,11 +25,13 @@ if [ ${#missing[@]} -gt 0 ]; then
 fi
 
 stamp="$VENV/.ceco-requirements"
-want=$(cat requirements/*.txt | sha256sum | cut -d' ' -f1)
+# this machine's requirement files (requirements/apt.txt is the apt path's, for a venv over ROS from apt)
+REQS=(requirements/core.txt requirements/ros-jazzy.txt requirements/test.txt requirements/analysis.txt)
+want=$(cat "${REQS[@]}" | sha256sum | cut -d' ' -f1)
 if [ ! -x "$VENV/bin/python" ]; then "$PYTHON" -m venv "$VENV"; fi
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "setup: installing Python requirements into $VENV"
-  "$VENV/bin/python" -m pip install -q $(printf -- "-r %s " requirements/*.txt) \
+  "$VENV/bin/python" -m pip install -q $(printf -- "-r %s " "${REQS[@]}") \
     > "$VENV/pip-install.log" 2>&1 || { tail -30 "$VENV/pip-install.log" >&2; exit 1; }
   echo "$want" > "$stamp"
 fi
