@@ -14,6 +14,7 @@ the latest inputs. Checks, ordering, bookkeeping and health rules: the pure
 from __future__ import annotations
 
 import time
+from functools import partial
 
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 
@@ -93,19 +94,14 @@ class ControllerNode(ManagedNode):
                 qos_overriding_options=ovr,
                 event_callbacks=SubscriptionEventCallbacks(**events),
             ),
-            self.create_subscription(
-                WeatherPreview,
-                interfaces.TOPIC_WEATHER,
-                lambda m: self._on_preview('weather', m),
-                interfaces.QOS_PREVIEW,
-                qos_overriding_options=ovr,
-            ),
-            self.create_subscription(
-                TrafficPreview,
-                interfaces.TOPIC_TRAFFIC,
-                lambda m: self._on_preview('traffic', m),
-                interfaces.QOS_PREVIEW,
-                qos_overriding_options=ovr,
+            *(
+                self.create_subscription(
+                    msg_type, topic, partial(self._on_preview, kind), interfaces.QOS_PREVIEW, qos_overriding_options=ovr
+                )
+                for msg_type, topic, kind in (
+                    (WeatherPreview, interfaces.TOPIC_WEATHER, 'weather'),
+                    (TrafficPreview, interfaces.TOPIC_TRAFFIC, 'traffic'),
+                )
             ),
         ]
         self._timer = (

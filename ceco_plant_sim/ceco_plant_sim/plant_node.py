@@ -107,23 +107,7 @@ class PlantNode(NodeTools, Node):
         self.e_comp_j += r.out.e_comp_j
         self.e_blower_j += r.out.e_blower_j
         c = self.sp.comfort
-        self.pub_comfort.publish(
-            conversions.comfort_msg(
-                r.n,
-                stamp,
-                r.pmv,
-                r.ppd,
-                r.pmv_lb,
-                r.pmv_ub,
-                r.meas,
-                u,
-                r.env.solar_wm2,
-                c.met,
-                c.clo,
-                r.comfort.iso7730_valid,
-                series=r.comfort,
-            )
-        )
+        self.pub_comfort.publish(conversions.comfort_msg(r, stamp, c.met, c.clo))
         self.pub_power.publish(
             conversions.power_msg(r.n, stamp, self.dt, u, r.out, self.e_comp_j, self.e_blower_j, fallback)
         )
@@ -216,24 +200,11 @@ class PlantNode(NodeTools, Node):
         rej, rt = self.policy.rejections, self.config.timing == 'realtime'
         new, self._reported = rej.total - self._reported, rej.total
         age = self.rt.watchdog.age(self.clock_s()) if rt else self.wait.age(self.wall_s())
-        return [
-            (
-                'plant',
-                pio.plant_health(
-                    cfg=self.config,
-                    started=self.started,
-                    finished=self.finished,
-                    n=self.n,
-                    t_s=self.n * self.dt,
-                    supervisor=self.fallback,
-                    policy=self.policy,
-                    command_age_s=None if age == float('inf') else age,
-                    new_rejections=new,
-                    events=self._events,
-                    waiting_for='' if self.started else self._waiting_for(),
-                ),
-            )
-        ]
+        kw = dict(started=self.started, finished=self.finished, n=self.n, t_s=self.n * self.dt, events=self._events)
+        kw.update(supervisor=self.fallback, policy=self.policy, new_rejections=new)
+        waiting = '' if self.started else self._waiting_for()
+        age_s = None if age == float('inf') else age
+        return [('plant', pio.plant_health(cfg=self.config, command_age_s=age_s, waiting_for=waiting, **kw))]
 
 
 def main(args=None) -> int:

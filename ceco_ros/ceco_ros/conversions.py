@@ -234,41 +234,25 @@ COMFORT_SERIES_FIELDS = ("ta_occ_c", "vel_occ_mps", "t_mr_c", "w_rad_wm2", "pa_p
 """Comfort message fields copied from ``ceco_core.cabin_comfort.OccupantComfort`` (same names)."""
 
 
-def comfort_msg(
-    n: int,
-    stamp,
-    pmv: float,
-    ppd: float,
-    lb: float,
-    ub: float,
-    meas: dict,
-    u: AcInput,
-    solar_wm2: float,
-    met: float,
-    clo: float,
-    iso_valid: bool,
-    series=None,
-) -> Comfort:
-    """The occupant's comfort at plant step ``n``.
+def comfort_msg(rec, stamp, met: float, clo: float) -> Comfort:
+    """The occupant's comfort of one plant step, from its ``ceco_plant_sim.scenario_plant.PlantStepRecord``.
 
-    ``series`` (a ``ceco_core.cabin_comfort.OccupantComfort``) fills the occupant-environment, draught
-    and fog fields (NaN without it).
+    ``rec`` gives the step index, the scored PMV/PPD and bounds at t_n, the measurements, the command
+    held, the environment and the comfort series (``ceco_core.cabin_comfort.OccupantComfort``: the
+    occupant-environment, draught and fog fields); ``met`` [met] and ``clo`` [clo] are the occupant's.
     """
     m = Comfort()
     m.header.stamp = stamp
-    m.step_index = int(n)
-    m.pmv = float(pmv)
-    m.ppd = float(ppd)
-    m.pmv_lb = float(lb)
-    m.pmv_ub = float(ub)
-    m.t_cab_c = float(meas['t_cab_c'])
-    m.t_vent_c = float(meas['t_vent_c'])
-    m.t_int_c = float(meas['t_int_c'])
-    m.mdot_bl_kgps = float(u.mdot_bl_kgps)
-    m.solar_wm2 = float(solar_wm2)
-    m.met = float(met)
-    m.clo = float(clo)
-    m.iso_valid = bool(iso_valid)
+    m.step_index = int(rec.n)
+    m.pmv, m.ppd, m.pmv_lb, m.pmv_ub = float(rec.pmv), float(rec.ppd), float(rec.pmv_lb), float(rec.pmv_ub)
+    m.t_cab_c = float(rec.meas['t_cab_c'])
+    m.t_vent_c = float(rec.meas['t_vent_c'])
+    m.t_int_c = float(rec.meas['t_int_c'])
+    m.mdot_bl_kgps = float(rec.u.mdot_bl_kgps)
+    m.solar_wm2 = float(rec.env.solar_wm2)
+    m.met, m.clo = float(met), float(clo)
+    series = rec.comfort
+    m.iso_valid = bool(series.iso7730_valid) if series is not None else False
     for name in COMFORT_SERIES_FIELDS:
         setattr(m, name, float(getattr(series, name)) if series is not None else math.nan)
     return m
