@@ -146,6 +146,27 @@ def test_validate_command(bench, tmp_path, capsys):
     assert 'does not recompute' in capsys.readouterr().err
 
 
+def test_summary_lines_carry_the_signed_matched_values(bench):
+    _, doc, _ = bench
+    lines = cli.summary_lines(doc)
+    (case,) = doc['cases']
+    assert len(lines) == len(case['matched'])
+    for line, (name, m) in zip(lines, case['matched'].items(), strict=True):
+        assert line.split()[:2] == ['short', name]
+        saved = line.split('energy saved at matched comfort')[1].split('(allowance')[0].strip()
+        cut = line.split('discomfort cut at matched energy')[1].split(',')[0].strip()
+        want = 'n/a' if m['energy_saving_pct'] is None else f"{m['energy_saving_pct']:+.1f} %"
+        assert saved == want
+        want = 'n/a' if m['discomfort_reduction_pct'] is None else f"{m['discomfort_reduction_pct']:+.1f} %"
+        assert cut == want
+        assert line.endswith(', dominated') == m['dominated']
+    # the sign convention of results.json: a strategy that needs more energy than the front shows a negative saving
+    doc2 = json.loads(json.dumps(doc))
+    doc2['cases'][0]['matched']['ceco'].update(energy_saving_pct=-3.04, dominated=True)
+    (line,) = [x for x in cli.summary_lines(doc2) if x.split()[1] == 'ceco']
+    assert 'energy saved at matched comfort   -3.0 % (' in line and line.endswith(', dominated')
+
+
 def test_baseline_constants_and_controllers():
     from importlib import resources
 

@@ -351,19 +351,29 @@ def main(argv=None) -> int:
         f"on {t['workers']} worker(s); results {Path(args.out) / 'results.json'}, report "
         f"{Path(args.out) / 'report.html'}"
     )
-    for case in doc['cases']:
-        for name, m in case['matched'].items():
-
-            def f(x):
-                return 'n/a' if x is None else f'{x:+.1f} %'
-
-            print(
-                f"  {case['case']:<18} {name:<32} dE@comfort {f(m['energy_saving_pct']):>8} (allowance "
-                f"{f(m['allowance']['energy_saving_pct']):>8}), dD@energy {f(m['discomfort_reduction_pct']):>8}"
-                f"{', dominated' if m['dominated'] else ''}"
-            )
+    for line in summary_lines(doc):
+        print(line)
     failed = sum(r['status'] != 'ok' for c in doc['cases'] for r in c['runs'])
     return 1 if failed else 0
+
+
+def summary_lines(doc: dict) -> list[str]:
+    """One console line per case and controller of a results document.
+
+    The matched savings are signed as in results.json: positive = less energy / less discomfort than
+    the baseline front.
+    """
+
+    def f(x):
+        return 'n/a' if x is None else f'{x:+.1f} %'
+
+    return [
+        f"  {case['case']:<18} {name:<32} energy saved at matched comfort {f(m['energy_saving_pct']):>8} "
+        f"(allowance {f(m['allowance']['energy_saving_pct']):>8}), discomfort cut at matched energy "
+        f"{f(m['discomfort_reduction_pct']):>8}{', dominated' if m['dominated'] else ''}"
+        for case in doc['cases']
+        for name, m in case['matched'].items()
+    ]
 
 
 if __name__ == '__main__':
