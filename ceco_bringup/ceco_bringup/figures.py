@@ -37,14 +37,16 @@ __all__ = [
     'fig_powers',
     'fig_inputs',
     'fig_bars',
-    'fig_vehicle',
+    'OKABE_ITO',
+    'RC_PARAMS',
+    'save_png',
     'fig_solver',
 ]
 
 STRATEGY_ORDER = STRATEGIES
 """Order in which strategies appear in legends, tables and bars."""
 
-_OKABE_ITO = ('#000000', '#E69F00', '#56B4E9', '#009E73', '#D55E00', '#0072B2', '#CC79A7', '#F0E442')
+OKABE_ITO = ('#000000', '#E69F00', '#56B4E9', '#009E73', '#D55E00', '#0072B2', '#CC79A7', '#F0E442')
 _LABEL = {
     'baseline': 'Baseline (PI, 26 °C)',
     'ceco': 'CECO',
@@ -53,7 +55,7 @@ _LABEL = {
     'ceco-ioch': 'CECO-IOCH',
 }
 _DPI = 200
-_RC = {
+RC_PARAMS = {  # matplotlib rc of every ceco figure
     'font.size': 9,
     'axes.labelsize': 9,
     'axes.titlesize': 10,
@@ -82,10 +84,11 @@ def strategy_style(name: str, index: int | None = None) -> dict:
     else:
         i = len(STRATEGY_ORDER) + (index or 0)
     dashes = '--' if name == 'baseline' else '-'
-    return {'color': _OKABE_ITO[i % len(_OKABE_ITO)], 'label': _LABEL.get(name, name), 'linestyle': dashes}
+    return {'color': OKABE_ITO[i % len(OKABE_ITO)], 'label': _LABEL.get(name, name), 'linestyle': dashes}
 
 
-def _save(fig, path: Path) -> Path:
+def save_png(fig, path: Path) -> Path:
+    """Write ``fig`` as a PNG at ``path`` (parents created) and close it; returns the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=_DPI)
@@ -124,7 +127,7 @@ def _title_legend(fig, ax, title: str) -> None:
 
 def fig_pmv(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
     """PMV of every strategy with the scenario's lower/upper PMV bounds."""
-    with plt.rc_context(_RC):
+    with plt.rc_context(RC_PARAMS):
         fig, ax = plt.subplots(figsize=(6.5, 3.9), layout='constrained')
         first = runs[ordered(list(runs))[0]]
         t = np.asarray(first['t_s'])
@@ -152,12 +155,12 @@ def fig_pmv(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
         ax.set_ylabel('PMV [-]')
         _time_axis(ax, runs)
         _title_legend(fig, ax, title or 'Thermal comfort (PMV) and its bounds')
-        return _save(fig, path)
+        return save_png(fig, path)
 
 
 def fig_temperatures(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
     """Cabin air temperature (top) and vent air temperature (bottom)."""
-    with plt.rc_context(_RC):
+    with plt.rc_context(RC_PARAMS):
         fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 5.4), sharex=True, layout='constrained')
         _lines(a1, runs, 't_cab_c')
         first = runs[ordered(list(runs))[0]]
@@ -169,12 +172,12 @@ def fig_temperatures(runs: Mapping[str, Mapping], path, title: str = '') -> Path
         _time_axis(a2, runs)
         _title_legend(fig, a1, title or 'Cabin and vent air temperatures')
         fig.align_ylabels()
-        return _save(fig, path)
+        return save_png(fig, path)
 
 
 def fig_powers(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
     """Compressor (top) and blower (bottom) electrical power [kW, W]."""
-    with plt.rc_context(_RC):
+    with plt.rc_context(RC_PARAMS):
         fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 5.4), sharex=True, layout='constrained')
         _lines(a1, runs, 'p_comp_w', 1e-3)
         a1.set_ylabel('Compressor P$_{comp}$ [kW]')
@@ -185,12 +188,12 @@ def fig_powers(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
         _time_axis(a2, runs)
         _title_legend(fig, a1, title or 'A/C electrical power')
         fig.align_ylabels()
-        return _save(fig, path)
+        return save_png(fig, path)
 
 
 def fig_inputs(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
     """The two control inputs: blower air flow (top), evaporator set-point (bottom)."""
-    with plt.rc_context(_RC):
+    with plt.rc_context(RC_PARAMS):
         fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 5.4), sharex=True, layout='constrained')
         _lines(a1, runs, 'mdot_bl_kgps', steps=True)
         a1.set_ylabel('Blower air flow $\\dot m_{bl}$ [kg/s]')
@@ -199,7 +202,7 @@ def fig_inputs(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
         _time_axis(a2, runs)
         _title_legend(fig, a1, title or 'Control inputs (held over each control period)')
         fig.align_ylabels()
-        return _save(fig, path)
+        return save_png(fig, path)
 
 
 def _bar_labels(ax, bars, values, base, fmt='{:+.1f} %'):
@@ -227,7 +230,7 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
     x = np.arange(len(names))
     labels = [strategy_style(n)['label'].split(' (')[0] for n in names]
     colors = [strategy_style(n, i)['color'] for i, n in enumerate(names)]
-    with plt.rc_context(_RC):
+    with plt.rc_context(RC_PARAMS):
         fig, axes = plt.subplots(1, 3, figsize=(9.0, 3.3))
         e_comp = np.array([metrics[n]['E_comp_J'] for n in names]) / 3.6e6
         e_bl = np.array([metrics[n]['E_blower_J'] for n in names]) / 3.6e6
@@ -296,105 +299,7 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
             ax.grid(axis='x', visible=False)
         fig.suptitle(title or 'Energy and comfort per strategy (labels: change vs baseline)')
         fig.tight_layout()
-        return _save(fig, path)
-
-
-def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
-    """Vehicle-level energy change against the baseline per strategy and vehicle.
-
-    Load-averaged fit; error bar = 2x the fit's noise; with the paper's Prius
-    numbers; electric car: range lost to the A/C.
-    """
-    vehicles = list(dict.fromkeys(r['vehicle'] for r in rows))
-    strategies = ordered(list(dict.fromkeys(r['strategy'] for r in rows)))
-    strategies = [s for s in strategies if s != 'baseline']
-    bev = [r for r in rows if r['powertrain'] == 'BEV']
-    with plt.rc_context(_RC):
-        ncols = 2 if bev else 1
-        fig, axes = plt.subplots(1, ncols, figsize=(4.8 * ncols, 3.4), squeeze=False)
-        ax = axes[0][0]
-        x = np.arange(len(strategies))
-        width = 0.8 / (len(vehicles) + 1)
-        for j, veh in enumerate(vehicles):
-            by = {r['strategy']: r for r in rows if r['vehicle'] == veh}
-            vals = np.array([by[s]['saving_fit_pct'] if s in by else np.nan for s in strategies])
-            err = np.array([2 * by[s]['noise_pct'] if s in by else 0 for s in strategies])
-            ax.bar(
-                x + (j - len(vehicles) / 2) * width,
-                vals,
-                width,
-                yerr=err,
-                capsize=2,
-                color=_OKABE_ITO[(j + 5) % len(_OKABE_ITO)],
-                edgecolor='k',
-                lw=0.5,
-                label=veh.replace('_', ' '),
-            )
-        paper = [
-            next(
-                (r['paper_saving_pct'] for r in rows if r['strategy'] == s and math.isfinite(r['paper_saving_pct'])),
-                np.nan,
-            )
-            for s in strategies
-        ]
-        ax.bar(
-            x + (len(vehicles) / 2) * width,
-            paper,
-            width,
-            color='white',
-            edgecolor='k',
-            hatch='xx',
-            lw=0.5,
-            label='Paper (2017 Prius HEV, SC03)',
-        )
-        ax.axhline(0, color='k', lw=0.6)
-        fin = [r for r in rows if math.isfinite(r['saving_fit_pct'])]
-        lows = [r['saving_fit_pct'] - 2 * r['noise_pct'] for r in fin]
-        highs = [r['saving_fit_pct'] + 2 * r['noise_pct'] for r in fin]
-        low = min(lows + [p for p in paper if math.isfinite(p)] + [-1.0])
-        high = max(highs + [0.0])
-        # Room under the bars for the legend; above zero for strategies that cost energy.
-        ax.set_ylim(1.7 * low, 1.25 * high + 0.1 * abs(low))
-        ax.set_xticks(x, [strategy_style(s)['label'] for s in strategies], rotation=20, ha='right')
-        ax.set_ylabel('Vehicle energy vs baseline [%]')
-        ax.legend(fontsize=7, loc='lower left')
-        ax.grid(axis='x', visible=False)
-        ax.set_title('Vehicle-level saving')
-        if bev:
-            ax = axes[0][1]
-            names = ordered(list(dict.fromkeys(r['strategy'] for r in bev)))
-            by = {r['strategy']: r for r in bev}
-            vals = np.array([by[n]['range_lost_km'] for n in names])
-            bars = ax.bar(
-                np.arange(len(names)),
-                vals,
-                color=[strategy_style(n, i)['color'] for i, n in enumerate(names)],
-                edgecolor='k',
-                lw=0.5,
-            )
-            for b, n in zip(bars, names):
-                ax.annotate(
-                    f"{by[n]['range_lost_pct']:.1f} %",
-                    (b.get_x() + b.get_width() / 2, b.get_height()),
-                    ha='center',
-                    va='bottom',
-                    fontsize=7,
-                    xytext=(0, 2),
-                    textcoords='offset points',
-                )
-            ax.set_xticks(
-                np.arange(len(names)),
-                [strategy_style(n)['label'].split(' (')[0] for n in names],
-                rotation=20,
-                ha='right',
-            )
-            ax.set_ylabel('Range lost to A/C [km]')
-            ax.set_ylim(0, np.nanmax(vals) * 1.15 if np.any(vals > 0) else 1)
-            ax.grid(axis='x', visible=False)
-            ax.set_title(f"{bev[0]['vehicle'].replace('_', ' ')}: range lost")
-        fig.suptitle(title or 'Vehicle level (FASTSim 3.1, mean A/C power as constant aux load)')
-        fig.tight_layout()
-        return _save(fig, path)
+        return save_png(fig, path)
 
 
 def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
@@ -404,7 +309,7 @@ def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
         for n in ordered(list(diags))
         if np.any(np.isfinite(np.asarray(diags[n].get('solve_time_ms', []), dtype=float)))
     ]
-    with plt.rc_context(_RC):
+    with plt.rc_context(RC_PARAMS):
         fig, ax = plt.subplots(figsize=(6.5, 3.2))
         data = []
         for n in names:
@@ -433,7 +338,7 @@ def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
             ax.text(0.5, 0.5, 'no solver data', ha='center', va='center', transform=ax.transAxes)
         ax.set_ylabel('Solve time per control step [ms]')
         ax.set_title(title or 'NMPC solve time (box 25-75 %, whiskers 5-95 %)')
-        return _save(fig, path)
+        return save_png(fig, path)
 
 
 def front_figure(

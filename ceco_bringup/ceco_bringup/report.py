@@ -31,10 +31,20 @@ import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-import numpy as np
-
 from ceco_bringup import figures
-from ceco_bringup.report_html import Figure, Heading, Paragraph, Table, Warning, render_html, render_markdown
+from ceco_bringup.report_html import (
+    Figure,
+    Heading,
+    Paragraph,
+    Table,
+    Warning,
+    fmt_num,
+    fmt_pct,
+    render_html,
+    render_markdown,
+    slug,
+)
+from ceco_bringup.report_vehicle import vehicle_rows, vehicle_section
 from ceco_bringup.rundata import RunData, discover_runs, load_run, solver_stats
 from ceco_core.metrics import relative_change_pct
 
@@ -45,28 +55,9 @@ PAPER_AC_SAVING_PCT = {'ceco-e': -15.9, 'ceco-c': -4.1, 'ceco-ioch': -7.6}
 
 
 # ---------------------------------------------------------------- formatting
-def _f(x, digits=3) -> str:
-    try:
-        x = float(x)
-    except (TypeError, ValueError):
-        return str(x)
-    if math.isnan(x):
-        return 'n/a'
-    if abs(x) >= 1000:
-        return f'{x:,.0f}'
-    if abs(x) >= 100:
-        return f'{x:.1f}'
-    return f'{x:.{digits}g}' if abs(x) < 1e-3 and x != 0 else f'{x:.{digits}f}'
-
-
-def _pct(x) -> str:
-    x = float(x)
-    return 'n/a' if math.isnan(x) else f'{x:+.1f} %'
-
-
 def _change_pct(x: Mapping, base: RunData | None, key: str) -> str:
     """The change of metric ``key`` against the baseline run, formatted ('n/a' without one)."""
-    return _pct(relative_change_pct(x[key], base.recomputed[key])) if base else 'n/a'
+    return fmt_pct(relative_change_pct(x[key], base.recomputed[key])) if base else 'n/a'
 
 
 def _group(runs: Sequence[RunData]) -> dict:
@@ -100,10 +91,6 @@ def _scenario_text(name: str) -> str:
     )
 
 
-def _slug(text: str) -> str:
-    return ''.join(c if c.isalnum() or c in '-_' else '_' for c in text)
-
-
 # ---------------------------------------------------------------- sections
 def _intro(runs: Sequence[RunData], rtol: float, log) -> tuple[list, bool]:
     """Title, provenance paragraph and one warning per run whose metrics differ; (blocks, any mismatch)."""
@@ -135,17 +122,17 @@ def _metrics_table(scenario: str, group: Mapping[str, RunData], labels: Sequence
         rows.append(
             (
                 lab,
-                _f(x['E_tot_kWh'], 4),
+                fmt_num(x['E_tot_kWh'], 4),
                 _change_pct(x, base, 'E_tot_J'),
-                _f(x['E_comp_J'] / 1e3, 1),
-                _f(x['E_blower_J'] / 1e3, 1),
-                _f(x['P_mean_w'], 0),
-                _f(x['I_pmv'], 1),
+                fmt_num(x['E_comp_J'] / 1e3, 1),
+                fmt_num(x['E_blower_J'] / 1e3, 1),
+                fmt_num(x['P_mean_w'], 0),
+                fmt_num(x['I_pmv'], 1),
                 _change_pct(x, base, 'I_pmv'),
-                _f(x['otc_violation_pct'], 2),
-                _f(x['time_to_comfort_s'], 0),
-                _f(x['pmv_mean'], 3),
-                _f(x['pmv_max'], 3),
+                fmt_num(x['otc_violation_pct'], 2),
+                fmt_num(x['time_to_comfort_s'], 0),
+                fmt_num(x['pmv_mean'], 3),
+                fmt_num(x['pmv_max'], 3),
                 r.source,
                 (f'OK (≤ {r.check_rtol:.0e})' if not r.mismatches else f'MISMATCH ({len(r.mismatches)})'),
             )
@@ -188,31 +175,31 @@ def _metrics_table(scenario: str, group: Mapping[str, RunData], labels: Sequence
 
 def _time_figures(scenario: str, group: Mapping[str, RunData], labels: Sequence[str], fig_dir: Path) -> list:
     """(path, caption) of the time-series, bar and solver figures of one scenario."""
-    slug = _slug(scenario)
+    name = slug(scenario)
     cols = {lab: group[lab].columns for lab in labels}
     metrics = {lab: group[lab].recomputed for lab in labels}
     figs = [
         (
-            figures.fig_pmv(cols, fig_dir / f'{slug}_pmv.png', f'PMV and its bounds, {scenario}'),
+            figures.fig_pmv(cols, fig_dir / f'{name}_pmv.png', f'PMV and its bounds, {scenario}'),
             'PMV of every strategy; grey band: the scenario\'s comfort bounds (relaxed upper bound during the '
             'initial pull-down).',
         ),
         (
             figures.fig_temperatures(
-                cols, fig_dir / f'{slug}_temperatures.png', f'Cabin and vent air temperatures, {scenario}'
+                cols, fig_dir / f'{name}_temperatures.png', f'Cabin and vent air temperatures, {scenario}'
             ),
             'Cabin air temperature (top, with the ambient) and vent (evaporator outlet) air temperature.',
         ),
         (
-            figures.fig_powers(cols, fig_dir / f'{slug}_powers.png', f'A/C electrical power, {scenario}'),
+            figures.fig_powers(cols, fig_dir / f'{name}_powers.png', f'A/C electrical power, {scenario}'),
             'Compressor (top) and blower (bottom) electrical power, means over each 1 s plant step.',
         ),
         (
-            figures.fig_inputs(cols, fig_dir / f'{slug}_inputs.png', f'Control inputs, {scenario}'),
+            figures.fig_inputs(cols, fig_dir / f'{name}_inputs.png', f'Control inputs, {scenario}'),
             'The two inputs: blower air mass flow and evaporator temperature set-point.',
         ),
         (
-            figures.fig_bars(metrics, fig_dir / f'{slug}_bars.png', f'Energy and comfort, {scenario}'),
+            figures.fig_bars(metrics, fig_dir / f'{name}_bars.png', f'Energy and comfort, {scenario}'),
             'A/C energy (compressor solid, blower hatched), comfort index I_PMV and bound violation; labels '
             'give the change against the baseline.',
         ),
@@ -221,7 +208,7 @@ def _time_figures(scenario: str, group: Mapping[str, RunData], labels: Sequence[
     if any(solver_stats(d)['solver_steps'] for d in diags.values()):
         figs.append(
             (
-                figures.fig_solver(diags, fig_dir / f'{slug}_solver.png', f'NMPC solve time, {scenario}'),
+                figures.fig_solver(diags, fig_dir / f'{name}_solver.png', f'NMPC solve time, {scenario}'),
                 'Distribution of the NMPC solve time per control step (log scale) and fallbacks.',
             )
         )
@@ -242,11 +229,11 @@ def _paper_comparison(scenario: str, group: Mapping[str, RunData], labels: Seque
             (
                 lab,
                 _change_pct(x, base, 'E_tot_J'),
-                _pct(PAPER_AC_SAVING_PCT.get(lab, float('nan'))),
-                _pct(pr['saving_fit_pct']) if pr else 'not computed (use --vehicle)',
-                _pct(pr['paper_saving_pct']) if pr else _pct(float('nan')),
+                fmt_pct(PAPER_AC_SAVING_PCT.get(lab, float('nan'))),
+                fmt_pct(pr['saving_fit_pct']) if pr else 'not computed (use --vehicle)',
+                fmt_pct(pr['paper_saving_pct']) if pr else fmt_pct(float('nan')),
                 _change_pct(x, base, 'I_pmv'),
-                _f(x['otc_violation_pct'], 2),
+                fmt_num(x['otc_violation_pct'], 2),
             )
         )
     blocks = [
@@ -272,99 +259,6 @@ def _paper_comparison(scenario: str, group: Mapping[str, RunData], labels: Seque
     return blocks
 
 
-def _vehicle_rows(scenario: str, runs: Mapping[str, RunData], settings):
-    """FASTSim rows of one scenario, the drive-cycle note and whether the runs' lengths differ."""
-    from ceco_bringup import vehicle_energy as ve
-
-    durations = {r.recomputed['duration_s'] for r in runs.values()}
-    duration_s = max(durations)
-    p_mean = {
-        label: runs[label].recomputed['E_tot_J'] / runs[label].recomputed['duration_s']
-        for label in figures.ordered(list(runs))
-    }
-    try:
-        t, v = ve.drive_cycle_for_run(scenario, duration_s)
-        note = f'drive cycle of scenario `{scenario}` over 0..{duration_s:.0f} s'
-    except (ImportError, ValueError, OSError):
-        first = next(iter(runs.values())).columns
-        t = np.asarray(first['t_s'], dtype=float) - float(first['t_s'][0])
-        v = np.asarray(first['speed_mps'], dtype=float)
-        note = 'speed trace recorded in the run (scenario not loadable)'
-    return ve.vehicle_energy_table(p_mean, t, v, settings), note, len(durations) > 1
-
-
-def _vehicle_section(scenario: str, vrows, note: str, mixed: bool, fig_dir: Path) -> tuple[list, tuple]:
-    """The vehicle-level blocks and the (path, caption) of the vehicle figure."""
-    blocks: list = [
-        Heading(3, 'Vehicle-level energy (FASTSim 3.1)'),
-        Paragraph(
-            f'Over the {note}. Each strategy\'s mean A/C electrical power is added to the vehicle\'s base '
-            'auxiliary load as one constant; every strategy is read off one straight line fitted to FASTSim '
-            'runs at several loads around them (fuel versus aux load is not smooth: the fit\'s residual '
-            'scatter is given as noise; differences below about twice it are not significant). Hybrid fuel '
-            'is charge-corrected. Range: repeating the cycle on the usable battery energy.'
-        ),
-    ]
-    if mixed:
-        blocks.append(
-            Warning('the runs of this scenario have different lengths; the longest was used for the drive cycle.')
-        )
-    rows = [
-        (
-            r['vehicle'],
-            r['strategy'],
-            _f(r['p_ac_mean_w'], 0),
-            _f(r['energy_fit_j'] / 1e6, 3),
-            _f(r['energy_direct_j'] / 1e6, 3),
-            _pct(r['saving_fit_pct']),
-            _pct(r['saving_direct_pct']),
-            _pct(r['paper_saving_pct']),
-            f"{r['noise_pct']:.2f} %",
-            _f(r['ac_share_pct'], 1),
-            _f(r['l_per_100km'], 2) if r['powertrain'] != 'BEV' else _f(r['kwh_per_100km'], 2),
-            _f(r['range_km'], 0),
-            _f(r['range_lost_km'], 1),
-            _f(r['range_lost_pct'], 1),
-        )
-        for r in vrows
-    ]
-    blocks.append(
-        Table(
-            (
-                'vehicle',
-                'strategy',
-                'P_A/C mean [W]',
-                'E_veh fit [MJ]',
-                'E_veh direct [MJ]',
-                'Δ fit',
-                'Δ direct',
-                'Δ paper (SC03)',
-                'noise (1σ)',
-                'A/C share [%]',
-                'L/100 km | kWh/100 km',
-                'range [km]',
-                'range lost [km]',
-                'range lost [%]',
-            ),
-            rows,
-            caption='Vehicle energy per strategy (fuel for the hybrid, battery energy for the electric car).',
-        )
-    )
-    per_eval = [r['fit_wall_time_s'] / r['n_evals'] for r in vrows]
-    blocks.append(
-        Paragraph(
-            f'FASTSim time per evaluation: {1e3 * min(per_eval):.0f}-'
-            f'{1e3 * max(per_eval):.0f} ms (vehicle build + drive, this machine).'
-        )
-    )
-    fig = (
-        figures.fig_vehicle(vrows, fig_dir / f'{_slug(scenario)}_vehicle.png', f'Vehicle-level energy, {scenario}'),
-        'Vehicle energy change against the baseline (error bars: ±2σ fit noise) next to the '
-        'paper\'s Prius numbers; range of the electric car lost to the A/C.',
-    )
-    return blocks, fig
-
-
 def _solver_table(group: Mapping[str, RunData], labels: Sequence[str]) -> list:
     """The solver statistics of one scenario."""
     rows = []
@@ -377,13 +271,13 @@ def _solver_table(group: Mapping[str, RunData], labels: Sequence[str]) -> list:
                 lab,
                 str(s['steps']),
                 str(s['solver_steps']),
-                _f(s['success_pct'], 1),
+                fmt_num(s['success_pct'], 1),
                 str(s['fallbacks']) + (f' ({kinds})' if kinds else ''),
-                _f(s['solve_ms_median'], 1),
-                _f(s['solve_ms_p95'], 1),
-                _f(s['solve_ms_max'], 1),
-                _f(s['iter_median'], 0),
-                _f(s['iter_max'], 0),
+                fmt_num(s['solve_ms_median'], 1),
+                fmt_num(s['solve_ms_p95'], 1),
+                fmt_num(s['solve_ms_max'], 1),
+                fmt_num(s['iter_median'], 0),
+                fmt_num(s['iter_max'], 0),
                 status or ('no diagnostics.csv' if group[lab].diagnostics is None else ''),
             )
         )
@@ -417,10 +311,10 @@ def _scenario_section(scenario: str, group: Mapping[str, RunData], fig_dir: Path
     figs = _time_figures(scenario, group, labels, fig_dir)
     vrows = None
     if vehicle_settings is not None:
-        vrows, note, mixed = _vehicle_rows(scenario, group, vehicle_settings)
+        vrows, note, mixed = vehicle_rows(scenario, group, vehicle_settings)
     blocks += _paper_comparison(scenario, group, labels, vrows)
     if vrows is not None:
-        vblocks, vfig = _vehicle_section(scenario, vrows, note, mixed, fig_dir)
+        vblocks, vfig = vehicle_section(scenario, vrows, note, mixed, fig_dir)
         blocks += vblocks
         figs.append(vfig)
     blocks += _solver_table(group, labels)

@@ -10,7 +10,8 @@ A report is a list of blocks, each one of
 
 The HTML has no external reference (no CDN, no linked file): figures are
 ``data:image/png;base64`` URIs and the stylesheet is inline, so the one file
-can be mailed or archived. Pure Python (stdlib only).
+can be mailed or archived. Table cells are formatted with :func:`fmt_num` and :func:`fmt_pct`;
+:func:`slug` makes file names. Pure Python (stdlib only).
 """
 
 from __future__ import annotations
@@ -18,11 +19,24 @@ from __future__ import annotations
 import base64
 import dataclasses
 import html
+import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ['Heading', 'Paragraph', 'Warning', 'Table', 'Figure', 'Block', 'render_markdown', 'render_html']
+__all__ = [
+    'Heading',
+    'Paragraph',
+    'Warning',
+    'Table',
+    'Figure',
+    'Block',
+    'render_markdown',
+    'render_html',
+    'fmt_num',
+    'fmt_pct',
+    'slug',
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -168,3 +182,29 @@ def render_html(blocks: Sequence[Block], title: str = 'ceco report') -> str:
         + '\n'.join(body)
         + '\n</body></html>\n'
     )
+
+
+def fmt_num(x, digits=3) -> str:
+    """A table number: thousands grouped, 1 decimal from 100, else ``digits`` (tiny values in g); 'n/a' for NaN."""
+    try:
+        x = float(x)
+    except (TypeError, ValueError):
+        return str(x)
+    if math.isnan(x):
+        return 'n/a'
+    if abs(x) >= 1000:
+        return f'{x:,.0f}'
+    if abs(x) >= 100:
+        return f'{x:.1f}'
+    return f'{x:.{digits}g}' if abs(x) < 1e-3 and x != 0 else f'{x:.{digits}f}'
+
+
+def fmt_pct(x) -> str:
+    """A signed percentage with one decimal; 'n/a' for NaN."""
+    x = float(x)
+    return 'n/a' if math.isnan(x) else f'{x:+.1f} %'
+
+
+def slug(text: str) -> str:
+    """``text`` as a file-name part: letters, digits, - and _ kept, the rest _."""
+    return ''.join(c if c.isalnum() or c in '-_' else '_' for c in text)

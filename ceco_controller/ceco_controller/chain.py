@@ -33,7 +33,7 @@ from .solvers import NlpData, NlpSolver, SolveResult
 from .transcription import NlpProblem
 from .warmstart import initial_guess
 
-__all__ = ["GoodSolution", "ColdPath", "ChainOutcome", "SolveChain", "MAX_MULTIPLIER", "BOUND_TOL"]
+__all__ = ["GoodSolution", "ColdPath", "ChainOutcome", "SolveChain", "StepCounters", "MAX_MULTIPLIER", "BOUND_TOL"]
 
 MAX_MULTIPLIER = 1e9
 """Largest multiplier magnitude of a usable solution (the exact-penalty weights are 1e3)."""
@@ -41,6 +41,34 @@ MAX_MULTIPLIER = 1e9
 BOUND_TOL = 1e-6
 """Tolerance on the solver's actuator bounds [kg/s, degC]: within it a command is clipped to the
 bound; beyond it the result is not usable."""
+
+
+@dataclasses.dataclass
+class StepCounters:
+    """What the control steps since construction (or :meth:`NmpcController.reset`) did, by name."""
+
+    steps: int = 0
+    """Calls of compute."""
+    converged: int = 0
+    """Steps applying a converged solution."""
+    accepted_iterates: int = 0
+    """Steps applying an iterate returned on a time or iteration limit (small violation)."""
+    rti_steps: int = 0
+    """Steps applying a real-time iteration."""
+    retries: int = 0
+    """Warm solves that failed and were retried by the warm IPOPT."""
+    cold_solves: int = 0
+    """Cold solves attempted."""
+    shifted_plan: int = 0
+    """Steps applying the last good plan shifted."""
+    acc_law: int = 0
+    """Steps applying the production ACC law."""
+    invalid_observations: int = 0
+    """Steps whose observation was not usable (ACC law)."""
+    substituted_commands: int = 0
+    """Steps whose implausible previous command was replaced by the one this controller applied."""
+    deadline_hits: int = 0
+    """Steps in which an attempt stopped on, or was skipped because of, the deadline."""
 
 
 @dataclasses.dataclass

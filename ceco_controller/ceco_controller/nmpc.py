@@ -7,7 +7,8 @@ The pieces (docs/controller.md 4):
 * :mod:`.warmstart`     the cold model-rollout guess and the shifted warm start;
 * :mod:`.sqp`           ceco's dense SQP (exact eigenvalue convexification, real-time iteration);
 * :mod:`.solvers`       the solvers built once per NLP, each returning a :class:`SolveResult`;
-* :mod:`.chain`         which solver tries an instance from which start, and what is usable;
+* :mod:`.chain`         which solver tries an instance from which start, what is usable, the step counters;
+* :mod:`.observation`   the previews on the horizon grid, the nominal observation of warm-up;
 * :mod:`.offset_free`   the bias estimates;
 * this module           the control step: checks, fallbacks, hand-over, deadline.
 
@@ -44,8 +45,9 @@ from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observati
 from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits, check_observation
 
 from . import model as cm
-from .chain import BOUND_TOL, ColdPath, GoodSolution, SolveChain
+from .chain import BOUND_TOL, ColdPath, GoodSolution, SolveChain, StepCounters
 from .codegen import codegen_cache_dir, compile_nlp
+from .observation import fill_previews, nominal_observation
 from .offset_free import BiasEstimator
 from .solvers import NlpData, NlpSolver, SolveResult, build_solver
 from .strategies import SolverSettings, StrategySettings, resolve_auto, strategy_settings
@@ -62,99 +64,6 @@ __all__ = [
     "fill_previews",
     "nominal_observation",
 ]
-
-
-@dataclasses.dataclass
-class StepCounters:
-    """What the control steps since construction (or :meth:`NmpcController.reset`) did, by name."""
-
-    steps: int = 0
-    """Calls of compute."""
-    converged: int = 0
-    """Steps applying a converged solution."""
-    accepted_iterates: int = 0
-    """Steps applying an iterate returned on a time or iteration limit (small violation)."""
-    rti_steps: int = 0
-    """Steps applying a real-time iteration."""
-    retries: int = 0
-    """Warm solves that failed and were retried by the warm IPOPT."""
-    cold_solves: int = 0
-    """Cold solves attempted."""
-    shifted_plan: int = 0
-    """Steps applying the last good plan shifted."""
-    acc_law: int = 0
-    """Steps applying the production ACC law."""
-    invalid_observations: int = 0
-    """Steps whose observation was not usable (ACC law)."""
-    substituted_commands: int = 0
-    """Steps whose implausible previous command was replaced by the one this controller applied."""
-    deadline_hits: int = 0
-    """Steps in which an attempt stopped on, or was skipped because of, the deadline."""
-
-
-def fill_previews(
-    obs: Observation, n1: int, use_speed_preview: bool, valid: np.ndarray | None = None
-) -> tuple[dict, int]:
-    """Exogenous series on the N + 1 grid and the number of leading trusted preview points.
-
-    The previews' leading trusted run (``valid``, default ``obs.preview_valid``, and finite), the
-    last trusted value held beyond it, the measured current value where nothing is trusted.
-    Returns ``(series, trusted)`` with series ``t_amb`` [degC], ``solar`` [W/m2] (>= 0),
-    ``speed`` [m/s] (>= 0).
-    """
-    if obs.n_preview != n1:
-        raise ValueError(f"Observation previews have {obs.n_preview} points; this controller needs Np+1 = {n1}")
-    series = {
-        "t_amb": (obs.preview_t_amb_c, obs.t_amb_c),
-        "solar": (obs.preview_solar_wm2, obs.solar_wm2),
-        "speed": (obs.preview_speed_mps, obs.speed_mps),
-    }
-    ok = np.asarray(obs.preview_valid if valid is None else valid, bool).copy()
-    for arr, _ in series.values():
-        ok &= np.isfinite(arr)
-    trusted = int(np.argmin(ok)) if not ok.all() else n1
-    out = {}
-    for key, (arr, now) in series.items():
-        a = np.empty(n1)
-        if trusted > 0:
-            a[:trusted] = arr[:trusted]
-            a[trusted:] = arr[trusted - 1]
-        else:
-            a[:] = now
-        out[key] = a
-    if not use_speed_preview:
-        out["speed"] = np.full(n1, float(obs.speed_mps))
-    out["speed"] = np.maximum(out["speed"], 0.0)
-    out["solar"] = np.maximum(out["solar"], 0.0)
-    return out, trusted
-
-
-def nominal_observation(n1: int, k: int = 0) -> Observation:
-    """A plausible mid-range observation (warm cabin, sun, moving): for :meth:`NmpcController.warm_up`."""
-
-    def full(v):
-        return np.full(n1, v)
-
-    return Observation(
-        k=k,
-        t_s=0.0,
-        t_cab_c=27.0,
-        t_int_c=35.0,
-        t_shell_c=33.0,
-        t_evap_c=6.0,
-        t_vent_c=9.0,
-        t_amb_c=32.0,
-        solar_wm2=700.0,
-        speed_mps=15.0,
-        mdot_bl_prev_kgps=0.1,
-        t_evap_sp_prev_c=6.0,
-        preview_t_amb_c=full(32.0),
-        preview_solar_wm2=full(700.0),
-        preview_speed_mps=full(15.0),
-        preview_valid=np.ones(n1, bool),
-        pmv_lb=full(-0.5),
-        pmv_ub=full(0.5),
-    )
 
 
 def _note(diag: Diagnostics, text: str) -> None:

@@ -1,8 +1,10 @@
 """The controller's :class:`~ceco_core.contracts.Observation` at a control step.
 
-Built once for the in-process simulator (``closed_loop.simulate``: from the
-plant and ``make_previews``) and for ``mpc_node`` (from the checked CabinState and
-preview messages, via ``msg_conv``), so a DDS run equals the simulator bit for bit.
+:func:`observation` builds it once for the in-process simulator (``closed_loop.simulate``: from
+the plant and ``make_previews``) and for ``mpc_node`` (from the checked CabinState and preview
+messages, via ``ceco_controller.step_adapter``), so a DDS run equals the simulator bit for bit.
+:func:`fill_previews` turns its previews into the NMPC's exogenous series on the horizon grid;
+:func:`nominal_observation` is a plausible one for warm-up solves.
 
 Pure logic: no rclpy, no message types.
 """
@@ -11,10 +13,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+import numpy as np
+
 from ceco_core.contracts import Observation, Previews
 from ceco_v2x_preview.scenario import Scenario
 
-__all__ = ["observation"]
+__all__ = ["fill_previews", "nominal_observation", "observation"]
 
 
 def observation(k: int, t_s: float, meas: Mapping, env, u_prev, previews: Previews, scenario: Scenario) -> Observation:
@@ -58,4 +62,69 @@ def observation(k: int, t_s: float, meas: Mapping, env, u_prev, previews: Previe
         clo=occ.clo,
         t_glass_c=meas.get("t_glass_c", float("nan")),
         rh_cab=meas.get("rh_cab", float("nan")),
+    )
+
+
+def fill_previews(
+    obs: Observation, n1: int, use_speed_preview: bool, valid: np.ndarray | None = None
+) -> tuple[dict, int]:
+    """Exogenous series on the N + 1 grid and the number of leading trusted preview points.
+
+    The previews' leading trusted run (``valid``, default ``obs.preview_valid``, and finite), the
+    last trusted value held beyond it, the measured current value where nothing is trusted.
+    Returns ``(series, trusted)`` with series ``t_amb`` [degC], ``solar`` [W/m2] (>= 0),
+    ``speed`` [m/s] (>= 0).
+    """
+    if obs.n_preview != n1:
+        raise ValueError(f"Observation previews have {obs.n_preview} points; this controller needs Np+1 = {n1}")
+    series = {
+        "t_amb": (obs.preview_t_amb_c, obs.t_amb_c),
+        "solar": (obs.preview_solar_wm2, obs.solar_wm2),
+        "speed": (obs.preview_speed_mps, obs.speed_mps),
+    }
+    ok = np.asarray(obs.preview_valid if valid is None else valid, bool).copy()
+    for arr, _ in series.values():
+        ok &= np.isfinite(arr)
+    trusted = int(np.argmin(ok)) if not ok.all() else n1
+    out = {}
+    for key, (arr, now) in series.items():
+        a = np.empty(n1)
+        if trusted > 0:
+            a[:trusted] = arr[:trusted]
+            a[trusted:] = arr[trusted - 1]
+        else:
+            a[:] = now
+        out[key] = a
+    if not use_speed_preview:
+        out["speed"] = np.full(n1, float(obs.speed_mps))
+    out["speed"] = np.maximum(out["speed"], 0.0)
+    out["solar"] = np.maximum(out["solar"], 0.0)
+    return out, trusted
+
+
+def nominal_observation(n1: int, k: int = 0) -> Observation:
+    """A plausible mid-range observation (warm cabin, sun, moving): for :meth:`NmpcController.warm_up`."""
+
+    def full(v):
+        return np.full(n1, v)
+
+    return Observation(
+        k=k,
+        t_s=0.0,
+        t_cab_c=27.0,
+        t_int_c=35.0,
+        t_shell_c=33.0,
+        t_evap_c=6.0,
+        t_vent_c=9.0,
+        t_amb_c=32.0,
+        solar_wm2=700.0,
+        speed_mps=15.0,
+        mdot_bl_prev_kgps=0.1,
+        t_evap_sp_prev_c=6.0,
+        preview_t_amb_c=full(32.0),
+        preview_solar_wm2=full(700.0),
+        preview_speed_mps=full(15.0),
+        preview_valid=np.ones(n1, bool),
+        pmv_lb=full(-0.5),
+        pmv_ub=full(0.5),
     )
