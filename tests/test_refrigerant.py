@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from ceco_core.units import c_to_k
-from ceco_plant_sim import refrigerant, refrigerant_tables
+from ceco_plant_sim import refrigerant, refrigerant_table_file
 from ceco_plant_sim.plant import _compressor_model, condenser_eps_c_wpk
 from ceco_plant_sim.plant_params import PlantParams
 from ceco_plant_sim.refrigerant import (
@@ -306,8 +306,8 @@ def test_other_grid_or_format_or_shape_is_detected(tmp_path):
 
 def test_stale_shipped_file_falls_back_to_coolprop_with_a_warning(tmp_path, monkeypatch, caplog, fresh):
     old = _rewrite(SHIPPED_TABLES, tmp_path / "fmt.npz", {"format": 0})
-    monkeypatch.setattr(refrigerant_tables, "SHIPPED_TABLES", str(old))
-    with caplog.at_level(logging.WARNING, logger="ceco_plant_sim.refrigerant_tables"):
+    monkeypatch.setattr(refrigerant_table_file, "SHIPPED_TABLES", str(old))
+    with caplog.at_level(logging.WARNING, logger="ceco_plant_sim.refrigerant_table_file"):
         t = cycle_tables.__wrapped__("R1234yf", 5.0, 5.0)  # past the cache
     assert "format 0, this code reads format 1" in caplog.text
     assert "building the tables with CoolProp instead" in caplog.text
@@ -316,7 +316,7 @@ def test_stale_shipped_file_falls_back_to_coolprop_with_a_warning(tmp_path, monk
 
 
 def test_configuration_not_in_the_file_is_built_with_coolprop(caplog):
-    with caplog.at_level(logging.WARNING, logger="ceco_plant_sim.refrigerant_tables"):
+    with caplog.at_level(logging.WARNING, logger="ceco_plant_sim.refrigerant_table_file"):
         t = cycle_tables("R1234yf", 8.0, 5.0)
     assert "holds R1234yf with superheat 5.0 K and subcooling 5.0 K, not R1234yf with 8.0 K and 5.0 K" in caplog.text
     assert t.source.startswith("built with CoolProp") and t.superheat_k == 8.0

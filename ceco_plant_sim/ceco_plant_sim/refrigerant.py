@@ -47,8 +47,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from . import refrigerant_table_file as _refrigerant_table_file
 from . import refrigerant_tables as _refrigerant_tables
-from .refrigerant_tables import *  # noqa: F403 - this module re-exports refrigerant_tables's API (__all__)
+from .refrigerant_table_file import *  # noqa: F403 - re-exported (__all__): the shipped table file
+from .refrigerant_tables import *  # noqa: F403 - re-exported (__all__): the property tables
 from .refrigerant_tables import CycleTables
 
 __all__ = [
@@ -56,6 +58,7 @@ __all__ = [
     "CycleSolution",
     "solve_cycle",
     *_refrigerant_tables.__all__,
+    *_refrigerant_table_file.__all__,
 ]
 
 
