@@ -40,6 +40,7 @@ __all__ = [
     'OKABE_ITO',
     'RC_PARAMS',
     'save_png',
+    'annotate_bar',
     'fig_solver',
 ]
 
@@ -205,20 +206,24 @@ def fig_inputs(runs: Mapping[str, Mapping], path, title: str = '') -> Path:
         return save_png(fig, path)
 
 
+def annotate_bar(ax, bar, text: str) -> None:
+    """Write ``text`` just above the top of ``bar`` (a matplotlib Rectangle)."""
+    ax.annotate(
+        text,
+        (bar.get_x() + bar.get_width() / 2, bar.get_height()),
+        ha='center',
+        va='bottom',
+        fontsize=7,
+        xytext=(0, 2),
+        textcoords='offset points',
+    )
+
+
 def _bar_labels(ax, bars, values, base, fmt='{:+.1f} %'):
     for b, v in zip(bars, values):
         change = math.nan if base is None else relative_change_pct(v, base)
-        if not math.isfinite(change):
-            continue
-        ax.annotate(
-            fmt.format(change),
-            (b.get_x() + b.get_width() / 2, b.get_height()),
-            ha='center',
-            va='bottom',
-            fontsize=7,
-            xytext=(0, 2),
-            textcoords='offset points',
-        )
+        if math.isfinite(change):
+            annotate_bar(ax, b, fmt.format(change))
 
 
 def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: str = 'baseline') -> Path:

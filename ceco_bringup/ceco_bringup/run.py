@@ -29,7 +29,6 @@ import argparse
 import json
 import math
 import os
-import signal
 import sys
 import threading
 import time
@@ -37,30 +36,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ceco_bringup import supervisor
 from ceco_bringup.bag_writer import STORAGES
 from ceco_core.contracts import STRATEGIES
 from ceco_core.control_grid import TIMING_MODES
-
-
-class Interrupted(Exception):
-    """SIGINT/SIGTERM received."""
-
-
-class _StopFlag:
-    def __init__(self):
-        self.event = threading.Event()
-        self.signum = None
-
-    def install(self):
-        def handler(signum, _frame):
-            self.signum = signum
-            self.event.set()
-
-        self._old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
-
-    def restore(self):
-        for s, h in getattr(self, '_old', {}).items():
-            signal.signal(s, h)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -151,7 +130,7 @@ def main(argv=None) -> int:
         return 2
     strategies = list(STRATEGIES) if args.strategy == 'all' else [args.strategy]
     out = Path(args.out)
-    stop = _StopFlag()
+    stop = supervisor.StopFlag()
     stop.install()
     rows = []
     try:
@@ -159,7 +138,7 @@ def main(argv=None) -> int:
             run_dir = out / strategy if args.strategy == 'all' else out
             try:
                 metrics = run_one(args, scenario, quality, strategy, run_dir, stop, index=i)
-            except Interrupted:
+            except supervisor.Interrupted:
                 print(
                     f'\nceco run: interrupted; the bag in {run_dir / "bag"} is closed and readable up to the stop',
                     file=sys.stderr,
@@ -244,7 +223,7 @@ def run_one(
     quality,
     strategy,
     run_dir: Path,
-    stop: _StopFlag,
+    stop: supervisor.StopFlag,
     index: int = 0,
     *,
     controller_cmd: list[str] | None = None,
@@ -260,7 +239,7 @@ def run_one(
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
 
-    from ceco_bringup import bagio, supervisor
+    from ceco_bringup import bagio
     from ceco_bringup.recorder import Recorder
 
     dt_s = 1.0
@@ -380,10 +359,10 @@ def run_one(
         # then activate (start commanding); the plant's start gate waits for its command
         # publisher, created in configure.
         if controller_cmd is None:
-            lifecycle = _managed_controller(
+            lifecycle = supervisor.configure_and_activate(
                 context, executor, f'{ns}/{ctrl_exe[1]}', args.startup_timeout_s, stop, procs
             )
-        _wait(
+        supervisor.wait_for(
             lambda: recorder.first_state_wall is not None,
             args.startup_timeout_s,
             stop,
@@ -403,12 +382,12 @@ def run_one(
         try:
             while not done():
                 if stop.event.wait(0.1):
-                    raise Interrupted()
+                    raise supervisor.Interrupted()
                 for name, proc in procs.items():
                     if not proc.running():
                         raise RuntimeError(
                             f'{name} exited with status {proc.returncode()}; '
-                            f'log: {proc.log_path}\n' + _tail(proc.log_text())
+                            f'log: {proc.log_path}\n' + supervisor.log_tail(proc.log_text())
                         )
                 if time.monotonic() - t_start > args.run_timeout_s:
                     raise RuntimeError(
@@ -422,7 +401,7 @@ def run_one(
                 bar.close()
         t_run = recorder.last_power_wall - recorder.first_state_wall
         time.sleep(0.2)  # let the last diagnostics and log lines arrive
-    except Interrupted:
+    except supervisor.Interrupted:
         interrupted = True
     finally:
         # every stop path: children first (plant first: it drives the loop), then the bag
@@ -444,7 +423,7 @@ def run_one(
             recorder.destroy_node()
         rclpy.try_shutdown(context=context)
     if interrupted:
-        raise Interrupted()
+        raise supervisor.Interrupted()
 
     wall = time.monotonic() - t_wall0
     ts_data = bagio.load_run_timeseries(bag_dir)
@@ -490,44 +469,6 @@ def run_one(
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in metrics.items()}
     (run_dir / 'metrics.json').write_text(json.dumps(clean, indent=2, sort_keys=True) + '\n')
     return metrics
-
-
-def _managed_controller(context, executor, name, timeout_s, stop, procs):
-    """Configure and activate the managed controller ``name``; its LifecycleClient."""
-    import rclpy
-
-    from ceco_bringup import supervisor
-
-    node = rclpy.create_node('ceco_run_lifecycle', context=context)
-    executor.add_node(node)
-    client = supervisor.LifecycleClient(node, name)
-    _wait(lambda: client.wait(0.05), timeout_s, stop, procs, f'the lifecycle services of {name}')
-    for transition in ('configure', 'activate'):
-        if not client.change(transition, timeout_s=timeout_s):
-            raise RuntimeError(
-                f'{name}: lifecycle transition {transition} failed; log: '
-                f'{procs["controller"].log_path}\n' + _tail(procs['controller'].log_text())
-            )
-    return client
-
-
-def _wait(cond, timeout_s, stop, procs, what):
-    t0 = time.monotonic()
-    while not cond():
-        if stop.event.wait(0.05):
-            raise Interrupted()
-        for name, proc in procs.items():
-            if proc.proc is not None and not proc.running():
-                raise RuntimeError(
-                    f'{name} exited with status {proc.returncode()} while waiting for '
-                    f'{what}; log: {proc.log_path}\n' + _tail(proc.log_text())
-                )
-        if time.monotonic() - t0 > timeout_s:
-            raise RuntimeError(f'timeout ({timeout_s} s) waiting for {what}')
-
-
-def _tail(text: str, n: int = 15) -> str:
-    return '\n'.join(text.strip().splitlines()[-n:])
 
 
 if __name__ == '__main__':

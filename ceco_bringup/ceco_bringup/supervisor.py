@@ -14,6 +14,10 @@ spin thread runs): `start_new_session=True` gives the session, and util-linux
 `setpriv --pdeathsig SIGINT` (where installed; it is on Debian and Ubuntu)
 sets the parent-death signal in the child before it execs the node, so no node
 outlives a SIGKILLed `ceco run`.
+
+Also here: :class:`StopFlag` (SIGINT/SIGTERM as an event), :func:`wait_for` (poll a
+condition while watching the children), :func:`configure_and_activate` (the managed
+controller's lifecycle transitions through :class:`LifecycleClient`).
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ import shutil
 import signal
 import subprocess
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -354,3 +359,71 @@ class LifecycleClient:
                 return None
             time.sleep(0.005)
         return future.result()
+
+
+class Interrupted(Exception):
+    """SIGINT/SIGTERM received."""
+
+
+class StopFlag:
+    """A SIGINT/SIGTERM latch: ``install`` sets handlers that set ``event``; ``restore`` puts the old ones back."""
+
+    def __init__(self):
+        self.event = threading.Event()
+        self.signum = None
+
+    def install(self):
+        """Handle SIGINT and SIGTERM by setting the flag (main thread only)."""
+
+        def handler(signum, _frame):
+            self.signum = signum
+            self.event.set()
+
+        self._old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+
+    def restore(self):
+        """Put back the handlers that were there before :meth:`install`."""
+        for s, h in getattr(self, '_old', {}).items():
+            signal.signal(s, h)
+
+
+def configure_and_activate(context, executor, name, timeout_s, stop, procs):
+    """Configure and activate the managed controller ``name`` (a node of ``procs``); returns its LifecycleClient."""
+    import rclpy
+
+    node = rclpy.create_node('ceco_run_lifecycle', context=context)
+    executor.add_node(node)
+    client = LifecycleClient(node, name)
+    wait_for(lambda: client.wait(0.05), timeout_s, stop, procs, f'the lifecycle services of {name}')
+    for transition in ('configure', 'activate'):
+        if not client.change(transition, timeout_s=timeout_s):
+            raise RuntimeError(
+                f'{name}: lifecycle transition {transition} failed; log: '
+                f'{procs["controller"].log_path}\n' + log_tail(procs['controller'].log_text())
+            )
+    return client
+
+
+def wait_for(cond, timeout_s, stop, procs, what):
+    """Poll ``cond`` until true.
+
+    Raises Interrupted on a stop signal, RuntimeError (with the log's tail) if a child of ``procs``
+    exits or after ``timeout_s``.
+    """
+    t0 = time.monotonic()
+    while not cond():
+        if stop.event.wait(0.05):
+            raise Interrupted()
+        for name, proc in procs.items():
+            if proc.proc is not None and not proc.running():
+                raise RuntimeError(
+                    f'{name} exited with status {proc.returncode()} while waiting for '
+                    f'{what}; log: {proc.log_path}\n' + log_tail(proc.log_text())
+                )
+        if time.monotonic() - t0 > timeout_s:
+            raise RuntimeError(f'timeout ({timeout_s} s) waiting for {what}')
+
+
+def log_tail(text: str, n: int = 15) -> str:
+    """The last ``n`` lines of a log text."""
+    return '\n'.join(text.strip().splitlines()[-n:])

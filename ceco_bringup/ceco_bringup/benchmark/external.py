@@ -94,7 +94,7 @@ def run_external_cell(
         row['wall_time_s'] = time.perf_counter() - t0
         return row
     try:
-        from ceco_bringup import bagio, run
+        from ceco_bringup import bagio, run, supervisor
         from ceco_core.kpis import compute_kpis
         from ceco_v2x_preview.preview import parse_quality
         from ceco_v2x_preview.scenario import load_scenario
@@ -128,7 +128,7 @@ def run_external_cell(
             run_timeout_s=run_timeout_s,
         ).items():
             setattr(args, key, value)
-        stop = run._StopFlag()
+        stop = supervisor.StopFlag()
         t_sim = time.perf_counter()
         metrics = run.run_one(
             args,
