@@ -16,7 +16,6 @@ AMENT_PREFIX_PATH).
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 import time
 from collections.abc import Mapping, Sequence
@@ -26,6 +25,8 @@ import numpy as np
 import yaml
 
 from ceco_ros.topics import TOPIC_COMMAND, TOPIC_STATE
+
+from .runner import new_row
 
 __all__ = ['controller_env', 'step_times_from_bag', 'run_external_cell']
 
@@ -77,16 +78,7 @@ def run_external_cell(
     from ceco_bringup.sweep import cells as sweep_cells
 
     t0 = time.perf_counter()
-    row = {
-        'cell_id': cell['id'],
-        **cell['axes'],
-        'status': 'ok',
-        'error': '',
-        'kpis': None,
-        'kpi_notes': {},
-        'source': 'dds',
-        'sim_time_s': math.nan,
-    }
+    row = new_row(cell, 'dds')
     try:
         import rclpy  # noqa: F401 (fail early and clearly without ROS)
     except ImportError as exc:

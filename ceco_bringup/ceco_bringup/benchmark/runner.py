@@ -38,6 +38,7 @@ __all__ = [
     'STRATEGY_NAMES',
     'BaselineConstants',
     'load_baselines',
+    'new_row',
     'Sensitivity',
     'load_sensitivity',
     'ControllerSpec',
@@ -305,6 +306,20 @@ def case_cells(
     return out
 
 
+def new_row(cell: Mapping, source: str) -> dict:
+    """The ``cells.jsonl`` row of a cell before it runs: status ok, no KPIs yet; ``source`` simulator or dds."""
+    return {
+        'cell_id': cell['id'],
+        **cell['axes'],
+        'status': 'ok',
+        'error': '',
+        'kpis': None,
+        'kpi_notes': {},
+        'source': source,
+        'sim_time_s': math.nan,
+    }
+
+
 def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
     """Run one benchmark cell in this process and score it; never raises (errors are data).
 
@@ -316,16 +331,7 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
     import time
 
     t0 = time.perf_counter()
-    row = {
-        'cell_id': cell['id'],
-        **cell['axes'],
-        'status': 'ok',
-        'error': '',
-        'kpis': None,
-        'kpi_notes': {},
-        'source': 'simulator',
-        'sim_time_s': math.nan,
-    }
+    row = new_row(cell, 'simulator')
     try:
         from ceco_bringup.sweep import cells as sweep_cells
         from ceco_controller.closed_loop import SimSettings, simulate, write_run
