@@ -528,6 +528,80 @@ def test_plant_command_policy_lockstep_and_realtime():
     assert not rt.accept(command(4, ts=2.0, stamp_s=1000.0 + 0.5 * 19), 9, 0.0)  # 5 steps behind (limit 3)
 
 
+def test_plant_loop_lockstep_energy_end_and_fallback_law():
+    from ceco_core.acc_law import AccLaw
+    from ceco_core.contracts import AcInput
+    from ceco_plant_sim.plant_loop import PlantLoop
+    from ceco_plant_sim.scenario_plant import ScenarioPlant
+    from ceco_v2x_preview.scenario import load_scenario
+
+    sc = load_scenario('sc03')
+    loop, ref = PlantLoop(sc, _plant_cfg(duration_s=12.0)), ScenarioPlant(sc, 1.0)
+    assert (loop.m, loop.n_steps, loop.k) == (5, 12, 0)
+    u = AcInput(mdot_bl_kgps=0.12, t_evap_sp_c=4.0)
+    e_comp = e_blower = 0.0
+    for n in range(12):
+        assert not loop.finished and loop.n == n and loop.k == n // 5
+        r, r_ref = loop.step(u), ref.step(u)
+        e_comp, e_blower = e_comp + r_ref.out.e_comp_j, e_blower + r_ref.out.e_blower_j
+        assert r.meas == r_ref.meas and r.pmv == r_ref.pmv  # the simulator's own core, bit for bit
+    assert loop.finished and loop.n == 12 and (loop.e_comp_j, loop.e_blower_j) == (e_comp, e_blower) and e_comp > 0
+    assert loop.summary() == f'scenario complete: 12 plant steps, E_comp {e_comp:.0f} J, E_blower {e_blower:.0f} J'
+    with pytest.raises(RuntimeError, match='finished'):
+        loop.step(u)
+
+    # no command: the ACC law from its reset state drives, the warning once per fallback
+    loop, acc = PlantLoop(sc, _plant_cfg()), AccLaw()
+    cmds = []
+    for i in range(3):
+        u_fb, line = loop.fallback_command('no command for control step 0')
+        a = acc.step(loop.sp.meas['t_cab_c'], 5.0)
+        assert (u_fb.mdot_bl_kgps, u_fb.t_evap_sp_c) == (a.mdot_bl_kgps, a.t_evap_sp_c)
+        assert (line is not None) == (i == 0)
+        cmds.append(u_fb)
+        for _ in range(loop.m):
+            loop.step(u_fb)
+    assert line is None and loop.fallback.n_fallback_periods == 3 and loop.fallback.n_entered == 1
+    assert cmds[0].mdot_bl_kgps > 0
+    u_fb, first = PlantLoop(sc, _plant_cfg()).fallback_command('why')
+    assert first == 'FALLBACK at step 0 (t=0.0 s): why; applying the production ACC law until commands resume'
+
+
+def test_plant_loop_realtime_input_choice():
+    from ceco_core.contracts import AcInput
+    from ceco_plant_sim.plant_loop import PlantLoop
+    from ceco_v2x_preview.scenario import load_scenario
+
+    loop = PlantLoop(load_scenario('sc03'), _plant_cfg(timing='realtime'))  # Ts 5 s, stale after 2 Ts = 10 s
+    u = AcInput(mdot_bl_kgps=0.1, t_evap_sp_c=5.0)
+
+    def tick(now_s):
+        got = loop.realtime_input(now_s)
+        loop.step(got[0])
+        return got
+
+    u0, fb, line = tick(0.0)  # nothing yet: the ACC law, with the warning
+    assert fb and line.startswith('FALLBACK at step 0') and 'latest none yet, limit 10.0 s' in line
+    assert loop.accept_command(u, 0, 'ceco', 0.5) == 'commands resumed at control step 0 from ceco: leaving fallback'
+    assert tick(1.0) == (u0, True, None)  # in fallback, a fresh command waits for the control step boundary
+    for t in (2.0, 3.0, 4.0):
+        assert tick(t)[1:] == (True, None)
+    assert tick(5.0) == (u, False, None)  # boundary: the fresh command drives
+    for t in (6.0, 7.0, 8.0, 9.0, 10.0):
+        assert tick(t) == (u, False, None)  # held over the period, and at the next boundary (9.5 s old)
+    u_fb, fb, line = tick(11.0)  # 10.5 s old mid-period: the ACC law at once
+    assert fb and 'latest 10.5 s old' in line and u_fb != u
+    assert loop.accept_command(u, 2, 'ceco', 11.5) is not None
+    loop.rt.deadline_missed = True  # a missed QoS deadline makes even a young command stale
+    u_fb, fb, line = tick(12.0)  # accepted, but stale at once: back to the law at the next tick
+    assert fb and 'QoS deadline on hvac/command missed' in line
+    assert [tick(t)[1:] for t in (13.0, 14.0, 15.0)] == [(True, None)] * 3  # still stale at the boundary
+    assert loop.accept_command(u, 3, 'ceco', 15.5) is not None  # a new command clears the missed deadline
+    assert [tick(t)[1] for t in (16.0, 17.0, 18.0, 19.0)] == [True] * 4
+    assert loop.n == 20 and tick(20.0) == (u, False, None)
+    assert loop.fallback.n_entered == 3 and loop.fallback.n_fallback_periods == 4
+
+
 def test_plant_health():
     from ceco_plant_sim.plant_io import CommandPolicy, plant_health
 

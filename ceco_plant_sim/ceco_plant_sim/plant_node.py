@@ -20,11 +20,10 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 
 import ceco_plant_sim.plant_io as pio
-from ceco_core.acc_law import AccLaw
 from ceco_core.contracts import AcInput
-from ceco_core.supervision import FallbackSupervisor, Watchdog
+from ceco_core.supervision import Watchdog
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort
-from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
+from ceco_plant_sim.plant_loop import PlantLoop
 from ceco_ros import conversions, interfaces, params
 from ceco_ros.diagnostics import DiagnosticsTimer
 from ceco_ros.node_base import NodeTools
@@ -41,13 +40,8 @@ class PlantNode(NodeTools, Node):
         params.on_set(self, pio.PLANT_PARAMETERS, self._set_params)
         self.setup_tools(cfg.log_throttle_s)
         self.scenario = sc = load_scenario_param(cfg.scenario)
-        self.sp, self.dt = ScenarioPlant(sc, cfg.plant_dt_s), cfg.plant_dt_s
-        self.m = steps_per_control(cfg.control_period_s, cfg.plant_dt_s)
-        self.n_steps = n_plant_steps(min(cfg.duration_s or sc.duration_s, sc.duration_s), self.dt)
-        self.e_comp_j = self.e_blower_j = 0.0
-        self.acc, self.fallback, self.policy = AccLaw(), FallbackSupervisor(), pio.CommandPolicy(cfg, self.log)
-        self.rt, self.wait = pio.RealtimeCommands(cfg.command_timeout_rt_s), Watchdog(cfg.command_timeout_s)
-        self.started = self.finished = False
+        self.loop, self.policy = PlantLoop(sc, cfg), pio.CommandPolicy(cfg, self.log)
+        self.wait, self.started = Watchdog(cfg.command_timeout_s), False
         self._reported, self._events = 0, {'deadline_missed': 0, 'incompatible_qos': 0}
         rt, out_qos = cfg.timing == 'realtime', interfaces.state_qos(cfg.timing)
         self.pub_state = self.create_publisher(
@@ -68,64 +62,48 @@ class PlantNode(NodeTools, Node):
             qos_overriding_options=interfaces.qos_overrides(deadline=rt),
         )
         if rt:
-            self.create_timer(self.dt, self._on_tick)
+            self.create_timer(cfg.plant_dt_s, self._on_tick)
         else:
             self.create_timer(0.02, self._on_watchdog, clock=self.steady)
         DiagnosticsTimer(self, self._health, cfg.diagnostics_period_s)
         self.get_logger().info(
-            f'scenario {sc.name}: {self.n_steps} plant steps of {self.dt} s, '
+            f'scenario {sc.name}: {self.loop.n_steps} plant steps of {cfg.plant_dt_s} s, '
             f'Ts {cfg.control_period_s} s, timing {cfg.timing}; refrigerant tables: '
-            f'{self.sp.plant.tables_source}'
+            f'{self.loop.sp.plant.tables_source}'
         )
-
-    @property
-    def n(self) -> int:
-        """Current plant step index (measurements at t_n)."""
-        return self.sp.n
 
     def _stamp(self):
-        return (
-            conversions.stamp_from_s(self.n * self.dt)
-            if self.config.timing == 'lockstep'
-            else self.get_clock().now().to_msg()
-        )
+        lockstep = self.config.timing == 'lockstep'
+        return conversions.stamp_from_s(self.loop.t_s) if lockstep else self.get_clock().now().to_msg()
 
     def _publish_state(self) -> None:
-        t, stamp = self.n * self.dt, self._stamp()
+        lp, stamp = self.loop, self._stamp()
         if self.config.timing == 'lockstep':
             self.pub_clock.publish(ClockMsg(clock=stamp))
+        env = self.scenario.env_at(lp.t_s)
         self.pub_state.publish(
-            conversions.state_msg(
-                self.n, t, stamp, self.sp.meas, self.scenario.env_at(t), self.sp.cmd, self.fallback.in_fallback
-            )
+            conversions.state_msg(lp.n, lp.t_s, stamp, lp.sp.meas, env, lp.sp.cmd, lp.fallback.in_fallback)
         )
-        self.policy.published(stamp, t)
+        self.policy.published(stamp, lp.t_s)
 
     def _plant_step(self, u: AcInput, fallback: bool) -> None:
         """One plant step n with u held (the simulator's core step), then comfort, power and the next state."""
-        stamp, r = self._stamp(), self.sp.step(u)
-        self.e_comp_j += r.out.e_comp_j
-        self.e_blower_j += r.out.e_blower_j
-        c = self.sp.comfort
+        lp, stamp = self.loop, self._stamp()
+        r, c = lp.step(u), lp.sp.comfort
         self.pub_comfort.publish(conversions.comfort_msg(r, stamp, c.met, c.clo))
         self.pub_power.publish(
-            conversions.power_msg(r.n, stamp, self.dt, u, r.out, self.e_comp_j, self.e_blower_j, fallback)
+            conversions.power_msg(r.n, stamp, lp.dt_s, u, r.out, lp.e_comp_j, lp.e_blower_j, fallback)
         )
-        if self.n < self.n_steps:
+        if lp.finished:
+            self.get_logger().info(lp.summary())
+        else:
             self._publish_state()
-            return
-        self.finished = True
-        self.get_logger().info(
-            f'scenario complete: {self.n} plant steps, E_comp {self.e_comp_j:.0f} J, E_blower {self.e_blower_j:.0f} J'
-        )
 
     def _fallback_command(self, why: str) -> AcInput:
-        line = self.fallback.command_missing(f'step {self.n} (t={self.n * self.dt:.1f} s)', why)
+        u, line = self.loop.fallback_command(why)
         if line:
-            self.acc.reset()
             self.get_logger().warn(line)
-        a = self.acc.step(self.sp.meas['t_cab_c'], self.config.control_period_s)
-        return AcInput(mdot_bl_kgps=a.mdot_bl_kgps, t_evap_sp_c=a.t_evap_sp_c)
+        return u
 
     def _waiting_for(self) -> str:
         return pio.start_gate(
@@ -142,49 +120,43 @@ class PlantNode(NodeTools, Node):
             self.get_logger().info('subscribers matched: starting at step 0')
             self._publish_state()
             self.wait.kick(self.wall_s())
-        return self.started and not self.finished
+        return self.started and not self.loop.finished
 
     # -------------------------------------------------------------- lockstep
     def _control_period(self, u: AcInput, fallback: bool) -> None:
-        for _ in range(self.m):
+        for _ in range(self.loop.m):
             self._plant_step(u, fallback)
-            if self.finished:
+            if self.loop.finished:
                 return
         self.wait.kick(self.wall_s())
 
     def _on_watchdog(self) -> None:
         if self._start() and self.wait.expired(self.wall_s()):
-            why = f'no command for control step {self.n // self.m} within {self.wait.timeout_s} s (wall clock)'
+            why = f'no command for control step {self.loop.k} within {self.wait.timeout_s} s (wall clock)'
             self._control_period(self._fallback_command(why), True)
 
     def _on_command(self, msg: AcCommand) -> None:
-        if not self.started or self.finished or not self.policy.accept(msg, self.n // self.m, self.wall_s()):
+        if not self.started or self.loop.finished or not self.policy.accept(msg, self.loop.k, self.wall_s()):
             return
-        u = conversions.command_input(msg)
-        line = self.fallback.command_accepted(int(msg.step_index), msg.strategy)
+        u, rt = conversions.command_input(msg), self.config.timing == 'realtime'
+        line = self.loop.accept_command(u, int(msg.step_index), msg.strategy, self.clock_s() if rt else None)
         if line:
             self.get_logger().info(line)
-        if self.config.timing == 'realtime':
-            self.rt.accepted(u, self.clock_s())
-        else:
+        if not rt:
             self._control_period(u, False)
 
     # -------------------------------------------------------------- realtime
     def _on_tick(self) -> None:
-        if not self._start():
-            return
-        now = self.clock_s()
-        if self.rt.must_choose(self.n % self.m == 0, now, self.fallback.in_fallback):
-            fresh = self.rt.fresh(now)
-            self.rt.applied = (
-                (self.rt.latest, False) if fresh else (self._fallback_command(self.rt.why_stale(now)), True)
-            )
-        self._plant_step(*self.rt.applied)
+        if self._start():
+            u, fallback, line = self.loop.realtime_input(self.clock_s())
+            if line:
+                self.get_logger().warn(line)
+            self._plant_step(u, fallback)
 
     # ------------------------------------------------------------------ glue
     def _event(self, name: str) -> None:
         self._events[name] += 1
-        self.rt.deadline_missed |= name == 'deadline_missed'
+        self.loop.rt.deadline_missed |= name == 'deadline_missed'
         self.notice(name, f'QoS event on hvac/command: {name} (total {self._events[name]})')
 
     def _set_params(self, changes: dict) -> str | None:
@@ -199,9 +171,10 @@ class PlantNode(NodeTools, Node):
     def _health(self):
         rej, rt = self.policy.rejections, self.config.timing == 'realtime'
         new, self._reported = rej.total - self._reported, rej.total
-        age = self.rt.watchdog.age(self.clock_s()) if rt else self.wait.age(self.wall_s())
-        kw = dict(started=self.started, finished=self.finished, n=self.n, t_s=self.n * self.dt, events=self._events)
-        kw.update(supervisor=self.fallback, policy=self.policy, new_rejections=new)
+        age = self.loop.rt.watchdog.age(self.clock_s()) if rt else self.wait.age(self.wall_s())
+        lp = self.loop
+        kw = dict(started=self.started, finished=lp.finished, n=lp.n, t_s=lp.t_s, events=self._events)
+        kw.update(supervisor=lp.fallback, policy=self.policy, new_rejections=new)
         waiting = '' if self.started else self._waiting_for()
         age_s = None if age == float('inf') else age
         return [('plant', pio.plant_health(cfg=self.config, command_age_s=age_s, waiting_for=waiting, **kw))]
