@@ -661,6 +661,43 @@ def test_preview_inputs_reject_crash_and_wedge_cases():
         PreviewNodeConfig.from_params(dict(values, **{'faults.missing_spans_s': [1.0, 2.0, 3.0]}))
 
 
+# ------------------------------------------------------------------------ node controller
+def test_node_controller_builds_steps_and_resets():
+    """mpc_node's controller side without ROS: the simulator's observation and core, the previous command."""
+    from ceco_controller.controller_io import StepInputs
+    from ceco_controller.observation import observation
+    from ceco_controller.step_adapter import NodeController
+    from ceco_core.acc_law import AccLaw
+    from ceco_core.contracts import AcInput
+    from ceco_ros import conversions
+
+    with pytest.raises(ValueError, match="invalid parameter scenario='no_such_scenario'"):
+        NodeController(_ctrl_cfg(strategy='baseline', scenario='no_such_scenario'))
+    cfg = _ctrl_cfg(strategy='baseline')
+    ctl = NodeController(cfg)
+    assert ctl.step_budget_s is None and ctl.prev_cmd is None and ctl.scenario.name == 'sc03'
+    law, sc = AccLaw(), ctl.scenario
+    for k in range(3):
+        st = state(5.0 * k, n=5 * k, t_cab_c=45.0 - k)
+        cmd, diag, note = ctl.step(StepInputs(k, st), cfg)
+        assert note == 'no previews' and not diag.fallback and ctl.prev_cmd is cmd
+        # the same law on the same observation (key-on command from the state, then its own)
+        a = law.step(st.t_cab_c, cfg.control_period_s)
+        assert (cmd.mdot_bl_kgps, cmd.t_evap_sp_c) == (a.mdot_bl_kgps, a.t_evap_sp_c)
+    w, tr = conversions.empty_previews(cfg.horizon_steps + 1, cfg.control_period_s)
+    obs = observation(
+        0, 0.0, conversions.state_measurements(st), st, AcInput(0.17, 3.0), conversions.previews(w, tr, 0.0, 5.0), sc
+    )
+    assert obs.n_preview == cfg.horizon_steps + 1 and not obs.preview_valid.any()
+    ctl.reset()
+    assert ctl.prev_cmd is None
+    again, _, _ = ctl.step(StepInputs(0, state(0.0, n=0)), cfg)  # from a fresh law: the first command again
+    first = AccLaw().step(45.0, cfg.control_period_s)
+    assert (again.mdot_bl_kgps, again.t_evap_sp_c) == (first.mdot_bl_kgps, first.t_evap_sp_c)
+    nmpc = NodeController(_ctrl_cfg(strategy='ceco'))
+    assert nmpc.warm_up == 'NmpcController.warm_up' and 0 < nmpc.step_budget_s < cfg.control_period_s
+
+
 # --------------------------------------------------------------------------------- warm-up
 def test_warm_up_leaves_no_state_behind():
     """configure's throw-away first solve: the next steps equal a fresh controller's, bit for bit."""

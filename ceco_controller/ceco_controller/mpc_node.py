@@ -8,7 +8,8 @@ commanding; deactivate stops (the plant's fallback law takes over); cleanup/shut
 everything. Timing: ``lockstep`` computes step k once its state and both previews are here
 (without previews after ``preview_timeout_s``); ``realtime`` every Ts of the node clock from
 the latest inputs. Checks, ordering, bookkeeping and health rules: the pure
-:mod:`ceco_controller.controller_io`; observation and controller: the simulator's.
+:mod:`ceco_controller.controller_io`; the controller's build, warm-up and step:
+:class:`ceco_controller.step_adapter.NodeController` (the simulator's observation and core).
 """
 
 from __future__ import annotations
@@ -19,13 +20,12 @@ from functools import partial
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 
 import ceco_controller.controller_io as cio
-from ceco_controller.step_adapter import step_observation
+from ceco_controller.step_adapter import NodeController
 from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficPreview, WeatherPreview
 from ceco_ros import conversions, interfaces, params
 from ceco_ros.diagnostics import DiagnosticsTimer
 from ceco_ros.node_base import FAILURE, ManagedNode
 from ceco_ros.node_main import run_node
-from ceco_v2x_preview.scenario import load_scenario_param
 
 
 class ControllerNode(ManagedNode):
@@ -37,14 +37,16 @@ class ControllerNode(ManagedNode):
         self.config = cfg = cio.ControllerNodeConfig.from_params(params.declare_all(self, specs), fixed_strategy)
         params.on_set(self, specs, self._set_params)
         self.setup_tools(cfg.log_throttle_s)
-        self.core, self._prev_cmd, self._held, self.record = None, None, None, cio.ControllerRecord()
+        self.ctl, self._held, self.record = None, None, cio.ControllerRecord()
         self.inputs = cio.ControllerInputs(cfg, self.log, self._reset_core)
         DiagnosticsTimer(
             self,
             lambda: [
                 (
                     'control',
-                    self.record.health(self.lifecycle, self.config, self.inputs, self.wall_s(), self._step_budget()),
+                    self.record.health(
+                        self.lifecycle, self.config, self.inputs, self.wall_s(), self.ctl and self.ctl.step_budget_s
+                    ),
                 )
             ],
             cfg.diagnostics_period_s,
@@ -54,20 +56,9 @@ class ControllerNode(ManagedNode):
 
     def on_configure(self, state):
         """Load the scenario, build the controller, solve once; create the entities."""
-        from ceco_controller import factory  # here: baseline_node never imports the NMPC modules
-
         cfg, t0 = self.config, time.perf_counter()
         try:
-            self.scenario = load_scenario_param(cfg.scenario)
-            self.core = factory.make_controller(
-                cfg.strategy,
-                self.scenario,
-                control_period_s=cfg.control_period_s,
-                horizon_steps=cfg.horizon_steps,
-                config_path=cfg.controller_config or None,
-                measurements=cfg.measurements,
-            )
-            how = cio.warm_up(self.core, self.scenario, cfg.control_period_s, cfg.horizon_steps)
+            self.ctl = NodeController(cfg)
         except (ValueError, RuntimeError, OSError) as err:
             self.get_logger().error(f'configure failed: {err}')
             return FAILURE
@@ -111,8 +102,8 @@ class ControllerNode(ManagedNode):
         )
         self.get_logger().info(
             f'configured in {time.perf_counter() - t0:.2f} s (controller built, first solve by '
-            f'{how}): {cfg.strategy}, Ts {cfg.control_period_s} s, Np {cfg.horizon_steps}, timing '
-            f'{cfg.timing}, measurements {cfg.measurements}, scenario {self.scenario.name}'
+            f'{self.ctl.warm_up}): {cfg.strategy}, Ts {cfg.control_period_s} s, Np {cfg.horizon_steps}, timing '
+            f'{cfg.timing}, measurements {cfg.measurements}, scenario {self.ctl.scenario.name}'
         )
         return self.configured()
 
@@ -137,7 +128,7 @@ class ControllerNode(ManagedNode):
             self.destroy_subscription(sub)
         for pub in self._pubs:
             self.destroy_lifecycle_publisher(pub)
-        self.core = None
+        self.ctl = None
         self.inputs.clear()
 
     # ----------------------------------------------------------------- inputs
@@ -174,14 +165,11 @@ class ControllerNode(ManagedNode):
         if si is None or self.lifecycle != 'active':
             return
         t0, cfg, stamp = time.perf_counter(), self.config, si.state.header.stamp
-        t_start = self.core.clock() if callable(getattr(self.core, 'clock', None)) else None  # the NMPC's deadline
         try:
-            obs, note = step_observation(si, cfg, self.scenario, self._prev_cmd)
+            cmd, diag, note = self.ctl.step(si, cfg)
             if note:
                 self.notice('no-previews', f'step {si.k}: {note}: solving without previews')
-            cmd, diag = self.core.compute(obs, t_start=t_start)
-            self._prev_cmd, fallback = cmd, bool(diag.fallback)
-            ts = cfg.control_period_s
+            fallback, ts = bool(diag.fallback), cfg.control_period_s
             msg = conversions.command_msg(cmd, si.k, stamp, ts, cfg.strategy, fallback)
             held = cfg.timing == 'lockstep' and self._pubs[0].get_subscription_count() == 0
             self._held = msg if held else None
@@ -197,9 +185,9 @@ class ControllerNode(ManagedNode):
 
     # ------------------------------------------------------------------ glue
     def _reset_core(self) -> None:
-        self._prev_cmd = self._held = None
-        if self.core is not None:
-            self.core.reset()
+        self._held = None
+        if self.ctl is not None:
+            self.ctl.reset()
 
     def _set_params(self, changes: dict) -> str | None:
         try:
@@ -210,11 +198,6 @@ class ControllerNode(ManagedNode):
         self.notices.throttle_s = self.config.log_throttle_s
         self.get_logger().info(f'parameters set: {changes}')
         return None
-
-    def _step_budget(self) -> float | None:
-        """The core's own deadline of a whole step [s] (the NMPC's step budget), None without one."""
-        solver = getattr(getattr(self.core, 'settings', None), 'solver', None)
-        return getattr(solver, 'step_budget_s', None)
 
     def _event(self, name: str) -> None:
         self.record.events[name] += 1

@@ -1,19 +1,23 @@
-"""mpc_node's message adapter: the checked inputs of one control step -> the Observation.
+"""mpc_node's controller side: the checked inputs of one control step -> the Observation -> the command.
 
 The inputs are a CabinState and the two previews; the core's
 :class:`~ceco_core.contracts.Observation` is built by the simulator's own
-:func:`ceco_controller.observation.observation` so a DDS run equals the simulator bit for bit.
+:func:`ceco_controller.observation.observation` so a DDS run equals the simulator bit for bit
+(:func:`step_observation`). :class:`NodeController` is the controller a node drives: built
+and warmed up from the node's configuration in the lifecycle configure transition, then one
+control step per call. No rclpy here; messages are read by attribute.
 """
 
 from __future__ import annotations
 
 import ceco_ros.conversions as conversions
-from ceco_core.contracts import AcInput, Observation
+from ceco_core.contracts import AcInput, Diagnostics, Observation
+from ceco_v2x_preview.scenario import load_scenario_param
 
-from .controller_io import ControllerNodeConfig, StepInputs
+from .controller_io import ControllerNodeConfig, StepInputs, warm_up
 from .observation import observation
 
-__all__ = ['step_observation']
+__all__ = ['step_observation', 'NodeController']
 
 
 def step_observation(
@@ -40,3 +44,51 @@ def step_observation(
         si.k, t_s, conversions.state_measurements(st), st, prev, conversions.previews(w, s, t_s, ts), scenario
     )
     return obs, note
+
+
+class NodeController:
+    """The controller core of mpc_node / baseline_node, built and warmed up from the node's configuration.
+
+    Raises ValueError, RuntimeError or OSError (a bad scenario, controller file or solver) at
+    construction; the node then fails its configure transition.
+    """
+
+    def __init__(self, cfg: ControllerNodeConfig):
+        """Load the scenario, build the strategy's controller and pay its first solve (:func:`warm_up`)."""
+        from . import factory  # here: baseline_node never imports the NMPC modules
+
+        self.scenario = load_scenario_param(cfg.scenario)
+        self.core = factory.make_controller(
+            cfg.strategy,
+            self.scenario,
+            control_period_s=cfg.control_period_s,
+            horizon_steps=cfg.horizon_steps,
+            config_path=cfg.controller_config or None,
+            measurements=cfg.measurements,
+        )
+        self.warm_up = warm_up(self.core, self.scenario, cfg.control_period_s, cfg.horizon_steps)
+        """How the first solve was done (for the log)."""
+        self.prev_cmd: AcInput | None = None
+        """The last command this controller computed (the next step's previous command)."""
+
+    def reset(self) -> None:
+        """A fresh controller state (activation, a backward time jump)."""
+        self.prev_cmd = None
+        self.core.reset()
+
+    @property
+    def step_budget_s(self) -> float | None:
+        """The core's own deadline of a whole step [s] (the NMPC's step budget), None without one."""
+        solver = getattr(getattr(self.core, 'settings', None), 'solver', None)
+        return getattr(solver, 'step_budget_s', None)
+
+    def step(self, si: StepInputs, cfg: ControllerNodeConfig) -> tuple[AcInput, Diagnostics, str]:
+        """``(command, diagnostics, note)`` of control step ``si.k``; the NMPC's deadline counts from this call.
+
+        ``note`` says why the step was solved without previews ('' if with).
+        """
+        t_start = self.core.clock() if callable(getattr(self.core, 'clock', None)) else None
+        obs, note = step_observation(si, cfg, self.scenario, self.prev_cmd)
+        cmd, diag = self.core.compute(obs, t_start=t_start)
+        self.prev_cmd = cmd
+        return cmd, diag, note
