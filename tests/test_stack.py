@@ -795,6 +795,49 @@ def _values(status) -> dict:
     return {kv.key: kv.value for kv in status.values}
 
 
+def test_lockstep_command_waits_for_its_subscribers_over_dds(tmp_path):
+    """lockstep, ``lockstep.min_command_subscribers: 2`` (ceco run's plant and recorder): a command
+    computed while only one subscription has matched the controller's publisher is held, not sent
+    into the void (a volatile sample never reaches a late reader: a run's step 0 went to the
+    plant's fallback law that way); once the second one matches it is sent, once, to both."""
+    from ceco_msgs.msg import AcCommand, CabinState
+
+    tn = DdsPeer(_domain(), 'command_subscribers')
+    first: list = []
+    second: list = []
+    tn.node.create_subscription(AcCommand, interfaces.TOPIC_COMMAND, first.append, interfaces.QOS_COMMAND)
+    pub_state = tn.node.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
+    params = {
+        'scenario': 'sc03',
+        'timing': 'lockstep',
+        'control_period_s': 5.0,
+        'preview_timeout_s': 0.2,
+        'autostart': True,
+        'lockstep.min_command_subscribers': 2,
+    }
+    base = _proc('baseline_node', 'ceco_controller', 'baseline_node', tn.env, tmp_path / 'logs', params)
+    try:
+        base.start()
+        _wait_for(
+            lambda: pub_state.get_subscription_count() >= 1 and 'active: commanding' in base.log_text(),
+            120,
+            'baseline_node active',
+            [base],
+        )
+        pub_state.publish(_state_msg(0, 0.0))
+        _log_has(base, 'step 0: no weather and traffic preview within 0.2 s')  # computed, then held
+        time.sleep(2.0)
+        assert first == []
+        tn.node.create_subscription(AcCommand, interfaces.TOPIC_COMMAND, second.append, interfaces.QOS_COMMAND)
+        _wait_for(lambda: first and second, 30, 'the held command on both subscriptions', [base])
+        time.sleep(1.0)
+        assert [m.step_index for m in first] == [0] and [m.step_index for m in second] == [0]
+        assert first[0].blower_flow_kgps == second[0].blower_flow_kgps and 0.05 <= first[0].blower_flow_kgps <= 0.17
+    finally:
+        base.stop()
+        tn.close()
+
+
 def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
     """mpc_node as a managed node, driven over DDS as `ceco run` (or `ros2 lifecycle set`) does:
     unconfigured -> configure -> inactive (no command) -> activate (commands) -> deactivate (the

@@ -201,7 +201,8 @@ def _params(args, scenario, quality, strategy, duration_s):
             'faults.uncertainty_level': quality.uncertainty,
         },
     )
-    controller = dict(common, horizon_steps=int(np_), **sim_time)
+    # lockstep: the first command waits until both the plant and the recorder are matched
+    controller = dict(common, horizon_steps=int(np_), **sim_time, **{'lockstep.min_command_subscribers': 2})
     if strategy != 'baseline':
         controller['strategy'] = strategy
     plant = dict(

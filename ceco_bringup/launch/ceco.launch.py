@@ -55,6 +55,8 @@ RECORDER_GATE = {
     'lockstep.min_output_subscribers': 1,
     'lockstep.min_command_subscribers': 2,
 }
+# The controller's side of it: a command waits until plant and recorder have matched its publisher.
+CONTROLLER_RECORDER_GATE = {'lockstep.min_command_subscribers': 2}
 
 
 def generate_launch_description() -> LaunchDescription:
@@ -117,7 +119,7 @@ def _stack(context):
     follower = dict(common, use_sim_time=use_sim_time)  # the plant publishes /clock, never follows it
     # The controllers are managed (lifecycle) nodes: autostart makes them configure and activate
     # themselves (`ros2 lifecycle get /mpc_node` then says active); `ceco run` drives them instead.
-    managed = dict(follower, autostart=True)
+    managed = dict(follower, autostart=True, **(CONTROLLER_RECORDER_GATE if record else {}))
     if arg('strategy') == 'baseline':
         controller = _node('baseline_node', ns, managed)
     else:

@@ -75,6 +75,13 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
             read_only=False,
         ),
         ParamSpec(
+            'lockstep.min_command_subscribers',
+            1,
+            'lockstep: matched hvac/command subscriptions (the plant; ceco run: plant and recorder) before a '
+            'command is sent; until then it is held, so no subscriber misses a step [-]',
+            int_range=(1, 100),
+        ),
+        ParamSpec(
             'max_state_age_s',
             10.0,
             'realtime: oldest usable cabin state, by its stamp [s]',
@@ -130,6 +137,8 @@ class ControllerNodeConfig:
     """lockstep: wall-clock wait for the previews of a step before solving without them [s]."""
     max_state_age_s: float = 10.0
     """realtime: oldest usable state [s]."""
+    min_command_subscribers: int = 1
+    """lockstep: matched hvac/command subscriptions before a command is sent (held until then) [-]."""
     controller_config: str = ''
     """NMPC settings file ('' : the package's config/controller.yaml)."""
     measurements: str = 'full'
@@ -156,6 +165,7 @@ class ControllerNodeConfig:
     _PARAM_FIELDS = {
         **SHARED_FIELDS,
         'qos.command_deadline_periods': 'command_deadline_periods',
+        'lockstep.min_command_subscribers': 'min_command_subscribers',
         'diagnostics.solve_time_warn_fraction': 'solve_time_warn_fraction',
     }
 

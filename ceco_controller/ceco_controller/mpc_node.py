@@ -146,11 +146,12 @@ class ControllerNode(ManagedNode):
     def _run_ready(self) -> None:
         """Lockstep: compute the waiting step when complete or overdue; inactive, inputs wait in the buffer.
 
-        A command computed before any subscriber matched the publisher (a plant that discovered
-        this node first) is held and sent once one has: lockstep sends each command once.
+        A command computed before ``lockstep.min_command_subscribers`` subscriptions matched the
+        publisher (a plant or recorder that this node has not discovered yet: a volatile sample
+        would never reach it) is held and sent once they have: lockstep sends each command once.
         """
         if self.lifecycle == 'active':
-            if self._held is not None and self._pubs[0].get_subscription_count() > 0:
+            if self._held is not None and not self._short_of_subscribers():
                 self._pubs[0].publish(self._held)
                 self._held = None
             self._run(self.inputs.ready() or self.inputs.overdue(self.wall_s()))
@@ -171,7 +172,7 @@ class ControllerNode(ManagedNode):
                 self.notice('no-previews', f'step {si.k}: {note}: solving without previews')
             fallback, ts = bool(diag.fallback), cfg.control_period_s
             msg = conversions.command_msg(cmd, si.k, stamp, ts, cfg.strategy, fallback)
-            held = cfg.timing == 'lockstep' and self._pubs[0].get_subscription_count() == 0
+            held = cfg.timing == 'lockstep' and self._short_of_subscribers()
             self._held = msg if held else None
             if not held:
                 self._pubs[0].publish(msg)
@@ -198,6 +199,9 @@ class ControllerNode(ManagedNode):
         self.notices.throttle_s = self.config.log_throttle_s
         self.get_logger().info(f'parameters set: {changes}')
         return None
+
+    def _short_of_subscribers(self) -> bool:
+        return self._pubs[0].get_subscription_count() < self.config.min_command_subscribers
 
     def _event(self, name: str) -> None:
         self.record.events[name] += 1
