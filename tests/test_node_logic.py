@@ -380,6 +380,25 @@ def test_controller_config_validation_and_runtime_changes():
         cfg.replaced({'preview_timeout_s': -1.0})
 
 
+def test_node_configs_share_names_timing_and_positive_rules():
+    """Every node's config maps its dotted parameter names to fields, refuses an unknown timing and a
+    non-positive period (ceco_ros.params.NodeConfig), and replaced() validates and keeps the rest."""
+    preview = PreviewNodeConfig.from_params({s.name: s.default for s in PREVIEW_PARAMETERS})
+    for cfg, period in ((_ctrl_cfg(), 'window_s'), (_plant_cfg(), 'control_period_s'), (preview, 'window_s')):
+        new = cfg.replaced({'inputs.log_throttle_s': 7.5, 'diagnostics.period_s': 0.25})
+        assert (new.log_throttle_s, new.diagnostics_period_s, new.timing) == (7.5, 0.25, cfg.timing)
+        assert (cfg.log_throttle_s, cfg.diagnostics_period_s) == (2.0, 1.0)  # frozen: the original is kept
+        with pytest.raises(ValueError, match="invalid parameter timing='sometimes': must be one of"):
+            cfg.replaced({'timing': 'sometimes'})
+        bad = {'inputs.window_s': math.nan} if period == 'window_s' else {'control_period_s': 0.0}
+        with pytest.raises(ValueError, match=f'invalid parameter {period}='):
+            cfg.replaced(bad)
+    with pytest.raises(ValueError, match=r'invalid parameter window_s=nan: must be finite and > 0'):
+        _ctrl_cfg(**{'inputs.window_s': math.nan})
+    assert _plant_cfg().replaced({'lockstep.min_command_subscribers': 2}).min_command_subscribers == 2
+    assert _ctrl_cfg().replaced({'lockstep.min_command_subscribers': 2}).min_command_subscribers == 2
+
+
 # ------------------------------------------------------------------------- controller inputs
 class Recorder:
     def __init__(self):

@@ -19,6 +19,7 @@ from ceco_ros.params import (
     DIAGNOSTICS_PERIOD_PARAMETER,
     INPUT_WINDOW_PARAMETERS,
     SHARED_FIELDS,
+    NodeConfig,
     ParamSpec,
     log_throttle_parameter,
 )
@@ -120,7 +121,7 @@ DYNAMIC = {
 
 
 @dataclasses.dataclass(frozen=True)
-class ControllerNodeConfig:
+class ControllerNodeConfig(NodeConfig):
     """Validated parameters of mpc_node / baseline_node."""
 
     strategy: str
@@ -162,25 +163,28 @@ class ControllerNodeConfig:
     solve_time_warn_fraction: float = 0.5
     """WARN above this fraction of Ts per step [-]."""
 
-    _PARAM_FIELDS = {
+    PARAM_FIELDS = {
         **SHARED_FIELDS,
         'qos.command_deadline_periods': 'command_deadline_periods',
         'lockstep.min_command_subscribers': 'min_command_subscribers',
         'diagnostics.solve_time_warn_fraction': 'solve_time_warn_fraction',
     }
+    POSITIVE = (
+        'control_period_s',
+        'preview_timeout_s',
+        'max_state_age_s',
+        'window_s',
+        'command_deadline_periods',
+        'diagnostics_period_s',
+        'solve_time_warn_fraction',
+    )
 
     @classmethod
     def from_params(cls, values: dict[str, Any], fixed_strategy: str | None = None) -> ControllerNodeConfig:
         """From the declared parameters (``{name: value}``), validated."""
-        kw = {cls._PARAM_FIELDS.get(k, k): v for k, v in values.items()}
+        kw = cls.fields_of(values)
         kw.setdefault('strategy', fixed_strategy)
         cfg = cls(**kw)
-        cfg.validate()
-        return cfg
-
-    def replaced(self, values: dict[str, Any]) -> ControllerNodeConfig:
-        """A copy with some parameters (``{name: value}``) changed, validated."""
-        cfg = dataclasses.replace(self, **{self._PARAM_FIELDS.get(k, k): v for k, v in values.items()})
         cfg.validate()
         return cfg
 
@@ -192,20 +196,7 @@ class ControllerNodeConfig:
                 f'invalid parameter strategy={self.strategy!r}: unknown strategy, '
                 f'must be one of {", ".join(CECO_STRATEGIES)}'
             )
-        if self.timing not in TIMING_MODES:
-            raise ValueError(f'invalid parameter timing={self.timing!r}: must be one of {TIMING_MODES}')
-        for name in (
-            'control_period_s',
-            'preview_timeout_s',
-            'max_state_age_s',
-            'window_s',
-            'command_deadline_periods',
-            'diagnostics_period_s',
-            'solve_time_warn_fraction',
-        ):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f'invalid parameter {name}={v!r}: must be finite and > 0')
+        super().validate()
 
     @property
     def window_steps(self) -> int:

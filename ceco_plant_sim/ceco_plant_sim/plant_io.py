@@ -17,7 +17,7 @@ from typing import Any
 import ceco_ros.checks as checks
 from ceco_core.control_grid import TIMING_MODES
 from ceco_core.supervision import FallbackSupervisor, Health, Rejections, Watchdog, reason_kind
-from ceco_ros.params import DIAGNOSTICS_PERIOD_PARAMETER, SHARED_FIELDS, ParamSpec, log_throttle_parameter
+from ceco_ros.params import DIAGNOSTICS_PERIOD_PARAMETER, SHARED_FIELDS, NodeConfig, ParamSpec, log_throttle_parameter
 from ceco_ros.topics import TOPIC_COMMAND
 
 __all__ = [
@@ -94,7 +94,7 @@ _FIELDS = {
 
 
 @dataclasses.dataclass(frozen=True)
-class PlantNodeConfig:
+class PlantNodeConfig(NodeConfig):
     """Validated parameters of plant_node."""
 
     scenario: str
@@ -122,16 +122,12 @@ class PlantNodeConfig:
     diagnostics_period_s: float = 1.0
     """/diagnostics period [s]."""
 
+    PARAM_FIELDS = _FIELDS
+
     @classmethod
     def from_params(cls, values: dict[str, Any]) -> PlantNodeConfig:
         """From the declared parameters (``{name: value}``), validated."""
-        cfg = cls(**{_FIELDS.get(k, k): v for k, v in values.items()})
-        cfg.validate()
-        return cfg
-
-    def replaced(self, values: dict[str, Any]) -> PlantNodeConfig:
-        """A copy with some parameters (``{name: value}``) changed, validated."""
-        cfg = dataclasses.replace(self, **{_FIELDS.get(k, k): v for k, v in values.items()})
+        cfg = cls(**cls.fields_of(values))
         cfg.validate()
         return cfg
 
@@ -139,8 +135,7 @@ class PlantNodeConfig:
         """Raise ValueError naming the parameter."""
         from .scenario_plant import steps_per_control
 
-        if self.timing not in TIMING_MODES:
-            raise ValueError(f'invalid parameter timing={self.timing!r}: must be one of {TIMING_MODES}')
+        super().validate()
         try:
             steps_per_control(self.control_period_s, self.plant_dt_s)
         except ValueError as err:

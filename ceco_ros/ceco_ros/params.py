@@ -14,9 +14,11 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, ClassVar, Self
 
-__all__ = ['ParamSpec', 'check_value', 'declare', 'declare_all', 'on_set']
+from ceco_core.control_grid import TIMING_MODES
+
+__all__ = ['ParamSpec', 'NodeConfig', 'check_value', 'declare', 'declare_all', 'on_set']
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,6 +101,41 @@ SHARED_FIELDS = {
     'diagnostics.period_s': 'diagnostics_period_s',
 }
 """Parameter name -> config field of the shared parameters (the nodes' own tables add theirs)."""
+
+
+class NodeConfig:
+    """Base of the nodes' frozen configuration dataclasses: parameter names to fields, validated copies.
+
+    A subclass (a ``@dataclasses.dataclass(frozen=True)`` with a ``timing`` field) sets
+    ``PARAM_FIELDS`` (parameter name -> field where they differ; :data:`SHARED_FIELDS` and its
+    own), ``POSITIVE`` (fields that must be finite and > 0) and extends :meth:`validate`.
+    """
+
+    __dataclass_fields__: ClassVar[dict]
+    timing: str
+    """lockstep or realtime (every node has it)."""
+    PARAM_FIELDS: ClassVar[dict[str, str]] = SHARED_FIELDS
+    POSITIVE: ClassVar[tuple[str, ...]] = ()
+
+    @classmethod
+    def fields_of(cls, values: dict[str, Any]) -> dict[str, Any]:
+        """``{parameter name: value}`` -> ``{field: value}``."""
+        return {cls.PARAM_FIELDS.get(k, k): v for k, v in values.items()}
+
+    def replaced(self, values: dict[str, Any]) -> Self:
+        """A copy with some parameters (``{name: value}``) changed, validated."""
+        cfg = dataclasses.replace(self, **self.fields_of(values))
+        cfg.validate()
+        return cfg
+
+    def validate(self) -> None:
+        """Raise ValueError naming the parameter: the timing mode, every :attr:`POSITIVE` field finite and > 0."""
+        if self.timing not in TIMING_MODES:
+            raise ValueError(f'invalid parameter timing={self.timing!r}: must be one of {TIMING_MODES}')
+        for name in self.POSITIVE:
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f'invalid parameter {name}={v!r}: must be finite and > 0')
 
 
 def check_value(spec: ParamSpec, value: Any) -> tuple[Any, str | None]:

@@ -10,7 +10,6 @@ Pure logic: states are read by attribute (ceco_msgs/CabinState in the node,
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable
 from typing import Any
 
@@ -22,7 +21,7 @@ from ceco_ros.params import (
     CLOCK_AHEAD_PARAMETER,
     DIAGNOSTICS_PERIOD_PARAMETER,
     INPUT_WINDOW_PARAMETERS,
-    SHARED_FIELDS,
+    NodeConfig,
     ParamSpec,
     log_throttle_parameter,
 )
@@ -112,7 +111,7 @@ DYNAMIC = {s.name for s in PREVIEW_PARAMETERS if not s.read_only}
 
 
 @dataclasses.dataclass(frozen=True)
-class PreviewNodeConfig:
+class PreviewNodeConfig(NodeConfig):
     """Validated parameters of preview_node."""
 
     scenario: str
@@ -142,7 +141,7 @@ class PreviewNodeConfig:
     diagnostics_period_s: float = 1.0
     """/diagnostics period [s]."""
 
-    _FIELDS = SHARED_FIELDS
+    POSITIVE = ('control_period_s', 'publish_period_s', 'window_s', 'max_state_age_s')
 
     @classmethod
     def from_params(cls, v: dict[str, Any]) -> PreviewNodeConfig:
@@ -169,25 +168,14 @@ class PreviewNodeConfig:
             horizon_steps=v['horizon_steps'],
             publish_period_s=v['publish_period_s'],
             quality=quality,
-            **{f: v[p] for p, f in cls._FIELDS.items() if p in v},
+            **{f: v[p] for p, f in cls.PARAM_FIELDS.items() if p in v},
         )
-        cfg.validate()
-        return cfg
-
-    def replaced(self, values: dict[str, Any]) -> PreviewNodeConfig:
-        """A copy with some parameters (``{name: value}``) changed, validated."""
-        cfg = dataclasses.replace(self, **{self._FIELDS.get(k, k): x for k, x in values.items()})
         cfg.validate()
         return cfg
 
     def validate(self) -> None:
         """Raise ValueError naming the parameter."""
-        if self.timing not in TIMING_MODES:
-            raise ValueError(f'invalid parameter timing={self.timing!r}: must be one of {TIMING_MODES}')
-        for name in ('control_period_s', 'publish_period_s', 'window_s', 'max_state_age_s'):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f'invalid parameter {name}={v!r}: must be finite and > 0')
+        super().validate()
         self.quality.validate()
 
 
