@@ -276,6 +276,26 @@ def _solve_tcl(ops, *, ta_c, tr_c, hc_forced, icl, fcl, m_wm2, w_rad_wm2, sm):
     return tcl
 
 
+def _clothing_state(ops, a, sm: PmvSmoothing):
+    """``(T_cl [degC], f_cl [-], M [W/m2], h_c,forced [W/(m2 K)])`` of prepared inputs ``a``."""
+    icl = CLO_TO_M2KPW * a["clo"]
+    fcl = _clothing_area_factor(ops, icl)
+    m = MET_TO_WM2 * a["met"]
+    hf = _forced_hc(ops, a["vel_mps"], sm)
+    tcl = _solve_tcl(
+        ops,
+        ta_c=a["ta_c"],
+        tr_c=a["tr_c"],
+        hc_forced=hf,
+        icl=icl,
+        fcl=fcl,
+        m_wm2=m,
+        w_rad_wm2=a["w_rad_wm2"],
+        sm=sm,
+    )
+    return tcl, fcl, m, hf
+
+
 # --------------------------------------------------------------------------
 # public functions
 
@@ -289,21 +309,7 @@ def clothing_temperature_c(*, ta_c, tr_c, vel_mps, met, clo, w_rad_wm2=0.0, smoo
         dict(ta_c=ta_c, tr_c=tr_c, vel_mps=vel_mps, met=met, clo=clo, w_rad_wm2=w_rad_wm2),
         {k: v for k, v in _PMV_BOUNDS.items() if k != "pa_pa"},
     )
-    icl = CLO_TO_M2KPW * a["clo"]
-    fcl = _clothing_area_factor(ops, icl)
-    m = MET_TO_WM2 * a["met"]
-    hf = _forced_hc(ops, a["vel_mps"], smoothing)
-    return _solve_tcl(
-        ops,
-        ta_c=a["ta_c"],
-        tr_c=a["tr_c"],
-        hc_forced=hf,
-        icl=icl,
-        fcl=fcl,
-        m_wm2=m,
-        w_rad_wm2=a["w_rad_wm2"],
-        sm=smoothing,
-    )
+    return _clothing_state(ops, a, smoothing)[0]
 
 
 def pmv(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0, smoothing=DEFAULT_SMOOTHING):
@@ -339,21 +345,7 @@ def pmv(*, ta_c, tr_c, vel_mps, pa_pa, met, clo, w_rad_wm2=0.0, smoothing=DEFAUL
         dict(ta_c=ta_c, tr_c=tr_c, vel_mps=vel_mps, pa_pa=pa_pa, met=met, clo=clo, w_rad_wm2=w_rad_wm2),
         _PMV_BOUNDS,
     )
-    icl = CLO_TO_M2KPW * a["clo"]
-    fcl = _clothing_area_factor(ops, icl)
-    m = MET_TO_WM2 * a["met"]
-    hf = _forced_hc(ops, a["vel_mps"], smoothing)
-    tcl = _solve_tcl(
-        ops,
-        ta_c=a["ta_c"],
-        tr_c=a["tr_c"],
-        hc_forced=hf,
-        icl=icl,
-        fcl=fcl,
-        m_wm2=m,
-        w_rad_wm2=a["w_rad_wm2"],
-        sm=smoothing,
-    )
+    tcl, fcl, m, hf = _clothing_state(ops, a, smoothing)
     return _pmv_at_tcl(ops, a, tcl=tcl, fcl=fcl, m_wm2=m, hc_forced=hf, sm=smoothing)
 
 
