@@ -154,6 +154,17 @@ def topic_types(bag_dir, topics: Iterable[str] | None = None, namespace: str | N
         return {names[c.topic]: c.msgtype for c in reader.connections if c.topic in names}
 
 
+def _records(bag_dir, topics, namespace) -> Iterator[tuple[str, int, bytes, str]]:
+    """(stack name, bag timestamp [ns], CDR bytes, message type) of the selected topics, in bag order."""
+    with _open(bag_dir) as reader:
+        names = _selected(reader, topics, namespace)
+        conns = [c for c in reader.connections if c.topic in names]
+        if not conns:
+            return
+        for conn, t_ns, raw in reader.messages(connections=conns):
+            yield names[conn.topic], t_ns, raw, conn.msgtype
+
+
 def read_raw(
     bag_dir, topics: Iterable[str] | None = None, namespace: str | None = None
 ) -> Iterator[tuple[str, int, bytes]]:
@@ -161,13 +172,8 @@ def read_raw(
 
     ``name`` is the requested stack name (the bag name when ``topics`` is None).
     """
-    with _open(bag_dir) as reader:
-        names = _selected(reader, topics, namespace)
-        conns = [c for c in reader.connections if c.topic in names]
-        if not conns:
-            return
-        for conn, t_ns, raw in reader.messages(connections=conns):
-            yield names[conn.topic], t_ns, bytes(raw)
+    for name, t_ns, raw, _ in _records(bag_dir, topics, namespace):
+        yield name, t_ns, bytes(raw)
 
 
 def read_messages(
@@ -178,13 +184,8 @@ def read_messages(
     ``name`` as in :func:`read_raw`.
     """
     store = typestore()
-    with _open(bag_dir) as reader:
-        names = _selected(reader, topics, namespace)
-        conns = [c for c in reader.connections if c.topic in names]
-        if not conns:
-            return
-        for conn, t_ns, raw in reader.messages(connections=conns):
-            yield names[conn.topic], t_ns, store.deserialize_cdr(raw, conn.msgtype)
+    for name, t_ns, raw, msgtype in _records(bag_dir, topics, namespace):
+        yield name, t_ns, store.deserialize_cdr(raw, msgtype)
 
 
 def topic_counts(bag_dir) -> dict[str, int]:
