@@ -90,13 +90,11 @@ def test_launch_file_topics_are_the_recorded_stack_topics():
 
 
 def test_launch_file_executables_and_parameter_files_are_installed():
+    from ceco_bringup.supervisor import STACK_NODES
+
     nodes = _module_constants(_tree())['NODES']
-    assert nodes == {
-        'preview_node': 'ceco_v2x_preview',
-        'mpc_node': 'ceco_controller',
-        'baseline_node': 'ceco_controller',
-        'plant_node': 'ceco_plant_sim',
-    }
+    assert nodes == STACK_NODES  # the launch file and ceco run start the same executables
+    assert set(nodes) == {'preview_node', 'mpc_node', 'baseline_node', 'plant_node'}
     prefix = _install_prefix()
     installed = prefix / 'ceco_bringup' / 'share' / 'ceco_bringup' / 'launch' / 'ceco.launch.py'
     assert installed.is_file() and installed.read_text() == LAUNCH_FILE.read_text(), installed

@@ -108,16 +108,8 @@ def _recording_peer(tmp_path, **recorder_kw):
     return tn, rec, tmp_path / 'logs', bag
 
 
-def _proc(name, pkg, exe, env, log_dir, params):
-    return supervisor.NodeProcess(
-        name,
-        pkg,
-        exe,
-        env=env,
-        log_dir=log_dir,
-        params=params,
-        params_files=[supervisor.share_file(pkg, f'config/{exe}.yaml')],
-    )
+def _proc(name, exe, env, log_dir, params):
+    return supervisor.stack_node(exe, env=env, log_dir=log_dir, params=params, name=name)
 
 
 def _cli(*args, **kw):
@@ -343,23 +335,19 @@ def test_bad_input_rejected_nodes_keep_commanding(tmp_path):
     dom_a, dom_b = _domain(), _domain()
     ta = DdsPeer(dom_a, 'fake_plant')
     common = {'scenario': 'sc03', 'timing': 'lockstep', 'control_period_s': 5.0, 'horizon_steps': 6}
-    preview = _proc(
-        'preview_node', 'ceco_v2x_preview', 'preview_node', ta.env, log_dir, dict(common, **_VERBOSE_INPUTS)
-    )
+    preview = _proc('preview_node', 'preview_node', ta.env, log_dir, dict(common, **_VERBOSE_INPUTS))
     mpc = _proc(
         'mpc_node',
-        'ceco_controller',
         'mpc_node',
         ta.env,
         log_dir,
         dict(common, strategy='ceco-ioch', preview_timeout_s=30.0, autostart=True, **_VERBOSE_INPUTS),
     )
-    bad = _proc('mpc_bad', 'ceco_controller', 'mpc_node', ta.env, log_dir, dict(common, strategy='ceco-turbo'))
+    bad = _proc('mpc_bad', 'mpc_node', ta.env, log_dir, dict(common, strategy='ceco-turbo'))
     # Domain B: plant_node alone, the test plays the controller.
     tb = DdsPeer(dom_b, 'fake_controller')
     plant = _proc(
         'plant_node',
-        'ceco_plant_sim',
         'plant_node',
         tb.env,
         log_dir,
@@ -530,16 +518,15 @@ def test_kill_mpc_node_plant_falls_back_and_restart_takes_over(tmp_path):
     tn, rec, log_dir, bag = _recording_peer(tmp_path, timestamps='sim')
     n_steps = 600
     common = {'scenario': 'sc03', 'timing': 'lockstep', 'control_period_s': 5.0}
-    preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', tn.env, log_dir, dict(common, horizon_steps=6))
+    preview = _proc('preview_node', 'preview_node', tn.env, log_dir, dict(common, horizon_steps=6))
     # The mpc_node answers within 0.5 s even when a step's previews are late (it then solves
     # without them), well inside the plant's 1.5 s command timeout: a late preview or a load
     # spike on the shared cores must not look like the fault this test injects (with 0.6 s
     # against the default 2 s preview wait, one full-suite run saw a fallback before the kill).
     mpc_params = dict(common, horizon_steps=6, strategy='ceco', preview_timeout_s=0.5, autostart=True)
-    mpc = _proc('mpc_node', 'ceco_controller', 'mpc_node', tn.env, log_dir, mpc_params)
+    mpc = _proc('mpc_node', 'mpc_node', tn.env, log_dir, mpc_params)
     plant = _proc(
         'plant_node',
-        'ceco_plant_sim',
         'plant_node',
         tn.env,
         log_dir,
@@ -713,7 +700,6 @@ def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
     common = {'scenario': 'sc03', 'timing': 'realtime', 'control_period_s': 2.0}
     preview = _proc(
         'preview_node',
-        'ceco_v2x_preview',
         'preview_node',
         tn.env,
         log_dir,
@@ -721,7 +707,6 @@ def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
     )
     mpc = _proc(
         'baseline_node',
-        'ceco_controller',
         'baseline_node',
         tn.env,
         log_dir,
@@ -729,7 +714,6 @@ def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
     )
     plant = _proc(
         'plant_node',
-        'ceco_plant_sim',
         'plant_node',
         tn.env,
         log_dir,
@@ -815,7 +799,7 @@ def test_lockstep_command_waits_for_its_subscribers_over_dds(tmp_path):
         'autostart': True,
         'lockstep.min_command_subscribers': 2,
     }
-    base = _proc('baseline_node', 'ceco_controller', 'baseline_node', tn.env, tmp_path / 'logs', params)
+    base = _proc('baseline_node', 'baseline_node', tn.env, tmp_path / 'logs', params)
     try:
         base.start()
         _wait_for(
@@ -855,10 +839,9 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
     powers = tn.collect(AcPower, interfaces.TOPIC_POWER, interfaces.QOS_STATE)
     diags = tn.collect(DiagnosticArray, interfaces.TOPIC_ROS_DIAGNOSTICS, interfaces.QOS_DIAGNOSTICS)
     common = {'scenario': 'sc03', 'timing': 'lockstep', 'control_period_s': 5.0}
-    preview = _proc('preview_node', 'ceco_v2x_preview', 'preview_node', tn.env, log_dir, dict(common, horizon_steps=6))
+    preview = _proc('preview_node', 'preview_node', tn.env, log_dir, dict(common, horizon_steps=6))
     mpc = _proc(
         'mpc_node',
-        'ceco_controller',
         'mpc_node',
         tn.env,
         log_dir,
@@ -866,7 +849,6 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
     )
     plant = _proc(
         'plant_node',
-        'ceco_plant_sim',
         'plant_node',
         tn.env,
         log_dir,
@@ -983,7 +965,6 @@ def test_diagnostics_under_forced_fallback(tmp_path):
     common = {'scenario': 'sc03', 'timing': 'realtime', 'control_period_s': 5.0}
     preview = _proc(
         'preview_node',
-        'ceco_v2x_preview',
         'preview_node',
         tn.env,
         log_dir,
@@ -991,7 +972,6 @@ def test_diagnostics_under_forced_fallback(tmp_path):
     )
     mpc = _proc(
         'mpc_node',
-        'ceco_controller',
         'mpc_node',
         tn.env,
         log_dir,
@@ -999,7 +979,6 @@ def test_diagnostics_under_forced_fallback(tmp_path):
     )
     plant = _proc(
         'plant_node',
-        'ceco_plant_sim',
         'plant_node',
         tn.env,
         log_dir,
@@ -1300,7 +1279,6 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
     }
     preview = _proc(
         'preview_node',
-        'ceco_v2x_preview',
         'preview_node',
         tn.env,
         log_dir,
@@ -1308,7 +1286,6 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
     )
     mpc = _proc(
         'mpc_node',
-        'ceco_controller',
         'mpc_node',
         tn.env,
         log_dir,
@@ -1316,7 +1293,6 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
     )
     plant = _proc(
         'plant_node',
-        'ceco_plant_sim',
         'plant_node',
         tn.env,
         log_dir,

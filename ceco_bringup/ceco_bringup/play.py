@@ -208,15 +208,7 @@ def compare(args) -> int:
     if exe == 'mpc_node':
         params['strategy'] = strategy
     log_dir = args.bag.parent / 'play_logs'
-    proc = supervisor.NodeProcess(
-        exe,
-        'ceco_controller',
-        exe,
-        env=env,
-        log_dir=log_dir,
-        params_files=[supervisor.share_file('ceco_controller', f'config/{exe}.yaml')],
-        params=params,
-    )
+    proc = supervisor.stack_node(exe, env=env, log_dir=log_dir, params=params)
     context, node = _make_node('ceco_play', domain)
     new = {}
     got = threading.Condition()

@@ -268,28 +268,11 @@ def run_one(
     )
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
 
-    ctrl_exe = ('ceco_controller', 'baseline_node') if strategy == 'baseline' else ('ceco_controller', 'mpc_node')
+    ctrl_exe = 'baseline_node' if strategy == 'baseline' else 'mpc_node'
     ns = args.namespace  # '' or '/veh1': nodes, relative topics and the recorder under it
     procs = {
-        'preview_node': supervisor.NodeProcess(
-            'preview_node',
-            'ceco_v2x_preview',
-            'preview_node',
-            env=env,
-            log_dir=log_dir,
-            namespace=ns,
-            params_files=[supervisor.share_file('ceco_v2x_preview', 'config/preview_node.yaml')],
-            params=p_prev,
-        ),
-        'controller': supervisor.NodeProcess(
-            ctrl_exe[1],
-            *ctrl_exe,
-            env=env,
-            log_dir=log_dir,
-            namespace=ns,
-            params_files=[supervisor.share_file('ceco_controller', f'config/{ctrl_exe[1]}.yaml')],
-            params=p_ctrl,
-        )
+        'preview_node': supervisor.stack_node('preview_node', env=env, log_dir=log_dir, namespace=ns, params=p_prev),
+        'controller': supervisor.stack_node(ctrl_exe, env=env, log_dir=log_dir, namespace=ns, params=p_ctrl)
         if controller_cmd is None
         else supervisor.NodeProcess(
             'external_controller',
@@ -299,16 +282,7 @@ def run_one(
             log_dir=log_dir,
             command=controller_cmd,
         ),
-        'plant_node': supervisor.NodeProcess(
-            'plant_node',
-            'ceco_plant_sim',
-            'plant_node',
-            env=env,
-            log_dir=log_dir,
-            namespace=ns,
-            params_files=[supervisor.share_file('ceco_plant_sim', 'config/plant_node.yaml')],
-            params=p_plant,
-        ),
+        'plant_node': supervisor.stack_node('plant_node', env=env, log_dir=log_dir, namespace=ns, params=p_plant),
     }
     custom = {
         'scenario': scenario.name,
@@ -361,7 +335,7 @@ def run_one(
         # publisher, created in configure.
         if controller_cmd is None:
             lifecycle = supervisor.configure_and_activate(
-                context, executor, f'{ns}/{ctrl_exe[1]}', args.startup_timeout_s, stop, procs
+                context, executor, f'{ns}/{ctrl_exe}', args.startup_timeout_s, stop, procs
             )
         supervisor.wait_for(
             lambda: recorder.first_state_wall is not None,

@@ -168,6 +168,32 @@ def share_file(package: str, relpath: str) -> str:
     raise FileNotFoundError(f'share/{package}/{relpath} not found on AMENT_PREFIX_PATH')
 
 
+STACK_NODES = {
+    'preview_node': 'ceco_v2x_preview',
+    'mpc_node': 'ceco_controller',
+    'baseline_node': 'ceco_controller',
+    'plant_node': 'ceco_plant_sim',
+}
+"""The stack's executables and their packages (the launch file's ``NODES``; tests/test_launch.py checks they agree)."""
+
+
+def stack_node(
+    executable: str, *, env: dict, log_dir: Path, params: dict | None = None, namespace: str | None = None, name=None
+) -> NodeProcess:
+    """A :class:`NodeProcess` of one of the :data:`STACK_NODES` with its installed ``config/<executable>.yaml``."""
+    package = STACK_NODES[executable]
+    return NodeProcess(
+        name or executable,
+        package,
+        executable,
+        env=env,
+        log_dir=log_dir,
+        namespace=namespace,
+        params_files=[share_file(package, f'config/{executable}.yaml')],
+        params=params,
+    )
+
+
 class NodeProcess:
     """One node executable as a child process."""
 
