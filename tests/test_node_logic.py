@@ -10,6 +10,7 @@ from types import SimpleNamespace as NS
 
 import numpy as np
 import pytest
+from observations import KEY_ON_STATE
 
 from ceco_controller.controller_io import (
     ControllerInputs,
@@ -35,19 +36,7 @@ def state(t_s: float, n: int | None = None, stamp_s: float | None = None, **over
         header=NS(stamp=stamp(t_s if stamp_s is None else stamp_s)),
         step_index=int(t_s) if n is None else n,
         scenario_time_s=t_s,
-        t_cab_c=45.0,
-        t_int_c=50.0,
-        t_shell_c=55.0,
-        t_glass_c=55.0,
-        t_evap_c=45.0,
-        t_vent_c=45.0,
-        rh_cab=0.2,
-        t_amb_c=35.0,
-        solar_wm2=800.0,
-        rh=0.4,
-        speed_mps=10.0,
-        mdot_bl_kgps=0.17,
-        t_evap_sp_c=3.0,
+        **KEY_ON_STATE,
         fallback=False,
     )
     for key, value in override.items():

@@ -4,36 +4,15 @@ import math
 
 import numpy as np
 import pytest
+from observations import observation
 
-from ceco_core.contracts import Observation
 from ceco_core.observation_check import ObservationLimits, check_observation
 
 N1 = 4
 
 
 def _obs(**kw):
-    d = dict(
-        k=3,
-        t_s=15.0,
-        t_cab_c=28.0,
-        t_int_c=40.0,
-        t_shell_c=38.0,
-        t_evap_c=6.0,
-        t_vent_c=9.0,
-        t_amb_c=35.0,
-        solar_wm2=800.0,
-        speed_mps=10.0,
-        mdot_bl_prev_kgps=0.1,
-        t_evap_sp_prev_c=5.0,
-        preview_t_amb_c=np.full(N1, 35.0),
-        preview_solar_wm2=np.full(N1, 800.0),
-        preview_speed_mps=np.full(N1, 10.0),
-        preview_valid=np.ones(N1, bool),
-        pmv_lb=np.full(N1, -0.5),
-        pmv_ub=np.full(N1, 0.5),
-    )
-    d.update(kw)
-    return Observation(**d)
+    return observation(N1, **{'k': 3, 't_s': 15.0, **kw})
 
 
 def test_a_plausible_observation_has_no_problem():

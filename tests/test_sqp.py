@@ -2,36 +2,17 @@
 
 import numpy as np
 import pytest
+from observations import observation
 
 from ceco_controller.nlp_layout import ParamLayout, RowLayout, VariableLayout
 from ceco_controller.nmpc import NmpcController
 from ceco_controller.strategies import SolverSettings, strategy_settings
-from ceco_core.contracts import Observation
 
 N1 = 7
 
 
 def _obs(k=0, t_cab=27.0, speed=10.0):
-    return Observation(
-        k=k,
-        t_s=5.0 * k,
-        t_cab_c=t_cab,
-        t_int_c=40.0,
-        t_shell_c=38.0,
-        t_evap_c=6.0,
-        t_vent_c=9.0,
-        t_amb_c=35.0,
-        solar_wm2=800.0,
-        speed_mps=speed,
-        mdot_bl_prev_kgps=0.1,
-        t_evap_sp_prev_c=5.0,
-        preview_t_amb_c=np.full(N1, 35.0),
-        preview_solar_wm2=np.full(N1, 800.0),
-        preview_speed_mps=np.full(N1, speed),
-        preview_valid=np.ones(N1, bool),
-        pmv_lb=np.full(N1, -0.5),
-        pmv_ub=np.full(N1, 0.5),
-    )
+    return observation(N1, k, t_cab=t_cab, speed=speed)
 
 
 def _optimum_hessians(strategy, steps=6):

@@ -238,24 +238,14 @@ def _check_lockstep_bag(bag, n_steps: int, dt_s: float = 1.0):
 
 # ----------------------------------------------------------------------------
 def _state_msg(k_plant: int, t_s: float, **override):
+    from observations import KEY_ON_STATE
+
     from ceco_msgs.msg import CabinState
 
     m = CabinState(
         step_index=k_plant,
         scenario_time_s=t_s,
-        t_cab_c=45.0,
-        t_int_c=50.0,
-        t_shell_c=55.0,
-        t_glass_c=55.0,
-        t_evap_c=45.0,
-        t_vent_c=45.0,
-        rh_cab=0.2,
-        t_amb_c=35.0,
-        solar_wm2=800.0,
-        rh=0.4,
-        speed_mps=10.0,
-        mdot_bl_kgps=0.17,
-        t_evap_sp_c=3.0,
+        **KEY_ON_STATE,
     )
     m.header.stamp = conversions.stamp_from_s(t_s if math.isfinite(t_s) and 0 <= t_s < 2**31 else 0.0)
     for key, value in override.items():
