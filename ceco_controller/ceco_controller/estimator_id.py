@@ -52,6 +52,8 @@ from .identification import (
     VALIDATION_DRIVES,
     ExcitationSettings,
     generate_excitation,
+    print_fit,
+    round_floats,
 )
 
 __all__ = [
@@ -412,10 +414,6 @@ def replay_errors(rep: dict, after_s: float = 120.0) -> dict:
     return out
 
 
-def _round(d: dict) -> dict:
-    return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in d.items()}
-
-
 def main(argv=None) -> int:
     """CLI: (re)generate the data, fit E1-E5, validate, write the parameter file."""
     ap = argparse.ArgumentParser(
@@ -450,7 +448,7 @@ def main(argv=None) -> int:
     ekf = {}
     for name, data in (("training", train), ("validation", valid)):
         rep = replay(data, est.CabinStateEstimator(mp, q, control_period_s=mp.ts_s))
-        ekf[name] = _round(replay_errors(rep))
+        ekf[name] = round_floats(replay_errors(rep))
     offsets = {}
     for sensor, off in SENSOR_OFFSETS:
         rep = replay(
@@ -461,8 +459,8 @@ def main(argv=None) -> int:
         e = replay_errors(rep)
         offsets[f"{sensor}{off:+g}"] = [round(e[f"{n}_rmse_after_120s_k"], 4) for n in ("t_int", "t_shell", "t_glass")]
     report = {
-        "model_errors_training": _round(err_train),
-        "model_errors_validation": _round(err_valid),
+        "model_errors_training": round_floats(err_train),
+        "model_errors_validation": round_floats(err_valid),
         "filter_replay_default_prior": ekf,
         "filter_replay_validation_sensor_offsets_rmse_after_120s_k_int_shell_glass": offsets,
     }
@@ -474,13 +472,7 @@ def main(argv=None) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     est.save_estimator_params(q, out, header=header, extra={"fit_report": report})
     print(f"wrote {out}")
-    for k, v in q.to_dict().items():
-        if k != "provenance":
-            print(f"  {k:26s} {v: .6g}")
-    for name, rep_ in report.items():
-        print(name)
-        for k, v in rep_.items():
-            print(f"  {k:32s} {v}")
+    print_fit(q.to_dict(), report, width=26)
     return 0
 
 

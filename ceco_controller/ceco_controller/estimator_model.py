@@ -172,11 +172,7 @@ def save_estimator_params(
 ) -> None:
     """Write the parameters (and optional extra mappings, e.g. the fit report) as YAML."""
     params.validate()
-    doc = {"params": params.to_dict(), **(extra or {})}
-    text = yaml.safe_dump(doc, sort_keys=False, default_flow_style=False)
-    if header:
-        text = "".join(f"# {line}\n" if line else "#\n" for line in header.splitlines()) + text
-    pathlib.Path(path).write_text(text, encoding="utf-8")
+    cm.write_params_yaml(params.to_dict(), path, header, extra)
 
 
 @dataclasses.dataclass(frozen=True)

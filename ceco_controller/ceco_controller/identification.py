@@ -368,8 +368,20 @@ def prediction_errors(p: cm.ControlModelParams, iv: dict, horizon_steps: int = 6
     }
 
 
-def _round_floats(d):
+def round_floats(d: dict) -> dict:
+    """A fit-report mapping with its floats rounded to 6 decimals (for the parameter file)."""
     return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in d.items()}
+
+
+def print_fit(params: dict, report: dict, width: int = 24) -> None:
+    """Print the identified parameters (without their provenance) and the fit report."""
+    for k, v in params.items():
+        if k != "provenance":
+            print(f"  {k:{width}s} {v: .6g}")
+    for name, rep in report.items():
+        print(name)
+        for k, v in rep.items():
+            print(f"  {k:32s} {v}")
 
 
 def main(argv=None) -> int:
@@ -429,10 +441,10 @@ def main(argv=None) -> int:
     rep_train = prediction_errors(params, iv_train, args.horizon)
     rep_valid = prediction_errors(params, iv_valid, args.horizon)
     report = {
-        "eta_ac_fit": _round_floats(eta_report),
-        "fit_residuals_training": _round_floats(resid),
-        "prediction_training": _round_floats(rep_train),
-        "prediction_validation": _round_floats(rep_valid),
+        "eta_ac_fit": round_floats(eta_report),
+        "fit_residuals_training": round_floats(resid),
+        "prediction_training": round_floats(rep_train),
+        "prediction_validation": round_floats(rep_valid),
     }
     header = (
         "Identified control-oriented model (ceco_controller/model.py), GENERATED - do not edit.\n"
@@ -442,13 +454,7 @@ def main(argv=None) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     cm.save_params(params, out, header=header, extra={"fit_report": report})
     print(f"wrote {out}")
-    for k, v in params.to_dict().items():
-        if k != "provenance":
-            print(f"  {k:24s} {v: .6g}")
-    for name, rep in report.items():
-        print(name)
-        for k, v in rep.items():
-            print(f"  {k:32s} {v}")
+    print_fit(params.to_dict(), report)
     return 0
 
 

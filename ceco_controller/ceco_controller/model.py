@@ -217,6 +217,14 @@ def save_params(
 ) -> None:
     """Write the parameters (and optional extra mappings, e.g. the fit report) as YAML."""
     params.validate()
+    write_params_yaml(params.to_dict(), path, header, extra)
+
+
+def write_params_yaml(params: dict, path: str | pathlib.Path, header: str = "", extra: dict | None = None) -> None:
+    """An identified parameter file: ``params: {name: value}`` and ``extra``, under ``header`` as '# ' lines.
+
+    numpy scalars are written as plain numbers. Used by this model's and the estimator's files.
+    """
 
     def plain(v):
         if isinstance(v, dict):
@@ -225,7 +233,7 @@ def save_params(
             return v.item()
         return v
 
-    doc = {"params": plain(params.to_dict())}
+    doc = {"params": plain(params)}
     if extra:
         doc.update(plain(extra))
     text = yaml.safe_dump(doc, sort_keys=False, default_flow_style=False)
