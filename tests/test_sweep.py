@@ -142,7 +142,7 @@ def test_failed_cell_is_recorded_and_retried(tmp_path, monkeypatch):
     assert row['status'] == 'error' and 'preview quality' in row['error']
     assert math.isnan(row['sim_time_s'])
     log = tmp_path / 'cells.jsonl'
-    sweep._append_row(log, row)
+    sweep.append_row(log, row)
     assert sweep.read_done(log) == {}  # errors are retried
 
 

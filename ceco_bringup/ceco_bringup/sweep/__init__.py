@@ -54,7 +54,7 @@ any picklable cell function, also used by ``ceco benchmark``), :mod:`.summary`
 from ceco_bringup.figures import front_figure
 
 from . import backends, cells, grid, summary
-from .backends import WORKER_THREAD_ENV, _append_row, read_done, run_local, run_ray
+from .backends import WORKER_THREAD_ENV, append_row, read_done, run_local, run_ray
 from .cells import METRIC_COLUMNS, TIMING_COLUMNS, Cell, cell_id, code_fingerprint, run_cell, runtime_overrides
 from .cli import main, run_sweep, verify_cells
 from .grid import (
@@ -103,5 +103,5 @@ __all__ = [
     'cells',
     'grid',
     'summary',
-    '_append_row',
+    'append_row',
 ]

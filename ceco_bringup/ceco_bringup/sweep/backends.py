@@ -38,7 +38,7 @@ def read_done(log_path: str | os.PathLike) -> dict:
     return done
 
 
-def _append_row(log_path: Path, row: Mapping) -> None:
+def append_row(log_path: Path, row: Mapping) -> None:
     """Append one JSON line atomically: one write() on an O_APPEND fd, fsync."""
     data = (json.dumps(row, allow_nan=True, separators=(',', ':')) + '\n').encode('utf-8')
     fd = os.open(log_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
@@ -150,7 +150,3 @@ def run_ray(items: Sequence, workers: int, address: str | None, on_done: Callabl
     finally:
         if started:
             ray.shutdown()
-
-
-append_row = _append_row
-"""Public name of the log's atomic append (``_append_row``)."""

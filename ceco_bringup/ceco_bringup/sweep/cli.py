@@ -15,7 +15,7 @@ import numpy as np
 
 from . import backends
 from . import cells as cells_mod
-from .backends import _append_row, read_done
+from .backends import append_row, read_done
 from .cells import METRIC_COLUMNS, TIMING_COLUMNS
 from .grid import AXES, GridError, expand_grid, load_grid
 from .summary import _settings_of, _write_parquet, _write_table, point_name, summarize, summary_markdown, vehicle_rows
@@ -77,7 +77,7 @@ def run_sweep(
     new_rows: list = []
 
     def on_done(row):
-        _append_row(log_path, row)
+        append_row(log_path, row)
         new_rows.append(row)
         if row['status'] != 'ok':
             log(
