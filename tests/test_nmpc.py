@@ -2,6 +2,7 @@
 
 import dataclasses
 
+import casadi
 import numpy as np
 import pytest
 from observations import observation
@@ -311,6 +312,16 @@ def test_cold_solves_use_the_multiple_shooting_nlp():
     assert d1.success and d2.success
     assert d1.cost_total == pytest.approx(d2.cost_total, rel=1e-9)
     assert (c1.mdot_bl_kgps, c1.t_evap_sp_c) == pytest.approx((c2.mdot_bl_kgps, c2.t_evap_sp_c), rel=1e-9)
+    # the mapped point, evaluated on the single-shooting NLP's own functions (not the IPOPT solve that
+    # produced it): feasible, its objective the reported cost, and its first input the command
+    prob, w, p = ss.problem, ss._good.w, ss.last_nlp().p
+    nlp = casadi.Function("ss", [prob.nlp["x"], prob.nlp["p"]], [prob.nlp["f"], prob.nlp["g"]])
+    f, g = (np.array(v).ravel() for v in nlp(w, p))
+    assert w.size == prob.nw and prob.max_violation(w, g) <= 1e-6
+    assert float(f[0]) == pytest.approx(d1.cost_total, rel=1e-9)
+    ev = ss.evaluate(w, p)
+    assert ev.J_e + ev.J_c + ev.J_i + ev.J_s + ev.J_du == pytest.approx(d1.cost_total, rel=1e-9)
+    assert tuple(prob.plan(w)[0]) == pytest.approx((c1.mdot_bl_kgps, c1.t_evap_sp_c), abs=1e-6)  # clipped to the bound
     # the mapped primal-dual point warm-starts the SQP at once
     c1, d1 = ss.compute(_obs(1, t_cab=29.8))
     assert d1.success and ss.n_ipopt_fallbacks == 0 and d1.status == "Solve_Succeeded"
