@@ -337,7 +337,8 @@ def test_snapshot_does_not_advance(sc03):
 
 
 def test_moisture_balance_conserves_water(sc03):
-    """inflow - outflow - condensate = storage change of the cabin air's water, over a whole run."""
+    """inflow - outflow - condensate = storage change of the cabin air's water, over a whole run (the
+    integration's bookkeeping; the flows themselves: the dry-coil steady-state test below)."""
     plant = _plant(sc03)
     m_air = plant.params.rho_air_kgm3 * plant.params.cabin_volume_m3  # dry-air mass of the cabin [kg]
     w0 = plant.state.w_cab_kgkg
@@ -355,6 +356,27 @@ def test_moisture_balance_conserves_water(sc03):
     assert abs(water_in - water_out - condensate - storage) <= 1e-6 * scale
     # the outputs report the same cabin humidity the state holds
     assert out.w_cab_kgkg == plant.state.w_cab_kgkg
+
+
+def test_dry_coil_steady_humidity_is_the_fresh_air_and_occupant_balance(sc03):
+    """An independent check of the moisture terms (the conservation test above holds for any flow
+    formula): with the coil above the dew point nothing condenses, and the cabin settles where the
+    occupants' moisture is carried away by the fresh air, W_cab = W_amb + n L_occ / (h_fg m_fresh),
+    m_fresh = (1 - r) mdot + m_inf (W of the ambient air: ceco_core.psychro.humidity_ratio)."""
+    from ceco_core import psychro
+
+    p = PlantParams()
+    plant = _plant(sc03, p)
+    env = _env(t_amb_c=30.0, solar_wm2=0.0, speed_mps=0.0, rh=0.15)  # dew point ~1 degC, coil >= 10 degC
+    u = AcInput(mdot_bl_kgps=0.1, t_evap_sp_c=10.0)
+    for _ in range(6000):
+        out = plant.step(u, env, 1.0)
+    assert out.m_condensate_kg == 0.0
+    w_amb = float(psychro.humidity_ratio(env.t_amb_c, env.rh, p.p_atm_pa))
+    fresh = (1.0 - p.recirc_fraction) * u.mdot_bl_kgps + p.infiltration_0_kgps
+    w_expect = w_amb + p.n_occupants * p.occ_latent_w / (p.h_fg_jpkg * fresh)
+    assert w_expect > w_amb * 1.05  # the occupants' share is visible
+    assert plant.state.w_cab_kgkg == pytest.approx(w_expect, rel=1e-4)
 
 
 def test_duct_mass_delays_the_vent_air(sc03):
