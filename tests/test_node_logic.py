@@ -613,6 +613,23 @@ def test_plant_loop_realtime_input_choice():
     assert loop.fallback.n_entered == 3 and loop.fallback.n_fallback_periods == 4
 
 
+def test_control_step_grid_of_plant_times():
+    """The control step of a time n * dt, with its float rounding (0.01 * 30 = 0.30000000000000004,
+    0.3 / 0.1 = 2.9999999999999996): the same step as the plant's integer count n // m, for every
+    plant step and control period the parameter tables allow here."""
+    from ceco_core.control_grid import control_step_index, control_step_of
+
+    assert int(0.01 * 30 // 0.1) == 2  # the floor division the nodes used: one step behind
+    assert control_step_of(0.01 * 30, 0.1) == 3
+    for dt, ts in ((0.01, 0.1), (0.1, 0.3), (0.2, 1.0), (0.5, 2.0), (1.0, 5.0), (0.05, 0.15)):
+        m = round(ts / dt)
+        for n in range(0, 40 * m):
+            t = n * dt
+            assert control_step_of(t, ts) == n // m, (dt, ts, n)
+            assert control_step_index(t, ts) == (n // m if n % m == 0 else None), (dt, ts, n)
+    assert control_step_of(14.999, 5.0) == 2 and control_step_of(15.0, 5.0) == 3
+
+
 def test_plant_health():
     from ceco_plant_sim.plant_io import CommandPolicy, plant_health
 

@@ -11,12 +11,11 @@ Pure logic: message objects are read by attribute only (ceco_msgs messages in th
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable
 from typing import Any
 
 import ceco_ros.checks as checks
-from ceco_core.control_grid import control_step_index
+from ceco_core.control_grid import control_step_index, control_step_of
 from ceco_core.sequencing import LockstepBuffer, SequenceGate
 from ceco_core.supervision import Health, Rejections, reason_kind
 from ceco_ros.topics import TOPIC_STATE, TOPIC_TRAFFIC, TOPIC_WEATHER
@@ -226,7 +225,7 @@ class ControllerInputs:
         return self.rt_due and state is not None and (self.last_rt_k is None or self._k(state) > self.last_rt_k)
 
     def _k(self, state) -> int:
-        return int(math.floor(state.scenario_time_s / self.cfg.control_period_s + 1e-9))
+        return control_step_of(state.scenario_time_s, self.cfg.control_period_s)
 
     def ages_s(self, wall_s: float) -> dict[str, float | None]:
         """Wall-clock age of each input's last accepted message [s] (None: none yet)."""

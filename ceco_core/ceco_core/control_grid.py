@@ -7,7 +7,9 @@ steps. Pure logic: no rclpy, no message types.
 
 from __future__ import annotations
 
-__all__ = ["control_step_index", "TIMING_MODES"]
+import math
+
+__all__ = ["control_step_index", "control_step_of", "TIMING_MODES"]
 
 TIMING_MODES = ("lockstep", "realtime")
 """The nodes' timing modes: deterministic lockstep on /clock, or wall-clock timers."""
@@ -20,3 +22,12 @@ def control_step_index(t_s: float, control_period_s: float) -> int | None:
     """Index k of the control step at ``t_s`` = k * Ts [s], or None when ``t_s`` lies between control steps."""
     k = int(round(t_s / control_period_s))
     return k if abs(t_s - k * control_period_s) <= GRID_TOL * control_period_s else None
+
+
+def control_step_of(t_s: float, control_period_s: float) -> int:
+    """Index k of the control step that ``t_s`` belongs to, t_k <= t_s < t_(k+1) [-].
+
+    ``t_s`` = n * dt carries float rounding (0.01 * 30 / 0.1 = 2.9999999999999996): a time within
+    :data:`GRID_TOL` * Ts below t_(k+1) counts as t_(k+1), as in :func:`control_step_index`.
+    """
+    return math.floor(t_s / control_period_s + GRID_TOL)

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 import ceco_ros.checks as checks
-from ceco_core.control_grid import TIMING_MODES
+from ceco_core.control_grid import TIMING_MODES, control_step_of
 from ceco_core.supervision import FallbackSupervisor, Health, Rejections, Watchdog, reason_kind
 from ceco_ros.params import DIAGNOSTICS_PERIOD_PARAMETER, SHARED_FIELDS, NodeConfig, ParamSpec, log_throttle_parameter
 from ceco_ros.topics import TOPIC_COMMAND
@@ -172,7 +172,9 @@ class CommandPolicy:
         """Accepted commands marked fallback=true [-]."""
         self.last_fallback_flag = False
         self._published: dict[tuple[int, int], float] = {}  # realtime: state stamp -> scenario time [s]
-        steps_per_period = max(1, round(cfg.control_period_s / cfg.plant_dt_s))
+        from .scenario_plant import steps_per_control
+
+        steps_per_period = steps_per_control(cfg.control_period_s, cfg.plant_dt_s)
         self._keep = (self.cfg.max_lag_steps + 2) * steps_per_period
 
     def published(self, stamp, t_s: float) -> None:
@@ -211,7 +213,7 @@ class CommandPolicy:
                 f'header.stamp={checks.stamp_s(msg.header.stamp):.9g} s is not the stamp of a recent '
                 'cabin/state of this plant'
             )
-        k_state = int(math.floor(t_s / cfg.control_period_s + 1e-9))
+        k_state = control_step_of(t_s, cfg.control_period_s)
         if k != k_state:
             return f'step_index {k} is not the control step {k_state} of the state it is stamped with'
         if k < k_now - cfg.max_lag_steps:
@@ -239,7 +241,7 @@ def plant_health(
     real time); None: none yet.
     """
     h = Health().set('timing', cfg.timing).set('plant_step', n).set('t_s', t_s)
-    h.set('control_step', n * cfg.plant_dt_s // cfg.control_period_s)
+    h.set('control_step', control_step_of(t_s, cfg.control_period_s))
     if finished:
         h.set('state', 'finished')
     elif not started:

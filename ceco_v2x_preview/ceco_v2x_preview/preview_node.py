@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from rclpy.node import Node
 
-from ceco_core.control_grid import control_step_index
+from ceco_core.control_grid import control_step_index, control_step_of
 from ceco_msgs.msg import CabinState, TrafficPreview, WeatherPreview
 from ceco_ros import conversions, interfaces, params
 from ceco_ros.diagnostics import DiagnosticsTimer
@@ -76,7 +76,7 @@ class PreviewNode(NodeTools, Node):
     def _on_timer(self) -> None:
         t_s = self.inputs.gate.last
         if t_s is not None:
-            self._publish(int(t_s // self.config.control_period_s), t_s, self.get_clock().now().to_msg())
+            self._publish(control_step_of(t_s, self.config.control_period_s), t_s, self.get_clock().now().to_msg())
 
     def _publish(self, k: int, t0_s: float, stamp) -> None:
         try:
