@@ -94,6 +94,9 @@ def test_evaluate_cabin_comfort_series():
     assert bool(c.iso7730_valid)
     paper = cc.evaluate_cabin_comfort(**meas, mdot_bl_kgps=0.113, solar_wm2=650.0, params=params, pa_pa=cc.PAPER_PA_PA)
     assert float(paper.pmv) - float(c.pmv) == pytest.approx(0.19, abs=0.05)
+    # the scored constant is the PMV's only: dew point and fog margin stay the cabin air's
+    assert float(paper.pa_pa) == cc.PAPER_PA_PA
+    assert (float(paper.t_dew_c), float(paper.fog_margin_k)) == (float(c.t_dew_c), float(c.fog_margin_k))
     # a hot-soaked cabin is computed and flagged outside ISO 7730
     hot = cc.evaluate_cabin_comfort(
         t_cab_c=43.0,

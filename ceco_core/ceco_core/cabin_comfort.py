@@ -269,14 +269,14 @@ def evaluate_cabin_comfort(
 ):
     """Every comfort series from the plant's measurements (numpy; used by the plant and the metrics).
 
-    ``pa_pa`` defaults to the cabin's vapour pressure rh_cab * p_ws(T_cab) (the plant's moisture
-    balance); pass :data:`PAPER_PA_PA` to score with the paper's constant.
+    ``pa_pa`` (the PMV's vapour pressure) defaults to the cabin's, rh_cab * p_ws(T_cab) (the plant's
+    moisture balance); pass :data:`PAPER_PA_PA` to score with the paper's constant. The dew point
+    and fog margin are always the cabin air's (a scored constant does not wet the windscreen).
     """
     params.validate()
     t_cab = np.asarray(t_cab_c, dtype=float)
-    if pa_pa is None:
-        pa_pa = psychro.vapour_pressure_pa(t_cab, np.asarray(rh_cab, dtype=float))
-    pa = np.asarray(pa_pa, dtype=float)
+    pa_cab = psychro.vapour_pressure_pa(t_cab, np.asarray(rh_cab, dtype=float))
+    pa = pa_cab if pa_pa is None else np.asarray(pa_pa, dtype=float)
     air = occupant_air(
         t_cab_c=t_cab,
         t_vent_c=np.asarray(t_vent_c, dtype=float),
@@ -301,7 +301,7 @@ def evaluate_cabin_comfort(
         w_rad_wm2=w_rad,
         smoothing=params.smoothing,
     )
-    t_dew = psychro.dew_point_c(pa)
+    t_dew = psychro.dew_point_c(pa_cab)
     valid = iso7730_validity(air.ta_occ_c, t_mr, air.vel_occ_mps, pa, params.met, params.clo, y).all
     dr = draught_rating(air.ta_dr_c, air.vel_dr_mps, params.air.tu_pct, smoothing=DR_EXACT)
     return OccupantComfort(

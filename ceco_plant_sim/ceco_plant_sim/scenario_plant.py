@@ -27,7 +27,6 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from ceco_core import psychro
 from ceco_core.cabin_comfort import ComfortParams, OccupantComfort, comfort_params_for, evaluate_cabin_comfort
 from ceco_core.contracts import MDOT_BL_MAX_KGPS, MEASUREMENTS, T_EVAP_SP_MIN_C, AcInput
 from ceco_core.overrides import with_overrides
@@ -208,9 +207,6 @@ class ScenarioPlant:
             params=self.comfort,
             pa_pa=self.scored_pa_pa,
         )
-        if self.scored_pa_pa is not None:  # fixed p_a in the score only: dew point from the plant's humidity
-            t_dew = psychro.dew_point_c(psychro.vapour_pressure_pa(meas["t_cab_c"], meas["rh_cab"]))
-            c = dataclasses.replace(c, t_dew_c=t_dew, fog_margin_k=meas["t_glass_c"] - t_dew)
         c = OccupantComfort(
             **{
                 f.name: (bool(getattr(c, f.name)) if f.name == "iso7730_valid" else float(getattr(c, f.name)))
