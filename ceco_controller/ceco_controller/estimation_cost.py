@@ -34,6 +34,7 @@ import time
 
 import numpy as np
 
+from ceco_core import kpis
 from ceco_core.kpis import pmv_band_distance
 
 from . import estimator as est
@@ -61,10 +62,12 @@ CASES = ("sc03", "sc03_mild", "udds", "hwfet", "us06", "sc03_hotsoak")
 
 
 def discomfort_pmvh(t_s, pmv) -> float:
-    """Time integral of the distance of PMV outside [-0.5, 0.5] (PMV clipped to +-3) [PMV h]."""
+    """Time integral of the distance of PMV outside [-0.5, 0.5] (PMV clipped to +-3) [PMV h].
+
+    :func:`ceco_core.kpis.discomfort_pmvh` on the run's uniform series.
+    """
     t = np.asarray(t_s, float)
-    dt = float(t[1] - t[0])
-    return float(np.sum(pmv_band_distance(pmv)) * dt / 3600.0)
+    return kpis.discomfort_pmvh(pmv_band_distance(pmv), float(t[1] - t[0]))
 
 
 class NaiveVehicleController:

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from ceco_core.contracts import MDOT_BL_MAX_KGPS, MDOT_BL_MIN_KGPS, T_EVAP_SP_MAX_C, T_EVAP_SP_MIN_C
 from ceco_core.metrics import (
     COMFORT_HOLD_S,
     J_PER_KWH,
@@ -32,6 +33,7 @@ __all__ = [
     "COMFORT_BAND_PMV",
     "ACTUATOR_RANGES",
     "compute_kpis",
+    "discomfort_pmvh",
     "pmv_band_distance",
     "band_phase",
     "actuator_travel",
@@ -41,7 +43,10 @@ __all__ = [
 COMFORT_BAND_PMV = (-0.5, 0.5)
 """ISO 7730:2005 category B comfort band of PMV [-]: the fixed band of the discomfort KPI."""
 
-ACTUATOR_RANGES = {"mdot_bl_kgps": 0.12, "t_evap_sp_c": 7.0}
+ACTUATOR_RANGES = {
+    "mdot_bl_kgps": MDOT_BL_MAX_KGPS - MDOT_BL_MIN_KGPS,
+    "t_evap_sp_c": T_EVAP_SP_MAX_C - T_EVAP_SP_MIN_C,
+}
 """Full range of each A/C input (0.05-0.17 kg/s, 3-10 degC): actuator travel is counted in strokes."""
 
 KPI_KEYS = (
@@ -122,6 +127,15 @@ def _column(columns: Mapping, key: str, n: int, notes: dict, why: str):
     return as_series(key, columns[key], n)
 
 
+def discomfort_pmvh(band_distance, dt_s: float) -> float:
+    """Thermal discomfort [PMV h], the time integral of ``band_distance``.
+
+    ``band_distance``: :func:`pmv_band_distance` per sample, uniform samples ``dt_s`` [s] apart
+    (as BOPTEST integrates its K h).
+    """
+    return float(np.sum(band_distance) * dt_s / 3600.0)
+
+
 def compute_kpis(
     columns: Mapping,
     *,
@@ -175,11 +189,11 @@ def compute_kpis(
     k["energy_paper_kwh"] = (e_comp + e_bl) / J_PER_KWH
     k["energy_kwh"] = (e_comp + e_bl + e_fan) / J_PER_KWH
     dist = pmv_band_distance(y, band)
-    k["discomfort_pmvh"] = float(np.sum(dist) * dt / 3600.0)
+    k["discomfort_pmvh"] = discomfort_pmvh(dist, dt)
     zone = band_phase(lb, ub, band)
     if zone.any():
         k["band_start_s"] = float(t[int(np.argmax(zone))] - t[0])
-        k["discomfort_band_pmvh"] = float(np.sum(dist[zone]) * dt / 3600.0)
+        k["discomfort_band_pmvh"] = discomfort_pmvh(dist[zone], dt)
         k["pmv_mean_band"] = float(np.mean(y[zone]))
     else:
         for key in ("band_start_s", "discomfort_band_pmvh", "pmv_mean_band"):
