@@ -44,6 +44,7 @@ import dataclasses
 import math
 
 from ceco_core import mathops, units
+from ceco_core.psychro import P_ATM_PA
 
 __all__ = [
     "R_DRY_AIR_JPKGK",
@@ -103,7 +104,7 @@ class OccupantAirParams:
     """Where the draught rating is evaluated: True, in the jet at the upper body (panel vents aimed at
     the occupant); False, in the recirculating cabin air (vents aimed away; then also set
     jet_body_fraction = 0)."""
-    p_atm_pa: float = 101325.0
+    p_atm_pa: float = P_ATM_PA
     """Pressure of the vent air for its density [Pa]."""
     k_smooth: float = 50.0
     """Sharpness of the smooth caps of phi and theta at 1 [-]; error <= ln2/k = 0.014."""

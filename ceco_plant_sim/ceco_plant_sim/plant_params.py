@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass, fields
 
 from ceco_core.cabin_comfort import GLAZING_TAU, SHELL_U_IN_WM2K
+from ceco_core.psychro import P_ATM_PA
 
 __all__ = ["PlantParams"]
 
@@ -30,7 +31,7 @@ class PlantParams:
     """Iteration cap of the refrigerant loop Newton solve [-] (RuntimeError beyond)."""
 
     # --- air ---------------------------------------------------------------
-    p_atm_pa: float = 101325.0
+    p_atm_pa: float = P_ATM_PA
     """Atmospheric pressure [Pa] (standard atmosphere, sea level)."""
     cp_air_jpkgk: float = 1006.0
     """Specific heat of dry air [J/(kg K)] (ASHRAE Fundamentals 2017, ch. 1)."""
