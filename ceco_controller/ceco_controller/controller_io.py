@@ -18,6 +18,7 @@ import ceco_ros.checks as checks
 from ceco_core.control_grid import control_step_index, control_step_of
 from ceco_core.sequencing import LockstepBuffer, SequenceGate
 from ceco_core.supervision import Health, Rejections, reason_kind
+from ceco_core.units import s_from_stamp
 from ceco_ros.topics import TOPIC_STATE, TOPIC_TRAFFIC, TOPIC_WEATHER
 
 __all__ = [
@@ -165,7 +166,7 @@ class ControllerInputs:
         if state is None:
             return None
         t, ts = state.scenario_time_s, self.cfg.control_period_s
-        start = checks.stamp_s(msg.start)
+        start = s_from_stamp(msg.start)
         if start > t + self.cfg.window_s:
             return f'future: starts at {start:.9g} s, beyond the latest state time {t:.9g} s + {self.cfg.window_s} s'
         if start + (len(msg.valid) - 1) * ts < t:
@@ -202,7 +203,7 @@ class ControllerInputs:
         state = self.latest['state']
         if state is None:
             return None, 'no valid cabin/state received yet'
-        age = clock_s - checks.stamp_s(state.header.stamp)
+        age = clock_s - s_from_stamp(state.header.stamp)
         if age > self.cfg.max_state_age_s:
             return None, f'the latest cabin/state is {age:.1f} s old (limit {self.cfg.max_state_age_s} s)'
         k = self._k(state)

@@ -20,6 +20,7 @@ __all__ = [
     "STAMP_MAX_S",
     "sec_nanosec_from_s",
     "s_from_sec_nanosec",
+    "s_from_stamp",
 ]
 
 ZERO_C_K = 273.15
@@ -86,3 +87,8 @@ def sec_nanosec_from_s(t_s: float) -> tuple[int, int]:
 def s_from_sec_nanosec(sec: int, nanosec: int) -> float:
     """Seconds from a stamp's (sec, nanosec) [s] (any object's fields: rclpy, rosbags)."""
     return sec + nanosec * 1e-9
+
+
+def s_from_stamp(stamp) -> float:
+    """Seconds [s] of a builtin_interfaces/Time (any object with ``sec`` and ``nanosec``)."""
+    return s_from_sec_nanosec(stamp.sec, stamp.nanosec)

@@ -17,6 +17,7 @@ from typing import Any
 import ceco_ros.checks as checks
 from ceco_core.control_grid import TIMING_MODES, control_step_of
 from ceco_core.supervision import FallbackSupervisor, Health, Rejections, Watchdog, reason_kind
+from ceco_core.units import s_from_stamp
 from ceco_ros.params import DIAGNOSTICS_PERIOD_PARAMETER, SHARED_FIELDS, NodeConfig, ParamSpec, log_throttle_parameter
 from ceco_ros.topics import TOPIC_COMMAND
 
@@ -210,7 +211,7 @@ class CommandPolicy:
         t_s = self._published.get((msg.header.stamp.sec, msg.header.stamp.nanosec))
         if t_s is None:
             return (
-                f'header.stamp={checks.stamp_s(msg.header.stamp):.9g} s is not the stamp of a recent '
+                f'header.stamp={s_from_stamp(msg.header.stamp):.9g} s is not the stamp of a recent '
                 'cabin/state of this plant'
             )
         k_state = control_step_of(t_s, cfg.control_period_s)

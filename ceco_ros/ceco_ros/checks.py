@@ -27,13 +27,12 @@ import math
 import numpy as np
 
 from ceco_core.contracts import MDOT_BL_MAX_KGPS, MDOT_BL_MIN_KGPS, T_EVAP_SP_MAX_C, T_EVAP_SP_MIN_C, WIRE_STRATEGIES
-from ceco_core.units import STAMP_MAX_S, s_from_sec_nanosec
+from ceco_core.units import STAMP_MAX_S, s_from_stamp
 
 __all__ = [
     'STATE_RANGES',
     'PREVIEW_RANGES',
     'COMMAND_RANGES',
-    'stamp_s',
     'check_stamp',
     'check_stamp_equals',
     'check_stamp_age',
@@ -86,11 +85,6 @@ PREVIEW_ARRAYS = {'weather': ('t_amb_c', 'solar_wm2', 'rh'), 'traffic': ('speed_
 """The sample arrays of each preview message (besides ``valid``)."""
 
 
-def stamp_s(stamp) -> float:
-    """Seconds of a builtin_interfaces/Time (any object with ``sec`` and ``nanosec``) [s]."""
-    return s_from_sec_nanosec(stamp.sec, stamp.nanosec)
-
-
 def check_stamp(name: str, stamp) -> str | None:
     """A stamp is well formed: 0 <= nanosec < 1e9 and 0 <= sec <= 2^31 - 1."""
     if not 0 <= stamp.nanosec < 1_000_000_000:
@@ -102,7 +96,7 @@ def check_stamp(name: str, stamp) -> str | None:
 
 def check_stamp_equals(name: str, stamp, t_s: float, tol_s: float = 1e-6) -> str | None:
     """Lockstep: the stamp is the scenario time ``t_s`` [s] it belongs to (within ``tol_s``)."""
-    s = stamp_s(stamp)
+    s = s_from_stamp(stamp)
     if abs(s - t_s) > tol_s:
         return f'{name}={s:.9g} s does not match the scenario time {t_s:.9g} s'
     return None
@@ -110,7 +104,7 @@ def check_stamp_equals(name: str, stamp, t_s: float, tol_s: float = 1e-6) -> str
 
 def check_stamp_age(name: str, stamp, now_s: float, max_age_s: float, max_ahead_s: float) -> str | None:
     """Real time: the stamp [s] lies in ``[now_s - max_age_s, now_s + max_ahead_s]`` of the node's clock."""
-    s = stamp_s(stamp)
+    s = s_from_stamp(stamp)
     if s > now_s + max_ahead_s:
         return f'{name}={s:.9g} s is {s - now_s:.3g} s ahead of the clock (limit {max_ahead_s} s)'
     if s < now_s - max_age_s:
@@ -197,7 +191,8 @@ def check_preview(msg, kind: str, n_expected: int, control_period_s: float) -> s
 def check_preview_pair(w, s) -> str | None:
     """The weather and traffic previews used together share their grid (start and length)."""
     if (w.start.sec, w.start.nanosec) != (s.start.sec, s.start.nanosec):
-        return f'weather and traffic previews start at different times ({stamp_s(w.start)} vs {stamp_s(s.start)} s)'
+        t_w, t_s = s_from_stamp(w.start), s_from_stamp(s.start)
+        return f'weather and traffic previews start at different times ({t_w} vs {t_s} s)'
     if len(w.valid) != len(s.valid):
         return f'weather and traffic previews have {len(w.valid)} and {len(s.valid)} samples'
     return None

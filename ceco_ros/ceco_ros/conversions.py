@@ -23,7 +23,7 @@ import numpy as np
 from builtin_interfaces.msg import Time
 
 from ceco_core.contracts import MEASUREMENTS, AcInput, Diagnostics, Previews
-from ceco_core.units import s_from_sec_nanosec, sec_nanosec_from_s
+from ceco_core.units import s_from_stamp, sec_nanosec_from_s
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort, ControllerDiagnostics, TrafficPreview, WeatherPreview
 
 __all__ = [
@@ -48,11 +48,6 @@ def stamp_from_s(t_s: float) -> Time:
     """builtin_interfaces/Time from seconds, exact to the nanosecond; ValueError outside [0, 2^31 - 1] s."""
     sec, nanosec = sec_nanosec_from_s(t_s)
     return Time(sec=sec, nanosec=nanosec)
-
-
-def s_from_stamp(stamp) -> float:
-    """Seconds [s] from a builtin_interfaces/Time (or any object with ``sec`` and ``nanosec``)."""
-    return s_from_sec_nanosec(stamp.sec, stamp.nanosec)
 
 
 # --- CabinState -------------------------------------------------------------------------------
