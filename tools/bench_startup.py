@@ -26,6 +26,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 REFERENCE = r"""
 import rclpy
@@ -161,17 +162,11 @@ def _feed(peer: Peer, pubs, stop: threading.Event) -> None:
 
 
 NODES = {
-    # name: (package, executable, output topic key, parameters, feeder)
-    'mpc_node': ('ceco_controller', 'mpc_node', 'command', {'strategy': 'ceco-ioch'}, _controller_inputs),
-    'baseline_node': ('ceco_controller', 'baseline_node', 'command', {}, _controller_inputs),
-    'plant_node': (
-        'ceco_plant_sim',
-        'plant_node',
-        'state',
-        {'lockstep.min_state_subscribers': 1, 'lockstep.min_command_subscribers': 1},
-        None,
-    ),
-    'preview_node': ('ceco_v2x_preview', 'preview_node', 'weather', {}, _preview_inputs),
+    # executable (ceco_bringup.supervisor.STACK_NODES): (output topic key, parameters, feeder)
+    'mpc_node': ('command', {'strategy': 'ceco-ioch'}, _controller_inputs),
+    'baseline_node': ('command', {}, _controller_inputs),
+    'plant_node': ('state', {'lockstep.min_state_subscribers': 1, 'lockstep.min_command_subscribers': 1}, None),
+    'preview_node': ('weather', {}, _preview_inputs),
 }
 
 
@@ -180,7 +175,7 @@ def run_node(name: str, domain: int, timeout_s: float, extra: dict | None = None
     from ceco_msgs.msg import AcCommand, CabinState, WeatherPreview
     from ceco_ros import interfaces
 
-    pkg, exe, out, params, feeder = NODES[name]
+    out, params, feeder = NODES[name]
     peer = Peer(domain)
     stop = threading.Event()
     topics = {
@@ -195,14 +190,8 @@ def run_node(name: str, domain: int, timeout_s: float, extra: dict | None = None
     threads = [threading.Thread(target=_drive_lifecycle, args=(peer, name, stop), daemon=True)]
     if feeder is not None:
         threads.append(threading.Thread(target=_feed, args=(peer, feeder(peer), stop), daemon=True))
-    cmd = [
-        supervisor.find_executable(pkg, exe),
-        '--ros-args',
-        '--params-file',
-        supervisor.share_file(pkg, f'config/{exe}.yaml'),
-    ]
-    for key, value in dict(params, **(extra or {})).items():
-        cmd += ['-p', f'{key}:={value}']
+    # the command line ceco run starts the node with (installed parameter file, then -p overrides)
+    cmd = supervisor.stack_node(name, env=peer.env, log_dir=Path('.'), params=dict(params, **(extra or {}))).cmd
     lines: list = []
     time.sleep(0.3)  # peers up and announced before the node starts
     t0 = time.monotonic()
