@@ -169,6 +169,23 @@ def test_missing_or_invalid_samples_give_finite_flagged_estimates(sensor):
     assert gap.max() < 1.5 and gap[rep["t_s"] >= 300.0].max() < 0.05
 
 
+def test_sensor_ranges_are_the_nmpc_observation_ranges():
+    """A sample means the same in both measurement modes: what check_observation finds implausible the
+    estimator counts as missing, and the rest is used (negative sun or speed at 0, as the NMPC clips)."""
+    from ceco_core.observation_check import OBSERVATION_LIMITS as lim
+
+    meas = {"t_cab_c": 40.0, "t_vent_c": 20.0, "t_evap_c": 10.0, "t_amb_c": 35.0, "solar_wm2": 800.0, "speed_mps": 10.0}
+    for name, (lo, hi) in (("solar_wm2", lim.solar_wm2), ("speed_mps", lim.speed_mps), ("t_amb_c", lim.ambient_c)):
+        for v, used in ((hi, True), (hi + 1.0, False), (lo, True), (lo - 1.0, False), (0.5 * (lo + hi), True)):
+            e = _estimator()
+            e.update(0.0, meas, (0.17, 3.0))
+            r = e.update(5.0, {**meas, name: v}, (0.17, 3.0))
+            assert (name not in r.missing) == used, (name, v)
+            if used and name != "t_amb_c":
+                assert getattr(r, name) == max(v, 0.0), (name, v)
+    assert lim.solar_wm2[1] > 1500.0  # the range the estimator used to have on its own: 0..1500 W/m2
+
+
 def test_invalid_previous_command_and_time_are_flagged_not_propagated():
     e = _estimator()
     meas = {"t_cab_c": 40.0, "t_vent_c": 20.0, "t_evap_c": 10.0, "t_amb_c": 35.0, "solar_wm2": 800.0, "speed_mps": 10.0}

@@ -89,6 +89,7 @@ import casadi
 import numpy as np
 
 from ceco_core.contracts import ACTUATOR_LIMITS, MEASUREMENT_MODES
+from ceco_core.observation_check import OBSERVATION_LIMITS
 
 from . import estimator_model as _estimator_model
 from . import model as cm
@@ -120,15 +121,18 @@ _N = len(ESTIMATED_STATES)
 _B = _N - 1  # index of b_vent
 
 _RANGES = {
-    "t_cab_c": (-40.0, 120.0),
-    "t_vent_c": (-40.0, 120.0),
-    "t_evap_c": (-40.0, 120.0),
-    "t_amb_c": (-40.0, 60.0),
-    "solar_wm2": (0.0, 1500.0),
-    "speed_mps": (0.0, 80.0),
-    "rh_cab": (0.0, 1.0),
+    "t_cab_c": OBSERVATION_LIMITS.temperature_c,
+    "t_vent_c": OBSERVATION_LIMITS.temperature_c,
+    "t_evap_c": OBSERVATION_LIMITS.temperature_c,
+    "t_amb_c": OBSERVATION_LIMITS.ambient_c,
+    "solar_wm2": OBSERVATION_LIMITS.solar_wm2,
+    "speed_mps": OBSERVATION_LIMITS.speed_mps,
+    "rh_cab": OBSERVATION_LIMITS.rh,
 }
-"""Physical range of each sensor (the plant's validity ranges); outside it a sample counts as missing."""
+"""Plausible range of each sensor: the NMPC's own (``ceco_core.observation_check``), so a sample
+means the same in both measurement modes; outside it a sample counts as missing."""
+_NON_NEGATIVE = ("solar_wm2", "speed_mps")
+"""Plausible but negative samples (sensor offsets, reverse) enter the model at 0, as in the NMPC."""
 
 
 # ---------------------------------------------------------------------------
@@ -275,25 +279,17 @@ class CabinStateEstimator:
         except (TypeError, ValueError):
             return None
         lo, hi = _RANGES[name]
-        return v if math.isfinite(v) and lo <= v <= hi else None
+        if not (math.isfinite(v) and lo <= v <= hi):
+            return None
+        return max(v, 0.0) if name in _NON_NEGATIVE else v
 
     def _command(self, u_prev, missing: list) -> tuple[float, float]:
-        lim = ACTUATOR_LIMITS
         try:
             m, sp = float(u_prev[0]), float(u_prev[1])
         except (TypeError, ValueError, IndexError):
             m = sp = math.nan
-        tol = 1e-6
-        if (
-            math.isfinite(m)
-            and math.isfinite(sp)
-            and lim.mdot_bl_min_kgps - tol <= m <= lim.mdot_bl_max_kgps + tol
-            and lim.t_evap_sp_min_c - tol <= sp <= lim.t_evap_sp_max_c + tol
-        ):
-            self._u_prev = (
-                min(max(m, lim.mdot_bl_min_kgps), lim.mdot_bl_max_kgps),
-                min(max(sp, lim.t_evap_sp_min_c), lim.t_evap_sp_max_c),
-            )
+        if ACTUATOR_LIMITS.contains(m, sp, tol=OBSERVATION_LIMITS.command_tol):
+            self._u_prev = ACTUATOR_LIMITS.clip(m, sp)
         else:
             missing.append("u_prev")
         return self._u_prev

@@ -471,13 +471,7 @@ class NmpcController:
     def _clip_checked(self, u) -> np.ndarray:
         if not self.chain.valid_command(u):
             raise AssertionError(f"internal error: command {u} outside the actuator bounds (tol {BOUND_TOL})")
-        lim = self.lim
-        return np.array(
-            [
-                min(max(u[0], lim.mdot_bl_min_kgps), lim.mdot_bl_max_kgps),
-                min(max(u[1], lim.t_evap_sp_min_c), lim.t_evap_sp_max_c),
-            ]
-        )
+        return np.array(self.lim.clip(u[0], u[1]))
 
     def _finish(self, diag: Diagnostics, cmd: np.ndarray, obs: Observation | None, ex: dict | None):
         if obs is not None and ex is not None:

@@ -34,12 +34,7 @@ def initial_guess(problem: NlpProblem, p: np.ndarray, w_prev: np.ndarray | None 
     else:
         w = np.zeros(vl.n)
         u_prev = pl.get(p, "u_prev")
-        u = np.array(
-            [
-                np.clip(u_prev[0], lim.mdot_bl_min_kgps, lim.mdot_bl_max_kgps),
-                np.clip(u_prev[1], lim.t_evap_sp_min_c, lim.t_evap_sp_max_c),
-            ]
-        )
+        u = np.array(lim.clip(u_prev[0], u_prev[1]))
         vl.set_blocks(w, "u", u)
         if s.ioch:
             vl.set_blocks(w, "eps", 0.5 * s.eps_ub)

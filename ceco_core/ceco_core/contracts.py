@@ -142,13 +142,20 @@ class ActuatorLimits:
         if not self.t_evap_sp_min_c < self.t_evap_sp_max_c:
             raise ValueError("ActuatorLimits.t_evap_sp_min_c must be < t_evap_sp_max_c")
 
-    def contains(self, mdot_bl_kgps: float, t_evap_sp_c: float) -> bool:
-        """True if the command is finite and inside the bounds (inclusive)."""
+    def contains(self, mdot_bl_kgps: float, t_evap_sp_c: float, tol: float = 0.0) -> bool:
+        """True if the command is finite and inside the bounds widened by ``tol`` (inclusive)."""
         return (
             math.isfinite(mdot_bl_kgps)
             and math.isfinite(t_evap_sp_c)
-            and self.mdot_bl_min_kgps <= mdot_bl_kgps <= self.mdot_bl_max_kgps
-            and self.t_evap_sp_min_c <= t_evap_sp_c <= self.t_evap_sp_max_c
+            and self.mdot_bl_min_kgps - tol <= mdot_bl_kgps <= self.mdot_bl_max_kgps + tol
+            and self.t_evap_sp_min_c - tol <= t_evap_sp_c <= self.t_evap_sp_max_c + tol
+        )
+
+    def clip(self, mdot_bl_kgps: float, t_evap_sp_c: float) -> tuple[float, float]:
+        """The command moved onto the bounds where it lies outside them [kg/s, degC]."""
+        return (
+            min(max(float(mdot_bl_kgps), self.mdot_bl_min_kgps), self.mdot_bl_max_kgps),
+            min(max(float(t_evap_sp_c), self.t_evap_sp_min_c), self.t_evap_sp_max_c),
         )
 
 
