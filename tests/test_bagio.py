@@ -283,17 +283,36 @@ def test_commands_and_diagnostics_loaders(tmp_path):
             )
         ),
     )
+    w.write(
+        '/controller/diagnostics',
+        3,
+        _ser(
+            _msg(
+                'ceco_msgs/msg/ControllerDiagnostics',
+                t=10.0,
+                step_index=2,
+                strategy='ceco-ioch',
+                status='Solve_Succeeded',
+                iterations=2,
+                solve_time_s=0.002,
+                fallback=True,
+                fallback_reason='shifted_plan: no usable solution',
+            )
+        ),
+    )
     w.close()
     c = bagio.load_commands(tmp_path / 'bag')
     assert c['k'].tolist() == [1] and c['t_s'].tolist() == [5.0]
     assert c['mdot_bl_kgps'].tolist() == [0.12] and c['t_evap_sp_c'].tolist() == [4.5]
     assert c['strategy'].tolist() == ['ceco-ioch'] and c['fallback'].tolist() == [True]
     d = bagio.load_diagnostics(tmp_path / 'bag')
-    assert d['solve_time_ms'].tolist() == pytest.approx([1.5])
+    assert d['solve_time_ms'].tolist() == pytest.approx([1.5, 2.0])
+    assert d['fallback'].tolist() == ['', 'shifted_plan']  # the kind, as the simulator's diagnostics.csv
     bagio.write_diagnostics_csv(tmp_path / 'diagnostics.csv', d)
     rows = list(csv.DictReader(open(tmp_path / 'diagnostics.csv')))
     assert list(rows[0])[: len(bagio.DIAGNOSTICS_COLUMNS)] == list(bagio.DIAGNOSTICS_COLUMNS)
     assert rows[0]['iterations'] == '' and rows[0]['cost_energy'] == '' and rows[0]['status'] == 'pi'
+    assert [r['fallback'] for r in rows] == ['', 'shifted_plan'] and rows[1]['iterations'] == '2'
 
 
 # --- names ---------------------------------------------------------------------------

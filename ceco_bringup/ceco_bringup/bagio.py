@@ -285,7 +285,8 @@ def load_diagnostics(bag_dir, namespace: str | None = None) -> dict[str, np.ndar
 
     Columns `k, t_s, status, success, iterations, solve_time_ms, cost_energy,
     cost_comfort, cost_ioch, eps_mean, fallback` (iterations -1 and NaN costs
-    where not applicable) plus `strategy` and `fallback_reason`.
+    where not applicable; ``fallback`` the kind: '', 'shifted_plan', 'baseline', as the
+    simulator writes it) plus `strategy` and `fallback_reason`.
     """
     cols = {c: [] for c in DIAGNOSTICS_COLUMNS + ('strategy', 'fallback_reason')}
     for _, _, m in read_messages(bag_dir, (TOPIC_DIAGNOSTICS,), namespace):
@@ -299,14 +300,15 @@ def load_diagnostics(bag_dir, namespace: str | None = None) -> dict[str, np.ndar
         cols['cost_comfort'].append(m.cost_comfort)
         cols['cost_ioch'].append(m.cost_ioch)
         cols['eps_mean'].append(m.eps_mean)
-        cols['fallback'].append(m.fallback)
+        # the contract's fallback kind ('', 'shifted_plan', 'baseline'), as diagnostics.csv of a simulated run
+        cols['fallback'].append(m.fallback_reason.partition(':')[0] if m.fallback else '')
         cols['strategy'].append(m.strategy)
         cols['fallback_reason'].append(m.fallback_reason)
     out = {}
     for c, v in cols.items():
-        if c in ('status', 'strategy', 'fallback_reason'):
+        if c in ('status', 'strategy', 'fallback', 'fallback_reason'):
             out[c] = np.asarray(v, dtype=str)
-        elif c in ('success', 'fallback'):
+        elif c == 'success':
             out[c] = np.asarray(v, dtype=bool)
         elif c in ('k', 'iterations'):
             out[c] = np.asarray(v, dtype=np.int64)

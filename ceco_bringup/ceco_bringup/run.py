@@ -433,8 +433,8 @@ def run_one(
     metrics.update(
         {
             'n_control_steps': int(diag['k'].size),
-            'n_fallback_shifted': int(sum(r.startswith('shifted_plan') for r in diag['fallback_reason'])),
-            'n_fallback_baseline': int(sum(r.startswith('baseline') for r in diag['fallback_reason'])),
+            'n_fallback_shifted': int(np.sum(diag['fallback'] == 'shifted_plan')),
+            'n_fallback_baseline': int(np.sum(diag['fallback'] == 'baseline')),
             'solve_time_median_ms': float(np.median(solve_ms)) if solve_ms.size else None,
             'solve_time_max_ms': float(np.max(solve_ms)) if solve_ms.size else None,
         }

@@ -56,18 +56,20 @@ _AMBIENT_REF_C = 25.0
 def _run(scenario, overrides: dict) -> dict:
     from ceco_controller.closed_loop import SimSettings, simulate
     from ceco_core.kpis import band_phase
+    from ceco_core.metrics import J_PER_KWH
 
     r = simulate(scenario, 'baseline', SimSettings(progress=False, strategy_overrides=tuple(sorted(overrides.items()))))
     ts = r.timeseries
     band = band_phase(ts['pmv_lb'], ts['pmv_ub'])
     e = ts['p_comp_w'] + ts['p_blower_w'] + ts['p_cond_fan_w']
+    j_per_kwh_sample = J_PER_KWH / float(ts['t_s'][1] - ts['t_s'][0])  # powers held over each plant step
     return {
         'pmv_band': float(np.mean(ts['pmv'][band])),
         'violation_pct': float(r.metrics['otc_violation_pct']),
-        'energy_band_kwh': float(np.sum(e[band])) / 3.6e6,
+        'energy_band_kwh': float(np.sum(e[band])) / j_per_kwh_sample,
         'solar_band_wm2': float(np.mean(ts['solar_wm2'][band])),
         't_amb_band_c': float(np.mean(ts['t_amb_c'][band])),
-        'energy_kwh': float(np.sum(e)) / 3.6e6,
+        'energy_kwh': float(np.sum(e)) / j_per_kwh_sample,
     }
 
 
