@@ -33,6 +33,7 @@ from ceco_v2x_preview.scenario import Scenario, load_scenario
 
 from . import model as cm
 from .estimating_controller import EstimatingController, with_measurements
+from .estimator import estimation_errors
 from .factory import make_controller
 from .observation import observation
 from .strategies import STRATEGIES
@@ -328,24 +329,19 @@ def _record_estimate(rows: dict[str, list], est, truth: dict) -> None:
         rows[c].append(vals[c])
 
 
-ESTIMATION_SETTLE_S = 120.0
-"""Key-on transient of the estimator excluded from the ``est_*_rmse_late_k`` metrics [s]."""
-
-
 def estimation_metrics(est: dict) -> dict:
     """Estimation errors of a vehicle-mode run.
 
     RMSE and max |error| of T_int, T_shell and T_glass [K] against the plant truth, over the whole run and from
-    :data:`ESTIMATION_SETTLE_S` on (after the key-on transient), and the number of steps with an invalid
-    estimate.
+    :data:`~ceco_controller.estimator.ESTIMATION_SETTLE_S` on (after the key-on transient; None for a shorter
+    run), and the number of steps with an invalid estimate.
     """
-    late = est["t_s"] >= ESTIMATION_SETTLE_S
     out: dict[str, object] = {"measurements": "vehicle"}
     for q in ("t_int", "t_shell", "t_glass"):
-        e = est[f"{q}_est_c"] - est[f"{q}_c"]
-        out[f"est_{q}_rmse_k"] = float(np.sqrt(np.mean(e**2)))
-        out[f"est_{q}_rmse_late_k"] = float(np.sqrt(np.mean(e[late] ** 2))) if late.any() else None
-        out[f"est_{q}_max_abs_k"] = float(np.max(np.abs(e)))
+        rms, rms_late, max_abs = estimation_errors(est, q)
+        out[f"est_{q}_rmse_k"] = rms
+        out[f"est_{q}_rmse_late_k"] = None if math.isnan(rms_late) else rms_late
+        out[f"est_{q}_max_abs_k"] = max_abs
     out["est_invalid_steps"] = int(np.count_nonzero(est["valid"] == 0))
     return out
 

@@ -108,6 +108,8 @@ __all__ = [
     "MEASUREMENT_MODES",
     "Estimate",
     "CabinStateEstimator",
+    "ESTIMATION_SETTLE_S",
+    "estimation_errors",
     *_estimator_model.__all__,
 ]
 
@@ -461,3 +463,20 @@ class CabinStateEstimator:
         ikh = np.eye(_N) - np.outer(k, h)
         pc = ikh @ p @ ikh.T + r * np.outer(k, k)
         self._p = 0.5 * (pc + pc.T)
+
+
+ESTIMATION_SETTLE_S = 120.0
+"""Key-on transient of the estimator excluded from the late estimation errors [s]."""
+
+
+def estimation_errors(series: dict, name: str, after_s: float = ESTIMATION_SETTLE_S) -> tuple[float, float, float]:
+    """``(RMSE, RMSE from after_s on, max |error|)`` [K] of ``{name}_est_c`` against ``{name}_c``.
+
+    ``series`` holds ``t_s`` [s] and both columns (a closed-loop run's or an identification
+    replay's); the late RMSE is NaN without samples after ``after_s``.
+    """
+    e = np.asarray(series[f"{name}_est_c"], float) - np.asarray(series[f"{name}_c"], float)
+    late = e[np.asarray(series["t_s"], float) >= after_s]
+    rms = float(np.sqrt(np.mean(e**2)))
+    rms_late = float(np.sqrt(np.mean(late**2))) if late.size else math.nan
+    return rms, rms_late, float(np.max(np.abs(e)))

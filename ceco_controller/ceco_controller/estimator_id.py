@@ -396,21 +396,14 @@ def replay(series: dict, estimator: est.CabinStateEstimator, meas_filter=None) -
     return {k: np.asarray(v) for k, v in out.items()}
 
 
-def replay_errors(rep: dict, after_s: float = 120.0) -> dict:
+def replay_errors(rep: dict, after_s: float = est.ESTIMATION_SETTLE_S) -> dict:
     """RMSE / max |error| of the estimated temperatures over a replay, whole and from ``after_s`` on."""
-    late = rep["t_s"] >= after_s
     out = {}
     for n in ("t_int", "t_shell", "t_glass", "t_duct"):
         if f"{n}_c" not in rep:
             continue
-        e = rep[f"{n}_est_c"] - rep[f"{n}_c"]
-        out.update(
-            {
-                f"{n}_rmse_k": _rms(e),
-                f"{n}_rmse_after_{after_s:g}s_k": _rms(e[late]),
-                f"{n}_max_abs_k": float(np.max(np.abs(e))),
-            }
-        )
+        rms, rms_late, max_abs = est.estimation_errors(rep, n, after_s)
+        out.update({f"{n}_rmse_k": rms, f"{n}_rmse_after_{after_s:g}s_k": rms_late, f"{n}_max_abs_k": max_abs})
     return out
 
 
