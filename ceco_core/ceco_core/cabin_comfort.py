@@ -207,6 +207,11 @@ def cabin_pmv(*, t_cab_c, t_vent_c, mdot_bl_kgps, t_mr_c, w_rad_wm2, pa_pa, para
     """
     params.validate()
     air = occupant_air(t_cab_c=t_cab_c, t_vent_c=t_vent_c, mdot_bl_kgps=mdot_bl_kgps, params=params.air)
+    return _pmv_at(air, t_mr_c, w_rad_wm2, pa_pa, params, met, clo)
+
+
+def _pmv_at(air, t_mr_c, w_rad_wm2, pa_pa, params, met=None, clo=None):
+    """ISO 7730 PMV + W_rad in the occupant's air ``air`` (:class:`~ceco_core.occupant.OccupantAir`)."""
     return pmv(
         ta_c=air.ta_occ_c,
         tr_c=t_mr_c,
@@ -228,6 +233,11 @@ def cabin_draught_pct(*, t_cab_c, t_vent_c, mdot_bl_kgps, params, cap=True, smoo
     penalty with a gradient beyond 100 %; ``smoothing`` defaults to the smooth DR (NLP use).
     """
     air = occupant_air(t_cab_c=t_cab_c, t_vent_c=t_vent_c, mdot_bl_kgps=mdot_bl_kgps, params=params.air)
+    return _draught_at(air, params, cap, smoothing)
+
+
+def _draught_at(air, params, cap=True, smoothing=None):
+    """ISO 7730 draught rating [%] where ``air`` says it is rated (jet or cabin air)."""
     kw = {} if smoothing is None else {"smoothing": smoothing}
     return draught_rating(air.ta_dr_c, air.vel_dr_mps, params.air.tu_pct, cap=cap, **kw)
 
@@ -291,19 +301,10 @@ def evaluate_cabin_comfort(
         params=params,
     )
     w_rad = cabin_w_rad_wm2(np.asarray(solar_wm2, dtype=float), params)
-    y = pmv(
-        ta_c=air.ta_occ_c,
-        tr_c=t_mr,
-        vel_mps=air.vel_occ_mps,
-        pa_pa=pa,
-        met=params.met,
-        clo=params.clo,
-        w_rad_wm2=w_rad,
-        smoothing=params.smoothing,
-    )
+    y = _pmv_at(air, t_mr, w_rad, pa, params)  # the NMPC's cabin_pmv, in the same air
     t_dew = psychro.dew_point_c(pa_cab)
     valid = iso7730_validity(air.ta_occ_c, t_mr, air.vel_occ_mps, pa, params.met, params.clo, y).all
-    dr = draught_rating(air.ta_dr_c, air.vel_dr_mps, params.air.tu_pct, smoothing=DR_EXACT)
+    dr = _draught_at(air, params, smoothing=DR_EXACT)
     return OccupantComfort(
         pmv=y,
         ppd=ppd(y),
