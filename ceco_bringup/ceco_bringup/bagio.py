@@ -35,9 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ceco_bringup.supervisor import normalize_namespace
 from ceco_core import rundir
 from ceco_core.contracts import DIAGNOSTICS_CONTRACT_COLUMNS as DIAGNOSTICS_COLUMNS
-from ceco_core.units import s_from_sec_nanosec
+from ceco_core.units import s_from_stamp
 from ceco_ros.topics import TOPIC_COMFORT, TOPIC_COMMAND, TOPIC_DIAGNOSTICS, TOPIC_POWER, TOPIC_STATE
 
 TIMESERIES_COLUMNS = rundir.TIMESERIES_COLUMNS
@@ -77,12 +78,6 @@ def typestore():
 
 
 # --- Names ---------------------------------------------------------------------
-def normalize_namespace(namespace: str | None) -> str:
-    """'' for the root namespace (None, '', '/'), else '/a/b' (leading slash, none trailing)."""
-    ns = (namespace or '').strip('/')
-    return '/' + ns if ns else ''
-
-
 def topic_namespace(bag_topic: str, name: str) -> str | None:
     """The namespace under which bag topic ``bag_topic`` carries stack topic ``name``.
 
@@ -263,7 +258,7 @@ def load_commands(bag_dir, topic: str = TOPIC_COMMAND, namespace: str | None = N
     cols = {c: [] for c in ('k', 't_s', 'mdot_bl_kgps', 't_evap_sp_c', 'strategy', 'fallback', 't_recv_ns')}
     for _, t_ns, m in read_messages(bag_dir, (topic,), namespace):
         cols['k'].append(m.step_index)
-        cols['t_s'].append(s_from_sec_nanosec(m.header.stamp.sec, m.header.stamp.nanosec))
+        cols['t_s'].append(s_from_stamp(m.header.stamp))
         cols['mdot_bl_kgps'].append(m.blower_flow_kgps)
         cols['t_evap_sp_c'].append(m.evap_setpoint_c)
         cols['strategy'].append(m.strategy)
@@ -291,7 +286,7 @@ def load_diagnostics(bag_dir, namespace: str | None = None) -> dict[str, np.ndar
     cols = {c: [] for c in DIAGNOSTICS_COLUMNS + ('strategy', 'fallback_reason')}
     for _, _, m in read_messages(bag_dir, (TOPIC_DIAGNOSTICS,), namespace):
         cols['k'].append(m.step_index)
-        cols['t_s'].append(s_from_sec_nanosec(m.header.stamp.sec, m.header.stamp.nanosec))
+        cols['t_s'].append(s_from_stamp(m.header.stamp))
         cols['status'].append(m.status)
         cols['success'].append(m.success)
         cols['iterations'].append(m.iterations)
