@@ -334,30 +334,14 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
     row = new_row(cell, 'simulator')
     try:
         from ceco_bringup.sweep import cells as sweep_cells
-        from ceco_controller.closed_loop import SimSettings, simulate, write_run
+        from ceco_controller.closed_loop import simulate, write_run
         from ceco_core.kpis import compute_kpis
-        from ceco_v2x_preview.preview import parse_quality
         from ceco_v2x_preview.scenario import scenario_from_dict
 
         spec = cell['spec']
-        row['code'] = sweep_cells.code_fingerprint()
-        if spec.get('code') and row['code'] != spec['code']:
-            raise RuntimeError(
-                f"the simulator's code here ({row['code']}) differs from the benchmark's "
-                f"({spec['code']}): code changed during the run; rerun"
-            )
+        row['code'] = sweep_cells.check_code(spec, 'benchmark')
         t_sim = time.perf_counter()
-        settings = SimSettings(
-            control_period_s=spec['control_period_s'],
-            horizon_steps=spec['horizon_steps'],
-            preview_quality=parse_quality(spec['preview']),
-            seed=spec['seed'],
-            duration_s=spec['duration_s'],
-            progress=False,
-            strategy_overrides=tuple(sorted(spec['strategy_overrides'].items())),
-            plant_overrides=tuple(sorted(spec['plant_overrides'].items())),
-            comfort_overrides=tuple(sorted(spec['comfort_overrides'].items())),
-        )
+        settings = sweep_cells.settings_from_spec(spec)
         res = simulate(scenario_from_dict(spec['scenario']), spec['strategy'], settings)
         m = res.metrics
         kpis, notes = compute_kpis(

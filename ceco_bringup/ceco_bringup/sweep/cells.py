@@ -150,7 +150,8 @@ def settings_from_spec(spec: Mapping):
     Args:
         spec: the cell's spec (plain JSON data): ``preview`` (preview quality text),
             optional ``control_period_s`` [s], ``horizon_steps``, ``seed``, ``duration_s`` [s]
-            (None: the scenario's) and ``strategy_overrides`` (see :func:`runtime_overrides`).
+            (None: the scenario's), ``strategy_overrides`` (see :func:`runtime_overrides`) and,
+            for the benchmark's sensitivity runs, ``plant_overrides`` / ``comfort_overrides``.
 
     Returns:
         The simulator settings, without a progress bar.
@@ -168,7 +169,23 @@ def settings_from_spec(spec: Mapping):
         duration_s=spec.get('duration_s'),
         progress=False,
         strategy_overrides=tuple(sorted(ovr.items())),
+        plant_overrides=tuple(sorted((spec.get('plant_overrides') or {}).items())),
+        comfort_overrides=tuple(sorted((spec.get('comfort_overrides') or {}).items())),
     )
+
+
+def check_code(spec: Mapping, what: str) -> str:
+    """This process's :func:`code_fingerprint`; RuntimeError if the driver's (``spec['code']``) differs.
+
+    ``what`` names the driver ('sweep', 'benchmark') in the message.
+    """
+    code = code_fingerprint()
+    if spec.get('code') and code != spec['code']:
+        raise RuntimeError(
+            f"the simulator's code here ({code}) differs from the {what}'s ({spec['code']}): code changed "
+            f'during the {what}, or a Ray node runs another version; rerun the {what}'
+        )
+    return code
 
 
 def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
@@ -188,13 +205,7 @@ def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
         from ceco_v2x_preview.scenario import scenario_from_dict
 
         spec = cell['spec']
-        row['code'] = code_fingerprint()
-        if spec.get('code') and row['code'] != spec['code']:
-            raise RuntimeError(
-                f"the simulator's code here ({row['code']}) differs from the sweep's "
-                f"({spec['code']}): code changed during the sweep, or a Ray node runs another "
-                'version; rerun the sweep'
-            )
+        row['code'] = check_code(spec, 'sweep')
         t_sim = time.perf_counter()
         scenario = scenario_from_dict(spec['scenario'])
         result = simulate(scenario, spec['strategy'], settings_from_spec(spec))
