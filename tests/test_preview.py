@@ -121,12 +121,8 @@ def test_missing_span_hold_last_and_drop(sc03):
     assert make_previews(sc03, 250.0, 5.0, 7, q2).issued_s == 100.0
 
 
-def test_hold_filled_and_summary(sc03):
+def test_preview_summary(sc03):
     p = make_previews(sc03, 110.0, 5.0, 7, parse_quality("missing:100-200"))
-    f = p.hold_filled()
-    assert np.all(np.isfinite(f.solar_wm2))
-    assert f.solar_wm2[6] == f.solar_wm2[4] == p.solar_wm2[4]
-    np.testing.assert_array_equal(f.valid, p.valid)
     s = summarize([p, make_previews(sc03, 0.0, 5.0, 7)])
     assert s["valid_fraction"] == pytest.approx(12 / 14)
     assert s["mean_age_s"] == pytest.approx(5.0)

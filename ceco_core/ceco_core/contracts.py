@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
 
 import numpy as np
 
@@ -205,21 +204,6 @@ class Previews:
         """Number of leading valid samples (the usable horizon)."""
         bad = np.flatnonzero(~self.valid)
         return int(bad[0]) if bad.size else self.n
-
-    def hold_filled(self) -> Previews:
-        """A copy in which invalid samples after the trusted part repeat the last valid sample.
-
-        ``valid`` is unchanged, so the caller still knows. If no sample is valid the arrays stay NaN.
-        """
-        k = self.trusted_steps
-        if k == 0 or k == self.n:
-            return self
-        arrays: dict[str, Any] = {}
-        for q in PREVIEW_QUANTITIES:
-            a = np.array(getattr(self, q))
-            a[k:] = a[k - 1]
-            arrays[q] = a
-        return dataclasses.replace(self, **arrays)
 
 
 def _as_array(x, name, n=None):
