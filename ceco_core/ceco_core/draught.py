@@ -21,6 +21,7 @@ import casadi
 import numpy as np
 
 from ceco_core import mathops
+from ceco_core.metrics import DR_CATEGORY_LIMITS_PCT  # re-exported: the table lives with the metrics (no CasADi)
 
 __all__ = [
     "DR_VEL_FLOOR_MPS",
@@ -36,8 +37,6 @@ __all__ = [
 DR_VEL_FLOOR_MPS = 0.05
 """ISO 7730:2005 6.2: for v_a,l < 0.05 m/s use v_a,l = 0.05 m/s [m/s]."""
 
-DR_CATEGORY_LIMITS_PCT = {"A": 10.0, "B": 20.0, "C": 30.0}
-"""ISO 7730:2005 Annex A, Table A.1: draught rating limits of the categories [%]."""
 
 _T_SKIN_DR_C = 34.0
 """The 34 degC of ISO 7730 eq. (DR): the local skin temperature the model refers to [degC]."""

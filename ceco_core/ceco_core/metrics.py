@@ -33,6 +33,7 @@ __all__ = [
     "METRIC_KEYS",
     "PMV_SCALE_LIMIT",
     "DRAUGHT_LIMIT_PCT",
+    "DR_CATEGORY_LIMITS_PCT",
     "compute_metrics",
     "relative_change_pct",
     "comparison_rows",
@@ -313,8 +314,11 @@ PMV_SCALE_LIMIT = 3.0
 """End of ISO 7730's seven-point thermal sensation scale (+3 hot, -3 cold) [-]: PMV is clipped to +-3
 in ``i_pmv_clipped`` and the ``discomfort_*`` KPIs (beyond it PMV is no vote)."""
 
-DRAUGHT_LIMIT_PCT = 20.0
-"""ISO 7730:2005 Table A.1 category B limit of the draught rating DR [%]."""
+DR_CATEGORY_LIMITS_PCT = {"A": 10.0, "B": 20.0, "C": 30.0}
+"""ISO 7730:2005 Annex A, Table A.1: draught rating limits of the categories [%]."""
+
+DRAUGHT_LIMIT_PCT = DR_CATEGORY_LIMITS_PCT["B"]
+"""The category B limit of the draught rating DR [%] (the metrics' threshold)."""
 
 
 def i_pmv_clipped(pmv, dt_s: float, limit: float = PMV_SCALE_LIMIT) -> float:
