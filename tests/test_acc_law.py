@@ -68,6 +68,20 @@ def test_demand_of_inverts_the_map_and_projects_off_map_commands():
     d = law.demand_of(0.05, 3.0)
     c = law.map_demand(d)
     assert 0.3 < d < 0.5 and c.mdot_bl_kgps > 0.05 and c.t_evap_sp_c > 3.0
+    # ... and it is the nearest: a brute-force search over the map in the same normalised units
+    st = law.settings
+
+    def dist(dd, m, sp):
+        cc = law.map_demand(dd)
+        dm = (cc.mdot_bl_kgps - m) / (st.mdot_bl_max_kgps - st.mdot_bl_min_kgps)
+        ds = (cc.t_evap_sp_c - sp) / (st.t_evap_sp_max_c - st.t_evap_sp_min_c)
+        return dm * dm + ds * ds
+
+    grid = np.linspace(0.0, 1.0, 20001)
+    for m, sp in ((0.05, 3.0), (0.17, 10.0), (0.11, 4.0), (0.06, 9.5)):
+        d_star = grid[int(np.argmin([dist(x, m, sp) for x in grid]))]
+        got = law.demand_of(m, sp)
+        assert dist(got, m, sp) <= dist(d_star, m, sp) + 1e-12 and abs(got - d_star) <= 1e-4, (m, sp)
 
 
 def test_take_over_after_tracking_is_bumpless_and_then_the_law_rules():
