@@ -1,0 +1,89 @@
+#!/usr/bin/env python3
+"""The baseline families on every case of a results file: Markdown tables for docs/results.md.
+
+Usage (repository root, after ``source tools/env.sh``)::
+
+    python tools/families_summary.py runs/fam/results.json > /tmp/families.md
+
+Per case, at three discomfort levels relative to D_lo (the least discomfort of any family vertex):
+D_lo, 1.02 D_lo (the comfort phase held near the band edge: where the strategies sit) and 1.25 D_lo,
+the energy of each family's front there (``front.Envelope`` semantics: a family past its least
+comfortable vertex keeps that vertex's energy; n/a below its most comfortable one), the strongest family,
+and the energy the strongest family saves against the production PI (the plain family with the
+production gains) at that discomfort; then which family is the strongest (results.json's
+``strongest.family``). Everything is read from results.json and computed with
+``ceco_bringup.benchmark.front``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from ceco_bringup.benchmark import front as fr
+from ceco_bringup.benchmark.schema import FAMILIES
+
+FACTORS = (1.0, 1.02, 1.25)
+"""Levels as multiples of D_lo."""
+
+
+def _fronts(case) -> dict:
+    return {
+        fam: fr.build_front([(p['controller'], p['discomfort'], p['energy']) for p in pts]) if pts else None
+        for fam, pts in case['fronts'].items()
+    }
+
+
+def family_table(doc) -> str:
+    """One row per case and level: each family's energy, the strongest, its saving against the production PI."""
+    fams = list(FAMILIES)
+    lines = [
+        '| case | level [PMV·h] | '
+        + ' | '.join(f'E {f} [kWh]' for f in fams)
+        + ' | strongest | saving vs production PI [%] |',
+        '|---|---|' + '---|' * len(fams) + '---|---|',
+    ]
+    for case in doc['cases']:
+        fronts = _fronts(case)
+        env = fr.Envelope.of(fronts)
+        d_lo = env.d_range[0]
+        for k in FACTORS:
+            x = k * d_lo
+            cells = []
+            for f in fams:
+                one = fr.Envelope.of({f: fronts[f]}) if fronts[f] is not None else None
+                e = one.energy_at(x) if one is not None else None
+                cells.append('n/a' if e is None else f'{e:.4f}')
+            e_env, e_pl = env.energy_at(x), fr.Envelope.of({'plain': fronts['plain']}).energy_at(x)
+            save = 'n/a' if e_env is None or e_pl is None else f'{100.0 * (e_pl - e_env) / e_pl:+.1f}'
+            lines.append(
+                f"| {case['case']} | {x:.4f} ({k:g} D_lo) | " + ' | '.join(cells) + f' | {env.family_at(x)} | {save} |'
+            )
+    return '\n'.join(lines)
+
+
+def strongest_table(doc) -> str:
+    """The strongest family per case (at the oracle's levels) and each family's front size."""
+    lines = ['| case | strongest family | at the oracle levels [PMV·h: family] |', '|---|---|---|']
+    for case in doc['cases']:
+        st = case['strongest']
+        per = ', '.join(f"{x['discomfort']:.4f}: {x['family']}" for x in st['levels'])
+        lines.append(f"| {case['case']} | {st['family']} | {per} |")
+    return '\n'.join(lines)
+
+
+def main(argv=None) -> int:
+    """Print the tables."""
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    ap.add_argument('results', help='results.json of ceco benchmark')
+    args = ap.parse_args(argv)
+    doc = json.loads(open(args.results, encoding='utf-8').read())
+    print(family_table(doc))
+    print()
+    print(strongest_table(doc))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
