@@ -432,36 +432,22 @@ def test_a_missing_oracle_module_is_skipped_with_one_line(tmp_path):
         }
         for s, d, e in ((24.0, 0.1024, 0.425), (25.0, 0.1051, 0.397), (26.0, 0.1242, 0.366))
     ]
-    out = cli._run_oracles(
-        [case],
-        {case.name: []},
-        lambda cs: [],
-        {case.name: [0]},
-        'abcdef0123456789',
-        tmp_path / 'cells.jsonl',
-        lambda *a: pytest.fail('nothing may be dispatched'),
-        lambda *a, **k: lines.append(a[0]),
-        True,
-        'ceco_no_such_package.oracle:solve_front',
-        None,
-    )
+
+    def oracles(requested, entry):
+        def dispatch(*a):
+            pytest.fail('nothing may be dispatched')
+
+        return cli._run_oracles(
+            [case], {case.name: []}, lambda cs: [], {case.name: [0]}, 'abcdef0123456789', tmp_path / 'cells.jsonl',
+            dispatch, lambda *a, **k: lines.append(a[0]), requested, entry, None,
+        )  # fmt: skip
+
+    out = oracles(True, 'ceco_no_such_package.oracle:solve_front')
     assert out[case.name]['status'] == 'unavailable' and 'not installed' in out[case.name]['note']
     assert len(lines) == 1 and 'oracle skipped' in lines[0] and '--no-oracle' in lines[0]
     # --no-oracle: skipped, no line
     lines.clear()
-    out = cli._run_oracles(
-        [case],
-        {case.name: []},
-        lambda cs: [],
-        {case.name: [0]},
-        'abcdef0123456789',
-        tmp_path / 'cells.jsonl',
-        None,
-        lambda *a, **k: lines.append(a[0]),
-        False,
-        runner.ORACLE_ENTRY,
-        None,
-    )
+    out = oracles(False, runner.ORACLE_ENTRY)
     assert out[case.name]['status'] == 'skipped' and out[case.name]['fronts'] == [] and not lines
     # the levels: >= 4, from the least discomfort of the families to 1.5 times it
     levels = runner.oracle_levels([{**r, 'kpis': dict(r['kpis'])} for r in runs])

@@ -92,34 +92,12 @@ def fig_plane(case: Mapping, path, settings: Mapping, title: str = '') -> Path:
         fig, ax = plt.subplots(figsize=(6.4, 4.6))
         oracle = case.get('oracle') or {}
         for k, f in enumerate(oracle.get('fronts', []) if fx == 'discomfort_pmvh' else []):
-            eff = sorted((p for p in f['front'] if p['efficient']), key=lambda p: p['discomfort'])
-            if eff:
-                ax.plot(
-                    [p['discomfort'] for p in eff],
-                    [p['energy'] for p in eff],
-                    color=_ORACLE_STYLE['color'],
-                    ls=_ORACLE_STYLE['ls'],
-                    marker='D',
-                    ms=3,
-                    lw=1.3,
-                    label=_ORACLE_STYLE['label'] if k == 0 else None,
-                    zorder=4,
-                )
+            _front_line(ax, f['front'], _ORACLE_STYLE, 'D', 3, 1.3, _ORACLE_STYLE['label'] if k == 0 else None, 4)
         for family, st in _FAMILY_STYLE.items():
             pts = case['fronts'].get(family) or []
             if not pts:
                 continue
-            eff = sorted((p for p in pts if p['efficient']), key=lambda p: p['discomfort'])
-            ax.plot(
-                [p['discomfort'] for p in eff],
-                [p['energy'] for p in eff],
-                color=st['color'],
-                ls=st['ls'],
-                marker='o',
-                ms=3.5,
-                lw=1.1,
-                label=st['label'],
-            )
+            eff = _front_line(ax, pts, st, 'o', 3.5, 1.1, st['label'], 2)
             off = [p for p in pts if not p['efficient']]
             if off:
                 ax.plot(
@@ -179,6 +157,24 @@ def fig_plane(case: Mapping, path, settings: Mapping, title: str = '') -> Path:
         fig.savefig(path, dpi=_DPI)
         plt.close(fig)
     return path
+
+
+def _front_line(ax, pts, st: Mapping, marker: str, ms: float, lw: float, label, zorder) -> list:
+    """Draw a front through its efficient points (sorted by discomfort); return them."""
+    eff = sorted((p for p in pts if p['efficient']), key=lambda p: p['discomfort'])
+    if eff:
+        ax.plot(
+            [p['discomfort'] for p in eff],
+            [p['energy'] for p in eff],
+            color=st['color'],
+            ls=st['ls'],
+            marker=marker,
+            ms=ms,
+            lw=lw,
+            label=label,
+            zorder=zorder,
+        )
+    return eff
 
 
 def _zoom(ax, case: Mapping, fx: str, ex: str) -> None:

@@ -340,12 +340,14 @@ def match_seeds(front: Front | Envelope, points: Sequence[tuple]) -> dict:
         raise ValueError("match_seeds: no points")
     arr = np.array([(float(a), float(b)) for a, b in points])
     mean = match(front, float(arr[:, 0].mean()), float(arr[:, 1].mean())).as_dict()
-    per = [match(front, a, b) for a, b in arr]
-    mean["seeds"] = {
-        "energy_saving_pct": [m.energy_saving_pct for m in per],
-        "discomfort_reduction_pct": [m.discomfort_reduction_pct for m in per],
-        "dominated": [m.dominated for m in per],
-    }
+    return _with_seeds(
+        mean, [match(front, a, b) for a, b in arr], ("energy_saving_pct", "discomfort_reduction_pct", "dominated")
+    )
+
+
+def _with_seeds(mean: dict, per: Sequence, keys: Sequence[str]) -> dict:
+    """``mean`` plus ``seeds`` ({key: [the per-seed values]}) and ``n_seeds``."""
+    mean["seeds"] = {k: [getattr(m, k) for m in per] for k in keys}
     mean["n_seeds"] = len(per)
     return mean
 
@@ -450,10 +452,4 @@ def headroom_seeds(envelope: Envelope, bounds: Mapping, points: Sequence[tuple])
         mean = headroom(envelope, every, float(arr[:, 0].mean()), float(arr[:, 1].mean())).as_dict()
     else:
         mean = Headroom(None, None, None, None, "a seed has no bound").as_dict()
-    mean["seeds"] = {
-        "headroom_captured": [h.headroom_captured for h in per],
-        "saving_pct": [h.saving_pct for h in per],
-        "bound_saving_pct": [h.bound_saving_pct for h in per],
-    }
-    mean["n_seeds"] = len(per)
-    return mean
+    return _with_seeds(mean, per, ("headroom_captured", "saving_pct", "bound_saving_pct"))
