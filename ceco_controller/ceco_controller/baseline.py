@@ -1,4 +1,4 @@
-"""The baseline strategy: the production ACC law (or its comfort-feedback variant) behind the common controller interface.
+"""The baseline strategy: the production ACC law (or its comfort-feedback mode) behind the controller interface.
 
 The law itself (PI + anti-windup on T_cab vs 26 degC, demand mapped to the
 evaporator set-point and the blower curve) is :mod:`ceco_core.acc_law`:

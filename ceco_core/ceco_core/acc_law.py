@@ -65,8 +65,8 @@ the sensors a production car has when the controller runs with ``measurements: v
 compensations do not apply to it (the sun is already in the PMV it regulates).
 
 Pure and deterministic, no ROS; stateful object with ``reset()`` and
-``step(t_cab_c, dt_s)`` (``step(t_cab_c, dt_s, pmv=...)`` in the PMV mode). A non-finite measurement never crashes the ECU: the
-last command is held and the output says ``mode='sensor_fault'``.
+``step(t_cab_c, dt_s)`` (``step(t_cab_c, dt_s, pmv=...)`` in the PMV mode). A non-finite measurement
+never crashes the ECU: the last command is held and the output says ``mode='sensor_fault'``.
 """
 
 from __future__ import annotations
