@@ -142,6 +142,7 @@ def run_benchmark(
         by_case[c.name] = cc
         cells += cc
     sens_plan = []
+    sens_specs = [c for c in specs if c.kind in runner.SENSITIVITY_KINDS]
     sens_case_name, params = runner.load_sensitivity(sensitivity_path)
     if sensitivity and not quick and any(c.name == sens_case_name for c in cases):
         case = next(c for c in cases if c.name == sens_case_name)
@@ -155,7 +156,7 @@ def run_benchmark(
                 )
                 ends.append(
                     runner.case_cells(
-                        case, specs, code, seeds=seeds[case.name], variant=f'sens:{p.parameter}:{end}', **kw
+                        case, sens_specs, code, seeds=seeds[case.name], variant=f'sens:{p.parameter}:{end}', **kw
                     )
                 )
             sens_plan.append((p, *ends))
@@ -448,16 +449,27 @@ def summary_lines(doc: dict) -> list[str]:
     """One console line per case and controller of a results document.
 
     The matched savings are signed as in results.json: positive = less energy / less discomfort than
-    the baseline front.
+    the production-gains front (and, in the parentheses, its allowance front, the strongest family and
+    headroom_captured when the case has an oracle front).
     """
 
     def f(x):
         return 'n/a' if x is None else f'{x:+.1f} %'
 
+    def strongest(m):
+        st = m['strongest']
+        h = m.get('headroom') or {}
+        cap = h.get('headroom_captured')
+        return (
+            f"; strongest ({st['family'] or 'n/a'}) {f(st['energy_saving_pct'])}"
+            + (', dominated by a family' if st['dominated'] else '')
+            + ('' if not h else f"; headroom captured {'n/a' if cap is None else format(cap, '.2f')}")
+        )
+
     return [
         f"  {case['case']:<18} {name:<32} energy saved at matched comfort {f(m['energy_saving_pct']):>8} "
-        f"(allowance {f(m['allowance']['energy_saving_pct']):>8}), discomfort cut at matched energy "
-        f"{f(m['discomfort_reduction_pct']):>8}{', dominated' if m['dominated'] else ''}"
+        f"(allowance {f((m['allowance'] or {}).get('energy_saving_pct')):>8}{strongest(m)}), discomfort cut at "
+        f"matched energy {f(m['discomfort_reduction_pct']):>8}{', dominated' if m['dominated'] else ''}"
         for case in doc['cases']
         for name, m in case['matched'].items()
     ]

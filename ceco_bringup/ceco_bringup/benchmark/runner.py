@@ -78,6 +78,10 @@ STRATEGY_NAMES = ('ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
 
 SEED_INVARIANT = SEED_INVARIANT_KINDS
 SCORED_KINDS = ('strategy', 'compensated', 'compensated-allowance', 'external')
+SENSITIVITY_KINDS = ('baseline', 'baseline-allowance', *SCORED_KINDS)
+"""What the tornado reruns at each end of a parameter: the production-gains families (the tornado shows the
+saving against the production PI, as before issue 20) and the scored controllers; the tuned families are
+not rerun (their cost would triple the tornado's)."""
 
 
 BASELINES_SCHEMA = 'ceco-benchmark-baselines/2'
@@ -623,10 +627,7 @@ def assemble_case(
             for end, rs in (('low', low_rows), ('high', high_rows)):
                 m = matched_of([_run_entry(r) for r in rs], FRONT_AXIS, ENERGY_AXIS)
                 entry[f'matched_{end}'] = {
-                    n: {
-                        **{k: v[k] for k in ('energy_saving_pct', 'discomfort_reduction_pct', 'dominated', 'note')},
-                        'strongest_energy_saving_pct': v['strongest']['energy_saving_pct'],
-                    }
+                    n: {k: v[k] for k in ('energy_saving_pct', 'discomfort_reduction_pct', 'dominated', 'note')}
                     for n, v in m.items()
                 }
                 entry[f'failed_{end}'] = sum(r['status'] != 'ok' for r in rs)
