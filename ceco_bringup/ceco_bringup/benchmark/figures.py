@@ -29,10 +29,11 @@ _RC = {'font.size': 8, 'axes.grid': True, 'grid.alpha': 0.3, 'savefig.bbox': 'ti
 _FAMILY_STYLE = {
     'plain': {'color': '#000000', 'ls': '-', 'label': 'production PI (T_cab at S)'},
     'allowance': {'color': '#0072B2', 'ls': '--', 'label': 'production PI + allowance'},
-    'tuned': {'color': '#009E73', 'ls': '-', 'label': 'tuned PI (T_cab)'},
-    'tuned-allowance': {'color': '#009E73', 'ls': '--', 'label': 'tuned PI + allowance'},
-    'pmv': {'color': '#E69F00', 'ls': '-', 'label': 'tuned PI on PMV'},
-    'pmv-allowance': {'color': '#E69F00', 'ls': '--', 'label': 'tuned PI on PMV + allowance'},
+    # the tuned families in colours outside the strategies' Okabe-Ito palette
+    'tuned': {'color': '#7B3294', 'ls': '-', 'label': 'tuned PI (T_cab)'},
+    'tuned-allowance': {'color': '#7B3294', 'ls': '--', 'label': 'tuned PI + allowance'},
+    'pmv': {'color': '#8C510A', 'ls': '-', 'label': 'tuned PI on PMV'},
+    'pmv-allowance': {'color': '#8C510A', 'ls': '--', 'label': 'tuned PI on PMV + allowance'},
 }
 _ORACLE_STYLE = {'color': '#CC0000', 'ls': ':', 'label': 'whole-drive optimum (oracle)'}
 _SCORED_KINDS = ('strategy', 'compensated', 'compensated-allowance', 'external')
