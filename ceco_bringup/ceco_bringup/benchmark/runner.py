@@ -561,7 +561,8 @@ def oracle_levels(runs: Sequence[Mapping], n: int = 6) -> list[float]:
 
     ``n`` (>= 4) levels evenly spaced from D_lo, the least discomfort of any family's vertex or any scored
     controller, to the greatest of the scored controllers' and 1.5 D_lo (the range of the strategies and
-    of the efficient baselines around them), rounded to 6 significant digits; [] without a front.
+    of the efficient baselines around them); [] without a front. Not rounded: the first level is the
+    envelope's own end (the runs are deterministic, so the levels and the oracle's cell ids are too).
     """
     if n < 4:
         raise ValueError(f'oracle_levels: at least 4 levels, got {n}')
@@ -571,7 +572,7 @@ def oracle_levels(runs: Sequence[Mapping], n: int = 6) -> list[float]:
     ds = [d for pts in _points(runs, FRONT_AXIS, ENERGY_AXIS).values() for d, _ in pts]
     lo = min([env.d_range[0], *ds])
     hi = max([1.5 * lo, *ds])
-    return [float(f'{lo + (hi - lo) * i / (n - 1):.6g}') for i in range(n)]
+    return [lo + (hi - lo) * i / (n - 1) for i in range(n)]
 
 
 def assemble_case(
