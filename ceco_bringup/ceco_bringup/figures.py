@@ -42,6 +42,7 @@ __all__ = [
     'save_png',
     'annotate_bar',
     'fig_solver',
+    'fig_plane',
 ]
 
 STRATEGY_ORDER = STRATEGIES
@@ -343,6 +344,53 @@ def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
             ax.text(0.5, 0.5, 'no solver data', ha='center', va='center', transform=ax.transAxes)
         ax.set_ylabel('Solve time per control step [ms]')
         ax.set_title(title or 'NMPC solve time (box 25-75 %, whiskers 5-95 %)')
+        return save_png(fig, path)
+
+
+def fig_plane(points: Mapping[str, Mapping], family: Mapping[str, Mapping], path, title: str = '') -> Path:
+    """The energy-discomfort plane: the baseline family's front and every run.
+
+    ``points``: {strategy: point} and ``family``: {'baseline@S': point}, each point a mapping with
+    ``discomfort_pmvh`` [PMV h] and ``energy_kwh`` [kWh] (``ceco_bringup.verdict.run_point``). The
+    front is drawn through the family's efficient points (inefficient ones hollow), every
+    set-point annotated; each run is a marker in its strategy colour. Below the front at the same
+    discomfort = energy saved at matched comfort. Writes a PNG and returns its path.
+    """
+    from ceco_bringup.benchmark import front as fr
+
+    with plt.rc_context(RC_PARAMS):
+        fig, ax = plt.subplots(figsize=(6.0, 4.2))
+        if family:
+            f = fr.build_front({n: (p['discomfort_pmvh'], p['energy_kwh']) for n, p in family.items()})
+            ax.plot(f.d, f.e, '-', color='#7f7f7f', lw=1.2, label='baseline front (PI at set-point S)')
+            for fp in f.points:
+                ax.plot(
+                    [fp.discomfort], [fp.energy], 'o', ms=4, color='#7f7f7f', mfc='#7f7f7f' if fp.efficient else 'none'
+                )
+                ax.annotate(
+                    fp.name.split('@')[-1] + ' °C',
+                    (fp.discomfort, fp.energy),
+                    textcoords='offset points',
+                    xytext=(4, 2),
+                    fontsize=7,
+                    color='#555555',
+                )
+        for i, name in enumerate(ordered(list(points))):
+            st = strategy_style(name, i)
+            p = points[name]
+            ax.plot(
+                [p['discomfort_pmvh']],
+                [p['energy_kwh']],
+                marker='s' if name == 'baseline' else 'o',
+                ms=7,
+                ls='none',
+                color=st['color'],
+                label=st['label'],
+            )
+        ax.set_xlabel('Thermal discomfort: PMV outside -0.5..+0.5, clipped at ±3 [PMV·h]')
+        ax.set_ylabel('A/C energy: compressor + blower + condenser fan [kWh]')
+        ax.legend(loc='best', fontsize=7)
+        ax.set_title(title or 'Energy against discomfort (lower left is better)')
         return save_png(fig, path)
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import math
@@ -12,6 +11,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from ceco_bringup import cli_args
 
 from . import backends
 from . import cells as cells_mod
@@ -226,25 +227,16 @@ def main(argv=None) -> int:
         when the sweep cannot run (a file or backend error),
         130 when interrupted (finished cells are kept).
     """
-    parser = argparse.ArgumentParser(
-        prog='ceco sweep',
-        description='Run a grid of closed-loop simulations (strategies x scenarios x drive '
+    parser = cli_args.Parser(
+        'ceco sweep',
+        'Run a grid of closed-loop simulations (strategies x scenarios x drive '
         'cycles x climates x previews x occupants x seeds) in parallel; resumable.',
     )
     parser.add_argument('grid', help='grid YAML file (see ceco_bringup/config/sweep_example.yaml)')
-    parser.add_argument('--out', required=True, help='output directory (reuse it to resume)')
-    parser.add_argument(
-        '--backend', choices=('local', 'ray'), default='local', help='local process pool (default) or Ray'
-    )
-    parser.add_argument(
-        '--address',
-        default=None,
-        help='Ray cluster address (e.g. auto or ray://host:10001); default: a local Ray instance',
-    )
-    parser.add_argument(
-        '--workers', type=int, default=None, help=f'parallel workers (default: all cores, {os.cpu_count()} here)'
-    )
-    parser.add_argument('--no-progress', action='store_true', help='no progress bar')
+    cli_args.add_out(parser, 'output directory (reuse it to resume)')
+    cli_args.add_backend(parser)
+    cli_args.add_workers(parser)
+    cli_args.add_no_progress(parser)
     parser.add_argument(
         '--front-figure',
         default=None,
@@ -254,14 +246,12 @@ def main(argv=None) -> int:
     )
     parser.add_argument(
         '--verify',
-        type=int,
+        type=cli_args.nonnegative_int,
         default=0,
         metavar='N',
         help='afterwards, rerun N finished cells in this process and check the table equals them exactly',
     )
     args = parser.parse_args(argv)
-    if args.workers is not None and args.workers < 1:
-        parser.error(f'--workers: must be >= 1, got {args.workers}')
     if args.address and args.backend != 'ray':
         parser.error('--address needs --backend ray')
     try:

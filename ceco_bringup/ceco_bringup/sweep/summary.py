@@ -297,14 +297,14 @@ def summary_markdown(
             '## Vehicle level (FASTSim 3.1, load-averaged line; see docs/analysis.md)',
             '',
             '| scenario | cycle | climate | preview | occupant | vehicle | strategy | P_A/C [W] | '
-            'Δ vehicle energy [%] | noise 1σ [%] | paper, SC03 [%] | range lost [km] |',
+            'vehicle energy change [%] | noise 1σ [%] | paper change, SC03 [%] | range lost [km] |',
             '|---|---|---|---|---|---|---|---|---|---|---|---|',
         ]
         for r in vehicle:
             lines.append(
                 f"| {' | '.join(str(r[a]) for a in GROUP_AXES)} | {r['vehicle']} | {r['strategy']} | "
-                f"{f(r['p_ac_mean_w'], '.0f')} | {f(r['saving_fit_pct'], '+.2f')} | "
-                f"{f(r['noise_pct'], '.2f')} | {f(r['paper_saving_pct'], '+.1f')} | "
+                f"{f(r['p_ac_mean_w'], '.0f')} | {f(r['change_fit_pct'], '+.2f')} | "
+                f"{f(r['noise_pct'], '.2f')} | {f(r['paper_change_pct'], '+.1f')} | "
                 f"{f(r['range_lost_km'], '.1f')} |"
             )
     return '\n'.join(lines) + '\n'
