@@ -389,7 +389,8 @@ def fig_plane(points: Mapping[str, Mapping], family: Mapping[str, Mapping], path
             )
         ax.set_xlabel('Thermal discomfort: PMV outside -0.5..+0.5, clipped at ±3 [PMV·h]')
         ax.set_ylabel('A/C energy: compressor + blower + condenser fan [kWh]')
-        ax.legend(loc='best', fontsize=7)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc='best', fontsize=7)
         ax.set_title(title or 'Energy against discomfort (lower left is better)')
         return save_png(fig, path)
 

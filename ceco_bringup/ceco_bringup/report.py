@@ -368,10 +368,10 @@ def _solver_table(group: Mapping[str, RunData], labels: Sequence[str]) -> list:
     ]
 
 
-def _family_for(scenario: str, group: Mapping[str, RunData]) -> tuple[dict, str]:
-    """The baseline family a job kept for these runs: (family, where it came from).
+def _family_for(scenario: str, group: Mapping[str, RunData]) -> tuple[dict, str, str]:
+    """The baseline family a job kept for these runs: (family, how it was run, the file).
 
-    From ``verdict.json`` in a run directory or its parent, same scenario and length; ({}, '')
+    From ``verdict.json`` in a run directory or its parent, same scenario and length; ({}, '', '')
     when there is none.
     """
     duration = max(r.recomputed['duration_s'] for r in group.values())
@@ -388,8 +388,8 @@ def _family_for(scenario: str, group: Mapping[str, RunData]) -> tuple[dict, str]
                 continue
             if data.get('scenario') == scenario and abs(float(data.get('duration_s', -1)) - duration) < 0.5:
                 if data.get('family'):
-                    return dict(data['family']), f"{data.get('family_source', '')}, kept in {f}"
-    return {}, ''
+                    return dict(data['family']), str(data.get('family_source', '')), str(f)
+    return {}, '', ''
 
 
 def _verdict_paragraphs(lines: Sequence[str]) -> list:
@@ -407,12 +407,13 @@ def _verdict_section(scenario: str, group: Mapping[str, RunData], fig_dir: Path)
     """The verdict of one scenario in words and the energy-discomfort plane: (blocks, figure, console lines)."""
     labels = figures.ordered(list(group))
     points = {lab: vd.run_point(group[lab].columns) for lab in labels}
-    family, source = _family_for(scenario, group)
+    family, source, kept_in = _family_for(scenario, group)
     v = vd.build_verdict(
         scenario,
         points,
         family,
         family_source=source,
+        family_file=kept_in,
         partial={lab: group[lab].partial for lab in labels if group[lab].partial},
     )
     pointer = (

@@ -170,6 +170,8 @@ class Verdict:
     """{'baseline@S': run_point(...)} of the family; empty when not computed."""
     family_source: str = ''
     """How the family was run (e.g. 'in-process simulator')."""
+    family_file: str = ''
+    """The ``verdict.json`` the family was read from ('' when it was run for this verdict)."""
     partial: dict = dataclasses.field(default_factory=dict)
     """{strategy: 'why'} of runs that did not finish (shown, never matched)."""
     matched: dict = dataclasses.field(default_factory=dict)
@@ -188,6 +190,7 @@ def build_verdict(
     family: Mapping[str, Mapping] | None = None,
     *,
     family_source: str = 'in-process simulator',
+    family_file: str = '',
     partial: Mapping[str, str] | None = None,
 ) -> Verdict:
     """The verdict of a job's runs (``points``: {strategy: run_point}) against a family (or none)."""
@@ -200,6 +203,7 @@ def build_verdict(
         baseline=base,
         family={k: dict(p) for k, p in (family or {}).items()},
         family_source=family_source if family else '',
+        family_file=family_file if family else '',
         partial=partial,
     )
     for name, p in points.items():
@@ -270,6 +274,8 @@ def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
             f'Matched comfort: against the production law at {sps[0]:g}-{sps[-1]:g} degC '
             f'({len(sps)} runs, {v.family_source}).'
         )
+        if v.family_file:
+            lines.append(f'  (kept in {v.family_file})')
         scored = {n: m for n, m in v.matched.items() if n != v.baseline and m.get('energy_saving_pct') is not None}
         if scored:
             best = max(scored, key=lambda n: scored[n]['energy_saving_pct'])

@@ -32,7 +32,7 @@ from . import runner
 from .cases import DEFAULT_CASES, QUICK_CASES, CaseError, list_cases, load_case
 from .schema import BENCHMARK_VERSION, SCHEMA, ResultsError, check_results, validate_results
 
-__all__ = ['run_benchmark', 'ceco_version', 'main']
+__all__ = ['run_benchmark', 'ceco_version', 'build_parser', 'main']
 
 
 def ceco_version() -> str:
@@ -277,8 +277,8 @@ def _missing(cell) -> dict:
     }
 
 
-def main(argv=None) -> int:
-    """CLI of ``ceco benchmark``."""
+def build_parser() -> cli_args.Parser:
+    """The parser of ``ceco benchmark`` (``ceco benchmark --help``)."""
     p = cli_args.Parser('ceco benchmark', __doc__.split('\n\n')[0])
     p.add_argument('cases', nargs='*', help=f'case names or case-file paths (default: all bundled: {list_cases()})')
     cli_args.add_out(p, 'output directory (reuse it to resume)', required=False)
@@ -300,6 +300,12 @@ def main(argv=None) -> int:
     p.add_argument('--save-runs', action='store_true', help='also write a run directory per run to DIR/runs/')
     p.add_argument('--validate', metavar='FILE', default=None, help='only check FILE against ceco-benchmark/1')
     cli_args.add_no_progress(p)
+    return p
+
+
+def main(argv=None) -> int:
+    """CLI of ``ceco benchmark``."""
+    p = build_parser()
     args = p.parse_args(argv)
     if args.validate:
         try:

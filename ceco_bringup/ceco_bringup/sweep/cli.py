@@ -21,7 +21,7 @@ from .cells import METRIC_COLUMNS, TIMING_COLUMNS
 from .grid import AXES, GridError, expand_grid, load_grid
 from .summary import _settings_of, _write_parquet, _write_table, point_name, summarize, summary_markdown, vehicle_rows
 
-__all__ = ['run_sweep', 'verify_cells', 'main']
+__all__ = ['run_sweep', 'verify_cells', 'build_parser', 'main']
 
 
 def run_sweep(
@@ -215,18 +215,8 @@ def verify_cells(out_dir: str | os.PathLike, n: int, grid_path: str | os.PathLik
     return out
 
 
-def main(argv=None) -> int:
-    """``ceco sweep GRID --out DIR``: run or resume a sweep, print its timing and paths, optionally verify it.
-
-    Args:
-        argv: the arguments after ``ceco sweep`` (default ``sys.argv[1:]``).
-
-    Returns:
-        The exit status: 0 when every cell succeeded (and ``--verify`` found the table equal to
-        the reruns), 1 when a cell failed or a rerun differed, 2 for an invalid grid or options or
-        when the sweep cannot run (a file or backend error),
-        130 when interrupted (finished cells are kept).
-    """
+def build_parser() -> cli_args.Parser:
+    """The parser of ``ceco sweep`` (``ceco sweep --help``)."""
     parser = cli_args.Parser(
         'ceco sweep',
         'Run a grid of closed-loop simulations (strategies x scenarios x drive '
@@ -251,6 +241,22 @@ def main(argv=None) -> int:
         metavar='N',
         help='afterwards, rerun N finished cells in this process and check the table equals them exactly',
     )
+    return parser
+
+
+def main(argv=None) -> int:
+    """``ceco sweep GRID --out DIR``: run or resume a sweep, print its timing and paths, optionally verify it.
+
+    Args:
+        argv: the arguments after ``ceco sweep`` (default ``sys.argv[1:]``).
+
+    Returns:
+        The exit status: 0 when every cell succeeded (and ``--verify`` found the table equal to
+        the reruns), 1 when a cell failed or a rerun differed, 2 for an invalid grid or options or
+        when the sweep cannot run (a file or backend error),
+        130 when interrupted (finished cells are kept).
+    """
+    parser = build_parser()
     args = parser.parse_args(argv)
     if args.address and args.backend != 'ray':
         parser.error('--address needs --backend ray')
