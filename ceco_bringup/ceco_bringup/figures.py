@@ -419,15 +419,15 @@ def front_figure(
         raise ValueError('front_figure: the summary has no rows')
     n = len(groups)
     panels = [
-        ('dE_tot_kWh_pct', 'dI_pmv_pct', 'whole run', 'ΔE_tot [%]', 'ΔI_PMV [%]', None),
-        ('dE_zone_J_pct', 'dI_pmv_zone_pct', 'comfort-zone phase', 'ΔE_zone [%]', 'ΔI_PMV,zone [%]', None),
+        ('E_tot_kWh_change_pct', 'I_pmv_change_pct', 'whole run', 'ΔE_tot [%]', 'ΔI_PMV [%]', None),
+        ('E_zone_J_change_pct', 'I_pmv_zone_change_pct', 'comfort-zone phase', 'ΔE_zone [%]', 'ΔI_PMV,zone [%]', None),
     ]
     if zoom_pct is not None:
         panels.insert(
             1,
             (
-                'dE_tot_kWh_pct',
-                'dI_pmv_pct',
+                'E_tot_kWh_change_pct',
+                'I_pmv_change_pct',
                 'whole run, near the baseline',
                 'ΔE_tot [%]',
                 'ΔI_PMV [%]',
