@@ -435,6 +435,7 @@ def main(argv=None) -> int:
         train = {c: np.concatenate([s[c] for s in parts]) for c in SERIES_COLUMNS}
         train_src = ", ".join(args.from_csv)
     else:
+        print(f"ceco identify: simulating the {len(TRAIN_DRIVES)} training drives on the plant", file=sys.stderr)
         train = generate_excitation(TRAIN_DRIVES, exc)
         path = data_dir / "train.csv"
         sha = write_series_csv(train, path)
@@ -443,6 +444,7 @@ def main(argv=None) -> int:
         valid = read_series_csv(args.validation_csv)
         valid_src = args.validation_csv
     else:
+        print("ceco identify: simulating the validation drive", file=sys.stderr)
         valid = generate_excitation(VALIDATION_DRIVES, exc, seed_offset=1000)
         path = data_dir / "validation.csv"
         sha = write_series_csv(valid, path)
@@ -451,6 +453,7 @@ def main(argv=None) -> int:
     iv_valid = intervals_from_series(valid, args.ts)
     emap = eta_ac_points(EtaMapSettings())
     a_eta, v_eta, eta_rms = fit_eta_ac(emap["speeds_mps"], emap["ratio"])
+    print("ceco identify: fitting and validating", file=sys.stderr)
     params, resid = fit_intervals(iv_train, args.ts, eta=(a_eta, v_eta))
     v20 = int(np.argmin(np.abs(emap["speeds_mps"] - 20.0)))
     eta_report = {
