@@ -81,6 +81,25 @@ def test_verdict_within_the_fronts_resolution_is_no_saving():
     assert 'Headline: no strategy saves 1 % or more at matched comfort (best: ceco, +0.4 %).' in text
 
 
+def test_less_energy_with_lost_comfort_is_not_called_a_saving():
+    """A cloudy 35 degC scenario of one's own: ceco used 26.2 % less energy than the baseline run and
+    lost comfort (+224 %); the table said `dE_tot_kWh % -26.2`, `dI_pmv % +224.1` and a reader saw a
+    26 % saving. Now the change is signed as measured with its meaning, and the matched-comfort line
+    says the point is less comfortable than every set-point (no saving is claimed)."""
+    points = {'baseline': _point(0.05, 0.30), 'ceco': _point(0.05 * 3.24, 0.30 * (1 - 0.262))}
+    fam = {
+        'baseline@25.0': _point(0.04, 0.33),
+        'baseline@26.0': _point(0.05, 0.30),
+        'baseline@27.0': _point(0.08, 0.27),
+    }
+    v = vd.build_verdict('cloudy35', points, fam)
+    text = '\n'.join(vd.verdict_lines(v))
+    assert 'Against the baseline run alone the energy changes by -26.2 % and the discomfort' in text
+    assert 'by +224.0 % (+ = more): a comparison at different comfort, not a saving.' in text
+    assert 'less comfortable than every set-point: no matched value' in text
+    assert 'Headline' not in text and 'saves' not in text
+
+
 def test_verdict_json_round_trip(tmp_path):
     v = vd.build_verdict('sc03', {'ceco': _point(0.11, 0.38)}, FAMILY)
     data = vd.read_verdict(vd.write_verdict(tmp_path / 'verdict.json', v))

@@ -104,7 +104,7 @@ def main(argv=None) -> int:
         provenance.start_run(run_dir, 'sim', argv, args.scenario)
         try:
             res = simulate(scenario, s, settings)
-        except ValueError as exc:  # a --set field the strategy does not have, a model file that does not fit
+        except (ValueError, OSError) as exc:  # a --set field the strategy lacks, a missing or unfit model file
             provenance.finish_run(run_dir, 'failed', str(exc))
             print(f'ceco sim: error: {s}: {exc}', file=sys.stderr)
             return 2

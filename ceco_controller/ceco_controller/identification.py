@@ -426,6 +426,15 @@ def main(argv=None) -> int:
     ap.add_argument("--ts", type=float, default=5.0, help="model step [s]")
     ap.add_argument("--horizon", type=int, default=6, help="horizon for the multi-step error [steps]")
     args = ap.parse_args(argv)
+    try:
+        return _identify(args, argv)
+    except (ValueError, OSError) as exc:  # a missing or malformed CSV: one line, no traceback
+        print(f"ceco identify: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _identify(args, argv) -> int:
+    """The work of :func:`main` for parsed ``args``."""
     data_dir, out = output_paths(args.out)
     exc = ExcitationSettings(seed=args.seed, ts_s=args.ts)
     if args.from_csv:
