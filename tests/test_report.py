@@ -46,11 +46,12 @@ def _msg(store, typename, values, t_s):
     return store.serialize_cdr(cls(**kw), typename)
 
 
-def _write_bag(result, bag_dir):
-    """Record a simulated run as the plant node does: state and comfort at
-    t_n, power over [t_n, t_n + dt), one message each per plant step."""
+def _plant_bag_writer(bag_dir, custom=None):
+    """(typestore, an open BagWriter with the plant's three topics, {topic: type}); ``custom``: custom_data."""
     store = bagio.typestore()
     w = bag_writer.BagWriter(bag_dir)
+    for k, v in (custom or {}).items():
+        w.set_custom_data(k, v)
     topics = {
         '/cabin/state': 'ceco_msgs/msg/CabinState',
         '/cabin/comfort': 'ceco_msgs/msg/Comfort',
@@ -58,6 +59,13 @@ def _write_bag(result, bag_dir):
     }
     for topic, typ in topics.items():
         w.add_topic(topic, typ)
+    return store, w, topics
+
+
+def _write_bag(result, bag_dir):
+    """Record a simulated run as the plant node does: state and comfort at
+    t_n, power over [t_n, t_n + dt), one message each per plant step."""
+    store, w, topics = _plant_bag_writer(bag_dir)
     ts = result.timeseries
     for n in range(len(ts['t_s'])):
         t = float(ts['t_s'][n])
@@ -366,17 +374,7 @@ def _bare_bag(result, bag_dir, *, steps=None, parameters=None, strategy='baselin
     given, the plant's parameters on /parameter_events."""
     from bag_helpers import sample
 
-    store = bagio.typestore()
-    w = bag_writer.BagWriter(bag_dir)
-    for k, v in (custom or {}).items():
-        w.set_custom_data(k, v)
-    topics = {
-        '/cabin/state': 'ceco_msgs/msg/CabinState',
-        '/cabin/comfort': 'ceco_msgs/msg/Comfort',
-        '/hvac/power': 'ceco_msgs/msg/AcPower',
-    }
-    for topic, typ in topics.items():
-        w.add_topic(topic, typ)
+    store, w, topics = _plant_bag_writer(bag_dir, custom)
     w.add_topic('/controller/diagnostics', 'ceco_msgs/msg/ControllerDiagnostics')
     if parameters:
         w.add_topic('/parameter_events', 'rcl_interfaces/msg/ParameterEvent')

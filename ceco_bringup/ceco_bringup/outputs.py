@@ -30,6 +30,7 @@ from ceco_core.metrics import ENERGY_PARTS, J_PER_KWH, PMV_SCALE_LIMIT, relative
 __all__ = [
     'CONSOLE_WIDTH',
     'run_line',
+    'pmv_scale_cell',
     'table_rows',
     'console_table',
     'full_table',
@@ -144,7 +145,8 @@ def table_rows(metrics: Mapping[str, Mapping], kpis: Mapping[str, Mapping], v: v
     return rows
 
 
-def _pmv_max_cell(x) -> str:
+def pmv_scale_cell(x) -> str:
+    """A PMV as printed: ``>3`` / ``<-3`` beyond ISO 7730's seven-point scale (clipped: no vote there)."""
     if x is None or not math.isfinite(float(x)):
         return 'n/a'
     if x > PMV_SCALE_LIMIT:
@@ -188,7 +190,7 @@ def console_table(rows: Sequence[Mapping]) -> str:
             _fmt(r.get('energy_saving_matched_pct'), '+.1f'),
             _fmt(r.get('otc_violation_pct'), '.1f'),
             _fmt(r.get('time_to_comfort_s'), '.0f'),
-            _pmv_max_cell(r.get('pmv_max')),
+            pmv_scale_cell(r.get('pmv_max')),
             _fmt(r.get('iso7730_invalid_pct'), '.1f'),
         )
         for r in rows

@@ -43,6 +43,7 @@ from pathlib import Path
 
 from ceco_bringup import cli_args, figures
 from ceco_bringup import verdict as vd
+from ceco_bringup.outputs import pmv_scale_cell
 from ceco_bringup.report_html import (
     Figure,
     Heading,
@@ -57,7 +58,7 @@ from ceco_bringup.report_html import (
 )
 from ceco_bringup.report_vehicle import vehicle_rows, vehicle_section
 from ceco_bringup.rundata import RunData, discover_runs, load_run, solver_stats
-from ceco_core.metrics import ENERGY_PARTS, J_PER_KWH, PMV_SCALE_LIMIT, relative_change_pct
+from ceco_core.metrics import ENERGY_PARTS, J_PER_KWH, relative_change_pct
 
 __all__ = ['PAPER_AC_CHANGE_PCT', 'build_report', 'main']
 
@@ -80,13 +81,6 @@ def _paper_energy_change(x: Mapping, base: RunData | None) -> str:
         return 'n/a'
     b = base.recomputed
     return fmt_pct(relative_change_pct(x['E_comp_J'] + x['E_blower_J'], b['E_comp_J'] + b['E_blower_J']))
-
-
-def _pmv_max(x: float) -> str:
-    """PMV max on the +-3 scale: beyond it, '>3' (clipped: PMV there is no vote)."""
-    if x > PMV_SCALE_LIMIT:
-        return '>3 (clipped)'
-    return fmt_num(x, 2)
 
 
 def _group(runs: Sequence[RunData]) -> dict:
@@ -181,7 +175,7 @@ def _metrics_table(
                 fmt_num(x['otc_violation_pct'], 1),
                 fmt_num(x['time_to_comfort_s'], 0),
                 fmt_num(x['pmv_mean'], 3),
-                _pmv_max(x['pmv_max']),
+                pmv_scale_cell(x['pmv_max']),
                 fmt_num(k['iso7730_invalid_pct'] if k['iso7730_invalid_pct'] is not None else math.nan, 1),
                 r.source,
                 'no metrics.json'
@@ -228,7 +222,7 @@ def _metrics_table(
         caption=f'Metrics per strategy. E: A/C energy, {ENERGY_PARTS}. E change: against the baseline run, as '
         'measured (+ = more energy). D: discomfort, PMV-hours outside -0.5..+0.5 with PMV clipped at ±3. '
         'I_PMV = ∫PMV² dt (the paper\'s). viol.: share of time outside the scenario\'s PMV bounds; t_comfort: '
-        'first time PMV stays in -0.5..+0.5 for 60 s. PMV beyond ±3 is off ISO 7730\'s scale (shown clipped); '
+        'first time PMV stays in -0.5..+0.5 for 60 s. PMV beyond ±3 is off ISO 7730\'s scale (shown >3: clipped); '
         'ISO out: share of samples whose PMV or its inputs lie outside ISO 7730 validity (comfort numbers there '
         'are extrapolations).',
     )
