@@ -252,7 +252,7 @@ def run_one(
     from ceco_bringup.recorder import Recorder
 
     dt_s = 1.0
-    duration_s = args.duration_s or scenario.duration_s  # main refuses one beyond the scenario
+    duration_s = min(args.duration_s or scenario.duration_s, scenario.duration_s)
     n_plant = int(math.floor(duration_s / dt_s + 1e-9))
     ts, np_, p_prev, p_ctrl, p_plant = _params(args, scenario, quality, strategy, duration_s)
 
