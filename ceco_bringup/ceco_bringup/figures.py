@@ -228,9 +228,9 @@ def _bar_labels(ax, bars, values, base, fmt='{:+.1f} %'):
 
 
 def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: str = 'baseline') -> Path:
-    """A/C energy (compressor + blower, kWh), I_PMV and OTC violation per strategy.
+    """A/C energy (compressor + blower + condenser fan, stacked, kWh), I_PMV and OTC violation per strategy.
 
-    Each bar is annotated with its change against the baseline.
+    Each bar is annotated with its change against the baseline, as measured (+ = more).
     """
     names = ordered(list(metrics))
     x = np.arange(len(names))
@@ -240,6 +240,7 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
         fig, axes = plt.subplots(1, 3, figsize=(9.0, 3.3))
         e_comp = np.array([metrics[n]['E_comp_J'] for n in names]) / 3.6e6
         e_bl = np.array([metrics[n]['E_blower_J'] for n in names]) / 3.6e6
+        e_fan = np.array([metrics[n].get('E_fan_J', 0.0) for n in names]) / 3.6e6
         ax = axes[0]
         ax.bar(x, e_comp, color=colors, edgecolor='k', lw=0.5, label='Compressor')
         ax.bar(
@@ -253,7 +254,18 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
             alpha=0.6,
             label='Blower (hatched)',
         )
-        tot = e_comp + e_bl
+        ax.bar(
+            x,
+            e_fan,
+            bottom=e_comp + e_bl,
+            color=colors,
+            edgecolor='k',
+            lw=0.5,
+            hatch='...',
+            alpha=0.35,
+            label='Condenser fan (dotted)',
+        )
+        tot = e_comp + e_bl + e_fan
         base_tot = tot[names.index(baseline)] if baseline in names else None
         for xi, v in zip(x, tot):
             change = math.nan if base_tot is None else relative_change_pct(v, base_tot)
@@ -267,15 +279,16 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
                     xytext=(0, 2),
                     textcoords='offset points',
                 )
-        ax.set_ylabel('A/C energy E$_{tot}$ [kWh]')
+        ax.set_ylabel('A/C energy E (comp. + blower + fan) [kWh]')
         ax.set_ylim(0, tot.max() * 1.32)
         ax.legend(
             handles=[
                 Patch(facecolor='white', edgecolor='k', lw=0.5, label='Compressor'),
                 Patch(facecolor='white', edgecolor='k', lw=0.5, hatch='///', label='Blower'),
+                Patch(facecolor='white', edgecolor='k', lw=0.5, hatch='...', label='Fan'),
             ],
             loc='upper center',
-            ncol=2,
+            ncol=3,
             fontsize=7,
         )
         for ax, key, ylab in (
@@ -303,7 +316,7 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
         for ax in axes:
             ax.set_xticks(x, labels, rotation=30, ha='right')
             ax.grid(axis='x', visible=False)
-        fig.suptitle(title or 'Energy and comfort per strategy (labels: change vs baseline)')
+        fig.suptitle(title or 'Energy and comfort per strategy (labels: change vs baseline, + = more)')
         fig.tight_layout()
         return save_png(fig, path)
 

@@ -256,8 +256,8 @@ def _time_figures(scenario: str, group: Mapping[str, RunData], labels: Sequence[
         ),
         (
             figures.fig_bars(metrics, fig_dir / f'{name}_bars.png', f'Energy and comfort, {scenario}'),
-            'A/C energy (compressor solid, blower hatched), comfort index I_PMV and bound violation; labels '
-            'give the change against the baseline.',
+            'A/C energy (compressor solid, blower hatched, condenser fan dotted), comfort index I_PMV and bound '
+            'violation; labels give the change against the baseline as measured (+ = more).',
         ),
     ]
     diags = {lab: group[lab].diagnostics for lab in labels if group[lab].diagnostics is not None}

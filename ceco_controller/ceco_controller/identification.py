@@ -422,9 +422,9 @@ def main(argv=None) -> int:
         help="run directory to write model_params.yaml and the generated train/validation CSVs into; it must not "
         "hold them already (default: a new runs/identify-<UTC time>)",
     )
-    ap.add_argument("--seed", type=int, default=1, help="excitation seed")
-    ap.add_argument("--ts", type=float, default=5.0, help="model step [s]")
-    ap.add_argument("--horizon", type=int, default=6, help="horizon for the multi-step error [steps]")
+    ap.add_argument("--seed", type=int, default=1, help="excitation seed (default: 1)")
+    ap.add_argument("--ts", type=float, default=5.0, help="model step [s] (default: 5)")
+    ap.add_argument("--horizon", type=int, default=6, help="horizon for the multi-step error [steps] (default: 6)")
     args = ap.parse_args(argv)
     try:
         return _identify(args, argv)
