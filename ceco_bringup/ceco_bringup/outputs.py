@@ -269,7 +269,6 @@ def finish_job(
     (out / 'comparison.txt').write_text(header + '\n' + full_table(rows) + '\n', encoding='utf-8')
     write_comparison_csv(out / 'comparison.csv', rows)
     vd.write_verdict(out / 'verdict.json', v)
-    with open(out / 'summary.txt', 'a', encoding='utf-8') as fh:
-        fh.write(text + '\n')
+    (out / 'summary.txt').write_text(text + '\n', encoding='utf-8')
     sys.stdout.flush()
     return v
