@@ -136,10 +136,10 @@ def _strongest_cells(m: Mapping) -> list[str]:
 
 
 _HEADLINE_HEADER = (
-    'ΔE at matched comfort [%] vs production PI',
-    'ΔD at matched energy [%] vs production PI',
+    'E saving at matched comfort [%] vs production PI',
+    'D cut at matched energy [%] vs production PI',
     'dominated (production PI)',
-    'ΔE at matched comfort [%] vs strongest family',
+    'E saving at matched comfort [%] vs strongest family',
     'dominated (any family)',
     'strongest family there',
     'headroom_captured [-]',
@@ -241,13 +241,13 @@ def _case_blocks(case: Mapping, settings: Mapping, fig_dir: Path) -> list:
         Table(
             (
                 'controller',
-                'ΔE matched comfort, production PI [%]',
-                'ΔD matched energy, production PI [%]',
+                'E saving matched comfort, production PI [%]',
+                'D cut matched energy, production PI [%]',
                 'dominated, production PI',
-                'ΔE matched comfort, production PI + allowance [%]',
-                'ΔD matched energy, production PI + allowance [%]',
+                'E saving matched comfort, production PI + allowance [%]',
+                'D cut matched energy, production PI + allowance [%]',
                 'dominated, production PI + allowance',
-                'ΔE matched comfort, strongest [%]',
+                'E saving matched comfort, strongest [%]',
                 'dominated (any family)',
                 'strongest family',
                 'headroom_captured [-]',
