@@ -73,10 +73,12 @@ def family_table(doc) -> str:
 
 
 def strongest_table(doc) -> str:
-    """The strongest family per case (at the oracle's levels) and each family's front size."""
+    """The strongest family per case at the oracle's levels (recomputed with this code's ``runner.oracle_levels``)."""
+    from ceco_bringup.benchmark import runner
+
     lines = ['| case | strongest family | at the oracle levels [PMV·h: family] |', '|---|---|---|']
     for case in doc['cases']:
-        st = case['strongest']
+        st = fr.strongest_by_level(fr.Envelope.of(_fronts(case)), runner.oracle_levels(case['runs']))
         per = ', '.join(f"{x['discomfort']:.4f}: {x['family']}" for x in st['levels'])
         lines.append(f"| {case['case']} | {st['family']} | {per} |")
     return '\n'.join(lines)
