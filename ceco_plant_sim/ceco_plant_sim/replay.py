@@ -75,7 +75,8 @@ def replay_commands(
         mdot_bl_kgps: blower flow per plant step [kg/s] (actuator range 0.05-0.17).
         t_evap_sp_c: evaporator set-point per plant step [degC] (actuator range 3-10).
         plant_dt_s: plant step [s].
-        plant_overrides, comfort_overrides: as :class:`ScenarioPlant`.
+        plant_overrides: ``{PlantParams field: value}``, as :class:`ScenarioPlant`.
+        comfort_overrides: ``{ComfortParams field: value}``, as :class:`ScenarioPlant`.
 
     Raises ValueError (naming the step) for sequences of different lengths, longer than the
     scenario, or a command outside the actuator bounds.
