@@ -243,8 +243,11 @@ def _newton_evaluation(s: _Newton, ops, tab, comp, vn, args, te_mop_c, tol_k, pr
     converged = ops.logic_and(abs(de) < tol_k, abs(dc) < tol_k)
 
     def check_flags():  # this point is within ~tol_k of the root: keep its evaluated quantities
-        new_mop = ops.logic_or(s.mop, s.t_e > te_mop_c)
-        new_hp = ops.logic_or(hp, pr < pr_min * (1.0 - 1e-9))
+        pin = ops.logic_and(ops.logic_not(s.mop), s.t_e > te_mop_c)
+        new_mop = ops.logic_or(s.mop, pin)
+        # head-pressure control is judged on a solution with the evaporating temperature it will have:
+        # not in the round that pins the MOP (there T_e, so p_e, is still above the pin)
+        new_hp = ops.logic_or(hp, ops.logic_and(ops.logic_not(pin), pr < pr_min * (1.0 - 1e-9)))
         same = ops.logic_and(new_mop == s.mop, new_hp == hp)
         rounds = s.rounds + 1
         t_e = ops.where(ops.logic_and(ops.logic_not(same), new_mop), te_mop_c, s.t_e)
