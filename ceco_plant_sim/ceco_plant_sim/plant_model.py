@@ -35,7 +35,7 @@ Pure logic: no rclpy, no message types.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 
 import casadi
 import numpy as np
@@ -216,7 +216,9 @@ class PlantModel:
             ins, names_in = [*ins, ws], [*names_in, "warm"]
 
         def out(name, exprs, names):
-            outs = [casadi.vertcat(*[casadi.SX(v) if isinstance(v, (bool, int, float)) else v for v in e]) for e in exprs]
+            outs = [
+                casadi.vertcat(*[casadi.SX(v) if isinstance(v, (bool, int, float)) else v for v in e]) for e in exprs
+            ]
             return casadi.Function(name, ins, outs, names_in, names)
 
         dx, flows, alg, g_rhs, ok_rhs = eq.rhs(x, u, p_bl, env, guess)
@@ -284,53 +286,87 @@ class PlantModel:
         return casadi.Function("scored_pmv", [xs, tv, us, es], [y], ["x", "t_vent_c", "u", "env"], ["pmv"])
 
     # ------------------------------------------------------------------ numeric use
+    def rollout(self, n_steps: int) -> casadi.Function:
+        """``step`` chained over ``n_steps`` (CasADi ``mapaccum``), cached per length.
+
+        Smooth: (x0, U[2 x N], E[4 x N]) -> (X[8 x N], energy[10 x N], Y[10 x N]), column n the state at
+        t_{n+1}, the step's energies and its end outputs. Exact: (x0, U, E, warm0) -> (X, energy, Y,
+        warm[3 x N], ok[1 x N]).
+        """
+        if not (isinstance(n_steps, int) and n_steps >= 1):
+            raise ValueError(f"n_steps: must be an int >= 1, got {n_steps!r}")
+        key = f"_rollout_{n_steps}"
+        if key not in self.__dict__:
+            acc = [0, 3] if self.evaluation == "exact" else [0]
+            self.__dict__[key] = self.step.mapaccum(f"rollout_{n_steps}", n_steps, acc, acc)
+        return self.__dict__[key]
+
     def replay(
         self,
         x0,
-        commands: Sequence,
-        envs: Sequence,
+        commands,
+        envs,
         comfort: ComfortParams | None = None,
         pa_pa: float | None = None,
     ) -> dict[str, np.ndarray]:
-        """Evaluate ``step`` along a drive numerically, with ``ScenarioPlant``'s scoring timing.
+        """Evaluate the model along a drive numerically, with ``ScenarioPlant``'s scoring timing.
 
         Args:
             x0: key-on state (a :attr:`state` vector, a PlantState or a mapping).
-            commands: per step an (mdot_bl_kgps, t_evap_sp_c) pair or an AcInput.
-            envs: per step the truth environment at t_n (objects with the :attr:`env` fields).
+            commands: per step the command: an N x 2 array (:attr:`input` order) or AcInputs.
+            envs: per step the truth environment at t_n: an N x 4 array (:attr:`env` order) or
+                objects with those fields.
             comfort: the scored comfort parameters (``ScenarioPlant.comfort``); None: no PMV.
             pa_pa: fixed scored vapour pressure [Pa] (the comfort override), None: the cabin's.
 
-        Returns per-step arrays: ``x`` (state at t_n, n = 0..N), ``energy`` (per step), ``y`` (end of
-        step), ``pmv`` (at t_n, with the vent air measured at t_n: the evaporator wall at key-on)
-        and, for the exact model, ``ok``. RuntimeError if a step is not finite.
+        Returns per-step arrays: ``x`` (N+1 x 8, the state at t_0..t_N), ``energy`` (N x 10),
+        ``y`` (N x 10, end of each step), ``pmv`` (N, at t_n with the vent air measured at t_n: the
+        evaporator wall at key-on, then the previous step's end) and, for the exact model, ``ok``.
+        RuntimeError if the drive leaves the finite numbers.
         """
-        x = self.state.vector(x0) if not isinstance(x0, (np.ndarray, list, tuple)) else np.asarray(x0, dtype=float)
-        warm = np.zeros(self.warm.size)
-        pmv_f = self.scored_pmv(comfort, pa_pa) if comfort is not None else None
-        t_vent = x[self.state.index("t_evap_c")]
-        xs, es, ys, pm, oks = [x], [], [], [], []
-        for n, (cmd, env) in enumerate(zip(commands, envs, strict=True)):
-            uvec = self.input.vector(cmd) if not isinstance(cmd, (tuple, list, np.ndarray)) else np.asarray(cmd, float)
-            evec = self.env.vector(env)
-            if pmv_f is not None:
-                pm.append(float(pmv_f(x, t_vent, uvec, evec)))
-            if self.evaluation == "exact":
-                x1, e, y, warm, ok = self.step(x, uvec, evec, warm)
-                oks.append(bool(float(ok)))
-            else:
-                x1, e, y = self.step(x, uvec, evec)
-            x = np.asarray(x1, dtype=float).ravel()
-            if not np.all(np.isfinite(x)):
-                raise RuntimeError(f"{self.evaluation} model: non-finite state after step {n}")
-            y = np.asarray(y, dtype=float).ravel()
-            t_vent = y[self.y.index("t_vent_c")]
-            xs.append(x)
-            es.append(np.asarray(e, dtype=float).ravel())
-            ys.append(y)
-        out = {"x": np.array(xs), "energy": np.array(es), "y": np.array(ys)}
-        if pmv_f is not None:
-            out["pmv"] = np.array(pm)
+        x = np.asarray(x0, dtype=float) if isinstance(x0, (np.ndarray, list, tuple)) else self.state.vector(x0)
+        u = np.array([c if isinstance(c, (tuple, list, np.ndarray)) else self.input.vector(c) for c in commands], float)
+        e = np.array([v if isinstance(v, (tuple, list, np.ndarray)) else self.env.vector(v) for v in envs], float)
+        if u.ndim != 2 or e.shape != (u.shape[0], self.env.size) or u.shape[1] != self.input.size:
+            raise ValueError(
+                f"commands {u.shape} and envs {e.shape} must be N x {self.input.size} and N x {self.env.size}"
+            )
+        n = u.shape[0]
+        args = [x, u.T, e.T] + ([np.zeros(self.warm.size)] if self.evaluation == "exact" else [])
+        res = self.rollout(n)(*args)
+        xs = np.asarray(res[0], dtype=float).T
+        if not np.all(np.isfinite(xs)):
+            raise RuntimeError(
+                f"{self.evaluation} model: non-finite state from step {int(np.argmax(~np.isfinite(xs).all(1)))}"
+            )
+        out = {
+            "x": np.vstack([x, xs]),
+            "energy": np.asarray(res[1], dtype=float).T,
+            "y": np.asarray(res[2], dtype=float).T,
+        }
+        if comfort is not None:
+            t_vent = np.concatenate([[x[self.state.index("t_evap_c")]], out["y"][:-1, self.y.index("t_vent_c")]])
+            pmv_f = self.scored_pmv(comfort, pa_pa).map(n)
+            out["pmv"] = np.asarray(pmv_f(out["x"][:-1].T, t_vent[None, :], u.T, e.T), dtype=float).ravel()
         if self.evaluation == "exact":
-            out["ok"] = np.array(oks)
+            out["ok"] = np.asarray(res[4], dtype=float).ravel() == 1.0
         return out
+
+    def scenario_drive(self, scenario, n_steps: int | None = None, *, plant_overrides=None, comfort_overrides=None):
+        """Key-on state, truth environment and scored comfort of a scenario (or its name), as ScenarioPlant has them.
+
+        Returns (x0 [8], envs [N x 4] at t_n = n plant_dt_s, ComfortParams, fixed scored vapour pressure
+        [Pa] or None). ``n_steps`` defaults to the scenario's duration. The model's parameters must
+        be the scenario plant's (``plant_overrides`` applied to the defaults; ValueError otherwise).
+        """
+        from ceco_v2x_preview.scenario import load_scenario
+
+        from .scenario_plant import ScenarioPlant, n_plant_steps
+
+        sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
+        sp = ScenarioPlant(sc, self.plant_dt_s, plant_overrides=plant_overrides, comfort_overrides=comfort_overrides)
+        if sp.plant.params != self.params:
+            raise ValueError("scenario_drive: the scenario plant's parameters differ from this model's")
+        n = n_plant_steps(sp.scenario.duration_s, self.plant_dt_s) if n_steps is None else int(n_steps)
+        envs = np.array([self.env.vector(sp.scenario.env_at(k * self.plant_dt_s)) for k in range(n)])
+        return self.state.vector(sp.plant.state), envs, sp.comfort, sp.scored_pa_pa

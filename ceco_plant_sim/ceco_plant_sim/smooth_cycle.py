@@ -103,7 +103,7 @@ SMOOTH_TABLE_FORMAT = 1
 """Layout version of the file."""
 
 SOLVE_TOL_K = 1e-10
-"""Newton tolerance of the table's solves [K] (the plant's 1e-6 K would put ~1e-7 K of stopping noise into the samples)."""
+"""Newton tolerance of the table's solves [K] (the plant's 1e-6 K would leave ~1e-7 K of stopping noise in them)."""
 SOLVE_MAX_ITER = 60
 """Evaluation cap of the table's solves (a cold start from the solver's built-in guess at every grid point)."""
 
@@ -291,7 +291,7 @@ class SmoothCycleTable:
 
     @staticmethod
     def _clamped(name, spline, names, box) -> casadi.Function:
-        """The spline at the inputs clamped to the box, a never-inlined call node in SX graphs (with its derivatives)."""
+        """The spline at the inputs clamped to the box: a never-inlined call node in SX graphs (with derivatives)."""
         xs = [casadi.MX.sym(n) for n in names]
         clamped = casadi.vertcat(*[casadi.fmin(casadi.fmax(x, lo), hi) for x, (lo, hi) in zip(xs, box, strict=True)])
         return casadi.Function(name, xs, [spline(clamped)], list(names), ["out"], {"never_inline": True})
@@ -380,7 +380,13 @@ def write_smooth_cycle_file(
         "cycle_params": cycle_fingerprint(p),
         "grid": asdict(grid),
         "outputs": list(TABLE_OUTPUTS),
-        "units": {"q_evap_ref_w": "W", "p_comp_w": "W", "t_evap_sat_c": "degC", "mdot_ref_kgps": "kg/s", "n_lim": "rpm"},
+        "units": {
+            "q_evap_ref_w": "W",
+            "p_comp_w": "W",
+            "t_evap_sat_c": "degC",
+            "mdot_ref_kgps": "kg/s",
+            "n_lim": "rpm",
+        },
         "axes": ["speed_rpm", "t_wall_c", "t_amb_c", "epsc_wpk"],
         "solver": f"ceco_plant_sim.refrigerant.solve_cycle, tol_k {SOLVE_TOL_K}, max_iter {SOLVE_MAX_ITER}, cold start",
         "refrigerant_tables": cycle_tables(p.refrigerant, float(p.superheat_k), float(p.subcool_k)).source,
@@ -393,8 +399,9 @@ def write_smooth_cycle_file(
     members = {f"axis_{i}": a for i, a in enumerate(tab.axes)}
     members.update({k: v for k, v in tab.values.items()})
     members["n_lim_rpm"] = tab.n_lim_rpm
+    savez: Any = np.savez_compressed  # numpy's stubs type **kwds as its own keyword arguments
     with open(path, "wb") as f:
-        np.savez_compressed(f, provenance=np.array(json.dumps(prov, sort_keys=True)), **members)
+        savez(f, provenance=np.array(json.dumps(prov, sort_keys=True)), **members)
     return prov
 
 
@@ -426,11 +433,13 @@ def load_smooth_cycle_file(path: str = SHIPPED_SMOOTH_TABLE) -> SmoothCycleTable
     )
 
 
-def check_smooth_cycle_file(path: str = SHIPPED_SMOOTH_TABLE, sample: int | None = None, seed: int = 0) -> dict:
+def check_smooth_cycle_file(
+    path: str = SHIPPED_SMOOTH_TABLE, sample: int | None = None, seed: int = 0, points=None
+) -> dict:
     """Compare a file with a fresh sampling of the current solver: equal bit for bit, or StaleSmoothTableError.
 
-    ``sample``: check only that many random grid points (and power-limit speeds) instead of all.
-    Returns the provenance.
+    ``sample``: check only that many random grid points (and power-limit speeds) instead of all;
+    ``points``: check only these grid indices (speed, wall, ambient, epsc). Returns the provenance.
     """
     prov, arrays = _read(path)
     fix = f"regenerate it with `{REGENERATE_SMOOTH_COMMAND}`"
@@ -446,7 +455,9 @@ def check_smooth_cycle_file(path: str = SHIPPED_SMOOTH_TABLE, sample: int | None
     shape = tuple(a.size for a in axes)
     idx = list(np.ndindex(shape))
     lim = list(np.ndindex(shape[1:]))
-    if sample is not None:
+    if points is not None:
+        idx, lim = [tuple(ix) for ix in points], [tuple(ix)[1:] for ix in points]
+    elif sample is not None:
         rng = np.random.default_rng(seed)
         idx = [idx[i] for i in rng.choice(len(idx), size=min(sample, len(idx)), replace=False)]
         lim = [lim[i] for i in rng.choice(len(lim), size=min(sample, len(lim)), replace=False)]
@@ -462,7 +473,8 @@ def check_smooth_cycle_file(path: str = SHIPPED_SMOOTH_TABLE, sample: int | None
         got = _power_limit_speed(solve, p, *(a[i] for a, i in zip(axes[1:], ix, strict=True)))
         if got != arrays["n_lim_rpm"][ix]:
             raise StaleSmoothTableError(
-                f"smooth cycle table {path}: n_lim at {ix} is {arrays['n_lim_rpm'][ix]!r}, the solver gives {got!r}; {fix}"
+                f"smooth cycle table {path}: n_lim at {ix} is {arrays['n_lim_rpm'][ix]!r}, "
+                f"the solver gives {got!r}; {fix}"
             )
     return prov
 
