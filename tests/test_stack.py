@@ -290,7 +290,7 @@ def test_recorder_records_a_namespaced_stack_fully_qualified(tmp_path):
     assert counts['/veh1/cabin/state'] == 10 and counts['/clock'] == 10 and '/cabin/state' not in counts
     got = [(t, m.step_index, m.t_cab_c) for _, t, m in bagio.read_messages(bag, ('cabin/state',))]
     assert got == [(n * 500_000_000, n, 45.0) for n in range(10)]
-    assert (bag / 'bag.db3').is_file()
+    assert (bag / 'bag_0.db3').is_file()  # rosbag2's name of the first file
 
 
 def _log_has(proc, text, timeout_s=20.0):
