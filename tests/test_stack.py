@@ -675,10 +675,11 @@ def test_preview_faults_over_dds_match_simulator(tmp_path):
 
 
 # ----------------------------------------------------------------------------
-def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
+def test_realtime_kill_controller_fallback_within_one_control_period(tmp_path):
     """Real-time timing (wall-clock timers, as on a vehicle; Ts = 2 s, plant
-    step 0.5 s): SIGKILL the controller; within two control periods of the
-    plant's own clock the plant applies the ACC law, and a restarted controller
+    step 0.5 s): SIGKILL the controller; within one control period plus one plant
+    step of the plant's own clock the plant applies the ACC law (the controller's
+    liveliness lease, else the command age), logs why, and a restarted controller
     takes over. Counted in plant steps, not asserted on elapsed time. The
     controller is baseline_node: the NMPC's model step (5 s) would make a
     real-time test last minutes; the plant-side logic under test is the same
@@ -727,8 +728,10 @@ def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
         for p in procs:
             p.start()
         _wait_for(lambda: n_normal() >= 8, 180, 'two control periods under the controller', procs)
+        t_kill = time.monotonic()
         mpc.kill()
         _wait_for(lambda: powers and powers[-1].fallback, 60, 'the plant to fall back', [preview, plant])
+        t_fallback = time.monotonic()
         mpc.start()
         n_fb_end = len(powers)
         _wait_for(
@@ -738,7 +741,7 @@ def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
             procs,
         )
     finally:
-        for p in procs:
+        for p in reversed(procs):  # the plant first (as ceco run): a controller stopped before it is a fault
             p.stop()
         rec.close()
         tn.close()
@@ -751,10 +754,16 @@ def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
     assert len(spans) == 1  # one fallback span after the kill ...
     first_fb = spans[0]
     last_boundary = max(i for i in range(first_normal, first_fb) if i % m == 0)
-    assert first_fb - last_boundary <= 2 * m + 1  # ... noticed within two control periods
+    # ... noticed within one control period plus one plant step of the last command (issue 17:
+    # before, two control periods); the liveliness lease (1 s) usually tells it sooner
+    assert first_fb - last_boundary <= m + 1, (first_fb, last_boundary)
     assert not any(fb[-8:])  # ... and the restarted node took over
     log = plant.log_text()
-    assert 'no fresh command' in log and 'commands resumed' in log
+    assert "the controller's liveliness was lost" in log and 'commands resumed' in log
+    steps = first_fb - last_boundary
+    print(
+        f'\nkill -> fallback seen by the test {t_fallback - t_kill:.2f} s; plant steps from the last boundary {steps}'
+    )
     ts = bagio.load_run_timeseries(bag)
     assert np.all((ts['mdot_bl_kgps'] >= 0.05) & (ts['mdot_bl_kgps'] <= 0.17))
 
@@ -899,8 +908,8 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
         r = set_param('preview_timeout_s', 1.5, ParameterType.PARAMETER_DOUBLE)
         assert r.successful, r.reason
         _log_has(mpc, "parameters set: {'preview_timeout_s': 1.5}")
-        r = set_param('strategy', 'ceco-e', ParameterType.PARAMETER_STRING)
-        assert not r.successful and 'read-only' in r.reason
+        r = set_param('strategy', 'ceco-e', ParameterType.PARAMETER_STRING)  # configuration: not while active
+        assert not r.successful and 'set it while the node is unconfigured' in r.reason
         r = set_param('preview_timeout_s', -1.0, ParameterType.PARAMETER_DOUBLE)
         assert not r.successful
         # /diagnostics of the managed node follow its state
@@ -918,6 +927,17 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
         _wait_for(lambda: len(diags) > n_diag + 3, 30, 'diagnostics after cleanup')
         last = _diag_statuses(diags, 'mpc_node')[-1]
         assert last.level == b'\x01' and last.message.startswith('unconfigured: not commanding')
+        # reconfigured while unconfigured (issue 17 item 10): a new strategy, applied on configure
+        r = set_param('strategy', 'ceco-e', ParameterType.PARAMETER_STRING)
+        assert r.successful, r.reason
+        r = set_param('strategy', 'ceco-turbo', ParameterType.PARAMETER_STRING)  # still checked
+        assert not r.successful and 'ceco-turbo' in r.reason
+        assert lc.change('configure') and lc.change('activate')
+        n_old = len(cmds)
+        _wait_for(lambda: len(cmds) >= n_old + 3, 60, 'commands of the reconfigured node', procs)
+        assert {m.strategy for m in cmds[n_old:]} == {'ceco-e'} and {m.strategy for m in cmds[:n_old]} == {'ceco'}
+        assert 'ceco-e, Ts 5.0 s' in mpc.log_text()
+        assert lc.change('deactivate') and lc.change('cleanup')
         assert lc.change('shutdown') and lc.state() == 'finalized'
         assert mpc.running()
     finally:
@@ -928,7 +948,7 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
     assert mpc.returncode() == 0
     log = mpc.log_text()
     assert 'Traceback' not in log
-    assert log.count('active: commanding') == 2
+    assert log.count('active: commanding') == 3
     assert "inactive: not commanding; the plant's fallback law takes over" in log
     # every plant step's input within the actuator bounds, the bag complete
     ts = bagio.load_run_timeseries(bag)
@@ -944,7 +964,7 @@ def test_diagnostics_under_forced_fallback(tmp_path):
     controller applies its production ACC law: its status is ERROR, names the fallback and
     carries the solve time, the deadline and the counts; the plant reports the controller's own
     fallback (WARN). Then the controller is killed: the plant's status turns to its own fallback
-    law (WARN) with the reason (watchdog or the QoS deadline on hvac/command)."""
+    law (WARN) with the reason (the controller's liveliness lost, or the command age)."""
     from diagnostic_msgs.msg import DiagnosticArray
 
     tn, rec, log_dir, bag = _recording_peer(tmp_path)
@@ -1028,7 +1048,7 @@ def test_diagnostics_under_forced_fallback(tmp_path):
     assert err.hardware_id == '/' and err.name == 'mpc_node: control'
     plant_fb = [st for st in _diag_statuses(diags, 'plant_node') if 'fallback: the production ACC law' in st.message]
     assert plant_fb[-1].level == b'\x01'
-    assert 'no fresh command' in plant_fb[-1].message or 'QoS deadline on hvac/command missed' in plant_fb[-1].message
+    assert "the controller's liveliness was lost" in plant_fb[-1].message or 'no fresh command' in plant_fb[-1].message
     assert _values(plant_fb[-1])['in_fallback'] == 'true'
     assert any(st.level == b'\x00' for st in _diag_statuses(diags, 'preview_node'))
     # about 1 Hz per node (steady clock), whatever /clock does
@@ -1076,9 +1096,8 @@ class _Fuzzer:
             interfaces.TOPIC_TRAFFIC: node.create_publisher(
                 TrafficPreview, interfaces.TOPIC_TRAFFIC, deep(interfaces.QOS_PREVIEW)
             ),
-            # the plant requests a deadline: a publisher must offer one to be matched at all
             interfaces.TOPIC_COMMAND: node.create_publisher(
-                AcCommand, interfaces.TOPIC_COMMAND, deep(interfaces.command_qos('realtime', 2 * ts))
+                AcCommand, interfaces.TOPIC_COMMAND, deep(interfaces.command_qos('realtime'))
             ),
         }
         self.counts = dict.fromkeys(self.pubs, 0)
