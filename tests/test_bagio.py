@@ -536,3 +536,23 @@ def test_reads_a_bag_as_ros2_bag_record_writes_it(tmp_path, ns):
     cmds = bagio.load_commands(tmp_path / 'rec')
     assert cmds['k'].tolist() == [0, 1] and cmds['t_s'].tolist() == [0.0, 5.0]
     assert bagio.topic_counts(tmp_path / 'rec')[f'{ns}/cabin/state'] == 10
+
+
+def test_commands_of_bags_before_epoch_and_sequence_read_with_both_zero(tmp_path):
+    """AcCommand gained `epoch` and `sequence` (issue 17); a bag recorded before holds the older
+    (shorter) CDR under the same type name: it reads with both 0, the other fields intact, beside
+    commands of the current format."""
+    store = bagio.typestore()
+    w = bag_writer.BagWriter(tmp_path / 'bag')
+    w.add_topic('/hvac/command', 'ceco_msgs/msg/AcCommand')
+    old = sample(store, bagio.LEGACY_ACCOMMAND, 3, stamp_ns=5 * SEC)
+    new = sample(store, 'ceco_msgs/msg/AcCommand', 4, stamp_ns=10 * SEC)
+    w.write('/hvac/command', 5 * SEC, store.serialize_cdr(old, bagio.LEGACY_ACCOMMAND))
+    w.write('/hvac/command', 10 * SEC, store.serialize_cdr(new, 'ceco_msgs/msg/AcCommand'))
+    w.close()
+    cmds = bagio.load_commands(tmp_path / 'bag')
+    assert cmds['epoch'].tolist() == [0, new.epoch] and cmds['sequence'].tolist() == [0, new.sequence]
+    assert new.epoch != 0 and new.sequence != 0  # the sample sets every field
+    assert cmds['k'].tolist() == [old.step_index, new.step_index]
+    assert cmds['mdot_bl_kgps'].tolist() == [old.blower_flow_kgps, new.blower_flow_kgps]
+    assert cmds['strategy'].tolist() == [old.strategy, new.strategy]

@@ -5,7 +5,9 @@ objects with the ceco_msgs field names."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import re
 from types import SimpleNamespace as NS
 
 import numpy as np
@@ -795,3 +797,80 @@ def test_parameter_tables_in_docs_are_current():
     spec.loader.exec_module(mod)
     doc = (root / 'docs' / 'ros.md').read_text()
     assert mod.rewrite(doc) == doc, 'run: python tools/param_tables.py --write'
+
+
+# --- issue 17 item 5: every parameter range keeps the node doing its job -----------------------
+def _commands_per_period(cfg, seconds: float = 60.0, dt: float = 1.0, tick_phase_s: float = 0.9) -> int:
+    """A real-time controller's input logic fed a live plant (a state every dt, stamped with the
+    clock, 20 ms of transport) and live previews, its timer every Ts at ``tick_phase_s``: the control
+    steps it hands out (each would be one command)."""
+    rec = Recorder()
+    ci = ControllerInputs(cfg, rec.log, rec.reset)
+    ts, steps, t, n = cfg.control_period_s, set(), 0.0, 0
+    next_tick = tick_phase_s
+    while t < seconds:
+        t = n * dt
+        ci.offer_state(state(t, stamp_s=1000.0 + t), wall_s=t + 0.02, clock_s=1000.0 + t + 0.02)
+        k = int(t // ts)
+        ci.offer_preview('weather', weather(k, ts=ts, start=stamp(k * ts)), t + 0.02)
+        ci.offer_preview('traffic', traffic(k, ts=ts, start=stamp(k * ts)), t + 0.02)
+        if ci.due():
+            si, _ = ci.realtime_step(1000.0 + t + 0.02)
+            steps.add(si.k)
+        while next_tick < t + dt:
+            si, _ = ci.realtime_step(1000.0 + next_tick)
+            if si is not None:
+                steps.add(si.k)
+            next_tick += ts
+        n += 1
+    return len(steps)
+
+
+def test_state_age_at_its_smallest_allowed_value_keeps_the_controller_commanding():
+    """max_state_age_s 0.011 s (allowed before) gave 0 commands in 20 s; its floor is now Ts, at which
+    the controller commands every control period, and below which configuration is refused."""
+    with pytest.raises(ValueError, match=r'max_state_age_s=0\.011: must be at least control_period_s=5\.0'):
+        _ctrl_cfg(timing='realtime', max_state_age_s=0.011)
+    cfg = _ctrl_cfg(timing='realtime', max_state_age_s=5.0)
+    assert _commands_per_period(cfg, 60.0) >= 11  # 12 control steps in 60 s (the first may wait for a tick)
+    # the refused value would have starved it: the logic with the check bypassed
+    starved = dataclasses.replace(cfg, max_state_age_s=0.011)
+    assert _commands_per_period(starved, 60.0) == 0
+
+
+@pytest.mark.parametrize(
+    ('table', 'name', 'value', 'rule'),
+    [
+        ('controller', 'max_state_age_s', 4.9, 'at least control_period_s'),
+        ('controller', 'inputs.window_s', 4.9, 'at least control_period_s'),
+        ('controller', 'qos.liveliness_lease_s', 5.1, 'at most control_period_s'),
+        ('preview', 'inputs.max_state_age_s', 4.9, 'at least control_period_s'),
+        ('preview', 'inputs.window_s', 4.9, 'at least control_period_s'),
+        ('preview', 'publish_period_s', 5.1, 'at most control_period_s'),
+        ('plant', 'qos.liveliness_lease_s', 5.1, 'at most control_period_s'),
+        ('plant', 'fallback.command_timeout_periods', 0.9, 'must lie in'),
+    ],
+)
+def test_ranges_derived_from_the_control_period_are_enforced(table, name, value, rule):
+    """Each range derived from another parameter (Ts): the value just past it is refused with the
+    parameter's name and the rule, the value at it is accepted."""
+    from ceco_plant_sim.plant_io import PLANT_PARAMETERS
+
+    specs = {'controller': controller_parameters(), 'preview': PREVIEW_PARAMETERS, 'plant': PLANT_PARAMETERS}[table]
+    spec = next(s for s in specs if s.name == name)
+    values = {s.name: s.default for s in specs}
+
+    def build(v):
+        _, why = check_value(spec, v)
+        if why:
+            raise ValueError(why)
+        vals = dict(values, **{name: v})
+        if table == 'controller':
+            return ControllerNodeConfig.from_params(vals)
+        if table == 'preview':
+            return PreviewNodeConfig.from_params(vals)
+        return _plant_cfg(**{name: v})
+
+    with pytest.raises(ValueError, match=rf'{re.escape(name)}.*{rule}'):
+        build(value)
+    build(5.0 if 'periods' not in name else 1.0)  # at the derived bound: accepted
