@@ -17,6 +17,7 @@ setup(
     package_data={package_name: ['data/*', 'data/*/*', 'data/*/*/*']},
     include_package_data=True,
     install_requires=['setuptools'],
+    extras_require={'test': ['pytest']},
     zip_safe=False,
     maintainer='ceco maintainers',
     maintainer_email='maintainers@ceco.dev',

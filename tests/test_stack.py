@@ -367,7 +367,9 @@ def test_bad_input_rejected_nodes_keep_commanding(tmp_path):
         # unknown strategy name: refuses to start, says why
         _wait_for(lambda: not bad.running() and bad.returncode() is not None, 120, 'mpc_bad to exit')
         assert bad.returncode() == 2
-        assert "invalid parameter strategy='ceco-turbo': unknown strategy" in bad.log_text()
+        assert (
+            "invalid parameter strategy='ceco-turbo': must be one of ceco, ceco-e, ceco-c, ceco-ioch" in bad.log_text()
+        )
 
         _wait_for(
             lambda: (
