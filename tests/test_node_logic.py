@@ -518,7 +518,13 @@ def test_plant_command_policy_lockstep_and_realtime():
     from ceco_plant_sim.plant_io import CommandPolicy
 
     rec = Recorder()
-    p = CommandPolicy(_plant_cfg(), rec.log)
+    strict = CommandPolicy(_plant_cfg(), rec.log)  # the default: sequenced commands only (issue 17 item 6)
+    assert not strict.accept(command(3), 3, 0.0)  # epoch 0: refused as foreign, says what to set
+    assert strict.rejections.by_kind == {('hvac/command', 'foreign'): 1}
+    assert 'set AcCommand.epoch (random, non-zero' in rec.lines[-1][1] and 'sequence = 1, 2' in rec.lines[-1][1]
+    assert strict.accept(command(3, epoch=0xCEC0, sequence=1), 3, 0.0) and strict.source.epoch == 0xCEC0
+    rec = Recorder()
+    p = CommandPolicy(_plant_cfg(**{'commands.require_sequence': False}), rec.log)  # opted out
     assert p.accept(command(3), 3, 0.0)
     assert not p.accept(command(200_003), 3, 0.0) and not p.accept(command(2), 3, 0.0)
     assert not p.accept(command(3, stamp_s=14.0), 3, 0.0)  # stamp is not t_3
@@ -532,7 +538,10 @@ def test_plant_command_policy_lockstep_and_realtime():
     # the binding to an unsequenced source (said once), then the rejections; the second invalid
     # one within the throttle period
     assert len(rec.lines) == 4 and 'without epoch/sequence' in rec.lines[0][1]
-    rt = CommandPolicy(_plant_cfg(timing='realtime', plant_dt_s=0.5, control_period_s=2.0), rec.log)
+    rt = CommandPolicy(
+        _plant_cfg(timing='realtime', plant_dt_s=0.5, control_period_s=2.0, **{'commands.require_sequence': False}),
+        rec.log,
+    )
     for n in range(40):  # states of plant steps 0..39 at clock 1000 + n/2
         rt.published(stamp(1000.0 + 0.5 * n), 0.5 * n)
     assert rt.accept(command(9, ts=2.0, stamp_s=1000.0 + 0.5 * 37), 9, 0.0)  # t = 18.5 s: step 9

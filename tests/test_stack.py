@@ -9,6 +9,7 @@ stack fails instead of hanging.
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import os
@@ -297,11 +298,15 @@ def _log_has(proc, text, timeout_s=20.0):
     _wait_for(lambda: text in proc.log_text(), timeout_s, f'{text!r} in {proc.name} log')
 
 
+_SEQUENCE = itertools.count(1)
+
+
 def _command(k: int, t_s: float, **override):
     from ceco_msgs.msg import AcCommand
 
     m = AcCommand(step_index=k, control_period_s=5.0, blower_flow_kgps=0.1, evap_setpoint_c=5.0, strategy='ceco')
     m.header.stamp = conversions.stamp_from_s(t_s)
+    m.epoch, m.sequence = 0xCEC0, next(_SEQUENCE)  # one source: the plant takes sequenced commands only
     for key, value in override.items():
         setattr(m, key, value)
     return m

@@ -109,7 +109,7 @@ class SourceGate:
     epoch (DDS security, SROS2, is what stops it; docs/ros.md).
 
     Args:
-        require_sequence: refuse epoch 0 (unsequenced) commands altogether.
+        require_sequence: refuse epoch 0 (unsequenced) commands altogether, as foreign (the plant's default).
     """
 
     def __init__(self, require_sequence: bool = False):
@@ -126,7 +126,11 @@ class SourceGate:
     def check(self, epoch: int, sequence: int) -> str | None:
         """Why a command with ``epoch`` / ``sequence`` is refused ('foreign: ...', 'duplicate: ...'), or None."""
         if epoch == 0 and self.require_sequence:
-            return 'invalid: epoch 0 (no epoch/sequence); this plant requires them (commands.require_sequence)'
+            return (
+                'foreign: epoch 0, a command without a source epoch and sequence; this plant takes sequenced '
+                'commands only (commands.require_sequence): set AcCommand.epoch (random, non-zero, new at each '
+                'start) and AcCommand.sequence = 1, 2, ... (docs/benchmark.md)'
+            )
         if self.epoch is None:
             return None
         if epoch != self.epoch:

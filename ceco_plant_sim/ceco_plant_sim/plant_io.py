@@ -91,10 +91,10 @@ PLANT_PARAMETERS: tuple[ParamSpec, ...] = (
     ),
     ParamSpec(
         'commands.require_sequence',
-        False,
+        True,
         'refuse commands without a source epoch and sequence (AcCommand.epoch 0: an older or '
-        'third-party controller that does not set them); ceco run and the launch file set it for '
-        "ceco's own controllers",
+        'third-party controller that does not set them), as foreign; false accepts one such source '
+        '(a warning says what it should set)',
     ),
     log_throttle_parameter('command'),
     DIAGNOSTICS_PERIOD_PARAMETER,
@@ -141,7 +141,7 @@ class PlantNodeConfig(NodeConfig):
     """realtime: command age (in control periods, plus one plant step) after which the fallback law applies."""
     liveliness_lease_s: float = 1.0
     """Liveliness lease requested of the hvac/command publishers [s]."""
-    require_sequence: bool = False
+    require_sequence: bool = True
     """Refuse commands without epoch/sequence."""
     log_throttle_s: float = 2.0
     """Shortest time between two log lines about one kind of rejected command [s]."""
