@@ -16,8 +16,11 @@ from ceco_core.contracts import CECO_STRATEGIES, MEASUREMENT_MODES
 from ceco_core.control_grid import TIMING_MODES
 from ceco_ros.params import (
     CLOCK_AHEAD_PARAMETER,
+    CONTROL_PERIOD_RANGE_S,
     DIAGNOSTICS_PERIOD_PARAMETER,
+    HORIZON_RANGE,
     INPUT_WINDOW_PARAMETERS,
+    NMPC_CONTROL_PERIOD_RANGE_S,
     SHARED_FIELDS,
     NodeConfig,
     ParamSpec,
@@ -62,8 +65,14 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
             choices=TIMING_MODES,
             at_configure=True,
         ),
-        ParamSpec('control_period_s', 5.0, 'control period Ts [s]', float_range=(0.1, 3600.0), at_configure=True),
-        ParamSpec('horizon_steps', 6, 'prediction horizon Np [steps]', int_range=(1, 200), at_configure=True),
+        ParamSpec(
+            'control_period_s',
+            5.0,
+            'control period Ts [s]' + ('' if fixed_strategy else '; a whole multiple of the control model step (5 s)'),
+            float_range=CONTROL_PERIOD_RANGE_S if fixed_strategy else NMPC_CONTROL_PERIOD_RANGE_S,
+            at_configure=True,
+        ),
+        ParamSpec('horizon_steps', 6, 'prediction horizon Np [steps]', int_range=HORIZON_RANGE, at_configure=True),
         ParamSpec(
             'controller_config',
             '',
@@ -90,7 +99,7 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
             'lockstep: wall-clock wait for the previews of a step before solving without them; realtime: '
             'previews count as missed when none came for Ts + this [s]; keep it below the plant\'s '
             'lockstep.command_timeout_s',
-            float_range=(0.1, 600.0),
+            float_range=(0.1, 60.0),
             read_only=False,
         ),
         ParamSpec(

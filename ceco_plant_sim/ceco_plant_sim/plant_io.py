@@ -19,6 +19,7 @@ from ceco_core.control_grid import TIMING_MODES, control_step_of
 from ceco_core.supervision import FallbackSupervisor, Health, Liveliness, Rejections, SourceGate, Watchdog, reason_kind
 from ceco_core.units import s_from_stamp
 from ceco_ros.params import (
+    CONTROL_PERIOD_RANGE_S,
     DIAGNOSTICS_PERIOD_PARAMETER,
     SHARED_FIELDS,
     NodeConfig,
@@ -48,14 +49,18 @@ PLANT_PARAMETERS: tuple[ParamSpec, ...] = (
     ),
     ParamSpec('plant_dt_s', 1.0, 'plant step and recording interval [s]', float_range=(0.01, 60.0)),
     ParamSpec(
-        'control_period_s', 5.0, 'control period Ts [s], a whole multiple of plant_dt_s', float_range=(0.01, 3600.0)
+        'control_period_s',
+        5.0,
+        'control period Ts [s], a whole multiple of plant_dt_s',
+        float_range=CONTROL_PERIOD_RANGE_S,
     ),
     ParamSpec('duration_s', 0.0, "run length [s]; 0 = the scenario's", float_range=(0.0, 1e7)),
     ParamSpec(
         'lockstep.command_timeout_s',
         5.0,
-        'lockstep: wall-clock wait for the command of a step before the fallback ACC law applies [s]',
-        float_range=(0.01, 3600.0),
+        'lockstep: wall-clock wait for the command of a step before the fallback ACC law applies; from '
+        '0.5 s, ten times a controller\'s usual answer (a control period of a lockstep run: 20-45 ms) [s]',
+        float_range=(0.5, 3600.0),
         read_only=False,
     ),
     ParamSpec(
@@ -82,7 +87,7 @@ PLANT_PARAMETERS: tuple[ParamSpec, ...] = (
         'realtime: the fallback ACC law applies when the latest command is older than this many control '
         'periods plus one plant step (1: a missing command is noticed one plant step after it was due) '
         '[control periods]',
-        float_range=(1.0, 1000.0),
+        float_range=(1.0, 10.0),
     ),
     liveliness_parameter(
         'automatic liveliness lease requested of the hvac/command publishers: the ACC law takes over '

@@ -18,7 +18,17 @@ from typing import Any, ClassVar, Self
 
 from ceco_core.control_grid import TIMING_MODES
 
-__all__ = ['ParamSpec', 'NodeConfig', 'check_value', 'declare', 'declare_all', 'on_set']
+__all__ = [
+    'CONTROL_PERIOD_RANGE_S',
+    'HORIZON_RANGE',
+    'NMPC_CONTROL_PERIOD_RANGE_S',
+    'NodeConfig',
+    'ParamSpec',
+    'check_value',
+    'declare',
+    'declare_all',
+    'on_set',
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -48,6 +58,16 @@ class ParamSpec:
         return 'yes' if not self.read_only else 'unconfigured' if self.at_configure else 'no'
 
 
+CONTROL_PERIOD_RANGE_S = (0.1, 300.0)
+"""Ts of every node [s]: up to 5 min (the NMPC's transcription grows with Ts / its substep: configure
+took 15 s at Ts 600 s on the 2-core machine, 124 s at 3600 s); the same in every node."""
+NMPC_CONTROL_PERIOD_RANGE_S = (5.0, 300.0)
+"""Ts of mpc_node [s]: a whole multiple of the control model's step (5 s, the identified model; the
+NMPC refuses another Ts at configure, naming it) and above twice its CPU-time budget per solve
+(controller.yaml ``max_cpu_time_s`` 1.0 s)."""
+HORIZON_RANGE = (1, 60)
+"""Np of the controller and of the preview grid [steps]: configure took 4 s at Np 60, 31 s at Np 200."""
+
 INPUT_WINDOW_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec(
         'inputs.window_s',
@@ -66,7 +86,7 @@ INPUT_WINDOW_PARAMETERS: tuple[ParamSpec, ...] = (
         3.0,
         'a new time base (key-on or confirmed) is taken only after no state '
         'was accepted for this long (wall clock); longer than the plant step [s]',
-        float_range=(0.0, 3600.0),
+        float_range=(0.0, 60.0),
     ),
 )
 """The sequence gate's parameters (``ceco_core.sequencing.SequenceGate``), the same in every node that takes
@@ -99,7 +119,7 @@ def liveliness_parameter(description: str, at_configure: bool = False) -> ParamS
         'qos.liveliness_lease_s',
         1.0,
         description,
-        float_range=(0.1, 3600.0),
+        float_range=(0.1, CONTROL_PERIOD_RANGE_S[1]),
         at_configure=at_configure,
     )
 

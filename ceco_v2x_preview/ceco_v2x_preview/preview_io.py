@@ -19,7 +19,9 @@ from ceco_core.sequencing import SequenceGate, Verdict
 from ceco_core.supervision import Health, Rejections, reason_kind
 from ceco_ros.params import (
     CLOCK_AHEAD_PARAMETER,
+    CONTROL_PERIOD_RANGE_S,
     DIAGNOSTICS_PERIOD_PARAMETER,
+    HORIZON_RANGE,
     INPUT_WINDOW_PARAMETERS,
     NodeConfig,
     ParamSpec,
@@ -41,13 +43,15 @@ PREVIEW_PARAMETERS: tuple[ParamSpec, ...] = (
         'lockstep (accelerated simulation, driven by cabin/state) or realtime (timer on the node clock)',
         choices=TIMING_MODES,
     ),
-    ParamSpec('control_period_s', 5.0, 'preview grid step = controller period Ts [s]', float_range=(0.1, 3600.0)),
-    ParamSpec('horizon_steps', 6, 'prediction horizon Np [steps]; the grid has Np + 1 points', int_range=(1, 1000)),
+    ParamSpec(
+        'control_period_s', 5.0, 'preview grid step = controller period Ts [s]', float_range=CONTROL_PERIOD_RANGE_S
+    ),
+    ParamSpec('horizon_steps', 6, 'prediction horizon Np [steps]; the grid has Np + 1 points', int_range=HORIZON_RANGE),
     ParamSpec(
         'publish_period_s',
         5.0,
         'publication period in realtime mode; at most Ts (a controller expects a preview every control period) [s]',
-        float_range=(0.01, 3600.0),
+        float_range=(0.01, CONTROL_PERIOD_RANGE_S[1]),
     ),
     ParamSpec(
         'faults.missing_spans_s',
