@@ -677,6 +677,15 @@ def test_plant_health():
     )
     assert h.level == ERROR and 'fallback: the production ACC law drives (no command for control step 2)' in h.message
     assert h.values['in_fallback'] == 'true'
+    # a second lockstep plant in the domain (one /clock per domain): an error that says what to do
+    common = dict(started=True, finished=False, n=10, t_s=10.0, command_age_s=0.1, new_rejections=0, events={})
+    ok = plant_health(cfg=cfg, supervisor=FallbackSupervisor(), policy=p, clock_publishers=1, **common)
+    assert ok.level == OK and ok.values['clock_publishers'] == '1'
+    two = plant_health(cfg=cfg, supervisor=FallbackSupervisor(), policy=p, clock_publishers=2, **common)
+    assert two.level == ERROR and '2 publishers on /clock in this ROS domain' in two.message
+    assert 'ROS_DOMAIN_ID of its own' in two.message
+    rt = _plant_cfg(timing='realtime')  # a real-time plant publishes no /clock and does not report it
+    assert 'clock_publishers' not in plant_health(cfg=rt, supervisor=FallbackSupervisor(), policy=p, **common).values
 
 
 # --------------------------------------------------------------------------- preview inputs

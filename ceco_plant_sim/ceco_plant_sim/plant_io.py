@@ -281,13 +281,18 @@ def plant_health(
     new_rejections: int,
     events: dict,
     waiting_for: str = '',
+    clock_publishers: int = 1,
 ) -> Health:
     """The plant's status for /diagnostics.
 
     ``command_age_s``: since the last accepted command (wall clock in lockstep, node clock in
-    real time); None: none yet.
+    real time); None: none yet. ``clock_publishers``: publishers on /clock in the domain (lockstep).
     """
     h = Health().set('timing', cfg.timing).set('plant_step', n).set('t_s', t_s)
+    if cfg.timing == 'lockstep':
+        h.set('clock_publishers', clock_publishers)
+        if clock_publishers > 1:
+            h.error(clock_conflict(clock_publishers))
     h.set('control_step', control_step_of(t_s, cfg.control_period_s))
     if finished:
         h.set('state', 'finished')
@@ -319,6 +324,15 @@ def plant_health(
     if events.get('incompatible_qos'):
         h.error(f'{events["incompatible_qos"]} incompatible QoS events on hvac/command (a controller does not match)')
     return h
+
+
+def clock_conflict(publishers: int) -> str:
+    """What a lockstep plant says when it is not alone on /clock (one simulation clock per domain)."""
+    return (
+        f'{publishers} publishers on /clock in this ROS domain: another lockstep plant drives the same '
+        'simulation clock, so every use_sim_time node here follows both; run each lockstep vehicle in a '
+        'ROS_DOMAIN_ID of its own (ceco run picks a free one), or several vehicles in real time (docs/ros.md)'
+    )
 
 
 def start_gate(

@@ -188,8 +188,10 @@ class PlantLoop:
         u, fallback = self.rt.applied
         return u, fallback, line
 
-    def health(self, waiting_for: str, wall_s: float, clock_s: float, events: dict) -> Health:
-        """The plant's /diagnostics status now (``waiting_for``: what step 0 waits for)."""
+    def health(
+        self, waiting_for: str, wall_s: float, clock_s: float, events: dict, clock_publishers: int = 1
+    ) -> Health:
+        """The plant's /diagnostics status now (``waiting_for``: what step 0 waits for; publishers on /clock)."""
         rej, rt = self.policy.rejections, self.cfg.timing == 'realtime'
         new, self._reported = rej.total - self._reported, rej.total
         age = self.rt.watchdog.age(clock_s) if rt else self.wait.age(wall_s)
@@ -205,6 +207,7 @@ class PlantLoop:
             new_rejections=new,
             events=events,
             waiting_for='' if self.started else waiting_for,
+            clock_publishers=clock_publishers,
         )
 
     def summary(self) -> str:

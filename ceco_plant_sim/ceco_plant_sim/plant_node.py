@@ -152,7 +152,10 @@ class PlantNode(NodeTools, Node):
 
     def _health(self):
         waiting = '' if self.loop.started else self._waiting_for()
-        return [('plant', self.loop.health(waiting, self.wall_s(), self.clock_s(), self.qos_events))]
+        clocks = self.count_publishers(interfaces.TOPIC_CLOCK) if self.lockstep else 0
+        if clocks > 1:
+            self.notice('clock', pio.clock_conflict(clocks), 'error')
+        return [('plant', self.loop.health(waiting, self.wall_s(), self.clock_s(), self.qos_events, clocks))]
 
 
 def main(args=None) -> int:
