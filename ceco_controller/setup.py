@@ -24,8 +24,8 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'mpc_node = ceco_controller.mpc_node:main',
-            'baseline_node = ceco_controller.baseline_node:main',
+            'mpc_node = ceco_controller.entry_points:mpc_node',
+            'baseline_node = ceco_controller.entry_points:baseline_node',
         ],
     },
 )

@@ -27,7 +27,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'plant_node = ceco_plant_sim.plant_node:main',
+            'plant_node = ceco_plant_sim.entry_points:plant_node',
         ],
     },
 )

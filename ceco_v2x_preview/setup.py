@@ -27,7 +27,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'preview_node = ceco_v2x_preview.preview_node:main',
+            'preview_node = ceco_v2x_preview.entry_points:preview_node',
         ],
     },
 )

@@ -892,3 +892,17 @@ def test_ranges_derived_from_the_control_period_are_enforced(table, name, value,
     with pytest.raises(ValueError, match=rf'{re.escape(name)}.*{rule}'):
         build(value)
     build(5.0 if 'periods' not in name else 1.0)  # at the derived bound: accepted
+
+
+def test_held_command_waits_for_subscribers_and_sends_each_step_once():
+    from ceco_controller.controller_session import HeldCommand
+
+    hold = HeldCommand()
+    assert hold.offer('k0', short_of_subscribers=False) == ['k0'] and hold.msg is None  # matched: sent now
+    assert hold.offer('k1', short_of_subscribers=True) == [] and hold.msg == 'k1'  # waits
+    assert hold.release(may_send=False) == [] and hold.msg == 'k1'  # inactive or still short
+    assert hold.offer('k2', short_of_subscribers=True) == [] and hold.msg == 'k2'  # the newer replaces it
+    assert hold.release(may_send=True) == ['k2'] and hold.release(may_send=True) == []  # sent once
+    hold.offer('k3', short_of_subscribers=True)
+    hold.clear()  # a new activation forgets it
+    assert hold.release(may_send=True) == []

@@ -1,14 +1,8 @@
-"""mpc_node: a CECO NMPC strategy (ceco, ceco-e, ceco-c, ceco-ioch) as a managed node.
+"""mpc_node: a CECO NMPC strategy as a managed node (baseline_node: the same class, the ACC law).
 
-baseline_node is the same class with the production ACC law. Inputs ``cabin/state``,
-``v2x/weather_preview``, ``v2x/traffic_preview`` (and the liveliness of the preview publishers);
-outputs ``hvac/command`` (control step k, the activation's epoch and a sequence number, an
-automatic liveliness lease), ``controller/diagnostics``, ``/diagnostics``. Lifecycle: configure
-builds the controller from the configuration parameters (settable while unconfigured) and solves
-one throw-away step; activate starts commanding under a new epoch; deactivate stops (the plant's
-fallback law takes over); cleanup/shutdown release everything. Timing: ``lockstep`` computes
-step k once its state and both previews are here; ``realtime`` every Ts of the node clock. The
-logic: :class:`ceco_controller.controller_session.ControllerSession`.
+In: ``cabin/state``, the two previews (and their publishers' liveliness). Out: ``hvac/command``
+(step k, epoch, sequence; a liveliness lease), ``controller/diagnostics``, ``/diagnostics``.
+The logic: :class:`ceco_controller.controller_session.ControllerSession`; docs/ros.md.
 """
 
 from __future__ import annotations
@@ -16,10 +10,8 @@ from __future__ import annotations
 import time
 from functools import partial
 
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-
 import ceco_controller.controller_io as cio
-from ceco_controller.controller_session import ControllerSession, StepResult
+from ceco_controller.controller_session import ControllerSession, HeldCommand, StepResult
 from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficPreview, WeatherPreview
 from ceco_ros import conversions, interfaces
 from ceco_ros.diagnostics import DiagnosticsTimer
@@ -39,7 +31,7 @@ class ControllerNode(ManagedNode):
         super().__init__(node_name)
         specs = cio.controller_parameters(fixed_strategy)
         cfg = self.use_params(specs, lambda v: cio.ControllerNodeConfig.from_params(v, fixed_strategy))
-        self.session, self._held = ControllerSession(cfg, self.log, self.notice), None
+        self.session, self._hold = ControllerSession(cfg, self.log, self.notice), HeldCommand()
         name = self.get_fully_qualified_name()
         health = partial(self.session.health, node_name=name)
         DiagnosticsTimer(self, lambda: [('control', self._health(health))], cfg.diagnostics_period_s)
@@ -53,34 +45,20 @@ class ControllerNode(ManagedNode):
         except (ValueError, RuntimeError, OSError) as err:
             self.get_logger().error(f'configure failed: {err}')
             return FAILURE
-        qos_bad = {'incompatible_qos': lambda _e: self.qos_event('incompatible_qos', interfaces.TOPIC_COMMAND)}
         cmd_qos = interfaces.with_liveliness(interfaces.command_qos(cfg.timing), cfg.liveliness_lease_s)
         self._pubs = [
-            self.create_lifecycle_publisher(
-                AcCommand,
-                interfaces.TOPIC_COMMAND,
-                cmd_qos,
-                event_callbacks=PublisherEventCallbacks(**qos_bad),
-                qos_overriding_options=interfaces.qos_overrides(),
-            ),
+            self.checked_lifecycle_publisher(AcCommand, interfaces.TOPIC_COMMAND, cmd_qos),
             self.create_lifecycle_publisher(
                 ControllerDiagnostics, interfaces.TOPIC_DIAGNOSTICS, interfaces.QOS_COMMAND
             ),
         ]
-        ovr, lease = interfaces.qos_overrides(), cfg.liveliness_lease_s
+        lease = cfg.liveliness_lease_s
         self._subs = [
-            self.create_subscription(
-                CabinState,
-                interfaces.TOPIC_STATE,
-                self._on_state,
-                interfaces.state_qos(cfg.timing),
-                qos_overriding_options=ovr,
-                event_callbacks=SubscriptionEventCallbacks(**qos_bad),
+            self.checked_subscription(
+                CabinState, interfaces.TOPIC_STATE, self._on_state, interfaces.state_qos(cfg.timing)
             ),
             *(
-                self.create_subscription(
-                    t, topic, partial(self._on_preview, k), interfaces.QOS_PREVIEW, qos_overriding_options=ovr
-                )
+                self.checked_subscription(t, topic, partial(self._on_preview, k), interfaces.QOS_PREVIEW)
                 for t, topic, k in PREVIEWS
             ),
             *(self.liveliness_probe(t, topic, lease, partial(self._preview_liveliness, k)) for t, topic, k in PREVIEWS),
@@ -91,17 +69,13 @@ class ControllerNode(ManagedNode):
             self._on_timer if rt else self._poll,
             clock=None if rt else self.steady,
         )
-        self.get_logger().info(
-            f'configured in {time.perf_counter() - t0:.2f} s (controller built, first solve by {warm}): '
-            f'{cfg.strategy}, Ts {cfg.control_period_s} s, Np {cfg.horizon_steps}, timing {cfg.timing}, '
-            f'measurements {cfg.measurements}, scenario {self.session.ctl.scenario.name}'
-        )
+        self.get_logger().info(self.session.configured_line(warm, time.perf_counter() - t0))
         return self.configured()
 
     def on_activate(self, state):
         """Start commanding under a new epoch; a lockstep state that came while inactive is computed now."""
         self.session.activate()
-        self._held = None
+        self._hold.clear()
         ret = super().on_activate(state)
         self.get_logger().info(f'active: commanding (epoch {self.session.epoch:#018x})')
         if self.config.timing == 'lockstep':
@@ -123,45 +97,34 @@ class ControllerNode(ManagedNode):
         self.session.release()
 
     # ------------------------------------------------------------ callbacks
-    def _active(self) -> bool:
-        return self.lifecycle == 'active'
-
     def _on_state(self, msg: CabinState) -> None:
-        self._publish(self.session.on_state(msg, self.wall_s(), self.clock_s(), self._active()))
+        self._publish(self.session.on_state(msg, self.wall_s(), self.clock_s(), self.active))
 
     def _on_preview(self, kind: str, msg) -> None:
-        self._publish(self.session.on_preview(kind, msg, self.wall_s(), self._active()))
+        self._publish(self.session.on_preview(kind, msg, self.wall_s(), self.active))
 
     def _preview_liveliness(self, kind: str, alive: int, lost: int) -> None:
         self.session.preview_liveliness(kind, alive, lost, self.wall_s())
 
     def _on_timer(self) -> None:
-        self._publish(self.session.on_timer(self.clock_s(), self._active()))
+        self._publish(self.session.on_timer(self.clock_s(), self.active))
 
     def _poll(self) -> None:
         """lockstep: send a held command once its subscribers matched; compute a waiting, overdue step."""
-        if self._held is not None and self._active() and not self._short_of_subscribers():
-            self._pubs[0].publish(self._held)
-            self._held = None
-        self._publish(self.session.poll(self.wall_s(), self._active()))
+        for msg in self._hold.release(self.active and not self._short_of_subscribers()):
+            self._pubs[0].publish(msg)
+        self._publish(self.session.poll(self.wall_s(), self.active))
 
     def _publish(self, results: list[StepResult]) -> None:
-        """Each step's command and diagnostics; in lockstep a command is held until its subscribers matched.
-
-        A command computed before ``lockstep.min_command_subscribers`` subscriptions matched the
-        publisher (a volatile sample would never reach a reader not matched yet) is sent once they
-        have: lockstep sends each command once.
-        """
+        """Each step's command (lockstep: held until its subscribers matched, :class:`HeldCommand`), diagnostics."""
         cfg = self.config
         for r in results:
             try:
                 msg = conversions.command_msg(
                     r.command, r.k, r.stamp, cfg.control_period_s, cfg.strategy, r.fallback, r.epoch, r.sequence
                 )
-                held = cfg.timing == 'lockstep' and self._short_of_subscribers()
-                self._held = msg if held else None
-                if not held:
-                    self._pubs[0].publish(msg)
+                for out in self._hold.offer(msg, cfg.timing == 'lockstep' and self._short_of_subscribers()):
+                    self._pubs[0].publish(out)
                 diag = conversions.diagnostics_msg(r.diagnostics, r.stamp, cfg.strategy, cfg.control_period_s)
                 self._pubs[1].publish(diag)
             except Exception as err:  # one bad step must not take the node down

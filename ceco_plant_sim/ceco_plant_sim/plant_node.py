@@ -1,22 +1,14 @@
-"""plant_node: the cabin + A/C plant as a node.
+"""plant_node: the cabin + A/C plant as a node (the simulator's own core per plant step).
 
-Publishes ``cabin/state`` (one per plant step), ``cabin/comfort``, ``hvac/power``, ``/clock``
-(lockstep only) and ``/diagnostics``; takes ``hvac/command`` and watches the liveliness of its
-publishers. Per plant step it calls the simulator's own core (``ScenarioPlant.step``), so a DDS
-run equals ``closed_loop.simulate``.
-
-Timing: ``lockstep``: once its subscribers are matched it publishes the state at t_k and waits
-for the command of step k, then advances Ts / dt plant steps; without a command within
-``lockstep.command_timeout_s`` (wall clock), or at once when the controller's liveliness is
-lost, the production ACC law drives that period. ``realtime``: a timer every dt of the node
-clock applies the latest command; when it is older than ``fallback.command_timeout_periods``
-control periods plus a plant step, or its publisher's liveliness is lost, the ACC law takes
-over until commands resume. The logic: :class:`ceco_plant_sim.plant_loop.PlantLoop`.
+Out: ``cabin/state``, ``cabin/comfort``, ``hvac/power``, ``/clock`` (lockstep), ``/diagnostics``.
+In: ``hvac/command`` and its publishers' liveliness. lockstep: the state at t_k, then the command
+of step k (or, after ``lockstep.command_timeout_s`` or a lost controller, the ACC law) for Ts/dt
+plant steps; realtime: a timer every dt applies the latest fresh command, else the ACC law.
+The logic: :class:`ceco_plant_sim.plant_loop.PlantLoop`; docs/ros.md.
 """
 
 from __future__ import annotations
 
-from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 
@@ -49,14 +41,8 @@ class PlantNode(NodeTools, Node):
         self.pub_clock = (
             self.create_publisher(ClockMsg, interfaces.TOPIC_CLOCK, interfaces.QOS_CLOCK) if self.lockstep else None
         )
-        bad = lambda _e: self.qos_event('incompatible_qos', interfaces.TOPIC_COMMAND)  # noqa: E731
-        self.sub_cmd = self.create_subscription(
-            AcCommand,
-            interfaces.TOPIC_COMMAND,
-            self._on_command,
-            interfaces.command_qos(cfg.timing),
-            event_callbacks=SubscriptionEventCallbacks(incompatible_qos=bad),
-            qos_overriding_options=interfaces.qos_overrides(),
+        self.sub_cmd = self.checked_subscription(
+            AcCommand, interfaces.TOPIC_COMMAND, self._on_command, interfaces.command_qos(cfg.timing)
         )
         live = lambda alive, lost: self.loop.liveliness_changed(alive, lost, self.wall_s())  # noqa: E731
         self.liveliness_probe(AcCommand, interfaces.TOPIC_COMMAND, cfg.liveliness_lease_s, live)

@@ -104,6 +104,21 @@ class NodeTools:
         self.qos_events[name] = self.qos_events.get(name, 0) + 1
         self.notice(f'{name} {topic}', f'QoS event on {topic}: {name} (total {self.qos_events[name]})')
 
+    def checked_subscription(self, msg_type, topic: str, callback, qos):
+        """A subscription whose QoS ``ros2 param`` may override (``qos_overrides``), incompatible-QoS events counted."""
+        from rclpy.event_handler import SubscriptionEventCallbacks
+
+        return self.create_subscription(
+            msg_type,
+            topic,
+            callback,
+            qos,
+            qos_overriding_options=interfaces.qos_overrides(),
+            event_callbacks=SubscriptionEventCallbacks(
+                incompatible_qos=lambda _e: self.qos_event('incompatible_qos', topic)
+            ),
+        )
+
     def liveliness_probe(self, msg_type, topic: str, lease_s: float, changed):
         """A subscription that only watches the liveliness of ``topic``'s publishers (lease ``lease_s`` [s]).
 
@@ -173,6 +188,25 @@ class ManagedNode(NodeTools, LifecycleNode):
                 f'ros2 lifecycle set {name} configure, then ros2 lifecycle set {name} activate '
                 '(or start it with -p autostart:=true)'
             )
+
+    @property
+    def active(self) -> bool:
+        """True in the active state."""
+        return self.lifecycle == 'active'
+
+    def checked_lifecycle_publisher(self, msg_type, topic: str, qos):
+        """A lifecycle publisher whose QoS ``ros2 param`` may override, incompatible-QoS events counted."""
+        from rclpy.event_handler import PublisherEventCallbacks
+
+        return self.create_lifecycle_publisher(
+            msg_type,
+            topic,
+            qos,
+            qos_overriding_options=interfaces.qos_overrides(),
+            event_callbacks=PublisherEventCallbacks(
+                incompatible_qos=lambda _e: self.qos_event('incompatible_qos', topic)
+            ),
+        )
 
     def is_unconfigured(self) -> bool:
         """True in the unconfigured state (configuration parameters may change)."""
