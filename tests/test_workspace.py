@@ -138,7 +138,8 @@ def test_colcon_test_runs_each_packages_own_tests(tmp_path):
     env = dict(os.environ, PYTHONDONTWRITEBYTECODE='1')
     cmd = ['colcon', '--log-base', str(logs), 'test', '--test-result-base', str(results)]
     done = subprocess.run(
-        [*cmd, '--pytest-args', '-k', 'lint or msgs', '-p', 'no:cacheprovider'],
+        # each package's package.xml check (its other tests run in this suite directly), ceco_msgs' ctest
+        [*cmd, '--pytest-args', '-k', 'declared_imports or msgs', '-p', 'no:cacheprovider'],
         cwd=ROOT / 'ros_ws',
         env=env,
         capture_output=True,
@@ -161,4 +162,4 @@ def test_colcon_test_runs_each_packages_own_tests(tmp_path):
             counts[m[1]] = counts.get(m[1], 0) + int(m[2])
             assert m.groups()[2:] == ('0', '0', '0'), line
     assert set(counts) == set(PYTHON_PKGS) | {'ceco_msgs'}, summary
-    assert all(n >= 1 for n in counts.values()) and counts['ceco_core'] >= 3, counts
+    assert all(n >= 1 for n in counts.values()), counts
