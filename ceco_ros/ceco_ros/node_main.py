@@ -45,6 +45,8 @@ def run_node(node_factory, argv=None, name: str = 'node') -> int:
         if node is not None:
             _console(node.get_logger().name, f'stopped ({why}): exit {status}')
             node.destroy_node()
+        elif status == 0:  # stopped while the node was being constructed
+            _console(name, f'stopped ({why}) while starting: exit 0')
         rclpy.try_shutdown()
         _ignore_stop_signals()  # try_shutdown puts back the handlers of before init
     return status

@@ -37,3 +37,23 @@ def test_without_a_signal_the_nodes_main_runs(tmp_path):
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), str(ROS)]))
     code = 'import sys; from ceco_ros.entry import start; sys.exit(start("quick_node", "quick_node"))'
     assert subprocess.run([sys.executable, '-c', code], env=env, timeout=30).returncode == 3
+
+
+def test_a_stop_while_the_node_is_constructed_exits_0_and_says_so(tmp_path):
+    """run_node: SIGINT while the node's constructor runs (after rclpy.init) is caught and said too."""
+    pytest.importorskip('rclpy', reason='needs the sourced ROS 2 workspace')
+    code = textwrap.dedent("""
+        import os, signal, sys, time
+        from ceco_ros.node_main import run_node
+
+        def factory():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5)
+
+        sys.exit(run_node(factory, None, 'slow_ctor'))
+    """)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROS), os.environ.get('PYTHONPATH', '')]))
+    done = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert '[slow_ctor]: stopped (SIGINT) while starting: exit 0' in done.stderr, done.stderr
+    assert 'Traceback' not in done.stderr
