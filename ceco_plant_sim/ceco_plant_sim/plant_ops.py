@@ -199,8 +199,10 @@ class _CasadiOps:
     def __init__(self) -> None:
         self._functions: dict[str, tuple[casadi.Function, object]] = {}
 
-    _if_else = staticmethod(casadi.if_else)
-    """How a branch is selected (exact: ``if_else``; smooth: a blend)."""
+    @staticmethod
+    def _if_else(c, a, b):
+        """How a branch is selected: ``casadi.if_else`` (the smooth evaluation blends instead)."""
+        return casadi.if_else(c, a, b)
 
     def where(self, c, a, b):
         """``a`` where ``c`` else ``b``, elementwise (over tuples too)."""
