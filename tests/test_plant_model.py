@@ -183,6 +183,7 @@ def test_smooth_model_replays_recorded_runs(smooth, plant_replays, run):
     assert e_comp == pytest.approx(float(np.sum(rep.series["e_comp_j"])), rel=3e-3)
     assert np.max(np.abs(r["pmv"] - rep.series["pmv"])) <= 0.01
     assert np.max(np.abs(r["x"][1:, 0] - rep.series["t_cab_c"])) <= 0.05  # cabin air [K]
+    assert r["table_margin"].min() >= 0.0  # never outside the smooth cycle table's box (0: standstill, its edge)
     # the energy split is the plant's: blower exactly (the same fan law), condenser fan with the duty
     assert np.sum(r["energy"][:, smooth.energy.index("e_blower_j")]) == pytest.approx(
         np.sum(rep.series["e_blower_j"]), rel=1e-12

@@ -32,10 +32,10 @@ import json
 import os
 import pathlib
 import platform
-import subprocess
 import sys
 
 import numpy as np
+from make_refrigerant_tables import _commit  # the same provenance helper
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 OUT = ROOT / "tests" / "data" / "plant_reference.npz"
@@ -53,19 +53,6 @@ duty-cycling below its minimum speed)."""
 SAMPLE_EVERY = 10
 """Replayed series kept every this many plant steps (and the last step)."""
 FORMAT = 1
-
-
-def _commit() -> str:
-    try:
-        out = subprocess.run(
-            ["git", "-C", str(ROOT), "describe", "--always", "--dirty", "--abbrev=12"],
-            capture_output=True,
-            text=True,
-            timeout=10,
-        )
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-    return out.stdout.strip() or "unknown"
 
 
 def run_key(scenario: str, strategy: str) -> str:

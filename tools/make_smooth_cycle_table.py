@@ -103,7 +103,9 @@ def main(argv=None) -> int:
             return 1
         print(f"{args.out}: current (generated {prov['date_utc']}, equal bit for bit to a fresh sampling)")
         return 0
-    prov = sc.write_smooth_cycle_file(args.out)
+    from make_refrigerant_tables import _commit  # the same provenance helper
+
+    prov = sc.write_smooth_cycle_file(args.out, extra={"ceco_commit": _commit()})
     sc.check_smooth_cycle_file(args.out, sample=200)
     print(f"wrote {args.out}: grid {prov['grid']}")
     return 0

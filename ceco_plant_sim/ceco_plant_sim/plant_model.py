@@ -26,6 +26,8 @@ Functions (``x``: :attr:`PlantModel.state`, ``u``: :attr:`PlantModel.input`, ``e
 * :meth:`PlantModel.scored_pmv`: the PMV the benchmark scores (``ceco_core.cabin_comfort``, the same
   code as :class:`~ceco_plant_sim.scenario_plant.ScenarioPlant`) from the state, the measured vent air
   temperature, the command and the environment;
+* ``table_margin(x, env)`` (smooth model): how far inside the smooth cycle table's grid box the
+  drive is (< 0: outside, where the table is clamped);
 * :meth:`PlantModel.replay`: the scenario's drive replayed through ``step`` with the scoring timing of
   ``ScenarioPlant`` (a numeric check of the model against the plant).
 
@@ -55,6 +57,7 @@ from .plant_equations import (
     PlantEquations,
     State,
     blower_power_w,
+    condenser_eps_c_wpk,
 )
 from .plant_ops import ExactOps, SmoothOps, SmoothSettings
 from .plant_params import PlantParams
@@ -250,6 +253,16 @@ class PlantModel:
             step_out, step_names = [*step_out, g1, [ok]], [*step_names, "warm_next", "ok"]
         self.step = out("step", step_out, step_names)
         """One plant step: (x, u, env[, warm]) -> (x_next, energy, y[, warm_next, ok])."""
+        self.table_margin: casadi.Function | None = None
+        """Smooth model: (x, env) -> the smooth cycle table's margin at the evaporator wall, ambient and
+        condenser epsc of (x, env) (scaled distance inside the grid box; < 0: outside, the splines
+        clamp). None for the exact model (no table)."""
+        if not exact:
+            tab = eq.cycle.table
+            speed_mid = 0.5 * (tab.box()[0][0] + tab.box()[0][1])  # the speed stays inside by construction
+            epsc = condenser_eps_c_wpk(self.params, env.speed_mps, eq.ops)
+            margin = tab.margin(speed_mid, x.t_evap_c, env.t_amb_c, epsc)
+            self.table_margin = casadi.Function("table_margin", [xs, es], [margin], ["x", "env"], ["margin"])
 
     # ------------------------------------------------------------------ comfort
     def scored_pmv(self, comfort: ComfortParams, pa_pa: float | None = None) -> casadi.Function:
@@ -321,7 +334,8 @@ class PlantModel:
 
         Returns per-step arrays: ``x`` (N+1 x 8, the state at t_0..t_N), ``energy`` (N x 10),
         ``y`` (N x 10, end of each step), ``pmv`` (N, at t_n with the vent air measured at t_n: the
-        evaporator wall at key-on, then the previous step's end) and, for the exact model, ``ok``.
+        evaporator wall at key-on, then the previous step's end), for the exact model ``ok``, for the
+        smooth model ``table_margin`` (N, at t_n; < 0 where the drive left the cycle table's box).
         RuntimeError if the drive leaves the finite numbers.
         """
         x = np.asarray(x0, dtype=float) if isinstance(x0, (np.ndarray, list, tuple)) else self.state.vector(x0)
@@ -350,6 +364,8 @@ class PlantModel:
             out["pmv"] = np.asarray(pmv_f(out["x"][:-1].T, t_vent[None, :], u.T, e.T), dtype=float).ravel()
         if self.evaluation == "exact":
             out["ok"] = np.asarray(res[4], dtype=float).ravel() == 1.0
+        if self.table_margin is not None:
+            out["table_margin"] = np.asarray(self.table_margin.map(n)(out["x"][:-1].T, e.T), dtype=float).ravel()
         return out
 
     def scenario_drive(self, scenario, n_steps: int | None = None, *, plant_overrides=None, comfort_overrides=None):

@@ -199,6 +199,19 @@ class _CasadiOps:
     def __init__(self) -> None:
         self._functions: dict[str, tuple[casadi.Function, object]] = {}
 
+    @staticmethod
+    def _if_else(c, a, b):
+        """How a branch is selected: ``casadi.if_else`` (the smooth evaluation blends instead)."""
+        return casadi.if_else(c, a, b)
+
+    def where(self, c, a, b):
+        """``a`` where ``c`` else ``b``, elementwise (over tuples too)."""
+        return select(self._if_else, c, a, b)
+
+    def cond(self, c, then: Callable, otherwise: Callable):
+        """Both branches evaluated, the taken one selected (NaN or inf in the other does not leak)."""
+        return select(self._if_else, c, then(), otherwise())
+
     def call(self, name: str, fn: Callable, *args):
         """``fn(*args)`` through a CasADi Function traced once with SX scalars (cached by ``name``).
 
@@ -241,16 +254,6 @@ class ExactOps(_CasadiOps):
     def scaled(self, key: str) -> ExactOps:
         """Exact comparisons and kinks whatever the scale."""
         return self
-
-    @staticmethod
-    def where(c, a, b):
-        """``if_else`` elementwise (over tuples too)."""
-        return select(casadi.if_else, c, a, b)
-
-    @staticmethod
-    def cond(c, then: Callable, otherwise: Callable):
-        """Both branches evaluated, the taken one selected (NaN or inf in the other does not leak)."""
-        return select(casadi.if_else, c, then(), otherwise())
 
     def _lookup(self, table, values, offsets) -> casadi.Function:
         """A Function k -> values[k + offset] for each offset (the table's values fetched by index)."""
@@ -385,18 +388,9 @@ class SmoothOps(_CasadiOps):
         return self._scales[key]
 
     @staticmethod
-    def _blend(c, a, b):
+    def _if_else(c, a, b):
+        """The blend c a + (1 - c) b of a soft indicator c in [0, 1]."""
         return c * a + (1.0 - c) * b
-
-    @staticmethod
-    def where(c, a, b):
-        """Blend c a + (1 - c) b of a soft indicator c in [0, 1] (elementwise over tuples)."""
-        return select(SmoothOps._blend, c, a, b)
-
-    @staticmethod
-    def cond(c, then: Callable, otherwise: Callable):
-        """Both branches evaluated and blended."""
-        return select(SmoothOps._blend, c, then(), otherwise())
 
     @staticmethod
     def logic_and(a, b):

@@ -347,29 +347,18 @@ class SmoothCycle:
 
 
 # ---------------------------------------------------------------------------------------------- file
-def _commit() -> str:
-    import subprocess
-
-    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    try:
-        out = subprocess.run(
-            ["git", "-C", root, "describe", "--always", "--dirty", "--abbrev=12"],
-            capture_output=True,
-            text=True,
-            timeout=10,
-        )
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-    return out.stdout.strip() or "unknown"
-
-
 def write_smooth_cycle_file(
     path: str,
     params: PlantParams | None = None,
     grid: SmoothCycleGrid = DEFAULT_SMOOTH_GRID,
     command: str = REGENERATE_SMOOTH_COMMAND,
+    extra: dict | None = None,
 ) -> dict:
-    """Sample the solver (:func:`build_smooth_cycle_table`) and write the values with their provenance (NPZ)."""
+    """Sample the solver (:func:`build_smooth_cycle_table`) and write the values with their provenance (NPZ).
+
+    The provenance records the format, cycle parameters, grid, outputs and units, solver settings, the
+    refrigerant tables' source, the command, the UTC date and the machine, plus ``extra``.
+    """
     import datetime
     import platform
 
@@ -391,10 +380,10 @@ def write_smooth_cycle_file(
         "solver": f"ceco_plant_sim.refrigerant.solve_cycle, tol_k {SOLVE_TOL_K}, max_iter {SOLVE_MAX_ITER}, cold start",
         "refrigerant_tables": cycle_tables(p.refrigerant, float(p.superheat_k), float(p.subcool_k)).source,
         "command": command,
-        "ceco_commit": _commit(),
         "date_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "machine": f"{platform.machine()} {platform.system()}, Python {platform.python_version()}, "
         f"numpy {np.__version__}",
+        **(extra or {}),
     }
     members = {f"axis_{i}": a for i, a in enumerate(tab.axes)}
     members.update({k: v for k, v in tab.values.items()})
