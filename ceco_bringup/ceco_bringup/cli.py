@@ -6,6 +6,7 @@ ceco report   metrics and figures from run directories
 ceco sweep    scenario grids with the in-process simulator
 ceco benchmark  named test cases, baseline family, savings at matched comfort
 ceco sim      one closed-loop run in-process (no ROS)
+ceco oracle   the whole-drive optimum of a benchmark case (the bound)
 ceco identify identify the control-oriented model from plant data
 ceco bench    solver benchmarks
 ceco security create-keystore DIR: an SROS2 keystore with ceco's access control
@@ -21,6 +22,7 @@ VERBS = {
     'sweep': ('ceco_bringup.sweep', 'run a grid of scenarios with the in-process simulator'),
     'benchmark': ('ceco_bringup.benchmark.cli', 'savings at matched comfort on the named test cases'),
     'sim': ('ceco_bringup.sim', 'one closed-loop run in-process (no ROS)'),
+    'oracle': ('ceco_bringup.oracle_cli', 'the whole-drive optimum of a benchmark case (the bound)'),
     'identify': ('ceco_controller.identification', 'identify the control-oriented model'),
     'bench': ('ceco_controller.bench', 'solver benchmarks (ceco bench nmpc)'),
     'security': ('ceco_bringup.security', 'SROS2 keystore (ceco security create-keystore DIR)'),

@@ -1,0 +1,203 @@
+"""``ceco oracle``: the whole-drive optimum of a benchmark case at several discomfort levels.
+
+    ceco oracle sc03-paper --out runs/oracle-sc03
+    ceco oracle udds-hot --levels 0.103,0.11,0.125,0.15 --out runs/oracle-udds
+
+The optimal control problem with perfect knowledge of the drive (``ceco_controller.oracle``, docs/oracle.md)
+is solved at each level [PMV h] and replayed open loop on the plant; every level gets a run directory
+(``level-<i>``: timeseries.csv, diagnostics.csv, metrics.json, commands.csv, run.json) that
+``ceco report`` reads, and the job writes ``front.csv`` / ``front.json`` (the replayed KPIs, the NLP's own
+values, status, iterations, wall time). Without ``--levels`` the levels follow the benchmark's rule
+(``runner.oracle_levels``) on the production law's set-point family run here.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+from ceco_bringup import cli_args, provenance
+
+__all__ = ['build_parser', 'default_levels', 'main']
+
+FRONT_COLUMNS = (
+    'level_pmvh',
+    'status',
+    'success',
+    'iterations',
+    'wall_time_s',
+    'energy_kwh',
+    'discomfort_pmvh',
+    'nlp_energy_kwh',
+    'nlp_discomfort_pmvh',
+    'run_dir',
+)
+"""Columns of ``front.csv`` (energy and discomfort: the replay's KPIs; nlp_*: the NLP's own values)."""
+
+
+def _levels(text: str) -> list[float]:
+    try:
+        vals = [float(x) for x in text.split(',') if x.strip()]
+    except ValueError:
+        raise ValueError(f'expected comma-separated numbers [PMV h], got {text!r}') from None
+    if not vals or any(not (math.isfinite(v) and v > 0) for v in vals):
+        raise ValueError(f'levels must be finite and > 0 PMV h, got {text!r}')
+    return vals
+
+
+def build_parser() -> cli_args.Parser:
+    """The ``ceco oracle`` parser (``ceco oracle --help``)."""
+    p = cli_args.Parser('ceco oracle', __doc__.split('\n\n')[0] + '\n\n' + __doc__.split('\n\n')[1])
+    p.add_argument('case', help='benchmark case: a bundled name (ceco benchmark --list-cases) or a case file')
+    cli_args.add_out(p, 'output directory: one run directory per level, front.csv and front.json')
+    p.add_argument(
+        '--levels',
+        type=_levels,
+        default=None,
+        help='discomfort levels [PMV h], comma-separated (default: the benchmark\'s rule on the production '
+        'law\'s set-point family)',
+    )
+    cli_args.add_control_period(p)
+    cli_args.add_duration(p)
+    p.add_argument(
+        '--max-wall-time-s',
+        type=cli_args.positive_float,
+        default=900.0,
+        help='IPOPT wall-time limit per level [s]',
+    )
+    cli_args.add_no_progress(p)
+    return p
+
+
+def default_levels(case, scenario, control_period_s: float | None, n: int = 4) -> list[float]:
+    """``n`` levels by the benchmark's rule (``runner.oracle_levels``) on the production law's set-point family.
+
+    The family (``verdict.FAMILY_SETPOINTS_C``) is run here in-process and scored like benchmark runs.
+    """
+    from ceco_bringup.benchmark import runner
+    from ceco_bringup.verdict import FAMILY_SETPOINTS_C
+    from ceco_controller.closed_loop import SimSettings, simulate
+    from ceco_core.kpis import compute_kpis
+
+    runs = []
+    for sp in FAMILY_SETPOINTS_C:
+        st = SimSettings(control_period_s=control_period_s, progress=False, strategy_overrides=(('setpoint_c', sp),))
+        res = simulate(scenario, 'baseline', st)
+        kpis, _ = compute_kpis(res.timeseries, control_period_s=res.metrics['control_period_s'], fallback_steps=0)
+        runs.append(
+            {'controller': f'baseline@{sp:g}', 'kind': 'baseline', 'family': 'production', 'setpoint_c': sp, **kpis}
+        )
+    del case
+    return runner.oracle_levels([_entry(r) for r in runs], n)
+
+
+def _entry(r: dict) -> dict:
+    from ceco_bringup.benchmark import runner
+
+    return runner._run_entry(
+        {'status': 'ok', 'kpis': r, 'seed': None, **{k: r[k] for k in ('controller', 'kind', 'setpoint_c')}}
+    )
+
+
+def main(argv=None) -> int:
+    """``ceco oracle``: 0 when every level was solved and replayed, 1 when some were not, 2 for a user error."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from ceco_bringup.benchmark.cases import CaseError, load_case
+    from ceco_controller import oracle as orc
+    from ceco_controller.closed_loop import write_run
+    from ceco_core import rundir
+
+    say = (lambda line: None) if args.no_progress else (lambda line: print(line, file=sys.stderr, flush=True))
+    try:
+        case = load_case(args.case)
+        scenario = case.load_scenario()
+        if args.duration_s is not None:
+            cli_args.check_duration(args.duration_s, scenario)
+            d = case.scenario_dict()
+            d['duration_s'] = float(args.duration_s)
+            from ceco_v2x_preview.scenario import scenario_from_dict
+
+            scenario = scenario_from_dict(d, source=scenario.source)
+        ts = args.control_period_s or case.control_period_s
+        settings = orc.OracleSettings(control_period_s=ts, max_wall_time_s=args.max_wall_time_s).validate()
+        levels = args.levels
+        if levels is None:
+            say(f'ceco oracle: levels from the production law\'s set-point family on {case.name} ...')
+            levels = default_levels(case, scenario, ts)
+            if not levels:
+                raise ValueError('no baseline front on this case to choose levels from; give --levels')
+        say(f'ceco oracle: {case.name}, levels {", ".join(f"{x:.4f}" for x in levels)} PMV h')
+    except (CaseError, ValueError, OSError) as exc:
+        parser.error(str(exc))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        results = orc.solve_levels(scenario, levels, settings, progress=say)
+    except KeyboardInterrupt:
+        print('ceco oracle: interrupted', file=sys.stderr)
+        return 130
+    rows = []
+    for i, r in enumerate(results):
+        run_dir = out / f'level-{i}'
+        row = {
+            'level_pmvh': r.level_pmvh,
+            'status': r.status,
+            'success': r.success,
+            'iterations': r.iterations,
+            'wall_time_s': r.wall_time_s,
+            'energy_kwh': None,
+            'discomfort_pmvh': None,
+            'nlp_energy_kwh': r.nlp_energy_kwh,
+            'nlp_discomfort_pmvh': r.nlp_discomfort_pmvh,
+            'run_dir': run_dir.name if r.run is not None else '',
+        }
+        if r.run is not None:
+            provenance.start_run(run_dir, 'oracle', argv, case.scenario_path())
+            r.run.metrics.update(
+                {
+                    'oracle_level_pmvh': r.level_pmvh,
+                    'oracle_status': r.status,
+                    'oracle_iterations': r.iterations,
+                    'oracle_wall_time_s': r.wall_time_s,
+                    'oracle_nlp_energy_kwh': r.nlp_energy_kwh,
+                    'oracle_nlp_discomfort_pmvh': r.nlp_discomfort_pmvh,
+                    'case': case.name,
+                }
+            )
+            write_run(r.run, run_dir)
+            cols = {'k': list(range(len(r.commands)))}
+            for j, name in enumerate(orc.INPUT_NAMES):
+                cols[name] = r.commands[:, j].tolist()
+            rundir.write_csv(run_dir / 'commands.csv', ('k', *orc.INPUT_NAMES), cols)
+            provenance.finish_run(run_dir, 'complete')
+            row['energy_kwh'], row['discomfort_pmvh'] = r.kpis['energy_kwh'], r.kpis['discomfort_pmvh']
+        rows.append(row)
+    rundir.write_csv(
+        out / 'front.csv', FRONT_COLUMNS, {c: [('' if x[c] is None else x[c]) for x in rows] for c in FRONT_COLUMNS}
+    )
+    doc = {
+        'case': case.name,
+        'control_period_s': settings.control_period_s or scenario.control.control_period_s,
+        'note': 'a local optimum of an NLP replayed on the plant: an achievable point, not a proven global bound',
+        'levels': rows,
+    }
+    (out / 'front.json').write_text(json.dumps(doc, indent=2) + '\n', encoding='utf-8')
+    failed = [f'{x["level_pmvh"]:.4f} ({x["status"]})' for x in rows if not x['success']]
+    for x in rows:
+        if x['success']:
+            print(
+                f'oracle {case.name} @ {x["level_pmvh"]:.4f} PMV h: E {x["energy_kwh"]:.4f} kWh, '
+                f'D {x["discomfort_pmvh"]:.4f} PMV h -> {out / x["run_dir"]}'
+            )
+    if failed:
+        print(f'ceco oracle: not solved: {", ".join(failed)}', file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,417 @@
+"""The whole-drive optimum ("oracle"): the least energy at a bounded discomfort with perfect knowledge.
+
+An optimal control problem over the whole drive of a scenario (docs/oracle.md): the true weather,
+speed, comfort band and key-on state are known; the decisions are the blower flow and the evaporator
+set-point per control period Ts (held between, as every controller's), within the actuator bounds of
+every controller. The objective is the benchmark's energy (compressor + blower + condenser fan,
+``PlantModel.energy`` ``e_total_j``); the benchmark's discomfort (``ceco_core.kpis.discomfort_pmvh``,
+the fixed band's distance of the scored PMV integrated over the drive) is a constraint ``<= level``
+(epsilon-constraint), written exactly with one slack per plant step (``s_n >= pmv_n - 0.5``,
+``s_n >= -0.5 - pmv_n``, ``s_n >= 0``, ``sum s_n dt / 3600 <= level``). The plant is the smooth symbolic
+model written once (``ceco_plant_sim.plant_model.PlantModel.smooth``): multiple shooting on the
+control intervals (each interval is Ts / dt chained plant steps), IPOPT with exact derivatives,
+started from a replayed production-law run and warm-started from level to level.
+
+The optimal command sequence is then replayed open loop on the numeric plant through the simulator
+(:func:`ceco_controller.closed_loop.simulate` with a :class:`ScheduleController`) and scored with
+``ceco_core.kpis.compute_kpis`` exactly like every benchmark run: the oracle's points are those
+replayed KPIs, never the NLP's own values (both are reported).
+
+An NLP solver finds a local optimum: the oracle is an achievable point, not a proven global bound.
+
+Pure logic: no rclpy.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import casadi
+import numpy as np
+
+from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics
+from ceco_core.kpis import COMFORT_BAND_PMV, compute_kpis
+from ceco_core.mathops import smooth_min
+from ceco_core.metrics import PMV_SCALE_LIMIT
+
+__all__ = [
+    "INPUT_NAMES",
+    "LevelResult",
+    "OracleProblem",
+    "OracleSettings",
+    "ScheduleController",
+    "solve_front",
+    "solve_levels",
+]
+
+INPUT_NAMES = ("mdot_bl_kgps", "t_evap_sp_c")
+"""The decisions per control period, by name (``PlantModel.input`` order is looked up, never assumed)."""
+
+J_PER_KWH = 3.6e6
+
+_STATE_SCALE = {"w_cab_kgkg": 0.01, "comp_pi_integral_rpm": 1000.0}
+"""Nominal magnitudes of the states that are not temperatures [unit] (the NLP's variables are x / scale)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class OracleSettings:
+    """Settings of the whole-drive optimum."""
+
+    control_period_s: float | None = None
+    """Control period Ts [s] of the decisions; None: the case's (or the scenario's)."""
+    plant_dt_s: float = 1.0
+    """Plant step [s] (the simulator's)."""
+    max_iter: int = 400
+    """IPOPT iterations per level."""
+    max_wall_time_s: float = 900.0
+    """IPOPT wall-time limit per level [s] (a level that hits it is 'not solved' unless acceptable)."""
+    tol: float = 1e-6
+    """IPOPT tolerance."""
+    pmv_clip_k: float = 20.0
+    """Sharpness [1/PMV] of the smooth clip at the PMV scale limit (log-sum-exp; error <= ln 2 / k at the
+    clip only, where the plant's PMV reaches the scale's end: the pull-down's first seconds)."""
+    guess_setpoint_c: float | None = None
+    """The production law's cabin set-point of the initial guess [degC]; None: its default."""
+
+    def validate(self) -> OracleSettings:
+        """Raise ValueError naming the field if a setting is not usable; return self."""
+        if self.control_period_s is not None and not (
+            math.isfinite(self.control_period_s) and self.control_period_s > 0
+        ):
+            raise ValueError(f"OracleSettings.control_period_s: must be finite and > 0, got {self.control_period_s}")
+        if not (math.isfinite(self.plant_dt_s) and self.plant_dt_s > 0):
+            raise ValueError(f"OracleSettings.plant_dt_s: must be finite and > 0, got {self.plant_dt_s}")
+        if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
+            raise ValueError(f"OracleSettings.max_iter: must be an int >= 1, got {self.max_iter!r}")
+        for name in ("max_wall_time_s", "tol", "pmv_clip_k"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"OracleSettings.{name}: must be finite and > 0, got {v}")
+        return self
+
+
+class ScheduleController:
+    """Applies a fixed command per control step (the oracle's open-loop replay in the simulator)."""
+
+    def __init__(self, commands: np.ndarray) -> None:
+        c = np.asarray(commands, dtype=float)
+        if c.ndim != 2 or c.shape[1] != len(INPUT_NAMES) or not np.all(np.isfinite(c)):
+            raise ValueError(f"ScheduleController: commands must be a finite K x {len(INPUT_NAMES)} array")
+        self.commands = c
+        """Per control step the command, columns :data:`INPUT_NAMES`."""
+
+    def compute(self, obs):
+        """The command of control step ``obs.k`` (ValueError past the schedule's end)."""
+        if obs.k >= len(self.commands):
+            raise ValueError(f"ScheduleController: control step {obs.k} is past the schedule's {len(self.commands)}")
+        row = dict(zip(INPUT_NAMES, self.commands[obs.k].tolist(), strict=True))
+        cmd = AcInput(**row)
+        return cmd, Diagnostics(k=obs.k, t_s=obs.t_s, status="schedule", success=True)
+
+
+@dataclasses.dataclass
+class LevelResult:
+    """One discomfort level: the NLP's solution, its replay on the plant and the replay's KPIs."""
+
+    level_pmvh: float
+    """The discomfort bound [PMV h]."""
+    status: str
+    """IPOPT's return status (or the reason the level was not attempted)."""
+    success: bool
+    """IPOPT reported success (or an acceptable point) and the replay ran."""
+    iterations: int
+    """IPOPT iterations."""
+    wall_time_s: float
+    """Wall time of the solve [s]."""
+    commands: np.ndarray | None = None
+    """Per control step the optimal command, columns :data:`INPUT_NAMES`."""
+    nlp_energy_kwh: float | None = None
+    """The NLP's energy (smooth model) [kWh]."""
+    nlp_discomfort_pmvh: float | None = None
+    """The NLP's discomfort (smooth model: the band distance of its PMV) [PMV h]."""
+    nlp_pmv: np.ndarray | None = None
+    """The NLP's scored PMV per plant step (smooth model), for the replay's comparison."""
+    kpis: dict | None = None
+    """``compute_kpis`` of the replay on the numeric plant (the oracle's point)."""
+    run: object | None = None
+    """The replay's :class:`~ceco_controller.closed_loop.RunResult`."""
+
+
+class OracleProblem:
+    """The whole-drive OCP of one scenario, built once and solved at any discomfort level."""
+
+    def __init__(self, scenario, settings: OracleSettings | None = None) -> None:
+        from ceco_plant_sim.plant_model import PlantModel
+        from ceco_plant_sim.scenario_plant import n_plant_steps
+
+        self.settings = s = (settings or OracleSettings()).validate()
+        self.scenario = scenario
+        ts = float(s.control_period_s or scenario.control.control_period_s)
+        ratio = ts / s.plant_dt_s
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise ValueError(f"oracle: Ts {ts} s must be a whole multiple of the plant step {s.plant_dt_s} s")
+        self.control_period_s = ts
+        self.steps_per_control = m = int(round(ratio))
+        n = n_plant_steps(scenario.duration_s, s.plant_dt_s)
+        self.n_control = k = -(-n // m)
+        """Number of control intervals (the last one may be cut short by the drive's end)."""
+        self.n_steps = n
+        self.model = pm = PlantModel.smooth(plant_dt_s=s.plant_dt_s)
+        x0, envs, comfort, pa = pm.scenario_drive(scenario, n)
+        self.x0, self.envs, self.comfort, self.pa_pa = x0, envs, comfort, pa
+        self._iu = [pm.input.index(nm) for nm in INPUT_NAMES]
+        self._scale = np.array([_STATE_SCALE.get(nm, 10.0) for nm in pm.state.names])
+        self._build(k, m, n)
+
+    # ------------------------------------------------------------------ build
+    def _interval(self, m: int) -> casadi.Function:
+        """One control interval: (x, u, t_vent_in, E[4 x m], mask[m]) -> (x_next, energy [J], pmv[m], t_vent_out)."""
+        pm = self.model
+        x = casadi.SX.sym("x", pm.state.size)
+        u = casadi.SX.sym("u", pm.input.size)
+        tv = casadi.SX.sym("tv")
+        e = casadi.SX.sym("E", pm.env.size, m)
+        mask = casadi.SX.sym("mask", m)
+        pmv_f = pm.scored_pmv(self.comfort, self.pa_pa)
+        i_e, i_tv = pm.energy.index("e_total_j"), pm.y.index("t_vent_c")
+        xk, tvk, energy, pmvs = x, tv, 0, []
+        for j in range(m):
+            pmvs.append(pmv_f(xk, tvk, u, e[:, j]))
+            x1, en, y = pm.step(xk, u, e[:, j])
+            # a step past the drive's end (mask 0) leaves the state and adds nothing
+            xk = casadi.if_else(mask[j] > 0.5, x1, xk)
+            tvk = casadi.if_else(mask[j] > 0.5, y[i_tv], tvk)
+            energy = energy + mask[j] * en[i_e]
+        return casadi.Function(
+            "oracle_interval",
+            [x, u, tv, e, mask],
+            [xk, energy, casadi.vertcat(*pmvs), tvk],
+            ["x", "u", "tv", "E", "mask"],
+            ["x_next", "energy_j", "pmv", "tv_out"],
+        )
+
+    def _build(self, k: int, m: int, n: int) -> None:
+        s, pm = self.settings, self.model
+        nx, nu = pm.state.size, pm.input.size
+        f = self._interval(m).map(k)
+        envs = np.zeros((k * m, pm.env.size))
+        envs[:n] = self.envs
+        envs[n:] = self.envs[-1]
+        mask = np.zeros(k * m)
+        mask[:n] = 1.0
+        self._mask = mask
+        e_par = casadi.DM(envs.T)  # 4 x (k m): the map hands interval i the columns i m .. i m + m - 1
+        scale = casadi.DM(self._scale)
+        xs = casadi.MX.sym("xs", nx, k + 1)
+        us = casadi.MX.sym("u", nu, k)
+        tv = casadi.MX.sym("tv", 1, k)
+        sl = casadi.MX.sym("s", 1, k * m)
+        level = casadi.MX.sym("level")
+        x = xs * casadi.repmat(scale, 1, k + 1)
+        x_next, energy, pmv, tv_out = f(x[:, :k], us, tv, e_par, casadi.DM(mask.reshape(k, m).T))
+        pmv = casadi.reshape(pmv, 1, k * m)
+        lo, hi = COMFORT_BAND_PMV
+        pc = smooth_min(pmv, PMV_SCALE_LIMIT, s.pmv_clip_k)
+        mask_row = casadi.DM(mask).T
+        dt_h = s.plant_dt_s / 3600.0
+        g = [
+            casadi.vec((x_next - x[:, 1:]) / casadi.repmat(scale, 1, k)),
+            casadi.vec(tv_out[:, : k - 1] - tv[:, 1:]),
+            casadi.vec(sl - (pc - hi) * mask_row),
+            casadi.vec(sl - (lo - pmv) * mask_row),
+            casadi.sum2(sl) * dt_h - level,
+        ]
+        n_dyn = nx * k + (k - 1)
+        self._lbg = np.concatenate([np.zeros(n_dyn), np.zeros(2 * k * m), [-np.inf]])
+        self._ubg = np.concatenate([np.zeros(n_dyn), np.full(2 * k * m, np.inf), [0.0]])
+        self._w = [casadi.vec(xs), casadi.vec(us), casadi.vec(tv), casadi.vec(sl)]
+        self._sizes = [nx * (k + 1), nu * k, k, k * m]
+        w = casadi.vertcat(*self._w)
+        obj = casadi.sum2(energy) / J_PER_KWH
+        dist = casadi.fmax(0, casadi.fmax(casadi.fmin(pmv, PMV_SCALE_LIMIT) - hi, lo - pmv)) * mask_row
+        self._nlp_eval = casadi.Function("oracle_eval", [w], [obj, casadi.sum2(dist) * dt_h, pmv])
+        nlp = {"x": w, "f": obj, "g": casadi.vertcat(*g), "p": level}
+        opts: dict[str, Any] = {
+            "ipopt.hessian_approximation": "limited-memory",
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "print_time": False,
+            "ipopt.max_iter": s.max_iter,
+            "ipopt.max_wall_time": s.max_wall_time_s,
+            "ipopt.tol": s.tol,
+            "ipopt.acceptable_tol": 1e-4,
+            "ipopt.mu_strategy": "adaptive",
+            "ipopt.nlp_scaling_method": "gradient-based",
+        }
+        self.solver = casadi.nlpsol("oracle", "ipopt", nlp, opts)
+        # bounds: key-on state fixed, actuators as every controller, slacks >= 0
+        lbx = [np.full((nx, k + 1), -np.inf), np.zeros((nu, k)), np.full(k, -np.inf), np.zeros(k * m)]
+        ubx = [np.full((nx, k + 1), np.inf), np.zeros((nu, k)), np.full(k, np.inf), np.full(k * m, np.inf)]
+        lbx[0][:, 0] = ubx[0][:, 0] = self.x0 / self._scale
+        lim = ACTUATOR_LIMITS
+        bounds = {
+            "mdot_bl_kgps": (lim.mdot_bl_min_kgps, lim.mdot_bl_max_kgps),
+            "t_evap_sp_c": (lim.t_evap_sp_min_c, lim.t_evap_sp_max_c),
+        }
+        for j, nm in enumerate(pm.input.names):
+            lbx[1][j, :], ubx[1][j, :] = bounds[nm]
+        tv0 = self.x0[pm.state.index("t_evap_c")]
+        lbx[2][0] = ubx[2][0] = tv0  # the vent air measured at key-on: the evaporator wall
+        self._lbx = np.concatenate([b.ravel(order="F") for b in lbx])
+        self._ubx = np.concatenate([b.ravel(order="F") for b in ubx])
+
+    # ------------------------------------------------------------------ guess
+    def guess_from_commands(self, commands: np.ndarray) -> np.ndarray:
+        """The NLP's variables along a command sequence (per control step, :data:`INPUT_NAMES`) on the smooth model."""
+        pm, k, m = self.model, self.n_control, self.steps_per_control
+        c = np.asarray(commands, dtype=float)
+        u = np.zeros((k, pm.input.size))
+        u[:, self._iu] = c[:k]
+        per_step = np.repeat(u, m, axis=0)[: self.n_steps]
+        r = pm.replay(self.x0, per_step, self.envs, comfort=self.comfort, pa_pa=self.pa_pa)
+        xs = r["x"][[min(i * m, self.n_steps) for i in range(k + 1)]]
+        tv_all = np.concatenate([[self.x0[pm.state.index("t_evap_c")]], r["y"][:, pm.y.index("t_vent_c")]])
+        tv = tv_all[[i * m for i in range(k)]]
+        lo, hi = COMFORT_BAND_PMV
+        s = np.zeros(k * m)
+        s[: self.n_steps] = np.maximum(0.0, np.maximum(np.minimum(r["pmv"], PMV_SCALE_LIMIT) - hi, lo - r["pmv"]))
+        return np.concatenate([(xs / self._scale).T.ravel(order="F"), u.T.ravel(order="F"), tv, s])
+
+    def commands_of(self, w: np.ndarray) -> np.ndarray:
+        """Per control step the command (columns :data:`INPUT_NAMES`) in the NLP's variables ``w``."""
+        o = self._sizes[0]
+        u = np.asarray(w[o : o + self._sizes[1]], dtype=float).reshape(self.n_control, self.model.input.size)
+        return np.clip(u[:, self._iu], self._lbx[o : o + 2][self._iu], self._ubx[o : o + 2][self._iu])
+
+    def pmv_of(self, w: np.ndarray) -> np.ndarray:
+        """The NLP's scored PMV per plant step (smooth model) in the variables ``w``."""
+        return np.asarray(self._nlp_eval(w)[2], dtype=float).ravel()[: self.n_steps]
+
+    def evaluate(self, w: np.ndarray) -> tuple[float, float]:
+        """(energy [kWh], discomfort [PMV h]) of the NLP's variables ``w`` on the smooth model.
+
+        The discomfort is the band distance of its PMV, as ``ceco_core.kpis`` (the slacks may exceed it where
+        the bound is slack).
+        """
+        obj, dis, _ = self._nlp_eval(w)
+        return float(obj), float(dis)
+
+    # ------------------------------------------------------------------ solve
+    def solve(self, level_pmvh: float, w0: np.ndarray, lam: tuple | None = None):
+        """Solve at one level from ``w0`` (and multipliers ``lam`` = (lam_x, lam_g) for a warm start).
+
+        Returns (status, success, iterations, wall time [s], w, (lam_x, lam_g)).
+        """
+        if not (math.isfinite(level_pmvh) and level_pmvh > 0):
+            raise ValueError(f"oracle: discomfort level must be finite and > 0 PMV h, got {level_pmvh}")
+        args: dict[str, Any] = {
+            "x0": w0,
+            "lbx": self._lbx,
+            "ubx": self._ubx,
+            "lbg": self._lbg,
+            "ubg": self._ubg,
+            "p": level_pmvh,
+        }
+        if lam is not None:
+            args["lam_x0"], args["lam_g0"] = lam
+        t0 = time.perf_counter()
+        sol = self.solver(**args)
+        wall = time.perf_counter() - t0
+        st = self.solver.stats()
+        status = str(st.get("return_status", "unknown"))
+        ok = bool(st.get("success")) or status == "Solved_To_Acceptable_Level"
+        w = np.asarray(sol["x"], dtype=float).ravel()
+        lam_out = (np.asarray(sol["lam_x"]).ravel(), np.asarray(sol["lam_g"]).ravel())
+        return status, ok, int(st.get("iter_count", 0)), wall, w, lam_out
+
+
+def replay(scenario, commands: np.ndarray, control_period_s: float, plant_dt_s: float = 1.0):
+    """The commands (per control step) open loop on the numeric plant through the simulator; (RunResult, KPIs)."""
+    from .closed_loop import SimSettings, simulate
+
+    settings = SimSettings(control_period_s=control_period_s, plant_dt_s=plant_dt_s, progress=False)
+    res = simulate(scenario, "baseline", settings, controller=ScheduleController(commands))
+    res.strategy = res.metrics["strategy"] = "oracle"
+    kpis, _ = compute_kpis(
+        res.timeseries, step_time_s=None, control_period_s=res.metrics["control_period_s"], fallback_steps=0
+    )
+    return res, kpis
+
+
+def baseline_commands(scenario, control_period_s: float, setpoint_c: float | None = None) -> np.ndarray:
+    """The production law's commands per control step on the scenario (the oracle's initial guess)."""
+    from .closed_loop import SimSettings, simulate
+
+    ovr = () if setpoint_c is None else (("setpoint_c", float(setpoint_c)),)
+    res = simulate(
+        scenario,
+        "baseline",
+        SimSettings(control_period_s=control_period_s, progress=False, strategy_overrides=ovr),
+    )
+    ts = res.timeseries
+    m = int(round(control_period_s / (ts["t_s"][1] - ts["t_s"][0])))
+    return np.column_stack([ts[nm][::m] for nm in INPUT_NAMES])
+
+
+def solve_levels(
+    scenario,
+    levels: Sequence[float],
+    settings: OracleSettings | None = None,
+    progress=None,
+    problem: OracleProblem | None = None,
+) -> list[LevelResult]:
+    """The oracle at each discomfort level [PMV h], one :class:`LevelResult` per level in the given order.
+
+    Solved in increasing order, each warm-started from the previous solution, replayed on the numeric plant
+    and scored.
+
+    ``progress``: a callable taking one line of text (None: silent).
+    """
+    say = progress or (lambda _line: None)
+    lv = [float(x) for x in levels]
+    bad = [x for x in lv if not (math.isfinite(x) and x > 0)]
+    if not lv or bad:
+        raise ValueError(f"oracle: levels must be finite and > 0 PMV h, got {list(levels)}")
+    t0 = time.perf_counter()
+    pb = problem or OracleProblem(scenario, settings)
+    say(
+        f"oracle {scenario.name}: NLP built ({pb.n_control} intervals of {pb.steps_per_control} steps) in "
+        f"{time.perf_counter() - t0:.1f} s"
+    )
+    guess = baseline_commands(scenario, pb.control_period_s, pb.settings.guess_setpoint_c)
+    w, lam = pb.guess_from_commands(guess), None
+    out: dict[int, LevelResult] = {}
+    for i in sorted(range(len(lv)), key=lambda j: lv[j]):
+        status, ok, it, wall, w_new, lam_new = pb.solve(lv[i], w, lam)
+        r = LevelResult(level_pmvh=lv[i], status=status, success=ok, iterations=it, wall_time_s=wall)
+        if ok:
+            w, lam = w_new, lam_new
+            r.commands = pb.commands_of(w)
+            r.nlp_energy_kwh, r.nlp_discomfort_pmvh = pb.evaluate(w)
+            r.nlp_pmv = pb.pmv_of(w)
+            r.run, r.kpis = replay(scenario, r.commands, pb.control_period_s, pb.settings.plant_dt_s)
+        out[i] = r
+        tail = (
+            f"replay {r.kpis['energy_kwh']:.4f} kWh / {r.kpis['discomfort_pmvh']:.4f} PMV h "
+            f"(NLP {r.nlp_energy_kwh:.4f} / {r.nlp_discomfort_pmvh:.4f})"
+            if r.kpis
+            else "not solved"
+        )
+        say(f"oracle {scenario.name}: level {lv[i]:.4f} PMV h: {status}, {it} iterations, {wall:.1f} s; {tail}")
+    return [out[i] for i in range(len(lv))]
+
+
+def solve_front(case, seed, levels, settings: OracleSettings | None = None) -> list:
+    """The benchmark's entry point (``runner.ORACLE_ENTRY``): per level the replayed run's KPIs or None.
+
+    ``case`` a benchmark Case, ``seed`` one of its seeds: the oracle knows the truth of the drive, which
+    does not depend on the seed (the seeds draw forecast errors only), so every seed gets the same front.
+    """
+    del seed  # the truth does not depend on the preview-error seed
+    s = settings or OracleSettings(control_period_s=case.control_period_s)
+    res = solve_levels(case.load_scenario(), levels, s)
+    return [r.kpis if r.success else None for r in res]
