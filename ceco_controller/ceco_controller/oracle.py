@@ -74,6 +74,9 @@ class OracleSettings:
     pmv_clip_k: float = 20.0
     """Sharpness [1/PMV] of the smooth clip at the PMV scale limit (log-sum-exp; error <= ln 2 / k at the
     clip only, where the plant's PMV reaches the scale's end: the pull-down's first seconds)."""
+    expand: bool = True
+    """Expand the NLP into one SX graph (its Jacobian free of the NaN that the MX map's Jacobian produced on
+    short sc03 drives; about 1.5 times the Jacobian's cost of the MX form)."""
     guess_setpoint_c: float | None = None
     """The production law's cabin set-point of the initial guess [degC]; None: its default."""
 
@@ -237,6 +240,7 @@ class OracleProblem:
         nlp = {"x": w, "f": obj, "g": casadi.vertcat(*g), "p": level}
         opts: dict[str, Any] = {
             "ipopt.hessian_approximation": "limited-memory",
+            "expand": s.expand,
             "ipopt.print_level": 0,
             "ipopt.sb": "yes",
             "print_time": False,

@@ -328,7 +328,7 @@ def report_blocks(doc: Mapping, fig_dir: Path) -> list:
     if doc['quick']:
         blocks.append(
             Warning(
-                'quick run (one seed, three cases, three set-points per family, the oracle on sc03-paper only): '
+                'quick run (one seed, three cases, three set-points per family, no oracle): '
                 'a smoke test, not comparable to a full benchmark'
             )
         )
