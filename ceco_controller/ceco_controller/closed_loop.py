@@ -27,6 +27,7 @@ import numpy as np
 from ceco_core import rundir
 from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS, MEASUREMENT_MODES
 from ceco_core.metrics import comfort_series_metrics, comparison_table, compute_metrics
+from ceco_core.run_status import STATUS_OK, check_control
 from ceco_plant_sim.scenario_plant import ScenarioPlant, check_overrides, n_plant_steps, steps_per_control
 from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews, parse_quality
 from ceco_v2x_preview.scenario import Scenario, load_scenario
@@ -275,6 +276,8 @@ def simulate(
             "solve_time_max_ms": float(np.max([d.solve_time_ms for d in nd])) if nd else None,
         }
     )
+    # a run whose controller was mostly in fallback is a failed run (ceco_core.run_status)
+    metrics.update(check_control(len(diag_objs), sum(bool(d.fallback) for d in diag_objs)).as_metrics())
     estimates = None
     if vehicle:
         estimates = {c: np.asarray(v) for c, v in est_rows.items()}
@@ -469,21 +472,27 @@ def main(argv=None) -> int:
         measurements=args.measurements,
     )
     out = pathlib.Path(args.out)
-    rows = []
+    rows, failed = [], []
     for s in strategies:
         res = simulate(scenario, s, settings)
         write_run(res, out / s)
-        rows.append(res.metrics)
         m = res.metrics
-        print(
-            f"{s}: E_tot {m['E_tot_kWh']:.4f} kWh, I_pmv {m['I_pmv']:.1f} s, "
-            f"violation {m['otc_violation_pct']:.1f} %, fallbacks {m['n_fallback_shifted']}"
-            f"+{m['n_fallback_baseline']}",
-            file=sys.stderr,
-        )
+        if m["status"] == STATUS_OK:
+            rows.append(m)
+            print(
+                f"{s}: E_tot {m['E_tot_kWh']:.4f} kWh, I_pmv {m['I_pmv']:.1f} s, "
+                f"violation {m['otc_violation_pct']:.1f} %, fallbacks {m['n_fallback_shifted']}"
+                f"+{m['n_fallback_baseline']}",
+                file=sys.stderr,
+            )
+        else:  # its numbers are not a result of the strategy: kept in its run directory, not shown
+            failed.append(f"{s}: FAILED: {m['status_reason']} ({out / s})")
+            print(f"ceco sim: {failed[-1]}", file=sys.stderr)
+    if not rows:
+        return 1
     table = comparison_table(
         rows,
-        baseline="baseline" if "baseline" in strategies else strategies[0],
+        baseline="baseline" if any(m["strategy"] == "baseline" for m in rows) else rows[0]["strategy"],
         columns=TABLE_COLUMNS,
         change_keys=CHANGE_COLUMNS,
     )
@@ -494,8 +503,10 @@ def main(argv=None) -> int:
     )
     print(header)
     print(table)
-    (out / "comparison.txt").write_text(header + "\n" + table + "\n", encoding="utf-8")
-    return 0
+    note = "".join(f"not compared (failed run): {line}\n" for line in failed)
+    print(note, end="")
+    (out / "comparison.txt").write_text(header + "\n" + table + "\n" + note, encoding="utf-8")
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

@@ -358,21 +358,27 @@ def main(argv=None) -> int:
 
 
 def summary_lines(doc: dict) -> list[str]:
-    """One console line per case and controller of a results document.
+    """One console line per case and controller of a results document, then one per failed run.
 
     The matched savings are signed as in results.json: positive = less energy / less discomfort than
-    the baseline front.
+    the baseline front. A run with status failed or error gets a line with its reason and no number.
     """
 
     def f(x):
         return 'n/a' if x is None else f'{x:+.1f} %'
 
-    return [
+    lines = [
         f"  {case['case']:<18} {name:<32} energy saved at matched comfort {f(m['energy_saving_pct']):>8} "
         f"(allowance {f(m['allowance']['energy_saving_pct']):>8}), discomfort cut at matched energy "
         f"{f(m['discomfort_reduction_pct']):>8}{', dominated' if m['dominated'] else ''}"
         for case in doc['cases']
         for name, m in case['matched'].items()
+    ]
+    return lines + [  # failed runs: no number, the reason (a run whose controller did not control is no result)
+        f"  {case['case']:<18} {r['controller']:<32} seed {r['seed']}: FAILED ({r['status']}): {r['error']}"
+        for case in doc['cases']
+        for r in case['runs']
+        if r['status'] != 'ok'
     ]
 
 

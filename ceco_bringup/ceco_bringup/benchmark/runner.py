@@ -24,6 +24,7 @@ from pathlib import Path
 import yaml
 
 from ceco_bringup.sweep.cells import Cell, cell_id
+from ceco_core.run_status import STATUS_FAILED, ControlCheck, check_control
 
 from . import front as fr
 from .cases import Case
@@ -39,6 +40,7 @@ __all__ = [
     'BaselineConstants',
     'load_baselines',
     'new_row',
+    'mark_failed',
     'Sensitivity',
     'load_sensitivity',
     'ControllerSpec',
@@ -320,6 +322,15 @@ def new_row(cell: Mapping, source: str) -> dict:
     }
 
 
+def mark_failed(row: dict, check: ControlCheck) -> None:
+    """Mark ``row`` failed when its controller did not control the run (``ceco_core.run_status``).
+
+    Its KPIs are kept; a failed run is never on a front nor matched (docs/benchmark.md, "Failed runs").
+    """
+    if row['status'] == 'ok' and not check.ok:
+        row['status'], row['error'] = STATUS_FAILED, check.reason
+
+
 def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
     """Run one benchmark cell in this process and score it; never raises (errors are data).
 
@@ -352,6 +363,7 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
         )
         row['sim_time_s'] = time.perf_counter() - t_sim
         row['kpis'], row['kpi_notes'] = kpis, notes
+        mark_failed(row, check_control(m['n_control_steps'], m['n_fallback_shifted'] + m['n_fallback_baseline']))
         if runs_dir:
             write_run(res, Path(runs_dir) / cell['id'])
     except Exception as exc:  # a failed run is data, the benchmark goes on
@@ -365,7 +377,7 @@ def _run_entry(row: Mapping) -> dict:
     kpis = row.get('kpis') or {}
     from .schema import REQUIRED_KPIS
 
-    if row['status'] != 'ok':
+    if row['status'] not in ('ok', STATUS_FAILED):  # an error: no KPIs; a failed run keeps its KPIs
         kpis = {k: None for k in REQUIRED_KPIS}
         notes = {k: 'the run failed' for k in REQUIRED_KPIS}
     else:

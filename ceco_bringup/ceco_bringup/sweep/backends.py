@@ -20,9 +20,11 @@ __all__ = ['read_done', 'append_row', 'WORKER_THREAD_ENV', 'run_local', 'run_ray
 
 
 def read_done(log_path: str | os.PathLike) -> dict:
-    """``{cell_id: row}`` of the cells with status 'ok' in a ``cells.jsonl``.
+    """``{cell_id: row}`` of the finished cells in a ``cells.jsonl``: status 'ok' or 'failed'.
 
-    Later lines win; an unreadable line, e.g. torn by a crash, is skipped.
+    A 'failed' run (the benchmark's verdict that its controller did not control it) is finished and
+    deterministic, so a resume keeps it; an 'error' row is run again. Later lines win; an unreadable
+    line, e.g. torn by a crash, is skipped.
     """
     done: dict = {}
     p = Path(log_path)
@@ -33,7 +35,7 @@ def read_done(log_path: str | os.PathLike) -> dict:
             row = json.loads(line)
         except json.JSONDecodeError:
             continue
-        if isinstance(row, dict) and row.get('status') == 'ok' and 'cell_id' in row:
+        if isinstance(row, dict) and row.get('status') in ('ok', 'failed') and 'cell_id' in row:
             done[row['cell_id']] = row
     return done
 
