@@ -21,6 +21,13 @@ or `--timing realtime` (wall-clock timers, as on a vehicle).
 Ctrl-C (SIGINT) or SIGTERM at any moment: every child is stopped, the bag
 is closed with its metadata, and `ceco run` exits with status 130; the bag
 reads back completely up to the stop.
+
+A failed run (exit status 1; with `--strategy all` the next strategy still runs):
+a node exits, the plant publishes nothing new for `--stall-timeout-s` of wall
+clock (stalled), the bag misses a message the stack sent (the arrival check in
+metrics.json's `recorded`), or the controller did not control the run (more than
+5 % of its control steps in fallback: metrics.json `status: failed`, not compared;
+ceco_core.run_status).
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ from ceco_bringup import supervisor
 from ceco_bringup.bag_writer import STORAGES
 from ceco_core.contracts import STRATEGIES
 from ceco_core.control_grid import TIMING_MODES
+from ceco_core.run_status import STATUS_OK
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -80,6 +88,13 @@ def build_parser() -> argparse.ArgumentParser:
         help='wall-clock limit for the nodes to start and discover each other [s]',
     )
     p.add_argument('--run-timeout-s', type=float, default=1800.0, help='wall-clock limit of one run [s]')
+    p.add_argument(
+        '--stall-timeout-s',
+        type=float,
+        default=None,
+        help='wall-clock time without a new plant step after which the run fails as stalled [s] '
+        '(default: --command-timeout-s + 5 s; in lockstep it must exceed --command-timeout-s)',
+    )
     p.add_argument(
         '--domain-id',
         type=int,
@@ -125,6 +140,7 @@ def main(argv=None) -> int:
         quality = parse_quality(args.preview)
         args.namespace = supervisor.normalize_namespace(args.namespace)
         supervisor.resolve_domain_id(args.domain_id)  # an invalid user id fails here
+        stall_timeout_s(args)
     except ValueError as err:
         print(f'ceco run: {err}', file=sys.stderr)
         return 2
@@ -132,7 +148,7 @@ def main(argv=None) -> int:
     out = Path(args.out)
     stop = supervisor.StopFlag()
     stop.install()
-    rows = []
+    rows, failed = [], []
     try:
         for i, strategy in enumerate(strategies):
             run_dir = out / strategy if args.strategy == 'all' else out
@@ -144,11 +160,16 @@ def main(argv=None) -> int:
                     file=sys.stderr,
                 )
                 return 130
-            except RuntimeError as err:
-                print(f'ceco run: {strategy}: {err}', file=sys.stderr)
-                return 1
-            rows.append(metrics)
-            print_summary(metrics, run_dir)
+            except RuntimeError as err:  # a failed run; the other strategies still run
+                failed.append(f'{strategy}: FAILED: {err}')
+                print(f'ceco run: {failed[-1]}', file=sys.stderr, flush=True)
+                continue
+            if metrics['status'] == STATUS_OK:
+                rows.append(metrics)
+                print_summary(metrics, run_dir)
+            else:  # the controller did not control: its numbers stay in run_dir, never shown as a result
+                failed.append(f'{strategy}: FAILED: {metrics["status_reason"]} ({run_dir})')
+                print(f'ceco run: {failed[-1]}', file=sys.stderr, flush=True)
     finally:
         stop.restore()
     if len(rows) > 1:
@@ -157,7 +178,26 @@ def main(argv=None) -> int:
         print()
         print(f'Scenario {scenario.name} over DDS ({args.timing}), {out}:')
         print(comparison_table(rows))
-    return 0
+    if failed and len(strategies) > 1:
+        print(f'{len(failed)} of {len(strategies)} runs failed (not compared):', file=sys.stderr)
+        for line in failed:
+            print(f'  {line.splitlines()[0]}', file=sys.stderr)
+    return 1 if failed else 0
+
+
+def stall_timeout_s(args) -> float:
+    """The stall limit of ``args`` [s]: ``--stall-timeout-s``, else ``--command-timeout-s`` + 5 s.
+
+    Raises ValueError for a limit that is not finite and > 0, or, in lockstep, not above the
+    command timeout (the plant may legitimately wait that long for a command).
+    """
+    cmd = float(args.command_timeout_s)
+    value = cmd + 5.0 if args.stall_timeout_s is None else float(args.stall_timeout_s)
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f'--stall-timeout-s: must be finite and > 0, got {args.stall_timeout_s!r}')
+    if args.timing == 'lockstep' and value <= cmd:
+        raise ValueError(f'--stall-timeout-s {value:g} must exceed --command-timeout-s {cmd:g} in lockstep')
+    return value
 
 
 def print_summary(m: dict, run_dir: Path) -> None:
@@ -354,6 +394,7 @@ def run_one(
                 total=n_plant, desc=f'{strategy} over DDS', unit='s sim', file=sys.stderr, mininterval=0.5, leave=False
             )
         done = lambda: recorder.last_power_step >= n_plant - 1  # noqa: E731
+        stall_s, progress = stall_timeout_s(args), (recorder.last_power_step, time.monotonic())
         try:
             while not done():
                 if stop.event.wait(0.1):
@@ -364,7 +405,12 @@ def run_one(
                             f'{name} exited with status {proc.returncode()}; '
                             f'log: {proc.log_path}\n' + supervisor.log_tail(proc.log_text())
                         )
-                if time.monotonic() - t_start > args.run_timeout_s:
+                now = time.monotonic()
+                if recorder.last_power_step != progress[0]:
+                    progress = (recorder.last_power_step, now)
+                elif now - progress[1] > stall_s:
+                    raise RuntimeError(stalled_message(stall_s, recorder.last_power_step + 1, n_plant, procs))
+                if now - t_start > args.run_timeout_s:
                     raise RuntimeError(
                         f'run timeout ({args.run_timeout_s} s) at plant step {recorder.last_power_step + 1}/{n_plant}'
                     )
@@ -375,6 +421,9 @@ def run_one(
             if bar is not None:
                 bar.close()
         t_run = recorder.last_power_wall - recorder.first_state_wall
+        # the plant is done; a recorder that was starved or frozen may still be receiving the repairs
+        # of what it missed (each writer at its own heartbeat): wait while that makes progress
+        wait_for_backlog(recorder, expected_counts(n_plant, int(round(ts / dt_s)), args.timing), stall_s, stop)
         time.sleep(0.2)  # let the last diagnostics and log lines arrive
     except supervisor.Interrupted:
         interrupted = True
@@ -401,10 +450,17 @@ def run_one(
         raise supervisor.Interrupted()
 
     wall = time.monotonic() - t_wall0
+    from ceco_bringup import arrival
+
+    m = int(round(ts / dt_s))  # plant steps per control period
+    arrived = arrival.bag_arrival(bag_dir, n_plant, m, args.timing)
+    if not all(a.complete for a in arrived):
+        raise RuntimeError(f'the bag misses messages the stack sent: {arrival.summary(arrived)}')
     ts_data = bagio.load_run_timeseries(bag_dir)
     if ts_data['t_s'].size != n_plant:
         raise RuntimeError(f'bag holds {ts_data["t_s"].size} complete plant steps, expected {n_plant}')
     from ceco_core.metrics import compute_metrics
+    from ceco_core.run_status import check_control, fallback_control_steps
 
     metrics = compute_metrics(
         ts_data['t_s'], ts_data['p_comp_w'], ts_data['p_blower_w'], ts_data['pmv'], ts_data['pmv_lb'], ts_data['pmv_ub']
@@ -428,11 +484,14 @@ def run_one(
             'fallback_steps': int(ts_data['fallback'].sum()),
         }
     )
-    diag = bagio.load_diagnostics(bag_dir)
+    diag, cmds = bagio.load_diagnostics(bag_dir), bagio.load_commands(bag_dir)
+    n_ctrl, n_fb = fallback_control_steps(ts_data['fallback'], m, cmds['k'][cmds['fallback']])
+    metrics.update(check_control(n_ctrl, n_fb).as_metrics())
+    metrics['recorded'] = {a.topic: [a.received, a.expected] for a in arrived}
     solve_ms = diag['solve_time_ms'][np.isfinite(diag['solve_time_ms'])]
     metrics.update(
         {
-            'n_control_steps': int(diag['k'].size),
+            'n_control_steps': n_ctrl,
             'n_fallback_shifted': int(np.sum(diag['fallback'] == 'shifted_plan')),
             'n_fallback_baseline': int(np.sum(diag['fallback'] == 'baseline')),
             'solve_time_median_ms': float(np.median(solve_ms)) if solve_ms.size else None,
@@ -444,6 +503,49 @@ def run_one(
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in metrics.items()}
     (run_dir / 'metrics.json').write_text(json.dumps(clean, indent=2, sort_keys=True) + '\n')
     return metrics
+
+
+def expected_counts(n_plant: int, steps_per_control: int, timing: str) -> dict[str, int]:
+    """Messages a complete run sends per stack topic, where fixed [-] (the arrival check's counts)."""
+    from ceco_bringup import arrival
+    from ceco_ros.topics import TOPIC_CLOCK
+
+    n_ctrl = -(-n_plant // steps_per_control)
+    out = dict.fromkeys(arrival.PLANT_TOPICS, n_plant)
+    if timing == 'lockstep':
+        out.update(dict.fromkeys(arrival.PREVIEW_TOPICS, n_ctrl), **{TOPIC_CLOCK: n_plant})
+    return out
+
+
+def wait_for_backlog(recorder, expected: dict[str, int], stall_s: float, stop: supervisor.StopFlag) -> None:
+    """Wait until ``recorder`` holds ``expected`` messages per topic, as long as it makes progress.
+
+    Returns at the first ``stall_s`` [s] without a new message (the arrival check then names what is
+    missing); raises :class:`supervisor.Interrupted` on a stop signal.
+    """
+    last, t_last = -1, time.monotonic()
+    while any(recorder.received.get(t, 0) < n for t, n in expected.items()):
+        if recorder.n_messages != last:
+            last, t_last = recorder.n_messages, time.monotonic()
+        elif time.monotonic() - t_last > stall_s:
+            return
+        if stop.event.wait(0.05):
+            raise supervisor.Interrupted()
+
+
+def stalled_message(stall_s: float, n_recorded: int, n_plant: int, procs: dict) -> str:
+    """The error of a stalled run: what the recorder has, and whether the plant says it finished."""
+    plant_log = procs['plant_node'].log_text()
+    finished = 'scenario complete' in plant_log
+    why = (
+        'the plant reports the scenario complete: its messages did not reach the recorder'
+        if finished
+        else 'the plant made no progress (all nodes are running)'
+    )
+    return (
+        f'stalled: no new plant step for {stall_s:g} s of wall clock at plant step {n_recorded}/{n_plant}; {why}; '
+        f'logs: {procs["plant_node"].log_path.parent}'
+    )
 
 
 if __name__ == '__main__':

@@ -43,8 +43,9 @@ class PreviewNode(NodeTools, Node):
         self.quality_text = cfg.quality.describe()
         self.inputs = PreviewInputs(cfg, self.log)
         self._last_k, self._published, self._failed, self._error, self._reported = None, 0, 0, '', 0
-        self._pub_w = self.create_publisher(WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.QOS_PREVIEW)
-        self._pub_s = self.create_publisher(TrafficPreview, interfaces.TOPIC_TRAFFIC, interfaces.QOS_PREVIEW)
+        qos = interfaces.preview_qos(cfg.timing)
+        self._pub_w = self.create_publisher(WeatherPreview, interfaces.TOPIC_WEATHER, qos)
+        self._pub_s = self.create_publisher(TrafficPreview, interfaces.TOPIC_TRAFFIC, qos)
         self.create_subscription(
             CabinState,
             interfaces.TOPIC_STATE,
