@@ -285,10 +285,11 @@ class NodeProcess:
                 pass
 
     def stop(self, timeout_s: float = 5.0) -> int | None:
-        """SIGINT, wait, then SIGKILL. Returns the exit code."""
+        """SIGINT (and SIGCONT, so a stopped process handles it), wait, then SIGKILL. Returns the exit code."""
         if self.proc is None:
             return None
         self.signal(signal.SIGINT)
+        self.signal(signal.SIGCONT)
         try:
             return self.proc.wait(timeout=timeout_s)
         except subprocess.TimeoutExpired:
