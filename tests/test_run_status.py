@@ -161,4 +161,4 @@ def test_benchmark_keeps_a_failed_strategy_out_of_the_matched_results(tmp_path):
     assert bs.check_results(json.loads(json.dumps(doc))) == []
     lines = cli.summary_lines(doc)
     assert not any('ceco-starved' in line and 'energy saved' in line for line in lines)
-    assert any('ceco-starved' in line and 'FAILED (failed): the controller did not control' in line for line in lines)
+    assert any('ceco-starved' in line and 'seed 0: FAILED: the controller did not control' in line for line in lines)

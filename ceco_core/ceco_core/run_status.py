@@ -96,9 +96,9 @@ class ControlCheck:
             return 'the run has no control step'
         return (
             f'the controller did not control the run: {self.n_fallback_steps} of {self.n_control_steps} '
-            f'control steps in fallback ({100.0 * self.share:.1f} %; allowed: {self.allowed}, '
-            f'{100.0 * self.max_share:g} % or the {KEY_ON_FALLBACK_STEPS} of a real-time key-on; '
-            'the production ACC law or the controller\'s fallback drove them)'
+            f'control steps in fallback ({100.0 * self.share:.1f} %; at most {self.allowed} allowed: '
+            f'{100.0 * self.max_share:g} % of the steps, at least the {KEY_ON_FALLBACK_STEPS} of a real-time '
+            'key-on; the production ACC law or the controller\'s fallback drove them)'
         )
 
     def as_metrics(self) -> dict:

@@ -375,7 +375,8 @@ def summary_lines(doc: dict) -> list[str]:
         for name, m in case['matched'].items()
     ]
     return lines + [  # failed runs: no number, the reason (a run whose controller did not control is no result)
-        f"  {case['case']:<18} {r['controller']:<32} seed {r['seed']}: FAILED ({r['status']}): {r['error']}"
+        f"  {case['case']:<18} {r['controller']:<32} seed {r['seed']}: "
+        f"{'FAILED' if r['status'] == 'failed' else 'ERROR'}: {r['error']}"
         for case in doc['cases']
         for r in case['runs']
         if r['status'] != 'ok'
