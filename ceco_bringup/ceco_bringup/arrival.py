@@ -25,7 +25,7 @@ from ceco_ros.topics import (
     TOPIC_WEATHER,
 )
 
-__all__ = ['TopicArrival', 'check_arrival', 'bag_arrival', 'summary']
+__all__ = ['TopicArrival', 'check_arrival', 'expected_counts', 'bag_arrival', 'summary']
 
 PLANT_TOPICS = (TOPIC_STATE, TOPIC_COMFORT, TOPIC_POWER)
 """Topics with one message per plant step, indexed by the plant step n."""
@@ -74,12 +74,8 @@ def check_arrival(
         clock_count: ``/clock`` messages in the bag (lockstep: one per state); None: not checked.
     """
     n, m = int(n_plant_steps), int(steps_per_control)
-    if n < 0 or m < 1:
-        raise ValueError(f'n_plant_steps {n_plant_steps!r} >= 0 and steps_per_control {steps_per_control!r} >= 1')
-    n_ctrl = -(-n // m)
-    expected = {t: set(range(n)) for t in PLANT_TOPICS}
+    expected = _expected_steps(n, m, timing)
     if timing == 'lockstep':
-        expected.update({t: set(range(n_ctrl)) for t in PREVIEW_TOPICS})
         expected[TOPIC_COMMAND] = {i // m for i, fb in enumerate(plant_fallback) if i < n and not fb}
     out = []
     for topic, want in expected.items():
@@ -88,6 +84,23 @@ def check_arrival(
         out.append(TopicArrival(topic, len(want), len(got), missing))
     if timing == 'lockstep' and clock_count is not None:
         out.append(TopicArrival(TOPIC_CLOCK, n, min(int(clock_count), n)))
+    return out
+
+
+def _expected_steps(n: int, m: int, timing: str) -> dict[str, set]:
+    if n < 0 or m < 1:
+        raise ValueError(f'n_plant_steps {n!r} >= 0 and steps_per_control {m!r} >= 1')
+    expected = {t: set(range(n)) for t in PLANT_TOPICS}
+    if timing == 'lockstep':
+        expected.update({t: set(range(-(-n // m))) for t in PREVIEW_TOPICS})
+    return expected
+
+
+def expected_counts(n_plant_steps: int, steps_per_control: int, timing: str) -> dict[str, int]:
+    """Messages a complete run sends on each topic whose count is fixed (plant topics, lockstep previews and /clock)."""
+    out = {t: len(steps) for t, steps in _expected_steps(int(n_plant_steps), int(steps_per_control), timing).items()}
+    if timing == 'lockstep':
+        out[TOPIC_CLOCK] = int(n_plant_steps)
     return out
 
 

@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ceco_bringup import supervisor
+from ceco_bringup import arrival, supervisor
 from ceco_bringup.bag_writer import STORAGES
 from ceco_core.contracts import STRATEGIES
 from ceco_core.control_grid import TIMING_MODES
@@ -423,7 +423,7 @@ def run_one(
         t_run = recorder.last_power_wall - recorder.first_state_wall
         # the plant is done; a recorder that was starved or frozen may still be receiving the repairs
         # of what it missed (each writer at its own heartbeat): wait while that makes progress
-        wait_for_backlog(recorder, expected_counts(n_plant, int(round(ts / dt_s)), args.timing), stall_s, stop)
+        wait_for_backlog(recorder, arrival.expected_counts(n_plant, int(round(ts / dt_s)), args.timing), stall_s, stop)
         time.sleep(0.2)  # let the last diagnostics and log lines arrive
     except supervisor.Interrupted:
         interrupted = True
@@ -450,8 +450,6 @@ def run_one(
         raise supervisor.Interrupted()
 
     wall = time.monotonic() - t_wall0
-    from ceco_bringup import arrival
-
     m = int(round(ts / dt_s))  # plant steps per control period
     arrived = arrival.bag_arrival(bag_dir, n_plant, m, args.timing)
     if not all(a.complete for a in arrived):
@@ -503,18 +501,6 @@ def run_one(
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in metrics.items()}
     (run_dir / 'metrics.json').write_text(json.dumps(clean, indent=2, sort_keys=True) + '\n')
     return metrics
-
-
-def expected_counts(n_plant: int, steps_per_control: int, timing: str) -> dict[str, int]:
-    """Messages a complete run sends per stack topic, where fixed [-] (the arrival check's counts)."""
-    from ceco_bringup import arrival
-    from ceco_ros.topics import TOPIC_CLOCK
-
-    n_ctrl = -(-n_plant // steps_per_control)
-    out = dict.fromkeys(arrival.PLANT_TOPICS, n_plant)
-    if timing == 'lockstep':
-        out.update(dict.fromkeys(arrival.PREVIEW_TOPICS, n_ctrl), **{TOPIC_CLOCK: n_plant})
-    return out
 
 
 def wait_for_backlog(recorder, expected: dict[str, int], stall_s: float, stop: supervisor.StopFlag) -> None:
