@@ -101,7 +101,8 @@ def test_ceco_sim_fails_a_strategy_that_never_controls(tmp_path):
     out = tmp_path / 'sim'
     p = subprocess.run(
         [sys.executable, '-m', 'ceco_bringup.cli', 'sim', '--scenario', 'sc03', '--strategy', 'baseline,ceco-ioch']
-        + ['--duration', '60', '--controller-config', str(cfg), '--out', str(out), '--no-progress'],
+        + ['--duration-s', '60', '--controller-config', str(cfg), '--baseline-setpoints-c', '25,26,27']
+        + ['--out', str(out), '--no-progress'],
         capture_output=True,
         text=True,
         timeout=300,
@@ -110,13 +111,19 @@ def test_ceco_sim_fails_a_strategy_that_never_controls(tmp_path):
     failed = json.loads((out / 'ceco-ioch' / 'metrics.json').read_text())
     assert failed['status'] == 'failed' and failed['fallback_control_steps'] == 12 == failed['n_control_steps']
     assert failed['n_fallback_baseline'] == 12  # every step was the production law
+    run = json.loads((out / 'ceco-ioch' / 'run.json').read_text())
+    assert run['status'] == 'failed' and 'did not control the run: 12 of 12' in run['error']
     ok = json.loads((out / 'baseline' / 'metrics.json').read_text())
     assert ok['status'] == 'ok' and ok['fallback_control_steps'] == 0
-    # the failed run shows no number: no result line, not in the comparison table, named with its reason
-    assert 'ceco-ioch: E_tot' not in p.stderr and 'ceco-ioch: FAILED: the controller did not control' in p.stderr
-    table = (out / 'comparison.txt').read_text()
-    rows = [line.split()[0] for line in table.splitlines()[3:] if line and not line.startswith('not compared')]
-    assert rows == ['baseline'] and 'not compared (failed run): ceco-ioch: FAILED' in table
+    # the failed run shows no number: its line says FAILED, it is in no table and not in the verdict
+    line = next(x for x in p.stdout.splitlines() if x.strip().startswith('ceco-ioch:'))
+    assert 'FAILED: the controller did not control the run: 12 of 12' in line and 'kWh' not in line
+    assert '1 of 2 runs failed (not compared):' in p.stdout
+    csv_rows = (out / 'comparison.csv').read_text().splitlines()
+    assert [r.split(',')[0] for r in csv_rows[1:]] == ['baseline']
+    verdict = json.loads((out / 'verdict.json').read_text())
+    assert set(verdict['points']) == {'baseline'} and 'ceco-ioch' not in verdict['matched']
+    assert '1 of 2 runs failed' in (out / 'summary.txt').read_text()
 
 
 # ------------------------------------------------------------------ the benchmark (simulator path)
