@@ -176,6 +176,7 @@ def test_a_stalled_run_fails_clearly_and_all_goes_on(tmp_path):
     assert p.returncode == 1, text
     assert f'{STRATEGIES[0]}: FAILED: stalled: no new plant step for 10 s of wall clock' in text, text
     assert 'the plant made no progress' in text and 'run timeout' not in text, text
+    assert 'plant_node used 0.00 s of CPU in those 10 s (stopped, or starved of CPU' in text, text
     assert '1 of 5 runs failed' in text, text
     assert not (out / STRATEGIES[0] / 'metrics.json').exists()  # a stalled run is no number
     for strategy in STRATEGIES[1:]:

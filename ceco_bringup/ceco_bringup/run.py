@@ -403,7 +403,8 @@ def run_one(
                 total=n_plant, desc=f'{strategy} over DDS', unit='s sim', file=sys.stderr, mininterval=0.5, leave=False
             )
         done = lambda: recorder.last_power_step >= n_plant - 1  # noqa: E731
-        stall_s, progress = stall_timeout_s(args), (recorder.last_power_step, time.monotonic())
+        plant = procs['plant_node']
+        stall_s, progress = stall_timeout_s(args), (recorder.last_power_step, time.monotonic(), plant.cpu_time_s())
         try:
             while not done():
                 if stop.event.wait(0.1):
@@ -416,9 +417,11 @@ def run_one(
                         )
                 now = time.monotonic()
                 if recorder.last_power_step != progress[0]:
-                    progress = (recorder.last_power_step, now)
+                    progress = (recorder.last_power_step, now, plant.cpu_time_s())
                 elif now - progress[1] > stall_s:
-                    raise RuntimeError(stalled_message(stall_s, recorder.last_power_step + 1, n_plant, procs))
+                    cpu = plant.cpu_time_s()
+                    used = None if cpu is None or progress[2] is None else cpu - progress[2]
+                    raise RuntimeError(stalled_message(stall_s, recorder.last_power_step + 1, n_plant, procs, used))
                 if now - t_start > args.run_timeout_s:
                     raise RuntimeError(
                         f'run timeout ({args.run_timeout_s} s) at plant step {recorder.last_power_step + 1}/{n_plant}'
@@ -526,15 +529,23 @@ def wait_for_backlog(recorder, expected: dict[str, int], stall_s: float, stop: s
             raise supervisor.Interrupted()
 
 
-def stalled_message(stall_s: float, n_recorded: int, n_plant: int, procs: dict) -> str:
-    """The error of a stalled run: what the recorder has, and whether the plant says it finished."""
+def stalled_message(
+    stall_s: float, n_recorded: int, n_plant: int, procs: dict, plant_cpu_s: float | None = None
+) -> str:
+    """The error of a stalled run.
+
+    It says what the recorder has, whether the plant says it finished, and how much CPU the plant
+    got meanwhile (``plant_cpu_s`` [s]: a stopped or starved plant gets next to none).
+    """
     plant_log = procs['plant_node'].log_text()
-    finished = 'scenario complete' in plant_log
-    why = (
-        'the plant reports the scenario complete: its messages did not reach the recorder'
-        if finished
-        else 'the plant made no progress (all nodes are running)'
-    )
+    if 'scenario complete' in plant_log:
+        why = 'the plant reports the scenario complete: its messages did not reach the recorder'
+    else:
+        why = 'the plant made no progress (all nodes are running)'
+    if plant_cpu_s is not None:
+        why += f'; plant_node used {plant_cpu_s:.2f} s of CPU in those {stall_s:g} s'
+        if plant_cpu_s < 0.02 * stall_s:
+            why += ' (stopped, or starved of CPU: on a machine that loaded raise --stall-timeout-s)'
     return (
         f'stalled: no new plant step for {stall_s:g} s of wall clock at plant step {n_recorded}/{n_plant}; {why}; '
         f'logs: {procs["plant_node"].log_path.parent}'

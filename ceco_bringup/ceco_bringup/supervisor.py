@@ -276,6 +276,17 @@ class NodeProcess:
         """The exit code, None if the process was never started or is still running."""
         return None if self.proc is None else self.proc.poll()
 
+    def cpu_time_s(self) -> float | None:
+        """CPU time the process has used so far (user + system, Linux ``/proc/<pid>/stat``) [s]; None if unknown."""
+        if self.proc is None:
+            return None
+        try:
+            text = Path(f'/proc/{self.proc.pid}/stat').read_text()
+            fields = text[text.rindex(')') + 2 :].split()  # after "pid (comm) ": state is field 3
+            return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')  # utime, stime: fields 14, 15
+        except (OSError, ValueError, IndexError):
+            return None
+
     def signal(self, sig) -> None:
         """Send signal ``sig`` to the process if it is running (a process that just exited is ignored)."""
         if self.running():
