@@ -13,7 +13,6 @@ import pytest
 
 from ceco_bringup import arrival
 from ceco_bringup.benchmark import cli, runner
-from ceco_bringup.benchmark import schema as bs
 from ceco_bringup.benchmark.cases import case_from_dict
 from ceco_bringup.sweep.cells import code_fingerprint
 from ceco_core.run_status import KEY_ON_FALLBACK_STEPS, MAX_FALLBACK_SHARE, check_control, fallback_control_steps
@@ -97,7 +96,8 @@ def test_arrival_names_every_missing_message():
 # ------------------------------------------------------------------ the simulator and `ceco sim`
 def test_ceco_sim_fails_a_strategy_that_never_controls(tmp_path):
     cfg = tmp_path / 'starved.yaml'
-    cfg.write_text('common:\n  solver:\n' + ''.join(f'    {k}: {v}\n' for k, v in STARVED_SOLVER.items()))
+    # the baseline keeps its law (acc_law: defaults), the NMPC gets the starved solver
+    cfg.write_text('acc_law: {}\ncommon:\n  solver:\n' + ''.join(f'    {k}: {v}\n' for k, v in STARVED_SOLVER.items()))
     out = tmp_path / 'sim'
     p = subprocess.run(
         [sys.executable, '-m', 'ceco_bringup.cli', 'sim', '--scenario', 'sc03', '--strategy', 'baseline,ceco-ioch']
@@ -153,19 +153,9 @@ def test_benchmark_keeps_a_failed_strategy_out_of_the_matched_results(tmp_path):
     run = next(r for r in doc_case['runs'] if r['controller'] == 'ceco-starved')
     assert run['status'] == 'failed' and run['kpis']['energy_kwh'] == starved['kpis']['energy_kwh']
     assert 'ceco' in doc_case['matched'] and 'ceco-starved' not in doc_case['matched']
-    doc = {
-        'schema': bs.SCHEMA,
-        'ceco_version': '0',
-        'benchmark_version': bs.BENCHMARK_VERSION,
-        'created_utc': '2026-12-02T00:00:00Z',
-        'code_fingerprint': code_fingerprint(),
-        'quick': False,
-        'settings': {'band': [-0.5, 0.5], 'front_axis': runner.FRONT_AXIS, 'energy_axis': runner.ENERGY_AXIS}
-        | {'setpoints_c': [25.0, 27.0, 29.0]},
-        'timing': {'wall_s': 1.0, 'runs': len(rows), 'ran_now': len(rows)},
-        'cases': [doc_case],
-    }
-    assert bs.check_results(json.loads(json.dumps(doc))) == []
+    # (a whole results document with a failed run validates: tests/test_benchmark_schema.py)
+    assert all(p['controller'] != 'ceco-starved' for fam in doc_case['fronts'].values() for p in fam)
+    doc = {'cases': [doc_case]}
     lines = cli.summary_lines(doc)
     assert not any('ceco-starved' in line and 'energy saved' in line for line in lines)
     assert any('ceco-starved' in line and 'seed 0: FAILED: the controller did not control' in line for line in lines)

@@ -53,7 +53,10 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
         ParamSpec(
             'controller_config',
             '',
-            "NMPC settings file (solver, weights, bounds; empty: the package's config/controller.yaml)",
+            "baseline law file (acc_law: AccSettings fields, e.g. the package's config/baseline_pmv.yaml for the "
+            "comfort-feedback PI; empty: the production law)"
+            if fixed_strategy == 'baseline'
+            else "NMPC settings file (solver, weights, bounds; empty: the package's config/controller.yaml)",
         ),
         ParamSpec(
             'measurements',
