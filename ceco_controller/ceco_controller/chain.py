@@ -167,6 +167,11 @@ class SolveChain:
         self.n_retries = 0
         """Retries of a failed warm solve by the retry solver (since construction)."""
 
+    def reset(self) -> None:
+        """Reset every solver of the chain (:meth:`NlpSolver.reset`)."""
+        for solver in {id(s): s for s in (self.solver, self.retry, self.cold) if s is not None}.values():
+            solver.reset()
+
     # ---------------------------------------------------------------- data
     def warm_data(self, p: np.ndarray, good: GoodSolution | None) -> NlpData | None:
         """The warm-started instance: ``good`` shifted by its age (None without a usable solution)."""

@@ -320,8 +320,11 @@ def new_row(cell: Mapping, source: str) -> dict:
     }
 
 
-def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
+def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None, controller_cache=None) -> dict:
     """Run one benchmark cell in this process and score it; never raises (errors are data).
+
+    ``controller_cache``: the worker's :class:`ceco_controller.factory.ControllerCache` (a warm
+    worker reuses its controllers; the results are the same).
 
     Returns the row logged in ``cells.jsonl``: ``cell_id``, the axes, ``status``, ``error``,
     ``kpis``, ``kpi_notes``, ``code``, ``sim_time_s``, ``wall_time_s``, ``source``.
@@ -342,7 +345,9 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
         row['code'] = sweep_cells.check_code(spec, 'benchmark')
         t_sim = time.perf_counter()
         settings = sweep_cells.settings_from_spec(spec)
-        res = simulate(scenario_from_dict(spec['scenario']), spec['strategy'], settings)
+        res = simulate(
+            scenario_from_dict(spec['scenario']), spec['strategy'], settings, controller_cache=controller_cache
+        )
         m = res.metrics
         kpis, notes = compute_kpis(
             res.timeseries,
