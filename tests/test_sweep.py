@@ -238,6 +238,8 @@ def test_ray_cluster_of_two_nodes_joined_by_address(tmp_path):
     import shutil
     import signal
     import subprocess
+    import sys
+    import tempfile
     import time
 
     ray_cli = shutil.which('ray')
@@ -249,10 +251,11 @@ def test_ray_cluster_of_two_nodes_joined_by_address(tmp_path):
         'RAY_AUTH_TOKEN': secrets.token_hex(32),
     }
     port = _free_port()
-    common = ['--block', '--num-cpus', '1', '--temp-dir', str(tmp_path / 'ray'), '--node-ip-address', '127.0.0.1']
+    ray_tmp = tempfile.mkdtemp(prefix='ceco_ray_', dir='/tmp')  # short: Ray's AF_UNIX socket paths (<= 107 bytes)
+    common = ['--block', '--num-cpus', '1', '--temp-dir', ray_tmp, '--node-ip-address', '127.0.0.1']
     common += ['--disable-usage-stats']
     head_cmd = [ray_cli, 'start', '--head', '--port', str(port), '--include-dashboard', 'false']
-    head_cmd += ['--ray-client-server-port', str(_free_port()), '--dashboard-agent-listen-port', str(_free_port())]
+    head_cmd += ['--dashboard-agent-listen-port', str(_free_port())]
     node_cmd = [ray_cli, 'start', '--address', f'127.0.0.1:{port}']
     node_cmd += ['--dashboard-agent-listen-port', str(_free_port())]
     procs = []
@@ -266,28 +269,18 @@ def test_ray_cluster_of_two_nodes_joined_by_address(tmp_path):
                 assert time.monotonic() < deadline, 'ray start did not come up in 120 s'
                 time.sleep(0.5)
         grid = _grid(tmp_path, GRID.replace('[baseline, ceco]', '[baseline, ceco, ceco-ioch]'), duration=20)
-        os.environ.update({k: env[k] for k in ('RAY_AUTH_MODE', 'RAY_AUTH_TOKEN', 'RAY_USAGE_STATS_ENABLED')})
-        try:
-            res = sweep.run_sweep(
-                grid,
-                tmp_path / 'cluster',
-                backend='ray',
-                address=f'127.0.0.1:{port}',
-                progress=False,
-                log=lambda *a, **k: None,
-            )
-        finally:
-            for k in ('RAY_AUTH_MODE', 'RAY_AUTH_TOKEN', 'RAY_USAGE_STATS_ENABLED'):
-                os.environ.pop(k, None)
-            import ray
-
-            ray.shutdown()
-        assert res['timing']['ran'] == 6 and res['timing']['failed'] == 0
+        # the driver as a user runs it: `ceco sweep` in a shell that has the cluster's token
+        cmd = [sys.executable, '-m', 'ceco_bringup.cli', 'sweep', str(grid), '--out', str(tmp_path / 'cluster')]
+        cmd += ['--backend', 'ray', '--address', f'127.0.0.1:{port}', '--no-progress']
+        run = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
+        assert run.returncode == 0, run.stderr[-3000:]
+        assert '6/6 cells done (6 run now, 0 failed)' in run.stdout + run.stderr
         rows = [json.loads(ln) for ln in (tmp_path / 'cluster' / 'cells.jsonl').read_text().splitlines()]
+        assert len(rows) == 6 and all(r['status'] == 'ok' for r in rows)
         assert len({r['ray_node'] for r in rows}) == 2  # both nodes ran cells
         local = sweep.run_sweep(grid, tmp_path / 'local', workers=1, progress=False, log=lambda *a, **k: None)
         ref = {r['cell_id']: r for r in local['rows']}
-        for r in res['rows']:
+        for r in rows:
             assert [repr(r[k]) for k in _RESULT_KEYS] == [repr(ref[r['cell_id']][k]) for k in _RESULT_KEYS]
     finally:
         for p in reversed(procs):  # the processes this test started (their own sessions), by id
@@ -299,6 +292,7 @@ def test_ray_cluster_of_two_nodes_joined_by_address(tmp_path):
             except subprocess.TimeoutExpired:
                 os.killpg(p.pid, signal.SIGKILL)
                 p.wait(timeout=10)
+        shutil.rmtree(ray_tmp, ignore_errors=True)
 
 
 @pytest.mark.extra('fastsim')
