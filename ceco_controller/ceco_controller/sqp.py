@@ -206,6 +206,7 @@ class SqpOutcome:
     lam_g: np.ndarray
     g: np.ndarray
     primal_infeasibility: float
+    """Largest constraint violation at ``w`` (``w`` is always inside its bounds) [constraint units]."""
     dual_infeasibility: float
     line_search_failures: int
 
@@ -376,6 +377,7 @@ class Sqp:
             ok, f, g, gf, jac, glag = self._linearise(w, p, lam_g)
             if not ok:
                 status = "Invalid_Number_Detected"
+                pr = float(self._violation(g).max(initial=0.0)) if math.isfinite(float(g.sum())) else math.inf
                 break
             pr = float(self._violation(g).max(initial=0.0))
             du = float(np.abs(glag + lam_x).max(initial=0.0))
