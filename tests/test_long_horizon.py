@@ -57,8 +57,8 @@ def test_hpipm_sqp_reaches_ipopts_optimum_on_recorded_instances(instances, strat
 
 def test_hpipm_is_called_afresh_on_every_qp(instances):
     """Two different QPs in turn through the SQP's QP call give each its own solution (CasADi 3.8.2's
-    hpipm conic returns the first call's solution on later calls when evaluated through the buffer
-    API; the SQP calls it with DM arguments), and HPIPM's step equals dense qpOASES' on the same QP."""
+    hpipm conic reads its QP data when a buffer is set up, so a reused buffer solves the first QP
+    again; the SQP binds a new buffer per call), and HPIPM's step equals dense qpOASES' on the same QP."""
     from ceco_controller.sqp import Sqp, SqpOptions, sqp_functions
 
     ctrl = NmpcController(strategy_settings("ceco", horizon_steps=24))

@@ -111,13 +111,16 @@ def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) ->
         else None
     )
     acc: dict[str, list] = {
-        k: [] for k in ("ours_t", "ref_t", "diffs", "sdiffs", "ours_it", "ref_it", "same_t", "step_solve")
+        k: []
+        for k in ("ours_t", "ref_t", "diffs", "sdiffs", "ours_it", "ref_it", "same_t", "step_solve", "step_solve_cpu")
     }
     fails = {"n_fail": 0, "n_ref_fail": 0, "n_ref_same_nlp_fail": 0}
 
     def on_step(obs, cmd, diag):
         data = ctrl.last_nlp()
+        chain = ctrl.last_chain() if diag.solve_time_ms is not None else None
         acc["step_solve"].append(diag.solve_time_ms or 0.0)
+        acc["step_solve_cpu"].append((chain.cpu_ms or 0.0) if chain is not None else 0.0)
         if diag.solve_time_ms is not None:
             acc["ours_t"].append(diag.solve_time_ms)
             acc["ours_it"].append(diag.iterations if diag.iterations is not None else np.nan)
@@ -149,6 +152,7 @@ def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) ->
     )
     o, r, sm, st = _stats(acc["ours_t"]), _stats(acc["ref_t"]), _stats(acc["same_t"]), _stats(step_ms)
     share = non_solver(step_ms, np.asarray(acc["step_solve"], float))
+    share_cpu = {f"cpu_{k}": v for k, v in non_solver(np.asarray(cpu_ms), np.asarray(acc["step_solve_cpu"])).items()}
     diffs, sdiffs, c = acc["diffs"], acc["sdiffs"], ctrl.counters
     row = {
         "strategy": strat,
@@ -165,7 +169,10 @@ def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) ->
         "step_p99_ms": st["p99"],
         "step_max_ms": st["max"],
         "step_cpu_median_ms": float(np.median(cpu_ms)) if cpu_ms else float("nan"),
+        "step_cpu_p99_ms": float(np.percentile(cpu_ms, 99)) if cpu_ms else float("nan"),
+        "solve_cpu_median_ms": float(np.median([c for c in acc["step_solve_cpu"] if c > 0] or [np.nan])),
         **share,
+        **share_cpu,
         "ref_median_ms": r["median"],
         "ref_p95_ms": r["p95"],
         "ref_max_ms": r["max"],
@@ -216,9 +223,11 @@ def bench_nmpc(
             print(
                 f"{strat:10s} Np={np_:3d} steps={rr['steps']:4d}  ours median {rr['ours_median_ms']:7.2f} ms "
                 f"p95 {rr['ours_p95_ms']:7.2f} max {rr['ours_max_ms']:7.2f} (it {rr['ours_iter_median']:.0f}); "
-                f"whole step median {rr['step_median_ms']:6.2f} p99 {rr['step_p99_ms']:6.2f} (CPU "
-                f"{rr['step_cpu_median_ms']:.2f}; not solver {rr['non_solver_median_ms']:.2f} ms = "
-                f"{100 * rr['non_solver_share']:.0f} %, step/solve {rr['step_over_solve']:.2f})  |  "
+                f"whole step median {rr['step_median_ms']:6.2f} p99 {rr['step_p99_ms']:6.2f} (not solver "
+                f"{rr['non_solver_median_ms']:.2f} ms = {100 * rr['non_solver_share']:.0f} %, step/solve "
+                f"{rr['step_over_solve']:.2f}; CPU: step {rr['step_cpu_median_ms']:.2f}, solver "
+                f"{rr['solve_cpu_median_ms']:.2f}, not solver {100 * rr['cpu_non_solver_share']:.0f} %, step/solve "
+                f"{rr['cpu_step_over_solve']:.2f})  |  "
                 f"IPOPT default median {rr['ref_median_ms']:7.2f} p95 {rr['ref_p95_ms']:7.2f} "
                 f"max {rr['ref_max_ms']:7.2f} (it {rr['ref_iter_median']:.0f})"
                 + (
@@ -330,22 +339,29 @@ def _node_case(strategy: str, duration_s, codegen: bool) -> dict:
 
     r = node_step_times(strategy, duration_s=duration_s, codegen=codegen)
     step, solve = r["node_ms"][1:], r["solve_ms"][1:]  # (step 0: the cold first solve, as in the simulator's)
+    cpu = {f"cpu_{k}": v for k, v in non_solver(r["node_cpu_ms"][1:], r["solve_cpu_ms"][1:]).items()}
     row = {
         "strategy": strategy,
         "steps": int(step.size),
         "node_median_ms": float(np.median(step)),
         "node_p99_ms": float(np.percentile(step, 99)),
         "node_cpu_median_ms": float(np.median(r["node_cpu_ms"][1:])),
+        "node_cpu_p99_ms": float(np.percentile(r["node_cpu_ms"][1:], 99)),
         "solve_median_ms": float(np.median(solve)),
+        "solve_cpu_median_ms": float(np.median(r["solve_cpu_ms"][1:])),
         "fallback_steps": int(np.sum(r["fallback"])),
         **non_solver(step, solve),
+        **cpu,
         "load_1min": os.getloadavg()[0],
     }
     print(
         f"{strategy:10s} mpc_node step median {row['node_median_ms']:.3f} ms p99 {row['node_p99_ms']:.3f} "
-        f"(p99/median {row['node_p99_ms'] / row['node_median_ms']:.1f}; CPU median {row['node_cpu_median_ms']:.3f}) | "
+        f"(p99/median {row['node_p99_ms'] / row['node_median_ms']:.1f}; CPU median {row['node_cpu_median_ms']:.3f} "
+        f"p99 {row['node_cpu_p99_ms']:.3f}) | "
         f"solver median {row['solve_median_ms']:.3f} ms | step/solve {row['step_over_solve']:.2f}, not solver "
-        f"{row['non_solver_median_ms']:.3f} ms = {100 * row['non_solver_share']:.0f} % | fallbacks "
+        f"{row['non_solver_median_ms']:.3f} ms = {100 * row['non_solver_share']:.0f} % | CPU: step "
+        f"{row['node_cpu_median_ms']:.3f}, solver {row['solve_cpu_median_ms']:.3f} ms, step/solve "
+        f"{row['cpu_step_over_solve']:.2f}, not solver {100 * row['cpu_non_solver_share']:.0f} % | fallbacks "
         f"{row['fallback_steps']} [load {row['load_1min']:.1f}]",
         flush=True,
     )

@@ -55,8 +55,9 @@ def node_step_times(
 
     Returns arrays per control step (``k`` 0..): ``node_ms`` (wall, message in to command out),
     ``node_cpu_ms`` (the thread's CPU time over the same span), ``solve_ms`` (the solver's own
-    wall time, from the node's diagnostics), the commands (``mdot_bl_kgps``, ``t_evap_sp_c``),
-    and ``fallback`` (steps not under NMPC control).
+    wall time, from the node's diagnostics), ``solve_cpu_ms`` (its CPU time, read from the node's
+    controller), the commands (``mdot_bl_kgps``, ``t_evap_sp_c``) and ``fallback`` (steps not under
+    NMPC control).
     """
     os.environ["ROS_DOMAIN_ID"] = str(150 + os.getpid() % 60 if domain_id is None else domain_id)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -90,6 +91,7 @@ def node_step_times(
     pubs: dict = {}
     node_ms: dict[int, float] = {}
     node_cpu_ms: dict[int, float] = {}
+    solve_cpu_ms: dict[int, float] = {}
     try:
         node = ControllerNode("mpc_node")
         # instrument the instance (its on_configure creates the entities when the executor first spins)
@@ -110,8 +112,11 @@ def node_step_times(
 
                 def timed_publish(msg):
                     publish(msg)
-                    node_ms[int(msg.step_index)] = 1e3 * (time.perf_counter() - mark["t0"])
-                    node_cpu_ms[int(msg.step_index)] = 1e3 * (time.thread_time() - mark["c0"])
+                    k = int(msg.step_index)
+                    node_ms[k] = 1e3 * (time.perf_counter() - mark["t0"])
+                    node_cpu_ms[k] = 1e3 * (time.thread_time() - mark["c0"])
+                    chain = node.ctl.core.last_chain()  # (read only: the node's NmpcController)
+                    solve_cpu_ms[k] = (chain.cpu_ms or 0.0) if chain is not None else 0.0
 
                 pub.publish = timed_publish
             return pub
@@ -173,6 +178,7 @@ def node_step_times(
             "node_ms": np.array([node_ms[k] for k in ks]),
             "node_cpu_ms": np.array([node_cpu_ms[k] for k in ks]),
             "solve_ms": np.array([solve_ms[k] for k in ks]),
+            "solve_cpu_ms": np.array([solve_cpu_ms[k] for k in ks]),
             "mdot_bl_kgps": np.array([commands[k].blower_flow_kgps for k in ks]),
             "t_evap_sp_c": np.array([commands[k].evap_setpoint_c for k in ks]),
             "fallback": np.array([fallback[k] for k in ks]),

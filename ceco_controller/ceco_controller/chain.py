@@ -138,6 +138,12 @@ class ChainOutcome:
         return float(sum(ts)) if ts else None
 
     @property
+    def cpu_ms(self) -> float | None:
+        """Solver CPU time of all attempts [ms] (None if none reported one)."""
+        ts = [r.cpu_ms for _, r in self.attempts if r.cpu_ms is not None]
+        return float(sum(ts)) if ts else None
+
+    @property
     def status(self) -> str:
         """The single attempt's status, or 'solver: status; ...' over all attempts."""
         if len(self.attempts) == 1:

@@ -45,7 +45,7 @@ from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observati
 from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits, check_observation
 
 from . import model as cm
-from .chain import BOUND_TOL, ColdPath, GoodSolution, SolveChain, StepCounters
+from .chain import BOUND_TOL, ChainOutcome, ColdPath, GoodSolution, SolveChain, StepCounters
 from .codegen import codegen_cache_dir, compile_nlp
 from .observation import fill_previews, nominal_observation
 from .offset_free import BiasEstimator
@@ -315,6 +315,10 @@ class NmpcController:
         """The data of the last NLP solved by :meth:`compute` (for benchmarks)."""
         return getattr(self, "_last_nlp", None)
 
+    def last_chain(self) -> ChainOutcome | None:
+        """What the solve chain did in the last :meth:`compute` that reached it (for benchmarks)."""
+        return getattr(self, "_last_chain", None)
+
     # ------------------------------------------------------------ start-up
     def warm_up(self) -> float:
         """Solve a nominal instance once with every solver of the chain, then forget it (key-on).
@@ -409,7 +413,7 @@ class NmpcController:
         self._bias.update(obs.t_cab_c, obs.t_evap_c, obs.t_vent_c, u_prev[0])
         p = self.parameters(obs, ex, u_prev, chk.t_glass_c, chk.rh_cab)
         out = self.chain.run(p, self._good, deadline)
-        self._last_nlp = out.data
+        self._last_nlp, self._last_chain = out.data, out
         self._count(out, deadline)
         res = out.result
         diag.status = out.status

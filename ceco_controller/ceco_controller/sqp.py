@@ -179,20 +179,6 @@ def sqp_functions(nlp: dict, structure: OcpStructure | None = None) -> SqpFuncti
     )
 
 
-class _DmCall:
-    """A conic called with DM arguments (h, g, a, lba, uba, lbx, ubx); returns numpy arrays like BufferedFunction."""
-
-    def __init__(self, fn: casadi.Function):
-        self.fn = fn
-        self.buf = fn  # (its stats() after a call, as BufferedFunction.buf's)
-        self._sp = [fn.sparsity_in(i) for i in range(7)]
-        self._rest = [casadi.DM(fn.sparsity_in(i), 0.0) for i in range(7, fn.n_in())]
-
-    def __call__(self, *args) -> list[np.ndarray]:
-        out = self.fn.call([casadi.DM(sp, a) for sp, a in zip(self._sp, args)] + self._rest)
-        return [np.asarray(o.nonzeros()) for o in out]
-
-
 @dataclasses.dataclass
 class SqpOutcome:
     """One :meth:`Sqp.solve` result (converted to a SolveResult by the caller)."""
@@ -295,10 +281,11 @@ class Sqp:
         patterns, qp_opts = self._qp_spec
         with stdout_silenced():
             self.qp = casadi.conic("ceco_sqp_qp", o.qpsol, patterns, qp_opts)
-            # h, g, a, lba, uba, lbx, ubx bound per call (no initial guess). CasADi 3.8.2's hpipm interface
-            # evaluated through the buffer API returns the first call's solution on every later call, so
-            # HPIPM is called with DM arguments (tests/test_sqp.py checks both against each other)
-            self._qp = BufferedFunction(self.qp, n_args=7) if o.qpsol != "hpipm" else _DmCall(self.qp)
+            # qpOASES: h, g, a, lba, uba, lbx, ubx bound (no initial guess). HPIPM: every input bound (it reads
+            # the guess), on a new buffer per call: CasADi 3.8.2's hpipm conic reads its QP data when the
+            # buffer is set up and would solve the first QP again (tests/test_long_horizon.py)
+            hpipm = o.qpsol == "hpipm"
+            self._qp = BufferedFunction(self.qp, n_args=None if hpipm else 7, fresh_buffer=hpipm)
 
     # ------------------------------------------------------------ pieces
     def convexify(self, h: np.ndarray) -> np.ndarray:
