@@ -112,7 +112,18 @@ def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) ->
     )
     acc: dict[str, list] = {
         k: []
-        for k in ("ours_t", "ref_t", "diffs", "sdiffs", "ours_it", "ref_it", "same_t", "step_solve", "step_solve_cpu")
+        for k in (
+            "ours_t",
+            "ref_t",
+            "ref_cpu",
+            "diffs",
+            "sdiffs",
+            "ours_it",
+            "ref_it",
+            "same_t",
+            "step_solve",
+            "step_solve_cpu",
+        )
     }
     fails = {"n_fail": 0, "n_ref_fail": 0, "n_ref_same_nlp_fail": 0}
 
@@ -134,6 +145,7 @@ def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) ->
             acc["same_t"].append(same.time_ms)
             fails["n_ref_same_nlp_fail"] += not same.success
         acc["ref_t"].append(ref.time_ms)
+        acc["ref_cpu"].append(ref.cpu_ms if ref.cpu_ms is not None else np.nan)
         acc["ref_it"].append(ref.iterations)
         fails["n_ref_fail"] += not ref.success
         if ref.success and diag.success and diag.cost_total is not None:
@@ -179,6 +191,7 @@ def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) ->
         "ref_iter_median": float(np.median(acc["ref_it"])) if acc["ref_it"] else float("nan"),
         "ref_same_nlp_median_ms": sm["median"],
         "speedup_median": r["median"] / o["median"] if o["median"] > 0 else float("nan"),
+        "ref_cpu_median_ms": float(np.nanmedian(acc["ref_cpu"])) if acc["ref_cpu"] else float("nan"),
         "max_rel_cost_diff": max(diffs) if diffs else float("nan"),
         "max_rel_cost_excess": max(max(sdiffs), 0.0) if sdiffs else float("nan"),
         "n_rel_cost_diff_gt_1e-4": int(sum(d > 1e-4 for d in diffs)),
@@ -189,6 +202,7 @@ def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) ->
         "deadline_hits": c.deadline_hits,
         "load_1min": os.getloadavg()[0],
     }
+    row["speedup_cpu"] = row["ref_cpu_median_ms"] / row["solve_cpu_median_ms"]
     return row, step_ms
 
 
@@ -235,7 +249,8 @@ def bench_nmpc(
                     if rr["ref_same_nlp_median_ms"] == rr["ref_same_nlp_median_ms"]
                     else ""
                 )
-                + f"  speed-up {rr['speedup_median']:5.1f}x  max rel cost diff {rr['max_rel_cost_diff']:.1e} "
+                + f"  speed-up {rr['speedup_median']:5.1f}x (CPU time {rr['speedup_cpu']:.1f}x)  max rel cost diff "
+                f"{rr['max_rel_cost_diff']:.1e} "
                 f"(ours higher by <= {rr['max_rel_cost_excess']:.1e}; {rr['n_rel_cost_diff_gt_1e-4']} steps > 1e-4)  "
                 f"failures {rr['failures']} (ref fails {rr['n_ref_fail']})  [{rr['solver']}, {rr['transcription']}; "
                 f"ipopt retries {rr['n_ipopt_fallbacks']}, iterates {rr['accepted_iterates']}; budget "
@@ -264,6 +279,10 @@ def horizon_table(rows: list[dict]) -> list[dict]:
                 "ref_median_ms": ref,
                 "speedup": ref / ours if ours > 0 else float("nan"),
                 "speedup_min": float(np.nanmin([r["speedup_median"] for r in rs])),
+                "speedup_cpu": float(
+                    np.median([r["ref_cpu_median_ms"] for r in rs]) / np.median([r["solve_cpu_median_ms"] for r in rs])
+                ),
+                "speedup_cpu_min": float(np.nanmin([r["speedup_cpu"] for r in rs])),
                 "max_rel_cost_diff": float(np.nanmax([r["max_rel_cost_diff"] for r in rs])),
                 "step_median_ms": float(np.median([r["step_median_ms"] for r in rs])),
                 "step_p99_ms": float(np.max([r["step_p99_ms"] for r in rs])),
@@ -277,13 +296,15 @@ def horizon_table(rows: list[dict]) -> list[dict]:
 def _print_horizon_table(table: list[dict]) -> None:
     print(
         "horizon table: Np | product solver | ours median [ms] | IPOPT defaults median [ms] | speed-up "
-        "(worst strategy) | max rel cost diff | whole step median / p99 [ms] | not solver | failures",
+        "(worst strategy) | speed-up in CPU time (worst) | max rel cost diff | whole step median / p99 [ms] | "
+        "not solver | failures",
         flush=True,
     )
     for t in table:
         print(
             f"  {t['np']:3d} | {', '.join(t['solver'])} | {t['ours_median_ms']:.2f} | {t['ref_median_ms']:.2f} | "
-            f"{t['speedup']:.1f}x ({t['speedup_min']:.1f}x) | {t['max_rel_cost_diff']:.1e} | "
+            f"{t['speedup']:.1f}x ({t['speedup_min']:.1f}x) | {t['speedup_cpu']:.1f}x ({t['speedup_cpu_min']:.1f}x) | "
+            f"{t['max_rel_cost_diff']:.1e} | "
             f"{t['step_median_ms']:.2f} / {t['step_p99_ms']:.2f} | {100 * t['non_solver_share']:.0f} % | "
             f"{t['failures']}",
             flush=True,
@@ -350,6 +371,7 @@ def _node_case(strategy: str, duration_s, codegen: bool) -> dict:
         "solve_median_ms": float(np.median(solve)),
         "solve_cpu_median_ms": float(np.median(r["solve_cpu_ms"][1:])),
         "fallback_steps": int(np.sum(r["fallback"])),
+        "max_command_diff_to_simulator": r["max_command_diff_to_simulator"],
         **non_solver(step, solve),
         **cpu,
         "load_1min": os.getloadavg()[0],
@@ -361,7 +383,8 @@ def _node_case(strategy: str, duration_s, codegen: bool) -> dict:
         f"solver median {row['solve_median_ms']:.3f} ms | step/solve {row['step_over_solve']:.2f}, not solver "
         f"{row['non_solver_median_ms']:.3f} ms = {100 * row['non_solver_share']:.0f} % | CPU: step "
         f"{row['node_cpu_median_ms']:.3f}, solver {row['solve_cpu_median_ms']:.3f} ms, step/solve "
-        f"{row['cpu_step_over_solve']:.2f}, not solver {100 * row['cpu_non_solver_share']:.0f} % | fallbacks "
+        f"{row['cpu_step_over_solve']:.2f}, not solver {100 * row['cpu_non_solver_share']:.0f} % | commands equal "
+        f"to the simulator's to {row['max_command_diff_to_simulator']:.1e} | fallbacks "
         f"{row['fallback_steps']} [load {row['load_1min']:.1f}]",
         flush=True,
     )

@@ -1,17 +1,20 @@
 """The whole control step inside ``mpc_node``, message in to command out (``ceco bench nmpc --node``).
 
 The real :class:`ceco_controller.mpc_node.ControllerNode` runs in this process on a private
-ROS_DOMAIN_ID with its default lockstep timing; a feeder node plays the plant and preview
-nodes: at every control step it publishes the previews and the cabin state of the in-process
-plant (:class:`ceco_plant_sim.scenario_plant.ScenarioPlant`, messages made by the same
-``ceco_ros.conversions`` functions the plant and preview nodes use) and steps the plant with
-the command it gets back, so the node runs the closed loop the stack runs. Measured per control
-step, inside the node: from the entry of the subscription callback in which the step runs
-(the message in, after rclpy took it off the wire) to the return of the command's ``publish``
-(the command out, handed to DDS): wall time and the thread's CPU time; and the solver's own
-time from the node's ``controller/diagnostics``. The node file is not touched: its
-``create_subscription`` and ``create_lifecycle_publisher`` are wrapped on the instance before
-it configures itself.
+ROS_DOMAIN_ID with its default lockstep timing; a feeder node plays the plant and preview nodes.
+What it sends is a closed-loop run of the in-process simulator with the same controller settings
+(``closed_loop.simulate``), replayed: at every control step the previews and the cabin state at t_k
+(messages made by the same ``ceco_ros.conversions`` functions the plant and preview nodes use), then
+it waits for the command. The node computes the simulator's commands (the stack equals the
+simulator bit for bit; the largest difference is returned), so the replay is the closed loop, and
+between steps this process does nothing else (the plant runs in its own process in a stack).
+
+Measured per control step, inside the node: from the entry of the subscription callback in which
+the step runs (the message in, after rclpy took it off the wire) to the return of the command's
+``publish`` (the command out, handed to DDS): wall time and the thread's CPU time; and the
+solver's own wall time (the node's ``controller/diagnostics``) and CPU time (read from the node's
+controller). The node file is not touched: its ``create_subscription`` and
+``create_lifecycle_publisher`` are wrapped on the instance before it configures itself.
 
 A benchmark, not a test; needs the built workspace (rclpy, ceco_msgs). No rclpy import at module
 import: :func:`node_step_times` imports it.
@@ -56,26 +59,43 @@ def node_step_times(
     Returns arrays per control step (``k`` 0..): ``node_ms`` (wall, message in to command out),
     ``node_cpu_ms`` (the thread's CPU time over the same span), ``solve_ms`` (the solver's own
     wall time, from the node's diagnostics), ``solve_cpu_ms`` (its CPU time, read from the node's
-    controller), the commands (``mdot_bl_kgps``, ``t_evap_sp_c``) and ``fallback`` (steps not under
-    NMPC control).
+    controller), the commands (``mdot_bl_kgps``, ``t_evap_sp_c``), ``fallback`` (steps not under
+    NMPC control) and the scalar ``max_command_diff_to_simulator`` [kg/s or degC].
     """
     os.environ["ROS_DOMAIN_ID"] = str(150 + os.getpid() % 60 if domain_id is None else domain_id)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
-    from ceco_core.contracts import AcInput
+    from ceco_core.contracts import MEASUREMENTS, AcInput
     from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficPreview, WeatherPreview
-    from ceco_plant_sim.scenario_plant import ScenarioPlant, n_plant_steps, steps_per_control
+    from ceco_plant_sim.scenario_plant import KEY_ON_COMMAND, steps_per_control
     from ceco_ros import conversions, interfaces
     from ceco_v2x_preview.preview import PERFECT, make_previews
     from ceco_v2x_preview.scenario import load_scenario
 
+    from .closed_loop import SimSettings, simulate
     from .mpc_node import ControllerNode
 
     sc = load_scenario(scenario)
     ts = sc.control.control_period_s
     config = _controller_config(codegen)
+    # the closed loop the node will run, from the simulator: per step t_k, the measurements, u(k-1)
+    sim = simulate(
+        sc,
+        strategy,
+        SimSettings(horizon_steps=horizon_steps, duration_s=duration_s, progress=False, controller_config_path=config),
+    )
+    m = steps_per_control(ts, 1.0)
+    cols, diags = sim.timeseries, sim.diag_objects
+    replay = [
+        (
+            float(cols["t_s"][k * m]),
+            {f: float(cols[f][k * m]) for f in MEASUREMENTS},
+            KEY_ON_COMMAND if k == 0 else AcInput(diags[k - 1].mdot_bl_kgps, diags[k - 1].t_evap_sp_c),
+        )
+        for k in range(len(diags))
+    ]
     args = ["--ros-args", "--log-level", "warn"]
     for name, value in (
         ("strategy", strategy),
@@ -115,8 +135,9 @@ def node_step_times(
                     k = int(msg.step_index)
                     node_ms[k] = 1e3 * (time.perf_counter() - mark["t0"])
                     node_cpu_ms[k] = 1e3 * (time.thread_time() - mark["c0"])
-                    chain = node.ctl.core.last_chain()  # (read only: the node's NmpcController)
-                    solve_cpu_ms[k] = (chain.cpu_ms or 0.0) if chain is not None else 0.0
+                    last_chain = getattr(node.ctl.core, "last_chain", None)  # (read only: the node's NmpcController)
+                    chain = last_chain() if last_chain is not None else None
+                    solve_cpu_ms[k] = (chain.cpu_ms or 0.0) if chain is not None else float("nan")
 
                 pub.publish = timed_publish
             return pub
@@ -156,22 +177,14 @@ def node_step_times(
 
         spin_until(lambda: node.lifecycle == "active" and pub_state.get_subscription_count() > 0, "active mpc_node")
         spin_until(lambda: pubs["command"].get_subscription_count() > 0, "the command subscription matched")
-        sp = ScenarioPlant(sc, 1.0)
-        m = steps_per_control(ts, 1.0)
-        n_steps = n_plant_steps(duration_s or sc.duration_s, 1.0)
-        for k in range(n_steps // m):
-            t_s = sp.t_s
+        for k, (t_s, meas, u_prev) in enumerate(replay):
             stamp = conversions.stamp_from_s(t_s)
             p = make_previews(sc, t_s, ts, horizon_steps + 1, PERFECT)
             w, s = conversions.previews_to_msgs(p, k, stamp, "perfect")
             pub_w.publish(w)
             pub_s.publish(s)
-            env = sc.env_at(t_s)
-            pub_state.publish(conversions.state_msg(sp.n, t_s, stamp, sp.meas, env, sp.cmd, False))
+            pub_state.publish(conversions.state_msg(k * m, t_s, stamp, meas, sc.env_at(t_s), u_prev, False))
             spin_until(lambda k=k: k in commands and k in solve_ms, f"command for step {k}")
-            u = AcInput(mdot_bl_kgps=commands[k].blower_flow_kgps, t_evap_sp_c=commands[k].evap_setpoint_c)
-            for _ in range(m):
-                sp.step(u)
         ks = sorted(commands)
         return {
             "k": np.array(ks),
@@ -182,6 +195,12 @@ def node_step_times(
             "mdot_bl_kgps": np.array([commands[k].blower_flow_kgps for k in ks]),
             "t_evap_sp_c": np.array([commands[k].evap_setpoint_c for k in ks]),
             "fallback": np.array([fallback[k] for k in ks]),
+            "max_command_diff_to_simulator": float(
+                max(
+                    max(abs(commands[k].blower_flow_kgps - diags[k].mdot_bl_kgps) for k in ks),
+                    max(abs(commands[k].evap_setpoint_c - diags[k].t_evap_sp_c) for k in ks),
+                )
+            ),
         }
     finally:
         rclpy.try_shutdown()
