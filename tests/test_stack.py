@@ -179,16 +179,45 @@ def test_short_closed_loop_over_dds_matches_simulator(tmp_path):
     ):
         np.testing.assert_allclose(ts[col], sim_run.timeseries[col], rtol=1e-12, atol=1e-12, err_msg=col)
     metrics = json.loads((out / 'metrics.json').read_text())
-    for key in ('E_tot_J', 'E_comp_J', 'E_blower_J', 'I_pmv', 'otc_violation_pct', 'pmv_mean'):
+    for key in ('E_tot_J', 'E_comp_J', 'E_blower_J', 'E_fan_J', 'I_pmv', 'otc_violation_pct', 'pmv_mean'):
         assert metrics[key] == pytest.approx(sim[key], rel=1e-6, abs=1e-12), key
+    assert metrics['E_tot_J'] == pytest.approx(metrics['E_comp_J'] + metrics['E_blower_J'] + metrics['E_fan_J'])
     assert metrics['strategy'] == 'ceco-ioch' and metrics['scenario'] == 'sc03'
+    # the verdict after the job: the saving at matched comfort against the in-process family; the run
+    # directory keeps the scenario file, the command line and what was printed
+    assert 'Verdict on sc03 (60 s).' in text and 'Matched comfort: against the production law at 24-27 degC' in text
+    verdict = json.loads((out / 'verdict.json').read_text())
+    assert verdict['matched']['ceco-ioch']['energy_saving_pct'] is not None or verdict['matched']['ceco-ioch']['note']
+    run = json.loads((out / 'run.json').read_text())
+    assert run['status'] == 'complete' and run['command'].startswith('ceco run --scenario sc03 --strategy ceco-ioch')
+    assert (out / 'scenario.yaml').is_file() and 'Verdict on sc03' in (out / 'summary.txt').read_text()
 
     # the recorded drive fed to a fresh mpc_node (ceco play --compare) gives the same commands
-    p = _cli('play', str(bag), '--compare', '--domain-id', str(_domain()))
+    p = _cli('play', str(bag), '--compare', '--domain-id', str(_domain()), '--no-progress')
     text, _ = p.communicate(timeout=300)
     assert p.returncode == 0, text
     assert '12/12 steps compared; max |d blower| 0.000e+00 kg/s, max |d set-point| 0.000e+00 K' in text
     _check_lockstep_bag(bag, n_steps=60)
+
+    # issue 17 item 11: the same from a bag without ceco's metadata (as ros2 bag record leaves it): the
+    # strategy, Ts and Np from the controller's messages, the scenario from --scenario (asked for)
+    import shutil
+
+    import yaml
+
+    bare = tmp_path / 'bare'
+    shutil.copytree(bag, bare)
+    meta = yaml.safe_load((bare / 'metadata.yaml').read_text())
+    meta['rosbag2_bagfile_information']['custom_data'] = None
+    (bare / 'metadata.yaml').write_text(yaml.safe_dump(meta, sort_keys=False))
+    p = _cli('play', str(bare), '--compare', '--domain-id', str(_domain()), '--no-progress')
+    text, _ = p.communicate(timeout=60)
+    assert p.returncode == 2 and 'does not say its scenario' in text and 'pass --scenario ...' in text, text
+    p = _cli('play', str(bare), '--compare', '--scenario', 'sc03', '--domain-id', str(_domain()), '--no-progress')
+    text, _ = p.communicate(timeout=300)
+    assert p.returncode == 0, text
+    assert 'strategy ceco-ioch (messages), control_period_s 5.0 (messages), horizon_steps 6 (messages)' in text
+    assert '12/12 steps compared; max |d blower| 0.000e+00 kg/s, max |d set-point| 0.000e+00 K' in text
 
 
 def _check_lockstep_bag(bag, n_steps: int, dt_s: float = 1.0):
@@ -629,6 +658,17 @@ def test_sigint_to_ceco_run_leaves_complete_bag(tmp_path):
     assert t_wall_start_ns < min(stamps) and max(stamps) < t_wall_end_ns
     for log in (out / 'logs').glob('*.log'):  # every child went through its shutdown path
         assert 'Traceback' not in log.read_text(), log
+    # issue 17 item 8: the stopped run is reported, marked partial (it said "no metrics.json: not a run
+    # directory"); run.json says it was interrupted
+    from ceco_bringup import report, rundata
+
+    assert json.loads((out / 'run.json').read_text())['status'] == 'interrupted'
+    assert f'ceco report {out} reports the partial run' in text
+    assert report.main([str(out), '--out', str(tmp_path / 'rep')]) == 0
+    r = rundata.load_run(out)
+    n = len(r.columns['t_s'])
+    assert n >= 2 and r.partial == f'interrupted: {n} of 60 s recorded' and r.strategy == 'baseline'
+    assert 'is a partial run (interrupted' in (tmp_path / 'rep' / 'summary.md').read_text()
 
 
 # ----------------------------------------------------------------------------

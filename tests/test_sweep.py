@@ -408,11 +408,11 @@ def test_settings_override_changes_ceco_c_and_equals_direct_run(tmp_path):
     # Both labels are compared with the one baseline cell of the group.
     summ = {(r['strategy'], r['settings']): r for r in res['summary']}
     base = by[('baseline', 'default')]['E_tot_J']
-    assert summ[('ceco-c', 'g50k')]['dE_tot_kWh_pct'] == pytest.approx(100.0 * (e50 - base) / base, rel=1e-12)
+    assert summ[('ceco-c', 'g50k')]['E_tot_kWh_change_pct'] == pytest.approx(100.0 * (e50 - base) / base, rel=1e-12)
     dom = {d['settings']: d for d in sweep.dominance_rows(res['summary'])}
     assert set(dom) == {'g1k', 'g50k'}
     for d in dom.values():
-        assert d['dominates'] == (d['dE_tot_kWh_pct'] < 0 and d['dI_pmv_pct'] <= 0)
+        assert d['dominates'] == (d['E_tot_kWh_change_pct'] < 0 and d['I_pmv_change_pct'] <= 0)
     text = (tmp_path / 'out' / 'summary.md').read_text()
     assert '| sc03_mild | scenario | scenario | perfect | scenario | ceco-c | g50k | 1 |' in text
     assert 'Pareto-dominating points' in text
@@ -454,12 +454,12 @@ def test_dominance_pairs_every_point_with_its_groups_one_baseline(tmp_path):
     summary = sweep.summarize(rows)
     dom = {(d['scenario'], d['settings']): d for d in sweep.dominance_rows(summary)}
     assert len(dom) == 4
-    assert dom[('a', 'lo')]['dE_tot_kWh_pct'] == pytest.approx(-10.0)
-    assert dom[('a', 'lo')]['dI_pmv_pct'] == pytest.approx(-1.0)
+    assert dom[('a', 'lo')]['E_tot_kWh_change_pct'] == pytest.approx(-10.0)
+    assert dom[('a', 'lo')]['I_pmv_change_pct'] == pytest.approx(-1.0)
     assert [
         (dom[k]['dominates'], dom[k]['dominates_zone']) for k in [('a', 'lo'), ('a', 'eq'), ('a', 'hi'), ('b', 'lo')]
     ] == [(True, False), (True, True), (False, False), (False, True)]
-    assert dom[('b', 'lo')]['dI_pmv_zone_pct'] == pytest.approx(-20.0)
+    assert dom[('b', 'lo')]['I_pmv_zone_change_pct'] == pytest.approx(-20.0)
     import matplotlib.image as mpimg
 
     png = sweep.front_figure(summary, tmp_path / 'front.png')

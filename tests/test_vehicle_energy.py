@@ -54,13 +54,13 @@ def test_table_savings_and_ev_range(sc03):
     by = {(r['vehicle'], r['strategy']): r for r in rows}
     for veh in (ve.PRIUS, ve.ZOE):
         base = by[(veh, 'baseline')]
-        assert base['saving_fit_pct'] == 0.0
+        assert base['change_fit_pct'] == 0.0
         e, i = by[(veh, 'ceco-e')], by[(veh, 'ceco-ioch')]
-        assert e['saving_fit_pct'] < i['saving_fit_pct'] < 0.0
+        assert e['change_fit_pct'] < i['change_fit_pct'] < 0.0
         # One line for all strategies: the savings are proportional to the A/C power saved.
-        assert e['saving_fit_pct'] / i['saving_fit_pct'] == pytest.approx(300.0 / 150.0, rel=1e-9)
+        assert e['change_fit_pct'] / i['change_fit_pct'] == pytest.approx(300.0 / 150.0, rel=1e-9)
     hev, bev = by[(ve.PRIUS, 'ceco-e')], by[(ve.ZOE, 'ceco-e')]
-    assert hev['paper_saving_pct'] == -6.4 and math.isnan(bev['paper_saving_pct'])
+    assert hev['paper_change_pct'] == -6.4 and math.isnan(bev['paper_change_pct'])
     assert 3.0 < hev['l_per_100km'] < 9.0  # a Prius on a hot SC03 with A/C
     # Electric car: ~1 J of battery energy per J of A/C (battery losses only).
     assert 0.95 < bev['j_per_j_ac'] < 1.2

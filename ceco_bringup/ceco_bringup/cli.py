@@ -19,7 +19,7 @@ VERBS = {
     'report': ('ceco_bringup.report', 'metrics, figures and reports from run directories'),
     'sweep': ('ceco_bringup.sweep', 'run a grid of scenarios with the in-process simulator'),
     'benchmark': ('ceco_bringup.benchmark.cli', 'savings at matched comfort on the named test cases'),
-    'sim': ('ceco_controller.closed_loop', 'one closed-loop run in-process (no ROS)'),
+    'sim': ('ceco_bringup.sim', 'one closed-loop run in-process (no ROS)'),
     'identify': ('ceco_controller.identification', 'identify the control-oriented model'),
     'bench': ('ceco_controller.bench', 'solver benchmarks (ceco bench nmpc)'),
 }

@@ -60,13 +60,13 @@ def check(run_dir: Path, rtol: float) -> tuple[bool, str]:
 
     from ceco_bringup import bagio
     from ceco_controller.closed_loop import SimSettings, simulate
-    from ceco_core.metrics import compute_metrics
+    from ceco_core.metrics import run_metrics
     from ceco_v2x_preview.preview import parse_quality
 
     m = json.loads((run_dir / 'metrics.json').read_text())
     bag = run_dir / 'bag'
     ts = bagio.load_run_timeseries(bag)
-    from_bag = compute_metrics(ts['t_s'], ts['p_comp_w'], ts['p_blower_w'], ts['pmv'], ts['pmv_lb'], ts['pmv_ub'])
+    from_bag = run_metrics(ts)
     duration = float(ts['t_s'].size)  # plant_dt_s = 1 s
     sim = simulate(
         m['scenario'],

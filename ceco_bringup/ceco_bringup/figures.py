@@ -42,6 +42,7 @@ __all__ = [
     'save_png',
     'annotate_bar',
     'fig_solver',
+    'fig_plane',
 ]
 
 STRATEGY_ORDER = STRATEGIES
@@ -227,9 +228,9 @@ def _bar_labels(ax, bars, values, base, fmt='{:+.1f} %'):
 
 
 def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: str = 'baseline') -> Path:
-    """A/C energy (compressor + blower, kWh), I_PMV and OTC violation per strategy.
+    """A/C energy (compressor + blower + condenser fan, stacked, kWh), I_PMV and OTC violation per strategy.
 
-    Each bar is annotated with its change against the baseline.
+    Each bar is annotated with its change against the baseline, as measured (+ = more).
     """
     names = ordered(list(metrics))
     x = np.arange(len(names))
@@ -239,6 +240,7 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
         fig, axes = plt.subplots(1, 3, figsize=(9.0, 3.3))
         e_comp = np.array([metrics[n]['E_comp_J'] for n in names]) / 3.6e6
         e_bl = np.array([metrics[n]['E_blower_J'] for n in names]) / 3.6e6
+        e_fan = np.array([metrics[n].get('E_fan_J', 0.0) for n in names]) / 3.6e6
         ax = axes[0]
         ax.bar(x, e_comp, color=colors, edgecolor='k', lw=0.5, label='Compressor')
         ax.bar(
@@ -252,7 +254,18 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
             alpha=0.6,
             label='Blower (hatched)',
         )
-        tot = e_comp + e_bl
+        ax.bar(
+            x,
+            e_fan,
+            bottom=e_comp + e_bl,
+            color=colors,
+            edgecolor='k',
+            lw=0.5,
+            hatch='...',
+            alpha=0.35,
+            label='Condenser fan (dotted)',
+        )
+        tot = e_comp + e_bl + e_fan
         base_tot = tot[names.index(baseline)] if baseline in names else None
         for xi, v in zip(x, tot):
             change = math.nan if base_tot is None else relative_change_pct(v, base_tot)
@@ -266,15 +279,16 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
                     xytext=(0, 2),
                     textcoords='offset points',
                 )
-        ax.set_ylabel('A/C energy E$_{tot}$ [kWh]')
+        ax.set_ylabel('A/C energy E (comp. + blower + fan) [kWh]')
         ax.set_ylim(0, tot.max() * 1.32)
         ax.legend(
             handles=[
                 Patch(facecolor='white', edgecolor='k', lw=0.5, label='Compressor'),
                 Patch(facecolor='white', edgecolor='k', lw=0.5, hatch='///', label='Blower'),
+                Patch(facecolor='white', edgecolor='k', lw=0.5, hatch='...', label='Fan'),
             ],
             loc='upper center',
-            ncol=2,
+            ncol=3,
             fontsize=7,
         )
         for ax, key, ylab in (
@@ -302,7 +316,7 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
         for ax in axes:
             ax.set_xticks(x, labels, rotation=30, ha='right')
             ax.grid(axis='x', visible=False)
-        fig.suptitle(title or 'Energy and comfort per strategy (labels: change vs baseline)')
+        fig.suptitle(title or 'Energy and comfort per strategy (labels: change vs baseline, + = more)')
         fig.tight_layout()
         return save_png(fig, path)
 
@@ -346,6 +360,54 @@ def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
         return save_png(fig, path)
 
 
+def fig_plane(points: Mapping[str, Mapping], family: Mapping[str, Mapping], path, title: str = '') -> Path:
+    """The energy-discomfort plane: the baseline family's front and every run.
+
+    ``points``: {strategy: point} and ``family``: {'baseline@S': point}, each point a mapping with
+    ``discomfort_pmvh`` [PMV h] and ``energy_kwh`` [kWh] (``ceco_bringup.verdict.run_point``). The
+    front is drawn through the family's efficient points (inefficient ones hollow), every
+    set-point annotated; each run is a marker in its strategy colour. Below the front at the same
+    discomfort = energy saved at matched comfort. Writes a PNG and returns its path.
+    """
+    from ceco_bringup.benchmark import front as fr
+
+    with plt.rc_context(RC_PARAMS):
+        fig, ax = plt.subplots(figsize=(6.0, 4.2))
+        if family:
+            f = fr.build_front({n: (p['discomfort_pmvh'], p['energy_kwh']) for n, p in family.items()})
+            ax.plot(f.d, f.e, '-', color='#7f7f7f', lw=1.2, label='baseline front (PI at set-point S)')
+            for fp in f.points:
+                ax.plot(
+                    [fp.discomfort], [fp.energy], 'o', ms=4, color='#7f7f7f', mfc='#7f7f7f' if fp.efficient else 'none'
+                )
+                ax.annotate(
+                    fp.name.split('@')[-1] + ' °C',
+                    (fp.discomfort, fp.energy),
+                    textcoords='offset points',
+                    xytext=(4, 2),
+                    fontsize=7,
+                    color='#555555',
+                )
+        for i, name in enumerate(ordered(list(points))):
+            st = strategy_style(name, i)
+            p = points[name]
+            ax.plot(
+                [p['discomfort_pmvh']],
+                [p['energy_kwh']],
+                marker='s' if name == 'baseline' else 'o',
+                ms=7,
+                ls='none',
+                color=st['color'],
+                label=st['label'],
+            )
+        ax.set_xlabel('Thermal discomfort: PMV outside -0.5..+0.5, clipped at ±3 [PMV·h]')
+        ax.set_ylabel('A/C energy: compressor + blower + condenser fan [kWh]')
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc='best', fontsize=7)
+        ax.set_title(title or 'Energy against discomfort (lower left is better)')
+        return save_png(fig, path)
+
+
 def front_figure(
     summary: Sequence[Mapping], path: str | os.PathLike, baseline: str = 'baseline', zoom_pct: tuple | None = (4.0, 8.0)
 ) -> Path:
@@ -370,15 +432,15 @@ def front_figure(
         raise ValueError('front_figure: the summary has no rows')
     n = len(groups)
     panels = [
-        ('dE_tot_kWh_pct', 'dI_pmv_pct', 'whole run', 'ΔE_tot [%]', 'ΔI_PMV [%]', None),
-        ('dE_zone_J_pct', 'dI_pmv_zone_pct', 'comfort-zone phase', 'ΔE_zone [%]', 'ΔI_PMV,zone [%]', None),
+        ('E_tot_kWh_change_pct', 'I_pmv_change_pct', 'whole run', 'ΔE_tot [%]', 'ΔI_PMV [%]', None),
+        ('E_zone_J_change_pct', 'I_pmv_zone_change_pct', 'comfort-zone phase', 'ΔE_zone [%]', 'ΔI_PMV,zone [%]', None),
     ]
     if zoom_pct is not None:
         panels.insert(
             1,
             (
-                'dE_tot_kWh_pct',
-                'dI_pmv_pct',
+                'E_tot_kWh_change_pct',
+                'I_pmv_change_pct',
                 'whole run, near the baseline',
                 'ΔE_tot [%]',
                 'ΔI_PMV [%]',

@@ -28,22 +28,22 @@ holds several).
 
 from __future__ import annotations
 
-import argparse
 import sys
 import threading
 import time
 from pathlib import Path
 
+from ceco_bringup import cli_args
 from ceco_core.control_grid import control_step_index
 
 
-def build_parser():
+def build_parser() -> cli_args.Parser:
     """The argument parser of `ceco play`."""
-    p = argparse.ArgumentParser(prog='ceco play', description=__doc__.split('\n\n')[0])
-    p.add_argument('bag', type=Path, help='bag directory (DIR/bag of a ceco run)')
+    p = cli_args.Parser('ceco play', __doc__.split('\n\n')[0])
+    p.add_argument('bag', type=Path, help='rosbag2 directory (DIR/bag of a ceco run, or any ros2 bag record bag)')
     p.add_argument(
         '--rate',
-        type=float,
+        type=cli_args.nonnegative_float,
         default=1.0,
         help='playback rate: 1 = recorded timing, R = R times faster, 0 = as fast as possible',
     )
@@ -53,41 +53,51 @@ def build_parser():
         action='store_true',
         help='start the recorded strategy\'s controller, feed it the recorded drive, compare commands',
     )
-    p.add_argument('--strategy', default=None, help='--compare: controller strategy (default: the recorded one)')
-    p.add_argument('--tol', type=float, default=1e-9, help='--compare: tolerance on |command difference|')
-    p.add_argument(
-        '--namespace',
-        default=None,
-        help='--compare: namespace of the recorded stack (default: the only one in the bag)',
+    cli_args.add_strategy(p, None, help_extra=' (--compare: one; default: the recorded one)')
+    cli_args.add_scenario(
+        p, default=None, help_extra=' (--compare; default: the run\'s scenario.yaml, the bag\'s metadata or parameters)'
     )
+    cli_args.add_control_period(p)
+    cli_args.add_horizon(p)
     p.add_argument(
-        '--domain-id',
-        type=int,
-        default=None,
-        help='ROS_DOMAIN_ID (default: the environment\'s; --compare: a private one)',
+        '--tol', type=cli_args.nonnegative_float, default=1e-9, help='--compare: tolerance on |command difference|'
     )
+    cli_args.add_namespace(p, '--compare: namespace of the recorded stack (default: the only one in the bag)')
+    cli_args.add_domain_id(p, 'ROS_DOMAIN_ID (default: the environment\'s; --compare: a private one)')
     p.add_argument(
-        '--step-timeout-s', type=float, default=30.0, help='--compare: wall-clock wait for each new command [s]'
+        '--step-timeout-s',
+        type=cli_args.positive_float,
+        default=30.0,
+        help='--compare: wall-clock wait for each new command [s]',
     )
+    cli_args.add_no_progress(p)
     return p
 
 
-def _custom_data(bag: Path) -> dict:
-    import yaml
+def not_a_bag_message(path: Path) -> str:
+    """Why ``path`` is not a rosbag2 directory, with the fix (the bag of a run directory)."""
+    from ceco_bringup.bagrun import is_bag
 
-    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
-    return dict(meta.get('custom_data') or {})
+    if is_bag(path / 'bag'):
+        return f'{path} is a run directory, not a rosbag2 directory: its bag is {path / "bag"}'
+    if path.is_dir():
+        inner = sorted(d for d in path.iterdir() if d.is_dir() and is_bag(d / 'bag'))
+        if inner:
+            listed = ', '.join(str(d / 'bag') for d in inner[:3]) + (', ...' if len(inner) > 3 else '')
+            return f'{path} holds run directories, not a rosbag2 directory: give one bag, e.g. {listed}'
+    return f'{path} is not a rosbag2 directory (no metadata.yaml): give DIR/bag of a ceco run or a ros2 bag'
 
 
 def main(argv=None) -> int:
     """`ceco play`: plain playback, or --compare."""
-    args = build_parser().parse_args(argv)
-    if not (args.bag / 'metadata.yaml').is_file():
-        print(f'ceco play: {args.bag} is not a rosbag2 directory (no metadata.yaml)', file=sys.stderr)
-        return 2
-    if args.rate < 0:
-        print('ceco play: --rate must be >= 0', file=sys.stderr)
-        return 2
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from ceco_bringup.bagrun import is_bag
+
+    if not is_bag(args.bag):
+        parser.error(not_a_bag_message(args.bag))
+    if args.strategy is not None and len(args.strategy) != 1:
+        parser.error(f'--strategy: --compare runs one controller, got {",".join(args.strategy)}')
     return compare(args) if args.compare else play(args)
 
 
@@ -143,6 +153,18 @@ def play(args) -> int:
         types = {t: m for t, m in types.items() if t not in _NOT_REPLAYED}
     context, node = _make_node('ceco_play', args.domain_id)
     n = 0
+    bar = None
+    if not args.no_progress:
+        from tqdm import tqdm
+
+        counts = bagio.topic_counts(args.bag)
+        bar = tqdm(
+            total=sum(counts.get(t, 0) for t in types),
+            desc=f'ceco play x{args.rate:g}' if args.rate else 'ceco play (as fast as possible)',
+            unit='msg',
+            file=sys.stderr,
+            mininterval=0.5,
+        )
     try:
         pubs = _publishers(node, types)
         time.sleep(1.0)  # let subscribers discover the publishers
@@ -157,12 +179,16 @@ def play(args) -> int:
                     time.sleep(delay)
             pubs[topic].publish(raw)
             n += 1
+            if bar is not None:
+                bar.update(1)
         time.sleep(0.5)
         print(f'ceco play: published {n} messages from {args.bag} in {time.monotonic() - t_wall0:.1f} s')
     except KeyboardInterrupt:
         print(f'ceco play: interrupted after {n} messages', file=sys.stderr)
         return 130
     finally:
+        if bar is not None:
+            bar.close()
         node.destroy_node()
         rclpy.try_shutdown(context=context)
     return 0
@@ -174,14 +200,41 @@ def compare(args) -> int:
     import rclpy
 
     from ceco_bringup import bagio, supervisor
+    from ceco_bringup.bagrun import bag_run_info
     from ceco_msgs.msg import AcCommand
     from ceco_ros import interfaces
 
-    info = _custom_data(args.bag)
-    strategy = args.strategy or info.get('strategy')
-    if not strategy:
-        print('ceco play: the bag names no strategy; pass --strategy', file=sys.stderr)
+    scenario = args.scenario
+    if scenario is None and (args.bag.parent / 'scenario.yaml').is_file():  # the run directory's copy
+        scenario = str(args.bag.parent / 'scenario.yaml')
+    try:
+        info = bag_run_info(
+            args.bag,
+            args.namespace,
+            scenario=scenario,
+            strategy=args.strategy[0] if args.strategy else None,
+            control_period_s=args.control_period_s,
+            horizon_steps=args.horizon_steps,
+        )
+    except ValueError as err:
+        print(f'ceco play: error: {err} (--namespace)', file=sys.stderr)
         return 2
+    flags = {'scenario': '--scenario', 'strategy': '--strategy', 'control_period_s': '--control-period-s'}
+    flags['horizon_steps'] = '--horizon-steps'
+    missing = [key for key in flags if getattr(info, key) is None]
+    if missing:
+        print(
+            f'ceco play: error: {args.bag} does not say its {", ".join(missing)} (no ceco metadata, recorded '
+            f'parameters or controller messages): pass {" ".join(flags[k] + " ..." for k in missing)}',
+            file=sys.stderr,
+        )
+        return 2
+    strategy = str(info.strategy)
+    print(
+        'ceco play --compare: '
+        + ', '.join(f'{k} {getattr(info, k)} ({info.sources[k]})' for k in flags if k in info.sources),
+        file=sys.stderr,
+    )
     try:
         recorded = bagio.load_commands(args.bag, namespace=args.namespace)
         types = bagio.topic_types(
@@ -199,10 +252,10 @@ def compare(args) -> int:
         os.environ[key] = env[key]
     exe = 'baseline_node' if strategy == 'baseline' else 'mpc_node'
     params = {
-        'scenario': info.get('scenario', 'sc03'),
+        'scenario': str(info.scenario),
         'timing': 'lockstep',
-        'control_period_s': float(info.get('control_period_s', 5.0)),
-        'horizon_steps': int(info.get('horizon_steps', 6)),
+        'control_period_s': float(info.control_period_s or 0.0),
+        'horizon_steps': int(info.horizon_steps or 0),
         'autostart': True,
     }  # managed node: self-activate
     if exe == 'mpc_node':
@@ -264,7 +317,12 @@ def compare(args) -> int:
             elif topic in (interfaces.TOPIC_WEATHER, interfaces.TOPIC_TRAFFIC):
                 k = int(deserialize_message(raw, _cls(topic)).step_index)
                 steps.setdefault(k, {})[topic] = raw
-        for k in sorted(steps):
+        order = sorted(steps)
+        if not args.no_progress:
+            from tqdm import tqdm
+
+            order = tqdm(order, desc=f'ceco play --compare {strategy}', unit='step', file=sys.stderr, leave=False)
+        for k in order:
             step = steps[k]
             for _, _, raw in sorted(step.get('states', []), key=lambda x: (x[0], x[1])):
                 pubs[interfaces.TOPIC_STATE].publish(raw)

@@ -1,21 +1,32 @@
 """``ceco report DIR... [--out REPORT_DIR] [--vehicle]``: the research report.
 
 For every run directory (docs/architecture.md, "Run directory format") given,
-or found one level below a ``--strategy all`` parent:
+or found one level below a parent of several strategies, and for any rosbag2 bag
+with the ceco topics (``ros2 bag record``; scenario and strategy from the bag's
+metadata, the recorded parameters, the messages or ``--scenario``/``--strategy``):
 
 1. Load the time series (``ceco_bringup.rundata.load_run``): from the rosbag2
-   bag alone when ``DIR/bag`` exists (any topic naming: relative, fully
+   bag alone when ``DIR/bag`` exists or DIR is a bag (any topic naming: relative, fully
    qualified, namespaced; ``--namespace`` for a bag holding several stacks),
    else from ``DIR/timeseries.csv``.
-2. Recompute the metrics with ``ceco_core.metrics.compute_metrics`` and
+2. Recompute the metrics with ``ceco_core.metrics.run_metrics`` and
    check they equal ``DIR/metrics.json`` (relative tolerance ``--rtol``,
    NaN equals NaN). A mismatch is printed to stderr, shown as a red warning
-   in the report, and makes the command exit with status 1.
-3. Per scenario: the paper's figures (PMV with bounds, cabin and vent
-   temperatures, compressor and blower power, the two inputs, energy and
-   comfort bars, solver solve times, and with ``--vehicle`` the vehicle-level
-   savings from FASTSim), the metrics table, the solver statistics from
-   ``diagnostics.csv`` and the comparison with the paper's numbers.
+   in the report, and makes the command exit with status 1. A run a stop left
+   without metrics.json (Ctrl-C of ``ceco run``) is reported from its bag, marked
+   partial, and never matched against a baseline.
+3. Per scenario, first the verdict (``ceco_bringup.verdict``: energy and
+   discomfort of each strategy, whether the baseline reached the comfort band,
+   the saving at matched comfort against the baseline family the job kept in
+   ``verdict.json``, or the command that computes it) and the
+   energy-discomfort plane with the baseline front; then the paper's figures (PMV
+   with bounds, cabin and vent temperatures, compressor and blower power, the two
+   inputs, energy and comfort bars, solver solve times, and with ``--vehicle`` the
+   vehicle-level energy change from FASTSim), the metrics table, the solver
+   statistics from ``diagnostics.csv`` and the comparison with the paper's numbers.
+
+Signs: "change" is signed as measured (+ = more), "saving" is energy saved (+ = less
+energy); energy counts compressor + blower + condenser fan (docs/metrics.md).
 
 Writes ``REPORT_DIR/report.html`` (self-contained), ``REPORT_DIR/summary.md``,
 ``REPORT_DIR/metrics.csv`` (one row per run), ``REPORT_DIR/vehicle.csv``
@@ -24,14 +35,15 @@ Writes ``REPORT_DIR/report.html`` (self-contained), ``REPORT_DIR/summary.md``,
 
 from __future__ import annotations
 
-import argparse
 import csv
 import math
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from ceco_bringup import figures
+from ceco_bringup import cli_args, figures
+from ceco_bringup import verdict as vd
+from ceco_bringup.outputs import pmv_scale_cell
 from ceco_bringup.report_html import (
     Figure,
     Heading,
@@ -46,18 +58,29 @@ from ceco_bringup.report_html import (
 )
 from ceco_bringup.report_vehicle import vehicle_rows, vehicle_section
 from ceco_bringup.rundata import RunData, discover_runs, load_run, solver_stats
-from ceco_core.metrics import relative_change_pct
+from ceco_core.metrics import ENERGY_PARTS, J_PER_KWH, relative_change_pct
 
-__all__ = ['PAPER_AC_SAVING_PCT', 'build_report', 'main']
+__all__ = ['PAPER_AC_CHANGE_PCT', 'build_report', 'main']
 
-PAPER_AC_SAVING_PCT = {'ceco-e': -15.9, 'ceco-c': -4.1, 'ceco-ioch': -7.6}
-"""A/C energy change against the baseline on SC03 [%] (paper, Sec. 5)."""
+PAPER_AC_CHANGE_PCT = {'ceco-e': -15.9, 'ceco-c': -4.1, 'ceco-ioch': -7.6}
+"""A/C energy (compressor + blower) change against the baseline on SC03 [%], negative = less
+energy (paper, Sec. 5)."""
+
+VERDICT_FILE = 'verdict.json'
 
 
 # ---------------------------------------------------------------- formatting
 def _change_pct(x: Mapping, base: RunData | None, key: str) -> str:
     """The change of metric ``key`` against the baseline run, formatted ('n/a' without one)."""
     return fmt_pct(relative_change_pct(x[key], base.recomputed[key])) if base else 'n/a'
+
+
+def _paper_energy_change(x: Mapping, base: RunData | None) -> str:
+    """The change of compressor + blower energy (the paper's E_tot) against the baseline run."""
+    if not base:
+        return 'n/a'
+    b = base.recomputed
+    return fmt_pct(relative_change_pct(x['E_comp_J'] + x['E_blower_J'], b['E_comp_J'] + b['E_blower_J']))
 
 
 def _group(runs: Sequence[RunData]) -> dict:
@@ -74,15 +97,20 @@ def _group(runs: Sequence[RunData]) -> dict:
     return groups
 
 
-def _scenario_text(name: str) -> str:
+def _scenario_text(name: str, path: Path | None = None) -> str:
+    """The scenario in words, from the run's copy of its file when it kept one."""
     try:
         from ceco_v2x_preview.scenario import load_scenario
 
-        sc = load_scenario(name)
+        sc = load_scenario(path or name)
     except (ImportError, ValueError, OSError):
-        return f'Scenario `{name}` (not found among the bundled scenarios: description unavailable).'
+        return (
+            f'Scenario `{name}`: the run directory keeps no copy of its scenario file (older run) and it is not '
+            'among the bundled scenarios: description unavailable.'
+        )
     return (
-        f'Scenario `{sc.name}`: {sc.description} Drive cycle `{sc.drive_cycle.name}` '
+        ('From the run\'s copy of its scenario file. ' if path else '')
+        + f'Scenario `{sc.name}`: {sc.description} Drive cycle `{sc.drive_cycle.name}` '
         f'({sc.drive_cycle.distance_m / 1e3:.2f} km over {sc.drive_cycle.duration_s:.0f} s); run length '
         f'{sc.duration_s:.0f} s; ambient {sc.weather_t_amb_c.min():.1f}..{sc.weather_t_amb_c.max():.1f} °C, '
         f'solar {sc.weather_solar_wm2.min():.0f}..{sc.weather_solar_wm2.max():.0f} W/m², '
@@ -104,6 +132,15 @@ def _intro(runs: Sequence[RunData], rtol: float, log) -> tuple[list, bool]:
         ),
     ]
     for r in runs:
+        if r.partial:
+            msg = (
+                f'{r.path} is a partial run ({r.partial}): its metrics cover what was recorded, and it is not '
+                'compared with complete runs at matched comfort'
+            )
+            blocks.append(Warning(msg))
+            log(f'ceco report: PARTIAL: {msg}', file=sys.stderr)
+        for note in r.notes:
+            blocks.append(Paragraph(f'Note on `{r.path}`: {note}.'))
         if r.mismatches:
             detail = '; '.join(f'{k}: metrics.json {a!r} vs recomputed {b!r}' for k, a, b in r.mismatches)
             msg = f'metrics of {r.path} recomputed from {r.source} differ from metrics.json: {detail}'
@@ -112,29 +149,38 @@ def _intro(runs: Sequence[RunData], rtol: float, log) -> tuple[list, bool]:
     return blocks, any(r.mismatches for r in runs)
 
 
-def _metrics_table(scenario: str, group: Mapping[str, RunData], labels: Sequence[str]) -> tuple[Table, list]:
-    """The metrics table of one scenario and its metrics.csv rows."""
+def _metrics_table(
+    scenario: str, group: Mapping[str, RunData], labels: Sequence[str], kpis: Mapping[str, Mapping]
+) -> tuple[Table, list]:
+    """The metrics table of one scenario and its metrics.csv rows.
+
+    Energy in kWh with its parts, discomfort, and the validity beside the comfort numbers.
+    """
     base = group.get('baseline')
     rows, csv_rows = [], []
     for lab in labels:
         r = group[lab]
         x = r.recomputed
+        k = kpis[lab]
         rows.append(
             (
-                lab,
+                lab + (' (partial)' if r.partial else ''),
                 fmt_num(x['E_tot_kWh'], 4),
+                fmt_num(x['E_comp_J'] / J_PER_KWH, 4),
+                fmt_num(x['E_blower_J'] / J_PER_KWH, 4),
+                fmt_num(x['E_fan_J'] / J_PER_KWH, 4),
                 _change_pct(x, base, 'E_tot_J'),
-                fmt_num(x['E_comp_J'] / 1e3, 1),
-                fmt_num(x['E_blower_J'] / 1e3, 1),
-                fmt_num(x['P_mean_w'], 0),
+                fmt_num(k['discomfort_pmvh'], 3),
                 fmt_num(x['I_pmv'], 1),
-                _change_pct(x, base, 'I_pmv'),
-                fmt_num(x['otc_violation_pct'], 2),
+                fmt_num(x['otc_violation_pct'], 1),
                 fmt_num(x['time_to_comfort_s'], 0),
                 fmt_num(x['pmv_mean'], 3),
-                fmt_num(x['pmv_max'], 3),
+                pmv_scale_cell(x['pmv_max']),
+                fmt_num(k['iso7730_invalid_pct'] if k['iso7730_invalid_pct'] is not None else math.nan, 1),
                 r.source,
-                (f'OK (≤ {r.check_rtol:.0e})' if not r.mismatches else f'MISMATCH ({len(r.mismatches)})'),
+                'no metrics.json'
+                if not r.stored
+                else (f'OK (≤ {r.check_rtol:.0e})' if not r.mismatches else f'MISMATCH ({len(r.mismatches)})'),
             )
         )
         csv_rows.append(
@@ -143,32 +189,42 @@ def _metrics_table(scenario: str, group: Mapping[str, RunData], labels: Sequence
                 'strategy': r.strategy,
                 'run_dir': str(r.path),
                 'source': r.source,
+                'partial': r.partial,
                 'metrics_match': not r.mismatches,
                 'max_rel_diff': r.max_rel_diff,
                 **x,
+                'energy_change_pct': relative_change_pct(x['E_tot_J'], base.recomputed['E_tot_J'])
+                if base
+                else math.nan,
+                'discomfort_pmvh': k['discomfort_pmvh'],
+                'iso7730_invalid_pct': k['iso7730_invalid_pct'],
             }
         )
     table = Table(
         (
             'strategy',
-            'E_tot [kWh]',
-            'ΔE_tot',
-            'E_comp [kJ]',
-            'E_bl [kJ]',
-            'P_mean [W]',
+            'E [kWh]',
+            'E comp [kWh]',
+            'E blower [kWh]',
+            'E fan [kWh]',
+            'E change [%]',
+            'D [PMV h]',
             'I_PMV [s]',
-            'ΔI_PMV',
-            'OTC viol. [%]',
+            'viol. [%]',
             't_comfort [s]',
             'PMV mean',
             'PMV max',
+            'ISO out [%]',
             'from',
             'vs metrics.json',
         ),
         rows,
-        caption='Metrics per strategy (Δ: change against the baseline). I_PMV = ∫PMV² dt; '
-        'OTC violation: share of time outside the PMV bounds; t_comfort: first time '
-        'PMV stays in -0.5..0.5 for 60 s.',
+        caption=f'Metrics per strategy. E: A/C energy, {ENERGY_PARTS}. E change: against the baseline run, as '
+        'measured (+ = more energy). D: discomfort, PMV-hours outside -0.5..+0.5 with PMV clipped at ±3. '
+        'I_PMV = ∫PMV² dt (the paper\'s). viol.: share of time outside the scenario\'s PMV bounds; t_comfort: '
+        'first time PMV stays in -0.5..+0.5 for 60 s. PMV beyond ±3 is off ISO 7730\'s scale (shown >3: clipped); '
+        'ISO out: share of samples whose PMV or its inputs lie outside ISO 7730 validity (comfort numbers there '
+        'are extrapolations).',
     )
     return table, csv_rows
 
@@ -200,8 +256,8 @@ def _time_figures(scenario: str, group: Mapping[str, RunData], labels: Sequence[
         ),
         (
             figures.fig_bars(metrics, fig_dir / f'{name}_bars.png', f'Energy and comfort, {scenario}'),
-            'A/C energy (compressor solid, blower hatched), comfort index I_PMV and bound violation; labels '
-            'give the change against the baseline.',
+            'A/C energy (compressor solid, blower hatched, condenser fan dotted), comfort index I_PMV and bound '
+            'violation; labels give the change against the baseline as measured (+ = more).',
         ),
     ]
     diags = {lab: group[lab].diagnostics for lab in labels if group[lab].diagnostics is not None}
@@ -228,10 +284,11 @@ def _paper_comparison(scenario: str, group: Mapping[str, RunData], labels: Seque
         rows.append(
             (
                 lab,
+                _paper_energy_change(x, base),
+                fmt_pct(PAPER_AC_CHANGE_PCT.get(lab, float('nan'))),
                 _change_pct(x, base, 'E_tot_J'),
-                fmt_pct(PAPER_AC_SAVING_PCT.get(lab, float('nan'))),
-                fmt_pct(pr['saving_fit_pct']) if pr else 'not computed (use --vehicle)',
-                fmt_pct(pr['paper_saving_pct']) if pr else fmt_pct(float('nan')),
+                fmt_pct(pr['change_fit_pct']) if pr else 'not computed (use --vehicle)',
+                fmt_pct(pr['paper_change_pct']) if pr else fmt_pct(float('nan')),
                 _change_pct(x, base, 'I_pmv'),
                 fmt_num(x['otc_violation_pct'], 2),
             )
@@ -241,17 +298,19 @@ def _paper_comparison(scenario: str, group: Mapping[str, RunData], labels: Seque
         Table(
             (
                 'strategy',
-                'ΔE_A/C (ours)',
-                'ΔE_A/C (paper)',
-                'Δ vehicle energy (ours, Prius)',
-                'Δ vehicle energy (paper)',
-                'ΔI_PMV (ours)',
-                'OTC viol. [%] (ours)',
+                'E comp+blower change (ours)',
+                'E comp+blower change (paper)',
+                'E change with fan (ours)',
+                'vehicle energy change (ours, Prius)',
+                'vehicle energy change (paper)',
+                'I_PMV change (ours)',
+                'viol. [%] (ours)',
             ),
             rows,
-            caption='Changes against the baseline. The paper reports A/C energy -15.9 / -4.1 / -7.6 % and vehicle '
-            'energy -6.4 / -1.8 / -3.1 % for CECO-E / CECO-C / CECO-IOCH on SC03 (CoolSim plant, 2017 '
-            'Prius HEV).',
+            caption='Changes against the baseline run, as measured (negative = less). The paper counts compressor '
+            '+ blower and reports A/C energy -15.9 / -4.1 / -7.6 % and vehicle energy -6.4 / -1.8 / -3.1 % for '
+            'CECO-E / CECO-C / CECO-IOCH on SC03 (CoolSim plant, 2017 Prius HEV), each at a different comfort '
+            'than the baseline; the verdict above gives the saving at matched comfort.',
         ),
     ]
     if scenario != 'sc03':
@@ -303,11 +362,88 @@ def _solver_table(group: Mapping[str, RunData], labels: Sequence[str]) -> list:
     ]
 
 
+def _family_for(scenario: str, group: Mapping[str, RunData]) -> tuple[dict, str, str]:
+    """The baseline family a job kept for these runs: (family, how it was run, the file).
+
+    From ``verdict.json`` in a run directory or its parent, same scenario and length; ({}, '', '')
+    when there is none.
+    """
+    duration = max(r.recomputed['duration_s'] for r in group.values())
+    seen = set()
+    for r in group.values():
+        for d in (r.path, r.path.parent):
+            f = d / VERDICT_FILE
+            if f in seen or not f.is_file():
+                continue
+            seen.add(f)
+            try:
+                data = vd.read_verdict(f)
+            except (ValueError, OSError):
+                continue
+            if data.get('scenario') == scenario and abs(float(data.get('duration_s', -1)) - duration) < 0.5:
+                if data.get('family'):
+                    return dict(data['family']), str(data.get('family_source', '')), str(f)
+    return {}, '', ''
+
+
+def _verdict_paragraphs(lines: Sequence[str]) -> list:
+    """The verdict lines as paragraphs (a continuation line, indented, joins the line before it)."""
+    paras: list[str] = []
+    for line in lines:
+        if paras and line.startswith('   '):
+            paras[-1] += ' ' + line.strip()
+        else:
+            paras.append(line.strip())
+    return [Paragraph(p) for p in paras]
+
+
+def _verdict_section(scenario: str, group: Mapping[str, RunData], fig_dir: Path) -> tuple[list, Path, list]:
+    """The verdict of one scenario in words and the energy-discomfort plane: (blocks, figure, console lines)."""
+    labels = figures.ordered(list(group))
+    points = {lab: vd.run_point(group[lab].columns) for lab in labels}
+    family, source, kept_in = _family_for(scenario, group)
+    v = vd.build_verdict(
+        scenario,
+        points,
+        family,
+        family_source=source,
+        family_file=kept_in,
+        partial={lab: group[lab].partial for lab in labels if group[lab].partial},
+    )
+    pointer = (
+        f'`ceco run --scenario {scenario} --strategy all --out DIR` runs the baseline family with the '
+        f'strategies, `ceco benchmark` the full families'
+    )
+    lines = vd.verdict_lines(v, pointer=pointer)
+    fig = figures.fig_plane(
+        {lab: p for lab, p in points.items() if lab not in v.partial},
+        family,
+        fig_dir / f'{slug(scenario)}_plane.png',
+        f'Energy against discomfort, {scenario}',
+    )
+    caption = 'Energy against discomfort of every run' + (
+        ' with the baseline front (the production law at several set-points; hollow: not efficient). A run '
+        'below the front at its discomfort uses less energy than the production law at the same comfort.'
+        if family
+        else '; no baseline family was kept for these runs, so no front is drawn.'
+    )
+    blocks = [Heading(2, f'Verdict: {scenario}'), *_verdict_paragraphs(lines), Figure(fig, caption)]
+    return blocks, fig, lines
+
+
 def _scenario_section(scenario: str, group: Mapping[str, RunData], fig_dir: Path, vehicle_settings) -> dict:
     """Every block of one scenario: {'blocks', 'figures', 'metric_rows', 'vehicle_rows' (None without --vehicle)}."""
+    from ceco_core.kpis import compute_kpis
+
     labels = figures.ordered(list(group))
-    table, metric_rows = _metrics_table(scenario, group, labels)
-    blocks: list = [Heading(2, f'Scenario {scenario}'), Paragraph(_scenario_text(scenario)), table]
+    kpis = {lab: compute_kpis(group[lab].columns)[0] for lab in labels}
+    table, metric_rows = _metrics_table(scenario, group, labels, kpis)
+    paths = [group[lab].scenario_path for lab in labels if group[lab].scenario_path is not None]
+    blocks: list = [
+        Heading(2, f'Scenario {scenario}'),
+        Paragraph(_scenario_text(scenario, paths[0] if paths else None)),
+        table,
+    ]
     figs = _time_figures(scenario, group, labels, fig_dir)
     vrows = None
     if vehicle_settings is not None:
@@ -342,17 +478,22 @@ def build_report(
     rtol: float = 1e-6,
     vehicle_settings=None,
     namespace: str | None = None,
+    scenario: str | None = None,
+    strategy: str | None = None,
     log=print,
 ) -> dict:
     """Build the report.
 
+    ``scenario``/``strategy`` name the run of a bag that does not say which it is.
     Returns ``{'html', 'markdown', 'metrics_csv', 'vehicle_csv', 'figures': [...],
-    'runs': [RunData], 'mismatch': bool, 'vehicle_rows': {scenario: rows}}``.
+    'runs': [RunData], 'mismatch': bool, 'vehicle_rows': {scenario: rows}, 'verdict': [lines]}``.
     """
     out = Path(out_dir)
     fig_dir = out / 'figures'
     fig_dir.mkdir(parents=True, exist_ok=True)
-    runs = [load_run(d, rtol=rtol, namespace=namespace) for d in discover_runs(run_dirs)]
+    found = discover_runs(run_dirs)
+    log(f'ceco report: loading {len(found)} run(s)', file=sys.stderr)
+    runs = [load_run(d, rtol=rtol, namespace=namespace, scenario=scenario, strategy=strategy) for d in found]
     blocks, any_mismatch = _intro(runs, rtol, log)
     if vehicle and vehicle_settings is None:
         from ceco_bringup import vehicle_energy as ve
@@ -361,13 +502,21 @@ def build_report(
     all_figs: list[Path] = []
     metric_rows: list[dict] = []
     vehicle_all: dict = {}
-    for scenario, group in _group(runs).items():
-        sec = _scenario_section(scenario, group, fig_dir, vehicle_settings if vehicle else None)
+    verdict_lines: list[str] = []
+    groups = _group(runs)
+    for sc, group in groups.items():  # the verdicts first: the top of the report
+        vblocks, vfig, lines = _verdict_section(sc, group, fig_dir)
+        blocks += vblocks
+        all_figs.append(vfig)
+        verdict_lines += lines
+    for sc, group in groups.items():
+        log(f'ceco report: {sc}: figures and tables' + (' (FASTSim)' if vehicle else ''), file=sys.stderr)
+        sec = _scenario_section(sc, group, fig_dir, vehicle_settings if vehicle else None)
         blocks += sec['blocks']
         all_figs += sec['figures']
         metric_rows += sec['metric_rows']
         if sec['vehicle_rows'] is not None:
-            vehicle_all[scenario] = sec['vehicle_rows']
+            vehicle_all[sc] = sec['vehicle_rows']
     (out / 'summary.md').write_text(render_markdown(blocks, base_dir=out), encoding='utf-8')
     (out / 'report.html').write_text(render_html(blocks), encoding='utf-8')
     _write_rows(out / 'metrics.csv', metric_rows)
@@ -384,22 +533,24 @@ def build_report(
         'runs': runs,
         'mismatch': any_mismatch,
         'vehicle_rows': vehicle_all,
+        'verdict': verdict_lines,
     }
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> cli_args.Parser:
     """The argument parser of `ceco report`."""
-    parser = argparse.ArgumentParser(
-        prog='ceco report',
-        description='Recompute the metrics of run directories (from the bag when present) '
-        'and write figures, a self-contained HTML report and a Markdown summary.',
+    parser = cli_args.Parser(
+        'ceco report',
+        'Recompute the metrics of run directories or rosbag2 bags (from the bag when present) and write the '
+        'verdict, figures, a self-contained HTML report and a Markdown summary.',
     )
     parser.add_argument(
-        'dirs', nargs='+', metavar='DIR', help='run directories, or parents holding one run directory per strategy'
+        'dirs',
+        nargs='+',
+        metavar='DIR',
+        help='run directories, parents holding one run directory per strategy, or rosbag2 bags',
     )
-    parser.add_argument(
-        '--out', default=None, help='report directory (default: DIR/report for one DIR, else ./ceco_report)'
-    )
+    cli_args.add_out(parser, 'report directory (default: DIR/report for one DIR, else ./ceco_report)', required=False)
     parser.add_argument(
         '--vehicle',
         action='store_true',
@@ -407,38 +558,51 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         '--rtol',
-        type=float,
+        type=cli_args.nonnegative_float,
         default=1e-6,
-        help='relative tolerance of the metrics.json check (default 1e-6, the stack\'s '
-        'agreement criterion; a bag holds float64 and agrees far closer)',
+        help='relative tolerance of the metrics.json check (the stack\'s agreement criterion; a bag holds '
+        'float64 and agrees far closer)',
+    )
+    cli_args.add_namespace(parser, 'namespace of the recorded stack in the bags (default: the only one in each bag)')
+    cli_args.add_scenario(
+        parser, default=None, help_extra=' of a bag that does not name it (default: its metadata or parameters)'
     )
     parser.add_argument(
-        '--namespace',
+        '--strategy',
         default=None,
-        help='namespace of the recorded stack in the bags (default: the only one in each bag)',
+        help='strategy of a bag that does not name it (default: its metadata, parameters or messages)',
     )
     return parser
 
 
 def main(argv=None) -> int:
-    """`ceco report`: 0 when every run's metrics check, 1 on a mismatch, 2 on an error."""
+    """`ceco report`: 0 when every run's metrics check, 1 on a mismatch, 2 on an error (one line)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    if not (math.isfinite(args.rtol) and args.rtol >= 0):
-        parser.error(f'--rtol: must be finite and >= 0, got {args.rtol}')
     out = (
         Path(args.out) if args.out else (Path(args.dirs[0]) / 'report' if len(args.dirs) == 1 else Path('ceco_report'))
     )
     try:
-        res = build_report(args.dirs, out, vehicle=args.vehicle, rtol=args.rtol, namespace=args.namespace)
+        res = build_report(
+            args.dirs,
+            out,
+            vehicle=args.vehicle,
+            rtol=args.rtol,
+            namespace=args.namespace,
+            scenario=args.scenario,
+            strategy=args.strategy,
+        )
     except (ValueError, OSError, ImportError) as exc:
         print(f'ceco report: error: {exc}', file=sys.stderr)
         return 2
+    for line in res['verdict']:
+        print(line)
     for r in res['runs']:
-        state = 'OK' if not r.mismatches else 'MISMATCH'
+        state = 'no metrics.json' if not r.stored else ('OK' if not r.mismatches else 'MISMATCH')
         print(
-            f'{r.path}: {r.strategy} on {r.scenario}, metrics from {r.source}: {state} '
-            f'(max rel. diff {r.max_rel_diff:.1e}, tolerance {r.check_rtol:.0e})'
+            f'{r.path}: {r.strategy} on {r.scenario}, metrics from {r.source}: {state}'
+            + (f' (max rel. diff {r.max_rel_diff:.1e}, tolerance {r.check_rtol:.0e})' if r.stored else '')
+            + (f'; PARTIAL ({r.partial})' if r.partial else '')
         )
     print(
         f"report: {res['html']}\nsummary: {res['markdown']}\nfigures: {len(res['figures'])} PNG in "

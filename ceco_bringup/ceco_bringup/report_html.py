@@ -5,7 +5,8 @@ A report is a list of blocks, each one of
 * ``Heading(level, text)``
 * ``Paragraph(text)``           (plain text; ``**bold**`` is kept in Markdown)
 * ``Warning(text)``             (a mismatch or other problem, shown loudly)
-* ``Table(header, rows, caption)``  (cells already formatted as strings)
+* ``Table(header, rows, caption)``  (cells already formatted as strings; ``**bold**`` and
+  ``code`` spans render in the HTML as in paragraphs)
 * ``Figure(path, caption)``     (a PNG; embedded as base64 in the HTML)
 
 The HTML has no external reference (no CDN, no linked file): figures are
@@ -158,15 +159,16 @@ def render_html(blocks: Sequence[Block], title: str = 'ceco report') -> str:
     for b in blocks:
         if isinstance(b, Heading):
             lvl = max(1, min(4, b.level))
-            body.append(f'<h{lvl}>{html.escape(b.text)}</h{lvl}>')
+            body.append(f'<h{lvl}>{_inline(b.text)}</h{lvl}>')
         elif isinstance(b, Paragraph):
             body.append(f'<p>{_inline(b.text)}</p>')
         elif isinstance(b, Warning):
             body.append(f'<div class="warn">WARNING: {_inline(b.text)}</div>')
         elif isinstance(b, Table):
             cap = f'<p class="caption">{_inline(b.caption)}</p>' if b.caption else ''
-            head = ''.join(f'<th>{html.escape(h)}</th>' for h in b.header)
-            rows = ''.join('<tr>' + ''.join(f'<td>{html.escape(c)}</td>' for c in r) + '</tr>' for r in b.rows)
+            # cells get the same inline formatter as paragraphs: **bold** and `code` render, never show
+            head = ''.join(f'<th>{_inline(h)}</th>' for h in b.header)
+            rows = ''.join('<tr>' + ''.join(f'<td>{_inline(c)}</td>' for c in r) + '</tr>' for r in b.rows)
             body.append(f'{cap}<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>')
         elif isinstance(b, Figure):
             data = base64.b64encode(Path(b.path).read_bytes()).decode('ascii')

@@ -67,9 +67,9 @@ def vehicle_section(scenario: str, vrows, note: str, mixed: bool, fig_dir: Path)
             fmt_num(r['p_ac_mean_w'], 0),
             fmt_num(r['energy_fit_j'] / 1e6, 3),
             fmt_num(r['energy_direct_j'] / 1e6, 3),
-            fmt_pct(r['saving_fit_pct']),
-            fmt_pct(r['saving_direct_pct']),
-            fmt_pct(r['paper_saving_pct']),
+            fmt_pct(r['change_fit_pct']),
+            fmt_pct(r['change_direct_pct']),
+            fmt_pct(r['paper_change_pct']),
             f"{r['noise_pct']:.2f} %",
             fmt_num(r['ac_share_pct'], 1),
             fmt_num(r['l_per_100km'], 2) if r['powertrain'] != 'BEV' else fmt_num(r['kwh_per_100km'], 2),
@@ -87,9 +87,9 @@ def vehicle_section(scenario: str, vrows, note: str, mixed: bool, fig_dir: Path)
                 'P_A/C mean [W]',
                 'E_veh fit [MJ]',
                 'E_veh direct [MJ]',
-                'Δ fit',
-                'Δ direct',
-                'Δ paper (SC03)',
+                'change fit [%]',
+                'change direct [%]',
+                'change paper (SC03) [%]',
                 'noise (1σ)',
                 'A/C share [%]',
                 'L/100 km | kWh/100 km',
@@ -98,7 +98,8 @@ def vehicle_section(scenario: str, vrows, note: str, mixed: bool, fig_dir: Path)
                 'range lost [%]',
             ),
             rows,
-            caption='Vehicle energy per strategy (fuel for the hybrid, battery energy for the electric car).',
+            caption='Vehicle energy per strategy (fuel for the hybrid, battery energy for the electric car); '
+            'change: against the baseline as measured (negative = less energy).',
         )
     )
     per_eval = [r['fit_wall_time_s'] / r['n_evals'] for r in vrows]
@@ -110,8 +111,8 @@ def vehicle_section(scenario: str, vrows, note: str, mixed: bool, fig_dir: Path)
     )
     fig = (
         fig_vehicle(vrows, fig_dir / f'{slug(scenario)}_vehicle.png', f'Vehicle-level energy, {scenario}'),
-        'Vehicle energy change against the baseline (error bars: ±2σ fit noise) next to the '
-        'paper\'s Prius numbers; range of the electric car lost to the A/C.',
+        'Vehicle energy change against the baseline as measured (negative = less energy; error bars: '
+        '±2σ fit noise) next to the paper\'s Prius numbers; range of the electric car lost to the A/C.',
     )
     return blocks, fig
 
@@ -134,7 +135,7 @@ def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
         width = 0.8 / (len(vehicles) + 1)
         for j, veh in enumerate(vehicles):
             by = {r['strategy']: r for r in rows if r['vehicle'] == veh}
-            vals = np.array([by[s]['saving_fit_pct'] if s in by else np.nan for s in strategies])
+            vals = np.array([by[s]['change_fit_pct'] if s in by else np.nan for s in strategies])
             err = np.array([2 * by[s]['noise_pct'] if s in by else 0 for s in strategies])
             ax.bar(
                 x + (j - len(vehicles) / 2) * width,
@@ -149,7 +150,7 @@ def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
             )
         paper = [
             next(
-                (r['paper_saving_pct'] for r in rows if r['strategy'] == s and math.isfinite(r['paper_saving_pct'])),
+                (r['paper_change_pct'] for r in rows if r['strategy'] == s and math.isfinite(r['paper_change_pct'])),
                 np.nan,
             )
             for s in strategies
@@ -165,18 +166,18 @@ def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
             label='Paper (2017 Prius HEV, SC03)',
         )
         ax.axhline(0, color='k', lw=0.6)
-        fin = [r for r in rows if math.isfinite(r['saving_fit_pct'])]
-        lows = [r['saving_fit_pct'] - 2 * r['noise_pct'] for r in fin]
-        highs = [r['saving_fit_pct'] + 2 * r['noise_pct'] for r in fin]
+        fin = [r for r in rows if math.isfinite(r['change_fit_pct'])]
+        lows = [r['change_fit_pct'] - 2 * r['noise_pct'] for r in fin]
+        highs = [r['change_fit_pct'] + 2 * r['noise_pct'] for r in fin]
         low = min(lows + [p for p in paper if math.isfinite(p)] + [-1.0])
         high = max(highs + [0.0])
         # Room under the bars for the legend; above zero for strategies that cost energy.
         ax.set_ylim(1.7 * low, 1.25 * high + 0.1 * abs(low))
         ax.set_xticks(x, [strategy_style(s)['label'] for s in strategies], rotation=20, ha='right')
-        ax.set_ylabel('Vehicle energy vs baseline [%]')
+        ax.set_ylabel('Vehicle energy change vs baseline [%]\n(negative = less energy)')
         ax.legend(fontsize=7, loc='lower left')
         ax.grid(axis='x', visible=False)
-        ax.set_title('Vehicle-level saving')
+        ax.set_title('Vehicle energy change (+ = more energy)')
         if bev:
             ax = axes[0][1]
             names = ordered(list(dict.fromkeys(r['strategy'] for r in bev)))

@@ -12,20 +12,28 @@ rosbags, MCAP or `--storage sqlite3`, metadata version 9, fully qualified topic
 names; bag timestamps: simulation time in lockstep, receive time in real time)
 into DIR/bag, and when the scenario
 is done writes DIR/metrics.json (compute_metrics on the recorded data),
-DIR/timeseries.csv, DIR/diagnostics.csv and DIR/logs/<node>.log.
+DIR/timeseries.csv, DIR/diagnostics.csv and DIR/logs/<node>.log. Every run
+directory also keeps its scenario file, command line and code fingerprint
+(DIR/scenario.yaml, DIR/run.json: ``ceco_bringup.provenance``) and its
+printed line (DIR/summary.txt). After the runs, the baseline family (the
+production law at --baseline-setpoints-c, in-process) gives the saving at
+matched comfort: the comparison table and the verdict are printed and kept in
+DIR/comparison.txt, comparison.csv, verdict.json and summary.txt
+(``ceco_bringup.outputs``).
 
 Timing: `--timing lockstep` (default; accelerated, deterministic: the plant
 advances a control period only when the command of that step has arrived)
 or `--timing realtime` (wall-clock timers, as on a vehicle).
 
 Ctrl-C (SIGINT) or SIGTERM at any moment: every child is stopped, the bag
-is closed with its metadata, and `ceco run` exits with status 130; the bag
-reads back completely up to the stop.
+is closed with its metadata, run.json says ``interrupted``, and `ceco run`
+exits with status 130; the bag reads back completely up to the stop and
+`ceco report DIR` reports it, marked partial.
 """
 
 from __future__ import annotations
 
-import argparse
+import dataclasses
 import json
 import math
 import os
@@ -36,144 +44,144 @@ from pathlib import Path
 
 import numpy as np
 
-from ceco_bringup import supervisor
+from ceco_bringup import cli_args, outputs, provenance, supervisor
 from ceco_bringup.bag_writer import STORAGES
-from ceco_core.contracts import STRATEGIES
+from ceco_bringup.verdict import FAMILY_SETPOINTS_C
 from ceco_core.control_grid import TIMING_MODES
+from ceco_core.rundir import read_csv_columns
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> cli_args.Parser:
     """The ``ceco run`` argument parser (options as in the module docstring; ``ceco run --help``)."""
-    p = argparse.ArgumentParser(
-        prog='ceco run', description=__doc__.split('\n\n')[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    p = cli_args.Parser('ceco run', __doc__.split('\n\n')[0])
+    cli_args.add_scenario(p)
+    cli_args.add_strategy(
+        p, 'ceco-ioch', help_extra=' (several: one run directory per strategy, DIR/<strategy>/, then the verdict)'
     )
-    p.add_argument('--scenario', default='sc03', help='scenario name or YAML path (default sc03)')
-    p.add_argument(
-        '--strategy',
-        default='ceco-ioch',
-        choices=STRATEGIES + ('all',),
-        help='strategy, or all (baseline + every CECO strategy into DIR/<strategy>/)',
-    )
-    p.add_argument('--out', required=True, help='output run directory')
-    p.add_argument(
-        '--preview',
-        default='perfect',
-        help='preview quality (grammar of ceco_v2x_preview.preview.parse_quality), '
-        'e.g. perfect, noisy, delayed:10, missing:100-200',
-    )
-    p.add_argument('--control-period-s', type=float, default=None, help='Ts [s] (default: the scenario\'s)')
-    p.add_argument('--horizon-steps', type=int, default=None, help='Np [steps] (default: the scenario\'s)')
-    p.add_argument(
-        '--duration-s', type=float, default=None, help='run only the first DURATION seconds of the scenario [s]'
-    )
-    p.add_argument('--timing', default='lockstep', choices=TIMING_MODES)
+    cli_args.add_out(p, 'output run directory (must not hold a bag already)')
+    cli_args.add_preview(p)
+    cli_args.add_control_period(p)
+    cli_args.add_horizon(p)
+    cli_args.add_duration(p)
+    cli_args.add_seed(p)
+    p.add_argument('--timing', default='lockstep', choices=TIMING_MODES, help='lockstep (accelerated) or realtime')
     p.add_argument(
         '--command-timeout-s',
-        type=float,
+        type=cli_args.positive_float,
         default=5.0,
         help='lockstep: wall-clock wait for a command before the plant applies its fallback law [s]',
     )
     p.add_argument(
         '--startup-timeout-s',
-        type=float,
+        type=cli_args.positive_float,
         default=120.0,
         help='wall-clock limit for the nodes to start and discover each other [s]',
     )
-    p.add_argument('--run-timeout-s', type=float, default=1800.0, help='wall-clock limit of one run [s]')
     p.add_argument(
-        '--domain-id',
-        type=int,
-        default=None,
-        help='ROS_DOMAIN_ID of every run (default: the environment\'s ROS_DOMAIN_ID when set, '
+        '--run-timeout-s', type=cli_args.positive_float, default=1800.0, help='wall-clock limit of one run [s]'
+    )
+    cli_args.add_domain_id(
+        p,
+        'ROS_DOMAIN_ID of every run (default: the environment\'s ROS_DOMAIN_ID when set, '
         'else a private one per strategy)',
     )
-    p.add_argument(
-        '--namespace',
-        default='',
-        help='ROS namespace of the nodes, their topics and the recorder, e.g. veh1 '
+    cli_args.add_namespace(
+        p,
+        'ROS namespace of the nodes, their topics and the recorder, e.g. veh1 '
         '(default: the root namespace); /clock and /rosout stay global',
+        default='',
     )
     p.add_argument(
         '--storage',
         default=STORAGES[0],
         choices=STORAGES,
-        help='rosbag2 storage of DIR/bag (default mcap, as ros2 bag record on Jazzy)',
+        help='rosbag2 storage of DIR/bag (mcap as ros2 bag record on Jazzy, or sqlite3)',
     )
-    p.add_argument('--no-progress', action='store_true', help='no progress bar')
+    cli_args.add_baseline_setpoints(p, FAMILY_SETPOINTS_C)
+    cli_args.add_no_progress(p)
     return p
 
 
 def main(argv=None) -> int:
-    """``ceco run``: run each requested strategy over DDS into its run directory and print its summary.
+    """``ceco run``: run each requested strategy over DDS into its run directory, then the verdict.
 
-    With ``--strategy all`` the strategies go into ``DIR/<strategy>/`` and a comparison table follows.
+    With several strategies they go into ``DIR/<strategy>/``; the comparison table and the verdict
+    (saving at matched comfort against the baseline family, ``ceco_bringup.outputs``) follow.
 
     Args:
         argv: the arguments after ``ceco run`` (default ``sys.argv[1:]``).
 
     Returns:
-        The exit status: 0 when every run finished, 2 for an invalid scenario, preview, namespace
-        or domain id, 1 when a run failed, 130 when interrupted by SIGINT/SIGTERM.
+        The exit status: 0 when every run finished, 2 for a user error (a bad option value, scenario,
+        preview, namespace or domain id, an existing bag), 1 when a run failed, 130 when interrupted
+        by SIGINT/SIGTERM.
     """
-    args = build_parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     from ceco_bringup import supervisor
     from ceco_v2x_preview.preview import parse_quality
     from ceco_v2x_preview.scenario import load_scenario
 
+    strategies = list(args.strategy)
+    out = Path(args.out)
+    run_dirs = {s: (out / s if len(strategies) > 1 else out) for s in strategies}
     try:
         scenario = load_scenario(args.scenario)
         quality = parse_quality(args.preview)
+        if args.seed is not None:
+            quality = dataclasses.replace(quality, seed=int(args.seed))
+        cli_args.check_duration(args.duration_s, scenario)
         args.namespace = supervisor.normalize_namespace(args.namespace)
         supervisor.resolve_domain_id(args.domain_id)  # an invalid user id fails here
+        for d in run_dirs.values():
+            if (d / 'bag').exists():
+                raise ValueError(f'{d / "bag"} exists: choose a new --out directory')
     except ValueError as err:
-        print(f'ceco run: {err}', file=sys.stderr)
-        return 2
-    strategies = list(STRATEGIES) if args.strategy == 'all' else [args.strategy]
-    out = Path(args.out)
+        parser.error(str(err))
     stop = supervisor.StopFlag()
     stop.install()
-    rows = []
+    metrics, columns = {}, {}
     try:
         for i, strategy in enumerate(strategies):
-            run_dir = out / strategy if args.strategy == 'all' else out
+            run_dir = run_dirs[strategy]
+            provenance.start_run(run_dir, 'run', argv, args.scenario)
             try:
-                metrics = run_one(args, scenario, quality, strategy, run_dir, stop, index=i)
+                m = run_one(args, scenario, quality, strategy, run_dir, stop, index=i)
             except supervisor.Interrupted:
+                provenance.finish_run(run_dir, 'interrupted')
                 print(
-                    f'\nceco run: interrupted; the bag in {run_dir / "bag"} is closed and readable up to the stop',
+                    f'\nceco run: interrupted; the bag in {run_dir / "bag"} is closed and readable up to the stop '
+                    f'(ceco report {run_dir} reports the partial run)',
                     file=sys.stderr,
                 )
                 return 130
             except RuntimeError as err:
+                provenance.finish_run(run_dir, 'failed', str(err))
                 print(f'ceco run: {strategy}: {err}', file=sys.stderr)
                 return 1
-            rows.append(metrics)
-            print_summary(metrics, run_dir)
+            provenance.finish_run(run_dir, 'complete')
+            metrics[strategy] = m
+            columns[strategy] = read_csv_columns(run_dir / 'timeseries.csv')
+            line = outputs.run_line(m, run_dir)
+            (run_dir / 'summary.txt').write_text(line + '\n', encoding='utf-8')
+            print(line, flush=True)
     finally:
         stop.restore()
-    if len(rows) > 1:
-        from ceco_core.metrics import comparison_table
-
-        print()
-        print(f'Scenario {scenario.name} over DDS ({args.timing}), {out}:')
-        print(comparison_table(rows))
-    return 0
-
-
-def print_summary(m: dict, run_dir: Path) -> None:
-    """Print one run's line: energy [kJ], I_pmv, OTC violation [%], wall and loop times [s], real-time factor.
-
-    Args:
-        m: the run's metrics dict (as returned by :func:`run_one`).
-        run_dir: the run directory, printed at the end of the line.
-    """
-    print(
-        f"{m['strategy']:>10}: E_tot {m['E_tot_J'] / 1e3:8.1f} kJ (comp {m['E_comp_J'] / 1e3:.1f}, "
-        f"blower {m['E_blower_J'] / 1e3:.1f}), I_pmv {m['I_pmv']:.2f}, OTC violation "
-        f"{m['otc_violation_pct']:.2f} %; wall {m['wall_time_s']:.1f} s, loop "
-        f"{m['loop_wall_time_s']:.1f} s ({m['realtime_factor']:.0f}x real time) -> {run_dir}",
-        flush=True,
+    first = next(iter(metrics.values()))
+    outputs.finish_job(
+        out,
+        scenario,
+        metrics,
+        columns,
+        header=f'Scenario {scenario.name} over DDS ({args.timing}), Ts {first["control_period_s"]:g} s, '
+        f'Np {first["horizon_steps"]}, preview {quality.describe()}, {out}:',
+        family_setpoints_c=args.baseline_setpoints_c,
+        duration_s=float(first['duration_s']),
+        control_period_s=args.control_period_s,
+        progress=not args.no_progress,
     )
+    return 0
 
 
 def _params(args, scenario, quality, strategy, duration_s):
@@ -404,11 +412,9 @@ def run_one(
     ts_data = bagio.load_run_timeseries(bag_dir)
     if ts_data['t_s'].size != n_plant:
         raise RuntimeError(f'bag holds {ts_data["t_s"].size} complete plant steps, expected {n_plant}')
-    from ceco_core.metrics import compute_metrics
+    from ceco_core.metrics import run_metrics
 
-    metrics = compute_metrics(
-        ts_data['t_s'], ts_data['p_comp_w'], ts_data['p_blower_w'], ts_data['pmv'], ts_data['pmv_lb'], ts_data['pmv_ub']
-    )
+    metrics = run_metrics(ts_data)
     metrics.update(
         {
             'scenario': scenario.name,

@@ -3,15 +3,21 @@
 A run directory (docs/architecture.md, "Run directory format") holds
 ``metrics.json`` and the time series, as a rosbag2 bag (``DIR/bag``, read with
 ``ceco_bringup.bagio``; any topic naming) or as ``DIR/timeseries.csv``;
-optionally ``diagnostics.csv``. :func:`load_run` reads one, recomputes its
-metrics with ``ceco_core.metrics.compute_metrics`` and compares them with
-``metrics.json``; :func:`solver_stats` summarises its solver diagnostics.
+optionally ``diagnostics.csv``, ``run.json`` and the scenario's copy
+(``ceco_bringup.provenance``). A run is also any rosbag2 bag with the ceco topics
+(``ros2 bag record``, the launch file's ``record:=true``) and a run directory a
+stopped ``ceco run`` left without ``metrics.json``: their metrics come from the bag
+alone, with scenario and strategy from ``ceco_bringup.bagrun``; a run that holds
+fewer plant steps than its length is marked partial. :func:`load_run` reads one,
+recomputes its metrics with ``ceco_core.metrics.run_metrics`` and compares them
+with ``metrics.json`` when there is one; :func:`solver_stats` summarises its
+solver diagnostics.
 
 Public API:
     RunData                        one loaded, checked run
     discover_runs(paths)           run directories among paths (or one level below)
-    load_run(run_dir, rtol, namespace) -> RunData
-    recompute_metrics(columns, count_aux) / compare_metrics(stored, recomputed, rtol, atol)
+    load_run(run_dir, rtol, namespace, scenario=None, strategy=None) -> RunData
+    recompute_metrics(columns) / compare_metrics(stored, recomputed, rtol, atol)
     csv_precision_digits(path)     significant digits a CSV's writer used
     fallback_mask(column)          which control steps fell back
     solver_stats(diagnostics)      summary statistics of the solver diagnostics
@@ -41,8 +47,8 @@ __all__ = [
     'solver_stats',
 ]
 
-METRIC_INPUTS = ('t_s', 'p_comp_w', 'p_blower_w', 'pmv', 'pmv_lb', 'pmv_ub')
-"""Time-series columns compute_metrics needs."""
+METRIC_INPUTS = ('t_s', 'p_comp_w', 'p_blower_w', 'p_cond_fan_w', 'pmv', 'pmv_lb', 'pmv_ub')
+"""Time-series columns the metrics need (``ceco_core.metrics.RUN_METRIC_COLUMNS``)."""
 
 
 @dataclasses.dataclass
@@ -72,25 +78,43 @@ class RunData:
     check_rtol: float = 0.0
     """Relative tolerance the check used (looser than asked when timeseries.csv was
     written with fewer significant digits)."""
+    partial: str = ''
+    """Why the run is incomplete ('' for a complete run), e.g. 'interrupted: 28 of 600 s'."""
+    notes: list = dataclasses.field(default_factory=list)
+    """What the reader must know about this run's data (older format, no metrics.json, ...)."""
+    scenario_path: Path | None = None
+    """The run's copy of its scenario file (``DIR/scenario.yaml``), None for older runs and bags."""
+    info: dict = dataclasses.field(default_factory=dict)
+    """``run.json`` (``ceco_bringup.provenance``) and, for a bag, where scenario and strategy came from."""
+
+
+def is_run(path: str | Path) -> bool:
+    """True when ``path`` is a run: ``metrics.json``, a bag in ``bag/``, or itself a rosbag2 bag."""
+    from ceco_bringup.bagrun import bag_dir_of
+
+    p = Path(path)
+    return (p / 'metrics.json').is_file() or bag_dir_of(p) is not None
 
 
 def discover_runs(paths: Sequence[str | Path]) -> list[Path]:
     """Run directories among ``paths``.
 
-    A directory holding ``metrics.json`` is a run; otherwise its immediate
-    subdirectories holding one are (a ``--strategy all`` parent). Raises ValueError
-    for a path that is neither.
+    A directory that :func:`is_run` is a run; otherwise its immediate subdirectories that are
+    runs are (a parent of several strategies). Raises ValueError for a path that is neither.
     """
     runs: list[Path] = []
     for p in map(Path, paths):
         if not p.is_dir():
             raise ValueError(f'{p}: not a directory')
-        if (p / 'metrics.json').is_file():
+        if is_run(p):
             runs.append(p)
             continue
-        subs = sorted(d for d in p.iterdir() if d.is_dir() and (d / 'metrics.json').is_file())
+        subs = sorted(d for d in p.iterdir() if d.is_dir() and is_run(d))
         if not subs:
-            raise ValueError(f'{p}: no metrics.json in it nor in its subdirectories: not a run directory')
+            raise ValueError(
+                f'{p}: not a run directory: no metrics.json, bag/ or rosbag2 metadata.yaml in it '
+                'nor in its subdirectories'
+            )
         runs.extend(subs)
     return runs
 
@@ -113,23 +137,20 @@ def csv_precision_digits(path: str | Path, columns: Sequence[str] = METRIC_INPUT
     return best
 
 
-def recompute_metrics(columns: Mapping, count_aux: bool = False) -> dict:
-    """``compute_metrics`` over the run's time series columns.
+def recompute_metrics(columns: Mapping) -> dict:
+    """The metrics over a run's time series columns (``ceco_core.metrics.run_metrics``).
 
-    With ``count_aux`` the condenser fan (column ``p_cond_fan_w``) is counted in
-    ``E_tot`` as the other A/C auxiliary (``E_aux_J``).
+    A time series without the condenser fan column (a run directory from before it was recorded)
+    gets the fan as 0 W; the caller says so (:func:`load_run` adds a note).
     """
-    from ceco_core.metrics import compute_metrics
+    from ceco_core.metrics import run_metrics
 
-    missing = [c for c in METRIC_INPUTS if c not in columns]
-    if count_aux and 'p_cond_fan_w' not in columns:
-        missing.append('p_cond_fan_w')
+    missing = [c for c in METRIC_INPUTS if c not in columns and c != 'p_cond_fan_w']
     if missing:
         raise ValueError(f'time series: missing columns {missing}')
-    args = [np.asarray(columns[c], dtype=float) for c in METRIC_INPUTS]
-    if count_aux:
-        return compute_metrics(*args, p_aux_w=np.asarray(columns['p_cond_fan_w'], dtype=float))
-    return compute_metrics(*args)
+    if 'p_cond_fan_w' not in columns:
+        columns = dict(columns, p_cond_fan_w=np.zeros(len(columns['t_s'])))
+    return run_metrics(columns)
 
 
 def compare_metrics(stored: Mapping, recomputed: Mapping, rtol: float = 1e-9, atol: float = 1e-9):
@@ -169,8 +190,11 @@ def _load_bag(bag_dir: Path, namespace: str | None) -> dict:
 
 def _time_series(run_dir: Path, namespace: str | None) -> tuple[dict, str]:
     """(columns, source): the bag alone when the run has one, else timeseries.csv."""
-    if (run_dir / 'bag').is_dir():
-        return _load_bag(run_dir / 'bag', namespace), 'bag'
+    from ceco_bringup.bagrun import bag_dir_of
+
+    bag = bag_dir_of(run_dir)
+    if bag is not None:
+        return _load_bag(bag, namespace), 'bag'
     if (run_dir / 'timeseries.csv').is_file():
         return read_csv_columns(run_dir / 'timeseries.csv'), 'timeseries.csv'
     raise ValueError(f'{run_dir}: neither bag/ nor timeseries.csv')
@@ -181,23 +205,79 @@ def _diagnostics(run_dir: Path, source: str, namespace: str | None) -> dict | No
         return read_csv_columns(run_dir / 'diagnostics.csv')
     if source == 'bag':
         from ceco_bringup import bagio
+        from ceco_bringup.bagrun import bag_dir_of
 
-        return {k: np.asarray(v) for k, v in bagio.load_diagnostics(run_dir / 'bag', namespace).items()} or None
+        try:
+            diag = bagio.load_diagnostics(bag_dir_of(run_dir), namespace)
+        except ValueError:  # no diagnostics topic in this bag
+            return None
+        return {k: np.asarray(v) for k, v in diag.items()} if len(diag['k']) else None
     return None
 
 
-def load_run(run_dir: str | Path, rtol: float = 1e-6, namespace: str | None = None) -> RunData:
-    """Load one run directory, recompute its metrics and check them against metrics.json.
+LEGACY_ENERGY_KEYS = ('E_tot_J', 'E_tot_kWh', 'P_mean_w')
+"""Metrics a run directory from before ``E_fan_J`` counted as compressor + blower (checked as such)."""
 
-    ``namespace`` picks the stack of a bag that holds several (default: the only one).
+
+def _legacy_view(recomputed: Mapping) -> dict:
+    """The recomputed metrics as an older metrics.json defined them: E_tot = compressor + blower."""
+    from ceco_core.metrics import J_PER_KWH
+
+    e = recomputed['E_comp_J'] + recomputed['E_blower_J']
+    return dict(recomputed, E_tot_J=e, E_tot_kWh=e / J_PER_KWH, P_mean_w=e / recomputed['duration_s'])
+
+
+def _identity(run_dir: Path, stored: Mapping, namespace, scenario, strategy) -> tuple[str, str, dict, float | None]:
+    """(scenario, strategy, info, intended length [s]) from the flags, metrics.json, run.json, the bag."""
+    from ceco_bringup import provenance
+    from ceco_bringup.bagrun import bag_dir_of, bag_run_info
+
+    info = dict(provenance.read_run(run_dir) or {})
+    sc = scenario or stored.get('scenario') or info.get('scenario')
+    st = strategy or stored.get('strategy')
+    length = None
+    bag = bag_dir_of(run_dir)
+    if bag is not None:
+        b = bag_run_info(bag, namespace, scenario=sc, strategy=st)
+        sc, st = b.scenario, b.strategy
+        length = b.duration_s or None  # a plant parameter of 0 means the scenario's length
+        info['identified_from'] = b.sources
+    if length is None and sc:
+        try:
+            from ceco_v2x_preview.scenario import load_scenario
+
+            length = float(load_scenario(provenance.scenario_path(run_dir) or sc).duration_s)
+        except (ValueError, OSError):
+            pass
+    return str(sc or 'unknown'), str(st or run_dir.name), info, length
+
+
+def load_run(
+    run_dir: str | Path,
+    rtol: float = 1e-6,
+    namespace: str | None = None,
+    *,
+    scenario: str | None = None,
+    strategy: str | None = None,
+) -> RunData:
+    """Load one run, recompute its metrics and check them against metrics.json when there is one.
+
+    ``namespace`` picks the stack of a bag that holds several (default: the only one);
+    ``scenario`` and ``strategy`` name the run of a bag that does not say (``ceco_bringup.bagrun``).
+    A run without ``metrics.json`` is reported from its bag alone (noted); one that holds fewer
+    plant steps than its length, or whose ``run.json`` says it was stopped, is partial.
     """
+    from ceco_bringup import provenance
+
     run_dir = Path(run_dir)
-    stored = json.loads((run_dir / 'metrics.json').read_text(encoding='utf-8'))
+    notes: list[str] = []
+    has_json = (run_dir / 'metrics.json').is_file()
+    stored = json.loads((run_dir / 'metrics.json').read_text(encoding='utf-8')) if has_json else {}
     columns, source = _time_series(run_dir, namespace)
-    # The run counted the condenser fan in E_tot if its metrics.json says so
-    # (E_aux_J > 0); the recomputation follows and E_aux_J itself is checked.
-    count_aux = bool(stored.get('E_aux_J')) and float(stored.get('E_aux_J') or 0.0) != 0.0
-    recomputed = recompute_metrics(columns, count_aux=count_aux)
+    sc, st, info, length = _identity(run_dir, stored, namespace, scenario, strategy)
+    if 'p_cond_fan_w' not in columns:
+        notes.append('no condenser fan column (older run directory): E_tot counts compressor + blower only')
+    recomputed = recompute_metrics(columns)
     check_rtol = rtol
     if source == 'timeseries.csv':
         # A value written with d significant digits is off by up to
@@ -206,11 +286,32 @@ def load_run(run_dir: str | Path, rtol: float = 1e-6, namespace: str | None = No
         digits = csv_precision_digits(run_dir / 'timeseries.csv')
         if digits:
             check_rtol = max(rtol, 10.0 ** (1 - digits))
-    mism, worst = compare_metrics(stored, recomputed, rtol=check_rtol)
+    mism: list = []
+    worst = 0.0
+    if has_json:
+        legacy = 'E_fan_J' not in stored and not float(stored.get('E_aux_J') or 0.0)
+        against = _legacy_view(recomputed) if legacy else recomputed
+        if legacy:
+            notes.append(
+                'older run directory: its metrics.json counts E_tot as compressor + blower; shown here as '
+                'compressor + blower + condenser fan'
+            )
+        mism, worst = compare_metrics(stored, against, rtol=check_rtol)
+    else:
+        notes.append('no metrics.json: metrics computed from the bag alone (nothing to check them against)')
+    # metrics.json is written when a run is complete; without it the bag is what a stopped run left
+    partial = ''
+    status = info.get('status')
+    n = len(columns['t_s'])
+    dt = float(columns['t_s'][1] - columns['t_s'][0])
+    if not has_json and length is not None and n * dt < length - 0.5 * dt:
+        partial = f'{status or "stopped"}: {n * dt:.0f} of {length:.0f} s recorded'
+    elif status in ('interrupted', 'failed'):
+        partial = f'{status}: {n * dt:.0f} s recorded'
     return RunData(
         path=run_dir,
-        strategy=str(stored.get('strategy') or run_dir.name),
-        scenario=str(stored.get('scenario') or 'unknown'),
+        strategy=st,
+        scenario=sc,
         stored=stored,
         columns=columns,
         source=source,
@@ -219,6 +320,10 @@ def load_run(run_dir: str | Path, rtol: float = 1e-6, namespace: str | None = No
         max_rel_diff=worst,
         diagnostics=_diagnostics(run_dir, source, namespace),
         check_rtol=check_rtol,
+        partial=partial,
+        notes=notes,
+        scenario_path=provenance.scenario_path(run_dir),
+        info=info,
     )
 
 

@@ -54,7 +54,7 @@ from ceco_core.metrics import relative_change_pct
 __all__ = [
     'PRIUS',
     'ZOE',
-    'PAPER_VEHICLE_SAVING_PCT',
+    'PAPER_VEHICLE_CHANGE_PCT',
     'GASOLINE_J_PER_L',
     'VehicleEnergySettings',
     'VehicleRun',
@@ -71,7 +71,7 @@ PRIUS = '2016_TOYOTA_Prius_Two'
 ZOE = '2022_Renault_Zoe_ZE50_R135'
 """FASTSim 3.1.0 resource of the electric car (no FASTSim cabin/HVAC model)."""
 
-PAPER_VEHICLE_SAVING_PCT = {'ceco-e': -6.4, 'ceco-c': -1.8, 'ceco-ioch': -3.1}
+PAPER_VEHICLE_CHANGE_PCT = {'ceco-e': -6.4, 'ceco-c': -1.8, 'ceco-ioch': -3.1}
 """Vehicle energy change against the baseline on SC03, Prius HEV [%] (paper, Sec. 5)."""
 
 GASOLINE_J_PER_L = 33.705 * 3.6e6 / 3.785411784
@@ -109,7 +109,7 @@ class VehicleEnergySettings:
     fit_margin_w: float = 300.0
     """Fit range beyond the smallest and largest mean A/C power [W], >= 0."""
     baseline: str = 'baseline'
-    """Strategy the savings are taken against."""
+    """Strategy the changes are taken against."""
 
     def validate(self) -> None:
         """Check every field; raise ValueError naming the first bad one."""
@@ -306,13 +306,14 @@ def drive_cycle_for_run(scenario_name: str, duration_s: float):
 def vehicle_energy_table(
     p_ac_mean_w: Mapping[str, float], time_s, speed_mps, settings: VehicleEnergySettings = VehicleEnergySettings()
 ) -> list[dict]:
-    """Vehicle energy and savings of each strategy, for each vehicle.
+    """Vehicle energy of each strategy and its change against the baseline, for each vehicle.
 
     ``p_ac_mean_w`` maps strategy -> mean A/C electrical power over the run
     [W]. Returns one row (dict) per (vehicle, strategy) with: ``vehicle,
     powertrain, strategy, p_ac_mean_w, energy_fit_j, energy_direct_j,
-    saving_fit_pct, saving_direct_pct`` (against ``settings.baseline``; NaN
-    without a baseline), ``paper_saving_pct`` (NaN where the paper has none),
+    change_fit_pct, change_direct_pct`` (signed change against ``settings.baseline`` as
+    measured: negative = less energy; NaN without a baseline), ``paper_change_pct`` (the
+    paper's, same sign; NaN where the paper has none),
     ``noise_pct`` (fit residual std / mean energy), ``ac_share_pct`` (share of
     the vehicle energy due to the A/C), ``j_per_j_ac`` (marginal vehicle
     energy per joule of A/C), ``l_per_100km`` (hybrid: fuel litres per
@@ -353,9 +354,9 @@ def vehicle_energy_table(
                 'p_ac_mean_w': float(p),
                 'energy_fit_j': e_fit[name],
                 'energy_direct_j': run.energy_j,
-                'saving_fit_pct': float('nan'),
-                'saving_direct_pct': float('nan'),
-                'paper_saving_pct': PAPER_VEHICLE_SAVING_PCT.get(name, float('nan'))
+                'change_fit_pct': float('nan'),
+                'change_direct_pct': float('nan'),
+                'paper_change_pct': PAPER_VEHICLE_CHANGE_PCT.get(name, float('nan'))
                 if run.powertrain == 'HEV'
                 else float('nan'),
                 'noise_pct': 100.0 * noise_j / float(np.mean([r.energy_j for r in fit_runs])),
@@ -374,10 +375,10 @@ def vehicle_energy_table(
                 'n_soc_unbalanced': sum(r.soc_balance == 'corrected' for r in runs),
             }
             if base in e_fit and name != base:
-                row['saving_fit_pct'] = relative_change_pct(e_fit[name], e_fit[base])
-                row['saving_direct_pct'] = relative_change_pct(run.energy_j, direct[base].energy_j)
+                row['change_fit_pct'] = relative_change_pct(e_fit[name], e_fit[base])
+                row['change_direct_pct'] = relative_change_pct(run.energy_j, direct[base].energy_j)
             elif name == base:
-                row['saving_fit_pct'] = row['saving_direct_pct'] = 0.0
+                row['change_fit_pct'] = row['change_direct_pct'] = 0.0
             dist_km = run.distance_m / 1e3
             if run.powertrain == 'BEV':
                 row['kwh_per_100km'] = e_fit[name] / 3.6e6 / dist_km * 100.0 if dist_km > 0 else float('nan')

@@ -7,28 +7,24 @@ previews on ``t, t+Ts, ..., t+Np*Ts`` and its command is held over
 seed give the same numbers (the solver's wall-clock time is recorded but never
 used for a decision).
 
-Writes a run directory per strategy (``timeseries.csv``, ``diagnostics.csv``,
-``metrics.json``). CLI (also ``ceco sim``)::
-
-    python -m ceco_controller.closed_loop --scenario sc03 --strategy all --out runs/sc03
+:func:`write_run` writes a run directory (``timeseries.csv``, ``diagnostics.csv``,
+``metrics.json``). The command line is ``ceco sim`` (``ceco_bringup.sim``).
 """
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import pathlib
-import sys
 import time
 
 import numpy as np
 
 from ceco_core import rundir
 from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS, MEASUREMENT_MODES
-from ceco_core.metrics import comfort_series_metrics, comparison_table, compute_metrics
+from ceco_core.metrics import comfort_series_metrics, run_metrics
 from ceco_plant_sim.scenario_plant import ScenarioPlant, check_overrides, n_plant_steps, steps_per_control
-from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews, parse_quality
+from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews
 from ceco_v2x_preview.scenario import Scenario, load_scenario
 
 from . import model as cm
@@ -44,7 +40,6 @@ __all__ = [
     "simulate",
     "make_controller",
     "write_run",
-    "main",
     "TIMESERIES_COLUMNS",
     "DIAGNOSTICS_CSV_COLUMNS",
 ]
@@ -246,9 +241,7 @@ def simulate(
         }
         for c in TIMESERIES_COLUMNS:
             cols[c][i] = row[c]
-    metrics = compute_metrics(
-        cols["t_s"], cols["p_comp_w"], cols["p_blower_w"], cols["pmv"], cols["pmv_lb"], cols["pmv_ub"]
-    )
+    metrics = run_metrics(cols)
     nd = [d for d in diag_objs if d.solve_time_ms is not None]
     # the comfort-zone phase: samples where the upper bound is at its tightest (after the pull-down
     # relaxation); the paper's metrics restricted to it separate "how the pull-down relaxation was
@@ -258,7 +251,9 @@ def simulate(
     metrics.update(
         {
             "zone_start_s": float(cols["t_s"][np.argmax(zone)]),
-            "E_zone_J": float(np.sum(cols["p_comp_w"][zone] + cols["p_blower_w"][zone]) * dt),
+            "E_zone_J": float(
+                np.sum(cols["p_comp_w"][zone] + cols["p_blower_w"][zone] + cols["p_cond_fan_w"][zone]) * dt
+            ),
             "I_pmv_zone": float(np.sum(cols["pmv"][zone] ** 2) * dt),
             "otc_violation_zone_pct": float(
                 100.0 * np.count_nonzero(viol & zone) / max(int(np.count_nonzero(zone)), 1)
@@ -382,128 +377,3 @@ def write_run(result: RunResult, run_dir: str | pathlib.Path) -> pathlib.Path:
     if estimates is not None:
         rundir.write_csv(d / "estimator.csv", ESTIMATOR_CSV_COLUMNS, estimates)
     return d
-
-
-TABLE_COLUMNS = (
-    "E_tot_kWh",
-    "I_pmv",
-    "I_pmv_clipped",
-    "otc_violation_pct",
-    "iso7730_invalid_pct",
-    "time_to_comfort_s",
-    "pmv_mean",
-    "E_zone_J",
-    "I_pmv_zone",
-    "otc_violation_zone_pct",
-    "pmv_mean_zone",
-    "iso7730_invalid_pct_zone",
-    "dr_above_pct_zone",
-    "rh_cab_mean_zone",
-    "fog_margin_min_k",
-)
-"""Columns of the printed comparison (``*_zone``: only the comfort-zone phase after the pull-down relaxation);
-the share of samples outside ISO 7730 validity next to the comfort metrics."""
-CHANGE_COLUMNS = ("E_tot_kWh", "I_pmv", "otc_violation_pct", "E_zone_J", "I_pmv_zone")
-"""Columns shown with their change against the baseline [%]."""
-
-
-def main(argv=None) -> int:
-    """CLI: run one or all strategies on a scenario and print the comparison table."""
-    ap = argparse.ArgumentParser(prog="ceco sim", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--scenario", default="sc03", help="bundled scenario name or YAML path (default sc03)")
-    ap.add_argument("--strategy", default="all", help=f"'all' or a comma-separated list of {', '.join(STRATEGIES)}")
-    ap.add_argument("--out", required=True, help="output directory (one run directory per strategy)")
-    ap.add_argument(
-        "--preview-quality",
-        default="perfect",
-        help="perfect | noisy[:...] | delayed:S | missing:A-B[,..] joined by '+'",
-    )
-    ap.add_argument("--horizon", type=int, default=None, help="prediction horizon Np [steps]")
-    ap.add_argument("--control-period", type=float, default=None, help="control period Ts [s]")
-    ap.add_argument("--seed", type=int, default=None, help="seed of the preview noise")
-    ap.add_argument("--duration", type=float, default=None, help="run length [s] (default: the scenario's)")
-    ap.add_argument("--model-params", default=None, help="identified model parameter file")
-    ap.add_argument(
-        "--controller-config",
-        default=None,
-        help="controller settings file (default: ceco_controller/config/controller.yaml)",
-    )
-    ap.add_argument(
-        "--measurements",
-        choices=MEASUREMENT_MODES,
-        default="full",
-        help="full: the controller reads every modelled state; vehicle: production sensors only, "
-        "interior/shell temperatures estimated (default full)",
-    )
-    ap.add_argument("--no-progress", action="store_true", help="disable the progress bar")
-    ap.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="FIELD=VALUE",
-        help="override a CECO strategy setting (StrategySettings field), e.g. pmv_pa_source=measured; "
-        "repeatable; numbers are read as floats",
-    )
-    args = ap.parse_args(argv)
-    overrides = []
-    for item in args.set:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            ap.error(f"--set: expected FIELD=VALUE, got {item!r}")
-        try:
-            overrides.append((key, float(value)))
-        except ValueError:
-            overrides.append((key, value))
-    strategies = list(STRATEGIES) if args.strategy == "all" else [s.strip() for s in args.strategy.split(",")]
-    for s in strategies:
-        if s not in STRATEGIES:
-            ap.error(f"unknown strategy {s!r}")
-    try:
-        quality = parse_quality(args.preview_quality)
-    except ValueError as exc:
-        ap.error(f"--preview-quality: {exc}")
-    scenario = load_scenario(args.scenario)
-    settings = SimSettings(
-        control_period_s=args.control_period,
-        horizon_steps=args.horizon,
-        preview_quality=quality,
-        seed=args.seed,
-        duration_s=args.duration,
-        progress=not args.no_progress,
-        model_params_path=args.model_params,
-        controller_config_path=args.controller_config,
-        strategy_overrides=tuple(overrides),
-        measurements=args.measurements,
-    )
-    out = pathlib.Path(args.out)
-    rows = []
-    for s in strategies:
-        res = simulate(scenario, s, settings)
-        write_run(res, out / s)
-        rows.append(res.metrics)
-        m = res.metrics
-        print(
-            f"{s}: E_tot {m['E_tot_kWh']:.4f} kWh, I_pmv {m['I_pmv']:.1f} s, "
-            f"violation {m['otc_violation_pct']:.1f} %, fallbacks {m['n_fallback_shifted']}"
-            f"+{m['n_fallback_baseline']}",
-            file=sys.stderr,
-        )
-    table = comparison_table(
-        rows,
-        baseline="baseline" if "baseline" in strategies else strategies[0],
-        columns=TABLE_COLUMNS,
-        change_keys=CHANGE_COLUMNS,
-    )
-    header = (
-        f"scenario {scenario.name}, Ts {settings.control_period_s or scenario.control.control_period_s} s, "
-        f"Np {settings.horizon_steps or scenario.control.horizon_steps}, preview {quality.describe()}"
-        + (", measurements vehicle" if settings.measurements == "vehicle" else "")
-    )
-    print(header)
-    print(table)
-    (out / "comparison.txt").write_text(header + "\n" + table + "\n", encoding="utf-8")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

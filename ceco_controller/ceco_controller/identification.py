@@ -32,8 +32,8 @@ this module identifies them from the ceco plant:
 
 CLI (also ``ceco identify``)::
 
-    python -m ceco_controller.identification            # regenerate data, fit, write config/model_params.yaml
-    python -m ceco_controller.identification --from-csv data.csv [--validation-csv v.csv]
+    ceco identify --out runs/id          # regenerate data, fit, write runs/id/model_params.yaml
+    ceco identify --from-csv data.csv [--validation-csv v.csv] --out runs/id2
 """
 
 from __future__ import annotations
@@ -384,8 +384,30 @@ def print_fit(params: dict, report: dict, width: int = 24) -> None:
             print(f"  {k:32s} {v}")
 
 
+OUTPUT_FILES = ("model_params.yaml", "train.csv", "validation.csv")
+"""What ``ceco identify`` writes into its ``--out`` run directory."""
+
+
+def output_paths(out: str | None) -> tuple[pathlib.Path, pathlib.Path]:
+    """(data directory, parameter file) of ``ceco identify --out``: a run directory, never the package's files.
+
+    ``out`` None: a new ``runs/identify-<UTC time>``. SystemExit(2) with one line when the directory
+    already holds one of :data:`OUTPUT_FILES` (nothing is written over: not the tracked
+    ``config/model_params.yaml`` nor the committed excitation data).
+    """
+    import datetime
+
+    d = pathlib.Path(out or f"runs/identify-{datetime.datetime.now(datetime.UTC):%Y%m%d-%H%M%S}")
+    exists = [d / f for f in OUTPUT_FILES if (d / f).exists()]
+    if exists:
+        print(f"ceco identify: error: {exists[0]} exists: choose a new --out directory", file=sys.stderr)
+        raise SystemExit(2)
+    d.mkdir(parents=True, exist_ok=True)
+    return d, d / "model_params.yaml"
+
+
 def main(argv=None) -> int:
-    """CLI: (re)generate the excitation data, fit, validate, write the parameter file."""
+    """CLI: (re)generate the excitation data, fit, validate, write the parameter file into a run directory."""
     ap = argparse.ArgumentParser(prog="ceco identify", description="Identify the control-oriented model.")
     ap.add_argument(
         "--from-csv",
@@ -394,14 +416,27 @@ def main(argv=None) -> int:
         help="fit from these 1 s series CSVs (SERIES_COLUMNS) instead of simulating the plant",
     )
     ap.add_argument("--validation-csv", default=None, help="validation series CSV (default: simulate US06)")
-    ap.add_argument("--data-dir", default=str(DEFAULT_DATA_DIR), help="where generated CSVs are written")
-    ap.add_argument("--out", default=str(cm.DEFAULT_PARAMS_PATH), help="parameter file to write")
-    ap.add_argument("--seed", type=int, default=1, help="excitation seed")
-    ap.add_argument("--ts", type=float, default=5.0, help="model step [s]")
-    ap.add_argument("--horizon", type=int, default=6, help="horizon for the multi-step error [steps]")
+    ap.add_argument(
+        "--out",
+        default=None,
+        help="run directory to write model_params.yaml and the generated train/validation CSVs into; it must not "
+        "hold them already (default: a new runs/identify-<UTC time>)",
+    )
+    ap.add_argument("--seed", type=int, default=1, help="excitation seed (default: 1)")
+    ap.add_argument("--ts", type=float, default=5.0, help="model step [s] (default: 5)")
+    ap.add_argument("--horizon", type=int, default=6, help="horizon for the multi-step error [steps] (default: 6)")
     args = ap.parse_args(argv)
+    try:
+        return _identify(args, argv)
+    except (ValueError, OSError) as exc:  # a missing or malformed CSV: one line, no traceback
+        print(f"ceco identify: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _identify(args, argv) -> int:
+    """The work of :func:`main` for parsed ``args``."""
+    data_dir, out = output_paths(args.out)
     exc = ExcitationSettings(seed=args.seed, ts_s=args.ts)
-    data_dir = pathlib.Path(args.data_dir)
     if args.from_csv:
         parts = [read_series_csv(p) for p in args.from_csv]
         for j, s in enumerate(parts):
@@ -409,6 +444,7 @@ def main(argv=None) -> int:
         train = {c: np.concatenate([s[c] for s in parts]) for c in SERIES_COLUMNS}
         train_src = ", ".join(args.from_csv)
     else:
+        print(f"ceco identify: simulating the {len(TRAIN_DRIVES)} training drives on the plant", file=sys.stderr)
         train = generate_excitation(TRAIN_DRIVES, exc)
         path = data_dir / "train.csv"
         sha = write_series_csv(train, path)
@@ -417,6 +453,7 @@ def main(argv=None) -> int:
         valid = read_series_csv(args.validation_csv)
         valid_src = args.validation_csv
     else:
+        print("ceco identify: simulating the validation drive", file=sys.stderr)
         valid = generate_excitation(VALIDATION_DRIVES, exc, seed_offset=1000)
         path = data_dir / "validation.csv"
         sha = write_series_csv(valid, path)
@@ -425,6 +462,7 @@ def main(argv=None) -> int:
     iv_valid = intervals_from_series(valid, args.ts)
     emap = eta_ac_points(EtaMapSettings())
     a_eta, v_eta, eta_rms = fit_eta_ac(emap["speeds_mps"], emap["ratio"])
+    print("ceco identify: fitting and validating", file=sys.stderr)
     params, resid = fit_intervals(iv_train, args.ts, eta=(a_eta, v_eta))
     v20 = int(np.argmin(np.abs(emap["speeds_mps"] - 20.0)))
     eta_report = {
@@ -434,7 +472,7 @@ def main(argv=None) -> int:
         "plant_ratio_at_20mps": [float(x) for x in np.round(emap["ratio"][:, v20], 4)],
         "model_eta_at_20mps": float(cm.eta_ac(params, 20.0)),
     }
-    cmd = "python -m ceco_controller.identification" + (" " + " ".join(argv) if argv else "")
+    cmd = "ceco identify" + (" " + " ".join(argv) if argv else "")
     params = dataclasses.replace(
         params, provenance=f"{cmd}; excitation seed {args.seed}; training data {train_src}; validation data {valid_src}"
     )
@@ -450,10 +488,9 @@ def main(argv=None) -> int:
         "Identified control-oriented model (ceco_controller/model.py), GENERATED - do not edit.\n"
         f"Regenerate with: {cmd}\nFit method and report: docs/controller.md"
     )
-    out = pathlib.Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     cm.save_params(params, out, header=header, extra={"fit_report": report})
     print(f"wrote {out}")
+    print(f"to use it: --model-params {out} (ceco sim), or copy it over {cm.DEFAULT_PARAMS_PATH} and commit")
     print_fit(params.to_dict(), report)
     return 0
 

@@ -3,8 +3,9 @@
 Equations, units and the reasoning behind each choice: ``docs/metrics.md``.
 The paper's three metrics (Wang et al., DSCC 2019, Sec. 4):
 
-* ``E_tot = integral_0^T (P_comp + P_bl) dt``                       [J]
-  (plus optional other auxiliaries such as the condenser fan)
+* ``E_tot = integral_0^T (P_comp + P_bl + P_fan) dt``               [J]
+  (the paper's E_tot counts P_comp + P_bl only; ceco counts every electrical
+  consumer of the A/C, the condenser fan too, in every output: :data:`ENERGY_PARTS`)
 * ``I_PMV = integral_0^T PMV^2 dt``                                 [s]
 * ``OTC violation = T_viol / T * 100 %``, where T_viol is the time with
   PMV > PMV_UB or PMV < PMV_LB                                      [%]
@@ -24,20 +25,21 @@ Pure numpy; no ROS import.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping
 
 import numpy as np
 
 __all__ = [
     "J_PER_KWH",
+    "ENERGY_PARTS",
     "METRIC_KEYS",
     "PMV_SCALE_LIMIT",
     "DRAUGHT_LIMIT_PCT",
     "DR_CATEGORY_LIMITS_PCT",
     "compute_metrics",
+    "RUN_METRIC_COLUMNS",
+    "run_metrics",
     "relative_change_pct",
-    "comparison_rows",
-    "comparison_table",
     "i_pmv_clipped",
     "iso7730_invalid_pct",
     "draught_stats",
@@ -49,6 +51,11 @@ __all__ = [
 J_PER_KWH = 3.6e6
 """Joules in one kilowatt-hour (exact)."""
 
+ENERGY_PARTS = "compressor + blower + condenser fan"
+"""What ``E_tot`` counts, in every ceco output (console, CSV, JSON, figures, docs): every electrical
+consumer of the A/C. The paper's E_tot leaves the condenser fan out (it is part of its P_aux);
+``E_comp_J``, ``E_blower_J`` and ``E_fan_J`` give the parts."""
+
 COMFORT_HOLD_S = 60.0
 """Default time PMV must stay in the comfort zone for comfort to count as reached [s]."""
 
@@ -57,7 +64,7 @@ METRIC_KEYS = (
     "E_tot_kWh",
     "E_comp_J",
     "E_blower_J",
-    "E_aux_J",
+    "E_fan_J",
     "P_mean_w",
     "I_pmv",
     "otc_violation_pct",
@@ -104,8 +111,8 @@ def compute_metrics(
     *,
     comfort_ub: float = 0.5,
     comfort_lb: float = -0.5,
+    p_fan_w,
     comfort_hold_s: float = COMFORT_HOLD_S,
-    p_aux_w=None,
 ) -> dict:
     """Energy and comfort metrics of one run (see module docstring).
 
@@ -121,11 +128,10 @@ def compute_metrics(
         comfort_ub: upper edge of the comfort zone used for time to comfort
             (ISO 7730 category B: +0.5) [-].
         comfort_lb: lower edge of that comfort zone (category B: -0.5) [-].
+        p_fan_w: condenser fan electrical power, mean over each interval [W]
+            (the plant's ``p_cond_fan_w``); required, so that ``E_tot_J``
+            counts the same parts in every output (:data:`ENERGY_PARTS`).
         comfort_hold_s: time PMV must stay in the zone to count [s].
-        p_aux_w: other A/C auxiliaries, e.g. the condenser fan, mean over
-            each interval [W]; optional (0 if None). The paper's P_aux is
-            blower + condenser fan; pass the plant's ``p_cond_fan_w`` here
-            to count the fan in ``E_tot_J``.
 
     Returns:
         dict with the keys :data:`METRIC_KEYS` (floats). ``time_to_comfort_s``
@@ -151,7 +157,7 @@ def compute_metrics(
         raise ValueError(f"t_s: must be uniformly spaced (step {dt} s), step {i} is {float(steps[i])} s")
     p_comp = as_series("p_comp_w", p_comp_w, n)
     p_bl = as_series("p_blower_w", p_blower_w, n)
-    p_aux = np.zeros(n) if p_aux_w is None else as_series("p_aux_w", p_aux_w, n)
+    p_fan = as_series("p_fan_w", p_fan_w, n)
     y = as_series("pmv", pmv, n)
     lb = as_series("pmv_lb", pmv_lb, n)
     ub = as_series("pmv_ub", pmv_ub, n)
@@ -166,8 +172,8 @@ def compute_metrics(
     duration_s = n * dt
     e_comp = float(np.sum(p_comp) * dt)
     e_bl = float(np.sum(p_bl) * dt)
-    e_aux = float(np.sum(p_aux) * dt)
-    e_tot = e_comp + e_bl + e_aux
+    e_fan = float(np.sum(p_fan) * dt)
+    e_tot = e_comp + e_bl + e_fan
     above = y > ub
     below = y < lb
     viol_s = float(np.count_nonzero(above | below) * dt)
@@ -177,7 +183,7 @@ def compute_metrics(
         "E_tot_kWh": e_tot / J_PER_KWH,
         "E_comp_J": e_comp,
         "E_blower_J": e_bl,
-        "E_aux_J": e_aux,
+        "E_fan_J": e_fan,
         "P_mean_w": e_tot / duration_s,
         "I_pmv": float(np.sum(y * y) * dt),
         "otc_violation_pct": 100.0 * viol_s / duration_s,
@@ -190,6 +196,23 @@ def compute_metrics(
         "pmv_min": float(np.min(y)),
         "duration_s": duration_s,
     }
+
+
+RUN_METRIC_COLUMNS = ("t_s", "p_comp_w", "p_blower_w", "p_cond_fan_w", "pmv", "pmv_lb", "pmv_ub")
+"""The ``timeseries.csv`` columns :func:`run_metrics` reads."""
+
+
+def run_metrics(columns: Mapping) -> dict:
+    """:func:`compute_metrics` over a run's ``timeseries.csv`` columns (:data:`RUN_METRIC_COLUMNS`).
+
+    ValueError naming the missing columns (a run directory older than the condenser fan column
+    cannot give ``E_tot`` by :data:`ENERGY_PARTS`).
+    """
+    missing = [c for c in RUN_METRIC_COLUMNS if c not in columns]
+    if missing:
+        raise ValueError(f"time series: missing columns {missing}")
+    t, comp, bl, fan, y, lb, ub = (np.asarray(columns[c], dtype=float) for c in RUN_METRIC_COLUMNS)
+    return compute_metrics(t, comp, bl, y, lb, ub, p_fan_w=fan)
 
 
 def time_to_comfort(t, dt, y, lo, hi, hold_s) -> float:
@@ -220,90 +243,6 @@ def relative_change_pct(value: float, baseline: float) -> float:
     if baseline == 0.0:
         return 0.0 if value == 0.0 else math.nan
     return 100.0 * (value - baseline) / abs(baseline)
-
-
-_DEFAULT_COLUMNS = (
-    "E_tot_kWh",
-    "E_comp_J",
-    "E_blower_J",
-    "I_pmv",
-    "otc_violation_pct",
-    "time_to_comfort_s",
-    "pmv_mean",
-    "pmv_max",
-)
-_CHANGE_COLUMNS = ("E_tot_kWh", "I_pmv", "otc_violation_pct")
-
-
-def comparison_rows(
-    rows: Sequence[Mapping],
-    baseline: str = "baseline",
-    *,
-    name_key: str = "strategy",
-    change_keys: Iterable[str] = _CHANGE_COLUMNS,
-) -> list[dict]:
-    """Copies of ``rows`` with ``<key>_change_pct`` added for every key in ``change_keys``.
-
-    The added value is the relative change against the row whose ``name_key``
-    equals ``baseline`` (NaN for every row if there is no baseline row).
-    """
-    change_keys = tuple(change_keys)
-    base = next((r for r in rows if r.get(name_key) == baseline), None)
-    out = []
-    for r in rows:
-        d = dict(r)
-        for k in change_keys:
-            d[f"{k}_change_pct"] = relative_change_pct(r[k], base[k]) if base is not None else math.nan
-        out.append(d)
-    return out
-
-
-def _cell(x) -> str:
-    if isinstance(x, str):
-        return x
-    x = float(x)
-    if math.isnan(x):
-        return "n/a"
-    return f"{x:.0f}" if abs(x) >= 100.0 else f"{x:.3f}"
-
-
-def comparison_table(
-    rows: Sequence[Mapping],
-    baseline: str = "baseline",
-    *,
-    name_key: str = "strategy",
-    columns: Sequence[str] = _DEFAULT_COLUMNS,
-    change_keys: Iterable[str] = _CHANGE_COLUMNS,
-) -> str:
-    """An aligned text table of ``rows``, with a ``d<key> %`` column after each key in ``change_keys``.
-
-    ``rows`` holds one dict per strategy, e.g. the :func:`compute_metrics` output
-    plus ``strategy``; the ``d<key> %`` column is the relative change against
-    the ``baseline`` row (:func:`relative_change_pct`).
-    """
-    change_keys = tuple(k for k in change_keys if k in columns)
-    full = comparison_rows(rows, baseline, name_key=name_key, change_keys=change_keys)
-    header = [name_key]
-    for c in columns:
-        header.append(c)
-        if c in change_keys:
-            header.append(f"d{c} %")
-    body = []
-    for r in full:
-        line = [str(r.get(name_key, ""))]
-        for c in columns:
-            line.append(_cell(r.get(c, math.nan)))
-            if c in change_keys:
-                ch = r[f"{c}_change_pct"]
-                line.append("n/a" if math.isnan(ch) else f"{ch:+.1f}")
-        body.append(line)
-    widths = [max(len(row[i]) for row in [header] + body) for i in range(len(header))]
-
-    def fmt(row):
-        return "  ".join(cell.ljust(w) if i == 0 else cell.rjust(w) for i, (cell, w) in enumerate(zip(row, widths)))
-
-    lines = [fmt(header), "  ".join("-" * w for w in widths)] + [fmt(b) for b in body]
-    return "\n".join(lines)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -13,7 +13,6 @@ Writes ``DIR/results.json`` (``ceco-benchmark/1``, validated before it is writte
 
 from __future__ import annotations
 
-import argparse
 import csv
 import datetime
 import json
@@ -25,6 +24,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from ceco_bringup import cli_args
 from ceco_bringup.sweep import backends
 from ceco_bringup.sweep.cells import code_fingerprint
 
@@ -32,7 +32,7 @@ from . import runner
 from .cases import DEFAULT_CASES, QUICK_CASES, CaseError, list_cases, load_case
 from .schema import BENCHMARK_VERSION, SCHEMA, ResultsError, check_results, validate_results
 
-__all__ = ['run_benchmark', 'ceco_version', 'main']
+__all__ = ['run_benchmark', 'ceco_version', 'build_parser', 'main']
 
 
 def ceco_version() -> str:
@@ -286,23 +286,18 @@ def _missing(cell) -> dict:
     }
 
 
-def main(argv=None) -> int:
-    """CLI of ``ceco benchmark``."""
-    p = argparse.ArgumentParser(
-        prog='ceco benchmark',
-        description=__doc__.split('\n\n')[0],
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+def build_parser() -> cli_args.Parser:
+    """The parser of ``ceco benchmark`` (``ceco benchmark --help``)."""
+    p = cli_args.Parser('ceco benchmark', __doc__.split('\n\n')[0])
     p.add_argument('cases', nargs='*', help=f'case names or case-file paths (default: all bundled: {list_cases()})')
-    p.add_argument('--out', help='output directory (reuse it to resume)')
+    cli_args.add_out(p, 'output directory (reuse it to resume)', required=False)
     p.add_argument(
         '--quick',
         action='store_true',
         help=f'CI smoke test: cases {", ".join(QUICK_CASES)}, seed 0, set-points 24/25/26 degC, no sensitivity',
     )
-    p.add_argument('--workers', type=int, default=None, help=f'parallel workers (default: all cores, {os.cpu_count()})')
-    p.add_argument('--backend', choices=('local', 'ray'), default='local', help='local process pool or Ray')
-    p.add_argument('--address', default=None, help='Ray cluster address (default: a local Ray instance)')
+    cli_args.add_workers(p)
+    cli_args.add_backend(p)
     p.add_argument('--no-sensitivity', action='store_true', help='skip the tornado runs')
     p.add_argument(
         '--controller-cmd',
@@ -313,7 +308,13 @@ def main(argv=None) -> int:
     p.add_argument('--controller-name', default='external', help='name of that controller in the results')
     p.add_argument('--save-runs', action='store_true', help='also write a run directory per run to DIR/runs/')
     p.add_argument('--validate', metavar='FILE', default=None, help='only check FILE against ceco-benchmark/1')
-    p.add_argument('--no-progress', action='store_true', help='no progress bar')
+    cli_args.add_no_progress(p)
+    return p
+
+
+def main(argv=None) -> int:
+    """CLI of ``ceco benchmark``."""
+    p = build_parser()
     args = p.parse_args(argv)
     if args.validate:
         try:
@@ -328,8 +329,6 @@ def main(argv=None) -> int:
         return 1 if errors else 0
     if not args.out:
         p.error('--out is required (unless --validate)')
-    if args.workers is not None and args.workers < 1:
-        p.error(f'--workers: must be >= 1, got {args.workers}')
     if args.address and args.backend != 'ray':
         p.error('--address needs --backend ray')
     cmd = 'ceco benchmark ' + ' '.join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))

@@ -116,11 +116,11 @@ def _headline(doc: Mapping) -> list:
     header = (
         'case',
         'controller',
-        'ΔE at matched comfort [%] (plain)',
-        'ΔD at matched energy [%] (plain)',
+        'E saving at matched comfort [%] (plain)',
+        'D cut at matched energy [%] (plain)',
         'dominated (plain)',
-        'ΔE at matched comfort [%] (allowance)',
-        'ΔD at matched energy [%] (allowance)',
+        'E saving at matched comfort [%] (allowance)',
+        'D cut at matched energy [%] (allowance)',
         'dominated (allowance)',
         'note',
     )
@@ -165,11 +165,11 @@ def _case_blocks(case: Mapping, settings: Mapping, fig_dir: Path) -> list:
         Table(
             (
                 'controller',
-                'ΔE matched comfort, plain [%]',
-                'ΔD matched energy, plain [%]',
+                'E saving matched comfort, plain [%]',
+                'D cut matched energy, plain [%]',
                 'dominated, plain',
-                'ΔE matched comfort, allowance [%]',
-                'ΔD matched energy, allowance [%]',
+                'E saving matched comfort, allowance [%]',
+                'D cut matched energy, allowance [%]',
                 'dominated, allowance',
                 'note',
             ),

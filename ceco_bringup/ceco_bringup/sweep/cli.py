@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import math
@@ -13,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ceco_bringup import cli_args
+
 from . import backends
 from . import cells as cells_mod
 from .backends import append_row, read_done
@@ -20,7 +21,7 @@ from .cells import METRIC_COLUMNS, TIMING_COLUMNS
 from .grid import AXES, GridError, expand_grid, load_grid
 from .summary import _settings_of, _write_parquet, _write_table, point_name, summarize, summary_markdown, vehicle_rows
 
-__all__ = ['run_sweep', 'verify_cells', 'main']
+__all__ = ['run_sweep', 'verify_cells', 'build_parser', 'main']
 
 
 def run_sweep(
@@ -218,6 +219,35 @@ def verify_cells(out_dir: str | os.PathLike, n: int, grid_path: str | os.PathLik
     return out
 
 
+def build_parser() -> cli_args.Parser:
+    """The parser of ``ceco sweep`` (``ceco sweep --help``)."""
+    parser = cli_args.Parser(
+        'ceco sweep',
+        'Run a grid of closed-loop simulations (strategies x scenarios x drive '
+        'cycles x climates x previews x occupants x seeds) in parallel; resumable.',
+    )
+    parser.add_argument('grid', help='grid YAML file (see ceco_bringup/config/sweep_example.yaml)')
+    cli_args.add_out(parser, 'output directory (reuse it to resume)')
+    cli_args.add_backend(parser)
+    cli_args.add_workers(parser)
+    cli_args.add_no_progress(parser)
+    parser.add_argument(
+        '--front-figure',
+        default=None,
+        metavar='PNG',
+        help='afterwards, draw the energy-comfort plane of every group against its baseline '
+        '(ΔE vs ΔI_PMV, whole run and comfort-zone phase) to this PNG',
+    )
+    parser.add_argument(
+        '--verify',
+        type=cli_args.nonnegative_int,
+        default=0,
+        metavar='N',
+        help='afterwards, rerun N finished cells in this process and check the table equals them exactly',
+    )
+    return parser
+
+
 def main(argv=None) -> int:
     """``ceco sweep GRID --out DIR``: run or resume a sweep, print its timing and paths, optionally verify it.
 
@@ -230,42 +260,8 @@ def main(argv=None) -> int:
         when the sweep cannot run (a file or backend error),
         130 when interrupted (finished cells are kept).
     """
-    parser = argparse.ArgumentParser(
-        prog='ceco sweep',
-        description='Run a grid of closed-loop simulations (strategies x scenarios x drive '
-        'cycles x climates x previews x occupants x seeds) in parallel; resumable.',
-    )
-    parser.add_argument('grid', help='grid YAML file (see ceco_bringup/config/sweep_example.yaml)')
-    parser.add_argument('--out', required=True, help='output directory (reuse it to resume)')
-    parser.add_argument(
-        '--backend', choices=('local', 'ray'), default='local', help='local process pool (default) or Ray'
-    )
-    parser.add_argument(
-        '--address',
-        default=None,
-        help='Ray cluster address (e.g. auto or ray://host:10001); default: a local Ray instance',
-    )
-    parser.add_argument(
-        '--workers', type=int, default=None, help=f'parallel workers (default: all cores, {os.cpu_count()} here)'
-    )
-    parser.add_argument('--no-progress', action='store_true', help='no progress bar')
-    parser.add_argument(
-        '--front-figure',
-        default=None,
-        metavar='PNG',
-        help='afterwards, draw the energy-comfort plane of every group against its baseline '
-        '(ΔE vs ΔI_PMV, whole run and comfort-zone phase) to this PNG',
-    )
-    parser.add_argument(
-        '--verify',
-        type=int,
-        default=0,
-        metavar='N',
-        help='afterwards, rerun N finished cells in this process and check the table equals them exactly',
-    )
+    parser = build_parser()
     args = parser.parse_args(argv)
-    if args.workers is not None and args.workers < 1:
-        parser.error(f'--workers: must be >= 1, got {args.workers}')
     if args.address and args.backend != 'ray':
         parser.error('--address needs --backend ray')
     try:

@@ -91,7 +91,8 @@ SUMMARY_KEYS = (
 """Metrics averaged over seeds in the summary."""
 
 CHANGE_KEYS = ('E_tot_kWh', 'I_pmv', 'E_zone_J', 'I_pmv_zone')
-"""Metrics whose change against the baseline [%] the summary gives (``d<key>_pct``)."""
+"""Metrics whose change against the baseline [%] the summary gives (``<key>_change_pct``, signed as
+measured: + = more)."""
 
 
 def _settings_of(row: Mapping) -> str:
@@ -132,7 +133,7 @@ def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]
             row['n_seeds'] = len(by_key[(s, label)])
             row.update({f'{k}_mean': v for k, v in m.items()})
             for k in CHANGE_KEYS:
-                row[f'd{k}_pct'] = relative_change_pct(m[k], base[k]) if base else float('nan')
+                row[f'{k}_change_pct'] = relative_change_pct(m[k], base[k]) if base else float('nan')
             out.append(row)
     return out
 
@@ -144,25 +145,28 @@ def dominance_rows(summary: Sequence[Mapping], baseline: str = 'baseline') -> li
     settings) of a summary: does it use less energy AND have a lower or equal
     I_PMV (a Pareto-dominating point; ``dominates``), over the whole run and
     in the comfort-zone phase (``dominates_zone``)? The changes are the
-    summary's ``dE_tot_kWh_pct, dI_pmv_pct, dE_zone_J_pct, dI_pmv_zone_pct``
+    summary's ``E_tot_kWh_change_pct, I_pmv_change_pct, E_zone_J_change_pct, I_pmv_zone_change_pct``
     (NaN where the group has no baseline: ``dominates`` is then False).
     """
     out = []
     for r in summary:
         if r['strategy'] == baseline and r.get('settings', DEFAULT_SETTINGS) == DEFAULT_SETTINGS:
             continue
-        de, di = float(r['dE_tot_kWh_pct']), float(r['dI_pmv_pct'])
-        dez, diz = float(r.get('dE_zone_J_pct', float('nan'))), float(r.get('dI_pmv_zone_pct', float('nan')))
+        de, di = float(r['E_tot_kWh_change_pct']), float(r['I_pmv_change_pct'])
+        dez, diz = (
+            float(r.get('E_zone_J_change_pct', float('nan'))),
+            float(r.get('I_pmv_zone_change_pct', float('nan'))),
+        )
         out.append(
             {
                 **{a: r[a] for a in GROUP_AXES},
                 'strategy': r['strategy'],
                 'settings': r.get('settings', DEFAULT_SETTINGS),
-                'dE_tot_kWh_pct': de,
-                'dI_pmv_pct': di,
+                'E_tot_kWh_change_pct': de,
+                'I_pmv_change_pct': di,
                 'otc_violation_pct': r['otc_violation_pct_mean'],
-                'dE_zone_J_pct': dez,
-                'dI_pmv_zone_pct': diz,
+                'E_zone_J_change_pct': dez,
+                'I_pmv_zone_change_pct': diz,
                 'otc_violation_zone_pct': r.get('otc_violation_zone_pct_mean', float('nan')),
                 'dominates': bool(de < 0.0 and di <= 0.0),
                 'dominates_zone': bool(dez < 0.0 and diz <= 0.0),
@@ -248,7 +252,8 @@ def summary_markdown(
         f"{timing['speedup']:.2f}x the wall time).",
         '',
         '| scenario | cycle | climate | preview | occupant | strategy | settings | seeds | E_tot [kWh] | '
-        'ΔE [%] | I_PMV [s] | ΔI_PMV [%] | OTC viol. [%] | t_comfort [s] | ΔE zone [%] | ΔI_PMV zone [%] | '
+        'E change [%] | I_PMV [s] | I_PMV change [%] | OTC viol. [%] | t_comfort [s] | E zone change [%] | '
+        'I_PMV zone change [%] | '
         'OTC viol. zone [%] |',
         '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|',
     ]
@@ -266,10 +271,10 @@ def summary_markdown(
             lines.append(
                 f"| {' | '.join(map(str, g))} | {key[0]} | {key[1]} | {r['n_seeds']} | "
                 f"{f(r['E_tot_kWh_mean'], '.4f')} | "
-                f"{f(r['dE_tot_kWh_pct'], '+.1f')} | {f(r['I_pmv_mean'], '.1f')} | "
-                f"{f(r['dI_pmv_pct'], '+.1f')} | {f(r['otc_violation_pct_mean'], '.2f')} | "
-                f"{f(r['time_to_comfort_s_mean'], '.0f')} | {f(r.get('dE_zone_J_pct'), '+.1f')} | "
-                f"{f(r.get('dI_pmv_zone_pct'), '+.1f')} | {f(r.get('otc_violation_zone_pct_mean'), '.2f')} |"
+                f"{f(r['E_tot_kWh_change_pct'], '+.1f')} | {f(r['I_pmv_mean'], '.1f')} | "
+                f"{f(r['I_pmv_change_pct'], '+.1f')} | {f(r['otc_violation_pct_mean'], '.2f')} | "
+                f"{f(r['time_to_comfort_s_mean'], '.0f')} | {f(r.get('E_zone_J_change_pct'), '+.1f')} | "
+                f"{f(r.get('I_pmv_zone_change_pct'), '+.1f')} | {f(r.get('otc_violation_zone_pct_mean'), '.2f')} |"
             )
     dom = dominance_rows(summary)
     if dom:
@@ -297,14 +302,14 @@ def summary_markdown(
             '## Vehicle level (FASTSim 3.1, load-averaged line; see docs/analysis.md)',
             '',
             '| scenario | cycle | climate | preview | occupant | vehicle | strategy | P_A/C [W] | '
-            'Δ vehicle energy [%] | noise 1σ [%] | paper, SC03 [%] | range lost [km] |',
+            'vehicle energy change [%] | noise 1σ [%] | paper change, SC03 [%] | range lost [km] |',
             '|---|---|---|---|---|---|---|---|---|---|---|---|',
         ]
         for r in vehicle:
             lines.append(
                 f"| {' | '.join(str(r[a]) for a in GROUP_AXES)} | {r['vehicle']} | {r['strategy']} | "
-                f"{f(r['p_ac_mean_w'], '.0f')} | {f(r['saving_fit_pct'], '+.2f')} | "
-                f"{f(r['noise_pct'], '.2f')} | {f(r['paper_saving_pct'], '+.1f')} | "
+                f"{f(r['p_ac_mean_w'], '.0f')} | {f(r['change_fit_pct'], '+.2f')} | "
+                f"{f(r['noise_pct'], '.2f')} | {f(r['paper_change_pct'], '+.1f')} | "
                 f"{f(r['range_lost_km'], '.1f')} |"
             )
     return '\n'.join(lines) + '\n'

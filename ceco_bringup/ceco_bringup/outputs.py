@@ -1,0 +1,274 @@
+"""What ``ceco run`` and ``ceco sim`` print and keep: run lines, the comparison table, the verdict.
+
+One vocabulary in every output (docs/metrics.md, "Signs and units"):
+
+* energy ``E`` = compressor + blower + condenser fan, always in kWh (the parts beside it);
+* ``change`` = signed as measured against the baseline run (+ = more); ``saving`` = energy saved
+  (+ = less energy), here at matched comfort against the baseline family (``verdict``);
+* discomfort ``D`` = PMV-hours outside -0.5..+0.5 with PMV clipped at +-3;
+* a number outside a model's validity says so where it is printed (PMV beyond the +-3 scale,
+  the share of samples outside ISO 7730, the draught rating in the vent jets).
+
+The console table fits in :data:`CONSOLE_WIDTH` characters; the full table (every column, with
+a legend) goes to ``DIR/comparison.txt`` and ``DIR/comparison.csv``, the verdict to
+``DIR/verdict.json``, and everything printed to ``DIR/summary.txt``.
+
+Pure Python; the simulator runs only for the baseline family (:func:`finish_job`).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+from ceco_bringup import verdict as vd
+from ceco_core.metrics import ENERGY_PARTS, J_PER_KWH, PMV_SCALE_LIMIT, relative_change_pct
+
+__all__ = [
+    'CONSOLE_WIDTH',
+    'run_line',
+    'pmv_scale_cell',
+    'table_rows',
+    'console_table',
+    'full_table',
+    'write_comparison_csv',
+    'finish_job',
+]
+
+CONSOLE_WIDTH = 100
+"""Widest console line of a table or the verdict [characters]."""
+
+CONSOLE_LEGEND = (
+    f'E: energy, {ENERGY_PARTS}. E change: against the baseline run, as measured',
+    '(+ = more). D: discomfort, PMV-hours outside -0.5..+0.5 (PMV clipped at +-3). saving: energy',
+    'saved at matched comfort against the baseline family (+ = less energy; n/a outside its range).',
+    "viol.: time outside the scenario's PMV bounds. t_comf: first time PMV stays in -0.5..+0.5 for",
+    '60 s (n/a: never). PMV max on the +-3 scale (">3": clipped); ISO out: samples outside ISO 7730.',
+)
+
+FULL_COLUMNS = (
+    ('strategy', 'strategy', 's'),
+    ('energy_kwh', 'E [kWh]', '.4f'),
+    ('energy_comp_kwh', 'E comp [kWh]', '.4f'),
+    ('energy_blower_kwh', 'E blower [kWh]', '.4f'),
+    ('energy_fan_kwh', 'E fan [kWh]', '.4f'),
+    ('energy_change_pct', 'E change [%]', '+.1f'),
+    ('energy_saving_matched_pct', 'E saving matched [%]', '+.1f'),
+    ('dominated', 'dominated', 's'),
+    ('discomfort_pmvh', 'D [PMV h]', '.4f'),
+    ('discomfort_change_pct', 'D change [%]', '+.1f'),
+    ('discomfort_band_pmvh', 'D band [PMV h]', '.4f'),
+    ('i_pmv', 'I_PMV [s]', '.1f'),
+    ('i_pmv_clipped', 'I_PMV clipped [s]', '.1f'),
+    ('otc_violation_pct', 'viol. [%]', '.1f'),
+    ('time_to_comfort_s', 't_comf [s]', '.0f'),
+    ('pmv_mean_band', 'PMV mean band', '+.3f'),
+    ('pmv_max', 'PMV max (raw)', '+.2f'),
+    ('iso7730_invalid_pct', 'ISO out [%]', '.1f'),
+    ('draught_pct', 'DR>20% [%]', '.1f'),
+    ('draught_mean_pct', 'DR mean [%]', '.1f'),
+    ('fog_margin_min_k', 'fog margin min [K]', '.1f'),
+    ('fallback_steps', 'fallbacks', '.0f'),
+    ('solve_time_median_ms', 'solve med. [ms]', '.1f'),
+    ('solve_time_max_ms', 'solve max [ms]', '.1f'),
+)
+"""(key, header with unit, format) of the full table (``comparison.txt`` and ``comparison.csv``)."""
+
+FULL_LEGEND = (
+    f'E: A/C electrical energy, {ENERGY_PARTS} (the paper counts compressor + blower; add the',
+    '  comp and blower columns for its number). E change / D change: against the baseline run, as',
+    '  measured (+ = more). E saving matched: energy saved at the discomfort of the run against the',
+    '  production law at several set-points (+ = less energy; empty outside the family; dominated:',
+    '  a set-point is at least as good on both axes). docs/benchmark.md, "Matched comfort".',
+    'D: discomfort, integral of the PMV distance outside -0.5..+0.5 (ISO 7730 category B) with PMV',
+    '  clipped at +-3, whole run; D band: from the time the bounds reach the band. I_PMV: the paper\'s',
+    '  integral of PMV^2 (raw, and clipped at +-3: beyond +-3 PMV is no vote).',
+    'PMV max (raw): PMV beyond +-3 is off ISO 7730\'s scale; ISO out: share of samples whose PMV or',
+    '  its inputs lie outside ISO 7730 Clause 4 (the hot pull-down); comfort numbers there are',
+    '  extrapolations.',
+    'DR>20%: share of time the ISO 7730 draught rating at the occupant exceeds 20 % (category B).',
+    '  With the vents aimed at the occupant the jet (over 1 m/s at any admissible flow) is outside',
+    '  the draught model\'s range (< 0.5 m/s): 100 % there is a statement about the jet, not a vote',
+    '  (docs/comfort.md, "Draught").',
+    'fog margin: inner glazing minus cabin dew point (< 0: the windscreen fogs).',
+)
+
+
+def _fmt(x, spec: str) -> str:
+    if x is None:
+        return 'n/a'
+    if isinstance(x, bool):
+        return 'yes' if x else 'no'
+    if isinstance(x, str):
+        return x
+    x = float(x)
+    if not math.isfinite(x):
+        return 'n/a'
+    return format(x, spec)
+
+
+def run_line(m: Mapping, run_dir: Path | str) -> str:
+    """One finished run on one line: energy [kWh] and its parts, discomfort, violation, wall time."""
+    parts = (m['E_comp_J'] / J_PER_KWH, m['E_blower_J'] / J_PER_KWH, m['E_fan_J'] / J_PER_KWH)
+    text = (
+        f"{m['strategy']:>10}: E {m['E_tot_J'] / J_PER_KWH:.4f} kWh (comp {parts[0]:.4f}, blower "
+        f"{parts[1]:.4f}, fan {parts[2]:.4f}), viol. {m['otc_violation_pct']:.1f} %"
+    )
+    if 'wall_time_s' in m:
+        text += f", wall {m['wall_time_s']:.1f} s"
+    return text + f' -> {run_dir}'
+
+
+def table_rows(metrics: Mapping[str, Mapping], kpis: Mapping[str, Mapping], v: vd.Verdict | None = None) -> list[dict]:
+    """One flat row per strategy (job order): the metrics, the KPIs and the verdict's numbers."""
+    rows = []
+    base = kpis.get('baseline')
+    for name, k in kpis.items():
+        m = metrics.get(name, {})
+        r = {
+            'strategy': name,
+            **{key: k.get(key) for key, _, _ in FULL_COLUMNS if key in k},
+            'pmv_max': m.get('pmv_max'),
+            'solve_time_median_ms': m.get('solve_time_median_ms'),
+            'solve_time_max_ms': m.get('solve_time_max_ms'),
+        }
+        if base is not None:
+            r['energy_change_pct'] = relative_change_pct(k['energy_kwh'], base['energy_kwh'])
+            r['discomfort_change_pct'] = relative_change_pct(k['discomfort_pmvh'], base['discomfort_pmvh'])
+        mt = (v.matched.get(name) if v is not None else None) or {}
+        r['energy_saving_matched_pct'] = mt.get('energy_saving_pct')
+        r['dominated'] = mt.get('dominated') if mt else None
+        rows.append(r)
+    return rows
+
+
+def pmv_scale_cell(x) -> str:
+    """A PMV as printed: ``>3`` / ``<-3`` beyond ISO 7730's seven-point scale (clipped: no vote there)."""
+    if x is None or not math.isfinite(float(x)):
+        return 'n/a'
+    if x > PMV_SCALE_LIMIT:
+        return '>3'
+    if x < -PMV_SCALE_LIMIT:
+        return '<-3'
+    return f'{x:+.2f}'
+
+
+def _aligned(header: Sequence[str], body: Sequence[Sequence[str]]) -> list[str]:
+    widths = [max(len(r[i]) for r in [header, *body]) for i in range(len(header))]
+
+    def fmt(row):
+        return '  '.join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(row, widths)))
+
+    return [fmt(header), '  '.join('-' * w for w in widths), *(fmt(r) for r in body)]
+
+
+def console_table(rows: Sequence[Mapping]) -> str:
+    """The comparison a person reads, the legend under it.
+
+    At most :data:`CONSOLE_WIDTH` characters wide, one unit per quantity.
+    """
+    header = (
+        'strategy',
+        'E [kWh]',
+        'E change [%]',
+        'D [PMV h]',
+        'saving [%]',
+        'viol. [%]',
+        't_comf [s]',
+        'PMV max',
+        'ISO out [%]',
+    )
+    body = [
+        (
+            r['strategy'],
+            _fmt(r.get('energy_kwh'), '.3f'),
+            _fmt(r.get('energy_change_pct'), '+.1f'),
+            _fmt(r.get('discomfort_pmvh'), '.3f'),
+            _fmt(r.get('energy_saving_matched_pct'), '+.1f'),
+            _fmt(r.get('otc_violation_pct'), '.1f'),
+            _fmt(r.get('time_to_comfort_s'), '.0f'),
+            pmv_scale_cell(r.get('pmv_max')),
+            _fmt(r.get('iso7730_invalid_pct'), '.1f'),
+        )
+        for r in rows
+    ]
+    return '\n'.join([*_aligned(header, body), *CONSOLE_LEGEND])
+
+
+def full_table(rows: Sequence[Mapping]) -> str:
+    """Every column of :data:`FULL_COLUMNS`, aligned, with its legend (``comparison.txt``)."""
+    header = [h for _, h, _ in FULL_COLUMNS]
+    body = [[_fmt(r.get(k), f) for k, _, f in FULL_COLUMNS] for r in rows]
+    return '\n'.join([*_aligned(header, body), '', *FULL_LEGEND])
+
+
+def write_comparison_csv(path: str | Path, rows: Sequence[Mapping]) -> None:
+    """``comparison.csv``: the full table's columns by key (empty cell = not defined)."""
+    keys = [k for k, _, _ in FULL_COLUMNS]
+    with open(path, 'w', newline='', encoding='utf-8') as fh:
+        w = csv.writer(fh)
+        w.writerow(keys)
+        for r in rows:
+            cells = []
+            for k in keys:
+                x = r.get(k)
+                ok = x is not None and not (isinstance(x, float) and not math.isfinite(x))
+                cells.append(repr(float(x)) if ok and isinstance(x, float) else ('' if not ok else str(x)))
+            w.writerow(cells)
+
+
+def finish_job(
+    out: Path,
+    scenario,
+    metrics: Mapping[str, Mapping],
+    columns: Mapping[str, Mapping],
+    *,
+    header: str,
+    family_setpoints_c: Sequence[float] = vd.FAMILY_SETPOINTS_C,
+    duration_s: float | None = None,
+    control_period_s: float | None = None,
+    partial: Mapping[str, str] | None = None,
+    progress: bool = True,
+    echo: Callable[[str], None] = print,
+) -> vd.Verdict:
+    """The end of a job: the baseline family, the table, the verdict; printed and written to ``out``.
+
+    ``metrics``/``columns``: {strategy: metrics.json dict / timeseries columns} of the job's runs.
+    With an empty ``family_setpoints_c`` the family is not run and the verdict points at
+    ``ceco benchmark``. Writes ``out/comparison.txt``, ``comparison.csv``, ``verdict.json`` and
+    ``summary.txt`` (everything printed here); returns the verdict.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    kpis = {}
+    from ceco_core.kpis import compute_kpis
+
+    for name, cols in columns.items():
+        kpis[name], _ = compute_kpis(cols, fallback_steps=metrics.get(name, {}).get('fallback_steps'))
+    points = {name: vd.run_point(cols) for name, cols in columns.items()}
+    family = {}
+    if family_setpoints_c:
+        family = vd.run_family(
+            scenario,
+            duration_s=duration_s,
+            control_period_s=control_period_s,
+            setpoints_c=family_setpoints_c,
+            progress=progress,
+        )
+    v = vd.build_verdict(scenario.name, points, family, partial=partial)
+    rows = table_rows(metrics, kpis, v)
+    pointer = f'run `ceco benchmark` or `ceco run --scenario {scenario.name} --strategy all` for it'
+    text = '\n'.join(
+        [header, console_table(rows), '', *vd.verdict_lines(v, pointer=pointer), f'Full table: {out}/comparison.txt']
+    )
+    echo('')
+    echo(text)
+    (out / 'comparison.txt').write_text(header + '\n' + full_table(rows) + '\n', encoding='utf-8')
+    write_comparison_csv(out / 'comparison.csv', rows)
+    vd.write_verdict(out / 'verdict.json', v)
+    (out / 'summary.txt').write_text(text + '\n', encoding='utf-8')
+    sys.stdout.flush()
+    return v

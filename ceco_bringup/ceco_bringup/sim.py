@@ -1,0 +1,141 @@
+"""``ceco sim``: the closed loop in-process (no ROS), one run directory per strategy, then the verdict.
+
+    ceco sim --scenario sc03 --strategy all --out runs/sim
+    ceco sim --scenario my.yaml --strategy baseline,ceco-c --duration-s 300 --out runs/mine
+
+The verb parses the shared flags (``ceco_bringup.cli_args``) and calls the pure API,
+``ceco_controller.closed_loop.simulate`` and ``write_run``; each run directory also keeps the
+scenario file, the command line and the code fingerprint (``ceco_bringup.provenance``). After the
+runs it prints the comparison table and the verdict, with the saving at matched comfort against
+the production law at several set-points (``ceco_bringup.outputs``).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ceco_bringup import cli_args, outputs, provenance
+
+__all__ = ['build_parser', 'main']
+
+
+def build_parser() -> cli_args.Parser:
+    """The ``ceco sim`` parser (``ceco sim --help``)."""
+    from ceco_core.contracts import MEASUREMENT_MODES
+
+    p = cli_args.Parser('ceco sim', __doc__.split('\n\n')[0] + '\n\n' + __doc__.split('\n\n')[1])
+    cli_args.add_scenario(p)
+    cli_args.add_strategy(p, 'all')
+    cli_args.add_out(p, 'output directory: one run directory per strategy, and the job\'s tables')
+    cli_args.add_preview(p)
+    cli_args.add_control_period(p)
+    cli_args.add_horizon(p)
+    cli_args.add_duration(p)
+    cli_args.add_seed(p)
+    p.add_argument('--model-params', default=None, help='identified model parameter file (default: the bundled one)')
+    p.add_argument(
+        '--controller-config', default=None, help='controller settings file (default: the bundled controller.yaml)'
+    )
+    p.add_argument(
+        '--measurements',
+        choices=MEASUREMENT_MODES,
+        default='full',
+        help='full: the controller reads every modelled state; vehicle: production sensors only, '
+        'interior/shell temperatures estimated',
+    )
+    p.add_argument(
+        '--set',
+        action='append',
+        default=[],
+        metavar='FIELD=VALUE',
+        help='override a strategy setting (StrategySettings field), e.g. pmv_pa_source=measured; repeatable',
+    )
+    cli_args.add_baseline_setpoints(p, outputs.vd.FAMILY_SETPOINTS_C)
+    cli_args.add_no_progress(p)
+    return p
+
+
+def _overrides(items) -> tuple:
+    out = []
+    for item in items:
+        key, sep, value = item.partition('=')
+        if not sep or not key:
+            raise ValueError(f'--set: expected FIELD=VALUE, got {item!r}')
+        try:
+            out.append((key, float(value)))
+        except ValueError:
+            out.append((key, value))
+    return tuple(out)
+
+
+def main(argv=None) -> int:
+    """``ceco sim``: 0 when every run finished, 2 for a user error (one line, no traceback)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from ceco_controller.closed_loop import SimSettings, simulate, write_run
+    from ceco_v2x_preview.preview import parse_quality
+    from ceco_v2x_preview.scenario import load_scenario
+
+    try:
+        scenario = load_scenario(args.scenario)
+        quality = parse_quality(args.preview)
+        cli_args.check_duration(args.duration_s, scenario)
+        settings = SimSettings(
+            control_period_s=args.control_period_s,
+            horizon_steps=args.horizon_steps,
+            preview_quality=quality,
+            seed=args.seed,
+            duration_s=args.duration_s,
+            progress=not args.no_progress,
+            model_params_path=args.model_params,
+            controller_config_path=args.controller_config,
+            strategy_overrides=_overrides(args.set),
+            measurements=args.measurements,
+        )
+        settings.validate()
+    except (ValueError, OSError) as exc:
+        parser.error(str(exc))
+    out = Path(args.out)
+    metrics, columns = {}, {}
+    for s in args.strategy:
+        run_dir = out / s
+        provenance.start_run(run_dir, 'sim', argv, args.scenario)
+        try:
+            res = simulate(scenario, s, settings)
+        except (ValueError, OSError) as exc:  # a --set field the strategy lacks, a missing or unfit model file
+            provenance.finish_run(run_dir, 'failed', str(exc))
+            print(f'ceco sim: error: {s}: {exc}', file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            provenance.finish_run(run_dir, 'interrupted')
+            print('ceco sim: interrupted; the finished strategies are kept', file=sys.stderr)
+            return 130
+        write_run(res, run_dir)
+        provenance.finish_run(run_dir, 'complete')
+        metrics[s], columns[s] = res.metrics, res.timeseries
+        line = outputs.run_line(res.metrics, run_dir)
+        (run_dir / 'summary.txt').write_text(line + '\n', encoding='utf-8')
+        print(line, flush=True)
+    ts = settings.control_period_s or scenario.control.control_period_s
+    n_p = settings.horizon_steps or scenario.control.horizon_steps
+    header = f'scenario {scenario.name}, in-process, Ts {ts:g} s, Np {n_p}, preview {quality.describe()}' + (
+        ', measurements vehicle' if settings.measurements == 'vehicle' else ''
+    )
+    outputs.finish_job(
+        out,
+        scenario,
+        metrics,
+        columns,
+        header=header,
+        family_setpoints_c=args.baseline_setpoints_c,
+        duration_s=settings.duration_s,
+        control_period_s=settings.control_period_s,
+        progress=not args.no_progress,
+    )
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

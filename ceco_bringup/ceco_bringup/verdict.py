@@ -1,0 +1,327 @@
+"""The verdict of a job: energy and comfort of each strategy, and the saving at matched comfort.
+
+Which strategy used how much energy at what comfort, whether the baseline reached the comfort
+band, and the energy saved at matched comfort against a family of baseline set-points.
+
+A comparison against the one baseline run (the production law at 26 degC) compares at different
+comfort: on SC03 that baseline never reaches the comfort band, every CECO strategy does, so "+10 %
+energy" says little. The fair number is the saving at matched comfort (docs/benchmark.md,
+"Matched comfort"): the production law at a few set-points traces a front in the
+discomfort-energy plane, and each strategy is read against the front at its own discomfort.
+
+* :func:`run_point`: a run's point in the plane and what the verdict says about it, from its
+  ``timeseries.csv`` columns (``ceco_core.kpis.compute_kpis``: energy ``energy_kwh`` =
+  compressor + blower + condenser fan [kWh], discomfort ``discomfort_pmvh`` = PMV-hours outside
+  ISO 7730 category B, -0.5..+0.5, PMV clipped at +-3 [PMV h]);
+* :func:`run_family`: the production law at :data:`FAMILY_SETPOINTS_C` with the in-process
+  simulator (``closed_loop.simulate``; the same plant and scenario as a DDS run, which equals it:
+  ``python -m ceco_bringup.compare_sim``);
+* :func:`build_verdict` / :func:`verdict_lines`: the numbers and the words;
+  :func:`write_verdict` / :func:`read_verdict`: ``verdict.json``.
+
+Signs: ``energy_saving_pct`` positive = less energy than the front at the same discomfort;
+``energy_change_pct`` / ``discomfort_change_pct`` = signed change against the baseline run as
+measured (positive = more).
+
+Pure Python + numpy (the simulator only in :func:`run_family`); no ROS import.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ceco_core.metrics import ENERGY_PARTS, relative_change_pct
+
+__all__ = [
+    'FAMILY_SETPOINTS_C',
+    'DISCOMFORT_KEY',
+    'ENERGY_KEY',
+    'VERDICT_SCHEMA',
+    'run_point',
+    'run_family',
+    'matched',
+    'Verdict',
+    'build_verdict',
+    'verdict_lines',
+    'write_verdict',
+    'read_verdict',
+]
+
+FAMILY_SETPOINTS_C = (24.0, 24.5, 25.0, 25.5, 26.0, 26.5, 27.0)
+"""Cabin set-points of the baseline family run with every job [degC]: the production law's 26 degC
+(the paper's baseline) and 0.5-K steps around it, more of them colder because the CECO strategies
+hold the cabin cooler than 26 degC does. 0.5 K as the benchmark's grid: on SC03 the front through
+1-K steps missed the set-points between them by up to 2.4 % of energy, through 0.5-K steps by up to
+0.56 % (:data:`RESOLUTION_PCT`). ``ceco benchmark`` runs 22-29 degC and the allowance variants
+(docs/benchmark.md)."""
+
+RESOLUTION_PCT = 1.0
+"""Savings at matched comfort smaller than this are reported as "the same energy" [%]: the front is
+linear between set-points 0.5 K apart, and on SC03 the production law at the set-points between
+them (24.75-26.75 degC) lay up to 0.56 % below it."""
+
+DISCOMFORT_KEY = 'discomfort_pmvh'
+"""The discomfort axis of the plane (a ``compute_kpis`` key) [PMV h]."""
+
+ENERGY_KEY = 'energy_kwh'
+"""The energy axis of the plane (a ``compute_kpis`` key) [kWh]."""
+
+VERDICT_SCHEMA = 'ceco-verdict/1'
+"""The ``schema`` of ``verdict.json``."""
+
+END_WINDOW_S = 60.0
+"""Length of the end of a run whose mean PMV the verdict quotes [s]."""
+
+POINT_KEYS = (
+    'energy_kwh',
+    'energy_comp_kwh',
+    'energy_blower_kwh',
+    'energy_fan_kwh',
+    'discomfort_pmvh',
+    'time_to_comfort_s',
+    'i_pmv_clipped',
+    'otc_violation_pct',
+    'iso7730_invalid_pct',
+)
+
+
+def run_point(columns: Mapping) -> dict:
+    """A run's point in the plane and what the verdict says about it.
+
+    :data:`POINT_KEYS` of ``compute_kpis`` plus ``pmv_end`` (mean PMV over the last
+    :data:`END_WINDOW_S`), ``pmv_max_clipped`` (max PMV on the +-3 scale) and ``duration_s``.
+    """
+    from ceco_core.kpis import compute_kpis
+    from ceco_core.metrics import PMV_SCALE_LIMIT
+
+    k, _ = compute_kpis(columns)
+    t = np.asarray(columns['t_s'], dtype=float)
+    y = np.asarray(columns['pmv'], dtype=float)
+    end = t >= t[-1] - END_WINDOW_S + 1e-9
+    out = {key: k[key] for key in POINT_KEYS}
+    out['pmv_end'] = float(np.mean(y[end]))
+    out['pmv_max_clipped'] = float(min(np.max(y), PMV_SCALE_LIMIT))
+    out['duration_s'] = float(k['duration_s'])
+    return out
+
+
+def run_family(
+    scenario,
+    *,
+    duration_s: float | None = None,
+    control_period_s: float | None = None,
+    setpoints_c: Sequence[float] = FAMILY_SETPOINTS_C,
+    progress: bool = True,
+) -> dict[str, dict]:
+    """The production law at each set-point on ``scenario``, in-process: ``{'baseline@24.0': point}``.
+
+    ``scenario`` is a Scenario or a bundled name / YAML path; ``duration_s`` and ``control_period_s``
+    as the job's (None: the scenario's).
+    """
+    from ceco_controller.closed_loop import SimSettings, simulate
+
+    items = [float(x) for x in setpoints_c]
+    if progress:
+        from tqdm import tqdm
+
+        items = tqdm(items, desc='baseline family (in-process)', unit='set-point', leave=False)
+    out = {}
+    for sp in items:
+        settings = SimSettings(
+            control_period_s=control_period_s,
+            duration_s=duration_s,
+            progress=False,
+            strategy_overrides=(('setpoint_c', sp),),
+        )
+        out[f'baseline@{sp:.1f}'] = run_point(simulate(scenario, 'baseline', settings).timeseries)
+    return out
+
+
+def matched(family: Mapping[str, Mapping], point: Mapping) -> dict:
+    """Where ``point`` lies against the family's front: ``front.Matched.as_dict()``.
+
+    Energy saved at matched comfort [%], discomfort cut at matched energy [%], dominated, note.
+    """
+    from ceco_bringup.benchmark import front
+
+    f = front.build_front({n: (p[DISCOMFORT_KEY], p[ENERGY_KEY]) for n, p in family.items()})
+    return front.match(f, point[DISCOMFORT_KEY], point[ENERGY_KEY]).as_dict()
+
+
+@dataclasses.dataclass
+class Verdict:
+    """The numbers behind the verdict lines (and ``verdict.json``)."""
+
+    scenario: str
+    """Scenario name."""
+    duration_s: float
+    """Run length [s]."""
+    points: dict
+    """{strategy: run_point(...)} of the job's runs, in the job's order."""
+    baseline: str | None = None
+    """The job's baseline run (``baseline``), None when the job ran none."""
+    family: dict = dataclasses.field(default_factory=dict)
+    """{'baseline@S': run_point(...)} of the family; empty when not computed."""
+    family_source: str = ''
+    """How the family was run (e.g. 'in-process simulator')."""
+    family_file: str = ''
+    """The ``verdict.json`` the family was read from ('' when it was run for this verdict)."""
+    partial: dict = dataclasses.field(default_factory=dict)
+    """{strategy: 'why'} of runs that did not finish (shown, never matched)."""
+    matched: dict = dataclasses.field(default_factory=dict)
+    """{strategy: matched(...)} for every complete run (with a family)."""
+    changes: dict = dataclasses.field(default_factory=dict)
+    """{strategy: {'energy_change_pct', 'discomfort_change_pct'}} against the baseline run."""
+
+    def as_dict(self) -> dict:
+        """Plain data for ``verdict.json``."""
+        return {'schema': VERDICT_SCHEMA, 'energy': ENERGY_PARTS, **dataclasses.asdict(self)}
+
+
+def build_verdict(
+    scenario: str,
+    points: Mapping[str, Mapping],
+    family: Mapping[str, Mapping] | None = None,
+    *,
+    family_source: str = 'in-process simulator',
+    family_file: str = '',
+    partial: Mapping[str, str] | None = None,
+) -> Verdict:
+    """The verdict of a job's runs (``points``: {strategy: run_point}) against a family (or none)."""
+    partial = dict(partial or {})
+    base = 'baseline' if 'baseline' in points else None
+    v = Verdict(
+        scenario=scenario,
+        duration_s=max((float(p['duration_s']) for p in points.values()), default=0.0),
+        points={k: dict(p) for k, p in points.items()},
+        baseline=base,
+        family={k: dict(p) for k, p in (family or {}).items()},
+        family_source=family_source if family else '',
+        family_file=family_file if family else '',
+        partial=partial,
+    )
+    for name, p in points.items():
+        if name in partial:
+            continue
+        if v.family:
+            v.matched[name] = matched(v.family, p)
+        if base is not None and name != base and base not in partial:
+            b = points[base]
+            v.changes[name] = {
+                'energy_change_pct': relative_change_pct(p[ENERGY_KEY], b[ENERGY_KEY]),
+                'discomfort_change_pct': relative_change_pct(p[DISCOMFORT_KEY], b[DISCOMFORT_KEY]),
+            }
+    return v
+
+
+def _pct(x) -> str:
+    return 'n/a' if x is None or (isinstance(x, float) and not math.isfinite(x)) else f'{abs(x):.1f} %'
+
+
+def _matched_words(m: Mapping, is_baseline: bool = False) -> str:
+    s = m.get('energy_saving_pct')
+    if is_baseline and s is not None:
+        return f'on the front ({s:+.2f} % against it: the family holds this same law)'
+    if s is None:
+        note = m.get('note', '')
+        if 'more comfortable' in note:
+            return 'more comfortable than every set-point: no matched value (ceco benchmark has colder ones)'
+        if 'less comfortable' in note:
+            return 'less comfortable than every set-point: no matched value'
+        return f'no matched value ({note or "the front is degenerate"})'
+    if abs(s) < RESOLUTION_PCT:
+        words = f'same energy as the set-point family at matched comfort ({s:+.1f} %, under {RESOLUTION_PCT:g} %)'
+    elif s >= 0:
+        words = f'saves {_pct(s)} energy at matched comfort'
+    else:
+        words = f'uses {_pct(s)} more energy at matched comfort'
+    return words + (' (dominated by a set-point)' if m.get('dominated') and abs(s) >= RESOLUTION_PCT else '')
+
+
+def _band_words(p: Mapping) -> str:
+    if p.get('time_to_comfort_s') is None or not math.isfinite(float(p['time_to_comfort_s'])):
+        return f"never stayed in -0.5..+0.5 (PMV {p['pmv_end']:+.2f} over the last minute)"
+    return f"in -0.5..+0.5 from {p['time_to_comfort_s']:.0f} s on (PMV {p['pmv_end']:+.2f} at the end)"
+
+
+def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
+    """The verdict in words, each line at most 100 characters.
+
+    ``pointer``: the command that computes the matched-comfort saving, said when ``v`` has no family.
+    """
+    lines = [
+        f'Verdict on {v.scenario} ({v.duration_s:.0f} s). Energy = {ENERGY_PARTS} [kWh];',
+        '  discomfort = PMV-hours outside -0.5..+0.5, PMV clipped at +-3 [PMV h].',
+    ]
+    width = max([len(n) for n in v.points] + [8])
+    for name, p in v.points.items():
+        head = f'  {name:<{width}} {p[ENERGY_KEY]:.3f} kWh, {p[DISCOMFORT_KEY]:.3f} PMV h: '
+        if name in v.partial:
+            lines.append(head + f'partial run ({v.partial[name]}): not compared')
+            continue
+        lines.append(head + _band_words(p))
+        if name in v.matched:
+            lines.append(f"  {'':<{width}} {_matched_words(v.matched[name], name == v.baseline)}")
+    if v.family:
+        sps = sorted(float(n.split('@')[1]) for n in v.family)
+        lines.append(
+            f'Matched comfort: against the production law at {sps[0]:g}-{sps[-1]:g} degC '
+            f'({len(sps)} runs, {v.family_source}).'
+        )
+        if v.family_file:
+            lines.append(f'  (kept in {v.family_file})')
+        scored = {n: m for n, m in v.matched.items() if n != v.baseline and m.get('energy_saving_pct') is not None}
+        if scored:
+            best = max(scored, key=lambda n: scored[n]['energy_saving_pct'])
+            s = scored[best]['energy_saving_pct']
+            if s >= RESOLUTION_PCT:
+                lines.append(f'Headline: {best} saves the most energy at matched comfort, {_pct(s)}.')
+            else:
+                lines.append(
+                    f'Headline: no strategy saves {RESOLUTION_PCT:g} % or more at matched comfort '
+                    f'(best: {best}, {s:+.1f} %).'
+                )
+    else:
+        lines.append('Matched comfort: not computed for these runs' + (f'; {pointer}' if pointer else '.'))
+    if v.changes:
+        de = [c['energy_change_pct'] for c in v.changes.values() if math.isfinite(c['energy_change_pct'])]
+        dd = [c['discomfort_change_pct'] for c in v.changes.values() if math.isfinite(c['discomfort_change_pct'])]
+        if de and dd:
+
+            def span(xs):
+                return f'{xs[0]:+.1f} %' if len(xs) == 1 else f'{min(xs):+.1f}..{max(xs):+.1f} %'
+
+            lines.append(f'Against the {v.baseline} run alone the energy changes by {span(de)} and the discomfort')
+            lines.append(f'  by {span(dd)} (+ = more): a comparison at different comfort, not a saving.')
+    return lines
+
+
+def write_verdict(path: str | Path, v: Verdict) -> Path:
+    """``verdict.json`` (non-finite numbers as null)."""
+
+    def clean(x):
+        if isinstance(x, float) and not math.isfinite(x):
+            return None
+        if isinstance(x, dict):
+            return {k: clean(y) for k, y in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [clean(y) for y in x]
+        return x
+
+    p = Path(path)
+    p.write_text(json.dumps(clean(v.as_dict()), indent=1) + '\n', encoding='utf-8')
+    return p
+
+
+def read_verdict(path: str | Path) -> dict:
+    """``verdict.json`` as a dict; ValueError when it is not a ``ceco-verdict/1`` file."""
+    data = json.loads(Path(path).read_text(encoding='utf-8'))
+    if not isinstance(data, dict) or data.get('schema') != VERDICT_SCHEMA:
+        raise ValueError(f'{path}: not a {VERDICT_SCHEMA} file')
+    return data

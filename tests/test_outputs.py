@@ -1,0 +1,400 @@
+"""What a newcomer reads (issue 18, issue 17 items 7-8): the verdict with the saving at matched
+comfort, one energy definition and one sign convention, console tables of at most 100 characters
+with one unit per quantity, the same flags with their defaults in every verb, one-line user errors
+with exit status 2, run directories that keep what made them, `ceco identify` never over a tracked
+file. Pure and in-process (the simulator); the DDS side is in test_stack.py."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import yaml
+
+from ceco_bringup import cli, cli_args, outputs, play, provenance, sim
+from ceco_bringup import verdict as vd
+from ceco_bringup.benchmark import front
+from ceco_controller.closed_loop import SimSettings, simulate
+from ceco_core.kpis import compute_kpis
+from ceco_core.metrics import J_PER_KWH
+
+SHORT_S = 60.0
+
+
+def _point(d, e, **kw):
+    p = dict(energy_kwh=e, discomfort_pmvh=d, time_to_comfort_s=None, pmv_end=0.6, duration_s=600.0)
+    p.update(kw)
+    return p
+
+
+FAMILY = {  # a convex front: 24 degC (cold, costly) .. 27 degC (warm, cheap)
+    'baseline@24.0': _point(0.10, 0.44),
+    'baseline@25.0': _point(0.11, 0.40),
+    'baseline@26.0': _point(0.13, 0.37),
+    'baseline@27.0': _point(0.17, 0.34),
+}
+
+
+# ---------------------------------------------------------------------------------------- verdict
+def test_verdict_states_the_saving_at_matched_comfort_in_words():
+    """The verdict reads each strategy against the family's front at its own discomfort: a point
+    below the front saves (positive), one above it uses more (and is dominated), one more
+    comfortable than every set-point gets no number but the reason; the baseline that never
+    reached the band says so; a partial run is shown, never matched; the headline names the best."""
+    points = {
+        'baseline': _point(0.13, 0.37),  # on the front: the family's 26 degC member
+        'ceco': _point(0.11, 0.38),  # front at D = 0.11: 0.40 -> saves 5.0 %
+        'ceco-e': _point(0.12, 0.40),  # front at 0.12: 0.385 -> uses 3.9 % more, dominated
+        'ceco-c': _point(0.09, 0.45, time_to_comfort_s=300.0, pmv_end=0.1),  # left of the front
+        'ceco-ioch': _point(0.12, 0.36),
+    }
+    v = vd.build_verdict('sc03', points, FAMILY, partial={'ceco-ioch': 'interrupted: 28 of 600 s'})
+    assert v.matched['ceco']['energy_saving_pct'] == pytest.approx(5.0)
+    assert v.matched['ceco-e']['energy_saving_pct'] == pytest.approx(100 * (0.385 - 0.40) / 0.385)
+    assert v.matched['ceco-e']['dominated'] and not v.matched['ceco']['dominated']
+    assert v.matched['ceco-c']['energy_saving_pct'] is None and 'ceco-ioch' not in v.matched
+    assert v.changes['ceco']['energy_change_pct'] == pytest.approx(100 * (0.38 - 0.37) / 0.37)  # signed as measured
+    lines = vd.verdict_lines(v)
+    text = '\n'.join(lines)
+    assert max(len(line) for line in lines) <= outputs.CONSOLE_WIDTH
+    assert 'saves 5.0 % energy at matched comfort' in text
+    assert 'uses 3.9 % more energy at matched comfort (dominated by a set-point)' in text
+    assert 'more comfortable than every set-point: no matched value' in text
+    assert 'never stayed in -0.5..+0.5 (PMV +0.60 over the last minute)' in text
+    assert 'in -0.5..+0.5 from 300 s on' in text
+    assert 'partial run (interrupted: 28 of 600 s): not compared' in text
+    assert 'Headline: ceco saves the most energy at matched comfort, 5.0 %.' in text
+    assert 'compressor + blower + condenser fan' in lines[0]
+    assert 'a comparison at different comfort, not a saving' in text
+    # without a family: a pointer to the command that computes it, never a number
+    bare = '\n'.join(vd.verdict_lines(vd.build_verdict('sc03', points), pointer='run `ceco benchmark`'))
+    assert 'Matched comfort: not computed for these runs; run `ceco benchmark`' in bare and 'saves' not in bare
+
+
+def test_verdict_within_the_fronts_resolution_is_no_saving():
+    """A point less than RESOLUTION_PCT below the front is 'the same energy', and the headline
+    says no strategy saves 1 % or more (the 0.5-K front is linear between set-points)."""
+    points = {'ceco': _point(0.11, 0.40 * (1 - 0.004))}
+    text = '\n'.join(vd.verdict_lines(vd.build_verdict('sc03', points, FAMILY)))
+    assert 'same energy as the set-point family at matched comfort (+0.4 %, under 1 %)' in text
+    assert 'Headline: no strategy saves 1 % or more at matched comfort (best: ceco, +0.4 %).' in text
+
+
+def test_less_energy_with_lost_comfort_is_not_called_a_saving():
+    """A cloudy 35 degC scenario of one's own: ceco used 26.2 % less energy than the baseline run and
+    lost comfort (+224 %); the table said `dE_tot_kWh % -26.2`, `dI_pmv % +224.1` and a reader saw a
+    26 % saving. Now the change is signed as measured with its meaning, and the matched-comfort line
+    says the point is less comfortable than every set-point (no saving is claimed)."""
+    points = {'baseline': _point(0.05, 0.30), 'ceco': _point(0.05 * 3.24, 0.30 * (1 - 0.262))}
+    fam = {
+        'baseline@25.0': _point(0.04, 0.33),
+        'baseline@26.0': _point(0.05, 0.30),
+        'baseline@27.0': _point(0.08, 0.27),
+    }
+    v = vd.build_verdict('cloudy35', points, fam)
+    text = '\n'.join(vd.verdict_lines(v))
+    assert 'Against the baseline run alone the energy changes by -26.2 % and the discomfort' in text
+    assert 'by +224.0 % (+ = more): a comparison at different comfort, not a saving.' in text
+    assert 'less comfortable than every set-point: no matched value' in text
+    assert 'Headline' not in text and 'saves' not in text
+
+
+def test_verdict_json_round_trip(tmp_path):
+    v = vd.build_verdict('sc03', {'ceco': _point(0.11, 0.38)}, FAMILY)
+    data = vd.read_verdict(vd.write_verdict(tmp_path / 'verdict.json', v))
+    assert data['matched']['ceco']['energy_saving_pct'] == pytest.approx(5.0)
+    assert data['energy'] == 'compressor + blower + condenser fan' and data['family'] == FAMILY
+    (tmp_path / 'other.json').write_text('{"schema": "x"}')
+    with pytest.raises(ValueError, match='ceco-verdict/1'):
+        vd.read_verdict(tmp_path / 'other.json')
+
+
+# ---------------------------------------------------------------------------------------- energy and signs
+@pytest.fixture(scope='module')
+def short_runs():
+    s = SimSettings(duration_s=SHORT_S, progress=False)
+    return {name: simulate('sc03', name, s) for name in ('baseline', 'ceco-e')}
+
+
+def test_one_energy_definition_in_metrics_and_kpis(short_runs):
+    """E_tot of metrics.json (run, sim, report) is compressor + blower + condenser fan, the same number
+    as the benchmark's energy_kwh; the parts are beside it."""
+    for res in short_runs.values():
+        ts, m = res.timeseries, res.metrics
+        parts = [float(np.sum(ts[c])) for c in ('p_comp_w', 'p_blower_w', 'p_cond_fan_w')]  # dt = 1 s
+        assert parts[2] > 0.0  # the fan runs while the compressor does
+        assert m['E_tot_J'] == pytest.approx(sum(parts), rel=1e-12)
+        assert (m['E_comp_J'], m['E_blower_J'], m['E_fan_J']) == pytest.approx(parts, rel=1e-12)
+        kpis, _ = compute_kpis(ts)
+        assert m['E_tot_J'] / J_PER_KWH == pytest.approx(kpis['energy_kwh'], rel=1e-12)
+
+
+def test_console_table_width_units_signs_and_validity_labels(short_runs):
+    """The console table: at most 100 characters, energy only in kWh, 'change' signed as measured
+    (+ = more) and 'saving' positive for less energy, PMV beyond +3 shown as '>3' with the share
+    outside ISO 7730 beside it; the full table explains the draught rating of the vent jets."""
+    cols = {k: r.timeseries for k, r in short_runs.items()}
+    metrics = {k: r.metrics for k, r in short_runs.items()}
+    kpis = {k: compute_kpis(c)[0] for k, c in cols.items()}
+    fam = {n: vd.run_point(cols['baseline']) for n in ('baseline@26.0',)}
+    fam['baseline@27.0'] = dict(fam['baseline@26.0'], energy_kwh=0.5 * kpis['baseline']['energy_kwh'])
+    fam['baseline@27.0']['discomfort_pmvh'] = 2.0 * fam['baseline@26.0']['discomfort_pmvh']
+    v = vd.build_verdict('sc03', {k: vd.run_point(c) for k, c in cols.items()}, fam)
+    rows = outputs.table_rows(metrics, kpis, v)
+    text = outputs.console_table(rows)
+    lines = text.splitlines()
+    assert max(len(line) for line in lines) <= outputs.CONSOLE_WIDTH
+    assert lines[0].split('  ')[0].strip() == 'strategy' and 'E [kWh]' in lines[0]
+    assert ' kJ' not in text and '[J]' not in text and 'E_tot_kWh %' not in text
+    by = {r['strategy']: r for r in rows}
+    e_base, e_ceco = kpis['baseline']['energy_kwh'], kpis['ceco-e']['energy_kwh']
+    assert by['ceco-e']['energy_change_pct'] == pytest.approx(100 * (e_ceco - e_base) / e_base)
+    cells = lines[3].split()
+    assert cells[0] == 'ceco-e' and float(cells[2]) == pytest.approx(by['ceco-e']['energy_change_pct'], abs=0.05)
+    assert metrics['ceco-e']['pmv_max'] > 3.0 and cells[7] == '>3'  # the hot pull-down, clipped where printed
+    assert float(cells[8]) == pytest.approx(kpis['ceco-e']['iso7730_invalid_pct'], abs=0.05) and float(cells[8]) > 50
+    assert 'ISO out: samples outside ISO 7730' in text and 'saving: energy' in text
+    full = outputs.full_table(rows)
+    assert 'DR>20% [%]' in full and 'a statement about the jet, not a vote' in full
+    assert 'PMV max (raw)' in full
+
+
+def test_vehicle_rows_say_change_not_saving():
+    """The vehicle-level columns are changes (negative = less energy), never a 'saving' with the
+    opposite sign (report/vehicle.csv had saving_fit_pct = +4.38 for a strategy using more)."""
+    pytest.importorskip('fastsim')
+    from ceco_bringup import vehicle_energy as ve
+
+    t, v = ve.drive_cycle_for_run('sc03', 120.0)
+    rows = ve.vehicle_energy_table(
+        {'baseline': 1000.0, 'ceco': 1500.0}, t, v, ve.VehicleEnergySettings(vehicles=(ve.ZOE,))
+    )
+    by = {r['strategy']: r for r in rows}
+    assert not any('saving' in k for k in by['ceco'])
+    assert by['ceco']['change_fit_pct'] > 0.0 and by['baseline']['change_fit_pct'] == 0.0
+
+
+# ---------------------------------------------------------------------------------------- the sim verb
+def test_sim_job_prints_the_verdict_and_keeps_what_made_it(tmp_path, capsys):
+    """`ceco sim` (now in ceco_bringup) runs the strategies, then the baseline family, prints the
+    table and the verdict (every line at most 100 characters) and keeps them; each run directory
+    holds the scenario file, the command line and the code fingerprint."""
+    out = tmp_path / 'job'
+    argv = ['--strategy', 'baseline,ceco-e', '--duration-s', '60', '--baseline-setpoints-c', '25,26,27']
+    argv += ['--out', str(out), '--no-progress']
+    assert cli.main(['sim', *argv]) == 0
+    text = capsys.readouterr().out
+    assert 'Verdict on sc03 (60 s).' in text and 'Matched comfort: against the production law at 25-27 degC' in text
+    table = text[text.index('strategy  ') : text.index('Verdict on')].splitlines()
+    assert max(len(line) for line in table) <= outputs.CONSOLE_WIDTH
+    v = json.loads((out / 'verdict.json').read_text())
+    assert sorted(v['family']) == ['baseline@25.0', 'baseline@26.0', 'baseline@27.0']
+    # the family member at 26 degC is the job's baseline run, in the same process: the same point
+    assert v['family']['baseline@26.0']['energy_kwh'] == v['points']['baseline']['energy_kwh']
+    # the matched saving is front.match against the kept family (one computation)
+    f = front.build_front({n: (p['discomfort_pmvh'], p['energy_kwh']) for n, p in v['family'].items()})
+    p = v['points']['ceco-e']
+    assert v['matched']['ceco-e'] == front.match(f, p['discomfort_pmvh'], p['energy_kwh']).as_dict()
+    csv_rows = (out / 'comparison.csv').read_text().splitlines()
+    assert csv_rows[0].startswith('strategy,energy_kwh,') and len(csv_rows) == 3
+    assert (out / 'summary.txt').read_text().count('Verdict on sc03') == 1
+    assert 'DR>20%' in (out / 'comparison.txt').read_text()
+    for s in ('baseline', 'ceco-e'):
+        run = provenance.read_run(out / s)
+        assert run['status'] == 'complete' and run['command'] == 'ceco sim ' + ' '.join(argv)
+        assert len(run['code_fingerprint']) == 16 and run['scenario'] == 'sc03'
+        bundled = provenance.resources.files('ceco_v2x_preview').joinpath('data', 'scenarios', 'sc03.yaml')
+        assert (out / s / 'scenario.yaml').read_text() == bundled.read_text()  # the file, verbatim
+        assert (out / s / 'summary.txt').read_text().startswith(f'{s:>10}: E ')
+
+
+def _cli(*args):
+    return subprocess.run(
+        [sys.executable, '-m', 'ceco_bringup.cli', *args], capture_output=True, text=True, timeout=120
+    )
+
+
+def test_scenario_typo_is_one_line_in_every_verb(tmp_path):
+    """A typo in a scenario file: `ceco sim` as `ceco run`, one line naming the field, exit status
+    2, no traceback (sim gave a 20-line traceback)."""
+    bad = tmp_path / 'mine.yaml'
+    text = provenance.copy_scenario('sc03', tmp_path / 'copy').read_text()
+    bad.write_text(text.replace('duration_s:', 'duraton_s:', 1))
+    for verb in ('sim', 'run'):
+        p = _cli(verb, '--scenario', str(bad), '--out', str(tmp_path / verb))
+        assert p.returncode == 2, (verb, p.stderr)
+        assert 'Traceback' not in p.stderr and len(p.stderr.strip().splitlines()) == 1, (verb, p.stderr)
+        assert p.stderr.startswith(f'ceco {verb}: error: ') and 'duraton_s' in p.stderr, p.stderr
+
+
+# ---------------------------------------------------------------------------------------- flags
+BAD_NUMBERS = [
+    ('run', '--control-period-s', '0'),
+    ('run', '--horizon-steps', '0'),
+    ('run', '--duration-s', 'nan'),
+    ('run', '--duration-s', 'inf'),
+    ('run', '--duration-s', '900'),  # beyond SC03's 600 s: refused, never clamped
+    ('run', '--run-timeout-s', '-1'),
+    ('run', '--command-timeout-s', '0'),
+    ('run', '--startup-timeout-s', 'nan'),
+    ('run', '--baseline-setpoints-c', '26'),
+    ('sim', '--duration-s', 'nan'),
+    ('sim', '--control-period-s', '-5'),
+    ('sim', '--horizon', '0'),  # the old name is checked as the new one
+    ('play', '--rate', '-1'),
+    ('play', '--tol', 'nan'),
+    ('play', '--step-timeout-s', '0'),
+    ('report', '--rtol', 'inf'),
+    ('benchmark', '--workers', '0'),
+    ('sweep', '--workers', '-2'),
+    ('sweep', '--verify', '-1'),
+]
+
+
+@pytest.mark.parametrize('verb, flag, value', BAD_NUMBERS)
+def test_bad_numbers_are_one_line_and_exit_2(verb, flag, value, tmp_path, capsys):
+    """Issue 17 item 7: each bad number is one clear line naming the flag and what it accepts, exit
+    status 2, before anything runs (--control-period-s 0 fell back to the scenario's, --duration-s
+    nan was a traceback, inf and --run-timeout-s -1 were accepted)."""
+    first = {'play': [str(tmp_path)], 'report': [str(tmp_path)], 'sweep': ['grid.yaml']}.get(verb, [])
+    rest = [] if verb in ('play', 'report') else ['--out', str(tmp_path / 'out')]
+    with pytest.raises(SystemExit) as exc:
+        cli.main([verb, *first, flag, value, *rest])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f'ceco {verb}: error: '), err
+    assert flag in err[0] and ('must be' in err[0] or 'need' in err[0] or 'exceeds' in err[0]), err
+    assert not (tmp_path / 'out').exists()
+
+
+SHARED = {
+    '--scenario': ('run', 'sim', 'play', 'report'),
+    '--strategy': ('run', 'sim', 'play', 'report'),
+    '--out': ('run', 'sim', 'report', 'benchmark', 'sweep'),
+    '--preview': ('run', 'sim'),
+    '--control-period-s': ('run', 'sim', 'play'),
+    '--horizon-steps': ('run', 'sim', 'play'),
+    '--duration-s': ('run', 'sim'),
+    '--seed': ('run', 'sim'),
+    '--workers': ('benchmark', 'sweep'),
+    '--backend': ('benchmark', 'sweep'),
+    '--namespace': ('run', 'play', 'report'),
+    '--domain-id': ('run', 'play'),
+    '--no-progress': ('run', 'sim', 'play', 'benchmark', 'sweep'),
+    '--baseline-setpoints-c': ('run', 'sim'),
+}
+
+
+def _parser(verb):
+    from ceco_bringup import report, run
+    from ceco_bringup.benchmark import cli as bcli
+    from ceco_bringup.sweep import cli as scli
+
+    builders = {'run': run, 'sim': sim, 'play': play, 'report': report, 'benchmark': bcli, 'sweep': scli}
+    return builders[verb].build_parser()
+
+
+def test_the_same_flag_names_in_every_verb():
+    """The same setting has the same flag, type and unit in every verb that has it (run and sim named
+    them --preview/--horizon-steps/--control-period-s/--duration-s against --preview-quality/--horizon/
+    --control-period/--duration)."""
+    actions = {}
+    for flag, verbs in SHARED.items():
+        for verb in verbs:
+            parser = _parser(verb)
+            opts = {o: a for a in parser._actions for o in a.option_strings}
+            assert flag in opts, (verb, flag)
+            actions.setdefault(flag, []).append((verb, opts[flag]))
+    for flag, acts in actions.items():
+        if flag in ('--strategy', '--out', '--scenario'):  # defaults differ by verb, the name and meaning do not
+            continue
+        types = {getattr(a.type, '__name__', None) for _, a in acts}
+        assert len(types) == 1, (flag, types)
+
+
+def test_old_flag_names_work_with_a_deprecation_line(tmp_path, capsys):
+    """--horizon, --control-period, --duration, --preview-quality still parse for one release, into the
+    new settings, each with one line saying which name to use."""
+    old = sim.build_parser().parse_args(
+        ['--out', 'x', '--horizon', '8', '--control-period', '4', '--duration', '30', '--preview-quality', 'noisy']
+    )
+    new = sim.build_parser().parse_args(
+        ['--out', 'x', '--horizon-steps', '8', '--control-period-s', '4', '--duration-s', '30', '--preview', 'noisy']
+    )
+    assert vars(old) == vars(new)
+    err = capsys.readouterr().err
+    for o, n in cli_args.DEPRECATED_FLAGS.items():
+        assert f'ceco sim: {o} is deprecated and goes in the next release: use {n}' in err
+
+
+@pytest.mark.parametrize('verb', ['run', 'sim', 'play', 'report', 'benchmark', 'sweep'])
+def test_help_shows_the_defaults(verb, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main([verb, '--help'])
+    assert exc.value.code == 0
+    text = ' '.join(capsys.readouterr().out.split())
+    expected = {
+        'run': ['(default: sc03)', '(default: ceco-ioch)', '(default: 1800.0)', '(default: lockstep)'],
+        'sim': ['(default: sc03)', '(default: baseline,ceco,ceco-e,ceco-c,ceco-ioch)', '(default: perfect)'],
+        'play': ['(default: 1.0)', '(default: 30.0)'],
+        'report': ['(default: 1e-06)'],
+        'benchmark': ['(default: local)'],
+        'sweep': ['(default: local)'],
+    }[verb]
+    for e in expected:
+        assert e in text, (verb, e)
+
+
+def test_play_points_at_the_bag_of_a_run_directory(tmp_path, capsys):
+    """`ceco play runs/sc03/ceco` (the run directory) says where its bag is, exit status 2."""
+    (tmp_path / 'ceco' / 'bag').mkdir(parents=True)
+    (tmp_path / 'ceco' / 'bag' / 'metadata.yaml').write_text('rosbag2_bagfile_information: {}\n')
+    with pytest.raises(SystemExit) as exc:
+        cli.main(['play', str(tmp_path / 'ceco')])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and f'its bag is {tmp_path / "ceco" / "bag"}' in err
+    with pytest.raises(SystemExit):
+        cli.main(['play', str(tmp_path)])
+    assert f'give one bag, e.g. {tmp_path / "ceco" / "bag"}' in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------------------- run directories
+def test_scenario_copy_is_loadable_with_its_drive_cycle(tmp_path):
+    """A user scenario naming its drive cycle by a relative CSV path: the copy in the run directory
+    loads to the same scenario after the originals are gone."""
+    from ceco_v2x_preview.scenario import load_scenario
+
+    src = tmp_path / 'src'
+    src.mkdir()
+    data = yaml.safe_load(provenance.copy_scenario('sc03', tmp_path / 'a').read_text())
+    cyc = load_scenario('sc03').drive_cycle
+    (src / 'cyc.csv').write_text(
+        'time_s,speed_mps\n' + ''.join(f'{t:g},{float(v)!r}\n' for t, v in zip(cyc.time_s, cyc.speed_mps))
+    )
+    data.update(name='mine', drive_cycle='cyc.csv')
+    (src / 'mine.yaml').write_text(yaml.safe_dump(data))
+    before = load_scenario(src / 'mine.yaml')
+    copy = provenance.copy_scenario(src / 'mine.yaml', tmp_path / 'run')
+    for f in src.iterdir():
+        f.unlink()
+    after = load_scenario(copy)
+    assert after.name == 'mine' and after.duration_s == before.duration_s
+    assert np.array_equal(after.drive_cycle.speed_mps, before.drive_cycle.speed_mps)
+
+
+def test_identify_writes_a_new_run_directory_never_over_a_tracked_file(tmp_path, monkeypatch, capsys):
+    """`ceco identify` writes into --out (default a new runs/identify-<time>), and refuses a directory
+    that already holds its files (it wrote over the tracked config/model_params.yaml by default)."""
+    from ceco_controller import identification as idn
+    from ceco_controller import model as cm
+
+    tracked = cm.DEFAULT_PARAMS_PATH.read_bytes()
+    monkeypatch.chdir(tmp_path)
+    data_dir, params = idn.output_paths(None)
+    assert data_dir.resolve().parent == tmp_path / 'runs' and data_dir.name.startswith('identify-')
+    assert params == data_dir / 'model_params.yaml' and params.resolve() != cm.DEFAULT_PARAMS_PATH.resolve()
+    with pytest.raises(SystemExit) as exc:
+        idn.main(['--out', str(cm.DEFAULT_PARAMS_PATH.parent)])  # the tracked file's directory
+    assert exc.value.code == 2 and 'model_params.yaml exists: choose a new --out' in capsys.readouterr().err
+    assert cm.DEFAULT_PARAMS_PATH.read_bytes() == tracked
