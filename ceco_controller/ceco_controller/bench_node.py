@@ -22,10 +22,12 @@ import: :func:`node_step_times` imports it.
 
 from __future__ import annotations
 
+import importlib
 import os
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -64,18 +66,22 @@ def node_step_times(
     """
     os.environ["ROS_DOMAIN_ID"] = str(150 + os.getpid() % 60 if domain_id is None else domain_id)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-
     from ceco_core.contracts import MEASUREMENTS, AcInput
-    from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficPreview, WeatherPreview
     from ceco_plant_sim.scenario_plant import KEY_ON_COMMAND, steps_per_control
-    from ceco_ros import conversions, interfaces
     from ceco_v2x_preview.preview import PERFECT, make_previews
     from ceco_v2x_preview.scenario import load_scenario
 
     from .closed_loop import SimSettings, simulate
-    from .mpc_node import ControllerNode
+
+    # the ROS side, imported here at run time (it needs the built workspace; mypy checks the pure packages)
+    rclpy = importlib.import_module("rclpy")
+    SingleThreadedExecutor = importlib.import_module("rclpy.executors").SingleThreadedExecutor
+    msgs = importlib.import_module("ceco_msgs.msg")
+    conversions = importlib.import_module("ceco_ros.conversions")
+    interfaces = importlib.import_module("ceco_ros.interfaces")
+    ControllerNode = importlib.import_module("ceco_controller.mpc_node").ControllerNode
+    AcCommand, CabinState, ControllerDiagnostics = msgs.AcCommand, msgs.CabinState, msgs.ControllerDiagnostics
+    TrafficPreview, WeatherPreview = msgs.TrafficPreview, msgs.WeatherPreview
 
     sc = load_scenario(scenario)
     ts = sc.control.control_period_s
@@ -142,14 +148,14 @@ def node_step_times(
                 pub.publish = timed_publish
             return pub
 
-        node.create_subscription = timed_subscription  # type: ignore[method-assign]
-        node.create_lifecycle_publisher = timed_publisher  # type: ignore[method-assign]
+        node.create_subscription = timed_subscription
+        node.create_lifecycle_publisher = timed_publisher
 
         feeder = rclpy.create_node("bench_feeder")
         pub_state = feeder.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.state_qos("lockstep"))
         pub_w = feeder.create_publisher(WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.QOS_PREVIEW)
         pub_s = feeder.create_publisher(TrafficPreview, interfaces.TOPIC_TRAFFIC, interfaces.QOS_PREVIEW)
-        commands: dict[int, AcCommand] = {}
+        commands: dict[int, Any] = {}  # (AcCommand messages)
         solve_ms: dict[int, float] = {}
         fallback: dict[int, bool] = {}
         feeder.create_subscription(
