@@ -21,6 +21,13 @@ cores here, ``os.getloadavg`` printed); only ratios measured in the same run com
         [--strategies ceco,ceco-c] [--method auto|ipopt|sqp|fatrop]
         [--transcription auto|single-shooting|multiple-shooting] [--cpu-slowdown 100]
         [--slowdown-factors 1,10,100 | --slowdown-factors ''] [--no-prepare] [--robustness] [--rti-cases]
+        [--node]
+
+Per case it also prints the whole step's CPU time and the solver's (``time.thread_time``: on a
+loaded machine the wall clock mostly measures the wait for a core), the share of the step that is
+not the solver and the step / solver ratio; at the end the horizon table (product solver, speed-up
+over IPOPT's defaults in wall and CPU time, cost difference). ``--node`` adds the whole step inside
+``mpc_node`` at Np = 6, message in to command out (:mod:`ceco_controller.bench_node`).
 
 ``--cpu-slowdown F`` runs the main cases with every time budget divided by F (an ECU F times
 slower). ``--robustness`` adds the sweep over every benchmark scenario and preview fault
