@@ -12,6 +12,10 @@ from ceco_bringup.benchmark import schema as bs
 from ceco_bringup.benchmark.cases import CASE_SCHEMA
 
 SETPOINTS = (25.0, 27.0, 29.0)
+SETPOINTS_PMV = (0.0, 0.5)
+FAMILY_RUNS = 4 * len(SETPOINTS) + 2 * len(SETPOINTS_PMV)  # temperature families: plain, allowance, tuned x 2
+ORACLE = 'oracle_standin:solve_front'  # tests/oracle_standin.py: real scored runs, not an optimum
+LEVELS_N = [0] * 6  # runner.oracle_levels asks for 6 levels
 
 
 @pytest.fixture(scope='module')
@@ -53,9 +57,22 @@ def bench(tmp_path_factory):
             }
         )
     )
-    kw = dict(workers=1, progress=False, log=lambda *a, **k: None, setpoints_c=SETPOINTS, sensitivity_path=sens)
+    import oracle_standin
+
+    kw = dict(
+        workers=1,
+        progress=False,
+        log=lambda *a, **k: None,
+        setpoints_c=SETPOINTS,
+        setpoints_pmv=SETPOINTS_PMV,
+        sensitivity_path=sens,
+        oracle_entry=ORACLE,
+    )
+    oracle_standin.CALLS.clear()
     first = cli.run_benchmark([str(case)], d / 'out', **kw)
+    calls = list(oracle_standin.CALLS)
     second = cli.run_benchmark([str(case)], d / 'out', **kw)
+    assert oracle_standin.CALLS == calls  # the oracle's cell is cached like the runs
     return d, first, second
 
 
@@ -65,10 +82,12 @@ def test_results_document(bench):
     (case,) = doc['cases']
     names = {r['controller'] for r in case['runs']}
     assert names == (
-        {f'baseline@{s:.1f}' for s in SETPOINTS}
-        | {f'baseline-allowance@{s:.1f}' for s in SETPOINTS}
+        {f'{k}@{s:.1f}' for s in SETPOINTS for k in ('baseline', 'baseline-allowance', 'baseline-tuned')}
+        | {f'baseline-tuned-allowance@{s:.1f}' for s in SETPOINTS}
+        | {f'{k}@{s:+.2f}' for s in SETPOINTS_PMV for k in ('baseline-pmv', 'baseline-pmv-allowance')}
         | {'baseline-compensated', 'baseline-compensated-allowance', *runner.STRATEGY_NAMES}
     )
+    assert {r['setpoint_pmv'] for r in case['runs'] if r['kind'] == 'baseline-pmv'} == set(SETPOINTS_PMV)
     assert all(r['status'] == 'ok' and r['source'] == 'simulator' for r in case['runs'])
     assert {r['seed'] for r in case['runs'] if r['kind'] == 'strategy'} == {0}
     assert {r['seed'] for r in case['runs'] if r['kind'] != 'strategy'} == {None}
@@ -89,6 +108,23 @@ def test_results_document(bench):
         m = case['matched'][name]
         assert m['energy_saving_pct'] is None and 'less comfortable than every efficient baseline' in m['note']
         assert m['allowance']['energy_saving_pct'] is not None
+    # the strongest family: the least energy of every family at a discomfort; each level names one
+    st = case['strongest']
+    assert set(st['families']) <= set(bs.FAMILIES) and st['family'] in st['families']
+    assert len(st['levels']) == len(case['oracle']['levels']) >= 4
+    for m in case['matched'].values():
+        assert (
+            m['strongest']['energy_saving_pct'] is None
+            or m['strongest']['energy_saving_pct']
+            <= (m['energy_saving_pct'] if m['energy_saving_pct'] is not None else math.inf) + 1e-9
+        )  # the strongest family is never weaker than the production PI alone
+    # the oracle's cell ran (the stand-in: first level unsolved) and headroom_captured was computed from it
+    orc = case['oracle']
+    assert orc['status'] == 'ok' and orc['entry_point'] == runner.ORACLE_ENTRY
+    (f,) = orc['fronts']
+    assert f['seed'] == 0 and f['points'][0]['kpis'] is None and f['points'][0]['error'] == 'not solved'
+    assert all(p['kpis']['energy_kwh'] > 0 for p in f['points'][1:]) and len(f['front']) == len(LEVELS_N) - 1
+    assert all(m['headroom'] is not None and m['headroom']['n_seeds'] == 1 for m in case['matched'].values())
     # NMPC steps are timed; the comfort series of issue 9 are scored; what a 120-s run cannot have is explained
     assert by['ceco']['time_ratio_mean'] > 0 and by['ceco']['fallback_steps'] == 0
     for name in ('baseline@27.0', 'ceco'):
@@ -108,7 +144,11 @@ def test_results_document(bench):
 
 def test_resume_runs_nothing_and_gives_the_same_results(bench):
     _, first, second = bench
-    assert first['timing']['ran_now'] == 36 and second['timing']['ran_now'] == 0  # 12 nominal + 2 x 12
+    n = FAMILY_RUNS + 2 + 4  # the families, the compensated laws, the strategies
+    n_sens = 2 * len(SETPOINTS) + 2 + 4  # the tornado reruns the production families and the scored ones
+    # the nominal runs and the sensitivity's two ends, plus the oracle's one cell
+    assert first['timing']['ran_now'] == n + 2 * n_sens + 1 and second['timing']['ran_now'] == 0
+    assert first['timing']['oracle_cells_now'] == 1 and second['timing']['oracle_cells_now'] == 0
     assert second['cases'][0]['matched'] == first['cases'][0]['matched']
     assert second['cases'][0]['sensitivity'] == first['cases'][0]['sensitivity']
 
@@ -130,6 +170,7 @@ def test_report_files(bench):
     assert figs == ['plane_short.png', 'tornado_short.png']
     assert html.count('data:image/png;base64,') == 2 and 'src="figures' not in html
     assert '## Savings at matched comfort' in md and '| short | ceco-c |' in md
+    assert '## The strongest family' in md and 'headroom_captured' in md
 
 
 def test_validate_command(bench, tmp_path, capsys):
@@ -185,7 +226,24 @@ def test_baseline_constants_and_controllers():
     assert all(r['pmv_band'] == pytest.approx(0.0, abs=0.01) for r in frozen['runs'] if r['run'].endswith('neutral'))
     specs = runner.controllers(b)
     assert [s.setpoint_c for s in specs if s.kind == 'baseline'] == [22.0 + 0.5 * i for i in range(15)]
-    assert sum(s.seeded for s in specs) == 4 and len(specs) == 2 * 15 + 2 + 4
+    assert [s.setpoint_pmv for s in specs if s.kind == 'baseline-pmv'] == pytest.approx(runner.SETPOINTS_PMV)
+    assert sum(s.seeded for s in specs) == 4 and len(specs) == 4 * 15 + 2 * 9 + 2 + 4
+    # the tuned families: gains from the file, the comfort-feedback ones on the PMV through the estimator
+    fams = {f.family: f for f in b.family_specs()}
+    assert list(fams) == list(bs.FAMILIES)
+    assert fams['tuned'].feedback == 'cabin_temperature' and fams['tuned'].measurements == 'full'
+    assert fams['pmv'].feedback == 'pmv' and fams['pmv'].measurements == 'vehicle'
+    assert fams['tuned-allowance'].overrides['allowance_k_per_pmv'] == b.allowance_k_per_pmv
+    assert fams['pmv-allowance'].overrides['allowance_pmv_per_pmv'] > 0
+    for name in runner.TUNED_FAMILIES:
+        f = frozen['families'][name]
+        kp = 'kp_per_pmv' if name.startswith('pmv') else 'kp_per_k'
+        # the chosen gains are the grid point of least objective, and the file says so
+        best = min((g for g in f['grid'] if g['objective_kwh'] is not None), key=lambda g: g['objective_kwh'])
+        assert (f['settings'][kp], f['settings']['ti_s']) == (best['kp'], best['ti_s'])
+        assert f['objective_kwh'] == best['objective_kwh'] and len(f['levels_pmvh']) == 11
+        assert f['held_out']['case'] != frozen['tuned_on']
+    assert frozen['tuning_cost']['runs_step6'] > 0 and frozen['tuning_cost']['wall_s'] > 0
     allow = next(s for s in specs if s.name == 'baseline-allowance@26.0')
     assert dict(allow.overrides) == {'setpoint_c': 26.0, 'allowance_k_per_pmv': b.allowance_k_per_pmv}
     case_name, params = runner.load_sensitivity()
@@ -353,6 +411,49 @@ def test_plane_figure_with_equal_seeds(tmp_path):
     }
     out = fig_plane(case, tmp_path / 'p.png', {'front_axis': 'discomfort_pmvh', 'energy_axis': 'energy_kwh'})
     assert out.stat().st_size > 1000
+
+
+def test_a_missing_oracle_module_is_skipped_with_one_line(tmp_path):
+    """No oracle module: every case says 'unavailable' with the reason, one log line, and the run goes on."""
+    from ceco_bringup.benchmark.cases import load_case
+
+    assert runner.oracle_unavailable('ceco_no_such_package.oracle:solve_front') == (
+        'ceco_no_such_package.oracle is not installed'
+    )
+    assert 'has no function' in runner.oracle_unavailable('ceco_core.acc_law:no_such_function')
+    assert runner.oracle_unavailable('oracle_standin:solve_front') is None
+    lines = []
+    case = load_case('sc03-paper')
+    runs = [
+        {
+            'controller': f'baseline@{s}',
+            'kind': 'baseline',
+            'seed': None,
+            'status': 'ok',
+            'kpis': {'discomfort_pmvh': d, 'energy_kwh': e},
+        }
+        for s, d, e in ((24.0, 0.1024, 0.425), (25.0, 0.1051, 0.397), (26.0, 0.1242, 0.366))
+    ]
+
+    def oracles(requested, entry):
+        def dispatch(*a):
+            pytest.fail('nothing may be dispatched')
+
+        return cli._run_oracles(
+            [case], {case.name: []}, lambda cs: [], {case.name: [0]}, 'abcdef0123456789', tmp_path / 'cells.jsonl',
+            dispatch, lambda *a, **k: lines.append(a[0]), requested, entry, None,
+        )  # fmt: skip
+
+    out = oracles(True, 'ceco_no_such_package.oracle:solve_front')
+    assert out[case.name]['status'] == 'unavailable' and 'not installed' in out[case.name]['note']
+    assert len(lines) == 1 and 'oracle skipped' in lines[0] and '--no-oracle' in lines[0]
+    # --no-oracle: skipped, no line
+    lines.clear()
+    out = oracles(False, runner.ORACLE_ENTRY)
+    assert out[case.name]['status'] == 'skipped' and out[case.name]['fronts'] == [] and not lines
+    # the levels: >= 4, from the least discomfort of the families to 1.5 times it
+    levels = runner.oracle_levels([{**r, 'kpis': dict(r['kpis'])} for r in runs])
+    assert len(levels) == 6 and levels[0] == pytest.approx(0.1024) and levels[-1] == pytest.approx(1.5 * 0.1024)
 
 
 class _Text(HTMLParser):

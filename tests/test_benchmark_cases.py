@@ -1,9 +1,11 @@
 """Benchmark test-case files (ceco_bringup.benchmark.cases)."""
 
+import numpy as np
 import pytest
 import yaml
 
 from ceco_bringup.benchmark import cases as bc
+from ceco_bringup.benchmark.cases import load_case
 
 
 def test_every_bundled_case_loads_and_the_lists_agree():
@@ -83,3 +85,37 @@ def test_bad_case_files_name_the_field(tmp_path, over, field):
         bc.load_case(_write(tmp_path, **over))
     with pytest.raises(bc.CaseError, match="unknown case"):
         bc.load_case("no-such-case")
+
+
+@pytest.mark.parametrize("name", ["tunnel", "sun-shade", "idle-traffic", "highway-to-city", "known-stop"])
+def test_previewable_disturbance_cases_run_and_show_their_disturbance(name):
+    """Each new case loads and runs closed loop (the production law); its disturbance is in the record and moves
+    the A/C: the cooling load (compressor power) is lower while the sun is gone or the car stands still."""
+    from ceco_controller.closed_loop import SimSettings, simulate
+
+    case = load_case(name)
+    assert case.forecast_uncertainty == "medium" and len(case.seeds) == 5
+    ts = simulate(case.load_scenario(), "baseline", SimSettings(progress=False)).timeseries
+    t = ts["t_s"]
+    assert t[-1] >= case.load_scenario().duration_s - 1.0 and np.all(np.isfinite(ts["pmv"]))
+
+    def mean(col, a, b):
+        return float(ts[col][(t >= a) & (t < b)].mean())
+
+    if name == "tunnel":
+        assert mean("solar_wm2", 490, 660) == 0.0 and mean("solar_wm2", 400, 480) > 700.0
+        assert mean("p_comp_w", 560, 660) < 0.9 * mean("p_comp_w", 380, 480)
+    elif name == "sun-shade":
+        assert mean("solar_wm2", 430, 600) == 150.0 and mean("solar_wm2", 610, 780) > 600.0
+        assert mean("w_rad_wm2", 430, 600) < 0.3 * mean("w_rad_wm2", 610, 780)  # the occupant's absorbed sun
+        # against the same drive in full sun (udds): less compressor power once the shade has lasted a while
+        sun = simulate(load_case("udds-hot").load_scenario(), "baseline", SimSettings(progress=False, duration_s=900))
+        assert mean("p_comp_w", 520, 600) < float(sun.timeseries["p_comp_w"][(t >= 520) & (t < 600)].mean())
+    elif name == "idle-traffic":
+        assert mean("speed_mps", 351, 670) == 0.0 and mean("speed_mps", 700, 900) > 5.0
+    elif name == "highway-to-city":
+        assert mean("speed_mps", 100, 700) > 20.0 and mean("speed_mps", 766, 1270) < 12.0
+    else:  # known-stop: parked, the occupant out (bound relaxed), back in the band at 840 s
+        assert (
+            mean("speed_mps", 601, 840) == 0.0 and mean("pmv_ub", 610, 830) == 3.0 and mean("pmv_ub", 850, 1080) == 0.5
+        )

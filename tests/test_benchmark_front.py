@@ -124,3 +124,103 @@ def test_bad_families_are_rejected(bad):
         fr.build_front(bad)
     with pytest.raises(ValueError, match="not finite"):
         fr.match(fr.build_front(LINE), math.inf, 0.1)
+
+
+# Three families: A on E = 0.5 - D over D in [0.1, 0.3]; B from (0.12, 0.39) to (0.4, 0.25)
+# (E = 0.39 - 0.5 (D - 0.12)); C from (0.5, 0.2) to (0.6, 0.1).
+FAM_A = {"a@1": (0.1, 0.4), "a@2": (0.3, 0.2)}
+FAM_B = {"b@1": (0.12, 0.39), "b@2": (0.4, 0.25)}
+FAM_C = {"c@1": (0.5, 0.2), "c@2": (0.6, 0.1)}
+
+
+def _env():
+    return fr.Envelope.of(
+        {"A": fr.build_front(FAM_A), "B": fr.build_front(FAM_B), "C": fr.build_front(FAM_C), "D": None}
+    )
+
+
+def test_envelope_is_the_least_energy_at_a_discomfort_budget():
+    env = _env()
+    assert [n for n, _ in env.fronts] == ["A", "B", "C"]  # an empty family is left out
+    # D = 0.11: only A covers it (B starts at 0.12): E = 0.39
+    assert env.energy_at(0.11) == pytest.approx(0.39) and env.family_at(0.11) == "A"
+    # D = 0.2: A gives 0.3; B gives 0.39 - 0.5 * 0.08 = 0.35 -> A
+    assert env.energy_at(0.2) == pytest.approx(0.3) and env.family_at(0.2) == "A"
+    # D = 0.35: past A's last vertex (0.3, 0.2) A keeps 0.2; B gives 0.275 -> A, with its 0.3 vertex
+    assert env.energy_at(0.35) == pytest.approx(0.2) and env.family_at(0.35) == "A"
+    # D = 0.55: C (0.15) beats A and B kept at their ends (0.2, 0.25)
+    assert env.energy_at(0.55) == pytest.approx(0.15) and env.family_at(0.55) == "C"
+    # outside [0.1, 0.6]: undefined
+    assert env.energy_at(0.09) is None and env.energy_at(0.61) is None and env.family_at(0.7) is None
+    assert env.d_range == (0.1, 0.6) and env.e_range == (0.1, 0.4)
+    # the inverse: E = 0.25 -> A: 0.25, B: 0.4, C: 0.5 (its most comfortable point uses 0.2 <= 0.25) -> 0.25
+    assert env.discomfort_at(0.25) == pytest.approx(0.25)
+    assert env.discomfort_at(0.15) == pytest.approx(0.55) and env.discomfort_at(0.41) is None
+    with pytest.raises(ValueError, match="no family"):
+        fr.Envelope.of({"A": None})
+
+
+def test_matching_against_the_strongest_family():
+    env = _env()
+    # at D = 0.2 the envelope is A's 0.30: a controller at 0.27 saves 10 %, at 0.33 is dominated
+    m = fr.match(env, 0.2, 0.27)
+    assert m.energy_saving_pct == pytest.approx(10.0) and m.dominated is False
+    assert fr.match(env, 0.2, 0.33).dominated is True
+    # at D = 0.35 the envelope's 0.2 (A's last vertex) is the reference: a controller at 0.26 spends 30 % more,
+    # and is dominated by that vertex, although B alone (0.275 there) would call it a 5.5 % saving
+    d = fr.match(env, 0.35, 0.26)
+    assert d.energy_saving_pct == pytest.approx(-30.0) and d.dominated is True
+    assert fr.match(fr.build_front(FAM_B), 0.35, 0.26).energy_saving_pct == pytest.approx(100.0 * 0.015 / 0.275)
+    # matched energy: at E = 0.26 the envelope reaches D = 0.24 (A) -> (0.24 - 0.35) / 0.24
+    assert d.discomfort_reduction_pct == pytest.approx(100.0 * (0.24 - 0.35) / 0.24)
+    out = fr.match(env, 0.65, 0.3)
+    assert out.energy_saving_pct is None and fr.NOTE_LESS_COMFORTABLE in out.note
+
+
+def test_strongest_by_level_counts_the_family_that_is_lowest_most_often():
+    env = _env()
+    r = fr.strongest_by_level(env, [0.11, 0.2, 0.52, 0.55, 0.7])
+    assert [x["family"] for x in r["levels"]] == ["A", "A", "C", "C", None]
+    assert r["levels"][3]["energy"] == pytest.approx(0.15) and r["levels"][4]["energy"] is None
+    assert r["family"] == "A"  # 2 : 2, ties go to the envelope's order
+    assert fr.strongest_by_level(env, [0.52, 0.55, 0.2])["family"] == "C"
+    assert fr.strongest_by_level(env, [0.7])["family"] is None
+
+
+def test_headroom_captured_on_hand_made_fronts():
+    env = _env()
+    bound = fr.build_front({"o1": (0.1, 0.3), "o2": (0.4, 0.15)})  # E = 0.3 - 0.5 (D - 0.1)
+    # D = 0.2: envelope A 0.30, bound 0.25: the bound saves 0.05 kWh; a controller at 0.28 saves 0.02 -> 0.4
+    h = fr.headroom(env, bound, 0.2, 0.28)
+    assert h.headroom_captured == pytest.approx(0.4)
+    assert h.saving_pct == pytest.approx(100.0 * 0.02 / 0.3)
+    assert h.bound_saving_pct == pytest.approx(100.0 * 0.05 / 0.3)
+    assert h.strongest == "A" and h.note == ""
+    # on the bound: 1; on the envelope: 0; above the envelope: negative
+    assert fr.headroom(env, bound, 0.2, 0.25).headroom_captured == pytest.approx(1.0)
+    assert fr.headroom(env, bound, 0.2, 0.30).headroom_captured == pytest.approx(0.0, abs=1e-12)
+    assert fr.headroom(env, bound, 0.2, 0.31).headroom_captured == pytest.approx(-0.2)
+    # undefined: the bound does not cover D, the envelope does not, or the bound saves nothing
+    assert fr.headroom(env, bound, 0.5, 0.1).headroom_captured is None
+    assert fr.NOTE_NO_BOUND in fr.headroom(env, bound, 0.5, 0.1).note
+    out = fr.headroom(env, bound, 0.05, 0.1)
+    assert out.headroom_captured is None and fr.NOTE_MORE_COMFORTABLE in out.note
+    worse = fr.build_front({"o1": (0.1, 0.45), "o2": (0.3, 0.35)})
+    w = fr.headroom(env, worse, 0.2, 0.28)
+    assert w.headroom_captured is None and fr.NOTE_NO_HEADROOM in w.note and w.bound_saving_pct < 0
+    # several bounds (one per seed): their mean at D; 0.25 and 0.27 -> 0.26, saving 0.04; the controller 0.02
+    other = fr.build_front({"o1": (0.1, 0.32), "o2": (0.4, 0.17)})
+    assert fr.headroom(env, [bound, other], 0.2, 0.28).headroom_captured == pytest.approx(0.5)
+
+
+def test_headroom_seeds_pairs_each_seed_with_its_bound():
+    env = _env()
+    b0 = fr.build_front({"o1": (0.1, 0.3), "o2": (0.4, 0.15)})  # 0.25 at D = 0.2
+    b1 = fr.build_front({"o1": (0.1, 0.32), "o2": (0.4, 0.17)})  # 0.27 at D = 0.2
+    r = fr.headroom_seeds(env, {0: b0, 1: b1}, [(0, 0.2, 0.28), (1, 0.2, 0.28)])
+    assert r["seeds"]["headroom_captured"] == pytest.approx([0.4, 2.0 / 3.0])
+    assert r["headroom_captured"] == pytest.approx(0.5) and r["n_seeds"] == 2
+    # a seed-invariant bound (key None) serves every seed; a missing one is reported
+    assert fr.headroom_seeds(env, {None: b0}, [(3, 0.2, 0.28)])["headroom_captured"] == pytest.approx(0.4)
+    miss = fr.headroom_seeds(env, {0: b0}, [(0, 0.2, 0.28), (1, 0.2, 0.28)])
+    assert miss["headroom_captured"] is None and miss["seeds"]["headroom_captured"][1] is None

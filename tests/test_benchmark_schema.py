@@ -1,4 +1,4 @@
-"""The results format ceco-benchmark/1 (JSON Schema + semantic checks)."""
+"""The results format ceco-benchmark/2 (JSON Schema + semantic checks) on a hand-made document."""
 
 import copy
 import json
@@ -6,6 +6,7 @@ import json
 import pytest
 
 from ceco_bringup.benchmark import front as fr
+from ceco_bringup.benchmark import runner
 from ceco_bringup.benchmark import schema as bs
 
 
@@ -29,27 +30,79 @@ def _run(controller, kind, seed, d, e, setpoint=None):
     }
 
 
+FAMILY_POINTS = {
+    "plain": {"baseline@24.0": (0.06, 0.40), "baseline@25.0": (0.04, 0.37), "baseline@26.0": (0.05, 0.33)},
+    "allowance": {"baseline-allowance@25.0": (0.07, 0.33), "baseline-allowance@26.0": (0.09, 0.29)},
+    "tuned": {"baseline-tuned@25.0": (0.04, 0.35), "baseline-tuned@26.0": (0.06, 0.31)},
+    "tuned-allowance": {"baseline-tuned-allowance@25.0": (0.07, 0.31)},
+    "pmv": {"baseline-pmv@+0.00": (0.045, 0.36), "baseline-pmv@+0.40": (0.08, 0.29)},
+    "pmv-allowance": {},
+}
+LEVELS = [0.04, 0.05, 0.06, 0.08]
+ORACLE = {
+    0: [(0.04, 0.33), (0.05, 0.30), (0.06, 0.285), (0.08, 0.27)],
+    1: [(0.04, 0.335), None, (0.06, 0.29), (0.08, 0.272)],
+}
+
+
+def _oracle():
+    rows = []
+    for seed, pts in ORACLE.items():
+        points = [
+            {"level": x, "kpis": None, "error": "not solved"}
+            if p is None
+            else {"level": x, "kpis": {"discomfort_pmvh": p[0], "energy_kwh": p[1]}, "error": ""}
+            for x, p in zip(LEVELS, pts)
+        ]
+        rows.append({"seed": seed, "status": "ok", "error": "", "points": points})
+    return runner.oracle_entry("ok", "", LEVELS, rows)
+
+
 def make_doc():
-    plain = {"baseline@24.0": (0.06, 0.40), "baseline@25.0": (0.04, 0.37), "baseline@26.0": (0.05, 0.33)}
-    allow = {"baseline-allowance@25.0": (0.07, 0.33), "baseline-allowance@26.0": (0.09, 0.29)}
-    runs = [_run(n, "baseline", None, d, e, float(n.split("@")[1])) for n, (d, e) in plain.items()]
-    runs += [_run(n, "baseline-allowance", None, d, e, float(n.split("@")[1])) for n, (d, e) in allow.items()]
+    runs = []
+    fronts, fobj = {}, {}
+    for fam, pts in FAMILY_POINTS.items():
+        kind = bs.FAMILIES[fam]
+        for n, (d, e) in pts.items():
+            sp = float(n.split("@")[1])
+            runs.append(_run(n, kind, None, d, e, None if "pmv" in fam else sp))
+            if "pmv" in fam:
+                runs[-1]["setpoint_pmv"] = sp
+        f = fr.build_front(pts) if pts else None
+        fobj[fam] = f
+        fronts[fam] = (
+            []
+            if f is None
+            else [
+                {"controller": p.name, "discomfort": p.discomfort, "energy": p.energy, "efficient": p.efficient}
+                for p in f.points
+            ]
+        )
     runs += [
         _run("ceco", "strategy", 0, 0.08, 0.30),
         _run("ceco", "strategy", 1, 0.085, 0.305),
         _run("baseline-compensated", "compensated", None, 0.045, 0.35),
     ]
-    fronts, fobj = {}, {}
-    for fam, pts in (("plain", plain), ("allowance", allow)):
-        f = fr.build_front(pts)
-        fobj[fam] = f
-        fronts[fam] = [
-            {"controller": p.name, "discomfort": p.discomfort, "energy": p.energy, "efficient": p.efficient}
-            for p in f.points
-        ]
+    env = fr.Envelope.of(fobj)
+    oracle = _oracle()
+    bounds = {
+        f["seed"]: fr.build_front([(p["controller"], p["discomfort"], p["energy"]) for p in f["front"]])
+        for f in oracle["fronts"]
+    }
     matched = {}
-    for name, pts in (("ceco", [(0.08, 0.30), (0.085, 0.305)]), ("baseline-compensated", [(0.045, 0.35)])):
-        matched[name] = {**fr.match_seeds(fobj["plain"], pts), "allowance": fr.match_seeds(fobj["allowance"], pts)}
+    for name, pts in (
+        ("ceco", [(0, 0.08, 0.30), (1, 0.085, 0.305)]),
+        ("baseline-compensated", [(None, 0.045, 0.35)]),
+    ):
+        de = [(d, e) for _, d, e in pts]
+        strongest = fr.match_seeds(env, de)
+        strongest["family"] = env.family_at(sum(d for d, _ in de) / len(de))
+        matched[name] = {
+            **fr.match_seeds(fobj["plain"], de),
+            "allowance": fr.match_seeds(fobj["allowance"], de),
+            "strongest": strongest,
+            "headroom": fr.headroom_seeds(env, bounds, pts),
+        }
     case = {
         "case": "sc03-medium",
         "version": 1,
@@ -62,6 +115,8 @@ def make_doc():
         "horizon_steps": 6,
         "runs": runs,
         "fronts": fronts,
+        "strongest": {"families": [n for n, _ in env.fronts], **fr.strongest_by_level(env, LEVELS)},
+        "oracle": oracle,
         "matched": matched,
     }
     return {
@@ -77,8 +132,11 @@ def make_doc():
             "front_axis": "discomfort_pmvh",
             "energy_axis": "energy_kwh",
             "setpoints_c": [24.0, 25.0, 26.0],
+            "setpoints_pmv": [0.0, 0.4],
+            "families": {f: {"kind": k} for f, k in bs.FAMILIES.items()},
+            "oracle": {"requested": True, "entry_point": runner.ORACLE_ENTRY},
         },
-        "timing": {"wall_s": 1.0, "runs": 8, "ran_now": 8},
+        "timing": {"wall_s": 1.0, "runs": 16, "ran_now": 16},
         "cases": [case],
     }
 
@@ -87,9 +145,25 @@ def test_a_valid_document_passes_and_survives_json():
     doc = make_doc()
     assert bs.check_results(doc) == []
     bs.validate_results(json.loads(json.dumps(doc)))
+    case = doc["cases"][0]
     # 24 degC is on the cold branch
-    eff = {p["controller"]: p["efficient"] for p in doc["cases"][0]["fronts"]["plain"]}
+    eff = {p["controller"]: p["efficient"] for p in case["fronts"]["plain"]}
     assert eff == {"baseline@24.0": False, "baseline@25.0": True, "baseline@26.0": True}
+    # the hand-made numbers: ceco's mean point (0.0825, 0.3025); the strongest at 0.0825 is the pmv family's
+    # end (0.08, 0.29) [its energy past its least comfortable vertex]; saving (0.29 - 0.3025) / 0.29
+    m = case["matched"]["ceco"]
+    assert m["strongest"]["family"] == "pmv"
+    assert m["strongest"]["energy_saving_pct"] == pytest.approx(100.0 * (0.29 - 0.3025) / 0.29)
+    # seed 1's oracle did not solve 0.05; at 0.0825 both oracles are past their ends: no headroom there
+    assert m["headroom"]["headroom_captured"] is None
+    # the compensated law at 0.045: envelope = tuned (0.35 at 0.04 -> 0.34 at 0.045) vs pmv's 0.36; oracles
+    # 0.315 and 0.32375 (seed 1 from 0.04 to 0.06) -> mean 0.319375; saving 0.34 - 0.35 = -0.01 of 0.020625
+    h = case["matched"]["baseline-compensated"]["headroom"]
+    assert h["strongest"] == "tuned"
+    assert h["headroom_captured"] == pytest.approx(-0.01 / (0.34 - 0.319375))
+    # at 0.05 plain and tuned both spend 0.33: a tie goes to the first family in the order of FAMILIES
+    assert [x["family"] for x in case["strongest"]["levels"]] == ["tuned", "plain", "tuned", "pmv"]
+    assert case["strongest"]["family"] == "tuned"
 
 
 def _broken(mutate):
@@ -105,14 +179,31 @@ def _case(doc):
 @pytest.mark.parametrize(
     "mutate, message",
     [
-        (lambda d: d.update(schema="ceco-benchmark/2"), "schema"),
+        (lambda d: d.update(schema="ceco-benchmark/1"), "schema"),
+        (lambda d: _case(d)["fronts"].pop("pmv"), "pmv"),
+        (lambda d: _case(d)["matched"]["ceco"]["strongest"].update(family="plain"), "strongest.family"),
+        (lambda d: _case(d)["matched"]["ceco"]["strongest"].update(energy_saving_pct=1.0), "strongest.energy_saving"),
+        (
+            lambda d: _case(d)["matched"]["baseline-compensated"]["headroom"].update(headroom_captured=0.5),
+            "headroom.headroom_captured",
+        ),
+        (lambda d: _case(d)["matched"]["ceco"].update(headroom=None), "headroom: missing"),
+        (lambda d: _case(d)["strongest"].update(family="plain"), "strongest: families/family"),
+        (lambda d: _case(d)["strongest"]["levels"][0].update(family="pmv"), "strongest/levels"),
+        (
+            lambda d: _case(d)["oracle"]["fronts"][0]["front"][0].update(energy=0.1),
+            "does not recompute from its points",
+        ),
+        (lambda d: _case(d)["oracle"].update(levels=[0.04, 0.05]), "at least 4 levels"),
+        (lambda d: _case(d)["oracle"].update(status="maybe"), "status"),
+        (lambda d: _case(d)["oracle"].update(status="skipped"), "with fronts"),
         (lambda d: _case(d)["runs"][0]["kpis"].pop("peak_comp_kw"), "peak_comp_kw"),
         (lambda d: _case(d)["runs"][0]["kpis"].update(peak_comp_kw="high"), "peak_comp_kw"),
         (lambda d: _case(d)["runs"][0].update(kind="heuristic"), "kind"),
         (lambda d: _case(d)["runs"][0].update(kpi_notes={}), "null without a note"),
         (lambda d: _case(d)["runs"][0].update(seed=0), "seed must be null"),
-        (lambda d: _case(d)["runs"][5].update(seed=7), "one of the case's seeds"),
-        (lambda d: _case(d)["runs"].append(copy.deepcopy(_case(d)["runs"][5])), "duplicate run"),
+        (lambda d: _case(d)["runs"][10].update(seed=7), "one of the case's seeds"),
+        (lambda d: _case(d)["runs"].append(copy.deepcopy(_case(d)["runs"][10])), "duplicate run"),
         (lambda d: _case(d)["fronts"]["plain"][1].update(energy=0.36), "values differ"),
         (lambda d: _case(d)["fronts"]["plain"][0].update(efficient=True), "efficient flag"),
         (
@@ -125,7 +216,7 @@ def _case(doc):
         (lambda d: _case(d)["matched"]["ceco"]["allowance"].update(dominated=True), "allowance.dominated"),
         (lambda d: _case(d)["matched"]["ceco"]["seeds"].update(dominated=[False]), "seeds.dominated"),
         (lambda d: _case(d)["matched"].update({"ceco-x": _case(d)["matched"]["ceco"]}), "no finished run"),
-        (lambda d: _case(d)["runs"][6].update(status="error", error=""), "without an error message"),
+        (lambda d: _case(d)["runs"][11].update(status="error", error=""), "without an error message"),
         (lambda d: d.update(created_utc="yesterday"), "created_utc"),
     ],
 )

@@ -22,8 +22,35 @@ MI_M = 1609.344
 
 
 def test_bundled_names():
-    assert list_drive_cycles() == ["hwfet", "sc03", "udds", "us06"]
-    assert {"sc03", "udds", "hwfet", "us06", "sc03_mild"} <= set(list_scenarios())
+    assert list_drive_cycles() == ["hwfet", "hwfet_udds", "sc03", "sc03_idle", "sc03_stop", "udds", "us06"]
+    assert {"sc03", "udds", "hwfet", "us06", "sc03_mild", "tunnel", "sun_shade", "sc03_idle", "hwfet_udds"} <= set(
+        list_scenarios()
+    )
+
+
+def test_constructed_cycles_are_their_recipes():
+    """tools/compose_drive_cycles.py's pieces, sample by sample (and its comment header is skipped on load)."""
+    sc03, udds, hwfet = (load_drive_cycle(n).speed_mps for n in ("sc03", "udds", "hwfet"))
+    idle = load_drive_cycle("sc03_idle").speed_mps
+    assert idle.size == 901 and np.array_equal(idle[:361], sc03[:361]) and np.array_equal(idle[661:], sc03[361:])
+    assert np.all(idle[350:671] == 0.0)  # SC03's stop at 350 s stretched to 320 s
+    hu = load_drive_cycle("hwfet_udds").speed_mps
+    assert hu.size == 1271 and np.array_equal(hu[:766], hwfet) and np.array_equal(hu[766:], udds[1:506])
+    stop = load_drive_cycle("sc03_stop").speed_mps
+    assert stop.size == 1081 and np.array_equal(stop[:601], sc03) and np.array_equal(stop[841:], sc03[1:241])
+    assert np.all(stop[594:841] == 0.0)
+
+
+def test_previewable_disturbance_scenarios():
+    tun = load_scenario("tunnel")
+    assert tun.duration_s == 900 and tun.env_at(470.0).solar_wm2 > 700.0
+    assert tun.env_at(482.0).solar_wm2 == 0.0 and tun.env_at(660.0).solar_wm2 == 0.0
+    assert tun.env_at(670.0).solar_wm2 > 600.0
+    sh = load_scenario("sun_shade")
+    assert [sh.env_at(t).solar_wm2 for t in (500.0, 700.0, 850.0)] == pytest.approx([150.0, 655.5, 150.0], abs=0.1)
+    stop = load_scenario("sc03_stop")
+    assert stop.pmv_bounds(700.0)[1] == 3.0 and stop.pmv_bounds(900.0)[1] == 0.5 and stop.env_at(700.0).speed_mps == 0
+    assert load_scenario("hwfet_udds").duration_s == 1270 and load_scenario("sc03_idle").duration_s == 900
 
 
 @pytest.mark.parametrize(

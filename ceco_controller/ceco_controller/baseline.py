@@ -1,4 +1,4 @@
-"""The baseline strategy: the production ACC law behind the common controller interface.
+"""The baseline strategy: the production ACC law (or its comfort-feedback mode) behind the controller interface.
 
 The law itself (PI + anti-windup on T_cab vs 26 degC, demand mapped to the
 evaporator set-point and the blower curve) is :mod:`ceco_core.acc_law`:
@@ -7,6 +7,12 @@ This wrapper only converts an :class:`Observation` into its input and its
 output into ``(AcInput, Diagnostics)``. It uses no preview. A cabin air temperature outside the
 plausible range (:class:`ceco_core.observation_check.ObservationLimits`) counts as a sensor fault:
 the law holds its last command.
+
+With ``AccSettings.feedback == 'pmv'`` the law regulates the cabin PMV of the observation
+(:func:`ceco_core.acc_law.feedback_pmv`: the scored comfort model on the measured cabin air, vent air,
+surfaces, humidity and sun load, the ECU's own blower command), with the scenario's occupant and sun
+geometry (``comfort_params``). Behind ``measurements: vehicle`` the surfaces are the estimator's, from
+the sensors a production car has.
 """
 
 from __future__ import annotations
@@ -15,7 +21,8 @@ import math
 
 import numpy as np
 
-from ceco_core.acc_law import AccLaw, AccSettings
+from ceco_core.acc_law import AccLaw, AccSettings, feedback_pmv
+from ceco_core.cabin_comfort import ComfortParams
 from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
 from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits
 
@@ -30,6 +37,7 @@ class BaselineController:
         settings: AccSettings | None = None,
         control_period_s: float = 5.0,
         observation_limits: ObservationLimits = OBSERVATION_LIMITS,
+        comfort_params: ComfortParams | None = None,
     ):
         if not (math.isfinite(control_period_s) and control_period_s > 0):
             raise ValueError(f"control_period_s must be finite and > 0, got {control_period_s!r}")
@@ -37,6 +45,8 @@ class BaselineController:
         self.control_period_s = float(control_period_s)
         observation_limits.validate()
         self.observation_limits = observation_limits
+        self.comfort_params = (comfort_params or ComfortParams()).validate()
+        """Occupant and sun geometry of the comfort-feedback law's PMV (unused by the temperature law)."""
 
     def reset(self) -> None:
         """Back to the key-on state."""
@@ -57,12 +67,27 @@ class BaselineController:
         except (TypeError, ValueError, OverflowError):
             t_cab = math.nan
         pmv_ub = float(obs.pmv_ub[0]) if np.size(obs.pmv_ub) else None
+        t_cab = t_cab if lo <= t_cab <= hi else math.nan
+        pmv = None
+        if self.law.settings.feedback == "pmv":
+            pmv = feedback_pmv(
+                t_cab_c=t_cab,
+                t_vent_c=obs.t_vent_c,
+                t_int_c=obs.t_int_c,
+                t_shell_c=obs.t_shell_c,
+                t_glass_c=obs.t_glass_c,
+                mdot_bl_kgps=obs.mdot_bl_prev_kgps,
+                rh_cab=obs.rh_cab,
+                solar_wm2=obs.solar_wm2,
+                params=self.comfort_params,
+            )
         cmd = self.law.step(
-            t_cab if lo <= t_cab <= hi else math.nan,
+            t_cab,
             self.control_period_s,
             t_amb_c=obs.t_amb_c,
             solar_wm2=obs.solar_wm2,
             pmv_ub=pmv_ub,
+            pmv=pmv,
         )
         if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
             raise AssertionError(f"ACC law produced an out-of-bounds command {cmd}")
@@ -72,6 +97,10 @@ class BaselineController:
             status=cmd.mode,
             mdot_bl_kgps=cmd.mdot_bl_kgps,
             t_evap_sp_c=cmd.t_evap_sp_c,
-            message=f"demand={cmd.demand:.3f} setpoint_c={cmd.setpoint_c:.3f}",
+            message=(
+                f"demand={cmd.demand:.3f} setpoint_c={cmd.setpoint_c:.3f}"
+                if pmv is None
+                else f"demand={cmd.demand:.3f} setpoint_pmv={cmd.setpoint_pmv:.3f} pmv_measured={pmv:.3f}"
+            ),
         )
         return AcInput(mdot_bl_kgps=cmd.mdot_bl_kgps, t_evap_sp_c=cmd.t_evap_sp_c), diag

@@ -18,7 +18,7 @@ from .estimating_controller import with_measurements
 from .nmpc import NmpcController
 from .strategies import StrategySettings, load_strategy_settings
 
-__all__ = ["make_controller", "ControllerCache"]
+__all__ = ["make_controller", "ControllerCache", "load_acc_settings"]
 
 
 class ControllerCache:
@@ -67,6 +67,32 @@ class ControllerCache:
         return ctrl
 
 
+def load_acc_settings(path: str | None) -> dict:
+    """The AccSettings fields of a baseline law file (``{}`` for None or '').
+
+    Format: YAML with one key ``acc_law:`` mapping AccSettings field names to values, e.g.
+    ``ceco_controller/config/baseline_pmv.yaml`` (the comfort-feedback law). ValueError naming an
+    unknown field or a value AccSettings.validate() rejects.
+    """
+    if not path:
+        return {}
+    import dataclasses
+
+    import yaml
+
+    with open(path, encoding="utf-8") as fh:
+        doc = yaml.safe_load(fh)
+    if not isinstance(doc, dict) or not isinstance(doc.get("acc_law"), dict):
+        raise ValueError(f"{path}: a baseline law file needs a mapping 'acc_law:' of AccSettings fields")
+    known = {f.name for f in dataclasses.fields(AccSettings)}
+    unknown = sorted(set(doc["acc_law"]) - known)
+    if unknown:
+        raise ValueError(f"{path}: acc_law: unknown AccSettings field(s) {unknown}")
+    fields = dict(doc["acc_law"])
+    AccSettings(**fields).validate()
+    return fields
+
+
 def make_controller(
     strategy: str,
     scenario: Scenario,
@@ -84,7 +110,8 @@ def make_controller(
 
     NMPC settings: the controller file (``config_path``, default the package's
     ``config/controller.yaml``), then ``horizon_steps``/``control_period_s``, then ``overrides``.
-    Baseline: ``overrides`` are :class:`~ceco_core.acc_law.AccSettings` fields.
+    Baseline: ``config_path`` is an optional law file (:func:`load_acc_settings`), ``overrides`` are
+    :class:`~ceco_core.acc_law.AccSettings` fields applied after it.
     ``measurements``: 'full' (every modelled state read from the observation) or 'vehicle' (only the
     production sensors; the controller behind ``estimating_controller.EstimatingController``, with
     ``estimator_settings``/``estimator_params``, default the package's identified file).
@@ -92,8 +119,12 @@ def make_controller(
     """
     ctrl: BaselineController | NmpcController
     if strategy == "baseline":
-        # overrides: AccSettings fields (set-point, allowance, sun/ambient compensation)
-        ctrl = BaselineController(AccSettings(**(overrides or {})), control_period_s=control_period_s)
+        # AccSettings fields: the law file (config_path, optional), then the overrides
+        ctrl = BaselineController(
+            AccSettings(**{**load_acc_settings(config_path), **(overrides or {})}),
+            control_period_s=control_period_s,
+            comfort_params=comfort_params_for(scenario),
+        )
     else:
         settings = load_strategy_settings(
             strategy, config_path, horizon_steps=horizon_steps, control_period_s=control_period_s, **(overrides or {})

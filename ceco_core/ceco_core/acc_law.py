@@ -51,9 +51,22 @@ baseline and the plant's fallback; docs/benchmark.md, "Baselines"):
 
   with k_allow [K/PMV] converting the PMV allowance into air temperature.
 
+Comfort feedback (``feedback='pmv'``, docs/benchmark.md "Baselines"): the same PI, anti-windup,
+pull-down, demand map and allowance, with the cabin PMV in place of the cabin air temperature as
+the controlled variable:
+
+    e = PMV_meas - PMV_sp                                  (cooling when e > 0)
+    d = clip(K_p,PMV e + I, 0, 1),  dI/dt = K_p,PMV / T_i e + (d - v) / T_t
+    pull-down while e > ``pulldown_enter_pmv`` (until e < ``pulldown_exit_pmv``)
+    PMV_sp,eff = PMV_sp + k_allow,PMV max(0, ub(t) - ub_band)
+
+with PMV_meas the scored comfort model on the controller's observation (:func:`feedback_pmv`; from
+the sensors a production car has when the controller runs with ``measurements: vehicle``). The
+compensations do not apply to it (the sun is already in the PMV it regulates).
+
 Pure and deterministic, no ROS; stateful object with ``reset()`` and
-``step(t_cab_c, dt_s)``. A non-finite measurement never crashes the ECU: the
-last command is held and the output says ``mode='sensor_fault'``.
+``step(t_cab_c, dt_s)`` (``step(t_cab_c, dt_s, pmv=...)`` in the PMV mode). A non-finite measurement
+never crashes the ECU: the last command is held and the output says ``mode='sensor_fault'``.
 """
 
 from __future__ import annotations
@@ -63,7 +76,10 @@ import math
 
 import numpy as np
 
-__all__ = ["AccSettings", "AccCommand", "AccLaw"]
+__all__ = ["FEEDBACKS", "AccSettings", "AccCommand", "AccLaw", "feedback_pmv"]
+
+FEEDBACKS = ("cabin_temperature", "pmv")
+"""Controlled variables of the law: the cabin air temperature (production) or the cabin PMV."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -110,6 +126,19 @@ class AccSettings:
     """Time constant of the first-order filter on the sun-load sensor [s]."""
     handover_tau_s: float = 30.0
     """Time constant of the decay of the command difference at a bumpless take-over [s]."""
+    feedback: str = "cabin_temperature"
+    """Controlled variable: 'cabin_temperature' (production law) or 'pmv' (comfort feedback) [-]."""
+    setpoint_pmv: float = 0.0
+    """PMV set-point of the comfort-feedback law [-] (feedback 'pmv')."""
+    kp_per_pmv: float = 0.8
+    """Proportional gain of the comfort-feedback law: demand per unit of PMV error [1/PMV]
+    (0.8 ~ kp_per_k / 0.32 PMV/K, the production gain through the plant's set-point sensitivity)."""
+    pulldown_enter_pmv: float = 1.2
+    """Comfort feedback: PMV error above which maximum cooling is commanded [-] (~4 K x 0.3 PMV/K)."""
+    pulldown_exit_pmv: float = 0.6
+    """Comfort feedback: PMV error below which the pull-down hands over to the PI [-] (~2 K x 0.3 PMV/K)."""
+    allowance_pmv_per_pmv: float = 0.0
+    """Comfort feedback: PMV set-point rise per PMV of relaxation of the upper bound [-] (0: off)."""
 
     @property
     def compensated(self) -> bool:
@@ -118,11 +147,15 @@ class AccSettings:
 
     def validate(self) -> None:
         """Raise ValueError naming the field if a setting is not usable."""
+        if self.feedback not in FEEDBACKS:
+            raise ValueError(f"AccSettings.feedback must be one of {FEEDBACKS}, got {self.feedback!r}")
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
+            if f.name == "feedback":
+                continue
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ValueError(f"AccSettings.{f.name} must be a finite number, got {v!r}")
-        for name in ("kp_per_k", "ti_s", "tt_s", "handover_tau_s"):
+        for name in ("kp_per_k", "kp_per_pmv", "ti_s", "tt_s", "handover_tau_s"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"AccSettings.{name} must be > 0")
         if not 0.0 <= self.pulldown_exit_k < self.pulldown_enter_k:
@@ -135,7 +168,16 @@ class AccSettings:
             raise ValueError("AccSettings.mdot_bl_min_kgps must satisfy 0 < min < mdot_bl_max_kgps")
         if not self.t_evap_sp_min_c < self.t_evap_sp_max_c:
             raise ValueError("AccSettings.t_evap_sp_min_c must be < t_evap_sp_max_c")
-        for name in ("allowance_k_per_pmv", "sun_blower_gain_kgps_per_kwm2"):
+        if not 0.0 <= self.pulldown_exit_pmv < self.pulldown_enter_pmv:
+            raise ValueError("AccSettings.pulldown_exit_pmv must satisfy 0 <= exit < pulldown_enter_pmv")
+        if not -3.0 <= self.setpoint_pmv <= 3.0:
+            raise ValueError(f"AccSettings.setpoint_pmv must be in [-3, 3] (the PMV scale), got {self.setpoint_pmv}")
+        if self.feedback == "pmv" and self.compensated:
+            raise ValueError(
+                "AccSettings: the sun/ambient compensation gains apply to feedback 'cabin_temperature' only "
+                "(the PMV already contains the sun and the surfaces); set them to 0 with feedback 'pmv'"
+            )
+        for name in ("allowance_k_per_pmv", "allowance_pmv_per_pmv", "sun_blower_gain_kgps_per_kwm2"):
             if getattr(self, name) < 0.0:
                 raise ValueError(f"AccSettings.{name} must be >= 0")
         if not self.sun_filter_tau_s > 0.0:
@@ -155,7 +197,9 @@ class AccCommand:
     mode: str
     """'pulldown', 'pi', 'sensor_fault' or 'tracking' (another controller in charge)."""
     setpoint_c: float = math.nan
-    """Effective cabin set-point of this step (after compensation and allowance) [degC]."""
+    """Effective cabin set-point of this step (after compensation and allowance) [degC]; NaN with feedback 'pmv'."""
+    setpoint_pmv: float = math.nan
+    """Effective PMV set-point of this step (after the allowance) [-]; NaN with feedback 'cabin_temperature'."""
 
 
 class AccLaw:
@@ -213,6 +257,41 @@ class AccLaw:
             sp += s.allowance_k_per_pmv * max(0.0, float(pmv_ub) - s.band_ub_pmv)
         return sp
 
+    def effective_setpoint_pmv(self, pmv_ub=None) -> float:
+        """The PMV set-point of this step after the allowance [-] (feedback 'pmv')."""
+        s = self.settings
+        sp = s.setpoint_pmv
+        if s.allowance_pmv_per_pmv and pmv_ub is not None and math.isfinite(float(pmv_ub)):
+            sp += s.allowance_pmv_per_pmv * max(0.0, float(pmv_ub) - s.band_ub_pmv)
+        return sp
+
+    def _loop(self, dt_s, t_cab_c, pmv, t_amb_c, solar_wm2, pmv_ub):
+        """(measured y, set-point, kp, pull-down enter, exit) of the controlled variable of this step.
+
+        y is NaN where its sensor reading is missing or not finite.
+        """
+        s = self.settings
+        y = self._measured(t_cab_c, pmv)
+        if not math.isfinite(y):  # a fault step leaves the compensation filter as it is
+            return y, math.nan, math.nan, math.nan, math.nan
+        if s.feedback == "pmv":
+            return y, self.effective_setpoint_pmv(pmv_ub), s.kp_per_pmv, s.pulldown_enter_pmv, s.pulldown_exit_pmv
+        sp = self.effective_setpoint_c(dt_s, t_amb_c, solar_wm2, pmv_ub)
+        return y, sp, s.kp_per_k, s.pulldown_enter_k, s.pulldown_exit_k
+
+    def _measured(self, t_cab_c, pmv) -> float:
+        """The controlled variable's reading (cabin temperature [degC] or PMV [-]); NaN if unusable."""
+        v = pmv if self.settings.feedback == "pmv" else t_cab_c
+        try:
+            return math.nan if v is None else float(v)
+        except (TypeError, ValueError):
+            return math.nan
+
+    def _with_setpoint(self, cmd: AccCommand, sp: float) -> AccCommand:
+        if self.settings.feedback == "pmv":
+            return dataclasses.replace(cmd, setpoint_pmv=sp)
+        return dataclasses.replace(cmd, setpoint_c=sp)
+
     def demand_of(self, mdot_bl_kgps: float, t_evap_sp_c: float) -> float:
         """The demand whose mapped command is nearest to (mdot_bl [kg/s], T_evap_sp [degC]).
 
@@ -256,30 +335,33 @@ class AccLaw:
         t_amb_c: float | None = None,
         solar_wm2: float | None = None,
         pmv_ub: float | None = None,
+        pmv: float | None = None,
     ) -> None:
         """Follow a command another controller applied, so that a later :meth:`step` takes over without a bump.
 
-        (mdot_bl [kg/s], T_evap_sp [degC]) applied at cabin air temperature ``t_cab_c`` [degC];
-        with ``dt_s`` the compensations' sensors are followed too (the sun filter stays warm) and
-        the integrator is preset against the effective set-point. Non-finite commands are
-        ignored; a non-finite ``t_cab_c`` leaves the integrator as it is.
+        (mdot_bl [kg/s], T_evap_sp [degC]) applied at cabin air temperature ``t_cab_c`` [degC]
+        (feedback 'pmv': at the measured PMV ``pmv`` [-]); with ``dt_s`` the compensations'
+        sensors are followed too (the sun filter stays warm) and the integrator is preset against
+        the effective set-point. Non-finite commands are ignored; a non-finite measurement leaves
+        the integrator as it is.
         """
         if not (math.isfinite(float(mdot_bl_kgps)) and math.isfinite(float(t_evap_sp_c))):
             return
         s = self.settings
-        sp_eff = (
-            self.effective_setpoint_c(dt_s, t_amb_c, solar_wm2, pmv_ub)
-            if dt_s is not None and math.isfinite(dt_s) and dt_s > 0
-            else s.setpoint_c
-        )
+        if dt_s is not None and math.isfinite(dt_s) and dt_s > 0:
+            y, sp_eff, kp, _, _ = self._loop(dt_s, t_cab_c, pmv, t_amb_c, solar_wm2, pmv_ub)
+        else:
+            y = self._measured(t_cab_c, pmv)
+            kp = s.kp_per_pmv if s.feedback == "pmv" else s.kp_per_k
+            sp_eff = s.setpoint_pmv if s.feedback == "pmv" else s.setpoint_c
         mdot = min(max(float(mdot_bl_kgps), s.mdot_bl_min_kgps), s.mdot_bl_max_kgps)
         sp = min(max(float(t_evap_sp_c), s.t_evap_sp_min_c), s.t_evap_sp_max_c)
         d = self.demand_of(mdot, sp)
         self._pulldown = False
-        if t_cab_c is not None and math.isfinite(float(t_cab_c)):
-            self._integral = d - s.kp_per_k * (float(t_cab_c) - sp_eff)
-        self._last = self._raw = AccCommand(
-            mdot_bl_kgps=mdot, t_evap_sp_c=sp, demand=d, mode="tracking", setpoint_c=sp_eff
+        if math.isfinite(y):
+            self._integral = d - kp * (y - sp_eff)
+        self._last = self._raw = self._with_setpoint(
+            AccCommand(mdot_bl_kgps=mdot, t_evap_sp_c=sp, demand=d, mode="tracking"), sp_eff
         )
         self._tracking = True
         self._offset = np.zeros(2)
@@ -292,21 +374,24 @@ class AccLaw:
         t_amb_c: float | None = None,
         solar_wm2: float | None = None,
         pmv_ub: float | None = None,
+        pmv: float | None = None,
     ) -> AccCommand:
         """One ECU step.
 
         Args:
-            t_cab_c: measured cabin air temperature [degC].
+            t_cab_c: measured cabin air temperature [degC] (the controlled variable of the production law).
             dt_s: step length [s].
             t_amb_c: ambient temperature sensor [degC] (used by the ambient compensation only).
             solar_wm2: sun-load sensor [W/m2] (used by the sun-load compensation only).
             pmv_ub: the occupant's upper PMV bound now [-] (used by the allowance only).
+            pmv: the measured cabin PMV [-] (:func:`feedback_pmv`; the controlled
+                variable with feedback 'pmv', ignored otherwise).
         """
         if not (isinstance(dt_s, (int, float)) and math.isfinite(dt_s) and dt_s > 0):
             raise ValueError(f"AccLaw.step: dt_s must be a finite number > 0, got {dt_s!r}")
         applied = self._last if self._tracking else None
         self._tracking = False
-        cmd = self._raw = self._law_step(t_cab_c, dt_s, t_amb_c, solar_wm2, pmv_ub)
+        cmd = self._raw = self._law_step(t_cab_c, dt_s, t_amb_c, solar_wm2, pmv_ub, pmv)
         if applied is not None:  # take-over: start from the applied command
             self._offset = np.array([applied.mdot_bl_kgps - cmd.mdot_bl_kgps, applied.t_evap_sp_c - cmd.t_evap_sp_c])
         elif np.any(self._offset):
@@ -323,23 +408,65 @@ class AccLaw:
         self._last = cmd
         return cmd
 
-    def _law_step(self, t_cab_c, dt_s, t_amb_c, solar_wm2, pmv_ub) -> AccCommand:
+    def _law_step(self, t_cab_c, dt_s, t_amb_c, solar_wm2, pmv_ub, pmv=None) -> AccCommand:
         """The law itself (PI, pull-down, sensor fault), without the take-over offset."""
-        if t_cab_c is None or not math.isfinite(float(t_cab_c)):
+        y, sp, kp, enter, leave = self._loop(dt_s, t_cab_c, pmv, t_amb_c, solar_wm2, pmv_ub)
+        if not math.isfinite(y):
             return dataclasses.replace(self._raw, mode="sensor_fault")
         s = self.settings
-        sp = self.effective_setpoint_c(dt_s, t_amb_c, solar_wm2, pmv_ub)
-        err = float(t_cab_c) - sp  # > 0: cabin too warm
-        if self._pulldown and err < s.pulldown_exit_k:
+        err = y - sp  # > 0: cabin too warm
+        if self._pulldown and err < leave:
             self._pulldown = False
             # bumpless hand-over: PI output equals the current demand (1)
-            self._integral = 1.0 - s.kp_per_k * err
-        elif not self._pulldown and err > s.pulldown_enter_k:
+            self._integral = 1.0 - kp * err
+        elif not self._pulldown and err > enter:
             self._pulldown = True
         if self._pulldown:
-            return dataclasses.replace(self.map_demand(1.0, "pulldown"), setpoint_c=sp)
-        v = s.kp_per_k * err + self._integral
+            return self._with_setpoint(self.map_demand(1.0, "pulldown"), sp)
+        v = kp * err + self._integral
         d = min(max(v, 0.0), 1.0)
         # integrate with back-calculation anti-windup
-        self._integral += dt_s * (s.kp_per_k / s.ti_s * err + (d - v) / s.tt_s)
-        return dataclasses.replace(self.map_demand(d, "pi"), setpoint_c=sp)
+        self._integral += dt_s * (kp / s.ti_s * err + (d - v) / s.tt_s)
+        return self._with_setpoint(self.map_demand(d, "pi"), sp)
+
+
+def feedback_pmv(*, t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, rh_cab, mdot_bl_kgps, solar_wm2, params):
+    """The cabin PMV the comfort-feedback law regulates [-]: the scored comfort model on the controller's observation.
+
+    ISO 7730 PMV + absorbed sun at the occupant (:func:`ceco_core.cabin_comfort.cabin_pmv`) from the
+    cabin air ``t_cab_c`` and vent air ``t_vent_c`` temperatures [degC], the mean radiant temperature
+    of the interior, shell and glazing temperatures ``t_int_c``, ``t_shell_c``, ``t_glass_c`` [degC]
+    (:func:`~ceco_core.cabin_comfort.cabin_mrt_c`), the cabin humidity ``rh_cab`` [0..1] (vapour
+    pressure rh * p_ws(T_cab)), the blower flow the ECU commands ``mdot_bl_kgps`` [kg/s] and the
+    sun-load sensor ``solar_wm2`` [W/m2] through SolarCal with the scenario's sun position
+    (``params``: :class:`~ceco_core.cabin_comfort.ComfortParams`, occupant met/clo too).
+
+    No car measures its surfaces: with the controllers' ``measurements: vehicle`` (as the benchmark
+    runs the PMV families) T_int, T_shell and T_glass are the estimator's, from the sensors a
+    production car has (``ceco_controller.estimator``: cabin air, vent air, evaporator, ambient, sun
+    load, speed, cabin humidity). Returns NaN when an input is missing or not finite (the law then
+    holds its command).
+    """
+    from ceco_core import psychro
+    from ceco_core.cabin_comfort import cabin_mrt_c, cabin_pmv, cabin_w_rad_wm2
+
+    vals = (t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, rh_cab, mdot_bl_kgps, solar_wm2)
+    try:
+        t_cab, t_vent, t_int, t_shell, t_glass, rh, mdot, solar = (float(v) for v in vals)
+    except (TypeError, ValueError):
+        return math.nan
+    finite = all(math.isfinite(v) for v in (t_cab, t_vent, t_int, t_shell, t_glass, rh, mdot, solar))
+    if not finite or not 0.0 <= rh <= 1.0 or mdot < 0.0:
+        return math.nan
+    t_mr = cabin_mrt_c(t_cab_c=t_cab, t_int_c=t_int, t_shell_c=t_shell, t_glass_c=t_glass, params=params)
+    return float(
+        cabin_pmv(
+            t_cab_c=t_cab,
+            t_vent_c=t_vent,
+            mdot_bl_kgps=mdot,
+            t_mr_c=float(t_mr),
+            w_rad_wm2=float(cabin_w_rad_wm2(max(solar, 0.0), params)),
+            pa_pa=float(psychro.vapour_pressure_pa(t_cab, rh)),
+            params=params,
+        )
+    )

@@ -64,8 +64,13 @@ DEFAULT_CASES = (
     "hwfet-hot",
     "us06-hot",
     "mild-day",
+    "tunnel",
+    "sun-shade",
+    "idle-traffic",
+    "highway-to-city",
+    "known-stop",
 )
-"""The cases of a full ``ceco benchmark`` run, in report order."""
+"""The cases of a full ``ceco benchmark`` run, in report order (the last five: previewable disturbances)."""
 
 QUICK_CASES = ("sc03-paper", "us06-hot", "mild-day")
 """The three cases of ``ceco benchmark --quick`` (each 600 s; with seed 0 only)."""

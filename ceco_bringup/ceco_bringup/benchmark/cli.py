@@ -2,11 +2,12 @@
 
     ceco benchmark --out runs/bench                       # every bundled case, the sensitivity, the report
     ceco benchmark sc03-paper udds-hot --out runs/b2      # some cases (names or case-file paths)
-    ceco benchmark --quick --out runs/quick               # 3 cases, seed 0, 24/25/26 degC: CI smoke test
+    ceco benchmark --quick --out runs/quick               # 3 cases, seed 0, 3 set-points per family: CI smoke test
+    ceco benchmark --no-oracle --out runs/b3              # without the whole-drive optimum
     ceco benchmark --controller-cmd "python my_node.py" --controller-name mine --out runs/mine
     ceco benchmark --validate runs/bench/results.json
 
-Writes ``DIR/results.json`` (``ceco-benchmark/1``, validated before it is written),
+Writes ``DIR/results.json`` (``ceco-benchmark/2``, validated before it is written),
 ``DIR/kpis.csv``, ``DIR/report.md``, ``DIR/report.html``, ``DIR/figures/``; the run log
 ``DIR/cells.jsonl`` makes a rerun resume (docs/benchmark.md).
 """
@@ -108,11 +109,20 @@ def run_benchmark(
     log=print,
     setpoints_c: Sequence[float] | None = None,
     sensitivity_path=None,
+    setpoints_pmv: Sequence[float] | None = None,
+    oracle: bool = True,
+    oracle_entry: str = runner.ORACLE_ENTRY,
+    oracle_cases: Sequence[str] | None = None,
+    strategies: Sequence[str] | None = None,
 ) -> dict:
     """Run (or resume) the benchmark into ``out_dir``; return the results document (also written).
 
-    ``setpoints_c`` and ``sensitivity_path`` replace the family's set-points and the tornado's
-    table (tests and studies; the published benchmark uses the defaults).
+    ``setpoints_c``, ``setpoints_pmv`` and ``sensitivity_path`` replace the families' set-points and the
+    tornado's table (tests and studies; the published benchmark uses the defaults). ``oracle``: ask the
+    whole-drive optimum (``oracle_entry``, :data:`runner.ORACLE_ENTRY`) for its front on every case (or on
+    ``oracle_cases``; ``--quick``: :data:`QUICK_ORACLE_CASES`) once the case's runs are done; a missing
+    oracle module is skipped with one line. ``strategies`` replaces :data:`runner.STRATEGY_NAMES` (``()``:
+    the baseline families and compensated laws only, e.g. to study the families on every case).
     """
     t0 = time.perf_counter()
     ray_workers = workers
@@ -121,7 +131,10 @@ def run_benchmark(
     baselines = runner.load_baselines()
     if setpoints_c is None:
         setpoints_c = runner.QUICK_SETPOINTS_C if quick else runner.SETPOINTS_C
-    specs = runner.controllers(baselines, setpoints_c)
+    if setpoints_pmv is None:
+        setpoints_pmv = runner.QUICK_SETPOINTS_PMV if quick else runner.SETPOINTS_PMV
+    strategies = runner.STRATEGY_NAMES if strategies is None else tuple(strategies)
+    specs = runner.controllers(baselines, setpoints_c, strategies, setpoints_pmv)
     code = code_fingerprint()
     seeds = {c.name: (c.seeds[:1] if quick else c.seeds) for c in cases}
     cells, by_case = [], {}
@@ -130,6 +143,7 @@ def run_benchmark(
         by_case[c.name] = cc
         cells += cc
     sens_plan = []
+    sens_specs = [c for c in specs if c.kind in runner.SENSITIVITY_KINDS]
     sens_case_name, params = runner.load_sensitivity(sensitivity_path)
     if sensitivity and not quick and any(c.name == sens_case_name for c in cases):
         case = next(c for c in cases if c.name == sens_case_name)
@@ -143,7 +157,7 @@ def run_benchmark(
                 )
                 ends.append(
                     runner.case_cells(
-                        case, specs, code, seeds=seeds[case.name], variant=f'sens:{p.parameter}:{end}', **kw
+                        case, sens_specs, code, seeds=seeds[case.name], variant=f'sens:{p.parameter}:{end}', **kw
                     )
                 )
             sens_plan.append((p, *ends))
@@ -189,24 +203,22 @@ def run_benchmark(
             bar.update(1)
 
     runs_dir = str(out / 'runs') if save_runs else None
-    items = [dict(id=c.id, axes=c.axes, spec=c.spec) for c in todo]
+
+    def dispatch(cells_, fn):
+        items = [dict(id=c.id, axes=c.axes, spec=c.spec) for c in cells_]
+        if not items:
+            return
+        n = min(workers, len(items))
+        if backend == 'local':
+            backends.run_local(items, n, on_done, fn, runs_dir)
+        elif backend == 'ray':
+            # on a cluster (address) without --workers: one worker per CPU of the cluster
+            backends.run_ray(items, None if address and not ray_workers else n, address, on_done, fn, runs_dir)
+        else:
+            raise ValueError(f'backend: must be local or ray, got {backend!r}')
+
     try:
-        if items:
-            n = min(workers, len(items))
-            if backend == 'local':
-                backends.run_local(items, n, on_done, runner.run_benchmark_cell, runs_dir)
-            elif backend == 'ray':
-                # on a cluster (address) without --workers: one worker per CPU of the cluster
-                backends.run_ray(
-                    items,
-                    None if address and not ray_workers else n,
-                    address,
-                    on_done,
-                    runner.run_benchmark_cell,
-                    runs_dir,
-                )
-            else:
-                raise ValueError(f'backend: must be local or ray, got {backend!r}')
+        dispatch(todo, runner.run_benchmark_cell)
         for c in todo_ext:
             on_done(
                 ext.run_external_cell(
@@ -216,19 +228,35 @@ def run_benchmark(
     finally:
         if bar is not None:
             bar.close()
+            bar = None
     done = backends.read_done(log_path)
     failed = {r['cell_id']: r for r in ran if r['status'] != 'ok'}
 
     def rows(cs):
         return [done.get(c.id) or failed.get(c.id) or _missing(c) for c in cs]
 
+    oracles = _run_oracles(
+        cases,
+        by_case,
+        rows,
+        seeds,
+        code,
+        log_path,
+        dispatch,
+        log,
+        oracle,
+        oracle_entry,
+        oracle_cases if oracle_cases is not None else (QUICK_ORACLE_CASES if quick else None),
+    )
+    done = backends.read_done(log_path)
     case_docs = []
     for c in cases:
         sens = [(p, rows(lo), rows(hi)) for p, lo, hi in sens_plan] if c.name == sens_case_name else []
-        case_docs.append(runner.assemble_case(c, rows(by_case[c.name]), sens))
+        case_docs.append(runner.assemble_case(c, rows(by_case[c.name]), sens, oracles[c.name]))
     all_cells = cells + external
     wall = time.perf_counter() - t0
-    sim = [r['sim_time_s'] for r in ran if r['status'] == 'ok']
+    sim = [r['sim_time_s'] for r in ran if r['status'] == 'ok' and r.get('kind') != 'oracle']
+    oracle_wall = [r['wall_time_s'] for r in ran if r.get('kind') == 'oracle']
     timing = {
         'wall_s': wall,
         'runs': len(all_cells),
@@ -239,6 +267,8 @@ def run_benchmark(
         'host': socket.gethostname(),
         'sim_time_sum_s': float(sum(sim)),
         'sim_time_mean_s': float(sum(sim) / len(sim)) if sim else None,
+        'oracle_cells_now': len(oracle_wall),
+        'oracle_wall_sum_s': float(sum(oracle_wall)),
     }
     doc = {
         'schema': SCHEMA,
@@ -254,11 +284,15 @@ def run_benchmark(
             'energy_axis': runner.ENERGY_AXIS,
             'secondary_axes': list(runner.SECONDARY_AXES),
             'setpoints_c': [float(x) for x in setpoints_c],
+            'setpoints_pmv': [float(x) for x in setpoints_pmv],
+            'families': {f.family: {'kind': f.kind, **dict(f.overrides)} for f in baselines.family_specs()},
+            'strongest': 'pointwise lower envelope of every family front (docs/benchmark.md, "Strongest family")',
+            'oracle': {'requested': bool(oracle), 'entry_point': oracle_entry},
             'allowance_k_per_pmv': baselines.allowance_k_per_pmv,
             'compensation': dict(baselines.compensation),
             'baselines_tuned_on': baselines.tuned_on,
             'baselines_sha': baselines.sha,
-            'strategies': list(runner.STRATEGY_NAMES),
+            'strategies': list(strategies),
         },
         'timing': timing,
         'cases': case_docs,
@@ -272,6 +306,48 @@ def run_benchmark(
 
     write_report(doc, out)
     return doc
+
+
+QUICK_ORACLE_CASES = ('sc03-paper',)
+"""The cases ``--quick`` asks the oracle on (the paper's case; its one seed)."""
+
+
+def _run_oracles(cases, by_case, rows, seeds, code, log_path, dispatch, log, oracle, entry, only) -> dict:
+    """The ``oracle`` entry of every case: levels from the case's runs, cells through the same backend."""
+    levels = {c.name: runner.oracle_levels([runner._run_entry(r) for r in rows(by_case[c.name])]) for c in cases}
+    out = {}
+    wanted = [c for c in cases if only is None or c.name in only]
+    if not oracle:
+        for c in cases:
+            out[c.name] = runner.oracle_entry('skipped', 'ceco benchmark --no-oracle', levels[c.name], [])
+        return out
+    why = runner.oracle_unavailable(entry)
+    if why:
+        log(
+            f'ceco benchmark: oracle skipped: {why} (the whole-drive optimum; --no-oracle silences this)',
+            file=sys.stderr,
+        )
+    plan = {}
+    for c in cases:
+        if why:
+            out[c.name] = runner.oracle_entry('unavailable', why, levels[c.name], [])
+        elif c not in wanted or not levels[c.name]:
+            note = 'no baseline front' if c in wanted else 'not asked on this case (--quick asks on sc03-paper only)'
+            out[c.name] = runner.oracle_entry('skipped', note, levels[c.name], [])
+        else:
+            plan[c.name] = runner.oracle_cells(c, seeds[c.name], levels[c.name], code, entry)
+    if plan:
+        done = backends.read_done(log_path)
+        todo = [x for cs in plan.values() for x in cs if x.id not in done]
+        log(f'ceco benchmark: oracle on {len(plan)} case(s), {len(todo)} (case, seed) to solve', file=sys.stderr)
+        dispatch(todo, runner.run_oracle_cell)
+        done = backends.read_done(log_path)
+        for name, cs in plan.items():
+            got = [
+                done.get(x.id) or {**x.axes, 'status': 'error', 'error': 'the oracle failed (see the log)'} for x in cs
+            ]
+            out[name] = runner.oracle_entry('ok', '', levels[name], got)
+    return out
 
 
 def _missing(cell) -> dict:
@@ -294,11 +370,15 @@ def build_parser() -> cli_args.Parser:
     p.add_argument(
         '--quick',
         action='store_true',
-        help=f'CI smoke test: cases {", ".join(QUICK_CASES)}, seed 0, set-points 24/25/26 degC, no sensitivity',
+        help=f'CI smoke test: cases {", ".join(QUICK_CASES)}, seed 0, 3 set-points per family, no sensitivity, '
+        'the oracle on sc03-paper only',
     )
     cli_args.add_workers(p)
     cli_args.add_backend(p)
     p.add_argument('--no-sensitivity', action='store_true', help='skip the tornado runs')
+    p.add_argument(
+        '--no-oracle', action='store_true', help='skip the whole-drive optimum (the bound of headroom_captured)'
+    )
     p.add_argument(
         '--controller-cmd',
         default=None,
@@ -307,7 +387,7 @@ def build_parser() -> cli_args.Parser:
     )
     p.add_argument('--controller-name', default='external', help='name of that controller in the results')
     p.add_argument('--save-runs', action='store_true', help='also write a run directory per run to DIR/runs/')
-    p.add_argument('--validate', metavar='FILE', default=None, help='only check FILE against ceco-benchmark/1')
+    p.add_argument('--validate', metavar='FILE', default=None, help='only check FILE against ceco-benchmark/2')
     cli_args.add_no_progress(p)
     return p
 
@@ -341,6 +421,7 @@ def main(argv=None) -> int:
             backend=args.backend,
             address=args.address,
             sensitivity=not args.no_sensitivity,
+            oracle=not args.no_oracle,
             controller_cmd=args.controller_cmd,
             controller_name=args.controller_name,
             save_runs=args.save_runs,
@@ -369,16 +450,27 @@ def summary_lines(doc: dict) -> list[str]:
     """One console line per case and controller of a results document.
 
     The matched savings are signed as in results.json: positive = less energy / less discomfort than
-    the baseline front.
+    the production-gains front (and, in the parentheses, its allowance front, the strongest family and
+    headroom_captured when the case has an oracle front).
     """
 
     def f(x):
         return 'n/a' if x is None else f'{x:+.1f} %'
 
+    def strongest(m):
+        st = m['strongest']
+        h = m.get('headroom') or {}
+        cap = h.get('headroom_captured')
+        return (
+            f"; strongest ({st['family'] or 'n/a'}) {f(st['energy_saving_pct'])}"
+            + (', dominated by a family' if st['dominated'] else '')
+            + ('' if not h else f"; headroom captured {'n/a' if cap is None else format(cap, '.2f')}")
+        )
+
     return [
         f"  {case['case']:<18} {name:<32} energy saved at matched comfort {f(m['energy_saving_pct']):>8} "
-        f"(allowance {f(m['allowance']['energy_saving_pct']):>8}), discomfort cut at matched energy "
-        f"{f(m['discomfort_reduction_pct']):>8}{', dominated' if m['dominated'] else ''}"
+        f"(allowance {f((m['allowance'] or {}).get('energy_saving_pct')):>8}{strongest(m)}), discomfort cut at "
+        f"matched energy {f(m['discomfort_reduction_pct']):>8}{', dominated' if m['dominated'] else ''}"
         for case in doc['cases']
         for name, m in case['matched'].items()
     ]

@@ -1,6 +1,6 @@
 """Figures of the benchmark report: the energy-discomfort plane and the tornado.
 
-Each function takes one case of a results document (``ceco-benchmark/1``), writes
+Each function takes one case of a results document (``ceco-benchmark/2``), writes
 one PNG (200 dpi) and returns its path. Colours: the Okabe-Ito palette of
 :mod:`ceco_bringup.figures`, fixed per strategy.
 
@@ -27,9 +27,15 @@ __all__ = ['fig_plane', 'fig_tornado', 'controller_points']
 _DPI = 200
 _RC = {'font.size': 8, 'axes.grid': True, 'grid.alpha': 0.3, 'savefig.bbox': 'tight', 'legend.fontsize': 7}
 _FAMILY_STYLE = {
-    'plain': {'color': '#000000', 'ls': '-', 'label': 'baseline front (PI at set-point S)'},
-    'allowance': {'color': '#0072B2', 'ls': '--', 'label': 'allowance baseline front'},
+    'plain': {'color': '#000000', 'ls': '-', 'label': 'production PI (T_cab at S)'},
+    'allowance': {'color': '#0072B2', 'ls': '--', 'label': 'production PI + allowance'},
+    # the tuned families in colours outside the strategies' Okabe-Ito palette
+    'tuned': {'color': '#7B3294', 'ls': '-', 'label': 'tuned PI (T_cab)'},
+    'tuned-allowance': {'color': '#7B3294', 'ls': '--', 'label': 'tuned PI + allowance'},
+    'pmv': {'color': '#8C510A', 'ls': '-', 'label': 'tuned PI on PMV'},
+    'pmv-allowance': {'color': '#8C510A', 'ls': '--', 'label': 'tuned PI on PMV + allowance'},
 }
+_ORACLE_STYLE = {'color': '#CC0000', 'ls': ':', 'label': 'whole-drive optimum (oracle)'}
 _SCORED_KINDS = ('strategy', 'compensated', 'compensated-allowance', 'external')
 _AXIS_LABEL = {
     'discomfort_pmvh': 'Thermal discomfort, whole run (PMV outside -0.5..0.5) [PMV·h]',
@@ -76,28 +82,23 @@ def _style(name: str, kind: str, index: int) -> dict:
 def fig_plane(case: Mapping, path, settings: Mapping, title: str = '') -> Path:
     """Energy over discomfort of one case.
 
-    Both baseline fronts as lines through their efficient points (inefficient family
-    members hollow, set-points annotated), every scored controller at its mean over
-    seeds with min-max whiskers and its seeds as dots.
+    Every baseline family's front as a line through its efficient points (inefficient family
+    members hollow, set-points annotated), the oracle's front(s) when there are any, every
+    scored controller at its mean over seeds with min-max whiskers and its seeds as dots. The
+    view is zoomed on the strategies and the oracle's levels when they are given (the
+    families' warm ends run far beyond them).
     """
     fx, ex = settings['front_axis'], settings['energy_axis']
     with plt.rc_context(_RC):
-        fig, ax = plt.subplots(figsize=(6.4, 4.4))
+        fig, ax = plt.subplots(figsize=(6.4, 4.6))
+        oracle = case.get('oracle') or {}
+        for k, f in enumerate(oracle.get('fronts', []) if fx == 'discomfort_pmvh' else []):
+            _front_line(ax, f['front'], _ORACLE_STYLE, 'D', 3, 1.3, _ORACLE_STYLE['label'] if k == 0 else None, 4)
         for family, st in _FAMILY_STYLE.items():
             pts = case['fronts'].get(family) or []
             if not pts:
                 continue
-            eff = sorted((p for p in pts if p['efficient']), key=lambda p: p['discomfort'])
-            ax.plot(
-                [p['discomfort'] for p in eff],
-                [p['energy'] for p in eff],
-                color=st['color'],
-                ls=st['ls'],
-                marker='o',
-                ms=3.5,
-                lw=1.1,
-                label=st['label'],
-            )
+            eff = _front_line(ax, pts, st, 'o', 3.5, 1.1, st['label'], 2)
             off = [p for p in pts if not p['efficient']]
             if off:
                 ax.plot(
@@ -145,6 +146,7 @@ def fig_plane(case: Mapping, path, settings: Mapping, title: str = '') -> Path:
             )
             if len(pts) > 1:
                 ax.plot(arr[:, 0], arr[:, 1], ls='none', marker='.', ms=2.5, color=st['color'], alpha=0.6, zorder=3)
+        _zoom(ax, case, fx, ex)
         ax.set_xlabel(_AXIS_LABEL.get(fx, fx))
         ax.set_ylabel(_AXIS_LABEL.get(ex, ex))
         ax.set_title(title or case['case'])
@@ -156,6 +158,50 @@ def fig_plane(case: Mapping, path, settings: Mapping, title: str = '') -> Path:
         fig.savefig(path, dpi=_DPI)
         plt.close(fig)
     return path
+
+
+def _front_line(ax, pts, st: Mapping, marker: str, ms: float, lw: float, label, zorder) -> list:
+    """Draw a front through its efficient points (sorted by discomfort); return them."""
+    eff = sorted((p for p in pts if p['efficient']), key=lambda p: p['discomfort'])
+    if eff:
+        ax.plot(
+            [p['discomfort'] for p in eff],
+            [p['energy'] for p in eff],
+            color=st['color'],
+            ls=st['ls'],
+            marker=marker,
+            ms=ms,
+            lw=lw,
+            label=label,
+            zorder=zorder,
+        )
+    return eff
+
+
+def _zoom(ax, case: Mapping, fx: str, ex: str) -> None:
+    """Limit the view to the oracle's levels and the scored controllers.
+
+    The discomfort range of both (plus margins), and the energy range of every front point inside it.
+    """
+    xs = list((case.get('oracle') or {}).get('levels') or []) if fx == 'discomfort_pmvh' else []
+    xs += [d for _, pts in controller_points(case, fx, ex).values() for d, _ in pts]
+    if not xs:
+        return
+    lo, hi = min(xs), max(xs)
+    pad = 0.08 * max(hi - lo, 0.05 * max(hi, 1e-9))
+    lo, hi = lo - pad, hi + pad
+    ys = [p['energy'] for pts in case['fronts'].values() for p in pts if lo <= p['discomfort'] <= hi]
+    ys += [
+        p['energy']
+        for f in (case.get('oracle') or {}).get('fronts', [])
+        for p in f['front']
+        if lo <= p['discomfort'] <= hi
+    ]
+    ys += [e for _, pts in controller_points(case, fx, ex).values() for _, e in pts]
+    ax.set_xlim(max(lo, 0.0), hi)
+    if ys:
+        span = max(ys) - min(ys)
+        ax.set_ylim(min(ys) - 0.08 * span - 1e-6, max(ys) + 0.08 * span + 1e-6)
 
 
 def fig_tornado(case: Mapping, path, controllers=None, title: str = '') -> Path:

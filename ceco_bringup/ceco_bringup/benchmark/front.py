@@ -23,6 +23,17 @@ E: ``energy_kwh`` [kWh]). Method (docs/benchmark.md, "Matched comfort"):
    Outside the ranges nothing is extrapolated: the value is None and ``note``
    says why.
 
+The strongest of several families (docs/benchmark.md, "Strongest family"): an
+:class:`Envelope` of the families' fronts, E_env(D) = min over the families with
+D_min,f <= D of E_f(min(D, D_max,f)): the least energy any family spends at a
+discomfort of at most D (each family is interpolated only within itself; past its
+least comfortable vertex a family keeps that vertex's energy, which meets any looser
+level), on [min D_min,f, max D_max,f]; D_env(E) the same for the inverse. A point
+is dominated by the envelope exactly when some family's front dominates it. :func:`match` takes a :class:`Front` or an
+:class:`Envelope`. :func:`headroom` divides a controller's saving at matched
+comfort by the saving of a bound (the whole-drive optimum's front) at the same
+discomfort, both against the envelope.
+
 Pure Python + numpy; no ROS, no simulator.
 """
 
@@ -34,7 +45,20 @@ from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["REL_TOL", "FrontPoint", "Front", "Matched", "build_front", "match", "match_seeds"]
+__all__ = [
+    "REL_TOL",
+    "FrontPoint",
+    "Front",
+    "Envelope",
+    "Matched",
+    "Headroom",
+    "build_front",
+    "match",
+    "match_seeds",
+    "strongest_by_level",
+    "headroom",
+    "headroom_seeds",
+]
 
 REL_TOL = 1e-9
 """Relative tolerance of the comparisons (a point on the front is on it, not above)."""
@@ -44,6 +68,8 @@ NOTE_LESS_COMFORTABLE = "less comfortable than every efficient baseline (no extr
 NOTE_MORE_ENERGY = "uses more energy than every efficient baseline (no extrapolation)"
 NOTE_LESS_ENERGY = "uses less energy than every efficient baseline (no extrapolation)"
 NOTE_ZERO_DISCOMFORT = "the front has zero discomfort at this energy (a reduction in % is undefined)"
+NOTE_NO_BOUND = "the bound's front does not cover this discomfort (no extrapolation)"
+NOTE_NO_HEADROOM = "the bound saves nothing against the strongest family here (a share of it is undefined)"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,6 +124,102 @@ class Front:
             return None
         # e decreases along the front: interpolate on the reversed arrays
         return float(np.interp(min(max(x, e[-1]), e[0]), e[::-1], d[::-1]))
+
+    @property
+    def d_range(self) -> tuple[float, float]:
+        """(D_min, D_max) of the vertices."""
+        d = self.d
+        return float(d[0]), float(d[-1])
+
+    @property
+    def e_range(self) -> tuple[float, float]:
+        """(E_min, E_max) of the vertices."""
+        e = self.e
+        return float(e[-1]), float(e[0])
+
+    def dominates(self, discomfort: float, energy: float) -> bool:
+        """True when a point of the front has D <= ``discomfort`` and E <= ``energy``, one strictly."""
+        dc, ec = float(discomfort), float(energy)
+        d, e = self.d, self.e
+        if _lt(dc, d[0]):
+            return False
+        if _le(dc, d[-1]):
+            return _lt(float(self.energy_at(min(dc, d[-1]))), ec)
+        return _le(float(e[-1]), ec)  # beyond the least comfortable vertex: it has strictly less discomfort
+
+
+@dataclasses.dataclass(frozen=True)
+class Envelope:
+    """The strongest of several families: at each discomfort D the least energy any family spends at <= D.
+
+    E_env(D) = min over the families with D_min,f <= D of E_f(min(D, D_max,f)) on [min D_min,f, max D_max,f]
+    (None outside); D_env(E) = min over the families with E_min,f <= E of D_f(min(E, E_max,f)) on
+    [min E_min,f, max E_max,f]. Families are interpolated only within themselves (a segment between two
+    laws' points stands for no law). Same interface as :class:`Front` for :func:`match`.
+    """
+
+    fronts: tuple
+    """((family name, :class:`Front`), ...) in a fixed order (ties go to the first)."""
+
+    @classmethod
+    def of(cls, fronts: Mapping[str, Front | None]) -> Envelope:
+        """The envelope of ``{family: Front or None}`` (None and empty fronts are left out)."""
+        items = tuple((str(k), f) for k, f in fronts.items() if f is not None and f.vertices)
+        if not items:
+            raise ValueError("Envelope: no family has a front")
+        return cls(fronts=items)
+
+    def energy_at(self, discomfort: float) -> float | None:
+        """E_env(D); None outside the envelope's discomfort range."""
+        best = self._best_energy(discomfort)
+        return None if best is None else best[1]
+
+    def family_at(self, discomfort: float) -> str | None:
+        """The family whose energy is least at D (the strongest there); None outside the range."""
+        best = self._best_energy(discomfort)
+        return None if best is None else best[0]
+
+    def _best_energy(self, discomfort):
+        x = float(discomfort)
+        if not _le(x, self.d_range[1]):
+            return None
+        best = None
+        for name, f in self.fronts:
+            lo, hi = f.d_range
+            if not _ge(x, lo):
+                continue
+            e = f.energy_at(min(max(x, lo), hi))
+            if e is not None and (best is None or _lt(e, best[1])):
+                best = (name, e)
+        return best
+
+    def discomfort_at(self, energy: float) -> float | None:
+        """D_env(E); None outside the envelope's energy range."""
+        x = float(energy)
+        if not _le(x, self.e_range[1]):
+            return None
+        vals = []
+        for _, f in self.fronts:
+            lo, hi = f.e_range
+            if _ge(x, lo):
+                d = f.discomfort_at(min(max(x, lo), hi))
+                if d is not None:
+                    vals.append(d)
+        return min(vals) if vals else None
+
+    @property
+    def d_range(self) -> tuple[float, float]:
+        """(least, greatest) discomfort of any family's vertices."""
+        return min(f.d_range[0] for _, f in self.fronts), max(f.d_range[1] for _, f in self.fronts)
+
+    @property
+    def e_range(self) -> tuple[float, float]:
+        """(least, greatest) energy of any family's vertices."""
+        return min(f.e_range[0] for _, f in self.fronts), max(f.e_range[1] for _, f in self.fronts)
+
+    def dominates(self, discomfort: float, energy: float) -> bool:
+        """True when some family's front dominates the point."""
+        return any(f.dominates(discomfort, energy) for _, f in self.fronts)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -175,44 +297,38 @@ def _pct(front_value: float, value: float) -> float:
     return 100.0 * (front_value - value) / front_value
 
 
-def match(front: Front, discomfort: float, energy: float) -> Matched:
-    """Where the point (``discomfort``, ``energy``) lies against ``front``."""
+def match(front: Front | Envelope, discomfort: float, energy: float) -> Matched:
+    """Where the point (``discomfort``, ``energy``) lies against ``front`` (:class:`Front` or :class:`Envelope`)."""
     dc, ec = float(discomfort), float(energy)
     if not (math.isfinite(dc) and math.isfinite(ec)):
         raise ValueError(f"match: the controller's point is not finite (discomfort {dc}, energy {ec})")
-    d, e = front.d, front.e
+    d_lo, e_hi = front.d_range[0], front.e_range[1]
     notes = []
     e_f = front.energy_at(dc)
     if e_f is None:
         saving = None
-        notes.append(NOTE_MORE_COMFORTABLE if dc < d[0] else NOTE_LESS_COMFORTABLE)
+        notes.append(NOTE_MORE_COMFORTABLE if dc < d_lo else NOTE_LESS_COMFORTABLE)
     else:
         saving = _pct(e_f, ec) if e_f > 0.0 else None
     d_f = front.discomfort_at(ec)
     if d_f is None:
         reduction = None
-        notes.append(NOTE_MORE_ENERGY if ec > e[0] else NOTE_LESS_ENERGY)
+        notes.append(NOTE_MORE_ENERGY if ec > e_hi else NOTE_LESS_ENERGY)
     elif d_f <= 0.0:
         reduction = 0.0 if dc <= 0.0 else None
         if reduction is None:
             notes.append(NOTE_ZERO_DISCOMFORT)
     else:
         reduction = _pct(d_f, dc)
-    # dominated: a front point with D <= dc and E <= ec, one strictly
-    if _lt(dc, d[0]):
-        dominated = False
-    else:
-        e_ref = front.energy_at(min(dc, d[-1])) if _le(dc, d[-1]) else float(e[-1])
-        if _le(dc, d[-1]):
-            dominated = _lt(e_ref, ec)
-        else:  # beyond the least comfortable vertex: it has strictly less discomfort
-            dominated = _le(e_ref, ec)
     return Matched(
-        energy_saving_pct=saving, discomfort_reduction_pct=reduction, dominated=bool(dominated), note="; ".join(notes)
+        energy_saving_pct=saving,
+        discomfort_reduction_pct=reduction,
+        dominated=bool(front.dominates(dc, ec)),
+        note="; ".join(dict.fromkeys(notes)),
     )
 
 
-def match_seeds(front: Front, points: Sequence[tuple]) -> dict:
+def match_seeds(front: Front | Envelope, points: Sequence[tuple]) -> dict:
     """A controller with one point per seed against a front.
 
     The match of the mean point (means of discomfort and energy over ``points`` =
@@ -224,11 +340,116 @@ def match_seeds(front: Front, points: Sequence[tuple]) -> dict:
         raise ValueError("match_seeds: no points")
     arr = np.array([(float(a), float(b)) for a, b in points])
     mean = match(front, float(arr[:, 0].mean()), float(arr[:, 1].mean())).as_dict()
-    per = [match(front, a, b) for a, b in arr]
-    mean["seeds"] = {
-        "energy_saving_pct": [m.energy_saving_pct for m in per],
-        "discomfort_reduction_pct": [m.discomfort_reduction_pct for m in per],
-        "dominated": [m.dominated for m in per],
-    }
+    return _with_seeds(
+        mean, [match(front, a, b) for a, b in arr], ("energy_saving_pct", "discomfort_reduction_pct", "dominated")
+    )
+
+
+def _with_seeds(mean: dict, per: Sequence, keys: Sequence[str]) -> dict:
+    """``mean`` plus ``seeds`` ({key: [the per-seed values]}) and ``n_seeds``."""
+    mean["seeds"] = {k: [getattr(m, k) for m in per] for k in keys}
     mean["n_seeds"] = len(per)
     return mean
+
+
+def strongest_by_level(envelope: Envelope, levels: Sequence[float]) -> dict:
+    """Which family is the strongest at each discomfort level, and overall.
+
+    Returns ``{'levels': [{'discomfort', 'family', 'energy'}, ...], 'family': name}``: per level the
+    family whose front is lowest there (``None`` where no front covers it), and the family that is the
+    strongest at the most levels (ties: the envelope's order); ``family`` is None when no level is covered.
+    """
+    rows = []
+    counts: dict = {}
+    for x in levels:
+        fam = envelope.family_at(x)
+        rows.append({"discomfort": float(x), "family": fam, "energy": envelope.energy_at(x)})
+        if fam is not None:
+            counts[fam] = counts.get(fam, 0) + 1
+    order = [name for name, _ in envelope.fronts]
+    best = max(order, key=lambda n: (counts.get(n, 0), -order.index(n))) if counts else None
+    return {"levels": rows, "family": best}
+
+
+@dataclasses.dataclass(frozen=True)
+class Headroom:
+    """A controller's saving as a share of a bound's saving, both at its discomfort against the envelope."""
+
+    headroom_captured: float | None
+    """(E_env(D_c) - E_c) / (E_env(D_c) - E_bound(D_c)) [-]: 1 = all the bound's saving, 0 = none,
+    < 0 = more energy than the strongest family; None where undefined (``note``)."""
+    saving_pct: float | None
+    """The controller's energy saving against the envelope at D_c [%]."""
+    bound_saving_pct: float | None
+    """The bound's energy saving against the envelope at D_c [%]."""
+    strongest: str | None
+    """The family the envelope takes its energy from at D_c."""
+    note: str = ""
+    """Why a value is None ('' when all are defined)."""
+
+    def as_dict(self) -> dict:
+        """Plain data for results.json."""
+        return dataclasses.asdict(self)
+
+
+def headroom(envelope: Envelope, bound: Front | Sequence[Front], discomfort: float, energy: float) -> Headroom:
+    """``headroom_captured`` of the point (``discomfort``, ``energy``) (module docstring).
+
+    ``bound`` is the optimum's front, or several (one per seed of an uncertain case): then
+    E_bound(D) is their mean at D (None unless every one covers D). The ratio is undefined (None,
+    with a note) outside the envelope's or the bound's range, and where the bound saves nothing
+    (E_bound(D_c) >= E_env(D_c)).
+    """
+    dc, ec = float(discomfort), float(energy)
+    if not (math.isfinite(dc) and math.isfinite(ec)):
+        raise ValueError(f"headroom: the controller's point is not finite (discomfort {dc}, energy {ec})")
+    bounds = [bound] if isinstance(bound, Front) else list(bound)
+    if not bounds:
+        raise ValueError("headroom: no bound front")
+    e_env = envelope.energy_at(dc)
+    fam = envelope.family_at(dc)
+    if e_env is None or e_env <= 0.0:
+        note = NOTE_MORE_COMFORTABLE if dc < envelope.d_range[0] else NOTE_LESS_COMFORTABLE
+        return Headroom(None, None, None, fam, note)
+    saving = _pct(e_env, ec)
+    e_b = [b.energy_at(dc) for b in bounds]
+    if any(x is None for x in e_b):
+        return Headroom(None, saving, None, fam, NOTE_NO_BOUND)
+    e_bound = float(np.mean(e_b))
+    bound_saving = _pct(e_env, e_bound)
+    if not _lt(e_bound, e_env):
+        return Headroom(None, saving, bound_saving, fam, NOTE_NO_HEADROOM)
+    return Headroom((e_env - ec) / (e_env - e_bound), saving, bound_saving, fam, "")
+
+
+def headroom_seeds(envelope: Envelope, bounds: Mapping, points: Sequence[tuple]) -> dict:
+    """``headroom_captured`` of a controller with one point per seed.
+
+    ``bounds`` maps a seed to the bound's front (key None: one bound for every seed); ``points`` =
+    [(seed, discomfort, energy), ...], seed None for a seed-invariant controller, which is compared with
+    the mean of every bound. The mean entry is the controller's seed-mean point against the mean of the
+    bounds of its seeds; ``seeds`` lists :func:`headroom` per point. A seed without a bound gives None
+    with a note.
+    """
+    if not points:
+        raise ValueError("headroom_seeds: no points")
+
+    def bounds_of(seed) -> list:
+        if seed in bounds:
+            return [bounds[seed]]
+        if None in bounds:
+            return [bounds[None]]
+        return list(bounds.values()) if seed is None else []
+
+    used = [bounds_of(s) for s, _, _ in points]
+    per = [
+        headroom(envelope, b, d, e) if b else Headroom(None, None, None, None, f"no bound for seed {seed}")
+        for (seed, d, e), b in zip(points, used)
+    ]
+    arr = np.array([(float(d), float(e)) for _, d, e in points])
+    if all(used):
+        every = [f for b in used for f in b]
+        mean = headroom(envelope, every, float(arr[:, 0].mean()), float(arr[:, 1].mean())).as_dict()
+    else:
+        mean = Headroom(None, None, None, None, "a seed has no bound").as_dict()
+    return _with_seeds(mean, per, ("headroom_captured", "saving_pct", "bound_saving_pct"))

@@ -1,13 +1,14 @@
 """The benchmark report: Markdown and self-contained HTML from a results document.
 
 ``write_report(doc, out_dir)`` writes ``report.md``, ``report.html`` (every PNG
-embedded, no external reference) and ``figures/*.png`` from a ``ceco-benchmark/1``
+embedded, no external reference) and ``figures/*.png`` from a ``ceco-benchmark/2``
 document; nothing is recomputed from runs, so the report shows exactly what
 results.json holds. Sections: the headline table (energy saving at matched
-comfort and discomfort reduction at matched energy, against the plain and the
-allowance baseline fronts, every case), then per case the energy-discomfort
-plane, the matched-comfort table with the seeds' spread and a KPI table, then
-the sensitivity (tornado) and the timing.
+comfort against the production-gains front and against the strongest family,
+the strongest family there, ``headroom_captured``, every case), the strongest
+family per case, then per case the energy-discomfort plane (every family, the
+oracle's front), the matched-comfort table with the seeds' spread and a KPI
+table, then the sensitivity (tornado) and the timing.
 
 Pure Python; no ROS import.
 """
@@ -67,7 +68,9 @@ def _spread(values: Sequence, spec: str = '+.1f') -> str:
     return f' [{format(min(vals), spec)} … {format(max(vals), spec)}{missing}]'
 
 
-def _match_cells(m: Mapping) -> list[str]:
+def _match_cells(m: Mapping | None) -> list[str]:
+    if m is None:
+        return ['n/a', 'n/a', 'n/a']
     seeds = m.get('seeds', {})
     dom = m.get('dominated')
     dom_seeds = seeds.get('dominated', [])
@@ -82,10 +85,24 @@ def _match_cells(m: Mapping) -> list[str]:
 
 
 def _notes(m: Mapping) -> str:
-    parts = [
-        f'{fam}: {sub["note"]}' for fam, sub in (('plain', m), ('allowance', m.get('allowance', {}))) if sub.get('note')
+    subs = (
+        ('plain', m),
+        ('allowance', m.get('allowance')),
+        ('strongest', m.get('strongest')),
+        ('headroom', m.get('headroom')),
+    )
+    return '; '.join(f'{fam}: {sub["note"]}' for fam, sub in subs if sub and sub.get('note'))
+
+
+def _headroom_cells(m: Mapping) -> list[str]:
+    h = m.get('headroom')
+    if not h:
+        return ['n/a (no oracle)', 'n/a']
+    seeds = h.get('seeds', {})
+    return [
+        _fmt(h.get('headroom_captured'), '.2f') + _spread(seeds.get('headroom_captured', []), '.2f'),
+        _fmt(h.get('bound_saving_pct'), '+.1f'),
     ]
-    return '; '.join(parts)
 
 
 def _kind_of(case: Mapping) -> dict:
@@ -108,31 +125,82 @@ def _mean_kpis(case: Mapping) -> dict:
     return out
 
 
+def _strongest_cells(m: Mapping) -> list[str]:
+    st = m.get('strongest') or {}
+    seeds = st.get('seeds', {})
+    return [
+        _fmt(st.get('energy_saving_pct'), '+.1f') + _spread(seeds.get('energy_saving_pct', [])),
+        '**yes**' if st.get('dominated') else 'no',
+        str(st.get('family') or 'n/a'),
+    ]
+
+
+_HEADLINE_HEADER = (
+    'E saving at matched comfort [%] vs production PI',
+    'D cut at matched energy [%] vs production PI',
+    'dominated (production PI)',
+    'E saving at matched comfort [%] vs strongest family',
+    'dominated (any family)',
+    'strongest family there',
+    'headroom_captured [-]',
+    "oracle's saving there [%]",
+    'note',
+)
+
+
 def _headline(doc: Mapping) -> list:
     rows = []
     for case in doc['cases']:
         for name, m in case['matched'].items():
-            rows.append([case['case'], name, *_match_cells(m), *_match_cells(m.get('allowance', {})), _notes(m)])
-    header = (
-        'case',
-        'controller',
-        'E saving at matched comfort [%] (plain)',
-        'D cut at matched energy [%] (plain)',
-        'dominated (plain)',
-        'E saving at matched comfort [%] (allowance)',
-        'D cut at matched energy [%] (allowance)',
-        'dominated (allowance)',
-        'note',
-    )
+            rows.append([case['case'], name, *_match_cells(m), *_strongest_cells(m), *_headroom_cells(m), _notes(m)])
     return [
         Table(
-            header,
+            ('case', 'controller', *_HEADLINE_HEADER),
             rows,
-            caption='Savings at matched comfort: positive = less energy than the baseline '
-            'front at the same discomfort / less discomfort at the same energy; '
+            caption='Savings at matched comfort: positive = less energy than the front at the same discomfort / less '
+            'discomfort at the same energy; production PI = the plain family with the production gains (the paper\'s '
+            'comparison); strongest family = the least energy any baseline family spends at that discomfort; '
+            "headroom_captured = the controller's saving over the oracle's, both against the strongest family; "
             '[min … max] over seeds',
         )
     ]
+
+
+def _strongest_table(doc: Mapping) -> list:
+    rows = []
+    for case in doc['cases']:
+        st, orc = case['strongest'], case['oracle']
+        per = ', '.join(f"{x['discomfort']:.4g}: {x['family'] or 'n/a'}" for x in st['levels'])
+        rows.append(
+            [
+                case['case'],
+                str(st['family'] or 'n/a'),
+                per,
+                f"{orc['status']}" + (f" ({orc['note']})" if orc['note'] else ''),
+            ]
+        )
+    return [
+        Table(
+            ('case', 'strongest family', 'strongest at each level [PMV·h: family]', 'oracle'),
+            rows,
+            caption='The strongest family per case: the family whose front spends the least energy at the most of '
+            "the oracle's discomfort levels (docs/benchmark.md, \"Strongest family\")",
+        )
+    ]
+
+
+_KIND_ORDER = (
+    'strategy',
+    'external',
+    'compensated',
+    'compensated-allowance',
+    'baseline-tuned',
+    'baseline-tuned-allowance',
+    'baseline-pmv',
+    'baseline-pmv-allowance',
+    'baseline',
+    'baseline-allowance',
+)
 
 
 def _case_blocks(case: Mapping, settings: Mapping, fig_dir: Path) -> list:
@@ -152,29 +220,51 @@ def _case_blocks(case: Mapping, settings: Mapping, fig_dir: Path) -> list:
     blocks.append(
         Figure(
             fig,
-            f"{case['case']}: energy over whole-run discomfort; black: baseline front (PI at "
-            "set-point S, efficient points filled, labelled with S), blue dashed: the allowance "
-            "baselines; markers: mean over seeds with min-max whiskers",
+            f"{case['case']}: energy over whole-run discomfort; lines: the baseline families' fronts (efficient "
+            "points filled, labelled with the set-point; dashed: with the allowance), red dotted: the whole-drive "
+            "optimum (oracle) where available; markers: mean over seeds with min-max whiskers; zoomed on the "
+            "controllers and the oracle's levels",
         )
     )
     rows = [
-        [name, *_match_cells(m), *_match_cells(m.get('allowance', {})), _notes(m)]
+        [
+            name,
+            *_match_cells(m),
+            *_match_cells(m.get('allowance')),
+            *_strongest_cells(m),
+            *_headroom_cells(m),
+            _notes(m),
+        ]
         for name, m in case['matched'].items()
     ]
     blocks.append(
         Table(
             (
                 'controller',
-                'E saving matched comfort, plain [%]',
-                'D cut matched energy, plain [%]',
-                'dominated, plain',
-                'E saving matched comfort, allowance [%]',
-                'D cut matched energy, allowance [%]',
-                'dominated, allowance',
+                'E saving matched comfort, production PI [%]',
+                'D cut matched energy, production PI [%]',
+                'dominated, production PI',
+                'E saving matched comfort, production PI + allowance [%]',
+                'D cut matched energy, production PI + allowance [%]',
+                'dominated, production PI + allowance',
+                'E saving matched comfort, strongest [%]',
+                'dominated (any family)',
+                'strongest family',
+                'headroom_captured [-]',
+                "oracle's saving [%]",
                 'note',
             ),
             rows,
             caption='Matched comfort',
+        )
+    )
+    orc = case['oracle']
+    blocks.append(
+        Paragraph(
+            f"Oracle (whole-drive optimum, `{orc['entry_point']}`): **{orc['status']}**"
+            + (f" ({orc['note']})" if orc['note'] else '')
+            + (f"; levels {', '.join(format(x, '.4g') for x in orc['levels'])} PMV·h" if orc['levels'] else '')
+            + '. It is a local optimum of an NLP replayed on the plant: an achievable point, not a proven global bound.'
         )
     )
     kinds = _kind_of(case)
@@ -182,9 +272,7 @@ def _case_blocks(case: Mapping, settings: Mapping, fig_dir: Path) -> list:
     order = sorted(
         means,
         key=lambda n: (
-            ('strategy', 'external', 'compensated', 'compensated-allowance', 'baseline', 'baseline-allowance').index(
-                kinds[n]
-            ),
+            _KIND_ORDER.index(kinds[n]) if kinds[n] in _KIND_ORDER else len(_KIND_ORDER),
             n,
         ),
     )
@@ -240,21 +328,24 @@ def report_blocks(doc: Mapping, fig_dir: Path) -> list:
     if doc['quick']:
         blocks.append(
             Warning(
-                'quick run (one seed, three cases, set-points 24/25/26 degC only): a smoke test, '
-                'not comparable to a full benchmark'
+                'quick run (one seed, three cases, three set-points per family, the oracle on sc03-paper only): '
+                'a smoke test, not comparable to a full benchmark'
             )
         )
     blocks.append(
         Paragraph(
             f"Front axis `{doc['settings']['front_axis']}` (thermal discomfort: time integral of the distance of PMV, "
             f"clipped to ±3, outside {doc['settings']['band']}), energy axis `{doc['settings']['energy_axis']}`. "
-            'The baseline front is the efficient part of the production PI law at the set-points '
-            f"{', '.join(format(s, 'g') for s in doc['settings']['setpoints_c'])} degC; the allowance front the same "
-            'law with the set-point ramp over the relaxed-bound phase (the permission the CECO strategies have). '
+            'Each baseline family is one law at a range of set-points, its front the efficient part: the production '
+            f"PI law (gains unchanged) at {', '.join(format(s, 'g') for s in doc['settings']['setpoints_c'])} degC, "
+            'the same law with tuned gains, and the tuned PI on the cabin PMV at PMV '
+            f"{', '.join(format(s, '+g') for s in doc['settings'].get('setpoints_pmv', []))}; each also with the "
+            'allowance (the set-point ramp over the relaxed-bound phase: the permission the CECO strategies have). '
             'Method: docs/benchmark.md.'
         )
     )
     blocks += [Heading(2, 'Savings at matched comfort'), *_headline(doc)]
+    blocks += [Heading(2, 'The strongest family'), *_strongest_table(doc)]
     for case in doc['cases']:
         blocks += _case_blocks(case, doc['settings'], fig_dir)
     return blocks

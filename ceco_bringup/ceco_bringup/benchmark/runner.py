@@ -1,4 +1,4 @@
-"""Cases -> cells -> KPIs -> the results document (``ceco-benchmark/1``).
+"""Cases -> cells -> KPIs -> the results document (``ceco-benchmark/2``).
 
 Every run of the benchmark is a cell of the sweep machinery
 (:mod:`ceco_bringup.sweep.backends`: the resumable ``cells.jsonl`` log, the local
@@ -27,7 +27,7 @@ from ceco_bringup.sweep.cells import Cell, cell_id
 
 from . import front as fr
 from .cases import Case
-from .schema import BENCHMARK_VERSION, FAMILIES
+from .schema import BENCHMARK_VERSION, FAMILIES, SEED_INVARIANT_KINDS
 
 __all__ = [
     'SETPOINTS_C',
@@ -36,6 +36,10 @@ __all__ = [
     'ENERGY_AXIS',
     'SECONDARY_AXES',
     'STRATEGY_NAMES',
+    'SETPOINTS_PMV',
+    'QUICK_SETPOINTS_PMV',
+    'BASELINES_SCHEMA',
+    'FamilySpec',
     'BaselineConstants',
     'load_baselines',
     'new_row',
@@ -49,10 +53,16 @@ __all__ = [
 ]
 
 SETPOINTS_C = tuple(22.0 + 0.5 * i for i in range(15))
-"""Set-points of the baseline family [degC]: 22.0 ... 29.0 in 0.5 K steps (docs/benchmark.md, "Baselines")."""
+"""Set-points of the temperature families [degC]: 22.0 ... 29.0 in 0.5 K steps (docs/benchmark.md, "Baselines")."""
 
 QUICK_SETPOINTS_C = (24.0, 25.0, 26.0)
-"""The family of ``--quick`` [degC]."""
+"""The temperature families of ``--quick`` [degC]."""
+
+SETPOINTS_PMV = tuple(round(-0.3 + 0.1 * i, 10) for i in range(9))
+"""Set-points of the comfort-feedback (PMV) families [-]: -0.3 ... +0.5 in steps of 0.1."""
+
+QUICK_SETPOINTS_PMV = (0.0, 0.2, 0.4)
+"""The PMV families of ``--quick`` [-]."""
 
 FRONT_AXIS = 'discomfort_pmvh'
 """KPI of the front's discomfort axis."""
@@ -66,8 +76,52 @@ SECONDARY_AXES = ('i_pmv_clipped', 'discomfort_band_pmvh')
 STRATEGY_NAMES = ('ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
 """The NMPC strategies scored by the benchmark (defaults, ``ceco_controller/config/controller.yaml``)."""
 
-SEED_INVARIANT = ('baseline', 'baseline-allowance', 'compensated', 'compensated-allowance')
+SEED_INVARIANT = SEED_INVARIANT_KINDS
 SCORED_KINDS = ('strategy', 'compensated', 'compensated-allowance', 'external')
+SENSITIVITY_KINDS = ('baseline', 'baseline-allowance', *SCORED_KINDS)
+"""What the tornado reruns at each end of a parameter: the production-gains families (the tornado shows the
+saving against the production PI, as before issue 20) and the scored controllers; the tuned families are
+not rerun (their cost would triple the tornado's)."""
+
+
+BASELINES_SCHEMA = 'ceco-benchmark-baselines/2'
+"""Value of the baselines file's ``schema`` key (written by :mod:`.tuning`)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class FamilySpec:
+    """A baseline family: one law (AccSettings overrides) at a range of set-points."""
+
+    family: str
+    """Its name in results.json's ``fronts`` (``plain``, ``tuned``, ``pmv-allowance``, ...; :data:`schema.FAMILIES`)."""
+    overrides: Mapping
+    """AccSettings fields common to the members (feedback, gains, allowance)."""
+    measurements: str = 'full'
+    """What the law reads (``closed_loop.SimSettings.measurements``): 'full', or 'vehicle' (the comfort-feedback
+    families: the surfaces of the PMV estimated from the sensors a production car has)."""
+
+    @property
+    def kind(self) -> str:
+        """The members' ``kind`` (and the prefix of their names)."""
+        return FAMILIES[self.family]
+
+    @property
+    def feedback(self) -> str:
+        """'cabin_temperature' or 'pmv'."""
+        return str(self.overrides.get('feedback', 'cabin_temperature'))
+
+    @property
+    def setpoint_field(self) -> str:
+        """The AccSettings field the family sweeps: ``setpoint_c`` or ``setpoint_pmv``."""
+        return 'setpoint_pmv' if self.feedback == 'pmv' else 'setpoint_c'
+
+    def member_name(self, setpoint: float) -> str:
+        """``baseline-tuned@25.0`` [degC] or ``baseline-pmv@+0.10`` [PMV]."""
+        return f'{self.kind}@{setpoint:+.2f}' if self.feedback == 'pmv' else f'{self.kind}@{setpoint:.1f}'
+
+    def member_overrides(self, setpoint: float) -> tuple:
+        """((field, value), ...) of the member at ``setpoint``, sorted."""
+        return tuple(sorted({**dict(self.overrides), self.setpoint_field: float(setpoint)}.items()))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,10 +136,26 @@ class BaselineConstants:
     """The case the constants were tuned on."""
     sha: str = ''
     """SHA-256 (16 hex digits) of the file."""
+    families: Mapping = dataclasses.field(default_factory=dict)
+    """``{family: (AccSettings overrides, measurements)}`` of the tuned families (tuned, tuned-allowance, pmv,
+    pmv-allowance)."""
+
+    def family_specs(self) -> list[FamilySpec]:
+        """Every family of the benchmark: the production-gains ones, then the tuned ones (schema.FAMILIES order)."""
+        base = {
+            'plain': ({}, 'full'),
+            'allowance': ({'allowance_k_per_pmv': float(self.allowance_k_per_pmv)}, 'full'),
+            **{k: (dict(v[0]), str(v[1])) for k, v in self.families.items()},
+        }
+        return [FamilySpec(f, *base[f]) for f in FAMILIES if f in base]
+
+
+TUNED_FAMILIES = ('tuned', 'tuned-allowance', 'pmv', 'pmv-allowance')
+"""The families the tuning module writes (their gains are chosen by it)."""
 
 
 def load_baselines(path: str | Path | None = None) -> BaselineConstants:
-    """Read the frozen baseline constants (default: the bundled file)."""
+    """Read the frozen baseline constants (default: the bundled file); ValueError naming what is wrong."""
     import hashlib
 
     if path is None:
@@ -93,17 +163,32 @@ def load_baselines(path: str | Path | None = None) -> BaselineConstants:
     else:
         text = Path(path).read_text(encoding='utf-8')
     d = yaml.safe_load(text)
-    if not isinstance(d, Mapping) or d.get('schema') != 'ceco-benchmark-baselines/1':
-        raise ValueError('baselines: not a ceco-benchmark-baselines/1 file')
+    if not isinstance(d, Mapping) or d.get('schema') != BASELINES_SCHEMA:
+        raise ValueError(f'baselines: not a {BASELINES_SCHEMA} file (rerun python -m ceco_bringup.benchmark.tuning)')
     from ceco_core.acc_law import AccSettings
 
     comp = dict(d['compensation'])
     AccSettings(**comp, allowance_k_per_pmv=float(d['allowance_k_per_pmv'])).validate()
+    fams = {}
+    for name in TUNED_FAMILIES:
+        entry = (d.get('families') or {}).get(name)
+        if not isinstance(entry, Mapping) or not isinstance(entry.get('settings'), Mapping):
+            raise ValueError(f'baselines: families.{name}.settings missing')
+        settings = dict(entry['settings'])
+        try:
+            AccSettings(**settings).validate()
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f'baselines: families.{name}.settings: {exc}') from exc
+        measurements = str(entry.get('measurements', 'full'))
+        if measurements not in ('full', 'vehicle'):
+            raise ValueError(f'baselines: families.{name}.measurements: full or vehicle, got {measurements!r}')
+        fams[name] = (settings, measurements)
     return BaselineConstants(
         allowance_k_per_pmv=float(d['allowance_k_per_pmv']),
         compensation=comp,
         tuned_on=str(d.get('tuned_on', '')),
         sha=hashlib.sha256(text.encode('utf-8')).hexdigest()[:16],
+        families=fams,
     )
 
 
@@ -206,15 +291,19 @@ class ControllerSpec:
     """A controller of the benchmark."""
 
     name: str
-    """Its name in results.json (``baseline@25.0``, ``ceco-c``, ...)."""
+    """Its name in results.json (``baseline@25.0``, ``baseline-pmv@+0.10``, ``ceco-c``, ...)."""
     kind: str
-    """strategy | baseline | baseline-allowance | compensated | compensated-allowance | external."""
+    """strategy | a family's kind (schema.FAMILIES) | compensated | compensated-allowance | external."""
     strategy: str
     """The simulator's strategy (``baseline`` for every baseline variant)."""
     overrides: tuple = ()
     """((field, value), ...) of the strategy's settings (AccSettings for the baselines)."""
     setpoint_c: float | None = None
-    """Nominal cabin set-point of a baseline [degC]."""
+    """Nominal cabin set-point of a temperature baseline [degC]."""
+    setpoint_pmv: float | None = None
+    """Nominal PMV set-point of a comfort-feedback baseline [-]."""
+    measurements: str = 'full'
+    """What the controller reads (``SimSettings.measurements``)."""
 
     @property
     def seeded(self) -> bool:
@@ -222,26 +311,38 @@ class ControllerSpec:
         return self.kind not in SEED_INVARIANT
 
 
-def controllers(
-    baselines: BaselineConstants, setpoints_c: Sequence[float] = SETPOINTS_C, strategies: Sequence[str] = STRATEGY_NAMES
+def family_members(
+    fam: FamilySpec, setpoints_c: Sequence[float] = SETPOINTS_C, setpoints_pmv: Sequence[float] = SETPOINTS_PMV
 ) -> list[ControllerSpec]:
-    """The benchmark's controllers: both baseline families, both compensated laws, the strategies."""
+    """The members of a family at the set-points of its controlled variable."""
     out = []
-    k = float(baselines.allowance_k_per_pmv)
-    for sp in setpoints_c:
-        sp = float(sp)
-        out.append(ControllerSpec(f'baseline@{sp:.1f}', 'baseline', 'baseline', (('setpoint_c', sp),), sp))
-    for sp in setpoints_c:
+    for sp in setpoints_pmv if fam.feedback == 'pmv' else setpoints_c:
         sp = float(sp)
         out.append(
             ControllerSpec(
-                f'baseline-allowance@{sp:.1f}',
-                'baseline-allowance',
+                fam.member_name(sp),
+                fam.kind,
                 'baseline',
-                (('allowance_k_per_pmv', k), ('setpoint_c', sp)),
-                sp,
+                fam.member_overrides(sp),
+                None if fam.feedback == 'pmv' else sp,
+                sp if fam.feedback == 'pmv' else None,
+                fam.measurements,
             )
         )
+    return out
+
+
+def controllers(
+    baselines: BaselineConstants,
+    setpoints_c: Sequence[float] = SETPOINTS_C,
+    strategies: Sequence[str] = STRATEGY_NAMES,
+    setpoints_pmv: Sequence[float] = SETPOINTS_PMV,
+) -> list[ControllerSpec]:
+    """The benchmark's controllers: every baseline family, both compensated laws, the strategies."""
+    out = []
+    for fam in baselines.family_specs():
+        out += family_members(fam, setpoints_c, setpoints_pmv)
+    k = float(baselines.allowance_k_per_pmv)
     comp = tuple(sorted((str(a), float(b)) for a, b in baselines.compensation.items()))
     sp_c = float(dict(comp).get('setpoint_c', 26.0))
     out.append(ControllerSpec('baseline-compensated', 'compensated', 'baseline', comp, sp_c))
@@ -294,6 +395,8 @@ def case_cells(
                 'plant_overrides': dict(plant_overrides or {}),
                 'comfort_overrides': dict(comfort_overrides or {}),
             }
+            if c.measurements != 'full':
+                spec['measurements'] = c.measurements
             axes = {
                 'case': case.name,
                 'controller': c.name,
@@ -301,6 +404,7 @@ def case_cells(
                 'seed': seed,
                 'variant': variant,
                 'setpoint_c': c.setpoint_c,
+                'setpoint_pmv': c.setpoint_pmv,
             }
             out.append(Cell(id=cell_id(spec), axes=axes, spec=spec))
     return out
@@ -386,6 +490,7 @@ def _run_entry(row: Mapping) -> dict:
         'kind': row['kind'],
         'seed': row['seed'],
         'setpoint_c': row.get('setpoint_c'),
+        'setpoint_pmv': row.get('setpoint_pmv'),
         'source': row.get('source', 'simulator'),
         'status': row['status'],
         'error': row.get('error', ''),
@@ -394,7 +499,8 @@ def _run_entry(row: Mapping) -> dict:
     }
 
 
-def _fronts(runs: Sequence[Mapping], fx: str, ex: str) -> dict:
+def fronts_of(runs: Sequence[Mapping], fx: str, ex: str) -> dict:
+    """``{family: Front or None}`` of a case's run entries on the axes (``fx``, ``ex``) (schema.FAMILIES order)."""
     out = {}
     for family, kind in FAMILIES.items():
         pts = [
@@ -409,35 +515,85 @@ def _fronts(runs: Sequence[Mapping], fx: str, ex: str) -> dict:
     return out
 
 
-def _points(runs: Sequence[Mapping], fx: str, ex: str) -> dict:
+def envelope_of(fronts: Mapping) -> fr.Envelope | None:
+    """The strongest of the families (:class:`front.Envelope`), None when no family has a front."""
+    if not any(f is not None for f in fronts.values()):
+        return None
+    return fr.Envelope.of(fronts)
+
+
+def _points(runs: Sequence[Mapping], fx: str, ex: str, with_seed: bool = False) -> dict:
     pts: dict = {}
     for r in sorted(runs, key=lambda r: -1 if r['seed'] is None else r['seed']):
         if r['kind'] in SCORED_KINDS and r['status'] == 'ok':
             d, e = r['kpis'].get(fx), r['kpis'].get(ex)
             if d is not None and e is not None:
-                pts.setdefault(r['controller'], []).append((d, e))
+                pts.setdefault(r['controller'], []).append((r['seed'], d, e) if with_seed else (d, e))
     return pts
 
 
-def _matched(runs: Sequence[Mapping], fx: str, ex: str) -> dict:
-    fronts = _fronts(runs, fx, ex)
+def _match_or_none(front, pts):
+    return None if front is None else fr.match_seeds(front, pts)
+
+
+def matched_of(runs: Sequence[Mapping], fx: str, ex: str, bounds: Mapping | None = None) -> dict:
+    """The matched-comfort entries of every scored controller of a case.
+
+    Against the production fronts (top level: plain; ``allowance``), the strongest family (``strongest``,
+    with the ``family`` at its seed-mean discomfort) and, with ``bounds`` ({seed: the oracle's Front}),
+    ``headroom`` (:func:`front.headroom_seeds`; else None).
+    """
+    fronts = fronts_of(runs, fx, ex)
+    env = envelope_of(fronts)
     out = {}
-    if fronts['plain'] is None or fronts['allowance'] is None:
+    if fronts['plain'] is None or env is None:
         return out
-    for name, pts in _points(runs, fx, ex).items():
-        out[name] = {**fr.match_seeds(fronts['plain'], pts), 'allowance': fr.match_seeds(fronts['allowance'], pts)}
+    for name, pts in _points(runs, fx, ex, with_seed=True).items():
+        de = [(d, e) for _, d, e in pts]
+        strongest = fr.match_seeds(env, de)
+        strongest['family'] = env.family_at(sum(d for d, _ in de) / len(de))
+        out[name] = {
+            **fr.match_seeds(fronts['plain'], de),
+            'allowance': _match_or_none(fronts['allowance'], de),
+            'strongest': strongest,
+            'headroom': fr.headroom_seeds(env, bounds, pts) if bounds else None,
+        }
     return out
 
 
-def assemble_case(case: Case, rows: Sequence[Mapping], sensitivity: Sequence[tuple] = ()) -> dict:
+def oracle_levels(runs: Sequence[Mapping], n: int = 6) -> list[float]:
+    """The discomfort levels [PMV h] the oracle is asked for on a case.
+
+    ``n`` (>= 4) levels evenly spaced from D_lo, the least discomfort of any family's vertex or any scored
+    controller, to the greatest of the scored controllers' and 1.5 D_lo (the range of the strategies and
+    of the efficient baselines around them); [] without a front. Not rounded: the first level is the
+    envelope's own end (the runs are deterministic, so the levels and the oracle's cell ids are too).
+    """
+    if n < 4:
+        raise ValueError(f'oracle_levels: at least 4 levels, got {n}')
+    env = envelope_of(fronts_of(runs, FRONT_AXIS, ENERGY_AXIS))
+    if env is None:
+        return []
+    ds = [d for pts in _points(runs, FRONT_AXIS, ENERGY_AXIS).values() for d, _ in pts]
+    lo = min([env.d_range[0], *ds])
+    hi = max([1.5 * lo, *ds])
+    return [lo + (hi - lo) * i / (n - 1) for i in range(n)]
+
+
+def assemble_case(
+    case: Case, rows: Sequence[Mapping], sensitivity: Sequence[tuple] = (), oracle: Mapping | None = None
+) -> dict:
     """One case of results.json.
 
-    From its finished rows (nominal variant) and, optionally, ``sensitivity`` =
-    [(Sensitivity, low rows, high rows), ...].
+    From its finished rows (nominal variant), optionally ``sensitivity`` = [(Sensitivity, low rows,
+    high rows), ...] and the case's ``oracle`` entry (:func:`oracle_entry`; None: status 'skipped').
     """
     runs = [_run_entry(r) for r in rows]
     runs.sort(key=lambda r: (r['controller'], -1 if r['seed'] is None else r['seed']))
-    fronts = _fronts(runs, FRONT_AXIS, ENERGY_AXIS)
+    fronts = fronts_of(runs, FRONT_AXIS, ENERGY_AXIS)
+    env = envelope_of(fronts)
+    oracle = dict(oracle) if oracle is not None else oracle_entry('skipped', 'not requested', [], [])
+    bounds = oracle_bounds(oracle)
     sc = case.load_scenario()
     out = {
         'case': case.name,
@@ -451,21 +607,15 @@ def assemble_case(case: Case, rows: Sequence[Mapping], sensitivity: Sequence[tup
         'control_period_s': float(case.control_period_s or sc.control.control_period_s),
         'horizon_steps': int(case.horizon_steps or sc.control.horizon_steps),
         'runs': runs,
-        'fronts': {
-            fam: []
-            if f is None
-            else [
-                {'controller': p.name, 'discomfort': p.discomfort, 'energy': p.energy, 'efficient': p.efficient}
-                for p in f.points
-            ]
-            for fam, f in fronts.items()
-        },
-        'matched': _matched(runs, FRONT_AXIS, ENERGY_AXIS),
+        'fronts': {fam: _front_points(f) for fam, f in fronts.items()},
+        'strongest': strongest_entry(env, oracle['levels'] or oracle_levels(runs)),
+        'oracle': oracle,
+        'matched': matched_of(runs, FRONT_AXIS, ENERGY_AXIS, bounds),
     }
     out['matched_by_axis'] = {
         ax: {
             n: {k: m[k] for k in ('energy_saving_pct', 'discomfort_reduction_pct', 'dominated', 'note')}
-            for n, m in _matched(runs, ax, ENERGY_AXIS).items()
+            for n, m in matched_of(runs, ax, ENERGY_AXIS).items()
         }
         for ax in SECONDARY_AXES
     }
@@ -481,7 +631,7 @@ def assemble_case(case: Case, rows: Sequence[Mapping], sensitivity: Sequence[tup
                 'high': _scalar(s.high),
             }
             for end, rs in (('low', low_rows), ('high', high_rows)):
-                m = _matched([_run_entry(r) for r in rs], FRONT_AXIS, ENERGY_AXIS)
+                m = matched_of([_run_entry(r) for r in rs], FRONT_AXIS, ENERGY_AXIS)
                 entry[f'matched_{end}'] = {
                     n: {k: v[k] for k in ('energy_saving_pct', 'discomfort_reduction_pct', 'dominated', 'note')}
                     for n, v in m.items()
@@ -491,6 +641,26 @@ def assemble_case(case: Case, rows: Sequence[Mapping], sensitivity: Sequence[tup
     return out
 
 
+def _front_points(f: fr.Front | None) -> list:
+    if f is None:
+        return []
+    return [
+        {'controller': p.name, 'discomfort': p.discomfort, 'energy': p.energy, 'efficient': p.efficient}
+        for p in f.points
+    ]
+
+
+def strongest_entry(env: fr.Envelope | None, levels: Sequence[float]) -> dict:
+    """results.json's ``strongest`` of a case.
+
+    The families of the envelope, and the strongest family per level (:func:`front.strongest_by_level`) at
+    ``levels`` (the oracle's levels).
+    """
+    if env is None:
+        return {'families': [], 'levels': [], 'family': None}
+    return {'families': [name for name, _ in env.fronts], **fr.strongest_by_level(env, levels)}
+
+
 def _scalar(fields: Mapping):
     """The first field's value: the parameter itself (coupled fields such as a second angle factor follow it).
 
@@ -498,3 +668,148 @@ def _scalar(fields: Mapping):
     """
     v = next(iter(fields.values()))
     return None if v is None else float(v)
+
+
+ORACLE_ENTRY = 'ceco_controller.oracle:solve_front'
+"""The whole-drive optimum's entry point (docs/benchmark.md, "The oracle"):
+``solve_front(case, seed, levels) -> list`` with ``case`` a :class:`~.cases.Case`, ``seed`` one of its
+seeds (the truth the oracle knows; the forecast errors of that seed do not concern it), ``levels`` the
+discomfort levels [PMV h, ``discomfort_pmvh``]; it returns one item per level, in order: a mapping of KPIs
+(:func:`ceco_core.kpis.compute_kpis` of the optimum replayed on the plant; at least ``energy_kwh`` and
+``discomfort_pmvh``) or None where that level was not solved."""
+
+
+def oracle_unavailable(entry: str = ORACLE_ENTRY) -> str | None:
+    """Why the oracle cannot be called (a sentence), or None when ``entry`` (``module:function``) imports."""
+    import importlib
+    import importlib.util
+
+    mod, _, fn = entry.partition(':')
+    try:
+        if importlib.util.find_spec(mod) is None:
+            return f'{mod} is not installed'
+        if not callable(getattr(importlib.import_module(mod), fn, None)):
+            return f'{mod} has no function {fn}'
+    except ModuleNotFoundError as exc:
+        if exc.name and (mod == exc.name or mod.startswith(exc.name + '.')):
+            return f'{mod} is not installed'  # the module or a parent package is absent
+        return f'{mod} does not import ({type(exc).__name__}: {exc})'
+    except ImportError as exc:  # the module fails to import
+        return f'{mod} does not import ({type(exc).__name__}: {exc})'
+    return None
+
+
+def oracle_cells(case: Case, seeds: Sequence[int], levels: Sequence[float], code: str, entry: str = ORACLE_ENTRY):
+    """The oracle's cells of a case, one per seed.
+
+    A cell's id covers the case, the levels, the entry point and the simulator's code fingerprint, so a
+    rerun reuses it and a changed simulator recomputes it.
+    """
+    out = []
+    for seed in seeds:
+        spec = {
+            'benchmark_version': BENCHMARK_VERSION,
+            'code': code,
+            'kind': 'oracle',
+            'entry': entry,
+            'case': dataclasses.asdict(case),
+            'case_sha': case.sha(),
+            'seed': int(seed),
+            'levels': [float(x) for x in levels],
+        }
+        axes = {'case': case.name, 'controller': 'oracle', 'kind': 'oracle', 'seed': int(seed), 'variant': 'oracle'}
+        out.append(Cell(id=cell_id(spec), axes=axes, spec=spec))
+    return out
+
+
+def run_oracle_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
+    """Call the oracle for one (case, seed); never raises (errors are data). ``runs_dir`` is unused.
+
+    The row: ``cell_id``, the axes, ``status`` ('ok' when the call returned one item per level),
+    ``error``, ``points`` = [{'level', 'kpis' (or None), 'error'}], ``wall_time_s``.
+    """
+    import importlib
+    import time
+
+    from .cases import Case as _Case
+
+    t0 = time.perf_counter()
+    row = {'cell_id': cell['id'], **cell['axes'], 'status': 'ok', 'error': '', 'points': []}
+    try:
+        from ceco_bringup.sweep import cells as sweep_cells
+
+        spec = cell['spec']
+        row['code'] = sweep_cells.check_code(spec, 'benchmark')
+        fields = dict(spec['case'])
+        fields['seeds'] = tuple(fields['seeds'])
+        case = _Case(**fields)
+        mod, _, fn = spec['entry'].partition(':')
+        levels = list(spec['levels'])
+        result = list(getattr(importlib.import_module(mod), fn)(case, spec['seed'], levels))
+        if len(result) != len(levels):
+            raise ValueError(f'the oracle returned {len(result)} item(s) for {len(levels)} level(s)')
+        for level, item in zip(levels, result):
+            point = {'level': level, 'kpis': None, 'error': ''}
+            if item is None:
+                point['error'] = 'not solved'
+            else:
+                kpis = {str(k): (None if v is None else float(v)) for k, v in dict(item).items() if k != 'error'}
+                bad = [k for k in (FRONT_AXIS, ENERGY_AXIS) if kpis.get(k) is None or not math.isfinite(kpis[k])]
+                if bad:
+                    point['error'] = f'no finite {", ".join(bad)}'
+                else:
+                    point['kpis'] = {k: (v if v is None or math.isfinite(v) else None) for k, v in kpis.items()}
+            row['points'].append(point)
+    except Exception as exc:  # a failed oracle is data, the benchmark goes on
+        row['status'], row['error'] = 'error', f'{type(exc).__name__}: {exc}'
+    row['wall_time_s'] = time.perf_counter() - t0
+    return row
+
+
+def oracle_entry(status: str, note: str, levels: Sequence[float], rows: Sequence[Mapping]) -> dict:
+    """results.json's ``oracle`` of a case from the oracle's rows (one per seed; :func:`run_oracle_cell`).
+
+    ``status``: 'ok', 'unavailable' (the module is absent), 'skipped' (``--no-oracle``, or not asked for
+    this case) or 'error' (no seed gave a front); ``fronts`` = per seed the points and the front built from
+    the solved ones (members ``oracle@<level>``).
+    """
+    fronts = []
+    for r in rows:
+        pts = [p for p in r.get('points', []) if p.get('kpis')]
+        front = (
+            fr.build_front([(f'oracle@{p["level"]:.6g}', p['kpis'][FRONT_AXIS], p['kpis'][ENERGY_AXIS]) for p in pts])
+            if pts and r['status'] == 'ok'
+            else None
+        )
+        fronts.append(
+            {
+                'seed': r['seed'],
+                'status': r['status'] if front is not None or r['status'] != 'ok' else 'error',
+                'error': r.get('error', '') or ('' if front is not None else 'no level solved'),
+                'points': [
+                    {'level': float(p['level']), 'kpis': p.get('kpis'), 'error': p.get('error', '')}
+                    for p in r.get('points', [])
+                ],
+                'front': _front_points(front),
+            }
+        )
+    if status == 'ok' and not any(f['front'] for f in fronts):
+        status, note = 'error', note or 'the oracle solved no level'
+    return {
+        'status': status,
+        'entry_point': ORACLE_ENTRY,
+        'note': note,
+        'levels': [float(x) for x in levels],
+        'fronts': fronts,
+    }
+
+
+def oracle_bounds(oracle: Mapping) -> dict:
+    """``{seed: Front}`` of a case's ``oracle`` entry (empty unless its status is 'ok')."""
+    if oracle.get('status') != 'ok':
+        return {}
+    out = {}
+    for f in oracle['fronts']:
+        if f['front']:
+            out[f['seed']] = fr.build_front([(p['controller'], p['discomfort'], p['energy']) for p in f['front']])
+    return out

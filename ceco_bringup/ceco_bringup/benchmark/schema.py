@@ -1,4 +1,4 @@
-"""The results format ``ceco-benchmark/1`` and its validator.
+"""The results format ``ceco-benchmark/2`` and its validator.
 
 ``DIR/results.json`` of ``ceco benchmark`` (docs/benchmark.md, "Results format").
 Two layers:
@@ -10,7 +10,9 @@ Two layers:
    one of the case's seeds otherwise; every null KPI of a finished run is explained
    in ``kpi_notes``; each front member is a finished run of its family with the
    front's values, and the ``efficient`` flags recompute; every ``matched`` value
-   recomputes from the fronts and the runs (:mod:`.front`, tolerance 1e-9).
+   recomputes from the fronts and the runs (:mod:`.front`, tolerance 1e-9); the strongest family
+   (per level and per controller) and ``headroom_captured`` recompute from the fronts and the
+   oracle's points; each oracle front recomputes from its solved points (one per level, >= 4 levels).
 
 Pure Python (jsonschema); no ROS import.
 """
@@ -32,17 +34,19 @@ __all__ = [
     "KINDS",
     "SEED_INVARIANT_KINDS",
     "FAMILIES",
+    "ORACLE_STATUSES",
     "load_json_schema",
     "validate_results",
     "check_results",
     "ResultsError",
 ]
 
-SCHEMA = "ceco-benchmark/1"
+SCHEMA = "ceco-benchmark/2"
 """Value of results.json's ``schema`` key."""
 
-BENCHMARK_VERSION = 1
-"""Version of the benchmark's definition (KPIs, baseline family, levels, matched-comfort method)."""
+BENCHMARK_VERSION = 2
+"""Version of the benchmark's definition (KPIs, baseline families, levels, matched-comfort method).
+2: the tuned and comfort-feedback families, the strongest family, the oracle's slots."""
 
 REQUIRED_KPIS = (
     "energy_kwh",
@@ -59,24 +63,35 @@ REQUIRED_KPIS = (
 )
 """KPIs every run reports (a number or null with a note)."""
 
-KINDS = ("strategy", "baseline", "baseline-allowance", "compensated", "compensated-allowance", "external")
+FAMILIES = {
+    "plain": "baseline",
+    "allowance": "baseline-allowance",
+    "tuned": "baseline-tuned",
+    "tuned-allowance": "baseline-tuned-allowance",
+    "pmv": "baseline-pmv",
+    "pmv-allowance": "baseline-pmv-allowance",
+}
+"""Front name -> the kind of its members: the production-gains families (plain, allowance: the paper's
+comparison), the production law with tuned gains, the comfort-feedback (PMV) law with tuned gains."""
+
+KINDS = ("strategy", *FAMILIES.values(), "compensated", "compensated-allowance", "external")
 """Kinds of controller in a case's runs."""
 
-SEED_INVARIANT_KINDS = ("baseline", "baseline-allowance", "compensated", "compensated-allowance")
+SEED_INVARIANT_KINDS = (*FAMILIES.values(), "compensated", "compensated-allowance")
 """Kinds that use no preview: run once per case, ``seed`` null."""
 
-FAMILIES = {"plain": "baseline", "allowance": "baseline-allowance"}
-"""Front name -> the kind of its members."""
+ORACLE_STATUSES = ("ok", "unavailable", "skipped", "error")
+"""A case's ``oracle.status``: fronts given, the oracle module absent, ``--no-oracle``, or every level failed."""
 
 _TOL = 1e-9
 
 
 class ResultsError(ValueError):
-    """results.json does not conform to ceco-benchmark/1; the message lists the problems."""
+    """results.json does not conform to ceco-benchmark/2; the message lists the problems."""
 
 
 def load_json_schema() -> dict:
-    """The JSON Schema document of ceco-benchmark/1."""
+    """The JSON Schema document of ceco-benchmark/2."""
     text = (
         resources.files("ceco_bringup").joinpath("data", "benchmark", "results.schema.json").read_text(encoding="utf-8")
     )
@@ -163,6 +178,10 @@ def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
         for j, p in enumerate(members):
             if p["controller"] in eff and eff[p["controller"]] != p["efficient"]:
                 out.append(f"{tag}/fronts/{family}/{j} ({p['controller']}): efficient flag does not recompute")
+    env = fr.Envelope.of(fronts) if any(f is not None for f in fronts.values()) else None
+    out += _check_strongest(tag, case["strongest"], env, case["oracle"]["levels"])
+    bounds, problems = _oracle_bounds(tag, case["oracle"])
+    out += problems
     for name, entry in case.get("matched", {}).items():
         runs = ok_runs.get(name)
         where = f"{tag}/matched/{name}"
@@ -172,25 +191,105 @@ def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
         if runs[0]["kind"] in FAMILIES.values():
             out.append(f"{where}: a family member is not matched against its own front")
             continue
-        pts = [
-            (r["kpis"].get(fx), r["kpis"].get(ex))
-            for r in sorted(runs, key=lambda r: -1 if r["seed"] is None else r["seed"])
-        ]
+        runs = sorted(runs, key=lambda r: -1 if r["seed"] is None else r["seed"])
+        pts = [(r["kpis"].get(fx), r["kpis"].get(ex)) for r in runs]
         if any(a is None or b is None for a, b in pts):
             out.append(f"{where}: a run has no {fx} or {ex}")
             continue
-        for family, sub in (("plain", entry), ("allowance", entry.get("allowance", {}))):
+        for family, sub in (("plain", entry), ("allowance", entry.get("allowance"))):
             if fronts.get(family) is None:
-                out.append(f"{where}: the {family} front is empty")
+                if sub is not None and family != "plain":
+                    out.append(f"{where}.{family}: given, but the {family} front is empty")
+                elif family == "plain":
+                    out.append(f"{where}: the plain front is empty")
+                continue
+            if sub is None:
+                out.append(f"{where}.{family}: missing although the {family} front exists")
                 continue
             out += _check_match(
-                where if family == "plain" else f"{where}.allowance", sub, fr.match_seeds(fronts[family], pts)
+                where if family == "plain" else f"{where}.{family}", sub, fr.match_seeds(fronts[family], pts)
             )
+        if env is None:
+            continue
+        out += _check_match(f"{where}.strongest", entry["strongest"], fr.match_seeds(env, pts))
+        fam = env.family_at(sum(d for d, _ in pts) / len(pts))
+        if entry["strongest"].get("family") != fam:
+            out.append(f"{where}.strongest.family: {entry['strongest'].get('family')!r} does not recompute ({fam!r})")
+        if not bounds:
+            if entry.get("headroom") is not None:
+                out.append(f"{where}.headroom: given without an oracle front")
+            continue
+        expect = fr.headroom_seeds(env, bounds, [(r["seed"], d, e) for r, (d, e) in zip(runs, pts)])
+        got = entry.get("headroom")
+        if got is None:
+            out.append(f"{where}.headroom: missing although the oracle gave a front")
+            continue
+        for key in ("headroom_captured", "saving_pct", "bound_saving_pct", "strongest", "n_seeds"):
+            a, b = got.get(key), expect[key]
+            if not (a == b if key == "strongest" else _same(a, b)):
+                out.append(f"{where}.headroom.{key}: {a!r} does not recompute ({b!r})")
+        for key in ("headroom_captured", "saving_pct", "bound_saving_pct"):
+            a, b = got.get("seeds", {}).get(key), expect["seeds"][key]
+            if not isinstance(a, list) or len(a) != len(b) or not all(_same(x, y) for x, y in zip(a, b)):
+                out.append(f"{where}.headroom.seeds.{key}: {a!r} does not recompute ({b!r})")
     return out
 
 
+def _check_strongest(tag: str, entry: Mapping, env, levels) -> list[str]:
+    """The case's ``strongest`` recomputes from the fronts at the oracle's levels."""
+    if env is None:
+        return [] if not entry["families"] else [f"{tag}/strongest: families given without any front"]
+    expect = {"families": [n for n, _ in env.fronts], **fr.strongest_by_level(env, levels)}
+    out = []
+    if entry["families"] != expect["families"] or entry["family"] != expect["family"]:
+        out.append(f"{tag}/strongest: families/family do not recompute ({expect['families']}, {expect['family']!r})")
+    got, want = entry["levels"], expect["levels"]
+    if len(got) != len(want) or any(
+        a["family"] != b["family"] or not _same(a["discomfort"], b["discomfort"]) or not _same(a["energy"], b["energy"])
+        for a, b in zip(got, want)
+    ):
+        out.append(f"{tag}/strongest/levels: do not recompute at the oracle's levels")
+    return out
+
+
+def _oracle_bounds(tag: str, oracle: Mapping) -> tuple[dict, list[str]]:
+    """{seed: Front} of an 'ok' oracle entry, and the problems of its fronts (each recomputes from its points)."""
+    out: list[str] = []
+    bounds = {}
+    if oracle["status"] != "ok":
+        if oracle["fronts"]:
+            out.append(f"{tag}/oracle: status {oracle['status']!r} with fronts")
+        return bounds, out
+    if not oracle["levels"] or len(oracle["levels"]) < 4:
+        out.append(f"{tag}/oracle/levels: at least 4 levels, got {len(oracle['levels'])}")
+    for j, f in enumerate(oracle["fronts"]):
+        where = f"{tag}/oracle/fronts/{j} (seed {f['seed']})"
+        if len(f["points"]) != len(oracle["levels"]) or any(
+            not _same(p["level"], x) for p, x in zip(f["points"], oracle["levels"])
+        ):
+            out.append(f"{where}: one point per level, in order")
+        solved = [
+            (f"oracle@{p['level']:.6g}", p["kpis"]["discomfort_pmvh"], p["kpis"]["energy_kwh"])
+            for p in f["points"]
+            if p["kpis"]
+        ]
+        if f["status"] != "ok" or not solved:
+            if f["front"]:
+                out.append(f"{where}: a front without solved points")
+            continue
+        front = fr.build_front(solved)
+        want = [(p.name, p.discomfort, p.energy, p.efficient) for p in front.points]
+        got = [(p["controller"], p["discomfort"], p["energy"], p["efficient"]) for p in f["front"]]
+        if len(want) != len(got) or any(
+            a[0] != b[0] or not _same(a[1], b[1]) or not _same(a[2], b[2]) or a[3] != b[3] for a, b in zip(got, want)
+        ):
+            out.append(f"{where}: the front does not recompute from its points")
+        bounds[f["seed"]] = front
+    return bounds, out
+
+
 def check_results(doc: Any) -> list[str]:
-    """All problems of a parsed results document (empty list: valid ceco-benchmark/1)."""
+    """All problems of a parsed results document (empty list: valid ceco-benchmark/2)."""
     errors = _schema_errors(doc)
     if errors:
         return errors

@@ -151,7 +151,8 @@ def settings_from_spec(spec: Mapping):
         spec: the cell's spec (plain JSON data): ``preview`` (preview quality text),
             optional ``control_period_s`` [s], ``horizon_steps``, ``seed``, ``duration_s`` [s]
             (None: the scenario's), ``strategy_overrides`` (see :func:`runtime_overrides`) and,
-            for the benchmark's sensitivity runs, ``plant_overrides`` / ``comfort_overrides``.
+            for the benchmark's sensitivity runs, ``plant_overrides`` / ``comfort_overrides``, and
+            ``measurements`` ('full' when absent; 'vehicle' for the benchmark's comfort-feedback families).
 
     Returns:
         The simulator settings, without a progress bar.
@@ -171,6 +172,7 @@ def settings_from_spec(spec: Mapping):
         strategy_overrides=tuple(sorted(ovr.items())),
         plant_overrides=tuple(sorted((spec.get('plant_overrides') or {}).items())),
         comfort_overrides=tuple(sorted((spec.get('comfort_overrides') or {}).items())),
+        measurements=spec.get('measurements', 'full'),
     )
 
 

@@ -171,3 +171,71 @@ def test_sun_and_ambient_compensation():
 def test_bad_compensation_settings(field, value):
     with pytest.raises(ValueError, match=field):
         AccSettings(**{field: value}).validate()
+
+
+def test_pmv_feedback_mode_regulates_the_pmv():
+    law = AccLaw(AccSettings(feedback="pmv", setpoint_pmv=0.2, kp_per_pmv=0.8, ti_s=60.0))
+    c = law.step(30.0, 5.0, pmv=2.0)  # error 1.8 > 1.2: pull-down, whatever the temperature
+    assert c.mode == "pulldown" and c.setpoint_pmv == 0.2 and math.isnan(c.setpoint_c)
+    c = law.step(30.0, 5.0, pmv=0.7)  # error 0.5 < 0.6: the PI takes over bumplessly at d = 1
+    assert c.mode == "pi" and c.demand == pytest.approx(1.0)
+    # then the integrator: demand = kp e + I, I += dt (kp / Ti e + (d - v)/Tt), here unsaturated
+    law2 = AccLaw(AccSettings(feedback="pmv", setpoint_pmv=0.2, kp_per_pmv=0.8, ti_s=60.0))
+    d1 = law2.step(25.0, 5.0, pmv=0.5).demand  # I = 0: 0.8 * 0.3
+    d2 = law2.step(25.0, 5.0, pmv=0.5).demand  # I = 5 * 0.8 / 60 * 0.3
+    assert d1 == pytest.approx(0.24) and d2 == pytest.approx(0.24 + 5.0 * 0.8 / 60.0 * 0.3)
+    # the temperature is ignored in this mode, a missing PMV is a sensor fault that holds the command
+    assert law2.step(math.nan, 5.0, pmv=0.5).mode == "pi"
+    held = law2.step(25.0, 5.0, pmv=math.nan)
+    assert held.mode == "sensor_fault" and held.demand == pytest.approx(law2.step(25.0, 5.0, pmv=None).demand)
+    # the allowance in PMV units: the set-point follows the relaxed bound
+    a = AccLaw(AccSettings(feedback="pmv", setpoint_pmv=0.0, allowance_pmv_per_pmv=0.5))
+    assert a.step(25.0, 5.0, pmv=0.1, pmv_ub=2.5).setpoint_pmv == pytest.approx(1.0)
+    assert a.step(25.0, 5.0, pmv=0.1, pmv_ub=0.5).setpoint_pmv == 0.0
+    # a temperature law leaves the PMV set-point NaN and ignores pmv
+    t = AccLaw()
+    c = t.step(27.0, 5.0, pmv=5.0)
+    assert c.mode == "pi" and c.setpoint_c == 26.0 and math.isnan(c.setpoint_pmv)
+
+
+def test_pmv_feedback_tracks_for_a_bumpless_take_over():
+    law = AccLaw(AccSettings(feedback="pmv", setpoint_pmv=0.0, kp_per_pmv=0.8))
+    law.track(0.08, 5.0, None, pmv=0.25)
+    d_a = law.demand_of(0.08, 5.0)
+    c = law.step(30.0, 5.0, pmv=0.25)
+    # integrator preset so that kp e + I = d_a at the take-over: the PI's first demand is the applied one
+    assert c.demand == pytest.approx(d_a, abs=1e-12) and 0.0 < d_a < 1.0
+    assert (c.mdot_bl_kgps, c.t_evap_sp_c) == pytest.approx((0.08, 5.0))  # the applied command, then decays
+
+
+@pytest.mark.parametrize(
+    "kw, field",
+    [
+        ({"feedback": "comfort"}, "feedback"),
+        ({"feedback": "pmv", "sun_gain_k_per_kwm2": 1.0}, "compensation"),
+        ({"kp_per_pmv": 0.0}, "kp_per_pmv"),
+        ({"pulldown_exit_pmv": 1.5}, "pulldown_exit_pmv"),
+        ({"setpoint_pmv": 4.0}, "setpoint_pmv"),
+        ({"allowance_pmv_per_pmv": -0.1}, "allowance_pmv_per_pmv"),
+    ],
+)
+def test_bad_pmv_feedback_settings(kw, field):
+    with pytest.raises(ValueError, match=field):
+        AccSettings(**kw).validate()
+
+
+def test_feedback_pmv_is_the_scored_comfort_model_on_the_observation():
+    from ceco_core import psychro
+    from ceco_core.acc_law import feedback_pmv
+    from ceco_core.cabin_comfort import ComfortParams, evaluate_cabin_comfort
+
+    p = ComfortParams()
+    kw = dict(t_cab_c=26.0, t_vent_c=12.0, t_int_c=31.0, t_shell_c=35.0, t_glass_c=38.0, rh_cab=0.35)
+    y = feedback_pmv(**kw, mdot_bl_kgps=0.09, solar_wm2=700.0, params=p)
+    ref = evaluate_cabin_comfort(**kw, mdot_bl_kgps=0.09, solar_wm2=700.0, params=p)
+    assert y == pytest.approx(float(ref.pmv), abs=1e-12)  # the plant's scored PMV, same inputs
+    assert float(ref.pa_pa) == pytest.approx(float(psychro.vapour_pressure_pa(26.0, 0.35)))
+    # hotter surfaces, higher PMV; a missing or impossible input gives NaN (the law holds)
+    assert feedback_pmv(**{**kw, "t_int_c": 40.0}, mdot_bl_kgps=0.09, solar_wm2=700.0, params=p) > y
+    for bad in ({"rh_cab": math.nan}, {"rh_cab": 1.5}, {"t_glass_c": None}, {"t_vent_c": "x"}):
+        assert math.isnan(feedback_pmv(**{**kw, **bad}, mdot_bl_kgps=0.09, solar_wm2=700.0, params=p))

@@ -1,0 +1,32 @@
+"""A stand-in for the oracle's entry point in the benchmark's plumbing tests (not an optimum).
+
+``solve_front(case, seed, levels)`` has the interface of ``ceco_controller.oracle.solve_front``
+(docs/benchmark.md, "The oracle") and returns real scored runs: the production law at one warm
+set-point per level (the simulator and ``compute_kpis``, as every benchmark run), with the
+first level left unsolved (None) so that a missing level is exercised. It makes no claim to
+be a bound: the tests that use it check the plumbing (cells, caching, the results format,
+headroom_captured from whatever front the oracle returns), never its numbers.
+"""
+
+from ceco_controller.closed_loop import SimSettings, simulate
+from ceco_core.kpis import compute_kpis
+
+CALLS = []
+"""(case name, seed, levels) of every call in this process (the tests check the caching)."""
+
+
+def solve_front(case, seed, levels):
+    """One item per level: None for the first, then the KPIs of the PI law at 27, 28, ... degC."""
+    CALLS.append((case.name, seed, list(levels)))
+    out = [None]
+    for i, _ in enumerate(levels[1:]):
+        settings = SimSettings(progress=False, strategy_overrides=(('setpoint_c', 27.0 + i),))
+        res = simulate(case.load_scenario(), 'baseline', settings)
+        kpis, _ = compute_kpis(
+            res.timeseries,
+            step_time_s=res.step_time_s,
+            control_period_s=res.metrics['control_period_s'],
+            fallback_steps=0,
+        )
+        out.append(kpis)
+    return out
