@@ -31,7 +31,7 @@ from ceco_v2x_preview.scenario import Scenario, load_scenario
 from . import model as cm
 from .estimating_controller import EstimatingController, with_measurements
 from .estimator import estimation_errors
-from .factory import make_controller
+from .factory import ControllerCache, make_controller
 from .observation import observation
 from .strategies import STRATEGIES
 
@@ -138,7 +138,11 @@ class RunResult:
 
 
 def simulate(
-    scenario: Scenario | str, strategy: str, settings: SimSettings | None = None, controller=None
+    scenario: Scenario | str,
+    strategy: str,
+    settings: SimSettings | None = None,
+    controller=None,
+    controller_cache: ControllerCache | None = None,
 ) -> RunResult:
     """Run one strategy on one scenario in closed loop against the plant.
 
@@ -147,6 +151,8 @@ def simulate(
         strategy: ``baseline``, ``ceco``, ``ceco-e``, ``ceco-c`` or ``ceco-ioch``.
         settings: :class:`SimSettings`.
         controller: an already built controller to use (for tests); default: built here.
+        controller_cache: reuse an NMPC built by an earlier run of this process (a benchmark
+            worker's :class:`~ceco_controller.factory.ControllerCache`); the results are the same.
     """
     settings = settings or SimSettings()
     settings.validate()
@@ -174,6 +180,7 @@ def simulate(
             dict(settings.strategy_overrides),
             config_path=settings.controller_config_path,
             measurements=settings.measurements,
+            cache=controller_cache,
         )
     else:
         controller = with_measurements(controller, settings.measurements, ts, model_params=mp)

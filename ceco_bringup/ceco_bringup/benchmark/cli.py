@@ -125,6 +125,7 @@ def run_benchmark(
     the baseline families and compensated laws only, e.g. to study the families on every case).
     """
     t0 = time.perf_counter()
+    ray_workers = workers
     workers = int(workers or os.cpu_count() or 1)
     cases = [load_case(n) for n in (case_names or (QUICK_CASES if quick else DEFAULT_CASES))]
     baselines = runner.load_baselines()
@@ -211,7 +212,8 @@ def run_benchmark(
         if backend == 'local':
             backends.run_local(items, n, on_done, fn, runs_dir)
         elif backend == 'ray':
-            backends.run_ray(items, n, address, on_done, fn, runs_dir)
+            # on a cluster (address) without --workers: one worker per CPU of the cluster
+            backends.run_ray(items, None if address and not ray_workers else n, address, on_done, fn, runs_dir)
         else:
             raise ValueError(f'backend: must be local or ray, got {backend!r}')
 

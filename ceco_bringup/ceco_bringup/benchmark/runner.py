@@ -435,8 +435,11 @@ def mark_failed(row: dict, check: ControlCheck) -> None:
         row['status'], row['error'] = STATUS_FAILED, check.reason
 
 
-def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
+def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None, controller_cache=None) -> dict:
     """Run one benchmark cell in this process and score it; never raises (errors are data).
+
+    ``controller_cache``: the worker's :class:`ceco_controller.factory.ControllerCache` (a warm
+    worker reuses its controllers; the results are the same).
 
     Returns the row logged in ``cells.jsonl``: ``cell_id``, the axes, ``status``, ``error``,
     ``kpis``, ``kpi_notes``, ``code``, ``sim_time_s``, ``wall_time_s``, ``source``.
@@ -457,7 +460,9 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
         row['code'] = sweep_cells.check_code(spec, 'benchmark')
         t_sim = time.perf_counter()
         settings = sweep_cells.settings_from_spec(spec)
-        res = simulate(scenario_from_dict(spec['scenario']), spec['strategy'], settings)
+        res = simulate(
+            scenario_from_dict(spec['scenario']), spec['strategy'], settings, controller_cache=controller_cache
+        )
         m = res.metrics
         kpis, notes = compute_kpis(
             res.timeseries,

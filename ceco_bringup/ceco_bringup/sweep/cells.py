@@ -192,8 +192,11 @@ def check_code(spec: Mapping, what: str) -> str:
     return code
 
 
-def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
+def run_cell(cell: Mapping, runs_dir: str | None = None, controller_cache=None) -> dict:
     """Run one cell in this process and return its results row; never raises for a failing run.
+
+    ``controller_cache``: the worker's :class:`ceco_controller.factory.ControllerCache` (a warm
+    worker reuses its controllers; the results are the same).
 
     The row holds the cell id, axes, every metric, ``status`` ('ok', 'failed': the controller did not
     control the run, ``ceco_core.run_status``; or 'error'), ``error``,
@@ -213,7 +216,7 @@ def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
         row['code'] = check_code(spec, 'sweep')
         t_sim = time.perf_counter()
         scenario = scenario_from_dict(spec['scenario'])
-        result = simulate(scenario, spec['strategy'], settings_from_spec(spec))
+        result = simulate(scenario, spec['strategy'], settings_from_spec(spec), controller_cache=controller_cache)
         row['sim_time_s'] = time.perf_counter() - t_sim
         for k in METRIC_COLUMNS:
             v = result.metrics.get(k)
