@@ -333,7 +333,7 @@ def _run_oracles(cases, by_case, rows, seeds, code, log_path, dispatch, log, ora
         if why:
             out[c.name] = runner.oracle_entry('unavailable', why, levels[c.name], [])
         elif c not in wanted or not levels[c.name]:
-            note = 'no baseline front' if c in wanted else 'not asked on this case (--quick: no oracle; ceco oracle CASE)'
+            note = 'no baseline front' if c in wanted else 'not asked on this case (--quick: no oracle)'
             out[c.name] = runner.oracle_entry('skipped', note, levels[c.name], [])
         else:
             # the oracle knows the truth, which does not depend on the preview-error seed: one solve per case
