@@ -143,3 +143,19 @@ def test_settings_and_schedule_refuse_bad_values():
         orc.ScheduleController(np.array([[0.1, np.inf]]))
     with pytest.raises(ValueError, match='levels'):
         orc.solve_levels(_short('sc03-paper', 10.0), [float('nan')])
+
+
+def test_default_levels_follow_the_benchmark_rule():
+    """Without --levels: 4 levels from the production family's least discomfort to max(1.5 x it, its greatest)."""
+    from ceco_bringup import oracle_cli
+    from ceco_bringup.verdict import FAMILY_SETPOINTS_C
+
+    sc = _short('mild-day', 120.0)
+    ds = []
+    for sp in FAMILY_SETPOINTS_C:
+        run = simulate(sc, 'baseline', SimSettings(progress=False, strategy_overrides=(('setpoint_c', sp),)))
+        ds.append(compute_kpis(run.timeseries, control_period_s=5.0, fallback_steps=0)[0]['discomfort_pmvh'])
+    levels = oracle_cli.default_levels(None, sc, None)
+    assert len(levels) == 4 and np.all(np.diff(levels) > 0)
+    assert levels[0] == pytest.approx(min(ds), rel=1e-12)
+    assert levels[-1] == pytest.approx(max(1.5 * min(ds), max(ds)), rel=1e-12)

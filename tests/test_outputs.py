@@ -304,6 +304,9 @@ BAD_NUMBERS = [
     ('benchmark', '--workers', '0'),
     ('sweep', '--workers', '-2'),
     ('sweep', '--verify', '-1'),
+    ('oracle', '--duration-s', 'nan'),
+    ('oracle', '--max-wall-time-s', '0'),
+    ('oracle', '--levels', '0.1,nan'),
 ]
 
 
@@ -312,7 +315,9 @@ def test_bad_numbers_are_one_line_and_exit_2(verb, flag, value, tmp_path, capsys
     """Issue 17 item 7: each bad number is one clear line naming the flag and what it accepts, exit
     status 2, before anything runs (--control-period-s 0 fell back to the scenario's, --duration-s
     nan was a traceback, inf and --run-timeout-s -1 were accepted)."""
-    first = {'play': [str(tmp_path)], 'report': [str(tmp_path)], 'sweep': ['grid.yaml']}.get(verb, [])
+    first = {'play': [str(tmp_path)], 'report': [str(tmp_path)], 'sweep': ['grid.yaml'], 'oracle': ['sc03-paper']}.get(
+        verb, []
+    )
     rest = [] if verb in ('play', 'report') else ['--out', str(tmp_path / 'out')]
     with pytest.raises(SystemExit) as exc:
         cli.main([verb, *first, flag, value, *rest])
@@ -326,27 +331,35 @@ def test_bad_numbers_are_one_line_and_exit_2(verb, flag, value, tmp_path, capsys
 SHARED = {
     '--scenario': ('run', 'sim', 'play', 'report'),
     '--strategy': ('run', 'sim', 'play', 'report'),
-    '--out': ('run', 'sim', 'report', 'benchmark', 'sweep'),
+    '--out': ('run', 'sim', 'report', 'benchmark', 'sweep', 'oracle'),
     '--preview': ('run', 'sim'),
-    '--control-period-s': ('run', 'sim', 'play'),
+    '--control-period-s': ('run', 'sim', 'play', 'oracle'),
     '--horizon-steps': ('run', 'sim', 'play'),
-    '--duration-s': ('run', 'sim'),
+    '--duration-s': ('run', 'sim', 'oracle'),
     '--seed': ('run', 'sim'),
     '--workers': ('benchmark', 'sweep'),
     '--backend': ('benchmark', 'sweep'),
     '--namespace': ('run', 'play', 'report'),
     '--domain-id': ('run', 'play'),
-    '--no-progress': ('run', 'sim', 'play', 'benchmark', 'sweep'),
+    '--no-progress': ('run', 'sim', 'play', 'benchmark', 'sweep', 'oracle'),
     '--baseline-setpoints-c': ('run', 'sim'),
 }
 
 
 def _parser(verb):
-    from ceco_bringup import report, run
+    from ceco_bringup import oracle_cli, report, run
     from ceco_bringup.benchmark import cli as bcli
     from ceco_bringup.sweep import cli as scli
 
-    builders = {'run': run, 'sim': sim, 'play': play, 'report': report, 'benchmark': bcli, 'sweep': scli}
+    builders = {
+        'run': run,
+        'sim': sim,
+        'play': play,
+        'report': report,
+        'benchmark': bcli,
+        'sweep': scli,
+        'oracle': oracle_cli,
+    }
     return builders[verb].build_parser()
 
 

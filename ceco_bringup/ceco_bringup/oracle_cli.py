@@ -13,8 +13,8 @@ values, status, iterations, wall time). Without ``--levels`` the levels follow t
 
 from __future__ import annotations
 
+import argparse
 import json
-import math
 import sys
 from pathlib import Path
 
@@ -38,12 +38,10 @@ FRONT_COLUMNS = (
 
 
 def _levels(text: str) -> list[float]:
-    try:
-        vals = [float(x) for x in text.split(',') if x.strip()]
-    except ValueError:
-        raise ValueError(f'expected comma-separated numbers [PMV h], got {text!r}') from None
-    if not vals or any(not (math.isfinite(v) and v > 0) for v in vals):
-        raise ValueError(f'levels must be finite and > 0 PMV h, got {text!r}')
+    """Comma-separated discomfort levels [PMV h], each finite and > 0 (argparse type)."""
+    vals = [cli_args.positive_float(x.strip()) for x in text.split(',') if x.strip()]
+    if not vals:
+        raise argparse.ArgumentTypeError(f'must be comma-separated numbers > 0 [PMV h], got {text!r}')
     return vals
 
 
@@ -86,19 +84,10 @@ def default_levels(case, scenario, control_period_s: float | None, n: int = 4) -
         st = SimSettings(control_period_s=control_period_s, progress=False, strategy_overrides=(('setpoint_c', sp),))
         res = simulate(scenario, 'baseline', st)
         kpis, _ = compute_kpis(res.timeseries, control_period_s=res.metrics['control_period_s'], fallback_steps=0)
-        runs.append(
-            {'controller': f'baseline@{sp:g}', 'kind': 'baseline', 'family': 'production', 'setpoint_c': sp, **kpis}
-        )
+        row = {'controller': f'baseline@{sp:g}', 'kind': 'baseline', 'seed': None, 'setpoint_c': sp}
+        runs.append(runner._run_entry({**row, 'status': 'ok', 'kpis': kpis}))
     del case
-    return runner.oracle_levels([_entry(r) for r in runs], n)
-
-
-def _entry(r: dict) -> dict:
-    from ceco_bringup.benchmark import runner
-
-    return runner._run_entry(
-        {'status': 'ok', 'kpis': r, 'seed': None, **{k: r[k] for k in ('controller', 'kind', 'setpoint_c')}}
-    )
+    return runner.oracle_levels(runs, n)
 
 
 def main(argv=None) -> int:
