@@ -159,3 +159,13 @@ def test_default_levels_follow_the_benchmark_rule():
     assert len(levels) == 4 and np.all(np.diff(levels) > 0)
     assert levels[0] == pytest.approx(min(ds), rel=1e-12)
     assert levels[-1] == pytest.approx(max(1.5 * min(ds), max(ds)), rel=1e-12)
+
+
+def test_a_drive_ending_inside_a_control_interval():
+    """62 s at Ts 5 s: 13 intervals, the last one 2 plant steps (masked in the NLP); replay and NLP still agree."""
+    r = orc.solve_levels(_short('mild-day', 62.0), [0.03])[0]
+    assert r.success, r.status
+    assert r.commands.shape == (13, 2) and r.run.timeseries['t_s'].size == 62 and r.nlp_pmv.size == 62
+    assert np.max(np.abs(r.run.timeseries['pmv'] - r.nlp_pmv)) <= 0.01
+    assert abs(r.kpis['energy_kwh'] - r.nlp_energy_kwh) <= 3e-3 * r.kpis['energy_kwh']
+    assert r.kpis['discomfort_pmvh'] <= 0.03 * 1.01
