@@ -30,7 +30,7 @@ from dataclasses import fields
 from typing import Any, NamedTuple
 
 from ceco_core.contracts import AcInput
-from ceco_core.psychro import EPS_W, saturation_vapour_pressure_pa
+from ceco_core.psychro import EPS_W, relative_humidity, saturation_vapour_pressure_pa
 
 from .plant_ops import NUMERIC
 from .plant_params import PlantParams
@@ -296,20 +296,24 @@ class NewtonCycle:
         sol = self.solve(ops, speed, t_ev, t_amb, epsc, guess)
         limited = ops.logic_and(duty == 1.0, sol.p_comp_w > p_max)
 
-        def power_limit():
-            def body(s: _Secant) -> _Secant:  # one secant update on P_el(N) - P_max
-                s2 = self.solve(ops, s.n, t_ev, t_amb, epsc, Guess(s.sol.t_evap_sat_c, s.sol.t_cond_c, 1.0))
-                f1 = s2.p_comp_w - p_max
-                ok = ops.logic_and(s.ok, s2.converged)
-                stop = ops.logic_or(abs(f1) < 5e-4 * p_max, f1 == s.f0)
-                return ops.cond(
-                    stop,
-                    lambda: _Secant(s.n0, s.f0, s.n, s2, True, ok),
-                    lambda: _Secant(s.n, f1, s.n - f1 * (s.n - s.n0) / (f1 - s.f0), s2, False, ok),
-                )
+        def body(s: _Secant, t_ev, t_amb, epsc) -> _Secant:  # one secant update on P_el(N) - P_max
+            p_max = self.params.p_comp_max_w
+            s2 = self.solve(ops, s.n, t_ev, t_amb, epsc, Guess(s.sol.t_evap_sat_c, s.sol.t_cond_c, 1.0))
+            f1 = s2.p_comp_w - p_max
+            ok = ops.logic_and(s.ok, s2.converged)
+            stop = ops.logic_or(abs(f1) < 5e-4 * p_max, f1 == s.f0)
+            return ops.cond(
+                stop,
+                lambda: _Secant(s.n0, s.f0, s.n, s2, True, ok),
+                lambda: _Secant(s.n, f1, s.n - f1 * (s.n - s.n0) / (f1 - s.f0), s2, False, ok),
+            )
 
-            s = _Secant(speed, sol.p_comp_w - p_max, speed * p_max / sol.p_comp_w, sol, False, sol.converged)
-            s = ops.loop(6, body, s)
+        def power_limit():
+            # done from the start where the limit does not bind: numerically never (this branch runs only
+            # when it binds); symbolically the discarded branch then costs no iteration (CompiledOps)
+            done = ops.logic_not(limited)
+            s = _Secant(speed, sol.p_comp_w - p_max, speed * p_max / sol.p_comp_w, sol, done, sol.converged)
+            s = ops.loop(6, body, s, t_ev, t_amb, epsc)
             return s.n, s.sol, s.ok
 
         speed, sol, ok = ops.cond(limited, power_limit, lambda: (speed, sol, sol.converged))
@@ -502,3 +506,63 @@ class PlantEquations:
             acc = tuple(s + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4) for s, b1, b2, b3, b4 in zip(acc, a1, a2, a3, a4))
             ok = o.logic_and(o.logic_and(o.logic_and(o.logic_and(ok, ok1), ok2), ok3), ok4)
         return x, Flows._make(acc), guess, ok
+
+    def outputs(self, x: State, u: Input, env: Env, dt_s: float, acc: Flows, guess: Guess):
+        """The plant's report at state ``x`` (the end of a step): ``({PlantOutputs field: value}, ok)``.
+
+        ``acc`` holds the flows integrated over the step of ``dt_s`` [s] (:meth:`step`: energies [J],
+        water [kg]); ``dt_s = 0`` reports an instant (``acc`` the instantaneous flows, zero energies).
+        The algebraic variables are those of :meth:`rhs` at ``x`` with the warm start ``guess``; ``ok``
+        is that cycle solve's flag. Temperatures and states at ``x``, powers step means, ``cop`` the
+        mean refrigerant capacity over the mean compressor power (0 with the compressor off).
+        """
+        o = self.ops
+        p_bl = blower_power_w(self.params, u.mdot_bl_kgps)
+        _, _, alg, _, ok = self.rhs(x, u, p_bl, env, guess)
+        if dt_s > 0.0:
+            mean = (
+                acc.p_comp_w / dt_s,
+                acc.p_cond_fan_w / dt_s,
+                acc.q_evap_w / dt_s,
+                acc.q_latent_w / dt_s,
+                acc.q_evap_ref_w / dt_s,
+            )
+            energies = (acc.p_comp_w, p_bl * dt_s)
+            water = (acc.mdot_water_in_kgps, acc.mdot_water_out_kgps, acc.mdot_condensate_kgps)
+        else:
+            mean = tuple(acc[:5])
+            energies = (0.0, 0.0)
+            water = (0.0, 0.0, 0.0)
+        out = {
+            "t_cab_c": x.t_cab_c,
+            "t_int_c": x.t_int_c,
+            "t_shell_c": x.t_shell_c,
+            "t_glass_c": x.t_glass_c,
+            "t_evap_c": x.t_evap_c,
+            "t_duct_c": x.t_duct_c,
+            "t_vent_c": alg.t_vent_c,
+            "t_evap_out_c": alg.t_evap_out_c,
+            "t_evap_sat_c": alg.t_evap_sat_c,
+            "t_cond_c": alg.t_cond_c,
+            "rh_cab": relative_humidity(x.t_cab_c, x.w_cab_kgkg, self.params.p_atm_pa),
+            "w_cab_kgkg": x.w_cab_kgkg,
+            "p_comp_w": mean[0],
+            "p_blower_w": p_bl,
+            "p_cond_fan_w": mean[1],
+            "e_comp_j": energies[0],
+            "e_blower_j": energies[1],
+            "q_evap_w": mean[2],
+            "q_latent_w": mean[3],
+            "q_evap_ref_w": mean[4],
+            "cop": o.cond(mean[0] > 0.0, lambda: mean[4] / mean[0], lambda: 0.0),
+            "comp_speed_rpm": alg.comp_speed_rpm,
+            "comp_duty": alg.comp_duty,
+            "capacity_limited": alg.capacity_limited,
+            "mop_active": alg.mop_active,
+            "mdot_ref_kgps": alg.mdot_ref_kgps,
+            "cycle_iterations": alg.cycle_iterations,
+            "m_water_in_kg": water[0],
+            "m_water_out_kg": water[1],
+            "m_condensate_kg": water[2],
+        }
+        return out, ok

@@ -19,6 +19,7 @@ import numpy as np
 from ceco_core.contracts import MEASUREMENTS, AcInput
 from ceco_v2x_preview.scenario import Scenario, load_scenario
 
+from .compiled_plant import PlantEvaluation
 from .plant_state import PlantOutputs
 from .scenario_plant import ScenarioPlant
 
@@ -67,6 +68,7 @@ def replay_commands(
     *,
     plant_overrides: dict | None = None,
     comfort_overrides: dict | None = None,
+    evaluation: PlantEvaluation | None = None,
 ) -> Replay:
     """Apply one command per plant step to the scenario's plant from key-on; return every per-step series.
 
@@ -77,6 +79,7 @@ def replay_commands(
         plant_dt_s: plant step [s].
         plant_overrides: ``{PlantParams field: value}``, as :class:`ScenarioPlant`.
         comfort_overrides: ``{ComfortParams field: value}``, as :class:`ScenarioPlant`.
+        evaluation: the compiled fast path (default) or the Python evaluation, as :class:`ScenarioPlant`.
 
     Raises ValueError (naming the step) for sequences of different lengths, longer than the
     scenario, or a command outside the actuator bounds.
@@ -88,7 +91,9 @@ def replay_commands(
         raise ValueError(f"commands: mdot_bl_kgps {m.shape} and t_evap_sp_c {t.shape} must be 1-D of equal length")
     if m.size * plant_dt_s > sc.duration_s + 1e-9:
         raise ValueError(f"commands: {m.size} steps of {plant_dt_s} s exceed the scenario's {sc.duration_s} s")
-    sp = ScenarioPlant(sc, plant_dt_s, plant_overrides=plant_overrides, comfort_overrides=comfort_overrides)
+    sp = ScenarioPlant(
+        sc, plant_dt_s, plant_overrides=plant_overrides, comfort_overrides=comfort_overrides, evaluation=evaluation
+    )
     cols: dict[str, list] = {k: [] for k in REPLAY_SERIES}
     for n in range(m.size):
         try:

@@ -28,13 +28,17 @@ import dataclasses
 import math
 
 from ceco_core.cabin_comfort import ComfortParams, OccupantComfort, comfort_params_for, evaluate_cabin_comfort
+from ceco_core.codegen import CompileError
 from ceco_core.contracts import MDOT_BL_MAX_KGPS, MEASUREMENTS, T_EVAP_SP_MIN_C, AcInput
 from ceco_core.overrides import with_overrides
 from ceco_core.scenario_types import Environment
 from ceco_v2x_preview.scenario import Scenario
 
+from .compiled_plant import COMFORT_NAMES, OUTPUT_NAMES, PlantEvaluation, compiled_step, fallback_warning
 from .plant import CabinPlant, PlantOutputs, PlantState
+from .plant_equations import Env
 from .plant_params import PlantParams
+from .plant_state import validate_environment
 
 __all__ = [
     "MEASUREMENTS",
@@ -145,6 +149,7 @@ class ScenarioPlant:
         *,
         plant_overrides: dict | None = None,
         comfort_overrides: dict | None = None,
+        evaluation: PlantEvaluation | None = None,
     ):
         """Key-on state of ``scenario``.
 
@@ -156,6 +161,8 @@ class ScenarioPlant:
             comfort_overrides: ``{ComfortParams field or "part.field": value}`` applied to the scored PMV's
                 parameters (``ceco_core.overrides.with_overrides``), and optionally
                 :data:`SCORED_PA_OVERRIDE` (a fixed vapour pressure for the scored PMV).
+            evaluation: how the step is evaluated (:class:`PlantEvaluation`; default the compiled fast
+                path, the Python evaluation with one logged warning where it cannot be built).
         """
         if not (math.isfinite(plant_dt_s) and plant_dt_s > 0):
             raise ValueError(f"plant_dt_s must be finite and > 0, got {plant_dt_s!r}")
@@ -184,6 +191,20 @@ class ScenarioPlant:
         }
         self.cmd = KEY_ON_COMMAND
         self.n = 0
+        self.evaluation = (evaluation or PlantEvaluation()).validate()
+        self._fast = None
+        if self.evaluation.evaluation == "compiled":
+            try:
+                self._fast = compiled_step(
+                    pp, self.comfort, plant_dt_s, self.scored_pa_pa is not None, self.evaluation
+                )[0]
+            except CompileError as exc:
+                fallback_warning(exc)
+
+    @property
+    def compiled(self) -> bool:
+        """True if the steps run the compiled fast path (False: the Python evaluation)."""
+        return self._fast is not None
 
     @property
     def t_s(self) -> float:
@@ -195,6 +216,29 @@ class ScenarioPlant:
         meas, t = self.meas, self.t_s
         env = self.scenario.env_at(t)
         lb, ub = self.scenario.pmv_bounds(t)
+        if self._fast is not None:
+            c, out = self._step_compiled(u, env, meas)
+        else:
+            c, out = self._step_python(u, env, meas)
+        rec = PlantStepRecord(
+            n=self.n,
+            t_s=t,
+            meas=meas,
+            u=u,
+            env=env,
+            pmv=float(c.pmv),
+            ppd=float(c.ppd),
+            pmv_lb=lb,
+            pmv_ub=ub,
+            comfort=c,
+            out=out,
+        )
+        self.cmd = u
+        self.meas = _measurements(out)
+        self.n += 1
+        return rec
+
+    def _step_python(self, u: AcInput, env: Environment, meas: dict) -> tuple[OccupantComfort, PlantOutputs]:
         c = evaluate_cabin_comfort(
             t_cab_c=meas["t_cab_c"],
             t_vent_c=meas["t_vent_c"],
@@ -213,21 +257,38 @@ class ScenarioPlant:
                 for f in dataclasses.fields(c)
             }
         )
-        out = self.plant.step(u, env, self.dt_s)
-        rec = PlantStepRecord(
-            n=self.n,
-            t_s=t,
-            meas=meas,
-            u=u,
-            env=env,
-            pmv=float(c.pmv),
-            ppd=float(c.ppd),
-            pmv_lb=lb,
-            pmv_ub=ub,
-            comfort=c,
-            out=out,
+        return c, self.plant.step(u, env, self.dt_s)
+
+    def _step_compiled(self, u: AcInput, env: Environment, meas: dict) -> tuple[OccupantComfort, PlantOutputs]:
+        """The step through the compiled code (:mod:`ceco_plant_sim.compiled_plant`): the same checks and errors."""
+        if not isinstance(u, AcInput):
+            raise ValueError(f"command: must be AcInput, got {type(u).__name__}")
+        u.validate()
+        env_v = Env._make(validate_environment(env))
+        plant = self.plant
+        x1, g1, out, cv, ok = self._fast.step(
+            plant.state.as_tuple(),
+            plant.warm_start,
+            (float(u.mdot_bl_kgps), float(u.t_evap_sp_c)),
+            env_v,
+            float(meas["t_vent_c"]),
+            float(meas["rh_cab"]),
+            self.scored_pa_pa,
         )
-        self.cmd = u
-        self.meas = _measurements(out)
-        self.n += 1
-        return rec
+        if not ok:
+            raise RuntimeError(
+                f"refrigerant cycle did not converge in {plant.params.cycle_max_iter} iterations "
+                f"(compiled plant, step {self.n}, t = {self.t_s:g} s)"
+            )
+        c = OccupantComfort(
+            **{k: (v == 1.0 if k == "iso7730_valid" else v) for k, v in zip(COMFORT_NAMES, cv, strict=True)}
+        )
+
+        def outputs() -> PlantOutputs:
+            o = dict(zip(OUTPUT_NAMES, out, strict=True))
+            o["capacity_limited"] = o["capacity_limited"] == 1.0
+            o["mop_active"] = o["mop_active"] == 1.0
+            o["cycle_iterations"] = int(o["cycle_iterations"])
+            return PlantOutputs(**o)
+
+        return c, plant.commit(x1, g1, self.dt_s, outputs)
