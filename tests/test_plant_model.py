@@ -17,6 +17,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from ceco_core.psychro import humidity_ratio
+from ceco_plant_sim.compiled_plant import PlantEvaluation
 from ceco_plant_sim.plant_equations import (
     NO_GUESS,
     Env,
@@ -53,7 +54,7 @@ def reference():
 
 @pytest.fixture(scope="module")
 def plant_replays(reference):
-    """The current plant's replay of each recorded run (whole for FULL_RUN and SMOOTH_RUNS, else 200 steps)."""
+    """The numeric plant's replay of each recorded run (whole for FULL_RUN and SMOOTH_RUNS, else 200 steps)."""
     prov, arrays = reference
     out = {}
     for note in prov["runs"]:
@@ -61,7 +62,7 @@ def plant_replays(reference):
         key = ref.run_key(*run)
         n = note["steps"] if run == FULL_RUN or run in SMOOTH_RUNS else PARTIAL_STEPS
         m, t = arrays[f"{key}__mdot_bl_kgps"][:n], arrays[f"{key}__t_evap_sp_c"][:n]
-        out[run] = (replay_commands(run[0], m, t), m, t)
+        out[run] = (replay_commands(run[0], m, t, evaluation=PlantEvaluation("python")), m, t)
     return out
 
 

@@ -7,7 +7,7 @@ ceco sweep    scenario grids with the in-process simulator
 ceco benchmark  named test cases, baseline family, savings at matched comfort
 ceco sim      one closed-loop run in-process (no ROS)
 ceco identify identify the control-oriented model from plant data
-ceco bench    solver benchmarks
+ceco bench    benchmarks: NMPC solver (nmpc), plant step (plant)
 ceco security create-keystore DIR: an SROS2 keystore with ceco's access control
 """
 
@@ -22,7 +22,10 @@ VERBS = {
     'benchmark': ('ceco_bringup.benchmark.cli', 'savings at matched comfort on the named test cases'),
     'sim': ('ceco_bringup.sim', 'one closed-loop run in-process (no ROS)'),
     'identify': ('ceco_controller.identification', 'identify the control-oriented model'),
-    'bench': ('ceco_controller.bench', 'solver benchmarks (ceco bench nmpc)'),
+    'bench': (
+        'ceco_controller.bench',
+        'benchmarks (ceco bench nmpc: the NMPC solver; ceco bench plant: the plant step)',
+    ),
     'security': ('ceco_bringup.security', 'SROS2 keystore (ceco security create-keystore DIR)'),
 }
 

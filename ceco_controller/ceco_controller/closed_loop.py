@@ -23,6 +23,7 @@ import numpy as np
 from ceco_core import rundir
 from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS, MEASUREMENT_MODES
 from ceco_core.metrics import comfort_series_metrics, run_metrics
+from ceco_plant_sim.compiled_plant import PlantEvaluation
 from ceco_plant_sim.scenario_plant import ScenarioPlant, check_overrides, n_plant_steps, steps_per_control
 from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews
 from ceco_v2x_preview.scenario import Scenario, load_scenario
@@ -87,6 +88,9 @@ class SimSettings:
     prepare_first_step: bool = False
     """Before the first step, let an NMPC solve it without deadline (``NmpcController.prepare``), as
     a node that does so before taking control; off: the first step is a cold solve inside it."""
+    plant_evaluation: str = "compiled"
+    """How the simulated plant step is evaluated: 'compiled' (generated C, cached; the Python evaluation
+    with one warning where no C compiler works) or 'python' (ceco_plant_sim.compiled_plant.PlantEvaluation)."""
     measurements: str = "full"
     """'full': the controller reads every state it models; 'vehicle': only the production sensors,
     T_int, T_shell and T_glass estimated (``ceco_controller.estimator``; docs/controller.md section 5)."""
@@ -103,6 +107,7 @@ class SimSettings:
             raise ValueError("SimSettings.plant_dt_s must be finite and > 0")
         if self.duration_s is not None and not (math.isfinite(self.duration_s) and self.duration_s > 0):
             raise ValueError("SimSettings.duration_s must be finite and > 0")
+        PlantEvaluation(self.plant_evaluation).validate()
         if self.measurements not in MEASUREMENT_MODES:
             raise ValueError(f"SimSettings.measurements must be one of {MEASUREMENT_MODES}, got {self.measurements!r}")
         for name in ("plant_overrides", "comfort_overrides"):
@@ -179,7 +184,11 @@ def simulate(
     vehicle = isinstance(controller, EstimatingController)
     est_rows: dict[str, list] = {c: [] for c in ESTIMATOR_CSV_COLUMNS}  # filled in vehicle mode only
     sp = ScenarioPlant(
-        scenario, dt, plant_overrides=dict(settings.plant_overrides), comfort_overrides=dict(settings.comfort_overrides)
+        scenario,
+        dt,
+        plant_overrides=dict(settings.plant_overrides),
+        comfort_overrides=dict(settings.comfort_overrides),
+        evaluation=PlantEvaluation(settings.plant_evaluation),
     )
     cols = {c: np.empty(n) for c in TIMESERIES_COLUMNS}
     diags, diag_objs, step_times = [], [], []

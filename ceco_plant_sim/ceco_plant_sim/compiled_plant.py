@@ -218,9 +218,9 @@ class CompiledStep:
         self._ok = array("d", [0.0])
         buf, self._eval = loaded.buffer()
         for i, a in enumerate((self._x, self._w, self._u, self._e, self._m, self._theta)):
-            buf.set_arg(i, memoryview(a))
+            buf.set_arg(i, memoryview(a))  # type: ignore[call-arg]  # size from the view
         for i, a in enumerate((self._x1, self._w1, self._out, self._c, self._ok)):
-            buf.set_res(i, memoryview(a))
+            buf.set_res(i, memoryview(a))  # type: ignore[call-arg]
         self._buf = buf  # keeps the buffer (and the views into the arrays) alive
 
     def step(self, x, warm, u, env, t_vent_c: float, rh_cab: float, pa_pa: float):

@@ -41,6 +41,7 @@ import dataclasses
 import math
 import operator
 from collections.abc import Callable, Iterable, Mapping
+from typing import Any
 
 import casadi
 
@@ -478,10 +479,11 @@ class CompiledOps(ExactOps):
             free = casadi.Function(name, syms, flat, {"allow_free": True}).free_sx()
             f = casadi.Function(name, syms + free, flat, {"never_inline": True})
             self._functions[name] = (f, (out, free))
-        f, (template, free) = self._functions[name]
-        return _rebuild(template, f.call([_sx(a) for a in args] + free))[0]
+        f, stored = self._functions[name]
+        tree: Any = stored
+        return _rebuild(tree[0], f.call([_sx(a) for a in args] + tree[1]))[0]  # (output tree, free symbols)
 
-    def loop(self, n: int, body: Callable, state, *args):
+    def loop(self, n: int, body: Callable, state, *args):  # type: ignore[override]  # needs its cache
         """At most ``n`` applications of ``body`` as conditional calls: an iteration with ``state.done`` is skipped."""
         for v in _closed_over(body):
             if not v.is_symbolic():
@@ -553,7 +555,7 @@ class SymbolicParams:
         """The numeric values of :attr:`symbols` read from the real objects ``{root: obj}``."""
         out = []
         for path in self.paths:
-            v = roots[path[0]]
+            v: Any = roots[path[0]]
             for name in path[1:]:
                 v = getattr(v, name)
             out.append(float(v))

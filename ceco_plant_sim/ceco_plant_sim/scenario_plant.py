@@ -265,15 +265,16 @@ class ScenarioPlant:
             raise ValueError(f"command: must be AcInput, got {type(u).__name__}")
         u.validate()
         env_v = Env._make(validate_environment(env))
-        plant = self.plant
-        x1, g1, out, cv, ok = self._fast.step(
+        plant, fast = self.plant, self._fast
+        assert fast is not None
+        x1, g1, out, cv, ok = fast.step(
             plant.state.as_tuple(),
             plant.warm_start,
             (float(u.mdot_bl_kgps), float(u.t_evap_sp_c)),
             env_v,
             float(meas["t_vent_c"]),
             float(meas["rh_cab"]),
-            self.scored_pa_pa,
+            0.0 if self.scored_pa_pa is None else self.scored_pa_pa,
         )
         if not ok:
             raise RuntimeError(
