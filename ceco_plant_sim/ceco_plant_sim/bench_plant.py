@@ -81,13 +81,18 @@ def run_path(path: str, scenario, cmds: list[AcInput], plant_dt_s: float = 1.0) 
     t0 = time.perf_counter()
     recs = [sp.step(u) for u in cmds]
     dt = time.perf_counter() - t0
+    return dt, _series(recs)
+
+
+def _series(recs) -> dict:
+    """Every plant output and scored comfort series of a run's records (``out.*``, ``comfort.*``)."""
     series: dict[str, list] = {}
     for r in recs:
         for k, v in dataclasses.asdict(r.out).items():
             series.setdefault(f"out.{k}", []).append(float(v))
         for k, v in dataclasses.asdict(r.comfort).items():
             series.setdefault(f"comfort.{k}", []).append(float(v))
-    return dt, {k: np.asarray(v) for k, v in series.items()}
+    return {k: np.asarray(v) for k, v in series.items()}
 
 
 def series_difference(got: dict, ref: dict) -> tuple[float, str]:
@@ -129,11 +134,11 @@ def bench_plant(scenarios: list[str], steps: int, repeat: int, seed: int) -> lis
 def _callgrind_ir(path: str, scenario: str, steps: int, seed: int) -> int:
     """Instructions of ``steps`` plant steps of ``path`` (and the start-up) under callgrind."""
     with tempfile.TemporaryDirectory(prefix="ceco_cg_") as tmp:
-        out = os.path.join(tmp, "callgrind.out")
         cmd = [
             "valgrind",
             "--tool=callgrind",
-            f"--callgrind-out-file={out}",
+            "--trace-children=yes",  # the interpreter may re-execute itself (environment set-up)
+            f"--callgrind-out-file={os.path.join(tmp, 'callgrind.%p.out')}",
             sys.executable,
             "-m",
             "ceco_plant_sim.bench_plant",
@@ -147,11 +152,16 @@ def _callgrind_ir(path: str, scenario: str, steps: int, seed: int) -> int:
             str(seed),
         ]
         subprocess.run(cmd, check=True, capture_output=True, text=True)
-        with open(out) as f:
-            for line in f:
-                if line.startswith("summary:") or line.startswith("totals:"):
-                    return int(line.split()[1])
-    raise RuntimeError("callgrind wrote no summary")
+        total = None
+        for name in sorted(os.listdir(tmp)):  # one file per executed image
+            with open(os.path.join(tmp, name)) as f:
+                for line in f:
+                    if line.startswith(("summary:", "totals:")):
+                        total = (total or 0) + int(line.split()[1])
+                        break
+    if total is None:
+        raise RuntimeError("callgrind wrote no summary")
+    return total
 
 
 def callgrind_per_step(scenario: str, steps: int, seed: int) -> dict[str, float]:
@@ -183,7 +193,9 @@ def main(argv=None) -> int:
     scenarios = [s for s in args.scenarios.split(",") if s]
     if args.one:
         sc = load_scenario(scenarios[0])
-        run_path(args.one, sc, commands(min(args.steps, int(sc.duration_s)), args.seed))
+        sp = _plant(args.one, sc, 1.0)
+        for u in commands(min(args.steps, int(sc.duration_s)), args.seed):  # the steps only, no records kept
+            sp.step(u)
         return 0
     print(f"ceco bench plant: {args.steps} steps, best of {args.repeat}; load {os.getloadavg()[0]:.2f}", flush=True)
     rows = bench_plant(scenarios, args.steps, args.repeat, args.seed)

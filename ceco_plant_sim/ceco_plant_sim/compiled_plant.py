@@ -298,3 +298,38 @@ def finite_state_or_raise(x_next) -> None:
     for name, v in zip(STATE_NAMES, x_next, strict=True):
         if not math.isfinite(v):
             raise RuntimeError(f"plant state {name} became non-finite")
+
+
+def warm(cache_dir: str | None = None) -> list[Compiled]:
+    """Compile (or find) the objects of the default runs: plant step 1 s, the cabin's or a fixed scored vapour pressure.
+
+    Every bundled scenario and every float override share them (parameters are inputs); ``tools/setup.sh``
+    calls this so that the first run, node or test does not compile.
+    """
+    s = PlantEvaluation(cache_dir=cache_dir)
+    out = []
+    for fixed_pa in (False, True):
+        traced = build_step_function(PlantParams(), ComfortParams(), 1.0, fixed_pa)
+        out.append(
+            compile_cached(
+                "ceco_plant",
+                None,
+                lambda tmp, t=traced: generate_functions([t.function], tmp, "ceco_plant"),
+                s.flags,
+                s.cache_dir,
+                s.compiler,
+            )
+        )
+    return out
+
+
+if __name__ == "__main__":  # python -m ceco_plant_sim.compiled_plant --warm
+    import sys
+
+    if sys.argv[1:] != ["--warm"]:
+        sys.exit("usage: python -m ceco_plant_sim.compiled_plant --warm")
+    try:
+        for c in warm():
+            print(f"compiled plant: {'built' if c.built else 'cached'} {c.path} in {c.seconds:.1f} s")
+    except CompileError as exc:  # the plant runs its Python evaluation (with a warning) then
+        print(f"compiled plant: not built ({exc}); the plant will use its Python evaluation", file=sys.stderr)

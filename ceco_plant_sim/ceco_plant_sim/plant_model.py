@@ -377,10 +377,17 @@ class PlantModel:
         """
         from ceco_v2x_preview.scenario import load_scenario
 
+        from .compiled_plant import PlantEvaluation
         from .scenario_plant import ScenarioPlant, n_plant_steps
 
         sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
-        sp = ScenarioPlant(sc, self.plant_dt_s, plant_overrides=plant_overrides, comfort_overrides=comfort_overrides)
+        sp = ScenarioPlant(  # not stepped: no compiled step to build
+            sc,
+            self.plant_dt_s,
+            plant_overrides=plant_overrides,
+            comfort_overrides=comfort_overrides,
+            evaluation=PlantEvaluation("python"),
+        )
         if sp.plant.params != self.params:
             raise ValueError("scenario_drive: the scenario plant's parameters differ from this model's")
         n = n_plant_steps(sp.scenario.duration_s, self.plant_dt_s) if n_steps is None else int(n_steps)
