@@ -297,6 +297,12 @@ class Scenario:
 
     # ------------------------------------------------------------------ truth
     def _check_t(self, t_s):
+        if type(t_s) is float:  # the simulator's per-step call: the same checks without numpy's overhead
+            if not math.isfinite(t_s):
+                raise ValueError("t_s: must be finite")
+            if t_s < 0.0:
+                raise ValueError(f"t_s: must be >= 0, got min {t_s}")
+            return t_s
         t = np.asarray(t_s, dtype=float)
         if np.any(~np.isfinite(t)):
             raise ValueError("t_s: must be finite")

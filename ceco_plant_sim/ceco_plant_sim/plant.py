@@ -200,6 +200,11 @@ class CabinPlant:
         return out
 
     @property
+    def state_vector(self) -> State:
+        """Current state as the equations' named tuple (no PlantState built)."""
+        return self._x
+
+    @property
     def warm_start(self) -> Guess:
         """The refrigerant solve's warm start carried to the next step."""
         return self._guess

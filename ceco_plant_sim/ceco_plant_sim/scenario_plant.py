@@ -268,7 +268,7 @@ class ScenarioPlant:
         plant, fast = self.plant, self._fast
         assert fast is not None
         x1, g1, out, cv, ok = fast.step(
-            plant.state.as_tuple(),
+            plant.state_vector,
             plant.warm_start,
             (float(u.mdot_bl_kgps), float(u.t_evap_sp_c)),
             env_v,
