@@ -267,20 +267,22 @@ def compiled_step(
     with _LOCK:
         if key not in _TRACED:
             traced = build_step_function(params, comfort, plant_dt_s, fixed_pa)
-            lookup = compile_cached(
-                "ceco_plant",
-                None,
-                lambda tmp: generate_functions([traced.function], tmp, "ceco_plant"),
-                s.flags,
-                s.cache_dir,
-                s.compiler,
-            )
+            lookup = _compile(traced, s)
             if lookup.path not in _LOADED:
                 _LOADED[lookup.path] = casadi.external(traced.function.name(), lookup.path)
             _TRACED[key] = (traced, lookup.path)
         traced, path = _TRACED[key]
         loaded = _LOADED[path]
     return CompiledStep(loaded, traced, params, comfort), lookup
+
+
+def _compile(traced: StepFunction, s: PlantEvaluation) -> Compiled:
+    """The cached object of a traced step (keyed by its generated C)."""
+
+    def generate(tmp: str) -> str:
+        return generate_functions([traced.function], tmp, "ceco_plant")
+
+    return compile_cached("ceco_plant", None, generate, s.flags, s.cache_dir, s.compiler)
 
 
 def fallback_warning(exc: CompileError) -> None:
@@ -309,17 +311,7 @@ def warm(cache_dir: str | None = None) -> list[Compiled]:
     s = PlantEvaluation(cache_dir=cache_dir)
     out = []
     for fixed_pa in (False, True):
-        traced = build_step_function(PlantParams(), ComfortParams(), 1.0, fixed_pa)
-        out.append(
-            compile_cached(
-                "ceco_plant",
-                None,
-                lambda tmp, t=traced: generate_functions([t.function], tmp, "ceco_plant"),
-                s.flags,
-                s.cache_dir,
-                s.compiler,
-            )
-        )
+        out.append(_compile(build_step_function(PlantParams(), ComfortParams(), 1.0, fixed_pa), s))
     return out
 
 
