@@ -186,3 +186,19 @@ def test_compiled_run_is_identical_in_another_process():
     assert set(there) == set(here)
     for k, v in here.items():
         assert np.array_equal(np.asarray(there[k]), v), k
+
+
+def test_ceco_bench_plant_prints_times_ratios_and_the_equality(capsys):
+    """``ceco bench plant`` through ``ceco bench`` (the NMPC verb's entry): every path timed, equal to 1e-9."""
+    from ceco_controller.bench import main
+
+    assert main(["plant", "--scenarios", "sc03_mild", "--steps", "15", "--repeat", "1"]) == 0
+    out = capsys.readouterr().out
+    summary = json.loads(out.strip().splitlines()[-1])
+    (row,) = summary["rows"]
+    assert row["scenario"] == "sc03_mild" and row["steps"] == 15 and row["load_1min"] >= 0.0
+    for path in ("reference", "python", "compiled"):
+        assert row[f"{path}_ms"] > 0.0
+    assert row["reference_speedup"] == 1.0 and row["compiled_speedup"] > 0.0  # timing is not asserted
+    assert row["compiled_max_rel"] <= 1e-9 and row["python_max_rel"] == 0.0  # the Python path: bit for bit
+    assert "load" in out.splitlines()[0]
