@@ -202,3 +202,25 @@ def test_ceco_bench_plant_prints_times_ratios_and_the_equality(capsys):
     assert row["reference_speedup"] == 1.0 and row["compiled_speedup"] > 0.0  # timing is not asserted
     assert row["compiled_max_rel"] <= 1e-9 and row["python_max_rel"] == 0.0  # the Python path: bit for bit
     assert "load" in out.splitlines()[0]
+
+
+def test_two_processes_compiling_one_entry_at_once_both_get_a_valid_object(tmp_path):
+    """Benchmark workers may build the same entry together: both succeed, one valid object, no leftovers."""
+    cache = str(tmp_path / "cache")
+    code = (
+        "import json; from ceco_plant_sim.compiled_plant import PlantEvaluation, compiled_step;"
+        "from ceco_plant_sim.plant_params import PlantParams; from ceco_core.cabin_comfort import ComfortParams;"
+        f"s, lk = compiled_step(PlantParams(), ComfortParams(), 1.0, False, PlantEvaluation(cache_dir={cache!r}));"
+        "x1 = s.step([40.0, 45.0, 50.0, 45.0, 40.0, 42.0, 0.01, 0.0], [0.0, 0.0, 0.0], (0.17, 3.0),"
+        " (35.0, 850.0, 10.0, 0.4), 40.0, 0.3, 0.0)[0];"
+        "print(json.dumps([lk.built, lk.path, x1]))"
+    )
+    procs = [subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True) for _ in range(2)]
+    outs = [p.communicate(timeout=600)[0] for p in procs]
+    assert [p.returncode for p in procs] == [0, 0]
+    rows = [json.loads(o.strip().splitlines()[-1]) for o in outs]
+    assert rows[0][1] == rows[1][1] and rows[0][2] == rows[1][2]  # one entry, the same numbers
+    assert any(r[0] for r in rows)  # at least one of them compiled it (both may have)
+    names = sorted(p.name for p in (tmp_path / "cache").iterdir())
+    assert names == sorted([Path(rows[0][1]).name, Path(rows[0][1]).name + ".sha256"])
+    assert file_sha256(rows[0][1]) == (tmp_path / "cache" / names[1]).read_text().strip()
