@@ -227,7 +227,7 @@ class CompiledStep:
         """(x_next, warm_next, outputs, comfort, ok) as float lists (:data:`OUTPUT_NAMES`, :data:`COMFORT_NAMES`)."""
         self._x[:] = array("d", x)
         self._w[:] = array("d", warm)
-        self._u[0], self._u[1] = u
+        self._u[:] = array("d", u)
         self._e[:] = array("d", env)
         m = self._m
         m[0], m[1], m[2] = t_vent_c, rh_cab, (pa_pa if self.fixed_pa else 0.0)

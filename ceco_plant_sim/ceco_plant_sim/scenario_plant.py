@@ -36,7 +36,7 @@ from ceco_v2x_preview.scenario import Scenario
 
 from .compiled_plant import COMFORT_NAMES, OUTPUT_NAMES, PlantEvaluation, compiled_step, fallback_warning
 from .plant import CabinPlant, PlantOutputs, PlantState
-from .plant_equations import Env
+from .plant_equations import INPUT_NAMES, Env
 from .plant_params import PlantParams
 from .plant_state import validate_environment
 
@@ -270,7 +270,7 @@ class ScenarioPlant:
         x1, g1, out, cv, ok = fast.step(
             plant.state_vector,
             plant.warm_start,
-            (float(u.mdot_bl_kgps), float(u.t_evap_sp_c)),
+            [float(getattr(u, k)) for k in INPUT_NAMES],
             env_v,
             float(meas["t_vent_c"]),
             float(meas["rh_cab"]),
