@@ -132,6 +132,13 @@ def scenario_dict(scenario) -> dict:
             'control_period_s': float(sc.control.control_period_s),
             'horizon_steps': int(sc.control.horizon_steps),
         },
+        'sun': {
+            'altitude_deg': float(sc.sun.altitude_deg),
+            'azimuth_deg': float(sc.sun.azimuth_deg),
+            'heading_deg': float(sc.sun.heading_deg),
+        },
+        'occupants': int(sc.occupants),
+        'air_quality': {k: v for k, v in dataclasses.asdict(sc.air_quality).items() if v is not None},
         'seed': int(sc.seed),
     }
 
