@@ -39,8 +39,8 @@ REPLAY_SERIES = (
     *OUTPUT_FIELDS,
 )
 """Series of a :class:`Replay`, one value per plant step n: t_n [s], the command held over the step (the
-door's command NaN where it was left alone), the measurements at t_n (``meas_*``), the scored PMV at t_n and its bounds, then the plant outputs of
-the step (end-of-step states, step-mean powers, step energies)."""
+door's command NaN where it was left alone), the measurements at t_n (``meas_*``), the scored PMV at t_n
+and its bounds, then the plant outputs of the step (end-of-step states, step-mean powers, step energies)."""
 
 
 @dataclasses.dataclass(frozen=True)

@@ -86,8 +86,10 @@ def check_overrides(plant_overrides=None, comfort_overrides=None) -> None:
 
 
 def scenario_plant_params(scenario: Scenario, params: PlantParams | None = None, plant_overrides=None) -> PlantParams:
-    """The plant parameters of a scenario's car: ``params`` (default :class:`PlantParams`) with the scenario's
-    occupants and ambient CO2, then ``plant_overrides`` (``{PlantParams field: value}``, a sensitivity run).
+    """The plant parameters of a scenario's car.
+
+    ``params`` (default :class:`PlantParams`) with the scenario's occupants and ambient CO2, then
+    ``plant_overrides`` (``{PlantParams field: value}``, a sensitivity run).
     """
     pp = dataclasses.replace(
         params or PlantParams(),
