@@ -29,6 +29,7 @@ __all__ = [
     "T_EVAP_SP_MAX_C",
     "RECIRC_SHARE_MIN",
     "RECIRC_SHARE_MAX",
+    "RECIRC_NOT_COMMANDED_WIRE",
     "AcInput",
     "ActuatorLimits",
     "ACTUATOR_LIMITS",
@@ -60,6 +61,8 @@ RECIRC_SHARE_MIN = 0.0
 """Lower bound of the commanded recirculated share of the blower flow [-] (0: fresh air only)."""
 RECIRC_SHARE_MAX = 1.0
 """Upper bound of the commanded recirculated share of the blower flow [-] (1: full recirculation)."""
+RECIRC_NOT_COMMANDED_WIRE = -1.0
+"""AcCommand.recirc_share meaning "the door is not commanded" (the message's default; NaN means the same)."""
 
 
 CECO_STRATEGIES = ("ceco", "ceco-e", "ceco-c", "ceco-ioch")
@@ -308,6 +311,19 @@ class Observation:
     """Measured glazing temperature [degC] (for the mean radiant temperature; NaN if not measured)."""
     rh_cab: float = math.nan
     """Measured cabin relative humidity [0..1] (for the PMV's vapour pressure; NaN if not measured)."""
+    co2_cab_ppm: float = math.nan
+    """Cabin CO2 [ppm]: the plant's (measurements 'full') or the estimate from the sensor and the CO2 balance
+    ('vehicle'); NaN if unknown."""
+    co2_sensor_ppm: float = math.nan
+    """The cabin CO2 sensor's reading [ppm]; NaN when no sensor is fitted or it failed."""
+    recirc_share: float = math.nan
+    """Measured position of the fresh/recirculation door: recirculated share [0..1] (NaN if not measured)."""
+    n_occupants: int = 1
+    """People in the car [-] (seat-occupancy detection)."""
+    co2_limit_ppm: float = 1500.0
+    """The occupant's CO2 limit [ppm] (the scenario's ``air_quality``)."""
+    fog_margin_min_k: float = 3.0
+    """The smallest acceptable windshield fog margin [K] (the scenario's ``air_quality``)."""
 
     def __post_init__(self):
         n = np.asarray(self.pmv_lb).size

@@ -179,7 +179,7 @@ class CabinPlant:
         if dt > 3600.0:
             raise ValueError(f"dt_s: must be <= 3600 s, got {dt}")
         env_v = Env._make(validate_environment(env))
-        u = self._input(command)
+        u = self.equation_input(command)
         # the warm start is advanced by the RK4 stages only; the end-of-step report does not touch it, so
         # splitting an interval into more calls of step() reproduces the same sub-step sequence bit for bit
         x, acc, self._guess, _ = self._eq.step(self._x, u, env_v, dt, self._guess)
@@ -212,11 +212,11 @@ class CabinPlant:
             raise ValueError(f"command: must be AcInput, got {type(command).__name__}")
         command.validate()
         env_v = Env._make(validate_environment(env))
-        u = self._input(command)
+        u = self.equation_input(command)
         flows = self._eq.rhs(self._x, u, blower_power_w(self.params, u.mdot_bl_kgps), env_v, self._guess)[1]
         return self._outputs(self._x, u, env_v, 0.0, *flows[:5])
 
-    def _input(self, command: AcInput) -> Input:
+    def equation_input(self, command: AcInput) -> Input:
         """The equations' input of a validated command: a door left alone (NaN) holds ``recirc_fraction``."""
         r = float(command.recirc_share)
         return Input(

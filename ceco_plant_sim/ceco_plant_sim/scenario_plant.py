@@ -146,6 +146,8 @@ class PlantStepRecord:
     """Every comfort series at t_n (floats): PMV inputs at the occupant, draught, fog margin, validity."""
     out: PlantOutputs
     """Plant outputs of the step (powers, energies, state at t_{n+1})."""
+    recirc_share_cmd: float = math.nan
+    """The door command the plant applied over the step [0..1] (its default where ``u`` left the door alone)."""
 
 
 class ScenarioPlant:
@@ -254,6 +256,7 @@ class ScenarioPlant:
             pmv_ub=ub,
             comfort=c,
             out=out,
+            recirc_share_cmd=self.plant.equation_input(u).recirc_share,
         )
         self.cmd = u
         self.n += 1
