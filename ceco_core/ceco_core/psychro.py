@@ -95,7 +95,7 @@ def saturation_vapour_pressure_pa(t_c):
         t_c: air (or surface) temperature [degC]; valid from the triple point
             (0.01 degC) to 374 degC; below 0 degC it is used as the pressure over
             supercooled water (the WMO convention for relative humidity).
-    Returns p_ws [Pa]; within 1e-4 of IAPWS-95 (CoolProp) over 0.5..95 degC (tests/test_psychro.py).
+    Returns p_ws [Pa]; within 1e-4 of IAPWS-95 (CoolProp) over 0.5..95 degC (ceco_core/test/test_psychro.py).
     """
     if type(t_c) in _SCALARS:  # one number (the plant's hot path): the same numpy operations, no array checks
         if not math.isfinite(t_c):
@@ -150,7 +150,7 @@ def dew_point_c(p_w_pa, newton_steps=4):
     consistent) by ``newton_steps`` Newton steps on ``ln p_ws(t) - ln p_w`` from the
     Magnus estimate ``t0 = 243.04 x / (17.625 - x)``, ``x = ln(p_w / 610.94)``
     (Alduchov & Eskridge 1996). Four steps give |error| < 1e-9 K over -20..60 degC
-    (tests/test_psychro.py). A fixed step count keeps the function smooth for CasADi.
+    (ceco_core/test/test_psychro.py). A fixed step count keeps the function smooth for CasADi.
     ``p_w_pa`` must be > 0.
     """
     ops = mathops.backend(p_w_pa)
