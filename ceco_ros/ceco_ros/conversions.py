@@ -51,8 +51,14 @@ def stamp_from_s(t_s: float) -> Time:
 
 
 # --- CabinState -------------------------------------------------------------------------------
-def state_msg(n: int, t_s: float, stamp, meas: dict, env, u_prev: AcInput, fallback: bool) -> CabinState:
-    """The plant's measurements at step ``n`` (t_s [s]), the environment and the previous command."""
+def state_msg(
+    n: int, t_s: float, stamp, meas: dict, env, u_prev: AcInput, fallback: bool, recirc_share_cmd: float = math.nan
+) -> CabinState:
+    """The plant's measurements at step ``n`` (t_s [s]), the environment and the previous command.
+
+    ``recirc_share_cmd`` is the door command the plant applied over the previous period [0..1] (its default share
+    where the controller left the door alone; NaN: unknown).
+    """
     m = CabinState()
     m.header.stamp = stamp
     m.step_index = int(n)
@@ -66,6 +72,7 @@ def state_msg(n: int, t_s: float, stamp, meas: dict, env, u_prev: AcInput, fallb
     m.mdot_bl_kgps = float(u_prev.mdot_bl_kgps)
     m.t_evap_sp_c = float(u_prev.t_evap_sp_c)
     m.fallback = bool(fallback)
+    m.recirc_share_cmd = float(recirc_share_cmd)
     return m
 
 
