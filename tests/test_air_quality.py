@@ -1,0 +1,183 @@
+"""Cabin air quality (issue 21): the CO2 balance, the fresh/recirculation door, occupants, the door logic.
+
+Plant-level numbers against hand calculations (docs/plant.md "Cabin air quality"), the production door logic
+(ceco_core.recirc_law) on hand-made inputs, and a closed-loop run where the CO2 limit binds.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from ceco_core.air_quality import co2_generation_kgps, co2_kgkg_from_ppm, co2_steady_ppm, leakage_kgps
+from ceco_core.contracts import AcInput
+from ceco_core.recirc_law import RecircLaw, RecircSettings
+from ceco_plant_sim.plant import CabinPlant, PlantState
+from ceco_plant_sim.plant_params import PlantParams
+
+
+def _env(t_amb_c=35.0, solar_wm2=800.0, speed_mps=0.0, rh=0.4):
+    return SimpleNamespace(t_amb_c=t_amb_c, solar_wm2=solar_wm2, speed_mps=speed_mps, rh=rh)
+
+
+def _plant(params: PlantParams, co2_cab_ppm: float = 425.0, recirc_share: float | None = None) -> CabinPlant:
+    init = dict(t_cab_c=30.0, t_int_c=30.0, t_shell_c=30.0, t_glass_c=30.0, t_evap_c=30.0, rh_cab=0.4)
+    init["co2_cab_ppm"] = co2_cab_ppm
+    st = PlantState.from_initial(init, params, _env())
+    if recirc_share is not None:
+        st = dataclasses.replace(st, recirc_share=recirc_share)
+    return CabinPlant(params, st)
+
+
+def test_co2_generation_of_a_seated_adult_matches_the_ashrae_form():
+    """1.2 met, 1.8 m2, RQ 0.83: Q_O2 = 69.78 W/m2 x 1.8 m2 / (21 kJ/L x 0.9609) = 6.225 mL/s, V_CO2 = 5.166 mL/s
+    at STP (ASTM D6245: 5.2 mL/s at 1.2 met), x 1.977 kg/m3 = 1.0214e-5 kg/s; linear in met."""
+    g = co2_generation_kgps(1.2, 1.8, 0.83)
+    assert g == pytest.approx(1.0214e-5, rel=5e-4)
+    assert g / 1.977e-3 == pytest.approx(5.2e-3, rel=0.01)
+    assert co2_generation_kgps(1.0, 1.8, 0.83) == pytest.approx(g / 1.2, rel=1e-12)
+
+
+def test_co2_conserved_over_a_run_with_the_door_moving():
+    """in - out + generated = storage change of the cabin's CO2 over a whole run (the integration's
+    bookkeeping), with four occupants, the vehicle speed changing the leakage and the door swept 0 -> 1 -> 0.3."""
+    p = PlantParams(n_occupants=4)
+    plant = _plant(p, co2_cab_ppm=600.0)
+    m_air = p.rho_air_kgm3 * p.cabin_volume_m3
+    x0 = plant.state.co2_cab_kgkg
+    c_in = c_out = c_gen = 0.0
+    for k in range(1200):
+        share = 0.0 if k < 300 else (1.0 if k < 800 else 0.3)
+        out = plant.step(AcInput(0.06, 5.0, recirc_share=share), _env(speed_mps=15.0 * (k % 200) / 200), 1.0)
+        c_in += out.m_co2_in_kg
+        c_out += out.m_co2_out_kg
+        c_gen += out.m_co2_gen_kg
+    storage = m_air * (plant.state.co2_cab_kgkg - x0)
+    assert c_gen == pytest.approx(4 * co2_generation_kgps(1.2, 1.8, 0.83) * 1200.0, rel=1e-12)
+    assert c_in > 1e-3 and c_out > 1e-3  # real flows: ~0.01 kg of CO2 each way
+    assert abs(c_in - c_out + c_gen - storage) <= 1e-9 * max(c_in, c_out, c_gen)
+    assert out.co2_cab_ppm == pytest.approx(plant.state.co2_cab_kgkg / co2_kgkg_from_ppm(1.0), rel=1e-12)
+
+
+def test_co2_settles_at_the_closed_form_steady_state():
+    """Door at 0.8, 0.05 kg/s, 50 km/h: fresh + leakage 0.01 + 0.004278 kg/s; 4 occupants x 1.0214e-5 kg/s settle
+    4 x 1.0214e-5 / 0.014278 / 1.519e-6 = 1884 ppm above ambient (the literature notes' 1862 with their rounded
+    generation rate); the plant reaches it after 6 time constants (~9 min each)."""
+    p = PlantParams(n_occupants=4)
+    plant = _plant(p)
+    speed = 50 / 3.6
+    for _ in range(3600):
+        out = plant.step(AcInput(0.05, 5.0, recirc_share=0.8), _env(speed_mps=speed), 1.0)
+    fresh = 0.2 * 0.05 + leakage_kgps(p.infiltration_0_kgps, p.infiltration_per_mps_kgps, speed)
+    expected = co2_steady_ppm(p.co2_amb_ppm, fresh, 4, co2_generation_kgps(p.occ_met, p.occ_body_area_m2, p.occ_rq))
+    assert expected - p.co2_amb_ppm == pytest.approx(1884.0, rel=1e-3)
+    assert out.co2_cab_ppm == pytest.approx(expected, rel=2e-3)
+
+
+def test_the_door_travels_at_its_bounded_rate_and_stops_at_its_limits():
+    """Full stroke in door_travel_s (5 s): from 0 toward 1 the position rises at most 0.2 per second (the servo's
+    proportional zone, door_tau_s 0.5 s, slows it in the last 0.1), reaches 1 and never passes it; back toward 0 the same; a command left alone (NaN) moves it to the default 0.8."""
+    p = PlantParams()
+    plant = _plant(p, recirc_share=0.0)
+    pos = []
+    for _ in range(8):
+        plant.step(AcInput(0.1, 5.0, recirc_share=1.0), _env(), 1.0)
+        pos.append(plant.state.recirc_share)
+    steps = np.diff([0.0] + pos)
+    assert np.all(steps <= 1.0 / p.door_travel_s + 1e-12)
+    assert pos[0] == pytest.approx(0.2, abs=1e-9) and pos[1] == pytest.approx(0.4, abs=1e-9)
+    assert pos[3] == pytest.approx(0.8, abs=1e-9) and 0.95 < pos[4] < 1.0 and max(pos) <= 1.0 and pos[-1] > 0.9995
+    for _ in range(3):
+        plant.step(AcInput(0.1, 5.0, recirc_share=0.0), _env(), 1.0)
+    assert plant.state.recirc_share == pytest.approx(0.4, abs=1e-3)
+    for _ in range(20):
+        plant.step(AcInput(0.1, 5.0), _env(), 1.0)
+    assert plant.state.recirc_share == pytest.approx(p.recirc_fraction, abs=1e-6) and plant.state.recirc_share >= 0.0
+    with pytest.raises(ValueError, match="recirc_share"):
+        AcInput(0.1, 5.0, recirc_share=1.2)
+    with pytest.raises(ValueError, match="recirc_share"):
+        AcInput(0.1, 5.0, recirc_share=math.inf)
+
+
+def test_fresh_air_costs_evaporator_load_through_the_actual_door_position():
+    """Hot humid ambient: the same commands with the door held at fresh air need more evaporator heat than at
+    full recirculation (the fresh-air load enters the evaporator's energy balance through the door)."""
+    loads = {}
+    for share in (0.0, 1.0):
+        plant = _plant(PlantParams(), recirc_share=share)
+        q = 0.0
+        for _ in range(300):
+            out = plant.step(AcInput(0.08, 5.0, recirc_share=share), _env(t_amb_c=35.0, rh=0.5), 1.0)
+            q += out.q_evap_w
+        loads[share] = q / 300
+    assert loads[0.0] > loads[1.0] + 500.0  # 0.08 kg/s x ~20 kJ/kg of enthalpy difference: >~1 kW
+
+
+def test_occupants_scale_the_co2_and_the_moisture():
+    """Four occupants exhale four times the CO2 of one; the cabin humidity rises faster with them."""
+    outs = {}
+    for n in (1, 4):
+        plant = _plant(PlantParams(n_occupants=n))
+        for _ in range(600):
+            out = plant.step(AcInput(0.05, 10.0, recirc_share=1.0), _env(), 1.0)
+        outs[n] = (out.m_co2_gen_kg, out.co2_cab_ppm, out.w_cab_kgkg)
+    assert outs[4][0] == pytest.approx(4 * outs[1][0], rel=1e-12)
+    assert outs[4][1] - 425.0 > 3.5 * (outs[1][1] - 425.0)
+    assert outs[4][2] > outs[1][2]
+
+
+# --- the production door logic ----------------------------------------------------------------------
+_KW = dict(t_cab_c=26.0, t_amb_c=25.0, co2_limit_ppm=1500.0, fog_margin_k=10.0, fog_margin_min_k=3.0)
+
+
+def test_door_logic_recirculates_at_high_demand_and_purges_by_co2_with_hysteresis():
+    law = RecircLaw(RecircSettings(door_mode="auto"))
+    step = lambda **kw: law.step(5.0, **{**_KW, "co2_sensor_fitted": True, **kw})  # noqa: E731
+    assert step(demand=0.2, pulldown=False, co2_sensor_ppm=800.0).mode == "normal"
+    c = step(demand=1.0, pulldown=True, co2_sensor_ppm=800.0)
+    assert (c.mode, c.recirc_share) == ("recirc", 1.0)
+    assert step(demand=1.0, pulldown=True, co2_sensor_ppm=1349.0).mode == "recirc"
+    c = step(demand=1.0, pulldown=True, co2_sensor_ppm=1350.0)  # limit 1500 - margin 150
+    assert (c.mode, c.recirc_share) == ("co2_purge", 0.0)
+    assert step(demand=1.0, pulldown=True, co2_sensor_ppm=1100.0).mode == "co2_purge"  # hysteresis: until < 1050
+    assert step(demand=1.0, pulldown=True, co2_sensor_ppm=1049.0).mode == "recirc"
+    # a fitted sensor that stops reading -> fresh air, at once
+    c = step(demand=1.0, pulldown=True, co2_sensor_ppm=math.nan)
+    assert (c.mode, c.recirc_share) == ("co2_sensor_fault", 0.0)
+
+
+def test_door_logic_fog_override_has_priority_and_hysteresis():
+    law = RecircLaw(RecircSettings(door_mode="auto"))
+    kw = {**_KW, "co2_sensor_fitted": True, "co2_sensor_ppm": 600.0, "demand": 1.0, "pulldown": True}
+    assert law.step(5.0, **{**kw, "fog_margin_k": 3.6}).mode == "recirc"
+    assert law.step(5.0, **{**kw, "fog_margin_k": 3.4}).mode == "fog"  # < bound 3 + 0.5
+    assert law.step(5.0, **{**kw, "fog_margin_k": 4.4}).mode == "fog"  # until > bound 3 + 1.5
+    assert law.step(5.0, **{**kw, "fog_margin_k": 4.6}).mode == "recirc"
+    assert law.step(5.0, **{**kw, "fog_margin_k": math.nan}).mode == "recirc"  # unknown: no override
+
+
+def test_door_logic_timer_purge_without_a_sensor():
+    """No CO2 sensor: 720 s of recirculation, then 60 s of fresh air, repeating."""
+    law = RecircLaw(RecircSettings(door_mode="auto"))
+    kw = {**_KW, "co2_sensor_fitted": False, "co2_sensor_ppm": math.nan, "demand": 1.0, "pulldown": True}
+    modes = [law.step(5.0, **kw).mode for _ in range(2 * 156)]
+    assert modes[:144] == ["recirc"] * 144 and modes[144:156] == ["timer_purge"] * 12
+    assert modes[156:300] == ["recirc"] * 144 and modes[300:312] == ["timer_purge"] * 12
+
+
+def test_door_logic_dwell_and_the_fixed_and_none_modes():
+    law = RecircLaw(RecircSettings(door_mode="auto", door_min_dwell_s=30.0))
+    kw = {**_KW, "co2_sensor_fitted": True, "co2_sensor_ppm": 600.0, "pulldown": False}
+    assert law.step(5.0, **kw, demand=0.7).mode == "recirc"
+    modes = [law.step(5.0, **kw, demand=0.1).mode for _ in range(7)]
+    assert modes == ["recirc"] * 5 + ["normal"] * 2  # held 30 s after the switch
+    assert RecircLaw(RecircSettings(door_mode="fixed", door_fixed_share=0.5)).step(5.0, **kw, demand=1).recirc_share == 0.5
+    assert math.isnan(RecircLaw().step(5.0, **kw, demand=1.0).recirc_share)
+    with pytest.raises(ValueError, match="door_mode"):
+        RecircSettings(door_mode="open").validate()
+    with pytest.raises(ValueError, match="door_fixed_share"):
+        RecircSettings(door_fixed_share=1.5).validate()
