@@ -19,7 +19,7 @@ door"):
    * with a CO2 sensor (Bosch CCS 2007: recirculation whenever possible, fresh air above a CO2 threshold):
      fresh air from ``co2_limit - door_co2_margin_ppm`` until the reading is below that minus
      ``door_co2_hysteresis_ppm``; the margin covers the sensor's accuracy (+-(30 ppm + 3 %), 75 ppm at 1500) and
-     its lag;
+     its lag (t63 60 s behind a rise of up to 7.7 ppm/s with four occupants in full recirculation);
    * without one (timer, BMW/MINI: 12 min recirculation, 1 min fresh air with A/C above 6 degC): fresh air for
      ``door_timer_fresh_s`` after every ``door_timer_recirc_s`` of recirculation.
 4. Otherwise (demand met): the normal share ``door_normal_share`` (production: outside air, 0).
@@ -63,8 +63,9 @@ class RecircSettings:
     """ACC demand below which it leaves recirculation [-]."""
     door_amb_above_cab_k: float = 2.0
     """Ambient warmer than the cabin by this much also means recirculation [K]."""
-    door_co2_margin_ppm: float = 150.0
-    """A purge starts at the CO2 limit minus this margin [ppm] (sensor accuracy 75 ppm at 1500 ppm plus its lag)."""
+    door_co2_margin_ppm: float = 400.0
+    """A purge starts at the CO2 limit minus this margin [ppm]: the sensor's accuracy (75 ppm at 1500 ppm) plus its
+    lag on the fastest rise (4 occupants in full recirculation: 7.7 ppm/s, t63 60 s); tuned once (docs/benchmark.md)."""
     door_co2_hysteresis_ppm: float = 300.0
     """A purge ends this far below its start [ppm] (1500 -> 1200 ppm in the literature's logic)."""
     door_timer_recirc_s: float = 720.0
