@@ -218,3 +218,33 @@ def test_closed_loop_co2_limit_binds_and_the_production_logic_purges(udds4_runs)
     assert np.all((auto["recirc_share"] >= 0.0) & (auto["recirc_share"] <= 1.0))
     energy = {k: float(np.sum(v["p_comp_w"] + v["p_blower_w"] + v["p_cond_fan_w"])) for k, v in udds4_runs.items()}
     assert energy["auto"] > energy["fixed1"]
+
+
+def _run(controller, kind, d, e, aq_met):
+    return {
+        "controller": controller,
+        "kind": kind,
+        "seed": None if kind != "strategy" else 0,
+        "status": "ok",
+        "kpis": {"discomfort_pmvh": d, "energy_kwh": e, "air_quality_met": aq_met},
+    }
+
+
+def test_benchmark_matches_only_runs_that_meet_the_air_quality_limits():
+    """A baseline member that breaks the CO2 limit is not on the front (its cheap energy does not lower it); a
+    scored controller that breaks it is not matched and is listed as broken, never given a saving."""
+    from ceco_bringup.benchmark import runner
+
+    base = [
+        _run("baseline_sp24", "baseline", 0.10, 1.00, 1.0),
+        _run("baseline_sp26", "baseline", 0.30, 0.80, 1.0),
+        _run("baseline_sp28_recirc", "baseline", 0.50, 0.40, 0.0),  # cheap because it never let fresh air in
+        _run("baseline_sp28", "baseline", 0.50, 0.70, 1.0),
+    ]
+    runs = base + [_run("ceco", "strategy", 0.30, 0.60, 1.0), _run("ceco-stale", "strategy", 0.30, 0.50, 0.0)]
+    fronts = runner.fronts_of(runs, "discomfort_pmvh", "energy_kwh")
+    assert [p.name for p in fronts["plain"].points] == ["baseline_sp24", "baseline_sp26", "baseline_sp28"]
+    matched = runner.matched_of(runs, "discomfort_pmvh", "energy_kwh")
+    assert set(matched) == {"ceco"}
+    assert matched["ceco"]["energy_saving_pct"] == pytest.approx(25.0, abs=1e-9)  # 0.6 against 0.8 at d = 0.3
+    assert runner.air_quality_broken(runs) == ["baseline_sp28_recirc", "ceco-stale"]

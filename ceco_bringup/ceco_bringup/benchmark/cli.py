@@ -465,13 +465,21 @@ def summary_lines(doc: dict) -> list[str]:
             + ('' if not h else f"; headroom captured {'n/a' if cap is None else format(cap, '.2f')}")
         )
 
-    return [
+    lines = [
         f"  {case['case']:<18} {name:<32} energy saved at matched comfort {f(m['energy_saving_pct']):>8} "
         f"(allowance {f((m['allowance'] or {}).get('energy_saving_pct')):>8}{strongest(m)}), discomfort cut at "
         f"matched energy {f(m['discomfort_reduction_pct']):>8}{', dominated' if m['dominated'] else ''}"
         for case in doc['cases']
         for name, m in case['matched'].items()
     ]
+    for case in doc['cases']:
+        aq = case.get('air_quality') or {}
+        for name in aq.get('broken', []):
+            lines.append(
+                f"  {case['case']:<18} {name:<32} BROKE the air-quality limits (CO2 {aq['co2_limit_ppm']:g} ppm, fog "
+                f"margin {aq['fog_margin_min_k']:g} K): not matched, no saving"
+            )
+    return lines
 
 
 if __name__ == '__main__':
