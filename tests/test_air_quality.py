@@ -142,7 +142,7 @@ def test_door_logic_recirculates_at_high_demand_and_purges_by_co2_with_hysteresi
     assert (c.mode, c.recirc_share) == ("recirc", 1.0)
     assert step(demand=1.0, pulldown=True, co2_sensor_ppm=1099.0).mode == "recirc"
     c = step(demand=1.0, pulldown=True, co2_sensor_ppm=1100.0)  # limit 1500 - margin 400
-    assert (c.mode, c.recirc_share) == ("co2_purge", 0.0)
+    assert (c.mode, c.recirc_share) == ("co2_purge", 0.7)
     assert step(demand=1.0, pulldown=True, co2_sensor_ppm=850.0).mode == "co2_purge"  # hysteresis: until < 800
     assert step(demand=1.0, pulldown=True, co2_sensor_ppm=799.0).mode == "recirc"
     # a fitted sensor that stops reading -> fresh air, at once
@@ -205,16 +205,16 @@ def udds4_runs():
 
 def test_closed_loop_co2_limit_binds_and_the_production_logic_purges(udds4_runs):
     """Four occupants: held in full recirculation the cabin passes the 1500 ppm limit within minutes (the limit
-    binds); the production logic recirculates during the pull-down, purges with fresh air when its sensor reads
+    binds); the production logic recirculates during the pull-down, purges (share 0.7) when its sensor reads
     1100 ppm and keeps the true cabin CO2 under 1500 ppm, at a higher energy."""
     fixed, auto = udds4_runs["fixed1"], udds4_runs["auto"]
     assert fixed["co2_cab_ppm"].max() > 2500.0 and np.all(fixed["recirc_share_cmd"] == 1.0)
     assert auto["co2_cab_ppm"].max() < 1500.0
     cmd = auto["recirc_share_cmd"]
     assert cmd[0] == 1.0  # recirculation in the pull-down
-    first_purge = int(np.argmax(cmd == 0.0))
+    first_purge = int(np.argmax(cmd == 0.7))
     assert first_purge > 0 and auto["co2_sensor_ppm"][first_purge] >= 1100.0 > auto["co2_sensor_ppm"][first_purge - 1]
-    assert np.sum(np.diff((cmd == 0.0).astype(int)) == 1) >= 1  # at least one purge started
+    assert np.sum(np.diff((cmd == 0.7).astype(int)) == 1) >= 1  # at least one purge started
     assert np.all((auto["recirc_share"] >= 0.0) & (auto["recirc_share"] <= 1.0))
     energy = {k: float(np.sum(v["p_comp_w"] + v["p_blower_w"] + v["p_cond_fan_w"])) for k, v in udds4_runs.items()}
     assert energy["auto"] > energy["fixed1"]
