@@ -80,7 +80,8 @@ def test_co2_settles_at_the_closed_form_steady_state():
 
 def test_the_door_travels_at_its_bounded_rate_and_stops_at_its_limits():
     """Full stroke in door_travel_s (5 s): from 0 toward 1 the position rises at most 0.2 per second (the servo's
-    proportional zone, door_tau_s 0.5 s, slows it in the last 0.1), reaches 1 and never passes it; back toward 0 the same; a command left alone (NaN) moves it to the default 0.8."""
+    proportional zone, door_tau_s 0.5 s, slows it in the last 0.1), reaches 1 and never passes it; back toward 0
+    the same; a command left alone (NaN) moves it to the default 0.8."""
     p = PlantParams()
     plant = _plant(p, recirc_share=0.0)
     pos = []
@@ -175,7 +176,8 @@ def test_door_logic_dwell_and_the_fixed_and_none_modes():
     assert law.step(5.0, **kw, demand=0.7).mode == "recirc"
     modes = [law.step(5.0, **kw, demand=0.1).mode for _ in range(7)]
     assert modes == ["recirc"] * 5 + ["normal"] * 2  # held 30 s after the switch
-    assert RecircLaw(RecircSettings(door_mode="fixed", door_fixed_share=0.5)).step(5.0, **kw, demand=1).recirc_share == 0.5
+    fixed = RecircLaw(RecircSettings(door_mode="fixed", door_fixed_share=0.5))
+    assert fixed.step(5.0, **kw, demand=1.0).recirc_share == 0.5
     assert math.isnan(RecircLaw().step(5.0, **kw, demand=1.0).recirc_share)
     with pytest.raises(ValueError, match="door_mode"):
         RecircSettings(door_mode="open").validate()

@@ -610,7 +610,7 @@ def test_bags_recorded_before_the_door_and_co2_read_with_them_unknown(tmp_path):
 def test_door_and_co2_round_trip_through_a_bag(tmp_path):
     """The plant's CabinState and a controller's AcCommand with the door and cabin CO2 set (conversions) come back
     from a bag with the same numbers; a command that leaves the door alone reads as NaN."""
-    from ceco_core.contracts import AcInput, MEASUREMENTS
+    from ceco_core.contracts import MEASUREMENTS, AcInput
     from ceco_ros import conversions
     from ceco_v2x_preview.scenario import Environment
 

@@ -277,9 +277,7 @@ def compute_kpis(
     else:
         fstat = fog_margin_stats(fog)
         k["fog_margin_min_k"], k["fog_risk_pct"] = fstat["fog_margin_min_k"], fstat["fog_risk_pct"]
-    aq, aq_notes = air_quality_kpis(
-        columns.get("co2_cab_ppm"), fog, dt, (air_limits or AirQualityLimits()).validate()
-    )
+    aq, aq_notes = air_quality_kpis(columns.get("co2_cab_ppm"), fog, dt, (air_limits or AirQualityLimits()).validate())
     k.update(aq)
     notes.update(aq_notes)
     valid = _column(columns, "iso7730_valid", n, notes, "iso7730_invalid_pct")

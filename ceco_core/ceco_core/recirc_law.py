@@ -17,9 +17,9 @@ door"):
    when hot outside or when maximum cooling is not enough; US EPA credit for recirculation above 24 degC).
 3. Fresh-air purge inside recirculation:
    * with a CO2 sensor (Bosch CCS 2007: recirculation whenever possible, fresh air above a CO2 threshold):
-     a partial purge (share ``door_purge_share``) from ``co2_limit - door_co2_margin_ppm`` until the reading is below that minus
-     ``door_co2_hysteresis_ppm``; the margin covers the sensor's accuracy (+-(30 ppm + 3 %), 75 ppm at 1500) and
-     its lag (t63 60 s behind a rise of up to 7.7 ppm/s with four occupants in full recirculation);
+     a partial purge (share ``door_purge_share``) from ``co2_limit - door_co2_margin_ppm`` until the reading is
+     below that minus ``door_co2_hysteresis_ppm``; the margin covers the sensor's accuracy (+-(30 ppm + 3 %),
+     75 ppm at 1500) and its lag (t63 60 s behind a rise of up to 7.7 ppm/s with four occupants in full recirculation);
    * without one (timer, BMW/MINI: 12 min recirculation, 1 min fresh air with A/C above 6 degC): the purge share
      for ``door_timer_fresh_s`` after every ``door_timer_recirc_s`` of recirculation.
 4. Otherwise (demand met): the normal share ``door_normal_share`` (production: outside air, 0).
@@ -93,7 +93,8 @@ class RecircSettings:
             v = getattr(self, f.name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise ValueError(f"RecircSettings.{f.name}: must be a finite number >= 0, got {v!r}")
-        for name in ("door_fixed_share", "door_recirc_share", "door_normal_share", "door_fresh_share", "door_purge_share"):
+        shares = ("door_fixed_share", "door_recirc_share", "door_normal_share", "door_fresh_share", "door_purge_share")
+        for name in shares:
             if not getattr(self, name) <= 1.0:
                 raise ValueError(f"RecircSettings.{name}: must be in [0, 1], got {getattr(self, name)}")
         if not self.door_demand_exit < self.door_demand_enter <= 1.0:
@@ -171,9 +172,7 @@ class RecircLaw:
             self._co2_purge = False
             return RecircCommand(s.door_fresh_share, "co2_sensor_fault")
         # 2. recirculation at high demand (switches held at least the dwell time)
-        hot_outside = (
-            math.isfinite(t_amb_c) and math.isfinite(t_cab_c) and t_amb_c > t_cab_c + s.door_amb_above_cab_k
-        )
+        hot_outside = math.isfinite(t_amb_c) and math.isfinite(t_cab_c) and t_amb_c > t_cab_c + s.door_amb_above_cab_k
         d = demand if math.isfinite(demand) else 0.0
         want = bool(pulldown) or hot_outside or d >= s.door_demand_enter or (self._recirc and d >= s.door_demand_exit)
         if want != self._recirc and self._since_switch_s >= s.door_min_dwell_s:

@@ -232,9 +232,8 @@ class PlantModel:
     def _equation_input(self, us) -> Input:
         """The equations' :class:`Input` of a model input vector ``us`` (the door's default put in when absent)."""
         parts = casadi.vertsplit(us, 1)
-        if self.door_input:
-            return Input(*parts)
-        return Input(*parts, float(self.params.recirc_fraction))
+        door = parts[2] if self.door_input else float(self.params.recirc_fraction)
+        return Input(parts[0], parts[1], door)
 
     # ------------------------------------------------------------------ build
     def _build(self) -> None:

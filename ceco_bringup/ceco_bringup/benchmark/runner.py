@@ -512,8 +512,11 @@ def _run_entry(row: Mapping) -> dict:
 
 
 def breaks_air_quality(run: Mapping) -> bool:
-    """True when a run passed the scenario's CO2 limit or fog bound (KPI ``air_quality_met`` 0): it is never on a
-    front nor matched (a saving bought with stale air or a fogged windshield is no saving); unknown (None) is not."""
+    """True when a run passed the scenario's CO2 limit or fog bound (KPI ``air_quality_met`` 0).
+
+    Such a run is never on a front nor matched (a saving bought with stale air or a fogged windshield is no
+    saving); unknown (None) is not a break.
+    """
     return (run.get('kpis') or {}).get('air_quality_met') == 0.0
 
 
@@ -758,8 +761,10 @@ def oracle_cells(case: Case, seeds: Sequence[int], levels: Sequence[float], code
 
 
 def run_oracle_cell(cell: Mapping, runs_dir: str | None = None, controller_cache=None) -> dict:
-    """Call the oracle for one (case, seed); never raises (errors are data). ``runs_dir`` and
-    ``controller_cache`` (a warm worker's, :class:`~ceco_bringup.sweep.backends.WarmWorker`) are unused.
+    """Call the oracle for one (case, seed); never raises (errors are data).
+
+    ``runs_dir`` and ``controller_cache`` (a warm worker's, :class:`~ceco_bringup.sweep.backends.WarmWorker`) are
+    unused.
 
     The row: ``cell_id``, the axes, ``status`` ('ok' when the call returned one item per level),
     ``error``, ``points`` = [{'level', 'kpis' (or None), 'error'}], ``wall_time_s``.
