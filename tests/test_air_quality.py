@@ -313,3 +313,30 @@ def test_co2_estimate_survives_a_failed_sensor():
     e.update(10.0, 500.0, 1.0, 0.05, 0.0, 1)
     with pytest.raises(ValueError, match="before the last update"):
         e.update(5.0, 500.0, 1.0, 0.05, 0.0, 1)
+
+
+def test_hot_commute_4p_case_gives_its_baselines_the_door_logic_and_they_hold_the_co2_limit():
+    """The case's baselines carry door_mode auto and the scenario four occupants, the strategies no door setting;
+    a baseline cell of it (the plain law at 26 degC) runs, holds 1500 ppm and says so in its KPIs."""
+    from ceco_bringup.benchmark import cases as bc
+    from ceco_bringup.benchmark import runner
+
+    case = bc.load_case("hot-commute-4p")
+    assert case.occupants == 4 and dict(case.baseline_door) == {"door_mode": "auto"}
+    assert case.load_scenario().occupants == 4
+    specs = [
+        runner.ControllerSpec("baseline@26.0", "baseline", "baseline", (("setpoint_c", 26.0),), 26.0),
+        runner.ControllerSpec("ceco", "strategy", "ceco"),
+    ]
+    from ceco_bringup.sweep.cells import code_fingerprint
+
+    cells = runner.case_cells(case, specs, code_fingerprint(), seeds=[0])
+    base = next(c for c in cells if c.axes["controller"] == "baseline@26.0")
+    strat = next(c for c in cells if c.axes["controller"] == "ceco")
+    assert base.spec["strategy_overrides"] == {"setpoint_c": 26.0, "door_mode": "auto"}
+    assert "door_mode" not in strat.spec["strategy_overrides"] and base.spec["scenario"]["occupants"] == 4
+    assert bc.load_case("udds-hot").sha() != case.sha()
+    row = runner.run_benchmark_cell({"id": base.id, "axes": base.axes, "spec": base.spec})
+    assert row["status"] == "ok", row["error"]
+    k = row["kpis"]
+    assert k["air_quality_met"] == 1.0 and 1300.0 < k["co2_max_ppm"] < 1500.0 and k["co2_exposure_ppmh"] == 0.0

@@ -72,9 +72,10 @@ STATE_RANGES: dict[str, tuple[float, float]] = {
     't_evap_sp_c': (T_EVAP_SP_MIN_C - _BOUND_TOL, T_EVAP_SP_MAX_C + _BOUND_TOL),
     'co2_cab_ppm': (0.0, 50000.0),
     'recirc_share': (0.0, 1.0),
+    'recirc_share_cmd': (0.0, 1.0),
 }
-"""Plausible range of every float field of CabinState [field unit]: cabin CO2 0..50000 ppm, the door 0..1,
-temperatures -60..150 degC
+"""Plausible range of every float field of CabinState [field unit]: cabin CO2 0..50000 ppm, the door's position and
+its applied command 0..1, temperatures -60..150 degC
 (a vehicle soaked in the sun stays far inside), ambient -60..70 degC, humidities 0..1, solar
 0..2000 W/m2 (above the solar constant), speed 0..120 m/s, the previous command inside the
 actuator bounds, scenario time inside the stamp range."""

@@ -388,7 +388,10 @@ def case_cells(
                 'case_sha': sha,
                 'scenario': scenario,
                 'strategy': c.strategy,
-                'strategy_overrides': dict(c.overrides),
+                'strategy_overrides': {
+                    **dict(c.overrides),
+                    **(dict(case.baseline_door) if c.strategy == 'baseline' else {}),
+                },
                 'preview': _preview(case) if c.seeded else 'perfect',
                 'seed': seed,
                 'duration_s': case.duration_s,
