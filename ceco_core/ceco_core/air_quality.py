@@ -48,6 +48,7 @@ __all__ = [
     "AqSignals",
     "AirQualityLimits",
     "aq_violation",
+    "check_settings",
 ]
 
 M_AIR_KGPMOL = 0.028965
@@ -196,3 +197,20 @@ def aq_violation(signals: AqSignals, limits: AirQualityLimits) -> AqSignals:
         co2_cab_ppm=signals.co2_cab_ppm - limits.co2_limit_ppm,
         fog_margin_k=limits.fog_margin_min_k - signals.fog_margin_k,
     )
+
+
+def check_settings(obj, positive: tuple = (), skip: tuple = ()) -> None:
+    """Raise ValueError naming the field unless the dataclass fields of ``obj`` are finite numbers >= 0.
+
+    Fields in ``skip`` are not checked, those in ``positive`` must be > 0 (the air-quality settings and
+    parameters: the CO2 sensor, the CO2 estimator, the door logic).
+    """
+    owner = type(obj).__name__
+    for f in dataclasses.fields(obj):
+        if f.name in skip:
+            continue
+        v = getattr(obj, f.name)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+            raise ValueError(f"{owner}.{f.name}: must be a finite number >= 0, got {v!r}")
+        if f.name in positive and not v > 0:
+            raise ValueError(f"{owner}.{f.name}: must be > 0, got {v!r}")

@@ -30,14 +30,27 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
-from ceco_core.air_quality import CO2_AMB_PPM_DEFAULT, KGKG_PER_PPM, co2_generation_kgps, leakage_kgps
+from ceco_core.air_quality import (
+    CO2_AMB_PPM_DEFAULT,
+    KGKG_PER_PPM,
+    check_settings,
+    co2_generation_kgps,
+    leakage_kgps,
+)
+from ceco_core.co2_sensor import Co2SensorParams
 
 __all__ = ["Co2EstimatorParams", "Co2Estimate", "Co2Estimator"]
+
+_SENSOR = Co2SensorParams()
+"""The datasheet sensor the estimator assumes (its lag, noise and error bounds: one set of values)."""
 
 
 @dataclasses.dataclass(frozen=True)
 class Co2EstimatorParams:
-    """The estimator's model of the car (nominal values: the controller does not read the plant's)."""
+    """The estimator's model of the car: the nominal values of docs/plant.md's table.
+
+    A controller does not read the simulated car's ``PlantParams``; a car that differs is what the rate bias is for.
+    """
 
     m_air_kg: float = 3.48
     """Dry-air mass of the cabin [kg] (3.0 m3 x 1.16 kg/m3, docs/plant.md)."""
@@ -49,13 +62,13 @@ class Co2EstimatorParams:
     """Occupants' metabolic rate [met]."""
     co2_amb_ppm: float = CO2_AMB_PPM_DEFAULT
     """Assumed ambient CO2 [ppm] (the cabin sensor cannot see it)."""
-    tau_s: float = 60.0
-    """Sensor lag t63 [s] (docs/plant.md)."""
-    noise_std_ppm: float = 10.0
+    tau_s: float = _SENSOR.tau_s
+    """Sensor lag t63 [s] (``Co2SensorParams``, docs/plant.md)."""
+    noise_std_ppm: float = _SENSOR.noise_std_ppm
     """Sensor noise [ppm]."""
-    offset_max_ppm: float = 30.0
+    offset_max_ppm: float = _SENSOR.offset_max_ppm
     """Half-width of the sensor's uniform offset [ppm]."""
-    gain_error_max: float = 0.03
+    gain_error_max: float = _SENSOR.gain_error_max
     """Half-width of the sensor's uniform gain error [-]."""
     process_std_ppm_per_s: float = 0.5
     """Process noise on C [ppm per sqrt(s)]."""
@@ -66,13 +79,7 @@ class Co2EstimatorParams:
 
     def validate(self) -> Co2EstimatorParams:
         """Raise ValueError naming the field if a value is not finite or not positive; return self."""
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ValueError(f"Co2EstimatorParams.{f.name}: must be a finite number >= 0, got {v!r}")
-        for name in ("m_air_kg", "tau_s", "met", "co2_amb_ppm"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"Co2EstimatorParams.{name}: must be > 0")
+        check_settings(self, positive=("m_air_kg", "tau_s", "met", "co2_amb_ppm"))
         return self
 
 

@@ -22,6 +22,8 @@ import math
 
 import numpy as np
 
+from ceco_core.air_quality import check_settings
+
 __all__ = ["Co2SensorParams", "Co2Sensor", "STREAM"]
 
 STREAM = 21
@@ -47,13 +49,7 @@ class Co2SensorParams:
 
     def validate(self) -> Co2SensorParams:
         """Raise ValueError naming the field if a parameter is not usable; return self."""
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ValueError(f"Co2SensorParams.{f.name}: must be a finite number >= 0, got {v!r}")
-        for name in ("tau_s", "update_s", "range_max_ppm"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"Co2SensorParams.{name}: must be > 0")
+        check_settings(self, positive=("tau_s", "update_s", "range_max_ppm"))
         if self.gain_error_max >= 0.5:
             raise ValueError("Co2SensorParams.gain_error_max: must be < 0.5")
         return self

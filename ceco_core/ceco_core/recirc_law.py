@@ -36,6 +36,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from ceco_core.air_quality import check_settings
+
 __all__ = ["DOOR_MODES", "RecircSettings", "RecircCommand", "RecircLaw"]
 
 DOOR_MODES = ("none", "fixed", "auto")
@@ -87,12 +89,7 @@ class RecircSettings:
         """Raise ValueError naming the field if a setting is not usable; return self."""
         if self.door_mode not in DOOR_MODES:
             raise ValueError(f"RecircSettings.door_mode: must be one of {DOOR_MODES}, got {self.door_mode!r}")
-        for f in dataclasses.fields(self):
-            if f.name == "door_mode":
-                continue
-            v = getattr(self, f.name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ValueError(f"RecircSettings.{f.name}: must be a finite number >= 0, got {v!r}")
+        check_settings(self, skip=("door_mode",))
         shares = ("door_fixed_share", "door_recirc_share", "door_normal_share", "door_fresh_share", "door_purge_share")
         for name in shares:
             if not getattr(self, name) <= 1.0:
