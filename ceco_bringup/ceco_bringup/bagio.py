@@ -263,7 +263,8 @@ def load_run_timeseries(bag_dir, namespace: str | None = None) -> dict[str, np.n
 
     A row for plant step n needs the state at t_n, the comfort at t_n and the power
     (and applied command) over [t_n, t_n + dt). Columns: TIMESERIES_COLUMNS plus
-    `step_index` and `fallback`; rows sorted by step index; a step index seen
+    `step_index` and `fallback`; the door command applied over the step (`recirc_share_cmd`) is read from the
+    state of step n + 1 (NaN for the last step when the bag ends there, and in bags of before issue 21); rows sorted by step index; a step index seen
     twice keeps its first message in bag order.
     """
     state, comfort, power = {}, {}, {}
@@ -288,8 +289,14 @@ def load_run_timeseries(bag_dir, namespace: str | None = None) -> dict[str, np.n
             'rh',
             't_glass_c',
             'rh_cab',
-        ) + rundir.AIR_COLUMNS:
+            'co2_cab_ppm',
+            'co2_sensor_ppm',
+            'recirc_share',
+        ):
             rows[col].append(getattr(s, col))
+        # the door command applied over [t_n, t_n+1) is the one the state of step n + 1 reports as applied
+        nxt = state.get(n + 1)
+        rows['recirc_share_cmd'].append(math.nan if nxt is None else nxt.recirc_share_cmd)
         for col in (
             'mdot_bl_kgps',
             't_evap_sp_c',
