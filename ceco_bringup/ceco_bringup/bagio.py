@@ -264,7 +264,8 @@ def load_run_timeseries(bag_dir, namespace: str | None = None) -> dict[str, np.n
     A row for plant step n needs the state at t_n, the comfort at t_n and the power
     (and applied command) over [t_n, t_n + dt). Columns: TIMESERIES_COLUMNS plus
     `step_index` and `fallback`; the door command applied over the step (`recirc_share_cmd`) is read from the
-    state of step n + 1 (NaN for the last step when the bag ends there, and in bags of before issue 21); rows sorted by step index; a step index seen
+    state of step n + 1 (NaN for the last step when the bag ends there, and in bags of before issue 21);
+    rows sorted by step index; a step index seen
     twice keeps its first message in bag order.
     """
     state, comfort, power = {}, {}, {}
