@@ -340,3 +340,26 @@ def test_hot_commute_4p_case_gives_its_baselines_the_door_logic_and_they_hold_th
     assert row["status"] == "ok", row["error"]
     k = row["kpis"]
     assert k["air_quality_met"] == 1.0 and 1300.0 < k["co2_max_ppm"] < 1500.0 and k["co2_exposure_ppmh"] == 0.0
+
+
+def test_a_baseline_law_file_carries_the_door_settings(tmp_path):
+    """The baseline's law file (baseline_node's config) takes door_* fields beside the AccSettings ones; the
+    baseline then commands the door (here: fixed at 0.5); an unknown field or a bad share is refused by name."""
+    from ceco_controller.factory import load_acc_settings, make_controller
+    from ceco_v2x_preview.scenario import load_scenario
+
+    from observations import observation
+
+    law = tmp_path / "law.yaml"
+    law.write_text("acc_law:\n  setpoint_c: 25.0\n  door_mode: fixed\n  door_fixed_share: 0.5\n")
+    assert load_acc_settings(str(law)) == {"setpoint_c": 25.0, "door_mode": "fixed", "door_fixed_share": 0.5}
+    ctrl = make_controller("baseline", load_scenario("sc03"), 5.0, 6, config_path=str(law))
+    assert ctrl.law.settings.setpoint_c == 25.0
+    cmd, diag = ctrl.compute(observation(7))
+    assert cmd.recirc_share == 0.5 and "door_mode=fixed" in diag.message
+    law.write_text("acc_law:\n  door_fixed_share: 1.5\n")
+    with pytest.raises(ValueError, match="door_fixed_share"):
+        load_acc_settings(str(law))
+    law.write_text("acc_law:\n  door_moed: auto\n")
+    with pytest.raises(ValueError, match="door_moed"):
+        load_acc_settings(str(law))
