@@ -345,10 +345,10 @@ def test_hot_commute_4p_case_gives_its_baselines_the_door_logic_and_they_hold_th
 def test_a_baseline_law_file_carries_the_door_settings(tmp_path):
     """The baseline's law file (baseline_node's config) takes door_* fields beside the AccSettings ones; the
     baseline then commands the door (here: fixed at 0.5); an unknown field or a bad share is refused by name."""
+    from observations import observation
+
     from ceco_controller.factory import load_acc_settings, make_controller
     from ceco_v2x_preview.scenario import load_scenario
-
-    from observations import observation
 
     law = tmp_path / "law.yaml"
     law.write_text("acc_law:\n  setpoint_c: 25.0\n  door_mode: fixed\n  door_fixed_share: 0.5\n")
