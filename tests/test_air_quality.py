@@ -313,6 +313,15 @@ def test_co2_estimate_survives_a_failed_sensor():
     e.update(10.0, 500.0, 1.0, 0.05, 0.0, 1)
     with pytest.raises(ValueError, match="before the last update"):
         e.update(5.0, 500.0, 1.0, 0.05, 0.0, 1)
+    # a bad door reading or blower value is never clamped: the last valid one is held, and said so
+    ok = Co2Estimator()
+    ok.update(0.0, math.nan, 1.0, 0.05, 10.0, 4)
+    good = ok.update(60.0, math.nan, 1.0, 0.05, 10.0, 4)
+    e2 = Co2Estimator()
+    e2.update(0.0, math.nan, 1.0, 0.05, 10.0, 4)
+    bad = e2.update(60.0, math.nan, 1.7, math.nan, 10.0, 4)
+    assert bad.inputs_held == ("recirc_share", "mdot_bl_kgps") and good.inputs_held == ()
+    assert bad.co2_cab_ppm == good.co2_cab_ppm > 425.0 + 60 * 7.0
 
 
 def test_hot_commute_4p_case_gives_its_baselines_the_door_logic_and_they_hold_the_co2_limit():

@@ -14,7 +14,7 @@ import dataclasses
 import math
 from typing import Any
 
-from ceco_core.co2_estimator import Co2Estimator
+from ceco_core.co2_estimator import Co2Estimate, Co2Estimator
 from ceco_core.contracts import MEASUREMENT_MODES, Observation
 
 from . import model as cm
@@ -48,12 +48,14 @@ class EstimatingController:
         """The :class:`CabinStateEstimator`."""
         self.last_estimate: Estimate | None = None
         """The estimate of the last :meth:`compute` call."""
+        self.last_co2: Co2Estimate | None = None
+        """The CO2 estimate of the last :meth:`compute` call (:class:`~ceco_core.co2_estimator.Co2Estimate`)."""
         self.co2 = Co2Estimator()
         """The cabin CO2 estimate (:class:`ceco_core.co2_estimator.Co2Estimator`): the CO2 sensor's reading and the
         CO2 balance, or the balance alone without a reading."""
 
     def __getattr__(self, name):
-        if name in ("inner", "estimator", "co2"):  # not yet set (copy/pickle): no recursion
+        if name in ("inner", "estimator", "co2", "last_co2"):  # not yet set (copy/pickle): no recursion
             raise AttributeError(name)
         return getattr(self.inner, name)
 
@@ -91,11 +93,16 @@ class EstimatingController:
             "rh_cab": est.rh_cab,
             "mdot_bl_prev_kgps": est.mdot_bl_prev_kgps,
             "t_evap_sp_prev_c": est.t_evap_sp_prev_c,
-            "co2_cab_ppm": self.co2.update(
-                obs.t_s, obs.co2_sensor_ppm, obs.recirc_share, obs.mdot_bl_prev_kgps, obs.speed_mps, obs.n_occupants
-            ).co2_cab_ppm,
+            "co2_cab_ppm": self._co2_estimate(obs).co2_cab_ppm,
         }
         return dataclasses.replace(obs, **fields)
+
+    def _co2_estimate(self, obs: Observation):
+        est = self.co2.update(
+            obs.t_s, obs.co2_sensor_ppm, obs.recirc_share, obs.mdot_bl_prev_kgps, obs.speed_mps, obs.n_occupants
+        )
+        self.last_co2 = est
+        return est
 
     def prepare(self, obs: Observation):
         """The wrapped controller's ``prepare`` on the observation :meth:`compute` will see for ``obs``.
@@ -119,6 +126,9 @@ class EstimatingController:
         cmd, diag = self.inner.compute(obs_est, t_start=t_start)
         assert self.last_estimate is not None
         note = self.last_estimate.describe()
+        held = getattr(self, "last_co2", None)
+        if held is not None and held.inputs_held:
+            note = "; ".join(x for x in (note, f"co2 estimate held {', '.join(held.inputs_held)}") if x)
         if note:
             diag.message = f"{diag.message}; {note}" if diag.message else note
         return cmd, diag

@@ -93,6 +93,9 @@ class Co2Estimate:
     """Its standard deviation [ppm]."""
     source: str
     """'sensor' (the last update used a reading) or 'balance' (no reading: the model alone)."""
+    inputs_held: tuple = ()
+    """Inputs of the last prediction that were missing or implausible (NaN, a door share outside 0..1, a negative
+    flow or speed) and were replaced by their last valid value (at key-on: door 0.8, 0.05 kg/s, standing)."""
 
 
 class Co2Estimator:
@@ -109,14 +112,24 @@ class Co2Estimator:
         self.x = np.array([self._initial, self._initial, 0.0])
         self.P = np.array([[s * s, s * s, 0.0], [s * s, s * s, 0.0], [0.0, 0.0, 0.0]])
         self.t_s: float | None = None
+        self._last_inputs = {"recirc_share": 0.8, "mdot_bl_kgps": 0.05, "speed_mps": 0.0}
+        self._held: tuple = ()
 
-    def _predict(self, dt: float, recirc_share: float, mdot_bl_kgps: float, speed_mps: float, n: int) -> None:
+    def _inputs(self, **given) -> tuple:
+        """The inputs to predict with: each valid one, else its last valid value (named in ``self._held``)."""
+        held = []
+        for name, v in given.items():
+            ok = math.isfinite(v) and v >= 0.0 and (name != "recirc_share" or v <= 1.0)
+            if ok:
+                self._last_inputs[name] = float(v)
+            else:
+                held.append(name)
+        self._held = tuple(held)
+        return tuple(self._last_inputs[name] for name in given)
+
+    def _predict(self, dt: float, r: float, m: float, v: float, n: int) -> None:
         p = self.params
-        r = recirc_share if math.isfinite(recirc_share) else 0.8
-        r = min(max(r, 0.0), 1.0)
-        m = mdot_bl_kgps if math.isfinite(mdot_bl_kgps) else 0.05
-        v = speed_mps if math.isfinite(speed_mps) else 0.0
-        fresh = (1.0 - r) * m + leakage_kgps(p.leak_0_kgps, p.leak_per_mps_kgps, max(v, 0.0))
+        fresh = (1.0 - r) * m + leakage_kgps(p.leak_0_kgps, p.leak_per_mps_kgps, v)
         a = fresh / p.m_air_kg
         src = a * p.co2_amb_ppm + n * co2_generation_kgps(p.met) / (p.m_air_kg * KGKG_PER_PPM)
         # augmented [C, Y, b, 1]: the constant input enters through the last column (exact for held inputs)
@@ -145,18 +158,20 @@ class Co2Estimator:
     ) -> Co2Estimate:
         """Advance to ``t_s`` [s] with the inputs held since the last update, then correct with the reading.
 
-        ``reading_ppm`` NaN (no sensor, or it failed): prediction only. A time that does not advance
-        corrects without predicting; a time going back is refused (ValueError).
+        ``reading_ppm`` NaN (no sensor, or it failed): prediction only. A door share, blower flow or speed that is
+        NaN or implausible is never clamped: its last valid value is held and named in
+        ``Co2Estimate.inputs_held``. A time that does not advance corrects without predicting; a time going back
+        is refused (ValueError).
         """
         if not math.isfinite(t_s):
             raise ValueError(f"t_s: must be finite, got {t_s!r}")
-        if self.t_s is not None:
-            dt = t_s - self.t_s
-            if dt < 0:
-                raise ValueError(f"t_s: {t_s} is before the last update {self.t_s}")
-            if dt > 0:
-                self._predict(dt, recirc_share, mdot_bl_kgps, speed_mps, int(n_occupants))
+        if self.t_s is not None and t_s < self.t_s:
+            raise ValueError(f"t_s: {t_s} is before the last update {self.t_s}")
+        r, m, v = self._inputs(recirc_share=recirc_share, mdot_bl_kgps=mdot_bl_kgps, speed_mps=speed_mps)
+        if self.t_s is not None and t_s > self.t_s:
+            self._predict(t_s - self.t_s, r, m, v, int(n_occupants))
         self.t_s = float(t_s)
+        held, self._held = self._held, ()
         used = False
         if math.isfinite(reading_ppm) and reading_ppm >= 0:
             p = self.params
@@ -167,4 +182,5 @@ class Co2Estimator:
             self.x = self.x + k * (reading_ppm - self.x[1])
             self.P = self.P - np.outer(k, h @ self.P)
             used = True
-        return Co2Estimate(float(self.x[0]), float(math.sqrt(max(self.P[0, 0], 0.0))), "sensor" if used else "balance")
+        std = float(math.sqrt(max(self.P[0, 0], 0.0)))
+        return Co2Estimate(float(self.x[0]), std, "sensor" if used else "balance", held)
