@@ -23,6 +23,8 @@ t_evap_c                   evaporator wall (fins + tubes)           degC
 t_duct_c                   HVAC case + ducts after the evaporator   degC
 w_cab_kgkg                 cabin humidity ratio                     kg/kg dry air
 comp_pi_integral_rpm       integral part of the compressor PI       rpm
+recirc_share               fresh/recirculation door position        0..1
+co2_cab_kgkg               cabin CO2                                kg/kg dry air
 =========================  ======================================  =======
 
 Equations, units, references and the parameter table: ``docs/plant.md``.
@@ -176,7 +178,7 @@ class CabinPlant:
         if dt > 3600.0:
             raise ValueError(f"dt_s: must be <= 3600 s, got {dt}")
         env_v = Env._make(validate_environment(env))
-        u = Input(float(command.mdot_bl_kgps), float(command.t_evap_sp_c))
+        u = self.equation_input(command)
         # the warm start is advanced by the RK4 stages only; the end-of-step report does not touch it, so
         # splitting an interval into more calls of step() reproduces the same sub-step sequence bit for bit
         x, acc, guess, _ = self._eq.step(self._x, u, env_v, dt, self._guess)
@@ -221,6 +223,15 @@ class CabinPlant:
             raise ValueError(f"command: must be AcInput, got {type(command).__name__}")
         command.validate()
         env_v = Env._make(validate_environment(env))
-        u = Input(float(command.mdot_bl_kgps), float(command.t_evap_sp_c))
+        u = self.equation_input(command)
         flows = self._eq.rhs(self._x, u, blower_power_w(self.params, u.mdot_bl_kgps), env_v, self._guess)[1]
         return PlantOutputs(**self._eq.outputs(self._x, u, env_v, 0.0, flows, self._guess)[0])
+
+    def equation_input(self, command: AcInput) -> Input:
+        """The equations' input of a validated command: a door left alone (NaN) holds ``recirc_fraction``."""
+        r = float(command.recirc_share)
+        return Input(
+            float(command.mdot_bl_kgps),
+            float(command.t_evap_sp_c),
+            self.params.recirc_fraction if math.isnan(r) else r,
+        )

@@ -689,11 +689,28 @@ class CabinPlant:
 # ceco_core.cabin_comfort.evaluate_cabin_comfort, whose numbers did not change since).
 
 
+class _InScenarioPlant(CabinPlant):
+    """8546529's plant where today's ``ScenarioPlant`` holds it (issue 21 added the door and cabin CO2 after it).
+
+    It takes the first 8 states (8546529's) of today's state and has no door: the door command reads as
+    the fixed ``recirc_fraction`` 8546529 ran with; CO2 is not modelled (its outputs keep their defaults).
+    """
+
+    def __init__(self, params: PlantParams, state: PlantState) -> None:
+        super().__init__(params, state)
+        self._x = tuple(self._x[:8])
+
+    def equation_input(self, command: AcInput):
+        from ceco_plant_sim.plant_equations import Input
+
+        return Input(float(command.mdot_bl_kgps), float(command.t_evap_sp_c), float(self.params.recirc_fraction))
+
+
 def reference_scenario_plant(scenario, plant_dt_s: float, **kwargs):
     """A ``ScenarioPlant`` (Python evaluation) whose plant is this module's :class:`CabinPlant`: 8546529's step."""
     from ceco_plant_sim.compiled_plant import PlantEvaluation
     from ceco_plant_sim.scenario_plant import ScenarioPlant
 
     sp = ScenarioPlant(scenario, plant_dt_s, evaluation=PlantEvaluation("python"), **kwargs)
-    sp.plant = CabinPlant(sp.plant.params, sp.plant.state)
+    sp.plant = _InScenarioPlant(sp.plant.params, sp.plant.state)
     return sp
