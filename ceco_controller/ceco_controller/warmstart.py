@@ -28,7 +28,7 @@ def initial_guess(problem: NlpProblem, p: np.ndarray, w_prev: np.ndarray | None 
     ``eps`` (ioch): shifted, or eps_UB/2.
     """
     s, pl, vl, lim = problem.settings, problem.params, problem.vars, problem.limits
-    n = s.horizon_steps
+    n = problem.horizon_steps
     if w_prev is not None:
         w = vl.shift(w_prev, stages)
     else:

@@ -56,8 +56,9 @@ T_EVAP_SP_MAX_C = 10.0
 """Upper bound of the evaporator wall temperature set-point [degC] (method paper, eq. 13)."""
 
 
-CECO_STRATEGIES = ("ceco", "ceco-e", "ceco-c", "ceco-ioch")
-"""Names of the NMPC strategies (settings in ``ceco_controller.strategies``)."""
+CECO_STRATEGIES = ("ceco", "ceco-e", "ceco-c", "ceco-ioch", "ceco-pmv")
+"""Names of the NMPC strategies (settings in ``ceco_controller.strategies``): the paper's four and issue 20's
+comfort-output strategy ``ceco-pmv``."""
 
 BASELINE_STRATEGY = "baseline"
 """Name of the production climate control used as the baseline."""
