@@ -16,6 +16,7 @@ setup(
     package_data={package_name: ['data/*', 'data/*/*']},
     include_package_data=True,
     install_requires=['setuptools'],
+    extras_require={'test': ['pytest']},
     zip_safe=False,
     maintainer='ceco maintainers',
     maintainer_email='maintainers@ceco.dev',
@@ -23,8 +24,8 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'mpc_node = ceco_controller.mpc_node:main',
-            'baseline_node = ceco_controller.baseline_node:main',
+            'mpc_node = ceco_controller.entry_points:mpc_node',
+            'baseline_node = ceco_controller.entry_points:baseline_node',
         ],
     },
 )

@@ -16,6 +16,7 @@ setup(
     package_data={package_name: ['data/*', 'data/*/*']},
     include_package_data=True,
     install_requires=['setuptools'],
+    extras_require={'test': ['pytest']},
     zip_safe=False,
     maintainer='ceco maintainers',
     maintainer_email='maintainers@ceco.dev',
@@ -26,7 +27,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'preview_node = ceco_v2x_preview.preview_node:main',
+            'preview_node = ceco_v2x_preview.entry_points:preview_node',
         ],
     },
 )

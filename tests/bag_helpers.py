@@ -193,6 +193,16 @@ def check_jazzy_metadata(meta: dict, bag_dir: Path) -> dict:
     return info
 
 
+def check_rosbag2_record_layout(meta: dict, bag_dir: Path) -> None:
+    """What `ros2 bag record` (Jazzy) writes beyond the decoder's rules: one storage file named
+    ``<bag dir>_0.<ext>`` (SequentialWriter::format_storage_uri) and ``ros_distro: jazzy``
+    (SequentialWriter::open reads ROS_DISTRO)."""
+    info = meta['rosbag2_bagfile_information']
+    ext = {'mcap': 'mcap', 'sqlite3': 'db3'}[info['storage_identifier']]
+    assert info['relative_file_paths'] == [f'{Path(bag_dir).name}_0.{ext}']
+    assert info['ros_distro'] == 'jazzy'
+
+
 # --- a bag as `ros2 bag record` (Jazzy, default mcap storage) writes it -------------------
 _HEADER_MSG = 'builtin_interfaces/Time stamp\nstring frame_id\n'
 _TIME_MSG = 'int32 sec\nuint32 nanosec\n'

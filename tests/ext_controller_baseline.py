@@ -9,10 +9,12 @@ exactly as the built-in `baseline@26.0` (tests/test_benchmark_external.py).
 Contract used (docs/benchmark.md, "Your own controller over ROS 2"): subscribe
 `cabin/state` (reliable, keep-last, volatile); for each state at a control step
 t_k = k * Ts publish one `hvac/command` with step_index k; Ts from the environment
-variable CECO_CONTROL_PERIOD_S; AcCommand.strategy = "external".
+variable CECO_CONTROL_PERIOD_S; AcCommand.strategy = "external"; AcCommand.epoch random and
+non-zero, drawn at start, and AcCommand.sequence = 1, 2, ... (the plant refuses epoch 0).
 """
 
 import os
+import secrets
 import sys
 
 import rclpy
@@ -30,6 +32,7 @@ class ExternalBaseline(Node):
         super().__init__('external_controller')
         self.ts = float(os.environ['CECO_CONTROL_PERIOD_S'])
         self.integral, self.pulldown = 0.0, False
+        self.epoch, self.sequence = secrets.randbits(64) or 1, 0
         self.pub = self.create_publisher(
             AcCommand,
             'hvac/command',
@@ -70,7 +73,9 @@ class ExternalBaseline(Node):
         if abs(msg.scenario_time_s - k * self.ts) > 1e-6:
             return  # not a control step
         d = self.demand(msg.t_cab_c)
+        self.sequence += 1
         cmd = AcCommand(step_index=k, control_period_s=self.ts, strategy='external', fallback=False)
+        cmd.epoch, cmd.sequence = self.epoch, self.sequence
         cmd.header.stamp = msg.header.stamp
         cmd.evap_setpoint_c = 10.0 - min(d / 0.5, 1.0) * (10.0 - 3.0)
         cmd.blower_flow_kgps = 0.05 + max(d - 0.3, 0.0) / (1.0 - 0.3) * (0.17 - 0.05)

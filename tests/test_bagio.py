@@ -16,6 +16,7 @@ from bag_helpers import (
     assert_same_fields,
     check_jazzy_metadata,
     check_qos_v9,
+    check_rosbag2_record_layout,
     plain,
     sample,
     write_ros2_bag_record_style,
@@ -117,7 +118,11 @@ def test_round_trip_rows_are_the_complete_plant_steps(tmp_path, storage):
     _write_steps(w, [2, 0, 1, 3], skip_power={3})
     w.write('/cabin/state', 5 * SEC, _ser(_msg('ceco_msgs/msg/CabinState', step_index=1, t_cab_c=99.0)))  # duplicate
     w.close()
-    assert (tmp_path / 'bag' / f'bag.{"mcap" if storage == "mcap" else "db3"}').is_file()
+    # rosbag2's name of the first storage file: <bag>_0.<ext> (SequentialWriter::format_storage_uri)
+    assert sorted(p.name for p in (tmp_path / 'bag').iterdir()) == [
+        f'bag_0.{"mcap" if storage == "mcap" else "db3"}',
+        'metadata.yaml',
+    ]
     ts = bagio.load_run_timeseries(tmp_path / 'bag')
     assert list(ts)[: len(bagio.TIMESERIES_COLUMNS)] == list(bagio.TIMESERIES_COLUMNS)
     assert ts['step_index'].tolist() == [0, 1, 2]  # sorted; step 3 has no power: no row
@@ -143,6 +148,7 @@ def test_metadata_decodes_under_jazzy_rosbag2_rules(tmp_path, storage):
     w.close()
     meta = yaml.safe_load((tmp_path / 'bag' / 'metadata.yaml').read_text())
     info = check_jazzy_metadata(meta, tmp_path / 'bag')
+    check_rosbag2_record_layout(meta, tmp_path / 'bag')  # the file name and ros_distro of ros2 bag record
     assert info['storage_identifier'] == storage and info['message_count'] == 6
     assert info['starting_time']['nanoseconds_since_epoch'] == 0 and info['duration']['nanoseconds'] == SEC
     assert info['custom_data'] == {'strategy': 'ceco-ioch'}
@@ -219,7 +225,7 @@ def test_flushed_bag_is_complete_on_disk_without_close(tmp_path, storage):
     if storage == 'mcap':  # and a reader that is not rosbags agrees
         from mcap.reader import make_reader
 
-        with open(tmp_path / 'killed' / 'bag.mcap', 'rb') as fh:
+        with open(tmp_path / 'killed' / 'bag_0.mcap', 'rb') as fh:
             r = make_reader(fh)
             assert r.get_summary().statistics.message_count == 18
             assert sum(1 for _ in r.iter_messages()) == 18
@@ -238,7 +244,7 @@ def test_full_mcap_chunk_between_flushes_leaves_a_complete_file(tmp_path):
     shutil.copytree(tmp_path / 'bag', tmp_path / 'killed')
     from mcap.reader import make_reader
 
-    with open(tmp_path / 'killed' / 'bag.mcap', 'rb') as fh:
+    with open(tmp_path / 'killed' / 'bag_0.mcap', 'rb') as fh:
         n_on_disk = sum(1 for _ in make_reader(fh).iter_messages())
     assert 30 <= n_on_disk < 40  # the closed chunk, not the open one
     got = [m.step_index for _, _, m in bagio.read_messages(tmp_path / 'killed', ['v2x/weather_preview'])]
@@ -463,7 +469,7 @@ def test_independent_mcap_reader_gets_the_same_messages(tmp_path):
             w.write(topic, n * SEC + len(topic), store.serialize_cdr(msg, typ))
             written.append((topic, n * SEC + len(topic), plain(msg)))
     w.close()
-    with open(tmp_path / 'bag' / 'bag.mcap', 'rb') as fh:
+    with open(tmp_path / 'bag' / 'bag_0.mcap', 'rb') as fh:
         reader = make_reader(fh, decoder_factories=[DecoderFactory()])
         summary = reader.get_summary()
         decoded = [
@@ -522,6 +528,7 @@ def test_reads_a_bag_as_ros2_bag_record_writes_it(tmp_path, ns):
     _ros2_bag_record_bag(tmp_path / 'rec', 10, ns)
     meta = yaml.safe_load((tmp_path / 'rec' / 'metadata.yaml').read_text())
     check_jazzy_metadata(meta, tmp_path / 'rec')  # the emulation follows the same rules
+    check_rosbag2_record_layout(meta, tmp_path / 'rec')
     ts = bagio.load_run_timeseries(tmp_path / 'rec')
     assert ts['step_index'].tolist() == list(range(10))
     assert ts['t_cab_c'].tolist() == [45.0 - 0.5 * n for n in range(10)]
@@ -529,3 +536,23 @@ def test_reads_a_bag_as_ros2_bag_record_writes_it(tmp_path, ns):
     cmds = bagio.load_commands(tmp_path / 'rec')
     assert cmds['k'].tolist() == [0, 1] and cmds['t_s'].tolist() == [0.0, 5.0]
     assert bagio.topic_counts(tmp_path / 'rec')[f'{ns}/cabin/state'] == 10
+
+
+def test_commands_of_bags_before_epoch_and_sequence_read_with_both_zero(tmp_path):
+    """AcCommand gained `epoch` and `sequence` (issue 17); a bag recorded before holds the older
+    (shorter) CDR under the same type name: it reads with both 0, the other fields intact, beside
+    commands of the current format."""
+    store = bagio.typestore()
+    w = bag_writer.BagWriter(tmp_path / 'bag')
+    w.add_topic('/hvac/command', 'ceco_msgs/msg/AcCommand')
+    old = sample(store, bagio.LEGACY_ACCOMMAND, 3, stamp_ns=5 * SEC)
+    new = sample(store, 'ceco_msgs/msg/AcCommand', 4, stamp_ns=10 * SEC)
+    w.write('/hvac/command', 5 * SEC, store.serialize_cdr(old, bagio.LEGACY_ACCOMMAND))
+    w.write('/hvac/command', 10 * SEC, store.serialize_cdr(new, 'ceco_msgs/msg/AcCommand'))
+    w.close()
+    cmds = bagio.load_commands(tmp_path / 'bag')
+    assert cmds['epoch'].tolist() == [0, new.epoch] and cmds['sequence'].tolist() == [0, new.sequence]
+    assert new.epoch != 0 and new.sequence != 0  # the sample sets every field
+    assert cmds['k'].tolist() == [old.step_index, new.step_index]
+    assert cmds['mdot_bl_kgps'].tolist() == [old.blower_flow_kgps, new.blower_flow_kgps]
+    assert cmds['strategy'].tolist() == [old.strategy, new.strategy]

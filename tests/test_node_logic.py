@@ -5,7 +5,9 @@ objects with the ceco_msgs field names."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import re
 from types import SimpleNamespace as NS
 
 import numpy as np
@@ -87,6 +89,8 @@ def command(k: int, ts: float = 5.0, stamp_s: float | None = None, **override) -
         evap_setpoint_c=5.0,
         strategy='ceco',
         fallback=False,
+        epoch=0,
+        sequence=0,
     )
     for key, value in override.items():
         setattr(m, key, value)
@@ -514,7 +518,13 @@ def test_plant_command_policy_lockstep_and_realtime():
     from ceco_plant_sim.plant_io import CommandPolicy
 
     rec = Recorder()
-    p = CommandPolicy(_plant_cfg(), rec.log)
+    strict = CommandPolicy(_plant_cfg(), rec.log)  # the default: sequenced commands only (issue 17 item 6)
+    assert not strict.accept(command(3), 3, 0.0)  # epoch 0: refused as foreign, says what to set
+    assert strict.rejections.by_kind == {('hvac/command', 'foreign'): 1}
+    assert 'set AcCommand.epoch (random, non-zero' in rec.lines[-1][1] and 'sequence = 1, 2' in rec.lines[-1][1]
+    assert strict.accept(command(3, epoch=0xCEC0, sequence=1), 3, 0.0) and strict.source.epoch == 0xCEC0
+    rec = Recorder()
+    p = CommandPolicy(_plant_cfg(**{'commands.require_sequence': False}), rec.log)  # opted out
     assert p.accept(command(3), 3, 0.0)
     assert not p.accept(command(200_003), 3, 0.0) and not p.accept(command(2), 3, 0.0)
     assert not p.accept(command(3, stamp_s=14.0), 3, 0.0)  # stamp is not t_3
@@ -525,15 +535,20 @@ def test_plant_command_policy_lockstep_and_realtime():
         ('hvac/command', 'stale'): 1,
         ('hvac/command', 'invalid'): 2,
     }
-    assert len(rec.lines) == 3  # the second invalid one within the throttle period
-    rt = CommandPolicy(_plant_cfg(timing='realtime', plant_dt_s=0.5, control_period_s=2.0), rec.log)
+    # the binding to an unsequenced source (said once), then the rejections; the second invalid
+    # one within the throttle period
+    assert len(rec.lines) == 4 and 'without epoch/sequence' in rec.lines[0][1]
+    rt = CommandPolicy(
+        _plant_cfg(timing='realtime', plant_dt_s=0.5, control_period_s=2.0, **{'commands.require_sequence': False}),
+        rec.log,
+    )
     for n in range(40):  # states of plant steps 0..39 at clock 1000 + n/2
         rt.published(stamp(1000.0 + 0.5 * n), 0.5 * n)
     assert rt.accept(command(9, ts=2.0, stamp_s=1000.0 + 0.5 * 37), 9, 0.0)  # t = 18.5 s: step 9
     assert not rt.accept(command(10, ts=2.0, stamp_s=1000.0 + 0.5 * 37), 9, 0.0)  # index not the stamp's step
     assert not rt.accept(command(9, ts=2.0, stamp_s=2038.0), 9, 0.0)  # a stamp the plant never sent
     assert not rt.accept(command(0, ts=2.0, stamp_s=1000.0), 9, 0.0)  # the ring forgot it: too old
-    assert not rt.accept(command(4, ts=2.0, stamp_s=1000.0 + 0.5 * 19), 9, 0.0)  # 5 steps behind (limit 3)
+    assert not rt.accept(command(4, ts=2.0, stamp_s=1000.0 + 0.5 * 19), 9, 0.0)  # 5 steps behind (limit 2)
 
 
 def test_plant_loop_lockstep_energy_end_and_fallback_law():
@@ -583,7 +598,7 @@ def test_plant_loop_realtime_input_choice():
     from ceco_plant_sim.plant_loop import PlantLoop
     from ceco_v2x_preview.scenario import load_scenario
 
-    loop = PlantLoop(load_scenario('sc03'), _plant_cfg(timing='realtime'))  # Ts 5 s, stale after 2 Ts = 10 s
+    loop = PlantLoop(load_scenario('sc03'), _plant_cfg(timing='realtime'))  # Ts 5 s, dt 1 s: stale after 6 s
     u = AcInput(mdot_bl_kgps=0.1, t_evap_sp_c=5.0)
 
     def tick(now_s):
@@ -592,25 +607,23 @@ def test_plant_loop_realtime_input_choice():
         return got
 
     u0, fb, line = tick(0.0)  # nothing yet: the ACC law, with the warning
-    assert fb and line.startswith('FALLBACK at step 0') and 'latest none yet, limit 10.0 s' in line
+    assert fb and line.startswith('FALLBACK at step 0') and 'latest none yet, limit 6.0 s' in line
     assert loop.accept_command(u, 0, 'ceco', 0.5) == 'commands resumed at control step 0 from ceco: leaving fallback'
     assert tick(1.0) == (u0, True, None)  # in fallback, a fresh command waits for the control step boundary
     for t in (2.0, 3.0, 4.0):
         assert tick(t)[1:] == (True, None)
     assert tick(5.0) == (u, False, None)  # boundary: the fresh command drives
-    for t in (6.0, 7.0, 8.0, 9.0, 10.0):
-        assert tick(t) == (u, False, None)  # held over the period, and at the next boundary (9.5 s old)
-    u_fb, fb, line = tick(11.0)  # 10.5 s old mid-period: the ACC law at once
-    assert fb and 'latest 10.5 s old' in line and u_fb != u
-    assert loop.accept_command(u, 2, 'ceco', 11.5) is not None
-    loop.rt.deadline_missed = True  # a missed QoS deadline makes even a young command stale
-    u_fb, fb, line = tick(12.0)  # accepted, but stale at once: back to the law at the next tick
-    assert fb and 'QoS deadline on hvac/command missed' in line
-    assert [tick(t)[1:] for t in (13.0, 14.0, 15.0)] == [(True, None)] * 3  # still stale at the boundary
-    assert loop.accept_command(u, 3, 'ceco', 15.5) is not None  # a new command clears the missed deadline
-    assert [tick(t)[1] for t in (16.0, 17.0, 18.0, 19.0)] == [True] * 4
-    assert loop.n == 20 and tick(20.0) == (u, False, None)
-    assert loop.fallback.n_entered == 3 and loop.fallback.n_fallback_periods == 4
+    assert tick(6.0) == (u, False, None)  # 5.5 s old: within one control period plus one plant step (6 s)
+    u_fb, fb, line = tick(7.0)  # 6.5 s old: one plant step after command 1 was due, the ACC law at once
+    assert fb and 'latest 6.5 s old' in line and u_fb != u
+    assert loop.accept_command(u, 1, 'ceco', 7.5) is not None
+    loop.liveliness_changed(0, 1, 7.6)  # the controller's process died: even a young command is stale
+    u_fb, fb, line = tick(8.0)  # back to the law at the next tick
+    assert fb and "the controller's liveliness was lost" in line
+    assert tick(9.0)[1:] == (True, None)  # the law drives until a command is accepted
+    assert loop.accept_command(u, 2, 'ceco', 9.5) is not None  # a new command (a restarted controller)
+    assert loop.n == 10 and tick(10.0) == (u, False, None)  # taken at the boundary
+    assert loop.fallback.n_entered == 3 and loop.fallback.n_fallback_periods == 3
 
 
 def test_control_step_grid_of_plant_times():
@@ -664,6 +677,15 @@ def test_plant_health():
     )
     assert h.level == ERROR and 'fallback: the production ACC law drives (no command for control step 2)' in h.message
     assert h.values['in_fallback'] == 'true'
+    # a second lockstep plant in the domain (one /clock per domain): an error that says what to do
+    common = dict(started=True, finished=False, n=10, t_s=10.0, command_age_s=0.1, new_rejections=0, events={})
+    ok = plant_health(cfg=cfg, supervisor=FallbackSupervisor(), policy=p, clock_publishers=1, **common)
+    assert ok.level == OK and ok.values['clock_publishers'] == '1'
+    two = plant_health(cfg=cfg, supervisor=FallbackSupervisor(), policy=p, clock_publishers=2, **common)
+    assert two.level == ERROR and '2 publishers on /clock in this ROS domain' in two.message
+    assert 'ROS_DOMAIN_ID of its own' in two.message
+    rt = _plant_cfg(timing='realtime')  # a real-time plant publishes no /clock and does not report it
+    assert 'clock_publishers' not in plant_health(cfg=rt, supervisor=FallbackSupervisor(), policy=p, **common).values
 
 
 # --------------------------------------------------------------------------- preview inputs
@@ -793,3 +815,94 @@ def test_parameter_tables_in_docs_are_current():
     spec.loader.exec_module(mod)
     doc = (root / 'docs' / 'ros.md').read_text()
     assert mod.rewrite(doc) == doc, 'run: python tools/param_tables.py --write'
+
+
+# --- issue 17 item 5: every parameter range keeps the node doing its job -----------------------
+def _commands_per_period(cfg, seconds: float = 60.0, dt: float = 1.0, tick_phase_s: float = 0.9) -> int:
+    """A real-time controller's input logic fed a live plant (a state every dt, stamped with the
+    clock, 20 ms of transport) and live previews, its timer every Ts at ``tick_phase_s``: the control
+    steps it hands out (each would be one command)."""
+    rec = Recorder()
+    ci = ControllerInputs(cfg, rec.log, rec.reset)
+    ts, steps, t, n = cfg.control_period_s, set(), 0.0, 0
+    next_tick = tick_phase_s
+    while t < seconds:
+        t = n * dt
+        ci.offer_state(state(t, stamp_s=1000.0 + t), wall_s=t + 0.02, clock_s=1000.0 + t + 0.02)
+        k = int(t // ts)
+        ci.offer_preview('weather', weather(k, ts=ts, start=stamp(k * ts)), t + 0.02)
+        ci.offer_preview('traffic', traffic(k, ts=ts, start=stamp(k * ts)), t + 0.02)
+        if ci.due():
+            si, _ = ci.realtime_step(1000.0 + t + 0.02)
+            steps.add(si.k)
+        while next_tick < t + dt:
+            si, _ = ci.realtime_step(1000.0 + next_tick)
+            if si is not None:
+                steps.add(si.k)
+            next_tick += ts
+        n += 1
+    return len(steps)
+
+
+def test_state_age_at_its_smallest_allowed_value_keeps_the_controller_commanding():
+    """max_state_age_s 0.011 s (allowed before) gave 0 commands in 20 s; its floor is now Ts, at which
+    the controller commands every control period, and below which configuration is refused."""
+    with pytest.raises(ValueError, match=r'max_state_age_s=0\.011: must be at least control_period_s=5\.0'):
+        _ctrl_cfg(timing='realtime', max_state_age_s=0.011)
+    cfg = _ctrl_cfg(timing='realtime', max_state_age_s=5.0)
+    assert _commands_per_period(cfg, 60.0) >= 11  # 12 control steps in 60 s (the first may wait for a tick)
+    # the refused value would have starved it: the logic with the check bypassed
+    starved = dataclasses.replace(cfg, max_state_age_s=0.011)
+    assert _commands_per_period(starved, 60.0) == 0
+
+
+@pytest.mark.parametrize(
+    ('table', 'name', 'value', 'rule'),
+    [
+        ('controller', 'max_state_age_s', 4.9, 'at least control_period_s'),
+        ('controller', 'inputs.window_s', 4.9, 'at least control_period_s'),
+        ('controller', 'qos.liveliness_lease_s', 5.1, 'at most control_period_s'),
+        ('preview', 'inputs.max_state_age_s', 4.9, 'at least control_period_s'),
+        ('preview', 'inputs.window_s', 4.9, 'at least control_period_s'),
+        ('preview', 'publish_period_s', 5.1, 'at most control_period_s'),
+        ('plant', 'qos.liveliness_lease_s', 5.1, 'at most control_period_s'),
+        ('plant', 'fallback.command_timeout_periods', 0.9, 'must lie in'),
+    ],
+)
+def test_ranges_derived_from_the_control_period_are_enforced(table, name, value, rule):
+    """Each range derived from another parameter (Ts): the value just past it is refused with the
+    parameter's name and the rule, the value at it is accepted."""
+    from ceco_plant_sim.plant_io import PLANT_PARAMETERS
+
+    specs = {'controller': controller_parameters(), 'preview': PREVIEW_PARAMETERS, 'plant': PLANT_PARAMETERS}[table]
+    spec = next(s for s in specs if s.name == name)
+    values = {s.name: s.default for s in specs}
+
+    def build(v):
+        _, why = check_value(spec, v)
+        if why:
+            raise ValueError(why)
+        vals = dict(values, **{name: v})
+        if table == 'controller':
+            return ControllerNodeConfig.from_params(vals)
+        if table == 'preview':
+            return PreviewNodeConfig.from_params(vals)
+        return _plant_cfg(**{name: v})
+
+    with pytest.raises(ValueError, match=rf'{re.escape(name)}.*{rule}'):
+        build(value)
+    build(5.0 if 'periods' not in name else 1.0)  # at the derived bound: accepted
+
+
+def test_held_command_waits_for_subscribers_and_sends_each_step_once():
+    from ceco_controller.controller_session import HeldCommand
+
+    hold = HeldCommand()
+    assert hold.offer('k0', short_of_subscribers=False) == ['k0'] and hold.msg is None  # matched: sent now
+    assert hold.offer('k1', short_of_subscribers=True) == [] and hold.msg == 'k1'  # waits
+    assert hold.release(may_send=False) == [] and hold.msg == 'k1'  # inactive or still short
+    assert hold.offer('k2', short_of_subscribers=True) == [] and hold.msg == 'k2'  # the newer replaces it
+    assert hold.release(may_send=True) == ['k2'] and hold.release(may_send=True) == []  # sent once
+    hold.offer('k3', short_of_subscribers=True)
+    hold.clear()  # a new activation forgets it
+    assert hold.release(may_send=True) == []

@@ -213,6 +213,31 @@ def test_head_pressure_control_at_low_ambient(tab, comp):
     assert not _solve(tab, comp, 3000.0).head_pressure_control
 
 
+def test_mop_pinned_cycle_does_not_depend_on_the_wall_temperature(tab, comp):
+    """Once the MOP pins T_e the cycle is compressor-limited: the wall temperature drops out of it.
+
+    Before the fix the head-pressure flag, judged on the unpinned solution (T_e far above the pin,
+    pressure ratio below pr_min), stuck after the pin: from ~32 degC wall at 4000 rpm the cycle
+    jumped to T_c 36.5 degC at 35 degC ambient (1.5 K of condenser driving force for 7.7 kW) and
+    5933 -> 6804 W of capacity for 1397 -> 1050 W. Never visited by the recorded runs (their hot
+    starts run at the power-limit speed, where the ratio stays above pr_min).
+    """
+    p = PlantParams()
+    epsc = condenser_eps_c_wpk(p, 0.0)
+    pinned = [
+        solve_cycle(tab, comp, 4000.0, t, p.ua_evap_ref_wpk, 35.0, epsc, p.te_mop_c, tol_k=1e-10, pr_min=p.pr_min)
+        for t in (20.0, 32.5, 45.0, 65.0)
+    ]
+    assert all(s.mop_active and not s.head_pressure_control for s in pinned)
+    q0, p0 = pinned[0].q_evap_ref_w, pinned[0].p_comp_w
+    for s in pinned[1:]:
+        assert s.q_evap_ref_w == pytest.approx(q0, rel=1e-9) and s.p_comp_w == pytest.approx(p0, rel=1e-9)
+    s = pinned[-1]
+    # the condenser balance holds: Q_ref + W_shaft = eps_c C_c (T_c - T_amb)
+    assert s.q_cond_w == pytest.approx(epsc * (s.t_cond_c - 35.0), rel=1e-6)
+    assert s.t_cond_c > 45.0
+
+
 # ---------------------------------------------------------------- the shipped table file
 
 

@@ -9,6 +9,7 @@ stack fails instead of hanging.
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import os
@@ -319,11 +320,14 @@ def test_recorder_records_a_namespaced_stack_fully_qualified(tmp_path):
     assert counts['/veh1/cabin/state'] == 10 and counts['/clock'] == 10 and '/cabin/state' not in counts
     got = [(t, m.step_index, m.t_cab_c) for _, t, m in bagio.read_messages(bag, ('cabin/state',))]
     assert got == [(n * 500_000_000, n, 45.0) for n in range(10)]
-    assert (bag / 'bag.db3').is_file()
+    assert (bag / 'bag_0.db3').is_file()  # rosbag2's name of the first file
 
 
 def _log_has(proc, text, timeout_s=20.0):
     _wait_for(lambda: text in proc.log_text(), timeout_s, f'{text!r} in {proc.name} log')
+
+
+_SEQUENCE = itertools.count(1)
 
 
 def _command(k: int, t_s: float, **override):
@@ -331,6 +335,7 @@ def _command(k: int, t_s: float, **override):
 
     m = AcCommand(step_index=k, control_period_s=5.0, blower_flow_kgps=0.1, evap_setpoint_c=5.0, strategy='ceco')
     m.header.stamp = conversions.stamp_from_s(t_s)
+    m.epoch, m.sequence = 0xCEC0, next(_SEQUENCE)  # one source: the plant takes sequenced commands only
     for key, value in override.items():
         setattr(m, key, value)
     return m
@@ -396,7 +401,9 @@ def test_bad_input_rejected_nodes_keep_commanding(tmp_path):
         # unknown strategy name: refuses to start, says why
         _wait_for(lambda: not bad.running() and bad.returncode() is not None, 120, 'mpc_bad to exit')
         assert bad.returncode() == 2
-        assert "invalid parameter strategy='ceco-turbo': unknown strategy" in bad.log_text()
+        assert (
+            "invalid parameter strategy='ceco-turbo': must be one of ceco, ceco-e, ceco-c, ceco-ioch" in bad.log_text()
+        )
 
         _wait_for(
             lambda: (
@@ -576,7 +583,10 @@ def test_kill_mpc_node_plant_falls_back_and_restart_takes_over(tmp_path):
         rec.close()
         tn.close()
     log = plant.log_text()
-    assert 'no command for control step' in log and 'commands resumed at control step' in log
+    # the kill is noticed by the controller's liveliness lease (or, had the lease not run out first,
+    # by the missing command), said once; the restarted controller takes over
+    assert "the controller's liveliness was lost" in log or 'no command for control step' in log, log[-3000:]
+    assert 'commands resumed at control step' in log, log[-3000:]
     ts = bagio.load_run_timeseries(bag)
     assert ts['step_index'].tolist() == list(range(n_steps))  # nothing lost, nothing doubled
     states = [m.step_index for _, _, m in bagio.read_messages(bag, ('cabin/state',))]
@@ -715,10 +725,11 @@ def test_preview_faults_over_dds_match_simulator(tmp_path):
 
 
 # ----------------------------------------------------------------------------
-def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
+def test_realtime_kill_controller_fallback_within_one_control_period(tmp_path):
     """Real-time timing (wall-clock timers, as on a vehicle; Ts = 2 s, plant
-    step 0.5 s): SIGKILL the controller; within two control periods of the
-    plant's own clock the plant applies the ACC law, and a restarted controller
+    step 0.5 s): SIGKILL the controller; within one control period plus one plant
+    step of the plant's own clock the plant applies the ACC law (the controller's
+    liveliness lease, else the command age), logs why, and a restarted controller
     takes over. Counted in plant steps, not asserted on elapsed time. The
     controller is baseline_node: the NMPC's model step (5 s) would make a
     real-time test last minutes; the plant-side logic under test is the same
@@ -767,8 +778,10 @@ def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
         for p in procs:
             p.start()
         _wait_for(lambda: n_normal() >= 8, 180, 'two control periods under the controller', procs)
+        t_kill, n_kill = time.monotonic(), powers[-1].step_index  # the plant step the kill falls in (about)
         mpc.kill()
         _wait_for(lambda: powers and powers[-1].fallback, 60, 'the plant to fall back', [preview, plant])
+        t_fallback = time.monotonic()
         mpc.start()
         n_fb_end = len(powers)
         _wait_for(
@@ -778,7 +791,7 @@ def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
             procs,
         )
     finally:
-        for p in procs:
+        for p in reversed(procs):  # the plant first (as ceco run): a controller stopped before it is a fault
             p.stop()
         rec.close()
         tn.close()
@@ -790,11 +803,15 @@ def test_realtime_kill_controller_fallback_within_two_control_periods(tmp_path):
     spans = [i for i in range(first_normal, len(fb)) if fb[i] and not fb[i - 1]]
     assert len(spans) == 1  # one fallback span after the kill ...
     first_fb = spans[0]
-    last_boundary = max(i for i in range(first_normal, first_fb) if i % m == 0)
-    assert first_fb - last_boundary <= 2 * m + 1  # ... noticed within two control periods
+    # ... noticed within one control period plus one plant step of the kill, counted in plant
+    # steps (issue 17; before: the last command drove about two more control periods). The
+    # liveliness lease (1 s = 2 plant steps) usually tells it sooner.
+    assert first_fb - n_kill <= m + 1, (first_fb, n_kill)
     assert not any(fb[-8:])  # ... and the restarted node took over
     log = plant.log_text()
-    assert 'no fresh command' in log and 'commands resumed' in log
+    assert "the controller's liveliness was lost" in log and 'commands resumed' in log
+    steps = first_fb - n_kill
+    print(f'\nkill -> fallback seen by the test {t_fallback - t_kill:.2f} s; plant steps after the kill {steps}')
     ts = bagio.load_run_timeseries(bag)
     assert np.all((ts['mdot_bl_kgps'] >= 0.05) & (ts['mdot_bl_kgps'] <= 0.17))
 
@@ -939,8 +956,8 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
         r = set_param('preview_timeout_s', 1.5, ParameterType.PARAMETER_DOUBLE)
         assert r.successful, r.reason
         _log_has(mpc, "parameters set: {'preview_timeout_s': 1.5}")
-        r = set_param('strategy', 'ceco-e', ParameterType.PARAMETER_STRING)
-        assert not r.successful and 'read-only' in r.reason
+        r = set_param('strategy', 'ceco-e', ParameterType.PARAMETER_STRING)  # configuration: not while active
+        assert not r.successful and 'set it while the node is unconfigured' in r.reason
         r = set_param('preview_timeout_s', -1.0, ParameterType.PARAMETER_DOUBLE)
         assert not r.successful
         # /diagnostics of the managed node follow its state
@@ -958,6 +975,17 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
         _wait_for(lambda: len(diags) > n_diag + 3, 30, 'diagnostics after cleanup')
         last = _diag_statuses(diags, 'mpc_node')[-1]
         assert last.level == b'\x01' and last.message.startswith('unconfigured: not commanding')
+        # reconfigured while unconfigured (issue 17 item 10): a new strategy, applied on configure
+        r = set_param('strategy', 'ceco-e', ParameterType.PARAMETER_STRING)
+        assert r.successful, r.reason
+        r = set_param('strategy', 'ceco-turbo', ParameterType.PARAMETER_STRING)  # still checked
+        assert not r.successful and 'ceco-turbo' in r.reason
+        assert lc.change('configure') and lc.change('activate')
+        n_old = len(cmds)
+        _wait_for(lambda: len(cmds) >= n_old + 3, 60, 'commands of the reconfigured node', procs)
+        assert {m.strategy for m in cmds[n_old:]} == {'ceco-e'} and {m.strategy for m in cmds[:n_old]} == {'ceco'}
+        assert 'ceco-e, Ts 5.0 s' in mpc.log_text()
+        assert lc.change('deactivate') and lc.change('cleanup')
         assert lc.change('shutdown') and lc.state() == 'finalized'
         assert mpc.running()
     finally:
@@ -968,7 +996,7 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
     assert mpc.returncode() == 0
     log = mpc.log_text()
     assert 'Traceback' not in log
-    assert log.count('active: commanding') == 2
+    assert log.count('active: commanding') == 3
     assert "inactive: not commanding; the plant's fallback law takes over" in log
     # every plant step's input within the actuator bounds, the bag complete
     ts = bagio.load_run_timeseries(bag)
@@ -984,7 +1012,7 @@ def test_diagnostics_under_forced_fallback(tmp_path):
     controller applies its production ACC law: its status is ERROR, names the fallback and
     carries the solve time, the deadline and the counts; the plant reports the controller's own
     fallback (WARN). Then the controller is killed: the plant's status turns to its own fallback
-    law (WARN) with the reason (watchdog or the QoS deadline on hvac/command)."""
+    law (WARN) with the reason (the controller's liveliness lost, or the command age)."""
     from diagnostic_msgs.msg import DiagnosticArray
 
     tn, rec, log_dir, bag = _recording_peer(tmp_path)
@@ -1068,7 +1096,7 @@ def test_diagnostics_under_forced_fallback(tmp_path):
     assert err.hardware_id == '/' and err.name == 'mpc_node: control'
     plant_fb = [st for st in _diag_statuses(diags, 'plant_node') if 'fallback: the production ACC law' in st.message]
     assert plant_fb[-1].level == b'\x01'
-    assert 'no fresh command' in plant_fb[-1].message or 'QoS deadline on hvac/command missed' in plant_fb[-1].message
+    assert "the controller's liveliness was lost" in plant_fb[-1].message or 'no fresh command' in plant_fb[-1].message
     assert _values(plant_fb[-1])['in_fallback'] == 'true'
     assert any(st.level == b'\x00' for st in _diag_statuses(diags, 'preview_node'))
     # about 1 Hz per node (steady clock), whatever /clock does
@@ -1116,9 +1144,8 @@ class _Fuzzer:
             interfaces.TOPIC_TRAFFIC: node.create_publisher(
                 TrafficPreview, interfaces.TOPIC_TRAFFIC, deep(interfaces.QOS_PREVIEW)
             ),
-            # the plant requests a deadline: a publisher must offer one to be matched at all
             interfaces.TOPIC_COMMAND: node.create_publisher(
-                AcCommand, interfaces.TOPIC_COMMAND, deep(interfaces.command_qos('realtime', 2 * ts))
+                AcCommand, interfaces.TOPIC_COMMAND, deep(interfaces.command_qos('realtime'))
             ),
         }
         self.counts = dict.fromkeys(self.pubs, 0)
@@ -1299,7 +1326,8 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
     tn.node.create_subscription(
         DiagnosticArray, interfaces.TOPIC_ROS_DIAGNOSTICS, diags.append, interfaces.QOS_DIAGNOSTICS
     )
-    fuzzer = _Fuzzer(tn.node, seed=20261201, ts=ts)
+    seed = int(os.environ.get('CECO_FUZZ_SEED', '20261201'))  # other seeds by hand (docs/ros.md)
+    fuzzer = _Fuzzer(tn.node, seed=seed, ts=ts)
     common = {'scenario': 'sc03', 'timing': 'realtime', 'control_period_s': ts}
     # Reader histories deep enough for the bursts (QoS overrides by parameter), so that every
     # injected message reaches a callback and the rejection counts can be compared with it.
@@ -1371,6 +1399,7 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
         _wait_for(lambda: recovered_at() is not None, 4 * ts, 'non-fallback control after the storm', procs)
         steps_to_recover, t_rec = recovered_at()
         time.sleep(2 * ts)  # two more control periods
+        t_stop = time.monotonic()  # the controller's stop is a loss of its liveliness: the plant falls back
     finally:
         for p in procs:
             p.stop()
@@ -1382,7 +1411,7 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
     assert all(0.05 <= m.blower_flow_kgps <= 0.17 and 3.0 <= m.evap_setpoint_c <= 10.0 for _, m in cmds if real(m))
     fb_during = sum(m.fallback for t, m in powers if t0 <= t <= t_end)
     assert steps_to_recover <= 2 * int(ts)  # within two control periods of plant steps
-    assert not any(m.fallback for t, m in powers if t > t_rec + 1.0)
+    assert not any(m.fallback for t, m in powers if t_rec + 1.0 < t < t_stop)
     assert n_real_during >= int(fuzz_s / ts) - 1  # mpc_node kept commanding through the storm
     # the controller itself is not degraded after the storm: no fallback, every solve succeeds
     after = [m for t, m in ctrl if t > t_end]
@@ -1404,7 +1433,8 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
     # no injected command was applied (their values are 0.1 kg/s, 5 degC; mpc_node's never are exactly)
     assert not any((m.mdot_bl_kgps, m.t_evap_sp_c) == (0.1, 5.0) for m in applied)
     print(
-        f'\nfuzz {fuzz_s:.0f} s: injected {injected} ({sum(injected.values())} messages); rejected {rejected}; '
+        f'\nfuzz seed {seed}, {fuzz_s:.0f} s: injected {injected} ({sum(injected.values())} messages); '
+        f'rejected {rejected}; '
         f'crashes 0; applied inputs out of bounds 0 of {len(applied)}; mpc_node commands during the storm '
         f'{n_real_during} (before: {n_real_before}); plant fallback steps during the storm {fb_during}; '
         f'recovered {steps_to_recover} plant steps ({t_rec - t_end:.1f} s) after the storm; controller steps after '

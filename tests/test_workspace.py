@@ -9,7 +9,15 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PYTHON_PKGS = ['ceco_core', 'ceco_ros', 'ceco_v2x_preview', 'ceco_plant_sim', 'ceco_controller', 'ceco_bringup']
+PYTHON_PKGS = [
+    'ceco_lint',
+    'ceco_core',
+    'ceco_ros',
+    'ceco_v2x_preview',
+    'ceco_plant_sim',
+    'ceco_controller',
+    'ceco_bringup',
+]
 NODE_PKGS = ['ceco_v2x_preview', 'ceco_plant_sim', 'ceco_controller', 'ceco_bringup']
 """The packages with executables (nodes, the ceco command)."""
 EMAIL = re.compile(r'^[^@\s]+@[^@\s]+\.[a-z]{2,}$')
@@ -46,6 +54,7 @@ def test_console_scripts_installed_where_ros2_run_looks(pkg):
 
 # --- the package dependency graph (docs/architecture.md) -----------------------------------------
 ALLOWED = {
+    'ceco_lint': set(),  # imported by the packages' tests only
     'ceco_core': set(),
     'ceco_ros': {'ceco_core', 'ceco_msgs'},
     'ceco_v2x_preview': {'ceco_core', 'ceco_ros', 'ceco_msgs'},
@@ -117,3 +126,40 @@ def test_the_pure_core_imports_no_ros_and_no_coolprop_and_the_controllers_no_pla
             if m.startswith('ceco_controller.'):
                 todo.append(m.split('.')[1])
     assert {'mpc_node', 'nmpc', 'factory', 'estimator'} <= seen
+
+
+def test_colcon_test_runs_each_packages_own_tests(tmp_path):
+    """`colcon test` (as a ROS 2 developer runs it) finds and runs tests in every package: each
+    ament_python package's lint (ceco_lint) through pytest, ceco_msgs' interface test through ctest;
+    `colcon test-result` counts them. (The packages' other tests run here in the whole suite.)"""
+    import subprocess
+
+    results, logs = tmp_path / 'results', tmp_path / 'log'
+    env = dict(os.environ, PYTHONDONTWRITEBYTECODE='1')
+    cmd = ['colcon', '--log-base', str(logs), 'test', '--test-result-base', str(results)]
+    done = subprocess.run(
+        # each package's package.xml check (its other tests run in this suite directly), ceco_msgs' ctest
+        [*cmd, '--pytest-args', '-k', 'declared_imports or msgs', '-p', 'no:cacheprovider'],
+        cwd=ROOT / 'ros_ws',
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    summary = subprocess.run(
+        ['colcon', 'test-result', '--test-result-base', str(results), '--all'],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    ).stdout
+    counts = {}
+    for line in summary.splitlines():
+        m = re.match(r'^\S*/(ceco_\w+)/\S+: (\d+) tests?, (\d+) errors?, (\d+) failures?, (\d+) skipped', line)
+        if m:
+            counts[m[1]] = counts.get(m[1], 0) + int(m[2])
+            assert m.groups()[2:] == ('0', '0', '0'), line
+    assert set(counts) == set(PYTHON_PKGS) | {'ceco_msgs'}, summary
+    assert all(n >= 1 for n in counts.values()), counts

@@ -1,9 +1,10 @@
 """Write rosbag2 bags the way Jazzy's rosbag2 does, with rosbags (no rclpy needed).
 
 A bag is a rosbag2 directory: ``metadata.yaml`` (metadata version 9, the format
-Jazzy's ``ros2 bag record`` writes and ``ros2 bag info`` reads) beside one storage
-file, MCAP (``<bag>/<bag>.mcap``, Jazzy's default storage) or SQLite 3
-(``<bag>/<bag>.db3``). Topic names are stored as given: the recorder passes the
+Jazzy's ``ros2 bag record`` writes and ``ros2 bag info`` reads, with ``ros_distro`` from
+``ROS_DISTRO`` as rosbag2's SequentialWriter stores it) beside one storage file named as
+rosbag2 names its first file (``<bag>/<bag>_0.mcap``, MCAP, Jazzy's default storage, or
+``<bag>/<bag>_0.db3``, SQLite 3). Topic names are stored as given: the recorder passes the
 fully qualified names (``/cabin/state``, ``/veh1/cabin/state``), as
 ``ros2 bag record`` does.
 
@@ -45,6 +46,8 @@ __all__ = [
     'BagWriter',
     'SimTimeStamps',
     'cdr_leading_time_ns',
+    'storage_file_name',
+    'ros_distro',
 ]
 
 STORAGES = ('mcap', 'sqlite3')
@@ -61,6 +64,24 @@ RMW_DURATION_INFINITE = (9223372036, 854775807)
 """(sec, nsec) of an infinite QoS duration as Jazzy's rmw reports it and rosbag2 stores it."""
 
 _PLUGINS = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
+
+
+def storage_file_name(bag_dir: str | os.PathLike, storage: str = STORAGES[0]) -> str:
+    """The name of a bag's first storage file as rosbag2 writes it: ``<bag dir name>_0.<mcap|db3>``.
+
+    rosbag2's ``SequentialWriter::format_storage_uri`` (Jazzy) appends ``_<file index>`` to the
+    bag directory's name; the storage plugin adds its extension.
+    """
+    return f'{Path(bag_dir).name}_0.{"db3" if storage == "sqlite3" else "mcap"}'
+
+
+def ros_distro() -> str:
+    """The ``ros_distro`` rosbag2 stores in metadata.yaml: ``ROS_DISTRO`` of the environment.
+
+    rosbag2's SequentialWriter reads the variable and stores '' when it is unset; a ceco bag
+    is a Jazzy bag, so 'jazzy' then.
+    """
+    return os.environ.get('ROS_DISTRO') or 'jazzy'
 
 
 class _KeepOpen:
@@ -87,6 +108,10 @@ class _FlushableMcapWriter(McapWriter):
 
     def __init__(self, path: Path, compression) -> None:
         super().__init__(path, compression)
+        # rosbags names the file <bag>.mcap; rosbag2 <bag>_0.mcap. The open handle survives the rename.
+        renamed = path / storage_file_name(path, 'mcap')
+        self.path.rename(renamed)
+        self.path = renamed
         self._tail_at: int | None = None  # file offset of the summary tail on disk, if any
         self._meta: tuple[int, str] = (BAG_VERSION, '')
 
@@ -173,9 +198,13 @@ class BagWriter:
             # from its executor thread and closes from the main thread (callers
             # serialise access), so reopen the (already initialised) database
             # without the same-thread check.
+            # Renamed to rosbag2's <bag>_0.db3 while closed.
             st = self._writer.storage
             st.conn.commit()
             st.conn.close()
+            renamed = self.path / storage_file_name(self.path, 'sqlite3')
+            st.path.rename(renamed)
+            st.path = renamed
             st.conn = sqlite3.connect(f'file:{st.path}', uri=True, check_same_thread=False)
             st.cursor = st.conn.cursor()
         self._connections: dict = {}
@@ -345,7 +374,7 @@ def _metadata(writer) -> dict:
                 }
             ],
             'custom_data': writer.custom_data or None,
-            'ros_distro': 'rosbags',
+            'ros_distro': ros_distro(),
         }
     }
 

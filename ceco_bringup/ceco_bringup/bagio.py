@@ -64,17 +64,45 @@ def _msg_dir() -> Path:
     return src
 
 
+LEGACY_ACCOMMAND = 'ceco_msgs_legacy/msg/AcCommand'
+"""The AcCommand of bags recorded before ``epoch`` / ``sequence`` were added (issue 17)."""
+_LEGACY_ACCOMMAND_MSG = """std_msgs/Header header
+uint32 step_index
+float64 control_period_s
+float64 blower_flow_kgps
+float64 evap_setpoint_c
+string strategy
+bool fallback
+"""
+
+
 @functools.lru_cache(maxsize=1)
 def typestore():
-    """A rosbags typestore with the ROS 2 Jazzy types plus every ceco_msgs type."""
+    """A rosbags typestore with the ROS 2 Jazzy types, every ceco_msgs type and the older AcCommand."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     store = get_typestore(Stores.ROS2_JAZZY)
-    types = {}
+    types = get_types_from_msg(_LEGACY_ACCOMMAND_MSG, LEGACY_ACCOMMAND)
     for path in sorted(_msg_dir().glob('*.msg')):
         types.update(get_types_from_msg(path.read_text(), f'ceco_msgs/msg/{path.stem}'))
     store.register(types)
     return store
+
+
+def deserialize(raw: bytes, msgtype: str):
+    """A CDR message of ``msgtype``; an AcCommand of the older format (no epoch / sequence) gets both as 0.
+
+    The older format is told by its length: it ends where the current one carries the two fields.
+    """
+    store = typestore()
+    if msgtype != 'ceco_msgs/msg/AcCommand':
+        return store.deserialize_cdr(raw, msgtype)
+    try:
+        return store.deserialize_cdr(raw, msgtype)
+    except Exception:  # rosbags reads past the end of an older message
+        old = store.deserialize_cdr(raw, LEGACY_ACCOMMAND)
+        fields = {name: getattr(old, name) for name in old.__dataclass_fields__ if name != '__msgtype__'}
+        return store.types[msgtype](**fields, epoch=0, sequence=0)
 
 
 # --- Names ---------------------------------------------------------------------
@@ -178,9 +206,8 @@ def read_messages(
 
     ``name`` as in :func:`read_raw`.
     """
-    store = typestore()
     for name, t_ns, raw, msgtype in _records(bag_dir, topics, namespace):
-        yield name, t_ns, store.deserialize_cdr(raw, msgtype)
+        yield name, t_ns, deserialize(raw, msgtype)
 
 
 def topic_counts(bag_dir) -> dict[str, int]:
@@ -253,9 +280,13 @@ def load_commands(bag_dir, topic: str = TOPIC_COMMAND, namespace: str | None = N
     """Every AcCommand in the bag, in bag order.
 
     Columns `k`, `t_s` (header stamp), `mdot_bl_kgps`, `t_evap_sp_c`, `strategy`
-    (str array), `fallback`, `t_recv_ns` (bag timestamp).
+    (str array), `fallback`, `t_recv_ns` (bag timestamp), `epoch`, `sequence` (the sending
+    controller's activation and the command's number; 0 in bags of before they existed).
     """
-    cols = {c: [] for c in ('k', 't_s', 'mdot_bl_kgps', 't_evap_sp_c', 'strategy', 'fallback', 't_recv_ns')}
+    cols = {
+        c: []
+        for c in ('k', 't_s', 'mdot_bl_kgps', 't_evap_sp_c', 'strategy', 'fallback', 't_recv_ns', 'epoch', 'sequence')
+    }
     for _, t_ns, m in read_messages(bag_dir, (topic,), namespace):
         cols['k'].append(m.step_index)
         cols['t_s'].append(s_from_stamp(m.header.stamp))
@@ -264,6 +295,8 @@ def load_commands(bag_dir, topic: str = TOPIC_COMMAND, namespace: str | None = N
         cols['strategy'].append(m.strategy)
         cols['fallback'].append(m.fallback)
         cols['t_recv_ns'].append(t_ns)
+        cols['epoch'].append(m.epoch)
+        cols['sequence'].append(m.sequence)
     return {
         'k': np.asarray(cols['k'], dtype=np.int64),
         't_s': np.asarray(cols['t_s'], dtype=float),
@@ -272,6 +305,8 @@ def load_commands(bag_dir, topic: str = TOPIC_COMMAND, namespace: str | None = N
         'strategy': np.asarray(cols['strategy'], dtype=str),
         'fallback': np.asarray(cols['fallback'], dtype=bool),
         't_recv_ns': np.asarray(cols['t_recv_ns'], dtype=np.int64),
+        'epoch': np.asarray(cols['epoch'], dtype=np.uint64),
+        'sequence': np.asarray(cols['sequence'], dtype=np.int64),
     }
 
 

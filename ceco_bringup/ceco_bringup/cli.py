@@ -8,6 +8,7 @@ ceco benchmark  named test cases, baseline family, savings at matched comfort
 ceco sim      one closed-loop run in-process (no ROS)
 ceco identify identify the control-oriented model from plant data
 ceco bench    solver benchmarks
+ceco security create-keystore DIR: an SROS2 keystore with ceco's access control
 """
 
 import importlib
@@ -22,6 +23,7 @@ VERBS = {
     'sim': ('ceco_bringup.sim', 'one closed-loop run in-process (no ROS)'),
     'identify': ('ceco_controller.identification', 'identify the control-oriented model'),
     'bench': ('ceco_controller.bench', 'solver benchmarks (ceco bench nmpc)'),
+    'security': ('ceco_bringup.security', 'SROS2 keystore (ceco security create-keystore DIR)'),
 }
 
 

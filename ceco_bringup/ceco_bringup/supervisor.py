@@ -174,7 +174,8 @@ STACK_NODES = {
     'baseline_node': 'ceco_controller',
     'plant_node': 'ceco_plant_sim',
 }
-"""The stack's executables and their packages (the launch file's ``NODES``; tests/test_launch.py checks they agree)."""
+"""The stack's executables and their packages (the launch file's ``NODES``; ceco_bringup/test/test_launch.py
+checks they agree)."""
 
 
 def stack_node(

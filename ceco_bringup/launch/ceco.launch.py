@@ -3,30 +3,52 @@
     ros2 launch ceco_bringup ceco.launch.py strategy:=ceco-ioch
     ros2 launch ceco_bringup ceco.launch.py namespace:=veh1 timing:=realtime record:=true
     ros2 launch ceco_bringup ceco.launch.py --show-args
+    ros2 launch ceco_bringup ceco.launch.py --print-description
 
 Starts the nodes `ceco run` starts with the same parameter files
 (share/<package>/config/<node>.yaml, keyed `/**/<node>` so they apply in
 any namespace): preview_node, the controller (mpc_node; baseline_node for
-strategy:=baseline; a managed node, started with autostart:=true) and
-plant_node. In lockstep the plant drives /clock and
-the other two follow it (use_sim_time). record:=true adds `ros2 bag record`
-(mcap) of the stack's topics, fully qualified, and makes the plant wait for
-the recorder's subscriptions as under `ceco run`, so the bag starts at step 0
-(if the recorder exits, everything stops).
-Unlike `ceco run` it computes no metrics and keeps running after the drive
-(the plant idles); Ctrl-C stops every process. Arguments: docs/ros.md, "Launch".
+strategy:=baseline; a managed node, a launch_ros LifecycleNode) and plant_node.
+In lockstep the plant drives /clock and the other two follow it (use_sim_time).
+record:=true adds `ros2 bag record` (mcap) of the stack's topics, fully
+qualified, and makes the plant wait for the recorder's subscriptions as under
+`ceco run` (share/ceco_bringup/config/recorder_gate_true.yaml), so the bag
+starts at step 0 (if the recorder exits, everything stops). security:=true
+runs every node in its SROS2 enclave of keystore:=DIR (`ceco security
+create-keystore DIR`). Every choice is a substitution or a condition, so
+`--print-description` shows every process. Unlike `ceco run` it computes no
+metrics and keeps running after the drive (the plant idles); Ctrl-C stops every
+process. ceco.launch.xml is the same stack in the XML front-end. Arguments:
+docs/ros.md, "Launch".
 """
 
-import os
-
-from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, ExecuteProcess, OpaqueFunction, Shutdown
-from launch.substitutions import LaunchConfiguration
-from launch_ros.actions import Node
+from launch.actions import (
+    DeclareLaunchArgument,
+    ExecuteProcess,
+    LogInfo,
+    RegisterEventHandler,
+    SetEnvironmentVariable,
+    SetLaunchConfiguration,
+    Shutdown,
+)
+from launch.conditions import IfCondition, UnlessCondition
+from launch.substitutions import (
+    AndSubstitution,
+    EqualsSubstitution,
+    IfElseSubstitution,
+    LaunchConfiguration,
+    NotSubstitution,
+    PathJoinSubstitution,
+    PythonExpression,
+)
+from launch_ros.actions import LifecycleNode, Node
+from launch_ros.event_handlers import OnStateTransition
+from launch_ros.parameter_descriptions import ParameterFile, ParameterValue
+from launch_ros.substitutions import FindPackageShare
 
 # Equal to ceco_core.contracts.STRATEGIES, ceco_core.control_grid.TIMING_MODES and
-# ceco_ros.interfaces.STACK_TOPICS (tests/test_launch.py checks all three).
+# ceco_ros.interfaces.STACK_TOPICS (ceco_bringup/test/test_launch.py checks all three).
 STRATEGIES = ('baseline', 'ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
 TIMING_MODES = ('lockstep', 'realtime')
 TOPICS = (
@@ -47,121 +69,137 @@ NODES = {
     'baseline_node': 'ceco_controller',
     'plant_node': 'ceco_plant_sim',
 }
-# The plant's start gate with a recorder (as `ceco run` sets it): preview node,
-# controller and recorder on cabin/state, the recorder on every plant output,
-# plant and recorder on hvac/command.
-RECORDER_GATE = {
-    'lockstep.min_state_subscribers': 3,
-    'lockstep.min_output_subscribers': 1,
-    'lockstep.min_command_subscribers': 2,
-}
-# The controller's side of it: a command waits until plant and recorder have matched its publisher.
-CONTROLLER_RECORDER_GATE = {'lockstep.min_command_subscribers': 2}
+ARGUMENTS = (
+    (
+        'namespace',
+        '',
+        None,
+        'ROS namespace of the nodes and their topics, e.g. veh1 (one vehicle of several in one domain)',
+    ),
+    ('strategy', 'ceco-ioch', STRATEGIES, 'controller: baseline (baseline_node) or a CECO strategy (mpc_node)'),
+    ('timing', 'lockstep', TIMING_MODES, 'lockstep: accelerated, the plant drives /clock; realtime: wall-clock timers'),
+    (
+        'use_sim_time',
+        'auto',
+        ('auto', 'true', 'false'),
+        'preview node and controller on /clock; auto: true in lockstep',
+    ),
+    ('scenario', 'sc03', None, 'scenario name (bundled) or path of a scenario YAML file'),
+    (
+        'record',
+        'false',
+        ('true', 'false'),
+        'true: ros2 bag record (mcap) of the stack topics into ./rosbag2_<date-time>',
+    ),
+    (
+        'autostart',
+        'true',
+        ('true', 'false'),
+        'true: the controller configures and activates itself; false: it waits for ros2 lifecycle set',
+    ),
+    ('security', 'false', ('true', 'false'), 'true: SROS2 (DDS security, Enforce), each node in its enclave'),
+    ('keystore', '', None, 'SROS2 keystore directory (ceco security create-keystore DIR); with security:=true'),
+)
+"""name, default, choices (None: free), description; declared in this order."""
+ENCLAVE_ROOT = '/ceco'
+"""Each node runs in the SROS2 enclave ENCLAVE_ROOT/<node> (ceco_bringup.security)."""
 
 
 def generate_launch_description() -> LaunchDescription:
-    """The launch arguments (namespace, strategy, timing, use_sim_time, scenario, record) and the stack.
+    """The launch arguments, the resolved choices, the environment and the four node actions plus the recorder."""
+    cfg = {name: LaunchConfiguration(name) for name, *_ in ARGUMENTS}
+    is_baseline = EqualsSubstitution(cfg['strategy'], 'baseline')
+    share = {pkg: FindPackageShare(pkg) for pkg in set(NODES.values()) | {'ceco_bringup'}}
+    # the recorder's start gate: the plant and the controller wait for its subscriptions (true) or not (false)
+    gate = ParameterFile(
+        [PathJoinSubstitution([share['ceco_bringup'], 'config', 'recorder_gate_']), cfg['record'], '.yaml']
+    )
+    common = {'scenario': cfg['scenario'], 'timing': cfg['timing']}
+    follower = dict(common, use_sim_time=ParameterValue(LaunchConfiguration('sim_time'), value_type=bool))
+    managed = dict(follower, autostart=ParameterValue(cfg['autostart'], value_type=bool))
 
-    The processes are built by :func:`_stack` once the arguments are resolved (module docstring).
-    """
+    def node(name, params, extra_files=(), action=Node, **kwargs):
+        pkg = NODES[name]
+        files = [PathJoinSubstitution([share[pkg], 'config', f'{name}.yaml']), *extra_files]
+        return action(
+            package=pkg,
+            executable=name,
+            name=name,
+            namespace=cfg['namespace'],
+            parameters=[*files, params],
+            ros_arguments=['--enclave', f'{ENCLAVE_ROOT}/{name}'],
+            output='screen',
+            **kwargs,
+        )
+
+    mpc = node(
+        'mpc_node',
+        dict(managed, strategy=cfg['strategy']),
+        [gate],
+        LifecycleNode,
+        condition=UnlessCondition(is_baseline),
+    )
+    baseline = node('baseline_node', managed, [gate], LifecycleNode, condition=IfCondition(is_baseline))
+    active = [
+        RegisterEventHandler(
+            OnStateTransition(
+                target_lifecycle_node=controller,
+                goal_state='active',
+                entities=[LogInfo(msg=f'{name} is active: commanding the plant')],
+            )
+        )
+        for name, controller in (('mpc_node', mpc), ('baseline_node', baseline))
+    ]
     return LaunchDescription(
         [
-            DeclareLaunchArgument(
-                'namespace',
-                default_value='',
-                description='ROS namespace of the nodes and their topics, e.g. veh1 '
-                '(one vehicle of several in one domain; realtime timing)',
+            *(
+                DeclareLaunchArgument(
+                    name, default_value=default, description=text, **({'choices': list(ch)} if ch else {})
+                )
+                for name, default, ch, text in ARGUMENTS
             ),
-            DeclareLaunchArgument(
-                'strategy',
-                default_value='ceco-ioch',
-                choices=list(STRATEGIES),
-                description='controller: baseline (baseline_node) or a CECO strategy (mpc_node)',
+            # auto: true in lockstep (the plant publishes /clock and never follows it)
+            SetLaunchConfiguration(
+                'sim_time',
+                IfElseSubstitution(
+                    EqualsSubstitution(cfg['use_sim_time'], 'auto'),
+                    EqualsSubstitution(cfg['timing'], 'lockstep'),
+                    cfg['use_sim_time'],
+                ),
             ),
-            DeclareLaunchArgument(
-                'timing',
-                default_value='lockstep',
-                choices=list(TIMING_MODES),
-                description='lockstep: accelerated, the plant drives /clock; '
-                'realtime: wall-clock timers, as on a vehicle',
+            # '' -> '/', 'veh2' or '/veh2/' -> '/veh2/': the recorder's fully qualified topic names
+            SetLaunchConfiguration(
+                'topic_prefix',
+                PythonExpression(["'/' + ''.join(p + '/' for p in ['", cfg['namespace'], "'.strip('/')] if p)"]),
             ),
-            DeclareLaunchArgument(
-                'use_sim_time',
-                default_value='auto',
-                choices=['auto', 'true', 'false'],
-                description='preview node and controller on /clock; auto: true in lockstep',
+            *(
+                SetEnvironmentVariable(var, value, condition=IfCondition(cfg['security']))
+                for var, value in (
+                    ('ROS_SECURITY_ENABLE', 'true'),
+                    ('ROS_SECURITY_STRATEGY', 'Enforce'),
+                    ('ROS_SECURITY_KEYSTORE', cfg['keystore']),
+                )
             ),
-            DeclareLaunchArgument(
-                'scenario', default_value='sc03', description='scenario name (bundled) or path of a scenario YAML file'
-            ),
-            DeclareLaunchArgument(
-                'record',
-                default_value='false',
-                choices=['true', 'false'],
-                description='true: ros2 bag record (mcap) of the stack topics into ./rosbag2_<date-time>',
-            ),
-            OpaqueFunction(function=_stack),
+            node('preview_node', follower),
+            mpc,
+            baseline,
+            node('plant_node', common, [gate]),
+            *active,
+            _recorder(True, AndSubstitution(cfg['record'], LaunchConfiguration('sim_time'))),
+            _recorder(False, AndSubstitution(cfg['record'], NotSubstitution(LaunchConfiguration('sim_time')))),
         ]
     )
 
 
-def _stack(context):
-    """The processes for the resolved launch arguments."""
-
-    def arg(name):
-        return LaunchConfiguration(name).perform(context)
-
-    ns = arg('namespace').strip('/')
-    timing = arg('timing')
-    use_sim_time = timing == 'lockstep' if arg('use_sim_time') == 'auto' else arg('use_sim_time') == 'true'
-    record = arg('record') == 'true'
-    common = {'scenario': arg('scenario'), 'timing': timing}
-    follower = dict(common, use_sim_time=use_sim_time)  # the plant publishes /clock, never follows it
-    # The controllers are managed (lifecycle) nodes: autostart makes them configure and activate
-    # themselves (`ros2 lifecycle get /mpc_node` then says active); `ceco run` drives them instead.
-    managed = dict(follower, autostart=True, **(CONTROLLER_RECORDER_GATE if record else {}))
-    if arg('strategy') == 'baseline':
-        controller = _node('baseline_node', ns, managed)
-    else:
-        controller = _node('mpc_node', ns, dict(managed, strategy=arg('strategy')))
-    actions = [
-        _node('preview_node', ns, follower),
-        controller,
-        _node('plant_node', ns, dict(common, **(RECORDER_GATE if record else {}))),
-    ]
-    if record:
-        prefix = f'/{ns}/' if ns else '/'
-        topics = [t if t.startswith('/') else prefix + t for t in TOPICS]
-        actions.append(
-            ExecuteProcess(
-                cmd=[
-                    'ros2',
-                    'bag',
-                    'record',
-                    '-s',
-                    'mcap',
-                    *(['--use-sim-time'] if use_sim_time else []),
-                    '--topics',
-                    *topics,
-                ],
-                name='recorder',
-                output='screen',
-                # the plant waits for the recorder: without it the stack would stall, so stop
-                on_exit=[Shutdown(reason='the recorder (ros2 bag record) exited')],
-            )
-        )
-    return actions
-
-
-def _node(name, namespace, params):
-    """`name` from its package with its installed parameter file, then `params`."""
-    package = NODES[name]
-    params_file = os.path.join(get_package_share_directory(package), 'config', f'{name}.yaml')
-    return Node(
-        package=package,
-        executable=name,
-        name=name,
-        namespace=namespace,
-        parameters=[params_file, params],
+def _recorder(sim_time: bool, when) -> ExecuteProcess:
+    """`ros2 bag record` of the stack's topics, fully qualified (with ``--use-sim-time`` if ``sim_time``)."""
+    prefix = LaunchConfiguration('topic_prefix')
+    topics = [t if t.startswith('/') else [prefix, t] for t in TOPICS]
+    return ExecuteProcess(
+        cmd=['ros2', 'bag', 'record', '-s', 'mcap', *(['--use-sim-time'] if sim_time else []), '--topics', *topics],
+        name='recorder',
         output='screen',
+        condition=IfCondition(when),
+        # the plant waits for the recorder: without it the stack would stall, so stop
+        on_exit=[Shutdown(reason='the recorder (ros2 bag record) exited')],
     )

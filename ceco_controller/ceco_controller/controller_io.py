@@ -240,7 +240,7 @@ class ControllerRecord:
         self.last: dict | None = None
         """The last step (see :func:`controller_health`), None before the first."""
         self.counts = dict.fromkeys(('steps', 'fallback_steps', 'steps_without_previews', 'step_errors'), 0)
-        self.events = {'deadline_missed': 0, 'incompatible_qos': 0}
+        self.events = {'incompatible_qos': 0}
         self._reported = 0
 
     def step(self, k: int, step_time_ms: float, diag, no_previews: str) -> None:
@@ -309,7 +309,7 @@ def controller_health(
         ages_s: wall-clock age of the last accepted state/weather/traffic [s] (None: none yet).
         rejections: the rejection counts.
         new_rejections: rejections since the previous report [-].
-        events: QoS event counts (``deadline_missed``, ``incompatible_qos``).
+        events: QoS event counts (``incompatible_qos``).
         deadline_s: the whole step's deadline [s]: the controller's own step budget (the NMPC's
             ``SolverSettings.step_budget_s``) when it has one, else (None) the control period.
     """

@@ -16,11 +16,15 @@ from ceco_core.contracts import CECO_STRATEGIES, MEASUREMENT_MODES
 from ceco_core.control_grid import TIMING_MODES
 from ceco_ros.params import (
     CLOCK_AHEAD_PARAMETER,
+    CONTROL_PERIOD_RANGE_S,
     DIAGNOSTICS_PERIOD_PARAMETER,
+    HORIZON_RANGE,
     INPUT_WINDOW_PARAMETERS,
+    NMPC_CONTROL_PERIOD_RANGE_S,
     SHARED_FIELDS,
     NodeConfig,
     ParamSpec,
+    liveliness_parameter,
     log_throttle_parameter,
 )
 
@@ -28,7 +32,12 @@ __all__ = ['controller_parameters', 'ControllerNodeConfig', 'DYNAMIC']
 
 
 def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec, ...]:
-    """The parameter table of mpc_node (``fixed_strategy`` None) or baseline_node ('baseline')."""
+    """The parameter table of mpc_node (``fixed_strategy`` None) or baseline_node ('baseline').
+
+    The configuration (what configure builds: the controller, the inputs' gate, the entities) is
+    settable while the node is unconfigured and applied on the next configure (``at_configure``);
+    ``autostart`` and the /diagnostics period only at start; the rest at any time.
+    """
     strategy = (
         ()
         if fixed_strategy
@@ -37,19 +46,33 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
                 'strategy',
                 'ceco-ioch',
                 'CECO strategy: ceco (general), ceco-e (energy), ceco-c (comfort), ceco-ioch (speed-aware slack)',
+                choices=CECO_STRATEGIES,
+                at_configure=True,
             ),
         )
     )
     return strategy + (
-        ParamSpec('scenario', 'sc03', 'scenario name or YAML path: occupant (met, clo) and PMV comfort bounds'),
+        ParamSpec(
+            'scenario',
+            'sc03',
+            'scenario name or YAML path: occupant (met, clo) and PMV comfort bounds',
+            at_configure=True,
+        ),
         ParamSpec(
             'timing',
             'lockstep',
             'lockstep (event driven, deterministic) or realtime (timer every Ts on the node clock)',
             choices=TIMING_MODES,
+            at_configure=True,
         ),
-        ParamSpec('control_period_s', 5.0, 'control period Ts [s]', float_range=(0.1, 3600.0)),
-        ParamSpec('horizon_steps', 6, 'prediction horizon Np [steps]', int_range=(1, 200)),
+        ParamSpec(
+            'control_period_s',
+            5.0,
+            'control period Ts [s]' + ('' if fixed_strategy else '; a whole multiple of the control model step (5 s)'),
+            float_range=CONTROL_PERIOD_RANGE_S if fixed_strategy else NMPC_CONTROL_PERIOD_RANGE_S,
+            at_configure=True,
+        ),
+        ParamSpec('horizon_steps', 6, 'prediction horizon Np [steps]', int_range=HORIZON_RANGE, at_configure=True),
         ParamSpec(
             'controller_config',
             '',
@@ -57,6 +80,7 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
             "comfort-feedback PI; empty: the production law)"
             if fixed_strategy == 'baseline'
             else "NMPC settings file (solver, weights, bounds; empty: the package's config/controller.yaml)",
+            at_configure=True,
         ),
         ParamSpec(
             'measurements',
@@ -64,6 +88,7 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
             'full (every modelled state from cabin/state) or vehicle (only the '
             'production sensors; an EKF estimates the rest, ceco_controller.estimator)',
             choices=MEASUREMENT_MODES,
+            at_configure=True,
         ),
         ParamSpec(
             'autostart',
@@ -74,8 +99,10 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
         ParamSpec(
             'preview_timeout_s',
             2.0,
-            'lockstep: wall-clock wait for the previews of a step before solving without them [s]',
-            float_range=(0.01, 600.0),
+            'lockstep: wall-clock wait for the previews of a step before solving without them; realtime: '
+            'previews count as missed when none came for Ts + this [s]; keep it below the plant\'s '
+            'lockstep.command_timeout_s',
+            float_range=(0.1, 60.0),
             read_only=False,
         ),
         ParamSpec(
@@ -84,23 +111,23 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
             'lockstep: matched hvac/command subscriptions (the plant; ceco run: plant and recorder) before a '
             'command is sent; until then it is held, so no subscriber misses a step [-]',
             int_range=(1, 100),
+            at_configure=True,
         ),
         ParamSpec(
             'max_state_age_s',
             10.0,
-            'realtime: oldest usable cabin state, by its stamp [s]',
-            float_range=(0.01, 3600.0),
+            'realtime: oldest usable cabin state, by its stamp; at least Ts (a state of the current control '
+            'step is usable until the next one) [s]',
+            float_range=(0.1, 3600.0),
             read_only=False,
         ),
-        *INPUT_WINDOW_PARAMETERS,
+        *(dataclasses.replace(p, at_configure=True) for p in INPUT_WINDOW_PARAMETERS),
         CLOCK_AHEAD_PARAMETER,
         log_throttle_parameter(),
-        ParamSpec(
-            'qos.command_deadline_periods',
-            2.0,
-            'realtime: offered deadline of hvac/command [control '
-            'periods]; must not exceed the plant\'s fallback.command_timeout_periods',
-            float_range=(0.1, 1000.0),
+        liveliness_parameter(
+            'automatic liveliness lease offered on hvac/command and requested of the preview publishers: '
+            'a dead peer is known within it; at most Ts and at most the plant\'s qos.liveliness_lease_s [s]',
+            at_configure=True,
         ),
         DIAGNOSTICS_PERIOD_PARAMETER,
         ParamSpec(
@@ -159,8 +186,8 @@ class ControllerNodeConfig(NodeConfig):
     """realtime: how far a stamp may lead the node clock [s]."""
     log_throttle_s: float = 2.0
     """Shortest time between two log lines about one kind of rejection [s]."""
-    command_deadline_periods: float = 2.0
-    """realtime: offered deadline of hvac/command [control periods]."""
+    liveliness_lease_s: float = 1.0
+    """Automatic liveliness lease offered on hvac/command, requested of the preview publishers [s]."""
     diagnostics_period_s: float = 1.0
     """/diagnostics period [s]."""
     solve_time_warn_fraction: float = 0.5
@@ -168,7 +195,6 @@ class ControllerNodeConfig(NodeConfig):
 
     PARAM_FIELDS = {
         **SHARED_FIELDS,
-        'qos.command_deadline_periods': 'command_deadline_periods',
         'lockstep.min_command_subscribers': 'min_command_subscribers',
         'diagnostics.solve_time_warn_fraction': 'solve_time_warn_fraction',
     }
@@ -177,7 +203,7 @@ class ControllerNodeConfig(NodeConfig):
         'preview_timeout_s',
         'max_state_age_s',
         'window_s',
-        'command_deadline_periods',
+        'liveliness_lease_s',
         'diagnostics_period_s',
         'solve_time_warn_fraction',
     )
@@ -200,6 +226,21 @@ class ControllerNodeConfig(NodeConfig):
                 f'must be one of {", ".join(CECO_STRATEGIES)}'
             )
         super().validate()
+        ts = self.control_period_s
+        # Ranges derived from the others: values that would keep the node from commanding.
+        for name, value, floor, why in (
+            ('max_state_age_s', self.max_state_age_s, ts, 'a state of the current control step must stay usable'),
+            ('inputs.window_s', self.window_s, ts, 'the next control step\'s state must be inside the window'),
+        ):
+            if value < floor:
+                raise ValueError(
+                    f'invalid parameter {name}={value!r}: must be at least control_period_s={ts!r} ({why})'
+                )
+        if self.liveliness_lease_s > ts:
+            raise ValueError(
+                f'invalid parameter qos.liveliness_lease_s={self.liveliness_lease_s!r}: must be at most '
+                f'control_period_s={ts!r} (a dead controller is to be noticed within a control period)'
+            )
 
     @property
     def window_steps(self) -> int:

@@ -1,15 +1,8 @@
-"""mpc_node: a CECO NMPC strategy (ceco, ceco-e, ceco-c, ceco-ioch) as a managed node.
+"""mpc_node: a CECO NMPC strategy as a managed node (baseline_node: the same class, the ACC law).
 
-baseline_node is the same class with the production ACC law. Inputs ``cabin/state``,
-``v2x/weather_preview``, ``v2x/traffic_preview``; outputs ``hvac/command`` (tagged with the
-control step k), ``controller/diagnostics``, ``/diagnostics``. Lifecycle: configure loads the
-scenario, builds the controller (NLP) and solves one throw-away step; activate starts
-commanding; deactivate stops (the plant's fallback law takes over); cleanup/shutdown release
-everything. Timing: ``lockstep`` computes step k once its state and both previews are here
-(without previews after ``preview_timeout_s``); ``realtime`` every Ts of the node clock from
-the latest inputs. Checks, ordering, bookkeeping and health rules: the pure
-:mod:`ceco_controller.controller_io`; the controller's build, warm-up and step:
-:class:`ceco_controller.step_adapter.NodeController` (the simulator's observation and core).
+In: ``cabin/state``, the two previews (and their publishers' liveliness). Out: ``hvac/command``
+(step k, epoch, sequence; a liveliness lease), ``controller/diagnostics``, ``/diagnostics``.
+The logic: :class:`ceco_controller.controller_session.ControllerSession`; docs/ros.md.
 """
 
 from __future__ import annotations
@@ -17,15 +10,18 @@ from __future__ import annotations
 import time
 from functools import partial
 
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-
 import ceco_controller.controller_io as cio
-from ceco_controller.step_adapter import NodeController
+from ceco_controller.controller_session import ControllerSession, HeldCommand, StepResult
 from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficPreview, WeatherPreview
-from ceco_ros import conversions, interfaces, params
+from ceco_ros import conversions, interfaces
 from ceco_ros.diagnostics import DiagnosticsTimer
 from ceco_ros.node_base import FAILURE, ManagedNode
 from ceco_ros.node_main import run_node
+
+PREVIEWS = (
+    (WeatherPreview, interfaces.TOPIC_WEATHER, 'weather'),
+    (TrafficPreview, interfaces.TOPIC_TRAFFIC, 'traffic'),
+)
 
 
 class ControllerNode(ManagedNode):
@@ -34,86 +30,56 @@ class ControllerNode(ManagedNode):
     def __init__(self, node_name: str = 'mpc_node', fixed_strategy: str | None = None):
         super().__init__(node_name)
         specs = cio.controller_parameters(fixed_strategy)
-        self.config = cfg = cio.ControllerNodeConfig.from_params(params.declare_all(self, specs), fixed_strategy)
-        params.on_set(self, specs, self._set_params)
-        self.setup_tools(cfg.log_throttle_s)
-        self.ctl, self._held, self.record = None, None, cio.ControllerRecord()
-        self.inputs = cio.ControllerInputs(cfg, self.log, self._reset_core)
-        DiagnosticsTimer(
-            self,
-            lambda: [
-                (
-                    'control',
-                    self.record.health(
-                        self.lifecycle, self.config, self.inputs, self.wall_s(), self.ctl and self.ctl.step_budget_s
-                    ),
-                )
-            ],
-            cfg.diagnostics_period_s,
-        )
-        self.start_managed(cfg.autostart)
-        self.get_logger().info(f'{cfg.strategy}: unconfigured (autostart {cfg.autostart})')
+        cfg = self.use_params(specs, lambda v: cio.ControllerNodeConfig.from_params(v, fixed_strategy))
+        self.session, self._hold = ControllerSession(cfg, self.log, self.notice), HeldCommand()
+        name = self.get_fully_qualified_name()
+        health = partial(self.session.health, node_name=name)
+        DiagnosticsTimer(self, lambda: [('control', self._health(health))], cfg.diagnostics_period_s)
+        self.start_managed(cfg.autostart, cfg.strategy)
 
     def on_configure(self, state):
-        """Load the scenario, build the controller, solve once; create the entities."""
+        """Build the controller from the configuration, solve once; create the entities."""
         cfg, t0 = self.config, time.perf_counter()
         try:
-            self.ctl = NodeController(cfg)
+            warm = self.session.configure(cfg)
         except (ValueError, RuntimeError, OSError) as err:
             self.get_logger().error(f'configure failed: {err}')
             return FAILURE
-        rt, ovr = cfg.timing == 'realtime', interfaces.qos_overrides()
-        events = {'incompatible_qos': lambda _e: self._event('incompatible_qos')}
+        cmd_qos = interfaces.with_liveliness(interfaces.command_qos(cfg.timing), cfg.liveliness_lease_s)
         self._pubs = [
-            self.create_lifecycle_publisher(
-                AcCommand,
-                interfaces.TOPIC_COMMAND,
-                interfaces.command_qos(cfg.timing, cfg.command_deadline_periods * cfg.control_period_s),
-                event_callbacks=PublisherEventCallbacks(deadline=lambda _e: self._event('deadline_missed'), **events),
-                qos_overriding_options=interfaces.qos_overrides(deadline=rt),
-            ),
+            self.checked_lifecycle_publisher(AcCommand, interfaces.TOPIC_COMMAND, cmd_qos),
             self.create_lifecycle_publisher(
                 ControllerDiagnostics, interfaces.TOPIC_DIAGNOSTICS, interfaces.QOS_COMMAND
             ),
         ]
+        lease = cfg.liveliness_lease_s
         self._subs = [
-            self.create_subscription(
-                CabinState,
-                interfaces.TOPIC_STATE,
-                self._on_state,
-                interfaces.state_qos(cfg.timing),
-                qos_overriding_options=ovr,
-                event_callbacks=SubscriptionEventCallbacks(**events),
+            self.checked_subscription(
+                CabinState, interfaces.TOPIC_STATE, self._on_state, interfaces.state_qos(cfg.timing)
             ),
             *(
-                self.create_subscription(
-                    msg_type, topic, partial(self._on_preview, kind), interfaces.QOS_PREVIEW, qos_overriding_options=ovr
-                )
-                for msg_type, topic, kind in (
-                    (WeatherPreview, interfaces.TOPIC_WEATHER, 'weather'),
-                    (TrafficPreview, interfaces.TOPIC_TRAFFIC, 'traffic'),
-                )
+                self.checked_subscription(t, topic, partial(self._on_preview, k), interfaces.QOS_PREVIEW)
+                for t, topic, k in PREVIEWS
             ),
+            *(self.liveliness_probe(t, topic, lease, partial(self._preview_liveliness, k)) for t, topic, k in PREVIEWS),
         ]
-        self._timer = (
-            self.create_timer(cfg.control_period_s, self._on_timer)
-            if rt
-            else self.create_timer(0.05, self._run_ready, clock=self.steady)
+        rt = cfg.timing == 'realtime'
+        self._timer = self.create_timer(
+            cfg.control_period_s if rt else 0.05,
+            self._on_timer if rt else self._poll,
+            clock=None if rt else self.steady,
         )
-        self.get_logger().info(
-            f'configured in {time.perf_counter() - t0:.2f} s (controller built, first solve by '
-            f'{self.ctl.warm_up}): {cfg.strategy}, Ts {cfg.control_period_s} s, Np {cfg.horizon_steps}, timing '
-            f'{cfg.timing}, measurements {cfg.measurements}, scenario {self.ctl.scenario.name}'
-        )
+        self.get_logger().info(self.session.configured_line(warm, time.perf_counter() - t0))
         return self.configured()
 
     def on_activate(self, state):
-        """Start commanding (from a fresh controller state); a state that came while inactive is computed now."""
-        self._reset_core()
+        """Start commanding under a new epoch; a lockstep state that came while inactive is computed now."""
+        self.session.activate()
+        self._hold.clear()
         ret = super().on_activate(state)
-        self.get_logger().info('active: commanding')
+        self.get_logger().info(f'active: commanding (epoch {self.session.epoch:#018x})')
         if self.config.timing == 'lockstep':
-            self._run_ready()
+            self._poll()
         return ret
 
     def on_deactivate(self, state):
@@ -128,84 +94,54 @@ class ControllerNode(ManagedNode):
             self.destroy_subscription(sub)
         for pub in self._pubs:
             self.destroy_lifecycle_publisher(pub)
-        self.ctl = None
-        self.inputs.clear()
+        self.session.release()
 
-    # ----------------------------------------------------------------- inputs
+    # ------------------------------------------------------------ callbacks
     def _on_state(self, msg: CabinState) -> None:
-        if self.inputs.offer_state(msg, self.wall_s(), self.clock_s()):
-            if self.config.timing == 'lockstep':
-                self._run_ready()
-            elif self.inputs.due():  # realtime: a tick came before this control step's first state
-                self._on_timer()
+        self._publish(self.session.on_state(msg, self.wall_s(), self.clock_s(), self.active))
 
     def _on_preview(self, kind: str, msg) -> None:
-        if self.inputs.offer_preview(kind, msg, self.wall_s()) and self.config.timing == 'lockstep':
-            self._run_ready()
+        self._publish(self.session.on_preview(kind, msg, self.wall_s(), self.active))
 
-    def _run_ready(self) -> None:
-        """Lockstep: compute the waiting step when complete or overdue; inactive, inputs wait in the buffer.
-
-        A command computed before ``lockstep.min_command_subscribers`` subscriptions matched the
-        publisher (a plant or recorder that this node has not discovered yet: a volatile sample
-        would never reach it) is held and sent once they have: lockstep sends each command once.
-        """
-        if self.lifecycle == 'active':
-            if self._held is not None and not self._short_of_subscribers():
-                self._pubs[0].publish(self._held)
-                self._held = None
-            self._run(self.inputs.ready() or self.inputs.overdue(self.wall_s()))
+    def _preview_liveliness(self, kind: str, alive: int, lost: int) -> None:
+        self.session.preview_liveliness(kind, alive, lost, self.wall_s())
 
     def _on_timer(self) -> None:
-        si, why = self.inputs.realtime_step(self.clock_s())
-        if si is None and why and self.lifecycle == 'active':
-            self.notice('no-state', f'not commanding: {why}')
-        self._run(si)
+        self._publish(self.session.on_timer(self.clock_s(), self.active))
 
-    def _run(self, si: cio.StepInputs | None) -> None:
-        if si is None or self.lifecycle != 'active':
-            return
-        t0, cfg, stamp = time.perf_counter(), self.config, si.state.header.stamp
-        try:
-            cmd, diag, note = self.ctl.step(si, cfg)
-            if note:
-                self.notice('no-previews', f'step {si.k}: {note}: solving without previews')
-            fallback, ts = bool(diag.fallback), cfg.control_period_s
-            msg = conversions.command_msg(cmd, si.k, stamp, ts, cfg.strategy, fallback)
-            held = cfg.timing == 'lockstep' and self._short_of_subscribers()
-            self._held = msg if held else None
-            if not held:
-                self._pubs[0].publish(msg)
-            self._pubs[1].publish(conversions.diagnostics_msg(diag, stamp, cfg.strategy, ts))
-            self.record.step(si.k, (time.perf_counter() - t0) * 1e3, diag, note)
-            if fallback:
-                self.notice('fallback', f'step {si.k}: fallback {diag.fallback}: {diag.message}')
-        except Exception as err:  # one bad step must not take the node down
-            self.record.error(si.k, err)
-            self.get_logger().error(f'step {si.k} failed: {err!r}')
+    def _poll(self) -> None:
+        """lockstep: send a held command once its subscribers matched; compute a waiting, overdue step."""
+        for msg in self._hold.release(self.active and not self._short_of_subscribers()):
+            self._pubs[0].publish(msg)
+        self._publish(self.session.poll(self.wall_s(), self.active))
+
+    def _publish(self, results: list[StepResult]) -> None:
+        """Each step's command (lockstep: held until its subscribers matched, :class:`HeldCommand`), diagnostics."""
+        cfg = self.config
+        for r in results:
+            try:
+                msg = conversions.command_msg(
+                    r.command, r.k, r.stamp, cfg.control_period_s, cfg.strategy, r.fallback, r.epoch, r.sequence
+                )
+                for out in self._hold.offer(msg, cfg.timing == 'lockstep' and self._short_of_subscribers()):
+                    self._pubs[0].publish(out)
+                diag = conversions.diagnostics_msg(r.diagnostics, r.stamp, cfg.strategy, cfg.control_period_s)
+                self._pubs[1].publish(diag)
+            except Exception as err:  # one bad step must not take the node down
+                self.session.record.error(r.k, err)
+                self.get_logger().error(f'step {r.k}: publishing failed: {err!r}')
 
     # ------------------------------------------------------------------ glue
-    def _reset_core(self) -> None:
-        self._held = None
-        if self.ctl is not None:
-            self.ctl.reset()
-
-    def _set_params(self, changes: dict) -> str | None:
-        try:
-            self.config = self.config.replaced(changes)
-        except ValueError as err:
-            return str(err)
-        self.inputs.configure(self.config)
-        self.notices.throttle_s = self.config.log_throttle_s
-        self.get_logger().info(f'parameters set: {changes}')
-        return None
+    def config_changed(self) -> None:
+        """Parameter changes go to the session (configuration ones take effect on configure)."""
+        self.session.set_config(self.config)
 
     def _short_of_subscribers(self) -> bool:
         return self._pubs[0].get_subscription_count() < self.config.min_command_subscribers
 
-    def _event(self, name: str) -> None:
-        self.record.events[name] += 1
-        self.notice(name, f'QoS event: {name} (total {self.record.events[name]})')
+    def _health(self, health):
+        self.session.record.events.update(self.qos_events)
+        return health(self.lifecycle, self.wall_s())
 
 
 def main(args=None) -> int:

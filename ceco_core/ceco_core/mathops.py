@@ -15,6 +15,8 @@ Error bounds (exact, all ``k > 0``, ``eps > 0``):
 * ``softplus(x, k) = smooth_max(x, 0, k)``: ``max(x, 0) <= softplus <= max(x, 0) + ln(2)/k``.
 * ``smooth_abs(x, eps) = sqrt(x**2 + eps**2)``: ``|x| <= smooth_abs <= |x| + eps``
   (gap ``eps`` at 0, about ``eps**2 / (2|x|)`` for ``|x| >> eps``).
+* ``sigmoid(x, w) = 1 / (1 + exp(-x / w))``, a smooth unit step H(x):
+  ``|sigmoid - H(x)| <= exp(-|x| / w)`` (1/2 at ``x == 0``).
 """
 
 import math
@@ -31,6 +33,7 @@ __all__ = [
     "softplus",
     "smooth_abs",
     "smooth_clip",
+    "sigmoid",
     "LN2",
 ]
 
@@ -146,6 +149,22 @@ def smooth_clip(x, lo, hi, k):
     return smooth_min(smooth_max(x, lo, k), hi, k)
 
 
+def sigmoid(x, w):
+    """Smooth unit step: the logistic ``1 / (1 + exp(-x / w))``, computed as ``(1 + tanh(x / (2 w))) / 2``.
+
+    Args:
+        x: argument (float, numpy array or CasADi symbol); the step is at ``x = 0``.
+        w: width [unit of x], ``w > 0``.
+
+    Returns:
+        A C-infinity value in (0, 1) with ``|sigmoid - H(x)| <= exp(-|x| / w)`` (H = 0 below 0, 1 above).
+    """
+    if not w > 0:
+        raise ValueError(f"sigmoid: w must be > 0, got {w!r}")
+    ops = backend(x)
+    return 0.5 * (1.0 + ops.tanh(x / (2.0 * w)))
+
+
 def backend(*args):
     """Return the maths namespace for the given arguments.
 
@@ -166,4 +185,5 @@ for _ns in (_NUMPY_NS, _CASADI_NS):
     _ns.softplus = softplus
     _ns.smooth_abs = smooth_abs
     _ns.smooth_clip = smooth_clip
+    _ns.sigmoid = sigmoid
 del _ns

@@ -14,6 +14,8 @@ References:
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ceco_core import mathops
@@ -54,17 +56,23 @@ _WP = (
 """(a_i, exponent of tau) of the Wagner-Pruss saturation-pressure equation."""
 
 
-def _ln_pws(ops, t_k):
-    """Ln p_s [ln Pa] at T [K] and its derivative d ln p_s / dT [1/K] (Wagner-Pruss)."""
+def _ln_pws(ops, t_k, slope=True):
+    """Ln p_s [ln Pa] at T [K] and its derivative d ln p_s / dT [1/K] (Wagner-Pruss; None if not ``slope``)."""
     tau = 1.0 - t_k / _T_C_K
     f = 0.0
     df = 0.0
     for a, n in _WP:
         f = f + a * ops.power(tau, n)
-        df = df + a * n * ops.power(tau, n - 1.0)
+        if slope:
+            df = df + a * n * ops.power(tau, n - 1.0)
     ln_p = np.log(_P_C_PA) + _T_C_K / t_k * f
-    slope = -_T_C_K / (t_k * t_k) * f - df / t_k
-    return ln_p, slope
+    if not slope:
+        return ln_p, None
+    return ln_p, -_T_C_K / (t_k * t_k) * f - df / t_k
+
+
+_SCALARS = (float, np.float64)
+_NP = mathops.backend(0.0)
 
 
 def _check(ops, name, value):
@@ -87,10 +95,14 @@ def saturation_vapour_pressure_pa(t_c):
         t_c: air (or surface) temperature [degC]; valid from the triple point
             (0.01 degC) to 374 degC; below 0 degC it is used as the pressure over
             supercooled water (the WMO convention for relative humidity).
-    Returns p_ws [Pa]; within 1e-4 of IAPWS-95 (CoolProp) over 0.5..95 degC (tests/test_psychro.py).
+    Returns p_ws [Pa]; within 1e-4 of IAPWS-95 (CoolProp) over 0.5..95 degC (ceco_core/test/test_psychro.py).
     """
+    if type(t_c) in _SCALARS:  # one number (the plant's hot path): the same numpy operations, no array checks
+        if not math.isfinite(t_c):
+            raise ValueError(f"t_c must be finite (no NaN/inf), got {t_c!r}")
+        return _NP.exp(_ln_pws(_NP, np.float64(t_c) + ZERO_C_K, slope=False)[0])
     ops = mathops.backend(t_c)
-    return ops.exp(_ln_pws(ops, _check(ops, "t_c", t_c) + ZERO_C_K)[0])
+    return ops.exp(_ln_pws(ops, _check(ops, "t_c", t_c) + ZERO_C_K, slope=False)[0])
 
 
 def vapour_pressure_pa(t_c, rh):
@@ -138,7 +150,7 @@ def dew_point_c(p_w_pa, newton_steps=4):
     consistent) by ``newton_steps`` Newton steps on ``ln p_ws(t) - ln p_w`` from the
     Magnus estimate ``t0 = 243.04 x / (17.625 - x)``, ``x = ln(p_w / 610.94)``
     (Alduchov & Eskridge 1996). Four steps give |error| < 1e-9 K over -20..60 degC
-    (tests/test_psychro.py). A fixed step count keeps the function smooth for CasADi.
+    (ceco_core/test/test_psychro.py). A fixed step count keeps the function smooth for CasADi.
     ``p_w_pa`` must be > 0.
     """
     ops = mathops.backend(p_w_pa)

@@ -15,6 +15,8 @@ import math
 __all__ = [
     'Watchdog',
     'FallbackSupervisor',
+    'SourceGate',
+    'Liveliness',
     'Rejections',
     'reason_kind',
     'Health',
@@ -91,12 +93,113 @@ class FallbackSupervisor:
         return f'commands resumed at control step {k} from {strategy}: leaving fallback'
 
 
-REASON_KINDS = ('stale', 'future', 'duplicate')
+class SourceGate:
+    """Commands from one source only: the controller a plant is bound to, told apart by its epoch.
+
+    A ceco controller draws a random non-zero ``epoch`` at each activation and numbers its
+    commands ``sequence`` = 1, 2, ... (``ceco_msgs/AcCommand``); epoch 0 is a command without
+    them (an older controller, a third-party one that does not set them, a bag of before). The
+    first accepted command binds the gate to its epoch; from then on a command of another epoch
+    is *foreign* and one of the bound epoch whose sequence is not above the last accepted one is
+    a *duplicate* (a replay). The gate is released when the plant stops trusting the bound
+    source (its liveliness lost, no fresh command: the plant falls back); the next accepted
+    command binds it anew (a restarted controller has a new epoch).
+
+    Defence in depth, not authentication: a participant that reads ``hvac/command`` can copy the
+    epoch (DDS security, SROS2, is what stops it; docs/ros.md).
+
+    Args:
+        require_sequence: refuse epoch 0 (unsequenced) commands altogether, as foreign (the plant's default).
+    """
+
+    def __init__(self, require_sequence: bool = False):
+        self.require_sequence = bool(require_sequence)
+        self.epoch: int | None = None
+        """The bound epoch (0: an unsequenced source), None: not bound."""
+        self.last_sequence = 0
+        """Sequence of the last accepted command of the bound epoch [-]."""
+        self.n_bound = 0
+        """Times a source was bound [-]."""
+        self.n_unsequenced = 0
+        """Accepted commands without epoch/sequence [-]."""
+
+    def check(self, epoch: int, sequence: int) -> str | None:
+        """Why a command with ``epoch`` / ``sequence`` is refused ('foreign: ...', 'duplicate: ...'), or None."""
+        if epoch == 0 and self.require_sequence:
+            return (
+                'foreign: epoch 0, a command without a source epoch and sequence; this plant takes sequenced '
+                'commands only (commands.require_sequence): set AcCommand.epoch (random, non-zero, new at each '
+                'start) and AcCommand.sequence = 1, 2, ... (docs/benchmark.md)'
+            )
+        if self.epoch is None:
+            return None
+        if epoch != self.epoch:
+            bound = 'an unsequenced source (epoch 0)' if self.epoch == 0 else f'epoch {self.epoch:#018x}'
+            return f'foreign: epoch {epoch:#018x}, the plant is bound to {bound}'
+        if epoch != 0 and sequence <= self.last_sequence:
+            return f'duplicate: sequence {sequence} of epoch {epoch:#018x} is not above {self.last_sequence}'
+        return None
+
+    def accepted(self, epoch: int, sequence: int) -> str | None:
+        """A command passed :meth:`check` and every other check; returns the line to log when it binds."""
+        self.n_unsequenced += epoch == 0
+        self.last_sequence = sequence
+        if self.epoch == epoch:
+            return None
+        self.epoch = epoch
+        self.n_bound += 1
+        if epoch == 0:
+            return (
+                'bound to a command source without epoch/sequence: commands of another such source '
+                'cannot be told apart (set AcCommand.epoch, random and non-zero per activation, and '
+                'AcCommand.sequence = 1, 2, ...)'
+            )
+        return f'bound to the command source of epoch {epoch:#018x}'
+
+    def release(self) -> None:
+        """The bound source is no longer trusted (lost, silent); the next accepted command binds anew."""
+        self.epoch = None
+        self.last_sequence = 0
+
+
+class Liveliness:
+    """The liveliness of a topic's publishers, as DDS reports it (automatic liveliness, a lease).
+
+    A subscription that requests a liveliness lease gets ``liveliness_changed`` events with the
+    number of matched publishers alive and not alive; a publisher whose process died is not
+    alive once the lease has passed without its participant asserting it.
+    """
+
+    def __init__(self):
+        self.alive = 0
+        """Publishers alive [-]."""
+        self.n_lost = 0
+        """Times a publisher lost its liveliness [-]."""
+        self.lost_s: float | None = None
+        """When the latest loss was reported [s], None: none since the last publisher came alive."""
+        self.seen = False
+        """True once any publisher was alive."""
+
+    def changed(self, alive_count: int, not_alive_change: int, now_s: float) -> bool:
+        """A liveliness event; True when a publisher lost its liveliness or went away (fewer alive)."""
+        gained, fewer = alive_count > self.alive, alive_count < self.alive
+        self.alive = int(alive_count)
+        self.seen |= alive_count > 0
+        if not_alive_change > 0 or fewer:
+            self.n_lost += 1
+            self.lost_s = now_s
+            return True
+        if gained:
+            self.lost_s = None
+        return False
+
+
+REASON_KINDS = ('stale', 'future', 'duplicate', 'foreign')
 """Reasons of an out-of-order message, written ``'<kind>: ...'``; every other reason is 'invalid'."""
 
 
 def reason_kind(reason: str) -> str:
-    """The kind of a rejection reason: 'stale', 'future', 'duplicate' (its first word before ':'), else 'invalid'."""
+    """The kind of a rejection reason: its first word before ':' if one of :data:`REASON_KINDS`, else 'invalid'."""
     head = reason.split(':', 1)[0]
     return head if head in REASON_KINDS else 'invalid'
 

@@ -36,16 +36,21 @@ from dataclasses import fields
 
 from ceco_core.contracts import AcInput
 from ceco_core.contracts import check_finite as _check_finite
-from ceco_core.psychro import EPS_W as _EPS_W
-from ceco_core.psychro import relative_humidity, saturation_vapour_pressure_pa
+from ceco_core.psychro import relative_humidity
+from ceco_plant_sim.plant_equations import (
+    NO_GUESS,
+    Env,
+    Input,
+    NewtonCycle,
+    PlantEquations,
+    State,
+    blower_power_w,
+    compressor_model,
+    condenser_eps_c_wpk,
+)
 from ceco_plant_sim.plant_params import PlantParams
 from ceco_plant_sim.plant_state import PlantOutputs, PlantState, validate_environment
-from ceco_plant_sim.refrigerant import (
-    CompressorModel,
-    CycleSolution,
-    cycle_tables,
-    solve_cycle,
-)
+from ceco_plant_sim.refrigerant import CycleSolution, cycle_tables, solve_cycle
 
 __all__ = [
     "PlantState",
@@ -56,32 +61,7 @@ __all__ = [
     "steady_cycle_at_load",
 ]
 
-
-def condenser_eps_c_wpk(params: PlantParams, speed_mps: float) -> float:
-    """Condenser effectiveness x air heat-capacity rate [W/K] at vehicle speed ``speed_mps``.
-
-    Face velocity v = sqrt(v_fan^2 + (k_ram V)^2) (fan and ram pressure add
-    across the quadratic core resistance), mdot_air = rho A v, UA = UA_ref
-    (v / v_ref)^n, eps = 1 - exp(-UA / (mdot_air cp)) (condensing side
-    isothermal, C_r = 0; Incropera & DeWitt, eq. 11.35a).
-    """
-    p = params
-    v = math.sqrt(p.v_face_fan_mps**2 + (p.ram_face_ratio * speed_mps) ** 2)
-    c_air = p.rho_air_kgm3 * p.a_cond_face_m2 * v * p.cp_air_jpkgk
-    ua = p.ua_cond_ref_wpk * (v / p.v_face_ref_mps) ** p.ua_cond_exp
-    return c_air * (1.0 - math.exp(-ua / c_air))
-
-
-def _compressor_model(p: PlantParams) -> CompressorModel:
-    return CompressorModel(
-        displacement_m3=p.displacement_m3,
-        eta_vol_0=p.eta_vol_0,
-        eta_vol_slope=p.eta_vol_slope,
-        eta_is_max=p.eta_is_max,
-        eta_is_curv=p.eta_is_curv,
-        pr_opt=p.pr_opt,
-        eta_motor_inverter=p.eta_motor_inverter,
-    )
+_compressor_model = compressor_model  # the name tests/test_refrigerant.py imports
 
 
 def _tables(p: PlantParams):
@@ -136,6 +116,9 @@ def steady_cycle_at_load(
 class CabinPlant:
     """The cabin + A/C plant. ``step(command, env, dt_s)`` advances time with the command held.
 
+    The numeric evaluation of :class:`~ceco_plant_sim.plant_equations.PlantEquations` (the equations
+    written once; docs/plant.md).
+
     Args:
         params: the plant's :class:`PlantParams` (validated here).
         state: the initial :class:`PlantState`, e.g.
@@ -148,15 +131,12 @@ class CabinPlant:
         if not isinstance(state, PlantState):
             raise ValueError(f"state: must be PlantState, got {type(state).__name__}")
         self.params = params.validate()
-        self._x = state.validate().as_tuple()
+        self._x = State._make(state.validate().as_tuple())
         self._tab = _tables(params)
-        self._comp = _compressor_model(params)
-        self._guess: tuple[float, float] | None = None
+        self._eq = PlantEquations(self.params, NewtonCycle(self.params, self._tab))
+        self._guess = NO_GUESS
         self._t_s = 0.0
         self._last: PlantOutputs | None = None
-        p = params
-        self._m_air_kg = p.rho_air_kgm3 * p.cabin_volume_m3
-        self._c_cab_jpk = self._m_air_kg * p.cp_air_jpkgk
 
     # ------------------------------------------------------------------ API
     @property
@@ -195,35 +175,21 @@ class CabinPlant:
             raise ValueError(f"dt_s: must be > 0, got {dt}")
         if dt > 3600.0:
             raise ValueError(f"dt_s: must be <= 3600 s, got {dt}")
-        envt = validate_environment(env)
-        n_sub = max(1, math.ceil(dt / self.params.substep_s - 1e-9))
-        h = dt / n_sub
-        x = self._x
-        acc = [0.0] * 8  # e_comp, e_fan, q_evap_air, q_latent, q_ref [J]; water in, out, condensate [kg]
-        p_bl = self._blower_power_w(float(command.mdot_bl_kgps))
-        u = (float(command.mdot_bl_kgps), float(command.t_evap_sp_c), p_bl)
-        for _ in range(n_sub):
-            k1, a1 = self._rhs(x, u, envt)
-            x2 = tuple(xi + 0.5 * h * ki for xi, ki in zip(x, k1))
-            k2, a2 = self._rhs(x2, u, envt)
-            x3 = tuple(xi + 0.5 * h * ki for xi, ki in zip(x, k2))
-            k3, a3 = self._rhs(x3, u, envt)
-            x4 = tuple(xi + h * ki for xi, ki in zip(x, k3))
-            k4, a4 = self._rhs(x4, u, envt)
-            x = tuple(xi + h / 6.0 * (q1 + 2.0 * q2 + 2.0 * q3 + q4) for xi, q1, q2, q3, q4 in zip(x, k1, k2, k3, k4))
-            for j in range(8):
-                acc[j] += h / 6.0 * (a1[j] + 2.0 * a2[j] + 2.0 * a3[j] + a4[j])
+        env_v = Env._make(validate_environment(env))
+        u = Input(float(command.mdot_bl_kgps), float(command.t_evap_sp_c))
+        # the warm start is advanced by the RK4 stages only; the end-of-step report does not touch it, so
+        # splitting an interval into more calls of step() reproduces the same sub-step sequence bit for bit
+        x, acc, self._guess, _ = self._eq.step(self._x, u, env_v, dt, self._guess)
         for i, v in enumerate(x):
             if not math.isfinite(v):
                 raise RuntimeError(f"plant state {fields(PlantState)[i].name} became non-finite")
         self._x = x
         self._t_s += dt
-        e_comp, e_fan, e_q, e_lat, e_ref = acc[:5]
         out = dataclasses.replace(
-            self._outputs(x, u, envt, dt, e_comp, e_fan, e_q, e_lat, e_ref),
-            m_water_in_kg=acc[5],
-            m_water_out_kg=acc[6],
-            m_condensate_kg=acc[7],
+            self._outputs(x, u, env_v, dt, *acc[:5]),  # compressor, fan, evaporator, latent, refrigerant [J]
+            m_water_in_kg=acc.mdot_water_in_kgps,
+            m_water_out_kg=acc.mdot_water_out_kgps,
+            m_condensate_kg=acc.mdot_condensate_kgps,
         )
         self._last = out
         return out
@@ -239,35 +205,34 @@ class CabinPlant:
         if not isinstance(command, AcInput):
             raise ValueError(f"command: must be AcInput, got {type(command).__name__}")
         command.validate()
-        envt = validate_environment(env)
-        p_bl = self._blower_power_w(float(command.mdot_bl_kgps))
-        u = (float(command.mdot_bl_kgps), float(command.t_evap_sp_c), p_bl)
-        return self._outputs(self._x, u, envt, 0.0, *self._rhs(self._x, u, envt, final=True)[0][:5])
+        env_v = Env._make(validate_environment(env))
+        u = Input(float(command.mdot_bl_kgps), float(command.t_evap_sp_c))
+        flows = self._eq.rhs(self._x, u, blower_power_w(self.params, u.mdot_bl_kgps), env_v, self._guess)[1]
+        return self._outputs(self._x, u, env_v, 0.0, *flows[:5])
 
-    def _outputs(self, x, u, envt, dt, e_comp, e_fan, e_q, e_lat, e_ref) -> PlantOutputs:
+    def _outputs(self, x, u, env_v, dt, e_comp, e_fan, e_q, e_lat, e_ref) -> PlantOutputs:
         """Build PlantOutputs at state x: energies over dt (dt = 0: the arguments are instantaneous powers)."""
-        powers, alg = self._rhs(x, u, envt, final=True)
-        p_bl = u[2]
+        p_bl = blower_power_w(self.params, u.mdot_bl_kgps)
+        alg = self._eq.rhs(x, u, p_bl, env_v, self._guess)[2]
         if dt > 0.0:
             mean = (e_comp / dt, e_fan / dt, e_q / dt, e_lat / dt, e_ref / dt)
             energies = (e_comp, p_bl * dt)
         else:
             mean = (e_comp, e_fan, e_q, e_lat, e_ref)
             energies = (0.0, 0.0)
-        t_cab, t_int, t_sh, t_gl, t_ev, t_du, w_cab, _ = x
         return PlantOutputs(
-            t_cab_c=t_cab,
-            t_int_c=t_int,
-            t_shell_c=t_sh,
-            t_glass_c=t_gl,
-            t_evap_c=t_ev,
-            t_duct_c=t_du,
-            t_vent_c=alg["t_vent_c"],
-            t_evap_out_c=alg["t_evap_out_c"],
-            t_evap_sat_c=alg["t_evap_sat_c"],
-            t_cond_c=alg["t_cond_c"],
-            rh_cab=relative_humidity(t_cab, w_cab, self.params.p_atm_pa),
-            w_cab_kgkg=w_cab,
+            t_cab_c=x.t_cab_c,
+            t_int_c=x.t_int_c,
+            t_shell_c=x.t_shell_c,
+            t_glass_c=x.t_glass_c,
+            t_evap_c=x.t_evap_c,
+            t_duct_c=x.t_duct_c,
+            t_vent_c=alg.t_vent_c,
+            t_evap_out_c=alg.t_evap_out_c,
+            t_evap_sat_c=alg.t_evap_sat_c,
+            t_cond_c=alg.t_cond_c,
+            rh_cab=relative_humidity(x.t_cab_c, x.w_cab_kgkg, self.params.p_atm_pa),
+            w_cab_kgkg=x.w_cab_kgkg,
             p_comp_w=mean[0],
             p_blower_w=p_bl,
             p_cond_fan_w=mean[1],
@@ -277,179 +242,10 @@ class CabinPlant:
             q_latent_w=mean[3],
             q_evap_ref_w=mean[4],
             cop=(mean[4] / mean[0]) if mean[0] > 0.0 else 0.0,
-            comp_speed_rpm=alg["comp_speed_rpm"],
-            comp_duty=alg["comp_duty"],
-            capacity_limited=alg["capacity_limited"],
-            mop_active=alg["mop_active"],
-            mdot_ref_kgps=alg["mdot_ref_kgps"],
-            cycle_iterations=alg["iterations"],
+            comp_speed_rpm=alg.comp_speed_rpm,
+            comp_duty=alg.comp_duty,
+            capacity_limited=alg.capacity_limited,
+            mop_active=alg.mop_active,
+            mdot_ref_kgps=alg.mdot_ref_kgps,
+            cycle_iterations=alg.cycle_iterations,
         )
-
-    # -------------------------------------------------------------- physics
-    def _blower_power_w(self, mdot_kgps: float) -> float:
-        """Fan law: P = dp(mdot) * Vdot / eta + P_fixed, dp = dp_ref (mdot/mdot_ref)^2  =>  P ~ mdot^3."""
-        p = self.params
-        r = mdot_kgps / p.mdot_bl_ref_kgps
-        return p.dp_blower_ref_pa * r * r * (mdot_kgps / p.rho_air_kgm3) / p.eta_blower + p.p_blower_fixed_w
-
-    def _rhs(self, x, u, envt, final: bool = False):
-        p = self.params
-        t_cab, t_int, t_sh, t_gl, t_ev, t_du, w_cab, pi_i = x
-        mdot, t_sp, p_bl = u
-        t_amb, solar, speed, rh_amb = envt
-        cp_a = p.cp_air_jpkgk
-        wsat = saturation_vapour_pressure_pa
-        patm = p.p_atm_pa
-
-        # ambient humidity ratio
-        pw_amb = rh_amb * wsat(t_amb)
-        w_amb = _EPS_W * pw_amb / (patm - pw_amb)
-
-        # --- air loop: mixing box -> blower -> evaporator -> ducts -> vents
-        r = p.recirc_fraction
-        t_mix = r * t_cab + (1.0 - r) * t_amb
-        w_mix = r * w_cab + (1.0 - r) * w_amb
-        cp_m = cp_a + w_mix * p.cp_vap_jpkgk
-        c_air = mdot * cp_m
-        rr = mdot / p.mdot_bl_ref_kgps
-        t_in = t_mix + p_bl / c_air  # blow-through module: all blower power ends as heat in the air
-        ua_air = p.ua_evap_air_ref_wpk * rr**p.ua_evap_air_exp
-        bf = math.exp(-ua_air / c_air)  # bypass factor = 1 - effectiveness
-        t_out = t_ev + bf * (t_in - t_ev)
-        pws_w = wsat(t_ev)
-        w_sw = _EPS_W * pws_w / (patm - pws_w)
-        excess = w_mix - w_sw
-        w_out = w_mix - (1.0 - bf) * excess if excess > 0.0 else w_mix
-        q_sens = c_air * (t_in - t_out)
-        q_lat = mdot * (w_mix - w_out) * p.h_fg_jpkg
-        # HVAC case and ducts: the supply air exchanges with their wall, which exchanges with the panel
-        ua_da = p.ua_duct_air_ref_wpk * rr**p.ua_evap_air_exp
-        t_vent = t_out + (t_du - t_out) * (1.0 - math.exp(-ua_da / c_air))
-        q_duct = c_air * (t_vent - t_out)  # duct wall -> supply air
-        q_duct_int = p.ua_duct_wpk * (t_int - t_du)  # instrument panel (interior mass) -> duct wall
-
-        # --- compressor: A/C ECU PI on the evaporator wall temperature
-        err = t_ev - t_sp
-        n_cmd = p.comp_kp_rpm_per_k * err + pi_i
-        n_max = p.comp_speed_max_rpm
-        n_min = p.comp_speed_min_rpm
-        if n_cmd >= n_max:
-            n_run, duty = n_max, 1.0
-        elif n_cmd >= n_min:
-            n_run, duty = n_cmd, 1.0
-        elif n_cmd > 0.0:
-            n_run, duty = n_min, n_cmd / n_min
-        else:
-            n_run, duty = 0.0, 0.0
-        epsc = condenser_eps_c_wpk(p, speed)
-        sol = solve_cycle(
-            self._tab,
-            self._comp,
-            n_run,
-            t_ev,
-            p.ua_evap_ref_wpk,
-            t_amb,
-            epsc,
-            p.te_mop_c,
-            guess=self._guess,
-            tol_k=p.cycle_tol_k,
-            max_iter=p.cycle_max_iter,
-            pr_min=p.pr_min,
-        )
-        power_limited = False
-        if duty == 1.0 and sol.p_comp_w > p.p_comp_max_w:
-            # inverter power limit: the ECU lowers the speed until P_el = P_max. Secant iteration on
-            # P_el(N) - P_max from N and N*P_max/P_el(N); stops within 0.05 % of the limit (cap 6).
-            power_limited = True
-            n0, f0 = n_run, sol.p_comp_w - p.p_comp_max_w
-            n_run = n_run * p.p_comp_max_w / sol.p_comp_w
-            for _ in range(6):
-                sol = solve_cycle(
-                    self._tab,
-                    self._comp,
-                    n_run,
-                    t_ev,
-                    p.ua_evap_ref_wpk,
-                    t_amb,
-                    epsc,
-                    p.te_mop_c,
-                    guess=(sol.t_evap_sat_c, sol.t_cond_c),
-                    tol_k=p.cycle_tol_k,
-                    max_iter=p.cycle_max_iter,
-                    pr_min=p.pr_min,
-                )
-                f1 = sol.p_comp_w - p.p_comp_max_w
-                if abs(f1) < 5e-4 * p.p_comp_max_w or f1 == f0:
-                    break
-                n0, f0, n_run = n_run, f1, n_run - f1 * (n_run - n0) / (f1 - f0)
-        saturated_high = n_cmd >= n_max or power_limited
-        if (saturated_high and err > 0.0) or (n_cmd <= 0.0 and err < 0.0):
-            dpi = 0.0  # conditional integration (anti-windup)
-        else:
-            dpi = p.comp_ki_rpm_per_ks * err
-        if n_run > 0.0 and not final:
-            # warm start of the next solve; the end-of-step report does not touch it, so splitting
-            # an interval into more calls of step() reproduces the same sub-step sequence bit for bit
-            self._guess = (sol.t_evap_sat_c, sol.t_cond_c)
-        q_ref = duty * sol.q_evap_ref_w
-        p_comp = duty * sol.p_comp_w
-        p_fan = duty * p.p_cond_fan_w if n_run > 0.0 else 0.0
-
-        # --- cabin network
-        h_in = p.h_in_natural_wm2k + (p.h_in_forced_wm2k - p.h_in_natural_wm2k) * rr**0.8
-        h_out = p.h_out_natural_wm2k + p.h_out_speed_coef * speed**0.8
-        m_inf = p.infiltration_0_kgps + p.infiltration_per_mps_kgps * speed
-        g_int = h_in * p.a_int_m2
-        g_sh_in = p.u_shell_in_wm2k * p.a_shell_m2
-        g_gl_in = h_in * p.a_glass_m2
-        q_int_cab = g_int * (t_int - t_cab)
-        q_sh_cab = g_sh_in * (t_sh - t_cab)
-        q_gl_cab = g_gl_in * (t_gl - t_cab)
-        q_rad_sh = p.g_rad_int_shell_wpk * (t_int - t_sh)
-        q_rad_gl = p.g_rad_int_glass_wpk * (t_int - t_gl)
-        n_occ = p.n_occupants
-        cp_cab = cp_a + w_cab * p.cp_vap_jpkgk
-        d_cab = (
-            mdot * cp_cab * (t_vent - t_cab)
-            + m_inf * cp_cab * (t_amb - t_cab)
-            + q_int_cab
-            + q_sh_cab
-            + q_gl_cab
-            + n_occ * p.occ_sensible_w
-        ) / (self._m_air_kg * cp_cab)
-        # water balance of the cabin air [kg/s]: in with the fresh share of the supply, the leakage and
-        # the occupants; out with the exfiltrated air (both leave at the cabin state); the condensate
-        # leaves the supply air on the coil. (Identical to mdot (W_out - W_cab) + mdot_inf (W_amb - W_cab) + ...)
-        fresh = (1.0 - r) * mdot + m_inf
-        water_in = fresh * w_amb + n_occ * p.occ_latent_w / p.h_fg_jpkg
-        water_out = fresh * w_cab
-        condensate = mdot * (w_mix - w_out)
-        d_w = (water_in - water_out - condensate) / self._m_air_kg
-        d_int = (p.tau_glass * p.a_glass_sun_m2 * solar - q_int_cab - q_rad_sh - q_rad_gl - q_duct_int) / p.c_int_jpk
-        d_du = (q_duct_int - q_duct) / p.c_duct_jpk
-        d_sh = (
-            p.alpha_shell * p.a_shell_sun_m2 * solar + h_out * p.a_shell_m2 * (t_amb - t_sh) - q_sh_cab + q_rad_sh
-        ) / p.c_shell_jpk
-        d_gl = (
-            p.alpha_glass * p.a_glass_sun_m2 * solar + h_out * p.a_glass_m2 * (t_amb - t_gl) - q_gl_cab + q_rad_gl
-        ) / p.c_glass_jpk
-        d_ev = (q_sens + q_lat - q_ref) / p.c_evap_jpk
-
-        dx = (d_cab, d_int, d_sh, d_gl, d_ev, d_du, d_w, dpi)
-        powers = (p_comp, p_fan, q_sens + q_lat, q_lat, q_ref, water_in, water_out, condensate)
-        if not final:
-            return dx, powers
-        # final=True: the end-of-step / snapshot report (powers and algebraic variables, no derivatives)
-        alg = {
-            "t_vent_c": t_vent,
-            "t_evap_out_c": t_out,
-            "t_evap_sat_c": sol.t_evap_sat_c,
-            "t_cond_c": sol.t_cond_c,
-            "comp_speed_rpm": n_run,
-            "comp_duty": duty,
-            "capacity_limited": saturated_high,
-            "mop_active": sol.mop_active,
-            "mdot_ref_kgps": duty * sol.mdot_ref_kgps,
-            "iterations": sol.iterations,
-        }
-        return powers, alg

@@ -16,9 +16,17 @@ from typing import Any
 
 import ceco_ros.checks as checks
 from ceco_core.control_grid import TIMING_MODES, control_step_of
-from ceco_core.supervision import FallbackSupervisor, Health, Rejections, Watchdog, reason_kind
+from ceco_core.supervision import FallbackSupervisor, Health, Liveliness, Rejections, SourceGate, Watchdog, reason_kind
 from ceco_core.units import s_from_stamp
-from ceco_ros.params import DIAGNOSTICS_PERIOD_PARAMETER, SHARED_FIELDS, NodeConfig, ParamSpec, log_throttle_parameter
+from ceco_ros.params import (
+    CONTROL_PERIOD_RANGE_S,
+    DIAGNOSTICS_PERIOD_PARAMETER,
+    SHARED_FIELDS,
+    NodeConfig,
+    ParamSpec,
+    liveliness_parameter,
+    log_throttle_parameter,
+)
 from ceco_ros.topics import TOPIC_COMMAND
 
 __all__ = [
@@ -41,14 +49,18 @@ PLANT_PARAMETERS: tuple[ParamSpec, ...] = (
     ),
     ParamSpec('plant_dt_s', 1.0, 'plant step and recording interval [s]', float_range=(0.01, 60.0)),
     ParamSpec(
-        'control_period_s', 5.0, 'control period Ts [s], a whole multiple of plant_dt_s', float_range=(0.01, 3600.0)
+        'control_period_s',
+        5.0,
+        'control period Ts [s], a whole multiple of plant_dt_s',
+        float_range=CONTROL_PERIOD_RANGE_S,
     ),
     ParamSpec('duration_s', 0.0, "run length [s]; 0 = the scenario's", float_range=(0.0, 1e7)),
     ParamSpec(
         'lockstep.command_timeout_s',
         5.0,
-        'lockstep: wall-clock wait for the command of a step before the fallback ACC law applies [s]',
-        float_range=(0.01, 3600.0),
+        'lockstep: wall-clock wait for the command of a step before the fallback ACC law applies; from '
+        '0.5 s, ten times a controller\'s usual answer (a control period of a lockstep run: 20-45 ms) [s]',
+        float_range=(0.5, 3600.0),
         read_only=False,
     ),
     ParamSpec(
@@ -71,10 +83,23 @@ PLANT_PARAMETERS: tuple[ParamSpec, ...] = (
     ),
     ParamSpec(
         'fallback.command_timeout_periods',
-        2.0,
-        'realtime: command age after which the fallback ACC law '
-        'applies; also the deadline requested on hvac/command [control periods]',
-        float_range=(0.1, 1000.0),
+        1.0,
+        'realtime: the fallback ACC law applies when the latest command is older than this many control '
+        'periods plus one plant step (1: a missing command is noticed one plant step after it was due) '
+        '[control periods]',
+        float_range=(1.0, 10.0),
+    ),
+    liveliness_parameter(
+        'automatic liveliness lease requested of the hvac/command publishers: the ACC law takes over '
+        'within it (plus a plant step) when the controller\'s process dies; at least the controller\'s '
+        'qos.liveliness_lease_s, at most Ts [s]'
+    ),
+    ParamSpec(
+        'commands.require_sequence',
+        True,
+        'refuse commands without a source epoch and sequence (AcCommand.epoch 0: an older or '
+        'third-party controller that does not set them), as foreign; false accepts one such source '
+        '(a warning says what it should set)',
     ),
     log_throttle_parameter('command'),
     DIAGNOSTICS_PERIOD_PARAMETER,
@@ -90,6 +115,7 @@ _FIELDS = {
     'lockstep.min_output_subscribers': 'min_output_subscribers',
     'lockstep.min_command_subscribers': 'min_command_subscribers',
     'fallback.command_timeout_periods': 'command_timeout_periods',
+    'commands.require_sequence': 'require_sequence',
     **SHARED_FIELDS,
 }
 
@@ -116,8 +142,12 @@ class PlantNodeConfig(NodeConfig):
     """lockstep: ... and every other output this many (a recorder)."""
     min_command_subscribers: int = 1
     """lockstep: ... and hvac/command this many subscriptions in the graph (plant + recorder)."""
-    command_timeout_periods: float = 2.0
-    """realtime: command age (in control periods) after which the fallback law applies."""
+    command_timeout_periods: float = 1.0
+    """realtime: command age (in control periods, plus one plant step) after which the fallback law applies."""
+    liveliness_lease_s: float = 1.0
+    """Liveliness lease requested of the hvac/command publishers [s]."""
+    require_sequence: bool = True
+    """Refuse commands without epoch/sequence."""
     log_throttle_s: float = 2.0
     """Shortest time between two log lines about one kind of rejected command [s]."""
     diagnostics_period_s: float = 1.0
@@ -141,11 +171,16 @@ class PlantNodeConfig(NodeConfig):
             steps_per_control(self.control_period_s, self.plant_dt_s)
         except ValueError as err:
             raise ValueError(f'invalid parameter control_period_s={self.control_period_s}: {err}') from None
+        if self.liveliness_lease_s > self.control_period_s:
+            raise ValueError(
+                f'invalid parameter qos.liveliness_lease_s={self.liveliness_lease_s!r}: must be at most '
+                f'control_period_s={self.control_period_s!r} (a dead controller is to be noticed within a period)'
+            )
 
     @property
     def command_timeout_rt_s(self) -> float:
-        """realtime: the command age limit [s]."""
-        return self.command_timeout_periods * self.control_period_s
+        """realtime: the command age limit [s]: ``command_timeout_periods`` control periods plus one plant step."""
+        return self.command_timeout_periods * self.control_period_s + self.plant_dt_s
 
     @property
     def max_lag_steps(self) -> int:
@@ -160,15 +195,21 @@ class CommandPolicy:
     stamp well formed). Lockstep: only the command of the awaited control step k, stamped t_k.
     Real time: the stamp must be that of a state the plant published recently (a controller
     stamps its command with the state it computed from), the step index the control step of
-    that state, and that step at most ``max_lag_steps`` behind the plant's. A command marked
-    ``fallback`` (the controller's own fallback) is applied and counted. Rejections are counted
-    and logged (throttled) through ``log(level, text)``.
+    that state, and that step at most ``max_lag_steps`` behind the plant's. Then its source:
+    :class:`~ceco_core.supervision.SourceGate` (one epoch at a time; others are foreign, a
+    sequence not above the last a duplicate). A command marked ``fallback`` (the controller's
+    own fallback) is applied and counted. Rejections are counted and logged (throttled) through
+    ``log(level, text)``.
     """
 
     def __init__(self, cfg: PlantNodeConfig, log: Callable[[str, str], None]):
         self.cfg = cfg
         self._log = log
         self.rejections = Rejections(cfg.log_throttle_s)
+        self.source = SourceGate(cfg.require_sequence)
+        """The command source the plant is bound to (epoch/sequence)."""
+        self.liveliness = Liveliness()
+        """Liveliness of the hvac/command publishers that offer a lease (the node's probe)."""
         self.n_controller_fallback = 0
         """Accepted commands marked fallback=true [-]."""
         self.last_fallback_flag = False
@@ -195,6 +236,8 @@ class CommandPolicy:
                 why = checks.check_stamp_equals('header.stamp', msg.header.stamp, k * cfg.control_period_s)
         elif why is None:
             why = self._check_realtime(msg, k, k_now)
+        if why is None:
+            why = self.source.check(int(msg.epoch), int(msg.sequence))
         if why:
             line = self.rejections.add(
                 TOPIC_COMMAND, reason_kind(why), f'rejected hvac/command step {k}: {why}', wall_s
@@ -204,6 +247,9 @@ class CommandPolicy:
             return False
         self.last_fallback_flag = bool(msg.fallback)
         self.n_controller_fallback += bool(msg.fallback)
+        line = self.source.accepted(int(msg.epoch), int(msg.sequence))
+        if line:
+            self._log('warn' if msg.epoch == 0 else 'info', f'hvac/command from {msg.strategy}: {line}')
         return True
 
     def _check_realtime(self, msg, k: int, k_now: int) -> str | None:
@@ -235,13 +281,18 @@ def plant_health(
     new_rejections: int,
     events: dict,
     waiting_for: str = '',
+    clock_publishers: int = 1,
 ) -> Health:
     """The plant's status for /diagnostics.
 
     ``command_age_s``: since the last accepted command (wall clock in lockstep, node clock in
-    real time); None: none yet.
+    real time); None: none yet. ``clock_publishers``: publishers on /clock in the domain (lockstep).
     """
     h = Health().set('timing', cfg.timing).set('plant_step', n).set('t_s', t_s)
+    if cfg.timing == 'lockstep':
+        h.set('clock_publishers', clock_publishers)
+        if clock_publishers > 1:
+            h.error(clock_conflict(clock_publishers))
     h.set('control_step', control_step_of(t_s, cfg.control_period_s))
     if finished:
         h.set('state', 'finished')
@@ -255,6 +306,15 @@ def plant_health(
     if policy.last_fallback_flag and not supervisor.in_fallback:
         h.warn('the controller reports its own fallback in its last command')
     h.set('rejected_total', policy.rejections.total)
+    src = policy.source
+    h.set('command_source_epoch', None if src.epoch is None else f'{src.epoch:#018x}')
+    h.set('command_sources_bound', src.n_bound).set('unsequenced_commands', src.n_unsequenced)
+    foreign = policy.rejections.by_kind.get((TOPIC_COMMAND, 'foreign'), 0)
+    h.set('rejected_foreign', foreign)
+    if foreign:
+        h.warn(f'{foreign} hvac/command messages from a source other than the bound controller rejected')
+    live = policy.liveliness
+    h.set('command_publishers_alive', live.alive if live.seen else None)
     if new_rejections:
         h.warn(
             f'{new_rejections} hvac/command messages rejected since the last report ({policy.rejections.total} in all)'
@@ -264,6 +324,15 @@ def plant_health(
     if events.get('incompatible_qos'):
         h.error(f'{events["incompatible_qos"]} incompatible QoS events on hvac/command (a controller does not match)')
     return h
+
+
+def clock_conflict(publishers: int) -> str:
+    """What a lockstep plant says when it is not alone on /clock (one simulation clock per domain)."""
+    return (
+        f'{publishers} publishers on /clock in this ROS domain: another lockstep plant drives the same '
+        'simulation clock, so every use_sim_time node here follows both; run each lockstep vehicle in a '
+        'ROS_DOMAIN_ID of its own (ceco run picks a free one), or several vehicles in real time (docs/ros.md)'
+    )
 
 
 def start_gate(
@@ -287,35 +356,40 @@ def start_gate(
     return ', '.join(missing)
 
 
+CONTROLLER_LOST = "the controller's liveliness was lost (its process is gone or frozen)"
+"""Why the ACC law drives after a liveliness loss of the command publisher."""
+
+
 class RealtimeCommands:
     """realtime: which input drives each plant tick.
 
     The latest accepted command while it is fresh (younger than the command timeout by the
-    watchdog, and no QoS deadline missed since it came); a new command is taken at control
-    step boundaries only; a stale one is dropped at once (the ACC law takes over).
+    watchdog, and its publisher's liveliness not lost since it came); a new command is taken at
+    control step boundaries only; a stale one is dropped at once (the ACC law takes over).
     """
 
     def __init__(self, timeout_s: float):
         self.watchdog = Watchdog(timeout_s)
         self.latest = None
         """The latest accepted command (an AcInput), None before the first."""
-        self.deadline_missed = False
+        self.controller_lost = False
+        """The controller's liveliness was lost after its latest command."""
         self.applied: tuple[Any, bool] = (None, True)
         """(input, from the fallback law) applied at the last tick."""
 
     def accepted(self, u, now_s: float) -> None:
         """A command was accepted at ``now_s`` [s, node clock]."""
-        self.latest, self.deadline_missed = u, False
+        self.latest, self.controller_lost = u, False
         self.watchdog.kick(now_s)
 
     def fresh(self, now_s: float) -> bool:
         """True while the latest command may drive the plant."""
-        return self.latest is not None and not self.watchdog.expired(now_s) and not self.deadline_missed
+        return self.latest is not None and not self.watchdog.expired(now_s) and not self.controller_lost
 
     def why_stale(self, now_s: float) -> str:
         """Why the ACC law drives (for the log and /diagnostics)."""
-        if self.deadline_missed:
-            return 'QoS deadline on hvac/command missed'
+        if self.controller_lost:
+            return CONTROLLER_LOST
         age = self.watchdog.age(now_s)
         latest = 'none yet' if age == math.inf else f'{age:.1f} s old'
         return f'no fresh command (latest {latest}, limit {self.watchdog.timeout_s:.1f} s)'

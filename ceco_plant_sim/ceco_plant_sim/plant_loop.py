@@ -11,12 +11,14 @@ Pure logic: no rclpy, no message types; times are floats the node passes in.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from ceco_core.acc_law import AccLaw
 from ceco_core.contracts import AcInput
-from ceco_core.supervision import FallbackSupervisor
+from ceco_core.supervision import FallbackSupervisor, Health, Watchdog
 from ceco_v2x_preview.scenario import Scenario
 
-from .plant_io import PlantNodeConfig, RealtimeCommands
+from .plant_io import CONTROLLER_LOST, CommandPolicy, PlantNodeConfig, RealtimeCommands, plant_health
 from .scenario_plant import PlantStepRecord, ScenarioPlant, n_plant_steps, steps_per_control
 
 __all__ = ['PlantLoop']
@@ -25,8 +27,14 @@ __all__ = ['PlantLoop']
 class PlantLoop:
     """The plant side of a node run: one plant step at a time, from key-on to the run's end."""
 
-    def __init__(self, scenario: Scenario, cfg: PlantNodeConfig):
-        """Key-on state of ``scenario`` with the node's plant step, control period and run length."""
+    def __init__(self, scenario: Scenario, cfg: PlantNodeConfig, log: Callable[[str, str], None] | None = None):
+        """Key-on state of ``scenario`` with the node's plant step, control period and run length.
+
+        ``log(level, text)`` receives the lines of the command policy, the start gate and the
+        command source.
+        """
+        self.cfg = cfg
+        self._log = log or (lambda _level, _text: None)
         self.sp = ScenarioPlant(scenario, cfg.plant_dt_s)
         self.dt_s = cfg.plant_dt_s
         """Plant step [s]."""
@@ -45,6 +53,76 @@ class PlantLoop:
         self.acc = AccLaw()
         self.fallback = FallbackSupervisor()
         self.rt = RealtimeCommands(cfg.command_timeout_rt_s)
+        self.policy = CommandPolicy(cfg, self._log)
+        """Which command applies (field checks, control step, stamp, source)."""
+        self.wait = Watchdog(cfg.command_timeout_s)
+        """lockstep: the wall-clock wait for the awaited command."""
+        self.started = False
+        """True once step 0 was published."""
+        self.waiting_for = ''
+        """What step 0 waits for ('' once started or free to start)."""
+        self.controller_lost = False
+        """lockstep: the command publisher's liveliness was lost while a command was awaited."""
+        self._reported = 0
+
+    def set_config(self, cfg: PlantNodeConfig) -> None:
+        """Run-time parameter changes (the lockstep wait, the log throttle)."""
+        self.cfg = self.policy.cfg = cfg
+        self.wait.timeout_s = cfg.command_timeout_s
+        self.policy.rejections.throttle_s = cfg.log_throttle_s
+
+    # ------------------------------------------------------------------ start
+    def may_start(self, waiting_for: str, wall_s: float) -> bool:
+        """True once when step 0 may be published (``waiting_for``: :func:`~ceco_plant_sim.plant_io.start_gate`).
+
+        While waiting, each new reason is logged once (a lone plant says what it waits for).
+        """
+        if self.started:
+            return False
+        if waiting_for and waiting_for != self.waiting_for:
+            self._log('info', f'waiting for subscribers before step 0: {waiting_for}')
+        self.waiting_for = waiting_for
+        if waiting_for:
+            return False
+        self.started = True
+        self._log('info', 'subscribers matched: starting at step 0')
+        self.wait.kick(wall_s)
+        return True
+
+    @property
+    def running(self) -> bool:
+        """Started and not finished."""
+        return self.started and not self.finished
+
+    # -------------------------------------------------------------- commands
+    def take_command(self, msg, wall_s: float, clock_s: float) -> AcInput | None:
+        """An AcCommand: the input to apply when the policy accepts it (lockstep: now, for a period), else None."""
+        if not self.running or not self.policy.accept(msg, self.k, wall_s):
+            return None
+        u = AcInput(mdot_bl_kgps=msg.blower_flow_kgps, t_evap_sp_c=msg.evap_setpoint_c)
+        rt = self.cfg.timing == 'realtime'
+        self.controller_lost = False
+        line = self.accept_command(u, int(msg.step_index), msg.strategy, clock_s if rt else None)
+        if line:
+            self._log('info', line)
+        return u
+
+    def liveliness_changed(self, alive: int, lost: int, wall_s: float) -> None:
+        """A liveliness event of the hvac/command publishers (the node's probe); a loss ends trust in the source."""
+        if self.policy.liveliness.changed(alive, lost, wall_s):
+            self._log('warn', f'hvac/command: a publisher lost its liveliness ({alive} alive): {CONTROLLER_LOST}')
+            self.rt.controller_lost = self.controller_lost = True
+            self.policy.source.release()
+
+    def lockstep_overdue(self, wall_s: float) -> str | None:
+        """lockstep: why the awaited command will not come (the ACC law drives this period now), or None."""
+        if not self.running:
+            return None
+        if self.controller_lost:
+            return CONTROLLER_LOST
+        if self.wait.expired(wall_s):
+            return f'no command for control step {self.k} within {self.wait.timeout_s} s (wall clock)'
+        return None
 
     @property
     def n(self) -> int:
@@ -80,6 +158,7 @@ class PlantLoop:
         line = self.fallback.command_missing(f'step {self.n} (t={self.t_s:.1f} s)', why)
         if line:
             self.acc.reset()
+            self.policy.source.release()  # the next accepted command binds its source anew
         a = self.acc.step(self.sp.meas['t_cab_c'], self.control_period_s)
         return AcInput(mdot_bl_kgps=a.mdot_bl_kgps, t_evap_sp_c=a.t_evap_sp_c), line
 
@@ -108,6 +187,28 @@ class PlantLoop:
                 self.rt.applied = (u, True)
         u, fallback = self.rt.applied
         return u, fallback, line
+
+    def health(
+        self, waiting_for: str, wall_s: float, clock_s: float, events: dict, clock_publishers: int = 1
+    ) -> Health:
+        """The plant's /diagnostics status now (``waiting_for``: what step 0 waits for; publishers on /clock)."""
+        rej, rt = self.policy.rejections, self.cfg.timing == 'realtime'
+        new, self._reported = rej.total - self._reported, rej.total
+        age = self.rt.watchdog.age(clock_s) if rt else self.wait.age(wall_s)
+        return plant_health(
+            cfg=self.cfg,
+            started=self.started,
+            finished=self.finished,
+            n=self.n,
+            t_s=self.t_s,
+            supervisor=self.fallback,
+            command_age_s=None if age == float('inf') else age,
+            policy=self.policy,
+            new_rejections=new,
+            events=events,
+            waiting_for='' if self.started else waiting_for,
+            clock_publishers=clock_publishers,
+        )
 
     def summary(self) -> str:
         """The line logged at the run's end."""

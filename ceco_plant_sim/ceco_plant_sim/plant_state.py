@@ -16,7 +16,7 @@ from ceco_core.contracts import check_finite as _check_finite
 from ceco_core.psychro import humidity_ratio
 from ceco_plant_sim.plant_params import PlantParams
 
-__all__ = ["PlantState", "PlantOutputs", "validate_environment"]
+__all__ = ["PlantState", "PlantOutputs", "ENVIRONMENT_FIELDS", "validate_environment"]
 
 
 _ENV_RANGES = {
@@ -26,8 +26,11 @@ _ENV_RANGES = {
     "rh": (0.0, 1.0),
 }
 
+ENVIRONMENT_FIELDS = tuple(_ENV_RANGES)
+"""The environment's fields in the plant's order: t_amb_c [degC], solar_wm2 [W/m2], speed_mps [m/s], rh [0..1]."""
 
-def validate_environment(env) -> tuple[float, float, float, float]:
+
+def validate_environment(env) -> tuple[float, ...]:
     """Check an environment (any object with t_amb_c, solar_wm2, speed_mps, rh); return the four floats.
 
     Raises ValueError naming ``env.<field>`` if missing, not finite or out of
@@ -42,7 +45,7 @@ def validate_environment(env) -> tuple[float, float, float, float]:
         if not lo <= v <= hi:
             raise ValueError(f"env.{name}: must be in [{lo}, {hi}], got {v}")
         out.append(v)
-    return out[0], out[1], out[2], out[3]
+    return tuple(out)
 
 
 @dataclass(frozen=True)

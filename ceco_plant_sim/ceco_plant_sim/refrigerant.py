@@ -46,9 +46,11 @@ superheat change is neglected in the enthalpies).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 from . import refrigerant_table_file as _refrigerant_table_file
 from . import refrigerant_tables as _refrigerant_tables
+from .plant_ops import NUMERIC
 from .refrigerant_table_file import *  # noqa: F403 - re-exported (__all__): the shipped table file
 from .refrigerant_tables import *  # noqa: F403 - re-exported (__all__): the property tables
 from .refrigerant_tables import CycleTables
@@ -56,6 +58,8 @@ from .refrigerant_tables import CycleTables
 __all__ = [
     "CompressorModel",
     "CycleSolution",
+    "CycleVars",
+    "cycle_vars",
     "solve_cycle",
     *_refrigerant_tables.__all__,
     *_refrigerant_table_file.__all__,
@@ -119,43 +123,90 @@ class CycleSolution:
     """Newton iterations used."""
 
 
+class CycleVars(NamedTuple):
+    """The cycle solve's result as plain values (floats numerically, CasADi scalars symbolically).
+
+    The fields of :class:`CycleSolution` but ``q_cond_w``, plus ``converged`` (the solve stopped by
+    its rule within ``max_iter`` evaluations; the numeric evaluation raises instead of returning False).
+    """
+
+    t_evap_sat_c: Any
+    t_cond_c: Any
+    mdot_ref_kgps: Any
+    q_evap_ref_w: Any
+    w_shaft_w: Any
+    p_comp_w: Any
+    pressure_ratio: Any
+    mop_active: Any
+    head_pressure_control: Any
+    iterations: Any
+    converged: Any
+
+
+class _Newton(NamedTuple):
+    """State of the cycle's Newton iteration between property evaluations."""
+
+    t_e: Any
+    """Current evaporating temperature [degC]."""
+    t_c: Any
+    """Current condensing temperature [degC]."""
+    mop: Any
+    """MOP pin active."""
+    hp: Any
+    """Head-pressure control active."""
+    it: Any
+    """Property evaluations so far."""
+    rounds: Any
+    """Converged solves so far (a constraint flag added starts a new one; at most 3)."""
+    done: Any
+    """Converged with no new constraint flag."""
+    mdot: Any
+    """Refrigerant flow of the last converged evaluation [kg/s]."""
+    q_e: Any
+    """Evaporator capacity of the last converged evaluation [W]."""
+    w_sh: Any
+    """Shaft power of the last converged evaluation [W]."""
+    pr: Any
+    """Pressure ratio of the last converged evaluation [-]."""
+
+
 def _cycle_eval(
+    ops,
     tab: CycleTables,
     comp: CompressorModel,
-    vn: float,
-    t_e: float,
-    t_c: float,
-    t_wall_c: float,
-    ua_er_wpk: float,
-    t_air_c: float,
-    epsc_wpk: float,
+    vn,
+    t_e,
+    t_c,
+    t_wall_c,
+    ua_er_wpk,
+    t_air_c,
+    epsc_wpk,
 ):
     """Residuals (r1, r2) [W], their analytic Jacobian, and the cycle quantities at (t_e, t_c).
 
-    The Jacobian is exact for the piecewise-linear / bilinear interpolants.
+    The Jacobian is exact for the piecewise-linear / bilinear interpolants. ``ops`` evaluates it
+    (:mod:`ceco_plant_sim.plant_ops`).
     """
-    p_e, p_e1 = tab.p_evap_pa.value_slope(t_e)
-    rho, rho1 = tab.rho_suc_kgm3.value_slope(t_e)
-    h1, h11 = tab.h_suc_jpkg.value_slope(t_e)
-    p_c, p_c1 = tab.p_cond_pa.value_slope(t_c)
-    h3, h31 = tab.h_liq_jpkg.value_slope(t_c)
-    dhs, dhs_e, dhs_c = tab.dh_is_jpkg.value_grad(t_e, t_c)
+    p_e, p_e1 = ops.interp1(tab.p_evap_pa, t_e)
+    rho, rho1 = ops.interp1(tab.rho_suc_kgm3, t_e)
+    h1, h11 = ops.interp1(tab.h_suc_jpkg, t_e)
+    p_c, p_c1 = ops.interp1(tab.p_cond_pa, t_c)
+    h3, h31 = ops.interp1(tab.h_liq_jpkg, t_c)
+    dhs, dhs_e, dhs_c = ops.interp2(tab.dh_is_jpkg, t_e, t_c)
     pr = p_c / p_e
     pr_e = -p_c * p_e1 / (p_e * p_e)
     pr_c = p_c1 / p_e
-    # volumetric efficiency and its slope in pr (0 where floored / pr < 1)
-    prc = pr if pr > 1.0 else 1.0
+    # volumetric and isentropic efficiencies (floored at 0.3, pr < 1 counted as 1) and their slopes in pr
+    # (0 where floored or pr <= 1)
+    above = pr > 1.0
+    prc = ops.fmax(pr, 1.0)
     ev = comp.eta_vol_0 - comp.eta_vol_slope * (prc - 1.0)
-    if ev < 0.3:
-        ev, ev1 = 0.3, 0.0
-    else:
-        ev1 = -comp.eta_vol_slope if pr > 1.0 else 0.0
+    ev1 = ops.where(ops.logic_and(above, ev >= 0.3), -comp.eta_vol_slope, 0.0)
+    ev = ops.fmax(ev, 0.3)
     d = prc - comp.pr_opt
     ei = comp.eta_is_max - comp.eta_is_curv * d * d
-    if ei < 0.3:
-        ei, ei1 = 0.3, 0.0
-    else:
-        ei1 = -2.0 * comp.eta_is_curv * d if pr > 1.0 else 0.0
+    ei1 = ops.where(ops.logic_and(above, ei >= 0.3), -2.0 * comp.eta_is_curv * d, 0.0)
+    ei = ops.fmax(ei, 0.3)
     m = rho * vn * ev
     m_e = vn * (rho1 * ev + rho * ev1 * pr_e)
     m_c = vn * rho * ev1 * pr_c
@@ -171,6 +222,94 @@ def _cycle_eval(
     j21 = m_e * (dh + w) + m * (h11 + w_e)
     j22 = m_c * (dh + w) + m * (-h31 + w_c) - epsc_wpk
     return r1, r2, j11, j12, j21, j22, m, q_e, m * w, pr, p_e, p_e1, p_c, p_c1
+
+
+def _newton_evaluation(s: _Newton, ops, tab, comp, vn, args, te_mop_c, tol_k, pr_min) -> _Newton:
+    """One property evaluation of the Newton solve: a Newton update, or (converged) the constraint-flag check."""
+    r1, r2, j11, j12, j21, j22, m, q_e, w_sh, pr, p_e, p_e1, p_c, p_c1 = _cycle_eval(
+        ops, tab, comp, vn, s.t_e, s.t_c, *args
+    )
+    it = s.it + 1
+    hp = s.hp
+    # head-pressure control: condenser air reduced so that p_c = pr_min p_e
+    r2, j21, j22 = ops.where(hp, (p_c - pr_min * p_e, -pr_min * p_e1, p_c1), (r2, j21, j22))
+
+    det = j11 * j22 - j12 * j21
+    de, dc = ops.where(
+        s.mop,
+        (0.0, -r2 / j22),  # T_e pinned at the MOP: the condenser (or head-pressure) equation alone
+        (-(j22 * r1 - j12 * r2) / det, -(-j21 * r1 + j11 * r2) / det),
+    )
+    converged = ops.logic_and(abs(de) < tol_k, abs(dc) < tol_k)
+
+    def check_flags():  # this point is within ~tol_k of the root: keep its evaluated quantities
+        pin = ops.logic_and(ops.logic_not(s.mop), s.t_e > te_mop_c)
+        new_mop = ops.logic_or(s.mop, pin)
+        # head-pressure control is judged on a solution with the evaporating temperature it will have:
+        # not in the round that pins the MOP (there T_e, so p_e, is still above the pin)
+        new_hp = ops.logic_or(hp, ops.logic_and(ops.logic_not(pin), pr < pr_min * (1.0 - 1e-9)))
+        same = ops.logic_and(new_mop == s.mop, new_hp == hp)
+        rounds = s.rounds + 1
+        t_e = ops.where(ops.logic_and(ops.logic_not(same), new_mop), te_mop_c, s.t_e)
+        done = ops.logic_or(same, rounds >= 3)  # constraint flags only get added: at most 3 solves
+        return _Newton(t_e, s.t_c, new_mop, new_hp, it, rounds, done, m, q_e, w_sh, pr)
+
+    def update():  # each update limited to 10 K
+        t_e = s.t_e + ops.fmax(-10.0, ops.fmin(10.0, de))
+        t_c = s.t_c + ops.fmax(-10.0, ops.fmin(10.0, dc))
+        return _Newton(t_e, t_c, s.mop, hp, it, s.rounds, s.done, s.mdot, s.q_e, s.w_sh, s.pr)
+
+    return ops.cond(converged, check_flags, update)
+
+
+def cycle_vars(
+    ops,
+    tab: CycleTables,
+    comp: CompressorModel,
+    speed_rpm,
+    t_wall_c,
+    ua_er_wpk: float,
+    t_air_cond_c,
+    epsc_cond_wpk,
+    te_mop_c: float,
+    guess,
+    tol_k: float = 1e-7,
+    max_iter: int = 30,
+    pr_min: float = 1.0,
+) -> CycleVars:
+    """:func:`solve_cycle` evaluated by ``ops`` (the one implementation of the solve).
+
+    ``guess`` is (t_e [degC], t_c [degC], valid): valid false (0) takes the built-in start.
+    Numerically the iteration stops at its rule and a failure raises RuntimeError; symbolically
+    (:class:`~ceco_plant_sim.plant_ops.ExactOps`) the ``max_iter`` evaluations are unrolled, each
+    masked once the solve is done, and ``converged`` reports the stop. The Newton update and the
+    pinned update are both computed and one is selected (numerically too: the Jacobian's
+    determinant is far from 0, |det| ~ UA_er eps_c C_c).
+    """
+
+    def off():
+        return CycleVars(t_wall_c, t_air_cond_c, 0.0, 0.0, 0.0, 0.0, 1.0, False, False, 0, True)
+
+    def on():
+        vn = comp.displacement_m3 * speed_rpm / 60.0
+        g_e, g_c, g_ok = guess
+        t_e = ops.where(g_ok, g_e, ops.fmin(t_wall_c - 5.0, te_mop_c))
+        t_c = ops.where(g_ok, g_c, t_air_cond_c + 15.0)
+        args = (t_wall_c, ua_er_wpk, t_air_cond_c, epsc_cond_wpk)
+        s = _Newton(t_e, t_c, False, False, 0, 0, False, 0.0, 0.0, 0.0, 1.0)
+        s = ops.loop(int(max_iter), _newton_evaluation, s, ops, tab, comp, vn, args, te_mop_c, tol_k, pr_min)
+        ok = ops.check(
+            s.done,
+            lambda: (
+                f"refrigerant cycle did not converge in {max_iter} iterations "
+                f"(speed {speed_rpm:.0f} rpm, wall {t_wall_c:.2f} degC)"
+            ),
+        )
+        return CycleVars(
+            s.t_e, s.t_c, s.mdot, s.q_e, s.w_sh, s.w_sh / comp.eta_motor_inverter, s.pr, s.mop, s.hp, s.it, ok
+        )
+
+    return ops.cond(speed_rpm <= 0.0, off, on)
 
 
 def solve_cycle(
@@ -214,65 +353,34 @@ def solve_cycle(
     condenser balance r2 is replaced by p_c = pr_min p_e (head-pressure
     control throttles the condenser air; the condenser then rejects
     Q_ref + W at that pressure). Raises RuntimeError if ``max_iter``
-    evaluations are reached.
+    evaluations are reached. The numeric evaluation of :func:`cycle_vars`.
     """
-    if speed_rpm <= 0.0:
-        return CycleSolution(t_wall_c, t_air_cond_c, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, False, False, 0)
-    vn = comp.displacement_m3 * speed_rpm / 60.0
-    if guess is None:
-        t_e = min(t_wall_c - 5.0, te_mop_c)
-        t_c = t_air_cond_c + 15.0
-    else:
-        t_e, t_c = guess
-    args = (t_wall_c, ua_er_wpk, t_air_cond_c, epsc_cond_wpk)
-    mop = False
-    hp = False
-    it = 0
-    for _ in range(3):  # constraint flags only get added: at most 3 solves
-        converged = False
-        while it < max_iter:
-            (r1, r2, j11, j12, j21, j22, mdot, q_e, w_sh, pr, p_e, p_e1, p_c, p_c1) = _cycle_eval(
-                tab, comp, vn, t_e, t_c, *args
-            )
-            it += 1
-            if hp:  # head-pressure control: condenser air reduced so that p_c = pr_min p_e
-                r2 = p_c - pr_min * p_e
-                j21 = -pr_min * p_e1
-                j22 = p_c1
-            if mop:  # T_e pinned at the MOP: the condenser (or head-pressure) equation alone
-                de = 0.0
-                dc = -r2 / j22
-            else:
-                det = j11 * j22 - j12 * j21
-                de = -(j22 * r1 - j12 * r2) / det
-                dc = -(-j21 * r1 + j11 * r2) / det
-            if abs(de) < tol_k and abs(dc) < tol_k:
-                converged = True  # this point is within ~tol_k of the root: keep its evaluated quantities
-                break
-            t_e += max(-10.0, min(10.0, de))
-            t_c += max(-10.0, min(10.0, dc))
-        if not converged:
-            raise RuntimeError(
-                f"refrigerant cycle did not converge in {max_iter} iterations "
-                f"(speed {speed_rpm:.0f} rpm, wall {t_wall_c:.2f} degC)"
-            )
-        new_mop = mop or t_e > te_mop_c
-        new_hp = hp or pr < pr_min * (1.0 - 1e-9)
-        if new_mop == mop and new_hp == hp:
-            break
-        if new_mop:
-            t_e = te_mop_c
-        mop, hp = new_mop, new_hp
+    g = (0.0, 0.0, False) if guess is None else (guess[0], guess[1], True)
+    v = cycle_vars(
+        NUMERIC,
+        tab,
+        comp,
+        speed_rpm,
+        t_wall_c,
+        ua_er_wpk,
+        t_air_cond_c,
+        epsc_cond_wpk,
+        te_mop_c,
+        g,
+        tol_k,
+        max_iter,
+        pr_min,
+    )
     return CycleSolution(
-        t_evap_sat_c=t_e,
-        t_cond_c=t_c,
-        mdot_ref_kgps=mdot,
-        q_evap_ref_w=q_e,
-        w_shaft_w=w_sh,
-        p_comp_w=w_sh / comp.eta_motor_inverter,
-        q_cond_w=q_e + w_sh,
-        pressure_ratio=pr,
-        mop_active=mop,
-        head_pressure_control=hp,
-        iterations=it,
+        t_evap_sat_c=v.t_evap_sat_c,
+        t_cond_c=v.t_cond_c,
+        mdot_ref_kgps=v.mdot_ref_kgps,
+        q_evap_ref_w=v.q_evap_ref_w,
+        w_shaft_w=v.w_shaft_w,
+        p_comp_w=v.p_comp_w,
+        q_cond_w=v.q_evap_ref_w + v.w_shaft_w,
+        pressure_ratio=v.pressure_ratio,
+        mop_active=v.mop_active,
+        head_pressure_control=v.head_pressure_control,
+        iterations=v.iterations,
     )

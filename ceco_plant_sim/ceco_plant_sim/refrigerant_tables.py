@@ -18,6 +18,8 @@ import numpy as np
 
 from ceco_core.units import c_to_k
 
+from .plant_ops import NUMERIC
+
 __all__ = [
     "CycleTables",
     "TableGrid",
@@ -124,18 +126,9 @@ class _Table1D:
         """Return y(x) (the value of :meth:`value_slope`, which holds the one cell lookup)."""
         return self.value_slope(x)[0]
 
-    def value_slope(self, x: float) -> tuple[float, float]:
-        """Return (y(x), dy/dx) of the interpolant (the plant's hot path: kept inline)."""
-        u = (x - self.x0) * self.inv_dx
-        i = int(math.floor(u))
-        if i < 0:
-            i = 0
-        elif i > self.n - 2:
-            i = self.n - 2
-        f = u - i
-        y = self.y
-        d = y[i + 1] - y[i]
-        return y[i] + f * d, d * self.inv_dx
+    def value_slope(self, x, ops=NUMERIC):
+        """Return (y(x), dy/dx) of the interpolant, evaluated by ``ops`` (``ops.interp1``, :mod:`.plant_ops`)."""
+        return ops.interp1(self, x)
 
 
 class _Table2D:
@@ -156,29 +149,9 @@ class _Table2D:
         """Return z(x, y) (the value of :meth:`value_grad`, which holds the one cell lookup)."""
         return self.value_grad(x, y)[0]
 
-    def value_grad(self, x: float, y: float) -> tuple[float, float, float]:
-        """Return (z(x, y), dz/dx, dz/dy) of the bilinear interpolant (the plant's hot path: kept inline)."""
-        u = (x - self.x0) * self.inv_dx
-        i = int(math.floor(u))
-        if i < 0:
-            i = 0
-        elif i > self.nx - 2:
-            i = self.nx - 2
-        v = (y - self.y0) * self.inv_dy
-        j = int(math.floor(v))
-        if j < 0:
-            j = 0
-        elif j > self.ny - 2:
-            j = self.ny - 2
-        f = u - i
-        g = v - j
-        r0 = self.z[i]
-        r1 = self.z[i + 1]
-        z00, z01, z10, z11 = r0[j], r0[j + 1], r1[j], r1[j + 1]
-        a = z00 + g * (z01 - z00)
-        b = z10 + g * (z11 - z10)
-        dzdy = ((1.0 - f) * (z01 - z00) + f * (z11 - z10)) * self.inv_dy
-        return a + f * (b - a), (b - a) * self.inv_dx, dzdy
+    def value_grad(self, x, y, ops=NUMERIC):
+        """Return (z(x, y), dz/dx, dz/dy) of the bilinear interpolant, evaluated by ``ops`` (``interp2``)."""
+        return ops.interp2(self, x, y)
 
 
 @dataclass(frozen=True)

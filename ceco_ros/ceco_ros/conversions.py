@@ -75,9 +75,16 @@ def state_measurements(msg: CabinState) -> dict:
 
 
 # --- AcCommand --------------------------------------------------------------------------------
-def command_msg(cmd, k: int, stamp, control_period_s: float, strategy: str, fallback: bool) -> AcCommand:
-    """An AcCommand for control step ``k`` from an :class:`AcInput`."""
+def command_msg(
+    cmd, k: int, stamp, control_period_s: float, strategy: str, fallback: bool, epoch: int = 0, sequence: int = 0
+) -> AcCommand:
+    """An AcCommand for control step ``k`` from an :class:`AcInput`.
+
+    ``epoch`` (0: not set) and ``sequence`` identify the sending controller's activation and the command's number.
+    """
     m = AcCommand()
+    m.epoch = int(epoch)
+    m.sequence = int(sequence)
     m.header.stamp = stamp
     m.step_index = int(k)
     m.control_period_s = float(control_period_s)

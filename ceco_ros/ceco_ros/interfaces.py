@@ -7,7 +7,7 @@ only (the pure cores never import it).
 from __future__ import annotations
 
 from rclpy.duration import Duration
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSPolicyKind, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSPolicyKind, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
 
 from ceco_core import control_grid
@@ -78,8 +78,9 @@ QOS_ROSOUT = QoSProfile(
 # Real time (timing: realtime, as on a vehicle): the latest states, not a backlog: keep-last
 # 10 on both sides (a recorder that lags a little still gets every sample; a burst of other
 # messages on the topic does not push the plant's newest state out of a reader's history).
-# Commands carry a deadline (command_qos), so a dead controller is seen by the plant's QoS
-# event as well as by its watchdog.
+# Commands and previews are published with an automatic liveliness lease (with_liveliness), so
+# a reader that asks for it (liveliness_probe_qos) learns within the lease that the publisher's
+# process is gone; the data subscriptions ask for nothing, so any publisher matches them.
 QOS_STATE_LATEST = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=10,
@@ -104,33 +105,62 @@ def state_qos(timing: str) -> QoSProfile:
     return QOS_STATE if timing == 'lockstep' else QOS_STATE_LATEST
 
 
-def command_qos(timing: str, deadline_s: float | None = None) -> QoSProfile:
-    """QoS of hvac/command: :data:`QOS_COMMAND`, in real time with a deadline.
-
-    The deadline ``deadline_s`` [s] is offered by the controller and requested by the plant;
-    DDS matches them only when the offered deadline is not longer than the requested one.
-    """
-    if timing == 'lockstep' or deadline_s is None:
+def command_qos(timing: str) -> QoSProfile:
+    """QoS of hvac/command: :data:`QOS_COMMAND` in lockstep, keep-last 10 in real time (both sides)."""
+    if timing == 'lockstep':
         return QOS_COMMAND
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
         depth=10,
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.VOLATILE,
-        deadline=Duration(nanoseconds=int(deadline_s * 1e9)),
     )
 
 
-def qos_overrides(deadline: bool = False) -> QoSOverridingOptions:
-    """QoS policies overridable from parameters: history, depth, reliability (and deadline).
+def with_liveliness(qos: QoSProfile, lease_s: float) -> QoSProfile:
+    """A publisher's ``qos`` offering automatic liveliness with a lease of ``lease_s`` [s].
+
+    rmw_fastrtps asserts it every 2/3 of the lease from the participant's own thread, so a
+    process that is alive (even busy) stays alive; one that died is not alive once the lease
+    has passed. It matches every reader that requests a lease at least as long, or none.
+    """
+    return QoSProfile(
+        history=qos.history,
+        depth=qos.depth,
+        reliability=qos.reliability,
+        durability=qos.durability,
+        liveliness=LivelinessPolicy.AUTOMATIC,
+        liveliness_lease_duration=Duration(nanoseconds=int(lease_s * 1e9)),
+    )
+
+
+def liveliness_probe_qos(lease_s: float) -> QoSProfile:
+    """A reader that only watches the liveliness of a topic's publishers, with a lease of ``lease_s`` [s].
+
+    Fast DDS judges a publisher's liveliness by the *reader's* requested lease (measured: a
+    reader without one never gets a liveliness event), and a reader requesting a lease matches
+    only publishers offering one at most as long. So the nodes keep their data subscriptions
+    without a lease (any publisher matches: a third-party controller, ``ceco play``) and add this
+    probe beside them: it matches ceco's own publishers (:func:`with_liveliness`) and reports
+    within the lease that one of them is gone.
+    """
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=1,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.VOLATILE,
+        liveliness=LivelinessPolicy.AUTOMATIC,
+        liveliness_lease_duration=Duration(nanoseconds=int(lease_s * 1e9)),
+    )
+
+
+def qos_overrides() -> QoSOverridingOptions:
+    """QoS policies overridable from parameters: history, depth, reliability.
 
     The parameters are ``qos_overrides.<topic>.<publisher|subscription>.<policy>``, read-only,
-    set with ``--ros-args -p`` or a parameter file; the deadline only where the profile has one.
+    set with ``--ros-args -p`` or a parameter file.
     """
-    kinds = [QoSPolicyKind.HISTORY, QoSPolicyKind.DEPTH, QoSPolicyKind.RELIABILITY]
-    if deadline:
-        kinds.append(QoSPolicyKind.DEADLINE)
-    return QoSOverridingOptions(kinds)
+    return QoSOverridingOptions([QoSPolicyKind.HISTORY, QoSPolicyKind.DEPTH, QoSPolicyKind.RELIABILITY])
 
 
 # Every topic of the stack: name -> (ROS type name, publisher QoS, recorder QoS).

@@ -2,7 +2,10 @@
 
 * :class:`NodeTools` (mixin): ``wall_s()`` (steady clock [s], for wall-clock limits),
   ``clock_s()`` (the node clock [s]: /clock under use_sim_time), ``log(level, text)``,
-  ``notice(key, text)`` (logged at most once per throttle period per key).
+  ``notice(key, text)`` (logged at most once per throttle period per key), ``use_params``
+  (declare a node's table, validate its configuration, accept ``ros2 param set``),
+  ``qos_event`` (count and log a QoS event), ``liveliness_probe`` (watch the liveliness of a
+  topic's publishers, :func:`ceco_ros.interfaces.liveliness_probe_qos`).
 * :class:`ManagedNode`: an rclpy LifecycleNode that tracks its state as text
   (``self.lifecycle``), configures and activates itself when asked to (``autostart``), and
   releases what ``on_configure`` created on cleanup, shutdown and error (``release()``).
@@ -15,6 +18,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 
 from ceco_core.supervision import Rejections
+from ceco_ros import interfaces, params
 
 __all__ = ['NodeTools', 'ManagedNode', 'SUCCESS', 'FAILURE']
 
@@ -44,14 +48,97 @@ class NodeTools:
         return self.get_clock().now().nanoseconds * 1e-9
 
     def log(self, level: str, text: str) -> None:
-        """Log ``text`` at 'debug', 'info', 'warn', 'error' or 'fatal'."""
-        getattr(self.get_logger(), level)(text)
+        """Log ``text`` at 'debug', 'info', 'warn', 'error' or 'fatal'.
+
+        One call site per severity: rclpy refuses a call site that logs at another severity than
+        it did before ("Logger severity cannot be changed between calls", a ValueError).
+        """
+        logger = self.get_logger()
+        if level == 'debug':
+            logger.debug(text)
+        elif level == 'info':
+            logger.info(text)
+        elif level == 'warn':
+            logger.warn(text)
+        elif level == 'error':
+            logger.error(text)
+        else:
+            logger.fatal(text)
 
     def notice(self, key: str, text: str, level: str = 'warn') -> None:
         """Log ``text`` unless a notice of the same ``key`` was logged within the throttle period."""
         line = self.notices.add('notice', key, text, self.wall_s())
         if line:
             self.log(level, line)
+
+    # ------------------------------------------------------------- parameters
+    def use_params(self, specs, config_from, unconfigured=None):
+        """Declare the table ``specs``, set ``self.config = config_from({name: value})`` and take ``ros2 param set``.
+
+        A change is validated as a whole configuration, then ``self.config`` is replaced,
+        :meth:`config_changed` called and the change logged. ``unconfigured()`` (managed nodes)
+        says when configuration parameters may change. Returns the configuration.
+        """
+        self.config = config_from(params.declare_all(self, specs))
+        params.on_set(self, specs, self._set_params, unconfigured)
+        self.setup_tools(self.config.log_throttle_s)
+        self.qos_events = {'incompatible_qos': 0}
+        return self.config
+
+    def _set_params(self, changes: dict) -> str | None:
+        try:
+            self.config = self.config.replaced(changes)
+        except ValueError as err:
+            return str(err)
+        self.notices.throttle_s = self.config.log_throttle_s
+        self.config_changed()
+        self.get_logger().info(f'parameters set: {changes}')
+        return None
+
+    def config_changed(self) -> None:
+        """``self.config`` was replaced by ``ros2 param set`` (override to pass it on)."""
+
+    # -------------------------------------------------------------------- QoS
+    def qos_event(self, name: str, topic: str) -> None:
+        """Count a QoS event of ``topic`` and log it (throttled)."""
+        self.qos_events[name] = self.qos_events.get(name, 0) + 1
+        self.notice(f'{name} {topic}', f'QoS event on {topic}: {name} (total {self.qos_events[name]})')
+
+    def checked_subscription(self, msg_type, topic: str, callback, qos):
+        """A subscription whose QoS ``ros2 param`` may override (``qos_overrides``), incompatible-QoS events counted."""
+        from rclpy.event_handler import SubscriptionEventCallbacks
+
+        return self.create_subscription(
+            msg_type,
+            topic,
+            callback,
+            qos,
+            qos_overriding_options=interfaces.qos_overrides(),
+            event_callbacks=SubscriptionEventCallbacks(
+                incompatible_qos=lambda _e: self.qos_event('incompatible_qos', topic)
+            ),
+        )
+
+    def liveliness_probe(self, msg_type, topic: str, lease_s: float, changed):
+        """A subscription that only watches the liveliness of ``topic``'s publishers (lease ``lease_s`` [s]).
+
+        ``changed(alive_count, not_alive_count_change)`` on every liveliness event. A publisher
+        that offers no lease (or a longer one) does not match the probe; that is not an error
+        (it still matches the data subscription), so the probe's incompatible-QoS events are
+        not counted.
+        """
+        from rclpy.event_handler import SubscriptionEventCallbacks
+
+        return self.create_subscription(
+            msg_type,
+            topic,
+            lambda _msg: None,
+            interfaces.liveliness_probe_qos(lease_s),
+            event_callbacks=SubscriptionEventCallbacks(
+                liveliness=lambda e: changed(e.alive_count, e.not_alive_count_change),
+                incompatible_qos=lambda _e: None,
+            ),
+        )
 
 
 class ManagedNode(NodeTools, LifecycleNode):
@@ -85,14 +172,49 @@ class ManagedNode(NodeTools, LifecycleNode):
 
         service.callback = change_state
 
-    def start_managed(self, autostart: bool) -> None:
-        """Call at the end of the constructor.
+    def start_managed(self, autostart: bool, what: str = '') -> None:
+        """Call at the end of the constructor (``what``: the node's role, for the first log line).
 
         With ``autostart``, configure and activate as soon as the node spins; otherwise wait for
-        a lifecycle manager.
+        a lifecycle manager, and say how to be one by hand.
         """
         if autostart:
             self._auto = self.create_timer(0.0, self._autostart)
+            self.get_logger().info(f'{what}: unconfigured; autostart: configuring and activating')
+        else:
+            name = self.get_fully_qualified_name()
+            self.get_logger().info(
+                f'{what}: unconfigured, waiting for a lifecycle manager (ceco run, a launch file); by hand: '
+                f'ros2 lifecycle set {name} configure, then ros2 lifecycle set {name} activate '
+                '(or start it with -p autostart:=true)'
+            )
+
+    @property
+    def active(self) -> bool:
+        """True in the active state."""
+        return self.lifecycle == 'active'
+
+    def checked_lifecycle_publisher(self, msg_type, topic: str, qos):
+        """A lifecycle publisher whose QoS ``ros2 param`` may override, incompatible-QoS events counted."""
+        from rclpy.event_handler import PublisherEventCallbacks
+
+        return self.create_lifecycle_publisher(
+            msg_type,
+            topic,
+            qos,
+            qos_overriding_options=interfaces.qos_overrides(),
+            event_callbacks=PublisherEventCallbacks(
+                incompatible_qos=lambda _e: self.qos_event('incompatible_qos', topic)
+            ),
+        )
+
+    def is_unconfigured(self) -> bool:
+        """True in the unconfigured state (configuration parameters may change)."""
+        return self.lifecycle == 'unconfigured'
+
+    def use_params(self, specs, config_from, unconfigured=None):
+        """:meth:`NodeTools.use_params` with configuration parameters settable while unconfigured."""
+        return super().use_params(specs, config_from, unconfigured or self.is_unconfigured)
 
     def _autostart(self) -> None:
         self.destroy_timer(self._auto)

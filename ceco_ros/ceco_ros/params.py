@@ -18,7 +18,17 @@ from typing import Any, ClassVar, Self
 
 from ceco_core.control_grid import TIMING_MODES
 
-__all__ = ['ParamSpec', 'NodeConfig', 'check_value', 'declare', 'declare_all', 'on_set']
+__all__ = [
+    'CONTROL_PERIOD_RANGE_S',
+    'HORIZON_RANGE',
+    'NMPC_CONTROL_PERIOD_RANGE_S',
+    'NodeConfig',
+    'ParamSpec',
+    'check_value',
+    'declare',
+    'declare_all',
+    'on_set',
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,7 +49,24 @@ class ParamSpec:
     """Allowed values of a string parameter."""
     read_only: bool = True
     """False: settable at run time (``ros2 param set``); the node applies it at once."""
+    at_configure: bool = False
+    """A managed node's configuration: settable while the node is unconfigured, applied on configure."""
 
+    @property
+    def when(self) -> str:
+        """When ``ros2 param set`` may change it: 'yes' (any time), 'unconfigured' or 'no' (docs table)."""
+        return 'yes' if not self.read_only else 'unconfigured' if self.at_configure else 'no'
+
+
+CONTROL_PERIOD_RANGE_S = (0.1, 300.0)
+"""Ts of every node [s]: up to 5 min (the NMPC's transcription grows with Ts / its substep: configure
+took 15 s at Ts 600 s on the 2-core machine, 124 s at 3600 s); the same in every node."""
+NMPC_CONTROL_PERIOD_RANGE_S = (5.0, 300.0)
+"""Ts of mpc_node [s]: a whole multiple of the control model's step (5 s, the identified model; the
+NMPC refuses another Ts at configure, naming it) and above twice its CPU-time budget per solve
+(controller.yaml ``max_cpu_time_s`` 1.0 s)."""
+HORIZON_RANGE = (1, 60)
+"""Np of the controller and of the preview grid [steps]: configure took 4 s at Np 60, 31 s at Np 200."""
 
 INPUT_WINDOW_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec(
@@ -59,7 +86,7 @@ INPUT_WINDOW_PARAMETERS: tuple[ParamSpec, ...] = (
         3.0,
         'a new time base (key-on or confirmed) is taken only after no state '
         'was accepted for this long (wall clock); longer than the plant step [s]',
-        float_range=(0.0, 3600.0),
+        float_range=(0.0, 60.0),
     ),
 )
 """The sequence gate's parameters (``ceco_core.sequencing.SequenceGate``), the same in every node that takes
@@ -86,6 +113,17 @@ def log_throttle_parameter(what: str = 'input') -> ParamSpec:
     )
 
 
+def liveliness_parameter(description: str, at_configure: bool = False) -> ParamSpec:
+    """The automatic liveliness lease a node offers or requests (``qos.liveliness_lease_s``)."""
+    return ParamSpec(
+        'qos.liveliness_lease_s',
+        1.0,
+        description,
+        float_range=(0.1, CONTROL_PERIOD_RANGE_S[1]),
+        at_configure=at_configure,
+    )
+
+
 DIAGNOSTICS_PERIOD_PARAMETER = ParamSpec(
     'diagnostics.period_s', 1.0, '/diagnostics publication period (steady clock) [s]', float_range=(0.05, 60.0)
 )
@@ -99,6 +137,7 @@ SHARED_FIELDS = {
     'inputs.max_clock_ahead_s': 'max_clock_ahead_s',
     'inputs.log_throttle_s': 'log_throttle_s',
     'diagnostics.period_s': 'diagnostics_period_s',
+    'qos.liveliness_lease_s': 'liveliness_lease_s',
 }
 """Parameter name -> config field of the shared parameters (the nodes' own tables add theirs)."""
 
@@ -184,7 +223,9 @@ def _declare(node, spec: ParamSpec) -> Any:
     from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
     name = spec.name
-    desc = ParameterDescriptor(name=name, description=spec.description, read_only=spec.read_only)
+    desc = ParameterDescriptor(
+        name=name, description=spec.description, read_only=spec.read_only and not spec.at_configure
+    )
     if spec.float_range is not None:
         desc.floating_point_range = [
             FloatingPointRange(from_value=float(spec.float_range[0]), to_value=float(spec.float_range[1]), step=0.0)
@@ -195,6 +236,7 @@ def _declare(node, spec: ParamSpec) -> Any:
         desc.additional_constraints = f'{spec.int_range[0]} <= {name} <= {spec.int_range[1]}'
     if spec.choices is not None:
         desc.additional_constraints = f'one of {", ".join(spec.choices)}'
+    _widen_int_override(node, spec)
     try:
         value = node.declare_parameter(name, spec.default, desc).value
     except Exception as err:  # rclpy: InvalidParameterValueException, type errors
@@ -205,20 +247,59 @@ def _declare(node, spec: ParamSpec) -> Any:
     return value
 
 
+def _widen_int_override(node, spec: ParamSpec) -> None:
+    """An integer given for a float parameter (``-p control_period_s:=5``, ``5`` in a YAML file) as that float.
+
+    rclpy types a parameter by its default and refuses an override of another type; the
+    overrides (from the command line and parameter files) are read from the node's table of them
+    before the declaration, as rclpy itself does (``Node._parameter_overrides``).
+    """
+    from rclpy.parameter import Parameter
+
+    overrides = getattr(node, '_parameter_overrides', {})
+    given = overrides.get(spec.name)
+    value = None if given is None else given.value
+    if isinstance(spec.default, float) and isinstance(value, int) and not isinstance(value, bool):
+        overrides[spec.name] = Parameter(spec.name, Parameter.Type.DOUBLE, float(value))
+
+
 def declare_all(node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
     """Declare every parameter of the table; ``{name: value}``. ValueError names the first bad one."""
     return {spec.name: _declare(node, spec) for spec in specs}
 
 
-def on_set(node, specs: Sequence[ParamSpec], apply: Callable[[dict[str, Any]], str | None]) -> None:
+def on_set(
+    node,
+    specs: Sequence[ParamSpec],
+    apply: Callable[[dict[str, Any]], str | None],
+    unconfigured: Callable[[], bool] | None = None,
+) -> None:
     """Accept ``ros2 param set`` on the table's settable parameters.
 
-    Each value is checked against its spec, then ``apply({name: value})`` (returns a reason to refuse, or None)
+    A configuration parameter (``at_configure``) is accepted only while ``unconfigured()`` is
+    true (a managed node in its unconfigured state); otherwise the reason names the lifecycle
+    transition to make first.
+
+    An integer for a float parameter is taken as that float (rclpy's pre-set callback). Each
+    value is checked against its spec, then ``apply({name: value})`` (returns a reason to refuse, or None)
     makes the change take effect. Read-only parameters are refused by rclpy itself.
     """
     from rcl_interfaces.msg import SetParametersResult
 
-    by_name = {s.name: s for s in specs if not s.read_only}
+    by_name = {s.name: s for s in specs if not s.read_only or s.at_configure}
+    floats = {s.name for s in specs if isinstance(s.default, float)}
+
+    def widen(parameters):  # `ros2 param set control_period_s 5`: an integer for a double
+        from rclpy.parameter import Parameter
+
+        return [
+            Parameter(p.name, Parameter.Type.DOUBLE, float(p.value))
+            if p.name in floats and p.type_ == Parameter.Type.INTEGER
+            else p
+            for p in parameters
+        ]
+
+    node.add_pre_set_parameters_callback(widen)
 
     def callback(parameters) -> SetParametersResult:
         changes = {}
@@ -226,6 +307,13 @@ def on_set(node, specs: Sequence[ParamSpec], apply: Callable[[dict[str, Any]], s
             spec = by_name.get(p.name)
             if spec is None:
                 continue  # another parameter (use_sim_time, qos_overrides.*): rclpy's own rules
+            if spec.read_only and not (unconfigured is not None and unconfigured()):
+                name = node.get_fully_qualified_name()
+                return SetParametersResult(
+                    successful=False,
+                    reason=f'{p.name} is a configuration parameter: set it while the node is unconfigured '
+                    f'(ros2 lifecycle set {name} deactivate, then cleanup), it applies on configure',
+                )
             value, why = check_value(spec, p.value)
             if why:
                 return SetParametersResult(successful=False, reason=why)
@@ -254,5 +342,5 @@ def markdown_table(specs: Sequence[ParamSpec]) -> str:
             if isinstance(s.default, bool)
             else str(s.default)
         )
-        rows.append(f'| `{s.name}` | `{default}` | {allowed} | {"no" if s.read_only else "yes"} | {s.description} |')
+        rows.append(f'| `{s.name}` | `{default}` | {allowed} | {s.when} | {s.description} |')
     return '\n'.join(rows)

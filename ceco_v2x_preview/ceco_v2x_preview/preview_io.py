@@ -19,10 +19,13 @@ from ceco_core.sequencing import SequenceGate, Verdict
 from ceco_core.supervision import Health, Rejections, reason_kind
 from ceco_ros.params import (
     CLOCK_AHEAD_PARAMETER,
+    CONTROL_PERIOD_RANGE_S,
     DIAGNOSTICS_PERIOD_PARAMETER,
+    HORIZON_RANGE,
     INPUT_WINDOW_PARAMETERS,
     NodeConfig,
     ParamSpec,
+    liveliness_parameter,
     log_throttle_parameter,
 )
 from ceco_ros.topics import TOPIC_STATE
@@ -40,9 +43,16 @@ PREVIEW_PARAMETERS: tuple[ParamSpec, ...] = (
         'lockstep (accelerated simulation, driven by cabin/state) or realtime (timer on the node clock)',
         choices=TIMING_MODES,
     ),
-    ParamSpec('control_period_s', 5.0, 'preview grid step = controller period Ts [s]', float_range=(0.1, 3600.0)),
-    ParamSpec('horizon_steps', 6, 'prediction horizon Np [steps]; the grid has Np + 1 points', int_range=(1, 1000)),
-    ParamSpec('publish_period_s', 5.0, 'publication period in realtime mode [s]', float_range=(0.01, 3600.0)),
+    ParamSpec(
+        'control_period_s', 5.0, 'preview grid step = controller period Ts [s]', float_range=CONTROL_PERIOD_RANGE_S
+    ),
+    ParamSpec('horizon_steps', 6, 'prediction horizon Np [steps]; the grid has Np + 1 points', int_range=HORIZON_RANGE),
+    ParamSpec(
+        'publish_period_s',
+        5.0,
+        'publication period in realtime mode; at most Ts (a controller expects a preview every control period) [s]',
+        float_range=(0.01, CONTROL_PERIOD_RANGE_S[1]),
+    ),
     ParamSpec(
         'faults.missing_spans_s',
         [0.0],
@@ -96,12 +106,16 @@ PREVIEW_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec(
         'inputs.max_state_age_s',
         10.0,
-        'realtime: oldest usable cabin state, by its stamp [s]',
-        float_range=(0.01, 3600.0),
+        'realtime: oldest usable cabin state, by its stamp; at least Ts [s]',
+        float_range=(0.1, 3600.0),
         read_only=False,
     ),
     CLOCK_AHEAD_PARAMETER,
     log_throttle_parameter(),
+    liveliness_parameter(
+        'automatic liveliness lease offered on the previews: a controller knows within it that this node is '
+        "gone; at most the controller's qos.liveliness_lease_s [s]"
+    ),
     DIAGNOSTICS_PERIOD_PARAMETER,
 )
 """The parameter table of preview_node."""
@@ -140,6 +154,8 @@ class PreviewNodeConfig(NodeConfig):
     """Shortest time between two log lines about one kind of rejection [s]."""
     diagnostics_period_s: float = 1.0
     """/diagnostics period [s]."""
+    liveliness_lease_s: float = 1.0
+    """Automatic liveliness lease offered on the previews [s]."""
 
     POSITIVE = ('control_period_s', 'publish_period_s', 'window_s', 'max_state_age_s')
 
@@ -177,6 +193,15 @@ class PreviewNodeConfig(NodeConfig):
         """Raise ValueError naming the parameter."""
         super().validate()
         self.quality.validate()
+        ts = self.control_period_s
+        # Ranges derived from the others: values that would keep the node from publishing a preview per period.
+        for name, value, ok, rule in (
+            ('publish_period_s', self.publish_period_s, self.publish_period_s <= ts, 'at most'),
+            ('inputs.max_state_age_s', self.max_state_age_s, self.max_state_age_s >= ts, 'at least'),
+            ('inputs.window_s', self.window_s, self.window_s >= ts, 'at least'),
+        ):
+            if not ok:
+                raise ValueError(f'invalid parameter {name}={value!r}: must be {rule} control_period_s={ts!r}')
 
 
 class PreviewInputs:

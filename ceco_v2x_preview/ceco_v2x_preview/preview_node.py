@@ -22,7 +22,7 @@ from rclpy.node import Node
 
 from ceco_core.control_grid import control_step_index, control_step_of
 from ceco_msgs.msg import CabinState, TrafficPreview, WeatherPreview
-from ceco_ros import conversions, interfaces, params
+from ceco_ros import conversions, interfaces
 from ceco_ros.diagnostics import DiagnosticsTimer
 from ceco_ros.node_base import NodeTools
 from ceco_ros.node_main import run_node
@@ -36,15 +36,14 @@ class PreviewNode(NodeTools, Node):
 
     def __init__(self):
         super().__init__('preview_node')
-        cfg = self.config = PreviewNodeConfig.from_params(params.declare_all(self, PREVIEW_PARAMETERS))
-        params.on_set(self, PREVIEW_PARAMETERS, self._set_params)
-        self.setup_tools(cfg.log_throttle_s)
+        cfg = self.use_params(PREVIEW_PARAMETERS, PreviewNodeConfig.from_params)
         self.scenario = load_scenario_param(cfg.scenario)
         self.quality_text = cfg.quality.describe()
         self.inputs = PreviewInputs(cfg, self.log)
         self._last_k, self._published, self._failed, self._error, self._reported = None, 0, 0, '', 0
-        self._pub_w = self.create_publisher(WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.QOS_PREVIEW)
-        self._pub_s = self.create_publisher(TrafficPreview, interfaces.TOPIC_TRAFFIC, interfaces.QOS_PREVIEW)
+        qos = interfaces.with_liveliness(interfaces.QOS_PREVIEW, cfg.liveliness_lease_s)  # a dead node is known
+        self._pub_w = self.create_publisher(WeatherPreview, interfaces.TOPIC_WEATHER, qos)
+        self._pub_s = self.create_publisher(TrafficPreview, interfaces.TOPIC_TRAFFIC, qos)
         self.create_subscription(
             CabinState,
             interfaces.TOPIC_STATE,
@@ -93,14 +92,10 @@ class PreviewNode(NodeTools, Node):
         self._pub_s.publish(s)
         self._last_k, self._published, self._error = k, self._published + 1, ''
 
-    def _set_params(self, changes: dict) -> str | None:
-        try:
-            self.config = self.config.replaced(changes)
-        except ValueError as err:
-            return str(err)
+    def config_changed(self) -> None:
+        """Run-time parameter changes go to the input checks."""
         self.inputs.cfg = self.config
-        self.inputs.rejections.throttle_s = self.notices.throttle_s = self.config.log_throttle_s
-        return None
+        self.inputs.rejections.throttle_s = self.config.log_throttle_s
 
     def _health(self):
         rej = self.inputs.rejections

@@ -20,7 +20,7 @@ from ceco_plant_sim.plant import (
 from ceco_plant_sim.plant_params import PlantParams
 from ceco_v2x_preview.scenario import Environment, load_scenario
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 FULL = AcInput(mdot_bl_kgps=0.17, t_evap_sp_c=3.0)
 
 

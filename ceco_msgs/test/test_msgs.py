@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-MSG_DIR = Path(__file__).resolve().parents[1] / 'ceco_msgs' / 'msg'
+MSG_DIR = Path(__file__).resolve().parents[1] / 'msg'
 MSGS = sorted(p.stem for p in MSG_DIR.glob('*.msg'))
 FIELD = re.compile(r'^(?P<type>[\w/]+(\[\d*\])?)\s+(?P<name>\w+)\s*(?P<rest>.*)$')
 UNIT = re.compile(r'#.*\[[^\]]+\]')

@@ -1,0 +1,23 @@
+from setuptools import find_packages, setup
+
+package_name = 'ceco_lint'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'tests']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+    ],
+    install_requires=['setuptools'],
+    extras_require={'test': ['pytest']},
+    zip_safe=False,
+    maintainer='ceco maintainers',
+    maintainer_email='maintainers@ceco.dev',
+    description=(
+        'The lint every ceco package runs under colcon test: ruff with the repository rules, ament_pep257, '
+        'package.xml against the imports.'
+    ),
+    license='Apache-2.0',
+)

@@ -1,0 +1,59 @@
+"""ceco_ros.entry.start: a stop signal while a node's modules still import ends the process with exit 0 and
+one line (issue 17 item 9: `ros2 launch` stopped within a second of starting it)."""
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+ROS = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.parametrize('sig', ['SIGINT', 'SIGTERM'])
+def test_a_stop_signal_during_the_import_exits_0_and_says_so(tmp_path, sig):
+    # a node module that is stopped while it imports (as a slow import of numpy/rclpy would be)
+    (tmp_path / 'slow_node.py').write_text(
+        textwrap.dedent(f"""
+            import os, signal, time
+            os.kill(os.getpid(), signal.{sig})
+            time.sleep(5)
+            def main():
+                return 3
+        """)
+    )
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), str(ROS)]))
+    code = 'import sys; from ceco_ros.entry import start; sys.exit(start("slow_node", "slow_node"))'
+    done = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True, text=True, timeout=30)
+    assert done.returncode == 0, done.stderr
+    assert f'[slow_node]: stopped ({sig}) while starting: exit 0' in done.stderr
+    assert 'Traceback' not in done.stderr and 'KeyboardInterrupt' not in done.stderr
+
+
+def test_without_a_signal_the_nodes_main_runs(tmp_path):
+    (tmp_path / 'quick_node.py').write_text('def main():\n    return 3\n')
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), str(ROS)]))
+    code = 'import sys; from ceco_ros.entry import start; sys.exit(start("quick_node", "quick_node"))'
+    assert subprocess.run([sys.executable, '-c', code], env=env, timeout=30).returncode == 3
+
+
+def test_a_stop_while_the_node_is_constructed_exits_0_and_says_so(tmp_path):
+    """run_node: SIGINT while the node's constructor runs (after rclpy.init) is caught and said too."""
+    pytest.importorskip('rclpy', reason='needs the sourced ROS 2 workspace')
+    code = textwrap.dedent("""
+        import os, signal, sys, time
+        from ceco_ros.node_main import run_node
+
+        def factory():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5)
+
+        sys.exit(run_node(factory, None, 'slow_ctor'))
+    """)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROS), os.environ.get('PYTHONPATH', '')]))
+    done = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert '[slow_ctor]: stopped (SIGINT) while starting: exit 0' in done.stderr, done.stderr
+    assert 'Traceback' not in done.stderr
