@@ -161,3 +161,21 @@ def test_steady_state_holds_pmv_within_backoff_under_the_bound():
     assert pmv.min() >= 0.4
     assert float(np.mean(pmv)) >= 0.44
     assert res.metrics["n_fallback_baseline"] == 0 and res.metrics["n_fallback_shifted"] == 0
+
+
+def test_benchmark_runs_the_persistence_twin():
+    from ceco_bringup.benchmark import runner
+    from ceco_bringup.benchmark.cases import load_case
+
+    specs = runner.controllers(runner.load_baselines(), (25.0,), ("ceco", "ceco-pmv"), (0.2,))
+    by_name = {c.name: c for c in specs}
+    assert "ceco-pmv-persistence" in by_name and "ceco-persistence" not in by_name
+    twin = by_name["ceco-pmv-persistence"]
+    assert (twin.kind, twin.strategy, twin.preview) == ("strategy", "ceco-pmv", "persistence")
+    case = load_case("tunnel")
+    cells = runner.case_cells(case, [by_name["ceco-pmv"], twin], "x")
+    previews = {(c.axes["controller"], c.spec["preview"]) for c in cells}
+    # the strategy sees the case's forecasts (medium uncertainty), its twin persistence, on every seed
+    assert previews == {("ceco-pmv", "uncertain:medium"), ("ceco-pmv-persistence", "persistence")}
+    assert len(cells) == 2 * len(case.seeds)
+    assert parse_quality("persistence").persistence

@@ -90,7 +90,10 @@ def measured_pmv(obs: Observation, params: ComfortParams, t_glass_c: float, rh_c
 def pmv_solar_sensitivity(
     t_cab_c: float, t_vent_c: float, mdot_bl_kgps: float, t_mr_c: float, pa_pa: float, solar_wm2: float, params
 ) -> float:
-    """|dPMV/dG| [PMV per W/m2]: the PMV's sensitivity to the direct irradiance G at a state (central difference, 10 W/m2)."""
+    """|dPMV/dG| [PMV per W/m2]: the PMV's sensitivity to the direct irradiance G at a state.
+
+    A difference over 20 W/m2 (central, one-sided at G < 10 W/m2).
+    """
     g = np.array([max(solar_wm2 - 10.0, 0.0), max(solar_wm2 - 10.0, 0.0) + 20.0])
     y = cabin_pmv(
         t_cab_c=np.full(2, t_cab_c),
@@ -256,7 +259,7 @@ class PreviewSkill:
         return held(v, n_grid)
 
     def shrink(self, series: dict, obs: Observation) -> dict:
-        """The previewed series (``fill_previews``'s, possibly extended) with each change from the measured value shrunk."""
+        """The previewed series (``fill_previews``'s, possibly extended), each change from the measured value shrunk."""
         out = {}
         for q, x in series.items():
             x = np.asarray(x, float)

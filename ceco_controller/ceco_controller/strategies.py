@@ -314,7 +314,13 @@ class StrategySettings:
             raise ValueError("StrategySettings.backoff 'adaptive' needs pmv_feedback (it measures the PMV residuals)")
         if self.preview_rule not in ("raw", "shrink"):
             raise ValueError(f"StrategySettings.preview_rule must be 'raw' or 'shrink', got {self.preview_rule!r}")
-        for name in ("backoff_init_pmv", "backoff_min_pmv", "backoff_max_pmv", "backoff_forecast_z", "preview_shrink_c"):
+        for name in (
+            "backoff_init_pmv",
+            "backoff_min_pmv",
+            "backoff_max_pmv",
+            "backoff_forecast_z",
+            "preview_shrink_c",
+        ):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"StrategySettings.{name} must be finite and >= 0, got {v!r}")
@@ -363,7 +369,7 @@ class StrategySettings:
         return self.horizon_steps + self.horizon_extension_steps
 
 
-_DEFAULTS = {
+_DEFAULTS: dict[str, dict[str, Any]] = {
     "ceco": dict(pmv_margin=0.1),
     "ceco-e": dict(),
     "ceco-c": dict(gamma_w=COMFORT_GAMMA_W),
@@ -391,11 +397,7 @@ def resolved_transcription(settings: StrategySettings) -> str:
         return t
     if settings.solver.name in ("ipopt", "fatrop"):
         return "multiple-shooting"
-    return (
-        "single-shooting"
-        if settings.nlp_steps <= settings.solver.single_shooting_max_steps
-        else "multiple-shooting"
-    )
+    return "single-shooting" if settings.nlp_steps <= settings.solver.single_shooting_max_steps else "multiple-shooting"
 
 
 def auto_solver_name(transcription: str) -> str:
