@@ -536,16 +536,17 @@ class NmpcController:
         """ceco-pmv's comfort output (docs/controller.md 4.7): measured PMV, bias, back-off, shrunk previews.
 
         Updates ``ex`` in place (preview shrinkage) and returns the comfort bounds (lb, ub) on the NLP
-        grid, moved by the PMV bias and the back-off (None: the observation's bounds).
+        grid: the upper one capped at ``settings.pmv_ub_cap``, both moved by the PMV bias, the upper one by
+        the back-off (None: the observation's bounds).
         """
-        fb, skill = self._pmv_fb, self._skill
-        if fb is None and skill is None:
+        fb, skill, cap = self._pmv_fb, self._skill, self.settings.pmv_ub_cap
+        if fb is None and skill is None and not math.isfinite(cap):
             return None
         n = self.problem.params.n_grid
         if skill is not None:
             skill.update(obs, valid)
             ex.update(skill.shrink(ex, obs))
-        lb, ub = held(obs.pmv_lb, n), held(obs.pmv_ub, n)
+        lb, ub = held(obs.pmv_lb, n), np.minimum(held(obs.pmv_ub, n), cap)
         self._comfort_now = self.comfort_parameters(obs, chk.t_glass_c, chk.rh_cab)
         if fb is None:
             return lb, ub

@@ -263,6 +263,10 @@ class StrategySettings:
     backoff_forecast_z: float = 1.645
     """Standard normal quantile applied to the PMV spread caused by the solar forecast's error growth
     beyond the first step [-] (1.645: one-sided 95 %)."""
+    pmv_ub_cap: float = math.inf
+    """Cap on the upper comfort bound the NLP sees [PMV]: min(the observation's bound, this) (inf: the
+    bound as given). ceco-pmv: 0.5, the comfort band: it does not spend the pull-down's relaxed bound, as
+    the matched-comfort axis charges every PMV-hour above +0.5 (docs/controller.md 4.7)."""
     preview_rule: str = "raw"
     """How the previews enter the prediction: 'raw' (as received) or 'shrink' (each previewed change
     from the measured value shrunk by its measured forecast-error variance; docs/controller.md 4.7)."""
@@ -312,6 +316,8 @@ class StrategySettings:
             raise ValueError(f"StrategySettings.backoff must be 'fixed' or 'adaptive', got {self.backoff!r}")
         if self.backoff == "adaptive" and not self.pmv_feedback:
             raise ValueError("StrategySettings.backoff 'adaptive' needs pmv_feedback (it measures the PMV residuals)")
+        if not (isinstance(self.pmv_ub_cap, (int, float)) and -3.0 <= self.pmv_ub_cap):
+            raise ValueError(f"StrategySettings.pmv_ub_cap must be >= -3 (inf: no cap), got {self.pmv_ub_cap!r}")
         if self.preview_rule not in ("raw", "shrink"):
             raise ValueError(f"StrategySettings.preview_rule must be 'raw' or 'shrink', got {self.preview_rule!r}")
         for name in (
@@ -378,6 +384,7 @@ _DEFAULTS: dict[str, dict[str, Any]] = {
         pmv_pa_source="measured",
         horizon_extension_steps=6,
         pmv_feedback=True,
+        pmv_ub_cap=0.5,
         backoff="adaptive",
         preview_rule="shrink",
         use_speed_preview=True,
