@@ -114,18 +114,20 @@ def test_held_extends_with_the_last_value():
     assert held([1.0, 2.0, 3.0], 2) == pytest.approx([1, 2])
 
 
-def test_controller_moves_the_upper_bound_by_bias_and_backoff():
+def test_controller_caps_the_upper_bound_and_moves_it_by_bias_and_backoff():
     ctrl = NmpcController("ceco-pmv")
     n = ctrl.problem.params.n_grid
     assert n == strategy_settings("ceco-pmv").nlp_steps + 1 == 13
-    zone = dict(t_int_c=32.0, t_shell_c=32.0, rh_cab=0.45)
+    # the scenario relaxes the upper bound to 3.0 (a pull-down): ceco-pmv caps it at the band's +0.5
+    zone = dict(t_int_c=32.0, t_shell_c=32.0, rh_cab=0.45, pmv_ub=np.full(N1, 3.0))
     for k in range(3):
         cmd, diag = ctrl.compute(observation(N1, k, t_cab=26.0, **zone))
         assert diag.success and "comfort: PMV" in diag.message
     fb = ctrl.pmv_feedback
     assert fb is not None and fb.last_error is not None and math.isfinite(fb.bias) and fb.bias != 0.0
     pl, p = ctrl.problem.params, ctrl._last_nlp.p
-    # the NLP's bounds: the observation's moved by -bias, the upper one also by the initial back-off 0.1
+    # the NLP's bounds: the observation's (the upper one capped at 0.5) moved by -bias, the upper one also by
+    # the initial back-off 0.1
     assert pl.get(p, "pmv_ub") == pytest.approx(np.full(n, 0.5 - fb.bias - 0.1))
     assert pl.get(p, "pmv_lb") == pytest.approx(np.full(n, -0.5 - fb.bias))
     # without a humidity measurement the comfort output is not measured: the bias is kept, not updated
