@@ -168,7 +168,7 @@ def test_metadata_decodes_under_jazzy_rosbag2_rules(tmp_path, storage):
     (state_qos,) = topics['/cabin/state']['topic_metadata']['offered_qos_profiles']
     assert (state_qos['history'], state_qos['depth'], state_qos['reliability'], state_qos['durability']) == (
         'keep_last',
-        1000,
+        interfaces.LOCKSTEP_DEPTH,
         'reliable',
         'volatile',
     )

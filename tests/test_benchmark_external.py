@@ -64,9 +64,19 @@ def test_external_controller_over_dds_scores_as_the_builtin_baseline(tmp_path):
     assert row['kpis']['fallback_steps'] == 0.0 and ref['kpis']['energy_kwh'] > 0.0
 
 
-def test_a_controller_that_never_answers_is_scored_with_the_plant_fallback(tmp_path):
-    """A node that subscribes but never publishes a command: the plant's watchdog applies the ACC law
-    every control period and every step counts as a fallback step."""
+# What the node publishes instead of a command: nothing, NaN, a blower flow above its range.
+NOT_CONTROLLING = {
+    'silent': '        pass\n',
+    'nan': '        cmd.blower_flow_kgps = float("nan")\n        self.pub.publish(cmd)\n',
+    'out-of-range': '        cmd.blower_flow_kgps = 0.5\n        self.pub.publish(cmd)\n',
+}
+
+
+@pytest.mark.parametrize('what', sorted(NOT_CONTROLLING))
+def test_a_controller_that_never_commands_is_a_failed_run(tmp_path, what):
+    """A node that never sends an acceptable command (issue 17 item 1): the plant rejects NaN and
+    out-of-range commands (never clamps them), its watchdog applies the ACC law every control period,
+    and the run, whose KPIs are then the fallback law's, is failed: KPIs kept, never matched."""
     case = case_from_dict(
         {
             'schema': 'ceco-benchmark-case/1',
@@ -78,19 +88,29 @@ def test_a_controller_that_never_answers_is_scored_with_the_plant_fallback(tmp_p
             'seeds': [0],
         }
     )
-    silent = tmp_path / 'silent.py'
-    silent.write_text(NODE.read_text().replace('        self.pub.publish(cmd)\n', '        pass\n'))
-    (cell,) = runner.case_cells(
-        case, [runner.ControllerSpec('external:silent', 'external', 'external')], code_fingerprint()
-    )
+    node = tmp_path / f'{what}.py'
+    node.write_text(NODE.read_text().replace('        self.pub.publish(cmd)\n', NOT_CONTROLLING[what]))
+    spec = runner.ControllerSpec(f'external:{what}', 'external', 'external')
+    (cell,) = runner.case_cells(case, [spec], code_fingerprint())
     row = external.run_external_cell(
         {'id': cell.id, 'axes': cell.axes, 'spec': cell.spec},
-        [sys.executable, str(silent)],
+        [sys.executable, str(node)],
         tmp_path / 'ext',
         command_timeout_s=0.5,
     )
-    assert row['status'] == 'ok', row['error']
+    assert row['status'] == 'failed', (row['status'], row['error'])
+    assert 'did not control the run: 4 of 4 control steps in fallback' in row['error']
     assert row['kpis']['fallback_steps'] == 4.0  # 20 s / Ts 5 s, all from the plant's law
+    assert row['kpis']['energy_kwh'] > 0.0  # kept
+    log = (tmp_path / 'ext' / 'logs' / 'plant_node.log').read_text()
+    assert ('rejected hvac/command' in log) is (what != 'silent')
+    # the same runs as the plant's law at 26 degC: matched, that would have read "+0.0 % saved"
+    base = runner.ControllerSpec('baseline@26.0', 'baseline', 'baseline', (('setpoint_c', 26.0),), 26.0)
+    (ref_cell,) = runner.case_cells(case, [base], code_fingerprint())
+    ref = runner.run_benchmark_cell({'id': ref_cell.id, 'axes': ref_cell.axes, 'spec': ref_cell.spec})
+    assert row['kpis']['energy_kwh'] == ref['kpis']['energy_kwh']
+    entry = runner.assemble_case(case, [row, ref])
+    assert entry['matched'] == {} and [r['status'] for r in entry['runs']] == ['ok', 'failed']
 
 
 def test_uncertainty_level_over_dds_equals_the_simulator(tmp_path):

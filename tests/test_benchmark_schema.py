@@ -210,13 +210,24 @@ def _case(doc):
             lambda d: _case(d)["fronts"]["plain"].append(
                 {"controller": "ceco", "discomfort": 0.08, "energy": 0.3, "efficient": True}
             ),
-            "not a finished run of kind",
+            "not a run of kind 'baseline' with status ok",
         ),
         (lambda d: _case(d)["matched"]["ceco"].update(energy_saving_pct=12.0), "does not recompute"),
         (lambda d: _case(d)["matched"]["ceco"]["allowance"].update(dominated=True), "allowance.dominated"),
         (lambda d: _case(d)["matched"]["ceco"]["seeds"].update(dominated=[False]), "seeds.dominated"),
-        (lambda d: _case(d)["matched"].update({"ceco-x": _case(d)["matched"]["ceco"]}), "no finished run"),
+        (lambda d: _case(d)["matched"].update({"ceco-x": _case(d)["matched"]["ceco"]}), "no run of this controller"),
         (lambda d: _case(d)["runs"][11].update(status="error", error=""), "without an error message"),
+        (lambda d: _case(d)["runs"][11].update(status="failed", error=""), "status failed without an error message"),
+        # a failed run is never matched: a matched entry built on one does not validate
+        (
+            lambda d: [r.update(status="failed", error="did not control") for r in _case(d)["runs"][10:12]],
+            "matched/ceco: no run",
+        ),
+        # ... nor a front member
+        (
+            lambda d: _case(d)["runs"][1].update(status="failed", error="did not control"),
+            "baseline@25.0): not a run of kind",
+        ),
         (lambda d: d.update(created_utc="yesterday"), "created_utc"),
     ],
 )
@@ -227,3 +238,22 @@ def test_each_violation_is_reported(mutate, message):
         doc = make_doc()
         mutate(doc)
         bs.validate_results(doc)
+
+
+def test_a_failed_run_keeps_its_kpis_and_is_left_out_of_matching():
+    """A run whose controller did not control it (ceco_core.run_status) is ``failed``: its KPIs are kept
+    (and must be explained where null) but it is on no front and in no ``matched`` entry."""
+    doc = make_doc()
+    runs, case = _case(doc)["runs"], _case(doc)
+    failed = _run("external:nan", "external", 0, 0.05, 0.33)
+    failed.update(status="failed", error="the controller did not control the run: 12 of 12 control steps in fallback")
+    runs.append(failed)
+    assert bs.check_results(doc) == []  # kept with its numbers, not matched
+    assert "external:nan" not in case["matched"]
+    failed["kpi_notes"] = {}
+    assert any("external:nan" in e and "null without a note" in e for e in bs.check_results(doc))
+    failed["kpi_notes"] = {"draught_pct": "run has no dr_pct column"}
+    # a matched entry for it (what a +0.0 % 'saving' of the plant's fallback law looked like) is refused
+    case["matched"]["external:nan"] = copy.deepcopy(case["matched"]["baseline-compensated"])
+    errors = bs.check_results(doc)
+    assert any("matched/external:nan" in e and "status ok" in e for e in errors), errors

@@ -286,13 +286,23 @@ def test_building_the_sqp_controller_prints_nothing(capfd):
 
 
 def test_auto_solver_follows_the_horizon():
-    """'auto': SQP on the single-shooting NLP up to single_shooting_max_steps, warm IPOPT on the
-    multiple-shooting NLP beyond (the dense SQP's cost grows cubically with Np)."""
+    """'auto': the SQP with dense qpOASES QPs on the single-shooting NLP up to single_shooting_max_steps,
+    the SQP with HPIPM's Riccati QPs on the multiple-shooting NLP beyond (the dense QP's cost grows
+    cubically with Np); IPOPT retries and does the cold solves in both."""
     short = NmpcController(strategy_settings("ceco", horizon_steps=12))
     long_ = NmpcController(strategy_settings("ceco", horizon_steps=13))
-    assert (short.settings.solver.name, short.transcription) == ("sqp", "single-shooting")
-    assert (long_.settings.solver.name, long_.transcription) == ("ipopt", "multiple-shooting")
-    assert long_.solver_fallback is None and short.solver_fallback is not None
+    assert (short.settings.solver.name, short.settings.solver.qpsol, short.transcription) == (
+        "sqp",
+        "qpoases",
+        "single-shooting",
+    )
+    assert (long_.settings.solver.name, long_.settings.solver.qpsol, long_.transcription) == (
+        "sqp",
+        "hpipm",
+        "multiple-shooting",
+    )
+    assert long_.solver_fallback is not None and short.solver_fallback is not None
+    assert long_.cold_path is None and long_.solver_cold.name == "ipopt"
     explicit = NmpcController(
         strategy_settings("ceco", horizon_steps=13, solver=SolverSettings(name="sqp", transcription="single-shooting"))
     )

@@ -106,8 +106,52 @@ def test_verdict_json_round_trip(tmp_path):
     assert data['matched']['ceco']['energy_saving_pct'] == pytest.approx(5.0)
     assert data['energy'] == 'compressor + blower + condenser fan' and data['family'] == FAMILY
     (tmp_path / 'other.json').write_text('{"schema": "x"}')
-    with pytest.raises(ValueError, match='ceco-verdict/1'):
+    with pytest.raises(ValueError, match='not a ceco-verdict/2 file'):
         vd.read_verdict(tmp_path / 'other.json')
+    old = json.loads((tmp_path / 'verdict.json').read_text())
+    (tmp_path / 'v1.json').write_text(json.dumps(dict(old, schema='ceco-verdict/1')))
+    assert vd.read_verdict(tmp_path / 'v1.json')['family'] == FAMILY  # an older job's file still reads
+
+
+def test_verdict_reads_each_run_against_the_stronger_law_and_names_the_production_number():
+    """With the production and the tuned law in the family, a strategy is read against the law that
+    spends least at its discomfort (the envelope), and the production law's number stands beside it:
+    a saving against the sluggish production gains alone is not the headline."""
+    tuned = {  # the tuned law: 4 % less energy than the production law at every set-point
+        n.replace('baseline@', 'baseline-tuned@'): dict(p, energy_kwh=0.96 * p['energy_kwh']) for n, p in FAMILY.items()
+    }
+    points = {'baseline': _point(0.13, 0.37), 'ceco': _point(0.11, 0.38)}
+    v = vd.build_verdict('sc03', points, {**FAMILY, **tuned})
+    assert v.matched['ceco']['energy_saving_pct'] == pytest.approx(100 * (0.96 * 0.40 - 0.38) / (0.96 * 0.40))
+    assert v.matched_by_law['baseline']['ceco']['energy_saving_pct'] == pytest.approx(5.0)
+    assert v.matched_by_law['baseline-tuned']['ceco'] == v.matched['ceco']
+    # the production law at 26 degC is above the tuned law's front: it is not "on the front"
+    assert v.matched['baseline']['energy_saving_pct'] == pytest.approx(100 * (0.96 * 0.37 - 0.37) / (0.96 * 0.37))
+    lines = vd.verdict_lines(v)
+    text = ' '.join(line.strip() for line in lines)
+    assert max(len(line) for line in lines) <= outputs.CONSOLE_WIDTH
+    assert 'same energy as the set-point family at matched comfort (+1.0 %' not in text
+    assert 'saves 1.0 % energy at matched comfort; +5.0 % against the production law alone' in text
+    assert 'against the production law (gains 0.25 1/K, 120 s) and the tuned law (gains 0.5 1/K, 60 s)' in text
+    assert 'at each discomfort the law that spends least' in text
+    assert 'Headline: ceco saves the most energy at matched comfort, 1.0 %.' in text
+
+
+def test_family_runs_the_tuned_law_with_its_frozen_gains():
+    """run_family's tuned law is the production law with the benchmark's frozen gains: the same
+    pull-down, then a different comfort-phase trajectory (300 s of SC03 at 25 degC)."""
+    from ceco_bringup.benchmark import runner
+
+    fam = vd.run_family('sc03', duration_s=300.0, setpoints_c=(25.0,), progress=False)
+    assert sorted(fam) == ['baseline-tuned@25.0', 'baseline@25.0']
+    gains = runner.load_baselines().families['tuned'][0]
+    settings = SimSettings(
+        duration_s=300.0, progress=False, strategy_overrides=tuple(sorted({**gains, 'setpoint_c': 25.0}.items()))
+    )
+    direct = vd.run_point(simulate('sc03', 'baseline', settings).timeseries)
+    assert fam['baseline-tuned@25.0'] == direct
+    e_prod, e_tuned = fam['baseline@25.0']['energy_kwh'], fam['baseline-tuned@25.0']['energy_kwh']
+    assert abs(e_tuned - e_prod) > 1e-3 * e_prod
 
 
 # ---------------------------------------------------------------------------------------- energy and signs
@@ -185,17 +229,28 @@ def test_sim_job_prints_the_verdict_and_keeps_what_made_it(tmp_path, capsys):
     argv += ['--out', str(out), '--no-progress']
     assert cli.main(['sim', *argv]) == 0
     text = capsys.readouterr().out
-    assert 'Verdict on sc03 (60 s).' in text and 'Matched comfort: against the production law at 25-27 degC' in text
+    flat = ' '.join(line.strip() for line in text.splitlines())  # the verdict's lines wrap at 100 characters
+    assert 'Verdict on sc03 (60 s).' in text and 'Matched comfort: against the production law (gains' in flat
+    assert 'and the tuned law (gains 0.5 1/K, 60 s) at 25-27 degC (6 runs' in flat
     table = text[text.index('strategy  ') : text.index('Verdict on')].splitlines()
     assert max(len(line) for line in table) <= outputs.CONSOLE_WIDTH
     v = json.loads((out / 'verdict.json').read_text())
-    assert sorted(v['family']) == ['baseline@25.0', 'baseline@26.0', 'baseline@27.0']
+    sps = ['@25.0', '@26.0', '@27.0']
+    assert sorted(v['family']) == sorted([f'baseline{s}' for s in sps] + [f'baseline-tuned{s}' for s in sps])
     # the family member at 26 degC is the job's baseline run, in the same process: the same point
     assert v['family']['baseline@26.0']['energy_kwh'] == v['points']['baseline']['energy_kwh']
-    # the matched saving is front.match against the kept family (one computation)
-    f = front.build_front({n: (p['discomfort_pmvh'], p['energy_kwh']) for n, p in v['family'].items()})
+    # the matched saving is front.match against the kept family's envelope (one computation)
+    laws = {
+        law: front.build_front(
+            {n: (p['discomfort_pmvh'], p['energy_kwh']) for n, p in v['family'].items() if n.startswith(law + '@')}
+        )
+        for law in ('baseline', 'baseline-tuned')
+    }
     p = v['points']['ceco-e']
-    assert v['matched']['ceco-e'] == front.match(f, p['discomfort_pmvh'], p['energy_kwh']).as_dict()
+    env = front.Envelope.of(laws)
+    assert v['matched']['ceco-e'] == front.match(env, p['discomfort_pmvh'], p['energy_kwh']).as_dict()
+    f = laws['baseline']
+    assert v['matched_by_law']['baseline']['ceco-e'] == front.match(f, p['discomfort_pmvh'], p['energy_kwh']).as_dict()
     csv_rows = (out / 'comparison.csv').read_text().splitlines()
     assert csv_rows[0].startswith('strategy,energy_kwh,') and len(csv_rows) == 3
     assert (out / 'summary.txt').read_text().count('Verdict on sc03') == 1

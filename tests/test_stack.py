@@ -186,7 +186,9 @@ def test_short_closed_loop_over_dds_matches_simulator(tmp_path):
     assert metrics['strategy'] == 'ceco-ioch' and metrics['scenario'] == 'sc03'
     # the verdict after the job: the saving at matched comfort against the in-process family; the run
     # directory keeps the scenario file, the command line and what was printed
-    assert 'Verdict on sc03 (60 s).' in text and 'Matched comfort: against the production law at 24-27 degC' in text
+    flat = ' '.join(line.strip() for line in text.splitlines())  # the verdict's lines wrap at 100 characters
+    assert 'Verdict on sc03 (60 s).' in text and 'Matched comfort: against the production law (gains' in flat
+    assert 'and the tuned law (gains 0.5 1/K, 60 s) at 24-27 degC (14 runs' in flat
     verdict = json.loads((out / 'verdict.json').read_text())
     assert verdict['matched']['ceco-ioch']['energy_saving_pct'] is not None or verdict['matched']['ceco-ioch']['note']
     run = json.loads((out / 'run.json').read_text())

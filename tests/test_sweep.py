@@ -3,6 +3,7 @@ to direct closed-loop runs, on the local process pool and on a local Ray
 instance. Runs are shortened (duration_s) to keep the suite fast."""
 
 import csv
+import dataclasses
 import importlib.util
 import json
 import math
@@ -135,6 +136,59 @@ def test_local_sweep_equals_direct_runs_and_resumes(tmp_path):
     assert len(parsed) == 6
 
 
+def _fresh_process_row(cell):
+    """The cell run in a process of its own (spawned for it, nothing built before)."""
+    import concurrent.futures as cf
+    import multiprocessing
+
+    ctx = multiprocessing.get_context('spawn')
+    with cf.ProcessPoolExecutor(max_workers=1, mp_context=ctx, max_tasks_per_child=1) as pool:
+        return pool.submit(sweep.run_cell, dataclasses.asdict(cell)).result()
+
+
+_RESULT_KEYS = [k for k in sweep.METRIC_COLUMNS if k not in sweep.TIMING_COLUMNS]
+
+
+def test_warm_workers_reuse_controllers_and_equal_fresh_processes(tmp_path):
+    """A warm worker builds each controller once and reuses it, reset, for its later cells; every
+    cell's results equal those of the same cell run in a fresh process, bit for bit, whether the
+    warm worker is this process or a pool process, and whatever ran on it before."""
+    grid = _grid(tmp_path, GRID.replace('[baseline, ceco]', '[baseline, ceco, ceco-ioch]'), duration=40)
+    cells = sweep.expand_grid(sweep.load_grid(grid))
+    assert len(cells) == 6
+    fresh = {c.id: _fresh_process_row(c) for c in cells if c.axes['strategy'] != 'baseline'}
+    fresh.update({c.id: sweep.run_cell(dataclasses.asdict(c)) for c in cells if c.axes['strategy'] == 'baseline'})
+    # one warm worker in this process, the cells in grid order and then again in reverse
+    worker = sweep.backends.WarmWorker()
+    warm = [worker.run(sweep.run_cell, dataclasses.asdict(c)) for c in cells + cells[::-1]]
+    assert worker.cache.builds == 2 and worker.cache.hits == 6  # ceco and ceco-ioch built once each
+    # the local pool: two warm processes
+    pooled: list = []
+    sweep.run_local([dataclasses.asdict(c) for c in cells], 2, pooled.append, sweep.run_cell)
+    assert len(pooled) == 6 and len({r['pid'] for r in pooled}) <= 2
+    for row in warm + pooled:
+        ref = fresh[row['cell_id']]
+        assert row['status'] == ref['status'] == 'ok'
+        assert [repr(row[k]) for k in _RESULT_KEYS] == [repr(ref[k]) for k in _RESULT_KEYS], row['strategy']  # NaN too
+    # the NMPC cells did control (no number from a failed run)
+    assert all(fresh[c.id]['n_control_steps'] == 8 for c in cells)
+    assert all(fresh[c.id]['n_fallback_baseline'] == 0 for c in cells if c.axes['strategy'] != 'baseline')
+
+
+def test_cells_start_longest_first():
+    """The pool starts NMPC and long cells first (only the order changes, never a result)."""
+    items = [
+        {'spec': {'strategy': 'baseline', 'duration_s': 600.0}},
+        {'spec': {'strategy': 'ceco', 'duration_s': 300.0}},
+        {'spec': {'strategy': 'baseline', 'duration_s': 1369.0}},
+        {'spec': {'strategy': 'ceco-c', 'duration_s': 600.0, 'horizon_steps': 24}},
+        {'spec': {'strategy': 'ceco', 'duration_s': None, 'scenario': {'duration_s': 765.0}}},
+    ]
+    costs = [sweep.backends.estimated_cost(i) for i in items]
+    assert costs == [600.0, 900.0, 1369.0, 7200.0, 2295.0]
+    assert sweep.backends._longest_first(items) == [items[3], items[4], items[2], items[1], items[0]]
+
+
 def test_failed_cell_is_recorded_and_retried(tmp_path, monkeypatch):
     cell = sweep.expand_grid(sweep.load_grid(_grid(tmp_path)))[0]
     bad = {'id': cell.id, 'axes': cell.axes, 'spec': {**cell.spec, 'preview': 'foggy'}}
@@ -163,6 +217,82 @@ def test_ray_backend_matches_local(tmp_path):
     for r in ray_res['rows']:
         for key in ('E_tot_J', 'I_pmv', 'otc_violation_pct'):
             assert r[key] == by_axes[r['strategy']][key]
+
+
+def _free_port():
+    import socket
+
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.extra('ray')
+def test_ray_cluster_of_two_nodes_joined_by_address(tmp_path):
+    """docs/analysis.md's multi-node recipe on this machine: a head started with ``ray start --head``,
+    a second node (its own raylet) joined by ``ray start --address``, token authentication, then
+    ``ceco sweep --backend ray --address``: every cell runs, on both nodes, with the results of the
+    local in-process run."""
+    import os
+    import secrets
+    import shutil
+    import signal
+    import subprocess
+    import sys
+    import tempfile
+    import time
+
+    ray_cli = shutil.which('ray')
+    assert ray_cli, 'the ray command of the Ray extra'
+    env = {
+        **os.environ,
+        'RAY_USAGE_STATS_ENABLED': '0',
+        'RAY_AUTH_MODE': 'token',
+        'RAY_AUTH_TOKEN': secrets.token_hex(32),
+    }
+    port = _free_port()
+    ray_tmp = tempfile.mkdtemp(prefix='ceco_ray_', dir='/tmp')  # short: Ray's AF_UNIX socket paths (<= 107 bytes)
+    common = ['--block', '--num-cpus', '1', '--temp-dir', ray_tmp, '--node-ip-address', '127.0.0.1']
+    common += ['--disable-usage-stats']
+    head_cmd = [ray_cli, 'start', '--head', '--port', str(port), '--include-dashboard', 'false']
+    head_cmd += ['--dashboard-agent-listen-port', str(_free_port())]
+    node_cmd = [ray_cli, 'start', '--address', f'127.0.0.1:{port}']
+    node_cmd += ['--dashboard-agent-listen-port', str(_free_port())]
+    procs = []
+    try:
+        for cmd in (head_cmd + common, node_cmd + common):
+            log = open(tmp_path / f'ray_{len(procs)}.log', 'w')
+            procs.append(subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True))
+            deadline = time.monotonic() + 120
+            while 'will now block forever' not in (tmp_path / f'ray_{len(procs) - 1}.log').read_text():
+                assert procs[-1].poll() is None, (tmp_path / f'ray_{len(procs) - 1}.log').read_text()[-2000:]
+                assert time.monotonic() < deadline, 'ray start did not come up in 120 s'
+                time.sleep(0.5)
+        grid = _grid(tmp_path, GRID.replace('[baseline, ceco]', '[baseline, ceco, ceco-ioch]'), duration=20)
+        # the driver as a user runs it: `ceco sweep` in a shell that has the cluster's token
+        cmd = [sys.executable, '-m', 'ceco_bringup.cli', 'sweep', str(grid), '--out', str(tmp_path / 'cluster')]
+        cmd += ['--backend', 'ray', '--address', f'127.0.0.1:{port}', '--no-progress']
+        run = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
+        assert run.returncode == 0, run.stderr[-3000:]
+        assert '6/6 cells done (6 run now, 0 failed)' in run.stdout + run.stderr
+        rows = [json.loads(ln) for ln in (tmp_path / 'cluster' / 'cells.jsonl').read_text().splitlines()]
+        assert len(rows) == 6 and all(r['status'] == 'ok' for r in rows)
+        assert len({r['ray_node'] for r in rows}) == 2  # both nodes ran cells
+        local = sweep.run_sweep(grid, tmp_path / 'local', workers=1, progress=False, log=lambda *a, **k: None)
+        ref = {r['cell_id']: r for r in local['rows']}
+        for r in rows:
+            assert [repr(r[k]) for k in _RESULT_KEYS] == [repr(ref[r['cell_id']][k]) for k in _RESULT_KEYS]
+    finally:
+        for p in reversed(procs):  # the processes this test started (their own sessions), by id
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGTERM)
+        for p in reversed(procs):
+            try:
+                p.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait(timeout=10)
+        shutil.rmtree(ray_tmp, ignore_errors=True)
 
 
 @pytest.mark.extra('fastsim')

@@ -364,7 +364,8 @@ def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
 def fig_plane(points: Mapping[str, Mapping], family: Mapping[str, Mapping], path, title: str = '') -> Path:
     """The energy-discomfort plane: the baseline family's front and every run.
 
-    ``points``: {strategy: point} and ``family``: {'baseline@S': point}, each point a mapping with
+    ``points``: {strategy: point} and ``family``: {'LAW@S': point} (one front per law: ``baseline``,
+    ``baseline-tuned``), each point a mapping with
     ``discomfort_pmvh`` [PMV h] and ``energy_kwh`` [kWh] (``ceco_bringup.verdict.run_point``). The
     front is drawn through the family's efficient points (inefficient ones hollow), every
     set-point annotated; each run is a marker in its strategy colour. Below the front at the same
@@ -374,20 +375,26 @@ def fig_plane(points: Mapping[str, Mapping], family: Mapping[str, Mapping], path
 
     with plt.rc_context(RC_PARAMS):
         fig, ax = plt.subplots(figsize=(6.0, 4.2))
-        if family:
-            f = fr.build_front({n: (p['discomfort_pmvh'], p['energy_kwh']) for n, p in family.items()})
-            ax.plot(f.d, f.e, '-', color='#7f7f7f', lw=1.2, label='baseline front (PI at set-point S)')
+        laws: dict[str, dict] = {}
+        for n, p in family.items():
+            laws.setdefault(n.split('@')[0], {})[n] = (p['discomfort_pmvh'], p['energy_kwh'])
+        law_style = {
+            'baseline': ('#7f7f7f', '-', 'production PI at set-point S'),
+            'baseline-tuned': ('#2b2b2b', '--', 'tuned PI at set-point S'),
+        }
+        for law, members in laws.items():
+            color, ls, label = law_style.get(law, ('#7f7f7f', ':', f'{law} at set-point S'))
+            f = fr.build_front(members)
+            ax.plot(f.d, f.e, ls, color=color, lw=1.2, label=label)
             for fp in f.points:
-                ax.plot(
-                    [fp.discomfort], [fp.energy], 'o', ms=4, color='#7f7f7f', mfc='#7f7f7f' if fp.efficient else 'none'
-                )
+                ax.plot([fp.discomfort], [fp.energy], 'o', ms=4, color=color, mfc=color if fp.efficient else 'none')
                 ax.annotate(
                     fp.name.split('@')[-1] + ' °C',
                     (fp.discomfort, fp.energy),
                     textcoords='offset points',
                     xytext=(4, 2),
                     fontsize=7,
-                    color='#555555',
+                    color=color,
                 )
         for i, name in enumerate(ordered(list(points))):
             st = strategy_style(name, i)

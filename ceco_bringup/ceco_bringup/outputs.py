@@ -30,6 +30,8 @@ from ceco_core.metrics import ENERGY_PARTS, J_PER_KWH, PMV_SCALE_LIMIT, relative
 __all__ = [
     'CONSOLE_WIDTH',
     'run_line',
+    'failed_line',
+    'report_failed',
     'pmv_scale_cell',
     'table_rows',
     'console_table',
@@ -81,8 +83,9 @@ FULL_LEGEND = (
     f'E: A/C electrical energy, {ENERGY_PARTS} (the paper counts compressor + blower; add the',
     '  comp and blower columns for its number). E change / D change: against the baseline run, as',
     '  measured (+ = more). E saving matched: energy saved at the discomfort of the run against the',
-    '  production law at several set-points (+ = less energy; empty outside the family; dominated:',
-    '  a set-point is at least as good on both axes). docs/benchmark.md, "Matched comfort".',
+    '  production and the tuned law at several set-points, the one that spends less there (+ = less',
+    '  energy; empty outside the family; dominated: a set-point is at least as good on both axes).',
+    '  docs/benchmark.md, "Matched comfort".',
     'D: discomfort, integral of the PMV distance outside -0.5..+0.5 (ISO 7730 category B) with PMV',
     '  clipped at +-3, whole run; D band: from the time the bounds reach the band. I_PMV: the paper\'s',
     '  integral of PMV^2 (raw, and clipped at +-3: beyond +-3 PMV is no vote).',
@@ -120,6 +123,28 @@ def run_line(m: Mapping, run_dir: Path | str) -> str:
     if 'wall_time_s' in m:
         text += f", wall {m['wall_time_s']:.1f} s"
     return text + f' -> {run_dir}'
+
+
+def failed_line(strategy: str, reason: str, run_dir: Path | str) -> str:
+    """A failed run on one line: its reason, no number (``ceco_core.run_status``: no result)."""
+    return f'{strategy:>10}: FAILED: {reason} -> {run_dir}'
+
+
+def report_failed(out: Path | str, failed: Mapping[str, str], n_runs: int, echo: Callable[[str], None] = print) -> None:
+    """After a job with failed runs (``failed``: {strategy: reason}): say which, and add it to ``out/summary.txt``.
+
+    Nothing is printed or written when no run failed.
+    """
+    if not failed:
+        return
+    lines = [f'{len(failed)} of {n_runs} runs failed (not compared):']
+    lines += [f'  {name}: {reason.splitlines()[0]}' for name, reason in failed.items()]
+    for line in lines:
+        echo(line)
+    path = Path(out) / 'summary.txt'
+    old = path.read_text(encoding='utf-8') if path.is_file() and n_runs > 1 else ''
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(old + '\n'.join(lines) + '\n', encoding='utf-8')
 
 
 def table_rows(metrics: Mapping[str, Mapping], kpis: Mapping[str, Mapping], v: vd.Verdict | None = None) -> list[dict]:

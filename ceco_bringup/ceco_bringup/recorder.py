@@ -18,6 +18,13 @@ The bag is put on disk complete every `flush_period_s`, so even a SIGKILL
 leaves a readable bag up to the last flush; `close()` (every normal or Ctrl-C
 stop path) writes the rest.
 
+Every `drain_period_s` a timer also takes whatever waits in each subscription's DDS
+reader, until it is empty: the recorder does not depend on the executor's wait set
+reporting a subscription ready. Under CPU starvation (issue 17) that report was lost:
+the plant's 300 samples per topic had all reached the recorder's readers (every
+HEARTBEAT acknowledged on the wire) and 129 of them still sat there, never handed to
+the callback, 70 s after the plant had finished (docs/ros.md, "Starvation and stalls").
+
 Run standalone: `python -m ceco_bringup.recorder OUT_BAG_DIR [--storage sqlite3]
 [--timestamps sim] [--namespace /veh1]` (Ctrl-C stops).
 """
@@ -56,6 +63,7 @@ class Recorder(Node):
         timestamps: str = 'receive',
         namespace: str = '',
         flush_period_s: float = 0.5,
+        drain_period_s: float = 0.1,
         custom_data: dict | None = None,
         node_name: str = 'ceco_recorder',
         **node_kwargs,
@@ -83,31 +91,57 @@ class Recorder(Node):
         self.first_state_wall = None  # monotonic time of the first cabin/state [s]
         self.last_power_wall = None  # monotonic time of the latest hvac/power [s]
         self.n_messages = 0
+        self.n_drained = 0  # messages the drain timer took (not handed out by the wait set first)
+        self.received = dict.fromkeys(self.topics, 0)
+        """Messages recorded per stack topic [-]."""
         # (step_index, publisher-side wall-clock stamp = rmw source_timestamp [ns]) of every state and
         # command, in arrival order: the benchmark's computational time ratio (command k sent - state t_k sent)
         self.source_ns = {interfaces.TOPIC_STATE: [], interfaces.TOPIC_COMMAND: []}
         self._step_type = {interfaces.TOPIC_STATE: CabinState, interfaces.TOPIC_COMMAND: AcCommand}
         self.create_timer(flush_period_s, self.flush)
+        self.create_timer(drain_period_s, self.drain)
 
     def _make_cb(self, topic, type_name):
         def cb(data: bytes, info) -> None:  # two arguments: rclpy passes the message info
-            t_recv_ns = time.time_ns()
-            with self._lock:
-                if self.writer is None:
-                    return
-                t_ns = t_recv_ns if self._sim_stamps is None else self._sim_stamps(type_name, data)
-                self.writer.write(self.bag_topics[topic], t_ns, data)
-                self.n_messages += 1
-                if topic in self.source_ns:
-                    n = int(deserialize_message(data, self._step_type[topic]).step_index)
-                    self.source_ns[topic].append((n, int(info['source_timestamp'])))
-                if topic == interfaces.TOPIC_POWER:
-                    self.last_power_step = int(deserialize_message(data, AcPower).step_index)
-                    self.last_power_wall = time.monotonic()
-                elif topic == interfaces.TOPIC_STATE and self.first_state_wall is None:
-                    self.first_state_wall = time.monotonic()
+            self._record(topic, type_name, data, info)
 
         return cb
+
+    def _record(self, topic: str, type_name: str, data: bytes, info) -> None:
+        t_recv_ns = time.time_ns()
+        with self._lock:
+            if self.writer is None:
+                return
+            t_ns = t_recv_ns if self._sim_stamps is None else self._sim_stamps(type_name, data)
+            self.writer.write(self.bag_topics[topic], t_ns, data)
+            self.n_messages += 1
+            self.received[topic] += 1
+            if topic in self.source_ns:
+                n = int(deserialize_message(data, self._step_type[topic]).step_index)
+                self.source_ns[topic].append((n, int(info['source_timestamp'])))
+            if topic == interfaces.TOPIC_POWER:
+                self.last_power_step = int(deserialize_message(data, AcPower).step_index)
+                self.last_power_wall = time.monotonic()
+            elif topic == interfaces.TOPIC_STATE and self.first_state_wall is None:
+                self.first_state_wall = time.monotonic()
+
+    def drain(self) -> int:
+        """Take and record everything waiting in the subscriptions' readers; the number taken.
+
+        Runs on the executor's thread (a timer), so it never races the subscription callbacks.
+        """
+        taken = 0
+        for topic, sub in self.subs.items():
+            type_name = self.topics[topic][0]
+            while self.writer is not None:
+                with sub.handle:
+                    got = sub.handle.take_message(sub.msg_type, True)
+                if got is None:
+                    break
+                self._record(topic, type_name, got[0], got[1])
+                taken += 1
+        self.n_drained += taken
+        return taken
 
     def publisher_counts(self) -> dict[str, int]:
         """Publishers this node's graph sees per recorded (stack) topic."""

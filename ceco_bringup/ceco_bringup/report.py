@@ -422,8 +422,9 @@ def _verdict_section(scenario: str, group: Mapping[str, RunData], fig_dir: Path)
         f'Energy against discomfort, {scenario}',
     )
     caption = 'Energy against discomfort of every run' + (
-        ' with the baseline front (the production law at several set-points; hollow: not efficient). A run '
-        'below the front at its discomfort uses less energy than the production law at the same comfort.'
+        ' with the baseline fronts (the production law and the tuned law at several set-points; hollow: not'
+        ' efficient). A run below both fronts at its discomfort uses less energy than either law at the same'
+        ' comfort.'
         if family
         else '; no baseline family was kept for these runs, so no front is drawn.'
     )

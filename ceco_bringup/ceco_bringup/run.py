@@ -29,6 +29,13 @@ Ctrl-C (SIGINT) or SIGTERM at any moment: every child is stopped, the bag
 is closed with its metadata, run.json says ``interrupted``, and `ceco run`
 exits with status 130; the bag reads back completely up to the stop and
 `ceco report DIR` reports it, marked partial.
+
+A failed run (exit status 1; with several strategies the next one still runs, and the table
+and the verdict compare the others): a node exits, the plant publishes nothing new for
+`--stall-timeout-s` of wall clock (stalled), the bag misses a message the stack sent (the
+arrival check, metrics.json `recorded`), or the controller did not control the run (more
+fallback steps than 5 % of its control steps and 2: metrics.json `status: failed`, no number
+printed; ``ceco_core.run_status``). run.json then says ``failed`` and why.
 """
 
 from __future__ import annotations
@@ -44,10 +51,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ceco_bringup import cli_args, outputs, provenance, supervisor
+from ceco_bringup import arrival, cli_args, outputs, provenance, supervisor
 from ceco_bringup.bag_writer import STORAGES
 from ceco_bringup.verdict import FAMILY_SETPOINTS_C
 from ceco_core.control_grid import TIMING_MODES
+from ceco_core.run_status import STATUS_OK
 from ceco_core.rundir import read_csv_columns
 
 
@@ -79,6 +87,13 @@ def build_parser() -> cli_args.Parser:
     )
     p.add_argument(
         '--run-timeout-s', type=cli_args.positive_float, default=1800.0, help='wall-clock limit of one run [s]'
+    )
+    p.add_argument(
+        '--stall-timeout-s',
+        type=cli_args.positive_float,
+        default=None,
+        help='wall-clock time without a new plant step after which the run fails as stalled [s] '
+        '(default: --command-timeout-s + 5 s; in lockstep it must exceed --command-timeout-s)',
     )
     cli_args.add_domain_id(
         p,
@@ -134,6 +149,7 @@ def main(argv=None) -> int:
         cli_args.check_duration(args.duration_s, scenario)
         args.namespace = supervisor.normalize_namespace(args.namespace)
         supervisor.resolve_domain_id(args.domain_id)  # an invalid user id fails here
+        stall_timeout_s(args)
         for d in run_dirs.values():
             if (d / 'bag').exists():
                 raise ValueError(f'{d / "bag"} exists: choose a new --out directory')
@@ -141,7 +157,7 @@ def main(argv=None) -> int:
         parser.error(str(err))
     stop = supervisor.StopFlag()
     stop.install()
-    metrics, columns = {}, {}
+    metrics, columns, failed = {}, {}, {}
     try:
         for i, strategy in enumerate(strategies):
             run_dir = run_dirs[strategy]
@@ -156,10 +172,18 @@ def main(argv=None) -> int:
                     file=sys.stderr,
                 )
                 return 130
-            except RuntimeError as err:
+            except RuntimeError as err:  # a node exited, a stall, lost messages: the other strategies still run
                 provenance.finish_run(run_dir, 'failed', str(err))
-                print(f'ceco run: {strategy}: {err}', file=sys.stderr)
-                return 1
+                failed[strategy] = str(err)
+                print(f'ceco run: {strategy}: FAILED: {err}', file=sys.stderr, flush=True)
+                continue
+            if m['status'] != STATUS_OK:  # the controller did not control: its numbers stay in run_dir, never shown
+                provenance.finish_run(run_dir, 'failed', m['status_reason'])
+                failed[strategy] = m['status_reason']
+                line = outputs.failed_line(strategy, m['status_reason'], run_dir)
+                (run_dir / 'summary.txt').write_text(line + '\n', encoding='utf-8')
+                print(line, flush=True)
+                continue
             provenance.finish_run(run_dir, 'complete')
             metrics[strategy] = m
             columns[strategy] = read_csv_columns(run_dir / 'timeseries.csv')
@@ -168,20 +192,37 @@ def main(argv=None) -> int:
             print(line, flush=True)
     finally:
         stop.restore()
-    first = next(iter(metrics.values()))
-    outputs.finish_job(
-        out,
-        scenario,
-        metrics,
-        columns,
-        header=f'Scenario {scenario.name} over DDS ({args.timing}), Ts {first["control_period_s"]:g} s, '
-        f'Np {first["horizon_steps"]}, preview {quality.describe()}, {out}:',
-        family_setpoints_c=args.baseline_setpoints_c,
-        duration_s=float(first['duration_s']),
-        control_period_s=args.control_period_s,
-        progress=not args.no_progress,
-    )
-    return 0
+    if metrics:
+        first = next(iter(metrics.values()))
+        outputs.finish_job(
+            out,
+            scenario,
+            metrics,
+            columns,
+            header=f'Scenario {scenario.name} over DDS ({args.timing}), Ts {first["control_period_s"]:g} s, '
+            f'Np {first["horizon_steps"]}, preview {quality.describe()}, {out}:',
+            family_setpoints_c=args.baseline_setpoints_c,
+            duration_s=float(first['duration_s']),
+            control_period_s=args.control_period_s,
+            progress=not args.no_progress,
+        )
+    outputs.report_failed(out, failed, len(strategies))
+    return 1 if failed else 0
+
+
+def stall_timeout_s(args) -> float:
+    """The stall limit of ``args`` [s]: ``--stall-timeout-s``, else ``--command-timeout-s`` + 5 s.
+
+    Raises ValueError, in lockstep, for a limit not above the command timeout (the plant may
+    legitimately wait that long for a command).
+    """
+    cmd = float(args.command_timeout_s)
+    value = cmd + 5.0 if args.stall_timeout_s is None else float(args.stall_timeout_s)
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f'--stall-timeout-s: must be finite and > 0, got {args.stall_timeout_s!r}')
+    if args.timing == 'lockstep' and value <= cmd:
+        raise ValueError(f'--stall-timeout-s {value:g} must exceed --command-timeout-s {cmd:g} in lockstep')
+    return value
 
 
 def _params(args, scenario, quality, strategy, duration_s):
@@ -362,6 +403,8 @@ def run_one(
                 total=n_plant, desc=f'{strategy} over DDS', unit='s sim', file=sys.stderr, mininterval=0.5, leave=False
             )
         done = lambda: recorder.last_power_step >= n_plant - 1  # noqa: E731
+        plant = procs['plant_node']
+        stall_s, progress = stall_timeout_s(args), (recorder.last_power_step, time.monotonic(), plant.cpu_time_s())
         try:
             while not done():
                 if stop.event.wait(0.1):
@@ -372,7 +415,14 @@ def run_one(
                             f'{name} exited with status {proc.returncode()}; '
                             f'log: {proc.log_path}\n' + supervisor.log_tail(proc.log_text())
                         )
-                if time.monotonic() - t_start > args.run_timeout_s:
+                now = time.monotonic()
+                if recorder.last_power_step != progress[0]:
+                    progress = (recorder.last_power_step, now, plant.cpu_time_s())
+                elif now - progress[1] > stall_s:
+                    cpu = plant.cpu_time_s()
+                    used = None if cpu is None or progress[2] is None else cpu - progress[2]
+                    raise RuntimeError(stalled_message(stall_s, recorder.last_power_step + 1, n_plant, procs, used))
+                if now - t_start > args.run_timeout_s:
                     raise RuntimeError(
                         f'run timeout ({args.run_timeout_s} s) at plant step {recorder.last_power_step + 1}/{n_plant}'
                     )
@@ -383,6 +433,9 @@ def run_one(
             if bar is not None:
                 bar.close()
         t_run = recorder.last_power_wall - recorder.first_state_wall
+        # the plant is done; a recorder that was starved or frozen may still be receiving the repairs
+        # of what it missed (each writer at its own heartbeat): wait while that makes progress
+        wait_for_backlog(recorder, arrival.expected_counts(n_plant, int(round(ts / dt_s)), args.timing), stall_s, stop)
         time.sleep(0.2)  # let the last diagnostics and log lines arrive
     except supervisor.Interrupted:
         interrupted = True
@@ -409,10 +462,15 @@ def run_one(
         raise supervisor.Interrupted()
 
     wall = time.monotonic() - t_wall0
+    m = int(round(ts / dt_s))  # plant steps per control period
+    arrived = arrival.bag_arrival(bag_dir, n_plant, m, args.timing)
+    if not all(a.complete for a in arrived):
+        raise RuntimeError(f'the bag misses messages the stack sent: {arrival.summary(arrived)}')
     ts_data = bagio.load_run_timeseries(bag_dir)
     if ts_data['t_s'].size != n_plant:
         raise RuntimeError(f'bag holds {ts_data["t_s"].size} complete plant steps, expected {n_plant}')
     from ceco_core.metrics import run_metrics
+    from ceco_core.run_status import check_control, fallback_control_steps
 
     metrics = run_metrics(ts_data)
     metrics.update(
@@ -434,11 +492,14 @@ def run_one(
             'fallback_steps': int(ts_data['fallback'].sum()),
         }
     )
-    diag = bagio.load_diagnostics(bag_dir)
+    diag, cmds = bagio.load_diagnostics(bag_dir), bagio.load_commands(bag_dir)
+    n_ctrl, n_fb = fallback_control_steps(ts_data['fallback'], m, cmds['k'][cmds['fallback']])
+    metrics.update(check_control(n_ctrl, n_fb).as_metrics())
+    metrics['recorded'] = {a.topic: [a.received, a.expected] for a in arrived}
     solve_ms = diag['solve_time_ms'][np.isfinite(diag['solve_time_ms'])]
     metrics.update(
         {
-            'n_control_steps': int(diag['k'].size),
+            'n_control_steps': n_ctrl,
             'n_fallback_shifted': int(np.sum(diag['fallback'] == 'shifted_plan')),
             'n_fallback_baseline': int(np.sum(diag['fallback'] == 'baseline')),
             'solve_time_median_ms': float(np.median(solve_ms)) if solve_ms.size else None,
@@ -450,6 +511,47 @@ def run_one(
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in metrics.items()}
     (run_dir / 'metrics.json').write_text(json.dumps(clean, indent=2, sort_keys=True) + '\n')
     return metrics
+
+
+def wait_for_backlog(recorder, expected: dict[str, int], stall_s: float, stop: supervisor.StopFlag) -> None:
+    """Wait until ``recorder`` holds ``expected`` messages per topic, as long as it makes progress.
+
+    Returns at the first ``stall_s`` [s] without a new message on those topics (the arrival check then
+    names what is missing); raises :class:`supervisor.Interrupted` on a stop signal.
+    """
+    last, t_last = -1, time.monotonic()
+    while any(recorder.received.get(t, 0) < n for t, n in expected.items()):
+        # progress on these topics only: a timer-driven publisher (the real-time preview node) never stops
+        got = sum(recorder.received.get(t, 0) for t in expected)
+        if got != last:
+            last, t_last = got, time.monotonic()
+        elif time.monotonic() - t_last > stall_s:
+            return
+        if stop.event.wait(0.05):
+            raise supervisor.Interrupted()
+
+
+def stalled_message(
+    stall_s: float, n_recorded: int, n_plant: int, procs: dict, plant_cpu_s: float | None = None
+) -> str:
+    """The error of a stalled run.
+
+    It says what the recorder has, whether the plant says it finished, and how much CPU the plant
+    got meanwhile (``plant_cpu_s`` [s]: a stopped or starved plant gets next to none).
+    """
+    plant_log = procs['plant_node'].log_text()
+    if 'scenario complete' in plant_log:
+        why = 'the plant reports the scenario complete: its messages did not reach the recorder'
+    else:
+        why = 'the plant made no progress (all nodes are running)'
+    if plant_cpu_s is not None:
+        why += f'; plant_node used {plant_cpu_s:.2f} s of CPU in those {stall_s:g} s'
+        if plant_cpu_s < 0.02 * stall_s:
+            why += ' (stopped, or starved of CPU: on a machine that loaded raise --stall-timeout-s)'
+    return (
+        f'stalled: no new plant step for {stall_s:g} s of wall clock at plant step {n_recorded}/{n_plant}; {why}; '
+        f'logs: {procs["plant_node"].log_path.parent}'
+    )
 
 
 if __name__ == '__main__':

@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 from ceco_bringup import cli_args, outputs, provenance
+from ceco_core.run_status import STATUS_OK
 
 __all__ = ['build_parser', 'main']
 
@@ -70,7 +71,11 @@ def _overrides(items) -> tuple:
 
 
 def main(argv=None) -> int:
-    """``ceco sim``: 0 when every run finished, 2 for a user error (one line, no traceback)."""
+    """``ceco sim``: the exit status.
+
+    0 when every run finished, 1 when a run failed (its controller did not control it:
+    ``ceco_core.run_status``; the others are compared), 2 for a user error (one line, no traceback).
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -98,7 +103,7 @@ def main(argv=None) -> int:
     except (ValueError, OSError) as exc:
         parser.error(str(exc))
     out = Path(args.out)
-    metrics, columns = {}, {}
+    metrics, columns, failed = {}, {}, {}
     for s in args.strategy:
         run_dir = out / s
         provenance.start_run(run_dir, 'sim', argv, args.scenario)
@@ -113,9 +118,14 @@ def main(argv=None) -> int:
             print('ceco sim: interrupted; the finished strategies are kept', file=sys.stderr)
             return 130
         write_run(res, run_dir)
-        provenance.finish_run(run_dir, 'complete')
-        metrics[s], columns[s] = res.metrics, res.timeseries
-        line = outputs.run_line(res.metrics, run_dir)
+        if res.metrics['status'] != STATUS_OK:  # the controller did not control: kept in run_dir, never shown
+            provenance.finish_run(run_dir, 'failed', res.metrics['status_reason'])
+            failed[s] = res.metrics['status_reason']
+            line = outputs.failed_line(s, failed[s], run_dir)
+        else:
+            provenance.finish_run(run_dir, 'complete')
+            metrics[s], columns[s] = res.metrics, res.timeseries
+            line = outputs.run_line(res.metrics, run_dir)
         (run_dir / 'summary.txt').write_text(line + '\n', encoding='utf-8')
         print(line, flush=True)
     ts = settings.control_period_s or scenario.control.control_period_s
@@ -123,18 +133,20 @@ def main(argv=None) -> int:
     header = f'scenario {scenario.name}, in-process, Ts {ts:g} s, Np {n_p}, preview {quality.describe()}' + (
         ', measurements vehicle' if settings.measurements == 'vehicle' else ''
     )
-    outputs.finish_job(
-        out,
-        scenario,
-        metrics,
-        columns,
-        header=header,
-        family_setpoints_c=args.baseline_setpoints_c,
-        duration_s=settings.duration_s,
-        control_period_s=settings.control_period_s,
-        progress=not args.no_progress,
-    )
-    return 0
+    if metrics:
+        outputs.finish_job(
+            out,
+            scenario,
+            metrics,
+            columns,
+            header=header,
+            family_setpoints_c=args.baseline_setpoints_c,
+            duration_s=settings.duration_s,
+            control_period_s=settings.control_period_s,
+            progress=not args.no_progress,
+        )
+    outputs.report_failed(out, failed, len(args.strategy))
+    return 1 if failed else 0
 
 
 if __name__ == '__main__':

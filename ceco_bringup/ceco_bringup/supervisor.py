@@ -22,6 +22,7 @@ controller's lifecycle transitions through :class:`LifecycleClient`).
 
 from __future__ import annotations
 
+import hashlib
 import os
 import re
 import shutil
@@ -32,10 +33,15 @@ import threading
 import time
 from pathlib import Path
 
-# Fast DDS participant profile: UDPv4 only (no shared-memory segments that a
-# killed process would leave in /dev/shm), a short lease announcement so late
-# joiners (a restarted controller) are discovered in ~0.3 s instead of ~3 s,
-# and a short lease so a killed participant's endpoints disappear within ~2 s.
+# Fast DDS participant profile: a UDPv4 transport, a short lease announcement so late
+# joiners (a restarted controller) are discovered in ~0.3 s instead of ~3 s, and Fast
+# DDS's default 20-s lease. A participant that misses its announcements for longer than the
+# lease is dropped with its endpoints and every sample they had not acknowledged: with the
+# earlier 2-s lease, `ceco run` frozen for 4 s (SIGSTOP) lost 425 of 600 states (issue 17;
+# docs/ros.md, "Starvation and stalls"). Dead peers are the nodes' watchdogs' business
+# (fallback within a control period), not the lease's. (With ROS_AUTOMATIC_DISCOVERY_RANGE=
+# LOCALHOST the user data still travel over Fast DDS's shared-memory transport: measured,
+# /dev/shm/fastrtps_port<7411 + 250 d + 2 i> of the run's domain d.)
 FASTDDS_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
 <profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
   <transport_descriptors>
@@ -52,7 +58,7 @@ FASTDDS_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
       <useBuiltinTransports>false</useBuiltinTransports>
       <builtin>
         <discovery_config>
-          <leaseDuration><sec>2</sec><nanosec>0</nanosec></leaseDuration>
+          <leaseDuration><sec>20</sec><nanosec>0</nanosec></leaseDuration>
           <leaseAnnouncement><sec>0</sec><nanosec>250000000</nanosec></leaseAnnouncement>
           <initialAnnouncements><count>5</count><period><sec>0</sec><nanosec>100000000</nanosec></period></initialAnnouncements>
         </discovery_config>
@@ -120,10 +126,10 @@ def normalize_namespace(namespace: str | None) -> str:
 
 
 def dds_env(domain_id: int, base: dict | None = None) -> dict:
-    """Environment for a private, localhost-only, shared-memory-free DDS run.
+    """Environment for a private, localhost-only DDS run with the :data:`FASTDDS_PROFILE` participant profile.
 
-    UDP-only transport (FASTDDS_BUILTIN_TRANSPORTS=UDPv4): a killed process
-    then leaves no /dev/shm/fastrtps_* segments behind.
+    The profile file is named after its content (``ceco_fastdds_profile_<sha>.xml`` in the temp
+    directory), so checkouts with different profiles on one machine never rewrite each other's.
     """
     env = dict(os.environ if base is None else base)
     env['ROS_DOMAIN_ID'] = str(domain_id)
@@ -131,7 +137,8 @@ def dds_env(domain_id: int, base: dict | None = None) -> dict:
     env.pop('ROS_LOCALHOST_ONLY', None)
     env.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
     env['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'
-    profile = Path(tempfile.gettempdir()) / 'ceco_fastdds_profile.xml'
+    digest = hashlib.sha256(FASTDDS_PROFILE.encode()).hexdigest()[:12]
+    profile = Path(tempfile.gettempdir()) / f'ceco_fastdds_profile_{digest}.xml'
     if not profile.exists() or profile.read_text() != FASTDDS_PROFILE:
         tmp = profile.with_suffix(f'.{os.getpid()}.tmp')
         tmp.write_text(FASTDDS_PROFILE)
@@ -270,6 +277,17 @@ class NodeProcess:
         """The exit code, None if the process was never started or is still running."""
         return None if self.proc is None else self.proc.poll()
 
+    def cpu_time_s(self) -> float | None:
+        """CPU time the process has used so far (user + system, Linux ``/proc/<pid>/stat``) [s]; None if unknown."""
+        if self.proc is None:
+            return None
+        try:
+            text = Path(f'/proc/{self.proc.pid}/stat').read_text()
+            fields = text[text.rindex(')') + 2 :].split()  # after "pid (comm) ": state is field 3
+            return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')  # utime, stime: fields 14, 15
+        except (OSError, ValueError, IndexError):
+            return None
+
     def signal(self, sig) -> None:
         """Send signal ``sig`` to the process if it is running (a process that just exited is ignored)."""
         if self.running():
@@ -279,10 +297,11 @@ class NodeProcess:
                 pass
 
     def stop(self, timeout_s: float = 5.0) -> int | None:
-        """SIGINT, wait, then SIGKILL. Returns the exit code."""
+        """SIGINT (and SIGCONT, so a stopped process handles it), wait, then SIGKILL. Returns the exit code."""
         if self.proc is None:
             return None
         self.signal(signal.SIGINT)
+        self.signal(signal.SIGCONT)
         try:
             return self.proc.wait(timeout=timeout_s)
         except subprocess.TimeoutExpired:

@@ -21,6 +21,13 @@ cores here, ``os.getloadavg`` printed); only ratios measured in the same run com
         [--strategies ceco,ceco-c] [--method auto|ipopt|sqp|fatrop]
         [--transcription auto|single-shooting|multiple-shooting] [--cpu-slowdown 100]
         [--slowdown-factors 1,10,100 | --slowdown-factors ''] [--no-prepare] [--robustness] [--rti-cases]
+        [--node]
+
+Per case it also prints the whole step's CPU time and the solver's (``time.thread_time``: on a
+loaded machine the wall clock mostly measures the wait for a core), the share of the step that is
+not the solver and the step / solver ratio; at the end the horizon table (product solver, speed-up
+over IPOPT's defaults in wall and CPU time, cost difference). ``--node`` adds the whole step inside
+``mpc_node`` at Np = 6, message in to command out (:mod:`ceco_controller.bench_node`).
 
 ``--cpu-slowdown F`` runs the main cases with every time budget divided by F (an ECU F times
 slower). ``--robustness`` adds the sweep over every benchmark scenario and preview fault
@@ -52,7 +59,7 @@ from .bench_cases import BENCH_SCENARIOS, budget_settings, robustness, slowdown_
 from .solvers import NlpData
 from .strategies import CECO_STRATEGIES, SOLVER_NAMES, SolverSettings
 
-__all__ = ["main", "bench_nmpc"]
+__all__ = ["main", "bench_nmpc", "non_solver", "horizon_table"]
 
 _DEFAULT = SolverSettings()
 
@@ -74,6 +81,25 @@ def _json_float(v: float) -> float | None:
     return None if v != v else v
 
 
+def non_solver(step_ms: np.ndarray, solve_ms: np.ndarray) -> dict:
+    """What of the whole step is not the solver: per step ``step - solve`` [ms].
+
+    Returns ``non_solver_median_ms`` (median over the steps), ``non_solver_share`` (the sum over the
+    steps over the sum of the step times: the share of the step's time spent around the solver) and
+    ``step_over_solve`` (median step time over median solver time; the target is <= 2).
+    """
+    step_ms, solve_ms = np.asarray(step_ms, float), np.asarray(solve_ms, float)
+    if step_ms.size == 0 or step_ms.size != solve_ms.size:
+        return {"non_solver_median_ms": float("nan"), "non_solver_share": float("nan"), "step_over_solve": float("nan")}
+    rest = step_ms - solve_ms
+    solved = solve_ms > 0
+    return {
+        "non_solver_median_ms": float(np.median(rest)),
+        "non_solver_share": float(np.sum(rest) / np.sum(step_ms)),
+        "step_over_solve": float(np.median(step_ms) / np.median(solve_ms[solved])) if solved.any() else float("nan"),
+    }
+
+
 def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) -> tuple[dict, np.ndarray]:
     ctrl = cl.make_controller(strat, sc, sc.control.control_period_s, np_, mp, overrides)
     # the reference: MPCTools' transcription (multiple shooting), IPOPT defaults, in-process functions
@@ -91,11 +117,28 @@ def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) ->
         if ctrl.transcription != "multiple-shooting"
         else None
     )
-    acc: dict[str, list] = {k: [] for k in ("ours_t", "ref_t", "diffs", "sdiffs", "ours_it", "ref_it", "same_t")}
+    acc: dict[str, list] = {
+        k: []
+        for k in (
+            "ours_t",
+            "ref_t",
+            "ref_cpu",
+            "diffs",
+            "sdiffs",
+            "ours_it",
+            "ref_it",
+            "same_t",
+            "step_solve",
+            "step_solve_cpu",
+        )
+    }
     fails = {"n_fail": 0, "n_ref_fail": 0, "n_ref_same_nlp_fail": 0}
 
     def on_step(obs, cmd, diag):
         data = ctrl.last_nlp()
+        chain = ctrl.last_chain() if diag.solve_time_ms is not None else None
+        acc["step_solve"].append(diag.solve_time_ms or 0.0)
+        acc["step_solve_cpu"].append((chain.cpu_ms or 0.0) if chain is not None else 0.0)
         if diag.solve_time_ms is not None:
             acc["ours_t"].append(diag.solve_time_ms)
             acc["ours_it"].append(diag.iterations if diag.iterations is not None else np.nan)
@@ -109,16 +152,26 @@ def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) ->
             acc["same_t"].append(same.time_ms)
             fails["n_ref_same_nlp_fail"] += not same.success
         acc["ref_t"].append(ref.time_ms)
+        acc["ref_cpu"].append(ref.cpu_ms if ref.cpu_ms is not None else np.nan)
         acc["ref_it"].append(ref.iterations)
         fails["n_ref_fail"] += not ref.success
         if ref.success and diag.success and diag.cost_total is not None:
             acc["sdiffs"].append((diag.cost_total - ref.f) / max(abs(ref.f), 1e-9))
             acc["diffs"].append(abs(acc["sdiffs"][-1]))
 
+    cpu_ms: list[float] = []
     res, step_ms = timed_run(
-        ctrl, sc, strat, cl.SimSettings(horizon_steps=np_, duration_s=duration_s, progress=progress), on_step, prepare
+        ctrl,
+        sc,
+        strat,
+        cl.SimSettings(horizon_steps=np_, duration_s=duration_s, progress=progress),
+        on_step,
+        prepare,
+        cpu_ms,
     )
     o, r, sm, st = _stats(acc["ours_t"]), _stats(acc["ref_t"]), _stats(acc["same_t"]), _stats(step_ms)
+    share = non_solver(step_ms, np.asarray(acc["step_solve"], float))
+    share_cpu = {f"cpu_{k}": v for k, v in non_solver(np.asarray(cpu_ms), np.asarray(acc["step_solve_cpu"])).items()}
     diffs, sdiffs, c = acc["diffs"], acc["sdiffs"], ctrl.counters
     row = {
         "strategy": strat,
@@ -134,12 +187,18 @@ def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) ->
         "step_median_ms": st["median"],
         "step_p99_ms": st["p99"],
         "step_max_ms": st["max"],
+        "step_cpu_median_ms": float(np.median(cpu_ms)) if cpu_ms else float("nan"),
+        "step_cpu_p99_ms": float(np.percentile(cpu_ms, 99)) if cpu_ms else float("nan"),
+        "solve_cpu_median_ms": float(np.median([c for c in acc["step_solve_cpu"] if c > 0] or [np.nan])),
+        **share,
+        **share_cpu,
         "ref_median_ms": r["median"],
         "ref_p95_ms": r["p95"],
         "ref_max_ms": r["max"],
         "ref_iter_median": float(np.median(acc["ref_it"])) if acc["ref_it"] else float("nan"),
         "ref_same_nlp_median_ms": sm["median"],
         "speedup_median": r["median"] / o["median"] if o["median"] > 0 else float("nan"),
+        "ref_cpu_median_ms": float(np.nanmedian(acc["ref_cpu"])) if acc["ref_cpu"] else float("nan"),
         "max_rel_cost_diff": max(diffs) if diffs else float("nan"),
         "max_rel_cost_excess": max(max(sdiffs), 0.0) if sdiffs else float("nan"),
         "n_rel_cost_diff_gt_1e-4": int(sum(d > 1e-4 for d in diffs)),
@@ -150,6 +209,7 @@ def _bench_case(strat, np_, sc, mp, overrides, duration_s, progress, prepare) ->
         "deadline_hits": c.deadline_hits,
         "load_1min": os.getloadavg()[0],
     }
+    row["speedup_cpu"] = row["ref_cpu_median_ms"] / row["solve_cpu_median_ms"]
     return row, step_ms
 
 
@@ -184,7 +244,11 @@ def bench_nmpc(
             print(
                 f"{strat:10s} Np={np_:3d} steps={rr['steps']:4d}  ours median {rr['ours_median_ms']:7.2f} ms "
                 f"p95 {rr['ours_p95_ms']:7.2f} max {rr['ours_max_ms']:7.2f} (it {rr['ours_iter_median']:.0f}); "
-                f"whole step median {rr['step_median_ms']:6.2f} p99 {rr['step_p99_ms']:6.2f}  |  "
+                f"whole step median {rr['step_median_ms']:6.2f} p99 {rr['step_p99_ms']:6.2f} (not solver "
+                f"{rr['non_solver_median_ms']:.2f} ms = {100 * rr['non_solver_share']:.0f} %, step/solve "
+                f"{rr['step_over_solve']:.2f}; CPU: step {rr['step_cpu_median_ms']:.2f}, solver "
+                f"{rr['solve_cpu_median_ms']:.2f}, not solver {100 * rr['cpu_non_solver_share']:.0f} %, step/solve "
+                f"{rr['cpu_step_over_solve']:.2f})  |  "
                 f"IPOPT default median {rr['ref_median_ms']:7.2f} p95 {rr['ref_p95_ms']:7.2f} "
                 f"max {rr['ref_max_ms']:7.2f} (it {rr['ref_iter_median']:.0f})"
                 + (
@@ -192,7 +256,8 @@ def bench_nmpc(
                     if rr["ref_same_nlp_median_ms"] == rr["ref_same_nlp_median_ms"]
                     else ""
                 )
-                + f"  speed-up {rr['speedup_median']:5.1f}x  max rel cost diff {rr['max_rel_cost_diff']:.1e} "
+                + f"  speed-up {rr['speedup_median']:5.1f}x (CPU time {rr['speedup_cpu']:.1f}x)  max rel cost diff "
+                f"{rr['max_rel_cost_diff']:.1e} "
                 f"(ours higher by <= {rr['max_rel_cost_excess']:.1e}; {rr['n_rel_cost_diff_gt_1e-4']} steps > 1e-4)  "
                 f"failures {rr['failures']} (ref fails {rr['n_ref_fail']})  [{rr['solver']}, {rr['transcription']}; "
                 f"ipopt retries {rr['n_ipopt_fallbacks']}, iterates {rr['accepted_iterates']}; budget "
@@ -200,6 +265,57 @@ def bench_nmpc(
                 flush=True,
             )
     return rows, steps
+
+
+def horizon_table(rows: list[dict]) -> list[dict]:
+    """One row per horizon over the strategies: the product solver against IPOPT's defaults.
+
+    ``speedup`` is the ratio of the medians over all steps of all strategies (each strategy's median
+    first, then the median of those); ``max_rel_cost_diff`` the largest over the strategies.
+    """
+    out = []
+    for np_ in sorted({r["np"] for r in rows}):
+        rs = [r for r in rows if r["np"] == np_]
+        ours = float(np.median([r["ours_median_ms"] for r in rs]))
+        ref = float(np.median([r["ref_median_ms"] for r in rs]))
+        out.append(
+            {
+                "np": np_,
+                "solver": sorted({f"{r['solver']}/{r['transcription']}" for r in rs}),
+                "ours_median_ms": ours,
+                "ref_median_ms": ref,
+                "speedup": ref / ours if ours > 0 else float("nan"),
+                "speedup_min": float(np.nanmin([r["speedup_median"] for r in rs])),
+                "speedup_cpu": float(
+                    np.median([r["ref_cpu_median_ms"] for r in rs]) / np.median([r["solve_cpu_median_ms"] for r in rs])
+                ),
+                "speedup_cpu_min": float(np.nanmin([r["speedup_cpu"] for r in rs])),
+                "max_rel_cost_diff": float(np.nanmax([r["max_rel_cost_diff"] for r in rs])),
+                "step_median_ms": float(np.median([r["step_median_ms"] for r in rs])),
+                "step_p99_ms": float(np.max([r["step_p99_ms"] for r in rs])),
+                "non_solver_share": float(np.median([r["non_solver_share"] for r in rs])),
+                "failures": int(sum(r["failures"] for r in rs)),
+            }
+        )
+    return out
+
+
+def _print_horizon_table(table: list[dict]) -> None:
+    print(
+        "horizon table: Np | product solver | ours median [ms] | IPOPT defaults median [ms] | speed-up "
+        "(worst strategy) | speed-up in CPU time (worst) | max rel cost diff | whole step median / p99 [ms] | "
+        "not solver | failures",
+        flush=True,
+    )
+    for t in table:
+        print(
+            f"  {t['np']:3d} | {', '.join(t['solver'])} | {t['ours_median_ms']:.2f} | {t['ref_median_ms']:.2f} | "
+            f"{t['speedup']:.1f}x ({t['speedup_min']:.1f}x) | {t['speedup_cpu']:.1f}x ({t['speedup_cpu_min']:.1f}x) | "
+            f"{t['max_rel_cost_diff']:.1e} | "
+            f"{t['step_median_ms']:.2f} / {t['step_p99_ms']:.2f} | {100 * t['non_solver_share']:.0f} % | "
+            f"{t['failures']}",
+            flush=True,
+        )
 
 
 def _summary(rows, steps, args, codegen, horizons, strategies, duration) -> dict:
@@ -217,6 +333,8 @@ def _summary(rows, steps, args, codegen, horizons, strategies, duration) -> dict
         "np6_max_ms": _np6([r["ours_max_ms"] for r in np6], np.max),
         "np6_step_median_ms": float(np.median(s6)) if s6.size else None,
         "np6_step_p99_ms": float(np.percentile(s6, 99)) if s6.size else None,
+        "np6_non_solver_share": _np6([r["non_solver_share"] for r in np6], np.median),
+        "np6_step_over_solve": _np6([r["step_over_solve"] for r in np6], np.median),
         "np6_ref_median_ms": _np6([r["ref_median_ms"] for r in np6], np.median),
         "np6_speedup_vs_ipopt_default": (
             float(np.median([r["ref_median_ms"] for r in np6]) / np.median([r["ours_median_ms"] for r in np6]))
@@ -241,6 +359,43 @@ def _summary(rows, steps, args, codegen, horizons, strategies, duration) -> dict
         "duration_s": duration,
         "load_1min": os.getloadavg()[0],
     }
+
+
+def _node_case(strategy: str, duration_s, codegen: bool) -> dict:
+    """One strategy's steps inside mpc_node (:func:`ceco_controller.bench_node.node_step_times`), printed."""
+    from .bench_node import node_step_times
+
+    r = node_step_times(strategy, duration_s=duration_s, codegen=codegen)
+    step, solve = r["node_ms"][1:], r["solve_ms"][1:]  # (step 0: the cold first solve, as in the simulator's)
+    cpu = {f"cpu_{k}": v for k, v in non_solver(r["node_cpu_ms"][1:], r["solve_cpu_ms"][1:]).items()}
+    row = {
+        "strategy": strategy,
+        "steps": int(step.size),
+        "node_median_ms": float(np.median(step)),
+        "node_p99_ms": float(np.percentile(step, 99)),
+        "node_cpu_median_ms": float(np.median(r["node_cpu_ms"][1:])),
+        "node_cpu_p99_ms": float(np.percentile(r["node_cpu_ms"][1:], 99)),
+        "solve_median_ms": float(np.median(solve)),
+        "solve_cpu_median_ms": float(np.median(r["solve_cpu_ms"][1:])),
+        "fallback_steps": int(np.sum(r["fallback"])),
+        "max_command_diff_to_simulator": r["max_command_diff_to_simulator"],
+        **non_solver(step, solve),
+        **cpu,
+        "load_1min": os.getloadavg()[0],
+    }
+    print(
+        f"{strategy:10s} mpc_node step median {row['node_median_ms']:.3f} ms p99 {row['node_p99_ms']:.3f} "
+        f"(p99/median {row['node_p99_ms'] / row['node_median_ms']:.1f}; CPU median {row['node_cpu_median_ms']:.3f} "
+        f"p99 {row['node_cpu_p99_ms']:.3f}) | "
+        f"solver median {row['solve_median_ms']:.3f} ms | step/solve {row['step_over_solve']:.2f}, not solver "
+        f"{row['non_solver_median_ms']:.3f} ms = {100 * row['non_solver_share']:.0f} % | CPU: step "
+        f"{row['node_cpu_median_ms']:.3f}, solver {row['solve_cpu_median_ms']:.3f} ms, step/solve "
+        f"{row['cpu_step_over_solve']:.2f}, not solver {100 * row['cpu_non_solver_share']:.0f} % | commands equal "
+        f"to the simulator's to {row['max_command_diff_to_simulator']:.1e} | fallbacks "
+        f"{row['fallback_steps']} [load {row['load_1min']:.1f}]",
+        flush=True,
+    )
+    return row
 
 
 def _median_or_none(values) -> float | None:
@@ -301,6 +456,12 @@ def main(argv=None) -> int:
         action="store_true",
         help="also compare the bounded-cost mode with the full SQP on every benchmark scenario",
     )
+    ap.add_argument(
+        "--node",
+        action="store_true",
+        help="also time the whole step inside mpc_node (message in to command out) at Np = 6 "
+        "(ceco_controller.bench_node; needs the built workspace)",
+    )
     ap.add_argument("--progress", action="store_true", help="show progress bars")
     args = ap.parse_args(argv)
     if not args.cpu_slowdown > 0:
@@ -330,6 +491,17 @@ def main(argv=None) -> int:
         prepare=not args.no_prepare,
     )
     summary = _summary(rows, steps, args, codegen, horizons, strategies, duration)
+    summary["horizon_table"] = table = horizon_table(rows)
+    _print_horizon_table(table)
+    if args.node:
+        print(f"whole step inside mpc_node (Np = 6, lockstep, SC03; load {os.getloadavg()[0]:.1f}):", flush=True)
+        summary["node"] = node_rows = [
+            _node_case(strat, duration, codegen and args.method != "fatrop") for strat in strategies
+        ]
+        summary["np6_node_step_median_ms"] = float(np.median([r["node_median_ms"] for r in node_rows]))
+        summary["np6_node_step_p99_ms"] = float(np.max([r["node_p99_ms"] for r in node_rows]))
+        summary["np6_node_over_solve"] = float(np.median([r["step_over_solve"] for r in node_rows]))
+        summary["np6_node_non_solver_share"] = float(np.median([r["non_solver_share"] for r in node_rows]))
     factors = [float(f) for f in args.slowdown_factors.split(",") if f.strip()]
     if factors:
         print(f"slow-down table (SC03, Np = 6, budgets / factor; load {os.getloadavg()[0]:.1f}):", flush=True)

@@ -138,6 +138,12 @@ class ChainOutcome:
         return float(sum(ts)) if ts else None
 
     @property
+    def cpu_ms(self) -> float | None:
+        """Solver CPU time of all attempts [ms] (None if none reported one)."""
+        ts = [r.cpu_ms for _, r in self.attempts if r.cpu_ms is not None]
+        return float(sum(ts)) if ts else None
+
+    @property
     def status(self) -> str:
         """The single attempt's status, or 'solver: status; ...' over all attempts."""
         if len(self.attempts) == 1:
@@ -167,6 +173,11 @@ class SolveChain:
         self.n_retries = 0
         """Retries of a failed warm solve by the retry solver (since construction)."""
 
+    def reset(self) -> None:
+        """Reset every solver of the chain (:meth:`NlpSolver.reset`)."""
+        for solver in {id(s): s for s in (self.solver, self.retry, self.cold) if s is not None}.values():
+            solver.reset()
+
     # ---------------------------------------------------------------- data
     def warm_data(self, p: np.ndarray, good: GoodSolution | None) -> NlpData | None:
         """The warm-started instance: ``good`` shifted by its age (None without a usable solution)."""
@@ -186,20 +197,15 @@ class SolveChain:
 
     # -------------------------------------------------------------- checks
     def valid_command(self, u) -> bool:
-        """``u`` finite and inside the actuator bounds up to :data:`BOUND_TOL`."""
-        lim = self.limits
-        return bool(
-            np.all(np.isfinite(u))
-            and lim.mdot_bl_min_kgps - BOUND_TOL <= u[0] <= lim.mdot_bl_max_kgps + BOUND_TOL
-            and lim.t_evap_sp_min_c - BOUND_TOL <= u[1] <= lim.t_evap_sp_max_c + BOUND_TOL
-        )
+        """``u`` (2 entries) finite and inside the actuator bounds up to :data:`BOUND_TOL`."""
+        return self.limits.contains(float(u[0]), float(u[1]), BOUND_TOL)
 
     def why_unusable(self, r: SolveResult) -> str | None:
         """None if ``r`` is usable, else the reason."""
         w, lam_x, lam_g = r.w, r.lam_x, r.lam_g
         if w is None or lam_x is None or lam_g is None or not r.finite():
             return "no finite primal-dual point"
-        if max(float(np.max(np.abs(lam_x), initial=0.0)), float(np.max(np.abs(lam_g), initial=0.0))) > MAX_MULTIPLIER:
+        if max(float(np.abs(lam_x).max(initial=0.0)), float(np.abs(lam_g).max(initial=0.0))) > MAX_MULTIPLIER:
             return "multipliers beyond 1e9"
         if not (r.success or r.limited):
             return "solver failed"

@@ -23,6 +23,7 @@ import numpy as np
 from ceco_core import rundir
 from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS, MEASUREMENT_MODES
 from ceco_core.metrics import comfort_series_metrics, run_metrics
+from ceco_core.run_status import check_control
 from ceco_plant_sim.scenario_plant import ScenarioPlant, check_overrides, n_plant_steps, steps_per_control
 from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews
 from ceco_v2x_preview.scenario import Scenario, load_scenario
@@ -30,7 +31,7 @@ from ceco_v2x_preview.scenario import Scenario, load_scenario
 from . import model as cm
 from .estimating_controller import EstimatingController, with_measurements
 from .estimator import estimation_errors
-from .factory import make_controller
+from .factory import ControllerCache, make_controller
 from .observation import observation
 from .strategies import STRATEGIES
 
@@ -137,7 +138,11 @@ class RunResult:
 
 
 def simulate(
-    scenario: Scenario | str, strategy: str, settings: SimSettings | None = None, controller=None
+    scenario: Scenario | str,
+    strategy: str,
+    settings: SimSettings | None = None,
+    controller=None,
+    controller_cache: ControllerCache | None = None,
 ) -> RunResult:
     """Run one strategy on one scenario in closed loop against the plant.
 
@@ -146,6 +151,8 @@ def simulate(
         strategy: ``baseline``, ``ceco``, ``ceco-e``, ``ceco-c`` or ``ceco-ioch``.
         settings: :class:`SimSettings`.
         controller: an already built controller to use (for tests); default: built here.
+        controller_cache: reuse an NMPC built by an earlier run of this process (a benchmark
+            worker's :class:`~ceco_controller.factory.ControllerCache`); the results are the same.
     """
     settings = settings or SimSettings()
     settings.validate()
@@ -173,6 +180,7 @@ def simulate(
             dict(settings.strategy_overrides),
             config_path=settings.controller_config_path,
             measurements=settings.measurements,
+            cache=controller_cache,
         )
     else:
         controller = with_measurements(controller, settings.measurements, ts, model_params=mp)
@@ -270,6 +278,8 @@ def simulate(
             "solve_time_max_ms": float(np.max([d.solve_time_ms for d in nd])) if nd else None,
         }
     )
+    # a run whose controller was mostly in fallback is a failed run (ceco_core.run_status)
+    metrics.update(check_control(len(diag_objs), sum(bool(d.fallback) for d in diag_objs)).as_metrics())
     estimates = None
     if vehicle:
         estimates = {c: np.asarray(v) for c, v in est_rows.items()}

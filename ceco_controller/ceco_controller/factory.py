@@ -6,17 +6,65 @@ from here.
 
 from __future__ import annotations
 
+import collections
+
 from ceco_core.acc_law import AccSettings
-from ceco_core.cabin_comfort import comfort_params_for
+from ceco_core.cabin_comfort import ComfortParams, comfort_params_for
 from ceco_core.scenario_types import Scenario
 
 from . import model as cm
 from .baseline import BaselineController
 from .estimating_controller import with_measurements
 from .nmpc import NmpcController
-from .strategies import load_strategy_settings
+from .strategies import StrategySettings, load_strategy_settings
 
-__all__ = ["make_controller", "load_acc_settings"]
+__all__ = ["make_controller", "ControllerCache", "load_acc_settings"]
+
+
+class ControllerCache:
+    """NMPC controllers built once per process and reused, reset, by later runs (a benchmark worker's).
+
+    Building an NMPC (transcribing its NLP, building or loading its solvers) costs 0.2-0.4 s, as much
+    as all of a 600 s run's control steps. :meth:`nmpc` returns the controller built for the same
+    settings, model and comfort parameters before, after :meth:`NmpcController.reset` (the key-on
+    state: no plan, no warm start, no bias estimates, ``counters`` at zero), else builds one. A reset
+    controller computes what a fresh one computes, bit for bit (``tests/test_sweep.py``).
+
+    Args:
+        max_size: controllers kept (least recently used dropped first).
+    """
+
+    def __init__(self, max_size: int = 16):
+        if not (isinstance(max_size, int) and max_size >= 1):
+            raise ValueError(f"ControllerCache.max_size must be an int >= 1, got {max_size!r}")
+        self.max_size = max_size
+        self._built: collections.OrderedDict[str, NmpcController] = collections.OrderedDict()
+        self.hits = 0
+        """Controllers reused."""
+        self.builds = 0
+        """Controllers built."""
+
+    def nmpc(
+        self,
+        settings: StrategySettings,
+        model_params: cm.ControlModelParams | None,
+        comfort_params: ComfortParams,
+    ) -> NmpcController:
+        """A controller for these settings and parameters in its key-on state (reused or built)."""
+        # the dataclasses' reprs hold every field (floats round-trip exactly): equal keys, equal controllers
+        key = repr((settings, model_params, comfort_params))
+        ctrl = self._built.get(key)
+        if ctrl is not None:
+            self._built.move_to_end(key)
+            self.hits += 1
+            ctrl.reset()
+            return ctrl
+        ctrl = NmpcController(settings, model_params=model_params, comfort_params=comfort_params)
+        self.builds += 1
+        self._built[key] = ctrl
+        while len(self._built) > self.max_size:
+            self._built.popitem(last=False)
+        return ctrl
 
 
 def load_acc_settings(path: str | None) -> dict:
@@ -56,6 +104,7 @@ def make_controller(
     measurements: str = "full",
     estimator_settings=None,
     estimator_params=None,
+    cache: ControllerCache | None = None,
 ):
     """Build the controller of a strategy for a scenario.
 
@@ -66,6 +115,7 @@ def make_controller(
     ``measurements``: 'full' (every modelled state read from the observation) or 'vehicle' (only the
     production sensors; the controller behind ``estimating_controller.EstimatingController``, with
     ``estimator_settings``/``estimator_params``, default the package's identified file).
+    ``cache``: reuse an NMPC built before in this process (:class:`ControllerCache`).
     """
     ctrl: BaselineController | NmpcController
     if strategy == "baseline":
@@ -79,7 +129,11 @@ def make_controller(
         settings = load_strategy_settings(
             strategy, config_path, horizon_steps=horizon_steps, control_period_s=control_period_s, **(overrides or {})
         )
-        ctrl = NmpcController(settings, model_params=model_params, comfort_params=comfort_params_for(scenario))
+        comfort = comfort_params_for(scenario)
+        if cache is not None:
+            ctrl = cache.nmpc(settings, model_params, comfort)
+        else:
+            ctrl = NmpcController(settings, model_params=model_params, comfort_params=comfort)
     return with_measurements(
         ctrl,
         measurements,

@@ -23,11 +23,13 @@ Constraint rows (:class:`RowLayout`): ``gap`` (4 per stage, multiple shooting), 
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
 
 __all__ = [
+    "OcpStructure",
     "ParamLayout",
     "VariableLayout",
     "RowLayout",
@@ -52,6 +54,21 @@ VAR_KEYS = ("x", "u", "s_lo", "s_up", "s_ev", "eps")
 
 ROW_KINDS = ("gap", "pmv", "evap")
 """Kinds of stage-wise constraint blocks."""
+
+
+@dataclasses.dataclass(frozen=True)
+class OcpStructure:
+    """Stage dimensions of a multiple-shooting NLP: N + 2 stages, as CasADi's hpipm interface reads them.
+
+    Built by :meth:`ceco_controller.transcription.NlpProblem.ocp_structure`.
+    """
+
+    nx: tuple[int, ...]
+    """States per stage, N + 2 entries (the first and the last 0)."""
+    nu: tuple[int, ...]
+    """Controls (inputs and slacks) per stage, N + 2 entries (the last 0)."""
+    ng: tuple[int, ...]
+    """Non-dynamic constraint rows per stage, N + 2 entries (the last 0)."""
 
 
 class ParamLayout:

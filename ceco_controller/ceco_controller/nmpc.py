@@ -46,7 +46,7 @@ from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observati
 from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits, check_observation
 
 from . import model as cm
-from .chain import BOUND_TOL, ColdPath, GoodSolution, SolveChain, StepCounters
+from .chain import BOUND_TOL, ChainOutcome, ColdPath, GoodSolution, SolveChain, StepCounters
 from .codegen import codegen_cache_dir, compile_nlp
 from .comfort_feedback import PmvFeedback, PreviewSkill, held, measured_pmv, pmv_solar_sensitivity
 from .observation import fill_previews, nominal_observation
@@ -155,7 +155,7 @@ class NmpcController:
         """Wall time of building the NLP and its solvers [s] (compilation included when codegen compiles)."""
         self.n_ipopt_fallbacks = 0
         """Warm SQP/fatrop solves that failed and were retried with warm IPOPT (since construction)."""
-        self.reset()
+        self._reset_state()
 
     # ------------------------------------------------------------------ build
     def _build_chain(self) -> SolveChain:
@@ -243,7 +243,15 @@ class NmpcController:
 
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
-        """Back to the key-on state: no plan, no warm start, no bias estimates, the ACC law reset."""
+        """Back to the key-on state: no plan, no warm start, no bias estimates, the ACC law reset.
+
+        The solvers forget their history too (:meth:`SolveChain.reset`): the next steps compute what
+        a freshly built controller's would, bit for bit.
+        """
+        self.chain.reset()
+        self._reset_state()
+
+    def _reset_state(self) -> None:
         self._good: GoodSolution | None = None
         self._prepared_t_s: float | None = None
         self._last_cmd: np.ndarray | None = None
@@ -254,6 +262,7 @@ class NmpcController:
             self._skill.reset()
         self._comfort_now: np.ndarray | None = None
         self._acc.reset()
+        self._acc_to_track: tuple | None = None
         self.counters = StepCounters()
         """What the steps did since construction or the last reset."""
 
@@ -364,6 +373,10 @@ class NmpcController:
         """The data of the last NLP solved by :meth:`compute` (for benchmarks)."""
         return getattr(self, "_last_nlp", None)
 
+    def last_chain(self) -> ChainOutcome | None:
+        """What the solve chain did in the last :meth:`compute` that reached it (for benchmarks)."""
+        return getattr(self, "_last_chain", None)
+
     # ------------------------------------------------------------ start-up
     def warm_up(self) -> float:
         """Solve a nominal instance once with every solver of the chain, then forget it (key-on).
@@ -459,7 +472,7 @@ class NmpcController:
         bounds = self._comfort_step(obs, chk, ex, valid, diag)
         p = self.parameters(obs, ex, u_prev, chk.t_glass_c, chk.rh_cab, bounds)
         out = self.chain.run(p, self._good, deadline)
-        self._last_nlp = out.data
+        self._last_nlp, self._last_chain = out.data, out
         self._count(out, deadline)
         res = out.result
         diag.status = out.status
@@ -497,7 +510,9 @@ class NmpcController:
             _note(diag, f"solve failed ({diag.status}), no plan left: production ACC law applied")
             return self._apply_acc(diag, float(obs.t_cab_c), obs, ex)
         cmd = self._clip_checked(cmd)
-        self._acc.track(cmd[0], cmd[1], obs.t_cab_c)
+        # the ACC law follows the applied command (bumpless hand-over); only the last one matters, so
+        # the tracking is done when the law is next needed (_apply_acc), not at every step
+        self._acc_to_track = (cmd[0], cmd[1], obs.t_cab_c)
         return self._finish(diag, cmd, obs, ex)
 
     # -------------------------------------------------------------- internals
@@ -616,5 +631,8 @@ class NmpcController:
     def _apply_acc(self, diag: Diagnostics, t_cab_c: float, obs: Observation | None, ex: dict | None):
         self.counters.acc_law += 1
         diag.fallback = "baseline"
+        if self._acc_to_track is not None:
+            self._acc.track(*self._acc_to_track)
+            self._acc_to_track = None
         acc = self._acc.step(t_cab_c, self.settings.control_period_s)
         return self._finish(diag, self._clip_checked(np.array([acc.mdot_bl_kgps, acc.t_evap_sp_c])), obs, ex)

@@ -21,6 +21,11 @@ from . import model as cm
 __all__ = ["BiasEstimator"]
 
 
+def _clip(x: float, lim: float) -> float:
+    """The finite value ``x`` limited to [-lim, lim]."""
+    return min(max(float(x), -lim), lim)
+
+
 class BiasEstimator:
     """The three bias estimates (d_cab [K per control step], d_evap [K per control step], d_ain [K])."""
 
@@ -54,13 +59,13 @@ class BiasEstimator:
         # vent air: measured vs model at the measured evaporator temperature and the applied flow
         e_ain = t_vent_c - float(cm.t_ain_c(mp, t_evap_c, mdot_bl_prev_kgps))
         if math.isfinite(e_ain):  # a non-finite error never enters the state (the caller checks too)
-            self.bias[2] = np.clip((1 - a) * self.bias[2] + a * e_ain, -lim, lim)
+            self.bias[2] = _clip((1 - a) * self.bias[2] + a * e_ain, lim)
         if self.last_pred is not None:
             e_cab = t_cab_c - self.last_pred[0]
             e_evap = t_evap_c - self.last_pred[1]
             if math.isfinite(e_cab) and math.isfinite(e_evap):
-                self.bias[0] = np.clip((1 - a) * self.bias[0] + a * e_cab, -lim, lim)
-                self.bias[1] = np.clip((1 - a) * self.bias[1] + a * e_evap, -lim, lim)
+                self.bias[0] = _clip((1 - a) * self.bias[0] + a * e_cab, lim)
+                self.bias[1] = _clip((1 - a) * self.bias[1] + a * e_evap, lim)
 
     def predict(
         self,

@@ -29,8 +29,8 @@ import casadi
 import numpy as np
 
 from .codegen import compile_functions, compile_nlp, nlp_key, stdout_silenced
-from .sqp import DenseSqp, SqpOptions, sqp_functions
-from .strategies import SolverSettings, auto_solver_name
+from .sqp import Sqp, SqpOptions, sqp_functions
+from .strategies import SolverSettings, auto_solver_name, resolved_qpsol
 from .transcription import NlpProblem
 
 __all__ = ["NlpData", "SolveResult", "NlpSolver", "build_solver", "LIMIT_STATUSES"]
@@ -69,6 +69,9 @@ class SolveResult:
     """Solver iterations (SQP: QPs solved; None when unknown)."""
     time_ms: float | None = None
     """Wall-clock time of the solver call(s) [ms] (None when the call raised)."""
+    cpu_ms: float | None = None
+    """CPU time of the calling thread in the solver call [ms] (benchmarks on a loaded machine: the wall
+    time also holds the time the thread waited for a core); None when the call raised."""
     w: np.ndarray | None = None
     """Primal point returned (None when the call raised)."""
     f: float = math.nan
@@ -109,6 +112,9 @@ class NlpSolver:
         self.clock = clock
         """Clock of the deadlines [s] (``time.perf_counter`` unless injected)."""
 
+    def reset(self) -> None:
+        """Forget what earlier solves left in the solver (a solve then equals a fresh solver's); default: nothing."""
+
     def solve(self, data: NlpData, deadline: float | None = None) -> SolveResult:
         """Solve one instance (no iteration starts after ``deadline``); evaluation errors become a failed result."""
         try:
@@ -121,17 +127,22 @@ class NlpSolver:
 
 
 class SqpSolver(NlpSolver):
-    """ceco's dense SQP (:class:`~ceco_controller.sqp.DenseSqp`)."""
+    """ceco's SQP (:class:`~ceco_controller.sqp.Sqp`): dense qpOASES QPs, or HPIPM on the multiple-shooting stages."""
 
     def __init__(self, problem: NlpProblem, settings: SolverSettings, clock: Callable[[], float]):
         super().__init__(problem, settings, clock)
-        fns, pattern = sqp_functions(problem.nlp)
+        qpsol = resolved_qpsol(settings.qpsol, problem.transcription)
+        structure = problem.ocp_structure() if qpsol == "hpipm" else None
+        if qpsol == "hpipm" and structure is None:
+            raise ValueError("SolverSettings.qpsol 'hpipm' needs the multiple-shooting NLP")
+        sf = sqp_functions(problem.nlp, structure)
+        fns = sf.functions
         if settings.codegen:
-            # the functions are a deterministic product of the NLP and of sqp_functions' code
-            key = nlp_key(problem.nlp) + inspect.getsource(sqp_functions).encode()
+            # the functions are a deterministic product of the NLP, the QP's layout and sqp_functions' code
+            key = nlp_key(problem.nlp) + repr(structure).encode() + inspect.getsource(sqp_functions).encode()
             so = _compiled(
                 problem,
-                ("sqp", tuple(settings.codegen_flags)),
+                ("sqp", qpsol, tuple(settings.codegen_flags)),
                 lambda: compile_functions(
                     list(fns.values()), key, settings.codegen_flags, settings.codegen_cache_dir, prefix="ceco_sqp"
                 ),
@@ -157,22 +168,30 @@ class SqpSolver(NlpSolver):
             tol_du=settings.acceptable_tol if settings.warm_start else settings.tol,
             eig_floor=settings.eig_floor,
             rti=settings.rti,
-            qpsol=settings.qpsol,
+            qpsol=qpsol,
             qp_cpu_time_s=settings.max_cpu_time_s / settings.sqp_max_iter,
         )
-        self.sqp = DenseSqp(fns, pattern, problem.lbw, problem.ubw, problem.lbg, problem.ubg, opts, clock)
+        self.sqp = Sqp(
+            dataclasses.replace(sf, functions=fns), problem.lbw, problem.ubw, problem.lbg, problem.ubg, opts, clock
+        )
+
+    def reset(self) -> None:
+        """A new QP solver (qpOASES hot-starts from the previous QP)."""
+        self.sqp.reset()
 
     def _solve(self, data: NlpData, deadline: float | None) -> SolveResult:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         out = self.sqp.solve(data.x0, data.p, data.lam_x0, data.lam_g0, deadline=deadline)
-        dt_ms = 1e3 * (time.perf_counter() - t0)
-        violation = self.problem.max_violation(out.w, out.g) if np.all(np.isfinite(out.g)) else math.inf
+        dt_ms, cpu_ms = 1e3 * (time.perf_counter() - t0), 1e3 * (time.thread_time() - c0)
+        # the SQP's w is inside its bounds (clipped at every step); its primal infeasibility is g's at w
+        violation = out.primal_infeasibility if math.isfinite(float(out.g.sum())) else math.inf
         return SolveResult(
             solver=self.name,
             success=out.success,
             status=out.status,
             iterations=out.iterations,
             time_ms=dt_ms,
+            cpu_ms=cpu_ms,
             w=out.w,
             f=out.f,
             lam_x=out.lam_x,
@@ -242,9 +261,9 @@ class CasadiSolver(NlpSolver):
             args["lam_g0"] = data.lam_g0
         if self._callback is not None:
             self._callback.deadline = math.inf if deadline is None else deadline
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         sol = self.function(**args)
-        dt_ms = 1e3 * (time.perf_counter() - t0)
+        dt_ms, cpu_ms = 1e3 * (time.perf_counter() - t0), 1e3 * (time.thread_time() - c0)
         stats = self.function.stats()
         status = str(stats.get("return_status", "unknown"))
         if status == "User_Requested_Stop":  # our deadline callback
@@ -258,6 +277,7 @@ class CasadiSolver(NlpSolver):
             status=status,
             iterations=int(stats["iter_count"]) if "iter_count" in stats else None,
             time_ms=dt_ms,
+            cpu_ms=cpu_ms,
             w=w,
             f=float(sol["f"]),
             lam_x=np.array(sol["lam_x"]).ravel(),

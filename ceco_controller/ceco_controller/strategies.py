@@ -45,7 +45,9 @@ __all__ = [
     "strategy_settings",
     "resolved_transcription",
     "resolve_auto",
+    "resolved_qpsol",
     "auto_solver_name",
+    "QPSOL_NAMES",
     "COMFORT_GAMMA_W",
 ]
 
@@ -65,18 +67,21 @@ its own (unstated) units.
 SOLVER_NAMES = ("auto", "sqp", "ipopt", "fatrop")
 """Values of ``SolverSettings.name``."""
 
+QPSOL_NAMES = ("auto", "qpoases", "hpipm", "qrqp")
+"""Values of ``SolverSettings.qpsol``."""
+
 
 @dataclasses.dataclass(frozen=True)
 class SolverSettings:
     """NLP solver settings (choice justified with numbers in docs/controller.md 4.6)."""
 
     name: str = "auto"
-    """Solver of the warm solves: 'auto' (default: 'sqp' when the transcription is single shooting,
-    i.e. Np <= ``single_shooting_max_steps``, else 'ipopt'), 'sqp' (ceco's dense SQP,
-    :mod:`ceco_controller.sqp`: exact Hessian convexified by an exact eigendecomposition, dense
-    qpOASES; IPOPT does the cold solves and retries a failed SQP solve), 'ipopt' (warm IPOPT) or
-    'fatrop' (multiple shooting only). CasADi's 'sqpmethod' was replaced by 'sqp' (its Jacobi
-    eigen-solver could stop short, docs/controller.md 4.6)."""
+    """Solver of the warm solves: 'auto' (default: 'sqp'), 'sqp' (ceco's SQP, :mod:`ceco_controller.sqp`:
+    exact Hessian convexified by an exact eigendecomposition; dense qpOASES QPs on the
+    single-shooting NLP, HPIPM's Riccati QPs on the multiple-shooting one (``qpsol``); IPOPT does the
+    cold solves and retries a failed SQP solve), 'ipopt' (warm IPOPT) or 'fatrop' (multiple shooting
+    only). CasADi's 'sqpmethod' was replaced by 'sqp' (its Jacobi eigen-solver could stop short,
+    docs/controller.md 4.6)."""
     max_iter: int = 100
     """IPOPT/fatrop iteration limit per solve [-]."""
     sqp_max_iter: int = 20
@@ -125,8 +130,10 @@ class SolverSettings:
     """Cache directory of compiled NLPs; None: $CECO_CACHE_DIR, else $XDG_CACHE_HOME/ceco, else ~/.cache/ceco."""
     default_options: bool = False
     """Reference mode: IPOPT with its default settings, no warm start (what MPCTools did)."""
-    qpsol: str = "qpoases"
-    """QP solver of the SQP ('qpoases', dense active set, or CasADi's 'qrqp')."""
+    qpsol: str = "auto"
+    """QP solver of the SQP: 'auto' (dense 'qpoases' on the single-shooting NLP, 'hpipm' on the
+    multiple-shooting one), 'qpoases' (dense active set), 'hpipm' (HPIPM's Riccati interior point
+    on the stage structure: multiple shooting only, cost linear in Np) or CasADi's 'qrqp' (dense)."""
     eig_floor: float = 1e-7
     """SQP: smallest eigenvalue of each convexified Hessian block [kJ per variable unit^2]."""
     transcription: str = "auto"
@@ -167,8 +174,10 @@ class SolverSettings:
             raise ValueError("SolverSettings.default_options (the IPOPT reference) needs name 'ipopt'")
         if not (isinstance(self.sqp_max_iter, int) and self.sqp_max_iter >= 1):
             raise ValueError("SolverSettings.sqp_max_iter must be an int >= 1")
-        if self.qpsol not in ("qpoases", "qrqp"):
-            raise ValueError(f"SolverSettings.qpsol must be qpoases or qrqp, got {self.qpsol!r}")
+        if self.qpsol not in QPSOL_NAMES:
+            raise ValueError(f"SolverSettings.qpsol must be one of {QPSOL_NAMES}, got {self.qpsol!r}")
+        if self.qpsol == "hpipm" and self.transcription == "single-shooting":
+            raise ValueError("SolverSettings.qpsol 'hpipm' needs transcription 'multiple-shooting' (or 'auto')")
         if self.transcription not in ("auto", "single-shooting", "multiple-shooting"):
             raise ValueError(
                 "SolverSettings.transcription must be auto, single-shooting or multiple-shooting, "
@@ -362,11 +371,6 @@ class StrategySettings:
                 "StrategySettings.solver.max_cpu_time_s must be below control_period_s / 2 "
                 "when a failed SQP/fatrop solve is retried by IPOPT (ipopt_fallback)"
             )
-        if self.solver.rti and resolved_transcription(self) != "single-shooting" and self.solver.name == "auto":
-            raise ValueError(
-                "StrategySettings.solver.rti with name 'auto' needs the single-shooting NLP "
-                "(horizon_steps <= single_shooting_max_steps); set name 'sqp' explicitly"
-            )
         self.solver.validate()
 
     @property
@@ -408,22 +412,37 @@ def resolved_transcription(settings: StrategySettings) -> str:
 
 
 def auto_solver_name(transcription: str) -> str:
-    """The solver 'auto' picks for an NLP transcription: the SQP for single shooting, IPOPT otherwise."""
-    return "sqp" if transcription == "single-shooting" else "ipopt"
+    """The solver 'auto' picks for an NLP transcription: the SQP (qpOASES or HPIPM QPs, ``resolved_qpsol``)."""
+    if transcription not in ("single-shooting", "multiple-shooting"):
+        raise ValueError(f"unknown transcription {transcription!r}")
+    return "sqp"
+
+
+def resolved_qpsol(qpsol: str, transcription: str) -> str:
+    """The SQP's QP solver: 'auto' is dense qpOASES for single shooting, HPIPM for multiple shooting."""
+    if qpsol != "auto":
+        return qpsol
+    return "qpoases" if transcription == "single-shooting" else "hpipm"
 
 
 def resolve_auto(settings: StrategySettings) -> StrategySettings:
     """``settings`` with the solver's 'auto' choices made concrete.
 
     See ``SolverSettings.name`` and ``SolverSettings.transcription``: single shooting + the SQP up
-    to ``single_shooting_max_steps``, multiple shooting + IPOPT beyond.
+    to ``single_shooting_max_steps``, multiple shooting + the SQP with HPIPM beyond.
     """
     transcription = resolved_transcription(settings)
     name = settings.solver.name
     if name == "auto":
         name = auto_solver_name(transcription)
     out = dataclasses.replace(
-        settings, solver=dataclasses.replace(settings.solver, name=name, transcription=transcription)
+        settings,
+        solver=dataclasses.replace(
+            settings.solver,
+            name=name,
+            transcription=transcription,
+            qpsol=resolved_qpsol(settings.solver.qpsol, transcription),
+        ),
     )
     out.validate()
     return out

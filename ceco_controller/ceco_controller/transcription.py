@@ -29,7 +29,8 @@ from ceco_core.cabin_comfort import ComfortParams, cabin_draught_pct, cabin_pmv,
 from ceco_core.contracts import ACTUATOR_LIMITS, ActuatorLimits
 
 from . import model as cm
-from .nlp_layout import ParamLayout, RowLayout, VariableLayout
+from .buffered import BufferedFunction
+from .nlp_layout import OcpStructure, ParamLayout, RowLayout, VariableLayout
 from .strategies import StrategySettings
 
 __all__ = ["NlpProblem", "Evaluation", "build_problem", "TRANSCRIPTIONS"]
@@ -92,12 +93,16 @@ class NlpProblem:
     ubg: np.ndarray
     evaluator: casadi.Function
     """(w, p) -> cost terms and trajectories (:meth:`evaluate`)."""
+    rollout: casadi.Function
+    """(u_0..u_{N-1} stacked, p) -> the augmented states x_1..x_N stacked (:meth:`rollout_states`)."""
     limits: ActuatorLimits = ACTUATOR_LIMITS
     """Hard actuator bounds on u."""
     compiled: dict = dataclasses.field(default_factory=dict, repr=False)
     """Compiled NLP functions per (plugin, flags): path or None (filled by the solver builder)."""
 
     def __post_init__(self) -> None:
+        self._evaluator = BufferedFunction(self.evaluator)
+        self._rollout = BufferedFunction(self.rollout)
         # the constant bounds as CasADi matrices, converted once (not on every solve: ~0.1 ms)
         self.bounds_dm = {
             "lbx": casadi.DM(self.lbw),
@@ -123,12 +128,45 @@ class NlpProblem:
 
     def evaluate(self, w: np.ndarray, p: np.ndarray) -> Evaluation:
         """Cost terms and predicted trajectories of a primal point."""
-        out = self.evaluator(w, p)
-        j = [float(v) for v in out[:5]]
-        pmv, t_cab, t_ain, t_evap = (np.array(v).ravel() for v in out[5:])
+        out = self._evaluator(w, p)
         return Evaluation(
-            J_e=j[0], J_c=j[1], J_i=j[2], J_s=j[3], J_du=j[4], pmv=pmv, t_cab=t_cab, t_ain=t_ain, t_evap=t_evap
+            J_e=float(out[0][0]),
+            J_c=float(out[1][0]),
+            J_i=float(out[2][0]),
+            J_s=float(out[3][0]),
+            J_du=float(out[4][0]),
+            pmv=out[5].copy(),
+            t_cab=out[6].copy(),
+            t_ain=out[7].copy(),
+            t_evap=out[8].copy(),
         )
+
+    def rollout_states(self, u: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """The augmented states x_1..x_N the model gives from the measured state under inputs ``u`` (N, 2).
+
+        Shape (N, 4): (T_cab, T_evap [degC], mdot_bl [kg/s], T_evap_sp [degC]) after each stage.
+        """
+        (x,) = self._rollout(np.asarray(u, float).ravel(), p)
+        return x.reshape(self.horizon_steps, 4).copy()
+
+    def ocp_structure(self) -> OcpStructure | None:
+        """The stage structure of the multiple-shooting NLP as HPIPM reads it (None for single shooting).
+
+        Stage i (i = 0..N) holds x_i (4 states for i >= 1, none at i = 0 where the state is a
+        parameter), then its controls: u_i (i < N) and the slacks s_i; its rows are its gap rows
+        (x_{i+1} - f(x_i, u_i), i < N), then its comfort and T_evap rows. A last stage N + 1 without
+        states, controls or rows closes the horizon (the slacks s_N are controls of stage N).
+        """
+        if self.transcription != "multiple-shooting":
+            return None
+        n, vl = self.horizon_steps, self.vars
+        starts = [0, *vl.starts("x").tolist(), self.nw]
+        nx = [0] + [vl.width("x")] * n + [0]
+        nu = [starts[i + 1] - starts[i] - nx[i] for i in range(n + 1)] + [0]
+        ng = [
+            len(self.rows.rows["pmv"][i]) + (len(self.rows.rows["evap"][i - 1]) if i >= 1 else 0) for i in range(n + 1)
+        ] + [0]
+        return OcpStructure(tuple(nx), tuple(int(v) for v in nu), tuple(ng))
 
     def plan(self, w: np.ndarray) -> np.ndarray:
         """The input sequence u_0..u_{N-1} of a primal point, shape (N, 2)."""
@@ -185,6 +223,26 @@ def build_problem(
     # exact optimal-control structure (needed by fatrop, harmless for IPOPT). Single shooting: x_i is
     # the model's rollout expression of (x_0, u_0..u_{i-1}), no state variables, no gap constraints.
     single = transcription == "single-shooting"
+
+    def stage_step(x, u, i):
+        """One model step over interval i: (T_cab, T_evap) at its end and the interval's powers."""
+        t_cab_n, t_evap_n, _, pc, pb = cm.step(
+            mp,
+            x[0],
+            x[1],
+            u[0],
+            u[1],
+            P["t_int"],
+            P["t_shell"],
+            P["t_amb"][i],
+            P["speed"][i],
+            n_sub=n_sub,
+            d_cab_k=P["d_cab"] / n_sub,
+            d_ain_k=P["d_ain"],
+            d_evap_k=P["d_evap"] / n_sub,
+        )
+        return t_cab_n, t_evap_n, pc, pb
+
     x_next = None
     for i in range(n + 1):
         if i == 0:
@@ -205,21 +263,7 @@ def build_problem(
                 "u",
             )
             # one model step over interval i: the next state and the interval's power
-            t_cab_n, t_evap_n, _, pc, pb = cm.step(
-                mp,
-                x[0],
-                x[1],
-                u[0],
-                u[1],
-                P["t_int"],
-                P["t_shell"],
-                P["t_amb"][i],
-                P["speed"][i],
-                n_sub=n_sub,
-                d_cab_k=P["d_cab"] / n_sub,
-                d_ain_k=P["d_ain"],
-                d_evap_k=P["d_evap"] / n_sub,
-            )
+            t_cab_n, t_evap_n, pc, pb = stage_step(x, u, i)
             x_next = casadi.vertcat(t_cab_n, t_evap_n, u)
             e_terms.append(ts_kj * (pc + pb))
             du = casadi.vertcat(
@@ -290,6 +334,15 @@ def build_problem(
     g, lbg, ubg = rows.finalize()
     w_all = casadi.vertcat(*w)
     g_all = casadi.vertcat(*g)
+    # the model's rollout from the measured state under given inputs (the warm start's states)
+    u_seq = SX.sym("u_seq", 2 * n)
+    x_roll, xr = [], casadi.vertcat(P["x0"], P["u_prev"])
+    for i in range(n):
+        u_i = u_seq[2 * i : 2 * i + 2]
+        t_cab_n, t_evap_n, _, _ = stage_step(xr, u_i, i)
+        xr = casadi.vertcat(t_cab_n, t_evap_n, u_i)
+        x_roll.append(xr)
+    rollout = casadi.Function("ceco_rollout", [u_seq, p], [casadi.vertcat(*x_roll)], ["u", "p"], ["x"])
     evaluator = casadi.Function(
         "ceco_eval",
         [w_all, p],
@@ -321,5 +374,6 @@ def build_problem(
         lbg=np.array(lbg),
         ubg=np.array(ubg),
         evaluator=evaluator,
+        rollout=rollout,
         limits=limits,
     )

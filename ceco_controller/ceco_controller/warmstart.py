@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import model as cm
 from .transcription import NlpProblem
 
 __all__ = ["SLACK_GUESS_MARGIN", "initial_guess", "repair_slacks"]
@@ -28,7 +27,6 @@ def initial_guess(problem: NlpProblem, p: np.ndarray, w_prev: np.ndarray | None 
     ``eps`` (ioch): shifted, or eps_UB/2.
     """
     s, pl, vl, lim = problem.settings, problem.params, problem.vars, problem.limits
-    n = problem.horizon_steps
     if w_prev is not None:
         w = vl.shift(w_prev, stages)
     else:
@@ -40,32 +38,7 @@ def initial_guess(problem: NlpProblem, p: np.ndarray, w_prev: np.ndarray | None 
             vl.set_blocks(w, "eps", 0.5 * s.eps_ub)
     w = np.clip(w, problem.lbw, problem.ubw)
     if vl.count("x"):  # multiple shooting: the states rolled out by the model
-        x = pl.get(p, "x0").copy()
-        t_int, t_shell = pl.scalar(p, "t_int"), pl.scalar(p, "t_shell")
-        t_amb, speed = pl.get(p, "t_amb"), pl.get(p, "speed")
-        d_cab, d_evap, d_ain = pl.scalar(p, "d_cab"), pl.scalar(p, "d_evap"), pl.scalar(p, "d_ain")
-        us = vl.blocks(w, "u")
-        xs = np.empty((n, 4))
-        for i in range(n):
-            u = us[i]
-            tc, te, *_ = cm.step(
-                problem.model_params,
-                x[0],
-                x[1],
-                u[0],
-                u[1],
-                t_int,
-                t_shell,
-                t_amb[i],
-                speed[i],
-                n_sub=problem.n_sub,
-                d_cab_k=d_cab / problem.n_sub,
-                d_ain_k=d_ain,
-                d_evap_k=d_evap / problem.n_sub,
-            )
-            x = np.array([tc, te])
-            xs[i] = np.concatenate([x, u])
-        vl.set_blocks(w, "x", xs)
+        vl.set_blocks(w, "x", problem.rollout_states(vl.blocks(w, "u"), p))
     lo, up, ev = _smallest_slacks(problem, w, p)
     margin = SLACK_GUESS_MARGIN
     w[vl.indices("s_lo")] = lo + margin

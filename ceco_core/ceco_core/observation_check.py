@@ -113,8 +113,7 @@ def _in(v, lim) -> bool:
 
 def _arr_in(a, lim) -> np.ndarray:
     a = np.asarray(a, dtype=float)
-    with np.errstate(invalid="ignore"):
-        return np.isfinite(a) & (a >= lim[0]) & (a <= lim[1])
+    return (a >= lim[0]) & (a <= lim[1])  # False for NaN; +-inf is outside any finite range (no warning)
 
 
 def check_observation(obs: Observation, limits: ObservationLimits = OBSERVATION_LIMITS) -> ObservationCheck:
@@ -130,9 +129,8 @@ def check_observation(obs: Observation, limits: ObservationLimits = OBSERVATION_
     if not (lb_ok.all() and ub_ok.all()):
         meas.append(f"pmv_lb/pmv_ub not finite or outside {limits.pmv}")
     else:
-        with np.errstate(invalid="ignore"):
-            if np.any(np.asarray(obs.pmv_lb) > np.asarray(obs.pmv_ub)):
-                meas.append("pmv_lb above pmv_ub")
+        if np.any(np.asarray(obs.pmv_lb) > np.asarray(obs.pmv_ub)):  # both finite here
+            meas.append("pmv_lb above pmv_ub")
     act, tol = ACTUATOR_LIMITS, limits.command_tol
     if not _in(obs.mdot_bl_prev_kgps, (act.mdot_bl_min_kgps - tol, act.mdot_bl_max_kgps + tol)):
         cmd.append(f"mdot_bl_prev_kgps={obs.mdot_bl_prev_kgps!r} outside the actuator bounds")

@@ -27,19 +27,26 @@ from ceco_ros.topics import (  # noqa: F401 - the names, re-exported beside thei
 )
 
 # --- QoS profiles ------------------------------------------------------------
-# States and commands: reliable, keep-last, volatile. In lockstep the plant
-# publishes as fast as the loop turns (hundreds of messages a second); the
-# depth keeps several seconds of them in the writer so a subscriber that
-# falls behind (the recorder) gets every one repaired by the reliable protocol.
+LOCKSTEP_DEPTH = 10000
+"""History depth of every lockstep writer [samples]: 10000 plant steps (2.8 h of driving at 1 s).
+
+In lockstep the plant publishes as fast as the loop turns (hundreds of messages a second) and
+nothing waits for the recorder, so a recorder that is starved or frozen for a while (issue 17)
+falls behind by up to the whole run. The writers keep that backlog, and the reliable protocol
+repairs every sample the recorder has not acknowledged; the history grows only with what is
+published (about 0.5 kB a sample). A run longer than this can lose the oldest samples of a
+frozen recorder: `ceco run` checks what arrived against what was sent and says so."""
+
+# States and commands: reliable, keep-last (the backlog of a whole lockstep run), volatile.
 QOS_STATE = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
+    depth=LOCKSTEP_DEPTH,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
 QOS_COMMAND = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    depth=100,
+    depth=LOCKSTEP_DEPTH,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
@@ -51,11 +58,19 @@ QOS_PREVIEW = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
+# Lockstep previews as published: the same latched profile with the backlog of a whole run
+# (a late joiner gets the run's previews; a controller's depth-1 reader keeps the newest).
+QOS_PREVIEW_LOCKSTEP = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=LOCKSTEP_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 # /clock as published by the plant (a best-effort subscriber, as rclpy's
 # TimeSource uses, matches a reliable publisher).
 QOS_CLOCK = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
+    depth=LOCKSTEP_DEPTH,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
@@ -103,6 +118,11 @@ def state_qos(timing: str) -> QoSProfile:
     (:data:`QOS_STATE_LATEST`).
     """
     return QOS_STATE if timing == 'lockstep' else QOS_STATE_LATEST
+
+
+def preview_qos(timing: str) -> QoSProfile:
+    """QoS of the previews as published: :data:`QOS_PREVIEW_LOCKSTEP` in lockstep, else :data:`QOS_PREVIEW`."""
+    return QOS_PREVIEW_LOCKSTEP if timing == 'lockstep' else QOS_PREVIEW
 
 
 def command_qos(timing: str) -> QoSProfile:

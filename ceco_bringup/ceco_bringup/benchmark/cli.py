@@ -125,6 +125,7 @@ def run_benchmark(
     the baseline families and compensated laws only, e.g. to study the families on every case).
     """
     t0 = time.perf_counter()
+    ray_workers = workers
     workers = int(workers or os.cpu_count() or 1)
     cases = [load_case(n) for n in (case_names or (QUICK_CASES if quick else DEFAULT_CASES))]
     baselines = runner.load_baselines()
@@ -211,7 +212,8 @@ def run_benchmark(
         if backend == 'local':
             backends.run_local(items, n, on_done, fn, runs_dir)
         elif backend == 'ray':
-            backends.run_ray(items, n, address, on_done, fn, runs_dir)
+            # on a cluster (address) without --workers: one worker per CPU of the cluster
+            backends.run_ray(items, None if address and not ray_workers else n, address, on_done, fn, runs_dir)
         else:
             raise ValueError(f'backend: must be local or ray, got {backend!r}')
 
@@ -445,11 +447,12 @@ def main(argv=None) -> int:
 
 
 def summary_lines(doc: dict) -> list[str]:
-    """One console line per case and controller of a results document.
+    """One console line per case and controller of a results document, then one per failed run.
 
     The matched savings are signed as in results.json: positive = less energy / less discomfort than
     the production-gains front (and, in the parentheses, its allowance front, the strongest family and
-    headroom_captured when the case has an oracle front).
+    headroom_captured when the case has an oracle front). A run with status failed or error gets a
+    line with its reason and no number.
     """
 
     def f(x):
@@ -465,12 +468,19 @@ def summary_lines(doc: dict) -> list[str]:
             + ('' if not h else f"; headroom captured {'n/a' if cap is None else format(cap, '.2f')}")
         )
 
-    return [
+    lines = [
         f"  {case['case']:<18} {name:<32} energy saved at matched comfort {f(m['energy_saving_pct']):>8} "
         f"(allowance {f((m['allowance'] or {}).get('energy_saving_pct')):>8}{strongest(m)}), discomfort cut at "
         f"matched energy {f(m['discomfort_reduction_pct']):>8}{', dominated' if m['dominated'] else ''}"
         for case in doc['cases']
         for name, m in case['matched'].items()
+    ]
+    return lines + [  # failed runs: no number, the reason (a run whose controller did not control is no result)
+        f"  {case['case']:<18} {r['controller']:<32} seed {r['seed']}: "
+        f"{'FAILED' if r['status'] == 'failed' else 'ERROR'}: {r['error']}"
+        for case in doc['cases']
+        for r in case['runs']
+        if r['status'] != 'ok'
     ]
 
 

@@ -24,9 +24,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ceco_core.run_status import check_control
 from ceco_ros.topics import TOPIC_COMMAND, TOPIC_STATE
 
-from .runner import new_row
+from .runner import mark_failed, new_row
 
 __all__ = ['controller_env', 'step_times_from_bag', 'run_external_cell']
 
@@ -134,14 +135,17 @@ def run_external_cell(
         )
         row['sim_time_s'] = time.perf_counter() - t_sim
         ts_data = bagio.load_run_timeseries(run_dir / 'bag')
-        per = max(1, int(round(ts / 1.0)))  # plant steps (1 s) per control step
-        fb = np.asarray(ts_data['fallback'], dtype=bool)
-        fallbacks = sum(bool(fb[i : i + per].any()) for i in range(0, fb.size, per))  # plant-side fallback steps
         row['dds_metrics'] = {k: metrics[k] for k in ('wall_time_s', 'loop_wall_time_s', 'realtime_factor')}
+        # fallback steps as `ceco run` counts them: the plant's law, or a command marked fallback
+        check = check_control(metrics['n_control_steps'], metrics['fallback_control_steps'])
         kpis, notes = compute_kpis(
-            ts_data, step_time_s=step_times_from_bag(run_dir, ts), control_period_s=ts, fallback_steps=fallbacks
+            ts_data,
+            step_time_s=step_times_from_bag(run_dir, ts),
+            control_period_s=ts,
+            fallback_steps=check.n_fallback_steps,
         )
         row['kpis'], row['kpi_notes'] = kpis, notes
+        mark_failed(row, check)
     except Exception as exc:  # a failed run is data
         row.update(status='error', error=f'{type(exc).__name__}: {exc}')
     row['wall_time_s'] = time.perf_counter() - t0

@@ -214,8 +214,8 @@ def _case_blocks(case: Mapping, settings: Mapping, fig_dir: Path) -> list:
         )
     )
     errors = [r for r in case['runs'] if r['status'] != 'ok']
-    for r in errors:
-        blocks.append(Warning(f"run {r['controller']} seed {r['seed']} failed: {r.get('error', '')}"))
+    for r in errors:  # failed (the controller did not control: KPIs in results.json, not matched) or error
+        blocks.append(Warning(f"run {r['controller']} seed {r['seed']} {r['status']}: {r.get('error', '')}"))
     fig = bfig.fig_plane(case, fig_dir / f"plane_{_slug(case['case'])}.png", settings)
     blocks.append(
         Figure(

@@ -24,6 +24,7 @@ from pathlib import Path
 import yaml
 
 from ceco_bringup.sweep.cells import Cell, cell_id
+from ceco_core.run_status import STATUS_FAILED, ControlCheck, check_control
 
 from . import front as fr
 from .cases import Case
@@ -45,6 +46,7 @@ __all__ = [
     'BaselineConstants',
     'load_baselines',
     'new_row',
+    'mark_failed',
     'Sensitivity',
     'load_sensitivity',
     'ControllerSpec',
@@ -441,8 +443,20 @@ def new_row(cell: Mapping, source: str) -> dict:
     }
 
 
-def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
+def mark_failed(row: dict, check: ControlCheck) -> None:
+    """Mark ``row`` failed when its controller did not control the run (``ceco_core.run_status``).
+
+    Its KPIs are kept; a failed run is never on a front nor matched (docs/benchmark.md, "Failed runs").
+    """
+    if row['status'] == 'ok' and not check.ok:
+        row['status'], row['error'] = STATUS_FAILED, check.reason
+
+
+def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None, controller_cache=None) -> dict:
     """Run one benchmark cell in this process and score it; never raises (errors are data).
+
+    ``controller_cache``: the worker's :class:`ceco_controller.factory.ControllerCache` (a warm
+    worker reuses its controllers; the results are the same).
 
     Returns the row logged in ``cells.jsonl``: ``cell_id``, the axes, ``status``, ``error``,
     ``kpis``, ``kpi_notes``, ``code``, ``sim_time_s``, ``wall_time_s``, ``source``.
@@ -463,7 +477,9 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
         row['code'] = sweep_cells.check_code(spec, 'benchmark')
         t_sim = time.perf_counter()
         settings = sweep_cells.settings_from_spec(spec)
-        res = simulate(scenario_from_dict(spec['scenario']), spec['strategy'], settings)
+        res = simulate(
+            scenario_from_dict(spec['scenario']), spec['strategy'], settings, controller_cache=controller_cache
+        )
         m = res.metrics
         kpis, notes = compute_kpis(
             res.timeseries,
@@ -473,6 +489,7 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
         )
         row['sim_time_s'] = time.perf_counter() - t_sim
         row['kpis'], row['kpi_notes'] = kpis, notes
+        mark_failed(row, check_control(m['n_control_steps'], m['n_fallback_shifted'] + m['n_fallback_baseline']))
         if runs_dir:
             write_run(res, Path(runs_dir) / cell['id'])
     except Exception as exc:  # a failed run is data, the benchmark goes on
@@ -486,7 +503,7 @@ def _run_entry(row: Mapping) -> dict:
     kpis = row.get('kpis') or {}
     from .schema import REQUIRED_KPIS
 
-    if row['status'] != 'ok':
+    if row['status'] not in ('ok', STATUS_FAILED):  # an error: no KPIs; a failed run keeps its KPIs
         kpis = {k: None for k in REQUIRED_KPIS}
         notes = {k: 'the run failed' for k in REQUIRED_KPIS}
     else:
@@ -734,8 +751,9 @@ def oracle_cells(case: Case, seeds: Sequence[int], levels: Sequence[float], code
     return out
 
 
-def run_oracle_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
-    """Call the oracle for one (case, seed); never raises (errors are data). ``runs_dir`` is unused.
+def run_oracle_cell(cell: Mapping, runs_dir: str | None = None, controller_cache=None) -> dict:
+    """Call the oracle for one (case, seed); never raises (errors are data). ``runs_dir`` and
+    ``controller_cache`` (a warm worker's, :class:`~ceco_bringup.sweep.backends.WarmWorker`) are unused.
 
     The row: ``cell_id``, the axes, ``status`` ('ok' when the call returned one item per level),
     ``error``, ``points`` = [{'level', 'kpis' (or None), 'error'}], ``wall_time_s``.

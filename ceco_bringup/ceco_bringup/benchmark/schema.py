@@ -8,11 +8,13 @@ Two layers:
 2. :func:`validate_results` adds what a schema cannot express: runs are unique per
    (controller, seed); ``seed`` is null exactly for the seed-invariant baselines and
    one of the case's seeds otherwise; every null KPI of a finished run is explained
-   in ``kpi_notes``; each front member is a finished run of its family with the
-   front's values, and the ``efficient`` flags recompute; every ``matched`` value
-   recomputes from the fronts and the runs (:mod:`.front`, tolerance 1e-9); the strongest family
-   (per level and per controller) and ``headroom_captured`` recompute from the fronts and the
-   oracle's points; each oracle front recomputes from its solved points (one per level, >= 4 levels).
+   in ``kpi_notes``; a ``failed`` or ``error`` run says why in ``error``; each front member is
+   a run of its family with status ``ok`` and the front's values, and the ``efficient`` flags
+   recompute; every ``matched`` value recomputes from the fronts and the ``ok`` runs (:mod:`.front`,
+   tolerance 1e-9): a failed run (its controller did not control it, ``ceco_core.run_status``) is
+   never matched; the strongest family (per level and per controller) and ``headroom_captured``
+   recompute from the fronts and the oracle's points; each oracle front recomputes from its solved
+   points (one per level, >= 4 levels).
 
 Pure Python (jsonschema); no ROS import.
 """
@@ -146,14 +148,15 @@ def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
             out.append(f"{where}: seed must be null for the seed-invariant kind {run['kind']!r}")
         if not invariant and run["seed"] not in seeds:
             out.append(f"{where}: seed must be one of the case's seeds {sorted(seeds)}")
+        if run["status"] != "ok" and not run.get("error"):
+            out.append(f"{where}: status {run['status']} without an error message")
         if run["status"] == "error":
-            if not run.get("error"):
-                out.append(f"{where}: status error without an error message")
             continue
         for k, v in run["kpis"].items():
             if v is None and k not in run["kpi_notes"]:
                 out.append(f"{where}: KPI {k} is null without a note in kpi_notes")
-        ok_runs.setdefault(run["controller"], []).append(run)
+        if run["status"] == "ok":  # a failed run keeps its KPIs but is never on a front nor matched
+            ok_runs.setdefault(run["controller"], []).append(run)
     fx, ex = settings["front_axis"], settings["energy_axis"]
     fronts = {}
     for family, kind in FAMILIES.items():
@@ -163,7 +166,7 @@ def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
             where = f"{tag}/fronts/{family}/{j} ({p['controller']})"
             runs = ok_runs.get(p["controller"], [])
             if len(runs) != 1 or runs[0]["kind"] != kind:
-                out.append(f"{where}: not a finished run of kind {kind!r}")
+                out.append(f"{where}: not a run of kind {kind!r} with status ok")
                 continue
             k = runs[0]["kpis"]
             if not (_same(p["discomfort"], k.get(fx)) and _same(p["energy"], k.get(ex))):
@@ -186,7 +189,7 @@ def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
         runs = ok_runs.get(name)
         where = f"{tag}/matched/{name}"
         if not runs:
-            out.append(f"{where}: no finished run of this controller")
+            out.append(f"{where}: no run of this controller with status ok (a failed run is never matched)")
             continue
         if runs[0]["kind"] in FAMILIES.values():
             out.append(f"{where}: a family member is not matched against its own front")

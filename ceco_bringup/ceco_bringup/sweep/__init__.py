@@ -17,9 +17,10 @@ with that one baseline cell. Cells run in parallel:
 * ``--backend local`` (default): ``concurrent.futures.ProcessPoolExecutor``
   with the ``spawn`` start method on ``--workers`` processes (default: all
   cores). CasADi objects are not picklable, so a worker receives only the
-  cell's plain description (a dict) and builds the scenario and the
-  controller itself.
-* ``--backend ray``: the same cell function as a Ray task, on a local Ray
+  cell's plain description (a dict) and builds the scenario itself; its NMPC
+  controllers it builds once and reuses, reset, for later cells (warm workers,
+  :mod:`.backends`).
+* ``--backend ray``: the same warm workers as Ray actors, on a local Ray
   instance (``ray.init(num_cpus=workers, include_dashboard=False)``) or on an
   existing cluster with ``--address`` (whose nodes must have ceco and its
   dependencies installed). Ray is an optional extra (requirements/analysis.txt).

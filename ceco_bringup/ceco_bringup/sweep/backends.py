@@ -1,9 +1,17 @@
-"""Where cells run: the resumable log and the backends (local process pool, Ray).
+"""Where cells run: the resumable log and the backends (local process pool, Ray), with warm workers.
 
-The functions here run any module-level (picklable) cell function, so ``ceco
-sweep`` and ``ceco benchmark`` share them. Resume: each finished cell is appended
-to ``cells.jsonl`` as one line with a single ``write`` on an ``O_APPEND``
-descriptor and ``fsync``-ed; :func:`read_done` gives the cells already done.
+The functions here run any module-level (picklable) cell function ``fn(item, *args,
+controller_cache=...)``, so ``ceco sweep`` and ``ceco benchmark`` share them. Resume: each
+finished cell is appended to ``cells.jsonl`` as one line with a single ``write`` on an
+``O_APPEND`` descriptor and ``fsync``-ed; :func:`read_done` gives the cells already done.
+
+Warm workers: a worker process (a pool process, a Ray actor, or the calling process with one
+worker) imports the simulator once and keeps a :class:`WarmWorker`: the NMPC controllers it
+built (:class:`ceco_controller.factory.ControllerCache`), reused after a reset by its later
+cells, so no cell re-imports or re-builds what an earlier one on the same worker had (a reset
+controller computes what a fresh one computes, bit for bit: ``tests/test_sweep.py``). Cells are
+started longest first (:func:`estimated_cost`), so the last ones to finish are short and no
+worker idles while another runs a long cell.
 """
 
 from __future__ import annotations
@@ -16,13 +24,23 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
-__all__ = ['read_done', 'append_row', 'WORKER_THREAD_ENV', 'run_local', 'run_ray']
+__all__ = [
+    'read_done',
+    'append_row',
+    'WORKER_THREAD_ENV',
+    'WarmWorker',
+    'estimated_cost',
+    'run_local',
+    'run_ray',
+]
 
 
 def read_done(log_path: str | os.PathLike) -> dict:
-    """``{cell_id: row}`` of the cells with status 'ok' in a ``cells.jsonl``.
+    """``{cell_id: row}`` of the finished cells in a ``cells.jsonl``: status 'ok' or 'failed'.
 
-    Later lines win; an unreadable line, e.g. torn by a crash, is skipped.
+    A 'failed' run (the benchmark's verdict that its controller did not control it) is finished and
+    deterministic, so a resume keeps it; an 'error' row is run again. Later lines win; an unreadable
+    line, e.g. torn by a crash, is skipped.
     """
     done: dict = {}
     p = Path(log_path)
@@ -33,7 +51,7 @@ def read_done(log_path: str | os.PathLike) -> dict:
             row = json.loads(line)
         except json.JSONDecodeError:
             continue
-        if isinstance(row, dict) and row.get('status') == 'ok' and 'cell_id' in row:
+        if isinstance(row, dict) and row.get('status') in ('ok', 'failed') and 'cell_id' in row:
             done[row['cell_id']] = row
     return done
 
@@ -95,21 +113,91 @@ def _worker_env():
             os.environ.pop(k, None)
 
 
-def run_local(items: Sequence, workers: int, on_done: Callable, fn: Callable, *args) -> None:
-    """Run ``fn(item, *args)`` for every item, ``on_done(result)`` as each finishes.
+class WarmWorker:
+    """What one worker keeps between cells: the controllers it built.
 
-    ``workers == 1``: in this process, in order. Otherwise a
-    ``ProcessPoolExecutor`` with the ``spawn`` start method (``fn`` and the items
-    must be picklable: module-level functions and plain data), each worker with
-    :data:`WORKER_THREAD_ENV`. Ctrl-C cancels what has not started.
+    ``run(fn, item, *args)`` calls ``fn(item, *args, controller_cache=self.cache)``.
+    """
+
+    def __init__(self):
+        from ceco_controller.factory import ControllerCache  # the simulator, imported once per worker
+
+        self.cache = ControllerCache()
+        """The worker's built controllers."""
+        self.cells = 0
+        """Cells this worker ran."""
+
+    def run(self, fn: Callable, item, *args):
+        """Run one cell with this worker's controllers."""
+        self.cells += 1
+        return fn(item, *args, controller_cache=self.cache)
+
+
+_WORKER: WarmWorker | None = None
+"""The pool worker's :class:`WarmWorker` (set by :func:`_start_worker` in each pool process only)."""
+
+
+def _start_worker() -> None:
+    """Pool initializer: the worker's imports and its :class:`WarmWorker`, before its first cell."""
+    global _WORKER
+    _WORKER = WarmWorker()
+
+
+def _run_in_worker(fn: Callable, item, *args):
+    """A pool task: the cell on this process's warm worker."""
+    if _WORKER is None:  # (only if the pool was made without the initializer)
+        _start_worker()
+    assert _WORKER is not None
+    return _WORKER.run(fn, item, *args)
+
+
+NMPC_COST_FACTOR = 3.0
+"""Run time of an NMPC cell relative to a baseline cell of the same length (measured on sc03: 2-4)."""
+
+
+def estimated_cost(item: Mapping) -> float:
+    """Relative run time of a cell (plain data with ``spec``): its length, times :data:`NMPC_COST_FACTOR` for an NMPC.
+
+    Only the order in which cells start depends on it, never a result.
+    """
+    spec = item.get('spec', {}) if isinstance(item, Mapping) else {}
+    scenario = spec.get('scenario') if isinstance(spec.get('scenario'), Mapping) else {}
+    try:
+        duration = float(spec.get('duration_s') or scenario.get('duration_s') or 600.0)
+    except (TypeError, ValueError):
+        duration = 600.0
+    nmpc = spec.get('strategy') not in (None, 'baseline')
+    horizon = spec.get('horizon_steps') or 6
+    try:
+        horizon_factor = max(1.0, float(horizon) / 6.0)
+    except (TypeError, ValueError):
+        horizon_factor = 1.0
+    return duration * (NMPC_COST_FACTOR * horizon_factor if nmpc else 1.0)
+
+
+def _longest_first(items: Sequence) -> list:
+    return sorted(items, key=estimated_cost, reverse=True)
+
+
+def run_local(items: Sequence, workers: int, on_done: Callable, fn: Callable, *args) -> None:
+    """Run ``fn(item, *args, controller_cache=...)`` for every item, ``on_done(result)`` as each finishes.
+
+    ``workers == 1``: in this process, in order, with one :class:`WarmWorker`. Otherwise a
+    ``ProcessPoolExecutor`` with the ``spawn`` start method (``fn`` and the items must be
+    picklable: module-level functions and plain data), each process a :class:`WarmWorker` with
+    :data:`WORKER_THREAD_ENV`, cells started longest first. Ctrl-C cancels what has not started.
     """
     if workers == 1:
+        worker = WarmWorker()
         for c in items:
-            on_done(fn(c, *args))
+            on_done(worker.run(fn, c, *args))
         return
     ctx = multiprocessing.get_context('spawn')
-    with _worker_env(), cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        futures = [pool.submit(fn, c, *args) for c in items]
+    with (
+        _worker_env(),
+        cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_start_worker) as pool,
+    ):
+        futures = [pool.submit(_run_in_worker, fn, c, *args) for c in _longest_first(items)]
         try:
             for fut in cf.as_completed(futures):
                 on_done(fut.result())
@@ -119,14 +207,34 @@ def run_local(items: Sequence, workers: int, on_done: Callable, fn: Callable, *a
             raise
 
 
-def run_ray(items: Sequence, workers: int, address: str | None, on_done: Callable, fn: Callable, *args) -> None:
-    """Run ``fn(item, *args)`` for every item as Ray tasks (``num_cpus=1``, no retries).
+class _RayWorker(WarmWorker):
+    """A Ray actor: a :class:`WarmWorker` that also names the Ray node it runs on in each row."""
 
-    Without ``address`` a local Ray instance with ``workers`` CPUs is started and shut
-    down at the end; with ``address`` the cluster is used and left running.
+    def __init__(self):
+        super().__init__()
+        import ray
+
+        self.node_id = ray.get_runtime_context().get_node_id()
+
+    def run(self, fn: Callable, item, *args):
+        """Run one cell; the row gets ``ray_node`` (this actor's node id)."""
+        row = super().run(fn, item, *args)
+        if isinstance(row, dict):
+            row['ray_node'] = self.node_id
+        return row
+
+
+def run_ray(items: Sequence, workers: int | None, address: str | None, on_done: Callable, fn: Callable, *args) -> None:
+    """Run ``fn(item, *args, controller_cache=...)`` for every item on Ray actors (one CPU each), longest first.
+
+    Each actor is a :class:`WarmWorker` that stays up for the whole run; every row gets ``ray_node``.
+    Without ``address`` a local Ray instance with ``workers`` CPUs is started and shut down at the
+    end; with ``address`` (``auto``, ``HOST:PORT`` of a cluster's head, ``ray://HOST:10001``) the
+    cluster is used and left running, with ``workers`` actors (None: one per CPU of the cluster).
     """
     try:
         import ray  # optional extra
+        from ray.util import ActorPool
     except ImportError as exc:
         raise RuntimeError(
             '--backend ray needs the optional Ray extra: pip install -r requirements/analysis.txt (ray==2.60.0)'
@@ -138,15 +246,19 @@ def run_ray(items: Sequence, workers: int, address: str | None, on_done: Callabl
         if address:
             ray.init(address=address, runtime_env=runtime_env, include_dashboard=False, log_to_driver=False)
         else:
-            ray.init(num_cpus=workers, runtime_env=runtime_env, include_dashboard=False, log_to_driver=False)
+            ray.init(
+                num_cpus=workers or os.cpu_count(),
+                runtime_env=runtime_env,
+                include_dashboard=False,
+                log_to_driver=False,
+            )
         started = True
     try:
-        remote = ray.remote(num_cpus=1, max_retries=0)(fn)
-        pending = [remote.remote(c, *args) for c in items]
-        while pending:
-            ready, pending = ray.wait(pending, num_returns=1)
-            for ref in ready:
-                on_done(ray.get(ref))
+        n = workers if workers else max(1, int(ray.cluster_resources().get('CPU', 1)))
+        actor = ray.remote(num_cpus=1, max_restarts=0, max_task_retries=0)(_RayWorker)
+        pool = ActorPool([actor.remote() for _ in range(max(1, min(n, len(items))))])
+        for row in pool.map_unordered(lambda a, c: a.run.remote(fn, c, *args), _longest_first(items)):
+            on_done(row)
     finally:
         if started:
             ray.shutdown()

@@ -17,6 +17,8 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
+from ceco_core.run_status import STATUS_FAILED
+
 __all__ = [
     'METRIC_COLUMNS',
     'TIMING_COLUMNS',
@@ -190,10 +192,14 @@ def check_code(spec: Mapping, what: str) -> str:
     return code
 
 
-def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
+def run_cell(cell: Mapping, runs_dir: str | None = None, controller_cache=None) -> dict:
     """Run one cell in this process and return its results row; never raises for a failing run.
 
-    The row holds the cell id, axes, every metric, ``status`` ('ok' or 'error'), ``error``,
+    ``controller_cache``: the worker's :class:`ceco_controller.factory.ControllerCache` (a warm
+    worker reuses its controllers; the results are the same).
+
+    The row holds the cell id, axes, every metric, ``status`` ('ok', 'failed': the controller did not
+    control the run, ``ceco_core.run_status``; or 'error'), ``error``,
     ``code`` (this process's :func:`code_fingerprint`; a cell whose
     fingerprint differs from the driver's is an error, not a result),
     ``sim_time_s`` (scenario build + simulation), ``wall_time_s`` (also the
@@ -210,13 +216,15 @@ def run_cell(cell: Mapping, runs_dir: str | None = None) -> dict:
         row['code'] = check_code(spec, 'sweep')
         t_sim = time.perf_counter()
         scenario = scenario_from_dict(spec['scenario'])
-        result = simulate(scenario, spec['strategy'], settings_from_spec(spec))
+        result = simulate(scenario, spec['strategy'], settings_from_spec(spec), controller_cache=controller_cache)
         row['sim_time_s'] = time.perf_counter() - t_sim
         for k in METRIC_COLUMNS:
             v = result.metrics.get(k)
             row[k] = float('nan') if v is None else float(v)
         row['scenario_name'] = result.metrics.get('scenario', scenario.name)
         row['preview_quality'] = result.metrics.get('preview_quality', spec['preview'])
+        if result.metrics.get('status') == STATUS_FAILED:  # its controller did not control it: no result
+            row['status'], row['error'] = STATUS_FAILED, result.metrics['status_reason']
         if runs_dir:
             write_run(result, Path(runs_dir) / cell['id'])
     except Exception as exc:  # a failed cell is data, the sweep goes on

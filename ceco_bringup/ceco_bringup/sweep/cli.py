@@ -42,6 +42,7 @@ def run_sweep(
     """
     if backend not in ('local', 'ray'):
         raise ValueError(f'backend: must be local or ray, got {backend!r}')
+    ray_workers = workers
     workers = int(workers or os.cpu_count() or 1)
     if workers < 1:
         raise ValueError(f'workers: must be >= 1, got {workers}')
@@ -97,7 +98,10 @@ def run_sweep(
             if backend == 'local':
                 backends.run_local(todo, n, on_done, cells_mod.run_cell, runs_dir)
             else:
-                backends.run_ray(todo, n, address, on_done, cells_mod.run_cell, runs_dir)
+                # on a cluster (address) without --workers: one worker per CPU of the cluster
+                backends.run_ray(
+                    todo, None if address and not ray_workers else n, address, on_done, cells_mod.run_cell, runs_dir
+                )
     finally:
         if bar is not None:
             bar.close()
