@@ -752,8 +752,10 @@ def oracle_cells(case: Case, seeds: Sequence[int], levels: Sequence[float], code
 
 
 def run_oracle_cell(cell: Mapping, runs_dir: str | None = None, controller_cache=None) -> dict:
-    """Call the oracle for one (case, seed); never raises (errors are data). ``runs_dir`` and
-    ``controller_cache`` (a warm worker's, :class:`~ceco_bringup.sweep.backends.WarmWorker`) are unused.
+    """Call the oracle for one (case, seed); never raises (errors are data).
+
+    ``runs_dir`` and ``controller_cache`` (a warm worker's, :class:`~ceco_bringup.sweep.backends.WarmWorker`)
+    are unused.
 
     The row: ``cell_id``, the axes, ``status`` ('ok' when the call returned one item per level),
     ``error``, ``points`` = [{'level', 'kpis' (or None), 'error'}], ``wall_time_s``.
