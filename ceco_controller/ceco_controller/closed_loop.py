@@ -211,6 +211,7 @@ def simulate(
                 _record_estimate(est_rows, controller.last_estimate, sp.meas)
             if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
                 raise AssertionError(f"{strategy}: command {cmd} outside the actuator bounds at t={t}")
+            cmd.validate()  # the door's share too (NaN: not commanded)
             diags.append(diag.to_row())
             diag_objs.append(diag)
         r = sp.step(cmd)
@@ -239,6 +240,10 @@ def simulate(
             "q_latent_w": out.q_latent_w,
             "comp_speed_rpm": out.comp_speed_rpm,
             "capacity_limited": float(out.capacity_limited),
+            "co2_cab_ppm": r.meas["co2_cab_ppm"],
+            "co2_sensor_ppm": r.meas["co2_sensor_ppm"],
+            "recirc_share": r.meas["recirc_share"],
+            "recirc_share_cmd": r.recirc_share_cmd,
         }
         for c in TIMESERIES_COLUMNS:
             cols[c][i] = row[c]

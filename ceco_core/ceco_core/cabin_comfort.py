@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from ceco_core import psychro
+from ceco_core.air_quality import fog_margin_k
 from ceco_core.comfort import DEFAULT_SMOOTHING, PmvSmoothing, iso7730_validity, pmv, ppd
 from ceco_core.draught import DR_EXACT, draught_rating
 from ceco_core.occupant import (
@@ -310,7 +311,7 @@ def evaluate_cabin_comfort(
         ppd=ppd(y),
         pa_pa=pa,
         t_dew_c=t_dew,
-        fog_margin_k=np.asarray(t_glass_c, dtype=float) - t_dew,
+        fog_margin_k=fog_margin_k(np.asarray(t_glass_c, dtype=float), pa_cab),
         dr_pct=dr,
         ta_occ_c=air.ta_occ_c,
         vel_occ_mps=air.vel_occ_mps,

@@ -23,6 +23,8 @@ t_evap_c                   evaporator wall (fins + tubes)           degC
 t_duct_c                   HVAC case + ducts after the evaporator   degC
 w_cab_kgkg                 cabin humidity ratio                     kg/kg dry air
 comp_pi_integral_rpm       integral part of the compressor PI       rpm
+recirc_share               fresh/recirculation door position        0..1
+co2_cab_kgkg               cabin CO2                                kg/kg dry air
 =========================  ======================================  =======
 
 Equations, units, references and the parameter table: ``docs/plant.md``.
@@ -34,6 +36,7 @@ import dataclasses
 import math
 from dataclasses import fields
 
+from ceco_core.air_quality import co2_ppm_from_kgkg
 from ceco_core.contracts import AcInput
 from ceco_core.contracts import check_finite as _check_finite
 from ceco_core.psychro import relative_humidity
@@ -176,7 +179,7 @@ class CabinPlant:
         if dt > 3600.0:
             raise ValueError(f"dt_s: must be <= 3600 s, got {dt}")
         env_v = Env._make(validate_environment(env))
-        u = Input(float(command.mdot_bl_kgps), float(command.t_evap_sp_c))
+        u = self.equation_input(command)
         # the warm start is advanced by the RK4 stages only; the end-of-step report does not touch it, so
         # splitting an interval into more calls of step() reproduces the same sub-step sequence bit for bit
         x, acc, self._guess, _ = self._eq.step(self._x, u, env_v, dt, self._guess)
@@ -190,6 +193,9 @@ class CabinPlant:
             m_water_in_kg=acc.mdot_water_in_kgps,
             m_water_out_kg=acc.mdot_water_out_kgps,
             m_condensate_kg=acc.mdot_condensate_kgps,
+            m_co2_in_kg=acc.mdot_co2_in_kgps,
+            m_co2_out_kg=acc.mdot_co2_out_kgps,
+            m_co2_gen_kg=acc.mdot_co2_gen_kgps,
         )
         self._last = out
         return out
@@ -206,9 +212,18 @@ class CabinPlant:
             raise ValueError(f"command: must be AcInput, got {type(command).__name__}")
         command.validate()
         env_v = Env._make(validate_environment(env))
-        u = Input(float(command.mdot_bl_kgps), float(command.t_evap_sp_c))
+        u = self.equation_input(command)
         flows = self._eq.rhs(self._x, u, blower_power_w(self.params, u.mdot_bl_kgps), env_v, self._guess)[1]
         return self._outputs(self._x, u, env_v, 0.0, *flows[:5])
+
+    def equation_input(self, command: AcInput) -> Input:
+        """The equations' input of a validated command: a door left alone (NaN) holds ``recirc_fraction``."""
+        r = float(command.recirc_share)
+        return Input(
+            float(command.mdot_bl_kgps),
+            float(command.t_evap_sp_c),
+            self.params.recirc_fraction if math.isnan(r) else r,
+        )
 
     def _outputs(self, x, u, env_v, dt, e_comp, e_fan, e_q, e_lat, e_ref) -> PlantOutputs:
         """Build PlantOutputs at state x: energies over dt (dt = 0: the arguments are instantaneous powers)."""
@@ -248,4 +263,6 @@ class CabinPlant:
             mop_active=alg.mop_active,
             mdot_ref_kgps=alg.mdot_ref_kgps,
             cycle_iterations=alg.cycle_iterations,
+            recirc_share=x.recirc_share,
+            co2_cab_ppm=co2_ppm_from_kgkg(x.co2_cab_kgkg),
         )

@@ -29,6 +29,7 @@ import math
 from dataclasses import fields
 from typing import Any, NamedTuple
 
+from ceco_core.air_quality import co2_flows_kgps, co2_generation_kgps, co2_kgkg_from_ppm, leakage_kgps
 from ceco_core.contracts import AcInput
 from ceco_core.psychro import EPS_W, saturation_vapour_pressure_pa
 
@@ -78,6 +79,10 @@ class State(NamedTuple):
     """Cabin humidity ratio [kg/kg dry air]."""
     comp_pi_integral_rpm: Any
     """Integral part of the compressor PI [rpm]."""
+    recirc_share: Any
+    """Position of the fresh/recirculation door: recirculated share of the blower flow [0..1]."""
+    co2_cab_kgkg: Any
+    """Cabin CO2 [kg CO2/kg dry air]."""
 
 
 class Input(NamedTuple):
@@ -87,6 +92,9 @@ class Input(NamedTuple):
     """Blower air mass flow [kg/s]."""
     t_evap_sp_c: Any
     """Evaporator wall temperature set-point [degC]."""
+    recirc_share: Any
+    """Commanded recirculated share of the blower flow [0..1] (a number here: the simulator puts the
+    plant's default in for a command that leaves the door alone)."""
 
 
 class Env(NamedTuple):
@@ -121,6 +129,12 @@ class Flows(NamedTuple):
     """Water leaving with the exfiltrated air [kg/s]."""
     mdot_condensate_kgps: Any
     """Water condensed on the evaporator [kg/s]."""
+    mdot_co2_in_kgps: Any
+    """CO2 into the cabin air with the fresh share of the supply and the leakage [kg/s]."""
+    mdot_co2_out_kgps: Any
+    """CO2 leaving with the exfiltrated air [kg/s]."""
+    mdot_co2_gen_kgps: Any
+    """CO2 exhaled by the occupants [kg/s]."""
 
 
 class Alg(NamedTuple):
@@ -151,7 +165,7 @@ class Alg(NamedTuple):
 STATE_NAMES = State._fields
 """The plant's states in integrator order."""
 INPUT_NAMES = Input._fields
-"""The commanded inputs: blower flow [kg/s], evaporator set-point [degC]."""
+"""The commanded inputs: blower flow [kg/s], evaporator set-point [degC], recirculated share [0..1]."""
 ENV_NAMES = Env._fields
 """The environment: ambient [degC], solar [W/m2], vehicle speed [m/s], ambient rh [0..1]."""
 FLOW_NAMES = Flows._fields
@@ -345,6 +359,10 @@ class PlantEquations:
         self.ops = ops
         self.m_air_kg = params.rho_air_kgm3 * params.cabin_volume_m3
         """Dry-air mass of the cabin [kg]."""
+        self.co2_gen_kgps = co2_generation_kgps(params.occ_met, params.occ_body_area_m2, params.occ_rq)
+        """CO2 exhaled per occupant [kg/s] (``ceco_core.air_quality.co2_generation_kgps``)."""
+        self.co2_amb_kgkg = co2_kgkg_from_ppm(params.co2_amb_ppm)
+        """Ambient CO2 [kg CO2/kg dry air]."""
 
     def substeps(self, dt_s: float) -> tuple[int, float]:
         """(number, length [s]) of the equal RK4 sub-steps of a step ``dt_s``: ceil(dt_s / substep_s)."""
@@ -371,8 +389,13 @@ class PlantEquations:
         pw_amb = rh_amb * o.scalar(wsat(t_amb))
         w_amb = EPS_W * pw_amb / (patm - pw_amb)
 
+        # --- the fresh/recirculation door: rate-limited servo, |dr/dt| <= 1 / door_travel_s
+        r = x.recirc_share  # the door's actual position mixes the air
+        sd_door = o.scaled("door")
+        v_door = 1.0 / p.door_travel_s
+        d_r = sd_door.fmin(sd_door.fmax((u.recirc_share - r) / p.door_tau_s, -v_door), v_door)
+
         # --- air loop: mixing box -> blower -> evaporator -> ducts -> vents
-        r = p.recirc_fraction
         t_mix = r * t_cab + (1.0 - r) * t_amb
         w_mix = r * w_cab + (1.0 - r) * w_amb
         cp_m = cp_a + w_mix * p.cp_vap_jpkgk
@@ -415,7 +438,7 @@ class PlantEquations:
         # --- cabin network
         h_in = p.h_in_natural_wm2k + (p.h_in_forced_wm2k - p.h_in_natural_wm2k) * rr**0.8
         h_out = p.h_out_natural_wm2k + p.h_out_speed_coef * speed**0.8
-        m_inf = p.infiltration_0_kgps + p.infiltration_per_mps_kgps * speed
+        m_inf = leakage_kgps(p.infiltration_0_kgps, p.infiltration_per_mps_kgps, speed)
         g_int = h_in * p.a_int_m2
         g_sh_in = p.u_shell_in_wm2k * p.a_shell_m2
         g_gl_in = h_in * p.a_glass_m2
@@ -442,6 +465,10 @@ class PlantEquations:
         water_out = fresh * w_cab
         condensate = mdot * (w_mix - w_out)
         d_w = (water_in - water_out - condensate) / self.m_air_kg
+        # CO2 balance of the cabin air [kg/s]: in with the fresh share and the leakage at the ambient
+        # fraction, out with the exfiltrated air at the cabin's, exhaled by the occupants
+        co2 = co2_flows_kgps(x.co2_cab_kgkg, self.co2_amb_kgkg, fresh, n_occ, self.co2_gen_kgps)
+        d_co2 = (co2.into - co2.out + co2.generated) / self.m_air_kg
         d_int = (p.tau_glass * p.a_glass_sun_m2 * solar - q_int_cab - q_rad_sh - q_rad_gl - q_duct_int) / p.c_int_jpk
         d_du = (q_duct_int - q_duct) / p.c_duct_jpk
         d_sh = (
@@ -461,8 +488,22 @@ class PlantEquations:
             t_duct_c=d_du,
             w_cab_kgkg=d_w,
             comp_pi_integral_rpm=dpi,
+            recirc_share=d_r,
+            co2_cab_kgkg=d_co2,
         )
-        flows = Flows(p_comp, p_fan, q_sens + q_lat, q_lat, q_ref, water_in, water_out, condensate)
+        flows = Flows(
+            p_comp,
+            p_fan,
+            q_sens + q_lat,
+            q_lat,
+            q_ref,
+            water_in,
+            water_out,
+            condensate,
+            co2.into,
+            co2.out,
+            co2.generated,
+        )
         alg = Alg(
             t_vent_c=t_vent,
             t_evap_out_c=t_out,

@@ -12,7 +12,8 @@ operation whose meaning depends on the evaluation:
 * logic on conditions: ``logic_and``, ``logic_or``, ``logic_not``;
 * kinks and switches of the physics, through a view of one smoothing scale,
   ``ops.scaled(key)`` with ``fmin``, ``fmax``, ``gt``, ``ge``, ``lt``, ``le`` (``key`` is ``speed``
-  [rpm], ``duty`` [-], ``err`` [K] or ``water`` [kg/kg]; the numeric and exact views are exact);
+  [rpm], ``duty`` [-], ``err`` [K], ``water`` [kg/kg] or ``door`` [1/s]; the numeric and exact views
+  are exact);
 * the refrigerant solve's table interpolation (``interp1``, ``interp2``), iterations (``loop``),
   failures (``check``) and repeated pieces (``call``). That code runs numerically and exactly only
   and uses the comparison operators directly (CasADi overloads them).
@@ -325,6 +326,9 @@ class SmoothSettings:
     error <= exp(-|dN| / w) away from the switch."""
     w_err_k: float = 0.02
     """Logistic width of the sign of the evaporator error in the anti-windup [K]; error <= exp(-|e| / w)."""
+    k_door_s: float = 500.0
+    """Log-sum-exp sharpness of the door actuator's rate limit [1/(1/s)] = [s]; error <= ln 2 / k = 0.0014 /s
+    of door speed (the limit is 0.2 /s)."""
 
     def validate(self) -> SmoothSettings:
         """Raise ValueError naming the first field that is not a finite number > 0; return self."""
@@ -381,10 +385,11 @@ class SmoothOps(_CasadiOps):
             "duty": _SmoothScale("duty", s.k_duty, None),
             "water": _SmoothScale("water", s.k_water_per_kgkg, None),
             "err": _SmoothScale("err", None, s.w_err_k),
+            "door": _SmoothScale("door", s.k_door_s, None),
         }
 
     def scaled(self, key: str) -> _SmoothScale:
-        """The smoothed kinks and comparisons of scale ``key`` (``speed``, ``duty``, ``water``, ``err``)."""
+        """The smoothed kinks and comparisons of scale ``key`` (``speed``, ``duty``, ``water``, ``err``, ``door``)."""
         return self._scales[key]
 
     @staticmethod

@@ -28,6 +28,7 @@ import dataclasses
 import math
 
 from ceco_core.cabin_comfort import ComfortParams, OccupantComfort, comfort_params_for, evaluate_cabin_comfort
+from ceco_core.co2_sensor import Co2Sensor
 from ceco_core.contracts import MDOT_BL_MAX_KGPS, MEASUREMENTS, T_EVAP_SP_MIN_C, AcInput
 from ceco_core.overrides import with_overrides
 from ceco_core.scenario_types import Environment
@@ -44,6 +45,7 @@ __all__ = [
     "steps_per_control",
     "n_plant_steps",
     "check_overrides",
+    "scenario_plant_params",
     "PlantStepRecord",
     "ScenarioPlant",
 ]
@@ -83,6 +85,20 @@ def check_overrides(plant_overrides=None, comfort_overrides=None) -> None:
     with_overrides(ComfortParams(), co, owner="ComfortParams")
 
 
+def scenario_plant_params(scenario: Scenario, params: PlantParams | None = None, plant_overrides=None) -> PlantParams:
+    """The plant parameters of a scenario's car.
+
+    ``params`` (default :class:`PlantParams`) with the scenario's occupants and ambient CO2, then
+    ``plant_overrides`` (``{PlantParams field: value}``, a sensitivity run).
+    """
+    pp = dataclasses.replace(
+        params or PlantParams(),
+        n_occupants=int(scenario.occupants),
+        co2_amb_ppm=float(scenario.air_quality.co2_amb_ppm),
+    )
+    return with_overrides(pp, plant_overrides, owner="PlantParams")
+
+
 def steps_per_control(control_period_s: float, plant_dt_s: float) -> int:
     """Plant steps per control period Ts / dt [-]; ValueError unless Ts is a whole multiple (>= 1) of dt."""
     ratio = control_period_s / plant_dt_s
@@ -98,8 +114,10 @@ def n_plant_steps(duration_s: float, plant_dt_s: float) -> int:
     return int(math.floor(duration_s / plant_dt_s + 1e-9))
 
 
-def _measurements(out: PlantOutputs) -> dict:
-    return {k: getattr(out, k) for k in MEASUREMENTS}
+def _measurements(out: PlantOutputs, co2_sensor_ppm: float) -> dict:
+    meas = {k: getattr(out, k) for k in MEASUREMENTS if k != "co2_sensor_ppm"}
+    meas["co2_sensor_ppm"] = co2_sensor_ppm
+    return meas
 
 
 @dataclasses.dataclass(frozen=True)
@@ -128,6 +146,8 @@ class PlantStepRecord:
     """Every comfort series at t_n (floats): PMV inputs at the occupant, draught, fog margin, validity."""
     out: PlantOutputs
     """Plant outputs of the step (powers, energies, state at t_{n+1})."""
+    recirc_share_cmd: float = math.nan
+    """The door command the plant applied over the step [0..1] (its default where ``u`` left the door alone)."""
 
 
 class ScenarioPlant:
@@ -161,7 +181,7 @@ class ScenarioPlant:
             raise ValueError(f"plant_dt_s must be finite and > 0, got {plant_dt_s!r}")
         self.scenario = scenario
         self.dt_s = plant_dt_s
-        pp = with_overrides(params or PlantParams(), plant_overrides, owner="PlantParams")
+        pp = scenario_plant_params(scenario, params, plant_overrides)
         co, self.scored_pa_pa = _split_comfort_overrides(comfort_overrides)
         # the plant's glazing transmittance and shell conductance: one value for physics and comfort
         self.comfort = with_overrides(
@@ -173,6 +193,13 @@ class ScenarioPlant:
             pp, PlantState.from_initial(dataclasses.asdict(scenario.initial), pp, scenario.env_at(0.0))
         )
         st = self.plant.state
+        aq = scenario.air_quality
+        self.co2_sensor = (
+            Co2Sensor(scenario.initial.co2_cab_ppm, scenario.seed, fail_s=aq.co2_sensor_fail_s)
+            if aq.co2_sensor == "ndir"
+            else None
+        )
+        """The car's cabin CO2 sensor (None: not fitted; its reading is then NaN)."""
         self.meas = {
             "t_cab_c": st.t_cab_c,
             "t_int_c": st.t_int_c,
@@ -181,6 +208,9 @@ class ScenarioPlant:
             "t_vent_c": st.t_evap_c,
             "t_glass_c": st.t_glass_c,
             "rh_cab": scenario.initial.rh_cab,
+            "co2_cab_ppm": scenario.initial.co2_cab_ppm,
+            "co2_sensor_ppm": self._co2_reading(0.0, scenario.initial.co2_cab_ppm),
+            "recirc_share": st.recirc_share,
         }
         self.cmd = KEY_ON_COMMAND
         self.n = 0
@@ -226,8 +256,13 @@ class ScenarioPlant:
             pmv_ub=ub,
             comfort=c,
             out=out,
+            recirc_share_cmd=self.plant.equation_input(u).recirc_share,
         )
         self.cmd = u
-        self.meas = _measurements(out)
         self.n += 1
+        self.meas = _measurements(out, self._co2_reading(self.t_s, out.co2_cab_ppm))
         return rec
+
+    def _co2_reading(self, t_s: float, co2_cab_ppm: float) -> float:
+        """The CO2 sensor's reading at ``t_s`` [s] with the cabin at ``co2_cab_ppm`` [ppm]; NaN without a sensor."""
+        return math.nan if self.co2_sensor is None else self.co2_sensor.read(t_s, co2_cab_ppm)
