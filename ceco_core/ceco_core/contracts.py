@@ -65,8 +65,9 @@ RECIRC_NOT_COMMANDED_WIRE = -1.0
 """AcCommand.recirc_share meaning "the door is not commanded" (the message's default; NaN means the same)."""
 
 
-CECO_STRATEGIES = ("ceco", "ceco-e", "ceco-c", "ceco-ioch")
-"""Names of the NMPC strategies (settings in ``ceco_controller.strategies``)."""
+CECO_STRATEGIES = ("ceco", "ceco-e", "ceco-c", "ceco-ioch", "ceco-pmv")
+"""Names of the NMPC strategies (settings in ``ceco_controller.strategies``): the paper's four and issue 20's
+comfort-output strategy ``ceco-pmv``."""
 
 BASELINE_STRATEGY = "baseline"
 """Name of the production climate control used as the baseline."""

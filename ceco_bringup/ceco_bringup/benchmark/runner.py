@@ -37,6 +37,8 @@ __all__ = [
     'ENERGY_AXIS',
     'SECONDARY_AXES',
     'STRATEGY_NAMES',
+    'PERSISTENCE_SUFFIX',
+    'PERSISTENCE_TWINS',
     'SETPOINTS_PMV',
     'QUICK_SETPOINTS_PMV',
     'BASELINES_SCHEMA',
@@ -75,8 +77,16 @@ ENERGY_AXIS = 'energy_kwh'
 SECONDARY_AXES = ('i_pmv_clipped', 'discomfort_band_pmvh')
 """Other discomfort KPIs the matched comfort is also computed on (plain front; shown in the report)."""
 
-STRATEGY_NAMES = ('ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
+STRATEGY_NAMES = ('ceco', 'ceco-e', 'ceco-c', 'ceco-ioch', 'ceco-pmv')
 """The NMPC strategies scored by the benchmark (defaults, ``ceco_controller/config/controller.yaml``)."""
+
+PERSISTENCE_SUFFIX = '-persistence'
+"""Name suffix of the persistence twin of a strategy: the same strategy with every preview replaced by
+persistence (the value measured at the issue time held over the horizon; preview quality ``persistence``)."""
+
+PERSISTENCE_TWINS = ('ceco-pmv',)
+"""The strategies run a second time with persistence previews (``ceco-pmv-persistence``): what the previews
+are worth to them."""
 
 SEED_INVARIANT = SEED_INVARIANT_KINDS
 SCORED_KINDS = ('strategy', 'compensated', 'compensated-allowance', 'external')
@@ -306,6 +316,8 @@ class ControllerSpec:
     """Nominal PMV set-point of a comfort-feedback baseline [-]."""
     measurements: str = 'full'
     """What the controller reads (``SimSettings.measurements``)."""
+    preview: str | None = None
+    """Preview quality of its runs (None: the case's forecast uncertainty; ``persistence`` for a twin)."""
 
     @property
     def seeded(self) -> bool:
@@ -358,6 +370,11 @@ def controllers(
         )
     )
     out += [ControllerSpec(s, 'strategy', s) for s in strategies]
+    out += [
+        ControllerSpec(s + PERSISTENCE_SUFFIX, 'strategy', s, preview='persistence')
+        for s in strategies
+        if s in PERSISTENCE_TWINS
+    ]
     return out
 
 
@@ -392,7 +409,7 @@ def case_cells(
                     **dict(c.overrides),
                     **(dict(case.baseline_door) if c.strategy == 'baseline' else {}),
                 },
-                'preview': _preview(case) if c.seeded else 'perfect',
+                'preview': c.preview or (_preview(case) if c.seeded else 'perfect'),
                 'seed': seed,
                 'duration_s': case.duration_s,
                 'control_period_s': case.control_period_s,
