@@ -47,5 +47,9 @@ KEY_ON_STATE = dict(
     speed_mps=10.0,
     mdot_bl_kgps=0.17,
     t_evap_sp_c=3.0,
+    co2_cab_ppm=425.0,
+    co2_sensor_ppm=431.0,
+    recirc_share=0.8,
+    recirc_share_cmd=0.8,
 )
 """The measured fields of a plausible CabinState at key-on on a hot day (and the key-on command)."""

@@ -8,6 +8,7 @@ import json
 import math
 import shutil
 import struct
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -556,3 +557,88 @@ def test_commands_of_bags_before_epoch_and_sequence_read_with_both_zero(tmp_path
     assert cmds['k'].tolist() == [old.step_index, new.step_index]
     assert cmds['mdot_bl_kgps'].tolist() == [old.blower_flow_kgps, new.blower_flow_kgps]
     assert cmds['strategy'].tolist() == [old.strategy, new.strategy]
+
+
+PRE_ISSUE21_MSGS = Path(__file__).parent / 'data' / 'ceco_msgs_before_issue21'
+"""CabinState.msg and AcCommand.msg as main defined them before the door and cabin CO2 (issue 21)."""
+
+
+def _pre_issue21_store():
+    """A typestore holding the pre-issue-21 CabinState and AcCommand under their own names."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for name in ('CabinState', 'AcCommand'):
+        text = (PRE_ISSUE21_MSGS / f'{name}.msg').read_text()
+        store.register(get_types_from_msg(text, f'ceco_msgs_pre21/msg/{name}'))
+    return store
+
+
+def test_bags_recorded_before_the_door_and_co2_read_with_them_unknown(tmp_path):
+    """A bag of CabinState / AcCommand serialized with main's definitions of before issue 21 (no cabin CO2, no
+    door) reads under the current types: every old field intact, the cabin CO2, the sensor and the door NaN
+    (not recorded) and the door command NaN (not commanded), beside messages of the current format."""
+    old_store = _pre_issue21_store()
+    store = bagio.typestore()
+    w = bag_writer.BagWriter(tmp_path / 'bag')
+    w.add_topic('/cabin/state', 'ceco_msgs/msg/CabinState')
+    w.add_topic('/hvac/command', 'ceco_msgs/msg/AcCommand')
+    old_state = sample(old_store, 'ceco_msgs_pre21/msg/CabinState', 1, stamp_ns=0)
+    old_cmd = sample(old_store, 'ceco_msgs_pre21/msg/AcCommand', 2, stamp_ns=0)
+    new_state = sample(store, 'ceco_msgs/msg/CabinState', 3, stamp_ns=SEC)
+    new_cmd = sample(store, 'ceco_msgs/msg/AcCommand', 4, stamp_ns=SEC)
+    w.write('/cabin/state', 0, old_store.serialize_cdr(old_state, 'ceco_msgs_pre21/msg/CabinState'))
+    w.write('/hvac/command', 0, old_store.serialize_cdr(old_cmd, 'ceco_msgs_pre21/msg/AcCommand'))
+    w.write('/cabin/state', SEC, store.serialize_cdr(new_state, 'ceco_msgs/msg/CabinState'))
+    w.write('/hvac/command', SEC, store.serialize_cdr(new_cmd, 'ceco_msgs/msg/AcCommand'))
+    w.close()
+    states = [m for _, _, m in bagio.read_messages(tmp_path / 'bag', ('cabin/state',))]
+    assert len(states) == 2
+    for name in ('t_cab_c', 'rh_cab', 't_amb_c', 'mdot_bl_kgps', 't_evap_sp_c', 'step_index', 'fallback'):
+        assert getattr(states[0], name) == getattr(old_state, name), name
+        assert getattr(states[1], name) == getattr(new_state, name), name
+    for name in ('co2_cab_ppm', 'co2_sensor_ppm', 'recirc_share', 'recirc_share_cmd'):
+        assert math.isnan(getattr(states[0], name)), name
+        assert getattr(states[1], name) == getattr(new_state, name) and math.isfinite(getattr(new_state, name))
+    cmds = bagio.load_commands(tmp_path / 'bag')
+    assert cmds['k'].tolist() == [old_cmd.step_index, new_cmd.step_index]
+    assert cmds['epoch'].tolist() == [old_cmd.epoch, new_cmd.epoch] and old_cmd.epoch != 0
+    assert cmds['mdot_bl_kgps'].tolist() == [old_cmd.blower_flow_kgps, new_cmd.blower_flow_kgps]
+    assert math.isnan(cmds['recirc_share'][0]) and cmds['recirc_share'][1] == new_cmd.recirc_share
+
+
+def test_door_and_co2_round_trip_through_a_bag(tmp_path):
+    """The plant's CabinState and a controller's AcCommand with the door and cabin CO2 set (conversions) come back
+    from a bag with the same numbers; a command that leaves the door alone reads as NaN."""
+    from ceco_core.contracts import MEASUREMENTS, AcInput
+    from ceco_ros import conversions
+    from ceco_v2x_preview.scenario import Environment
+
+    meas = {k: 20.0 + i for i, k in enumerate(MEASUREMENTS)}
+    meas.update(rh_cab=0.5, co2_cab_ppm=1734.5, co2_sensor_ppm=1701.0, recirc_share=0.37)
+    env = Environment(t_amb_c=35.0, solar_wm2=800.0, rh=0.4, speed_mps=13.0)
+    u = AcInput(0.08, 5.0, recirc_share=0.25)
+    st = conversions.state_msg(7, 3.5, conversions.stamp_from_s(3.5), meas, env, u, False, recirc_share_cmd=0.25)
+    c1 = conversions.command_msg(u, 3, conversions.stamp_from_s(3.0), 1.0, 'baseline', False)
+    c2 = conversions.command_msg(AcInput(0.08, 5.0), 4, conversions.stamp_from_s(4.0), 1.0, 'baseline', False)
+    assert c2.recirc_share == -1.0  # the wire's "not commanded"
+    assert conversions.command_input(c2).door_commanded is False
+    assert conversions.command_input(c1).recirc_share == 0.25
+    from rclpy.serialization import serialize_message
+
+    w = bag_writer.BagWriter(tmp_path / 'bag')
+    w.add_topic('/cabin/state', 'ceco_msgs/msg/CabinState')
+    w.add_topic('/hvac/command', 'ceco_msgs/msg/AcCommand')
+    w.write('/cabin/state', 3 * SEC, serialize_message(st))
+    w.write('/hvac/command', 3 * SEC, serialize_message(c1))
+    w.write('/hvac/command', 4 * SEC, serialize_message(c2))
+    w.close()
+    (back,) = [m for _, _, m in bagio.read_messages(tmp_path / 'bag', ('cabin/state',))]
+    assert (back.co2_cab_ppm, back.co2_sensor_ppm, back.recirc_share, back.recirc_share_cmd) == (
+        1734.5,
+        1701.0,
+        0.37,
+        0.25,
+    )
+    cmds = bagio.load_commands(tmp_path / 'bag')
+    assert cmds['recirc_share'][0] == 0.25 and math.isnan(cmds['recirc_share'][1])

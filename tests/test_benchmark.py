@@ -76,6 +76,10 @@ def bench(tmp_path_factory):
     return d, first, second
 
 
+TWINS = tuple(s + runner.PERSISTENCE_SUFFIX for s in runner.PERSISTENCE_TWINS)
+"""The strategies' persistence twins (``ceco-pmv-persistence``)."""
+
+
 def test_results_document(bench):
     d, doc, _ = bench
     assert bs.check_results(json.loads((d / 'out' / 'results.json').read_text())) == []
@@ -85,14 +89,19 @@ def test_results_document(bench):
         {f'{k}@{s:.1f}' for s in SETPOINTS for k in ('baseline', 'baseline-allowance', 'baseline-tuned')}
         | {f'baseline-tuned-allowance@{s:.1f}' for s in SETPOINTS}
         | {f'{k}@{s:+.2f}' for s in SETPOINTS_PMV for k in ('baseline-pmv', 'baseline-pmv-allowance')}
-        | {'baseline-compensated', 'baseline-compensated-allowance', *runner.STRATEGY_NAMES}
+        | {'baseline-compensated', 'baseline-compensated-allowance', *runner.STRATEGY_NAMES, *TWINS}
     )
     assert {r['setpoint_pmv'] for r in case['runs'] if r['kind'] == 'baseline-pmv'} == set(SETPOINTS_PMV)
     assert all(r['status'] == 'ok' and r['source'] == 'simulator' for r in case['runs'])
     assert {r['seed'] for r in case['runs'] if r['kind'] == 'strategy'} == {0}
     assert {r['seed'] for r in case['runs'] if r['kind'] != 'strategy'} == {None}
     assert sorted(p['controller'] for p in case['fronts']['plain']) == sorted(f'baseline@{s:.1f}' for s in SETPOINTS)
-    assert set(case['matched']) == {'baseline-compensated', 'baseline-compensated-allowance', *runner.STRATEGY_NAMES}
+    assert set(case['matched']) == {
+        'baseline-compensated',
+        'baseline-compensated-allowance',
+        *runner.STRATEGY_NAMES,
+        *TWINS,
+    }
     by = {r['controller']: r['kpis'] for r in case['runs']}
     # the allowance changes the baseline during the relaxed phase (the first 120 s are all relaxed)
     assert by['baseline-allowance@27.0']['energy_kwh'] < by['baseline@27.0']['energy_kwh']
@@ -144,8 +153,9 @@ def test_results_document(bench):
 
 def test_resume_runs_nothing_and_gives_the_same_results(bench):
     _, first, second = bench
-    n = FAMILY_RUNS + 2 + 4  # the families, the compensated laws, the strategies
-    n_sens = 2 * len(SETPOINTS) + 2 + 4  # the tornado reruns the production families and the scored ones
+    n_strat = len(runner.STRATEGY_NAMES) + len(TWINS)  # the strategies and the persistence twins
+    n = FAMILY_RUNS + 2 + n_strat  # the families, the compensated laws, the strategies
+    n_sens = 2 * len(SETPOINTS) + 2 + n_strat  # the tornado reruns the production families and the scored ones
     # the nominal runs and the sensitivity's two ends, plus the oracle's one cell
     assert first['timing']['ran_now'] == n + 2 * n_sens + 1 and second['timing']['ran_now'] == 0
     assert first['timing']['oracle_cells_now'] == 1 and second['timing']['oracle_cells_now'] == 0
@@ -227,7 +237,7 @@ def test_baseline_constants_and_controllers():
     specs = runner.controllers(b)
     assert [s.setpoint_c for s in specs if s.kind == 'baseline'] == [22.0 + 0.5 * i for i in range(15)]
     assert [s.setpoint_pmv for s in specs if s.kind == 'baseline-pmv'] == pytest.approx(runner.SETPOINTS_PMV)
-    assert sum(s.seeded for s in specs) == 4 and len(specs) == 4 * 15 + 2 * 9 + 2 + 4
+    assert sum(s.seeded for s in specs) == 6 and len(specs) == 4 * 15 + 2 * 9 + 2 + 5 + 1  # 5 strategies, 1 twin
     # the tuned families: gains from the file, the comfort-feedback ones on the PMV through the estimator
     fams = {f.family: f for f in b.family_specs()}
     assert list(fams) == list(bs.FAMILIES)

@@ -34,7 +34,8 @@ def test_hpipm_sqp_reaches_ipopts_optimum_on_recorded_instances(instances, strat
     s = ctrl.settings.solver
     assert (s.name, s.qpsol, ctrl.transcription) == ("sqp", "hpipm", "multiple-shooting")
     structure = ctrl.problem.ocp_structure()
-    assert len(structure.nx) == horizon + 2 and sum(structure.nx) + sum(structure.nu) == ctrl.problem.nw
+    n = ctrl.settings.nlp_steps  # the horizon, plus ceco-pmv's extension beyond the previews
+    assert len(structure.nx) == n + 2 and sum(structure.nx) + sum(structure.nu) == ctrl.problem.nw
     ps, x0s = instances[f"{key}_p"], instances[f"{key}_x0"]
     assert ps.shape[0] >= 5
     assert ps.shape[1] == ctrl.problem.params.size and x0s.shape[1] == ctrl.problem.nw, REGENERATE

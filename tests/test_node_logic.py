@@ -91,6 +91,7 @@ def command(k: int, ts: float = 5.0, stamp_s: float | None = None, **override) -
         fallback=False,
         epoch=0,
         sequence=0,
+        recirc_share=-1.0,
     )
     for key, value in override.items():
         setattr(m, key, value)
@@ -257,6 +258,11 @@ def test_health_levels_and_values():
         ('t_evap_sp_c', 2.0, 't_evap_sp_c=2.0 is outside'),
         ('scenario_time_s', 9e18, 'scenario_time_s=9e+18 is outside'),  # preview_node's crash
         ('scenario_time_s', -1.0, 'scenario_time_s=-1.0 is outside'),
+        ('co2_cab_ppm', math.nan, 'co2_cab_ppm=nan is not finite'),  # the plant always knows its CO2
+        ('co2_cab_ppm', -5.0, 'co2_cab_ppm=-5.0 is outside'),
+        ('co2_sensor_ppm', math.inf, 'co2_sensor_ppm=inf is not finite (NaN means: not set)'),
+        ('recirc_share', 1.5, 'recirc_share=1.5 is outside the plausible range [0, 1]'),
+        ('recirc_share_cmd', -0.1, 'recirc_share_cmd=-0.1 is outside'),
     ],
 )
 def test_check_state_names_the_field(field, value, expected):
@@ -277,7 +283,12 @@ def test_check_stamps():
 
 def test_check_command_every_field():
     assert checks.check_command(command(3), 5.0) is None
+    # the door: -1 (the default) or NaN leave it to the plant, 0..1 command it; anything else is refused
+    for ok in (-1.0, math.nan, 0.0, 0.5, 1.0):
+        assert checks.check_command(command(3, recirc_share=ok), 5.0) is None, ok
+    assert checks.check_state(state(10.0, co2_sensor_ppm=math.nan)) is None  # no sensor, or a failed one
     cases = {
+        'recirc_share': (-0.5, 1.2, math.inf, -math.inf),
         'control_period_s': (0.0, -5.0, math.nan, 5.1),
         'blower_flow_kgps': (math.nan, 0.5, 0.0, 1e300),
         'evap_setpoint_c': (-math.inf, 11.0),

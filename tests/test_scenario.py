@@ -155,6 +155,7 @@ def test_initial_defaults_and_humidity():
         "t_glass_c": 57.0,
         "t_evap_c": 57.0,
         "rh_cab": ini.rh_cab,
+        "co2_cab_ppm": 425.0,  # the ambient's (the scenario's default air_quality)
     }
     assert "t_glass_c" in ini and ini.get("t_seat_c") is None
     # Same vapour pressure as the ambient air (35 degC, 40 %).
@@ -276,3 +277,38 @@ def test_sun_geometry_block():
         d["sun"] = bad
         with pytest.raises(ScenarioError, match=field):
             scenario_from_dict(d)
+
+
+def test_occupants_and_air_quality_fields():
+    """Issue 21: occupants 1..5, ambient CO2, the limits, the sensor; defaults; each bad value names its field."""
+    sc = scenario_from_dict(_sc03_dict())
+    assert sc.occupants == 1 and sc.air_quality.co2_amb_ppm == 425.0 and sc.initial.co2_cab_ppm == 425.0
+    assert sc.air_quality.limits.co2_limit_ppm == 1500.0 and sc.air_quality.limits.fog_margin_min_k == 3.0
+    assert sc.air_quality.co2_sensor == "ndir" and sc.air_quality.co2_sensor_fail_s is None
+    d = _sc03_dict()
+    d.update(occupants=4, air_quality={"co2_amb_ppm": 450, "co2_limit_ppm": 1000, "co2_sensor": "none"})
+    sc = scenario_from_dict(d)
+    assert sc.occupants == 4 and sc.initial.co2_cab_ppm == 450.0  # default: the ambient's
+    assert sc.air_quality.limits.co2_limit_ppm == 1000.0 and sc.air_quality.co2_sensor == "none"
+    bad = [
+        ({"occupants": 0}, "occupants: must be in 1..5"),
+        ({"occupants": 6}, "occupants: must be in 1..5"),
+        ({"occupants": 2.5}, "occupants: must be an integer"),
+        ({"air_quality": {"co2_amb_ppm": 42.5}}, "air_quality.co2_amb_ppm"),  # percent for ppm by mistake
+        ({"air_quality": {"co2_limit_ppm": 400}}, "air_quality.co2_limit_ppm"),
+        ({"air_quality": {"co2_amb_ppm": 800, "co2_limit_ppm": 700}}, "air_quality.co2_limit_ppm"),
+        ({"air_quality": {"fog_margin_min_k": -1}}, "air_quality.fog_margin_min_k"),
+        ({"air_quality": {"co2_sensor": "laser"}}, "air_quality.co2_sensor"),
+        ({"air_quality": {"co2_sensor_fail_s": float("nan")}}, "air_quality.co2_sensor_fail_s"),
+        ({"air_quality": {"co2_ppm": 400}}, "air_quality.co2_ppm: unknown field"),
+    ]
+    for change, field in bad:
+        d = _sc03_dict()
+        d.update(change)
+        with pytest.raises(ScenarioError) as err:
+            scenario_from_dict(d)
+        assert str(err.value).startswith(field.split(":")[0]) and field in str(err.value), (change, str(err.value))
+    d = _sc03_dict()
+    d["initial"] = {**d["initial"], "co2_cab_ppm": 100.0}
+    with pytest.raises(ScenarioError, match="initial.co2_cab_ppm"):
+        scenario_from_dict(d)

@@ -130,7 +130,7 @@ def test_a_table_built_for_other_parameters_follows_them():
     n = low.n_lim_rpm[j, k, m]
     assert solve(n, low.axes[1][j], low.axes[2][k], low.axes[3][m]).p_comp_w == pytest.approx(3000.0, rel=1e-9)
     model = PlantModel.smooth(p, table=low)
-    x = [43.0, 46.0, 48.0, 48.0, 43.0, 43.0, 0.0135, 0.0]
+    x = [43.0, 46.0, 48.0, 48.0, 43.0, 43.0, 0.0135, 0.0, 0.8, 6.5e-4]
     energy = model.energy.named(model.step(x, [0.17, 3.0], [35.0, 850.0, 0.0, 0.4])[1])
     assert energy["e_comp_j"] == pytest.approx(3000.0, rel=5e-3)  # at the limit in the hot start
     with pytest.raises(StaleSmoothTableError, match="p_comp_max_w"):

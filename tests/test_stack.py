@@ -177,8 +177,13 @@ def test_short_closed_loop_over_dds_matches_simulator(tmp_path):
         't_mr_c',
         'w_rad_wm2',
         'iso7730_valid',
+        'co2_cab_ppm',  # the cabin CO2, the NDIR sensor's seeded reading and the door over DDS (issue 21)
+        'co2_sensor_ppm',
+        'recirc_share',
     ):
         np.testing.assert_allclose(ts[col], sim_run.timeseries[col], rtol=1e-12, atol=1e-12, err_msg=col)
+    assert ts['co2_cab_ppm'][-1] > ts['co2_cab_ppm'][0] > 400.0 and np.all(ts['recirc_share'] == 0.8)
+    np.testing.assert_array_equal(ts['recirc_share_cmd'][:-1], sim_run.timeseries['recirc_share_cmd'][:59])
     metrics = json.loads((out / 'metrics.json').read_text())
     for key in ('E_tot_J', 'E_comp_J', 'E_blower_J', 'E_fan_J', 'I_pmv', 'otc_violation_pct', 'pmv_mean'):
         assert metrics[key] == pytest.approx(sim[key], rel=1e-6, abs=1e-12), key

@@ -8,7 +8,7 @@ vectors). Written to ``tests/data/nlp_instances.npz`` (numpy arrays only, no pic
 ``<strategy>_np<N>_<p|x0|lam_x0|lam_g0|k>`` and ``provenance`` (this command, the commit is not
 stored: regenerate when the NLP changes; the test says so when the sizes differ).
 
-    python tools/record_nlp_instances.py [--horizons 24,60] [--strategies ceco,ceco-e,ceco-c,ceco-ioch]
+    python tools/record_nlp_instances.py [--horizons 24,60] [--strategies ceco,ceco-e,ceco-c,ceco-ioch,ceco-pmv]
         [--every 20] [--out tests/data/nlp_instances.npz]
 """
 

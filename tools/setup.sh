@@ -67,6 +67,11 @@ set -u
 (cd ros_ws && colcon build --symlink-install > ../.venv/colcon-build.log 2>&1) \
   || { echo "setup: colcon build failed; see .venv/colcon-build.log" >&2; exit 1; }
 
+# The compiled plant step of the default runs (docs/plant.md, "The compiled fast path"): compiled once
+# here (a few seconds) so that the first simulation, plant_node or test finds it in the cache.
+(set +u; . "$ROOT/tools/env.sh"; python -m ceco_plant_sim.compiled_plant --warm) \
+  || echo "setup: compiled plant not warmed (see above)" >&2
+
 # The `ceco` command: sources the workspace, then runs the CLI.
 cat > "$VENV/bin/ceco" <<EOS
 #!/usr/bin/env bash

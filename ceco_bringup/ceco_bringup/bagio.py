@@ -38,6 +38,7 @@ import numpy as np
 from ceco_bringup.supervisor import normalize_namespace
 from ceco_core import rundir
 from ceco_core.contracts import DIAGNOSTICS_CONTRACT_COLUMNS as DIAGNOSTICS_COLUMNS
+from ceco_core.contracts import RECIRC_NOT_COMMANDED_WIRE
 from ceco_core.units import s_from_stamp
 from ceco_ros.topics import TOPIC_COMFORT, TOPIC_COMMAND, TOPIC_DIAGNOSTICS, TOPIC_POWER, TOPIC_STATE
 
@@ -66,43 +67,81 @@ def _msg_dir() -> Path:
 
 LEGACY_ACCOMMAND = 'ceco_msgs_legacy/msg/AcCommand'
 """The AcCommand of bags recorded before ``epoch`` / ``sequence`` were added (issue 17)."""
-_LEGACY_ACCOMMAND_MSG = """std_msgs/Header header
-uint32 step_index
-float64 control_period_s
-float64 blower_flow_kgps
-float64 evap_setpoint_c
-string strategy
-bool fallback
-"""
+
+_OLDER_FORMATS: dict[str, tuple[tuple[str, str], ...]] = {
+    'ceco_msgs/msg/AcCommand': (
+        ('ceco_msgs_legacy/msg/AcCommandNoDoor', 'recirc_share'),
+        (LEGACY_ACCOMMAND, 'epoch'),
+    ),
+    'ceco_msgs/msg/CabinState': (('ceco_msgs_legacy/msg/CabinStateNoAir', 'co2_cab_ppm'),),
+}
+"""The older formats of a message, newest first: (legacy type name, the first field it lacks). Fields are only
+ever appended, so an older message is the current one cut before that field."""
+
+OLDER_FORMAT_FILL: dict[str, dict[str, float | int]] = {
+    'ceco_msgs/msg/AcCommand': {'epoch': 0, 'sequence': 0, 'recirc_share': RECIRC_NOT_COMMANDED_WIRE},
+    'ceco_msgs/msg/CabinState': {
+        'co2_cab_ppm': math.nan,
+        'co2_sensor_ppm': math.nan,
+        'recirc_share': math.nan,
+        'recirc_share_cmd': math.nan,
+    },
+}
+"""What a message of an older format gets for the fields it lacks: an AcCommand no epoch / sequence (0, not set)
+and a door left alone (-1, the plant's default share); a CabinState of before issue 21 NaN for its cabin CO2, the
+CO2 sensor and the door (not recorded: the plant of then held the door at ``PlantParams.recirc_fraction``)."""
+
+
+def _prefix_msg(text: str, first_missing: str) -> str:
+    """The .msg ``text`` cut before the line that defines the field ``first_missing``."""
+    out = []
+    for line in text.splitlines():
+        words = line.split('#', 1)[0].split()
+        if len(words) >= 2 and words[1] == first_missing:
+            return '\n'.join(out) + '\n'
+        out.append(line)
+    raise ValueError(f'field {first_missing!r} not found in the message definition')
 
 
 @functools.lru_cache(maxsize=1)
 def typestore():
-    """A rosbags typestore with the ROS 2 Jazzy types, every ceco_msgs type and the older AcCommand."""
+    """A rosbags typestore with the ROS 2 Jazzy types, every ceco_msgs type and their older formats."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     store = get_typestore(Stores.ROS2_JAZZY)
-    types = get_types_from_msg(_LEGACY_ACCOMMAND_MSG, LEGACY_ACCOMMAND)
+    types = {}
     for path in sorted(_msg_dir().glob('*.msg')):
-        types.update(get_types_from_msg(path.read_text(), f'ceco_msgs/msg/{path.stem}'))
+        msgtype = f'ceco_msgs/msg/{path.stem}'
+        text = path.read_text()
+        types.update(get_types_from_msg(text, msgtype))
+        for legacy, first_missing in _OLDER_FORMATS.get(msgtype, ()):
+            types.update(get_types_from_msg(_prefix_msg(text, first_missing), legacy))
     store.register(types)
     return store
 
 
 def deserialize(raw: bytes, msgtype: str):
-    """A CDR message of ``msgtype``; an AcCommand of the older format (no epoch / sequence) gets both as 0.
+    """A CDR message of ``msgtype``; a message of an older format gets :data:`OLDER_FORMAT_FILL` for what it lacks.
 
-    The older format is told by its length: it ends where the current one carries the two fields.
+    An older format is told by its length: it ends where the current one carries the appended fields.
     """
     store = typestore()
-    if msgtype != 'ceco_msgs/msg/AcCommand':
+    older = _OLDER_FORMATS.get(msgtype, ())
+    if not older:
         return store.deserialize_cdr(raw, msgtype)
     try:
         return store.deserialize_cdr(raw, msgtype)
     except Exception:  # rosbags reads past the end of an older message
-        old = store.deserialize_cdr(raw, LEGACY_ACCOMMAND)
+        pass
+    for legacy, _ in older:
+        try:
+            old = store.deserialize_cdr(raw, legacy)
+        except Exception:
+            continue
         fields = {name: getattr(old, name) for name in old.__dataclass_fields__ if name != '__msgtype__'}
-        return store.types[msgtype](**fields, epoch=0, sequence=0)
+        fill = {k: v for k, v in OLDER_FORMAT_FILL[msgtype].items() if k not in fields}
+        return store.types[msgtype](**fields, **fill)
+    raise ValueError(f'{msgtype}: the message matches neither the current definition nor an older one')
 
 
 # --- Names ---------------------------------------------------------------------
@@ -224,7 +263,9 @@ def load_run_timeseries(bag_dir, namespace: str | None = None) -> dict[str, np.n
 
     A row for plant step n needs the state at t_n, the comfort at t_n and the power
     (and applied command) over [t_n, t_n + dt). Columns: TIMESERIES_COLUMNS plus
-    `step_index` and `fallback`; rows sorted by step index; a step index seen
+    `step_index` and `fallback`; the door command applied over the step (`recirc_share_cmd`) is read from the
+    state of step n + 1 (NaN for the last step when the bag ends there, and in bags of before issue 21);
+    rows sorted by step index; a step index seen
     twice keeps its first message in bag order.
     """
     state, comfort, power = {}, {}, {}
@@ -249,8 +290,14 @@ def load_run_timeseries(bag_dir, namespace: str | None = None) -> dict[str, np.n
             'rh',
             't_glass_c',
             'rh_cab',
+            'co2_cab_ppm',
+            'co2_sensor_ppm',
+            'recirc_share',
         ):
             rows[col].append(getattr(s, col))
+        # the door command applied over [t_n, t_n+1) is the one the state of step n + 1 reports as applied
+        nxt = state.get(n + 1)
+        rows['recirc_share_cmd'].append(math.nan if nxt is None else nxt.recirc_share_cmd)
         for col in (
             'mdot_bl_kgps',
             't_evap_sp_c',
@@ -281,11 +328,23 @@ def load_commands(bag_dir, topic: str = TOPIC_COMMAND, namespace: str | None = N
 
     Columns `k`, `t_s` (header stamp), `mdot_bl_kgps`, `t_evap_sp_c`, `strategy`
     (str array), `fallback`, `t_recv_ns` (bag timestamp), `epoch`, `sequence` (the sending
-    controller's activation and the command's number; 0 in bags of before they existed).
+    controller's activation and the command's number; 0 in bags of before they existed), ``recirc_share`` (the door's
+    command [0..1]; NaN: not commanded, also in bags of before the door existed).
     """
     cols = {
         c: []
-        for c in ('k', 't_s', 'mdot_bl_kgps', 't_evap_sp_c', 'strategy', 'fallback', 't_recv_ns', 'epoch', 'sequence')
+        for c in (
+            'k',
+            't_s',
+            'mdot_bl_kgps',
+            't_evap_sp_c',
+            'strategy',
+            'fallback',
+            't_recv_ns',
+            'epoch',
+            'sequence',
+            'recirc_share',
+        )
     }
     for _, t_ns, m in read_messages(bag_dir, (topic,), namespace):
         cols['k'].append(m.step_index)
@@ -297,6 +356,7 @@ def load_commands(bag_dir, topic: str = TOPIC_COMMAND, namespace: str | None = N
         cols['t_recv_ns'].append(t_ns)
         cols['epoch'].append(m.epoch)
         cols['sequence'].append(m.sequence)
+        cols['recirc_share'].append(math.nan if m.recirc_share == RECIRC_NOT_COMMANDED_WIRE else m.recirc_share)
     return {
         'k': np.asarray(cols['k'], dtype=np.int64),
         't_s': np.asarray(cols['t_s'], dtype=float),
@@ -307,6 +367,7 @@ def load_commands(bag_dir, topic: str = TOPIC_COMMAND, namespace: str | None = N
         't_recv_ns': np.asarray(cols['t_recv_ns'], dtype=np.int64),
         'epoch': np.asarray(cols['epoch'], dtype=np.uint64),
         'sequence': np.asarray(cols['sequence'], dtype=np.int64),
+        'recirc_share': np.asarray(cols['recirc_share'], dtype=float),
     }
 
 

@@ -8,7 +8,7 @@ ceco benchmark  named test cases, baseline family, savings at matched comfort
 ceco sim      one closed-loop run in-process (no ROS)
 ceco oracle   the whole-drive optimum of a benchmark case (the bound)
 ceco identify identify the control-oriented model from plant data
-ceco bench    solver benchmarks
+ceco bench    benchmarks: NMPC solver (nmpc), plant step (plant)
 ceco security create-keystore DIR: an SROS2 keystore with ceco's access control
 """
 
@@ -24,7 +24,10 @@ VERBS = {
     'sim': ('ceco_bringup.sim', 'one closed-loop run in-process (no ROS)'),
     'oracle': ('ceco_bringup.oracle_cli', 'the whole-drive optimum of a benchmark case (the bound)'),
     'identify': ('ceco_controller.identification', 'identify the control-oriented model'),
-    'bench': ('ceco_controller.bench', 'solver benchmarks (ceco bench nmpc)'),
+    'bench': (
+        'ceco_controller.bench',
+        'benchmarks (ceco bench nmpc: the NMPC solver; ceco bench plant: the plant step)',
+    ),
     'security': ('ceco_bringup.security', 'SROS2 keystore (ceco security create-keystore DIR)'),
 }
 

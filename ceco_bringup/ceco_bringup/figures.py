@@ -55,6 +55,7 @@ _LABEL = {
     'ceco-e': 'CECO-E',
     'ceco-c': 'CECO-C',
     'ceco-ioch': 'CECO-IOCH',
+    'ceco-pmv': 'CECO-PMV',
 }
 _DPI = 200
 RC_PARAMS = {  # matplotlib rc of every ceco figure

@@ -49,7 +49,7 @@ from launch_ros.substitutions import FindPackageShare
 
 # Equal to ceco_core.contracts.STRATEGIES, ceco_core.control_grid.TIMING_MODES and
 # ceco_ros.interfaces.STACK_TOPICS (ceco_bringup/test/test_launch.py checks all three).
-STRATEGIES = ('baseline', 'ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
+STRATEGIES = ('baseline', 'ceco', 'ceco-e', 'ceco-c', 'ceco-ioch', 'ceco-pmv')
 TIMING_MODES = ('lockstep', 'realtime')
 TOPICS = (
     'cabin/state',

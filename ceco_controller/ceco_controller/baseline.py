@@ -13,6 +13,11 @@ With ``AccSettings.feedback == 'pmv'`` the law regulates the cabin PMV of the ob
 surfaces, humidity and sun load, the ECU's own blower command), with the scenario's occupant and sun
 geometry (``comfort_params``). Behind ``measurements: vehicle`` the surfaces are the estimator's, from
 the sensors a production car has.
+
+The fresh/recirculation door (issue 21) is driven by :class:`ceco_core.recirc_law.RecircLaw` with the ACC
+law's demand, the cabin and ambient temperatures, the CO2 sensor's reading and the fog margin of the
+observation (measured glass temperature against the dew point of the measured cabin air); its default
+mode ``none`` leaves the door to the plant (the baseline before issue 21).
 """
 
 from __future__ import annotations
@@ -21,10 +26,13 @@ import math
 
 import numpy as np
 
+from ceco_core import psychro
 from ceco_core.acc_law import AccLaw, AccSettings, feedback_pmv
+from ceco_core.air_quality import fog_margin_k
 from ceco_core.cabin_comfort import ComfortParams
 from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
 from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits
+from ceco_core.recirc_law import RecircLaw, RecircSettings
 
 __all__ = ["BaselineController"]
 
@@ -38,6 +46,8 @@ class BaselineController:
         control_period_s: float = 5.0,
         observation_limits: ObservationLimits = OBSERVATION_LIMITS,
         comfort_params: ComfortParams | None = None,
+        door: RecircSettings | None = None,
+        co2_sensor_fitted: bool = True,
     ):
         if not (math.isfinite(control_period_s) and control_period_s > 0):
             raise ValueError(f"control_period_s must be finite and > 0, got {control_period_s!r}")
@@ -47,10 +57,15 @@ class BaselineController:
         self.observation_limits = observation_limits
         self.comfort_params = (comfort_params or ComfortParams()).validate()
         """Occupant and sun geometry of the comfort-feedback law's PMV (unused by the temperature law)."""
+        self.door = RecircLaw(door)
+        """The door logic (mode ``none``: the door is left to the plant)."""
+        self.co2_sensor_fitted = bool(co2_sensor_fitted)
+        """Whether the car has a cabin CO2 sensor (a NaN reading is then a fault, and the door goes to fresh air)."""
 
     def reset(self) -> None:
         """Back to the key-on state."""
         self.law.reset()
+        self.door.reset()
 
     def compute(self, obs: Observation, t_start: float | None = None):
         """One control step from the measured cabin air temperature (never raises on its value).
@@ -91,6 +106,18 @@ class BaselineController:
         )
         if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
             raise AssertionError(f"ACC law produced an out-of-bounds command {cmd}")
+        door = self.door.step(
+            self.control_period_s,
+            demand=cmd.demand,
+            pulldown=cmd.mode == "pulldown",
+            t_cab_c=t_cab,
+            t_amb_c=float(obs.t_amb_c),
+            co2_sensor_fitted=self.co2_sensor_fitted,
+            co2_sensor_ppm=float(obs.co2_sensor_ppm),
+            co2_limit_ppm=float(obs.co2_limit_ppm),
+            fog_margin_k=_fog_margin_k(t_cab, obs.rh_cab, obs.t_glass_c),
+            fog_margin_min_k=float(obs.fog_margin_min_k),
+        )
         diag = Diagnostics(
             k=obs.k,
             t_s=obs.t_s,
@@ -101,6 +128,18 @@ class BaselineController:
                 f"demand={cmd.demand:.3f} setpoint_c={cmd.setpoint_c:.3f}"
                 if pmv is None
                 else f"demand={cmd.demand:.3f} setpoint_pmv={cmd.setpoint_pmv:.3f} pmv_measured={pmv:.3f}"
-            ),
+            )
+            + ("" if door.mode == "none" else f" door={door.recirc_share:.2f} door_mode={door.mode}"),
         )
-        return AcInput(mdot_bl_kgps=cmd.mdot_bl_kgps, t_evap_sp_c=cmd.t_evap_sp_c), diag
+        return AcInput(mdot_bl_kgps=cmd.mdot_bl_kgps, t_evap_sp_c=cmd.t_evap_sp_c, recirc_share=door.recirc_share), diag
+
+
+def _fog_margin_k(t_cab_c: float, rh_cab: float, t_glass_c: float) -> float:
+    """The fog margin [K] of the measured cabin air and glass; NaN when a reading is missing or implausible."""
+    try:
+        t, rh, tg = float(t_cab_c), float(rh_cab), float(t_glass_c)
+    except (TypeError, ValueError, OverflowError):
+        return math.nan
+    if not (math.isfinite(t) and math.isfinite(tg) and 0.0 < rh <= 1.0):
+        return math.nan
+    return float(fog_margin_k(tg, psychro.vapour_pressure_pa(t, rh)))

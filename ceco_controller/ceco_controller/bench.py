@@ -413,9 +413,14 @@ def _clean(v):
 
 
 def main(argv=None) -> int:
-    """CLI entry: ``nmpc`` is the only benchmark."""
+    """CLI entry: ``nmpc`` (this module) or ``plant`` (:mod:`ceco_plant_sim.bench_plant`, its own flags)."""
+    args_in = sys.argv[1:] if argv is None else list(argv)
+    if args_in[:1] == ["plant"]:
+        from ceco_plant_sim.bench_plant import main as bench_plant_main
+
+        return bench_plant_main(args_in[1:])
     ap = argparse.ArgumentParser(prog="ceco bench", description="solver benchmarks")
-    ap.add_argument("what", choices=["nmpc"], help="benchmark to run")
+    ap.add_argument("what", choices=["nmpc", "plant"], help="benchmark to run (plant: ceco bench plant --help)")
     ap.add_argument("--quick", action="store_true", help="Np 6 and 12 only, first 200 s of SC03")
     ap.add_argument("--jit", action="store_true", help="compile the NLP functions with gcc (slow to build)")
     ap.add_argument(
@@ -463,7 +468,7 @@ def main(argv=None) -> int:
         "(ceco_controller.bench_node; needs the built workspace)",
     )
     ap.add_argument("--progress", action="store_true", help="show progress bars")
-    args = ap.parse_args(argv)
+    args = ap.parse_args(args_in)
     if not args.cpu_slowdown > 0:
         ap.error("--cpu-slowdown must be > 0")
     horizons = (

@@ -24,6 +24,7 @@ from ceco_core import rundir
 from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS, MEASUREMENT_MODES
 from ceco_core.metrics import comfort_series_metrics, run_metrics
 from ceco_core.run_status import check_control
+from ceco_plant_sim.compiled_plant import PlantEvaluation
 from ceco_plant_sim.scenario_plant import ScenarioPlant, check_overrides, n_plant_steps, steps_per_control
 from ceco_v2x_preview.preview import PERFECT, PreviewQuality, make_previews
 from ceco_v2x_preview.scenario import Scenario, load_scenario
@@ -88,6 +89,9 @@ class SimSettings:
     prepare_first_step: bool = False
     """Before the first step, let an NMPC solve it without deadline (``NmpcController.prepare``), as
     a node that does so before taking control; off: the first step is a cold solve inside it."""
+    plant_evaluation: str = "compiled"
+    """How the simulated plant step is evaluated: 'compiled' (generated C, cached; the Python evaluation
+    with one warning where no C compiler works) or 'python' (ceco_plant_sim.compiled_plant.PlantEvaluation)."""
     measurements: str = "full"
     """'full': the controller reads every state it models; 'vehicle': only the production sensors,
     T_int, T_shell and T_glass estimated (``ceco_controller.estimator``; docs/controller.md section 5)."""
@@ -104,6 +108,7 @@ class SimSettings:
             raise ValueError("SimSettings.plant_dt_s must be finite and > 0")
         if self.duration_s is not None and not (math.isfinite(self.duration_s) and self.duration_s > 0):
             raise ValueError("SimSettings.duration_s must be finite and > 0")
+        PlantEvaluation(self.plant_evaluation).validate()
         if self.measurements not in MEASUREMENT_MODES:
             raise ValueError(f"SimSettings.measurements must be one of {MEASUREMENT_MODES}, got {self.measurements!r}")
         for name in ("plant_overrides", "comfort_overrides"):
@@ -187,7 +192,11 @@ def simulate(
     vehicle = isinstance(controller, EstimatingController)
     est_rows: dict[str, list] = {c: [] for c in ESTIMATOR_CSV_COLUMNS}  # filled in vehicle mode only
     sp = ScenarioPlant(
-        scenario, dt, plant_overrides=dict(settings.plant_overrides), comfort_overrides=dict(settings.comfort_overrides)
+        scenario,
+        dt,
+        plant_overrides=dict(settings.plant_overrides),
+        comfort_overrides=dict(settings.comfort_overrides),
+        evaluation=PlantEvaluation(settings.plant_evaluation),
     )
     cols = {c: np.empty(n) for c in TIMESERIES_COLUMNS}
     diags, diag_objs, step_times = [], [], []
@@ -211,6 +220,7 @@ def simulate(
                 _record_estimate(est_rows, controller.last_estimate, sp.meas)
             if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
                 raise AssertionError(f"{strategy}: command {cmd} outside the actuator bounds at t={t}")
+            cmd.validate()  # the door's share too (NaN: not commanded)
             diags.append(diag.to_row())
             diag_objs.append(diag)
         r = sp.step(cmd)
@@ -239,6 +249,10 @@ def simulate(
             "q_latent_w": out.q_latent_w,
             "comp_speed_rpm": out.comp_speed_rpm,
             "capacity_limited": float(out.capacity_limited),
+            "co2_cab_ppm": r.meas["co2_cab_ppm"],
+            "co2_sensor_ppm": r.meas["co2_sensor_ppm"],
+            "recirc_share": r.meas["recirc_share"],
+            "recirc_share_cmd": r.recirc_share_cmd,
         }
         for c in TIMESERIES_COLUMNS:
             cols[c][i] = row[c]

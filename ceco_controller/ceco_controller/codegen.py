@@ -11,17 +11,13 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import hashlib
 import io
 import logging
 import os
-import pathlib
-import shutil
-import subprocess
-import tempfile
-import time
 
 import casadi
+
+from ceco_core.codegen import CompileError, codegen_cache_dir, compile_cached, generate_functions
 
 __all__ = ["compile_nlp", "compile_functions", "nlp_key", "codegen_cache_dir", "stdout_silenced"]
 
@@ -68,16 +64,6 @@ def _libc_fflush() -> None:
         pass
 
 
-def codegen_cache_dir(path: str | None = None) -> pathlib.Path:
-    """Directory of compiled NLPs: ``path``, else $CECO_CACHE_DIR, else $XDG_CACHE_HOME/ceco, else ~/.cache/ceco."""
-    if path:
-        return pathlib.Path(path)
-    if os.environ.get("CECO_CACHE_DIR"):
-        return pathlib.Path(os.environ["CECO_CACHE_DIR"])
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return pathlib.Path(base) / "ceco"
-
-
 def nlp_key(nlp: dict) -> bytes:
     """A deterministic fingerprint of an NLP's expressions (CasADi serialisation of (x, p) -> (f, g))."""
     fn = casadi.Function("ceco_nlp_key", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]])
@@ -121,55 +107,16 @@ def compile_functions(
     function that builds them); the cache file is named by its hash. Load a function from the
     returned path with ``casadi.external(function.name(), path)``.
     """
-
-    def generate(tmp: str) -> str:
-        cg = casadi.CodeGenerator(f"{prefix}.c")
-        for f in functions:
-            cg.add(f)
-        cwd = os.getcwd()
-        os.chdir(tmp)
-        try:
-            cg.generate()
-        finally:
-            os.chdir(cwd)
-        return os.path.join(tmp, f"{prefix}.c")
-
-    return _compile_cached(prefix, key, generate, flags, cache_dir)
+    return _compile_cached(prefix, key, lambda tmp: generate_functions(functions, tmp, prefix), flags, cache_dir)
 
 
 def _compile_cached(prefix: str, key: bytes, generate, flags, cache_dir: str | None) -> str | None:
-    """``<cache>/<prefix>_<hash>.so``, compiled from the C file ``generate(tmp_dir)`` writes unless it is there."""
-    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
-    if cc is None:
-        _LOG.warning("NMPC codegen: no C compiler found (gcc/cc/$CC); using the in-process NLP functions")
-        return None
-    digest = hashlib.sha256(key + repr((list(flags), casadi.CasadiMeta.version(), cc)).encode()).hexdigest()[:20]
-    cache = codegen_cache_dir(cache_dir)
-    target = cache / f"{prefix}_{digest}.so"
-    if target.is_file():
-        return str(target)
+    """:func:`ceco_core.codegen.compile_cached` with the NMPC's fall-back: None (logged) when it cannot compile."""
     try:
-        with tempfile.TemporaryDirectory(prefix="ceco_cg_") as tmp:
-            src = generate(tmp)
-            cache.mkdir(parents=True, exist_ok=True)
-            part = cache / f".{prefix}_{digest}.{os.getpid()}.tmp.so"
-            t0 = time.perf_counter()
-            res = subprocess.run(
-                [cc, "-shared", "-fPIC", *flags, src, "-o", str(part), "-lm"],
-                capture_output=True,
-                text=True,
-                timeout=600,
-            )
-            if res.returncode != 0:
-                part.unlink(missing_ok=True)
-                _LOG.warning(
-                    "NMPC codegen: compilation failed (%s); using the in-process NLP functions",
-                    res.stderr.strip()[-500:],
-                )
-                return None
-            os.replace(part, target)
-            _LOG.info("NMPC codegen: compiled %s in %.1f s", target, time.perf_counter() - t0)
-            return str(target)
-    except (OSError, RuntimeError, subprocess.SubprocessError) as exc:
+        res = compile_cached(prefix, key, generate, flags, cache_dir)
+    except CompileError as exc:
         _LOG.warning("NMPC codegen failed (%s); using the in-process NLP functions", exc)
         return None
+    if res.built:
+        _LOG.info("NMPC codegen: compiled %s in %.1f s", res.path, res.seconds)
+    return res.path

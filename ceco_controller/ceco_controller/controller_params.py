@@ -45,7 +45,8 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
             ParamSpec(
                 'strategy',
                 'ceco-ioch',
-                'CECO strategy: ceco (general), ceco-e (energy), ceco-c (comfort), ceco-ioch (speed-aware slack)',
+                'CECO strategy: ceco (general), ceco-e (energy), ceco-c (comfort), ceco-ioch (speed-aware slack), '
+                'ceco-pmv (comfort output held at its bound)',
                 choices=CECO_STRATEGIES,
                 at_configure=True,
             ),
@@ -155,7 +156,7 @@ class ControllerNodeConfig(NodeConfig):
     """Validated parameters of mpc_node / baseline_node."""
 
     strategy: str
-    """baseline, ceco, ceco-e, ceco-c or ceco-ioch."""
+    """baseline, ceco, ceco-e, ceco-c, ceco-ioch or ceco-pmv."""
     scenario: str
     """Scenario: the occupant (met, clo) and the PMV comfort bounds (the occupant's settings)."""
     timing: str

@@ -14,6 +14,7 @@ import dataclasses
 import math
 from typing import Any
 
+from ceco_core.co2_estimator import Co2Estimate, Co2Estimator
 from ceco_core.contracts import MEASUREMENT_MODES, Observation
 
 from . import model as cm
@@ -26,9 +27,11 @@ __all__ = ["EstimatingController", "with_measurements"]
 class EstimatingController:
     """A controller that sees only the vehicle sensors.
 
-    ``compute(obs)`` ignores ``obs.t_int_c``, ``obs.t_shell_c`` and ``obs.t_glass_c``, runs
+    ``compute(obs)`` ignores ``obs.t_int_c``, ``obs.t_shell_c``, ``obs.t_glass_c`` and ``obs.co2_cab_ppm``, runs
     :class:`CabinStateEstimator` on the vehicle sensors of ``obs`` (cabin RH passed through) and the
-    previous command, and calls the wrapped controller with the estimated observation.
+    previous command, and :class:`~ceco_core.co2_estimator.Co2Estimator` on the CO2 sensor's reading (NaN: none),
+    the door's position, the blower, the speed and the occupants, and calls the wrapped controller with the
+    estimated observation.
 
     Sensors that were valid are passed unchanged (so without faults the wrapped controller sees the
     same cabin, evaporator, vent, ambient, sun-load and speed values as in full mode); missing ones are
@@ -45,9 +48,14 @@ class EstimatingController:
         """The :class:`CabinStateEstimator`."""
         self.last_estimate: Estimate | None = None
         """The estimate of the last :meth:`compute` call."""
+        self.last_co2: Co2Estimate | None = None
+        """The CO2 estimate of the last :meth:`compute` call (:class:`~ceco_core.co2_estimator.Co2Estimate`)."""
+        self.co2 = Co2Estimator()
+        """The cabin CO2 estimate (:class:`ceco_core.co2_estimator.Co2Estimator`): the CO2 sensor's reading and the
+        CO2 balance, or the balance alone without a reading."""
 
     def __getattr__(self, name):
-        if name in ("inner", "estimator"):  # not yet set (copy/pickle): no recursion
+        if name in ("inner", "estimator", "co2", "last_co2"):  # not yet set (copy/pickle): no recursion
             raise AttributeError(name)
         return getattr(self.inner, name)
 
@@ -55,6 +63,7 @@ class EstimatingController:
         """Reset the wrapped controller and the estimator (key-on)."""
         self.inner.reset()
         self.estimator.reset()
+        self.co2.reset()
         self.last_estimate = None
 
     def estimated_observation(self, obs: Observation) -> Observation:
@@ -84,8 +93,16 @@ class EstimatingController:
             "rh_cab": est.rh_cab,
             "mdot_bl_prev_kgps": est.mdot_bl_prev_kgps,
             "t_evap_sp_prev_c": est.t_evap_sp_prev_c,
+            "co2_cab_ppm": self._co2_estimate(obs).co2_cab_ppm,
         }
         return dataclasses.replace(obs, **fields)
+
+    def _co2_estimate(self, obs: Observation):
+        est = self.co2.update(
+            obs.t_s, obs.co2_sensor_ppm, obs.recirc_share, obs.mdot_bl_prev_kgps, obs.speed_mps, obs.n_occupants
+        )
+        self.last_co2 = est
+        return est
 
     def prepare(self, obs: Observation):
         """The wrapped controller's ``prepare`` on the observation :meth:`compute` will see for ``obs``.
@@ -96,6 +113,7 @@ class EstimatingController:
         if not hasattr(self.inner, "prepare"):  # the ACC law has nothing to prepare
             return None
         probe = EstimatingController(self.inner, copy.deepcopy(self.estimator))
+        probe.co2 = copy.deepcopy(self.co2)
         return self.inner.prepare(probe.estimated_observation(obs))
 
     def compute(self, obs: Observation, t_start: float | None = None):
@@ -108,6 +126,9 @@ class EstimatingController:
         cmd, diag = self.inner.compute(obs_est, t_start=t_start)
         assert self.last_estimate is not None
         note = self.last_estimate.describe()
+        held = getattr(self, "last_co2", None)
+        if held is not None and held.inputs_held:
+            note = "; ".join(x for x in (note, f"co2 estimate held {', '.join(held.inputs_held)}") if x)
         if note:
             diag.message = f"{diag.message}; {note}" if diag.message else note
         return cmd, diag

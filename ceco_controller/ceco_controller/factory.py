@@ -7,9 +7,11 @@ from here.
 from __future__ import annotations
 
 import collections
+import dataclasses
 
 from ceco_core.acc_law import AccSettings
 from ceco_core.cabin_comfort import ComfortParams, comfort_params_for
+from ceco_core.recirc_law import RecircSettings
 from ceco_core.scenario_types import Scenario
 
 from . import model as cm
@@ -18,7 +20,7 @@ from .estimating_controller import with_measurements
 from .nmpc import NmpcController
 from .strategies import StrategySettings, load_strategy_settings
 
-__all__ = ["make_controller", "ControllerCache", "load_acc_settings"]
+__all__ = ["make_controller", "ControllerCache", "load_acc_settings", "split_door_settings", "DOOR_FIELDS"]
 
 
 class ControllerCache:
@@ -76,7 +78,6 @@ def load_acc_settings(path: str | None) -> dict:
     """
     if not path:
         return {}
-    import dataclasses
 
     import yaml
 
@@ -84,13 +85,25 @@ def load_acc_settings(path: str | None) -> dict:
         doc = yaml.safe_load(fh)
     if not isinstance(doc, dict) or not isinstance(doc.get("acc_law"), dict):
         raise ValueError(f"{path}: a baseline law file needs a mapping 'acc_law:' of AccSettings fields")
-    known = {f.name for f in dataclasses.fields(AccSettings)}
+    known = {f.name for f in dataclasses.fields(AccSettings)} | set(DOOR_FIELDS)
     unknown = sorted(set(doc["acc_law"]) - known)
     if unknown:
-        raise ValueError(f"{path}: acc_law: unknown AccSettings field(s) {unknown}")
+        raise ValueError(f"{path}: acc_law: unknown AccSettings or RecircSettings field(s) {unknown}")
     fields = dict(doc["acc_law"])
-    AccSettings(**fields).validate()
+    split_door_settings(fields)
     return fields
+
+
+DOOR_FIELDS = tuple(f.name for f in dataclasses.fields(RecircSettings))
+"""The baseline's door settings (:class:`~ceco_core.recirc_law.RecircSettings`, ``door_*``) among its fields."""
+
+
+def split_door_settings(fields: dict) -> tuple[AccSettings, RecircSettings]:
+    """The validated ACC law and door settings of a baseline's fields (``door_*`` to the door, the rest to the law)."""
+    door = {k: v for k, v in fields.items() if k in DOOR_FIELDS}
+    acc = AccSettings(**{k: v for k, v in fields.items() if k not in DOOR_FIELDS})
+    acc.validate()
+    return acc, RecircSettings(**door).validate()
 
 
 def make_controller(
@@ -111,7 +124,8 @@ def make_controller(
     NMPC settings: the controller file (``config_path``, default the package's
     ``config/controller.yaml``), then ``horizon_steps``/``control_period_s``, then ``overrides``.
     Baseline: ``config_path`` is an optional law file (:func:`load_acc_settings`), ``overrides`` are
-    :class:`~ceco_core.acc_law.AccSettings` fields applied after it.
+    :class:`~ceco_core.acc_law.AccSettings` and door (:class:`~ceco_core.recirc_law.RecircSettings`, ``door_*``)
+    fields applied after it; the door logic knows whether the scenario's car has a CO2 sensor.
     ``measurements``: 'full' (every modelled state read from the observation) or 'vehicle' (only the
     production sensors; the controller behind ``estimating_controller.EstimatingController``, with
     ``estimator_settings``/``estimator_params``, default the package's identified file).
@@ -120,10 +134,13 @@ def make_controller(
     ctrl: BaselineController | NmpcController
     if strategy == "baseline":
         # AccSettings fields: the law file (config_path, optional), then the overrides
+        acc, door = split_door_settings({**load_acc_settings(config_path), **(overrides or {})})
         ctrl = BaselineController(
-            AccSettings(**{**load_acc_settings(config_path), **(overrides or {})}),
+            acc,
             control_period_s=control_period_s,
             comfort_params=comfort_params_for(scenario),
+            door=door,
+            co2_sensor_fitted=scenario.air_quality.co2_sensor != "none",
         )
     else:
         settings = load_strategy_settings(

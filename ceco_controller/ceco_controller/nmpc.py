@@ -1,4 +1,4 @@
-"""CECO nonlinear MPC (CasADi): ceco, ceco-e, ceco-c, ceco-ioch, as a receding-horizon controller.
+"""CECO nonlinear MPC (CasADi): ceco, ceco-e, ceco-c, ceco-ioch, ceco-pmv, as a receding-horizon controller.
 
 The pieces (docs/controller.md 4):
 
@@ -10,6 +10,7 @@ The pieces (docs/controller.md 4):
 * :mod:`.chain`         which solver tries an instance from which start, what is usable, the step counters;
 * :mod:`.observation`   the previews on the horizon grid, the nominal observation of warm-up;
 * :mod:`.offset_free`   the bias estimates;
+* :mod:`.comfort_feedback` ceco-pmv's PMV bias, adaptive back-off and preview shrinkage;
 * this module           the control step: checks, fallbacks, hand-over, deadline.
 
 One control step (:meth:`NmpcController.compute`), bounded by the wall-clock budget
@@ -40,13 +41,14 @@ import numpy as np
 
 from ceco_core import psychro
 from ceco_core.acc_law import AccLaw, AccSettings
-from ceco_core.cabin_comfort import PAPER_PA_PA, ComfortParams, cabin_mrt_c
+from ceco_core.cabin_comfort import PAPER_PA_PA, ComfortParams, cabin_mrt_c, cabin_pmv, cabin_w_rad_wm2
 from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
 from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits, check_observation
 
 from . import model as cm
 from .chain import BOUND_TOL, ChainOutcome, ColdPath, GoodSolution, SolveChain, StepCounters
 from .codegen import codegen_cache_dir, compile_nlp
+from .comfort_feedback import PmvFeedback, PreviewSkill, held, measured_pmv, pmv_solar_sensitivity
 from .observation import fill_previews, nominal_observation
 from .offset_free import BiasEstimator
 from .solvers import NlpData, NlpSolver, SolveResult, build_solver
@@ -125,6 +127,27 @@ class NmpcController:
             self.settings.bias_limit_k,
             self.n_sub,
             enabled=self.settings.offset_free,
+        )
+        s = self.settings
+        self._pmv_fb = (
+            PmvFeedback(
+                s.pmv_bias_filter,
+                s.pmv_bias_limit,
+                s.backoff_quantile,
+                s.backoff_window_steps,
+                s.backoff_min_samples,
+                s.backoff_init_pmv,
+                s.backoff_min_pmv,
+                s.backoff_max_pmv,
+                s.backoff_forecast_z,
+            )
+            if s.pmv_feedback
+            else None
+        )
+        self._skill = (
+            PreviewSkill(s.horizon_steps + 1, s.preview_skill_window_steps, s.preview_shrink_c)
+            if s.preview_rule == "shrink"
+            else None
         )
         self.chain = self._build_chain()
         """The solve chain (warm solver, IPOPT retry, cold path)."""
@@ -233,6 +256,11 @@ class NmpcController:
         self._prepared_t_s: float | None = None
         self._last_cmd: np.ndarray | None = None
         self._bias.reset()
+        if self._pmv_fb is not None:
+            self._pmv_fb.reset()
+        if self._skill is not None:
+            self._skill.reset()
+        self._comfort_now: np.ndarray | None = None
         self._acc.reset()
         self._acc_to_track: tuple | None = None
         self.counters = StepCounters()
@@ -240,21 +268,51 @@ class NmpcController:
 
     @property
     def horizon_steps(self) -> int:
-        """Np [steps]."""
+        """Np [steps]: the preview horizon (the NLP predicts ``settings.nlp_steps``)."""
         return self.settings.horizon_steps
 
+    @property
+    def pmv_feedback(self) -> PmvFeedback | None:
+        """ceco-pmv's PMV bias and back-off (None when ``settings.pmv_feedback`` is off)."""
+        return self._pmv_fb
+
+    @property
+    def preview_skill(self) -> PreviewSkill | None:
+        """ceco-pmv's measured forecast errors and preview shrinkage (None unless ``preview_rule`` 'shrink')."""
+        return self._skill
+
     # ------------------------------------------------------------ NLP access
+    def previews(self, obs: Observation, valid: np.ndarray | None = None) -> tuple[dict, int]:
+        """The exogenous series on the NLP grid and the trusted preview points.
+
+        :func:`~ceco_controller.observation.fill_previews` on the preview horizon, held at the last
+        value over the extension (``settings.horizon_extension_steps``).
+        """
+        ex, trusted = fill_previews(obs, self.horizon_steps + 1, self.settings.use_speed_preview, valid)
+        n = self.problem.params.n_grid
+        return {k: held(v, n) for k, v in ex.items()}, trusted
+
     def parameters(
-        self, obs: Observation, ex: dict, u_prev=None, t_glass_c: float | None = None, rh_cab: float | None = None
+        self,
+        obs: Observation,
+        ex: dict,
+        u_prev=None,
+        t_glass_c: float | None = None,
+        rh_cab: float | None = None,
+        bounds: tuple | None = None,
     ) -> np.ndarray:
-        """The NLP parameter vector for an observation (previews filled).
+        """The NLP parameter vector for an observation (previews filled, on the NLP grid).
 
         ``u_prev`` overrides the observation's previous command; ``t_glass_c`` and ``rh_cab`` its
-        glazing temperature and cabin RH (the checked values: NaN where not measured or implausible).
+        glazing temperature and cabin RH (the checked values: NaN where not measured or implausible);
+        ``bounds`` (lb, ub) on the NLP grid the comfort bounds (default: the observation's, held over
+        the extension).
         """
         b = self._bias.values
         u_prev = (obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c) if u_prev is None else u_prev
         t_mr, pa = self.comfort_parameters(obs, t_glass_c, rh_cab)
+        n = self.problem.params.n_grid
+        lb, ub = (held(obs.pmv_lb, n), held(obs.pmv_ub, n)) if bounds is None else bounds
         return self.problem.params.pack(
             x0=[obs.t_cab_c, obs.t_evap_c],
             t_int=obs.t_int_c,
@@ -266,8 +324,8 @@ class NmpcController:
             t_amb=ex["t_amb"],
             solar=ex["solar"],
             speed=ex["speed"],
-            pmv_lb=obs.pmv_lb,
-            pmv_ub=obs.pmv_ub,
+            pmv_lb=lb,
+            pmv_ub=ub,
             t_mr=t_mr,
             pa=pa,
         )
@@ -329,7 +387,7 @@ class NmpcController:
         """
         t0 = time.perf_counter()
         obs = nominal_observation(self.horizon_steps + 1)
-        ex, _ = fill_previews(obs, self.horizon_steps + 1, self.settings.use_speed_preview)
+        ex, _ = self.previews(obs)
         p = self.parameters(obs, ex)
         cold = self.chain._cold_solve(self.chain.cold_data(p), None)
         if self.chain.why_unusable(cold) is None:
@@ -356,7 +414,7 @@ class NmpcController:
             return None
         bias = copy.deepcopy(self._bias)
         self._bias.update(obs.t_cab_c, obs.t_evap_c, obs.t_vent_c, obs.mdot_bl_prev_kgps)
-        ex, _ = fill_previews(obs, n1, self.settings.use_speed_preview, obs.preview_valid & chk.preview_plausible)
+        ex, _ = self.previews(obs, obs.preview_valid & chk.preview_plausible)
         p = self.parameters(obs, ex, None, chk.t_glass_c, chk.rh_cab)
         self._bias = bias
         out = self.chain.run(p, None, math.inf)
@@ -402,7 +460,7 @@ class NmpcController:
             t_cab = float(obs.t_cab_c)
             return self._apply_acc(diag, t_cab if lo <= t_cab <= hi else math.nan, None, None)
         valid = np.asarray(obs.preview_valid, bool) & chk.preview_plausible
-        ex, trusted = fill_previews(obs, n1, s.use_speed_preview, valid)
+        ex, trusted = self.previews(obs, valid)
         diag.trusted_horizon = trusted
         if trusted < n1:
             _note(
@@ -411,7 +469,8 @@ class NmpcController:
                 + ("held last valid value" if trusted else "held measured values"),
             )
         self._bias.update(obs.t_cab_c, obs.t_evap_c, obs.t_vent_c, u_prev[0])
-        p = self.parameters(obs, ex, u_prev, chk.t_glass_c, chk.rh_cab)
+        bounds = self._comfort_step(obs, chk, ex, valid, diag)
+        p = self.parameters(obs, ex, u_prev, chk.t_glass_c, chk.rh_cab, bounds)
         out = self.chain.run(p, self._good, deadline)
         self._last_nlp, self._last_chain = out.data, out
         self._count(out, deadline)
@@ -438,7 +497,7 @@ class NmpcController:
             ev = self.problem.evaluate(good.w, p)
             diag.cost_energy, diag.cost_comfort, diag.cost_ioch = ev.J_e, ev.J_c, ev.J_i
             diag.cost_slack, diag.cost_total = ev.J_s, res.f
-            diag.pred_pmv, diag.pred_t_cab_c = ev.pmv, ev.t_cab
+            diag.pred_pmv, diag.pred_t_cab_c = ev.pmv + (self._pmv_fb.bias if self._pmv_fb else 0.0), ev.t_cab
             if s.ioch:
                 diag.eps = good.w[self.problem.vars.indices("eps")]
             cmd = plan[0]
@@ -488,13 +547,83 @@ class NmpcController:
             raise AssertionError(f"internal error: command {u} outside the actuator bounds (tol {BOUND_TOL})")
         return np.array(self.lim.clip(u[0], u[1]))
 
+    def _comfort_step(self, obs: Observation, chk, ex: dict, valid: np.ndarray, diag: Diagnostics):
+        """ceco-pmv's comfort output (docs/controller.md 4.7): measured PMV, bias, back-off, shrunk previews.
+
+        Updates ``ex`` in place (preview shrinkage) and returns the comfort bounds (lb, ub) on the NLP
+        grid: the upper one capped at ``settings.pmv_ub_cap``, both moved by the PMV bias, the upper one by
+        the back-off (None: the observation's bounds).
+        """
+        fb, skill, cap = self._pmv_fb, self._skill, self.settings.pmv_ub_cap
+        if fb is None and skill is None and not math.isfinite(cap):
+            return None
+        n = self.problem.params.n_grid
+        if skill is not None:
+            skill.update(obs, valid)
+            ex.update(skill.shrink(ex, obs))
+        lb, ub = held(obs.pmv_lb, n), np.minimum(held(obs.pmv_ub, n), cap)
+        self._comfort_now = self.comfort_parameters(obs, chk.t_glass_c, chk.rh_cab)
+        if fb is None:
+            return lb, ub
+        y = measured_pmv(obs, self.comfort_params, chk.t_glass_c, chk.rh_cab)
+        fb.update(y)
+        m = np.zeros(n)
+        if self.settings.backoff == "adaptive":
+            t_mr, pa = self._comfort_now
+            v = skill.estimate_mse("solar", n) if skill is not None else np.zeros(n)
+            g = pmv_solar_sensitivity(
+                obs.t_cab_c, obs.t_vent_c, obs.mdot_bl_prev_kgps, t_mr, pa, obs.solar_wm2, self.comfort_params
+            )
+            m = fb.backoff(v, g)
+        _note(
+            diag,
+            f"comfort: PMV {'n/a' if not math.isfinite(y) else f'{y:+.3f}'}, bias {fb.bias:+.3f}, "
+            f"back-off {m[1] if n > 1 else m[0]:.3f}",
+        )
+        return lb - fb.bias, ub - fb.bias - m
+
+    def _predict_pmv(self, obs: Observation, ex: dict, cmd: np.ndarray) -> float:
+        """y0(k+1|k): the model's PMV one control step ahead with ``cmd`` held, without the PMV bias [-]."""
+        mp, b, n_sub = self.model_params, self._bias.values, self.n_sub
+        t_cab, t_evap, *_ = cm.step(
+            mp,
+            obs.t_cab_c,
+            obs.t_evap_c,
+            cmd[0],
+            cmd[1],
+            obs.t_int_c,
+            obs.t_shell_c,
+            ex["t_amb"][0],
+            ex["speed"][0],
+            n_sub=n_sub,
+            d_cab_k=b[0] / n_sub,
+            d_ain_k=b[2],
+            d_evap_k=b[1] / n_sub,
+        )
+        t_mr, pa = self._comfort_now if self._comfort_now is not None else (math.nan, math.nan)
+        return float(
+            cabin_pmv(
+                t_cab_c=float(t_cab),
+                t_vent_c=float(cm.t_ain_c(mp, t_evap, cmd[0], b[2])),
+                mdot_bl_kgps=float(cmd[0]),
+                t_mr_c=float(t_mr),
+                w_rad_wm2=float(cabin_w_rad_wm2(ex["solar"][1 if ex["solar"].size > 1 else 0], self.comfort_params)),
+                pa_pa=float(pa),
+                params=self.comfort_params,
+            )
+        )
+
     def _finish(self, diag: Diagnostics, cmd: np.ndarray, obs: Observation | None, ex: dict | None):
         if obs is not None and ex is not None:
             self._bias.predict(
                 obs.t_cab_c, obs.t_evap_c, cmd[0], cmd[1], obs.t_int_c, obs.t_shell_c, ex["t_amb"][0], ex["speed"][0]
             )
+            if self._pmv_fb is not None:
+                self._pmv_fb.remember(self._predict_pmv(obs, ex, cmd))
         else:
             self._bias.forget_prediction()
+            if self._pmv_fb is not None:
+                self._pmv_fb.forget()
         self._last_cmd = cmd
         diag.mdot_bl_kgps, diag.t_evap_sp_c = float(cmd[0]), float(cmd[1])
         return AcInput(mdot_bl_kgps=float(cmd[0]), t_evap_sp_c=float(cmd[1])), diag

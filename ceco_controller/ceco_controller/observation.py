@@ -35,7 +35,7 @@ def observation(k: int, t_s: float, meas: Mapping, env, u_prev, previews: Previe
             ``t_evap_sp_c`` [degC]; at key-on ``ceco_plant_sim.scenario_plant.KEY_ON_COMMAND``).
         previews: the V2X previews on the grid ``previews.t_s`` = t_s + i * Ts, i = 0..Np.
         scenario: gives the occupant (met, clo) and the PMV comfort bounds, evaluated on the
-            preview grid.
+            preview grid, the number of occupants and the air-quality limits.
     """
     lb, ub = scenario.pmv_bounds(previews.t_s)
     occ = scenario.occupant
@@ -62,6 +62,12 @@ def observation(k: int, t_s: float, meas: Mapping, env, u_prev, previews: Previe
         clo=occ.clo,
         t_glass_c=meas.get("t_glass_c", float("nan")),
         rh_cab=meas.get("rh_cab", float("nan")),
+        co2_cab_ppm=meas.get("co2_cab_ppm", float("nan")),
+        co2_sensor_ppm=meas.get("co2_sensor_ppm", float("nan")),
+        recirc_share=meas.get("recirc_share", float("nan")),
+        n_occupants=int(scenario.occupants),
+        co2_limit_ppm=float(scenario.air_quality.co2_limit_ppm),
+        fog_margin_min_k=float(scenario.air_quality.fog_margin_min_k),
     )
 
 

@@ -53,7 +53,7 @@ INPUT_NAMES = ("mdot_bl_kgps", "t_evap_sp_c")
 
 J_PER_KWH = 3.6e6
 
-_STATE_SCALE = {"w_cab_kgkg": 0.01, "comp_pi_integral_rpm": 1000.0}
+_STATE_SCALE = {"w_cab_kgkg": 0.01, "comp_pi_integral_rpm": 1000.0, "recirc_share": 1.0, "co2_cab_kgkg": 0.001}
 """Nominal magnitudes of the states that are not temperatures [unit] (the NLP's variables are x / scale)."""
 
 

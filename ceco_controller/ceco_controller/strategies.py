@@ -16,6 +16,13 @@ NLP out):
   ``COMFORT_GAMMA_W`` for its scaling).
 * ``ceco-ioch`` eq. (13): slack eps in [0, eps_UB] tightening the upper bound,
   cost beta (eta_AC(V) - 1)/(eps + xi); uses the vehicle-speed preview.
+* ``ceco-pmv``  issue 20's strategy (not the paper's): the least energy that holds the comfort
+  output, the scored PMV at the occupant, close under its bound without crossing it: the measured
+  cabin humidity in the PMV, offset-free feedback on the PMV itself, a back-off that adapts to the
+  measured one-step PMV prediction errors and the measured forecast errors, previews shrunk
+  toward persistence where they only add noise, and a 60-s prediction (the V2X horizon extended
+  by holding its last values). Its pieces:
+  :mod:`ceco_controller.comfort_feedback`; docs/controller.md 4.7.
 
 All CECO strategies share the exact-penalty softening of the comfort and
 T_evap bounds, the offset-free bias correction and the solver settings.
@@ -191,7 +198,7 @@ class StrategySettings:
     """One CECO strategy's NLP settings (see the module docstring)."""
 
     name: str = "ceco"
-    """Strategy name: ceco, ceco-e, ceco-c or ceco-ioch."""
+    """Strategy name: ceco, ceco-e, ceco-c, ceco-ioch or ceco-pmv."""
     horizon_steps: int = 6
     """Prediction horizon Np [steps] (paper: 6)."""
     control_period_s: float = 5.0
@@ -234,6 +241,48 @@ class StrategySettings:
     pmv_newton_steps: int = 3
     """Newton steps on the clothing temperature in the NLP's PMV (the plant uses 4; the 3-step
     value differs by 6e-10 K in T_cl, docs/controller.md) [-]."""
+    horizon_extension_steps: int = 0
+    """Prediction stages beyond the preview horizon Np [steps]: the NLP predicts Np + this many
+    steps, the previews and the comfort bounds held at their last values over the extension
+    (0: the paper's horizon = the preview's)."""
+    pmv_feedback: bool = False
+    """Offset-free feedback on the comfort output: a bias on the predicted PMV from the one-step errors
+    against the PMV computed from the measurements (:class:`~ceco_controller.comfort_feedback.PmvFeedback`)."""
+    pmv_bias_filter: float = 0.3
+    """First-order filter gain of the PMV bias per control step [-] (0..1]."""
+    pmv_bias_limit: float = 0.3
+    """Largest magnitude of the PMV bias [PMV]."""
+    backoff: str = "fixed"
+    """Back-off of the upper PMV bound: 'fixed' (``pmv_margin``) or 'adaptive' (a quantile of the
+    recent one-step PMV prediction residuals plus the forecast-error growth over the horizon;
+    docs/controller.md 4.7); 'adaptive' needs ``pmv_feedback``."""
+    backoff_quantile: float = 0.95
+    """Quantile of the recent one-step PMV residuals (measured minus predicted, bias included) the
+    adaptive back-off covers [-]."""
+    backoff_window_steps: int = 60
+    """Residuals the quantile is taken over (the most recent) [control steps]."""
+    backoff_min_samples: int = 12
+    """Residuals needed before the quantile replaces ``backoff_init_pmv`` [-]."""
+    backoff_init_pmv: float = 0.1
+    """Adaptive back-off before ``backoff_min_samples`` residuals exist [PMV] (the fixed margin of ceco)."""
+    backoff_min_pmv: float = 0.04
+    """Smallest adaptive back-off [PMV]."""
+    backoff_max_pmv: float = 0.3
+    """Largest adaptive back-off [PMV]."""
+    backoff_forecast_z: float = 1.645
+    """Standard normal quantile applied to the PMV spread caused by the solar forecast's error growth
+    beyond the first step [-] (1.645: one-sided 95 %)."""
+    pmv_ub_cap: float = math.inf
+    """Cap on the upper comfort bound the NLP sees [PMV]: min(the observation's bound, this) (inf: the
+    bound as given). ceco-pmv: 0.5, the comfort band: it does not spend the pull-down's relaxed bound, as
+    the matched-comfort axis charges every PMV-hour above +0.5 (docs/controller.md 4.7)."""
+    preview_rule: str = "raw"
+    """How the previews enter the prediction: 'raw' (as received) or 'shrink' (each previewed change
+    from the measured value shrunk by its measured forecast-error variance; docs/controller.md 4.7)."""
+    preview_shrink_c: float = 2.0
+    """'shrink': threshold of the shrinkage in forecast-error standard deviations [-]."""
+    preview_skill_window_steps: float = 60.0
+    """'shrink': memory of the forecast-error variance estimates (exponential forgetting time) [control steps]."""
     solver: SolverSettings = SolverSettings()
     """NLP solver settings."""
 
@@ -270,6 +319,44 @@ class StrategySettings:
             raise ValueError("StrategySettings.t_evap_lb_c must be < t_evap_ub_c")
         if not (isinstance(self.pmv_newton_steps, int) and 1 <= self.pmv_newton_steps <= 50):
             raise ValueError("StrategySettings.pmv_newton_steps must be an int in [1, 50]")
+        if not (type(self.horizon_extension_steps) is int and 0 <= self.horizon_extension_steps <= 200):
+            raise ValueError("StrategySettings.horizon_extension_steps must be an int in [0, 200]")
+        if self.backoff not in ("fixed", "adaptive"):
+            raise ValueError(f"StrategySettings.backoff must be 'fixed' or 'adaptive', got {self.backoff!r}")
+        if self.backoff == "adaptive" and not self.pmv_feedback:
+            raise ValueError("StrategySettings.backoff 'adaptive' needs pmv_feedback (it measures the PMV residuals)")
+        if not (isinstance(self.pmv_ub_cap, (int, float)) and -3.0 <= self.pmv_ub_cap):
+            raise ValueError(f"StrategySettings.pmv_ub_cap must be >= -3 (inf: no cap), got {self.pmv_ub_cap!r}")
+        if self.preview_rule not in ("raw", "shrink"):
+            raise ValueError(f"StrategySettings.preview_rule must be 'raw' or 'shrink', got {self.preview_rule!r}")
+        for name in (
+            "backoff_init_pmv",
+            "backoff_min_pmv",
+            "backoff_max_pmv",
+            "backoff_forecast_z",
+            "preview_shrink_c",
+        ):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"StrategySettings.{name} must be finite and >= 0, got {v!r}")
+        if not self.backoff_min_pmv <= self.backoff_max_pmv:
+            raise ValueError("StrategySettings.backoff_min_pmv must be <= backoff_max_pmv")
+        if not 0.0 < self.pmv_bias_filter <= 1.0:
+            raise ValueError("StrategySettings.pmv_bias_filter must be in (0, 1]")
+        if not (math.isfinite(self.pmv_bias_limit) and self.pmv_bias_limit >= 0):
+            raise ValueError("StrategySettings.pmv_bias_limit must be finite and >= 0")
+        if not 0.5 <= self.backoff_quantile < 1.0:
+            raise ValueError("StrategySettings.backoff_quantile must be in [0.5, 1)")
+        for name in ("backoff_window_steps", "backoff_min_samples"):
+            v = getattr(self, name)
+            if not (type(v) is int and 1 <= v <= 100000):
+                raise ValueError(f"StrategySettings.{name} must be an int in [1, 100000]")
+        if self.backoff_min_samples > self.backoff_window_steps:
+            raise ValueError("StrategySettings.backoff_min_samples must be <= backoff_window_steps")
+        if not (math.isfinite(self.preview_skill_window_steps) and self.preview_skill_window_steps >= 1.0):
+            raise ValueError("StrategySettings.preview_skill_window_steps must be finite and >= 1")
+        if self.nlp_steps > 200:
+            raise ValueError("StrategySettings.horizon_steps + horizon_extension_steps must be <= 200")
         if self.solver.max_cpu_time_s >= self.control_period_s:
             raise ValueError("StrategySettings.solver.max_cpu_time_s must be below control_period_s")
         if self.solver.step_budget_s >= self.control_period_s:
@@ -286,12 +373,26 @@ class StrategySettings:
             )
         self.solver.validate()
 
+    @property
+    def nlp_steps(self) -> int:
+        """Stages of the NLP: the preview horizon Np plus the extension [steps]."""
+        return self.horizon_steps + self.horizon_extension_steps
 
-_DEFAULTS = {
+
+_DEFAULTS: dict[str, dict[str, Any]] = {
     "ceco": dict(pmv_margin=0.1),
     "ceco-e": dict(),
     "ceco-c": dict(gamma_w=COMFORT_GAMMA_W),
     "ceco-ioch": dict(ioch=True, use_speed_preview=True, pmv_margin=0.1, beta_w=1000.0),
+    "ceco-pmv": dict(
+        pmv_pa_source="measured",
+        horizon_extension_steps=6,
+        pmv_feedback=True,
+        pmv_ub_cap=0.5,
+        backoff="adaptive",
+        preview_rule="shrink",
+        use_speed_preview=True,
+    ),
 }
 
 
@@ -307,11 +408,7 @@ def resolved_transcription(settings: StrategySettings) -> str:
         return t
     if settings.solver.name in ("ipopt", "fatrop"):
         return "multiple-shooting"
-    return (
-        "single-shooting"
-        if settings.horizon_steps <= settings.solver.single_shooting_max_steps
-        else "multiple-shooting"
-    )
+    return "single-shooting" if settings.nlp_steps <= settings.solver.single_shooting_max_steps else "multiple-shooting"
 
 
 def auto_solver_name(transcription: str) -> str:

@@ -199,7 +199,7 @@ def build_problem(
     if transcription not in TRANSCRIPTIONS:
         raise ValueError(f"transcription must be one of {TRANSCRIPTIONS}, got {transcription!r}")
     s, mp, cp = settings, model_params, comfort_params
-    n = s.horizon_steps
+    n = s.nlp_steps  # the preview horizon Np plus the extension (held previews)
     n_sub = cm.substeps(mp, s.control_period_s)
     ts_kj = s.control_period_s / 1000.0  # W -> kJ over one control period
     SX = casadi.SX

@@ -27,7 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from ceco_core import psychro
+from ceco_core import mathops, psychro
+from ceco_core.air_quality import fog_margin_k
 from ceco_core.comfort import DEFAULT_SMOOTHING, PmvSmoothing, iso7730_validity, pmv, ppd
 from ceco_core.draught import DR_EXACT, draught_rating
 from ceco_core.occupant import (
@@ -277,30 +278,27 @@ class OccupantComfort:
 def evaluate_cabin_comfort(
     *, t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, rh_cab, mdot_bl_kgps, solar_wm2, params, pa_pa=None
 ):
-    """Every comfort series from the plant's measurements (numpy; used by the plant and the metrics).
+    """Every comfort series from the plant's measurements (numpy: plant, metrics; CasADi: compiled plant).
 
     ``pa_pa`` (the PMV's vapour pressure) defaults to the cabin's, rh_cab * p_ws(T_cab) (the plant's
     moisture balance); pass :data:`PAPER_PA_PA` to score with the paper's constant. The dew point
     and fog margin are always the cabin air's (a scored constant does not wet the windscreen).
+    With CasADi inputs every field is an expression (``iso7730_valid`` a 0/1 one).
     """
     params.validate()
-    t_cab = np.asarray(t_cab_c, dtype=float)
-    pa_cab = psychro.vapour_pressure_pa(t_cab, np.asarray(rh_cab, dtype=float))
-    pa = pa_cab if pa_pa is None else np.asarray(pa_pa, dtype=float)
-    air = occupant_air(
-        t_cab_c=t_cab,
-        t_vent_c=np.asarray(t_vent_c, dtype=float),
-        mdot_bl_kgps=np.asarray(mdot_bl_kgps, dtype=float),
-        params=params.air,
-    )
+    symbolic = mathops.is_casadi(t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, rh_cab, mdot_bl_kgps, solar_wm2)
+
+    def arr(v):
+        return v if symbolic else np.asarray(v, dtype=float)
+
+    t_cab = arr(t_cab_c)
+    pa_cab = psychro.vapour_pressure_pa(t_cab, arr(rh_cab))
+    pa = pa_cab if pa_pa is None else arr(pa_pa)
+    air = occupant_air(t_cab_c=t_cab, t_vent_c=arr(t_vent_c), mdot_bl_kgps=arr(mdot_bl_kgps), params=params.air)
     t_mr = cabin_mrt_c(
-        t_cab_c=t_cab,
-        t_int_c=np.asarray(t_int_c, dtype=float),
-        t_shell_c=np.asarray(t_shell_c, dtype=float),
-        t_glass_c=np.asarray(t_glass_c, dtype=float),
-        params=params,
+        t_cab_c=t_cab, t_int_c=arr(t_int_c), t_shell_c=arr(t_shell_c), t_glass_c=arr(t_glass_c), params=params
     )
-    w_rad = cabin_w_rad_wm2(np.asarray(solar_wm2, dtype=float), params)
+    w_rad = cabin_w_rad_wm2(arr(solar_wm2), params)
     y = _pmv_at(air, t_mr, w_rad, pa, params)  # the NMPC's cabin_pmv, in the same air
     t_dew = psychro.dew_point_c(pa_cab)
     valid = iso7730_validity(air.ta_occ_c, t_mr, air.vel_occ_mps, pa, params.met, params.clo, y).all
@@ -310,7 +308,7 @@ def evaluate_cabin_comfort(
         ppd=ppd(y),
         pa_pa=pa,
         t_dew_c=t_dew,
-        fog_margin_k=np.asarray(t_glass_c, dtype=float) - t_dew,
+        fog_margin_k=fog_margin_k(arr(t_glass_c), pa_cab),
         dr_pct=dr,
         ta_occ_c=air.ta_occ_c,
         vel_occ_mps=air.vel_occ_mps,

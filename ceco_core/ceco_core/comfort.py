@@ -427,7 +427,13 @@ class Iso7730Validity:
 
     @property
     def all(self):
-        """True where every input and the PMV are inside the ISO ranges."""
+        """True where every input and the PMV are inside the ISO ranges (a 0/1 expression with CasADi flags)."""
+        if mathops.is_casadi(*(getattr(self, f.name) for f in dataclasses.fields(self))):
+            flags = [getattr(self, f.name) for f in dataclasses.fields(self)]
+            out = flags[0]
+            for flag in flags[1:]:
+                out = casadi.logic_and(out, flag)
+            return out
         out = np.ones(
             np.broadcast_shapes(*(np.shape(getattr(self, f.name)) for f in dataclasses.fields(self))), dtype=bool
         )
@@ -439,11 +445,16 @@ class Iso7730Validity:
 def iso7730_validity(ta_c, tr_c, vel_mps, pa_pa, met, clo, pmv):
     """Flag which inputs are inside the ISO 7730:2005 Clause 4 applicability ranges.
 
-    Numeric inputs only (numpy broadcasting); NaN is flagged invalid.
+    Numeric inputs (numpy broadcasting; NaN is flagged invalid) or CasADi expressions (0/1 flags).
     Returns an :class:`Iso7730Validity`.
     """
     values = dict(ta_c=ta_c, tr_c=tr_c, vel_mps=vel_mps, pa_pa=pa_pa, met=met, clo=clo, pmv=pmv)
     flags = {}
+    if mathops.is_casadi(*values.values()):  # 0/1 expressions (the compiled plant)
+        for name, value in values.items():
+            lo, hi = _ISO_RANGES[name]
+            flags[name] = casadi.logic_and(value >= lo, value <= hi)
+        return Iso7730Validity(**flags)
     for name, value in values.items():
         arr = np.asarray(value, dtype=float)
         lo, hi = _ISO_RANGES[name]

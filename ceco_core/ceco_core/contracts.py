@@ -27,6 +27,9 @@ __all__ = [
     "MDOT_BL_MAX_KGPS",
     "T_EVAP_SP_MIN_C",
     "T_EVAP_SP_MAX_C",
+    "RECIRC_SHARE_MIN",
+    "RECIRC_SHARE_MAX",
+    "RECIRC_NOT_COMMANDED_WIRE",
     "AcInput",
     "ActuatorLimits",
     "ACTUATOR_LIMITS",
@@ -54,10 +57,17 @@ T_EVAP_SP_MIN_C = 3.0
 """Lower bound of the evaporator wall temperature set-point [degC] (method paper, eq. 13)."""
 T_EVAP_SP_MAX_C = 10.0
 """Upper bound of the evaporator wall temperature set-point [degC] (method paper, eq. 13)."""
+RECIRC_SHARE_MIN = 0.0
+"""Lower bound of the commanded recirculated share of the blower flow [-] (0: fresh air only)."""
+RECIRC_SHARE_MAX = 1.0
+"""Upper bound of the commanded recirculated share of the blower flow [-] (1: full recirculation)."""
+RECIRC_NOT_COMMANDED_WIRE = -1.0
+"""AcCommand.recirc_share meaning "the door is not commanded" (the message's default; NaN means the same)."""
 
 
-CECO_STRATEGIES = ("ceco", "ceco-e", "ceco-c", "ceco-ioch")
-"""Names of the NMPC strategies (settings in ``ceco_controller.strategies``)."""
+CECO_STRATEGIES = ("ceco", "ceco-e", "ceco-c", "ceco-ioch", "ceco-pmv")
+"""Names of the NMPC strategies (settings in ``ceco_controller.strategies``): the paper's four and issue 20's
+comfort-output strategy ``ceco-pmv``."""
 
 BASELINE_STRATEGY = "baseline"
 """Name of the production climate control used as the baseline."""
@@ -71,9 +81,22 @@ EXTERNAL_STRATEGY = "external"
 WIRE_STRATEGIES = STRATEGIES + (EXTERNAL_STRATEGY,)
 """Every AcCommand.strategy the plant accepts."""
 
-MEASUREMENTS = ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c", "t_vent_c", "rh_cab")
-"""Keys of the measurement mapping [degC, rh_cab in 0..1] that the plant hands to a controller
-(``ScenarioPlant.meas``; the fields of ceco_msgs/CabinState)."""
+MEASUREMENTS = (
+    "t_cab_c",
+    "t_int_c",
+    "t_shell_c",
+    "t_glass_c",
+    "t_evap_c",
+    "t_vent_c",
+    "rh_cab",
+    "co2_cab_ppm",
+    "co2_sensor_ppm",
+    "recirc_share",
+)
+"""Keys of the measurement mapping that the plant hands to a controller (``ScenarioPlant.meas``; the fields
+of ceco_msgs/CabinState): temperatures [degC], cabin RH [0..1], cabin CO2 [ppm] (the plant's), the cabin
+CO2 sensor's reading [ppm] (NaN when no sensor is fitted or it failed) and the door's position, the
+recirculated share [0..1]."""
 
 MEASUREMENT_MODES = ("full", "vehicle")
 """What a controller reads: ``full``, every plant state it models (the default); ``vehicle``, only the
@@ -102,18 +125,39 @@ class AcInput:
     """Blower (supply) air mass flow [kg/s], in [0.05, 0.17]."""
     t_evap_sp_c: float
     """Evaporator wall temperature set-point [degC], in [3, 10]."""
+    recirc_share: float = math.nan
+    """Commanded recirculated share of the blower flow [-], in [0, 1] (0 fresh air, 1 full recirculation);
+    NaN: the door is not commanded, the plant holds its default share (``PlantParams.recirc_fraction``, 0.8)."""
 
     def __post_init__(self) -> None:
         self.validate()
 
+    @property
+    def door_commanded(self) -> bool:
+        """True when the command sets the recirculation door (``recirc_share`` is not NaN)."""
+        return not math.isnan(self.recirc_share)
+
     def validate(self) -> AcInput:
-        """Raise ValueError naming the field if it is not finite or outside the actuator bounds."""
+        """Raise ValueError naming the field if it is not finite or outside the actuator bounds.
+
+        ``recirc_share`` may be NaN (not commanded); an infinite or out-of-range share is refused.
+        """
         m = check_finite("mdot_bl_kgps", self.mdot_bl_kgps)
         if not MDOT_BL_MIN_KGPS <= m <= MDOT_BL_MAX_KGPS:
             raise ValueError(f"mdot_bl_kgps: must be in [{MDOT_BL_MIN_KGPS}, {MDOT_BL_MAX_KGPS}] kg/s, got {m}")
         t = check_finite("t_evap_sp_c", self.t_evap_sp_c)
         if not T_EVAP_SP_MIN_C <= t <= T_EVAP_SP_MAX_C:
             raise ValueError(f"t_evap_sp_c: must be in [{T_EVAP_SP_MIN_C}, {T_EVAP_SP_MAX_C}] degC, got {t}")
+        try:
+            r = float(self.recirc_share)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"recirc_share: must be a number or NaN (not commanded), got {self.recirc_share!r}"
+            ) from None
+        if not math.isnan(r) and not RECIRC_SHARE_MIN <= r <= RECIRC_SHARE_MAX:
+            raise ValueError(
+                f"recirc_share: must be in [{RECIRC_SHARE_MIN}, {RECIRC_SHARE_MAX}] or NaN (not commanded), got {r}"
+            )
         return self
 
 
@@ -268,6 +312,19 @@ class Observation:
     """Measured glazing temperature [degC] (for the mean radiant temperature; NaN if not measured)."""
     rh_cab: float = math.nan
     """Measured cabin relative humidity [0..1] (for the PMV's vapour pressure; NaN if not measured)."""
+    co2_cab_ppm: float = math.nan
+    """Cabin CO2 [ppm]: the plant's (measurements 'full') or the estimate from the sensor and the CO2 balance
+    ('vehicle'); NaN if unknown."""
+    co2_sensor_ppm: float = math.nan
+    """The cabin CO2 sensor's reading [ppm]; NaN when no sensor is fitted or it failed."""
+    recirc_share: float = math.nan
+    """Measured position of the fresh/recirculation door: recirculated share [0..1] (NaN if not measured)."""
+    n_occupants: int = 1
+    """People in the car [-] (seat-occupancy detection)."""
+    co2_limit_ppm: float = 1500.0
+    """The occupant's CO2 limit [ppm] (the scenario's ``air_quality``)."""
+    fog_margin_min_k: float = 3.0
+    """The smallest acceptable windshield fog margin [K] (the scenario's ``air_quality``)."""
 
     def __post_init__(self):
         n = np.asarray(self.pmv_lb).size

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from ceco_core.air_quality import AirQualityLimits
 from ceco_core.contracts import MDOT_BL_MAX_KGPS, MDOT_BL_MIN_KGPS, T_EVAP_SP_MAX_C, T_EVAP_SP_MIN_C
 from ceco_core.metrics import (
     COMFORT_HOLD_S,
@@ -37,6 +38,7 @@ __all__ = [
     "pmv_band_distance",
     "band_phase",
     "actuator_travel",
+    "air_quality_kpis",
 ]
 
 
@@ -68,6 +70,11 @@ KPI_KEYS = (
     "draught_max_pct",
     "fog_margin_min_k",
     "fog_risk_pct",
+    "fog_below_bound_s",
+    "co2_max_ppm",
+    "co2_exposure_ppmh",
+    "co2_above_limit_pct",
+    "air_quality_met",
     "iso7730_invalid_pct",
     "actuator_travel",
     "travel_mdot_kgps",
@@ -127,6 +134,52 @@ def _column(columns: Mapping, key: str, n: int, notes: dict, why: str):
     return as_series(key, columns[key], n)
 
 
+def _unrecorded(series) -> bool:
+    """True for a series that was not recorded: None, empty or all NaN (read from a bag of an older format)."""
+    if series is None:
+        return True
+    a = np.asarray(series, dtype=float)
+    return a.size == 0 or bool(np.all(np.isnan(a)))
+
+
+def air_quality_kpis(co2_cab_ppm, fog_margin_k, dt_s: float, limits: AirQualityLimits) -> tuple[dict, dict]:
+    """The air-quality KPIs of uniform samples ``dt_s`` [s] apart (docs/metrics.md, "Air quality").
+
+    ``co2_max_ppm`` [ppm]; ``co2_exposure_ppmh``, the time integral of the CO2 above ``limits.co2_limit_ppm``
+    [ppm h]; ``co2_above_limit_pct``, the share of samples above it [%]; ``fog_below_bound_s``, the time with the
+    fog margin below ``limits.fog_margin_min_k`` [s]; ``air_quality_met`` 1.0 when the run never passes either
+    limit, else 0.0. Either series may be None (not recorded) or all NaN (a run of before issue 21): its KPIs are
+    then None with a note, and ``air_quality_met`` is judged on the other alone (None when neither exists).
+    Returns ``(kpis, notes)``.
+    """
+    k: dict = {key: None for key in ("co2_max_ppm", "co2_exposure_ppmh", "co2_above_limit_pct")}
+    k["fog_below_bound_s"] = k["air_quality_met"] = None
+    notes: dict = {}
+    met = []
+    if _unrecorded(co2_cab_ppm):
+        for key in ("co2_max_ppm", "co2_exposure_ppmh", "co2_above_limit_pct"):
+            notes[key] = "run has no cabin CO2 series (not recorded)"
+    else:
+        c = as_series("co2_cab_ppm", co2_cab_ppm, None)
+        over = np.maximum(c - limits.co2_limit_ppm, 0.0)
+        k["co2_max_ppm"] = float(np.max(c))
+        k["co2_exposure_ppmh"] = float(np.sum(over) * dt_s / 3600.0)
+        k["co2_above_limit_pct"] = 100.0 * float(np.count_nonzero(over > 0.0)) / c.size
+        met.append(not np.any(over > 0.0))
+    if _unrecorded(fog_margin_k):
+        notes["fog_below_bound_s"] = "run has no fog margin series"
+    else:
+        f = as_series("fog_margin_k", fog_margin_k, None)
+        below = f < limits.fog_margin_min_k
+        k["fog_below_bound_s"] = float(np.count_nonzero(below)) * dt_s
+        met.append(not np.any(below))
+    if met:
+        k["air_quality_met"] = 1.0 if all(met) else 0.0
+    else:
+        notes["air_quality_met"] = "run has neither a CO2 nor a fog margin series"
+    return k, notes
+
+
 def discomfort_pmvh(band_distance, dt_s: float) -> float:
     """Thermal discomfort [PMV h], the time integral of ``band_distance``.
 
@@ -143,6 +196,7 @@ def compute_kpis(
     control_period_s: float | None = None,
     fallback_steps: int | None = None,
     band=COMFORT_BAND_PMV,
+    air_limits: AirQualityLimits | None = None,
 ) -> tuple[dict, dict]:
     """The benchmark KPIs of one run (docs/metrics.md, "Benchmark KPIs").
 
@@ -157,6 +211,8 @@ def compute_kpis(
         control_period_s: Ts [s] for the time ratios.
         fallback_steps: control steps whose command came from a fallback; None: null.
         band: the fixed comfort band (ISO 7730 category B).
+        air_limits: the scenario's CO2 limit and fog bound (default :class:`AirQualityLimits`) for the
+            air-quality KPIs (:func:`air_quality_kpis`; from ``co2_cab_ppm`` and ``fog_margin_k`` when present).
 
     Returns:
         ``(kpis, notes)``: ``kpis`` maps every key of :data:`KPI_KEYS` to a float or
@@ -221,6 +277,9 @@ def compute_kpis(
     else:
         fstat = fog_margin_stats(fog)
         k["fog_margin_min_k"], k["fog_risk_pct"] = fstat["fog_margin_min_k"], fstat["fog_risk_pct"]
+    aq, aq_notes = air_quality_kpis(columns.get("co2_cab_ppm"), fog, dt, (air_limits or AirQualityLimits()).validate())
+    k.update(aq)
+    notes.update(aq_notes)
     valid = _column(columns, "iso7730_valid", n, notes, "iso7730_invalid_pct")
     if valid is not None:
         k["iso7730_invalid_pct"] = iso7730_invalid_pct(valid)

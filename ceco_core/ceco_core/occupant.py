@@ -242,7 +242,7 @@ def shell_inside_surface_c(t_cab_c, t_shell_c, u_shell_in_wm2k, h_film_wm2k):
     surface at the fraction (1/h_film) / (1/U_sh) of the way from the air to
     the sheet.
     """
-    if not 0 < u_shell_in_wm2k <= h_film_wm2k:
+    if not mathops.is_casadi(u_shell_in_wm2k, h_film_wm2k) and not 0 < u_shell_in_wm2k <= h_film_wm2k:
         raise ValueError("shell_inside_surface_c: need 0 < u_shell_in_wm2k <= h_film_wm2k")
     return t_cab_c + (u_shell_in_wm2k / h_film_wm2k) * (t_shell_c - t_cab_c)
 

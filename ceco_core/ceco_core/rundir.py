@@ -28,6 +28,7 @@ __all__ = [
     "TIMESERIES_COLUMNS",
     "TIMESERIES_EXTRA",
     "COMFORT_COLUMNS",
+    "AIR_COLUMNS",
     "format_cell",
     "write_csv",
     "read_csv_columns",
@@ -75,14 +76,23 @@ pressure used in the scored PMV [Pa], cabin dew point [degC], inner glazing minu
 draught rating at the occupant [%], the PMV inputs at the occupant (air temperature [degC], air speed
 [m/s], mean radiant temperature [degC], absorbed sun [W/m2]) and ISO 7730 validity (1/0)."""
 
+AIR_COLUMNS = ("co2_cab_ppm", "co2_sensor_ppm", "recirc_share", "recirc_share_cmd")
+"""Cabin air quality and the door (issue 21, docs/plant.md): cabin CO2 [ppm], the CO2 sensor's reading [ppm]
+(empty: no sensor or a failed one), the door's position and the door command applied over the step
+(recirculated share [0..1]; the plant's default where the controller left the door alone)."""
+
 TIMESERIES_EXTRA = (
-    "t_glass_c",
-    "rh_cab",
-    "p_cond_fan_w",
-    "q_latent_w",
-    "comp_speed_rpm",
-    "capacity_limited",
-) + COMFORT_COLUMNS
+    (
+        "t_glass_c",
+        "rh_cab",
+        "p_cond_fan_w",
+        "q_latent_w",
+        "comp_speed_rpm",
+        "capacity_limited",
+    )
+    + COMFORT_COLUMNS
+    + AIR_COLUMNS
+)
 """Extra columns the simulator and the stack both write after the contract's."""
 
 

@@ -25,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from ceco_core.air_quality import CO2_AMB_PPM_DEFAULT, AirQualityLimits
+
 __all__ = [
     "ScenarioError",
     "Environment",
@@ -33,6 +35,9 @@ __all__ = [
     "InitialState",
     "ControlDefaults",
     "SunGeometry",
+    "AirQuality",
+    "CO2_SENSORS",
+    "OCCUPANTS_RANGE",
     "DriveCycle",
     "Scenario",
     "check_number",
@@ -57,6 +62,14 @@ PMV_BOUND_RANGE = (-10.0, 10.0)
 """PMV bounds: the scale is -3..+3 but a relaxed pull-down bound may exceed it."""
 SPEED_MAX_MPS = 70.0
 """Drive-cycle speed sanity limit (252 km/h)."""
+OCCUPANTS_RANGE = (1, 5)
+"""Number of people in the car: the driver up to a five-seat car full."""
+CO2_AMB_RANGE_PPM = (300.0, 2000.0)
+"""Ambient CO2 [ppm]: pre-industrial 280 below, a congested tunnel's few hundred above background."""
+CO2_CAB_RANGE_PPM = (300.0, 20000.0)
+"""Initial cabin CO2 [ppm]: up to a crowded car left closed (well above any limit)."""
+CO2_SENSORS = ("ndir", "none")
+"""Cabin CO2 sensor fitted: an NDIR sensor (docs/plant.md: accuracy, lag, noise) or none."""
 
 
 class ScenarioError(ValueError):
@@ -137,12 +150,15 @@ class InitialState(Mapping):
     """Evaporator wall temperature [degC]."""
     rh_cab: float
     """Cabin air relative humidity [-], 0..1."""
+    co2_cab_ppm: float = CO2_AMB_PPM_DEFAULT
+    """Cabin CO2 [ppm] (the loader's default: the scenario's ambient CO2)."""
 
     def validate(self) -> None:
         """Raise ScenarioError naming the first bad field."""
         for name in TEMPERATURE_FIELDS:
             check_number(f"initial.{name}", getattr(self, name), T_STATE_RANGE_C)
         check_number("initial.rh_cab", self.rh_cab, (0.0, 1.0))
+        check_number("initial.co2_cab_ppm", self.co2_cab_ppm, CO2_CAB_RANGE_PPM)
 
     def __getitem__(self, key: str) -> float:
         if key not in INITIAL_FIELDS:
@@ -157,7 +173,7 @@ class InitialState(Mapping):
 
 
 TEMPERATURE_FIELDS = ("t_cab_c", "t_int_c", "t_shell_c", "t_glass_c", "t_evap_c")
-INITIAL_FIELDS = (*TEMPERATURE_FIELDS, "rh_cab")
+INITIAL_FIELDS = (*TEMPERATURE_FIELDS, "rh_cab", "co2_cab_ppm")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -176,6 +192,41 @@ class ControlDefaults:
             raise ScenarioError(f"control.horizon_steps: must be an integer, got {self.horizon_steps!r}")
         if not 1 <= self.horizon_steps <= 1000:
             raise ScenarioError(f"control.horizon_steps: must be in 1..1000, got {self.horizon_steps}")
+
+
+@dataclasses.dataclass(frozen=True)
+class AirQuality:
+    """The air around and inside the car, and the limits a run is scored against (scenario ``air_quality:``)."""
+
+    co2_amb_ppm: float = CO2_AMB_PPM_DEFAULT
+    """Ambient CO2 [ppm] (mole fraction in dry air), constant over the run; 300..2000."""
+    co2_limit_ppm: float = AirQualityLimits.co2_limit_ppm
+    """Largest acceptable cabin CO2 [ppm] (``AirQualityLimits``); 450..10000."""
+    fog_margin_min_k: float = AirQualityLimits.fog_margin_min_k
+    """Smallest acceptable windshield fog margin [K] (``AirQualityLimits``); 0..10."""
+    co2_sensor: str = "ndir"
+    """Cabin CO2 sensor of the car: ``ndir`` (fitted) or ``none`` (:data:`CO2_SENSORS`)."""
+    co2_sensor_fail_s: float | None = None
+    """Time from which the CO2 sensor reports no value (a dead sensor) [s]; None: it never fails."""
+
+    @property
+    def limits(self) -> AirQualityLimits:
+        """The scored limits."""
+        return AirQualityLimits(self.co2_limit_ppm, self.fog_margin_min_k)
+
+    def validate(self) -> None:
+        """Raise ScenarioError naming the first bad field."""
+        check_number("air_quality.co2_amb_ppm", self.co2_amb_ppm, CO2_AMB_RANGE_PPM)
+        check_number("air_quality.co2_limit_ppm", self.co2_limit_ppm, (450.0, 10000.0))
+        check_number("air_quality.fog_margin_min_k", self.fog_margin_min_k, (0.0, 10.0))
+        if self.co2_sensor not in CO2_SENSORS:
+            raise ScenarioError(f"air_quality.co2_sensor: must be one of {CO2_SENSORS}, got {self.co2_sensor!r}")
+        if self.co2_sensor_fail_s is not None:
+            check_number("air_quality.co2_sensor_fail_s", self.co2_sensor_fail_s, (0.0, 1.0e6))
+        if self.co2_limit_ppm <= self.co2_amb_ppm:
+            raise ScenarioError(
+                f"air_quality.co2_limit_ppm: {self.co2_limit_ppm} must exceed co2_amb_ppm {self.co2_amb_ppm}"
+            )
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -290,6 +341,10 @@ class Scenario:
     """Suggested control period and horizon."""
     sun: SunGeometry = SunGeometry()
     """Sun position and car heading (SolarCal geometry of the occupant's solar gain)."""
+    occupants: int = 1
+    """People in the car, 1..5 (their CO2, moisture and heat scale with the number; the scored occupant is one)."""
+    air_quality: AirQuality = AirQuality()
+    """Ambient CO2, the CO2 sensor and the air-quality limits."""
     seed: int = 0
     """Seed for everything random in a run (preview noise)."""
     source: str = ""
@@ -297,6 +352,12 @@ class Scenario:
 
     # ------------------------------------------------------------------ truth
     def _check_t(self, t_s):
+        if type(t_s) is float:  # the simulator's per-step call: the same checks without numpy's overhead
+            if not math.isfinite(t_s):
+                raise ValueError("t_s: must be finite")
+            if t_s < 0.0:
+                raise ValueError(f"t_s: must be >= 0, got min {t_s}")
+            return t_s
         t = np.asarray(t_s, dtype=float)
         if np.any(~np.isfinite(t)):
             raise ValueError("t_s: must be finite")

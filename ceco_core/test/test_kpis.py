@@ -127,3 +127,39 @@ def test_bad_series_name_the_column(col):
         mt.compute_kpis(s)
     with pytest.raises(ValueError, match="uniformly"):
         mt.compute_kpis(_series([0.0] * 4) | {"t_s": np.array([0.0, 1.0, 3.0, 4.0])})
+
+
+def test_air_quality_kpis_on_a_hand_made_series():
+    """10 s samples: CO2 1400, 1600, 1800, 1500, 1000 ppm against 1500: exposure (100 + 300) ppm x 10 s = 1.111 ppm h,
+    max 1800, 2 of 5 samples above (the limit itself is not above); fog margins 5, 2.5, 4, 3, 1 K against 3 K:
+    two samples below, 20 s; the run breaks the limits."""
+    from ceco_core.air_quality import AirQualityLimits
+
+    s = _series(
+        [0.0] * 5,
+        co2_cab_ppm=np.array([1400.0, 1600.0, 1800.0, 1500.0, 1000.0]),
+        fog_margin_k=np.array([5.0, 2.5, 4.0, 3.0, 1.0]),
+    )
+    k, notes = mt.compute_kpis(s)
+    assert k["co2_exposure_ppmh"] == pytest.approx(400.0 * 10.0 / 3600.0, rel=1e-12)
+    assert k["co2_max_ppm"] == 1800.0 and k["co2_above_limit_pct"] == pytest.approx(40.0)
+    assert k["fog_below_bound_s"] == 20.0 and k["air_quality_met"] == 0.0
+    assert not {"co2_max_ppm", "fog_below_bound_s", "air_quality_met"} & set(notes)
+    # a 2000 ppm limit and a 0.5 K fog bound: the same run meets both
+    k2, _ = mt.compute_kpis(s, air_limits=AirQualityLimits(co2_limit_ppm=2000.0, fog_margin_min_k=0.5))
+    assert k2["co2_exposure_ppmh"] == 0.0 and k2["co2_above_limit_pct"] == 0.0
+    assert k2["fog_below_bound_s"] == 0.0 and k2["air_quality_met"] == 1.0
+
+
+def test_air_quality_kpis_of_a_run_without_co2_are_unknown_never_zero():
+    """A run recorded before issue 21 (no CO2 column, or a column of NaN read from an old bag): the CO2 KPIs are
+    None with a note; air_quality_met is judged on the fog margin alone."""
+    for co2 in (None, np.full(5, np.nan)):
+        extra = {"fog_margin_k": np.full(5, 6.0)}
+        if co2 is not None:
+            extra["co2_cab_ppm"] = co2
+        k, notes = mt.compute_kpis(_series([0.0] * 5, **extra))
+        assert k["co2_max_ppm"] is None and k["co2_exposure_ppmh"] is None and "CO2" in notes["co2_max_ppm"]
+        assert k["air_quality_met"] == 1.0 and k["fog_below_bound_s"] == 0.0
+    with pytest.raises(ValueError, match="co2_cab_ppm"):
+        mt.compute_kpis(_series([0.0] * 3, co2_cab_ppm=np.array([500.0, np.nan, 600.0])))

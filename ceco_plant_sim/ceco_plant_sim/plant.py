@@ -23,6 +23,8 @@ t_evap_c                   evaporator wall (fins + tubes)           degC
 t_duct_c                   HVAC case + ducts after the evaporator   degC
 w_cab_kgkg                 cabin humidity ratio                     kg/kg dry air
 comp_pi_integral_rpm       integral part of the compressor PI       rpm
+recirc_share               fresh/recirculation door position        0..1
+co2_cab_kgkg               cabin CO2                                kg/kg dry air
 =========================  ======================================  =======
 
 Equations, units, references and the parameter table: ``docs/plant.md``.
@@ -30,16 +32,16 @@ Equations, units, references and the parameter table: ``docs/plant.md``.
 
 from __future__ import annotations
 
-import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import fields
 
 from ceco_core.contracts import AcInput
 from ceco_core.contracts import check_finite as _check_finite
-from ceco_core.psychro import relative_humidity
 from ceco_plant_sim.plant_equations import (
     NO_GUESS,
     Env,
+    Guess,
     Input,
     NewtonCycle,
     PlantEquations,
@@ -176,23 +178,38 @@ class CabinPlant:
         if dt > 3600.0:
             raise ValueError(f"dt_s: must be <= 3600 s, got {dt}")
         env_v = Env._make(validate_environment(env))
-        u = Input(float(command.mdot_bl_kgps), float(command.t_evap_sp_c))
+        u = self.equation_input(command)
         # the warm start is advanced by the RK4 stages only; the end-of-step report does not touch it, so
         # splitting an interval into more calls of step() reproduces the same sub-step sequence bit for bit
-        x, acc, self._guess, _ = self._eq.step(self._x, u, env_v, dt, self._guess)
+        x, acc, guess, _ = self._eq.step(self._x, u, env_v, dt, self._guess)
+        return self.commit(x, guess, dt, lambda: PlantOutputs(**self._eq.outputs(x, u, env_v, dt, acc, guess)[0]))
+
+    def commit(self, x_next, guess, dt_s: float, outputs: Callable[[], PlantOutputs]) -> PlantOutputs:
+        """Take a step's result as the plant's new state (the numeric :meth:`step` and the compiled fast path).
+
+        ``x_next``: the state after ``dt_s`` [s] (RuntimeError naming the first non-finite one, the plant
+        unchanged); ``guess``: the refrigerant warm start after the step; ``outputs()``: its report.
+        """
+        x = State._make(float(v) for v in x_next)
         for i, v in enumerate(x):
             if not math.isfinite(v):
                 raise RuntimeError(f"plant state {fields(PlantState)[i].name} became non-finite")
+        out = outputs()
         self._x = x
-        self._t_s += dt
-        out = dataclasses.replace(
-            self._outputs(x, u, env_v, dt, *acc[:5]),  # compressor, fan, evaporator, latent, refrigerant [J]
-            m_water_in_kg=acc.mdot_water_in_kgps,
-            m_water_out_kg=acc.mdot_water_out_kgps,
-            m_condensate_kg=acc.mdot_condensate_kgps,
-        )
+        self._guess = Guess._make(guess)
+        self._t_s += dt_s
         self._last = out
         return out
+
+    @property
+    def state_vector(self) -> State:
+        """Current state as the equations' named tuple (no PlantState built)."""
+        return self._x
+
+    @property
+    def warm_start(self) -> Guess:
+        """The refrigerant solve's warm start carried to the next step."""
+        return self._guess
 
     def snapshot(self, command: AcInput, env) -> PlantOutputs:
         """Instantaneous outputs at the current state for ``command`` and ``env``, without advancing time.
@@ -206,46 +223,15 @@ class CabinPlant:
             raise ValueError(f"command: must be AcInput, got {type(command).__name__}")
         command.validate()
         env_v = Env._make(validate_environment(env))
-        u = Input(float(command.mdot_bl_kgps), float(command.t_evap_sp_c))
+        u = self.equation_input(command)
         flows = self._eq.rhs(self._x, u, blower_power_w(self.params, u.mdot_bl_kgps), env_v, self._guess)[1]
-        return self._outputs(self._x, u, env_v, 0.0, *flows[:5])
+        return PlantOutputs(**self._eq.outputs(self._x, u, env_v, 0.0, flows, self._guess)[0])
 
-    def _outputs(self, x, u, env_v, dt, e_comp, e_fan, e_q, e_lat, e_ref) -> PlantOutputs:
-        """Build PlantOutputs at state x: energies over dt (dt = 0: the arguments are instantaneous powers)."""
-        p_bl = blower_power_w(self.params, u.mdot_bl_kgps)
-        alg = self._eq.rhs(x, u, p_bl, env_v, self._guess)[2]
-        if dt > 0.0:
-            mean = (e_comp / dt, e_fan / dt, e_q / dt, e_lat / dt, e_ref / dt)
-            energies = (e_comp, p_bl * dt)
-        else:
-            mean = (e_comp, e_fan, e_q, e_lat, e_ref)
-            energies = (0.0, 0.0)
-        return PlantOutputs(
-            t_cab_c=x.t_cab_c,
-            t_int_c=x.t_int_c,
-            t_shell_c=x.t_shell_c,
-            t_glass_c=x.t_glass_c,
-            t_evap_c=x.t_evap_c,
-            t_duct_c=x.t_duct_c,
-            t_vent_c=alg.t_vent_c,
-            t_evap_out_c=alg.t_evap_out_c,
-            t_evap_sat_c=alg.t_evap_sat_c,
-            t_cond_c=alg.t_cond_c,
-            rh_cab=relative_humidity(x.t_cab_c, x.w_cab_kgkg, self.params.p_atm_pa),
-            w_cab_kgkg=x.w_cab_kgkg,
-            p_comp_w=mean[0],
-            p_blower_w=p_bl,
-            p_cond_fan_w=mean[1],
-            e_comp_j=energies[0],
-            e_blower_j=energies[1],
-            q_evap_w=mean[2],
-            q_latent_w=mean[3],
-            q_evap_ref_w=mean[4],
-            cop=(mean[4] / mean[0]) if mean[0] > 0.0 else 0.0,
-            comp_speed_rpm=alg.comp_speed_rpm,
-            comp_duty=alg.comp_duty,
-            capacity_limited=alg.capacity_limited,
-            mop_active=alg.mop_active,
-            mdot_ref_kgps=alg.mdot_ref_kgps,
-            cycle_iterations=alg.cycle_iterations,
+    def equation_input(self, command: AcInput) -> Input:
+        """The equations' input of a validated command: a door left alone (NaN) holds ``recirc_fraction``."""
+        r = float(command.recirc_share)
+        return Input(
+            float(command.mdot_bl_kgps),
+            float(command.t_evap_sp_c),
+            self.params.recirc_fraction if math.isnan(r) else r,
         )

@@ -29,8 +29,15 @@ import math
 from dataclasses import fields
 from typing import Any, NamedTuple
 
+from ceco_core.air_quality import (
+    co2_flows_kgps,
+    co2_generation_kgps,
+    co2_kgkg_from_ppm,
+    co2_ppm_from_kgkg,
+    leakage_kgps,
+)
 from ceco_core.contracts import AcInput
-from ceco_core.psychro import EPS_W, saturation_vapour_pressure_pa
+from ceco_core.psychro import EPS_W, relative_humidity, saturation_vapour_pressure_pa
 
 from .plant_ops import NUMERIC
 from .plant_params import PlantParams
@@ -78,6 +85,10 @@ class State(NamedTuple):
     """Cabin humidity ratio [kg/kg dry air]."""
     comp_pi_integral_rpm: Any
     """Integral part of the compressor PI [rpm]."""
+    recirc_share: Any
+    """Position of the fresh/recirculation door: recirculated share of the blower flow [0..1]."""
+    co2_cab_kgkg: Any
+    """Cabin CO2 [kg CO2/kg dry air]."""
 
 
 class Input(NamedTuple):
@@ -87,6 +98,9 @@ class Input(NamedTuple):
     """Blower air mass flow [kg/s]."""
     t_evap_sp_c: Any
     """Evaporator wall temperature set-point [degC]."""
+    recirc_share: Any
+    """Commanded recirculated share of the blower flow [0..1] (a number here: the simulator puts the
+    plant's default in for a command that leaves the door alone)."""
 
 
 class Env(NamedTuple):
@@ -121,6 +135,12 @@ class Flows(NamedTuple):
     """Water leaving with the exfiltrated air [kg/s]."""
     mdot_condensate_kgps: Any
     """Water condensed on the evaporator [kg/s]."""
+    mdot_co2_in_kgps: Any
+    """CO2 into the cabin air with the fresh share of the supply and the leakage [kg/s]."""
+    mdot_co2_out_kgps: Any
+    """CO2 leaving with the exfiltrated air [kg/s]."""
+    mdot_co2_gen_kgps: Any
+    """CO2 exhaled by the occupants [kg/s]."""
 
 
 class Alg(NamedTuple):
@@ -151,7 +171,7 @@ class Alg(NamedTuple):
 STATE_NAMES = State._fields
 """The plant's states in integrator order."""
 INPUT_NAMES = Input._fields
-"""The commanded inputs: blower flow [kg/s], evaporator set-point [degC]."""
+"""The commanded inputs: blower flow [kg/s], evaporator set-point [degC], recirculated share [0..1]."""
 ENV_NAMES = Env._fields
 """The environment: ambient [degC], solar [W/m2], vehicle speed [m/s], ambient rh [0..1]."""
 FLOW_NAMES = Flows._fields
@@ -296,20 +316,24 @@ class NewtonCycle:
         sol = self.solve(ops, speed, t_ev, t_amb, epsc, guess)
         limited = ops.logic_and(duty == 1.0, sol.p_comp_w > p_max)
 
-        def power_limit():
-            def body(s: _Secant) -> _Secant:  # one secant update on P_el(N) - P_max
-                s2 = self.solve(ops, s.n, t_ev, t_amb, epsc, Guess(s.sol.t_evap_sat_c, s.sol.t_cond_c, 1.0))
-                f1 = s2.p_comp_w - p_max
-                ok = ops.logic_and(s.ok, s2.converged)
-                stop = ops.logic_or(abs(f1) < 5e-4 * p_max, f1 == s.f0)
-                return ops.cond(
-                    stop,
-                    lambda: _Secant(s.n0, s.f0, s.n, s2, True, ok),
-                    lambda: _Secant(s.n, f1, s.n - f1 * (s.n - s.n0) / (f1 - s.f0), s2, False, ok),
-                )
+        def body(s: _Secant, t_ev, t_amb, epsc) -> _Secant:  # one secant update on P_el(N) - P_max
+            p_max = self.params.p_comp_max_w
+            s2 = self.solve(ops, s.n, t_ev, t_amb, epsc, Guess(s.sol.t_evap_sat_c, s.sol.t_cond_c, 1.0))
+            f1 = s2.p_comp_w - p_max
+            ok = ops.logic_and(s.ok, s2.converged)
+            stop = ops.logic_or(abs(f1) < 5e-4 * p_max, f1 == s.f0)
+            return ops.cond(
+                stop,
+                lambda: _Secant(s.n0, s.f0, s.n, s2, True, ok),
+                lambda: _Secant(s.n, f1, s.n - f1 * (s.n - s.n0) / (f1 - s.f0), s2, False, ok),
+            )
 
-            s = _Secant(speed, sol.p_comp_w - p_max, speed * p_max / sol.p_comp_w, sol, False, sol.converged)
-            s = ops.loop(6, body, s)
+        def power_limit():
+            # done from the start where the limit does not bind: numerically never (this branch runs only
+            # when it binds); symbolically the discarded branch then costs no iteration (CompiledOps)
+            done = ops.logic_not(limited)
+            s = _Secant(speed, sol.p_comp_w - p_max, speed * p_max / sol.p_comp_w, sol, done, sol.converged)
+            s = ops.loop(6, body, s, t_ev, t_amb, epsc)
             return s.n, s.sol, s.ok
 
         speed, sol, ok = ops.cond(limited, power_limit, lambda: (speed, sol, sol.converged))
@@ -345,6 +369,10 @@ class PlantEquations:
         self.ops = ops
         self.m_air_kg = params.rho_air_kgm3 * params.cabin_volume_m3
         """Dry-air mass of the cabin [kg]."""
+        self.co2_gen_kgps = co2_generation_kgps(params.occ_met, params.occ_body_area_m2, params.occ_rq)
+        """CO2 exhaled per occupant [kg/s] (``ceco_core.air_quality.co2_generation_kgps``)."""
+        self.co2_amb_kgkg = co2_kgkg_from_ppm(params.co2_amb_ppm)
+        """Ambient CO2 [kg CO2/kg dry air]."""
 
     def substeps(self, dt_s: float) -> tuple[int, float]:
         """(number, length [s]) of the equal RK4 sub-steps of a step ``dt_s``: ceil(dt_s / substep_s)."""
@@ -371,8 +399,13 @@ class PlantEquations:
         pw_amb = rh_amb * o.scalar(wsat(t_amb))
         w_amb = EPS_W * pw_amb / (patm - pw_amb)
 
+        # --- the fresh/recirculation door: rate-limited servo, |dr/dt| <= 1 / door_travel_s
+        r = x.recirc_share  # the door's actual position mixes the air
+        sd_door = o.scaled("door")
+        v_door = 1.0 / p.door_travel_s
+        d_r = sd_door.fmin(sd_door.fmax((u.recirc_share - r) / p.door_tau_s, -v_door), v_door)
+
         # --- air loop: mixing box -> blower -> evaporator -> ducts -> vents
-        r = p.recirc_fraction
         t_mix = r * t_cab + (1.0 - r) * t_amb
         w_mix = r * w_cab + (1.0 - r) * w_amb
         cp_m = cp_a + w_mix * p.cp_vap_jpkgk
@@ -415,7 +448,7 @@ class PlantEquations:
         # --- cabin network
         h_in = p.h_in_natural_wm2k + (p.h_in_forced_wm2k - p.h_in_natural_wm2k) * rr**0.8
         h_out = p.h_out_natural_wm2k + p.h_out_speed_coef * speed**0.8
-        m_inf = p.infiltration_0_kgps + p.infiltration_per_mps_kgps * speed
+        m_inf = leakage_kgps(p.infiltration_0_kgps, p.infiltration_per_mps_kgps, speed)
         g_int = h_in * p.a_int_m2
         g_sh_in = p.u_shell_in_wm2k * p.a_shell_m2
         g_gl_in = h_in * p.a_glass_m2
@@ -442,6 +475,10 @@ class PlantEquations:
         water_out = fresh * w_cab
         condensate = mdot * (w_mix - w_out)
         d_w = (water_in - water_out - condensate) / self.m_air_kg
+        # CO2 balance of the cabin air [kg/s]: in with the fresh share and the leakage at the ambient
+        # fraction, out with the exfiltrated air at the cabin's, exhaled by the occupants
+        co2 = co2_flows_kgps(x.co2_cab_kgkg, self.co2_amb_kgkg, fresh, n_occ, self.co2_gen_kgps)
+        d_co2 = (co2.into - co2.out + co2.generated) / self.m_air_kg
         d_int = (p.tau_glass * p.a_glass_sun_m2 * solar - q_int_cab - q_rad_sh - q_rad_gl - q_duct_int) / p.c_int_jpk
         d_du = (q_duct_int - q_duct) / p.c_duct_jpk
         d_sh = (
@@ -461,8 +498,22 @@ class PlantEquations:
             t_duct_c=d_du,
             w_cab_kgkg=d_w,
             comp_pi_integral_rpm=dpi,
+            recirc_share=d_r,
+            co2_cab_kgkg=d_co2,
         )
-        flows = Flows(p_comp, p_fan, q_sens + q_lat, q_lat, q_ref, water_in, water_out, condensate)
+        flows = Flows(
+            p_comp,
+            p_fan,
+            q_sens + q_lat,
+            q_lat,
+            q_ref,
+            water_in,
+            water_out,
+            condensate,
+            co2.into,
+            co2.out,
+            co2.generated,
+        )
         alg = Alg(
             t_vent_c=t_vent,
             t_evap_out_c=t_out,
@@ -502,3 +553,70 @@ class PlantEquations:
             acc = tuple(s + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4) for s, b1, b2, b3, b4 in zip(acc, a1, a2, a3, a4))
             ok = o.logic_and(o.logic_and(o.logic_and(o.logic_and(ok, ok1), ok2), ok3), ok4)
         return x, Flows._make(acc), guess, ok
+
+    def outputs(self, x: State, u: Input, env: Env, dt_s: float, acc: Flows, guess: Guess):
+        """The plant's report at state ``x`` (the end of a step): ``({PlantOutputs field: value}, ok)``.
+
+        ``acc`` holds the flows integrated over the step of ``dt_s`` [s] (:meth:`step`: energies [J],
+        water [kg]); ``dt_s = 0`` reports an instant (``acc`` the instantaneous flows, zero energies).
+        The algebraic variables are those of :meth:`rhs` at ``x`` with the warm start ``guess``; ``ok``
+        is that cycle solve's flag. Temperatures and states at ``x``, powers step means, ``cop`` the
+        mean refrigerant capacity over the mean compressor power (0 with the compressor off).
+        """
+        o = self.ops
+        p_bl = blower_power_w(self.params, u.mdot_bl_kgps)
+        _, _, alg, _, ok = self.rhs(x, u, p_bl, env, guess)
+        if dt_s > 0.0:
+            mean = (
+                acc.p_comp_w / dt_s,
+                acc.p_cond_fan_w / dt_s,
+                acc.q_evap_w / dt_s,
+                acc.q_latent_w / dt_s,
+                acc.q_evap_ref_w / dt_s,
+            )
+            energies = (acc.p_comp_w, p_bl * dt_s)
+            water = (acc.mdot_water_in_kgps, acc.mdot_water_out_kgps, acc.mdot_condensate_kgps)
+            co2 = (acc.mdot_co2_in_kgps, acc.mdot_co2_out_kgps, acc.mdot_co2_gen_kgps)
+        else:
+            mean = tuple(acc[:5])
+            energies = (0.0, 0.0)
+            water = (0.0, 0.0, 0.0)
+            co2 = (0.0, 0.0, 0.0)
+        out = {
+            "t_cab_c": x.t_cab_c,
+            "t_int_c": x.t_int_c,
+            "t_shell_c": x.t_shell_c,
+            "t_glass_c": x.t_glass_c,
+            "t_evap_c": x.t_evap_c,
+            "t_duct_c": x.t_duct_c,
+            "t_vent_c": alg.t_vent_c,
+            "t_evap_out_c": alg.t_evap_out_c,
+            "t_evap_sat_c": alg.t_evap_sat_c,
+            "t_cond_c": alg.t_cond_c,
+            "rh_cab": relative_humidity(x.t_cab_c, x.w_cab_kgkg, self.params.p_atm_pa),
+            "w_cab_kgkg": x.w_cab_kgkg,
+            "p_comp_w": mean[0],
+            "p_blower_w": p_bl,
+            "p_cond_fan_w": mean[1],
+            "e_comp_j": energies[0],
+            "e_blower_j": energies[1],
+            "q_evap_w": mean[2],
+            "q_latent_w": mean[3],
+            "q_evap_ref_w": mean[4],
+            "cop": o.cond(mean[0] > 0.0, lambda: mean[4] / mean[0], lambda: 0.0),
+            "comp_speed_rpm": alg.comp_speed_rpm,
+            "comp_duty": alg.comp_duty,
+            "capacity_limited": alg.capacity_limited,
+            "mop_active": alg.mop_active,
+            "mdot_ref_kgps": alg.mdot_ref_kgps,
+            "cycle_iterations": alg.cycle_iterations,
+            "m_water_in_kg": water[0],
+            "m_water_out_kg": water[1],
+            "m_condensate_kg": water[2],
+            "recirc_share": x.recirc_share,
+            "co2_cab_ppm": co2_ppm_from_kgkg(x.co2_cab_kgkg),
+            "m_co2_in_kg": co2[0],
+            "m_co2_out_kg": co2[1],
+            "m_co2_gen_kg": co2[2],
+        }
+        return out, ok

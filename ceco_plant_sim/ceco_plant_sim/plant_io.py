@@ -29,6 +29,8 @@ from ceco_ros.params import (
 )
 from ceco_ros.topics import TOPIC_COMMAND
 
+from .compiled_plant import PLANT_EVALUATIONS
+
 __all__ = [
     'PLANT_PARAMETERS',
     'PlantNodeConfig',
@@ -55,6 +57,13 @@ PLANT_PARAMETERS: tuple[ParamSpec, ...] = (
         float_range=CONTROL_PERIOD_RANGE_S,
     ),
     ParamSpec('duration_s', 0.0, "run length [s]; 0 = the scenario's", float_range=(0.0, 1e7)),
+    ParamSpec(
+        'plant_evaluation',
+        'compiled',
+        'compiled (the plant step as generated C, cached; the Python evaluation with one warning where no '
+        'C compiler works) or python (the numeric evaluation); equal to 1e-9 relative (docs/plant.md)',
+        choices=PLANT_EVALUATIONS,
+    ),
     ParamSpec(
         'lockstep.command_timeout_s',
         5.0,
@@ -110,6 +119,7 @@ DYNAMIC = {s.name for s in PLANT_PARAMETERS if not s.read_only}
 """Parameters that ``ros2 param set`` changes at run time."""
 
 _FIELDS = {
+    'plant_evaluation': 'plant_evaluation',
     'lockstep.command_timeout_s': 'command_timeout_s',
     'lockstep.min_state_subscribers': 'min_state_subscribers',
     'lockstep.min_output_subscribers': 'min_output_subscribers',
@@ -134,6 +144,8 @@ class PlantNodeConfig(NodeConfig):
     """Control period Ts [s]; a whole multiple of plant_dt_s."""
     duration_s: float = 0.0
     """Run length [s]; 0 = the scenario's."""
+    plant_evaluation: str = 'compiled'
+    """How the plant step is evaluated: compiled (generated C) or python."""
     command_timeout_s: float = 5.0
     """lockstep: wall-clock wait for a command before the fallback law [s]."""
     min_state_subscribers: int = 2

@@ -18,6 +18,7 @@ from ceco_core.contracts import AcInput
 from ceco_core.supervision import FallbackSupervisor, Health, Watchdog
 from ceco_v2x_preview.scenario import Scenario
 
+from .compiled_plant import PlantEvaluation
 from .plant_io import CONTROLLER_LOST, CommandPolicy, PlantNodeConfig, RealtimeCommands, plant_health
 from .scenario_plant import PlantStepRecord, ScenarioPlant, n_plant_steps, steps_per_control
 
@@ -35,7 +36,7 @@ class PlantLoop:
         """
         self.cfg = cfg
         self._log = log or (lambda _level, _text: None)
-        self.sp = ScenarioPlant(scenario, cfg.plant_dt_s)
+        self.sp = ScenarioPlant(scenario, cfg.plant_dt_s, evaluation=PlantEvaluation(cfg.plant_evaluation))
         self.dt_s = cfg.plant_dt_s
         """Plant step [s]."""
         self.control_period_s = cfg.control_period_s

@@ -42,12 +42,14 @@ from collections.abc import Mapping
 import casadi
 import numpy as np
 
+from ceco_core.air_quality import AQ_SIGNALS, AqSignals, co2_ppm_from_kgkg, fog_margin_k
 from ceco_core.cabin_comfort import ComfortParams, cabin_mrt_c, cabin_pmv, cabin_w_rad_wm2
-from ceco_core.psychro import relative_humidity, vapour_pressure_pa
+from ceco_core.psychro import relative_humidity, vapour_pressure_from_humidity_ratio_pa, vapour_pressure_pa
 
 from .plant_equations import (
     ALG_NAMES,
     ENV_NAMES,
+    FLOW_NAMES,
     INPUT_NAMES,
     STATE_NAMES,
     Env,
@@ -63,7 +65,7 @@ from .plant_ops import ExactOps, SmoothOps, SmoothSettings
 from .plant_params import PlantParams
 from .refrigerant import cycle_tables
 
-__all__ = ["Layout", "PlantModel", "ENERGY_NAMES", "WARM_NAMES"]
+__all__ = ["Layout", "PlantModel", "ENERGY_NAMES", "WARM_NAMES", "CONTROL_INPUTS"]
 
 ENERGY_NAMES = (
     "e_comp_j",
@@ -76,10 +78,17 @@ ENERGY_NAMES = (
     "m_water_in_kg",
     "m_water_out_kg",
     "m_condensate_kg",
+    "m_co2_in_kg",
+    "m_co2_out_kg",
+    "m_co2_gen_kg",
 )
 """What one step accumulates: compressor, blower and condenser-fan electrical energy and their sum [J],
 evaporator heat from the air, its latent part and the refrigerant's [J], water into and out of the
-cabin air and condensed [kg]."""
+cabin air and condensed [kg], CO2 into and out of the cabin air and exhaled [kg]."""
+
+CONTROL_INPUTS = ("mdot_bl_kgps", "t_evap_sp_c")
+"""The inputs of a model built without the door (``door_input=False``): the door's command is then the
+plant's default share ``PlantParams.recirc_fraction`` (the two-input problems of before issue 21)."""
 
 WARM_NAMES = ("t_evap_sat_c", "t_cond_c", "valid")
 """The exact model's warm start of the refrigerant solve (:class:`~ceco_plant_sim.plant_equations.Guess`)."""
@@ -93,6 +102,8 @@ _UNITS = {
     "t_duct_c": "degC",
     "w_cab_kgkg": "kg/kg",
     "comp_pi_integral_rpm": "rpm",
+    "recirc_share": "-",
+    "co2_cab_kgkg": "kg/kg",
     "mdot_bl_kgps": "kg/s",
     "t_evap_sp_c": "degC",
     "t_amb_c": "degC",
@@ -147,14 +158,12 @@ class PlantModel:
 
     state = Layout(STATE_NAMES)
     """State layout (the PlantState fields)."""
-    input = Layout(INPUT_NAMES)
-    """Input layout (the AcInput fields)."""
+    input = Layout(CONTROL_INPUTS)
+    """Input layout: the AcInput fields with the door (``door_input=True``), else :data:`CONTROL_INPUTS`
+    (set per model)."""
     env = Layout(ENV_NAMES)
     """Environment layout."""
-    flows = Layout(
-        ("p_comp_w", "p_cond_fan_w", "q_evap_w", "q_latent_w", "q_evap_ref_w")
-        + ("mdot_water_in_kgps", "mdot_water_out_kgps", "mdot_condensate_kgps")
-    )
+    flows = Layout(FLOW_NAMES)
     """Flows of ``rhs`` [W], [kg/s]."""
     energy = Layout(ENERGY_NAMES)
     """Energies and water of one ``step`` [J], [kg]."""
@@ -162,10 +171,22 @@ class PlantModel:
     """Algebraic outputs ``y`` of ``algebraic`` and ``step``."""
     warm = Layout(WARM_NAMES)
     """Warm start of the exact model's refrigerant solve (not part of the smooth model)."""
+    aq = Layout(AQ_SIGNALS)
+    """The air-quality constraint signals of ``air_quality``: cabin CO2 [ppm], fog margin [K]."""
 
-    def __init__(self, params: PlantParams, plant_dt_s: float, equations: PlantEquations, evaluation: str) -> None:
+    def __init__(
+        self,
+        params: PlantParams,
+        plant_dt_s: float,
+        equations: PlantEquations,
+        evaluation: str,
+        door_input: bool = False,
+    ) -> None:
         if not (isinstance(plant_dt_s, (int, float)) and 0.0 < plant_dt_s <= 3600.0):
             raise ValueError(f"plant_dt_s: must be in (0, 3600] s, got {plant_dt_s!r}")
+        self.door_input = bool(door_input)
+        """True: the door's command is the input ``recirc_share``; False: it is held at ``recirc_fraction``."""
+        self.input = Layout(INPUT_NAMES if self.door_input else CONTROL_INPUTS)
         self.params = params
         """The plant parameters."""
         self.plant_dt_s = float(plant_dt_s)
@@ -176,11 +197,15 @@ class PlantModel:
         self._build()
 
     @classmethod
-    def exact(cls, params: PlantParams | None = None, plant_dt_s: float = 1.0) -> PlantModel:
-        """The exact-branch model: the simulator's equations and refrigerant solve, symbolically."""
+    def exact(cls, params: PlantParams | None = None, plant_dt_s: float = 1.0, door_input: bool = False) -> PlantModel:
+        """The exact-branch model: the simulator's equations and refrigerant solve, symbolically.
+
+        ``door_input``: the door's command is the third input ``recirc_share`` (True) or held at
+        ``params.recirc_fraction`` (False, the default: the inputs of before issue 21).
+        """
         p = (params or PlantParams()).validate()
         tab = cycle_tables(p.refrigerant, float(p.superheat_k), float(p.subcool_k))
-        return cls(p, plant_dt_s, PlantEquations(p, NewtonCycle(p, tab), ExactOps()), "exact")
+        return cls(p, plant_dt_s, PlantEquations(p, NewtonCycle(p, tab), ExactOps()), "exact", door_input)
 
     @classmethod
     def smooth(
@@ -189,19 +214,26 @@ class PlantModel:
         plant_dt_s: float = 1.0,
         settings: SmoothSettings | None = None,
         table=None,
+        door_input: bool = False,
     ) -> PlantModel:
         """The smooth model: smoothed kinks and switches, the refrigerant cycle from its smooth table.
 
         ``table``: a :class:`~ceco_plant_sim.smooth_cycle.SmoothCycleTable` of these parameters;
         default :func:`~ceco_plant_sim.smooth_cycle.smooth_cycle_table` (the shipped file when it
-        holds them, else built from the solver).
+        holds them, else built from the solver). ``door_input``: as :meth:`exact`.
         """
         from .smooth_cycle import SmoothCycle, smooth_cycle_table
 
         p = (params or PlantParams()).validate()
         tab = table if table is not None else smooth_cycle_table(p)
         tab.check_params(p)
-        return cls(p, plant_dt_s, PlantEquations(p, SmoothCycle(p, tab), SmoothOps(settings)), "smooth")
+        return cls(p, plant_dt_s, PlantEquations(p, SmoothCycle(p, tab), SmoothOps(settings)), "smooth", door_input)
+
+    def _equation_input(self, us) -> Input:
+        """The equations' :class:`Input` of a model input vector ``us`` (the door's default put in when absent)."""
+        parts = casadi.vertsplit(us, 1)
+        door = parts[2] if self.door_input else float(self.params.recirc_fraction)
+        return Input(parts[0], parts[1], door)
 
     # ------------------------------------------------------------------ build
     def _build(self) -> None:
@@ -211,7 +243,7 @@ class PlantModel:
         us = casadi.SX.sym("u", self.input.size)
         es = casadi.SX.sym("env", self.env.size)
         ws = casadi.SX.sym("warm", self.warm.size)
-        x, u, env = _split(xs, State), _split(us, Input), _split(es, Env)
+        x, u, env = _split(xs, State), self._equation_input(us), _split(es, Env)
         guess = Guess(*casadi.vertsplit(ws, 1)) if exact else Guess(0.0, 0.0, 0.0)
         p_bl = blower_power_w(self.params, u.mdot_bl_kgps)
         ins, names_in = [xs, us, es], ["x", "u", "env"]
@@ -247,12 +279,20 @@ class PlantModel:
             acc.mdot_water_in_kgps,
             acc.mdot_water_out_kgps,
             acc.mdot_condensate_kgps,
+            acc.mdot_co2_in_kgps,
+            acc.mdot_co2_out_kgps,
+            acc.mdot_co2_gen_kgps,
         )
         step_out, step_names = [x1, energy, y1], ["x_next", "energy", "y"]
         if exact:
             step_out, step_names = [*step_out, g1, [ok]], [*step_names, "warm_next", "ok"]
         self.step = out("step", step_out, step_names)
         """One plant step: (x, u, env[, warm]) -> (x_next, energy, y[, warm_next, ok])."""
+        pw = vapour_pressure_from_humidity_ratio_pa(x.w_cab_kgkg, self.params.p_atm_pa)
+        aq = AqSignals(co2_ppm_from_kgkg(x.co2_cab_kgkg), fog_margin_k(x.t_glass_c, pw))
+        self.air_quality = casadi.Function("air_quality", [xs], [casadi.vertcat(*aq)], ["x"], ["aq"])
+        """The air-quality constraint signals of a state: x -> aq (:attr:`aq` layout: cabin CO2 [ppm], fog
+        margin [K] = glazing minus cabin dew point); ``ceco_core.air_quality.aq_violation`` gives g <= 0."""
         self.table_margin: casadi.Function | None = None
         """Smooth model: (x, env) -> the smooth cycle table's margin at the evaporator wall, ambient and
         condenser epsc of (x, env) (scaled distance inside the grid box; < 0: outside, the splines
@@ -279,7 +319,7 @@ class PlantModel:
         tv = casadi.SX.sym("t_vent_c")
         us = casadi.SX.sym("u", self.input.size)
         es = casadi.SX.sym("env", self.env.size)
-        x, u, env = _split(xs, State), _split(us, Input), _split(es, Env)
+        x, u, env = _split(xs, State), self._equation_input(us), _split(es, Env)
         if pa_pa is None:
             pa = vapour_pressure_pa(x.t_cab_c, relative_humidity(x.t_cab_c, x.w_cab_kgkg, self.params.p_atm_pa))
         else:
@@ -299,10 +339,25 @@ class PlantModel:
         return casadi.Function("scored_pmv", [xs, tv, us, es], [y], ["x", "t_vent_c", "u", "env"], ["pmv"])
 
     # ------------------------------------------------------------------ numeric use
+    def command_vector(self, command) -> np.ndarray:
+        """A command (an AcInput, a mapping or an object with the input names) as an :attr:`input` vector.
+
+        A door left alone (``recirc_share`` NaN or absent) is the plant's default share, as the simulator
+        applies it.
+        """
+        get = command.get if isinstance(command, Mapping) else lambda k, d=None: getattr(command, k, d)
+        out = []
+        for k in self.input.names:
+            v = float(get(k, np.nan))
+            if k == "recirc_share" and np.isnan(v):
+                v = float(self.params.recirc_fraction)
+            out.append(v)
+        return np.array(out, dtype=float)
+
     def rollout(self, n_steps: int) -> casadi.Function:
         """``step`` chained over ``n_steps`` (CasADi ``mapaccum``), cached per length.
 
-        Smooth: (x0, U[2 x N], E[4 x N]) -> (X[8 x N], energy[10 x N], Y[10 x N]), column n the state at
+        Smooth: (x0, U[nu x N], E[4 x N]) -> (X[nx x N], energy[13 x N], Y[10 x N]), column n the state at
         t_{n+1}, the step's energies and its end outputs. Exact: (x0, U, E, warm0) -> (X, energy, Y,
         warm[3 x N], ok[1 x N]).
         """
@@ -326,20 +381,23 @@ class PlantModel:
 
         Args:
             x0: key-on state (a :attr:`state` vector, a PlantState or a mapping).
-            commands: per step the command: an N x 2 array (:attr:`input` order) or AcInputs.
+            commands: per step the command: an N x nu array (:attr:`input` order) or AcInputs (a door
+                left alone, NaN, is the plant's default share).
             envs: per step the truth environment at t_n: an N x 4 array (:attr:`env` order) or
                 objects with those fields.
             comfort: the scored comfort parameters (``ScenarioPlant.comfort``); None: no PMV.
             pa_pa: fixed scored vapour pressure [Pa] (the comfort override), None: the cabin's.
 
-        Returns per-step arrays: ``x`` (N+1 x 8, the state at t_0..t_N), ``energy`` (N x 10),
+        Returns per-step arrays: ``x`` (N+1 x nx, the state at t_0..t_N), ``energy`` (N x 13),
         ``y`` (N x 10, end of each step), ``pmv`` (N, at t_n with the vent air measured at t_n: the
         evaporator wall at key-on, then the previous step's end), for the exact model ``ok``, for the
         smooth model ``table_margin`` (N, at t_n; < 0 where the drive left the cycle table's box).
         RuntimeError if the drive leaves the finite numbers.
         """
         x = np.asarray(x0, dtype=float) if isinstance(x0, (np.ndarray, list, tuple)) else self.state.vector(x0)
-        u = np.array([c if isinstance(c, (tuple, list, np.ndarray)) else self.input.vector(c) for c in commands], float)
+        u = np.array(
+            [c if isinstance(c, (tuple, list, np.ndarray)) else self.command_vector(c) for c in commands], float
+        )
         e = np.array([v if isinstance(v, (tuple, list, np.ndarray)) else self.env.vector(v) for v in envs], float)
         if u.ndim != 2 or e.shape != (u.shape[0], self.env.size) or u.shape[1] != self.input.size:
             raise ValueError(
@@ -371,16 +429,23 @@ class PlantModel:
     def scenario_drive(self, scenario, n_steps: int | None = None, *, plant_overrides=None, comfort_overrides=None):
         """Key-on state, truth environment and scored comfort of a scenario (or its name), as ScenarioPlant has them.
 
-        Returns (x0 [8], envs [N x 4] at t_n = n plant_dt_s, ComfortParams, fixed scored vapour pressure
+        Returns (x0 [nx], envs [N x 4] at t_n = n plant_dt_s, ComfortParams, fixed scored vapour pressure
         [Pa] or None). ``n_steps`` defaults to the scenario's duration. The model's parameters must
         be the scenario plant's (``plant_overrides`` applied to the defaults; ValueError otherwise).
         """
         from ceco_v2x_preview.scenario import load_scenario
 
+        from .compiled_plant import PlantEvaluation
         from .scenario_plant import ScenarioPlant, n_plant_steps
 
         sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
-        sp = ScenarioPlant(sc, self.plant_dt_s, plant_overrides=plant_overrides, comfort_overrides=comfort_overrides)
+        sp = ScenarioPlant(  # not stepped: no compiled step to build
+            sc,
+            self.plant_dt_s,
+            plant_overrides=plant_overrides,
+            comfort_overrides=comfort_overrides,
+            evaluation=PlantEvaluation("python"),
+        )
         if sp.plant.params != self.params:
             raise ValueError("scenario_drive: the scenario plant's parameters differ from this model's")
         n = n_plant_steps(sp.scenario.duration_s, self.plant_dt_s) if n_steps is None else int(n_steps)

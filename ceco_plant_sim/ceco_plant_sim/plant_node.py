@@ -66,7 +66,16 @@ class PlantNode(NodeTools, Node):
             self.pub_clock.publish(ClockMsg(clock=stamp))
         env = self.scenario.env_at(lp.t_s)
         self.pub_state.publish(
-            conversions.state_msg(lp.n, lp.t_s, stamp, lp.sp.meas, env, lp.sp.cmd, lp.fallback.in_fallback)
+            conversions.state_msg(
+                lp.n,
+                lp.t_s,
+                stamp,
+                lp.sp.meas,
+                env,
+                lp.sp.cmd,
+                lp.fallback.in_fallback,
+                recirc_share_cmd=lp.sp.plant.equation_input(lp.sp.cmd).recirc_share,
+            )
         )
         lp.policy.published(stamp, lp.t_s)
 

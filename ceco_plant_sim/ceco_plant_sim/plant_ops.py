@@ -12,7 +12,8 @@ operation whose meaning depends on the evaluation:
 * logic on conditions: ``logic_and``, ``logic_or``, ``logic_not``;
 * kinks and switches of the physics, through a view of one smoothing scale,
   ``ops.scaled(key)`` with ``fmin``, ``fmax``, ``gt``, ``ge``, ``lt``, ``le`` (``key`` is ``speed``
-  [rpm], ``duty`` [-], ``err`` [K] or ``water`` [kg/kg]; the numeric and exact views are exact);
+  [rpm], ``duty`` [-], ``err`` [K], ``water`` [kg/kg] or ``door`` [1/s]; the numeric and exact views
+  are exact);
 * the refrigerant solve's table interpolation (``interp1``, ``interp2``), iterations (``loop``),
   failures (``check``) and repeated pieces (``call``). That code runs numerically and exactly only
   and uses the comparison operators directly (CasADi overloads them).
@@ -40,13 +41,23 @@ from __future__ import annotations
 import dataclasses
 import math
 import operator
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any
 
 import casadi
 
 from ceco_core import mathops
 
-__all__ = ["NUMERIC", "NumericOps", "ExactOps", "SmoothOps", "SmoothSettings", "select"]
+__all__ = [
+    "NUMERIC",
+    "NumericOps",
+    "ExactOps",
+    "CompiledOps",
+    "SymbolicParams",
+    "SmoothOps",
+    "SmoothSettings",
+    "select",
+]
 
 
 class NumericOps:
@@ -325,6 +336,9 @@ class SmoothSettings:
     error <= exp(-|dN| / w) away from the switch."""
     w_err_k: float = 0.02
     """Logistic width of the sign of the evaporator error in the anti-windup [K]; error <= exp(-|e| / w)."""
+    k_door_s: float = 500.0
+    """Log-sum-exp sharpness of the door actuator's rate limit [1/(1/s)] = [s]; error <= ln 2 / k = 0.0014 /s
+    of door speed (the limit is 0.2 /s)."""
 
     def validate(self) -> SmoothSettings:
         """Raise ValueError naming the first field that is not a finite number > 0; return self."""
@@ -381,10 +395,11 @@ class SmoothOps(_CasadiOps):
             "duty": _SmoothScale("duty", s.k_duty, None),
             "water": _SmoothScale("water", s.k_water_per_kgkg, None),
             "err": _SmoothScale("err", None, s.w_err_k),
+            "door": _SmoothScale("door", s.k_door_s, None),
         }
 
     def scaled(self, key: str) -> _SmoothScale:
-        """The smoothed kinks and comparisons of scale ``key`` (``speed``, ``duty``, ``water``, ``err``)."""
+        """The smoothed kinks and comparisons of scale ``key`` (``speed``, ``duty``, ``water``, ``err``, ``door``)."""
         return self._scales[key]
 
     @staticmethod
@@ -406,3 +421,180 @@ class SmoothOps(_CasadiOps):
     def logic_not(a):
         """1 - a of a soft indicator."""
         return 1.0 - a
+
+
+def _fresh_inputs(tree, syms: list, values: list):
+    """``tree`` with every CasADi leaf a fresh scalar symbol (appended to ``syms``, its value to ``values``).
+
+    Walks tuples, named tuples and dataclass instances; other leaves (floats, tables, ops) stay as they are.
+    """
+    if isinstance(tree, casadi.SX):
+        s = casadi.SX.sym(f"a{len(syms)}")
+        syms.append(s)
+        values.append(tree)
+        return s
+    if isinstance(tree, tuple):
+        items = [_fresh_inputs(t, syms, values) for t in tree]
+        return type(tree)(*items) if hasattr(tree, "_fields") else tuple(items)
+    if dataclasses.is_dataclass(tree) and not isinstance(tree, type):
+        changes = {f.name: _fresh_inputs(getattr(tree, f.name), syms, values) for f in dataclasses.fields(tree)}
+        return dataclasses.replace(tree, **changes)
+    return tree
+
+
+def _closed_over(fn: Callable) -> list:
+    """The CasADi values a function captured from its enclosing scopes (must be primitive symbols)."""
+    out = []
+    for cell in getattr(fn, "__closure__", None) or ():
+        try:
+            v = cell.cell_contents
+        except ValueError:  # an empty cell
+            continue
+        if isinstance(v, casadi.SX):
+            out.append(v)
+    return out
+
+
+class CompiledOps(ExactOps):
+    """:class:`ExactOps` shaped for generated C: iterations that stop, pieces that take their free symbols as inputs.
+
+    * ``loop``: the body is traced once into a Function (state, inputs) -> state; the ``n`` iterations
+      are conditional calls (``Function.if_else``) that skip the body once ``state.done``: the C code
+      runs the iterations the numeric evaluation runs (2-4 per refrigerant solve instead of 30).
+      The body's CasADi arguments become explicit inputs; what it captures from enclosing scopes must be
+      primitive symbols (the parameters, :class:`SymbolicParams`), which are passed through.
+    * ``call``: as :class:`ExactOps`, with the free symbols of the traced piece (the parameters) added as
+      inputs.
+
+    Values equal the exact evaluation's: a skipped iteration is the masked one.
+    """
+
+    name = "compiled"
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._loops: dict = {}
+
+    def call(self, name: str, fn: Callable, *args):
+        """``fn(*args)`` through a Function traced once (cached by ``name``); its free symbols become inputs."""
+        if name not in self._functions:
+            syms = [casadi.SX.sym(f"a{i}") for i in range(len(args))]
+            out = fn(*syms)
+            flat = [_sx(v) for v in _flatten(out)]
+            free = casadi.Function(name, syms, flat, {"allow_free": True}).free_sx()
+            f = casadi.Function(name, syms + free, flat, {"never_inline": True})
+            self._functions[name] = (f, (out, free))
+        f, stored = self._functions[name]
+        tree: Any = stored
+        return _rebuild(tree[0], f.call([_sx(a) for a in args] + tree[1]))[0]  # (output tree, free symbols)
+
+    def loop(self, n: int, body: Callable, state, *args):  # type: ignore[override]  # needs its cache
+        """At most ``n`` applications of ``body`` as conditional calls: an iteration with ``state.done`` is skipped."""
+        for v in _closed_over(body):
+            if not v.is_symbolic():
+                raise ValueError(f"{body.__qualname__}: captures a computed CasADi value; pass it as an argument")
+        arg_syms: list = []
+        arg_vals: list = []
+        args_in = _fresh_inputs(args, arg_syms, arg_vals)
+        flat_state = [_sx(v) for v in _flatten(state)]
+        constants = tuple(id(v) for v in _flatten(args_in) if not isinstance(v, casadi.SX))
+        closure = tuple(id(c.cell_contents) for c in (getattr(body, "__closure__", None) or ()))
+        key = (body.__code__, n, len(flat_state), len(arg_syms), constants, closure)
+        if key not in self._loops:
+            s_syms = [casadi.SX.sym(f"s{i}") for i in range(len(flat_state))]
+            s_tree = _rebuild(state, s_syms)[0]
+            out = [_sx(v) for v in _flatten(body(s_tree, *args_in))]
+            if len(out) != len(s_syms):
+                raise ValueError(f"{body.__qualname__}: returns {len(out)} values for a state of {len(s_syms)}")
+            free = casadi.Function("body", s_syms + arg_syms, out, {"allow_free": True}).free_sx()
+            done_at = _flatten(_rebuild(state, list(range(len(s_syms))))[0]._replace(done=-1)).index(-1)
+            tag = f"{body.__name__.strip('_')}_{len(self._loops)}"
+            s_in, a_in = casadi.vertcat(*s_syms), casadi.vertcat(*arg_syms, *free)
+            f_body = casadi.Function(f"{tag}_body", [s_in, a_in], [casadi.vertcat(*out)])
+            f_skip = casadi.Function(f"{tag}_skip", [s_in, a_in], [s_in])
+            f_step = casadi.Function.if_else(f"{tag}_step", f_skip, f_body)
+            s_mx = casadi.MX.sym("s", len(s_syms))
+            a_mx = casadi.MX.sym("a", a_in.numel())
+            st = s_mx
+            for _ in range(n):
+                st = f_step(st[done_at], st, a_mx)
+            self._loops[key] = (casadi.Function(f"{tag}_loop", [s_mx, a_mx], [st], {"never_inline": True}), free)
+        f, free = self._loops[key]
+        res = f(casadi.vertcat(*flat_state), casadi.vertcat(*arg_vals, *free))
+        return _rebuild(state, casadi.vertsplit(res, 1))[0]
+
+
+class SymbolicParams:
+    """Parameters as inputs of a traced Function: every float a traced code reads from a parameter object is a symbol.
+
+    ``proxy(obj)`` wraps a (frozen) dataclass: reading a float attribute (a field or a property, e.g.
+    ``SolarParams.w_rad_per_irradiance``) returns a scalar symbol, the same one for the same path;
+    nested dataclasses are proxied too; names in ``structural`` (per class name) and non-float values
+    (ints, bools, strings) are returned as they are (they shape the code: sub-step length, iteration
+    counts, table choice, smoothing widths); ``validate()`` returns the proxy (the real object is
+    validated by its owner). :meth:`values` reads the recorded paths from real objects: the numeric
+    parameter vector of :attr:`symbols`.
+    """
+
+    def __init__(self, structural: Mapping[str, Iterable[str]] | None = None) -> None:
+        self.structural = {k: frozenset(v) for k, v in (structural or {}).items()}
+        self.paths: list[tuple[str, ...]] = []
+        """Recorded attribute paths, (root, name, ...), in symbol order."""
+        self.symbols: list[casadi.SX] = []
+        """The symbols, in the order of :attr:`paths`."""
+        self._by_path: dict[tuple[str, ...], casadi.SX] = {}
+
+    def proxy(self, obj, root: str):
+        """A stand-in for ``obj`` whose float attributes are symbols (paths start with ``root``)."""
+        return _ParamProxy(self, obj, (root,))
+
+    def _symbol(self, path: tuple[str, ...]) -> casadi.SX:
+        if path not in self._by_path:
+            s = casadi.SX.sym(".".join(path))
+            self._by_path[path] = s
+            self.paths.append(path)
+            self.symbols.append(s)
+        return self._by_path[path]
+
+    def values(self, roots: Mapping[str, object]) -> list[float]:
+        """The numeric values of :attr:`symbols` read from the real objects ``{root: obj}``."""
+        out = []
+        for path in self.paths:
+            v: Any = roots[path[0]]
+            for name in path[1:]:
+                v = getattr(v, name)
+            out.append(float(v))
+        return out
+
+
+class _ParamProxy:
+    __slots__ = ("_owner", "_obj", "_path")
+
+    def __init__(self, owner: SymbolicParams, obj, path: tuple[str, ...]) -> None:
+        object.__setattr__(self, "_owner", owner)
+        object.__setattr__(self, "_obj", obj)
+        object.__setattr__(self, "_path", path)
+
+    def __getattr__(self, name: str):
+        if name == "validate":
+            return lambda: self
+        v = getattr(self._obj, name)
+        if name in self._owner.structural.get(type(self._obj).__name__, ()):
+            return v
+        if dataclasses.is_dataclass(v) and not isinstance(v, type):
+            return _ParamProxy(self._owner, v, (*self._path, name))
+        if isinstance(v, float) or (
+            isinstance(v, int) and not isinstance(v, bool) and _declared_float(self._obj, name)
+        ):
+            return self._owner._symbol((*self._path, name))
+        return v
+
+    def __setattr__(self, name, value):
+        raise AttributeError(f"{type(self._obj).__name__} parameters are read-only")
+
+
+def _declared_float(obj, name: str) -> bool:
+    for f in dataclasses.fields(obj):
+        if f.name == name:
+            return f.type in (float, "float")
+    return False

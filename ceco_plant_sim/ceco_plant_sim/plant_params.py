@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from ceco_core.air_quality import CO2_AMB_PPM_DEFAULT, RECIRC_SHARE_DEFAULT
 from ceco_core.cabin_comfort import GLAZING_TAU, SHELL_U_IN_WM2K
 from ceco_core.psychro import P_ATM_PA
 
@@ -45,8 +46,13 @@ class PlantParams:
     # --- cabin air ---------------------------------------------------------
     cabin_volume_m3: float = 3.0
     """Cabin air volume [m3] (mid-size sedan, 2.8-3.2 m3)."""
-    recirc_fraction: float = 0.8
-    """Recirculated share of the blower flow [-] (0 fresh air .. 1 full recirculation)."""
+    recirc_fraction: float = RECIRC_SHARE_DEFAULT
+    """Recirculated share of the blower flow where no controller commands the door, and the door's position at
+    key-on [-] (0 fresh air .. 1 full recirculation)."""
+    door_travel_s: float = 5.0
+    """Full-stroke travel time of the fresh/recirculation door actuator [s] (0 -> 1 at the rate limit)."""
+    door_tau_s: float = 0.5
+    """Time constant of the door servo's position loop near its target [s] (proportional zone of the rate limit)."""
     infiltration_0_kgps: float = 0.0015
     """Leakage air exchange at standstill [kg/s] (~1.5 air changes per hour)."""
     infiltration_per_mps_kgps: float = 0.0002
@@ -59,6 +65,14 @@ class PlantParams:
     """Sensible heat gain per occupant [W] (ASHRAE Fundamentals 2017 ch. 18 tab. 1, office work)."""
     occ_latent_w: float = 55.0
     """Latent heat gain per occupant [W] (same source)."""
+    occ_met: float = 1.2
+    """Metabolic rate of each occupant for the CO2 they exhale [met] (ISO 7730 sedentary; driving 1.0-2.0)."""
+    occ_body_area_m2: float = 1.8
+    """DuBois body surface area of each occupant [m2] (70 kg, 1.73 m adult)."""
+    occ_rq: float = 0.83
+    """Respiratory quotient of the occupants [-] (CO2 exhaled per O2 consumed, sedentary adults)."""
+    co2_amb_ppm: float = CO2_AMB_PPM_DEFAULT
+    """Ambient CO2 [ppm] (mole fraction in dry air; set from the scenario)."""
 
     # --- interior mass (seats, dashboard, trim) ----------------------------
     c_int_jpk: float = 90000.0
@@ -218,6 +232,7 @@ class PlantParams:
             "ram_face_ratio",
         }
         fractions = {"recirc_fraction", "alpha_shell", "tau_glass", "alpha_glass"}
+        # n_occupants >= 0 above; ambient CO2 and the occupants' metabolism checked below
         efficiencies = {"eta_blower", "eta_vol_0", "eta_is_max", "eta_motor_inverter"}
         free = {"te_mop_c"}
         for f in fields(self):
@@ -248,6 +263,12 @@ class PlantParams:
             raise ValueError(f"substep_s: must be <= 2 s for the explicit RK4 scheme, got {self.substep_s}")
         if int(self.cycle_max_iter) != self.cycle_max_iter:
             raise ValueError(f"cycle_max_iter: must be an integer, got {self.cycle_max_iter}")
-        if int(self.n_occupants) != self.n_occupants:
-            raise ValueError(f"n_occupants: must be an integer, got {self.n_occupants}")
+        if int(self.n_occupants) != self.n_occupants or self.n_occupants > 9:
+            raise ValueError(f"n_occupants: must be an integer in [0, 9], got {self.n_occupants}")
+        if not 300.0 <= self.co2_amb_ppm <= 5000.0:
+            raise ValueError(f"co2_amb_ppm: must be in [300, 5000] ppm, got {self.co2_amb_ppm}")
+        if not 0.7 <= self.occ_rq <= 1.0:
+            raise ValueError(f"occ_rq: must be in [0.7, 1.0] (fat .. carbohydrate oxidation), got {self.occ_rq}")
+        if not 0.7 <= self.occ_met <= 4.0:
+            raise ValueError(f"occ_met: must be in [0.7, 4] met, got {self.occ_met}")
         return self

@@ -12,6 +12,11 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
+from ceco_core.air_quality import (
+    CO2_AMB_PPM_DEFAULT,
+    RECIRC_SHARE_DEFAULT,
+    co2_kgkg_from_ppm,
+)
 from ceco_core.contracts import check_finite as _check_finite
 from ceco_core.psychro import humidity_ratio
 from ceco_plant_sim.plant_params import PlantParams
@@ -68,6 +73,10 @@ class PlantState:
     """Cabin humidity ratio [kg water / kg dry air]."""
     comp_pi_integral_rpm: float = 0.0
     """Integral part of the A/C ECU's compressor speed PI [rpm]."""
+    recirc_share: float = RECIRC_SHARE_DEFAULT
+    """Position of the fresh/recirculation door: recirculated share of the blower flow [0..1]."""
+    co2_cab_kgkg: float = co2_kgkg_from_ppm(CO2_AMB_PPM_DEFAULT)
+    """Cabin CO2 [kg CO2 / kg dry air] (``ceco_core.air_quality.co2_ppm_from_kgkg`` gives ppm)."""
 
     def validate(self) -> PlantState:
         """Raise ValueError naming the field if it is not finite or physically impossible."""
@@ -79,6 +88,10 @@ class PlantState:
                 raise ValueError(f"{name}: must be in [-40, 120] degC, got {v}")
         if not 0.0 <= self.w_cab_kgkg <= 0.3:  # saturation at 70 degC is 0.28 kg/kg
             raise ValueError(f"w_cab_kgkg: must be in [0, 0.3] kg/kg, got {self.w_cab_kgkg}")
+        if not 0.0 <= self.recirc_share <= 1.0:
+            raise ValueError(f"recirc_share: must be in [0, 1], got {self.recirc_share}")
+        if not 0.0 <= self.co2_cab_kgkg <= 0.05:  # 0.05 kg/kg = 33000 ppm, far beyond any cabin
+            raise ValueError(f"co2_cab_kgkg: must be in [0, 0.05] kg/kg, got {self.co2_cab_kgkg}")
         return self
 
     def as_tuple(self) -> tuple:
@@ -95,7 +108,9 @@ class PlantState:
         scenario's shell temperature covers the glazing too),
         ``t_evap_c`` (default t_cab_c: the HVAC module under the dashboard
         soaks at cabin air temperature), ``t_duct_c`` (default t_evap_c: the
-        case and ducts soak with the module). The compressor PI starts empty.
+        case and ducts soak with the module), ``co2_cab_ppm`` (default the
+        ambient ``params.co2_amb_ppm``: a parked car's leakage has flushed it).
+        The compressor PI starts empty, the door at ``params.recirc_fraction``.
         ``env`` is validated (its ambient is not used for the defaults).
         """
         validate_environment(env)
@@ -103,7 +118,16 @@ class PlantState:
             # a scenario's InitialState (or any object with the attributes)
             initial = {
                 k: getattr(initial, k)
-                for k in ("t_cab_c", "t_int_c", "t_shell_c", "rh_cab", "t_glass_c", "t_evap_c", "t_duct_c")
+                for k in (
+                    "t_cab_c",
+                    "t_int_c",
+                    "t_shell_c",
+                    "rh_cab",
+                    "t_glass_c",
+                    "t_evap_c",
+                    "t_duct_c",
+                    "co2_cab_ppm",
+                )
                 if hasattr(initial, k)
             }
         for key in ("t_cab_c", "t_int_c", "t_shell_c", "rh_cab"):
@@ -122,6 +146,10 @@ class PlantState:
             t_duct_c=_check_finite("initial.t_duct_c", initial.get("t_duct_c", initial.get("t_evap_c", t_cab))),
             w_cab_kgkg=humidity_ratio(t_cab, rh, params.p_atm_pa),
             comp_pi_integral_rpm=0.0,
+            recirc_share=float(params.recirc_fraction),
+            co2_cab_kgkg=co2_kgkg_from_ppm(
+                _check_finite("initial.co2_cab_ppm", initial.get("co2_cab_ppm", params.co2_amb_ppm))
+            ),
         )
         return state.validate()
 
@@ -195,3 +223,13 @@ class PlantOutputs:
     """Water leaving with the exfiltrated air (the fresh share of the supply and the leakage) over the step [kg]."""
     m_condensate_kg: float = 0.0
     """Water condensed on the evaporator (drained) over the step [kg]."""
+    recirc_share: float = RECIRC_SHARE_DEFAULT
+    """Position of the fresh/recirculation door at the end of the step: recirculated share [0..1]."""
+    co2_cab_ppm: float = CO2_AMB_PPM_DEFAULT
+    """Cabin CO2 at the end of the step [ppm] (mole fraction in dry air)."""
+    m_co2_in_kg: float = 0.0
+    """CO2 entering the cabin air with the fresh share of the supply and the leakage over the step [kg]."""
+    m_co2_out_kg: float = 0.0
+    """CO2 leaving with the exfiltrated air over the step [kg]."""
+    m_co2_gen_kg: float = 0.0
+    """CO2 exhaled by the occupants over the step [kg]."""

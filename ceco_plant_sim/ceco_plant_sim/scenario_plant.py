@@ -28,13 +28,18 @@ import dataclasses
 import math
 
 from ceco_core.cabin_comfort import ComfortParams, OccupantComfort, comfort_params_for, evaluate_cabin_comfort
+from ceco_core.co2_sensor import Co2Sensor
+from ceco_core.codegen import CompileError
 from ceco_core.contracts import MDOT_BL_MAX_KGPS, MEASUREMENTS, T_EVAP_SP_MIN_C, AcInput
 from ceco_core.overrides import with_overrides
 from ceco_core.scenario_types import Environment
 from ceco_v2x_preview.scenario import Scenario
 
+from .compiled_plant import COMFORT_NAMES, OUTPUT_NAMES, PlantEvaluation, compiled_step, fallback_warning
 from .plant import CabinPlant, PlantOutputs, PlantState
+from .plant_equations import Env
 from .plant_params import PlantParams
+from .plant_state import validate_environment
 
 __all__ = [
     "MEASUREMENTS",
@@ -44,6 +49,7 @@ __all__ = [
     "steps_per_control",
     "n_plant_steps",
     "check_overrides",
+    "scenario_plant_params",
     "PlantStepRecord",
     "ScenarioPlant",
 ]
@@ -83,6 +89,20 @@ def check_overrides(plant_overrides=None, comfort_overrides=None) -> None:
     with_overrides(ComfortParams(), co, owner="ComfortParams")
 
 
+def scenario_plant_params(scenario: Scenario, params: PlantParams | None = None, plant_overrides=None) -> PlantParams:
+    """The plant parameters of a scenario's car.
+
+    ``params`` (default :class:`PlantParams`) with the scenario's occupants and ambient CO2, then
+    ``plant_overrides`` (``{PlantParams field: value}``, a sensitivity run).
+    """
+    pp = dataclasses.replace(
+        params or PlantParams(),
+        n_occupants=int(scenario.occupants),
+        co2_amb_ppm=float(scenario.air_quality.co2_amb_ppm),
+    )
+    return with_overrides(pp, plant_overrides, owner="PlantParams")
+
+
 def steps_per_control(control_period_s: float, plant_dt_s: float) -> int:
     """Plant steps per control period Ts / dt [-]; ValueError unless Ts is a whole multiple (>= 1) of dt."""
     ratio = control_period_s / plant_dt_s
@@ -98,8 +118,10 @@ def n_plant_steps(duration_s: float, plant_dt_s: float) -> int:
     return int(math.floor(duration_s / plant_dt_s + 1e-9))
 
 
-def _measurements(out: PlantOutputs) -> dict:
-    return {k: getattr(out, k) for k in MEASUREMENTS}
+def _measurements(out: PlantOutputs, co2_sensor_ppm: float) -> dict:
+    meas = {k: getattr(out, k) for k in MEASUREMENTS if k != "co2_sensor_ppm"}
+    meas["co2_sensor_ppm"] = co2_sensor_ppm
+    return meas
 
 
 @dataclasses.dataclass(frozen=True)
@@ -128,6 +150,8 @@ class PlantStepRecord:
     """Every comfort series at t_n (floats): PMV inputs at the occupant, draught, fog margin, validity."""
     out: PlantOutputs
     """Plant outputs of the step (powers, energies, state at t_{n+1})."""
+    recirc_share_cmd: float = math.nan
+    """The door command the plant applied over the step [0..1] (its default where ``u`` left the door alone)."""
 
 
 class ScenarioPlant:
@@ -145,6 +169,7 @@ class ScenarioPlant:
         *,
         plant_overrides: dict | None = None,
         comfort_overrides: dict | None = None,
+        evaluation: PlantEvaluation | None = None,
     ):
         """Key-on state of ``scenario``.
 
@@ -156,12 +181,14 @@ class ScenarioPlant:
             comfort_overrides: ``{ComfortParams field or "part.field": value}`` applied to the scored PMV's
                 parameters (``ceco_core.overrides.with_overrides``), and optionally
                 :data:`SCORED_PA_OVERRIDE` (a fixed vapour pressure for the scored PMV).
+            evaluation: how the step is evaluated (:class:`PlantEvaluation`; default the compiled fast
+                path, the Python evaluation with one logged warning where it cannot be built).
         """
         if not (math.isfinite(plant_dt_s) and plant_dt_s > 0):
             raise ValueError(f"plant_dt_s must be finite and > 0, got {plant_dt_s!r}")
         self.scenario = scenario
         self.dt_s = plant_dt_s
-        pp = with_overrides(params or PlantParams(), plant_overrides, owner="PlantParams")
+        pp = scenario_plant_params(scenario, params, plant_overrides)
         co, self.scored_pa_pa = _split_comfort_overrides(comfort_overrides)
         # the plant's glazing transmittance and shell conductance: one value for physics and comfort
         self.comfort = with_overrides(
@@ -173,6 +200,13 @@ class ScenarioPlant:
             pp, PlantState.from_initial(dataclasses.asdict(scenario.initial), pp, scenario.env_at(0.0))
         )
         st = self.plant.state
+        aq = scenario.air_quality
+        self.co2_sensor = (
+            Co2Sensor(scenario.initial.co2_cab_ppm, scenario.seed, fail_s=aq.co2_sensor_fail_s)
+            if aq.co2_sensor == "ndir"
+            else None
+        )
+        """The car's cabin CO2 sensor (None: not fitted; its reading is then NaN)."""
         self.meas = {
             "t_cab_c": st.t_cab_c,
             "t_int_c": st.t_int_c,
@@ -181,9 +215,26 @@ class ScenarioPlant:
             "t_vent_c": st.t_evap_c,
             "t_glass_c": st.t_glass_c,
             "rh_cab": scenario.initial.rh_cab,
+            "co2_cab_ppm": scenario.initial.co2_cab_ppm,
+            "co2_sensor_ppm": self._co2_reading(0.0, scenario.initial.co2_cab_ppm),
+            "recirc_share": st.recirc_share,
         }
         self.cmd = KEY_ON_COMMAND
         self.n = 0
+        self.evaluation = (evaluation or PlantEvaluation()).validate()
+        self._fast = None
+        if self.evaluation.evaluation == "compiled":
+            try:
+                self._fast = compiled_step(
+                    pp, self.comfort, plant_dt_s, self.scored_pa_pa is not None, self.evaluation
+                )[0]
+            except CompileError as exc:
+                fallback_warning(exc)
+
+    @property
+    def compiled(self) -> bool:
+        """True if the steps run the compiled fast path (False: the Python evaluation)."""
+        return self._fast is not None
 
     @property
     def t_s(self) -> float:
@@ -195,6 +246,30 @@ class ScenarioPlant:
         meas, t = self.meas, self.t_s
         env = self.scenario.env_at(t)
         lb, ub = self.scenario.pmv_bounds(t)
+        if self._fast is not None:
+            c, out = self._step_compiled(u, env, meas)
+        else:
+            c, out = self._step_python(u, env, meas)
+        rec = PlantStepRecord(
+            n=self.n,
+            t_s=t,
+            meas=meas,
+            u=u,
+            env=env,
+            pmv=float(c.pmv),
+            ppd=float(c.ppd),
+            pmv_lb=lb,
+            pmv_ub=ub,
+            comfort=c,
+            out=out,
+            recirc_share_cmd=self.plant.equation_input(u).recirc_share,
+        )
+        self.cmd = u
+        self.n += 1
+        self.meas = _measurements(out, self._co2_reading(self.t_s, out.co2_cab_ppm))
+        return rec
+
+    def _step_python(self, u: AcInput, env: Environment, meas: dict) -> tuple[OccupantComfort, PlantOutputs]:
         c = evaluate_cabin_comfort(
             t_cab_c=meas["t_cab_c"],
             t_vent_c=meas["t_vent_c"],
@@ -213,21 +288,43 @@ class ScenarioPlant:
                 for f in dataclasses.fields(c)
             }
         )
-        out = self.plant.step(u, env, self.dt_s)
-        rec = PlantStepRecord(
-            n=self.n,
-            t_s=t,
-            meas=meas,
-            u=u,
-            env=env,
-            pmv=float(c.pmv),
-            ppd=float(c.ppd),
-            pmv_lb=lb,
-            pmv_ub=ub,
-            comfort=c,
-            out=out,
+        return c, self.plant.step(u, env, self.dt_s)
+
+    def _step_compiled(self, u: AcInput, env: Environment, meas: dict) -> tuple[OccupantComfort, PlantOutputs]:
+        """The step through the compiled code (:mod:`ceco_plant_sim.compiled_plant`): the same checks and errors."""
+        if not isinstance(u, AcInput):
+            raise ValueError(f"command: must be AcInput, got {type(u).__name__}")
+        u.validate()
+        env_v = Env._make(validate_environment(env))
+        plant, fast = self.plant, self._fast
+        assert fast is not None
+        x1, g1, out, cv, ok = fast.step(
+            plant.state_vector,
+            plant.warm_start,
+            plant.equation_input(u),
+            env_v,
+            float(meas["t_vent_c"]),
+            float(meas["rh_cab"]),
+            0.0 if self.scored_pa_pa is None else self.scored_pa_pa,
         )
-        self.cmd = u
-        self.meas = _measurements(out)
-        self.n += 1
-        return rec
+        if not ok:
+            raise RuntimeError(
+                f"refrigerant cycle did not converge in {plant.params.cycle_max_iter} iterations "
+                f"(compiled plant, step {self.n}, t = {self.t_s:g} s)"
+            )
+        c = OccupantComfort(
+            **{k: (v == 1.0 if k == "iso7730_valid" else v) for k, v in zip(COMFORT_NAMES, cv, strict=True)}
+        )
+
+        def outputs() -> PlantOutputs:
+            o = dict(zip(OUTPUT_NAMES, out, strict=True))
+            o["capacity_limited"] = o["capacity_limited"] == 1.0
+            o["mop_active"] = o["mop_active"] == 1.0
+            o["cycle_iterations"] = int(o["cycle_iterations"])
+            return PlantOutputs(**o)
+
+        return c, plant.commit(x1, g1, self.dt_s, outputs)
+
+    def _co2_reading(self, t_s: float, co2_cab_ppm: float) -> float:
+        """The CO2 sensor's reading at ``t_s`` [s] with the cabin at ``co2_cab_ppm`` [ppm]; NaN without a sensor."""
+        return math.nan if self.co2_sensor is None else self.co2_sensor.read(t_s, co2_cab_ppm)

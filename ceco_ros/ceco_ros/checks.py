@@ -26,7 +26,16 @@ import math
 
 import numpy as np
 
-from ceco_core.contracts import MDOT_BL_MAX_KGPS, MDOT_BL_MIN_KGPS, T_EVAP_SP_MAX_C, T_EVAP_SP_MIN_C, WIRE_STRATEGIES
+from ceco_core.contracts import (
+    MDOT_BL_MAX_KGPS,
+    MDOT_BL_MIN_KGPS,
+    RECIRC_NOT_COMMANDED_WIRE,
+    RECIRC_SHARE_MAX,
+    RECIRC_SHARE_MIN,
+    T_EVAP_SP_MAX_C,
+    T_EVAP_SP_MIN_C,
+    WIRE_STRATEGIES,
+)
 from ceco_core.units import STAMP_MAX_S, s_from_stamp
 
 __all__ = [
@@ -61,8 +70,12 @@ STATE_RANGES: dict[str, tuple[float, float]] = {
     'speed_mps': (0.0, 120.0),
     'mdot_bl_kgps': (MDOT_BL_MIN_KGPS - _BOUND_TOL, MDOT_BL_MAX_KGPS + _BOUND_TOL),
     't_evap_sp_c': (T_EVAP_SP_MIN_C - _BOUND_TOL, T_EVAP_SP_MAX_C + _BOUND_TOL),
+    'co2_cab_ppm': (0.0, 50000.0),
+    'recirc_share': (0.0, 1.0),
+    'recirc_share_cmd': (0.0, 1.0),
 }
-"""Plausible range of every float field of CabinState [field unit]: temperatures -60..150 degC
+"""Plausible range of every float field of CabinState [field unit]: cabin CO2 0..50000 ppm, the door's position and
+its applied command 0..1, temperatures -60..150 degC
 (a vehicle soaked in the sun stays far inside), ambient -60..70 degC, humidities 0..1, solar
 0..2000 W/m2 (above the solar constant), speed 0..120 m/s, the previous command inside the
 actuator bounds, scenario time inside the stamp range."""
@@ -75,11 +88,22 @@ PREVIEW_RANGES: dict[str, tuple[float, float]] = {
 }
 """Plausible range of the preview samples marked valid (the same as the measured values)."""
 
+STATE_OPTIONAL_RANGES: dict[str, tuple[float, float]] = {
+    'co2_sensor_ppm': (0.0, 50000.0),
+}
+"""CabinState fields that may be NaN (not measured: no CO2 sensor, or it failed), else inside the range."""
+
 COMMAND_RANGES: dict[str, tuple[float, float]] = {
     'blower_flow_kgps': (MDOT_BL_MIN_KGPS, MDOT_BL_MAX_KGPS),
     'evap_setpoint_c': (T_EVAP_SP_MIN_C, T_EVAP_SP_MAX_C),
 }
 """The actuator bounds an AcCommand must respect (never clamped)."""
+
+COMMAND_OPTIONAL_RANGES: dict[str, tuple[float, float]] = {
+    'recirc_share': (RECIRC_SHARE_MIN, RECIRC_SHARE_MAX),
+}
+"""AcCommand fields that may say "not set" (NaN, or the door's -1 :data:`RECIRC_NOT_COMMANDED_WIRE`), else
+inside the actuator range (never clamped)."""
 
 PREVIEW_ARRAYS = {'weather': ('t_amb_c', 'solar_wm2', 'rh'), 'traffic': ('speed_mps',)}
 """The sample arrays of each preview message (besides ``valid``)."""
@@ -112,11 +136,13 @@ def check_stamp_age(name: str, stamp, now_s: float, max_age_s: float, max_ahead_
     return None
 
 
-def _check_ranges(msg, ranges: dict[str, tuple[float, float]]) -> str | None:
+def _check_ranges(msg, ranges: dict[str, tuple[float, float]], nan_ok: bool = False) -> str | None:
     for name, (lo, hi) in ranges.items():
         v = getattr(msg, name)
+        if nan_ok and math.isnan(v):
+            continue
         if not math.isfinite(v):
-            return f'{name}={v!r} is not finite'
+            return f'{name}={v!r} is not finite' + (' (NaN means: not set)' if nan_ok else '')
         if not lo <= v <= hi:
             return f'{name}={v!r} is outside the plausible range [{lo:.6g}, {hi:.6g}]'
     return None
@@ -125,9 +151,14 @@ def _check_ranges(msg, ranges: dict[str, tuple[float, float]]) -> str | None:
 def check_state(msg) -> str | None:
     """Check a CabinState: header stamp well formed, every float field finite and plausible.
 
-    The ranges are :data:`STATE_RANGES`, including the previous command inside the actuator bounds.
+    The ranges are :data:`STATE_RANGES`, including the previous command inside the actuator bounds, and
+    :data:`STATE_OPTIONAL_RANGES` (NaN allowed: the CO2 sensor's reading).
     """
-    return check_stamp('header.stamp', msg.header.stamp) or _check_ranges(msg, STATE_RANGES)
+    return (
+        check_stamp('header.stamp', msg.header.stamp)
+        or _check_ranges(msg, STATE_RANGES)
+        or _check_ranges(msg, STATE_OPTIONAL_RANGES, nan_ok=True)
+    )
 
 
 def check_grid_step(name: str, value: float, control_period_s: float) -> str | None:
@@ -142,7 +173,8 @@ def check_command(msg, control_period_s: float) -> str | None:
 
     The strategy is a controller's (WIRE_STRATEGIES: the strategies and 'external'), the stamp
     well formed, Ts equal to the plant's, both inputs finite and inside the actuator bounds
-    (:data:`COMMAND_RANGES`).
+    (:data:`COMMAND_RANGES`), the door's share -1 or NaN (not commanded) or in [0, 1]
+    (:data:`COMMAND_OPTIONAL_RANGES`; any other value is refused, never clamped).
     """
     if msg.strategy not in WIRE_STRATEGIES:
         return f'unknown strategy {msg.strategy!r} (expected one of {", ".join(WIRE_STRATEGIES)})'
@@ -150,6 +182,11 @@ def check_command(msg, control_period_s: float) -> str | None:
         check_stamp('header.stamp', msg.header.stamp)
         or check_grid_step('control_period_s', msg.control_period_s, control_period_s)
         or _check_ranges(msg, COMMAND_RANGES)
+        or (
+            None
+            if msg.recirc_share == RECIRC_NOT_COMMANDED_WIRE
+            else _check_ranges(msg, COMMAND_OPTIONAL_RANGES, nan_ok=True)
+        )
     )
 
 

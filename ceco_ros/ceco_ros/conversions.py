@@ -22,7 +22,7 @@ import math
 import numpy as np
 from builtin_interfaces.msg import Time
 
-from ceco_core.contracts import MEASUREMENTS, AcInput, Diagnostics, Previews
+from ceco_core.contracts import MEASUREMENTS, RECIRC_NOT_COMMANDED_WIRE, AcInput, Diagnostics, Previews
 from ceco_core.units import s_from_stamp, sec_nanosec_from_s
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort, ControllerDiagnostics, TrafficPreview, WeatherPreview
 
@@ -51,8 +51,14 @@ def stamp_from_s(t_s: float) -> Time:
 
 
 # --- CabinState -------------------------------------------------------------------------------
-def state_msg(n: int, t_s: float, stamp, meas: dict, env, u_prev: AcInput, fallback: bool) -> CabinState:
-    """The plant's measurements at step ``n`` (t_s [s]), the environment and the previous command."""
+def state_msg(
+    n: int, t_s: float, stamp, meas: dict, env, u_prev: AcInput, fallback: bool, recirc_share_cmd: float = math.nan
+) -> CabinState:
+    """The plant's measurements at step ``n`` (t_s [s]), the environment and the previous command.
+
+    ``recirc_share_cmd`` is the door command the plant applied over the previous period [0..1] (its default share
+    where the controller left the door alone; NaN: unknown).
+    """
     m = CabinState()
     m.header.stamp = stamp
     m.step_index = int(n)
@@ -66,6 +72,7 @@ def state_msg(n: int, t_s: float, stamp, meas: dict, env, u_prev: AcInput, fallb
     m.mdot_bl_kgps = float(u_prev.mdot_bl_kgps)
     m.t_evap_sp_c = float(u_prev.t_evap_sp_c)
     m.fallback = bool(fallback)
+    m.recirc_share_cmd = float(recirc_share_cmd)
     return m
 
 
@@ -90,18 +97,21 @@ def command_msg(
     m.control_period_s = float(control_period_s)
     m.blower_flow_kgps = float(cmd.mdot_bl_kgps)
     m.evap_setpoint_c = float(cmd.t_evap_sp_c)
+    r = float(getattr(cmd, 'recirc_share', math.nan))
+    m.recirc_share = RECIRC_NOT_COMMANDED_WIRE if math.isnan(r) else r
     m.strategy = strategy
     m.fallback = bool(fallback)
     return m
 
 
 def command_input(msg: AcCommand) -> AcInput:
-    """AcCommand -> AcInput (the inverse of :func:`command_msg`).
+    """AcCommand -> AcInput (the inverse of :func:`command_msg`; the door's -1 is "not commanded", NaN).
 
     Check the message first with :func:`ceco_ros.checks.check_command` (AcInput raises
     ValueError outside the actuator bounds).
     """
-    return AcInput(mdot_bl_kgps=msg.blower_flow_kgps, t_evap_sp_c=msg.evap_setpoint_c)
+    r = math.nan if msg.recirc_share == RECIRC_NOT_COMMANDED_WIRE else msg.recirc_share
+    return AcInput(mdot_bl_kgps=msg.blower_flow_kgps, t_evap_sp_c=msg.evap_setpoint_c, recirc_share=r)
 
 
 # --- previews ---------------------------------------------------------------------------------

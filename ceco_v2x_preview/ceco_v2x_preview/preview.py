@@ -23,6 +23,10 @@ Model (docs/scenarios.md, "Preview quality")
   ``t0_s + i*step_s``: its errors are those of the longer lead times, and the
   last ``ceil(delay_s/step_s)`` or so samples lie beyond what was issued and
   are marked invalid (NaN).
+* ``persistence``: no forecast at all: every sample of the horizon holds the value measured at
+  the issue time (the naive "no preview" predictor a controller falls back to; issue 20). It
+  replaces the forecast, so it excludes ``uncertainty`` and ``noise_std_*``; delay and missing
+  spans still apply (the value held is the one measured at the issue time).
 * ``missing_spans_s``: while ``t0_s`` is in a half-open span ``[a, b)`` no
   new forecast arrives. With ``missing_policy='hold_last'`` (default) the
   controller keeps the last forecast received, the one issued at
@@ -117,6 +121,9 @@ class PreviewQuality:
     """Forecast-uncertainty level of the benchmark (``forecast_error.LEVELS``: none, low, medium,
     high): seeded AR(1) errors of ambient temperature, solar irradiance and speed along the lead
     time (:mod:`ceco_v2x_preview.forecast_error`); composes with the other faults."""
+    persistence: bool = False
+    """No forecast: each previewed quantity holds, over the whole horizon, its value at the issue
+    time (the last measured value); excludes ``uncertainty`` and the ``noise_std_*`` errors."""
 
     def __post_init__(self):
         try:
@@ -145,6 +152,13 @@ class PreviewQuality:
             raise ValueError(f"seed: must be a non-negative integer or None, got {self.seed!r}")
         if self.uncertainty not in forecast_error.LEVELS:
             raise ValueError(f"uncertainty: must be one of {forecast_error.LEVELS}, got {self.uncertainty!r}")
+        if not isinstance(self.persistence, bool):
+            raise ValueError(f"persistence: must be a bool, got {self.persistence!r}")
+        if self.persistence and (self.uncertainty != "none" or self.noisy):
+            raise ValueError(
+                "persistence: holds the measured value instead of a forecast; it cannot be combined with "
+                "uncertainty or noisy (forecast errors)"
+            )
 
     @property
     def noisy(self) -> bool:
@@ -157,6 +171,7 @@ class PreviewQuality:
         parts = [
             name
             for name, on in (
+                ("persistence", self.persistence),
                 ("uncertain", self.uncertainty != "none"),
                 ("noisy", self.noisy),
                 ("delayed", self.delay_s > 0.0),
@@ -169,6 +184,8 @@ class PreviewQuality:
     def describe(self) -> str:
         """Canonical text form; ``parse_quality(q.describe()) == q``."""
         parts = []
+        if self.persistence:
+            parts.append("persistence")
         if self.uncertainty != "none":
             seed = f",seed={self.seed}" if self.seed is not None and not self.noisy else ""
             parts.append(f"uncertain:{self.uncertainty}{seed}")
@@ -248,7 +265,10 @@ def make_previews(
     lead_s = t_s - t_issue
     horizon_s = (n - 1) * step_s
     valid = lead_s <= horizon_s * (1.0 + 1e-12) + 1e-9
-    env = scenario.env_series(t_s)
+    if quality.persistence:  # the value measured at the issue time, held over the horizon
+        env = scenario.env_series(np.full(n, t_issue))
+    else:
+        env = scenario.env_series(t_s)
     values = {q: np.array(getattr(env, q), dtype=float) for q in _QUANTITIES}
 
     if quality.uncertainty != "none":
@@ -286,6 +306,7 @@ def parse_quality(text: str) -> PreviewQuality:
     Grammar: parts joined by ``+``; each part one of
 
     * ``perfect``
+    * ``persistence`` (no forecast: the value measured at the issue time held over the horizon)
     * ``uncertain:LEVEL[,seed=N]`` with LEVEL in none, low, medium, high (the benchmark's
       forecast-uncertainty levels, :mod:`ceco_v2x_preview.forecast_error`)
     * ``noisy`` or ``noisy:KEY=VALUE,...`` with KEY in t_amb [K], solar
@@ -306,6 +327,9 @@ def parse_quality(text: str) -> PreviewQuality:
         kind, _, arg = part.strip().partition(":")
         kind = kind.strip().lower()
         if kind == "perfect" and not arg:
+            continue
+        if kind == "persistence" and not arg:
+            fields["persistence"] = True
             continue
         if kind == "noisy":
             if not arg.strip():
@@ -353,7 +377,7 @@ def parse_quality(text: str) -> PreviewQuality:
         else:
             raise ValueError(
                 f"preview quality: unknown part {part.strip()!r} "
-                "(use perfect, uncertain:LEVEL, noisy[:...], delayed:S, missing:A-B)"
+                "(use perfect, persistence, uncertain:LEVEL, noisy[:...], delayed:S, missing:A-B)"
             )
     quality = PreviewQuality(missing_spans_s=tuple(spans), **fields)
     quality.validate()

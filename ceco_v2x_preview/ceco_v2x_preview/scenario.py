@@ -21,6 +21,7 @@ Pure Python (numpy, pyyaml); no ROS import.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Mapping
 from importlib import resources
@@ -32,11 +33,13 @@ import yaml
 from ceco_core import psychro, units
 from ceco_core.scenario_types import (
     INITIAL_FIELDS,
+    OCCUPANTS_RANGE,
     PMV_BOUND_RANGE,
     SOLAR_RANGE_WM2,
     SPEED_MAX_MPS,
     T_AMB_RANGE_C,
     T_STATE_RANGE_C,
+    AirQuality,
     ControlDefaults,
     DriveCycle,
     Environment,
@@ -57,6 +60,7 @@ __all__ = [
     "InitialState",
     "ControlDefaults",
     "SunGeometry",
+    "AirQuality",
     "DriveCycle",
     "Scenario",
     "load_scenario",
@@ -209,6 +213,8 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
         "initial",
         "control",
         "sun",
+        "occupants",
+        "air_quality",
         "seed",
     }
     _reject_unknown("scenario", data, allowed)
@@ -252,6 +258,25 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
         i = int(bad[0])
         raise ScenarioError(f"comfort_bounds.pmv_lb[{i}]: {lb[i]} exceeds pmv_ub[{i}] = {ub[i]}")
 
+    occupants = data.get("occupants", 1)
+    if isinstance(occupants, bool) or not isinstance(occupants, (int, np.integer)):
+        raise ScenarioError(f"occupants: must be an integer, got {occupants!r}")
+    if not OCCUPANTS_RANGE[0] <= occupants <= OCCUPANTS_RANGE[1]:
+        raise ScenarioError(f"occupants: must be in {OCCUPANTS_RANGE[0]}..{OCCUPANTS_RANGE[1]}, got {occupants}")
+
+    aq_block = _section(data, "air_quality", required=False)
+    aq_fields = {f.name for f in dataclasses.fields(AirQuality)}
+    _reject_unknown("air_quality", aq_block, aq_fields)
+    air_quality = AirQuality(**{k: aq_block[k] for k in aq_fields if k in aq_block and aq_block[k] is not None})
+    air_quality.validate()
+    air_quality = dataclasses.replace(
+        air_quality,
+        co2_amb_ppm=float(air_quality.co2_amb_ppm),
+        co2_limit_ppm=float(air_quality.co2_limit_ppm),
+        fog_margin_min_k=float(air_quality.fog_margin_min_k),
+        co2_sensor_fail_s=None if air_quality.co2_sensor_fail_s is None else float(air_quality.co2_sensor_fail_s),
+    )
+
     ini = _section(data, "initial")
     _reject_unknown("initial", ini, set(INITIAL_FIELDS))
     if "t_cab_c" not in ini:
@@ -271,6 +296,7 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
         t_glass_c=ini.get("t_glass_c", t_cab),
         t_evap_c=ini.get("t_evap_c", t_cab),
         rh_cab=rh_cab,
+        co2_cab_ppm=ini.get("co2_cab_ppm", air_quality.co2_amb_ppm),
     )
     initial.validate()
     initial = InitialState(**{name: float(initial[name]) for name in INITIAL_FIELDS})
@@ -312,6 +338,8 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
         initial=initial,
         control=control,
         sun=sun,
+        occupants=int(occupants),
+        air_quality=air_quality,
         seed=int(seed),
         source=source,
     )
@@ -369,6 +397,14 @@ def describe(scenario: Scenario) -> str:
             f"  initial {ini}",
             f"  sun altitude {sc.sun.altitude_deg:g} deg, azimuth {sc.sun.azimuth_deg:g} deg; heading "
             f"{sc.sun.heading_deg:g} deg",
+            f"  occupants {sc.occupants}; ambient CO2 {sc.air_quality.co2_amb_ppm:g} ppm, limits CO2 "
+            f"{sc.air_quality.co2_limit_ppm:g} ppm, fog margin {sc.air_quality.fog_margin_min_k:g} K; CO2 sensor "
+            f"{sc.air_quality.co2_sensor}"
+            + (
+                ""
+                if sc.air_quality.co2_sensor_fail_s is None
+                else f" (fails at {sc.air_quality.co2_sensor_fail_s:g} s)"
+            ),
             f"  control Ts={sc.control.control_period_s:g} s Np={sc.control.horizon_steps}; seed {sc.seed}",
         ]
     )

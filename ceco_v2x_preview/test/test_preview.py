@@ -121,6 +121,37 @@ def test_missing_span_hold_last_and_drop(sc03):
     assert make_previews(sc03, 250.0, 5.0, 7, q2).issued_s == 100.0
 
 
+def test_persistence_holds_the_last_measured_value():
+    """persistence: every quantity holds its value at the issue time over the horizon (no forecast)."""
+    tunnel = load_scenario("tunnel")  # the sun drops to 0 at 482 s: a forecast would see it, persistence not
+    q = parse_quality("persistence")
+    assert q.persistence and q.mode == "persistence"
+    p = make_previews(tunnel, 470.0, 5.0, 7, q)
+    now = tunnel.env_at(470.0)
+    for arr, value in ((p.solar_wm2, now.solar_wm2), (p.t_amb_c, now.t_amb_c), (p.speed_mps, now.speed_mps)):
+        np.testing.assert_array_equal(arr, np.full(7, value))
+    assert p.solar_wm2[0] > 700.0 and p.valid.all() and p.age_s == 0.0
+    truth = make_previews(tunnel, 470.0, 5.0, 7, PERFECT)
+    assert truth.solar_wm2[-1] == 0.0 and truth.solar_wm2[0] == p.solar_wm2[0]  # same now, not the same later
+    speed = make_previews(tunnel, 470.0, 5.0, 7, PERFECT).speed_mps
+    assert np.ptp(speed) > 1.0 and np.ptp(p.speed_mps) == 0.0
+    # delayed: the value measured when the (stale) forecast was issued, the uncovered tail invalid
+    late = make_previews(tunnel, 470.0, 5.0, 7, parse_quality("persistence+delayed:10"))
+    np.testing.assert_array_equal(late.solar_wm2[:5], np.full(5, tunnel.env_at(460.0).solar_wm2))
+    assert late.valid.tolist() == [True] * 5 + [False] * 2 and np.isnan(late.solar_wm2[5:]).all()
+    # missing with hold_last: the value measured at the span's start, held
+    held = make_previews(tunnel, 490.0, 5.0, 7, parse_quality("persistence+missing:480-600"))
+    assert held.solar_wm2[0] == tunnel.env_at(480.0).solar_wm2 > 700.0
+    for text in ("persistence", "persistence+delayed:10", "persistence+missing:480-600,policy=drop"):
+        assert parse_quality(parse_quality(text).describe()) == parse_quality(text)
+    seeded = PreviewQuality(persistence=True, seed=3)
+    assert parse_quality(seeded.describe()) == seeded
+    with pytest.raises(ValueError, match="persistence"):
+        parse_quality("persistence+uncertain:medium")
+    with pytest.raises(ValueError, match="persistence"):
+        PreviewQuality(persistence=True, noise_std_solar_wm2=10.0).validate()
+
+
 def test_preview_summary(sc03):
     p = make_previews(sc03, 110.0, 5.0, 7, parse_quality("missing:100-200"))
     s = summarize([p, make_previews(sc03, 0.0, 5.0, 7)])

@@ -64,6 +64,8 @@ DEFAULT_CASES = (
     "hwfet-hot",
     "us06-hot",
     "mild-day",
+    "hot-commute-1p",
+    "hot-commute-4p",
     "tunnel",
     "sun-shade",
     "idle-traffic",
@@ -86,6 +88,8 @@ _KEYS = {
     "seeds",
     "control_period_s",
     "horizon_steps",
+    "occupants",
+    "baseline_door",
 }
 _REQUIRED = ("schema", "name", "version", "scenario", "forecast_uncertainty", "seeds")
 
@@ -120,6 +124,11 @@ class Case:
     """Where the case was loaded from (bundled name or file path)."""
     base_dir: str | None = None
     """Directory relative scenario paths are resolved against (None for a bundled case)."""
+    occupants: int | None = None
+    """People in the car, overriding the scenario's (1..5); None: the scenario's."""
+    baseline_door: tuple = ()
+    """``((field, value), ...)`` of :class:`ceco_core.recirc_law.RecircSettings` given to every baseline of the case
+    (e.g. the production door logic, ``door_mode: auto``); empty: the baselines leave the door to the plant."""
 
     def scenario_path(self) -> str:
         """The scenario argument for ``load_scenario`` (a relative YAML path resolved against the case file)."""
@@ -133,7 +142,7 @@ class Case:
         from ceco_v2x_preview.scenario import load_scenario, scenario_from_dict
 
         sc = load_scenario(self.scenario_path())
-        if self.duration_s is None:
+        if self.duration_s is None and self.occupants is None:
             return sc
         d = self.scenario_dict()
         return scenario_from_dict(d, source=sc.source)
@@ -146,6 +155,8 @@ class Case:
         d = scenario_dict(load_scenario(self.scenario_path()))
         if self.duration_s is not None:
             d["duration_s"] = float(self.duration_s)
+        if self.occupants is not None:
+            d["occupants"] = int(self.occupants)
         return d
 
     def resolved(self) -> dict:
@@ -162,6 +173,7 @@ class Case:
             "seeds": list(self.seeds),
             "control_period_s": self.control_period_s,
             "horizon_steps": self.horizon_steps,
+            **({"baseline_door": dict(self.baseline_door)} if self.baseline_door else {}),
         }
 
     def sha(self) -> str:
@@ -238,6 +250,16 @@ def case_from_dict(
     duration = _number("duration_s", data.get("duration_s"), low_open=0.0)
     ts = _number("control_period_s", data.get("control_period_s"), low_open=0.0)
     n_p = _number("horizon_steps", data.get("horizon_steps"), integer=True, low_open=0)
+    occupants = _number("occupants", data.get("occupants"), integer=True, low_open=0)
+    door = data.get("baseline_door") or {}
+    if not isinstance(door, Mapping):
+        raise CaseError(f"baseline_door: must be a mapping of RecircSettings fields, got {door!r}")
+    from ceco_core.recirc_law import RecircSettings
+
+    try:
+        RecircSettings(**door).validate()
+    except (TypeError, ValueError) as exc:
+        raise CaseError(f"baseline_door: {exc}") from None
     case = Case(
         name=name,
         version=version,
@@ -250,6 +272,8 @@ def case_from_dict(
         horizon_steps=n_p,
         source=source,
         base_dir=None if base_dir is None else str(base_dir),
+        occupants=None if occupants is None else int(occupants),
+        baseline_door=tuple(sorted(door.items())),
     )
     try:
         case.load_scenario()

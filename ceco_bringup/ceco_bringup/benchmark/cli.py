@@ -479,6 +479,13 @@ def summary_lines(doc: dict) -> list[str]:
         for case in doc['cases']
         for name, m in case['matched'].items()
     ]
+    for case in doc['cases']:
+        aq = case.get('air_quality') or {}
+        for name in aq.get('broken', []):
+            lines.append(
+                f"  {case['case']:<18} {name:<32} BROKE the air-quality limits (CO2 {aq['co2_limit_ppm']:g} ppm, fog "
+                f"margin {aq['fog_margin_min_k']:g} K): not matched, no saving"
+            )
     return lines + [  # failed runs: no number, the reason (a run whose controller did not control is no result)
         f"  {case['case']:<18} {r['controller']:<32} seed {r['seed']}: "
         f"{'FAILED' if r['status'] == 'failed' else 'ERROR'}: {r['error']}"

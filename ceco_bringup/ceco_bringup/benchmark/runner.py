@@ -37,6 +37,8 @@ __all__ = [
     'ENERGY_AXIS',
     'SECONDARY_AXES',
     'STRATEGY_NAMES',
+    'PERSISTENCE_SUFFIX',
+    'PERSISTENCE_TWINS',
     'SETPOINTS_PMV',
     'QUICK_SETPOINTS_PMV',
     'BASELINES_SCHEMA',
@@ -75,8 +77,16 @@ ENERGY_AXIS = 'energy_kwh'
 SECONDARY_AXES = ('i_pmv_clipped', 'discomfort_band_pmvh')
 """Other discomfort KPIs the matched comfort is also computed on (plain front; shown in the report)."""
 
-STRATEGY_NAMES = ('ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
+STRATEGY_NAMES = ('ceco', 'ceco-e', 'ceco-c', 'ceco-ioch', 'ceco-pmv')
 """The NMPC strategies scored by the benchmark (defaults, ``ceco_controller/config/controller.yaml``)."""
+
+PERSISTENCE_SUFFIX = '-persistence'
+"""Name suffix of the persistence twin of a strategy: the same strategy with every preview replaced by
+persistence (the value measured at the issue time held over the horizon; preview quality ``persistence``)."""
+
+PERSISTENCE_TWINS = ('ceco-pmv',)
+"""The strategies run a second time with persistence previews (``ceco-pmv-persistence``): what the previews
+are worth to them."""
 
 SEED_INVARIANT = SEED_INVARIANT_KINDS
 SCORED_KINDS = ('strategy', 'compensated', 'compensated-allowance', 'external')
@@ -306,6 +316,8 @@ class ControllerSpec:
     """Nominal PMV set-point of a comfort-feedback baseline [-]."""
     measurements: str = 'full'
     """What the controller reads (``SimSettings.measurements``)."""
+    preview: str | None = None
+    """Preview quality of its runs (None: the case's forecast uncertainty; ``persistence`` for a twin)."""
 
     @property
     def seeded(self) -> bool:
@@ -358,6 +370,11 @@ def controllers(
         )
     )
     out += [ControllerSpec(s, 'strategy', s) for s in strategies]
+    out += [
+        ControllerSpec(s + PERSISTENCE_SUFFIX, 'strategy', s, preview='persistence')
+        for s in strategies
+        if s in PERSISTENCE_TWINS
+    ]
     return out
 
 
@@ -388,8 +405,11 @@ def case_cells(
                 'case_sha': sha,
                 'scenario': scenario,
                 'strategy': c.strategy,
-                'strategy_overrides': dict(c.overrides),
-                'preview': _preview(case) if c.seeded else 'perfect',
+                'strategy_overrides': {
+                    **dict(c.overrides),
+                    **(dict(case.baseline_door) if c.strategy == 'baseline' else {}),
+                },
+                'preview': c.preview or (_preview(case) if c.seeded else 'perfect'),
                 'seed': seed,
                 'duration_s': case.duration_s,
                 'control_period_s': case.control_period_s,
@@ -460,15 +480,15 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None, controller_ca
         row['code'] = sweep_cells.check_code(spec, 'benchmark')
         t_sim = time.perf_counter()
         settings = sweep_cells.settings_from_spec(spec)
-        res = simulate(
-            scenario_from_dict(spec['scenario']), spec['strategy'], settings, controller_cache=controller_cache
-        )
+        scenario = scenario_from_dict(spec['scenario'])
+        res = simulate(scenario, spec['strategy'], settings, controller_cache=controller_cache)
         m = res.metrics
         kpis, notes = compute_kpis(
             res.timeseries,
             step_time_s=res.step_time_s,
             control_period_s=m['control_period_s'],
             fallback_steps=m['n_fallback_shifted'] + m['n_fallback_baseline'],
+            air_limits=scenario.air_quality.limits,
         )
         row['sim_time_s'] = time.perf_counter() - t_sim
         row['kpis'], row['kpi_notes'] = kpis, notes
@@ -511,8 +531,25 @@ def _run_entry(row: Mapping) -> dict:
     }
 
 
+def breaks_air_quality(run: Mapping) -> bool:
+    """True when a run passed the scenario's CO2 limit or fog bound (KPI ``air_quality_met`` 0).
+
+    Such a run is never on a front nor matched (a saving bought with stale air or a fogged windshield is no
+    saving); unknown (None) is not a break.
+    """
+    return (run.get('kpis') or {}).get('air_quality_met') == 0.0
+
+
+def air_quality_broken(runs: Sequence[Mapping]) -> list[str]:
+    """The controllers of a case with at least one run that broke the air-quality limits (sorted)."""
+    return sorted({r['controller'] for r in runs if r['status'] == 'ok' and breaks_air_quality(r)})
+
+
 def fronts_of(runs: Sequence[Mapping], fx: str, ex: str) -> dict:
-    """``{family: Front or None}`` of a case's run entries on the axes (``fx``, ``ex``) (schema.FAMILIES order)."""
+    """``{family: Front or None}`` of a case's run entries on the axes (``fx``, ``ex``) (schema.FAMILIES order).
+
+    Only runs that meet the air-quality limits (:func:`breaks_air_quality`) make a front.
+    """
     out = {}
     for family, kind in FAMILIES.items():
         pts = [
@@ -520,6 +557,7 @@ def fronts_of(runs: Sequence[Mapping], fx: str, ex: str) -> dict:
             for r in runs
             if r['kind'] == kind
             and r['status'] == 'ok'
+            and not breaks_air_quality(r)
             and r['kpis'].get(fx) is not None
             and r['kpis'].get(ex) is not None
         ]
@@ -535,9 +573,11 @@ def envelope_of(fronts: Mapping) -> fr.Envelope | None:
 
 
 def _points(runs: Sequence[Mapping], fx: str, ex: str, with_seed: bool = False) -> dict:
+    """The scored controllers' points; a controller with a run that broke the air-quality limits has none."""
     pts: dict = {}
+    broken = set(air_quality_broken(runs))
     for r in sorted(runs, key=lambda r: -1 if r['seed'] is None else r['seed']):
-        if r['kind'] in SCORED_KINDS and r['status'] == 'ok':
+        if r['kind'] in SCORED_KINDS and r['status'] == 'ok' and r['controller'] not in broken:
             d, e = r['kpis'].get(fx), r['kpis'].get(ex)
             if d is not None and e is not None:
                 pts.setdefault(r['controller'], []).append((r['seed'], d, e) if with_seed else (d, e))
@@ -623,6 +663,12 @@ def assemble_case(
         'strongest': strongest_entry(env, oracle['levels'] or oracle_levels(runs)),
         'oracle': oracle,
         'matched': matched_of(runs, FRONT_AXIS, ENERGY_AXIS, bounds),
+        'air_quality': {
+            'co2_limit_ppm': float(sc.air_quality.co2_limit_ppm),
+            'fog_margin_min_k': float(sc.air_quality.fog_margin_min_k),
+            'occupants': int(sc.occupants),
+            'broken': air_quality_broken(runs),
+        },
     }
     out['matched_by_axis'] = {
         ax: {

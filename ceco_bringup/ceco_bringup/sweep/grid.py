@@ -107,9 +107,25 @@ def _named(key: str, value, default: Mapping) -> dict:
 
 
 def scenario_dict(scenario) -> dict:
-    """A :class:`Scenario` as the mapping ``scenario_from_dict`` accepts."""
+    """A :class:`Scenario` as the mapping ``scenario_from_dict`` accepts.
+
+    The sun, the occupants, the air quality and the initial cabin CO2 appear only where they differ from the
+    loader's defaults, so the mapping (and a benchmark case's sha) of a scenario that does not use them is the
+    same as before they existed.
+    """
+    from ceco_core.scenario_types import AirQuality, SunGeometry
+
     sc = scenario
     ini = {k: float(sc.initial[k]) for k in sc.initial}
+    if ini.get('co2_cab_ppm') == float(sc.air_quality.co2_amb_ppm):
+        del ini['co2_cab_ppm']  # the loader's default: the ambient CO2
+    optional: dict = {}
+    if sc.sun != SunGeometry():
+        optional['sun'] = {k: float(v) for k, v in dataclasses.asdict(sc.sun).items()}
+    if int(sc.occupants) != 1:
+        optional['occupants'] = int(sc.occupants)
+    if sc.air_quality != AirQuality():
+        optional['air_quality'] = {k: v for k, v in dataclasses.asdict(sc.air_quality).items() if v is not None}
     return {
         'name': sc.name,
         'description': sc.description,
@@ -132,6 +148,7 @@ def scenario_dict(scenario) -> dict:
             'control_period_s': float(sc.control.control_period_s),
             'horizon_steps': int(sc.control.horizon_steps),
         },
+        **optional,
         'seed': int(sc.seed),
     }
 

@@ -1,0 +1,183 @@
+"""ceco-pmv (issue 20, section 3): PMV bias feedback, adaptive back-off, preview shrinkage, closed loop.
+
+Unit level: :mod:`ceco_controller.comfort_feedback` on constructed sequences. System level: the real NLP
+(:class:`~ceco_controller.nmpc.NmpcController`) against the plant simulator on a constant-weather day.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from observations import observation
+
+from ceco_controller.closed_loop import SimSettings, simulate
+from ceco_controller.comfort_feedback import PmvFeedback, PreviewSkill, held
+from ceco_controller.nmpc import NmpcController
+from ceco_controller.strategies import strategy_settings
+from ceco_v2x_preview.preview import parse_quality
+from ceco_v2x_preview.scenario import scenario_from_dict
+
+N1 = 7  # Np + 1
+
+
+def _feedback(**kw):
+    s = strategy_settings("ceco-pmv")
+    args = dict(
+        bias_filter=s.pmv_bias_filter,
+        bias_limit=s.pmv_bias_limit,
+        quantile=s.backoff_quantile,
+        window=s.backoff_window_steps,
+        min_samples=s.backoff_min_samples,
+        init=s.backoff_init_pmv,
+        lo=s.backoff_min_pmv,
+        hi=s.backoff_max_pmv,
+        forecast_z=s.backoff_forecast_z,
+    )
+    args.update(kw)
+    return PmvFeedback(**args)
+
+
+def test_pmv_bias_removes_a_constant_offset():
+    # the model predicts 0.30 every step, the measured PMV is 0.45: a constant offset of +0.15
+    fb = _feedback()
+    for _ in range(40):
+        fb.remember(0.30)
+        fb.update(0.45)
+    assert fb.bias == pytest.approx(0.15, abs=1e-5)
+    # the residual of the biased prediction (what the back-off is measured on) goes to zero
+    assert abs(fb.residuals[-1]) < 1e-5
+    # the prediction the NLP uses (model + bias) now equals the measurement
+    assert 0.30 + fb.bias == pytest.approx(0.45, abs=1e-5)
+    # an offset larger than the limit is clipped at d_max (bounded), and NaN measurements keep the bias
+    fb = _feedback(bias_limit=0.2)
+    for _ in range(40):
+        fb.remember(0.0)
+        fb.update(1.0)
+    assert fb.bias == pytest.approx(0.2)
+    fb.remember(0.0)
+    fb.update(math.nan)
+    assert fb.bias == pytest.approx(0.2) and fb.last_error is None
+
+
+def test_backoff_grows_with_prediction_error():
+    rng = np.random.default_rng(3)
+    out = {}
+    for sigma in (0.01, 0.05, 0.10):
+        fb = _feedback()
+        assert fb.measured_backoff == pytest.approx(0.1)  # initial back-off until min_samples residuals
+        for e in rng.normal(0.0, sigma, 200):
+            fb.remember(0.2)
+            fb.update(0.2 + fb.bias + e)
+        out[sigma] = fb.measured_backoff
+    # the 95 % quantile of N(0, sigma) is 1.645 sigma: clipped to [0.04, 0.3]
+    assert out[0.01] == pytest.approx(0.04)  # m_min
+    assert 1.2 * 0.05 < out[0.05] < 2.2 * 0.05
+    assert 1.2 * 0.10 < out[0.10] < 2.2 * 0.10
+    assert out[0.01] < out[0.05] < out[0.10]
+
+
+def test_backoff_grows_with_forecast_uncertainty():
+    fb = _feedback()
+    v_small = np.array([0.0, 100.0, 400.0, 900.0])  # solar forecast mse per lead [(W/m2)^2]
+    v_large = 16.0 * v_small
+    m_small, m_large = fb.backoff(v_small, 1e-3), fb.backoff(v_large, 1e-3)
+    # leads 0 and 1 carry the measured back-off only; beyond, z * sigma growth * dPMV/dG
+    assert m_small[:2] == pytest.approx([0.1, 0.1]) and m_large[:2] == pytest.approx([0.1, 0.1])
+    assert m_small[3] == pytest.approx(0.1 + 1.645 * 1e-3 * math.sqrt(800.0))
+    assert m_large[3] == pytest.approx(0.1 + 1.645 * 1e-3 * math.sqrt(16 * 800.0))
+    assert np.all(np.diff(m_large) >= 0) and m_large[3] > m_small[3] + 0.1
+
+
+def test_preview_skill_measures_forecast_error_and_shrinks():
+    # measured solar constant 600 W/m2; forecast A says exactly that, forecast B says 600 + 50*lead (wrong)
+    def run(err_per_lead):
+        sk = PreviewSkill(N1, window=60.0, c=1.0)
+        for k in range(30):
+            o = observation(N1, k, solar_wm2=600.0, preview_solar_wm2=600.0 + err_per_lead * np.arange(N1))
+            sk.update(o, np.ones(N1, bool))
+        return sk, o
+
+    good, o = run(0.0)
+    bad, _ = run(50.0)
+    assert good.forecast_mse("solar") == pytest.approx(np.zeros(N1), abs=1e-9)
+    assert bad.forecast_mse("solar")[1:] == pytest.approx((50.0 * np.arange(1, N1)) ** 2, rel=1e-6)
+    # estimate: the smaller of forecast and persistence (here persistence is exact): zero
+    assert bad.estimate_mse("solar", N1 + 3) == pytest.approx(np.zeros(N1 + 3), abs=1e-9)
+    # a previewed change within the forecast's measured error is dropped; with a perfect record it passes whole
+    ex = {"solar": 600.0 + 40.0 * np.arange(N1), "t_amb": np.full(N1, 35.0), "speed": np.full(N1, 10.0)}
+    assert bad.shrink(ex, o)["solar"] == pytest.approx(np.full(N1, 600.0))
+    assert good.shrink(ex, o)["solar"] == pytest.approx(ex["solar"])
+
+
+def test_held_extends_with_the_last_value():
+    assert held([1.0, 2.0, 3.0], 5) == pytest.approx([1, 2, 3, 3, 3])
+    assert held([1.0, 2.0, 3.0], 2) == pytest.approx([1, 2])
+
+
+def test_controller_caps_the_upper_bound_and_moves_it_by_bias_and_backoff():
+    ctrl = NmpcController("ceco-pmv")
+    n = ctrl.problem.params.n_grid
+    assert n == strategy_settings("ceco-pmv").nlp_steps + 1 == 13
+    # the scenario relaxes the upper bound to 3.0 (a pull-down): ceco-pmv caps it at the band's +0.5
+    zone = dict(t_int_c=32.0, t_shell_c=32.0, rh_cab=0.45, pmv_ub=np.full(N1, 3.0))
+    for k in range(3):
+        cmd, diag = ctrl.compute(observation(N1, k, t_cab=26.0, **zone))
+        assert diag.success and "comfort: PMV" in diag.message
+    fb = ctrl.pmv_feedback
+    assert fb is not None and fb.last_error is not None and math.isfinite(fb.bias) and fb.bias != 0.0
+    pl, p = ctrl.problem.params, ctrl._last_nlp.p
+    # the NLP's bounds: the observation's (the upper one capped at 0.5) moved by -bias, the upper one also by
+    # the initial back-off 0.1
+    assert pl.get(p, "pmv_ub") == pytest.approx(np.full(n, 0.5 - fb.bias - 0.1))
+    assert pl.get(p, "pmv_lb") == pytest.approx(np.full(n, -0.5 - fb.bias))
+    # without a humidity measurement the comfort output is not measured: the bias is kept, not updated
+    d0 = fb.bias
+    ctrl.compute(observation(N1, 3, t_cab=26.0, t_int_c=32.0, t_shell_c=32.0))
+    assert fb.bias == d0 and fb.last_measured is None
+
+
+_STEADY = {
+    "name": "constant_hot",
+    "description": "constant 35 degC, 40 % RH, 700 W/m2, cabin near comfort at the start",
+    "drive_cycle": "sc03",
+    "duration_s": 600,
+    "weather": {"time_s": [0, 600], "t_amb_c": [35.0, 35.0], "solar_wm2": [700.0, 700.0], "rh": [0.4, 0.4]},
+    "occupant": {"met": 1.2, "clo": 0.5},
+    "comfort_bounds": {"time_s": [0, 600], "pmv_lb": [-0.5, -0.5], "pmv_ub": [0.5, 0.5]},
+    "initial": {"t_cab_c": 27.0, "t_int_c": 33.0, "t_shell_c": 34.0},
+    "control": {"control_period_s": 5, "horizon_steps": 6},
+    "seed": 0,
+}
+
+
+def test_steady_state_holds_pmv_within_backoff_under_the_bound():
+    sc = scenario_from_dict(_STEADY)
+    res = simulate(sc, "ceco-pmv", SimSettings(progress=False, preview_quality=parse_quality("perfect")))
+    ts = res.timeseries
+    late = ts["t_s"] >= 300.0
+    pmv = ts["pmv"][late]
+    # the scored PMV at the plant's 1-s steps never above the bound, and never further below it than
+    # 0.1 (2.5 m_min): the comfort phase sits at the edge, not in the middle of the band
+    # (measured: min 0.434, mean 0.460, max 0.497)
+    assert pmv.max() <= 0.5
+    assert pmv.min() >= 0.4
+    assert float(np.mean(pmv)) >= 0.44
+    assert res.metrics["n_fallback_baseline"] == 0 and res.metrics["n_fallback_shifted"] == 0
+
+
+def test_benchmark_runs_the_persistence_twin():
+    from ceco_bringup.benchmark import runner
+    from ceco_bringup.benchmark.cases import load_case
+
+    specs = runner.controllers(runner.load_baselines(), (25.0,), ("ceco", "ceco-pmv"), (0.2,))
+    by_name = {c.name: c for c in specs}
+    assert "ceco-pmv-persistence" in by_name and "ceco-persistence" not in by_name
+    twin = by_name["ceco-pmv-persistence"]
+    assert (twin.kind, twin.strategy, twin.preview) == ("strategy", "ceco-pmv", "persistence")
+    case = load_case("tunnel")
+    cells = runner.case_cells(case, [by_name["ceco-pmv"], twin], "x")
+    previews = {(c.axes["controller"], c.spec["preview"]) for c in cells}
+    # the strategy sees the case's forecasts (medium uncertainty), its twin persistence, on every seed
+    assert previews == {("ceco-pmv", "uncertain:medium"), ("ceco-pmv-persistence", "persistence")}
+    assert len(cells) == 2 * len(case.seeds)
+    assert parse_quality("persistence").persistence
