@@ -66,6 +66,7 @@ def bench(tmp_path_factory):
         setpoints_c=SETPOINTS,
         setpoints_pmv=SETPOINTS_PMV,
         sensitivity_path=sens,
+        oracle=True,
         oracle_entry=ORACLE,
     )
     oracle_standin.CALLS.clear()
@@ -456,11 +457,15 @@ def test_a_missing_oracle_module_is_skipped_with_one_line(tmp_path):
 
     out = oracles(True, 'ceco_no_such_package.oracle:solve_front')
     assert out[case.name]['status'] == 'unavailable' and 'not installed' in out[case.name]['note']
-    assert len(lines) == 1 and 'oracle skipped' in lines[0] and '--no-oracle' in lines[0]
-    # --no-oracle: skipped, no line
+    assert len(lines) == 1 and 'oracle skipped' in lines[0] and 'without --oracle it is not asked' in lines[0]
+    # not requested (the default; --no-oracle): skipped, no line
     lines.clear()
     out = oracles(False, runner.ORACLE_ENTRY)
     assert out[case.name]['status'] == 'skipped' and out[case.name]['fronts'] == [] and not lines
+    assert out[case.name]['note'].startswith('not requested (ceco benchmark --oracle')
+    # the command line: off by default, --oracle asks it
+    assert not cli.build_parser().parse_args(['--out', 'x']).oracle
+    assert cli.build_parser().parse_args(['--out', 'x', '--oracle']).oracle
     # the levels: >= 4, from the least discomfort of the families to 1.5 times it
     levels = runner.oracle_levels([{**r, 'kpis': dict(r['kpis'])} for r in runs])
     assert len(levels) == 6 and levels[0] == pytest.approx(0.1024) and levels[-1] == pytest.approx(1.5 * 0.1024)
