@@ -135,3 +135,29 @@ def test_a_table_built_for_other_parameters_follows_them():
     assert energy["e_comp_j"] == pytest.approx(3000.0, rel=5e-3)  # at the limit in the hot start
     with pytest.raises(StaleSmoothTableError, match="p_comp_max_w"):
         PlantModel.smooth(PlantParams(), table=low)
+
+
+def test_sx_graphs_hold_one_call_with_the_splines_value_and_jacobian(tab):
+    """In SX graphs the table is y(x*) + J(x*) (x - x*): the spline's value and Jacobian, one call per use."""
+    import casadi
+
+    x = casadi.SX.sym("x", 4)
+    xm = casadi.MX.sym("x", 4)
+    y_sx = tab.cycle(*casadi.vertsplit(x))
+    y_mx = tab.cycle.function(*casadi.vertsplit(xm))
+    f_sx = casadi.Function("f_sx", [x], [y_sx, casadi.jacobian(y_sx, x)])
+    f_mx = casadi.Function("f_mx", [xm], [y_mx, casadi.jacobian(y_mx, xm)])
+    rng = np.random.default_rng(3)
+    box = tab.box()
+    for _ in range(20):
+        pt = [rng.uniform(lo, hi) for lo, hi in box]
+        v_sx, j_sx = (np.asarray(a) for a in f_sx(pt))
+        v_mx, j_mx = (np.asarray(a) for a in f_mx(pt))
+        assert np.all(np.isfinite(j_sx))
+        np.testing.assert_array_equal(v_sx, v_mx)
+        np.testing.assert_allclose(j_sx, j_mx, rtol=1e-12, atol=1e-12 * np.max(np.abs(j_mx)))
+        assert np.max(np.abs(j_mx)) > 0.0
+    calls = [f_sx.instruction_id(k) for k in range(f_sx.n_instructions())].count(casadi.OP_CALL)
+    assert calls == 1 + 4  # the value-and-Jacobian call, then one (cheap) forward call per direction
+    # numeric arguments call the table Function itself
+    assert float(tab.cycle(4000.0, 20.0, 35.0, 600.0)[0]) == float(tab.cycle.function(4000.0, 20.0, 35.0, 600.0)[0])

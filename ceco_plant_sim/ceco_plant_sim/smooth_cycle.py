@@ -45,6 +45,7 @@ from .plant_params import PlantParams
 from .refrigerant import cycle_tables, solve_cycle
 
 __all__ = [
+    "TableCall",
     "TABLE_OUTPUTS",
     "CYCLE_FIELDS",
     "SmoothCycleGrid",
@@ -272,22 +273,25 @@ class SmoothCycleTable:
         return tuple((float(a[0]), float(a[-1])) for a in self.axes)
 
     @functools.cached_property
-    def cycle(self) -> casadi.Function:
-        """Function (n_rpm, t_wall_c, t_amb_c, epsc_wpk) -> [q_evap_ref_w, p_comp_w, t_evap_sat_c, mdot_ref_kgps].
+    def cycle(self) -> TableCall:
+        """(n_rpm, t_wall_c, t_amb_c, epsc_wpk) -> [q_evap_ref_w, p_comp_w, t_evap_sat_c, mdot_ref_kgps].
 
-        The interpolating cubic B-spline of the samples, evaluated at the inputs clamped to the box.
+        The interpolating cubic B-spline of the samples, evaluated at the inputs clamped to the box
+        (a :class:`TableCall`: one call node with its Jacobian in SX graphs).
         """
         stacked = np.stack([self.values[k] for k in TABLE_OUTPUTS], axis=-1)
         knots, c = _spline_coefficients(self.axes, stacked)
         spline = casadi.Function.bspline("cycle_spline", knots, _casadi_order(c), [3] * 4, len(TABLE_OUTPUTS))
-        return self._clamped("smooth_cycle", spline, ("n_rpm", "t_wall_c", "t_amb_c", "epsc_wpk"), self.box())
+        return TableCall(
+            self._clamped("smooth_cycle", spline, ("n_rpm", "t_wall_c", "t_amb_c", "epsc_wpk"), self.box())
+        )
 
     @functools.cached_property
-    def n_lim(self) -> casadi.Function:
-        """Function (t_wall_c, t_amb_c, epsc_wpk) -> power-limit speed [rpm] (cubic B-spline, clamped to the box)."""
+    def n_lim(self) -> TableCall:
+        """(t_wall_c, t_amb_c, epsc_wpk) -> power-limit speed [rpm] (cubic B-spline, clamped; a :class:`TableCall`)."""
         knots, c = _spline_coefficients(self.axes[1:], self.n_lim_rpm[..., None])
         spline = casadi.Function.bspline("n_lim_spline", knots, _casadi_order(c), [3] * 3, 1)
-        return self._clamped("smooth_n_lim", spline, ("t_wall_c", "t_amb_c", "epsc_wpk"), self.box()[1:])
+        return TableCall(self._clamped("smooth_n_lim", spline, ("t_wall_c", "t_amb_c", "epsc_wpk"), self.box()[1:]))
 
     @staticmethod
     def _clamped(name, spline, names, box) -> casadi.Function:
@@ -304,6 +308,47 @@ class SmoothCycleTable:
             d = casadi.fmin(x - lo, hi - x) / (hi - lo)
             m = d if m is None else casadi.fmin(m, d)
         return m
+
+
+class TableCall:
+    """A table Function whose SX graphs hold one call per use, value and Jacobian together.
+
+    Numeric (and MX) arguments call the Function itself. SX arguments x give
+    ``y = y(x*) + J(x*) (x - x*)``, where one call node returns the spline's value y(x*), its Jacobian
+    J(x*) and x* (x* = x in value, ``stop_diff``: no derivative). The value is the spline's bit for
+    bit (x - x* = 0) and so is the first derivative (J is the spline's own Jacobian), but a Jacobian of
+    the SX graph then costs one spline-with-Jacobian call per use instead of one spline forward-derivative
+    call per use and per forward direction (the profile of docs/oracle.md "Cost": 4.3 times cheaper on
+    the oracle's 5-step interval). Second derivatives of the table are zero in SX graphs: for IPOPT's
+    limited-memory Hessian (the oracle's), not for an exact Hessian.
+    """
+
+    def __init__(self, function: casadi.Function) -> None:
+        self.function = function
+        """The table Function (clamped spline)."""
+        n = function.n_in()
+        xm = casadi.MX.sym("x", n)
+        zm = casadi.MX.sym("zero")
+        fx = casadi.vertcat(*function.call(casadi.vertsplit(xm)))
+        value_jac = casadi.Function(f"{function.name()}_value_jac", [xm], [fx, casadi.jacobian(fx, xm)])
+        xs = casadi.stop_diff(xm, 1)
+        y0, jac = value_jac(xs)
+        # ``zero`` (passed 0) keeps each output's forward derivative structurally nonzero: CasADi's SX
+        # forward mode writes NaN for a call output whose derivative has no nonzeros (3.8.2)
+        self._linear = casadi.Function(
+            f"{function.name()}_linearised",
+            [xm, zm],
+            [y0 + zm * xm[0], jac + zm * xm[0], xs + zm * xm],
+            {"never_inline": True},
+        )
+
+    def __call__(self, *args):
+        """The table at ``args`` (see the class)."""
+        if any(isinstance(a, casadi.SX) for a in args):
+            x = casadi.vertcat(*args)
+            y0, jac, xs = self._linear(x, 0)
+            return y0 + casadi.mtimes(jac, x - xs)
+        return self.function(*args)
 
 
 def _casadi_order(c: np.ndarray) -> list[float]:
