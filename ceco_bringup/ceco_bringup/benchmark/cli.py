@@ -389,7 +389,7 @@ def build_parser() -> cli_args.Parser:
         action=argparse.BooleanOptionalAction,
         default=False,
         help='also solve the whole-drive optimum per case (the bound of headroom_captured); off by default: on '
-        'whole drives it does not converge within its time limit yet (docs/oracle.md "Cost")',
+        'whole drives a level costs minutes and not every level converges yet (docs/oracle.md "Cost")',
     )
     p.add_argument(
         '--controller-cmd',
