@@ -6,16 +6,17 @@ band, and the energy saved at matched comfort against a family of baseline set-p
 A comparison against the one baseline run (the production law at 26 degC) compares at different
 comfort: on SC03 that baseline never reaches the comfort band, every CECO strategy does, so "+10 %
 energy" says little. The fair number is the saving at matched comfort (docs/benchmark.md,
-"Matched comfort"): the production law at a few set-points traces a front in the
-discomfort-energy plane, and each strategy is read against the front at its own discomfort.
+"Matched comfort"): the production law and the same law with tuned gains, each at a few
+set-points, trace fronts in the discomfort-energy plane, and each strategy is read against the
+lower of the two at its own discomfort (their envelope).
 
 * :func:`run_point`: a run's point in the plane and what the verdict says about it, from its
   ``timeseries.csv`` columns (``ceco_core.kpis.compute_kpis``: energy ``energy_kwh`` =
   compressor + blower + condenser fan [kWh], discomfort ``discomfort_pmvh`` = PMV-hours outside
   ISO 7730 category B, -0.5..+0.5, PMV clipped at +-3 [PMV h]);
-* :func:`run_family`: the production law at :data:`FAMILY_SETPOINTS_C` with the in-process
-  simulator (``closed_loop.simulate``; the same plant and scenario as a DDS run, which equals it:
-  ``python -m ceco_bringup.compare_sim``);
+* :func:`run_family`: the production and the tuned law (:data:`FAMILY_LAWS`) at
+  :data:`FAMILY_SETPOINTS_C` with the in-process simulator (``closed_loop.simulate``; the same
+  plant and scenario as a DDS run, which equals it: ``python -m ceco_bringup.compare_sim``);
 * :func:`build_verdict` / :func:`verdict_lines`: the numbers and the words;
   :func:`write_verdict` / :func:`read_verdict`: ``verdict.json``.
 
