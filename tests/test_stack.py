@@ -910,7 +910,9 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
             common,
             duration_s=3600.0,
             **{
-                'lockstep.command_timeout_s': 3.0,
+                # the plant waits this long for command 0 while the test activates the controller: 3 s
+                # was once too short on a loaded CI machine (the first command was step 1's)
+                'lockstep.command_timeout_s': 6.0,
                 'lockstep.min_state_subscribers': 3,
                 'lockstep.min_output_subscribers': 1,
                 'lockstep.min_command_subscribers': 2,
@@ -954,7 +956,7 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
         assert lc.change('deactivate') and lc.state() == 'inactive'
         time.sleep(0.5)  # commands already in flight arrive
         n_cmds = len(cmds)
-        _wait_for(lambda: len(powers) > n_active + 10 and powers[-1].fallback, 60, 'fallback after deactivate', procs)
+        _wait_for(lambda: len(powers) > n_active + 10 and powers[-1].fallback, 120, 'fallback after deactivate', procs)
         assert len(cmds) == n_cmds  # inactive: not one command more
         assert lc.change('activate')
         n_back = len(cmds)
