@@ -375,9 +375,11 @@ def fig_plane(points: Mapping[str, Mapping], family: Mapping[str, Mapping], path
 
     with plt.rc_context(RC_PARAMS):
         fig, ax = plt.subplots(figsize=(6.0, 4.2))
+        from ceco_bringup.verdict import family_law
+
         laws: dict[str, dict] = {}
         for n, p in family.items():
-            laws.setdefault(n.split('@')[0], {})[n] = (p['discomfort_pmvh'], p['energy_kwh'])
+            laws.setdefault(family_law(n), {})[n] = (p['discomfort_pmvh'], p['energy_kwh'])
         law_style = {
             'baseline': ('#7f7f7f', '-', 'production PI at set-point S'),
             'baseline-tuned': ('#2b2b2b', '--', 'tuned PI at set-point S'),
