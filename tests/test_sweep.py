@@ -7,6 +7,7 @@ import dataclasses
 import importlib.util
 import json
 import math
+import os
 
 import pytest
 
@@ -162,10 +163,16 @@ def test_warm_workers_reuse_controllers_and_equal_fresh_processes(tmp_path):
     worker = sweep.backends.WarmWorker()
     warm = [worker.run(sweep.run_cell, dataclasses.asdict(c)) for c in cells + cells[::-1]]
     assert worker.cache.builds == 2 and worker.cache.hits == 6  # ceco and ceco-ioch built once each
-    # the local pool: two warm processes
-    pooled: list = []
-    sweep.run_local([dataclasses.asdict(c) for c in cells], 2, pooled.append, sweep.run_cell)
-    assert len(pooled) == 6 and len({r['pid'] for r in pooled}) <= 2
+    # the local pool: two warm processes, spawned when the pool is made (before any cell is known), then
+    # two runs of the cells on the same processes
+    items = [dataclasses.asdict(c) for c in cells]
+    with sweep.backends.LocalPool(2) as pool:
+        started = pool.worker_pids()
+        pooled: list = []
+        pool.run(items, pooled.append, sweep.run_cell)
+        pool.run(items[::-1], pooled.append, sweep.run_cell)
+    assert len(started) == 2 and os.getpid() not in started
+    assert len(pooled) == 12 and {r['pid'] for r in pooled} <= started
     for row in warm + pooled:
         ref = fresh[row['cell_id']]
         assert row['status'] == ref['status'] == 'ok'

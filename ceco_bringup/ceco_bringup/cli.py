@@ -13,6 +13,7 @@ ceco security create-keystore DIR: an SROS2 keystore with ceco's access control
 """
 
 import importlib
+import os
 import sys
 
 VERBS = {
@@ -30,6 +31,15 @@ VERBS = {
     ),
     'security': ('ceco_bringup.security', 'SROS2 keystore (ceco security create-keystore DIR)'),
 }
+
+SINGLE_THREAD_VERBS = frozenset({'sweep', 'benchmark', 'sim'})
+"""Verbs that run the in-process simulator: one BLAS/OpenMP thread (:data:`SINGLE_THREAD_ENV`), as their pool
+workers (``ceco_bringup.sweep.backends.WORKER_THREAD_ENV``). Its matrices are tiny (4x4 to ~100x100): a second
+BLAS thread only contends; measured on the 2-core machine at load 3: the CO2 estimator's 4x4 ``expm`` 5.5 ms per
+call with OpenBLAS' default threads, 0.07 ms with one (docs/analysis.md)."""
+
+SINGLE_THREAD_ENV = {'OMP_NUM_THREADS': '1', 'OPENBLAS_NUM_THREADS': '1', 'MKL_NUM_THREADS': '1'}
+"""The thread environment of :data:`SINGLE_THREAD_VERBS` (the same values as the pool workers')."""
 
 
 def _usage() -> str:
@@ -56,6 +66,9 @@ def main(argv=None) -> int:
     if verb not in VERBS:
         print(f'ceco: unknown verb {verb!r}\n\n{_usage()}', file=sys.stderr)
         return 2
+    if verb in SINGLE_THREAD_VERBS:
+        for k, v in SINGLE_THREAD_ENV.items():
+            os.environ.setdefault(k, v)  # before numpy is imported; a value the user set is kept
     module = importlib.import_module(VERBS[verb][0])
     return int(module.main(rest) or 0)
 

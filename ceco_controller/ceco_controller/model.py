@@ -206,7 +206,7 @@ def load_params(path: str | pathlib.Path | None = None) -> ControlModelParams:
     """Load the identified parameters (default: :func:`default_params_path`)."""
     path = pathlib.Path(path) if path is not None else default_params_path()
     with open(path, encoding="utf-8") as fh:
-        doc = yaml.safe_load(fh)
+        doc = yaml.load(fh, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: read once per run
     if not isinstance(doc, dict) or "params" not in doc:
         raise ValueError(f"{path}: expected a mapping with a 'params' key")
     return ControlModelParams.from_dict(doc["params"])

@@ -129,6 +129,9 @@ def run_benchmark(
     t0 = time.perf_counter()
     ray_workers = workers
     workers = int(workers or os.cpu_count() or 1)
+    # local workers start now and import the simulator while this process plans the cells; closed once the runs
+    # are done (an exception drops the pool: its processes stop when it is collected)
+    pool = backends.LocalPool(workers if backend == 'local' else 1)
     cases = [load_case(n) for n in (case_names or (QUICK_CASES if quick else DEFAULT_CASES))]
     baselines = runner.load_baselines()
     if setpoints_c is None:
@@ -212,7 +215,7 @@ def run_benchmark(
             return
         n = min(workers, len(items))
         if backend == 'local':
-            backends.run_local(items, n, on_done, fn, runs_dir)
+            pool.run(items, on_done, fn, runs_dir)
         elif backend == 'ray':
             # on a cluster (address) without --workers: one worker per CPU of the cluster
             backends.run_ray(items, None if address and not ray_workers else n, address, on_done, fn, runs_dir)
@@ -250,6 +253,7 @@ def run_benchmark(
         oracle_entry,
         oracle_cases if oracle_cases is not None else (QUICK_ORACLE_CASES if quick else None),
     )
+    pool.close()  # the workers' teardown overlaps the report
     done = backends.read_done(log_path)
     case_docs = []
     for c in cases:

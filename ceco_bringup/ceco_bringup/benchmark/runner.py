@@ -174,7 +174,7 @@ def load_baselines(path: str | Path | None = None) -> BaselineConstants:
         text = resources.files('ceco_bringup').joinpath('data', 'benchmark', 'baselines.yaml').read_text('utf-8')
     else:
         text = Path(path).read_text(encoding='utf-8')
-    d = yaml.safe_load(text)
+    d = yaml.load(text, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))  # libyaml: 5x faster
     if not isinstance(d, Mapping) or d.get('schema') != BASELINES_SCHEMA:
         raise ValueError(f'baselines: not a {BASELINES_SCHEMA} file (rerun python -m ceco_bringup.benchmark.tuning)')
     from ceco_core.acc_law import AccSettings
@@ -250,7 +250,7 @@ def load_sensitivity(path: str | Path | None = None) -> tuple[str, list[Sensitiv
         text = resources.files('ceco_bringup').joinpath('data', 'benchmark', 'sensitivity.yaml').read_text('utf-8')
     else:
         text = Path(path).read_text(encoding='utf-8')
-    d = yaml.safe_load(text)
+    d = yaml.load(text, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))  # libyaml: 5x faster
     from ceco_plant_sim.scenario_plant import check_overrides
 
     if not isinstance(d, Mapping) or d.get('schema') != 'ceco-benchmark-sensitivity/1':

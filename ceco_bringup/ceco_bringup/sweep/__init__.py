@@ -52,8 +52,6 @@ any picklable cell function, also used by ``ceco benchmark``), :mod:`.summary`
 :func:`ceco_bringup.figures.front_figure`.
 """
 
-from ceco_bringup.figures import front_figure
-
 from . import backends, cells, grid, summary
 from .backends import WORKER_THREAD_ENV, append_row, read_done, run_local, run_ray
 from .cells import METRIC_COLUMNS, TIMING_COLUMNS, Cell, cell_id, code_fingerprint, run_cell, runtime_overrides
@@ -106,3 +104,12 @@ __all__ = [
     'summary',
     'append_row',
 ]
+
+
+def __getattr__(name: str):
+    """``front_figure`` imported on first use: matplotlib costs a worker or the planning process ~1 s to import."""
+    if name == 'front_figure':
+        from ceco_bringup.figures import front_figure
+
+        return front_figure
+    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')

@@ -24,11 +24,14 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
+from ceco_bringup.cli import SINGLE_THREAD_ENV
+
 __all__ = [
     'read_done',
     'append_row',
     'WORKER_THREAD_ENV',
     'WarmWorker',
+    'LocalPool',
     'estimated_cost',
     'run_local',
     'run_ray',
@@ -91,11 +94,12 @@ def _pythonpath() -> str:
     return os.pathsep.join(dict.fromkeys(dirs + ([extra] if extra else [])))
 
 
-WORKER_THREAD_ENV = {'OMP_NUM_THREADS': '1', 'OPENBLAS_NUM_THREADS': '1', 'MKL_NUM_THREADS': '1'}
+WORKER_THREAD_ENV = SINGLE_THREAD_ENV
 """Environment of parallel workers: one BLAS/OpenMP thread each. The solver
 (IPOPT/MUMPS) and numpy otherwise start a thread per core in every worker;
 two workers on two cores then ran a cell 2-3x slower than one worker alone
-(measured: docs/analysis.md). A value the user set is kept."""
+(measured: docs/analysis.md). A value the user set is kept. The ``ceco``
+command sets the same for a single worker (this process)."""
 
 
 @contextlib.contextmanager
@@ -120,7 +124,8 @@ class WarmWorker:
     """
 
     def __init__(self):
-        from ceco_controller.factory import ControllerCache  # the simulator, imported once per worker
+        import ceco_controller.closed_loop  # noqa: F401  (the simulator, imported once per worker, before its first cell)
+        from ceco_controller.factory import ControllerCache
 
         self.cache = ControllerCache()
         """The worker's built controllers."""
@@ -179,32 +184,83 @@ def _longest_first(items: Sequence) -> list:
     return sorted(items, key=estimated_cost, reverse=True)
 
 
-def run_local(items: Sequence, workers: int, on_done: Callable, fn: Callable, *args) -> None:
-    """Run ``fn(item, *args, controller_cache=...)`` for every item, ``on_done(result)`` as each finishes.
+def _ready() -> int:
+    """A no-op pool task: submitted at pool start so that every worker spawns (and imports) at once."""
+    return os.getpid()
 
-    ``workers == 1``: in this process, in order, with one :class:`WarmWorker`. Otherwise a
-    ``ProcessPoolExecutor`` with the ``spawn`` start method (``fn`` and the items must be
-    picklable: module-level functions and plain data), each process a :class:`WarmWorker` with
-    :data:`WORKER_THREAD_ENV`, cells started longest first. Ctrl-C cancels what has not started.
+
+class LocalPool:
+    """Warm workers on this machine, started when the pool is made (context manager).
+
+    ``workers == 1``: one :class:`WarmWorker` in this process, made at the first :meth:`run`.
+    Otherwise a ``ProcessPoolExecutor`` with the ``spawn`` start method and ``workers``
+    processes, each a :class:`WarmWorker` with :data:`WORKER_THREAD_ENV`, spawned at once: they
+    import the simulator while the caller still plans its cells (the pool is made first, the
+    cells submitted later). :meth:`run` may be called more than once (the benchmark's runs, then
+    its oracle cells) on the same warm workers. :meth:`close` does not wait for the worker
+    processes to exit (their interpreter teardown overlaps the caller's report).
     """
-    if workers == 1:
-        worker = WarmWorker()
-        for c in items:
-            on_done(worker.run(fn, c, *args))
-        return
-    ctx = multiprocessing.get_context('spawn')
-    with (
-        _worker_env(),
-        cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_start_worker) as pool,
-    ):
-        futures = [pool.submit(_run_in_worker, fn, c, *args) for c in _longest_first(items)]
+
+    def __init__(self, workers: int):
+        self.workers = max(1, int(workers))
+        """Worker processes (1: this process)."""
+        self._local: WarmWorker | None = None
+        self._pool: cf.ProcessPoolExecutor | None = None
+        if self.workers > 1:
+            ctx = multiprocessing.get_context('spawn')
+            with _worker_env():  # spawned processes copy the environment when they start: start them all here
+                self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx, initializer=_start_worker)
+                for _ in range(self.workers):  # one submit spawns one process (spawn context, Python >= 3.9)
+                    self._pool.submit(_ready)
+
+    def worker_pids(self) -> set[int]:
+        """The pool's process ids (this process's with one worker)."""
+        if self._pool is None:
+            return {os.getpid()}
+        return {p.pid for p in self._pool._processes.values()}  # the executor's own record of its processes
+
+    def __enter__(self) -> LocalPool:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def run(self, items: Sequence, on_done: Callable, fn: Callable, *args) -> None:
+        """Run ``fn(item, *args, controller_cache=...)`` for every item, ``on_done(result)`` as each finishes.
+
+        One worker: in order, in this process. Otherwise cells started longest first; Ctrl-C
+        cancels what has not started. ``fn`` and the items must be picklable (module-level
+        functions and plain data).
+        """
+        if self._pool is None:
+            if self._local is None:
+                self._local = WarmWorker()
+            for c in items:
+                on_done(self._local.run(fn, c, *args))
+            return
+        futures = [self._pool.submit(_run_in_worker, fn, c, *args) for c in _longest_first(items)]
         try:
             for fut in cf.as_completed(futures):
                 on_done(fut.result())
-        except KeyboardInterrupt:
+        except BaseException:
             for f in futures:
                 f.cancel()
             raise
+
+    def close(self) -> None:
+        """Stop the workers (cancel what has not started; do not wait for the processes to exit)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
+
+
+def run_local(items: Sequence, workers: int, on_done: Callable, fn: Callable, *args) -> None:
+    """Run ``fn(item, *args, controller_cache=...)`` for every item on a :class:`LocalPool` of ``workers``.
+
+    ``on_done(result)`` as each finishes; see :meth:`LocalPool.run`.
+    """
+    with LocalPool(workers) as pool:
+        pool.run(items, on_done, fn, *args)
 
 
 class _RayWorker(WarmWorker):
