@@ -532,3 +532,62 @@ def test_table_cells_render_inline_markdown():
     html = render_html([Heading(2, 'Case `sc03`'), Table(('a', '**b**'), [('**yes**', '`x`')])])
     assert '<td><b>yes</b></td><td><code>x</code></td>' in html and '<th><b>b</b></th>' in html
     assert _markdown_markers(_shown_text(html)) == []
+
+
+def _kpis_but_wall_clock(row):
+    return {k: v for k, v in row['kpis'].items() if not k.startswith('time_ratio')}
+
+
+def test_persistence_twin_runs_once_for_every_seed(tmp_path):
+    """The persistence twin's run does not depend on the seed (the seed draws the preview errors only, and
+    persistence has none): the benchmark runs it once per case and reuses the row for every seed; the scored
+    strategy with uncertain previews still runs per seed and differs between seeds."""
+    case = tmp_path / 'uncertain.yaml'
+    case.write_text(
+        yaml.safe_dump(
+            {
+                'schema': CASE_SCHEMA,
+                'name': 'uncertain',
+                'version': 1,
+                'scenario': 'sc03_mild',
+                'duration_s': 300,  # past the pull-down (full cooling whatever the preview) into regulation
+                'forecast_uncertainty': 'high',
+                'seeds': [0, 1, 2, 3, 4],
+            }
+        )
+    )
+    twin = 'ceco-pmv' + runner.PERSISTENCE_SUFFIX
+    # the claim itself: the twin at two seeds, each run on its own, gives the same KPIs (the wall-clock ones aside)
+    specs = runner.controllers(runner.load_baselines(), (26.0,), ('ceco-pmv',), (0.0,))
+    cells = runner.case_cells(cli.load_case(str(case)), specs, cli.code_fingerprint(), seeds=[0, 1])
+    by = {(c.axes['controller'], c.axes['seed']): dict(id=c.id, axes=c.axes, spec=c.spec) for c in cells}
+    rows = {k: runner.run_benchmark_cell(by[k]) for k in [(twin, 0), (twin, 1), ('ceco-pmv', 0), ('ceco-pmv', 1)]}
+    assert [r['status'] for r in rows.values()] == ['ok'] * 4, [r['error'] for r in rows.values()]
+    assert _kpis_but_wall_clock(rows[(twin, 0)]) == _kpis_but_wall_clock(rows[(twin, 1)])
+    assert _kpis_but_wall_clock(rows[('ceco-pmv', 0)]) != _kpis_but_wall_clock(rows[('ceco-pmv', 1)])
+    assert not runner.seed_matters(by[(twin, 1)]['spec']) and runner.seed_matters(by[('ceco-pmv', 1)]['spec'])
+    # the benchmark: one run of the twin, its row reused for the other four seeds
+    out = tmp_path / 'out'
+    doc = cli.run_benchmark(
+        [str(case)],
+        out,
+        workers=1,
+        progress=False,
+        log=lambda *a, **k: None,
+        setpoints_c=(26.0,),
+        setpoints_pmv=(0.0,),
+        sensitivity=False,
+        strategies=('ceco-pmv',),
+    )
+    logged = [json.loads(line) for line in (out / 'cells.jsonl').read_text().splitlines()]
+    twins = [r for r in logged if r['controller'] == twin]
+    assert sorted(r['seed'] for r in twins) == [0, 1, 2, 3, 4] and len({r['cell_id'] for r in twins}) == 5
+    ran = [r for r in twins if 'reused_from' not in r]
+    assert len(ran) == 1 and all(r['reused_from'] == ran[0]['cell_id'] for r in twins if r is not ran[0])
+    assert len([r for r in logged if r['controller'] == 'ceco-pmv' and 'reused_from' not in r]) == 5
+    assert doc['timing']['ran_now'] == len(logged) and doc['timing']['runs'] == len(logged)
+    runs = [r for r in doc['cases'][0]['runs'] if r['controller'] == twin]
+    assert len(runs) == 5 and all(r['kpis'] == runs[0]['kpis'] for r in runs)
+    # the reused twin rows equal the twin run at seed 1 on its own
+    seed1 = next(r for r in twins if r['seed'] == 1)
+    assert _kpis_but_wall_clock(seed1) == _kpis_but_wall_clock(rows[(twin, 1)])

@@ -166,6 +166,14 @@ class PreviewQuality:
         return any(getattr(self, f) > 0.0 for f in _KEYS.values())
 
     @property
+    def uses_seed(self) -> bool:
+        """True when the previews depend on the seed: forecast errors (``uncertainty`` or ``noisy``).
+
+        Perfect, persistence, delayed and missing previews are the same for every seed.
+        """
+        return self.uncertainty != "none" or self.noisy
+
+    @property
     def mode(self) -> str:
         """'perfect', or the faults present joined by '+' ('noisy+delayed')."""
         parts = [

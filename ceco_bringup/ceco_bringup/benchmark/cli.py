@@ -20,6 +20,7 @@ import datetime
 import json
 import os
 import shlex
+import shutil
 import socket
 import sys
 import time
@@ -210,15 +211,24 @@ def run_benchmark(
     runs_dir = str(out / 'runs') if save_runs else None
 
     def dispatch(cells_, fn):
-        items = [dict(id=c.id, axes=c.axes, spec=c.spec) for c in cells_]
+        # a seeded run that does not depend on its seed (the persistence twin) runs once; the other seeds reuse it
+        items, reuse = runner.share_seed_invariant([dict(id=c.id, axes=c.axes, spec=c.spec) for c in cells_])
         if not items:
             return
+
+        def done(row):
+            on_done(row)
+            for item in reuse.get(row['cell_id'], ()):
+                if runs_dir and (Path(runs_dir) / row['cell_id']).is_dir():
+                    shutil.copytree(Path(runs_dir) / row['cell_id'], Path(runs_dir) / item['id'], dirs_exist_ok=True)
+                on_done(runner.reused_row(row, item))
+
         n = min(workers, len(items))
         if backend == 'local':
-            pool.run(items, on_done, fn, runs_dir)
+            pool.run(items, done, fn, runs_dir)
         elif backend == 'ray':
             # on a cluster (address) without --workers: one worker per CPU of the cluster
-            backends.run_ray(items, None if address and not ray_workers else n, address, on_done, fn, runs_dir)
+            backends.run_ray(items, None if address and not ray_workers else n, address, done, fn, runs_dir)
         else:
             raise ValueError(f'backend: must be local or ray, got {backend!r}')
 

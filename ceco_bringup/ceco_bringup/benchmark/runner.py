@@ -502,6 +502,54 @@ def run_benchmark_cell(cell: Mapping, runs_dir: str | None = None, controller_ca
     return row
 
 
+def seed_matters(spec: Mapping) -> bool:
+    """Whether a cell's run depends on its ``seed``.
+
+    The simulator uses the seed for the preview errors only (``closed_loop.simulate`` hands it to the
+    preview quality); a preview without errors (``PreviewQuality.uses_seed`` false: the persistence twin,
+    perfect, delayed or missing previews) gives the same run for every seed. A spec without a preview (an
+    oracle cell) is taken to depend on it.
+    """
+    from ceco_v2x_preview.preview import parse_quality
+
+    if spec.get('seed') is None:
+        return False
+    return 'preview' not in spec or parse_quality(spec['preview']).uses_seed
+
+
+def share_seed_invariant(items: Sequence[Mapping]) -> tuple[list, dict]:
+    """The items to run, and ``{id of a run item: [items that reuse its row]}``.
+
+    Of seeded items whose run does not depend on the seed (:func:`seed_matters`), only the first of each
+    group with the same spec but the seed runs; the others reuse its row (:func:`reused_row`).
+    """
+    run, reuse, first = [], {}, {}
+    for item in items:
+        spec = item['spec']
+        if spec.get('seed') is None or seed_matters(spec):
+            run.append(item)
+            continue
+        key = cell_id({**spec, 'seed': None})
+        if key in first:
+            reuse.setdefault(first[key], []).append(item)
+        else:
+            first[key] = item['id']
+            run.append(item)
+    return run, reuse
+
+
+def reused_row(row: Mapping, item: Mapping) -> dict:
+    """``row`` (a run of the same spec at another seed) as the row of ``item``: its id and axes, no run time."""
+    return {
+        **row,
+        'cell_id': item['id'],
+        **item['axes'],
+        'reused_from': row['cell_id'],
+        'sim_time_s': 0.0,
+        'wall_time_s': 0.0,
+    }
+
+
 def _run_entry(row: Mapping) -> dict:
     kpis = row.get('kpis') or {}
     from .schema import REQUIRED_KPIS
