@@ -917,3 +917,26 @@ def test_held_command_waits_for_subscribers_and_sends_each_step_once():
     hold.offer('k3', short_of_subscribers=True)
     hold.clear()  # a new activation forgets it
     assert hold.release(may_send=True) == []
+
+
+def test_publisher_qos_matches_the_liveliness_probes():
+    """The command and preview publishers' QoS (mpc_node, preview_node and tools/bench_startup.py's peer take it
+    from interfaces) match both the data readers and the liveliness probes at the default lease; a publisher
+    without a lease (QOS_COMMAND, what the startup bench's peer used) does not match a probe (issue 19)."""
+    from rclpy.qos import QoSCompatibility, qos_check_compatible
+
+    from ceco_ros import interfaces
+    from ceco_ros.params import LIVELINESS_LEASE_S
+
+    probe = interfaces.liveliness_probe_qos(LIVELINESS_LEASE_S)
+    for timing in ('lockstep', 'realtime'):
+        cmd, pv = interfaces.command_publisher_qos(timing), interfaces.preview_publisher_qos(timing)
+        assert qos_check_compatible(cmd, probe)[0] == QoSCompatibility.OK
+        assert qos_check_compatible(pv, probe)[0] == QoSCompatibility.OK
+        assert qos_check_compatible(cmd, interfaces.command_qos(timing))[0] != QoSCompatibility.ERROR
+        assert qos_check_compatible(pv, interfaces.QOS_PREVIEW)[0] != QoSCompatibility.ERROR
+        assert cmd.liveliness_lease_duration.nanoseconds == int(LIVELINESS_LEASE_S * 1e9)
+    compat, why = qos_check_compatible(interfaces.QOS_COMMAND, probe)
+    assert compat == QoSCompatibility.ERROR and 'liveliness' in why
+    # a lease longer than the probe's does not match it either (the probe sees a dead publisher late)
+    assert qos_check_compatible(interfaces.command_publisher_qos('lockstep', 2.0), probe)[0] == QoSCompatibility.ERROR

@@ -140,8 +140,19 @@ def _controller_inputs(peer: Peer):
     )
     return [
         (peer.node.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE), _state0()),
-        (peer.node.create_publisher(WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.QOS_PREVIEW), w),
-        (peer.node.create_publisher(TrafficPreview, interfaces.TOPIC_TRAFFIC, interfaces.QOS_PREVIEW), s),
+        # the preview node's QoS (a liveliness lease): mpc_node's liveliness probes match it
+        (
+            peer.node.create_publisher(
+                WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.preview_publisher_qos('realtime')
+            ),
+            w,
+        ),
+        (
+            peer.node.create_publisher(
+                TrafficPreview, interfaces.TOPIC_TRAFFIC, interfaces.preview_publisher_qos('realtime')
+            ),
+            s,
+        ),
     ]
 
 
@@ -186,7 +197,8 @@ def run_node(name: str, domain: int, timeout_s: float, extra: dict | None = None
     cls, topic, qos = topics[out]
     peer.node.create_subscription(cls, topic, peer.on_output, qos)
     if name == 'plant_node':  # the plant starts once a command publisher is matched
-        peer.node.create_publisher(AcCommand, interfaces.TOPIC_COMMAND, interfaces.QOS_COMMAND)
+        # mpc_node's QoS (a liveliness lease): the plant's liveliness probe matches it
+        peer.node.create_publisher(AcCommand, interfaces.TOPIC_COMMAND, interfaces.command_publisher_qos('lockstep'))
     threads = [threading.Thread(target=_drive_lifecycle, args=(peer, name, stop), daemon=True)]
     if feeder is not None:
         threads.append(threading.Thread(target=_feed, args=(peer, feeder(peer), stop), daemon=True))

@@ -45,7 +45,7 @@ class ControllerNode(ManagedNode):
         except (ValueError, RuntimeError, OSError) as err:
             self.get_logger().error(f'configure failed: {err}')
             return FAILURE
-        cmd_qos = interfaces.with_liveliness(interfaces.command_qos(cfg.timing), cfg.liveliness_lease_s)
+        cmd_qos = interfaces.command_publisher_qos(cfg.timing, cfg.liveliness_lease_s)
         self._pubs = [
             self.checked_lifecycle_publisher(AcCommand, interfaces.TOPIC_COMMAND, cmd_qos),
             self.create_lifecycle_publisher(

@@ -11,6 +11,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSPoli
 from rclpy.qos_overriding_options import QoSOverridingOptions
 
 from ceco_core import control_grid
+from ceco_ros.params import LIVELINESS_LEASE_S
 
 # --- Topics (relative, so namespaces and remapping work) -------------------
 from ceco_ros.topics import (  # noqa: F401 - the names, re-exported beside their QoS
@@ -152,6 +153,19 @@ def with_liveliness(qos: QoSProfile, lease_s: float) -> QoSProfile:
         liveliness=LivelinessPolicy.AUTOMATIC,
         liveliness_lease_duration=Duration(nanoseconds=int(lease_s * 1e9)),
     )
+
+
+def command_publisher_qos(timing: str, lease_s: float = LIVELINESS_LEASE_S) -> QoSProfile:
+    """QoS of a controller's hvac/command publisher: :func:`command_qos` offering a liveliness lease of ``lease_s`` [s].
+
+    The plant's data reader and its liveliness probe (lease at least ``lease_s``) both match it.
+    """
+    return with_liveliness(command_qos(timing), lease_s)
+
+
+def preview_publisher_qos(timing: str, lease_s: float = LIVELINESS_LEASE_S) -> QoSProfile:
+    """QoS of a preview publisher: :func:`preview_qos` offering a liveliness lease of ``lease_s`` [s]."""
+    return with_liveliness(preview_qos(timing), lease_s)
 
 
 def liveliness_probe_qos(lease_s: float) -> QoSProfile:

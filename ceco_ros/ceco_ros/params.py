@@ -113,11 +113,15 @@ def log_throttle_parameter(what: str = 'input') -> ParamSpec:
     )
 
 
+LIVELINESS_LEASE_S = 1.0
+"""Default automatic liveliness lease every node offers and requests (``qos.liveliness_lease_s``) [s]."""
+
+
 def liveliness_parameter(description: str, at_configure: bool = False) -> ParamSpec:
     """The automatic liveliness lease a node offers or requests (``qos.liveliness_lease_s``)."""
     return ParamSpec(
         'qos.liveliness_lease_s',
-        1.0,
+        LIVELINESS_LEASE_S,
         description,
         float_range=(0.1, CONTROL_PERIOD_RANGE_S[1]),
         at_configure=at_configure,

@@ -42,7 +42,7 @@ class PreviewNode(NodeTools, Node):
         self.inputs = PreviewInputs(cfg, self.log)
         self._last_k, self._published, self._failed, self._error, self._reported = None, 0, 0, '', 0
         # liveliness lease: a dead preview node is known to every reader that probes it
-        qos = interfaces.with_liveliness(interfaces.preview_qos(cfg.timing), cfg.liveliness_lease_s)
+        qos = interfaces.preview_publisher_qos(cfg.timing, cfg.liveliness_lease_s)
         self._pub_w = self.create_publisher(WeatherPreview, interfaces.TOPIC_WEATHER, qos)
         self._pub_s = self.create_publisher(TrafficPreview, interfaces.TOPIC_TRAFFIC, qos)
         self.create_subscription(
