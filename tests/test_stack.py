@@ -876,6 +876,101 @@ def test_lockstep_command_waits_for_its_subscribers_over_dds(tmp_path):
         tn.close()
 
 
+def test_lockstep_hold_counts_data_readers_not_liveliness_probes_over_dds(tmp_path):
+    """plant_node reads hvac/command with a data reader and watches the controller with a liveliness probe on
+    the same topic: two matched subscriptions, one reader. With ``lockstep.min_command_subscribers: 2`` (plant
+    and recorder) the command stays held while only that pair has matched (the probe was counted: the command
+    went out before the recorder had matched, issue 19) and is sent, once, when a recorder's reader matches."""
+    from ceco_msgs.msg import AcCommand, CabinState
+
+    tn = DdsPeer(_domain(), 'plant_like')
+    first: list = []
+    second: list = []
+    reader = tn.node.create_subscription(AcCommand, interfaces.TOPIC_COMMAND, first.append, interfaces.QOS_COMMAND)
+    probe = tn.node.create_subscription(
+        AcCommand, interfaces.TOPIC_COMMAND, lambda _m: None, interfaces.liveliness_probe_qos(1.0)
+    )
+    pub_state = tn.node.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
+    params = {
+        'scenario': 'sc03',
+        'timing': 'lockstep',
+        'control_period_s': 5.0,
+        'preview_timeout_s': 0.2,
+        'autostart': True,
+        'lockstep.min_command_subscribers': 2,
+    }
+    base = _proc('baseline_node', 'baseline_node', tn.env, tmp_path / 'logs', params)
+
+    def graph():  # (subscriptions, data readers) on hvac/command as the graph reports them
+        subs = tn.node.get_subscriptions_info_by_topic('/' + interfaces.TOPIC_COMMAND)
+        return len(subs), sum(not interfaces.is_liveliness_probe(e.qos_profile) for e in subs)
+
+    try:
+        base.start()
+        _wait_for(
+            lambda: (
+                pub_state.get_subscription_count() >= 1
+                and reader.get_publisher_count() >= 1
+                and probe.get_publisher_count() >= 1  # the controller's lease matched the probe
+                and 'active: commanding' in base.log_text()
+            ),
+            120,
+            'baseline_node active, matched by the reader and the probe',
+            [base],
+        )
+        assert graph() == (2, 1)
+        pub_state.publish(_state_msg(0, 0.0))
+        _log_has(base, 'step 0: no weather and traffic preview within 0.2 s')  # computed, then held
+        time.sleep(2.0)
+        assert first == []  # two matched subscriptions, but one data reader: held
+        tn.node.create_subscription(AcCommand, interfaces.TOPIC_COMMAND, second.append, interfaces.QOS_RECORD)
+        _wait_for(lambda: first and second, 30, 'the held command on both readers', [base])
+        assert graph() == (3, 2)
+        time.sleep(1.0)
+        assert [m.step_index for m in first] == [0] and [m.step_index for m in second] == [0]
+    finally:
+        base.stop()
+        tn.close()
+
+
+def test_plant_start_gate_counts_data_readers_not_its_probe_over_dds(tmp_path):
+    """plant_node's lockstep start gate ``lockstep.min_command_subscribers: 2`` (itself and the recorder) counts
+    hvac/command data readers in the graph: its own reader and liveliness probe are one; step 0's state is not
+    published until a second reader (a recorder's) joins (with the probe counted it started at once)."""
+    from ceco_msgs.msg import AcCommand, CabinState
+
+    tn = DdsPeer(_domain(), 'controller_like')
+    states = tn.collect(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
+    pub_cmd = tn.node.create_publisher(
+        AcCommand, interfaces.TOPIC_COMMAND, interfaces.command_publisher_qos('lockstep')
+    )
+    params = {
+        'scenario': 'sc03',
+        'timing': 'lockstep',
+        'duration_s': 60.0,
+        'lockstep.command_timeout_s': 600.0,
+        'lockstep.min_state_subscribers': 1,
+        'lockstep.min_command_subscribers': 2,
+    }
+    plant = _proc('plant_node', 'plant_node', tn.env, tmp_path / 'logs', params)
+    try:
+        plant.start()
+        _wait_for(
+            lambda: pub_cmd.get_subscription_count() >= 2 and 'refrigerant tables' in plant.log_text(),
+            120,
+            "the plant's reader and probe matched",
+            [plant],
+        )
+        time.sleep(2.0)
+        assert states == []  # waiting for a second hvac/command reader
+        tn.collect(AcCommand, interfaces.TOPIC_COMMAND, interfaces.QOS_RECORD)
+        _wait_for(lambda: states, 30, 'state 0 once the recorder joined', [plant])
+        assert states[0].step_index == 0
+    finally:
+        plant.stop()
+        tn.close()
+
+
 def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
     """mpc_node as a managed node, driven over DDS as `ceco run` (or `ros2 lifecycle set`) does:
     unconfigured -> configure -> inactive (no command) -> activate (commands) -> deactivate (the

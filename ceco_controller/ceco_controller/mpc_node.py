@@ -137,7 +137,7 @@ class ControllerNode(ManagedNode):
         self.session.set_config(self.config)
 
     def _short_of_subscribers(self) -> bool:
-        return self._pubs[0].get_subscription_count() < self.config.min_command_subscribers
+        return self.data_readers(interfaces.TOPIC_COMMAND, self._pubs[0]) < self.config.min_command_subscribers
 
     def _health(self, health):
         self.session.record.events.update(self.qos_events)

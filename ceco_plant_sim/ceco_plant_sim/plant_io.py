@@ -87,7 +87,8 @@ PLANT_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec(
         'lockstep.min_command_subscribers',
         1,
-        'lockstep: hvac/command subscriptions (this node included) to see in the graph before step 0 [-]',
+        'lockstep: hvac/command data readers (this node included, liveliness probes not) to see in the graph '
+        'before step 0 [-]',
         int_range=(0, 100),
     ),
     ParamSpec(
@@ -353,8 +354,8 @@ def start_gate(
     """What step 0 still waits for ('' when the plant may start).
 
     The matched subscribers of cabin/state and of every other output, the hvac/command
-    subscriptions in the graph and a matched command publisher (unless no state subscriber
-    is required).
+    data readers in the graph (the plant's own liveliness probe not counted) and a matched
+    command publisher (unless no state subscriber is required).
     """
     missing = []
     if state_subs < cfg.min_state_subscribers:

@@ -98,7 +98,7 @@ class PlantNode(NodeTools, Node):
             self.config,
             self.pub_state.get_subscription_count(),
             tuple(p.get_subscription_count() for p in outputs),
-            self.count_subscribers(interfaces.TOPIC_COMMAND),
+            self.data_readers(interfaces.TOPIC_COMMAND),  # its own probe not counted
             self.sub_cmd.get_publisher_count(),
         )
 

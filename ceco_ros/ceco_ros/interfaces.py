@@ -6,7 +6,7 @@ only (the pure cores never import it).
 
 from __future__ import annotations
 
-from rclpy.duration import Duration
+from rclpy.duration import Duration, Infinite
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSPolicyKind, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
 
@@ -186,6 +186,15 @@ def liveliness_probe_qos(lease_s: float) -> QoSProfile:
         liveliness=LivelinessPolicy.AUTOMATIC,
         liveliness_lease_duration=Duration(nanoseconds=int(lease_s * 1e9)),
     )
+
+
+def is_liveliness_probe(qos: QoSProfile) -> bool:
+    """Whether a subscription (as the ROS graph reports its QoS) is a liveliness probe (:func:`liveliness_probe_qos`).
+
+    A probe requests a finite liveliness lease; ceco's data readers request none (any publisher matches
+    them), and the graph reports the lease of a remote reader too (its depth it does not).
+    """
+    return qos.liveliness_lease_duration != Infinite
 
 
 def qos_overrides() -> QoSOverridingOptions:

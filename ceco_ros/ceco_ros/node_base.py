@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 from rclpy.clock import Clock, ClockType
+from rclpy.duration import Infinite
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 
@@ -118,6 +119,28 @@ class NodeTools:
                 incompatible_qos=lambda _e: self.qos_event('incompatible_qos', topic)
             ),
         )
+
+    def data_readers(self, topic: str, publisher=None) -> int:
+        """Subscriptions on ``topic`` that read its data; liveliness probes are not counted.
+
+        Probes: ``interfaces.is_liveliness_probe``. Counted: the graph's subscriptions (remapped name); with
+        ``publisher``, at most its matched subscriptions less the probes that match it (a probe matches a
+        publisher offering a lease at most the probe's: DDS's request-offer rule). Discovery updates the graph
+        and the matches separately: the smaller count holds a lockstep command a moment longer rather than
+        release it early. A plant's hvac/command probe otherwise counted as a reader:
+        ``lockstep.min_command_subscribers`` (plant and recorder) was met before the recorder had matched
+        (issue 19).
+        """
+        subs = self.get_subscriptions_info_by_topic(self.resolve_topic_name(topic))
+        probe = interfaces.is_liveliness_probe
+        leases = [e.qos_profile.liveliness_lease_duration for e in subs if probe(e.qos_profile)]
+        n = len(subs) - len(leases)
+        if publisher is not None:
+            offered = publisher.qos_profile.liveliness_lease_duration  # 0: none offered (infinite)
+            offers = 0 < offered.nanoseconds and offered != Infinite
+            matching = sum(offers and lease.nanoseconds >= offered.nanoseconds for lease in leases)
+            n = min(n, publisher.get_subscription_count() - matching)
+        return max(0, n)
 
     def liveliness_probe(self, msg_type, topic: str, lease_s: float, changed):
         """A subscription that only watches the liveliness of ``topic``'s publishers (lease ``lease_s`` [s]).
