@@ -141,7 +141,7 @@ def node_step_times(
                     k = int(msg.step_index)
                     node_ms[k] = 1e3 * (time.perf_counter() - mark["t0"])
                     node_cpu_ms[k] = 1e3 * (time.thread_time() - mark["c0"])
-                    last_chain = getattr(node.ctl.core, "last_chain", None)  # (read only: the node's NmpcController)
+                    last_chain = getattr(node.session.ctl.core, "last_chain", None)  # (read only: the NmpcController)
                     chain = last_chain() if last_chain is not None else None
                     solve_cpu_ms[k] = (chain.cpu_ms or 0.0) if chain is not None else float("nan")
 
@@ -153,8 +153,13 @@ def node_step_times(
 
         feeder = rclpy.create_node("bench_feeder")
         pub_state = feeder.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.state_qos("lockstep"))
-        pub_w = feeder.create_publisher(WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.QOS_PREVIEW)
-        pub_s = feeder.create_publisher(TrafficPreview, interfaces.TOPIC_TRAFFIC, interfaces.QOS_PREVIEW)
+        # the preview node's QoS (a liveliness lease: the node's liveliness probes match it)
+        pub_w = feeder.create_publisher(
+            WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.preview_publisher_qos("realtime")
+        )
+        pub_s = feeder.create_publisher(
+            TrafficPreview, interfaces.TOPIC_TRAFFIC, interfaces.preview_publisher_qos("realtime")
+        )
         commands: dict[int, Any] = {}  # (AcCommand messages)
         solve_ms: dict[int, float] = {}
         fallback: dict[int, bool] = {}
@@ -162,7 +167,7 @@ def node_step_times(
             AcCommand,
             interfaces.TOPIC_COMMAND,
             lambda m: commands.__setitem__(int(m.step_index), m),
-            interfaces.command_qos("lockstep", 2 * ts),
+            interfaces.command_qos("lockstep"),
         )
 
         def on_diag(m):
@@ -189,7 +194,8 @@ def node_step_times(
             w, s = conversions.previews_to_msgs(p, k, stamp, "perfect")
             pub_w.publish(w)
             pub_s.publish(s)
-            pub_state.publish(conversions.state_msg(k * m, t_s, stamp, meas, sc.env_at(t_s), u_prev, False))
+            door = float(cols["recirc_share_cmd"][max(k * m - 1, 0)])  # the share applied over the last period
+            pub_state.publish(conversions.state_msg(k * m, t_s, stamp, meas, sc.env_at(t_s), u_prev, False, door))
             spin_until(lambda k=k: k in commands and k in solve_ms, f"command for step {k}")
         ks = sorted(commands)
         return {
