@@ -13,7 +13,8 @@ configure and activate by the peer as soon as its services appear, as ``ceco run
 
 Reference measured in the same run: a minimal rclpy talker started the same way
 (interpreter, rclpy, one publisher), from process start to its first message here; every
-time is also printed as a ratio to it. Nothing is asserted: numbers only.
+time is also printed as a ratio to it; so is each process's peak resident memory (VmHWM of
+/proc/PID/status, read at its first output, before it is stopped). Nothing is asserted: numbers only.
 """
 
 from __future__ import annotations
@@ -181,6 +182,17 @@ NODES = {
 }
 
 
+def _peak_rss_mib(pid: int) -> float | None:
+    """A live process's peak resident set size so far (VmHWM) [MiB]; None where /proc has none."""
+    try:
+        for line in Path(f'/proc/{pid}/status').read_text().splitlines():
+            if line.startswith('VmHWM:'):
+                return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return None
+
+
 def run_node(name: str, domain: int, timeout_s: float, extra: dict | None = None) -> dict:
     from ceco_bringup import supervisor
     from ceco_msgs.msg import AcCommand, CabinState, WeatherPreview
@@ -219,6 +231,7 @@ def run_node(name: str, domain: int, timeout_s: float, extra: dict | None = None
             time.sleep(0.005)
     finally:
         stop.set()
+        rss = _peak_rss_mib(proc.pid)
         proc.send_signal(2)
         try:
             proc.wait(timeout=10)
@@ -238,12 +251,14 @@ def run_node(name: str, domain: int, timeout_s: float, extra: dict | None = None
         'configured_s': first('configured in'),
         'active_s': first('active: commanding'),
         'first_output_s': None if peer.first_output is None else peer.first_output - t0,
+        'peak_rss_mib': rss,
         'log_head': [text for _, text in lines[:3]],
         'log': [text for _, text in lines],
     }
 
 
-def run_reference(domain: int, timeout_s: float) -> float | None:
+def run_reference(domain: int, timeout_s: float) -> tuple[float | None, float | None]:
+    """The minimal talker's time to its first message here [s] and its peak RSS then [MiB]."""
     from std_msgs.msg import String
 
     peer = Peer(domain)
@@ -261,13 +276,14 @@ def run_reference(domain: int, timeout_s: float) -> float | None:
         while peer.first_output is None and time.monotonic() - t0 < timeout_s:
             time.sleep(0.005)
     finally:
+        rss = _peak_rss_mib(proc.pid)
         proc.send_signal(2)
         try:
             proc.wait(timeout=10)
         except subprocess.TimeoutExpired:
             proc.kill()
         peer.close()
-    return None if peer.first_output is None else peer.first_output - t0
+    return (None if peer.first_output is None else peer.first_output - t0), rss
 
 
 def main(argv=None) -> int:
@@ -286,14 +302,19 @@ def main(argv=None) -> int:
     from ceco_bringup import supervisor
 
     domain = args.domain_id if args.domain_id is not None else supervisor.pick_domain_id()
-    ref = [run_reference(domain, args.timeout_s) for _ in range(args.repeat)]
-    ref = [r for r in ref if r is not None]
+    refs = [run_reference(domain, args.timeout_s) for _ in range(args.repeat)]
+    ref = [t for t, _ in refs if t is not None]
     ref_med = statistics.median(ref) if ref else float('nan')
-    result = {'reference_first_message_s': ref_med, 'nodes': {}}
-    print(f'reference (minimal rclpy talker, first message): median {ref_med:.3f} s over {len(ref)} runs')
+    ref_rss = [m for _, m in refs if m is not None]
+    ref_rss_med = statistics.median(ref_rss) if ref_rss else float('nan')
+    result = {'reference_first_message_s': ref_med, 'reference_peak_rss_mib': ref_rss_med, 'nodes': {}}
+    print(
+        f'reference (minimal rclpy talker, first message): median {ref_med:.3f} s, peak RSS {ref_rss_med:.0f} MiB '
+        f'over {len(ref)} runs'
+    )
     print(
         f'{"node":<14} {"first log [s]":>14} {"configured [s]":>15} {"active [s]":>10} {"first output [s]":>17} '
-        f'{"output / ref":>13}'
+        f'{"output / ref":>13} {"peak RSS [MiB]":>15} {"RSS / ref":>10}'
     )
     for name in args.nodes:
         extra = {'autostart': 'true'} if args.autostart and name in ('mpc_node', 'baseline_node') else None
@@ -306,6 +327,8 @@ def main(argv=None) -> int:
         act = [r['active_s'] for r in runs if r['active_s'] is not None]
         med_cfg = statistics.median(cfg) if cfg else float('nan')
         med_act = statistics.median(act) if act else float('nan')
+        rss = [r['peak_rss_mib'] for r in runs if r['peak_rss_mib'] is not None]
+        med_rss = statistics.median(rss) if rss else float('nan')
         result['nodes'][name] = {
             'first_log_s': logs,
             'first_output_s': outs,
@@ -314,10 +337,12 @@ def main(argv=None) -> int:
             'median_first_log_s': med_log,
             'median_first_output_s': med_out,
             'missing_outputs': len(runs) - len(outs),
+            'peak_rss_mib': rss,
+            'median_peak_rss_mib': med_rss,
         }
         print(
             f'{name:<14} {med_log:>14.3f} {med_cfg:>15.3f} {med_act:>10.3f} {med_out:>17.3f} '
-            f'{med_out / ref_med:>13.1f}'
+            f'{med_out / ref_med:>13.1f} {med_rss:>15.0f} {med_rss / ref_rss_med:>10.2f}'
             + (
                 ''
                 if len(outs) == len(runs)
