@@ -63,9 +63,8 @@ def main() -> int:
     venv = sum(p.stat().st_size for p in Path(sys.prefix).rglob('*') if p.is_file() and not p.is_symlink()) / 2**20
     extras = sum(_size_mib(dists[n]) for n in only_extras)
     print(f'venv {sys.prefix}: {venv:.0f} MiB')
-    print(
-        f'optional extras ({", ".join(sorted(only_extras))}): {extras:.0f} MiB = {100 * extras / venv:.0f} % of the venv'
-    )
+    names = ', '.join(sorted(only_extras))
+    print(f'optional extras ({names}): {extras:.0f} MiB = {100 * extras / venv:.0f} % of the venv')
     print(f'without the extras: {venv - extras:.0f} MiB')
     print(json.dumps({'venv_mib': venv, 'extras_mib': extras, 'extras_packages': sorted(only_extras)}))
     return 0
