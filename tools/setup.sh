@@ -71,6 +71,13 @@ set -u
 # here (a few seconds) so that the first simulation, plant_node or test finds it in the cache.
 (set +u; . "$ROOT/tools/env.sh"; python -m ceco_plant_sim.compiled_plant --warm) \
   || echo "setup: compiled plant not warmed (see above)" >&2
+# The NMPC's compiled objects (solver.codegen: true, the deployment setting; `ceco bench nmpc`) only on request:
+# CECO_WARM_NMPC=1 bash tools/setup.sh. The default settings (codegen: false, `ceco run`, `ceco sim`, the tests)
+# compile no NMPC object, and the five strategies' objects cost about 5 minutes here (docs/setup.md).
+if [ "${CECO_WARM_NMPC:-0}" = 1 ]; then
+  (set +u; . "$ROOT/tools/env.sh"; python -m ceco_controller.nlp_cache --fill) \
+    || echo "setup: NMPC objects not compiled (see above)" >&2
+fi
 
 # The `ceco` command: sources the workspace, then runs the CLI.
 cat > "$VENV/bin/ceco" <<EOS
