@@ -833,6 +833,32 @@ def _values(status) -> dict:
     return {kv.key: kv.value for kv in status.values}
 
 
+_HOLD_PARAMS = {
+    'scenario': 'sc03',
+    'timing': 'lockstep',
+    'control_period_s': 5.0,
+    'preview_timeout_s': 0.2,
+    'autostart': True,
+    'lockstep.min_command_subscribers': 2,
+}
+"""baseline_node in lockstep holding each command until two data readers (ceco run's plant and recorder) matched."""
+
+
+def _step0_computed(base, pub_state, ready, what: str) -> None:
+    """Start ``base`` (:data:`_HOLD_PARAMS`), wait until it is active and ``ready()``, send state 0; it computes
+    step 0 (no previews within 0.2 s) and, 2 s later, has had every chance to send it."""
+    base.start()
+    _wait_for(
+        lambda: pub_state.get_subscription_count() >= 1 and ready() and 'active: commanding' in base.log_text(),
+        120,
+        what,
+        [base],
+    )
+    pub_state.publish(_state_msg(0, 0.0))
+    _log_has(base, 'step 0: no weather and traffic preview within 0.2 s')  # computed, then held
+    time.sleep(2.0)
+
+
 def test_lockstep_command_waits_for_its_subscribers_over_dds(tmp_path):
     """lockstep, ``lockstep.min_command_subscribers: 2`` (ceco run's plant and recorder): a command
     computed while only one subscription has matched the controller's publisher is held, not sent
@@ -845,26 +871,9 @@ def test_lockstep_command_waits_for_its_subscribers_over_dds(tmp_path):
     second: list = []
     tn.node.create_subscription(AcCommand, interfaces.TOPIC_COMMAND, first.append, interfaces.QOS_COMMAND)
     pub_state = tn.node.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
-    params = {
-        'scenario': 'sc03',
-        'timing': 'lockstep',
-        'control_period_s': 5.0,
-        'preview_timeout_s': 0.2,
-        'autostart': True,
-        'lockstep.min_command_subscribers': 2,
-    }
-    base = _proc('baseline_node', 'baseline_node', tn.env, tmp_path / 'logs', params)
+    base = _proc('baseline_node', 'baseline_node', tn.env, tmp_path / 'logs', _HOLD_PARAMS)
     try:
-        base.start()
-        _wait_for(
-            lambda: pub_state.get_subscription_count() >= 1 and 'active: commanding' in base.log_text(),
-            120,
-            'baseline_node active',
-            [base],
-        )
-        pub_state.publish(_state_msg(0, 0.0))
-        _log_has(base, 'step 0: no weather and traffic preview within 0.2 s')  # computed, then held
-        time.sleep(2.0)
+        _step0_computed(base, pub_state, lambda: True, 'baseline_node active')
         assert first == []
         tn.node.create_subscription(AcCommand, interfaces.TOPIC_COMMAND, second.append, interfaces.QOS_COMMAND)
         _wait_for(lambda: first and second, 30, 'the held command on both subscriptions', [base])
@@ -891,37 +900,17 @@ def test_lockstep_hold_counts_data_readers_not_liveliness_probes_over_dds(tmp_pa
         AcCommand, interfaces.TOPIC_COMMAND, lambda _m: None, interfaces.liveliness_probe_qos(1.0)
     )
     pub_state = tn.node.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
-    params = {
-        'scenario': 'sc03',
-        'timing': 'lockstep',
-        'control_period_s': 5.0,
-        'preview_timeout_s': 0.2,
-        'autostart': True,
-        'lockstep.min_command_subscribers': 2,
-    }
-    base = _proc('baseline_node', 'baseline_node', tn.env, tmp_path / 'logs', params)
+    base = _proc('baseline_node', 'baseline_node', tn.env, tmp_path / 'logs', _HOLD_PARAMS)
 
     def graph():  # (subscriptions, data readers) on hvac/command as the graph reports them
         subs = tn.node.get_subscriptions_info_by_topic('/' + interfaces.TOPIC_COMMAND)
         return len(subs), sum(not interfaces.is_liveliness_probe(e.qos_profile) for e in subs)
 
     try:
-        base.start()
-        _wait_for(
-            lambda: (
-                pub_state.get_subscription_count() >= 1
-                and reader.get_publisher_count() >= 1
-                and probe.get_publisher_count() >= 1  # the controller's lease matched the probe
-                and 'active: commanding' in base.log_text()
-            ),
-            120,
-            'baseline_node active, matched by the reader and the probe',
-            [base],
-        )
+        # the controller's lease matched the probe too
+        matched = lambda: reader.get_publisher_count() >= 1 and probe.get_publisher_count() >= 1  # noqa: E731
+        _step0_computed(base, pub_state, matched, 'baseline_node active, matched by the reader and the probe')
         assert graph() == (2, 1)
-        pub_state.publish(_state_msg(0, 0.0))
-        _log_has(base, 'step 0: no weather and traffic preview within 0.2 s')  # computed, then held
-        time.sleep(2.0)
         assert first == []  # two matched subscriptions, but one data reader: held
         tn.node.create_subscription(AcCommand, interfaces.TOPIC_COMMAND, second.append, interfaces.QOS_RECORD)
         _wait_for(lambda: first and second, 30, 'the held command on both readers', [base])
