@@ -28,7 +28,7 @@ from ceco_core.run_status import STATUS_FAILED, ControlCheck, check_control
 
 from . import front as fr
 from .cases import Case
-from .schema import BENCHMARK_VERSION, FAMILIES, SEED_INVARIANT_KINDS
+from .schema import BENCHMARK_VERSION, DOOR_FAMILY_BASES, DOOR_SHARES_PCT, FAMILIES, SEED_INVARIANT_KINDS, door_family
 
 __all__ = [
     'SETPOINTS_C',
@@ -51,6 +51,7 @@ __all__ = [
     'load_sensitivity',
     'ControllerSpec',
     'controllers',
+    'case_controllers',
     'case_cells',
     'run_benchmark_cell',
     'assemble_case',
@@ -160,6 +161,20 @@ class BaselineConstants:
             **{k: (dict(v[0]), str(v[1])) for k, v in self.families.items()},
         }
         return [FamilySpec(f, *base[f]) for f in FAMILIES if f in base]
+
+    def door_family_specs(self) -> list[FamilySpec]:
+        """The fixed-door families (issue 21).
+
+        Each of :data:`schema.DOOR_FAMILY_BASES` with its tuned gains and the door held at each of
+        :data:`schema.DOOR_SHARES_PCT` (``door_mode: fixed``, no fog or CO2 override).
+        """
+        out = []
+        for b in DOOR_FAMILY_BASES:
+            overrides, measurements = self.families[b]
+            for pct in DOOR_SHARES_PCT:
+                door = {'door_mode': 'fixed', 'door_fixed_share': pct / 100.0}
+                out.append(FamilySpec(door_family(b, pct), {**dict(overrides), **door}, str(measurements)))
+        return out
 
 
 TUNED_FAMILIES = ('tuned', 'tuned-allowance', 'pmv', 'pmv-allowance')
@@ -352,7 +367,10 @@ def controllers(
     strategies: Sequence[str] = STRATEGY_NAMES,
     setpoints_pmv: Sequence[float] = SETPOINTS_PMV,
 ) -> list[ControllerSpec]:
-    """The benchmark's controllers: every baseline family, both compensated laws, the strategies."""
+    """The benchmark's controllers: every baseline family, both compensated laws, the strategies.
+
+    The fixed-door families are added per case (:func:`case_controllers`).
+    """
     out = []
     for fam in baselines.family_specs():
         out += family_members(fam, setpoints_c, setpoints_pmv)
@@ -376,6 +394,18 @@ def controllers(
         if s in PERSISTENCE_TWINS
     ]
     return out
+
+
+def case_controllers(case: Case, specs: Sequence[ControllerSpec], door_specs: Sequence[ControllerSpec]) -> list:
+    """The controllers of ``case``: ``specs``, plus the fixed-door family members ``door_specs``.
+
+    The door members only when the case's baselines drive the door (``baseline_door`` set: the air-quality
+    cases), placed after the other families.
+    """
+    if not case.baseline_door or not door_specs:
+        return list(specs)
+    n_fam = sum(1 for c in specs if c.kind in FAMILIES.values())
+    return [*specs[:n_fam], *door_specs, *specs[n_fam:]]
 
 
 def _preview(case: Case) -> str:
@@ -405,9 +435,9 @@ def case_cells(
                 'case_sha': sha,
                 'scenario': scenario,
                 'strategy': c.strategy,
-                'strategy_overrides': {
-                    **dict(c.overrides),
+                'strategy_overrides': {  # the case's door for every baseline, unless the member holds its own
                     **(dict(case.baseline_door) if c.strategy == 'baseline' else {}),
+                    **dict(c.overrides),
                 },
                 'preview': c.preview or (_preview(case) if c.seeded else 'perfect'),
                 'seed': seed,
