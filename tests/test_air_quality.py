@@ -416,3 +416,48 @@ def test_fixed_door_families_run_on_the_air_quality_cases_and_a_co2_breaking_mem
     assert fronts["tuned-door100"] is None
     assert [p.name for p in fronts["tuned-door50"].points] == ["baseline-tuned-door50@26.0"]
     assert runner.air_quality_broken(runs) == ["baseline-tuned-door100@26.0"]
+
+
+def test_door_logic_tuned_with_the_tuned_laws_is_frozen_by_its_rule_and_given_to_their_members():
+    """door_tuning.yaml (python -m ceco_bringup.benchmark.door_tuning): for the tuned temperature PI and the tuned
+    PMV PI the chosen purge share and margin are the least objective among the grid candidates that hold 1500 ppm
+    on hot-commute-4p; the candidates that break it have no objective. The benchmark gives those values to the
+    tuned and PMV members of a case whose baselines run the production door logic, not to the plain law's, nor on
+    a case without the door."""
+    from importlib import resources
+
+    import yaml
+
+    from ceco_bringup.benchmark import cases as bc
+    from ceco_bringup.benchmark import door_tuning as dt
+    from ceco_bringup.benchmark import runner
+    from ceco_bringup.benchmark.tuning import TUNING_SETPOINTS
+
+    doc = yaml.safe_load(
+        resources.files("ceco_bringup").joinpath("data", "benchmark", "door_tuning.yaml").read_text("utf-8")
+    )
+    assert doc["tuned_on"] == dt.TUNING_CASE and doc["tuned_on_sha"] == bc.load_case(dt.TUNING_CASE).sha()
+    n_grid = len(dt.PURGE_SHARE_GRID) * len(dt.CO2_MARGIN_GRID_PPM)
+    assert doc["tuning_cost"]["runs"] == n_grid * 4 * len(dt.LAWS) and doc["tuning_cost"]["wall_s"] > 0
+    frozen = runner.load_door_tuning()
+    for law in dt.LAWS:
+        entry = doc["laws"][law]
+        assert len(entry["grid"]) == n_grid
+        for g in entry["grid"]:
+            assert len(g["energy_kwh"]) == len(TUNING_SETPOINTS["pmv" if law == "pmv" else "cabin_temperature"])
+            assert g["air_quality_met"] == (g["co2_max_ppm"] < 1500.0)
+            assert (g["objective_kwh"] is None) == (not g["air_quality_met"])
+        best = min((g for g in entry["grid"] if g["objective_kwh"] is not None), key=lambda g: g["objective_kwh"])
+        assert frozen[law] == {"door_co2_margin_ppm": best["co2_margin_ppm"], "door_purge_share": best["purge_share"]}
+        assert any(not g["air_quality_met"] for g in entry["grid"])  # the grid reaches where the limit breaks
+    b = runner.load_baselines()
+    specs = runner.controllers(b, (25.0,), (), (0.1,))
+    aq = {c.name: c for c in runner.case_controllers(bc.load_case("hot-commute-4p"), specs, [], frozen)}
+    assert dict(aq["baseline-tuned@25.0"].overrides)["door_purge_share"] == frozen["tuned"]["door_purge_share"]
+    assert (
+        dict(aq["baseline-pmv-allowance@+0.10"].overrides)["door_co2_margin_ppm"]
+        == frozen["pmv"]["door_co2_margin_ppm"]
+    )
+    assert "door_purge_share" not in dict(aq["baseline@25.0"].overrides)  # the plain law keeps part 1's values
+    dry = runner.case_controllers(bc.load_case("udds-hot"), specs, [], frozen)
+    assert dry == specs

@@ -137,6 +137,7 @@ def run_benchmark(
         setpoints_pmv = runner.QUICK_SETPOINTS_PMV if quick else runner.SETPOINTS_PMV
     strategies = runner.STRATEGY_NAMES if strategies is None else tuple(strategies)
     specs = runner.controllers(baselines, setpoints_c, strategies, setpoints_pmv)
+    door_tuning = runner.load_door_tuning()
     door_specs = [
         c for fam in baselines.door_family_specs() for c in runner.family_members(fam, setpoints_c, setpoints_pmv)
     ]
@@ -144,7 +145,7 @@ def run_benchmark(
     seeds = {c.name: (c.seeds[:1] if quick else c.seeds) for c in cases}
     cells, by_case = [], {}
     for c in cases:
-        cc = runner.case_cells(c, runner.case_controllers(c, specs, door_specs), code, seeds=seeds[c.name])
+        cc = runner.case_cells(c, runner.case_controllers(c, specs, door_specs, door_tuning), code, seeds=seeds[c.name])
         by_case[c.name] = cc
         cells += cc
     sens_plan = []

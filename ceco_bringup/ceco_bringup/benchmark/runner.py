@@ -52,6 +52,8 @@ __all__ = [
     'ControllerSpec',
     'controllers',
     'case_controllers',
+    'load_door_tuning',
+    'DOOR_TUNED_KINDS',
     'case_cells',
     'run_benchmark_cell',
     'assemble_case',
@@ -396,16 +398,71 @@ def controllers(
     return out
 
 
-def case_controllers(case: Case, specs: Sequence[ControllerSpec], door_specs: Sequence[ControllerSpec]) -> list:
+DOOR_TUNING_SCHEMA = 'ceco-benchmark-door-tuning/1'
+"""Value of the door tuning file's ``schema`` key (written by :mod:`.door_tuning`)."""
+
+DOOR_TUNED_KINDS = {
+    'baseline-tuned': 'tuned',
+    'baseline-tuned-allowance': 'tuned',
+    'baseline-pmv': 'pmv',
+    'baseline-pmv-allowance': 'pmv',
+}
+"""Kinds whose production door logic takes the values tuned with their law (``door_tuning.yaml``: the law)."""
+
+
+def load_door_tuning(path: str | Path | None = None) -> dict:
+    """``{law: {door field: value}}`` of the frozen door tuning (default: the bundled file).
+
+    ValueError naming what is wrong.
+    """
+    from ceco_core.recirc_law import RecircSettings
+
+    if path is None:
+        text = resources.files('ceco_bringup').joinpath('data', 'benchmark', 'door_tuning.yaml').read_text('utf-8')
+    else:
+        text = Path(path).read_text(encoding='utf-8')
+    d = yaml.safe_load(text)
+    if not isinstance(d, Mapping) or d.get('schema') != DOOR_TUNING_SCHEMA:
+        raise ValueError(
+            f'door tuning: not a {DOOR_TUNING_SCHEMA} file (rerun python -m ceco_bringup.benchmark.door_tuning)'
+        )
+    out = {}
+    for law in sorted(set(DOOR_TUNED_KINDS.values())):
+        settings = ((d.get('laws') or {}).get(law) or {}).get('settings')
+        if not isinstance(settings, Mapping) or not all(str(k).startswith('door_') for k in settings):
+            raise ValueError(f'door tuning: laws.{law}.settings must be a mapping of door_* fields')
+        try:
+            RecircSettings(**settings).validate()
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f'door tuning: laws.{law}.settings: {exc}') from exc
+        out[law] = {str(k): float(v) for k, v in settings.items()}
+    return out
+
+
+def case_controllers(
+    case: Case,
+    specs: Sequence[ControllerSpec],
+    door_specs: Sequence[ControllerSpec],
+    door_tuning: Mapping | None = None,
+) -> list:
     """The controllers of ``case``: ``specs``, plus the fixed-door family members ``door_specs``.
 
-    The door members only when the case's baselines drive the door (``baseline_door`` set: the air-quality
-    cases), placed after the other families.
+    Only when the case's baselines drive the door (``baseline_door`` set: the air-quality cases); then the
+    door members come after the other families, and where the case's door is the production logic
+    (``door_mode: auto``) the members of :data:`DOOR_TUNED_KINDS` carry the door values tuned with their law
+    (``door_tuning``: :func:`load_door_tuning`).
     """
-    if not case.baseline_door or not door_specs:
+    if not case.baseline_door:
         return list(specs)
-    n_fam = sum(1 for c in specs if c.kind in FAMILIES.values())
-    return [*specs[:n_fam], *door_specs, *specs[n_fam:]]
+    out = []
+    auto = dict(case.baseline_door).get('door_mode') == 'auto'
+    for c in specs:
+        law = DOOR_TUNED_KINDS.get(c.kind)
+        if auto and door_tuning and law in door_tuning:
+            c = dataclasses.replace(c, overrides=tuple(sorted({**dict(c.overrides), **door_tuning[law]}.items())))
+        out.append(c)
+    n_fam = sum(1 for c in out if c.kind in FAMILIES.values())
+    return [*out[:n_fam], *door_specs, *out[n_fam:]]
 
 
 def _preview(case: Case) -> str:
