@@ -156,6 +156,21 @@ AQ_SIGNALS = ("co2_cab_ppm", "fog_margin_k")
 (>= its bound)."""
 
 
+def fog_margin_of(t_cab_c, rh_cab, t_glass_c) -> float:
+    """The fog margin [K] of measured cabin air (temperature [degC], RH [0..1]) and glass [degC].
+
+    :func:`fog_margin_k` of the readings; NaN when a reading is missing or implausible (a controller then has no
+    fog override, it does not guess).
+    """
+    try:
+        t, rh, tg = float(t_cab_c), float(rh_cab), float(t_glass_c)
+    except (TypeError, ValueError, OverflowError):
+        return math.nan
+    if not (math.isfinite(t) and math.isfinite(tg) and 0.0 < rh <= 1.0):
+        return math.nan
+    return float(fog_margin_k(tg, psychro.vapour_pressure_pa(t, rh)))
+
+
 class AqSignals(NamedTuple):
     """The air-quality constraint signals at one instant (:data:`AQ_SIGNALS`)."""
 

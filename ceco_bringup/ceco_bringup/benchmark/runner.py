@@ -37,6 +37,7 @@ __all__ = [
     'ENERGY_AXIS',
     'SECONDARY_AXES',
     'STRATEGY_NAMES',
+    'STRATEGY_VARIANTS',
     'PERSISTENCE_SUFFIX',
     'PERSISTENCE_TWINS',
     'SETPOINTS_PMV',
@@ -90,6 +91,10 @@ persistence (the value measured at the issue time held over the horizon; preview
 PERSISTENCE_TWINS = ('ceco-pmv',)
 """The strategies run a second time with persistence previews (``ceco-pmv-persistence``): what the previews
 are worth to them."""
+
+STRATEGY_VARIANTS = {'ceco-pmv-aq': ('ceco-pmv', (('door_control', 'co2_hold'),))}
+"""Benchmark names of a strategy run with settings overrides: ``{name: (strategy, ((field, value), ...))}``
+(issue 21: ``ceco-pmv-aq``, ceco-pmv with the CO2-holding door beside its NLP; docs/controller.md)."""
 
 SEED_INVARIANT = SEED_INVARIANT_KINDS
 SCORED_KINDS = ('strategy', 'compensated', 'compensated-allowance', 'external')
@@ -389,7 +394,7 @@ def controllers(
             sp_c,
         )
     )
-    out += [ControllerSpec(s, 'strategy', s) for s in strategies]
+    out += [ControllerSpec(s, 'strategy', *STRATEGY_VARIANTS.get(s, (s, ()))) for s in strategies]
     out += [
         ControllerSpec(s + PERSISTENCE_SUFFIX, 'strategy', s, preview='persistence')
         for s in strategies
