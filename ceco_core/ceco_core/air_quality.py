@@ -171,6 +171,20 @@ def fog_margin_of(t_cab_c, rh_cab, t_glass_c) -> float:
     return float(fog_margin_k(tg, psychro.vapour_pressure_pa(t, rh)))
 
 
+def fog_override(active: bool, fog_margin_k: float, fog_margin_min_k: float, enter_k: float, exit_k: float) -> bool:
+    """Whether a door's fog override is on after this reading of the fog margin [K].
+
+    It starts below the bound plus ``enter_k`` [K] and ends above the bound plus ``exit_k`` [K] (hysteresis); an
+    unknown (NaN) margin leaves it as it was (``active``).
+    """
+    if math.isfinite(fog_margin_k):
+        if fog_margin_k < fog_margin_min_k + enter_k:
+            return True
+        if fog_margin_k > fog_margin_min_k + exit_k:
+            return False
+    return bool(active)
+
+
 class AqSignals(NamedTuple):
     """The air-quality constraint signals at one instant (:data:`AQ_SIGNALS`)."""
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from ceco_core.air_quality import KGKG_PER_PPM, check_settings, co2_generation_kgps, leakage_kgps
+from ceco_core.air_quality import KGKG_PER_PPM, check_settings, co2_generation_kgps, fog_override, leakage_kgps
 from ceco_core.co2_estimator import Co2Estimator, Co2EstimatorParams
 
 __all__ = ["Co2DoorSettings", "Co2DoorCommand", "Co2DoorLaw", "co2_after_ppm", "hold_share"]
@@ -144,11 +144,7 @@ class Co2DoorLaw:
         s, m = self.settings, self.model
         est = self.estimator.update(t_s, co2_sensor_ppm, recirc_share, mdot_bl_kgps, speed_mps, n_occupants)
         c = est.co2_cab_ppm
-        if math.isfinite(fog_margin_k):
-            if fog_margin_k < fog_margin_min_k + s.fog_enter_k:
-                self._fog = True
-            elif fog_margin_k > fog_margin_min_k + s.fog_exit_k:
-                self._fog = False
+        self._fog = fog_override(self._fog, fog_margin_k, fog_margin_min_k, s.fog_enter_k, s.fog_exit_k)
         if self._fog:
             return Co2DoorCommand(0.0, "fog", c)
         if co2_sensor_fitted and not math.isfinite(co2_sensor_ppm):

@@ -188,17 +188,27 @@ TUNED_FAMILIES = ('tuned', 'tuned-allowance', 'pmv', 'pmv-allowance')
 """The families the tuning module writes (their gains are chosen by it)."""
 
 
+def _frozen_file(name: str, path: str | Path | None, schema: str, what: str, module: str) -> tuple[str, Mapping]:
+    """(text, mapping) of a frozen benchmark file: ``path`` or the bundled ``data/benchmark/<name>``.
+
+    ValueError unless its ``schema`` is ``schema`` (``what``: the message's subject; ``module``: the rule that
+    writes it).
+    """
+    if path is None:
+        text = resources.files('ceco_bringup').joinpath('data', 'benchmark', name).read_text('utf-8')
+    else:
+        text = Path(path).read_text(encoding='utf-8')
+    d = yaml.safe_load(text)
+    if not isinstance(d, Mapping) or d.get('schema') != schema:
+        raise ValueError(f'{what}: not a {schema} file (rerun python -m {module})')
+    return text, d
+
+
 def load_baselines(path: str | Path | None = None) -> BaselineConstants:
     """Read the frozen baseline constants (default: the bundled file); ValueError naming what is wrong."""
     import hashlib
 
-    if path is None:
-        text = resources.files('ceco_bringup').joinpath('data', 'benchmark', 'baselines.yaml').read_text('utf-8')
-    else:
-        text = Path(path).read_text(encoding='utf-8')
-    d = yaml.safe_load(text)
-    if not isinstance(d, Mapping) or d.get('schema') != BASELINES_SCHEMA:
-        raise ValueError(f'baselines: not a {BASELINES_SCHEMA} file (rerun python -m ceco_bringup.benchmark.tuning)')
+    text, d = _frozen_file('baselines.yaml', path, BASELINES_SCHEMA, 'baselines', 'ceco_bringup.benchmark.tuning')
     from ceco_core.acc_law import AccSettings
 
     comp = dict(d['compensation'])
@@ -422,15 +432,9 @@ def load_door_tuning(path: str | Path | None = None) -> dict:
     """
     from ceco_core.recirc_law import RecircSettings
 
-    if path is None:
-        text = resources.files('ceco_bringup').joinpath('data', 'benchmark', 'door_tuning.yaml').read_text('utf-8')
-    else:
-        text = Path(path).read_text(encoding='utf-8')
-    d = yaml.safe_load(text)
-    if not isinstance(d, Mapping) or d.get('schema') != DOOR_TUNING_SCHEMA:
-        raise ValueError(
-            f'door tuning: not a {DOOR_TUNING_SCHEMA} file (rerun python -m ceco_bringup.benchmark.door_tuning)'
-        )
+    _, d = _frozen_file(
+        'door_tuning.yaml', path, DOOR_TUNING_SCHEMA, 'door tuning', 'ceco_bringup.benchmark.door_tuning'
+    )
     out = {}
     for law in sorted(set(DOOR_TUNED_KINDS.values())):
         settings = ((d.get('laws') or {}).get(law) or {}).get('settings')
