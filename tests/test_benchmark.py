@@ -15,7 +15,7 @@ SETPOINTS = (25.0, 27.0, 29.0)
 SETPOINTS_PMV = (0.0, 0.5)
 FAMILY_RUNS = 4 * len(SETPOINTS) + 2 * len(SETPOINTS_PMV)  # temperature families: plain, allowance, tuned x 2
 ORACLE = 'oracle_standin:solve_front'  # tests/oracle_standin.py: real scored runs, not an optimum
-LEVELS_N = [0] * 6  # runner.oracle_levels asks for 6 levels
+LEVELS_N = [0] * 4  # runner.oracle_levels asks for 4 levels
 
 
 @pytest.fixture(scope='module')
@@ -468,7 +468,10 @@ def test_a_missing_oracle_module_is_skipped_with_one_line(tmp_path):
     assert cli.build_parser().parse_args(['--out', 'x', '--oracle']).oracle
     # the levels: >= 4, from the least discomfort of the families to 1.5 times it
     levels = runner.oracle_levels([{**r, 'kpis': dict(r['kpis'])} for r in runs])
-    assert len(levels) == 6 and levels[0] == pytest.approx(0.1024) and levels[-1] == pytest.approx(1.5 * 0.1024)
+    assert len(levels) == 4 and levels[0] == pytest.approx(0.1024) and levels[-1] == pytest.approx(1.5 * 0.1024)
+    # spaced quadratically: dense at the comfortable end, where the fronts are steepest
+    frac = [(x - levels[0]) / (levels[-1] - levels[0]) for x in levels]
+    assert frac == pytest.approx([0.0, 1.0 / 9.0, 4.0 / 9.0, 1.0])
 
 
 class _Text(HTMLParser):
@@ -532,3 +535,27 @@ def test_table_cells_render_inline_markdown():
     html = render_html([Heading(2, 'Case `sc03`'), Table(('a', '**b**'), [('**yes**', '`x`')])])
     assert '<td><b>yes</b></td><td><code>x</code></td>' in html and '<th><b>b</b></th>' in html
     assert _markdown_markers(_shown_text(html)) == []
+
+
+def test_oracle_levels_that_break_air_quality_are_no_bound():
+    """An oracle level whose replay broke the CO2 limit stays in ``points`` (with why) but not on the front."""
+    ok = {'discomfort_pmvh': 0.10, 'energy_kwh': 0.40, 'air_quality_met': 1.0}
+    stale = {'discomfort_pmvh': 0.12, 'energy_kwh': 0.30, 'air_quality_met': 0.0}
+    unknown = {'discomfort_pmvh': 0.15, 'energy_kwh': 0.28, 'air_quality_met': None}
+    row = {
+        'seed': 0,
+        'status': 'ok',
+        'error': '',
+        'points': [
+            {'level': 0.10, 'kpis': ok, 'error': ''},
+            {'level': 0.12, 'kpis': stale, 'error': ''},
+            {'level': 0.15, 'kpis': unknown, 'error': ''},
+        ],
+    }
+    doc = runner.oracle_entry('ok', '', [0.10, 0.12, 0.15], [row])
+    (f,) = doc['fronts']
+    assert [p['discomfort'] for p in f['front']] == [0.10, 0.15]
+    assert f['points'][1]['error'].startswith('breaks the air-quality limits')
+    assert f['points'][0]['error'] == '' and f['points'][2]['error'] == ''
+    bounds = runner.oracle_bounds(doc)
+    assert bounds[0].energy_at(0.12) == pytest.approx(0.40 + (0.28 - 0.40) * (0.02 / 0.05))

@@ -74,9 +74,13 @@ class OracleSettings:
     pmv_clip_k: float = 20.0
     """Sharpness [1/PMV] of the smooth clip at the PMV scale limit (log-sum-exp; error <= ln 2 / k at the
     clip only, where the plant's PMV reaches the scale's end: the pull-down's first seconds)."""
-    expand: bool = True
-    """Expand the NLP into one SX graph (its Jacobian free of the NaN that the MX map's Jacobian produced on
-    short sc03 drives; about 1.5 times the Jacobian's cost of the MX form)."""
+    lbfgs_history: int = 50
+    """Pairs of the limited-memory Hessian approximation (IPOPT's ``limited_memory_max_history``; its default 6
+    left the least-discomfort level of sc03's first 300 s unsolved after 400 iterations, 50 solved it in 65)."""
+    expand: bool = False
+    """Expand the NLP into one SX graph. Off: the MX form maps the interval's SX function (built in seconds
+    where the expansion of a whole drive took 150-240 s; the same cost per iteration since the cycle table's
+    ``TableCall``)."""
     guess_setpoint_c: float | None = None
     """The production law's cabin set-point of the initial guess [degC]; None: its default."""
 
@@ -88,6 +92,8 @@ class OracleSettings:
             raise ValueError(f"OracleSettings.control_period_s: must be finite and > 0, got {self.control_period_s}")
         if not (math.isfinite(self.plant_dt_s) and self.plant_dt_s > 0):
             raise ValueError(f"OracleSettings.plant_dt_s: must be finite and > 0, got {self.plant_dt_s}")
+        if not (isinstance(self.lbfgs_history, int) and self.lbfgs_history >= 1):
+            raise ValueError(f"OracleSettings.lbfgs_history: must be an int >= 1, got {self.lbfgs_history!r}")
         if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
             raise ValueError(f"OracleSettings.max_iter: must be an int >= 1, got {self.max_iter!r}")
         for name in ("max_wall_time_s", "tol", "pmv_clip_k"):
@@ -195,6 +201,10 @@ class OracleProblem:
             [xk, energy, casadi.vertcat(*pmvs), tvk],
             ["x", "u", "tv", "E", "mask"],
             ["x_next", "energy_j", "pmv", "tv_out"],
+            # the drive's data are constants of the NLP: no derivative through them. Else the MX map's
+            # Jacobian, which seeds every input of the interval, met 0 x inf = NaN at standstill (the
+            # derivative of a power of the vehicle speed at 0 m/s) on the key-on interval.
+            {"is_diff_in": [True, True, True, False, False]},
         )
 
     def _build(self, k: int, m: int, n: int) -> None:
@@ -250,6 +260,7 @@ class OracleProblem:
             "ipopt.acceptable_tol": 1e-4,
             "ipopt.mu_strategy": "adaptive",
             "ipopt.nlp_scaling_method": "gradient-based",
+            "ipopt.limited_memory_max_history": s.lbfgs_history,
         }
         self.solver = casadi.nlpsol("oracle", "ipopt", nlp, opts)
         # bounds: key-on state fixed, actuators as every controller, slacks >= 0
@@ -341,7 +352,11 @@ def replay(scenario, commands: np.ndarray, control_period_s: float, plant_dt_s: 
     res = simulate(scenario, "baseline", settings, controller=ScheduleController(commands))
     res.strategy = res.metrics["strategy"] = "oracle"
     kpis, _ = compute_kpis(
-        res.timeseries, step_time_s=None, control_period_s=res.metrics["control_period_s"], fallback_steps=0
+        res.timeseries,
+        step_time_s=None,
+        control_period_s=res.metrics["control_period_s"],
+        fallback_steps=0,
+        air_limits=scenario.air_quality.limits,
     )
     return res, kpis
 

@@ -709,13 +709,16 @@ def matched_of(runs: Sequence[Mapping], fx: str, ex: str, bounds: Mapping | None
     return out
 
 
-def oracle_levels(runs: Sequence[Mapping], n: int = 6) -> list[float]:
+def oracle_levels(runs: Sequence[Mapping], n: int = 4) -> list[float]:
     """The discomfort levels [PMV h] the oracle is asked for on a case.
 
-    ``n`` (>= 4) levels evenly spaced from D_lo, the least discomfort of any family's vertex or any scored
-    controller, to the greatest of the scored controllers' and 1.5 D_lo (the range of the strategies and
-    of the efficient baselines around them); [] without a front. Not rounded: the first level is the
-    envelope's own end (the runs are deterministic, so the levels and the oracle's cell ids are too).
+    ``n`` (>= 4) levels from D_lo, the least discomfort of any family's vertex or any scored controller, to
+    the greatest of the scored controllers' and 1.5 D_lo (the range of the strategies and of the efficient
+    baselines around them), spaced quadratically (D_lo + (hi - D_lo) (i / (n - 1))^2): the fronts are
+    steepest near D_lo, where the strategies sit, and a bound read between two levels is a straight line
+    that lies above the convex optimum (it understates the oracle's saving there). [] without a front.
+    Not rounded: the first level is the envelope's own end (the runs are deterministic, so the levels and
+    the oracle's cell ids are too).
     """
     if n < 4:
         raise ValueError(f'oracle_levels: at least 4 levels, got {n}')
@@ -725,7 +728,7 @@ def oracle_levels(runs: Sequence[Mapping], n: int = 6) -> list[float]:
     ds = [d for pts in _points(runs, FRONT_AXIS, ENERGY_AXIS).values() for d, _ in pts]
     lo = min([env.d_range[0], *ds])
     hi = max([1.5 * lo, *ds])
-    return [lo + (hi - lo) * i / (n - 1) for i in range(n)]
+    return [lo + (hi - lo) * (i / (n - 1)) ** 2 for i in range(n)]
 
 
 def assemble_case(
@@ -928,11 +931,13 @@ def oracle_entry(status: str, note: str, levels: Sequence[float], rows: Sequence
 
     ``status``: 'ok', 'unavailable' (the module is absent), 'skipped' (``--no-oracle``, or not asked for
     this case) or 'error' (no seed gave a front); ``fronts`` = per seed the points and the front built from
-    the solved ones (members ``oracle@<level>``).
+    the solved ones that meet the air-quality limits (members ``oracle@<level>``).
     """
     fronts = []
     for r in rows:
-        pts = [p for p in r.get('points', []) if p.get('kpis')]
+        # a level whose replay broke the air-quality limits is no bound (the oracle holds the door where the
+        # plant leaves it; a saving bought with stale air is no saving): kept in points, not on the front
+        pts = [p for p in r.get('points', []) if p.get('kpis') and not breaks_air_quality(p)]
         front = (
             fr.build_front([(f'oracle@{p["level"]:.6g}', p['kpis'][FRONT_AXIS], p['kpis'][ENERGY_AXIS]) for p in pts])
             if pts and r['status'] == 'ok'
@@ -944,7 +949,12 @@ def oracle_entry(status: str, note: str, levels: Sequence[float], rows: Sequence
                 'status': r['status'] if front is not None or r['status'] != 'ok' else 'error',
                 'error': r.get('error', '') or ('' if front is not None else 'no level solved'),
                 'points': [
-                    {'level': float(p['level']), 'kpis': p.get('kpis'), 'error': p.get('error', '')}
+                    {
+                        'level': float(p['level']),
+                        'kpis': p.get('kpis'),
+                        'error': p.get('error', '')
+                        or ('breaks the air-quality limits: not a bound' if breaks_air_quality(p) else ''),
+                    }
                     for p in r.get('points', [])
                 ],
                 'front': _front_points(front),
