@@ -466,6 +466,13 @@ def test_a_missing_oracle_module_is_skipped_with_one_line(tmp_path):
     # the command line: off by default, --oracle asks it
     assert not cli.build_parser().parse_args(['--out', 'x']).oracle
     assert cli.build_parser().parse_args(['--out', 'x', '--oracle']).oracle
+    # --oracle-cases: a subset of the selected cases, with --oracle only; a stray name is one clear error
+    a = cli.build_parser().parse_args(['--out', 'x', '--oracle', '--oracle-cases', 'sc03-paper, udds-hot'])
+    assert a.oracle_cases == ['sc03-paper', 'udds-hot']
+    with pytest.raises(SystemExit):
+        cli.main(['sc03-paper', '--out', 'x', '--oracle-cases', 'sc03-paper'])
+    with pytest.raises(ValueError, match='--oracle-cases: udds-hot not among the selected cases'):
+        cli.run_benchmark(['sc03-paper'], 'x', oracle=True, oracle_cases=['udds-hot'])
     # the levels: >= 4, from the least discomfort of the families to 1.5 times it
     levels = runner.oracle_levels([{**r, 'kpis': dict(r['kpis'])} for r in runs])
     assert len(levels) == 4 and levels[0] == pytest.approx(0.1024) and levels[-1] == pytest.approx(1.5 * 0.1024)

@@ -385,8 +385,10 @@ def solve_levels(
 ) -> list[LevelResult]:
     """The oracle at each discomfort level [PMV h], one :class:`LevelResult` per level in the given order.
 
-    Solved in increasing order, each warm-started from the previous solution, replayed on the numeric plant
-    and scored.
+    Solved from the loosest level to the tightest, each warm-started from the previous solved level's
+    solution (the first from the production law's run, which meets a loose bound: IPOPT starts feasible,
+    and the tightest level, near the least discomfort the plant allows, starts next to its optimum),
+    replayed on the numeric plant and scored.
 
     ``progress``: a callable taking one line of text (None: silent).
     """
@@ -404,7 +406,7 @@ def solve_levels(
     guess = baseline_commands(scenario, pb.control_period_s, pb.settings.guess_setpoint_c)
     w, lam = pb.guess_from_commands(guess), None
     out: dict[int, LevelResult] = {}
-    for i in sorted(range(len(lv)), key=lambda j: lv[j]):
+    for i in sorted(range(len(lv)), key=lambda j: -lv[j]):
         status, ok, it, wall, w_new, lam_new = pb.solve(lv[i], w, lam)
         r = LevelResult(level_pmvh=lv[i], status=status, success=ok, iterations=it, wall_time_s=wall)
         if ok:

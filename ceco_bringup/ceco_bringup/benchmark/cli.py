@@ -130,6 +130,9 @@ def run_benchmark(
     ray_workers = workers
     workers = int(workers or os.cpu_count() or 1)
     cases = [load_case(n) for n in (case_names or (QUICK_CASES if quick else DEFAULT_CASES))]
+    stray = sorted(set(oracle_cases or ()) - {c.name for c in cases})
+    if stray:
+        raise ValueError(f'--oracle-cases: {", ".join(stray)} not among the selected cases {[c.name for c in cases]}')
     baselines = runner.load_baselines()
     if setpoints_c is None:
         setpoints_c = runner.QUICK_SETPOINTS_C if quick else runner.SETPOINTS_C
@@ -399,6 +402,13 @@ def build_parser() -> cli_args.Parser:
         'whole drives a level costs minutes and not every level converges yet (docs/oracle.md "Cost")',
     )
     p.add_argument(
+        '--oracle-cases',
+        type=_case_names,
+        default=None,
+        metavar='A,B,...',
+        help='with --oracle: solve it on these of the selected cases only (comma-separated; default: all of them)',
+    )
+    p.add_argument(
         '--controller-cmd',
         default=None,
         metavar='CMD',
@@ -409,6 +419,14 @@ def build_parser() -> cli_args.Parser:
     p.add_argument('--validate', metavar='FILE', default=None, help='only check FILE against ceco-benchmark/2')
     cli_args.add_no_progress(p)
     return p
+
+
+def _case_names(text: str) -> list[str]:
+    """Comma-separated case names (argparse type of ``--oracle-cases``), at least one."""
+    names = [x.strip() for x in text.split(',') if x.strip()]
+    if not names:
+        raise argparse.ArgumentTypeError(f'must be comma-separated case names, got {text!r}')
+    return names
 
 
 def main(argv=None) -> int:
@@ -430,6 +448,8 @@ def main(argv=None) -> int:
         p.error('--out is required (unless --validate)')
     if args.address and args.backend != 'ray':
         p.error('--address needs --backend ray')
+    if args.oracle_cases is not None and not args.oracle:
+        p.error('--oracle-cases needs --oracle')
     cmd = 'ceco benchmark ' + ' '.join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
     try:
         doc = run_benchmark(
@@ -441,6 +461,7 @@ def main(argv=None) -> int:
             address=args.address,
             sensitivity=not args.no_sensitivity,
             oracle=args.oracle,
+            oracle_cases=args.oracle_cases,
             controller_cmd=args.controller_cmd,
             controller_name=args.controller_name,
             save_runs=args.save_runs,
