@@ -372,3 +372,92 @@ def test_a_baseline_law_file_carries_the_door_settings(tmp_path):
     law.write_text("acc_law:\n  door_moed: auto\n")
     with pytest.raises(ValueError, match="door_moed"):
         load_acc_settings(str(law))
+
+
+def test_fixed_door_families_run_on_the_air_quality_cases_and_a_co2_breaking_member_is_never_on_a_front():
+    """The fixed-door families (issue 21 part 2): the tuned temperature PI and the tuned PMV PI, each with the door
+    held at 0, 0.5, 0.8 and 1.0, with the tuned gains; only on the cases whose baselines drive the door. A member's
+    own door wins over the case's production logic. Run for real on hot-commute-4p at 26 degC: full recirculation
+    breaks 1500 ppm and is on no front (and listed as broken), the door at 0.5 holds it and is its family's front."""
+    from ceco_bringup.benchmark import cases as bc
+    from ceco_bringup.benchmark import runner
+    from ceco_bringup.benchmark import schema as bs
+    from ceco_bringup.sweep.cells import code_fingerprint
+
+    b = runner.load_baselines()
+    door = b.door_family_specs()
+    assert [f.family for f in door] == list(bs.DOOR_FAMILIES) and len(door) == 8
+    for f in door:
+        base, pct = f.family.split("-door")
+        assert f.kind == f"{bs.FAMILIES[base]}-door{pct}" and f.measurements == b.families[base][1]
+        assert dict(f.overrides) == {**b.families[base][0], "door_mode": "fixed", "door_fixed_share": int(pct) / 100}
+    assert sorted({f.overrides["door_fixed_share"] for f in door}) == [0.0, 0.5, 0.8, 1.0]
+    specs = runner.controllers(b, (26.0,), ("ceco",), (0.0,))
+    door_specs = [c for f in door for c in runner.family_members(f, (26.0,), (0.0,))]
+    aq, dry = bc.load_case("hot-commute-4p"), bc.load_case("udds-hot")
+    assert runner.case_controllers(dry, specs, door_specs) == specs
+    with_door = runner.case_controllers(aq, specs, door_specs)
+    assert len(with_door) == len(specs) + 8 and with_door[-1].name == "ceco"  # the strategies stay last
+    cells = {c.axes["controller"]: c for c in runner.case_cells(aq, with_door, code_fingerprint(), seeds=[0])}
+    assert cells["baseline-tuned-door100@26.0"].spec["strategy_overrides"]["door_mode"] == "fixed"
+    assert cells["baseline-tuned@26.0"].spec["strategy_overrides"]["door_mode"] == "auto"  # the case's logic
+    rows = []
+    for name in ("baseline-tuned-door100@26.0", "baseline-tuned-door50@26.0"):
+        c = cells[name]
+        row = runner.run_benchmark_cell({"id": c.id, "axes": c.axes, "spec": c.spec})
+        assert row["status"] == "ok", row["error"]
+        rows.append(row)
+    k100, k50 = rows[0]["kpis"], rows[1]["kpis"]
+    assert k100["air_quality_met"] == 0.0 and k100["co2_max_ppm"] > 3000.0
+    assert k50["air_quality_met"] == 1.0 and k50["co2_max_ppm"] < 1500.0
+    assert k100["energy_kwh"] < 0.8 * k50["energy_kwh"]  # the stale air is what makes it cheap
+    runs = [runner._run_entry(r) for r in rows]
+    fronts = runner.fronts_of(runs, "discomfort_pmvh", "energy_kwh")
+    assert fronts["tuned-door100"] is None
+    assert [p.name for p in fronts["tuned-door50"].points] == ["baseline-tuned-door50@26.0"]
+    assert runner.air_quality_broken(runs) == ["baseline-tuned-door100@26.0"]
+
+
+def test_door_logic_tuned_with_the_tuned_laws_is_frozen_by_its_rule_and_given_to_their_members():
+    """door_tuning.yaml (python -m ceco_bringup.benchmark.door_tuning): for the tuned temperature PI and the tuned
+    PMV PI the chosen purge share and margin are the least objective among the grid candidates that hold 1500 ppm
+    on hot-commute-4p; the candidates that break it have no objective. The benchmark gives those values to the
+    tuned and PMV members of a case whose baselines run the production door logic, not to the plain law's, nor on
+    a case without the door."""
+    from importlib import resources
+
+    import yaml
+
+    from ceco_bringup.benchmark import cases as bc
+    from ceco_bringup.benchmark import door_tuning as dt
+    from ceco_bringup.benchmark import runner
+    from ceco_bringup.benchmark.tuning import TUNING_SETPOINTS
+
+    doc = yaml.safe_load(
+        resources.files("ceco_bringup").joinpath("data", "benchmark", "door_tuning.yaml").read_text("utf-8")
+    )
+    assert doc["tuned_on"] == dt.TUNING_CASE and doc["tuned_on_sha"] == bc.load_case(dt.TUNING_CASE).sha()
+    n_grid = len(dt.PURGE_SHARE_GRID) * len(dt.CO2_MARGIN_GRID_PPM)
+    assert doc["tuning_cost"]["runs"] == n_grid * 4 * len(dt.LAWS) and doc["tuning_cost"]["wall_s"] > 0
+    frozen = runner.load_door_tuning()
+    for law in dt.LAWS:
+        entry = doc["laws"][law]
+        assert len(entry["grid"]) == n_grid
+        for g in entry["grid"]:
+            assert len(g["energy_kwh"]) == len(TUNING_SETPOINTS["pmv" if law == "pmv" else "cabin_temperature"])
+            assert g["air_quality_met"] == (g["co2_max_ppm"] < 1500.0)
+            assert (g["objective_kwh"] is None) == (not g["air_quality_met"])
+        best = min((g for g in entry["grid"] if g["objective_kwh"] is not None), key=lambda g: g["objective_kwh"])
+        assert frozen[law] == {"door_co2_margin_ppm": best["co2_margin_ppm"], "door_purge_share": best["purge_share"]}
+        assert any(not g["air_quality_met"] for g in entry["grid"])  # the grid reaches where the limit breaks
+    b = runner.load_baselines()
+    specs = runner.controllers(b, (25.0,), (), (0.1,))
+    aq = {c.name: c for c in runner.case_controllers(bc.load_case("hot-commute-4p"), specs, [], frozen)}
+    assert dict(aq["baseline-tuned@25.0"].overrides)["door_purge_share"] == frozen["tuned"]["door_purge_share"]
+    assert (
+        dict(aq["baseline-pmv-allowance@+0.10"].overrides)["door_co2_margin_ppm"]
+        == frozen["pmv"]["door_co2_margin_ppm"]
+    )
+    assert "door_purge_share" not in dict(aq["baseline@25.0"].overrides)  # the plain law keeps part 1's values
+    dry = runner.case_controllers(bc.load_case("udds-hot"), specs, [], frozen)
+    assert dry == specs

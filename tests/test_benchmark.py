@@ -241,7 +241,7 @@ def test_baseline_constants_and_controllers():
     assert sum(s.seeded for s in specs) == 6 and len(specs) == 4 * 15 + 2 * 9 + 2 + 5 + 1  # 5 strategies, 1 twin
     # the tuned families: gains from the file, the comfort-feedback ones on the PMV through the estimator
     fams = {f.family: f for f in b.family_specs()}
-    assert list(fams) == list(bs.FAMILIES)
+    assert list(fams) + [f.family for f in b.door_family_specs()] == list(bs.FAMILIES)
     assert fams['tuned'].feedback == 'cabin_temperature' and fams['tuned'].measurements == 'full'
     assert fams['pmv'].feedback == 'pmv' and fams['pmv'].measurements == 'vehicle'
     assert fams['tuned-allowance'].overrides['allowance_k_per_pmv'] == b.allowance_k_per_pmv

@@ -257,3 +257,47 @@ def test_a_failed_run_keeps_its_kpis_and_is_left_out_of_matching():
     case["matched"]["external:nan"] = copy.deepcopy(case["matched"]["baseline-compensated"])
     errors = bs.check_results(doc)
     assert any("matched/external:nan" in e and "status ok" in e for e in errors), errors
+
+
+def test_a_door_family_can_be_the_strongest_and_its_case_document_validates():
+    """A hot-commute-4p case assembled by the runner from hand-made rows: the PMV PI with the door held at 0.8
+    spends less than the one with the door logic at ceco's discomfort, so the strongest family there is
+    ``pmv-door80``; the door-100 member, cheaper still but above the CO2 limit, is on no front and listed as
+    broken; the document passes the JSON Schema and the semantic checks (door fronts included)."""
+    from ceco_bringup.benchmark.cases import load_case
+
+    def row(controller, kind, seed, d, e, met=1.0, sp_pmv=None):
+        return {
+            "controller": controller,
+            "kind": kind,
+            "seed": seed,
+            "setpoint_c": None,
+            "setpoint_pmv": sp_pmv,
+            "source": "simulator",
+            "status": "ok",
+            "error": "",
+            "kpis": _kpis(d, e, air_quality_met=met),
+            "kpi_notes": {"draught_pct": "run has no dr_pct column"},
+        }
+
+    rows = [
+        row("baseline@25.0", "baseline", None, 0.04, 0.40),
+        row("baseline@26.0", "baseline", None, 0.06, 0.36),
+        row("baseline-pmv@+0.40", "baseline-pmv", None, 0.05, 0.37, sp_pmv=0.4),
+        row("baseline-pmv-door80@+0.40", "baseline-pmv-door80", None, 0.05, 0.35, sp_pmv=0.4),
+        row("baseline-pmv-door100@+0.40", "baseline-pmv-door100", None, 0.05, 0.30, met=0.0, sp_pmv=0.4),
+        row("ceco-pmv-aq", "strategy", 0, 0.05, 0.33),
+        row("ceco-pmv-aq", "strategy", 1, 0.05, 0.33),
+    ]
+    levels = runner.oracle_levels([runner._run_entry(r) for r in rows])  # as the CLI records a skipped oracle
+    case = runner.assemble_case(
+        load_case("hot-commute-4p"), rows, oracle=runner.oracle_entry("skipped", "not requested", levels, [])
+    )
+    assert [p["controller"] for p in case["fronts"]["pmv-door80"]] == ["baseline-pmv-door80@+0.40"]
+    assert case["fronts"]["pmv-door100"] == [] and case["air_quality"]["broken"] == ["baseline-pmv-door100@+0.40"]
+    m = case["matched"]["ceco-pmv-aq"]["strongest"]
+    assert m["family"] == "pmv-door80" and m["energy_saving_pct"] == pytest.approx(100.0 * (0.35 - 0.33) / 0.35)
+    doc = make_doc()
+    doc["cases"] = [case]
+    assert bs.check_results(doc) == []
+    bs.validate_results(json.loads(json.dumps(doc)))

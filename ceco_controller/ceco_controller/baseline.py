@@ -26,9 +26,8 @@ import math
 
 import numpy as np
 
-from ceco_core import psychro
 from ceco_core.acc_law import AccLaw, AccSettings, feedback_pmv
-from ceco_core.air_quality import fog_margin_k
+from ceco_core.air_quality import fog_margin_of
 from ceco_core.cabin_comfort import ComfortParams
 from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
 from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits
@@ -115,7 +114,7 @@ class BaselineController:
             co2_sensor_fitted=self.co2_sensor_fitted,
             co2_sensor_ppm=float(obs.co2_sensor_ppm),
             co2_limit_ppm=float(obs.co2_limit_ppm),
-            fog_margin_k=_fog_margin_k(t_cab, obs.rh_cab, obs.t_glass_c),
+            fog_margin_k=fog_margin_of(t_cab, obs.rh_cab, obs.t_glass_c),
             fog_margin_min_k=float(obs.fog_margin_min_k),
         )
         diag = Diagnostics(
@@ -132,14 +131,3 @@ class BaselineController:
             + ("" if door.mode == "none" else f" door={door.recirc_share:.2f} door_mode={door.mode}"),
         )
         return AcInput(mdot_bl_kgps=cmd.mdot_bl_kgps, t_evap_sp_c=cmd.t_evap_sp_c, recirc_share=door.recirc_share), diag
-
-
-def _fog_margin_k(t_cab_c: float, rh_cab: float, t_glass_c: float) -> float:
-    """The fog margin [K] of the measured cabin air and glass; NaN when a reading is missing or implausible."""
-    try:
-        t, rh, tg = float(t_cab_c), float(rh_cab), float(t_glass_c)
-    except (TypeError, ValueError, OverflowError):
-        return math.nan
-    if not (math.isfinite(t) and math.isfinite(tg) and 0.0 < rh <= 1.0):
-        return math.nan
-    return float(fog_margin_k(tg, psychro.vapour_pressure_pa(t, rh)))

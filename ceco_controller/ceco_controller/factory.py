@@ -151,6 +151,7 @@ def make_controller(
             ctrl = cache.nmpc(settings, model_params, comfort)
         else:
             ctrl = NmpcController(settings, model_params=model_params, comfort_params=comfort)
+        ctrl.co2_sensor_fitted = scenario.air_quality.co2_sensor != "none"
     return with_measurements(
         ctrl,
         measurements,

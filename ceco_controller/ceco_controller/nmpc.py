@@ -41,7 +41,9 @@ import numpy as np
 
 from ceco_core import psychro
 from ceco_core.acc_law import AccLaw, AccSettings
+from ceco_core.air_quality import fog_margin_of
 from ceco_core.cabin_comfort import PAPER_PA_PA, ComfortParams, cabin_mrt_c, cabin_pmv, cabin_w_rad_wm2
+from ceco_core.co2_door import Co2DoorLaw
 from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
 from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits, check_observation
 
@@ -116,6 +118,10 @@ class NmpcController:
         """The NLP transcription built: 'single-shooting' or 'multiple-shooting'."""
         self.lim = ACTUATOR_LIMITS
         self._acc = AccLaw(acc_settings)
+        self.door = Co2DoorLaw() if self.settings.door_control == "co2_hold" else None
+        """The door beside the NLP (``door_control`` 'co2_hold'), else None: the door is not commanded."""
+        self.co2_sensor_fitted = True
+        """Whether the car has a cabin CO2 sensor (a NaN reading is then a fault: fresh air); set by the factory."""
         t0 = time.perf_counter()
         self.problem = build_problem(
             self.settings, self.model_params, self._nlp_comfort_params, self.transcription, self.lim
@@ -252,6 +258,8 @@ class NmpcController:
         self._reset_state()
 
     def _reset_state(self) -> None:
+        if self.door is not None:
+            self.door.reset()
         self._good: GoodSolution | None = None
         self._prepared_t_s: float | None = None
         self._last_cmd: np.ndarray | None = None
@@ -429,7 +437,36 @@ class NmpcController:
 
         ``t_start``: when the step began on :attr:`clock` (e.g. before the node converted the
         messages; default: now); the step's work after it is bounded by ``step_budget_s``.
+        With ``door_control`` 'co2_hold' the door command of :attr:`door` is added to whatever the step
+        commands (a fallback's too).
         """
+        cmd, diag = self._compute_ac(obs, t_start)
+        if self.door is None:
+            return cmd, diag
+        try:
+            door = self.door.step(
+                t_s=float(obs.t_s),
+                dt_s=self.settings.control_period_s,
+                co2_sensor_fitted=self.co2_sensor_fitted,
+                co2_sensor_ppm=float(obs.co2_sensor_ppm),
+                co2_limit_ppm=float(obs.co2_limit_ppm),
+                recirc_share=float(obs.recirc_share),
+                mdot_bl_kgps=cmd.mdot_bl_kgps,
+                speed_mps=float(obs.speed_mps),
+                n_occupants=int(obs.n_occupants),
+                t_cab_c=float(obs.t_cab_c),
+                t_amb_c=float(obs.t_amb_c),
+                fog_margin_k=fog_margin_of(obs.t_cab_c, obs.rh_cab, obs.t_glass_c),
+                fog_margin_min_k=float(obs.fog_margin_min_k),
+            )
+        except ValueError as exc:  # e.g. time going back: fresh air, the safe default, and said so
+            _note(diag, f"door: {exc}; fresh air")
+            return dataclasses.replace(cmd, recirc_share=0.0), diag
+        _note(diag, f"door={door.recirc_share:.2f} door_mode={door.mode} co2_est={door.co2_estimate_ppm:.0f}")
+        return dataclasses.replace(cmd, recirc_share=door.recirc_share), diag
+
+    def _compute_ac(self, obs: Observation, t_start: float | None = None):
+        """The blower and evaporator commands of one step (:meth:`compute` without the door)."""
         t0 = self.clock() if t_start is None else float(t_start)
         s, ss, cnt = self.settings, self.settings.solver, self.counters
         deadline = t0 + ss.step_budget_s - ss.step_reserve_s

@@ -42,6 +42,7 @@ __all__ = [
     "SOLVER_NAMES",
     "STRATEGIES",
     "CECO_STRATEGIES",
+    "DOOR_CONTROLS",
     "strategy_settings",
     "resolved_transcription",
     "resolve_auto",
@@ -285,6 +286,10 @@ class StrategySettings:
     """'shrink': memory of the forecast-error variance estimates (exponential forgetting time) [control steps]."""
     solver: SolverSettings = SolverSettings()
     """NLP solver settings."""
+    door_control: str = "none"
+    """The fresh/recirculation door (issue 21): 'none' (not commanded: the plant's default share, every strategy
+    before issue 21) or 'co2_hold' (:class:`ceco_core.co2_door.Co2DoorLaw` beside the NLP: the least fresh air that
+    holds the CO2 estimate under the limit, fresh air when the sensor fails or fog threatens; docs/controller.md)."""
 
     def validate(self) -> None:
         """Raise ValueError naming the field if a setting is not usable."""
@@ -327,6 +332,8 @@ class StrategySettings:
             raise ValueError("StrategySettings.backoff 'adaptive' needs pmv_feedback (it measures the PMV residuals)")
         if not (isinstance(self.pmv_ub_cap, (int, float)) and -3.0 <= self.pmv_ub_cap):
             raise ValueError(f"StrategySettings.pmv_ub_cap must be >= -3 (inf: no cap), got {self.pmv_ub_cap!r}")
+        if self.door_control not in DOOR_CONTROLS:
+            raise ValueError(f"StrategySettings.door_control must be one of {DOOR_CONTROLS}, got {self.door_control!r}")
         if self.preview_rule not in ("raw", "shrink"):
             raise ValueError(f"StrategySettings.preview_rule must be 'raw' or 'shrink', got {self.preview_rule!r}")
         for name in (
@@ -378,6 +385,9 @@ class StrategySettings:
         """Stages of the NLP: the preview horizon Np plus the extension [steps]."""
         return self.horizon_steps + self.horizon_extension_steps
 
+
+DOOR_CONTROLS = ("none", "co2_hold")
+"""Values of :attr:`StrategySettings.door_control`."""
 
 _DEFAULTS: dict[str, dict[str, Any]] = {
     "ceco": dict(pmv_margin=0.1),

@@ -156,6 +156,35 @@ AQ_SIGNALS = ("co2_cab_ppm", "fog_margin_k")
 (>= its bound)."""
 
 
+def fog_margin_of(t_cab_c, rh_cab, t_glass_c) -> float:
+    """The fog margin [K] of measured cabin air (temperature [degC], RH [0..1]) and glass [degC].
+
+    :func:`fog_margin_k` of the readings; NaN when a reading is missing or implausible (a controller then has no
+    fog override, it does not guess).
+    """
+    try:
+        t, rh, tg = float(t_cab_c), float(rh_cab), float(t_glass_c)
+    except (TypeError, ValueError, OverflowError):
+        return math.nan
+    if not (math.isfinite(t) and math.isfinite(tg) and 0.0 < rh <= 1.0):
+        return math.nan
+    return float(fog_margin_k(tg, psychro.vapour_pressure_pa(t, rh)))
+
+
+def fog_override(active: bool, fog_margin_k: float, fog_margin_min_k: float, enter_k: float, exit_k: float) -> bool:
+    """Whether a door's fog override is on after this reading of the fog margin [K].
+
+    It starts below the bound plus ``enter_k`` [K] and ends above the bound plus ``exit_k`` [K] (hysteresis); an
+    unknown (NaN) margin leaves it as it was (``active``).
+    """
+    if math.isfinite(fog_margin_k):
+        if fog_margin_k < fog_margin_min_k + enter_k:
+            return True
+        if fog_margin_k > fog_margin_min_k + exit_k:
+            return False
+    return bool(active)
+
+
 class AqSignals(NamedTuple):
     """The air-quality constraint signals at one instant (:data:`AQ_SIGNALS`)."""
 

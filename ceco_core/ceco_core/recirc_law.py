@@ -36,7 +36,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from ceco_core.air_quality import check_settings
+from ceco_core.air_quality import check_settings, fog_override
 
 __all__ = ["DOOR_MODES", "RecircSettings", "RecircCommand", "RecircLaw"]
 
@@ -158,11 +158,7 @@ class RecircLaw:
             return RecircCommand(s.door_fixed_share, "fixed")
         self._since_switch_s += dt_s
         # 1. safety overrides
-        if math.isfinite(fog_margin_k):
-            if fog_margin_k < fog_margin_min_k + s.door_fog_enter_k:
-                self._fog = True
-            elif fog_margin_k > fog_margin_min_k + s.door_fog_exit_k:
-                self._fog = False
+        self._fog = fog_override(self._fog, fog_margin_k, fog_margin_min_k, s.door_fog_enter_k, s.door_fog_exit_k)
         if self._fog:
             return RecircCommand(s.door_fresh_share, "fog")
         if co2_sensor_fitted and not math.isfinite(co2_sensor_ppm):

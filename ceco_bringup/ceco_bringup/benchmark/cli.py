@@ -144,11 +144,15 @@ def run_benchmark(
         setpoints_pmv = runner.QUICK_SETPOINTS_PMV if quick else runner.SETPOINTS_PMV
     strategies = runner.STRATEGY_NAMES if strategies is None else tuple(strategies)
     specs = runner.controllers(baselines, setpoints_c, strategies, setpoints_pmv)
+    door_tuning = runner.load_door_tuning()
+    door_specs = [
+        c for fam in baselines.door_family_specs() for c in runner.family_members(fam, setpoints_c, setpoints_pmv)
+    ]
     code = code_fingerprint()
     seeds = {c.name: (c.seeds[:1] if quick else c.seeds) for c in cases}
     cells, by_case = [], {}
     for c in cases:
-        cc = runner.case_cells(c, specs, code, seeds=seeds[c.name])
+        cc = runner.case_cells(c, runner.case_controllers(c, specs, door_specs, door_tuning), code, seeds=seeds[c.name])
         by_case[c.name] = cc
         cells += cc
     sens_plan = []
@@ -304,7 +308,10 @@ def run_benchmark(
             'secondary_axes': list(runner.SECONDARY_AXES),
             'setpoints_c': [float(x) for x in setpoints_c],
             'setpoints_pmv': [float(x) for x in setpoints_pmv],
-            'families': {f.family: {'kind': f.kind, **dict(f.overrides)} for f in baselines.family_specs()},
+            'families': {
+                f.family: {'kind': f.kind, **dict(f.overrides)}
+                for f in baselines.family_specs() + baselines.door_family_specs()
+            },
             'strongest': 'pointwise lower envelope of every family front (docs/benchmark.md, "Strongest family")',
             'oracle': {'requested': bool(oracle), 'entry_point': oracle_entry},
             'allowance_k_per_pmv': baselines.allowance_k_per_pmv,

@@ -35,6 +35,15 @@ _FAMILY_STYLE = {
     'pmv': {'color': '#8C510A', 'ls': '-', 'label': 'tuned PI on PMV'},
     'pmv-allowance': {'color': '#8C510A', 'ls': '--', 'label': 'tuned PI on PMV + allowance'},
 }
+# the fixed-door families (issue 21, only on the air-quality cases): the tuned laws' hues, lighter, one dash per share
+_DOOR_DASH = {0: (0, (1, 1)), 50: '-.', 80: (0, (5, 1)), 100: ':'}
+_FAMILY_STYLE.update(
+    {
+        f'{base}-door{pct}': {'color': color, 'ls': _DOOR_DASH[pct], 'label': f'{label}, door held at {pct / 100:.1f}'}
+        for base, color, label in (('tuned', '#C2A5CF', 'tuned PI (T_cab)'), ('pmv', '#DFC27D', 'tuned PI on PMV'))
+        for pct in _DOOR_DASH
+    }
+)
 _ORACLE_STYLE = {'color': '#CC0000', 'ls': ':', 'label': 'whole-drive optimum (oracle)'}
 _SCORED_KINDS = ('strategy', 'compensated', 'compensated-allowance', 'external')
 _AXIS_LABEL = {

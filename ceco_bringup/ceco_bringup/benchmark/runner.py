@@ -28,7 +28,7 @@ from ceco_core.run_status import STATUS_FAILED, ControlCheck, check_control
 
 from . import front as fr
 from .cases import Case
-from .schema import BENCHMARK_VERSION, FAMILIES, SEED_INVARIANT_KINDS
+from .schema import BENCHMARK_VERSION, DOOR_FAMILY_BASES, DOOR_SHARES_PCT, FAMILIES, SEED_INVARIANT_KINDS, door_family
 
 __all__ = [
     'SETPOINTS_C',
@@ -37,6 +37,7 @@ __all__ = [
     'ENERGY_AXIS',
     'SECONDARY_AXES',
     'STRATEGY_NAMES',
+    'STRATEGY_VARIANTS',
     'PERSISTENCE_SUFFIX',
     'PERSISTENCE_TWINS',
     'SETPOINTS_PMV',
@@ -51,6 +52,9 @@ __all__ = [
     'load_sensitivity',
     'ControllerSpec',
     'controllers',
+    'case_controllers',
+    'load_door_tuning',
+    'DOOR_TUNED_KINDS',
     'case_cells',
     'run_benchmark_cell',
     'assemble_case',
@@ -87,6 +91,10 @@ persistence (the value measured at the issue time held over the horizon; preview
 PERSISTENCE_TWINS = ('ceco-pmv',)
 """The strategies run a second time with persistence previews (``ceco-pmv-persistence``): what the previews
 are worth to them."""
+
+STRATEGY_VARIANTS = {'ceco-pmv-aq': ('ceco-pmv', (('door_control', 'co2_hold'),))}
+"""Benchmark names of a strategy run with settings overrides: ``{name: (strategy, ((field, value), ...))}``
+(issue 21: ``ceco-pmv-aq``, ceco-pmv with the CO2-holding door beside its NLP; docs/controller.md)."""
 
 SEED_INVARIANT = SEED_INVARIANT_KINDS
 SCORED_KINDS = ('strategy', 'compensated', 'compensated-allowance', 'external')
@@ -161,22 +169,46 @@ class BaselineConstants:
         }
         return [FamilySpec(f, *base[f]) for f in FAMILIES if f in base]
 
+    def door_family_specs(self) -> list[FamilySpec]:
+        """The fixed-door families (issue 21).
+
+        Each of :data:`schema.DOOR_FAMILY_BASES` with its tuned gains and the door held at each of
+        :data:`schema.DOOR_SHARES_PCT` (``door_mode: fixed``, no fog or CO2 override).
+        """
+        out = []
+        for b in DOOR_FAMILY_BASES:
+            overrides, measurements = self.families[b]
+            for pct in DOOR_SHARES_PCT:
+                door = {'door_mode': 'fixed', 'door_fixed_share': pct / 100.0}
+                out.append(FamilySpec(door_family(b, pct), {**dict(overrides), **door}, str(measurements)))
+        return out
+
 
 TUNED_FAMILIES = ('tuned', 'tuned-allowance', 'pmv', 'pmv-allowance')
 """The families the tuning module writes (their gains are chosen by it)."""
+
+
+def _frozen_file(name: str, path: str | Path | None, schema: str, what: str, module: str) -> tuple[str, Mapping]:
+    """(text, mapping) of a frozen benchmark file: ``path`` or the bundled ``data/benchmark/<name>``.
+
+    ValueError unless its ``schema`` is ``schema`` (``what``: the message's subject; ``module``: the rule that
+    writes it).
+    """
+    if path is None:
+        text = resources.files('ceco_bringup').joinpath('data', 'benchmark', name).read_text('utf-8')
+    else:
+        text = Path(path).read_text(encoding='utf-8')
+    d = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: baselines 158 -> 15 ms
+    if not isinstance(d, Mapping) or d.get('schema') != schema:
+        raise ValueError(f'{what}: not a {schema} file (rerun python -m {module})')
+    return text, d
 
 
 def load_baselines(path: str | Path | None = None) -> BaselineConstants:
     """Read the frozen baseline constants (default: the bundled file); ValueError naming what is wrong."""
     import hashlib
 
-    if path is None:
-        text = resources.files('ceco_bringup').joinpath('data', 'benchmark', 'baselines.yaml').read_text('utf-8')
-    else:
-        text = Path(path).read_text(encoding='utf-8')
-    d = yaml.load(text, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))  # libyaml: 5x faster
-    if not isinstance(d, Mapping) or d.get('schema') != BASELINES_SCHEMA:
-        raise ValueError(f'baselines: not a {BASELINES_SCHEMA} file (rerun python -m ceco_bringup.benchmark.tuning)')
+    text, d = _frozen_file('baselines.yaml', path, BASELINES_SCHEMA, 'baselines', 'ceco_bringup.benchmark.tuning')
     from ceco_core.acc_law import AccSettings
 
     comp = dict(d['compensation'])
@@ -352,7 +384,10 @@ def controllers(
     strategies: Sequence[str] = STRATEGY_NAMES,
     setpoints_pmv: Sequence[float] = SETPOINTS_PMV,
 ) -> list[ControllerSpec]:
-    """The benchmark's controllers: every baseline family, both compensated laws, the strategies."""
+    """The benchmark's controllers: every baseline family, both compensated laws, the strategies.
+
+    The fixed-door families are added per case (:func:`case_controllers`).
+    """
     out = []
     for fam in baselines.family_specs():
         out += family_members(fam, setpoints_c, setpoints_pmv)
@@ -369,13 +404,74 @@ def controllers(
             sp_c,
         )
     )
-    out += [ControllerSpec(s, 'strategy', s) for s in strategies]
+    out += [ControllerSpec(s, 'strategy', *STRATEGY_VARIANTS.get(s, (s, ()))) for s in strategies]
     out += [
         ControllerSpec(s + PERSISTENCE_SUFFIX, 'strategy', s, preview='persistence')
         for s in strategies
         if s in PERSISTENCE_TWINS
     ]
     return out
+
+
+DOOR_TUNING_SCHEMA = 'ceco-benchmark-door-tuning/1'
+"""Value of the door tuning file's ``schema`` key (written by :mod:`.door_tuning`)."""
+
+DOOR_TUNED_KINDS = {
+    'baseline-tuned': 'tuned',
+    'baseline-tuned-allowance': 'tuned',
+    'baseline-pmv': 'pmv',
+    'baseline-pmv-allowance': 'pmv',
+}
+"""Kinds whose production door logic takes the values tuned with their law (``door_tuning.yaml``: the law)."""
+
+
+def load_door_tuning(path: str | Path | None = None) -> dict:
+    """``{law: {door field: value}}`` of the frozen door tuning (default: the bundled file).
+
+    ValueError naming what is wrong.
+    """
+    from ceco_core.recirc_law import RecircSettings
+
+    _, d = _frozen_file(
+        'door_tuning.yaml', path, DOOR_TUNING_SCHEMA, 'door tuning', 'ceco_bringup.benchmark.door_tuning'
+    )
+    out = {}
+    for law in sorted(set(DOOR_TUNED_KINDS.values())):
+        settings = ((d.get('laws') or {}).get(law) or {}).get('settings')
+        if not isinstance(settings, Mapping) or not all(str(k).startswith('door_') for k in settings):
+            raise ValueError(f'door tuning: laws.{law}.settings must be a mapping of door_* fields')
+        try:
+            RecircSettings(**settings).validate()
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f'door tuning: laws.{law}.settings: {exc}') from exc
+        out[law] = {str(k): float(v) for k, v in settings.items()}
+    return out
+
+
+def case_controllers(
+    case: Case,
+    specs: Sequence[ControllerSpec],
+    door_specs: Sequence[ControllerSpec],
+    door_tuning: Mapping | None = None,
+) -> list:
+    """The controllers of ``case``: ``specs``, plus the fixed-door family members ``door_specs``.
+
+    Only when the case's baselines drive the door (``baseline_door`` set: the air-quality cases); then the
+    door members come after the other families, and where the case's door is the production logic
+    (``door_mode: auto``) the members of :data:`DOOR_TUNED_KINDS` carry the door values tuned with their law
+    (``door_tuning``: :func:`load_door_tuning`).
+    """
+    if not case.baseline_door:
+        return list(specs)
+    out = []
+    auto = dict(case.baseline_door).get('door_mode') == 'auto'
+    for c in specs:
+        law = DOOR_TUNED_KINDS.get(c.kind)
+        if auto and door_tuning and law in door_tuning:
+            c = dataclasses.replace(c, overrides=tuple(sorted({**dict(c.overrides), **door_tuning[law]}.items())))
+        out.append(c)
+    n_fam = sum(1 for c in out if c.kind in FAMILIES.values())
+    return [*out[:n_fam], *door_specs, *out[n_fam:]]
 
 
 def _preview(case: Case) -> str:
@@ -405,9 +501,9 @@ def case_cells(
                 'case_sha': sha,
                 'scenario': scenario,
                 'strategy': c.strategy,
-                'strategy_overrides': {
-                    **dict(c.overrides),
+                'strategy_overrides': {  # the case's door for every baseline, unless the member holds its own
                     **(dict(case.baseline_door) if c.strategy == 'baseline' else {}),
+                    **dict(c.overrides),
                 },
                 'preview': c.preview or (_preview(case) if c.seeded else 'perfect'),
                 'seed': seed,

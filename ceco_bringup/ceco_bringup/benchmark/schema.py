@@ -36,6 +36,10 @@ __all__ = [
     "KINDS",
     "SEED_INVARIANT_KINDS",
     "FAMILIES",
+    "DOOR_FAMILIES",
+    "DOOR_SHARES_PCT",
+    "DOOR_FAMILY_BASES",
+    "door_family",
     "ORACLE_STATUSES",
     "load_json_schema",
     "validate_results",
@@ -75,6 +79,28 @@ FAMILIES = {
 }
 """Front name -> the kind of its members: the production-gains families (plain, allowance: the paper's
 comparison), the production law with tuned gains, the comfort-feedback (PMV) law with tuned gains."""
+
+DOOR_SHARES_PCT = (0, 50, 80, 100)
+"""Recirculated shares of the fixed-door families [%] (issue 21): fresh air, half, the plant's default 0.8 of
+before issue 21, full recirculation."""
+
+DOOR_FAMILY_BASES = ("tuned", "pmv")
+"""The families run with the door held at each of :data:`DOOR_SHARES_PCT` on the cases whose baselines drive
+the door (a case's ``baseline_door``): the strongest laws, the tuned temperature PI and the tuned PMV PI."""
+
+
+def door_family(base: str, share_pct: int) -> str:
+    """Front name of ``base`` (:data:`DOOR_FAMILY_BASES`) with the door held at ``share_pct`` [%]: ``tuned-door80``."""
+    return f"{base}-door{int(share_pct)}"
+
+
+DOOR_FAMILIES = {
+    door_family(base, pct): f"{FAMILIES[base]}-door{pct}" for base in DOOR_FAMILY_BASES for pct in DOOR_SHARES_PCT
+}
+"""Front name -> kind of the fixed-door families (``tuned-door80`` -> ``baseline-tuned-door80``); on the other
+cases their fronts are empty."""
+
+FAMILIES = {**FAMILIES, **DOOR_FAMILIES}
 
 KINDS = ("strategy", *FAMILIES.values(), "compensated", "compensated-allowance", "external")
 """Kinds of controller in a case's runs."""
@@ -160,7 +186,7 @@ def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
     fx, ex = settings["front_axis"], settings["energy_axis"]
     fronts = {}
     for family, kind in FAMILIES.items():
-        members = case["fronts"][family]
+        members = case["fronts"].get(family, [])
         pts = []
         for j, p in enumerate(members):
             where = f"{tag}/fronts/{family}/{j} ({p['controller']})"

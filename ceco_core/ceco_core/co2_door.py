@@ -1,0 +1,161 @@
+"""The fresh/recirculation door beside the NMPC: hold the cabin CO2 just under its limit with the least fresh air.
+
+Issue 21 part 2, ``StrategySettings.door_control = "co2_hold"`` (docs/controller.md "The door beside the NLP").
+On a hot day every kilogram of fresh air is a cooling load (its enthalpy is above the cabin's), so with the
+thermal commands given the cheapest door is the largest recirculated share that keeps the CO2 at or under a
+target; fresh air is only let in for the occupants' CO2. Over one control period with the blower flow and the
+speed held, the cabin CO2 balance (:mod:`ceco_core.air_quality`, the estimator's model) is linear with the exact
+solution
+
+    C(t + dt) = C_ss + (C - C_ss) exp(-(F + L) dt / m_air),   C_ss = C_amb + n g / ((F + L) k)
+
+with F = (1 - r) mdot_bl the fresh air [kg/s], L = leakage(V) [kg/s], n g the occupants' CO2 [kg/s], k = 1.519e-6
+kg/kg per ppm, m_air the cabin's air [kg]. C(t + dt) falls monotonically as F grows, so the share is the largest r
+in [0, 1] with C(t + dt) <= C_target = limit - ``margin_ppm`` (bisection; 0 when even fresh air cannot reach it).
+C is the estimate of :class:`ceco_core.co2_estimator.Co2Estimator` on the CO2 sensor's reading (never the plant's
+value), so the door sees what the production logic sees.
+
+Safe defaults, ahead of the CO2 rule: fresh air (share 0) while the fog margin is below its bound +
+``fog_enter_k`` (until bound + ``fog_exit_k``), while a fitted CO2 sensor does not read, or while the estimate is
+not finite; fresh air also when the ambient is cooler than the cabin by ``economiser_k`` (fresh air is free cooling
+then). What it is not: the door as a third input of the NLP (the NLP's energy model keeps its identified fresh-air
+fraction; docs/controller.md says what that leaves).
+
+Pure and deterministic, no ROS: ``Co2DoorLaw(settings).step(...) -> Co2DoorCommand``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from ceco_core.air_quality import KGKG_PER_PPM, check_settings, co2_generation_kgps, fog_override, leakage_kgps
+from ceco_core.co2_estimator import Co2Estimator, Co2EstimatorParams
+
+__all__ = ["Co2DoorSettings", "Co2DoorCommand", "Co2DoorLaw", "co2_after_ppm", "hold_share"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Co2DoorSettings:
+    """Settings of the CO2-holding door."""
+
+    margin_ppm: float = 150.0
+    """The target is the limit minus this [ppm]: the estimate's error (within 120 ppm of the truth after the first
+    minute with the NDIR sensor, tests/test_air_quality.py) plus the door's travel."""
+    fog_enter_k: float = 0.5
+    """Fresh air while the fog margin is below its bound plus this [K] (the production logic's value)."""
+    fog_exit_k: float = 1.5
+    """... until it is back above its bound plus this [K]."""
+    economiser_k: float = 1.0
+    """Fresh air when the ambient is cooler than the cabin by at least this [K]."""
+
+    def validate(self) -> Co2DoorSettings:
+        """Raise ValueError naming the field if a setting is not usable; return self."""
+        check_settings(self)
+        if not self.fog_enter_k < self.fog_exit_k:
+            raise ValueError("Co2DoorSettings: must have fog_enter_k < fog_exit_k")
+        return self
+
+
+@dataclasses.dataclass(frozen=True)
+class Co2DoorCommand:
+    """The door command of one control step."""
+
+    recirc_share: float
+    """Commanded recirculated share [0..1]."""
+    mode: str
+    """Why: 'fog', 'co2_sensor_fault', 'co2_unknown', 'economiser', 'recirc' (the target is met in full
+    recirculation), 'co2_hold' (fresh air for the CO2), 'co2_max_fresh' (even fresh air cannot reach the target)."""
+    co2_estimate_ppm: float
+    """The CO2 estimate the command was computed from [ppm]."""
+
+
+def co2_after_ppm(co2_ppm, co2_amb_ppm, fresh_kgps, leak_kgps, generation_ppm_kgps, m_air_kg, dt_s):
+    """Cabin CO2 [ppm] after ``dt_s`` [s] with the flows held (the exact solution of the module docstring).
+
+    ``generation_ppm_kgps`` = n g / k [ppm kg/s]; ``fresh_kgps`` + ``leak_kgps`` > 0.
+    """
+    q = fresh_kgps + leak_kgps
+    c_ss = co2_amb_ppm + generation_ppm_kgps / q
+    return c_ss + (co2_ppm - c_ss) * math.exp(-q * dt_s / m_air_kg)
+
+
+def hold_share(co2_ppm, target_ppm, co2_amb_ppm, mdot_bl_kgps, leak_kgps, generation_ppm_kgps, m_air_kg, dt_s):
+    """The largest recirculated share in [0, 1] whose CO2 after ``dt_s`` is at or under ``target_ppm``.
+
+    0 when even fresh air does not reach it. Bisection to 1e-4 of the share.
+    """
+
+    def after(r):
+        fresh = (1.0 - r) * mdot_bl_kgps
+        return co2_after_ppm(co2_ppm, co2_amb_ppm, fresh, leak_kgps, generation_ppm_kgps, m_air_kg, dt_s)
+
+    if after(1.0) <= target_ppm:
+        return 1.0
+    if after(0.0) > target_ppm:
+        return 0.0
+    lo, hi = 0.0, 1.0  # after(lo) <= target < after(hi)
+    while hi - lo > 1e-4:
+        mid = 0.5 * (lo + hi)
+        if after(mid) <= target_ppm:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+class Co2DoorLaw:
+    """The CO2-holding door, stepped every control period (owns its CO2 estimator on the sensor's reading)."""
+
+    def __init__(self, settings: Co2DoorSettings | None = None, model: Co2EstimatorParams | None = None):
+        self.settings = (settings or Co2DoorSettings()).validate()
+        self.model = (model or Co2EstimatorParams()).validate()
+        """The cabin's CO2 model: the estimator's (docs/plant.md's nominal values)."""
+        self.estimator = Co2Estimator(self.model)
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the key-on state (no fog override, a fresh estimate)."""
+        self._fog = False
+        self.estimator.reset()
+
+    def step(
+        self,
+        *,
+        t_s: float,
+        dt_s: float,
+        co2_sensor_fitted: bool,
+        co2_sensor_ppm: float,
+        co2_limit_ppm: float,
+        recirc_share: float,
+        mdot_bl_kgps: float,
+        speed_mps: float,
+        n_occupants: int,
+        t_cab_c: float,
+        t_amb_c: float,
+        fog_margin_k: float,
+        fog_margin_min_k: float,
+    ) -> Co2DoorCommand:
+        """The door command over the next ``dt_s`` [s].
+
+        ``recirc_share`` the measured door (the estimator's input), ``mdot_bl_kgps`` the blower flow of the next
+        period (the NMPC's command), ``fog_margin_k`` [K] (NaN: unknown, no override).
+        """
+        s, m = self.settings, self.model
+        est = self.estimator.update(t_s, co2_sensor_ppm, recirc_share, mdot_bl_kgps, speed_mps, n_occupants)
+        c = est.co2_cab_ppm
+        self._fog = fog_override(self._fog, fog_margin_k, fog_margin_min_k, s.fog_enter_k, s.fog_exit_k)
+        if self._fog:
+            return Co2DoorCommand(0.0, "fog", c)
+        if co2_sensor_fitted and not math.isfinite(co2_sensor_ppm):
+            return Co2DoorCommand(0.0, "co2_sensor_fault", c)
+        if not math.isfinite(c):
+            return Co2DoorCommand(0.0, "co2_unknown", c)
+        if math.isfinite(t_amb_c) and math.isfinite(t_cab_c) and t_amb_c <= t_cab_c - s.economiser_k:
+            return Co2DoorCommand(0.0, "economiser", c)
+        leak = leakage_kgps(m.leak_0_kgps, m.leak_per_mps_kgps, max(float(speed_mps), 0.0))
+        gen = int(n_occupants) * co2_generation_kgps(m.met) / KGKG_PER_PPM
+        target = co2_limit_ppm - s.margin_ppm
+        r = hold_share(c, target, m.co2_amb_ppm, max(float(mdot_bl_kgps), 0.0), leak, gen, m.m_air_kg, dt_s)
+        mode = "recirc" if r >= 1.0 else ("co2_max_fresh" if r <= 0.0 else "co2_hold")
+        return Co2DoorCommand(r, mode, c)
