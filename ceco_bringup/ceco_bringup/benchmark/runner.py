@@ -198,7 +198,7 @@ def _frozen_file(name: str, path: str | Path | None, schema: str, what: str, mod
         text = resources.files('ceco_bringup').joinpath('data', 'benchmark', name).read_text('utf-8')
     else:
         text = Path(path).read_text(encoding='utf-8')
-    d = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: baselines 158 -> 15 ms
+    d = yaml.load(text, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))  # libyaml: baselines 158 -> 15 ms
     if not isinstance(d, Mapping) or d.get('schema') != schema:
         raise ValueError(f'{what}: not a {schema} file (rerun python -m {module})')
     return text, d
