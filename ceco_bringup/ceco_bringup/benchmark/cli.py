@@ -335,7 +335,7 @@ def run_benchmark(
 
 
 QUICK_ORACLE_CASES: tuple[str, ...] = ()
-"""The cases ``--quick`` asks the oracle on: none (a whole-drive solve of sc03-paper costs about an hour on the
+"""The cases ``--quick`` asks the oracle on: none (sc03-paper's 4 whole-drive levels cost about 17 minutes on the
 shared 2-core machine, docs/oracle.md "Cost"; CI keeps its 20-minute budget). ``ceco oracle CASE`` runs one."""
 
 
@@ -361,7 +361,11 @@ def _run_oracles(cases, by_case, rows, seeds, code, log_path, dispatch, log, ora
         if why:
             out[c.name] = runner.oracle_entry('unavailable', why, levels[c.name], [])
         elif c not in wanted or not levels[c.name]:
-            note = 'no baseline front' if c in wanted else 'not asked on this case (--quick: no oracle)'
+            note = (
+                'no baseline front'
+                if c in wanted
+                else 'not asked on this case (--quick asks it on none, --oracle-cases on the cases it names)'
+            )
             out[c.name] = runner.oracle_entry('skipped', note, levels[c.name], [])
         else:
             # the oracle knows the truth, which does not depend on the preview-error seed: one solve per case
