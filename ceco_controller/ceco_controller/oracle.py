@@ -202,8 +202,8 @@ class OracleProblem:
             ["x", "u", "tv", "E", "mask"],
             ["x_next", "energy_j", "pmv", "tv_out"],
             # the drive's data are constants of the NLP: no derivative through them. Else the MX map's
-            # Jacobian, which seeds every input of the interval, met 0 x inf = NaN at standstill (the
-            # derivative of a power of the vehicle speed at 0 m/s) on the key-on interval.
+            # Jacobian, which seeds every input of the interval, met NaN on the key-on interval: at
+            # standstill the derivative with respect to the vehicle speed is not finite (0 x inf).
             {"is_diff_in": [True, True, True, False, False]},
         )
 
