@@ -29,7 +29,14 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from ceco_core.air_quality import KGKG_PER_PPM, check_settings, co2_generation_kgps, fog_override, leakage_kgps
+from ceco_core.air_quality import (
+    KGKG_PER_PPM,
+    check_settings,
+    co2_generation_kgps,
+    co2_steady_ppm,
+    fog_override,
+    leakage_kgps,
+)
 from ceco_core.co2_estimator import Co2Estimator, Co2EstimatorParams
 
 __all__ = ["Co2DoorSettings", "Co2DoorCommand", "Co2DoorLaw", "co2_after_ppm", "hold_share"]
@@ -76,7 +83,7 @@ def co2_after_ppm(co2_ppm, co2_amb_ppm, fresh_kgps, leak_kgps, generation_ppm_kg
     ``generation_ppm_kgps`` = n g / k [ppm kg/s]; ``fresh_kgps`` + ``leak_kgps`` > 0.
     """
     q = fresh_kgps + leak_kgps
-    c_ss = co2_amb_ppm + generation_ppm_kgps / q
+    c_ss = co2_steady_ppm(co2_amb_ppm, q, 1, generation_ppm_kgps * KGKG_PER_PPM)
     return c_ss + (co2_ppm - c_ss) * math.exp(-q * dt_s / m_air_kg)
 
 
