@@ -14,7 +14,7 @@ import math
 import pathlib
 from typing import Any
 
-import yaml
+from ceco_core import yamlio
 
 from . import model as cm
 
@@ -161,7 +161,7 @@ def load_estimator_params(path: str | pathlib.Path | None = None) -> EstimatorPa
     """Load the identified estimator parameters (default: the package's ``config/estimator_params.yaml``)."""
     path = pathlib.Path(path) if path is not None else cm.package_config_path("estimator_params.yaml")
     with open(path, encoding="utf-8") as fh:
-        doc = yaml.load(fh, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: read once per run
+        doc = yamlio.safe_load(fh)
     if not isinstance(doc, dict) or "params" not in doc:
         raise ValueError(f"{path}: expected a mapping with a 'params' key")
     return EstimatorParams.from_dict(doc["params"])

@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from ceco_core import yamlio
 from ceco_core.mathops import backend, softplus
 
 __all__ = [
@@ -206,7 +207,7 @@ def load_params(path: str | pathlib.Path | None = None) -> ControlModelParams:
     """Load the identified parameters (default: :func:`default_params_path`)."""
     path = pathlib.Path(path) if path is not None else default_params_path()
     with open(path, encoding="utf-8") as fh:
-        doc = yaml.load(fh, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: read once per run
+        doc = yamlio.safe_load(fh)
     if not isinstance(doc, dict) or "params" not in doc:
         raise ValueError(f"{path}: expected a mapping with a 'params' key")
     return ControlModelParams.from_dict(doc["params"])

@@ -21,9 +21,8 @@ from collections.abc import Mapping, Sequence
 from importlib import resources
 from pathlib import Path
 
-import yaml
-
 from ceco_bringup.sweep.cells import Cell, cell_id
+from ceco_core import yamlio
 from ceco_core.run_status import STATUS_FAILED, ControlCheck, check_control
 
 from . import front as fr
@@ -198,7 +197,7 @@ def _frozen_file(name: str, path: str | Path | None, schema: str, what: str, mod
         text = resources.files('ceco_bringup').joinpath('data', 'benchmark', name).read_text('utf-8')
     else:
         text = Path(path).read_text(encoding='utf-8')
-    d = yaml.load(text, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))  # libyaml: baselines 158 -> 15 ms
+    d = yamlio.safe_load(text)
     if not isinstance(d, Mapping) or d.get('schema') != schema:
         raise ValueError(f'{what}: not a {schema} file (rerun python -m {module})')
     return text, d
@@ -282,7 +281,7 @@ def load_sensitivity(path: str | Path | None = None) -> tuple[str, list[Sensitiv
         text = resources.files('ceco_bringup').joinpath('data', 'benchmark', 'sensitivity.yaml').read_text('utf-8')
     else:
         text = Path(path).read_text(encoding='utf-8')
-    d = yaml.load(text, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))  # libyaml: 5x faster
+    d = yamlio.safe_load(text)
     from ceco_plant_sim.scenario_plant import check_overrides
 
     if not isinstance(d, Mapping) or d.get('schema') != 'ceco-benchmark-sensitivity/1':
