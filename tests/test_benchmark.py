@@ -625,3 +625,25 @@ def test_oracle_levels_that_break_air_quality_are_no_bound():
     assert f['points'][0]['error'] == '' and f['points'][2]['error'] == ''
     bounds = runner.oracle_bounds(doc)
     assert bounds[0].energy_at(0.12) == pytest.approx(0.40 + (0.28 - 0.40) * (0.02 / 0.05))
+
+
+def test_oracle_cell_keeps_the_solvers_account():
+    """An oracle level says why it was not solved (IPOPT's status, iterations, wall time), and the account
+    reaches results.json; a malformed account fails the cell with the field named."""
+    from ceco_bringup.benchmark.cases import load_case
+
+    case = load_case('sc03-paper')
+    levels = [0.10, 0.11, 0.12, 0.13]
+    (cell,) = runner.oracle_cells(case, [0], levels, cli.code_fingerprint(), 'oracle_standin:solve_front_accounted')
+    row = runner.run_oracle_cell({'id': cell.id, 'axes': cell.axes, 'spec': cell.spec})
+    assert row['status'] == 'ok', row['error']
+    first, *rest = row['points']
+    assert first['kpis'] is None and first['error'] == 'not solved (Maximum_WallTime_Exceeded, 57 iterations, 900 s)'
+    assert first['solver'] == {'status': 'Maximum_WallTime_Exceeded', 'iterations': 57, 'wall_time_s': 900.4}
+    assert [p['solver']['iterations'] for p in rest] == [10, 11, 12] and all(p['kpis']['energy_kwh'] > 0 for p in rest)
+    doc = runner.oracle_entry('ok', '', levels, [row])
+    (f,) = doc['fronts']
+    assert f['points'][0]['solver']['status'] == 'Maximum_WallTime_Exceeded' and len(f['front']) == 3
+    (bad,) = runner.oracle_cells(case, [0], levels, cli.code_fingerprint(), 'oracle_standin:solve_front_bad_account')
+    row = runner.run_oracle_cell({'id': bad.id, 'axes': bad.axes, 'spec': bad.spec})
+    assert row['status'] == 'error' and 'iterations must be an int >= 0, got -1' in row['error']

@@ -49,7 +49,12 @@ def _oracle():
     rows = []
     for seed, pts in ORACLE.items():
         points = [
-            {"level": x, "kpis": None, "error": "not solved"}
+            {
+                "level": x,
+                "kpis": None,
+                "error": "not solved (Maximum_WallTime_Exceeded, 57 iterations, 900 s)",
+                "solver": {"status": "Maximum_WallTime_Exceeded", "iterations": 57, "wall_time_s": 900.4},
+            }
             if p is None
             else {"level": x, "kpis": {"discomfort_pmvh": p[0], "energy_kwh": p[1]}, "error": ""}
             for x, p in zip(LEVELS, pts)
@@ -196,6 +201,8 @@ def _case(doc):
         ),
         (lambda d: _case(d)["oracle"].update(levels=[0.04, 0.05]), "at least 4 levels"),
         (lambda d: _case(d)["oracle"].update(status="maybe"), "status"),
+        (lambda d: _case(d)["oracle"]["fronts"][1]["points"][1]["solver"].update(iterations=-1), "iterations"),
+        (lambda d: _case(d)["oracle"]["fronts"][1]["points"][1]["solver"].pop("status"), "status"),
         (lambda d: _case(d)["oracle"].update(status="skipped"), "with fronts"),
         (lambda d: _case(d)["runs"][0]["kpis"].pop("peak_comp_kw"), "peak_comp_kw"),
         (lambda d: _case(d)["runs"][0]["kpis"].update(peak_comp_kw="high"), "peak_comp_kw"),

@@ -426,8 +426,12 @@ def solve_levels(
     return [out[i] for i in range(len(lv))]
 
 
-def solve_front(case, seed, levels, settings: OracleSettings | None = None) -> list:
-    """The benchmark's entry point (``runner.ORACLE_ENTRY``): per level the replayed run's KPIs or None.
+def solve_front(case, seed, levels, settings: OracleSettings | None = None) -> list[dict]:
+    """The benchmark's entry point (``runner.ORACLE_ENTRY``): per level ``{'kpis', 'solver'}``.
+
+    ``kpis`` the replayed run's KPIs (None when the level was not solved), ``solver`` IPOPT's account of the
+    level: ``status`` (its return status), ``iterations`` and ``wall_time_s`` [s], so that an unsolved level
+    says why (the wall limit, the iteration limit, an infeasible bound).
 
     ``case`` a benchmark Case, ``seed`` one of its seeds: the oracle knows the truth of the drive, which
     does not depend on the seed (the seeds draw forecast errors only), so every seed gets the same front.
@@ -435,4 +439,10 @@ def solve_front(case, seed, levels, settings: OracleSettings | None = None) -> l
     del seed  # the truth does not depend on the preview-error seed
     s = settings or OracleSettings(control_period_s=case.control_period_s)
     res = solve_levels(case.load_scenario(), levels, s)
-    return [r.kpis if r.success else None for r in res]
+    return [
+        {
+            "kpis": r.kpis if r.success else None,
+            "solver": {"status": r.status, "iterations": int(r.iterations), "wall_time_s": float(r.wall_time_s)},
+        }
+        for r in res
+    ]

@@ -926,14 +926,33 @@ def oracle_cells(case: Case, seeds: Sequence[int], levels: Sequence[float], code
     return out
 
 
+def _solver_account(solver: Mapping) -> dict:
+    """The solver's account of one oracle level, checked: ``status`` (str), ``iterations`` (int >= 0),
+    ``wall_time_s`` (finite, >= 0) [s]; ValueError naming the field otherwise."""
+    out = {'status': solver.get('status'), 'iterations': solver.get('iterations'), 'wall_time_s': solver.get('wall_time_s')}
+    if not isinstance(out['status'], str) or not out['status']:
+        raise ValueError(f'the oracle\'s solver status must be a non-empty string, got {out["status"]!r}')
+    if isinstance(out['iterations'], bool) or not isinstance(out['iterations'], int) or out['iterations'] < 0:
+        raise ValueError(f'the oracle\'s solver iterations must be an int >= 0, got {out["iterations"]!r}')
+    wall = out['wall_time_s']
+    if isinstance(wall, bool) or not isinstance(wall, (int, float)) or not math.isfinite(wall) or wall < 0:
+        raise ValueError(f'the oracle\'s solver wall_time_s must be finite and >= 0, got {wall!r}')
+    out['wall_time_s'] = float(wall)
+    return out
+
+
 def run_oracle_cell(cell: Mapping, runs_dir: str | None = None, controller_cache=None) -> dict:
     """Call the oracle for one (case, seed); never raises (errors are data).
 
     ``runs_dir`` and ``controller_cache`` (a warm worker's, :class:`~ceco_bringup.sweep.backends.WarmWorker`)
     are unused.
 
+    The entry point returns one item per level: None (not solved), the replayed run's KPIs, or
+    ``{'kpis': KPIs or None, 'solver': {'status', 'iterations', 'wall_time_s'}}`` (ceco's oracle: the
+    solver's account is kept in the point, so an unsolved level says why).
+
     The row: ``cell_id``, the axes, ``status`` ('ok' when the call returned one item per level),
-    ``error``, ``points`` = [{'level', 'kpis' (or None), 'error'}], ``wall_time_s``.
+    ``error``, ``points`` = [{'level', 'kpis' (or None), 'error', 'solver' (when given)}], ``wall_time_s``.
     """
     import importlib
     import time
@@ -957,8 +976,18 @@ def run_oracle_cell(cell: Mapping, runs_dir: str | None = None, controller_cache
             raise ValueError(f'the oracle returned {len(result)} item(s) for {len(levels)} level(s)')
         for level, item in zip(levels, result):
             point = {'level': level, 'kpis': None, 'error': ''}
+            solver = None
+            if isinstance(item, Mapping) and set(item) == {'kpis', 'solver'}:
+                solver = _solver_account(item['solver'])
+                point['solver'] = solver
+                item = item['kpis']
             if item is None:
-                point['error'] = 'not solved'
+                point['error'] = (
+                    f'not solved ({solver["status"]}, {solver["iterations"]} iterations, '
+                    f'{solver["wall_time_s"]:.0f} s)'
+                    if solver
+                    else 'not solved'
+                )
             else:
                 kpis = {str(k): (None if v is None else float(v)) for k, v in dict(item).items() if k != 'error'}
                 bad = [k for k in (FRONT_AXIS, ENERGY_AXIS) if kpis.get(k) is None or not math.isfinite(kpis[k])]
@@ -1001,6 +1030,7 @@ def oracle_entry(status: str, note: str, levels: Sequence[float], rows: Sequence
                         'kpis': p.get('kpis'),
                         'error': p.get('error', '')
                         or ('breaks the air-quality limits: not a bound' if breaks_air_quality(p) else ''),
+                        **({'solver': dict(p['solver'])} if p.get('solver') else {}),
                     }
                     for p in r.get('points', [])
                 ],
