@@ -7,7 +7,10 @@ range. About 3-4 minutes at load 8 (the NLP's Jacobian dominates, docs/oracle.md
 """
 
 import json
+import logging
+import os
 
+import casadi
 import numpy as np
 import pytest
 
@@ -15,6 +18,7 @@ from ceco_bringup.benchmark import front as fr
 from ceco_bringup.benchmark.cases import load_case
 from ceco_controller import oracle as orc
 from ceco_controller.closed_loop import SimSettings, simulate
+from ceco_core.codegen import CompileError
 from ceco_core.kpis import compute_kpis
 from ceco_v2x_preview.scenario import scenario_from_dict
 
@@ -31,9 +35,16 @@ def _short(case_name: str, duration_s: float):
 
 
 @pytest.fixture(scope='module')
-def mild():
-    sc = _short('mild-day', 120.0)
-    res = orc.solve_levels(sc, LEVELS)
+def mild_problem():
+    """The short mild day's NLP with the default settings: compiled plant steps where a C compiler works (the
+    object cached on disk: one compile per machine and code, ~20 s)."""
+    return orc.OracleProblem(_short('mild-day', 120.0))
+
+
+@pytest.fixture(scope='module')
+def mild(mild_problem):
+    sc = mild_problem.scenario
+    res = orc.solve_levels(sc, LEVELS, problem=mild_problem)
     family = []
     for sp in SETPOINTS_C:
         run = simulate(sc, 'baseline', SimSettings(progress=False, strategy_overrides=(('setpoint_c', sp),)))
@@ -149,6 +160,16 @@ def test_settings_and_schedule_refuse_bad_values():
         orc.ScheduleController(np.array([[0.1, np.inf]]))
     with pytest.raises(ValueError, match='levels'):
         orc.solve_levels(_short('sc03-paper', 10.0), [float('nan')])
+    for bad, field in (
+        (dict(compiled='maybe'), 'compiled'),
+        (dict(compiled=True), 'compiled'),
+        (dict(compiled='yes', expand=True), 'compiled'),
+        (dict(compiler=''), 'compiler'),
+        (dict(compile_flags=['-O1']), 'compile_flags'),
+        (dict(cache_dir=''), 'cache_dir'),
+    ):
+        with pytest.raises(ValueError, match=f'OracleSettings.{field}'):
+            orc.OracleSettings(**bad).validate()
 
 
 def test_default_levels_follow_the_benchmark_rule():
@@ -175,3 +196,119 @@ def test_a_drive_ending_inside_a_control_interval():
     assert np.max(np.abs(r.run.timeseries['pmv'] - r.nlp_pmv)) <= 0.01
     assert abs(r.kpis['energy_kwh'] - r.nlp_energy_kwh) <= 3e-3 * r.kpis['energy_kwh']
     assert r.kpis['discomfort_pmvh'] <= 0.03 * 1.01
+
+
+# ---------------------------------------------------------------- compiled plant steps (OracleSettings.compiled)
+
+
+def _nz(x) -> np.ndarray:
+    return np.asarray(casadi.DM(x).nonzeros(), dtype=float)
+
+
+def test_compiled_plant_steps_equal_the_virtual_machine(mild_problem):
+    """The compiled interval (the one-step interval as C, chained 5 times in MX) against the 5-step SX interval
+    in CasADi's virtual machine, per interval of the mild day along the production law's run and 2 perturbations
+    of it: outputs bit for bit; the interval's Jacobian and the NLP's constraint Jacobian and gradient within
+    1e-12 relative per entry (the chain rule over the steps against SX forward mode; measured 7e-14), the same
+    sparsity. A second control period (Ts 2 s) loads the same object from the cache (one object, every Ts)."""
+    pc = mild_problem
+    assert pc.evaluation.startswith('compiled'), pc.evaluation
+    assert os.path.dirname(pc.compiled.path) == orc.oracle_cache_dir()
+    assert os.path.basename(pc.compiled.path).startswith('ceco_oracle_step_')
+    pv = orc.OracleProblem(pc.scenario, orc.OracleSettings(compiled='no'))
+    assert pv.evaluation.startswith('virtual machine') and pv.compiled is None
+    m, k, nx = pc.steps_per_control, pc.n_control, pc.model.state.size
+    fc, fv = pc.interval_function, pv.interval_function
+    jc, jv = fc.jacobian(), fv.jacobian()
+    w_law = pc.guess_from_commands(orc.baseline_commands(pc.scenario, pc.control_period_s))
+    rng = np.random.default_rng(0)
+    points = [w_law] + [w_law * (1 + 1e-2 * rng.standard_normal(w_law.size)) for _ in range(2)]
+    nu = pc.model.input.size
+    for w in points:
+        xs = w[: nx * (k + 1)].reshape(k + 1, nx) * pc._scale
+        us = w[nx * (k + 1) : nx * (k + 1) + nu * k].reshape(k, nu)
+        tvs = w[nx * (k + 1) + nu * k : nx * (k + 1) + nu * k + k]
+        for i in range(k):
+            args = [xs[i], us[i], tvs[i], pc.envs[i * m : i * m + m].T, np.ones(m)]
+            for a, b in zip(fc(*args), fv(*args), strict=True):
+                np.testing.assert_array_equal(_nz(a), _nz(b))
+            outs = [casadi.DM(jc.sparsity_in(len(args) + j)) for j in range(fc.n_out())]  # unused, no nonzeros
+            for a, b in zip(jc(*args, *outs), jv(*args, *outs), strict=True):
+                assert casadi.DM(a).sparsity() == casadi.DM(b).sparsity()
+                np.testing.assert_allclose(_nz(a), _nz(b), rtol=1e-12, atol=0)
+        for name in ('nlp_g', 'nlp_jac_g', 'nlp_grad_f'):
+            rc, rv = pc.solver.get_function(name)(w, 0.03), pv.solver.get_function(name)(w, 0.03)
+            rc, rv = (rc, rv) if isinstance(rc, (list, tuple)) else ([rc], [rv])
+            for a, b in zip(rc, rv, strict=True):
+                assert casadi.DM(a).sparsity() == casadi.DM(b).sparsity(), name
+                if name == 'nlp_g':
+                    np.testing.assert_array_equal(_nz(a), _nz(b))
+                else:
+                    np.testing.assert_allclose(_nz(a), _nz(b), rtol=1e-12, atol=0, err_msg=name)
+    p2 = orc.OracleProblem(pc.scenario, orc.OracleSettings(control_period_s=2.0))
+    assert p2.steps_per_control == 2 and p2.compiled.path == pc.compiled.path and not p2.compiled.built
+
+
+def test_one_level_same_solution_compiled_and_not(mild, mild_problem):
+    """One level of the short mild day solved in CasADi's virtual machine gives the compiled solve's solution:
+    iterations within 1 (measured: equal), the NLP's energy within 1e-9 relative (measured 4e-13), the commands
+    within 1e-6 of the actuators' ranges."""
+    _, res, _, _ = mild
+    assert mild_problem.evaluation.startswith('compiled'), mild_problem.evaluation
+    sc = mild_problem.scenario
+    # the loosest level is solved first from the production law's run in both
+    rv = orc.solve_levels(sc, [LEVELS[1]], problem=orc.OracleProblem(sc, orc.OracleSettings(compiled='no')))[0]
+    rc = res[1]
+    assert rv.success and rc.success, (rv.status, rc.status)
+    assert abs(rv.iterations - rc.iterations) <= 1, (rv.iterations, rc.iterations)
+    assert abs(rv.nlp_energy_kwh - rc.nlp_energy_kwh) <= 1e-9 * rv.nlp_energy_kwh
+    assert abs(rv.nlp_discomfort_pmvh - rc.nlp_discomfort_pmvh) <= 1e-9 * rv.nlp_discomfort_pmvh
+    span = np.array([0.17 - 0.05, 10.0 - 3.0])  # the actuator ranges: blower [kg/s], evaporator set-point [K]
+    assert np.all(np.abs(rc.commands - rv.commands) <= 1e-6 * span), np.max(np.abs(rc.commands - rv.commands), axis=0)
+
+
+def test_compiled_auto_falls_back_with_one_line_and_yes_refuses(tmp_path, caplog, monkeypatch, capsys):
+    """No C compiler or a cache that cannot be written: 'auto' builds the NLP in the virtual machine and says so in
+    one warning (and in ``evaluation``); 'yes' raises a CompileError naming the cause; ``ceco oracle --compiled
+    yes`` exits 2 with one line. Neither compiles anything."""
+    from ceco_bringup import oracle_cli
+
+    sc = _short('mild-day', 10.0)
+    no_cc = str(tmp_path / 'no-such-cc')
+    with caplog.at_level(logging.WARNING, logger='ceco_controller.oracle'):
+        pb = orc.OracleProblem(sc, orc.OracleSettings(compiler=no_cc, cache_dir=str(tmp_path / 'c')))
+    assert pb.evaluation.startswith('virtual machine') and 'no C compiler' in pb.evaluation and pb.compiled is None
+    warned = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert len(warned) == 1 and 'virtual machine' in warned[0] and no_cc in warned[0]
+    assert not list((tmp_path / 'c').iterdir())
+    with pytest.raises(CompileError, match="compiled 'yes'.*no C compiler"):
+        orc.OracleProblem(sc, orc.OracleSettings(compiled='yes', compiler=no_cc))
+    blocker = tmp_path / 'a-file'
+    blocker.write_text('not a directory')
+    pb = orc.OracleProblem(sc, orc.OracleSettings(cache_dir=str(blocker / 'oracle')))
+    assert pb.evaluation.startswith('virtual machine') and 'cache directory' in pb.evaluation
+    with pytest.raises(CompileError, match='cache directory'):
+        orc.OracleProblem(sc, orc.OracleSettings(compiled='yes', cache_dir=str(blocker / 'oracle')))
+    # the virtual machine's NLP is the one it always was: a level solves
+    r = orc.solve_levels(sc, [0.02], problem=pb)[0]
+    assert r.success, r.status
+    monkeypatch.setenv('CC', no_cc)
+    rc = oracle_cli.main(
+        ['mild-day', '--duration-s', '10', '--levels', '0.02', '--compiled', 'yes', '--out', str(tmp_path / 'o')]
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and 'no C compiler' in err[-1] and 'Traceback' not in '\n'.join(err)
+
+
+def test_oracle_cache_directory(monkeypatch, tmp_path):
+    """The compiled objects live in <cache>/oracle: $CECO_CACHE_DIR, else $XDG_CACHE_HOME/ceco, else ~/.cache/ceco;
+    ``cache_dir`` moves them anywhere."""
+    monkeypatch.setenv('CECO_CACHE_DIR', str(tmp_path / 'ceco'))
+    assert orc.oracle_cache_dir() == str(tmp_path / 'ceco' / 'oracle')
+    monkeypatch.delenv('CECO_CACHE_DIR')
+    monkeypatch.setenv('XDG_CACHE_HOME', str(tmp_path / 'xdg'))
+    assert orc.oracle_cache_dir() == str(tmp_path / 'xdg' / 'ceco' / 'oracle')
+    monkeypatch.delenv('XDG_CACHE_HOME')
+    monkeypatch.setenv('HOME', str(tmp_path / 'home'))
+    assert orc.oracle_cache_dir() == str(tmp_path / 'home' / '.cache' / 'ceco' / 'oracle')
+    assert orc.oracle_cache_dir(str(tmp_path / 'x')) == str(tmp_path / 'x')

@@ -65,6 +65,13 @@ def build_parser() -> cli_args.Parser:
         default=900.0,
         help='IPOPT wall-time limit per level [s]',
     )
+    p.add_argument(
+        '--compiled',
+        choices=('auto', 'yes', 'no'),
+        default='auto',
+        help='plant steps of the NLP as compiled C, cached on disk (auto: where a C compiler works, else CasADi\'s '
+        'virtual machine; docs/oracle.md "Compiled plant steps")',
+    )
     cli_args.add_no_progress(p)
     return p
 
@@ -99,6 +106,7 @@ def main(argv=None) -> int:
     from ceco_controller import oracle as orc
     from ceco_controller.closed_loop import write_run
     from ceco_core import rundir
+    from ceco_core.codegen import CompileError
 
     say = (lambda line: None) if args.no_progress else (lambda line: print(line, file=sys.stderr, flush=True))
     try:
@@ -112,7 +120,9 @@ def main(argv=None) -> int:
 
             scenario = scenario_from_dict(d, source=scenario.source)
         ts = args.control_period_s or case.control_period_s
-        settings = orc.OracleSettings(control_period_s=ts, max_wall_time_s=args.max_wall_time_s).validate()
+        settings = orc.OracleSettings(
+            control_period_s=ts, max_wall_time_s=args.max_wall_time_s, compiled=args.compiled
+        ).validate()
         levels = args.levels
         if levels is None:
             say(f'ceco oracle: levels from the production law\'s set-point family on {case.name} ...')
@@ -129,6 +139,9 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print('ceco oracle: interrupted', file=sys.stderr)
         return 130
+    except CompileError as exc:  # --compiled yes where no compiled plant step can be built
+        print(f'ceco oracle: {exc}', file=sys.stderr)
+        return 2
     rows = []
     for i, r in enumerate(results):
         run_dir = out / f'level-{i}'

@@ -1,0 +1,156 @@
+"""Cost of one oracle level: CasADi's virtual machine against the compiled plant steps, measured in the same run.
+
+    python tools/bench_oracle.py [--case mild-day] [--duration-s 120] [--level 0.036] [--repeat 1]
+                                 [--max-iter N] [--cache-dir DIR]
+
+Builds the whole-drive NLP of the case's first ``--duration-s`` seconds twice (``OracleSettings.compiled``
+``no`` and ``yes``; docs/oracle.md "Compiled plant steps") and solves the same level from the same initial
+guess (the production law's run) with each, alternating, ``--repeat`` times. Prints per solve the IPOPT
+status, iterations, wall time, time per iteration, the NLP functions' share (IPOPT's own timers: the
+constraint Jacobian, the objective's gradient, the constraints and objective) and the 1-minute load average
+before and after; then the ratio virtual machine / compiled (medians: per iteration and in total) and the
+one-off cost of the compiled object (code generation and compilation, or the cache lookup). The solutions
+are compared: iterations and the NLP's energy (the issue's "same solution" check). ``--cache-dir``: the
+compiled objects' cache (default: a fresh temporary directory, so the compile is measured). ``--max-iter``:
+IPOPT's iteration limit (a whole drive's cost per iteration without its 100-400 iterations; both evaluations
+then stop at the same iterate, compared the same way). Other processes
+on the machine bias every figure: read the load next to it. Last line: one JSON object.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import tempfile
+import time
+
+TIMERS = ('nlp_jac_g', 'nlp_grad_f', 'nlp_g', 'nlp_f')
+"""IPOPT's per-function wall timers printed (``solver.stats()['t_wall_<name>']``)."""
+
+
+def _problem(scenario, compiled: str, cache_dir: str, max_iter: int):
+    from ceco_controller import oracle as orc
+
+    t0 = time.perf_counter()
+    settings = orc.OracleSettings(compiled=compiled, cache_dir=cache_dir, max_iter=max_iter)
+    pb = orc.OracleProblem(scenario, settings)
+    return pb, time.perf_counter() - t0
+
+
+def _solve(pb, level: float, w0) -> dict:
+    load0 = os.getloadavg()[0]
+    status, ok, it, wall, w, _ = pb.solve(level, w0)
+    st = pb.solver.stats()
+    energy, discomfort = pb.evaluate(w)
+    return {
+        'status': status,
+        'success': ok,
+        'iterations': it,
+        'wall_s': wall,
+        'per_iteration_s': wall / max(it, 1),
+        'timers_s': {k: float(st.get(f't_wall_{k}', float('nan'))) for k in TIMERS},
+        'nlp_energy_kwh': energy,
+        'nlp_discomfort_pmvh': discomfort,
+        'load': (load0, os.getloadavg()[0]),
+    }
+
+
+def main(argv=None) -> int:
+    """Run the comparison; print the table and one JSON line."""
+    p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    p.add_argument('--case', default='mild-day')
+    p.add_argument('--duration-s', type=float, default=120.0)
+    p.add_argument('--level', type=float, default=0.036, help='discomfort level [PMV h]')
+    p.add_argument('--repeat', type=int, default=1)
+    p.add_argument('--max-iter', type=int, default=400, help='IPOPT iterations per solve')
+    p.add_argument('--cache-dir', default=None, help='compiled objects (default: a fresh temporary directory)')
+    args = p.parse_args(argv)
+
+    from ceco_bringup.benchmark.cases import load_case
+    from ceco_controller import oracle as orc
+    from ceco_v2x_preview.scenario import scenario_from_dict
+
+    d = load_case(args.case).scenario_dict()
+    d['duration_s'] = args.duration_s
+    scenario = scenario_from_dict(d)
+    with tempfile.TemporaryDirectory(prefix='ceco_bench_oracle_') as tmp:
+        cache = args.cache_dir or tmp
+        load0 = os.getloadavg()[0]
+        vm, t_vm = _problem(scenario, 'no', cache, args.max_iter)
+        cp, t_cp = _problem(scenario, 'yes', cache, args.max_iter)
+        c = cp.compiled
+        print(
+            f'{args.case} first {args.duration_s:g} s: {cp.n_control} intervals of {cp.steps_per_control} steps, '
+            f'level {args.level:g} PMV h'
+        )
+        print(f'NLP built: virtual machine {t_vm:.1f} s, compiled {t_cp:.1f} s (load {load0:.1f})')
+        print(
+            f'compiled object: {"built" if c.built else "cache hit"} in {c.seconds:.1f} s '
+            f'(flags {" ".join(cp.settings.compile_flags)}): {c.path}'
+        )
+        guess = orc.baseline_commands(scenario, vm.control_period_s)
+        w0 = vm.guess_from_commands(guess)
+        runs: dict[str, list[dict]] = {'vm': [], 'compiled': []}
+        header = (
+            f'{"evaluation":<10} {"status":<22} {"iter":>4} {"wall [s]":>9} {"per it [s]":>10} '
+            + ' '.join(f'{k[4:] + " [s]":>11}' for k in TIMERS)
+            + f' {"E NLP [kWh]":>17} {"load":>9}'
+        )
+        print(header)
+        for _ in range(args.repeat):
+            for tag, pb in (('vm', vm), ('compiled', cp)):
+                r = _solve(pb, args.level, w0)
+                runs[tag].append(r)
+                print(
+                    f'{tag:<10} {r["status"]:<22} {r["iterations"]:>4} {r["wall_s"]:>9.2f} '
+                    f'{r["per_iteration_s"]:>10.4f} '
+                    + ' '.join(f'{r["timers_s"][k]:>11.2f}' for k in TIMERS)
+                    + f' {r["nlp_energy_kwh"]:>17.12f} {r["load"][0]:>4.1f}-{r["load"][1]:.1f}',
+                    flush=True,
+                )
+
+    def med(tag, key):
+        return statistics.median(r[key] for r in runs[tag])
+
+    per_it = med('vm', 'per_iteration_s') / med('compiled', 'per_iteration_s')
+    total = med('vm', 'wall_s') / med('compiled', 'wall_s')
+    jac = statistics.median(r['timers_s']['nlp_jac_g'] for r in runs['vm']) / statistics.median(
+        r['timers_s']['nlp_jac_g'] for r in runs['compiled']
+    )
+    d_it = max(abs(a['iterations'] - b['iterations']) for a, b in zip(runs['vm'], runs['compiled'], strict=True))
+    d_e = max(
+        abs(a['nlp_energy_kwh'] - b['nlp_energy_kwh']) / abs(a['nlp_energy_kwh'])
+        for a, b in zip(runs['vm'], runs['compiled'], strict=True)
+    )
+    print(
+        f'virtual machine / compiled: {per_it:.2f}x per iteration, {total:.2f}x in total, {jac:.2f}x in the '
+        f'constraint Jacobian; iterations differ by {d_it}, NLP energy by {d_e:.1e} relative; '
+        f'one-off compiled object {c.seconds:.1f} s ({"built" if c.built else "cache hit"})'
+    )
+    print(
+        json.dumps(
+            {
+                'case': args.case,
+                'duration_s': args.duration_s,
+                'level_pmvh': args.level,
+                'intervals': cp.n_control,
+                'steps_per_interval': cp.steps_per_control,
+                'build_s': {'vm': t_vm, 'compiled': t_cp},
+                'compile': {'built': c.built, 'seconds': c.seconds, 'flags': list(cp.settings.compile_flags)},
+                'runs': runs,
+                'ratio_per_iteration': per_it,
+                'ratio_total': total,
+                'ratio_jac_g': jac,
+                'iterations_max_difference': d_it,
+                'energy_max_rel_difference': d_e,
+            }
+        )
+    )
+    return 0 if d_it <= 1 and d_e <= 1e-9 else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())
