@@ -3,7 +3,9 @@ replayed open loop on the numeric plant through the simulator and scored with th
 
 The small case: the mild day's first 120 s (cabin 39 degC at key-on, 28 degC outside), where the production
 law's set-points 24..29 degC already give different discomfort (0.023..0.043 PMV h); two levels inside that
-range. About 3-4 minutes at load 8 (the NLP's Jacobian dominates, docs/oracle.md "Cost").
+range. The plant steps compiled by default (docs/oracle.md "Compiled plant steps"): the first test of a machine
+compiles the object (~20 s), later sessions find it in the cache; the file took 79 s at load ~4 with the cache
+(the virtual machine's solve of the equality test a third of it).
 """
 
 import json
@@ -125,6 +127,7 @@ def test_determinism_and_the_cli(tmp_path, capsys):
     assert doc['levels'][0]['energy_kwh'] < k['energy_kwh']
     m = json.loads((tmp_path / 'level-0' / 'metrics.json').read_text())
     assert m['strategy'] == 'oracle' and m['oracle_level_pmvh'] == level
+    assert m['oracle_evaluation'] == doc['evaluation'] == a.evaluation and a.evaluation.startswith('compiled')
     assert (tmp_path / 'level-0' / 'timeseries.csv').is_file() and (tmp_path / 'level-0' / 'run.json').is_file()
     assert 'oracle sc03-paper @' in capsys.readouterr().out
 

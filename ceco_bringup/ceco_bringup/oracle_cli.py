@@ -167,6 +167,7 @@ def main(argv=None) -> int:
                     'oracle_wall_time_s': r.wall_time_s,
                     'oracle_nlp_energy_kwh': r.nlp_energy_kwh,
                     'oracle_nlp_discomfort_pmvh': r.nlp_discomfort_pmvh,
+                    'oracle_evaluation': r.evaluation,
                     'case': case.name,
                 }
             )
@@ -185,6 +186,7 @@ def main(argv=None) -> int:
         'case': case.name,
         'control_period_s': settings.control_period_s or scenario.control.control_period_s,
         'note': 'a local optimum of an NLP replayed on the plant: an achievable point, not a proven global bound',
+        'evaluation': results[0].evaluation if results else '',
         'levels': rows,
     }
     (out / 'front.json').write_text(json.dumps(doc, indent=2) + '\n', encoding='utf-8')

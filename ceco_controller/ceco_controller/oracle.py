@@ -192,6 +192,9 @@ class LevelResult:
     """``compute_kpis`` of the replay on the numeric plant (the oracle's point)."""
     run: object | None = None
     """The replay's :class:`~ceco_controller.closed_loop.RunResult`."""
+    evaluation: str = ""
+    """How the NLP's plant steps were evaluated (:attr:`OracleProblem.evaluation`): on a whole drive the compiled
+    and the virtual machine's solves differ beyond the last digits (docs/oracle.md "Compiled plant steps")."""
 
 
 class OracleProblem:
@@ -219,8 +222,7 @@ class OracleProblem:
         self._iu = [pm.input.index(nm) for nm in INPUT_NAMES]
         self._scale = np.array([_STATE_SCALE.get(nm, 10.0) for nm in pm.state.names])
         self.evaluation = ""
-        """How the NLP's plant steps are evaluated: ``compiled (<object>, built|cached in <s> s)`` or
-        ``virtual machine (<why>)``."""
+        """How the NLP's plant steps are evaluated: ``compiled (<object>)`` or ``virtual machine (<why>)``."""
         self.compiled: Compiled | None = None
         """The compiled object's cache lookup (None: the virtual machine)."""
         self._build(k, m, n)
@@ -268,8 +270,8 @@ class OracleProblem:
             _LOG.warning("oracle: %s", self.evaluation)
             return self._interval(m)
         c = self.compiled
-        self.evaluation = f"compiled ({c.path}, {'built' if c.built else 'cached'} in {c.seconds:.1f} s)"
-        _LOG.info("oracle: plant steps %s", self.evaluation)
+        self.evaluation = f"compiled ({c.path})"
+        _LOG.info("oracle: plant steps %s, %s in %.1f s", self.evaluation, "built" if c.built else "cached", c.seconds)
         return _chained(step, m)
 
     def _build(self, k: int, m: int, n: int) -> None:
@@ -418,7 +420,7 @@ _DIFF_OPTS = {"is_diff_in": [True, True, True, False, False]}
 which seeds every input of the interval, met NaN on the key-on interval: at standstill the derivative with
 respect to the vehicle speed is not finite (0 x inf)."""
 _STEP_NAME = "ceco_oracle_step"
-"""The one-step interval's name in the generated C (its Jacobian: ``jac_ceco_oracle_step``)."""
+"""The one-step interval's name in the generated C (``jac_ceco_oracle_step``, ``adj1_ceco_oracle_step``)."""
 
 _LOADED: dict[str, casadi.Function] = {}
 _LOCK = threading.Lock()
@@ -427,9 +429,9 @@ _LOCK = threading.Lock()
 def compiled_step(step: casadi.Function, settings: OracleSettings | None = None) -> tuple[casadi.Function, Compiled]:
     """The one-step interval ``step`` (SX) as compiled C: (the loaded Function, the cache lookup).
 
-    C is generated for ``step`` and its Jacobian ``jac_<name>``: the only derivative the NLP needs (CasADi
-    3.8.2 builds the mapped Jacobian's forward directions and the gradient's reverse one from it; offered an
-    SX Function it asks 24 forward directions and one reverse). Compiled by
+    C is generated for ``step``, its Jacobian ``jac_<name>`` and its one reverse direction ``adj1_<name>``:
+    offered these, CasADi 3.8.2 builds the mapped constraint Jacobian's 24-32 forward or reverse directions
+    from the Jacobian and the gradient from ``adj1`` (docs/oracle.md "Compiled plant steps"). Compiled by
     :func:`ceco_core.codegen.compile_cached` into ``oracle_cache_dir(settings.cache_dir)``, named by the
     SHA-256 of the generated C with the flags, the compiler and the CasADi version: a changed plant, comfort,
     parameter or step gives a new object, a stale one is never loaded, concurrent builders rename atomically.
@@ -439,7 +441,7 @@ def compiled_step(step: casadi.Function, settings: OracleSettings | None = None)
     s = (settings or OracleSettings()).validate()
 
     def generate(tmp: str) -> str:
-        return generate_functions([step, step.jacobian()], tmp, _STEP_NAME)
+        return generate_functions([step, step.jacobian(), step.reverse(1)], tmp, _STEP_NAME)
 
     cache = oracle_cache_dir(s.cache_dir)
     try:  # a cache that cannot be written is known before the compile, not after it
@@ -548,7 +550,9 @@ def solve_levels(
     out: dict[int, LevelResult] = {}
     for i in sorted(range(len(lv)), key=lambda j: -lv[j]):
         status, ok, it, wall, w_new, lam_new = pb.solve(lv[i], w, lam)
-        r = LevelResult(level_pmvh=lv[i], status=status, success=ok, iterations=it, wall_time_s=wall)
+        r = LevelResult(
+            level_pmvh=lv[i], status=status, success=ok, iterations=it, wall_time_s=wall, evaluation=pb.evaluation
+        )
         if ok:
             w, lam = w_new, lam_new
             r.commands = pb.commands_of(w)
