@@ -153,6 +153,8 @@ def test_settings_and_schedule_refuse_bad_values():
         orc.OracleSettings(door_logic=(('door_mode', 'none'),)).validate()
     with pytest.raises(ValueError, match='door_logic'):
         orc.OracleSettings(door_logic=(('door_mode', 'auto'), ('door_no_such_field', 1.0))).validate()
+    with pytest.raises(ValueError, match='max_wall_time_s'):
+        orc.OracleSettings(max_wall_time_s=0.0).validate()
     with pytest.raises(ValueError, match='co2_margin_ppm'):
         orc.OracleSettings(co2_margin_ppm=-1.0).validate()
     with pytest.raises(ValueError, match='names'):
@@ -218,3 +220,8 @@ def test_the_door_oracle_holds_the_co2_limit_and_beats_the_production_door_logic
     # the held-door oracle of the cases without a door logic cannot recirculate past the plant's default share
     held = orc.OracleProblem(sc, orc.OracleSettings())
     assert held.input_names == orc.INPUT_NAMES and held.model.input.size == 2
+    # the wall-time limit per level: 900 s on short drives, 1.5 s per second of drive on long ones, or as set
+    assert held.max_wall_time_s == orc.WALL_TIME_MIN_S == 900.0
+    udds = orc.OracleProblem(load_case('udds-hot').load_scenario(), orc.OracleSettings(max_iter=1))
+    assert udds.max_wall_time_s == pytest.approx(orc.WALL_TIME_PER_DRIVE_S * 1369.0)
+    assert orc.OracleProblem(sc, orc.OracleSettings(max_wall_time_s=50.0)).max_wall_time_s == 50.0

@@ -62,8 +62,8 @@ def build_parser() -> cli_args.Parser:
     p.add_argument(
         '--max-wall-time-s',
         type=cli_args.positive_float,
-        default=900.0,
-        help='IPOPT wall-time limit per level [s]',
+        default=None,
+        help='IPOPT wall-time limit per level [s] (default: 1.5 s per second of drive, at least 900 s)',
     )
     cli_args.add_no_progress(p)
     return p
