@@ -38,10 +38,12 @@ def solve_front_accounted(case, seed, levels):
     (the plumbing keeps whatever the entry point says; these are not IPOPT's numbers)."""
     items = solve_front(case, seed, levels)
     out = [{'kpis': None, 'solver': {'status': 'Maximum_WallTime_Exceeded', 'iterations': 57, 'wall_time_s': 900.4}}]
-    out += [{'kpis': k, 'solver': {'status': 'Solve_Succeeded', 'iterations': 10 + i, 'wall_time_s': 1.5}} for i, k in enumerate(items[1:])]
+    for i, k in enumerate(items[1:]):
+        out.append({'kpis': k, 'solver': {'status': 'Solve_Succeeded', 'iterations': 10 + i, 'wall_time_s': 1.5}})
     return out
 
 
 def solve_front_bad_account(case, seed, levels):
     """Items whose solver account is malformed (a negative iteration count): the cell must fail with why."""
-    return [{'kpis': None, 'solver': {'status': 'Solve_Succeeded', 'iterations': -1, 'wall_time_s': 1.0}} for _ in levels]
+    bad = {'status': 'Solve_Succeeded', 'iterations': -1, 'wall_time_s': 1.0}
+    return [{'kpis': None, 'solver': dict(bad)} for _ in levels]

@@ -62,8 +62,8 @@ def build_parser() -> cli_args.Parser:
     p.add_argument(
         '--max-wall-time-s',
         type=cli_args.positive_float,
-        default=900.0,
-        help='IPOPT wall-time limit per level [s]',
+        default=None,
+        help='IPOPT wall-time limit per level [s] (default: 1.5 s per second of drive, at least 900 s)',
     )
     p.add_argument(
         '--compiled',
@@ -79,7 +79,8 @@ def build_parser() -> cli_args.Parser:
 def default_levels(case, scenario, control_period_s: float | None, n: int = 4) -> list[float]:
     """``n`` levels by the benchmark's rule (``runner.oracle_levels``) on the production law's set-point family.
 
-    The family (``verdict.FAMILY_SETPOINTS_C``) is run here in-process and scored like benchmark runs.
+    The family (``verdict.FAMILY_SETPOINTS_C``, with the case's door logic where its baselines drive the
+    door) is run here in-process and scored like benchmark runs.
     """
     from ceco_bringup.benchmark import runner
     from ceco_bringup.verdict import FAMILY_SETPOINTS_C
@@ -88,12 +89,12 @@ def default_levels(case, scenario, control_period_s: float | None, n: int = 4) -
 
     runs = []
     for sp in FAMILY_SETPOINTS_C:
-        st = SimSettings(control_period_s=control_period_s, progress=False, strategy_overrides=(('setpoint_c', sp),))
+        ovr = (('setpoint_c', sp), *case.baseline_door)
+        st = SimSettings(control_period_s=control_period_s, progress=False, strategy_overrides=ovr)
         res = simulate(scenario, 'baseline', st)
         kpis, _ = compute_kpis(res.timeseries, control_period_s=res.metrics['control_period_s'], fallback_steps=0)
         row = {'controller': f'baseline@{sp:g}', 'kind': 'baseline', 'seed': None, 'setpoint_c': sp}
         runs.append(runner._run_entry({**row, 'status': 'ok', 'kpis': kpis}))
-    del case
     return runner.oracle_levels(runs, n)
 
 
@@ -121,7 +122,10 @@ def main(argv=None) -> int:
             scenario = scenario_from_dict(d, source=scenario.source)
         ts = args.control_period_s or case.control_period_s
         settings = orc.OracleSettings(
-            control_period_s=ts, max_wall_time_s=args.max_wall_time_s, compiled=args.compiled
+            control_period_s=ts,
+            max_wall_time_s=args.max_wall_time_s,
+            door_logic=tuple(case.baseline_door),
+            compiled=args.compiled,
         ).validate()
         levels = args.levels
         if levels is None:
@@ -173,9 +177,9 @@ def main(argv=None) -> int:
             )
             write_run(r.run, run_dir)
             cols = {'k': list(range(len(r.commands)))}
-            for j, name in enumerate(orc.INPUT_NAMES):
+            for j, name in enumerate(r.input_names):
                 cols[name] = r.commands[:, j].tolist()
-            rundir.write_csv(run_dir / 'commands.csv', ('k', *orc.INPUT_NAMES), cols)
+            rundir.write_csv(run_dir / 'commands.csv', ('k', *r.input_names), cols)
             provenance.finish_run(run_dir, 'complete')
             row['energy_kwh'], row['discomfort_pmvh'] = r.kpis['energy_kwh'], r.kpis['discomfort_pmvh']
         rows.append(row)

@@ -3,14 +3,16 @@
 An optimal control problem over the whole drive of a scenario (docs/oracle.md): the true weather,
 speed, comfort band and key-on state are known; the decisions are the blower flow and the evaporator
 set-point per control period Ts (held between, as every controller's), within the actuator bounds of
-every controller. The objective is the benchmark's energy (compressor + blower + condenser fan,
-``PlantModel.energy`` ``e_total_j``); the benchmark's discomfort (``ceco_core.kpis.discomfort_pmvh``,
-the fixed band's distance of the scored PMV integrated over the drive) is a constraint ``<= level``
-(epsilon-constraint), written exactly with one slack per plant step (``s_n >= pmv_n - 0.5``,
-``s_n >= -0.5 - pmv_n``, ``s_n >= 0``, ``sum s_n dt / 3600 <= level``). The plant is the smooth symbolic
-model written once (``ceco_plant_sim.plant_model.PlantModel.smooth``): multiple shooting on the
-control intervals (each interval is Ts / dt chained plant steps), IPOPT with exact derivatives,
-started from a replayed production-law run and warm-started from level to level.
+every controller, and, where the controllers it bounds may move the recirculation door
+(``OracleSettings.door_logic``), the door's recirculated share too, with the scenario's air-quality
+limits (cabin CO2, fog margin) as constraints at every interval's end. The objective is the benchmark's
+energy (compressor + blower + condenser fan, ``PlantModel.energy`` ``e_total_j``); the benchmark's discomfort
+(``ceco_core.kpis.discomfort_pmvh``, the fixed band's distance of the scored PMV integrated over the drive) is
+a constraint ``<= level`` (epsilon-constraint), written exactly with one slack per plant step
+(``s_n >= pmv_n - 0.5``, ``s_n >= -0.5 - pmv_n``, ``s_n >= 0``, ``sum s_n dt / 3600 <= level``). The plant is the smooth
+symbolic model written once (``ceco_plant_sim.plant_model.PlantModel.smooth``): multiple shooting on the
+control intervals (each interval is Ts / dt chained plant steps), IPOPT with exact first derivatives and a
+limited-memory Hessian, started from a replayed production-law run and warm-started from level to level.
 
 The optimal command sequence is then replayed open loop on the numeric plant through the simulator
 (:func:`ceco_controller.closed_loop.simulate` with a :class:`ScheduleController`) and scored with
@@ -37,13 +39,14 @@ import casadi
 import numpy as np
 
 from ceco_core.codegen import Compiled, CompileError, codegen_cache_dir, compile_cached, generate_functions
-from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics
+from ceco_core.contracts import ACTUATOR_LIMITS, RECIRC_SHARE_MAX, RECIRC_SHARE_MIN, AcInput, Diagnostics
 from ceco_core.kpis import COMFORT_BAND_PMV, compute_kpis
 from ceco_core.mathops import smooth_min
 from ceco_core.metrics import PMV_SCALE_LIMIT
 
 __all__ = [
     "COMPILED_MODES",
+    "DOOR_INPUT_NAMES",
     "INPUT_NAMES",
     "LevelResult",
     "OracleProblem",
@@ -57,6 +60,8 @@ __all__ = [
 
 INPUT_NAMES = ("mdot_bl_kgps", "t_evap_sp_c")
 """The decisions per control period, by name (``PlantModel.input`` order is looked up, never assumed)."""
+DOOR_INPUT_NAMES = (*INPUT_NAMES, "recirc_share")
+"""The decisions with the door free (``OracleSettings.door_logic`` given): the recirculated share [-] too."""
 
 J_PER_KWH = 3.6e6
 
@@ -65,6 +70,11 @@ COMPILED_MODES = ("auto", "yes", "no")
 error, CasADi's virtual machine."""
 
 _LOG = logging.getLogger(__name__)
+
+WALL_TIME_PER_DRIVE_S = 1.5
+"""The default IPOPT wall-time limit per level [s] per second of drive (``OracleSettings.max_wall_time_s``)."""
+WALL_TIME_MIN_S = 900.0
+"""The default IPOPT wall-time limit per level is never below this [s] (short drives on a loaded machine)."""
 
 _STATE_SCALE = {"w_cab_kgkg": 0.01, "comp_pi_integral_rpm": 1000.0, "recirc_share": 1.0, "co2_cab_kgkg": 0.001}
 """Nominal magnitudes of the states that are not temperatures [unit] (the NLP's variables are x / scale)."""
@@ -80,8 +90,11 @@ class OracleSettings:
     """Plant step [s] (the simulator's)."""
     max_iter: int = 400
     """IPOPT iterations per level."""
-    max_wall_time_s: float = 900.0
-    """IPOPT wall-time limit per level [s] (a level that hits it is 'not solved' unless acceptable)."""
+    max_wall_time_s: float | None = None
+    """IPOPT wall-time limit per level [s] (a level that hits it is 'not solved' unless acceptable); None: the
+    larger of :data:`WALL_TIME_MIN_S` and :data:`WALL_TIME_PER_DRIVE_S` per second of drive (900 s up to a
+    600-s drive, 2054 s on udds-hot's 1369 s: the cost of an iteration grows with the drive's length, and a
+    flat 900 s left udds-hot's least level fewer iterations than sc03's)."""
     tol: float = 1e-6
     """IPOPT tolerance."""
     pmv_clip_k: float = 20.0
@@ -110,6 +123,17 @@ class OracleSettings:
     cache_dir: str | None = None
     """Directory of the compiled objects; None: :func:`oracle_cache_dir` ($CECO_CACHE_DIR/oracle, else
     $XDG_CACHE_HOME/ceco/oracle, else ~/.cache/ceco/oracle)."""
+    door_logic: tuple = ()
+    """The production door logic (``ceco_core.recirc_law.RecircSettings`` items, as a benchmark case's
+    ``baseline_door``). Empty: the door is no decision, the plant holds its default share (the oracle of the
+    cases whose controllers leave the door alone). Given: the recirculated share is the third decision, the
+    scenario's CO2 limit and fog bound are constraints, and the initial guess is the production law run
+    with this door logic (the oracle gets the permissions of the controllers it bounds, no more)."""
+    co2_margin_ppm: float = 10.0
+    """Margin [ppm] the NLP keeps below the scenario's CO2 limit (the replay on the numeric plant is scored
+    against the limit itself; the smooth model's states differ from the plant's by a little)."""
+    fog_margin_extra_k: float = 0.1
+    """Margin [K] the NLP keeps above the scenario's fog bound (the same reason)."""
 
     def validate(self) -> OracleSettings:
         """Raise ValueError naming the field if a setting is not usable; return self."""
@@ -125,6 +149,8 @@ class OracleSettings:
             raise ValueError(f"OracleSettings.max_iter: must be an int >= 1, got {self.max_iter!r}")
         for name in ("max_wall_time_s", "tol", "pmv_clip_k"):
             v = getattr(self, name)
+            if name == "max_wall_time_s" and v is None:
+                continue
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"OracleSettings.{name}: must be finite and > 0, got {v}")
         if self.compiled not in COMPILED_MODES:
@@ -139,6 +165,19 @@ class OracleSettings:
             raise ValueError(f"OracleSettings.compile_flags: must be a tuple of strings, got {self.compile_flags!r}")
         if self.cache_dir is not None and not (isinstance(self.cache_dir, str) and self.cache_dir):
             raise ValueError(f"OracleSettings.cache_dir: must be a non-empty string or None, got {self.cache_dir!r}")
+        for name in ("co2_margin_ppm", "fog_margin_extra_k"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"OracleSettings.{name}: must be finite and >= 0, got {v!r}")
+        if self.door_logic:
+            from ceco_core.recirc_law import RecircSettings
+
+            try:
+                door = RecircSettings(**dict(self.door_logic)).validate()
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"OracleSettings.door_logic: {exc}") from None
+            if door.door_mode == "none":
+                raise ValueError("OracleSettings.door_logic: door_mode 'none' commands no door; leave door_logic empty")
         return self
 
 
@@ -150,18 +189,22 @@ def oracle_cache_dir(path: str | None = None) -> str:
 class ScheduleController:
     """Applies a fixed command per control step (the oracle's open-loop replay in the simulator)."""
 
-    def __init__(self, commands: np.ndarray) -> None:
+    def __init__(self, commands: np.ndarray, names: Sequence[str] = INPUT_NAMES) -> None:
         c = np.asarray(commands, dtype=float)
-        if c.ndim != 2 or c.shape[1] != len(INPUT_NAMES) or not np.all(np.isfinite(c)):
-            raise ValueError(f"ScheduleController: commands must be a finite K x {len(INPUT_NAMES)} array")
+        self.names = tuple(names)
+        """The columns' names (:data:`INPUT_NAMES` or :data:`DOOR_INPUT_NAMES`)."""
+        if self.names not in (INPUT_NAMES, DOOR_INPUT_NAMES):
+            raise ValueError(f"ScheduleController: names must be {INPUT_NAMES} or {DOOR_INPUT_NAMES}, got {self.names}")
+        if c.ndim != 2 or c.shape[1] != len(self.names) or not np.all(np.isfinite(c)):
+            raise ValueError(f"ScheduleController: commands must be a finite K x {len(self.names)} array")
         self.commands = c
-        """Per control step the command, columns :data:`INPUT_NAMES`."""
+        """Per control step the command, columns :attr:`names`."""
 
     def compute(self, obs):
         """The command of control step ``obs.k`` (ValueError past the schedule's end)."""
         if obs.k >= len(self.commands):
             raise ValueError(f"ScheduleController: control step {obs.k} is past the schedule's {len(self.commands)}")
-        row = dict(zip(INPUT_NAMES, self.commands[obs.k].tolist(), strict=True))
+        row = dict(zip(self.names, self.commands[obs.k].tolist(), strict=True))
         cmd = AcInput(**row)
         return cmd, Diagnostics(k=obs.k, t_s=obs.t_s, status="schedule", success=True)
 
@@ -180,8 +223,10 @@ class LevelResult:
     """IPOPT iterations."""
     wall_time_s: float
     """Wall time of the solve [s]."""
+    input_names: tuple = INPUT_NAMES
+    """The columns of :attr:`commands` (:data:`INPUT_NAMES`, or :data:`DOOR_INPUT_NAMES` with the door free)."""
     commands: np.ndarray | None = None
-    """Per control step the optimal command, columns :data:`INPUT_NAMES`."""
+    """Per control step the optimal command, columns :attr:`input_names`."""
     nlp_energy_kwh: float | None = None
     """The NLP's energy (smooth model) [kWh]."""
     nlp_discomfort_pmvh: float | None = None
@@ -202,7 +247,7 @@ class OracleProblem:
 
     def __init__(self, scenario, settings: OracleSettings | None = None) -> None:
         from ceco_plant_sim.plant_model import PlantModel
-        from ceco_plant_sim.scenario_plant import n_plant_steps
+        from ceco_plant_sim.scenario_plant import n_plant_steps, scenario_plant_params
 
         self.settings = s = (settings or OracleSettings()).validate()
         self.scenario = scenario
@@ -216,10 +261,24 @@ class OracleProblem:
         self.n_control = k = -(-n // m)
         """Number of control intervals (the last one may be cut short by the drive's end)."""
         self.n_steps = n
-        self.model = pm = PlantModel.smooth(plant_dt_s=s.plant_dt_s)
+        self.max_wall_time_s = float(
+            s.max_wall_time_s
+            if s.max_wall_time_s is not None
+            else max(WALL_TIME_MIN_S, WALL_TIME_PER_DRIVE_S * n * s.plant_dt_s)
+        )
+        """IPOPT's wall-time limit per level [s] (the setting, or its default for this drive's length)."""
+        self.door = bool(s.door_logic)
+        """The door is a decision (``settings.door_logic`` given)."""
+        self.input_names = DOOR_INPUT_NAMES if self.door else INPUT_NAMES
+        """The decisions' names per control period (the columns of every command array of this problem)."""
+        self.limits = scenario.air_quality.limits
+        """The scenario's air-quality limits (``ceco_core.air_quality.AirQualityLimits``)."""
+        # the scenario's plant: its occupants and ambient CO2 are parameters of the plant
+        params = scenario_plant_params(scenario)
+        self.model = pm = PlantModel.smooth(params, plant_dt_s=s.plant_dt_s, door_input=self.door)
         x0, envs, comfort, pa = pm.scenario_drive(scenario, n)
         self.x0, self.envs, self.comfort, self.pa_pa = x0, envs, comfort, pa
-        self._iu = [pm.input.index(nm) for nm in INPUT_NAMES]
+        self._iu = [pm.input.index(nm) for nm in self.input_names]
         self._scale = np.array([_STATE_SCALE.get(nm, 10.0) for nm in pm.state.names])
         self.evaluation = ""
         """How the NLP's plant steps are evaluated: ``compiled (<object>)`` or ``virtual machine (<why>)``."""
@@ -310,6 +369,17 @@ class OracleProblem:
         n_dyn = nx * k + (k - 1)
         self._lbg = np.concatenate([np.zeros(n_dyn), np.zeros(2 * k * m), [-np.inf]])
         self._ubg = np.concatenate([np.zeros(n_dyn), np.full(2 * k * m, np.inf), [0.0]])
+        if self.door:
+            # the air-quality limits at every interval's end, with the settings' margins [ppm / 1000, K]
+            # (aq_violation's g <= 0; CO2 moves with a time constant of minutes: the ends of the control
+            # intervals sample it densely)
+            aq = pm.air_quality.map(k)(x[:, 1:])
+            g += [
+                casadi.vec((aq[0, :] - (self.limits.co2_limit_ppm - s.co2_margin_ppm)) / 1000.0),
+                casadi.vec(self.limits.fog_margin_min_k + s.fog_margin_extra_k - aq[1, :]),
+            ]
+            self._lbg = np.concatenate([self._lbg, np.full(2 * k, -np.inf)])
+            self._ubg = np.concatenate([self._ubg, np.zeros(2 * k)])
         self._w = [casadi.vec(xs), casadi.vec(us), casadi.vec(tv), casadi.vec(sl)]
         self._sizes = [nx * (k + 1), nu * k, k, k * m]
         w = casadi.vertcat(*self._w)
@@ -324,7 +394,7 @@ class OracleProblem:
             "ipopt.sb": "yes",
             "print_time": False,
             "ipopt.max_iter": s.max_iter,
-            "ipopt.max_wall_time": s.max_wall_time_s,
+            "ipopt.max_wall_time": self.max_wall_time_s,
             "ipopt.tol": s.tol,
             "ipopt.acceptable_tol": 1e-4,
             "ipopt.mu_strategy": "adaptive",
@@ -340,6 +410,7 @@ class OracleProblem:
         bounds = {
             "mdot_bl_kgps": (lim.mdot_bl_min_kgps, lim.mdot_bl_max_kgps),
             "t_evap_sp_c": (lim.t_evap_sp_min_c, lim.t_evap_sp_max_c),
+            "recirc_share": (RECIRC_SHARE_MIN, RECIRC_SHARE_MAX),
         }
         for j, nm in enumerate(pm.input.names):
             lbx[1][j, :], ubx[1][j, :] = bounds[nm]
@@ -350,7 +421,7 @@ class OracleProblem:
 
     # ------------------------------------------------------------------ guess
     def guess_from_commands(self, commands: np.ndarray) -> np.ndarray:
-        """The NLP's variables along a command sequence (per control step, :data:`INPUT_NAMES`) on the smooth model."""
+        """The NLP's variables along a command sequence (per control step, :attr:`input_names`) on the smooth model."""
         pm, k, m = self.model, self.n_control, self.steps_per_control
         c = np.asarray(commands, dtype=float)
         u = np.zeros((k, pm.input.size))
@@ -366,10 +437,10 @@ class OracleProblem:
         return np.concatenate([(xs / self._scale).T.ravel(order="F"), u.T.ravel(order="F"), tv, s])
 
     def commands_of(self, w: np.ndarray) -> np.ndarray:
-        """Per control step the command (columns :data:`INPUT_NAMES`) in the NLP's variables ``w``."""
-        o = self._sizes[0]
-        u = np.asarray(w[o : o + self._sizes[1]], dtype=float).reshape(self.n_control, self.model.input.size)
-        return np.clip(u[:, self._iu], self._lbx[o : o + 2][self._iu], self._ubx[o : o + 2][self._iu])
+        """Per control step the command (columns :attr:`input_names`) in the NLP's variables ``w``."""
+        o, nu = self._sizes[0], self.model.input.size
+        u = np.asarray(w[o : o + self._sizes[1]], dtype=float).reshape(self.n_control, nu)
+        return np.clip(u[:, self._iu], self._lbx[o : o + nu][self._iu], self._ubx[o : o + nu][self._iu])
 
     def pmv_of(self, w: np.ndarray) -> np.ndarray:
         """The NLP's scored PMV per plant step (smooth model) in the variables ``w``."""
@@ -486,12 +557,17 @@ def _chained(step: casadi.Function, m: int) -> casadi.Function:
     )
 
 
-def replay(scenario, commands: np.ndarray, control_period_s: float, plant_dt_s: float = 1.0):
-    """The commands (per control step) open loop on the numeric plant through the simulator; (RunResult, KPIs)."""
+def replay(
+    scenario, commands: np.ndarray, control_period_s: float, plant_dt_s: float = 1.0, names: Sequence[str] = INPUT_NAMES
+):
+    """The commands (per control step, columns ``names``) open loop on the numeric plant; (RunResult, KPIs).
+
+    Through the simulator, scored with the scenario's air-quality limits like every benchmark run.
+    """
     from .closed_loop import SimSettings, simulate
 
     settings = SimSettings(control_period_s=control_period_s, plant_dt_s=plant_dt_s, progress=False)
-    res = simulate(scenario, "baseline", settings, controller=ScheduleController(commands))
+    res = simulate(scenario, "baseline", settings, controller=ScheduleController(commands, names))
     res.strategy = res.metrics["strategy"] = "oracle"
     kpis, _ = compute_kpis(
         res.timeseries,
@@ -503,11 +579,17 @@ def replay(scenario, commands: np.ndarray, control_period_s: float, plant_dt_s: 
     return res, kpis
 
 
-def baseline_commands(scenario, control_period_s: float, setpoint_c: float | None = None) -> np.ndarray:
-    """The production law's commands per control step on the scenario (the oracle's initial guess)."""
+def baseline_commands(
+    scenario, control_period_s: float, setpoint_c: float | None = None, door_logic: tuple = ()
+) -> np.ndarray:
+    """The production law's commands per control step on the scenario (the oracle's initial guess).
+
+    Columns :data:`INPUT_NAMES`; with ``door_logic`` (``RecircSettings`` items) the law runs with that door
+    logic and the columns are :data:`DOOR_INPUT_NAMES` (the door's command).
+    """
     from .closed_loop import SimSettings, simulate
 
-    ovr = () if setpoint_c is None else (("setpoint_c", float(setpoint_c)),)
+    ovr = (() if setpoint_c is None else (("setpoint_c", float(setpoint_c)),)) + tuple(door_logic)
     res = simulate(
         scenario,
         "baseline",
@@ -515,7 +597,10 @@ def baseline_commands(scenario, control_period_s: float, setpoint_c: float | Non
     )
     ts = res.timeseries
     m = int(round(control_period_s / (ts["t_s"][1] - ts["t_s"][0])))
-    return np.column_stack([ts[nm][::m] for nm in INPUT_NAMES])
+    cols = [ts[nm][::m] for nm in INPUT_NAMES]
+    if door_logic:
+        cols.append(ts["recirc_share_cmd"][::m])  # the door's command (the plant's share lags it by its travel)
+    return np.column_stack(cols)
 
 
 def solve_levels(
@@ -545,20 +630,26 @@ def solve_levels(
         f"oracle {scenario.name}: NLP built ({pb.n_control} intervals of {pb.steps_per_control} steps) in "
         f"{time.perf_counter() - t0:.1f} s; plant steps: {pb.evaluation}"
     )
-    guess = baseline_commands(scenario, pb.control_period_s, pb.settings.guess_setpoint_c)
+    guess = baseline_commands(scenario, pb.control_period_s, pb.settings.guess_setpoint_c, pb.settings.door_logic)
     w, lam = pb.guess_from_commands(guess), None
     out: dict[int, LevelResult] = {}
     for i in sorted(range(len(lv)), key=lambda j: -lv[j]):
         status, ok, it, wall, w_new, lam_new = pb.solve(lv[i], w, lam)
         r = LevelResult(
-            level_pmvh=lv[i], status=status, success=ok, iterations=it, wall_time_s=wall, evaluation=pb.evaluation
+            level_pmvh=lv[i],
+            status=status,
+            success=ok,
+            iterations=it,
+            wall_time_s=wall,
+            input_names=pb.input_names,
+            evaluation=pb.evaluation,
         )
         if ok:
             w, lam = w_new, lam_new
             r.commands = pb.commands_of(w)
             r.nlp_energy_kwh, r.nlp_discomfort_pmvh = pb.evaluate(w)
             r.nlp_pmv = pb.pmv_of(w)
-            r.run, r.kpis = replay(scenario, r.commands, pb.control_period_s, pb.settings.plant_dt_s)
+            r.run, r.kpis = replay(scenario, r.commands, pb.control_period_s, pb.settings.plant_dt_s, pb.input_names)
         out[i] = r
         tail = (
             f"replay {r.kpis['energy_kwh']:.4f} kWh / {r.kpis['discomfort_pmvh']:.4f} PMV h "
@@ -579,9 +670,11 @@ def solve_front(case, seed, levels, settings: OracleSettings | None = None) -> l
 
     ``case`` a benchmark Case, ``seed`` one of its seeds: the oracle knows the truth of the drive, which
     does not depend on the seed (the seeds draw forecast errors only), so every seed gets the same front.
+    The door is a decision where the case's baselines drive it (``case.baseline_door``): the oracle gets
+    the controllers' permissions.
     """
     del seed  # the truth does not depend on the preview-error seed
-    s = settings or OracleSettings(control_period_s=case.control_period_s)
+    s = settings or OracleSettings(control_period_s=case.control_period_s, door_logic=tuple(case.baseline_door))
     res = solve_levels(case.load_scenario(), levels, s)
     return [
         {

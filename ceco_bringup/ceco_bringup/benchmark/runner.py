@@ -927,9 +927,12 @@ def oracle_cells(case: Case, seeds: Sequence[int], levels: Sequence[float], code
 
 
 def _solver_account(solver: Mapping) -> dict:
-    """The solver's account of one oracle level, checked: ``status`` (str), ``iterations`` (int >= 0),
-    ``wall_time_s`` (finite, >= 0) [s]; ValueError naming the field otherwise."""
-    out = {'status': solver.get('status'), 'iterations': solver.get('iterations'), 'wall_time_s': solver.get('wall_time_s')}
+    """The solver's account of one oracle level, checked.
+
+    ``status`` (str), ``iterations`` (int >= 0), ``wall_time_s`` (finite, >= 0) [s]; ValueError naming the field
+    otherwise.
+    """
+    out = {k: solver.get(k) for k in ('status', 'iterations', 'wall_time_s')}
     if not isinstance(out['status'], str) or not out['status']:
         raise ValueError(f'the oracle\'s solver status must be a non-empty string, got {out["status"]!r}')
     if isinstance(out['iterations'], bool) or not isinstance(out['iterations'], int) or out['iterations'] < 0:
@@ -983,8 +986,7 @@ def run_oracle_cell(cell: Mapping, runs_dir: str | None = None, controller_cache
                 item = item['kpis']
             if item is None:
                 point['error'] = (
-                    f'not solved ({solver["status"]}, {solver["iterations"]} iterations, '
-                    f'{solver["wall_time_s"]:.0f} s)'
+                    f'not solved ({solver["status"]}, {solver["iterations"]} iterations, {solver["wall_time_s"]:.0f} s)'
                     if solver
                     else 'not solved'
                 )
