@@ -111,15 +111,16 @@ class OracleSettings:
     """The production law's cabin set-point of the initial guess [degC]; None: its default."""
     compiled: str = "auto"
     """How the plant steps of the NLP are evaluated (docs/oracle.md "Compiled plant steps"): ``auto`` as
-    compiled C (generated from the one-step interval's SX Function with its Jacobian, compiled once and cached
-    on disk) where a C compiler works and the cache can be written, else CasADi's virtual machine (one log
-    line says which and why); ``yes`` compiled or a :class:`~ceco_core.codegen.CompileError`; ``no`` the
-    virtual machine. Same NLP either way (values bit for bit, Jacobian within 1e-12 relative)."""
+    compiled C (generated from the one-step interval's SX Function with its derivatives, compiled once and
+    cached on disk) where a C compiler works and the cache can be written, else CasADi's virtual machine (one
+    log line says which and why); ``yes`` compiled or a :class:`~ceco_core.codegen.CompileError`; ``no`` the
+    virtual machine. The same NLP either way (values bit for bit, derivatives within 1e-12 relative), but on a
+    whole drive IPOPT's iterates drift apart: the solutions agree within its tolerance, not to the digit."""
     compiler: str | None = None
     """C compiler of the compiled plant steps (a name on PATH or a path); None: $CC, gcc, cc."""
     compile_flags: tuple[str, ...] = ("-O1",)
-    """Compiler flags (part of the cache key; ``-O1``: 3.4 times the virtual machine's Jacobian speed in ~18 s of
-    compilation, ``-O2`` no faster, ``-O0`` 1.3 times)."""
+    """Compiler flags (part of the cache key; ``-O1``: the constraint Jacobian 3-4 times faster than the virtual
+    machine for 13-19 s of compilation; ``-O2`` no faster; ``-O0`` 1.3-1.6 times)."""
     cache_dir: str | None = None
     """Directory of the compiled objects; None: :func:`oracle_cache_dir` ($CECO_CACHE_DIR/oracle, else
     $XDG_CACHE_HOME/ceco/oracle, else ~/.cache/ceco/oracle)."""
