@@ -641,6 +641,7 @@ def test_oracle_cell_keeps_the_solvers_account():
     assert first['kpis'] is None and first['error'] == 'not solved (Maximum_WallTime_Exceeded, 57 iterations, 900 s)'
     assert first['solver'] == {'status': 'Maximum_WallTime_Exceeded', 'iterations': 57, 'wall_time_s': 900.4}
     assert [p['solver']['iterations'] for p in rest] == [10, 11, 12] and all(p['kpis']['energy_kwh'] > 0 for p in rest)
+    assert all(p['solver']['evaluation'] == 'compiled' for p in rest) and 'evaluation' not in first['solver']
     doc = runner.oracle_entry('ok', '', levels, [row])
     (f,) = doc['fronts']
     assert f['points'][0]['solver']['status'] == 'Maximum_WallTime_Exceeded' and len(f['front']) == 3

@@ -203,6 +203,7 @@ def _case(doc):
         (lambda d: _case(d)["oracle"].update(status="maybe"), "status"),
         (lambda d: _case(d)["oracle"]["fronts"][1]["points"][1]["solver"].update(iterations=-1), "iterations"),
         (lambda d: _case(d)["oracle"]["fronts"][1]["points"][1]["solver"].pop("status"), "status"),
+        (lambda d: _case(d)["oracle"]["fronts"][1]["points"][1]["solver"].update(evaluation=""), "evaluation"),
         (lambda d: _case(d)["oracle"].update(status="skipped"), "with fronts"),
         (lambda d: _case(d)["runs"][0]["kpis"].pop("peak_comp_kw"), "peak_comp_kw"),
         (lambda d: _case(d)["runs"][0]["kpis"].update(peak_comp_kw="high"), "peak_comp_kw"),

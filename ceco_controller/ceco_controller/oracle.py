@@ -666,8 +666,9 @@ def solve_front(case, seed, levels, settings: OracleSettings | None = None) -> l
     """The benchmark's entry point (``runner.ORACLE_ENTRY``): per level ``{'kpis', 'solver'}``.
 
     ``kpis`` the replayed run's KPIs (None when the level was not solved), ``solver`` IPOPT's account of the
-    level: ``status`` (its return status), ``iterations`` and ``wall_time_s`` [s], so that an unsolved level
-    says why (the wall limit, the iteration limit, an infeasible bound).
+    level: ``status`` (its return status), ``iterations``, ``wall_time_s`` [s] and ``evaluation`` ('compiled'
+    or 'virtual machine': on a whole drive the two may end at local optima a little apart, docs/oracle.md), so
+    that an unsolved level says why (the wall limit, the iteration limit, an infeasible bound).
 
     ``case`` a benchmark Case, ``seed`` one of its seeds: the oracle knows the truth of the drive, which
     does not depend on the seed (the seeds draw forecast errors only), so every seed gets the same front.
@@ -680,7 +681,12 @@ def solve_front(case, seed, levels, settings: OracleSettings | None = None) -> l
     return [
         {
             "kpis": r.kpis if r.success else None,
-            "solver": {"status": r.status, "iterations": int(r.iterations), "wall_time_s": float(r.wall_time_s)},
+            "solver": {
+                "status": r.status,
+                "iterations": int(r.iterations),
+                "wall_time_s": float(r.wall_time_s),
+                "evaluation": r.evaluation.split(" (")[0],  # 'compiled' or 'virtual machine'
+            },
         }
         for r in res
     ]
