@@ -1,0 +1,122 @@
+"""A strategy variant scored against a stored benchmark: its saving at matched comfort and its headroom_captured.
+
+    python tools/variant_headroom.py RESULTS.json CASE [CASE ...] [--strategy ceco-pmv]
+                                     [--set NAME=VALUE ...] [--label TEXT]
+
+Reruns ``--strategy`` on every seed of each case exactly as ``ceco benchmark`` runs it (the case's benchmark
+cells, ``runner.run_benchmark_cell``) with the StrategySettings overrides of ``--set`` (e.g.
+``--set backoff_min_pmv=0.0``; none: the strategy as shipped), and scores the runs with the benchmark's own
+matching (``runner.matched_of``) against the families' runs and the oracle front stored in RESULTS.json (a
+``ceco benchmark --oracle`` output of the same simulator code for the baselines): the saving against the
+strongest family [%] (mean over the seeds [min..max]), the seeds it is dominated on, the oracle's saving at
+the same discomfort and headroom_captured (docs/benchmark.md). The oracle does not depend on the controller
+(it knows the drive), so a stored front bounds any variant; the baselines do not either, so only the
+variant is rerun (seconds per run instead of the hours of the oracle).
+
+What it prints is a study, not a benchmark result: results.json is not changed. Last line per case: one
+JSON object.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+
+def _value(text: str):
+    """A --set value: a number when it parses as one, else the text."""
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def study(results: dict, case_name: str, strategy: str, overrides: dict) -> dict:
+    """The variant's matched entry on one case of ``results`` (``runner.matched_of``'s, for ``strategy``)."""
+    from ceco_bringup.benchmark import cli, runner
+    from ceco_bringup.benchmark.cases import load_case
+
+    entry = next((c for c in results['cases'] if c['case'] == case_name), None)
+    if entry is None:
+        raise SystemExit(
+            f'variant_headroom: {case_name!r} is not in the results (cases: '
+            f'{", ".join(c["case"] for c in results["cases"])})'
+        )
+    case = load_case(case_name)
+    specs = runner.controllers(runner.load_baselines(), (26.0,), (strategy,), (0.0,))
+    cells = [c for c in runner.case_cells(case, specs, cli.code_fingerprint()) if c.axes['controller'] == strategy]
+    rows = []
+    for c in cells:
+        spec = json.loads(json.dumps(c.spec))
+        spec['strategy_overrides'].update(overrides)
+        row = runner.run_benchmark_cell({'id': c.id, 'axes': c.axes, 'spec': spec})
+        if row['status'] != 'ok':
+            raise SystemExit(f'variant_headroom: {case_name} seed {c.axes["seed"]}: {row["error"]}')
+        rows.append(runner._run_entry(row))
+    baselines = [r for r in entry['runs'] if r['kind'].startswith('baseline')]  # every family, door ones too
+    bounds = runner.oracle_bounds(entry['oracle'])
+    matched = runner.matched_of(baselines + rows, runner.FRONT_AXIS, runner.ENERGY_AXIS, bounds)
+    m = matched[strategy]
+    s, h = m['strongest'], m['headroom'] or {}
+    seeds = s.get('seeds') or {}
+    return {
+        'case': case_name,
+        'strategy': strategy,
+        'overrides': overrides,
+        'discomfort_pmvh': [r['kpis']['discomfort_pmvh'] for r in rows],
+        'energy_kwh': [r['kpis']['energy_kwh'] for r in rows],
+        'saving_pct': s['energy_saving_pct'],
+        'saving_pct_seeds': seeds.get('energy_saving_pct'),
+        'dominated_seeds': sum(bool(x) for x in seeds.get('dominated') or []),
+        'n_seeds': len(rows),
+        'strongest_family': s.get('family'),
+        'bound_saving_pct': h.get('bound_saving_pct'),
+        'headroom_captured': h.get('headroom_captured'),
+        'headroom_captured_seeds': (h.get('seeds') or {}).get('headroom_captured'),
+        'note': h.get('note', ''),  # why there is no headroom (the plain front's note is not about it)
+    }
+
+
+def _fmt(x, spec='+.2f') -> str:
+    return 'n/a' if x is None else format(x, spec)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    p.add_argument('results', help='a ceco benchmark results.json with the cases (and their oracle fronts)')
+    p.add_argument('cases', nargs='+', help='case names in the results')
+    p.add_argument('--strategy', default='ceco-pmv', help='the strategy to rerun (default ceco-pmv)')
+    p.add_argument('--set', action='append', default=[], metavar='NAME=VALUE', help='a StrategySettings override')
+    args = p.parse_args(argv)
+    overrides = {}
+    for item in args.set:
+        name, sep, value = item.partition('=')
+        if not sep or not name:
+            p.error(f'--set {item!r}: expected NAME=VALUE')
+        overrides[name] = _value(value)
+    with open(args.results, encoding='utf-8') as f:
+        results = json.load(f)
+    for name in args.cases:
+        r = study(results, name, args.strategy, overrides)
+        hs = [x for x in (r['headroom_captured_seeds'] or []) if x is not None]
+        ss = [x for x in (r['saving_pct_seeds'] or []) if x is not None]
+        print(
+            f'{name}: {args.strategy} {overrides or "(as shipped)"}: saving vs strongest ({r["strongest_family"]}) '
+            f'{_fmt(r["saving_pct"])} %'
+            + (f' [{min(ss):+.2f}..{max(ss):+.2f}]' if len(ss) > 1 else '')
+            + f', dominated on {r["dominated_seeds"]} of {r["n_seeds"]} seeds; oracle {_fmt(r["bound_saving_pct"])} %,'
+            f' headroom_captured {_fmt(r["headroom_captured"], ".2f")}'
+            + (f' [{min(hs):.2f}..{max(hs):.2f}]' if len(hs) > 1 else '')
+            + (f' ({r["note"]})' if r['note'] else '')
+        )
+        print(json.dumps(r))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
