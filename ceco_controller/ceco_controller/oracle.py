@@ -38,7 +38,14 @@ from typing import Any
 import casadi
 import numpy as np
 
-from ceco_core.codegen import Compiled, CompileError, codegen_cache_dir, compile_cached, generate_functions
+from ceco_core.codegen import (
+    Compiled,
+    CompileError,
+    check_compile_settings,
+    codegen_cache_dir,
+    compile_cached,
+    generate_functions,
+)
 from ceco_core.contracts import ACTUATOR_LIMITS, RECIRC_SHARE_MAX, RECIRC_SHARE_MIN, AcInput, Diagnostics
 from ceco_core.kpis import COMFORT_BAND_PMV, compute_kpis
 from ceco_core.mathops import smooth_min
@@ -160,12 +167,7 @@ class OracleSettings:
             raise ValueError(
                 "OracleSettings.compiled: 'yes' needs expand False (a compiled call cannot be expanded to SX)"
             )
-        if self.compiler is not None and not (isinstance(self.compiler, str) and self.compiler):
-            raise ValueError(f"OracleSettings.compiler: must be a non-empty string or None, got {self.compiler!r}")
-        if not (isinstance(self.compile_flags, tuple) and all(isinstance(f, str) for f in self.compile_flags)):
-            raise ValueError(f"OracleSettings.compile_flags: must be a tuple of strings, got {self.compile_flags!r}")
-        if self.cache_dir is not None and not (isinstance(self.cache_dir, str) and self.cache_dir):
-            raise ValueError(f"OracleSettings.cache_dir: must be a non-empty string or None, got {self.cache_dir!r}")
+        check_compile_settings("OracleSettings", self.compiler, self.compile_flags, self.cache_dir, "compile_flags")
         for name in ("co2_margin_ppm", "fog_margin_extra_k"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):

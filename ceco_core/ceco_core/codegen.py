@@ -39,7 +39,22 @@ __all__ = [
     "compile_cached",
     "generate_functions",
     "file_sha256",
+    "check_compile_settings",
 ]
+
+
+def check_compile_settings(owner: str, compiler, flags, cache_dir, flags_field: str = "flags") -> None:
+    """Raise ValueError naming ``owner.<field>`` unless the compile settings of a settings class are usable.
+
+    ``compiler`` and ``cache_dir``: None or a non-empty string; ``flags`` (field ``flags_field``): a tuple of
+    strings (the settings of :func:`compile_cached` as the plant's and the oracle's settings carry them).
+    """
+    if compiler is not None and not (isinstance(compiler, str) and compiler):
+        raise ValueError(f"{owner}.compiler: must be a non-empty string or None, got {compiler!r}")
+    if not (isinstance(flags, tuple) and all(isinstance(f, str) for f in flags)):
+        raise ValueError(f"{owner}.{flags_field}: must be a tuple of strings, got {flags!r}")
+    if cache_dir is not None and not (isinstance(cache_dir, str) and cache_dir):
+        raise ValueError(f"{owner}.cache_dir: must be a non-empty string or None, got {cache_dir!r}")
 
 
 class CompileError(RuntimeError):

@@ -37,7 +37,7 @@ from array import array
 import casadi
 
 from ceco_core.cabin_comfort import ComfortParams, OccupantComfort, evaluate_cabin_comfort
-from ceco_core.codegen import Compiled, CompileError, compile_cached, generate_functions
+from ceco_core.codegen import Compiled, CompileError, check_compile_settings, compile_cached, generate_functions
 
 from .plant_equations import ENV_NAMES, INPUT_NAMES, STATE_NAMES, Env, Guess, Input, NewtonCycle, PlantEquations, State
 from .plant_ops import CompiledOps, SymbolicParams
@@ -99,12 +99,7 @@ class PlantEvaluation:
         """Raise ValueError naming the field; return self."""
         if self.evaluation not in PLANT_EVALUATIONS:
             raise ValueError(f"PlantEvaluation.evaluation: must be one of {PLANT_EVALUATIONS}, got {self.evaluation!r}")
-        if self.compiler is not None and not (isinstance(self.compiler, str) and self.compiler):
-            raise ValueError(f"PlantEvaluation.compiler: must be a non-empty string or None, got {self.compiler!r}")
-        if not (isinstance(self.flags, tuple) and all(isinstance(f, str) for f in self.flags)):
-            raise ValueError(f"PlantEvaluation.flags: must be a tuple of strings, got {self.flags!r}")
-        if self.cache_dir is not None and not (isinstance(self.cache_dir, str) and self.cache_dir):
-            raise ValueError(f"PlantEvaluation.cache_dir: must be a non-empty string or None, got {self.cache_dir!r}")
+        check_compile_settings("PlantEvaluation", self.compiler, self.flags, self.cache_dir)
         return self
 
 
