@@ -132,7 +132,7 @@ def test_occupants_scale_the_co2_and_the_moisture():
 
 
 # --- the production door logic ----------------------------------------------------------------------
-_KW = dict(t_cab_c=26.0, t_amb_c=25.0, co2_limit_ppm=1500.0, fog_margin_k=10.0, fog_margin_min_k=3.0)
+_KW = dict(t_cab_c=26.0, t_amb_c=25.5, co2_limit_ppm=1500.0, fog_margin_k=10.0, fog_margin_min_k=3.0)
 
 
 def test_door_logic_recirculates_at_high_demand_and_purges_by_co2_with_hysteresis():
@@ -141,14 +141,33 @@ def test_door_logic_recirculates_at_high_demand_and_purges_by_co2_with_hysteresi
     assert step(demand=0.2, pulldown=False, co2_sensor_ppm=800.0).mode == "normal"
     c = step(demand=1.0, pulldown=True, co2_sensor_ppm=800.0)
     assert (c.mode, c.recirc_share) == ("recirc", 1.0)
-    assert step(demand=1.0, pulldown=True, co2_sensor_ppm=1099.0).mode == "recirc"
-    c = step(demand=1.0, pulldown=True, co2_sensor_ppm=1100.0)  # limit 1500 - margin 400
+    assert step(demand=1.0, pulldown=True, co2_sensor_ppm=1049.0).mode == "recirc"
+    c = step(demand=1.0, pulldown=True, co2_sensor_ppm=1050.0)  # limit 1500 - margin 450
     assert (c.mode, c.recirc_share) == ("co2_purge", 0.7)
-    assert step(demand=1.0, pulldown=True, co2_sensor_ppm=850.0).mode == "co2_purge"  # hysteresis: until < 800
-    assert step(demand=1.0, pulldown=True, co2_sensor_ppm=799.0).mode == "recirc"
+    assert step(demand=1.0, pulldown=True, co2_sensor_ppm=800.0).mode == "co2_purge"  # hysteresis: until < 750
+    assert step(demand=1.0, pulldown=True, co2_sensor_ppm=749.0).mode == "recirc"
     # a fitted sensor that stops reading -> fresh air, at once
     c = step(demand=1.0, pulldown=True, co2_sensor_ppm=math.nan)
     assert (c.mode, c.recirc_share) == ("co2_sensor_fault", 0.0)
+
+
+def test_door_logic_economiser_lets_outside_air_in_while_the_cabin_is_hotter_and_can_be_turned_off():
+    """The economiser (outside air while the ambient is cooler than the cabin by 1 K) acts before the maximum-cooling
+    recirculation, ends at once below its threshold, yields to the fog and sensor-fault overrides (same share), and
+    ``door_economiser_k = inf`` is the logic without it; 0, a negative value or NaN is refused by name."""
+    law = RecircLaw(RecircSettings(door_mode="auto"))
+    kw = {**_KW, "co2_sensor_fitted": True, "co2_sensor_ppm": 600.0, "demand": 1.0, "pulldown": True}
+    c = law.step(5.0, **{**kw, "t_cab_c": 43.0, "t_amb_c": 35.0})
+    assert (c.mode, c.recirc_share) == ("economiser", 0.0)
+    assert law.step(5.0, **{**kw, "t_cab_c": 36.0, "t_amb_c": 35.0}).mode == "economiser"  # 1 K: still cheaper
+    assert law.step(5.0, **{**kw, "t_cab_c": 35.9, "t_amb_c": 35.0}).mode == "recirc"  # no dwell after the rule
+    assert law.step(5.0, **{**kw, "t_cab_c": 43.0, "t_amb_c": 35.0, "co2_sensor_ppm": 1200.0}).mode == "economiser"
+    assert law.step(5.0, **{**kw, "t_cab_c": 43.0, "t_amb_c": math.nan}).mode == "recirc"  # unknown: no rule
+    off = RecircLaw(RecircSettings(door_mode="auto", door_economiser_k=math.inf))
+    assert off.step(5.0, **{**kw, "t_cab_c": 43.0, "t_amb_c": 35.0}).mode == "recirc"
+    for bad in (0.0, -1.0, math.nan):
+        with pytest.raises(ValueError, match="door_economiser_k"):
+            RecircSettings(door_economiser_k=bad).validate()
 
 
 def test_door_logic_fog_override_has_priority_and_hysteresis():
@@ -207,15 +226,20 @@ def udds4_runs():
 
 def test_closed_loop_co2_limit_binds_and_the_production_logic_purges(udds4_runs):
     """Four occupants: held in full recirculation the cabin passes the 1500 ppm limit within minutes (the limit
-    binds); the production logic recirculates during the pull-down, purges (share 0.7) when its sensor reads
-    1100 ppm and keeps the true cabin CO2 under 1500 ppm, at a higher energy."""
+    binds); the production logic lets outside air in while the soaked cabin is more than 1 K hotter than the
+    ambient (the economiser), recirculates during the rest of the pull-down, purges (share 0.7) when its sensor
+    reads 1050 ppm and keeps the true cabin CO2 under 1500 ppm, at a higher energy."""
     fixed, auto = udds4_runs["fixed1"], udds4_runs["auto"]
     assert fixed["co2_cab_ppm"].max() > 2500.0 and np.all(fixed["recirc_share_cmd"] == 1.0)
     assert auto["co2_cab_ppm"].max() < 1500.0
     cmd = auto["recirc_share_cmd"]
-    assert cmd[0] == 1.0  # recirculation in the pull-down
+    econ = auto["t_amb_c"] <= auto["t_cab_c"] - 1.0
+    end = int(np.argmax(~econ))  # the first second with the cabin within 1 K of the ambient
+    assert auto["t_cab_c"][0] > auto["t_amb_c"][0] + 5.0 and end >= 10  # a soaked start: the rule acts
+    assert np.all(cmd[:end] == 0.0)  # outside air while the cabin is the hotter inlet
+    assert np.all(cmd[end + 5 : end + 60] == 1.0)  # then recirculation in the pull-down (next control step on)
     first_purge = int(np.argmax(cmd == 0.7))
-    assert first_purge > 0 and auto["co2_sensor_ppm"][first_purge] >= 1100.0 > auto["co2_sensor_ppm"][first_purge - 1]
+    assert first_purge > 0 and auto["co2_sensor_ppm"][first_purge] >= 1050.0 > auto["co2_sensor_ppm"][first_purge - 1]
     assert np.sum(np.diff((cmd == 0.7).astype(int)) == 1) >= 1  # at least one purge started
     assert np.all((auto["recirc_share"] >= 0.0) & (auto["recirc_share"] <= 1.0))
     energy = {k: float(np.sum(v["p_comp_w"] + v["p_blower_w"] + v["p_cond_fan_w"])) for k, v in udds4_runs.items()}

@@ -11,20 +11,25 @@ door"):
      fresh air" when the dew point nears the glass; VW: recirculation off "if a sensor detects that
      condensation might form");
    * CO2 sensor fitted but not reading (NaN: failed) -> fresh air (the safe default of issue 21).
-2. Maximum-cooling recirculation: while the cooling demand is high (the ACC law's pull-down, or its demand
+2. Economiser: while the ambient air is cooler than the cabin air by ``door_economiser_k`` -> outside air (share
+   ``door_fresh_share``): outside air is then the cheaper evaporator inlet and it flushes the soaked cabin (the
+   air-side economiser of building HVAC, ASHRAE 90.1 section 6.5.1). Not from the car manuals above: it gives
+   the baselines the permission the CO2-holding door of the NMPC has (``ceco_core.co2_door``, its
+   ``economiser_k``), so no saving comes from a rule only the strategy may use (docs/benchmark.md).
+3. Maximum-cooling recirculation: while the cooling demand is high (the ACC law's pull-down, or its demand
    >= ``door_demand_enter``, until it falls below ``door_demand_exit``) or the ambient is warmer than the cabin
    by ``door_amb_above_cab_k`` -> recirculation (share ``door_recirc_share``) (GM, Mitsubishi, Saab: recirculation
    when hot outside or when maximum cooling is not enough; US EPA credit for recirculation above 24 degC).
-3. Fresh-air purge inside recirculation:
+4. Fresh-air purge inside recirculation:
    * with a CO2 sensor (Bosch CCS 2007: recirculation whenever possible, fresh air above a CO2 threshold):
      a partial purge (share ``door_purge_share``) from ``co2_limit - door_co2_margin_ppm`` until the reading is
      below that minus ``door_co2_hysteresis_ppm``; the margin covers the sensor's accuracy (+-(30 ppm + 3 %),
      75 ppm at 1500) and its lag (t63 60 s behind a rise of up to 7.7 ppm/s with four occupants in full recirculation);
    * without one (timer, BMW/MINI: 12 min recirculation, 1 min fresh air with A/C above 6 degC): the purge share
      for ``door_timer_fresh_s`` after every ``door_timer_recirc_s`` of recirculation.
-4. Otherwise (demand met): the normal share ``door_normal_share`` (production: outside air, 0).
+5. Otherwise (demand met): the normal share ``door_normal_share`` (production: outside air, 0).
 
-A demand-driven switch between 2 and 4 is held at least ``door_min_dwell_s`` (no chatter); the overrides and
+A demand-driven switch between 3 and 5 is held at least ``door_min_dwell_s`` (no chatter); the overrides and
 the purges act at once. Modes ``none`` (the door is not commanded: the plant keeps its default share) and
 ``fixed`` (the door held at ``door_fixed_share``, no override: the fixed-share baselines) bypass the logic.
 
@@ -69,9 +74,10 @@ class RecircSettings:
     """ACC demand below which it leaves recirculation [-]."""
     door_amb_above_cab_k: float = 2.0
     """Ambient warmer than the cabin by this much also means recirculation [K]."""
-    door_co2_margin_ppm: float = 400.0
+    door_co2_margin_ppm: float = 450.0
     """A purge starts at the CO2 limit minus this margin [ppm]: the sensor's accuracy (75 ppm at 1500 ppm) plus its
-    lag on the fastest rise (4 occupants in full recirculation: 7.7 ppm/s, t63 60 s); tuned once (docs/benchmark.md)."""
+    lag on the fastest rise (4 occupants in full recirculation: 7.7 ppm/s, t63 60 s); tuned once (docs/benchmark.md:
+    400 ppm before the economiser rule, which let the UDDS with four occupants reach 1503 ppm at 400)."""
     door_co2_hysteresis_ppm: float = 300.0
     """A purge ends this far below its start [ppm] (1500 -> 1200 ppm in the literature's logic)."""
     door_timer_recirc_s: float = 720.0
@@ -84,12 +90,18 @@ class RecircSettings:
     """The fog override ends when the margin is back above its bound plus this [K]."""
     door_min_dwell_s: float = 30.0
     """Least time between demand-driven switches [s] (no chatter)."""
+    door_economiser_k: float = 1.0
+    """Outside air while the ambient is cooler than the cabin by at least this [K] (> 0; ``inf`` turns the rule
+    off: the logic of before); the CO2-holding door's ``economiser_k``."""
 
     def validate(self) -> RecircSettings:
         """Raise ValueError naming the field if a setting is not usable; return self."""
         if self.door_mode not in DOOR_MODES:
             raise ValueError(f"RecircSettings.door_mode: must be one of {DOOR_MODES}, got {self.door_mode!r}")
-        check_settings(self, skip=("door_mode",))
+        check_settings(self, skip=("door_mode", "door_economiser_k"))
+        e = self.door_economiser_k
+        if isinstance(e, bool) or not isinstance(e, (int, float)) or not e > 0:  # NaN fails too; inf is "off"
+            raise ValueError(f"RecircSettings.door_economiser_k: must be > 0 (inf: off), got {e!r}")
         shares = ("door_fixed_share", "door_recirc_share", "door_normal_share", "door_fresh_share", "door_purge_share")
         for name in shares:
             if not getattr(self, name) <= 1.0:
@@ -164,8 +176,13 @@ class RecircLaw:
         if co2_sensor_fitted and not math.isfinite(co2_sensor_ppm):
             self._co2_purge = False
             return RecircCommand(s.door_fresh_share, "co2_sensor_fault")
-        # 2. recirculation at high demand (switches held at least the dwell time)
-        hot_outside = math.isfinite(t_amb_c) and math.isfinite(t_cab_c) and t_amb_c > t_cab_c + s.door_amb_above_cab_k
+        # 2. economiser: outside air while it is the cooler inlet
+        temps_known = math.isfinite(t_amb_c) and math.isfinite(t_cab_c)
+        if temps_known and t_amb_c <= t_cab_c - s.door_economiser_k:
+            self._co2_purge = False
+            return RecircCommand(s.door_fresh_share, "economiser")
+        # 3. recirculation at high demand (switches held at least the dwell time)
+        hot_outside = temps_known and t_amb_c > t_cab_c + s.door_amb_above_cab_k
         d = demand if math.isfinite(demand) else 0.0
         want = bool(pulldown) or hot_outside or d >= s.door_demand_enter or (self._recirc and d >= s.door_demand_exit)
         if want != self._recirc and self._since_switch_s >= s.door_min_dwell_s:
@@ -176,7 +193,7 @@ class RecircLaw:
         if not self._recirc:
             self._co2_purge = False
             return RecircCommand(s.door_normal_share, "normal")
-        # 3. purge by CO2 or by timer
+        # 4. purge by CO2 or by timer
         if co2_sensor_fitted:
             start = co2_limit_ppm - s.door_co2_margin_ppm
             if co2_sensor_ppm >= start:
