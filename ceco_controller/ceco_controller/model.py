@@ -51,6 +51,7 @@ import numpy as np
 import yaml
 
 from ceco_core import yamlio
+from ceco_core.air_quality import RECIRC_SHARE_DEFAULT
 from ceco_core.mathops import backend, softplus
 
 __all__ = [
@@ -61,6 +62,8 @@ __all__ = [
     "t_cab_next_c",
     "t_evap_next_c",
     "eta_ac",
+    "IDENTIFICATION_RECIRC_SHARE",
+    "door_fresh_fraction",
     "q_evap_w",
     "p_comp_w",
     "p_blower_w",
@@ -281,13 +284,34 @@ def eta_ac(p: ControlModelParams, speed_mps):
     return 1.0 + p.eta_gain * (1.0 - ops.exp(-speed_mps / p.eta_speed_scale_mps))
 
 
-def q_evap_w(p: ControlModelParams, t_cab_c, t_amb_c, t_ain, mdot_bl_kgps, t_evap_c, t_evap_next_c):
+IDENTIFICATION_RECIRC_SHARE = RECIRC_SHARE_DEFAULT
+"""Recirculated share of the identification data [-]: the plant's default door (0.8), never commanded there."""
+
+
+def door_fresh_fraction(p: ControlModelParams, recirc_share):
+    """The power model's fresh-air fraction phi [-] at a recirculated share ``recirc_share`` [0..1].
+
+    ``phi(r) = phi_id + (r_id - r)``: the identified ``fresh_air_fraction`` phi_id at the identification data's
+    share r_id = 0.8 (:data:`IDENTIFICATION_RECIRC_SHARE`), moved one for one with the door, as the plant's mixing
+    box T_mix = r T_cab + (1 - r) T_amb says (d phi / d r = -1). It is 1 - r when phi_id is the plant's 0.2; the
+    identified phi_id lies at its bound 0 (the fit cannot tell the fresh-air load from the lift term at a fixed
+    door, docs/controller.md 4.9), so the door NLP keeps the identified power at 0.8 and the physical slope.
+    """
+    return p.fresh_air_fraction + (IDENTIFICATION_RECIRC_SHARE - recirc_share)
+
+
+def q_evap_w(
+    p: ControlModelParams, t_cab_c, t_amb_c, t_ain, mdot_bl_kgps, t_evap_c, t_evap_next_c, fresh_fraction=None
+):
     """Refrigerant-side evaporator load [W]: air-side sensible heat plus the wall cool-down, >= 0.
 
     ``softplus(mdot c_p (T_mix - T_ain) + C_w (T_evap - T_evap_next)/ts, k)`` with the
     softplus sharpness k = 2/(c_p * 0.1 kg/s) so its error is <= 0.35 K x 0.1 kg/s x c_p = 35 W.
+    T_mix = T_cab + phi (T_amb - T_cab), phi = ``fresh_fraction`` [-] (None: the identified
+    ``fresh_air_fraction``; the door NLP passes :func:`door_fresh_fraction` of its share).
     """
-    t_mix_c = t_cab_c + p.fresh_air_fraction * (t_amb_c - t_cab_c)
+    phi = p.fresh_air_fraction if fresh_fraction is None else fresh_fraction
+    t_mix_c = t_cab_c + phi * (t_amb_c - t_cab_c)
     q = mdot_bl_kgps * CP_AIR_JPKGK * (t_mix_c - t_ain) + p.comp_c_wall_jpk * (t_evap_c - t_evap_next_c) / p.ts_s
     return softplus(q, _SOFTPLUS_K / (CP_AIR_JPKGK * 0.1))
 
@@ -326,19 +350,22 @@ def step(
     d_cab_k=0.0,
     d_ain_k=0.0,
     d_evap_k=0.0,
+    recirc_share=None,
 ):
     """Advance the model over ``n_sub`` model steps with the inputs held.
 
-    Returns ``(t_cab_next_c, t_evap_next_c, t_ain_c, p_comp_w, p_blower_w)``
+    ``recirc_share`` [0..1]: the door's share in the power model (:func:`door_fresh_fraction`; None: the identified
+    fresh-air fraction, the model of every strategy without the door in its NLP). Returns ``(t_cab_next_c, t_evap_next_c, t_ain_c, p_comp_w, p_blower_w)``
     where the temperatures are at the end of the interval and ``t_ain_c`` and
     the powers are the means over the interval (sampled at each sub-step start).
     """
     t_ain_sum = 0.0
     pc_sum = 0.0
+    phi = None if recirc_share is None else door_fresh_fraction(p, recirc_share)
     for _ in range(int(n_sub)):
         t_ain = t_ain_c(p, t_evap_c, mdot_bl_kgps, d_ain_k)
         t_evap_n = t_evap_next_c(p, t_evap_c, t_evap_sp_c) + d_evap_k
-        q = q_evap_w(p, t_cab_c, t_amb_c, t_ain, mdot_bl_kgps, t_evap_c, t_evap_n)
+        q = q_evap_w(p, t_cab_c, t_amb_c, t_ain, mdot_bl_kgps, t_evap_c, t_evap_n, phi)
         pc_sum = pc_sum + p_comp_w(p, q, t_amb_c, t_evap_c, speed_mps)
         t_ain_sum = t_ain_sum + t_ain
         t_cab_c, t_evap_c = (t_cab_next_c(p, t_cab_c, t_int_c, t_shell_c, t_ain, mdot_bl_kgps, d_cab_k), t_evap_n)

@@ -11,14 +11,17 @@ Parameters (one instance per NLP, :class:`ParamLayout`):
     d_ain [K], u_prev (mdot_bl [kg/s], T_evap_sp [degC]), then on the N + 1 grid points:
     t_amb [degC], solar [W/m2], speed [m/s], pmv_lb, pmv_ub [-], then the comfort scalars
     held over the horizon: t_mr (mean radiant temperature) [degC], pa (vapour pressure) [Pa].
+    With the door in the NLP (``door_control`` 'nlp', ``ParamLayout(n_grid, door=True)``) u_prev has a third
+    entry, the door's recirculated share [-], and the CO2 parameters follow (:data:`PARAM_DOOR`).
 
 Variables (:class:`VariableLayout`), stage-ordered as the transcription adds them:
 
-    x (4 per stage i = 1..N, multiple shooting only), u (2 per stage i = 0..N-1),
-    s_lo, s_up (1 per grid point i = 0..N), s_ev (i = 1..N), eps (ceco-ioch, i = 0..N).
+    x (4 per stage i = 1..N, multiple shooting only; 6 with the door), u (2 per stage i = 0..N-1; 3 with
+    the door), s_lo, s_up (1 per grid point i = 0..N), s_ev (i = 1..N), eps (ceco-ioch, i = 0..N),
+    s_co2 (the door's CO2 slack, i = 1..N).
 
-Constraint rows (:class:`RowLayout`): ``gap`` (4 per stage, multiple shooting), ``pmv``
-(2 per grid point), ``evap`` (2 per grid point i >= 1).
+Constraint rows (:class:`RowLayout`): ``gap`` (4 per stage, multiple shooting; 6 with the door), ``pmv``
+(2 per grid point), ``evap`` (2 per grid point i >= 1), ``co2`` (1 per grid point i >= 1, with the door).
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ __all__ = [
     "PARAM_SCALARS",
     "PARAM_SERIES",
     "PARAM_TAIL",
+    "PARAM_DOOR",
     "VAR_KEYS",
     "ROW_KINDS",
 ]
@@ -49,10 +53,24 @@ PARAM_SERIES = ("t_amb", "solar", "speed", "pmv_lb", "pmv_ub")
 PARAM_TAIL = (("t_mr", 1), ("pa", 1))
 """Comfort scalars after the series: mean radiant temperature [degC], cabin vapour pressure [Pa]."""
 
-VAR_KEYS = ("x", "u", "s_lo", "s_up", "s_ev", "eps")
+PARAM_DOOR = (
+    ("co2_0", 1),
+    ("co2_amb", 1),
+    ("co2_gen", 1),
+    ("co2_max", 1),
+    ("leak_0", 1),
+    ("leak_v", 1),
+    ("m_air", 1),
+)
+"""The door NLP's CO2 parameters after :data:`PARAM_TAIL`: the CO2 estimate at the first grid point [ppm], the
+ambient CO2 [ppm], the occupants' generation n g / k [ppm kg/s], the CO2 target limit - margin [ppm], the leakage
+at rest [kg/s] and its growth with speed [kg/s per m/s], the cabin's dry-air mass [kg]
+(:meth:`ceco_core.co2_door.Co2DoorLaw.nlp_parameters`)."""
+
+VAR_KEYS = ("x", "u", "s_lo", "s_up", "s_ev", "eps", "s_co2")
 """Kinds of stage-wise variable blocks."""
 
-ROW_KINDS = ("gap", "pmv", "evap")
+ROW_KINDS = ("gap", "pmv", "evap", "co2")
 """Kinds of stage-wise constraint blocks."""
 
 
@@ -72,13 +90,19 @@ class OcpStructure:
 
 
 class ParamLayout:
-    """Named slices of the parameter vector for a horizon of ``n_grid`` = N + 1 grid points."""
+    """Named slices of the parameter vector for a horizon of ``n_grid`` = N + 1 grid points.
 
-    def __init__(self, n_grid: int):
+    ``door``: the door NLP's layout (u_prev of 3 entries, then :data:`PARAM_DOOR` at the end).
+    """
+
+    def __init__(self, n_grid: int, door: bool = False):
         self.n_grid = int(n_grid)
+        self.door = bool(door)
         self.slices: dict[str, slice] = {}
         off = 0
-        for name, size in PARAM_SCALARS + tuple((s, self.n_grid) for s in PARAM_SERIES) + PARAM_TAIL:
+        scalars = tuple((n, 3 if door and n == "u_prev" else k) for n, k in PARAM_SCALARS)
+        tail = PARAM_TAIL + (PARAM_DOOR if door else ())
+        for name, size in scalars + tuple((s, self.n_grid) for s in PARAM_SERIES) + tail:
             self.slices[name] = slice(off, off + size)
             off += size
         self.size = off

@@ -288,8 +288,13 @@ class StrategySettings:
     """NLP solver settings."""
     door_control: str = "none"
     """The fresh/recirculation door (issue 21): 'none' (not commanded: the plant's default share, every strategy
-    before issue 21) or 'co2_hold' (:class:`ceco_core.co2_door.Co2DoorLaw` beside the NLP: the least fresh air that
-    holds the CO2 estimate under the limit, fresh air when the sensor fails or fog threatens; docs/controller.md)."""
+    before issue 21), 'co2_hold' (:class:`ceco_core.co2_door.Co2DoorLaw` beside the NLP: the least fresh air that
+    holds the CO2 estimate under the limit, fresh air when the sensor fails or fog threatens; docs/controller.md
+    4.8) or 'nlp' (the recirculated share a third input of the NLP, the cabin CO2 a predicted state under a soft
+    limit; the same safe defaults override it; docs/controller.md 4.9)."""
+    co2_slack_weight_kj_per_ppm: float = 1.0
+    """'nlp': exact L1 penalty on the CO2 limit's violation [kJ per ppm per grid point] (docs/controller.md 4.9:
+    above the largest multiplier of the CO2 rows, about 0.02 kJ/ppm)."""
 
     def validate(self) -> None:
         """Raise ValueError naming the field if a setting is not usable."""
@@ -314,6 +319,7 @@ class StrategySettings:
             "du_weight_kj",
             "bias_limit_k",
             "draught_weight_kj",
+            "co2_slack_weight_kj_per_ppm",
         ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
@@ -386,7 +392,7 @@ class StrategySettings:
         return self.horizon_steps + self.horizon_extension_steps
 
 
-DOOR_CONTROLS = ("none", "co2_hold")
+DOOR_CONTROLS = ("none", "co2_hold", "nlp")
 """Values of :attr:`StrategySettings.door_control`."""
 
 _DEFAULTS: dict[str, dict[str, Any]] = {

@@ -11,6 +11,10 @@ problem, stage-wise ordered so the multiple-shooting NLP has the optimal-control
     u_i = (mdot_bl [kg/s], T_evap_sp [degC])
     s_i = (s_lo, s_up [PMV], s_ev [K] (i >= 1), eps [PMV] (ceco-ioch))
 
+With the door in the NLP (``door_control`` 'nlp', docs/controller.md 4.9) u_i gains the recirculated share
+r_i [-], x_i the previous share r_{i-1} and the cabin CO2 C_i [ppm] (x_i = (T_cab, T_evap, u_{i-1}, C_i)), s_i
+the CO2 slack s_co2 [ppm] (i >= 1) of the soft constraint C_i - s_co2 <= limit - margin.
+
 * ``multiple-shooting``: the x_i are variables tied by gap constraints x_i - f(x_{i-1}, u_{i-1}) = 0.
 * ``single-shooting``: the x_i are the model's rollout expressions of (x_0, u_0 .. u_{i-1}).
 
@@ -25,7 +29,9 @@ import dataclasses
 import casadi
 import numpy as np
 
+from ceco_core.air_quality import leakage_kgps
 from ceco_core.cabin_comfort import ComfortParams, cabin_draught_pct, cabin_pmv, cabin_w_rad_wm2
+from ceco_core.co2_door import co2_after_ppm
 from ceco_core.contracts import ACTUATOR_LIMITS, ActuatorLimits
 
 from . import model as cm
@@ -65,6 +71,8 @@ class Evaluation:
     """Predicted vent air temperature on the grid [degC]."""
     t_evap: np.ndarray
     """Predicted evaporator wall temperature at grid points 1..N [degC]."""
+    co2: np.ndarray
+    """Predicted cabin CO2 at grid points 1..N [ppm] (the door NLP; empty otherwise)."""
 
 
 @dataclasses.dataclass
@@ -117,6 +125,21 @@ class NlpProblem:
         return self.params.n_grid - 1
 
     @property
+    def door(self) -> bool:
+        """Whether the door is an input of this NLP (``door_control`` 'nlp')."""
+        return self.params.door
+
+    @property
+    def nu(self) -> int:
+        """Inputs per stage: 2, 3 with the door."""
+        return self.vars.width("u")
+
+    @property
+    def nx(self) -> int:
+        """Augmented states per stage: 4, 6 with the door."""
+        return 2 + self.nu + (1 if self.door else 0)
+
+    @property
     def nw(self) -> int:
         """Number of variables."""
         return self.vars.n
@@ -139,15 +162,17 @@ class NlpProblem:
             t_cab=out[6].copy(),
             t_ain=out[7].copy(),
             t_evap=out[8].copy(),
+            co2=out[9].copy(),
         )
 
     def rollout_states(self, u: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """The augmented states x_1..x_N the model gives from the measured state under inputs ``u`` (N, 2).
+        """The augmented states x_1..x_N the model gives from the measured state under inputs ``u`` (N, nu).
 
-        Shape (N, 4): (T_cab, T_evap [degC], mdot_bl [kg/s], T_evap_sp [degC]) after each stage.
+        Shape (N, nx): (T_cab, T_evap [degC], mdot_bl [kg/s], T_evap_sp [degC]) after each stage; with the door
+        (N, 6): then the share [-] and the cabin CO2 [ppm].
         """
         (x,) = self._rollout(np.asarray(u, float).ravel(), p)
-        return x.reshape(self.horizon_steps, 4).copy()
+        return x.reshape(self.horizon_steps, self.nx).copy()
 
     def ocp_structure(self) -> OcpStructure | None:
         """The stage structure of the multiple-shooting NLP as HPIPM reads it (None for single shooting).
@@ -163,13 +188,17 @@ class NlpProblem:
         starts = [0, *vl.starts("x").tolist(), self.nw]
         nx = [0] + [vl.width("x")] * n + [0]
         nu = [starts[i + 1] - starts[i] - nx[i] for i in range(n + 1)] + [0]
+        rr = self.rows.rows
         ng = [
-            len(self.rows.rows["pmv"][i]) + (len(self.rows.rows["evap"][i - 1]) if i >= 1 else 0) for i in range(n + 1)
+            len(rr["pmv"][i])
+            + (len(rr["evap"][i - 1]) if i >= 1 else 0)
+            + (len(rr["co2"][i - 1]) if i >= 1 and rr["co2"] else 0)
+            for i in range(n + 1)
         ] + [0]
         return OcpStructure(tuple(nx), tuple(int(v) for v in nu), tuple(ng))
 
     def plan(self, w: np.ndarray) -> np.ndarray:
-        """The input sequence u_0..u_{N-1} of a primal point, shape (N, 2)."""
+        """The input sequence u_0..u_{N-1} of a primal point, shape (N, nu) (nu = 3 with the door)."""
         return self.vars.blocks(w, "u")
 
     def max_violation(self, w: np.ndarray, g: np.ndarray) -> float:
@@ -205,7 +234,10 @@ def build_problem(
     SX = casadi.SX
     inf = np.inf
 
-    params = ParamLayout(n + 1)
+    door = s.door_control == "nlp"
+    nu = 3 if door else 2
+    nx = 2 + nu + (1 if door else 0)
+    params = ParamLayout(n + 1, door=door)
     P, p = params.symbols(SX.sym)
     vars_ = VariableLayout()
     rows = RowLayout()
@@ -216,7 +248,7 @@ def build_problem(
         w.append(sym)
 
     e_terms, c_terms, i_terms, sl_terms, du_terms = [], [], [], [], []
-    pmv_all, tcab_all, tain_all, tevap_all = [], [], [], []
+    pmv_all, tcab_all, tain_all, tevap_all, co2_all = [], [], [], [], []
 
     # Augmented state x_i = (T_cab, T_evap, mdot_{i-1}, sp_{i-1}): the move penalty and the comfort at
     # the last grid point (which uses u_{N-1}) stay stage-local, so the multiple-shooting NLP has the
@@ -240,39 +272,58 @@ def build_problem(
             d_cab_k=P["d_cab"] / n_sub,
             d_ain_k=P["d_ain"],
             d_evap_k=P["d_evap"] / n_sub,
+            recirc_share=u[2] if door else None,
         )
         return t_cab_n, t_evap_n, pc, pb
+
+    def co2_step(x, u, i):
+        """The cabin CO2 at the end of interval i [ppm] (door NLP): the exact balance with the flows held."""
+        leak = leakage_kgps(P["leak_0"], P["leak_v"], P["speed"][i])
+        fresh = (1.0 - u[2]) * u[0]
+        return co2_after_ppm(x[nx - 1], P["co2_amb"], fresh, leak, P["co2_gen"], P["m_air"], s.control_period_s)
+
+    def x_start():
+        """x_0: the measured state and the previous command (and the CO2 estimate), all parameters."""
+        return casadi.vertcat(P["x0"], P["u_prev"], P["co2_0"]) if door else casadi.vertcat(P["x0"], P["u_prev"])
+
+    def x_after(x, u, i):
+        """The augmented state at the end of interval i and the interval's powers."""
+        t_cab_n, t_evap_n, pc, pb = stage_step(x, u, i)
+        parts = [t_cab_n, t_evap_n, u] + ([co2_step(x, u, i)] if door else [])
+        return casadi.vertcat(*parts), pc, pb
 
     x_next = None
     for i in range(n + 1):
         if i == 0:
-            x = casadi.vertcat(P["x0"], P["u_prev"])  # the initial state is a parameter, not a variable
+            x = x_start()  # the initial state is a parameter, not a variable
         elif single:
             x = x_next
         else:
             assert x_next is not None  # (set by stage i - 1)
-            x = SX.sym(f"x_{i}", 4)
-            add_var(x, [_STATE_BOUNDS_C[0]] * 2 + [-inf] * 2, [_STATE_BOUNDS_C[1]] * 2 + [inf] * 2, "x")
-            rows.add(i - 1, 0, "gap", x - x_next, [0.0] * 4, [0.0] * 4)
+            x = SX.sym(f"x_{i}", nx)
+            x_lo = [_STATE_BOUNDS_C[0]] * 2 + [-inf] * nu + ([0.0] if door else [])
+            add_var(x, x_lo, [_STATE_BOUNDS_C[1]] * 2 + [inf] * (nx - 2), "x")
+            rows.add(i - 1, 0, "gap", x - x_next, [0.0] * nx, [0.0] * nx)
         if i < n:
-            u = SX.sym(f"u_{i}", 2)
+            u = SX.sym(f"u_{i}", nu)
             add_var(
                 u,
-                [limits.mdot_bl_min_kgps, limits.t_evap_sp_min_c],
-                [limits.mdot_bl_max_kgps, limits.t_evap_sp_max_c],
+                [limits.mdot_bl_min_kgps, limits.t_evap_sp_min_c] + ([0.0] if door else []),
+                [limits.mdot_bl_max_kgps, limits.t_evap_sp_max_c] + ([1.0] if door else []),
                 "u",
             )
             # one model step over interval i: the next state and the interval's power
-            t_cab_n, t_evap_n, pc, pb = stage_step(x, u, i)
-            x_next = casadi.vertcat(t_cab_n, t_evap_n, u)
+            x_next, pc, pb = x_after(x, u, i)
             e_terms.append(ts_kj * (pc + pb))
-            du = casadi.vertcat(
+            du_parts = [
                 (u[0] - x[2]) / (limits.mdot_bl_max_kgps - limits.mdot_bl_min_kgps),
                 (u[1] - x[3]) / (limits.t_evap_sp_max_c - limits.t_evap_sp_min_c),
-            )
-            du_terms.append(s.du_weight_kj * casadi.sumsqr(du))
+            ]
+            if door:  # the door's move over its full range 0..1, weighted like the others
+                du_parts.append(u[2] - x[4])
+            du_terms.append(s.du_weight_kj * casadi.sumsqr(casadi.vertcat(*du_parts)))
         else:
-            u = x[2:4]  # u_{N-1}, carried in the state
+            u = x[2 : 2 + nu]  # u_{N-1}, carried in the state
         # comfort at stage i
         tain = cm.t_ain_c(mp, x[1], u[0], P["d_ain"])
         pmv = cabin_pmv(
@@ -325,6 +376,12 @@ def build_problem(
                 [0.0, -inf],
                 [inf, 0.0],
             )
+            if door:  # the soft CO2 limit, exact L1 penalty (docs/controller.md 4.9)
+                co2_all.append(x[nx - 1])
+                s_co2 = SX.sym(f"s_co2_{i}")
+                add_var(s_co2, 0.0, inf, "s_co2")
+                sl_terms.append(s.co2_slack_weight_kj_per_ppm * s_co2)
+                rows.add(i, 3, "co2", x[nx - 1] - s_co2 - P["co2_max"], [-inf], [0.0])
 
     def total(terms):
         return casadi.sum1(casadi.vertcat(*terms)) if terms else SX(0)
@@ -335,12 +392,10 @@ def build_problem(
     w_all = casadi.vertcat(*w)
     g_all = casadi.vertcat(*g)
     # the model's rollout from the measured state under given inputs (the warm start's states)
-    u_seq = SX.sym("u_seq", 2 * n)
-    x_roll, xr = [], casadi.vertcat(P["x0"], P["u_prev"])
+    u_seq = SX.sym("u_seq", nu * n)
+    x_roll, xr = [], x_start()
     for i in range(n):
-        u_i = u_seq[2 * i : 2 * i + 2]
-        t_cab_n, t_evap_n, _, _ = stage_step(xr, u_i, i)
-        xr = casadi.vertcat(t_cab_n, t_evap_n, u_i)
+        xr, _, _ = x_after(xr, u_seq[nu * i : nu * i + nu], i)
         x_roll.append(xr)
     rollout = casadi.Function("ceco_rollout", [u_seq, p], [casadi.vertcat(*x_roll)], ["u", "p"], ["x"])
     evaluator = casadi.Function(
@@ -356,9 +411,10 @@ def build_problem(
             casadi.vertcat(*tcab_all),
             casadi.vertcat(*tain_all),
             casadi.vertcat(*tevap_all),
+            casadi.vertcat(*co2_all) if co2_all else SX(0, 1),
         ],
         ["w", "p"],
-        ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain", "t_evap"],
+        ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain", "t_evap", "co2"],
     )
     return NlpProblem(
         settings=settings,

@@ -38,6 +38,7 @@ from ceco_core.air_quality import (
     leakage_kgps,
 )
 from ceco_core.co2_estimator import Co2Estimator, Co2EstimatorParams
+from ceco_core.mathops import backend
 
 __all__ = ["Co2DoorSettings", "Co2DoorCommand", "Co2DoorLaw", "co2_after_ppm", "hold_share"]
 
@@ -80,11 +81,14 @@ class Co2DoorCommand:
 def co2_after_ppm(co2_ppm, co2_amb_ppm, fresh_kgps, leak_kgps, generation_ppm_kgps, m_air_kg, dt_s):
     """Cabin CO2 [ppm] after ``dt_s`` [s] with the flows held (the exact solution of the module docstring).
 
-    ``generation_ppm_kgps`` = n g / k [ppm kg/s]; ``fresh_kgps`` + ``leak_kgps`` > 0.
+    ``generation_ppm_kgps`` = n g / k [ppm kg/s]; ``fresh_kgps`` + ``leak_kgps`` > 0. Backend-neutral: floats,
+    numpy arrays or CasADi symbols (the NLP's CO2 prediction of ``door_control`` 'nlp' is this function).
     """
     q = fresh_kgps + leak_kgps
     c_ss = co2_steady_ppm(co2_amb_ppm, q, 1, generation_ppm_kgps * KGKG_PER_PPM)
-    return c_ss + (co2_ppm - c_ss) * math.exp(-q * dt_s / m_air_kg)
+    arg = -q * dt_s / m_air_kg
+    decay = math.exp(arg) if isinstance(arg, (int, float)) else backend(arg).exp(arg)  # math.exp: floats as before
+    return c_ss + (co2_ppm - c_ss) * decay
 
 
 def hold_share(co2_ppm, target_ppm, co2_amb_ppm, mdot_bl_kgps, leak_kgps, generation_ppm_kgps, m_air_kg, dt_s):
@@ -126,6 +130,79 @@ class Co2DoorLaw:
         self._fog = False
         self.estimator.reset()
 
+    def observe(
+        self,
+        *,
+        t_s: float,
+        co2_sensor_fitted: bool,
+        co2_sensor_ppm: float,
+        recirc_share: float,
+        mdot_bl_kgps: float,
+        speed_mps: float,
+        n_occupants: int,
+        fog_margin_k: float,
+        fog_margin_min_k: float,
+    ) -> tuple[float, str | None]:
+        """Update the CO2 estimate and the fog override: ``(estimate [ppm], safe mode or None)``.
+
+        The safe mode, when not None, is why the door must be at fresh air now, ahead of any CO2 rule or plan:
+        'fog', 'co2_sensor_fault' (a fitted sensor does not read) or 'co2_unknown' (the estimate is not finite).
+        ``recirc_share``, ``mdot_bl_kgps``, ``speed_mps`` are the estimator's inputs
+        (:meth:`ceco_core.co2_estimator.Co2Estimator.update`). Raises ValueError when time goes back.
+        """
+        s = self.settings
+        est = self.estimator.update(t_s, co2_sensor_ppm, recirc_share, mdot_bl_kgps, speed_mps, n_occupants)
+        c = est.co2_cab_ppm
+        self._fog = fog_override(self._fog, fog_margin_k, fog_margin_min_k, s.fog_enter_k, s.fog_exit_k)
+        if self._fog:
+            return c, "fog"
+        if co2_sensor_fitted and not math.isfinite(co2_sensor_ppm):
+            return c, "co2_sensor_fault"
+        if not math.isfinite(c):
+            return c, "co2_unknown"
+        return c, None
+
+    def nlp_parameters(self, co2_ppm: float, co2_limit_ppm: float, n_occupants: int) -> dict:
+        """The CO2 parameters of the NLP of ``door_control`` 'nlp' (:data:`ceco_controller.nlp_layout.PARAM_DOOR`).
+
+        ``co2_ppm`` the estimate (its initial value; a non-finite estimate enters as the target, the door being
+        held at fresh air by :meth:`observe`'s safe mode then); the target is ``co2_limit_ppm`` - ``margin_ppm``.
+        """
+        m = self.model
+        target = float(co2_limit_ppm) - self.settings.margin_ppm
+        return {
+            "co2_0": float(co2_ppm) if math.isfinite(co2_ppm) else target,
+            "co2_amb": m.co2_amb_ppm,
+            "co2_gen": max(int(n_occupants), 0) * co2_generation_kgps(m.met) / KGKG_PER_PPM,
+            "co2_max": target,
+            "leak_0": m.leak_0_kgps,
+            "leak_v": m.leak_per_mps_kgps,
+            "m_air": m.m_air_kg,
+        }
+
+    def hold(
+        self,
+        co2_ppm: float,
+        *,
+        dt_s: float,
+        co2_limit_ppm: float,
+        mdot_bl_kgps: float,
+        speed_mps: float,
+        n_occupants: int,
+        t_cab_c: float,
+        t_amb_c: float,
+    ) -> Co2DoorCommand:
+        """The economiser and the CO2-holding rule on the estimate ``co2_ppm`` [ppm] (no safe mode active)."""
+        s, m, c = self.settings, self.model, co2_ppm
+        if math.isfinite(t_amb_c) and math.isfinite(t_cab_c) and t_amb_c <= t_cab_c - s.economiser_k:
+            return Co2DoorCommand(0.0, "economiser", c)
+        leak = leakage_kgps(m.leak_0_kgps, m.leak_per_mps_kgps, max(float(speed_mps), 0.0))
+        gen = int(n_occupants) * co2_generation_kgps(m.met) / KGKG_PER_PPM
+        target = co2_limit_ppm - s.margin_ppm
+        r = hold_share(c, target, m.co2_amb_ppm, max(float(mdot_bl_kgps), 0.0), leak, gen, m.m_air_kg, dt_s)
+        mode = "recirc" if r >= 1.0 else ("co2_max_fresh" if r <= 0.0 else "co2_hold")
+        return Co2DoorCommand(r, mode, c)
+
     def step(
         self,
         *,
@@ -143,26 +220,31 @@ class Co2DoorLaw:
         fog_margin_k: float,
         fog_margin_min_k: float,
     ) -> Co2DoorCommand:
-        """The door command over the next ``dt_s`` [s].
+        """The door command over the next ``dt_s`` [s]: :meth:`observe`, then its safe mode or :meth:`hold`.
 
         ``recirc_share`` the measured door (the estimator's input), ``mdot_bl_kgps`` the blower flow of the next
         period (the NMPC's command), ``fog_margin_k`` [K] (NaN: unknown, no override).
         """
-        s, m = self.settings, self.model
-        est = self.estimator.update(t_s, co2_sensor_ppm, recirc_share, mdot_bl_kgps, speed_mps, n_occupants)
-        c = est.co2_cab_ppm
-        self._fog = fog_override(self._fog, fog_margin_k, fog_margin_min_k, s.fog_enter_k, s.fog_exit_k)
-        if self._fog:
-            return Co2DoorCommand(0.0, "fog", c)
-        if co2_sensor_fitted and not math.isfinite(co2_sensor_ppm):
-            return Co2DoorCommand(0.0, "co2_sensor_fault", c)
-        if not math.isfinite(c):
-            return Co2DoorCommand(0.0, "co2_unknown", c)
-        if math.isfinite(t_amb_c) and math.isfinite(t_cab_c) and t_amb_c <= t_cab_c - s.economiser_k:
-            return Co2DoorCommand(0.0, "economiser", c)
-        leak = leakage_kgps(m.leak_0_kgps, m.leak_per_mps_kgps, max(float(speed_mps), 0.0))
-        gen = int(n_occupants) * co2_generation_kgps(m.met) / KGKG_PER_PPM
-        target = co2_limit_ppm - s.margin_ppm
-        r = hold_share(c, target, m.co2_amb_ppm, max(float(mdot_bl_kgps), 0.0), leak, gen, m.m_air_kg, dt_s)
-        mode = "recirc" if r >= 1.0 else ("co2_max_fresh" if r <= 0.0 else "co2_hold")
-        return Co2DoorCommand(r, mode, c)
+        c, safe = self.observe(
+            t_s=t_s,
+            co2_sensor_fitted=co2_sensor_fitted,
+            co2_sensor_ppm=co2_sensor_ppm,
+            recirc_share=recirc_share,
+            mdot_bl_kgps=mdot_bl_kgps,
+            speed_mps=speed_mps,
+            n_occupants=n_occupants,
+            fog_margin_k=fog_margin_k,
+            fog_margin_min_k=fog_margin_min_k,
+        )
+        if safe is not None:
+            return Co2DoorCommand(0.0, safe, c)
+        return self.hold(
+            c,
+            dt_s=dt_s,
+            co2_limit_ppm=co2_limit_ppm,
+            mdot_bl_kgps=mdot_bl_kgps,
+            speed_mps=speed_mps,
+            n_occupants=n_occupants,
+            t_cab_c=t_cab_c,
+            t_amb_c=t_amb_c,
+        )
