@@ -118,8 +118,10 @@ class NmpcController:
         """The NLP transcription built: 'single-shooting' or 'multiple-shooting'."""
         self.lim = ACTUATOR_LIMITS
         self._acc = AccLaw(acc_settings)
-        self.door = Co2DoorLaw() if self.settings.door_control == "co2_hold" else None
-        """The door beside the NLP (``door_control`` 'co2_hold'), else None: the door is not commanded."""
+        self.door = Co2DoorLaw() if self.settings.door_control in ("co2_hold", "nlp") else None
+        """The door's CO2 estimate, safe defaults and hold rule (``door_control`` 'co2_hold': the door beside the NLP;
+        'nlp': the NLP's door, this law's safe defaults over it and its rule when there is no plan), else None: the
+        door is not commanded."""
         self.co2_sensor_fitted = True
         """Whether the car has a cabin CO2 sensor (a NaN reading is then a fault: fresh air); set by the factory."""
         t0 = time.perf_counter()
@@ -260,6 +262,10 @@ class NmpcController:
     def _reset_state(self) -> None:
         if self.door is not None:
             self.door.reset()
+        self._door_nlp: dict | None = None
+        self._door_planned: float | None = None
+        self._door_pred_max: float = math.nan
+        self._door_last: float | None = None
         self._good: GoodSolution | None = None
         self._prepared_t_s: float | None = None
         self._last_cmd: np.ndarray | None = None
@@ -321,7 +327,13 @@ class NmpcController:
         t_mr, pa = self.comfort_parameters(obs, t_glass_c, rh_cab)
         n = self.problem.params.n_grid
         lb, ub = (held(obs.pmv_lb, n), held(obs.pmv_ub, n)) if bounds is None else bounds
+        door: dict = {}
+        if self.problem.door:  # the door NLP: the previous share and the CO2 parameters
+            door = self._door_nlp if self._door_nlp is not None else self._door_nominal(obs)
+            if len(u_prev) == 2:
+                u_prev = (*u_prev, self._door_share_prev(obs))
         return self.problem.params.pack(
+            **door,
             x0=[obs.t_cab_c, obs.t_evap_c],
             t_int=obs.t_int_c,
             t_shell=obs.t_shell_c,
@@ -337,6 +349,20 @@ class NmpcController:
             t_mr=t_mr,
             pa=pa,
         )
+
+    def _door_nominal(self, obs: Observation) -> dict:
+        """The door NLP's CO2 parameters before a CO2 estimate exists (warm-up, prepare): the ambient CO2."""
+        assert self.door is not None
+        n_occ = int(obs.n_occupants) if math.isfinite(obs.n_occupants) else 1
+        limit = float(obs.co2_limit_ppm) if math.isfinite(obs.co2_limit_ppm) else 1500.0
+        return self.door.nlp_parameters(self.door.model.co2_amb_ppm, limit, n_occ)
+
+    def _door_share_prev(self, obs: Observation) -> float:
+        """The door NLP's previous share [-]: the measured door, else the last command, else the default 0.8."""
+        r = float(obs.recirc_share)
+        if math.isfinite(r) and 0.0 <= r <= 1.0:
+            return r
+        return self._door_last if self._door_last is not None else cm.IDENTIFICATION_RECIRC_SHARE
 
     def comfort_parameters(
         self, obs: Observation, t_glass_c: float | None = None, rh_cab: float | None = None
@@ -440,6 +466,8 @@ class NmpcController:
         With ``door_control`` 'co2_hold' the door command of :attr:`door` is added to whatever the step
         commands (a fallback's too).
         """
+        if self.settings.door_control == "nlp":
+            return self._compute_door_nlp(obs, t_start)
         cmd, diag = self._compute_ac(obs, t_start)
         if self.door is None:
             return cmd, diag
@@ -465,8 +493,67 @@ class NmpcController:
         _note(diag, f"door={door.recirc_share:.2f} door_mode={door.mode} co2_est={door.co2_estimate_ppm:.0f}")
         return dataclasses.replace(cmd, recirc_share=door.recirc_share), diag
 
+    def _compute_door_nlp(self, obs: Observation, t_start: float | None):
+        """One step of ``door_control`` 'nlp' (docs/controller.md 4.9).
+
+        The CO2 estimate and the safe modes first (:meth:`ceco_core.co2_door.Co2DoorLaw.observe`, on the inputs
+        held since the last step); the estimate enters the NLP as its initial CO2. The door is the NLP's first
+        planned share (or the shifted plan's), overridden by fresh air in a safe mode; without a plan (the ACC
+        law) the CO2-holding rule of 'co2_hold' commands it.
+        """
+        assert self.door is not None
+        t0 = self.clock() if t_start is None else float(t_start)
+        n_occ = int(obs.n_occupants) if math.isfinite(obs.n_occupants) else 1
+        limit = float(obs.co2_limit_ppm)
+        try:
+            c, safe = self.door.observe(
+                t_s=float(obs.t_s),
+                co2_sensor_fitted=self.co2_sensor_fitted,
+                co2_sensor_ppm=float(obs.co2_sensor_ppm),
+                recirc_share=float(obs.recirc_share),
+                mdot_bl_kgps=float(obs.mdot_bl_prev_kgps),
+                speed_mps=float(obs.speed_mps),
+                n_occupants=n_occ,
+                fog_margin_k=fog_margin_of(obs.t_cab_c, obs.rh_cab, obs.t_glass_c),
+                fog_margin_min_k=float(obs.fog_margin_min_k),
+            )
+        except ValueError as exc:  # e.g. time going back: fresh air, the safe default, and said so
+            c, safe = math.nan, f"door_error ({exc})"
+        if not math.isfinite(limit):
+            limit, safe = 1500.0, safe or "co2_limit_unknown"
+        self._door_nlp = self.door.nlp_parameters(c, limit, n_occ)
+        cmd, diag = self._compute_ac(obs, t0)
+        if safe is not None:
+            r, mode = 0.0, safe
+        elif self._door_planned is not None:
+            r, mode = min(max(self._door_planned, 0.0), 1.0), "nlp"
+        else:
+            hold = self.door.hold(
+                c,
+                dt_s=self.settings.control_period_s,
+                co2_limit_ppm=limit,
+                mdot_bl_kgps=cmd.mdot_bl_kgps,
+                speed_mps=float(obs.speed_mps),
+                n_occupants=n_occ,
+                t_cab_c=float(obs.t_cab_c),
+                t_amb_c=float(obs.t_amb_c),
+            )
+            r, mode = hold.recirc_share, f"rule_{hold.mode}"
+        self._door_last = r
+        _note(
+            diag,
+            f"door={r:.2f} door_mode={mode} co2_est={c:.0f} co2_pred_max="
+            + ("n/a" if not math.isfinite(self._door_pred_max) else f"{self._door_pred_max:.0f}"),
+        )
+        return dataclasses.replace(cmd, recirc_share=r), diag
+
     def _compute_ac(self, obs: Observation, t_start: float | None = None):
-        """The blower and evaporator commands of one step (:meth:`compute` without the door)."""
+        """The blower and evaporator commands of one step (:meth:`compute` without the door).
+
+        With the door NLP the share of the plan applied is left in ``_door_planned`` (None: no plan applied) and
+        the plan's largest predicted CO2 in ``_door_pred_max`` [ppm].
+        """
+        self._door_planned, self._door_pred_max = None, math.nan
         t0 = self.clock() if t_start is None else float(t_start)
         s, ss, cnt = self.settings, self.settings.solver, self.counters
         deadline = t0 + ss.step_budget_s - ss.step_reserve_s
@@ -537,6 +624,8 @@ class NmpcController:
             diag.pred_pmv, diag.pred_t_cab_c = ev.pmv + (self._pmv_fb.bias if self._pmv_fb else 0.0), ev.t_cab
             if s.ioch:
                 diag.eps = good.w[self.problem.vars.indices("eps")]
+            if ev.co2.size:
+                self._door_pred_max = float(np.max(ev.co2))
             cmd = plan[0]
         elif self._good is not None and 1 <= self._good.age < len(self._good.plan):
             cmd = self._good.plan[self._good.age]
@@ -546,6 +635,8 @@ class NmpcController:
         else:
             _note(diag, f"solve failed ({diag.status}), no plan left: production ACC law applied")
             return self._apply_acc(diag, float(obs.t_cab_c), obs, ex)
+        if self.problem.door:
+            self._door_planned = float(cmd[2])
         cmd = self._clip_checked(cmd)
         # the ACC law follows the applied command (bumpless hand-over); only the last one matters, so
         # the tracking is done when the law is next needed (_apply_acc), not at every step

@@ -12,8 +12,9 @@ problem, stage-wise ordered so the multiple-shooting NLP has the optimal-control
     s_i = (s_lo, s_up [PMV], s_ev [K] (i >= 1), eps [PMV] (ceco-ioch))
 
 With the door in the NLP (``door_control`` 'nlp', docs/controller.md 4.9) u_i gains the recirculated share
-r_i [-], x_i the previous share r_{i-1} and the cabin CO2 C_i [ppm] (x_i = (T_cab, T_evap, u_{i-1}, C_i)), s_i
-the CO2 slack s_co2 [ppm] (i >= 1) of the soft constraint C_i - s_co2 <= limit - margin.
+r_i [-], x_i the previous share r_{i-1} and the cabin CO2 C_i (x_i = (T_cab, T_evap, u_{i-1}, C_i)), s_i
+the CO2 slack s_co2 (i >= 1) of the soft constraint C_i - s_co2 <= limit - margin; C and s_co2 in units of
+:data:`CO2_SCALE_PPM` (1000 ppm) inside the NLP, ppm in its parameters and in :class:`Evaluation`.
 
 * ``multiple-shooting``: the x_i are variables tied by gap constraints x_i - f(x_{i-1}, u_{i-1}) = 0.
 * ``single-shooting``: the x_i are the model's rollout expressions of (x_0, u_0 .. u_{i-1}).
@@ -39,10 +40,16 @@ from .buffered import BufferedFunction
 from .nlp_layout import OcpStructure, ParamLayout, RowLayout, VariableLayout
 from .strategies import StrategySettings
 
-__all__ = ["NlpProblem", "Evaluation", "build_problem", "TRANSCRIPTIONS"]
+__all__ = ["NlpProblem", "Evaluation", "build_problem", "TRANSCRIPTIONS", "CO2_SCALE_PPM"]
 
 TRANSCRIPTIONS = ("single-shooting", "multiple-shooting")
 """The transcriptions :func:`build_problem` knows."""
+
+CO2_SCALE_PPM = 1000.0
+"""The door NLP carries the cabin CO2 (state, slack, limit row) in units of this [ppm]: its rows then weigh like
+the PMV and temperature rows in the SQP's l1 merit function (one sigma for all rows, about 1.1 x the largest
+multiplier, the comfort rows' 1000 kJ/PMV); in ppm a 0.1 ppm linearisation error of the CO2 cost 110 kJ of merit and
+the line search took 1/64 steps (docs/controller.md 4.9)."""
 
 _STATE_BOUNDS_C = (-50.0, 150.0)
 """Box on the temperature states of the multiple-shooting NLP [degC] (never active; keeps IPOPT's
@@ -169,7 +176,7 @@ class NlpProblem:
         """The augmented states x_1..x_N the model gives from the measured state under inputs ``u`` (N, nu).
 
         Shape (N, nx): (T_cab, T_evap [degC], mdot_bl [kg/s], T_evap_sp [degC]) after each stage; with the door
-        (N, 6): then the share [-] and the cabin CO2 [ppm].
+        (N, 6): then the share [-] and the cabin CO2 [:data:`CO2_SCALE_PPM`].
         """
         (x,) = self._rollout(np.asarray(u, float).ravel(), p)
         return x.reshape(self.horizon_steps, self.nx).copy()
@@ -280,11 +287,16 @@ def build_problem(
         """The cabin CO2 at the end of interval i [ppm] (door NLP): the exact balance with the flows held."""
         leak = leakage_kgps(P["leak_0"], P["leak_v"], P["speed"][i])
         fresh = (1.0 - u[2]) * u[0]
-        return co2_after_ppm(x[nx - 1], P["co2_amb"], fresh, leak, P["co2_gen"], P["m_air"], s.control_period_s)
+        c_ppm = co2_after_ppm(
+            x[nx - 1] * CO2_SCALE_PPM, P["co2_amb"], fresh, leak, P["co2_gen"], P["m_air"], s.control_period_s
+        )
+        return c_ppm / CO2_SCALE_PPM
 
     def x_start():
         """x_0: the measured state and the previous command (and the CO2 estimate), all parameters."""
-        return casadi.vertcat(P["x0"], P["u_prev"], P["co2_0"]) if door else casadi.vertcat(P["x0"], P["u_prev"])
+        if door:
+            return casadi.vertcat(P["x0"], P["u_prev"], P["co2_0"] / CO2_SCALE_PPM)
+        return casadi.vertcat(P["x0"], P["u_prev"])
 
     def x_after(x, u, i):
         """The augmented state at the end of interval i and the interval's powers."""
@@ -377,11 +389,11 @@ def build_problem(
                 [inf, 0.0],
             )
             if door:  # the soft CO2 limit, exact L1 penalty (docs/controller.md 4.9)
-                co2_all.append(x[nx - 1])
+                co2_all.append(x[nx - 1] * CO2_SCALE_PPM)
                 s_co2 = SX.sym(f"s_co2_{i}")
                 add_var(s_co2, 0.0, inf, "s_co2")
-                sl_terms.append(s.co2_slack_weight_kj_per_ppm * s_co2)
-                rows.add(i, 3, "co2", x[nx - 1] - s_co2 - P["co2_max"], [-inf], [0.0])
+                sl_terms.append(s.co2_slack_weight_kj_per_ppm * CO2_SCALE_PPM * s_co2)
+                rows.add(i, 3, "co2", x[nx - 1] - s_co2 - P["co2_max"] / CO2_SCALE_PPM, [-inf], [0.0])
 
     def total(terms):
         return casadi.sum1(casadi.vertcat(*terms)) if terms else SX(0)

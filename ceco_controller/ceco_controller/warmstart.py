@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .transcription import NlpProblem
+from .transcription import CO2_SCALE_PPM, NlpProblem
 
 __all__ = ["SLACK_GUESS_MARGIN", "initial_guess", "repair_slacks"]
 
@@ -33,22 +33,27 @@ def initial_guess(problem: NlpProblem, p: np.ndarray, w_prev: np.ndarray | None 
         w = np.zeros(vl.n)
         u_prev = pl.get(p, "u_prev")
         u = np.array(lim.clip(u_prev[0], u_prev[1]))
+        if problem.door:  # the previous door share (a parameter in [0, 1] by construction) held too
+            u = np.append(u, min(max(float(u_prev[2]), 0.0), 1.0))
         vl.set_blocks(w, "u", u)
         if s.ioch:
             vl.set_blocks(w, "eps", 0.5 * s.eps_ub)
     w = np.clip(w, problem.lbw, problem.ubw)
     if vl.count("x"):  # multiple shooting: the states rolled out by the model
         vl.set_blocks(w, "x", problem.rollout_states(vl.blocks(w, "u"), p))
-    lo, up, ev = _smallest_slacks(problem, w, p)
     margin = SLACK_GUESS_MARGIN
-    w[vl.indices("s_lo")] = lo + margin
-    w[vl.indices("s_up")] = up + margin
-    w[vl.indices("s_ev")] = ev + margin
+    for key, need in zip(_SLACK_KEYS, _smallest_slacks(problem, w, p)):
+        w[vl.indices(key)] = need + margin
     return np.clip(w, problem.lbw, problem.ubw)
 
 
+_SLACK_KEYS = ("s_lo", "s_up", "s_ev", "s_co2")
+"""The slacks of :func:`_smallest_slacks`, in its order."""
+
+
 def _smallest_slacks(problem: NlpProblem, w: np.ndarray, p: np.ndarray):
-    """The smallest comfort (s_lo, s_up) and T_evap (s_ev) slacks that satisfy their rows at ``w``."""
+    """The smallest comfort (s_lo, s_up), T_evap (s_ev) and CO2 (s_co2, the door NLP) slacks that satisfy their rows
+    at ``w``."""
     s, pl, vl = problem.settings, problem.params, problem.vars
     ev = problem.evaluate(w, p)
     lb = pl.get(p, "pmv_lb")
@@ -58,6 +63,7 @@ def _smallest_slacks(problem: NlpProblem, w: np.ndarray, p: np.ndarray):
         np.maximum(lb - ev.pmv, 0.0),
         np.maximum(ev.pmv + eps - ub, 0.0),
         np.maximum(np.maximum(s.t_evap_lb_c - ev.t_evap, ev.t_evap - s.t_evap_ub_c), 0.0),
+        np.maximum(ev.co2 - pl.get(p, "co2_max"), 0.0) / CO2_SCALE_PPM if problem.door else np.zeros(0),
     )
 
 
@@ -70,8 +76,7 @@ def repair_slacks(problem: NlpProblem, w: np.ndarray, p: np.ndarray) -> np.ndarr
     """
     out = np.array(w, float)
     vl = problem.vars
-    lo, up, ev = _smallest_slacks(problem, out, p)
-    for key, need in (("s_lo", lo), ("s_up", up), ("s_ev", ev)):
+    for key, need in zip(_SLACK_KEYS, _smallest_slacks(problem, out, p)):
         ix = vl.indices(key)
         out[ix] = np.maximum(out[ix], need)
     return out

@@ -91,9 +91,13 @@ PERSISTENCE_TWINS = ('ceco-pmv',)
 """The strategies run a second time with persistence previews (``ceco-pmv-persistence``): what the previews
 are worth to them."""
 
-STRATEGY_VARIANTS = {'ceco-pmv-aq': ('ceco-pmv', (('door_control', 'co2_hold'),))}
+STRATEGY_VARIANTS = {
+    'ceco-pmv-aq': ('ceco-pmv', (('door_control', 'co2_hold'),)),
+    'ceco-pmv-door': ('ceco-pmv', (('door_control', 'nlp'),)),
+}
 """Benchmark names of a strategy run with settings overrides: ``{name: (strategy, ((field, value), ...))}``
-(issue 21: ``ceco-pmv-aq``, ceco-pmv with the CO2-holding door beside its NLP; docs/controller.md)."""
+(issue 21: ``ceco-pmv-aq``, ceco-pmv with the CO2-holding door beside its NLP; ``ceco-pmv-door``, ceco-pmv with
+the door a third input of its NLP; docs/controller.md 4.8, 4.9)."""
 
 SEED_INVARIANT = SEED_INVARIANT_KINDS
 SCORED_KINDS = ('strategy', 'compensated', 'compensated-allowance', 'external')
