@@ -355,8 +355,8 @@ def step(
     """Advance the model over ``n_sub`` model steps with the inputs held.
 
     ``recirc_share`` [0..1]: the door's share in the power model (:func:`door_fresh_fraction`; None: the identified
-    fresh-air fraction, the model of every strategy without the door in its NLP). Returns ``(t_cab_next_c, t_evap_next_c, t_ain_c, p_comp_w, p_blower_w)``
-    where the temperatures are at the end of the interval and ``t_ain_c`` and
+    fresh-air fraction, the model of every strategy without the door in its NLP).
+    Returns ``(t_cab_next_c, t_evap_next_c, t_ain_c, p_comp_w, p_blower_w)`` where the temperatures are at the end of the interval and ``t_ain_c`` and
     the powers are the means over the interval (sampled at each sub-step start).
     """
     t_ain_sum = 0.0

@@ -52,8 +52,7 @@ _SLACK_KEYS = ("s_lo", "s_up", "s_ev", "s_co2")
 
 
 def _smallest_slacks(problem: NlpProblem, w: np.ndarray, p: np.ndarray):
-    """The smallest comfort (s_lo, s_up), T_evap (s_ev) and CO2 (s_co2, the door NLP) slacks that satisfy their rows
-    at ``w``."""
+    """The smallest comfort (s_lo, s_up), T_evap (s_ev) and CO2 (s_co2, door NLP) slacks that satisfy their rows."""
     s, pl, vl = problem.settings, problem.params, problem.vars
     ev = problem.evaluate(w, p)
     lb = pl.get(p, "pmv_lb")
