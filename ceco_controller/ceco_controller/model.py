@@ -356,8 +356,9 @@ def step(
 
     ``recirc_share`` [0..1]: the door's share in the power model (:func:`door_fresh_fraction`; None: the identified
     fresh-air fraction, the model of every strategy without the door in its NLP).
-    Returns ``(t_cab_next_c, t_evap_next_c, t_ain_c, p_comp_w, p_blower_w)`` where the temperatures are at the end of the interval and ``t_ain_c`` and
-    the powers are the means over the interval (sampled at each sub-step start).
+    Returns ``(t_cab_next_c, t_evap_next_c, t_ain_c, p_comp_w, p_blower_w)`` where the temperatures are at
+    the end of the interval and ``t_ain_c`` and the powers are the means over the interval (sampled at each
+    sub-step start).
     """
     t_ain_sum = 0.0
     pc_sum = 0.0
