@@ -51,7 +51,6 @@ import numpy as np
 import yaml
 
 from ceco_core import yamlio
-from ceco_core.air_quality import RECIRC_SHARE_DEFAULT
 from ceco_core.mathops import backend, softplus
 
 __all__ = [
@@ -62,7 +61,6 @@ __all__ = [
     "t_cab_next_c",
     "t_evap_next_c",
     "eta_ac",
-    "IDENTIFICATION_RECIRC_SHARE",
     "door_fresh_fraction",
     "q_evap_w",
     "p_comp_w",
@@ -284,20 +282,18 @@ def eta_ac(p: ControlModelParams, speed_mps):
     return 1.0 + p.eta_gain * (1.0 - ops.exp(-speed_mps / p.eta_speed_scale_mps))
 
 
-IDENTIFICATION_RECIRC_SHARE = RECIRC_SHARE_DEFAULT
-"""Recirculated share of the identification data [-]: the plant's default door (0.8), never commanded there."""
-
-
 def door_fresh_fraction(p: ControlModelParams, recirc_share):
-    """The power model's fresh-air fraction phi [-] at a recirculated share ``recirc_share`` [0..1].
+    """The power model's fresh-air fraction phi [-] at a recirculated share ``recirc_share`` [0..1]: 1 - r.
 
-    ``phi(r) = phi_id + (r_id - r)``: the identified ``fresh_air_fraction`` phi_id at the identification data's
-    share r_id = 0.8 (:data:`IDENTIFICATION_RECIRC_SHARE`), moved one for one with the door, as the plant's mixing
-    box T_mix = r T_cab + (1 - r) T_amb says (d phi / d r = -1). It is 1 - r when phi_id is the plant's 0.2; the
-    identified phi_id lies at its bound 0 (the fit cannot tell the fresh-air load from the lift term at a fixed
-    door, docs/controller.md 4.9), so the door NLP keeps the identified power at 0.8 and the physical slope.
+    The plant's mixing box, T_mix = r T_cab + (1 - r) T_amb (docs/plant.md). The door NLP does not use the
+    identified constant ``fresh_air_fraction``: it lies at its bound 0 (``config/model_params.yaml``), not at the
+    0.2 of the identification data's door (the plant's default 0.8), because at a fixed door the fit cannot tell
+    the fresh-air load from the lift term; 1 - r equals it at full recirculation, where the door NLP spends most
+    of a hot drive. ``phi_id + (0.8 - r)`` (the identified power at 0.8, the same slope) was measured too and
+    spent 0.5 % more on hot-commute-1p (docs/controller.md 4.9). ``p`` is unused (the model functions' signature).
     """
-    return p.fresh_air_fraction + (IDENTIFICATION_RECIRC_SHARE - recirc_share)
+    del p
+    return 1.0 - recirc_share
 
 
 def q_evap_w(

@@ -41,7 +41,7 @@ import numpy as np
 
 from ceco_core import psychro
 from ceco_core.acc_law import AccLaw, AccSettings
-from ceco_core.air_quality import fog_margin_of
+from ceco_core.air_quality import RECIRC_SHARE_DEFAULT, fog_margin_of
 from ceco_core.cabin_comfort import PAPER_PA_PA, ComfortParams, cabin_mrt_c, cabin_pmv, cabin_w_rad_wm2
 from ceco_core.co2_door import Co2DoorLaw
 from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
@@ -362,7 +362,7 @@ class NmpcController:
         r = float(obs.recirc_share)
         if math.isfinite(r) and 0.0 <= r <= 1.0:
             return r
-        return self._door_last if self._door_last is not None else cm.IDENTIFICATION_RECIRC_SHARE
+        return self._door_last if self._door_last is not None else RECIRC_SHARE_DEFAULT
 
     def comfort_parameters(
         self, obs: Observation, t_glass_c: float | None = None, rh_cab: float | None = None

@@ -1,0 +1,214 @@
+"""The door as a third input of the NMPC's NLP (issue 21, ``StrategySettings.door_control = "nlp"``).
+
+Pure-core checks of the transcription (the NLP's CO2 prediction is the numeric balance of ceco_core.co2_door; the
+NLP without the door is the one of before), solved instances (IPOPT on the NLP: full recirculation far under the
+limit, just enough fresh air at it, the L1 penalty exact), the safe defaults over the NLP's door, and a closed-loop
+run of ceco-pmv with the NLP's door on hot-commute-4p.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import casadi
+import numpy as np
+import pytest
+
+from ceco_controller import model as cm
+from ceco_controller.nmpc import NmpcController, nominal_observation
+from ceco_controller.strategies import strategy_settings
+from ceco_controller.transcription import CO2_SCALE_PPM
+from ceco_core.air_quality import leakage_kgps
+from ceco_core.co2_door import Co2DoorLaw, co2_after_ppm
+
+_PMV = strategy_settings("ceco-pmv")
+_DOOR = dataclasses.replace(_PMV, door_control="nlp")
+
+
+def _controller(settings=_DOOR) -> NmpcController:
+    return NmpcController(settings, model_params=cm.load_params())
+
+
+def _params(c: NmpcController, co2_ppm: float, n_occ: int, t_amb_c: float = 35.0, limit: float = 1500.0):
+    """The NLP parameters of the nominal observation with a hot preview and a CO2 state."""
+    assert c.door is not None
+    n1 = c.horizon_steps + 1
+    obs = nominal_observation(n1)
+    obs = dataclasses.replace(obs, t_amb_c=t_amb_c, preview_t_amb_c=np.full(n1, t_amb_c), recirc_share=0.8)
+    ex, _ = c.previews(obs)
+    c._door_nlp = c.door.nlp_parameters(co2_ppm, limit, n_occ)
+    return c.parameters(obs, ex)
+
+
+def _ipopt(problem, p):
+    """IPOPT's optimum of the NLP at ``p`` from the model-rollout guess: (w, f, lam_g)."""
+    from ceco_controller.warmstart import initial_guess
+
+    s = casadi.nlpsol(
+        "door_test", "ipopt", problem.nlp, {"print_time": False, "ipopt.print_level": 0, "ipopt.tol": 1e-9}
+    )
+    r = s(x0=initial_guess(problem, p), p=p, **problem.bounds_dm)
+    assert s.stats()["success"], s.stats()["return_status"]
+    return np.array(r["x"]).ravel(), float(r["f"]), np.array(r["lam_g"]).ravel()
+
+
+@pytest.mark.parametrize("transcription", ["single-shooting", "multiple-shooting"])
+def test_the_nlp_co2_prediction_is_the_numeric_balance(transcription):
+    """The NLP's CO2 on every grid point (rollout and evaluator, 4 occupants, a varying speed preview) equals
+    co2_after_ppm stepped with floats on the same inputs to 1e-9 ppm; the input sequence is a solved plan (the door
+    moving between 0 and 1); the NLP has 3 inputs and 6 states per stage."""
+    c = _controller(dataclasses.replace(_DOOR, solver=dataclasses.replace(_DOOR.solver, transcription=transcription)))
+    pr = c.problem
+    assert (pr.nu, pr.nx) == (3, 6)
+    p = _params(c, 1450.0, 4)
+    speed = pr.params.get(p, "speed")
+    speed[:] = np.linspace(5.0, 20.0, speed.size)
+    w, _, _ = _ipopt(pr, p)
+    u = pr.plan(w)
+    assert u.shape == (pr.horizon_steps, 3) and np.ptp(u[:, 2]) > 0.05
+    dp = c.door.nlp_parameters(1450.0, 1500.0, 4)
+    x, expect = dp["co2_0"], []
+    for i, (m, _, r) in enumerate(u):
+        leak = leakage_kgps(dp["leak_0"], dp["leak_v"], float(speed[i]))
+        x = co2_after_ppm(x, dp["co2_amb"], (1.0 - r) * m, leak, dp["co2_gen"], dp["m_air"], _DOOR.control_period_s)
+        expect.append(x)
+    roll = pr.rollout_states(u, p)[:, 5] * CO2_SCALE_PPM
+    np.testing.assert_allclose(roll, expect, rtol=0.0, atol=1e-9)
+    np.testing.assert_allclose(pr.evaluate(w, p).co2, roll, rtol=0.0, atol=1e-6)
+
+
+def test_far_under_the_limit_on_a_hot_day_the_nlp_recirculates_fully():
+    """600 ppm, one occupant, 35 degC outside: the whole plan at full recirculation (share >= 0.999), the predicted
+    CO2 far under the 1350 ppm target, no CO2 slack; the NLP's energy below its energy with the door held at 0.8."""
+    c = _controller()
+    pr = c.problem
+    p = _params(c, 600.0, 1)
+    w, f, _ = _ipopt(pr, p)
+    u = pr.plan(w)
+    assert np.all(u[:, 2] >= 0.999)
+    ev = pr.evaluate(w, p)
+    assert ev.co2.max() < 800.0 and np.all(w[pr.vars.indices("s_co2")] < 1e-6)
+    held = w.copy()
+    held[pr.vars.indices("u")[2::3]] = 0.8
+    assert pr.evaluate(held, p).J_e > ev.J_e + 1.0  # fresh air is a load on a hot day [kJ over the horizon]
+
+
+def test_at_the_limit_the_nlp_opens_the_door_just_enough_and_the_penalty_is_exact():
+    """At the 1350 ppm target with four occupants the plan lets fresh air in (share strictly inside 0..1), the
+    predicted CO2 stays <= target + 0.01 ppm and touches it (>= target - 1 ppm: no more fresh air than needed);
+    every CO2 row's multiplier [kJ/ppm] is below the slack weight (the L1 penalty is exact: zero slack)."""
+    c = _controller()
+    pr = c.problem
+    target = 1500.0 - c.door.settings.margin_ppm
+    p = _params(c, target, 4)
+    w, _, lam_g = _ipopt(pr, p)
+    r = pr.plan(w)[:, 2]
+    assert 0.05 < r[0] < 0.95
+    co2 = pr.evaluate(w, p).co2
+    assert co2.max() <= target + 0.01
+    assert co2.max() >= target - 1.0
+    lam = lam_g[pr.rows.indices("co2")] / CO2_SCALE_PPM  # [kJ per ppm]
+    assert lam.max() < 0.5 * _DOOR.co2_slack_weight_kj_per_ppm
+    assert np.all(w[pr.vars.indices("s_co2")] < 1e-6)
+
+
+def test_without_the_door_the_nlp_is_the_one_of_before():
+    """door_control 'none' and 'co2_hold': the recorded size of the ceco-pmv NLP (single shooting, Np 6 + 6:
+    62 variables, 50 rows, 76 parameters; recorded on main before the door NLP) and one and the same NLP for both
+    (same variables, bounds and IPOPT optimum on the nominal instance)."""
+    a, b = _controller(_PMV), _controller(dataclasses.replace(_PMV, door_control="co2_hold"))
+    for c in (a, b):
+        assert (c.problem.nw, c.problem.ng, c.problem.params.size, c.problem.nu) == (62, 50, 76, 2)
+    obs = nominal_observation(a.horizon_steps + 1)
+    ex, _ = a.previews(obs)
+    p = a.parameters(obs, ex)
+    np.testing.assert_array_equal(p, b.parameters(obs, ex))
+    np.testing.assert_array_equal(a.problem.lbw, b.problem.lbw)
+    wa, fa, _ = _ipopt(a.problem, p)
+    wb, fb, _ = _ipopt(b.problem, p)
+    assert fa == fb and np.array_equal(wa, wb)
+
+
+def _obs(c, **kw):
+    n1 = c.horizon_steps + 1
+    base = dict(co2_sensor_ppm=1340.0, n_occupants=4, recirc_share=0.8, rh_cab=0.4, t_glass_c=30.0)
+    base.update(kw)
+    return dataclasses.replace(nominal_observation(n1), **base)
+
+
+def test_bad_co2_inputs_give_fresh_air_with_a_clear_diagnostic():
+    """A failed (NaN) reading of a fitted sensor, a fog threat, time going back and a missing CO2 limit each give a
+    door at 0 (fresh air) with the reason in the diagnostics, and the blower/evaporator still from the NLP; a good
+    reading gives the NLP's share (mode nlp) with the estimate and the predicted maximum."""
+    c = _controller()
+    cmd, d = c.compute(_obs(c, k=0, t_s=0.0))
+    assert "door_mode=nlp" in d.message and "co2_pred_max=" in d.message and d.status == "Solve_Succeeded"
+    assert 0.0 < cmd.recirc_share <= 1.0
+    cmd, d = c.compute(_obs(c, k=1, t_s=5.0, co2_sensor_ppm=math.nan))
+    assert cmd.recirc_share == 0.0 and "door_mode=co2_sensor_fault" in d.message and d.success
+    cmd, d = c.compute(_obs(c, k=2, t_s=10.0, rh_cab=0.95, t_glass_c=20.0))  # dew point 26 degC > the glass
+    assert cmd.recirc_share == 0.0 and "door_mode=fog" in d.message
+    c.reset()
+    c.compute(_obs(c, k=0, t_s=100.0))
+    cmd, d = c.compute(_obs(c, k=1, t_s=50.0))
+    assert cmd.recirc_share == 0.0 and "door_error" in d.message and "before the last update" in d.message
+    c.reset()
+    cmd, d = c.compute(_obs(c, k=0, t_s=0.0, co2_limit_ppm=math.nan))
+    assert cmd.recirc_share == 0.0 and "door_mode=co2_limit_unknown" in d.message
+    assert math.isfinite(cmd.mdot_bl_kgps) and d.fallback == ""
+
+
+def test_a_non_finite_estimate_is_a_safe_mode_of_the_law():
+    """The law's safe mode 'co2_unknown' when its estimate is not finite (a diverged filter state), and the NLP's
+    initial CO2 is then the target, never NaN."""
+    law = Co2DoorLaw()
+    law.estimator.x = np.full_like(law.estimator.x, math.nan)
+    c, safe = law.observe(
+        t_s=0.0,
+        co2_sensor_fitted=False,
+        co2_sensor_ppm=math.nan,
+        recirc_share=0.8,
+        mdot_bl_kgps=0.05,
+        speed_mps=10.0,
+        n_occupants=2,
+        fog_margin_k=math.nan,
+        fog_margin_min_k=3.0,
+    )
+    assert safe == "co2_unknown" and not math.isfinite(c)
+    assert law.nlp_parameters(c, 1500.0, 2)["co2_0"] == 1500.0 - law.settings.margin_ppm
+
+
+def _hc4(duration_s, door_control):
+    from ceco_bringup.benchmark.cases import load_case
+    from ceco_controller.closed_loop import SimSettings, simulate
+    from ceco_v2x_preview.preview import parse_quality
+
+    sc = load_case("hot-commute-4p").load_scenario()
+    st = SimSettings(
+        progress=False,
+        seed=0,
+        duration_s=duration_s,
+        preview_quality=parse_quality("uncertain:medium"),
+        strategy_overrides=(("door_control", door_control),),
+    )
+    r = simulate(sc, "ceco-pmv", st)
+    assert r.metrics["n_fallback_shifted"] + r.metrics["n_fallback_baseline"] == 0
+    return r.timeseries
+
+
+def test_closed_loop_hot_commute_4p_the_nlp_door_holds_the_limit():
+    """900 s of hot-commute-4p with ceco-pmv's NLP door: the NMPC controls every step, the true CO2 reaches the
+    1350 ppm target (> 1300 ppm) and stays under it + 60 ppm (the estimate's error), the door modulates (shares
+    strictly inside 0..1), and the energy is within 1 % of the CO2-holding rule's (co2_hold) on the same run."""
+    door = _hc4(900.0, "nlp")
+    hold = _hc4(900.0, "co2_hold")
+    cmd = door["recirc_share_cmd"]
+    assert np.all((cmd >= 0.0) & (cmd <= 1.0))
+    assert np.any((cmd > 0.05) & (cmd < 0.95))
+    assert 1300.0 < door["co2_cab_ppm"].max() < 1350.0 + 60.0
+
+    def energy(ts):
+        return float(np.sum(ts["p_comp_w"] + ts["p_blower_w"] + ts["p_cond_fan_w"]))
+
+    assert energy(door) < 1.01 * energy(hold)
