@@ -72,6 +72,8 @@ __all__ = [
     "fit_eta_ac",
     "EtaMapSettings",
     "prediction_errors",
+    "Co2BalanceFit",
+    "fit_co2_balance",
     "read_series_csv",
     "write_series_csv",
     "main",
@@ -366,6 +368,67 @@ def prediction_errors(p: cm.ControlModelParams, iv: dict, horizon_steps: int = 6
         "horizon_energy_rel_err_rms": rms(e_energy),
         "horizon_energy_rel_err_mean": float(np.mean(e_energy)) if e_energy else float("nan"),
     }
+
+
+@dataclasses.dataclass(frozen=True)
+class Co2BalanceFit:
+    """The cabin CO2 balance's parameters identified from a plant run (:func:`fit_co2_balance`)."""
+
+    m_air_kg: float
+    """Cabin dry-air mass [kg]."""
+    leak_0_kgps: float
+    """Leakage at rest [kg/s]."""
+    leak_per_mps_kgps: float
+    """Leakage growth with speed [kg/s per m/s]."""
+    rate_rms_ppm_per_s: float
+    """RMS residual of the fitted CO2 rate [ppm/s]."""
+    free_run_max_err_ppm: float
+    """Largest error of the balance run with the fitted values from the first sample over the whole series, the
+    exact step (:func:`ceco_core.co2_door.co2_after_ppm`) with the inputs held per sample [ppm]."""
+
+
+def fit_co2_balance(series: dict, n_occupants: int, co2_amb_ppm: float, met: float = 1.2) -> Co2BalanceFit:
+    """Least-squares cabin air mass and leakage of the CO2 balance from a plant run (issue 21).
+
+    The balance of :mod:`ceco_core.air_quality`, m_air dC/dt = (F + L_0 + L_V V)(C_amb - C) + G, with F = (1 - r)
+    mdot_bl the fresh air [kg/s] of the door's actual share r, V the speed [m/s] and G = n g / k the occupants'
+    CO2 [ppm kg/s] (``co2_generation_kgps(met)``, taken as known), is linear in (m_air, L_0, L_V):
+
+        F (C_amb - C) + G = m_air dC/dt - L_0 (C_amb - C) - L_V V (C_amb - C)
+
+    with dC/dt the forward difference of consecutive samples and C their midpoint (``numpy.linalg.lstsq``).
+    ``series``: arrays ``t_s`` [s], ``co2_cab_ppm`` (the cabin's CO2: a lab analyser on a test car, the plant's
+    value here), ``recirc_share`` [-], ``mdot_bl_kgps``, ``speed_mps``. The door must move and the speed vary in
+    the data, or L_0, L_V and the fresh air are not told apart (a ValueError says so).
+    """
+    from ceco_core.air_quality import KGKG_PER_PPM, co2_generation_kgps
+    from ceco_core.co2_door import co2_after_ppm
+
+    t, c, r, m, v = (
+        np.asarray(series[k], float) for k in ("t_s", "co2_cab_ppm", "recirc_share", "mdot_bl_kgps", "speed_mps")
+    )
+    if not (t.size == c.size == r.size == m.size == v.size) or t.size < 60:
+        raise ValueError(f"fit_co2_balance: need equal-length series of at least 60 samples, got {t.size}")
+    if not np.all(np.isfinite(np.stack([t, c, r, m, v]))) or not np.all(np.diff(t) > 0):
+        raise ValueError("fit_co2_balance: the series must be finite with increasing time")
+    if np.ptp(r) < 0.05 or np.ptp(v) < 1.0:
+        raise ValueError(
+            f"fit_co2_balance: the door (range {np.ptp(r):.3f}) and the speed (range {np.ptp(v):.2f} m/s) must vary"
+        )
+    g = int(n_occupants) * co2_generation_kgps(met) / KGKG_PER_PPM
+    dt = np.diff(t)
+    cm_ = 0.5 * (c[1:] + c[:-1])
+    d_amb = co2_amb_ppm - cm_
+    fresh = (1.0 - r[:-1]) * m[:-1]
+    a = np.column_stack([np.diff(c) / dt, -d_amb, -v[:-1] * d_amb])
+    b = fresh * d_amb + g
+    m_air, l0, lv = (float(z) for z in np.linalg.lstsq(a, b, rcond=None)[0])
+    rate = (b + l0 * d_amb + lv * v[:-1] * d_amb) / m_air - np.diff(c) / dt
+    x, err = float(c[0]), 0.0
+    for k in range(t.size - 1):
+        x = co2_after_ppm(x, co2_amb_ppm, float(fresh[k]), l0 + lv * float(v[k]), g, m_air, float(dt[k]))
+        err = max(err, abs(x - float(c[k + 1])))
+    return Co2BalanceFit(float(m_air), float(l0), float(lv), float(np.sqrt(np.mean(rate**2))), err)
 
 
 def round_floats(d: dict) -> dict:
