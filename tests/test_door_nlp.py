@@ -244,3 +244,13 @@ def test_the_co2_balance_is_identified_from_a_plant_run():
     held = dict(ts, recirc_share=np.full_like(ts["recirc_share"], 0.8))
     with pytest.raises(ValueError, match="door"):
         fit_co2_balance(held, sc.occupants, sc.air_quality.co2_amb_ppm)
+
+
+def test_the_benchmark_runs_the_nlp_door_variant_of_ceco_pmv_by_name():
+    """``ceco-pmv-door`` in the benchmark's strategies is ceco-pmv with door_control nlp, run on every seed."""
+    from ceco_bringup.benchmark import runner
+
+    specs = runner.controllers(runner.load_baselines(), (25.0,), ("ceco-pmv", "ceco-pmv-door"), (0.0,))
+    door = [s for s in specs if s.name.startswith("ceco-pmv-door")]
+    assert len(door) == 1 and door[0].strategy == "ceco-pmv" and dict(door[0].overrides) == {"door_control": "nlp"}
+    assert door[0].seeded

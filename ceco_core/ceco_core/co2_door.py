@@ -18,8 +18,9 @@ value), so the door sees what the production logic sees.
 Safe defaults, ahead of the CO2 rule: fresh air (share 0) while the fog margin is below its bound +
 ``fog_enter_k`` (until bound + ``fog_exit_k``), while a fitted CO2 sensor does not read, or while the estimate is
 not finite; fresh air also when the ambient is cooler than the cabin by ``economiser_k`` (fresh air is free cooling
-then). What it is not: the door as a third input of the NLP (the NLP's energy model keeps its identified fresh-air
-fraction; docs/controller.md says what that leaves).
+then). The door as a third input of the NLP (``door_control = "nlp"``, docs/controller.md 4.9) uses this law's
+estimate and safe modes (:meth:`Co2DoorLaw.observe`), its NLP parameters (:meth:`Co2DoorLaw.nlp_parameters`) and
+:func:`co2_after_ppm` as the NLP's CO2 prediction; its rule (:meth:`Co2DoorLaw.hold`) when there is no plan.
 
 Pure and deterministic, no ROS: ``Co2DoorLaw(settings).step(...) -> Co2DoorCommand``.
 """
