@@ -34,6 +34,7 @@ from ceco_core.air_quality import (
     check_settings,
     co2_generation_kgps,
     co2_steady_ppm,
+    fog_margin_of,
     fog_override,
     leakage_kgps,
 )
@@ -166,3 +167,26 @@ class Co2DoorLaw:
         r = hold_share(c, target, m.co2_amb_ppm, max(float(mdot_bl_kgps), 0.0), leak, gen, m.m_air_kg, dt_s)
         mode = "recirc" if r >= 1.0 else ("co2_max_fresh" if r <= 0.0 else "co2_hold")
         return Co2DoorCommand(r, mode, c)
+
+    def step_observation(self, obs, *, dt_s: float, mdot_bl_kgps: float, co2_sensor_fitted: bool) -> Co2DoorCommand:
+        """:meth:`step` from a controller's observation (:class:`ceco_core.contracts.Observation`).
+
+        ``mdot_bl_kgps`` the blower command of the next period [kg/s]; the fog margin is the measured glass
+        temperature against the dew point of the measured cabin air. Used by the NMPC (``door_control:
+        co2_hold``) and by the baselines with ``door_mode: co2_hold``: one door, two thermal laws.
+        """
+        return self.step(
+            t_s=float(obs.t_s),
+            dt_s=dt_s,
+            co2_sensor_fitted=co2_sensor_fitted,
+            co2_sensor_ppm=float(obs.co2_sensor_ppm),
+            co2_limit_ppm=float(obs.co2_limit_ppm),
+            recirc_share=float(obs.recirc_share),
+            mdot_bl_kgps=float(mdot_bl_kgps),
+            speed_mps=float(obs.speed_mps),
+            n_occupants=int(obs.n_occupants),
+            t_cab_c=float(obs.t_cab_c),
+            t_amb_c=float(obs.t_amb_c),
+            fog_margin_k=fog_margin_of(obs.t_cab_c, obs.rh_cab, obs.t_glass_c),
+            fog_margin_min_k=float(obs.fog_margin_min_k),
+        )
