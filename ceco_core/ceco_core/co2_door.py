@@ -136,6 +136,7 @@ class Co2DoorLaw:
         co2_sensor_ppm: float,
         co2_limit_ppm: float,
         recirc_share: float,
+        mdot_bl_prev_kgps: float,
         mdot_bl_kgps: float,
         speed_mps: float,
         n_occupants: int,
@@ -146,11 +147,12 @@ class Co2DoorLaw:
     ) -> Co2DoorCommand:
         """The door command over the next ``dt_s`` [s].
 
-        ``recirc_share`` the measured door (the estimator's input), ``mdot_bl_kgps`` the blower flow of the next
-        period (the NMPC's command), ``fog_margin_k`` [K] (NaN: unknown, no override).
+        ``recirc_share`` the measured door and ``mdot_bl_prev_kgps`` the blower flow of the period that just ended
+        (the estimator's inputs over that period), ``mdot_bl_kgps`` the blower flow of the next period (the
+        controller's command: the share is computed for it), ``fog_margin_k`` [K] (NaN: unknown, no override).
         """
         s, m = self.settings, self.model
-        est = self.estimator.update(t_s, co2_sensor_ppm, recirc_share, mdot_bl_kgps, speed_mps, n_occupants)
+        est = self.estimator.update(t_s, co2_sensor_ppm, recirc_share, mdot_bl_prev_kgps, speed_mps, n_occupants)
         c = est.co2_cab_ppm
         self._fog = fog_override(self._fog, fog_margin_k, fog_margin_min_k, s.fog_enter_k, s.fog_exit_k)
         if self._fog:
@@ -182,6 +184,7 @@ class Co2DoorLaw:
             co2_sensor_ppm=float(obs.co2_sensor_ppm),
             co2_limit_ppm=float(obs.co2_limit_ppm),
             recirc_share=float(obs.recirc_share),
+            mdot_bl_prev_kgps=float(obs.mdot_bl_prev_kgps),
             mdot_bl_kgps=float(mdot_bl_kgps),
             speed_mps=float(obs.speed_mps),
             n_occupants=int(obs.n_occupants),
