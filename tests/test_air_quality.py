@@ -398,11 +398,12 @@ def test_a_baseline_law_file_carries_the_door_settings(tmp_path):
         load_acc_settings(str(law))
 
 
-def test_fixed_door_families_run_on_the_air_quality_cases_and_a_co2_breaking_member_is_never_on_a_front():
-    """The fixed-door families (issue 21 part 2): the tuned temperature PI and the tuned PMV PI, each with the door
-    held at 0, 0.5, 0.8 and 1.0, with the tuned gains; only on the cases whose baselines drive the door. A member's
-    own door wins over the case's production logic. Run for real on hot-commute-4p at 26 degC: full recirculation
-    breaks 1500 ppm and is on no front (and listed as broken), the door at 0.5 holds it and is its family's front."""
+def test_door_families_run_on_the_air_quality_cases_and_a_co2_breaking_member_is_never_on_a_front():
+    """The door families (issue 21 part 2): the tuned temperature PI and the tuned PMV PI, each with the door
+    held at 0, 0.5, 0.8 and 1.0 and with the CO2-holding door of ceco-pmv-aq, with the tuned gains; only on the
+    cases whose baselines drive the door. A member's own door wins over the case's production logic. Run for real
+    on hot-commute-4p at 26 degC: full recirculation breaks 1500 ppm and is on no front (and listed as broken), the
+    door at 0.5 holds it and is its family's front."""
     from ceco_bringup.benchmark import cases as bc
     from ceco_bringup.benchmark import runner
     from ceco_bringup.benchmark import schema as bs
@@ -410,18 +411,27 @@ def test_fixed_door_families_run_on_the_air_quality_cases_and_a_co2_breaking_mem
 
     b = runner.load_baselines()
     door = b.door_family_specs()
-    assert [f.family for f in door] == list(bs.DOOR_FAMILIES) and len(door) == 8
+    assert [f.family for f in door] == list(bs.DOOR_FAMILIES) and len(door) == 10
     for f in door:
-        base, pct = f.family.split("-door")
-        assert f.kind == f"{bs.FAMILIES[base]}-door{pct}" and f.measurements == b.families[base][1]
-        assert dict(f.overrides) == {**b.families[base][0], "door_mode": "fixed", "door_fixed_share": int(pct) / 100}
-    assert sorted({f.overrides["door_fixed_share"] for f in door}) == [0.0, 0.5, 0.8, 1.0]
+        base, variant = f.family.split("-door")
+        assert f.kind == f"{bs.FAMILIES[base]}-door{variant}" and f.measurements == b.families[base][1]
+        own = (
+            {"door_mode": "co2_hold"}
+            if variant == "co2"
+            else {"door_mode": "fixed", "door_fixed_share": int(variant) / 100}
+        )
+        assert dict(f.overrides) == {**b.families[base][0], **own}
+    assert sorted({f.overrides.get("door_fixed_share", -1) for f in door}) == [-1, 0.0, 0.5, 0.8, 1.0]
     specs = runner.controllers(b, (26.0,), ("ceco",), (0.0,))
     door_specs = [c for f in door for c in runner.family_members(f, (26.0,), (0.0,))]
     aq, dry = bc.load_case("hot-commute-4p"), bc.load_case("udds-hot")
     assert runner.case_controllers(dry, specs, door_specs) == specs
     with_door = runner.case_controllers(aq, specs, door_specs)
-    assert len(with_door) == len(specs) + 8 and with_door[-1].name == "ceco"  # the strategies stay last
+    assert len(with_door) == len(specs) + 10 and with_door[-1].name == "ceco"  # the strategies stay last
+    pmv_specs = runner.controllers(b, (26.0,), ("ceco-pmv",), (0.0,))
+    names = [c.name for c in runner.case_controllers(aq, pmv_specs, door_specs)]  # ceco-pmv brings its door variant
+    assert names[-3:] == ["ceco-pmv", "ceco-pmv-persistence", "ceco-pmv-aq"]
+    assert "ceco-pmv-aq" not in [c.name for c in runner.case_controllers(dry, pmv_specs, door_specs)]
     cells = {c.axes["controller"]: c for c in runner.case_cells(aq, with_door, code_fingerprint(), seeds=[0])}
     assert cells["baseline-tuned-door100@26.0"].spec["strategy_overrides"]["door_mode"] == "fixed"
     assert cells["baseline-tuned@26.0"].spec["strategy_overrides"]["door_mode"] == "auto"  # the case's logic

@@ -53,6 +53,7 @@ def _step(law, t, **kw):
         co2_sensor_ppm=1450.0,
         co2_limit_ppm=1500.0,
         recirc_share=1.0,
+        mdot_bl_prev_kgps=0.06,
         mdot_bl_kgps=0.06,
         speed_mps=10.0,
         n_occupants=4,
@@ -150,3 +151,59 @@ def test_benchmark_runs_the_door_variant_of_ceco_pmv_by_name():
     aq = [s for s in specs if s.name.startswith("ceco-pmv-aq")]
     assert len(aq) == 1 and aq[0].strategy == "ceco-pmv" and dict(aq[0].overrides) == {"door_control": "co2_hold"}
     assert aq[0].seeded and any(s.name == "ceco-pmv-persistence" for s in specs)
+
+
+def test_a_baseline_with_the_co2_holding_door_holds_the_co2_like_the_strategy_and_fails_safe():
+    """``door_mode: co2_hold`` puts ceco-pmv-aq's door behind a baseline's law (the ``*-doorco2`` families): 900 s of
+    hot-commute-4p with the production law at 25 degC: the economiser at key-on, then full recirculation and a
+    modulated door; the true CO2 stays under the 1350 ppm target + 60 ppm; each command equals (1e-9) the one a
+    fresh Co2DoorLaw gives on the same observed inputs (the same door as the strategy's, replayed from the run); and
+    for less energy than the production door logic on the same law. A CO2 sensor that dies at 300 s gives fresh
+    air from the next control step on."""
+    from ceco_bringup.benchmark.cases import load_case
+    from ceco_controller.closed_loop import SimSettings, simulate
+    from ceco_core.co2_door import Co2DoorLaw
+
+    sc = load_case("hot-commute-4p").load_scenario()
+
+    def run(mode, duration_s=900.0, scenario=sc):
+        ov = (("setpoint_c", 25.0), ("door_mode", mode))
+        return simulate(scenario, "baseline", SimSettings(progress=False, duration_s=duration_s, strategy_overrides=ov))
+
+    res = run("co2_hold")
+    ts = res.timeseries
+    cmd, t = ts["recirc_share_cmd"], ts["t_s"]
+    assert cmd[0] == 0.0 and ts["t_cab_c"][0] > ts["t_amb_c"][0] + 1.0  # economiser on the soaked cabin
+    assert np.any(cmd == 1.0) and np.any((cmd > 0.05) & (cmd < 0.95))
+    assert ts["co2_cab_ppm"].max() < 1350.0 + 60.0
+    # replay the door law on the run's own inputs, at the control instants (every 5 s)
+    law = Co2DoorLaw()
+    diffs = []
+    for k in range(0, len(t) - 5, 5):
+        c = law.step(
+            t_s=float(t[k]),
+            dt_s=5.0,
+            co2_sensor_fitted=True,
+            co2_sensor_ppm=float(ts["co2_sensor_ppm"][k]),
+            co2_limit_ppm=1500.0,
+            recirc_share=float(ts["recirc_share"][k]),
+            mdot_bl_prev_kgps=float(ts["mdot_bl_kgps"][max(k - 1, 0)]),  # at k = 0 the estimator only corrects
+            mdot_bl_kgps=float(ts["mdot_bl_kgps"][k]),
+            speed_mps=float(ts["speed_mps"][k]),
+            n_occupants=4,
+            t_cab_c=float(ts["t_cab_c"][k]),
+            t_amb_c=float(ts["t_amb_c"][k]),
+            fog_margin_k=float(ts["fog_margin_k"][k]),
+            fog_margin_min_k=3.0,
+        )
+        diffs.append(abs(c.recirc_share - float(cmd[k])))
+    assert len(diffs) == 179 and max(diffs) < 1e-9  # the same door, command for command
+    auto = run("auto").timeseries
+    assert _energy(ts) < _energy(auto)
+    dead = run(
+        "co2_hold",
+        420.0,
+        dataclasses.replace(sc, air_quality=dataclasses.replace(sc.air_quality, co2_sensor_fail_s=300.0)),
+    )
+    dt, dcmd = dead.timeseries["t_s"], dead.timeseries["recirc_share_cmd"]
+    assert np.any(dcmd[dt < 300.0] > 0.5) and np.all(dcmd[dt >= 305.0] == 0.0)

@@ -169,7 +169,7 @@ def test_a_non_finite_estimate_is_a_safe_mode_of_the_law():
         co2_sensor_fitted=False,
         co2_sensor_ppm=math.nan,
         recirc_share=0.8,
-        mdot_bl_kgps=0.05,
+        mdot_bl_prev_kgps=0.05,
         speed_mps=10.0,
         n_occupants=2,
         fog_margin_k=math.nan,

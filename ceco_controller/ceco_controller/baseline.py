@@ -17,11 +17,15 @@ the sensors a production car has.
 The fresh/recirculation door (issue 21) is driven by :class:`ceco_core.recirc_law.RecircLaw` with the ACC
 law's demand, the cabin and ambient temperatures, the CO2 sensor's reading and the fog margin of the
 observation (measured glass temperature against the dew point of the measured cabin air); its default
-mode ``none`` leaves the door to the plant (the baseline before issue 21).
+mode ``none`` leaves the door to the plant (the baseline before issue 21). With ``door_mode: co2_hold`` the
+door is the NMPC's CO2-holding door instead (:class:`ceco_core.co2_door.Co2DoorLaw`, the door of
+``ceco-pmv-aq``, on the law's blower command): the benchmark's ``*-doorco2`` families, so that a strategy's
+door is never a permission its baselines lack.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -29,9 +33,10 @@ import numpy as np
 from ceco_core.acc_law import AccLaw, AccSettings, feedback_pmv
 from ceco_core.air_quality import fog_margin_of
 from ceco_core.cabin_comfort import ComfortParams
+from ceco_core.co2_door import Co2DoorLaw
 from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
 from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits
-from ceco_core.recirc_law import RecircLaw, RecircSettings
+from ceco_core.recirc_law import RecircCommand, RecircLaw, RecircSettings
 
 __all__ = ["BaselineController"]
 
@@ -58,6 +63,8 @@ class BaselineController:
         """Occupant and sun geometry of the comfort-feedback law's PMV (unused by the temperature law)."""
         self.door = RecircLaw(door)
         """The door logic (mode ``none``: the door is left to the plant)."""
+        self.co2_door = Co2DoorLaw() if self.door.settings.door_mode == "co2_hold" else None
+        """The CO2-holding door (``door_mode: co2_hold``), else None."""
         self.co2_sensor_fitted = bool(co2_sensor_fitted)
         """Whether the car has a cabin CO2 sensor (a NaN reading is then a fault, and the door goes to fresh air)."""
 
@@ -65,6 +72,8 @@ class BaselineController:
         """Back to the key-on state."""
         self.law.reset()
         self.door.reset()
+        if self.co2_door is not None:
+            self.co2_door.reset()
 
     def compute(self, obs: Observation, t_start: float | None = None):
         """One control step from the measured cabin air temperature (never raises on its value).
@@ -105,18 +114,7 @@ class BaselineController:
         )
         if not ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c):
             raise AssertionError(f"ACC law produced an out-of-bounds command {cmd}")
-        door = self.door.step(
-            self.control_period_s,
-            demand=cmd.demand,
-            pulldown=cmd.mode == "pulldown",
-            t_cab_c=t_cab,
-            t_amb_c=float(obs.t_amb_c),
-            co2_sensor_fitted=self.co2_sensor_fitted,
-            co2_sensor_ppm=float(obs.co2_sensor_ppm),
-            co2_limit_ppm=float(obs.co2_limit_ppm),
-            fog_margin_k=fog_margin_of(t_cab, obs.rh_cab, obs.t_glass_c),
-            fog_margin_min_k=float(obs.fog_margin_min_k),
-        )
+        door = self._door(obs, cmd, t_cab)
         diag = Diagnostics(
             k=obs.k,
             t_s=obs.t_s,
@@ -131,3 +129,29 @@ class BaselineController:
             + ("" if door.mode == "none" else f" door={door.recirc_share:.2f} door_mode={door.mode}"),
         )
         return AcInput(mdot_bl_kgps=cmd.mdot_bl_kgps, t_evap_sp_c=cmd.t_evap_sp_c, recirc_share=door.recirc_share), diag
+
+    def _door(self, obs: Observation, cmd, t_cab: float):
+        """The door command of this step: the production logic, a fixed share, none, or the CO2-holding door."""
+        if self.co2_door is None:
+            return self.door.step(
+                self.control_period_s,
+                demand=cmd.demand,
+                pulldown=cmd.mode == "pulldown",
+                t_cab_c=t_cab,
+                t_amb_c=float(obs.t_amb_c),
+                co2_sensor_fitted=self.co2_sensor_fitted,
+                co2_sensor_ppm=float(obs.co2_sensor_ppm),
+                co2_limit_ppm=float(obs.co2_limit_ppm),
+                fog_margin_k=fog_margin_of(t_cab, obs.rh_cab, obs.t_glass_c),
+                fog_margin_min_k=float(obs.fog_margin_min_k),
+            )
+        try:  # the cabin temperature as the law reads it (NaN when implausible: no economiser on a bad sensor)
+            c = self.co2_door.step_observation(
+                dataclasses.replace(obs, t_cab_c=t_cab),
+                dt_s=self.control_period_s,
+                mdot_bl_kgps=cmd.mdot_bl_kgps,
+                co2_sensor_fitted=self.co2_sensor_fitted,
+            )
+        except ValueError:  # e.g. time going back: fresh air, the safe default, said in the door mode
+            return RecircCommand(0.0, "co2_door_error")
+        return RecircCommand(c.recirc_share, c.mode)

@@ -472,20 +472,11 @@ class NmpcController:
         if self.door is None:
             return cmd, diag
         try:
-            door = self.door.step(
-                t_s=float(obs.t_s),
+            door = self.door.step_observation(
+                obs,
                 dt_s=self.settings.control_period_s,
-                co2_sensor_fitted=self.co2_sensor_fitted,
-                co2_sensor_ppm=float(obs.co2_sensor_ppm),
-                co2_limit_ppm=float(obs.co2_limit_ppm),
-                recirc_share=float(obs.recirc_share),
                 mdot_bl_kgps=cmd.mdot_bl_kgps,
-                speed_mps=float(obs.speed_mps),
-                n_occupants=int(obs.n_occupants),
-                t_cab_c=float(obs.t_cab_c),
-                t_amb_c=float(obs.t_amb_c),
-                fog_margin_k=fog_margin_of(obs.t_cab_c, obs.rh_cab, obs.t_glass_c),
-                fog_margin_min_k=float(obs.fog_margin_min_k),
+                co2_sensor_fitted=self.co2_sensor_fitted,
             )
         except ValueError as exc:  # e.g. time going back: fresh air, the safe default, and said so
             _note(diag, f"door: {exc}; fresh air")
@@ -511,7 +502,7 @@ class NmpcController:
                 co2_sensor_fitted=self.co2_sensor_fitted,
                 co2_sensor_ppm=float(obs.co2_sensor_ppm),
                 recirc_share=float(obs.recirc_share),
-                mdot_bl_kgps=float(obs.mdot_bl_prev_kgps),
+                mdot_bl_prev_kgps=float(obs.mdot_bl_prev_kgps),
                 speed_mps=float(obs.speed_mps),
                 n_occupants=n_occ,
                 fog_margin_k=fog_margin_of(obs.t_cab_c, obs.rh_cab, obs.t_glass_c),

@@ -35,6 +35,7 @@ from ceco_core.air_quality import (
     check_settings,
     co2_generation_kgps,
     co2_steady_ppm,
+    fog_margin_of,
     fog_override,
     leakage_kgps,
 )
@@ -138,7 +139,7 @@ class Co2DoorLaw:
         co2_sensor_fitted: bool,
         co2_sensor_ppm: float,
         recirc_share: float,
-        mdot_bl_kgps: float,
+        mdot_bl_prev_kgps: float,
         speed_mps: float,
         n_occupants: int,
         fog_margin_k: float,
@@ -148,11 +149,12 @@ class Co2DoorLaw:
 
         The safe mode, when not None, is why the door must be at fresh air now, ahead of any CO2 rule or plan:
         'fog', 'co2_sensor_fault' (a fitted sensor does not read) or 'co2_unknown' (the estimate is not finite).
-        ``recirc_share``, ``mdot_bl_kgps``, ``speed_mps`` are the estimator's inputs
-        (:meth:`ceco_core.co2_estimator.Co2Estimator.update`). Raises ValueError when time goes back.
+        ``recirc_share`` (the measured door), ``mdot_bl_prev_kgps`` (the blower flow of the period that just ended)
+        and ``speed_mps`` are the estimator's inputs over that period (:meth:`ceco_core.co2_estimator.Co2Estimator.
+        update`). Raises ValueError when time goes back.
         """
         s = self.settings
-        est = self.estimator.update(t_s, co2_sensor_ppm, recirc_share, mdot_bl_kgps, speed_mps, n_occupants)
+        est = self.estimator.update(t_s, co2_sensor_ppm, recirc_share, mdot_bl_prev_kgps, speed_mps, n_occupants)
         c = est.co2_cab_ppm
         self._fog = fog_override(self._fog, fog_margin_k, fog_margin_min_k, s.fog_enter_k, s.fog_exit_k)
         if self._fog:
@@ -213,6 +215,7 @@ class Co2DoorLaw:
         co2_sensor_ppm: float,
         co2_limit_ppm: float,
         recirc_share: float,
+        mdot_bl_prev_kgps: float,
         mdot_bl_kgps: float,
         speed_mps: float,
         n_occupants: int,
@@ -223,15 +226,16 @@ class Co2DoorLaw:
     ) -> Co2DoorCommand:
         """The door command over the next ``dt_s`` [s]: :meth:`observe`, then its safe mode or :meth:`hold`.
 
-        ``recirc_share`` the measured door (the estimator's input), ``mdot_bl_kgps`` the blower flow of the next
-        period (the NMPC's command), ``fog_margin_k`` [K] (NaN: unknown, no override).
+        ``recirc_share`` the measured door and ``mdot_bl_prev_kgps`` the blower flow of the period that just ended
+        (the estimator's inputs over that period), ``mdot_bl_kgps`` the blower flow of the next period (the
+        controller's command: the share is computed for it), ``fog_margin_k`` [K] (NaN: unknown, no override).
         """
         c, safe = self.observe(
             t_s=t_s,
             co2_sensor_fitted=co2_sensor_fitted,
             co2_sensor_ppm=co2_sensor_ppm,
             recirc_share=recirc_share,
-            mdot_bl_kgps=mdot_bl_kgps,
+            mdot_bl_prev_kgps=mdot_bl_prev_kgps,
             speed_mps=speed_mps,
             n_occupants=n_occupants,
             fog_margin_k=fog_margin_k,
@@ -248,4 +252,28 @@ class Co2DoorLaw:
             n_occupants=n_occupants,
             t_cab_c=t_cab_c,
             t_amb_c=t_amb_c,
+        )
+
+    def step_observation(self, obs, *, dt_s: float, mdot_bl_kgps: float, co2_sensor_fitted: bool) -> Co2DoorCommand:
+        """:meth:`step` from a controller's observation (:class:`ceco_core.contracts.Observation`).
+
+        ``mdot_bl_kgps`` the blower command of the next period [kg/s]; the fog margin is the measured glass
+        temperature against the dew point of the measured cabin air. Used by the NMPC (``door_control:
+        co2_hold``) and by the baselines with ``door_mode: co2_hold``: one door, two thermal laws.
+        """
+        return self.step(
+            t_s=float(obs.t_s),
+            dt_s=dt_s,
+            co2_sensor_fitted=co2_sensor_fitted,
+            co2_sensor_ppm=float(obs.co2_sensor_ppm),
+            co2_limit_ppm=float(obs.co2_limit_ppm),
+            recirc_share=float(obs.recirc_share),
+            mdot_bl_prev_kgps=float(obs.mdot_bl_prev_kgps),
+            mdot_bl_kgps=float(mdot_bl_kgps),
+            speed_mps=float(obs.speed_mps),
+            n_occupants=int(obs.n_occupants),
+            t_cab_c=float(obs.t_cab_c),
+            t_amb_c=float(obs.t_amb_c),
+            fog_margin_k=fog_margin_of(obs.t_cab_c, obs.rh_cab, obs.t_glass_c),
+            fog_margin_min_k=float(obs.fog_margin_min_k),
         )

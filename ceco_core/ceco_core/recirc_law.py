@@ -45,9 +45,11 @@ from ceco_core.air_quality import check_settings, fog_override
 
 __all__ = ["DOOR_MODES", "RecircSettings", "RecircCommand", "RecircLaw"]
 
-DOOR_MODES = ("none", "fixed", "auto")
-"""How the baseline drives the door: not at all (the plant's default share), at a fixed share, or by the
-production logic."""
+DOOR_MODES = ("none", "fixed", "auto", "co2_hold")
+"""How the baseline drives the door: not at all (the plant's default share), at a fixed share, by the
+production logic, or by the CO2-holding door of the NMPC (``ceco_core.co2_door.Co2DoorLaw``, its default
+settings: the door of ``ceco-pmv-aq`` behind a baseline's thermal law; run by the baseline, not by this
+logic)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -55,7 +57,8 @@ class RecircSettings:
     """Settings of the door logic (field names prefixed ``door_``: they travel with the ACC law's overrides)."""
 
     door_mode: str = "none"
-    """``none`` (not commanded: the plant's default share, the baseline before issue 21), ``fixed`` or ``auto``."""
+    """``none`` (not commanded: the plant's default share, the baseline before issue 21), ``fixed``, ``auto`` or
+    ``co2_hold`` (:data:`DOOR_MODES`)."""
     door_fixed_share: float = 0.8
     """Recirculated share of mode ``fixed`` [0..1]."""
     door_recirc_share: float = 1.0
@@ -168,6 +171,10 @@ class RecircLaw:
             return RecircCommand(math.nan, "none")
         if s.door_mode == "fixed":
             return RecircCommand(s.door_fixed_share, "fixed")
+        if s.door_mode == "co2_hold":
+            raise ValueError(
+                "RecircLaw: door_mode 'co2_hold' is the CO2-holding door (ceco_core.co2_door), not this logic"
+            )
         self._since_switch_s += dt_s
         # 1. safety overrides
         self._fog = fog_override(self._fog, fog_margin_k, fog_margin_min_k, s.door_fog_enter_k, s.door_fog_exit_k)

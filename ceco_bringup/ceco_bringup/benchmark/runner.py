@@ -27,7 +27,15 @@ from ceco_core.run_status import STATUS_FAILED, ControlCheck, check_control
 
 from . import front as fr
 from .cases import Case
-from .schema import BENCHMARK_VERSION, DOOR_FAMILY_BASES, DOOR_SHARES_PCT, FAMILIES, SEED_INVARIANT_KINDS, door_family
+from .schema import (
+    BENCHMARK_VERSION,
+    DOOR_CO2_HOLD,
+    DOOR_FAMILY_BASES,
+    DOOR_VARIANTS,
+    FAMILIES,
+    SEED_INVARIANT_KINDS,
+    door_family,
+)
 
 __all__ = [
     'SETPOINTS_C',
@@ -37,6 +45,7 @@ __all__ = [
     'SECONDARY_AXES',
     'STRATEGY_NAMES',
     'STRATEGY_VARIANTS',
+    'DOOR_CASE_STRATEGIES',
     'PERSISTENCE_SUFFIX',
     'PERSISTENCE_TWINS',
     'SETPOINTS_PMV',
@@ -98,6 +107,11 @@ STRATEGY_VARIANTS = {
 """Benchmark names of a strategy run with settings overrides: ``{name: (strategy, ((field, value), ...))}``
 (issue 21: ``ceco-pmv-aq``, ceco-pmv with the CO2-holding door beside its NLP; ``ceco-pmv-door``, ceco-pmv with
 the door a third input of its NLP; docs/controller.md 4.8, 4.9)."""
+
+DOOR_CASE_STRATEGIES = {'ceco-pmv': 'ceco-pmv-aq'}
+"""On a case whose baselines drive the door (``baseline_door``), each scored strategy here brings its door variant
+(:data:`STRATEGY_VARIANTS`) along, unless it is asked for already: where the baselines may move the door, a
+strategy that may is scored too (:func:`case_controllers`)."""
 
 SEED_INVARIANT = SEED_INVARIANT_KINDS
 SCORED_KINDS = ('strategy', 'compensated', 'compensated-allowance', 'external')
@@ -173,17 +187,22 @@ class BaselineConstants:
         return [FamilySpec(f, *base[f]) for f in FAMILIES if f in base]
 
     def door_family_specs(self) -> list[FamilySpec]:
-        """The fixed-door families (issue 21).
+        """The door families (issue 21).
 
-        Each of :data:`schema.DOOR_FAMILY_BASES` with its tuned gains and the door held at each of
-        :data:`schema.DOOR_SHARES_PCT` (``door_mode: fixed``, no fog or CO2 override).
+        Each of :data:`schema.DOOR_FAMILY_BASES` with its tuned gains and each door of :data:`schema.DOOR_VARIANTS`:
+        held at a share (``door_mode: fixed``, no fog or CO2 override), or the CO2-holding door of ``ceco-pmv-aq``
+        (``door_mode: co2_hold``, with its fog, sensor-fault and economiser overrides).
         """
         out = []
         for b in DOOR_FAMILY_BASES:
             overrides, measurements = self.families[b]
-            for pct in DOOR_SHARES_PCT:
-                door = {'door_mode': 'fixed', 'door_fixed_share': pct / 100.0}
-                out.append(FamilySpec(door_family(b, pct), {**dict(overrides), **door}, str(measurements)))
+            for v in DOOR_VARIANTS:
+                door = (
+                    {'door_mode': 'co2_hold'}
+                    if v == DOOR_CO2_HOLD
+                    else {'door_mode': 'fixed', 'door_fixed_share': int(v) / 100.0}
+                )
+                out.append(FamilySpec(door_family(b, v), {**dict(overrides), **door}, str(measurements)))
         return out
 
 
@@ -457,10 +476,11 @@ def case_controllers(
     door_specs: Sequence[ControllerSpec],
     door_tuning: Mapping | None = None,
 ) -> list:
-    """The controllers of ``case``: ``specs``, plus the fixed-door family members ``door_specs``.
+    """The controllers of ``case``: ``specs``, plus the door family members ``door_specs``.
 
     Only when the case's baselines drive the door (``baseline_door`` set: the air-quality cases); then the
-    door members come after the other families, and where the case's door is the production logic
+    door members come after the other families, the strategies of :data:`DOOR_CASE_STRATEGIES` bring their door
+    variants (``ceco-pmv`` brings ``ceco-pmv-aq``), and where the case's door is the production logic
     (``door_mode: auto``) the members of :data:`DOOR_TUNED_KINDS` carry the door values tuned with their law
     (``door_tuning``: :func:`load_door_tuning`).
     """
@@ -473,6 +493,12 @@ def case_controllers(
         if auto and door_tuning and law in door_tuning:
             c = dataclasses.replace(c, overrides=tuple(sorted({**dict(c.overrides), **door_tuning[law]}.items())))
         out.append(c)
+    names = {c.name for c in out}
+    out += [
+        ControllerSpec(v, 'strategy', *STRATEGY_VARIANTS[v])
+        for c in specs
+        if c.kind == 'strategy' and (v := DOOR_CASE_STRATEGIES.get(c.name)) and v not in names
+    ]
     n_fam = sum(1 for c in out if c.kind in FAMILIES.values())
     return [*out[:n_fam], *door_specs, *out[n_fam:]]
 

@@ -38,6 +38,8 @@ __all__ = [
     "FAMILIES",
     "DOOR_FAMILIES",
     "DOOR_SHARES_PCT",
+    "DOOR_VARIANTS",
+    "DOOR_CO2_HOLD",
     "DOOR_FAMILY_BASES",
     "door_family",
     "ORACLE_STATUSES",
@@ -84,21 +86,29 @@ DOOR_SHARES_PCT = (0, 50, 80, 100)
 """Recirculated shares of the fixed-door families [%] (issue 21): fresh air, half, the plant's default 0.8 of
 before issue 21, full recirculation."""
 
+DOOR_CO2_HOLD = "co2"
+"""Door variant of the families whose door is the CO2-holding door of ``ceco-pmv-aq`` (``door_mode: co2_hold``,
+``ceco_core.co2_door``): the strategy's door behind the baseline's law."""
+
+DOOR_VARIANTS = (*(str(p) for p in DOOR_SHARES_PCT), DOOR_CO2_HOLD)
+"""The door variants of the door families: each fixed share [%], then the CO2-holding door."""
+
 DOOR_FAMILY_BASES = ("tuned", "pmv")
-"""The families run with the door held at each of :data:`DOOR_SHARES_PCT` on the cases whose baselines drive
-the door (a case's ``baseline_door``): the strongest laws, the tuned temperature PI and the tuned PMV PI."""
+"""The families run with each door of :data:`DOOR_VARIANTS` on the cases whose baselines drive the door (a
+case's ``baseline_door``): the strongest laws, the tuned temperature PI and the tuned PMV PI."""
 
 
-def door_family(base: str, share_pct: int) -> str:
-    """Front name of ``base`` (:data:`DOOR_FAMILY_BASES`) with the door held at ``share_pct`` [%]: ``tuned-door80``."""
-    return f"{base}-door{int(share_pct)}"
+def door_family(base: str, variant) -> str:
+    """Front name of ``base`` (:data:`DOOR_FAMILY_BASES`) with a door of :data:`DOOR_VARIANTS`: ``tuned-door80``.
+
+    ``variant`` a share [%] or ``co2`` (``pmv-doorco2``).
+    """
+    return f"{base}-door{variant}"
 
 
-DOOR_FAMILIES = {
-    door_family(base, pct): f"{FAMILIES[base]}-door{pct}" for base in DOOR_FAMILY_BASES for pct in DOOR_SHARES_PCT
-}
-"""Front name -> kind of the fixed-door families (``tuned-door80`` -> ``baseline-tuned-door80``); on the other
-cases their fronts are empty."""
+DOOR_FAMILIES = {door_family(base, v): f"{FAMILIES[base]}-door{v}" for base in DOOR_FAMILY_BASES for v in DOOR_VARIANTS}
+"""Front name -> kind of the door families (``tuned-door80`` -> ``baseline-tuned-door80``, ``pmv-doorco2`` ->
+``baseline-pmv-doorco2``); on the other cases their fronts are empty."""
 
 FAMILIES = {**FAMILIES, **DOOR_FAMILIES}
 
