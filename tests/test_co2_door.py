@@ -207,3 +207,24 @@ def test_a_baseline_with_the_co2_holding_door_holds_the_co2_like_the_strategy_an
     )
     dt, dcmd = dead.timeseries["t_s"], dead.timeseries["recirc_share_cmd"]
     assert np.any(dcmd[dt < 300.0] > 0.5) and np.all(dcmd[dt >= 305.0] == 0.0)
+
+
+def test_a_baseline_co2_door_that_cannot_step_commands_fresh_air_and_says_why():
+    """The baseline's CO2-holding door refused an input (time going back): the door command is fresh air (0) and
+    the diagnostics name the mode and the reason; the thermal commands stay bounded; the next valid step
+    recirculates again."""
+    from observations import observation
+
+    from ceco_controller.baseline import BaselineController
+    from ceco_core.contracts import ACTUATOR_LIMITS
+    from ceco_core.recirc_law import RecircSettings
+
+    ctl = BaselineController(door=RecircSettings(door_mode="co2_hold"))
+    kw = dict(t_amb_c=35.0, co2_sensor_ppm=700.0, recirc_share=1.0, n_occupants=4)
+    cmd, _ = ctl.compute(observation(6, k=2, t_cab=28.0, **kw))
+    assert cmd.recirc_share == 1.0  # CO2 far under its target, the cabin cooler than the ambient
+    cmd, diag = ctl.compute(observation(6, k=1, t_cab=28.0, **kw))  # t = 5 s after t = 10 s
+    assert cmd.recirc_share == 0.0 and "door_mode=co2_door_error" in diag.message and "before" in diag.message
+    assert ACTUATOR_LIMITS.contains(cmd.mdot_bl_kgps, cmd.t_evap_sp_c)
+    cmd, _ = ctl.compute(observation(6, k=3, t_cab=28.0, **kw))
+    assert cmd.recirc_share == 1.0

@@ -152,6 +152,6 @@ class BaselineController:
                 mdot_bl_kgps=cmd.mdot_bl_kgps,
                 co2_sensor_fitted=self.co2_sensor_fitted,
             )
-        except ValueError:  # e.g. time going back: fresh air, the safe default, said in the door mode
-            return RecircCommand(0.0, "co2_door_error")
+        except ValueError as exc:  # e.g. time going back: fresh air, the safe default, and said so
+            return RecircCommand(0.0, f"co2_door_error ({exc}; fresh air)")
         return RecircCommand(c.recirc_share, c.mode)
