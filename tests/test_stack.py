@@ -976,7 +976,17 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
     cmds = tn.collect(AcCommand, interfaces.TOPIC_COMMAND, interfaces.QOS_COMMAND)
     powers = tn.collect(AcPower, interfaces.TOPIC_POWER, interfaces.QOS_STATE)
     diags = tn.collect(DiagnosticArray, interfaces.TOPIC_ROS_DIAGNOSTICS, interfaces.QOS_DIAGNOSTICS)
-    common = {'scenario': 'sc03', 'timing': 'lockstep', 'control_period_s': 5.0}
+    # SC03 held for 10 h: in lockstep an active controller and the plant run as fast as they can (a whole
+    # 600-s SC03 in under a second on an idle machine), so the drive must outlast the test's active phases
+    # and still be running when the reconfigured node is activated (the plant stops at the scenario's end)
+    from importlib import resources
+
+    import yaml
+
+    sc = yaml.safe_load(resources.files('ceco_v2x_preview').joinpath('data', 'scenarios', 'sc03.yaml').read_text())
+    scenario = tmp_path / 'sc03-held.yaml'
+    scenario.write_text(yaml.safe_dump({**sc, 'name': 'sc03-held', 'duration_s': 36000.0}))
+    common = {'scenario': str(scenario), 'timing': 'lockstep', 'control_period_s': 5.0}
     preview = _proc('preview_node', 'preview_node', tn.env, log_dir, dict(common, horizon_steps=6))
     mpc = _proc(
         'mpc_node',
@@ -992,7 +1002,6 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
         log_dir,
         dict(
             common,
-            duration_s=3600.0,
             **{
                 # the plant waits this long for command 0 while the test activates the controller: 3 s
                 # was once too short on a loaded CI machine (the first command was step 1's)
