@@ -176,8 +176,10 @@ def test_a_baseline_with_the_co2_holding_door_holds_the_co2_like_the_strategy_an
     assert cmd[0] == 0.0 and ts["t_cab_c"][0] > ts["t_amb_c"][0] + 1.0  # economiser on the soaked cabin
     assert np.any(cmd == 1.0) and np.any((cmd > 0.05) & (cmd < 0.95))
     assert ts["co2_cab_ppm"].max() < 1350.0 + 60.0
-    # replay the door law on the run's own inputs, at the control instants (every 5 s)
-    law = Co2DoorLaw()
+    # replay the door law (the control model's identified CO2 balance) on the run's own inputs, every 5 s
+    from ceco_controller import model as cm
+
+    law = Co2DoorLaw(model=cm.co2_estimator_params(cm.load_params()))
     diffs = []
     for k in range(0, len(t) - 5, 5):
         c = law.step(

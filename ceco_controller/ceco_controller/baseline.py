@@ -34,6 +34,7 @@ from ceco_core.acc_law import AccLaw, AccSettings, feedback_pmv
 from ceco_core.air_quality import fog_margin_of
 from ceco_core.cabin_comfort import ComfortParams
 from ceco_core.co2_door import Co2DoorLaw
+from ceco_core.co2_estimator import Co2EstimatorParams
 from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
 from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits
 from ceco_core.recirc_law import RecircCommand, RecircLaw, RecircSettings
@@ -52,6 +53,7 @@ class BaselineController:
         comfort_params: ComfortParams | None = None,
         door: RecircSettings | None = None,
         co2_sensor_fitted: bool = True,
+        co2_model: Co2EstimatorParams | None = None,
     ):
         if not (math.isfinite(control_period_s) and control_period_s > 0):
             raise ValueError(f"control_period_s must be finite and > 0, got {control_period_s!r}")
@@ -63,8 +65,9 @@ class BaselineController:
         """Occupant and sun geometry of the comfort-feedback law's PMV (unused by the temperature law)."""
         self.door = RecircLaw(door)
         """The door logic (mode ``none``: the door is left to the plant)."""
-        self.co2_door = Co2DoorLaw() if self.door.settings.door_mode == "co2_hold" else None
-        """The CO2-holding door (``door_mode: co2_hold``), else None."""
+        self.co2_door = Co2DoorLaw(model=co2_model) if self.door.settings.door_mode == "co2_hold" else None
+        """The CO2-holding door (``door_mode: co2_hold``; its CO2 balance ``co2_model``, default the nominal values),
+        else None."""
         self.co2_sensor_fitted = bool(co2_sensor_fitted)
         """Whether the car has a cabin CO2 sensor (a NaN reading is then a fault, and the door goes to fresh air)."""
 

@@ -174,7 +174,8 @@ def simulate(
         quality = dataclasses.replace(quality, seed=int(settings.seed))
     duration = float(settings.duration_s or scenario.duration_s)
     n = n_plant_steps(duration, dt)
-    mp = cm.load_params(settings.model_params_path) if strategy != "baseline" else None
+    # the baseline reads the control model too: its state estimator (vehicle measurements) and its CO2 door's balance
+    mp = cm.load_params(settings.model_params_path)
     if controller is None:
         controller = make_controller(
             strategy,

@@ -141,6 +141,12 @@ def make_controller(
             comfort_params=comfort_params_for(scenario),
             door=door,
             co2_sensor_fitted=scenario.air_quality.co2_sensor != "none",
+            # the CO2-holding door's balance: the identified one of the control model, as the NMPC's door has it
+            co2_model=(
+                cm.co2_estimator_params(model_params if model_params is not None else cm.load_params())
+                if door.door_mode == "co2_hold"
+                else None
+            ),
         )
     else:
         settings = load_strategy_settings(

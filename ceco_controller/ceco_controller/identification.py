@@ -29,11 +29,18 @@ this module identifies them from the ceco plant:
    bound, +24 % at 20 m/s against the plant's +15-20 %).
 4. Fit report: one-step and multi-step (a whole horizon Np) prediction errors on
    a validation drive (US06) that is not used for fitting.
+5. The cabin CO2 balance (the CO2 estimator's and the door's model, issue 21): cabin air mass and
+   leakage (:func:`fit_co2_balance`, linear least squares) from a drive with the door, the blower and
+   the set-point moved at random (UDDS, 4 occupants; :func:`generate_co2_excitation`), validated by
+   running the fitted balance free over another (HWFET, 2 occupants); written into the same file
+   (``co2_*`` fields). With ``--from-csv`` the CO2 balance comes from ``--co2-csv`` (columns
+   :data:`CO2_CSV_COLUMNS`), else it keeps its nominal values and the provenance says so.
 
 CLI (also ``ceco identify``)::
 
     ceco identify --out runs/id          # regenerate data, fit, write runs/id/model_params.yaml
     ceco identify --from-csv data.csv [--validation-csv v.csv] --out runs/id2
+    ceco identify --from-csv data.csv --co2-csv c.csv [--co2-validation-csv cv.csv] --out runs/id3
 """
 
 from __future__ import annotations
@@ -50,16 +57,24 @@ from scipy.optimize import least_squares, lsq_linear
 
 from . import model as cm
 from .identification_data import (  # noqa: F401 - part of this module's API (__all__)
+    CO2_SERIES_COLUMNS,
+    CO2_TRAIN_DRIVE,
+    CO2_VALIDATION_DRIVE,
     DEFAULT_DATA_DIR,
     PACKAGE_DIR,
     SERIES_COLUMNS,
     TRAIN_DRIVES,
     VALIDATION_DRIVES,
     ExcitationSettings,
+    generate_co2_excitation,
     generate_excitation,
     read_series_csv,
     write_series_csv,
 )
+
+CO2_CSV_COLUMNS = CO2_SERIES_COLUMNS + ("n_occupants", "co2_amb_ppm")
+"""Columns of a CO2 identification CSV (``ceco identify --co2-csv``): the fit's series and, on every row, the
+drive's occupants and ambient CO2 [ppm] (constant over a file)."""
 
 __all__ = [
     "SERIES_COLUMNS",
@@ -74,6 +89,8 @@ __all__ = [
     "prediction_errors",
     "Co2BalanceFit",
     "fit_co2_balance",
+    "co2_free_run_max_err_ppm",
+    "CO2_CSV_COLUMNS",
     "read_series_csv",
     "write_series_csv",
     "main",
@@ -396,13 +413,16 @@ def fit_co2_balance(series: dict, n_occupants: int, co2_amb_ppm: float, met: flo
 
         F (C_amb - C) + G = m_air dC/dt - L_0 (C_amb - C) - L_V V (C_amb - C)
 
-    with dC/dt the forward difference of consecutive samples and C their midpoint (``numpy.linalg.lstsq``).
+    with dC/dt the forward difference of consecutive samples, C and the door's share r their midpoints (the door
+    travels within a sample: its mean position over the interval, not the one at its start; a 5-s stroke read at
+    the start biased the leakage at rest by +22 % on the CO2 excitation) and the blower flow and speed those of
+    the interval's start (held commands, 1 s apart) (``numpy.linalg.lstsq``).
     ``series``: arrays ``t_s`` [s], ``co2_cab_ppm`` (the cabin's CO2: a lab analyser on a test car, the plant's
-    value here), ``recirc_share`` [-], ``mdot_bl_kgps``, ``speed_mps``. The door must move and the speed vary in
+    value here), ``recirc_share`` [-] (the door's actual position), ``mdot_bl_kgps``, ``speed_mps``. The door must
+    move and the speed vary in
     the data, or L_0, L_V and the fresh air are not told apart (a ValueError says so).
     """
     from ceco_core.air_quality import KGKG_PER_PPM, co2_generation_kgps
-    from ceco_core.co2_door import co2_after_ppm
 
     t, c, r, m, v = (
         np.asarray(series[k], float) for k in ("t_s", "co2_cab_ppm", "recirc_share", "mdot_bl_kgps", "speed_mps")
@@ -419,16 +439,42 @@ def fit_co2_balance(series: dict, n_occupants: int, co2_amb_ppm: float, met: flo
     dt = np.diff(t)
     cm_ = 0.5 * (c[1:] + c[:-1])
     d_amb = co2_amb_ppm - cm_
-    fresh = (1.0 - r[:-1]) * m[:-1]
+    fresh = (1.0 - 0.5 * (r[1:] + r[:-1])) * m[:-1]
     a = np.column_stack([np.diff(c) / dt, -d_amb, -v[:-1] * d_amb])
     b = fresh * d_amb + g
     m_air, l0, lv = (float(z) for z in np.linalg.lstsq(a, b, rcond=None)[0])
     rate = (b + l0 * d_amb + lv * v[:-1] * d_amb) / m_air - np.diff(c) / dt
+    err = co2_free_run_max_err_ppm(series, n_occupants, co2_amb_ppm, m_air, l0, lv, met)
+    return Co2BalanceFit(float(m_air), float(l0), float(lv), float(np.sqrt(np.mean(rate**2))), err)
+
+
+def co2_free_run_max_err_ppm(
+    series: dict,
+    n_occupants: int,
+    co2_amb_ppm: float,
+    m_air_kg: float,
+    leak_0_kgps: float,
+    leak_per_mps_kgps: float,
+    met: float = 1.2,
+) -> float:
+    """Largest error [ppm] of the CO2 balance with these values run free from the series' first sample.
+
+    The exact step :func:`ceco_core.co2_door.co2_after_ppm`, the inputs as :func:`fit_co2_balance` takes them.
+    """
+    from ceco_core.air_quality import KGKG_PER_PPM, co2_generation_kgps
+    from ceco_core.co2_door import co2_after_ppm
+
+    t, c, r, m, v = (
+        np.asarray(series[k], float) for k in ("t_s", "co2_cab_ppm", "recirc_share", "mdot_bl_kgps", "speed_mps")
+    )
+    g = int(n_occupants) * co2_generation_kgps(met) / KGKG_PER_PPM
+    fresh = (1.0 - 0.5 * (r[1:] + r[:-1])) * m[:-1]
     x, err = float(c[0]), 0.0
     for k in range(t.size - 1):
-        x = co2_after_ppm(x, co2_amb_ppm, float(fresh[k]), l0 + lv * float(v[k]), g, m_air, float(dt[k]))
+        leak = leak_0_kgps + leak_per_mps_kgps * float(v[k])
+        x = co2_after_ppm(x, co2_amb_ppm, float(fresh[k]), leak, g, m_air_kg, float(t[k + 1] - t[k]))
         err = max(err, abs(x - float(c[k + 1])))
-    return Co2BalanceFit(float(m_air), float(l0), float(lv), float(np.sqrt(np.mean(rate**2))), err)
+    return float(err)
 
 
 def round_floats(d: dict) -> dict:
@@ -485,6 +531,14 @@ def main(argv=None) -> int:
         help="run directory to write model_params.yaml and the generated train/validation CSVs into; it must not "
         "hold them already (default: a new runs/identify-<UTC time>)",
     )
+    ap.add_argument(
+        "--co2-csv",
+        default=None,
+        help="fit the cabin CO2 balance from this 1 s CSV (CO2_CSV_COLUMNS) instead of simulating the plant",
+    )
+    ap.add_argument(
+        "--co2-validation-csv", default=None, help="validation CSV of the CO2 balance (default: simulate HWFET)"
+    )
     ap.add_argument("--seed", type=int, default=1, help="excitation seed (default: 1)")
     ap.add_argument("--ts", type=float, default=5.0, help="model step [s] (default: 5)")
     ap.add_argument("--horizon", type=int, default=6, help="horizon for the multi-step error [steps] (default: 6)")
@@ -494,6 +548,64 @@ def main(argv=None) -> int:
     except (ValueError, OSError) as exc:  # a missing or malformed CSV: one line, no traceback
         print(f"ceco identify: error: {exc}", file=sys.stderr)
         return 2
+
+
+def _co2_series_from_csv(path) -> dict:
+    """A CO2 identification CSV (:data:`CO2_CSV_COLUMNS`) as the series :func:`fit_co2_balance` takes."""
+    s: dict[str, Any] = read_series_csv(path, CO2_CSV_COLUMNS)
+    for k in ("n_occupants", "co2_amb_ppm"):
+        if s[k].size == 0 or np.ptp(s[k]) != 0.0:
+            raise ValueError(f"{path}: column {k!r} must hold one value on every row")
+    s["n_occupants"], s["co2_amb_ppm"] = int(s["n_occupants"][0]), float(s["co2_amb_ppm"][0])
+    if not 1 <= s["n_occupants"] <= 5:
+        raise ValueError(f"{path}: n_occupants must be 1..5, got {s['n_occupants']}")
+    return s
+
+
+def _identify_co2(args, data_dir: pathlib.Path, exc: ExcitationSettings) -> tuple[dict, dict, str]:
+    """The CO2 balance's part of ``ceco identify``: (ControlModelParams fields, fit report, provenance text).
+
+    Training and validation series from the CSVs given, else simulated (and written into the run directory);
+    with ``--from-csv`` and no ``--co2-csv`` the nominal values are kept (empty fields) and the text says so.
+    """
+    if args.co2_csv is None and args.from_csv:
+        print("ceco identify: no --co2-csv: the CO2 balance keeps its nominal values", file=sys.stderr)
+        return {}, {"method": "not identified (no CO2 data): nominal values"}, "not identified (nominal values)"
+    srcs = []
+    sets = []
+    for csv_arg, drive, name in (
+        (args.co2_csv, CO2_TRAIN_DRIVE, "co2_train.csv"),
+        (args.co2_validation_csv, CO2_VALIDATION_DRIVE, "co2_validation.csv"),
+    ):
+        if csv_arg:
+            sets.append(_co2_series_from_csv(csv_arg))
+            srcs.append(csv_arg)
+            continue
+        series = generate_co2_excitation(drive, exc)
+        n = len(series["t_s"])
+        table = dict(
+            series, n_occupants=np.full(n, series["n_occupants"]), co2_amb_ppm=np.full(n, series["co2_amb_ppm"])
+        )
+        sha = write_series_csv(table, data_dir / name, CO2_CSV_COLUMNS)
+        sets.append(series)
+        srcs.append(f"{name} (sha256 {sha[:16]}; {drive[0]}, {drive[1]} occupants)")
+    train, valid = sets
+    fit = fit_co2_balance(train, train["n_occupants"], train["co2_amb_ppm"])
+    err_valid = co2_free_run_max_err_ppm(
+        valid, valid["n_occupants"], valid["co2_amb_ppm"], fit.m_air_kg, fit.leak_0_kgps, fit.leak_per_mps_kgps
+    )
+    fields = {
+        "co2_m_air_kg": fit.m_air_kg,
+        "co2_leak_0_kgps": fit.leak_0_kgps,
+        "co2_leak_per_mps_kgps": fit.leak_per_mps_kgps,
+    }
+    report = {
+        "method": "linear least squares of the CO2 balance (fit_co2_balance); validation: the balance run free",
+        "rate_rms_training_ppm_per_s": fit.rate_rms_ppm_per_s,
+        "free_run_max_err_training_ppm": fit.free_run_max_err_ppm,
+        "free_run_max_err_validation_ppm": err_valid,
+    }
+    return fields, report, f"from {srcs[0]}, validated on {srcs[1]}"
 
 
 def _identify(args, argv) -> int:
@@ -535,9 +647,13 @@ def _identify(args, argv) -> int:
         "plant_ratio_at_20mps": [float(x) for x in np.round(emap["ratio"][:, v20], 4)],
         "model_eta_at_20mps": float(cm.eta_ac(params, 20.0)),
     }
+    co2_fields, co2_report, co2_src = _identify_co2(args, data_dir, exc)
     cmd = "ceco identify" + (" " + " ".join(argv) if argv else "")
     params = dataclasses.replace(
-        params, provenance=f"{cmd}; excitation seed {args.seed}; training data {train_src}; validation data {valid_src}"
+        params,
+        **co2_fields,
+        provenance=f"{cmd}; excitation seed {args.seed}; training data {train_src}; validation data {valid_src}; "
+        f"CO2 balance {co2_src}",
     )
     rep_train = prediction_errors(params, iv_train, args.horizon)
     rep_valid = prediction_errors(params, iv_valid, args.horizon)
@@ -546,6 +662,7 @@ def _identify(args, argv) -> int:
         "fit_residuals_training": round_floats(resid),
         "prediction_training": round_floats(rep_train),
         "prediction_validation": round_floats(rep_valid),
+        "co2_balance_fit": round_floats(co2_report),
     }
     header = (
         "Identified control-oriented model (ceco_controller/model.py), GENERATED - do not edit.\n"

@@ -24,6 +24,10 @@ __all__ = [
     "VALIDATION_DRIVES",
     "ExcitationSettings",
     "generate_excitation",
+    "CO2_SERIES_COLUMNS",
+    "CO2_TRAIN_DRIVE",
+    "CO2_VALIDATION_DRIVE",
+    "generate_co2_excitation",
     "read_series_csv",
     "write_series_csv",
 ]
@@ -60,6 +64,13 @@ TRAIN_DRIVES = (
 """(scenario, initial condition) of the training drives."""
 VALIDATION_DRIVES = (("us06", "soak"), ("us06", "precooled"))
 """Validation drives (never used for fitting)."""
+CO2_SERIES_COLUMNS = ("t_s", "co2_cab_ppm", "recirc_share", "mdot_bl_kgps", "speed_mps")
+"""Columns of the cabin CO2 balance's fit (:func:`ceco_controller.identification.fit_co2_balance`): time [s],
+cabin CO2 [ppm], the door's actual recirculated share [-], blower flow [kg/s], vehicle speed [m/s]."""
+CO2_TRAIN_DRIVE = ("udds", 4)
+"""(scenario, occupants) of the CO2 balance's training drive (1369 s, speeds 0-25 m/s)."""
+CO2_VALIDATION_DRIVE = ("hwfet", 2)
+"""(scenario, occupants) of its validation drive (765 s, never used for fitting)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -156,25 +167,71 @@ def generate_excitation(
     return {c: np.asarray(v, dtype=float) for c, v in rows.items()}
 
 
-def write_series_csv(series: dict, path) -> str:
-    """Write a series dict as CSV (SERIES_COLUMNS); return its sha256."""
+def generate_co2_excitation(drive=CO2_TRAIN_DRIVE, settings: ExcitationSettings = ExcitationSettings()) -> dict:
+    """Simulate the CO2 excitation: the plant on one drive, random held door shares, blower flows, set-points.
+
+    ``drive``: (scenario, occupants). Returns 1 s series (:data:`CO2_SERIES_COLUMNS`) and the drive's
+    ``n_occupants`` and ``co2_amb_ppm``.
+
+    The door moves over its whole range (0..1) and the speed varies with the drive: what the CO2 balance's fit
+    needs to tell the fresh air, the leakage at rest and its growth with speed apart. The door column is its
+    actual position (the plant's state, after its travel limit), as a car's door-position feedback reports it.
+    The levels come from their own generator (``settings.seed`` + 2000): the thermal excitation
+    (:func:`generate_excitation`) is unchanged by this one.
+    """
+    from ceco_core.air_quality import co2_ppm_from_kgkg
+    from ceco_core.contracts import AcInput
+    from ceco_plant_sim.plant import CabinPlant, PlantState
+    from ceco_plant_sim.plant_params import PlantParams
+    from ceco_v2x_preview.scenario import load_scenario
+
+    settings.validate()
+    name, n_occ = drive
+    rng = np.random.default_rng(settings.seed + 2000)
+    sc = load_scenario(name)
+    pp = dataclasses.replace(PlantParams(), n_occupants=int(n_occ), co2_amb_ppm=float(sc.air_quality.co2_amb_ppm))
+    plant = CabinPlant(pp, PlantState.from_initial(dataclasses.asdict(sc.initial), pp, sc.env_at(0.0)))
+    rows: dict[str, list] = {c: [] for c in CO2_SERIES_COLUMNS}
+    co2, door = co2_ppm_from_kgkg(plant.state.co2_cab_kgkg), plant.state.recirc_share
+    t_next, cmd = 0.0, None
+    for i in range(int(sc.duration_s)):
+        t = float(i)
+        if t >= t_next:
+            cmd = AcInput(float(rng.uniform(0.05, 0.17)), float(rng.uniform(3.0, 10.0)), float(rng.uniform(0.0, 1.0)))
+            hold = settings.ts_s * rng.integers(
+                int(settings.hold_min_s / settings.ts_s), int(settings.hold_max_s / settings.ts_s) + 1
+            )
+            t_next = t + hold
+        assert cmd is not None  # set at t = 0 (t_next = 0)
+        env = sc.env_at(t)
+        out = plant.step(cmd, env, 1.0)
+        for c, v in zip(CO2_SERIES_COLUMNS, (t, co2, door, cmd.mdot_bl_kgps, env.speed_mps)):
+            rows[c].append(v)
+        co2, door = out.co2_cab_ppm, out.recirc_share
+    series: dict[str, Any] = {c: np.asarray(v, dtype=float) for c, v in rows.items()}
+    series.update(n_occupants=int(n_occ), co2_amb_ppm=float(sc.air_quality.co2_amb_ppm))
+    return series
+
+
+def write_series_csv(series: dict, path, columns: tuple = SERIES_COLUMNS) -> str:
+    """Write a series dict as CSV (``columns``, default SERIES_COLUMNS); return its sha256."""
     path = pathlib.Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
-        w.writerow(SERIES_COLUMNS)
-        for row in zip(*(series[c] for c in SERIES_COLUMNS)):
-            w.writerow([f"{v:.6g}" for v in row])
+        w.writerow(columns)
+        for row in zip(*(series[c] for c in columns)):
+            w.writerow([f"{v:.9g}" if c == "co2_cab_ppm" else f"{v:.6g}" for c, v in zip(columns, row)])
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def read_series_csv(path) -> dict:
-    """Read a CSV with (at least) SERIES_COLUMNS; ``segment`` defaults to 0 (one run)."""
+def read_series_csv(path, columns: tuple = SERIES_COLUMNS) -> dict:
+    """Read a CSV with (at least) ``columns`` (default SERIES_COLUMNS); ``segment`` defaults to 0 (one run)."""
     with open(path, newline="", encoding="utf-8") as fh:
         reader = csv.DictReader(fh)
-        data: dict[str, list] = {c: [] for c in SERIES_COLUMNS}
+        data: dict[str, list] = {c: [] for c in columns}
         for r in reader:
-            for c in SERIES_COLUMNS:
+            for c in columns:
                 if c == "segment" and c not in r:
                     data[c].append(0.0)
                     continue

@@ -69,6 +69,7 @@ __all__ = [
     "simulate",
     "load_params",
     "save_params",
+    "co2_estimator_params",
 ]
 
 DEFAULT_PARAMS_PATH = pathlib.Path(__file__).resolve().parent.parent / "config" / "model_params.yaml"
@@ -128,6 +129,14 @@ class ControlModelParams:
     """Largest relative A/C efficiency gain at high speed a_eta [-] (eta_AC <= 1 + a_eta)."""
     eta_speed_scale_mps: float = 15.0
     """Speed scale of the efficiency gain v_eta [m/s]."""
+    co2_m_air_kg: float = 3.48
+    """Cabin dry-air mass of the CO2 balance [kg] (the CO2 estimator's and the door's model,
+    :class:`ceco_core.co2_estimator.Co2EstimatorParams`; identified by ``ceco identify``, the default is docs/plant.md's
+    nominal 3.0 m3 x 1.16 kg/m3, what a file without it gets)."""
+    co2_leak_0_kgps: float = 0.0015
+    """Cabin leakage at rest of the CO2 balance [kg/s] (identified; default the nominal value)."""
+    co2_leak_per_mps_kgps: float = 0.0002
+    """Growth of the leakage with vehicle speed [kg/s per m/s] (identified; default the nominal value)."""
     provenance: str = "defaults (not identified)"
     """How the values were obtained (command and data); not used in computations."""
 
@@ -151,9 +160,12 @@ class ControlModelParams:
             raise ValueError("ControlModelParams.eta_speed_scale_mps must be > 0")
         if not self.comp_c0 > 0.0:
             raise ValueError("ControlModelParams.comp_c0 must be > 0")
-        for name in ("blower_b0_w", "blower_b1_w_per_kgps", "blower_b3_w_per_kgps3"):
+        for name in ("blower_b0_w", "blower_b1_w_per_kgps", "blower_b3_w_per_kgps3", "co2_leak_per_mps_kgps"):
             if getattr(self, name) < 0.0:
                 raise ValueError(f"ControlModelParams.{name} must be >= 0")
+        for name in ("co2_m_air_kg", "co2_leak_0_kgps"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"ControlModelParams.{name} must be > 0")
 
     def to_dict(self) -> dict:
         """Plain dict of the fields (Python floats; for YAML)."""
@@ -174,6 +186,21 @@ class ControlModelParams:
         p = cls(**kwargs)
         p.validate()
         return p
+
+
+def co2_estimator_params(params: ControlModelParams):
+    """The CO2 estimator's and the door's model with the cabin air mass and leakage of ``params``.
+
+    A :class:`ceco_core.co2_estimator.Co2EstimatorParams` with the values ``ceco identify`` wrote; the rest its
+    defaults.
+    """
+    from ceco_core.co2_estimator import Co2EstimatorParams
+
+    return Co2EstimatorParams(
+        m_air_kg=params.co2_m_air_kg,
+        leak_0_kgps=params.co2_leak_0_kgps,
+        leak_per_mps_kgps=params.co2_leak_per_mps_kgps,
+    ).validate()
 
 
 def package_config_path(filename: str) -> pathlib.Path:

@@ -118,7 +118,11 @@ class NmpcController:
         """The NLP transcription built: 'single-shooting' or 'multiple-shooting'."""
         self.lim = ACTUATOR_LIMITS
         self._acc = AccLaw(acc_settings)
-        self.door = Co2DoorLaw() if self.settings.door_control in ("co2_hold", "nlp") else None
+        self.door = (
+            Co2DoorLaw(model=cm.co2_estimator_params(self.model_params))
+            if self.settings.door_control in ("co2_hold", "nlp")
+            else None
+        )
         """The door's CO2 estimate, safe defaults and hold rule (``door_control`` 'co2_hold': the door beside the NLP;
         'nlp': the NLP's door, this law's safe defaults over it and its rule when there is no plan), else None: the
         door is not commanded."""
