@@ -66,6 +66,7 @@ DEFAULT_CASES = (
     "mild-day",
     "hot-commute-1p",
     "hot-commute-4p",
+    "hot-humid-4p",
     "tunnel",
     "sun-shade",
     "idle-traffic",
