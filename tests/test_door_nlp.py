@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from ceco_controller import model as cm
-from ceco_controller.nmpc import NmpcController, nominal_observation
+from ceco_controller.nmpc import FOG_ROW_OFF_K, NmpcController, nominal_observation
 from ceco_controller.strategies import strategy_settings
 from ceco_controller.transcription import CO2_SCALE_PPM
 from ceco_core.air_quality import leakage_kgps
@@ -57,10 +57,10 @@ def _ipopt(problem, p):
 def test_the_nlp_co2_prediction_is_the_numeric_balance(transcription):
     """The NLP's CO2 on every grid point (rollout and evaluator, 4 occupants, a varying speed preview) equals
     co2_after_ppm stepped with floats on the same inputs to 1e-9 ppm; the input sequence is a solved plan (the door
-    moving between 0 and 1); the NLP has 3 inputs and 6 states per stage."""
+    moving between 0 and 1); the NLP has 3 inputs and 7 states per stage (the CO2 the sixth)."""
     c = _controller(dataclasses.replace(_DOOR, solver=dataclasses.replace(_DOOR.solver, transcription=transcription)))
     pr = c.problem
-    assert (pr.nu, pr.nx) == (3, 6)
+    assert (pr.nu, pr.nx) == (3, 7)
     p = _params(c, 1450.0, 4)
     speed = pr.params.get(p, "speed")
     speed[:] = np.linspace(5.0, 20.0, speed.size)
@@ -76,6 +76,110 @@ def test_the_nlp_co2_prediction_is_the_numeric_balance(transcription):
     roll = pr.rollout_states(u, p)[:, 5] * CO2_SCALE_PPM
     np.testing.assert_allclose(roll, expect, rtol=0.0, atol=1e-9)
     np.testing.assert_allclose(pr.evaluate(w, p).co2, roll, rtol=0.0, atol=1e-6)
+
+
+def _fog_case(c: NmpcController, fog: bool = True):
+    """A warm, humid cabin with a cold windshield (rain on the glass): 26 degC at 70 % RH (dew point 20.1 degC),
+    the glass at 22 degC (margin 1.9 K, bound 3 K), 22 degC outside, four occupants; with ``fog`` False the fog
+    row switched off. Returns (parameters, IPOPT's w, its lam_g)."""
+    n1 = c.horizon_steps + 1
+    obs = _obs(
+        c,
+        t_cab_c=26.0,
+        rh_cab=0.7,
+        t_glass_c=22.0,
+        t_amb_c=22.0,
+        preview_t_amb_c=np.full(n1, 22.0),
+        solar_wm2=300.0,
+        preview_solar_wm2=np.full(n1, 300.0),
+        t_int_c=28.0,
+        t_shell_c=26.0,
+        t_evap_c=8.0,
+        t_vent_c=12.0,
+    )
+    ex, _ = c.previews(obs)
+    c._door_nlp = c.door.nlp_parameters(800.0, 1500.0, 4)
+    p = c.parameters(obs, ex)
+    if not fog:
+        c.problem.params.get(p, "fog_min")[:] = FOG_ROW_OFF_K
+    w, _, lam = _ipopt(c.problem, p)
+    return p, w, lam
+
+
+def test_the_nlp_humidity_and_fog_margin_are_the_plants_water_balance():
+    """The NLP's cabin humidity ratio on every grid point (rollout, evaluator) equals the plant's water balance and
+    coil (ceco_core.air_quality, exact max) stepped in floats on a solved plan (the coil condensing, the door
+    moving) within 0.02 g/kg (the smooth max's 0.007 g/kg per step); its fog margin is fog_margin_k of that
+    humidity and the held glass to 1e-9 K; the parameters are the measured cabin (26 degC, 70 %: 14.80 g/kg), the
+    ambient saturated (16.67 g/kg at 22 degC), four occupants' 55 W latent (0.0898 g/s) and bound + 1 K."""
+    from ceco_core import psychro
+    from ceco_core.air_quality import cabin_water_flows_kgps, coil_outlet_humidity_ratio, fog_margin_k
+
+    c = _controller()
+    pr, pl, mp = c.problem, c.problem.params, c.model_params
+    p, w, _ = _fog_case(c)
+    w0, w_amb, gen = (pl.scalar(p, k) * 1e-3 for k in ("w_0", "w_amb", "w_gen"))
+    assert (w0, w_amb, gen) == pytest.approx((14.797e-3, 16.672e-3, 0.08980e-3), rel=1e-3)
+    assert pl.scalar(p, "fog_min") == 3.0 + _DOOR.fog_backoff_k and pl.scalar(p, "t_glass") == 22.0
+    u, x = pr.plan(w), pr.rollout_states(pr.plan(w), p)
+    assert np.ptp(u[:, 2]) > 0.5
+    t_ev = np.r_[8.0, x[:, 1]]
+    speed, dp = pl.get(p, "speed"), c._door_nlp
+    wc, expect = w0, []
+    for i, (m, _, r) in enumerate(u):
+        fresh = (1.0 - r) * m + leakage_kgps(dp["leak_0"], dp["leak_v"], float(speed[i]))
+        w_sw = psychro.humidity_ratio(0.5 * (t_ev[i] + t_ev[i + 1]), 1.0)
+        for _ in range(5):
+            w_mix = r * wc + (1.0 - r) * w_amb
+            w_out = coil_outlet_humidity_ratio(w_mix, w_sw, mp.moist_coil_bypass_factor, max)
+            f = cabin_water_flows_kgps(wc, w_amb, w_mix, w_out, fresh, m, gen)
+            wc = wc + 1.0 * (f.into - f.out - f.condensate) / dp["m_air"]
+        expect.append(wc)
+    expect = np.asarray(expect)
+    assert expect[0] < w0 - 0.3e-3  # the coil dries the cabin (a check that is not trivially equal)
+    np.testing.assert_allclose(x[:, 6] * 1e-3, expect, rtol=0.0, atol=2e-5)
+    ev = pr.evaluate(w, p)
+    np.testing.assert_allclose(ev.w_cab, x[:, 6] * 1e-3, rtol=0.0, atol=1e-9)
+    fog = fog_margin_k(22.0, psychro.vapour_pressure_from_humidity_ratio_pa(ev.w_cab))
+    np.testing.assert_allclose(ev.fog, fog, rtol=0.0, atol=1e-9)
+
+
+def test_when_fog_threatens_the_nlp_dries_the_cabin_and_the_penalty_is_exact():
+    """The fog case (margin 1.9 K, the NLP's bound 4 K): with the fog row the plan dries at once (blower 0.17 kg/s,
+    set-point 3 degC on the first step) and the margin is >= 4 K from the second grid point on, the first (5 s
+    away) short by its slack alone at the weight's multiplier; without the row the plan keeps the least blower flow
+    and the margin stays under 4 K for most of the horizon; the drying costs energy; every satisfiable fog row's
+    multiplier is below half the weight (the L1 penalty is exact there)."""
+    c = _controller()
+    pr = c.problem
+    p, w, lam = _fog_case(c)
+    p_off, w_off, _ = _fog_case(c, fog=False)
+    ev, ev_off = pr.evaluate(w, p), pr.evaluate(w_off, p_off)
+    u, u_off = pr.plan(w), pr.plan(w_off)
+    assert u[0, 0] > 0.16 and u[0, 1] < 3.1 and u_off[0, 0] < 0.06
+    assert np.all(ev.fog[1:] >= 4.0 - 1e-6) and ev.fog[0] > ev_off.fog[0] + 1.0
+    assert np.sum(ev_off.fog < 4.0) >= 6
+    s_fog = w[pr.vars.indices("s_fog")]
+    assert s_fog[0] == pytest.approx(4.0 - ev.fog[0], abs=1e-6) and np.all(s_fog[1:] < 1e-6)
+    lam_fog = np.abs(lam[pr.rows.indices("fog")])
+    assert lam_fog[0] == pytest.approx(_DOOR.fog_slack_weight_kj_per_k, rel=1e-4)
+    assert lam_fog[1:].max() < 0.5 * _DOOR.fog_slack_weight_kj_per_k
+    assert ev.J_e > ev_off.J_e + 3.0  # [kJ over the horizon]
+
+
+def test_without_a_measured_fog_margin_the_fog_row_is_off():
+    """No cabin RH or no glass temperature: the fog row's bound is FOG_ROW_OFF_K (no margin reaches it) and the
+    plan is the one of a switched-off row; the step still solves and says fog_pred_min."""
+    c = _controller()
+    n1 = c.horizon_steps + 1
+    for kw in ({"rh_cab": math.nan}, {"t_glass_c": math.nan}):
+        obs = _obs(c, **kw)
+        ex, _ = c.previews(obs)
+        p = c.parameters(obs, ex)
+        assert c.problem.params.scalar(p, "fog_min") == FOG_ROW_OFF_K
+    cmd, d = c.compute(_obs(c, k=0, t_s=0.0, rh_cab=math.nan))
+    assert d.success and "fog_pred_min=" in d.message and math.isfinite(cmd.mdot_bl_kgps)
+    assert n1 == 7
 
 
 def test_far_under_the_limit_on_a_hot_day_the_nlp_recirculates_fully():

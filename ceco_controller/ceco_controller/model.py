@@ -137,6 +137,13 @@ class ControlModelParams:
     """Cabin leakage at rest of the CO2 balance [kg/s] (identified; default the nominal value)."""
     co2_leak_per_mps_kgps: float = 0.0002
     """Growth of the leakage with vehicle speed [kg/s per m/s] (identified; default the nominal value)."""
+    moist_coil_bypass_factor: float = 0.06
+    """Bypass factor of the evaporator for the cabin moisture the door NLP predicts (its fog margin) [-]: the share
+    of the air that passes the coil without touching the wall (nominal, not identified: exp(-UA/(mdot c_p)) of
+    docs/plant.md's coil at 0.10 kg/s, 0.063; 0.04-0.08 over 0.05-0.17 kg/s)."""
+    moist_occ_latent_w: float = 55.0
+    """Latent heat of one occupant for the moisture the door NLP predicts [W] (nominal: ASHRAE Fundamentals 2017
+    ch. 18 table 1, moderately active office work, docs/plant.md)."""
     provenance: str = "defaults (not identified)"
     """How the values were obtained (command and data); not used in computations."""
 
@@ -166,6 +173,10 @@ class ControlModelParams:
         for name in ("co2_m_air_kg", "co2_leak_0_kgps"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"ControlModelParams.{name} must be > 0")
+        if not 0.0 <= self.moist_coil_bypass_factor < 1.0:
+            raise ValueError("ControlModelParams.moist_coil_bypass_factor must be in [0, 1)")
+        if not self.moist_occ_latent_w >= 0.0:
+            raise ValueError("ControlModelParams.moist_occ_latent_w must be >= 0")
 
     def to_dict(self) -> dict:
         """Plain dict of the fields (Python floats; for YAML)."""

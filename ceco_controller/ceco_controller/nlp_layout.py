@@ -16,12 +16,13 @@ Parameters (one instance per NLP, :class:`ParamLayout`):
 
 Variables (:class:`VariableLayout`), stage-ordered as the transcription adds them:
 
-    x (4 per stage i = 1..N, multiple shooting only; 6 with the door), u (2 per stage i = 0..N-1; 3 with
+    x (4 per stage i = 1..N, multiple shooting only; 7 with the door), u (2 per stage i = 0..N-1; 3 with
     the door), s_lo, s_up (1 per grid point i = 0..N), s_ev (i = 1..N), eps (ceco-ioch, i = 0..N),
-    s_co2 (the door's CO2 slack, i = 1..N).
+    s_co2, s_fog (the door's CO2 and fog slacks, i = 1..N).
 
-Constraint rows (:class:`RowLayout`): ``gap`` (4 per stage, multiple shooting; 6 with the door), ``pmv``
-(2 per grid point), ``evap`` (2 per grid point i >= 1), ``co2`` (1 per grid point i >= 1, with the door).
+Constraint rows (:class:`RowLayout`): ``gap`` (4 per stage, multiple shooting; 7 with the door), ``pmv``
+(2 per grid point), ``evap`` (2 per grid point i >= 1), ``co2`` and ``fog`` (1 each per grid point i >= 1,
+with the door).
 """
 
 from __future__ import annotations
@@ -61,16 +62,23 @@ PARAM_DOOR = (
     ("leak_0", 1),
     ("leak_v", 1),
     ("m_air", 1),
+    ("w_0", 1),
+    ("w_amb", 1),
+    ("w_gen", 1),
+    ("t_glass", 1),
+    ("fog_min", 1),
 )
-"""The door NLP's CO2 parameters after :data:`PARAM_TAIL`: the CO2 estimate at the first grid point [ppm], the
-ambient CO2 [ppm], the occupants' generation n g / k [ppm kg/s], the CO2 target limit - margin [ppm], the leakage
-at rest [kg/s] and its growth with speed [kg/s per m/s], the cabin's dry-air mass [kg]
-(:meth:`ceco_core.co2_door.Co2DoorLaw.nlp_parameters`)."""
+"""The door NLP's air-quality parameters after :data:`PARAM_TAIL`: the CO2 estimate at the first grid point [ppm],
+the ambient CO2 [ppm], the occupants' generation n g / k [ppm kg/s], the CO2 target limit - margin [ppm], the
+leakage at rest [kg/s] and its growth with speed [kg/s per m/s], the cabin's dry-air mass [kg]
+(:meth:`ceco_core.co2_door.Co2DoorLaw.nlp_parameters`); then the moisture and fog ones: the cabin humidity ratio
+at the first grid point and the ambient's [g/kg], the occupants' moisture [g/s], the inner glass temperature
+[degC] (held) and the fog margin the NLP keeps, bound + back-off [K] (``NmpcController``)."""
 
-VAR_KEYS = ("x", "u", "s_lo", "s_up", "s_ev", "eps", "s_co2")
+VAR_KEYS = ("x", "u", "s_lo", "s_up", "s_ev", "eps", "s_co2", "s_fog")
 """Kinds of stage-wise variable blocks."""
 
-ROW_KINDS = ("gap", "pmv", "evap", "co2")
+ROW_KINDS = ("gap", "pmv", "evap", "co2", "fog")
 """Kinds of stage-wise constraint blocks."""
 
 

@@ -55,7 +55,7 @@ from .observation import fill_previews, nominal_observation
 from .offset_free import BiasEstimator
 from .solvers import NlpData, NlpSolver, SolveResult, build_solver
 from .strategies import SolverSettings, StrategySettings, resolve_auto, strategy_settings
-from .transcription import Evaluation, build_problem
+from .transcription import W_SCALE_KGKG, Evaluation, build_problem
 from .warmstart import initial_guess
 
 __all__ = [
@@ -68,6 +68,10 @@ __all__ = [
     "fill_previews",
     "nominal_observation",
 ]
+
+
+FOG_ROW_OFF_K = -100.0
+"""The door NLP's fog bound when the margin is not measured [K]: a bound no margin reaches (the row inactive)."""
 
 
 def _note(diag: Diagnostics, text: str) -> None:
@@ -269,6 +273,7 @@ class NmpcController:
         self._door_nlp: dict | None = None
         self._door_planned: float | None = None
         self._door_pred_max: float = math.nan
+        self._door_fog_min: float = math.nan
         self._door_last: float | None = None
         self._good: GoodSolution | None = None
         self._prepared_t_s: float | None = None
@@ -332,8 +337,9 @@ class NmpcController:
         n = self.problem.params.n_grid
         lb, ub = (held(obs.pmv_lb, n), held(obs.pmv_ub, n)) if bounds is None else bounds
         door: dict = {}
-        if self.problem.door:  # the door NLP: the previous share and the CO2 parameters
+        if self.problem.door:  # the door NLP: the previous share, the CO2 and the moisture/fog parameters
             door = self._door_nlp if self._door_nlp is not None else self._door_nominal(obs)
+            door = {**door, **self._fog_parameters(obs, float(ex["t_amb"][0]), t_glass_c, rh_cab)}
             if len(u_prev) == 2:
                 u_prev = (*u_prev, self._door_share_prev(obs))
         return self.problem.params.pack(
@@ -353,6 +359,32 @@ class NmpcController:
             t_mr=t_mr,
             pa=pa,
         )
+
+    def _fog_parameters(self, obs: Observation, t_amb_c: float, t_glass_c: float | None, rh_cab: float | None) -> dict:
+        """The door NLP's moisture and fog parameters (docs/controller.md 4.9).
+
+        The cabin's humidity ratio from the measured temperature and RH, the glass held at its measured
+        temperature, the NLP's fog margin bound + ``fog_backoff_k``; the ambient air taken as saturated at the
+        ambient temperature (the car measures no ambient humidity here: the wettest outside air, so the predicted
+        margin errs low); the occupants' moisture from ``moist_occ_latent_w``. Without a measured margin (no glass
+        temperature, no cabin RH, no bound) the fog row is switched off (its bound at :data:`FOG_ROW_OFF_K`), as
+        the safe override is.
+        """
+        mp = self.model_params
+        t_cab = float(obs.t_cab_c)
+        rh = float(obs.rh_cab if rh_cab is None else rh_cab)
+        tg = float(obs.t_glass_c if t_glass_c is None else t_glass_c)
+        bound = float(obs.fog_margin_min_k)
+        known = all(math.isfinite(v) for v in (t_cab, rh, tg, bound)) and 0.0 <= rh <= 1.0
+        n_occ = int(obs.n_occupants) if math.isfinite(obs.n_occupants) else 1
+        t_amb = t_amb_c if math.isfinite(t_amb_c) else t_cab
+        return {
+            "w_0": float(psychro.humidity_ratio(t_cab, rh if known else 0.5)) / W_SCALE_KGKG,
+            "w_amb": float(psychro.humidity_ratio(t_amb, 1.0)) / W_SCALE_KGKG,
+            "w_gen": n_occ * mp.moist_occ_latent_w / psychro.H_FG_JPKG / W_SCALE_KGKG,
+            "t_glass": tg if known else t_cab,
+            "fog_min": bound + self.settings.fog_backoff_k if known else FOG_ROW_OFF_K,
+        }
 
     def _door_nominal(self, obs: Observation) -> dict:
         """The door NLP's CO2 parameters before a CO2 estimate exists (warm-up, prepare): the ambient CO2."""
@@ -538,7 +570,9 @@ class NmpcController:
         _note(
             diag,
             f"door={r:.2f} door_mode={mode} co2_est={c:.0f} co2_pred_max="
-            + ("n/a" if not math.isfinite(self._door_pred_max) else f"{self._door_pred_max:.0f}"),
+            + ("n/a" if not math.isfinite(self._door_pred_max) else f"{self._door_pred_max:.0f}")
+            + " fog_pred_min="
+            + ("n/a" if not math.isfinite(self._door_fog_min) else f"{self._door_fog_min:.1f}"),
         )
         return dataclasses.replace(cmd, recirc_share=r), diag
 
@@ -546,9 +580,9 @@ class NmpcController:
         """The blower and evaporator commands of one step (:meth:`compute` without the door).
 
         With the door NLP the share of the plan applied is left in ``_door_planned`` (None: no plan applied) and
-        the plan's largest predicted CO2 in ``_door_pred_max`` [ppm].
+        the plan's largest predicted CO2 in ``_door_pred_max`` [ppm] and its least fog margin in ``_door_fog_min`` [K].
         """
-        self._door_planned, self._door_pred_max = None, math.nan
+        self._door_planned, self._door_pred_max, self._door_fog_min = None, math.nan, math.nan
         t0 = self.clock() if t_start is None else float(t_start)
         s, ss, cnt = self.settings, self.settings.solver, self.counters
         deadline = t0 + ss.step_budget_s - ss.step_reserve_s
@@ -621,6 +655,7 @@ class NmpcController:
                 diag.eps = good.w[self.problem.vars.indices("eps")]
             if ev.co2.size:
                 self._door_pred_max = float(np.max(ev.co2))
+                self._door_fog_min = float(np.min(ev.fog))
             cmd = plan[0]
         elif self._good is not None and 1 <= self._good.age < len(self._good.plan):
             cmd = self._good.plan[self._good.age]

@@ -295,6 +295,12 @@ class StrategySettings:
     co2_slack_weight_kj_per_ppm: float = 1.0
     """'nlp': exact L1 penalty on the CO2 limit's violation [kJ per ppm per grid point] (docs/controller.md 4.9:
     above the largest multiplier of the CO2 rows, about 0.02 kJ/ppm)."""
+    fog_slack_weight_kj_per_k: float = 1000.0
+    """'nlp': exact L1 penalty on the fog margin's violation [kJ per K per grid point] (docs/controller.md 4.9: the
+    comfort rows' weight per PMV unit, so a kelvin of fog margin outweighs the comfort a drying plan costs)."""
+    fog_backoff_k: float = 1.0
+    """'nlp': the NLP keeps the predicted fog margin at least this above the scenario's bound [K] (between the
+    safe override's entry, bound + 0.5 K, and its exit, bound + 1.5 K: the NLP acts before the override)."""
 
     def validate(self) -> None:
         """Raise ValueError naming the field if a setting is not usable."""
@@ -320,6 +326,8 @@ class StrategySettings:
             "bias_limit_k",
             "draught_weight_kj",
             "co2_slack_weight_kj_per_ppm",
+            "fog_slack_weight_kj_per_k",
+            "fog_backoff_k",
         ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):

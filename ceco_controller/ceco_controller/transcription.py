@@ -12,9 +12,11 @@ problem, stage-wise ordered so the multiple-shooting NLP has the optimal-control
     s_i = (s_lo, s_up [PMV], s_ev [K] (i >= 1), eps [PMV] (ceco-ioch))
 
 With the door in the NLP (``door_control`` 'nlp', docs/controller.md 4.9) u_i gains the recirculated share
-r_i [-], x_i the previous share r_{i-1} and the cabin CO2 C_i (x_i = (T_cab, T_evap, u_{i-1}, C_i)), s_i
-the CO2 slack s_co2 (i >= 1) of the soft constraint C_i - s_co2 <= limit - margin; C and s_co2 in units of
-:data:`CO2_SCALE_PPM` (1000 ppm) inside the NLP, ppm in its parameters and in :class:`Evaluation`.
+r_i [-], x_i the previous share r_{i-1}, the cabin CO2 C_i and the cabin humidity ratio W_i
+(x_i = (T_cab, T_evap, u_{i-1}, C_i, W_i)), s_i the CO2 slack s_co2 and the fog slack s_fog (i >= 1) of the
+soft constraints C_i - s_co2 <= limit - margin and T_glass - T_dp(W_i) + s_fog >= fog bound + back-off; C and
+s_co2 in units of :data:`CO2_SCALE_PPM` (1000 ppm), W in g/kg (:data:`W_SCALE_KGKG`) inside the NLP, ppm and
+kg/kg in :class:`Evaluation`.
 
 * ``multiple-shooting``: the x_i are variables tied by gap constraints x_i - f(x_{i-1}, u_{i-1}) = 0.
 * ``single-shooting``: the x_i are the model's rollout expressions of (x_0, u_0 .. u_{i-1}).
@@ -30,17 +32,19 @@ import dataclasses
 import casadi
 import numpy as np
 
-from ceco_core.air_quality import leakage_kgps
+from ceco_core import psychro
+from ceco_core.air_quality import cabin_water_flows_kgps, coil_outlet_humidity_ratio, fog_margin_k, leakage_kgps
 from ceco_core.cabin_comfort import ComfortParams, cabin_draught_pct, cabin_pmv, cabin_w_rad_wm2
 from ceco_core.co2_door import co2_after_ppm
 from ceco_core.contracts import ACTUATOR_LIMITS, ActuatorLimits
+from ceco_core.mathops import smooth_max
 
 from . import model as cm
 from .buffered import BufferedFunction
 from .nlp_layout import OcpStructure, ParamLayout, RowLayout, VariableLayout
 from .strategies import StrategySettings
 
-__all__ = ["NlpProblem", "Evaluation", "build_problem", "TRANSCRIPTIONS", "CO2_SCALE_PPM"]
+__all__ = ["NlpProblem", "Evaluation", "build_problem", "TRANSCRIPTIONS", "CO2_SCALE_PPM", "W_SCALE_KGKG"]
 
 TRANSCRIPTIONS = ("single-shooting", "multiple-shooting")
 """The transcriptions :func:`build_problem` knows."""
@@ -50,6 +54,15 @@ CO2_SCALE_PPM = 1000.0
 the PMV and temperature rows in the SQP's l1 merit function (one sigma for all rows, about 1.1 x the largest
 multiplier, the comfort rows' 1000 kJ/PMV); in ppm a 0.1 ppm linearisation error of the CO2 cost 110 kJ of merit and
 the line search took 1/64 steps (docs/controller.md 4.9)."""
+
+W_SCALE_KGKG = 1e-3
+"""The door NLP carries the cabin humidity ratio in g/kg (units of this [kg/kg]): values of 5-20 like the others."""
+
+W_SUBSTEP_S = 1.0
+"""Explicit Euler substep of the door NLP's moisture balance [s] (time constant m_air / mdot_bl >= 20 s)."""
+
+W_SMOOTH_K = 1e5
+"""Sharpness of the smooth max of the coil's condensation [1/(kg/kg)]: error <= ln 2 / k = 0.007 g/kg."""
 
 _STATE_BOUNDS_C = (-50.0, 150.0)
 """Box on the temperature states of the multiple-shooting NLP [degC] (never active; keeps IPOPT's
@@ -80,6 +93,10 @@ class Evaluation:
     """Predicted evaporator wall temperature at grid points 1..N [degC]."""
     co2: np.ndarray
     """Predicted cabin CO2 at grid points 1..N [ppm] (the door NLP; empty otherwise)."""
+    fog: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    """Predicted fog margin at grid points 1..N [K] (the door NLP; empty otherwise)."""
+    w_cab: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    """Predicted cabin humidity ratio at grid points 1..N [kg/kg] (the door NLP; empty otherwise)."""
 
 
 @dataclasses.dataclass
@@ -143,8 +160,8 @@ class NlpProblem:
 
     @property
     def nx(self) -> int:
-        """Augmented states per stage: 4, 6 with the door."""
-        return 2 + self.nu + (1 if self.door else 0)
+        """Augmented states per stage: 4, 7 with the door."""
+        return 2 + self.nu + (2 if self.door else 0)
 
     @property
     def nw(self) -> int:
@@ -170,13 +187,15 @@ class NlpProblem:
             t_ain=out[7].copy(),
             t_evap=out[8].copy(),
             co2=out[9].copy(),
+            fog=out[10].copy(),
+            w_cab=out[11].copy(),
         )
 
     def rollout_states(self, u: np.ndarray, p: np.ndarray) -> np.ndarray:
         """The augmented states x_1..x_N the model gives from the measured state under inputs ``u`` (N, nu).
 
         Shape (N, nx): (T_cab, T_evap [degC], mdot_bl [kg/s], T_evap_sp [degC]) after each stage; with the door
-        (N, 6): then the share [-] and the cabin CO2 [:data:`CO2_SCALE_PPM`].
+        (N, 7): then the share [-], the cabin CO2 [:data:`CO2_SCALE_PPM`] and humidity ratio [g/kg].
         """
         (x,) = self._rollout(np.asarray(u, float).ravel(), p)
         return x.reshape(self.horizon_steps, self.nx).copy()
@@ -200,6 +219,7 @@ class NlpProblem:
             len(rr["pmv"][i])
             + (len(rr["evap"][i - 1]) if i >= 1 else 0)
             + (len(rr["co2"][i - 1]) if i >= 1 and rr["co2"] else 0)
+            + (len(rr["fog"][i - 1]) if i >= 1 and rr["fog"] else 0)
             for i in range(n + 1)
         ] + [0]
         return OcpStructure(tuple(nx), tuple(int(v) for v in nu), tuple(ng))
@@ -243,7 +263,8 @@ def build_problem(
 
     door = s.door_control == "nlp"
     nu = 3 if door else 2
-    nx = 2 + nu + (1 if door else 0)
+    nx = 2 + nu + (2 if door else 0)
+    i_co2, i_w = 2 + nu, 3 + nu  # the door NLP's CO2 and humidity states
     params = ParamLayout(n + 1, door=door)
     P, p = params.symbols(SX.sym)
     vars_ = VariableLayout()
@@ -255,7 +276,7 @@ def build_problem(
         w.append(sym)
 
     e_terms, c_terms, i_terms, sl_terms, du_terms = [], [], [], [], []
-    pmv_all, tcab_all, tain_all, tevap_all, co2_all = [], [], [], [], []
+    pmv_all, tcab_all, tain_all, tevap_all, co2_all, fog_all, wcab_all = [], [], [], [], [], [], []
 
     # Augmented state x_i = (T_cab, T_evap, mdot_{i-1}, sp_{i-1}): the move penalty and the comfort at
     # the last grid point (which uses u_{N-1}) stay stage-local, so the multiple-shooting NLP has the
@@ -288,20 +309,45 @@ def build_problem(
         leak = leakage_kgps(P["leak_0"], P["leak_v"], P["speed"][i])
         fresh = (1.0 - u[2]) * u[0]
         c_ppm = co2_after_ppm(
-            x[nx - 1] * CO2_SCALE_PPM, P["co2_amb"], fresh, leak, P["co2_gen"], P["m_air"], s.control_period_s
+            x[i_co2] * CO2_SCALE_PPM, P["co2_amb"], fresh, leak, P["co2_gen"], P["m_air"], s.control_period_s
         )
         return c_ppm / CO2_SCALE_PPM
+
+    n_w = max(1, int(np.ceil(s.control_period_s / W_SUBSTEP_S - 1e-9)))
+
+    def w_step(x, u, t_evap_end, i):
+        """The cabin humidity ratio at the end of interval i [g/kg] (door NLP).
+
+        The plant's water balance and coil (``ceco_core.air_quality``: ``cabin_water_flows_kgps``,
+        ``coil_outlet_humidity_ratio``), the wall at the interval's mean evaporator temperature, the flows held,
+        ``n_w`` explicit Euler steps.
+        """
+        r, mdot = u[2], u[0]
+        fresh = (1.0 - r) * mdot + leakage_kgps(P["leak_0"], P["leak_v"], P["speed"][i])
+        w_amb = P["w_amb"] * W_SCALE_KGKG
+        w_sw = psychro.humidity_ratio(0.5 * (x[1] + t_evap_end), 1.0)
+        gen = P["w_gen"] * W_SCALE_KGKG
+        dt = s.control_period_s / n_w
+        w = x[i_w] * W_SCALE_KGKG
+        for _ in range(n_w):
+            w_mix = r * w + (1.0 - r) * w_amb
+            w_out = coil_outlet_humidity_ratio(
+                w_mix, w_sw, mp.moist_coil_bypass_factor, lambda a, b: smooth_max(a, b, W_SMOOTH_K)
+            )
+            f = cabin_water_flows_kgps(w, w_amb, w_mix, w_out, fresh, mdot, gen)
+            w = w + dt * (f.into - f.out - f.condensate) / P["m_air"]
+        return w / W_SCALE_KGKG
 
     def x_start():
         """x_0: the measured state and the previous command (and the CO2 estimate), all parameters."""
         if door:
-            return casadi.vertcat(P["x0"], P["u_prev"], P["co2_0"] / CO2_SCALE_PPM)
+            return casadi.vertcat(P["x0"], P["u_prev"], P["co2_0"] / CO2_SCALE_PPM, P["w_0"])
         return casadi.vertcat(P["x0"], P["u_prev"])
 
     def x_after(x, u, i):
         """The augmented state at the end of interval i and the interval's powers."""
         t_cab_n, t_evap_n, pc, pb = stage_step(x, u, i)
-        parts = [t_cab_n, t_evap_n, u] + ([co2_step(x, u, i)] if door else [])
+        parts = [t_cab_n, t_evap_n, u] + ([co2_step(x, u, i), w_step(x, u, t_evap_n, i)] if door else [])
         return casadi.vertcat(*parts), pc, pb
 
     x_next = None
@@ -313,7 +359,7 @@ def build_problem(
         else:
             assert x_next is not None  # (set by stage i - 1)
             x = SX.sym(f"x_{i}", nx)
-            x_lo = [_STATE_BOUNDS_C[0]] * 2 + [-inf] * nu + ([0.0] if door else [])
+            x_lo = [_STATE_BOUNDS_C[0]] * 2 + [-inf] * nu + ([0.0, 0.0] if door else [])
             add_var(x, x_lo, [_STATE_BOUNDS_C[1]] * 2 + [inf] * (nx - 2), "x")
             rows.add(i - 1, 0, "gap", x - x_next, [0.0] * nx, [0.0] * nx)
         if i < n:
@@ -388,12 +434,20 @@ def build_problem(
                 [0.0, -inf],
                 [inf, 0.0],
             )
-            if door:  # the soft CO2 limit, exact L1 penalty (docs/controller.md 4.9)
-                co2_all.append(x[nx - 1] * CO2_SCALE_PPM)
+            if door:  # the soft CO2 limit and the soft fog margin, exact L1 penalties (docs/controller.md 4.9)
+                co2_all.append(x[i_co2] * CO2_SCALE_PPM)
                 s_co2 = SX.sym(f"s_co2_{i}")
                 add_var(s_co2, 0.0, inf, "s_co2")
                 sl_terms.append(s.co2_slack_weight_kj_per_ppm * CO2_SCALE_PPM * s_co2)
-                rows.add(i, 3, "co2", x[nx - 1] - s_co2 - P["co2_max"] / CO2_SCALE_PPM, [-inf], [0.0])
+                rows.add(i, 3, "co2", x[i_co2] - s_co2 - P["co2_max"] / CO2_SCALE_PPM, [-inf], [0.0])
+                w_kgkg = x[i_w] * W_SCALE_KGKG
+                fog = fog_margin_k(P["t_glass"], psychro.vapour_pressure_from_humidity_ratio_pa(w_kgkg))
+                fog_all.append(fog)
+                wcab_all.append(w_kgkg)
+                s_fog = SX.sym(f"s_fog_{i}")
+                add_var(s_fog, 0.0, inf, "s_fog")
+                sl_terms.append(s.fog_slack_weight_kj_per_k * s_fog)
+                rows.add(i, 4, "fog", fog + s_fog - P["fog_min"], [0.0], [inf])
 
     def total(terms):
         return casadi.sum1(casadi.vertcat(*terms)) if terms else SX(0)
@@ -424,9 +478,11 @@ def build_problem(
             casadi.vertcat(*tain_all),
             casadi.vertcat(*tevap_all),
             casadi.vertcat(*co2_all) if co2_all else SX(0, 1),
+            casadi.vertcat(*fog_all) if fog_all else SX(0, 1),
+            casadi.vertcat(*wcab_all) if wcab_all else SX(0, 1),
         ],
         ["w", "p"],
-        ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain", "t_evap", "co2"],
+        ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain", "t_evap", "co2", "fog", "w_cab"],
     )
     return NlpProblem(
         settings=settings,

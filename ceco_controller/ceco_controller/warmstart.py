@@ -47,12 +47,12 @@ def initial_guess(problem: NlpProblem, p: np.ndarray, w_prev: np.ndarray | None 
     return np.clip(w, problem.lbw, problem.ubw)
 
 
-_SLACK_KEYS = ("s_lo", "s_up", "s_ev", "s_co2")
+_SLACK_KEYS = ("s_lo", "s_up", "s_ev", "s_co2", "s_fog")
 """The slacks of :func:`_smallest_slacks`, in its order."""
 
 
 def _smallest_slacks(problem: NlpProblem, w: np.ndarray, p: np.ndarray):
-    """The smallest comfort (s_lo, s_up), T_evap (s_ev) and CO2 (s_co2, door NLP) slacks that satisfy their rows."""
+    """The smallest slacks that satisfy their rows: comfort, T_evap, CO2 and fog (the last two: door NLP)."""
     s, pl, vl = problem.settings, problem.params, problem.vars
     ev = problem.evaluate(w, p)
     lb = pl.get(p, "pmv_lb")
@@ -63,6 +63,7 @@ def _smallest_slacks(problem: NlpProblem, w: np.ndarray, p: np.ndarray):
         np.maximum(ev.pmv + eps - ub, 0.0),
         np.maximum(np.maximum(s.t_evap_lb_c - ev.t_evap, ev.t_evap - s.t_evap_ub_c), 0.0),
         np.maximum(ev.co2 - pl.get(p, "co2_max"), 0.0) / CO2_SCALE_PPM if problem.door else np.zeros(0),
+        np.maximum(pl.get(p, "fog_min") - ev.fog, 0.0) if problem.door else np.zeros(0),
     )
 
 

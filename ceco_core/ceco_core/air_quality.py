@@ -43,6 +43,9 @@ __all__ = [
     "Co2Flows",
     "co2_flows_kgps",
     "co2_steady_ppm",
+    "coil_outlet_humidity_ratio",
+    "WaterFlows",
+    "cabin_water_flows_kgps",
     "fog_margin_k",
     "AQ_SIGNALS",
     "AqSignals",
@@ -138,6 +141,45 @@ def co2_flows_kgps(x_cab_kgkg, x_amb_kgkg, fresh_kgps, n_occupants, generation_k
 def co2_steady_ppm(co2_amb_ppm, fresh_kgps, n_occupants, generation_kgps):
     """Steady cabin CO2 [ppm] of the balance: ambient + n g / (fresh air + leakage)."""
     return co2_amb_ppm + co2_ppm_from_kgkg(n_occupants * generation_kgps / fresh_kgps)
+
+
+def coil_outlet_humidity_ratio(w_mix_kgkg, w_sat_wall_kgkg, bypass_factor, fmax):
+    """Humidity ratio of the air leaving the evaporator [kg/kg] (bypass-factor coil model).
+
+    The share ``1 - bypass_factor`` of the air touches the wall and, where the mixed air's humidity ratio
+    ``w_mix_kgkg`` is above the saturation value at the wall temperature ``w_sat_wall_kgkg``, leaves saturated at
+    the wall; the rest passes unchanged: ``W_out = W_mix - (1 - BF) max(W_mix - W_sw, 0)`` (ASHRAE Fundamentals
+    2017 ch. 1 and the apparatus dew point / bypass factor method of ASHRAE HVAC Systems and Equipment; the
+    plant's docs/plant.md "air loop"). ``fmax(a, b)`` is the backend's max (exact or smooth), so the plant and
+    the NMPC evaluate this one expression.
+    """
+    return w_mix_kgkg - (1.0 - bypass_factor) * fmax(w_mix_kgkg - w_sat_wall_kgkg, 0.0)
+
+
+class WaterFlows(NamedTuple):
+    """The cabin air's water flows [kg/s]: ``m_air dW/dt = into - out - condensate``."""
+
+    into: Any
+    """In with the fresh share of the supply, the leakage and the occupants [kg/s]."""
+    out: Any
+    """Out with the exfiltrated air, at the cabin state [kg/s]."""
+    condensate: Any
+    """Condensed from the supply air on the coil and drained [kg/s]."""
+
+
+def cabin_water_flows_kgps(w_cab_kgkg, w_amb_kgkg, w_mix_kgkg, w_out_kgkg, fresh_kgps, mdot_bl_kgps, generation_kgps):
+    """The cabin air's water balance [kg/s] (docs/plant.md "cabin humidity").
+
+    ``fresh_kgps`` = (1 - r) mdot_bl + mdot_inf enters at the ambient ``w_amb_kgkg`` and leaves at the cabin's
+    ``w_cab_kgkg``; the occupants add ``generation_kgps`` (their latent heat over h_fg); the coil takes
+    ``mdot_bl (W_mix - W_out)`` from the supply (:func:`coil_outlet_humidity_ratio`). Identical to
+    ``mdot_bl (W_out - W_cab) + mdot_inf (W_amb - W_cab) + generation``.
+    """
+    return WaterFlows(
+        fresh_kgps * w_amb_kgkg + generation_kgps,
+        fresh_kgps * w_cab_kgkg,
+        mdot_bl_kgps * (w_mix_kgkg - w_out_kgkg),
+    )
 
 
 def fog_margin_k(t_glass_c, p_w_pa):

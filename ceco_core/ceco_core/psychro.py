@@ -24,6 +24,7 @@ from ceco_core.units import ZERO_C_K
 __all__ = [
     "EPS_W",
     "P_ATM_PA",
+    "H_FG_JPKG",
     "saturation_vapour_pressure_pa",
     "vapour_pressure_pa",
     "humidity_ratio",
@@ -34,6 +35,10 @@ __all__ = [
 
 EPS_W = 0.621945
 """Ratio of the molar masses of water and dry air M_w / M_da [-] (ASHRAE Fundamentals 2017 ch. 1, eq. (22))."""
+
+H_FG_JPKG = 2.45e6
+"""Latent heat of vaporisation of water near 20 degC [J/kg] (ASHRAE Fundamentals 2017 ch. 1 table 3: 2453.5 kJ/kg at
+20 degC); the plant's ``PlantParams.h_fg_jpkg`` default and the NMPC's moisture generation use this value."""
 
 P_ATM_PA = 101325.0
 """Standard atmospheric pressure [Pa] (sea level)."""

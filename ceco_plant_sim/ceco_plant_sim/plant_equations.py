@@ -30,10 +30,12 @@ from dataclasses import fields
 from typing import Any, NamedTuple
 
 from ceco_core.air_quality import (
+    cabin_water_flows_kgps,
     co2_flows_kgps,
     co2_generation_kgps,
     co2_kgkg_from_ppm,
     co2_ppm_from_kgkg,
+    coil_outlet_humidity_ratio,
     leakage_kgps,
 )
 from ceco_core.contracts import AcInput
@@ -417,7 +419,7 @@ class PlantEquations:
         t_out = t_ev + bf * (t_in - t_ev)
         pws_w = o.scalar(wsat(t_ev))
         w_sw = EPS_W * pws_w / (patm - pws_w)
-        w_out = w_mix - (1.0 - bf) * o.scaled("water").fmax(w_mix - w_sw, 0.0)  # condensation below the dew point
+        w_out = coil_outlet_humidity_ratio(w_mix, w_sw, bf, o.scaled("water").fmax)  # condensation below the dew point
         q_sens = c_air * (t_in - t_out)
         q_lat = mdot * (w_mix - w_out) * p.h_fg_jpkg
         # HVAC case and ducts: the supply air exchanges with their wall, which exchanges with the panel
@@ -471,9 +473,9 @@ class PlantEquations:
         # the occupants; out with the exfiltrated air (both leave at the cabin state); the condensate
         # leaves the supply air on the coil. (Identical to mdot (W_out - W_cab) + mdot_inf (W_amb - W_cab) + ...)
         fresh = (1.0 - r) * mdot + m_inf
-        water_in = fresh * w_amb + n_occ * p.occ_latent_w / p.h_fg_jpkg
-        water_out = fresh * w_cab
-        condensate = mdot * (w_mix - w_out)
+        water_in, water_out, condensate = cabin_water_flows_kgps(
+            w_cab, w_amb, w_mix, w_out, fresh, mdot, n_occ * p.occ_latent_w / p.h_fg_jpkg
+        )
         d_w = (water_in - water_out - condensate) / self.m_air_kg
         # CO2 balance of the cabin air [kg/s]: in with the fresh share and the leakage at the ambient
         # fraction, out with the exfiltrated air at the cabin's, exhaled by the occupants
