@@ -147,7 +147,8 @@ def test_the_nlp_humidity_and_fog_margin_are_the_plants_water_balance():
 def test_when_fog_threatens_the_nlp_dries_the_cabin_and_the_penalty_is_exact():
     """The fog case (margin 1.9 K, the NLP's bound 4 K): with the fog row the plan dries at once (blower 0.17 kg/s,
     set-point 3 degC on the first step) and the margin is >= 4 K from the second grid point on, the first (5 s
-    away) short by its slack alone at the weight's multiplier; without the row the plan keeps the least blower flow
+    away) short by its slack alone at the weight's multiplier (the row is the vapour-pressure form of the margin,
+    in kelvin near the bound); without the row the plan keeps the least blower flow
     and the margin stays under 4 K for most of the horizon; the drying costs energy; every satisfiable fog row's
     multiplier is below half the weight (the L1 penalty is exact there)."""
     c = _controller()
@@ -160,7 +161,10 @@ def test_when_fog_threatens_the_nlp_dries_the_cabin_and_the_penalty_is_exact():
     assert np.all(ev.fog[1:] >= 4.0 - 1e-6) and ev.fog[0] > ev_off.fog[0] + 1.0
     assert np.sum(ev_off.fog < 4.0) >= 6
     s_fog = w[pr.vars.indices("s_fog")]
-    assert s_fog[0] == pytest.approx(4.0 - ev.fog[0], abs=1e-6) and np.all(s_fog[1:] < 1e-6)
+    assert ev.fog[0] < 4.0 and s_fog[0] == pytest.approx(-ev.fog_row[0], abs=1e-6) and np.all(s_fog[1:] < 1e-6)
+    # the row in vapour pressure is the margin's: >= 0 exactly where the margin is >= the bound, in kelvin near it
+    assert np.array_equal(ev.fog_row >= -1e-9, ev.fog >= 4.0 - 1e-6)
+    assert -ev.fog_row[0] == pytest.approx(4.0 - ev.fog[0], rel=0.1)
     lam_fog = np.abs(lam[pr.rows.indices("fog")])
     assert lam_fog[0] == pytest.approx(_DOOR.fog_slack_weight_kj_per_k, rel=1e-4)
     assert lam_fog[1:].max() < 0.5 * _DOOR.fog_slack_weight_kj_per_k

@@ -97,6 +97,9 @@ class Evaluation:
     """Predicted fog margin at grid points 1..N [K] (the door NLP; empty otherwise)."""
     w_cab: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     """Predicted cabin humidity ratio at grid points 1..N [kg/kg] (the door NLP; empty otherwise)."""
+    fog_row: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    """The fog rows' values at grid points 1..N, >= 0 where the margin meets the NLP's bound [K near the bound]
+    (the door NLP; empty otherwise)."""
 
 
 @dataclasses.dataclass
@@ -189,6 +192,7 @@ class NlpProblem:
             co2=out[9].copy(),
             fog=out[10].copy(),
             w_cab=out[11].copy(),
+            fog_row=out[12].copy(),
         )
 
     def rollout_states(self, u: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -276,7 +280,16 @@ def build_problem(
         w.append(sym)
 
     e_terms, c_terms, i_terms, sl_terms, du_terms = [], [], [], [], []
-    pmv_all, tcab_all, tain_all, tevap_all, co2_all, fog_all, wcab_all = [], [], [], [], [], [], []
+    pmv_all, tcab_all, tain_all, tevap_all, co2_all, fog_all, wcab_all, fogrow_all = ([] for _ in range(8))
+    if door:
+        # the fog row in vapour pressure: T_glass - T_dp(p_w) >= M  <=>  p_w <= p_ws(T_glass - M) (T_dp rises with
+        # p_w), divided by the saturation curve's slope there [Pa/K] so that its slack is in kelvin near the bound;
+        # both depend on parameters only (the dew point's Newton steps on the variables cost 3 ms a solve)
+        t_fog = P["t_glass"] - P["fog_min"]
+        p_w_fog_max = psychro.saturation_vapour_pressure_pa(t_fog)
+        p_w_per_k = psychro.saturation_vapour_pressure_pa(t_fog + 0.5) - psychro.saturation_vapour_pressure_pa(
+            t_fog - 0.5
+        )
 
     # Augmented state x_i = (T_cab, T_evap, mdot_{i-1}, sp_{i-1}): the move penalty and the comfort at
     # the last grid point (which uses u_{N-1}) stay stage-local, so the multiple-shooting NLP has the
@@ -441,13 +454,15 @@ def build_problem(
                 sl_terms.append(s.co2_slack_weight_kj_per_ppm * CO2_SCALE_PPM * s_co2)
                 rows.add(i, 3, "co2", x[i_co2] - s_co2 - P["co2_max"] / CO2_SCALE_PPM, [-inf], [0.0])
                 w_kgkg = x[i_w] * W_SCALE_KGKG
-                fog = fog_margin_k(P["t_glass"], psychro.vapour_pressure_from_humidity_ratio_pa(w_kgkg))
-                fog_all.append(fog)
+                p_w = psychro.vapour_pressure_from_humidity_ratio_pa(w_kgkg)
+                fog_all.append(fog_margin_k(P["t_glass"], p_w))  # the true margin (evaluator, diagnostics)
                 wcab_all.append(w_kgkg)
+                fog_row = (p_w_fog_max - p_w) / p_w_per_k  # >= 0 <=> margin >= bound (K near the bound)
+                fogrow_all.append(fog_row)
                 s_fog = SX.sym(f"s_fog_{i}")
                 add_var(s_fog, 0.0, inf, "s_fog")
                 sl_terms.append(s.fog_slack_weight_kj_per_k * s_fog)
-                rows.add(i, 4, "fog", fog + s_fog - P["fog_min"], [0.0], [inf])
+                rows.add(i, 4, "fog", fog_row + s_fog, [0.0], [inf])
 
     def total(terms):
         return casadi.sum1(casadi.vertcat(*terms)) if terms else SX(0)
@@ -480,9 +495,10 @@ def build_problem(
             casadi.vertcat(*co2_all) if co2_all else SX(0, 1),
             casadi.vertcat(*fog_all) if fog_all else SX(0, 1),
             casadi.vertcat(*wcab_all) if wcab_all else SX(0, 1),
+            casadi.vertcat(*fogrow_all) if fogrow_all else SX(0, 1),
         ],
         ["w", "p"],
-        ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain", "t_evap", "co2", "fog", "w_cab"],
+        ["J_e", "J_c", "J_i", "J_s", "J_du", "pmv", "t_cab", "t_ain", "t_evap", "co2", "fog", "w_cab", "fog_row"],
     )
     return NlpProblem(
         settings=settings,

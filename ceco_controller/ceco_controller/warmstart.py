@@ -63,7 +63,7 @@ def _smallest_slacks(problem: NlpProblem, w: np.ndarray, p: np.ndarray):
         np.maximum(ev.pmv + eps - ub, 0.0),
         np.maximum(np.maximum(s.t_evap_lb_c - ev.t_evap, ev.t_evap - s.t_evap_ub_c), 0.0),
         np.maximum(ev.co2 - pl.get(p, "co2_max"), 0.0) / CO2_SCALE_PPM if problem.door else np.zeros(0),
-        np.maximum(pl.get(p, "fog_min") - ev.fog, 0.0) if problem.door else np.zeros(0),
+        np.maximum(-ev.fog_row, 0.0) if problem.door else np.zeros(0),
     )
 
 
