@@ -41,7 +41,9 @@ def test_the_committed_co2_data_is_what_the_excitation_gives():
         assert stored["n_occupants"] == drive[1] == fresh["n_occupants"]
         assert fresh["t_s"].size == stored["t_s"].size
         np.testing.assert_allclose(stored["co2_cab_ppm"], fresh["co2_cab_ppm"], rtol=1e-8)
-        for c in ("recirc_share", "mdot_bl_kgps", "speed_mps"):
+        for c in ("w_cab_kgkg", "t_evap_c"):
+            np.testing.assert_allclose(stored[c], fresh[c], rtol=1e-8)
+        for c in ("recirc_share", "mdot_bl_kgps", "speed_mps", "t_amb_c", "rh_amb"):
             np.testing.assert_allclose(stored[c], fresh[c], rtol=1e-5, atol=1e-9)
         assert fresh["co2_cab_ppm"].max() == pytest.approx(co2_max, abs=1.0)
     train = _committed("co2_train.csv")
@@ -74,6 +76,32 @@ def test_the_shipped_model_holds_the_co2_balance_fitted_from_the_committed_data(
     assert abs(biased.leak_0_kgps / pp.infiltration_0_kgps - 1.0) > 0.1
 
 
+def test_the_shipped_model_holds_the_water_balance_fitted_from_the_committed_data():
+    """The water balance fitted from the committed data (the CO2 fit's air mass and leakage) gives the shipped
+    file's occupants' latent heat and coil bypass factor; they are the plant's 55 W within 10 % and inside the
+    plant's own bypass range at the excitation's flows (exp(-UA/(mdot c_p)): 0.04-0.09); the balance run free with
+    them stays within 0.15 g/kg of the plant's humidity on both drives; data without condensation are refused."""
+    train, valid = _committed("co2_train.csv"), _committed("co2_validation.csv")
+    air = idn.fit_co2_balance(train, train["n_occupants"], train["co2_amb_ppm"])
+    args = (air.m_air_kg, air.leak_0_kgps, air.leak_per_mps_kgps)
+    fit = idn.fit_moisture_balance(train, train["n_occupants"], *args)
+    shipped = cm.load_params()
+    assert shipped.moist_occ_latent_w == pytest.approx(fit.occ_latent_w, rel=1e-4)
+    assert shipped.moist_coil_bypass_factor == pytest.approx(fit.bypass_factor, rel=1e-4)
+    pp = PlantParams()
+    assert fit.occ_latent_w == pytest.approx(pp.occ_latent_w, rel=0.1)
+    assert 0.04 < fit.bypass_factor < 0.09
+    assert fit.free_run_max_err_kgkg < 0.15e-3
+    err = idn.moisture_free_run_max_err_kgkg(valid, valid["n_occupants"], *args, fit.occ_latent_w, fit.bypass_factor)
+    assert err < 0.15e-3
+    # a wrong latent heat (the nominal 55 W doubled) runs off by more than the fit's error
+    bad = idn.moisture_free_run_max_err_kgkg(valid, valid["n_occupants"], *args, 110.0, fit.bypass_factor)
+    assert bad > 3 * err
+    dry = dict(train, t_evap_c=np.full_like(train["t_evap_c"], 30.0))  # a wall above every dew point
+    with pytest.raises(ValueError, match="condense"):
+        idn.fit_moisture_balance(dry, train["n_occupants"], *args)
+
+
 def test_the_controllers_doors_use_the_identified_balance():
     """The NMPC's door (``door_control`` nlp) and the baseline's CO2-holding door run the control model's CO2
     balance; a parameter file from before the balance was identified loads with the nominal values."""
@@ -90,9 +118,10 @@ def test_the_controllers_doors_use_the_identified_balance():
     assert default_base.co2_door.model.m_air_kg == shipped.co2_m_air_kg != 3.48
     nmpc = make_controller("ceco-pmv", sc, 5.0, 6, mp, {"door_control": "nlp"})
     assert nmpc.door.model.m_air_kg == 4.1 and nmpc.door.nlp_parameters(600.0, 1500.0, 4)["m_air"] == 4.1
-    old = {k: v for k, v in shipped.to_dict().items() if not k.startswith("co2_")}
+    old = {k: v for k, v in shipped.to_dict().items() if not k.startswith(("co2_", "moist_"))}
     older = cm.ControlModelParams.from_dict(old)
     assert (older.co2_m_air_kg, older.co2_leak_0_kgps, older.co2_leak_per_mps_kgps) == (3.48, 0.0015, 0.0002)
+    assert (older.moist_coil_bypass_factor, older.moist_occ_latent_w) == (0.06, 55.0)
     with pytest.raises(ValueError, match="co2_leak_0_kgps must be > 0"):
         dataclasses.replace(shipped, co2_leak_0_kgps=0.0).validate()
 
@@ -112,10 +141,13 @@ def test_identify_fits_the_co2_balance_from_csv_or_keeps_the_nominal_values(tmp_
     shipped = cm.load_params()
     assert doc["params"]["co2_m_air_kg"] == pytest.approx(shipped.co2_m_air_kg, rel=1e-5)
     assert doc["fit_report"]["co2_balance_fit"]["free_run_max_err_validation_ppm"] < 1.0
+    assert doc["fit_report"]["co2_balance_fit"]["moisture_free_run_max_err_validation_g_per_kg"] < 0.15
+    assert doc["params"]["moist_occ_latent_w"] == pytest.approx(shipped.moist_occ_latent_w, rel=1e-4)
     assert "co2_train.csv" in doc["params"]["provenance"]
     assert idn.main(["--from-csv", train, "--validation-csv", valid, "--out", str(tmp_path / "b")]) == 0
     doc = yaml.safe_load((tmp_path / "b" / "model_params.yaml").read_text())
     assert doc["params"]["co2_m_air_kg"] == 3.48 and "CO2 balance not identified" in doc["params"]["provenance"]
+    assert doc["params"]["moist_occ_latent_w"] == 55.0
     bad = (DATA / "co2_train.csv").read_text().splitlines()
     bad[5] = bad[5].rsplit(",", 2)[0] + ",3,425"
     (tmp_path / "bad.csv").write_text("\n".join(bad) + "\n")

@@ -29,12 +29,13 @@ this module identifies them from the ceco plant:
    bound, +24 % at 20 m/s against the plant's +15-20 %).
 4. Fit report: one-step and multi-step (a whole horizon Np) prediction errors on
    a validation drive (US06) that is not used for fitting.
-5. The cabin CO2 balance (the CO2 estimator's and the door's model, issue 21): cabin air mass and
-   leakage (:func:`fit_co2_balance`, linear least squares) from a drive with the door, the blower and
-   the set-point moved at random (UDDS, 4 occupants; :func:`generate_co2_excitation`), validated by
-   running the fitted balance free over another (HWFET, 2 occupants); written into the same file
-   (``co2_*`` fields). With ``--from-csv`` the CO2 balance comes from ``--co2-csv`` (columns
-   :data:`CO2_CSV_COLUMNS`), else it keeps its nominal values and the provenance says so.
+5. The cabin CO2 and water balances (the CO2 estimator's, the door's and the door NLP's humidity model,
+   issue 21): cabin air mass and leakage (:func:`fit_co2_balance`), then the occupants' latent heat and
+   the coil's bypass factor (:func:`fit_moisture_balance`), linear least squares, from a drive with the
+   door, the blower and the set-point moved at random (UDDS, 4 occupants; :func:`generate_co2_excitation`),
+   validated by running the fitted balances free over another (HWFET, 2 occupants); written into the same
+   file (``co2_*``, ``moist_*`` fields). With ``--from-csv`` they come from ``--co2-csv`` (columns
+   :data:`CO2_CSV_COLUMNS`), else they keep their nominal values and the provenance says so.
 
 CLI (also ``ceco identify``)::
 
@@ -90,6 +91,9 @@ __all__ = [
     "Co2BalanceFit",
     "fit_co2_balance",
     "co2_free_run_max_err_ppm",
+    "MoistureBalanceFit",
+    "fit_moisture_balance",
+    "moisture_free_run_max_err_kgkg",
     "CO2_CSV_COLUMNS",
     "read_series_csv",
     "write_series_csv",
@@ -477,6 +481,105 @@ def co2_free_run_max_err_ppm(
     return float(err)
 
 
+@dataclasses.dataclass(frozen=True)
+class MoistureBalanceFit:
+    """The cabin water balance's parameters identified from a plant run (:func:`fit_moisture_balance`)."""
+
+    occ_latent_w: float
+    """Latent heat of one occupant [W] (their moisture times h_fg)."""
+    bypass_factor: float
+    """Evaporator bypass factor of the condensation [-] (a constant: the plant's varies with the flow)."""
+    rate_rms_kgkg_per_s: float
+    """RMS residual of the fitted humidity-ratio rate [kg/kg per s]."""
+    free_run_max_err_kgkg: float
+    """Largest error of the balance run with the fitted values from the first sample over the whole series
+    [kg/kg] (:func:`moisture_free_run_max_err_kgkg`)."""
+
+
+def _moisture_terms(series: dict, m_air_kg: float, leak_0_kgps: float, leak_per_mps_kgps: float):
+    """Per-interval terms of the water balance [SI]: dW/dt, W, W_amb, F, r, mdot, W_sw (midpoints as for CO2)."""
+    from ceco_core import psychro
+    from ceco_core.air_quality import leakage_kgps
+
+    t, w, r, m, v, tev, tamb, rh = (
+        np.asarray(series[k], float)
+        for k in ("t_s", "w_cab_kgkg", "recirc_share", "mdot_bl_kgps", "speed_mps", "t_evap_c", "t_amb_c", "rh_amb")
+    )
+    if not (t.size == w.size == r.size == m.size == v.size == tev.size == tamb.size == rh.size) or t.size < 60:
+        raise ValueError(f"fit_moisture_balance: need equal-length series of at least 60 samples, got {t.size}")
+    if not np.all(np.isfinite(np.stack([t, w, r, m, v, tev, tamb, rh]))) or not np.all(np.diff(t) > 0):
+        raise ValueError("fit_moisture_balance: the series must be finite with increasing time")
+    dt = np.diff(t)
+    mid = lambda a: 0.5 * (a[1:] + a[:-1])  # noqa: E731 - the interval's mean of a sampled series
+    rm = mid(r)
+    w_amb = psychro.humidity_ratio(tamb[:-1], rh[:-1])
+    w_sw = psychro.humidity_ratio(mid(tev), 1.0)
+    fresh = (1.0 - rm) * m[:-1] + leakage_kgps(leak_0_kgps, leak_per_mps_kgps, v[:-1])
+    return dict(dw=np.diff(w) / dt, w=mid(w), w0=w, w_amb=w_amb, fresh=fresh, r=rm, m=m[:-1], w_sw=w_sw, dt=dt)
+
+
+def fit_moisture_balance(
+    series: dict, n_occupants: int, m_air_kg: float, leak_0_kgps: float, leak_per_mps_kgps: float
+) -> MoistureBalanceFit:
+    """Least-squares occupants' latent heat and coil bypass factor of the cabin water balance (issue 21).
+
+    The balance of ``ceco_core.air_quality`` (``cabin_water_flows_kgps``, ``coil_outlet_humidity_ratio``), with the
+    air mass and leakage of the CO2 fit (:func:`fit_co2_balance`) taken as known, is linear in the occupants'
+    moisture G and the coil's contact share 1 - BF:
+
+        m_air dW/dt - F (W_amb - W) = G - (1 - BF) mdot max(W_mix - W_sw(T_wall), 0)
+
+    (F = (1 - r) mdot + L_0 + L_V V; W, r and T_wall at the interval's midpoints; ``numpy.linalg.lstsq``).
+    ``series``: :data:`CO2_SERIES_COLUMNS` (a cabin humidity sensor, the evaporator wall temperature, the
+    ambient's). G = n q_l / h_fg gives q_l per occupant. The coil must condense over a range of flows and
+    wall temperatures, else G and BF are not told apart (a ValueError says so).
+    """
+    from ceco_core import psychro
+
+    d = _moisture_terms(series, m_air_kg, leak_0_kgps, leak_per_mps_kgps)
+    w_mix = d["r"] * d["w"] + (1.0 - d["r"]) * d["w_amb"]
+    cond = d["m"] * np.maximum(w_mix - d["w_sw"], 0.0)
+    if np.ptp(cond) < 1e-5 or np.count_nonzero(cond) < 30:
+        raise ValueError("fit_moisture_balance: the coil must condense, at varying rates, in the data")
+    y = m_air_kg * d["dw"] - d["fresh"] * (d["w_amb"] - d["w"])
+    a = np.column_stack([np.ones_like(cond), -cond])
+    (g, contact), *_ = np.linalg.lstsq(a, y, rcond=None)
+    rate = (g - contact * cond - y) / m_air_kg
+    q_l = float(g) * psychro.H_FG_JPKG / int(n_occupants)
+    bf = 1.0 - float(contact)
+    err = moisture_free_run_max_err_kgkg(series, n_occupants, m_air_kg, leak_0_kgps, leak_per_mps_kgps, q_l, bf)
+    return MoistureBalanceFit(q_l, bf, float(np.sqrt(np.mean(rate**2))), err)
+
+
+def moisture_free_run_max_err_kgkg(
+    series: dict,
+    n_occupants: int,
+    m_air_kg: float,
+    leak_0_kgps: float,
+    leak_per_mps_kgps: float,
+    occ_latent_w: float,
+    bypass_factor: float,
+) -> float:
+    """Largest error [kg/kg] of the water balance with these values run free from the series' first sample.
+
+    Explicit Euler over each sample, the shared coil and balance functions with the exact max.
+    """
+    from ceco_core import psychro
+    from ceco_core.air_quality import cabin_water_flows_kgps, coil_outlet_humidity_ratio
+
+    d = _moisture_terms(series, m_air_kg, leak_0_kgps, leak_per_mps_kgps)
+    gen = int(n_occupants) * occ_latent_w / psychro.H_FG_JPKG
+    x, err = float(d["w0"][0]), 0.0
+    for k in range(d["dt"].size):
+        r, w_amb = float(d["r"][k]), float(d["w_amb"][k])
+        w_mix = r * x + (1.0 - r) * w_amb
+        w_out = coil_outlet_humidity_ratio(w_mix, float(d["w_sw"][k]), bypass_factor, max)
+        f = cabin_water_flows_kgps(x, w_amb, w_mix, w_out, float(d["fresh"][k]), float(d["m"][k]), gen)
+        x += float(d["dt"][k]) * (f.into - f.out - f.condensate) / m_air_kg
+        err = max(err, abs(x - float(d["w0"][k + 1])))
+    return float(err)
+
+
 def round_floats(d: dict) -> dict:
     """A fit-report mapping with its floats rounded to 6 decimals (for the parameter file)."""
     return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in d.items()}
@@ -594,16 +697,27 @@ def _identify_co2(args, data_dir: pathlib.Path, exc: ExcitationSettings) -> tupl
     err_valid = co2_free_run_max_err_ppm(
         valid, valid["n_occupants"], valid["co2_amb_ppm"], fit.m_air_kg, fit.leak_0_kgps, fit.leak_per_mps_kgps
     )
+    air = (fit.m_air_kg, fit.leak_0_kgps, fit.leak_per_mps_kgps)
+    moist = fit_moisture_balance(train, train["n_occupants"], *air)
+    moist_valid = moisture_free_run_max_err_kgkg(
+        valid, valid["n_occupants"], *air, moist.occ_latent_w, moist.bypass_factor
+    )
     fields = {
         "co2_m_air_kg": fit.m_air_kg,
         "co2_leak_0_kgps": fit.leak_0_kgps,
         "co2_leak_per_mps_kgps": fit.leak_per_mps_kgps,
+        "moist_coil_bypass_factor": moist.bypass_factor,
+        "moist_occ_latent_w": moist.occ_latent_w,
     }
     report = {
-        "method": "linear least squares of the CO2 balance (fit_co2_balance); validation: the balance run free",
+        "method": "linear least squares of the CO2 balance (fit_co2_balance), then of the water balance with its "
+        "air mass and leakage (fit_moisture_balance); validation: each balance run free",
         "rate_rms_training_ppm_per_s": fit.rate_rms_ppm_per_s,
         "free_run_max_err_training_ppm": fit.free_run_max_err_ppm,
         "free_run_max_err_validation_ppm": err_valid,
+        "moisture_rate_rms_training_g_per_kg_s": 1e3 * moist.rate_rms_kgkg_per_s,
+        "moisture_free_run_max_err_training_g_per_kg": 1e3 * moist.free_run_max_err_kgkg,
+        "moisture_free_run_max_err_validation_g_per_kg": 1e3 * moist_valid,
     }
     return fields, report, f"from {srcs[0]}, validated on {srcs[1]}"
 

@@ -64,9 +64,21 @@ TRAIN_DRIVES = (
 """(scenario, initial condition) of the training drives."""
 VALIDATION_DRIVES = (("us06", "soak"), ("us06", "precooled"))
 """Validation drives (never used for fitting)."""
-CO2_SERIES_COLUMNS = ("t_s", "co2_cab_ppm", "recirc_share", "mdot_bl_kgps", "speed_mps")
-"""Columns of the cabin CO2 balance's fit (:func:`ceco_controller.identification.fit_co2_balance`): time [s],
-cabin CO2 [ppm], the door's actual recirculated share [-], blower flow [kg/s], vehicle speed [m/s]."""
+CO2_SERIES_COLUMNS = (
+    "t_s",
+    "co2_cab_ppm",
+    "recirc_share",
+    "mdot_bl_kgps",
+    "speed_mps",
+    "w_cab_kgkg",
+    "t_evap_c",
+    "t_amb_c",
+    "rh_amb",
+)
+"""Columns of the air-quality fits (:func:`ceco_controller.identification.fit_co2_balance`,
+:func:`~ceco_controller.identification.fit_moisture_balance`): time [s], cabin CO2 [ppm], the door's actual
+recirculated share [-], blower flow [kg/s], vehicle speed [m/s], cabin humidity ratio [kg/kg], evaporator wall
+temperature [degC], ambient temperature [degC] and relative humidity [-]."""
 CO2_TRAIN_DRIVE = ("udds", 4)
 """(scenario, occupants) of the CO2 balance's training drive (1369 s, speeds 0-25 m/s)."""
 CO2_VALIDATION_DRIVE = ("hwfet", 2)
@@ -192,7 +204,8 @@ def generate_co2_excitation(drive=CO2_TRAIN_DRIVE, settings: ExcitationSettings 
     pp = dataclasses.replace(PlantParams(), n_occupants=int(n_occ), co2_amb_ppm=float(sc.air_quality.co2_amb_ppm))
     plant = CabinPlant(pp, PlantState.from_initial(dataclasses.asdict(sc.initial), pp, sc.env_at(0.0)))
     rows: dict[str, list] = {c: [] for c in CO2_SERIES_COLUMNS}
-    co2, door = co2_ppm_from_kgkg(plant.state.co2_cab_kgkg), plant.state.recirc_share
+    st = plant.state
+    co2, door, w_cab, t_ev = co2_ppm_from_kgkg(st.co2_cab_kgkg), st.recirc_share, st.w_cab_kgkg, st.t_evap_c
     t_next, cmd = 0.0, None
     for i in range(int(sc.duration_s)):
         t = float(i)
@@ -205,12 +218,17 @@ def generate_co2_excitation(drive=CO2_TRAIN_DRIVE, settings: ExcitationSettings 
         assert cmd is not None  # set at t = 0 (t_next = 0)
         env = sc.env_at(t)
         out = plant.step(cmd, env, 1.0)
-        for c, v in zip(CO2_SERIES_COLUMNS, (t, co2, door, cmd.mdot_bl_kgps, env.speed_mps)):
+        vals = (t, co2, door, cmd.mdot_bl_kgps, env.speed_mps, w_cab, t_ev, env.t_amb_c, env.rh)
+        for c, v in zip(CO2_SERIES_COLUMNS, vals):
             rows[c].append(v)
-        co2, door = out.co2_cab_ppm, out.recirc_share
+        co2, door, w_cab, t_ev = out.co2_cab_ppm, out.recirc_share, out.w_cab_kgkg, out.t_evap_c
     series: dict[str, Any] = {c: np.asarray(v, dtype=float) for c, v in rows.items()}
     series.update(n_occupants=int(n_occ), co2_amb_ppm=float(sc.air_quality.co2_amb_ppm))
     return series
+
+
+_FINE = ("co2_cab_ppm", "w_cab_kgkg", "t_evap_c")
+"""Columns written with 9 significant digits (their differences over 1 s are what a balance's fit reads)."""
 
 
 def write_series_csv(series: dict, path, columns: tuple = SERIES_COLUMNS) -> str:
@@ -221,7 +239,7 @@ def write_series_csv(series: dict, path, columns: tuple = SERIES_COLUMNS) -> str
         w = csv.writer(fh)
         w.writerow(columns)
         for row in zip(*(series[c] for c in columns)):
-            w.writerow([f"{v:.9g}" if c == "co2_cab_ppm" else f"{v:.6g}" for c, v in zip(columns, row)])
+            w.writerow([f"{v:.9g}" if c in _FINE else f"{v:.6g}" for c, v in zip(columns, row)])
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
