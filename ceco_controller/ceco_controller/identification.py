@@ -58,6 +58,7 @@ from scipy.optimize import least_squares, lsq_linear
 
 from . import model as cm
 from .identification_data import (  # noqa: F401 - part of this module's API (__all__)
+    CO2_FINE_COLUMNS,
     CO2_SERIES_COLUMNS,
     CO2_TRAIN_DRIVE,
     CO2_VALIDATION_DRIVE,
@@ -689,7 +690,7 @@ def _identify_co2(args, data_dir: pathlib.Path, exc: ExcitationSettings) -> tupl
         table = dict(
             series, n_occupants=np.full(n, series["n_occupants"]), co2_amb_ppm=np.full(n, series["co2_amb_ppm"])
         )
-        sha = write_series_csv(table, data_dir / name, CO2_CSV_COLUMNS)
+        sha = write_series_csv(table, data_dir / name, CO2_CSV_COLUMNS, CO2_FINE_COLUMNS)
         sets.append(series)
         srcs.append(f"{name} (sha256 {sha[:16]}; {drive[0]}, {drive[1]} occupants)")
     train, valid = sets

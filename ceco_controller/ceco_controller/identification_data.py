@@ -110,6 +110,13 @@ _PRECOOLED = {"t_cab_c": 27.0, "t_int_c": 38.0, "t_shell_c": 36.0, "t_evap_c": 1
 """Initial state of a cabin that has already been cooled for a while [degC]."""
 
 
+def _hold_s(rng, settings: ExcitationSettings) -> float:
+    """A random hold of the excitation's levels [s]: a whole number of model steps in [hold_min_s, hold_max_s]."""
+    return settings.ts_s * rng.integers(
+        int(settings.hold_min_s / settings.ts_s), int(settings.hold_max_s / settings.ts_s) + 1
+    )
+
+
 def generate_excitation(
     drives=TRAIN_DRIVES,
     settings: ExcitationSettings = ExcitationSettings(),
@@ -152,9 +159,7 @@ def generate_excitation(
                     hold = 60.0
                 else:
                     cmd = AcInput(float(rng.uniform(0.05, 0.17)), float(rng.uniform(3.0, 10.0)))
-                    hold = settings.ts_s * rng.integers(
-                        int(settings.hold_min_s / settings.ts_s), int(settings.hold_max_s / settings.ts_s) + 1
-                    )
+                    hold = _hold_s(rng, settings)
                 t_next = t + hold
             assert cmd is not None  # set at t = 0 (t_next = 0)
             env = sc.env_at(t)
@@ -211,10 +216,7 @@ def generate_co2_excitation(drive=CO2_TRAIN_DRIVE, settings: ExcitationSettings 
         t = float(i)
         if t >= t_next:
             cmd = AcInput(float(rng.uniform(0.05, 0.17)), float(rng.uniform(3.0, 10.0)), float(rng.uniform(0.0, 1.0)))
-            hold = settings.ts_s * rng.integers(
-                int(settings.hold_min_s / settings.ts_s), int(settings.hold_max_s / settings.ts_s) + 1
-            )
-            t_next = t + hold
+            t_next = t + _hold_s(rng, settings)
         assert cmd is not None  # set at t = 0 (t_next = 0)
         env = sc.env_at(t)
         out = plant.step(cmd, env, 1.0)
@@ -227,19 +229,23 @@ def generate_co2_excitation(drive=CO2_TRAIN_DRIVE, settings: ExcitationSettings 
     return series
 
 
-_FINE = ("co2_cab_ppm", "w_cab_kgkg", "t_evap_c")
-"""Columns written with 9 significant digits (their differences over 1 s are what a balance's fit reads)."""
+CO2_FINE_COLUMNS = ("co2_cab_ppm", "w_cab_kgkg", "t_evap_c")
+"""Columns of the CO2 identification CSVs written with 9 significant digits (their differences over 1 s are what
+the balances' fits read); the rest 6."""
 
 
-def write_series_csv(series: dict, path, columns: tuple = SERIES_COLUMNS) -> str:
-    """Write a series dict as CSV (``columns``, default SERIES_COLUMNS); return its sha256."""
+def write_series_csv(series: dict, path, columns: tuple = SERIES_COLUMNS, fine: tuple = ()) -> str:
+    """Write a series dict as CSV; return its sha256.
+
+    ``columns`` (default SERIES_COLUMNS) in that order, those in ``fine`` with 9 significant digits, the rest 6.
+    """
     path = pathlib.Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         w.writerow(columns)
         for row in zip(*(series[c] for c in columns)):
-            w.writerow([f"{v:.9g}" if c in _FINE else f"{v:.6g}" for c, v in zip(columns, row)])
+            w.writerow([f"{v:.9g}" if c in fine else f"{v:.6g}" for c, v in zip(columns, row)])
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
