@@ -648,3 +648,22 @@ def test_oracle_cell_keeps_the_solvers_account():
     (bad,) = runner.oracle_cells(case, [0], levels, cli.code_fingerprint(), 'oracle_standin:solve_front_bad_account')
     row = runner.run_oracle_cell({'id': bad.id, 'axes': bad.axes, 'spec': bad.spec})
     assert row['status'] == 'error' and 'iterations must be an int >= 0, got -1' in row['error']
+
+
+def test_the_strategy_flag_chooses_what_is_scored(tmp_path, capsys):
+    """``ceco benchmark --strategy``: all (the default set), none (the families only), a comma-separated list of
+    strategies and variants (duplicates dropped); an unknown name is one clear error (exit 2). A real --quick run
+    with ``--strategy ceco-e`` scores ceco-e and the compensated laws, no other strategy, and records the flag."""
+    parse = cli.build_parser().parse_args
+    assert parse(['--out', 'x']).strategy is None and parse(['--out', 'x', '--strategy', 'all']).strategy is None
+    assert parse(['--out', 'x', '--strategy', 'none']).strategy == ()
+    assert parse(['--out', 'x', '--strategy', 'ceco-pmv-door, ceco,ceco']).strategy == ('ceco-pmv-door', 'ceco')
+    with pytest.raises(SystemExit) as exc:
+        cli.main(['sc03-paper', '--out', str(tmp_path / 'bad'), '--strategy', 'ceco,nope'])
+    assert exc.value.code == 2 and 'nope: not a strategy' in capsys.readouterr().err
+    out = tmp_path / 'q'
+    assert cli.main(['--quick', '--strategy', 'ceco-e', '--no-progress', '--workers', '2', '--out', str(out)]) == 0
+    doc = json.loads((out / 'results.json').read_text())
+    scored = {r['controller'] for c in doc['cases'] for r in c['runs'] if r['kind'] == 'strategy'}
+    assert scored == {'ceco-e'}
+    assert '--strategy ceco-e' in doc['command'] and bs.check_results(doc) == []

@@ -427,6 +427,17 @@ def build_parser() -> cli_args.Parser:
         help='with --oracle: solve it on these of the selected cases only (comma-separated; default: all of them)',
     )
     p.add_argument(
+        '--strategy',
+        type=_strategy_names,
+        default=None,
+        metavar='all|none|A,B,...',
+        help='the NMPC strategies to score: all (default: '
+        + ', '.join(runner.STRATEGY_NAMES)
+        + '), none (the baseline families only), or a comma-separated list of those and the variants '
+        + ', '.join(runner.STRATEGY_VARIANTS)
+        + ' (ceco-pmv brings its persistence twin, and its door variant on the door cases)',
+    )
+    p.add_argument(
         '--controller-cmd',
         default=None,
         metavar='CMD',
@@ -437,6 +448,23 @@ def build_parser() -> cli_args.Parser:
     p.add_argument('--validate', metavar='FILE', default=None, help='only check FILE against ceco-benchmark/2')
     cli_args.add_no_progress(p)
     return p
+
+
+def _strategy_names(text: str) -> tuple[str, ...] | None:
+    """``--strategy``: 'all' (None: the default set), 'none' (no strategy) or comma-separated known names."""
+    t = text.strip()
+    if t == 'all':
+        return None
+    if t == 'none':
+        return ()
+    names = tuple(x.strip() for x in t.split(',') if x.strip())
+    known = (*runner.STRATEGY_NAMES, *runner.STRATEGY_VARIANTS)
+    unknown = [n for n in names if n not in known]
+    if not names or unknown:
+        raise argparse.ArgumentTypeError(
+            f'{", ".join(unknown) or repr(text)}: not a strategy (all, none, or some of {", ".join(known)})'
+        )
+    return tuple(dict.fromkeys(names))
 
 
 def _case_names(text: str) -> list[str]:
@@ -485,6 +513,7 @@ def main(argv=None) -> int:
             save_runs=args.save_runs,
             progress=not args.no_progress,
             command=cmd,
+            strategies=args.strategy,
         )
     except (CaseError, ResultsError, ValueError, RuntimeError, OSError) as exc:
         print(f'ceco benchmark: error: {exc}', file=sys.stderr)
