@@ -18,6 +18,9 @@ def run_node(node_factory, argv=None, name: str = 'node') -> int:
       is destroyed and the process exits 0. Signals that arrive during that cleanup (a
       terminal's Ctrl-C reaches every node of a ``ros2 launch`` twice: from the terminal and
       from launch) are ignored, so no KeyboardInterrupt cuts the cleanup short.
+    * The node spins in an executor of its own that cannot be left half-built: a stop signal that
+      lands inside ``Executor.__init__`` stops the node as above, without the traceback rclpy's
+      ``Executor.__del__`` prints for an executor whose ``__init__`` did not reach its last line.
     """
     import rclpy
     from rclpy.executors import ExternalShutdownException
@@ -27,7 +30,7 @@ def run_node(node_factory, argv=None, name: str = 'node') -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _stop)
     rclpy.init(args=argv)
-    node, status, why = None, 0, 'shutdown'
+    node, executor, status, why = None, None, 0, 'shutdown'
     try:
         try:
             node = node_factory()
@@ -35,7 +38,8 @@ def run_node(node_factory, argv=None, name: str = 'node') -> int:
             _fatal(name, str(err))
             status = 2
         else:
-            rclpy.spin(node)
+            executor = _executor()
+            rclpy.spin(node, executor)
     except KeyboardInterrupt as stop:
         why = str(stop) or 'SIGINT'
     except ExternalShutdownException:
@@ -45,11 +49,23 @@ def run_node(node_factory, argv=None, name: str = 'node') -> int:
         if node is not None:
             _console(node.get_logger().name, f'stopped ({why}): exit {status}')
             node.destroy_node()
+            if executor is not None:
+                executor.shutdown()
         elif status == 0:  # stopped while the node was being constructed
             _console(name, f'stopped ({why}) while starting: exit 0')
         rclpy.try_shutdown()
         _ignore_stop_signals()  # try_shutdown puts back the handlers of before init
     return status
+
+
+def _executor():
+    """A SingleThreadedExecutor whose ``__del__`` is safe even if ``__init__`` is interrupted."""
+    from rclpy.executors import SingleThreadedExecutor
+
+    executor = SingleThreadedExecutor.__new__(SingleThreadedExecutor)
+    executor._sigint_gc = None  # what Executor.__del__ reads; __init__ sets it near its end
+    executor.__init__()
+    return executor
 
 
 def _console(logger_name: str, text: str) -> None:
