@@ -142,6 +142,12 @@ class OracleSettings:
     against the limit itself; the smooth model's states differ from the plant's by a little)."""
     fog_margin_extra_k: float = 0.1
     """Margin [K] the NLP keeps above the scenario's fog bound (the same reason)."""
+    lift_energy: bool = True
+    """Each control interval's energy as a variable of the NLP, tied to the plant steps by one equality row
+    (the objective then is their sum, linear). The same optimum; IPOPT's objective and gradient no longer run
+    the drive's plant steps (the constraint Jacobian it needs anyway carries their derivatives): off, they
+    were 31 % of an iteration on sc03-paper (docs/oracle.md "Lifted energy"). False: the energy summed in
+    the objective (the form of before, kept as the reference of ``tools/bench_oracle.py --forms``)."""
 
     def validate(self) -> OracleSettings:
         """Raise ValueError naming the field if a setting is not usable; return self."""
@@ -161,6 +167,8 @@ class OracleSettings:
                 continue
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"OracleSettings.{name}: must be finite and > 0, got {v}")
+        if not isinstance(self.lift_energy, bool):
+            raise ValueError(f"OracleSettings.lift_energy: must be True or False, got {self.lift_energy!r}")
         if self.compiled not in COMPILED_MODES:
             raise ValueError(f"OracleSettings.compiled: must be one of {COMPILED_MODES}, got {self.compiled!r}")
         if self.compiled == "yes" and self.expand:
@@ -223,9 +231,13 @@ class LevelResult:
     success: bool
     """IPOPT reported success (or an acceptable point) and the replay ran."""
     iterations: int
-    """IPOPT iterations."""
+    """IPOPT iterations (of both attempts when the level was solved again in the summed form)."""
     wall_time_s: float
-    """Wall time of the solve [s]."""
+    """Wall time of the solve [s] (of both attempts, likewise)."""
+    form: str = "lifted"
+    """The NLP's form that gave the result: ``lifted`` (the energy lifted, :attr:`OracleSettings.lift_energy`),
+    ``summed`` (the setting off) or ``lifted, then summed`` (the lifted solve failed; the level was solved again
+    in the summed form from the same start)."""
     input_names: tuple = INPUT_NAMES
     """The columns of :attr:`commands` (:data:`INPUT_NAMES`, or :data:`DOOR_INPUT_NAMES` with the door free)."""
     commands: np.ndarray | None = None
@@ -365,11 +377,20 @@ class OracleProblem:
         g = [
             casadi.vec((x_next - x[:, 1:]) / casadi.repmat(scale, 1, k)),
             casadi.vec(tv_out[:, : k - 1] - tv[:, 1:]),
+        ]
+        n_dyn = nx * k + (k - 1)
+        # the lifted energy: one variable per interval [J / energy_scale_j], one row tying it to the plant steps
+        self.energy_scale_j = m * s.plant_dt_s * 1000.0
+        """Scale of the lifted energy variables [J]: one kW over a control interval."""
+        en = casadi.MX.sym("en", 1, k if s.lift_energy else 0)
+        if s.lift_energy:
+            g.append(casadi.vec(energy / self.energy_scale_j - en))
+            n_dyn += k
+        g += [
             casadi.vec(sl - (pc - hi) * mask_row),
             casadi.vec(sl - (lo - pmv) * mask_row),
             casadi.sum2(sl) * dt_h - level,
         ]
-        n_dyn = nx * k + (k - 1)
         self._lbg = np.concatenate([np.zeros(n_dyn), np.zeros(2 * k * m), [-np.inf]])
         self._ubg = np.concatenate([np.zeros(n_dyn), np.full(2 * k * m, np.inf), [0.0]])
         if self.door:
@@ -383,12 +404,13 @@ class OracleProblem:
             ]
             self._lbg = np.concatenate([self._lbg, np.full(2 * k, -np.inf)])
             self._ubg = np.concatenate([self._ubg, np.zeros(2 * k)])
-        self._w = [casadi.vec(xs), casadi.vec(us), casadi.vec(tv), casadi.vec(sl)]
-        self._sizes = [nx * (k + 1), nu * k, k, k * m]
+        self._w = [casadi.vec(xs), casadi.vec(us), casadi.vec(tv), casadi.vec(sl), casadi.vec(en)]
+        self._sizes = [nx * (k + 1), nu * k, k, k * m, en.numel()]
         w = casadi.vertcat(*self._w)
-        obj = casadi.sum2(energy) / J_PER_KWH
+        model_energy = casadi.sum2(energy) / J_PER_KWH
+        obj = casadi.sum2(en) * (self.energy_scale_j / J_PER_KWH) if s.lift_energy else model_energy
         dist = casadi.fmax(0, casadi.fmax(casadi.fmin(pmv, PMV_SCALE_LIMIT) - hi, lo - pmv)) * mask_row
-        self._nlp_eval = casadi.Function("oracle_eval", [w], [obj, casadi.sum2(dist) * dt_h, pmv])
+        self._nlp_eval = casadi.Function("oracle_eval", [w], [model_energy, casadi.sum2(dist) * dt_h, pmv, energy])
         nlp = {"x": w, "f": obj, "g": casadi.vertcat(*g), "p": level}
         opts: dict[str, Any] = {
             "ipopt.hessian_approximation": "limited-memory",
@@ -408,6 +430,8 @@ class OracleProblem:
         # bounds: key-on state fixed, actuators as every controller, slacks >= 0
         lbx = [np.full((nx, k + 1), -np.inf), np.zeros((nu, k)), np.full(k, -np.inf), np.zeros(k * m)]
         ubx = [np.full((nx, k + 1), np.inf), np.zeros((nu, k)), np.full(k, np.inf), np.full(k * m, np.inf)]
+        lbx.append(np.full(en.numel(), -np.inf))
+        ubx.append(np.full(en.numel(), np.inf))
         lbx[0][:, 0] = ubx[0][:, 0] = self.x0 / self._scale
         lim = ACTUATOR_LIMITS
         bounds = {
@@ -437,7 +461,8 @@ class OracleProblem:
         lo, hi = COMFORT_BAND_PMV
         s = np.zeros(k * m)
         s[: self.n_steps] = np.maximum(0.0, np.maximum(np.minimum(r["pmv"], PMV_SCALE_LIMIT) - hi, lo - r["pmv"]))
-        return np.concatenate([(xs / self._scale).T.ravel(order="F"), u.T.ravel(order="F"), tv, s])
+        # the lifted energies (if any): the intervals' energy along these states and commands
+        return self.lifted_start(np.concatenate([(xs / self._scale).T.ravel(order="F"), u.T.ravel(order="F"), tv, s]))
 
     def commands_of(self, w: np.ndarray) -> np.ndarray:
         """Per control step the command (columns :attr:`input_names`) in the NLP's variables ``w``."""
@@ -455,8 +480,28 @@ class OracleProblem:
         The discomfort is the band distance of its PMV, as ``ceco_core.kpis`` (the slacks may exceed it where
         the bound is slack).
         """
-        obj, dis, _ = self._nlp_eval(w)
+        obj, dis, _, _ = self._nlp_eval(w)
         return float(obj), float(dis)
+
+    def summed_start(self, w: np.ndarray, lam: tuple | None) -> tuple[np.ndarray, tuple | None]:
+        """A start of this (lifted) problem as one of the summed form: the lifted energies and their rows dropped."""
+        k = self._sizes[4]
+        if not k:
+            return w, lam
+        if lam is not None:
+            nx = self.model.state.size
+            first = nx * self.n_control + (self.n_control - 1)  # the lifted rows follow the dynamics'
+            lam_g = np.concatenate([lam[1][:first], lam[1][first + k :]])
+            lam = (lam[0][:-k], lam_g)
+        return w[:-k], lam
+
+    def lifted_start(self, w_summed: np.ndarray) -> np.ndarray:
+        """A solution of the summed form as a (primal) start of this lifted problem: the energies appended."""
+        k = self._sizes[4]
+        w = np.concatenate([np.asarray(w_summed, dtype=float), np.zeros(k)])
+        if k:
+            w[-k:] = np.asarray(self._nlp_eval(w)[3], dtype=float).ravel() / self.energy_scale_j
+        return w
 
     # ------------------------------------------------------------------ solve
     def solve(self, level_pmvh: float, w0: np.ndarray, lam: tuple | None = None):
@@ -636,14 +681,30 @@ def solve_levels(
     guess = baseline_commands(scenario, pb.control_period_s, pb.settings.guess_setpoint_c, pb.settings.door_logic)
     w, lam = pb.guess_from_commands(guess), None
     out: dict[int, LevelResult] = {}
+    summed: OracleProblem | None = None  # the fallback form, built on the first lifted failure
     for i in sorted(range(len(lv)), key=lambda j: -lv[j]):
         status, ok, it, wall, w_new, lam_new = pb.solve(lv[i], w, lam)
+        solver, form = pb, "lifted" if pb.settings.lift_energy else "summed"
+        if not ok and pb.settings.lift_energy:
+            # the lifted form's IPOPT path can stall where the summed form's converges (udds-hot's least level:
+            # 1200 iterations against 127, docs/oracle.md "Lifted energy"): the level again, summed
+            say(
+                f"oracle {scenario.name}: level {lv[i]:.4f} PMV h: {status} after {it} iterations, {wall:.1f} s "
+                "(energy lifted); again with the energy summed in the objective"
+            )
+            summed = summed or OracleProblem(scenario, dataclasses.replace(pb.settings, lift_energy=False))
+            w_s, lam_s = pb.summed_start(w, lam)
+            status, ok, it2, wall2, w_new, lam_new = summed.solve(lv[i], w_s, lam_s)
+            solver, form, it, wall = summed, "lifted, then summed", it + it2, wall + wall2
+            if ok:  # the next level starts lifted from this solution (its multipliers belong to the other form)
+                w_new, lam_new = pb.lifted_start(w_new), None
         r = LevelResult(
             level_pmvh=lv[i],
             status=status,
             success=ok,
             iterations=it,
             wall_time_s=wall,
+            form=form,
             input_names=pb.input_names,
             evaluation=pb.evaluation,
         )
@@ -660,7 +721,10 @@ def solve_levels(
             if r.kpis
             else "not solved"
         )
-        say(f"oracle {scenario.name}: level {lv[i]:.4f} PMV h: {status}, {it} iterations, {wall:.1f} s; {tail}")
+        say(
+            f"oracle {scenario.name}: level {lv[i]:.4f} PMV h: {status}, {it} iterations, {wall:.1f} s"
+            f"{'' if solver is pb else ' (' + form + ')'}; {tail}"
+        )
     return [out[i] for i in range(len(lv))]
 
 
@@ -688,6 +752,7 @@ def solve_front(case, seed, levels, settings: OracleSettings | None = None) -> l
                 "iterations": int(r.iterations),
                 "wall_time_s": float(r.wall_time_s),
                 "evaluation": r.evaluation.split(" (")[0],  # 'compiled' or 'virtual machine'
+                "form": r.form,
             },
         }
         for r in res

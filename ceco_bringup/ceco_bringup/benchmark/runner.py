@@ -960,13 +960,15 @@ def _solver_account(solver: Mapping) -> dict:
     """The solver's account of one oracle level, checked.
 
     ``status`` (str), ``iterations`` (int >= 0), ``wall_time_s`` (finite, >= 0) [s] and, optionally,
-    ``evaluation`` (a non-empty str: how the plant steps were evaluated); ValueError naming the field otherwise.
+    ``evaluation`` (a non-empty str: how the plant steps were evaluated) and ``form`` (a non-empty str: the NLP's
+    form, ceco's ``lifted``, ``summed`` or ``lifted, then summed``); ValueError naming the field otherwise.
     """
     out = {k: solver.get(k) for k in ('status', 'iterations', 'wall_time_s')}
-    if 'evaluation' in solver:
-        if not isinstance(solver['evaluation'], str) or not solver['evaluation']:
-            raise ValueError(f'the oracle\'s solver evaluation must be a non-empty str, got {solver["evaluation"]!r}')
-        out['evaluation'] = solver['evaluation']
+    for key in ('evaluation', 'form'):
+        if key in solver:
+            if not isinstance(solver[key], str) or not solver[key]:
+                raise ValueError(f'the oracle\'s solver {key} must be a non-empty str, got {solver[key]!r}')
+            out[key] = solver[key]
     if not isinstance(out['status'], str) or not out['status']:
         raise ValueError(f'the oracle\'s solver status must be a non-empty string, got {out["status"]!r}')
     if isinstance(out['iterations'], bool) or not isinstance(out['iterations'], int) or out['iterations'] < 0:
