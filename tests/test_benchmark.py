@@ -667,3 +667,40 @@ def test_the_strategy_flag_chooses_what_is_scored(tmp_path, capsys):
     scored = {r['controller'] for c in doc['cases'] for r in c['runs'] if r['kind'] == 'strategy'}
     assert scored == {'ceco-e'}
     assert '--strategy ceco-e' in doc['command'] and bs.check_results(doc) == []
+
+
+def test_cases_with_the_same_oracle_problem_solve_it_once():
+    """sc03-paper and sc03-high differ only in what the oracle does not see (forecast uncertainty, seeds): with
+    the same levels their oracle cells are one solve, the other cell reuses its row under its own id and axes;
+    another drive, other levels or an entry point of the user's (which may read any field) solve apart."""
+    from ceco_bringup.benchmark.cases import load_case
+
+    paper, high, udds = load_case('sc03-paper'), load_case('sc03-high'), load_case('udds-hot')
+    assert runner.oracle_problem(paper) == runner.oracle_problem(high) != runner.oracle_problem(udds)
+    levels = [0.1024, 0.108, 0.125, 0.1535]
+
+    def items(*cells):
+        return [dict(id=c.id, axes=c.axes, spec=c.spec) for cs in cells for c in cs]
+
+    a = runner.oracle_cells(paper, [0], levels, 'code')
+    b = runner.oracle_cells(high, [0], levels, 'code')
+    assert a[0].id != b[0].id
+    run, reuse = runner.share_seed_invariant(items(a, b))
+    assert [x['id'] for x in run] == [a[0].id] and [x['id'] for x in reuse[a[0].id]] == [b[0].id]
+    row = {'cell_id': a[0].id, **a[0].axes, 'status': 'ok', 'error': '', 'points': [{'level': 0.1}]}
+    row['wall_time_s'] = 80.0
+    got = runner.reused_row(row, reuse[a[0].id][0])
+    assert got['cell_id'] == b[0].id and got['case'] == 'sc03-high' and got['reused_from'] == a[0].id
+    assert got['wall_time_s'] == 0.0 and 'sim_time_s' not in got and got['points'] == row['points']
+    for other in (
+        runner.oracle_cells(udds, [0], levels, 'code'),
+        runner.oracle_cells(high, [0], levels[:3] + [0.16], 'code'),
+        runner.oracle_cells(high, [0], levels, 'other code'),
+    ):
+        run, reuse = runner.share_seed_invariant(items(a, other))
+        assert len(run) == 2 and not reuse
+    mine = 'tests.oracle_standin:solve_front'
+    c, d = runner.oracle_cells(paper, [0], levels, 'code', mine), runner.oracle_cells(high, [0], levels, 'code', mine)
+    assert 'problem' not in c[0].spec
+    run, reuse = runner.share_seed_invariant(items(c, d))
+    assert len(run) == 2 and not reuse

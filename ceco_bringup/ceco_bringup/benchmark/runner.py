@@ -646,15 +646,20 @@ def share_seed_invariant(items: Sequence[Mapping]) -> tuple[list, dict]:
     """The items to run, and ``{id of a run item: [items that reuse its row]}``.
 
     Of seeded items whose run does not depend on the seed (:func:`seed_matters`), only the first of each
-    group with the same spec but the seed runs; the others reuse its row (:func:`reused_row`).
+    group with the same spec but the seed runs; the others reuse its row (:func:`reused_row`). Likewise of
+    oracle cells that name their problem (:func:`oracle_cells`), only the first of each group with the same
+    problem, levels, entry point and code.
     """
     run, reuse, first = [], {}, {}
     for item in items:
         spec = item['spec']
-        if spec.get('seed') is None or seed_matters(spec):
+        if spec.get('kind') == 'oracle' and spec.get('problem'):
+            key = cell_id({k: spec.get(k) for k in ('benchmark_version', 'code', 'kind', 'entry', 'levels', 'problem')})
+        elif spec.get('seed') is None or seed_matters(spec):
             run.append(item)
             continue
-        key = cell_id({**spec, 'seed': None})
+        else:
+            key = cell_id({**spec, 'seed': None})
         if key in first:
             reuse.setdefault(first[key], []).append(item)
         else:
@@ -664,13 +669,16 @@ def share_seed_invariant(items: Sequence[Mapping]) -> tuple[list, dict]:
 
 
 def reused_row(row: Mapping, item: Mapping) -> dict:
-    """``row`` (a run of the same spec at another seed) as the row of ``item``: its id and axes, no run time."""
+    """``row`` as the row of ``item``: its id and axes, no run time.
+
+    ``row`` is a run of the same spec at another seed, or an oracle cell of the same problem.
+    """
     return {
         **row,
         'cell_id': item['id'],
         **item['axes'],
         'reused_from': row['cell_id'],
-        'sim_time_s': 0.0,
+        **({'sim_time_s': 0.0} if 'sim_time_s' in row else {}),
         'wall_time_s': 0.0,
     }
 
@@ -933,11 +941,27 @@ def oracle_unavailable(entry: str = ORACLE_ENTRY) -> str | None:
     return None
 
 
+def oracle_problem(case: Case) -> str:
+    """What ceco's oracle (:data:`ORACLE_ENTRY`) reads of a case, hashed.
+
+    The drive's truth (the scenario with the case's overrides), the control period and the production door
+    logic. Cases that differ only in what the oracle does not see (the forecast uncertainty, the seeds, the
+    families) have the same problem.
+    """
+    import hashlib
+    import json
+
+    data = {'scenario': case.scenario_dict(), 'control_period_s': case.control_period_s, 'door': case.baseline_door}
+    return hashlib.sha256(json.dumps(data, sort_keys=True, default=repr).encode()).hexdigest()[:16]
+
+
 def oracle_cells(case: Case, seeds: Sequence[int], levels: Sequence[float], code: str, entry: str = ORACLE_ENTRY):
     """The oracle's cells of a case, one per seed.
 
     A cell's id covers the case, the levels, the entry point and the simulator's code fingerprint, so a
-    rerun reuses it and a changed simulator recomputes it.
+    rerun reuses it and a changed simulator recomputes it. With ceco's own entry point the spec also names
+    the problem (:func:`oracle_problem`), so that cases with the same problem and levels solve it once
+    (:func:`share_seed_invariant`; sc03-paper and its three uncertainty levels: one solve, not four).
     """
     out = []
     for seed in seeds:
@@ -951,6 +975,8 @@ def oracle_cells(case: Case, seeds: Sequence[int], levels: Sequence[float], code
             'seed': int(seed),
             'levels': [float(x) for x in levels],
         }
+        if entry == ORACLE_ENTRY:
+            spec['problem'] = oracle_problem(case)
         axes = {'case': case.name, 'controller': 'oracle', 'kind': 'oracle', 'seed': int(seed), 'variant': 'oracle'}
         out.append(Cell(id=cell_id(spec), axes=axes, spec=spec))
     return out
