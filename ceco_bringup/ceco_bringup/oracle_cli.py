@@ -155,6 +155,7 @@ def main(argv=None) -> int:
             'success': r.success,
             'iterations': r.iterations,
             'wall_time_s': r.wall_time_s,
+            'form': r.form,
             'energy_kwh': None,
             'discomfort_pmvh': None,
             'nlp_energy_kwh': r.nlp_energy_kwh,
@@ -172,6 +173,7 @@ def main(argv=None) -> int:
                     'oracle_nlp_energy_kwh': r.nlp_energy_kwh,
                     'oracle_nlp_discomfort_pmvh': r.nlp_discomfort_pmvh,
                     'oracle_evaluation': r.evaluation,
+                    'oracle_form': r.form,
                     'case': case.name,
                 }
             )
