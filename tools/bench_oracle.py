@@ -4,7 +4,8 @@
                                  [--max-iter N] [--cache-dir DIR] [--forms evaluation|energy]
 
 ``--forms evaluation`` (the default): CasADi's virtual machine against the compiled plant steps
-(``OracleSettings.compiled`` ``no`` and ``yes``; docs/oracle.md "Compiled plant steps"). ``--forms energy``:
+(``OracleSettings.compiled`` ``no`` and ``yes``, both with the energy summed in the objective; docs/oracle.md
+"Compiled plant steps"). ``--forms energy``:
 the energy summed in the objective against the lifted energy (``OracleSettings.lift_energy`` False and True,
 both compiled; docs/oracle.md "Lifted energy"). Builds the whole-drive NLP of the case's first
 ``--duration-s`` seconds (0: the whole drive) in both forms and solves the same level from the same initial
@@ -17,8 +18,9 @@ are compared: iterations and the NLP's energy (the issue's "same solution" check
 compiled objects' cache (default: a fresh temporary directory, so the compile is measured). ``--max-iter``:
 IPOPT's iteration limit (a whole drive's cost per iteration without its 100-400 iterations; both evaluations
 then stop at the same iterate, compared the same way). The same-solution check: ``evaluation``, the same
-iterates (iterations within 1, NLP energy within 1e-9 relative); ``energy``, the same optimum by another path
-(both solved, NLP energy and discomfort within 1e-4 relative; exit status 1 otherwise). Other processes
+iterates (iterations within 1, NLP energy within 1e-9 relative); ``energy``, the same problem by another path
+(both solved, discomfort within 1e-4 relative, the lifted optimum's energy not above the summed one's by more
+than 1e-4 relative: it may end at a better local optimum); exit status 1 otherwise. Other processes
 on the machine bias every figure: read the load next to it. Last line: one JSON object.
 """
 
@@ -37,7 +39,12 @@ TIMERS = ('nlp_jac_g', 'nlp_grad_f', 'nlp_g', 'nlp_f')
 
 
 FORMS = {
-    'evaluation': (('vm', {'compiled': 'no'}), ('compiled', {'compiled': 'yes'})),
+    # the summed form: the lifted form's IPOPT path is too sensitive to the derivatives' last digits for the
+    # iterate-by-iterate equality this comparison checks (tests/test_oracle.py, the same reason)
+    'evaluation': (
+        ('vm', {'compiled': 'no', 'lift_energy': False}),
+        ('compiled', {'compiled': 'yes', 'lift_energy': False}),
+    ),
     'energy': (
         ('summed', {'compiled': 'yes', 'lift_energy': False}),
         ('lifted', {'compiled': 'yes', 'lift_energy': True}),
@@ -157,7 +164,8 @@ def main(argv=None) -> int:
         f'constraint Jacobian; iterations differ by {d_it}, NLP energy by {d_e:.1e} relative, discomfort by '
         f'{d_d:.1e}; one-off compiled object {c.seconds:.1f} s ({"built" if c.built else "cache hit"})'
     )
-    same = (d_it <= 1 and d_e <= 1e-9) if args.forms == 'evaluation' else (solved and d_e <= 1e-4 and d_d <= 1e-4)
+    no_worse = all(b['nlp_energy_kwh'] <= a['nlp_energy_kwh'] * (1 + 1e-4) for a, b in pairs)
+    same = (d_it <= 1 and d_e <= 1e-9) if args.forms == 'evaluation' else (solved and no_worse and d_d <= 1e-4)
     print(
         json.dumps(
             {
@@ -178,7 +186,7 @@ def main(argv=None) -> int:
                 'iterations_max_difference': d_it,
                 'energy_max_rel_difference': d_e,
                 'discomfort_max_rel_difference': d_d,
-                'same_solution': same,
+                'check_passed': same,
             }
         )
     )

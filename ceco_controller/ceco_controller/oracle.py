@@ -383,6 +383,8 @@ class OracleProblem:
         self.energy_scale_j = m * s.plant_dt_s * 1000.0
         """Scale of the lifted energy variables [J]: one kW over a control interval."""
         en = casadi.MX.sym("en", 1, k if s.lift_energy else 0)
+        self.lifted_rows = slice(n_dyn, n_dyn + en.numel())
+        """The lifted energy's rows in the constraint vector (they follow the dynamics'; empty in the summed form)."""
         if s.lift_energy:
             g.append(casadi.vec(energy / self.energy_scale_j - en))
             n_dyn += k
@@ -489,10 +491,8 @@ class OracleProblem:
         if not k:
             return w, lam
         if lam is not None:
-            nx = self.model.state.size
-            first = nx * self.n_control + (self.n_control - 1)  # the lifted rows follow the dynamics'
-            lam_g = np.concatenate([lam[1][:first], lam[1][first + k :]])
-            lam = (lam[0][:-k], lam_g)
+            rows = self.lifted_rows
+            lam = (lam[0][:-k], np.concatenate([lam[1][: rows.start], lam[1][rows.stop :]]))
         return w[:-k], lam
 
     def lifted_start(self, w_summed: np.ndarray) -> np.ndarray:
@@ -684,7 +684,7 @@ def solve_levels(
     summed: OracleProblem | None = None  # the fallback form, built on the first lifted failure
     for i in sorted(range(len(lv)), key=lambda j: -lv[j]):
         status, ok, it, wall, w_new, lam_new = pb.solve(lv[i], w, lam)
-        solver, form = pb, "lifted" if pb.settings.lift_energy else "summed"
+        form = "lifted" if pb.settings.lift_energy else "summed"
         if not ok and pb.settings.lift_energy:
             # the lifted form's IPOPT path can stall where the summed form's converges (udds-hot's least level:
             # 1200 iterations against 127, docs/oracle.md "Lifted energy"): the level again, summed
@@ -695,7 +695,7 @@ def solve_levels(
             summed = summed or OracleProblem(scenario, dataclasses.replace(pb.settings, lift_energy=False))
             w_s, lam_s = pb.summed_start(w, lam)
             status, ok, it2, wall2, w_new, lam_new = summed.solve(lv[i], w_s, lam_s)
-            solver, form, it, wall = summed, "lifted, then summed", it + it2, wall + wall2
+            form, it, wall = "lifted, then summed", it + it2, wall + wall2
             if ok:  # the next level starts lifted from this solution (its multipliers belong to the other form)
                 w_new, lam_new = pb.lifted_start(w_new), None
         r = LevelResult(
@@ -723,7 +723,7 @@ def solve_levels(
         )
         say(
             f"oracle {scenario.name}: level {lv[i]:.4f} PMV h: {status}, {it} iterations, {wall:.1f} s"
-            f"{'' if solver is pb else ' (' + form + ')'}; {tail}"
+            f"{' (' + form + ')' if form == 'lifted, then summed' else ''}; {tail}"
         )
     return [out[i] for i in range(len(lv))]
 
