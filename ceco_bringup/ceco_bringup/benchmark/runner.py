@@ -948,11 +948,8 @@ def oracle_problem(case: Case) -> str:
     logic. Cases that differ only in what the oracle does not see (the forecast uncertainty, the seeds, the
     families) have the same problem.
     """
-    import hashlib
-    import json
-
-    data = {'scenario': case.scenario_dict(), 'control_period_s': case.control_period_s, 'door': case.baseline_door}
-    return hashlib.sha256(json.dumps(data, sort_keys=True, default=repr).encode()).hexdigest()[:16]
+    truth = {'scenario': case.scenario_dict(), 'control_period_s': case.control_period_s, 'door': case.baseline_door}
+    return cell_id(truth)
 
 
 def oracle_cells(case: Case, seeds: Sequence[int], levels: Sequence[float], code: str, entry: str = ORACLE_ENTRY):
