@@ -704,3 +704,21 @@ def test_cases_with_the_same_oracle_problem_solve_it_once():
     assert 'problem' not in c[0].spec
     run, reuse = runner.share_seed_invariant(items(c, d))
     assert len(run) == 2 and not reuse
+
+
+def test_oracle_cells_run_longest_expected_first_and_the_shared_solve_stays_first():
+    """The oracle's cells go to the pool longest expected solve first (the drive's duration, doubled with the
+    door as a decision): a 1369-s door case, then the 1369-s udds-hot, then the 600-s SC03 cases in their given
+    order, so that sc03-paper (listed first) stays the one solve the other SC03 cells reuse."""
+    from ceco_bringup.benchmark.cases import load_case
+
+    names = ['sc03-paper', 'udds-hot', 'sc03-high', 'hot-commute-4p', 'mild-day']
+    cases = {n: load_case(n) for n in names}
+    levels = [0.1024, 0.108, 0.125, 0.1535]
+    cells = [c for n in names for c in runner.oracle_cells(cases[n], [0], levels, 'code')]
+    order = runner.oracle_cost_order(cells, cases)
+    assert [c.axes['case'] for c in order] == ['hot-commute-4p', 'udds-hot', 'sc03-paper', 'sc03-high', 'mild-day']
+    assert sorted(c.id for c in order) == sorted(c.id for c in cells)
+    run, reuse = runner.share_seed_invariant([dict(id=c.id, axes=c.axes, spec=c.spec) for c in order])
+    shared = {c.axes['case']: c.id for c in order}
+    assert [x['id'] for x in reuse[shared['sc03-paper']]] == [shared['sc03-high']]

@@ -157,6 +157,9 @@ def test_settings_and_schedule_refuse_bad_values():
         orc.OracleSettings(control_period_s=float('nan')).validate()
     with pytest.raises(ValueError, match='max_iter'):
         orc.OracleSettings(max_iter=0).validate()
+    for bad in (0, 2.5, True):
+        with pytest.raises(ValueError, match='OracleSettings.lifted_max_iter'):
+            orc.OracleSettings(lifted_max_iter=bad).validate()
     with pytest.raises(ValueError, match='lbfgs_history'):
         orc.OracleSettings(lbfgs_history=0).validate()
     with pytest.raises(ValueError, match='finite'):
@@ -346,26 +349,28 @@ def test_a_start_carries_between_the_lifted_and_the_summed_form(mild_problem, su
 
 def test_a_level_the_lifted_form_does_not_solve_is_tried_again_summed(mild):
     """A level the lifted form does not solve is solved again in the summed form from the same start, and the
-    account says so. The short mild day at 0.036 PMV h with 42 iterations per attempt (from the production
-    law the lifted form needs 48, the summed 38): the summed attempt solves it; iterations and wall time of
-    both, form 'lifted, then summed', commands and a replayed point as any level's; the next level (0.026)
-    starts lifted from that solution. At 0.0005 PMV h (far below what the plant reaches) with 30 iterations
-    both attempts fail: the second's status, 60 iterations, no point. The benchmark keeps the form in the
+    account says so. The short mild day at 0.036 PMV h with 40 lifted and 42 summed iterations (from the
+    production law the lifted form needs 48, the summed 38): the summed attempt solves it; iterations and wall
+    time of both, form 'lifted, then summed', commands and a replayed point as any level's; the next level
+    (0.026) starts lifted from that solution. At 0.0005 PMV h (far below what the plant reaches) with 20 lifted
+    and 30 summed iterations both attempts fail: the second's status, 50 iterations, no point. The benchmark keeps the form in the
     level's solver account."""
     _, res, _, _ = mild
     assert res[1].form == 'lifted' and 42 < res[1].iterations  # the default form, alone, needs more than 42
     sc = _short('mild-day', 120.0)
     lines = []
-    fb, nxt = orc.solve_levels(sc, [LEVELS[1], LEVELS[0]], orc.OracleSettings(max_iter=42), progress=lines.append)
+    capped = orc.OracleSettings(max_iter=42, lifted_max_iter=40)
+    fb, nxt = orc.solve_levels(sc, [LEVELS[1], LEVELS[0]], capped, progress=lines.append)
     assert fb.form == 'lifted, then summed' and fb.success, (fb.form, fb.status)
-    assert 42 < fb.iterations <= 84 and fb.commands.shape == (24, 2)
+    assert 40 < fb.iterations <= 82 and fb.commands.shape == (24, 2)
+    assert any('Maximum_Iterations_Exceeded after 40 iterations' in x for x in lines), lines
     assert fb.kpis['discomfort_pmvh'] == pytest.approx(LEVELS[1], abs=2e-3)
     assert fb.nlp_energy_kwh == pytest.approx(res[1].nlp_energy_kwh, rel=5e-3)
     assert nxt.form in ('lifted', 'lifted, then summed') and nxt.iterations > 0
     assert any('again with the energy summed in the objective' in x for x in lines), lines
-    r = orc.solve_levels(sc, [0.0005], orc.OracleSettings(max_iter=30))[0]
+    r = orc.solve_levels(sc, [0.0005], orc.OracleSettings(max_iter=30, lifted_max_iter=20))[0]
     assert not r.success and r.kpis is None and r.commands is None
-    assert r.status == 'Maximum_Iterations_Exceeded' and r.iterations == 60 and r.form == 'lifted, then summed'
+    assert r.status == 'Maximum_Iterations_Exceeded' and r.iterations == 50 and r.form == 'lifted, then summed'
     assert r.wall_time_s > 0
     summed_only = orc.solve_levels(sc, [0.0005], orc.OracleSettings(max_iter=5, lift_energy=False))[0]
     assert summed_only.form == 'summed' and summed_only.iterations == 5

@@ -62,6 +62,7 @@ def _problem(scenario, form: dict, cache_dir: str, max_iter: int, case):
         door_logic=tuple(case.baseline_door),
         cache_dir=cache_dir,
         max_iter=max_iter,
+        lifted_max_iter=max_iter,  # one solve per form here, no fallback: the same budget for both
         **form,
     )
     pb = orc.OracleProblem(scenario, settings)

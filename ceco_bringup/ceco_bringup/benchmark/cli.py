@@ -372,7 +372,9 @@ def _run_oracles(cases, by_case, rows, seeds, code, log_path, dispatch, log, ora
             plan[c.name] = runner.oracle_cells(c, list(seeds[c.name])[:1], levels[c.name], code, entry)
     if plan:
         done = backends.read_done(log_path)
-        todo = [x for cs in plan.values() for x in cs if x.id not in done]
+        todo = runner.oracle_cost_order(
+            [x for cs in plan.values() for x in cs if x.id not in done], {c.name: c for c in cases}
+        )
         log(f'ceco benchmark: oracle on {len(plan)} case(s), {len(todo)} (case, seed) to solve', file=sys.stderr)
         dispatch(todo, runner.run_oracle_cell)
         done = backends.read_done(log_path)
