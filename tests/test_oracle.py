@@ -353,8 +353,8 @@ def test_a_level_the_lifted_form_does_not_solve_is_tried_again_summed(mild):
     production law the lifted form needs 48, the summed 38): the summed attempt solves it; iterations and wall
     time of both, form 'lifted, then summed', commands and a replayed point as any level's; the next level
     (0.026) starts lifted from that solution. At 0.0005 PMV h (far below what the plant reaches) with 20 lifted
-    and 30 summed iterations both attempts fail: the second's status, 50 iterations, no point. The benchmark keeps the form in the
-    level's solver account."""
+    and 30 summed iterations both attempts fail: the second's status, 50 iterations, no point. The benchmark
+    keeps the form in the level's solver account."""
     _, res, _, _ = mild
     assert res[1].form == 'lifted' and 42 < res[1].iterations  # the default form, alone, needs more than 42
     sc = _short('mild-day', 120.0)
