@@ -160,6 +160,9 @@ def test_resume_runs_nothing_and_gives_the_same_results(bench):
     # the nominal runs and the sensitivity's two ends, plus the oracle's one cell
     assert first['timing']['ran_now'] == n + 2 * n_sens + 1 and second['timing']['ran_now'] == 0
     assert first['timing']['oracle_cells_now'] == 1 and second['timing']['oracle_cells_now'] == 0
+    for t in (first['timing'], second['timing']):  # the two phases' wall times lie within the whole
+        assert 0 < t['runs_phase_s'] and 0 <= t['oracle_phase_s']
+        assert t['runs_phase_s'] + t['oracle_phase_s'] <= t['wall_s']
     assert second['cases'][0]['matched'] == first['cases'][0]['matched']
     assert second['cases'][0]['sensitivity'] == first['cases'][0]['sensitivity']
 

@@ -251,6 +251,7 @@ def run_benchmark(
         if bar is not None:
             bar.close()
             bar = None
+    t_runs = time.perf_counter()
     done = backends.read_done(log_path)
     failed = {r['cell_id']: r for r in ran if r['status'] != 'ok'}
 
@@ -270,6 +271,7 @@ def run_benchmark(
         oracle_entry,
         oracle_cases if oracle_cases is not None else (QUICK_ORACLE_CASES if quick else None),
     )
+    t_oracle = time.perf_counter()
     pool.close()  # the workers' teardown overlaps the report
     done = backends.read_done(log_path)
     case_docs = []
@@ -292,6 +294,8 @@ def run_benchmark(
         'sim_time_mean_s': float(sum(sim) / len(sim)) if sim else None,
         'oracle_cells_now': len(oracle_wall),
         'oracle_wall_sum_s': float(sum(oracle_wall)),
+        'runs_phase_s': t_runs - t0,
+        'oracle_phase_s': t_oracle - t_runs,
     }
     doc = {
         'schema': SCHEMA,
@@ -526,7 +530,8 @@ def main(argv=None) -> int:
     t = doc['timing']
     print(
         f"ceco benchmark: {t['runs']} runs ({t['ran_now']} run now, {t['failed_now']} failed) in {t['wall_s']:.1f} s "
-        f"on {t['workers']} worker(s); results {Path(args.out) / 'results.json'}, report "
+        f"on {t['workers']} worker(s) (runs {t['runs_phase_s']:.1f} s, oracle {t['oracle_phase_s']:.1f} s); "
+        f"results {Path(args.out) / 'results.json'}, report "
         f"{Path(args.out) / 'report.html'}"
     )
     for line in summary_lines(doc):
