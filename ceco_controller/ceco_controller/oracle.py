@@ -103,7 +103,7 @@ class OracleSettings:
     docs/oracle.md "Lifted energy"): every level the lifted form solved took <= 245 iterations; the three it did
     not solve ran to the 400 of ``max_iter`` (280-450 s each) before the summed form took over, next to the
     optimum without meeting the tolerance (udds-hot's and hotsoak-pulldown's least levels, traced: the
-    discomfort within 0.02 % of the level, the primal infeasibility jumping between 1e-5 and 0.6)."""
+    discomfort within 0.03 % of the level, the primal infeasibility jumping between 1e-6 and 0.6)."""
     max_wall_time_s: float | None = None
     """IPOPT wall-time limit per level [s] (a level that hits it is 'not solved' unless acceptable); None: the
     larger of :data:`WALL_TIME_MIN_S` and :data:`WALL_TIME_PER_DRIVE_S` per second of drive (900 s up to a
