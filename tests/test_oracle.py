@@ -8,6 +8,7 @@ compiles the object (~20 s), later sessions find it in the cache; the file took 
 (the virtual machine's solve of the equality test a third of it).
 """
 
+import dataclasses
 import json
 import logging
 import os
@@ -383,6 +384,70 @@ def test_a_level_the_lifted_form_does_not_solve_is_tried_again_summed(mild):
     assert _solver_account(account)['form'] == 'lifted, then summed'
     with pytest.raises(ValueError, match='solver form'):
         _solver_account(dict(account, form=''))
+
+
+def test_the_stall_rule_stops_an_objective_flat_over_its_window():
+    """StallRule: an attempt stalls at the first iterate i >= window whose window i - window .. i has an objective
+    range below rtol |f_i|; a range above rtol never stalls; window 0 never; reset forgets."""
+    rule = orc.StallRule(10, 1e-3)
+    f = [1.0 - 0.1 * i for i in range(5)] + [0.5] * 30  # falls, then flat from iterate 5
+    stops = [rule.update(fi) for fi in f]
+    assert stops.index(True) == 15 and rule.stopped_at == 15 and all(stops[15:])  # 10 flat steps after iterate 5
+    rule.reset()
+    assert rule.stopped_at is None and rule.objective == []
+    # alternating by 0.2 % of 0.5 (range 1e-3 > rtol |f| = 5e-4): never; by 0.05 %: at iterate 10
+    assert not any(rule.update(0.5 * (1 + 0.002 * (i % 2))) for i in range(40))
+    rule.reset()
+    assert [rule.update(0.5 * (1 + 0.0005 * (i % 2))) for i in range(12)].index(True) == 10
+    # a slow steady descent of 1e-4 of f per iterate is 1e-3 over the window: not flat
+    rule.reset()
+    assert not any(rule.update(0.5 * (1 - 1e-4 * i)) for i in range(60))
+    off = orc.StallRule(0, 1e-3)
+    assert not any(off.update(0.5) for _ in range(100))
+    for bad in (
+        dict(stall_iter=-1),
+        dict(stall_iter=2.0),
+        dict(stall_iter=True),
+        dict(stall_rtol=0.0),
+        dict(stall_rtol=1.0),
+        dict(stall_rtol=float('nan')),
+    ):
+        with pytest.raises(ValueError, match=f'OracleSettings.{next(iter(bad))}'):
+            orc.OracleSettings(**bad).validate()
+
+
+def test_a_stalled_lifted_attempt_keeps_its_point_only_within_the_level(mild):
+    """In the NLP, with stall rules far more eager than the default (which stops no level of the fixture):
+    at 0.036 PMV h a window of 8 iterations at 0.3 % stops the lifted attempt; its least violating iterate,
+    replayed, meets the level within STALL_LEVEL_RTOL and is kept as the level's point, flagged uncertified,
+    within 2 % of the certified optimum's energy and no summed attempt. At 0.0005 PMV h (unreachable) a window of
+    10 at 1 % stops it too, but the replay is far above the level: the summed form takes the level (30
+    iterations, not solved). The summed form has no stall rule."""
+    _, res, _, _ = mild
+    assert all(x.success and x.certified and x.status != orc.STALLED for x in res)
+    sc = _short('mild-day', 120.0)
+    lines = []
+    kept = orc.solve_levels(sc, [LEVELS[1]], orc.OracleSettings(stall_iter=8, stall_rtol=3e-3), progress=lines.append)[
+        0
+    ]
+    assert kept.status == orc.STALLED and kept.success and not kept.certified and kept.form == 'lifted', kept.status
+    assert 8 <= kept.iterations < res[1].iterations
+    assert kept.kpis['discomfort_pmvh'] <= LEVELS[1] * (1 + orc.STALL_LEVEL_RTOL)
+    assert kept.kpis['energy_kwh'] == pytest.approx(res[1].kpis['energy_kwh'], rel=0.02)
+    assert kept.commands.shape == (24, 2) and kept.run is not None
+    assert any('within the level, kept (no certificate)' in x for x in lines), lines
+    assert not any('again with the energy summed' in x for x in lines), lines
+    lines = []
+    s = orc.OracleSettings(max_iter=30, lifted_max_iter=200, stall_iter=10, stall_rtol=1e-2)
+    r = orc.solve_levels(sc, [0.0005], s, progress=lines.append)[0]
+    stalled = [x for x in lines if 'least violating iterate replays' in x]
+    assert len(stalled) == 1 and stalled[0].endswith('above the level'), lines
+    assert any('again with the energy summed' in x for x in lines), lines
+    lifted_its = int(stalled[0].split('Stalled after ')[1].split()[0])
+    assert 10 <= lifted_its < 200
+    assert r.form == 'lifted, then summed' and not r.success and not r.certified and r.kpis is None
+    assert r.iterations == lifted_its + 30 and r.status == 'Maximum_Iterations_Exceeded'
+    assert orc.OracleProblem(sc, dataclasses.replace(s, lift_energy=False)).stall.window == 0
 
 
 def test_compiled_auto_falls_back_with_one_line_and_yes_refuses(tmp_path, caplog, monkeypatch, capsys):

@@ -26,6 +26,7 @@ FRONT_COLUMNS = (
     'level_pmvh',
     'status',
     'success',
+    'certified',
     'iterations',
     'wall_time_s',
     'energy_kwh',
@@ -153,6 +154,7 @@ def main(argv=None) -> int:
             'level_pmvh': r.level_pmvh,
             'status': r.status,
             'success': r.success,
+            'certified': r.certified,
             'iterations': r.iterations,
             'wall_time_s': r.wall_time_s,
             'form': r.form,
@@ -168,6 +170,7 @@ def main(argv=None) -> int:
                 {
                     'oracle_level_pmvh': r.level_pmvh,
                     'oracle_status': r.status,
+                    'oracle_certified': r.certified,
                     'oracle_iterations': r.iterations,
                     'oracle_wall_time_s': r.wall_time_s,
                     'oracle_nlp_energy_kwh': r.nlp_energy_kwh,
