@@ -290,6 +290,35 @@ def _state_msg(k_plant: int, t_s: float, **override):
     return m
 
 
+def test_the_recorder_gets_every_clock_published_before_its_reader_matched(tmp_path):
+    """/clock is transient-local with the lockstep backlog: 25 clocks published before any recorder exists
+    (a recorder whose /clock reader matches the plant's writer late: the plant's start gate can be opened by
+    the preview node's and controller's time sources first) all reach the recorder, in order. With the
+    volatile /clock of before it got none (a CI run recorded 39 of 60)."""
+    from rosgraph_msgs.msg import Clock
+
+    from ceco_bringup.recorder import Recorder
+
+    tn = DdsPeer(_domain(), 'unused')
+    plant = rclpy.create_node('plant_node', context=tn.context)
+    pub_clock = plant.create_publisher(Clock, interfaces.TOPIC_CLOCK, interfaces.QOS_CLOCK)
+    for n in range(25):
+        pub_clock.publish(Clock(clock=conversions.stamp_from_s(0.5 * n)))
+    bag = tmp_path / 'bag'
+    rec = Recorder(bag, context=tn.context, timestamps='sim')
+    tn.executor.add_node(rec)
+    try:
+        _wait_for(lambda: rec.n_messages >= 25, 30, 'the recorder to receive the 25 clocks published before it')
+        time.sleep(0.3)
+    finally:
+        counts = rec.close()
+        plant.destroy_node()
+        tn.close()
+    assert counts['/clock'] == 25
+    stamps = [t for _, t, _ in bagio.read_messages(bag, (interfaces.TOPIC_CLOCK,))]
+    assert stamps == [n * 500_000_000 for n in range(25)]
+
+
 def test_recorder_records_a_namespaced_stack_fully_qualified(tmp_path):
     """A stack under /veh1 beside one in the root namespace, one domain: the Recorder
     for namespace /veh1 (SQLite 3, simulation-time stamps) records /veh1/cabin/state and

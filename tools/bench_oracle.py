@@ -63,6 +63,7 @@ def _problem(scenario, form: dict, cache_dir: str, max_iter: int, case):
         cache_dir=cache_dir,
         max_iter=max_iter,
         lifted_max_iter=max_iter,  # one solve per form here, no fallback: the same budget for both
+        stall_iter=0,  # and each runs to IPOPT's own end (the stall rule is the lifted form's only)
         **form,
     )
     pb = orc.OracleProblem(scenario, settings)

@@ -52,6 +52,8 @@ from ceco_core.kpis import COMFORT_BAND_PMV, compute_kpis
 from ceco_core.mathops import smooth_min
 from ceco_core.metrics import PMV_SCALE_LIMIT
 
+from .solvers import IterationCallback
+
 __all__ = [
     "COMPILED_MODES",
     "DOOR_INPUT_NAMES",
@@ -332,7 +334,7 @@ class StallRule:
         return self.stopped_at is not None
 
 
-class _IterationWatch(casadi.Callback):
+class _IterationWatch(IterationCallback):
     """IPOPT's iteration callback: feeds a :class:`StallRule` and asks IPOPT to stop when it says stalled.
 
     Keeps the last ``window + 1`` iterates with their constraint violation (max-norm, unscaled, against the NLP's
@@ -342,7 +344,7 @@ class _IterationWatch(casadi.Callback):
     def __init__(self, rule: StallRule, n_x: int, lbg: np.ndarray, ubg: np.ndarray) -> None:
         casadi.Callback.__init__(self)
         self.rule = rule
-        self._n = {"x": n_x, "lam_x": n_x, "g": lbg.size, "lam_g": lbg.size, "f": 1}
+        self.sizes = {"x": n_x, "f": 1, "g": lbg.size}
         self._lbg, self._ubg = lbg, ubg
         self._recent: collections.deque = collections.deque(maxlen=rule.window + 1)
         self.construct("oracle_stall_watch", {})
@@ -355,22 +357,6 @@ class _IterationWatch(casadi.Callback):
     def best(self) -> np.ndarray | None:
         """Of the last ``window + 1`` iterates (a stalled attempt's flat window) the least violating (None: none)."""
         return min(self._recent, key=lambda vx: vx[0])[1] if self._recent else None
-
-    def get_n_in(self):
-        return casadi.nlpsol_n_out()
-
-    def get_n_out(self):
-        return 1
-
-    def get_name_in(self, i):
-        return casadi.nlpsol_out(i)
-
-    def get_name_out(self, i):
-        return "stop"
-
-    def get_sparsity_in(self, i):
-        n = self._n.get(casadi.nlpsol_out(i), 0)
-        return casadi.Sparsity.dense(n) if n else casadi.Sparsity(0, 0)
 
     def eval(self, arg):
         g = np.asarray(arg[2], dtype=float).ravel()

@@ -33,7 +33,7 @@ from .sqp import Sqp, SqpOptions, sqp_functions
 from .strategies import SolverSettings, auto_solver_name, resolved_qpsol
 from .transcription import NlpProblem
 
-__all__ = ["NlpData", "SolveResult", "NlpSolver", "build_solver", "LIMIT_STATUSES"]
+__all__ = ["IterationCallback", "NlpData", "SolveResult", "NlpSolver", "build_solver", "LIMIT_STATUSES"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -201,10 +201,43 @@ class SqpSolver(NlpSolver):
         )
 
 
-class _DeadlineCallback(casadi.Callback):
+class IterationCallback(casadi.Callback):
+    """Base of IPOPT iteration callbacks (CasADi's ``iteration_callback``): nonzero output asks IPOPT to stop.
+
+    The inputs are nlpsol's outputs by name (x, f, g, lam_x, lam_g, lam_p); :attr:`sizes` gives the length of
+    those a subclass reads, the others are declared empty, so IPOPT copies nothing for them. A subclass sets
+    :attr:`sizes`, then calls ``construct``.
+    """
+
+    sizes: dict[str, int] = {}
+
+    # the CasADi Callback interface
+    def get_n_in(self):
+        """As many inputs as nlpsol has outputs."""
+        return casadi.nlpsol_n_out()
+
+    def get_n_out(self):
+        """One output: nonzero stops IPOPT."""
+        return 1
+
+    def get_name_in(self, i):
+        """The names of nlpsol's outputs."""
+        return casadi.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        """The output's name."""
+        return "stop"
+
+    def get_sparsity_in(self, i):
+        """Dense of :attr:`sizes`' length for the inputs read, empty for the others."""
+        n = self.sizes.get(casadi.nlpsol_out(i), 0)
+        return casadi.Sparsity.dense(n) if n else casadi.Sparsity(0, 0)
+
+
+class _DeadlineCallback(IterationCallback):
     """IPOPT iteration callback: asks IPOPT to stop once ``deadline`` has passed on ``clock``.
 
-    Its inputs are declared empty, so IPOPT hands it no data (no copy per iteration).
+    It reads no input (no copy per iteration).
     """
 
     def __init__(self, clock: Callable[[], float]):
@@ -212,22 +245,6 @@ class _DeadlineCallback(casadi.Callback):
         self.clock = clock
         self.deadline = math.inf
         self.construct("ceco_deadline", {})
-
-    # the CasADi Callback interface
-    def get_n_in(self):
-        return casadi.nlpsol_n_out()
-
-    def get_n_out(self):
-        return 1
-
-    def get_name_in(self, i):
-        return casadi.nlpsol_out(i)
-
-    def get_name_out(self, i):
-        return "ret"
-
-    def get_sparsity_in(self, i):
-        return casadi.Sparsity(0, 0)
 
     def has_eval_buffer(self):
         return True

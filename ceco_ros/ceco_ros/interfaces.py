@@ -67,13 +67,17 @@ QOS_PREVIEW_LOCKSTEP = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-# /clock as published by the plant (a best-effort subscriber, as rclpy's
-# TimeSource uses, matches a reliable publisher).
+# /clock as published by the plant (a best-effort volatile subscriber, as rclpy's
+# TimeSource uses, matches a reliable transient-local publisher and gets no history).
+# Transient-local with the run's backlog: the plant's start gate counts /clock's
+# subscribers, and the preview node's and controller's time sources can fill that count
+# before the recorder's reader has matched; a late-matching recorder (transient-local,
+# QOS_RECORD_LATCHED) still gets every /clock (a CI run once recorded 39 of 60 without).
 QOS_CLOCK = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=LOCKSTEP_DEPTH,
     reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 # The recorder's subscriptions: reliable KEEP_ALL, so a recorder that falls
 # behind back-pressures instead of losing samples (transient-local where the
@@ -215,7 +219,7 @@ STACK_TOPICS: dict[str, tuple[str, QoSProfile, QoSProfile]] = {
     TOPIC_DIAGNOSTICS: ('ceco_msgs/msg/ControllerDiagnostics', QOS_COMMAND, QOS_RECORD),
     TOPIC_WEATHER: ('ceco_msgs/msg/WeatherPreview', QOS_PREVIEW, QOS_RECORD_LATCHED),
     TOPIC_TRAFFIC: ('ceco_msgs/msg/TrafficPreview', QOS_PREVIEW, QOS_RECORD_LATCHED),
-    TOPIC_CLOCK: ('rosgraph_msgs/msg/Clock', QOS_CLOCK, QOS_RECORD),
+    TOPIC_CLOCK: ('rosgraph_msgs/msg/Clock', QOS_CLOCK, QOS_RECORD_LATCHED),
     TOPIC_ROSOUT: ('rcl_interfaces/msg/Log', QOS_ROSOUT, QOS_RECORD_LATCHED),
 }
 
