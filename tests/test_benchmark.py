@@ -135,6 +135,16 @@ def test_results_document(bench):
     assert f['seed'] == 0 and f['points'][0]['kpis'] is None and f['points'][0]['error'] == 'not solved'
     assert all(p['kpis']['energy_kwh'] > 0 for p in f['points'][1:]) and len(f['front']) == len(LEVELS_N) - 1
     assert all(m['headroom'] is not None and m['headroom']['n_seeds'] == 1 for m in case['matched'].values())
+    # by_phase reads the fronts where headroom does: the bound's saving from its energies is headroom's
+    read = 0
+    for name, m in case['matched'].items():
+        p, h = m['by_phase'], m['headroom']
+        assert p['n_seeds'] == 1 and p['controller']['energy_kwh'] == by[name]['energy_kwh']
+        if h['bound_saving_pct'] is not None:
+            e_env, e_b = p['strongest']['energy_kwh'], p['bound']['energy_kwh']
+            assert 100.0 * (e_env - e_b) / e_env == pytest.approx(h['bound_saving_pct'], rel=1e-9, abs=1e-9)
+            read += 1
+    assert read >= 1
     # NMPC steps are timed; the comfort series of issue 9 are scored; what a 120-s run cannot have is explained
     assert by['ceco']['time_ratio_mean'] > 0 and by['ceco']['fallback_steps'] == 0
     for name in ('baseline@27.0', 'ceco'):
@@ -185,6 +195,7 @@ def test_report_files(bench):
     assert html.count('data:image/png;base64,') == 2 and 'src="figures' not in html
     assert '## Savings at matched comfort' in md and '| short | ceco-c |' in md
     assert '## The strongest family' in md and 'headroom_captured' in md
+    assert 'Where the savings sit' in md and "oracle's saving vs strongest [kWh]: whole run / band phase" in md
 
 
 def test_validate_command(bench, tmp_path, capsys):

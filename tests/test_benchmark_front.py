@@ -224,3 +224,57 @@ def test_headroom_seeds_pairs_each_seed_with_its_bound():
     assert fr.headroom_seeds(env, {None: b0}, [(3, 0.2, 0.28)])["headroom_captured"] == pytest.approx(0.4)
     miss = fr.headroom_seeds(env, {0: b0}, [(0, 0.2, 0.28), (1, 0.2, 0.28)])
     assert miss["headroom_captured"] is None and miss["seeds"]["headroom_captured"][1] is None
+
+
+def test_by_phase_reads_the_strongest_family_and_the_bound_at_the_controllers_discomfort():
+    env = _env()
+    b0 = fr.build_front({"o1": (0.1, 0.3), "o2": (0.4, 0.15)})
+    b1 = fr.build_front({"o1": (0.1, 0.32), "o2": (0.4, 0.17)})
+    # the band-phase energy and PMV at each vertex (the whole run's energy is the front's own)
+    members = {
+        "a@1": {"energy_kwh": 0.4, "energy_band_kwh": 0.2, "pmv_mean_band": 0.30},
+        "a@2": {"energy_kwh": 0.2, "energy_band_kwh": 0.1, "pmv_mean_band": 0.50},
+        "b@1": {"energy_kwh": 0.39, "energy_band_kwh": 0.3, "pmv_mean_band": 0.0},
+        "b@2": {"energy_kwh": 0.25, "energy_band_kwh": 0.2, "pmv_mean_band": 0.1},
+    }
+    bound_kpis = {
+        0: {
+            "o1": {"energy_kwh": 0.3, "energy_band_kwh": 0.12, "pmv_mean_band": 0.40},
+            "o2": {"energy_kwh": 0.15, "energy_band_kwh": 0.03, "pmv_mean_band": 0.70},
+        },
+        1: {
+            "o1": {"energy_kwh": 0.32, "energy_band_kwh": 0.16, "pmv_mean_band": 0.44},
+            "o2": {"energy_kwh": 0.17, "energy_band_kwh": 0.07, "pmv_mean_band": 0.74},
+        },
+    }
+    keys = ("energy_kwh", "energy_band_kwh", "pmv_mean_band")
+    # A at D = 0.2 is half-way between a@1 and a@2: band 0.15, PMV 0.40; at D = 0.15 a quarter: band 0.175, PMV 0.35
+    assert fr.value_at(env.front_of("A"), 0.2, {n: v["energy_band_kwh"] for n, v in members.items()}) == pytest.approx(
+        0.15
+    )
+    assert fr.value_at(env.front_of("A"), 0.35, {n: v["pmv_mean_band"] for n, v in members.items()}) == pytest.approx(
+        0.5
+    )
+    assert fr.value_at(env.front_of("A"), 0.2, {"a@1": 0.2}) is None  # a vertex without a value
+    pts = [
+        (0, 0.2, {"energy_kwh": 0.28, "energy_band_kwh": 0.14, "pmv_mean_band": 0.45}),
+        (1, 0.15, {"energy_kwh": 0.33, "energy_band_kwh": 0.16, "pmv_mean_band": 0.41}),
+    ]
+    out = fr.by_phase(env, {0: b0, 1: b1}, pts, members, bound_kpis, keys)
+    assert out["families"] == ["A", "A"] and out["n_seeds"] == 2
+    assert out["controller"] == pytest.approx({"energy_kwh": 0.305, "energy_band_kwh": 0.15, "pmv_mean_band": 0.43})
+    assert out["strongest"] == pytest.approx({"energy_kwh": 0.325, "energy_band_kwh": 0.1625, "pmv_mean_band": 0.375})
+    # seed 0 at D = 0.2 on b0 (a third of o1 -> o2): band 0.09, PMV 0.5; seed 1 at 0.15 on b1 (a sixth): 0.145, 0.49
+    assert out["bound"]["energy_kwh"] == pytest.approx((0.25 + 0.295) / 2)
+    assert out["bound"]["energy_band_kwh"] == pytest.approx((0.09 + 0.145) / 2)
+    assert out["bound"]["pmv_mean_band"] == pytest.approx((0.5 + 0.49) / 2)
+    # the bound's whole-run energy read so equals the front's own energy (what headroom divides by)
+    assert out["bound"]["energy_kwh"] == pytest.approx((b0.energy_at(0.2) + b1.energy_at(0.15)) / 2)
+    # a seed whose bound does not cover its discomfort, or has no KPIs, reads None for the bound
+    far = fr.by_phase(env, {0: b0}, [(0, 0.45, pts[0][2])], members, bound_kpis, keys)
+    assert far["bound"] == dict.fromkeys(keys) and far["families"] == ["A"]
+    # past A's least comfortable vertex the envelope keeps it (0.2 kWh, below B's 0.25), and so does the reading
+    assert far["strongest"] == pytest.approx({"energy_kwh": 0.2, "energy_band_kwh": 0.1, "pmv_mean_band": 0.5})
+    assert fr.by_phase(env, {0: b0}, pts[:1], members, {}, keys)["bound"] == dict.fromkeys(keys)
+    with pytest.raises(ValueError, match="no points"):
+        fr.by_phase(env, {0: b0}, [], members, bound_kpis, keys)

@@ -107,6 +107,16 @@ def make_doc():
             "allowance": fr.match_seeds(fobj["allowance"], de),
             "strongest": strongest,
             "headroom": fr.headroom_seeds(env, bounds, pts),
+            "by_phase": fr.by_phase(
+                env,
+                bounds,
+                [
+                    (seed, d, next(r["kpis"] for r in runs if r["controller"] == name and r["seed"] == seed))
+                    for seed, d, _ in pts
+                ],
+                {r["controller"]: r["kpis"] for r in runs if r["kind"] in bs.FAMILIES.values()},
+                bs.oracle_point_kpis(oracle),
+            ),
         }
     case = {
         "case": "sc03-medium",
@@ -166,6 +176,12 @@ def test_a_valid_document_passes_and_survives_json():
     h = case["matched"]["baseline-compensated"]["headroom"]
     assert h["strongest"] == "tuned"
     assert h["headroom_captured"] == pytest.approx(-0.01 / (0.34 - 0.319375))
+    # by_phase reads the same energies on the same fronts (the band-phase KPIs are absent here: None)
+    p = case["matched"]["baseline-compensated"]["by_phase"]
+    assert p["families"] == ["tuned"] and p["n_seeds"] == 1
+    assert p["controller"]["energy_kwh"] == 0.35 and p["strongest"]["energy_kwh"] == pytest.approx(0.34)
+    assert p["bound"]["energy_kwh"] == pytest.approx(0.319375) and p["bound"]["energy_band_kwh"] is None
+    assert case["matched"]["ceco"]["by_phase"]["bound"]["energy_kwh"] is None  # past both oracles' ends
     # at 0.05 plain and tuned both spend 0.33: a tie goes to the first family in the order of FAMILIES
     assert [x["family"] for x in case["strongest"]["levels"]] == ["tuned", "plain", "tuned", "pmv"]
     assert case["strongest"]["family"] == "tuned"
@@ -193,6 +209,14 @@ def _case(doc):
             "headroom.headroom_captured",
         ),
         (lambda d: _case(d)["matched"]["ceco"].update(headroom=None), "headroom: missing"),
+        (
+            lambda d: _case(d)["matched"]["baseline-compensated"]["by_phase"]["bound"].update(energy_kwh=0.3),
+            "by_phase.bound.energy_kwh",
+        ),
+        (
+            lambda d: _case(d)["matched"]["baseline-compensated"]["by_phase"].update(families=["pmv"]),
+            "by_phase.families",
+        ),
         (lambda d: _case(d)["strongest"].update(family="plain"), "strongest: families/family"),
         (lambda d: _case(d)["strongest"]["levels"][0].update(family="pmv"), "strongest/levels"),
         (

@@ -31,6 +31,7 @@ from ceco_core.metrics import (
 
 __all__ = [
     "KPI_KEYS",
+    "BAND_PHASE_KEYS",
     "COMFORT_BAND_PMV",
     "ACTUATOR_RANGES",
     "compute_kpis",
@@ -65,6 +66,10 @@ KPI_KEYS = (
     "otc_violation_pct",
     "time_to_comfort_s",
     "pmv_mean_band",
+    "pmv_above_band_s",
+    "energy_band_kwh",
+    "t_evap_sp_mean_band_c",
+    "mdot_bl_mean_band_kgps",
     "draught_pct",
     "draught_mean_pct",
     "draught_max_pct",
@@ -86,6 +91,17 @@ KPI_KEYS = (
     "duration_s",
 )
 """Keys of the ``kpis`` dict of :func:`compute_kpis`, in order."""
+
+BAND_PHASE_KEYS = (
+    "band_start_s",
+    "discomfort_band_pmvh",
+    "pmv_mean_band",
+    "pmv_above_band_s",
+    "energy_band_kwh",
+    "t_evap_sp_mean_band_c",
+    "mdot_bl_mean_band_kgps",
+)
+"""The KPIs of the band phase (:func:`band_phase`): None, with a note, when the band never applies."""
 
 
 def pmv_band_distance(pmv, band=COMFORT_BAND_PMV, limit: float = PMV_SCALE_LIMIT) -> np.ndarray:
@@ -247,12 +263,19 @@ def compute_kpis(
     dist = pmv_band_distance(y, band)
     k["discomfort_pmvh"] = discomfort_pmvh(dist, dt)
     zone = band_phase(lb, ub, band)
+    m = as_series("mdot_bl_kgps", columns["mdot_bl_kgps"], n)
+    s = as_series("t_evap_sp_c", columns["t_evap_sp_c"], n)
     if zone.any():
         k["band_start_s"] = float(t[int(np.argmax(zone))] - t[0])
         k["discomfort_band_pmvh"] = discomfort_pmvh(dist[zone], dt)
         k["pmv_mean_band"] = float(np.mean(y[zone]))
+        k["pmv_above_band_s"] = float(np.count_nonzero(y[zone] > band[1]) * dt)
+        p_all = p_comp + p_bl + (p_fan if p_fan is not None else 0.0)  # the consumers energy_kwh counts
+        k["energy_band_kwh"] = float(np.sum(p_all[zone]) * dt) / J_PER_KWH
+        k["t_evap_sp_mean_band_c"] = float(np.mean(s[zone]))
+        k["mdot_bl_mean_band_kgps"] = float(np.mean(m[zone]))
     else:
-        for key in ("band_start_s", "discomfort_band_pmvh", "pmv_mean_band"):
+        for key in BAND_PHASE_KEYS:
             notes[key] = "the scenario's bounds never lie inside the comfort band in this run"
     k["i_pmv"] = float(np.sum(y * y) * dt)
     k["i_pmv_clipped"] = i_pmv_clipped(y, dt)
@@ -283,8 +306,6 @@ def compute_kpis(
     valid = _column(columns, "iso7730_valid", n, notes, "iso7730_invalid_pct")
     if valid is not None:
         k["iso7730_invalid_pct"] = iso7730_invalid_pct(valid)
-    m = as_series("mdot_bl_kgps", columns["mdot_bl_kgps"], n)
-    s = as_series("t_evap_sp_c", columns["t_evap_sp_c"], n)
     k["actuator_travel"], k["travel_mdot_kgps"], k["travel_t_evap_sp_k"] = actuator_travel(m, s)
     k["peak_comp_kw"] = float(np.max(p_comp)) / 1000.0
     if step_time_s is None or control_period_s is None:

@@ -62,9 +62,35 @@ def test_discomfort_clips_pmv_and_integrates_the_distance_outside_the_band():
     assert mt.pmv_band_distance([0.5, 0.6, -3.5]).tolist() == pytest.approx([0.0, 0.1, 2.5])
 
 
+def test_the_band_phase_splits_the_energy_and_reads_the_pmv_and_the_actuators_there():
+    # PMV 0.6 and 0.7 cross the band's +0.5 edge inside the band phase (from t = 30 s); 0.8 and 1.5 lie before it
+    pmv = [0.8, 1.5, 0.5, 0.6, 0.7, 0.2]
+    comp = np.array([3000.0, 3000.0, 1000.0, 800.0, 600.0, 400.0])
+    k, _ = mt.compute_kpis(
+        _series(
+            pmv,
+            UB,
+            p_comp_w=comp,
+            mdot_bl_kgps=np.array([0.17, 0.17, 0.10, 0.08, 0.06, 0.12]),
+            t_evap_sp_c=np.array([3.0, 3.0, 4.0, 6.0, 8.0, 10.0]),
+        )
+    )
+    assert k["band_start_s"] == 30.0
+    assert k["pmv_above_band_s"] == 20.0  # 0.6 and 0.7, 10 s each
+    # (800 + 600 + 400) W of compressor + 3 x (100 + 50) W, 10 s each
+    assert k["energy_band_kwh"] == pytest.approx((1800.0 + 450.0) * 10 / 3.6e6)
+    assert k["energy_kwh"] == pytest.approx((comp.sum() + 6 * 150.0) * 10 / 3.6e6)
+    assert k["t_evap_sp_mean_band_c"] == pytest.approx(8.0)
+    assert k["mdot_bl_mean_band_kgps"] == pytest.approx(0.26 / 3)
+    no_fan = _series(pmv, UB, p_comp_w=comp)
+    del no_fan["p_cond_fan_w"]
+    assert mt.compute_kpis(no_fan)[0]["energy_band_kwh"] == pytest.approx((1800.0 + 300.0) * 10 / 3.6e6)
+
+
 def test_no_band_phase_gives_null_with_a_reason():
     k, notes = mt.compute_kpis(_series(PMV, [3.0] * 6))
-    for key in ("discomfort_band_pmvh", "band_start_s", "pmv_mean_band"):
+    assert set(mt.BAND_PHASE_KEYS) < set(mt.KPI_KEYS)
+    for key in mt.BAND_PHASE_KEYS:
         assert k[key] is None and "never lie inside" in notes[key]
     assert k["discomfort_pmvh"] > 0
 

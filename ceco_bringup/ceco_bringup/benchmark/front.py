@@ -58,6 +58,9 @@ __all__ = [
     "strongest_by_level",
     "headroom",
     "headroom_seeds",
+    "PHASE_KEYS",
+    "value_at",
+    "by_phase",
 ]
 
 REL_TOL = 1e-9
@@ -220,6 +223,13 @@ class Envelope:
     def dominates(self, discomfort: float, energy: float) -> bool:
         """True when some family's front dominates the point."""
         return any(f.dominates(discomfort, energy) for _, f in self.fronts)
+
+    def front_of(self, family: str) -> Front:
+        """The front of ``family`` (KeyError if the envelope has none of that name)."""
+        for name, f in self.fronts:
+            if name == family:
+                return f
+        raise KeyError(family)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -433,15 +443,7 @@ def headroom_seeds(envelope: Envelope, bounds: Mapping, points: Sequence[tuple])
     """
     if not points:
         raise ValueError("headroom_seeds: no points")
-
-    def bounds_of(seed) -> list:
-        if seed in bounds:
-            return [bounds[seed]]
-        if None in bounds:
-            return [bounds[None]]
-        return list(bounds.values()) if seed is None else []
-
-    used = [bounds_of(s) for s, _, _ in points]
+    used = [_bounds_of(bounds, s) for s, _, _ in points]
     per = [
         headroom(envelope, b, d, e) if b else Headroom(None, None, None, None, f"no bound for seed {seed}")
         for (seed, d, e), b in zip(points, used)
@@ -453,3 +455,96 @@ def headroom_seeds(envelope: Envelope, bounds: Mapping, points: Sequence[tuple])
     else:
         mean = Headroom(None, None, None, None, "a seed has no bound").as_dict()
     return _with_seeds(mean, per, ("headroom_captured", "saving_pct", "bound_saving_pct"))
+
+
+def _bounds_of(bounds: Mapping, seed) -> list:
+    """The bound fronts a point of ``seed`` is read against (:func:`_seeded`)."""
+    return [b for _, b in _seeded(bounds, seed)]
+
+
+PHASE_KEYS = (
+    "energy_kwh",
+    "energy_band_kwh",
+    "pmv_mean_band",
+    "pmv_above_band_s",
+    "t_evap_sp_mean_band_c",
+    "mdot_bl_mean_band_kgps",
+)
+"""The KPIs :func:`by_phase` reads (ceco_core.kpis: the whole run's energy, and the band phase's energy, mean
+and time above the band of PMV, mean coil set-point and blower flow)."""
+
+
+def value_at(front: Front, discomfort: float, values: Mapping[str, float | None]) -> float | None:
+    """A quantity known at the front's vertices (``values``: vertex name -> value), read at D as the energy is.
+
+    Linear between the two vertices around D, with D held to the front's range (as the envelope holds a
+    family past its least comfortable vertex); None when a vertex has no value.
+    """
+    v = [values.get(p.name) for p in front.vertices]
+    if any(x is None for x in v):
+        return None
+    d = front.d
+    return float(np.interp(min(max(float(discomfort), d[0]), d[-1]), d, np.asarray(v, dtype=float)))
+
+
+def _mean_or_none(xs: Sequence) -> float | None:
+    return None if not xs or any(x is None for x in xs) else float(np.mean(xs))
+
+
+def by_phase(
+    envelope: Envelope,
+    bounds: Mapping,
+    points: Sequence[tuple],
+    member_kpis: Mapping[str, Mapping],
+    bound_kpis: Mapping,
+    keys: Sequence[str] = PHASE_KEYS,
+) -> dict:
+    """Where a controller's and the bound's savings sit: the band phase against the whole run.
+
+    ``points`` = [(seed, discomfort, the controller's kpis), ...]; ``member_kpis`` maps every family member (the
+    envelope's vertex names) to its kpis; ``bound_kpis`` maps a seed (as ``bounds``) to {vertex name: kpis} of
+    its bound. At each point's discomfort D the strongest family's front and the bound's (the mean over the
+    seed's bounds, as :func:`headroom`) are read by :func:`value_at` for each of ``keys``: what the strongest
+    law and the optimum do at the controller's comfort. Returns ``{'controller', 'strongest', 'bound'}``
+    ({key: mean over the points}, a mean None where a point's value is None: outside a front, or a KPI
+    undefined), ``families`` (the strongest family at each point) and ``n_seeds``.
+    """
+    if not points:
+        raise ValueError("by_phase: no points")
+    rows: dict = {"controller": [], "strongest": [], "bound": []}
+    families = []
+    for seed, d, kpis in points:
+        fam = envelope.family_at(d)
+        families.append(fam)
+        rows["controller"].append({k: kpis.get(k) for k in keys})
+        if fam is None:
+            rows["strongest"].append(dict.fromkeys(keys))
+        else:
+            front = envelope.front_of(fam)
+            rows["strongest"].append(
+                {k: value_at(front, d, {n: (member_kpis.get(n) or {}).get(k) for n in member_kpis}) for k in keys}
+            )
+        got = dict.fromkeys(keys)
+        pairs = [(b, bound_kpis.get(s)) for s, b in _seeded(bounds, seed)]
+        if pairs and all(b.energy_at(d) is not None and kp is not None for b, kp in pairs):
+            got = {
+                k: _mean_or_none([value_at(b, d, {n: v.get(k) for n, v in kp.items()}) for b, kp in pairs])
+                for k in keys
+            }
+        rows["bound"].append(got)
+    out: dict = {who: {k: _mean_or_none([r[k] for r in rs]) for k in keys} for who, rs in rows.items()}
+    out["families"] = families
+    out["n_seeds"] = len(points)
+    return out
+
+
+def _seeded(bounds: Mapping, seed) -> list:
+    """(key, front) of the bounds a point of ``seed`` is read against.
+
+    Its seed's, else the seed-invariant one (key None); a seed-invariant point (seed None) against every bound.
+    """
+    if seed in bounds:
+        return [(seed, bounds[seed])]
+    if None in bounds:
+        return [(None, bounds[None])]
+    return list(bounds.items()) if seed is None else []

@@ -35,6 +35,8 @@ from .schema import (
     FAMILIES,
     SEED_INVARIANT_KINDS,
     door_family,
+    oracle_member,
+    oracle_point_kpis,
 )
 
 __all__ = [
@@ -753,43 +755,63 @@ def envelope_of(fronts: Mapping) -> fr.Envelope | None:
     return fr.Envelope.of(fronts)
 
 
-def _points(runs: Sequence[Mapping], fx: str, ex: str, with_seed: bool = False) -> dict:
-    """The scored controllers' points; a controller with a run that broke the air-quality limits has none."""
-    pts: dict = {}
+def _scored_runs(runs: Sequence[Mapping], fx: str, ex: str) -> dict:
+    """{controller: [its scored runs, by seed]}; a controller with a run that broke the air-quality limits has none."""
+    out: dict = {}
     broken = set(air_quality_broken(runs))
     for r in sorted(runs, key=lambda r: -1 if r['seed'] is None else r['seed']):
         if r['kind'] in SCORED_KINDS and r['status'] == 'ok' and r['controller'] not in broken:
-            d, e = r['kpis'].get(fx), r['kpis'].get(ex)
-            if d is not None and e is not None:
-                pts.setdefault(r['controller'], []).append((r['seed'], d, e) if with_seed else (d, e))
-    return pts
+            if r['kpis'].get(fx) is not None and r['kpis'].get(ex) is not None:
+                out.setdefault(r['controller'], []).append(r)
+    return out
+
+
+def _points(runs: Sequence[Mapping], fx: str, ex: str, with_seed: bool = False) -> dict:
+    """The scored controllers' points (:func:`_scored_runs`): (seed, D, E), or (D, E)."""
+    return {
+        name: [(r['seed'], r['kpis'][fx], r['kpis'][ex]) if with_seed else (r['kpis'][fx], r['kpis'][ex]) for r in rs]
+        for name, rs in _scored_runs(runs, fx, ex).items()
+    }
+
+
+def member_kpis(runs: Sequence[Mapping]) -> dict:
+    """{controller: kpis} of the baseline families' members with status ok (the fronts' vertex names)."""
+    return {r['controller']: r['kpis'] for r in runs if r['kind'] in FAMILIES.values() and r['status'] == 'ok'}
 
 
 def _match_or_none(front, pts):
     return None if front is None else fr.match_seeds(front, pts)
 
 
-def matched_of(runs: Sequence[Mapping], fx: str, ex: str, bounds: Mapping | None = None) -> dict:
+def matched_of(
+    runs: Sequence[Mapping], fx: str, ex: str, bounds: Mapping | None = None, bound_kpis: Mapping | None = None
+) -> dict:
     """The matched-comfort entries of every scored controller of a case.
 
     Against the production fronts (top level: plain; ``allowance``), the strongest family (``strongest``,
     with the ``family`` at its seed-mean discomfort) and, with ``bounds`` ({seed: the oracle's Front}),
-    ``headroom`` (:func:`front.headroom_seeds`; else None).
+    ``headroom`` (:func:`front.headroom_seeds`; else None); with ``bound_kpis`` too ({seed: {vertex name:
+    kpis}}, :func:`oracle_point_kpis`), ``by_phase`` (:func:`front.by_phase`: the controller, the strongest
+    family and the bound at the controller's discomfort, band phase against the whole run; else None).
     """
     fronts = fronts_of(runs, fx, ex)
     env = envelope_of(fronts)
     out = {}
     if fronts['plain'] is None or env is None:
         return out
-    for name, pts in _points(runs, fx, ex, with_seed=True).items():
+    members = member_kpis(runs)
+    for name, rs in _scored_runs(runs, fx, ex).items():
+        pts = [(r['seed'], r['kpis'][fx], r['kpis'][ex]) for r in rs]
         de = [(d, e) for _, d, e in pts]
         strongest = fr.match_seeds(env, de)
         strongest['family'] = env.family_at(sum(d for d, _ in de) / len(de))
+        phase = [(r['seed'], r['kpis'][fx], r['kpis']) for r in rs]
         out[name] = {
             **fr.match_seeds(fronts['plain'], de),
             'allowance': _match_or_none(fronts['allowance'], de),
             'strongest': strongest,
             'headroom': fr.headroom_seeds(env, bounds, pts) if bounds else None,
+            'by_phase': fr.by_phase(env, bounds, phase, members, bound_kpis) if bounds and bound_kpis else None,
         }
     return out
 
@@ -830,6 +852,7 @@ def assemble_case(
     env = envelope_of(fronts)
     oracle = dict(oracle) if oracle is not None else oracle_entry('skipped', 'not requested', [], [])
     bounds = oracle_bounds(oracle)
+    bound_kpis = oracle_point_kpis(oracle)
     sc = case.load_scenario()
     out = {
         'case': case.name,
@@ -846,7 +869,7 @@ def assemble_case(
         'fronts': {fam: _front_points(f) for fam, f in fronts.items()},
         'strongest': strongest_entry(env, oracle['levels'] or oracle_levels(runs)),
         'oracle': oracle,
-        'matched': matched_of(runs, FRONT_AXIS, ENERGY_AXIS, bounds),
+        'matched': matched_of(runs, FRONT_AXIS, ENERGY_AXIS, bounds, bound_kpis),
         'air_quality': {
             'co2_limit_ppm': float(sc.air_quality.co2_limit_ppm),
             'fog_margin_min_k': float(sc.air_quality.fog_margin_min_k),
@@ -1094,7 +1117,7 @@ def oracle_entry(status: str, note: str, levels: Sequence[float], rows: Sequence
         # plant leaves it; a saving bought with stale air is no saving): kept in points, not on the front
         pts = [p for p in r.get('points', []) if p.get('kpis') and not breaks_air_quality(p)]
         front = (
-            fr.build_front([(f'oracle@{p["level"]:.6g}', p['kpis'][FRONT_AXIS], p['kpis'][ENERGY_AXIS]) for p in pts])
+            fr.build_front([(oracle_member(p['level']), p['kpis'][FRONT_AXIS], p['kpis'][ENERGY_AXIS]) for p in pts])
             if pts and r['status'] == 'ok'
             else None
         )

@@ -43,6 +43,8 @@ __all__ = [
     "DOOR_FAMILY_BASES",
     "door_family",
     "ORACLE_STATUSES",
+    "oracle_member",
+    "oracle_point_kpis",
     "load_json_schema",
     "validate_results",
     "check_results",
@@ -271,6 +273,22 @@ def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
             a, b = got.get("seeds", {}).get(key), expect["seeds"][key]
             if not isinstance(a, list) or len(a) != len(b) or not all(_same(x, y) for x, y in zip(a, b)):
                 out.append(f"{where}.headroom.seeds.{key}: {a!r} does not recompute ({b!r})")
+        if entry.get("by_phase") is not None:  # absent from documents written before it
+            fam_kpis = {n: rs[0]["kpis"] for n, rs in ok_runs.items() if rs[0]["kind"] in FAMILIES.values()}
+            want = fr.by_phase(
+                env,
+                bounds,
+                [(r["seed"], d, r["kpis"]) for r, (d, _) in zip(runs, pts)],
+                fam_kpis,
+                oracle_point_kpis(case["oracle"]),
+            )
+            have = entry["by_phase"]
+            for who in ("controller", "strongest", "bound"):
+                for key, b in want[who].items():
+                    if not _same(have.get(who, {}).get(key), b):
+                        out.append(f"{where}.by_phase.{who}.{key}: does not recompute ({b!r})")
+            if have.get("families") != want["families"] or have.get("n_seeds") != want["n_seeds"]:
+                out.append(f"{where}.by_phase.families/n_seeds: do not recompute")
     return out
 
 
@@ -291,6 +309,19 @@ def _check_strongest(tag: str, entry: Mapping, env, levels) -> list[str]:
     return out
 
 
+def oracle_member(level: float) -> str:
+    """The name of the oracle's point at ``level`` on its front (``oracle@<level>``)."""
+    return f"oracle@{float(level):.6g}"
+
+
+def oracle_point_kpis(oracle: Mapping) -> dict:
+    """``{seed: {front member name: kpis}}`` of a case's ``oracle`` entry (the solved points of every seed)."""
+    return {
+        f["seed"]: {oracle_member(p["level"]): p["kpis"] for p in f["points"] if p.get("kpis")}
+        for f in oracle.get("fronts", [])
+    }
+
+
 def _oracle_bounds(tag: str, oracle: Mapping) -> tuple[dict, list[str]]:
     """{seed: Front} of an 'ok' oracle entry, and the problems of its fronts (each recomputes from its points)."""
     out: list[str] = []
@@ -308,7 +339,7 @@ def _oracle_bounds(tag: str, oracle: Mapping) -> tuple[dict, list[str]]:
         ):
             out.append(f"{where}: one point per level, in order")
         solved = [
-            (f"oracle@{p['level']:.6g}", p["kpis"]["discomfort_pmvh"], p["kpis"]["energy_kwh"])
+            (oracle_member(p["level"]), p["kpis"]["discomfort_pmvh"], p["kpis"]["energy_kwh"])
             for p in f["points"]
             if p["kpis"]
         ]
