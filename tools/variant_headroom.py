@@ -9,7 +9,9 @@ cells, ``runner.run_benchmark_cell``) with the StrategySettings overrides of ``-
 matching (``runner.matched_of``) against the families' runs and the oracle front stored in RESULTS.json (a
 ``ceco benchmark --oracle`` output of the same simulator code for the baselines): the saving against the
 strongest family [%] (mean over the seeds [min..max]), the seeds it is dominated on, the oracle's saving at
-the same discomfort and headroom_captured (docs/benchmark.md). The oracle does not depend on the controller
+the same discomfort and headroom_captured (docs/benchmark.md), and the band phase's PMV mean and seconds above
++0.5 of the variant, the strongest family and the oracle there (``by_phase``; RESULTS.json must hold the band-phase
+KPIs, a run of ceco since 2d65211). The oracle does not depend on the controller
 (it knows the drive), so a stored front bounds any variant; the baselines do not either, so only the
 variant is rerun (seconds per run instead of the hours of the oracle).
 
@@ -60,7 +62,8 @@ def study(results: dict, case_name: str, strategy: str, overrides: dict) -> dict
         rows.append(runner._run_entry(row))
     baselines = [r for r in entry['runs'] if r['kind'].startswith('baseline')]  # every family, door ones too
     bounds = runner.oracle_bounds(entry['oracle'])
-    matched = runner.matched_of(baselines + rows, runner.FRONT_AXIS, runner.ENERGY_AXIS, bounds)
+    kp = runner.oracle_point_kpis(entry['oracle'])
+    matched = runner.matched_of(baselines + rows, runner.FRONT_AXIS, runner.ENERGY_AXIS, bounds, kp)
     m = matched[strategy]
     s, h = m['strongest'], m['headroom'] or {}
     seeds = s.get('seeds') or {}
@@ -79,6 +82,7 @@ def study(results: dict, case_name: str, strategy: str, overrides: dict) -> dict
         'headroom_captured': h.get('headroom_captured'),
         'headroom_captured_seeds': (h.get('seeds') or {}).get('headroom_captured'),
         'note': h.get('note', ''),  # why there is no headroom (the plain front's note is not about it)
+        'by_phase': m.get('by_phase'),  # the band phase: the variant, the strongest family and the oracle there
     }
 
 
@@ -114,6 +118,16 @@ def main(argv=None) -> int:
             + (f' [{min(hs):.2f}..{max(hs):.2f}]' if len(hs) > 1 else '')
             + (f' ({r["note"]})' if r['note'] else '')
         )
+        bp = r['by_phase']
+        if bp:
+            c, st, b = bp['controller'], bp['strongest'], bp['bound']
+            print(
+                '  band phase: PMV mean '
+                + ' / '.join(_fmt(x['pmv_mean_band'], '+.3f') for x in (c, st, b))
+                + ', above +0.5 '
+                + ' / '.join(_fmt(x['pmv_above_band_s'], '.0f') for x in (c, st, b))
+                + ' s (variant / strongest family / oracle, at the variant\'s discomfort)'
+            )
         print(json.dumps(r))
     return 0
 
