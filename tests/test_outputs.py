@@ -255,6 +255,9 @@ def test_sim_job_prints_the_verdict_and_keeps_what_made_it(tmp_path, capsys):
     assert csv_rows[0].startswith('strategy,energy_kwh,') and len(csv_rows) == 3
     assert (out / 'summary.txt').read_text().count('Verdict on sc03') == 1
     assert 'DR>20%' in (out / 'comparison.txt').read_text()
+    # the band applies from 300 s on SC03: a 60-s run has no band phase, so its seconds above +0.5 are empty
+    assert csv_rows[0].split(',').index('pmv_above_band_s') > csv_rows[0].split(',').index('pmv_mean_band')
+    assert all(r.split(',')[csv_rows[0].split(',').index('pmv_above_band_s')] == '' for r in csv_rows[1:])
     for s in ('baseline', 'ceco-e'):
         run = provenance.read_run(out / s)
         assert run['status'] == 'complete' and run['command'] == 'ceco sim ' + ' '.join(argv)
