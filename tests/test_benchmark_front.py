@@ -255,7 +255,12 @@ def test_by_phase_reads_the_strongest_family_and_the_bound_at_the_controllers_di
     assert fr.value_at(env.front_of("A"), 0.35, {n: v["pmv_mean_band"] for n, v in members.items()}) == pytest.approx(
         0.5
     )
-    assert fr.value_at(env.front_of("A"), 0.2, {"a@1": 0.2}) is None  # a vertex without a value
+    assert fr.value_at(env.front_of("A"), 0.2, {"a@1": 0.2}) is None  # a neighbouring vertex without a value
+    three = fr.build_front({"x1": (0.1, 0.4), "x2": (0.2, 0.3), "x3": (0.3, 0.25)})
+    assert fr.value_at(three, 0.15, {"x1": 1.0, "x2": 3.0}) == pytest.approx(2.0)  # x3's value is not needed
+    assert fr.value_at(three, 0.25, {"x1": 1.0, "x2": 3.0}) is None
+    assert fr.value_at(three, 0.35, {"x2": 3.0, "x3": 5.0}) == pytest.approx(5.0)  # held past the end
+    assert fr.value_at(fr.build_front({"y": (0.1, 0.4)}), 0.3, {"y": 7.0}) == 7.0  # a one-point front
     pts = [
         (0, 0.2, {"energy_kwh": 0.28, "energy_band_kwh": 0.14, "pmv_mean_band": 0.45}),
         (1, 0.15, {"energy_kwh": 0.33, "energy_band_kwh": 0.16, "pmv_mean_band": 0.41}),

@@ -269,7 +269,12 @@ def compute_kpis(
         k["band_start_s"] = float(t[int(np.argmax(zone))] - t[0])
         k["discomfort_band_pmvh"] = discomfort_pmvh(dist[zone], dt)
         k["pmv_mean_band"] = float(np.mean(y[zone]))
-        k["pmv_above_band_s"] = float(np.count_nonzero(y[zone] > band[1]) * dt)
+        yz = y[zone]
+        settled = np.flatnonzero(yz <= band[1])  # the pull-down's tail, still above the edge, is not a crossing
+        if settled.size:
+            k["pmv_above_band_s"] = float(np.count_nonzero(yz[settled[0] :] > band[1]) * dt)
+        else:
+            notes["pmv_above_band_s"] = "the PMV never came to the band's upper edge or below in the band phase"
         p_all = p_comp + p_bl + (p_fan if p_fan is not None else 0.0)  # the consumers energy_kwh counts
         k["energy_band_kwh"] = float(np.sum(p_all[zone]) * dt) / J_PER_KWH
         k["t_evap_sp_mean_band_c"] = float(np.mean(s[zone]))

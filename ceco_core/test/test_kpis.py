@@ -63,28 +63,34 @@ def test_discomfort_clips_pmv_and_integrates_the_distance_outside_the_band():
 
 
 def test_the_band_phase_splits_the_energy_and_reads_the_pmv_and_the_actuators_there():
-    # PMV 0.6 and 0.7 cross the band's +0.5 edge inside the band phase (from t = 30 s); 0.8 and 1.5 lie before it
-    pmv = [0.8, 1.5, 0.5, 0.6, 0.7, 0.2]
-    comp = np.array([3000.0, 3000.0, 1000.0, 800.0, 600.0, 400.0])
+    # PMV 0.6 and 0.7 cross the band's +0.5 edge inside the band phase (from t = 30 s) after it came to 0.4 there;
+    # 0.8 and 1.5 lie before the band phase, 0.9 at its start is the pull-down's tail, not a crossing
+    pmv = [0.8, 1.5, 0.5, 0.9, 0.4, 0.6, 0.7, 0.2]
+    UB = [3.0, 3.0, 2.0, 0.5, 0.5, 0.5, 0.5, 0.5]
+    comp = np.array([3000.0, 3000.0, 1000.0, 1000.0, 800.0, 600.0, 400.0, 200.0])
     k, _ = mt.compute_kpis(
         _series(
             pmv,
             UB,
             p_comp_w=comp,
-            mdot_bl_kgps=np.array([0.17, 0.17, 0.10, 0.08, 0.06, 0.12]),
-            t_evap_sp_c=np.array([3.0, 3.0, 4.0, 6.0, 8.0, 10.0]),
+            mdot_bl_kgps=np.array([0.17, 0.17, 0.10, 0.10, 0.08, 0.06, 0.12, 0.08]),
+            t_evap_sp_c=np.array([3.0, 3.0, 4.0, 4.0, 6.0, 8.0, 10.0, 8.0]),
         )
     )
     assert k["band_start_s"] == 30.0
     assert k["pmv_above_band_s"] == 20.0  # 0.6 and 0.7, 10 s each
-    # (800 + 600 + 400) W of compressor + 3 x (100 + 50) W, 10 s each
-    assert k["energy_band_kwh"] == pytest.approx((1800.0 + 450.0) * 10 / 3.6e6)
-    assert k["energy_kwh"] == pytest.approx((comp.sum() + 6 * 150.0) * 10 / 3.6e6)
-    assert k["t_evap_sp_mean_band_c"] == pytest.approx(8.0)
-    assert k["mdot_bl_mean_band_kgps"] == pytest.approx(0.26 / 3)
+    # (1000 + 800 + 600 + 400 + 200) W of compressor + 5 x (100 + 50) W, 10 s each
+    assert k["energy_band_kwh"] == pytest.approx((3000.0 + 750.0) * 10 / 3.6e6)
+    assert k["energy_kwh"] == pytest.approx((comp.sum() + 8 * 150.0) * 10 / 3.6e6)
+    assert k["t_evap_sp_mean_band_c"] == pytest.approx(7.2)
+    assert k["mdot_bl_mean_band_kgps"] == pytest.approx(0.44 / 5)
     no_fan = _series(pmv, UB, p_comp_w=comp)
     del no_fan["p_cond_fan_w"]
-    assert mt.compute_kpis(no_fan)[0]["energy_band_kwh"] == pytest.approx((1800.0 + 300.0) * 10 / 3.6e6)
+    assert mt.compute_kpis(no_fan)[0]["energy_band_kwh"] == pytest.approx((3000.0 + 500.0) * 10 / 3.6e6)
+    # never at or below +0.5 in the band phase: no crossing to count, said why
+    k, notes = mt.compute_kpis(_series([0.8, 1.5, 0.9, 0.9, 0.7, 0.6, 0.6, 0.6], UB))
+    assert k["pmv_above_band_s"] is None and "never came to the band's upper edge" in notes["pmv_above_band_s"]
+    assert k["pmv_mean_band"] == pytest.approx(0.68)
 
 
 def test_no_band_phase_gives_null_with_a_reason():

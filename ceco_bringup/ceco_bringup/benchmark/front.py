@@ -478,13 +478,19 @@ def value_at(front: Front, discomfort: float, values: Mapping[str, float | None]
     """A quantity known at the front's vertices (``values``: vertex name -> value), read at D as the energy is.
 
     Linear between the two vertices around D, with D held to the front's range (as the envelope holds a
-    family past its least comfortable vertex); None when a vertex has no value.
+    family past its least comfortable vertex); None when one of those two has no value (a vertex farther
+    away does not matter).
     """
-    v = [values.get(p.name) for p in front.vertices]
-    if any(x is None for x in v):
+    d, names = front.d, [p.name for p in front.vertices]
+    x = min(max(float(discomfort), d[0]), d[-1])
+    if d.size == 1:
+        v = values.get(names[0])
+        return None if v is None else float(v)
+    i = int(np.clip(np.searchsorted(d, x, side="right") - 1, 0, d.size - 2))
+    a, b = values.get(names[i]), values.get(names[i + 1])
+    if a is None or b is None:
         return None
-    d = front.d
-    return float(np.interp(min(max(float(discomfort), d[0]), d[-1]), d, np.asarray(v, dtype=float)))
+    return float(a + (x - d[i]) / (d[i + 1] - d[i]) * (b - a))
 
 
 def _mean_or_none(xs: Sequence) -> float | None:
