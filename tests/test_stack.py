@@ -98,15 +98,30 @@ class DdsPeer:
                 os.environ[key] = value
 
 
-def _recording_peer(tmp_path, **recorder_kw):
-    """A test peer on a fresh domain with a rosbag2 Recorder spinning in it: (peer, recorder, log dir, bag)."""
+def _start_recorder(tn, tmp_path, **recorder_kw):
+    """A rosbag2 Recorder of ``tmp_path/bag`` spinning in the test peer ``tn``: (recorder, bag)."""
     from ceco_bringup.recorder import Recorder
 
-    tn = DdsPeer(_domain(), 'unused')
     bag = tmp_path / 'bag'
     rec = Recorder(bag, context=tn.context, **recorder_kw)
     tn.executor.add_node(rec)
+    return rec, bag
+
+
+def _recording_peer(tmp_path, **recorder_kw):
+    """A test peer on a fresh domain with a rosbag2 Recorder spinning in it: (peer, recorder, log dir, bag)."""
+    tn = DdsPeer(_domain(), 'unused')
+    rec, bag = _start_recorder(tn, tmp_path, **recorder_kw)
     return tn, rec, tmp_path / 'logs', bag
+
+
+def _stop_recording(tn, rec, *nodes) -> dict:
+    """Close the recorder (its per-topic counts), then the test's own nodes and the peer."""
+    counts = rec.close()
+    for node in nodes:
+        node.destroy_node()
+    tn.close()
+    return counts
 
 
 def _proc(name, exe, env, log_dir, params):
@@ -297,23 +312,17 @@ def test_the_recorder_gets_every_clock_published_before_its_reader_matched(tmp_p
     volatile /clock of before it got none (a CI run recorded 39 of 60)."""
     from rosgraph_msgs.msg import Clock
 
-    from ceco_bringup.recorder import Recorder
-
     tn = DdsPeer(_domain(), 'unused')
     plant = rclpy.create_node('plant_node', context=tn.context)
     pub_clock = plant.create_publisher(Clock, interfaces.TOPIC_CLOCK, interfaces.QOS_CLOCK)
     for n in range(25):
         pub_clock.publish(Clock(clock=conversions.stamp_from_s(0.5 * n)))
-    bag = tmp_path / 'bag'
-    rec = Recorder(bag, context=tn.context, timestamps='sim')
-    tn.executor.add_node(rec)
+    rec, bag = _start_recorder(tn, tmp_path, timestamps='sim')
     try:
         _wait_for(lambda: rec.n_messages >= 25, 30, 'the recorder to receive the 25 clocks published before it')
         time.sleep(0.3)
     finally:
-        counts = rec.close()
-        plant.destroy_node()
-        tn.close()
+        counts = _stop_recording(tn, rec, plant)
     assert counts['/clock'] == 25
     stamps = [t for _, t, _ in bagio.read_messages(bag, (interfaces.TOPIC_CLOCK,))]
     assert stamps == [n * 500_000_000 for n in range(25)]
@@ -349,10 +358,7 @@ def test_recorder_records_a_namespaced_stack_fully_qualified(tmp_path):
         _wait_for(lambda: rec.n_messages >= 20, 30, 'the recorder to receive 10 states and 10 clocks')
         time.sleep(0.3)
     finally:
-        counts = rec.close()
-        veh1.destroy_node()
-        root.destroy_node()
-        tn.close()
+        counts = _stop_recording(tn, rec, veh1, root)
     assert counts['/veh1/cabin/state'] == 10 and counts['/clock'] == 10 and '/cabin/state' not in counts
     got = [(t, m.step_index, m.t_cab_c) for _, t, m in bagio.read_messages(bag, ('cabin/state',))]
     assert got == [(n * 500_000_000, n, 45.0) for n in range(10)]
