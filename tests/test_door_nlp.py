@@ -224,11 +224,12 @@ def test_at_the_limit_the_nlp_opens_the_door_just_enough_and_the_penalty_is_exac
 
 def test_without_the_door_the_nlp_is_the_one_of_before():
     """door_control 'none' and 'co2_hold': the recorded size of the ceco-pmv NLP (single shooting, Np 6 + 6:
-    62 variables, 50 rows, 76 parameters; recorded on main before the door NLP) and one and the same NLP for both
-    (same variables, bounds and IPOPT optimum on the nominal instance)."""
+    62 variables, 50 rows, 76 parameters recorded on main before the door NLP, and since 3 Dec 2026 one more, the
+    measured door of the power model, ``recirc``) and one and the same NLP for both (same variables, bounds and
+    IPOPT optimum on the nominal instance)."""
     a, b = _controller(_PMV), _controller(dataclasses.replace(_PMV, door_control="co2_hold"))
     for c in (a, b):
-        assert (c.problem.nw, c.problem.ng, c.problem.params.size, c.problem.nu) == (62, 50, 76, 2)
+        assert (c.problem.nw, c.problem.ng, c.problem.params.size, c.problem.nu) == (62, 50, 77, 2)
     obs = nominal_observation(a.horizon_steps + 1)
     ex, _ = a.previews(obs)
     p = a.parameters(obs, ex)

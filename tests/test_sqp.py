@@ -124,8 +124,9 @@ def test_parameter_layout_names_every_slice():
         "pmv_ub",
         "t_mr",
         "pa",
+        "recirc",
     )
-    assert pl.size == 9 + 5 * 4 + 2
+    assert pl.size == 9 + 5 * 4 + 3
     p = pl.pack(
         x0=[1, 2],
         t_int=3,
@@ -141,8 +142,9 @@ def test_parameter_layout_names_every_slice():
         pmv_ub=1,
         t_mr=30,
         pa=1700,
+        recirc=0.8,
     )
-    assert pl.scalar(p, "pa") == 1700 and p[-1] == 1700
+    assert pl.scalar(p, "pa") == 1700 and p[-2] == 1700 and p[-1] == 0.8
     assert pl.scalar(p, "t_shell") == 4 and list(pl.get(p, "speed")) == [20, 21, 22, 23]
     assert list(pl.get(p, "u_prev")) == [8, 9] and list(pl.get(p, "pmv_lb")) == [-1] * 4
     with pytest.raises(ValueError, match="missing"):

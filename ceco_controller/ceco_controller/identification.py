@@ -56,6 +56,8 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
 
+from ceco_core.air_quality import RECIRC_SHARE_DEFAULT
+
 from . import model as cm
 from .identification_data import (  # noqa: F401 - part of this module's API (__all__)
     CO2_FINE_COLUMNS,
@@ -182,7 +184,8 @@ def intervals_from_series(series: dict, ts_s: float = 5.0) -> dict:
     rows i .. i+m-1 (m = ts_s/dt); its end state is row i+m. Intervals whose
     inputs change inside them are dropped. Returns arrays per interval:
     ``t_cab0, t_cab1, t_evap0, t_evap1, t_int0, t_shell0, t_evap_mean, t_cab_mean,
-    t_ain_mean, mdot, sp, t_amb, speed, p_comp, p_bl, segment``.
+    t_ain_mean, mdot, sp, t_amb, speed, p_comp, p_bl, segment``, and ``recirc`` (the door's mean
+    recirculated share [-]) when the series has a ``recirc_share`` column (NaN where it is not measured).
     """
     for c in SERIES_COLUMNS:
         if c not in series:
@@ -194,11 +197,13 @@ def intervals_from_series(series: dict, ts_s: float = 5.0) -> dict:
     m = int(round(ts_s / dt))
     if m < 1 or abs(m * dt - ts_s) > 1e-6:
         raise ValueError(f"ts_s {ts_s} must be a whole multiple of the sample step {dt}")
-    out: dict[str, list] = {k: [] for k in INTERVAL_KEYS}
+    door = "recirc_share" in series
+    keys = INTERVAL_KEYS + (("recirc",) if door else ())
+    out: dict[str, list] = {k: [] for k in keys}
     seg = np.asarray(series["segment"])
     for s in np.unique(seg):
         idx = np.flatnonzero(seg == s)
-        g = {c: np.asarray(series[c], float)[idx] for c in SERIES_COLUMNS}
+        g = {c: np.asarray(series[c], float)[idx] for c in SERIES_COLUMNS + (("recirc_share",) if door else ())}
         for i in range(0, idx.size - m, m):
             sl = slice(i, i + m)
             if np.ptp(g["mdot_bl_kgps"][sl]) > 1e-9 or np.ptp(g["t_evap_sp_c"][sl]) > 1e-9:
@@ -221,6 +226,8 @@ def intervals_from_series(series: dict, ts_s: float = 5.0) -> dict:
                 "p_bl": np.mean(g["p_blower_w"][sl]),
                 "segment": s,
             }
+            if door:
+                vals["recirc"] = np.mean(g["recirc_share"][sl])
             for k, v in vals.items():
                 out[k].append(float(v))
     res: dict[str, Any] = {k: np.asarray(v) for k, v in out.items()}
@@ -234,19 +241,34 @@ def _lstsq(a, b):
 
 
 def fit_intervals(
-    iv: dict, ts_s: float | None = None, eta: tuple[float, float] | None = None
+    iv: dict,
+    ts_s: float | None = None,
+    eta: tuple[float, float] | None = None,
+    recirc_share: float = RECIRC_SHARE_DEFAULT,
 ) -> tuple[cm.ControlModelParams, dict]:
     """Least-squares fit of every model parameter from interval data; returns (params, residual RMS).
 
     ``eta`` = (a_eta, v_eta [m/s]) fixes eta_AC(V) (identified from the plant's steady cycle,
     :func:`fit_eta_ac`); None fits it jointly with the compressor (the old method, which lets
     speed absorb load and ambient effects).
+
+    The fresh-air share phi of the power model (P1) is not fitted: it is the door's, 1 - r, known in the
+    data: ``iv["recirc"]`` per interval where the series measured the door, else ``recirc_share`` [-] (the
+    door the data were recorded with; default the plant's 0.8, the excitation's). Fitted freely, phi went to
+    its bound 0 (the sensible-only load then lumps the latent part into c0), which made the model blind to
+    the fresh air's load growing with the blower flow: it ranked a warmer coil with more air too favourably
+    (docs/controller.md, "The fresh-air share"). ``fresh_air_fraction`` is written as the data's mean 1 - r.
     """
+    r_default = float(recirc_share)
+    if not (math.isfinite(r_default) and 0.0 <= r_default <= 1.0):
+        raise ValueError(f"recirc_share must be in [0, 1], got {recirc_share!r}")
     ts_s = float(ts_s if ts_s is not None else iv["ts_s"])
     n = iv["mdot"].size
     if n < 20:
         raise ValueError(f"need at least 20 intervals to fit, got {n}")
     one = np.ones(n)
+    r = np.asarray(iv.get("recirc", np.full(n, np.nan)), float)
+    phi = 1.0 - np.where(np.isfinite(r) & (r >= 0.0) & (r <= 1.0), r, r_default)
     # eq. (3): T_ain = g6 T_evap + g7 mdot + tau3 (interval means)
     a3 = np.column_stack([iv["t_evap_mean"], iv["mdot"], one])
     g6, g7, tau3 = _lstsq(a3, iv["t_ain_mean"])
@@ -282,28 +304,30 @@ def fit_intervals(
 
     def comp_params(z):
         if eta is not None:
-            z = np.concatenate([z[:3], eta, z[3:]])
+            z = np.concatenate([z[:2], eta, z[2:]])
         return dataclasses.replace(
             base,
-            fresh_air_fraction=z[0],
-            comp_c0=z[1],
-            comp_c1_per_k=z[2],
-            eta_gain=z[3],
-            eta_speed_scale_mps=z[4],
-            comp_c_wall_jpk=z[5],
+            fresh_air_fraction=float(np.mean(phi)),
+            comp_c0=z[0],
+            comp_c1_per_k=z[1],
+            eta_gain=z[2],
+            eta_speed_scale_mps=z[3],
+            comp_c_wall_jpk=z[4],
         )
 
     def comp_resid(z):
         p = comp_params(z)
-        q = cm.q_evap_w(p, iv["t_cab_mean"], iv["t_amb"], iv["t_ain_mean"], iv["mdot"], iv["t_evap0"], iv["t_evap1"])
+        q = cm.q_evap_w(
+            p, iv["t_cab_mean"], iv["t_amb"], iv["t_ain_mean"], iv["mdot"], iv["t_evap0"], iv["t_evap1"], phi
+        )
         return (cm.p_comp_w(p, q, iv["t_amb"], iv["t_evap_mean"], iv["speed"]) - iv["p_comp"]) / 1000.0
 
-    z0 = np.array([0.2, 0.2, 0.01, 0.2, 10.0, 5000.0])
-    lo = np.array([0.0, 1e-3, 0.0, 0.0, 1.0, 0.0])
-    hi = np.array([1.0, 5.0, 0.5, 3.0, 60.0, 1e5])
-    xs = np.array([0.1, 0.1, 0.01, 0.1, 5.0, 1000.0])
+    z0 = np.array([0.2, 0.01, 0.2, 10.0, 5000.0])
+    lo = np.array([1e-3, 0.0, 0.0, 1.0, 0.0])
+    hi = np.array([5.0, 0.5, 3.0, 60.0, 1e5])
+    xs = np.array([0.1, 0.01, 0.1, 5.0, 1000.0])
     if eta is not None:
-        keep = [0, 1, 2, 5]
+        keep = [0, 1, 4]
         z0, lo, hi, xs = z0[keep], lo[keep], hi[keep], xs[keep]
     rc = least_squares(comp_resid, z0, bounds=(lo, hi), x_scale=xs)
     params = comp_params(rc.x)
@@ -319,12 +343,15 @@ def fit_intervals(
     return params, resid
 
 
-def fit(series: dict, ts_s: float = 5.0, eta: tuple[float, float] | None = None) -> tuple[cm.ControlModelParams, dict]:
+def fit(
+    series: dict, ts_s: float = 5.0, eta: tuple[float, float] | None = None, recirc_share: float = RECIRC_SHARE_DEFAULT
+) -> tuple[cm.ControlModelParams, dict]:
     """Fit the control model from 1 s time-series arrays (SERIES_COLUMNS; e.g. read from CSV or a rosbag2 bag).
 
-    ``ts_s`` is the model step [s]; ``eta`` as in :func:`fit_intervals`.
+    ``ts_s`` is the model step [s]; ``eta`` and ``recirc_share`` as in :func:`fit_intervals` (a
+    ``recirc_share`` column in ``series`` gives the door per interval).
     """
-    return fit_intervals(intervals_from_series(series, ts_s), ts_s, eta)
+    return fit_intervals(intervals_from_series(series, ts_s), ts_s, eta, recirc_share)
 
 
 def prediction_errors(p: cm.ControlModelParams, iv: dict, horizon_steps: int = 6) -> dict:
@@ -643,6 +670,14 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--co2-validation-csv", default=None, help="validation CSV of the CO2 balance (default: simulate HWFET)"
     )
+    ap.add_argument(
+        "--recirc-share",
+        type=float,
+        default=RECIRC_SHARE_DEFAULT,
+        help="the door's recirculated share [0..1] in the training data where it has no recirc_share column: the "
+        f"power model's fresh-air share is 1 - it (default: {RECIRC_SHARE_DEFAULT}, the plant's door, which the "
+        "simulated excitation holds)",
+    )
     ap.add_argument("--seed", type=int, default=1, help="excitation seed (default: 1)")
     ap.add_argument("--ts", type=float, default=5.0, help="model step [s] (default: 5)")
     ap.add_argument("--horizon", type=int, default=6, help="horizon for the multi-step error [steps] (default: 6)")
@@ -723,15 +758,27 @@ def _identify_co2(args, data_dir: pathlib.Path, exc: ExcitationSettings) -> tupl
     return fields, report, f"from {srcs[0]}, validated on {srcs[1]}"
 
 
+def _series_with_door(path) -> dict:
+    """A training CSV (:data:`SERIES_COLUMNS`) with its ``recirc_share`` column, NaN where the file has none."""
+    s = read_series_csv(path)
+    try:
+        s["recirc_share"] = read_series_csv(path, ("recirc_share",))["recirc_share"]
+    except ValueError:  # no door column: the --recirc-share of the command line
+        s["recirc_share"] = np.full(s["t_s"].size, np.nan)
+    return s
+
+
 def _identify(args, argv) -> int:
     """The work of :func:`main` for parsed ``args``."""
     data_dir, out = output_paths(args.out)
     exc = ExcitationSettings(seed=args.seed, ts_s=args.ts)
+    if not (math.isfinite(args.recirc_share) and 0.0 <= args.recirc_share <= 1.0):
+        raise ValueError(f"--recirc-share must be in [0, 1], got {args.recirc_share}")
     if args.from_csv:
-        parts = [read_series_csv(p) for p in args.from_csv]
+        parts = [_series_with_door(p) for p in args.from_csv]
         for j, s in enumerate(parts):
             s["segment"] = s["segment"] + 1000 * j
-        train = {c: np.concatenate([s[c] for s in parts]) for c in SERIES_COLUMNS}
+        train = {c: np.concatenate([s[c] for s in parts]) for c in (*SERIES_COLUMNS, "recirc_share")}
         train_src = ", ".join(args.from_csv)
     else:
         print(f"ceco identify: simulating the {len(TRAIN_DRIVES)} training drives on the plant", file=sys.stderr)
@@ -753,7 +800,7 @@ def _identify(args, argv) -> int:
     emap = eta_ac_points(EtaMapSettings())
     a_eta, v_eta, eta_rms = fit_eta_ac(emap["speeds_mps"], emap["ratio"])
     print("ceco identify: fitting and validating", file=sys.stderr)
-    params, resid = fit_intervals(iv_train, args.ts, eta=(a_eta, v_eta))
+    params, resid = fit_intervals(iv_train, args.ts, eta=(a_eta, v_eta), recirc_share=args.recirc_share)
     v20 = int(np.argmin(np.abs(emap["speeds_mps"] - 20.0)))
     eta_report = {
         "method": "plant steady cycle COP(V)/COP(0), EtaMapSettings defaults",

@@ -112,7 +112,9 @@ class ControlModelParams:
     tau_3: float = 1.0
     """Vent air offset [degC] (eq. 3)."""
     fresh_air_fraction: float = 0.2
-    """Fresh-air share of the evaporator inlet air phi [-] (power model)."""
+    """Fresh-air share of the evaporator inlet air phi [-] (power model) of the identification data: 1 - the
+    door's recirculated share there (not fitted, ``identification.fit_intervals``). The NMPC passes the measured
+    door instead (NLP parameter ``recirc``); this value is its fallback when the door is not measured."""
     comp_c_wall_jpk: float = 5000.0
     """Effective evaporator wall heat capacity C_w in the refrigerant load [J/K]."""
     comp_c0: float = 0.2
@@ -323,12 +325,11 @@ def eta_ac(p: ControlModelParams, speed_mps):
 def door_fresh_fraction(p: ControlModelParams, recirc_share):
     """The power model's fresh-air fraction phi [-] at a recirculated share ``recirc_share`` [0..1]: 1 - r.
 
-    The plant's mixing box, T_mix = r T_cab + (1 - r) T_amb (docs/plant.md). The door NLP does not use the
-    identified constant ``fresh_air_fraction``: it lies at its bound 0 (``config/model_params.yaml``), not at the
-    0.2 of the identification data's door (the plant's default 0.8), because at a fixed door the fit cannot tell
-    the fresh-air load from the lift term; 1 - r equals it at full recirculation, where the door NLP spends most
-    of a hot drive. ``phi_id + (0.8 - r)`` (the identified power at 0.8, the same slope) was measured too and
-    spent 0.5 % more on hot-commute-1p (docs/controller.md 4.9). ``p`` is unused (the model functions' signature).
+    The plant's mixing box, T_mix = r T_cab + (1 - r) T_amb (docs/plant.md). Every NLP uses it: the door NLP with
+    its share u_i, the others with the measured door held over the horizon (parameter ``recirc``). The compressor
+    coefficients are identified with the same phi = 1 - r of the data's door (``identification.fit_intervals``),
+    so the identified constant ``fresh_air_fraction`` is the value at the identification's door (0.2 at the
+    plant's 0.8). ``p`` is unused (the model functions' signature).
     """
     del p
     return 1.0 - recirc_share

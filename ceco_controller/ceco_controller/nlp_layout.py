@@ -10,7 +10,8 @@ Parameters (one instance per NLP, :class:`ParamLayout`):
     x0 (T_cab, T_evap) [degC], t_int, t_shell [degC], d_cab, d_evap [K per control step],
     d_ain [K], u_prev (mdot_bl [kg/s], T_evap_sp [degC]), then on the N + 1 grid points:
     t_amb [degC], solar [W/m2], speed [m/s], pmv_lb, pmv_ub [-], then the comfort scalars
-    held over the horizon: t_mr (mean radiant temperature) [degC], pa (vapour pressure) [Pa].
+    held over the horizon: t_mr (mean radiant temperature) [degC], pa (vapour pressure) [Pa], recirc (the door's
+    measured recirculated share [-], the power model's fresh-air share 1 - recirc; unused by the door NLP).
     With the door in the NLP (``door_control`` 'nlp', ``ParamLayout(n_grid, door=True)``) u_prev has a third
     entry, the door's recirculated share [-], and the CO2 parameters follow (:data:`PARAM_DOOR`).
 
@@ -51,8 +52,10 @@ PARAM_SCALARS = (("x0", 2), ("t_int", 1), ("t_shell", 1), ("d_cab", 1), ("d_evap
 PARAM_SERIES = ("t_amb", "solar", "speed", "pmv_lb", "pmv_ub")
 """Parameters with one value per grid point (N + 1), in vector order after :data:`PARAM_SCALARS`."""
 
-PARAM_TAIL = (("t_mr", 1), ("pa", 1))
-"""Comfort scalars after the series: mean radiant temperature [degC], cabin vapour pressure [Pa]."""
+PARAM_TAIL = (("t_mr", 1), ("pa", 1), ("recirc", 1))
+"""Scalars held over the horizon, after the series: mean radiant temperature [degC], cabin vapour pressure [Pa], the
+door's measured recirculated share [-] (the power model's fresh-air share is 1 - recirc,
+:func:`ceco_controller.model.door_fresh_fraction`; the door NLP uses its own share u_i instead)."""
 
 PARAM_DOOR = (
     ("co2_0", 1),

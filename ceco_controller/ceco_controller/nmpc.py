@@ -358,6 +358,7 @@ class NmpcController:
             pmv_ub=ub,
             t_mr=t_mr,
             pa=pa,
+            recirc=self._door_share_prev(obs, 1.0 - self.model_params.fresh_air_fraction),
         )
 
     def _fog_parameters(self, obs: Observation, t_amb_c: float, t_glass_c: float | None, rh_cab: float | None) -> dict:
@@ -393,12 +394,16 @@ class NmpcController:
         limit = float(obs.co2_limit_ppm) if math.isfinite(obs.co2_limit_ppm) else 1500.0
         return self.door.nlp_parameters(self.door.model.co2_amb_ppm, limit, n_occ)
 
-    def _door_share_prev(self, obs: Observation) -> float:
-        """The door NLP's previous share [-]: the measured door, else the last command, else the default 0.8."""
+    def _door_share_prev(self, obs: Observation, default: float = RECIRC_SHARE_DEFAULT) -> float:
+        """The door's recirculated share [-]: the measured door, else the last door command, else ``default``.
+
+        The door NLP's previous share (``default`` the plant's 0.8), and every NLP's power-model door (parameter
+        ``recirc``; ``default`` the share of the identification data, 1 - ``fresh_air_fraction``).
+        """
         r = float(obs.recirc_share)
         if math.isfinite(r) and 0.0 <= r <= 1.0:
             return r
-        return self._door_last if self._door_last is not None else RECIRC_SHARE_DEFAULT
+        return self._door_last if self._door_last is not None else default
 
     def comfort_parameters(
         self, obs: Observation, t_glass_c: float | None = None, rh_cab: float | None = None

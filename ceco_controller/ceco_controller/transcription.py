@@ -313,7 +313,7 @@ def build_problem(
             d_cab_k=P["d_cab"] / n_sub,
             d_ain_k=P["d_ain"],
             d_evap_k=P["d_evap"] / n_sub,
-            recirc_share=u[2] if door else None,
+            recirc_share=u[2] if door else P["recirc"],
         )
         return t_cab_n, t_evap_n, pc, pb
 
