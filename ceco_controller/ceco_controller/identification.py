@@ -47,6 +47,7 @@ CLI (also ``ceco identify``)::
 from __future__ import annotations
 
 import argparse
+import csv
 import dataclasses
 import math
 import pathlib
@@ -761,10 +762,12 @@ def _identify_co2(args, data_dir: pathlib.Path, exc: ExcitationSettings) -> tupl
 def _series_with_door(path) -> dict:
     """A training CSV (:data:`SERIES_COLUMNS`) with its ``recirc_share`` column, NaN where the file has none."""
     s = read_series_csv(path)
-    try:
-        s["recirc_share"] = read_series_csv(path, ("recirc_share",))["recirc_share"]
-    except ValueError:  # no door column: the --recirc-share of the command line
-        s["recirc_share"] = np.full(s["t_s"].size, np.nan)
+    with open(path, newline="", encoding="utf-8") as fh:
+        has_door = "recirc_share" in (csv.DictReader(fh).fieldnames or ())
+    # a door column is read like every other (a malformed value is an error); none: the --recirc-share given
+    s["recirc_share"] = (
+        read_series_csv(path, ("recirc_share",))["recirc_share"] if has_door else np.full(s["t_s"].size, np.nan)
+    )
     return s
 
 

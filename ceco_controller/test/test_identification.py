@@ -139,3 +139,20 @@ def test_eta_ac_reflects_the_plant_cycle():
     assert abs(float(cm.eta_ac(p, 20.0)) - r[3]) < 0.03
     with pytest.raises(ValueError, match="loads_w"):
         idn.EtaMapSettings(loads_w=(-1.0,)).validate()
+
+
+def test_training_csv_door_column_is_read_or_left_to_the_flag(tmp_path):
+    """``ceco identify --from-csv``: a recirc_share column gives the door per sample; without one it is NaN (the
+    --recirc-share value then applies); a malformed door value is an error, not a silently ignored column."""
+    src = (idn.DEFAULT_DATA_DIR / "train.csv").read_text().splitlines()[:50]
+    plain = tmp_path / "plain.csv"
+    plain.write_text("\n".join(src) + "\n")
+    door = tmp_path / "door.csv"
+    door.write_text("\n".join([src[0] + ",recirc_share"] + [r + f",{0.5 + 0.01 * i}" for i, r in enumerate(src[1:])]))
+    assert np.all(np.isnan(idn._series_with_door(plain)["recirc_share"]))
+    got = idn._series_with_door(door)["recirc_share"]
+    assert got.size == 49 and got[0] == pytest.approx(0.5) and got[-1] == pytest.approx(0.98)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join([src[0] + ",recirc_share"] + [r + ",x" for r in src[1:]]))
+    with pytest.raises(ValueError):
+        idn._series_with_door(bad)
