@@ -185,6 +185,12 @@ def test_settings_and_schedule_refuse_bad_values():
         orc.OracleSettings(max_wall_time_s=0.0).validate()
     with pytest.raises(ValueError, match='co2_margin_ppm'):
         orc.OracleSettings(co2_margin_ppm=-1.0).validate()
+    for bad in (-1.0, float('nan'), True, '10'):
+        with pytest.raises(ValueError, match='OracleSettings.hold_edge_from_s'):
+            orc.OracleSettings(hold_edge_from_s=bad).validate()
+    for bad in (0.0, 0.6, float('nan'), True):
+        with pytest.raises(ValueError, match='OracleSettings.hold_edge_pmv'):
+            orc.OracleSettings(hold_edge_pmv=bad).validate()
     with pytest.raises(ValueError, match='OracleSettings.lift_energy'):
         orc.OracleSettings(lift_energy='yes').validate()
     with pytest.raises(ValueError, match='names'):
@@ -366,7 +372,10 @@ def test_a_level_the_lifted_form_does_not_solve_is_tried_again_summed(mild):
     assert 40 < fb.iterations <= 82 and fb.commands.shape == (24, 2)
     assert any('Maximum_Iterations_Exceeded after 40 iterations' in x for x in lines), lines
     assert fb.kpis['discomfort_pmvh'] == pytest.approx(LEVELS[1], abs=2e-3)
-    assert fb.nlp_energy_kwh == pytest.approx(res[1].nlp_energy_kwh, rel=5e-3)
+    # a certified local optimum of the same problem: within 0.5 % of the default solve's on the CI machines until
+    # 3 Dec 2026, 1.0 % above it on an AMD EPYC machine (4 Dec; the same code: IPOPT's path differs in the last bits
+    # of floating point from one CPU to another, and the summed attempt ends at another local optimum)
+    assert fb.nlp_energy_kwh == pytest.approx(res[1].nlp_energy_kwh, rel=2e-2)
     # the next level is solved too, its first attempt lifted (from the fallback's solution, without multipliers)
     assert nxt.success and nxt.form in ('lifted', 'lifted, then summed'), (nxt.form, nxt.status)
     assert nxt.kpis['discomfort_pmvh'] == pytest.approx(LEVELS[0], abs=2e-3)
@@ -535,3 +544,49 @@ def test_the_door_oracle_holds_the_co2_limit_and_beats_the_production_door_logic
     udds = orc.OracleProblem(load_case('udds-hot').load_scenario(), orc.OracleSettings(max_iter=1, compiled='no'))
     assert udds.max_wall_time_s == pytest.approx(orc.WALL_TIME_PER_DRIVE_S * 1369.0)
     assert orc.OracleProblem(sc, orc.OracleSettings(max_wall_time_s=50.0, compiled='no')).max_wall_time_s == 50.0
+
+
+def test_the_oracle_that_holds_the_edge(tmp_path, capsys):
+    """The mild day's first 400 s at a level where the free optimum, once at the band's edge, goes back above it by a
+    little: held from the time it came to the edge, the NLP's PMV stays at or below +0.5 from there (the replay
+    within the smooth model's error), at the same discomfort and, the problem being tighter, no less energy beyond
+    the local optima's spread (measured: the held point 0.04 % below the free one, both local optima). ``ceco oracle
+    --hold-edge`` gives the same commands."""
+    from ceco_bringup import oracle_cli
+
+    sc = _short('mild-day', 400.0)
+    level = 0.0244  # inside the production family's range on these 400 s (0.0231-0.0347 PMV h)
+    ((free, held),) = orc.solve_levels_holding_edge(sc, [level])
+    assert free.success and held is not None and held.success, (free.status, held and held.status)
+    t_edge = orc.edge_arrival_s(free)
+    assert t_edge is not None and free.kpis['band_start_s'] <= t_edge < 400.0
+    i = int(round(t_edge))  # 1-s plant steps from key-on
+    assert free.run.timeseries['pmv'][i] <= 0.5 < free.run.timeseries['pmv'][i - 1]
+    # the free optimum crosses after it came to the edge; the held one does not (its NLP exactly, its replay within
+    # the smooth model's PMV error, measured <= 0.001 here)
+    assert np.max(free.nlp_pmv[i:]) > 0.5 + 1e-4
+    assert np.max(held.nlp_pmv[i:]) <= 0.5 + 1e-6
+    assert np.max(held.run.timeseries['pmv'][i:]) <= 0.5 + 0.005
+    assert held.kpis['discomfort_pmvh'] <= level * 1.01
+    assert held.kpis['energy_kwh'] >= free.kpis['energy_kwh'] * (1.0 - 2e-3)
+    # held under the edge (a controller's margin kept): at or below 0.45 from there, at a cost (measured +0.3 %)
+    st = orc.OracleSettings(hold_edge_from_s=t_edge, hold_edge_pmv=0.45)
+    (kept,) = orc.solve_levels(sc, [level], st, start_commands=held.commands)
+    assert kept.success, kept.status
+    assert np.max(kept.nlp_pmv[i:]) <= 0.45 + 1e-6
+    assert np.max(kept.run.timeseries['pmv'][i:]) <= 0.45 + 0.005
+    assert kept.kpis['energy_kwh'] > held.kpis['energy_kwh'] * (1.0 + 1e-3)
+    argv = ['mild-day', '--duration-s', '400', '--levels', f'{level!r}', '--hold-edge', '--no-progress']
+    assert oracle_cli.main([*argv, '--out', str(tmp_path)]) == 0
+    doc = json.loads((tmp_path / 'front.json').read_text())
+    assert [(x['bound'], x['run_dir']) for x in doc['levels']] == [('free', 'level-0'), ('held', 'level-0-held')]
+    assert doc['levels'][0]['hold_edge_from_s'] is None and doc['levels'][1]['hold_edge_from_s'] == t_edge
+    assert doc['levels'][1]['energy_kwh'] == held.kpis['energy_kwh']
+    cmd = np.genfromtxt(tmp_path / 'level-0-held' / 'commands.csv', delimiter=',', names=True)
+    np.testing.assert_array_equal(cmd['t_evap_sp_c'], held.commands[:, 1])
+    m = json.loads((tmp_path / 'level-0-held' / 'metrics.json').read_text())
+    assert m['oracle_bound'] == 'held' and m['oracle_hold_edge_from_s'] == t_edge
+    assert 'holding the edge from' in capsys.readouterr().out
+    # no edge to hold where the drive never comes to it (the first 120 s: still pulling down)
+    ((free_s, held_s),) = orc.solve_levels_holding_edge(_short('mild-day', 120.0), [0.036])
+    assert free_s.success and orc.edge_arrival_s(free_s) is None and held_s is None

@@ -2,13 +2,16 @@
 
     ceco oracle sc03-paper --out runs/oracle-sc03
     ceco oracle udds-hot --levels 0.103,0.11,0.125,0.15 --out runs/oracle-udds
+    ceco oracle sc03-paper --levels 0.1024,0.1040 --hold-edge --out runs/oracle-sc03-held
 
 The optimal control problem with perfect knowledge of the drive (``ceco_controller.oracle``, docs/oracle.md)
 is solved at each level [PMV h] and replayed open loop on the plant; every level gets a run directory
 (``level-<i>``: timeseries.csv, diagnostics.csv, metrics.json, commands.csv, run.json) that
 ``ceco report`` reads, and the job writes ``front.csv`` / ``front.json`` (the replayed KPIs, the NLP's own
 values, status, iterations, wall time). Without ``--levels`` the levels follow the benchmark's rule
-(``runner.oracle_levels``) on the production law's set-point family run here.
+(``runner.oracle_levels``) on the production law's set-point family run here. With ``--hold-edge`` every level is
+solved a second time holding the band's upper edge from the time its optimum came to it
+(``oracle.solve_levels_holding_edge``; run directories ``level-<i>-held``, rows with ``bound`` ``held``).
 """
 
 from __future__ import annotations
@@ -24,6 +27,8 @@ __all__ = ['build_parser', 'default_levels', 'main']
 
 FRONT_COLUMNS = (
     'level_pmvh',
+    'bound',
+    'hold_edge_from_s',
     'status',
     'success',
     'certified',
@@ -35,7 +40,8 @@ FRONT_COLUMNS = (
     'nlp_discomfort_pmvh',
     'run_dir',
 )
-"""Columns of ``front.csv`` (energy and discomfort: the replay's KPIs; nlp_*: the NLP's own values)."""
+"""Columns of ``front.csv`` (energy and discomfort: the replay's KPIs; nlp_*: the NLP's own values; ``bound``:
+``free`` (the oracle) or ``held`` (the oracle that holds the edge from ``hold_edge_from_s`` [s], ``--hold-edge``))."""
 
 
 def _levels(text: str) -> list[float]:
@@ -72,6 +78,12 @@ def build_parser() -> cli_args.Parser:
         default='auto',
         help='plant steps of the NLP as compiled C, cached on disk (auto: where a C compiler works, else CasADi\'s '
         'virtual machine; docs/oracle.md "Compiled plant steps")',
+    )
+    p.add_argument(
+        '--hold-edge',
+        action='store_true',
+        help='also solve every level holding the PMV inside the band from the time its optimum came to the band\'s '
+        'upper edge (the bound of a controller that never goes back above +0.5; docs/oracle.md)',
     )
     cli_args.add_no_progress(p)
     return p
@@ -140,7 +152,20 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     try:
-        results = orc.solve_levels(scenario, levels, settings, progress=say)
+        # (run directory, bound, LevelResult, the time the edge is held from [s] or None)
+        results: list[tuple] = []
+        missing: list[str] = []  # --hold-edge: the levels without a held point
+        if args.hold_edge:
+            pairs = orc.solve_levels_holding_edge(scenario, levels, settings, progress=say)
+            results = [(f'level-{i}', 'free', r, None) for i, (r, _) in enumerate(pairs)]
+            for i, (r, h) in enumerate(pairs):
+                if h is None:
+                    missing.append(f'{r.level_pmvh:.4f}')
+                else:
+                    results.append((f'level-{i}-held', 'held', h, orc.edge_arrival_s(r)))
+        else:
+            free = orc.solve_levels(scenario, levels, settings, progress=say)
+            results = [(f'level-{i}', 'free', r, None) for i, r in enumerate(free)]
     except KeyboardInterrupt:
         print('ceco oracle: interrupted', file=sys.stderr)
         return 130
@@ -148,10 +173,12 @@ def main(argv=None) -> int:
         print(f'ceco oracle: {exc}', file=sys.stderr)
         return 2
     rows = []
-    for i, r in enumerate(results):
-        run_dir = out / f'level-{i}'
+    for name, bound, r, hold_s in results:
+        run_dir = out / name
         row = {
             'level_pmvh': r.level_pmvh,
+            'bound': bound,
+            'hold_edge_from_s': hold_s,
             'status': r.status,
             'success': r.success,
             'certified': r.certified,
@@ -177,6 +204,8 @@ def main(argv=None) -> int:
                     'oracle_nlp_discomfort_pmvh': r.nlp_discomfort_pmvh,
                     'oracle_evaluation': r.evaluation,
                     'oracle_form': r.form,
+                    'oracle_bound': bound,
+                    'oracle_hold_edge_from_s': row['hold_edge_from_s'],
                     'case': case.name,
                 }
             )
@@ -195,21 +224,23 @@ def main(argv=None) -> int:
         'case': case.name,
         'control_period_s': settings.control_period_s or scenario.control.control_period_s,
         'note': 'a local optimum of an NLP replayed on the plant: an achievable point, not a proven global bound',
-        'evaluation': results[0].evaluation if results else '',
+        'evaluation': results[0][2].evaluation if results else '',
         'levels': rows,
     }
     (out / 'front.json').write_text(json.dumps(doc, indent=2) + '\n', encoding='utf-8')
-    failed = [f'{x["level_pmvh"]:.4f} ({x["status"]})' for x in rows if not x['success']]
+    failed = [f'{x["level_pmvh"]:.4f} ({x["bound"]}, {x["status"]})' for x in rows if not x['success']]
     for x in rows:
         if x['success']:
+            held = '' if x['bound'] == 'free' else f' holding the edge from {x["hold_edge_from_s"]:.0f} s'
             print(
-                f'oracle {case.name} @ {x["level_pmvh"]:.4f} PMV h: E {x["energy_kwh"]:.4f} kWh, '
+                f'oracle {case.name} @ {x["level_pmvh"]:.4f} PMV h{held}: E {x["energy_kwh"]:.4f} kWh, '
                 f'D {x["discomfort_pmvh"]:.4f} PMV h -> {out / x["run_dir"]}'
             )
+    if missing:
+        print(f'ceco oracle: no edge to hold at {", ".join(missing)} (not solved, or never at it)', file=sys.stderr)
     if failed:
         print(f'ceco oracle: not solved: {", ".join(failed)}', file=sys.stderr)
-        return 1
-    return 0
+    return 1 if failed or missing else 0
 
 
 if __name__ == '__main__':

@@ -66,9 +66,11 @@ __all__ = [
     "ScheduleController",
     "StallRule",
     "compiled_step",
+    "edge_arrival_s",
     "oracle_cache_dir",
     "solve_front",
     "solve_levels",
+    "solve_levels_holding_edge",
 ]
 
 INPUT_NAMES = ("mdot_bl_kgps", "t_evap_sp_c")
@@ -165,6 +167,16 @@ class OracleSettings:
     against the limit itself; the smooth model's states differ from the plant's by a little)."""
     fog_margin_extra_k: float = 0.1
     """Margin [K] the NLP keeps above the scenario's fog bound (the same reason)."""
+    hold_edge_from_s: float | None = None
+    """From this time [s after key-on] on, the scored PMV of every plant step stays inside the comfort band (its
+    slack bounded to 0, so -0.5 <= PMV <= +0.5): the bound of a controller that, once the pull-down has come to
+    the band's upper edge, never goes back above it (:func:`solve_levels_holding_edge`, docs/oracle.md "The
+    oracle that holds the edge"). None: no such constraint (the benchmark's oracle, which may cross the edge
+    where the integrated discomfort allows)."""
+    hold_edge_pmv: float = COMFORT_BAND_PMV[1]
+    """The edge held from :attr:`hold_edge_from_s` on [PMV]: the band's upper edge +0.5 (default), or below it, the
+    oracle that keeps a controller's margin under the edge (then one constraint row per held plant step, PMV <=
+    this)."""
     lift_energy: bool = True
     """Each control interval's energy as a variable of the NLP, tied to the plant steps by one equality row
     (the objective then is their sum, linear). The same optimum; IPOPT's objective and gradient no longer run
@@ -198,6 +210,13 @@ class OracleSettings:
                 continue
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"OracleSettings.{name}: must be finite and > 0, got {v}")
+        h = self.hold_edge_from_s
+        bad_h = isinstance(h, bool) or not isinstance(h, (int, float)) or not (math.isfinite(h) and h >= 0)
+        if h is not None and bad_h:
+            raise ValueError(f"OracleSettings.hold_edge_from_s: must be None or finite and >= 0 [s], got {h!r}")
+        e = self.hold_edge_pmv
+        if isinstance(e, bool) or not isinstance(e, (int, float)) or not (0.0 < e <= COMFORT_BAND_PMV[1]):
+            raise ValueError(f"OracleSettings.hold_edge_pmv: must be in (0, {COMFORT_BAND_PMV[1]}] [PMV], got {e!r}")
         if not isinstance(self.lift_energy, bool):
             raise ValueError(f"OracleSettings.lift_energy: must be True or False, got {self.lift_energy!r}")
         if self.compiled not in COMPILED_MODES:
@@ -503,6 +522,18 @@ class OracleProblem:
         ]
         self._lbg = np.concatenate([np.zeros(n_dyn), np.zeros(2 * k * m), [-np.inf]])
         self._ubg = np.concatenate([np.zeros(n_dyn), np.full(2 * k * m, np.inf), [0.0]])
+        # the PMV of plant step i (the state at t_i = i dt) held from hold_edge_from_s on: inside the band (its slack
+        # bounded to 0, below) and, for an edge under the band's, at or below the edge (one row per held step)
+        held = (
+            np.zeros(n, dtype=bool)
+            if s.hold_edge_from_s is None
+            else np.arange(n) * s.plant_dt_s >= s.hold_edge_from_s - 1e-9
+        )
+        if held.any() and s.hold_edge_pmv < hi:
+            idx = [int(i) for i in np.flatnonzero(held)]
+            g.append(casadi.vec(pc[:, idx]))
+            self._lbg = np.concatenate([self._lbg, np.full(len(idx), -np.inf)])
+            self._ubg = np.concatenate([self._ubg, np.full(len(idx), s.hold_edge_pmv)])
         if self.door:
             # the air-quality limits at every interval's end, with the settings' margins [ppm / 1000, K]
             # (aq_violation's g <= 0; CO2 moves with a time constant of minutes: the ends of the control
@@ -558,6 +589,7 @@ class OracleProblem:
             lbx[1][j, :], ubx[1][j, :] = bounds[nm]
         tv0 = self.x0[pm.state.index("t_evap_c")]
         lbx[2][0] = ubx[2][0] = tv0  # the vent air measured at key-on: the evaporator wall
+        ubx[3][:n][held] = 0.0  # the held steps inside the band: their slack is 0
         self._lbx = np.concatenate([b.ravel(order="F") for b in lbx])
         self._ubx = np.concatenate([b.ravel(order="F") for b in ubx])
 
@@ -777,6 +809,7 @@ def solve_levels(
     settings: OracleSettings | None = None,
     progress=None,
     problem: OracleProblem | None = None,
+    start_commands: np.ndarray | None = None,
 ) -> list[LevelResult]:
     """The oracle at each discomfort level [PMV h], one :class:`LevelResult` per level in the given order.
 
@@ -785,7 +818,8 @@ def solve_levels(
     and the tightest level, near the least discomfort the plant allows, starts next to its optimum),
     replayed on the numeric plant and scored.
 
-    ``progress``: a callable taking one line of text (None: silent).
+    ``progress``: a callable taking one line of text (None: silent). ``start_commands``: the first level's start
+    (per control step, columns :attr:`OracleProblem.input_names`; None: the production law's run).
     """
     say = progress or (lambda _line: None)
     lv = [float(x) for x in levels]
@@ -798,7 +832,11 @@ def solve_levels(
         f"oracle {scenario.name}: NLP built ({pb.n_control} intervals of {pb.steps_per_control} steps) in "
         f"{time.perf_counter() - t0:.1f} s; plant steps: {pb.evaluation}"
     )
-    guess = baseline_commands(scenario, pb.control_period_s, pb.settings.guess_setpoint_c, pb.settings.door_logic)
+    guess = (
+        baseline_commands(scenario, pb.control_period_s, pb.settings.guess_setpoint_c, pb.settings.door_logic)
+        if start_commands is None
+        else start_commands
+    )
     w, lam = pb.guess_from_commands(guess), None
     out: dict[int, LevelResult] = {}
     summed: OracleProblem | None = None  # the fallback form, built on the first lifted failure
@@ -866,6 +904,51 @@ def solve_levels(
             f"{' (' + form + ')' if form == 'lifted, then summed' else ''}; {tail}"
         )
     return [out[i] for i in range(len(lv))]
+
+
+def edge_arrival_s(result: LevelResult) -> float | None:
+    """When a level's replay comes to the band's upper edge [s after key-on]; None without a replay or if it never does.
+
+    ``ceco_core.kpis.edge_arrival_index`` on its timeseries.
+    """
+    from ceco_core.kpis import band_phase, edge_arrival_index
+
+    if result.run is None:
+        return None
+    ts = result.run.timeseries  # type: ignore[attr-defined]  # a closed_loop.RunResult (``run`` is typed object)
+    i = edge_arrival_index(ts["pmv"], band_phase(ts["pmv_lb"], ts["pmv_ub"]))
+    return None if i is None else float(ts["t_s"][i] - ts["t_s"][0])
+
+
+def solve_levels_holding_edge(
+    scenario, levels: Sequence[float], settings: OracleSettings | None = None, progress=None
+) -> list[tuple[LevelResult, LevelResult | None]]:
+    """Per level the oracle (:func:`solve_levels`) and the oracle that holds the edge: (free, held).
+
+    The held problem is the same with :attr:`OracleSettings.hold_edge_from_s` at the time the free optimum's replay
+    comes to the band's upper edge (:func:`edge_arrival_s`), started from the free optimum's commands: the same
+    pull-down deadline, and from there on the PMV never back above +0.5. The difference of the two energies is
+    what the crossings the free optimum allows itself are worth at that discomfort (docs/oracle.md "The oracle
+    that holds the edge"). ``held`` is None where the free level has no point or never comes to the edge.
+    """
+    say = progress or (lambda _line: None)
+    base = (settings or OracleSettings()).validate()
+    free = solve_levels(scenario, levels, base, progress)
+    out: list[tuple[LevelResult, LevelResult | None]] = []
+    for r in free:
+        t_edge = edge_arrival_s(r) if r.success else None
+        if t_edge is None:
+            say(
+                f"oracle {scenario.name}: level {r.level_pmvh:.4f} PMV h: no edge to hold (free level without a point "
+                "or never at the edge)"
+            )
+            out.append((r, None))
+            continue
+        say(f"oracle {scenario.name}: level {r.level_pmvh:.4f} PMV h: holding the edge from {t_edge:.0f} s")
+        held_settings = dataclasses.replace(base, hold_edge_from_s=t_edge)
+        (held,) = solve_levels(scenario, [r.level_pmvh], held_settings, progress, start_commands=r.commands)
+        out.append((r, held))
+    return out
 
 
 def solve_front(case, seed, levels, settings: OracleSettings | None = None) -> list[dict]:

@@ -38,6 +38,7 @@ __all__ = [
     "discomfort_pmvh",
     "pmv_band_distance",
     "band_phase",
+    "edge_arrival_index",
     "actuator_travel",
     "air_quality_kpis",
 ]
@@ -127,6 +128,19 @@ def band_phase(pmv_lb, pmv_ub, band=COMFORT_BAND_PMV) -> np.ndarray:
     if inside.any():
         mask[int(np.argmax(inside)) :] = True
     return mask
+
+
+def edge_arrival_index(pmv, zone, band=COMFORT_BAND_PMV) -> int | None:
+    """Index of the first sample of the band phase at which the PMV is at or below the band's upper edge, or None.
+
+    ``zone``: :func:`band_phase`'s mask. There the pull-down has come to the edge.
+    ``pmv_above_band_s`` counts the samples above the edge from there on (the pull-down's tail before it is no
+    crossing); the oracle that holds the edge (``ceco_controller.oracle``, ``OracleSettings.hold_edge_from_s``) is
+    held from there.
+    """
+    y, z = np.asarray(pmv, dtype=float), np.asarray(zone, dtype=bool)
+    idx = np.flatnonzero(z & (y <= band[1]))
+    return int(idx[0]) if idx.size else None
 
 
 def actuator_travel(mdot_bl_kgps, t_evap_sp_c, ranges: Mapping[str, float] = ACTUATOR_RANGES) -> tuple:
@@ -269,10 +283,9 @@ def compute_kpis(
         k["band_start_s"] = float(t[int(np.argmax(zone))] - t[0])
         k["discomfort_band_pmvh"] = discomfort_pmvh(dist[zone], dt)
         k["pmv_mean_band"] = float(np.mean(y[zone]))
-        yz = y[zone]
-        settled = np.flatnonzero(yz <= band[1])  # the pull-down's tail, still above the edge, is not a crossing
-        if settled.size:
-            k["pmv_above_band_s"] = float(np.count_nonzero(yz[settled[0] :] > band[1]) * dt)
+        arrival = edge_arrival_index(y, zone, band)  # the pull-down's tail, still above the edge, is no crossing
+        if arrival is not None:
+            k["pmv_above_band_s"] = float(np.count_nonzero(y[arrival:] > band[1]) * dt)
         else:
             notes["pmv_above_band_s"] = "the PMV never came to the band's upper edge or below in the band phase"
         p_all = p_comp + p_bl + (p_fan if p_fan is not None else 0.0)  # the consumers energy_kwh counts

@@ -79,6 +79,11 @@ def test_the_band_phase_splits_the_energy_and_reads_the_pmv_and_the_actuators_th
     )
     assert k["band_start_s"] == 30.0
     assert k["pmv_above_band_s"] == 20.0  # 0.6 and 0.7, 10 s each
+    # the pull-down comes to the edge at the first band-phase sample at or below +0.5 (0.4 at index 4; the 0.5 at
+    # index 2 lies before the band phase)
+    assert mt.edge_arrival_index(pmv, mt.band_phase([-0.5] * 8, UB)) == 4
+    assert mt.edge_arrival_index([0.9, 0.5, 0.7], [False, True, True]) == 1
+    assert mt.edge_arrival_index([0.9, 0.6, 0.7], [True, True, True]) is None
     # (1000 + 800 + 600 + 400 + 200) W of compressor + 5 x (100 + 50) W, 10 s each
     assert k["energy_band_kwh"] == pytest.approx((3000.0 + 750.0) * 10 / 3.6e6)
     assert k["energy_kwh"] == pytest.approx((comp.sum() + 8 * 150.0) * 10 / 3.6e6)
