@@ -173,10 +173,11 @@ class OracleSettings:
     the band's upper edge, never goes back above it (:func:`solve_levels_holding_edge`, docs/oracle.md "The
     oracle that holds the edge"). None: no such constraint (the benchmark's oracle, which may cross the edge
     where the integrated discomfort allows)."""
-    hold_edge_pmv: float = COMFORT_BAND_PMV[1]
-    """The edge held from :attr:`hold_edge_from_s` on [PMV]: the band's upper edge +0.5 (default), or below it, the
-    oracle that keeps a controller's margin under the edge (then one constraint row per held plant step, PMV <=
-    this)."""
+    band_mean_pmv: tuple[float, float] | None = None
+    """(t_from [s after key-on], cap [PMV]): the mean scored PMV of the plant steps from t_from on is at most cap (one
+    constraint row). With t_from the band phase's start and cap a controller's band-phase mean PMV (KPI
+    ``pmv_mean_band``), the bound of a controller that keeps that controller's margin under the edge on average
+    (``tools/edge_headroom.py --with-margin``). None: no such constraint."""
     lift_energy: bool = True
     """Each control interval's energy as a variable of the NLP, tied to the plant steps by one equality row
     (the objective then is their sum, linear). The same optimum; IPOPT's objective and gradient no longer run
@@ -214,9 +215,17 @@ class OracleSettings:
         bad_h = isinstance(h, bool) or not isinstance(h, (int, float)) or not (math.isfinite(h) and h >= 0)
         if h is not None and bad_h:
             raise ValueError(f"OracleSettings.hold_edge_from_s: must be None or finite and >= 0 [s], got {h!r}")
-        e = self.hold_edge_pmv
-        if isinstance(e, bool) or not isinstance(e, (int, float)) or not (0.0 < e <= COMFORT_BAND_PMV[1]):
-            raise ValueError(f"OracleSettings.hold_edge_pmv: must be in (0, {COMFORT_BAND_PMV[1]}] [PMV], got {e!r}")
+        bm = self.band_mean_pmv
+        if bm is not None and not (
+            isinstance(bm, tuple)
+            and len(bm) == 2
+            and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in bm)
+            and bm[0] >= 0
+            and 0 < bm[1] <= COMFORT_BAND_PMV[1]
+        ):
+            raise ValueError(
+                f"OracleSettings.band_mean_pmv: must be None or (t_from >= 0 [s], cap in (0, 0.5] [PMV]), got {bm!r}"
+            )
         if not isinstance(self.lift_energy, bool):
             raise ValueError(f"OracleSettings.lift_energy: must be True or False, got {self.lift_energy!r}")
         if self.compiled not in COMPILED_MODES:
@@ -523,17 +532,16 @@ class OracleProblem:
         self._lbg = np.concatenate([np.zeros(n_dyn), np.zeros(2 * k * m), [-np.inf]])
         self._ubg = np.concatenate([np.zeros(n_dyn), np.full(2 * k * m, np.inf), [0.0]])
         # the PMV of plant step i (the state at t_i = i dt) held from hold_edge_from_s on: inside the band (its slack
-        # bounded to 0, below) and, for an edge under the band's, at or below the edge (one row per held step)
-        held = (
-            np.zeros(n, dtype=bool)
-            if s.hold_edge_from_s is None
-            else np.arange(n) * s.plant_dt_s >= s.hold_edge_from_s - 1e-9
-        )
-        if held.any() and s.hold_edge_pmv < hi:
-            idx = [int(i) for i in np.flatnonzero(held)]
-            g.append(casadi.vec(pc[:, idx]))
-            self._lbg = np.concatenate([self._lbg, np.full(len(idx), -np.inf)])
-            self._ubg = np.concatenate([self._ubg, np.full(len(idx), s.hold_edge_pmv)])
+        # bounded to 0, below)
+        t_step = np.arange(n) * s.plant_dt_s
+        held = np.zeros(n, dtype=bool) if s.hold_edge_from_s is None else t_step >= s.hold_edge_from_s - 1e-9
+        if s.band_mean_pmv is not None:
+            # the mean PMV from t_from on at most the cap: one row
+            idx = [int(i) for i in np.flatnonzero(t_step >= s.band_mean_pmv[0] - 1e-9)]
+            if idx:
+                g.append(casadi.sum2(pc[:, idx]) / len(idx))
+                self._lbg = np.concatenate([self._lbg, [-np.inf]])
+                self._ubg = np.concatenate([self._ubg, [s.band_mean_pmv[1]]])
         if self.door:
             # the air-quality limits at every interval's end, with the settings' margins [ppm / 1000, K]
             # (aq_violation's g <= 0; CO2 moves with a time constant of minutes: the ends of the control
