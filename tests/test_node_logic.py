@@ -321,6 +321,26 @@ def test_check_preview_every_field():
     assert 'age_s' in checks.check_preview(traffic(2, age_s=-5.0), 'traffic', 7, 5.0)
     assert checks.check_preview(traffic(2, age_s=-1.0), 'traffic', 7, 5.0) is None  # none received
     assert 'different times' in checks.check_preview_pair(weather(2), traffic(3))
+    # one fault in one sample of one array, at a valid and at an invalid sample: the check refuses exactly the
+    # faults that matter and names the array
+    valid = [True, True, False, True, True, True, True]
+    for kind, make in (('weather', weather), ('traffic', traffic)):
+        for name in checks.PREVIEW_ARRAYS[kind]:
+            lo, hi = checks.PREVIEW_RANGES[name]
+            for fault, needle in (
+                (math.inf, 'infinite'),
+                (math.nan, 'NaN'),
+                (lo - 1.0, 'outside'),
+                (hi + 1.0, 'outside'),
+            ):
+                for i in (1, 2):  # sample 2 is not valid: only an infinite value there is refused
+                    values = list(getattr(make(2), name))
+                    values[i] = fault
+                    why = checks.check_preview(make(2, **{name: values, 'valid': valid}), kind, 7, 5.0)
+                    if i == 2 and needle != 'infinite':
+                        assert why is None, (name, fault, i, why)
+                    else:
+                        assert why and why.startswith(name) and needle in why, (name, fault, i, why)
 
 
 def test_honest_plant_states_pass_the_checks():
@@ -940,3 +960,19 @@ def test_publisher_qos_matches_the_liveliness_probes():
     assert compat == QoSCompatibility.ERROR and 'liveliness' in why
     # a lease longer than the probe's does not match it either (the probe sees a dead publisher late)
     assert qos_check_compatible(interfaces.command_publisher_qos('lockstep', 2.0), probe)[0] == QoSCompatibility.ERROR
+
+
+def test_diagnostics_message_carries_the_plan_as_float64_arrays():
+    """The predicted PMV, cabin temperature and IOCH slacks go out value for value (NaN and inf too), as the
+    float64[] fields' ``array.array('d')``; a missing plan is an empty field."""
+    from builtin_interfaces.msg import Time
+
+    from ceco_core.contracts import Diagnostics
+    from ceco_ros.conversions import diagnostics_msg
+
+    pmv = np.array([[0.4], [0.45], [math.nan], [0.5]])
+    d = Diagnostics(k=3, t_s=15.0, status='ok', success=True, pred_pmv=pmv, pred_t_cab_c=[24.0, math.inf], eps=None)
+    m = diagnostics_msg(d, Time(sec=15), 'ceco-pmv', 5.0)
+    np.testing.assert_array_equal(np.asarray(m.predicted_pmv), pmv.ravel())
+    assert list(m.predicted_t_cab_c) == [24.0, math.inf] and len(m.eps) == 0
+    assert m.predicted_pmv.typecode == 'd' and m.step_index == 3 and m.prediction_step_s == 5.0
