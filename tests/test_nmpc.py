@@ -225,6 +225,11 @@ def test_solver_settings_reject_unknown_qpsol_and_the_replaced_sqpmethod():
         SolverSettings(step_budget_s=0.1, step_reserve_s=0.2).validate()
     with pytest.raises(ValueError, match="step_budget_s must be below control_period_s"):
         strategy_settings("ceco", solver=SolverSettings(step_budget_s=5.0))
+    # a YAML 1.1 '1e-05' arrives as text: the strategy names the solver's field (it was a TypeError from the check
+    # against the control period, which ran before the solver's own)
+    for field in ("step_budget_s", "max_cpu_time_s"):
+        with pytest.raises(ValueError, match=f"SolverSettings.{field} must be finite and > 0, got '1e-05'"):
+            strategy_settings("ceco", solver=SolverSettings(**{field: "1e-05"}))
 
 
 def test_single_and_multiple_shooting_reach_the_same_optimum():

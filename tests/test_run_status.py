@@ -17,8 +17,10 @@ from ceco_bringup.benchmark.cases import case_from_dict
 from ceco_bringup.sweep.cells import code_fingerprint
 from ceco_core.run_status import KEY_ON_FALLBACK_STEPS, MAX_FALLBACK_SHARE, check_control, fallback_control_steps
 
-# an NMPC whose step budget (2 ms) cuts every solve: it falls back to the production law on every step
-STARVED_SOLVER = {'step_budget_s': 0.002, 'step_reserve_s': 0.001}
+# an NMPC whose step deadline (5 us after the step starts: budget 10 us, reserve 5 us) has passed before its solver
+# can start, on any machine: it falls back to the production law on every step. (A 2 ms budget, used until 4 Dec
+# 2026, let 4 of 12 steps through on a machine whose solve takes 0.34 ms: a timing assumption, not a rule.)
+STARVED_SOLVER = {'step_budget_s': 0.00001, 'step_reserve_s': 0.000005}
 
 
 # ------------------------------------------------------------------ the rule
@@ -97,7 +99,10 @@ def test_arrival_names_every_missing_message():
 def test_ceco_sim_fails_a_strategy_that_never_controls(tmp_path):
     cfg = tmp_path / 'starved.yaml'
     # the baseline keeps its law (acc_law: defaults), the NMPC gets the starved solver
-    cfg.write_text('acc_law: {}\ncommon:\n  solver:\n' + ''.join(f'    {k}: {v}\n' for k, v in STARVED_SOLVER.items()))
+    # fixed-point numbers: YAML 1.1 reads '1e-05' as text
+    cfg.write_text(
+        'acc_law: {}\ncommon:\n  solver:\n' + ''.join(f'    {k}: {v:.6f}\n' for k, v in STARVED_SOLVER.items())
+    )
     out = tmp_path / 'sim'
     p = subprocess.run(
         [sys.executable, '-m', 'ceco_bringup.cli', 'sim', '--scenario', 'sc03', '--strategy', 'baseline,ceco-ioch']

@@ -378,6 +378,7 @@ class StrategySettings:
             raise ValueError("StrategySettings.preview_skill_window_steps must be finite and >= 1")
         if self.nlp_steps > 200:
             raise ValueError("StrategySettings.horizon_steps + horizon_extension_steps must be <= 200")
+        self.solver.validate()  # its own fields first (types, ranges): the checks against the period compare them
         if self.solver.max_cpu_time_s >= self.control_period_s:
             raise ValueError("StrategySettings.solver.max_cpu_time_s must be below control_period_s")
         if self.solver.step_budget_s >= self.control_period_s:
@@ -392,7 +393,6 @@ class StrategySettings:
                 "StrategySettings.solver.max_cpu_time_s must be below control_period_s / 2 "
                 "when a failed SQP/fatrop solve is retried by IPOPT (ipopt_fallback)"
             )
-        self.solver.validate()
 
     @property
     def nlp_steps(self) -> int:
