@@ -472,3 +472,35 @@ def test_dominance_pairs_every_point_with_its_groups_one_baseline(tmp_path):
     png = sweep.front_figure(summary, tmp_path / 'front.png')
     h, w = mpimg.imread(png).shape[:2]
     assert w > 1000 and h > 1000  # two groups x two phases at 200 dpi
+
+
+def test_a_cell_with_its_own_model_file_equals_a_direct_run_with_it(tmp_path):
+    """A cell's ``model_params_path`` (``tools/variant_headroom.py --model-params``) reaches the controller: the
+    cell equals ``simulate`` with the same file, and a model whose COP falls 1.5 times faster with the lift (the
+    COP at 30 K unchanged) moves the commands, where the package's file gives the default run."""
+    import yaml
+
+    from ceco_bringup.sweep import cells
+    from ceco_controller.model import default_params_path
+
+    doc = yaml.safe_load(default_params_path().read_text(encoding='utf-8'))
+    c0, c1 = doc['params']['comp_c0'], doc['params']['comp_c1_per_k']
+    doc['params']['comp_c1_per_k'] = 1.5 * c1
+    doc['params']['comp_c0'] = c0 - 0.5 * c1 * 30.0
+    path = tmp_path / 'steeper.yaml'
+    path.write_text(yaml.safe_dump(doc), encoding='utf-8')
+    from ceco_bringup.benchmark.cases import load_case
+
+    scenario = load_case('mild-day').scenario_dict()  # sc03_mild
+    spec = {'scenario': scenario, 'strategy': 'ceco-pmv', 'preview': 'perfect', 'duration_s': 120.0}
+    assert cells.settings_from_spec(spec).model_params_path is None
+    assert cells.settings_from_spec({**spec, 'model_params_path': str(path)}).model_params_path == str(path)
+    settings = SimSettings(duration_s=120.0, progress=False)
+    sc = scenario_from_dict(scenario)
+    default = simulate(sc, 'ceco-pmv', settings).metrics
+    steeper = simulate(sc, 'ceco-pmv', dataclasses.replace(settings, model_params_path=str(path))).metrics
+    assert steeper['E_tot_J'] != default['E_tot_J']
+    row = sweep.run_cell({'id': 'x', 'axes': {}, 'spec': {**spec, 'model_params_path': str(path)}})
+    assert row['status'] == 'ok', row
+    assert row['E_tot_J'] == steeper['E_tot_J']
+    assert sweep.run_cell({'id': 'y', 'axes': {}, 'spec': spec})['E_tot_J'] == default['E_tot_J']

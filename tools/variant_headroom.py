@@ -1,13 +1,15 @@
 """A strategy variant scored against a stored benchmark: its saving at matched comfort and its headroom_captured.
 
     python tools/variant_headroom.py RESULTS.json CASE [CASE ...] [--strategy ceco-pmv]
-                                     [--set NAME=VALUE ...] [--label TEXT]
+                                     [--set NAME=VALUE ...] [--model-params FILE]
 
 Reruns ``--strategy`` on every seed of each case exactly as ``ceco benchmark`` runs it (the case's benchmark
 cells, ``runner.run_benchmark_cell``) with the StrategySettings overrides of ``--set`` (e.g.
-``--set backoff_min_pmv=0.0``; none: the strategy as shipped), and scores the runs with the benchmark's own
-matching (``runner.matched_of``) against the families' runs and the oracle front stored in RESULTS.json (a
-``ceco benchmark --oracle`` output of the same simulator code for the baselines): the saving against the
+``--set backoff_min_pmv=0.0``; none: the strategy as shipped) and, with ``--model-params``, the controller's
+identified model read from FILE instead of the package's (the cells' ``model_params_path``). It scores the runs
+with the benchmark's own matching (``runner.matched_of``) against the families' runs and the oracle front stored
+in RESULTS.json (a ``ceco benchmark --oracle`` output of the same simulator code for the baselines): the saving
+against the
 strongest family [%] (mean over the seeds [min..max]), the seeds it is dominated on, the oracle's saving at
 the same discomfort and headroom_captured (docs/benchmark.md), and the band phase's PMV mean and seconds above
 +0.5 of the variant, the strongest family and the oracle there (``by_phase``; RESULTS.json must hold the band-phase
@@ -38,7 +40,7 @@ def _value(text: str):
         return text
 
 
-def study(results: dict, case_name: str, strategy: str, overrides: dict) -> dict:
+def study(results: dict, case_name: str, strategy: str, overrides: dict, model_params: str | None = None) -> dict:
     """The variant's matched entry on one case of ``results`` (``runner.matched_of``'s, for ``strategy``)."""
     from ceco_bringup.benchmark import cli, runner
     from ceco_bringup.benchmark.cases import load_case
@@ -56,6 +58,8 @@ def study(results: dict, case_name: str, strategy: str, overrides: dict) -> dict
     for c in cells:
         spec = json.loads(json.dumps(c.spec))
         spec['strategy_overrides'].update(overrides)
+        if model_params is not None:
+            spec['model_params_path'] = model_params
         row = runner.run_benchmark_cell({'id': c.id, 'axes': c.axes, 'spec': spec})
         if row['status'] != 'ok':
             raise SystemExit(f'variant_headroom: {case_name} seed {c.axes["seed"]}: {row["error"]}')
@@ -71,6 +75,7 @@ def study(results: dict, case_name: str, strategy: str, overrides: dict) -> dict
         'case': case_name,
         'strategy': strategy,
         'overrides': overrides,
+        'model_params': model_params,
         'discomfort_pmvh': [r['kpis']['discomfort_pmvh'] for r in rows],
         'energy_kwh': [r['kpis']['energy_kwh'] for r in rows],
         'saving_pct': s['energy_saving_pct'],
@@ -96,7 +101,24 @@ def main(argv=None) -> int:
     p.add_argument('cases', nargs='+', help='case names in the results')
     p.add_argument('--strategy', default='ceco-pmv', help='the strategy to rerun (default ceco-pmv)')
     p.add_argument('--set', action='append', default=[], metavar='NAME=VALUE', help='a StrategySettings override')
+    p.add_argument(
+        '--model-params',
+        default=None,
+        metavar='FILE',
+        help="the controller's identified model file (default: the package's)",
+    )
     args = p.parse_args(argv)
+    model_params = None
+    if args.model_params is not None:
+        import os
+
+        from ceco_controller.model import load_params
+
+        model_params = os.path.abspath(args.model_params)
+        try:
+            load_params(model_params)
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            p.error(f'--model-params {args.model_params}: {exc}')
     overrides = {}
     for item in args.set:
         name, sep, value = item.partition('=')
@@ -106,11 +128,15 @@ def main(argv=None) -> int:
     with open(args.results, encoding='utf-8') as f:
         results = json.load(f)
     for name in args.cases:
-        r = study(results, name, args.strategy, overrides)
+        r = study(results, name, args.strategy, overrides, model_params)
         hs = [x for x in (r['headroom_captured_seeds'] or []) if x is not None]
         ss = [x for x in (r['saving_pct_seeds'] or []) if x is not None]
         print(
-            f'{name}: {args.strategy} {overrides or "(as shipped)"}: saving vs strongest ({r["strongest_family"]}) '
+            f'{name}: {args.strategy}'
+            + (f' {overrides}' if overrides else '')
+            + (f' model {model_params}' if model_params else '')
+            + ('' if overrides or model_params else ' (as shipped)')
+            + f': saving vs strongest ({r["strongest_family"]}) '
             f'{_fmt(r["saving_pct"])} %'
             + (f' [{min(ss):+.2f}..{max(ss):+.2f}]' if len(ss) > 1 else '')
             + f', dominated on {r["dominated_seeds"]} of {r["n_seeds"]} seeds; oracle {_fmt(r["bound_saving_pct"])} %,'

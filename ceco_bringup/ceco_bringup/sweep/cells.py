@@ -154,7 +154,9 @@ def settings_from_spec(spec: Mapping):
             optional ``control_period_s`` [s], ``horizon_steps``, ``seed``, ``duration_s`` [s]
             (None: the scenario's), ``strategy_overrides`` (see :func:`runtime_overrides`) and,
             for the benchmark's sensitivity runs, ``plant_overrides`` / ``comfort_overrides``, and
-            ``measurements`` ('full' when absent; 'vehicle' for the benchmark's comfort-feedback families).
+            ``measurements`` ('full' when absent; 'vehicle' for the benchmark's comfort-feedback families),
+            optional ``model_params_path`` (the controller's identified model file; absent: the package's,
+            ``ceco_controller/config/model_params.yaml``; ``tools/variant_headroom.py --model-params``).
 
     Returns:
         The simulator settings, without a progress bar.
@@ -175,6 +177,7 @@ def settings_from_spec(spec: Mapping):
         plant_overrides=tuple(sorted((spec.get('plant_overrides') or {}).items())),
         comfort_overrides=tuple(sorted((spec.get('comfort_overrides') or {}).items())),
         measurements=spec.get('measurements', 'full'),
+        model_params_path=spec.get('model_params_path'),
     )
 
 
