@@ -47,7 +47,6 @@ CLI (also ``ceco identify``)::
 from __future__ import annotations
 
 import argparse
-import csv
 import dataclasses
 import math
 import pathlib
@@ -761,14 +760,8 @@ def _identify_co2(args, data_dir: pathlib.Path, exc: ExcitationSettings) -> tupl
 
 def _series_with_door(path) -> dict:
     """A training CSV (:data:`SERIES_COLUMNS`) with its ``recirc_share`` column, NaN where the file has none."""
-    s = read_series_csv(path)
-    with open(path, newline="", encoding="utf-8") as fh:
-        has_door = "recirc_share" in (csv.DictReader(fh).fieldnames or ())
-    # a door column is read like every other (a malformed value is an error); none: the --recirc-share given
-    s["recirc_share"] = (
-        read_series_csv(path, ("recirc_share",))["recirc_share"] if has_door else np.full(s["t_s"].size, np.nan)
-    )
-    return s
+    # a door column is read like every other (a malformed value is an error); none: NaN, the --recirc-share given
+    return read_series_csv(path, SERIES_COLUMNS + ("recirc_share",), optional=("recirc_share",))
 
 
 def _identify(args, argv) -> int:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import hashlib
+import math
 import pathlib
 from typing import Any
 
@@ -249,17 +250,24 @@ def write_series_csv(series: dict, path, columns: tuple = SERIES_COLUMNS, fine: 
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def read_series_csv(path, columns: tuple = SERIES_COLUMNS) -> dict:
-    """Read a CSV with (at least) ``columns`` (default SERIES_COLUMNS); ``segment`` defaults to 0 (one run)."""
+def read_series_csv(path, columns: tuple = SERIES_COLUMNS, optional: tuple = ()) -> dict:
+    """Read a CSV with (at least) ``columns`` (default SERIES_COLUMNS); ``segment`` defaults to 0 (one run).
+
+    ``optional``: columns of ``columns`` the file may lack (NaN then); present, they are read like every other.
+    A missing column or a value that is not a number is a ValueError naming the file, the line and the column.
+    """
     with open(path, newline="", encoding="utf-8") as fh:
         reader = csv.DictReader(fh)
         data: dict[str, list] = {c: [] for c in columns}
-        for r in reader:
+        for line, r in enumerate(reader, start=2):
             for c in columns:
-                if c == "segment" and c not in r:
-                    data[c].append(0.0)
-                    continue
                 if c not in r:
+                    if c == "segment" or c in optional:
+                        data[c].append(0.0 if c == "segment" else math.nan)
+                        continue
                     raise ValueError(f"{path}: missing column {c!r}")
-                data[c].append(float(r[c]))
+                try:
+                    data[c].append(float(r[c]))
+                except (TypeError, ValueError):
+                    raise ValueError(f"{path}: line {line}, column {c!r}: {r[c]!r} is not a number") from None
     return {c: np.asarray(v) for c, v in data.items()}

@@ -154,5 +154,12 @@ def test_training_csv_door_column_is_read_or_left_to_the_flag(tmp_path):
     assert got.size == 49 and got[0] == pytest.approx(0.5) and got[-1] == pytest.approx(0.98)
     bad = tmp_path / "bad.csv"
     bad.write_text("\n".join([src[0] + ",recirc_share"] + [r + ",x" for r in src[1:]]))
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"bad.csv: line 2, column 'recirc_share': 'x' is not a number"):
         idn._series_with_door(bad)
+    short = tmp_path / "short.csv"  # a row without its door value: named, not a TypeError
+    short.write_text("\n".join([src[0] + ",recirc_share", src[1] + ",0.5", src[2]]))
+    with pytest.raises(ValueError, match=r"short.csv: line 3, column 'recirc_share': None is not a number"):
+        idn._series_with_door(short)
+    with pytest.raises(ValueError, match="missing column 'no_such'"):
+        idn.read_series_csv(plain, ("t_cab_c", "no_such"))  # optional only where said
+    assert idn.read_series_csv(plain, ("t_s", "x"), optional=("x",))["x"].size == 49
