@@ -28,6 +28,8 @@ import dataclasses
 import json
 import sys
 
+from benchmark_summary import fmt  # tools/: "n/a" for a missing number
+
 
 def _bound(pairs, which: int, fx: str, ex: str):
     """The front of the free (``which`` 0) or held (1) oracle points of ``pairs``, or None without two points."""
@@ -134,10 +136,6 @@ def study(
     return out
 
 
-def _fmt(x, spec='.2f') -> str:
-    return 'n/a' if x is None else format(x, spec)
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     p.add_argument('results', help='a ceco benchmark results.json with the cases (its families and the strategy)')
@@ -168,23 +166,23 @@ def main(argv=None) -> int:
             return '; '.join(
                 'n/a'
                 if x is None or 'energy_kwh' not in x
-                else f'PMV {_fmt(x["pmv_mean_band"], "+.3f")} above {_fmt(x["pmv_above_band_s"], ".0f")} s '
-                f'{_fmt(x["energy_kwh"], ".4f")} kWh'
+                else f'PMV {fmt(x["pmv_mean_band"], "+.3f")} above {fmt(x["pmv_above_band_s"], ".0f")} s '
+                f'{fmt(x["energy_kwh"], ".4f")} kWh'
                 for x in pts
             )
 
         print(
-            f'{name}: {args.strategy} saves {_fmt(fr_["saving_pct"], "+.2f")} % vs the strongest family; '
-            f'oracle {_fmt(fr_["bound_saving_pct"], "+.2f")} % (captured {_fmt(fr_["headroom_captured"])}, the '
-            f'benchmark\'s 4 levels {_fmt(r["benchmark"]["headroom_captured"])}), holding the edge '
-            f'{_fmt(he["bound_saving_pct"], "+.2f")} % (captured {_fmt(he["headroom_captured"])})'
+            f'{name}: {args.strategy} saves {fmt(fr_["saving_pct"], "+.2f")} % vs the strongest family; '
+            f'oracle {fmt(fr_["bound_saving_pct"], "+.2f")} % (captured {fmt(fr_["headroom_captured"], ".2f")}, the '
+            f'benchmark\'s 4 levels {fmt(r["benchmark"]["headroom_captured"], ".2f")}), holding the edge '
+            f'{fmt(he["bound_saving_pct"], "+.2f")} % (captured {fmt(he["headroom_captured"], ".2f")})'
         )
         print(f'  free: {band(fr_["points"])}\n  held: {band(he["points"])}')
         if 'margin' in r:
             mg = r['margin']
             print(
                 f'  held at the strategy\'s band-phase mean PMV {mg["band_mean_pmv"]:+.3f}: '
-                f'{_fmt(mg["bound_saving_pct"], "+.2f")} % (captured {_fmt(mg["headroom_captured"])}); '
+                f'{fmt(mg["bound_saving_pct"], "+.2f")} % (captured {fmt(mg["headroom_captured"], ".2f")}); '
                 f'{band(mg["points"])}'
             )
         print(json.dumps(r))

@@ -9,8 +9,7 @@ cells, ``runner.run_benchmark_cell``) with the StrategySettings overrides of ``-
 identified model read from FILE instead of the package's (the cells' ``model_params_path``). It scores the runs
 with the benchmark's own matching (``runner.matched_of``) against the families' runs and the oracle front stored
 in RESULTS.json (a ``ceco benchmark --oracle`` output of the same simulator code for the baselines): the saving
-against the
-strongest family [%] (mean over the seeds [min..max]), the seeds it is dominated on, the oracle's saving at
+against the strongest family [%] (mean over the seeds [min..max]), the seeds it is dominated on, the oracle's saving at
 the same discomfort and headroom_captured (docs/benchmark.md), and the band phase's PMV mean and seconds above
 +0.5 of the variant, the strongest family and the oracle there (``by_phase``; RESULTS.json must hold the band-phase
 KPIs, a run of ceco since 2d65211). The oracle does not depend on the controller
@@ -26,6 +25,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+
+from benchmark_summary import fmt  # tools/: "n/a" for a missing number
 
 
 def _value(text: str):
@@ -91,10 +92,6 @@ def study(results: dict, case_name: str, strategy: str, overrides: dict, model_p
     }
 
 
-def _fmt(x, spec='+.2f') -> str:
-    return 'n/a' if x is None else format(x, spec)
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     p.add_argument('results', help='a ceco benchmark results.json with the cases (and their oracle fronts)')
@@ -137,10 +134,11 @@ def main(argv=None) -> int:
             + (f' model {model_params}' if model_params else '')
             + ('' if overrides or model_params else ' (as shipped)')
             + f': saving vs strongest ({r["strongest_family"]}) '
-            f'{_fmt(r["saving_pct"])} %'
+            f'{fmt(r["saving_pct"], "+.2f")} %'
             + (f' [{min(ss):+.2f}..{max(ss):+.2f}]' if len(ss) > 1 else '')
-            + f', dominated on {r["dominated_seeds"]} of {r["n_seeds"]} seeds; oracle {_fmt(r["bound_saving_pct"])} %,'
-            f' headroom_captured {_fmt(r["headroom_captured"], ".2f")}'
+            + f', dominated on {r["dominated_seeds"]} of {r["n_seeds"]} seeds; '
+            f'oracle {fmt(r["bound_saving_pct"], "+.2f")} %,'
+            f' headroom_captured {fmt(r["headroom_captured"], ".2f")}'
             + (f' [{min(hs):.2f}..{max(hs):.2f}]' if len(hs) > 1 else '')
             + (f' ({r["note"]})' if r['note'] else '')
         )
@@ -149,9 +147,9 @@ def main(argv=None) -> int:
             c, st, b = bp['controller'], bp['strongest'], bp['bound']
             print(
                 '  band phase: PMV mean '
-                + ' / '.join(_fmt(x['pmv_mean_band'], '+.3f') for x in (c, st, b))
+                + ' / '.join(fmt(x['pmv_mean_band'], '+.3f') for x in (c, st, b))
                 + ', above +0.5 '
-                + ' / '.join(_fmt(x['pmv_above_band_s'], '.0f') for x in (c, st, b))
+                + ' / '.join(fmt(x['pmv_above_band_s'], '.0f') for x in (c, st, b))
                 + ' s (variant / strongest family / oracle, at the variant\'s discomfort)'
             )
         print(json.dumps(r))
