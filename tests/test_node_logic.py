@@ -962,9 +962,9 @@ def test_publisher_qos_matches_the_liveliness_probes():
     assert qos_check_compatible(interfaces.command_publisher_qos('lockstep', 2.0), probe)[0] == QoSCompatibility.ERROR
 
 
-def test_diagnostics_message_carries_the_plan_as_float64_arrays():
-    """The predicted PMV, cabin temperature and IOCH slacks go out value for value (NaN and inf too), as the
-    float64[] fields' ``array.array('d')``; a missing plan is an empty field."""
+def test_diagnostics_message_carries_the_plan_value_for_value():
+    """The predicted PMV (an Np x 1 column, flattened), cabin temperature and IOCH slacks go out value for value and
+    in order (NaN and inf too); a missing plan is an empty field; the scalars beside them are the step's."""
     from builtin_interfaces.msg import Time
 
     from ceco_core.contracts import Diagnostics
@@ -973,6 +973,8 @@ def test_diagnostics_message_carries_the_plan_as_float64_arrays():
     pmv = np.array([[0.4], [0.45], [math.nan], [0.5]])
     d = Diagnostics(k=3, t_s=15.0, status='ok', success=True, pred_pmv=pmv, pred_t_cab_c=[24.0, math.inf], eps=None)
     m = diagnostics_msg(d, Time(sec=15), 'ceco-pmv', 5.0)
-    np.testing.assert_array_equal(np.asarray(m.predicted_pmv), pmv.ravel())
+    np.testing.assert_array_equal(np.asarray(m.predicted_pmv), [0.4, 0.45, math.nan, 0.5])
     assert list(m.predicted_t_cab_c) == [24.0, math.inf] and len(m.eps) == 0
-    assert m.predicted_pmv.typecode == 'd' and m.step_index == 3 and m.prediction_step_s == 5.0
+    assert m.step_index == 3 and m.prediction_step_s == 5.0 and m.strategy == 'ceco-pmv' and m.success
+    with_eps = diagnostics_msg(dataclasses.replace(d, eps=np.array([0.0, 0.2])), Time(sec=15), 'ceco-pmv', 5.0)
+    assert list(with_eps.eps) == [0.0, 0.2]

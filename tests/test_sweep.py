@@ -480,6 +480,7 @@ def test_a_cell_with_its_own_model_file_equals_a_direct_run_with_it(tmp_path):
     COP at 30 K unchanged) moves the commands, where the package's file gives the default run."""
     import yaml
 
+    from ceco_bringup.benchmark.cases import load_case
     from ceco_bringup.sweep import cells
     from ceco_controller.model import default_params_path
 
@@ -489,8 +490,6 @@ def test_a_cell_with_its_own_model_file_equals_a_direct_run_with_it(tmp_path):
     doc['params']['comp_c0'] = c0 - 0.5 * c1 * 30.0
     path = tmp_path / 'steeper.yaml'
     path.write_text(yaml.safe_dump(doc), encoding='utf-8')
-    from ceco_bringup.benchmark.cases import load_case
-
     scenario = load_case('mild-day').scenario_dict()  # sc03_mild
     spec = {'scenario': scenario, 'strategy': 'ceco-pmv', 'preview': 'perfect', 'duration_s': 120.0}
     assert cells.settings_from_spec(spec).model_params_path is None

@@ -133,10 +133,9 @@ def band_phase(pmv_lb, pmv_ub, band=COMFORT_BAND_PMV) -> np.ndarray:
 def edge_arrival_index(pmv, zone, band=COMFORT_BAND_PMV) -> int | None:
     """Index of the first sample of the band phase at which the PMV is at or below the band's upper edge, or None.
 
-    ``zone``: :func:`band_phase`'s mask. There the pull-down has come to the edge.
-    ``pmv_above_band_s`` counts the samples above the edge from there on (the pull-down's tail before it is no
-    crossing); the oracle that holds the edge (``ceco_controller.oracle``, ``OracleSettings.hold_edge_from_s``) is
-    held from there.
+    ``zone`` is :func:`band_phase`'s mask. At that sample the pull-down has come to the edge: ``pmv_above_band_s``
+    counts the samples above the edge from there on (the pull-down's tail before it is no crossing), and the oracle
+    that holds the edge (``ceco_controller.oracle``, ``OracleSettings.hold_edge_from_s``) is held from there.
     """
     y, z = np.asarray(pmv, dtype=float), np.asarray(zone, dtype=bool)
     idx = np.flatnonzero(z & (y <= band[1]))
