@@ -133,6 +133,11 @@ def test_settings_validation_names_field():
     with pytest.raises(ValueError, match="unknown CECO strategy"):
         strategy_settings("ceco-x")
     assert dataclasses.replace(strategy_settings("ceco-c")).gamma_w > 0
+    # a switch given as text (a hand-typed override) is refused, not read as true
+    for name in ("ioch", "use_speed_preview", "offset_free", "pmv_feedback"):
+        with pytest.raises(ValueError, match=f"StrategySettings.{name} must be true or false, got 'false'"):
+            strategy_settings("ceco-pmv", **{name: "false"})
+    assert strategy_settings("ceco-pmv", use_speed_preview=False).use_speed_preview is False
 
 
 def test_controller_yaml_matches_code_defaults():

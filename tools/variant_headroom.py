@@ -30,7 +30,9 @@ from benchmark_summary import fmt  # tools/: "n/a" for a missing number
 
 
 def _value(text: str):
-    """A --set value: a number when it parses as one, else the text."""
+    """A --set value: true/false as a bool, a number when it parses as one, else the text."""
+    if text.lower() in ("true", "false"):
+        return text.lower() == "true"
     try:
         return int(text)
     except ValueError:
@@ -46,13 +48,13 @@ def study(results: dict, case_name: str, strategy: str, overrides: dict, model_p
     from ceco_bringup.benchmark import cli, runner
     from ceco_bringup.benchmark.cases import load_case
 
-    entry = next((c for c in results['cases'] if c['case'] == case_name), None)
+    case = load_case(case_name)  # a bundled name or a case YAML path (then its name)
+    entry = next((c for c in results['cases'] if c['case'] == case.name), None)
     if entry is None:
         raise SystemExit(
             f'variant_headroom: {case_name!r} is not in the results (cases: '
             f'{", ".join(c["case"] for c in results["cases"])})'
         )
-    case = load_case(case_name)
     specs = runner.controllers(runner.load_baselines(), (26.0,), (strategy,), (0.0,))
     cells = [c for c in runner.case_cells(case, specs, cli.code_fingerprint()) if c.axes['controller'] == strategy]
     rows = []

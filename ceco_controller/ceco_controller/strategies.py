@@ -312,6 +312,10 @@ class StrategySettings:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"StrategySettings.{name} must be finite and > 0, got {v!r}")
+        for f in dataclasses.fields(self):
+            # a switch must be a bool: the text 'false' (a hand-typed override) would read as true
+            if isinstance(f.default, bool) and not isinstance(getattr(self, f.name), bool):
+                raise ValueError(f"StrategySettings.{f.name} must be true or false, got {getattr(self, f.name)!r}")
         if self.pmv_pa_source not in ("paper", "measured"):
             raise ValueError(
                 f"StrategySettings.pmv_pa_source must be 'paper' or 'measured', got {self.pmv_pa_source!r}"
