@@ -193,6 +193,11 @@ def test_settings_and_schedule_refuse_bad_values():
             orc.OracleSettings(band_mean_pmv=bad).validate()
     with pytest.raises(ValueError, match='OracleSettings.lift_energy'):
         orc.OracleSettings(lift_energy='yes').validate()
+    for bad in ((('t_int_c', float('nan')),), (('t_int_c', True),), [('t_int_c', 30.0)], (('t_int_c',),), ((1, 30.0),)):
+        with pytest.raises(ValueError, match='OracleSettings.terminal_max'):
+            orc.OracleSettings(terminal_max=bad).validate()
+    with pytest.raises(ValueError, match="terminal_max: unknown state 't_seat_c'"):
+        orc.OracleProblem(_short('sc03-paper', 10.0), orc.OracleSettings(terminal_max=(('t_seat_c', 30.0),)))
     with pytest.raises(ValueError, match='names'):
         orc.ScheduleController(np.array([[0.1, 5.0, 0.5]]), ('mdot_bl_kgps', 't_evap_sp_c', 'door'))
     with pytest.raises(ValueError, match='K x 3'):
@@ -544,6 +549,29 @@ def test_the_door_oracle_holds_the_co2_limit_and_beats_the_production_door_logic
     udds = orc.OracleProblem(load_case('udds-hot').load_scenario(), orc.OracleSettings(max_iter=1, compiled='no'))
     assert udds.max_wall_time_s == pytest.approx(orc.WALL_TIME_PER_DRIVE_S * 1369.0)
     assert orc.OracleProblem(sc, orc.OracleSettings(max_wall_time_s=50.0, compiled='no')).max_wall_time_s == 50.0
+
+
+def test_the_oracle_that_leaves_the_cabin_as_cool_as_told():
+    """The mild day's first 400 s: with the cabin air and the interior bounded at the drive's end below where the free
+    optimum leaves them, the optimum ends there (the NLP exactly, the replay within the smooth model's error), at the
+    same discomfort and at a cost: the cold left in the cabin's heat stores is paid for."""
+    sc = _short('mild-day', 400.0)
+    level = 0.0244
+    (free,) = orc.solve_levels(sc, [level])
+    assert free.success, free.status
+    end = {n: float(free.run.timeseries[n][-1]) for n in ('t_cab_c', 't_int_c')}
+    cap = {'t_cab_c': end['t_cab_c'] - 0.3, 't_int_c': end['t_int_c'] - 0.1}
+    st = orc.OracleSettings(terminal_max=tuple(cap.items()))
+    (cool,) = orc.solve_levels(sc, [level], st, start_commands=free.commands)
+    assert cool.success, cool.status
+    for name, value in cap.items():
+        # the bound is on the state after the last plant step; the run records the state at each step's start, so
+        # its last row is one step (1 s) before: within that step's change, plus the smooth model's error
+        x = cool.run.timeseries[name]
+        assert float(x[-1]) <= value + 0.02 + abs(float(x[-1] - x[-2])), (name, x[-2:], value)
+        assert float(x[-1]) < end[name] - 0.05  # and it did end cooler than the free optimum
+    assert cool.kpis['discomfort_pmvh'] <= level * 1.01
+    assert cool.kpis['energy_kwh'] > free.kpis['energy_kwh'] * (1.0 + 1e-3)
 
 
 def test_the_oracle_that_holds_the_edge(tmp_path, capsys):

@@ -1,7 +1,7 @@
 """What the bound's crossings of the band's edge are worth: headroom_captured against the oracle that holds it.
 
     python tools/edge_headroom.py RESULTS.json CASE [CASE ...] [--strategy ceco-pmv] [--margin 0.01]
-                                    [--with-margin]
+                                    [--with-margin] [--terminal]
 
 The benchmark's oracle (docs/oracle.md) bounds the integrated discomfort only: once its pull-down has come to the
 band's upper edge (+0.5) it may go back above it where that saves energy (10-75 s per drive on the standard
@@ -15,7 +15,11 @@ the benchmark's own matching (``front.headroom_seeds`` against the strongest fam
 two-level bound. The two-level free bound is printed beside the benchmark's four-level one as a check of the reading
 between levels. ``--with-margin``: also the oracle that holds the edge with its band-phase mean PMV at most the
 strategy's (``OracleSettings.band_mean_pmv``: the margin the strategy keeps under the edge on average, kept by the
-bound too; what is left between the strategy and that bound is not the margin).
+bound too; what is left between the strategy and that bound is not the margin). ``--terminal``: also the free bound
+and (with ``--with-margin``) the margin bound with the cabin's heat stores (air, interior, shell, glazing) ending no
+warmer than the strategy leaves them (``OracleSettings.terminal_max``, the strategy's seed mean + 0.02 K): the
+whole-drive optimum may spend the cold stored in them in its last minute, which pays only because the drive ends
+there (docs/oracle.md "The drive's end").
 
 What it prints is a study, not a benchmark result: results.json is not changed. Last line per case: one JSON
 object.
@@ -68,16 +72,53 @@ def _point(r) -> dict | None:
     }
 
 
+TERMINAL_STATES = ('t_cab_c', 't_int_c', 't_shell_c', 't_glass_c')
+"""The cabin's heat stores whose end temperatures ``--terminal`` bounds: its air, interior, shell and glazing (not
+the evaporator wall, part of the A/C)."""
+
+TERMINAL_TOL_K = 0.02
+"""Added to the strategy's end temperatures [K]: the NLP's smooth plant ends within about 0.01 K of the replay's."""
+
+
+def strategy_end_state(case, strategy: str) -> dict:
+    """The strategy's state at the drive's end [degC], the mean over the case's seeds: each seed's benchmark cell
+    simulated as ``ceco benchmark`` runs it (``runner.case_cells``, ``sweep.cells.settings_from_spec``)."""
+    from ceco_bringup.benchmark import cli, runner
+    from ceco_bringup.sweep import cells as sweep_cells
+    from ceco_controller.closed_loop import simulate
+    from ceco_v2x_preview.scenario import scenario_from_dict
+
+    specs = runner.controllers(runner.load_baselines(), (26.0,), (strategy,), (0.0,))
+    ends = []
+    for c in runner.case_cells(case, specs, cli.code_fingerprint()):
+        if c.axes['controller'] != strategy:
+            continue
+        spec = c.spec
+        run = simulate(scenario_from_dict(spec['scenario']), spec['strategy'], sweep_cells.settings_from_spec(spec))
+        ends.append({n: float(run.timeseries[n][-1]) for n in TERMINAL_STATES})
+    if not ends:
+        raise SystemExit(f'edge_headroom: {case.name}: no cell of {strategy!r}')
+    return {n: sum(e[n] for e in ends) / len(ends) for n in TERMINAL_STATES}
+
+
 def study(
-    results: dict, case_name: str, strategy: str, margin: float, progress=None, with_margin: bool = False
+    results: dict,
+    case_name: str,
+    strategy: str,
+    margin: float,
+    progress=None,
+    with_margin: bool = False,
+    terminal: bool = False,
 ) -> dict:
-    """The strategy's headroom_captured on one case against the free and the edge-holding oracle."""
+    """The strategy's headroom_captured on one case against the free and the edge-holding oracle (and, with
+    ``terminal``, those that leave the cabin's heat stores no warmer than the strategy leaves them)."""
     from ceco_bringup.benchmark import front as fr
     from ceco_bringup.benchmark import runner
     from ceco_bringup.benchmark.cases import load_case
     from ceco_controller import oracle as orc
 
-    entry = next((c for c in results['cases'] if c['case'] == case_name), None)
+    case = load_case(case_name)  # a bundled name or a case YAML path (then its name)
+    entry = next((c for c in results['cases'] if c['case'] == case.name), None)
     if entry is None:
         raise SystemExit(f'edge_headroom: {case_name!r} is not in the results')
     fx, ex = runner.FRONT_AXIS, runner.ENERGY_AXIS
@@ -88,7 +129,6 @@ def study(
     env = runner.envelope_of(runner.fronts_of(baselines, fx, ex))
     pts = [(r['seed'], r['kpis'][fx], r['kpis'][ex]) for r in rows]
     levels = bracket(entry['oracle'].get('levels') or [], [d for _, d, _ in pts], margin)
-    case = load_case(case_name)
     settings = orc.OracleSettings(control_period_s=case.control_period_s, door_logic=tuple(case.baseline_door))
     pairs = orc.solve_levels_holding_edge(case.load_scenario(), levels, settings, progress)
     out = {'case': case_name, 'strategy': strategy, 'levels': levels, 'n_seeds': len(rows)}
@@ -109,28 +149,57 @@ def study(
         'pmv_mean_band': sum(x['pmv_mean_band'] for x in k) / len(k),
         'pmv_above_band_s': sum(x['pmv_above_band_s'] or 0.0 for x in k) / len(k),
     }
+
+    def scored(pairs_, which):
+        b = _bound(pairs_, which, fx, ex)
+        h = fr.headroom_seeds(env, {None: b}, pts) if b is not None else {}
+        return {
+            'headroom_captured': h.get('headroom_captured'),
+            'bound_saving_pct': h.get('bound_saving_pct'),
+            'note': h.get('note', '') if b is not None else 'fewer than two points',
+            'points': [_point(p[which]) for p in pairs_],
+        }
+
+    terminal_max: tuple = ()
+    if terminal:
+        end = strategy_end_state(case, strategy)
+        out['strategy_end'] = end
+        terminal_max = tuple((n, v + TERMINAL_TOL_K) for n, v in end.items())
+        st = dataclasses.replace(settings, terminal_max=terminal_max)
+        ends = []
+        for f, _ in pairs:  # the free oracle's level, its end state bounded, from its commands
+            if not f.success:
+                ends.append((f, None))
+                continue
+            (r,) = orc.solve_levels(case.load_scenario(), [f.level_pmvh], st, progress, start_commands=f.commands)
+            ends.append((f, r))
+        out['terminal'] = scored(ends, 1)
+        out['oracle_end'] = [
+            {n: float(f.run.timeseries[n][-1]) for n in TERMINAL_STATES} if f.success and f.run else None
+            for f, _ in pairs
+        ]
     if with_margin:
         # the oracle that keeps the strategy's margin: held as above, and its band-phase mean PMV at most the
         # strategy's (seed mean; the band phase from the free replay's band_start_s, the scenario's)
         cap = round(out['strategy_band']['pmv_mean_band'], 3)
-        kept = []
+        kept, kept_end = [], []
         for (f, h), t_edge in zip(pairs, out['edge_s']):
             if h is None or t_edge is None or not h.success:
                 kept.append((f, None))
+                kept_end.append((f, None))
                 continue
             band = (float(f.kpis['band_start_s']), cap)
             st = dataclasses.replace(settings, hold_edge_from_s=t_edge, band_mean_pmv=band)
             (r,) = orc.solve_levels(case.load_scenario(), [f.level_pmvh], st, progress, start_commands=h.commands)
             kept.append((f, r))
-        b = _bound(kept, 1, fx, ex)
-        h = fr.headroom_seeds(env, {None: b}, pts) if b is not None else {}
-        out['margin'] = {
-            'band_mean_pmv': cap,
-            'headroom_captured': h.get('headroom_captured'),
-            'bound_saving_pct': h.get('bound_saving_pct'),
-            'note': h.get('note', '') if b is not None else 'fewer than two points',
-            'points': [_point(p[1]) for p in kept],
-        }
+            if terminal:  # and also leaving the heat stores as cool as the strategy does
+                st = dataclasses.replace(st, terminal_max=terminal_max)
+                start = r.commands if r.success else h.commands
+                (r2,) = orc.solve_levels(case.load_scenario(), [f.level_pmvh], st, progress, start_commands=start)
+                kept_end.append((f, r2))
+        out['margin'] = {'band_mean_pmv': cap, **scored(kept, 1)}
+        if terminal:
+            out['margin_terminal'] = {'band_mean_pmv': cap, **scored(kept_end, 1)}
     bench = (entry.get('matched', {}).get(strategy) or {}).get('headroom') or {}
     out['benchmark'] = {k: bench.get(k) for k in ('headroom_captured', 'bound_saving_pct', 'saving_pct')}
     return out
@@ -152,6 +221,11 @@ def main(argv=None) -> int:
         action='store_true',
         help='also the oracle that holds the edge with a band-phase mean PMV at most the strategy\'s (its margin)',
     )
+    p.add_argument(
+        '--terminal',
+        action='store_true',
+        help='also the bounds whose cabin heat stores end no warmer than the strategy\'s (seed mean + 0.02 K)',
+    )
     args = p.parse_args(argv)
     if not (0.0 <= args.margin < 0.5):
         p.error(f'--margin: must be in [0, 0.5), got {args.margin}')
@@ -159,7 +233,7 @@ def main(argv=None) -> int:
         results = json.load(f)
     for name in args.cases:
         say = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
-        r = study(results, name, args.strategy, args.margin, say, args.with_margin)
+        r = study(results, name, args.strategy, args.margin, say, args.with_margin, args.terminal)
         fr_, he = r['free'], r['held']
 
         def band(pts):
@@ -185,6 +259,13 @@ def main(argv=None) -> int:
                 f'{fmt(mg["bound_saving_pct"], "+.2f")} % (captured {fmt(mg["headroom_captured"], ".2f")}); '
                 f'{band(mg["points"])}'
             )
+        for key, what in (('terminal', 'free'), ('margin_terminal', 'held at the strategy\'s margin')):
+            if key in r:
+                t = r[key]
+                print(
+                    f'  {what}, ending no warmer than the strategy: {fmt(t["bound_saving_pct"], "+.2f")} % '
+                    f'(captured {fmt(t["headroom_captured"], ".2f")}); {band(t["points"])}'
+                )
         print(json.dumps(r))
     return 0
 

@@ -178,6 +178,13 @@ class OracleSettings:
     constraint row). With t_from the band phase's start and cap a controller's band-phase mean PMV (KPI
     ``pmv_mean_band``), the bound of a controller that keeps that controller's margin under the edge on average
     (``tools/edge_headroom.py --with-margin``). None: no such constraint."""
+    terminal_max: tuple = ()
+    """((state name, value), ...): the plant's state at the drive's end is at most these values (``STATE_NAMES`` of
+    ``ceco_plant_sim.plant_model``, its units: e.g. ``("t_int_c", 36.3)`` [degC]). With a controller's end state, the
+    bound of a controller that leaves the car as cool as that one: the whole-drive optimum may otherwise spend, in
+    its last minute, the cold stored in the cabin's masses, which is worth nothing once the drive ends but which no
+    controller that does not know the drive's end can spend (``tools/edge_headroom.py --terminal``, docs/oracle.md
+    "The drive's end"). Empty: no such constraint (the benchmark's oracle)."""
     lift_energy: bool = True
     """Each control interval's energy as a variable of the NLP, tied to the plant steps by one equality row
     (the objective then is their sum, linear). The same optimum; IPOPT's objective and gradient no longer run
@@ -225,6 +232,22 @@ class OracleSettings:
         ):
             raise ValueError(
                 f"OracleSettings.band_mean_pmv: must be None or (t_from >= 0 [s], cap in (0, 0.5] [PMV]), got {bm!r}"
+            )
+        tm = self.terminal_max
+        if not (
+            isinstance(tm, tuple)
+            and all(
+                isinstance(it, tuple)
+                and len(it) == 2
+                and isinstance(it[0], str)
+                and isinstance(it[1], (int, float))
+                and not isinstance(it[1], bool)
+                and math.isfinite(it[1])
+                for it in tm
+            )
+        ):
+            raise ValueError(
+                f"OracleSettings.terminal_max: must be a tuple of (state name, finite value) pairs, got {tm!r}"
             )
         if not isinstance(self.lift_energy, bool):
             raise ValueError(f"OracleSettings.lift_energy: must be True or False, got {self.lift_energy!r}")
@@ -587,6 +610,11 @@ class OracleProblem:
         lbx.append(np.full(en.numel(), -np.inf))
         ubx.append(np.full(en.numel(), np.inf))
         lbx[0][:, 0] = ubx[0][:, 0] = self.x0 / self._scale
+        for name, value in s.terminal_max:  # the state at the drive's end (the steps past it leave it as it is)
+            if name not in pm.state.names:
+                raise ValueError(f"OracleSettings.terminal_max: unknown state {name!r}: one of {pm.state.names}")
+            j = pm.state.index(name)
+            ubx[0][j, k] = value / self._scale[j]
         lim = ACTUATOR_LIMITS
         bounds = {
             "mdot_bl_kgps": (lim.mdot_bl_min_kgps, lim.mdot_bl_max_kgps),
