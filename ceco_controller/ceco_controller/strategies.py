@@ -419,7 +419,7 @@ _DEFAULTS: dict[str, dict[str, Any]] = {
         pmv_ub_cap=0.5,
         backoff="adaptive",
         preview_rule="shrink",
-        use_speed_preview=True,
+        use_speed_preview=False,  # the previewed speed in eta_AC cost 0-0.05 of headroom_captured (controller.md 4.7)
     ),
 }
 
