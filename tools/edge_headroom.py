@@ -132,17 +132,6 @@ def study(
     settings = orc.OracleSettings(control_period_s=case.control_period_s, door_logic=tuple(case.baseline_door))
     pairs = orc.solve_levels_holding_edge(case.load_scenario(), levels, settings, progress)
     out = {'case': case_name, 'strategy': strategy, 'levels': levels, 'n_seeds': len(rows)}
-    for name, which in (('free', 0), ('held', 1)):
-        b = _bound(pairs, which, fx, ex)
-        h = fr.headroom_seeds(env, {None: b}, pts) if b is not None else {}
-        out[name] = {
-            'headroom_captured': h.get('headroom_captured'),
-            'headroom_captured_seeds': (h.get('seeds') or {}).get('headroom_captured'),
-            'bound_saving_pct': h.get('bound_saving_pct'),
-            'saving_pct': h.get('saving_pct'),
-            'note': h.get('note', '') if b is not None else 'fewer than two points',
-            'points': [_point(p[which]) for p in pairs],
-        }
     out['edge_s'] = [orc.edge_arrival_s(f) if f.success else None for f, _ in pairs]
     k = [r['kpis'] for r in rows]
     out['strategy_band'] = {
@@ -151,14 +140,20 @@ def study(
     }
 
     def scored(pairs_, which):
+        """The strategy's seeds against the bound of ``pairs_``' points ``which`` (0 the first of each pair)."""
         b = _bound(pairs_, which, fx, ex)
         h = fr.headroom_seeds(env, {None: b}, pts) if b is not None else {}
         return {
             'headroom_captured': h.get('headroom_captured'),
+            'headroom_captured_seeds': (h.get('seeds') or {}).get('headroom_captured'),
             'bound_saving_pct': h.get('bound_saving_pct'),
+            'saving_pct': h.get('saving_pct'),
             'note': h.get('note', '') if b is not None else 'fewer than two points',
             'points': [_point(p[which]) for p in pairs_],
         }
+
+    for name, which in (('free', 0), ('held', 1)):
+        out[name] = scored(pairs, which)
 
     terminal_max: tuple = ()
     if terminal:
