@@ -191,6 +191,9 @@ def test_settings_and_schedule_refuse_bad_values():
     for bad in ((0.0, 0.6), (0.0, 0.0), (-1.0, 0.4), (float('nan'), 0.4), (0.0, True), [0.0, 0.4], (0.0,)):
         with pytest.raises(ValueError, match='OracleSettings.band_mean_pmv'):
             orc.OracleSettings(band_mean_pmv=bad).validate()
+    for bad in ((0.0, 0.6), (0.0, -0.5), (-1.0, 0.4), (float('nan'), 0.4), (0.0, True), [0.0, 0.4], (0.0,)):
+        with pytest.raises(ValueError, match='OracleSettings.band_cap_pmv'):
+            orc.OracleSettings(band_cap_pmv=bad).validate()
     with pytest.raises(ValueError, match='OracleSettings.lift_energy'):
         orc.OracleSettings(lift_energy='yes').validate()
     for bad in ((('t_int_c', float('nan')),), (('t_int_c', True),), [('t_int_c', 30.0)], (('t_int_c',),), ((1, 30.0),)):
@@ -605,6 +608,15 @@ def test_the_oracle_that_holds_the_edge(tmp_path, capsys):
     assert kept.kpis['pmv_mean_band'] <= 0.45 + 0.005 < held.kpis['pmv_mean_band']
     assert np.max(kept.run.timeseries['pmv'][i:]) <= 0.5 + 0.005
     assert kept.kpis['energy_kwh'] > held.kpis['energy_kwh'] * (1.0 + 1e-3)
+    # and with that margin at every step from a minute after the edge (band_cap_pmv): no lower energy than on average
+    t_cap = t_edge + 60.0
+    st_cap = dataclasses.replace(st, band_cap_pmv=(t_cap, 0.45))
+    (capped,) = orc.solve_levels(sc, [level], st_cap, start_commands=kept.commands)
+    assert capped.success, capped.status
+    j = int(round(t_cap))
+    assert np.max(capped.nlp_pmv[j:]) <= 0.45 + 1e-6 < np.max(kept.nlp_pmv[j:])
+    assert np.max(capped.run.timeseries['pmv'][j:]) <= 0.45 + 0.005
+    assert capped.kpis['energy_kwh'] >= kept.kpis['energy_kwh'] * (1.0 - 2e-3)
     argv = ['mild-day', '--duration-s', '400', '--levels', f'{level!r}', '--hold-edge', '--no-progress']
     assert oracle_cli.main([*argv, '--out', str(tmp_path)]) == 0
     doc = json.loads((tmp_path / 'front.json').read_text())

@@ -80,25 +80,44 @@ TERMINAL_TOL_K = 0.02
 """Added to the strategy's end temperatures [K]: the NLP's smooth plant ends within about 0.01 K of the replay's."""
 
 
-def strategy_end_state(case, strategy: str) -> dict:
-    """The strategy's state at the drive's end [degC], the mean over the case's seeds: each seed's benchmark cell
-    simulated as ``ceco benchmark`` runs it (``runner.case_cells``, ``sweep.cells.settings_from_spec``)."""
+def strategy_runs(case, strategy: str) -> list:
+    """The strategy's runs on the case's seeds (``RunResult``): each seed's benchmark cell simulated as ``ceco
+    benchmark`` runs it (``runner.case_cells``, ``sweep.cells.settings_from_spec``)."""
     from ceco_bringup.benchmark import cli, runner
     from ceco_bringup.sweep import cells as sweep_cells
     from ceco_controller.closed_loop import simulate
     from ceco_v2x_preview.scenario import scenario_from_dict
 
     specs = runner.controllers(runner.load_baselines(), (26.0,), (strategy,), (0.0,))
-    ends = []
+    runs = []
     for c in runner.case_cells(case, specs, cli.code_fingerprint()):
         if c.axes['controller'] != strategy:
             continue
         spec = c.spec
-        run = simulate(scenario_from_dict(spec['scenario']), spec['strategy'], sweep_cells.settings_from_spec(spec))
-        ends.append({n: float(run.timeseries[n][-1]) for n in TERMINAL_STATES})
-    if not ends:
+        runs.append(
+            simulate(scenario_from_dict(spec['scenario']), spec['strategy'], sweep_cells.settings_from_spec(spec))
+        )
+    if not runs:
         raise SystemExit(f'edge_headroom: {case.name}: no cell of {strategy!r}')
-    return {n: sum(e[n] for e in ends) / len(ends) for n in TERMINAL_STATES}
+    return runs
+
+
+def end_state(runs) -> dict:
+    """The runs' last recorded temperatures of :data:`TERMINAL_STATES` [degC], their mean."""
+    return {n: sum(float(r.timeseries[n][-1]) for r in runs) / len(runs) for n in TERMINAL_STATES}
+
+
+def first_at_or_below_s(runs, cap: float, t_from: float) -> float | None:
+    """The latest over the runs of the first time [s] from ``t_from`` on at which the scored PMV is at or below
+    ``cap`` (None if a run never comes there)."""
+    times = []
+    for r in runs:
+        t, pmv = r.timeseries['t_s'], r.timeseries['pmv']
+        hit = [float(x) for x, y in zip(t, pmv) if x >= t_from and y <= cap]
+        if not hit:
+            return None
+        times.append(hit[0])
+    return max(times)
 
 
 def study(
@@ -109,6 +128,7 @@ def study(
     progress=None,
     with_margin: bool = False,
     terminal: bool = False,
+    pointwise: bool = False,
 ) -> dict:
     """The strategy's headroom_captured on one case against the free and the edge-holding oracle (and, with
     ``terminal``, those that leave the cabin's heat stores no warmer than the strategy leaves them)."""
@@ -156,8 +176,9 @@ def study(
         out[name] = scored(pairs, which)
 
     terminal_max: tuple = ()
+    runs = strategy_runs(case, strategy) if terminal or pointwise else []
     if terminal:
-        end = strategy_end_state(case, strategy)
+        end = end_state(runs)
         out['strategy_end'] = end
         terminal_max = tuple((n, v + TERMINAL_TOL_K) for n, v in end.items())
         st = dataclasses.replace(settings, terminal_max=terminal_max)
@@ -197,6 +218,24 @@ def study(
         out['margin'] = {'band_mean_pmv': cap, **scored(kept, 1)}
         if terminal:
             out['margin_terminal'] = {'band_mean_pmv': cap, **scored(kept_end, 1)}
+        t_cap = first_at_or_below_s(runs, cap, float(pairs[0][0].kpis['band_start_s'])) if pointwise else None
+        if pointwise and t_cap is not None:
+            # the margin at every step from the time the strategy first came to it (the latest seed), not on average
+            pw = []
+            for (f, _), t_edge, (_, r) in zip(pairs, out['edge_s'], kept_end if terminal else kept):
+                if r is None or not r.success:
+                    pw.append((f, None))
+                    continue
+                st = dataclasses.replace(
+                    settings,
+                    hold_edge_from_s=t_edge,
+                    band_mean_pmv=(float(f.kpis['band_start_s']), cap),
+                    band_cap_pmv=(t_cap, cap),
+                    terminal_max=terminal_max,
+                )
+                (r2,) = orc.solve_levels(case.load_scenario(), [f.level_pmvh], st, progress, start_commands=r.commands)
+                pw.append((f, r2))
+            out['pointwise'] = {'band_cap_pmv': [t_cap, cap], 'terminal': terminal, **scored(pw, 1)}
     bench = (entry.get('matched', {}).get(strategy) or {}).get('headroom') or {}
     out['benchmark'] = {k: bench.get(k) for k in ('headroom_captured', 'bound_saving_pct', 'saving_pct')}
     return out
@@ -219,6 +258,12 @@ def main(argv=None) -> int:
         help='also the oracle that holds the edge with a band-phase mean PMV at most the strategy\'s (its margin)',
     )
     p.add_argument(
+        '--pointwise',
+        action='store_true',
+        help='with --with-margin: also the margin bound with the strategy\'s band-phase mean PMV as a cap at every '
+        'step from the time the strategy first came to it (with --terminal: also ending as cool)',
+    )
+    p.add_argument(
         '--terminal',
         action='store_true',
         help='also the bounds whose cabin heat stores end no warmer than the strategy\'s (seed mean + 0.02 K)',
@@ -226,11 +271,13 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     if not (0.0 <= args.margin < 0.5):
         p.error(f'--margin: must be in [0, 0.5), got {args.margin}')
+    if args.pointwise and not args.with_margin:
+        p.error('--pointwise: needs --with-margin (it tightens the margin bound)')
     with open(args.results, encoding='utf-8') as f:
         results = json.load(f)
     for name in args.cases:
         say = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
-        r = study(results, name, args.strategy, args.margin, say, args.with_margin, args.terminal)
+        r = study(results, name, args.strategy, args.margin, say, args.with_margin, args.terminal, args.pointwise)
         fr_, he = r['free'], r['held']
 
         def band(pts):
@@ -256,11 +303,16 @@ def main(argv=None) -> int:
                 f'{fmt(mg["bound_saving_pct"], "+.2f")} % (captured {fmt(mg["headroom_captured"], ".2f")}); '
                 f'{band(mg["points"])}'
             )
-        for key, what in (('terminal', 'free'), ('margin_terminal', 'held at the strategy\'s margin')):
+        cool = ', ending no warmer than the strategy'
+        for key, what in (
+            ('terminal', 'free' + cool),
+            ('margin_terminal', 'held at the strategy\'s margin' + cool),
+            ('pointwise', 'held at the strategy\'s margin at every step' + (cool if args.terminal else '')),
+        ):
             if key in r:
                 t = r[key]
                 print(
-                    f'  {what}, ending no warmer than the strategy: {fmt(t["bound_saving_pct"], "+.2f")} % '
+                    f'  {what}: {fmt(t["bound_saving_pct"], "+.2f")} % '
                     f'(captured {fmt(t["headroom_captured"], ".2f")}); {band(t["points"])}'
                 )
         print(json.dumps(r))

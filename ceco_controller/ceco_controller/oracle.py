@@ -178,6 +178,11 @@ class OracleSettings:
     constraint row). With t_from the band phase's start and cap a controller's band-phase mean PMV (KPI
     ``pmv_mean_band``), the bound of a controller that keeps that controller's margin under the edge on average
     (``tools/edge_headroom.py --with-margin``). None: no such constraint."""
+    band_cap_pmv: tuple[float, float] | None = None
+    """(t_from [s after key-on], cap [PMV]): the scored PMV of every plant step from t_from on is at most cap. With cap
+    a controller's band-phase mean PMV, the bound of a controller that keeps that margin at every step, not only on
+    average (``band_mean_pmv``): it may not move its PMV between the times when cooling is cheap and dear
+    (``tools/edge_headroom.py --pointwise``). None: no such constraint."""
     terminal_max: tuple = ()
     """((state name, value), ...): the plant's state at the drive's end is at most these values (``STATE_NAMES`` of
     ``ceco_plant_sim.plant_model``, its units: e.g. ``("t_int_c", 36.3)`` [degC]). With a controller's end state, the
@@ -232,6 +237,17 @@ class OracleSettings:
         ):
             raise ValueError(
                 f"OracleSettings.band_mean_pmv: must be None or (t_from >= 0 [s], cap in (0, 0.5] [PMV]), got {bm!r}"
+            )
+        bc = self.band_cap_pmv
+        if bc is not None and not (
+            isinstance(bc, tuple)
+            and len(bc) == 2
+            and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in bc)
+            and bc[0] >= 0
+            and COMFORT_BAND_PMV[0] < bc[1] <= COMFORT_BAND_PMV[1]
+        ):
+            raise ValueError(
+                f"OracleSettings.band_cap_pmv: must be None or (t_from >= 0 [s], cap in (-0.5, 0.5] [PMV]), got {bc!r}"
             )
         tm = self.terminal_max
         if not (
@@ -565,6 +581,13 @@ class OracleProblem:
                 g.append(casadi.sum2(pc[:, idx]) / len(idx))
                 self._lbg = np.concatenate([self._lbg, [-np.inf]])
                 self._ubg = np.concatenate([self._ubg, [s.band_mean_pmv[1]]])
+        if s.band_cap_pmv is not None:
+            # the PMV of every plant step from t_from on at most the cap: one row per step
+            idx = [int(i) for i in np.flatnonzero(t_step >= s.band_cap_pmv[0] - 1e-9)]
+            if idx:
+                g.append(casadi.vec(pc[:, idx]))
+                self._lbg = np.concatenate([self._lbg, np.full(len(idx), -np.inf)])
+                self._ubg = np.concatenate([self._ubg, np.full(len(idx), s.band_cap_pmv[1])])
         if self.door:
             # the air-quality limits at every interval's end, with the settings' margins [ppm / 1000, K]
             # (aq_violation's g <= 0; CO2 moves with a time constant of minutes: the ends of the control
