@@ -188,7 +188,7 @@ def study(
                 ends.append((f, None))
                 continue
             (r,) = orc.solve_levels(case.load_scenario(), [f.level_pmvh], st, progress, start_commands=f.commands)
-            if not r.success:  # from the free optimum it may not find the way (sc03-paper's least level): from the law
+            if not r.success:  # not solved from the free optimum: once more from the production law's run
                 (r,) = orc.solve_levels(case.load_scenario(), [f.level_pmvh], st, progress)
             ends.append((f, r))
         out['terminal'] = scored(ends, 1)
