@@ -95,6 +95,17 @@ _STATE_SCALE = {"w_cab_kgkg": 0.01, "comp_pi_integral_rpm": 1000.0, "recirc_shar
 """Nominal magnitudes of the states that are not temperatures [unit] (the NLP's variables are x / scale)."""
 
 
+def _is_time_and_cap(v, lo: float) -> bool:
+    """``v`` is (t_from >= 0 [s], cap in (lo, +0.5] [PMV]), both finite numbers (no flags)."""
+    return (
+        isinstance(v, tuple)
+        and len(v) == 2
+        and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)
+        and v[0] >= 0
+        and lo < v[1] <= COMFORT_BAND_PMV[1]
+    )
+
+
 @dataclasses.dataclass(frozen=True)
 class OracleSettings:
     """Settings of the whole-drive optimum."""
@@ -227,28 +238,13 @@ class OracleSettings:
         bad_h = isinstance(h, bool) or not isinstance(h, (int, float)) or not (math.isfinite(h) and h >= 0)
         if h is not None and bad_h:
             raise ValueError(f"OracleSettings.hold_edge_from_s: must be None or finite and >= 0 [s], got {h!r}")
-        bm = self.band_mean_pmv
-        if bm is not None and not (
-            isinstance(bm, tuple)
-            and len(bm) == 2
-            and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in bm)
-            and bm[0] >= 0
-            and 0 < bm[1] <= COMFORT_BAND_PMV[1]
-        ):
-            raise ValueError(
-                f"OracleSettings.band_mean_pmv: must be None or (t_from >= 0 [s], cap in (0, 0.5] [PMV]), got {bm!r}"
-            )
-        bc = self.band_cap_pmv
-        if bc is not None and not (
-            isinstance(bc, tuple)
-            and len(bc) == 2
-            and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in bc)
-            and bc[0] >= 0
-            and COMFORT_BAND_PMV[0] < bc[1] <= COMFORT_BAND_PMV[1]
-        ):
-            raise ValueError(
-                f"OracleSettings.band_cap_pmv: must be None or (t_from >= 0 [s], cap in (-0.5, 0.5] [PMV]), got {bc!r}"
-            )
+        for name, lo in (("band_mean_pmv", 0.0), ("band_cap_pmv", COMFORT_BAND_PMV[0])):
+            v = getattr(self, name)
+            if v is not None and not _is_time_and_cap(v, lo):
+                raise ValueError(
+                    f"OracleSettings.{name}: must be None or (t_from >= 0 [s], cap in ({lo:g}, "
+                    f"{COMFORT_BAND_PMV[1]:g}] [PMV]), got {v!r}"
+                )
         tm = self.terminal_max
         if not (
             isinstance(tm, tuple)
