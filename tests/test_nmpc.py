@@ -138,6 +138,10 @@ def test_settings_validation_names_field():
         with pytest.raises(ValueError, match=f"StrategySettings.{name} must be true or false, got 'false'"):
             strategy_settings("ceco-pmv", **{name: "false"})
     assert strategy_settings("ceco-pmv", use_speed_preview=False).use_speed_preview is False
+    for name in ("rti", "warm_start", "jit", "codegen", "default_options", "ipopt_fallback"):
+        with pytest.raises(ValueError, match=f"SolverSettings.{name} must be true or false, got 'false'"):
+            SolverSettings(**{name: "false"}).validate()
+    SolverSettings(codegen=False).validate()
 
 
 def test_controller_yaml_matches_code_defaults():

@@ -72,6 +72,17 @@ QPSOL_NAMES = ("auto", "qpoases", "hpipm", "qrqp")
 """Values of ``SolverSettings.qpsol``."""
 
 
+def _check_switches(settings) -> None:
+    """Raise ValueError naming the field if a switch (a field whose default is a bool) is not a bool.
+
+    The text 'false' (a hand-typed override, YAML's quoted "false") would read as true.
+    """
+    for f in dataclasses.fields(settings):
+        v = getattr(settings, f.name)
+        if isinstance(f.default, bool) and not isinstance(v, bool):
+            raise ValueError(f"{type(settings).__name__}.{f.name} must be true or false, got {v!r}")
+
+
 @dataclasses.dataclass(frozen=True)
 class SolverSettings:
     """NLP solver settings (choice justified with numbers in docs/controller.md 4.6)."""
@@ -161,6 +172,7 @@ class SolverSettings:
             )
         if self.name not in SOLVER_NAMES:
             raise ValueError(f"SolverSettings.name must be one of {SOLVER_NAMES}, got {self.name!r}")
+        _check_switches(self)
         if not (isinstance(self.max_iter, int) and self.max_iter >= 0):
             raise ValueError("SolverSettings.max_iter must be an int >= 0")
         for f in ("max_cpu_time_s", "step_budget_s", "tol", "accept_violation", "eig_floor"):
@@ -312,10 +324,7 @@ class StrategySettings:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"StrategySettings.{name} must be finite and > 0, got {v!r}")
-        for f in dataclasses.fields(self):
-            # a switch must be a bool: the text 'false' (a hand-typed override) would read as true
-            if isinstance(f.default, bool) and not isinstance(getattr(self, f.name), bool):
-                raise ValueError(f"StrategySettings.{f.name} must be true or false, got {getattr(self, f.name)!r}")
+        _check_switches(self)
         if self.pmv_pa_source not in ("paper", "measured"):
             raise ValueError(
                 f"StrategySettings.pmv_pa_source must be 'paper' or 'measured', got {self.pmv_pa_source!r}"
