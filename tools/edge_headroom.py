@@ -1,7 +1,7 @@
 """What the bound's crossings of the band's edge are worth: headroom_captured against the oracle that holds it.
 
     python tools/edge_headroom.py RESULTS.json CASE [CASE ...] [--strategy ceco-pmv] [--margin 0.01]
-                                    [--with-margin] [--terminal]
+                                    [--with-margin] [--terminal] [--pointwise]
 
 The benchmark's oracle (docs/oracle.md) bounds the integrated discomfort only: once its pull-down has come to the
 band's upper edge (+0.5) it may go back above it where that saves energy (10-75 s per drive on the standard
@@ -19,7 +19,10 @@ bound too; what is left between the strategy and that bound is not the margin). 
 and (with ``--with-margin``) the margin bound with the cabin's heat stores (air, interior, shell, glazing) ending no
 warmer than the strategy leaves them (``OracleSettings.terminal_max``, the strategy's seed mean + 0.02 K): the
 whole-drive optimum may spend the cold stored in them in its last minute, which pays only because the drive ends
-there (docs/oracle.md "The drive's end").
+there (docs/oracle.md "The drive's end"). ``--pointwise`` (with ``--with-margin``): also the margin bound with the
+strategy's band-phase mean PMV as a cap on every plant step from the time the strategy first came down to it, its
+latest seed (``OracleSettings.band_cap_pmv``): the margin held at every step, as a back-off holds it, not only on
+average.
 
 What it prints is a study, not a benchmark result: results.json is not changed. Last line per case: one JSON
 object.
@@ -81,22 +84,18 @@ TERMINAL_TOL_K = 0.02
 
 
 def strategy_runs(case, strategy: str) -> list:
-    """The strategy's runs on the case's seeds (``RunResult``): each seed's benchmark cell simulated as ``ceco
-    benchmark`` runs it (``runner.case_cells``, ``sweep.cells.settings_from_spec``)."""
-    from ceco_bringup.benchmark import cli, runner
+    """The strategy's runs on the case's seeds (``RunResult``): each seed's benchmark cell
+    (``variant_headroom.strategy_cells``) simulated as ``ceco benchmark`` runs it (``settings_from_spec``)."""
+    from variant_headroom import strategy_cells  # tools/
+
     from ceco_bringup.sweep import cells as sweep_cells
     from ceco_controller.closed_loop import simulate
     from ceco_v2x_preview.scenario import scenario_from_dict
 
-    specs = runner.controllers(runner.load_baselines(), (26.0,), (strategy,), (0.0,))
-    runs = []
-    for c in runner.case_cells(case, specs, cli.code_fingerprint()):
-        if c.axes['controller'] != strategy:
-            continue
-        spec = c.spec
-        runs.append(
-            simulate(scenario_from_dict(spec['scenario']), spec['strategy'], sweep_cells.settings_from_spec(spec))
-        )
+    runs = [
+        simulate(scenario_from_dict(c.spec['scenario']), c.spec['strategy'], sweep_cells.settings_from_spec(c.spec))
+        for c in strategy_cells(case, strategy)
+    ]
     if not runs:
         raise SystemExit(f'edge_headroom: {case.name}: no cell of {strategy!r}')
     return runs

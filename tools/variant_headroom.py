@@ -43,9 +43,17 @@ def _value(text: str):
         return text
 
 
+def strategy_cells(case, strategy: str) -> list:
+    """The benchmark's cells of ``strategy`` on ``case`` (one per seed), as ``ceco benchmark`` builds them."""
+    from ceco_bringup.benchmark import cli, runner
+
+    specs = runner.controllers(runner.load_baselines(), (26.0,), (strategy,), (0.0,))
+    return [c for c in runner.case_cells(case, specs, cli.code_fingerprint()) if c.axes['controller'] == strategy]
+
+
 def study(results: dict, case_name: str, strategy: str, overrides: dict, model_params: str | None = None) -> dict:
     """The variant's matched entry on one case of ``results`` (``runner.matched_of``'s, for ``strategy``)."""
-    from ceco_bringup.benchmark import cli, runner
+    from ceco_bringup.benchmark import runner
     from ceco_bringup.benchmark.cases import load_case
 
     case = load_case(case_name)  # a bundled name or a case YAML path (then its name)
@@ -55,10 +63,8 @@ def study(results: dict, case_name: str, strategy: str, overrides: dict, model_p
             f'variant_headroom: {case_name!r} is not in the results (cases: '
             f'{", ".join(c["case"] for c in results["cases"])})'
         )
-    specs = runner.controllers(runner.load_baselines(), (26.0,), (strategy,), (0.0,))
-    cells = [c for c in runner.case_cells(case, specs, cli.code_fingerprint()) if c.axes['controller'] == strategy]
     rows = []
-    for c in cells:
+    for c in strategy_cells(case, strategy):
         spec = json.loads(json.dumps(c.spec))
         spec['strategy_overrides'].update(overrides)
         if model_params is not None:
