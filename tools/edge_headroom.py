@@ -217,7 +217,8 @@ def study(
         out['margin'] = {'band_mean_pmv': cap, **scored(kept, 1)}
         if terminal:
             out['margin_terminal'] = {'band_mean_pmv': cap, **scored(kept_end, 1)}
-        t_cap = first_at_or_below_s(runs, cap, float(pairs[0][0].kpis['band_start_s'])) if pointwise else None
+        band_start = next((float(f.kpis['band_start_s']) for f, _ in pairs if f.success), None)
+        t_cap = first_at_or_below_s(runs, cap, band_start) if pointwise and band_start is not None else None
         if pointwise and t_cap is not None:
             # the margin at every step from the time the strategy first came to it (the latest seed), not on average
             pw = []
