@@ -503,3 +503,25 @@ def test_a_cell_with_its_own_model_file_equals_a_direct_run_with_it(tmp_path):
     assert row['status'] == 'ok', row
     assert row['E_tot_J'] == steeper['E_tot_J']
     assert sweep.run_cell({'id': 'y', 'axes': {}, 'spec': spec})['E_tot_J'] == default['E_tot_J']
+
+
+def test_the_study_tools_say_when_results_are_of_other_code(tmp_path, capsys):
+    """``tools/variant_headroom.py`` and ``tools/edge_headroom.py`` score a rerun strategy against RESULTS' families
+    and oracle: RESULTS written by this code reads without a note, by other code with one naming both fingerprints."""
+    import pathlib
+    import sys
+
+    from ceco_bringup.sweep.cells import code_fingerprint
+
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / 'tools'))
+    import variant_headroom
+
+    here = code_fingerprint()
+    same, other = tmp_path / 'same.json', tmp_path / 'other.json'
+    same.write_text(json.dumps({'code_fingerprint': here, 'cases': []}), encoding='utf-8')
+    other.write_text(json.dumps({'code_fingerprint': '0123456789abcdef', 'cases': [1]}), encoding='utf-8')
+    assert variant_headroom.load_results(str(same)) == {'code_fingerprint': here, 'cases': []}
+    assert capsys.readouterr().err == ''
+    assert variant_headroom.load_results(str(other))['cases'] == [1]
+    err = capsys.readouterr().err
+    assert '0123456789abcdef' in err and here in err

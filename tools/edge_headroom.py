@@ -10,7 +10,8 @@ solves, at two discomfort levels bracketing the strategy's seeds (the benchmark'
 least and greatest discomfort; without them, that range widened by ``--margin``), the oracle and the oracle that
 holds the edge (``oracle.solve_levels_holding_edge``: the same problem with the PMV kept inside the band from the
 time the free optimum came to the edge), replays both on the plant, and scores the strategy's runs stored in
-RESULTS.json (a ``ceco benchmark`` output of the same simulator code: its families' runs and the strategy's) with
+RESULTS.json (a ``ceco benchmark`` output of the same simulator code: its families' runs and the strategy's; a note on
+stderr when its code fingerprint is not this checkout's) with
 the benchmark's own matching (``front.headroom_seeds`` against the strongest family's envelope) against each
 two-level bound. The two-level free bound is printed beside the benchmark's four-level one as a check of the reading
 between levels. ``--with-margin``: also the oracle that holds the edge with its band-phase mean PMV at most the
@@ -36,6 +37,7 @@ import json
 import sys
 
 from benchmark_summary import fmt  # tools/: "n/a" for a missing number
+from variant_headroom import load_results  # tools/
 
 
 def _bound(pairs, which: int, fx: str, ex: str):
@@ -273,8 +275,7 @@ def main(argv=None) -> int:
         p.error(f'--margin: must be in [0, 0.5), got {args.margin}')
     if args.pointwise and not args.with_margin:
         p.error('--pointwise: needs --with-margin (it tightens the margin bound)')
-    with open(args.results, encoding='utf-8') as f:
-        results = json.load(f)
+    results = load_results(args.results)
     for name in args.cases:
         say = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
         r = study(results, name, args.strategy, args.margin, say, args.with_margin, args.terminal, args.pointwise)

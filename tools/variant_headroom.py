@@ -8,7 +8,8 @@ cells, ``runner.run_benchmark_cell``) with the StrategySettings overrides of ``-
 ``--set backoff_min_pmv=0.0``; none: the strategy as shipped) and, with ``--model-params``, the controller's
 identified model read from FILE instead of the package's (the cells' ``model_params_path``). It scores the runs
 with the benchmark's own matching (``runner.matched_of``) against the families' runs and the oracle front stored
-in RESULTS.json (a ``ceco benchmark --oracle`` output of the same simulator code for the baselines): the saving
+in RESULTS.json (a ``ceco benchmark --oracle`` output of the same simulator code for the baselines; a note on
+stderr when its code fingerprint is not this checkout's): the saving
 against the strongest family [%] (mean over the seeds [min..max]), the seeds it is dominated on, the oracle's saving at
 the same discomfort and headroom_captured (docs/benchmark.md), and the band phase's PMV mean and seconds above
 +0.5 of the variant, the strongest family and the oracle there (``by_phase``; RESULTS.json must hold the band-phase
@@ -41,6 +42,26 @@ def _value(text: str):
         return float(text)
     except ValueError:
         return text
+
+
+def load_results(path: str) -> dict:
+    """RESULTS.json as a dict; a note on stderr when it was written by other code than this checkout's.
+
+    The study reruns the strategy with this checkout's code and scores it against the families' runs and the oracle
+    stored in RESULTS; with other simulator code those are another plant's (the benchmark's own cells would rerun).
+    """
+    from ceco_bringup.sweep.cells import code_fingerprint
+
+    with open(path, encoding='utf-8') as f:
+        results = json.load(f)
+    stored, here = results.get('code_fingerprint'), code_fingerprint()
+    if stored != here:
+        print(
+            f'note: {path} was written by code {stored}, this checkout is {here}: its families and oracle are '
+            'scored as they are (rerun the benchmark for the same code)',
+            file=sys.stderr,
+        )
+    return results
 
 
 def strategy_cells(case, strategy: str) -> list:
@@ -130,8 +151,7 @@ def main(argv=None) -> int:
         if not sep or not name:
             p.error(f'--set {item!r}: expected NAME=VALUE')
         overrides[name] = _value(value)
-    with open(args.results, encoding='utf-8') as f:
-        results = json.load(f)
+    results = load_results(args.results)
     for name in args.cases:
         r = study(results, name, args.strategy, overrides, model_params)
         hs = [x for x in (r['headroom_captured_seeds'] or []) if x is not None]
