@@ -767,8 +767,15 @@ def test_node_controller_builds_steps_and_resets():
     again, _, _ = ctl.step(StepInputs(0, state(0.0, n=0)), cfg)  # from a fresh law: the first command again
     first = AccLaw().step(45.0, cfg.control_period_s)
     assert (again.mdot_bl_kgps, again.t_evap_sp_c) == (first.mdot_bl_kgps, first.t_evap_sp_c)
-    nmpc = NodeController(_ctrl_cfg(strategy='ceco'))
+    ctl.settle()  # the ACC law has nothing to do after its command
+    ncfg = _ctrl_cfg(strategy='ceco')
+    nmpc = NodeController(ncfg)
     assert nmpc.warm_up == 'NmpcController.warm_up' and 0 < nmpc.step_budget_s < cfg.control_period_s
+    # the NMPC's model predictions for its next step wait until the node has sent the command (settle)
+    _, diag, _ = nmpc.step(StepInputs(0, state(0.0, n=0)), ncfg)
+    assert diag.success and nmpc.core._pending is not None and nmpc.core._bias.last_pred is None
+    nmpc.settle()
+    assert nmpc.core._pending is None and nmpc.core._bias.last_pred is not None
 
 
 # --------------------------------------------------------------------------------- warm-up

@@ -203,6 +203,16 @@ class ControllerSession:
             self._notice('fallback', f'step {si.k}: fallback {diag.fallback}: {diag.message}')
         return [result]
 
+    def settle(self, k: int) -> None:
+        """After step ``k``'s command went out: the controller's work for its next step (``NodeController.settle``)."""
+        if self.ctl is None:
+            return
+        try:
+            self.ctl.settle()
+        except Exception as err:  # as a step's: logged and counted, the node goes on
+            self.record.error(k, err)
+            self._log('error', f'step {k}: after the command: {err!r}')
+
     # ----------------------------------------------------------------- health
     def health(self, lifecycle: str, wall_s: float, node_name: str = '') -> Health:
         """The /diagnostics status of the node (``node_name``: its fully qualified name, for the hint)."""

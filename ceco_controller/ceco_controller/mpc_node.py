@@ -133,6 +133,7 @@ class ControllerNode(ManagedNode):
             except Exception as err:  # one bad step must not take the node down
                 self.session.record.error(r.k, err)
                 self.get_logger().error(f'step {r.k}: publishing failed: {err!r}')
+            self.session.settle(r.k)  # the command is out: what only the next step needs
 
     # ------------------------------------------------------------------ glue
     def config_changed(self) -> None:

@@ -278,6 +278,8 @@ class NmpcController:
         self._good: GoodSolution | None = None
         self._prepared_t_s: float | None = None
         self._last_cmd: np.ndarray | None = None
+        self._pending: tuple | None = None
+        """The last step's (observation, previews, command) whose predictions :meth:`settle` has not made yet."""
         self._bias.reset()
         if self._pmv_fb is not None:
             self._pmv_fb.reset()
@@ -483,6 +485,7 @@ class NmpcController:
         between ``obs.t_s`` and that step's ``t_s``. Returns the result (None if ``obs`` is not
         usable).
         """
+        self.settle()
         chk = check_observation(obs, self.observation_limits)
         n1 = self.horizon_steps + 1
         if not chk.measurements_ok or not chk.command_ok or obs.n_preview != n1:
@@ -507,6 +510,7 @@ class NmpcController:
         With ``door_control`` 'co2_hold' the door command of :attr:`door` is added to whatever the step
         commands (a fallback's too).
         """
+        self.settle()
         if self.settings.door_control == "nlp":
             return self._compute_door_nlp(obs, t_start)
         cmd, diag = self._compute_ac(obs, t_start)
@@ -745,6 +749,25 @@ class NmpcController:
         )
         return lb - fb.bias, ub - fb.bias - m
 
+    def settle(self) -> None:
+        """The last step's work that only the next step needs: the model's one-period predictions of the cabin and
+        evaporator temperatures (offset-free bias) and of the PMV (ceco-pmv's PMV feedback), from the step's
+        observation, previews and command.
+
+        Not part of the command: :meth:`compute` returns without it, a node calls this once the command is out
+        (the control step, message in to command out, is shorter by one or two model steps), and :meth:`compute`
+        and :meth:`prepare` do it first if it is still pending, so the numbers are the same whoever calls it.
+        """
+        pending, self._pending = self._pending, None
+        if pending is None:
+            return
+        obs, ex, cmd = pending
+        self._bias.predict(
+            obs.t_cab_c, obs.t_evap_c, cmd[0], cmd[1], obs.t_int_c, obs.t_shell_c, ex["t_amb"][0], ex["speed"][0]
+        )
+        if self._pmv_fb is not None:
+            self._pmv_fb.remember(self._predict_pmv(obs, ex, cmd))
+
     def _predict_pmv(self, obs: Observation, ex: dict, cmd: np.ndarray) -> float:
         """y0(k+1|k): the model's PMV one control step ahead with ``cmd`` held, without the PMV bias [-]."""
         mp, b, n_sub = self.model_params, self._bias.values, self.n_sub
@@ -778,12 +801,9 @@ class NmpcController:
 
     def _finish(self, diag: Diagnostics, cmd: np.ndarray, obs: Observation | None, ex: dict | None):
         if obs is not None and ex is not None:
-            self._bias.predict(
-                obs.t_cab_c, obs.t_evap_c, cmd[0], cmd[1], obs.t_int_c, obs.t_shell_c, ex["t_amb"][0], ex["speed"][0]
-            )
-            if self._pmv_fb is not None:
-                self._pmv_fb.remember(self._predict_pmv(obs, ex, cmd))
+            self._pending = (obs, ex, cmd)  # the predictions for the next step: :meth:`settle`
         else:
+            self._pending = None
             self._bias.forget_prediction()
             if self._pmv_fb is not None:
                 self._pmv_fb.forget()

@@ -82,6 +82,13 @@ class NodeController:
         solver = getattr(getattr(self.core, 'settings', None), 'solver', None)
         return getattr(solver, 'step_budget_s', None)
 
+    def settle(self) -> None:
+        """The core's work for its next step that the command did not need (``NmpcController.settle``); none for a core
+        without it (the ACC law)."""
+        settle = getattr(self.core, 'settle', None)
+        if callable(settle):
+            settle()
+
     def step(self, si: StepInputs, cfg: ControllerNodeConfig) -> tuple[AcInput, Diagnostics, str]:
         """``(command, diagnostics, note)`` of control step ``si.k``; the NMPC's deadline counts from this call.
 
