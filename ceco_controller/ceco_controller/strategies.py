@@ -278,7 +278,7 @@ class StrategySettings:
     """Residuals needed before the quantile replaces ``backoff_init_pmv`` [-]."""
     backoff_init_pmv: float = 0.1
     """Adaptive back-off before ``backoff_min_samples`` residuals exist [PMV] (the fixed margin of ceco)."""
-    backoff_min_pmv: float = 0.04
+    backoff_min_pmv: float = 0.02
     """Smallest adaptive back-off [PMV]."""
     backoff_max_pmv: float = 0.3
     """Largest adaptive back-off [PMV]."""
