@@ -750,13 +750,13 @@ class NmpcController:
         return lb - fb.bias, ub - fb.bias - m
 
     def settle(self) -> None:
-        """The last step's work that only the next step needs: the model's one-period predictions of the cabin and
-        evaporator temperatures (offset-free bias) and of the PMV (ceco-pmv's PMV feedback), from the step's
-        observation, previews and command.
+        """The last step's work that only the next step needs, done after its command.
 
-        Not part of the command: :meth:`compute` returns without it, a node calls this once the command is out
-        (the control step, message in to command out, is shorter by one or two model steps), and :meth:`compute`
-        and :meth:`prepare` do it first if it is still pending, so the numbers are the same whoever calls it.
+        The model's one-period predictions of the cabin and evaporator temperatures (offset-free bias) and of the
+        PMV (ceco-pmv's PMV feedback), from the step's observation, previews and command. :meth:`compute` returns
+        without them and a node calls this once the command is out (the control step, message in to command out,
+        is shorter by one or two model steps); :meth:`compute` and :meth:`prepare` do it first if it is still
+        pending, so the numbers are the same whoever calls it.
         """
         pending, self._pending = self._pending, None
         if pending is None:

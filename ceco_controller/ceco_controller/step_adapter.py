@@ -83,8 +83,10 @@ class NodeController:
         return getattr(solver, 'step_budget_s', None)
 
     def settle(self) -> None:
-        """The core's work for its next step that the command did not need (``NmpcController.settle``); none for a core
-        without it (the ACC law)."""
+        """The core's work for its next step that its command did not need (``NmpcController.settle``).
+
+        A core without such work (the ACC law) has nothing to do.
+        """
         settle = getattr(self.core, 'settle', None)
         if callable(settle):
             settle()
