@@ -292,7 +292,7 @@ class StrategySettings:
     preview_rule: str = "raw"
     """How the previews enter the prediction: 'raw' (as received) or 'shrink' (each previewed change
     from the measured value shrunk by its measured forecast-error variance; docs/controller.md 4.7)."""
-    preview_shrink_c: float = 2.0
+    preview_shrink_c: float = 3.0
     """'shrink': threshold of the shrinkage in forecast-error standard deviations [-]."""
     preview_skill_window_steps: float = 60.0
     """'shrink': memory of the forecast-error variance estimates (exponential forgetting time) [control steps]."""
