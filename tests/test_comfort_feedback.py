@@ -202,5 +202,5 @@ def test_settle_after_the_command_changes_no_number():
         assert (eager._bias.last_pred, eager.pmv_feedback.bias) == after
         assert (c1.mdot_bl_kgps, c1.t_evap_sp_c) == (c2.mdot_bl_kgps, c2.t_evap_sp_c)
         assert d1.success and d2.success and d1.message == d2.message  # the PMV, bias and back-off in the note
-    assert k > 0 and lazy.pmv_feedback.bias == eager.pmv_feedback.bias != 0.0
+    assert lazy.pmv_feedback.bias == eager.pmv_feedback.bias != 0.0
     assert np.array_equal(lazy._bias.bias, eager._bias.bias)

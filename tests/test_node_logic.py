@@ -778,6 +778,29 @@ def test_node_controller_builds_steps_and_resets():
     assert nmpc.core._pending is None and nmpc.core._bias.last_pred is not None
 
 
+def test_session_settle_failure_is_logged_and_counted_not_raised():
+    """The work after the command runs outside the step's own guard: a failure there is logged and counted as a
+    step error (as a failing step is), the node's callback does not raise, and the next settle has nothing left."""
+    from ceco_controller.controller_io import StepInputs
+    from ceco_controller.controller_session import ControllerSession
+
+    logs = []
+    cfg = _ctrl_cfg(strategy='ceco')
+    session = ControllerSession(cfg, lambda level, text: logs.append((level, text)), lambda *_: None)
+    session.settle(0)  # not configured: nothing to do
+    session.configure(cfg)
+    _, diag, _ = session.ctl.step(StepInputs(0, state(0.0, n=0)), cfg)
+    assert diag.success and session.ctl.core._pending is not None
+    obs, ex, cmd = session.ctl.core._pending
+    session.ctl.core._pending = (obs, {}, cmd)  # previews without t_amb: the prediction cannot be made
+    session.settle(7)
+    assert session.record.counts['step_errors'] == 1 and session.record.last['k'] == 7
+    assert logs and logs[-1][0] == 'error' and logs[-1][1].startswith('step 7: after the command: KeyError')
+    assert session.ctl.core._pending is None
+    session.settle(8)
+    assert session.record.counts['step_errors'] == 1
+
+
 # --------------------------------------------------------------------------------- warm-up
 def test_warm_up_leaves_no_state_behind():
     """configure's throw-away first solve: the next steps equal a fresh controller's, bit for bit."""
