@@ -170,6 +170,49 @@ def test_door_logic_economiser_lets_outside_air_in_while_the_cabin_is_hotter_and
             RecircSettings(door_economiser_k=bad).validate()
 
 
+def test_moist_air_enthalpy_and_the_economiser_judge_humid_outside_air_by_its_enthalpy():
+    """ASHRAE Fundamentals 2017 ch. 1 eq. (32) by hand: 32 degC, 65 % RH (p_ws 4759.0 Pa, W = 0.621945 x 3093.3 /
+    (101325 - 3093.3) = 0.019585 kg/kg): h = 1006 x 32 + 0.019585 x (2.501e6 + 1860 x 32) = 82.36 kJ/kg; the
+    cabin at 34.65 degC, 35 % RH: 65.88 kJ/kg. So that humid outside air, 2.65 K cooler than the soaked cabin, is
+    no economiser (it carries 16 kJ/kg more into a wet coil); dry outside air 2.65 K cooler is, as is the
+    humid air when a humidity is not known (NaN) or not plausible (the dry-bulb rule alone); the dry-bulb condition
+    holds in every case (warmer outside air, however dry, is never the economiser), and unknown temperatures open
+    nothing. Both doors use this rule: the production logic and the CO2-holding door."""
+    from ceco_core import psychro
+    from ceco_core.air_quality import economiser_open
+    from ceco_core.co2_door import Co2DoorLaw
+
+    w = psychro.humidity_ratio(32.0, 0.65)
+    assert w == pytest.approx(0.019585, rel=2e-4)
+    assert psychro.moist_air_enthalpy_jpkg(32.0, w) == pytest.approx(82.36e3, rel=2e-4)
+    h_cab = psychro.moist_air_enthalpy_jpkg(34.65, psychro.humidity_ratio(34.65, 0.35))
+    assert h_cab == pytest.approx(65.88e3, rel=2e-4)
+    assert psychro.moist_air_enthalpy_jpkg(0.0, 0.0) == 0.0
+    assert not economiser_open(34.65, 32.0, 0.35, 0.65, 1.0)
+    assert economiser_open(34.65, 32.0, 0.35, 0.30, 1.0)
+    for unknown in (math.nan, 1.5, -0.1, None):
+        assert economiser_open(34.65, 32.0, 0.35, unknown, 1.0)
+        assert economiser_open(34.65, 32.0, unknown, 0.65, 1.0)
+    assert not economiser_open(30.0, 32.0, 0.35, 0.05, 1.0)  # warmer outside: never, however dry
+    assert not economiser_open(34.65, 33.7, 0.35, 0.05, 1.0)  # less than 1 K cooler: no
+    assert not economiser_open(math.nan, 32.0, 0.35, 0.3, 1.0) and not economiser_open(34.65, None, 0.35, 0.3, 1.0)
+    # the enthalpy margin: c_p,a x 1 K; at 36 degC cabin and 35 degC outside, both at 40 % RH, the outside air is
+    # 1 K cooler and 3.1 kJ/kg lower in enthalpy (> 1.006): open; at 60 % outside it is 15.6 kJ/kg higher: closed
+    assert economiser_open(36.0, 35.0, 0.40, 0.40, 1.0) and not economiser_open(36.0, 35.0, 0.40, 0.60, 1.0)
+    law = RecircLaw(RecircSettings(door_mode="auto"))
+    kw = {**_KW, "co2_sensor_fitted": True, "co2_sensor_ppm": 600.0, "demand": 1.0, "pulldown": True}
+    soaked = {**kw, "t_cab_c": 34.65, "t_amb_c": 32.0, "rh_cab": 0.35}
+    assert law.step(5.0, **{**soaked, "rh_amb": 0.65}).mode == "recirc"
+    assert law.step(5.0, **{**soaked, "rh_amb": 0.30}).mode == "economiser"
+    assert law.step(5.0, **{**soaked, "rh_amb": math.nan}).mode == "economiser"
+    door = Co2DoorLaw()
+    hold = {"dt_s": 5.0, "co2_limit_ppm": 1500.0, "mdot_bl_kgps": 0.15, "speed_mps": 0.0, "n_occupants": 4}
+    hold.update(t_cab_c=34.65, t_amb_c=32.0, rh_cab=0.35)
+    assert door.hold(500.0, **hold, rh_amb=0.65).mode == "recirc"
+    assert door.hold(500.0, **hold, rh_amb=0.30).mode == "economiser"
+    assert door.hold(500.0, **{**hold, "rh_cab": math.nan}, rh_amb=0.65).mode == "economiser"
+
+
 def test_door_logic_fog_override_has_priority_and_hysteresis():
     law = RecircLaw(RecircSettings(door_mode="auto"))
     kw = {**_KW, "co2_sensor_fitted": True, "co2_sensor_ppm": 600.0, "demand": 1.0, "pulldown": True}
@@ -227,14 +270,19 @@ def udds4_runs():
 def test_closed_loop_co2_limit_binds_and_the_production_logic_purges(udds4_runs):
     """Four occupants: held in full recirculation the cabin passes the 1500 ppm limit within minutes (the limit
     binds); the production logic lets outside air in while the soaked cabin is more than 1 K hotter than the
-    ambient (the economiser), recirculates during the rest of the pull-down, purges (share 0.7) when its sensor
-    reads 1050 ppm and keeps the true cabin CO2 under 1500 ppm, at a higher energy."""
+    ambient and lower in enthalpy (the economiser), recirculates during the rest of the pull-down, purges (share
+    0.7) when its sensor reads 1050 ppm and keeps the true cabin CO2 under 1500 ppm, at a higher energy."""
     fixed, auto = udds4_runs["fixed1"], udds4_runs["auto"]
     assert fixed["co2_cab_ppm"].max() > 2500.0 and np.all(fixed["recirc_share_cmd"] == 1.0)
     assert auto["co2_cab_ppm"].max() < 1500.0
     cmd = auto["recirc_share_cmd"]
-    econ = auto["t_amb_c"] <= auto["t_cab_c"] - 1.0
-    end = int(np.argmax(~econ))  # the first second with the cabin within 1 K of the ambient
+    from ceco_core.air_quality import economiser_open
+
+    econ = np.array(
+        [economiser_open(*x, 1.0) for x in zip(auto["t_cab_c"], auto["t_amb_c"], auto["rh_cab"], auto["rh"])]
+    )
+    end = int(np.argmax(~econ))  # the first second the outside air is no longer the cheaper (dry bulb and enthalpy)
+    assert end > 0 and not econ[end:].any()
     assert auto["t_cab_c"][0] > auto["t_amb_c"][0] + 5.0 and end >= 10  # a soaked start: the rule acts
     assert np.all(cmd[:end] == 0.0)  # outside air while the cabin is the hotter inlet
     assert np.all(cmd[end + 5 : end + 60] == 1.0)  # then recirculation in the pull-down (next control step on)

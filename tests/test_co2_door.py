@@ -197,6 +197,8 @@ def test_a_baseline_with_the_co2_holding_door_holds_the_co2_like_the_strategy_an
             t_amb_c=float(ts["t_amb_c"][k]),
             fog_margin_k=float(ts["fog_margin_k"][k]),
             fog_margin_min_k=3.0,
+            rh_cab=float(ts["rh_cab"][k]),
+            rh_amb=float(ts["rh"][k]),
         )
         diffs.append(abs(c.recirc_share - float(cmd[k])))
     assert len(diffs) == 179 and max(diffs) < 1e-9  # the same door, command for command

@@ -839,6 +839,34 @@ def test_warm_up_leaves_no_state_behind():
     assert np.isfinite(a.mdot_bl_kgps)
 
 
+def test_the_observation_carries_the_ambient_humidity_from_the_state_as_from_the_simulator():
+    """The doors' enthalpy economiser reads the ambient RH: the simulator's environment (``Environment.rh``) and
+    mpc_node's CabinState (its ``rh`` field, converted by ``ceco_ros.conversions``) give the same ``rh_amb``; an
+    environment without it gives NaN (not known: the economiser judges by dry bulb)."""
+    from types import SimpleNamespace
+
+    import ceco_ros.conversions as conversions
+    from ceco_controller.observation import observation
+    from ceco_core.contracts import AcInput
+    from ceco_v2x_preview.preview import PreviewQuality, make_previews
+    from ceco_v2x_preview.scenario import load_scenario
+
+    sc = load_scenario('udds_humid')
+    env = sc.env_at(10.0)
+    pv = make_previews(sc, 10.0, 5.0, 7, PreviewQuality())
+    from ceco_core.contracts import MEASUREMENTS
+
+    meas = dict.fromkeys(MEASUREMENTS, 30.0) | {'rh_cab': 0.35, 'co2_cab_ppm': 600.0, 'co2_sensor_ppm': 610.0}
+    meas['recirc_share'] = 0.8
+    sim = observation(2, 10.0, meas, env, AcInput(0.12, 6.0), pv, sc)
+    assert sim.rh_amb == env.rh == 0.65
+    msg = conversions.state_msg(2, 10.0, conversions.stamp_from_s(10.0), meas, env, AcInput(0.12, 6.0), False)
+    node = observation(2, 10.0, conversions.state_measurements(msg), msg, AcInput(0.12, 6.0), pv, sc)
+    assert node.rh_amb == sim.rh_amb
+    bare = SimpleNamespace(t_amb_c=env.t_amb_c, solar_wm2=env.solar_wm2, speed_mps=env.speed_mps)
+    assert math.isnan(observation(2, 10.0, meas, bare, AcInput(0.12, 6.0), pv, sc).rh_amb)
+
+
 @pytest.mark.parametrize(
     'path, table',
     [

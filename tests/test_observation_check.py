@@ -71,3 +71,9 @@ def test_optional_measurements_are_used_only_when_plausible():
     assert math.isnan(c.t_glass_c) and math.isnan(c.rh_cab) and not c.info_problems
     c = check_observation(_obs(t_glass_c=1e6, rh_cab=40.0))  # e.g. RH in percent: treated as not measured
     assert math.isnan(c.t_glass_c) and math.isnan(c.rh_cab) and len(c.info_problems) == 2 and c.measurements_ok
+    # the ambient RH (the doors' enthalpy economiser) likewise
+    c = check_observation(_obs(rh_amb=0.65))
+    assert c.rh_amb == 0.65 and not c.info_problems
+    c = check_observation(_obs(rh_amb=65.0))
+    assert math.isnan(c.rh_amb) and c.measurements_ok
+    assert c.info_problems == ["rh_amb=65.0 outside (0.0, 1.0): treated as not measured"]

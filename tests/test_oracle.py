@@ -543,6 +543,14 @@ def test_the_door_oracle_holds_the_co2_limit_and_beats_the_production_door_logic
     assert k['air_quality_met'] == 1.0 and CO2_LIMIT_PPM - 60.0 <= k['co2_max_ppm'] <= CO2_LIMIT_PPM
     assert k['discomfort_pmvh'] <= ref['discomfort_pmvh'] + 5e-4
     assert k['energy_kwh'] < ref['energy_kwh']
+    # with the CO2-holding door's margin (tools/edge_headroom.py --co2-margin-ppm 150) it stays that far under the
+    # limit, as the controllers that read the CO2 sensor do, and pays for the fresh air it lets in
+    st = orc.OracleSettings(door_logic=door, co2_margin_ppm=150.0)
+    (m,) = orc.solve_levels(sc, [ref['discomfort_pmvh']], st, start_commands=r.commands)
+    assert m.success, m.status
+    assert CO2_LIMIT_PPM - 150.0 - 60.0 <= m.kpis['co2_max_ppm'] <= CO2_LIMIT_PPM - 140.0
+    assert m.kpis['discomfort_pmvh'] <= ref['discomfort_pmvh'] + 5e-4
+    assert k['energy_kwh'] < m.kpis['energy_kwh']
     # the held-door oracle of the cases without a door logic cannot recirculate past the plant's default share
     # (built, not solved: in the virtual machine, so that no object is compiled for them)
     held = orc.OracleProblem(sc, orc.OracleSettings(compiled='no'))

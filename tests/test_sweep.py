@@ -525,3 +525,19 @@ def test_the_study_tools_say_when_results_are_of_other_code(tmp_path, capsys):
     assert variant_headroom.load_results(str(other))['cases'] == [1]
     err = capsys.readouterr().err
     assert '0123456789abcdef' in err and here in err
+
+
+def test_edge_headroom_rejects_a_co2_margin_out_of_range(capsys):
+    """``tools/edge_headroom.py --co2-margin-ppm``: a margin under the CO2 limit [ppm] in [0, 1000); anything else is
+    refused by name before any results file is read."""
+    import pathlib
+    import sys
+
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / 'tools'))
+    import edge_headroom
+
+    for bad in ('-5', '1000', 'nan'):
+        with pytest.raises(SystemExit) as e:
+            edge_headroom.main(['no-such-results.json', 'hot-commute-4p', '--co2-margin-ppm', bad])
+        assert e.value.code == 2
+        assert '--co2-margin-ppm: must be in [0, 1000)' in capsys.readouterr().err

@@ -1,7 +1,7 @@
 """What the bound's crossings of the band's edge are worth: headroom_captured against the oracle that holds it.
 
     python tools/edge_headroom.py RESULTS.json CASE [CASE ...] [--strategy ceco-pmv] [--margin 0.01]
-                                    [--with-margin] [--terminal] [--pointwise]
+                                    [--with-margin] [--terminal] [--pointwise] [--co2-margin-ppm PPM]
 
 The benchmark's oracle (docs/oracle.md) bounds the integrated discomfort only: once its pull-down has come to the
 band's upper edge (+0.5) it may go back above it where that saves energy (10-75 s per drive on the standard
@@ -23,7 +23,10 @@ whole-drive optimum may spend the cold stored in them in its last minute, which 
 there (docs/oracle.md "The drive's end"). ``--pointwise`` (with ``--with-margin``): also the margin bound with the
 strategy's band-phase mean PMV as a cap on every plant step from the time the strategy first came down to it, its
 latest seed (``OracleSettings.band_cap_pmv``): the margin held at every step, as a back-off holds it, not only on
-average.
+average. ``--co2-margin-ppm``: every bound keeps this margin under the case's CO2 limit instead of the oracle's 10 ppm
+(``OracleSettings.co2_margin_ppm``; 150 is the margin of the CO2-holding door of ``ceco-pmv-aq`` and the ``*-doorco2``
+families, ``Co2DoorSettings.margin_ppm``: the CO2 sensor's accuracy, which the whole-drive optimum, knowing the true
+CO2, does not need).
 
 What it prints is a study, not a benchmark result: results.json is not changed. Last line per case: one JSON
 object.
@@ -130,6 +133,7 @@ def study(
     with_margin: bool = False,
     terminal: bool = False,
     pointwise: bool = False,
+    co2_margin_ppm: float | None = None,
 ) -> dict:
     """The strategy's headroom_captured on one case against the free and the edge-holding oracle (and, with
     ``terminal``, those that leave the cabin's heat stores no warmer than the strategy leaves them)."""
@@ -151,8 +155,12 @@ def study(
     pts = [(r['seed'], r['kpis'][fx], r['kpis'][ex]) for r in rows]
     levels = bracket(entry['oracle'].get('levels') or [], [d for _, d, _ in pts], margin)
     settings = orc.OracleSettings(control_period_s=case.control_period_s, door_logic=tuple(case.baseline_door))
+    if co2_margin_ppm is not None:
+        settings = dataclasses.replace(settings, co2_margin_ppm=co2_margin_ppm)
+        settings.validate()
     pairs = orc.solve_levels_holding_edge(case.load_scenario(), levels, settings, progress)
     out = {'case': case_name, 'strategy': strategy, 'levels': levels, 'n_seeds': len(rows)}
+    out['co2_margin_ppm'] = settings.co2_margin_ppm
     out['edge_s'] = [orc.edge_arrival_s(f) if f.success else None for f, _ in pairs]
     k = [r['kpis'] for r in rows]
     out['strategy_band'] = {
@@ -270,7 +278,16 @@ def main(argv=None) -> int:
         action='store_true',
         help='also the bounds whose cabin heat stores end no warmer than the strategy\'s (seed mean + 0.02 K)',
     )
+    p.add_argument(
+        '--co2-margin-ppm',
+        type=float,
+        default=None,
+        help='every bound keeps this margin under the CO2 limit [ppm] (default: the oracle\'s 10; 150: the '
+        'CO2-holding door\'s)',
+    )
     args = p.parse_args(argv)
+    if args.co2_margin_ppm is not None and not (0.0 <= args.co2_margin_ppm < 1000.0):
+        p.error(f'--co2-margin-ppm: must be in [0, 1000), got {args.co2_margin_ppm}')
     if not (0.0 <= args.margin < 0.5):
         p.error(f'--margin: must be in [0, 0.5), got {args.margin}')
     if args.pointwise and not args.with_margin:
@@ -278,7 +295,17 @@ def main(argv=None) -> int:
     results = load_results(args.results)
     for name in args.cases:
         say = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
-        r = study(results, name, args.strategy, args.margin, say, args.with_margin, args.terminal, args.pointwise)
+        r = study(
+            results,
+            name,
+            args.strategy,
+            args.margin,
+            say,
+            args.with_margin,
+            args.terminal,
+            args.pointwise,
+            args.co2_margin_ppm,
+        )
         fr_, he = r['free'], r['held']
 
         def band(pts):
@@ -295,6 +322,7 @@ def main(argv=None) -> int:
             f'oracle {fmt(fr_["bound_saving_pct"], "+.2f")} % (captured {fmt(fr_["headroom_captured"], ".2f")}, the '
             f'benchmark\'s 4 levels {fmt(r["benchmark"]["headroom_captured"], ".2f")}), holding the edge '
             f'{fmt(he["bound_saving_pct"], "+.2f")} % (captured {fmt(he["headroom_captured"], ".2f")})'
+            + ('' if args.co2_margin_ppm is None else f'; every bound {r["co2_margin_ppm"]:g} ppm under the CO2 limit')
         )
         print(f'  free: {band(fr_["points"])}\n  held: {band(he["points"])}')
         if 'margin' in r:

@@ -147,6 +147,8 @@ class BaselineController:
                 co2_limit_ppm=float(obs.co2_limit_ppm),
                 fog_margin_k=fog_margin_of(t_cab, obs.rh_cab, obs.t_glass_c),
                 fog_margin_min_k=float(obs.fog_margin_min_k),
+                rh_cab=float(obs.rh_cab),
+                rh_amb=float(obs.rh_amb),
             )
         try:  # the cabin temperature as the law reads it (NaN when implausible: no economiser on a bad sensor)
             c = self.co2_door.step_observation(

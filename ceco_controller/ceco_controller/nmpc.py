@@ -573,6 +573,8 @@ class NmpcController:
                 n_occupants=n_occ,
                 t_cab_c=float(obs.t_cab_c),
                 t_amb_c=float(obs.t_amb_c),
+                rh_cab=float(obs.rh_cab),
+                rh_amb=float(obs.rh_amb),
             )
             r, mode = hold.recirc_share, f"rule_{hold.mode}"
         self._door_last = r

@@ -12,6 +12,7 @@ plain arithmetic or :mod:`ceco_core.psychro`), the estimator, the baselines and 
   ambient fraction and leave at the cabin's, occupants add their generation;
 * the leakage (infiltration/exfiltration) that grows with vehicle speed (:func:`leakage_kgps`);
 * the windshield fog margin (:func:`fog_margin_k`): inner glazing temperature minus the cabin dew point;
+* the doors' economiser (:func:`economiser_open`): outside air while it is the cheaper air to cool;
 * the limits a run is scored against and a controller constrains (:class:`AirQualityLimits`) and the
   named constraint signals (:data:`AQ_SIGNALS`, :func:`aq_violation`).
 
@@ -47,6 +48,9 @@ __all__ = [
     "WaterFlows",
     "cabin_water_flows_kgps",
     "fog_margin_k",
+    "fog_margin_of",
+    "fog_override",
+    "economiser_open",
     "AQ_SIGNALS",
     "AqSignals",
     "AirQualityLimits",
@@ -225,6 +229,35 @@ def fog_override(active: bool, fog_margin_k: float, fog_margin_min_k: float, ent
         if fog_margin_k > fog_margin_min_k + exit_k:
             return False
     return bool(active)
+
+
+def economiser_open(t_cab_c, t_amb_c, rh_cab, rh_amb, economiser_k: float) -> bool:
+    """Whether outside air is the cheaper evaporator inlet now: the economiser of both doors.
+
+    Outside air when it is cooler than the cabin air by ``economiser_k`` [K] (dry bulb, degC) and, where both
+    humidities are known (RH in [0, 1]), also lower in enthalpy by ``c_p,a economiser_k``
+    (:func:`ceco_core.psychro.moist_air_enthalpy_jpkg`): a differential dry-bulb and enthalpy economiser
+    (ANSI/ASHRAE/IES Standard 90.1-2019, section 6.5.1.1.3 and table 6.5.1.1.3, which bars the dry-bulb-only
+    high limit in humid climates). On a humid day the outside air can be cooler than a soaked cabin and still carry
+    more heat into a wet coil: at 32 degC and 65 % RH, 82 kJ/kg against 66 kJ/kg for the cabin at 34.7 degC and
+    35 % RH. Unknown temperatures: no economiser; unknown or implausible humidities: the dry-bulb rule alone
+    (what the car can still judge). Pure; floats in, bool out.
+    """
+    try:
+        tc, ta = float(t_cab_c), float(t_amb_c)
+    except (TypeError, ValueError, OverflowError):
+        return False
+    if not (math.isfinite(tc) and math.isfinite(ta) and ta <= tc - economiser_k):
+        return False
+    try:
+        rc, ra = float(rh_cab), float(rh_amb)
+    except (TypeError, ValueError, OverflowError):
+        return True
+    if not (0.0 <= rc <= 1.0 and 0.0 <= ra <= 1.0):  # False for NaN too
+        return True
+    h_cab = psychro.moist_air_enthalpy_jpkg(tc, psychro.humidity_ratio(tc, rc))
+    h_amb = psychro.moist_air_enthalpy_jpkg(ta, psychro.humidity_ratio(ta, ra))
+    return bool(h_amb <= h_cab - psychro.CP_DRY_AIR_JPKGK * economiser_k)
 
 
 class AqSignals(NamedTuple):

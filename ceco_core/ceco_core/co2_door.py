@@ -35,6 +35,7 @@ from ceco_core.air_quality import (
     check_settings,
     co2_generation_kgps,
     co2_steady_ppm,
+    economiser_open,
     fog_margin_of,
     fog_override,
     leakage_kgps,
@@ -57,7 +58,8 @@ class Co2DoorSettings:
     fog_exit_k: float = 1.5
     """... until it is back above its bound plus this [K]."""
     economiser_k: float = 1.0
-    """Fresh air when the ambient is cooler than the cabin by at least this [K]."""
+    """Fresh air when the ambient is cooler than the cabin by at least this [K] (and lower in enthalpy by c_p,a times
+    it where both humidities are known: :func:`ceco_core.air_quality.economiser_open`)."""
 
     def validate(self) -> Co2DoorSettings:
         """Raise ValueError naming the field if a setting is not usable; return self."""
@@ -194,10 +196,16 @@ class Co2DoorLaw:
         n_occupants: int,
         t_cab_c: float,
         t_amb_c: float,
+        rh_cab: float = math.nan,
+        rh_amb: float = math.nan,
     ) -> Co2DoorCommand:
-        """The economiser and the CO2-holding rule on the estimate ``co2_ppm`` [ppm] (no safe mode active)."""
+        """The economiser and the CO2-holding rule on the estimate ``co2_ppm`` [ppm] (no safe mode active).
+
+        ``rh_cab``, ``rh_amb`` [0..1] the cabin's and the ambient's relative humidity (NaN: not measured, the
+        economiser judges by dry bulb alone).
+        """
         s, m, c = self.settings, self.model, co2_ppm
-        if math.isfinite(t_amb_c) and math.isfinite(t_cab_c) and t_amb_c <= t_cab_c - s.economiser_k:
+        if economiser_open(t_cab_c, t_amb_c, rh_cab, rh_amb, s.economiser_k):
             return Co2DoorCommand(0.0, "economiser", c)
         leak = leakage_kgps(m.leak_0_kgps, m.leak_per_mps_kgps, max(float(speed_mps), 0.0))
         gen = int(n_occupants) * co2_generation_kgps(m.met) / KGKG_PER_PPM
@@ -223,6 +231,8 @@ class Co2DoorLaw:
         t_amb_c: float,
         fog_margin_k: float,
         fog_margin_min_k: float,
+        rh_cab: float = math.nan,
+        rh_amb: float = math.nan,
     ) -> Co2DoorCommand:
         """The door command over the next ``dt_s`` [s]: :meth:`observe`, then its safe mode or :meth:`hold`.
 
@@ -252,6 +262,8 @@ class Co2DoorLaw:
             n_occupants=n_occupants,
             t_cab_c=t_cab_c,
             t_amb_c=t_amb_c,
+            rh_cab=rh_cab,
+            rh_amb=rh_amb,
         )
 
     def step_observation(self, obs, *, dt_s: float, mdot_bl_kgps: float, co2_sensor_fitted: bool) -> Co2DoorCommand:
@@ -276,4 +288,6 @@ class Co2DoorLaw:
             t_amb_c=float(obs.t_amb_c),
             fog_margin_k=fog_margin_of(obs.t_cab_c, obs.rh_cab, obs.t_glass_c),
             fog_margin_min_k=float(obs.fog_margin_min_k),
+            rh_cab=float(obs.rh_cab),
+            rh_amb=float(obs.rh_amb),
         )

@@ -312,6 +312,9 @@ class Observation:
     """Measured glazing temperature [degC] (for the mean radiant temperature; NaN if not measured)."""
     rh_cab: float = math.nan
     """Measured cabin relative humidity [0..1] (for the PMV's vapour pressure; NaN if not measured)."""
+    rh_amb: float = math.nan
+    """Measured ambient relative humidity [0..1] (CabinState ``rh``: the car's sensor or the weather service's current
+    value; for the doors' enthalpy economiser, ``ceco_core.air_quality.economiser_open``; NaN if not known)."""
     co2_cab_ppm: float = math.nan
     """Cabin CO2 [ppm]: the plant's (measurements 'full') or the estimate from the sensor and the CO2 balance
     ('vehicle'); NaN if unknown."""

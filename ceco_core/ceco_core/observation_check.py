@@ -10,9 +10,9 @@ problem by what a controller can still do:
   or not finite): the controller substitutes the command it applied itself, if any;
 * ``preview`` entries marked valid but not plausible: treated as not valid (the controller holds
   the last trusted value, docs/controller.md 4.5);
-* optional measurements (``t_glass_c``, ``rh_cab``; NaN when the car has no such sensor): an
+* optional measurements (``t_glass_c``, ``rh_cab``, ``rh_amb``; NaN when the car has no such sensor): an
   implausible value is reported and treated as not measured (:attr:`ObservationCheck.t_glass_c`,
-  :attr:`ObservationCheck.rh_cab` are the values to use);
+  :attr:`ObservationCheck.rh_cab`, :attr:`ObservationCheck.rh_amb` are the values to use);
 * ``info`` (``k``, ``t_s``, ``met``, ``clo``: not used by any computation of the NMPC): reported.
 
 Pure; no ROS, no solver.
@@ -87,6 +87,8 @@ class ObservationCheck:
     """The glazing temperature to use [degC]: the measurement if plausible, else NaN (not measured)."""
     rh_cab: float = math.nan
     """The cabin RH to use [-]: the measurement if plausible, else NaN (not measured)."""
+    rh_amb: float = math.nan
+    """The ambient RH to use [-]: the measurement if plausible, else NaN (not measured)."""
 
     @property
     def measurements_ok(self) -> bool:
@@ -145,7 +147,7 @@ def check_observation(obs: Observation, limits: ObservationLimits = OBSERVATION_
     if not _in(obs.clo, limits.clo):
         info.append(f"clo={obs.clo!r} outside {limits.clo} (not used by the NMPC)")
     optional = {}
-    for name, lim in (("t_glass_c", limits.temperature_c), ("rh_cab", limits.rh)):
+    for name, lim in (("t_glass_c", limits.temperature_c), ("rh_cab", limits.rh), ("rh_amb", limits.rh)):
         v = getattr(obs, name, math.nan)
         try:
             missing = math.isnan(float(v))

@@ -31,6 +31,7 @@ __all__ = [
     "vapour_pressure_from_humidity_ratio_pa",
     "relative_humidity",
     "dew_point_c",
+    "moist_air_enthalpy_jpkg",
 ]
 
 EPS_W = 0.621945
@@ -42,6 +43,13 @@ H_FG_JPKG = 2.45e6
 
 P_ATM_PA = 101325.0
 """Standard atmospheric pressure [Pa] (sea level)."""
+
+CP_DRY_AIR_JPKGK = 1006.0
+"""Specific heat of dry air [J/(kg K)] (ASHRAE Fundamentals 2017 ch. 1, eq. (32): 1.006 kJ/(kg K))."""
+CP_VAPOUR_JPKGK = 1860.0
+"""Specific heat of water vapour [J/(kg K)] (ASHRAE Fundamentals 2017 ch. 1, eq. (32): 1.86 kJ/(kg K))."""
+H_G0_JPKG = 2.501e6
+"""Enthalpy of saturated water vapour at 0 degC [J/kg] (ASHRAE Fundamentals 2017 ch. 1, eq. (32): 2501 kJ/kg)."""
 
 # IAPWS SR1-86(1992) / Wagner & Pruss (1993), J. Phys. Chem. Ref. Data 22, 783, eq. (2.5):
 # ln(p_s / p_c) = (T_c / T) (a1 tau + a2 tau^1.5 + a3 tau^3 + a4 tau^3.5 + a5 tau^4 + a6 tau^7.5),
@@ -169,3 +177,14 @@ def dew_point_c(p_w_pa, newton_steps=4):
         ln_p, slope = _ln_pws(ops, t_c + ZERO_C_K)
         t_c = t_c - (ln_p - ln_pw) / slope
     return t_c
+
+
+def moist_air_enthalpy_jpkg(t_c, w_kgkg):
+    """Specific enthalpy of moist air [J per kg of dry air], 0 for dry air at 0 degC.
+
+    ``h = 1006 t + W (2.501e6 + 1860 t)`` with ``t_c`` [degC] and the humidity ratio ``w_kgkg`` [kg/kg]
+    (ASHRAE Fundamentals 2017 ch. 1, eq. (32)). The evaporator's load of a stream is its mass flow times the
+    enthalpy it loses there, so of two inlet airs the one of lower enthalpy is the cheaper to cool once the coil
+    is wet.
+    """
+    return CP_DRY_AIR_JPKGK * t_c + w_kgkg * (H_G0_JPKG + CP_VAPOUR_JPKGK * t_c)

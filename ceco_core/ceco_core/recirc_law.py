@@ -11,9 +11,11 @@ door"):
      fresh air" when the dew point nears the glass; VW: recirculation off "if a sensor detects that
      condensation might form");
    * CO2 sensor fitted but not reading (NaN: failed) -> fresh air (the safe default of issue 21).
-2. Economiser: while the ambient air is cooler than the cabin air by ``door_economiser_k`` -> outside air (share
+2. Economiser: while the ambient air is cooler than the cabin air by ``door_economiser_k`` and, where both
+   humidities are known, lower in enthalpy (:func:`ceco_core.air_quality.economiser_open`) -> outside air (share
    ``door_fresh_share``): outside air is then the cheaper evaporator inlet and it flushes the soaked cabin (the
-   air-side economiser of building HVAC, ASHRAE 90.1 section 6.5.1). Not from the car manuals above: it gives
+   air-side economiser of building HVAC, ASHRAE 90.1 section 6.5.1, with its differential-enthalpy high limit).
+   Not from the car manuals above: it gives
    the baselines the permission the CO2-holding door of the NMPC has (``ceco_core.co2_door``, its
    ``economiser_k``), so no saving comes from a rule only the strategy may use (docs/benchmark.md).
 3. Maximum-cooling recirculation: while the cooling demand is high (the ACC law's pull-down, or its demand
@@ -41,7 +43,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from ceco_core.air_quality import check_settings, fog_override
+from ceco_core.air_quality import check_settings, economiser_open, fog_override
 
 __all__ = ["DOOR_MODES", "RecircSettings", "RecircCommand", "RecircLaw"]
 
@@ -94,8 +96,9 @@ class RecircSettings:
     door_min_dwell_s: float = 30.0
     """Least time between demand-driven switches [s] (no chatter)."""
     door_economiser_k: float = 1.0
-    """Outside air while the ambient is cooler than the cabin by at least this [K] (> 0; ``inf`` turns the rule
-    off: the logic of before); the CO2-holding door's ``economiser_k``."""
+    """Outside air while the ambient is cooler than the cabin by at least this [K] (and lower in enthalpy by c_p,a
+    times it where both humidities are known) (> 0; ``inf`` turns the rule off: the logic of before); the
+    CO2-holding door's ``economiser_k``."""
 
     def validate(self) -> RecircSettings:
         """Raise ValueError naming the field if a setting is not usable; return self."""
@@ -158,12 +161,16 @@ class RecircLaw:
         co2_limit_ppm: float,
         fog_margin_k: float,
         fog_margin_min_k: float,
+        rh_cab: float = math.nan,
+        rh_amb: float = math.nan,
     ) -> RecircCommand:
         """The door command over the next ``dt_s`` [s].
 
         ``demand`` the ACC law's cooling demand [0..1] (``pulldown`` its maximum-cooling mode), the cabin and
         ambient air temperatures [degC], the CO2 sensor (``co2_sensor_fitted``; a NaN reading from a fitted
-        sensor is a fault) [ppm] with the limit [ppm], the fog margin [K] (NaN: unknown, no override) and its bound.
+        sensor is a fault) [ppm] with the limit [ppm], the fog margin [K] (NaN: unknown, no override) and its bound,
+        the cabin's and the ambient's relative humidity [0..1] (NaN: not measured; the economiser then judges by dry
+        bulb alone).
         A non-finite demand or temperature counts as high demand unmet (recirculation is not asked for).
         """
         s = self.settings
@@ -185,7 +192,7 @@ class RecircLaw:
             return RecircCommand(s.door_fresh_share, "co2_sensor_fault")
         # 2. economiser: outside air while it is the cooler inlet
         temps_known = math.isfinite(t_amb_c) and math.isfinite(t_cab_c)
-        if temps_known and t_amb_c <= t_cab_c - s.door_economiser_k:
+        if economiser_open(t_cab_c, t_amb_c, rh_cab, rh_amb, s.door_economiser_k):
             self._co2_purge = False
             return RecircCommand(s.door_fresh_share, "economiser")
         # 3. recirculation at high demand (switches held at least the dwell time)
