@@ -14,7 +14,7 @@ from dataclasses import dataclass, fields
 
 from ceco_core.air_quality import CO2_AMB_PPM_DEFAULT, RECIRC_SHARE_DEFAULT
 from ceco_core.cabin_comfort import GLAZING_TAU, SHELL_U_IN_WM2K
-from ceco_core.psychro import P_ATM_PA
+from ceco_core.psychro import CP_DRY_AIR_JPKGK, CP_VAPOUR_JPKGK, P_ATM_PA
 
 __all__ = ["PlantParams"]
 
@@ -34,10 +34,10 @@ class PlantParams:
     # --- air ---------------------------------------------------------------
     p_atm_pa: float = P_ATM_PA
     """Atmospheric pressure [Pa] (standard atmosphere, sea level)."""
-    cp_air_jpkgk: float = 1006.0
-    """Specific heat of dry air [J/(kg K)] (ASHRAE Fundamentals 2017, ch. 1)."""
-    cp_vap_jpkgk: float = 1860.0
-    """Specific heat of water vapour [J/(kg K)] (ASHRAE Fundamentals 2017, ch. 1)."""
+    cp_air_jpkgk: float = CP_DRY_AIR_JPKGK
+    """Specific heat of dry air [J/(kg K)] (ASHRAE Fundamentals 2017, ch. 1: 1006; ``psychro.CP_DRY_AIR_JPKGK``)."""
+    cp_vap_jpkgk: float = CP_VAPOUR_JPKGK
+    """Specific heat of water vapour [J/(kg K)] (ASHRAE Fundamentals 2017, ch. 1: 1860; ``psychro.CP_VAPOUR_JPKGK``)."""
     h_fg_jpkg: float = 2.45e6
     """Latent heat of condensation of water near 20 degC [J/kg] (IAPWS; ASHRAE Fundamentals)."""
     rho_air_kgm3: float = 1.16
