@@ -236,12 +236,12 @@ def economiser_open(t_cab_c, t_amb_c, rh_cab, rh_amb, economiser_k: float) -> bo
 
     Outside air when it is cooler than the cabin air by ``economiser_k`` [K] (dry bulb, degC) and, where both
     humidities are known (RH in [0, 1]), also lower in enthalpy by ``c_p,a economiser_k``
-    (:func:`ceco_core.psychro.moist_air_enthalpy_jpkg`): a differential dry-bulb and enthalpy economiser
-    (ANSI/ASHRAE/IES Standard 90.1-2019, section 6.5.1.1.3 and table 6.5.1.1.3, which bars the dry-bulb-only
-    high limit in humid climates). On a humid day the outside air can be cooler than a soaked cabin and still carry
-    more heat into a wet coil: at 32 degC and 65 % RH, 82 kJ/kg against 66 kJ/kg for the cabin at 34.7 degC and
-    35 % RH. Unknown temperatures: no economiser; unknown or implausible humidities: the dry-bulb rule alone
-    (what the car can still judge). Pure; floats in, bool out.
+    (:func:`ceco_core.psychro.moist_air_enthalpy_jpkg`): the "differential enthalpy + fixed dry bulb" high-limit
+    control of building economisers (ANSI/ASHRAE/IES Standard 90.1, table 6.5.1.1.3), with the cabin air as the
+    return air and the dry-bulb limit differential too. On a humid day the outside air can be cooler than a soaked
+    cabin and still carry more heat into a wet coil: at 32 degC and 65 % RH, 82 kJ/kg against 66 kJ/kg for the cabin
+    at 34.7 degC and 35 % RH. Unknown temperatures: no economiser; unknown or implausible humidities: the dry-bulb
+    rule alone (what the car can still judge). Pure; floats in, bool out.
     """
     try:
         tc, ta = float(t_cab_c), float(t_amb_c)

@@ -14,7 +14,8 @@ door"):
 2. Economiser: while the ambient air is cooler than the cabin air by ``door_economiser_k`` and, where both
    humidities are known, lower in enthalpy (:func:`ceco_core.air_quality.economiser_open`) -> outside air (share
    ``door_fresh_share``): outside air is then the cheaper evaporator inlet and it flushes the soaked cabin (the
-   air-side economiser of building HVAC, ASHRAE 90.1 section 6.5.1, with its differential-enthalpy high limit).
+   air-side economiser of building HVAC, ASHRAE 90.1 section 6.5.1, with a differential-enthalpy high limit as in
+   its table 6.5.1.1.3).
    Not from the car manuals above: it gives
    the baselines the permission the CO2-holding door of the NMPC has (``ceco_core.co2_door``, its
    ``economiser_k``), so no saving comes from a rule only the strategy may use (docs/benchmark.md).
