@@ -842,7 +842,7 @@ def test_warm_up_leaves_no_state_behind():
 def test_the_observation_carries_the_ambient_humidity_from_the_state_as_from_the_simulator():
     """The doors' enthalpy economiser reads the ambient RH: the simulator's environment (``Environment.rh``) and
     mpc_node's CabinState (its ``rh`` field, converted by ``ceco_ros.conversions``) give the same ``rh_amb``; an
-    environment without it gives NaN (not known: the economiser judges by dry bulb)."""
+    environment whose RH is not known (NaN) gives NaN (the economiser then judges by dry bulb)."""
     from types import SimpleNamespace
 
     import ceco_ros.conversions as conversions
@@ -863,8 +863,8 @@ def test_the_observation_carries_the_ambient_humidity_from_the_state_as_from_the
     msg = conversions.state_msg(2, 10.0, conversions.stamp_from_s(10.0), meas, env, AcInput(0.12, 6.0), False)
     node = observation(2, 10.0, conversions.state_measurements(msg), msg, AcInput(0.12, 6.0), pv, sc)
     assert node.rh_amb == sim.rh_amb
-    bare = SimpleNamespace(t_amb_c=env.t_amb_c, solar_wm2=env.solar_wm2, speed_mps=env.speed_mps)
-    assert math.isnan(observation(2, 10.0, meas, bare, AcInput(0.12, 6.0), pv, sc).rh_amb)
+    unknown = SimpleNamespace(t_amb_c=env.t_amb_c, solar_wm2=env.solar_wm2, speed_mps=env.speed_mps, rh=math.nan)
+    assert math.isnan(observation(2, 10.0, meas, unknown, AcInput(0.12, 6.0), pv, sc).rh_amb)
 
 
 @pytest.mark.parametrize(

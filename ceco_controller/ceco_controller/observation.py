@@ -30,8 +30,8 @@ def observation(k: int, t_s: float, meas: Mapping, env, u_prev, previews: Previe
         meas: measurements at ``t_s``: ``t_cab_c, t_int_c, t_shell_c, t_evap_c, t_vent_c`` [degC]
             (``ceco_plant_sim.scenario_plant.MEASUREMENTS``).
         env: the measured environment at ``t_s`` (attributes ``t_amb_c`` [degC], ``solar_wm2``
-            [W/m2], ``speed_mps`` [m/s], and ``rh`` [0..1] the ambient relative humidity, NaN or absent
-            when not known).
+            [W/m2], ``speed_mps`` [m/s], ``rh`` [0..1] the ambient relative humidity, NaN when not
+            known: the simulator's ``Environment`` and mpc_node's CabinState both carry it).
         u_prev: the command held before ``t_s`` (attributes ``mdot_bl_kgps`` [kg/s],
             ``t_evap_sp_c`` [degC]; at key-on ``ceco_plant_sim.scenario_plant.KEY_ON_COMMAND``).
         previews: the V2X previews on the grid ``previews.t_s`` = t_s + i * Ts, i = 0..Np.
@@ -63,7 +63,7 @@ def observation(k: int, t_s: float, meas: Mapping, env, u_prev, previews: Previe
         clo=occ.clo,
         t_glass_c=meas.get("t_glass_c", float("nan")),
         rh_cab=meas.get("rh_cab", float("nan")),
-        rh_amb=float(getattr(env, "rh", float("nan"))),
+        rh_amb=float(env.rh),
         co2_cab_ppm=meas.get("co2_cab_ppm", float("nan")),
         co2_sensor_ppm=meas.get("co2_sensor_ppm", float("nan")),
         recirc_share=meas.get("recirc_share", float("nan")),
