@@ -514,8 +514,10 @@ def test_the_study_tools_say_when_results_are_of_other_code(tmp_path, capsys):
     from ceco_bringup.sweep.cells import code_fingerprint
 
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / 'tools'))
+    import edge_headroom
     import variant_headroom
 
+    assert edge_headroom.load_results is variant_headroom.load_results  # one reader for both tools
     here = code_fingerprint()
     same, other = tmp_path / 'same.json', tmp_path / 'other.json'
     same.write_text(json.dumps({'code_fingerprint': here, 'cases': []}), encoding='utf-8')
@@ -527,14 +529,26 @@ def test_the_study_tools_say_when_results_are_of_other_code(tmp_path, capsys):
     assert '0123456789abcdef' in err and here in err
 
 
-def test_edge_headroom_rejects_a_co2_margin_out_of_range(capsys):
-    """``tools/edge_headroom.py --co2-margin-ppm``: a margin under the CO2 limit [ppm] in [0, 1000); anything else is
-    refused by name before any results file is read."""
+def test_edge_headroom_co2_margin_reaches_the_bounds_and_is_checked(capsys):
+    """``tools/edge_headroom.py --co2-margin-ppm``: the bounds' settings carry the margin (150 ppm, the CO2-holding
+    door's) with the case's door logic and control period, the oracle's 10 ppm without it; a margin outside
+    [0, 1000) is refused by name before any results file is read."""
     import pathlib
     import sys
 
+    from ceco_bringup.benchmark.cases import load_case
+    from ceco_controller.oracle import OracleSettings
+    from ceco_core.co2_door import Co2DoorSettings
+
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / 'tools'))
     import edge_headroom
+
+    case = load_case('hot-commute-4p')
+    door = Co2DoorSettings().margin_ppm
+    st = edge_headroom.oracle_settings(case, door)
+    assert st.co2_margin_ppm == door == 150.0
+    assert st.door_logic == tuple(case.baseline_door) and st.door_logic and st.control_period_s == case.control_period_s
+    assert edge_headroom.oracle_settings(case).co2_margin_ppm == OracleSettings().co2_margin_ppm == 10.0
 
     for bad in ('-5', '1000', 'nan'):
         with pytest.raises(SystemExit) as e:

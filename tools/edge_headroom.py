@@ -88,6 +88,17 @@ TERMINAL_TOL_K = 0.02
 """Added to the strategy's end temperatures [K]: the NLP's smooth plant ends within about 0.01 K of the replay's."""
 
 
+def oracle_settings(case, co2_margin_ppm: float | None = None):
+    """The bounds' ``OracleSettings`` for ``case``: its control period and door logic, as the benchmark's oracle,
+    and with ``co2_margin_ppm`` [ppm] (None: the oracle's own 10) the margin under the CO2 limit. Validated."""
+    from ceco_controller import oracle as orc
+
+    settings = orc.OracleSettings(control_period_s=case.control_period_s, door_logic=tuple(case.baseline_door))
+    if co2_margin_ppm is not None:
+        settings = dataclasses.replace(settings, co2_margin_ppm=co2_margin_ppm)
+    return settings.validate()
+
+
 def strategy_runs(case, strategy: str) -> list:
     """The strategy's runs on the case's seeds (``RunResult``): each seed's benchmark cell
     (``variant_headroom.strategy_cells``) simulated as ``ceco benchmark`` runs it (``settings_from_spec``)."""
@@ -154,10 +165,7 @@ def study(
     env = runner.envelope_of(runner.fronts_of(baselines, fx, ex))
     pts = [(r['seed'], r['kpis'][fx], r['kpis'][ex]) for r in rows]
     levels = bracket(entry['oracle'].get('levels') or [], [d for _, d, _ in pts], margin)
-    settings = orc.OracleSettings(control_period_s=case.control_period_s, door_logic=tuple(case.baseline_door))
-    if co2_margin_ppm is not None:
-        settings = dataclasses.replace(settings, co2_margin_ppm=co2_margin_ppm)
-        settings.validate()
+    settings = oracle_settings(case, co2_margin_ppm)
     pairs = orc.solve_levels_holding_edge(case.load_scenario(), levels, settings, progress)
     out = {'case': case_name, 'strategy': strategy, 'levels': levels, 'n_seeds': len(rows)}
     out['co2_margin_ppm'] = settings.co2_margin_ppm
