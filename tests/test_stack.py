@@ -1038,9 +1038,11 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
         dict(
             common,
             **{
-                # the plant waits this long for command 0 while the test activates the controller: 3 s
-                # was once too short on a loaded CI machine (the first command was step 1's)
-                'lockstep.command_timeout_s': 6.0,
+                # the plant waits this long for command 0 while the test activates the controller: no fixed
+                # wait is long enough on a loaded CI machine (3 s and then 6 s were not: the first command
+                # was step 1's), so the plant waits 10 min here and the test sets the wait to 3 s at run
+                # time (`ros2 param set`) once the controller commands
+                'lockstep.command_timeout_s': 600.0,
                 'lockstep.min_state_subscribers': 3,
                 'lockstep.min_output_subscribers': 1,
                 'lockstep.min_command_subscribers': 2,
@@ -1052,13 +1054,13 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
     from ceco_msgs.msg import CabinState
 
     states = tn.collect(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
-    params = tn.node.create_client(SetParameters, '/mpc_node/set_parameters')
+    params = {n: tn.node.create_client(SetParameters, f'/{n}/set_parameters') for n in ('mpc_node', 'plant_node')}
 
-    def set_param(name, value, kind):
+    def set_param(name, value, kind, node='mpc_node'):
         field = {ParameterType.PARAMETER_DOUBLE: 'double_value', ParameterType.PARAMETER_STRING: 'string_value'}[kind]
         value = ParameterValue(type=kind, **{field: value})
         req = SetParameters.Request(parameters=[Parameter(name=name, value=value)])
-        return supervisor.LifecycleClient._call(params, req, 30.0).results[0]
+        return supervisor.LifecycleClient._call(params[node], req, 30.0).results[0]
 
     try:
         for p in (preview, mpc):
@@ -1080,12 +1082,17 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
         assert not lc.change('configure') and lc.state() == 'active'  # e.g. a second manager
         _wait_for(lambda: len(cmds) >= 10, 60, 'ten commands once active', procs)
         assert cmds[0].step_index == 0 and not powers[0].fallback  # no fallback period at the start
+        # the plant's lockstep wait, a run-time parameter: 3 s from now on (the fallback below comes after it)
+        r = set_param('lockstep.command_timeout_s', 3.0, ParameterType.PARAMETER_DOUBLE, node='plant_node')
+        assert r.successful, r.reason
+        _log_has(plant, "parameters set: {'lockstep.command_timeout_s': 3.0}")
         n_active = len(powers)
         assert lc.change('deactivate') and lc.state() == 'inactive'
         time.sleep(0.5)  # commands already in flight arrive
         n_cmds = len(cmds)
         _wait_for(lambda: len(powers) > n_active + 10 and powers[-1].fallback, 120, 'fallback after deactivate', procs)
         assert len(cmds) == n_cmds  # inactive: not one command more
+        _log_has(plant, 'within 3.0 s (wall clock)')  # the wait set at run time is the one that applies
         assert lc.change('activate')
         n_back = len(cmds)
         _wait_for(lambda: len(cmds) >= n_back + 5 and not powers[-1].fallback, 60, 'commands resume', procs)
