@@ -63,19 +63,37 @@ def _ceco_run(out: Path, domain: int, *args: str) -> subprocess.Popen:
     )
 
 
+class _Dds:
+    """An rclpy context on ``domain`` with `ceco run`'s DDS environment (supervisor.dds_env), for a test peer."""
+
+    KEYS = ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'FASTRTPS_DEFAULT_PROFILES_FILE')
+
+    def __init__(self, domain: int):
+        from rclpy.signals import SignalHandlerOptions
+
+        env = supervisor.dds_env(domain)
+        self._saved = {k: os.environ.get(k) for k in self.KEYS}
+        os.environ.update({k: env[k] for k in self.KEYS})
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
+
+    def close(self) -> None:
+        rclpy.try_shutdown(context=self.context)
+        for k, v in self._saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
 def test_recorder_drain_takes_what_waits_in_its_readers(tmp_path):
     """Messages that reached the recorder's readers while no executor spun (as if the wait set had
     never reported them, the starvation hang) are taken and recorded by ``drain()``."""
-    from rclpy.signals import SignalHandlerOptions
-
     from ceco_bringup.recorder import Recorder
     from ceco_msgs.msg import CabinState
 
-    env = supervisor.dds_env(_domain(1))
-    saved = {k: os.environ.get(k) for k in ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'FASTRTPS_DEFAULT_PROFILES_FILE')}
-    os.environ.update({k: env[k] for k in saved})
-    context = rclpy.Context()
-    rclpy.init(context=context, domain_id=_domain(1), signal_handler_options=SignalHandlerOptions.NO)
+    dds = _Dds(_domain(1))
+    context = dds.context
     try:
         rec = Recorder(tmp_path / 'bag', context=context, timestamps='sim')
         node = rclpy.create_node('plant_stand_in', context=context)
@@ -92,12 +110,7 @@ def test_recorder_drain_takes_what_waits_in_its_readers(tmp_path):
         node.destroy_node()
         rec.destroy_node()
     finally:
-        rclpy.try_shutdown(context=context)
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+        dds.close()
     assert counts['/cabin/state'] == 50
     states = [m.step_index for _, _, m in bagio.read_messages(tmp_path / 'bag', ('cabin/state',))]
     assert states == list(range(50))
@@ -155,24 +168,64 @@ def test_a_stalled_run_fails_clearly_and_all_goes_on(tmp_path):
     says the run stalled (default limit: the 5-s command timeout + 5 s of wall clock without a new
     plant step), stops its nodes and runs the other strategies; exit status 1 (before: the run
     waited for --run-timeout-s and the other strategies were lost)."""
+    import threading
+
+    from rclpy.executors import SingleThreadedExecutor
+
+    from ceco_msgs.msg import WeatherPreview
+
     out, domain = tmp_path / 'all', _domain(3)
+    # the plant is stopped by a subscriber of this test once the preview of control step 2 came (the preview
+    # node answers the plant's state of that step): the recorder of `ceco run` has had its first state by then,
+    # so the run is under way. (Stopped as soon as its log said 'starting at step 0', the plant once had not
+    # yet published step 0: a start-up timeout. The subscriber is on a preview, which no node's start waits
+    # for: on cabin/state it would fill the plant's start gate in place of a stack node.)
+    dds = _Dds(domain)
+    node = rclpy.create_node('plant_stopper', context=dds.context)
+    target: dict[str, int] = {}  # the first plant's pid, then the step it was stopped at
+
+    def on_preview(msg) -> None:
+        if 'pid' in target and 'step' not in target and msg.step_index >= 2:
+            os.kill(target['pid'], signal.SIGSTOP)
+            target['step'] = int(msg.step_index)
+
+    node.create_subscription(WeatherPreview, interfaces.TOPIC_WEATHER, on_preview, interfaces.QOS_PREVIEW)
+    executor = SingleThreadedExecutor(context=dds.context)
+    executor.add_node(node)
+    spin_stop = threading.Event()
+
+    def spin() -> None:
+        while not spin_stop.is_set():
+            executor.spin_once(timeout_sec=0.05)
+
+    spinner = threading.Thread(target=spin, daemon=True)
+    spinner.start()
     p = _ceco_run(out, domain, '--strategy', 'all', '--duration-s', '300', '--run-timeout-s', '240')
-    plant = None
+
+    def plant_found() -> bool:  # the process exists well before it publishes (imports, discovery)
+        pid = _pid_of('plant_node', domain)
+        if pid is not None:
+            target['pid'] = pid
+        return pid is not None or p.poll() is not None
+
     try:
-        first = out / STRATEGIES[0] / 'logs' / 'plant_node.log'
-        _wait_for(lambda: _log_has(first, 'starting at step 0'), 180, 'the first plant to start')
-        plant = _pid_of('plant_node', domain)
-        assert plant is not None
-        os.kill(plant, signal.SIGSTOP)
+        _wait_for(plant_found, 180, 'the first plant process')
+        _wait_for(lambda: 'step' in target or p.poll() is not None, 180, 'the first plant to be stopped mid-run')
         text, _ = p.communicate(timeout=900)
     finally:
         if p.poll() is None:
             p.kill()
-        if plant is not None:
+        spin_stop.set()
+        spinner.join(timeout=10)
+        if 'pid' in target:
             try:
-                os.kill(plant, signal.SIGKILL)
+                os.kill(target['pid'], signal.SIGKILL)
             except ProcessLookupError:
                 pass
+        executor.shutdown()
+        node.destroy_node()
+        dds.close()
+    assert 'step' in target, text  # the plant was stopped mid-run (control step >= 2, the run not over)
     assert p.returncode == 1, text
     assert f'{STRATEGIES[0]}: FAILED: stalled: no new plant step for 10 s of wall clock' in text, text
     assert 'the plant made no progress' in text and 'run timeout' not in text, text
