@@ -249,7 +249,8 @@ def test_health_levels_and_values():
     'field, value, expected',
     [
         ('t_cab_c', math.nan, 't_cab_c=nan is not finite'),
-        ('t_glass_c', math.nan, 't_glass_c=nan is not finite'),
+        ('t_glass_c', math.inf, 't_glass_c=inf is not finite (NaN means: not set)'),  # NaN: no glazing sensor
+        ('rh', -math.inf, 'rh=-inf is not finite (NaN means: not set)'),
         ('rh_cab', math.inf, 'rh_cab=inf is not finite'),
         ('rh_cab', 1.5, 'rh_cab=1.5 is outside the plausible range [0, 1]'),
         ('t_vent_c', 1e300, 't_vent_c=1e+300 is outside'),
@@ -268,6 +269,46 @@ def test_health_levels_and_values():
 def test_check_state_names_the_field(field, value, expected):
     assert checks.check_state(state(10.0)) is None
     assert checks.check_state(state(10.0, **{field: value})).startswith(expected)
+
+
+@pytest.mark.parametrize('strategy', ['ceco-pmv', 'ceco-ioch', 'baseline'])
+def test_a_car_without_glazing_and_humidity_sensors_is_controlled(strategy):
+    """A CabinState whose glazing temperature, cabin and ambient humidity are NaN (a car without those sensors)
+    passes the field check, and the controller commands every control step from its own law, inside the actuator
+    bounds, without a step error or a rejected message (before, every such state was refused as not finite: the
+    node never commanded). The core takes them as not measured (ceco_core.observation_check)."""
+    from ceco_controller.controller_session import ControllerSession
+    from ceco_core.contracts import (
+        MDOT_BL_MAX_KGPS,
+        MDOT_BL_MIN_KGPS,
+        RECIRC_SHARE_MAX,
+        RECIRC_SHARE_MIN,
+        T_EVAP_SP_MAX_C,
+        T_EVAP_SP_MIN_C,
+    )
+
+    missing = {'t_glass_c': math.nan, 'rh_cab': math.nan, 'rh': math.nan}
+    assert checks.check_state(state(10.0, **missing)) is None
+    table = controller_parameters('baseline' if strategy == 'baseline' else None)
+    cfg = ControllerNodeConfig.from_params({s.name: s.default for s in table} | {'strategy': strategy})
+    logs: list = []
+    session = ControllerSession(cfg, lambda level, text: logs.append((level, text)), lambda *_: None)
+    assert session.configure(cfg)
+    results = []
+    for k in range(6):
+        wall = 0.1 * k
+        results += session.on_preview('weather', weather(k), wall, True)
+        results += session.on_preview('traffic', traffic(k), wall, True)
+        results += session.on_state(state(5.0 * k, **missing), wall, 5.0 * k, True)
+    assert [r.k for r in results] == list(range(6)), (results, logs)
+    for r in results:
+        assert MDOT_BL_MIN_KGPS <= r.command.mdot_bl_kgps <= MDOT_BL_MAX_KGPS, r
+        assert T_EVAP_SP_MIN_C <= r.command.t_evap_sp_c <= T_EVAP_SP_MAX_C, r
+        share = r.command.recirc_share
+        assert math.isnan(share) or RECIRC_SHARE_MIN <= share <= RECIRC_SHARE_MAX, r
+        assert not r.fallback, (r.k, logs)
+    assert session.record.counts['step_errors'] == 0, logs
+    assert session.inputs.rejections.summary() == 'none', session.inputs.rejections.summary()
 
 
 def test_check_stamps():

@@ -53,6 +53,7 @@ __all__ = [
 ]
 
 _TEMPERATURE_C = (-60.0, 150.0)
+_RH = (0.0, 1.0)
 _BOUND_TOL = 1e-9
 
 STATE_RANGES: dict[str, tuple[float, float]] = {
@@ -60,13 +61,10 @@ STATE_RANGES: dict[str, tuple[float, float]] = {
     't_cab_c': _TEMPERATURE_C,
     't_int_c': _TEMPERATURE_C,
     't_shell_c': _TEMPERATURE_C,
-    't_glass_c': _TEMPERATURE_C,
     't_evap_c': _TEMPERATURE_C,
     't_vent_c': _TEMPERATURE_C,
-    'rh_cab': (0.0, 1.0),
     't_amb_c': (-60.0, 70.0),
     'solar_wm2': (0.0, 2000.0),
-    'rh': (0.0, 1.0),
     'speed_mps': (0.0, 120.0),
     'mdot_bl_kgps': (MDOT_BL_MIN_KGPS - _BOUND_TOL, MDOT_BL_MAX_KGPS + _BOUND_TOL),
     't_evap_sp_c': (T_EVAP_SP_MIN_C - _BOUND_TOL, T_EVAP_SP_MAX_C + _BOUND_TOL),
@@ -76,22 +74,28 @@ STATE_RANGES: dict[str, tuple[float, float]] = {
 }
 """Plausible range of every float field of CabinState [field unit]: cabin CO2 0..50000 ppm, the door's position and
 its applied command 0..1, temperatures -60..150 degC
-(a vehicle soaked in the sun stays far inside), ambient -60..70 degC, humidities 0..1, solar
+(a vehicle soaked in the sun stays far inside), ambient -60..70 degC, solar
 0..2000 W/m2 (above the solar constant), speed 0..120 m/s, the previous command inside the
-actuator bounds, scenario time inside the stamp range."""
+actuator bounds, scenario time inside the stamp range. The sensors a car may lack: :data:`STATE_OPTIONAL_RANGES`."""
 
 PREVIEW_RANGES: dict[str, tuple[float, float]] = {
     't_amb_c': STATE_RANGES['t_amb_c'],
     'solar_wm2': STATE_RANGES['solar_wm2'],
-    'rh': STATE_RANGES['rh'],
+    'rh': _RH,
     'speed_mps': STATE_RANGES['speed_mps'],
 }
 """Plausible range of the preview samples marked valid (the same as the measured values)."""
 
 STATE_OPTIONAL_RANGES: dict[str, tuple[float, float]] = {
+    't_glass_c': _TEMPERATURE_C,
+    'rh_cab': _RH,
+    'rh': _RH,
     'co2_sensor_ppm': (0.0, 50000.0),
 }
-"""CabinState fields that may be NaN (not measured: no CO2 sensor, or it failed), else inside the range."""
+"""CabinState fields that may be NaN (not measured: a car without a glazing-temperature, cabin-humidity,
+ambient-humidity or CO2 sensor, or one that failed), else inside the range. The controllers take NaN there
+as not measured (``ceco_core.observation_check``: the fog override off, the PMV's vapour pressure or the
+economiser's enthalpy rule without it); +-inf is refused."""
 
 COMMAND_RANGES: dict[str, tuple[float, float]] = {
     'blower_flow_kgps': (MDOT_BL_MIN_KGPS, MDOT_BL_MAX_KGPS),
@@ -152,7 +156,7 @@ def check_state(msg) -> str | None:
     """Check a CabinState: header stamp well formed, every float field finite and plausible.
 
     The ranges are :data:`STATE_RANGES`, including the previous command inside the actuator bounds, and
-    :data:`STATE_OPTIONAL_RANGES` (NaN allowed: the CO2 sensor's reading).
+    :data:`STATE_OPTIONAL_RANGES` (NaN allowed: the sensors a car may not have).
     """
     return (
         check_stamp('header.stamp', msg.header.stamp)
