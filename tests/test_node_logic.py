@@ -311,6 +311,35 @@ def test_a_car_without_glazing_and_humidity_sensors_is_controlled(strategy):
     assert session.inputs.rejections.summary() == 'none', session.inputs.rejections.summary()
 
 
+def test_the_readme_recipe_runs_ceco_pmv_aq_on_mpc_node(tmp_path):
+    """README, "Which controller to use": mpc_node with strategy ceco-pmv and a copy of the installed controller.yaml
+    with door_control co2_hold under ceco-pmv is ceco-pmv-aq: it commands the door (a share in 0..1 each step) where
+    the shipped file's ceco-pmv leaves it to the plant (NaN)."""
+    import yaml
+
+    from ceco_controller.controller_session import ControllerSession
+    from ceco_controller.model import package_config_path
+
+    doc = yaml.safe_load(package_config_path('controller.yaml').read_text())
+    doc['strategies']['ceco-pmv']['door_control'] = 'co2_hold'
+    aq = tmp_path / 'controller_aq.yaml'
+    aq.write_text(yaml.safe_dump(doc))
+    shares = {}
+    for name, path in (('shipped', ''), ('aq', str(aq))):
+        cfg = _ctrl_cfg(strategy='ceco-pmv', controller_config=path)
+        session = ControllerSession(cfg, lambda *_: None, lambda *_: None)
+        assert session.configure(cfg)
+        results = []
+        for k in range(3):
+            results += session.on_preview('weather', weather(k), 0.1 * k, True)
+            results += session.on_preview('traffic', traffic(k), 0.1 * k, True)
+            results += session.on_state(state(5.0 * k, co2_sensor_ppm=900.0), 0.1 * k, 5.0 * k, True)
+        assert [r.k for r in results] == [0, 1, 2]
+        shares[name] = [r.command.recirc_share for r in results]
+    assert all(math.isnan(x) for x in shares['shipped']), shares
+    assert all(0.0 <= x <= 1.0 for x in shares['aq']), shares
+
+
 def test_check_stamps():
     assert checks.check_stamp('s', NS(sec=0, nanosec=10**9)).startswith('s.nanosec=1000000000')
     assert checks.check_stamp('s', NS(sec=-2_000_000_000, nanosec=0)).startswith('s.sec=-2000000000')  # 1906
