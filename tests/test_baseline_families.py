@@ -7,6 +7,7 @@ a law without integral action (or a sign error) misses them by far.
 """
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from observations import observation
 
 from ceco_controller.baseline import BaselineController
 from ceco_controller.closed_loop import SimSettings, simulate
+from ceco_controller.comfort_feedback import measured_pmv
 from ceco_core.acc_law import AccSettings
 from ceco_core.cabin_comfort import ComfortParams
 from ceco_v2x_preview.scenario import scenario_from_dict
@@ -98,7 +100,9 @@ def test_pmv_law_settles_at_its_pmv_setpoint(tmp_path, sp, measurements, gains, 
 
 
 def test_pmv_law_reads_the_observation_and_faults_safely():
-    """Unit level: the controller computes the PMV from the observation; a missing input holds the last command."""
+    """Unit level: the controller computes the PMV from the observation; a missing vent-air reading holds the last
+    command (a sensor fault); a cabin humidity or glazing temperature the car does not measure does not: the PMV is
+    then the one at the paper's 1700 Pa, with the interior for the glazing (comfort_feedback.measured_pmv)."""
     ctrl = BaselineController(AccSettings(feedback="pmv", setpoint_pmv=0.0), comfort_params=ComfortParams())
     hot = observation(7, t_cab=30.0, t_int_c=34.0, t_shell_c=38.0, t_glass_c=40.0, t_vent_c=12.0, rh_cab=0.3)
     cmd, diag = ctrl.compute(hot)
@@ -107,6 +111,14 @@ def test_pmv_law_reads_the_observation_and_faults_safely():
     law2 = BaselineController(AccSettings(feedback="pmv", setpoint_pmv=0.0), comfort_params=ComfortParams())
     cmd2, _ = law2.compute(cool)
     assert cmd2.t_evap_sp_c > cmd.t_evap_sp_c  # a cool cabin: less cooling than a hot one
-    bad = dataclasses.replace(hot, rh_cab=float("nan"))
+    bad = dataclasses.replace(hot, t_vent_c=float("nan"))
     held, d3 = ctrl.compute(bad)
     assert d3.status == "sensor_fault" and (held.mdot_bl_kgps, held.t_evap_sp_c) == (cmd.mdot_bl_kgps, cmd.t_evap_sp_c)
+    unmeasured = dataclasses.replace(hot, rh_cab=float("nan"), t_glass_c=float("nan"))
+    _, d4 = BaselineController(AccSettings(feedback="pmv", setpoint_pmv=0.0), comfort_params=ComfortParams()).compute(
+        unmeasured
+    )
+    pmv_of = lambda d: float(d.message.split("pmv_measured=")[1].split()[0])  # noqa: E731
+    assert d4.status in ("pi", "pulldown") and math.isfinite(pmv_of(d4))
+    expected = measured_pmv(unmeasured, ComfortParams(), math.nan, math.nan)  # 1700 Pa, the interior for the glazing
+    assert pmv_of(d4) == pytest.approx(expected, abs=5e-4) and abs(expected - pmv_of(diag)) > 0.01

@@ -11,7 +11,7 @@ import pytest
 from observations import observation
 
 from ceco_controller.closed_loop import SimSettings, simulate
-from ceco_controller.comfort_feedback import PmvFeedback, PreviewSkill, held
+from ceco_controller.comfort_feedback import PmvFeedback, PreviewSkill, held, measured_pmv
 from ceco_controller.nmpc import NmpcController
 from ceco_controller.strategies import strategy_settings
 from ceco_v2x_preview.preview import parse_quality
@@ -130,10 +130,16 @@ def test_controller_caps_the_upper_bound_and_moves_it_by_bias_and_backoff():
     # the initial back-off 0.1
     assert pl.get(p, "pmv_ub") == pytest.approx(np.full(n, 0.5 - fb.bias - 0.1))
     assert pl.get(p, "pmv_lb") == pytest.approx(np.full(n, -0.5 - fb.bias))
-    # without a humidity measurement the comfort output is not measured: the bias is kept, not updated
-    d0 = fb.bias
-    ctrl.compute(observation(N1, 3, t_cab=26.0, t_int_c=32.0, t_shell_c=32.0))
-    assert fb.bias == d0 and fb.last_measured is None
+    # without a humidity measurement the PMV is measured at the paper's 1700 Pa, as the NLP's PMV is then
+    # (pmv_pa_source measured): the feedback goes on (it used to keep its bias for good: a car without a cabin
+    # humidity sensor had no offset-free feedback)
+    dry = observation(N1, 3, t_cab=26.0, t_int_c=32.0, t_shell_c=32.0)
+    assert math.isnan(dry.rh_cab)
+    ctrl.compute(dry)
+    at_1700 = measured_pmv(dry, ctrl.comfort_params, dry.t_glass_c, math.nan)
+    assert math.isfinite(at_1700) and fb.last_measured == pytest.approx(at_1700, abs=1e-12)
+    humid = measured_pmv(dry, ctrl.comfort_params, dry.t_glass_c, 0.45)
+    assert at_1700 != pytest.approx(humid, abs=1e-3)  # 1700 Pa is not 45 % RH at 26 degC (1513 Pa)
 
 
 _STEADY = {

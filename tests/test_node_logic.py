@@ -271,13 +271,18 @@ def test_check_state_names_the_field(field, value, expected):
     assert checks.check_state(state(10.0, **{field: value})).startswith(expected)
 
 
-@pytest.mark.parametrize('strategy', ['ceco-pmv', 'ceco-ioch', 'baseline'])
-def test_a_car_without_glazing_and_humidity_sensors_is_controlled(strategy):
+@pytest.mark.parametrize(
+    'strategy, law', [('ceco-pmv', ''), ('ceco-ioch', ''), ('baseline', ''), ('baseline', 'baseline_pmv.yaml')]
+)
+def test_a_car_without_glazing_and_humidity_sensors_is_controlled(strategy, law):
     """A CabinState whose glazing temperature, cabin and ambient humidity are NaN (a car without those sensors)
     passes the field check, and the controller commands every control step from its own law, inside the actuator
     bounds, without a step error or a rejected message (before, every such state was refused as not finite: the
-    node never commanded). The core takes them as not measured (ceco_core.observation_check)."""
+    node never commanded). The core takes them as not measured (ceco_core.observation_check); the PI on the PMV
+    (baseline_pmv.yaml) measures it as ceco-pmv does, with the interior for the glazing and the paper's 1700 Pa
+    for the humidity, and regulates (it held its command as at a sensor fault, for good)."""
     from ceco_controller.controller_session import ControllerSession
+    from ceco_controller.model import package_config_path
     from ceco_core.contracts import (
         MDOT_BL_MAX_KGPS,
         MDOT_BL_MIN_KGPS,
@@ -290,7 +295,10 @@ def test_a_car_without_glazing_and_humidity_sensors_is_controlled(strategy):
     missing = {'t_glass_c': math.nan, 'rh_cab': math.nan, 'rh': math.nan}
     assert checks.check_state(state(10.0, **missing)) is None
     table = controller_parameters('baseline' if strategy == 'baseline' else None)
-    cfg = ControllerNodeConfig.from_params({s.name: s.default for s in table} | {'strategy': strategy})
+    config = str(package_config_path(law)) if law else ''
+    cfg = ControllerNodeConfig.from_params(
+        {s.name: s.default for s in table} | {'strategy': strategy, 'controller_config': config}
+    )
     logs: list = []
     session = ControllerSession(cfg, lambda level, text: logs.append((level, text)), lambda *_: None)
     assert session.configure(cfg)
@@ -306,7 +314,10 @@ def test_a_car_without_glazing_and_humidity_sensors_is_controlled(strategy):
         assert T_EVAP_SP_MIN_C <= r.command.t_evap_sp_c <= T_EVAP_SP_MAX_C, r
         share = r.command.recirc_share
         assert math.isnan(share) or RECIRC_SHARE_MIN <= share <= RECIRC_SHARE_MAX, r
-        assert not r.fallback, (r.k, logs)
+        assert not r.fallback and r.diagnostics.status != 'sensor_fault', (r.k, r.diagnostics.status, logs)
+    if law:  # the law regulates the PMV: its diagnostics carry a finite measured PMV
+        assert all('pmv_measured=' in r.diagnostics.message for r in results), results[-1].diagnostics.message
+        assert 'pmv_measured=nan' not in results[-1].diagnostics.message
     assert session.record.counts['step_errors'] == 0, logs
     assert session.inputs.rejections.summary() == 'none', session.inputs.rejections.summary()
 

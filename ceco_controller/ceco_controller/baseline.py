@@ -9,9 +9,10 @@ plausible range (:class:`ceco_core.observation_check.ObservationLimits`) counts 
 the law holds its last command.
 
 With ``AccSettings.feedback == 'pmv'`` the law regulates the cabin PMV of the observation
-(:func:`ceco_core.acc_law.feedback_pmv`: the scored comfort model on the measured cabin air, vent air,
-surfaces, humidity and sun load, the ECU's own blower command), with the scenario's occupant and sun
-geometry (``comfort_params``). Behind ``measurements: vehicle`` the surfaces are the estimator's, from
+(:func:`ceco_controller.comfort_feedback.measured_pmv`, as ceco-pmv measures it: the scored comfort model on the
+measured cabin air, vent air, surfaces, humidity and sun load, the ECU's own blower command; the interior in
+place of a glazing and the paper's 1700 Pa in place of a humidity the car does not measure), with the scenario's
+occupant and sun geometry (``comfort_params``). Behind ``measurements: vehicle`` the surfaces are the estimator's, from
 the sensors a production car has.
 
 The fresh/recirculation door (issue 21) is driven by :class:`ceco_core.recirc_law.RecircLaw` with the ACC
@@ -30,7 +31,7 @@ import math
 
 import numpy as np
 
-from ceco_core.acc_law import AccLaw, AccSettings, feedback_pmv
+from ceco_core.acc_law import AccLaw, AccSettings
 from ceco_core.air_quality import fog_margin_of
 from ceco_core.cabin_comfort import ComfortParams
 from ceco_core.co2_door import Co2DoorLaw
@@ -38,6 +39,8 @@ from ceco_core.co2_estimator import Co2EstimatorParams
 from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
 from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits
 from ceco_core.recirc_law import RecircCommand, RecircLaw, RecircSettings
+
+from .comfort_feedback import measured_pmv
 
 __all__ = ["BaselineController"]
 
@@ -96,17 +99,8 @@ class BaselineController:
         t_cab = t_cab if lo <= t_cab <= hi else math.nan
         pmv = None
         if self.law.settings.feedback == "pmv":
-            pmv = feedback_pmv(
-                t_cab_c=t_cab,
-                t_vent_c=obs.t_vent_c,
-                t_int_c=obs.t_int_c,
-                t_shell_c=obs.t_shell_c,
-                t_glass_c=obs.t_glass_c,
-                mdot_bl_kgps=obs.mdot_bl_prev_kgps,
-                rh_cab=obs.rh_cab,
-                solar_wm2=obs.solar_wm2,
-                params=self.comfort_params,
-            )
+            # the observation's PMV as ceco-pmv measures it (the glazing and the humidity where not measured)
+            pmv = measured_pmv(dataclasses.replace(obs, t_cab_c=t_cab), self.comfort_params, obs.t_glass_c, obs.rh_cab)
         cmd = self.law.step(
             t_cab,
             self.control_period_s,

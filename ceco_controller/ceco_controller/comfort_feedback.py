@@ -52,7 +52,7 @@ import math
 import numpy as np
 
 from ceco_core.acc_law import feedback_pmv
-from ceco_core.cabin_comfort import ComfortParams, cabin_pmv, cabin_w_rad_wm2
+from ceco_core.cabin_comfort import PAPER_PA_PA, ComfortParams, cabin_pmv, cabin_w_rad_wm2
 from ceco_core.contracts import Observation
 
 __all__ = ["PmvFeedback", "PreviewSkill", "measured_pmv", "pmv_solar_sensitivity", "held", "PREVIEW_SERIES"]
@@ -69,11 +69,12 @@ def measured_pmv(obs: Observation, params: ComfortParams, t_glass_c: float, rh_c
 
     :func:`ceco_core.acc_law.feedback_pmv` with the observation's cabin air, vent air, interior and shell
     temperatures, the glazing ``t_glass_c`` (the interior temperature where the glazing is not measured,
-    as the NLP's T_mr does), the cabin humidity ``rh_cab``, the sun-load sensor and the blower flow held
-    over the last period. NaN when an input is missing (no cabin humidity: the comfort output is not
-    measured).
+    as the NLP's T_mr does), the cabin humidity ``rh_cab`` (the paper's 1700 Pa of vapour pressure where it is not
+    measured, as the NLP's PMV has then: ``StrategySettings.pmv_pa_source``), the sun-load sensor and the blower
+    flow held over the last period. NaN when another input is missing.
     """
     t_glass = t_glass_c if math.isfinite(t_glass_c) else obs.t_int_c
+    rh_known = math.isfinite(rh_cab) and 0.0 <= rh_cab <= 1.0
     return feedback_pmv(
         t_cab_c=obs.t_cab_c,
         t_vent_c=obs.t_vent_c,
@@ -84,6 +85,7 @@ def measured_pmv(obs: Observation, params: ComfortParams, t_glass_c: float, rh_c
         mdot_bl_kgps=obs.mdot_bl_prev_kgps,
         solar_wm2=obs.solar_wm2,
         params=params,
+        pa_pa=None if rh_known else PAPER_PA_PA,
     )
 
 

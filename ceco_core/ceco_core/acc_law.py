@@ -430,7 +430,9 @@ class AccLaw:
         return self._with_setpoint(self.map_demand(d, "pi"), sp)
 
 
-def feedback_pmv(*, t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, rh_cab, mdot_bl_kgps, solar_wm2, params):
+def feedback_pmv(
+    *, t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, rh_cab, mdot_bl_kgps, solar_wm2, params, pa_pa=None
+):
     """The cabin PMV the comfort-feedback law regulates [-]: the scored comfort model on the controller's observation.
 
     ISO 7730 PMV + absorbed sun at the occupant (:func:`ceco_core.cabin_comfort.cabin_pmv`) from the
@@ -444,20 +446,26 @@ def feedback_pmv(*, t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, rh_cab, md
     No car measures its surfaces: with the controllers' ``measurements: vehicle`` (as the benchmark
     runs the PMV families) T_int, T_shell and T_glass are the estimator's, from the sensors a
     production car has (``ceco_controller.estimator``: cabin air, vent air, evaporator, ambient, sun
-    load, speed, cabin humidity). Returns NaN when an input is missing or not finite (the law then
-    holds its command).
+    load, speed, cabin humidity). ``pa_pa`` [Pa]: the cabin's vapour pressure in place of rh_cab's (None:
+    from ``rh_cab``; ``ceco_controller.comfort_feedback.measured_pmv`` passes the paper's 1700 Pa where the
+    humidity is not measured). Returns NaN when an input is missing or not finite (the law then holds its
+    command).
     """
     from ceco_core import psychro
     from ceco_core.cabin_comfort import cabin_mrt_c, cabin_pmv, cabin_w_rad_wm2
 
-    vals = (t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, rh_cab, mdot_bl_kgps, solar_wm2)
+    rh_in = 0.5 if pa_pa is not None else rh_cab  # (rh unused when the vapour pressure is given)
+    vals = (t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, rh_in, mdot_bl_kgps, solar_wm2)
     try:
         t_cab, t_vent, t_int, t_shell, t_glass, rh, mdot, solar = (float(v) for v in vals)
+        pa = None if pa_pa is None else float(pa_pa)
     except (TypeError, ValueError):
         return math.nan
     finite = all(math.isfinite(v) for v in (t_cab, t_vent, t_int, t_shell, t_glass, rh, mdot, solar))
-    if not finite or not 0.0 <= rh <= 1.0 or mdot < 0.0:
+    if not finite or not 0.0 <= rh <= 1.0 or mdot < 0.0 or (pa is not None and not 0.0 <= pa < math.inf):
         return math.nan
+    if pa is None:
+        pa = float(psychro.vapour_pressure_pa(t_cab, rh))
     t_mr = cabin_mrt_c(t_cab_c=t_cab, t_int_c=t_int, t_shell_c=t_shell, t_glass_c=t_glass, params=params)
     return float(
         cabin_pmv(
@@ -466,7 +474,7 @@ def feedback_pmv(*, t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, rh_cab, md
             mdot_bl_kgps=mdot,
             t_mr_c=float(t_mr),
             w_rad_wm2=float(cabin_w_rad_wm2(max(solar, 0.0), params)),
-            pa_pa=float(psychro.vapour_pressure_pa(t_cab, rh)),
+            pa_pa=pa,
             params=params,
         )
     )

@@ -239,3 +239,12 @@ def test_feedback_pmv_is_the_scored_comfort_model_on_the_observation():
     assert feedback_pmv(**{**kw, "t_int_c": 40.0}, mdot_bl_kgps=0.09, solar_wm2=700.0, params=p) > y
     for bad in ({"rh_cab": math.nan}, {"rh_cab": 1.5}, {"t_glass_c": None}, {"t_vent_c": "x"}):
         assert math.isnan(feedback_pmv(**{**kw, **bad}, mdot_bl_kgps=0.09, solar_wm2=700.0, params=p))
+    # a vapour pressure given in place of the humidity: rh_cab is not read, the PMV is the one at that pressure
+    pa = float(psychro.vapour_pressure_pa(26.0, 0.35))
+    for rh in (math.nan, 0.35, 0.9):
+        got = feedback_pmv(**{**kw, "rh_cab": rh}, mdot_bl_kgps=0.09, solar_wm2=700.0, params=p, pa_pa=pa)
+        assert got == pytest.approx(y, abs=1e-12)
+    at_1700 = feedback_pmv(**{**kw, "rh_cab": math.nan}, mdot_bl_kgps=0.09, solar_wm2=700.0, params=p, pa_pa=1700.0)
+    assert at_1700 > y  # 1700 Pa is more humid than 35 % at 26 degC (1180 Pa): a warmer sensation
+    for bad_pa in (math.nan, -1.0, math.inf):
+        assert math.isnan(feedback_pmv(**kw, mdot_bl_kgps=0.09, solar_wm2=700.0, params=p, pa_pa=bad_pa))
