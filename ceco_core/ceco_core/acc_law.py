@@ -454,18 +454,16 @@ def feedback_pmv(
     from ceco_core import psychro
     from ceco_core.cabin_comfort import cabin_mrt_c, cabin_pmv, cabin_w_rad_wm2
 
-    rh_in = 0.5 if pa_pa is not None else rh_cab  # (rh unused when the vapour pressure is given)
-    vals = (t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, rh_in, mdot_bl_kgps, solar_wm2)
+    vals = (t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, mdot_bl_kgps, solar_wm2)
     try:
-        t_cab, t_vent, t_int, t_shell, t_glass, rh, mdot, solar = (float(v) for v in vals)
-        pa = None if pa_pa is None else float(pa_pa)
+        t_cab, t_vent, t_int, t_shell, t_glass, mdot, solar = (float(v) for v in vals)
+        humidity = float(rh_cab if pa_pa is None else pa_pa)  # the RH [-], or the vapour pressure given [Pa]
     except (TypeError, ValueError):
         return math.nan
-    finite = all(math.isfinite(v) for v in (t_cab, t_vent, t_int, t_shell, t_glass, rh, mdot, solar))
-    if not finite or not 0.0 <= rh <= 1.0 or mdot < 0.0 or (pa is not None and not 0.0 <= pa < math.inf):
+    finite = all(math.isfinite(v) for v in (t_cab, t_vent, t_int, t_shell, t_glass, mdot, solar, humidity))
+    if not finite or mdot < 0.0 or humidity < 0.0 or (pa_pa is None and humidity > 1.0):
         return math.nan
-    if pa is None:
-        pa = float(psychro.vapour_pressure_pa(t_cab, rh))
+    pa = humidity if pa_pa is not None else float(psychro.vapour_pressure_pa(t_cab, humidity))
     t_mr = cabin_mrt_c(t_cab_c=t_cab, t_int_c=t_int, t_shell_c=t_shell, t_glass_c=t_glass, params=params)
     return float(
         cabin_pmv(
