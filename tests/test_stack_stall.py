@@ -29,7 +29,9 @@ rclpy = pytest.importorskip('rclpy', reason='stack tests need the sourced ROS 2 
 if not hasattr(pytest.importorskip('ceco_msgs.msg', reason='stack tests need the built ceco_msgs'), 'AcCommand'):
     pytest.skip('stack tests need the sourced ROS 2 workspace (ceco_msgs is not built here)', allow_module_level=True)
 
-from ceco_bringup import bagio, supervisor  # noqa: E402
+from test_stack import DdsPeer  # noqa: E402
+
+from ceco_bringup import bagio  # noqa: E402
 from ceco_core.contracts import STRATEGIES  # noqa: E402
 from ceco_ros import interfaces  # noqa: E402
 
@@ -63,37 +65,14 @@ def _ceco_run(out: Path, domain: int, *args: str) -> subprocess.Popen:
     )
 
 
-class _Dds:
-    """An rclpy context on ``domain`` with `ceco run`'s DDS environment (supervisor.dds_env), for a test peer."""
-
-    KEYS = ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'FASTRTPS_DEFAULT_PROFILES_FILE')
-
-    def __init__(self, domain: int):
-        from rclpy.signals import SignalHandlerOptions
-
-        env = supervisor.dds_env(domain)
-        self._saved = {k: os.environ.get(k) for k in self.KEYS}
-        os.environ.update({k: env[k] for k in self.KEYS})
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
-
-    def close(self) -> None:
-        rclpy.try_shutdown(context=self.context)
-        for k, v in self._saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-
-
 def test_recorder_drain_takes_what_waits_in_its_readers(tmp_path):
     """Messages that reached the recorder's readers while no executor spun (as if the wait set had
     never reported them, the starvation hang) are taken and recorded by ``drain()``."""
     from ceco_bringup.recorder import Recorder
     from ceco_msgs.msg import CabinState
 
-    dds = _Dds(_domain(1))
-    context = dds.context
+    peer = DdsPeer(_domain(1), 'drain_test')  # `ceco run`'s DDS environment; the recorder below is not spun
+    context = peer.context
     try:
         rec = Recorder(tmp_path / 'bag', context=context, timestamps='sim')
         node = rclpy.create_node('plant_stand_in', context=context)
@@ -110,7 +89,7 @@ def test_recorder_drain_takes_what_waits_in_its_readers(tmp_path):
         node.destroy_node()
         rec.destroy_node()
     finally:
-        dds.close()
+        peer.close()
     assert counts['/cabin/state'] == 50
     states = [m.step_index for _, _, m in bagio.read_messages(tmp_path / 'bag', ('cabin/state',))]
     assert states == list(range(50))
@@ -168,10 +147,6 @@ def test_a_stalled_run_fails_clearly_and_all_goes_on(tmp_path):
     says the run stalled (default limit: the 5-s command timeout + 5 s of wall clock without a new
     plant step), stops its nodes and runs the other strategies; exit status 1 (before: the run
     waited for --run-timeout-s and the other strategies were lost)."""
-    import threading
-
-    from rclpy.executors import SingleThreadedExecutor
-
     from ceco_msgs.msg import WeatherPreview
 
     out, domain = tmp_path / 'all', _domain(3)
@@ -180,8 +155,7 @@ def test_a_stalled_run_fails_clearly_and_all_goes_on(tmp_path):
     # so the run is under way. (Stopped as soon as its log said 'starting at step 0', the plant once had not
     # yet published step 0: a start-up timeout. The subscriber is on a preview, which no node's start waits
     # for: on cabin/state it would fill the plant's start gate in place of a stack node.)
-    dds = _Dds(domain)
-    node = rclpy.create_node('plant_stopper', context=dds.context)
+    peer = DdsPeer(domain, 'plant_stopper')
     target: dict[str, int] = {}  # the first plant's pid, then the step it was stopped at
 
     def on_preview(msg) -> None:
@@ -189,17 +163,7 @@ def test_a_stalled_run_fails_clearly_and_all_goes_on(tmp_path):
             os.kill(target['pid'], signal.SIGSTOP)
             target['step'] = int(msg.step_index)
 
-    node.create_subscription(WeatherPreview, interfaces.TOPIC_WEATHER, on_preview, interfaces.QOS_PREVIEW)
-    executor = SingleThreadedExecutor(context=dds.context)
-    executor.add_node(node)
-    spin_stop = threading.Event()
-
-    def spin() -> None:
-        while not spin_stop.is_set():
-            executor.spin_once(timeout_sec=0.05)
-
-    spinner = threading.Thread(target=spin, daemon=True)
-    spinner.start()
+    peer.node.create_subscription(WeatherPreview, interfaces.TOPIC_WEATHER, on_preview, interfaces.QOS_PREVIEW)
     p = _ceco_run(out, domain, '--strategy', 'all', '--duration-s', '300', '--run-timeout-s', '240')
 
     def plant_found() -> bool:  # the process exists well before it publishes (imports, discovery)
@@ -215,16 +179,12 @@ def test_a_stalled_run_fails_clearly_and_all_goes_on(tmp_path):
     finally:
         if p.poll() is None:
             p.kill()
-        spin_stop.set()
-        spinner.join(timeout=10)
+        peer.close()
         if 'pid' in target:
             try:
                 os.kill(target['pid'], signal.SIGKILL)
             except ProcessLookupError:
                 pass
-        executor.shutdown()
-        node.destroy_node()
-        dds.close()
     assert 'step' in target, text  # the plant was stopped mid-run (control step >= 2, the run not over)
     assert p.returncode == 1, text
     assert f'{STRATEGIES[0]}: FAILED: stalled: no new plant step for 10 s of wall clock' in text, text
