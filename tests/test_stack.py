@@ -460,7 +460,7 @@ def test_bad_input_rejected_nodes_keep_commanding(tmp_path):
         bad_states = [
             (dict(t_cab_c=math.nan), 't_cab_c=nan is not finite'),
             (dict(t_vent_c=math.inf), 't_vent_c=inf is not finite'),
-            (dict(t_glass_c=math.nan), 't_glass_c=nan is not finite'),
+            (dict(t_glass_c=math.inf), 't_glass_c=inf is not finite (NaN means: not set)'),  # NaN: no such sensor
             (dict(rh_cab=math.inf), 'rh_cab=inf is not finite'),
             (dict(mdot_bl_kgps=math.nan), 'mdot_bl_kgps=nan is not finite'),  # the previous command
             (dict(t_evap_sp_c=25.0), 't_evap_sp_c=25.0 is outside the plausible range'),
