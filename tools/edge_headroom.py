@@ -294,8 +294,13 @@ def main(argv=None) -> int:
         'CO2-holding door\'s)',
     )
     args = p.parse_args(argv)
-    if args.co2_margin_ppm is not None and not (0.0 <= args.co2_margin_ppm < 1000.0):
-        p.error(f'--co2-margin-ppm: must be in [0, 1000), got {args.co2_margin_ppm}')
+    if args.co2_margin_ppm is not None:  # the oracle's own check, before any results file is read
+        from ceco_controller.oracle import OracleSettings
+
+        try:
+            OracleSettings(co2_margin_ppm=args.co2_margin_ppm).validate()
+        except ValueError as err:
+            p.error(f'--co2-margin-ppm: {err}')
     if not (0.0 <= args.margin < 0.5):
         p.error(f'--margin: must be in [0, 0.5), got {args.margin}')
     if args.pointwise and not args.with_margin:
