@@ -550,7 +550,7 @@ def test_door_logic_tuned_with_the_tuned_laws_is_frozen_by_its_rule_and_given_to
 
 
 def test_the_frozen_door_tuning_is_what_its_rule_gives_on_this_code(tmp_path):
-    """The rule of door_tuning.yaml rerun on today's code (160 closed-loop runs, about 30 s on 2 workers) chooses the
+    """The rule of door_tuning.yaml rerun on today's code (160 closed-loop runs, about 20 s on 2 workers) chooses the
     frozen purge share and margin for both tuned laws, at the frozen objective. A change to the door logic, the
     plant or the laws that moves the choice fails here until the rule is rerun (the enthalpy economiser once moved
     both laws' margin from 450 to 400 ppm while the file kept 450: the baselines' door was tuned for another rule)."""
