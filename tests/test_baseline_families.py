@@ -122,3 +122,8 @@ def test_pmv_law_reads_the_observation_and_faults_safely():
     assert d4.status in ("pi", "pulldown") and math.isfinite(pmv_of(d4))
     expected = measured_pmv(unmeasured, ComfortParams(), math.nan, math.nan)  # 1700 Pa, the interior for the glazing
     assert pmv_of(d4) == pytest.approx(expected, abs=5e-4) and abs(expected - pmv_of(diag)) > 0.01
+    # implausible readings are not measurements either (the observation check's values): the same PMV
+    implausible = dataclasses.replace(hot, rh_cab=1.5, t_glass_c=400.0)
+    law5 = BaselineController(AccSettings(feedback="pmv", setpoint_pmv=0.0), comfort_params=ComfortParams())
+    _, d5 = law5.compute(implausible)
+    assert d5.status in ("pi", "pulldown") and pmv_of(d5) == pmv_of(d4)

@@ -37,7 +37,7 @@ from ceco_core.cabin_comfort import ComfortParams
 from ceco_core.co2_door import Co2DoorLaw
 from ceco_core.co2_estimator import Co2EstimatorParams
 from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
-from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits
+from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits, check_observation
 from ceco_core.recirc_law import RecircCommand, RecircLaw, RecircSettings
 
 from .comfort_feedback import measured_pmv
@@ -99,8 +99,9 @@ class BaselineController:
         t_cab = t_cab if lo <= t_cab <= hi else math.nan
         pmv = None
         if self.law.settings.feedback == "pmv":
-            # the observation's PMV as ceco-pmv measures it (the glazing and the humidity where not measured)
-            pmv = measured_pmv(dataclasses.replace(obs, t_cab_c=t_cab), self.comfort_params, obs.t_glass_c, obs.rh_cab)
+            # the observation's PMV as ceco-pmv measures it, from the checked optional sensors (NaN: not measured)
+            chk = check_observation(obs, self.observation_limits)
+            pmv = measured_pmv(dataclasses.replace(obs, t_cab_c=t_cab), self.comfort_params, chk.t_glass_c, chk.rh_cab)
         cmd = self.law.step(
             t_cab,
             self.control_period_s,

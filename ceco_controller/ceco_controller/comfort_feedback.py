@@ -71,10 +71,11 @@ def measured_pmv(obs: Observation, params: ComfortParams, t_glass_c: float, rh_c
     temperatures, the glazing ``t_glass_c`` (the interior temperature where the glazing is not measured,
     as the NLP's T_mr does), the cabin humidity ``rh_cab`` (the paper's 1700 Pa of vapour pressure where it is not
     measured, as the NLP's PMV has then: ``StrategySettings.pmv_pa_source``), the sun-load sensor and the blower
-    flow held over the last period. NaN when another input is missing.
+    flow held over the last period. ``t_glass_c`` and ``rh_cab`` are the checked values
+    (:class:`ceco_core.observation_check.ObservationCheck`: NaN when not measured or implausible). NaN when another
+    input is missing.
     """
     t_glass = t_glass_c if math.isfinite(t_glass_c) else obs.t_int_c
-    rh_known = math.isfinite(rh_cab) and 0.0 <= rh_cab <= 1.0
     return feedback_pmv(
         t_cab_c=obs.t_cab_c,
         t_vent_c=obs.t_vent_c,
@@ -85,7 +86,7 @@ def measured_pmv(obs: Observation, params: ComfortParams, t_glass_c: float, rh_c
         mdot_bl_kgps=obs.mdot_bl_prev_kgps,
         solar_wm2=obs.solar_wm2,
         params=params,
-        pa_pa=None if rh_known else PAPER_PA_PA,
+        pa_pa=None if math.isfinite(rh_cab) else PAPER_PA_PA,
     )
 
 
