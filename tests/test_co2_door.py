@@ -93,7 +93,7 @@ def test_door_safe_defaults_fog_sensor_fault_and_economiser():
         strategy_settings("ceco-pmv", door_control="open").validate()
 
 
-def _hc4(duration_s, door: bool, fail_s=None):
+def _hc4(duration_s, door: bool, fail_s=None, strategy="ceco-pmv"):
     from ceco_bringup.benchmark.cases import load_case
     from ceco_controller.closed_loop import SimSettings, simulate
     from ceco_v2x_preview.preview import parse_quality
@@ -108,8 +108,9 @@ def _hc4(duration_s, door: bool, fail_s=None):
         preview_quality=parse_quality("uncertain:medium"),
         strategy_overrides=(("door_control", "co2_hold"),) if door else (),
     )
-    r = simulate(sc, "ceco-pmv", st)
+    r = simulate(sc, strategy, st)
     assert r.metrics["n_fallback_shifted"] + r.metrics["n_fallback_baseline"] == 0
+    assert r.metrics["strategy"] == strategy
     return r.timeseries
 
 
@@ -141,6 +142,25 @@ def test_closed_loop_door_goes_to_fresh_air_when_the_co2_sensor_dies():
     t, cmd = ts["t_s"], ts["recirc_share_cmd"]
     assert np.any(cmd[t < 300.0] > 0.5)
     assert np.all(cmd[t >= 305.0] == 0.0)
+
+
+def test_the_named_variant_ceco_pmv_aq_is_ceco_pmv_with_the_co2_holding_door():
+    """``simulate(sc, "ceco-pmv-aq")`` (``ceco sim``/``ceco run --strategy ceco-pmv-aq``, mpc_node's
+    ``strategy:=ceco-pmv-aq``) gives the run of ceco-pmv with ``door_control: co2_hold``, to the bit, and moves the
+    door where plain ceco-pmv leaves it at the plant's 0.8; a caller's overrides still apply on top of it."""
+    from ceco_controller.strategies import load_strategy_settings, strategy_settings
+
+    named = _hc4(120.0, door=False, strategy="ceco-pmv-aq")
+    long_way = _hc4(120.0, door=True)
+    plain = _hc4(120.0, door=False)
+    for column in ("recirc_share_cmd", "mdot_bl_kgps", "t_evap_sp_c", "p_comp_w", "co2_cab_ppm"):
+        np.testing.assert_array_equal(named[column], long_way[column], err_msg=column)
+    assert np.all(plain["recirc_share_cmd"] == 0.8) and np.any(named["recirc_share_cmd"] != 0.8)
+    for settings in (strategy_settings("ceco-pmv-aq"), load_strategy_settings("ceco-pmv-aq")):
+        assert (settings.name, settings.door_control) == ("ceco-pmv", "co2_hold")
+    assert load_strategy_settings("ceco-pmv-aq", door_control="nlp").door_control == "nlp"
+    with pytest.raises(ValueError, match="unknown CECO strategy 'ceco-pmv-co2'; choose from .*'ceco-pmv-aq'"):
+        load_strategy_settings("ceco-pmv-co2")
 
 
 def test_benchmark_runs_the_door_variant_of_ceco_pmv_by_name():

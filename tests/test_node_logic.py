@@ -323,12 +323,14 @@ def test_a_car_without_glazing_and_humidity_sensors_is_controlled(strategy, law)
     assert session.inputs.rejections.summary() == 'none', session.inputs.rejections.summary()
 
 
-def test_the_readme_recipe_runs_ceco_pmv_aq_on_mpc_node(tmp_path):
-    """README, "Which controller to use": mpc_node with strategy ceco-pmv and a copy of the installed controller.yaml
-    with door_control co2_hold under ceco-pmv is ceco-pmv-aq: it commands the door (a share in 0..1 each step) where
-    the shipped file's ceco-pmv leaves it to the plant (NaN)."""
+def test_mpc_node_runs_the_named_variant_ceco_pmv_aq(tmp_path):
+    """README, "Which controller to use": mpc_node's ``strategy:=ceco-pmv-aq`` is ceco-pmv with the CO2-holding door.
+    It commands the door (a share in 0..1 each step) where ceco-pmv leaves it to the plant (NaN), its commands equal
+    those of ceco-pmv with ``door_control: co2_hold`` in a copy of the controller file (the long way), and its
+    AcCommand names it and passes the plant's check. An unknown name is refused, naming the values."""
     import yaml
 
+    import ceco_ros.conversions as conversions
     from ceco_controller.controller_session import ControllerSession
     from ceco_controller.model import package_config_path
 
@@ -336,9 +338,13 @@ def test_the_readme_recipe_runs_ceco_pmv_aq_on_mpc_node(tmp_path):
     doc['strategies']['ceco-pmv']['door_control'] = 'co2_hold'
     aq = tmp_path / 'controller_aq.yaml'
     aq.write_text(yaml.safe_dump(doc))
-    shares = {}
-    for name, path in (('shipped', ''), ('aq', str(aq))):
-        cfg = _ctrl_cfg(strategy='ceco-pmv', controller_config=path)
+    commands = {}
+    for name, strategy, path in (
+        ('ceco-pmv', 'ceco-pmv', ''),
+        ('named', 'ceco-pmv-aq', ''),
+        ('long way', 'ceco-pmv', str(aq)),
+    ):
+        cfg = _ctrl_cfg(strategy=strategy, controller_config=path)
         session = ControllerSession(cfg, lambda *_: None, lambda *_: None)
         assert session.configure(cfg)
         results = []
@@ -346,10 +352,15 @@ def test_the_readme_recipe_runs_ceco_pmv_aq_on_mpc_node(tmp_path):
             results += session.on_preview('weather', weather(k), 0.1 * k, True)
             results += session.on_preview('traffic', traffic(k), 0.1 * k, True)
             results += session.on_state(state(5.0 * k, co2_sensor_ppm=900.0), 0.1 * k, 5.0 * k, True)
-        assert [r.k for r in results] == [0, 1, 2]
-        shares[name] = [r.command.recirc_share for r in results]
-    assert all(math.isnan(x) for x in shares['shipped']), shares
-    assert all(0.0 <= x <= 1.0 for x in shares['aq']), shares
+        assert [r.k for r in results] == [0, 1, 2] and not any(r.fallback for r in results)
+        commands[name] = [(r.command.mdot_bl_kgps, r.command.t_evap_sp_c, r.command.recirc_share) for r in results]
+        msg = conversions.command_msg(results[-1].command, 2, stamp(10.0), 5.0, cfg.strategy, False)
+        assert msg.strategy == strategy and checks.check_command(msg, 5.0) is None
+    assert all(math.isnan(c[2]) for c in commands['ceco-pmv']), commands
+    assert all(0.0 <= c[2] <= 1.0 for c in commands['named']), commands
+    assert commands['named'] == commands['long way']
+    with pytest.raises(ValueError, match='must be one of ceco, ceco-e, ceco-c, ceco-ioch, ceco-pmv, ceco-pmv-aq'):
+        _ctrl_cfg(strategy='ceco-pmv-co2')
 
 
 def test_check_stamps():

@@ -152,17 +152,20 @@ def nonnegative_int(text: str) -> int:
 
 
 def strategy_list(text: str) -> list[str]:
-    """``all`` or a comma-separated list of strategies, as a list without repeats (argparse type)."""
-    from ceco_core.contracts import STRATEGIES
+    """``all`` or a comma-separated list of strategies, as a list without repeats (argparse type).
+
+    ``all``: the baseline and the CECO strategies; a list may also name a variant such as ``ceco-pmv-aq``.
+    """
+    from ceco_core.contracts import NAMED_STRATEGIES, STRATEGIES
 
     if text.strip() == 'all':
         return list(STRATEGIES)
     names = [s.strip() for s in text.split(',') if s.strip()]
-    bad = [s for s in names if s not in STRATEGIES]
+    bad = [s for s in names if s not in NAMED_STRATEGIES]
     if not names or bad:
         raise argparse.ArgumentTypeError(
             f"unknown strategy {', '.join(bad) or repr(text)}: use all or a comma-separated list of "
-            f"{', '.join(STRATEGIES)}"
+            f"{', '.join(NAMED_STRATEGIES)}"
         )
     return list(dict.fromkeys(names))
 
@@ -216,13 +219,14 @@ def add_scenario(p, default: str | None = 'sc03', help_extra: str = '') -> None:
 
 def add_strategy(p, default: str | None, help_extra: str = '') -> None:
     """``--strategy``: ``all`` or a comma-separated list of strategies, parsed into a list."""
-    from ceco_core.contracts import STRATEGIES
+    from ceco_core.contracts import NAMED_STRATEGIES, STRATEGIES
 
     p.add_argument(
         '--strategy',
         type=strategy_list,
         default=default if default is None else strategy_list(default),
-        help=f"all, or one or a comma-separated list of {', '.join(STRATEGIES)}" + help_extra,
+        help=f"all ({', '.join(STRATEGIES)}), or one or a comma-separated list of {', '.join(NAMED_STRATEGIES)}"
+        + help_extra,
     )
 
 

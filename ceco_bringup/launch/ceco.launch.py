@@ -47,9 +47,9 @@ from launch_ros.event_handlers import OnStateTransition
 from launch_ros.parameter_descriptions import ParameterFile, ParameterValue
 from launch_ros.substitutions import FindPackageShare
 
-# Equal to ceco_core.contracts.STRATEGIES, ceco_core.control_grid.TIMING_MODES and
+# Equal to ceco_core.contracts.NAMED_STRATEGIES, ceco_core.control_grid.TIMING_MODES and
 # ceco_ros.interfaces.STACK_TOPICS (ceco_bringup/test/test_launch.py checks all three).
-STRATEGIES = ('baseline', 'ceco', 'ceco-e', 'ceco-c', 'ceco-ioch', 'ceco-pmv')
+STRATEGIES = ('baseline', 'ceco', 'ceco-e', 'ceco-c', 'ceco-ioch', 'ceco-pmv', 'ceco-pmv-aq', 'ceco-pmv-door')
 TIMING_MODES = ('lockstep', 'realtime')
 TOPICS = (
     'cabin/state',

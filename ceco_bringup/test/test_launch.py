@@ -278,10 +278,10 @@ def test_both_launch_files_declare_the_documented_arguments(monkeypatch):
     assert declared['record'][1] == ['true', 'false'] and declared['use_sim_time'][1] == ['auto', 'true', 'false']
     assert declared['namespace'][1] is None and declared['scenario'][1] is None and declared['keystore'][1] is None
 
-    from ceco_core.contracts import STRATEGIES
+    from ceco_core.contracts import NAMED_STRATEGIES
     from ceco_core.control_grid import TIMING_MODES
 
-    assert tuple(declared['strategy'][1]) == STRATEGIES and tuple(declared['timing'][1]) == TIMING_MODES
+    assert tuple(declared['strategy'][1]) == NAMED_STRATEGIES and tuple(declared['timing'][1]) == TIMING_MODES
     xml = {
         a.get('name'): (a.get('default'), [c.get('value') for c in a.findall('choice')] or None, a.get('description'))
         for a in ET.parse(XML_FILE).getroot().findall('arg')

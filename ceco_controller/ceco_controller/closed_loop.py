@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 from ceco_core import rundir
-from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS, MEASUREMENT_MODES
+from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS, MEASUREMENT_MODES, NAMED_STRATEGIES
 from ceco_core.metrics import comfort_series_metrics, run_metrics
 from ceco_core.run_status import check_control
 from ceco_plant_sim.compiled_plant import PlantEvaluation
@@ -34,7 +34,6 @@ from .estimating_controller import EstimatingController, with_measurements
 from .estimator import estimation_errors
 from .factory import ControllerCache, make_controller
 from .observation import observation
-from .strategies import STRATEGIES
 
 __all__ = [
     "SimSettings",
@@ -153,7 +152,8 @@ def simulate(
 
     Args:
         scenario: a :class:`Scenario` or a bundled name / YAML path.
-        strategy: ``baseline``, ``ceco``, ``ceco-e``, ``ceco-c`` or ``ceco-ioch``.
+        strategy: ``baseline``, a CECO strategy (``ceco``, ``ceco-e``, ``ceco-c``, ``ceco-ioch``, ``ceco-pmv``) or
+            a named variant of one (``ceco-pmv-aq``: :data:`ceco_core.contracts.STRATEGY_VARIANTS`).
         settings: :class:`SimSettings`.
         controller: an already built controller to use (for tests); default: built here.
         controller_cache: reuse an NMPC built by an earlier run of this process (a benchmark
@@ -163,8 +163,8 @@ def simulate(
     settings.validate()
     if isinstance(scenario, str):
         scenario = load_scenario(scenario)
-    if strategy not in STRATEGIES:
-        raise ValueError(f"strategy must be one of {STRATEGIES}, got {strategy!r}")
+    if strategy not in NAMED_STRATEGIES:
+        raise ValueError(f"strategy must be one of {NAMED_STRATEGIES}, got {strategy!r}")
     ts = float(settings.control_period_s or scenario.control.control_period_s)
     n_p = int(settings.horizon_steps or scenario.control.horizon_steps)
     dt = float(settings.plant_dt_s)

@@ -12,7 +12,7 @@ import dataclasses
 import math
 from typing import Any
 
-from ceco_core.contracts import CECO_STRATEGIES, MEASUREMENT_MODES
+from ceco_core.contracts import MEASUREMENT_MODES, NODE_STRATEGIES
 from ceco_core.control_grid import TIMING_MODES
 from ceco_ros.params import (
     CLOCK_AHEAD_PARAMETER,
@@ -46,8 +46,9 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
                 'strategy',
                 'ceco-ioch',
                 'CECO strategy: ceco (general), ceco-e (energy), ceco-c (comfort), ceco-ioch (speed-aware slack), '
-                'ceco-pmv (comfort output held at its bound)',
-                choices=CECO_STRATEGIES,
+                'ceco-pmv (comfort output held at its bound), ceco-pmv-aq (ceco-pmv with the CO2-holding recirculation '
+                'door), ceco-pmv-door (ceco-pmv with the door in its NLP)',
+                choices=NODE_STRATEGIES,
                 at_configure=True,
             ),
         )
@@ -220,11 +221,11 @@ class ControllerNodeConfig(NodeConfig):
 
     def validate(self) -> None:
         """Raise ValueError naming the parameter."""
-        allowed = CECO_STRATEGIES + ('baseline',)
+        allowed = NODE_STRATEGIES + ('baseline',)
         if self.strategy not in allowed:
             raise ValueError(
                 f'invalid parameter strategy={self.strategy!r}: unknown strategy, '
-                f'must be one of {", ".join(CECO_STRATEGIES)}'
+                f'must be one of {", ".join(NODE_STRATEGIES)}'
             )
         super().validate()
         ts = self.control_period_s

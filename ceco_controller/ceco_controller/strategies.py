@@ -34,7 +34,7 @@ import dataclasses
 import math
 from typing import Any
 
-from ceco_core.contracts import CECO_STRATEGIES, STRATEGIES
+from ceco_core.contracts import CECO_STRATEGIES, NODE_STRATEGIES, STRATEGIES, strategy_variant
 
 __all__ = [
     "StrategySettings",
@@ -42,6 +42,7 @@ __all__ = [
     "SOLVER_NAMES",
     "STRATEGIES",
     "CECO_STRATEGIES",
+    "NODE_STRATEGIES",
     "DOOR_CONTROLS",
     "strategy_settings",
     "resolved_transcription",
@@ -486,10 +487,15 @@ def resolve_auto(settings: StrategySettings) -> StrategySettings:
 
 
 def strategy_settings(name: str, **overrides) -> StrategySettings:
-    """Default settings of strategy ``name`` with keyword overrides; validated."""
+    """Default settings of strategy ``name`` with keyword overrides; validated.
+
+    A named variant (``ceco-pmv-aq``): its strategy's defaults with the variant's fields, then the overrides.
+    """
+    name, variant = strategy_variant(name)
     if name not in _DEFAULTS:
-        raise ValueError(f"unknown CECO strategy {name!r}; choose from {CECO_STRATEGIES}")
+        raise ValueError(f"unknown CECO strategy {name!r}; choose from {NODE_STRATEGIES}")
     kw: dict[str, Any] = dict(_DEFAULTS[name])
+    kw.update(variant)
     kw.update(overrides)
     s = StrategySettings(name=name, **kw)
     s.validate()
@@ -501,7 +507,8 @@ def load_strategy_settings(name: str, path=None, **overrides) -> StrategySetting
 
     ``path`` None: the package's ``config/controller.yaml`` (source tree, else the installed share
     directory; :func:`ceco_controller.model.package_config_path`). The closed-loop simulator and
-    ``mpc_node`` (parameter ``controller_config``) build their controllers from it.
+    ``mpc_node`` (parameter ``controller_config``) build their controllers from it. A named variant
+    (``ceco-pmv-aq``, :data:`ceco_core.contracts.STRATEGY_VARIANTS`) reads its strategy's keys, then sets its fields.
     """
     import pathlib
 
@@ -513,8 +520,12 @@ def load_strategy_settings(name: str, path=None, **overrides) -> StrategySetting
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     if not isinstance(doc, dict):
         raise ValueError(f"{path}: expected a mapping")
+    name, variant = strategy_variant(name)
+    if name not in CECO_STRATEGIES:
+        raise ValueError(f"unknown CECO strategy {name!r}; choose from {NODE_STRATEGIES}")
     kw = dict(doc.get("common") or {})
     kw.update((doc.get("strategies") or {}).get(name) or {})
+    kw.update(variant)
     solver = kw.pop("solver", None)
     if solver is not None:
         try:

@@ -42,6 +42,10 @@ __all__ = [
     "DIAGNOSTICS_COLUMNS",
     "STRATEGIES",
     "CECO_STRATEGIES",
+    "STRATEGY_VARIANTS",
+    "NODE_STRATEGIES",
+    "NAMED_STRATEGIES",
+    "strategy_variant",
     "BASELINE_STRATEGY",
     "MEASUREMENT_MODES",
     "EXTERNAL_STRATEGY",
@@ -73,13 +77,38 @@ BASELINE_STRATEGY = "baseline"
 """Name of the production climate control used as the baseline."""
 
 STRATEGIES = (BASELINE_STRATEGY,) + CECO_STRATEGIES
-"""Every strategy, baseline first (also the values of AcCommand.strategy on the wire)."""
+"""Every strategy, baseline first: what ``--strategy all`` runs."""
+
+STRATEGY_VARIANTS: dict[str, tuple[str, tuple[tuple[str, object], ...]]] = {
+    "ceco-pmv-aq": ("ceco-pmv", (("door_control", "co2_hold"),)),
+    "ceco-pmv-door": ("ceco-pmv", (("door_control", "nlp"),)),
+}
+"""Named variants of a CECO strategy: ``{name: (strategy, ((StrategySettings field, value), ...))}``, the
+strategy's settings with these fields set (after the controller file, before a caller's overrides).
+``ceco-pmv-aq``: ceco-pmv with the CO2-holding recirculation door beside its NLP (docs/controller.md 4.8);
+``ceco-pmv-door``: ceco-pmv with the door a third input of its NLP (4.9). Valid wherever a strategy is named
+(mpc_node's ``strategy``, ``--strategy``, ``ceco benchmark``); ``--strategy all`` runs :data:`STRATEGIES`."""
+
+NODE_STRATEGIES = CECO_STRATEGIES + tuple(STRATEGY_VARIANTS)
+"""The values of mpc_node's ``strategy`` parameter."""
+
+NAMED_STRATEGIES = STRATEGIES + tuple(STRATEGY_VARIANTS)
+"""Every strategy name a run can be asked for (also the values of AcCommand.strategy on the wire)."""
 
 EXTERNAL_STRATEGY = "external"
 """AcCommand.strategy of a third-party controller scored by ``ceco benchmark --controller-cmd``."""
 
-WIRE_STRATEGIES = STRATEGIES + (EXTERNAL_STRATEGY,)
+WIRE_STRATEGIES = NAMED_STRATEGIES + (EXTERNAL_STRATEGY,)
 """Every AcCommand.strategy the plant accepts."""
+
+
+def strategy_variant(name: str) -> tuple[str, tuple[tuple[str, object], ...]]:
+    """``(strategy, settings overrides)`` of a strategy name.
+
+    A named variant's (:data:`STRATEGY_VARIANTS`), else ``(name, ())``.
+    """
+    return STRATEGY_VARIANTS.get(name, (name, ()))
+
 
 MEASUREMENTS = (
     "t_cab_c",

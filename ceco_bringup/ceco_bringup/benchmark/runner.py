@@ -22,7 +22,7 @@ from importlib import resources
 from pathlib import Path
 
 from ceco_bringup.sweep.cells import Cell, cell_id
-from ceco_core import yamlio
+from ceco_core import contracts, yamlio
 from ceco_core.run_status import STATUS_FAILED, ControlCheck, check_control
 
 from . import front as fr
@@ -102,13 +102,11 @@ PERSISTENCE_TWINS = ('ceco-pmv',)
 """The strategies run a second time with persistence previews (``ceco-pmv-persistence``): what the previews
 are worth to them."""
 
-STRATEGY_VARIANTS = {
-    'ceco-pmv-aq': ('ceco-pmv', (('door_control', 'co2_hold'),)),
-    'ceco-pmv-door': ('ceco-pmv', (('door_control', 'nlp'),)),
-}
-"""Benchmark names of a strategy run with settings overrides: ``{name: (strategy, ((field, value), ...))}``
-(issue 21: ``ceco-pmv-aq``, ceco-pmv with the CO2-holding door beside its NLP; ``ceco-pmv-door``, ceco-pmv with
-the door a third input of its NLP; docs/controller.md 4.8, 4.9)."""
+STRATEGY_VARIANTS = contracts.STRATEGY_VARIANTS
+"""The named variants of a strategy the benchmark scores on request (issue 21: ``ceco-pmv-aq``, ceco-pmv with the
+CO2-holding door beside its NLP; ``ceco-pmv-door``, ceco-pmv with the door a third input of its NLP;
+docs/controller.md 4.8, 4.9), the same names as mpc_node's ``strategy``: ``{name: (strategy, ((field, value),
+...))}`` (:data:`ceco_core.contracts.STRATEGY_VARIANTS`)."""
 
 DOOR_CASE_STRATEGIES = {'ceco-pmv': 'ceco-pmv-aq'}
 """On a case whose baselines drive the door (``baseline_door``), each scored strategy here brings its door variant

@@ -249,7 +249,7 @@ def strategy_setting_overrides(grid: Mapping, strategies: Sequence[str]) -> dict
         return {}
     if not isinstance(raw, Mapping) or not raw:
         raise GridError('settings: must be a non-empty mapping {label: {strategy: {field: value}}}')
-    from ceco_controller.strategies import CECO_STRATEGIES, StrategySettings, strategy_settings
+    from ceco_controller.strategies import NODE_STRATEGIES, StrategySettings, strategy_settings
 
     fixed = {k: grid[k] for k in ('control_period_s', 'horizon_steps') if grid.get(k) is not None}
     if 'horizon_steps' in fixed:
@@ -267,8 +267,8 @@ def strategy_setting_overrides(grid: Mapping, strategies: Sequence[str]) -> dict
             where = f'settings.{label}.{strategy}'
             if strategy not in strategies:
                 raise GridError(f'{where}: strategy {strategy!r} is not in the grid\'s strategies {list(strategies)}')
-            if strategy not in CECO_STRATEGIES:
-                raise GridError(f'{where}: {strategy} has no StrategySettings (use one of {list(CECO_STRATEGIES)})')
+            if strategy not in NODE_STRATEGIES:
+                raise GridError(f'{where}: {strategy} has no StrategySettings (use one of {list(NODE_STRATEGIES)})')
             if fields is None:
                 fields = {}
             if not isinstance(fields, Mapping):
@@ -300,14 +300,11 @@ def expand_grid(grid: Mapping) -> list[Cell]:
     strategies = grid.get('strategies')
     if not isinstance(strategies, (list, tuple)) or not strategies or not all(isinstance(s, str) for s in strategies):
         raise GridError('strategies: must be a non-empty list of strategy names')
-    try:
-        from ceco_controller.strategies import STRATEGIES
-    except ImportError:
-        STRATEGIES = None
-    if STRATEGIES is not None:
-        bad = [s for s in strategies if s not in STRATEGIES]
-        if bad:
-            raise GridError(f'strategies: unknown strategy {bad[0]!r} (use {list(STRATEGIES)})')
+    from ceco_core.contracts import NAMED_STRATEGIES
+
+    bad = [s for s in strategies if s not in NAMED_STRATEGIES]
+    if bad:
+        raise GridError(f'strategies: unknown strategy {bad[0]!r} (use {list(NAMED_STRATEGIES)})')
     scenarios = _named('scenarios', grid.get('scenarios'), {'sc03': 'sc03'})
     cycles = _named('drive_cycles', grid.get('drive_cycles'), {'scenario': None})
     climates = _named('climates', grid.get('climates'), {'scenario': None})
