@@ -25,7 +25,7 @@ import numpy as np
 from matplotlib.patches import Patch
 
 from ceco_bringup.rundata import fallback_mask
-from ceco_core.contracts import STRATEGIES
+from ceco_core.contracts import NAMED_STRATEGIES
 from ceco_core.metrics import relative_change_pct
 
 __all__ = [
@@ -45,7 +45,7 @@ __all__ = [
     'fig_plane',
 ]
 
-STRATEGY_ORDER = STRATEGIES
+STRATEGY_ORDER = NAMED_STRATEGIES
 """Order in which strategies appear in legends, tables and bars."""
 
 OKABE_ITO = ('#000000', '#E69F00', '#56B4E9', '#009E73', '#D55E00', '#0072B2', '#CC79A7', '#F0E442')
@@ -56,6 +56,8 @@ _LABEL = {
     'ceco-c': 'CECO-C',
     'ceco-ioch': 'CECO-IOCH',
     'ceco-pmv': 'CECO-PMV',
+    'ceco-pmv-aq': 'CECO-PMV-AQ',
+    'ceco-pmv-door': 'CECO-PMV-DOOR',
 }
 _DPI = 200
 RC_PARAMS = {  # matplotlib rc of every ceco figure
