@@ -5,7 +5,8 @@
 
 Reruns ``--strategy`` on every seed of each case exactly as ``ceco benchmark`` runs it (the case's benchmark
 cells, ``runner.run_benchmark_cell``) with the StrategySettings overrides of ``--set`` (e.g.
-``--set backoff_min_pmv=0.0``; none: the strategy as shipped) and, with ``--model-params``, the controller's
+``--set backoff_min_pmv=0.0``; ``horizon_steps`` and ``control_period_s`` set the run's, as the case's scenario
+does; none: the strategy as shipped) and, with ``--model-params``, the controller's
 identified model read from FILE instead of the package's (the cells' ``model_params_path``). It scores the runs
 with the benchmark's own matching (``runner.matched_of``) against the families' runs and the oracle front stored
 in RESULTS.json (a ``ceco benchmark --oracle`` output of the same simulator code for the baselines; a note on
@@ -87,7 +88,10 @@ def study(results: dict, case_name: str, strategy: str, overrides: dict, model_p
     rows = []
     for c in strategy_cells(case, strategy):
         spec = json.loads(json.dumps(c.spec))
-        spec['strategy_overrides'].update(overrides)
+        # the horizon and the control period are the run's (the cell's keys), the rest the strategy's settings
+        run_keys = ('horizon_steps', 'control_period_s')
+        spec.update({k: v for k, v in overrides.items() if k in run_keys})
+        spec['strategy_overrides'].update({k: v for k, v in overrides.items() if k not in run_keys})
         if model_params is not None:
             spec['model_params_path'] = model_params
         row = runner.run_benchmark_cell({'id': c.id, 'axes': c.axes, 'spec': spec})
