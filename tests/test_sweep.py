@@ -529,6 +529,30 @@ def test_the_study_tools_say_when_results_are_of_other_code(tmp_path, capsys):
     assert '0123456789abcdef' in err and here in err
 
 
+def test_variant_headroom_routes_the_horizon_to_the_run_and_the_rest_to_the_settings():
+    """``tools/variant_headroom.py --set``: ``horizon_steps`` and ``control_period_s`` become the cell's own (as a
+    case's scenario sets them; as settings they clashed with the run's and raised a TypeError), every other name a
+    StrategySettings override; the cell's spec is copied, not changed; a 10-s run of that cell succeeds."""
+    import pathlib
+    import sys
+
+    from ceco_bringup.benchmark import runner
+    from ceco_bringup.benchmark.cases import load_case
+
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / 'tools'))
+    import variant_headroom
+
+    cell = variant_headroom.strategy_cells(load_case('sc03-paper'), 'ceco-pmv')[0]
+    before = json.dumps(cell.spec, sort_keys=True)
+    spec = variant_headroom.variant_spec(cell.spec, {'horizon_steps': 12, 'backoff_init_pmv': 0.05}, '/m.yaml')
+    assert json.dumps(cell.spec, sort_keys=True) == before
+    assert (spec['horizon_steps'], spec['control_period_s'], spec['model_params_path']) == (12, None, '/m.yaml')
+    assert dict(spec['strategy_overrides']) == {**dict(cell.spec['strategy_overrides']), 'backoff_init_pmv': 0.05}
+    spec = dict(variant_headroom.variant_spec(cell.spec, {'horizon_steps': 12}), duration_s=10.0)
+    row = runner.run_benchmark_cell({'id': cell.id, 'axes': cell.axes, 'spec': spec})
+    assert row['status'] == 'ok', row.get('error')
+
+
 def test_edge_headroom_co2_margin_reaches_the_bounds_and_is_checked(capsys):
     """``tools/edge_headroom.py --co2-margin-ppm``: the bounds' settings carry the margin (150 ppm, the CO2-holding
     door's) with the case's door logic and control period, the oracle's 10 ppm without it; a negative or non-finite

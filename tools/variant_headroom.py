@@ -73,6 +73,21 @@ def strategy_cells(case, strategy: str) -> list:
     return [c for c in runner.case_cells(case, specs, cli.code_fingerprint()) if c.axes['controller'] == strategy]
 
 
+RUN_KEYS = ('horizon_steps', 'control_period_s')
+"""``--set`` names that are the run's (a benchmark cell's keys, as a case's scenario sets them), not settings."""
+
+
+def variant_spec(spec: dict, overrides: dict, model_params: str | None = None) -> dict:
+    """A copy of a benchmark cell's ``spec`` with the variant's overrides (:data:`RUN_KEYS` to the run, the rest to
+    the strategy's settings) and its model file."""
+    out = json.loads(json.dumps(spec))
+    out.update({k: v for k, v in overrides.items() if k in RUN_KEYS})
+    out['strategy_overrides'].update({k: v for k, v in overrides.items() if k not in RUN_KEYS})
+    if model_params is not None:
+        out['model_params_path'] = model_params
+    return out
+
+
 def study(results: dict, case_name: str, strategy: str, overrides: dict, model_params: str | None = None) -> dict:
     """The variant's matched entry on one case of ``results`` (``runner.matched_of``'s, for ``strategy``)."""
     from ceco_bringup.benchmark import runner
@@ -87,14 +102,9 @@ def study(results: dict, case_name: str, strategy: str, overrides: dict, model_p
         )
     rows = []
     for c in strategy_cells(case, strategy):
-        spec = json.loads(json.dumps(c.spec))
-        # the horizon and the control period are the run's (the cell's keys), the rest the strategy's settings
-        run_keys = ('horizon_steps', 'control_period_s')
-        spec.update({k: v for k, v in overrides.items() if k in run_keys})
-        spec['strategy_overrides'].update({k: v for k, v in overrides.items() if k not in run_keys})
-        if model_params is not None:
-            spec['model_params_path'] = model_params
-        row = runner.run_benchmark_cell({'id': c.id, 'axes': c.axes, 'spec': spec})
+        row = runner.run_benchmark_cell(
+            {'id': c.id, 'axes': c.axes, 'spec': variant_spec(c.spec, overrides, model_params)}
+        )
         if row['status'] != 'ok':
             raise SystemExit(f'variant_headroom: {case_name} seed {c.axes["seed"]}: {row["error"]}')
         rows.append(runner._run_entry(row))
