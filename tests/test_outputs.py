@@ -154,6 +154,65 @@ def test_family_runs_the_tuned_law_with_its_frozen_gains():
     assert abs(e_tuned - e_prod) > 1e-3 * e_prod
 
 
+def test_a_strategy_that_moves_the_door_is_read_against_the_laws_with_that_door():
+    """Same permissions: ``ceco-pmv-aq`` (it moves the recirculation door) is matched against the production and the
+    tuned law with the CO2-holding door, ``ceco-pmv`` against the laws without it, whatever else the job ran; the
+    words say so. Against the door-less laws ceco-pmv-aq's 20 % less energy would have read as a 20 % saving. A
+    family kept without door laws gives it no matched value rather than that."""
+    tuned = {
+        n.replace('baseline@', 'baseline-tuned@'): dict(p, energy_kwh=0.96 * p['energy_kwh']) for n, p in FAMILY.items()
+    }
+    door = {  # the same laws with the door: 20 % less energy at every set-point
+        n.replace('@', '-doorco2@'): dict(p, energy_kwh=0.8 * p['energy_kwh']) for n, p in {**FAMILY, **tuned}.items()
+    }
+    assert sorted({vd.family_law(n) for n in door}) == sorted(vd.DOOR_FAMILY_LAWS)
+    assert vd.family_laws_for(['baseline', 'ceco-pmv']) == vd.FAMILY_LAWS
+    assert vd.family_laws_for(['ceco-pmv', 'ceco-pmv-aq']) == vd.FAMILY_LAWS + vd.DOOR_FAMILY_LAWS
+    assert [vd.moves_door(n) for n in ('baseline', 'ceco-pmv', 'ceco-pmv-aq', 'ceco-pmv-door')] == [0, 0, 1, 1]
+    points = {'ceco-pmv': _point(0.11, 0.38), 'ceco-pmv-aq': _point(0.11, 0.304)}
+    v = vd.build_verdict('sc03', points, {**FAMILY, **tuned, **door})
+    plain_ref, door_ref = 0.96 * 0.40, 0.8 * 0.96 * 0.40
+    assert v.matched['ceco-pmv']['energy_saving_pct'] == pytest.approx(100 * (plain_ref - 0.38) / plain_ref)
+    assert v.matched['ceco-pmv-aq']['energy_saving_pct'] == pytest.approx(100 * (door_ref - 0.304) / door_ref)
+    assert v.matched_by_law['baseline-doorco2']['ceco-pmv-aq']['energy_saving_pct'] == pytest.approx(5.0)
+    assert 'ceco-pmv-aq' not in v.matched_by_law['baseline'] and 'ceco-pmv' not in v.matched_by_law['baseline-doorco2']
+    text = ' '.join(line.strip() for line in vd.verdict_lines(v))
+    assert 'saves 1.0 % energy at matched comfort; +5.0 % against the production law alone (the laws with the' in text
+    assert 'A strategy that moves the recirculation door against the same laws with the CO2-holding door' in text
+    assert '(28 runs' not in text and '(16 runs, in-process simulator)' in text
+    old = vd.build_verdict('sc03', points, {**FAMILY, **tuned})  # a family kept from a job without door laws
+    assert 'ceco-pmv-aq' not in old.matched and old.matched['ceco-pmv'] == v.matched['ceco-pmv']
+    assert 'no matched value: the family has no law with the door it moves' in ' '.join(vd.verdict_lines(old))
+
+
+def test_family_runs_the_door_laws_with_the_co2_holding_door():
+    """run_family's door laws are the production and the tuned law with ``door_mode: co2_hold``: the same run as the
+    baseline strategy with those overrides, and a door that moves (the door-less law leaves it at the plant's 0.8)
+    for less energy (300 s of SC03 at 25 degC)."""
+    from ceco_bringup.benchmark import runner
+
+    fam = vd.run_family(
+        'sc03', duration_s=300.0, setpoints_c=(25.0,), laws=vd.FAMILY_LAWS + vd.DOOR_FAMILY_LAWS, progress=False
+    )
+    assert sorted(fam) == [
+        'baseline-doorco2@25.0',
+        'baseline-tuned-doorco2@25.0',
+        'baseline-tuned@25.0',
+        'baseline@25.0',
+    ]
+    gains = runner.load_baselines().families['tuned'][0]
+    over = {**gains, 'setpoint_c': 25.0, 'door_mode': 'co2_hold'}
+    ts = simulate(
+        'sc03',
+        'baseline',
+        SimSettings(duration_s=300.0, progress=False, strategy_overrides=tuple(sorted(over.items()))),
+    ).timeseries
+    assert fam['baseline-tuned-doorco2@25.0'] == vd.run_point(ts)
+    assert np.any(ts['recirc_share_cmd'] != 0.8)
+    for law in ('baseline', 'baseline-tuned'):
+        assert fam[f'{law}-doorco2@25.0']['energy_kwh'] < fam[f'{law}@25.0']['energy_kwh']
+
+
 # ---------------------------------------------------------------------------------------- energy and signs
 @pytest.fixture(scope='module')
 def short_runs():

@@ -385,6 +385,8 @@ def fig_plane(points: Mapping[str, Mapping], family: Mapping[str, Mapping], path
         law_style = {
             'baseline': ('#7f7f7f', '-', 'production PI at set-point S'),
             'baseline-tuned': ('#2b2b2b', '--', 'tuned PI at set-point S'),
+            'baseline-doorco2': ('#a6761d', '-', 'production PI, CO2-holding door, at set-point S'),
+            'baseline-tuned-doorco2': ('#6b4c11', '--', 'tuned PI, CO2-holding door, at set-point S'),
         }
         for law, members in laws.items():
             color, ls, label = law_style.get(law, ('#7f7f7f', ':', f'{law} at set-point S'))

@@ -283,6 +283,7 @@ def finish_job(
             duration_s=duration_s,
             control_period_s=control_period_s,
             setpoints_c=family_setpoints_c,
+            laws=vd.family_laws_for(list(points)),
             progress=progress,
         )
     v = vd.build_verdict(scenario.name, points, family, partial=partial)

@@ -16,7 +16,10 @@ lower of the two at its own discomfort (their envelope).
   ISO 7730 category B, -0.5..+0.5, PMV clipped at +-3 [PMV h]);
 * :func:`run_family`: the production and the tuned law (:data:`FAMILY_LAWS`) at
   :data:`FAMILY_SETPOINTS_C` with the in-process simulator (``closed_loop.simulate``; the same
-  plant and scenario as a DDS run, which equals it: ``python -m ceco_bringup.compare_sim``);
+  plant and scenario as a DDS run, which equals it: ``python -m ceco_bringup.compare_sim``); with a
+  strategy that moves the recirculation door in the job (:func:`moves_door`: ``ceco-pmv-aq``), the same
+  laws with its CO2-holding door too (:data:`DOOR_FAMILY_LAWS`): each strategy is read against the laws
+  given the same actuators (:func:`comparable_family`);
 * :func:`build_verdict` / :func:`verdict_lines`: the numbers and the words;
   :func:`write_verdict` / :func:`read_verdict`: ``verdict.json``.
 
@@ -42,7 +45,11 @@ from ceco_core.metrics import ENERGY_PARTS, relative_change_pct
 __all__ = [
     'FAMILY_SETPOINTS_C',
     'FAMILY_LAWS',
+    'DOOR_FAMILY_LAWS',
     'family_law',
+    'moves_door',
+    'family_laws_for',
+    'comparable_family',
     'DISCOMFORT_KEY',
     'ENERGY_KEY',
     'VERDICT_SCHEMA',
@@ -72,6 +79,11 @@ gains alone cost 5-10 % of energy on the hot cases (docs/results.md), so a savin
 mostly the baseline's tuning: the verdict's headline is against the stronger of the two at each
 discomfort (:func:`matched`), the production law's number is shown beside it (the paper's comparison).
 ``ceco benchmark`` adds the comfort-feedback (PMV) families and the whole-drive optimum."""
+
+DOOR_FAMILY_LAWS = ('baseline-doorco2', 'baseline-tuned-doorco2')
+"""The laws of :data:`FAMILY_LAWS` with the CO2-holding recirculation door of ``ceco-pmv-aq`` behind them
+(``door_mode: co2_hold``, ``ceco_core.co2_door``; the benchmark's ``*-doorco2`` families): the family a
+strategy that moves the door is read against, so that both sides may move it (issue 21)."""
 
 RESOLUTION_PCT = 1.0
 """Savings at matched comfort smaller than this are reported as "the same energy" [%]: the front is
@@ -128,15 +140,53 @@ def family_law(member: str) -> str:
     return member.split('@', 1)[0]
 
 
+_DOOR_SUFFIX = '-doorco2'
+
+
+def moves_door(strategy: str) -> bool:
+    """Whether ``strategy`` commands the recirculation door.
+
+    A named variant with a door control does (``ceco-pmv-aq``, ``ceco-pmv-door``;
+    ``ceco_core.contracts.STRATEGY_VARIANTS``).
+    """
+    from ceco_core.contracts import strategy_variant
+
+    return dict(strategy_variant(strategy)[1]).get('door_control', 'none') != 'none'
+
+
+def family_laws_for(strategies: Sequence[str]) -> tuple[str, ...]:
+    """The laws a job's family runs.
+
+    :data:`FAMILY_LAWS`, and :data:`DOOR_FAMILY_LAWS` when a strategy of the job moves the door.
+    """
+    return FAMILY_LAWS + (DOOR_FAMILY_LAWS if any(moves_door(s) for s in strategies) else ())
+
+
+def comparable_family(family: Mapping[str, Mapping], strategy: str) -> dict:
+    """The members of ``family`` whose law has the actuators ``strategy`` has.
+
+    The door laws for a strategy that moves the door, the others else. A family without door laws (kept from an
+    older job) is returned whole for a strategy without the door and empty for one with it (no comparison on
+    unequal terms).
+    """
+    door = moves_door(strategy)
+    return {n: p for n, p in family.items() if family_law(n).endswith(_DOOR_SUFFIX) == door}
+
+
 def _law_overrides(law: str) -> tuple:
-    """AccSettings overrides of a family law (:data:`FAMILY_LAWS`) besides its set-point."""
-    if law == 'baseline':
-        return ()
-    if law == 'baseline-tuned':
+    """AccSettings and door overrides of a family law besides its set-point.
+
+    The laws: :data:`FAMILY_LAWS`, :data:`DOOR_FAMILY_LAWS`.
+    """
+    base, door = (law[: -len(_DOOR_SUFFIX)], True) if law.endswith(_DOOR_SUFFIX) else (law, False)
+    extra = (('door_mode', 'co2_hold'),) if door else ()
+    if base == 'baseline':
+        return extra
+    if base == 'baseline-tuned':
         from ceco_bringup.benchmark import runner
 
-        return tuple(sorted(runner.load_baselines().families['tuned'][0].items()))
-    raise ValueError(f'family law: one of {FAMILY_LAWS}, got {law!r}')
+        return tuple(sorted({**runner.load_baselines().families['tuned'][0], **dict(extra)}.items()))
+    raise ValueError(f'family law: one of {FAMILY_LAWS + DOOR_FAMILY_LAWS}, got {law!r}')
 
 
 def run_family(
@@ -249,12 +299,13 @@ def build_verdict(
     for name, p in points.items():
         if name in partial:
             continue
-        if v.family:
-            v.matched[name] = matched(v.family, p)
-            laws = sorted({family_law(n) for n in v.family})
+        fam = comparable_family(v.family, name)
+        if fam:
+            v.matched[name] = matched(fam, p)
+            laws = sorted({family_law(n) for n in fam})
             if len(laws) > 1:
                 for law in laws:
-                    v.matched_by_law.setdefault(law, {})[name] = matched(v.family, p, law=law)
+                    v.matched_by_law.setdefault(law, {})[name] = matched(fam, p, law=law)
         if base is not None and name != base and base not in partial:
             b = points[base]
             v.changes[name] = {
@@ -268,9 +319,12 @@ def law_words(law: str) -> str:
     """How the verdict names a family law, with its gains read from the code and the frozen file."""
     from ceco_core.acc_law import AccSettings
 
-    g = {**dataclasses.asdict(AccSettings()), **dict(_law_overrides(law))}
+    fields = {f.name for f in dataclasses.fields(AccSettings)}
+    g = {**dataclasses.asdict(AccSettings()), **{k: v for k, v in _law_overrides(law) if k in fields}}
     gains = f"gains {g['kp_per_k']:g} 1/K, {g['ti_s']:g} s"
-    return {'baseline': f'the production law ({gains})', 'baseline-tuned': f'the tuned law ({gains})'}[law]
+    base = law.removesuffix(_DOOR_SUFFIX)
+    words = {'baseline': f'the production law ({gains})', 'baseline-tuned': f'the tuned law ({gains})'}[base]
+    return words + (' with the CO2-holding door' if base != law else '')
 
 
 def _pct(x) -> str:
@@ -320,21 +374,33 @@ def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
             continue
         lines.append(head + _band_words(p))
         if name in v.matched:
-            single = len({family_law(n) for n in v.family}) == 1
+            fam = comparable_family(v.family, name)
+            single = len({family_law(n) for n in fam}) == 1
             words = _matched_words(v.matched[name], name == v.baseline and single)
-            prod = v.matched_by_law.get('baseline', {}).get(name, {}).get('energy_saving_pct')
-            if prod is not None and not single:
-                words += f'; {prod:+.1f} % against the production law alone'
+            door = moves_door(name)
+            prod = v.matched_by_law.get('baseline' + (_DOOR_SUFFIX if door else ''), {}).get(name, {})
+            if prod.get('energy_saving_pct') is not None and not single:
+                words += f"; {prod['energy_saving_pct']:+.1f} % against the production law alone"
+            if door:
+                words += ' (the laws with the CO2-holding door)'
             lines.append(f"  {'':<{width}} {words}")
+        elif name not in v.partial and v.family and moves_door(name):
+            lines.append(f"  {'':<{width}} no matched value: the family has no law with the door it moves")
     if v.family:
         sps = sorted({float(n.split('@')[1]) for n in v.family})
-        laws = sorted({family_law(n) for n in v.family})
+        laws = sorted({family_law(n) for n in v.family if not family_law(n).endswith(_DOOR_SUFFIX)})
+        door_laws = sorted({family_law(n) for n in v.family if family_law(n).endswith(_DOOR_SUFFIX)})
         what = ' and '.join(law_words(law) for law in laws)
         lines.append(
             f'Matched comfort: against {what} at {sps[0]:g}-{sps[-1]:g} degC '
             f'({len(v.family)} runs, {v.family_source})'
             + ('; at each discomfort the law that spends least.' if len(laws) > 1 else '.')
         )
+        if door_laws:
+            lines.append(
+                '  A strategy that moves the recirculation door against the same laws with the CO2-holding door '
+                'behind them (the same actuators), the others against the laws without it.'
+            )
         if v.family_file:
             lines.append(f'  (kept in {v.family_file})')
         scored = {n: m for n, m in v.matched.items() if n != v.baseline and m.get('energy_saving_pct') is not None}
