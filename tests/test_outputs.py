@@ -490,6 +490,15 @@ def test_play_points_at_the_bag_of_a_run_directory(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------------------------------- run directories
+def test_play_compares_the_door_as_well():
+    """``ceco play --compare``'s door difference: both not commanded (NaN) agree, one commanded and one not differ
+    beyond any tolerance, two shares by their distance."""
+    nan = float('nan')
+    assert play.door_difference(nan, nan) == 0.0
+    assert play.door_difference(nan, 0.5) == play.door_difference(1.0, nan) == float('inf')
+    assert play.door_difference(0.2, 0.5) == pytest.approx(0.3, abs=1e-15)
+
+
 def test_scenario_copy_is_loadable_with_its_drive_cycle(tmp_path):
     """A user scenario naming its drive cycle by a relative CSV path: the copy in the run directory
     loads to the same scenario after the originals are gone."""

@@ -219,7 +219,10 @@ def test_short_closed_loop_over_dds_matches_simulator(tmp_path):
     p = _cli('play', str(bag), '--compare', '--domain-id', str(_domain()), '--no-progress')
     text, _ = p.communicate(timeout=300)
     assert p.returncode == 0, text
-    assert '12/12 steps compared; max |d blower| 0.000e+00 kg/s, max |d set-point| 0.000e+00 K' in text
+    assert (
+        '12/12 steps compared; max |d blower| 0.000e+00 kg/s, max |d set-point| 0.000e+00 K, max |d door| 0.000e+00'
+        in text
+    )
     _check_lockstep_bag(bag, n_steps=60)
 
     # issue 17 item 11: the same from a bag without ceco's metadata (as ros2 bag record leaves it): the
@@ -240,7 +243,10 @@ def test_short_closed_loop_over_dds_matches_simulator(tmp_path):
     text, _ = p.communicate(timeout=300)
     assert p.returncode == 0, text
     assert 'strategy ceco-ioch (messages), control_period_s 5.0 (messages), horizon_steps 6 (messages)' in text
-    assert '12/12 steps compared; max |d blower| 0.000e+00 kg/s, max |d set-point| 0.000e+00 K' in text
+    assert (
+        '12/12 steps compared; max |d blower| 0.000e+00 kg/s, max |d set-point| 0.000e+00 K, max |d door| 0.000e+00'
+        in text
+    )
 
 
 def _check_lockstep_bag(bag, n_steps: int, dt_s: float = 1.0):
@@ -753,6 +759,14 @@ def test_the_door_commanded_over_dds_reaches_the_plant_as_in_the_simulator(tmp_p
     assert metrics['E_tot_J'] == sim.metrics['E_tot_J']
     flat = ' '.join(line.strip() for line in text.splitlines())
     assert '(the laws with the CO2-holding door)' in flat and '(28 runs, in-process simulator)' in flat
+    # the recorded drive fed to a fresh ceco-pmv-aq mpc_node gives the same commands, door included
+    p = _cli('play', str(out / 'bag'), '--compare', '--domain-id', str(_domain()), '--no-progress')
+    text, _ = p.communicate(timeout=300)
+    assert p.returncode == 0, text
+    assert (
+        '12/12 steps compared; max |d blower| 0.000e+00 kg/s, max |d set-point| 0.000e+00 K, max |d door| 0.000e+00'
+        in text
+    )
 
 
 def test_preview_faults_over_dds_match_simulator(tmp_path):

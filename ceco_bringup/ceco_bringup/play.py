@@ -28,6 +28,7 @@ holds several).
 
 from __future__ import annotations
 
+import math
 import sys
 import threading
 import time
@@ -202,7 +203,7 @@ def compare(args) -> int:
     from ceco_bringup import bagio, supervisor
     from ceco_bringup.bagrun import bag_run_info
     from ceco_msgs.msg import AcCommand
-    from ceco_ros import interfaces
+    from ceco_ros import conversions, interfaces
 
     scenario = args.scenario
     if scenario is None and (args.bag.parent / 'scenario.yaml').is_file():  # the run directory's copy
@@ -243,7 +244,12 @@ def compare(args) -> int:
     except ValueError as err:
         print(f'ceco play: {err} (--namespace)', file=sys.stderr)
         return 2
-    rec_by_k = {int(k): (m, s) for k, m, s in zip(recorded['k'], recorded['mdot_bl_kgps'], recorded['t_evap_sp_c'])}
+    rec_by_k = {
+        int(k): (m, s, r)
+        for k, m, s, r in zip(
+            recorded['k'], recorded['mdot_bl_kgps'], recorded['t_evap_sp_c'], recorded['recirc_share']
+        )
+    }
     domain = args.domain_id if args.domain_id is not None else supervisor.pick_domain_id()
     env = supervisor.dds_env(domain)
     import os
@@ -268,7 +274,11 @@ def compare(args) -> int:
 
     def on_cmd(msg):
         with got:
-            new[int(msg.step_index)] = (msg.blower_flow_kgps, msg.evap_setpoint_c)
+            try:  # the door's -1 (not commanded) as NaN, as the recording's
+                u = conversions.command_input(msg)
+                new[int(msg.step_index)] = (u.mdot_bl_kgps, u.t_evap_sp_c, u.recirc_share)
+            except ValueError:  # outside the actuator bounds: compared as sent (it differs)
+                new[int(msg.step_index)] = (msg.blower_flow_kgps, msg.evap_setpoint_c, math.inf)
             got.notify_all()
 
     node.create_subscription(AcCommand, interfaces.TOPIC_COMMAND, on_cmd, interfaces.QOS_COMMAND)
@@ -350,15 +360,23 @@ def compare(args) -> int:
         return 1
     d_m = np.array([abs(new[k][0] - rec_by_k[k][0]) for k in ks])
     d_s = np.array([abs(new[k][1] - rec_by_k[k][1]) for k in ks])
-    worst = int(ks[int(np.argmax(np.maximum(d_m / 0.12, d_s / 7.0)))])
+    d_r = np.array([door_difference(new[k][2], rec_by_k[k][2]) for k in ks])
+    worst = int(ks[int(np.argmax(np.maximum(np.maximum(d_m / 0.12, d_s / 7.0), d_r)))])
     print(
         f'ceco play --compare: {strategy} re-run on the recorded drive of {args.bag}: '
         f'{len(ks)}/{len(rec_by_k)} steps compared; max |d blower| {d_m.max():.3e} kg/s, '
-        f'max |d set-point| {d_s.max():.3e} K (worst step {worst})'
+        f'max |d set-point| {d_s.max():.3e} K, max |d door| {d_r.max():.3e} (worst step {worst})'
     )
-    ok = len(ks) == len(rec_by_k) and d_m.max() <= args.tol and d_s.max() <= args.tol
+    ok = len(ks) == len(rec_by_k) and max(d_m.max(), d_s.max(), d_r.max()) <= args.tol
     print('commands identical to the recording' if ok else 'commands differ from the recording')
     return 0 if ok else 1
+
+
+def door_difference(a: float, b: float) -> float:
+    """|a - b| of two door commands [0..1]; both not commanded (NaN) is 0, one of them not commanded is inf."""
+    if math.isnan(a) or math.isnan(b):
+        return 0.0 if math.isnan(a) and math.isnan(b) else math.inf
+    return abs(a - b)
 
 
 def _cls(topic):
