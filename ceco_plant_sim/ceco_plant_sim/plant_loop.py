@@ -96,13 +96,15 @@ class PlantLoop:
         return self.started and not self.finished
 
     # -------------------------------------------------------------- commands
-    def take_command(self, msg, u: AcInput, wall_s: float, clock_s: float) -> AcInput | None:
-        """``u`` when the policy accepts the AcCommand ``msg`` (lockstep: to apply now, for a period), else None.
+    def take_command(self, msg, wall_s: float, clock_s: float, to_input: Callable[[object], AcInput]) -> AcInput | None:
+        """An AcCommand: the input to apply when the policy accepts it (lockstep: now, for a period), else None.
 
-        ``u``: the command's input, blower, set-point and door (``ceco_ros.conversions.command_input``).
+        ``to_input(msg)``: the accepted command's input, blower, set-point and door (the node's
+        ``ceco_ros.conversions.command_input``); called only once the policy has checked the message.
         """
         if not self.running or not self.policy.accept(msg, self.k, wall_s):
             return None
+        u = to_input(msg)
         rt = self.cfg.timing == 'realtime'
         self.controller_lost = False
         line = self.accept_command(u, int(msg.step_index), msg.strategy, clock_s if rt else None)

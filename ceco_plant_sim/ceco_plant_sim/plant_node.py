@@ -122,7 +122,7 @@ class PlantNode(NodeTools, Node):
             self._control_period(self._fallback_command(why), True)
 
     def _on_command(self, msg: AcCommand) -> None:
-        u = self.loop.take_command(msg, conversions.command_input(msg), self.wall_s(), self.clock_s())
+        u = self.loop.take_command(msg, self.wall_s(), self.clock_s(), conversions.command_input)
         if u is not None and self.lockstep:
             self._control_period(u, False)
 
