@@ -486,14 +486,23 @@ def resolve_auto(settings: StrategySettings) -> StrategySettings:
     return out
 
 
+def _resolved_name(name: str) -> tuple[str, tuple]:
+    """``(CECO strategy, the variant's fields)`` of a strategy name or a named variant.
+
+    ValueError naming the choices for any other name.
+    """
+    base, variant = strategy_variant(name)
+    if base not in CECO_STRATEGIES:
+        raise ValueError(f"unknown CECO strategy {name!r}; choose from {NODE_STRATEGIES}")
+    return base, variant
+
+
 def strategy_settings(name: str, **overrides) -> StrategySettings:
     """Default settings of strategy ``name`` with keyword overrides; validated.
 
     A named variant (``ceco-pmv-aq``): its strategy's defaults with the variant's fields, then the overrides.
     """
-    name, variant = strategy_variant(name)
-    if name not in _DEFAULTS:
-        raise ValueError(f"unknown CECO strategy {name!r}; choose from {NODE_STRATEGIES}")
+    name, variant = _resolved_name(name)
     kw: dict[str, Any] = dict(_DEFAULTS[name])
     kw.update(variant)
     kw.update(overrides)
@@ -520,9 +529,7 @@ def load_strategy_settings(name: str, path=None, **overrides) -> StrategySetting
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     if not isinstance(doc, dict):
         raise ValueError(f"{path}: expected a mapping")
-    name, variant = strategy_variant(name)
-    if name not in CECO_STRATEGIES:
-        raise ValueError(f"unknown CECO strategy {name!r}; choose from {NODE_STRATEGIES}")
+    name, variant = _resolved_name(name)
     kw = dict(doc.get("common") or {})
     kw.update((doc.get("strategies") or {}).get(name) or {})
     kw.update(variant)
