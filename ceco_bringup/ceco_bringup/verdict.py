@@ -141,6 +141,7 @@ def family_law(member: str) -> str:
 
 
 _DOOR_SUFFIX = '-doorco2'
+"""Name suffix of a family law with the CO2-holding door (the benchmark's ``schema.door_family(..., 'co2')``)."""
 
 
 def moves_door(strategy: str) -> bool:
@@ -178,14 +179,14 @@ def _law_overrides(law: str) -> tuple:
 
     The laws: :data:`FAMILY_LAWS`, :data:`DOOR_FAMILY_LAWS`.
     """
-    base, door = (law[: -len(_DOOR_SUFFIX)], True) if law.endswith(_DOOR_SUFFIX) else (law, False)
-    extra = (('door_mode', 'co2_hold'),) if door else ()
-    if base == 'baseline':
-        return extra
-    if base == 'baseline-tuned':
-        from ceco_bringup.benchmark import runner
+    from ceco_bringup.benchmark import runner, schema
 
-        return tuple(sorted({**runner.load_baselines().families['tuned'][0], **dict(extra)}.items()))
+    base = law.removesuffix(_DOOR_SUFFIX)
+    door = runner.door_overrides(schema.DOOR_CO2_HOLD) if base != law else {}
+    if base == 'baseline':
+        return tuple(sorted(door.items()))
+    if base == 'baseline-tuned':
+        return tuple(sorted({**runner.load_baselines().families['tuned'][0], **door}.items()))
     raise ValueError(f'family law: one of {FAMILY_LAWS + DOOR_FAMILY_LAWS}, got {law!r}')
 
 

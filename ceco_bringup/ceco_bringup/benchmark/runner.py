@@ -40,6 +40,7 @@ from .schema import (
 )
 
 __all__ = [
+    'door_overrides',
     'SETPOINTS_C',
     'QUICK_SETPOINTS_C',
     'FRONT_AXIS',
@@ -197,13 +198,19 @@ class BaselineConstants:
         for b in DOOR_FAMILY_BASES:
             overrides, measurements = self.families[b]
             for v in DOOR_VARIANTS:
-                door = (
-                    {'door_mode': 'co2_hold'}
-                    if v == DOOR_CO2_HOLD
-                    else {'door_mode': 'fixed', 'door_fixed_share': int(v) / 100.0}
-                )
-                out.append(FamilySpec(door_family(b, v), {**dict(overrides), **door}, str(measurements)))
+                out.append(FamilySpec(door_family(b, v), {**dict(overrides), **door_overrides(v)}, str(measurements)))
         return out
+
+
+def door_overrides(variant: str) -> dict:
+    """The RecircSettings fields of a door variant (:data:`schema.DOOR_VARIANTS`).
+
+    Held at a share (``door_mode: fixed``, no fog or CO2 override) or the CO2-holding door of ``ceco-pmv-aq``
+    (``door_mode: co2_hold``); the door families and the verdict's door laws (``ceco_bringup.verdict``) take them.
+    """
+    if variant == DOOR_CO2_HOLD:
+        return {'door_mode': 'co2_hold'}
+    return {'door_mode': 'fixed', 'door_fixed_share': int(variant) / 100.0}
 
 
 TUNED_FAMILIES = ('tuned', 'tuned-allowance', 'pmv', 'pmv-allowance')
