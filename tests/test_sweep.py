@@ -532,7 +532,8 @@ def test_the_study_tools_say_when_results_are_of_other_code(tmp_path, capsys):
 def test_variant_headroom_routes_the_horizon_to_the_run_and_the_rest_to_the_settings():
     """``tools/variant_headroom.py --set``: ``horizon_steps`` and ``control_period_s`` become the cell's own (as a
     case's scenario sets them; as settings they clashed with the run's and raised a TypeError), every other name a
-    StrategySettings override; the cell's spec is copied, not changed; a 10-s run of that cell succeeds."""
+    StrategySettings override; the cell's spec is copied, not changed; a 10-s run of that cell succeeds, and an
+    invalid value of each is refused by the run's own check (SimSettings) or the strategy's (StrategySettings)."""
     import pathlib
     import sys
 
@@ -548,9 +549,15 @@ def test_variant_headroom_routes_the_horizon_to_the_run_and_the_rest_to_the_sett
     assert json.dumps(cell.spec, sort_keys=True) == before
     assert (spec['horizon_steps'], spec['control_period_s'], spec['model_params_path']) == (12, None, '/m.yaml')
     assert dict(spec['strategy_overrides']) == {**dict(cell.spec['strategy_overrides']), 'backoff_init_pmv': 0.05}
-    spec = dict(variant_headroom.variant_spec(cell.spec, {'horizon_steps': 12}), duration_s=10.0)
-    row = runner.run_benchmark_cell({'id': cell.id, 'axes': cell.axes, 'spec': spec})
+
+    def run(overrides):
+        spec = dict(variant_headroom.variant_spec(cell.spec, overrides), duration_s=10.0)
+        return runner.run_benchmark_cell({'id': cell.id, 'axes': cell.axes, 'spec': spec})
+
+    row = run({'horizon_steps': 12})
     assert row['status'] == 'ok', row.get('error')
+    assert 'SimSettings.horizon_steps must be an int >= 1' in run({'horizon_steps': 0})['error']
+    assert 'StrategySettings.backoff_init_pmv must be finite and >= 0' in run({'backoff_init_pmv': -1.0})['error']
 
 
 def test_edge_headroom_co2_margin_reaches_the_bounds_and_is_checked(capsys):
