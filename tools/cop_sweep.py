@@ -15,7 +15,8 @@ For each evaporator wall temperature of ``--walls`` [degC]:
 
 The last columns are each COP's rise per kelvin of wall temperature to the next row [%/K]. The control model's
 load is the air-side sensible heat (identified on the plant's data), so its COP's level is not the plant's;
-what the NLP's split depends on is the rise per kelvin (docs/results.md, "Why the hot soak's split is off").
+what the NLP's split depends on is the rise per kelvin (docs/results.md, "The hot soak's gap, window by window":
+at equal PMV the flow a warmer coil needs decides the split there, not this rise alone).
 A study, not a test.
 """
 
