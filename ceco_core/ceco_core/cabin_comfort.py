@@ -22,6 +22,7 @@ docs/comfort.md.
 """
 
 import dataclasses
+import functools
 import math
 from typing import Any
 
@@ -104,9 +105,13 @@ class SolarParams:
             _number("SolarParams", name, getattr(self, name), 0.0, 1.0)
         return self
 
-    @property
+    @functools.cached_property
     def w_rad_per_irradiance(self):
-        """Absorbed short-wave flux per body area per unit direct irradiance [-] (SolarCal at I_dir = 1 W/m2)."""
+        """Absorbed short-wave flux per body area per unit direct irradiance [-] (SolarCal at I_dir = 1 W/m2).
+
+        Computed once per (frozen) parameter set: SolarCal with its input checks is about 85 us, and the controller
+        and the plant read this at every comfort evaluation (:func:`cabin_w_rad_wm2`).
+        """
         return float(
             solar_gain(
                 sol_altitude_deg=self.altitude_deg,
