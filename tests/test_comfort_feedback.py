@@ -210,3 +210,46 @@ def test_settle_after_the_command_changes_no_number():
         assert d1.success and d2.success and d1.message == d2.message  # the PMV, bias and back-off in the note
     assert lazy.pmv_feedback.bias == eager.pmv_feedback.bias != 0.0
     assert np.array_equal(lazy._bias.bias, eager._bias.bias)
+
+
+def test_the_compiled_pmv_equals_the_numpy_pmv_and_feeds_the_same_reads():
+    """:class:`CabinPmvFunction` (the controllers' per-step PMV) is ``cabin_pmv``'s own code on CasADi symbols:
+    over 500 random cabin states it agrees with the numpy evaluation to 1e-12 (relative to max(1, |PMV|)); the
+    measured PMV and its sun sensitivity read through it agree with the numpy reads; NaN in gives NaN out, where the
+    numpy path raises (its callers check their inputs first)."""
+    from ceco_controller.comfort_feedback import pmv_solar_sensitivity
+    from ceco_controller.pmv_function import CabinPmvFunction
+    from ceco_core.cabin_comfort import ComfortParams, cabin_pmv
+
+    params = ComfortParams()
+    fn = CabinPmvFunction(params)
+    rng = np.random.default_rng(7)
+    worst = 0.0
+    for _ in range(500):
+        x = (
+            rng.uniform(15, 45),
+            rng.uniform(3, 30),
+            rng.uniform(0.05, 0.17),
+            rng.uniform(15, 60),
+            rng.uniform(0, 40),
+            rng.uniform(500, 3000),
+        )
+        ref = float(
+            cabin_pmv(
+                t_cab_c=x[0], t_vent_c=x[1], mdot_bl_kgps=x[2], t_mr_c=x[3], w_rad_wm2=x[4], pa_pa=x[5], params=params
+            )
+        )
+        worst = max(worst, abs(fn(*x) - ref) / max(1.0, abs(ref)))
+    assert worst < 1e-12
+    obs = observation(N1, 3, t_cab=27.0, speed=10.0)
+    for rh in (0.4, math.nan):  # measured humidity, and the paper's 1700 Pa where there is none
+        a, b = measured_pmv(obs, params, 31.0, rh), measured_pmv(obs, params, 31.0, rh, fn)
+        assert math.isfinite(a) and abs(a - b) < 1e-12 * max(1.0, abs(a))
+    s0 = pmv_solar_sensitivity(27.0, 9.0, 0.12, 33.0, 1700.0, 600.0, params)
+    s1 = pmv_solar_sensitivity(27.0, 9.0, 0.12, 33.0, 1700.0, 600.0, params, fn)
+    assert s0 > 1e-4 and abs(s0 - s1) < 1e-10 * s0
+    assert math.isnan(fn(27.0, 9.0, 0.12, math.nan, 10.0, 1700.0))
+    with pytest.raises(ValueError):
+        cabin_pmv(
+            t_cab_c=27.0, t_vent_c=9.0, mdot_bl_kgps=0.12, t_mr_c=math.nan, w_rad_wm2=10.0, pa_pa=1700.0, params=params
+        )

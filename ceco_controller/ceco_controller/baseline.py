@@ -66,6 +66,12 @@ class BaselineController:
         self.observation_limits = observation_limits
         self.comfort_params = (comfort_params or ComfortParams()).validate()
         """Occupant and sun geometry of the comfort-feedback law's PMV (unused by the temperature law)."""
+        self._pmv_fn = None
+        """The PMV law's compiled PMV at ``comfort_params`` (:mod:`.pmv_function`; CasADi imported only for it)."""
+        if self.law.settings.feedback == "pmv":
+            from .pmv_function import CabinPmvFunction
+
+            self._pmv_fn = CabinPmvFunction(self.comfort_params)
         self.door = RecircLaw(door)
         """The door logic (mode ``none``: the door is left to the plant)."""
         self.co2_door = Co2DoorLaw(model=co2_model) if self.door.settings.door_mode == "co2_hold" else None
@@ -101,7 +107,9 @@ class BaselineController:
         if self.law.settings.feedback == "pmv":
             # the observation's PMV as ceco-pmv measures it, from the checked optional sensors (NaN: not measured)
             chk = check_observation(obs, self.observation_limits)
-            pmv = measured_pmv(dataclasses.replace(obs, t_cab_c=t_cab), self.comfort_params, chk.t_glass_c, chk.rh_cab)
+            pmv = measured_pmv(
+                dataclasses.replace(obs, t_cab_c=t_cab), self.comfort_params, chk.t_glass_c, chk.rh_cab, self._pmv_fn
+            )
         cmd = self.law.step(
             t_cab,
             self.control_period_s,

@@ -64,7 +64,7 @@ _MEASURED = {"t_amb": "t_amb_c", "solar": "solar_wm2", "speed": "speed_mps"}
 _PREVIEW = {"t_amb": "preview_t_amb_c", "solar": "preview_solar_wm2", "speed": "preview_speed_mps"}
 
 
-def measured_pmv(obs: Observation, params: ComfortParams, t_glass_c: float, rh_cab: float) -> float:
+def measured_pmv(obs: Observation, params: ComfortParams, t_glass_c: float, rh_cab: float, pmv_fn=None) -> float:
     """The PMV of the observation [-]: the scored comfort model on the measured (or estimated) cabin.
 
     :func:`ceco_core.acc_law.feedback_pmv` with the observation's cabin air, vent air, interior and shell
@@ -73,7 +73,8 @@ def measured_pmv(obs: Observation, params: ComfortParams, t_glass_c: float, rh_c
     measured, as the NLP's PMV has then: ``StrategySettings.pmv_pa_source``), the sun-load sensor and the blower
     flow held over the last period. ``t_glass_c`` and ``rh_cab`` are the checked values
     (:class:`ceco_core.observation_check.ObservationCheck`: NaN when not measured or implausible). NaN when another
-    input is missing.
+    input is missing. ``pmv_fn``: the PMV evaluator at ``params``
+    (:class:`~ceco_controller.pmv_function.CabinPmvFunction`; None: ``cabin_pmv`` on numpy).
     """
     t_glass = t_glass_c if math.isfinite(t_glass_c) else obs.t_int_c
     return feedback_pmv(
@@ -87,26 +88,39 @@ def measured_pmv(obs: Observation, params: ComfortParams, t_glass_c: float, rh_c
         solar_wm2=obs.solar_wm2,
         params=params,
         pa_pa=None if math.isfinite(rh_cab) else PAPER_PA_PA,
+        pmv_fn=pmv_fn,
     )
 
 
 def pmv_solar_sensitivity(
-    t_cab_c: float, t_vent_c: float, mdot_bl_kgps: float, t_mr_c: float, pa_pa: float, solar_wm2: float, params
+    t_cab_c: float,
+    t_vent_c: float,
+    mdot_bl_kgps: float,
+    t_mr_c: float,
+    pa_pa: float,
+    solar_wm2: float,
+    params,
+    pmv_fn=None,
 ) -> float:
     """|dPMV/dG| [PMV per W/m2]: the PMV's sensitivity to the direct irradiance G at a state.
 
-    A difference over 20 W/m2 (central, one-sided at G < 10 W/m2).
+    A difference over 20 W/m2 (central, one-sided at G < 10 W/m2). ``pmv_fn``: the PMV evaluator at ``params``
+    (:class:`~ceco_controller.pmv_function.CabinPmvFunction`; None: ``cabin_pmv`` on numpy).
     """
     g = np.array([max(solar_wm2 - 10.0, 0.0), max(solar_wm2 - 10.0, 0.0) + 20.0])
-    y = cabin_pmv(
-        t_cab_c=np.full(2, t_cab_c),
-        t_vent_c=np.full(2, t_vent_c),
-        mdot_bl_kgps=np.full(2, mdot_bl_kgps),
-        t_mr_c=np.full(2, t_mr_c),
-        w_rad_wm2=cabin_w_rad_wm2(g, params),
-        pa_pa=np.full(2, pa_pa),
-        params=params,
-    )
+    w_rad = cabin_w_rad_wm2(g, params)
+    if pmv_fn is not None:
+        y = [pmv_fn(t_cab_c, t_vent_c, mdot_bl_kgps, t_mr_c, float(w), pa_pa) for w in w_rad]
+    else:
+        y = cabin_pmv(
+            t_cab_c=np.full(2, t_cab_c),
+            t_vent_c=np.full(2, t_vent_c),
+            mdot_bl_kgps=np.full(2, mdot_bl_kgps),
+            t_mr_c=np.full(2, t_mr_c),
+            w_rad_wm2=w_rad,
+            pa_pa=np.full(2, pa_pa),
+            params=params,
+        )
     d = abs(float(y[1] - y[0])) / 20.0
     return d if math.isfinite(d) else 0.0
 

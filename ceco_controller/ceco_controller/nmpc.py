@@ -42,7 +42,7 @@ import numpy as np
 from ceco_core import psychro
 from ceco_core.acc_law import AccLaw, AccSettings
 from ceco_core.air_quality import RECIRC_SHARE_DEFAULT, fog_margin_of
-from ceco_core.cabin_comfort import PAPER_PA_PA, ComfortParams, cabin_mrt_c, cabin_pmv, cabin_w_rad_wm2
+from ceco_core.cabin_comfort import PAPER_PA_PA, ComfortParams, cabin_mrt_c, cabin_w_rad_wm2
 from ceco_core.co2_door import Co2DoorLaw
 from ceco_core.contracts import ACTUATOR_LIMITS, AcInput, Diagnostics, Observation
 from ceco_core.observation_check import OBSERVATION_LIMITS, ObservationLimits, check_observation
@@ -53,6 +53,7 @@ from .codegen import codegen_cache_dir, compile_nlp
 from .comfort_feedback import PmvFeedback, PreviewSkill, held, measured_pmv, pmv_solar_sensitivity
 from .observation import fill_previews, nominal_observation
 from .offset_free import BiasEstimator
+from .pmv_function import CabinPmvFunction
 from .solvers import NlpData, NlpSolver, SolveResult, build_solver
 from .strategies import SolverSettings, StrategySettings, resolve_auto, strategy_settings
 from .transcription import W_SCALE_KGKG, Evaluation, build_problem
@@ -160,6 +161,8 @@ class NmpcController:
             if s.pmv_feedback
             else None
         )
+        self._pmv_fn = CabinPmvFunction(self.comfort_params) if s.pmv_feedback else None
+        """The scored PMV at ``comfort_params``, compiled (the PMV feedback's per-step reads)."""
         self._skill = (
             PreviewSkill(s.horizon_steps + 1, s.preview_skill_window_steps, s.preview_shrink_c)
             if s.preview_rule == "shrink"
@@ -734,14 +737,21 @@ class NmpcController:
         self._comfort_now = self.comfort_parameters(obs, chk.t_glass_c, chk.rh_cab)
         if fb is None:
             return lb, ub
-        y = measured_pmv(obs, self.comfort_params, chk.t_glass_c, chk.rh_cab)
+        y = measured_pmv(obs, self.comfort_params, chk.t_glass_c, chk.rh_cab, self._pmv_fn)
         fb.update(y)
         m = np.zeros(n)
         if self.settings.backoff == "adaptive":
             t_mr, pa = self._comfort_now
             v = skill.estimate_mse("solar", n) if skill is not None else np.zeros(n)
             g = pmv_solar_sensitivity(
-                obs.t_cab_c, obs.t_vent_c, obs.mdot_bl_prev_kgps, t_mr, pa, obs.solar_wm2, self.comfort_params
+                obs.t_cab_c,
+                obs.t_vent_c,
+                obs.mdot_bl_prev_kgps,
+                t_mr,
+                pa,
+                obs.solar_wm2,
+                self.comfort_params,
+                self._pmv_fn,
             )
             m = fb.backoff(v, g)
         _note(
@@ -789,16 +799,14 @@ class NmpcController:
             d_evap_k=b[1] / n_sub,
         )
         t_mr, pa = self._comfort_now if self._comfort_now is not None else (math.nan, math.nan)
-        return float(
-            cabin_pmv(
-                t_cab_c=float(t_cab),
-                t_vent_c=float(cm.t_ain_c(mp, t_evap, cmd[0], b[2])),
-                mdot_bl_kgps=float(cmd[0]),
-                t_mr_c=float(t_mr),
-                w_rad_wm2=float(cabin_w_rad_wm2(ex["solar"][1 if ex["solar"].size > 1 else 0], self.comfort_params)),
-                pa_pa=float(pa),
-                params=self.comfort_params,
-            )
+        assert self._pmv_fn is not None  # (only with the PMV feedback)
+        return self._pmv_fn(
+            float(t_cab),
+            float(cm.t_ain_c(mp, t_evap, cmd[0], b[2])),
+            float(cmd[0]),
+            float(t_mr),
+            float(cabin_w_rad_wm2(ex["solar"][1 if ex["solar"].size > 1 else 0], self.comfort_params)),
+            float(pa),
         )
 
     def _finish(self, diag: Diagnostics, cmd: np.ndarray, obs: Observation | None, ex: dict | None):

@@ -431,7 +431,18 @@ class AccLaw:
 
 
 def feedback_pmv(
-    *, t_cab_c, t_vent_c, t_int_c, t_shell_c, t_glass_c, rh_cab, mdot_bl_kgps, solar_wm2, params, pa_pa=None
+    *,
+    t_cab_c,
+    t_vent_c,
+    t_int_c,
+    t_shell_c,
+    t_glass_c,
+    rh_cab,
+    mdot_bl_kgps,
+    solar_wm2,
+    params,
+    pa_pa=None,
+    pmv_fn=None,
 ):
     """The cabin PMV the comfort-feedback law regulates [-]: the scored comfort model on the controller's observation.
 
@@ -449,7 +460,9 @@ def feedback_pmv(
     load, speed, cabin humidity). ``pa_pa`` [Pa]: the cabin's vapour pressure in place of rh_cab's (None:
     from ``rh_cab``; ``ceco_controller.comfort_feedback.measured_pmv`` passes the paper's 1700 Pa where the
     humidity is not measured). Returns NaN when an input is missing or not finite (the law then holds its
-    command).
+    command). ``pmv_fn``: an evaluator of ``cabin_pmv`` at ``params`` called as ``pmv_fn(t_cab_c, t_vent_c,
+    mdot_bl_kgps, t_mr_c, w_rad_wm2, pa_pa)`` (the controllers' compiled one,
+    ``ceco_controller.pmv_function.CabinPmvFunction``); None: ``cabin_pmv`` on numpy.
     """
     from ceco_core import psychro
     from ceco_core.cabin_comfort import cabin_mrt_c, cabin_pmv, cabin_w_rad_wm2
@@ -464,15 +477,12 @@ def feedback_pmv(
     if not finite or mdot < 0.0 or humidity < 0.0 or (pa_pa is None and humidity > 1.0):
         return math.nan
     pa = humidity if pa_pa is not None else float(psychro.vapour_pressure_pa(t_cab, humidity))
-    t_mr = cabin_mrt_c(t_cab_c=t_cab, t_int_c=t_int, t_shell_c=t_shell, t_glass_c=t_glass, params=params)
+    t_mr = float(cabin_mrt_c(t_cab_c=t_cab, t_int_c=t_int, t_shell_c=t_shell, t_glass_c=t_glass, params=params))
+    w_rad = float(cabin_w_rad_wm2(max(solar, 0.0), params))
+    if pmv_fn is not None:
+        return float(pmv_fn(t_cab, t_vent, mdot, t_mr, w_rad, pa))
     return float(
         cabin_pmv(
-            t_cab_c=t_cab,
-            t_vent_c=t_vent,
-            mdot_bl_kgps=mdot,
-            t_mr_c=float(t_mr),
-            w_rad_wm2=float(cabin_w_rad_wm2(max(solar, 0.0), params)),
-            pa_pa=pa,
-            params=params,
+            t_cab_c=t_cab, t_vent_c=t_vent, mdot_bl_kgps=mdot, t_mr_c=t_mr, w_rad_wm2=w_rad, pa_pa=pa, params=params
         )
     )
