@@ -55,7 +55,15 @@ from ceco_core.acc_law import feedback_pmv
 from ceco_core.cabin_comfort import PAPER_PA_PA, ComfortParams, cabin_pmv, cabin_w_rad_wm2
 from ceco_core.contracts import Observation
 
-__all__ = ["PmvFeedback", "PreviewSkill", "measured_pmv", "pmv_solar_sensitivity", "held", "PREVIEW_SERIES"]
+__all__ = [
+    "PmvFeedback",
+    "PreviewSkill",
+    "measured_pmv",
+    "pmv_solar_sensitivity",
+    "held",
+    "linear_quantile",
+    "PREVIEW_SERIES",
+]
 
 PREVIEW_SERIES = ("t_amb", "solar", "speed")
 """The NLP's previewed series (keys of :func:`ceco_controller.observation.fill_previews`)."""
@@ -123,6 +131,25 @@ def pmv_solar_sensitivity(
         )
     d = abs(float(y[1] - y[0])) / 20.0
     return d if math.isfinite(d) else 0.0
+
+
+def linear_quantile(values_sorted, q: float) -> float:
+    """The q-quantile of finite ``values_sorted`` (ascending, not empty), linear between order statistics.
+
+    ``numpy.quantile``'s default method (Hyndman & Fan's 7th: index (n - 1) q, its interpolation written as numpy
+    writes it, so the value is the same to the bit; ``tests/test_comfort_feedback.py``) without its array set-up:
+    1.3 us against 24 us for ``numpy.quantile`` on the back-off's 60 residuals (``timeit``).
+    """
+    n = len(values_sorted)
+    v = (n - 1) * q
+    if v >= n - 1:
+        return float(values_sorted[-1])
+    if v < 0:
+        return float(values_sorted[0])
+    i = math.floor(v)
+    a, b, t = float(values_sorted[i]), float(values_sorted[i + 1]), v - i
+    d = b - a
+    return b - d * (1 - t) if t >= 0.5 else a + d * t
 
 
 class PmvFeedback:
@@ -196,7 +223,7 @@ class PmvFeedback:
         """The residual quantile clipped to [m_min, m_max], or the initial back-off [PMV]."""
         if len(self.residuals) < self.min_samples:
             return self.init
-        return float(np.clip(np.quantile(np.asarray(self.residuals), self.q), self.lo, self.hi))
+        return min(max(linear_quantile(sorted(self.residuals), self.q), self.lo), self.hi)
 
     def backoff(self, solar_mse: np.ndarray, dy_dg: float) -> np.ndarray:
         """m_i on the NLP grid (one value per point of ``solar_mse``, v_i [(W/m2)^2] at leads i = 0..N) [PMV]."""
