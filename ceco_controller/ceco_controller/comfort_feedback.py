@@ -252,12 +252,13 @@ class PreviewSkill:
         """Key-on: no stored previews, no statistics (every preview trusted until measured)."""
         self._history: collections.deque = collections.deque(maxlen=self.n1)
         n1 = self.n1
-        self.se_f = {q: np.zeros(n1) for q in PREVIEW_SERIES}
+        # (Python lists of floats: updated element by element at every step, read as arrays by *_mse)
+        self.se_f = {q: [0.0] * n1 for q in PREVIEW_SERIES}
         """Weighted sums of squared forecast errors per lead."""
-        self.se_p = {q: np.zeros(n1) for q in PREVIEW_SERIES}
+        self.se_p = {q: [0.0] * n1 for q in PREVIEW_SERIES}
         """Weighted sums of squared persistence errors per lead."""
-        self.sw_f = {q: np.zeros(n1) for q in PREVIEW_SERIES}
-        self.sw_p = {q: np.zeros(n1) for q in PREVIEW_SERIES}
+        self.sw_f = {q: [0.0] * n1 for q in PREVIEW_SERIES}
+        self.sw_p = {q: [0.0] * n1 for q in PREVIEW_SERIES}
 
     def update(self, obs: Observation, valid: np.ndarray) -> None:
         """Score the previews received 0..Np steps ago against this step's measurements, then store this one.
@@ -265,7 +266,8 @@ class PreviewSkill:
         ``valid``: the entries of ``obs``'s previews the controller trusts (valid and plausible).
         """
         meas = {q: float(getattr(obs, _MEASURED[q])) for q in PREVIEW_SERIES}
-        cur = {q: (np.array(getattr(obs, _PREVIEW[q]), float), np.asarray(valid, bool).copy()) for q in PREVIEW_SERIES}
+        ok_now = np.asarray(valid, bool).tolist()  # (Python lists: the scoring below reads them element by element)
+        cur = {q: (np.asarray(getattr(obs, _PREVIEW[q]), float).tolist(), ok_now) for q in PREVIEW_SERIES}
         hist = list(self._history) + [(meas, cur)]
         for lead in range(min(len(hist), self.n1)):
             old_meas, old_prev = hist[-1 - lead]
@@ -280,19 +282,19 @@ class PreviewSkill:
                     self._acc(self.se_p[q], self.sw_p[q], lead, (old_meas[q] - now) ** 2)
         self._history.append((meas, cur))
 
-    def _acc(self, se: np.ndarray, sw: np.ndarray, lead: int, e2: float) -> None:
+    def _acc(self, se: list, sw: list, lead: int, e2: float) -> None:
         se[lead] = self.beta * se[lead] + e2
         sw[lead] = self.beta * sw[lead] + 1.0
 
     def forecast_mse(self, q: str) -> np.ndarray:
         """Measured mean squared forecast error per lead 0..Np (0 where nothing was measured yet)."""
-        sw = self.sw_f[q]
-        return np.where(sw > 0, self.se_f[q] / np.maximum(sw, 1e-300), 0.0)
+        sw = np.asarray(self.sw_f[q])
+        return np.where(sw > 0, np.asarray(self.se_f[q]) / np.maximum(sw, 1e-300), 0.0)
 
     def persistence_mse(self, q: str) -> np.ndarray:
         """Measured mean squared error of holding the measured value, per lead 0..Np."""
-        sw = self.sw_p[q]
-        return np.where(sw > 0, self.se_p[q] / np.maximum(sw, 1e-300), 0.0)
+        sw = np.asarray(self.sw_p[q])
+        return np.where(sw > 0, np.asarray(self.se_p[q]) / np.maximum(sw, 1e-300), 0.0)
 
     def estimate_mse(self, q: str, n_grid: int) -> np.ndarray:
         """v_i: the smaller of the forecast's and persistence's measured errors, on an NLP grid of ``n_grid`` points.
