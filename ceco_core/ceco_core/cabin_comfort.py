@@ -109,8 +109,8 @@ class SolarParams:
     def w_rad_per_irradiance(self):
         """Absorbed short-wave flux per body area per unit direct irradiance [-] (SolarCal at I_dir = 1 W/m2).
 
-        Computed once per (frozen) parameter set: SolarCal with its input checks is about 85 us, and the controller
-        and the plant read this at every comfort evaluation (:func:`cabin_w_rad_wm2`).
+        Computed once per (frozen) parameter set: SolarCal with its input checks is about 85 us, and the controllers
+        (and the plant's Python evaluation) read this at every comfort evaluation (:func:`cabin_w_rad_wm2`).
         """
         return float(
             solar_gain(
