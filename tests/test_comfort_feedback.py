@@ -225,15 +225,9 @@ def test_the_compiled_pmv_equals_the_numpy_pmv_and_feeds_the_same_reads():
     fn = CabinPmvFunction(params)
     rng = np.random.default_rng(7)
     worst = 0.0
-    for _ in range(500):
-        x = (
-            rng.uniform(15, 45),
-            rng.uniform(3, 30),
-            rng.uniform(0.05, 0.17),
-            rng.uniform(15, 60),
-            rng.uniform(0, 40),
-            rng.uniform(500, 3000),
-        )
+    lo, hi = np.array([15.0, 3.0, 0.05, 15.0, 0.0, 500.0]), np.array([45.0, 30.0, 0.17, 60.0, 40.0, 3000.0])
+    for _ in range(500):  # cabin air, vent air, blower, T_mr, W_rad, p_a
+        x = rng.uniform(lo, hi).tolist()
         ref = float(
             cabin_pmv(
                 t_cab_c=x[0], t_vent_c=x[1], mdot_bl_kgps=x[2], t_mr_c=x[3], w_rad_wm2=x[4], pa_pa=x[5], params=params
