@@ -137,7 +137,7 @@ def study(t_amb_c: float, solar_wm2: float, speed_mps: float, rh: float, pmv: fl
 
 
 def run_study(
-    case_name: str, strategy: str, seed: int, at_s: float, hold_s: int, pmv: float, model_params=None
+    case_name: str, strategy: str, seed: int, at_s: float, hold_s: float, pmv: float, model_params=None
 ) -> dict:
     """:func:`study`'s rows from the plant state of a benchmark run at ``at_s`` (module docstring, ``--case``)."""
     import sys

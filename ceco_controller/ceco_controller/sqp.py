@@ -246,8 +246,9 @@ class Sqp:
         for b, ix in self._dense:
             by_size.setdefault(b.size, []).append(nz[ix])
         self._groups = [np.stack(g) for g in by_size.values()]
-        self._eyes: dict[int, np.ndarray] = {}
         """Per block size: the non-zero indices of every block of that size, shape (m, k, k)."""
+        self._eyes: dict[int, np.ndarray] = {}
+        """Identity matrices per block size (:meth:`_above_floor`)."""
         if np.any(self._diag1_nz < 0) or any(np.any(g < 0) for g in self._groups):
             raise ValueError("Sqp: the Hessian's pattern does not hold its diagonal blocks")
         # error_on_fail: a failed QP raises (caught below), so a solved one needs no stats() call
