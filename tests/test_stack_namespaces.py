@@ -69,8 +69,10 @@ def test_namespaced_node_reads_its_parameter_file(tmp_path):
             for node in ('/veh1/preview_node', '/preview_node', '/veh2/preview_node')
         }
         assert values == {'/veh1/preview_node': 9, '/preview_node': 9, '/veh2/preview_node': 6}
-        names = set(peer.node.get_node_names_and_namespaces())
-        assert {('preview_node', '/veh1'), ('preview_node', '/'), ('preview_node', '/veh2')} <= names
+        want = {('preview_node', '/veh1'), ('preview_node', '/'), ('preview_node', '/veh2')}
+        # the node list reaches the peer's graph apart from the services answered above: a single read raced it
+        # (CI, 4 Dec 2026: '/' not yet listed); waited for, a node outside its namespace still fails here
+        _wait_for(lambda: want <= set(peer.node.get_node_names_and_namespaces()), 30.0, f'{sorted(want)} in the graph')
     finally:
         for p in procs:
             p.stop()
