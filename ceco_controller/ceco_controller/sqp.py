@@ -269,8 +269,6 @@ class Sqp:
         if o.qpsol != "hpipm" and not (h_sp.is_dense() and a_sp.is_dense()):
             raise ValueError(f"Sqp: qpsol {o.qpsol!r} needs the dense functions (sqp_functions without structure)")
         self._qp_spec = ({"h": h_sp, "a": a_sp}, qp_opts)
-        self._jac_rows, self._jac_cols = (np.asarray(v, dtype=np.intp) for v in a_sp.get_triplet())
-        """Row and column of each non-zero of ``jac_g`` (its buffer's order): J' lam (:meth:`_dual_infeasibility`)."""
         self.reset()
         self.n_eig_fallbacks = 0
         """Blocks convexified by the Gershgorin shift because LAPACK reported non-convergence."""
@@ -348,11 +346,6 @@ class Sqp:
             shift = max(0.0, float(np.max(radius - np.diag(hb)))) + floor
             return hb + shift * np.eye(hb.shape[0])
         return hb if lam.min() >= floor else (vec * np.maximum(lam, floor)) @ vec.T
-
-    def _dual_infeasibility(self, gf: np.ndarray, jac: np.ndarray, lam_g: np.ndarray, lam_x: np.ndarray) -> float:
-        """|grad f + J' lam_g + lam_x|_inf at the linearisation (``gf``, ``jac``'s non-zeros) [kJ per variable unit]."""
-        jt_lam = np.bincount(self._jac_cols, weights=jac * lam_g[self._jac_rows], minlength=self.nw)
-        return float(np.abs(gf + jt_lam + lam_x).max(initial=0.0))
 
     def _violation(self, g: np.ndarray) -> np.ndarray:
         return np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0)
@@ -434,8 +427,9 @@ class Sqp:
                 break
             if float(np.abs(d).max(initial=0.0)) <= o.min_step * (1.0 + float(np.abs(w).max())) and pr <= o.tol_pr:
                 lam_g, lam_x = lam_g_qp, lam_x_qp
-                # the multipliers returned are the QP's: the stationarity reported is theirs, at w
-                du = self._dual_infeasibility(gf, jac, lam_g, lam_x)
+                # the multipliers returned are the QP's: the stationarity reported is theirs, at w (the jac
+                # function's Lagrangian gradient with them)
+                du = float(np.abs(self._jac(w, p, lam_g)[4] + lam_x).max(initial=0.0))
                 status, success = "Solve_Succeeded", True
                 break
             # l1 merit, non-monotone Armijo backtracking
