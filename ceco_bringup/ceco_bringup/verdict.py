@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ceco_bringup.benchmark.schema import DOOR_CO2_HOLD, door_family
 from ceco_core.metrics import ENERGY_PARTS, relative_change_pct
 
 __all__ = [
@@ -80,10 +81,14 @@ mostly the baseline's tuning: the verdict's headline is against the stronger of 
 discomfort (:func:`matched`), the production law's number is shown beside it (the paper's comparison).
 ``ceco benchmark`` adds the comfort-feedback (PMV) families and the whole-drive optimum."""
 
-DOOR_FAMILY_LAWS = ('baseline-doorco2', 'baseline-tuned-doorco2')
+DOOR_FAMILY_LAWS = tuple(door_family(law, DOOR_CO2_HOLD) for law in FAMILY_LAWS)
 """The laws of :data:`FAMILY_LAWS` with the CO2-holding recirculation door of ``ceco-pmv-aq`` behind them
-(``door_mode: co2_hold``, ``ceco_core.co2_door``; the benchmark's ``*-doorco2`` families): the family a
-strategy that moves the door is read against, so that both sides may move it (issue 21)."""
+(``door_mode: co2_hold``, ``ceco_core.co2_door``; named as the benchmark's ``*-doorco2`` families:
+``baseline-doorco2``, ``baseline-tuned-doorco2``): the family a strategy that moves the door is read against, so
+that both sides may move it (issue 21)."""
+
+_DOOR_SUFFIX = door_family('', DOOR_CO2_HOLD)
+"""Name suffix of a family law with the CO2-holding door (``-doorco2``)."""
 
 RESOLUTION_PCT = 1.0
 """Savings at matched comfort smaller than this are reported as "the same energy" [%]: the front is
@@ -140,10 +145,6 @@ def family_law(member: str) -> str:
     return member.split('@', 1)[0]
 
 
-_DOOR_SUFFIX = '-doorco2'
-"""Name suffix of a family law with the CO2-holding door (the benchmark's ``schema.door_family(..., 'co2')``)."""
-
-
 def moves_door(strategy: str) -> bool:
     """Whether ``strategy`` commands the recirculation door.
 
@@ -179,10 +180,10 @@ def _law_overrides(law: str) -> tuple:
 
     The laws: :data:`FAMILY_LAWS`, :data:`DOOR_FAMILY_LAWS`.
     """
-    from ceco_bringup.benchmark import runner, schema
+    from ceco_bringup.benchmark import runner
 
     base = law.removesuffix(_DOOR_SUFFIX)
-    door = runner.door_overrides(schema.DOOR_CO2_HOLD) if base != law else {}
+    door = runner.door_overrides(DOOR_CO2_HOLD) if base != law else {}
     if base == 'baseline':
         return tuple(sorted(door.items()))
     if base == 'baseline-tuned':
