@@ -14,9 +14,10 @@ For each evaporator wall temperature of ``--walls`` [degC]:
   load, ``1 / (c0 + c1 * softplus(T_amb - T_wall))`` times eta_AC(speed) (:func:`~ceco_controller.model.p_comp_w`).
 
 The last columns are each COP's rise per kelvin of wall temperature to the next row [%/K]. The control model's
-load is the air-side sensible heat (identified on the plant's data), so its COP's level is not the plant's;
-what the NLP's split depends on is the rise per kelvin (docs/results.md, "The hot soak's gap, window by window":
-at equal PMV the flow a warmer coil needs decides the split there, not this rise alone).
+load is the air-side sensible heat (identified on the plant's data), so its COP's level is not the plant's; the
+rise per kelvin is what a warmer coil saves at a fixed load. At equal comfort the air a warmer coil needs counts
+too, and on the hot soak's band phase it decides the split (docs/results.md, "The hot soak's gap, window by
+window").
 A study, not a test.
 """
 
