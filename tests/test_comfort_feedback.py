@@ -219,7 +219,7 @@ def test_the_compiled_pmv_equals_the_numpy_pmv_and_feeds_the_same_reads():
     numpy path raises (its callers check their inputs first)."""
     from ceco_controller.comfort_feedback import pmv_solar_sensitivity
     from ceco_controller.pmv_function import CabinPmvFunction
-    from ceco_core.cabin_comfort import ComfortParams, cabin_pmv
+    from ceco_core.cabin_comfort import ComfortParams, cabin_pmv, cabin_w_rad_wm2
 
     params = ComfortParams()
     fn = CabinPmvFunction(params)
@@ -239,7 +239,12 @@ def test_the_compiled_pmv_equals_the_numpy_pmv_and_feeds_the_same_reads():
     for rh in (0.4, math.nan):  # measured humidity, and the paper's 1700 Pa where there is none
         a, b = measured_pmv(obs, params, 31.0, rh), measured_pmv(obs, params, 31.0, rh, fn)
         assert math.isfinite(a) and abs(a - b) < 1e-12 * max(1.0, abs(a))
-    s0 = pmv_solar_sensitivity(27.0, 9.0, 0.12, 33.0, 1700.0, 600.0, params)
+    w = [cabin_w_rad_wm2(g, params) for g in (590.0, 610.0)]  # 600 W/m2 +- 10
+    y = [
+        cabin_pmv(t_cab_c=27.0, t_vent_c=9.0, mdot_bl_kgps=0.12, t_mr_c=33.0, w_rad_wm2=x, pa_pa=1700.0, params=params)
+        for x in w
+    ]
+    s0 = abs(float(y[1] - y[0])) / 20.0
     s1 = pmv_solar_sensitivity(27.0, 9.0, 0.12, 33.0, 1700.0, 600.0, params, fn)
     assert s0 > 1e-4 and abs(s0 - s1) < 1e-10 * s0
     assert math.isnan(fn(27.0, 9.0, 0.12, math.nan, 10.0, 1700.0))

@@ -52,7 +52,7 @@ import math
 import numpy as np
 
 from ceco_core.acc_law import feedback_pmv
-from ceco_core.cabin_comfort import PAPER_PA_PA, ComfortParams, cabin_pmv, cabin_w_rad_wm2
+from ceco_core.cabin_comfort import PAPER_PA_PA, ComfortParams, cabin_w_rad_wm2
 from ceco_core.contracts import Observation
 
 __all__ = [
@@ -108,27 +108,17 @@ def pmv_solar_sensitivity(
     pa_pa: float,
     solar_wm2: float,
     params,
-    pmv_fn=None,
+    pmv_fn,
 ) -> float:
     """|dPMV/dG| [PMV per W/m2]: the PMV's sensitivity to the direct irradiance G at a state.
 
-    A difference over 20 W/m2 (central, one-sided at G < 10 W/m2). ``pmv_fn``: the PMV evaluator at ``params``
-    (:class:`~ceco_controller.pmv_function.CabinPmvFunction`; None: ``cabin_pmv`` on numpy).
+    A difference over 20 W/m2 (central, one-sided at G < 10 W/m2) of ``pmv_fn``, the PMV at ``params``
+    (:class:`~ceco_controller.pmv_function.CabinPmvFunction`).
     """
-    g = np.array([max(solar_wm2 - 10.0, 0.0), max(solar_wm2 - 10.0, 0.0) + 20.0])
-    w_rad = cabin_w_rad_wm2(g, params)
-    if pmv_fn is not None:
-        y = [pmv_fn(t_cab_c, t_vent_c, mdot_bl_kgps, t_mr_c, float(w), pa_pa) for w in w_rad]
-    else:
-        y = cabin_pmv(
-            t_cab_c=np.full(2, t_cab_c),
-            t_vent_c=np.full(2, t_vent_c),
-            mdot_bl_kgps=np.full(2, mdot_bl_kgps),
-            t_mr_c=np.full(2, t_mr_c),
-            w_rad_wm2=w_rad,
-            pa_pa=np.full(2, pa_pa),
-            params=params,
-        )
+    g = max(solar_wm2 - 10.0, 0.0)
+    y = [
+        pmv_fn(t_cab_c, t_vent_c, mdot_bl_kgps, t_mr_c, float(cabin_w_rad_wm2(x, params)), pa_pa) for x in (g, g + 20.0)
+    ]
     d = abs(float(y[1] - y[0])) / 20.0
     return d if math.isfinite(d) else 0.0
 
