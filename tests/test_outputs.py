@@ -489,7 +489,6 @@ def test_play_points_at_the_bag_of_a_run_directory(tmp_path, capsys):
     assert f'give one bag, e.g. {tmp_path / "ceco" / "bag"}' in capsys.readouterr().err
 
 
-# ---------------------------------------------------------------------------------------- run directories
 def test_play_compares_the_door_as_well():
     """``ceco play --compare``'s door difference: both not commanded (NaN) agree, one commanded and one not differ
     beyond any tolerance, two shares by their distance."""
@@ -499,6 +498,7 @@ def test_play_compares_the_door_as_well():
     assert play.door_difference(0.2, 0.5) == pytest.approx(0.3, abs=1e-15)
 
 
+# ---------------------------------------------------------------------------------------- run directories
 def test_scenario_copy_is_loadable_with_its_drive_cycle(tmp_path):
     """A user scenario naming its drive cycle by a relative CSV path: the copy in the run directory
     loads to the same scenario after the originals are gone."""
