@@ -21,6 +21,8 @@ COLUMNS = (
     't_evap_sp_c',
     'mdot_bl_kgps',
     'pmv',
+    'pmv_lb',
+    'pmv_ub',
     *phase_energy.END_STATES,
 )
 
@@ -33,7 +35,7 @@ def _run_dir(path: pathlib.Path, p_comp_w, n: int = 10) -> pathlib.Path:
         w.writerow(COLUMNS + ('strategy',))
         for k in range(n):
             ends = [25.0 + k, 40.0, 41.0, 36.0, 3.0 + k]
-            w.writerow([k, p_comp_w(k), 100.0, 50.0, 3.0 + (k >= 5), 0.15, 0.4, *ends, 'x'])
+            w.writerow([k, p_comp_w(k), 100.0, 50.0, 3.0 + (k >= 5), 0.15, 0.4, -0.5, 0.5, *ends, 'x'])
     return path
 
 
@@ -54,6 +56,8 @@ def test_phase_energy_integrates_each_window_and_prints_the_difference(tmp_path,
     assert '| A | 34.00 | 40.00 | 41.00 | 36.00 | 12.00 |' in out  # the last row's states
     with pytest.raises(SystemExit, match='increasing'):
         phase_energy.windows_of('0,5,5', 10.0)
+    with pytest.raises(SystemExit, match='fewer than two plant steps'):
+        phase_energy.window_table(ts, [(0.0, 1.0)])
     with pytest.raises(SystemExit, match='same time grid'):
         phase_energy.main([str(a), str(_run_dir(tmp_path / 'c', lambda k: 0.0, n=8))])
 

@@ -5,10 +5,11 @@
 RUN_A and RUN_B are run directories with a ``timeseries.csv`` (``ceco sim``, ``ceco run``, ``ceco oracle``'s
 ``level-N``, ``ceco benchmark --save-runs``' ``runs/...``) of the same scenario on the same plant step. For each
 window [t_i, t_i+1) of ``--windows`` [s after key-on; END the runs' end]: each run's energy (compressor + blower +
-condenser fan, the benchmark's E, [kWh]), B − A, the mean coil set-point [degC], blower flow [kg/s] and scored
-PMV. Then each run's state at its end: cabin air, interior, shell, glazing and coil wall [degC]. A whole-drive
-optimum that knows where the drive ends may spend, in its last minute, cold stored in these (docs/oracle.md, "The
-drive's end"); the end states show whether it did.
+condenser fan: the benchmark's ``energy_kwh`` of the window's plant steps, ``ceco_core.kpis.compute_kpis``) [kWh],
+B − A, the mean coil set-point [degC], blower flow [kg/s] and scored PMV. Then each run's state at its end: cabin
+air, interior, shell, glazing and coil wall [degC]. A whole-drive optimum that knows where the drive ends may
+spend, in its last minute, cold stored in these (docs/oracle.md, "The drive's end"); the end states show whether
+it did.
 
 A study, not a test: it reads what the runs wrote.
 """
@@ -16,7 +17,6 @@ A study, not a test: it reads what the runs wrote.
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 import pathlib
 
@@ -24,28 +24,21 @@ import numpy as np
 
 END_STATES = ('t_cab_c', 't_int_c', 't_shell_c', 't_glass_c', 't_evap_c')
 """The end states printed (the cabin's heat stores and the coil wall) [degC]."""
-POWER_COLUMNS = ('p_comp_w', 'p_blower_w', 'p_cond_fan_w')
-"""The electrical powers of the benchmark's energy [W] (docs/benchmark.md)."""
+KPI_COLUMNS = ('p_comp_w', 'p_blower_w', 'p_cond_fan_w', 'pmv_lb', 'pmv_ub')
+"""The columns the benchmark's KPIs read besides :data:`MEAN_COLUMNS` (``ceco_core.kpis.compute_kpis``)."""
 MEAN_COLUMNS = ('t_evap_sp_c', 'mdot_bl_kgps', 'pmv')
 """The means per window."""
 
 
 def read_timeseries(run_dir: str) -> dict[str, np.ndarray]:
-    """A run directory's ``timeseries.csv`` as float columns."""
+    """A run directory's ``timeseries.csv`` as columns (``ceco_core.rundir.read_csv_columns``)."""
+    from ceco_core.rundir import read_csv_columns
+
     path = pathlib.Path(run_dir) / 'timeseries.csv'
     if not path.is_file():
         raise SystemExit(f'phase_energy: {path} not found (a run directory holds timeseries.csv)')
-    with path.open(newline='', encoding='utf-8') as fh:
-        rows = list(csv.DictReader(fh))
-    if not rows:
-        raise SystemExit(f'phase_energy: {path} has no rows')
-    cols: dict[str, np.ndarray] = {}
-    for name in rows[0]:
-        try:
-            cols[name] = np.array([float(r[name]) for r in rows])
-        except ValueError:
-            continue  # a text column
-    missing = [c for c in ('t_s', *POWER_COLUMNS, *MEAN_COLUMNS, *END_STATES) if c not in cols]
+    cols = read_csv_columns(path)
+    missing = [c for c in ('t_s', *KPI_COLUMNS, *MEAN_COLUMNS, *END_STATES) if c not in cols]
     if missing:
         raise SystemExit(f'phase_energy: {path} lacks {", ".join(missing)}')
     return cols
@@ -60,15 +53,19 @@ def windows_of(text: str, t_end_s: float) -> list[tuple[float, float]]:
 
 
 def window_table(ts: dict[str, np.ndarray], windows: list[tuple[float, float]]) -> list[dict]:
-    """Per window: the energy [kWh] (each plant step's power times its step) and the means of :data:`MEAN_COLUMNS`."""
+    """Per window: the benchmark's energy of its plant steps [kWh] (``compute_kpis``' ``energy_kwh``) and the means
+    of :data:`MEAN_COLUMNS`."""
+    from ceco_core.kpis import compute_kpis
+
     t = ts['t_s']
-    dt = np.diff(t, append=t[-1] + (t[-1] - t[-2] if t.size > 1 else 1.0))
-    power = sum(ts[c] for c in POWER_COLUMNS)
     out = []
     for a, b in windows:
         m = (t >= a) & (t < b)
-        row = {'from_s': a, 'to_s': b, 'energy_kwh': float(np.sum(power[m] * dt[m]) / 3.6e6)}
-        row.update({c: float(np.mean(ts[c][m])) if m.any() else math.nan for c in MEAN_COLUMNS})
+        if np.count_nonzero(m) < 2:
+            raise SystemExit(f'phase_energy: the window {a:g}-{b:g} s holds fewer than two plant steps')
+        kpis, _ = compute_kpis({c: v[m] for c, v in ts.items() if v.dtype.kind == 'f'})
+        row = {'from_s': a, 'to_s': b, 'energy_kwh': kpis['energy_kwh']}
+        row.update({c: float(np.mean(ts[c][m])) for c in MEAN_COLUMNS})
         out.append(row)
     return out
 
