@@ -247,8 +247,6 @@ class Sqp:
             by_size.setdefault(b.size, []).append(nz[ix])
         self._groups = [np.stack(g) for g in by_size.values()]
         """Per block size: the non-zero indices of every block of that size, shape (m, k, k)."""
-        self._eyes: dict[int, np.ndarray] = {}
-        """Identity matrices per block size (:meth:`_above_floor`)."""
         if np.any(self._diag1_nz < 0) or any(np.any(g < 0) for g in self._groups):
             raise ValueError("Sqp: the Hessian's pattern does not hold its diagonal blocks")
         # error_on_fail: a failed QP raises (caught below), so a solved one needs no stats() call
@@ -327,14 +325,8 @@ class Sqp:
         LAPACK ``dpotrf`` called directly (about 2 us on a 12 x 12 block, against 13 us for ``numpy.linalg.eigh``);
         a block it factors is left as it is, as :meth:`convexify` leaves one whose eigenvalues are all >= the floor.
         """
-        _, info = _dpotrf(hb - self.options.eig_floor * self._eye(len(hb)), overwrite_a=1, clean=0)
+        _, info = _dpotrf(hb - self.options.eig_floor * np.eye(len(hb)), overwrite_a=1, clean=0)
         return info == 0
-
-    def _eye(self, n: int) -> np.ndarray:
-        eye = self._eyes.get(n)
-        if eye is None:
-            eye = self._eyes[n] = np.eye(n)
-        return eye
 
     def _convexify_block(self, hb: np.ndarray) -> np.ndarray:
         floor = self.options.eig_floor
