@@ -150,16 +150,19 @@ def test_a_stalled_run_fails_clearly_and_all_goes_on(tmp_path):
     from ceco_msgs.msg import WeatherPreview
 
     out, domain = tmp_path / 'all', _domain(3)
-    # the plant is stopped by a subscriber of this test once the preview of control step 2 came (the preview
-    # node answers the plant's state of that step): the recorder of `ceco run` has had its first state by then,
-    # so the run is under way. (Stopped as soon as its log said 'starting at step 0', the plant once had not
-    # yet published step 0: a start-up timeout. The subscriber is on a preview, which no node's start waits
-    # for: on cabin/state it would fill the plant's start gate in place of a stack node.)
+    # the plant is stopped by a subscriber of this test once the preview of control step 20 of 60 came (the
+    # preview node answers the plant's state of that step): the recorder of `ceco run` has had its first state by
+    # then, so the run is under way. (Stopped as soon as its log said 'starting at step 0', the plant once had not
+    # yet published step 0: a start-up timeout. Stopped at step 2, in a CI run on the loaded machine the recorder
+    # still had no state: the plant's first states, sent before the recorder's side of the match was complete,
+    # are repaired by the reliable writer later, and a frozen writer repairs nothing. The subscriber is on a
+    # preview, which no node's start waits for: on cabin/state it would fill the plant's start gate in place of a
+    # stack node.)
     peer = DdsPeer(domain, 'plant_stopper')
     target: dict[str, int] = {}  # the first plant's pid, then the step it was stopped at
 
     def on_preview(msg) -> None:
-        if 'pid' in target and 'step' not in target and msg.step_index >= 2:
+        if 'pid' in target and 'step' not in target and msg.step_index >= 20:
             os.kill(target['pid'], signal.SIGSTOP)
             target['step'] = int(msg.step_index)
 
