@@ -374,26 +374,66 @@ class LifecycleClient:
         res = self._call(self._get, GetState.Request(), timeout_s)
         return None if res is None else res.current_state.label
 
-    def change(self, transition: str, timeout_s: float = 30.0) -> bool:
+    GOAL = {
+        'configure': 'inactive',
+        'activate': 'active',
+        'deactivate': 'inactive',
+        'cleanup': 'unconfigured',
+        'shutdown': 'finalized',
+    }
+    """The primary state each transition ends in when it succeeds (REP 2002 / design.ros2.org)."""
+
+    ORIGIN = {'configure': 'unconfigured', 'activate': 'inactive', 'deactivate': 'active', 'cleanup': 'inactive'}
+    """The primary state each transition starts from ('shutdown' starts from any of three)."""
+
+    def change(self, transition: str, timeout_s: float = 30.0, attempt_s: float = 5.0) -> bool:
         """Request a transition by name (:data:`TRANSITIONS`); True when the node made it.
 
         For 'shutdown' the node's current state picks the transition id (from unconfigured,
         inactive or active).
+
+        An answer can be lost: Fast DDS drops a service's response when the server has not
+        matched the client's response reader yet (rmw_fastrtps "failed to send response
+        (timeout): client will not receive response", seen on a loaded machine at start-up).
+        So after ``attempt_s`` [s] without an answer the node's state decides: the goal state
+        is success; the state the transition starts from means the request never ran, and it
+        is sent again; any other state (a transition still running, no answer to get_state
+        either) is polled. A refusal that comes after a resent request is checked against the
+        state too (the first request may have run after all). False when the node answers
+        that the transition failed, or after ``timeout_s`` [s] in all.
         """
         from lifecycle_msgs.msg import Transition
         from lifecycle_msgs.srv import ChangeState
 
+        deadline = time.monotonic() + timeout_s
         if transition == 'shutdown':
-            label = self.state(timeout_s) or 'active'
+            origin = self.state(min(attempt_s, timeout_s)) or 'active'
             ids = {
                 'unconfigured': Transition.TRANSITION_UNCONFIGURED_SHUTDOWN,
                 'inactive': Transition.TRANSITION_INACTIVE_SHUTDOWN,
             }
-            tid = ids.get(label, Transition.TRANSITION_ACTIVE_SHUTDOWN)
+            tid = ids.get(origin, Transition.TRANSITION_ACTIVE_SHUTDOWN)
         else:
+            origin = self.ORIGIN[transition]
             tid = getattr(Transition, f'TRANSITION_{transition.upper()}')
-        res = self._call(self._change, ChangeState.Request(transition=Transition(id=tid)), timeout_s)
-        return bool(res is not None and res.success)
+        goal = self.GOAL[transition]
+        request = ChangeState.Request(transition=Transition(id=tid))
+        sent = 0
+        send = True
+        while time.monotonic() < deadline:
+            left_s = deadline - time.monotonic()
+            if send:
+                res = self._call(self._change, request, min(attempt_s, left_s))
+                sent += 1
+                if res is not None:
+                    if res.success or sent == 1:
+                        return bool(res.success)
+                    return self.state(min(attempt_s, max(deadline - time.monotonic(), 0.1))) == goal
+            state = self.state(min(attempt_s, max(deadline - time.monotonic(), 0.1)))
+            if state == goal:
+                return True
+            send = state == origin
+        return False
 
     @staticmethod
     def _call(client, request, timeout_s: float):

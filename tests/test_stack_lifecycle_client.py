@@ -1,0 +1,137 @@
+"""`ceco run`'s lifecycle manager (supervisor.LifecycleClient) against a managed node whose
+answers get lost: real DDS between two rclpy participants in this process. The far side is a
+stand-in for the network, not for our nodes: it serves the two lifecycle_msgs services and
+loses answers on purpose, as Fast DDS does when a server has not matched the client's
+response reader yet ("failed to send response (timeout): client will not receive response",
+which failed a CI run's `ceco run`: the controller had configured, the manager never heard)."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+
+pytestmark = pytest.mark.stack
+
+rclpy = pytest.importorskip('rclpy', reason='stack tests need the sourced ROS 2 workspace')
+
+from test_stack import DdsPeer, _domain, _wait_for  # noqa: E402
+
+from ceco_bringup import supervisor  # noqa: E402
+
+
+class LossyLifecycleServer:
+    """A node's change_state / get_state services (primary states only) that can lose answers.
+
+    ``mode``: 'lose_first_answer' (the first request runs its transition, its answer never
+    comes), 'drop_first_request' (the first request is swallowed: no transition, no answer),
+    'swallow_every_request',
+    'refuse' (every request answered success=false, the state unchanged), 'normal'.
+    """
+
+    TARGET = {1: 'inactive', 3: 'active', 4: 'inactive', 2: 'unconfigured'}  # Transition ids
+
+    def __init__(self, peer: DdsPeer, name: str, mode: str):
+        from lifecycle_msgs.srv import ChangeState, GetState
+        from rclpy.callback_groups import ReentrantCallbackGroup
+        from rclpy.executors import MultiThreadedExecutor
+
+        self.state = 'unconfigured'
+        self.requests: list[int] = []
+        self.mode = mode
+        self.release = threading.Event()  # a lost answer is held until the test ends
+        group = ReentrantCallbackGroup()
+        self.node = rclpy.create_node(name, context=peer.context)
+        self.node.create_service(ChangeState, f'/{name}/change_state', self._change, callback_group=group)
+        self.node.create_service(GetState, f'/{name}/get_state', self._get, callback_group=group)
+        self.executor = MultiThreadedExecutor(num_threads=4, context=peer.context)
+        self.executor.add_node(self.node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self):
+        while not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=0.02)
+
+    def _change(self, request, response):
+        tid = request.transition.id
+        self.requests.append(tid)
+        first = len(self.requests) == 1
+        if self.mode == 'refuse':
+            response.success = False
+            return response
+        if self.mode == 'swallow_every_request' or (first and self.mode == 'drop_first_request'):
+            self.release.wait(30.0)
+            response.success = False
+            return response
+        self.state = self.TARGET[tid]
+        if first and self.mode == 'lose_first_answer':
+            self.release.wait(30.0)
+        response.success = True
+        return response
+
+    def _get(self, request, response):
+        response.current_state.label = self.state
+        return response
+
+    def close(self):
+        self.release.set()
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+
+@pytest.fixture
+def pair():
+    """A manager-side peer and a server-side peer on one fresh domain."""
+    domain = _domain()
+    manager, far = DdsPeer(domain, 'lifecycle_manager'), DdsPeer(domain, 'far_side')
+    servers = []
+
+    def make(mode):
+        server = LossyLifecycleServer(far, f'lossy_{mode}', mode)
+        servers.append(server)
+        client = supervisor.LifecycleClient(manager.node, f'lossy_{mode}')
+        _wait_for(lambda: client.wait(0.1), 60, 'the lossy lifecycle services')
+        return server, client
+
+    yield make
+    for server in servers:
+        server.close()
+    far.close()
+    manager.close()
+
+
+def test_a_transition_whose_answer_is_lost_is_read_from_the_state(pair):
+    """The node configures, its answer never comes: the manager reads 'inactive' and says
+    True without asking again (a second configure would be refused by an inactive node)."""
+    server, client = pair('lose_first_answer')
+    assert client.change('configure', timeout_s=20.0, attempt_s=0.5)
+    assert server.state == 'inactive' and server.requests == [1]
+    server.release.set()
+    assert client.change('activate', timeout_s=20.0, attempt_s=0.5) and server.requests == [1, 3]
+
+
+def test_a_request_that_never_ran_is_sent_again(pair):
+    """The first configure is swallowed (no transition, no answer): the state still reads
+    'unconfigured', so the manager sends it again, and the second one runs."""
+    server, client = pair('drop_first_request')
+    assert client.change('configure', timeout_s=20.0, attempt_s=0.5)
+    assert server.state == 'inactive' and server.requests[:2] == [1, 1]
+
+
+def test_a_refused_transition_is_false_at_once_and_not_retried(pair):
+    """An answer success=false is the node's word: False, one request, state unchanged."""
+    server, client = pair('refuse')
+    assert not client.change('configure', timeout_s=20.0, attempt_s=0.5)
+    assert server.requests == [1] and server.state == 'unconfigured'
+
+
+def test_no_answer_and_no_progress_is_false_after_the_timeout(pair):
+    """A node that swallows every request (it answers get_state: 'unconfigured') is a
+    failure within the manager's budget, never a hang; each attempt is a fresh request."""
+    server, client = pair('swallow_every_request')
+    assert not client.change('configure', timeout_s=3.0, attempt_s=0.5)
+    assert server.state == 'unconfigured' and len(server.requests) >= 2
