@@ -1077,17 +1077,29 @@ def test_ranges_derived_from_the_control_period_are_enforced(table, name, value,
 
 
 def test_held_command_waits_for_subscribers_and_sends_each_step_once():
-    from ceco_controller.controller_session import HeldCommand
+    from ceco_core.sequencing import HeldSample
 
-    hold = HeldCommand()
+    hold = HeldSample()
     assert hold.offer('k0', short_of_subscribers=False) == ['k0'] and hold.msg is None  # matched: sent now
     assert hold.offer('k1', short_of_subscribers=True) == [] and hold.msg == 'k1'  # waits
     assert hold.release(may_send=False) == [] and hold.msg == 'k1'  # inactive or still short
     assert hold.offer('k2', short_of_subscribers=True) == [] and hold.msg == 'k2'  # the newer replaces it
     assert hold.release(may_send=True) == ['k2'] and hold.release(may_send=True) == []  # sent once
-    hold.offer('k3', short_of_subscribers=True)
+    hold.offer('k3', short_of_subscribers=True, now_s=10.0)
+    hold.offer('k4', short_of_subscribers=True, now_s=15.0)
+    assert hold.since_s == 10.0  # waiting since the first unsent sample (the hold warning's age)
     hold.clear()  # a new activation forgets it
-    assert hold.release(may_send=True) == []
+    assert hold.release(may_send=True) == [] and hold.since_s is None
+    hold.offer('k5', short_of_subscribers=True, now_s=20.0)
+    assert hold.offer('k6', short_of_subscribers=False, now_s=21.0) == ['k6'] and hold.since_s is None
+
+
+def test_held_previews_line_names_the_step_the_wait_and_each_topics_readers():
+    from ceco_v2x_preview.preview_io import held_previews
+
+    line = held_previews(0, 5.04, {'v2x/weather_preview': 1, 'v2x/traffic_preview': 0}, 2)
+    assert line.startswith('previews of step 0 held for 5.0 s: matched readers v2x/weather_preview 1/2, ')
+    assert 'v2x/traffic_preview 0/2' in line and 'lockstep.min_preview_subscribers' in line
 
 
 def test_publisher_qos_matches_the_liveliness_probes():

@@ -965,6 +965,59 @@ def test_lockstep_command_waits_for_its_subscribers_over_dds(tmp_path):
         tn.close()
 
 
+def test_lockstep_previews_wait_for_their_readers(tmp_path):
+    """preview_node in lockstep with ``lockstep.min_preview_subscribers: 2`` (ceco run's controller and
+    recorder): the previews of step 0 are held while one reader per topic has matched (the first reader
+    gets nothing), the hold is reported after 5 s (log and /diagnostics), and once a second, volatile
+    reader matches they go out, once, to both (a volatile reader gets them only because they were sent
+    after its match); step 1 then goes out at once."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    from ceco_msgs.msg import CabinState, TrafficPreview, WeatherPreview
+
+    tn = DdsPeer(_domain(), 'preview_readers')
+    first = {'w': [], 's': []}
+    second = {'w': [], 's': []}
+    kinds = {'w': (WeatherPreview, interfaces.TOPIC_WEATHER), 's': (TrafficPreview, interfaces.TOPIC_TRAFFIC)}
+    subs = [
+        tn.node.create_subscription(t, topic, first[k].append, interfaces.QOS_PREVIEW)
+        for k, (t, topic) in kinds.items()
+    ]
+    diags = tn.collect(DiagnosticArray, '/diagnostics', 10)
+    pub_state = tn.node.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
+    params = {'scenario': 'sc03', 'timing': 'lockstep', 'control_period_s': 5.0, 'lockstep.min_preview_subscribers': 2}
+    preview = _proc('preview_node', 'preview_node', tn.env, tmp_path / 'logs', params)
+    steps = lambda box: [m.step_index for m in box]  # noqa: E731
+    try:
+        preview.start()
+        _wait_for(
+            lambda: pub_state.get_subscription_count() >= 1 and all(s.get_publisher_count() >= 1 for s in subs),
+            120,
+            'preview_node matched by the state publisher and the first readers',
+            [preview],
+        )
+        pub_state.publish(_state_msg(0, 0.0))
+        _log_has(preview, 'previews of step 0 held for')  # after 5 s of wall clock
+        assert 'v2x/weather_preview 1/2, v2x/traffic_preview 1/2' in preview.log_text()
+        _wait_for(
+            lambda: any('previews of step 0 held' in st.message for st in _diag_statuses(diags, 'preview_node')),
+            30,
+            'the hold in /diagnostics',
+        )
+        assert first == {'w': [], 's': []}  # held: not one preview to the first readers
+        for k, (t, topic) in kinds.items():
+            tn.node.create_subscription(t, topic, second[k].append, interfaces.QOS_RECORD)
+        _wait_for(lambda: all(first.values()) and all(second.values()), 30, 'the held previews on both readers')
+        pub_state.publish(_state_msg(5, 5.0))
+        _wait_for(lambda: all(len(v) == 2 for v in (*first.values(), *second.values())), 30, 'the previews of step 1')
+        time.sleep(0.5)
+        for box in (*first.values(), *second.values()):
+            assert steps(box) == [0, 1]
+    finally:
+        preview.stop()
+        tn.close()
+
+
 def test_lockstep_hold_counts_data_readers_not_liveliness_probes_over_dds(tmp_path):
     """plant_node reads hvac/command with a data reader and watches the controller with a liveliness probe on
     the same topic: two matched subscriptions, one reader. With ``lockstep.min_command_subscribers: 2`` (plant

@@ -248,6 +248,9 @@ def _params(args, scenario, quality, strategy, duration_s):
             'faults.missing_policy': quality.missing_policy,
             'faults.seed': -1 if quality.seed is None else int(quality.seed),
             'faults.uncertainty_level': quality.uncertainty,
+            # lockstep: a step's previews wait until the controller and the recorder matched (an
+            # external controller may not read them: ``run_one`` waits for the recorder alone there)
+            'lockstep.min_preview_subscribers': 2,
         },
     )
     # lockstep: the first command waits until both the plant and the recorder are matched
@@ -296,6 +299,8 @@ def run_one(
     duration_s = min(args.duration_s or scenario.duration_s, scenario.duration_s)
     n_plant = int(math.floor(duration_s / dt_s + 1e-9))
     ts, np_, p_prev, p_ctrl, p_plant = _params(args, scenario, quality, strategy, duration_s)
+    if controller_cmd is not None:
+        p_prev['lockstep.min_preview_subscribers'] = 1
 
     run_dir.mkdir(parents=True, exist_ok=True)
     bag_dir = run_dir / 'bag'

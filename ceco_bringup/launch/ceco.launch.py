@@ -110,7 +110,8 @@ def generate_launch_description() -> LaunchDescription:
     cfg = {name: LaunchConfiguration(name) for name, *_ in ARGUMENTS}
     is_baseline = EqualsSubstitution(cfg['strategy'], 'baseline')
     share = {pkg: FindPackageShare(pkg) for pkg in set(NODES.values()) | {'ceco_bringup'}}
-    # the recorder's start gate: the plant and the controller wait for its subscriptions (true) or not (false)
+    # the recorder's start gate: the plant, the preview node and the controller wait for its subscriptions
+    # (true) or not (false)
     gate = ParameterFile(
         [PathJoinSubstitution([share['ceco_bringup'], 'config', 'recorder_gate_']), cfg['record'], '.yaml']
     )
@@ -180,7 +181,7 @@ def generate_launch_description() -> LaunchDescription:
                     ('ROS_SECURITY_KEYSTORE', cfg['keystore']),
                 )
             ),
-            node('preview_node', follower),
+            node('preview_node', follower, [gate]),
             mpc,
             baseline,
             node('plant_node', common, [gate]),

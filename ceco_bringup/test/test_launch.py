@@ -332,9 +332,11 @@ def test_recorder_gate_files_are_the_nodes_defaults_and_ceco_runs_gate():
     from ceco_controller.controller_params import controller_parameters
     from ceco_plant_sim.plant_io import PLANT_PARAMETERS
     from ceco_v2x_preview.preview import parse_quality
+    from ceco_v2x_preview.preview_io import PREVIEW_PARAMETERS
     from ceco_v2x_preview.scenario import load_scenario
 
     defaults = {
+        'preview_node': {s.name: s.default for s in PREVIEW_PARAMETERS},
         'plant_node': {s.name: s.default for s in PLANT_PARAMETERS},
         'mpc_node': {s.name: s.default for s in controller_parameters()},
         'baseline_node': {s.name: s.default for s in controller_parameters('baseline')},
@@ -349,9 +351,10 @@ def test_recorder_gate_files_are_the_nodes_defaults_and_ceco_runs_gate():
         assert set(on[f'/**/{node}']['ros__parameters']) == set(values)
     args = run.build_parser().parse_args(['--out', 'unused'])
     sc = load_scenario('sc03')
-    plant = run._params(args, sc, parse_quality('perfect'), 'ceco-ioch', sc.duration_s)[4]
-    gate = on['/**/plant_node']['ros__parameters']
-    assert gate == {k: plant[k] for k in gate}  # what ceco run sets
+    params = run._params(args, sc, parse_quality('perfect'), 'ceco-ioch', sc.duration_s)
+    for node, ran in (('plant_node', params[4]), ('preview_node', params[2])):
+        gate = on[f'/**/{node}']['ros__parameters']
+        assert gate == {k: ran[k] for k in gate}  # what ceco run sets
 
 
 def test_default_launch_starts_preview_mpc_and_plant_on_sim_time(launch):

@@ -23,7 +23,7 @@ from ceco_core.supervision import Health, Liveliness
 
 from .controller_io import ControllerInputs, ControllerNodeConfig, ControllerRecord, StepInputs
 
-__all__ = ['HeldCommand', 'StepResult', 'ControllerSession', 'new_epoch']
+__all__ = ['StepResult', 'ControllerSession', 'new_epoch']
 
 PREVIEW_KINDS = ('weather', 'traffic')
 
@@ -54,35 +54,6 @@ class StepResult:
     def fallback(self) -> bool:
         """True when a fallback law (not the strategy's optimum) produced the command."""
         return bool(self.diagnostics.fallback)
-
-
-class HeldCommand:
-    """lockstep: a command waits here until its publisher has its subscribers.
-
-    A volatile sample never reaches a reader that has not matched yet, so a command computed before
-    ``lockstep.min_command_subscribers`` matched is sent once they have; a newer one replaces it:
-    each step's command is sent once.
-    """
-
-    def __init__(self):
-        self.msg: Any = None
-        """The command waiting for its subscribers (None: none)."""
-
-    def offer(self, msg, short_of_subscribers: bool) -> list:
-        """A new command: ``[msg]`` to send now, or ``[]`` when it has to wait (it replaces a waiting one)."""
-        self.msg = msg if short_of_subscribers else None
-        return [] if short_of_subscribers else [msg]
-
-    def release(self, may_send: bool) -> list:
-        """``[the waiting command]`` once it ``may_send`` (active, subscribers matched), else ``[]``."""
-        if self.msg is None or not may_send:
-            return []
-        msg, self.msg = self.msg, None
-        return [msg]
-
-    def clear(self) -> None:
-        """Forget a waiting command (a new activation)."""
-        self.msg = None
 
 
 class ControllerSession:

@@ -11,7 +11,8 @@ import time
 from functools import partial
 
 import ceco_controller.controller_io as cio
-from ceco_controller.controller_session import ControllerSession, HeldCommand, StepResult
+from ceco_controller.controller_session import ControllerSession, StepResult
+from ceco_core.sequencing import HeldSample
 from ceco_msgs.msg import AcCommand, CabinState, ControllerDiagnostics, TrafficPreview, WeatherPreview
 from ceco_ros import conversions, interfaces
 from ceco_ros.diagnostics import DiagnosticsTimer
@@ -31,7 +32,7 @@ class ControllerNode(ManagedNode):
         super().__init__(node_name)
         specs = cio.controller_parameters(fixed_strategy)
         cfg = self.use_params(specs, lambda v: cio.ControllerNodeConfig.from_params(v, fixed_strategy))
-        self.session, self._hold = ControllerSession(cfg, self.log, self.notice), HeldCommand()
+        self.session, self._hold = ControllerSession(cfg, self.log, self.notice), HeldSample()
         self._enough_at: int | None = None  # the matched hvac/command count last found sufficient
         name = self.get_fully_qualified_name()
         health = partial(self.session.health, node_name=name)
@@ -118,7 +119,7 @@ class ControllerNode(ManagedNode):
         self._publish(self.session.poll(self.wall_s(), self.active))
 
     def _publish(self, results: list[StepResult]) -> None:
-        """Each step's command (lockstep: held until its subscribers matched, :class:`HeldCommand`), diagnostics."""
+        """Each step's command (lockstep: held until its subscribers matched, ``HeldSample``), diagnostics."""
         cfg = self.config
         for r in results:
             try:

@@ -11,6 +11,8 @@ control step indices [-]) and payloads they have already validated field by fiel
   drops its per-drive state (warm start, estimator, buffers).
 * :class:`LockstepBuffer` pairs the state of control step k with the two previews issued
   for k (lockstep timing), bounded to a window of steps.
+* :class:`HeldSample` keeps a lockstep sample (a command, a step's previews) until its
+  publisher has matched its subscribers.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import dataclasses
 import math
 from typing import Any
 
-__all__ = ['Verdict', 'SequenceGate', 'LockstepBuffer', 'PREVIEW_KINDS']
+__all__ = ['Verdict', 'SequenceGate', 'LockstepBuffer', 'HeldSample', 'PREVIEW_KINDS']
 
 
 @dataclasses.dataclass(frozen=True)
@@ -214,3 +216,38 @@ class LockstepBuffer:
             for j in [j for j in store if j <= k]:
                 del store[j]
         return state, w, s
+
+
+class HeldSample:
+    """lockstep: a sample waits here until its publisher has its subscribers.
+
+    A volatile sample never reaches a reader that has not matched yet, so a sample made before
+    the node's ``lockstep.min_*_subscribers`` matched (mpc_node's command, preview_node's pair of
+    previews) is sent once they have; a newer one replaces it: each step's sample is sent once.
+    """
+
+    def __init__(self):
+        self.msg: Any = None
+        """The sample waiting for its subscribers (None: none)."""
+        self.since_s: float | None = None
+        """When the oldest unsent sample began waiting [s, the caller's clock] (None: none waits)."""
+
+    def offer(self, msg, short_of_subscribers: bool, now_s: float = 0.0) -> list:
+        """A new sample: ``[msg]`` to send now, or ``[]`` when it has to wait (it replaces a waiting one)."""
+        if short_of_subscribers and self.since_s is None:
+            self.since_s = now_s
+        elif not short_of_subscribers:
+            self.since_s = None
+        self.msg = msg if short_of_subscribers else None
+        return [] if short_of_subscribers else [msg]
+
+    def release(self, may_send: bool) -> list:
+        """``[the waiting sample]`` once it ``may_send`` (active, subscribers matched), else ``[]``."""
+        if self.msg is None or not may_send:
+            return []
+        msg, self.msg, self.since_s = self.msg, None, None
+        return [msg]
+
+    def clear(self) -> None:
+        """Forget a waiting sample (a new activation)."""
+        self.msg, self.since_s = None, None

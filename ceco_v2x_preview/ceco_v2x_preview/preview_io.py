@@ -33,7 +33,7 @@ from ceco_ros.topics import TOPIC_STATE
 from . import forecast_error
 from .preview import PreviewQuality
 
-__all__ = ['PREVIEW_PARAMETERS', 'PreviewNodeConfig', 'PreviewInputs', 'preview_health', 'DYNAMIC']
+__all__ = ['PREVIEW_PARAMETERS', 'PreviewNodeConfig', 'PreviewInputs', 'preview_health', 'held_previews', 'DYNAMIC']
 
 PREVIEW_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('scenario', 'sc03', 'scenario name (bundled) or path of a scenario YAML file'),
@@ -52,6 +52,15 @@ PREVIEW_PARAMETERS: tuple[ParamSpec, ...] = (
         5.0,
         'publication period in realtime mode; at most Ts (a controller expects a preview every control period) [s]',
         float_range=(0.01, CONTROL_PERIOD_RANGE_S[1]),
+    ),
+    ParamSpec(
+        'lockstep.min_preview_subscribers',
+        1,
+        'lockstep: matched data readers on each preview topic (the controller; ceco run and record:=true: '
+        'controller and recorder) before a step\'s previews are sent; until then they are held, so no '
+        'reader misses a step; 0: no wait [-]',
+        int_range=(0, 100),
+        read_only=False,
     ),
     ParamSpec(
         'faults.missing_spans_s',
@@ -156,7 +165,12 @@ class PreviewNodeConfig(NodeConfig):
     """/diagnostics period [s]."""
     liveliness_lease_s: float = 1.0
     """Automatic liveliness lease offered on the previews [s]."""
+    min_preview_subscribers: int = 1
+    """lockstep: matched data readers on each preview topic before a step's previews are sent [-]."""
+    hold_warning_s: float = 5.0
+    """lockstep: previews held this long [s, wall clock] are reported (a warning, the diagnostics)."""
 
+    PARAM_FIELDS = {**NodeConfig.PARAM_FIELDS, 'lockstep.min_preview_subscribers': 'min_preview_subscribers'}
     POSITIVE = ('control_period_s', 'publish_period_s', 'window_s', 'max_state_age_s')
 
     @classmethod
@@ -259,10 +273,17 @@ def preview_health(
     last_error: str,
     wall_s: float,
     new_rejections: int,
+    held: str = '',
 ) -> Health:
-    """The preview node's status for /diagnostics."""
+    """The preview node's status for /diagnostics.
+
+    ``held``: lockstep, what a step's previews have waited for longer than ``cfg.hold_warning_s``
+    ('' when nothing waits that long), from :func:`held_previews`.
+    """
     h = Health().set('timing', cfg.timing).set('quality', cfg.quality.describe())
     h.set('last_step', last_k).set('published', n_published).set('failed', n_failed)
+    if held:
+        h.warn(held)
     age = None if inputs.received_s is None else wall_s - inputs.received_s
     h.set('state_age_s', age).set('resets', inputs.n_resets).set('rejected_total', inputs.rejections.total)
     if inputs.gate.last is None:
@@ -276,3 +297,15 @@ def preview_health(
             f'{new_rejections} cabin/state messages rejected since the last report ({inputs.rejections.total} in all)'
         )
     return h
+
+
+def held_previews(k: int, waited_s: float, readers: dict[str, int], needed: int) -> str:
+    """The line that says a step's previews wait for their readers, e.g. for the log and diagnostics.
+
+    ``readers``: matched data readers per preview topic; ``needed``: ``lockstep.min_preview_subscribers``.
+    """
+    counts = ', '.join(f'{topic} {n}/{needed}' for topic, n in readers.items())
+    return (
+        f'previews of step {k} held for {waited_s:.1f} s: matched readers {counts} '
+        '(lockstep.min_preview_subscribers; a controller or recorder that never comes keeps them back)'
+    )

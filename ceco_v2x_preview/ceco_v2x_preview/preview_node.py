@@ -8,6 +8,9 @@ Timing (parameter ``timing``):
 * ``lockstep`` (accelerated simulation): when the plant's state for a control step time
   t_k = k * Ts appears on ``cabin/state``, publish the previews on the grid t_k + i * Ts,
   i = 0..Np, stamped t_k and tagged with k; the controller waits for state k *and* previews k.
+  A step's previews wait until each preview publisher has matched
+  ``lockstep.min_preview_subscribers`` data readers (a volatile sample never reaches a reader
+  that has not matched yet: a recorder or controller discovered late would miss step 0).
 * ``realtime`` (vehicle): a timer on the node's clock every ``publish_period_s`` publishes the
   previews for the latest scenario time received on ``cabin/state``.
 
@@ -21,13 +24,20 @@ from __future__ import annotations
 from rclpy.node import Node
 
 from ceco_core.control_grid import control_step_index, control_step_of
+from ceco_core.sequencing import HeldSample
 from ceco_msgs.msg import CabinState, TrafficPreview, WeatherPreview
 from ceco_ros import conversions, interfaces
 from ceco_ros.diagnostics import DiagnosticsTimer
 from ceco_ros.node_base import NodeTools
 from ceco_ros.node_main import run_node
 from ceco_v2x_preview.preview import make_previews
-from ceco_v2x_preview.preview_io import PREVIEW_PARAMETERS, PreviewInputs, PreviewNodeConfig, preview_health
+from ceco_v2x_preview.preview_io import (
+    PREVIEW_PARAMETERS,
+    PreviewInputs,
+    PreviewNodeConfig,
+    held_previews,
+    preview_health,
+)
 from ceco_v2x_preview.scenario import load_scenario_param
 
 
@@ -52,8 +62,11 @@ class PreviewNode(NodeTools, Node):
             interfaces.state_qos(cfg.timing),
             qos_overriding_options=interfaces.qos_overrides(),
         )
+        self._hold = HeldSample()
         if cfg.timing == 'realtime':
             self.create_timer(cfg.publish_period_s, self._on_timer)
+        else:
+            self.create_timer(0.02, self._release_held)
         DiagnosticsTimer(self, self._health, cfg.diagnostics_period_s)
         self.get_logger().info(
             f'scenario {self.scenario.name}, timing {cfg.timing}, grid {cfg.horizon_steps + 1} x '
@@ -89,9 +102,41 @@ class PreviewNode(NodeTools, Node):
             self._error = f't={t0_s!r} s: {err}'
             self.notice('publish-failed', f'no preview for step {k}: {self._error}', 'error')
             return
+        lockstep = self.config.timing == 'lockstep'
+        for pair in self._hold.offer((k, w, s), lockstep and self._short_of_readers(), self.wall_s()):
+            self._send(*pair)
+
+    def _send(self, k: int, w, s) -> None:
         self._pub_w.publish(w)
         self._pub_s.publish(s)
         self._last_k, self._published, self._error = k, self._published + 1, ''
+
+    def _readers(self) -> dict[str, int]:
+        pubs = ((interfaces.TOPIC_WEATHER, self._pub_w), (interfaces.TOPIC_TRAFFIC, self._pub_s))
+        return {topic: self.data_readers(topic, pub) for topic, pub in pubs}
+
+    def _short_of_readers(self) -> bool:
+        """lockstep: a preview publisher has fewer data readers matched than ``min_preview_subscribers``."""
+        need = self.config.min_preview_subscribers
+        return need > 0 and min(self._readers().values()) < need
+
+    def _held_text(self) -> str:
+        """What the held previews wait for, once they waited ``hold_warning_s``; '' otherwise."""
+        since = self._hold.since_s
+        waited_s = 0.0 if since is None else self.wall_s() - since
+        if self._hold.msg is None or waited_s < self.config.hold_warning_s:
+            return ''
+        return held_previews(self._hold.msg[0], waited_s, self._readers(), self.config.min_preview_subscribers)
+
+    def _release_held(self) -> None:
+        """lockstep: send held previews once their readers matched (said once they waited long)."""
+        if self._hold.msg is None:
+            return
+        for pair in self._hold.release(not self._short_of_readers()):
+            self._send(*pair)
+        text = self._held_text()
+        if text:
+            self.notice('previews-held', text)
 
     def config_changed(self) -> None:
         """Run-time parameter changes go to the input checks."""
@@ -113,6 +158,7 @@ class PreviewNode(NodeTools, Node):
                     last_error=self._error,
                     wall_s=self.wall_s(),
                     new_rejections=new,
+                    held=self._held_text(),
                 ),
             )
         ]
