@@ -95,6 +95,42 @@ def test_arrival_names_every_missing_message():
     assert {a.topic for a in rt} == set(arrival.PLANT_TOPICS) and all(a.complete for a in rt)
 
 
+# ------------------------------------------------------------------ a run that stops at its start
+def test_start_watch_says_stalled_once_the_plant_started_and_no_state_came():
+    """Before the plant's start gate opens, waiting is right however long (the start-up timeout
+    decides); from the plant's "starting at step 0", stall_s without a state is a stalled run."""
+    from ceco_bringup.run import StartWatch
+
+    w = StartWatch(stall_s=10.0)
+    assert w.check(0.0, False, 1.0) == (False, None) and w.check(500.0, False, 3.0) == (False, None)
+    assert w.started is None  # not started: no clock runs
+    assert w.check(600.0, True, 4.0) == (False, None) and w.started == (600.0, 4.0)
+    assert w.check(609.9, True, 4.5) == (False, 0.5)
+    stalled, used = w.check(610.5, True, 4.01 + 0.0)
+    assert stalled and used == pytest.approx(0.01)
+    assert StartWatch(5.0).check(1.0, True, None) == (False, None)
+    w = StartWatch(5.0)
+    w.check(1.0, True, None)
+    assert w.check(7.0, True, 2.0) == (True, None)  # no CPU reading at the start: none since
+
+
+def test_stalled_message_at_the_start_names_the_plants_start_and_its_cpu(tmp_path):
+    from ceco_bringup import supervisor
+    from ceco_bringup.run import stalled_message
+    from ceco_plant_sim.plant_io import STARTED
+
+    plant = supervisor.NodeProcess('plant_node', 'ceco_plant_sim', 'plant_node', env={}, log_dir=tmp_path)
+    plant.log_path.write_text(
+        f'[INFO] [1.0] [plant_node]: waiting for subscribers\n[INFO] [2.0] [plant_node]: {STARTED}\n'
+    )
+    text = stalled_message(10.0, 0, 60, {'plant_node': plant}, 0.0)
+    assert text.startswith('stalled: no new plant step for 10 s of wall clock at plant step 0/60; ')
+    assert 'the plant logged that it started step 0, and no state of it reached the recorder' in text
+    assert 'plant_node used 0.00 s of CPU in those 10 s (stopped, or starved of CPU' in text
+    plant.log_path.write_text('[INFO] [1.0] [plant_node]: waiting for subscribers\n')  # mid-run wording otherwise
+    assert 'the plant made no progress' in stalled_message(10.0, 0, 60, {'plant_node': plant}, 3.0)
+
+
 # ------------------------------------------------------------------ the simulator and `ceco sim`
 def test_ceco_sim_fails_a_strategy_that_never_controls(tmp_path):
     cfg = tmp_path / 'starved.yaml'

@@ -294,6 +294,7 @@ def run_one(
 
     from ceco_bringup import bagio
     from ceco_bringup.recorder import Recorder
+    from ceco_plant_sim.plant_io import STARTED as PLANT_STARTED_LINE
 
     dt_s = 1.0
     duration_s = min(args.duration_s or scenario.duration_s, scenario.duration_s)
@@ -391,12 +392,21 @@ def run_one(
             lifecycle = supervisor.configure_and_activate(
                 context, executor, f'{ns}/{ctrl_exe}', args.startup_timeout_s, stop, procs
             )
+        plant = procs['plant_node']
+        stall_s = stall_timeout_s(args)
+        start_watch = StartWatch(stall_s)
+
+        def first_state() -> bool:
+            if recorder.first_state_wall is not None:
+                return True
+            started = start_watch.started is not None or PLANT_STARTED_LINE in plant.log_text()
+            stalled, used = start_watch.check(time.monotonic(), started, plant.cpu_time_s())
+            if stalled:
+                raise RuntimeError(stalled_message(stall_s, 0, n_plant, procs, used))
+            return False
+
         supervisor.wait_for(
-            lambda: recorder.first_state_wall is not None,
-            args.startup_timeout_s,
-            stop,
-            procs,
-            'the nodes to start and discover each other',
+            first_state, args.startup_timeout_s, stop, procs, 'the nodes to start and discover each other'
         )
         t_start = time.monotonic()
 
@@ -408,8 +418,7 @@ def run_one(
                 total=n_plant, desc=f'{strategy} over DDS', unit='s sim', file=sys.stderr, mininterval=0.5, leave=False
             )
         done = lambda: recorder.last_power_step >= n_plant - 1  # noqa: E731
-        plant = procs['plant_node']
-        stall_s, progress = stall_timeout_s(args), (recorder.last_power_step, time.monotonic(), plant.cpu_time_s())
+        progress = (recorder.last_power_step, time.monotonic(), plant.cpu_time_s())
         try:
             while not done():
                 if stop.event.wait(0.1):
@@ -536,6 +545,31 @@ def wait_for_backlog(recorder, expected: dict[str, int], stall_s: float, stop: s
             raise supervisor.Interrupted()
 
 
+class StartWatch:
+    """Start-up of a run: a plant that said it started step 0 while no state reached the recorder.
+
+    Before the plant's start gate opens, waiting is right (imports, discovery, the controller's
+    configure: ``--startup-timeout-s``). Once the plant says it started, a recorder still without a
+    state after ``stall_s`` [s] of wall clock is a stalled run (the plant frozen or starved right
+    after its start, or its states lost), said then rather than after the start-up timeout.
+    """
+
+    def __init__(self, stall_s: float):
+        self.stall_s = stall_s
+        self.started: tuple[float, float | None] | None = None
+        """(wall clock [s], the plant's CPU time [s]) when the plant was first seen started."""
+
+    def check(self, now_s: float, plant_started: bool, plant_cpu_s: float | None) -> tuple[bool, float | None]:
+        """(stalled, the plant's CPU seconds since its start) with no state at the recorder at ``now_s`` [s]."""
+        if self.started is None:
+            if plant_started:
+                self.started = (now_s, plant_cpu_s)
+            return False, None
+        t0, cpu0 = self.started
+        used = None if plant_cpu_s is None or cpu0 is None else plant_cpu_s - cpu0
+        return now_s - t0 > self.stall_s, used
+
+
 def stalled_message(
     stall_s: float, n_recorded: int, n_plant: int, procs: dict, plant_cpu_s: float | None = None
 ) -> str:
@@ -544,9 +578,13 @@ def stalled_message(
     It says what the recorder has, whether the plant says it finished, and how much CPU the plant
     got meanwhile (``plant_cpu_s`` [s]: a stopped or starved plant gets next to none).
     """
+    from ceco_plant_sim.plant_io import STARTED as PLANT_STARTED_LINE
+
     plant_log = procs['plant_node'].log_text()
     if 'scenario complete' in plant_log:
         why = 'the plant reports the scenario complete: its messages did not reach the recorder'
+    elif n_recorded == 0 and PLANT_STARTED_LINE in plant_log:
+        why = 'the plant logged that it started step 0, and no state of it reached the recorder'
     else:
         why = 'the plant made no progress (all nodes are running)'
     if plant_cpu_s is not None:

@@ -37,6 +37,7 @@ __all__ = [
     'CommandPolicy',
     'RealtimeCommands',
     'start_gate',
+    'STARTED',
     'plant_health',
     'DYNAMIC',
 ]
@@ -368,6 +369,9 @@ def start_gate(
         missing.append('a hvac/command publisher')
     return ', '.join(missing)
 
+
+STARTED = 'subscribers matched: starting at step 0'
+"""The log line of a plant whose start gate opened: it publishes the state of step 0 (``ceco run`` watches for it)."""
 
 CONTROLLER_LOST = "the controller's liveliness was lost (its process is gone or frozen)"
 """Why the ACC law drives after a liveliness loss of the command publisher."""

@@ -19,7 +19,7 @@ from ceco_core.supervision import FallbackSupervisor, Health, Watchdog
 from ceco_v2x_preview.scenario import Scenario
 
 from .compiled_plant import PlantEvaluation
-from .plant_io import CONTROLLER_LOST, CommandPolicy, PlantNodeConfig, RealtimeCommands, plant_health
+from .plant_io import CONTROLLER_LOST, STARTED, CommandPolicy, PlantNodeConfig, RealtimeCommands, plant_health
 from .scenario_plant import PlantStepRecord, ScenarioPlant, n_plant_steps, steps_per_control
 
 __all__ = ['PlantLoop']
@@ -86,7 +86,7 @@ class PlantLoop:
         if waiting_for:
             return False
         self.started = True
-        self._log('info', 'subscribers matched: starting at step 0')
+        self._log('info', STARTED)
         self.wait.kick(wall_s)
         return True
 
