@@ -119,3 +119,65 @@ def test_previewable_disturbance_cases_run_and_show_their_disturbance(name):
         assert (
             mean("speed_mps", 601, 840) == 0.0 and mean("pmv_ub", 610, 830) == 3.0 and mean("pmv_ub", 850, 1080) == 0.5
         )
+
+
+@pytest.mark.parametrize(
+    'case_name, strategy, seed, duration_s',
+    [
+        ('hotsoak-pulldown', 'ceco-ioch', 2, None),  # 900 s: longer than its scenario file's 600 s; seeded previews
+        ('hot-commute-4p', 'baseline', None, 240.0),  # four occupants; the baselines' production door logic
+    ],
+)
+def test_ceco_sim_case_runs_the_benchmarks_cell(tmp_path, case_name, strategy, seed, duration_s):
+    """`ceco sim --case NAME [--seed N]` runs what `ceco benchmark` runs for that case, controller and seed
+    (the cell built by the benchmark's own runner, `case_cells` + `run_cell`): the same energy and
+    discomfort to the bit, the same preview quality, and the case's resolved scenario kept in the run
+    directory. (`--duration-s` shortens both alike; the cell is given the same length.)"""
+    import json
+    import subprocess
+    import sys
+
+    from ceco_bringup.benchmark import runner
+    from ceco_bringup.sweep import scenario_dict
+    from ceco_bringup.sweep.cells import code_fingerprint, run_cell
+    from ceco_v2x_preview.scenario import load_scenario
+
+    case = load_case(case_name)
+    if duration_s is not None:
+        case = bc.dataclasses.replace(case, duration_s=duration_s)
+    kind = 'baseline' if strategy == 'baseline' else 'strategy'  # the production law at its file's set-point
+    spec = runner.ControllerSpec(strategy, kind, strategy)
+    cell = runner.case_cells(case, [spec], code_fingerprint(), seeds=None if seed is None else [seed])[0]
+    row = run_cell(bc.dataclasses.asdict(cell))
+    assert row['status'] == 'ok', row['error']
+    out = tmp_path / 'sim'
+    cmd = [sys.executable, '-m', 'ceco_bringup.cli', 'sim', '--case', case_name, '--strategy', strategy]
+    cmd += ['--out', str(out), '--baseline-setpoints-c', 'none', '--no-progress']
+    cmd += [] if seed is None else ['--seed', str(seed)]
+    cmd += [] if duration_s is None else ['--duration-s', str(duration_s)]
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stdout + p.stderr
+    m = json.loads((out / strategy / 'metrics.json').read_text())
+    assert m['E_tot_J'] == row['E_tot_J'] and m['I_pmv'] == row['I_pmv'], (m['E_tot_J'], row['E_tot_J'])
+    assert m['duration_s'] == (duration_s or 900.0)
+    if strategy != 'baseline':  # (a baseline's cell is run once, with perfect previews: it reads none)
+        assert m['preview_quality'] == row['preview_quality'] and 'medium' in m['preview_quality']
+    kept = load_scenario(str(out / strategy / 'scenario.yaml'))  # the case's scenario, its overrides applied
+    assert scenario_dict(kept) == load_case(case_name).scenario_dict()
+    assert kept.occupants == (4 if case.occupants else 1) and (case.duration_s or kept.duration_s == 900.0)
+
+
+def test_ceco_sim_case_and_scenario_are_one_or_the_other(tmp_path):
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, '-m', 'ceco_bringup.cli', 'sim', '--case', 'sc03-paper', '--scenario', 'sc03']
+    p = subprocess.run(cmd + ['--out', str(tmp_path)], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and '--case and --scenario: give one' in p.stderr, p.stderr
+    p = subprocess.run(
+        [sys.executable, '-m', 'ceco_bringup.cli', 'sim', '--case', 'no-such-case', '--out', str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert p.returncode == 2 and 'no-such-case' in p.stderr, p.stderr

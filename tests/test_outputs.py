@@ -466,7 +466,11 @@ def test_help_shows_the_defaults(verb, capsys):
     text = ' '.join(capsys.readouterr().out.split())
     expected = {
         'run': ['(default: sc03)', '(default: ceco-ioch)', '(default: 1800.0)', '(default: lockstep)'],
-        'sim': ['(default: sc03)', '(default: baseline,ceco,ceco-e,ceco-c,ceco-ioch,ceco-pmv)', '(default: perfect)'],
+        'sim': [
+            '(default: sc03; not with --case)',
+            '(default: baseline,ceco,ceco-e,ceco-c,ceco-ioch,ceco-pmv)',
+            "(default: perfect; with --case the case's)",
+        ],
         'play': ['(default: 1.0)', '(default: 30.0)'],
         'report': ['(default: 1e-06)'],
         'benchmark': ['(default: local)'],

@@ -235,16 +235,16 @@ def add_out(p, help_: str, *, required: bool = True, default: str | None = None)
     p.add_argument('--out', required=required, default=default, help=help_)
 
 
-def add_preview(p) -> None:
+def add_preview(p, default: str | None = 'perfect', help_extra: str = '') -> None:
     """``--preview`` (old name ``--preview-quality``): the preview quality grammar."""
     _add(
         p,
         '--preview',
         dest='preview',
-        default='perfect',
+        default=default,
         deprecated=('--preview-quality',),
         help='V2X preview quality: perfect | noisy[:KEY=V,...] | delayed:S | missing:A-B[,...] | '
-        'uncertain:LEVEL, joined by + (docs/scenarios.md)',
+        'uncertain:LEVEL, joined by + (docs/scenarios.md)' + help_extra,
     )
 
 

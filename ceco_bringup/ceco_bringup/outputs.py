@@ -255,6 +255,7 @@ def finish_job(
     *,
     header: str,
     family_setpoints_c: Sequence[float] = vd.FAMILY_SETPOINTS_C,
+    family_overrides: tuple = (),
     duration_s: float | None = None,
     control_period_s: float | None = None,
     partial: Mapping[str, str] | None = None,
@@ -265,7 +266,8 @@ def finish_job(
 
     ``metrics``/``columns``: {strategy: metrics.json dict / timeseries columns} of the job's runs.
     With an empty ``family_setpoints_c`` the family is not run and the verdict points at
-    ``ceco benchmark``. Writes ``out/comparison.txt``, ``comparison.csv``, ``verdict.json`` and
+    ``ceco benchmark``. ``family_overrides``: ``((field, value), ...)`` every member also gets (a benchmark
+    case's baseline door, ``ceco sim --case``). Writes ``out/comparison.txt``, ``comparison.csv``, ``verdict.json`` and
     ``summary.txt`` (everything printed here); returns the verdict.
     """
     out = Path(out)
@@ -285,6 +287,7 @@ def finish_job(
             setpoints_c=family_setpoints_c,
             laws=vd.family_laws_for(list(points)),
             progress=progress,
+            overrides=family_overrides,
         )
     v = vd.build_verdict(scenario.name, points, family, partial=partial)
     rows = table_rows(metrics, kpis, v)

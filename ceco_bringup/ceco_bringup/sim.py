@@ -2,12 +2,19 @@
 
     ceco sim --scenario sc03 --strategy all --out runs/sim
     ceco sim --scenario my.yaml --strategy baseline,ceco-c --duration-s 300 --out runs/mine
+    ceco sim --case hotsoak-pulldown --seed 2 --strategy ceco-pmv --out runs/hs2
 
 The verb parses the shared flags (``ceco_bringup.cli_args``) and calls the pure API,
 ``ceco_controller.closed_loop.simulate`` and ``write_run``; each run directory also keeps the
 scenario file, the command line and the code fingerprint (``ceco_bringup.provenance``). After the
 runs it prints the comparison table and the verdict, with the saving at matched comfort against
 the production law at several set-points (``ceco_bringup.outputs``).
+
+``--case`` runs a benchmark case's cell as ``ceco benchmark`` runs it (``ceco_bringup.benchmark``):
+the case's scenario with its overrides (run length, occupants; written to ``OUT/case_scenario.yaml``
+and kept in each run directory), its forecast uncertainty as the preview quality, one of its seeds
+(``--seed``, default its first), its Ts and Np, and its baselines' door logic (the baseline run and
+the family of the verdict). Flags given explicitly override the case's.
 """
 
 from __future__ import annotations
@@ -26,10 +33,16 @@ def build_parser() -> cli_args.Parser:
     from ceco_core.contracts import MEASUREMENT_MODES
 
     p = cli_args.Parser('ceco sim', __doc__.split('\n\n')[0] + '\n\n' + __doc__.split('\n\n')[1])
-    cli_args.add_scenario(p)
+    cli_args.add_scenario(p, default=None, help_extra=' (default: sc03; not with --case)')
+    p.add_argument(
+        '--case',
+        default=None,
+        help='a benchmark case (bundled name, e.g. hotsoak-pulldown, or case YAML path): its scenario, forecast '
+        "uncertainty, seed (--seed, default its first), Ts, Np and baselines' door, as `ceco benchmark` runs it",
+    )
     cli_args.add_strategy(p, 'all')
     cli_args.add_out(p, 'output directory: one run directory per strategy, and the job\'s tables')
-    cli_args.add_preview(p)
+    cli_args.add_preview(p, default=None, help_extra=" (default: perfect; with --case the case's)")
     cli_args.add_control_period(p)
     cli_args.add_horizon(p)
     cli_args.add_duration(p)
@@ -70,6 +83,30 @@ def _overrides(items) -> tuple:
     return tuple(out)
 
 
+CASE_SCENARIO_FILE = 'case_scenario.yaml'
+"""Where ``--case`` writes the case's scenario (its overrides applied) in the output directory."""
+
+
+def write_case_scenario(case, out: Path) -> Path:
+    """``out/case_scenario.yaml``: the scenario ``ceco benchmark`` simulates for ``case`` (its overrides applied)."""
+    import yaml
+
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / CASE_SCENARIO_FILE
+    header = f'# the scenario of benchmark case {case.name} v{case.version} (sha {case.sha()}), by ceco sim --case\n'
+    path.write_text(header + yaml.safe_dump(case.scenario_dict(), sort_keys=False), encoding='utf-8')
+    return path
+
+
+def baseline_settings(settings, door: tuple):
+    """``settings`` with a case's baseline door fields (``RecircSettings``) before the ``--set`` overrides."""
+    import dataclasses
+
+    if not door:
+        return settings
+    return dataclasses.replace(settings, strategy_overrides=tuple(door) + tuple(settings.strategy_overrides))
+
+
 def main(argv=None) -> int:
     """``ceco sim``: the exit status.
 
@@ -79,11 +116,26 @@ def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
+    from ceco_bringup.benchmark.cases import load_case
     from ceco_controller.closed_loop import SimSettings, simulate, write_run
     from ceco_v2x_preview.preview import parse_quality
     from ceco_v2x_preview.scenario import load_scenario
 
+    out = Path(args.out)
+    baseline_overrides: tuple = ()
     try:
+        if args.case is not None:
+            if args.scenario is not None:
+                raise ValueError('--case and --scenario: give one (the case names its scenario)')
+            case = load_case(args.case)
+            args.scenario = str(write_case_scenario(case, out))
+            args.preview = args.preview or case.preview
+            args.seed = case.seeds[0] if args.seed is None else args.seed
+            args.control_period_s = args.control_period_s or case.control_period_s
+            args.horizon_steps = args.horizon_steps or case.horizon_steps
+            baseline_overrides = tuple(case.baseline_door)
+        args.scenario = args.scenario or 'sc03'
+        args.preview = args.preview or 'perfect'
         scenario = load_scenario(args.scenario)
         quality = parse_quality(args.preview)
         cli_args.check_duration(args.duration_s, scenario)
@@ -102,13 +154,14 @@ def main(argv=None) -> int:
         settings.validate()
     except (ValueError, OSError) as exc:
         parser.error(str(exc))
-    out = Path(args.out)
     metrics, columns, failed = {}, {}, {}
     for s in args.strategy:
         run_dir = out / s
         provenance.start_run(run_dir, 'sim', argv, args.scenario)
         try:
-            res = simulate(scenario, s, settings)
+            res = simulate(
+                scenario, s, baseline_settings(settings, baseline_overrides) if s == 'baseline' else settings
+            )
         except (ValueError, OSError) as exc:  # a --set field the strategy lacks, a missing or unfit model file
             provenance.finish_run(run_dir, 'failed', str(exc))
             print(f'ceco sim: error: {s}: {exc}', file=sys.stderr)
@@ -141,6 +194,7 @@ def main(argv=None) -> int:
             columns,
             header=header,
             family_setpoints_c=args.baseline_setpoints_c,
+            family_overrides=baseline_overrides,
             duration_s=settings.duration_s,
             control_period_s=settings.control_period_s,
             progress=not args.no_progress,

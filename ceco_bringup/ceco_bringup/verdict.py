@@ -199,16 +199,18 @@ def run_family(
     setpoints_c: Sequence[float] = FAMILY_SETPOINTS_C,
     laws: Sequence[str] = FAMILY_LAWS,
     progress: bool = True,
+    overrides: tuple = (),
 ) -> dict[str, dict]:
     """Each law of ``laws`` at each set-point on ``scenario``, in-process: ``{'baseline@24.0': point, ...}``.
 
     ``scenario`` is a Scenario or a bundled name / YAML path; ``duration_s`` and ``control_period_s``
     as the job's (None: the scenario's). Members are named ``LAW@SETPOINT`` (:func:`family_law`).
+    ``overrides``: ``((field, value), ...)`` of the baseline's settings every member gets (e.g. a case's door).
     """
     from ceco_controller.closed_loop import SimSettings, simulate
 
     items = [(law, float(x)) for law in laws for x in setpoints_c]
-    overrides = {law: _law_overrides(law) for law in laws}
+    law_overrides = {law: _law_overrides(law) for law in laws}
     if progress:
         from tqdm import tqdm
 
@@ -219,7 +221,7 @@ def run_family(
             control_period_s=control_period_s,
             duration_s=duration_s,
             progress=False,
-            strategy_overrides=tuple(sorted({**dict(overrides[law]), 'setpoint_c': sp}.items())),
+            strategy_overrides=tuple(sorted({**dict(overrides), **dict(law_overrides[law]), 'setpoint_c': sp}.items())),
         )
         out[f'{law}@{sp:.1f}'] = run_point(simulate(scenario, 'baseline', settings).timeseries)
     return out

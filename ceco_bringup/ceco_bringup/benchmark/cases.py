@@ -131,6 +131,11 @@ class Case:
     """``((field, value), ...)`` of :class:`ceco_core.recirc_law.RecircSettings` given to every baseline of the case
     (e.g. the production door logic, ``door_mode: auto``); empty: the baselines leave the door to the plant."""
 
+    @property
+    def preview(self) -> str:
+        """The preview quality of its strategies' runs (``parse_quality`` text): ``perfect`` or ``uncertain:LEVEL``."""
+        return 'perfect' if self.forecast_uncertainty == 'none' else f'uncertain:{self.forecast_uncertainty}'
+
     def scenario_path(self) -> str:
         """The scenario argument for ``load_scenario`` (a relative YAML path resolved against the case file)."""
         s = self.scenario

@@ -510,10 +510,6 @@ def case_controllers(
     return [*out[:n_fam], *door_specs, *out[n_fam:]]
 
 
-def _preview(case: Case) -> str:
-    return 'perfect' if case.forecast_uncertainty == 'none' else f'uncertain:{case.forecast_uncertainty}'
-
-
 def case_cells(
     case: Case,
     specs: Sequence[ControllerSpec],
@@ -541,7 +537,7 @@ def case_cells(
                     **(dict(case.baseline_door) if c.strategy == 'baseline' else {}),
                     **dict(c.overrides),
                 },
-                'preview': c.preview or (_preview(case) if c.seeded else 'perfect'),
+                'preview': c.preview or (case.preview if c.seeded else 'perfect'),
                 'seed': seed,
                 'duration_s': case.duration_s,
                 'control_period_s': case.control_period_s,
