@@ -465,7 +465,7 @@ def test_help_shows_the_defaults(verb, capsys):
     assert exc.value.code == 0
     text = ' '.join(capsys.readouterr().out.split())
     expected = {
-        'run': ['(default: sc03)', '(default: ceco-ioch)', '(default: 1800.0)', '(default: lockstep)'],
+        'run': ['(default: sc03; not with --case)', '(default: ceco-ioch)', '(default: 1800.0)', '(default: lockstep)'],
         'sim': [
             '(default: sc03; not with --case)',
             '(default: baseline,ceco,ceco-e,ceco-c,ceco-ioch,ceco-pmv)',

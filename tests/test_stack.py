@@ -294,6 +294,48 @@ def _check_lockstep_bag(bag, n_steps: int, dt_s: float = 1.0):
             assert_same_fields(a, b, topic)
 
 
+def test_ceco_run_case_runs_the_benchmarks_cell_over_dds(tmp_path):
+    """`ceco run --case hot-commute-4p --strategy baseline --duration-s 120`: the case's four occupants and its
+    baselines' production door logic (a law file for baseline_node's controller_config) over DDS give the energy
+    and discomfort of the cell the benchmark's runner builds for that case (to the simulator tolerance of
+    test_short_closed_loop_over_dds_matches_simulator); without the door the energy differs by percent."""
+    import dataclasses
+
+    from ceco_bringup.benchmark import runner
+    from ceco_bringup.benchmark.cases import load_case
+    from ceco_bringup.sweep.cells import code_fingerprint, run_cell
+
+    out = tmp_path / 'run'
+    p = _cli(
+        'run',
+        '--case',
+        'hot-commute-4p',
+        '--strategy',
+        'baseline',
+        '--duration-s',
+        '120',
+        '--baseline-setpoints-c',
+        'none',
+        '--out',
+        str(out),
+        '--no-progress',
+        '--domain-id',
+        str(_domain()),
+    )
+    text, _ = p.communicate(timeout=300)
+    assert p.returncode == 0, text
+    case = dataclasses.replace(load_case('hot-commute-4p'), duration_s=120.0)
+    spec = runner.ControllerSpec('baseline', 'baseline', 'baseline')
+    cell = runner.case_cells(case, [spec], code_fingerprint())[0]
+    row = run_cell(dataclasses.asdict(cell))
+    assert row['status'] == 'ok', row['error']
+    metrics = json.loads((out / 'metrics.json').read_text())
+    for key in ('E_tot_J', 'I_pmv'):
+        assert metrics[key] == pytest.approx(row[key], rel=1e-6, abs=1e-12), key
+    assert 'controller_config:=' in (out / 'logs' / 'baseline_node.log').read_text()
+    assert (out / 'case_baseline_law.yaml').read_text().endswith('acc_law:\n  door_mode: auto\n')
+
+
 # ----------------------------------------------------------------------------
 def _state_msg(k_plant: int, t_s: float, **override):
     from observations import KEY_ON_STATE

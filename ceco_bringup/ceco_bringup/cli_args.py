@@ -217,6 +217,48 @@ def add_scenario(p, default: str | None = 'sc03', help_extra: str = '') -> None:
     )
 
 
+def add_case(p) -> None:
+    """``--case``: a benchmark case run as ``ceco benchmark`` runs it (with :func:`apply_case`)."""
+    p.add_argument(
+        '--case',
+        default=None,
+        help='a benchmark case (bundled name, e.g. hotsoak-pulldown, or case YAML path): its scenario, forecast '
+        "uncertainty, seed (--seed, default its first), Ts, Np and baselines' door, as `ceco benchmark` runs it",
+    )
+
+
+CASE_SCENARIO_FILE = 'case_scenario.yaml'
+"""Where ``--case`` writes the case's scenario (its overrides applied) in the output directory."""
+
+
+def apply_case(args, out) -> tuple:
+    """Resolve ``--case`` into ``args``; return the case's baseline door fields (``((field, value), ...)``).
+
+    The case's scenario (its overrides applied) is written to ``out/case_scenario.yaml`` and becomes
+    ``args.scenario``; the case's preview quality, first seed, Ts and Np fill the flags not given.
+    Without ``--case``: ``args.scenario`` defaults to sc03 and ``args.preview`` to perfect. ValueError for
+    ``--case`` beside ``--scenario`` or a bad case.
+    """
+    from pathlib import Path
+
+    from ceco_bringup.benchmark.cases import load_case
+
+    door: tuple = ()
+    if args.case is not None:
+        if args.scenario is not None:
+            raise ValueError('--case and --scenario: give one (the case names its scenario)')
+        case = load_case(args.case)
+        args.scenario = str(case.write_scenario(Path(out) / CASE_SCENARIO_FILE))
+        args.preview = args.preview or case.preview
+        args.seed = case.seeds[0] if args.seed is None else args.seed
+        args.control_period_s = args.control_period_s or case.control_period_s
+        args.horizon_steps = args.horizon_steps or case.horizon_steps
+        door = tuple(case.baseline_door)
+    args.scenario = args.scenario or 'sc03'
+    args.preview = args.preview or 'perfect'
+    return door
+
+
 def add_strategy(p, default: str | None, help_extra: str = '') -> None:
     """``--strategy``: ``all`` or a comma-separated list of strategies, parsed into a list."""
     from ceco_core.contracts import NAMED_STRATEGIES, STRATEGIES

@@ -2,6 +2,7 @@
 
     ceco run --scenario sc03 --strategy ceco-ioch --out DIR
     ceco run --scenario sc03 --strategy all --out DIR     # baseline + every CECO strategy
+    ceco run --case hot-commute-4p --strategy baseline,ceco-pmv --out DIR   # a benchmark case's cell
 
 Per strategy: starts preview_node, the controller (mpc_node or baseline_node)
 and plant_node as separate OS processes on a private ROS_DOMAIN_ID (or the
@@ -20,6 +21,10 @@ production law at --baseline-setpoints-c, in-process) gives the saving at
 matched comfort: the comparison table and the verdict are printed and kept in
 DIR/comparison.txt, comparison.csv, verdict.json and summary.txt
 (``ceco_bringup.outputs``).
+
+`--case CASE`: the case's scenario with its overrides (DIR/case_scenario.yaml, the nodes' ``scenario``),
+forecast uncertainty, seed (``--seed``, default its first), Ts, Np, and its baselines' door as a law file
+(DIR/case_baseline_law.yaml, baseline_node's ``controller_config``), as ``ceco benchmark`` runs it.
 
 Timing: `--timing lockstep` (default; accelerated, deterministic: the plant
 advances a control period only when the command of that step has arrived)
@@ -62,12 +67,13 @@ from ceco_core.rundir import read_csv_columns
 def build_parser() -> cli_args.Parser:
     """The ``ceco run`` argument parser (options as in the module docstring; ``ceco run --help``)."""
     p = cli_args.Parser('ceco run', __doc__.split('\n\n')[0])
-    cli_args.add_scenario(p)
+    cli_args.add_scenario(p, default=None, help_extra=' (default: sc03; not with --case)')
+    cli_args.add_case(p)
     cli_args.add_strategy(
         p, 'ceco-ioch', help_extra=' (several: one run directory per strategy, DIR/<strategy>/, then the verdict)'
     )
     cli_args.add_out(p, 'output run directory (must not hold a bag already)')
-    cli_args.add_preview(p)
+    cli_args.add_preview(p, default=None, help_extra=" (default: perfect; with --case the case's)")
     cli_args.add_control_period(p)
     cli_args.add_horizon(p)
     cli_args.add_duration(p)
@@ -141,7 +147,9 @@ def main(argv=None) -> int:
     strategies = list(args.strategy)
     out = Path(args.out)
     run_dirs = {s: (out / s if len(strategies) > 1 else out) for s in strategies}
+    door: tuple = ()
     try:
+        door = cli_args.apply_case(args, out)
         scenario = load_scenario(args.scenario)
         quality = parse_quality(args.preview)
         if args.seed is not None:
@@ -163,7 +171,8 @@ def main(argv=None) -> int:
             run_dir = run_dirs[strategy]
             provenance.start_run(run_dir, 'run', argv, args.scenario)
             try:
-                m = run_one(args, scenario, quality, strategy, run_dir, stop, index=i)
+                law = door and strategy == 'baseline' and write_baseline_law(door, out / CASE_BASELINE_LAW_FILE)
+                m = run_one(args, scenario, quality, strategy, run_dir, stop, index=i, baseline_law=law or None)
             except supervisor.Interrupted:
                 provenance.finish_run(run_dir, 'interrupted')
                 print(
@@ -202,6 +211,7 @@ def main(argv=None) -> int:
             header=f'Scenario {scenario.name} over DDS ({args.timing}), Ts {first["control_period_s"]:g} s, '
             f'Np {first["horizon_steps"]}, preview {quality.describe()}, {out}:',
             family_setpoints_c=args.baseline_setpoints_c,
+            family_overrides=door,
             duration_s=float(first['duration_s']),
             control_period_s=args.control_period_s,
             progress=not args.no_progress,
@@ -270,6 +280,20 @@ def _params(args, scenario, quality, strategy, duration_s):
     return ts, np_, preview, controller, plant
 
 
+CASE_BASELINE_LAW_FILE = 'case_baseline_law.yaml'
+"""Where ``--case`` writes its baselines' door fields as a law file (baseline_node's ``controller_config``)."""
+
+
+def write_baseline_law(door: tuple, path: Path) -> str:
+    """``door`` (``((RecircSettings field, value), ...)``) as a baseline law file (``acc_law:``); its path."""
+    import yaml
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    text = "# the baselines' door logic of the benchmark case (ceco run --case)\n"
+    path.write_text(text + yaml.safe_dump({'acc_law': dict(door)}, sort_keys=False), encoding='utf-8')
+    return str(path.resolve())
+
+
 def run_one(
     args,
     scenario,
@@ -281,8 +305,12 @@ def run_one(
     *,
     controller_cmd: list[str] | None = None,
     controller_env: dict | None = None,
+    baseline_law: str | None = None,
 ) -> dict:
     """One strategy over DDS into run_dir; returns the metrics dict.
+
+    ``baseline_law``: a baseline law file for baseline_node's ``controller_config`` (``--case`` with a
+    baseline door: :func:`write_baseline_law`).
 
     ``controller_cmd``: a third-party controller's command line, started in place of
     mpc_node/baseline_node with the DDS environment plus ``controller_env`` (``ceco
@@ -300,6 +328,8 @@ def run_one(
     duration_s = min(args.duration_s or scenario.duration_s, scenario.duration_s)
     n_plant = int(math.floor(duration_s / dt_s + 1e-9))
     ts, np_, p_prev, p_ctrl, p_plant = _params(args, scenario, quality, strategy, duration_s)
+    if baseline_law:
+        p_ctrl['controller_config'] = str(baseline_law)
     if controller_cmd is not None:
         p_prev['lockstep.min_preview_subscribers'] = 1
 

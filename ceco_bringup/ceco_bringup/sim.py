@@ -34,12 +34,7 @@ def build_parser() -> cli_args.Parser:
 
     p = cli_args.Parser('ceco sim', __doc__.split('\n\n')[0] + '\n\n' + __doc__.split('\n\n')[1])
     cli_args.add_scenario(p, default=None, help_extra=' (default: sc03; not with --case)')
-    p.add_argument(
-        '--case',
-        default=None,
-        help='a benchmark case (bundled name, e.g. hotsoak-pulldown, or case YAML path): its scenario, forecast '
-        "uncertainty, seed (--seed, default its first), Ts, Np and baselines' door, as `ceco benchmark` runs it",
-    )
+    cli_args.add_case(p)
     cli_args.add_strategy(p, 'all')
     cli_args.add_out(p, 'output directory: one run directory per strategy, and the job\'s tables')
     cli_args.add_preview(p, default=None, help_extra=" (default: perfect; with --case the case's)")
@@ -83,21 +78,6 @@ def _overrides(items) -> tuple:
     return tuple(out)
 
 
-CASE_SCENARIO_FILE = 'case_scenario.yaml'
-"""Where ``--case`` writes the case's scenario (its overrides applied) in the output directory."""
-
-
-def write_case_scenario(case, out: Path) -> Path:
-    """``out/case_scenario.yaml``: the scenario ``ceco benchmark`` simulates for ``case`` (its overrides applied)."""
-    import yaml
-
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / CASE_SCENARIO_FILE
-    header = f'# the scenario of benchmark case {case.name} v{case.version} (sha {case.sha()}), by ceco sim --case\n'
-    path.write_text(header + yaml.safe_dump(case.scenario_dict(), sort_keys=False), encoding='utf-8')
-    return path
-
-
 def baseline_settings(settings, door: tuple):
     """``settings`` with a case's baseline door fields (``RecircSettings``) before the ``--set`` overrides."""
     import dataclasses
@@ -116,26 +96,13 @@ def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
-    from ceco_bringup.benchmark.cases import load_case
     from ceco_controller.closed_loop import SimSettings, simulate, write_run
     from ceco_v2x_preview.preview import parse_quality
     from ceco_v2x_preview.scenario import load_scenario
 
     out = Path(args.out)
-    baseline_overrides: tuple = ()
     try:
-        if args.case is not None:
-            if args.scenario is not None:
-                raise ValueError('--case and --scenario: give one (the case names its scenario)')
-            case = load_case(args.case)
-            args.scenario = str(write_case_scenario(case, out))
-            args.preview = args.preview or case.preview
-            args.seed = case.seeds[0] if args.seed is None else args.seed
-            args.control_period_s = args.control_period_s or case.control_period_s
-            args.horizon_steps = args.horizon_steps or case.horizon_steps
-            baseline_overrides = tuple(case.baseline_door)
-        args.scenario = args.scenario or 'sc03'
-        args.preview = args.preview or 'perfect'
+        baseline_overrides = cli_args.apply_case(args, out)
         scenario = load_scenario(args.scenario)
         quality = parse_quality(args.preview)
         cli_args.check_duration(args.duration_s, scenario)

@@ -349,7 +349,7 @@ def test_recorder_gate_files_are_the_nodes_defaults_and_ceco_runs_gate():
         values = off[f'/**/{node}']['ros__parameters']
         assert values == {k: table[k] for k in values}  # record:=false changes nothing
         assert set(on[f'/**/{node}']['ros__parameters']) == set(values)
-    args = run.build_parser().parse_args(['--out', 'unused'])
+    args = run.build_parser().parse_args(['--out', 'unused', '--scenario', 'sc03'])
     sc = load_scenario('sc03')
     params = run._params(args, sc, parse_quality('perfect'), 'ceco-ioch', sc.duration_s)
     for node, ran in (('plant_node', params[4]), ('preview_node', params[2])):
@@ -462,7 +462,7 @@ def test_launch_parameters_equal_ceco_run_parameters(launch, strategy):
     from ceco_v2x_preview.preview import parse_quality
     from ceco_v2x_preview.scenario import load_scenario
 
-    args = run.build_parser().parse_args(['--out', 'unused', '--strategy', strategy])
+    args = run.build_parser().parse_args(['--out', 'unused', '--scenario', 'sc03', '--strategy', strategy])
     scenario = load_scenario('sc03')
     _, _, preview, controller, plant = run._params(
         args, scenario, parse_quality('perfect'), strategy, scenario.duration_s

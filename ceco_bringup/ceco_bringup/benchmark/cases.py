@@ -165,6 +165,14 @@ class Case:
             d["occupants"] = int(self.occupants)
         return d
 
+    def write_scenario(self, path: str | os.PathLike) -> Path:
+        """Write :meth:`scenario_dict` as a scenario YAML file (what the benchmark simulates); return its path."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        header = f"# the scenario of benchmark case {self.name} v{self.version} (sha {self.sha()}), overrides applied\n"
+        path.write_text(header + yaml.safe_dump(self.scenario_dict(), sort_keys=False), encoding="utf-8")
+        return path
+
     def resolved(self) -> dict:
         """Everything that determines the case's runs, as plain data (what :meth:`sha` hashes)."""
         from ceco_v2x_preview.forecast_error import level_models
