@@ -164,7 +164,8 @@ def test_ceco_sim_case_runs_the_benchmarks_cell(tmp_path, case_name, strategy, s
         assert m['preview_quality'] == row['preview_quality'] and 'medium' in m['preview_quality']
     kept = load_scenario(str(out / strategy / 'scenario.yaml'))  # the case's scenario, its overrides applied
     assert scenario_dict(kept) == load_case(case_name).scenario_dict()
-    assert kept.occupants == (4 if case.occupants else 1) and (case.duration_s or kept.duration_s == 900.0)
+    assert kept.occupants == (4 if case.occupants else 1)
+    assert kept.duration_s == {'hotsoak-pulldown': 900.0, 'hot-commute-4p': 1369.0}[case_name]  # (the case's own)
 
 
 def test_ceco_sim_case_and_scenario_are_one_or_the_other(tmp_path):
@@ -181,3 +182,55 @@ def test_ceco_sim_case_and_scenario_are_one_or_the_other(tmp_path):
         timeout=120,
     )
     assert p.returncode == 2 and 'no-such-case' in p.stderr, p.stderr
+
+
+def test_apply_case_fills_only_the_flags_not_given(tmp_path):
+    """--case fills the scenario, preview, seed, Ts and Np the user did not give; a seed given by --seed or by
+    a seed= in --preview stays; --scenario beside it is refused."""
+    import argparse
+
+    from ceco_bringup import cli_args
+    from ceco_v2x_preview.scenario import load_scenario
+
+    def args(**kw):
+        base = dict(case='hotsoak-pulldown', scenario=None, preview=None, seed=None, control_period_s=None)
+        return argparse.Namespace(**{**base, 'horizon_steps': None, **kw})
+
+    a = args()
+    assert cli_args.apply_case(a, tmp_path / 'a') == ()  # no door for its baselines
+    assert (a.preview, a.seed, a.control_period_s, a.horizon_steps) == ('uncertain:medium', 0, None, None)
+    assert load_scenario(a.scenario).duration_s == 900.0 and a.scenario.endswith('a/case_scenario.yaml')
+    a = args(seed=3, preview='perfect', horizon_steps=8)
+    cli_args.apply_case(a, tmp_path / 'b')
+    assert (a.preview, a.seed, a.horizon_steps) == ('perfect', 3, 8)
+    a = args(preview='uncertain:high+noisy:seed=7')
+    cli_args.apply_case(a, tmp_path / 'c')
+    assert a.seed is None and a.preview == 'uncertain:high+noisy:seed=7'  # the preview's own seed=7 decides
+    a = args(case='hot-commute-4p')
+    assert cli_args.apply_case(a, tmp_path / 'd') == (('door_mode', 'auto'),)
+    with pytest.raises(ValueError, match='--case and --scenario: give one'):
+        cli_args.apply_case(args(scenario='sc03'), tmp_path / 'e')
+    a = argparse.Namespace(case=None, scenario=None, preview=None, seed=None, control_period_s=None, horizon_steps=None)
+    assert cli_args.apply_case(a, tmp_path / 'f') == () and (a.scenario, a.preview, a.seed) == ('sc03', 'perfect', None)
+    assert not (tmp_path / 'f').exists()  # nothing written without --case
+
+
+def test_family_overrides_reach_every_member():
+    """The verdict's family with a case's baseline door (``ceco sim/run --case``): each member is the production law
+    at its set-point with the door fields, equal to the simulator's run with them, and differs from the member
+    without them on a four-occupant drive."""
+    from ceco_bringup import verdict as vd
+    from ceco_controller.closed_loop import SimSettings, simulate
+
+    sc = load_case('hot-commute-4p').load_scenario()
+    door = (('door_mode', 'auto'),)
+    with_door = vd.run_family(
+        sc, duration_s=240.0, setpoints_c=(25.0,), laws=('baseline',), progress=False, overrides=door
+    )
+    without = vd.run_family(sc, duration_s=240.0, setpoints_c=(25.0,), laws=('baseline',), progress=False)
+    settings = SimSettings(
+        duration_s=240.0, progress=False, strategy_overrides=(('door_mode', 'auto'), ('setpoint_c', 25.0))
+    )
+    direct = vd.run_point(simulate(sc, 'baseline', settings).timeseries)
+    assert list(with_door) == ['baseline@25.0'] and with_door['baseline@25.0'] == direct
+    assert with_door['baseline@25.0'] != without['baseline@25.0']

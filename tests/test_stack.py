@@ -1008,11 +1008,13 @@ def test_lockstep_command_waits_for_its_subscribers_over_dds(tmp_path):
 
 
 def test_lockstep_previews_wait_for_their_readers(tmp_path):
-    """preview_node in lockstep with ``lockstep.min_preview_subscribers: 2`` (ceco run's controller and
-    recorder): the previews of step 0 are held while one reader per topic has matched (the first reader
-    gets nothing), the hold is reported after 5 s (log and /diagnostics), and once a second, volatile
-    reader matches they go out, once, to both (a volatile reader gets them only because they were sent
-    after its match); step 1 then goes out at once."""
+    """preview_node in lockstep on sim time (as ceco run starts it; no /clock here, as while the plant waits
+    for step 0) with ``lockstep.min_preview_subscribers: 2`` (ceco run's controller and recorder): the
+    previews of step 0 are held while one reader per topic has matched (the first reader gets nothing), the
+    hold is reported after 5 s of wall clock (log and /diagnostics), and once a second, volatile reader
+    matches they go out, once, to both (a volatile reader gets them only because they were sent after its
+    match); step 1 then goes out at once. The gate is the start's: with the second readers gone (a controller
+    killed mid-run), step 2 still reaches the first readers at once."""
     from diagnostic_msgs.msg import DiagnosticArray
 
     from ceco_msgs.msg import CabinState, TrafficPreview, WeatherPreview
@@ -1027,7 +1029,13 @@ def test_lockstep_previews_wait_for_their_readers(tmp_path):
     ]
     diags = tn.collect(DiagnosticArray, '/diagnostics', 10)
     pub_state = tn.node.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)
-    params = {'scenario': 'sc03', 'timing': 'lockstep', 'control_period_s': 5.0, 'lockstep.min_preview_subscribers': 2}
+    params = {
+        'scenario': 'sc03',
+        'timing': 'lockstep',
+        'control_period_s': 5.0,
+        'use_sim_time': True,
+        'lockstep.min_preview_subscribers': 2,
+    }
     preview = _proc('preview_node', 'preview_node', tn.env, tmp_path / 'logs', params)
     steps = lambda box: [m.step_index for m in box]  # noqa: E731
     try:
@@ -1047,14 +1055,23 @@ def test_lockstep_previews_wait_for_their_readers(tmp_path):
             'the hold in /diagnostics',
         )
         assert first == {'w': [], 's': []}  # held: not one preview to the first readers
-        for k, (t, topic) in kinds.items():
+        seconds = [
             tn.node.create_subscription(t, topic, second[k].append, interfaces.QOS_RECORD)
+            for k, (t, topic) in kinds.items()
+        ]
         _wait_for(lambda: all(first.values()) and all(second.values()), 30, 'the held previews on both readers')
         pub_state.publish(_state_msg(5, 5.0))
         _wait_for(lambda: all(len(v) == 2 for v in (*first.values(), *second.values())), 30, 'the previews of step 1')
         time.sleep(0.5)
         for box in (*first.values(), *second.values()):
             assert steps(box) == [0, 1]
+        for sub in seconds:
+            tn.node.destroy_subscription(sub)
+        _wait_for(lambda: all(s.get_publisher_count() >= 1 for s in subs), 30, 'the first readers still matched')
+        time.sleep(1.0)  # the second readers' leaving is known to the preview node
+        pub_state.publish(_state_msg(10, 10.0))
+        _wait_for(lambda: all(len(v) == 3 for v in first.values()), 30, 'step 2 with one reader per topic left')
+        assert [steps(v) for v in first.values()] == [[0, 1, 2], [0, 1, 2]]
     finally:
         preview.stop()
         tn.close()

@@ -25,11 +25,22 @@ class LossyLifecycleServer:
 
     ``mode``: 'lose_first_answer' (the first request runs its transition, its answer never
     comes), 'drop_first_request' (the first request is swallowed: no transition, no answer),
-    'swallow_every_request',
-    'refuse' (every request answered success=false, the state unchanged), 'normal'.
+    'swallow_every_request', 'refuse' (every request answered success=false, the state unchanged),
+    'refuse_after_swallow' (the first request swallowed, the next refused), 'error_finalizes' (the
+    transition fails into finalized, its answer lost), 'lose_first_get' (the first get_state answer
+    lost), 'normal'. ``gets`` counts the get_state requests.
     """
 
-    TARGET = {1: 'inactive', 3: 'active', 4: 'inactive', 2: 'unconfigured'}  # Transition ids
+    TARGET = {
+        1: 'inactive',
+        3: 'active',
+        4: 'inactive',
+        2: 'unconfigured',
+        5: 'finalized',
+        6: 'finalized',
+        7: 'finalized',
+    }
+    """The state each lifecycle_msgs Transition id ends in (configure 1, cleanup 2, ..., active shutdown 7)."""
 
     def __init__(self, peer: DdsPeer, name: str, mode: str):
         from lifecycle_msgs.srv import ChangeState, GetState
@@ -38,6 +49,7 @@ class LossyLifecycleServer:
 
         self.state = 'unconfigured'
         self.requests: list[int] = []
+        self.gets = 0
         self.mode = mode
         self.release = threading.Event()  # a lost answer is held until the test ends
         group = ReentrantCallbackGroup()
@@ -58,10 +70,17 @@ class LossyLifecycleServer:
         tid = request.transition.id
         self.requests.append(tid)
         first = len(self.requests) == 1
-        if self.mode == 'refuse':
+        if self.mode == 'refuse' or (self.mode == 'refuse_after_swallow' and not first):
             response.success = False
             return response
-        if self.mode == 'swallow_every_request' or (first and self.mode == 'drop_first_request'):
+        if first and self.mode == 'error_finalizes':
+            self.state = 'finalized'
+            self.release.wait(30.0)
+            response.success = False
+            return response
+        if self.mode == 'swallow_every_request' or (
+            first and self.mode in ('drop_first_request', 'refuse_after_swallow')
+        ):
             self.release.wait(30.0)
             response.success = False
             return response
@@ -72,6 +91,9 @@ class LossyLifecycleServer:
         return response
 
     def _get(self, request, response):
+        self.gets += 1
+        if self.gets == 1 and self.mode == 'lose_first_get':
+            self.release.wait(30.0)
         response.current_state.label = self.state
         return response
 
@@ -135,3 +157,34 @@ def test_no_answer_and_no_progress_is_false_after_the_timeout(pair):
     server, client = pair('swallow_every_request')
     assert not client.change('configure', timeout_s=3.0, attempt_s=0.5)
     assert server.state == 'unconfigured' and len(server.requests) >= 2
+
+
+def test_a_transition_that_fails_into_another_state_is_false_at_once(pair):
+    """The configure's answer is lost and the node ends finalized (an error in it): neither the goal nor the
+    start, so False after one read of the state: not another request, not a poll until the deadline."""
+    server, client = pair('error_finalizes')
+    assert not client.change('configure', timeout_s=20.0, attempt_s=0.5)
+    assert server.requests == [1] and server.state == 'finalized' and server.gets <= 2
+
+
+def test_a_refusal_after_a_resend_is_read_against_the_state(pair):
+    """The first configure is swallowed, the resent one refused with the node still unconfigured: False."""
+    server, client = pair('refuse_after_swallow')
+    assert not client.change('configure', timeout_s=20.0, attempt_s=0.5)
+    assert server.requests == [1, 1] and server.state == 'unconfigured'
+
+
+def test_shutdown_is_sent_when_the_state_read_before_it_is_lost(pair):
+    """shutdown reads the state to pick its transition id; that answer is lost: the read takes at most half
+    the budget, and the active shutdown (id 7) is still sent and made."""
+    server, client = pair('lose_first_get')
+    server.state = 'active'
+    assert client.change('shutdown', timeout_s=5.0, attempt_s=5.0)
+    assert server.requests == [7] and server.state == 'finalized'
+
+
+def test_a_dead_node_ends_the_wait(pair):
+    """alive() false (the node's process exited, a stop signal): no resend, False."""
+    server, client = pair('swallow_every_request')
+    assert not client.change('configure', timeout_s=60.0, attempt_s=0.5, alive=lambda: not server.requests)
+    assert server.requests == [1] and server.gets == 1

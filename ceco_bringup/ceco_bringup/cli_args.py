@@ -235,13 +235,15 @@ def apply_case(args, out) -> tuple:
     """Resolve ``--case`` into ``args``; return the case's baseline door fields (``((field, value), ...)``).
 
     The case's scenario (its overrides applied) is written to ``out/case_scenario.yaml`` and becomes
-    ``args.scenario``; the case's preview quality, first seed, Ts and Np fill the flags not given.
-    Without ``--case``: ``args.scenario`` defaults to sc03 and ``args.preview`` to perfect. ValueError for
-    ``--case`` beside ``--scenario`` or a bad case.
+    ``args.scenario``; the case's preview quality, first seed, Ts and Np fill the flags not given (the
+    seed only where neither ``--seed`` nor a ``seed=`` in ``--preview`` gives one). Without ``--case``:
+    ``args.scenario`` defaults to sc03 and ``args.preview`` to perfect. ValueError for ``--case`` beside
+    ``--scenario`` or a bad case or preview.
     """
     from pathlib import Path
 
     from ceco_bringup.benchmark.cases import load_case
+    from ceco_v2x_preview.preview import parse_quality
 
     door: tuple = ()
     if args.case is not None:
@@ -249,8 +251,9 @@ def apply_case(args, out) -> tuple:
             raise ValueError('--case and --scenario: give one (the case names its scenario)')
         case = load_case(args.case)
         args.scenario = str(case.write_scenario(Path(out) / CASE_SCENARIO_FILE))
+        if args.seed is None and (args.preview is None or parse_quality(args.preview).seed is None):
+            args.seed = case.seeds[0]
         args.preview = args.preview or case.preview
-        args.seed = case.seeds[0] if args.seed is None else args.seed
         args.control_period_s = args.control_period_s or case.control_period_s
         args.horizon_steps = args.horizon_steps or case.horizon_steps
         door = tuple(case.baseline_door)
@@ -335,7 +338,8 @@ def add_seed(p) -> None:
         '--seed',
         type=int,
         default=None,
-        help="seed of the preview noise (default: the preview's seed=, else the scenario's)",
+        help="seed of the preview noise (default: the preview's seed=, else with --case the case's first, "
+        "else the scenario's)",
     )
 
 

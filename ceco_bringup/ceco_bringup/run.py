@@ -149,6 +149,9 @@ def main(argv=None) -> int:
     run_dirs = {s: (out / s if len(strategies) > 1 else out) for s in strategies}
     door: tuple = ()
     try:
+        for d in run_dirs.values():
+            if (d / 'bag').exists():
+                raise ValueError(f'{d / "bag"} exists: choose a new --out directory')
         door = cli_args.apply_case(args, out)
         scenario = load_scenario(args.scenario)
         quality = parse_quality(args.preview)
@@ -158,10 +161,7 @@ def main(argv=None) -> int:
         args.namespace = supervisor.normalize_namespace(args.namespace)
         supervisor.resolve_domain_id(args.domain_id)  # an invalid user id fails here
         stall_timeout_s(args)
-        for d in run_dirs.values():
-            if (d / 'bag').exists():
-                raise ValueError(f'{d / "bag"} exists: choose a new --out directory')
-    except ValueError as err:
+    except (ValueError, OSError) as err:
         parser.error(str(err))
     stop = supervisor.StopFlag()
     stop.install()
@@ -322,7 +322,6 @@ def run_one(
 
     from ceco_bringup import bagio
     from ceco_bringup.recorder import Recorder
-    from ceco_plant_sim.plant_io import STARTED as PLANT_STARTED_LINE
 
     dt_s = 1.0
     duration_s = min(args.duration_s or scenario.duration_s, scenario.duration_s)
@@ -429,7 +428,7 @@ def run_one(
         def first_state() -> bool:
             if recorder.first_state_wall is not None:
                 return True
-            started = start_watch.started is not None or PLANT_STARTED_LINE in plant.log_text()
+            started = start_watch.started is not None or plant_started(plant.log_text())
             stalled, used = start_watch.check(time.monotonic(), started, plant.cpu_time_s())
             if stalled:
                 raise RuntimeError(stalled_message(stall_s, 0, n_plant, procs, used))
@@ -575,6 +574,13 @@ def wait_for_backlog(recorder, expected: dict[str, int], stall_s: float, stop: s
             raise supervisor.Interrupted()
 
 
+def plant_started(log_text: str) -> bool:
+    """Whether plant_node's log says its start gate opened (it published the state of step 0)."""
+    from ceco_plant_sim.plant_io import STARTED  # (here, not at the top: the plant package imports CasADi)
+
+    return STARTED in log_text
+
+
 class StartWatch:
     """Start-up of a run: a plant that said it started step 0 while no state reached the recorder.
 
@@ -608,12 +614,10 @@ def stalled_message(
     It says what the recorder has, whether the plant says it finished, and how much CPU the plant
     got meanwhile (``plant_cpu_s`` [s]: a stopped or starved plant gets next to none).
     """
-    from ceco_plant_sim.plant_io import STARTED as PLANT_STARTED_LINE
-
     plant_log = procs['plant_node'].log_text()
     if 'scenario complete' in plant_log:
         why = 'the plant reports the scenario complete: its messages did not reach the recorder'
-    elif n_recorded == 0 and PLANT_STARTED_LINE in plant_log:
+    elif n_recorded == 0 and plant_started(plant_log):
         why = 'the plant logged that it started step 0, and no state of it reached the recorder'
     else:
         why = 'the plant made no progress (all nodes are running)'

@@ -31,6 +31,7 @@ import subprocess
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 # Fast DDS participant profile: a UDPv4 transport, a short lease announcement so late
@@ -386,7 +387,16 @@ class LifecycleClient:
     ORIGIN = {'configure': 'unconfigured', 'activate': 'inactive', 'deactivate': 'active', 'cleanup': 'inactive'}
     """The primary state each transition starts from ('shutdown' starts from any of three)."""
 
-    def change(self, transition: str, timeout_s: float = 30.0, attempt_s: float = 5.0) -> bool:
+    PRIMARY = ('unconfigured', 'inactive', 'active', 'finalized')
+    """The primary (settled) states; the others are transition states (configuring, ..., errorprocessing)."""
+
+    def change(
+        self,
+        transition: str,
+        timeout_s: float = 30.0,
+        attempt_s: float = 5.0,
+        alive: Callable[[], bool] = lambda: True,
+    ) -> bool:
         """Request a transition by name (:data:`TRANSITIONS`); True when the node made it.
 
         For 'shutdown' the node's current state picks the transition id (from unconfigured,
@@ -397,17 +407,23 @@ class LifecycleClient:
         (timeout): client will not receive response", seen on a loaded machine at start-up).
         So after ``attempt_s`` [s] without an answer the node's state decides: the goal state
         is success; the state the transition starts from means the request never ran, and it
-        is sent again; any other state (a transition still running, no answer to get_state
-        either) is polled. A refusal that comes after a resent request is checked against the
-        state too (the first request may have run after all). False when the node answers
-        that the transition failed, or after ``timeout_s`` [s] in all.
+        is sent again; another primary state is a failure (e.g. finalized after an error); a
+        transition state or no answer to get_state either is polled every 0.1 s. A refusal
+        that comes after a resent request is checked against the state too (the first request
+        may have run after all). False when the node answers that the transition failed, after
+        ``timeout_s`` [s] in all, or as soon as ``alive()`` is false (the node's process gone,
+        a stop signal).
         """
         from lifecycle_msgs.msg import Transition
         from lifecycle_msgs.srv import ChangeState
 
         deadline = time.monotonic() + timeout_s
+
+        def budget() -> float:
+            return max(min(attempt_s, deadline - time.monotonic()), 0.1)
+
         if transition == 'shutdown':
-            origin = self.state(min(attempt_s, timeout_s)) or 'active'
+            origin = self.state(min(attempt_s, 0.5 * timeout_s)) or 'active'
             ids = {
                 'unconfigured': Transition.TRANSITION_UNCONFIGURED_SHUTDOWN,
                 'inactive': Transition.TRANSITION_INACTIVE_SHUTDOWN,
@@ -420,19 +436,22 @@ class LifecycleClient:
         request = ChangeState.Request(transition=Transition(id=tid))
         sent = 0
         send = True
-        while time.monotonic() < deadline:
-            left_s = deadline - time.monotonic()
+        while time.monotonic() < deadline and alive():
             if send:
-                res = self._call(self._change, request, min(attempt_s, left_s))
+                res = self._call(self._change, request, budget())
                 sent += 1
                 if res is not None:
                     if res.success or sent == 1:
                         return bool(res.success)
-                    return self.state(min(attempt_s, max(deadline - time.monotonic(), 0.1))) == goal
-            state = self.state(min(attempt_s, max(deadline - time.monotonic(), 0.1)))
+                    return self.state(budget()) == goal
+            state = self.state(budget())
             if state == goal:
                 return True
+            if state in self.PRIMARY and state != origin:
+                return False
             send = state == origin
+            if not send:
+                time.sleep(0.1)
         return False
 
     @staticmethod
@@ -481,11 +500,17 @@ def configure_and_activate(context, executor, name, timeout_s, stop, procs):
     executor.add_node(node)
     client = LifecycleClient(node, name)
     wait_for(lambda: client.wait(0.05), timeout_s, stop, procs, f'the lifecycle services of {name}')
+    controller = procs['controller']
     for transition in ('configure', 'activate'):
-        if not client.change(transition, timeout_s=timeout_s):
+        if not client.change(
+            transition, timeout_s=timeout_s, alive=lambda: not stop.event.is_set() and controller.running()
+        ):
+            if stop.event.is_set():
+                raise Interrupted()
+            exited = '' if controller.running() else f' (it exited with status {controller.returncode()})'
             raise RuntimeError(
-                f'{name}: lifecycle transition {transition} failed; log: '
-                f'{procs["controller"].log_path}\n' + log_tail(procs['controller'].log_text())
+                f'{name}: lifecycle transition {transition} failed{exited}; log: '
+                f'{controller.log_path}\n' + log_tail(controller.log_text())
             )
     return client
 

@@ -57,8 +57,8 @@ PREVIEW_PARAMETERS: tuple[ParamSpec, ...] = (
         'lockstep.min_preview_subscribers',
         1,
         'lockstep: matched data readers on each preview topic (the controller; ceco run and record:=true: '
-        'controller and recorder) before a step\'s previews are sent; until then they are held, so no '
-        'reader misses a step; 0: no wait [-]',
+        'controller and recorder) before the first previews are sent; until then they are held, so no '
+        'reader misses step 0; afterwards they go out at once; 0: no wait [-]',
         int_range=(0, 100),
         read_only=False,
     ),
@@ -166,7 +166,7 @@ class PreviewNodeConfig(NodeConfig):
     liveliness_lease_s: float = 1.0
     """Automatic liveliness lease offered on the previews [s]."""
     min_preview_subscribers: int = 1
-    """lockstep: matched data readers on each preview topic before a step's previews are sent [-]."""
+    """lockstep: matched data readers on each preview topic before the first previews are sent [-]."""
     hold_warning_s: float = 5.0
     """lockstep: previews held this long [s, wall clock] are reported (a warning, the diagnostics)."""
 

@@ -8,9 +8,10 @@ Timing (parameter ``timing``):
 * ``lockstep`` (accelerated simulation): when the plant's state for a control step time
   t_k = k * Ts appears on ``cabin/state``, publish the previews on the grid t_k + i * Ts,
   i = 0..Np, stamped t_k and tagged with k; the controller waits for state k *and* previews k.
-  A step's previews wait until each preview publisher has matched
-  ``lockstep.min_preview_subscribers`` data readers (a volatile sample never reaches a reader
-  that has not matched yet: a recorder or controller discovered late would miss step 0).
+  Until the first previews go out, a step's previews wait until each preview publisher has
+  matched ``lockstep.min_preview_subscribers`` data readers (the start of a run: a recorder or
+  controller discovered late would miss step 0). After that they go out at once: a reader that
+  leaves mid-run (a controller killed and restarted) holds back nobody else.
 * ``realtime`` (vehicle): a timer on the node's clock every ``publish_period_s`` publishes the
   previews for the latest scenario time received on ``cabin/state``.
 
@@ -63,10 +64,11 @@ class PreviewNode(NodeTools, Node):
             qos_overriding_options=interfaces.qos_overrides(),
         )
         self._hold = HeldSample()
+        self._gate_open = False  # lockstep: the readers had matched once (the start gate is passed for good)
         if cfg.timing == 'realtime':
             self.create_timer(cfg.publish_period_s, self._on_timer)
-        else:
-            self.create_timer(0.02, self._release_held)
+        else:  # on the steady clock: sim time stands still while the plant waits for step 0
+            self.create_timer(0.02, self._release_held, clock=self.steady)
         DiagnosticsTimer(self, self._health, cfg.diagnostics_period_s)
         self.get_logger().info(
             f'scenario {self.scenario.name}, timing {cfg.timing}, grid {cfg.horizon_steps + 1} x '
@@ -116,9 +118,12 @@ class PreviewNode(NodeTools, Node):
         return {topic: self.data_readers(topic, pub) for topic, pub in pubs}
 
     def _short_of_readers(self) -> bool:
-        """lockstep: a preview publisher has fewer data readers matched than ``min_preview_subscribers``."""
+        """Before the first release: a preview publisher has fewer data readers than ``min_preview_subscribers``."""
         need = self.config.min_preview_subscribers
-        return need > 0 and min(self._readers().values()) < need
+        if self._gate_open or need <= 0:
+            return False
+        self._gate_open = min(self._readers().values()) >= need
+        return not self._gate_open
 
     def _held_text(self) -> str:
         """What the held previews wait for, once they waited ``hold_warning_s``; '' otherwise."""
