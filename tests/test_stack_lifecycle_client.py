@@ -45,26 +45,15 @@ class LossyLifecycleServer:
     def __init__(self, peer: DdsPeer, name: str, mode: str):
         from lifecycle_msgs.srv import ChangeState, GetState
         from rclpy.callback_groups import ReentrantCallbackGroup
-        from rclpy.executors import MultiThreadedExecutor
 
         self.state = 'unconfigured'
         self.requests: list[int] = []
         self.gets = 0
         self.mode = mode
         self.release = threading.Event()  # a lost answer is held until the test ends
-        group = ReentrantCallbackGroup()
-        self.node = rclpy.create_node(name, context=peer.context)
-        self.node.create_service(ChangeState, f'/{name}/change_state', self._change, callback_group=group)
-        self.node.create_service(GetState, f'/{name}/get_state', self._get, callback_group=group)
-        self.executor = MultiThreadedExecutor(num_threads=4, context=peer.context)
-        self.executor.add_node(self.node)
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self):
-        while not self._stop.is_set():
-            self.executor.spin_once(timeout_sec=0.02)
+        group = ReentrantCallbackGroup()  # on the peer's node, spun by its 4-thread executor
+        peer.node.create_service(ChangeState, f'/{name}/change_state', self._change, callback_group=group)
+        peer.node.create_service(GetState, f'/{name}/get_state', self._get, callback_group=group)
 
     def _change(self, request, response):
         tid = request.transition.id
@@ -99,17 +88,13 @@ class LossyLifecycleServer:
 
     def close(self):
         self.release.set()
-        self._stop.set()
-        self._thread.join(timeout=2.0)
-        self.executor.shutdown()
-        self.node.destroy_node()
 
 
 @pytest.fixture
 def pair():
     """A manager-side peer and a server-side peer on one fresh domain."""
     domain = _domain()
-    manager, far = DdsPeer(domain, 'lifecycle_manager'), DdsPeer(domain, 'far_side')
+    manager, far = DdsPeer(domain, 'lifecycle_manager'), DdsPeer(domain, 'far_side', threads=4)
     servers = []
 
     def make(mode):
