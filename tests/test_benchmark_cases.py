@@ -157,6 +157,7 @@ def test_ceco_sim_case_runs_the_benchmarks_cell(tmp_path, case_name, strategy, s
     cmd += [] if duration_s is None else ['--duration-s', str(duration_s)]
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stdout + p.stderr
+    assert f'run `ceco benchmark {case_name}` for it' in ' '.join(p.stdout.split())  # the pointer names the case
     m = json.loads((out / strategy / 'metrics.json').read_text())
     assert m['E_tot_J'] == row['E_tot_J'] and m['I_pmv'] == row['I_pmv'], (m['E_tot_J'], row['E_tot_J'])
     assert m['duration_s'] == (duration_s or 900.0)

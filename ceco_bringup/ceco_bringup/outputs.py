@@ -256,6 +256,7 @@ def finish_job(
     header: str,
     family_setpoints_c: Sequence[float] = vd.FAMILY_SETPOINTS_C,
     family_overrides: tuple = (),
+    case: str | None = None,
     duration_s: float | None = None,
     control_period_s: float | None = None,
     partial: Mapping[str, str] | None = None,
@@ -267,7 +268,8 @@ def finish_job(
     ``metrics``/``columns``: {strategy: metrics.json dict / timeseries columns} of the job's runs.
     With an empty ``family_setpoints_c`` the family is not run and the verdict points at
     ``ceco benchmark``. ``family_overrides``: ``((field, value), ...)`` every member also gets (a benchmark
-    case's baseline door, ``ceco sim --case``). Writes ``out/comparison.txt``, ``comparison.csv``, ``verdict.json`` and
+    case's baseline door, ``ceco sim --case``); ``case``: the benchmark case the runs are of (``--case``),
+    named in that pointer. Writes ``out/comparison.txt``, ``comparison.csv``, ``verdict.json`` and
     ``summary.txt`` (everything printed here); returns the verdict.
     """
     out = Path(out)
@@ -291,7 +293,10 @@ def finish_job(
         )
     v = vd.build_verdict(scenario.name, points, family, partial=partial)
     rows = table_rows(metrics, kpis, v)
-    pointer = f'run `ceco benchmark` or `ceco run --scenario {scenario.name} --strategy all` for it'
+    if case:
+        pointer = f'run `ceco benchmark {case}` for it (or this command with --baseline-setpoints-c)'
+    else:
+        pointer = f'run `ceco benchmark` or `ceco run --scenario {scenario.name} --strategy all` for it'
     text = '\n'.join(
         [header, console_table(rows), '', *vd.verdict_lines(v, pointer=pointer), f'Full table: {out}/comparison.txt']
     )

@@ -212,6 +212,7 @@ def main(argv=None) -> int:
             f'Np {first["horizon_steps"]}, preview {quality.describe()}, {out}:',
             family_setpoints_c=args.baseline_setpoints_c,
             family_overrides=door,
+            case=args.case,
             duration_s=float(first['duration_s']),
             control_period_s=args.control_period_s,
             progress=not args.no_progress,

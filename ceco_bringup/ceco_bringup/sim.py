@@ -162,6 +162,7 @@ def main(argv=None) -> int:
             header=header,
             family_setpoints_c=args.baseline_setpoints_c,
             family_overrides=baseline_overrides,
+            case=args.case,
             duration_s=settings.duration_s,
             control_period_s=settings.control_period_s,
             progress=not args.no_progress,
