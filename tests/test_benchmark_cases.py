@@ -198,7 +198,8 @@ def test_apply_case_fills_only_the_flags_not_given(tmp_path):
         return argparse.Namespace(**{**base, 'horizon_steps': None, **kw})
 
     a = args()
-    assert cli_args.apply_case(a, tmp_path / 'a') == ()  # no door for its baselines
+    case = cli_args.apply_case(a, tmp_path / 'a')
+    assert case.name == 'hotsoak-pulldown' and cli_args.case_overrides(case, 'baseline') == ()  # no door
     assert (a.preview, a.seed, a.control_period_s, a.horizon_steps) == ('uncertain:medium', 0, None, None)
     assert load_scenario(a.scenario).duration_s == 900.0 and a.scenario.endswith('a/case_scenario.yaml')
     a = args(seed=3, preview='perfect', horizon_steps=8)
@@ -207,12 +208,17 @@ def test_apply_case_fills_only_the_flags_not_given(tmp_path):
     a = args(preview='uncertain:high+noisy:seed=7')
     cli_args.apply_case(a, tmp_path / 'c')
     assert a.seed is None and a.preview == 'uncertain:high+noisy:seed=7'  # the preview's own seed=7 decides
-    a = args(case='hot-commute-4p')
-    assert cli_args.apply_case(a, tmp_path / 'd') == (('door_mode', 'auto'),)
+    case = cli_args.apply_case(args(case='hot-commute-4p'), tmp_path / 'd')
+    assert cli_args.case_overrides(case, 'baseline') == (('door_mode', 'auto'),)  # the baselines' door only
+    assert cli_args.case_overrides(case, 'ceco-pmv') == () and cli_args.case_overrides(None, 'baseline') == ()
     with pytest.raises(ValueError, match='--case and --scenario: give one'):
         cli_args.apply_case(args(scenario='sc03'), tmp_path / 'e')
     a = argparse.Namespace(case=None, scenario=None, preview=None, seed=None, control_period_s=None, horizon_steps=None)
-    assert cli_args.apply_case(a, tmp_path / 'f') == () and (a.scenario, a.preview, a.seed) == ('sc03', 'perfect', None)
+    assert cli_args.apply_case(a, tmp_path / 'f') is None and (a.scenario, a.preview, a.seed) == (
+        'sc03',
+        'perfect',
+        None,
+    )
     assert not (tmp_path / 'f').exists()  # nothing written without --case
 
 

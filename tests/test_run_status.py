@@ -106,7 +106,7 @@ def test_start_watch_says_stalled_once_the_plant_started_and_no_state_came():
     assert w.started is None  # not started: no clock runs
     assert w.check(600.0, True, 4.0) == (False, None) and w.started == (600.0, 4.0)
     assert w.check(609.9, True, 4.5) == (False, 0.5)
-    stalled, used = w.check(610.5, True, 4.01 + 0.0)
+    stalled, used = w.check(610.5, True, 4.01)
     assert stalled and used == pytest.approx(0.01)
     assert StartWatch(5.0).check(1.0, True, None) == (False, None)
     w = StartWatch(5.0)

@@ -231,8 +231,8 @@ CASE_SCENARIO_FILE = 'case_scenario.yaml'
 """Where ``--case`` writes the case's scenario (its overrides applied) in the output directory."""
 
 
-def apply_case(args, out) -> tuple:
-    """Resolve ``--case`` into ``args``; return the case's baseline door fields (``((field, value), ...)``).
+def apply_case(args, out):
+    """Resolve ``--case`` into ``args``; return the :class:`~ceco_bringup.benchmark.cases.Case` (None without it).
 
     The case's scenario (its overrides applied) is written to ``out/case_scenario.yaml`` and becomes
     ``args.scenario``; the case's preview quality, first seed, Ts and Np fill the flags not given (the
@@ -245,7 +245,7 @@ def apply_case(args, out) -> tuple:
     from ceco_bringup.benchmark.cases import load_case
     from ceco_v2x_preview.preview import parse_quality
 
-    door: tuple = ()
+    case = None
     if args.case is not None:
         if args.scenario is not None:
             raise ValueError('--case and --scenario: give one (the case names its scenario)')
@@ -256,10 +256,17 @@ def apply_case(args, out) -> tuple:
         args.preview = args.preview or case.preview
         args.control_period_s = args.control_period_s or case.control_period_s
         args.horizon_steps = args.horizon_steps or case.horizon_steps
-        door = tuple(case.baseline_door)
     args.scenario = args.scenario or 'sc03'
     args.preview = args.preview or 'perfect'
-    return door
+    return case
+
+
+def case_overrides(case, strategy: str) -> tuple:
+    """``((field, value), ...)`` a run of ``strategy`` takes from ``case`` (none without ``--case``).
+
+    :meth:`~ceco_bringup.benchmark.cases.Case.strategy_overrides`: the case's door for a baseline.
+    """
+    return tuple(case.strategy_overrides(strategy).items()) if case is not None else ()
 
 
 def add_strategy(p, default: str | None, help_extra: str = '') -> None:

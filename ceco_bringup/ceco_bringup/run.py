@@ -147,12 +147,12 @@ def main(argv=None) -> int:
     strategies = list(args.strategy)
     out = Path(args.out)
     run_dirs = {s: (out / s if len(strategies) > 1 else out) for s in strategies}
-    door: tuple = ()
+    case = None
     try:
         for d in run_dirs.values():
             if (d / 'bag').exists():
                 raise ValueError(f'{d / "bag"} exists: choose a new --out directory')
-        door = cli_args.apply_case(args, out)
+        case = cli_args.apply_case(args, out)
         scenario = load_scenario(args.scenario)
         quality = parse_quality(args.preview)
         if args.seed is not None:
@@ -171,8 +171,9 @@ def main(argv=None) -> int:
             run_dir = run_dirs[strategy]
             provenance.start_run(run_dir, 'run', argv, args.scenario)
             try:
-                law = door and strategy == 'baseline' and write_baseline_law(door, out / CASE_BASELINE_LAW_FILE)
-                m = run_one(args, scenario, quality, strategy, run_dir, stop, index=i, baseline_law=law or None)
+                own = cli_args.case_overrides(case, strategy)  # (a baseline's door: its law file)
+                law = write_baseline_law(own, out / CASE_BASELINE_LAW_FILE) if own else None
+                m = run_one(args, scenario, quality, strategy, run_dir, stop, index=i, baseline_law=law)
             except supervisor.Interrupted:
                 provenance.finish_run(run_dir, 'interrupted')
                 print(
@@ -211,7 +212,7 @@ def main(argv=None) -> int:
             header=f'Scenario {scenario.name} over DDS ({args.timing}), Ts {first["control_period_s"]:g} s, '
             f'Np {first["horizon_steps"]}, preview {quality.describe()}, {out}:',
             family_setpoints_c=args.baseline_setpoints_c,
-            family_overrides=door,
+            family_overrides=cli_args.case_overrides(case, 'baseline'),
             case=args.case,
             duration_s=float(first['duration_s']),
             control_period_s=args.control_period_s,

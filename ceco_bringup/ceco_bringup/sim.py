@@ -78,13 +78,15 @@ def _overrides(items) -> tuple:
     return tuple(out)
 
 
-def baseline_settings(settings, door: tuple):
-    """``settings`` with a case's baseline door fields (``RecircSettings``) before the ``--set`` overrides."""
+def with_case(settings, case, strategy: str):
+    """``settings`` for a run of ``strategy``: the case's own settings, then the ``--set`` overrides.
+
+    The case's: ``cli_args.case_overrides`` (a baseline's door; none without ``--case``).
+    """
     import dataclasses
 
-    if not door:
-        return settings
-    return dataclasses.replace(settings, strategy_overrides=tuple(door) + tuple(settings.strategy_overrides))
+    extra = cli_args.case_overrides(case, strategy)
+    return dataclasses.replace(settings, strategy_overrides=extra + tuple(settings.strategy_overrides))
 
 
 def main(argv=None) -> int:
@@ -102,7 +104,7 @@ def main(argv=None) -> int:
 
     out = Path(args.out)
     try:
-        baseline_overrides = cli_args.apply_case(args, out)
+        case = cli_args.apply_case(args, out)
         scenario = load_scenario(args.scenario)
         quality = parse_quality(args.preview)
         cli_args.check_duration(args.duration_s, scenario)
@@ -126,9 +128,7 @@ def main(argv=None) -> int:
         run_dir = out / s
         provenance.start_run(run_dir, 'sim', argv, args.scenario)
         try:
-            res = simulate(
-                scenario, s, baseline_settings(settings, baseline_overrides) if s == 'baseline' else settings
-            )
+            res = simulate(scenario, s, with_case(settings, case, s))
         except (ValueError, OSError) as exc:  # a --set field the strategy lacks, a missing or unfit model file
             provenance.finish_run(run_dir, 'failed', str(exc))
             print(f'ceco sim: error: {s}: {exc}', file=sys.stderr)
@@ -161,7 +161,7 @@ def main(argv=None) -> int:
             columns,
             header=header,
             family_setpoints_c=args.baseline_setpoints_c,
-            family_overrides=baseline_overrides,
+            family_overrides=cli_args.case_overrides(case, 'baseline'),
             case=args.case,
             duration_s=settings.duration_s,
             control_period_s=settings.control_period_s,

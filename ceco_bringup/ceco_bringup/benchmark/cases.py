@@ -136,6 +136,10 @@ class Case:
         """The preview quality of its strategies' runs (``parse_quality`` text): ``perfect`` or ``uncertain:LEVEL``."""
         return 'perfect' if self.forecast_uncertainty == 'none' else f'uncertain:{self.forecast_uncertainty}'
 
+    def strategy_overrides(self, strategy: str) -> dict:
+        """The case's own settings for a run of ``strategy``: :attr:`baseline_door` for a baseline, none otherwise."""
+        return dict(self.baseline_door) if strategy == 'baseline' else {}
+
     def scenario_path(self) -> str:
         """The scenario argument for ``load_scenario`` (a relative YAML path resolved against the case file)."""
         s = self.scenario

@@ -533,10 +533,10 @@ def case_cells(
                 'case_sha': sha,
                 'scenario': scenario,
                 'strategy': c.strategy,
-                'strategy_overrides': {  # the case's door for every baseline, unless the member holds its own
-                    **(dict(case.baseline_door) if c.strategy == 'baseline' else {}),
+                'strategy_overrides': {
+                    **case.strategy_overrides(c.strategy),
                     **dict(c.overrides),
-                },
+                },  # a member's own win
                 'preview': c.preview or (case.preview if c.seeded else 'perfect'),
                 'seed': seed,
                 'duration_s': case.duration_s,
