@@ -1076,7 +1076,7 @@ def test_ranges_derived_from_the_control_period_are_enforced(table, name, value,
     build(5.0 if 'periods' not in name else 1.0)  # at the derived bound: accepted
 
 
-def test_held_command_waits_for_subscribers_and_sends_each_step_once():
+def test_held_sample_waits_for_subscribers_and_sends_each_step_once():
     from ceco_core.sequencing import HeldSample
 
     hold = HeldSample()
