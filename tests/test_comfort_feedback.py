@@ -212,6 +212,38 @@ def test_settle_after_the_command_changes_no_number():
     assert np.array_equal(lazy._bias.bias, eager._bias.bias)
 
 
+def test_a_step_reads_the_comfort_parameters_once_and_the_nlp_gets_them(monkeypatch):
+    """ceco-pmv's comfort step computes T_mr and p_a for its measured PMV; the NLP's parameter vector takes the same
+    pair (no second read: 30-60 us of a node's step), and the measured PMV is the one at that T_mr. ceco-ioch, without
+    a comfort step, reads them once for its NLP."""
+    zone = dict(t_int_c=32.0, t_shell_c=34.0, rh_cab=0.45, pmv_ub=np.full(N1, 3.0))
+    for name in ("ceco-pmv", "ceco-ioch"):
+        ctrl = NmpcController(name)
+        reads = []
+        inner = ctrl.comfort_parameters
+
+        def counted(*a, _inner=inner, _reads=reads, **kw):
+            out = _inner(*a, **kw)
+            _reads.append(out.copy())
+            return out
+
+        monkeypatch.setattr(ctrl, "comfort_parameters", counted)
+        for k in range(3):
+            obs = observation(N1, k, t_cab=26.0 - 0.3 * k, **zone)
+            n_before = len(reads)
+            cmd, diag = ctrl.compute(obs)
+            assert diag.success and len(reads) == n_before + 1, name
+            p = ctrl.last_nlp().p
+            assert np.all(ctrl.problem.params.get(p, "t_mr") == reads[-1][0])
+            assert np.all(ctrl.problem.params.get(p, "pa") == reads[-1][1])
+            if name == "ceco-pmv":
+                t_mr = float(reads[-1][0])
+                assert f"PMV {measured_pmv(obs, ctrl.comfort_params, math.nan, 0.45, None, t_mr):+.3f}" in diag.message
+                assert measured_pmv(obs, ctrl.comfort_params, math.nan, 0.45, None, t_mr) == pytest.approx(
+                    measured_pmv(obs, ctrl.comfort_params, math.nan, 0.45), abs=1e-12
+                )
+
+
 def test_the_compiled_pmv_equals_the_numpy_pmv_and_feeds_the_same_reads():
     """:class:`CabinPmvFunction` (the controllers' per-step PMV) is ``cabin_pmv``'s own code on CasADi symbols:
     over 500 random cabin states it agrees with the numpy evaluation to 1e-12 (relative to max(1, |PMV|)); the

@@ -182,6 +182,21 @@ def test_codegen_compiles_once_and_matches_in_process(tmp_path):
         assert d1.success and d2.success
         assert abs(c1.mdot_bl_kgps - c2.mdot_bl_kgps) < 1e-6 and abs(c1.t_evap_sp_c - c2.t_evap_sp_c) < 1e-5
         assert d1.cost_total == pytest.approx(d2.cost_total, rel=1e-8)
+    # the problem's evaluator (diagnostics, warm start) and rollout come from the SQP's object: the same numbers
+    # as CasADi's virtual machine, to the bit
+    assert comp.problem._evaluator.fn.class_name() == comp.problem._rollout.fn.class_name() == "External"
+    assert ref.problem._evaluator.fn.class_name() == "SXFunction"
+    prob, rng, p = comp.problem, np.random.default_rng(7), comp.last_nlp().p
+    lo = np.where(np.isfinite(prob.lbw), prob.lbw, -1.0)
+    span = np.minimum(np.where(np.isfinite(prob.ubw), prob.ubw, lo + 2.0) - lo, 10.0)
+    for _ in range(20):
+        w = lo + rng.random(prob.nw) * span
+        e1, e2 = prob.evaluate(w, p), ref.problem.evaluate(w, p)
+        for f in dataclasses.fields(e1):
+            np.testing.assert_array_equal(getattr(e1, f.name), getattr(e2, f.name), err_msg=f.name)
+        u = prob.plan(w)
+        np.testing.assert_array_equal(prob.rollout_states(u, p), ref.problem.rollout_states(u, p))
+    assert np.isfinite(prob.evaluate(w, p).pmv).all()
     mtime = objs[0].stat().st_mtime_ns
     NmpcController(strategy_settings("ceco-ioch", solver=ss))
     assert sorted(cache.glob("ceco_*.so")) == objs and objs[0].stat().st_mtime_ns == mtime

@@ -72,7 +72,9 @@ _MEASURED = {"t_amb": "t_amb_c", "solar": "solar_wm2", "speed": "speed_mps"}
 _PREVIEW = {"t_amb": "preview_t_amb_c", "solar": "preview_solar_wm2", "speed": "preview_speed_mps"}
 
 
-def measured_pmv(obs: Observation, params: ComfortParams, t_glass_c: float, rh_cab: float, pmv_fn=None) -> float:
+def measured_pmv(
+    obs: Observation, params: ComfortParams, t_glass_c: float, rh_cab: float, pmv_fn=None, t_mr_c: float | None = None
+) -> float:
     """The PMV of the observation [-]: the scored comfort model on the measured (or estimated) cabin.
 
     :func:`ceco_core.acc_law.feedback_pmv` with the observation's cabin air, vent air, interior and shell
@@ -82,7 +84,8 @@ def measured_pmv(obs: Observation, params: ComfortParams, t_glass_c: float, rh_c
     flow held over the last period. ``t_glass_c`` and ``rh_cab`` are the checked values
     (:class:`ceco_core.observation_check.ObservationCheck`: NaN when not measured or implausible). NaN when another
     input is missing. ``pmv_fn``: the PMV evaluator at ``params``
-    (:class:`~ceco_controller.pmv_function.CabinPmvFunction`; None: ``cabin_pmv`` on numpy).
+    (:class:`~ceco_controller.pmv_function.CabinPmvFunction`; None: ``cabin_pmv`` on numpy); ``t_mr_c``: the mean
+    radiant temperature of the same observation and glazing when the caller has it (None: computed).
     """
     t_glass = t_glass_c if math.isfinite(t_glass_c) else obs.t_int_c
     return feedback_pmv(
@@ -97,6 +100,7 @@ def measured_pmv(obs: Observation, params: ComfortParams, t_glass_c: float, rh_c
         params=params,
         pa_pa=None if math.isfinite(rh_cab) else PAPER_PA_PA,
         pmv_fn=pmv_fn,
+        t_mr_c=t_mr_c,
     )
 
 

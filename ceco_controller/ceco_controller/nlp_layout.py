@@ -136,9 +136,9 @@ class ParamLayout:
 
     def pack(self, **values) -> np.ndarray:
         """The parameter vector from one value (scalar or array of the right size) per name."""
-        missing = sorted(set(self.slices) - set(values))
-        extra = sorted(set(values) - set(self.slices))
-        if missing or extra:
+        if values.keys() != self.slices.keys():  # (compared as sets, in C: the sorted lists only for the message)
+            missing = sorted(set(self.slices) - set(values))
+            extra = sorted(set(values) - set(self.slices))
             raise ValueError(f"ParamLayout.pack: missing {missing}, unknown {extra}")
         p = np.empty(self.size)
         for name, sl in self.slices.items():

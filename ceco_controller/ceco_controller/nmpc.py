@@ -328,17 +328,19 @@ class NmpcController:
         t_glass_c: float | None = None,
         rh_cab: float | None = None,
         bounds: tuple | None = None,
+        comfort: np.ndarray | None = None,
     ) -> np.ndarray:
         """The NLP parameter vector for an observation (previews filled, on the NLP grid).
 
         ``u_prev`` overrides the observation's previous command; ``t_glass_c`` and ``rh_cab`` its
         glazing temperature and cabin RH (the checked values: NaN where not measured or implausible);
         ``bounds`` (lb, ub) on the NLP grid the comfort bounds (default: the observation's, held over
-        the extension).
+        the extension); ``comfort`` :meth:`comfort_parameters` of the same observation, glazing and RH when the
+        caller has them (default: computed here).
         """
         b = self._bias.values
         u_prev = (obs.mdot_bl_prev_kgps, obs.t_evap_sp_prev_c) if u_prev is None else u_prev
-        t_mr, pa = self.comfort_parameters(obs, t_glass_c, rh_cab)
+        t_mr, pa = self.comfort_parameters(obs, t_glass_c, rh_cab) if comfort is None else comfort
         n = self.problem.params.n_grid
         lb, ub = (held(obs.pmv_lb, n), held(obs.pmv_ub, n)) if bounds is None else bounds
         door: dict = {}
@@ -637,7 +639,9 @@ class NmpcController:
             )
         self._bias.update(obs.t_cab_c, obs.t_evap_c, obs.t_vent_c, u_prev[0])
         bounds = self._comfort_step(obs, chk, ex, valid, diag)
-        p = self.parameters(obs, ex, u_prev, chk.t_glass_c, chk.rh_cab, bounds)
+        # the comfort step's T_mr and p_a are this step's when it returned bounds (read once: 30-60 us)
+        comfort = self._comfort_now if bounds is not None else None
+        p = self.parameters(obs, ex, u_prev, chk.t_glass_c, chk.rh_cab, bounds, comfort)
         out = self.chain.run(p, self._good, deadline)
         self._last_nlp, self._last_chain = out.data, out
         self._count(out, deadline)
@@ -734,14 +738,14 @@ class NmpcController:
             skill.update(obs, valid)
             ex.update(skill.shrink(ex, obs))
         lb, ub = held(obs.pmv_lb, n), np.minimum(held(obs.pmv_ub, n), cap)
-        self._comfort_now = self.comfort_parameters(obs, chk.t_glass_c, chk.rh_cab)
+        now = self._comfort_now = self.comfort_parameters(obs, chk.t_glass_c, chk.rh_cab)
         if fb is None:
             return lb, ub
-        y = measured_pmv(obs, self.comfort_params, chk.t_glass_c, chk.rh_cab, self._pmv_fn)
+        y = measured_pmv(obs, self.comfort_params, chk.t_glass_c, chk.rh_cab, self._pmv_fn, now[0])
         fb.update(y)
         m = np.zeros(n)
         if self.settings.backoff == "adaptive":
-            t_mr, pa = self._comfort_now
+            t_mr, pa = now
             v = skill.estimate_mse("solar", n) if skill is not None else np.zeros(n)
             g = pmv_solar_sensitivity(
                 obs.t_cab_c,

@@ -92,7 +92,7 @@ class SolveResult:
 
     def finite(self) -> bool:
         """True if there is a primal-dual point and every entry is finite."""
-        return all(a is not None and bool(np.all(np.isfinite(a))) for a in (self.w, self.lam_x, self.lam_g))
+        return all(a is not None and bool(np.isfinite(a).all()) for a in (self.w, self.lam_x, self.lam_g))
 
     @property
     def limited(self) -> bool:
@@ -138,20 +138,27 @@ class SqpSolver(NlpSolver):
         sf = sqp_functions(problem.nlp, structure)
         fns = sf.functions
         if settings.codegen:
-            # the functions are a deterministic product of the NLP, the QP's layout and sqp_functions' code
+            # the functions are a deterministic product of the NLP, the QP's layout and sqp_functions' code; the
+            # problem's evaluator and rollout (the diagnostics, the warm start) go into the same object
+            extra = (problem.evaluator, problem.rollout)
             key = nlp_key(problem.nlp) + repr(structure).encode() + inspect.getsource(sqp_functions).encode()
+            key += b"".join(f.serialize().encode() for f in extra)
             so = _compiled(
                 problem,
                 ("sqp", qpsol, tuple(settings.codegen_flags)),
                 lambda: compile_functions(
-                    list(fns.values()), key, settings.codegen_flags, settings.codegen_cache_dir, prefix="ceco_sqp"
+                    [*fns.values(), *extra], key, settings.codegen_flags, settings.codegen_cache_dir, prefix="ceco_sqp"
                 ),
             )
             if so is not None:
                 try:
-                    fns = {k: casadi.external(f.name(), so) for k, f in fns.items()}
+                    loaded = {k: casadi.external(f.name(), so) for k, f in fns.items()}
+                    evaluator, rollout = (casadi.external(f.name(), so) for f in extra)
                 except RuntimeError as exc:
                     _LOG.warning("NMPC codegen: cannot load %s (%s); using the in-process NLP functions", so, exc)
+                else:
+                    fns = loaded
+                    problem.use_compiled(evaluator, rollout)
         elif settings.jit:
             jit: dict[str, Any] = {
                 "jit": True,

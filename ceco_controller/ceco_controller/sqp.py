@@ -381,7 +381,8 @@ class Sqp:
                 status = "Invalid_Number_Detected"
                 pr = float(self._violation(g).max(initial=0.0)) if math.isfinite(float(g.sum())) else math.inf
                 break
-            pr = float(self._violation(g).max(initial=0.0))
+            viol = self._violation(g)
+            pr = float(viol.max(initial=0.0))
             du = float(np.abs(glag + lam_x).max(initial=0.0))
             if not o.rti and pr <= o.tol_pr and du <= o.tol_du:
                 status, success = "Solve_Succeeded", True
@@ -426,7 +427,7 @@ class Sqp:
                 break
             # l1 merit, non-monotone Armijo backtracking
             sigma = max(sigma, 1.1 * float(np.abs(lam_g_qp).max(initial=0.0)) + 1e-8)
-            theta = float(self._violation(g).sum())
+            theta = float(viol.sum())
             phi = f + sigma * theta
             merits = (merits + [phi])[-o.merit_memory :]
             slope = float(gf @ d) - sigma * theta

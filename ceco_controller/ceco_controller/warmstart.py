@@ -38,13 +38,13 @@ def initial_guess(problem: NlpProblem, p: np.ndarray, w_prev: np.ndarray | None 
         vl.set_blocks(w, "u", u)
         if s.ioch:
             vl.set_blocks(w, "eps", 0.5 * s.eps_ub)
-    w = np.clip(w, problem.lbw, problem.ubw)
+    w = np.minimum(np.maximum(w, problem.lbw), problem.ubw)  # np.clip's own, without its wrapper's cost
     if vl.count("x"):  # multiple shooting: the states rolled out by the model
         vl.set_blocks(w, "x", problem.rollout_states(vl.blocks(w, "u"), p))
     margin = SLACK_GUESS_MARGIN
     for key, need in zip(_SLACK_KEYS, _smallest_slacks(problem, w, p)):
         w[vl.indices(key)] = need + margin
-    return np.clip(w, problem.lbw, problem.ubw)
+    return np.minimum(np.maximum(w, problem.lbw), problem.ubw)
 
 
 _SLACK_KEYS = ("s_lo", "s_up", "s_ev", "s_co2", "s_fog")

@@ -443,6 +443,7 @@ def feedback_pmv(
     params,
     pa_pa=None,
     pmv_fn=None,
+    t_mr_c=None,
 ):
     """The cabin PMV the comfort-feedback law regulates [-]: the scored comfort model on the controller's observation.
 
@@ -462,7 +463,9 @@ def feedback_pmv(
     humidity is not measured). Returns NaN when an input is missing or not finite (the law then holds its
     command). ``pmv_fn``: an evaluator of ``cabin_pmv`` at ``params`` called as ``pmv_fn(t_cab_c, t_vent_c,
     mdot_bl_kgps, t_mr_c, w_rad_wm2, pa_pa)`` (the controllers' compiled one,
-    ``ceco_controller.pmv_function.CabinPmvFunction``); None: ``cabin_pmv`` on numpy.
+    ``ceco_controller.pmv_function.CabinPmvFunction``); None: ``cabin_pmv`` on numpy. ``t_mr_c`` [degC]: the mean
+    radiant temperature of these interior, shell and glazing temperatures when the caller has computed it
+    (``cabin_mrt_c``, the same equation; ceco-pmv's step has it for its NLP); None: computed here.
     """
     from ceco_core import psychro
     from ceco_core.cabin_comfort import cabin_mrt_c, cabin_pmv, cabin_w_rad_wm2
@@ -477,7 +480,10 @@ def feedback_pmv(
     if not finite or mdot < 0.0 or humidity < 0.0 or (pa_pa is None and humidity > 1.0):
         return math.nan
     pa = humidity if pa_pa is not None else float(psychro.vapour_pressure_pa(t_cab, humidity))
-    t_mr = float(cabin_mrt_c(t_cab_c=t_cab, t_int_c=t_int, t_shell_c=t_shell, t_glass_c=t_glass, params=params))
+    if t_mr_c is None:
+        t_mr = float(cabin_mrt_c(t_cab_c=t_cab, t_int_c=t_int, t_shell_c=t_shell, t_glass_c=t_glass, params=params))
+    else:
+        t_mr = float(t_mr_c)
     w_rad = float(cabin_w_rad_wm2(max(solar, 0.0), params))
     if pmv_fn is not None:
         return float(pmv_fn(t_cab, t_vent, mdot, t_mr, w_rad, pa))

@@ -131,7 +131,7 @@ def check_observation(obs: Observation, limits: ObservationLimits = OBSERVATION_
     if not (lb_ok.all() and ub_ok.all()):
         meas.append(f"pmv_lb/pmv_ub not finite or outside {limits.pmv}")
     else:
-        if np.any(np.asarray(obs.pmv_lb) > np.asarray(obs.pmv_ub)):  # both finite here
+        if (np.asarray(obs.pmv_lb) > np.asarray(obs.pmv_ub)).any():  # both finite here
             meas.append("pmv_lb above pmv_ub")
     act, tol = ACTUATOR_LIMITS, limits.command_tol
     if not _in(obs.mdot_bl_prev_kgps, (act.mdot_bl_min_kgps - tol, act.mdot_bl_max_kgps + tol)):

@@ -248,3 +248,10 @@ def test_feedback_pmv_is_the_scored_comfort_model_on_the_observation():
     assert at_1700 > y  # 1700 Pa is more humid than 35 % at 26 degC (1180 Pa): a warmer sensation
     for bad_pa in (math.nan, -1.0, math.inf):
         assert math.isnan(feedback_pmv(**kw, mdot_bl_kgps=0.09, solar_wm2=700.0, params=p, pa_pa=bad_pa))
+    # a mean radiant temperature given (the caller's cabin_mrt_c of the same surfaces): the same PMV to the bit; a
+    # different one is what the PMV is computed with
+    from ceco_core.cabin_comfort import cabin_mrt_c
+
+    t_mr = float(cabin_mrt_c(t_cab_c=26.0, t_int_c=31.0, t_shell_c=35.0, t_glass_c=38.0, params=p))
+    assert feedback_pmv(**kw, mdot_bl_kgps=0.09, solar_wm2=700.0, params=p, t_mr_c=t_mr) == y
+    assert feedback_pmv(**kw, mdot_bl_kgps=0.09, solar_wm2=700.0, params=p, t_mr_c=t_mr + 3.0) > y + 0.1
