@@ -162,9 +162,10 @@ def test_codegen_falls_back_without_compiler(monkeypatch, tmp_path, caplog):
     assert not list((tmp_path / "cache").glob("*.so"))
 
 
-def test_codegen_compiles_once_and_matches_in_process(tmp_path):
+def test_codegen_compiles_once_and_matches_in_process(tmp_path, monkeypatch, caplog):
     """Compiled NLP functions (cached by code hash) give the in-process solution; a second
-    controller with the same NLP reuses the cached object."""
+    controller with the same NLP reuses the cached object; an object whose evaluator cannot be
+    loaded leaves every function in-process (none half-swapped)."""
     cache = tmp_path / "cache"
     ss = SolverSettings(codegen=True, codegen_flags=("-O0",), codegen_cache_dir=str(cache))
     comp = NmpcController(strategy_settings("ceco-ioch", solver=ss))
@@ -200,6 +201,24 @@ def test_codegen_compiles_once_and_matches_in_process(tmp_path):
     mtime = objs[0].stat().st_mtime_ns
     NmpcController(strategy_settings("ceco-ioch", solver=ss))
     assert sorted(cache.glob("ceco_*.so")) == objs and objs[0].stat().st_mtime_ns == mtime
+    # the cached object loads, but its evaluator does not: the SQP's functions and the problem's stay in-process
+    import ceco_controller.solvers as solvers_mod
+
+    external = solvers_mod.casadi.external
+
+    def no_eval(name, *args):
+        if name == "ceco_eval":
+            raise RuntimeError("cannot load ceco_eval (test)")
+        return external(name, *args)
+
+    monkeypatch.setattr(solvers_mod.casadi, "external", no_eval)
+    with caplog.at_level("WARNING", logger="ceco_controller"):
+        half = NmpcController(strategy_settings("ceco-ioch", solver=ss))
+    assert "in-process NLP functions" in caplog.text
+    assert half.problem._evaluator.fn.class_name() == "SXFunction"
+    assert half.solver.sqp._jac.fn.class_name() == "SXFunction"
+    cmd, diag = half.compute(_obs(0, speed=20.0))
+    assert diag.success and _valid(cmd)
 
 
 class _FailingSolver:

@@ -309,8 +309,12 @@ class PreviewSkill:
                 continue
             v = held(self.forecast_mse(q), x.size)
             dx = x - p
-            with np.errstate(divide="ignore", invalid="ignore"):
-                s = np.where(dx != 0.0, np.maximum(0.0, 1.0 - self.c**2 * v / np.maximum(dx * dx, 1e-300)), 1.0)
+            # the factor where the series moves (elsewhere 1): no division by zero, so no np.errstate (whose context
+            # manager cost more than the arithmetic, about half of a step's comfort work)
+            s = np.ones(x.size)
+            moves = dx != 0.0
+            d = dx[moves]
+            s[moves] = np.maximum(0.0, 1.0 - self.c**2 * v[moves] / np.maximum(d * d, 1e-300))
             out[q] = p + s * dx
         return out
 

@@ -150,9 +150,10 @@ class NlpProblem:
         """:meth:`evaluate` and :meth:`rollout_states` by compiled copies of :attr:`evaluator` and :attr:`rollout`.
 
         The copies are the same expressions in C (``casadi.external`` of the SQP's compiled object, which the SQP's
-        builder generates from these Functions): equal to the bit on random points
-        (``tests/test_nmpc.py::test_codegen_compiles_once_and_matches_in_process``) and in SC03's closed loop, about 3x
-        faster than CasADi's virtual machine (docs/controller.md 4.6).
+        builder generates from these Functions): with flags that keep IEEE arithmetic as written (the default ``-O1``;
+        not ``-ffast-math``, nor a target that fuses multiply-adds) equal to the bit on random points
+        (``tests/test_nmpc.py::test_codegen_compiles_once_and_matches_in_process``, ``-O0``) and in SC03's closed loops
+        (``-O1``, docs/controller.md 4.6), about 3x faster than CasADi's virtual machine.
         """
         for mine, theirs in ((self.evaluator, evaluator), (self.rollout, rollout)):
             if (mine.name_in(), mine.name_out()) != (theirs.name_in(), theirs.name_out()):
