@@ -309,8 +309,8 @@ class PreviewSkill:
                 continue
             v = held(self.forecast_mse(q), x.size)
             dx = x - p
-            # the factor where the series moves (elsewhere 1): no division by zero, so no np.errstate (whose context
-            # manager cost more than the arithmetic, about half of a step's comfort work)
+            # the factor where the series moves (elsewhere 1): no division by zero, so no np.errstate (its context
+            # manager, about 1.4 us a series in a loop; the shrinkage 55 -> 50 us for three series)
             s = np.ones(x.size)
             moves = dx != 0.0
             d = dx[moves]
