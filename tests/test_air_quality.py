@@ -428,7 +428,7 @@ def test_a_baseline_law_file_carries_the_door_settings(tmp_path):
     baseline then commands the door (here: fixed at 0.5); an unknown field or a bad share is refused by name."""
     from observations import observation
 
-    from ceco_controller.factory import load_acc_settings, make_controller
+    from ceco_controller.factory import load_acc_settings, make_controller, write_acc_settings
     from ceco_v2x_preview.scenario import load_scenario
 
     law = tmp_path / "law.yaml"
@@ -444,6 +444,15 @@ def test_a_baseline_law_file_carries_the_door_settings(tmp_path):
     law.write_text("acc_law:\n  door_moed: auto\n")
     with pytest.raises(ValueError, match="door_moed"):
         load_acc_settings(str(law))
+    # the writer (ceco run --case's door file) writes what the reader reads, and refuses what it refuses, before writing
+    fields = {"setpoint_c": 24.5, "door_mode": "fixed", "door_fixed_share": 0.25}
+    written = write_acc_settings(tmp_path / "sub" / "w.yaml", fields, "a comment")
+    assert load_acc_settings(written) == fields
+    assert (tmp_path / "sub" / "w.yaml").read_text().startswith("# a comment\n")
+    for bad, name in (({"door_fixed_share": 1.5}, "door_fixed_share"), ({"door_moed": "auto"}, "door_moed")):
+        with pytest.raises(ValueError, match=name):
+            write_acc_settings(tmp_path / "bad.yaml", bad)
+    assert not (tmp_path / "bad.yaml").exists()
 
 
 def test_door_families_run_on_the_air_quality_cases_and_a_co2_breaking_member_is_never_on_a_front():

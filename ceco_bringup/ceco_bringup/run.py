@@ -288,12 +288,9 @@ CASE_BASELINE_LAW_FILE = 'case_baseline_law.yaml'
 
 def write_baseline_law(door: tuple, path: Path) -> str:
     """``door`` (``((RecircSettings field, value), ...)``) as a baseline law file (``acc_law:``); its path."""
-    import yaml
+    from ceco_controller.factory import write_acc_settings  # (here: the factory imports the NMPC and CasADi)
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    text = "# the baselines' door logic of the benchmark case (ceco run --case)\n"
-    path.write_text(text + yaml.safe_dump({'acc_law': dict(door)}, sort_keys=False), encoding='utf-8')
-    return str(path.resolve())
+    return write_acc_settings(path, dict(door), "the baselines' door logic of the benchmark case (ceco run --case)")
 
 
 def run_one(

@@ -20,7 +20,14 @@ from .estimating_controller import with_measurements
 from .nmpc import NmpcController
 from .strategies import StrategySettings, load_strategy_settings
 
-__all__ = ["make_controller", "ControllerCache", "load_acc_settings", "split_door_settings", "DOOR_FIELDS"]
+__all__ = [
+    "make_controller",
+    "ControllerCache",
+    "load_acc_settings",
+    "write_acc_settings",
+    "split_door_settings",
+    "DOOR_FIELDS",
+]
 
 
 class ControllerCache:
@@ -85,13 +92,35 @@ def load_acc_settings(path: str | None) -> dict:
         doc = yaml.safe_load(fh)
     if not isinstance(doc, dict) or not isinstance(doc.get("acc_law"), dict):
         raise ValueError(f"{path}: a baseline law file needs a mapping 'acc_law:' of AccSettings fields")
-    known = {f.name for f in dataclasses.fields(AccSettings)} | set(DOOR_FIELDS)
-    unknown = sorted(set(doc["acc_law"]) - known)
-    if unknown:
-        raise ValueError(f"{path}: acc_law: unknown AccSettings or RecircSettings field(s) {unknown}")
     fields = dict(doc["acc_law"])
-    split_door_settings(fields)
+    _check_acc_fields(fields, f"{path}: ")
     return fields
+
+
+def _check_acc_fields(fields: dict, where: str = "") -> None:
+    """ValueError naming an unknown field of a baseline law, or a value AccSettings / RecircSettings refuse."""
+    unknown = sorted(set(fields) - ({f.name for f in dataclasses.fields(AccSettings)} | set(DOOR_FIELDS)))
+    if unknown:
+        raise ValueError(f"{where}acc_law: unknown AccSettings or RecircSettings field(s) {unknown}")
+    split_door_settings(fields)
+
+
+def write_acc_settings(path, fields: dict, comment: str = "") -> str:
+    """Write AccSettings / door fields as a baseline law file that :func:`load_acc_settings` reads; its path.
+
+    The fields are checked as the reader checks them (ValueError naming a bad one) before anything is written;
+    ``comment``: a first line ``# comment``.
+    """
+    from pathlib import Path
+
+    import yaml
+
+    _check_acc_fields(dict(fields))
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    head = f"# {comment}\n" if comment else ""
+    path.write_text(head + yaml.safe_dump({"acc_law": dict(fields)}, sort_keys=False), encoding="utf-8")
+    return str(path.resolve())
 
 
 DOOR_FIELDS = tuple(f.name for f in dataclasses.fields(RecircSettings))
