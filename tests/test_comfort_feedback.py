@@ -236,12 +236,12 @@ def test_a_step_reads_the_comfort_parameters_once_and_the_nlp_gets_them(monkeypa
             p = ctrl.last_nlp().p
             assert np.all(ctrl.problem.params.get(p, "t_mr") == reads[-1][0])
             assert np.all(ctrl.problem.params.get(p, "pa") == reads[-1][1])
-            if name == "ceco-pmv":
-                t_mr = float(reads[-1][0])
-                assert f"PMV {measured_pmv(obs, ctrl.comfort_params, math.nan, 0.45, None, t_mr):+.3f}" in diag.message
-                assert measured_pmv(obs, ctrl.comfort_params, math.nan, 0.45, None, t_mr) == pytest.approx(
-                    measured_pmv(obs, ctrl.comfort_params, math.nan, 0.45), abs=1e-12
-                )
+            if name == "ceco-pmv":  # the feedback's measured PMV is the one at that read's T_mr, to the bit
+                y = ctrl.pmv_feedback.last_measured
+                fn = ctrl._pmv_fn
+                assert y == measured_pmv(obs, ctrl.comfort_params, math.nan, 0.45, fn, float(reads[-1][0]))
+                assert y == measured_pmv(obs, ctrl.comfort_params, math.nan, 0.45, fn)  # as a fresh T_mr gives
+                assert y != measured_pmv(obs, ctrl.comfort_params, math.nan, 0.45, fn, float(reads[-1][0]) + 1.0)
 
 
 def test_the_compiled_pmv_equals_the_numpy_pmv_and_feeds_the_same_reads():
