@@ -109,6 +109,63 @@ def test_preview_skill_measures_forecast_error_and_shrinks():
     assert good.shrink(ex, o)["solar"] == pytest.approx(ex["solar"])
 
 
+def _shrink_reference(sk, series, obs):
+    """The shrinkage as the module docstring writes it, on numpy arrays (the reference for the element-wise code)."""
+    out = {}
+    for q, x in series.items():
+        x, p = np.asarray(x, float), float(getattr(obs, {"t_amb": "t_amb_c", "solar": "solar_wm2"}.get(q, "speed_mps")))
+        sw = np.asarray(sk.sw_f[q])
+        v = held(np.where(sw > 0, np.asarray(sk.se_f[q]) / np.maximum(sw, 1e-300), 0.0), x.size)
+        dx = x - p
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = np.where(dx != 0.0, np.maximum(0.0, 1.0 - sk.c**2 * v / np.maximum(dx * dx, 1e-300)), 1.0)
+        out[q] = p + s * dx
+    return out
+
+
+def test_shrinkage_and_error_estimate_equal_the_numpy_formula_to_the_bit():
+    # random forecast errors and previews of 7 and 10 points (the horizon extension), a NaN and an inf in a
+    # preview: the element-wise code gives numpy's numbers to the bit, NaN and inf where numpy has them
+    rng = np.random.default_rng(7)
+    sk = PreviewSkill(N1, window=40.0, c=1.3)
+    for k in range(25):
+        o = observation(
+            N1,
+            k,
+            solar_wm2=500.0 + 80.0 * rng.standard_normal(),
+            t_amb_c=35.0 + rng.standard_normal(),
+            preview_solar_wm2=500.0 + 120.0 * rng.standard_normal(N1),
+            preview_t_amb_c=35.0 + 2.0 * rng.standard_normal(N1),
+        )
+        sk.update(o, rng.random(N1) > 0.2)
+    n_partly = 0
+    for n in (N1, N1 + 3) * 10:
+        ex = {
+            "solar": o.solar_wm2 + 400.0 * rng.standard_normal(n),
+            "t_amb": np.r_[o.t_amb_c, o.t_amb_c + 6.0 * rng.standard_normal(n - 1)],
+            "speed": np.full(n, o.speed_mps),
+        }
+        ex["solar"][2], ex["t_amb"][3] = np.nan, np.inf
+        got, ref = sk.shrink(ex, o), _shrink_reference(sk, ex, o)
+        for q in ex:
+            assert got[q].shape == (n,) and np.array_equal(got[q], ref[q], equal_nan=True), q
+        assert math.isnan(got["solar"][2]) and got["t_amb"][3] == np.inf
+        moved = np.isfinite(got["solar"]) & (ex["solar"] != o.solar_wm2)
+        assert np.any(got["solar"][moved] != ex["solar"][moved])  # something was shrunk
+        assert np.array_equal(got["speed"], ex["speed"])  # no change, nothing shrunk
+        for q in ("solar", "t_amb"):  # changes shrunk part of the way (not to 0, not whole)
+            meas = o.solar_wm2 if q == "solar" else o.t_amb_c
+            d_got, d_ex = got[q] - meas, ex[q] - meas
+            n_partly += int(np.sum(np.isfinite(d_got) & (np.abs(d_got) > 0) & (np.abs(d_got) < np.abs(d_ex))))
+        for q in ("solar", "t_amb"):
+            f = np.where(np.asarray(sk.sw_f[q]) > 0, np.asarray(sk.se_f[q]) / np.asarray(sk.sw_f[q]), 0.0)
+            pe = np.where(np.asarray(sk.sw_p[q]) > 0, np.asarray(sk.se_p[q]) / np.asarray(sk.sw_p[q]), 0.0)
+            assert np.array_equal(sk.forecast_mse(q), f) and np.array_equal(sk.persistence_mse(q), pe)
+            assert np.array_equal(sk.estimate_mse(q, n), held(np.minimum(f, pe), n))
+            assert sk.estimate_mse(q, n)[1:].min() > 0.0  # (lead 0's persistence error is 0)
+    assert n_partly > 100
+
+
 def test_held_extends_with_the_last_value():
     assert held([1.0, 2.0, 3.0], 5) == pytest.approx([1, 2, 3, 3, 3])
     assert held([1.0, 2.0, 3.0], 2) == pytest.approx([1, 2])

@@ -124,6 +124,12 @@ def vapour_pressure_pa(t_c, rh):
     Where ``t_c`` is the air temperature [degC] and ``rh`` the relative humidity,
     a 0..1 fraction (ValueError outside it on the numpy path).
     """
+    if type(t_c) in _SCALARS and type(rh) in _SCALARS:  # two numbers (the controller's step): no array checks
+        if not math.isfinite(rh):
+            raise ValueError(f"rh must be finite (no NaN/inf), got {rh!r}")
+        if not 0.0 <= rh <= 1.0:
+            raise ValueError(f"rh must be a fraction in [0, 1], got {rh!r}")
+        return rh * saturation_vapour_pressure_pa(t_c)
     ops = mathops.backend(t_c, rh)
     rh = _check(ops, "rh", rh)
     if not ops.is_casadi and np.any((rh < 0.0) | (rh > 1.0)):

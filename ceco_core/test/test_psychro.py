@@ -46,3 +46,21 @@ def test_casadi_equals_numpy_and_bad_input_is_named():
         psychro.vapour_pressure_pa(25.0, 1.2)
     with pytest.raises(ValueError, match="p_w_pa"):
         psychro.dew_point_c(0.0)
+
+
+def test_the_scalar_path_equals_the_array_path_to_the_bit_and_refuses_the_same_input():
+    # vapour_pressure_pa on two numbers (the controller's step) skips the array checks: same value, same refusals
+    for t_c in (0.0, 12.5, 25.3, 40.1, np.float64(33.3)):
+        for rh in (0.0, 0.31, 0.77, 1.0, np.float64(0.5)):
+            scalar = psychro.vapour_pressure_pa(t_c, rh)
+            assert type(scalar) is np.float64
+            assert scalar == float(psychro.vapour_pressure_pa(np.array([t_c]), np.array([rh]))[0])
+    assert psychro.vapour_pressure_pa(25.0, 0.5) == pytest.approx(0.5 * 3169.9, rel=3e-4)
+    for t_c, rh, name in ((25.0, 1.0 + 1e-12, "rh"), (25.0, -1e-12, "rh"), (25.0, np.nan, "rh"), (25.0, np.inf, "rh")):
+        with pytest.raises(ValueError, match=name):
+            psychro.vapour_pressure_pa(t_c, rh)
+        with pytest.raises(ValueError, match=name):
+            psychro.vapour_pressure_pa(np.array([t_c]), np.array([rh]))
+    for t_c in (np.nan, -np.inf):
+        with pytest.raises(ValueError, match="t_c"):
+            psychro.vapour_pressure_pa(t_c, 0.5)
