@@ -267,6 +267,8 @@ def test_settle_after_the_command_changes_no_number():
         assert d1.success and d2.success and d1.message == d2.message  # the PMV, bias and back-off in the note
     assert lazy.pmv_feedback.bias == eager.pmv_feedback.bias != 0.0
     assert np.array_equal(lazy._bias.bias, eager._bias.bias)
+    residuals = list(eager.pmv_feedback.residuals)
+    assert list(lazy.pmv_feedback.residuals) == residuals and len(residuals) == 5 and len(set(residuals)) == 5
 
 
 def test_a_step_reads_the_comfort_parameters_once_and_the_nlp_gets_them(monkeypatch):

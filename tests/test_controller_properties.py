@@ -162,14 +162,22 @@ def test_a_nan_previous_command_does_not_poison_the_estimator():
     """Issue 12 'Poisoned estimator': a NaN previous command is replaced by the command the
     controller applied; the bias estimates stay finite and every later solve succeeds."""
     ctrl = NmpcController("ceco")
+
+    def near_comfort(k):  # a cabin near comfort: commands inside the actuator range (not at a bound)
+        return Observation(**{**_clean(k, 24.5).__dict__, "t_int_c": 32.0, "t_shell_c": 32.0})
+
     for k in range(3):
-        ctrl.compute(_clean(k, 27.0))
-    obs = _clean(3, 27.0).__dict__.copy()
+        cmd, _ = ctrl.compute(near_comfort(k))
+    applied = (cmd.mdot_bl_kgps, cmd.t_evap_sp_c)
+    assert 0.06 < applied[0] < 0.16 and 4.0 < applied[1] < 12.0  # inside the range: a bound would not tell
+    obs = near_comfort(3).__dict__.copy()
     obs["mdot_bl_prev_kgps"] = math.nan
     obs["t_evap_sp_prev_c"] = math.inf
     cmd, diag = ctrl.compute(Observation(**obs))
     assert diag.fallback == "" and diag.success and "the command applied last used instead" in diag.message
     assert ctrl.counters.substituted_commands == 1
+    # the NLP planned from the command applied last, exactly (its u_prev), the bias model predicted with it
+    assert tuple(ctrl.problem.params.get(ctrl.last_nlp().p, "u_prev")) == applied
     for k in range(4, 10):
         cmd, diag = ctrl.compute(_clean(k, 27.0))
         assert diag.success and diag.fallback == "" and np.all(np.isfinite(ctrl._bias.bias))

@@ -45,10 +45,12 @@ def test_forced_failure_falls_back_to_baseline_then_shifted_plan():
     ctrl.solver_cold = bad.solver_cold
     cmd1, d1 = ctrl.compute(_obs(1))
     assert d1.fallback == "shifted_plan" and _valid(cmd1)
-    assert (cmd1.mdot_bl_kgps, cmd1.t_evap_sp_c) == pytest.approx(tuple(plan[1]))
-    # after Np-1 failures the plan is exhausted: baseline
+    # (exactly: the plan's step 1, clipped into the actuator range it may pass by the solver's bound tolerance)
+    assert (cmd1.mdot_bl_kgps, cmd1.t_evap_sp_c) == tuple(float(v) for v in ctrl.lim.clip(plan[1][0], plan[1][1]))
+    assert np.abs(np.asarray(ctrl.lim.clip(plan[1][0], plan[1][1])) - plan[1]).max() < 1e-6
+    # the plan's later steps one by one; after Np - 1 = 5 failures it is exhausted: the baseline
     fallbacks = [ctrl.compute(_obs(k))[1].fallback for k in range(2, 8)]
-    assert fallbacks[-1] == "baseline" and "shifted_plan" in fallbacks
+    assert fallbacks == ["shifted_plan"] * 4 + ["baseline"] * 2
 
 
 def test_nan_measurement_uses_baseline():
@@ -508,7 +510,7 @@ def test_hand_over_to_the_acc_law_and_back_is_bumpless():
     cmd, diag = ctrl.compute(_obs(12, t_cab=24.5, mdot_bl_prev_kgps=cmds[-1][0], t_evap_sp_prev_c=cmds[-1][1], **_ZONE))
     assert diag.fallback == "" and diag.success and _valid(cmd)
     # the NMPC plans from the applied command (its u_prev, move penalty); its first move is its own decision
-    assert ctrl.problem.params.get(ctrl.last_nlp().p, "u_prev") == pytest.approx(cmds[-1])
+    np.testing.assert_array_equal(ctrl.problem.params.get(ctrl.last_nlp().p, "u_prev"), cmds[-1])
 
 
 def test_prepare_makes_the_first_step_warm_and_warm_up_leaves_no_trace():
