@@ -189,6 +189,7 @@ def test_type_hashes_equal_rosidl_generated_ones(tmp_path):
     w = _writer(tmp_path / 'bag')
     w.close()
     meta = yaml.safe_load((tmp_path / 'bag' / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert len(meta['topics_with_message_count']) == len(TYPES)  # every topic, also without messages
     for t in meta['topics_with_message_count']:
         tm = t['topic_metadata']
         rosidl = json.loads(open(f"{share}/msg/{tm['type'].split('/')[-1]}.json").read())['type_hashes'][0]
@@ -492,6 +493,7 @@ def test_independent_mcap_reader_gets_the_same_messages(tmp_path):
     )
     # and rosbags reads the same values back
     back = [(t, ts, plain(m)) for t, ts, m in bagio.read_messages(tmp_path / 'bag')]
+    assert sorted((t, ts) for t, ts, _ in back) == sorted((t, ts) for t, ts, _ in written)  # every message, once
     for topic, t_ns, values in back:
         assert_same_fields(values, by_key[(topic, t_ns)], f'rosbags {topic}@{t_ns}')
 

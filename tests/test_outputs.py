@@ -243,6 +243,9 @@ def test_console_table_width_units_signs_and_validity_labels(short_runs):
     fam = {n: vd.run_point(cols['baseline']) for n in ('baseline@26.0',)}
     fam['baseline@27.0'] = dict(fam['baseline@26.0'], energy_kwh=0.5 * kpis['baseline']['energy_kwh'])
     fam['baseline@27.0']['discomfort_pmvh'] = 2.0 * fam['baseline@26.0']['discomfort_pmvh']
+    # a more comfortable, costlier member: ceco-e (a little more comfortable than the baseline) inside the front
+    fam['baseline@25.0'] = dict(fam['baseline@26.0'], energy_kwh=2.0 * kpis['baseline']['energy_kwh'])
+    fam['baseline@25.0']['discomfort_pmvh'] = 0.5 * fam['baseline@26.0']['discomfort_pmvh']
     v = vd.build_verdict('sc03', {k: vd.run_point(c) for k, c in cols.items()}, fam)
     rows = outputs.table_rows(metrics, kpis, v)
     text = outputs.console_table(rows)
@@ -255,6 +258,12 @@ def test_console_table_width_units_signs_and_validity_labels(short_runs):
     assert by['ceco-e']['energy_change_pct'] == pytest.approx(100 * (e_ceco - e_base) / e_base)
     cells = lines[3].split()
     assert cells[0] == 'ceco-e' and float(cells[2]) == pytest.approx(by['ceco-e']['energy_change_pct'], abs=0.05)
+    # ceco-e uses less energy than the baseline at a little better comfort: 'change' negative, 'saving' positive and
+    # larger (the front costs more at better comfort), printed with its sign
+    saving = by['ceco-e']['energy_saving_matched_pct']
+    assert saving > -by['ceco-e']['energy_change_pct'] > 0.0
+    assert cells[2] == f"{by['ceco-e']['energy_change_pct']:+.1f}" and cells[4] == f'{saving:+.1f}'
+    assert kpis['ceco-e']['discomfort_pmvh'] < fam['baseline@26.0']['discomfort_pmvh']
     assert metrics['ceco-e']['pmv_max'] > 3.0 and cells[7] == '>3'  # the hot pull-down, clipped where printed
     assert float(cells[8]) == pytest.approx(kpis['ceco-e']['iso7730_invalid_pct'], abs=0.05) and float(cells[8]) > 50
     assert 'ISO out: samples outside ISO 7730' in text and 'saving: energy' in text
@@ -263,10 +272,10 @@ def test_console_table_width_units_signs_and_validity_labels(short_runs):
     assert 'PMV max (raw)' in full
 
 
+@pytest.mark.extra('fastsim')
 def test_vehicle_rows_say_change_not_saving():
     """The vehicle-level columns are changes (negative = less energy), never a 'saving' with the
     opposite sign (report/vehicle.csv had saving_fit_pct = +4.38 for a strategy using more)."""
-    pytest.importorskip('fastsim')
     from ceco_bringup import vehicle_energy as ve
 
     t, v = ve.drive_cycle_for_run('sc03', 120.0)
@@ -426,9 +435,9 @@ def _parser(verb):
 
 
 def test_the_same_flag_names_in_every_verb():
-    """The same setting has the same flag, type and unit in every verb that has it (run and sim named
-    them --preview/--horizon-steps/--control-period-s/--duration-s against --preview-quality/--horizon/
-    --control-period/--duration)."""
+    """The same setting has the same flag, type, default, choices and arity in every verb that has it (run and sim
+    named them --preview/--horizon-steps/--control-period-s/--duration-s against --preview-quality/--horizon/
+    --control-period/--duration). Defaults that differ by verb on purpose are listed with the reason."""
     actions = {}
     for flag, verbs in SHARED.items():
         for verb in verbs:
@@ -436,11 +445,17 @@ def test_the_same_flag_names_in_every_verb():
             opts = {o: a for a in parser._actions for o in a.option_strings}
             assert flag in opts, (verb, flag)
             actions.setdefault(flag, []).append((verb, opts[flag]))
+    n_compared = 0
     for flag, acts in actions.items():
         if flag in ('--strategy', '--out', '--scenario'):  # defaults differ by verb, the name and meaning do not
             continue
-        types = {getattr(a.type, '__name__', None) for _, a in acts}
-        assert len(types) == 1, (flag, types)
+        # --namespace: run's '' is "no namespace" (the stack it starts), play's and report's None is "the only one
+        # in the bag" (the stack they read): the default differs, the type does not
+        default = (lambda a: None) if flag == '--namespace' else (lambda a: repr(a.default))
+        kinds = {(a.type, default(a), tuple(a.choices or ()), a.nargs, type(a)) for _, a in acts}
+        assert len(kinds) == 1, (flag, kinds)
+        n_compared += len(acts) > 1
+    assert n_compared == len(SHARED) - 3
 
 
 def test_old_flag_names_work_with_a_deprecation_line(tmp_path, capsys):
