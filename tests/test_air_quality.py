@@ -163,6 +163,13 @@ def test_door_logic_economiser_lets_outside_air_in_while_the_cabin_is_hotter_and
     assert law.step(5.0, **{**kw, "t_cab_c": 35.9, "t_amb_c": 35.0}).mode == "recirc"  # no dwell after the rule
     assert law.step(5.0, **{**kw, "t_cab_c": 43.0, "t_amb_c": 35.0, "co2_sensor_ppm": 1200.0}).mode == "economiser"
     assert law.step(5.0, **{**kw, "t_cab_c": 43.0, "t_amb_c": math.nan}).mode == "recirc"  # unknown: no rule
+    # the overrides come first: where the economiser would open, a fog threat or a sensor fault says so (the share is
+    # the same 0, the mode tells why)
+    hot = {**kw, "t_cab_c": 43.0, "t_amb_c": 35.0}
+    c = RecircLaw(RecircSettings(door_mode="auto")).step(5.0, **{**hot, "fog_margin_k": 3.4})
+    assert (c.mode, c.recirc_share) == ("fog", 0.0)
+    c = RecircLaw(RecircSettings(door_mode="auto")).step(5.0, **{**hot, "co2_sensor_ppm": math.nan})
+    assert (c.mode, c.recirc_share) == ("co2_sensor_fault", 0.0)
     off = RecircLaw(RecircSettings(door_mode="auto", door_economiser_k=math.inf))
     assert off.step(5.0, **{**kw, "t_cab_c": 43.0, "t_amb_c": 35.0}).mode == "recirc"
     for bad in (0.0, -1.0, math.nan):

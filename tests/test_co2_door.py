@@ -71,13 +71,17 @@ def test_door_safe_defaults_fog_sensor_fault_and_economiser():
     when the ambient is cooler than the cabin by 1 K; without a fitted sensor a NaN reading is no fault (the
     balance alone); a high CO2 reading lets fresh air in, a low one keeps full recirculation."""
     law = Co2DoorLaw()
-    assert _step(law, 0.0, fog_margin_k=3.4).mode == "fog"
-    assert _step(law, 5.0, fog_margin_k=4.0).mode == "fog"  # hysteresis: not yet above bound + 1.5 K
+    c = _step(law, 0.0, fog_margin_k=3.4)
+    assert (c.recirc_share, c.mode) == (0.0, "fog")
+    c = _step(law, 5.0, fog_margin_k=4.0)
+    assert (c.recirc_share, c.mode) == (0.0, "fog")  # hysteresis: not yet above bound + 1.5 K
+    # fog over; the reading (1450 ppm) with 4 occupants on recirculation is high: as much fresh air as it has
     c = _step(law, 10.0, fog_margin_k=4.6)
-    assert c.mode != "fog"
+    assert (c.recirc_share, c.mode) == (0.0, "co2_max_fresh") and c.co2_estimate_ppm > 1450.0
     fault = _step(law, 15.0, co2_sensor_ppm=math.nan)
     assert (fault.recirc_share, fault.mode) == (0.0, "co2_sensor_fault")
-    assert _step(law, 20.0, t_amb_c=23.9).mode == "economiser"
+    c = _step(law, 20.0, t_amb_c=23.9)
+    assert (c.recirc_share, c.mode) == (0.0, "economiser")
     lo = Co2DoorLaw()
     ok = _step(lo, 0.0, co2_sensor_ppm=600.0)
     assert (ok.recirc_share, ok.mode) == (1.0, "recirc")
