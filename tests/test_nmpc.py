@@ -525,6 +525,27 @@ def test_prepare_makes_the_first_step_warm_and_warm_up_leaves_no_trace():
     assert (c2.mdot_bl_kgps, c2.t_evap_sp_c) == pytest.approx((c1.mdot_bl_kgps, c1.t_evap_sp_c), abs=1e-5)
     # warm_up changed nothing: bit-identical first step
     assert (c3.mdot_bl_kgps, c3.t_evap_sp_c) == (c1.mdot_bl_kgps, c1.t_evap_sp_c) and d3.cost_total == d1.cost_total
+    assert warmed.warm_up_problem is None
+
+
+def test_a_warm_up_whose_nominal_solve_fails_says_so():
+    """The node's configured line says how the first solve went: 'NmpcController.warm_up' alone only when the nominal
+    instance solved; a solver that cannot (IPOPT with no iteration) is named with the reason, and the controller
+    still works (its first step falls back safely)."""
+    from ceco_controller.controller_io import warm_up
+    from ceco_v2x_preview.scenario import load_scenario
+
+    scenario = load_scenario("sc03")
+    good = NmpcController("ceco")
+    assert warm_up(good, scenario, 5.0, 6) == "NmpcController.warm_up" and good.warm_up_problem is None
+    bad = NmpcController(
+        strategy_settings("ceco", solver=SolverSettings(name="ipopt", max_iter=0, transcription="single-shooting"))
+    )
+    said = warm_up(bad, scenario, 5.0, 6)
+    assert said.startswith("NmpcController.warm_up (its nominal solve not usable: ipopt: ")
+    assert bad.warm_up_problem is not None and bad.warm_up_problem in said
+    cmd, d = bad.compute(_obs(0))
+    assert d.fallback == "baseline" and _valid(cmd)
 
 
 def test_comfort_parameters_humidity_setting_and_draught_penalty():

@@ -369,12 +369,15 @@ def warm_up(core, scenario, control_period_s: float, horizon_steps: int) -> str:
     The NMPC's own key-on API when the core has it (``NmpcController.warm_up``: a nominal
     instance through every solver of its chain, also through the estimator wrapper), else one
     throw-away step on the scenario's key-on state (perfect previews); then ``core.reset()``, so
-    no state of it survives. Called in the lifecycle configure transition.
+    no state of it survives. Called in the lifecycle configure transition. A nominal NMPC solve that
+    was not usable is said in the answer (the node's "configured" line): the first steps then solve
+    cold, or fall back, as any step whose solve fails.
     """
     if callable(getattr(core, 'warm_up', None)):
         core.warm_up()
         core.reset()
-        return 'NmpcController.warm_up'
+        problem = getattr(core, 'warm_up_problem', None)
+        return 'NmpcController.warm_up' + ('' if problem is None else f' (its nominal solve not usable: {problem})')
     from ceco_core.contracts import MDOT_BL_MAX_KGPS, T_EVAP_SP_MIN_C, AcInput
     from ceco_v2x_preview.preview import PreviewQuality, make_previews
 

@@ -174,6 +174,8 @@ class NmpcController:
         """Wall time of building the NLP and its solvers [s] (compilation included when codegen compiles)."""
         self.n_ipopt_fallbacks = 0
         """Warm SQP/fatrop solves that failed and were retried with warm IPOPT (since construction)."""
+        self.warm_up_problem: str | None = None
+        """Why :meth:`warm_up`'s nominal solve was not usable (None: it was, or no warm-up ran)."""
         self._reset_state()
 
     # ------------------------------------------------------------------ build
@@ -465,14 +467,16 @@ class NmpcController:
 
         Takes the one-time costs of a first solve (allocations, first factorisations) before the
         controller is in charge; leaves the controller as after :meth:`reset`. Returns the wall
-        time [s].
+        time [s]; :attr:`warm_up_problem` says why the nominal solve was not usable (None: it was).
         """
         t0 = time.perf_counter()
         obs = nominal_observation(self.horizon_steps + 1)
         ex, _ = self.previews(obs)
         p = self.parameters(obs, ex)
         cold = self.chain._cold_solve(self.chain.cold_data(p), None)
-        if self.chain.why_unusable(cold) is None:
+        why = self.chain.why_unusable(cold)
+        self.warm_up_problem = None if why is None else f"{cold.solver}: {why} ({cold.status})"
+        if why is None:
             good = GoodSolution.of(cold, self.problem)
             data = self.chain.warm_data(p, good)
             if data is not None:
