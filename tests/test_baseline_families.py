@@ -16,7 +16,7 @@ from observations import observation
 from ceco_controller.baseline import BaselineController
 from ceco_controller.closed_loop import SimSettings, simulate
 from ceco_controller.comfort_feedback import measured_pmv
-from ceco_core.acc_law import AccSettings
+from ceco_core.acc_law import AccSettings, feedback_pmv
 from ceco_core.cabin_comfort import ComfortParams
 from ceco_v2x_preview.scenario import scenario_from_dict
 
@@ -120,8 +120,22 @@ def test_pmv_law_reads_the_observation_and_faults_safely():
     )
     pmv_of = lambda d: float(d.message.split("pmv_measured=")[1].split()[0])  # noqa: E731
     assert d4.status in ("pi", "pulldown") and math.isfinite(pmv_of(d4))
-    expected = measured_pmv(unmeasured, ComfortParams(), math.nan, math.nan)  # 1700 Pa, the interior for the glazing
+    # the scored PMV written out, not through measured_pmv (the function under test): 1700 Pa, the interior's 34 degC
+    # for the glazing
+    expected = feedback_pmv(
+        t_cab_c=30.0,
+        t_vent_c=12.0,
+        t_int_c=34.0,
+        t_shell_c=38.0,
+        t_glass_c=34.0,
+        rh_cab=math.nan,
+        mdot_bl_kgps=unmeasured.mdot_bl_prev_kgps,
+        solar_wm2=unmeasured.solar_wm2,
+        params=ComfortParams(),
+        pa_pa=1700.0,
+    )
     assert pmv_of(d4) == pytest.approx(expected, abs=5e-4) and abs(expected - pmv_of(diag)) > 0.01
+    assert measured_pmv(unmeasured, ComfortParams(), math.nan, math.nan) == pytest.approx(expected, rel=1e-12)
     # implausible readings are not measurements either (the observation check's values): the same PMV
     implausible = dataclasses.replace(hot, rh_cab=1.5, t_glass_c=400.0)
     law5 = BaselineController(AccSettings(feedback="pmv", setpoint_pmv=0.0), comfort_params=ComfortParams())

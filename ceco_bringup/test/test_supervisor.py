@@ -75,3 +75,19 @@ def test_children_get_a_parent_death_signal_without_preexec_fn(tmp_path, monkeyp
         '-p',
         'horizon_steps:=9',
     ]
+    # start() runs that prefix before the command line (a real process: `true` in place of the node)
+    import shutil
+    import subprocess
+
+    monkeypatch.setattr(supervisor, 'find_executable', lambda pkg, exe: shutil.which('true'))
+    started = []
+    real_popen = subprocess.Popen
+
+    def popen(argv, **kw):
+        started.append(list(argv))
+        return real_popen(argv, **kw)
+
+    monkeypatch.setattr(supervisor.subprocess, 'Popen', popen)
+    proc = supervisor.NodeProcess('p', 'ceco_v2x_preview', 'preview_node', env={}, log_dir=tmp_path)
+    proc.start()
+    assert started == [prefix + proc.cmd] and proc.proc.wait(timeout=30) == 0 and proc.starts == 1

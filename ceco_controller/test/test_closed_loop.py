@@ -16,13 +16,17 @@ SHORT = cl.SimSettings(duration_s=60.0, progress=False)
 
 @pytest.mark.parametrize("strategy", STRATEGIES)
 def test_every_strategy_respects_actuator_bounds(strategy):
-    res = cl.simulate("sc03", strategy, SHORT)
+    """The whole of SC03 (the first minute sits on the bounds' corner; the commands leave it from about 455 s)."""
+    res = cl.simulate("sc03", strategy, cl.SimSettings(progress=False))
     ts = res.timeseries
-    assert ts["t_s"].size == 60 and len(res.diagnostics) == 12
+    assert ts["t_s"].size == 600 and len(res.diagnostics) == 120
     assert np.all((ts["mdot_bl_kgps"] >= 0.05) & (ts["mdot_bl_kgps"] <= 0.17))
     assert np.all((ts["t_evap_sp_c"] >= 3.0) & (ts["t_evap_sp_c"] <= 10.0))
-    # the command is held over each control period
-    assert np.all(np.diff(ts["mdot_bl_kgps"].reshape(12, 5), axis=1) == 0)
+    # the command is held over each control period, both of its parts
+    for c in ("mdot_bl_kgps", "t_evap_sp_c"):
+        assert np.all(np.diff(ts[c].reshape(120, 5), axis=1) == 0), c
+    if strategy != "baseline":  # the NMPC commands inside the range, not only at its corner
+        assert len(np.unique(ts["t_evap_sp_c"])) > 1 and len(np.unique(ts["mdot_bl_kgps"])) > 2
     assert np.all(np.isfinite(ts["pmv"])) and res.metrics["E_tot_J"] > 0
 
 
@@ -31,6 +35,12 @@ def test_run_directory_format_and_determinism(tmp_path):
     b = cl.simulate("sc03", "ceco-ioch", SHORT)
     for c in cl.TIMESERIES_COLUMNS:
         np.testing.assert_array_equal(a.timeseries[c], b.timeseries[c])
+    # the controller's numbers too: every diagnostics field but the wall times, and the predicted PMV
+    timed = ("solve_time_ms", "step_time_ms")
+    rows = lambda r: [{k: v for k, v in row.items() if k not in timed} for row in r.diagnostics]  # noqa: E731
+    assert len(a.diagnostics) == 12 and repr(rows(a)) == repr(rows(b))
+    for x, y in zip(a.diag_objects, b.diag_objects):
+        np.testing.assert_array_equal(x.pred_pmv, y.pred_pmv)
     d = cl.write_run(a, tmp_path / "run")
     with open(d / "timeseries.csv") as fh:
         header = next(csv.reader(fh))
