@@ -179,6 +179,8 @@ def test_a_stalled_run_fails_clearly_and_all_goes_on(tmp_path):
         _wait_for(plant_found, 180, 'the first plant process')
         _wait_for(lambda: 'step' in target or p.poll() is not None, 180, 'the first plant to be stopped mid-run')
         text, _ = p.communicate(timeout=900)
+        # `ceco run` stopped every node it started, the frozen plant too (SIGINT, then SIGKILL): none is left
+        left = {exe: _pid_of(exe, domain) for exe in ('plant_node', 'mpc_node', 'baseline_node', 'preview_node')}
     finally:
         if p.poll() is None:
             p.kill()
@@ -189,6 +191,7 @@ def test_a_stalled_run_fails_clearly_and_all_goes_on(tmp_path):
             except ProcessLookupError:
                 pass
     assert 'step' in target, text  # the plant was stopped mid-run (control step >= 2, the run not over)
+    assert left == dict.fromkeys(left), left
     assert p.returncode == 1, text
     assert f'{STRATEGIES[0]}: FAILED: stalled: no new plant step for 10 s of wall clock' in text, text
     assert 'the plant made no progress' in text and 'run timeout' not in text, text
