@@ -315,14 +315,14 @@ class PreviewSkill:
                 continue
             # element by element on Python floats (7-13 values; numpy's per-call cost was most of the time): the
             # same IEEE operations in the same order, and NaN propagates as through numpy's maximum
-            v = self._mse(self.se_f[q], self.sw_f[q])
+            v = held(self._mse(self.se_f[q], self.sw_f[q]), x.size).tolist()  # (the horizon extension: held)
             y = []
             for i, xi in enumerate(x.tolist()):
                 dx = xi - p
                 s = 1.0
                 if dx != 0.0:
                     dd = dx * dx
-                    s = 1.0 - c2 * v[min(i, len(v) - 1)] / (dd if not dd < 1e-300 else 1e-300)
+                    s = 1.0 - c2 * v[i] / (dd if not dd < 1e-300 else 1e-300)
                     s = s if not s < 0.0 else 0.0
                 y.append(p + s * dx)
             out[q] = np.array(y)
