@@ -106,7 +106,7 @@ def test_real_time_iteration_is_one_full_qp_step():
     # one QP from the shifted solution lands on the converged optimum of the SAME instance (the RTI's last NLP,
     # solved to convergence by the full SQP from the same start): the true cost of applying the RTI plan (slacks
     # raised to feasibility) is that optimum to 1e-8, and the step took at least 90 % of the way from the start
-    # (a damped or skipped step stays 2e-5 to 5e-5 above it)
+    # (a half step failed this, run by hand)
     data, prob = rti.last_nlp(), rti.problem
     ref = full.solve_nlp(data)
     assert ref.success and ref.iterations >= 1

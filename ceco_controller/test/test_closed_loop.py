@@ -16,7 +16,8 @@ SHORT = cl.SimSettings(duration_s=60.0, progress=False)
 
 @pytest.mark.parametrize("strategy", STRATEGIES)
 def test_every_strategy_respects_actuator_bounds(strategy):
-    """The whole of SC03 (the first minute sits on the bounds' corner; the commands leave it from about 455 s)."""
+    """The whole of SC03 (the first minute sits on the bounds' corner; ceco-pmv, ceco and ceco-ioch leave it from
+    330, 390 and 455 s)."""
     res = cl.simulate("sc03", strategy, cl.SimSettings(progress=False))
     ts = res.timeseries
     assert ts["t_s"].size == 600 and len(res.diagnostics) == 120
