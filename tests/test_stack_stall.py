@@ -97,10 +97,17 @@ def test_recorder_drain_takes_what_waits_in_its_readers(tmp_path):
 
 def test_ceco_run_frozen_for_seconds_loses_nothing(tmp_path):
     """`ceco run` (it holds the recorder) gets no CPU for 5 s mid-run (SIGSTOP), well beyond the
-    2-s DDS lease it had: the plant and the controller go on, and once it runs again every message
-    they sent is in the bag and the run is complete (before: 175-460 of 600 states, exit 1)."""
-    out = tmp_path / 'run'
-    p = _ceco_run(out, _domain(2), '--strategy', 'ceco-ioch')
+    2-s DDS lease it had: the plant and the controller go on (a DDS peer of this test sees the control
+    steps' previews advance while `ceco run` is stopped), and once it runs again every message they
+    sent is in the bag and the run is complete (before: 175-460 of 600 states, exit 1)."""
+    from ceco_msgs.msg import WeatherPreview
+
+    out, domain = tmp_path / 'run', _domain(2)
+    # the witness listens to the previews (one per control step; no node's start waits for them, unlike
+    # cabin/state, where a subscriber would fill the plant's start gate in place of a stack node)
+    peer = DdsPeer(domain, 'freeze_witness')
+    previews = peer.collect(WeatherPreview, interfaces.TOPIC_WEATHER, interfaces.QOS_PREVIEW)
+    p = _ceco_run(out, domain, '--strategy', 'ceco-ioch')
 
     def n_states():
         try:
@@ -111,13 +118,18 @@ def test_ceco_run_frozen_for_seconds_loses_nothing(tmp_path):
     try:  # the controller is active (lockstep: states go on only with its commands), the run under way
         _wait_for(lambda: n_states() >= 5, 180, 'the first recorded states')
         p.send_signal(signal.SIGSTOP)
+        at_stop = max((m.step_index for m in list(previews)), default=-1)
         time.sleep(5.0)
+        at_cont = max((m.step_index for m in list(previews)), default=-1)
         p.send_signal(signal.SIGCONT)
         text, _ = p.communicate(timeout=300)
     finally:
         if p.poll() is None:
             p.kill()
+        peer.close()
     assert p.returncode == 0, text
+    # the stack went on while `ceco run` was stopped: at least 10 of the 120 control steps in those 5 s
+    assert at_cont - at_stop >= 10, (at_stop, at_cont)
     metrics = json.loads((out / 'metrics.json').read_text())
     recorded = metrics['recorded']
     assert recorded['cabin/state'] == [600, 600] and recorded['hvac/power'] == [600, 600], recorded
