@@ -378,6 +378,13 @@ BAD_NUMBERS = [
     ('oracle', '--duration-s', 'nan'),
     ('oracle', '--max-wall-time-s', '0'),
     ('oracle', '--levels', '0.1,nan'),
+    ('identify', '--control-period-s', '0'),
+    ('identify', '--horizon-steps', '-1'),
+    ('identify', '--ts', 'nan'),  # the old name is checked as the new one
+    ('bench', '--duration-s', 'nan'),
+    ('bench', '--horizons', '6,0'),
+    ('bench', '--cpu-slowdown', '0'),
+    ('bench', '--slowdown-factors', '1,-10'),
 ]
 
 
@@ -386,10 +393,14 @@ def test_bad_numbers_are_one_line_and_exit_2(verb, flag, value, tmp_path, capsys
     """Issue 17 item 7: each bad number is one clear line naming the flag and what it accepts, exit
     status 2, before anything runs (--control-period-s 0 fell back to the scenario's, --duration-s
     nan was a traceback, inf and --run-timeout-s -1 were accepted)."""
-    first = {'play': [str(tmp_path)], 'report': [str(tmp_path)], 'sweep': ['grid.yaml'], 'oracle': ['sc03-paper']}.get(
-        verb, []
-    )
-    rest = [] if verb in ('play', 'report') else ['--out', str(tmp_path / 'out')]
+    first = {
+        'play': [str(tmp_path)],
+        'report': [str(tmp_path)],
+        'sweep': ['grid.yaml'],
+        'oracle': ['sc03-paper'],
+        'bench': ['nmpc'],
+    }.get(verb, [])
+    rest = [] if verb in ('play', 'report', 'bench') else ['--out', str(tmp_path / 'out')]
     with pytest.raises(SystemExit) as exc:
         cli.main([verb, *first, flag, value, *rest])
     assert exc.value.code == 2
@@ -401,18 +412,18 @@ def test_bad_numbers_are_one_line_and_exit_2(verb, flag, value, tmp_path, capsys
 
 SHARED = {
     '--scenario': ('run', 'sim', 'play', 'report'),
-    '--strategy': ('run', 'sim', 'play', 'report'),
+    '--strategy': ('run', 'sim', 'play', 'report', 'bench'),
     '--out': ('run', 'sim', 'report', 'benchmark', 'sweep', 'oracle'),
     '--preview': ('run', 'sim'),
-    '--control-period-s': ('run', 'sim', 'play', 'oracle'),
-    '--horizon-steps': ('run', 'sim', 'play'),
-    '--duration-s': ('run', 'sim', 'oracle'),
+    '--control-period-s': ('run', 'sim', 'play', 'oracle', 'identify'),
+    '--horizon-steps': ('run', 'sim', 'play', 'identify'),
+    '--duration-s': ('run', 'sim', 'oracle', 'bench'),
     '--seed': ('run', 'sim'),
     '--workers': ('benchmark', 'sweep'),
     '--backend': ('benchmark', 'sweep'),
     '--namespace': ('run', 'play', 'report'),
     '--domain-id': ('run', 'play'),
-    '--no-progress': ('run', 'sim', 'play', 'benchmark', 'sweep', 'oracle'),
+    '--no-progress': ('run', 'sim', 'play', 'benchmark', 'sweep', 'oracle', 'bench'),
     '--baseline-setpoints-c': ('run', 'sim'),
 }
 
@@ -421,8 +432,11 @@ def _parser(verb):
     from ceco_bringup import oracle_cli, report, run
     from ceco_bringup.benchmark import cli as bcli
     from ceco_bringup.sweep import cli as scli
+    from ceco_controller import bench, identification
 
     builders = {
+        'identify': identification,
+        'bench': bench,
         'run': run,
         'sim': sim,
         'play': play,
@@ -556,3 +570,47 @@ def test_identify_writes_a_new_run_directory_never_over_a_tracked_file(tmp_path,
         idn.main(['--out', str(cm.DEFAULT_PARAMS_PATH.parent)])  # the tracked file's directory
     assert exc.value.code == 2 and 'model_params.yaml exists: choose a new --out' in capsys.readouterr().err
     assert cm.DEFAULT_PARAMS_PATH.read_bytes() == tracked
+
+
+def test_bench_and_identify_take_the_shared_flags_and_their_old_names_say_so(capsys):
+    """`ceco bench nmpc` and `ceco identify` name their settings as every other verb does (--strategy, --duration-s,
+    --no-progress; --control-period-s, --horizon-steps); their old names (--strategies, --duration, --progress; --ts,
+    --horizon) still parse into the same settings, each with one line saying which name to use."""
+    from ceco_controller import bench, identification
+    from ceco_core.contracts import CECO_STRATEGIES
+
+    old = bench.parse_args(['nmpc', '--strategies', 'ceco,ceco-pmv-aq', '--duration', '30', '--progress'])
+    new = bench.parse_args(['nmpc', '--strategy', 'ceco,ceco-pmv-aq', '--duration-s', '30'])
+    assert old[1:] == new[1:] == ([6, 12, 24, 60], ['ceco', 'ceco-pmv-aq'], 30.0)
+    assert old[0].progress is new[0].progress is True  # progress bars by default, as in every verb
+    err = capsys.readouterr().err
+    assert 'ceco bench: --strategies is deprecated and goes in the next release: use --strategy' in err
+    assert 'ceco bench: --duration is deprecated and goes in the next release: use --duration-s' in err
+    assert 'ceco bench: --progress is deprecated' in err and '--no-progress hides them' in err
+    quiet = bench.parse_args(['nmpc', '--strategy', 'all', '--quick', '--no-progress'])
+    assert quiet[0].progress is False and quiet[1:] == ([6, 12], list(CECO_STRATEGIES), 200.0)  # all: the NMPC ones
+    with pytest.raises(SystemExit) as exc:
+        bench.parse_args(['nmpc', '--strategy', 'baseline,ceco'])  # named, the baseline is refused, not dropped
+    assert exc.value.code == 2
+    assert 'argument --strategy: baseline has no solver to time' in capsys.readouterr().err
+
+    ident = identification.build_parser()
+    a = ident.parse_args(['--ts', '4', '--horizon', '8'])
+    b = ident.parse_args(['--control-period-s', '4', '--horizon-steps', '8'])
+    assert (a.control_period_s, a.horizon_steps) == (b.control_period_s, b.horizon_steps) == (4.0, 8)
+    err = capsys.readouterr().err
+    assert 'ceco identify: --ts is deprecated and goes in the next release: use --control-period-s' in err
+    assert 'ceco identify: --horizon is deprecated and goes in the next release: use --horizon-steps' in err
+    d = ident.parse_args([])
+    assert (d.control_period_s, d.horizon_steps) == (None, None)  # resolved to the model's 5 s and 6 steps in main
+    assert (identification.TS_DEFAULT_S, identification.NP_DEFAULT) == (5.0, 6)
+
+
+def test_the_scenario_help_names_every_bundled_scenario():
+    """`--scenario`'s help lists the scenarios that ship (it named 6 of 12)."""
+    from ceco_core.cli_flags import BUNDLED_SCENARIOS
+    from ceco_v2x_preview.scenario import list_scenarios
+
+    assert sorted(BUNDLED_SCENARIOS) == sorted(list_scenarios())
+    help_text = ' '.join(sim.build_parser().format_help().split())
+    assert f"bundled scenario name ({', '.join(BUNDLED_SCENARIOS)}) or YAML path" in help_text

@@ -1,42 +1,41 @@
-"""The flags the ``ceco`` verbs share, declared once, and the verbs' argument parser.
+"""The ``ceco`` verbs' argument parser: the shared flags (``ceco_core.cli_flags``) and the benchmark cases' ``--case``.
 
-Every verb builds its parser with :class:`Parser` and adds the shared settings with the
-``add_*`` functions here, so the same setting has the same flag name, type check, unit and
-help text in ``run``, ``sim``, ``benchmark``, ``sweep``, ``play`` and ``report``
-(docs/architecture.md, "The ceco command"):
-
-==========================  ===============================================  ====================
-flag                        setting                                          old name (deprecated)
-==========================  ===============================================  ====================
-``--scenario``              bundled scenario name or YAML path
-``--strategy``              ``all`` or a comma-separated list of strategies
-``--out``                   output directory
-``--preview``               preview quality (``perfect``, ``noisy``, ...)     ``--preview-quality``
-``--control-period-s``      control period Ts [s]                             ``--control-period``
-``--horizon-steps``         prediction horizon Np [steps]                     ``--horizon``
-``--duration-s``            run length [s]                                    ``--duration``
-``--seed``                  seed of the preview noise
-``--workers``               parallel worker processes
-``--backend``/``--address`` local process pool or Ray
-``--namespace``             ROS namespace of the recorded stack
-``--domain-id``             ROS_DOMAIN_ID
-``--no-progress``           no progress bar
-==========================  ===============================================  ====================
-
-A bad value is one line on stderr naming the flag, the value and what is accepted, and exit
-status 2 (never a traceback): :meth:`Parser.error`. An old flag name still works for one
-release and prints one deprecation line. ``--help`` shows every default.
+The shared flags, their types, their deprecated names and the one-line errors are declared once in
+:mod:`ceco_core.cli_flags` (also used by ``ceco identify`` and ``ceco bench``) and re-exported here;
+``--case`` needs the benchmark's cases (:mod:`ceco_bringup.benchmark.cases`), so it lives here.
 
 Pure Python (argparse); no ROS import.
 """
 
 from __future__ import annotations
 
-import argparse
-import math
-import os
-import sys
-from collections.abc import Sequence
+from ceco_core.cli_flags import (
+    DEPRECATED_FLAGS,
+    Parser,
+    UserError,
+    add_backend,
+    add_baseline_setpoints,
+    add_control_period,
+    add_domain_id,
+    add_duration,
+    add_horizon,
+    add_namespace,
+    add_no_progress,
+    add_out,
+    add_preview,
+    add_scenario,
+    add_seed,
+    add_strategy,
+    add_workers,
+    check_duration,
+    finite_float,
+    nonnegative_float,
+    nonnegative_int,
+    positive_float,
+    positive_int,
+    setpoint_list,
+    strategy_list,
+)
 
 __all__ = [
     'Parser',
@@ -64,157 +63,11 @@ __all__ = [
     'setpoint_list',
     'check_duration',
     'DEPRECATED_FLAGS',
+    'add_case',
+    'CASE_SCENARIO_FILE',
+    'apply_case',
+    'case_overrides',
 ]
-
-
-class UserError(Exception):
-    """A mistake of the user's (a bad value, a missing file): one line with the fix, exit status 2."""
-
-
-class _Formatter(argparse.RawDescriptionHelpFormatter):
-    """Keeps the description's layout and appends ``(default: X)`` to every option that has one."""
-
-    def _get_help_string(self, action):
-        text = action.help or ''
-        default = action.default
-        if (
-            '(default' in text
-            or default is None
-            or default is False
-            or default is argparse.SUPPRESS
-            or not action.option_strings
-            or isinstance(action, _Deprecated)
-        ):
-            return text
-        shown = ','.join(map(str, default)) if isinstance(default, (list, tuple)) else default
-        return f'{text} (default: {shown})'
-
-
-class Parser(argparse.ArgumentParser):
-    """The parser of a ``ceco`` verb: defaults in ``--help``, errors as one line and exit status 2."""
-
-    def __init__(self, prog: str, description: str = '', **kw):
-        super().__init__(prog=prog, description=description, formatter_class=_Formatter, **kw)
-
-    def error(self, message: str):
-        """Print ``PROG: error: MESSAGE (PROG --help lists the options)`` and exit with status 2."""
-        self.exit(2, f'{self.prog}: error: {message} ({self.prog} --help lists the options)\n')
-
-
-# ------------------------------------------------------------------------------------- value types
-def finite_float(text: str) -> float:
-    """A finite number (argparse type); the message says what was given."""
-    try:
-        x = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be a number, got {text!r}') from None
-    if not math.isfinite(x):
-        raise argparse.ArgumentTypeError(f'must be a finite number, got {text!r}')
-    return x
-
-
-def positive_float(text: str) -> float:
-    """A finite number > 0 (argparse type)."""
-    x = finite_float(text)
-    if x <= 0.0:
-        raise argparse.ArgumentTypeError(f'must be a finite number > 0, got {text!r}')
-    return x
-
-
-def nonnegative_float(text: str) -> float:
-    """A finite number >= 0 (argparse type)."""
-    x = finite_float(text)
-    if x < 0.0:
-        raise argparse.ArgumentTypeError(f'must be a finite number >= 0, got {text!r}')
-    return x
-
-
-def positive_int(text: str) -> int:
-    """An integer >= 1 (argparse type)."""
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be a whole number >= 1, got {text!r}') from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f'must be a whole number >= 1, got {text!r}')
-    return n
-
-
-def nonnegative_int(text: str) -> int:
-    """An integer >= 0 (argparse type)."""
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be a whole number >= 0, got {text!r}') from None
-    if n < 0:
-        raise argparse.ArgumentTypeError(f'must be a whole number >= 0, got {text!r}')
-    return n
-
-
-def strategy_list(text: str) -> list[str]:
-    """``all`` or a comma-separated list of strategies, as a list without repeats (argparse type).
-
-    ``all``: the baseline and the CECO strategies; a list may also name a variant such as ``ceco-pmv-aq``.
-    """
-    from ceco_core.contracts import NAMED_STRATEGIES, STRATEGIES
-
-    if text.strip() == 'all':
-        return list(STRATEGIES)
-    names = [s.strip() for s in text.split(',') if s.strip()]
-    bad = [s for s in names if s not in NAMED_STRATEGIES]
-    if not names or bad:
-        raise argparse.ArgumentTypeError(
-            f"unknown strategy {', '.join(bad) or repr(text)}: use all or a comma-separated list of "
-            f"{', '.join(NAMED_STRATEGIES)}"
-        )
-    return list(dict.fromkeys(names))
-
-
-# ------------------------------------------------------------------------------------- deprecated names
-DEPRECATED_FLAGS = {
-    '--preview-quality': '--preview',
-    '--control-period': '--control-period-s',
-    '--horizon': '--horizon-steps',
-    '--duration': '--duration-s',
-}
-"""Old flag name -> the shared name (accepted for one release with a deprecation line)."""
-
-
-class _Deprecated(argparse.Action):
-    """An old flag name: stores into the new flag's destination and says so once on stderr."""
-
-    def __init__(self, option_strings, dest, new_flag='', value_type=None, **kw):
-        self.new_flag = new_flag
-        self.value_type = value_type
-        super().__init__(option_strings, dest, help=argparse.SUPPRESS, **kw)
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        if self.value_type is not None:
-            try:
-                values = self.value_type(values)
-            except argparse.ArgumentTypeError as exc:
-                parser.error(f'argument {option_string}: {exc}')
-        print(
-            f'{parser.prog}: {option_string} is deprecated and goes in the next release: use {self.new_flag}',
-            file=sys.stderr,
-        )
-        setattr(namespace, self.dest, values)
-
-
-def _add(p, flag: str, *, dest: str, type_=None, deprecated: Sequence[str] = (), **kw) -> None:
-    p.add_argument(flag, dest=dest, type=type_, **kw)
-    for old in deprecated:
-        p.add_argument(old, dest=dest, action=_Deprecated, new_flag=flag, value_type=type_, default=argparse.SUPPRESS)
-
-
-# ------------------------------------------------------------------------------------- shared flags
-def add_scenario(p, default: str | None = 'sc03', help_extra: str = '') -> None:
-    """``--scenario``: a bundled scenario name or a scenario YAML path."""
-    p.add_argument(
-        '--scenario',
-        default=default,
-        help='bundled scenario name (sc03, udds, hwfet, us06, sc03_mild, sc03_hotsoak) or YAML path' + help_extra,
-    )
 
 
 def add_case(p) -> None:
@@ -267,147 +120,3 @@ def case_overrides(case, strategy: str) -> tuple:
     :meth:`~ceco_bringup.benchmark.cases.Case.strategy_overrides`: the case's door for a baseline.
     """
     return tuple(case.strategy_overrides(strategy).items()) if case is not None else ()
-
-
-def add_strategy(p, default: str | None, help_extra: str = '') -> None:
-    """``--strategy``: ``all`` or a comma-separated list of strategies, parsed into a list."""
-    from ceco_core.contracts import NAMED_STRATEGIES, STRATEGIES
-
-    p.add_argument(
-        '--strategy',
-        type=strategy_list,
-        default=default if default is None else strategy_list(default),
-        help=f"all ({', '.join(STRATEGIES)}), or one or a comma-separated list of {', '.join(NAMED_STRATEGIES)}"
-        + help_extra,
-    )
-
-
-def add_out(p, help_: str, *, required: bool = True, default: str | None = None) -> None:
-    """``--out``: the output directory."""
-    p.add_argument('--out', required=required, default=default, help=help_)
-
-
-def add_preview(p, default: str | None = 'perfect', help_extra: str = '') -> None:
-    """``--preview`` (old name ``--preview-quality``): the preview quality grammar."""
-    _add(
-        p,
-        '--preview',
-        dest='preview',
-        default=default,
-        deprecated=('--preview-quality',),
-        help='V2X preview quality: perfect | noisy[:KEY=V,...] | delayed:S | missing:A-B[,...] | '
-        'uncertain:LEVEL, joined by + (docs/scenarios.md)' + help_extra,
-    )
-
-
-def add_control_period(p) -> None:
-    """``--control-period-s`` (old name ``--control-period``): Ts [s], > 0."""
-    _add(
-        p,
-        '--control-period-s',
-        dest='control_period_s',
-        type_=positive_float,
-        default=None,
-        deprecated=('--control-period',),
-        help="control period Ts [s] (default: the scenario's, 5 s for the bundled ones)",
-    )
-
-
-def add_horizon(p) -> None:
-    """``--horizon-steps`` (old name ``--horizon``): Np [steps], >= 1."""
-    _add(
-        p,
-        '--horizon-steps',
-        dest='horizon_steps',
-        type_=positive_int,
-        default=None,
-        deprecated=('--horizon',),
-        help="prediction horizon Np [steps] (default: the scenario's, 6 for the bundled ones)",
-    )
-
-
-def add_duration(p) -> None:
-    """``--duration-s`` (old name ``--duration``): run only the first seconds of the scenario [s], > 0."""
-    _add(
-        p,
-        '--duration-s',
-        dest='duration_s',
-        type_=positive_float,
-        default=None,
-        deprecated=('--duration',),
-        help="run only the first DURATION seconds of the scenario [s] (default: the scenario's length)",
-    )
-
-
-def add_seed(p) -> None:
-    """``--seed``: the seed of the preview noise."""
-    p.add_argument(
-        '--seed',
-        type=int,
-        default=None,
-        help="seed of the preview noise (default: the preview's seed=, else with --case the case's first, "
-        "else the scenario's)",
-    )
-
-
-def add_workers(p) -> None:
-    """``--workers``: parallel worker processes, >= 1."""
-    p.add_argument(
-        '--workers', type=positive_int, default=None, help=f'parallel workers (default: all cores, {os.cpu_count()})'
-    )
-
-
-def add_backend(p) -> None:
-    """``--backend`` and ``--address``: the local process pool or Ray."""
-    p.add_argument('--backend', choices=('local', 'ray'), default='local', help='local process pool or Ray')
-    p.add_argument(
-        '--address', default=None, help='Ray cluster address, e.g. auto or ray://host:10001 (needs --backend ray)'
-    )
-
-
-def add_namespace(p, help_: str, default: str | None = None) -> None:
-    """``--namespace``: a ROS namespace."""
-    p.add_argument('--namespace', default=default, help=help_)
-
-
-def add_domain_id(p, help_: str) -> None:
-    """``--domain-id``: a ROS_DOMAIN_ID."""
-    p.add_argument('--domain-id', type=int, default=None, help=help_)
-
-
-def setpoint_list(text: str) -> tuple[float, ...]:
-    """``--baseline-setpoints-c``: 2 or more comma-separated set-points in 15..35 degC, or ``none`` (argparse type)."""
-    if text.strip().lower() == 'none':
-        return ()
-    try:
-        vals = tuple(float(x) for x in text.split(',') if x.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected set-points like 23,24,25 or none, got {text!r}') from None
-    if len(vals) < 2 or not all(math.isfinite(x) and 15.0 <= x <= 35.0 for x in vals):
-        raise argparse.ArgumentTypeError(f'need 2 or more set-points within 15..35 degC, got {text!r}')
-    return tuple(sorted(set(vals)))
-
-
-def add_baseline_setpoints(p, default: Sequence[float]) -> None:
-    """``--baseline-setpoints-c``: the set-points of the job's baseline family [degC] (``ceco_bringup.verdict``)."""
-    p.add_argument(
-        '--baseline-setpoints-c',
-        type=setpoint_list,
-        default=tuple(default),
-        help='set-points of the baseline family run in-process for the saving at matched comfort [degC], '
-        'comma-separated; none: skip it',
-    )
-
-
-def check_duration(duration_s: float | None, scenario) -> None:
-    """ValueError when ``--duration-s`` exceeds the scenario's length (never clamped silently)."""
-    if duration_s is not None and duration_s > scenario.duration_s + 1e-9:
-        raise ValueError(
-            f'--duration-s: {duration_s:g} s exceeds the length of scenario {scenario.name} '
-            f'({scenario.duration_s:g} s): give at most {scenario.duration_s:g}'
-        )
-
-
-def add_no_progress(p) -> None:
-    """``--no-progress``: no progress bar."""
-    p.add_argument('--no-progress', action='store_true', help='no progress bar')

@@ -55,7 +55,7 @@ def _levels(text: str) -> list[float]:
 def build_parser() -> cli_args.Parser:
     """The ``ceco oracle`` parser (``ceco oracle --help``)."""
     p = cli_args.Parser('ceco oracle', __doc__.split('\n\n')[0] + '\n\n' + __doc__.split('\n\n')[1])
-    p.add_argument('case', help='benchmark case: a bundled name (ceco benchmark --list-cases) or a case file')
+    p.add_argument('case', help='benchmark case: a bundled name (ceco benchmark --help lists them) or a case file')
     cli_args.add_out(p, 'output directory: one run directory per level, front.csv and front.json')
     p.add_argument(
         '--levels',

@@ -18,10 +18,10 @@ This is a benchmark, not a test: wall-clock times depend on the machine and its 
 cores here, ``os.getloadavg`` printed); only ratios measured in the same run compare.
 
     python -m ceco_controller.bench nmpc [--quick] [--jit | --no-codegen] [--horizons 6,12]
-        [--strategies ceco,ceco-c] [--method auto|ipopt|sqp|fatrop]
+        [--strategy ceco,ceco-c] [--duration-s 200] [--method auto|ipopt|sqp|fatrop]
         [--transcription auto|single-shooting|multiple-shooting] [--cpu-slowdown 100]
         [--slowdown-factors 1,10,100 | --slowdown-factors ''] [--no-prepare] [--robustness] [--rti-cases]
-        [--node]
+        [--node] [--no-progress]
 
 Per case it also prints the whole step's CPU time and the solver's (``time.thread_time``: on a
 loaded machine the wall clock mostly measures the wait for a core), the share of the step that is
@@ -51,6 +51,8 @@ import sys
 
 import numpy as np
 
+from ceco_core import cli_flags
+from ceco_core.contracts import BASELINE_STRATEGY, STRATEGIES
 from ceco_v2x_preview.scenario import load_scenario
 
 from . import closed_loop as cl
@@ -412,14 +414,21 @@ def _clean(v):
     return v
 
 
-def main(argv=None) -> int:
-    """CLI entry: ``nmpc`` (this module) or ``plant`` (:mod:`ceco_plant_sim.bench_plant`, its own flags)."""
-    args_in = sys.argv[1:] if argv is None else list(argv)
-    if args_in[:1] == ["plant"]:
-        from ceco_plant_sim.bench_plant import main as bench_plant_main
+def _list_of(item_type, allow_empty: bool = False):
+    """An argparse type: a comma-separated list of ``item_type`` values ('' an empty list where allowed)."""
 
-        return bench_plant_main(args_in[1:])
-    ap = argparse.ArgumentParser(prog="ceco bench", description="solver benchmarks")
+    def parse(text: str) -> list:
+        parts = [t for t in text.split(",") if t.strip()]
+        if not parts and not allow_empty:
+            raise argparse.ArgumentTypeError(f"expected a comma-separated list, got {text!r}")
+        return [item_type(t.strip()) for t in parts]
+
+    return parse
+
+
+def build_parser() -> cli_flags.Parser:
+    """The parser of ``ceco bench nmpc`` (``ceco bench plant`` has its own: :mod:`ceco_plant_sim.bench_plant`)."""
+    ap = cli_flags.Parser(prog="ceco bench", description="solver benchmarks")
     ap.add_argument("what", choices=["nmpc", "plant"], help="benchmark to run (plant: ceco bench plant --help)")
     ap.add_argument("--quick", action="store_true", help="Np 6 and 12 only, first 200 s of SC03")
     ap.add_argument("--jit", action="store_true", help="compile the NLP functions with gcc (slow to build)")
@@ -428,14 +437,24 @@ def main(argv=None) -> int:
         action="store_true",
         help="in-process NLP functions (default: compiled, cached, as solver.codegen: true)",
     )
-    ap.add_argument("--horizons", default=None, help="comma-separated horizons (default 6,12,24,60)")
-    ap.add_argument("--strategies", default=None, help=f"comma-separated subset of {','.join(CECO_STRATEGIES)}")
-    ap.add_argument("--duration", type=float, default=None, help="run length [s] (default: whole SC03)")
+    ap.add_argument(
+        "--horizons",
+        type=_list_of(cli_flags.positive_int),
+        default=None,
+        help="comma-separated horizons Np [steps] to compare (default 6,12,24,60; with --quick 6,12)",
+    )
+    cli_flags.add_strategy(
+        ap,
+        default=None,
+        help_extra=f" (default: all; all here means the NMPC strategies {','.join(CECO_STRATEGIES)})",
+        deprecated=("--strategies",),
+    )
+    cli_flags.add_duration(ap, default_text="the whole of SC03; with --quick 200")
     ap.add_argument(
         "--method",
         choices=list(SOLVER_NAMES),
         default=_DEFAULT.name,
-        help=f"product solver (SolverSettings.name; default {_DEFAULT.name})",
+        help="product solver (SolverSettings.name)",
     )
     ap.add_argument(
         "--transcription",
@@ -445,12 +464,15 @@ def main(argv=None) -> int:
     )
     ap.add_argument(
         "--cpu-slowdown",
-        type=float,
+        type=cli_flags.positive_float,
         default=1.0,
         help="divide every time budget of the main cases by this (an ECU that many times slower)",
     )
     ap.add_argument(
-        "--slowdown-factors", default="1,10,100", help="factors of the slow-down table (SC03, Np = 6); '' skips it"
+        "--slowdown-factors",
+        type=_list_of(cli_flags.positive_float, allow_empty=True),
+        default=[1.0, 10.0, 100.0],
+        help="factors of the slow-down table (SC03, Np = 6); '' skips it",
     )
     ap.add_argument("--no-prepare", action="store_true", help="no first solve before the controller takes over")
     ap.add_argument(
@@ -467,15 +489,46 @@ def main(argv=None) -> int:
         help="also time the whole step inside mpc_node (message in to command out) at Np = 6 "
         "(ceco_controller.bench_node; needs the built workspace)",
     )
-    ap.add_argument("--progress", action="store_true", help="show progress bars")
-    args = ap.parse_args(args_in)
-    if not args.cpu_slowdown > 0:
-        ap.error("--cpu-slowdown must be > 0")
-    horizons = (
-        [int(h) for h in args.horizons.split(",")] if args.horizons else ([6, 12] if args.quick else [6, 12, 24, 60])
-    )
-    strategies = args.strategies.split(",") if args.strategies else list(CECO_STRATEGIES)
-    duration = args.duration if args.duration is not None else (200.0 if args.quick else None)
+    cli_flags.add_no_progress(ap)
+    ap.add_argument("--progress", action="store_true", help=argparse.SUPPRESS)  # the old opt-in (deprecated)
+    return ap
+
+
+def parse_args(argv):
+    """``ceco bench nmpc``'s arguments and what they resolve to: (args, horizons, strategies, duration [s] or None).
+
+    ``--strategy all`` (or none given) is the NMPC strategies; the baseline named on its own is an error (it has no
+    solver to time), never dropped without a word. Old names (``--strategies``, ``--duration``) say so; ``--progress``
+    (the old opt-in) says that progress bars are now shown unless ``--no-progress``.
+    """
+    ap = build_parser()
+    args = ap.parse_args(argv)
+    if args.progress:
+        print(
+            "ceco bench: --progress is deprecated and goes in the next release: progress bars are shown by default "
+            "(--no-progress hides them)",
+            file=sys.stderr,
+        )
+    args.progress = not args.no_progress
+    horizons = args.horizons or ([6, 12] if args.quick else [6, 12, 24, 60])
+    if args.strategy is None or args.strategy == list(STRATEGIES):
+        strategies = list(CECO_STRATEGIES)
+    elif BASELINE_STRATEGY in args.strategy:
+        ap.error(f"argument --strategy: {BASELINE_STRATEGY} has no solver to time: name NMPC strategies or all")
+    else:
+        strategies = list(args.strategy)
+    duration = args.duration_s if args.duration_s is not None else (200.0 if args.quick else None)
+    return args, horizons, strategies, duration
+
+
+def main(argv=None) -> int:
+    """CLI entry: ``nmpc`` (this module) or ``plant`` (:mod:`ceco_plant_sim.bench_plant`, its own flags)."""
+    args_in = sys.argv[1:] if argv is None else list(argv)
+    if args_in[:1] == ["plant"]:
+        from ceco_plant_sim.bench_plant import main as bench_plant_main
+
+        return bench_plant_main(args_in[1:])
+    args, horizons, strategies, duration = parse_args(args_in)
     codegen = not args.no_codegen and not args.jit
     print(
         f"ceco bench nmpc: product solver {args.method}, transcription {args.transcription}"
@@ -507,7 +560,7 @@ def main(argv=None) -> int:
         summary["np6_node_step_p99_ms"] = float(np.max([r["node_p99_ms"] for r in node_rows]))
         summary["np6_node_over_solve"] = float(np.median([r["step_over_solve"] for r in node_rows]))
         summary["np6_node_non_solver_share"] = float(np.median([r["non_solver_share"] for r in node_rows]))
-    factors = [float(f) for f in args.slowdown_factors.split(",") if f.strip()]
+    factors = args.slowdown_factors
     if factors:
         print(f"slow-down table (SC03, Np = 6, budgets / factor; load {os.getloadavg()[0]:.1f}):", flush=True)
         table = slowdown_table(

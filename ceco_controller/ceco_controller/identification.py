@@ -46,7 +46,6 @@ CLI (also ``ceco identify``)::
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import pathlib
@@ -56,6 +55,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
 
+from ceco_core import cli_flags
 from ceco_core.air_quality import RECIRC_SHARE_DEFAULT
 
 from . import model as cm
@@ -646,9 +646,15 @@ def output_paths(out: str | None) -> tuple[pathlib.Path, pathlib.Path]:
     return d, d / "model_params.yaml"
 
 
-def main(argv=None) -> int:
-    """CLI: (re)generate the excitation data, fit, validate, write the parameter file into a run directory."""
-    ap = argparse.ArgumentParser(prog="ceco identify", description="Identify the control-oriented model.")
+TS_DEFAULT_S = 5.0
+"""``ceco identify``'s model step without ``--control-period-s`` [s] (the controller's Ts)."""
+NP_DEFAULT = 6
+"""``ceco identify``'s multi-step prediction error horizon without ``--horizon-steps`` [steps] (the NMPC's Np)."""
+
+
+def build_parser() -> cli_flags.Parser:
+    """The parser of ``ceco identify``."""
+    ap = cli_flags.Parser(prog="ceco identify", description="Identify the control-oriented model.")
     ap.add_argument(
         "--from-csv",
         nargs="*",
@@ -679,9 +685,19 @@ def main(argv=None) -> int:
         "simulated excitation holds)",
     )
     ap.add_argument("--seed", type=int, default=1, help="excitation seed (default: 1)")
-    ap.add_argument("--ts", type=float, default=5.0, help="model step [s] (default: 5)")
-    ap.add_argument("--horizon", type=int, default=6, help="horizon for the multi-step error [steps] (default: 6)")
+    cli_flags.add_control_period(ap, default_text=f"{TS_DEFAULT_S:g} s: the model's step", deprecated=("--ts",))
+    cli_flags.add_horizon(
+        ap, default_text=f"{NP_DEFAULT}: the horizon of the multi-step prediction error", deprecated=("--horizon",)
+    )
+    return ap
+
+
+def main(argv=None) -> int:
+    """CLI: (re)generate the excitation data, fit, validate, write the parameter file into a run directory."""
+    ap = build_parser()
     args = ap.parse_args(argv)
+    args.ts = args.control_period_s if args.control_period_s is not None else TS_DEFAULT_S
+    args.horizon = args.horizon_steps if args.horizon_steps is not None else NP_DEFAULT
     try:
         return _identify(args, argv)
     except (ValueError, OSError) as exc:  # a missing or malformed CSV: one line, no traceback
