@@ -614,3 +614,20 @@ def test_the_scenario_help_names_every_bundled_scenario():
     assert sorted(BUNDLED_SCENARIOS) == sorted(list_scenarios())
     help_text = ' '.join(sim.build_parser().format_help().split())
     assert f"bundled scenario name ({', '.join(BUNDLED_SCENARIOS)}) or YAML path" in help_text
+
+
+@pytest.mark.parametrize(
+    'args, says',
+    [
+        (['--scenarios', 'nope'], "argument --scenarios: scenario: unknown scenario 'nope'"),
+        (['--scenarios', ','], 'argument --scenarios: expected comma-separated scenario names'),
+        (['--steps', '0'], '--steps and --repeat must be >= 1'),
+    ],
+)
+def test_bench_plant_refuses_bad_input_in_one_line(args, says, capsys):
+    """`ceco bench plant` with an unknown scenario was a traceback (exit 1); now one line, exit status 2."""
+    with pytest.raises(SystemExit) as exc:
+        cli.main(['bench', 'plant', *args])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith('ceco bench plant: error: ') and says in err[0], err

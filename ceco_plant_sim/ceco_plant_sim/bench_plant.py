@@ -38,7 +38,9 @@ import time
 
 import numpy as np
 
+from ceco_core import cli_flags
 from ceco_core.contracts import MDOT_BL_MAX_KGPS, MDOT_BL_MIN_KGPS, T_EVAP_SP_MAX_C, T_EVAP_SP_MIN_C, AcInput
+from ceco_core.scenario_types import ScenarioError
 from ceco_v2x_preview.scenario import load_scenario
 
 from .compiled_plant import PlantEvaluation
@@ -185,7 +187,7 @@ def callgrind_per_step(scenario: str, steps: int, seed: int) -> dict[str, float]
 
 def main(argv=None) -> int:
     """CLI entry (``ceco bench plant``)."""
-    ap = argparse.ArgumentParser(prog="ceco bench plant", description=__doc__.split("\n\n")[0])
+    ap = cli_flags.Parser(prog="ceco bench plant", description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenarios", default="sc03,udds", help="comma-separated scenario names (default sc03,udds)")
     ap.add_argument("--steps", type=int, default=600, help="plant steps per run (default 600; capped by the scenario)")
     ap.add_argument("--repeat", type=int, default=3, help="timed runs per path; the fastest counts (default 3)")
@@ -201,7 +203,14 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.steps < 1 or args.repeat < 1 or args.callgrind < 0:
         ap.error("--steps and --repeat must be >= 1, --callgrind >= 0")
-    scenarios = [s for s in args.scenarios.split(",") if s]
+    scenarios = [s.strip() for s in args.scenarios.split(",") if s.strip()]
+    if not scenarios:
+        ap.error(f"argument --scenarios: expected comma-separated scenario names, got {args.scenarios!r}")
+    for name in scenarios:  # an unknown name or a bad file: one line before anything runs
+        try:
+            load_scenario(name)
+        except (ScenarioError, OSError) as exc:
+            ap.error(f"argument --scenarios: {exc}")
     if args.one:
         sc = load_scenario(scenarios[0])
         sp = _plant(args.one, sc, 1.0)
