@@ -385,6 +385,14 @@ BAD_NUMBERS = [
     ('bench', '--horizons', '6,0'),
     ('bench', '--cpu-slowdown', '0'),
     ('bench', '--slowdown-factors', '1,-10'),
+    # the nodes' ranges, checked by every verb before anything runs (Ts 1e5 s hung `ceco sim` building its NLP,
+    # Np 100 failed `ceco run` only once its nodes had started)
+    ('sim', '--control-period-s', '100000'),
+    ('run', '--horizon-steps', '100'),
+    ('identify', '--horizon-steps', '61'),
+    ('run', '--seed', '-1'),  # was run with seed -1 and exit 0
+    ('play', '--domain-id', '999'),  # was a Fast DDS port error, exit 1
+    ('sim', '--baseline-setpoints-c', '24,24'),  # one set-point twice is one set-point
 ]
 
 
@@ -631,3 +639,48 @@ def test_bench_plant_refuses_bad_input_in_one_line(args, says, capsys):
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith('ceco bench plant: error: ') and says in err[0], err
+
+
+@pytest.mark.parametrize(
+    'verb, argv, says',
+    [
+        ('sim', ['--scenario', ''], "argument --scenario: must not be empty, got ''"),
+        ('sim', ['--preview', ''], "argument --preview: must not be empty, got ''"),
+        ('run', ['--out', ''], "argument --out: must not be empty, got ''"),
+        ('sim', ['--duration-s', '1'], '--duration-s: 1 s is less than two plant steps: give at least 2'),
+        ('sim', ['--duration-s', '4.9'], '--duration-s: 4.9 s is not a whole number of plant steps (1 s): give e.g. 4'),
+        ('sim', ['--duration-s', '3'], '--duration-s: 3 s is shorter than one control period (5 s): give at least 5'),
+        ('run', ['--duration-s', '1'], '--duration-s: 1 s is less than two plant steps'),  # was a traceback after start
+        ('benchmark', ['--controller-cmd', ''], 'argument --controller-cmd: must not be empty'),
+        ('benchmark', ['--controller-name', 'mine'], 'argument --controller-name: needs --controller-cmd'),
+    ],
+)
+def test_empty_values_short_runs_and_lone_controller_flags_are_one_line(verb, argv, says, tmp_path, capsys):
+    """An empty --scenario, --preview or --out ran sc03, the perfect preview or wrote into the current directory; a
+    --duration-s under two plant steps was a traceback once the run ended, a fraction was floored without a word;
+    an empty --controller-cmd or a --controller-name without it started the whole benchmark of the bundled
+    strategies. Each is one line now, exit status 2, and nothing is written."""
+    rest = [] if '--out' in argv else ['--out', str(tmp_path / 'out')]
+    with pytest.raises(SystemExit) as exc:
+        cli.main([verb, *argv, *rest, '--no-progress'] if verb == 'benchmark' else [verb, *argv, *rest])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f'ceco {verb}: error: ') and says in err[0], err
+    assert not (tmp_path / 'out').exists()
+
+
+@pytest.mark.parametrize('verb', ['sim', 'run', 'oracle', 'benchmark', 'sweep', 'report'])
+def test_an_out_that_is_a_file_or_cannot_be_made_is_one_line(verb, tmp_path, capsys):
+    """`--out FILE` (or a path under a file) was a NotADirectoryError or FileExistsError traceback after the run had
+    started; now one line naming the path, exit status 2, before anything runs, and no file is created."""
+    afile = tmp_path / 'afile'
+    afile.write_text('')
+    first = {'oracle': ['sc03-paper'], 'sweep': ['grid.yaml'], 'report': [str(tmp_path)]}.get(verb, [])
+    cases = ((afile, f'{afile} exists and is not a directory'), (afile / 'sub', f'{afile} is not a directory'))
+    for out, says in cases:
+        with pytest.raises(SystemExit) as exc:
+            cli.main([verb, *first, '--out', str(out)])
+        assert exc.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f'ceco {verb}: error: argument --out: ') and says in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['afile']

@@ -28,9 +28,15 @@ from ceco_core.cli_flags import (
     add_strategy,
     add_workers,
     check_duration,
+    check_out,
+    control_period_s,
+    domain_id,
     finite_float,
+    horizon_steps,
+    nonempty,
     nonnegative_float,
     nonnegative_int,
+    out_dir_error,
     positive_float,
     positive_int,
     setpoint_list,
@@ -38,6 +44,12 @@ from ceco_core.cli_flags import (
 )
 
 __all__ = [
+    'check_out',
+    'control_period_s',
+    'domain_id',
+    'horizon_steps',
+    'nonempty',
+    'out_dir_error',
     'Parser',
     'UserError',
     'finite_float',

@@ -116,6 +116,7 @@ def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
+    cli_args.check_out(parser, args.out)
     from ceco_bringup.benchmark.cases import CaseError, load_case
     from ceco_controller import oracle as orc
     from ceco_controller.closed_loop import write_run
@@ -127,7 +128,9 @@ def main(argv=None) -> int:
         case = load_case(args.case)
         scenario = case.load_scenario()
         if args.duration_s is not None:
-            cli_args.check_duration(args.duration_s, scenario)
+            cli_args.check_duration(
+                args.duration_s, scenario, args.control_period_s or scenario.control.control_period_s
+            )
             d = case.scenario_dict()
             d['duration_s'] = float(args.duration_s)
             from ceco_v2x_preview.scenario import scenario_from_dict

@@ -580,6 +580,7 @@ def main(argv=None) -> int:
     """`ceco report`: 0 when every run's metrics check, 1 on a mismatch, 2 on an error (one line)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    cli_args.check_out(parser, args.out)
     out = (
         Path(args.out) if args.out else (Path(args.dirs[0]) / 'report' if len(args.dirs) == 1 else Path('ceco_report'))
     )

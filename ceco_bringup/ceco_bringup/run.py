@@ -140,6 +140,7 @@ def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
+    cli_args.check_out(parser, args.out)
     from ceco_bringup import supervisor
     from ceco_v2x_preview.preview import parse_quality
     from ceco_v2x_preview.scenario import load_scenario
@@ -157,7 +158,7 @@ def main(argv=None) -> int:
         quality = parse_quality(args.preview)
         if args.seed is not None:
             quality = dataclasses.replace(quality, seed=int(args.seed))
-        cli_args.check_duration(args.duration_s, scenario)
+        cli_args.check_duration(args.duration_s, scenario, args.control_period_s or scenario.control.control_period_s)
         args.namespace = supervisor.normalize_namespace(args.namespace)
         supervisor.resolve_domain_id(args.domain_id)  # an invalid user id fails here
         stall_timeout_s(args)

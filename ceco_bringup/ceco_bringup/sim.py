@@ -98,6 +98,7 @@ def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
+    cli_args.check_out(parser, args.out)
     from ceco_controller.closed_loop import SimSettings, simulate, write_run
     from ceco_v2x_preview.preview import parse_quality
     from ceco_v2x_preview.scenario import load_scenario
@@ -107,7 +108,7 @@ def main(argv=None) -> int:
         case = cli_args.apply_case(args, out)
         scenario = load_scenario(args.scenario)
         quality = parse_quality(args.preview)
-        cli_args.check_duration(args.duration_s, scenario)
+        cli_args.check_duration(args.duration_s, scenario, args.control_period_s or scenario.control.control_period_s)
         settings = SimSettings(
             control_period_s=args.control_period_s,
             horizon_steps=args.horizon_steps,

@@ -34,6 +34,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from ceco_core.contracts import DOMAIN_ID_MAX
+
 # Fast DDS participant profile: a UDPv4 transport, a short lease announcement so late
 # joiners (a restarted controller) are discovered in ~0.3 s instead of ~3 s, and Fast
 # DDS's default 20-s lease. A participant that misses its announcements for longer than the
@@ -78,11 +80,6 @@ def pick_domain_id() -> int:
     if os.environ.get('CECO_DOMAIN_ID'):
         return int(os.environ['CECO_DOMAIN_ID'])
     return 1 + (os.getpid() * 7919 + int(time.time())) % 100
-
-
-DOMAIN_ID_MAX = 232
-"""Largest ROS_DOMAIN_ID Fast DDS's default port mapping allows (0..101 are
-also clear of Linux's ephemeral ports; docs.ros.org, "The ROS_DOMAIN_ID")."""
 
 
 def resolve_domain_id(explicit: int | None = None, index: int = 0, environ=None) -> tuple[int, bool]:

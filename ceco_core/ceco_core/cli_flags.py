@@ -49,6 +49,12 @@ __all__ = [
     'positive_int',
     'nonnegative_int',
     'strategy_list',
+    'control_period_s',
+    'horizon_steps',
+    'domain_id',
+    'nonempty',
+    'out_dir_error',
+    'check_out',
     'add_scenario',
     'add_strategy',
     'add_out',
@@ -65,6 +71,7 @@ __all__ = [
     'add_baseline_setpoints',
     'setpoint_list',
     'check_duration',
+    'PLANT_STEP_S',
     'DEPRECATED_FLAGS',
 ]
 
@@ -153,6 +160,51 @@ def nonnegative_int(text: str) -> int:
     return n
 
 
+def control_period_s(text: str) -> float:
+    """Ts [s] within :data:`~ceco_core.contracts.CONTROL_PERIOD_RANGE_S`, the nodes' range (argparse type)."""
+    from ceco_core.contracts import CONTROL_PERIOD_RANGE_S
+
+    x = finite_float(text)
+    lo, hi = CONTROL_PERIOD_RANGE_S
+    if not lo <= x <= hi:
+        raise argparse.ArgumentTypeError(f'must be a number of seconds in {lo:g}..{hi:g}, got {text!r}')
+    return x
+
+
+def horizon_steps(text: str) -> int:
+    """Np [steps] within :data:`~ceco_core.contracts.HORIZON_RANGE`, the nodes' range (argparse type)."""
+    from ceco_core.contracts import HORIZON_RANGE
+
+    lo, hi = HORIZON_RANGE
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be a whole number in {lo}..{hi}, got {text!r}') from None
+    if not lo <= n <= hi:
+        raise argparse.ArgumentTypeError(f'must be a whole number in {lo}..{hi}, got {text!r}')
+    return n
+
+
+def domain_id(text: str) -> int:
+    """A ROS_DOMAIN_ID in 0..:data:`~ceco_core.contracts.DOMAIN_ID_MAX` (argparse type)."""
+    from ceco_core.contracts import DOMAIN_ID_MAX
+
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be a whole number in 0..{DOMAIN_ID_MAX}, got {text!r}') from None
+    if not 0 <= n <= DOMAIN_ID_MAX:
+        raise argparse.ArgumentTypeError(f'must be a whole number in 0..{DOMAIN_ID_MAX}, got {text!r}')
+    return n
+
+
+def nonempty(text: str) -> str:
+    """A non-empty string (argparse type): ``--scenario ''`` or ``--out ''`` is a mistake, not the default."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f'must not be empty, got {text!r}')
+    return text
+
+
 def strategy_list(text: str) -> list[str]:
     """``all`` or a comma-separated list of strategies, as a list without repeats (argparse type).
 
@@ -232,6 +284,7 @@ def add_scenario(p, default: str | None = 'sc03', help_extra: str = '') -> None:
     """``--scenario``: a bundled scenario name or a scenario YAML path."""
     p.add_argument(
         '--scenario',
+        type=nonempty,
         default=default,
         help=f"bundled scenario name ({', '.join(BUNDLED_SCENARIOS)}) or YAML path" + help_extra,
     )
@@ -256,9 +309,39 @@ def add_strategy(p, default: str | None, help_extra: str = '', deprecated: Seque
     )
 
 
+def out_dir_error(path: str) -> str | None:
+    """Why ``path`` cannot be the output directory (None when it can).
+
+    An existing file, an ancestor that is a file, or a place where no directory can be made (tried with a
+    temporary directory that is removed again, so nothing is left behind).
+    """
+    import tempfile
+    from pathlib import Path
+
+    p = Path(path)
+    if p.exists():
+        return None if p.is_dir() else f'{path} exists and is not a directory'
+    parent = p.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        return f'{path} cannot be made: {parent} is not a directory'
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix='.ceco-out-check-', dir=parent))
+    except OSError as exc:
+        return f'{path} cannot be made in {parent}: {exc.strerror or exc}'
+    return None
+
+
+def check_out(parser, path: str | None) -> None:
+    """``parser.error`` (one line, exit status 2) when ``--out`` cannot be the output directory."""
+    if path is not None and (why := out_dir_error(path)) is not None:
+        parser.error(f'argument --out: {why}')
+
+
 def add_out(p, help_: str, *, required: bool = True, default: str | None = None) -> None:
     """``--out``: the output directory."""
-    p.add_argument('--out', required=required, default=default, help=help_)
+    p.add_argument('--out', type=nonempty, required=required, default=default, help=help_)
 
 
 def add_preview(p, default: str | None = 'perfect', help_extra: str = '') -> None:
@@ -267,6 +350,7 @@ def add_preview(p, default: str | None = 'perfect', help_extra: str = '') -> Non
         p,
         '--preview',
         dest='preview',
+        type_=nonempty,
         default=default,
         deprecated=('--preview-quality',),
         help='V2X preview quality: perfect | noisy[:KEY=V,...] | delayed:S | missing:A-B[,...] | '
@@ -282,7 +366,7 @@ def add_control_period(
         p,
         '--control-period-s',
         dest='control_period_s',
-        type_=positive_float,
+        type_=control_period_s,
         default=None,
         deprecated=deprecated,
         help=f'control period Ts [s] (default: {default_text})',
@@ -297,7 +381,7 @@ def add_horizon(
         p,
         '--horizon-steps',
         dest='horizon_steps',
-        type_=positive_int,
+        type_=horizon_steps,
         default=None,
         deprecated=deprecated,
         help=f'prediction horizon Np [steps] (default: {default_text})',
@@ -321,7 +405,7 @@ def add_seed(p) -> None:
     """``--seed``: the seed of the preview noise."""
     p.add_argument(
         '--seed',
-        type=int,
+        type=nonnegative_int,
         default=None,
         help="seed of the preview noise (default: the preview's seed=, else with --case the case's first, "
         "else the scenario's)",
@@ -350,7 +434,7 @@ def add_namespace(p, help_: str, default: str | None = None) -> None:
 
 def add_domain_id(p, help_: str) -> None:
     """``--domain-id``: a ROS_DOMAIN_ID."""
-    p.add_argument('--domain-id', type=int, default=None, help=help_)
+    p.add_argument('--domain-id', type=domain_id, default=None, help=help_)
 
 
 def setpoint_list(text: str) -> tuple[float, ...]:
@@ -361,8 +445,8 @@ def setpoint_list(text: str) -> tuple[float, ...]:
         vals = tuple(float(x) for x in text.split(',') if x.strip())
     except ValueError:
         raise argparse.ArgumentTypeError(f'expected set-points like 23,24,25 or none, got {text!r}') from None
-    if len(vals) < 2 or not all(math.isfinite(x) and 15.0 <= x <= 35.0 for x in vals):
-        raise argparse.ArgumentTypeError(f'need 2 or more set-points within 15..35 degC, got {text!r}')
+    if len(set(vals)) < 2 or not all(math.isfinite(x) and 15.0 <= x <= 35.0 for x in vals):
+        raise argparse.ArgumentTypeError(f'need 2 or more different set-points within 15..35 degC, got {text!r}')
     return tuple(sorted(set(vals)))
 
 
@@ -377,12 +461,38 @@ def add_baseline_setpoints(p, default: Sequence[float]) -> None:
     )
 
 
-def check_duration(duration_s: float | None, scenario) -> None:
-    """ValueError when ``--duration-s`` exceeds the scenario's length (never clamped silently)."""
-    if duration_s is not None and duration_s > scenario.duration_s + 1e-9:
+PLANT_STEP_S = 1.0
+"""The plant step of ``ceco run``, ``ceco sim`` and ``ceco oracle`` [s] (``SimSettings.plant_dt_s``, plant_node's
+``plant_dt_s``): a run lasts a whole number of them."""
+
+
+def check_duration(duration_s: float | None, scenario, control_period_s: float | None = None) -> None:
+    """ValueError when ``--duration-s`` cannot be run as given (never clamped or rounded silently).
+
+    It must fit in the scenario, be a whole number of plant steps (:data:`PLANT_STEP_S`), at least two of them
+    (a run's metrics need two samples), and, with ``control_period_s``, at least one control period.
+    """
+    if duration_s is None:
+        return
+    if duration_s > scenario.duration_s + 1e-9:
         raise ValueError(
             f'--duration-s: {duration_s:g} s exceeds the length of scenario {scenario.name} '
             f'({scenario.duration_s:g} s): give at most {scenario.duration_s:g}'
+        )
+    steps = duration_s / PLANT_STEP_S
+    if steps < 2 - 1e-9:
+        raise ValueError(
+            f'--duration-s: {duration_s:g} s is less than two plant steps: give at least {2 * PLANT_STEP_S:g}'
+        )
+    if abs(steps - round(steps)) > 1e-9:
+        raise ValueError(
+            f'--duration-s: {duration_s:g} s is not a whole number of plant steps ({PLANT_STEP_S:g} s): '
+            f'give e.g. {math.floor(steps) * PLANT_STEP_S:g}'
+        )
+    if control_period_s is not None and duration_s < control_period_s - 1e-9:
+        raise ValueError(
+            f'--duration-s: {duration_s:g} s is shorter than one control period ({control_period_s:g} s): '
+            f'give at least {control_period_s:g}'
         )
 
 

@@ -69,6 +69,17 @@ RECIRC_NOT_COMMANDED_WIRE = -1.0
 """AcCommand.recirc_share meaning "the door is not commanded" (the message's default; NaN means the same)."""
 
 
+CONTROL_PERIOD_RANGE_S = (0.1, 300.0)
+"""Ts of every node and every ``ceco`` verb [s]: up to 5 min (the NMPC's transcription grows with Ts / its
+substep: configure took 15 s at Ts 600 s on the 2-core machine, 124 s at 3600 s)."""
+HORIZON_RANGE = (1, 60)
+"""Np of the controller and of the preview grid, in every node and every ``ceco`` verb [steps]: configure
+took 4 s at Np 60, 31 s at Np 200."""
+DOMAIN_ID_MAX = 232
+"""Largest ROS_DOMAIN_ID Fast DDS's default port mapping allows (0..101 are
+also clear of Linux's ephemeral ports; docs.ros.org, "The ROS_DOMAIN_ID")."""
+
+
 CECO_STRATEGIES = ("ceco", "ceco-e", "ceco-c", "ceco-ioch", "ceco-pmv")
 """Names of the NMPC strategies (settings in ``ceco_controller.strategies``): the paper's four and issue 20's
 comfort-output strategy ``ceco-pmv``."""

@@ -16,6 +16,7 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Any, ClassVar, Self
 
+from ceco_core.contracts import CONTROL_PERIOD_RANGE_S, HORIZON_RANGE
 from ceco_core.control_grid import TIMING_MODES
 
 __all__ = [
@@ -58,16 +59,10 @@ class ParamSpec:
         return 'yes' if not self.read_only else 'unconfigured' if self.at_configure else 'no'
 
 
-CONTROL_PERIOD_RANGE_S = (0.1, 300.0)
-"""Ts of every node [s]: up to 5 min (the NMPC's transcription grows with Ts / its substep: configure
-took 15 s at Ts 600 s on the 2-core machine, 124 s at 3600 s); the same in every node."""
 NMPC_CONTROL_PERIOD_RANGE_S = (5.0, 300.0)
 """Ts of mpc_node [s]: a whole multiple of the control model's step (5 s, the identified model; the
 NMPC refuses another Ts at configure, naming it) and above twice its CPU-time budget per solve
 (controller.yaml ``max_cpu_time_s`` 1.0 s)."""
-HORIZON_RANGE = (1, 60)
-"""Np of the controller and of the preview grid [steps]: configure took 4 s at Np 60, 31 s at Np 200."""
-
 INPUT_WINDOW_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec(
         'inputs.window_s',

@@ -449,7 +449,7 @@ def build_parser() -> cli_args.Parser:
         metavar='CMD',
         help='run your own controller node (any language) in place of mpc_node over DDS and score it',
     )
-    p.add_argument('--controller-name', default='external', help='name of that controller in the results')
+    p.add_argument('--controller-name', default=None, help='name of that controller in the results (default: external)')
     p.add_argument('--save-runs', action='store_true', help='also write a run directory per run to DIR/runs/')
     p.add_argument('--validate', metavar='FILE', default=None, help='only check FILE against ceco-benchmark/2')
     cli_args.add_no_progress(p)
@@ -498,6 +498,11 @@ def main(argv=None) -> int:
         return 1 if errors else 0
     if not args.out:
         p.error('--out is required (unless --validate)')
+    cli_args.check_out(p, args.out)
+    if args.controller_cmd is not None and not args.controller_cmd.strip():
+        p.error('argument --controller-cmd: must not be empty (the command that starts your controller node)')
+    if args.controller_name is not None and args.controller_cmd is None:
+        p.error('argument --controller-name: needs --controller-cmd (it names the controller that command starts)')
     if args.address and args.backend != 'ray':
         p.error('--address needs --backend ray')
     if args.oracle_cases is not None and not args.oracle:
@@ -515,7 +520,7 @@ def main(argv=None) -> int:
             oracle=args.oracle,
             oracle_cases=args.oracle_cases,
             controller_cmd=args.controller_cmd,
-            controller_name=args.controller_name,
+            controller_name=args.controller_name or 'external',
             save_runs=args.save_runs,
             progress=not args.no_progress,
             command=cmd,

@@ -264,6 +264,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.address and args.backend != 'ray':
         parser.error('--address needs --backend ray')
+    cli_args.check_out(parser, args.out)
     try:
         res = run_sweep(
             args.grid,
