@@ -684,3 +684,37 @@ def test_an_out_that_is_a_file_or_cannot_be_made_is_one_line(verb, tmp_path, cap
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith(f'ceco {verb}: error: argument --out: ') and says in err[0], err
     assert sorted(p.name for p in tmp_path.iterdir()) == ['afile']
+
+
+@pytest.mark.parametrize(
+    'argv, says',
+    [
+        (['--strategy', 'ceco-pmv', '--set', 'horizon_steps=3'], '--set horizon_steps: set by --horizon-steps'),
+        (['--strategy', 'baseline', '--set', 'preview_shrink_c=2'], '--set: sets StrategySettings fields of the NMPC'),
+        (['--strategy', 'baseline,ceco-ioch', '--set', 'foo=1'], '--set foo: not a StrategySettings field'),
+        (['--strategy', 'ceco-ioch', '--model-params', 'CORRUPT'], 'not valid YAML at line 2, column 1'),
+        (['--strategy', 'ceco-ioch', '--controller-config', 'TRUNC'], 'not valid YAML at line'),
+        (['--strategy', 'baseline', '--controller-config', 'TRUNC'], 'not valid YAML at line'),
+        (['--strategy', 'ceco-ioch', '--controller-config', 'BINARY'], 'not a UTF-8 text file'),
+    ],
+)
+def test_bad_settings_and_config_files_are_one_line(argv, says, tmp_path, capsys):
+    """`--set` of a field a flag sets, on the baseline alone, or of no StrategySettings field; a model or controller
+    file that is not YAML or not text: each was a TypeError or a YAML parser traceback (or, for an unknown field,
+    an error blamed on controller.yaml after the baseline had run). One line now, exit status 2."""
+    from ceco_controller.model import package_config_path
+
+    files = {'CORRUPT': tmp_path / 'corrupt.yaml', 'TRUNC': tmp_path / 'trunc.yaml', 'BINARY': tmp_path / 'bin.yaml'}
+    files['CORRUPT'].write_text('[1,2')
+    config = package_config_path('controller.yaml')
+    files['TRUNC'].write_bytes(config.read_bytes()[:700])
+    files['BINARY'].write_bytes(b'\xff\xfe')
+    argv = [str(files.get(a, a)) for a in argv]
+    rest = ['--duration-s', '30', '--baseline-setpoints-c', 'none', '--no-progress', '--out', str(tmp_path / 'out')]
+    try:  # a flag's error exits through argparse; a file's is said when its strategy's run starts
+        rc = sim.main([*argv, *rest])
+    except SystemExit as exc:
+        rc = exc.code
+    assert rc == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith('ceco sim: error: ') and says in err[0], err

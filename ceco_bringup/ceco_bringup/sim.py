@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 
 from ceco_bringup import cli_args, outputs, provenance
+from ceco_core.contracts import NODE_STRATEGIES
 from ceco_core.run_status import STATUS_OK
 
 __all__ = ['build_parser', 'main']
@@ -58,11 +59,16 @@ def build_parser() -> cli_args.Parser:
         action='append',
         default=[],
         metavar='FIELD=VALUE',
-        help='override a strategy setting (StrategySettings field), e.g. pmv_pa_source=measured; repeatable',
+        help='override a strategy setting (StrategySettings field), e.g. pmv_pa_source=measured; repeatable; '
+        'applies to the NMPC strategies (the baseline has no StrategySettings)',
     )
     cli_args.add_baseline_setpoints(p, outputs.vd.FAMILY_SETPOINTS_C)
     cli_args.add_no_progress(p)
     return p
+
+
+SET_BY_FLAGS = {'name': '--strategy', 'horizon_steps': '--horizon-steps', 'control_period_s': '--control-period-s'}
+"""StrategySettings fields ``--set`` may not set: the flag that sets them."""
 
 
 def _overrides(items) -> tuple:
@@ -71,6 +77,8 @@ def _overrides(items) -> tuple:
         key, sep, value = item.partition('=')
         if not sep or not key:
             raise ValueError(f'--set: expected FIELD=VALUE, got {item!r}')
+        if key in SET_BY_FLAGS:
+            raise ValueError(f'--set {key}: set by {SET_BY_FLAGS[key]}, not by --set')
         try:
             out.append((key, float(value)))
         except ValueError:
@@ -78,15 +86,30 @@ def _overrides(items) -> tuple:
     return tuple(out)
 
 
+def _check_set_fields(overrides) -> None:
+    """ValueError naming a ``--set`` field StrategySettings does not have (before any run; not blamed on a file)."""
+    import dataclasses
+
+    from ceco_controller.strategies import StrategySettings
+
+    known = {f.name for f in dataclasses.fields(StrategySettings)}
+    for key, _ in overrides:
+        if key not in known:
+            raise ValueError(f'--set {key}: not a StrategySettings field (its fields: ceco_controller/strategies.py)')
+
+
 def with_case(settings, case, strategy: str):
     """``settings`` for a run of ``strategy``: the case's own settings, then the ``--set`` overrides.
 
-    The case's: ``cli_args.case_overrides`` (a baseline's door; none without ``--case``).
+    The case's: ``cli_args.case_overrides`` (a baseline's door; none without ``--case``). ``--set`` sets
+    StrategySettings fields, so it applies to the NMPC strategies only: the baseline has none (``main`` refuses
+    ``--set`` when no NMPC strategy runs).
     """
     import dataclasses
 
     extra = cli_args.case_overrides(case, strategy)
-    return dataclasses.replace(settings, strategy_overrides=extra + tuple(settings.strategy_overrides))
+    own = tuple(settings.strategy_overrides) if strategy in NODE_STRATEGIES else ()
+    return dataclasses.replace(settings, strategy_overrides=extra + own)
 
 
 def main(argv=None) -> int:
@@ -122,6 +145,9 @@ def main(argv=None) -> int:
             measurements=args.measurements,
         )
         settings.validate()
+        if args.set and not set(args.strategy) & set(NODE_STRATEGIES):
+            raise ValueError('--set: sets StrategySettings fields of the NMPC strategies; the baseline has none')
+        _check_set_fields(settings.strategy_overrides)
     except (ValueError, OSError) as exc:
         parser.error(str(exc))
     metrics, columns, failed = {}, {}, {}

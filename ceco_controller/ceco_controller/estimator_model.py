@@ -160,8 +160,7 @@ class EstimatorParams:
 def load_estimator_params(path: str | pathlib.Path | None = None) -> EstimatorParams:
     """Load the identified estimator parameters (default: the package's ``config/estimator_params.yaml``)."""
     path = pathlib.Path(path) if path is not None else cm.package_config_path("estimator_params.yaml")
-    with open(path, encoding="utf-8") as fh:
-        doc = yamlio.safe_load(fh)
+    doc = yamlio.load_file(path)
     if not isinstance(doc, dict) or "params" not in doc:
         raise ValueError(f"{path}: expected a mapping with a 'params' key")
     return EstimatorParams.from_dict(doc["params"])

@@ -86,10 +86,9 @@ def load_acc_settings(path: str | None) -> dict:
     if not path:
         return {}
 
-    import yaml
+    from ceco_core import yamlio
 
-    with open(path, encoding="utf-8") as fh:
-        doc = yaml.safe_load(fh)
+    doc = yamlio.load_file(path)
     if not isinstance(doc, dict) or not isinstance(doc.get("acc_law"), dict):
         raise ValueError(f"{path}: a baseline law file needs a mapping 'acc_law:' of AccSettings fields")
     fields = dict(doc["acc_law"])

@@ -247,8 +247,7 @@ def default_params_path() -> pathlib.Path:
 def load_params(path: str | pathlib.Path | None = None) -> ControlModelParams:
     """Load the identified parameters (default: :func:`default_params_path`)."""
     path = pathlib.Path(path) if path is not None else default_params_path()
-    with open(path, encoding="utf-8") as fh:
-        doc = yamlio.safe_load(fh)
+    doc = yamlio.load_file(path)
     if not isinstance(doc, dict) or "params" not in doc:
         raise ValueError(f"{path}: expected a mapping with a 'params' key")
     return ControlModelParams.from_dict(doc["params"])

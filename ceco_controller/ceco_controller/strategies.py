@@ -521,12 +521,12 @@ def load_strategy_settings(name: str, path=None, **overrides) -> StrategySetting
     """
     import pathlib
 
-    import yaml
+    from ceco_core import yamlio
 
     from .model import package_config_path
 
     path = pathlib.Path(path) if path is not None else package_config_path("controller.yaml")
-    doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    doc = yamlio.load_file(path)
     if not isinstance(doc, dict):
         raise ValueError(f"{path}: expected a mapping")
     name, variant = _resolved_name(name)

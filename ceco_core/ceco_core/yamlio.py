@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import yaml
 
-__all__ = ["safe_load"]
+__all__ = ["safe_load", "load_file"]
 
 _LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
@@ -16,3 +16,23 @@ _LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 def safe_load(stream):
     """``yaml.safe_load`` of a string or an open file, with libyaml where available."""
     return yaml.load(stream, Loader=_LOADER)
+
+
+def load_file(path) -> object:
+    """The YAML document in the file ``path``; ValueError naming the file for text that is not YAML or not UTF-8.
+
+    A configuration file with a YAML error (an unclosed bracket, a bad indent) or binary content is the user's
+    mistake: one line with the file and where it broke, not a parser traceback. OSError (a missing file) passes.
+    """
+    import pathlib
+
+    p = pathlib.Path(path)
+    try:
+        return safe_load(p.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{p}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ValueError(f"{p}: not valid YAML{where}: {problem}") from None

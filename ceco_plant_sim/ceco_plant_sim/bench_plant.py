@@ -191,7 +191,9 @@ def main(argv=None) -> int:
     ap.add_argument("--scenarios", default="sc03,udds", help="comma-separated scenario names (default sc03,udds)")
     ap.add_argument("--steps", type=int, default=600, help="plant steps per run (default 600; capped by the scenario)")
     ap.add_argument("--repeat", type=int, default=3, help="timed runs per path; the fastest counts (default 3)")
-    ap.add_argument("--seed", type=int, default=0, help="seed of the command sequence (default 0)")
+    ap.add_argument(
+        "--seed", type=cli_flags.nonnegative_int, default=0, help="seed of the command sequence (default 0)"
+    )
     ap.add_argument(
         "--callgrind",
         type=int,
