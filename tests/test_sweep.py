@@ -82,6 +82,11 @@ def test_expand_grid_counts_ids_and_overrides(tmp_path):
         ('strategies: [baseline]\nseeds: [-1]\n', 'seeds'),
         ('strategies: [baseline]\nduration_s: .nan\n', 'duration_s'),
         ('strategies: [baseline]\nclimates: {x: {t_amb_c: 95.0}}\n', 'weather.t_amb_c'),
+        # duration_s shortens the runs: one longer than the scenario ran 100000 s, a fraction was floored
+        ('strategies: [baseline]\nduration_s: 100000.0\n', 'duration_s: 100000 s exceeds the length of scenario'),
+        ('strategies: [baseline]\nduration_s: 30.5\n', 'duration_s: 30.5 s is not a whole number of plant steps'),
+        ('strategies: [baseline]\ncontrol_period_s: 100000.0\n', 'control_period_s: must be a number in 0.1..300'),
+        ('strategies: [baseline]\nhorizon_steps: 100\n', 'horizon_steps: must be a number in 1..60'),
     ],
 )
 def test_bad_grid_names_the_key(tmp_path, text, key):

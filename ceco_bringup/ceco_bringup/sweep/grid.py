@@ -18,6 +18,8 @@ from pathlib import Path
 
 import yaml
 
+from ceco_core.cli_flags import check_duration
+
 from . import cells as cells_mod
 from .cells import Cell, cell_id, runtime_overrides
 
@@ -325,10 +327,12 @@ def expand_grid(grid: Mapping) -> list[Cell]:
         and duration > 0
     ):
         raise GridError(f'duration_s: must be a positive number, got {duration!r}')
-    for key in ('control_period_s', 'horizon_steps'):
-        v = grid.get(key)
-        if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0):
-            raise GridError(f'{key}: must be a positive number, got {v!r}')
+    from ceco_core.contracts import CONTROL_PERIOD_RANGE_S, HORIZON_RANGE
+
+    for key, (lo, hi) in (('control_period_s', CONTROL_PERIOD_RANGE_S), ('horizon_steps', HORIZON_RANGE)):
+        v = grid.get(key)  # the nodes' ranges, as every verb's flags
+        if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool) and lo <= v <= hi):
+            raise GridError(f'{key}: must be a number in {lo:g}..{hi:g}, got {v!r}')
     for label, q in previews.items():
         if not isinstance(q, str):
             raise GridError(f'previews.{label}: must be a preview-quality string (e.g. "noisy:solar=50")')
@@ -366,9 +370,14 @@ def expand_grid(grid: Mapping) -> list[Cell]:
             d['occupant'] = {**d['occupant'], **{k: float(v) for k, v in ov.items()}}
         d['name'] = d['name'] if cv is None and kv is None else f"{d['name']}[{cl},{kl}]"
         try:
-            scenario_from_dict(d)
+            cell_scenario = scenario_from_dict(d)
+            # duration_s shortens every run: within each cell's scenario, whole plant steps (never lengthened,
+            # never rounded), at least one control period
+            check_duration(
+                duration, cell_scenario, grid.get('control_period_s') or cell_scenario.control.control_period_s
+            )
         except ValueError as exc:
-            raise GridError(f'cell {sl}/{cl}/{kl}/{ol}: {exc}') from None
+            raise GridError(f'cell {sl}/{cl}/{kl}/{ol}: {exc}'.replace('--duration-s: ', 'duration_s: ')) from None
         for strategy in strategies:
             for label, ovr in overrides.get(strategy, {DEFAULT_SETTINGS: None}).items():
                 spec = {
