@@ -176,13 +176,52 @@ def fit_eta_ac(speeds_mps, ratio) -> tuple[float, float, float]:
     return float(res.x[0]), float(res.x[1]), float(np.sqrt(np.mean(res.fun**2)))
 
 
+STEP_REL_TOL = 1e-3
+"""How far a sample interval may differ from the series' step and still count as that step [-, relative]
+(:func:`sample_step_s`): the rounding of t_s, not a missing sample."""
+
+
+def sample_step_s(series: dict, source: str | None = None) -> float:
+    """The sample step [s] of a series (``t_s``, ``segment``), checked uniform: the same within every segment.
+
+    :func:`intervals_from_series` strides by row, so a row missing (t_s jumping, e.g. 49 -> 60 s in a 1 s series)
+    would join two samples 11 s apart as one step. A ValueError names ``source`` (a file: its line, as
+    ``read_series_csv`` counts them; None: "series" and the row), the first step that differs from the series'
+    step (the median within the segments) by more than :data:`STEP_REL_TOL`, and the fix; also when t_s does not
+    increase.
+    """
+    t = np.asarray(series["t_s"], float)
+    seg = np.asarray(series["segment"])
+    # (row, the next row of its segment), in the order of the second
+    rows = [np.flatnonzero(seg == s) for s in np.unique(seg)]
+    pairs = np.concatenate([np.column_stack([r[:-1], r[1:]]) for r in rows])
+    if pairs.size == 0:
+        raise ValueError(f"{source or 'series'}: need at least 2 samples in a segment")
+    pairs = pairs[np.argsort(pairs[:, 1])]
+    steps = t[pairs[:, 1]] - t[pairs[:, 0]]
+    dt = float(np.median(steps))
+    bad = np.flatnonzero(~(np.abs(steps - dt) <= STEP_REL_TOL * dt) if dt > 0 else ~(steps > 0))
+    if bad.size:
+        i, j = (int(x) for x in pairs[bad[0]])
+        where = f"{source}: line {j + 2}" if source is not None else f"series: row {j}"
+        if dt > 0:
+            what, fix = f"the sample step is {dt:g} s", "split the file at the gap"
+        else:
+            what, fix = "t_s must increase", "sort the rows by t_s"
+        raise ValueError(
+            f"{where}: t_s goes from {t[i]:g} to {t[j]:g} s, but {what}: the series must be uniformly sampled "
+            f"({fix}, or give each part its own 'segment' value)"
+        )
+    return dt
+
+
 def intervals_from_series(series: dict, ts_s: float = 5.0) -> dict:
     """Cut 1 s series (run-directory sampling) into model intervals of ``ts_s``.
 
     Row i of the series holds the temperatures at ``t_i`` and the inputs and
     power means over ``[t_i, t_i + dt)``. An interval starting at row i covers
     rows i .. i+m-1 (m = ts_s/dt); its end state is row i+m. Intervals whose
-    inputs change inside them are dropped. Returns arrays per interval:
+    inputs change inside them are dropped; dt must be uniform (:func:`sample_step_s`). Returns arrays per interval:
     ``t_cab0, t_cab1, t_evap0, t_evap1, t_int0, t_shell0, t_evap_mean, t_cab_mean,
     t_ain_mean, mdot, sp, t_amb, speed, p_comp, p_bl, segment``, and ``recirc`` (the door's mean
     recirculated share [-]) when the series has a ``recirc_share`` column (NaN where it is not measured).
@@ -193,7 +232,7 @@ def intervals_from_series(series: dict, ts_s: float = 5.0) -> dict:
     t = np.asarray(series["t_s"], float)
     if t.size < 3:
         raise ValueError("series: need at least 3 samples")
-    dt = float(np.median(np.diff(t)))
+    dt = sample_step_s(series)
     m = int(round(ts_s / dt))
     if m < 1 or abs(m * dt - ts_s) > 1e-6:
         raise ValueError(f"ts_s {ts_s} must be a whole multiple of the sample step {dt}")
@@ -235,6 +274,47 @@ def intervals_from_series(series: dict, ts_s: float = 5.0) -> dict:
     return res
 
 
+EXCITATION_MIN_REL_STD = 1e-3
+"""A regressor whose standard deviation over the intervals is below this share of its RMS [-] does not vary
+(:func:`check_identifiable`; the excitation data: 0.06 at least, per drive)."""
+COLLINEARITY_COND_MAX = 1e3
+"""Largest condition number of a regression's standardised regressors [-] (:func:`check_identifiable`; the
+excitation data: 13 at most, per drive; two blower levels for the three blower coefficients: 1e14)."""
+
+
+def check_identifiable(regressions: dict[str, dict[str, np.ndarray]]) -> None:
+    """ValueError unless interval data identify each regression: ``{regression: {regressor: values}}``.
+
+    Each regressor (an intercept is implied) must vary (:data:`EXCITATION_MIN_REL_STD`), and a regression's
+    regressors must not vary together (:data:`COLLINEARITY_COND_MAX`). Without it least squares still returns
+    numbers (the minimum-norm solution: gains 0, the data's mean in the offset), a model that cannot predict.
+    The error names the regressors that do not vary, or the regression whose regressors are collinear.
+    """
+    flat: list[str] = []
+    for regs in regressions.values():
+        for name, x in regs.items():
+            rms = float(np.sqrt(np.mean(np.square(x))))
+            if not float(np.std(x)) > EXCITATION_MIN_REL_STD * rms and name not in flat:
+                flat.append(name)
+    n = next(iter(next(iter(regressions.values())).values())).size
+    if flat:
+        raise ValueError(
+            f"the training data cannot identify the model: {', '.join(flat)} "
+            f"{'does' if len(flat) == 1 else 'do'} not vary over the {n} intervals: fit from data where the blower "
+            "flow and the evaporator set-point are stepped (docs/controller.md, section 2)"
+        )
+    for what, regs in regressions.items():
+        x = np.column_stack(list(regs.values()))
+        z = (x - x.mean(axis=0)) / x.std(axis=0)
+        sv = np.linalg.svd(z, compute_uv=False)
+        if not sv[-1] * COLLINEARITY_COND_MAX > sv[0]:
+            raise ValueError(
+                f"the training data cannot identify {what}: {', '.join(regs)} vary together (condition number "
+                f"{sv[0] / sv[-1]:.3g} > {COLLINEARITY_COND_MAX:g}): fit from data where they vary independently "
+                "(docs/controller.md, section 2)"
+            )
+
+
 def _lstsq(a, b):
     coef, *_ = np.linalg.lstsq(a, b, rcond=None)
     return coef
@@ -269,18 +349,28 @@ def fit_intervals(
     one = np.ones(n)
     r = np.asarray(iv.get("recirc", np.full(n, np.nan)), float)
     phi = 1.0 - np.where(np.isfinite(r) & (r >= 0.0) & (r <= 1.0), r, r_default)
+    # the regressors (CSV names: what must vary) of eqs. (3), (2), (1) and the blower
+    tc = iv["t_cab0"]
+    x3 = {"t_evap_c": iv["t_evap_mean"], "mdot_bl_kgps": iv["mdot"]}
+    x2 = {"t_evap_c": iv["t_evap0"], "t_evap_c - t_evap_sp_c": iv["t_evap0"] - iv["sp"]}
+    x1 = {
+        "t_int_c - t_cab_c": iv["t_int0"] - tc,
+        "t_shell_c - t_cab_c": iv["t_shell0"] - tc,
+        "(t_vent_c - t_cab_c) mdot_bl_kgps": (iv["t_ain_mean"] - tc) * iv["mdot"],
+    }
+    xb = {"mdot_bl_kgps": iv["mdot"], "mdot_bl_kgps^3": iv["mdot"] ** 3}
+    check_identifiable({"eq. (3) (T_ain)": x3, "eq. (2) (T_evap)": x2, "eq. (1) (T_cab)": x1, "the blower power": xb})
     # eq. (3): T_ain = g6 T_evap + g7 mdot + tau3 (interval means)
-    a3 = np.column_stack([iv["t_evap_mean"], iv["mdot"], one])
+    a3 = np.column_stack([*x3.values(), one])
     g6, g7, tau3 = _lstsq(a3, iv["t_ain_mean"])
     # eq. (2): T_evap+ = g4 T_evap + g5 (T_evap - sp) + tau2
-    a2 = np.column_stack([iv["t_evap0"], iv["t_evap0"] - iv["sp"], one])
+    a2 = np.column_stack([*x2.values(), one])
     g4, g5, tau2 = _lstsq(a2, iv["t_evap1"])
     # eq. (1): T_cab+ - T_cab = g1 (T_int - T_cab) + g2 (T_shell - T_cab) + g3 (T_ain - T_cab) mdot + tau1
-    tc = iv["t_cab0"]
-    a1 = np.column_stack([iv["t_int0"] - tc, iv["t_shell0"] - tc, (iv["t_ain_mean"] - tc) * iv["mdot"], one])
+    a1 = np.column_stack([*x1.values(), one])
     g1, g2, g3, tau1 = _lstsq(a1, iv["t_cab1"] - tc)
     # blower: b0 + b1 mdot + b3 mdot^3, coefficients >= 0
-    ab = np.column_stack([one, iv["mdot"], iv["mdot"] ** 3])
+    ab = np.column_stack([one, *xb.values()])
     sb = np.array([1.0, 100.0, 1e4])  # column scaling for conditioning
     rb = lsq_linear(ab * (1.0 / sb), iv["p_bl"], bounds=(0.0, np.inf))
     b0, b1, b3 = rb.x / sb
@@ -354,6 +444,23 @@ def fit(
     return fit_intervals(intervals_from_series(series, ts_s), ts_s, eta, recirc_share)
 
 
+def _joined(iv: dict) -> np.ndarray:
+    """Per pair of consecutive intervals (n - 1): True where a prediction window may span them.
+
+    The second continues the first: the same segment, its start state the first's end state.
+    """
+    seg, t_cab0, t_cab1 = iv["segment"], iv["t_cab0"], iv["t_cab1"]
+    return (seg[1:] == seg[:-1]) & np.isclose(t_cab1[:-1], t_cab0[1:])
+
+
+def longest_horizon_steps(iv: dict) -> int:
+    """The longest prediction window [steps] interval data hold: the longest run of joined intervals (0: none)."""
+    if iv["mdot"].size == 0:
+        return 0
+    breaks = np.flatnonzero(~_joined(iv))
+    return int(np.max(np.diff(np.concatenate([[-1], breaks, [iv["mdot"].size - 1]]))))
+
+
 def prediction_errors(p: cm.ControlModelParams, iv: dict, horizon_steps: int = 6) -> dict:
     """One-step and ``horizon_steps``-step open-loop prediction errors on interval data.
 
@@ -364,14 +471,8 @@ def prediction_errors(p: cm.ControlModelParams, iv: dict, horizon_steps: int = 6
     T_cab and T_evap after 1 and Np steps, RMS of T_ain and of the powers, and
     the relative error of the predicted A/C energy over the horizon.
     """
-    n = iv["mdot"].size
-    seg = iv["segment"]
-    starts = [
-        k
-        for k in range(n - horizon_steps + 1)
-        if np.all(seg[k : k + horizon_steps] == seg[k])
-        and np.allclose(iv["t_cab1"][k : k + horizon_steps - 1], iv["t_cab0"][k + 1 : k + horizon_steps])
-    ]
+    joined = _joined(iv)
+    starts = [k for k in range(joined.size - horizon_steps + 2) if np.all(joined[k : k + horizon_steps - 1])]
     e1_cab, eN_cab, e1_ev, eN_ev, e_ain, e_pc, e_pb, e_energy = [], [], [], [], [], [], [], []
     for k in starts:
         sl = slice(k, k + horizon_steps)
@@ -780,39 +881,61 @@ def _series_with_door(path) -> dict:
     return read_series_csv(path, SERIES_COLUMNS + ("recirc_share",), optional=("recirc_share",))
 
 
+def _check_horizon(horizon_steps: int, ts_s: float, iv_train: dict, iv_valid: dict) -> None:
+    """ValueError naming ``--horizon-steps`` unless both data sets hold a prediction window of that many steps."""
+    longest = {"training": longest_horizon_steps(iv_train), "validation": longest_horizon_steps(iv_valid)}
+    for which, n in longest.items():
+        if n < 1:
+            raise ValueError(f"the {which} data hold no whole {ts_s:g} s interval with its inputs held")
+    if horizon_steps > min(longest.values()):
+        raise ValueError(
+            f"--horizon-steps {horizon_steps} is longer than the data allow: their longest runs of consecutive "
+            f"{ts_s:g} s intervals are {longest['training']} (training) and {longest['validation']} (validation): "
+            f"give --horizon-steps {min(longest.values())} or less"
+        )
+
+
 def _identify(args, argv) -> int:
     """The work of :func:`main` for parsed ``args``."""
     data_dir, out = output_paths(args.out)
     exc = ExcitationSettings(seed=args.seed, ts_s=args.ts)
     if not (math.isfinite(args.recirc_share) and 0.0 <= args.recirc_share <= 1.0):
         raise ValueError(f"--recirc-share must be in [0, 1], got {args.recirc_share}")
+    simulated: dict[str, tuple[dict, tuple]] = {}  # file name: (series, drives); written once the checks pass
+    src = {"train.csv": ", ".join(args.from_csv or ()), "validation.csv": args.validation_csv}
     if args.from_csv:
         parts = [_series_with_door(p) for p in args.from_csv]
+        steps = [sample_step_s(s, p) for s, p in zip(parts, args.from_csv)]
+        for p, dt in zip(args.from_csv, steps):
+            if abs(dt - steps[0]) > STEP_REL_TOL * steps[0]:
+                raise ValueError(
+                    f"{p}: sample step {dt:g} s, {args.from_csv[0]}: {steps[0]:g} s: the --from-csv files must have "
+                    "one sample step (resample them)"
+                )
         for j, s in enumerate(parts):
             s["segment"] = s["segment"] + 1000 * j
         train = {c: np.concatenate([s[c] for s in parts]) for c in (*SERIES_COLUMNS, "recirc_share")}
-        train_src = ", ".join(args.from_csv)
     else:
         print(f"ceco identify: simulating the {len(TRAIN_DRIVES)} training drives on the plant", file=sys.stderr)
         train = generate_excitation(TRAIN_DRIVES, exc)
-        path = data_dir / "train.csv"
-        sha = write_series_csv(train, path)
-        train_src = f"{path.name} (sha256 {sha[:16]}; drives {', '.join(f'{a}/{b}' for a, b in TRAIN_DRIVES)})"
+        simulated["train.csv"] = (train, TRAIN_DRIVES)
     if args.validation_csv:
         valid = read_series_csv(args.validation_csv)
-        valid_src = args.validation_csv
+        sample_step_s(valid, args.validation_csv)
     else:
         print("ceco identify: simulating the validation drive", file=sys.stderr)
         valid = generate_excitation(VALIDATION_DRIVES, exc, seed_offset=1000)
-        path = data_dir / "validation.csv"
-        sha = write_series_csv(valid, path)
-        valid_src = f"{path.name} (sha256 {sha[:16]}; drives {', '.join(f'{a}/{b}' for a, b in VALIDATION_DRIVES)})"
+        simulated["validation.csv"] = (valid, VALIDATION_DRIVES)
     iv_train = intervals_from_series(train, args.ts)
     iv_valid = intervals_from_series(valid, args.ts)
     emap = eta_ac_points(EtaMapSettings())
     a_eta, v_eta, eta_rms = fit_eta_ac(emap["speeds_mps"], emap["ratio"])
     print("ceco identify: fitting and validating", file=sys.stderr)
     params, resid = fit_intervals(iv_train, args.ts, eta=(a_eta, v_eta), recirc_share=args.recirc_share)
+    _check_horizon(args.horizon, args.ts, iv_train, iv_valid)
+    for name, (series, drives) in simulated.items():
+        sha = write_series_csv(series, data_dir / name)
+        src[name] = f"{name} (sha256 {sha[:16]}; drives {', '.join(f'{a}/{b}' for a, b in drives)})"
     v20 = int(np.argmin(np.abs(emap["speeds_mps"] - 20.0)))
     eta_report = {
         "method": "plant steady cycle COP(V)/COP(0), EtaMapSettings defaults",
@@ -826,8 +949,8 @@ def _identify(args, argv) -> int:
     params = dataclasses.replace(
         params,
         **co2_fields,
-        provenance=f"{cmd}; excitation seed {args.seed}; training data {train_src}; validation data {valid_src}; "
-        f"CO2 balance {co2_src}",
+        provenance=f"{cmd}; excitation seed {args.seed}; training data {src['train.csv']}; validation data "
+        f"{src['validation.csv']}; CO2 balance {co2_src}",
     )
     rep_train = prediction_errors(params, iv_train, args.horizon)
     rep_valid = prediction_errors(params, iv_valid, args.horizon)

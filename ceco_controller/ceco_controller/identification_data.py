@@ -253,8 +253,10 @@ def write_series_csv(series: dict, path, columns: tuple = SERIES_COLUMNS, fine: 
 def read_series_csv(path, columns: tuple = SERIES_COLUMNS, optional: tuple = ()) -> dict:
     """Read a CSV with (at least) ``columns`` (default SERIES_COLUMNS); ``segment`` defaults to 0 (one run).
 
-    ``optional``: columns of ``columns`` the file may lack (NaN then); present, they are read like every other.
-    A missing column or a value that is not a number is a ValueError naming the file, the line and the column.
+    ``optional``: columns of ``columns`` the file may lack (NaN then); present, they are read like every other,
+    except that NaN is allowed there (not measured on that row, as a missing column).
+    A missing column, a value that is not a number, or one that is not finite (NaN, inf; NaN outside
+    ``optional``) is a ValueError naming the file, the line and the column.
     """
     with open(path, newline="", encoding="utf-8") as fh:
         reader = csv.DictReader(fh)
@@ -267,7 +269,13 @@ def read_series_csv(path, columns: tuple = SERIES_COLUMNS, optional: tuple = ())
                         continue
                     raise ValueError(f"{path}: missing column {c!r}")
                 try:
-                    data[c].append(float(r[c]))
+                    v = float(r[c])
                 except (TypeError, ValueError):
                     raise ValueError(f"{path}: line {line}, column {c!r}: {r[c]!r} is not a number") from None
+                if not (math.isfinite(v) or (math.isnan(v) and c in optional)):
+                    raise ValueError(
+                        f"{path}: line {line}, column {c!r}: {r[c]!r} is not a finite number: give a measured "
+                        "value, or split the file there"
+                    )
+                data[c].append(v)
     return {c: np.asarray(v) for c, v in data.items()}

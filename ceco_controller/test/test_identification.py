@@ -168,3 +168,112 @@ def test_training_csv_door_column_is_read_or_left_to_the_flag(tmp_path):
     with pytest.raises(ValueError, match="missing column 'no_such'"):
         idn.read_series_csv(plain, ("t_cab_c", "no_such"))  # optional only where said
     assert idn.read_series_csv(plain, ("t_s", "x"), optional=("x",))["x"].size == 49
+
+
+def _first_drive_csv(tmp_path, name="drive.csv", drop=(), edit=None):
+    """The committed training data's first drive (600 rows at 1 s) as a CSV, without the rows whose t_s is in
+    ``drop``; ``edit`` = (t_s, column, text) writes ``text`` into that cell."""
+    lines = (idn.DEFAULT_DATA_DIR / "train.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    rows = [r.split(",") for r in lines[1:601]]
+    assert {r[head.index("segment")] for r in rows} == {"0"}
+    if edit is not None:
+        t, col, text = edit
+        next(r for r in rows if float(r[head.index("t_s")]) == t)[head.index(col)] = text
+    keep = [r for r in rows if float(r[head.index("t_s")]) not in drop]
+    path = tmp_path / name
+    path.write_text("\n".join(",".join(r) for r in [head, *keep]) + "\n")
+    return path
+
+
+def _identify_fails(capsys, *argv):
+    """``ceco identify`` with ``argv``: exit status 2 and one line on stderr (returned), no traceback."""
+    assert idn.main(list(argv)) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("ceco identify: error: ") and "Traceback" not in "".join(err)
+    return err[-1]
+
+
+def _identify_fits_not(capsys, tmp_path, train, *extra, valid=None):
+    """``ceco identify --from-csv train`` (validated on ``valid``, default the same file): its error line; and
+    nothing written."""
+    out = tmp_path / "out"
+    line = _identify_fails(
+        capsys, "--from-csv", str(train), "--validation-csv", str(valid or train), "--out", str(out), *extra
+    )
+    assert not (out / "model_params.yaml").exists()
+    return line
+
+
+@pytest.mark.parametrize("text", ["nan", "inf", "-inf", "NaN"])
+def test_a_series_csv_with_a_value_that_is_not_finite_is_refused_where_it_is(tmp_path, capsys, text):
+    """NaN or inf in a cell is named like text (file, line, column), not an SVD failure inside the fit."""
+    bad = _first_drive_csv(tmp_path, edit=(10.0, "t_cab_c", text))  # t_s 10 is line 12
+    where = rf"drive.csv: line 12, column 't_cab_c': '{text}' is not a finite number"
+    with pytest.raises(ValueError, match=where):
+        idn.read_series_csv(bad)
+    line = _identify_fits_not(capsys, tmp_path, bad)
+    assert "drive.csv: line 12, column 't_cab_c'" in line and "not a finite number" in line
+    # the optional door column: NaN is "not measured on this row" (a bag's door before it existed), inf is refused
+    src = bad.read_text().splitlines()
+    door = tmp_path / "door.csv"
+    door.write_text("\n".join([src[0] + ",recirc_share", src[1] + ",nan", src[2] + ",inf"]) + "\n")
+    with pytest.raises(ValueError, match=r"door.csv: line 3, column 'recirc_share': 'inf' is not a finite number"):
+        idn._series_with_door(door)
+    door.write_text("\n".join([src[0] + ",recirc_share", src[1] + ",nan", src[3] + ",0.5"]) + "\n")
+    assert np.isnan(idn._series_with_door(door)["recirc_share"][0])
+
+
+def test_a_time_gap_in_the_series_is_refused_not_fitted_across(tmp_path, capsys):
+    """Rows removed (t_s 49 -> 60 s in a 1 s series) would join samples 11 s apart as one model step (the intervals
+    stride by row): refused, naming the file and the first gap. Segments restarting their time are not gaps."""
+    gap = _first_drive_csv(tmp_path, drop=range(50, 60))
+    series = idn.read_series_csv(gap)
+    with pytest.raises(ValueError, match=r"series: row 50: t_s goes from 49 to 60 s, but the sample step is 1 s"):
+        idn.intervals_from_series(series, 5.0)
+    line = _identify_fits_not(capsys, tmp_path, gap)
+    assert "drive.csv: line 52: t_s goes from 49 to 60 s, but the sample step is 1 s" in line
+    assert "split the file at the gap" in line
+    # rows out of order: t_s must increase
+    backwards = dict(series, t_s=series["t_s"][::-1].copy())
+    with pytest.raises(ValueError, match=r"row 1: t_s goes from 599 to 598 s, but t_s must increase"):
+        idn.sample_step_s(backwards)
+    # uniform within each segment (two drives, each from t = 0): the step; a 2 s series: 2 s
+    assert idn.sample_step_s({"t_s": np.r_[0.0:5.0, 0.0:3.0], "segment": np.r_[[0] * 5, [1] * 3]}) == 1.0
+    assert idn.sample_step_s({"t_s": np.arange(0.0, 20.0, 2.0), "segment": np.zeros(10)}) == 2.0
+
+
+def test_a_horizon_longer_than_the_data_is_refused_naming_the_longest(tmp_path, capsys):
+    """--horizon-steps with no prediction window in the data wrote n_windows 0 and NaN errors; now an error naming
+    the flag and the longest horizon the data allow, and no parameter file."""
+    train = _first_drive_csv(tmp_path)  # 600 s: one run of 119 intervals of 5 s
+    valid = tmp_path / "valid.csv"
+    valid.write_text("\n".join(train.read_text().splitlines()[:151]) + "\n")  # 150 s: 29 intervals
+    line = _identify_fits_not(capsys, tmp_path, train, "--horizon-steps", "30", valid=valid)
+    assert "--horizon-steps 30 is longer than the data allow" in line and "give --horizon-steps 29 or less" in line
+    iv = idn.intervals_from_series(idn.read_series_csv(valid), 5.0)
+    assert idn.longest_horizon_steps(iv) == 29
+    assert idn.prediction_errors(cm.load_params(), iv, 29)["n_windows"] == 1
+    assert idn.prediction_errors(cm.load_params(), iv, 30)["n_windows"] == 0
+    # a break in the chain (another segment) ends a run
+    iv["segment"][10:] = 1.0
+    assert idn.longest_horizon_steps(iv) == 19
+
+
+def test_data_without_excitation_cannot_identify_the_model(tmp_path, capsys):
+    """Every row the same (but t_s): least squares returned gains 0 and a model that cannot predict; refused,
+    naming what does not vary. Two blower levels cannot give the three blower coefficients: named too."""
+    lines = (idn.DEFAULT_DATA_DIR / "train.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    row = lines[1].split(",")
+    const = tmp_path / "const.csv"
+    const.write_text(
+        "\n".join([lines[0]] + [",".join(f"{t}" if c == "t_s" else v for c, v in zip(head, row)) for t in range(600)])
+    )
+    line = _identify_fits_not(capsys, tmp_path, const, valid=_first_drive_csv(tmp_path))
+    assert "the training data cannot identify the model: t_evap_c, mdot_bl_kgps" in line and "do not vary" in line
+    true = dataclasses.replace(cm.load_params(), fresh_air_fraction=0.2, provenance="truth")
+    iv = _model_intervals(true)
+    iv["mdot"] = np.where(iv["mdot"] > 0.11, 0.15, 0.08)
+    with pytest.raises(ValueError, match=r"cannot identify the blower power: mdot_bl_kgps, mdot_bl_kgps\^3 vary"):
+        idn.fit_intervals(iv)
