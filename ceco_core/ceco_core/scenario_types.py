@@ -29,6 +29,7 @@ from ceco_core.air_quality import CO2_AMB_PPM_DEFAULT, AirQualityLimits
 
 __all__ = [
     "ScenarioError",
+    "yaml_number_hint",
     "Environment",
     "WeatherPreview",
     "Occupant",
@@ -256,6 +257,25 @@ class DriveCycle:
         return float(0.5 * np.sum((v[1:] + v[:-1]) * np.diff(t)))
 
 
+def yaml_number_hint(value) -> str:
+    """A hint for a number YAML read as text.
+
+    PyYAML (YAML 1.1) takes an exponent only after a decimal point and with a sign (``1.0e+9``); ``1e9``,
+    ``1.0e9`` and ``1e+9`` are strings.
+    """
+    if isinstance(value, str):
+        mantissa, sep, exponent = value.strip().lower().partition("e")
+        try:
+            float(value)
+        except ValueError:
+            return ""
+        if sep:
+            mantissa = mantissa if "." in mantissa else f"{mantissa}.0"
+            exponent = exponent if exponent[:1] in "+-" else f"+{exponent}"
+            return f" (YAML reads {value} as text: write {mantissa}e{exponent})"
+    return ""
+
+
 def check_number(field: str, value, bounds, low_open: bool = False) -> float:
     """A scenario number checked against its range, as a float.
 
@@ -272,7 +292,7 @@ def check_number(field: str, value, bounds, low_open: bool = False) -> float:
         ScenarioError naming ``field``: not a number, not finite, or out of range.
     """
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ScenarioError(f"{field}: must be a number, got {value!r}")
+        raise ScenarioError(f"{field}: must be a number, got {value!r}{yaml_number_hint(value)}")
     x = float(value)
     if not math.isfinite(x):
         raise ScenarioError(f"{field}: must be finite, got {value!r}")

@@ -19,6 +19,7 @@ from pathlib import Path
 import yaml
 
 from ceco_core.cli_flags import check_duration
+from ceco_core.scenario_types import yaml_number_hint
 
 from . import cells as cells_mod
 from .cells import Cell, cell_id, runtime_overrides
@@ -326,13 +327,13 @@ def expand_grid(grid: Mapping) -> list[Cell]:
         and math.isfinite(duration)
         and duration > 0
     ):
-        raise GridError(f'duration_s: must be a positive number, got {duration!r}')
+        raise GridError(f'duration_s: must be a positive number, got {duration!r}{yaml_number_hint(duration)}')
     from ceco_core.contracts import CONTROL_PERIOD_RANGE_S, HORIZON_RANGE
 
     for key, (lo, hi) in (('control_period_s', CONTROL_PERIOD_RANGE_S), ('horizon_steps', HORIZON_RANGE)):
         v = grid.get(key)  # the nodes' ranges, as every verb's flags
         if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool) and lo <= v <= hi):
-            raise GridError(f'{key}: must be a number in {lo:g}..{hi:g}, got {v!r}')
+            raise GridError(f'{key}: must be a number in {lo:g}..{hi:g}, got {v!r}{yaml_number_hint(v)}')
     for label, q in previews.items():
         if not isinstance(q, str):
             raise GridError(f'previews.{label}: must be a preview-quality string (e.g. "noisy:solar=50")')
