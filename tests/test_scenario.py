@@ -312,3 +312,21 @@ def test_occupants_and_air_quality_fields():
     d["initial"] = {**d["initial"], "co2_cab_ppm": 100.0}
     with pytest.raises(ScenarioError, match="initial.co2_cab_ppm"):
         scenario_from_dict(d)
+
+
+@pytest.mark.parametrize('text, fix', [('1e9', '1.0e+9'), ('1.5e3', '1.5e+3'), ('-2E-3', '-2.0e-3')])
+def test_a_number_yaml_reads_as_text_says_how_to_write_it(tmp_path, text, fix):
+    """PyYAML (YAML 1.1) reads 1e9 and 1.5e3 as strings; the error says so and gives the form it reads as a number
+    (and that form is read as the same number)."""
+    import pathlib
+
+    import ceco_v2x_preview
+
+    bundled = pathlib.Path(ceco_v2x_preview.__file__).parent / 'data' / 'scenarios' / 'sc03.yaml'
+    doc = yaml.safe_load(bundled.read_text(encoding='utf-8'))
+    doc['duration_s'] = text
+    path = tmp_path / 'mine.yaml'
+    path.write_text(yaml.safe_dump(doc).replace(f"'{text}'", text))
+    with pytest.raises(ScenarioError, match=f'YAML reads {text} as text: write {fix}'.replace('+', r'\+')):
+        load_scenario(str(path))
+    assert yaml.safe_load(f'x: {fix}')['x'] == float(text)
