@@ -746,3 +746,27 @@ def test_oracle_cells_run_longest_expected_first_and_the_shared_solve_stays_firs
     run, reuse = runner.share_seed_invariant([dict(id=c.id, axes=c.axes, spec=c.spec) for c in order])
     shared = {c.axes['case']: c.id for c in order}
     assert [x['id'] for x in reuse[shared['sc03-paper']]] == [shared['sc03-high']]
+
+
+def test_a_quick_document_lists_the_seeds_it_ran(tmp_path):
+    """--quick runs a case's first seed only; its document lists that seed, not the case file's five (the validator
+    holds every seed-dependent controller to a run per listed seed). The families alone: seconds."""
+    case = tmp_path / 'short.yaml'
+    case.write_text(
+        yaml.safe_dump(
+            {
+                'schema': CASE_SCHEMA,
+                'name': 'short',
+                'version': 1,
+                'scenario': 'sc03_mild',
+                'duration_s': 20,
+                'forecast_uncertainty': 'medium',
+                'seeds': [0, 1, 2, 3, 4],
+            }
+        )
+    )
+    kw = dict(workers=1, progress=False, log=lambda *a, **k: None, setpoints_c=[25.0], setpoints_pmv=[0.0])
+    doc = cli.run_benchmark([str(case)], tmp_path / 'out', quick=True, strategies=(), **kw)
+    assert doc['cases'][0]['seeds'] == [0]
+    assert json.loads((tmp_path / 'out' / 'results.json').read_text())['cases'][0]['seeds'] == [0]
+    assert bs.check_results(doc) == []

@@ -2,6 +2,7 @@
 
 import copy
 import json
+import math
 
 import pytest
 
@@ -261,6 +262,21 @@ def _case(doc):
             "baseline@25.0): not a run of kind",
         ),
         (lambda d: d.update(created_utc="yesterday"), "created_utc"),
+        # numbers are finite: Python's json reads NaN and Infinity, JSON Schema's "number" takes them
+        (lambda d: _case(d).update(duration_s=math.nan), "cases/0/duration_s: nan is not a finite number"),
+        (lambda d: _case(d).update(duration_s=math.inf), "cases/0/duration_s: inf is not a finite number"),
+        (lambda d: _case(d)["runs"][10]["kpis"].update(i_pmv=math.nan), "runs/10/kpis/i_pmv: nan is not a finite"),
+        (lambda d: _case(d)["runs"][0]["kpis"].update(energy_kwh=math.inf), "kpis/energy_kwh: inf is not a finite"),
+        (lambda d: _case(d)["runs"][11]["kpis"].update(peak_comp_kw=-math.inf), "peak_comp_kw: -inf is not a"),
+        (lambda d: d["timing"].update(wall_s=math.nan), "timing/wall_s: nan is not a finite number"),
+        (
+            lambda d: _case(d)["runs"][10]["kpis"].update(otc_violation_pct=100.5),
+            "otc_violation_pct = 100.5 is outside",
+        ),
+        (lambda d: _case(d)["runs"][10]["kpis"].update(otc_violation_pct=-1.0), "otc_violation_pct = -1.0 is outside"),
+        (lambda d: d.update(cases=[]), "cases: empty"),
+        (lambda d: d["cases"].append(copy.deepcopy(_case(d))), "cases/1 (sc03-medium): duplicate case (also cases/0)"),
+        (lambda d: _case(d)["seeds"].append(2), "ceco has no run for seed(s) [2] of the case's seeds [0, 1, 2]"),
     ],
 )
 def test_each_violation_is_reported(mutate, message):
@@ -280,6 +296,7 @@ def test_a_failed_run_keeps_its_kpis_and_is_left_out_of_matching():
     failed = _run("external:nan", "external", 0, 0.05, 0.33)
     failed.update(status="failed", error="the controller did not control the run: 12 of 12 control steps in fallback")
     runs.append(failed)
+    runs.append(dict(copy.deepcopy(failed), seed=1))  # a seeded controller runs on every seed of the case
     assert bs.check_results(doc) == []  # kept with its numbers, not matched
     assert "external:nan" not in case["matched"]
     failed["kpi_notes"] = {}
@@ -318,8 +335,7 @@ def test_a_door_family_can_be_the_strongest_and_its_case_document_validates():
         row("baseline-pmv@+0.40", "baseline-pmv", None, 0.05, 0.37, sp_pmv=0.4),
         row("baseline-pmv-door80@+0.40", "baseline-pmv-door80", None, 0.05, 0.35, sp_pmv=0.4),
         row("baseline-pmv-door100@+0.40", "baseline-pmv-door100", None, 0.05, 0.30, met=0.0, sp_pmv=0.4),
-        row("ceco-pmv-aq", "strategy", 0, 0.05, 0.33),
-        row("ceco-pmv-aq", "strategy", 1, 0.05, 0.33),
+        *(row("ceco-pmv-aq", "strategy", seed, 0.05, 0.33) for seed in load_case("hot-commute-4p").seeds),
     ]
     levels = runner.oracle_levels([runner._run_entry(r) for r in rows])  # as the CLI records a skipped oracle
     case = runner.assemble_case(

@@ -89,16 +89,67 @@ def not_a_bag_message(path: Path) -> str:
     return f'{path} is not a rosbag2 directory (no metadata.yaml): give DIR/bag of a ceco run or a ros2 bag'
 
 
+def missing_topics_message(requested, bag_topics) -> str | None:
+    """Why ``--topics requested`` cannot be played from a bag holding ``bag_topics`` (None: all are in it)."""
+    missing = [t for t in requested if t not in bag_topics]
+    if not missing:
+        return None
+    return (
+        f'--topics: {", ".join(missing)} not in the bag: give its topics by their bag names, '
+        f'{", ".join(sorted(bag_topics))}'
+    )
+
+
+def namespace_message(namespace: str | None, bag_topics) -> str | None:
+    """Why --compare cannot take the recorded stack under ``namespace`` from a bag holding ``bag_topics``.
+
+    None when the bag holds the cabin state there (``namespace`` None: under any namespace; several are
+    for ``ceco_bringup.bagrun`` to refuse).
+    """
+    from ceco_bringup.bagio import topic_namespace
+    from ceco_bringup.supervisor import normalize_namespace
+    from ceco_ros.topics import TOPIC_STATE
+
+    held = sorted({ns for t in bag_topics if (ns := topic_namespace(t, TOPIC_STATE)) is not None})
+    if not held:
+        return f'--compare: the bag holds no {TOPIC_STATE} under any namespace: no recorded stack to feed a controller'
+    if namespace is None:
+        return None
+    try:
+        ns = normalize_namespace(namespace)
+    except ValueError as exc:
+        return f'--namespace: {exc}'
+    if ns in held:
+        return None
+    return (
+        f'--namespace {namespace}: not in the bag (no {TOPIC_STATE} under {ns or "/"}): give one of its '
+        f'namespaces, {", ".join(n or "/" for n in held)}'
+    )
+
+
 def main(argv=None) -> int:
     """`ceco play`: plain playback, or --compare."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    from ceco_bringup import bagio
     from ceco_bringup.bagrun import is_bag
+    from ceco_bringup.rundata import read_bag
 
     if not is_bag(args.bag):
         parser.error(not_a_bag_message(args.bag))
     if args.strategy is not None and len(args.strategy) != 1:
         parser.error(f'--strategy: --compare runs one controller, got {",".join(args.strategy)}')
+    try:  # opening the bag reads its metadata and index: a damaged bag stops here, before any node starts
+        bag_topics = read_bag(args.bag, bagio.topic_counts)
+    except ValueError as err:
+        print(f'ceco play: error: {err}', file=sys.stderr)
+        return 2
+    if args.compare:
+        problem = namespace_message(args.namespace, bag_topics)
+    else:
+        problem = missing_topics_message(args.topics or (), bag_topics)
+    if problem:
+        parser.error(problem)
     return compare(args) if args.compare else play(args)
 
 
@@ -149,7 +200,7 @@ def play(args) -> int:
 
     types = bagio.topic_types(args.bag)
     if args.topics:
-        types = {t: types[t] for t in args.topics if t in types}
+        types = {t: types[t] for t in args.topics}  # each in the bag (main)
     else:
         types = {t: m for t, m in types.items() if t not in _NOT_REPLAYED}
     context, node = _make_node('ceco_play', args.domain_id)

@@ -17,6 +17,7 @@ Public API:
     RunData                        one loaded, checked run
     discover_runs(paths)           run directories among paths (or one level below)
     load_run(run_dir, rtol, namespace, scenario=None, strategy=None) -> RunData
+    read_bag(bag_dir, read, *args) a bagio reader's result; a damaged bag as one ValueError
     recompute_metrics(columns) / compare_metrics(stored, recomputed, rtol, atol)
     csv_precision_digits(path)     significant digits a CSV's writer used
     fallback_mask(column)          which control steps fell back
@@ -34,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ceco_core.rundir import read_csv_columns
+from ceco_core.rundir import read_csv_columns, read_metrics_json
 
 __all__ = [
     'RunData',
@@ -43,6 +44,7 @@ __all__ = [
     'recompute_metrics',
     'compare_metrics',
     'load_run',
+    'read_bag',
     'fallback_mask',
     'solver_stats',
 ]
@@ -176,13 +178,23 @@ def compare_metrics(stored: Mapping, recomputed: Mapping, rtol: float = 1e-9, at
     return mism, worst
 
 
+def read_bag(bag_dir: str | Path, read, *args):
+    """``read(bag_dir, *args)`` (a ``ceco_bringup.bagio`` reader); any error as a ValueError naming the bag.
+
+    rosbags raises its own types for a damaged bag (an .mcap cut short or empty, a corrupt
+    metadata.yaml): ``<bag>: cannot read the bag: ReaderError: ...`` (``ceco report``, ``ceco play``).
+    """
+    try:
+        return read(bag_dir, *args)
+    except Exception as exc:  # rosbags raises its own types; say which bag
+        why = ' '.join(str(exc).split())  # one line (a YAML error spans several)
+        raise ValueError(f'{bag_dir}: cannot read the bag: {type(exc).__name__}: {why}') from exc
+
+
 def _load_bag(bag_dir: Path, namespace: str | None) -> dict:
     from ceco_bringup import bagio  # needs rosbags only; imported when a bag exists
 
-    try:
-        cols = {k: np.asarray(v) for k, v in bagio.load_run_timeseries(bag_dir, namespace).items()}
-    except Exception as exc:  # rosbags raises its own types; say which bag
-        raise ValueError(f'{bag_dir}: cannot read the bag: {type(exc).__name__}: {exc}') from exc
+    cols = {k: np.asarray(v) for k, v in read_bag(bag_dir, bagio.load_run_timeseries, namespace).items()}
     if not len(cols.get('t_s', ())) >= 2:
         raise ValueError(f'{bag_dir}: the bag holds fewer than 2 complete plant steps')
     return cols
@@ -227,12 +239,27 @@ def _legacy_view(recomputed: Mapping) -> dict:
     return dict(recomputed, E_tot_J=e, E_tot_kWh=e / J_PER_KWH, P_mean_w=e / recomputed['duration_s'])
 
 
+def _read_json(path: Path, read, fix: str):
+    """``read()`` of the JSON file ``path``; a file that is not JSON text is a ValueError naming it, with ``fix``."""
+    try:
+        return read()
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f'{path}: not a JSON file ({exc}): {fix}') from None
+
+
 def _identity(run_dir: Path, stored: Mapping, namespace, scenario, strategy) -> tuple[str, str, dict, float | None]:
     """(scenario, strategy, info, intended length [s]) from the flags, metrics.json, run.json, the bag."""
     from ceco_bringup import provenance
     from ceco_bringup.bagrun import bag_dir_of, bag_run_info
 
-    info = dict(provenance.read_run(run_dir) or {})
+    info = dict(
+        _read_json(
+            run_dir / provenance.RUN_FILE,
+            lambda: provenance.read_run(run_dir),
+            'remove it (run.json only records how the run was made; older run directories have none)',
+        )
+        or {}
+    )
     sc = scenario or stored.get('scenario') or info.get('scenario')
     st = strategy or stored.get('strategy')
     length = None
@@ -272,7 +299,15 @@ def load_run(
     run_dir = Path(run_dir)
     notes: list[str] = []
     has_json = (run_dir / 'metrics.json').is_file()
-    stored = json.loads((run_dir / 'metrics.json').read_text(encoding='utf-8')) if has_json else {}
+    stored = (
+        _read_json(
+            run_dir / 'metrics.json',
+            lambda: read_metrics_json(run_dir / 'metrics.json'),
+            'rerun the run, or remove the file to report a run with a bag from its bag alone',
+        )
+        if has_json
+        else {}
+    )
     columns, source = _time_series(run_dir, namespace)
     sc, st, info, length = _identity(run_dir, stored, namespace, scenario, strategy)
     if 'p_cond_fan_w' not in columns:

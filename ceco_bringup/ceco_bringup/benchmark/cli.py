@@ -33,7 +33,7 @@ from ceco_bringup.sweep.cells import code_fingerprint
 
 from . import runner
 from .cases import DEFAULT_CASES, QUICK_CASES, CaseError, list_cases, load_case
-from .schema import BENCHMARK_VERSION, SCHEMA, ResultsError, check_results, validate_results
+from .schema import BENCHMARK_VERSION, SCHEMA, ResultsError, check_results, read_results, validate_results
 
 __all__ = ['run_benchmark', 'ceco_version', 'build_parser', 'main']
 
@@ -277,7 +277,10 @@ def run_benchmark(
     case_docs = []
     for c in cases:
         sens = [(p, rows(lo), rows(hi)) for p, lo, hi in sens_plan] if c.name == sens_case_name else []
-        case_docs.append(runner.assemble_case(c, rows(by_case[c.name]), sens, oracles[c.name]))
+        # the seeds run (--quick: the first only), which the validator holds the seeded runs to
+        case_docs.append(
+            {**runner.assemble_case(c, rows(by_case[c.name]), sens, oracles[c.name]), 'seeds': list(seeds[c.name])}
+        )
     all_cells = cells + external
     wall = time.perf_counter() - t0
     sim = [r['sim_time_s'] for r in ran if r['status'] == 'ok' and r.get('kind') != 'oracle']
@@ -485,11 +488,11 @@ def main(argv=None) -> int:
     """CLI of ``ceco benchmark``."""
     p = build_parser()
     args = p.parse_args(argv)
-    if args.validate:
+    if args.validate is not None:
         try:
-            doc = json.loads(Path(args.validate).read_text(encoding='utf-8'))
-        except (OSError, json.JSONDecodeError) as exc:
-            print(f'ceco benchmark: {args.validate}: {exc}', file=sys.stderr)
+            doc = read_results(args.validate)
+        except ValueError as exc:
+            print(f'ceco benchmark: {exc}', file=sys.stderr)
             return 2
         errors = check_results(doc)
         for e in errors:

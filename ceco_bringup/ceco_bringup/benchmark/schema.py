@@ -14,7 +14,9 @@ Two layers:
    tolerance 1e-9): a failed run (its controller did not control it, ``ceco_core.run_status``) is
    never matched; the strongest family (per level and per controller) and ``headroom_captured``
    recompute from the fronts and the oracle's points; each oracle front recomputes from its solved
-   points (one per level, >= 4 levels).
+   points (one per level, >= 4 levels); every number is finite (JSON has no NaN; Python's ``json`` reads
+   ``NaN`` and ``Infinity``); a KPI of :data:`KPI_RANGES` lies in its range; a document holds at least one
+   case, each once; every seed-dependent controller has a run for each of the case's seeds.
 
 Pure Python (jsonschema); no ROS import.
 """
@@ -25,6 +27,7 @@ import json
 import math
 from collections.abc import Mapping
 from importlib import resources
+from pathlib import Path
 from typing import Any
 
 from . import front as fr
@@ -33,6 +36,7 @@ __all__ = [
     "SCHEMA",
     "BENCHMARK_VERSION",
     "REQUIRED_KPIS",
+    "KPI_RANGES",
     "KINDS",
     "SEED_INVARIANT_KINDS",
     "FAMILIES",
@@ -46,6 +50,7 @@ __all__ = [
     "oracle_member",
     "oracle_point_kpis",
     "load_json_schema",
+    "read_results",
     "validate_results",
     "check_results",
     "ResultsError",
@@ -72,6 +77,9 @@ REQUIRED_KPIS = (
     "fallback_steps",
 )
 """KPIs every run reports (a number or null with a note)."""
+
+KPI_RANGES = {"otc_violation_pct": (0.0, 100.0)}
+"""KPI -> (lowest, highest) value it can take by its definition (``ceco_core.kpis``): a share of the run [%]."""
 
 FAMILIES = {
     "plain": "baseline",
@@ -138,6 +146,21 @@ def load_json_schema() -> dict:
     return json.loads(text)
 
 
+def read_results(path: str) -> Any:
+    """The parsed JSON document in file ``path``; ValueError (one line naming the file) when it cannot be read."""
+    if not str(path).strip():
+        raise ValueError("--validate: the path is empty: give the results.json to check")
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ValueError(
+            f"{path}: not a UTF-8 text file ({exc.reason} at byte {exc.start}): "
+            "give a results.json ceco benchmark wrote"
+        ) from None
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
 def _same(a, b) -> bool:
     if a is None or b is None:
         return a is None and b is None
@@ -193,8 +216,12 @@ def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
         for k, v in run["kpis"].items():
             if v is None and k not in run["kpi_notes"]:
                 out.append(f"{where}: KPI {k} is null without a note in kpi_notes")
+            lo, hi = KPI_RANGES.get(k, (-math.inf, math.inf))
+            if v is not None and not lo <= v <= hi:
+                out.append(f"{where}: KPI {k} = {v!r} is outside {lo:g}..{hi:g}")
         if run["status"] == "ok":  # a failed run keeps its KPIs but is never on a front nor matched
             ok_runs.setdefault(run["controller"], []).append(run)
+    out += _check_seed_coverage(tag, case)
     fx, ex = settings["front_axis"], settings["energy_axis"]
     fronts = {}
     for family, kind in FAMILIES.items():
@@ -292,6 +319,40 @@ def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
     return out
 
 
+def _check_seed_coverage(tag: str, case: Mapping) -> list[str]:
+    """Every seed-dependent controller of the case has a run (of any status) for each of the case's seeds.
+
+    A seed without its run would leave a controller's seed mean over fewer seeds than the case lists. A case
+    whose runs are all seed-invariant (``--strategy none``) has nothing to cover.
+    """
+    seeds = set(case["seeds"])
+    have: dict = {}
+    for run in case["runs"]:
+        if run["kind"] not in SEED_INVARIANT_KINDS:
+            have.setdefault(run["controller"], set()).add(run["seed"])
+    return [
+        f"{tag}: {name} has no run for seed(s) {sorted(seeds - got)} of the case's seeds {sorted(seeds)}"
+        for name, got in have.items()
+        if seeds - got
+    ]
+
+
+def _non_finite(node: Any, where: str = "") -> list[str]:
+    """Where ``node`` (a parsed JSON document) holds NaN or +-Infinity, one line each."""
+    if isinstance(node, float):
+        return [] if math.isfinite(node) else [f"{where or '(top level)'}: {node!r} is not a finite number"]
+    if isinstance(node, Mapping):
+        items: Any = node.items()
+    elif isinstance(node, list):
+        items = enumerate(node)
+    else:
+        return []
+    out = []
+    for key, value in items:
+        out += _non_finite(value, f"{where}/{key}" if where else str(key))
+    return out
+
+
 def _check_strongest(tag: str, entry: Mapping, env, levels) -> list[str]:
     """The case's ``strongest`` recomputes from the fronts at the oracle's levels."""
     if env is None:
@@ -360,16 +421,16 @@ def _oracle_bounds(tag: str, oracle: Mapping) -> tuple[dict, list[str]]:
 
 def check_results(doc: Any) -> list[str]:
     """All problems of a parsed results document (empty list: valid ceco-benchmark/2)."""
-    errors = _schema_errors(doc)
+    errors = _schema_errors(doc) or _non_finite(doc)  # nothing recomputes from NaN: stop at either
     if errors:
         return errors
-    out = []
+    out = [] if doc["cases"] else ["cases: empty (a results document holds at least one case)"]
+    first: dict = {}
     for i, case in enumerate(doc["cases"]):
+        j = first.setdefault(case["case"], i)
+        if j != i:
+            out.append(f"cases/{i} ({case['case']}): duplicate case (also cases/{j})")
         out += _check_case(i, case, doc["settings"])
-    for name in ("timing",):
-        for k, v in doc[name].items():
-            if isinstance(v, float) and not math.isfinite(v):
-                out.append(f"{name}/{k}: not finite")
     return out
 
 

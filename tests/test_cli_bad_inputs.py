@@ -1,0 +1,119 @@
+"""Bad input to `ceco report`, `ceco benchmark --validate` and `ceco play`: one line on stderr naming what is
+wrong (and the fix), exit status 2, no traceback, and nothing started (play refuses before any node)."""
+
+import pytest
+from bag_helpers import sample
+
+from ceco_bringup import bag_writer, bagio, play, report
+from ceco_bringup.benchmark import cli as bench_cli
+
+STATE = 'ceco_msgs/msg/CabinState'
+FLAGS = ('--scenario', 'sc03', '--strategy', 'baseline', '--control-period-s', '5', '--horizon-steps', '6')
+"""What a bag without ceco metadata does not say, so that --compare gets as far as the namespace."""
+
+
+def _one_line(err: str) -> str:
+    """The one error line of ``err`` (a progress line such as 'ceco report: loading 1 run(s)' may precede it)."""
+    lines = [line for line in err.splitlines() if not line.startswith('ceco report: loading')]
+    assert 'Traceback' not in err and len(lines) == 1 and not err.endswith('\n\n'), err
+    return lines[0]
+
+
+# --------------------------------------------------------------------------- ceco report
+@pytest.mark.parametrize(
+    'text', ['[1, 2]', '"just a string"', '', '{"strategy": '], ids=['list', 'str', 'empty', 'cut']
+)
+def test_report_names_a_metrics_json_that_is_not_a_json_object(tmp_path, capsys, text):
+    run = tmp_path / 'run'
+    run.mkdir()
+    (run / 'metrics.json').write_text(text)
+    (run / 'timeseries.csv').write_text('t_s\n0\n5\n')
+    assert report.main([str(run), '--out', str(tmp_path / 'rep')]) == 2
+    err = _one_line(capsys.readouterr().err)
+    assert f'{run / "metrics.json"}:' in err
+
+
+def test_report_names_a_corrupt_run_json(tmp_path, capsys):
+    run = tmp_path / 'run'
+    run.mkdir()
+    (run / 'metrics.json').write_text('{}')
+    (run / 'timeseries.csv').write_text('t_s\n0\n5\n')
+    (run / 'run.json').write_bytes(b'')
+    assert report.main([str(run), '--out', str(tmp_path / 'rep')]) == 2
+    err = _one_line(capsys.readouterr().err)
+    assert f'{run / "run.json"}: not a JSON file' in err and 'remove it' in err
+
+
+# --------------------------------------------------------------------------- ceco benchmark --validate
+def test_validate_refuses_a_binary_file_and_an_empty_path(tmp_path, capsys):
+    binary = tmp_path / 'results.json'
+    binary.write_bytes(b'\xff\xfe')
+    assert bench_cli.main(['--validate', str(binary)]) == 2
+    assert f'{binary}: not a UTF-8 text file' in _one_line(capsys.readouterr().err)
+    assert bench_cli.main(['--validate', '']) == 2
+    err = _one_line(capsys.readouterr().err)
+    assert '--validate: the path is empty' in err and '--out' not in err
+
+
+# --------------------------------------------------------------------------- ceco play
+def _bag(path, n=5, topic='/cabin/state'):
+    store = bagio.typestore()
+    w = bag_writer.BagWriter(path)
+    w.add_topic(topic, STATE)
+    for k in range(n):
+        w.write(topic, k * 10**9, store.serialize_cdr(sample(store, STATE, k, stamp_ns=k * 10**9), STATE))
+    w.close()
+    return path
+
+
+def _cut_short(bag):
+    mcap = next(bag.glob('*.mcap'))
+    mcap.write_bytes(mcap.read_bytes()[:-200])
+
+
+def _emptied(bag):
+    next(bag.glob('*.mcap')).write_bytes(b'')
+
+
+def _corrupt_metadata(bag):
+    (bag / 'metadata.yaml').write_text('rosbag2_bagfile_information: [unclosed\n')
+
+
+@pytest.mark.parametrize('damage', [_cut_short, _emptied, _corrupt_metadata], ids=['cut', 'empty', 'metadata'])
+@pytest.mark.parametrize('compare', [False, True], ids=['play', 'compare'])
+def test_play_refuses_a_damaged_bag_as_report_does(tmp_path, capsys, damage, compare):
+    bag = _bag(tmp_path / 'bag')
+    damage(bag)
+    assert play.main([str(bag), '--no-progress', *(['--compare'] if compare else [])]) == 2
+    err = _one_line(capsys.readouterr().err)
+    assert f'ceco play: error: {bag}: cannot read the bag: ReaderError' in err
+
+
+def test_play_refuses_a_topic_the_bag_does_not_hold(tmp_path, capsys):
+    bag = _bag(tmp_path / 'bag')
+    with pytest.raises(SystemExit) as exc:
+        play.main([str(bag), '--no-progress', '--topics', '/nonexistent', '/cabin/state'])
+    assert exc.value.code == 2
+    err = _one_line(capsys.readouterr().err)
+    assert '--topics: /nonexistent not in the bag' in err and err.rstrip().endswith(
+        '/cabin/state (ceco play --help lists the options)'
+    )
+
+
+def test_play_compare_refuses_a_namespace_the_bag_does_not_hold(tmp_path, capsys):
+    bag = _bag(tmp_path / 'bag', topic='/veh1/cabin/state')
+    with pytest.raises(SystemExit) as exc:
+        play.main([str(bag), '--no-progress', '--compare', '--namespace', 'bogus', *FLAGS])
+    assert exc.value.code == 2
+    err = _one_line(capsys.readouterr().err)
+    assert '--namespace bogus: not in the bag' in err and 'namespaces, /veh1' in err
+
+
+def test_missing_topics_and_namespace_messages():
+    assert play.missing_topics_message(['/a'], {'/a': 1, '/b': 2}) is None
+    assert play.missing_topics_message(['/c', '/a'], {'/b': 2, '/a': 1}).startswith('--topics: /c not in the bag')
+    held = {'/cabin/state': 3, '/veh2/cabin/state': 3, '/clock': 3}
+    assert play.namespace_message(None, held) is None and play.namespace_message('/veh2/', held) is None
+    assert play.namespace_message('', held) is None  # the root namespace
+    assert play.namespace_message('veh3', held).endswith('namespaces, /, /veh2')
+    assert 'no cabin/state under any namespace' in play.namespace_message(None, {'/clock': 1})
