@@ -238,6 +238,11 @@ def test_user_files_and_csv_cycles(tmp_path):
         load_scenario(tmp_path / "broken.yaml")
     with pytest.raises(ScenarioError, match="unknown scenario"):
         load_scenario("no_such_scenario")
+    # a path that is not there is said as such, not as an unknown bundled name
+    with pytest.raises(ScenarioError, match=r"mine\.yaml: no such file: give a scenario YAML file"):
+        load_scenario(str(tmp_path / "mine.yaml"))
+    with pytest.raises(ScenarioError, match="is a directory"):
+        load_scenario(str(tmp_path) + "/")
 
 
 def test_constant_written_as_one_number():

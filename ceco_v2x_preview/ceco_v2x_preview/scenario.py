@@ -357,6 +357,9 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
     else:
         path = Path(text_name).expanduser()
         if not path.is_file():
+            if text_name.endswith((".yaml", ".yml")) or os.sep in text_name:  # meant as a file
+                why = "is a directory" if path.is_dir() else "no such file"
+                raise ScenarioError(f"scenario: {text_name}: {why}: give a scenario YAML file or a bundled name")
             raise ScenarioError(
                 f"scenario: unknown scenario {text_name!r}: use one of {list_scenarios()} or a YAML path"
             )
