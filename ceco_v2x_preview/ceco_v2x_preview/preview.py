@@ -331,9 +331,13 @@ def parse_quality(text: str) -> PreviewQuality:
         raise ValueError("preview quality: empty string")
     fields: dict = {}
     spans: list = []
+    seen: set = set()
     for part in text.strip().split("+"):
         kind, _, arg = part.strip().partition(":")
         kind = kind.strip().lower()
+        if kind in seen:  # the second would replace the first without a word
+            raise ValueError(f"preview quality: {kind} given twice in {text!r}: give each part once")
+        seen.add(kind)
         if kind == "perfect" and not arg:
             continue
         if kind == "persistence" and not arg:

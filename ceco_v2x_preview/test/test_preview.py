@@ -185,6 +185,8 @@ def test_parse_quality_and_round_trip():
         ("missing:1-2,policy=maybe", "missing_policy"),
         ("noisy:solar=-1", "noise_std_solar_wm2"),
         ("", "empty"),
+        ("delayed:5+delayed:10", "delayed given twice"),  # was delayed:10 without a word
+        ("noisy+perfect+noisy:solar=5", "noisy given twice"),
     ],
 )
 def test_parse_quality_errors(text, message):
