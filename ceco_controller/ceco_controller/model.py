@@ -82,6 +82,11 @@ _SOFTPLUS_K = 2.0
 """Sharpness of the smooth max(.,0) in the power model [1/K]: error <= ln2/2 = 0.35 K."""
 
 
+OPTIONAL_FIELD_PREFIXES = ("co2_", "moist_", "provenance")
+"""ControlModelParams fields a parameter file may leave out (its defaults: the plant's nominal CO2 and moisture
+values, added after the first identified files); every other field is the fitted model and must be there."""
+
+
 @dataclasses.dataclass(frozen=True)
 class ControlModelParams:
     """Parameters of the control-oriented model (identified, never hand-typed).
@@ -193,6 +198,13 @@ class ControlModelParams:
         unknown = sorted(set(data) - names)
         if unknown:
             raise ValueError(f"ControlModelParams: unknown field(s) {unknown}")
+        # the fitted model must be whole; the CO2 and moisture fields came later and default to the plant's
+        # nominal values in older files (tests/test_co2_identification.py)
+        missing = [n for n in sorted(names - set(data)) if not n.startswith(OPTIONAL_FIELD_PREFIXES)]
+        if missing:
+            raise ValueError(
+                f"ControlModelParams: missing field(s) {missing}: a file `ceco identify` wrote has them all"
+            )
         kwargs: dict[str, Any] = {}
         for k, v in data.items():
             kwargs[k] = v if k == "provenance" else float(v)

@@ -72,6 +72,11 @@ def test_validation_names_field():
         dataclasses.replace(p, gamma_3=float("nan")).validate()
     with pytest.raises(ValueError, match="unknown"):
         cm.ControlModelParams.from_dict({"gamma_99": 1.0})
+    # a file with the fitted model cut short is refused, naming what is missing (it took the defaults silently)
+    whole = cm.load_params().to_dict()
+    cut = {k: v for k, v in whole.items() if k not in ("gamma_7", "tau_3")}
+    with pytest.raises(ValueError, match=r"missing field\(s\) \['gamma_7', 'tau_3'\]"):
+        cm.ControlModelParams.from_dict(cut)
 
 
 def test_control_period_must_be_multiple_of_model_step():
