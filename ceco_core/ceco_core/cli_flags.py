@@ -138,26 +138,26 @@ def nonnegative_float(text: str) -> float:
     return x
 
 
-def positive_int(text: str) -> int:
-    """An integer >= 1 (argparse type)."""
+def _whole_number(text: str, lo: int, hi: int | None = None) -> int:
+    """``int(text)`` within ``lo``..``hi`` (no upper bound for None); ArgumentTypeError saying the range."""
+    accepted = f'>= {lo}' if hi is None else f'in {lo}..{hi}'
     try:
         n = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f'must be a whole number >= 1, got {text!r}') from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f'must be a whole number >= 1, got {text!r}')
+        raise argparse.ArgumentTypeError(f'must be a whole number {accepted}, got {text!r}') from None
+    if n < lo or (hi is not None and n > hi):
+        raise argparse.ArgumentTypeError(f'must be a whole number {accepted}, got {text!r}')
     return n
+
+
+def positive_int(text: str) -> int:
+    """An integer >= 1 (argparse type)."""
+    return _whole_number(text, 1)
 
 
 def nonnegative_int(text: str) -> int:
     """An integer >= 0 (argparse type)."""
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be a whole number >= 0, got {text!r}') from None
-    if n < 0:
-        raise argparse.ArgumentTypeError(f'must be a whole number >= 0, got {text!r}')
-    return n
+    return _whole_number(text, 0)
 
 
 def control_period_s(text: str) -> float:
@@ -175,27 +175,14 @@ def horizon_steps(text: str) -> int:
     """Np [steps] within :data:`~ceco_core.contracts.HORIZON_RANGE`, the nodes' range (argparse type)."""
     from ceco_core.contracts import HORIZON_RANGE
 
-    lo, hi = HORIZON_RANGE
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be a whole number in {lo}..{hi}, got {text!r}') from None
-    if not lo <= n <= hi:
-        raise argparse.ArgumentTypeError(f'must be a whole number in {lo}..{hi}, got {text!r}')
-    return n
+    return _whole_number(text, *HORIZON_RANGE)
 
 
 def domain_id(text: str) -> int:
     """A ROS_DOMAIN_ID in 0..:data:`~ceco_core.contracts.DOMAIN_ID_MAX` (argparse type)."""
     from ceco_core.contracts import DOMAIN_ID_MAX
 
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be a whole number in 0..{DOMAIN_ID_MAX}, got {text!r}') from None
-    if not 0 <= n <= DOMAIN_ID_MAX:
-        raise argparse.ArgumentTypeError(f'must be a whole number in 0..{DOMAIN_ID_MAX}, got {text!r}')
-    return n
+    return _whole_number(text, 0, DOMAIN_ID_MAX)
 
 
 def nonempty(text: str) -> str:
