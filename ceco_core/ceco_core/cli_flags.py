@@ -12,16 +12,16 @@ flag                        setting                                          old
 ==========================  ===============================================  ====================
 ``--scenario``              bundled scenario name or YAML path
 ``--strategy``              ``all`` or a comma-separated list of strategies
-``--out``                   output directory
+``--out``                   output directory (existing or makeable)
 ``--preview``               preview quality (``perfect``, ``noisy``, ...)     ``--preview-quality``
-``--control-period-s``      control period Ts [s]                             ``--control-period``
-``--horizon-steps``         prediction horizon Np [steps]                     ``--horizon``
-``--duration-s``            run length [s]                                    ``--duration``
-``--seed``                  seed of the preview noise
+``--control-period-s``      control period Ts [s], 0.1..300 (the nodes')     ``--control-period``
+``--horizon-steps``         prediction horizon Np [steps], 1..60             ``--horizon``
+``--duration-s``            run length [s], whole plant steps                ``--duration``
+``--seed``                  seed of the preview noise, >= 0
 ``--workers``               parallel worker processes
 ``--backend``/``--address`` local process pool or Ray
 ``--namespace``             ROS namespace of the recorded stack
-``--domain-id``             ROS_DOMAIN_ID
+``--domain-id``             ROS_DOMAIN_ID, 0..232
 ``--no-progress``           no progress bar
 ==========================  ===============================================  ====================
 
