@@ -348,7 +348,7 @@ def add_preview(p, default: str | None = 'perfect', help_extra: str = '') -> Non
 def add_control_period(
     p, default_text: str = "the scenario's, 5 s for the bundled ones", deprecated: Sequence[str] = ('--control-period',)
 ) -> None:
-    """``--control-period-s`` (old name ``--control-period``): Ts [s], > 0; None when not given."""
+    """``--control-period-s`` (old name ``--control-period``): Ts [s] in 0.1..300; None when not given."""
     _add(
         p,
         '--control-period-s',
@@ -363,7 +363,7 @@ def add_control_period(
 def add_horizon(
     p, default_text: str = "the scenario's, 6 for the bundled ones", deprecated: Sequence[str] = ('--horizon',)
 ) -> None:
-    """``--horizon-steps`` (old name ``--horizon``): Np [steps], >= 1; None when not given."""
+    """``--horizon-steps`` (old name ``--horizon``): Np [steps] in 1..60; None when not given."""
     _add(
         p,
         '--horizon-steps',
