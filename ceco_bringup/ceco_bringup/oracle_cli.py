@@ -16,7 +16,6 @@ solved a second time holding the band's upper edge from the time its optimum cam
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -46,10 +45,7 @@ FRONT_COLUMNS = (
 
 def _levels(text: str) -> list[float]:
     """Comma-separated discomfort levels [PMV h], each finite and > 0 (argparse type)."""
-    vals = [cli_args.positive_float(x.strip()) for x in text.split(',') if x.strip()]
-    if not vals:
-        raise argparse.ArgumentTypeError(f'must be comma-separated numbers > 0 [PMV h], got {text!r}')
-    return vals
+    return cli_args.comma_list(cli_args.positive_float)(text)
 
 
 def build_parser() -> cli_args.Parser:
@@ -128,9 +124,7 @@ def main(argv=None) -> int:
         case = load_case(args.case)
         scenario = case.load_scenario()
         if args.duration_s is not None:
-            cli_args.check_duration(
-                args.duration_s, scenario, args.control_period_s or scenario.control.control_period_s
-            )
+            cli_args.check_duration(args.duration_s, scenario, args.control_period_s)
             d = case.scenario_dict()
             d['duration_s'] = float(args.duration_s)
             from ceco_v2x_preview.scenario import scenario_from_dict

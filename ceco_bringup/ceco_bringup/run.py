@@ -59,6 +59,7 @@ import numpy as np
 from ceco_bringup import arrival, cli_args, outputs, provenance, supervisor
 from ceco_bringup.bag_writer import STORAGES
 from ceco_bringup.verdict import FAMILY_SETPOINTS_C
+from ceco_core.contracts import PLANT_STEP_S
 from ceco_core.control_grid import TIMING_MODES
 from ceco_core.run_status import STATUS_OK
 from ceco_core.rundir import read_csv_columns
@@ -158,7 +159,7 @@ def main(argv=None) -> int:
         quality = parse_quality(args.preview)
         if args.seed is not None:
             quality = dataclasses.replace(quality, seed=int(args.seed))
-        cli_args.check_duration(args.duration_s, scenario, args.control_period_s or scenario.control.control_period_s)
+        cli_args.check_duration(args.duration_s, scenario, args.control_period_s)
         args.namespace = supervisor.normalize_namespace(args.namespace)
         supervisor.resolve_domain_id(args.domain_id)  # an invalid user id fails here
         stall_timeout_s(args)
@@ -323,7 +324,7 @@ def run_one(
     from ceco_bringup import bagio
     from ceco_bringup.recorder import Recorder
 
-    dt_s = 1.0
+    dt_s = PLANT_STEP_S
     duration_s = min(args.duration_s or scenario.duration_s, scenario.duration_s)
     n_plant = int(math.floor(duration_s / dt_s + 1e-9))
     ts, np_, p_prev, p_ctrl, p_plant = _params(args, scenario, quality, strategy, duration_s)

@@ -131,7 +131,7 @@ def main(argv=None) -> int:
         case = cli_args.apply_case(args, out)
         scenario = load_scenario(args.scenario)
         quality = parse_quality(args.preview)
-        cli_args.check_duration(args.duration_s, scenario, args.control_period_s or scenario.control.control_period_s)
+        cli_args.check_duration(args.duration_s, scenario, args.control_period_s)
         settings = SimSettings(
             control_period_s=args.control_period_s,
             horizon_steps=args.horizon_steps,

@@ -414,18 +414,6 @@ def _clean(v):
     return v
 
 
-def _list_of(item_type, allow_empty: bool = False):
-    """An argparse type: a comma-separated list of ``item_type`` values ('' an empty list where allowed)."""
-
-    def parse(text: str) -> list:
-        parts = [t for t in text.split(",") if t.strip()]
-        if not parts and not allow_empty:
-            raise argparse.ArgumentTypeError(f"expected a comma-separated list, got {text!r}")
-        return [item_type(t.strip()) for t in parts]
-
-    return parse
-
-
 def build_parser() -> cli_flags.Parser:
     """The parser of ``ceco bench nmpc`` (``ceco bench plant`` has its own: :mod:`ceco_plant_sim.bench_plant`)."""
     ap = cli_flags.Parser(prog="ceco bench", description="solver benchmarks")
@@ -439,7 +427,7 @@ def build_parser() -> cli_flags.Parser:
     )
     ap.add_argument(
         "--horizons",
-        type=_list_of(cli_flags.positive_int),
+        type=cli_flags.comma_list(cli_flags.positive_int),
         default=None,
         help="comma-separated horizons Np [steps] to compare (default 6,12,24,60; with --quick 6,12)",
     )
@@ -470,7 +458,7 @@ def build_parser() -> cli_flags.Parser:
     )
     ap.add_argument(
         "--slowdown-factors",
-        type=_list_of(cli_flags.positive_float, allow_empty=True),
+        type=cli_flags.comma_list(cli_flags.positive_float, allow_empty=True),
         default=[1.0, 10.0, 100.0],
         help="factors of the slow-down table (SC03, Np = 6); '' skips it",
     )

@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 from ceco_core import rundir
-from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS, MEASUREMENT_MODES, NAMED_STRATEGIES
+from ceco_core.contracts import ACTUATOR_LIMITS, DIAGNOSTICS_COLUMNS, MEASUREMENT_MODES, NAMED_STRATEGIES, PLANT_STEP_S
 from ceco_core.metrics import comfort_series_metrics, run_metrics
 from ceco_core.run_status import check_control
 from ceco_plant_sim.compiled_plant import PlantEvaluation
@@ -66,7 +66,7 @@ class SimSettings:
     """Quality of the V2X previews (perfect as in the paper, noisy, delayed, missing spans)."""
     seed: int | None = None
     """Seed for the preview noise; None: the scenario's."""
-    plant_dt_s: float = 1.0
+    plant_dt_s: float = PLANT_STEP_S
     """Plant step and recording interval [s]."""
     duration_s: float | None = None
     """Run length [s]; None: the scenario's."""

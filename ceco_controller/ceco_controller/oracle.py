@@ -47,7 +47,7 @@ from ceco_core.codegen import (
     compile_cached,
     generate_functions,
 )
-from ceco_core.contracts import ACTUATOR_LIMITS, RECIRC_SHARE_MAX, RECIRC_SHARE_MIN, AcInput, Diagnostics
+from ceco_core.contracts import ACTUATOR_LIMITS, PLANT_STEP_S, RECIRC_SHARE_MAX, RECIRC_SHARE_MIN, AcInput, Diagnostics
 from ceco_core.kpis import COMFORT_BAND_PMV, compute_kpis
 from ceco_core.mathops import smooth_min
 from ceco_core.metrics import PMV_SCALE_LIMIT
@@ -112,7 +112,7 @@ class OracleSettings:
 
     control_period_s: float | None = None
     """Control period Ts [s] of the decisions; None: the case's (or the scenario's)."""
-    plant_dt_s: float = 1.0
+    plant_dt_s: float = PLANT_STEP_S
     """Plant step [s] (the simulator's)."""
     max_iter: int = 400
     """IPOPT iterations per level (per form: the lifted form's attempt has ``lifted_max_iter``)."""

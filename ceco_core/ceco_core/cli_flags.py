@@ -49,6 +49,7 @@ __all__ = [
     'positive_int',
     'nonnegative_int',
     'strategy_list',
+    'comma_list',
     'control_period_s',
     'horizon_steps',
     'domain_id',
@@ -71,7 +72,6 @@ __all__ = [
     'add_baseline_setpoints',
     'setpoint_list',
     'check_duration',
-    'PLANT_STEP_S',
     'DEPRECATED_FLAGS',
 ]
 
@@ -190,6 +190,18 @@ def nonempty(text: str) -> str:
     if not text.strip():
         raise argparse.ArgumentTypeError(f'must not be empty, got {text!r}')
     return text
+
+
+def comma_list(item_type, allow_empty: bool = False):
+    """An argparse type: a comma-separated list of ``item_type`` values ('' an empty list where allowed)."""
+
+    def parse(text: str) -> list:
+        parts = [t.strip() for t in text.split(',') if t.strip()]
+        if not parts and not allow_empty:
+            raise argparse.ArgumentTypeError(f'expected a comma-separated list, got {text!r}')
+        return [item_type(t) for t in parts]
+
+    return parse
 
 
 def strategy_list(text: str) -> list[str]:
@@ -448,17 +460,15 @@ def add_baseline_setpoints(p, default: Sequence[float]) -> None:
     )
 
 
-PLANT_STEP_S = 1.0
-"""The plant step of ``ceco run``, ``ceco sim`` and ``ceco oracle`` [s] (``SimSettings.plant_dt_s``, plant_node's
-``plant_dt_s``): a run lasts a whole number of them."""
-
-
 def check_duration(duration_s: float | None, scenario, control_period_s: float | None = None) -> None:
     """ValueError when ``--duration-s`` cannot be run as given (never clamped or rounded silently).
 
-    It must fit in the scenario, be a whole number of plant steps (:data:`PLANT_STEP_S`), at least two of them
-    (a run's metrics need two samples), and, with ``control_period_s``, at least one control period.
+    It must fit in the scenario, be a whole number of plant steps
+    (:data:`~ceco_core.contracts.PLANT_STEP_S`), at least two of them (a run's metrics need two samples), and
+    at least one control period (``control_period_s``, the scenario's when None).
     """
+    from ceco_core.contracts import PLANT_STEP_S
+
     if duration_s is None:
         return
     if duration_s > scenario.duration_s + 1e-9:
@@ -476,7 +486,9 @@ def check_duration(duration_s: float | None, scenario, control_period_s: float |
             f'--duration-s: {duration_s:g} s is not a whole number of plant steps ({PLANT_STEP_S:g} s): '
             f'give e.g. {math.floor(steps) * PLANT_STEP_S:g}'
         )
-    if control_period_s is not None and duration_s < control_period_s - 1e-9:
+    if control_period_s is None:
+        control_period_s = scenario.control.control_period_s
+    if duration_s < control_period_s - 1e-9:
         raise ValueError(
             f'--duration-s: {duration_s:g} s is shorter than one control period ({control_period_s:g} s): '
             f'give at least {control_period_s:g}'

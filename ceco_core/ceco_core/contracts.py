@@ -75,6 +75,9 @@ substep: configure took 15 s at Ts 600 s on the 2-core machine, 124 s at 3600 s)
 HORIZON_RANGE = (1, 60)
 """Np of the controller and of the preview grid, in every node and every ``ceco`` verb [steps]: configure
 took 4 s at Np 60, 31 s at Np 200."""
+PLANT_STEP_S = 1.0
+"""The plant step of the simulator, plant_node and the whole-drive optimum [s] (``SimSettings.plant_dt_s``,
+plant_node's ``plant_dt_s``, ``OracleSettings.plant_dt_s`` default to it); a run lasts a whole number of them."""
 DOMAIN_ID_MAX = 232
 """Largest ROS_DOMAIN_ID Fast DDS's default port mapping allows (0..101 are
 also clear of Linux's ephemeral ports; docs.ros.org, "The ROS_DOMAIN_ID")."""
