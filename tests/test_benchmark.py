@@ -18,6 +18,12 @@ ORACLE = 'oracle_standin:solve_front'  # tests/oracle_standin.py: real scored ru
 LEVELS_N = [0] * 4  # runner.oracle_levels asks for 4 levels
 
 
+def _write_short_case(path, duration_s: float, uncertainty: str, seeds: list[int]) -> None:
+    """A case 'short' on the mild day's first ``duration_s`` seconds."""
+    doc = {'schema': CASE_SCHEMA, 'name': 'short', 'version': 1, 'scenario': 'sc03_mild', 'duration_s': duration_s}
+    path.write_text(yaml.safe_dump({**doc, 'forecast_uncertainty': uncertainty, 'seeds': seeds}))
+
+
 @pytest.fixture(scope='module')
 def bench(tmp_path_factory):
     d = tmp_path_factory.mktemp('bench')
@@ -25,19 +31,7 @@ def bench(tmp_path_factory):
     # the mild day (28 degC, 400 W/m2, cabin 39 degC at key-on): in its first 120 s the PI law at 25/27/29 degC
     # already regulates (on SC03's hot soak every set-point is still at full cooling then, issue 9's slower
     # pull-down), and the bound is relaxed all the time (3.0 until 60 s, 0.5 at 240 s)
-    case.write_text(
-        yaml.safe_dump(
-            {
-                'schema': CASE_SCHEMA,
-                'name': 'short',
-                'version': 1,
-                'scenario': 'sc03_mild',
-                'duration_s': 120,
-                'forecast_uncertainty': 'none',
-                'seeds': [0],
-            }
-        )
-    )
+    _write_short_case(case, duration_s=120, uncertainty='none', seeds=[0])
     sens = d / 'sens.yaml'
     sens.write_text(
         yaml.safe_dump(
@@ -752,19 +746,7 @@ def test_a_quick_document_lists_the_seeds_it_ran(tmp_path):
     """--quick runs a case's first seed only; its document lists that seed, not the case file's five (the validator
     holds every seed-dependent controller to a run per listed seed). The families alone: seconds."""
     case = tmp_path / 'short.yaml'
-    case.write_text(
-        yaml.safe_dump(
-            {
-                'schema': CASE_SCHEMA,
-                'name': 'short',
-                'version': 1,
-                'scenario': 'sc03_mild',
-                'duration_s': 20,
-                'forecast_uncertainty': 'medium',
-                'seeds': [0, 1, 2, 3, 4],
-            }
-        )
-    )
+    _write_short_case(case, duration_s=20, uncertainty='medium', seeds=[0, 1, 2, 3, 4])
     kw = dict(workers=1, progress=False, log=lambda *a, **k: None, setpoints_c=[25.0], setpoints_pmv=[0.0])
     doc = cli.run_benchmark([str(case)], tmp_path / 'out', quick=True, strategies=(), **kw)
     assert doc['cases'][0]['seeds'] == [0]
