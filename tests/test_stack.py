@@ -1217,7 +1217,9 @@ def test_managed_controller_transitions_and_parameters_over_dds(tmp_path):
         field = {ParameterType.PARAMETER_DOUBLE: 'double_value', ParameterType.PARAMETER_STRING: 'string_value'}[kind]
         value = ParameterValue(type=kind, **{field: value})
         req = SetParameters.Request(parameters=[Parameter(name=name, value=value)])
-        return supervisor.LifecycleClient._call(params[node], req, 30.0).results[0]
+        res = supervisor.call_service(params[node], req, 30.0, attempt_s=5.0)  # (setting a value twice is harmless)
+        assert res is not None, f'no answer from /{node}/set_parameters in 30 s'
+        return res.results[0]
 
     try:
         for p in (preview, mpc):

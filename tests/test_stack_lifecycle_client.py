@@ -97,10 +97,11 @@ def pair():
     manager, far = DdsPeer(domain, 'lifecycle_manager'), DdsPeer(domain, 'far_side', threads=4)
     servers = []
 
-    def make(mode):
-        server = LossyLifecycleServer(far, f'lossy_{mode}', mode)
+    def make(mode, name=None):
+        name = name or f'lossy_{mode}'
+        server = LossyLifecycleServer(far, name, mode)
         servers.append(server)
-        client = supervisor.LifecycleClient(manager.node, f'lossy_{mode}')
+        client = supervisor.LifecycleClient(manager.node, name)
         _wait_for(lambda: client.wait(0.1), 60, 'the lossy lifecycle services')
         return server, client
 
@@ -173,3 +174,17 @@ def test_a_dead_node_ends_the_wait(pair):
     server, client = pair('swallow_every_request')
     assert not client.change('configure', timeout_s=60.0, attempt_s=0.5, alive=lambda: not server.requests)
     assert server.requests == [1] and server.gets == 1
+
+
+def test_call_service_resends_a_repeatable_request_whose_answer_is_lost(pair):
+    """supervisor.call_service with attempt_s: the first get_state answer is lost, the request is sent
+    again after 0.5 s and the second one's answer returned; without attempt_s the one request's lost
+    answer is None after the timeout, never a hang."""
+    from lifecycle_msgs.srv import GetState
+
+    server, client = pair('lose_first_get')
+    server.state = 'inactive'
+    res = supervisor.call_service(client._get, GetState.Request(), 20.0, attempt_s=0.5)
+    assert res is not None and res.current_state.label == 'inactive' and server.gets == 2
+    server, client = pair('lose_first_get', 'lossy_once')
+    assert supervisor.call_service(client._get, GetState.Request(), 1.0) is None and server.gets == 1

@@ -22,16 +22,20 @@ from ceco_bringup import bagio, supervisor  # noqa: E402
 
 
 def _get_parameter(peer: DdsPeer, node: str, name: str, timeout_s: float = 60.0):
-    """`ros2 param get NODE NAME` over DDS: the node's get_parameters service."""
+    """`ros2 param get NODE NAME` over DDS: the node's get_parameters service.
+
+    A request without an answer after 5 s is sent again: Fast DDS can drop the response
+    when the node has not yet matched this client's reader (CI, 5 Dec 2026: three nodes
+    starting at once on 2 cores, /veh1 never answered the one request in 60 s)."""
     from rcl_interfaces.srv import GetParameters
     from rclpy.parameter import parameter_value_to_python
 
     client = peer.node.create_client(GetParameters, f'{node}/get_parameters')
     try:
         assert client.wait_for_service(timeout_sec=timeout_s), f'{node}/get_parameters not found'
-        future = client.call_async(GetParameters.Request(names=[name]))
-        _wait_for(future.done, timeout_s, f'{node}/get_parameters')
-        return parameter_value_to_python(future.result().values[0])
+        res = supervisor.call_service(client, GetParameters.Request(names=[name]), timeout_s, attempt_s=5.0)
+        assert res is not None, f'no answer from {node}/get_parameters in {timeout_s} s'
+        return parameter_value_to_python(res.values[0])
     finally:
         peer.node.destroy_client(client)
 

@@ -341,6 +341,37 @@ def _param_text(value) -> str:
     return str(value)
 
 
+def call_service(client, request, timeout_s: float, attempt_s: float | None = None):
+    """Call a service and wait for its answer while an executor spins the client's node in another thread.
+
+    Args:
+        client: an rclpy service client.
+        request: the request message.
+        timeout_s: how long to wait in all [s].
+        attempt_s: if given, the request is sent again after each ``attempt_s`` [s] without an
+            answer. An answer can be lost (Fast DDS drops a response when the server has not
+            matched the client's response reader yet: see :meth:`LifecycleClient.change`), so a
+            request that is safe to repeat (get or set parameters, get_state) is resent; one that
+            is not (change_state) is sent once and its outcome read from the node's state.
+
+    Returns:
+        The response, or None when none came within ``timeout_s``.
+    """
+    deadline = time.monotonic() + timeout_s
+    while True:
+        future = client.call_async(request)
+        give_up = deadline if attempt_s is None else min(deadline, time.monotonic() + attempt_s)
+        while not future.done():
+            if time.monotonic() > give_up:
+                client.remove_pending_request(future)
+                break
+            time.sleep(0.005)
+        if future.done():
+            return future.result()
+        if time.monotonic() >= deadline:
+            return None
+
+
 class LifecycleClient:
     """Drives a managed node's transitions through its ``<node>/change_state`` service.
 
@@ -369,7 +400,7 @@ class LifecycleClient:
         """The node's current state label ('unconfigured', 'inactive', 'active', 'finalized'), None on timeout."""
         from lifecycle_msgs.srv import GetState
 
-        res = self._call(self._get, GetState.Request(), timeout_s)
+        res = call_service(self._get, GetState.Request(), timeout_s)
         return None if res is None else res.current_state.label
 
     GOAL = {
@@ -435,7 +466,7 @@ class LifecycleClient:
         send = True
         while time.monotonic() < deadline and alive():
             if send:
-                res = self._call(self._change, request, budget())
+                res = call_service(self._change, request, budget())
                 sent += 1
                 if res is not None:
                     if res.success or sent == 1:
@@ -450,17 +481,6 @@ class LifecycleClient:
             if not send:
                 time.sleep(0.1)
         return False
-
-    @staticmethod
-    def _call(client, request, timeout_s: float):
-        future = client.call_async(request)
-        t0 = time.monotonic()
-        while not future.done():
-            if time.monotonic() - t0 > timeout_s:
-                client.remove_pending_request(future)
-                return None
-            time.sleep(0.005)
-        return future.result()
 
 
 class Interrupted(Exception):
