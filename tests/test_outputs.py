@@ -718,3 +718,35 @@ def test_bad_settings_and_config_files_are_one_line(argv, says, tmp_path, capsys
     assert rc == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith('ceco sim: error: ') and says in err[0], err
+
+
+@pytest.mark.parametrize(
+    ('verb', 'argv', 'old', 'new'),
+    [
+        ('sim', ['--out', 'x'], ['--duration', '60'], ['--duration-s', '120']),
+        ('sim', ['--out', 'x'], ['--horizon', '8'], ['--horizon-steps', '9']),
+        ('sim', ['--out', 'x'], ['--control-period', '4'], ['--control-period-s', '5']),
+        ('sim', ['--out', 'x'], ['--preview-quality', 'noisy'], ['--preview', 'perfect']),
+        ('bench', ['nmpc'], ['--strategies', 'ceco'], ['--strategy', 'ceco-ioch']),
+        ('identify', [], ['--ts', '4'], ['--control-period-s', '5']),
+    ],
+)
+def test_an_old_and_a_new_name_of_one_flag_together_are_refused(verb, argv, old, new, capsys):
+    """`--duration 60 --duration-s 120` kept whichever came last without a word: now exit status 2 naming both,
+    in either order; the same name twice keeps argparse's rule (the last wins)."""
+    from ceco_controller import bench, identification
+
+    parse = {
+        'sim': sim.build_parser().parse_args,
+        'bench': bench.parse_args,
+        'identify': identification.build_parser().parse_args,
+    }[verb]
+    for first, second in ((old, new), (new, old)):
+        with pytest.raises(SystemExit) as exc:
+            parse(argv + first + second)
+        assert exc.value.code == 2
+        err = capsys.readouterr().err
+        assert f'{first[0]} and {second[0]} are two names of one setting' in err, err
+    twice = parse(argv + new + new[:1] + ['7' if new[1].isdigit() else new[1]])
+    assert not hasattr(twice if verb != 'bench' else twice[0], '_ceco_flag_sources')  # (no record left behind)
+    assert sim.build_parser().parse_args(['--out', 'x', '--duration-s', '60', '--duration-s', '120']).duration_s == 120

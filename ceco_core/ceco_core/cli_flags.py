@@ -27,7 +27,8 @@ flag                        setting                                          old
 
 A bad value is one line on stderr naming the flag, the value and what is accepted, and exit
 status 2 (never a traceback): :meth:`Parser.error`. An old flag name still works for one
-release and prints one deprecation line. ``--help`` shows every default.
+release and prints one deprecation line; an old and a new name of one setting together are refused
+(``--duration 60 --duration-s 120`` kept the last without a word). ``--help`` shows every default.
 
 Pure Python (argparse); no ROS import.
 """
@@ -108,6 +109,13 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str):
         """Print ``PROG: error: MESSAGE (PROG --help lists the options)`` and exit with status 2."""
         self.exit(2, f'{self.prog}: error: {message} ({self.prog} --help lists the options)\n')
+
+    def parse_known_args(self, args=None, namespace=None):
+        """argparse's, without the record of which name set a flag that has old names (:func:`_claim`)."""
+        ns, rest = super().parse_known_args(args, namespace)
+        if hasattr(ns, _SOURCES):
+            delattr(ns, _SOURCES)
+        return ns, rest
 
 
 # ------------------------------------------------------------------------------------- value types
@@ -247,6 +255,7 @@ class _Deprecated(argparse.Action):
                 values = self.value_type(values)
             except argparse.ArgumentTypeError as exc:
                 parser.error(f'argument {option_string}: {exc}')
+        _claim(parser, namespace, self.dest, option_string)
         print(
             f'{parser.prog}: {option_string} is deprecated and goes in the next release: use {self.new_flag}',
             file=sys.stderr,
@@ -254,8 +263,35 @@ class _Deprecated(argparse.Action):
         setattr(namespace, self.dest, values)
 
 
+_SOURCES = '_ceco_flag_sources'
+"""The namespace attribute holding, per destination, the option string that set it (an old and a new name)."""
+
+
+def _claim(parser, namespace, dest: str, option_string: str | None) -> None:
+    """Record that ``option_string`` set ``dest``; a parser error when another name of it did already.
+
+    ``--duration 60 --duration-s 120`` would otherwise keep whichever came last without a word; the same
+    name twice keeps argparse's rule (the last one wins), as for every other flag.
+    """
+    sources = getattr(namespace, _SOURCES, None)
+    if sources is None:
+        sources = {}
+        setattr(namespace, _SOURCES, sources)
+    first = sources.setdefault(dest, option_string)
+    if first != option_string:
+        parser.error(f'{first} and {option_string} are two names of one setting: give only {first} or {option_string}')
+
+
+class _Current(argparse._StoreAction):
+    """The shared name of a flag that also has old names: stores as usual and records that it was given."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        _claim(parser, namespace, self.dest, option_string)
+        super().__call__(parser, namespace, values, option_string)
+
+
 def _add(p, flag: str, *, dest: str, type_=None, deprecated: Sequence[str] = (), **kw) -> None:
-    p.add_argument(flag, dest=dest, type=type_, **kw)
+    p.add_argument(flag, dest=dest, type=type_, **({'action': _Current} if deprecated else {}), **kw)
     for old in deprecated:
         p.add_argument(old, dest=dest, action=_Deprecated, new_flag=flag, value_type=type_, default=argparse.SUPPRESS)
 
