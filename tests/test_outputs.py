@@ -750,3 +750,45 @@ def test_an_old_and_a_new_name_of_one_flag_together_are_refused(verb, argv, old,
     twice = parse(argv + new + new[:1] + ['7' if new[1].isdigit() else new[1]])
     assert not hasattr(twice if verb != 'bench' else twice[0], '_ceco_flag_sources')  # (no record left behind)
     assert sim.build_parser().parse_args(['--out', 'x', '--duration-s', '60', '--duration-s', '120']).duration_s == 120
+
+
+def test_a_key_given_twice_is_refused_in_every_file_the_user_writes(tmp_path, capsys):
+    """YAML keys are unique (YAML 1.2); PyYAML kept the second `duration_s:` of a scenario without a word. Now a
+    scenario, a benchmark case, a sweep grid and a controller configuration with a key twice are each refused
+    naming the key and both lines; a merge (`<<: *base`) overridden by one of its keys is still allowed."""
+    from ceco_bringup.benchmark.cases import CaseError, load_case
+    from ceco_bringup.sweep.grid import GridError, load_grid
+    from ceco_controller.model import package_config_path
+    from ceco_core import yamlio
+    from ceco_v2x_preview.scenario import ScenarioError, load_scenario
+
+    assert yamlio.safe_load('b: &b {x: 1, y: 2}\nd:\n  <<: *b\n  x: 5\n')['d'] == {'x': 5, 'y': 2}
+    with pytest.raises(yaml.YAMLError, match=r"found the key 'k' twice \(first at line 3\)"):
+        yamlio.safe_load('top:\n  inner:\n    k: 1\n    k: 2\n')
+
+    def twice(text: str, key: str) -> str:
+        """``text`` with the line of its first top-level ``key:`` written again at the end."""
+        line = next(ln for ln in text.splitlines() if ln.startswith(f'{key}:'))
+        assert text.count(f'\n{key}:') + text.startswith(f'{key}:') == 1
+        return text.rstrip('\n') + '\n' + line + '\n'
+
+    scenario = tmp_path / 'scenario.yaml'
+    scenario.write_text(twice(provenance.copy_scenario('sc03', tmp_path / 'copy').read_text(), 'duration_s'))
+    with pytest.raises(ScenarioError, match=r"found the key 'duration_s' twice \(first at line \d+\)"):
+        load_scenario(scenario)
+    from ceco_bringup.benchmark.cases import _data_dir
+
+    case = tmp_path / 'case.yaml'
+    case.write_text(twice(_data_dir().joinpath('sc03-paper.yaml').read_text(), 'name'))
+    with pytest.raises(CaseError, match=r"found the key 'name' twice"):
+        load_case(case)
+    grid = tmp_path / 'grid.yaml'
+    grid.write_text('scenarios: [sc03]\nstrategies: [baseline]\nscenarios: [udds]\n')
+    with pytest.raises(GridError, match=r"found the key 'scenarios' twice \(first at line 1\)"):
+        load_grid(grid)
+    config = tmp_path / 'controller.yaml'
+    config.write_text(twice(package_config_path('controller.yaml').read_text(), 'common'))
+    rest = ['--duration-s', '30', '--baseline-setpoints-c', 'none', '--no-progress', '--out', str(tmp_path / 'out')]
+    assert sim.main(['--strategy', 'ceco-ioch', '--controller-config', str(config), *rest]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "found the key 'common' twice (first at line" in err[0], err

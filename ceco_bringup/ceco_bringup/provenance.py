@@ -31,6 +31,8 @@ from pathlib import Path
 
 import yaml
 
+from ceco_core import yamlio
+
 __all__ = [
     'RUN_SCHEMA',
     'RUN_STATUSES',
@@ -77,7 +79,7 @@ def copy_scenario(name_or_path: str | os.PathLike, dest_dir: str | os.PathLike) 
         return out
     src = Path(name).expanduser()
     text = src.read_text(encoding='utf-8')
-    data = yaml.safe_load(text)
+    data = yamlio.safe_load(text)
     cycle = data.get('drive_cycle') if isinstance(data, Mapping) else None
     if not isinstance(cycle, str) or cycle in list_drive_cycles():
         out.write_text(text, encoding='utf-8')

@@ -32,6 +32,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from ceco_core import yamlio
+
 __all__ = ["node_step_times"]
 
 
@@ -39,7 +41,7 @@ def _controller_config(codegen: bool) -> str:
     """A copy of the package's controller file with ``solver.codegen`` set; its path."""
     from .model import package_config_path
 
-    doc = yaml.safe_load(package_config_path("controller.yaml").read_text(encoding="utf-8"))
+    doc = yamlio.safe_load(package_config_path("controller.yaml").read_text(encoding="utf-8"))
     doc.setdefault("common", {}).setdefault("solver", {})["codegen"] = bool(codegen)
     fd, path = tempfile.mkstemp(prefix="ceco_bench_node_", suffix=".yaml")
     with os.fdopen(fd, "w", encoding="utf-8") as fh:

@@ -8,13 +8,50 @@ from __future__ import annotations
 
 import yaml
 
-__all__ = ["safe_load", "load_file"]
+__all__ = ["safe_load", "load_file", "UniqueKeyLoader"]
 
-_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_BASE = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_MERGE_TAG = "tag:yaml.org,2002:merge"
+
+
+class UniqueKeyLoader(_BASE):  # type: ignore[misc, valid-type]
+    """The safe loader, refusing a mapping that gives one key twice.
+
+    YAML 1.2 requires keys to be unique; PyYAML keeps the last value without a word, so a scenario with two
+    ``t_amb_c:`` lines silently ran the second. A merge (``<<: *base``) followed by one of its keys is an
+    override, not a duplicate.
+    """
+
+    def construct_mapping(self, node, deep=False):
+        """The mapping of ``node``; ConstructorError at the second occurrence of a key."""
+        if isinstance(node, yaml.MappingNode):
+            seen: dict = {}
+            for key_node, _ in node.value:
+                if key_node.tag == _MERGE_TAG:
+                    continue
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    first = seen.setdefault(key, key_node.start_mark)
+                except TypeError:  # an unhashable key: the base class says so
+                    continue
+                if first is not key_node.start_mark:
+                    raise yaml.constructor.ConstructorError(
+                        "while constructing a mapping",
+                        node.start_mark,
+                        f"found the key {key!r} twice (first at line {first.line + 1})",
+                        key_node.start_mark,
+                    )
+        return super().construct_mapping(node, deep)
+
+
+_LOADER = UniqueKeyLoader
 
 
 def safe_load(stream):
-    """``yaml.safe_load`` of a string or an open file, with libyaml where available."""
+    """``yaml.safe_load`` of a string or an open file, with libyaml where available.
+
+    A key given twice in one mapping is a ``yaml.YAMLError`` (:class:`UniqueKeyLoader`).
+    """
     return yaml.load(stream, Loader=_LOADER)
 
 

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ceco_core import psychro, units
+from ceco_core import psychro, units, yamlio
 from ceco_core.scenario_types import (
     INITIAL_FIELDS,
     OCCUPANTS_RANGE,
@@ -366,7 +366,7 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
         text = path.read_text(encoding="utf-8")
         source, base_dir = str(path), path.parent
     try:
-        data = yaml.safe_load(text)
+        data = yamlio.safe_load(text)
     except yaml.YAMLError as exc:
         raise ScenarioError(f"scenario: {source}: not valid YAML: {exc}") from None
     return scenario_from_dict(data, source=source, base_dir=base_dir)

@@ -36,6 +36,8 @@ from pathlib import Path
 
 import yaml
 
+from ceco_core import yamlio
+
 __all__ = [
     "CASE_SCHEMA",
     "CaseError",
@@ -314,7 +316,7 @@ def load_case(name_or_path: str | os.PathLike) -> Case:
         text = path.read_text(encoding="utf-8")
         source, base_dir, expected = str(path), path.parent, None
     try:
-        data = yaml.safe_load(text)
+        data = yamlio.safe_load(text)
     except yaml.YAMLError as exc:
         raise CaseError(f"case: {source}: not valid YAML: {exc}") from None
     return case_from_dict(data, source=source, base_dir=base_dir, expected_name=expected)

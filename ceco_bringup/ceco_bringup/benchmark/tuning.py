@@ -57,6 +57,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ceco_core import yamlio
+
 __all__ = [
     'tune',
     'tune_gains',
@@ -156,7 +158,7 @@ def tune(case_name: str = 'sc03-paper', log=print, workers: int = 2, work_dir=No
 
     t0 = time.perf_counter()
     if reuse is not None:
-        prev = yaml.safe_load(Path(reuse).read_text(encoding='utf-8'))
+        prev = yamlio.safe_load(Path(reuse).read_text(encoding='utf-8'))
         case = load_case(case_name)
         if prev.get('tuned_on') != case.name or prev.get('tuned_on_sha') != case.sha():
             raise ValueError(f'{reuse}: tuned on another case or case version; rerun steps 0-5')

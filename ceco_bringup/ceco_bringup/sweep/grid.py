@@ -18,6 +18,7 @@ from pathlib import Path
 
 import yaml
 
+from ceco_core import yamlio
 from ceco_core.cli_flags import check_duration
 from ceco_core.scenario_types import yaml_number_hint
 
@@ -81,7 +82,7 @@ def load_grid(path: str | os.PathLike) -> dict:
     """
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text(encoding='utf-8'))
+        data = yamlio.safe_load(path.read_text(encoding='utf-8'))
     except (OSError, yaml.YAMLError) as exc:
         raise GridError(f'{path}: cannot read grid: {exc}') from None
     if not isinstance(data, Mapping):
