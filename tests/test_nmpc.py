@@ -153,6 +153,25 @@ def test_controller_yaml_matches_code_defaults():
         assert load_strategy_settings(name) == strategy_settings(name)
 
 
+def test_a_controller_file_np_or_ts_the_run_would_ignore_is_refused(tmp_path):
+    """Np and Ts come from the run (scenario, flags, node parameters), which always passes them: a controller file
+    giving another value was ignored without a word; now refused naming the key, the file's and the run's
+    value. The same value, or none, is accepted."""
+    from ceco_controller.model import package_config_path
+    from ceco_controller.strategies import load_strategy_settings
+
+    text = package_config_path("controller.yaml").read_text()
+    assert "\n  horizon_steps:" not in text and "\n  control_period_s:" not in text  # the run's, not the file's
+    for key, file_value, run_value in (("horizon_steps", 9, 6), ("control_period_s", 10.0, 5.0)):
+        path = tmp_path / f"{key}.yaml"
+        path.write_text(text.replace("common:\n", f"common:\n  {key}: {file_value}\n", 1))
+        with pytest.raises(ValueError, match=rf"{key}: {file_value} is not what this run uses \({run_value}\)"):
+            load_strategy_settings("ceco-pmv", path, **{key: run_value})
+        assert getattr(load_strategy_settings("ceco-pmv", path, **{key: file_value}), key) == file_value
+        assert getattr(load_strategy_settings("ceco-pmv", path), key) == file_value  # no run value: the file's
+    assert load_strategy_settings("ceco", horizon_steps=9).horizon_steps == 9
+
+
 def test_codegen_falls_back_without_compiler(monkeypatch, tmp_path, caplog):
     monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
     ss = SolverSettings(codegen=True, codegen_cache_dir=str(tmp_path / "cache"))

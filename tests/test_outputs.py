@@ -696,6 +696,7 @@ def test_an_out_that_is_a_file_or_cannot_be_made_is_one_line(verb, tmp_path, cap
         (['--strategy', 'ceco-ioch', '--controller-config', 'TRUNC'], 'not valid YAML at line'),
         (['--strategy', 'baseline', '--controller-config', 'TRUNC'], 'not valid YAML at line'),
         (['--strategy', 'ceco-ioch', '--controller-config', 'BINARY'], 'not a UTF-8 text file'),
+        (['--strategy', 'ceco-ioch', '--controller-config', 'NP9'], 'horizon_steps: 9 is not what this run uses (6)'),
     ],
 )
 def test_bad_settings_and_config_files_are_one_line(argv, says, tmp_path, capsys):
@@ -707,8 +708,11 @@ def test_bad_settings_and_config_files_are_one_line(argv, says, tmp_path, capsys
     files = {'CORRUPT': tmp_path / 'corrupt.yaml', 'TRUNC': tmp_path / 'trunc.yaml', 'BINARY': tmp_path / 'bin.yaml'}
     files['CORRUPT'].write_text('[1,2')
     config = package_config_path('controller.yaml')
-    files['TRUNC'].write_bytes(config.read_bytes()[:700])
+    text = config.read_text()
+    files['TRUNC'].write_text(text[: text.index('codegen_flags: [') + 17])  # cut inside a flow list
     files['BINARY'].write_bytes(b'\xff\xfe')
+    files['NP9'] = tmp_path / 'np9.yaml'  # (a horizon the run would not use: sc03's is 6)
+    files['NP9'].write_text(text.replace('common:\n', 'common:\n  horizon_steps: 9\n', 1))
     argv = [str(files.get(a, a)) for a in argv]
     rest = ['--duration-s', '30', '--baseline-setpoints-c', 'none', '--no-progress', '--out', str(tmp_path / 'out')]
     try:  # a flag's error exits through argparse; a file's is said when its strategy's run starts

@@ -511,6 +511,16 @@ def strategy_settings(name: str, **overrides) -> StrategySettings:
     return s
 
 
+RUN_SETTINGS = {
+    "horizon_steps": "the scenario's control.horizon_steps, --horizon-steps or mpc_node's parameter horizon_steps",
+    "control_period_s": (
+        "the scenario's control.control_period_s, --control-period-s or mpc_node's parameter control_period_s"
+    ),
+}
+"""StrategySettings fields that every caller sets from the run (Np and Ts), with where they come from. A controller
+file may leave them out; one that gives a value different from the run's is refused, since it would be ignored."""
+
+
 def load_strategy_settings(name: str, path=None, **overrides) -> StrategySettings:
     """Settings of strategy ``name`` from a controller file (common + per-strategy keys), then overrides.
 
@@ -518,6 +528,8 @@ def load_strategy_settings(name: str, path=None, **overrides) -> StrategySetting
     directory; :func:`ceco_controller.model.package_config_path`). The closed-loop simulator and
     ``mpc_node`` (parameter ``controller_config``) build their controllers from it. A named variant
     (``ceco-pmv-aq``, :data:`ceco_core.contracts.STRATEGY_VARIANTS`) reads its strategy's keys, then sets its fields.
+    A file's ``horizon_steps`` or ``control_period_s`` that differs from an override of it is refused
+    (:data:`RUN_SETTINGS`).
     """
     import pathlib
 
@@ -533,6 +545,12 @@ def load_strategy_settings(name: str, path=None, **overrides) -> StrategySetting
     kw = dict(doc.get("common") or {})
     kw.update((doc.get("strategies") or {}).get(name) or {})
     kw.update(variant)
+    for key, where in RUN_SETTINGS.items():  # set by the run: a different value in the file would be ignored
+        if key in kw and key in overrides and kw[key] != overrides[key]:
+            raise ValueError(
+                f"{path}: {key}: {kw[key]!r} is not what this run uses ({overrides[key]!r}); {key} is set by "
+                f"{where}: remove it from the file"
+            )
     solver = kw.pop("solver", None)
     if solver is not None:
         try:
