@@ -796,3 +796,16 @@ def test_a_key_given_twice_is_refused_in_every_file_the_user_writes(tmp_path, ca
     assert sim.main(['--strategy', 'ceco-ioch', '--controller-config', str(config), *rest]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "found the key 'common' twice (first at line" in err[0], err
+
+
+def test_all_beside_other_strategy_names_says_all_stands_alone(capsys):
+    """`--strategy all,baseline` was "unknown strategy all: use all or ..."; now it says why: all stands alone."""
+    from ceco_core.contracts import STRATEGIES
+
+    for text in ('all,baseline', 'ceco, all'):
+        with pytest.raises(SystemExit) as exc:
+            sim.build_parser().parse_args(['--out', 'x', '--strategy', text])
+        assert exc.value.code == 2
+        err = capsys.readouterr().err
+        assert f"argument --strategy: all stands alone (it already holds {', '.join(STRATEGIES)}), got {text!r}" in err
+    assert sim.build_parser().parse_args(['--out', 'x', '--strategy', ' all ']).strategy == list(STRATEGIES)

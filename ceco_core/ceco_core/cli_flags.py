@@ -222,6 +222,10 @@ def strategy_list(text: str) -> list[str]:
     if text.strip() == 'all':
         return list(STRATEGIES)
     names = [s.strip() for s in text.split(',') if s.strip()]
+    if 'all' in names:
+        raise argparse.ArgumentTypeError(
+            f"all stands alone (it already holds {', '.join(STRATEGIES)}), got {text!r}: give all or a list of names"
+        )
     bad = [s for s in names if s not in NAMED_STRATEGIES]
     if not names or bad:
         raise argparse.ArgumentTypeError(
