@@ -106,8 +106,18 @@ def _named(key: str, value, default: Mapping) -> dict:
     if isinstance(value, (list, tuple)):
         if not value:
             raise GridError(f'{key}: must not be empty')
+        _no_repeats(key, [str(v) for v in value])
         return {str(v): v for v in value}
     raise GridError(f'{key}: must be a list or a mapping, got {type(value).__name__}')
+
+
+def _no_repeats(key: str, items: Sequence) -> None:
+    """GridError naming the first item of an axis list given twice (a list axis would drop it, or run it twice)."""
+    seen: set = set()
+    for item in items:
+        if item in seen:
+            raise GridError(f'{key}: {item!r} is listed twice')
+        seen.add(item)
 
 
 def scenario_dict(scenario) -> dict:
@@ -309,6 +319,7 @@ def expand_grid(grid: Mapping) -> list[Cell]:
     bad = [s for s in strategies if s not in NAMED_STRATEGIES]
     if bad:
         raise GridError(f'strategies: unknown strategy {bad[0]!r} (use {list(NAMED_STRATEGIES)})')
+    _no_repeats('strategies', strategies)
     scenarios = _named('scenarios', grid.get('scenarios'), {'sc03': 'sc03'})
     cycles = _named('drive_cycles', grid.get('drive_cycles'), {'scenario': None})
     climates = _named('climates', grid.get('climates'), {'scenario': None})
@@ -321,6 +332,7 @@ def expand_grid(grid: Mapping) -> list[Cell]:
         or not all(s is None or (isinstance(s, int) and not isinstance(s, bool) and s >= 0) for s in seeds)
     ):
         raise GridError('seeds: must be a non-empty list of non-negative integers')
+    _no_repeats('seeds', seeds)
     duration = grid.get('duration_s')
     if duration is not None and not (
         isinstance(duration, (int, float))
