@@ -809,3 +809,29 @@ def test_all_beside_other_strategy_names_says_all_stands_alone(capsys):
         err = capsys.readouterr().err
         assert f"argument --strategy: all stands alone (it already holds {', '.join(STRATEGIES)}), got {text!r}" in err
     assert sim.build_parser().parse_args(['--out', 'x', '--strategy', ' all ']).strategy == list(STRATEGIES)
+
+
+def test_run_and_sim_warn_when_no_step_would_receive_a_preview(capsys):
+    """`--preview delayed:40` at Np = 6 (a 30 s horizon): every forecast is older than its horizon, so the NMPC runs
+    on the measured weather alone; ceco sim and ceco run say so in one warning line before running (the run is
+    still made: a study of no preview is legitimate). Not for the baseline alone, not for delayed:30 or Np 8."""
+    from ceco_bringup import run
+    from ceco_v2x_preview.preview import parse_quality
+    from ceco_v2x_preview.scenario import load_scenario
+
+    sc03 = load_scenario('sc03')
+    for prog, parser in (('ceco sim', sim.build_parser()), ('ceco run', run.build_parser())):
+        for argv, preview, warns in (
+            (['--strategy', 'ceco-ioch,baseline'], 'delayed:40', True),
+            (['--strategy', 'baseline'], 'delayed:40', False),
+            (['--strategy', 'ceco-ioch'], 'delayed:30', False),
+            (['--strategy', 'ceco-ioch', '--horizon-steps', '8'], 'delayed:40', False),
+            (['--strategy', 'ceco-pmv', '--duration-s', '100'], 'missing:0-100,policy=drop', True),
+        ):
+            args = parser.parse_args(['--out', 'x', '--preview', preview, *argv])
+            cli_args.warn_no_preview(prog, args, sc03, parse_quality(preview))
+            err = capsys.readouterr().err
+            assert (
+                f'{prog}: warning: no control step of the run receives a usable preview with {preview}' in err
+            ) is warns
+            assert err.count('\n') == int(warns)

@@ -12,7 +12,7 @@ from __future__ import annotations
 from ceco_core import cli_flags as _flags
 from ceco_core.cli_flags import *  # noqa: F403 (the shared flags, re-exported: __all__ below)
 
-__all__ = [*_flags.__all__, 'add_case', 'CASE_SCENARIO_FILE', 'apply_case', 'case_overrides']
+__all__ = [*_flags.__all__, 'add_case', 'CASE_SCENARIO_FILE', 'apply_case', 'case_overrides', 'warn_no_preview']
 
 
 def add_case(p) -> None:
@@ -65,3 +65,22 @@ def case_overrides(case, strategy: str) -> tuple:
     :meth:`~ceco_bringup.benchmark.cases.Case.strategy_overrides`: the case's door for a baseline.
     """
     return tuple(case.strategy_overrides(strategy).items()) if case is not None else ()
+
+
+def warn_no_preview(prog: str, args, scenario, quality) -> None:
+    """One line on stderr (``PROG: warning: ...``) when an NMPC strategy runs without any usable preview.
+
+    :func:`ceco_v2x_preview.preview.no_preview_warning`: ``delayed:40`` at Np = 6, or previews dropped over the
+    whole run, make a "ceco" run one without any preview.
+    """
+    import sys
+
+    from ceco_core.contracts import NODE_STRATEGIES
+    from ceco_v2x_preview.preview import no_preview_warning
+
+    if set(args.strategy) & set(NODE_STRATEGIES):
+        ts = args.control_period_s or scenario.control.control_period_s
+        n_p = args.horizon_steps or scenario.control.horizon_steps
+        warning = no_preview_warning(quality, args.duration_s or scenario.duration_s, ts, n_p)
+        if warning:
+            print(f'{prog}: warning: {warning}', file=sys.stderr)

@@ -145,6 +145,7 @@ def main(argv=None) -> int:
             measurements=args.measurements,
         )
         settings.validate()
+        cli_args.warn_no_preview('ceco sim', args, scenario, quality)
         if args.set and not set(args.strategy) & set(NODE_STRATEGIES):
             raise ValueError('--set: sets StrategySettings fields of the NMPC strategies; the baseline has none')
         _check_set_fields(settings.strategy_overrides)

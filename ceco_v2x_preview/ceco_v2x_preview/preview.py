@@ -69,7 +69,9 @@ __all__ = [
     "PERFECT",
     "DEFAULT_NOISE",
     "make_previews",
+    "no_preview_warning",
     "parse_quality",
+    "usable_steps",
     "summarize",
 ]
 
@@ -234,6 +236,50 @@ illustrative values for a short-range V2X forecast (docs/scenarios.md), not
 measured forecast statistics."""
 
 
+def _issue_time(quality: PreviewQuality, t0_s: float) -> float:
+    """When the forecast held at ``t0_s`` [s] was issued [s]; negative when none is held (module docstring)."""
+    for a, b in quality.merged_spans():
+        if a <= t0_s < b:
+            return a - quality.delay_s if quality.missing_policy == "hold_last" else -math.inf
+    return t0_s - quality.delay_s
+
+
+def _within_issued(lead_s, horizon_s: float):
+    """Leads [s] inside what a forecast of ``horizon_s`` [s] covers (True where valid)."""
+    return lead_s <= horizon_s * (1.0 + 1e-12) + 1e-9
+
+
+def usable_steps(quality: PreviewQuality, n_steps: int, step_s: float, n: int) -> int:
+    """How many control steps receive a preview with at least one valid sample.
+
+    The steps at t0 = k ``step_s`` [s], k < ``n_steps``, previews of ``n`` points; :func:`make_previews`' rule
+    (no scenario needed: validity depends on the times only).
+    """
+    count = 0
+    for k in range(int(n_steps)):
+        t0_s = k * step_s
+        t_issue = _issue_time(quality, t0_s)
+        count += bool(t_issue >= 0.0 and _within_issued(t0_s - t_issue, (n - 1) * step_s))
+    return count
+
+
+def no_preview_warning(quality: PreviewQuality, duration_s: float, step_s: float, horizon_steps: int) -> str:
+    """A sentence when no control step of a run receives a usable preview of this quality ('' when some step does).
+
+    The run: ``duration_s`` [s], Ts ``step_s`` [s], Np ``horizon_steps`` (previews of Np + 1 points). A delay
+    beyond the horizon, or missing spans over the whole run, leave the NMPC the measured weather alone, which
+    the run's label would not say.
+    """
+    n_steps = max(int(math.floor(duration_s / step_s + 1e-9)), 1)
+    if usable_steps(quality, n_steps, step_s, horizon_steps + 1):
+        return ""
+    return (
+        f"no control step of the run receives a usable preview with {quality.describe()} (Ts {step_s:g} s, "
+        f"Np {horizon_steps}: every forecast is missing or older than its {horizon_steps * step_s:g} s horizon "
+        f"in all {n_steps} steps): the CECO strategies run on the measured weather alone"
+    )
+
+
 def make_previews(
     scenario: Scenario, t0_s: float, step_s: float, n: int, quality: PreviewQuality = PERFECT
 ) -> Previews:
@@ -251,11 +297,7 @@ def make_previews(
     t0_s, step_s, n = float(t0_s), float(step_s), int(n)
     t_s = t0_s + step_s * np.arange(n, dtype=float)
 
-    t_issue = t0_s - quality.delay_s
-    for a, b in quality.merged_spans():
-        if a <= t0_s < b:
-            t_issue = a - quality.delay_s if quality.missing_policy == "hold_last" else -math.inf
-            break
+    t_issue = _issue_time(quality, t0_s)
     if t_issue < 0.0:  # nothing issued yet, or dropped
         nan = np.full(n, np.nan)
         return Previews(
@@ -271,8 +313,7 @@ def make_previews(
         )
 
     lead_s = t_s - t_issue
-    horizon_s = (n - 1) * step_s
-    valid = lead_s <= horizon_s * (1.0 + 1e-12) + 1e-9
+    valid = _within_issued(lead_s, (n - 1) * step_s)
     if quality.persistence:  # the value measured at the issue time, held over the horizon
         env = scenario.env_series(np.full(n, t_issue))
     else:

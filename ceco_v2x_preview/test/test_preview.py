@@ -10,8 +10,10 @@ from ceco_v2x_preview.preview import (
     PERFECT,
     PreviewQuality,
     make_previews,
+    no_preview_warning,
     parse_quality,
     summarize,
+    usable_steps,
 )
 from ceco_v2x_preview.scenario import load_scenario
 
@@ -204,3 +206,42 @@ def test_bad_arguments(sc03):
         make_previews(sc03, 0.0, 5.0, 6, PreviewQuality(noise_ref_lead_s=0.0))
     with pytest.raises(ValueError, match="missing_spans_s"):
         PreviewQuality(missing_spans_s=(100.0, 200.0))  # a pair, not a list of pairs
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "perfect",
+        "delayed:10",
+        "delayed:29",
+        "delayed:30",
+        "delayed:31",
+        "delayed:40",
+        "missing:0-1000",
+        "missing:0-1000,policy=drop",
+        "missing:20-1000,policy=drop",
+        "delayed:10+missing:50-200",
+        "delayed:25+missing:0-40,policy=drop",
+    ],
+)
+def test_usable_steps_counts_what_make_previews_gives(sc03, text):
+    """usable_steps (times only) equals the count of control steps whose make_previews has a valid sample, over
+    120 steps of SC03 at Ts 5 s and Np 6; no_preview_warning speaks exactly when that count is 0."""
+    q = parse_quality(text)
+    n_steps, ts, n_p = 120, 5.0, 6
+    counted = sum(bool(make_previews(sc03, k * ts, ts, n_p + 1, q).valid.any()) for k in range(n_steps))
+    assert usable_steps(q, n_steps, ts, n_p + 1) == counted
+    warning = no_preview_warning(q, n_steps * ts, ts, n_p)
+    assert bool(warning) == (counted == 0)
+    if warning:
+        assert f"with {q.describe()} (Ts 5 s, Np 6: every forecast is missing or older than its 30 s horizon" in warning
+
+
+def test_no_preview_warning_for_the_obvious_cases():
+    """A 40-s delay at Np = 6 (30 s horizon) and previews dropped over the whole run give no preview; 30 s and a
+    span that ends before the run does leave some."""
+    assert no_preview_warning(parse_quality("delayed:40"), 600.0, 5.0, 6)
+    assert no_preview_warning(parse_quality("missing:0-600,policy=drop"), 600.0, 5.0, 6)
+    assert not no_preview_warning(parse_quality("delayed:30"), 600.0, 5.0, 6)
+    assert not no_preview_warning(parse_quality("missing:0-590,policy=drop"), 600.0, 5.0, 6)
+    assert not no_preview_warning(parse_quality("delayed:40"), 600.0, 5.0, 8)  # a 40 s horizon covers it
