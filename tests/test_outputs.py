@@ -630,6 +630,7 @@ def test_the_scenario_help_names_every_bundled_scenario():
         (['--scenarios', 'nope'], "argument --scenarios: scenario: unknown scenario 'nope'"),
         (['--scenarios', ','], 'argument --scenarios: expected comma-separated scenario names'),
         (['--steps', '0'], '--steps and --repeat must be >= 1'),
+        (['--seed', '-1'], "argument --seed: must be a whole number >= 0, got '-1'"),
     ],
 )
 def test_bench_plant_refuses_bad_input_in_one_line(args, says, capsys):
