@@ -471,3 +471,123 @@ def test_report_reads_the_scenario_from_the_runs_copy(tmp_path):
     md = res['markdown'].read_text()
     assert "From the run's copy of its scenario file. Scenario `cloudy35`: A cloudy 35 degC afternoon" in md
     assert 'solar 100..100 W/m²' in md
+
+
+def _err_line(err: str) -> str:
+    """The one error line of ``err`` (after the 'loading' progress line), asserting there is no other."""
+    lines = [line for line in err.splitlines() if not line.startswith('ceco report: loading')]
+    assert 'Traceback' not in err and len(lines) == 1, err
+    return lines[0]
+
+
+def test_runs_of_different_lengths_are_not_compared(runs, tmp_path, capsys):
+    """A 40-s baseline beside a 30-s ceco-ioch run of sc03: the report refuses (it showed a -25 %-ish "E change"
+    that was mostly the 10 s missing), one line naming both runs and lengths, nothing written."""
+    short = tmp_path / 'short' / 'ceco-ioch'
+    write_run(simulate('sc03', 'ceco-ioch', SimSettings(duration_s=30.0, progress=False)), short)
+    out = tmp_path / 'rep'
+    assert report.main([str(runs / 'baseline'), str(short), '--out', str(out)]) == 2
+    err = _err_line(capsys.readouterr().err)
+    assert err.startswith('ceco report: error: the runs of sc03 differ in length (')
+    assert f'{runs / "baseline"} 40 s' in err and f'{short} 30 s' in err
+    assert not out.exists()
+
+
+def test_a_partial_run_is_shown_but_not_compared(runs, results, tmp_path, capsys):
+    """A complete 40-s baseline and a stopped ceco-ioch run (28 of 40 s): reported (a partial run is shorter by
+    nature, not refused), and its energy change against the baseline is n/a (it read -30 %-ish)."""
+    run = tmp_path / 'stopped'
+    provenance.start_run(run, 'run', ['--scenario', 'sc03'], 'sc03')
+    provenance.finish_run(run, 'interrupted')
+    custom = {'scenario': 'sc03', 'strategy': 'ceco-ioch', 'duration_s': repr(DURATION_S)}
+    _bare_bag(results['ceco-ioch'], run / 'bag', steps=28, strategy='ceco-ioch', custom=custom)
+    assert report.main([str(runs / 'baseline'), str(run), '--out', str(tmp_path / 'rep')]) == 0
+    md = (tmp_path / 'rep' / 'summary.md').read_text()
+    assert _md_row(md, 'ceco-ioch (partial)', 'Metrics per strategy')[5] == 'n/a'
+    assert _md_row(md, 'baseline', 'Metrics per strategy')[5] == '+0.0 %'
+    row = _md_row(md, 'ceco-ioch', 'Changes against the baseline')
+    assert (row[1], row[3], row[6]) == ('n/a', 'n/a', 'n/a')
+    csv_rows = (tmp_path / 'rep' / 'metrics.csv').read_text().splitlines()
+    header = csv_rows[0].split(',')
+    change = {r.split(',')[1]: r.split(',')[header.index('energy_change_pct')] for r in csv_rows[1:]}
+    assert change == {'baseline': '0.0', 'ceco-ioch': 'nan'}
+
+
+def _copy_with_metrics(src, dst, **changes):
+    """A copy of the run ``src`` at ``dst`` whose metrics.json has ``changes`` (None: the key removed)."""
+    import shutil
+
+    shutil.copytree(src, dst)
+    m = json.loads((dst / 'metrics.json').read_text())
+    for k, v in changes.items():
+        if v is None:
+            del m[k]
+        else:
+            m[k] = v
+    (dst / 'metrics.json').write_text(json.dumps(m))
+    return dst
+
+
+def test_each_run_is_shown_under_the_strategy_it_records(runs, tmp_path, capsys):
+    """--strategy/--scenario name only what a run does not record (they relabelled every run: baseline and
+    ceco-ioch of sc03 both showed as 'mine on udds'); a run recording no strategy is refused (it took its
+    directory's name, here 'ceco-e', and the paper's -15.9 % beside it) until --strategy names it; a name ceco
+    does not know is shown as recorded."""
+    both = [str(runs / 'baseline'), str(runs / 'ceco-ioch')]
+    assert report.main([*both, '--strategy', 'mine', '--out', str(tmp_path / 'r1')]) == 2
+    assert _err_line(capsys.readouterr().err) == (
+        f"ceco report: error: {runs / 'baseline'} records strategy 'baseline' (metrics.json), not --strategy "
+        "'mine': --strategy names only a run that records none"
+    )
+    assert report.main([*both, '--scenario', 'udds', '--out', str(tmp_path / 'r2')]) == 2
+    assert "records scenario 'sc03' (metrics.json), not --scenario 'udds'" in _err_line(capsys.readouterr().err)
+    nameless = _copy_with_metrics(runs / 'ceco-ioch', tmp_path / 'ceco-e', strategy=None)
+    assert report.main([str(nameless), '--out', str(tmp_path / 'r3')]) == 2
+    assert _err_line(capsys.readouterr().err) == (
+        f'ceco report: error: {nameless} records no strategy (neither metrics.json nor a bag names one): '
+        'name it with --strategy'
+    )
+    assert report.main([str(nameless), '--strategy', 'my-mpc', '--out', str(tmp_path / 'r4')]) == 0
+    assert f'{nameless}: my-mpc on sc03' in capsys.readouterr().out
+    unknown = _copy_with_metrics(runs / 'ceco-ioch', tmp_path / 'u' / 'ceco-ioch', strategy='my-mpc')
+    assert report.main([str(runs / 'baseline'), str(unknown), '--out', str(tmp_path / 'r5')]) == 0
+    assert f'{unknown}: my-mpc on sc03' in capsys.readouterr().out
+    md = (tmp_path / 'r5' / 'summary.md').read_text()
+    assert _md_row(md, 'my-mpc', 'Changes against the baseline')[2] == 'n/a'  # no paper number for it
+
+
+def test_every_run_of_a_strategy_is_shown_once(runs, tmp_path, capsys):
+    """Three baseline runs in directories all named 'baseline': three rows, told apart by their paths (the
+    third replaced the second, both labelled 'baseline (baseline)'); the same run given twice is refused."""
+    import shutil
+
+    copies = [runs / 'baseline']
+    for name in ('x1', 'x2'):
+        copies.append(tmp_path / name / 'baseline')
+        shutil.copytree(runs / 'baseline', copies[-1])
+    res = report.build_report(copies, tmp_path / 'rep', log=lambda *a, **k: None)
+    assert len(res['metrics_csv'].read_text().splitlines()) == 1 + 3
+    md = res['markdown'].read_text()
+    for label in ('baseline', f'baseline ({copies[1]})', f'baseline ({copies[2]})'):
+        assert _md_row(md, label, 'Metrics per strategy')[5] == '+0.0 %', label
+    assert report.main([str(copies[1]), str(copies[1]), '--out', str(tmp_path / 'r2')]) == 2
+    assert _err_line(capsys.readouterr().err) == f'ceco report: error: {copies[1]}: the same run given twice'
+
+
+def test_rtol_is_positive_and_a_looser_check_says_why(runs, tmp_path, capsys):
+    """--rtol 0 is refused with the accepted range (it became 1e-16 for a timeseries.csv and stayed 1e-9 absolute:
+    not exact); a tolerance below the file's precision is raised to it, and the run's line says so."""
+    with pytest.raises(SystemExit) as exc:
+        report.main([str(runs / 'ceco-ioch'), '--rtol', '0', '--out', str(tmp_path / 'r0')])
+    assert exc.value.code == 2
+    assert _err_line(capsys.readouterr().err) == (
+        "ceco report: error: argument --rtol: must be a finite number > 0, got '0' "
+        '(ceco report --help lists the options)'
+    )
+    assert report.main([str(runs / 'ceco-ioch'), '--rtol', '1e-20', '--out', str(tmp_path / 'r1')]) == 0
+    assert (
+        'OK (max rel. diff 0.0e+00, tolerance 1e-16: the precision of timeseries.csv, looser than --rtol 1e-20)'
+        in capsys.readouterr().out
+    )
+    assert report.main([str(runs / 'ceco-ioch'), '--rtol', '1e-9', '--out', str(tmp_path / 'r2')]) == 0
+    assert 'OK (max rel. diff 0.0e+00, tolerance 1e-09)\n' in capsys.readouterr().out

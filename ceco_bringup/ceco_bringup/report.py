@@ -25,6 +25,11 @@ metadata, the recorded parameters, the messages or ``--scenario``/``--strategy``
    vehicle-level energy change from FASTSim), the metrics table, the solver
    statistics from ``diagnostics.csv`` and the comparison with the paper's numbers.
 
+Refused (exit status 2, one line): complete runs of one scenario that differ in length (their energies
+are not comparable; a partial run is shown, never compared), a ``--scenario``/``--strategy`` that
+contradicts what a run records (the flags name what a bag does not say), a run that records no
+strategy (without ``--strategy``) and the same run given twice.
+
 Signs: "change" is signed as measured (+ = more), "saving" is energy saved (+ = less
 energy); energy counts compressor + blower + condenser fan (docs/metrics.md).
 
@@ -68,6 +73,9 @@ energy (paper, Sec. 5)."""
 
 VERDICT_FILE = 'verdict.json'
 
+SAME_LENGTH_S = 0.5
+"""Runs whose lengths differ by less than this [s] (half a plant step) ran the same length."""
+
 
 # ---------------------------------------------------------------- formatting
 def _change_pct(x: Mapping, base: RunData | None, key: str) -> str:
@@ -83,18 +91,84 @@ def _paper_energy_change(x: Mapping, base: RunData | None) -> str:
     return fmt_pct(relative_change_pct(x['E_comp_J'] + x['E_blower_J'], b['E_comp_J'] + b['E_blower_J']))
 
 
+def _reference(group: Mapping[str, RunData], run: RunData) -> RunData | None:
+    """The baseline run ``run`` is compared with: None without one or when either is partial (shorter)."""
+    base = group.get('baseline')
+    return None if base is None or base.partial or run.partial else base
+
+
 def _group(runs: Sequence[RunData]) -> dict:
     """{scenario: {label: RunData}}.
 
-    The label is the strategy, made unique with the directory name when a scenario
-    holds a strategy twice.
+    The label is the strategy, made unique with the run's path when a scenario holds a
+    strategy twice. Raises ValueError for a run given twice.
     """
     groups: dict = {}
-    for r in runs:
+    for i, r in enumerate(runs):
+        if any(r.path == q.path for q in runs[:i]):
+            raise ValueError(f'{r.path}: the same run given twice')
         g = groups.setdefault(r.scenario, {})
-        label = r.strategy if r.strategy not in g else f'{r.strategy} ({r.path.name})'
-        g[label] = r
+        g[r.strategy if r.strategy not in g else f'{r.strategy} ({r.path})'] = r
     return groups
+
+
+def _recorded(run: RunData, namespace: str | None) -> dict:
+    """{'scenario'|'strategy': (value, where)} as the run itself records them; (None, '') where it does not.
+
+    metrics.json (and run.json for the scenario), else the run's bag without the flags.
+    """
+    from ceco_bringup.bagrun import bag_dir_of, bag_run_info
+    from ceco_bringup.rundata import read_bag
+
+    places = {
+        'scenario': (('metrics.json', run.stored), ('run.json', run.info)),
+        'strategy': (('metrics.json', run.stored),),
+    }
+    rec = {k: next(((str(d[k]), where) for where, d in ps if d.get(k)), (None, '')) for k, ps in places.items()}
+    bag = bag_dir_of(run.path)
+    if bag is not None and any(v is None for v, _ in rec.values()):
+        b = read_bag(bag, bag_run_info, namespace)
+        rec = {k: (v, where) if v is not None else (getattr(b, k), 'its bag') for k, (v, where) in rec.items()}
+    return rec
+
+
+def _check_identity(runs: Sequence[RunData], namespace: str | None, flags: Mapping[str, str | None]) -> None:
+    """Every run shown under the scenario and strategy it records.
+
+    ``flags``: {'scenario', 'strategy'} given by the user (None: not given), which only name what a run does
+    not record. Raises ValueError for a flag that contradicts a run and for a run that records no strategy
+    and gets none (it would be labelled by its directory name).
+    """
+    for r in runs:
+        rec = _recorded(r, namespace) if any(flags.values()) or not r.stored.get('strategy') else {}
+        for key, flag in flags.items():
+            value, where = rec.get(key, (None, ''))
+            if flag is not None and value is not None and value != flag:
+                raise ValueError(
+                    f'{r.path} records {key} {value!r} ({where}), not --{key} {flag!r}: --{key} names only a run '
+                    f'that records none'
+                )
+        if flags['strategy'] is None and rec and rec['strategy'][0] is None:
+            raise ValueError(
+                f'{r.path} records no strategy (neither metrics.json nor a bag names one): name it with --strategy'
+            )
+
+
+def _same_length(a: float, b: float) -> bool:
+    return abs(a - b) < SAME_LENGTH_S
+
+
+def _check_lengths(groups: Mapping[str, Mapping[str, RunData]]) -> None:
+    """Raise ValueError when complete runs of one scenario differ in length: their energies are not comparable."""
+    for sc, g in groups.items():
+        complete = [r for r in g.values() if not r.partial]
+        lengths = [r.recomputed['duration_s'] for r in complete]
+        if any(not _same_length(x, lengths[0]) for x in lengths):
+            runs = ', '.join(f'{r.path} {x:g} s' for r, x in zip(complete, lengths))
+            raise ValueError(
+                f'the runs of {sc} differ in length ({runs}): energy is compared only over the same length; '
+                'report each length on its own'
+            )
 
 
 def _scenario_text(name: str, path: Path | None = None) -> str:
@@ -156,10 +230,10 @@ def _metrics_table(
 
     Energy in kWh with its parts, discomfort, and the validity beside the comfort numbers.
     """
-    base = group.get('baseline')
     rows, csv_rows = [], []
     for lab in labels:
         r = group[lab]
+        base = _reference(group, r)
         x = r.recomputed
         k = kpis[lab]
         rows.append(
@@ -220,11 +294,11 @@ def _metrics_table(
         ),
         rows,
         caption=f'Metrics per strategy. E: A/C energy, {ENERGY_PARTS}. E change: against the baseline run, as '
-        'measured (+ = more energy). D: discomfort, PMV-hours outside -0.5..+0.5 with PMV clipped at ±3. '
-        'I_PMV = ∫PMV² dt (the paper\'s). viol.: share of time outside the scenario\'s PMV bounds; t_comfort: '
-        'first time PMV stays in -0.5..+0.5 for 60 s. PMV beyond ±3 is off ISO 7730\'s scale (shown >3: clipped); '
-        'ISO out: share of samples whose PMV or its inputs lie outside ISO 7730 validity (comfort numbers there '
-        'are extrapolations).',
+        'measured (+ = more energy; n/a for a partial run). D: discomfort, PMV-hours outside -0.5..+0.5 with '
+        'PMV clipped at ±3. I_PMV = ∫PMV² dt (the paper\'s). viol.: share of time outside the scenario\'s PMV '
+        'bounds; t_comfort: first time PMV stays in -0.5..+0.5 for 60 s. PMV beyond ±3 is off ISO 7730\'s '
+        'scale (shown >3: clipped); ISO out: share of samples whose PMV or its inputs lie outside ISO 7730 '
+        'validity (comfort numbers there are extrapolations).',
     )
     return table, csv_rows
 
@@ -273,13 +347,13 @@ def _time_figures(scenario: str, group: Mapping[str, RunData], labels: Sequence[
 
 def _paper_comparison(scenario: str, group: Mapping[str, RunData], labels: Sequence[str], vrows) -> list:
     """The comparison with the paper's SC03 numbers (A/C and, with --vehicle, Prius energy)."""
-    base = group.get('baseline')
     prius = {r['strategy']: r for r in (vrows or []) if r['powertrain'] == 'HEV'}
     rows = []
     for lab in labels:
         if lab == 'baseline':
             continue
         x = group[lab].recomputed
+        base = _reference(group, group[lab])
         pr = prius.get(lab)
         rows.append(
             (
@@ -380,7 +454,7 @@ def _family_for(scenario: str, group: Mapping[str, RunData]) -> tuple[dict, str,
                 data = vd.read_verdict(f)
             except (ValueError, OSError):
                 continue
-            if data.get('scenario') == scenario and abs(float(data.get('duration_s', -1)) - duration) < 0.5:
+            if data.get('scenario') == scenario and _same_length(float(data.get('duration_s', -1)), duration):
                 if data.get('family'):
                     return dict(data['family']), str(data.get('family_source', '')), str(f)
     return {}, '', ''
@@ -491,10 +565,13 @@ def build_report(
     """
     out = Path(out_dir)
     fig_dir = out / 'figures'
-    fig_dir.mkdir(parents=True, exist_ok=True)
     found = discover_runs(run_dirs)
     log(f'ceco report: loading {len(found)} run(s)', file=sys.stderr)
     runs = [load_run(d, rtol=rtol, namespace=namespace, scenario=scenario, strategy=strategy) for d in found]
+    _check_identity(runs, namespace, {'scenario': scenario, 'strategy': strategy})
+    groups = _group(runs)
+    _check_lengths(groups)
+    fig_dir.mkdir(parents=True, exist_ok=True)
     blocks, any_mismatch = _intro(runs, rtol, log)
     if vehicle and vehicle_settings is None:
         from ceco_bringup import vehicle_energy as ve
@@ -504,7 +581,6 @@ def build_report(
     metric_rows: list[dict] = []
     vehicle_all: dict = {}
     verdict_lines: list[str] = []
-    groups = _group(runs)
     for sc, group in groups.items():  # the verdicts first: the top of the report
         vblocks, vfig, lines = _verdict_section(sc, group, fig_dir)
         blocks += vblocks
@@ -559,10 +635,11 @@ def build_parser() -> cli_args.Parser:
     )
     parser.add_argument(
         '--rtol',
-        type=cli_args.nonnegative_float,
+        type=cli_args.positive_float,
         default=1e-6,
-        help='relative tolerance of the metrics.json check (the stack\'s agreement criterion; a bag holds '
-        'float64 and agrees far closer)',
+        help='relative tolerance (> 0) of the metrics.json check (the stack\'s agreement criterion; a bag holds '
+        'float64 and agrees far closer; for a timeseries.csv never tighter than the precision it was written '
+        'with, and the run\'s line says so)',
     )
     cli_args.add_namespace(parser, 'namespace of the recorded stack in the bags (default: the only one in each bag)')
     cli_args.add_scenario(
@@ -574,6 +651,12 @@ def build_parser() -> cli_args.Parser:
         help='strategy of a bag that does not name it (default: its metadata, parameters or messages)',
     )
     return parser
+
+
+def _tolerance(run: RunData, rtol: float) -> str:
+    """The tolerance the check of ``run`` used, and why when it is looser than ``rtol``."""
+    used = f'{run.check_rtol:.0e}'
+    return used if run.check_rtol <= rtol else f'{used}: the precision of {run.source}, looser than --rtol {rtol:g}'
 
 
 def main(argv=None) -> int:
@@ -603,7 +686,7 @@ def main(argv=None) -> int:
         state = 'no metrics.json' if not r.stored else ('OK' if not r.mismatches else 'MISMATCH')
         print(
             f'{r.path}: {r.strategy} on {r.scenario}, metrics from {r.source}: {state}'
-            + (f' (max rel. diff {r.max_rel_diff:.1e}, tolerance {r.check_rtol:.0e})' if r.stored else '')
+            + (f' (max rel. diff {r.max_rel_diff:.1e}, tolerance {_tolerance(r, args.rtol)})' if r.stored else '')
             + (f'; PARTIAL ({r.partial})' if r.partial else '')
         )
     print(
