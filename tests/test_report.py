@@ -591,3 +591,26 @@ def test_rtol_is_positive_and_a_looser_check_says_why(runs, tmp_path, capsys):
     )
     assert report.main([str(runs / 'ceco-ioch'), '--rtol', '1e-9', '--out', str(tmp_path / 'r2')]) == 0
     assert 'OK (max rel. diff 0.0e+00, tolerance 1e-09)\n' in capsys.readouterr().out
+
+
+def test_a_stored_energy_that_is_null_missing_or_text_is_a_mismatch(runs, tmp_path, capsys):
+    """metrics.json with E_tot_J null, removed or "12" passed the check as OK (the key was skipped); now each is a
+    MISMATCH (exit status 1) naming the key. A null where the recomputed metric is NaN (never in comfort) is equal."""
+    from ceco_bringup import rundata
+
+    for name, value in (('null', 'NULL'), ('missing', None), ('text', '12')):
+        d = tmp_path / name / 'ceco-ioch'
+        _copy_with_metrics(runs / 'ceco-ioch', d, E_tot_J=value)
+        if value == 'NULL':
+            m = json.loads((d / 'metrics.json').read_text())
+            (d / 'metrics.json').write_text(json.dumps(dict(m, E_tot_J=None)))
+        assert report.main([str(d), '--out', str(tmp_path / f'r_{name}')]) == 1, name
+        out = capsys.readouterr().out
+        assert f'{d}: ceco-ioch on sc03, metrics from timeseries.csv: MISMATCH' in out, out
+        ((key, stored, _),) = rundata.load_run(d).mismatches
+        assert key == 'E_tot_J'
+        assert math.isnan(stored) if name == 'null' else stored == {'missing': 'missing', 'text': '12'}[name]
+    assert rundata.compare_metrics({'time_to_comfort_s': None}, {'time_to_comfort_s': float('nan')}) == ([], 0.0)
+    ((key, stored, new),), worst = rundata.compare_metrics({'pmv_max': None}, {'pmv_max': 1.5})
+    assert (key, math.isnan(stored), new, worst) == ('pmv_max', True, 1.5, math.inf)
+    assert rundata.compare_metrics({}, {'pmv_max': 1.5}) == ([], 0.0)  # (not a checked key: older directories)

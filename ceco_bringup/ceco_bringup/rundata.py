@@ -155,16 +155,32 @@ def recompute_metrics(columns: Mapping) -> dict:
     return run_metrics(columns)
 
 
-def compare_metrics(stored: Mapping, recomputed: Mapping, rtol: float = 1e-9, atol: float = 1e-9):
-    """Compare every numeric metric present in both; ``(mismatches, max_rel_diff)``.
+CHECKED_KEYS = ('E_comp_J', 'E_blower_J', 'E_tot_J', 'duration_s')
+"""Metrics every metrics.json holds: one without them (or with another type) is a mismatch, not a skipped check."""
 
-    NaN equals NaN; ``|a - b| <= atol + rtol |b|`` passes.
+
+def compare_metrics(stored: Mapping, recomputed: Mapping, rtol: float = 1e-9, atol: float = 1e-9):
+    """Compare every metric recomputed with the stored one; ``(mismatches, max_rel_diff)``.
+
+    NaN equals NaN, and a stored null is NaN (JSON has no NaN); ``|a - b| <= atol + rtol |b|`` passes. A stored
+    value that is not a number (text, true/false) is a mismatch, and so is a missing one of :data:`CHECKED_KEYS`
+    (a metrics.json that leaves out its energy would otherwise pass); other missing keys are skipped (older run
+    directories lack some).
     """
     mism, worst = [], 0.0
     for key, new in recomputed.items():
-        if key not in stored or isinstance(stored[key], (str, bool)) or stored[key] is None:
+        if key not in stored:
+            if key in CHECKED_KEYS:
+                mism.append((key, 'missing', float(new)))
+                worst = math.inf
             continue
-        old, new = float(stored[key]), float(new)
+        if stored[key] is not None and (
+            isinstance(stored[key], (str, bool)) or not isinstance(stored[key], (int, float))
+        ):
+            mism.append((key, stored[key], float(new)))
+            worst = math.inf
+            continue
+        old, new = (math.nan if stored[key] is None else float(stored[key])), float(new)
         if math.isnan(old) and math.isnan(new):
             continue
         if math.isnan(old) != math.isnan(new):
