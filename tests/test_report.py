@@ -614,3 +614,12 @@ def test_a_stored_energy_that_is_null_missing_or_text_is_a_mismatch(runs, tmp_pa
     ((key, stored, new),), worst = rundata.compare_metrics({'pmv_max': None}, {'pmv_max': 1.5})
     assert (key, math.isnan(stored), new, worst) == ('pmv_max', True, 1.5, math.inf)
     assert rundata.compare_metrics({}, {'pmv_max': 1.5}) == ([], 0.0)  # (not a checked key: older directories)
+
+
+def test_bar_labels_keep_a_second_runs_path():
+    """Bar axes shorten a known label at its parenthesis; a report's label for a second run of a strategy,
+    'baseline (runs/b/baseline)', stays whole (it was cut to 'baseline', two bars with one name)."""
+    assert figures.short_label('baseline') == 'Baseline'
+    assert figures.short_label('ceco-ioch') == 'CECO-IOCH'
+    assert figures.short_label('baseline (runs/b/baseline)') == 'baseline (runs/b/baseline)'
+    assert figures.short_label('my-mpc') == 'my-mpc'

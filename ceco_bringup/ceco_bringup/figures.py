@@ -32,6 +32,7 @@ __all__ = [
     'STRATEGY_ORDER',
     'ordered',
     'strategy_style',
+    'short_label',
     'fig_pmv',
     'fig_temperatures',
     'fig_powers',
@@ -90,6 +91,14 @@ def strategy_style(name: str, index: int | None = None) -> dict:
         i = len(STRATEGY_ORDER) + (index or 0)
     dashes = '--' if name == 'baseline' else '-'
     return {'color': OKABE_ITO[i % len(OKABE_ITO)], 'label': _LABEL.get(name, name), 'linestyle': dashes}
+
+
+def short_label(name: str) -> str:
+    """A strategy's label without its parenthesis ('Baseline' for 'Baseline (PI, 26 °C)'), for bar axes.
+
+    A name ceco does not know, as a report's 'baseline (runs/b/baseline)' for a second baseline run, stays whole.
+    """
+    return _LABEL[name].split(' (')[0] if name in _LABEL else name
 
 
 def save_png(fig, path: Path) -> Path:
@@ -237,7 +246,7 @@ def fig_bars(metrics: Mapping[str, Mapping], path, title: str = '', baseline: st
     """
     names = ordered(list(metrics))
     x = np.arange(len(names))
-    labels = [strategy_style(n)['label'].split(' (')[0] for n in names]
+    labels = [short_label(n) for n in names]
     colors = [strategy_style(n, i)['color'] for i, n in enumerate(names)]
     with plt.rc_context(RC_PARAMS):
         fig, axes = plt.subplots(1, 3, figsize=(9.0, 3.3))
@@ -346,8 +355,8 @@ def fig_solver(diags: Mapping[str, Mapping], path, title: str = '') -> Path:
                 flierprops={'markersize': 2},
                 medianprops={'color': 'k', 'linewidth': 1.2},
             )
-            for patch, n in zip(bp['boxes'], names):
-                patch.set_facecolor(strategy_style(n)['color'])
+            for i, (patch, n) in enumerate(zip(bp['boxes'], names)):
+                patch.set_facecolor(strategy_style(n, i)['color'])
                 patch.set_alpha(0.6)
             labels = []
             for n in names:

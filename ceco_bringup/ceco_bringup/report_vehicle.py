@@ -17,7 +17,7 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ceco_bringup.figures import OKABE_ITO, RC_PARAMS, annotate_bar, ordered, save_png, strategy_style
+from ceco_bringup.figures import OKABE_ITO, RC_PARAMS, annotate_bar, ordered, save_png, short_label, strategy_style
 from ceco_bringup.report_html import Heading, Paragraph, Table, Warning, fmt_num, fmt_pct, slug
 from ceco_bringup.rundata import RunData
 
@@ -194,7 +194,7 @@ def fig_vehicle(rows: Sequence[Mapping], path, title: str = '') -> Path:
                 annotate_bar(ax, b, f"{by[n]['range_lost_pct']:.1f} %")
             ax.set_xticks(
                 np.arange(len(names)),
-                [strategy_style(n)['label'].split(' (')[0] for n in names],
+                [short_label(n) for n in names],
                 rotation=20,
                 ha='right',
             )
