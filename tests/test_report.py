@@ -432,6 +432,12 @@ def test_report_from_a_bare_bag_names_the_run_from_its_parameters(results, tmp_p
     assert rundata.load_run(bare).scenario == 'unknown'
     named = rundata.load_run(bare, scenario='sc03', strategy='mine')
     assert (named.scenario, named.strategy) == ('sc03', 'mine')
+    # two bags that record no scenario are not compared as one scenario's runs; --scenario names them
+    bare2 = tmp_path / 'bare2'
+    _bare_bag(results['ceco-ioch'], bare2, strategy='ceco-ioch')
+    assert report.main([str(bare), str(bare2), '--out', str(tmp_path / 'rep2')]) == 2
+    assert f'ceco report: error: {bare}, {bare2} record no scenario: name it with --scenario' in capsys.readouterr().err
+    assert report.main([str(bare), str(bare2), '--scenario', 'sc03', '--out', str(tmp_path / 'rep3')]) == 0
 
 
 def test_stopped_run_is_reported_partial(results, tmp_path, capsys):

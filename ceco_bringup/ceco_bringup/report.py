@@ -73,6 +73,9 @@ energy (paper, Sec. 5)."""
 
 VERDICT_FILE = 'verdict.json'
 
+UNKNOWN_SCENARIO = 'unknown'
+"""The scenario of a run that records none and gets no --scenario (:func:`ceco_bringup.rundata.load_run`)."""
+
 SAME_LENGTH_S = 0.5
 """Runs whose lengths differ by less than this [s] (half a plant step) ran the same length."""
 
@@ -159,7 +162,17 @@ def _same_length(a: float, b: float) -> bool:
 
 
 def _check_lengths(groups: Mapping[str, Mapping[str, RunData]]) -> None:
-    """Raise ValueError when complete runs of one scenario differ in length: their energies are not comparable."""
+    """Raise ValueError when complete runs of one scenario differ in length: their energies are not comparable.
+
+    Also when several runs record no scenario (``unknown``, rundata): they would be compared as if they had
+    driven one.
+    """
+    unknown = groups.get(UNKNOWN_SCENARIO, {})
+    if len(unknown) > 1:
+        raise ValueError(
+            f"{', '.join(str(r.path) for r in unknown.values())} record no scenario: name it with --scenario "
+            '(runs whose scenario is unknown are not compared with each other)'
+        )
     for sc, g in groups.items():
         complete = [r for r in g.values() if not r.partial]
         lengths = [r.recomputed['duration_s'] for r in complete]
