@@ -81,7 +81,8 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
             "baseline law file (acc_law: AccSettings fields, e.g. the package's config/baseline_pmv.yaml for the "
             "comfort-feedback PI; empty: the production law)"
             if fixed_strategy == 'baseline'
-            else "NMPC settings file (solver, weights, bounds; empty: the package's config/controller.yaml)",
+            else "NMPC settings file (solver, weights, bounds; empty: the package's config/controller.yaml); Np and "
+            "Ts are horizon_steps and control_period_s, and a file giving other values is refused at configure",
             at_configure=True,
         ),
         ParamSpec(
