@@ -629,3 +629,7 @@ def test_bar_labels_keep_a_second_runs_path():
     assert figures.short_label('ceco-ioch') == 'CECO-IOCH'
     assert figures.short_label('baseline (runs/b/baseline)') == 'baseline (runs/b/baseline)'
     assert figures.short_label('my-mpc') == 'my-mpc'
+    # a second run of a strategy never takes a colour of ceco's own strategies (ceco-c's twin took ceco-c's)
+    names = figures.ordered(['ceco', 'ceco-e', 'ceco-c', 'ceco-c (runs/b/ceco-c)', 'my-mpc'])
+    colours = [figures.strategy_style(n, i)['color'] for i, n in enumerate(names)]
+    assert len(set(colours)) == len(names), dict(zip(names, colours))

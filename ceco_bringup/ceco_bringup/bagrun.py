@@ -4,7 +4,9 @@
 not only on a ``ceco run`` directory: a bag of ``ros2 bag record`` (or the launch file's
 ``record:=true``) has no ceco metadata. Each field comes from the first source that has it:
 
-1. the user's flag (``--scenario``, ``--strategy``, ``--control-period-s``, ``--horizon-steps``);
+1. the user's flag (``--scenario``, ``--strategy``, ``--control-period-s``, ``--horizon-steps``; ``ceco report``
+   refuses a ``--scenario``/``--strategy`` that contradicts what the run records, so there it names only what
+   the bag does not say);
 2. the bag's ``metadata.yaml`` ``custom_data`` (ceco's recorder writes scenario, strategy,
    control_period_s, horizon_steps, duration_s);
 3. the nodes' parameters in ``/parameter_events`` when the recording holds them (``scenario``,

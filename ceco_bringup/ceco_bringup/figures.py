@@ -83,14 +83,23 @@ def ordered(names: Sequence[str]) -> list[str]:
     return known + sorted(n for n in names if n not in STRATEGY_ORDER)
 
 
+TOL_MUTED = ('#332288', '#88CCEE', '#44AA99', '#117733', '#999933', '#DDCC77', '#CC6677', '#882255', '#AA4499')
+"""Paul Tol's muted qualitative scheme: the colours of names ceco does not know (a user's controller, a second run
+of a strategy), apart from the Okabe-Ito colours its own strategies hold."""
+
+
 def strategy_style(name: str, index: int | None = None) -> dict:
-    """Colour, label and line style of a strategy (stable across figures)."""
-    if name in STRATEGY_ORDER:
-        i = STRATEGY_ORDER.index(name)
-    else:
-        i = len(STRATEGY_ORDER) + (index or 0)
+    """Colour, label and line style of a strategy (stable across figures).
+
+    A name ceco does not know takes ``TOL_MUTED[index]`` (its position among the plotted names), never the colour
+    of one of ceco's strategies: a report's 'ceco-c (runs/b/ceco-c)' beside 'ceco-c' took ceco-c's own.
+    """
     dashes = '--' if name == 'baseline' else '-'
-    return {'color': OKABE_ITO[i % len(OKABE_ITO)], 'label': _LABEL.get(name, name), 'linestyle': dashes}
+    if name in STRATEGY_ORDER:
+        color = OKABE_ITO[STRATEGY_ORDER.index(name) % len(OKABE_ITO)]
+    else:
+        color = TOL_MUTED[(index or 0) % len(TOL_MUTED)]
+    return {'color': color, 'label': _LABEL.get(name, name), 'linestyle': dashes}
 
 
 def short_label(name: str) -> str:

@@ -224,7 +224,7 @@ def strategy_list(text: str) -> list[str]:
     names = [s.strip() for s in text.split(',') if s.strip()]
     if 'all' in names:
         raise argparse.ArgumentTypeError(
-            f"all stands alone (it already holds {', '.join(STRATEGIES)}), got {text!r}: give all or a list of names"
+            f'all stands alone (it names every strategy the verb runs), got {text!r}: give all or a list of names'
         )
     bad = [s for s in names if s not in NAMED_STRATEGIES]
     if not names or bad:

@@ -18,30 +18,41 @@ class UniqueKeyLoader(_BASE):  # type: ignore[misc, valid-type]
     """The safe loader, refusing a mapping that gives one key twice.
 
     YAML 1.2 requires keys to be unique; PyYAML keeps the last value without a word, so a scenario with two
-    ``t_amb_c:`` lines silently ran the second. A merge (``<<: *base``) followed by one of its keys is an
+    ``duration_s:`` lines silently ran the second. A merge (``<<: *base``) followed by one of its keys is an
     override, not a duplicate.
+
+    Each mapping is checked as written, the first time the constructor flattens it: when it is built, or
+    earlier when another mapping merges it (PyYAML flattens a merged mapping in place, so a check at
+    construction would see the merged keys beside their overrides).
     """
 
-    def construct_mapping(self, node, deep=False):
-        """The mapping of ``node``; ConstructorError at the second occurrence of a key."""
-        if isinstance(node, yaml.MappingNode):
-            seen: dict = {}
-            for key_node, _ in node.value:
-                if key_node.tag == _MERGE_TAG:
-                    continue
-                key = self.construct_object(key_node, deep=True)
-                try:
-                    first = seen.setdefault(key, key_node.start_mark)
-                except TypeError:  # an unhashable key: the base class says so
-                    continue
-                if first is not key_node.start_mark:
-                    raise yaml.constructor.ConstructorError(
-                        "while constructing a mapping",
-                        node.start_mark,
-                        f"found the key {key!r} twice (first at line {first.line + 1})",
-                        key_node.start_mark,
-                    )
-        return super().construct_mapping(node, deep)
+    def flatten_mapping(self, node):
+        """Check ``node``'s own keys (once), then PyYAML's merge flattening."""
+        checked = self.__dict__.setdefault("_ceco_checked", set())
+        if id(node) not in checked:
+            checked.add(id(node))
+            _check_unique_keys(self, node)
+        super().flatten_mapping(node)
+
+
+def _check_unique_keys(loader, node) -> None:
+    """ConstructorError at the second occurrence of a key among ``node``'s own (merge keys aside)."""
+    seen: dict = {}
+    for key_node, _ in node.value:
+        if key_node.tag == _MERGE_TAG:
+            continue
+        key = loader.construct_object(key_node, deep=True)
+        try:
+            first = seen.setdefault(key, key_node.start_mark)
+        except TypeError:  # an unhashable key: the constructor says so
+            continue
+        if first is not key_node.start_mark:
+            raise yaml.constructor.ConstructorError(
+                "while constructing a mapping",
+                node.start_mark,
+                f"found the key {key!r} twice (first at line {first.line + 1})",
+                key_node.start_mark,
+            )
 
 
 _LOADER = UniqueKeyLoader

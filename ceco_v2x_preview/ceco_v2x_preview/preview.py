@@ -270,7 +270,7 @@ def no_preview_warning(quality: PreviewQuality, duration_s: float, step_s: float
     beyond the horizon, or missing spans over the whole run, leave the NMPC the measured weather alone, which
     the run's label would not say.
     """
-    n_steps = max(int(math.floor(duration_s / step_s + 1e-9)), 1)
+    n_steps = max(math.ceil(duration_s / step_s - 1e-9), 1)  # the control steps at k Ts < duration_s
     if usable_steps(quality, n_steps, step_s, horizon_steps + 1):
         return ""
     return (

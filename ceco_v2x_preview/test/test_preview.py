@@ -245,3 +245,7 @@ def test_no_preview_warning_for_the_obvious_cases():
     assert not no_preview_warning(parse_quality("delayed:30"), 600.0, 5.0, 6)
     assert not no_preview_warning(parse_quality("missing:0-590,policy=drop"), 600.0, 5.0, 6)
     assert not no_preview_warning(parse_quality("delayed:40"), 600.0, 5.0, 8)  # a 40 s horizon covers it
+    # a run of 24 s has control steps at 0, 5, ..., 20 (k Ts < 24 s): the one at 20 s holds the forecast issued
+    # at 0 s; a run of 20 s ends before it (the count was floor(24 / 5) = 4 steps: a false warning)
+    assert not no_preview_warning(parse_quality("delayed:20"), 24.0, 5.0, 6)
+    assert "in all 4 steps" in no_preview_warning(parse_quality("delayed:20"), 20.0, 5.0, 6)
