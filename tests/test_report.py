@@ -567,14 +567,15 @@ def test_every_run_of_a_strategy_is_shown_once(runs, tmp_path, capsys):
     third replaced the second, both labelled 'baseline (baseline)'); the same run given twice is refused."""
     import shutil
 
-    copies = [runs / 'baseline']
-    for name in ('x1', 'x2'):
+    copies = []
+    for name in ('x0', 'x1', 'x2'):
         copies.append(tmp_path / name / 'baseline')
         shutil.copytree(runs / 'baseline', copies[-1])
     res = report.build_report(copies, tmp_path / 'rep', log=lambda *a, **k: None)
     assert len(res['metrics_csv'].read_text().splitlines()) == 1 + 3
     md = res['markdown'].read_text()
-    for label in ('baseline', f'baseline ({copies[1]})', f'baseline ({copies[2]})'):
+    # labelled by the path below the runs' common directory (tmp_path): short enough for a figure's axis
+    for label in ('baseline', 'baseline (x1/baseline)', 'baseline (x2/baseline)'):
         assert _md_row(md, label, 'Metrics per strategy')[5] == '+0.0 %', label
     assert report.main([str(copies[1]), str(copies[1]), '--out', str(tmp_path / 'r2')]) == 2
     assert _err_line(capsys.readouterr().err) == f'ceco report: error: {copies[1]}: the same run given twice'

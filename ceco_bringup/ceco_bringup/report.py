@@ -104,14 +104,20 @@ def _group(runs: Sequence[RunData]) -> dict:
     """{scenario: {label: RunData}}.
 
     The label is the strategy, made unique with the run's path when a scenario holds a
-    strategy twice. Raises ValueError for a run given twice.
+    strategy twice: relative to the directory all runs share ('ceco-c (b/ceco-c)' for runs/a
+    and runs/b), so that figure axes do not carry whole absolute paths. Raises ValueError for
+    a run given twice.
     """
+    import os
+
     groups: dict = {}
+    where = [r.path.resolve() for r in runs]
+    common = Path(os.path.commonpath(where)) if where else Path('.')
     for i, r in enumerate(runs):
-        if any(r.path == q.path for q in runs[:i]):
+        if where[i] in where[:i]:
             raise ValueError(f'{r.path}: the same run given twice')
         g = groups.setdefault(r.scenario, {})
-        g[r.strategy if r.strategy not in g else f'{r.strategy} ({r.path})'] = r
+        g[r.strategy if r.strategy not in g else f'{r.strategy} ({where[i].relative_to(common)})'] = r
     return groups
 
 
