@@ -789,18 +789,25 @@ def test_a_key_given_twice_is_refused_in_every_file_the_user_writes(tmp_path, ca
 
     scenario = tmp_path / 'scenario.yaml'
     scenario.write_text(twice(provenance.copy_scenario('sc03', tmp_path / 'copy').read_text(), 'duration_s'))
-    with pytest.raises(ScenarioError, match=r"found the key 'duration_s' twice \(first at line \d+\)"):
+    with pytest.raises(
+        ScenarioError, match=r"not valid YAML at line \d+, column 1: found the key 'duration_s' twice"
+    ) as e:
         load_scenario(scenario)
+    assert '\n' not in str(e.value)  # one line (PyYAML's own text spans four)
     from ceco_bringup.benchmark.cases import _data_dir
 
     case = tmp_path / 'case.yaml'
     case.write_text(twice(_data_dir().joinpath('sc03-paper.yaml').read_text(), 'name'))
-    with pytest.raises(CaseError, match=r"found the key 'name' twice"):
+    with pytest.raises(CaseError, match=r"not valid YAML at line \d+, column 1: found the key 'name' twice") as e:
         load_case(case)
+    assert '\n' not in str(e.value)
     grid = tmp_path / 'grid.yaml'
     grid.write_text('scenarios: [sc03]\nstrategies: [baseline]\nscenarios: [udds]\n')
-    with pytest.raises(GridError, match=r"found the key 'scenarios' twice \(first at line 1\)"):
+    with pytest.raises(
+        GridError, match=r"at line 3, column 1: found the key 'scenarios' twice \(first at line 1\)"
+    ) as e:
         load_grid(grid)
+    assert '\n' not in str(e.value)
     config = tmp_path / 'controller.yaml'
     config.write_text(twice(package_config_path('controller.yaml').read_text(), 'common'))
     rest = ['--duration-s', '30', '--baseline-setpoints-c', 'none', '--no-progress', '--out', str(tmp_path / 'out')]

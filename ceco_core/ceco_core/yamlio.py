@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import yaml
 
-__all__ = ["safe_load", "load_file", "UniqueKeyLoader"]
+__all__ = ["safe_load", "load_file", "error_text", "UniqueKeyLoader"]
 
 _BASE = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 _MERGE_TAG = "tag:yaml.org,2002:merge"
@@ -80,7 +80,12 @@ def load_file(path) -> object:
     except UnicodeDecodeError as exc:
         raise ValueError(f"{p}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise ValueError(f"{p}: not valid YAML{where}: {problem}") from None
+        raise ValueError(f"{p}: not valid YAML{error_text(exc)}") from None
+
+
+def error_text(exc: yaml.YAMLError) -> str:
+    """A YAML error in one line: ``" at line L, column C: problem"`` (PyYAML's own text spans several lines)."""
+    mark = getattr(exc, "problem_mark", None)
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+    problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+    return f"{where}: {problem}"

@@ -368,7 +368,7 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
     try:
         data = yamlio.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ScenarioError(f"scenario: {source}: not valid YAML: {exc}") from None
+        raise ScenarioError(f"scenario: {source}: not valid YAML{yamlio.error_text(exc)}") from None
     return scenario_from_dict(data, source=source, base_dir=base_dir)
 
 

@@ -318,5 +318,5 @@ def load_case(name_or_path: str | os.PathLike) -> Case:
     try:
         data = yamlio.safe_load(text)
     except yaml.YAMLError as exc:
-        raise CaseError(f"case: {source}: not valid YAML: {exc}") from None
+        raise CaseError(f"case: {source}: not valid YAML{yamlio.error_text(exc)}") from None
     return case_from_dict(data, source=source, base_dir=base_dir, expected_name=expected)

@@ -83,8 +83,10 @@ def load_grid(path: str | os.PathLike) -> dict:
     path = Path(path)
     try:
         data = yamlio.safe_load(path.read_text(encoding='utf-8'))
-    except (OSError, yaml.YAMLError) as exc:
+    except OSError as exc:
         raise GridError(f'{path}: cannot read grid: {exc}') from None
+    except yaml.YAMLError as exc:
+        raise GridError(f'{path}: cannot read grid: not valid YAML{yamlio.error_text(exc)}') from None
     if not isinstance(data, Mapping):
         raise GridError(f'{path}: top level must be a mapping')
     unknown = sorted(set(data) - _GRID_KEYS)
