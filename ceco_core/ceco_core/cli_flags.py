@@ -110,13 +110,6 @@ class Parser(argparse.ArgumentParser):
         """Print ``PROG: error: MESSAGE (PROG --help lists the options)`` and exit with status 2."""
         self.exit(2, f'{self.prog}: error: {message} ({self.prog} --help lists the options)\n')
 
-    def parse_known_args(self, args=None, namespace=None):
-        """argparse's, without the record of which name set a flag that has old names (:func:`_claim`)."""
-        ns, rest = super().parse_known_args(args, namespace)
-        if hasattr(ns, _SOURCES):
-            delattr(ns, _SOURCES)
-        return ns, rest
-
 
 # ------------------------------------------------------------------------------------- value types
 def finite_float(text: str) -> float:
@@ -259,7 +252,6 @@ class _Deprecated(argparse.Action):
                 values = self.value_type(values)
             except argparse.ArgumentTypeError as exc:
                 parser.error(f'argument {option_string}: {exc}')
-        _claim(parser, namespace, self.dest, option_string)
         print(
             f'{parser.prog}: {option_string} is deprecated and goes in the next release: use {self.new_flag}',
             file=sys.stderr,
@@ -267,37 +259,18 @@ class _Deprecated(argparse.Action):
         setattr(namespace, self.dest, values)
 
 
-_SOURCES = '_ceco_flag_sources'
-"""The namespace attribute holding, per destination, the option string that set it (an old and a new name)."""
-
-
-def _claim(parser, namespace, dest: str, option_string: str | None) -> None:
-    """Record that ``option_string`` set ``dest``; a parser error when another name of it did already.
-
-    ``--duration 60 --duration-s 120`` would otherwise keep whichever came last without a word; the same
-    name twice keeps argparse's rule (the last one wins), as for every other flag.
-    """
-    sources = getattr(namespace, _SOURCES, None)
-    if sources is None:
-        sources = {}
-        setattr(namespace, _SOURCES, sources)
-    first = sources.setdefault(dest, option_string)
-    if first != option_string:
-        parser.error(f'{first} and {option_string} are two names of one setting: give only {first} or {option_string}')
-
-
-class _Current(argparse._StoreAction):
-    """The shared name of a flag that also has old names: stores as usual and records that it was given."""
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        _claim(parser, namespace, self.dest, option_string)
-        super().__call__(parser, namespace, values, option_string)
-
-
 def _add(p, flag: str, *, dest: str, type_=None, deprecated: Sequence[str] = (), **kw) -> None:
-    p.add_argument(flag, dest=dest, type=type_, **({'action': _Current} if deprecated else {}), **kw)
+    """Add ``flag``, with its old names in one mutually exclusive group.
+
+    argparse then refuses two names of one setting together (``--duration 60 --duration-s 120`` kept the last
+    without a word).
+    """
+    group = p.add_mutually_exclusive_group() if deprecated else p
+    group.add_argument(flag, dest=dest, type=type_, **kw)
     for old in deprecated:
-        p.add_argument(old, dest=dest, action=_Deprecated, new_flag=flag, value_type=type_, default=argparse.SUPPRESS)
+        group.add_argument(
+            old, dest=dest, action=_Deprecated, new_flag=flag, value_type=type_, default=argparse.SUPPRESS
+        )
 
 
 # ------------------------------------------------------------------------------------- shared flags
@@ -500,12 +473,15 @@ def add_baseline_setpoints(p, default: Sequence[float]) -> None:
     )
 
 
-def check_duration(duration_s: float | None, scenario, control_period_s: float | None = None) -> None:
+def check_duration(
+    duration_s: float | None, scenario, control_period_s: float | None = None, name: str = '--duration-s'
+) -> None:
     """ValueError when ``--duration-s`` cannot be run as given (never clamped or rounded silently).
 
     It must fit in the scenario, be a whole number of plant steps
     (:data:`~ceco_core.contracts.PLANT_STEP_S`), at least two of them (a run's metrics need two samples), and
-    at least one control period (``control_period_s``, the scenario's when None).
+    at least one control period (``control_period_s``, the scenario's when None). ``name``: what the message
+    calls the setting (a sweep grid's ``duration_s``).
     """
     from ceco_core.contracts import PLANT_STEP_S
 
@@ -513,24 +489,22 @@ def check_duration(duration_s: float | None, scenario, control_period_s: float |
         return
     if duration_s > scenario.duration_s + 1e-9:
         raise ValueError(
-            f'--duration-s: {duration_s:g} s exceeds the length of scenario {scenario.name} '
+            f'{name}: {duration_s:g} s exceeds the length of scenario {scenario.name} '
             f'({scenario.duration_s:g} s): give at most {scenario.duration_s:g}'
         )
     steps = duration_s / PLANT_STEP_S
     if steps < 2 - 1e-9:
-        raise ValueError(
-            f'--duration-s: {duration_s:g} s is less than two plant steps: give at least {2 * PLANT_STEP_S:g}'
-        )
+        raise ValueError(f'{name}: {duration_s:g} s is less than two plant steps: give at least {2 * PLANT_STEP_S:g}')
     if abs(steps - round(steps)) > 1e-9:
         raise ValueError(
-            f'--duration-s: {duration_s:g} s is not a whole number of plant steps ({PLANT_STEP_S:g} s): '
+            f'{name}: {duration_s:g} s is not a whole number of plant steps ({PLANT_STEP_S:g} s): '
             f'give e.g. {math.floor(steps) * PLANT_STEP_S:g}'
         )
     if control_period_s is None:
         control_period_s = scenario.control.control_period_s
     if duration_s < control_period_s - 1e-9:
         raise ValueError(
-            f'--duration-s: {duration_s:g} s is shorter than one control period ({control_period_s:g} s): '
+            f'{name}: {duration_s:g} s is shorter than one control period ({control_period_s:g} s): '
             f'give at least {control_period_s:g}'
         )
 
