@@ -389,9 +389,9 @@ def expand_grid(grid: Mapping) -> list[Cell]:
             cell_scenario = scenario_from_dict(d)
             # duration_s shortens every run: within each cell's scenario, whole plant steps (never lengthened,
             # never rounded), at least one control period
-            check_duration(duration, cell_scenario, grid.get('control_period_s'))
+            check_duration(duration, cell_scenario, grid.get('control_period_s'), name='duration_s')
         except ValueError as exc:
-            raise GridError(f'cell {sl}/{cl}/{kl}/{ol}: {exc}'.replace('--duration-s: ', 'duration_s: ')) from None
+            raise GridError(f'cell {sl}/{cl}/{kl}/{ol}: {exc}') from None
         for strategy in strategies:
             for label, ovr in overrides.get(strategy, {DEFAULT_SETTINGS: None}).items():
                 spec = {
