@@ -621,6 +621,7 @@ def test_a_stored_energy_that_is_null_missing_or_text_is_a_mismatch(runs, tmp_pa
     ((key, stored, new),), worst = rundata.compare_metrics({'pmv_max': None}, {'pmv_max': 1.5})
     assert (key, math.isnan(stored), new, worst) == ('pmv_max', True, 1.5, math.inf)
     assert rundata.compare_metrics({}, {'pmv_max': 1.5}) == ([], 0.0)  # (not a checked key: older directories)
+    assert rundata.compare_metrics({'pmv_max': True}, {'pmv_max': 1.0})[0] == [('pmv_max', True, 1.0)]  # not 1.0
 
 
 def test_bar_labels_keep_a_second_runs_path():

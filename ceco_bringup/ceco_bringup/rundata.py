@@ -174,13 +174,12 @@ def compare_metrics(stored: Mapping, recomputed: Mapping, rtol: float = 1e-9, at
                 mism.append((key, 'missing', float(new)))
                 worst = math.inf
             continue
-        if stored[key] is not None and (
-            isinstance(stored[key], (str, bool)) or not isinstance(stored[key], (int, float))
-        ):
-            mism.append((key, stored[key], float(new)))
+        value = stored[key]
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            mism.append((key, value, float(new)))
             worst = math.inf
             continue
-        old, new = (math.nan if stored[key] is None else float(stored[key])), float(new)
+        old, new = (math.nan if value is None else float(value)), float(new)
         if math.isnan(old) and math.isnan(new):
             continue
         if math.isnan(old) != math.isnan(new):
