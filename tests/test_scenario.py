@@ -234,8 +234,12 @@ def test_user_files_and_csv_cycles(tmp_path):
     with pytest.raises(ScenarioError, match="strictly increasing"):
         load_drive_cycle(str(tmp_path / "back.csv"))
     (tmp_path / "broken.yaml").write_text("name: [unclosed\n")
-    with pytest.raises(ScenarioError, match="YAML"):
+    with pytest.raises(ScenarioError, match=r"broken\.yaml: not valid YAML at line 2, column 1: "):
         load_scenario(tmp_path / "broken.yaml")
+    # a file that is not UTF-8 text: named, one line (it was a bare UnicodeDecodeError)
+    (tmp_path / "binary.yaml").write_bytes(b"\xff\xfe")
+    with pytest.raises(ScenarioError, match=r"binary\.yaml: not a UTF-8 text file \(invalid start byte at byte 0\)"):
+        load_scenario(tmp_path / "binary.yaml")
     with pytest.raises(ScenarioError, match="unknown scenario"):
         load_scenario("no_such_scenario")
     # a path that is not there is said as such, not as an unknown bundled name

@@ -28,7 +28,6 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from ceco_core import psychro, units, yamlio
 from ceco_core.scenario_types import (
@@ -352,8 +351,8 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
     """
     text_name = str(name_or_path)
     if text_name in list_scenarios():
-        text = _read_text(_data_dir("scenarios").joinpath(text_name + ".yaml"))
-        source, base_dir = text_name, None
+        data = yamlio.safe_load(_read_text(_data_dir("scenarios").joinpath(text_name + ".yaml")))
+        return scenario_from_dict(data, source=text_name, base_dir=None)
     else:
         path = Path(text_name).expanduser()
         if not path.is_file():
@@ -363,13 +362,11 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
             raise ScenarioError(
                 f"scenario: unknown scenario {text_name!r}: use one of {list_scenarios()} or a YAML path"
             )
-        text = path.read_text(encoding="utf-8")
-        source, base_dir = str(path), path.parent
-    try:
-        data = yamlio.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ScenarioError(f"scenario: {source}: not valid YAML{yamlio.error_text(exc)}") from None
-    return scenario_from_dict(data, source=source, base_dir=base_dir)
+        try:  # (not YAML, not UTF-8 text: one line naming the file)
+            data = yamlio.load_file(path)
+        except ValueError as exc:
+            raise ScenarioError(f"scenario: {exc}") from None
+        return scenario_from_dict(data, source=str(path), base_dir=path.parent)
 
 
 def load_scenario_param(name: str, parameter: str = "scenario") -> Scenario:
