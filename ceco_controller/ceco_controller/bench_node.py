@@ -41,7 +41,7 @@ def _controller_config(codegen: bool) -> str:
     """A copy of the package's controller file with ``solver.codegen`` set; its path."""
     from .model import package_config_path
 
-    doc = yamlio.load_file(package_config_path("controller.yaml"))
+    doc: Any = yamlio.load_file(package_config_path("controller.yaml"))  # (the package's own file)
     doc.setdefault("common", {}).setdefault("solver", {})["codegen"] = bool(codegen)
     fd, path = tempfile.mkstemp(prefix="ceco_bench_node_", suffix=".yaml")
     with os.fdopen(fd, "w", encoding="utf-8") as fh:

@@ -26,6 +26,7 @@ import os
 from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -363,10 +364,10 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
                 f"scenario: unknown scenario {text_name!r}: use one of {list_scenarios()} or a YAML path"
             )
         try:  # (not YAML, not UTF-8 text: one line naming the file)
-            data = yamlio.load_file(path)
+            doc: Any = yamlio.load_file(path)  # (checked by scenario_from_dict)
         except ValueError as exc:
             raise ScenarioError(f"scenario: {exc}") from None
-        return scenario_from_dict(data, source=str(path), base_dir=path.parent)
+        return scenario_from_dict(doc, source=str(path), base_dir=path.parent)
 
 
 def load_scenario_param(name: str, parameter: str = "scenario") -> Scenario:
