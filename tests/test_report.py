@@ -487,8 +487,8 @@ def _err_line(err: str) -> str:
 
 
 def test_runs_of_different_lengths_are_not_compared(runs, tmp_path, capsys):
-    """A 40-s baseline beside a 30-s ceco-ioch run of sc03: the report refuses (it showed a -25 %-ish "E change"
-    that was mostly the 10 s missing), one line naming both runs and lengths, nothing written."""
+    """A 40-s baseline beside a 30-s ceco-ioch run of sc03: the report refuses (its "E change" compared
+    30 s of energy with 40 s), one line naming both runs and lengths, nothing written."""
     short = tmp_path / 'short' / 'ceco-ioch'
     write_run(simulate('sc03', 'ceco-ioch', SimSettings(duration_s=30.0, progress=False)), short)
     out = tmp_path / 'rep'
@@ -501,7 +501,7 @@ def test_runs_of_different_lengths_are_not_compared(runs, tmp_path, capsys):
 
 def test_a_partial_run_is_shown_but_not_compared(runs, results, tmp_path, capsys):
     """A complete 40-s baseline and a stopped ceco-ioch run (28 of 40 s): reported (a partial run is shorter by
-    nature, not refused), and its energy change against the baseline is n/a (it read -30 %-ish)."""
+    nature, not refused), and its energy change against the baseline is n/a (it was computed against 40 s)."""
     run = tmp_path / 'stopped'
     provenance.start_run(run, 'run', ['--scenario', 'sc03'], 'sc03')
     provenance.finish_run(run, 'interrupted')

@@ -62,7 +62,8 @@ from ceco_bringup.report_html import (
     slug,
 )
 from ceco_bringup.report_vehicle import vehicle_rows, vehicle_section
-from ceco_bringup.rundata import RunData, discover_runs, load_run, solver_stats
+from ceco_bringup.rundata import UNKNOWN_SCENARIO, RunData, discover_runs, load_run, solver_stats
+from ceco_core.contracts import PLANT_STEP_S
 from ceco_core.metrics import ENERGY_PARTS, J_PER_KWH, relative_change_pct
 
 __all__ = ['PAPER_AC_CHANGE_PCT', 'build_report', 'main']
@@ -73,10 +74,7 @@ energy (paper, Sec. 5)."""
 
 VERDICT_FILE = 'verdict.json'
 
-UNKNOWN_SCENARIO = 'unknown'
-"""The scenario of a run that records none and gets no --scenario (:func:`ceco_bringup.rundata.load_run`)."""
-
-SAME_LENGTH_S = 0.5
+SAME_LENGTH_S = 0.5 * PLANT_STEP_S
 """Runs whose lengths differ by less than this [s] (half a plant step) ran the same length."""
 
 

@@ -242,6 +242,10 @@ def _diagnostics(run_dir: Path, source: str, namespace: str | None) -> dict | No
     return None
 
 
+UNKNOWN_SCENARIO = 'unknown'
+"""The scenario of a run that records none and gets no ``--scenario``."""
+
+
 LEGACY_ENERGY_KEYS = ('E_tot_J', 'E_tot_kWh', 'P_mean_w')
 """Metrics a run directory from before ``E_fan_J`` counted as compressor + blower (checked as such)."""
 
@@ -291,7 +295,7 @@ def _identity(run_dir: Path, stored: Mapping, namespace, scenario, strategy) -> 
             length = float(load_scenario(provenance.scenario_path(run_dir) or sc).duration_s)
         except (ValueError, OSError):
             pass
-    return str(sc or 'unknown'), str(st or run_dir.name), info, length
+    return str(sc or UNKNOWN_SCENARIO), str(st or run_dir.name), info, length
 
 
 def load_run(
