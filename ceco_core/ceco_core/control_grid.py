@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["control_step_index", "control_step_of", "TIMING_MODES"]
+__all__ = ["control_step_index", "control_step_of", "control_step_count", "TIMING_MODES"]
 
 TIMING_MODES = ("lockstep", "realtime")
 """The nodes' timing modes: deterministic lockstep on /clock, or wall-clock timers."""
@@ -31,3 +31,8 @@ def control_step_of(t_s: float, control_period_s: float) -> int:
     :data:`GRID_TOL` * Ts below t_(k+1) counts as t_(k+1), as in :func:`control_step_index`.
     """
     return math.floor(t_s / control_period_s + GRID_TOL)
+
+
+def control_step_count(duration_s: float, control_period_s: float) -> int:
+    """How many control steps a run of ``duration_s`` [s] has: those at t_k = k Ts < ``duration_s`` (at least one)."""
+    return max(math.ceil(duration_s / control_period_s - GRID_TOL), 1)

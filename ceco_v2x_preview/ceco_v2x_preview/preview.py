@@ -60,6 +60,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ceco_core.contracts import PREVIEW_QUANTITIES, Previews
+from ceco_core.control_grid import control_step_count
 from ceco_v2x_preview import forecast_error
 from ceco_v2x_preview.scenario import Scenario
 
@@ -270,7 +271,7 @@ def no_preview_warning(quality: PreviewQuality, duration_s: float, step_s: float
     beyond the horizon, or missing spans over the whole run, leave the NMPC the measured weather alone, which
     the run's label would not say.
     """
-    n_steps = max(math.ceil(duration_s / step_s - 1e-9), 1)  # the control steps at k Ts < duration_s
+    n_steps = control_step_count(duration_s, step_s)
     if usable_steps(quality, n_steps, step_s, horizon_steps + 1):
         return ""
     return (
