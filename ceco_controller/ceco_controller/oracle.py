@@ -813,7 +813,11 @@ def _chained(step: casadi.Function, m: int) -> casadi.Function:
 
 
 def replay(
-    scenario, commands: np.ndarray, control_period_s: float, plant_dt_s: float = 1.0, names: Sequence[str] = INPUT_NAMES
+    scenario,
+    commands: np.ndarray,
+    control_period_s: float,
+    plant_dt_s: float = PLANT_STEP_S,
+    names: Sequence[str] = INPUT_NAMES,
 ):
     """The commands (per control step, columns ``names``) open loop on the numeric plant; (RunResult, KPIs).
 

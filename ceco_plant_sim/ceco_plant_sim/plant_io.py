@@ -15,6 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 import ceco_ros.checks as checks
+from ceco_core.contracts import PLANT_STEP_S
 from ceco_core.control_grid import TIMING_MODES, control_step_of
 from ceco_core.supervision import FallbackSupervisor, Health, Liveliness, Rejections, SourceGate, Watchdog, reason_kind
 from ceco_core.units import s_from_stamp
@@ -50,7 +51,7 @@ PLANT_PARAMETERS: tuple[ParamSpec, ...] = (
         'lockstep (advance a control period per command) or realtime (timer every plant step on the node clock)',
         choices=TIMING_MODES,
     ),
-    ParamSpec('plant_dt_s', 1.0, 'plant step and recording interval [s]', float_range=(0.01, 60.0)),
+    ParamSpec('plant_dt_s', PLANT_STEP_S, 'plant step and recording interval [s]', float_range=(0.01, 60.0)),
     ParamSpec(
         'control_period_s',
         5.0,
