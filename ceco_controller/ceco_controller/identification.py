@@ -928,11 +928,11 @@ def _identify(args, argv) -> int:
         simulated["validation.csv"] = (valid, VALIDATION_DRIVES)
     iv_train = intervals_from_series(train, args.ts)
     iv_valid = intervals_from_series(valid, args.ts)
+    _check_horizon(args.horizon, args.ts, iv_train, iv_valid)  # (before the fit: data that cannot serve, said first)
     emap = eta_ac_points(EtaMapSettings())
     a_eta, v_eta, eta_rms = fit_eta_ac(emap["speeds_mps"], emap["ratio"])
     print("ceco identify: fitting and validating", file=sys.stderr)
     params, resid = fit_intervals(iv_train, args.ts, eta=(a_eta, v_eta), recirc_share=args.recirc_share)
-    _check_horizon(args.horizon, args.ts, iv_train, iv_valid)
     for name, (series, drives) in simulated.items():
         sha = write_series_csv(series, data_dir / name)
         src[name] = f"{name} (sha256 {sha[:16]}; drives {', '.join(f'{a}/{b}' for a, b in drives)})"
