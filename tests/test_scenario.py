@@ -212,6 +212,24 @@ def test_invalid_scenarios_name_the_field(path, value, field):
     assert field in str(err.value)
 
 
+def test_the_control_block_takes_the_nodes_ranges():
+    """A scenario's Ts and Np are held to the range every node and every verb's flags take (0.1..300 s, 1..60):
+    a scenario with Ts 600 s ran in the simulator, where `ceco run`'s nodes refuse it."""
+    for key, value, message in [
+        ("control_period_s", 600.0, "control.control_period_s: must satisfy 0.1 <= value <= 300.0, got 600.0"),
+        ("control_period_s", 0.05, "control.control_period_s: must satisfy 0.1 <= value <= 300.0, got 0.05"),
+        ("horizon_steps", 61, "control.horizon_steps: must be in 1..60, got 61"),
+        ("horizon_steps", 6.0, "control.horizon_steps: must be an integer, got 6.0"),
+    ]:
+        with pytest.raises(ScenarioError) as err:
+            scenario_from_dict(_mutate(("control", key), value))
+        assert str(err.value) == message
+    sc = scenario_from_dict(_mutate(("control",), {"control_period_s": 300.0, "horizon_steps": 60}))
+    assert (sc.control.control_period_s, sc.control.horizon_steps) == (300.0, 60)
+    sc = scenario_from_dict(_mutate(("control",), {"control_period_s": 0.1, "horizon_steps": 1}))
+    assert (sc.control.control_period_s, sc.control.horizon_steps) == (0.1, 1)
+
+
 def test_user_files_and_csv_cycles(tmp_path):
     (tmp_path / "cycles").mkdir()
     (tmp_path / "cycles" / "ramp.csv").write_text("time_s,speed_mps\n0,0\n10,10\n20,10\n")

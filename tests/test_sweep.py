@@ -86,7 +86,8 @@ def test_expand_grid_counts_ids_and_overrides(tmp_path):
         ('strategies: [baseline]\nduration_s: 100000.0\n', 'duration_s: 100000 s exceeds the length of scenario'),
         ('strategies: [baseline]\nduration_s: 30.5\n', 'duration_s: 30.5 s is not a whole number of plant steps'),
         ('strategies: [baseline]\ncontrol_period_s: 100000.0\n', 'control_period_s: must be a number in 0.1..300'),
-        ('strategies: [baseline]\nhorizon_steps: 100\n', 'horizon_steps: must be a number in 1..60'),
+        ('strategies: [baseline]\nhorizon_steps: 100\n', 'horizon_steps: must be an integer in 1..60'),
+        ('strategies: [baseline]\nhorizon_steps: 6.5\n', 'horizon_steps: must be an integer in 1..60, got 6.5'),
         # a list axis naming a value twice: the scenarios' was dropped without a word, the strategies' said
         # "the same cell twice" with an empty reason
         ('strategies: [ceco-ioch, ceco-ioch]\n', "strategies: 'ceco-ioch' is listed twice"),

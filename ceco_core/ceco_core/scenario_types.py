@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ceco_core.air_quality import CO2_AMB_PPM_DEFAULT, AirQualityLimits
+from ceco_core.contracts import CONTROL_PERIOD_RANGE_S, HORIZON_RANGE
 
 __all__ = [
     "ScenarioError",
@@ -182,17 +183,23 @@ class ControlDefaults:
     """Controller timing suggested by the scenario (controllers may override)."""
 
     control_period_s: float = 5.0
-    """Control period Ts [s] (the paper: 5 s), > 0."""
+    """Control period Ts [s] (the paper: 5 s), in :data:`~ceco_core.contracts.CONTROL_PERIOD_RANGE_S`."""
     horizon_steps: int = 6
-    """Prediction horizon Np [steps] (the paper: 6), >= 1."""
+    """Prediction horizon Np [steps] (the paper: 6), in :data:`~ceco_core.contracts.HORIZON_RANGE`."""
 
     def validate(self) -> None:
-        """Raise ScenarioError naming the first bad field."""
-        check_number("control.control_period_s", self.control_period_s, (0.0, 3600.0), low_open=True)
+        """Raise ScenarioError naming the first bad field.
+
+        The ranges are the nodes' and every verb's flags' (``ceco_core.contracts``): a scenario cannot ask for a
+        Ts or an Np that ``ceco run``'s nodes would refuse.
+        """
+        lo_s, hi_s = CONTROL_PERIOD_RANGE_S
+        check_number("control.control_period_s", self.control_period_s, (lo_s, hi_s))
         if isinstance(self.horizon_steps, bool) or not isinstance(self.horizon_steps, (int, np.integer)):
             raise ScenarioError(f"control.horizon_steps: must be an integer, got {self.horizon_steps!r}")
-        if not 1 <= self.horizon_steps <= 1000:
-            raise ScenarioError(f"control.horizon_steps: must be in 1..1000, got {self.horizon_steps}")
+        lo, hi = HORIZON_RANGE
+        if not lo <= self.horizon_steps <= hi:
+            raise ScenarioError(f"control.horizon_steps: must be in {lo}..{hi}, got {self.horizon_steps}")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -347,8 +347,10 @@ def expand_grid(grid: Mapping) -> list[Cell]:
 
     for key, (lo, hi) in (('control_period_s', CONTROL_PERIOD_RANGE_S), ('horizon_steps', HORIZON_RANGE)):
         v = grid.get(key)  # the nodes' ranges, as every verb's flags
-        if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool) and lo <= v <= hi):
-            raise GridError(f'{key}: must be a number in {lo:g}..{hi:g}, got {v!r}{yaml_number_hint(v)}')
+        kinds = int if key == 'horizon_steps' else (int, float)
+        if v is not None and not (isinstance(v, kinds) and not isinstance(v, bool) and lo <= v <= hi):
+            what = 'an integer' if key == 'horizon_steps' else 'a number'
+            raise GridError(f'{key}: must be {what} in {lo:g}..{hi:g}, got {v!r}{yaml_number_hint(v)}')
     for label, q in previews.items():
         if not isinstance(q, str):
             raise GridError(f'previews.{label}: must be a preview-quality string (e.g. "noisy:solar=50")')
