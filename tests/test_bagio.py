@@ -347,8 +347,48 @@ def test_bag_topic_map_picks_one_namespace():
         '/clock': '/clock',
     }
     assert bagio.bag_topic_map(bag, names, '/veh2/') == {'/veh2/cabin/state': 'cabin/state', '/clock': '/clock'}
-    assert bagio.bag_topic_map(bag, names, '/') == {'/clock': '/clock'}
     assert bagio.bag_topic_map(['/cabin/state', '/clock'], names) == {'/cabin/state': 'cabin/state', '/clock': '/clock'}
+    assert bagio.bag_topic_map(['/cabin/state', '/clock'], names, '/') == {
+        '/cabin/state': 'cabin/state',
+        '/clock': '/clock',
+    }
+
+
+def test_bag_topic_map_refuses_a_namespace_the_bag_does_not_hold():
+    """Not the reader's empty result (which a caller would report as missing data): the namespace asked for and the
+    ones the bag holds; a ValueError, so that callers catching that still do."""
+    bag = ['/veh1/cabin/state', '/veh1/hvac/power', '/veh2/cabin/state', '/clock', '/rosout']
+    names = ['cabin/state', 'hvac/power', '/clock']
+    assert bagio.topic_namespaces(bag, names) == ['/veh1', '/veh2']
+    assert bagio.topic_namespaces(bag + ['/cabin/state'], ['cabin/state']) == ['', '/veh1', '/veh2']
+    assert bagio.topic_namespaces(bag, ['/clock']) == []  # absolute names carry no namespace
+    with pytest.raises(bagio.NamespaceError) as exc:
+        bagio.bag_topic_map(bag, names, 'veh3')
+    assert str(exc.value) == (
+        '--namespace veh3: not in the bag (no cabin/state or hvac/power under /veh3): give one of its namespaces, '
+        '/veh1, /veh2'
+    )
+    with pytest.raises(bagio.NamespaceError) as exc:
+        bagio.bag_topic_map(bag, names, '/')  # the root namespace, where this bag holds nothing
+    assert str(exc.value) == (
+        '--namespace /: not in the bag (no cabin/state or hvac/power under /): give one of its namespaces, /veh1, /veh2'
+    )
+    with pytest.raises(bagio.NamespaceError) as exc:
+        bagio.bag_topic_map(['/cabin/state'], ['cabin/state'], 'bogus')
+    assert (
+        str(exc.value)
+        == '--namespace bogus: not in the bag (no cabin/state under /bogus): give one of its namespaces, /'
+    )
+    with pytest.raises(bagio.NamespaceError, match=r"^--namespace: invalid namespace '1veh'"):
+        bagio.bag_topic_map(bag, names, '1veh')
+    with pytest.raises(
+        bagio.NamespaceError, match=r"several namespaces \('/veh1', '/veh2'\): say which one with --namespace$"
+    ):
+        bagio.bag_topic_map(bag, names)
+    assert issubclass(bagio.NamespaceError, ValueError)
+    # A bag holding none of the relative names under any namespace: nothing to choose among, so no refusal (the
+    # caller says what is missing); the absolute names still map.
+    assert bagio.bag_topic_map(['/clock', '/rosout'], names, 'bogus') == {'/clock': '/clock'}
 
 
 @pytest.mark.parametrize('ns', [None, '/', '/veh1/'], ids=['relative', 'fully-qualified', 'namespaced'])

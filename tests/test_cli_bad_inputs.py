@@ -8,6 +8,7 @@ from ceco_bringup import bag_writer, bagio, play, report
 from ceco_bringup.benchmark import cli as bench_cli
 
 STATE = 'ceco_msgs/msg/CabinState'
+CMD = 'ceco_msgs/msg/AcCommand'
 FLAGS = ('--scenario', 'sc03', '--strategy', 'baseline', '--control-period-s', '5', '--horizon-steps', '6')
 """What a bag without ceco metadata does not say, so that --compare gets as far as the namespace."""
 
@@ -107,6 +108,29 @@ def test_play_compare_refuses_a_namespace_the_bag_does_not_hold(tmp_path, capsys
     assert exc.value.code == 2
     err = _one_line(capsys.readouterr().err)
     assert '--namespace bogus: not in the bag' in err and 'namespaces, /veh1' in err
+
+
+def test_play_compare_asks_which_namespace_of_a_two_vehicle_bag(tmp_path, capsys):
+    """Without --namespace on a bag of two stacks: refused before any node starts, naming the flag (not a damaged
+    bag)."""
+    store = bagio.typestore()
+    bag = tmp_path / 'bag'
+    topics = {
+        f'/{ns}/{t}': typ for ns in ('veh1', 'veh2') for t, typ in (('cabin/state', STATE), ('hvac/command', CMD))
+    }
+    w = bag_writer.BagWriter(bag)
+    for topic, typ in topics.items():
+        w.add_topic(topic, typ)
+    for k in range(3):
+        for topic, typ in topics.items():
+            w.write(topic, k * 10**9, store.serialize_cdr(sample(store, typ, k, stamp_ns=k * 10**9), typ))
+    w.close()
+    assert play.main([str(bag), '--no-progress', '--compare', *FLAGS]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if not line.startswith('ceco play --compare: ')]
+    assert err == [
+        "ceco play: error: the bag holds ['hvac/command'] under several namespaces ('/veh1', '/veh2'): say which one "
+        'with --namespace'
+    ]
 
 
 def test_missing_topics_and_namespace_messages():

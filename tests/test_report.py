@@ -336,19 +336,48 @@ def _ros2_bag_record_run(result, run_dir, namespaces):
     )
 
 
-def test_report_reads_a_bag_recorded_by_ros2_bag_record(results, tmp_path):
+def _error_line(err: str) -> str:
+    """The one line of ``err`` but the progress line 'ceco report: loading ...'."""
+    lines = [line for line in err.splitlines() if not line.startswith('ceco report: loading')]
+    assert 'Traceback' not in err and len(lines) == 1, err
+    return lines[0]
+
+
+def test_report_reads_a_bag_recorded_by_ros2_bag_record(results, tmp_path, capsys):
     """A baseline run whose bag holds /veh1/... and /veh2/... as `ros2 bag record` writes
     them: without --namespace the report says the bag is ambiguous (status 2); with
     --namespace /veh1 the metrics recomputed from the bag alone equal the simulator's."""
     run = tmp_path / 'baseline'
     _ros2_bag_record_run(results['baseline'], run, ['/veh1', '/veh2'])
+    capsys.readouterr()
     assert report.main([str(run), '--out', str(tmp_path / 'rep0')]) == 2
+    assert _error_line(capsys.readouterr().err) == (
+        f"ceco report: error: {run / 'bag'}: the bag holds ['cabin/comfort', 'cabin/state', 'hvac/power'] under "
+        "several namespaces ('/veh1', '/veh2'): say which one with --namespace"
+    )
     assert report.main([str(run), '--out', str(tmp_path / 'rep1'), '--namespace', '/veh1']) == 0
     loaded = rundata.load_run(run, namespace='veh1')
     assert loaded.source == 'bag' and loaded.max_rel_diff == 0.0 and not loaded.mismatches
     assert loaded.recomputed['E_tot_J'] == results['baseline'].metrics['E_tot_J']
     warmer = rundata.load_run(run, namespace='/veh2')
     assert np.allclose(warmer.columns['t_cab_c'] - loaded.columns['t_cab_c'], 5.0)
+
+
+@pytest.mark.parametrize('ns', ['', '/veh1'], ids=['root', 'veh1'])
+def test_report_refuses_a_namespace_the_bag_does_not_hold(results, tmp_path, capsys, ns):
+    """A bag holding the stack under one namespace, read with --namespace bogus: the report names the namespace
+    asked for and the bag's (not "fewer than 2 complete plant steps", nor a damaged bag); with the bag's own
+    namespace it reads."""
+    run = tmp_path / 'baseline'
+    _ros2_bag_record_run(results['baseline'], run, [ns])
+    capsys.readouterr()
+    assert report.main([str(run), '--out', str(tmp_path / 'rep0'), '--namespace', 'bogus']) == 2
+    assert _error_line(capsys.readouterr().err) == (
+        f"ceco report: error: {run / 'bag'}: --namespace bogus: not in the bag (no cabin/state, cabin/comfort or "
+        f'hvac/power under /bogus): give one of its namespaces, {ns or "/"}'
+    )
+    assert report.main([str(run), '--out', str(tmp_path / 'rep1'), '--namespace', ns or '/']) == 0
+    assert rundata.load_run(run, namespace=ns or '/').recomputed['E_tot_J'] == results['baseline'].metrics['E_tot_J']
 
 
 def _parameter(store, name, value):

@@ -10,12 +10,15 @@ in ``ceco_ros.interfaces``; ``/clock`` absolute) and find them in a bag under
 any naming: relative (ceco bags before fully qualified names), fully
 qualified (``/cabin/state``, what ``ros2 bag record`` and the recorder write)
 or namespaced (``/veh1/cabin/state``). A bag holding the stack under several
-namespaces needs ``namespace=`` to say which one.
+namespaces needs ``namespace=`` to say which one; a ``namespace`` the bag does
+not hold the stack under is refused (:class:`NamespaceError`, a ValueError).
 
 Public API:
     typestore() -> rosbags Typestore with ROS 2 Jazzy + ceco_msgs types
     topic_namespace(bag_topic, name) -> namespace under which bag_topic carries name, or None
-    bag_topic_map(bag_topics, names, namespace=None) -> {bag topic: requested name}
+    topic_namespaces(bag_topics, names) -> sorted namespaces under which the bag holds any of the relative names
+    namespace_not_held(namespace, names, held) -> the one-line refusal of a namespace the bag does not hold
+    bag_topic_map(bag_topics, names, namespace=None) -> {bag topic: requested name}; NamespaceError
     topic_types(bag_dir, topics=None, namespace=None) -> {name: message type}
     read_raw(bag_dir, topics=None, namespace=None) -> iterator of (name, t_ns, raw CDR bytes)
     read_messages(bag_dir, topics=None, namespace=None) -> iterator of (name, t_ns, msg)
@@ -161,13 +164,15 @@ def topic_namespace(bag_topic: str, name: str) -> str | None:
     return None
 
 
-def bag_topic_map(bag_topics: Iterable[str], names: Iterable[str], namespace: str | None = None) -> dict[str, str]:
-    """{bag topic: stack name} for the stack ``names`` found among ``bag_topics``.
+class NamespaceError(ValueError):
+    """A namespace that does not pick the stack in the bag: a wrong ``--namespace``, not a damaged bag.
 
-    Relative names are taken from one namespace: ``namespace`` when given, else the
-    only one the bag holds them under. Raises ValueError when the bag holds them
-    under several namespaces and ``namespace`` is None.
+    Not held there, invalid, or none given where the bag holds several.
     """
+
+
+def _grouped(bag_topics: Iterable[str], names: Iterable[str]) -> tuple[dict[str, str], dict[str, dict[str, str]]]:
+    """({bag topic: absolute name}, {namespace: {bag topic: relative name}}) of the stack ``names`` in the bag."""
     names = list(names)
     absolute: dict[str, str] = {}
     by_ns: dict[str, dict[str, str]] = {}
@@ -180,12 +185,50 @@ def bag_topic_map(bag_topics: Iterable[str], names: Iterable[str], namespace: st
                 absolute[topic] = name
             else:
                 by_ns.setdefault(ns, {})[topic] = name
+    return absolute, by_ns
+
+
+def topic_namespaces(bag_topics: Iterable[str], names: Iterable[str]) -> list[str]:
+    """The namespaces ('' the root) under which ``bag_topics`` carry any of the relative stack ``names``, sorted."""
+    return sorted(_grouped(bag_topics, names)[1])
+
+
+def namespace_not_held(namespace: str, names: Iterable[str], held: Iterable[str]) -> str:
+    """The refusal of a valid ``namespace`` under which the bag holds none of ``names``; ``held``: where it does.
+
+    ``--namespace veh3: not in the bag (no cabin/state under /veh3): give one of its namespaces, /, /veh2``.
+    """
+    listed = [n for n in names if not n.startswith('/')]
+    what = listed[0] if len(listed) == 1 else f'{", ".join(listed[:-1])} or {listed[-1]}'
+    return (
+        f'--namespace {namespace}: not in the bag (no {what} under {normalize_namespace(namespace) or "/"}): give '
+        f'one of its namespaces, {", ".join(n or "/" for n in held)}'
+    )
+
+
+def bag_topic_map(bag_topics: Iterable[str], names: Iterable[str], namespace: str | None = None) -> dict[str, str]:
+    """{bag topic: stack name} for the stack ``names`` found among ``bag_topics``.
+
+    Relative names are taken from one namespace: ``namespace`` when given, else the
+    only one the bag holds them under. Raises :class:`NamespaceError` when the bag holds them
+    under several namespaces and ``namespace`` is None, for an invalid ``namespace``, and for a
+    ``namespace`` the bag holds none of them under while it holds them under others (a bag
+    without any of them gives the absolute names only: the caller says what is missing).
+    """
+    names = list(names)
+    absolute, by_ns = _grouped(bag_topics, names)
     if namespace is not None:
-        chosen = by_ns.get(normalize_namespace(namespace), {})
+        try:
+            ns = normalize_namespace(namespace)
+        except ValueError as exc:
+            raise NamespaceError(f'--namespace: {exc}') from None
+        if by_ns and ns not in by_ns:
+            raise NamespaceError(namespace_not_held(namespace, names, sorted(by_ns)))
+        chosen = by_ns.get(ns, {})
     elif len(by_ns) > 1:
-        raise ValueError(
+        raise NamespaceError(
             f'the bag holds {sorted(set(by_ns[next(iter(by_ns))].values()))} under several '
-            f'namespaces ({", ".join(repr(ns or "/") for ns in sorted(by_ns))}): say which one'
+            f'namespaces ({", ".join(repr(ns or "/") for ns in sorted(by_ns))}): say which one with --namespace'
         )
     else:
         chosen = next(iter(by_ns.values()), {})

@@ -106,11 +106,11 @@ def namespace_message(namespace: str | None, bag_topics) -> str | None:
     None when the bag holds the cabin state there (``namespace`` None: under any namespace; several are
     for ``ceco_bringup.bagrun`` to refuse).
     """
-    from ceco_bringup.bagio import topic_namespace
+    from ceco_bringup.bagio import namespace_not_held, topic_namespaces
     from ceco_bringup.supervisor import normalize_namespace
     from ceco_ros.topics import TOPIC_STATE
 
-    held = sorted({ns for t in bag_topics if (ns := topic_namespace(t, TOPIC_STATE)) is not None})
+    held = topic_namespaces(bag_topics, (TOPIC_STATE,))
     if not held:
         return f'--compare: the bag holds no {TOPIC_STATE} under any namespace: no recorded stack to feed a controller'
     if namespace is None:
@@ -119,12 +119,7 @@ def namespace_message(namespace: str | None, bag_topics) -> str | None:
         ns = normalize_namespace(namespace)
     except ValueError as exc:
         return f'--namespace: {exc}'
-    if ns in held:
-        return None
-    return (
-        f'--namespace {namespace}: not in the bag (no {TOPIC_STATE} under {ns or "/"}): give one of its '
-        f'namespaces, {", ".join(n or "/" for n in held)}'
-    )
+    return None if ns in held else namespace_not_held(namespace, (TOPIC_STATE,), held)
 
 
 def main(argv=None) -> int:
@@ -292,6 +287,9 @@ def compare(args) -> int:
         types = bagio.topic_types(
             args.bag, (interfaces.TOPIC_STATE, interfaces.TOPIC_WEATHER, interfaces.TOPIC_TRAFFIC), args.namespace
         )
+    except bagio.NamespaceError as err:  # names --namespace itself
+        print(f'ceco play: error: {err}', file=sys.stderr)
+        return 2
     except ValueError as err:
         print(f'ceco play: {err} (--namespace)', file=sys.stderr)
         return 2

@@ -17,7 +17,7 @@ Public API:
     RunData                        one loaded, checked run
     discover_runs(paths)           run directories among paths (or one level below)
     load_run(run_dir, rtol, namespace, scenario=None, strategy=None) -> RunData
-    read_bag(bag_dir, read, *args) a bagio reader's result; a damaged bag as one ValueError
+    read_bag(bag_dir, read, *args) a bagio reader's result; a damaged bag as one ValueError, a wrong namespace apart
     recompute_metrics(columns) / compare_metrics(stored, recomputed, rtol, atol)
     csv_precision_digits(path)     significant digits a CSV's writer used
     fallback_mask(column)          which control steps fell back
@@ -198,9 +198,15 @@ def read_bag(bag_dir: str | Path, read, *args):
 
     rosbags raises its own types for a damaged bag (an .mcap cut short or empty, a corrupt
     metadata.yaml): ``<bag>: cannot read the bag: ReaderError: ...`` (``ceco report``, ``ceco play``).
+    A namespace that does not pick the stack in the bag is no damage: ``<bag>: --namespace ...``, still a
+    :class:`ceco_bringup.bagio.NamespaceError`.
     """
+    from ceco_bringup.bagio import NamespaceError
+
     try:
         return read(bag_dir, *args)
+    except NamespaceError as exc:  # a wrong --namespace: its own message, with the bag
+        raise NamespaceError(f'{bag_dir}: {exc}') from exc
     except Exception as exc:  # rosbags raises its own types; say which bag
         why = ' '.join(str(exc).split())  # one line (a YAML error spans several)
         raise ValueError(f'{bag_dir}: cannot read the bag: {type(exc).__name__}: {why}') from exc
