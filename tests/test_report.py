@@ -380,6 +380,28 @@ def test_report_refuses_a_namespace_the_bag_does_not_hold(results, tmp_path, cap
     assert rundata.load_run(run, namespace=ns or '/').recomputed['E_tot_J'] == results['baseline'].metrics['E_tot_J']
 
 
+def test_a_bag_without_whole_plant_steps_says_what_each_step_needs(results, tmp_path, capsys):
+    """A bag whose plant topics stop short (here: no hvac/power at all, the state for 1 step): the report's refusal
+    counts each message a step needs, so the missing topic shows (it said only "fewer than 2 complete plant
+    steps")."""
+    bag = tmp_path / 'short'
+    store, w, topics = _plant_bag_writer(bag)
+    ts = results['baseline'].timeseries
+    for n in range(5):
+        t = float(ts['t_s'][n])
+        row = {**{k: float(v[n]) for k, v in ts.items()}, 'step_index': n, 'scenario_time_s': t}
+        w.write('/cabin/comfort', int(round(t * 1e9)), _msg(store, topics['/cabin/comfort'], row, t))
+        if n == 0:
+            w.write('/cabin/state', int(round(t * 1e9)), _msg(store, topics['/cabin/state'], row, t))
+    w.close()
+    capsys.readouterr()
+    assert report.main([str(bag), '--scenario', 'sc03', '--strategy', 'baseline', '--out', str(tmp_path / 'r')]) == 2
+    assert _error_line(capsys.readouterr().err) == (
+        f'ceco report: error: {bag}: the bag holds fewer than 2 complete plant steps (a step needs one message of '
+        'each of cabin/state (the bag: 1), cabin/comfort (the bag: 5), hvac/power (the bag: 0))'
+    )
+
+
 def _parameter(store, name, value):
     """An rcl_interfaces Parameter (string or double) as a node announces it on /parameter_events."""
     v = store.types['rcl_interfaces/msg/ParameterValue'](

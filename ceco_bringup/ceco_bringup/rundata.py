@@ -217,8 +217,20 @@ def _load_bag(bag_dir: Path, namespace: str | None) -> dict:
 
     cols = {k: np.asarray(v) for k, v in read_bag(bag_dir, bagio.load_run_timeseries, namespace).items()}
     if not len(cols.get('t_s', ())) >= 2:
-        raise ValueError(f'{bag_dir}: the bag holds fewer than 2 complete plant steps')
+        why = _step_topics(bag_dir, namespace)
+        raise ValueError(f'{bag_dir}: the bag holds fewer than 2 complete plant steps ({why})')
     return cols
+
+
+def _step_topics(bag_dir: Path, namespace: str | None) -> str:
+    """What a plant step needs from the bag and how many messages of each it holds: why it has no 2 whole steps."""
+    from ceco_bringup import bagio
+    from ceco_ros.topics import TOPIC_COMFORT, TOPIC_POWER, TOPIC_STATE
+
+    needed = (TOPIC_STATE, TOPIC_COMFORT, TOPIC_POWER)
+    counts = read_bag(bag_dir, bagio.topic_counts)
+    held = {name: counts[topic] for topic, name in bagio.bag_topic_map(counts, needed, namespace).items()}
+    return 'a step needs one message of each of ' + ', '.join(f'{n} (the bag: {held.get(n, 0)})' for n in needed)
 
 
 def _time_series(run_dir: Path, namespace: str | None) -> tuple[dict, str]:
