@@ -151,6 +151,7 @@ def make_doc():
             "setpoints_pmv": [0.0, 0.4],
             "families": {f: {"kind": k} for f, k in bs.FAMILIES.items()},
             "oracle": {"requested": True, "entry_point": runner.ORACLE_ENTRY},
+            "strategies": ["ceco"],
         },
         "timing": {"wall_s": 1.0, "runs": 16, "ran_now": 16},
         "cases": [case],
@@ -277,6 +278,19 @@ def _case(doc):
         (lambda d: d.update(cases=[]), "cases: empty"),
         (lambda d: d["cases"].append(copy.deepcopy(_case(d))), "cases/1 (sc03-medium): duplicate case (also cases/0)"),
         (lambda d: _case(d)["seeds"].append(2), "ceco has no run for seed(s) [2] of the case's seeds [0, 1, 2]"),
+        # a strategy the document says it compares but no case ran (the seed coverage looks at runs that exist)
+        (
+            lambda d: d["settings"].update(strategies=["ceco", "ceco-pmv"]),
+            "cases/0 (sc03-medium): controller 'ceco-pmv' has no run (settings.strategies lists it)",
+        ),
+        (
+            lambda d: _case(d).update(runs=[r for r in _case(d)["runs"] if r["controller"] != "ceco"]),
+            "cases/0 (sc03-medium): controller 'ceco' has no run (settings.strategies lists it)",
+        ),
+        (
+            lambda d: d["settings"].update(strategies="ceco"),
+            "settings/strategies: must be a list of controller names, got 'ceco'",
+        ),
     ],
 )
 def test_each_violation_is_reported(mutate, message):
@@ -286,6 +300,21 @@ def test_each_violation_is_reported(mutate, message):
         doc = make_doc()
         mutate(doc)
         bs.validate_results(doc)
+
+
+def test_a_listed_strategy_whose_runs_all_errored_is_still_compared():
+    """``settings.strategies`` asks for a run of each listed strategy, of any status: ``ceco benchmark`` records a
+    run it could not make (interrupted, the simulator raised) as ``error`` with the reason, which the report lists.
+    Only a listed strategy without any run is refused; a document without the key lists none."""
+    doc = make_doc()
+    for r in _case(doc)["runs"]:
+        if r["controller"] == "ceco":
+            r.update(status="error", error="not run (interrupted?)")
+    del _case(doc)["matched"]["ceco"]
+    assert bs.check_results(doc) == []
+    del doc["settings"]["strategies"]
+    _case(doc)["runs"] = [r for r in _case(doc)["runs"] if r["controller"] != "ceco"]
+    assert bs.check_results(doc) == []
 
 
 def test_a_failed_run_keeps_its_kpis_and_is_left_out_of_matching():
@@ -347,5 +376,6 @@ def test_a_door_family_can_be_the_strongest_and_its_case_document_validates():
     assert m["family"] == "pmv-door80" and m["energy_saving_pct"] == pytest.approx(100.0 * (0.35 - 0.33) / 0.35)
     doc = make_doc()
     doc["cases"] = [case]
+    doc["settings"]["strategies"] = ["ceco-pmv-aq"]  # as --strategy ceco-pmv-aq records it
     assert bs.check_results(doc) == []
     bs.validate_results(json.loads(json.dumps(doc)))

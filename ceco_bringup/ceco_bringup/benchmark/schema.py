@@ -16,7 +16,8 @@ Two layers:
    recompute from the fronts and the oracle's points; each oracle front recomputes from its solved
    points (one per level, >= 4 levels); every number is finite (JSON has no NaN; Python's ``json`` reads
    ``NaN`` and ``Infinity``); a KPI of :data:`KPI_RANGES` lies in its range; a document holds at least one
-   case, each once; every seed-dependent controller has a run for each of the case's seeds.
+   case, each once; every seed-dependent controller has a run for each of the case's seeds; every strategy
+   ``settings.strategies`` lists has a run (of any status) in every case.
 
 Pure Python (jsonschema); no ROS import.
 """
@@ -337,6 +338,19 @@ def _check_seed_coverage(tag: str, case: Mapping) -> list[str]:
     ]
 
 
+def _check_listed(tag: str, case: Mapping, names) -> list[str]:
+    """Every controller of ``names`` (``settings.strategies``: the strategies the document compares) has a run.
+
+    ``ceco benchmark`` runs each of them on every case and records a run that could not be made with status
+    ``error``; a listed strategy without any run in a case was dropped, not compared. Only the strategies are
+    listed by name (the families' members and the compensated laws are not): nothing else is checked here.
+    """
+    have = {run["controller"] for run in case["runs"]}
+    return [
+        f"{tag}: controller {name!r} has no run (settings.strategies lists it)" for name in names if name not in have
+    ]
+
+
 def _non_finite(node: Any, where: str = "") -> list[str]:
     """Where ``node`` (a parsed JSON document) holds NaN or +-Infinity, one line each."""
     if isinstance(node, float):
@@ -425,12 +439,17 @@ def check_results(doc: Any) -> list[str]:
     if errors:
         return errors
     out = [] if doc["cases"] else ["cases: empty (a results document holds at least one case)"]
+    listed = doc["settings"].get("strategies", [])  # not required by the JSON Schema: nothing listed without it
+    if not isinstance(listed, list) or not all(isinstance(n, str) and n for n in listed):
+        out.append(f"settings/strategies: must be a list of controller names, got {listed!r}")
+        listed = []
     first: dict = {}
     for i, case in enumerate(doc["cases"]):
         j = first.setdefault(case["case"], i)
         if j != i:
             out.append(f"cases/{i} ({case['case']}): duplicate case (also cases/{j})")
         out += _check_case(i, case, doc["settings"])
+        out += _check_listed(f"cases/{i} ({case['case']})", case, listed)
     return out
 
 
