@@ -278,6 +278,8 @@ def _case(doc):
         (lambda d: d.update(cases=[]), "cases: empty"),
         (lambda d: d["cases"].append(copy.deepcopy(_case(d))), "cases/1 (sc03-medium): duplicate case (also cases/0)"),
         (lambda d: _case(d)["seeds"].append(2), "ceco has no run for seed(s) [2] of the case's seeds [0, 1, 2]"),
+        # a seed listed twice (the validator's coverage reads the seeds as a set: [0, 1, 0] passed)
+        (lambda d: _case(d)["seeds"].append(0), "cases/0/seeds: [0, 1, 0] has non-unique elements"),
         # a strategy the document says it compares but no case ran (the seed coverage looks at runs that exist)
         (
             lambda d: d["settings"].update(strategies=["ceco", "ceco-pmv"]),

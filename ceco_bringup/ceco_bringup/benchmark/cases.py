@@ -78,7 +78,8 @@ DEFAULT_CASES = (
 """The cases of a full ``ceco benchmark`` run, in report order (the last five: previewable disturbances)."""
 
 QUICK_CASES = ("sc03-paper", "us06-hot", "mild-day")
-"""The three cases of ``ceco benchmark --quick`` (each 600 s; with seed 0 only)."""
+"""The three cases of ``ceco benchmark --quick`` (each 600 s; with the first of the case file's seeds only: 0 in
+every bundled case)."""
 
 _KEYS = {
     "schema",

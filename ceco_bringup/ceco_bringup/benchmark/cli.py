@@ -2,7 +2,7 @@
 
     ceco benchmark --out runs/bench                       # every bundled case, the sensitivity, the report
     ceco benchmark sc03-paper udds-hot --out runs/b2      # some cases (names or case-file paths)
-    ceco benchmark --quick --out runs/quick               # 3 cases, seed 0, 3 set-points per family: CI smoke test
+    ceco benchmark --quick --out runs/quick               # 3 cases, first seeds, 3 set-points per family: CI smoke test
     ceco benchmark --oracle --out runs/b3                 # with the whole-drive optimum (slow: docs/oracle.md)
     ceco benchmark --controller-cmd "python my_node.py" --controller-name mine --out runs/mine
     ceco benchmark --validate runs/bench/results.json
@@ -415,8 +415,8 @@ def build_parser() -> cli_args.Parser:
     p.add_argument(
         '--quick',
         action='store_true',
-        help=f'CI smoke test: cases {", ".join(QUICK_CASES)}, seed 0, 3 set-points per family, no sensitivity, '
-        'no oracle (ceco oracle CASE runs one)',
+        help=f'CI smoke test: cases {", ".join(QUICK_CASES)}, the first seed of each case file, 3 set-points per '
+        'family, no sensitivity, no oracle (ceco oracle CASE runs one)',
     )
     cli_args.add_workers(p)
     cli_args.add_backend(p)
