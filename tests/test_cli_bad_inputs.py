@@ -141,3 +141,26 @@ def test_missing_topics_and_namespace_messages():
     assert play.namespace_message('', held) is None  # the root namespace
     assert play.namespace_message('veh3', held).endswith('namespaces, /, /veh2')
     assert 'no cabin/state under any namespace' in play.namespace_message(None, {'/clock': 1})
+
+
+@pytest.mark.parametrize('verb', ['report', 'play', 'run'])
+def test_an_invalid_namespace_is_refused_when_the_command_line_is_read(tmp_path, capsys, verb):
+    """`--namespace 1veh` (not a ROS name) is refused by the parser, in every verb that takes it, before any file
+    is read or node started (report and play checked it only once a bag was read: ceco report said so after
+    loading the runs, and on a run without a bag not at all)."""
+    from ceco_bringup import run
+
+    main = {'report': report.main, 'play': play.main, 'run': run.main}[verb]
+    args = {'report': [str(tmp_path)], 'play': [str(tmp_path)], 'run': ['--scenario', 'sc03']}[verb]
+    with pytest.raises(SystemExit) as exc:
+        main(
+            [*args, '--namespace', '1veh', '--out', str(tmp_path / 'o')]
+            if verb != 'play'
+            else [*args, '--namespace', '1veh']
+        )
+    assert exc.value.code == 2
+    assert _one_line(capsys.readouterr().err) == (
+        f"ceco {verb}: error: argument --namespace: invalid namespace '1veh': tokens of letters, digits and "
+        f'underscores, not starting with a digit, separated by / (ceco {verb} --help lists the options)'
+    )
+    assert not (tmp_path / 'o').exists()

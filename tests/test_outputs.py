@@ -832,11 +832,12 @@ def test_run_and_sim_warn_when_no_step_would_receive_a_preview(capsys):
     """`--preview delayed:40` at Np = 6 (a 30 s horizon): every forecast is older than its horizon, so the NMPC runs
     on the measured weather alone; ceco sim and ceco run say so in one warning line before running (the run is
     still made: a study of no preview is legitimate). Not for the baseline alone, not for delayed:30 or Np 8.
-    Each command here stops at a later input error (an unknown --set field, a bad namespace), so nothing runs:
+    Each command here stops at a later input error (an unknown --set field, a stall limit below the command
+    timeout in lockstep), so nothing runs:
     the warning comes from the verbs' own input checks."""
     from ceco_bringup import run
 
-    later_error = {'ceco sim': (sim.main, ['--set', 'foo=1']), 'ceco run': (run.main, ['--namespace', '1bad'])}
+    later_error = {'ceco sim': (sim.main, ['--set', 'foo=1']), 'ceco run': (run.main, ['--stall-timeout-s', '1'])}
     for prog, (main, stop_early) in later_error.items():
         for argv, preview, warns in (
             (['--strategy', 'ceco-ioch,baseline'], 'delayed:40', True),

@@ -38,8 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ceco_bringup.supervisor import normalize_namespace
 from ceco_core import rundir
+from ceco_core.cli_flags import normalize_namespace
 from ceco_core.contracts import DIAGNOSTICS_CONTRACT_COLUMNS as DIAGNOSTICS_COLUMNS
 from ceco_core.contracts import RECIRC_NOT_COMMANDED_WIRE
 from ceco_core.units import s_from_stamp

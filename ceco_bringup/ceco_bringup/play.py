@@ -107,7 +107,7 @@ def namespace_message(namespace: str | None, bag_topics) -> str | None:
     for ``ceco_bringup.bagrun`` to refuse).
     """
     from ceco_bringup.bagio import namespace_not_held, topic_namespaces
-    from ceco_bringup.supervisor import normalize_namespace
+    from ceco_core.cli_flags import normalize_namespace
     from ceco_ros.topics import TOPIC_STATE
 
     held = topic_namespaces(bag_topics, (TOPIC_STATE,))

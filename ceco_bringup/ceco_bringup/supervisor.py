@@ -34,6 +34,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from ceco_core.cli_flags import normalize_namespace
 from ceco_core.contracts import DOMAIN_ID_MAX
 
 # Fast DDS participant profile: a UDPv4 transport, a short lease announcement so late
@@ -104,23 +105,6 @@ def resolve_domain_id(explicit: int | None = None, index: int = 0, environ=None)
     if not 0 <= chosen <= DOMAIN_ID_MAX:
         raise ValueError(f'{source}={chosen}: must be an integer in 0..{DOMAIN_ID_MAX}')
     return chosen, True
-
-
-def normalize_namespace(namespace: str | None) -> str:
-    """A ROS namespace in its canonical form: '' / None -> '' (the root namespace); 'veh1', '/veh1/' -> '/veh1'.
-
-    Raises ValueError for a name ROS 2 would reject (tokens of letters,
-    digits and underscores, not starting with a digit).
-    """
-    if not namespace or namespace.strip('/') == '':
-        return ''
-    ns = '/' + namespace.strip('/')
-    if not re.fullmatch(r'(/[A-Za-z_][A-Za-z0-9_]*)+', ns) or '__' in ns:
-        raise ValueError(
-            f'invalid namespace {namespace!r}: tokens of letters, digits and '
-            'underscores, not starting with a digit, separated by /'
-        )
-    return ns
 
 
 def dds_env(domain_id: int, base: dict | None = None) -> dict:

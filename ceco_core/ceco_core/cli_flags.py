@@ -38,6 +38,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import re
 import sys
 from collections.abc import Sequence
 
@@ -439,9 +440,35 @@ def add_backend(p) -> None:
     )
 
 
+def normalize_namespace(namespace: str | None) -> str:
+    """A ROS namespace in its canonical form: '' / None -> '' (the root namespace); 'veh1', '/veh1/' -> '/veh1'.
+
+    Raises ValueError for a name ROS 2 would reject (tokens of letters,
+    digits and underscores, not starting with a digit).
+    """
+    if not namespace or namespace.strip('/') == '':
+        return ''
+    ns = '/' + namespace.strip('/')
+    if not re.fullmatch(r'(/[A-Za-z_][A-Za-z0-9_]*)+', ns) or '__' in ns:
+        raise ValueError(
+            f'invalid namespace {namespace!r}: tokens of letters, digits and '
+            'underscores, not starting with a digit, separated by /'
+        )
+    return ns
+
+
+def namespace(text: str) -> str:
+    """A ROS namespace as given, checked by :func:`normalize_namespace` (argparse type)."""
+    try:
+        normalize_namespace(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
 def add_namespace(p, help_: str, default: str | None = None) -> None:
-    """``--namespace``: a ROS namespace."""
-    p.add_argument('--namespace', default=default, help=help_)
+    """``--namespace``: a ROS namespace (an invalid one is refused when the command line is read)."""
+    p.add_argument('--namespace', type=namespace, default=default, help=help_)
 
 
 def add_domain_id(p, help_: str) -> None:
