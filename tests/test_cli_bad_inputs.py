@@ -164,3 +164,65 @@ def test_an_invalid_namespace_is_refused_when_the_command_line_is_read(tmp_path,
         f'underscores, not starting with a digit, separated by / (ceco {verb} --help lists the options)'
     )
     assert not (tmp_path / 'o').exists()
+
+
+# --------------------------------------------------------------------------- ceco sim / ceco run
+@pytest.mark.parametrize('verb', ['sim', 'run'])
+def test_a_control_period_a_strategy_cannot_run_is_refused_before_any_run(tmp_path, capsys, verb):
+    """--control-period-s 7 with an NMPC strategy (its model steps 5 s): refused when the command line is checked,
+    naming the strategies (ceco sim ran the baseline first, then stopped at ceco with exit status 2)."""
+    from ceco_bringup import run, sim
+
+    main = {'sim': sim.main, 'run': run.main}[verb]
+    with pytest.raises(SystemExit) as exc:
+        main(
+            [
+                '--scenario',
+                'sc03',
+                '--strategy',
+                'baseline,ceco',
+                '--control-period-s',
+                '7',
+                '--out',
+                str(tmp_path / 'o'),
+            ]
+        )
+    assert exc.value.code == 2
+    assert _one_line(capsys.readouterr().err) == (
+        f'ceco {verb}: error: --control-period-s: control period 7.0 s must be a whole multiple of the model step '
+        f'5.0 s (the NMPC strategies: ceco) (ceco {verb} --help lists the options)'
+    )
+    assert not (tmp_path / 'o').exists()
+
+
+def test_a_run_the_plant_cannot_simulate_is_a_failed_run_not_a_traceback(tmp_path, capsys):
+    """A scenario at the edge of the ranges (60 degC air, 1400 W/m2, the cabin soaked at 70 degC) takes the plant's
+    refrigerant cycle outside its tables: the run is a failed run with the reason (it was a traceback that lost
+    the other strategies); exit status 1."""
+    import json
+
+    import yaml
+
+    from ceco_bringup import sim
+
+    scenario = {
+        'name': 'beyond_the_cycle',
+        'drive_cycle': 'sc03',
+        'duration_s': 20,
+        'weather': {'time_s': [0, 600], 't_amb_c': 60.0, 'solar_wm2': 1400.0, 'rh': 0.05},
+        'occupant': {'met': 1.2, 'clo': 0.5},
+        'comfort_bounds': {'time_s': [0, 30, 300], 'pmv_lb': -0.5, 'pmv_ub': [3.0, 3.0, 0.5]},
+        'initial': {'t_cab_c': 70.0, 'rh_cab': 0.1},
+    }
+    path = tmp_path / 'hot.yaml'
+    path.write_text(yaml.safe_dump(scenario))
+    out = tmp_path / 'o'
+    assert sim.main(['--scenario', str(path), '--strategy', 'baseline', '--no-progress', '--out', str(out)]) == 1
+    text = capsys.readouterr()
+    assert 'Traceback' not in text.err + text.out
+    why = 'the simulation stopped: refrigerant cycle did not converge in 30 iterations (compiled plant, step '
+    assert f'  baseline: FAILED: {why}' in text.out
+    assert '1 of 1 runs failed (not compared):' in text.out
+    run = json.loads((out / 'baseline' / 'run.json').read_text())
+    assert run['status'] == 'failed' and run['error'].startswith(why), run
+    assert not (out / 'baseline' / 'metrics.json').exists()

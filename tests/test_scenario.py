@@ -201,6 +201,17 @@ _DELETE = object()
         (("duration_s",), -10, "duration_s"),
         (("weather", "wind_mps"), [1, 2], "weather.wind_mps: unknown field"),
         (("name",), "", "name"),
+        # found by testing unseen scenarios: each was accepted and then failed in the run or gave a wrong number
+        (("weather", "rh"), 0.0, "weather.rh[0]: must satisfy 0.0 < value <= 1.0, got 0.0"),  # dew point -inf
+        (("initial", "rh_cab"), 0.0, "initial.rh_cab: must satisfy 0.0 < value <= 1.0, got 0.0"),
+        (("comfort_bounds", "pmv_ub"), 5.0, "comfort_bounds.pmv_ub[0]: must satisfy -3.0 <= value <= 3.0, got 5.0"),
+        (
+            ("duration_s",),
+            123.7,
+            "duration_s: 123.7 s is not a whole number (>= 2) of plant steps (1 s): give e.g. 123",
+        ),
+        (("duration_s",), 1, "duration_s: 1 s is not a whole number (>= 2) of plant steps (1 s): give e.g. 2"),
+        (("weather", "time_s"), 0, "weather.time_s: must be a list of numbers, got 0"),
     ],
 )
 def test_invalid_scenarios_name_the_field(path, value, field):
@@ -213,11 +224,25 @@ def test_invalid_scenarios_name_the_field(path, value, field):
 
 
 def test_the_control_block_takes_the_nodes_ranges():
-    """A scenario's Ts and Np are held to the range every node and every verb's flags take (0.1..300 s, 1..60):
-    a scenario with Ts 600 s ran in the simulator, where `ceco run`'s nodes refuse it."""
+    """A scenario's Ts and Np are held to the range every node and every verb's flags take (0.1..300 s, 1..60),
+    and Ts to whole plant steps: a scenario with Ts 600 s ran in the simulator, where `ceco run`'s nodes refuse
+    it."""
     for key, value, message in [
         ("control_period_s", 600.0, "control.control_period_s: must satisfy 0.1 <= value <= 300.0, got 600.0"),
         ("control_period_s", 0.05, "control.control_period_s: must satisfy 0.1 <= value <= 300.0, got 0.05"),
+        # and a whole number of plant steps (1 s): the simulator and plant_node refused 0.1 s only when run
+        (
+            "control_period_s",
+            0.1,
+            "control.control_period_s: 0.1 s is not a whole number of plant steps (1 s, the simulator's and "
+            "plant_node's)",
+        ),
+        (
+            "control_period_s",
+            7.5,
+            "control.control_period_s: 7.5 s is not a whole number of plant steps (1 s, the simulator's and "
+            "plant_node's)",
+        ),
         ("horizon_steps", 61, "control.horizon_steps: must be in 1..60, got 61"),
         ("horizon_steps", 6.0, "control.horizon_steps: must be an integer, got 6.0"),
     ]:
@@ -226,8 +251,8 @@ def test_the_control_block_takes_the_nodes_ranges():
         assert str(err.value) == message
     sc = scenario_from_dict(_mutate(("control",), {"control_period_s": 300.0, "horizon_steps": 60}))
     assert (sc.control.control_period_s, sc.control.horizon_steps) == (300.0, 60)
-    sc = scenario_from_dict(_mutate(("control",), {"control_period_s": 0.1, "horizon_steps": 1}))
-    assert (sc.control.control_period_s, sc.control.horizon_steps) == (0.1, 1)
+    sc = scenario_from_dict(_mutate(("control",), {"control_period_s": 1.0, "horizon_steps": 1}))
+    assert (sc.control.control_period_s, sc.control.horizon_steps) == (1.0, 1)
 
 
 def test_user_files_and_csv_cycles(tmp_path):
@@ -248,6 +273,16 @@ def test_user_files_and_csv_cycles(tmp_path):
     (tmp_path / "neg.csv").write_text("time_s,speed_mph\n0,0\n1,-1\n")
     with pytest.raises(ScenarioError, match="drive_cycle"):
         load_drive_cycle(str(tmp_path / "neg.csv"))
+    # the limit in the column's own unit (it said "speed_mph must be within 0..70.0 m/s")
+    (tmp_path / "fast.csv").write_text("time_s,speed_mph\n0,0\n1,160\n")
+    with pytest.raises(ScenarioError) as err:
+        load_drive_cycle(str(tmp_path / "fast.csv"))
+    assert str(err.value).endswith("fast.csv: speed_mph must be within 0..156.6 mph (70 m/s)")
+    # a cycle whose last time is not a whole second runs its whole plant steps, and the scenario says so
+    (tmp_path / "cycles" / "odd.csv").write_text("time_s,speed_mps\n0,0\n10,10\n20.7,10\n")
+    d.update(name="odd", drive_cycle="cycles/odd.csv")
+    (tmp_path / "odd.yaml").write_text(yaml.safe_dump(d))
+    assert load_scenario(tmp_path / "odd.yaml").duration_s == 20.0
     (tmp_path / "back.csv").write_text("time_s,speed_mph\n0,0\n2,1\n1,1\n")
     with pytest.raises(ScenarioError, match="strictly increasing"):
         load_drive_cycle(str(tmp_path / "back.csv"))

@@ -12,7 +12,15 @@ from __future__ import annotations
 from ceco_core import cli_flags as _flags
 from ceco_core.cli_flags import *  # noqa: F403 (the shared flags, re-exported: __all__ below)
 
-__all__ = [*_flags.__all__, 'add_case', 'CASE_SCENARIO_FILE', 'apply_case', 'case_overrides', 'warn_no_preview']
+__all__ = [
+    *_flags.__all__,
+    'add_case',
+    'CASE_SCENARIO_FILE',
+    'apply_case',
+    'case_overrides',
+    'warn_no_preview',
+    'check_control_period',
+]
 
 
 def add_case(p) -> None:
@@ -84,3 +92,30 @@ def warn_no_preview(prog: str, args, scenario, quality) -> None:
         warning = no_preview_warning(quality, args.duration_s or scenario.duration_s, ts, n_p)
         if warning:
             print(f'{prog}: warning: {warning}', file=sys.stderr)
+
+
+def check_control_period(args, scenario, model_params_path=None) -> None:
+    """ValueError, before any run, when a strategy of ``args.strategy`` cannot run at the job's Ts.
+
+    Ts (``--control-period-s``, else the scenario's) must be a whole number of plant steps
+    (:data:`~ceco_core.contracts.PLANT_STEP_S`: the simulator and plant_node step the plant that way) and, for an
+    NMPC strategy, of its control model's step (``ts_s`` of ``model_params_path``, the package's model when None).
+    Without this the job stopped at the first strategy that could not, after running the ones before it.
+    """
+    from ceco_core.contracts import NODE_STRATEGIES, PLANT_STEP_S
+    from ceco_plant_sim.scenario_plant import steps_per_control
+
+    ts = args.control_period_s or scenario.control.control_period_s
+    name = '--control-period-s' if args.control_period_s else f'scenario {scenario.name}: control.control_period_s'
+    try:
+        steps_per_control(ts, PLANT_STEP_S)
+    except ValueError as exc:
+        raise ValueError(f'{name}: {exc}') from None
+    nmpc = [s for s in args.strategy if s in NODE_STRATEGIES]
+    if nmpc:
+        from ceco_controller.model import load_params, substeps
+
+        try:
+            substeps(load_params(model_params_path), ts)
+        except ValueError as exc:
+            raise ValueError(f'{name}: {exc} (the NMPC strategies: {", ".join(nmpc)})') from None

@@ -160,6 +160,7 @@ def main(argv=None) -> int:
         if args.seed is not None:
             quality = dataclasses.replace(quality, seed=int(args.seed))
         cli_args.check_duration(args.duration_s, scenario, args.control_period_s)
+        cli_args.check_control_period(args, scenario)
         cli_args.warn_no_preview('ceco run', args, scenario, quality)
         args.namespace = supervisor.normalize_namespace(args.namespace)
         supervisor.resolve_domain_id(args.domain_id)  # an invalid user id fails here

@@ -132,6 +132,7 @@ def main(argv=None) -> int:
         scenario = load_scenario(args.scenario)
         quality = parse_quality(args.preview)
         cli_args.check_duration(args.duration_s, scenario, args.control_period_s)
+        cli_args.check_control_period(args, scenario, args.model_params)
         settings = SimSettings(
             control_period_s=args.control_period_s,
             horizon_steps=args.horizon_steps,
@@ -165,6 +166,13 @@ def main(argv=None) -> int:
             provenance.finish_run(run_dir, 'interrupted')
             print('ceco sim: interrupted; the finished strategies are kept', file=sys.stderr)
             return 130
+        except RuntimeError as exc:  # the simulation could not go on (the plant's refrigerant cycle outside its model)
+            failed[s] = f'the simulation stopped: {exc}'
+            provenance.finish_run(run_dir, 'failed', failed[s])
+            line = outputs.failed_line(s, failed[s], run_dir)
+            (run_dir / 'summary.txt').write_text(line + '\n', encoding='utf-8')
+            print(line, flush=True)
+            continue
         write_run(res, run_dir)
         if res.metrics['status'] != STATUS_OK:  # the controller did not control: kept in run_dir, never shown
             provenance.finish_run(run_dir, 'failed', res.metrics['status_reason'])

@@ -26,11 +26,13 @@ from typing import Any
 import numpy as np
 
 from ceco_core.air_quality import CO2_AMB_PPM_DEFAULT, AirQualityLimits
-from ceco_core.contracts import CONTROL_PERIOD_RANGE_S, HORIZON_RANGE
+from ceco_core.contracts import CONTROL_PERIOD_RANGE_S, HORIZON_RANGE, PLANT_STEP_S
+from ceco_core.observation_check import OBSERVATION_LIMITS
 
 __all__ = [
     "ScenarioError",
     "yaml_number_hint",
+    "RH_RANGE",
     "Environment",
     "WeatherPreview",
     "Occupant",
@@ -60,8 +62,12 @@ MET_RANGE = (0.0, 4.0)
 """Metabolic rate [met], lower bound exclusive; 4 met is ISO 7730's top."""
 CLO_RANGE = (0.0, 2.0)
 """Clothing insulation [clo]; ISO 7730 validity range 0..2 clo."""
-PMV_BOUND_RANGE = (-10.0, 10.0)
-"""PMV bounds: the scale is -3..+3 but a relaxed pull-down bound may exceed it."""
+PMV_BOUND_RANGE = OBSERVATION_LIMITS.pmv
+"""PMV bounds: ISO 7730's scale, -3..+3, the range the controllers take (``ceco_core.observation_check``; a
+scenario with bounds of +-5 ran every NMPC step on its fallback law)."""
+RH_RANGE = (0.0, 1.0)
+"""Relative humidity [-], ambient and initial cabin: above 0 (the lower bound is open: with no vapour at all the dew
+point, and with it the fog margin, is minus infinity) up to saturation."""
 SPEED_MAX_MPS = 70.0
 """Drive-cycle speed sanity limit (252 km/h)."""
 OCCUPANTS_RANGE = (1, 5)
@@ -159,7 +165,7 @@ class InitialState(Mapping):
         """Raise ScenarioError naming the first bad field."""
         for name in TEMPERATURE_FIELDS:
             check_number(f"initial.{name}", getattr(self, name), T_STATE_RANGE_C)
-        check_number("initial.rh_cab", self.rh_cab, (0.0, 1.0))
+        check_number("initial.rh_cab", self.rh_cab, RH_RANGE, low_open=True)
         check_number("initial.co2_cab_ppm", self.co2_cab_ppm, CO2_CAB_RANGE_PPM)
 
     def __getitem__(self, key: str) -> float:
@@ -194,7 +200,13 @@ class ControlDefaults:
         Ts or an Np that ``ceco run``'s nodes would refuse.
         """
         lo_s, hi_s = CONTROL_PERIOD_RANGE_S
-        check_number("control.control_period_s", self.control_period_s, (lo_s, hi_s))
+        ts = check_number("control.control_period_s", self.control_period_s, (lo_s, hi_s))
+        steps = ts / PLANT_STEP_S
+        if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
+            raise ScenarioError(
+                f"control.control_period_s: {ts:g} s is not a whole number of plant steps ({PLANT_STEP_S:g} s, the "
+                "simulator's and plant_node's)"
+            )
         if isinstance(self.horizon_steps, bool) or not isinstance(self.horizon_steps, (int, np.integer)):
             raise ScenarioError(f"control.horizon_steps: must be an integer, got {self.horizon_steps!r}")
         lo, hi = HORIZON_RANGE

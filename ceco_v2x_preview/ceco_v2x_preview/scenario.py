@@ -22,6 +22,7 @@ Pure Python (numpy, pyyaml); no ROS import.
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from collections.abc import Mapping
 from importlib import resources
@@ -31,10 +32,12 @@ from typing import Any
 import numpy as np
 
 from ceco_core import psychro, units, yamlio
+from ceco_core.contracts import PLANT_STEP_S
 from ceco_core.scenario_types import (
     INITIAL_FIELDS,
     OCCUPANTS_RANGE,
     PMV_BOUND_RANGE,
+    RH_RANGE,
     SOLAR_RANGE_WM2,
     SPEED_MAX_MPS,
     T_AMB_RANGE_C,
@@ -121,9 +124,11 @@ def _parse_cycle_csv(text: str, name: str) -> DriveCycle:
         raise ScenarioError(f"drive_cycle: {name}: time_s must start at 0, got {time_s[0]}")
     if np.any(np.diff(time_s) <= 0.0):
         raise ScenarioError(f"drive_cycle: {name}: time_s must be strictly increasing")
-    speed_mps = units.mph_to_mps(speed) if header[1] == "speed_mph" else speed
+    mph = header[1] == "speed_mph"
+    speed_mps = units.mph_to_mps(speed) if mph else speed
     if np.any(speed_mps < 0.0) or np.any(speed_mps > SPEED_MAX_MPS):
-        raise ScenarioError(f"drive_cycle: {name}: {header[1]} must be within 0..{SPEED_MAX_MPS} m/s")
+        limit = f"{SPEED_MAX_MPS / units.mph_to_mps(1.0):.1f} mph" if mph else f"{SPEED_MAX_MPS:g} m/s"
+        raise ScenarioError(f"drive_cycle: {name}: {header[1]} must be within 0..{limit} ({SPEED_MAX_MPS:g} m/s)")
     time_s.setflags(write=False)
     speed_mps.setflags(write=False)
     return DriveCycle(name=name, time_s=time_s, speed_mps=speed_mps)
@@ -149,7 +154,7 @@ def load_drive_cycle(name_or_path: str | os.PathLike, base_dir: str | os.PathLik
     return _parse_cycle_csv(path.read_text(encoding="utf-8"), str(path))
 
 
-def _series(section: str, block: Mapping, key: str, n: int | None, bounds) -> np.ndarray:
+def _series(section: str, block: Mapping, key: str, n: int | None, bounds, low_open: bool = False) -> np.ndarray:
     field = f"{section}.{key}"
     if key not in block:
         raise ScenarioError(f"{field}: missing")
@@ -157,8 +162,9 @@ def _series(section: str, block: Mapping, key: str, n: int | None, bounds) -> np
     if isinstance(raw, (int, float)) and not isinstance(raw, bool) and n is not None:
         raw = [raw] * n  # a constant written as one number
     if not isinstance(raw, (list, tuple)):
-        raise ScenarioError(f"{field}: must be a list of numbers (or one number), got {raw!r}")
-    vals = [check_number(f"{field}[{i}]", v, bounds) for i, v in enumerate(raw)]
+        what = "a list of numbers" if n is None else "a list of numbers (or one number)"  # a time grid: a list
+        raise ScenarioError(f"{field}: must be {what}, got {raw!r}")
+    vals = [check_number(f"{field}[{i}]", v, bounds, low_open) for i, v in enumerate(raw)]
     if n is not None and len(vals) != n:
         raise ScenarioError(f"{field}: length {len(vals)} differs from {section}.time_s length {n}")
     arr = np.asarray(vals, dtype=float)
@@ -228,16 +234,23 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
         raise ScenarioError("drive_cycle: missing or not a string (bundled name or CSV path)")
     cycle = load_drive_cycle(data["drive_cycle"], base_dir=base_dir)
 
-    duration_s = cycle.duration_s
+    # a run is a whole number of plant steps: the cycle's length is floored to one, a duration_s must be one
+    duration_s = math.floor(cycle.duration_s / PLANT_STEP_S + 1e-9) * PLANT_STEP_S
     if data.get("duration_s") is not None:
         duration_s = check_number("duration_s", data["duration_s"], (0.0, 1.0e6), low_open=True)
+        steps = duration_s / PLANT_STEP_S
+        if abs(steps - round(steps)) > 1e-9 or steps < 2 - 1e-9:
+            raise ScenarioError(
+                f"duration_s: {duration_s:g} s is not a whole number (>= 2) of plant steps ({PLANT_STEP_S:g} s): "
+                f"give e.g. {max(math.floor(steps), 2) * PLANT_STEP_S:g}"
+            )
 
     weather = _section(data, "weather")
     _reject_unknown("weather", weather, {"time_s", "t_amb_c", "solar_wm2", "rh"})
     wt = _time_grid("weather", weather)
     t_amb = _series("weather", weather, "t_amb_c", wt.size, T_AMB_RANGE_C)
     solar = _series("weather", weather, "solar_wm2", wt.size, SOLAR_RANGE_WM2)
-    rh = _series("weather", weather, "rh", wt.size, (0.0, 1.0))
+    rh = _series("weather", weather, "rh", wt.size, RH_RANGE, low_open=True)
 
     occ_block = _section(data, "occupant")
     _reject_unknown("occupant", occ_block, {"met", "clo"})
