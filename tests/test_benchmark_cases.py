@@ -238,6 +238,6 @@ def test_family_overrides_reach_every_member():
     settings = SimSettings(
         duration_s=240.0, progress=False, strategy_overrides=(('door_mode', 'auto'), ('setpoint_c', 25.0))
     )
-    direct = vd.run_point(simulate(sc, 'baseline', settings).timeseries)
+    direct = vd.run_point(simulate(sc, 'baseline', settings).timeseries, sc.air_quality.limits)
     assert list(with_door) == ['baseline@25.0'] and with_door['baseline@25.0'] == direct
     assert with_door['baseline@25.0'] != without['baseline@25.0']

@@ -18,8 +18,11 @@ from ceco_bringup.benchmark import front
 from ceco_controller.closed_loop import SimSettings, simulate
 from ceco_core.kpis import compute_kpis
 from ceco_core.metrics import J_PER_KWH
+from ceco_v2x_preview.scenario import load_scenario
 
 SHORT_S = 60.0
+SC03_LIMITS = load_scenario('sc03').air_quality.limits
+"""The air-quality limits of SC03 (a family member is scored against its scenario's)."""
 
 
 def _point(d, e, **kw):
@@ -148,7 +151,7 @@ def test_family_runs_the_tuned_law_with_its_frozen_gains():
     settings = SimSettings(
         duration_s=300.0, progress=False, strategy_overrides=tuple(sorted({**gains, 'setpoint_c': 25.0}.items()))
     )
-    direct = vd.run_point(simulate('sc03', 'baseline', settings).timeseries)
+    direct = vd.run_point(simulate('sc03', 'baseline', settings).timeseries, SC03_LIMITS)
     assert fam['baseline-tuned@25.0'] == direct
     e_prod, e_tuned = fam['baseline@25.0']['energy_kwh'], fam['baseline-tuned@25.0']['energy_kwh']
     assert abs(e_tuned - e_prod) > 1e-3 * e_prod
@@ -207,7 +210,7 @@ def test_family_runs_the_door_laws_with_the_co2_holding_door():
         'baseline',
         SimSettings(duration_s=300.0, progress=False, strategy_overrides=tuple(sorted(over.items()))),
     ).timeseries
-    assert fam['baseline-tuned-doorco2@25.0'] == vd.run_point(ts)
+    assert fam['baseline-tuned-doorco2@25.0'] == vd.run_point(ts, SC03_LIMITS)
     assert np.any(ts['recirc_share_cmd'] != 0.8)
     for law in ('baseline', 'baseline-tuned'):
         assert fam[f'{law}-doorco2@25.0']['energy_kwh'] < fam[f'{law}@25.0']['energy_kwh']

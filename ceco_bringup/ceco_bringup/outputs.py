@@ -7,7 +7,9 @@ One vocabulary in every output (docs/metrics.md, "Signs and units"):
   (+ = less energy), here at matched comfort against the baseline family (``verdict``);
 * discomfort ``D`` = PMV-hours outside -0.5..+0.5 with PMV clipped at +-3;
 * a number outside a model's validity says so where it is printed (PMV beyond the +-3 scale,
-  the share of samples outside ISO 7730, the draught rating in the vent jets).
+  the share of samples outside ISO 7730, the draught rating in the vent jets);
+* air quality is scored against the scenario's limits (CO2 limit, fog margin bound) as the benchmark scores it
+  (``ceco_core.kpis.air_quality_kpis``): a run that broke them is said to have broken them and claims no saving.
 
 The console table fits in :data:`CONSOLE_WIDTH` characters; the full table (every column, with
 a legend) goes to ``DIR/comparison.txt`` and ``DIR/comparison.csv``, the verdict to
@@ -74,6 +76,11 @@ FULL_COLUMNS = (
     ('draught_pct', 'DR>20% [%]', '.1f'),
     ('draught_mean_pct', 'DR mean [%]', '.1f'),
     ('fog_margin_min_k', 'fog margin min [K]', '.1f'),
+    ('fog_below_bound_s', 'fog<bound [s]', '.0f'),
+    ('co2_max_ppm', 'CO2 max [ppm]', '.0f'),
+    ('co2_above_limit_pct', 'CO2>limit [%]', '.1f'),
+    ('co2_exposure_ppmh', 'CO2 exposure [ppm h]', '.1f'),
+    ('air_quality_met', 'air quality met', 's'),
     ('fallback_steps', 'fallbacks', '.0f'),
     ('solve_time_median_ms', 'solve med. [ms]', '.1f'),
     ('solve_time_max_ms', 'solve max [ms]', '.1f'),
@@ -98,7 +105,10 @@ FULL_LEGEND = (
     '  With the vents aimed at the occupant the jet (over 1 m/s at any admissible flow) is outside',
     '  the draught model\'s range (< 0.5 m/s): 100 % there is a statement about the jet, not a vote',
     '  (docs/comfort.md, "Draught").',
-    'fog margin: inner glazing minus cabin dew point (< 0: the windscreen fogs).',
+    'fog margin: inner glazing minus cabin dew point (< 0: the windscreen fogs); fog<bound: time with it',
+    "  below the scenario's fog margin bound. CO2 max, CO2>limit (share of time above the scenario's CO2",
+    '  limit), CO2 exposure (time integral of the CO2 above it): the cabin CO2. air quality met: no: the',
+    '  run broke a limit, and is not matched (no saving; docs/metrics.md, "Air quality"). n/a: not recorded.',
 )
 
 
@@ -165,6 +175,8 @@ def table_rows(metrics: Mapping[str, Mapping], kpis: Mapping[str, Mapping], v: v
         if base is not None:
             r['energy_change_pct'] = relative_change_pct(k['energy_kwh'], base['energy_kwh'])
             r['discomfort_change_pct'] = relative_change_pct(k['discomfort_pmvh'], base['discomfort_pmvh'])
+        met = k.get('air_quality_met')
+        r['air_quality_met'] = None if met is None else bool(met)
         mt = (v.matched.get(name) if v is not None else None) or {}
         r['energy_saving_matched_pct'] = mt.get('energy_saving_pct')
         r['dominated'] = mt.get('dominated') if mt else None
@@ -277,9 +289,11 @@ def finish_job(
     kpis = {}
     from ceco_core.kpis import compute_kpis
 
+    limits = scenario.air_quality.limits
     for name, cols in columns.items():
-        kpis[name], _ = compute_kpis(cols, fallback_steps=metrics.get(name, {}).get('fallback_steps'))
-    points = {name: vd.run_point(cols) for name, cols in columns.items()}
+        fallbacks = metrics.get(name, {}).get('fallback_steps')
+        kpis[name], _ = compute_kpis(cols, fallback_steps=fallbacks, air_limits=limits)
+    points = {name: vd.run_point(cols, limits) for name, cols in columns.items()}
     family = {}
     if family_setpoints_c:
         family = vd.run_family(
@@ -291,7 +305,7 @@ def finish_job(
             progress=progress,
             overrides=family_overrides,
         )
-    v = vd.build_verdict(scenario.name, points, family, partial=partial)
+    v = vd.build_verdict(scenario.name, points, family, partial=partial, air_limits=limits)
     rows = table_rows(metrics, kpis, v)
     if case:
         pointer = f'run `ceco benchmark {case}` for it (or this command with --baseline-setpoints-c)'

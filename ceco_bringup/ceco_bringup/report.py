@@ -79,6 +79,11 @@ SAME_LENGTH_S = 0.5 * PLANT_STEP_S
 
 
 # ---------------------------------------------------------------- formatting
+def _met_cell(met) -> str:
+    """``air_quality_met`` (1.0 / 0.0 / NaN) as a table cell."""
+    return 'n/a' if met is None or not math.isfinite(float(met)) else ('yes' if met else 'no: BROKE a limit')
+
+
 def _change_pct(x: Mapping, base: RunData | None, key: str) -> str:
     """The change of metric ``key`` against the baseline run, formatted ('n/a' without one)."""
     return fmt_pct(relative_change_pct(x[key], base.recomputed[key])) if base else 'n/a'
@@ -268,6 +273,10 @@ def _metrics_table(
                 fmt_num(x['pmv_mean'], 3),
                 pmv_scale_cell(x['pmv_max']),
                 fmt_num(k['iso7730_invalid_pct'] if k['iso7730_invalid_pct'] is not None else math.nan, 1),
+                fmt_num(x.get('co2_max_ppm', math.nan), 0),
+                fmt_num(x.get('co2_above_limit_pct', math.nan), 1),
+                fmt_num(x.get('fog_below_bound_s', math.nan), 0),
+                _met_cell(x.get('air_quality_met', math.nan)),
                 r.source,
                 'no metrics.json'
                 if not r.stored
@@ -306,6 +315,10 @@ def _metrics_table(
             'PMV mean',
             'PMV max',
             'ISO out [%]',
+            'CO2 max [ppm]',
+            'CO2>limit [%]',
+            'fog<bound [s]',
+            'air quality met',
             'from',
             'vs metrics.json',
         ),
@@ -315,7 +328,10 @@ def _metrics_table(
         'PMV clipped at ±3. I_PMV = ∫PMV² dt (the paper\'s). viol.: share of time outside the scenario\'s PMV '
         'bounds; t_comfort: first time PMV stays in -0.5..+0.5 for 60 s. PMV beyond ±3 is off ISO 7730\'s '
         'scale (shown >3: clipped); ISO out: share of samples whose PMV or its inputs lie outside ISO 7730 '
-        'validity (comfort numbers there are extrapolations).',
+        'validity (comfort numbers there are extrapolations). Air quality against the scenario\'s limits '
+        '(docs/metrics.md, "Air quality"): CO2 max, CO2>limit (share of time above the CO2 limit), fog<bound (time '
+        'with the fog margin below its bound); air quality met: no when the run broke a limit (it is then not '
+        'matched: no saving); n/a: not recorded, or the limits are unknown.',
     )
     return table, csv_rows
 
@@ -491,8 +507,9 @@ def _verdict_paragraphs(lines: Sequence[str]) -> list:
 def _verdict_section(scenario: str, group: Mapping[str, RunData], fig_dir: Path) -> tuple[list, Path, list]:
     """The verdict of one scenario in words and the energy-discomfort plane: (blocks, figure, console lines)."""
     labels = figures.ordered(list(group))
-    points = {lab: vd.run_point(group[lab].columns) for lab in labels}
+    points = {lab: vd.run_point(group[lab].columns, group[lab].air_limits) for lab in labels}
     family, source, kept_in = _family_for(scenario, group)
+    limits = next((group[lab].air_limits for lab in labels if group[lab].air_limits is not None), None)
     v = vd.build_verdict(
         scenario,
         points,
@@ -500,6 +517,7 @@ def _verdict_section(scenario: str, group: Mapping[str, RunData], fig_dir: Path)
         family_source=source,
         family_file=kept_in,
         partial={lab: group[lab].partial for lab in labels if group[lab].partial},
+        air_limits=limits,
     )
     pointer = (
         f'`ceco run --scenario {scenario} --strategy all --out DIR` runs the baseline family with the '
@@ -528,7 +546,7 @@ def _scenario_section(scenario: str, group: Mapping[str, RunData], fig_dir: Path
     from ceco_core.kpis import compute_kpis
 
     labels = figures.ordered(list(group))
-    kpis = {lab: compute_kpis(group[lab].columns)[0] for lab in labels}
+    kpis = {lab: compute_kpis(group[lab].columns, air_limits=group[lab].air_limits)[0] for lab in labels}
     table, metric_rows = _metrics_table(scenario, group, labels, kpis)
     paths = [group[lab].scenario_path for lab in labels if group[lab].scenario_path is not None]
     blocks: list = [

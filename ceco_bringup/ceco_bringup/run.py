@@ -518,7 +518,7 @@ def run_one(
     from ceco_core.metrics import run_metrics
     from ceco_core.run_status import check_control, fallback_control_steps
 
-    metrics = run_metrics(ts_data)
+    metrics = run_metrics(ts_data, air_limits=scenario.air_quality.limits)
     metrics.update(
         {
             'scenario': scenario.name,

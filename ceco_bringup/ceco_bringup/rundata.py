@@ -13,12 +13,17 @@ recomputes its metrics with ``ceco_core.metrics.run_metrics`` and compares them
 with ``metrics.json`` when there is one; :func:`solver_stats` summarises its
 solver diagnostics.
 
+Air quality is scored against the limits ``metrics.json`` records (``co2_limit_ppm``, ``fog_margin_bound_k``),
+else those of the run's scenario (its copy, or the bundled one by name); a ``metrics.json`` without the
+air-quality numbers (an older run) has them computed from the time series and noted as not recorded, not as a
+mismatch.
+
 Public API:
     RunData                        one loaded, checked run
     discover_runs(paths)           run directories among paths (or one level below)
     load_run(run_dir, rtol, namespace, scenario=None, strategy=None) -> RunData
     read_bag(bag_dir, read, *args) a bagio reader's result; a damaged bag as one ValueError, a wrong namespace apart
-    recompute_metrics(columns) / compare_metrics(stored, recomputed, rtol, atol)
+    recompute_metrics(columns, air_limits) / compare_metrics(stored, recomputed, rtol, atol)
     csv_precision_digits(path)     significant digits a CSV's writer used
     fallback_mask(column)          which control steps fell back
     solver_stats(diagnostics)      summary statistics of the solver diagnostics
@@ -35,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ceco_core.air_quality import AirQualityLimits
 from ceco_core.rundir import read_csv_columns, read_metrics_json
 
 __all__ = [
@@ -88,6 +94,8 @@ class RunData:
     """The run's copy of its scenario file (``DIR/scenario.yaml``), None for older runs and bags."""
     info: dict = dataclasses.field(default_factory=dict)
     """``run.json`` (``ceco_bringup.provenance``) and, for a bag, where scenario and strategy came from."""
+    air_limits: AirQualityLimits | None = None
+    """The limits the run's air quality is scored against (metrics.json's, else its scenario's); None: unknown."""
 
 
 def is_run(path: str | Path) -> bool:
@@ -139,8 +147,10 @@ def csv_precision_digits(path: str | Path, columns: Sequence[str] = METRIC_INPUT
     return best
 
 
-def recompute_metrics(columns: Mapping) -> dict:
+def recompute_metrics(columns: Mapping, air_limits: AirQualityLimits | None = None) -> dict:
     """The metrics over a run's time series columns (``ceco_core.metrics.run_metrics``).
+
+    With ``air_limits`` also the air quality scored against them, as ``ceco sim`` and ``ceco run`` write it.
 
     A time series without the condenser fan column (a run directory from before it was recorded)
     gets the fan as 0 W; the caller says so (:func:`load_run` adds a note).
@@ -152,7 +162,7 @@ def recompute_metrics(columns: Mapping) -> dict:
         raise ValueError(f'time series: missing columns {missing}')
     if 'p_cond_fan_w' not in columns:
         columns = dict(columns, p_cond_fan_w=np.zeros(len(columns['t_s'])))
-    return run_metrics(columns)
+    return run_metrics(columns, air_limits)
 
 
 CHECKED_KEYS = ('E_comp_J', 'E_blower_J', 'E_tot_J', 'duration_s')
@@ -316,6 +326,26 @@ def _identity(run_dir: Path, stored: Mapping, namespace, scenario, strategy) -> 
     return str(sc or UNKNOWN_SCENARIO), str(st or run_dir.name), info, length
 
 
+def _air_limits(run_dir: Path, stored: Mapping, scenario: str) -> tuple[AirQualityLimits | None, str]:
+    """(limits, where from): those metrics.json records, else those of the run's scenario; (None, why) if neither."""
+    from ceco_bringup import provenance
+    from ceco_core.kpis import air_limits_of
+
+    try:
+        recorded = air_limits_of(stored)
+    except ValueError as exc:
+        raise ValueError(f'{run_dir / "metrics.json"}: {exc}') from None
+    if recorded is not None:
+        return recorded, 'metrics.json'
+    try:
+        from ceco_v2x_preview.scenario import load_scenario
+
+        path = provenance.scenario_path(run_dir)
+        return load_scenario(path or scenario).air_quality.limits, f'its scenario {scenario}'
+    except (ImportError, ValueError, OSError):
+        return None, f'metrics.json records no limits and the scenario {scenario!r} cannot be read'
+
+
 def load_run(
     run_dir: str | Path,
     rtol: float = 1e-6,
@@ -349,7 +379,15 @@ def load_run(
     sc, st, info, length = _identity(run_dir, stored, namespace, scenario, strategy)
     if 'p_cond_fan_w' not in columns:
         notes.append('no condenser fan column (older run directory): E_tot counts compressor + blower only')
-    recomputed = recompute_metrics(columns)
+    air_limits, limits_from = _air_limits(run_dir, stored, sc)
+    if air_limits is None:
+        notes.append(f'air quality not scored: {limits_from}')
+    elif has_json and 'air_quality_met' not in stored:
+        notes.append(
+            'metrics.json records no air quality (an older run): not recorded, so not checked; shown as computed '
+            f'from the time series against the limits of {limits_from}'
+        )
+    recomputed = recompute_metrics(columns, air_limits)
     check_rtol = rtol
     if source == 'timeseries.csv':
         # A value written with d significant digits is off by up to
@@ -396,6 +434,7 @@ def load_run(
         notes=notes,
         scenario_path=provenance.scenario_path(run_dir),
         info=info,
+        air_limits=air_limits,
     )
 
 

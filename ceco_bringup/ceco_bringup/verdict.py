@@ -20,7 +20,10 @@ lower of the two at its own discomfort (their envelope).
   strategy that moves the recirculation door in the job (:func:`moves_door`: ``ceco-pmv-aq``), the same
   laws with its CO2-holding door too (:data:`DOOR_FAMILY_LAWS`): each strategy is read against the laws
   given the same actuators (:func:`comparable_family`);
-* :func:`build_verdict` / :func:`verdict_lines`: the numbers and the words;
+* :func:`build_verdict` / :func:`verdict_lines`: the numbers and the words; a run that broke the scenario's
+  air-quality limits (CO2 limit, fog margin bound: ``ceco_core.kpis.breaks_air_quality``, the benchmark's rule)
+  is said to have broken them and is never matched (no saving), and a family member that broke them is on no
+  front;
   :func:`write_verdict` / :func:`read_verdict`: ``verdict.json``.
 
 Signs: ``energy_saving_pct`` positive = less energy than the front at the same discomfort;
@@ -41,6 +44,8 @@ from pathlib import Path
 import numpy as np
 
 from ceco_bringup.benchmark.schema import DOOR_CO2_HOLD, door_family
+from ceco_core.air_quality import AirQualityLimits
+from ceco_core.kpis import AIR_QUALITY_KEYS, air_limit_entries, breaks_air_quality
 from ceco_core.metrics import ENERGY_PARTS, relative_change_pct
 
 __all__ = [
@@ -117,19 +122,24 @@ POINT_KEYS = (
     'i_pmv_clipped',
     'otc_violation_pct',
     'iso7730_invalid_pct',
+    'fog_margin_min_k',
+    *AIR_QUALITY_KEYS,
 )
 
 
-def run_point(columns: Mapping) -> dict:
+def run_point(columns: Mapping, air_limits: AirQualityLimits | None = None) -> dict:
     """A run's point in the plane and what the verdict says about it.
 
     :data:`POINT_KEYS` of ``compute_kpis`` plus ``pmv_end`` (mean PMV over the last
     :data:`END_WINDOW_S`), ``pmv_max_clipped`` (max PMV on the +-3 scale) and ``duration_s``.
+    The air-quality KPIs are scored against ``air_limits`` (the scenario's); None: not scored (limits unknown).
     """
     from ceco_core.kpis import compute_kpis
     from ceco_core.metrics import PMV_SCALE_LIMIT
 
-    k, _ = compute_kpis(columns)
+    k, _ = compute_kpis(columns, air_limits=air_limits)
+    if air_limits is None:
+        k.update(dict.fromkeys(AIR_QUALITY_KEYS))
     t = np.asarray(columns['t_s'], dtype=float)
     y = np.asarray(columns['pmv'], dtype=float)
     end = t >= t[-1] - END_WINDOW_S + 1e-9
@@ -208,7 +218,10 @@ def run_family(
     ``overrides``: ``((field, value), ...)`` of the baseline's settings every member gets (e.g. a case's door).
     """
     from ceco_controller.closed_loop import SimSettings, simulate
+    from ceco_v2x_preview.scenario import load_scenario
 
+    if isinstance(scenario, str):
+        scenario = load_scenario(scenario)
     items = [(law, float(x)) for law in laws for x in setpoints_c]
     law_overrides = {law: _law_overrides(law) for law in laws}
     if progress:
@@ -223,7 +236,8 @@ def run_family(
             progress=False,
             strategy_overrides=tuple(sorted({**dict(overrides), **dict(law_overrides[law]), 'setpoint_c': sp}.items())),
         )
-        out[f'{law}@{sp:.1f}'] = run_point(simulate(scenario, 'baseline', settings).timeseries)
+        res = simulate(scenario, 'baseline', settings)
+        out[f'{law}@{sp:.1f}'] = run_point(res.timeseries, scenario.air_quality.limits)
     return out
 
 
@@ -272,6 +286,11 @@ class Verdict:
     """{law: {strategy: matched(..., law=law)}} when the family has more than one law."""
     changes: dict = dataclasses.field(default_factory=dict)
     """{strategy: {'energy_change_pct', 'discomfort_change_pct'}} against the baseline run."""
+    air_limits: dict = dataclasses.field(default_factory=dict)
+    """The limits the runs' air quality was scored against (``co2_limit_ppm`` [ppm], ``fog_margin_bound_k`` [K];
+    ``ceco_core.kpis.AIR_LIMIT_KEYS``); empty: not scored."""
+    air_quality_broken: list = dataclasses.field(default_factory=list)
+    """The strategies whose run broke the air-quality limits (``air_quality_met`` 0): never matched, no saving."""
 
     def as_dict(self) -> dict:
         """Plain data for ``verdict.json``."""
@@ -286,8 +305,14 @@ def build_verdict(
     family_source: str = 'in-process simulator',
     family_file: str = '',
     partial: Mapping[str, str] | None = None,
+    air_limits: AirQualityLimits | None = None,
 ) -> Verdict:
-    """The verdict of a job's runs (``points``: {strategy: run_point}) against a family (or none)."""
+    """The verdict of a job's runs (``points``: {strategy: run_point}) against a family (or none).
+
+    ``air_limits``: the limits the points' air quality was scored against (:func:`run_point`), recorded in the
+    verdict. A run that broke them (``ceco_core.kpis.breaks_air_quality``) is not matched, and a family member
+    that broke them is on no front (the benchmark's rule).
+    """
     partial = dict(partial or {})
     base = 'baseline' if 'baseline' in points else None
     v = Verdict(
@@ -299,12 +324,24 @@ def build_verdict(
         family_source=family_source if family else '',
         family_file=family_file if family else '',
         partial=partial,
+        air_limits=air_limit_entries(air_limits) if air_limits is not None else {},
     )
+    v.air_quality_broken = [n for n, p in points.items() if n not in partial and breaks_air_quality(p)]
     for name, p in points.items():
         if name in partial:
             continue
-        fam = comparable_family(v.family, name)
-        if fam:
+        whole = comparable_family(v.family, name)
+        fam = {n: q for n, q in whole.items() if not breaks_air_quality(q)}
+        if name in v.air_quality_broken:
+            pass  # a saving bought with stale air or a fogged windshield is no saving
+        elif whole and not fam:
+            v.matched[name] = {
+                'energy_saving_pct': None,
+                'discomfort_reduction_pct': None,
+                'dominated': False,
+                'note': 'every set-point of the family broke the air-quality limits',
+            }
+        elif fam:
             v.matched[name] = matched(fam, p)
             laws = sorted({family_law(n) for n in fam})
             if len(laws) > 1:
@@ -361,6 +398,46 @@ def _band_words(p: Mapping) -> str:
     return f"in -0.5..+0.5 from {p['time_to_comfort_s']:.0f} s on (PMV {p['pmv_end']:+.2f} at the end)"
 
 
+def _num(x, spec: str) -> str:
+    return 'n/a' if x is None or not math.isfinite(float(x)) else format(float(x), spec)
+
+
+def _broke_words(p: Mapping, limits: Mapping) -> str:
+    """What a run that broke the air-quality limits did, and what follows."""
+    return (
+        f"BROKE the air-quality limits: CO2 max {_num(p.get('co2_max_ppm'), '.0f')} ppm, above "
+        f"{_num(limits.get('co2_limit_ppm'), 'g')} ppm {_num(p.get('co2_above_limit_pct'), '.1f')} % of the time; "
+        f"fog margin below {_num(limits.get('fog_margin_bound_k'), 'g')} K {_num(p.get('fog_below_bound_s'), '.0f')} s:"
+        ' not matched, no saving'
+    )
+
+
+def _air_line(v: Verdict) -> str:
+    """The air quality of the job's runs in one line (the runs that broke the limits are named)."""
+    lim = v.air_limits
+    if not lim:
+        return 'Air quality: not scored (the limits the runs were scored against are unknown).'
+    co2_lim, fog_lim = f"{lim['co2_limit_ppm']:g}", f"{lim['fog_margin_bound_k']:g}"
+    done = {n: p for n, p in v.points.items() if n not in v.partial}
+    if not done:
+        return f'Air quality (CO2 <= {co2_lim} ppm, fog margin >= {fog_lim} K): no complete run.'
+    unknown = [n for n, p in done.items() if p.get('air_quality_met') is None]
+    held = [p for n, p in done.items() if n not in v.air_quality_broken and n not in unknown]
+    co2 = _num(max((p['co2_max_ppm'] for p in held if p.get('co2_max_ppm') is not None), default=None), '.0f')
+    fog = _num(min((p['fog_margin_min_k'] for p in held if p.get('fog_margin_min_k') is not None), default=None), '.1f')
+    if held and len(held) == len(done):
+        held_words = f'CO2 <= {co2_lim} ppm (max {co2} ppm) and fog margin >= {fog_lim} K (min {fog} K)'
+        return f'Air quality: every run held {held_words}.'
+    words = []
+    if v.air_quality_broken:
+        words.append(f"broken by {', '.join(v.air_quality_broken)} (not matched, no saving)")
+    if held:
+        words.append(f'the others held them (CO2 max {co2} ppm, fog margin min {fog} K)')
+    if unknown:
+        words.append(f"not recorded for {', '.join(unknown)}")
+    return f'Air quality (CO2 <= {co2_lim} ppm, fog margin >= {fog_lim} K): ' + '; '.join(words) + '.'
+
+
 def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
     """The verdict in words, each line at most 100 characters.
 
@@ -377,7 +454,9 @@ def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
             lines.append(head + f'partial run ({v.partial[name]}): not compared')
             continue
         lines.append(head + _band_words(p))
-        if name in v.matched:
+        if name in v.air_quality_broken:
+            lines.append(f"  {'':<{width}} {_broke_words(p, v.air_limits)}")
+        elif name in v.matched:
             fam = comparable_family(v.family, name)
             single = len({family_law(n) for n in fam}) == 1
             words = _matched_words(v.matched[name], name == v.baseline and single)
@@ -390,6 +469,7 @@ def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
             lines.append(f"  {'':<{width}} {words}")
         elif name not in v.partial and v.family and moves_door(name):
             lines.append(f"  {'':<{width}} no matched value: the family has no law with the door it moves")
+    lines.append(_air_line(v))
     if v.family:
         sps = sorted({float(n.split('@')[1]) for n in v.family})
         laws = sorted({family_law(n) for n in v.family if not family_law(n).endswith(_DOOR_SUFFIX)})
@@ -407,6 +487,9 @@ def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
             )
         if v.family_file:
             lines.append(f'  (kept in {v.family_file})')
+        n_broke = sum(breaks_air_quality(p) for p in v.family.values())
+        if n_broke:
+            lines.append(f'  {n_broke} of the {len(v.family)} runs broke the air-quality limits: on no front.')
         scored = {n: m for n, m in v.matched.items() if n != v.baseline and m.get('energy_saving_pct') is not None}
         if scored:
             best = max(scored, key=lambda n: scored[n]['energy_saving_pct'])

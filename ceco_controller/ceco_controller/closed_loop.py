@@ -257,7 +257,7 @@ def simulate(
         }
         for c in TIMESERIES_COLUMNS:
             cols[c][i] = row[c]
-    metrics = run_metrics(cols)
+    metrics = run_metrics(cols, air_limits=scenario.air_quality.limits)
     nd = [d for d in diag_objs if d.solve_time_ms is not None]
     # the comfort-zone phase: samples where the upper bound is at its tightest (after the pull-down
     # relaxation); the paper's metrics restricted to it separate "how the pull-down relaxation was

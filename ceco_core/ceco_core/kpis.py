@@ -41,6 +41,12 @@ __all__ = [
     "edge_arrival_index",
     "actuator_travel",
     "air_quality_kpis",
+    "AIR_QUALITY_KEYS",
+    "AIR_LIMIT_KEYS",
+    "air_limit_entries",
+    "air_limits_of",
+    "run_air_quality",
+    "breaks_air_quality",
 ]
 
 
@@ -207,6 +213,50 @@ def air_quality_kpis(co2_cab_ppm, fog_margin_k, dt_s: float, limits: AirQualityL
     else:
         notes["air_quality_met"] = "run has neither a CO2 nor a fog margin series"
     return k, notes
+
+
+AIR_QUALITY_KEYS = ("co2_max_ppm", "co2_exposure_ppmh", "co2_above_limit_pct", "fog_below_bound_s", "air_quality_met")
+"""The air-quality KPIs of :func:`air_quality_kpis`, in order; a run's ``metrics.json`` has them too
+(:func:`run_air_quality`)."""
+
+AIR_LIMIT_KEYS = ("co2_limit_ppm", "fog_margin_bound_k")
+"""Where a run's ``metrics.json`` records the limits its air quality was scored against [ppm, K]
+(``AirQualityLimits.co2_limit_ppm`` and ``.fog_margin_min_k``; the latter renamed: ``fog_margin_min_k`` is the
+run's smallest fog margin)."""
+
+
+def air_limit_entries(limits: AirQualityLimits) -> dict:
+    """``limits`` as the entries :data:`AIR_LIMIT_KEYS` of a ``metrics.json``."""
+    return {"co2_limit_ppm": float(limits.co2_limit_ppm), "fog_margin_bound_k": float(limits.fog_margin_min_k)}
+
+
+def air_limits_of(metrics: Mapping) -> AirQualityLimits | None:
+    """The limits a ``metrics.json`` records (:data:`AIR_LIMIT_KEYS`); None when it records none (an older run)."""
+    if any(metrics.get(k) is None for k in AIR_LIMIT_KEYS):
+        return None
+    return AirQualityLimits(metrics["co2_limit_ppm"], metrics["fog_margin_bound_k"]).validate()
+
+
+def run_air_quality(columns: Mapping, limits: AirQualityLimits) -> dict:
+    """A run's air quality as its ``metrics.json`` holds it: :data:`AIR_LIMIT_KEYS` and :data:`AIR_QUALITY_KEYS`.
+
+    :func:`air_quality_kpis` over the ``co2_cab_ppm`` and ``fog_margin_k`` columns (either may be absent or all
+    NaN: not recorded) at the spacing of ``t_s``; a KPI that is not defined is NaN (``null`` in the file).
+    """
+    t = as_series("t_s", columns["t_s"], None)
+    if t.size < 2:
+        raise ValueError(f"t_s: need at least 2 samples, got {t.size}")
+    k, _ = air_quality_kpis(columns.get("co2_cab_ppm"), columns.get("fog_margin_k"), float(t[1] - t[0]), limits)
+    return {**air_limit_entries(limits), **{key: math.nan if k[key] is None else k[key] for key in AIR_QUALITY_KEYS}}
+
+
+def breaks_air_quality(kpis: Mapping) -> bool:
+    """True when a run passed its CO2 limit or fog bound (``air_quality_met`` 0): the rule of every verb.
+
+    Such a run is never on a front nor matched: a saving bought with stale air or a fogged windshield is no saving
+    (docs/metrics.md, "Air quality"). Unknown (None or NaN: not recorded) is not a break.
+    """
+    return kpis.get("air_quality_met") == 0.0
 
 
 def discomfort_pmvh(band_distance, dt_s: float) -> float:

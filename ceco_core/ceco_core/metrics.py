@@ -29,6 +29,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from ceco_core.air_quality import AirQualityLimits
+
 __all__ = [
     "J_PER_KWH",
     "ENERGY_PARTS",
@@ -202,8 +204,13 @@ RUN_METRIC_COLUMNS = ("t_s", "p_comp_w", "p_blower_w", "p_cond_fan_w", "pmv", "p
 """The ``timeseries.csv`` columns :func:`run_metrics` reads."""
 
 
-def run_metrics(columns: Mapping) -> dict:
+def run_metrics(columns: Mapping, air_limits: AirQualityLimits | None = None) -> dict:
     """:func:`compute_metrics` over a run's ``timeseries.csv`` columns (:data:`RUN_METRIC_COLUMNS`).
+
+    With ``air_limits`` (the scenario's ``AirQualityLimits``: ``scenario.air_quality.limits``) also the run's air
+    quality scored against them (``ceco_core.kpis.run_air_quality``: the limits and the air-quality KPIs, from the
+    ``co2_cab_ppm`` and ``fog_margin_k`` columns when present). Every writer of ``metrics.json`` (``ceco sim``,
+    ``ceco run``) and ``ceco report``'s check call this one function.
 
     ValueError naming the missing columns (a run directory older than the condenser fan column
     cannot give ``E_tot`` by :data:`ENERGY_PARTS`).
@@ -212,7 +219,12 @@ def run_metrics(columns: Mapping) -> dict:
     if missing:
         raise ValueError(f"time series: missing columns {missing}")
     t, comp, bl, fan, y, lb, ub = (np.asarray(columns[c], dtype=float) for c in RUN_METRIC_COLUMNS)
-    return compute_metrics(t, comp, bl, y, lb, ub, p_fan_w=fan)
+    out = compute_metrics(t, comp, bl, y, lb, ub, p_fan_w=fan)
+    if air_limits is not None:
+        from ceco_core.kpis import run_air_quality  # (here: ceco_core.kpis is built on this module)
+
+        out.update(run_air_quality(columns, air_limits))
+    return out
 
 
 def time_to_comfort(t, dt, y, lo, hi, hold_s) -> float:

@@ -718,10 +718,11 @@ def _run_entry(row: Mapping) -> dict:
 def breaks_air_quality(run: Mapping) -> bool:
     """True when a run passed the scenario's CO2 limit or fog bound (KPI ``air_quality_met`` 0).
 
-    Such a run is never on a front nor matched (a saving bought with stale air or a fogged windshield is no
-    saving); unknown (None) is not a break.
+    Such a run is never on a front nor matched; the rule of every verb (``ceco_core.kpis.breaks_air_quality``).
     """
-    return (run.get('kpis') or {}).get('air_quality_met') == 0.0
+    from ceco_core.kpis import breaks_air_quality as breaks
+
+    return breaks(run.get('kpis') or {})
 
 
 def air_quality_broken(runs: Sequence[Mapping]) -> list[str]:

@@ -1,0 +1,117 @@
+"""Every verb's outputs tell the truth about air quality with the benchmark's rule (docs/metrics.md, "Air quality").
+
+A run of ``ceco sim`` keeps in its metrics.json the air-quality KPIs (``ceco_core.kpis.air_quality_kpis``) scored
+against its scenario's limits; the job's tables and verdict show them, and a run that broke a limit is said to have
+broken it and claims no saving (``ceco_core.kpis.breaks_air_quality``, the benchmark's rule); ``ceco report``
+recomputes and checks them, and reads a run from before they were recorded without calling it a mismatch.
+In-process, 90 s of SC03 with a CO2 limit the cabin starts above."""
+
+import json
+
+import pytest
+import yaml
+
+from ceco_bringup import provenance, report, rundata, sim
+from ceco_bringup import verdict as vd
+from ceco_core.air_quality import AirQualityLimits
+from ceco_core.kpis import AIR_QUALITY_KEYS, air_quality_kpis
+from ceco_core.rundir import read_csv_columns
+
+DURATION_S = 90.0
+LIMITS = AirQualityLimits(co2_limit_ppm=450.0, fog_margin_min_k=3.0)
+"""The test scenario's limits: SC03's ambient CO2 (425 ppm) is below the limit, the cabin starts at 900 ppm."""
+
+
+@pytest.fixture(scope='module')
+def job(tmp_path_factory):
+    """``ceco sim`` of baseline and ceco on SC03 with a 450-ppm CO2 limit, and a two-member family."""
+    tmp = tmp_path_factory.mktemp('aq')
+    data = yaml.safe_load(provenance.copy_scenario('sc03', tmp / 'copy').read_text())
+    data['name'] = 'sc03_stale'
+    data.setdefault('initial', {})['co2_cab_ppm'] = 900.0
+    data['air_quality'] = {**data.get('air_quality', {}), 'co2_limit_ppm': LIMITS.co2_limit_ppm}
+    path = tmp / 'sc03_stale.yaml'
+    path.write_text(yaml.safe_dump(data))
+    out = tmp / 'job'
+    argv = ['--scenario', str(path), '--strategy', 'baseline,ceco', '--duration-s', str(DURATION_S)]
+    assert sim.main([*argv, '--out', str(out), '--no-progress', '--baseline-setpoints-c', '25,26']) == 0
+    return out
+
+
+def test_metrics_json_holds_the_kpis_of_the_time_series(job):
+    """Each run's metrics.json: the limits it was scored against and air_quality_kpis of its own time series."""
+    for name in ('baseline', 'ceco'):
+        m = json.loads((job / name / 'metrics.json').read_text())
+        ts = read_csv_columns(job / name / 'timeseries.csv')
+        want, _ = air_quality_kpis(ts['co2_cab_ppm'], ts['fog_margin_k'], 1.0, LIMITS)
+        assert (m['co2_limit_ppm'], m['fog_margin_bound_k']) == (450.0, 3.0)
+        assert {k: m[k] for k in AIR_QUALITY_KEYS} == pytest.approx(want, rel=1e-12)
+        assert m['air_quality_met'] == 0.0 and m['co2_max_ppm'] > 450.0 and m['co2_above_limit_pct'] > 0.0
+
+
+def test_tables_and_verdict_say_the_limit_was_broken_and_claim_no_saving(job):
+    """summary.txt names each run that broke the limit and says it claims no saving; verdict.json records the
+    limits, the numbers and the broken runs, and matches none of them; comparison.txt has the columns."""
+    summary = (job / 'summary.txt').read_text()
+    assert summary.count('BROKE the air-quality limits: CO2 max') == 2
+    assert 'broken by baseline, ceco (not matched, no saving)' in summary
+    assert 'saves' not in summary and 'Headline' not in summary
+    v = json.loads((job / 'verdict.json').read_text())
+    assert v['air_limits'] == {'co2_limit_ppm': 450.0, 'fog_margin_bound_k': 3.0}
+    assert v['air_quality_broken'] == ['baseline', 'ceco'] and not v['matched']
+    assert v['points']['ceco']['air_quality_met'] == 0.0 and v['points']['ceco']['co2_max_ppm'] > 450.0
+    full = (job / 'comparison.txt').read_text()
+    assert 'CO2 max [ppm]' in full and 'fog<bound [s]' in full and 'air quality met' in full
+
+
+def test_a_broken_run_below_the_front_gets_no_saving_and_a_broken_member_makes_no_front():
+    """The verdict's rule on points: a run that broke a limit saves nothing even below the front (it said "saves"),
+    and a family member that broke one is on no front (the benchmark's ``fronts_of``)."""
+
+    def point(d, e, met=1.0):
+        p = dict(energy_kwh=e, discomfort_pmvh=d, time_to_comfort_s=None, pmv_end=0.6, duration_s=600.0)
+        p.update(air_quality_met=met, co2_max_ppm=1600.0 if met == 0.0 else 800.0, co2_above_limit_pct=5.0)
+        return dict(p, fog_below_bound_s=0.0, fog_margin_min_k=6.0)
+
+    family = {f'baseline@{sp:.1f}': point(d, e) for sp, d, e in ((24, 0.10, 0.44), (26, 0.13, 0.37), (27, 0.17, 0.34))}
+    limits = AirQualityLimits(1500.0, 3.0)
+    points = {'ceco': point(0.11, 0.30, met=0.0), 'ceco-e': point(0.11, 0.38)}
+    v = vd.build_verdict('sc03', points, family, air_limits=limits)
+    assert 'ceco' not in v.matched and v.air_quality_broken == ['ceco']
+    assert v.matched['ceco-e']['energy_saving_pct'] > 0.0
+    text = '\n'.join(vd.verdict_lines(v))
+    assert 'BROKE the air-quality limits: CO2 max 1600 ppm, above 1500 ppm 5.0 % of the time' in text
+    assert 'Headline: ceco-e saves the most' in text
+    # ceco-pmv lies between the 26 and 27 degC members; once the 27-degC member broke a limit it is left of no front
+    warm = {'ceco-pmv': point(0.15, 0.36)}
+    assert vd.build_verdict('sc03', warm, family).matched['ceco-pmv']['energy_saving_pct'] is not None
+    family['baseline@27.0']['air_quality_met'] = 0.0
+    v = vd.build_verdict('sc03', warm, family, air_limits=limits)
+    assert v.matched['ceco-pmv']['energy_saving_pct'] is None
+    assert '1 of the 3 runs broke the air-quality limits: on no front.' in '\n'.join(vd.verdict_lines(v))
+
+
+def test_report_recomputes_and_checks_the_air_quality(job, tmp_path):
+    """ceco report on the job: the recomputed air quality equals metrics.json (checked), and the report shows it;
+    a changed co2_max_ppm is a mismatch; a metrics.json without the keys (an older run) loads with a note."""
+    res = report.build_report([job], tmp_path / 'rep', log=lambda *a, **k: None)
+    assert not res['mismatch']
+    for r in res['runs']:
+        for key in ('co2_limit_ppm', 'fog_margin_bound_k', *AIR_QUALITY_KEYS):
+            assert r.recomputed[key] == pytest.approx(r.stored[key], rel=1e-12)
+    md = res['markdown'].read_text()
+    assert '| CO2 max [ppm] | CO2>limit [%] | fog<bound [s] | air quality met |' in md
+    assert md.count('no: BROKE a limit') == 2 and 'broken by baseline, ceco (not matched, no saving)' in md
+    run = job / 'ceco'
+    stored = json.loads((run / 'metrics.json').read_text())
+    tampered = tmp_path / 'tampered'
+    (tampered).mkdir()
+    (tampered / 'timeseries.csv').write_text((run / 'timeseries.csv').read_text())
+    (tampered / 'metrics.json').write_text(json.dumps({**stored, 'co2_max_ppm': stored['co2_max_ppm'] - 100.0}))
+    assert [k for k, _, _ in rundata.load_run(tampered).mismatches] == ['co2_max_ppm']
+    old = {k: v for k, v in stored.items() if k not in ('co2_limit_ppm', 'fog_margin_bound_k', *AIR_QUALITY_KEYS)}
+    (tampered / 'metrics.json').write_text(json.dumps(old))
+    (tampered / 'scenario.yaml').write_text((run / 'scenario.yaml').read_text())
+    loaded = rundata.load_run(tampered)
+    assert not loaded.mismatches and loaded.recomputed['air_quality_met'] == 0.0
+    assert any('metrics.json records no air quality' in n and 'not checked' in n for n in loaded.notes)
