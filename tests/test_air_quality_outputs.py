@@ -91,6 +91,29 @@ def test_a_broken_run_below_the_front_gets_no_saving_and_a_broken_member_makes_n
     assert '1 of the 3 runs broke the air-quality limits: on no front.' in '\n'.join(vd.verdict_lines(v))
 
 
+def test_the_air_quality_line_does_not_say_co2_held_for_a_run_without_co2():
+    """A run without a CO2 series (a bag from before it was recorded) is judged on its fog margin alone: the verdict's
+    line says no CO2 was recorded for it (it said "every run held CO2 <= 1500 ppm (max n/a ppm)")."""
+    base = dict(energy_kwh=0.4, discomfort_pmvh=0.1, time_to_comfort_s=None, pmv_end=0.6, duration_s=600.0)
+    aq = dict(air_quality_met=1.0, co2_above_limit_pct=0.0, fog_below_bound_s=0.0, fog_margin_min_k=6.0)
+    points = {'baseline': dict(base, **aq, co2_max_ppm=None), 'ceco': dict(base, **aq, co2_max_ppm=700.0)}
+
+    def text() -> str:  # the verdict's lines, unwrapped (they are wrapped at 100 characters)
+        lines = vd.verdict_lines(vd.build_verdict('sc03', points, {}, air_limits=AirQualityLimits(1500.0, 3.0)))
+        return ' '.join(' '.join(lines).split())
+
+    head = 'Air quality (CO2 <= 1500 ppm, fog margin >= 3 K): the runs held them'
+    assert 'every run held' not in text()
+    assert (
+        f'{head} (CO2 max 700 ppm, fog margin min 6.0 K); no CO2 recorded for baseline (judged on the fog margin '
+        'alone).'
+    ) in text()
+    points['ceco']['co2_max_ppm'] = None
+    assert f'{head} (fog margin min 6.0 K); no CO2 recorded for baseline, ceco (judged on the fog margin alone).' in (
+        text()
+    )
+
+
 def test_report_recomputes_and_checks_the_air_quality(job, tmp_path):
     """ceco report on the job: the recomputed air quality equals metrics.json (checked), and the report shows it;
     a changed co2_max_ppm is a mismatch; a metrics.json without the keys (an older run) loads with a note."""

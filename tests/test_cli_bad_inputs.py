@@ -220,9 +220,34 @@ def test_a_run_the_plant_cannot_simulate_is_a_failed_run_not_a_traceback(tmp_pat
     assert sim.main(['--scenario', str(path), '--strategy', 'baseline', '--no-progress', '--out', str(out)]) == 1
     text = capsys.readouterr()
     assert 'Traceback' not in text.err + text.out
-    why = 'the simulation stopped: refrigerant cycle did not converge in 30 iterations (compiled plant, step '
+    why = 'the simulation stopped: refrigerant cycle did not converge in 30 iterations ('  # compiled or Python plant
     assert f'  baseline: FAILED: {why}' in text.out
     assert '1 of 1 runs failed (not compared):' in text.out
     run = json.loads((out / 'baseline' / 'run.json').read_text())
     assert run['status'] == 'failed' and run['error'].startswith(why), run
     assert not (out / 'baseline' / 'metrics.json').exists()
+
+
+def test_a_bad_model_file_is_named_as_such_not_as_a_control_period_error(tmp_path, capsys):
+    """The up-front Ts check reads the NMPC's model file: a file that is not one says so by itself (the check
+    prefixed it with "scenario sc03: control.control_period_s")."""
+    from ceco_bringup import sim
+
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('foo: 1\n')
+    with pytest.raises(SystemExit) as exc:
+        sim.main(
+            [
+                '--scenario',
+                'sc03',
+                '--strategy',
+                'baseline,ceco',
+                '--model-params',
+                str(bad),
+                '--out',
+                str(tmp_path / 'o'),
+            ]
+        )
+    assert exc.value.code == 2
+    err = _one_line(capsys.readouterr().err)
+    assert err.startswith(f'ceco sim: error: {bad}: ') and 'control_period_s' not in err, err

@@ -599,3 +599,13 @@ def test_edge_headroom_co2_margin_reaches_the_bounds_and_is_checked(capsys):
         assert e.value.code == 2
         err = capsys.readouterr().err
         assert '--co2-margin-ppm: OracleSettings.co2_margin_ppm: must be finite and >= 0' in err, err
+
+
+def test_a_drive_cycle_axis_takes_a_cycle_of_a_fractional_length_as_the_loader_does(tmp_path):
+    """A user cycle ending at 60.5 s: a scenario that names it runs 60 s (whole plant steps), and so does the grid's
+    drive_cycles axis (it wrote the cycle's raw 60.5 s into the cell's scenario, which the loader then refused)."""
+    (tmp_path / 'odd.csv').write_text('time_s,speed_mps\n0,0\n30,10\n60.5,10\n')
+    text = 'strategies: [baseline]\nscenarios: [sc03]\ndrive_cycles: {odd: odd.csv}\n'
+    (cell,) = sweep.expand_grid(sweep.load_grid(_grid(tmp_path, text)))
+    assert cell.axes['drive_cycle'] == 'odd' and cell.spec['scenario']['duration_s'] == 60.0
+    assert scenario_from_dict(cell.spec['scenario']).duration_s == 60.0

@@ -106,7 +106,12 @@ def check_control_period(args, scenario, model_params_path=None) -> None:
     from ceco_plant_sim.scenario_plant import steps_per_control
 
     ts = args.control_period_s or scenario.control.control_period_s
-    name = '--control-period-s' if args.control_period_s else f'scenario {scenario.name}: control.control_period_s'
+    if not args.control_period_s:
+        name = f'scenario {scenario.name}: control.control_period_s'
+    elif getattr(args, 'case', None) is not None:
+        name = f'Ts {ts:g} s (--control-period-s, else the case\'s control_period_s)'
+    else:
+        name = '--control-period-s'
     try:
         steps_per_control(ts, PLANT_STEP_S)
     except ValueError as exc:
@@ -115,7 +120,8 @@ def check_control_period(args, scenario, model_params_path=None) -> None:
     if nmpc:
         from ceco_controller.model import load_params, substeps
 
+        params = load_params(model_params_path)  # a bad file says so itself, not as a control-period error
         try:
-            substeps(load_params(model_params_path), ts)
+            substeps(params, ts)
         except ValueError as exc:
             raise ValueError(f'{name}: {exc} (the NMPC strategies: {", ".join(nmpc)})') from None

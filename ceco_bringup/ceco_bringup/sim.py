@@ -123,6 +123,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     cli_args.check_out(parser, args.out)
     from ceco_controller.closed_loop import SimSettings, simulate, write_run
+    from ceco_plant_sim.scenario_plant import PlantStepError
     from ceco_v2x_preview.preview import parse_quality
     from ceco_v2x_preview.scenario import load_scenario
 
@@ -166,7 +167,7 @@ def main(argv=None) -> int:
             provenance.finish_run(run_dir, 'interrupted')
             print('ceco sim: interrupted; the finished strategies are kept', file=sys.stderr)
             return 130
-        except RuntimeError as exc:  # the simulation could not go on (the plant's refrigerant cycle outside its model)
+        except PlantStepError as exc:  # the plant's refrigerant cycle left its model: the run cannot go on
             failed[s] = f'the simulation stopped: {exc}'
             provenance.finish_run(run_dir, 'failed', failed[s])
             line = outputs.failed_line(s, failed[s], run_dir)

@@ -423,16 +423,23 @@ def _air_line(v: Verdict) -> str:
         return f'Air quality (CO2 <= {co2_lim} ppm, fog margin >= {fog_lim} K): no complete run.'
     unknown = [n for n, p in done.items() if p.get('air_quality_met') is None]
     held = [p for n, p in done.items() if n not in v.air_quality_broken and n not in unknown]
+    # a run without a CO2 series is judged on its fog margin alone (ceco_core.kpis.air_quality_kpis): not "held CO2"
+    no_co2 = [n for n, p in done.items() if p.get('co2_max_ppm') is None and n not in unknown]
     co2 = _num(max((p['co2_max_ppm'] for p in held if p.get('co2_max_ppm') is not None), default=None), '.0f')
     fog = _num(min((p['fog_margin_min_k'] for p in held if p.get('fog_margin_min_k') is not None), default=None), '.1f')
-    if held and len(held) == len(done):
+    if held and len(held) == len(done) and not no_co2:
         held_words = f'CO2 <= {co2_lim} ppm (max {co2} ppm) and fog margin >= {fog_lim} K (min {fog} K)'
         return f'Air quality: every run held {held_words}.'
     words = []
     if v.air_quality_broken:
         words.append(f"broken by {', '.join(v.air_quality_broken)} (not matched, no saving)")
     if held:
-        words.append(f'the others held them (CO2 max {co2} ppm, fog margin min {fog} K)')
+        co2_words = f'CO2 max {co2} ppm, ' if co2 != 'n/a' else ''
+        words.append(
+            f"{'the others' if v.air_quality_broken else 'the runs'} held them ({co2_words}fog margin min {fog} K)"
+        )
+    if no_co2:
+        words.append(f"no CO2 recorded for {', '.join(no_co2)} (judged on the fog margin alone)")
     if unknown:
         words.append(f"not recorded for {', '.join(unknown)}")
     return f'Air quality (CO2 <= {co2_lim} ppm, fog margin >= {fog_lim} K): ' + '; '.join(words) + '.'

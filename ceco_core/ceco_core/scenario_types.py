@@ -266,6 +266,11 @@ class DriveCycle:
         return float(self.time_s[-1])
 
     @property
+    def run_duration_s(self) -> float:
+        """The longest run the cycle gives [s]: :attr:`duration_s` floored to whole plant steps (``PLANT_STEP_S``)."""
+        return math.floor(self.duration_s / PLANT_STEP_S + 1e-9) * PLANT_STEP_S
+
+    @property
     def distance_m(self) -> float:
         """Distance driven [m], trapezoidal integral of the (linear) trace.
 

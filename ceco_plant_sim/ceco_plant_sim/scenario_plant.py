@@ -52,7 +52,17 @@ __all__ = [
     "scenario_plant_params",
     "PlantStepRecord",
     "ScenarioPlant",
+    "PlantStepError",
 ]
+
+
+class PlantStepError(RuntimeError):
+    """The plant cannot simulate the step: its refrigerant cycle's solve did not converge.
+
+    The state lies outside the cycle model's tables (docs/scenarios.md, "What the plant can simulate"); the run
+    cannot go on: a failed run.
+    """
+
 
 KEY_ON_COMMAND = AcInput(mdot_bl_kgps=MDOT_BL_MAX_KGPS, t_evap_sp_c=T_EVAP_SP_MIN_C)
 """The command taken as "previous" at key-on: pull-down (0.17 kg/s, 3 degC)."""
@@ -246,10 +256,15 @@ class ScenarioPlant:
         meas, t = self.meas, self.t_s
         env = self.scenario.env_at(t)
         lb, ub = self.scenario.pmv_bounds(t)
-        if self._fast is not None:
-            c, out = self._step_compiled(u, env, meas)
-        else:
-            c, out = self._step_python(u, env, meas)
+        try:
+            if self._fast is not None:
+                c, out = self._step_compiled(u, env, meas)
+            else:
+                c, out = self._step_python(u, env, meas)
+        except RuntimeError as exc:
+            if "did not converge" not in str(exc):  # the cycle solve's own error (refrigerant.cycle_vars), not a bug
+                raise
+            raise PlantStepError(str(exc)) from exc
         rec = PlantStepRecord(
             n=self.n,
             t_s=t,

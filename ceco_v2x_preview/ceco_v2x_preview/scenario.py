@@ -235,7 +235,7 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
     cycle = load_drive_cycle(data["drive_cycle"], base_dir=base_dir)
 
     # a run is a whole number of plant steps: the cycle's length is floored to one, a duration_s must be one
-    duration_s = math.floor(cycle.duration_s / PLANT_STEP_S + 1e-9) * PLANT_STEP_S
+    duration_s = cycle.run_duration_s
     if data.get("duration_s") is not None:
         duration_s = check_number("duration_s", data["duration_s"], (0.0, 1.0e6), low_open=True)
         steps = duration_s / PLANT_STEP_S

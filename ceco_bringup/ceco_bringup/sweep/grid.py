@@ -380,7 +380,7 @@ def expand_grid(grid: Mapping) -> list[Cell]:
             except (ValueError, OSError) as exc:
                 raise GridError(f'drive_cycles.{cl}: {exc}') from None
             d['drive_cycle'] = cyc.name
-            d['duration_s'] = float(cyc.duration_s)
+            d['duration_s'] = cyc.run_duration_s  # whole plant steps, as the scenario loader takes a cycle's length
         _apply_climate(d, kl, kv)
         if ov is not None:
             if not isinstance(ov, Mapping) or set(ov) - {'met', 'clo'}:
