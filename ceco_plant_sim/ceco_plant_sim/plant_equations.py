@@ -62,6 +62,9 @@ __all__ = [
     "CompressorRun",
     "blower_power_w",
     "condenser_eps_c_wpk",
+    "saturation_excess_kgkg",
+    "cabin_vapour_kgkg",
+    "cabin_relative_humidity",
     "compressor_model",
     "NewtonCycle",
     "PlantEquations",
@@ -136,7 +139,7 @@ class Flows(NamedTuple):
     mdot_water_out_kgps: Any
     """Water leaving with the exfiltrated air [kg/s]."""
     mdot_condensate_kgps: Any
-    """Water condensed on the evaporator [kg/s]."""
+    """Water condensed on the evaporator and fog deposited from the cabin air [kg/s]."""
     mdot_co2_in_kgps: Any
     """CO2 into the cabin air with the fresh share of the supply and the leakage [kg/s]."""
     mdot_co2_out_kgps: Any
@@ -236,6 +239,38 @@ def blower_power_w(p: PlantParams, mdot_kgps):
     """Fan law: P = dp(mdot) * Vdot / eta + P_fixed, dp = dp_ref (mdot/mdot_ref)^2  =>  P ~ mdot^3 [W]."""
     r = mdot_kgps / p.mdot_bl_ref_kgps
     return p.dp_blower_ref_pa * r * r * (mdot_kgps / p.rho_air_kgm3) / p.eta_blower + p.p_blower_fixed_w
+
+
+def saturation_excess_kgkg(params: PlantParams, t_c, w_kgkg, ops=NUMERIC):
+    """Water beyond saturation of air at ``t_c`` [degC] holding ``w_kgkg`` [kg water/kg dry air]: condensed [kg/kg].
+
+    ``max(W - W_s(t), 0)``, ``W_s = 0.621945 p_ws(t) / (p - p_ws(t))`` (ASHRAE Fundamentals 2017 ch. 1,
+    eq. 23; a state beyond it is saturated air plus condensed water, the fog region of the chart);
+    the max is the ``water`` scale's (exact, or softplus in the smooth model). docs/plant.md "cabin humidity".
+    """
+    pws = ops.scalar(saturation_vapour_pressure_pa(t_c))
+    w_s = EPS_W * pws / (params.p_atm_pa - pws)
+    return ops.scaled("water").fmax(w_kgkg - w_s, 0.0)
+
+
+def cabin_vapour_kgkg(params: PlantParams, t_cab_c, w_cab_kgkg, ops=NUMERIC):
+    """Vapour held by the cabin air [kg/kg dry air]: ``min(W_cab, W_s(T_cab)) = W_cab - W_fog``.
+
+    The cabin's water ``w_cab_kgkg`` [kg/kg] beyond saturation at ``t_cab_c`` [degC] is fog
+    (:func:`saturation_excess_kgkg`); the vapour, its pressure and dew point stop at saturation
+    (docs/plant.md "cabin humidity"). Below saturation it is ``w_cab_kgkg`` itself (bit for bit).
+    """
+    return w_cab_kgkg - saturation_excess_kgkg(params, t_cab_c, w_cab_kgkg, ops)
+
+
+def cabin_relative_humidity(params: PlantParams, t_cab_c, w_cab_kgkg, ops=NUMERIC):
+    """Relative humidity of the cabin air [0..1]: ``p_w(W_vap) / p_ws(T_cab)`` of :func:`cabin_vapour_kgkg`.
+
+    ASHRAE Fundamentals 2017 ch. 1, eq. 24. At saturation the quotient can exceed 1 by rounding (4e-16); it
+    is then 1.
+    """
+    rh = relative_humidity(t_cab_c, cabin_vapour_kgkg(params, t_cab_c, w_cab_kgkg, ops), params.p_atm_pa)
+    return ops.where(rh > 1.0, 1.0, rh)
 
 
 def condenser_eps_c_wpk(params: PlantParams, speed_mps, ops=NUMERIC):
@@ -476,6 +511,14 @@ class PlantEquations:
         water_in, water_out, condensate = cabin_water_flows_kgps(
             w_cab, w_amb, w_mix, w_out, fresh, mdot, n_occ * p.occ_latent_w / p.h_fg_jpkg
         )
+        # water beyond saturation at T_cab is fog (condensed in the air); it deposits on the cabin surfaces
+        # with tau_fog and leaves the balance with the coil's condensate (0 below saturation). The whole-drive
+        # optimum's smooth model leaves this sink out: its drives are hot and never saturate the cabin, and with
+        # the sink IPOPT's trial states reached it and the door optimum stopped at its iteration limit
+        # (docs/plant.md, "Cabin humidity"; the optimum's replay on this plant would show any difference)
+        if o.name != "smooth":
+            fog_out = self.m_air_kg * saturation_excess_kgkg(p, t_cab, w_cab, o) / p.fog_removal_tau_s
+            condensate = condensate + fog_out
         d_w = (water_in - water_out - condensate) / self.m_air_kg
         # CO2 balance of the cabin air [kg/s]: in with the fresh share and the leakage at the ambient
         # fraction, out with the exfiltrated air at the cabin's, exhaled by the occupants
@@ -595,7 +638,7 @@ class PlantEquations:
             "t_evap_out_c": alg.t_evap_out_c,
             "t_evap_sat_c": alg.t_evap_sat_c,
             "t_cond_c": alg.t_cond_c,
-            "rh_cab": relative_humidity(x.t_cab_c, x.w_cab_kgkg, self.params.p_atm_pa),
+            "rh_cab": cabin_relative_humidity(self.params, x.t_cab_c, x.w_cab_kgkg, o),
             "w_cab_kgkg": x.w_cab_kgkg,
             "p_comp_w": mean[0],
             "p_blower_w": p_bl,

@@ -44,7 +44,7 @@ import numpy as np
 
 from ceco_core.air_quality import AQ_SIGNALS, AqSignals, co2_ppm_from_kgkg, fog_margin_k
 from ceco_core.cabin_comfort import ComfortParams, cabin_mrt_c, cabin_pmv, cabin_w_rad_wm2
-from ceco_core.psychro import relative_humidity, vapour_pressure_from_humidity_ratio_pa, vapour_pressure_pa
+from ceco_core.psychro import vapour_pressure_from_humidity_ratio_pa, vapour_pressure_pa
 
 from .plant_equations import (
     ALG_NAMES,
@@ -59,6 +59,8 @@ from .plant_equations import (
     PlantEquations,
     State,
     blower_power_w,
+    cabin_relative_humidity,
+    cabin_vapour_kgkg,
     condenser_eps_c_wpk,
 )
 from .plant_ops import ExactOps, SmoothOps, SmoothSettings
@@ -288,7 +290,9 @@ class PlantModel:
             step_out, step_names = [*step_out, g1, [ok]], [*step_names, "warm_next", "ok"]
         self.step = out("step", step_out, step_names)
         """One plant step: (x, u, env[, warm]) -> (x_next, energy, y[, warm_next, ok])."""
-        pw = vapour_pressure_from_humidity_ratio_pa(x.w_cab_kgkg, self.params.p_atm_pa)
+        pw = vapour_pressure_from_humidity_ratio_pa(
+            cabin_vapour_kgkg(self.params, x.t_cab_c, x.w_cab_kgkg, eq.ops), self.params.p_atm_pa
+        )
         aq = AqSignals(co2_ppm_from_kgkg(x.co2_cab_kgkg), fog_margin_k(x.t_glass_c, pw))
         self.air_quality = casadi.Function("air_quality", [xs], [casadi.vertcat(*aq)], ["x"], ["aq"])
         """The air-quality constraint signals of a state: x -> aq (:attr:`aq` layout: cabin CO2 [ppm], fog
@@ -321,7 +325,8 @@ class PlantModel:
         es = casadi.SX.sym("env", self.env.size)
         x, u, env = _split(xs, State), self._equation_input(us), _split(es, Env)
         if pa_pa is None:
-            pa = vapour_pressure_pa(x.t_cab_c, relative_humidity(x.t_cab_c, x.w_cab_kgkg, self.params.p_atm_pa))
+            rh = cabin_relative_humidity(self.params, x.t_cab_c, x.w_cab_kgkg, self._eq.ops)
+            pa = vapour_pressure_pa(x.t_cab_c, rh)
         else:
             pa = float(pa_pa)
         t_mr = cabin_mrt_c(

@@ -65,6 +65,9 @@ class PlantParams:
     """Sensible heat gain per occupant [W] (ASHRAE Fundamentals 2017 ch. 18 tab. 1, office work)."""
     occ_latent_w: float = 55.0
     """Latent heat gain per occupant [W] (same source)."""
+    fog_removal_tau_s: float = 60.0
+    """Time constant with which water condensed in the cabin air (beyond saturation: fog) deposits on the cabin
+    surfaces [s] (judgement, docs/plant.md "cabin humidity"; rh, dew point and comfort do not depend on it)."""
     occ_met: float = 1.2
     """Metabolic rate of each occupant for the CO2 they exhale [met] (ISO 7730 sedentary; driving 1.0-2.0)."""
     occ_body_area_m2: float = 1.8

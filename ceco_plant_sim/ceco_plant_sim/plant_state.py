@@ -70,7 +70,7 @@ class PlantState:
     t_duct_c: float
     """Wall temperature of the HVAC case, doors, ducts and outlets downstream of the evaporator [degC]."""
     w_cab_kgkg: float
-    """Cabin humidity ratio [kg water / kg dry air]."""
+    """Cabin humidity ratio [kg water / kg dry air]; beyond saturation vapour + fog (docs/plant.md "cabin humidity")."""
     comp_pi_integral_rpm: float = 0.0
     """Integral part of the A/C ECU's compressor speed PI [rpm]."""
     recirc_share: float = RECIRC_SHARE_DEFAULT
@@ -184,9 +184,9 @@ class PlantOutputs:
     t_cond_c: float
     """Refrigerant condensing temperature [degC]."""
     rh_cab: float
-    """Cabin relative humidity [0..1]."""
+    """Cabin relative humidity [0..1] (1 at most: water beyond saturation is fog)."""
     w_cab_kgkg: float
-    """Cabin humidity ratio [kg/kg dry air]."""
+    """Cabin humidity ratio [kg/kg dry air]; beyond saturation vapour + fog."""
     p_comp_w: float
     """Compressor electrical power, step mean [W]."""
     p_blower_w: float
@@ -222,7 +222,7 @@ class PlantOutputs:
     m_water_out_kg: float = 0.0
     """Water leaving with the exfiltrated air (the fresh share of the supply and the leakage) over the step [kg]."""
     m_condensate_kg: float = 0.0
-    """Water condensed on the evaporator (drained) over the step [kg]."""
+    """Water condensed on the evaporator (drained) and fog deposited from the cabin air over the step [kg]."""
     recirc_share: float = RECIRC_SHARE_DEFAULT
     """Position of the fresh/recirculation door at the end of the step: recirculated share [0..1]."""
     co2_cab_ppm: float = CO2_AMB_PPM_DEFAULT
