@@ -57,7 +57,16 @@ __all__ = [
     "SmoothOps",
     "SmoothSettings",
     "select",
+    "PlantStepError",
 ]
+
+
+class PlantStepError(RuntimeError):
+    """The plant cannot simulate the step: its refrigerant cycle's solve did not converge.
+
+    The state lies outside the cycle model's tables (docs/scenarios.md, "What the plant can simulate"); the run
+    cannot go on: a failed run. Raised by :meth:`NumericOps.check` and by the compiled step on its flag.
+    """
 
 
 class NumericOps:
@@ -143,9 +152,9 @@ class NumericOps:
 
     @staticmethod
     def check(ok, message: Callable[[], str]):
-        """Raise RuntimeError(message()) unless ``ok``; return True."""
+        """Raise :class:`PlantStepError` (a RuntimeError) with ``message()`` unless ``ok``; return True."""
         if not ok:
-            raise RuntimeError(message())
+            raise PlantStepError(message())
         return True
 
     @staticmethod

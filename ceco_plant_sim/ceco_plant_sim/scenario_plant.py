@@ -38,6 +38,7 @@ from ceco_v2x_preview.scenario import Scenario
 from .compiled_plant import COMFORT_NAMES, OUTPUT_NAMES, PlantEvaluation, compiled_step, fallback_warning
 from .plant import CabinPlant, PlantOutputs, PlantState
 from .plant_equations import Env
+from .plant_ops import PlantStepError
 from .plant_params import PlantParams
 from .plant_state import validate_environment
 
@@ -54,14 +55,6 @@ __all__ = [
     "ScenarioPlant",
     "PlantStepError",
 ]
-
-
-class PlantStepError(RuntimeError):
-    """The plant cannot simulate the step: its refrigerant cycle's solve did not converge.
-
-    The state lies outside the cycle model's tables (docs/scenarios.md, "What the plant can simulate"); the run
-    cannot go on: a failed run.
-    """
 
 
 KEY_ON_COMMAND = AcInput(mdot_bl_kgps=MDOT_BL_MAX_KGPS, t_evap_sp_c=T_EVAP_SP_MIN_C)
@@ -256,15 +249,10 @@ class ScenarioPlant:
         meas, t = self.meas, self.t_s
         env = self.scenario.env_at(t)
         lb, ub = self.scenario.pmv_bounds(t)
-        try:
-            if self._fast is not None:
-                c, out = self._step_compiled(u, env, meas)
-            else:
-                c, out = self._step_python(u, env, meas)
-        except RuntimeError as exc:
-            if "did not converge" not in str(exc):  # the cycle solve's own error (refrigerant.cycle_vars), not a bug
-                raise
-            raise PlantStepError(str(exc)) from exc
+        if self._fast is not None:
+            c, out = self._step_compiled(u, env, meas)
+        else:
+            c, out = self._step_python(u, env, meas)
         rec = PlantStepRecord(
             n=self.n,
             t_s=t,
@@ -323,7 +311,7 @@ class ScenarioPlant:
             0.0 if self.scored_pa_pa is None else self.scored_pa_pa,
         )
         if not ok:
-            raise RuntimeError(
+            raise PlantStepError(
                 f"refrigerant cycle did not converge in {plant.params.cycle_max_iter} iterations "
                 f"(compiled plant, step {self.n}, t = {self.t_s:g} s)"
             )
