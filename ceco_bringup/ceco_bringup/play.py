@@ -287,11 +287,8 @@ def compare(args) -> int:
         types = bagio.topic_types(
             args.bag, (interfaces.TOPIC_STATE, interfaces.TOPIC_WEATHER, interfaces.TOPIC_TRAFFIC), args.namespace
         )
-    except bagio.NamespaceError as err:  # names --namespace itself
+    except ValueError as err:  # a NamespaceError names --namespace itself
         print(f'ceco play: error: {err}', file=sys.stderr)
-        return 2
-    except ValueError as err:
-        print(f'ceco play: {err} (--namespace)', file=sys.stderr)
         return 2
     rec_by_k = {
         int(k): (m, s, r)

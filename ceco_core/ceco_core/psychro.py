@@ -28,6 +28,7 @@ __all__ = [
     "saturation_vapour_pressure_pa",
     "vapour_pressure_pa",
     "humidity_ratio",
+    "humidity_ratio_from_vapour_pressure",
     "vapour_pressure_from_humidity_ratio_pa",
     "relative_humidity",
     "dew_point_c",
@@ -143,8 +144,15 @@ def humidity_ratio(t_c, rh, p_atm_pa=P_ATM_PA):
     ``W = 0.621945 p_w / (p - p_w)``, ``p_w = rh p_ws(t)`` (ASHRAE Fundamentals 2017
     ch. 1, eqs. (20), (22)); ``p_atm_pa`` is the total pressure p [Pa].
     """
-    p_w = vapour_pressure_pa(t_c, rh)
-    return EPS_W * p_w / (p_atm_pa - p_w)
+    return humidity_ratio_from_vapour_pressure(vapour_pressure_pa(t_c, rh), p_atm_pa)
+
+
+def humidity_ratio_from_vapour_pressure(p_w_pa, p_atm_pa=P_ATM_PA):
+    """Humidity ratio W = 0.621945 p_w / (p - p_w) [kg/kg] of air with vapour pressure ``p_w_pa`` [Pa] (eq. (22)).
+
+    Plain arithmetic: also on CasADi symbols (the plant's equations).
+    """
+    return EPS_W * p_w_pa / (p_atm_pa - p_w_pa)
 
 
 def vapour_pressure_from_humidity_ratio_pa(w_kgkg, p_atm_pa=P_ATM_PA):

@@ -202,7 +202,7 @@ class ControlDefaults:
         lo_s, hi_s = CONTROL_PERIOD_RANGE_S
         ts = check_number("control.control_period_s", self.control_period_s, (lo_s, hi_s))
         steps = ts / PLANT_STEP_S
-        if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
+        if abs(steps - round(steps)) > 1e-9:  # (at least one: the range starts at 0.1 s)
             raise ScenarioError(
                 f"control.control_period_s: {ts:g} s is not a whole number of plant steps ({PLANT_STEP_S:g} s, the "
                 "simulator's and plant_node's)"

@@ -39,7 +39,7 @@ from ceco_core.air_quality import (
     leakage_kgps,
 )
 from ceco_core.contracts import AcInput
-from ceco_core.psychro import EPS_W, relative_humidity, saturation_vapour_pressure_pa
+from ceco_core.psychro import humidity_ratio_from_vapour_pressure, relative_humidity, saturation_vapour_pressure_pa
 
 from .plant_ops import NUMERIC
 from .plant_params import PlantParams
@@ -249,7 +249,7 @@ def saturation_excess_kgkg(params: PlantParams, t_c, w_kgkg, ops=NUMERIC):
     the max is the ``water`` scale's (exact, or softplus in the smooth model). docs/plant.md "cabin humidity".
     """
     pws = ops.scalar(saturation_vapour_pressure_pa(t_c))
-    w_s = EPS_W * pws / (params.p_atm_pa - pws)
+    w_s = humidity_ratio_from_vapour_pressure(pws, params.p_atm_pa)
     return ops.scaled("water").fmax(w_kgkg - w_s, 0.0)
 
 
@@ -434,7 +434,7 @@ class PlantEquations:
 
         # ambient humidity ratio
         pw_amb = rh_amb * o.scalar(wsat(t_amb))
-        w_amb = EPS_W * pw_amb / (patm - pw_amb)
+        w_amb = humidity_ratio_from_vapour_pressure(pw_amb, patm)
 
         # --- the fresh/recirculation door: rate-limited servo, |dr/dt| <= 1 / door_travel_s
         r = x.recirc_share  # the door's actual position mixes the air
@@ -453,7 +453,7 @@ class PlantEquations:
         bf = o.exp(-ua_air / c_air)  # bypass factor = 1 - effectiveness
         t_out = t_ev + bf * (t_in - t_ev)
         pws_w = o.scalar(wsat(t_ev))
-        w_sw = EPS_W * pws_w / (patm - pws_w)
+        w_sw = humidity_ratio_from_vapour_pressure(pws_w, patm)
         w_out = coil_outlet_humidity_ratio(w_mix, w_sw, bf, o.scaled("water").fmax)  # condensation below the dew point
         q_sens = c_air * (t_in - t_out)
         q_lat = mdot * (w_mix - w_out) * p.h_fg_jpkg
