@@ -512,11 +512,9 @@ class PlantEquations:
             w_cab, w_amb, w_mix, w_out, fresh, mdot, n_occ * p.occ_latent_w / p.h_fg_jpkg
         )
         # water beyond saturation at T_cab is fog (condensed in the air); it deposits on the cabin surfaces
-        # with tau_fog and leaves the balance with the coil's condensate (0 below saturation). The whole-drive
-        # optimum's smooth model leaves this sink out: its drives are hot and never saturate the cabin, and with
-        # the sink IPOPT's trial states reached it and the door optimum stopped at its iteration limit
-        # (docs/plant.md, "Cabin humidity"; the optimum's replay on this plant would show any difference)
-        if o.name != "smooth":
+        # with tau_fog and leaves the balance with the coil's condensate (0 below saturation); the whole-drive
+        # optimum's smooth model leaves the sink out (SmoothOps.fog_deposition)
+        if o.fog_deposition:
             fog_out = self.m_air_kg * saturation_excess_kgkg(p, t_cab, w_cab, o) / p.fog_removal_tau_s
             condensate = condensate + fog_out
         d_w = (water_in - water_out - condensate) / self.m_air_kg

@@ -74,6 +74,8 @@ class NumericOps:
 
     name = "numeric"
     symbolic = False
+    fog_deposition = True
+    """The cabin fog's deposition sink is in the water balance (the plant's equations, "cabin fog")."""
     scalar = float
     exp = math.exp
     sqrt = math.sqrt
@@ -206,6 +208,7 @@ class _CasadiOps:
     """What the two CasADi evaluations share: elementary functions, logic on 0/1 values, Function calls."""
 
     symbolic = True
+    fog_deposition = True
     exp = staticmethod(casadi.exp)
 
     @staticmethod
@@ -394,6 +397,10 @@ class SmoothOps(_CasadiOps):
     """CasADi with smoothed kinks (log-sum-exp) and switches (logistic indicators in [0, 1], blends)."""
 
     name = "smooth"
+    fog_deposition = False
+    """The whole-drive optimum's model leaves the cabin fog's deposition out: its drives are hot and never saturate
+    the cabin, and with the sink IPOPT's trial states reached it and the door optimum stopped at its iteration
+    limit (docs/plant.md, "cabin fog")."""
 
     def __init__(self, settings: SmoothSettings | None = None) -> None:
         super().__init__()
