@@ -304,7 +304,7 @@ def test_each_violation_is_reported(mutate, message):
         bs.validate_results(doc)
 
 
-def test_a_listed_strategy_whose_runs_all_errored_is_still_compared():
+def test_a_listed_strategy_whose_runs_all_errored_still_validates():
     """``settings.strategies`` asks for a run of each listed strategy, of any status: ``ceco benchmark`` records a
     run it could not make (interrupted, the simulator raised) as ``error`` with the reason, which the report lists.
     Only a listed strategy without any run is refused; a document without the key lists none."""
