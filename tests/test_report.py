@@ -530,13 +530,6 @@ def test_report_reads_the_scenario_from_the_runs_copy(tmp_path):
     assert 'solar 100..100 W/m²' in md
 
 
-def _err_line(err: str) -> str:
-    """The one error line of ``err`` (after the 'loading' progress line), asserting there is no other."""
-    lines = [line for line in err.splitlines() if not line.startswith('ceco report: loading')]
-    assert 'Traceback' not in err and len(lines) == 1, err
-    return lines[0]
-
-
 def test_runs_of_different_lengths_are_not_compared(runs, tmp_path, capsys):
     """A 40-s baseline beside a 30-s ceco-ioch run of sc03: the report refuses (its "E change" compared
     30 s of energy with 40 s), one line naming both runs and lengths, nothing written."""
@@ -544,7 +537,7 @@ def test_runs_of_different_lengths_are_not_compared(runs, tmp_path, capsys):
     write_run(simulate('sc03', 'ceco-ioch', SimSettings(duration_s=30.0, progress=False)), short)
     out = tmp_path / 'rep'
     assert report.main([str(runs / 'baseline'), str(short), '--out', str(out)]) == 2
-    err = _err_line(capsys.readouterr().err)
+    err = _error_line(capsys.readouterr().err)
     assert err.startswith('ceco report: error: the runs of sc03 differ in length (')
     assert f'{runs / "baseline"} 40 s' in err and f'{short} 30 s' in err
     assert not out.exists()
@@ -592,15 +585,15 @@ def test_each_run_is_shown_under_the_strategy_it_records(runs, tmp_path, capsys)
     does not know is shown as recorded."""
     both = [str(runs / 'baseline'), str(runs / 'ceco-ioch')]
     assert report.main([*both, '--strategy', 'mine', '--out', str(tmp_path / 'r1')]) == 2
-    assert _err_line(capsys.readouterr().err) == (
+    assert _error_line(capsys.readouterr().err) == (
         f"ceco report: error: {runs / 'baseline'} records strategy 'baseline' (metrics.json), not --strategy "
         "'mine': --strategy names only a run that records none"
     )
     assert report.main([*both, '--scenario', 'udds', '--out', str(tmp_path / 'r2')]) == 2
-    assert "records scenario 'sc03' (metrics.json), not --scenario 'udds'" in _err_line(capsys.readouterr().err)
+    assert "records scenario 'sc03' (metrics.json), not --scenario 'udds'" in _error_line(capsys.readouterr().err)
     nameless = _copy_with_metrics(runs / 'ceco-ioch', tmp_path / 'ceco-e', strategy=None)
     assert report.main([str(nameless), '--out', str(tmp_path / 'r3')]) == 2
-    assert _err_line(capsys.readouterr().err) == (
+    assert _error_line(capsys.readouterr().err) == (
         f'ceco report: error: {nameless} records no strategy (neither metrics.json nor a bag names one): '
         'name it with --strategy'
     )
@@ -629,7 +622,7 @@ def test_every_run_of_a_strategy_is_shown_once(runs, tmp_path, capsys):
     for label in ('baseline', 'baseline (x1/baseline)', 'baseline (x2/baseline)'):
         assert _md_row(md, label, 'Metrics per strategy')[5] == '+0.0 %', label
     assert report.main([str(copies[1]), str(copies[1]), '--out', str(tmp_path / 'r2')]) == 2
-    assert _err_line(capsys.readouterr().err) == f'ceco report: error: {copies[1]}: the same run given twice'
+    assert _error_line(capsys.readouterr().err) == f'ceco report: error: {copies[1]}: the same run given twice'
 
 
 def test_rtol_is_positive_and_a_looser_check_says_why(runs, tmp_path, capsys):
@@ -638,7 +631,7 @@ def test_rtol_is_positive_and_a_looser_check_says_why(runs, tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         report.main([str(runs / 'ceco-ioch'), '--rtol', '0', '--out', str(tmp_path / 'r0')])
     assert exc.value.code == 2
-    assert _err_line(capsys.readouterr().err) == (
+    assert _error_line(capsys.readouterr().err) == (
         "ceco report: error: argument --rtol: must be a finite number > 0, got '0' "
         '(ceco report --help lists the options)'
     )
