@@ -767,6 +767,18 @@ def test_control_step_grid_of_plant_times():
     assert control_step_of(14.999, 5.0) == 2 and control_step_of(15.0, 5.0) == 3
 
 
+def test_whole_and_floor_steps_of_decimal_times():
+    """The one test of "a whole number of steps" (a run's length, Ts over the plant step or the model step): decimal
+    times whose quotient carries float rounding are whole (0.3 / 0.1 = 2.9999999999999996), others are not; the
+    floor counts a time just below a step boundary by rounding as that step."""
+    from ceco_core.control_grid import floor_steps, whole_steps
+
+    assert whole_steps(0.3, 0.1) == 3 and whole_steps(600.0, 1.0) == 600 and whole_steps(15.0, 5.0) == 3
+    assert whole_steps(123.7, 1.0) is None and whole_steps(7.0, 5.0) is None and whole_steps(0.1, 1.0) is None
+    assert whole_steps(5.0 + 1e-12, 5.0) == 1 and whole_steps(5.0 + 1e-7, 5.0) is None
+    assert floor_steps(20.7, 1.0) == 20 and floor_steps(0.3, 0.1) == 3 and floor_steps(0.99, 1.0) == 0
+
+
 def test_plant_health():
     from ceco_plant_sim.plant_io import CommandPolicy, plant_health
 

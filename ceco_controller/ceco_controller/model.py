@@ -51,6 +51,7 @@ import numpy as np
 import yaml
 
 from ceco_core import yamlio
+from ceco_core.control_grid import whole_steps
 from ceco_core.mathops import backend, softplus
 
 __all__ = [
@@ -375,9 +376,8 @@ def p_blower_w(p: ControlModelParams, mdot_bl_kgps):
 
 def substeps(p: ControlModelParams, dt_s: float) -> int:
     """Number of model steps in ``dt_s``; ``dt_s`` must be a whole multiple of ``ts_s``."""
-    m = dt_s / p.ts_s
-    n = int(round(m))
-    if n < 1 or abs(m - n) > 1e-9:
+    n = whole_steps(dt_s, p.ts_s)
+    if n is None or n < 1:
         raise ValueError(f"control period {dt_s} s must be a whole multiple of the model step {p.ts_s} s")
     return n
 

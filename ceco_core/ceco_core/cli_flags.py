@@ -511,6 +511,7 @@ def check_duration(
     calls the setting (a sweep grid's ``duration_s``).
     """
     from ceco_core.contracts import PLANT_STEP_S
+    from ceco_core.control_grid import STEP_TOL, floor_steps, whole_steps
 
     if duration_s is None:
         return
@@ -519,13 +520,12 @@ def check_duration(
             f'{name}: {duration_s:g} s exceeds the length of scenario {scenario.name} '
             f'({scenario.duration_s:g} s): give at most {scenario.duration_s:g}'
         )
-    steps = duration_s / PLANT_STEP_S
-    if steps < 2 - 1e-9:
+    if duration_s / PLANT_STEP_S < 2 - STEP_TOL:
         raise ValueError(f'{name}: {duration_s:g} s is less than two plant steps: give at least {2 * PLANT_STEP_S:g}')
-    if abs(steps - round(steps)) > 1e-9:
+    if whole_steps(duration_s, PLANT_STEP_S) is None:
         raise ValueError(
             f'{name}: {duration_s:g} s is not a whole number of plant steps ({PLANT_STEP_S:g} s): '
-            f'give e.g. {math.floor(steps) * PLANT_STEP_S:g}'
+            f'give e.g. {floor_steps(duration_s, PLANT_STEP_S) * PLANT_STEP_S:g}'
         )
     if control_period_s is None:
         control_period_s = scenario.control.control_period_s

@@ -9,7 +9,15 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["control_step_index", "control_step_of", "control_step_count", "TIMING_MODES"]
+__all__ = [
+    "control_step_index",
+    "control_step_of",
+    "control_step_count",
+    "whole_steps",
+    "floor_steps",
+    "STEP_TOL",
+    "TIMING_MODES",
+]
 
 TIMING_MODES = ("lockstep", "realtime")
 """The nodes' timing modes: deterministic lockstep on /clock, or wall-clock timers."""
@@ -36,3 +44,22 @@ def control_step_of(t_s: float, control_period_s: float) -> int:
 def control_step_count(duration_s: float, control_period_s: float) -> int:
     """How many control steps a run of ``duration_s`` [s] has: those at t_k = k Ts < ``duration_s`` (at least one)."""
     return max(math.ceil(duration_s / control_period_s - GRID_TOL), 1)
+
+
+STEP_TOL = 1e-9
+"""Tolerance of a whole number of steps, in steps [-] (durations and periods written in decimal)."""
+
+
+def whole_steps(t_s: float, step_s: float) -> int | None:
+    """``t_s / step_s`` [-] when it is a whole number (within :data:`STEP_TOL`), else None.
+
+    The one test of "a whole number of plant steps" (a run's length, Ts) or of model steps (the NMPC's Ts).
+    """
+    ratio = t_s / step_s
+    n = round(ratio)
+    return int(n) if abs(ratio - n) <= STEP_TOL else None
+
+
+def floor_steps(t_s: float, step_s: float) -> int:
+    """The whole steps of ``step_s`` in ``t_s`` [-]: floor, with :data:`STEP_TOL` for float grids."""
+    return int(math.floor(t_s / step_s + STEP_TOL))

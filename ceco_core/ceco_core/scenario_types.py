@@ -27,6 +27,7 @@ import numpy as np
 
 from ceco_core.air_quality import CO2_AMB_PPM_DEFAULT, AirQualityLimits
 from ceco_core.contracts import CONTROL_PERIOD_RANGE_S, HORIZON_RANGE, PLANT_STEP_S
+from ceco_core.control_grid import floor_steps, whole_steps
 from ceco_core.observation_check import OBSERVATION_LIMITS
 
 __all__ = [
@@ -201,8 +202,7 @@ class ControlDefaults:
         """
         lo_s, hi_s = CONTROL_PERIOD_RANGE_S
         ts = check_number("control.control_period_s", self.control_period_s, (lo_s, hi_s))
-        steps = ts / PLANT_STEP_S
-        if abs(steps - round(steps)) > 1e-9:  # (at least one: the range starts at 0.1 s)
+        if whole_steps(ts, PLANT_STEP_S) is None:  # (at least one: the range starts at 0.1 s)
             raise ScenarioError(
                 f"control.control_period_s: {ts:g} s is not a whole number of plant steps ({PLANT_STEP_S:g} s, the "
                 "simulator's and plant_node's)"
@@ -268,7 +268,7 @@ class DriveCycle:
     @property
     def run_duration_s(self) -> float:
         """The longest run the cycle gives [s]: :attr:`duration_s` floored to whole plant steps (``PLANT_STEP_S``)."""
-        return math.floor(self.duration_s / PLANT_STEP_S + 1e-9) * PLANT_STEP_S
+        return floor_steps(self.duration_s, PLANT_STEP_S) * PLANT_STEP_S
 
     @property
     def distance_m(self) -> float:

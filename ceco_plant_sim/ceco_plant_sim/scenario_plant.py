@@ -31,6 +31,7 @@ from ceco_core.cabin_comfort import ComfortParams, OccupantComfort, comfort_para
 from ceco_core.co2_sensor import Co2Sensor
 from ceco_core.codegen import CompileError
 from ceco_core.contracts import MDOT_BL_MAX_KGPS, MEASUREMENTS, T_EVAP_SP_MIN_C, AcInput
+from ceco_core.control_grid import floor_steps, whole_steps
 from ceco_core.overrides import with_overrides
 from ceco_core.scenario_types import Environment
 from ceco_v2x_preview.scenario import Scenario
@@ -108,17 +109,17 @@ def scenario_plant_params(scenario: Scenario, params: PlantParams | None = None,
 
 def steps_per_control(control_period_s: float, plant_dt_s: float) -> int:
     """Plant steps per control period Ts / dt [-]; ValueError unless Ts is a whole multiple (>= 1) of dt."""
-    ratio = control_period_s / plant_dt_s
-    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+    m = whole_steps(control_period_s, plant_dt_s)
+    if m is None or m < 1:
         raise ValueError(
             f"control period {control_period_s} s must be a whole multiple of the plant step {plant_dt_s} s"
         )
-    return int(round(ratio))
+    return m
 
 
 def n_plant_steps(duration_s: float, plant_dt_s: float) -> int:
     """Plant steps in a run of ``duration_s`` [s] (floor, with 1e-9 tolerance for float grids)."""
-    return int(math.floor(duration_s / plant_dt_s + 1e-9))
+    return floor_steps(duration_s, plant_dt_s)
 
 
 def _measurements(out: PlantOutputs, co2_sensor_ppm: float) -> dict:

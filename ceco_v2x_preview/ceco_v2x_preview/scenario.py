@@ -22,7 +22,6 @@ Pure Python (numpy, pyyaml); no ROS import.
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 from collections.abc import Mapping
 from importlib import resources
@@ -33,6 +32,7 @@ import numpy as np
 
 from ceco_core import psychro, units, yamlio
 from ceco_core.contracts import PLANT_STEP_S
+from ceco_core.control_grid import floor_steps, whole_steps
 from ceco_core.scenario_types import (
     INITIAL_FIELDS,
     OCCUPANTS_RANGE,
@@ -238,11 +238,11 @@ def scenario_from_dict(data: Mapping, *, source: str = "", base_dir: str | os.Pa
     duration_s = cycle.run_duration_s
     if data.get("duration_s") is not None:
         duration_s = check_number("duration_s", data["duration_s"], (0.0, 1.0e6), low_open=True)
-        steps = duration_s / PLANT_STEP_S
-        if abs(steps - round(steps)) > 1e-9 or steps < 2 - 1e-9:
+        n = whole_steps(duration_s, PLANT_STEP_S)
+        if n is None or n < 2:
             raise ScenarioError(
                 f"duration_s: {duration_s:g} s is not a whole number (>= 2) of plant steps ({PLANT_STEP_S:g} s): "
-                f"give e.g. {max(math.floor(steps), 2) * PLANT_STEP_S:g}"
+                f"give e.g. {max(floor_steps(duration_s, PLANT_STEP_S), 2) * PLANT_STEP_S:g}"
             )
 
     weather = _section(data, "weather")
