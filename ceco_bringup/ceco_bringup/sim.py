@@ -168,17 +168,14 @@ def main(argv=None) -> int:
             print('ceco sim: interrupted; the finished strategies are kept', file=sys.stderr)
             return 130
         except PlantStepError as exc:  # the plant's refrigerant cycle left its model: the run cannot go on
-            failed[s] = f'the simulation stopped: {exc}'
-            provenance.finish_run(run_dir, 'failed', failed[s])
-            line = outputs.failed_line(s, failed[s], run_dir)
-            (run_dir / 'summary.txt').write_text(line + '\n', encoding='utf-8')
-            print(line, flush=True)
-            continue
-        write_run(res, run_dir)
-        if res.metrics['status'] != STATUS_OK:  # the controller did not control: kept in run_dir, never shown
-            provenance.finish_run(run_dir, 'failed', res.metrics['status_reason'])
-            failed[s] = res.metrics['status_reason']
-            line = outputs.failed_line(s, failed[s], run_dir)
+            res, reason = None, f'the simulation stopped: {exc}'
+        else:
+            write_run(res, run_dir)  # a failed run too: kept in run_dir, never shown
+            reason = res.metrics['status_reason'] if res.metrics['status'] != STATUS_OK else None
+        if reason is not None:  # the run stopped, or its controller did not control
+            provenance.finish_run(run_dir, 'failed', reason)
+            failed[s] = reason
+            line = outputs.failed_line(s, reason, run_dir)
         else:
             provenance.finish_run(run_dir, 'complete')
             metrics[s], columns[s] = res.metrics, res.timeseries
