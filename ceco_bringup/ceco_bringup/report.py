@@ -124,27 +124,7 @@ def _group(runs: Sequence[RunData]) -> dict:
     return groups
 
 
-def _recorded(run: RunData, namespace: str | None) -> dict:
-    """{'scenario'|'strategy': (value, where)} as the run itself records them; (None, '') where it does not.
-
-    metrics.json (and run.json for the scenario), else the run's bag without the flags.
-    """
-    from ceco_bringup.bagrun import bag_dir_of, bag_run_info
-    from ceco_bringup.rundata import read_bag
-
-    places = {
-        'scenario': (('metrics.json', run.stored), ('run.json', run.info)),
-        'strategy': (('metrics.json', run.stored),),
-    }
-    rec = {k: next(((str(d[k]), where) for where, d in ps if d.get(k)), (None, '')) for k, ps in places.items()}
-    bag = bag_dir_of(run.path)
-    if bag is not None and any(v is None for v, _ in rec.values()):
-        b = read_bag(bag, bag_run_info, namespace)
-        rec = {k: (v, where) if v is not None else (getattr(b, k), 'its bag') for k, (v, where) in rec.items()}
-    return rec
-
-
-def _check_identity(runs: Sequence[RunData], namespace: str | None, flags: Mapping[str, str | None]) -> None:
+def _check_identity(runs: Sequence[RunData], flags: Mapping[str, str | None]) -> None:
     """Every run shown under the scenario and strategy it records.
 
     ``flags``: {'scenario', 'strategy'} given by the user (None: not given), which only name what a run does
@@ -152,7 +132,7 @@ def _check_identity(runs: Sequence[RunData], namespace: str | None, flags: Mappi
     and gets none (it would be labelled by its directory name).
     """
     for r in runs:
-        rec = _recorded(r, namespace) if any(flags.values()) or not r.stored.get('strategy') else {}
+        rec = r.info['recorded']  # (rundata: metrics.json, run.json, else the bag, read once)
         for key, flag in flags.items():
             value, where = rec.get(key, (None, ''))
             if flag is not None and value is not None and value != flag:
@@ -160,7 +140,7 @@ def _check_identity(runs: Sequence[RunData], namespace: str | None, flags: Mappi
                     f'{r.path} records {key} {value!r} ({where}), not --{key} {flag!r}: --{key} names only a run '
                     f'that records none'
                 )
-        if flags['strategy'] is None and rec and rec['strategy'][0] is None:
+        if flags['strategy'] is None and rec['strategy'][0] is None:
             raise ValueError(
                 f'{r.path} records no strategy (neither metrics.json nor a bag names one): name it with --strategy'
             )
@@ -603,7 +583,7 @@ def build_report(
     found = discover_runs(run_dirs)
     log(f'ceco report: loading {len(found)} run(s)', file=sys.stderr)
     runs = [load_run(d, rtol=rtol, namespace=namespace, scenario=scenario, strategy=strategy) for d in found]
-    _check_identity(runs, namespace, {'scenario': scenario, 'strategy': strategy})
+    _check_identity(runs, {'scenario': scenario, 'strategy': strategy})
     groups = _group(runs)
     _check_lengths(groups)
     fig_dir.mkdir(parents=True, exist_ok=True)

@@ -93,7 +93,8 @@ class RunData:
     scenario_path: Path | None = None
     """The run's copy of its scenario file (``DIR/scenario.yaml``), None for older runs and bags."""
     info: dict = dataclasses.field(default_factory=dict)
-    """``run.json`` (``ceco_bringup.provenance``) and, for a bag, where scenario and strategy came from."""
+    """``run.json`` (``ceco_bringup.provenance``); ``recorded``: {'scenario'|'strategy': (value, where)} as the run
+    records them, flags aside ((None, '') where it does not); for a bag, ``identified_from``: where each came from."""
     air_limits: AirQualityLimits | None = None
     """The limits the run's air quality is scored against (metrics.json's, else its scenario's); None: unknown."""
 
@@ -307,15 +308,22 @@ def _identity(run_dir: Path, stored: Mapping, namespace, scenario, strategy) -> 
         )
         or {}
     )
-    sc = scenario or stored.get('scenario') or info.get('scenario')
-    st = strategy or stored.get('strategy')
+    # what the run itself records, flags aside: metrics.json (and run.json for the scenario), else its bag
+    places = {'scenario': (('metrics.json', stored), ('run.json', info)), 'strategy': (('metrics.json', stored),)}
+    rec = {k: next(((str(d[k]), where) for where, d in ps if d.get(k)), (None, '')) for k, ps in places.items()}
     length = None
     bag = bag_dir_of(run_dir)
     if bag is not None:
-        b = bag_run_info(bag, namespace, scenario=sc, strategy=st)
-        sc, st = b.scenario, b.strategy
+        b = bag_run_info(bag, namespace)
+        rec = {k: (v, where) if v is not None else (getattr(b, k), 'its bag') for k, (v, where) in rec.items()}
         length = b.duration_s or None  # a plant parameter of 0 means the scenario's length
-        info['identified_from'] = b.sources
+        found = dict(b.sources)  # where the bag gave it; a flag, or metrics.json / run.json, come first
+        for (k, (value, where)), flag in zip(rec.items(), (scenario, strategy)):
+            if flag or (value is not None and where != 'its bag'):
+                found[k] = 'flag' if flag else where
+        info['identified_from'] = found
+    info['recorded'] = rec  # {'scenario'|'strategy': (value, where)}, flags aside; (None, '') where none
+    sc, st = scenario or rec['scenario'][0], strategy or rec['strategy'][0]
     if length is None and sc:
         try:
             from ceco_v2x_preview.scenario import load_scenario
