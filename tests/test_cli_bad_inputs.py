@@ -3,6 +3,7 @@ wrong (and the fix), exit status 2, no traceback, and nothing started (play refu
 
 import pytest
 from bag_helpers import sample
+from cli_helpers import one_error_line
 
 from ceco_bringup import bag_writer, bagio, play, report
 from ceco_bringup.benchmark import cli as bench_cli
@@ -11,13 +12,6 @@ STATE = 'ceco_msgs/msg/CabinState'
 CMD = 'ceco_msgs/msg/AcCommand'
 FLAGS = ('--scenario', 'sc03', '--strategy', 'baseline', '--control-period-s', '5', '--horizon-steps', '6')
 """What a bag without ceco metadata does not say, so that --compare gets as far as the namespace."""
-
-
-def _one_line(err: str) -> str:
-    """The one error line of ``err`` (a progress line such as 'ceco report: loading 1 run(s)' may precede it)."""
-    lines = [line for line in err.splitlines() if not line.startswith('ceco report: loading')]
-    assert 'Traceback' not in err and len(lines) == 1 and not err.endswith('\n\n'), err
-    return lines[0]
 
 
 # --------------------------------------------------------------------------- ceco report
@@ -30,7 +24,7 @@ def test_report_names_a_metrics_json_that_is_not_a_json_object(tmp_path, capsys,
     (run / 'metrics.json').write_text(text)
     (run / 'timeseries.csv').write_text('t_s\n0\n5\n')
     assert report.main([str(run), '--out', str(tmp_path / 'rep')]) == 2
-    err = _one_line(capsys.readouterr().err)
+    err = one_error_line(capsys.readouterr().err)
     assert f'{run / "metrics.json"}:' in err
 
 
@@ -41,7 +35,7 @@ def test_report_names_a_corrupt_run_json(tmp_path, capsys):
     (run / 'timeseries.csv').write_text('t_s\n0\n5\n')
     (run / 'run.json').write_bytes(b'')
     assert report.main([str(run), '--out', str(tmp_path / 'rep')]) == 2
-    err = _one_line(capsys.readouterr().err)
+    err = one_error_line(capsys.readouterr().err)
     assert f'{run / "run.json"}: not a JSON file' in err and 'remove it' in err
 
 
@@ -50,9 +44,9 @@ def test_validate_refuses_a_binary_file_and_an_empty_path(tmp_path, capsys):
     binary = tmp_path / 'results.json'
     binary.write_bytes(b'\xff\xfe')
     assert bench_cli.main(['--validate', str(binary)]) == 2
-    assert f'{binary}: not a UTF-8 text file' in _one_line(capsys.readouterr().err)
+    assert f'{binary}: not a UTF-8 text file' in one_error_line(capsys.readouterr().err)
     assert bench_cli.main(['--validate', '']) == 2
-    err = _one_line(capsys.readouterr().err)
+    err = one_error_line(capsys.readouterr().err)
     assert '--validate: the path is empty' in err and '--out' not in err
 
 
@@ -86,7 +80,7 @@ def test_play_refuses_a_damaged_bag_as_report_does(tmp_path, capsys, damage, com
     bag = _bag(tmp_path / 'bag')
     damage(bag)
     assert play.main([str(bag), '--no-progress', *(['--compare'] if compare else [])]) == 2
-    err = _one_line(capsys.readouterr().err)
+    err = one_error_line(capsys.readouterr().err)
     assert f'ceco play: error: {bag}: cannot read the bag: ReaderError' in err
 
 
@@ -95,7 +89,7 @@ def test_play_refuses_a_topic_the_bag_does_not_hold(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         play.main([str(bag), '--no-progress', '--topics', '/nonexistent', '/cabin/state'])
     assert exc.value.code == 2
-    err = _one_line(capsys.readouterr().err)
+    err = one_error_line(capsys.readouterr().err)
     assert '--topics: /nonexistent not in the bag' in err and err.rstrip().endswith(
         '/cabin/state (ceco play --help lists the options)'
     )
@@ -106,7 +100,7 @@ def test_play_compare_refuses_a_namespace_the_bag_does_not_hold(tmp_path, capsys
     with pytest.raises(SystemExit) as exc:
         play.main([str(bag), '--no-progress', '--compare', '--namespace', 'bogus', *FLAGS])
     assert exc.value.code == 2
-    err = _one_line(capsys.readouterr().err)
+    err = one_error_line(capsys.readouterr().err)
     assert '--namespace bogus: not in the bag' in err and 'namespaces, /veh1' in err
 
 
@@ -159,7 +153,7 @@ def test_an_invalid_namespace_is_refused_when_the_command_line_is_read(tmp_path,
             else [*args, '--namespace', '1veh']
         )
     assert exc.value.code == 2
-    assert _one_line(capsys.readouterr().err) == (
+    assert one_error_line(capsys.readouterr().err) == (
         f"ceco {verb}: error: argument --namespace: invalid namespace '1veh': tokens of letters, digits and "
         f'underscores, not starting with a digit, separated by / (ceco {verb} --help lists the options)'
     )
@@ -188,7 +182,7 @@ def test_a_control_period_a_strategy_cannot_run_is_refused_before_any_run(tmp_pa
             ]
         )
     assert exc.value.code == 2
-    assert _one_line(capsys.readouterr().err) == (
+    assert one_error_line(capsys.readouterr().err) == (
         f'ceco {verb}: error: --control-period-s: control period 7.0 s must be a whole multiple of the model step '
         f'5.0 s (the NMPC strategies: ceco) (ceco {verb} --help lists the options)'
     )
@@ -268,5 +262,5 @@ def test_a_bad_model_file_is_named_as_such_not_as_a_control_period_error(tmp_pat
             ]
         )
     assert exc.value.code == 2
-    err = _one_line(capsys.readouterr().err)
+    err = one_error_line(capsys.readouterr().err)
     assert err.startswith(f'ceco sim: error: {bad}: ') and 'control_period_s' not in err, err

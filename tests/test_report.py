@@ -14,6 +14,7 @@ import re
 import numpy as np
 import pytest
 import yaml
+from cli_helpers import one_error_line
 
 from ceco_bringup import bag_writer, bagio, figures, provenance, report, rundata
 from ceco_controller.closed_loop import SimSettings, simulate, write_run
@@ -336,13 +337,6 @@ def _ros2_bag_record_run(result, run_dir, namespaces):
     )
 
 
-def _error_line(err: str) -> str:
-    """The one line of ``err`` but the progress line 'ceco report: loading ...'."""
-    lines = [line for line in err.splitlines() if not line.startswith('ceco report: loading')]
-    assert 'Traceback' not in err and len(lines) == 1, err
-    return lines[0]
-
-
 def test_report_reads_a_bag_recorded_by_ros2_bag_record(results, tmp_path, capsys):
     """A baseline run whose bag holds /veh1/... and /veh2/... as `ros2 bag record` writes
     them: without --namespace the report says the bag is ambiguous (status 2); with
@@ -351,7 +345,7 @@ def test_report_reads_a_bag_recorded_by_ros2_bag_record(results, tmp_path, capsy
     _ros2_bag_record_run(results['baseline'], run, ['/veh1', '/veh2'])
     capsys.readouterr()
     assert report.main([str(run), '--out', str(tmp_path / 'rep0')]) == 2
-    assert _error_line(capsys.readouterr().err) == (
+    assert one_error_line(capsys.readouterr().err) == (
         f"ceco report: error: {run / 'bag'}: the bag holds ['cabin/comfort', 'cabin/state', 'hvac/power'] under "
         "several namespaces ('/veh1', '/veh2'): say which one with --namespace"
     )
@@ -372,7 +366,7 @@ def test_report_refuses_a_namespace_the_bag_does_not_hold(results, tmp_path, cap
     _ros2_bag_record_run(results['baseline'], run, [ns])
     capsys.readouterr()
     assert report.main([str(run), '--out', str(tmp_path / 'rep0'), '--namespace', 'bogus']) == 2
-    assert _error_line(capsys.readouterr().err) == (
+    assert one_error_line(capsys.readouterr().err) == (
         f"ceco report: error: {run / 'bag'}: --namespace bogus: not in the bag (no cabin/state, cabin/comfort or "
         f'hvac/power under /bogus): give one of its namespaces, {ns or "/"}'
     )
@@ -396,7 +390,7 @@ def test_a_bag_without_whole_plant_steps_says_what_each_step_needs(results, tmp_
     w.close()
     capsys.readouterr()
     assert report.main([str(bag), '--scenario', 'sc03', '--strategy', 'baseline', '--out', str(tmp_path / 'r')]) == 2
-    assert _error_line(capsys.readouterr().err) == (
+    assert one_error_line(capsys.readouterr().err) == (
         f'ceco report: error: {bag}: the bag holds fewer than 2 complete plant steps (a step needs one message of '
         'each of cabin/state (the bag: 1), cabin/comfort (the bag: 5), hvac/power (the bag: 0))'
     )
@@ -537,7 +531,7 @@ def test_runs_of_different_lengths_are_not_compared(runs, tmp_path, capsys):
     write_run(simulate('sc03', 'ceco-ioch', SimSettings(duration_s=30.0, progress=False)), short)
     out = tmp_path / 'rep'
     assert report.main([str(runs / 'baseline'), str(short), '--out', str(out)]) == 2
-    err = _error_line(capsys.readouterr().err)
+    err = one_error_line(capsys.readouterr().err)
     assert err.startswith('ceco report: error: the runs of sc03 differ in length (')
     assert f'{runs / "baseline"} 40 s' in err and f'{short} 30 s' in err
     assert not out.exists()
@@ -585,15 +579,15 @@ def test_each_run_is_shown_under_the_strategy_it_records(runs, tmp_path, capsys)
     does not know is shown as recorded."""
     both = [str(runs / 'baseline'), str(runs / 'ceco-ioch')]
     assert report.main([*both, '--strategy', 'mine', '--out', str(tmp_path / 'r1')]) == 2
-    assert _error_line(capsys.readouterr().err) == (
+    assert one_error_line(capsys.readouterr().err) == (
         f"ceco report: error: {runs / 'baseline'} records strategy 'baseline' (metrics.json), not --strategy "
         "'mine': --strategy names only a run that records none"
     )
     assert report.main([*both, '--scenario', 'udds', '--out', str(tmp_path / 'r2')]) == 2
-    assert "records scenario 'sc03' (metrics.json), not --scenario 'udds'" in _error_line(capsys.readouterr().err)
+    assert "records scenario 'sc03' (metrics.json), not --scenario 'udds'" in one_error_line(capsys.readouterr().err)
     nameless = _copy_with_metrics(runs / 'ceco-ioch', tmp_path / 'ceco-e', strategy=None)
     assert report.main([str(nameless), '--out', str(tmp_path / 'r3')]) == 2
-    assert _error_line(capsys.readouterr().err) == (
+    assert one_error_line(capsys.readouterr().err) == (
         f'ceco report: error: {nameless} records no strategy (neither metrics.json nor a bag names one): '
         'name it with --strategy'
     )
@@ -622,7 +616,7 @@ def test_every_run_of_a_strategy_is_shown_once(runs, tmp_path, capsys):
     for label in ('baseline', 'baseline (x1/baseline)', 'baseline (x2/baseline)'):
         assert _md_row(md, label, 'Metrics per strategy')[5] == '+0.0 %', label
     assert report.main([str(copies[1]), str(copies[1]), '--out', str(tmp_path / 'r2')]) == 2
-    assert _error_line(capsys.readouterr().err) == f'ceco report: error: {copies[1]}: the same run given twice'
+    assert one_error_line(capsys.readouterr().err) == f'ceco report: error: {copies[1]}: the same run given twice'
 
 
 def test_rtol_is_positive_and_a_looser_check_says_why(runs, tmp_path, capsys):
@@ -631,7 +625,7 @@ def test_rtol_is_positive_and_a_looser_check_says_why(runs, tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         report.main([str(runs / 'ceco-ioch'), '--rtol', '0', '--out', str(tmp_path / 'r0')])
     assert exc.value.code == 2
-    assert _error_line(capsys.readouterr().err) == (
+    assert one_error_line(capsys.readouterr().err) == (
         "ceco report: error: argument --rtol: must be a finite number > 0, got '0' "
         '(ceco report --help lists the options)'
     )
