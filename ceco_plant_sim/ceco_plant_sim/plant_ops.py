@@ -58,6 +58,7 @@ __all__ = [
     "SmoothSettings",
     "select",
     "PlantStepError",
+    "cycle_failure_message",
 ]
 
 
@@ -67,6 +68,11 @@ class PlantStepError(RuntimeError):
     The state lies outside the cycle model's tables (docs/scenarios.md, "What the plant can simulate"); the run
     cannot go on: a failed run. Raised by :meth:`NumericOps.check` and by the compiled step on its flag.
     """
+
+
+def cycle_failure_message(max_iter: int, where: str) -> str:
+    """Why a :class:`PlantStepError`: the cycle solve did not converge in ``max_iter`` iterations (at ``where``)."""
+    return f"refrigerant cycle did not converge in {max_iter} iterations ({where})"
 
 
 class NumericOps:

@@ -50,7 +50,7 @@ from typing import Any, NamedTuple
 
 from . import refrigerant_table_file as _refrigerant_table_file
 from . import refrigerant_tables as _refrigerant_tables
-from .plant_ops import NUMERIC
+from .plant_ops import NUMERIC, cycle_failure_message
 from .refrigerant_table_file import *  # noqa: F403 - re-exported (__all__): the shipped table file
 from .refrigerant_tables import *  # noqa: F403 - re-exported (__all__): the property tables
 from .refrigerant_tables import CycleTables
@@ -300,10 +300,7 @@ def cycle_vars(
         s = ops.loop(int(max_iter), _newton_evaluation, s, ops, tab, comp, vn, args, te_mop_c, tol_k, pr_min)
         ok = ops.check(
             s.done,
-            lambda: (
-                f"refrigerant cycle did not converge in {max_iter} iterations "
-                f"(speed {speed_rpm:.0f} rpm, wall {t_wall_c:.2f} degC)"
-            ),
+            lambda: cycle_failure_message(max_iter, f"speed {speed_rpm:.0f} rpm, wall {t_wall_c:.2f} degC"),
         )
         return CycleVars(
             s.t_e, s.t_c, s.mdot, s.q_e, s.w_sh, s.w_sh / comp.eta_motor_inverter, s.pr, s.mop, s.hp, s.it, ok

@@ -39,7 +39,7 @@ from ceco_v2x_preview.scenario import Scenario
 from .compiled_plant import COMFORT_NAMES, OUTPUT_NAMES, PlantEvaluation, compiled_step, fallback_warning
 from .plant import CabinPlant, PlantOutputs, PlantState
 from .plant_equations import Env
-from .plant_ops import PlantStepError
+from .plant_ops import PlantStepError, cycle_failure_message
 from .plant_params import PlantParams
 from .plant_state import validate_environment
 
@@ -313,8 +313,7 @@ class ScenarioPlant:
         )
         if not ok:
             raise PlantStepError(
-                f"refrigerant cycle did not converge in {plant.params.cycle_max_iter} iterations "
-                f"(compiled plant, step {self.n}, t = {self.t_s:g} s)"
+                cycle_failure_message(plant.params.cycle_max_iter, f"compiled plant, step {self.n}, t = {self.t_s:g} s")
             )
         c = OccupantComfort(
             **{k: (v == 1.0 if k == "iso7730_valid" else v) for k, v in zip(COMFORT_NAMES, cv, strict=True)}
