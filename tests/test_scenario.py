@@ -253,6 +253,10 @@ def test_the_control_block_takes_the_nodes_ranges():
     assert (sc.control.control_period_s, sc.control.horizon_steps) == (300.0, 60)
     sc = scenario_from_dict(_mutate(("control",), {"control_period_s": 1.0, "horizon_steps": 1}))
     assert (sc.control.control_period_s, sc.control.horizon_steps) == (1.0, 1)
+    # a run's timing: each flag where given, else the scenario's (None and 0 both mean "not given")
+    assert sc.control.timing() == (1.0, 1) and sc.control.timing(None, 0) == (1.0, 1)
+    assert sc.control.timing(10.0) == (10.0, 1) and sc.control.timing(horizon_steps=12) == (1.0, 12)
+    assert sc.control.timing(0.0, 24) == (1.0, 24)
 
 
 def test_user_files_and_csv_cycles(tmp_path):

@@ -87,8 +87,7 @@ def warn_no_preview(prog: str, args, scenario, quality) -> None:
     from ceco_v2x_preview.preview import no_preview_warning
 
     if set(args.strategy) & set(NODE_STRATEGIES):
-        ts = args.control_period_s or scenario.control.control_period_s
-        n_p = args.horizon_steps or scenario.control.horizon_steps
+        ts, n_p = scenario.control.timing(args.control_period_s, args.horizon_steps)
         warning = no_preview_warning(quality, args.duration_s or scenario.duration_s, ts, n_p)
         if warning:
             print(f'{prog}: warning: {warning}', file=sys.stderr)
@@ -105,7 +104,7 @@ def check_control_period(args, scenario, model_params_path=None) -> None:
     from ceco_core.contracts import NODE_STRATEGIES, PLANT_STEP_S
     from ceco_plant_sim.scenario_plant import steps_per_control
 
-    ts = args.control_period_s or scenario.control.control_period_s
+    ts = scenario.control.timing(args.control_period_s)[0]
     if not args.control_period_s:
         name = f'scenario {scenario.name}: control.control_period_s'
     elif getattr(args, 'case', None) is not None:

@@ -219,7 +219,7 @@ def main(argv=None) -> int:
     )
     doc = {
         'case': case.name,
-        'control_period_s': settings.control_period_s or scenario.control.control_period_s,
+        'control_period_s': scenario.control.timing(settings.control_period_s)[0],
         'note': 'a local optimum of an NLP replayed on the plant: an achievable point, not a proven global bound',
         'evaluation': results[0][2].evaluation if results else '',
         'levels': rows,

@@ -182,8 +182,7 @@ def main(argv=None) -> int:
             line = outputs.run_line(res.metrics, run_dir)
         (run_dir / 'summary.txt').write_text(line + '\n', encoding='utf-8')
         print(line, flush=True)
-    ts = settings.control_period_s or scenario.control.control_period_s
-    n_p = settings.horizon_steps or scenario.control.horizon_steps
+    ts, n_p = scenario.control.timing(settings.control_period_s, settings.horizon_steps)
     header = f'scenario {scenario.name}, in-process, Ts {ts:g} s, Np {n_p}, preview {quality.describe()}' + (
         ', measurements vehicle' if settings.measurements == 'vehicle' else ''
     )

@@ -165,8 +165,7 @@ def simulate(
         scenario = load_scenario(scenario)
     if strategy not in NAMED_STRATEGIES:
         raise ValueError(f"strategy must be one of {NAMED_STRATEGIES}, got {strategy!r}")
-    ts = float(settings.control_period_s or scenario.control.control_period_s)
-    n_p = int(settings.horizon_steps or scenario.control.horizon_steps)
+    ts, n_p = scenario.control.timing(settings.control_period_s, settings.horizon_steps)
     dt = float(settings.plant_dt_s)
     steps_per_ctrl = steps_per_control(ts, dt)
     quality = settings.preview_quality

@@ -437,7 +437,7 @@ class OracleProblem:
 
         self.settings = s = (settings or OracleSettings()).validate()
         self.scenario = scenario
-        ts = float(s.control_period_s or scenario.control.control_period_s)
+        ts = scenario.control.timing(s.control_period_s)[0]
         ratio = ts / s.plant_dt_s
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise ValueError(f"oracle: Ts {ts} s must be a whole multiple of the plant step {s.plant_dt_s} s")

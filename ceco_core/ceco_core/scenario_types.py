@@ -194,6 +194,10 @@ class ControlDefaults:
     horizon_steps: int = 6
     """Prediction horizon Np [steps] (the paper: 6), in :data:`~ceco_core.contracts.HORIZON_RANGE`."""
 
+    def timing(self, control_period_s: float | None = None, horizon_steps: int | None = None) -> tuple[float, int]:
+        """``(Ts [s], Np [steps])`` of a run: each given value where set (not None or 0), else the scenario's."""
+        return float(control_period_s or self.control_period_s), int(horizon_steps or self.horizon_steps)
+
     def validate(self) -> None:
         """Raise ScenarioError naming the first bad field.
 

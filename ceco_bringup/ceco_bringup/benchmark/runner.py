@@ -856,6 +856,7 @@ def assemble_case(
     bounds = oracle_bounds(oracle)
     bound_kpis = oracle_point_kpis(oracle)
     sc = case.load_scenario()
+    ts, n_p = sc.control.timing(case.control_period_s, case.horizon_steps)
     out = {
         'case': case.name,
         'version': case.version,
@@ -865,8 +866,8 @@ def assemble_case(
         'forecast_uncertainty': case.forecast_uncertainty,
         'seeds': list(case.seeds),
         'duration_s': float(sc.duration_s),
-        'control_period_s': float(case.control_period_s or sc.control.control_period_s),
-        'horizon_steps': int(case.horizon_steps or sc.control.horizon_steps),
+        'control_period_s': ts,
+        'horizon_steps': n_p,
         'runs': runs,
         'fronts': {fam: _front_points(f) for fam, f in fronts.items()},
         'strongest': strongest_entry(env, oracle['levels'] or oracle_levels(runs)),
