@@ -36,9 +36,10 @@ exits with status 130; the bag reads back completely up to the stop and
 `ceco report DIR` reports it, marked partial.
 
 A failed run (exit status 1; with several strategies the next one still runs, and the table
-and the verdict compare the others): a node exits, the plant publishes nothing new for
-`--stall-timeout-s` of wall clock (stalled), the bag misses a message the stack sent (the
-arrival check, metrics.json `recorded`), or the controller did not control the run (more
+and the verdict compare the others): a node exits (plant_node with status 3 when a step leaves its
+refrigerant model: ``the simulation stopped: <reason> (plant_node; ...)``, the words of ``ceco sim``),
+the plant publishes nothing new for `--stall-timeout-s` of wall clock (stalled), the bag misses
+a message the stack sent (the arrival check, metrics.json `recorded`), or the controller did not control the run (more
 fallback steps than 5 % of its control steps and 2: metrics.json `status: failed`, no number
 printed; ``ceco_core.run_status``). run.json then says ``failed`` and why.
 """
@@ -242,16 +243,15 @@ def stall_timeout_s(args) -> float:
 
 
 def _params(args, scenario, quality, strategy, duration_s):
-    ts = args.control_period_s or scenario.control.control_period_s
-    np_ = args.horizon_steps or scenario.control.horizon_steps
-    common = {'scenario': args.scenario, 'timing': args.timing, 'control_period_s': float(ts)}
+    ts, np_ = scenario.control.timing(args.control_period_s, args.horizon_steps)
+    common = {'scenario': args.scenario, 'timing': args.timing, 'control_period_s': ts}
     # Lockstep: the plant drives /clock; the other nodes follow it (their decisions
     # use the simulation-time stamps the messages carry, never a wall clock).
     sim_time = {'use_sim_time': True} if args.timing == 'lockstep' else {}
     spans = [x for span in quality.missing_spans_s for x in span] or [0.0]
     preview = dict(
         common,
-        horizon_steps=int(np_),
+        horizon_steps=np_,
         **sim_time,
         **{
             'faults.noise_std_t_amb_c': float(quality.noise_std_t_amb_c),
@@ -270,7 +270,7 @@ def _params(args, scenario, quality, strategy, duration_s):
         },
     )
     # lockstep: the first command waits until both the plant and the recorder are matched
-    controller = dict(common, horizon_steps=int(np_), **sim_time, **{'lockstep.min_command_subscribers': 2})
+    controller = dict(common, horizon_steps=np_, **sim_time, **{'lockstep.min_command_subscribers': 2})
     if strategy != 'baseline':
         controller['strategy'] = strategy
     plant = dict(
@@ -457,10 +457,7 @@ def run_one(
                     raise supervisor.Interrupted()
                 for name, proc in procs.items():
                     if not proc.running():
-                        raise RuntimeError(
-                            f'{name} exited with status {proc.returncode()}; '
-                            f'log: {proc.log_path}\n' + supervisor.log_tail(proc.log_text())
-                        )
+                        raise RuntimeError(supervisor.exited_message(name, proc))
                 now = time.monotonic()
                 if recorder.last_power_step != progress[0]:
                     progress = (recorder.last_power_step, now, plant.cpu_time_s())
@@ -524,7 +521,7 @@ def run_one(
             'scenario': scenario.name,
             'strategy': strategy,
             'control_period_s': float(ts),
-            'horizon_steps': int(np_),
+            'horizon_steps': np_,
             'seed': int(scenario.seed if quality.seed is None else quality.seed),
             'preview_quality': quality.describe(),
             'source': 'dds',

@@ -168,7 +168,7 @@ def main(argv=None) -> int:
             print('ceco sim: interrupted; the finished strategies are kept', file=sys.stderr)
             return 130
         except PlantStepError as exc:  # the plant's refrigerant cycle left its model: the run cannot go on
-            res, reason = None, f'the simulation stopped: {exc}'
+            res, reason = None, exc.run_error
         else:
             write_run(res, run_dir)  # a failed run too: kept in run_dir, never shown
             reason = res.metrics['status_reason'] if res.metrics['status'] != STATUS_OK else None

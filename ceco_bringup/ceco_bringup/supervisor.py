@@ -16,8 +16,9 @@ sets the parent-death signal in the child before it execs the node, so no node
 outlives a SIGKILLed `ceco run`.
 
 Also here: :class:`StopFlag` (SIGINT/SIGTERM as an event), :func:`wait_for` (poll a
-condition while watching the children), :func:`configure_and_activate` (the managed
-controller's lifecycle transitions through :class:`LifecycleClient`).
+condition while watching the children), :func:`exited_message` (why a child is gone),
+:func:`configure_and_activate` (the managed controller's lifecycle transitions through
+:class:`LifecycleClient`).
 """
 
 from __future__ import annotations
@@ -528,12 +529,25 @@ def wait_for(cond, timeout_s, stop, procs, what):
             raise Interrupted()
         for name, proc in procs.items():
             if proc.proc is not None and not proc.running():
-                raise RuntimeError(
-                    f'{name} exited with status {proc.returncode()} while waiting for '
-                    f'{what}; log: {proc.log_path}\n' + log_tail(proc.log_text())
-                )
+                raise RuntimeError(exited_message(name, proc, f' while waiting for {what}'))
         if time.monotonic() - t0 > timeout_s:
             raise RuntimeError(f'timeout ({timeout_s} s) waiting for {what}')
+
+
+def exited_message(name: str, proc: NodeProcess, when: str = '') -> str:
+    """Why the child ``name`` of a run is gone, for the run's error.
+
+    plant_node that stopped the simulation (its exit status 3 and ERROR line,
+    ``ceco_plant_sim.plant_loop``): ``the simulation stopped: <reason> (plant_node; log: <path>)``;
+    any other exit: its status (``when``: e.g. ' while waiting for ...'), log path and the log's tail.
+    """
+    if name == 'plant_node':
+        from ceco_plant_sim.plant_loop import simulation_stopped  # (here: the plant package imports CasADi)
+
+        stopped = simulation_stopped(proc.returncode(), proc.log_text())
+        if stopped:
+            return f'{stopped} ({name}; log: {proc.log_path})'
+    return f'{name} exited with status {proc.returncode()}{when}; log: {proc.log_path}\n' + log_tail(proc.log_text())
 
 
 def log_tail(text: str, n: int = 15) -> str:

@@ -6,6 +6,11 @@ acceptable command came (:class:`~ceco_core.supervision.FallbackSupervisor` says
 time, which input drives each plant tick (:class:`~ceco_plant_sim.plant_io.RealtimeCommands`). The
 node publishes what it returns and logs the lines it hands back.
 
+When a step cannot be simulated (:class:`~ceco_plant_sim.plant_ops.PlantStepError`: the refrigerant
+cycle left its model) the loop stops for good (:attr:`PlantLoop.stopped`); the node then exits with
+:data:`PLANT_STOPPED_EXIT` after its ERROR line (:func:`stopped_line`), which ``ceco run`` reads back
+(:func:`simulation_stopped`).
+
 Pure logic: no rclpy, no message types; times are floats the node passes in.
 """
 
@@ -20,9 +25,33 @@ from ceco_v2x_preview.scenario import Scenario
 
 from .compiled_plant import PlantEvaluation
 from .plant_io import CONTROLLER_LOST, STARTED, CommandPolicy, PlantNodeConfig, RealtimeCommands, plant_health
+from .plant_ops import SIMULATION_STOPPED, PlantStepError
 from .scenario_plant import PlantStepRecord, ScenarioPlant, n_plant_steps, steps_per_control
 
-__all__ = ['PlantLoop']
+__all__ = ['PLANT_STOPPED_EXIT', 'PlantLoop', 'simulation_stopped', 'stopped_line']
+
+PLANT_STOPPED_EXIT = 3
+"""plant_node's exit status when its plant cannot go on (a :class:`PlantStepError`; docs/ros.md)."""
+
+_CANNOT_GO_ON = f'; the plant cannot go on: exit {PLANT_STOPPED_EXIT}'
+
+
+def stopped_line(reason: str) -> str:
+    """plant_node's ERROR line when its plant cannot go on (``reason``: the PlantStepError's message), one line."""
+    return SIMULATION_STOPPED + ' '.join(reason.split()) + _CANNOT_GO_ON
+
+
+def simulation_stopped(exit_status: int | None, log_text: str) -> str | None:
+    """``the simulation stopped: <reason>`` of a plant_node that exited with :data:`PLANT_STOPPED_EXIT`, else None.
+
+    The reason is read from its last :func:`stopped_line` in ``log_text`` (its log); None without one.
+    """
+    if exit_status != PLANT_STOPPED_EXIT:
+        return None
+    lines = [line for line in log_text.splitlines() if line.endswith(_CANNOT_GO_ON) and SIMULATION_STOPPED in line]
+    if not lines:
+        return None
+    return SIMULATION_STOPPED + lines[-1].split(SIMULATION_STOPPED, 1)[1].removesuffix(_CANNOT_GO_ON)
 
 
 class PlantLoop:
@@ -64,6 +93,8 @@ class PlantLoop:
         """What step 0 waits for ('' once started or free to start)."""
         self.controller_lost = False
         """lockstep: the command publisher's liveliness was lost while a command was awaited."""
+        self.stopped: str | None = None
+        """Why the plant cannot go on (a step's :class:`PlantStepError`), else None; no step follows."""
         self._reported = 0
 
     def set_config(self, cfg: PlantNodeConfig) -> None:
@@ -92,8 +123,8 @@ class PlantLoop:
 
     @property
     def running(self) -> bool:
-        """Started and not finished."""
-        return self.started and not self.finished
+        """Started, not finished and not stopped."""
+        return self.started and not self.finished and self.stopped is None
 
     # -------------------------------------------------------------- commands
     def take_command(self, msg, wall_s: float, clock_s: float, to_input: Callable[[object], AcInput]) -> AcInput | None:
@@ -145,10 +176,19 @@ class PlantLoop:
         return self.n // self.m
 
     def step(self, u: AcInput) -> PlantStepRecord:
-        """One plant step with ``u`` held; the energy totals follow; :attr:`finished` after the last one."""
+        """One plant step with ``u`` held; the energy totals follow; :attr:`finished` after the last one.
+
+        A :class:`PlantStepError` (the step cannot be simulated) sets :attr:`stopped` and is raised again.
+        """
         if self.finished:
             raise RuntimeError(f'the run is finished ({self.n_steps} plant steps)')
-        r = self.sp.step(u)
+        if self.stopped is not None:
+            raise RuntimeError(f'the plant cannot go on: {self.stopped}')
+        try:
+            r = self.sp.step(u)
+        except PlantStepError as err:
+            self.stopped = str(err)
+            raise
         self.e_comp_j += r.out.e_comp_j
         self.e_blower_j += r.out.e_blower_j
         self.finished = self.n >= self.n_steps
@@ -200,7 +240,7 @@ class PlantLoop:
         rej, rt = self.policy.rejections, self.cfg.timing == 'realtime'
         new, self._reported = rej.total - self._reported, rej.total
         age = self.rt.watchdog.age(clock_s) if rt else self.wait.age(wall_s)
-        return plant_health(
+        h = plant_health(
             cfg=self.cfg,
             started=self.started,
             finished=self.finished,
@@ -214,6 +254,9 @@ class PlantLoop:
             waiting_for='' if self.started else waiting_for,
             clock_publishers=clock_publishers,
         )
+        if self.stopped is not None:
+            h.set('state', 'stopped').error(stopped_line(self.stopped))
+        return h
 
     def summary(self) -> str:
         """The line logged at the run's end."""

@@ -4,23 +4,30 @@ Out: ``cabin/state``, ``cabin/comfort``, ``hvac/power``, ``/clock`` (lockstep), 
 In: ``hvac/command`` and its publishers' liveliness. lockstep: the state at t_k, then the command
 of step k (or, after ``lockstep.command_timeout_s`` or a lost controller, the ACC law) for Ts/dt
 plant steps; realtime: a timer every dt applies the latest fresh command, else the ACC law.
+A step the plant cannot simulate (PlantStepError: the refrigerant cycle left its model) ends the node:
+one ERROR line, an ERROR status on /diagnostics, no further step, exit status 3 (``PLANT_STOPPED_EXIT``).
 The logic: :class:`ceco_plant_sim.plant_loop.PlantLoop`; docs/ros.md.
 """
 
 from __future__ import annotations
 
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 
 import ceco_plant_sim.plant_io as pio
 from ceco_core.contracts import AcInput
 from ceco_msgs.msg import AcCommand, AcPower, CabinState, Comfort
-from ceco_plant_sim.plant_loop import PlantLoop
+from ceco_plant_sim.plant_loop import PLANT_STOPPED_EXIT, PlantLoop, stopped_line
+from ceco_plant_sim.plant_ops import PlantStepError
 from ceco_ros import conversions, interfaces
 from ceco_ros.diagnostics import DiagnosticsTimer
 from ceco_ros.node_base import NodeTools
 from ceco_ros.node_main import run_node
 from ceco_v2x_preview.scenario import load_scenario_param
+
+STOP_FLUSH_S = 1.0
+"""Wall-clock bound of the wait for the /diagnostics readers' acknowledgements when the plant cannot go on [s]."""
 
 
 class PlantNode(NodeTools, Node):
@@ -31,6 +38,9 @@ class PlantNode(NodeTools, Node):
         cfg = self.use_params(pio.PLANT_PARAMETERS, pio.PlantNodeConfig.from_params)
         self.scenario = sc = load_scenario_param(cfg.scenario)
         self.loop, self.lockstep = PlantLoop(sc, cfg, self.log), cfg.timing == 'lockstep'
+        self.exit_status: int | None = None
+        """Set (with ``exit_reason``) when the node ends itself: what :func:`run_node` returns and logs."""
+        self.exit_reason = ''
         out_qos = interfaces.state_qos(cfg.timing)
         self.pub_state = self.create_publisher(
             CabinState, interfaces.TOPIC_STATE, out_qos, qos_overriding_options=interfaces.qos_overrides()
@@ -50,7 +60,7 @@ class PlantNode(NodeTools, Node):
             self.create_timer(0.02, self._on_watchdog, clock=self.steady)
         else:
             self.create_timer(cfg.plant_dt_s, self._on_tick)
-        DiagnosticsTimer(self, self._health, cfg.diagnostics_period_s)
+        self.diagnostics = DiagnosticsTimer(self, self._health, cfg.diagnostics_period_s)
         self.get_logger().info(
             f'scenario {sc.name}: {self.loop.n_steps} plant steps of {cfg.plant_dt_s} s, '
             f'Ts {cfg.control_period_s} s, timing {cfg.timing}; refrigerant tables: '
@@ -82,7 +92,11 @@ class PlantNode(NodeTools, Node):
     def _plant_step(self, u: AcInput, fallback: bool) -> None:
         """One plant step n with u held (the simulator's core step), then comfort, power and the next state."""
         lp, stamp = self.loop, self._stamp()
-        r, c = lp.step(u), lp.sp.comfort
+        try:
+            r, c = lp.step(u), lp.sp.comfort
+        except PlantStepError:  # the refrigerant cycle left its model: the run cannot go on
+            self._stop()
+            return
         self.pub_comfort.publish(conversions.comfort_msg(r, stamp, c.met, c.clo))
         self.pub_power.publish(
             conversions.power_msg(r.n, stamp, lp.dt_s, u, r.out, lp.e_comp_j, lp.e_blower_j, fallback)
@@ -111,7 +125,7 @@ class PlantNode(NodeTools, Node):
     def _control_period(self, u: AcInput, fallback: bool) -> None:
         for _ in range(self.loop.m):
             self._plant_step(u, fallback)
-            if self.loop.finished:
+            if not self.loop.running:  # finished, or stopped
                 return
         self.loop.wait.kick(self.wall_s())
 
@@ -140,6 +154,19 @@ class PlantNode(NodeTools, Node):
                 self.get_logger().warn(line)
             self._plant_step(u, fallback)
 
+    def _stop(self) -> None:
+        """The plant cannot go on: say why (log, /diagnostics), then end spinning (``main`` exits with status 3).
+
+        The ERROR status reaches the /diagnostics readers first (a wait of at most :data:`STOP_FLUSH_S`).
+        """
+        self.get_logger().error(stopped_line(self.loop.stopped or ''))
+        self.exit_status, self.exit_reason = PLANT_STOPPED_EXIT, 'the plant cannot go on'  # run_node's
+        self.diagnostics.publish()
+        for pub in self.publishers:
+            if pub.topic_name == interfaces.TOPIC_ROS_DIAGNOSTICS:
+                pub.wait_for_all_acked(Duration(seconds=STOP_FLUSH_S))
+        self.context.try_shutdown()
+
     # ------------------------------------------------------------------ glue
     def config_changed(self) -> None:
         """Run-time parameter changes go to the loop."""
@@ -154,7 +181,7 @@ class PlantNode(NodeTools, Node):
 
 
 def main(args=None) -> int:
-    """Entry point of the plant_node executable."""
+    """Entry point of the plant_node executable: :func:`run_node`'s status (3 when the plant could not go on)."""
     return run_node(PlantNode, args, 'plant_node')
 
 

@@ -58,6 +58,7 @@ __all__ = [
     "SmoothSettings",
     "select",
     "PlantStepError",
+    "SIMULATION_STOPPED",
     "cycle_failure_message",
 ]
 
@@ -68,6 +69,15 @@ class PlantStepError(RuntimeError):
     The state lies outside the cycle model's tables (docs/scenarios.md, "What the plant can simulate"); the run
     cannot go on: a failed run. Raised by :meth:`NumericOps.check` and by the compiled step on its flag.
     """
+
+    @property
+    def run_error(self) -> str:
+        """The failed run's reason, in the words of every verb: ``the simulation stopped: <message>``."""
+        return SIMULATION_STOPPED + str(self)
+
+
+SIMULATION_STOPPED = "the simulation stopped: "
+"""The start of the reason of a run whose plant could not simulate a step (every verb, plant_node's log)."""
 
 
 def cycle_failure_message(max_iter: int, where: str) -> str:

@@ -18,6 +18,9 @@ def run_node(node_factory, argv=None, name: str = 'node') -> int:
       is destroyed and the process exits 0. Signals that arrive during that cleanup (a
       terminal's Ctrl-C reaches every node of a ``ros2 launch`` twice: from the terminal and
       from launch) are ignored, so no KeyboardInterrupt cuts the cleanup short.
+    * A node that ends itself (it shuts the context down) may say how first: its ``exit_status`` (int) and
+      ``exit_reason`` attributes, when set, are the status returned and the ``<why>`` of the line above
+      (plant_node when its plant cannot go on: status 3).
     * The node spins in an executor of its own that cannot be left half-built: a stop signal that
       lands inside ``Executor.__init__`` stops the node as above, without the traceback rclpy's
       ``Executor.__del__`` prints for an executor whose ``__init__`` did not reach its last line.
@@ -47,6 +50,8 @@ def run_node(node_factory, argv=None, name: str = 'node') -> int:
     finally:
         _ignore_stop_signals()  # the cleanup runs to its end
         if node is not None:
+            if status == 0 and getattr(node, 'exit_status', None) is not None:  # the node ended itself, said why
+                status, why = int(node.exit_status), str(getattr(node, 'exit_reason', why))
             _console(node.get_logger().name, f'stopped ({why}): exit {status}')
             node.destroy_node()
             if executor is not None:
