@@ -11,7 +11,7 @@ import json
 import pytest
 import yaml
 
-from ceco_bringup import provenance, report, rundata, sim
+from ceco_bringup import outputs, provenance, report, rundata, sim
 from ceco_bringup import verdict as vd
 from ceco_core.air_quality import AirQualityLimits
 from ceco_core.kpis import AIR_QUALITY_KEYS, air_quality_kpis
@@ -138,3 +138,35 @@ def test_report_recomputes_and_checks_the_air_quality(job, tmp_path):
     loaded = rundata.load_run(tampered)
     assert not loaded.mismatches and loaded.recomputed['air_quality_met'] == 0.0
     assert any('metrics.json records no air quality' in n and 'not checked' in n for n in loaded.notes)
+
+
+def test_the_run_line_says_a_run_broke_the_air_quality_limits(job):
+    """Each run of the job broke the 450-ppm CO2 limit (its fog margin held): its line, printed and in its
+    summary.txt, says so with its CO2 max and the limit, and names no fog margin (it said nothing)."""
+    for name in ('baseline', 'ceco'):
+        m = json.loads((job / name / 'metrics.json').read_text())
+        line = (job / name / 'summary.txt').read_text().strip()
+        assert m['fog_below_bound_s'] == 0.0 and m['co2_above_limit_pct'] > 0.0
+        assert line.endswith(f"; BROKE air quality: CO2 max {m['co2_max_ppm']:.0f} ppm > 450 ppm -> {job / name}")
+
+
+def test_the_run_line_names_the_limit_broken_and_is_unchanged_within_them():
+    """A run within its limits, or whose air quality was not recorded, gets the line it always had (README's
+    quoted lines); one that broke the fog bound, or both limits, names each with the run's number and the limit."""
+    m = dict(strategy='ceco', E_comp_J=1.1e6, E_blower_J=1.3e5, E_fan_J=9.0e4, E_tot_J=1.32e6, otc_violation_pct=19.8)
+    m['wall_time_s'] = 3.2
+    plain = '      ceco: E 0.3667 kWh (comp 0.3056, blower 0.0361, fan 0.0250), viol. 19.8 %, wall 3.2 s -> runs/ceco'
+    assert outputs.run_line(m, 'runs/ceco') == plain
+    aq = dict(co2_limit_ppm=1500.0, fog_margin_bound_k=3.0, co2_max_ppm=1400.4, fog_margin_min_k=6.2)
+    held = dict(m, **aq, co2_above_limit_pct=0.0, fog_below_bound_s=0.0, air_quality_met=1.0)
+    assert outputs.run_line(held, 'runs/ceco') == plain
+    unknown = dict(m, **aq, co2_above_limit_pct=None, fog_below_bound_s=None, air_quality_met=None)
+    assert outputs.run_line(unknown, 'runs/ceco') == plain
+    fog = dict(held, fog_margin_min_k=1.24, fog_below_bound_s=12.0, air_quality_met=0.0)
+    assert outputs.run_line(fog, 'runs/ceco') == plain.replace(
+        ' -> ', '; BROKE air quality: fog margin min 1.2 K < 3 K -> '
+    )
+    both = dict(fog, co2_max_ppm=1650.4, co2_above_limit_pct=4.0)
+    assert outputs.run_line(both, 'runs/ceco') == plain.replace(
+        ' -> ', '; BROKE air quality: CO2 max 1650 ppm > 1500 ppm, fog margin min 1.2 K < 3 K -> '
+    )

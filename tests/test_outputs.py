@@ -39,6 +39,40 @@ FAMILY = {  # a convex front: 24 degC (cold, costly) .. 27 degC (warm, cheap)
 }
 
 
+# ---------------------------------------------------------------------------------------- formatting
+FORMATTED = [  # (value, format, what every output prints): report_html.fmt_value, the one fixed-format formatter
+    (0.36624, '.4f', '0.3662'),
+    (12.46, '+.1f', '+12.5'),
+    (np.float64(682.4), '.0f', '682'),
+    (1500.0, 'g', '1500'),
+    (None, '.1f', 'n/a'),  # not defined / not recorded
+    (float('nan'), '.3f', 'n/a'),
+    (float('inf'), '.0f', 'n/a'),
+    (True, 's', 'yes'),
+    (False, 's', 'no'),
+    ('ceco-pmv', 's', 'ceco-pmv'),
+]
+
+
+@pytest.mark.parametrize('value, spec, text', FORMATTED)
+def test_one_formatter_for_the_tables_and_the_verdict(value, spec, text):
+    """The console and full tables (outputs) and the verdict's words format through report_html.fmt_value."""
+    from ceco_bringup.report_html import fmt_value
+
+    assert fmt_value(value, spec) == text
+    row = {'strategy': 'x', 'otc_violation_pct': value}
+    if not isinstance(value, (bool, str)):
+        assert outputs.full_table([row]).splitlines()[2].split()[13] == fmt_value(value, '.1f')
+
+
+def test_the_broken_limits_words_say_n_a_for_what_was_not_recorded():
+    """A run that broke the fog bound without a CO2 series: the verdict says n/a where there is no number."""
+    p = _point(0.1, 0.3, co2_max_ppm=None, co2_above_limit_pct=None, fog_below_bound_s=12.0)
+    words = vd._broke_words(p, {'co2_limit_ppm': 1500.0, 'fog_margin_bound_k': 3.0})
+    assert words.startswith('BROKE the air-quality limits: CO2 max n/a ppm, above 1500 ppm n/a % of the time;')
+    assert 'fog margin below 3 K 12 s: not matched, no saving' in words
+
+
 # ---------------------------------------------------------------------------------------- verdict
 def test_verdict_states_the_saving_at_matched_comfort_in_words():
     """The verdict reads each strategy against the family's front at its own discomfort: a point

@@ -164,6 +164,11 @@ def test_ceco_sim_fails_a_strategy_that_never_controls(tmp_path):
     assert [r.split(',')[0] for r in csv_rows[1:]] == ['baseline']
     verdict = json.loads((out / 'verdict.json').read_text())
     assert set(verdict['points']) == {'baseline'} and 'ceco-ioch' not in verdict['matched']
+    # ... but it is named there, with why (no number)
+    assert (
+        list(verdict['failed']) == ['ceco-ioch']
+        and 'did not control the run: 12 of 12' in verdict['failed']['ceco-ioch']
+    )
     assert '1 of 2 runs failed' in (out / 'summary.txt').read_text()
 
 

@@ -27,12 +27,15 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from ceco_bringup import verdict as vd
+from ceco_bringup.report_html import fmt_value
 from ceco_core.metrics import ENERGY_PARTS, J_PER_KWH, PMV_SCALE_LIMIT, relative_change_pct
 
 __all__ = [
     'CONSOLE_WIDTH',
     'run_line',
+    'air_quality_words',
     'failed_line',
+    'failed_lines',
     'report_failed',
     'pmv_scale_cell',
     'table_rows',
@@ -112,21 +115,15 @@ FULL_LEGEND = (
 )
 
 
-def _fmt(x, spec: str) -> str:
-    if x is None:
-        return 'n/a'
-    if isinstance(x, bool):
-        return 'yes' if x else 'no'
-    if isinstance(x, str):
-        return x
-    x = float(x)
-    if not math.isfinite(x):
-        return 'n/a'
-    return format(x, spec)
-
-
 def run_line(m: Mapping, run_dir: Path | str) -> str:
-    """One finished run on one line: energy [kWh] and its parts, discomfort, violation, wall time."""
+    """One finished run on one line: energy [kWh] and its parts, discomfort, violation, wall time.
+
+    A run that broke its scenario's air-quality limits (``ceco_core.kpis.breaks_air_quality`` on its
+    metrics.json) says so, with the limit it broke (:func:`air_quality_words`); within them the line says nothing
+    of air quality.
+    """
+    from ceco_core.kpis import breaks_air_quality
+
     parts = (m['E_comp_J'] / J_PER_KWH, m['E_blower_J'] / J_PER_KWH, m['E_fan_J'] / J_PER_KWH)
     text = (
         f"{m['strategy']:>10}: E {m['E_tot_J'] / J_PER_KWH:.4f} kWh (comp {parts[0]:.4f}, blower "
@@ -134,12 +131,48 @@ def run_line(m: Mapping, run_dir: Path | str) -> str:
     )
     if 'wall_time_s' in m:
         text += f", wall {m['wall_time_s']:.1f} s"
+    if breaks_air_quality(m):
+        text += f'; BROKE air quality: {air_quality_words(m)}'
     return text + f' -> {run_dir}'
+
+
+def air_quality_words(m: Mapping) -> str:
+    """Which air-quality limit a run broke, short: ``CO2 max 1650 ppm > 1500 ppm, fog margin min 1.2 K < 3 K``.
+
+    ``m``: a metrics.json (``ceco_core.metrics.run_metrics`` with the limits: ``co2_limit_ppm``, ``co2_max_ppm``,
+    ``co2_above_limit_pct``; ``fog_margin_bound_k``, ``fog_margin_min_k``, ``fog_below_bound_s``). A limit is
+    named when the run passed it (time above the CO2 limit, time below the fog margin bound), as
+    ``ceco_core.kpis.air_quality_kpis`` scores it.
+    """
+    words = []
+    if (m.get('co2_above_limit_pct') or 0.0) > 0.0:
+        words.append(
+            f"CO2 max {fmt_value(m.get('co2_max_ppm'), '.0f')} ppm > {fmt_value(m.get('co2_limit_ppm'), 'g')} ppm"
+        )
+    if (m.get('fog_below_bound_s') or 0.0) > 0.0:
+        words.append(
+            f"fog margin min {fmt_value(m.get('fog_margin_min_k'), '.1f')} K < "
+            f"{fmt_value(m.get('fog_margin_bound_k'), 'g')} K"
+        )
+    return ', '.join(words)
 
 
 def failed_line(strategy: str, reason: str, run_dir: Path | str) -> str:
     """A failed run on one line: its reason, no number (``ceco_core.run_status``: no result)."""
     return f'{strategy:>10}: FAILED: {reason} -> {run_dir}'
+
+
+def failed_lines(failed: Mapping[str, str], n_runs: int) -> list[str]:
+    """The failed runs of a job (``failed``: {name: reason}) of ``n_runs``: a head line, then one per run.
+
+    ``N of M runs failed (not compared):`` and ``  name: reason`` (``verdict.reason_line``); the words of ``ceco sim``,
+    ``ceco run`` (:func:`report_failed`) and ``ceco report``. No line when none failed.
+    """
+    if not failed:
+        return []
+    return [f'{len(failed)} of {n_runs} runs failed (not compared):'] + [
+        f'  {name}: {vd.reason_line(reason)}' for name, reason in failed.items()
+    ]
 
 
 def report_failed(out: Path | str, failed: Mapping[str, str], n_runs: int, echo: Callable[[str], None] = print) -> None:
@@ -149,8 +182,7 @@ def report_failed(out: Path | str, failed: Mapping[str, str], n_runs: int, echo:
     """
     if not failed:
         return
-    lines = [f'{len(failed)} of {n_runs} runs failed (not compared):']
-    lines += [f'  {name}: {reason.splitlines()[0]}' for name, reason in failed.items()]
+    lines = failed_lines(failed, n_runs)
     for line in lines:
         echo(line)
     path = Path(out) / 'summary.txt'
@@ -223,14 +255,14 @@ def console_table(rows: Sequence[Mapping]) -> str:
     body = [
         (
             r['strategy'],
-            _fmt(r.get('energy_kwh'), '.3f'),
-            _fmt(r.get('energy_change_pct'), '+.1f'),
-            _fmt(r.get('discomfort_pmvh'), '.3f'),
-            _fmt(r.get('energy_saving_matched_pct'), '+.1f'),
-            _fmt(r.get('otc_violation_pct'), '.1f'),
-            _fmt(r.get('time_to_comfort_s'), '.0f'),
+            fmt_value(r.get('energy_kwh'), '.3f'),
+            fmt_value(r.get('energy_change_pct'), '+.1f'),
+            fmt_value(r.get('discomfort_pmvh'), '.3f'),
+            fmt_value(r.get('energy_saving_matched_pct'), '+.1f'),
+            fmt_value(r.get('otc_violation_pct'), '.1f'),
+            fmt_value(r.get('time_to_comfort_s'), '.0f'),
             pmv_scale_cell(r.get('pmv_max')),
-            _fmt(r.get('iso7730_invalid_pct'), '.1f'),
+            fmt_value(r.get('iso7730_invalid_pct'), '.1f'),
         )
         for r in rows
     ]
@@ -240,7 +272,7 @@ def console_table(rows: Sequence[Mapping]) -> str:
 def full_table(rows: Sequence[Mapping]) -> str:
     """Every column of :data:`FULL_COLUMNS`, aligned, with its legend (``comparison.txt``)."""
     header = [h for _, h, _ in FULL_COLUMNS]
-    body = [[_fmt(r.get(k), f) for k, _, f in FULL_COLUMNS] for r in rows]
+    body = [[fmt_value(r.get(k), f) for k, _, f in FULL_COLUMNS] for r in rows]
     return '\n'.join([*_aligned(header, body), '', *FULL_LEGEND])
 
 
@@ -272,6 +304,7 @@ def finish_job(
     duration_s: float | None = None,
     control_period_s: float | None = None,
     partial: Mapping[str, str] | None = None,
+    failed: Mapping[str, str] | None = None,
     progress: bool = True,
     echo: Callable[[str], None] = print,
 ) -> vd.Verdict:
@@ -281,7 +314,8 @@ def finish_job(
     With an empty ``family_setpoints_c`` the family is not run and the verdict points at
     ``ceco benchmark``. ``family_overrides``: ``((field, value), ...)`` every member also gets (a benchmark
     case's baseline door, ``ceco sim --case``); ``case``: the benchmark case the runs are of (``--case``),
-    named in that pointer. Writes ``out/comparison.txt``, ``comparison.csv``, ``verdict.json`` and
+    named in that pointer. ``failed``: {strategy: why} of the job's runs that failed, named in the verdict (no
+    number). Writes ``out/comparison.txt``, ``comparison.csv``, ``verdict.json`` and
     ``summary.txt`` (everything printed here); returns the verdict.
     """
     out = Path(out)
@@ -305,7 +339,7 @@ def finish_job(
             progress=progress,
             overrides=family_overrides,
         )
-    v = vd.build_verdict(scenario.name, points, family, partial=partial, air_limits=limits)
+    v = vd.build_verdict(scenario.name, points, family, partial=partial, air_limits=limits, failed=failed)
     rows = table_rows(metrics, kpis, v)
     if case:
         pointer = f'run `ceco benchmark {case}` for it (or this command with --baseline-setpoints-c)'

@@ -25,6 +25,12 @@ metadata, the recorded parameters, the messages or ``--scenario``/``--strategy``
    vehicle-level energy change from FASTSim), the metrics table, the solver
    statistics from ``diagnostics.csv`` and the comparison with the paper's numbers.
 
+A failed run (``run.json`` says ``failed``, or ``metrics.json`` has ``status: failed``: its controller did not
+control it, or it stopped; ``ceco_bringup.rundata.failed_reason``) shows no number: the report names it with its
+reason in the words of ``ceco sim`` (``N of M runs failed (not compared):``, ``ceco_bringup.outputs.failed_lines``)
+on the console, in a red box of the report and in its scenario's verdict, and the command exits with status 1;
+a directory of failed runs only is reported as such (the same words, no table, exit status 1).
+
 Refused (exit status 2, one line): complete runs of one scenario that differ in length (their energies
 are not comparable; a partial run is shown, never compared), a ``--scenario``/``--strategy`` that
 contradicts what a run records (the flags name what a bag does not say), a run that records no
@@ -48,7 +54,7 @@ from pathlib import Path
 
 from ceco_bringup import cli_args, figures
 from ceco_bringup import verdict as vd
-from ceco_bringup.outputs import pmv_scale_cell
+from ceco_bringup.outputs import failed_lines, pmv_scale_cell
 from ceco_bringup.report_html import (
     Figure,
     Heading,
@@ -62,7 +68,7 @@ from ceco_bringup.report_html import (
     slug,
 )
 from ceco_bringup.report_vehicle import vehicle_rows, vehicle_section
-from ceco_bringup.rundata import UNKNOWN_SCENARIO, RunData, discover_runs, load_run, solver_stats
+from ceco_bringup.rundata import UNKNOWN_SCENARIO, FailedRun, RunData, discover_runs, load_runs, solver_stats
 from ceco_core.contracts import PLANT_STEP_S
 from ceco_core.metrics import ENERGY_PARTS, J_PER_KWH, relative_change_pct
 
@@ -80,7 +86,11 @@ SAME_LENGTH_S = 0.5 * PLANT_STEP_S
 
 # ---------------------------------------------------------------- formatting
 def _met_cell(met) -> str:
-    """``air_quality_met`` (1.0 / 0.0 / NaN) as a table cell."""
+    """``air_quality_met`` (1.0 / 0.0 / NaN) as a table cell.
+
+    Not ``report_html.fmt_value`` (which says 'yes' / 'no' for a flag, as comparison.txt does): the report's cell
+    says what a 'no' means, 'no: BROKE a limit', and takes the metric's 1.0 / 0.0 / NaN rather than a bool.
+    """
     return 'n/a' if met is None or not math.isfinite(float(met)) else ('yes' if met else 'no: BROKE a limit')
 
 
@@ -195,9 +205,30 @@ def _scenario_text(name: str, path: Path | None = None) -> str:
     )
 
 
+def _failed_names(failed: Sequence[FailedRun], *, with_path: bool = False) -> dict[str, str]:
+    """{name: reason} of the failed runs for ``outputs.failed_lines``.
+
+    The name is the strategy, with the run's path when ``with_path`` (as code) or when two failed runs have the
+    same strategy.
+    """
+    seen = [f.strategy for f in failed]
+    out = {}
+    for f in failed:
+        name = f.strategy
+        if with_path:
+            name += f' (`{f.path}`)'
+        elif seen.count(f.strategy) > 1:
+            name += f' ({f.path})'
+        out[name] = f.reason
+    return out
+
+
 # ---------------------------------------------------------------- sections
-def _intro(runs: Sequence[RunData], rtol: float, log) -> tuple[list, bool]:
-    """Title, provenance paragraph and one warning per run whose metrics differ; (blocks, any mismatch)."""
+def _intro(runs: Sequence[RunData], rtol: float, log, failed: Sequence[FailedRun] = ()) -> tuple[list, bool]:
+    """Title, provenance paragraph, the failed runs and one warning per run whose metrics differ.
+
+    (blocks, any mismatch).
+    """
     blocks: list = [
         Heading(1, 'ceco report: energy and comfort of predictive A/C control'),
         Paragraph(
@@ -207,6 +238,11 @@ def _intro(runs: Sequence[RunData], rtol: float, log) -> tuple[list, bool]:
             'significant digits, 10^(1-d), the precision the file holds).'
         ),
     ]
+    if not runs:
+        blocks[1] = Paragraph('No run to report: every run found failed (below); a failed run shows no number.')
+    lines = failed_lines(_failed_names(failed, with_path=True), len(runs) + len(failed))
+    if lines:  # a failed run shows no number, but it is named with its reason
+        blocks.append(Warning(lines[0] + ' ' + '; '.join(line.strip() for line in lines[1:])))
     for r in runs:
         if r.partial:
             msg = (
@@ -484,8 +520,13 @@ def _verdict_paragraphs(lines: Sequence[str]) -> list:
     return [Paragraph(p) for p in paras]
 
 
-def _verdict_section(scenario: str, group: Mapping[str, RunData], fig_dir: Path) -> tuple[list, Path, list]:
-    """The verdict of one scenario in words and the energy-discomfort plane: (blocks, figure, console lines)."""
+def _verdict_section(
+    scenario: str, group: Mapping[str, RunData], fig_dir: Path, failed: Mapping[str, str] | None = None
+) -> tuple[list, Path, list]:
+    """The verdict of one scenario in words and the energy-discomfort plane: (blocks, figure, console lines).
+
+    ``failed``: {name: reason} of the scenario's failed runs, named in the verdict.
+    """
     labels = figures.ordered(list(group))
     points = {lab: vd.run_point(group[lab].columns, group[lab].air_limits) for lab in labels}
     family, source, kept_in = _family_for(scenario, group)
@@ -498,6 +539,7 @@ def _verdict_section(scenario: str, group: Mapping[str, RunData], fig_dir: Path)
         family_file=kept_in,
         partial={lab: group[lab].partial for lab in labels if group[lab].partial},
         air_limits=limits,
+        failed=failed,
     )
     pointer = (
         f'`ceco run --scenario {scenario} --strategy all --out DIR` runs the baseline family with the '
@@ -576,18 +618,19 @@ def build_report(
 
     ``scenario``/``strategy`` name the run of a bag that does not say which it is.
     Returns ``{'html', 'markdown', 'metrics_csv', 'vehicle_csv', 'figures': [...],
-    'runs': [RunData], 'mismatch': bool, 'vehicle_rows': {scenario: rows}, 'verdict': [lines]}``.
+    'runs': [RunData], 'failed': [FailedRun], 'mismatch': bool, 'vehicle_rows': {scenario: rows},
+    'verdict': [lines]}``. Failed runs (``rundata.load_runs``) are named, never loaded.
     """
     out = Path(out_dir)
     fig_dir = out / 'figures'
     found = discover_runs(run_dirs)
     log(f'ceco report: loading {len(found)} run(s)', file=sys.stderr)
-    runs = [load_run(d, rtol=rtol, namespace=namespace, scenario=scenario, strategy=strategy) for d in found]
+    runs, failed = load_runs(found, rtol=rtol, namespace=namespace, scenario=scenario, strategy=strategy)
     _check_identity(runs, {'scenario': scenario, 'strategy': strategy})
     groups = _group(runs)
     _check_lengths(groups)
     fig_dir.mkdir(parents=True, exist_ok=True)
-    blocks, any_mismatch = _intro(runs, rtol, log)
+    blocks, any_mismatch = _intro(runs, rtol, log, failed)
     if vehicle and vehicle_settings is None:
         from ceco_bringup import vehicle_energy as ve
 
@@ -597,7 +640,8 @@ def build_report(
     vehicle_all: dict = {}
     verdict_lines: list[str] = []
     for sc, group in groups.items():  # the verdicts first: the top of the report
-        vblocks, vfig, lines = _verdict_section(sc, group, fig_dir)
+        here = _failed_names([f for f in failed if f.scenario == sc])
+        vblocks, vfig, lines = _verdict_section(sc, group, fig_dir, here)
         blocks += vblocks
         all_figs.append(vfig)
         verdict_lines += lines
@@ -623,6 +667,7 @@ def build_report(
         'vehicle_csv': vehicle_csv,
         'figures': all_figs,
         'runs': runs,
+        'failed': failed,
         'mismatch': any_mismatch,
         'vehicle_rows': vehicle_all,
         'verdict': verdict_lines,
@@ -675,7 +720,7 @@ def _tolerance(run: RunData, rtol: float) -> str:
 
 
 def main(argv=None) -> int:
-    """`ceco report`: 0 when every run's metrics check, 1 on a mismatch, 2 on an error (one line)."""
+    """`ceco report`: 0 when every run's metrics check, 1 on a mismatch or a failed run, 2 on an error (one line)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     cli_args.check_out(parser, args.out)
@@ -704,6 +749,10 @@ def main(argv=None) -> int:
             + (f' (max rel. diff {r.max_rel_diff:.1e}, tolerance {_tolerance(r, args.rtol)})' if r.stored else '')
             + (f'; PARTIAL ({r.partial})' if r.partial else '')
         )
+    for f in res['failed']:
+        print(f'{f.path}: {f.strategy} on {f.scenario}: FAILED, not compared')
+    for line in failed_lines(_failed_names(res['failed']), len(res['runs']) + len(res['failed'])):
+        print(line)
     print(
         f"report: {res['html']}\nsummary: {res['markdown']}\nfigures: {len(res['figures'])} PNG in "
         f"{Path(res['html']).parent / 'figures'}"
@@ -713,8 +762,14 @@ def main(argv=None) -> int:
             'ceco report: metrics recomputed from the recorded data differ from metrics.json (see above)',
             file=sys.stderr,
         )
-        return 1
-    return 0
+    if res['failed']:
+        print(
+            'ceco report: '
+            + ('every run failed: nothing to compare' if not res['runs'] else 'failed runs are not compared')
+            + ' (see above)',
+            file=sys.stderr,
+        )
+    return 1 if res['mismatch'] or res['failed'] else 0
 
 
 if __name__ == '__main__':

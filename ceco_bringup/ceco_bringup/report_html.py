@@ -11,8 +11,9 @@ A report is a list of blocks, each one of
 
 The HTML has no external reference (no CDN, no linked file): figures are
 ``data:image/png;base64`` URIs and the stylesheet is inline, so the one file
-can be mailed or archived. Table cells are formatted with :func:`fmt_num` and :func:`fmt_pct`;
-:func:`slug` makes file names. Pure Python (stdlib only).
+can be mailed or archived. Numbers are formatted here for every output: :func:`fmt_value` with a fixed format
+(the console tables, the verdict's words, ``ceco_bringup.outputs`` and ``ceco_bringup.verdict``), :func:`fmt_num`
+and :func:`fmt_pct` for the report's table cells; :func:`slug` makes file names. Pure Python (stdlib only).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ __all__ = [
     'Block',
     'render_markdown',
     'render_html',
+    'fmt_value',
     'fmt_num',
     'fmt_pct',
     'slug',
@@ -186,8 +188,27 @@ def render_html(blocks: Sequence[Block], title: str = 'ceco report') -> str:
     )
 
 
+def fmt_value(x, spec: str) -> str:
+    """``x`` in the format ``spec`` (e.g. ``'.1f'``); 'n/a' for None, NaN or infinity (not defined, not recorded).
+
+    A bool is 'yes' / 'no' and text is shown as it is (a table row mixes them with numbers).
+    """
+    if x is None:
+        return 'n/a'
+    if isinstance(x, bool):
+        return 'yes' if x else 'no'
+    if isinstance(x, str):
+        return x
+    x = float(x)
+    return format(x, spec) if math.isfinite(x) else 'n/a'
+
+
 def fmt_num(x, digits=3) -> str:
-    """A table number: thousands grouped, 1 decimal from 100, else ``digits`` (tiny values in g); 'n/a' for NaN."""
+    """A table number: thousands grouped, 1 decimal from 100, else ``digits`` (tiny values in g); 'n/a' for NaN.
+
+    Not :func:`fmt_value`: the format follows the magnitude (a column of the report spans kWh and thousands of
+    ppm), and what is not a number is shown as it is (``str``), an infinity as ``inf``.
+    """
     try:
         x = float(x)
     except (TypeError, ValueError):

@@ -221,6 +221,7 @@ def main(argv=None) -> int:
             case=args.case,
             duration_s=float(first['duration_s']),
             control_period_s=args.control_period_s,
+            failed=failed,
             progress=not args.no_progress,
         )
     outputs.report_failed(out, failed, len(strategies))

@@ -13,6 +13,11 @@ recomputes its metrics with ``ceco_core.metrics.run_metrics`` and compares them
 with ``metrics.json`` when there is one; :func:`solver_stats` summarises its
 solver diagnostics.
 
+A failed run (its ``run.json`` says ``failed``, or its ``metrics.json`` has ``status: failed``: the controller
+did not control it, ``ceco_core.run_status``, or the run stopped: the plant left its model, a node exited, a
+stall) is a run too, with no number: :func:`load_runs` gives it as a :class:`FailedRun` (its reason, never its
+data), which the report names, and :func:`load_run` refuses it.
+
 Air quality is scored against the limits ``metrics.json`` records (``co2_limit_ppm``, ``fog_margin_bound_k``),
 else those of the run's scenario (its copy, or the bundled one by name); a ``metrics.json`` without the
 air-quality numbers (an older run) has them computed from the time series and noted as not recorded, not as a
@@ -20,7 +25,10 @@ mismatch.
 
 Public API:
     RunData                        one loaded, checked run
-    discover_runs(paths)           run directories among paths (or one level below)
+    FailedRun                      one failed run: where, which, why (no number)
+    discover_runs(paths)           run directories among paths (or one level below), failed ones too
+    failed_reason(run_dir)         why a run failed, None when it did not
+    load_runs(paths, ...)          (loaded runs, failed runs) among paths
     load_run(run_dir, rtol, namespace, scenario=None, strategy=None) -> RunData
     read_bag(bag_dir, read, *args) a bagio reader's result; a damaged bag as one ValueError, a wrong namespace apart
     recompute_metrics(columns, air_limits) / compare_metrics(stored, recomputed, rtol, atol)
@@ -40,12 +48,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ceco_bringup.verdict import reason_line
 from ceco_core.air_quality import AirQualityLimits
 from ceco_core.rundir import read_csv_columns, read_metrics_json
 
 __all__ = [
     'RunData',
+    'FailedRun',
     'discover_runs',
+    'failed_reason',
+    'load_runs',
     'csv_precision_digits',
     'recompute_metrics',
     'compare_metrics',
@@ -99,12 +111,72 @@ class RunData:
     """The limits the run's air quality is scored against (metrics.json's, else its scenario's); None: unknown."""
 
 
+@dataclasses.dataclass(frozen=True)
+class FailedRun:
+    """A run that failed: no number is shown, its reason is (docs/analysis.md, "Failed runs")."""
+
+    path: Path
+    """The run directory."""
+    strategy: str
+    """From metrics.json, else run.json, else its bag, else the directory name."""
+    scenario: str
+    """From metrics.json, else run.json, else its bag, else 'unknown'."""
+    reason: str
+    """Why it failed: run.json's ``error`` (else metrics.json's ``status_reason``)."""
+
+
+def failed_reason(run_dir: str | Path) -> str | None:
+    """Why the run in ``run_dir`` failed; None when it did not (or records nothing about it).
+
+    Failed: ``run.json``'s ``status`` is ``failed`` (``ceco run``, ``ceco sim``; its ``error`` says why) or
+    ``metrics.json``'s ``status`` is ``failed`` (a run whose controller did not control it,
+    ``ceco_core.run_status``; ``status_reason``), e.g. a run directory ``ceco benchmark --save-runs`` kept.
+    """
+    from ceco_bringup import provenance
+    from ceco_core.run_status import STATUS_FAILED
+
+    d = Path(run_dir)
+    info = _read_json(d / provenance.RUN_FILE, lambda: provenance.read_run(d), _RUN_JSON_FIX) or {}
+    stored = _stored(d) if (d / 'metrics.json').is_file() else {}
+    if info.get('status') != STATUS_FAILED and stored.get('status') != STATUS_FAILED:
+        return None
+    why = str(info.get('error') or '') if info.get('status') == STATUS_FAILED else ''
+    return why or str(stored.get('status_reason') or '') or 'no reason recorded'
+
+
+def _failed_run(run_dir: Path, reason: str, namespace: str | None = None) -> FailedRun:
+    """The failed run in ``run_dir``, named by what it records: metrics.json, run.json, its bag, else its directory.
+
+    A bag a failed run left may be damaged: then it names nothing.
+    """
+    from ceco_bringup import provenance
+    from ceco_bringup.bagrun import bag_dir_of, bag_run_info
+
+    info = provenance.read_run(run_dir) or {}
+    stored = _stored(run_dir) if (run_dir / 'metrics.json').is_file() else {}
+    strategy = stored.get('strategy') or info.get('strategy')
+    scenario = stored.get('scenario') or info.get('scenario')
+    bag = bag_dir_of(run_dir)
+    if bag is not None and not (strategy and scenario):
+        try:
+            b = bag_run_info(bag, namespace)
+        except Exception:  # rosbags raises its own types for a damaged bag; the run is named without it
+            b = None
+        strategy, scenario = strategy or getattr(b, 'strategy', None), scenario or getattr(b, 'scenario', None)
+    return FailedRun(
+        path=run_dir, strategy=str(strategy or run_dir.name), scenario=str(scenario or UNKNOWN_SCENARIO), reason=reason
+    )
+
+
 def is_run(path: str | Path) -> bool:
-    """True when ``path`` is a run: ``metrics.json``, a bag in ``bag/``, or itself a rosbag2 bag."""
+    """True when ``path`` is a run: ``metrics.json``, a bag in ``bag/``, itself a rosbag2 bag, or a failed run."""
+    from ceco_bringup import provenance
     from ceco_bringup.bagrun import bag_dir_of
 
     p = Path(path)
-    return (p / 'metrics.json').is_file() or bag_dir_of(p) is not None
+    if (p / 'metrics.json').is_file() or bag_dir_of(p) is not None:
+        return True
+    return (p / provenance.RUN_FILE).is_file() and failed_reason(p) is not None
 
 
 def discover_runs(paths: Sequence[str | Path]) -> list[Path]:
@@ -112,6 +184,7 @@ def discover_runs(paths: Sequence[str | Path]) -> list[Path]:
 
     A directory that :func:`is_run` is a run; otherwise its immediate subdirectories that are
     runs are (a parent of several strategies). Raises ValueError for a path that is neither.
+    Failed runs are among them (:func:`load_runs` tells them apart).
     """
     runs: list[Path] = []
     for p in map(Path, paths):
@@ -123,11 +196,34 @@ def discover_runs(paths: Sequence[str | Path]) -> list[Path]:
         subs = sorted(d for d in p.iterdir() if d.is_dir() and is_run(d))
         if not subs:
             raise ValueError(
-                f'{p}: not a run directory: no metrics.json, bag/ or rosbag2 metadata.yaml in it '
-                'nor in its subdirectories'
+                f'{p}: not a run directory: no metrics.json, bag/, rosbag2 metadata.yaml or run.json of a failed '
+                'run in it nor in its subdirectories'
             )
         runs.extend(subs)
     return runs
+
+
+def load_runs(
+    paths: Sequence[str | Path],
+    rtol: float = 1e-6,
+    namespace: str | None = None,
+    *,
+    scenario: str | None = None,
+    strategy: str | None = None,
+) -> tuple[list[RunData], list[FailedRun]]:
+    """The runs among ``paths`` (:func:`discover_runs`): ``(loaded, failed)``, each in the order found.
+
+    A failed run (:func:`failed_reason`) is never loaded: its numbers are no result. The others are loaded
+    with :func:`load_run` (its arguments).
+    """
+    loaded, failed = [], []
+    for d in discover_runs(paths):
+        why = failed_reason(d)
+        if why is not None:
+            failed.append(_failed_run(d, why, namespace))
+        else:
+            loaded.append(load_run(d, rtol=rtol, namespace=namespace, scenario=scenario, strategy=strategy))
+    return loaded, failed
 
 
 def csv_precision_digits(path: str | Path, columns: Sequence[str] = METRIC_INPUTS[1:]) -> int:
@@ -287,6 +383,18 @@ def _legacy_view(recomputed: Mapping) -> dict:
     return dict(recomputed, E_tot_J=e, E_tot_kWh=e / J_PER_KWH, P_mean_w=e / recomputed['duration_s'])
 
 
+_RUN_JSON_FIX = 'remove it (run.json only records how the run was made; older run directories have none)'
+"""What to do about a run.json that is not JSON."""
+
+_METRICS_JSON_FIX = 'rerun the run, or remove the file to report a run with a bag from its bag alone'
+"""What to do about a metrics.json that is not JSON."""
+
+
+def _stored(run_dir: Path) -> dict:
+    """``run_dir/metrics.json`` as read; a file that is not JSON is a ValueError naming it."""
+    return _read_json(run_dir / 'metrics.json', lambda: read_metrics_json(run_dir / 'metrics.json'), _METRICS_JSON_FIX)
+
+
 def _read_json(path: Path, read, fix: str):
     """``read()`` of the JSON file ``path``; a file that is not JSON text is a ValueError naming it, with ``fix``."""
     try:
@@ -300,14 +408,7 @@ def _identity(run_dir: Path, stored: Mapping, namespace, scenario, strategy) -> 
     from ceco_bringup import provenance
     from ceco_bringup.bagrun import bag_dir_of, bag_run_info
 
-    info = dict(
-        _read_json(
-            run_dir / provenance.RUN_FILE,
-            lambda: provenance.read_run(run_dir),
-            'remove it (run.json only records how the run was made; older run directories have none)',
-        )
-        or {}
-    )
+    info = dict(_read_json(run_dir / provenance.RUN_FILE, lambda: provenance.read_run(run_dir), _RUN_JSON_FIX) or {})
     # what the run itself records, flags aside: metrics.json (and run.json for the scenario), else its bag
     places = {'scenario': (('metrics.json', stored), ('run.json', info)), 'strategy': (('metrics.json', stored),)}
     rec = {k: next(((str(d[k]), where) for where, d in ps if d.get(k)), (None, '')) for k, ps in places.items()}
@@ -367,22 +468,18 @@ def load_run(
     ``namespace`` picks the stack of a bag that holds several (default: the only one);
     ``scenario`` and ``strategy`` name the run of a bag that does not say (``ceco_bringup.bagrun``).
     A run without ``metrics.json`` is reported from its bag alone (noted); one that holds fewer
-    plant steps than its length, or whose ``run.json`` says it was stopped, is partial.
+    plant steps than its length, or whose ``run.json`` says it was stopped, is partial. A failed run
+    (:func:`failed_reason`) is a ValueError: it has no number (:func:`load_runs` names it instead).
     """
     from ceco_bringup import provenance
 
     run_dir = Path(run_dir)
     notes: list[str] = []
     has_json = (run_dir / 'metrics.json').is_file()
-    stored = (
-        _read_json(
-            run_dir / 'metrics.json',
-            lambda: read_metrics_json(run_dir / 'metrics.json'),
-            'rerun the run, or remove the file to report a run with a bag from its bag alone',
-        )
-        if has_json
-        else {}
-    )
+    why = failed_reason(run_dir)
+    if why is not None:
+        raise ValueError(f'{run_dir}: a failed run ({reason_line(why)}): no number to report')
+    stored = _stored(run_dir) if has_json else {}
     columns, source = _time_series(run_dir, namespace)
     sc, st, info, length = _identity(run_dir, stored, namespace, scenario, strategy)
     if 'p_cond_fan_w' not in columns:
@@ -424,7 +521,7 @@ def load_run(
     dt = float(columns['t_s'][1] - columns['t_s'][0])
     if not has_json and length is not None and n * dt < length - 0.5 * dt:
         partial = f'{status or "stopped"}: {n * dt:.0f} of {length:.0f} s recorded'
-    elif status in ('interrupted', 'failed'):
+    elif status == 'interrupted':
         partial = f'{status}: {n * dt:.0f} s recorded'
     return RunData(
         path=run_dir,

@@ -198,6 +198,7 @@ def main(argv=None) -> int:
             case=args.case,
             duration_s=settings.duration_s,
             control_period_s=settings.control_period_s,
+            failed=failed,
             progress=not args.no_progress,
         )
     outputs.report_failed(out, failed, len(args.strategy))

@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from ceco_bringup.benchmark.schema import DOOR_CO2_HOLD, door_family
+from ceco_bringup.report_html import fmt_value
 from ceco_core.air_quality import AirQualityLimits
 from ceco_core.kpis import AIR_QUALITY_KEYS, air_limit_entries, breaks_air_quality
 from ceco_core.metrics import ENERGY_PARTS, relative_change_pct
@@ -59,6 +60,8 @@ __all__ = [
     'DISCOMFORT_KEY',
     'ENERGY_KEY',
     'VERDICT_SCHEMA',
+    'FAILED_KEY',
+    'reason_line',
     'run_point',
     'run_family',
     'matched',
@@ -111,6 +114,9 @@ VERDICT_SCHEMA = 'ceco-verdict/2'
 
 END_WINDOW_S = 60.0
 """Length of the end of a run whose mean PMV the verdict quotes [s]."""
+
+FAILED_KEY = 'failed'
+"""The one key of a family member of :func:`run_family` that has no result: why it failed."""
 
 POINT_KEYS = (
     'energy_kwh',
@@ -216,8 +222,13 @@ def run_family(
     ``scenario`` is a Scenario or a bundled name / YAML path; ``duration_s`` and ``control_period_s``
     as the job's (None: the scenario's). Members are named ``LAW@SETPOINT`` (:func:`family_law`).
     ``overrides``: ``((field, value), ...)`` of the baseline's settings every member gets (e.g. a case's door).
+
+    A member whose simulation stopped (the plant left its refrigerant model:
+    ``ceco_plant_sim.plant_ops.PlantStepError``) is no point: it is ``{FAILED_KEY: 'why'}``, which
+    :func:`build_verdict` keeps off the fronts and names (``Verdict.family_failed``).
     """
     from ceco_controller.closed_loop import SimSettings, simulate
+    from ceco_plant_sim.plant_ops import PlantStepError
     from ceco_v2x_preview.scenario import load_scenario
 
     if isinstance(scenario, str):
@@ -236,7 +247,11 @@ def run_family(
             progress=False,
             strategy_overrides=tuple(sorted({**dict(overrides), **dict(law_overrides[law]), 'setpoint_c': sp}.items())),
         )
-        res = simulate(scenario, 'baseline', settings)
+        try:
+            res = simulate(scenario, 'baseline', settings)
+        except PlantStepError as exc:  # the plant left its model: this set-point has no result
+            out[f'{law}@{sp:.1f}'] = {FAILED_KEY: exc.run_error}
+            continue
         out[f'{law}@{sp:.1f}'] = run_point(res.timeseries, scenario.air_quality.limits)
     return out
 
@@ -291,6 +306,11 @@ class Verdict:
     ``ceco_core.kpis.AIR_LIMIT_KEYS``); empty: not scored."""
     air_quality_broken: list = dataclasses.field(default_factory=list)
     """The strategies whose run broke the air-quality limits (``air_quality_met`` 0): never matched, no saving."""
+    failed: dict = dataclasses.field(default_factory=dict)
+    """{strategy: 'why'} of the job's runs that failed (``ceco_core.run_status``; the plant left its model): no
+    point, no number, named."""
+    family_failed: dict = dataclasses.field(default_factory=dict)
+    """{'baseline@S': 'why'} of the family members whose run failed (:func:`run_family`): on no front, named."""
 
     def as_dict(self) -> dict:
         """Plain data for ``verdict.json``."""
@@ -306,15 +326,20 @@ def build_verdict(
     family_file: str = '',
     partial: Mapping[str, str] | None = None,
     air_limits: AirQualityLimits | None = None,
+    failed: Mapping[str, str] | None = None,
 ) -> Verdict:
     """The verdict of a job's runs (``points``: {strategy: run_point}) against a family (or none).
 
     ``air_limits``: the limits the points' air quality was scored against (:func:`run_point`), recorded in the
     verdict. A run that broke them (``ceco_core.kpis.breaks_air_quality``) is not matched, and a family member
-    that broke them is on no front (the benchmark's rule).
+    that broke them is on no front (the benchmark's rule). ``failed``: {strategy: 'why'} of the job's runs that
+    failed (no point: named, never a number); a family member that failed (:data:`FAILED_KEY`) is on no front,
+    named.
     """
     partial = dict(partial or {})
     base = 'baseline' if 'baseline' in points else None
+    family_failed = {k: str(p[FAILED_KEY]) for k, p in (family or {}).items() if FAILED_KEY in p}
+    family = {k: p for k, p in (family or {}).items() if FAILED_KEY not in p}
     v = Verdict(
         scenario=scenario,
         duration_s=max((float(p['duration_s']) for p in points.values()), default=0.0),
@@ -325,6 +350,8 @@ def build_verdict(
         family_file=family_file if family else '',
         partial=partial,
         air_limits=air_limit_entries(air_limits) if air_limits is not None else {},
+        failed=dict(failed or {}),
+        family_failed=family_failed,
     )
     v.air_quality_broken = [n for n, p in points.items() if n not in partial and breaks_air_quality(p)]
     for name, p in points.items():
@@ -398,16 +425,13 @@ def _band_words(p: Mapping) -> str:
     return f"in -0.5..+0.5 from {p['time_to_comfort_s']:.0f} s on (PMV {p['pmv_end']:+.2f} at the end)"
 
 
-def _num(x, spec: str) -> str:
-    return 'n/a' if x is None or not math.isfinite(float(x)) else format(float(x), spec)
-
-
 def _broke_words(p: Mapping, limits: Mapping) -> str:
     """What a run that broke the air-quality limits did, and what follows."""
+    co2, co2_lim = fmt_value(p.get('co2_max_ppm'), '.0f'), fmt_value(limits.get('co2_limit_ppm'), 'g')
+    fog_lim, fog_s = fmt_value(limits.get('fog_margin_bound_k'), 'g'), fmt_value(p.get('fog_below_bound_s'), '.0f')
     return (
-        f"BROKE the air-quality limits: CO2 max {_num(p.get('co2_max_ppm'), '.0f')} ppm, above "
-        f"{_num(limits.get('co2_limit_ppm'), 'g')} ppm {_num(p.get('co2_above_limit_pct'), '.1f')} % of the time; "
-        f"fog margin below {_num(limits.get('fog_margin_bound_k'), 'g')} K {_num(p.get('fog_below_bound_s'), '.0f')} s:"
+        f"BROKE the air-quality limits: CO2 max {co2} ppm, above {co2_lim} ppm "
+        f"{fmt_value(p.get('co2_above_limit_pct'), '.1f')} % of the time; fog margin below {fog_lim} K {fog_s} s:"
         ' not matched, no saving'
     )
 
@@ -425,8 +449,10 @@ def _air_line(v: Verdict) -> str:
     held = [p for n, p in done.items() if n not in v.air_quality_broken and n not in unknown]
     # a run without a CO2 series is judged on its fog margin alone (ceco_core.kpis.air_quality_kpis): not "held CO2"
     no_co2 = [n for n, p in done.items() if p.get('co2_max_ppm') is None and n not in unknown]
-    co2 = _num(max((p['co2_max_ppm'] for p in held if p.get('co2_max_ppm') is not None), default=None), '.0f')
-    fog = _num(min((p['fog_margin_min_k'] for p in held if p.get('fog_margin_min_k') is not None), default=None), '.1f')
+    co2 = fmt_value(max((p['co2_max_ppm'] for p in held if p.get('co2_max_ppm') is not None), default=None), '.0f')
+    fog = fmt_value(
+        min((p['fog_margin_min_k'] for p in held if p.get('fog_margin_min_k') is not None), default=None), '.1f'
+    )
     if held and len(held) == len(done) and not no_co2:
         held_words = f'CO2 <= {co2_lim} ppm (max {co2} ppm) and fog margin >= {fog_lim} K (min {fog} K)'
         return f'Air quality: every run held {held_words}.'
@@ -454,7 +480,7 @@ def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
         f'Verdict on {v.scenario} ({v.duration_s:.0f} s). Energy = {ENERGY_PARTS} [kWh];',
         '  discomfort = PMV-hours outside -0.5..+0.5, PMV clipped at +-3 [PMV h].',
     ]
-    width = max([len(n) for n in v.points] + [8])
+    width = max([len(n) for n in (*v.points, *v.failed)] + [8])
     for name, p in v.points.items():
         head = f'  {name:<{width}} {p[ENERGY_KEY]:.3f} kWh, {p[DISCOMFORT_KEY]:.3f} PMV h: '
         if name in v.partial:
@@ -476,6 +502,8 @@ def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
             lines.append(f"  {'':<{width}} {words}")
         elif name not in v.partial and v.family and moves_door(name):
             lines.append(f"  {'':<{width}} no matched value: the family has no law with the door it moves")
+    for name, why in v.failed.items():
+        lines.append(f'  {name:<{width}} FAILED ({reason_line(why)}), not compared')
     lines.append(_air_line(v))
     if v.family:
         sps = sorted({float(n.split('@')[1]) for n in v.family})
@@ -497,6 +525,8 @@ def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
         n_broke = sum(breaks_air_quality(p) for p in v.family.values())
         if n_broke:
             lines.append(f'  {n_broke} of the {len(v.family)} runs broke the air-quality limits: on no front.')
+        if v.family_failed:
+            lines.append(f'  {_family_failed_words(v)}: on no front.')
         scored = {n: m for n, m in v.matched.items() if n != v.baseline and m.get('energy_saving_pct') is not None}
         if scored:
             best = max(scored, key=lambda n: scored[n]['energy_saving_pct'])
@@ -508,6 +538,8 @@ def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
                     f'Headline: no strategy saves {RESOLUTION_PCT:g} % or more at matched comfort '
                     f'(best: {best}, {s:+.1f} %).'
                 )
+    elif v.family_failed:
+        lines.append(f'Matched comfort: not computed: {_family_failed_words(v)}.')
     else:
         lines.append('Matched comfort: not computed for these runs' + (f'; {pointer}' if pointer else '.'))
     if v.changes:
@@ -521,6 +553,21 @@ def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
             lines.append(f'Against the {v.baseline} run alone the energy changes by {span(de)} and the discomfort')
             lines.append(f'  by {span(dd)} (+ = more): a comparison at different comfort, not a saving.')
     return _wrapped(lines)
+
+
+def reason_line(text: str) -> str:
+    """Why a run failed, on one line: the first line of ``text`` that is not blank (a reason may span several)."""
+    return next((x.strip() for x in str(text).splitlines() if x.strip()), 'no reason recorded')
+
+
+def _family_failed_words(v: Verdict) -> str:
+    """The family members that failed and why, members with the same reason together."""
+    by_reason: dict[str, list[str]] = {}
+    for member, why in v.family_failed.items():
+        by_reason.setdefault(reason_line(why), []).append(member)
+    total = len(v.family) + len(v.family_failed)
+    words = '; '.join(f"{', '.join(ms)}: {why}" for why, ms in by_reason.items())
+    return f'{len(v.family_failed)} of the {total} family runs failed ({words})'
 
 
 def _wrapped(lines: Sequence[str], width: int = 100) -> list[str]:
