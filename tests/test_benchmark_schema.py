@@ -3,9 +3,12 @@
 import copy
 import json
 import math
+from pathlib import Path
 
+import jsonschema
 import pytest
 
+from ceco_bringup.benchmark import cli as bench_cli
 from ceco_bringup.benchmark import front as fr
 from ceco_bringup.benchmark import runner
 from ceco_bringup.benchmark import schema as bs
@@ -270,12 +273,16 @@ def _case(doc):
         (lambda d: _case(d)["runs"][0]["kpis"].update(energy_kwh=math.inf), "kpis/energy_kwh: inf is not a finite"),
         (lambda d: _case(d)["runs"][11]["kpis"].update(peak_comp_kw=-math.inf), "peak_comp_kw: -inf is not a"),
         (lambda d: d["timing"].update(wall_s=math.nan), "timing/wall_s: nan is not a finite number"),
+        # the KPI ranges (KPI_RANGES) and at least one case: the JSON Schema's (test_the_json_schema_...)
         (
             lambda d: _case(d)["runs"][10]["kpis"].update(otc_violation_pct=100.5),
-            "otc_violation_pct = 100.5 is outside",
+            "cases/0/runs/10/kpis/otc_violation_pct: 100.5 is greater than the maximum of 100.0",
         ),
-        (lambda d: _case(d)["runs"][10]["kpis"].update(otc_violation_pct=-1.0), "otc_violation_pct = -1.0 is outside"),
-        (lambda d: d.update(cases=[]), "cases: empty"),
+        (
+            lambda d: _case(d)["runs"][10]["kpis"].update(otc_violation_pct=-1.0),
+            "cases/0/runs/10/kpis/otc_violation_pct: -1.0 is less than the minimum of 0.0",
+        ),
+        (lambda d: d.update(cases=[]), "cases: [] should be non-empty"),
         (lambda d: d["cases"].append(copy.deepcopy(_case(d))), "cases/1 (sc03-medium): duplicate case (also cases/0)"),
         (lambda d: _case(d)["seeds"].append(2), "ceco has no run for seed(s) [2] of the case's seeds [0, 1, 2]"),
         # a seed listed twice (the validator's coverage reads the seeds as a set: [0, 1, 0] passed)
@@ -381,3 +388,76 @@ def test_a_door_family_can_be_the_strongest_and_its_case_document_validates():
     doc["settings"]["strategies"] = ["ceco-pmv-aq"]  # as --strategy ceco-pmv-aq records it
     assert bs.check_results(doc) == []
     bs.validate_results(json.loads(json.dumps(doc)))
+
+
+SCHEMA_FILE = Path(bs.__file__).resolve().parent.parent / "data" / "benchmark" / "results.schema.json"
+"""The shipped JSON Schema, read as another tool reads it (a file, no ceco code)."""
+
+
+def test_the_shipped_json_schema_holds_the_kpi_ranges_of_the_one_table():
+    """results.schema.json's ``$defs/kpis`` has a minimum and maximum for each KPI of KPI_RANGES and no other
+    (it is what ``kpi_range_properties`` makes of the table: they cannot drift), and ``cases`` at least one item.
+    After a change to KPI_RANGES, write the new ``kpi_range_properties()`` into the file's ``$defs/kpis/properties``."""
+    doc = json.loads(SCHEMA_FILE.read_text(encoding="utf-8"))
+    assert doc == bs.load_json_schema()  # the file the validator loads
+    props = doc["$defs"]["kpis"]["properties"]
+    assert props == bs.kpi_range_properties()
+    assert {k: (v["minimum"], v["maximum"]) for k, v in props.items()} == bs.KPI_RANGES
+    assert props["otc_violation_pct"] == {"type": ["number", "null"], "minimum": 0.0, "maximum": 100.0}
+    assert doc["properties"]["cases"]["minItems"] == 1
+
+
+def _out_of_range(k, above):
+    lo, hi = bs.KPI_RANGES[k]
+    return hi + 0.5 * (hi - lo) if above else lo - 0.5 * (hi - lo)
+
+
+@pytest.mark.parametrize("kpi", sorted(bs.KPI_RANGES))
+def test_a_json_schema_validator_refuses_a_kpi_out_of_its_range(kpi):
+    """The shipped file alone (jsonschema, Draft 2020-12) refuses each KPI of KPI_RANGES just outside either end
+    of its range, at its place in the document, and takes both ends and null; the hand-made document passes."""
+    validator = jsonschema.Draft202012Validator(json.loads(SCHEMA_FILE.read_text(encoding="utf-8")))
+    assert validator.is_valid(make_doc())
+    for above in (True, False):
+        doc = make_doc()
+        _case(doc)["runs"][10]["kpis"][kpi] = _out_of_range(kpi, above)
+        errors = list(validator.iter_errors(doc))
+        assert [list(e.absolute_path) for e in errors] == [["cases", 0, "runs", 10, "kpis", kpi]]
+        assert errors[0].validator == ("maximum" if above else "minimum")
+    for value in (*bs.KPI_RANGES[kpi], None):
+        doc = make_doc()
+        _case(doc)["runs"][10]["kpis"][kpi] = value
+        _case(doc)["runs"][10]["kpi_notes"][kpi] = "not defined"
+        assert validator.is_valid(doc), value
+
+
+def test_a_json_schema_validator_refuses_a_document_without_cases():
+    validator = jsonschema.Draft202012Validator(json.loads(SCHEMA_FILE.read_text(encoding="utf-8")))
+    doc = make_doc()
+    doc["cases"] = []
+    assert [(list(e.absolute_path), e.validator) for e in validator.iter_errors(doc)] == [(["cases"], "minItems")]
+
+
+def test_ceco_benchmark_validate_refuses_an_out_of_range_kpi_and_no_cases(tmp_path, capsys):
+    """``ceco benchmark --validate FILE``: 0 and "valid" for the hand-made document; 1 naming the problem for one
+    with ``air_quality_met`` 2 (a 0/1 KPI) or ``co2_above_limit_pct`` above 100, and for one without cases."""
+    good = tmp_path / "good.json"
+    good.write_text(json.dumps(make_doc()))
+    assert bench_cli.main(["--validate", str(good)]) == 0
+    assert capsys.readouterr().out.strip() == f"{good}: valid ceco-benchmark/2"
+    cases = {
+        "met": (lambda d: _case(d)["runs"][11]["kpis"].update(air_quality_met=2.0), "air_quality_met: 2.0 is greater"),
+        "co2": (
+            lambda d: _case(d)["runs"][0]["kpis"].update(co2_above_limit_pct=100.01),
+            "cases/0/runs/0/kpis/co2_above_limit_pct: 100.01 is greater than the maximum of 100.0",
+        ),
+        "empty": (lambda d: d.update(cases=[]), "cases: [] should be non-empty"),
+    }
+    for name, (mutate, message) in cases.items():
+        doc = make_doc()
+        mutate(doc)
+        bad = tmp_path / f"{name}.json"
+        bad.write_text(json.dumps(doc))
+        assert bench_cli.main(["--validate", str(bad)]) == 1, name
+        out = capsys.readouterr()
+        assert message in out.err and out.out.strip() == f"{bad}: 1 problem(s)", (name, out)

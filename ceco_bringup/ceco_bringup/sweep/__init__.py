@@ -35,10 +35,12 @@ as one line written with a single ``write`` on an ``O_APPEND`` descriptor and
 again (failed cells are retried; a torn last line from a crash is ignored).
 
 Outputs in ``DIR``: ``cells.jsonl`` (the log), ``results.csv`` (the tidy table:
-one row per cell, its axes and every metric; also ``results.parquet`` when
+one row per cell, its axes and every metric, the air quality scored against the scenario's limits and the flag
+``air_quality_broken`` of ``ceco_core.kpis.breaks_air_quality`` included; also ``results.parquet`` when
 pyarrow or polars is installed), ``summary.md`` and ``summary.csv`` (per scenario,
 climate, preview and occupant: each strategy's mean over seeds and its change
-against the baseline), ``grid.json`` (the resolved cells), with
+against the baseline; no change, i.e. no saving, where the point or its baseline broke the air-quality
+limits), ``grid.json`` (the resolved cells), with
 ``save_runs: true`` in the grid one run directory per cell under ``DIR/runs/``,
 and with ``vehicle: true`` ``vehicle.csv`` (FASTSim vehicle-level energy of
 each group's strategies; the FASTSim extra).

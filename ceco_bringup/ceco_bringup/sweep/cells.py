@@ -17,11 +17,13 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
+from ceco_core.kpis import AIR_LIMIT_KEYS, AIR_QUALITY_KEYS, breaks_air_quality
 from ceco_core.run_status import STATUS_FAILED
 
 __all__ = [
     'METRIC_COLUMNS',
     'TIMING_COLUMNS',
+    'AIR_QUALITY_FLAG',
     'Cell',
     'code_fingerprint',
     'cell_id',
@@ -56,10 +58,20 @@ METRIC_COLUMNS = (
     'I_pmv_zone',
     'otc_violation_zone_pct',
     'pmv_mean_zone',
+    *AIR_LIMIT_KEYS,
+    *AIR_QUALITY_KEYS,
 )
 """Metric columns of the results table (those the simulator returns; ``*_zone``:
 the comfort-zone phase, where the upper PMV bound is at its tightest, from
-``zone_start_s`` on; ``closed_loop.simulate``)."""
+``zone_start_s`` on; ``closed_loop.simulate``), then the air quality scored against the
+cell's scenario's limits as every verb's ``metrics.json`` has it (``ceco_core.kpis.run_air_quality``:
+the limits ``co2_limit_ppm`` [ppm], ``fog_margin_bound_k`` [K] and the KPIs ``co2_max_ppm`` ...
+``air_quality_met``)."""
+
+AIR_QUALITY_FLAG = 'air_quality_broken'
+"""Column of a results row: True when the cell's run broke its scenario's air-quality limits
+(``ceco_core.kpis.breaks_air_quality``, the rule of every verb): such a run claims no saving
+(:func:`ceco_bringup.sweep.summary.summarize`)."""
 
 TIMING_COLUMNS = ('solve_time_median_ms', 'solve_time_max_ms')
 """Metric columns that are wall-clock measurements (not reproducible)."""
@@ -201,7 +213,8 @@ def run_cell(cell: Mapping, runs_dir: str | None = None, controller_cache=None) 
     ``controller_cache``: the worker's :class:`ceco_controller.factory.ControllerCache` (a warm
     worker reuses its controllers; the results are the same).
 
-    The row holds the cell id, axes, every metric, ``status`` ('ok', 'failed': the controller did not
+    The row holds the cell id, axes, every metric (:data:`METRIC_COLUMNS`, the air quality included),
+    :data:`AIR_QUALITY_FLAG`, ``status`` ('ok', 'failed': the controller did not
     control the run, ``ceco_core.run_status``; or 'error'), ``error``,
     ``code`` (this process's :func:`code_fingerprint`; a cell whose
     fingerprint differs from the driver's is an error, not a result),
@@ -224,6 +237,7 @@ def run_cell(cell: Mapping, runs_dir: str | None = None, controller_cache=None) 
         for k in METRIC_COLUMNS:
             v = result.metrics.get(k)
             row[k] = float('nan') if v is None else float(v)
+        row[AIR_QUALITY_FLAG] = breaks_air_quality(row)
         row['scenario_name'] = result.metrics.get('scenario', scenario.name)
         row['preview_quality'] = result.metrics.get('preview_quality', spec['preview'])
         if result.metrics.get('status') == STATUS_FAILED:  # its controller did not control it: no result

@@ -17,8 +17,8 @@ from ceco_bringup import cli_args
 from . import backends
 from . import cells as cells_mod
 from .backends import append_row, read_done
-from .cells import METRIC_COLUMNS, TIMING_COLUMNS
-from .grid import AXES, GridError, expand_grid, load_grid
+from .cells import AIR_QUALITY_FLAG, METRIC_COLUMNS, TIMING_COLUMNS
+from .grid import AXES, GROUP_AXES, GridError, expand_grid, load_grid
 from .summary import _settings_of, _write_parquet, _write_table, point_name, summarize, summary_markdown, vehicle_rows
 
 __all__ = ['run_sweep', 'verify_cells', 'build_parser', 'main']
@@ -113,6 +113,7 @@ def run_sweep(
         'cell_id',
         *AXES,
         *METRIC_COLUMNS,
+        AIR_QUALITY_FLAG,
         'scenario_name',
         'preview_quality',
         'code',
@@ -288,6 +289,12 @@ def main(argv=None) -> int:
     )
     print(f"table: {res['paths']['csv']}" + (f" and {res['paths']['parquet']}" if res['paths']['parquet'] else ''))
     print(f"summary: {res['paths']['summary_md']}")
+    broke = [r for r in res['summary'] if r['air_quality_broken']]
+    if broke:  # the rule of every verb (ceco_core.kpis.breaks_air_quality): said on the console too
+        names = ', '.join(
+            f"{'/'.join(str(r[a]) for a in GROUP_AXES)} {point_name(r['strategy'], r['settings'])}" for r in broke
+        )
+        print(f'air quality: {len(broke)} point(s) broke the limits, no saving claimed: {names}')
     if args.front_figure:
         from ceco_bringup.figures import front_figure
 

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ceco_core.kpis import breaks_air_quality
 from ceco_core.metrics import relative_change_pct
 
 from .cells import Cell
@@ -24,6 +25,7 @@ __all__ = [
     'write_parquet',
     'SUMMARY_KEYS',
     'CHANGE_KEYS',
+    'AIR_QUALITY_SUMMARY_KEYS',
     'summarize',
     'dominance_rows',
     'point_name',
@@ -45,7 +47,7 @@ def _write_table(path: Path, rows: Sequence[Mapping], columns: Sequence[str]) ->
 def _typed(values: Sequence) -> list:
     """One column with one type: int, float or str (None stays missing)."""
     kinds = {type(v) for v in values if v is not None}
-    if kinds and kinds <= {int}:
+    if kinds and (kinds <= {int} or kinds <= {bool}):
         return list(values)
     if kinds and kinds <= {int, float}:
         return [None if v is None else float(v) for v in values]
@@ -92,7 +94,20 @@ SUMMARY_KEYS = (
 
 CHANGE_KEYS = ('E_tot_kWh', 'I_pmv', 'E_zone_J', 'I_pmv_zone')
 """Metrics whose change against the baseline [%] the summary gives (``<key>_change_pct``, signed as
-measured: + = more)."""
+measured: + = more); NaN where the point or its baseline broke the air-quality limits (:func:`summarize`)."""
+
+AIR_QUALITY_SUMMARY_KEYS = (
+    'co2_limit_ppm',
+    'fog_margin_bound_k',
+    'co2_max_ppm',
+    'co2_above_limit_pct',
+    'fog_below_bound_s',
+    'air_quality_met',
+)
+"""Air-quality columns averaged over seeds in the summary (``<key>_mean``; the limits are the scenario's, the
+same for every seed): the CO2 limit [ppm], the fog-margin bound [K], the cabin's CO2 maximum [ppm], the share of
+the run above the limit [%], the time below the fog bound [s] (``ceco_core.kpis.air_quality_kpis``) and the share
+of the seeds whose run met both limits [0-1]; NaN where not recorded."""
 
 
 def _settings_of(row: Mapping) -> str:
@@ -103,12 +118,20 @@ def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]
     """The sweep's summary rows: per-point means over seeds and the change against the group's baseline.
 
     Per (scenario, drive_cycle, climate, preview, occupant, strategy,
-    settings): the mean over seeds of the main metrics (:data:`SUMMARY_KEYS`),
-    the number of seeds, and the change against the baseline of the same
+    settings): the mean over seeds of the main metrics (:data:`SUMMARY_KEYS`)
+    and of the air quality (:data:`AIR_QUALITY_SUMMARY_KEYS`), the number of seeds,
+    and the change against the baseline of the same
     group (scenario, drive_cycle, climate, preview, occupant; means compared,
     :data:`CHANGE_KEYS`). The baseline runs once per group with its default
     settings; every (strategy, settings) of the group is compared with that
     one baseline. Rows keep the order of first appearance.
+
+    Air quality, the rule of every verb (``ceco_core.kpis.breaks_air_quality``; ``ceco sim``'s verdict, the
+    benchmark's fronts): ``n_air_quality_broken`` counts the point's seeds whose run broke the scenario's CO2
+    limit or fog bound and ``air_quality_broken`` says whether any did. A point that broke the limits claims no
+    saving, nor does any point of a group whose baseline broke them (a saving against stale air is no saving):
+    its :data:`CHANGE_KEYS` changes are NaN and ``no_saving`` says why ('' where the changes stand). Unknown air
+    quality (a log written before the sweep recorded it) is not a break.
     """
     group_axes = [a for a in AXES if a not in ('seed', 'strategy', 'settings')]
     groups: dict = {}
@@ -124,16 +147,27 @@ def summarize(rows: Sequence[Mapping], baseline: str = 'baseline') -> list[dict]
 
     out = []
     for g, by_key in groups.items():
-        means = {key: {k: mean(rs, k) for k in SUMMARY_KEYS} for key, rs in by_key.items()}
-        base = means.get((baseline, DEFAULT_SETTINGS))
+        means = {key: {k: mean(rs, k) for k in SUMMARY_KEYS + AIR_QUALITY_SUMMARY_KEYS} for key, rs in by_key.items()}
+        broken = {key: sum(breaks_air_quality(r) for r in rs) for key, rs in by_key.items()}
+        base_key = (baseline, DEFAULT_SETTINGS)
+        base = means.get(base_key)
         for (s, label), m in means.items():
             row = dict(zip(group_axes, g))
             row['strategy'] = s
             row['settings'] = label
-            row['n_seeds'] = len(by_key[(s, label)])
+            n = row['n_seeds'] = len(by_key[(s, label)])
             row.update({f'{k}_mean': v for k, v in m.items()})
-            for k in CHANGE_KEYS:
-                row[f'{k}_change_pct'] = relative_change_pct(m[k], base[k]) if base else float('nan')
+            row['n_air_quality_broken'] = broken[(s, label)]
+            row['air_quality_broken'] = broken[(s, label)] > 0
+            if row['air_quality_broken']:
+                row['no_saving'] = f'broke the air-quality limits ({broken[(s, label)]} of {n} seeds)'
+            elif base is not None and broken[base_key]:
+                row['no_saving'] = 'its baseline broke the air-quality limits'
+            else:
+                row['no_saving'] = ''
+            for k in CHANGE_KEYS:  # no baseline in the group, or no saving claimed: NaN
+                claim = not row['no_saving']
+                row[f'{k}_change_pct'] = relative_change_pct(m[k], base[k]) if base is not None and claim else math.nan
             out.append(row)
     return out
 
@@ -146,7 +180,8 @@ def dominance_rows(summary: Sequence[Mapping], baseline: str = 'baseline') -> li
     I_PMV (a Pareto-dominating point; ``dominates``), over the whole run and
     in the comfort-zone phase (``dominates_zone``)? The changes are the
     summary's ``E_tot_kWh_change_pct, I_pmv_change_pct, E_zone_J_change_pct, I_pmv_zone_change_pct``
-    (NaN where the group has no baseline: ``dominates`` is then False).
+    (NaN where the group has no baseline, or where the point or its baseline broke the air-quality limits:
+    ``dominates`` is then False; ``air_quality_broken`` and ``no_saving`` are the summary's, :func:`summarize`).
     """
     out = []
     for r in summary:
@@ -170,6 +205,8 @@ def dominance_rows(summary: Sequence[Mapping], baseline: str = 'baseline') -> li
                 'otc_violation_zone_pct': r.get('otc_violation_zone_pct_mean', float('nan')),
                 'dominates': bool(de < 0.0 and di <= 0.0),
                 'dominates_zone': bool(dez < 0.0 and diz <= 0.0),
+                'air_quality_broken': bool(r.get('air_quality_broken', False)),
+                'no_saving': str(r.get('no_saving', '')),
             }
         )
     return out
@@ -224,13 +261,23 @@ def vehicle_rows(rows: Sequence[Mapping], cells: Sequence[Cell], settings=None) 
     return out
 
 
+def _air_quality_cell(r: Mapping) -> str:
+    """The summary table's "air quality" cell of a summary row: ``met``, ``BROKE k/n`` or ``n/a`` (not recorded)."""
+    if r.get('air_quality_broken'):
+        return f"BROKE {r['n_air_quality_broken']}/{r['n_seeds']}"
+    met = r.get('air_quality_met_mean')
+    return 'met' if met is not None and math.isfinite(float(met)) else 'n/a'
+
+
 def summary_markdown(
     summary: Sequence[Mapping], timing: Mapping, grid_name: str, vehicle: Sequence[Mapping] = ()
 ) -> str:
     """The sweep's ``summary.md``: timing, one table row per summary point, dominance and vehicle level.
 
     Args:
-        summary: the rows of :func:`summarize` (energy [kWh], I_PMV [s], changes [%]).
+        summary: the rows of :func:`summarize` (energy [kWh], I_PMV [s], changes [%], CO2 [ppm]; the column
+            "air quality" says ``met``, ``BROKE k/n`` (k of the n seeds' runs broke the limits) or ``n/a`` (not
+            recorded), and a section lists the points that claim no saving and why).
         timing: the sweep's timing record (``cells``, ``ran``, ``skipped``, ``failed``, ``backend``,
             ``workers``, ``wall_s`` [s], ``cells_per_hour``, ``sim_mean_s``, ``sim_median_s``,
             ``cell_mean_s``, ``cell_sum_s`` [s] and ``speedup``).
@@ -254,8 +301,8 @@ def summary_markdown(
         '| scenario | cycle | climate | preview | occupant | strategy | settings | seeds | E_tot [kWh] | '
         'E change [%] | I_PMV [s] | I_PMV change [%] | OTC viol. [%] | t_comfort [s] | E zone change [%] | '
         'I_PMV zone change [%] | '
-        'OTC viol. zone [%] |',
-        '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|',
+        'OTC viol. zone [%] | CO2 max [ppm] | air quality |',
+        '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|',
     ]
 
     def f(x, fmt):
@@ -274,7 +321,28 @@ def summary_markdown(
                 f"{f(r['E_tot_kWh_change_pct'], '+.1f')} | {f(r['I_pmv_mean'], '.1f')} | "
                 f"{f(r['I_pmv_change_pct'], '+.1f')} | {f(r['otc_violation_pct_mean'], '.2f')} | "
                 f"{f(r['time_to_comfort_s_mean'], '.0f')} | {f(r.get('E_zone_J_change_pct'), '+.1f')} | "
-                f"{f(r.get('I_pmv_zone_change_pct'), '+.1f')} | {f(r.get('otc_violation_zone_pct_mean'), '.2f')} |"
+                f"{f(r.get('I_pmv_zone_change_pct'), '+.1f')} | {f(r.get('otc_violation_zone_pct_mean'), '.2f')} | "
+                f"{f(r.get('co2_max_ppm_mean'), '.0f')} | {_air_quality_cell(r)} |"
+            )
+    no_saving = [
+        (g, key, by[key]) for g, by in groups.items() for key in _ordered_points(by) if by[key].get('no_saving')
+    ]
+    if no_saving:
+        lines += [
+            '',
+            '## Air quality: no saving claimed',
+            '',
+            "A run that broke its scenario's CO2 limit or fog bound claims no saving "
+            '(ceco_core.kpis.breaks_air_quality, the rule of every verb), nor does a point compared with a baseline '
+            'that broke them: their changes are n/a and they dominate nothing.',
+            '',
+        ]
+        for g, key, r in no_saving:
+            lines.append(
+                f"- {'/'.join(map(str, g))} {point_name(*key)}: {r['no_saving']}; CO2 max "
+                f"{f(r.get('co2_max_ppm_mean'), '.0f')} ppm (limit {f(r.get('co2_limit_ppm_mean'), '.0f')} ppm), "
+                f"fog margin below its {f(r.get('fog_margin_bound_k_mean'), '.1f')} K bound for "
+                f"{f(r.get('fog_below_bound_s_mean'), '.0f')} s (means over seeds)"
             )
     dom = dominance_rows(summary)
     if dom:
