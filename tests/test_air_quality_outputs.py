@@ -9,9 +9,9 @@ In-process, 90 s of SC03 with a CO2 limit the cabin starts above."""
 import json
 
 import pytest
-import yaml
+from scenario_cases import write_stale_sc03
 
-from ceco_bringup import outputs, provenance, report, rundata, sim
+from ceco_bringup import outputs, report, rundata, sim
 from ceco_bringup import verdict as vd
 from ceco_core.air_quality import AirQualityLimits
 from ceco_core.kpis import AIR_QUALITY_KEYS, air_quality_kpis
@@ -26,12 +26,7 @@ LIMITS = AirQualityLimits(co2_limit_ppm=450.0, fog_margin_min_k=3.0)
 def job(tmp_path_factory):
     """``ceco sim`` of baseline and ceco on SC03 with a 450-ppm CO2 limit, and a two-member family."""
     tmp = tmp_path_factory.mktemp('aq')
-    data = yaml.safe_load(provenance.copy_scenario('sc03', tmp / 'copy').read_text())
-    data['name'] = 'sc03_stale'
-    data.setdefault('initial', {})['co2_cab_ppm'] = 900.0
-    data['air_quality'] = {**data.get('air_quality', {}), 'co2_limit_ppm': LIMITS.co2_limit_ppm}
-    path = tmp / 'sc03_stale.yaml'
-    path.write_text(yaml.safe_dump(data))
+    path = write_stale_sc03(tmp, LIMITS.co2_limit_ppm)
     out = tmp / 'job'
     argv = ['--scenario', str(path), '--strategy', 'baseline,ceco', '--duration-s', str(DURATION_S)]
     assert sim.main([*argv, '--out', str(out), '--no-progress', '--baseline-setpoints-c', '25,26']) == 0

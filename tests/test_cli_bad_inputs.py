@@ -4,6 +4,7 @@ wrong (and the fix), exit status 2, no traceback, and nothing started (play refu
 import pytest
 from bag_helpers import sample
 from cli_helpers import one_error_line
+from scenario_cases import BEYOND_THE_CYCLE
 
 from ceco_bringup import bag_writer, bagio, play, report
 from ceco_bringup.benchmark import cli as bench_cli
@@ -189,18 +190,6 @@ def test_a_control_period_a_strategy_cannot_run_is_refused_before_any_run(tmp_pa
     assert not (tmp_path / 'o').exists()
 
 
-_BEYOND_THE_CYCLE = {
-    'name': 'beyond_the_cycle',
-    'drive_cycle': 'sc03',
-    'duration_s': 20,
-    'weather': {'time_s': [0, 600], 't_amb_c': 60.0, 'solar_wm2': 1400.0, 'rh': 0.05},
-    'occupant': {'met': 1.2, 'clo': 0.5},
-    'comfort_bounds': {'time_s': [0, 30, 300], 'pmv_lb': -0.5, 'pmv_ub': [3.0, 3.0, 0.5]},
-    'initial': {'t_cab_c': 70.0, 'rh_cab': 0.1},
-}
-"""60 degC air, 1400 W/m2, the cabin soaked at 70 degC: the refrigerant cycle leaves its tables within seconds."""
-
-
 @pytest.mark.parametrize('evaluation', ['compiled', 'python'])
 def test_both_plant_evaluations_raise_the_plant_step_error(evaluation):
     """The compiled step (on its flag) and the Python step (the cycle solve's own check) raise PlantStepError, the
@@ -211,7 +200,7 @@ def test_both_plant_evaluations_raise_the_plant_step_error(evaluation):
 
     with pytest.raises(PlantStepError, match=r'^refrigerant cycle did not converge in 30 iterations \('):
         simulate(
-            scenario_from_dict(_BEYOND_THE_CYCLE), 'baseline', SimSettings(progress=False, plant_evaluation=evaluation)
+            scenario_from_dict(BEYOND_THE_CYCLE), 'baseline', SimSettings(progress=False, plant_evaluation=evaluation)
         )
 
 
@@ -226,7 +215,7 @@ def test_a_run_the_plant_cannot_simulate_is_a_failed_run_not_a_traceback(tmp_pat
     from ceco_bringup import sim
 
     path = tmp_path / 'hot.yaml'
-    path.write_text(yaml.safe_dump(_BEYOND_THE_CYCLE))
+    path.write_text(yaml.safe_dump(BEYOND_THE_CYCLE))
     out = tmp_path / 'o'
     argv = ['--scenario', str(path), '--strategy', 'baseline,ceco', '--no-progress', '--out', str(out)]
     assert sim.main(argv) == 1

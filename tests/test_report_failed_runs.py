@@ -21,6 +21,7 @@ import shutil
 
 import pytest
 import yaml
+from scenario_cases import BEYOND_THE_CYCLE as HOT  # the plant leaves its refrigerant model at once
 from test_report import _msg, _plant_bag_writer
 
 from ceco_bringup import provenance, report, rundata, sim
@@ -29,16 +30,6 @@ from ceco_controller.closed_loop import SimSettings, simulate, write_run
 
 DURATION_S = 40.0
 
-HOT = {
-    'name': 'beyond_the_cycle',
-    'drive_cycle': 'sc03',
-    'duration_s': 20,
-    'weather': {'time_s': [0, 600], 't_amb_c': 60.0, 'solar_wm2': 1400.0, 'rh': 0.05},
-    'occupant': {'met': 1.2, 'clo': 0.5},
-    'comfort_bounds': {'time_s': [0, 30, 300], 'pmv_lb': -0.5, 'pmv_ub': [3.0, 3.0, 0.5]},
-    'initial': {'t_cab_c': 70.0, 'rh_cab': 0.1},
-}
-"""A scenario whose plant leaves its refrigerant model at once (the brief's /tmp/hot.yaml)."""
 
 STOPPED = 'the simulation stopped: refrigerant cycle did not converge in 30 iterations (compiled plant, step 2'
 """How ``ceco sim`` words a run of :data:`HOT` (its run.json's ``error``)."""

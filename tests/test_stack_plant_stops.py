@@ -22,7 +22,7 @@ rclpy = pytest.importorskip('rclpy', reason='stack tests need the sourced ROS 2 
 if not hasattr(pytest.importorskip('ceco_msgs.msg', reason='stack tests need the built ceco_msgs'), 'AcCommand'):
     pytest.skip('stack tests need the sourced ROS 2 workspace (ceco_msgs is not built here)', allow_module_level=True)
 
-from test_cli_bad_inputs import _BEYOND_THE_CYCLE  # noqa: E402
+from scenario_cases import BEYOND_THE_CYCLE  # noqa: E402
 from test_stack import DdsPeer  # noqa: E402
 
 from ceco_bringup import bagio  # noqa: E402
@@ -36,7 +36,7 @@ def test_a_run_the_plant_cannot_simulate_fails_with_the_plants_reason(tmp_path):
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 
     scenario, out = tmp_path / 'hot.yaml', tmp_path / 'o'
-    scenario.write_text(yaml.safe_dump(_BEYOND_THE_CYCLE))
+    scenario.write_text(yaml.safe_dump(BEYOND_THE_CYCLE))
     domain = 1 + (os.getpid() * 13 + 5) % 100
     peer = DdsPeer(domain, 'diagnostics_watch')
     diags = peer.collect(DiagnosticArray, interfaces.TOPIC_ROS_DIAGNOSTICS, interfaces.QOS_DIAGNOSTICS)

@@ -11,9 +11,9 @@ import json
 import math
 
 import pytest
-import yaml
+from scenario_cases import write_stale_sc03
 
-from ceco_bringup import provenance, sweep
+from ceco_bringup import sweep
 from ceco_controller.closed_loop import SimSettings, simulate
 from ceco_core.kpis import AIR_LIMIT_KEYS, AIR_QUALITY_KEYS
 from ceco_core.metrics import relative_change_pct
@@ -28,11 +28,7 @@ PLAIN = 'plain'
 def swept(tmp_path_factory):
     """``run_sweep`` of baseline and ceco on SC03 and on SC03 with a 450-ppm CO2 limit, 20 s, one worker."""
     tmp = tmp_path_factory.mktemp('sweep_aq')
-    data = yaml.safe_load(provenance.copy_scenario('sc03', tmp / 'copy').read_text())
-    data['name'] = 'sc03_stale'
-    data.setdefault('initial', {})['co2_cab_ppm'] = 900.0
-    data['air_quality'] = {**data.get('air_quality', {}), 'co2_limit_ppm': 450.0}
-    (tmp / 'sc03_stale.yaml').write_text(yaml.safe_dump(data))
+    write_stale_sc03(tmp, 450.0)
     grid = tmp / 'grid.yaml'
     grid.write_text(
         f'name: aq\nstrategies: [baseline, ceco]\nscenarios: {{{STALE}: sc03_stale.yaml, {PLAIN}: sc03}}\n'

@@ -1,6 +1,7 @@
 """A plant step the refrigerant model cannot simulate stops plant_node's loop for good, and only that error does."""
 
 import pytest
+from scenario_cases import BEYOND_THE_CYCLE
 
 from ceco_core.contracts import AcInput
 from ceco_core.supervision import ERROR
@@ -8,17 +9,6 @@ from ceco_plant_sim.plant_io import PLANT_PARAMETERS, PlantNodeConfig
 from ceco_plant_sim.plant_loop import PLANT_STOPPED_EXIT, PlantLoop, simulation_stopped, stopped_line
 from ceco_plant_sim.plant_ops import PlantStepError
 from ceco_v2x_preview.scenario import scenario_from_dict
-
-BEYOND_THE_CYCLE = {
-    'name': 'beyond_the_cycle',
-    'drive_cycle': 'sc03',
-    'duration_s': 20,
-    'weather': {'time_s': [0, 600], 't_amb_c': 60.0, 'solar_wm2': 1400.0, 'rh': 0.05},
-    'occupant': {'met': 1.2, 'clo': 0.5},
-    'comfort_bounds': {'time_s': [0, 30, 300], 'pmv_lb': -0.5, 'pmv_ub': [3.0, 3.0, 0.5]},
-    'initial': {'t_cab_c': 70.0, 'rh_cab': 0.1},
-}
-"""60 degC air, 1400 W/m2, the cabin soaked at 70 degC: the refrigerant cycle leaves its tables within seconds."""
 
 FULL = AcInput(mdot_bl_kgps=0.17, t_evap_sp_c=3.0)
 
