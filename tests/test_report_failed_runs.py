@@ -150,6 +150,12 @@ def test_a_failed_ceco_run_with_a_bag_is_failed_not_partial(results, tmp_path):
     assert failed[0].reason == 'stalled: no new plant step for 20 s of wall clock at plant step 28/40'
     with pytest.raises(ValueError, match=r'a failed run \(stalled: no new plant step .*\): no number to report'):
         rundata.load_run(run)
+    # a bag the failed run left damaged (the process killed while writing) names nothing: the directory does
+    mcap = next((run / 'bag').rglob('*.mcap'))
+    mcap.write_bytes(mcap.read_bytes()[:200])
+    loaded, failed = rundata.load_runs([run])
+    assert loaded == [] and [(f.strategy, f.scenario) for f in failed] == [('run', 'unknown')]
+    assert failed[0].reason.startswith('stalled: no new plant step')
 
 
 def test_a_saved_run_whose_controller_did_not_control_it_is_failed(results, tmp_path):

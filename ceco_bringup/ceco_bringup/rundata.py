@@ -145,27 +145,18 @@ def failed_reason(run_dir: str | Path) -> str | None:
 
 
 def _failed_run(run_dir: Path, reason: str, namespace: str | None = None) -> FailedRun:
-    """The failed run in ``run_dir``, named by what it records: metrics.json, run.json, its bag, else its directory.
+    """The failed run in ``run_dir``, named as :func:`load_run` names a run (:func:`_identity`).
 
-    A bag a failed run left may be damaged: then it names nothing.
+    From metrics.json, run.json, its bag, else its directory; a bag a failed run left may be damaged: then only
+    metrics.json names it.
     """
-    from ceco_bringup import provenance
-    from ceco_bringup.bagrun import bag_dir_of, bag_run_info
-
-    info = provenance.read_run(run_dir) or {}
     stored = _stored(run_dir) if (run_dir / 'metrics.json').is_file() else {}
-    strategy = stored.get('strategy') or info.get('strategy')
-    scenario = stored.get('scenario') or info.get('scenario')
-    bag = bag_dir_of(run_dir)
-    if bag is not None and not (strategy and scenario):
-        try:
-            b = bag_run_info(bag, namespace)
-        except Exception:  # rosbags raises its own types for a damaged bag; the run is named without it
-            b = None
-        strategy, scenario = strategy or getattr(b, 'strategy', None), scenario or getattr(b, 'scenario', None)
-    return FailedRun(
-        path=run_dir, strategy=str(strategy or run_dir.name), scenario=str(scenario or UNKNOWN_SCENARIO), reason=reason
-    )
+    try:
+        scenario, strategy, _, _ = _identity(run_dir, stored, namespace, None, None)
+    except Exception:  # rosbags raises its own types for a damaged bag; the run is named without it
+        scenario = str(stored.get('scenario') or UNKNOWN_SCENARIO)
+        strategy = str(stored.get('strategy') or run_dir.name)
+    return FailedRun(path=run_dir, strategy=strategy, scenario=scenario, reason=reason)
 
 
 def is_run(path: str | Path) -> bool:
