@@ -142,7 +142,7 @@ def test_a_failed_ceco_run_with_a_bag_is_failed_not_partial(results, tmp_path):
     """``ceco run`` that failed mid-run (a node exited, a stall: run.json ``failed``) leaves a bag of what it
     recorded; it was shown as a partial run with its numbers, now it is a failed run with its reason."""
     run = tmp_path / 'run'
-    provenance.start_run(run, 'run', ['--scenario', 'sc03', '--strategy', 'ceco-ioch'], 'sc03')
+    provenance.start_run(run, 'run', ['--scenario', 'sc03', '--strategy', 'ceco-ioch'], 'sc03', 'ceco-ioch')
     _write_bag(results['ceco-ioch'], run / 'bag', custom={'strategy': 'ceco-ioch', 'scenario': 'sc03'})
     provenance.finish_run(run, 'failed', 'stalled: no new plant step for 20 s of wall clock at plant step 28/40')
     loaded, failed = rundata.load_runs([run])
@@ -150,12 +150,17 @@ def test_a_failed_ceco_run_with_a_bag_is_failed_not_partial(results, tmp_path):
     assert failed[0].reason == 'stalled: no new plant step for 20 s of wall clock at plant step 28/40'
     with pytest.raises(ValueError, match=r'a failed run \(stalled: no new plant step .*\): no number to report'):
         rundata.load_run(run)
-    # a bag the failed run left damaged (the process killed while writing) names nothing: the directory does
+    # a bag the failed run left damaged (the process killed while writing) names nothing; run.json names the run
     mcap = next((run / 'bag').rglob('*.mcap'))
     mcap.write_bytes(mcap.read_bytes()[:200])
     loaded, failed = rundata.load_runs([run])
-    assert loaded == [] and [(f.strategy, f.scenario) for f in failed] == [('run', 'unknown')]
+    assert loaded == [] and [(f.strategy, f.scenario) for f in failed] == [('ceco-ioch', 'sc03')]
     assert failed[0].reason.startswith('stalled: no new plant step')
+    # ... and without a strategy in run.json (older run directories), the directory's name stands for it
+    info = json.loads((run / 'run.json').read_text())
+    del info['strategy']
+    (run / 'run.json').write_text(json.dumps(info))
+    assert [(f.strategy, f.scenario) for f in rundata.load_runs([run])[1]] == [('run', 'sc03')]
 
 
 def test_a_saved_run_whose_controller_did_not_control_it_is_failed(results, tmp_path):

@@ -154,6 +154,7 @@ def test_ceco_sim_fails_a_strategy_that_never_controls(tmp_path):
     assert failed['n_fallback_baseline'] == 12  # every step was the production law
     run = json.loads((out / 'ceco-ioch' / 'run.json').read_text())
     assert run['status'] == 'failed' and 'did not control the run: 12 of 12' in run['error']
+    assert run['strategy'] == 'ceco-ioch'  # (a run that failed before any data is named by it: ceco report)
     ok = json.loads((out / 'baseline' / 'metrics.json').read_text())
     assert ok['status'] == 'ok' and ok['fallback_control_steps'] == 0
     # the failed run shows no number: its line says FAILED, it is in no table and not in the verdict

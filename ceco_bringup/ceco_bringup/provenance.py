@@ -108,8 +108,14 @@ def _version_and_code() -> tuple[str, str]:
     return ceco_version(), code_fingerprint()
 
 
-def start_run(run_dir: str | os.PathLike, verb: str, argv: Sequence[str], scenario_source: str) -> dict:
-    """Write ``scenario.yaml`` and ``run.json`` (status ``started``) into ``run_dir``; return the record."""
+def start_run(
+    run_dir: str | os.PathLike, verb: str, argv: Sequence[str], scenario_source: str, strategy: str | None = None
+) -> dict:
+    """Write ``scenario.yaml`` and ``run.json`` (status ``started``) into ``run_dir``; return the record.
+
+    ``strategy``: the one strategy the run directory is of (``ceco sim``, ``ceco run``), recorded so that a run
+    that failed before any data names it (``ceco report``); None: not one strategy's run.
+    """
     d = Path(run_dir)
     d.mkdir(parents=True, exist_ok=True)
     copy = copy_scenario(scenario_source, d)
@@ -128,6 +134,7 @@ def start_run(run_dir: str | os.PathLike, verb: str, argv: Sequence[str], scenar
         'scenario': load_scenario(copy).name,
         'scenario_source': str(scenario_source),
         'scenario_sha256': hashlib.sha256(copy.read_bytes()).hexdigest()[:16],
+        **({'strategy': strategy} if strategy else {}),
         'status': 'started',
         'error': '',
     }

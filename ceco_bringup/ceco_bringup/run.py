@@ -174,7 +174,7 @@ def main(argv=None) -> int:
     try:
         for i, strategy in enumerate(strategies):
             run_dir = run_dirs[strategy]
-            provenance.start_run(run_dir, 'run', argv, args.scenario)
+            provenance.start_run(run_dir, 'run', argv, args.scenario, strategy)
             try:
                 own = cli_args.case_overrides(case, strategy)  # (a baseline's door: its law file)
                 law = write_baseline_law(own, out / CASE_BASELINE_LAW_FILE) if own else None

@@ -147,15 +147,14 @@ def failed_reason(run_dir: str | Path) -> str | None:
 def _failed_run(run_dir: Path, reason: str, namespace: str | None = None) -> FailedRun:
     """The failed run in ``run_dir``, named as :func:`load_run` names a run (:func:`_identity`).
 
-    From metrics.json, run.json, its bag, else its directory; a bag a failed run left may be damaged: then only
-    metrics.json names it.
+    From metrics.json, run.json, its bag, else its directory; a bag a failed run left may be damaged: then it is
+    named without its bag.
     """
     stored = _stored(run_dir) if (run_dir / 'metrics.json').is_file() else {}
     try:
         scenario, strategy, _, _ = _identity(run_dir, stored, namespace, None, None)
     except Exception:  # rosbags raises its own types for a damaged bag; the run is named without it
-        scenario = str(stored.get('scenario') or UNKNOWN_SCENARIO)
-        strategy = str(stored.get('strategy') or run_dir.name)
+        scenario, strategy, _, _ = _identity(run_dir, stored, namespace, None, None, use_bag=False)
     return FailedRun(path=run_dir, strategy=strategy, scenario=scenario, reason=reason)
 
 
@@ -394,17 +393,22 @@ def _read_json(path: Path, read, fix: str):
         raise ValueError(f'{path}: not a JSON file ({exc}): {fix}') from None
 
 
-def _identity(run_dir: Path, stored: Mapping, namespace, scenario, strategy) -> tuple[str, str, dict, float | None]:
-    """(scenario, strategy, info, intended length [s]) from the flags, metrics.json, run.json, the bag."""
+def _identity(
+    run_dir: Path, stored: Mapping, namespace, scenario, strategy, use_bag: bool = True
+) -> tuple[str, str, dict, float | None]:
+    """(scenario, strategy, info, intended length [s]) from the flags, metrics.json, run.json, the bag (``use_bag``)."""
     from ceco_bringup import provenance
     from ceco_bringup.bagrun import bag_dir_of, bag_run_info
 
     info = dict(_read_json(run_dir / provenance.RUN_FILE, lambda: provenance.read_run(run_dir), _RUN_JSON_FIX) or {})
     # what the run itself records, flags aside: metrics.json (and run.json for the scenario), else its bag
-    places = {'scenario': (('metrics.json', stored), ('run.json', info)), 'strategy': (('metrics.json', stored),)}
+    places = {
+        'scenario': (('metrics.json', stored), ('run.json', info)),
+        'strategy': (('metrics.json', stored), ('run.json', info)),
+    }
     rec = {k: next(((str(d[k]), where) for where, d in ps if d.get(k)), (None, '')) for k, ps in places.items()}
     length = None
-    bag = bag_dir_of(run_dir)
+    bag = bag_dir_of(run_dir) if use_bag else None
     if bag is not None:
         b = bag_run_info(bag, namespace)
         rec = {k: (v, where) if v is not None else (getattr(b, k), 'its bag') for k, (v, where) in rec.items()}

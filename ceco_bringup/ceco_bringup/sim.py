@@ -156,7 +156,7 @@ def main(argv=None) -> int:
     metrics, columns, failed = {}, {}, {}
     for s in args.strategy:
         run_dir = out / s
-        provenance.start_run(run_dir, 'sim', argv, args.scenario)
+        provenance.start_run(run_dir, 'sim', argv, args.scenario, s)
         try:
             res = simulate(scenario, s, with_case(settings, case, s))
         except (ValueError, OSError) as exc:  # a --set field the strategy lacks, a missing or unfit model file
