@@ -308,7 +308,9 @@ def load_run_timeseries(bag_dir, namespace: str | None = None) -> dict[str, np.n
     (and applied command) over [t_n, t_n + dt). Columns: TIMESERIES_COLUMNS plus
     `step_index` and `fallback`; the door command applied over the step (`recirc_share_cmd`) is read from the
     state of step n + 1 (NaN for the last step when the bag ends there, and in bags of before issue 21);
-    rows sorted by step index; a step index seen
+    `fallback` is the power's (``AcPower.fallback`` of step n: the plant's law drove [t_n, t_n + dt)); the state's
+    flag describes no step (it stays set until the next command is accepted, after the state of the step that
+    command drives was sent); rows sorted by step index; a step index seen
     twice keeps its first message in bag order.
     """
     state, comfort, power = {}, {}, {}
@@ -359,7 +361,7 @@ def load_run_timeseries(bag_dir, namespace: str | None = None) -> dict[str, np.n
         for col in rundir.COMFORT_COLUMNS:
             rows[col].append(float(c.iso_valid) if col == 'iso7730_valid' else getattr(c, col, math.nan))
         rows['step_index'].append(n)
-        rows['fallback'].append(bool(s.fallback or p.fallback))
+        rows['fallback'].append(bool(p.fallback))
     out = {k: np.asarray(v, dtype=float) for k, v in rows.items()}
     out['step_index'] = np.asarray(rows['step_index'], dtype=np.int64)
     out['fallback'] = np.asarray(rows['fallback'], dtype=bool)

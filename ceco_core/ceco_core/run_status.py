@@ -45,9 +45,11 @@ KEY_ON_FALLBACK_STEPS = 2
 """Fallback steps a run may always have [-], whatever its length: the real-time key-on.
 
 In real time the plant steps from t = 0 on its own clock and takes a command only at a control-step
-boundary, so its law drives until the first command computed from the state at t_0 applies:
-measured on `ceco run --timing realtime`, control step 0 and the first plant step of step 1
-(2 control steps: 2 of 6 in a 30-s run, 2 of 120 in SC03). Lockstep runs have none."""
+boundary, so its law drives until the first accepted command applies: measured on `ceco run
+--timing realtime` (30 s, baseline), plant steps 0-4, control step 0 (1 of 6); a first command that
+misses the boundary at t = Ts adds step 1, hence 2. (Counted 2 before the time series flagged plant
+steps by ``AcPower.fallback`` alone: the state at t = Ts, still in fallback, added plant step 5.)
+Lockstep runs have none."""
 
 STATUS_OK = 'ok'
 """Status of a run whose controller controlled it."""
@@ -136,7 +138,9 @@ def fallback_control_steps(
     """``(control steps, fallback steps)`` of a run recorded per plant step.
 
     Args:
-        plant_fallback: per plant step n = 0, 1, ...: True when the plant's ACC law drove it.
+        plant_fallback: per plant step n = 0, 1, ...: True when the plant's ACC law drove it,
+            [t_n, t_n+1) (``AcPower.fallback`` of step n; not ``CabinState.fallback`` at t_n, the
+            plant's mode when that state went out, still True at the end of a fallback period).
         steps_per_control: plant steps per control period [-] (Ts / dt).
         controller_fallback_steps: control steps k whose applied command the controller marked as a
             fallback (``AcCommand.fallback``); steps beyond the run are ignored.
