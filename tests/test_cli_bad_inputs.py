@@ -253,3 +253,23 @@ def test_a_bad_model_file_is_named_as_such_not_as_a_control_period_error(tmp_pat
     assert exc.value.code == 2
     err = one_error_line(capsys.readouterr().err)
     assert err.startswith(f'ceco sim: error: {bad}: ') and 'control_period_s' not in err, err
+
+
+@pytest.mark.parametrize('verb', ['sim', 'run'])
+def test_a_preview_delay_beyond_the_preview_nodes_range_is_refused_before_any_run(tmp_path, capsys, verb):
+    """--preview delayed:1e12: refused when the command line is checked, naming preview_node's range (ceco run
+    started the stack, preview_node exited on faults.delay_s out of range, and the run was reported FAILED, exit
+    status 1, in several lines)."""
+    from ceco_bringup import run, sim
+
+    main = {'sim': sim.main, 'run': run.main}[verb]
+    with pytest.raises(SystemExit) as exc:
+        main(
+            ['--scenario', 'sc03', '--strategy', 'baseline', '--preview', 'delayed:1e12', '--out', str(tmp_path / 'o')]
+        )
+    assert exc.value.code == 2
+    assert one_error_line(capsys.readouterr().err) == (
+        f"ceco {verb}: error: preview quality: delayed: 1e+12 s is outside 0..86400 s, the range of preview_node's "
+        f'faults.delay_s (ceco {verb} --help lists the options)'
+    )
+    assert not (tmp_path / 'o').exists()

@@ -292,15 +292,121 @@ def test_report_vehicle_level(runs, tmp_path):
     assert 'Vehicle-level energy (FASTSim 3.1)' in res['markdown'].read_text()
 
 
-def test_unreadable_bag_is_a_clear_error(runs, tmp_path, capsys):
+def _cut_in_half(bag):
+    """The bag's .mcap cut to half its size (as `truncate -s $((size/2))`): rosbags refuses it at open."""
+    mcap = next(bag.glob('*.mcap'))
+    mcap.write_bytes(mcap.read_bytes()[: mcap.stat().st_size // 2])
+    return 'ReaderError: File end magic is invalid.'
+
+
+def _metadata_lost(bag):
+    """metadata.yaml deleted: the .mcap alone, which rosbag2 cannot open."""
+    (bag / 'metadata.yaml').unlink()
+    return f'no metadata.yaml beside {next(bag.glob("*.mcap")).name}'
+
+
+def _cut_and_metadata_lost(bag):
+    _cut_in_half(bag)
+    return _metadata_lost(bag)
+
+
+def _metadata_not_rosbag2(bag):
+    (bag / 'metadata.yaml').write_text('not: a bag\n')
+    return "ReaderError: A metadata key is missing KeyError('rosbag2_bagfile_information')."
+
+
+DAMAGES = {'cut': _cut_in_half, 'no-metadata': _metadata_lost, 'cut-no-metadata': _cut_and_metadata_lost}
+
+
+@pytest.mark.parametrize('damage', sorted(DAMAGES))
+@pytest.mark.parametrize('removed', [(), ('metrics.json',)], ids=['all-kept', 'no-metrics-json'])
+def test_a_damaged_bag_beside_a_timeseries_csv_is_reported_from_the_csv_with_a_note(
+    runs, results, tmp_path, capsys, damage, removed
+):
+    """A run whose bag cannot be read (the .mcap cut in half, its metadata.yaml lost, or both) but whose
+    timeseries.csv is intact: reported from timeseries.csv (checked against metrics.json when kept), exit 0, and one
+    line on the console and a note in summary.md and report.html saying the bag could not be read and why. (Cut:
+    exit 2 naming the bag though the data was there; metadata lost: reported as if there were no bag.)"""
     import shutil
 
-    bad = tmp_path / 'run'
-    shutil.copytree(runs / 'ceco-ioch', bad)
-    (bad / 'bag').mkdir()
-    (bad / 'bag' / 'metadata.yaml').write_text('not: a bag\n')
-    assert report.main([str(bad), '--out', str(tmp_path / 'rep')]) == 2
-    assert 'cannot read the bag' in capsys.readouterr().err
+    run = tmp_path / 'run'
+    shutil.copytree(runs / 'baseline', run)
+    why = DAMAGES[damage](run / 'bag')
+    for name in removed:
+        (run / name).unlink()
+    # without metrics.json (and no run.json here) nothing readable names the run: the flags do
+    flags = ['--scenario', 'sc03', '--strategy', 'baseline'] if removed else []
+    assert report.main([str(run), '--out', str(tmp_path / 'rep'), *flags]) == 0
+    out, err = capsys.readouterr()
+    note = f'bag/ could not be read ({why}): metrics from timeseries.csv'
+    assert [line for line in err.splitlines() if 'could not be read' in line] == [f'ceco report: {run}: {note}']
+    # without metrics.json a run shorter than its scenario is what a stop left: partial, as with a bag
+    state = (
+        'no metrics.json; PARTIAL (stopped: 40 of 600 s recorded)'
+        if removed
+        else 'OK (max rel. diff 0.0e+00, tolerance 1e-06)'
+    )
+    assert f'{run}: baseline on sc03, metrics from timeseries.csv: {state}\n' in out
+    md = (tmp_path / 'rep' / 'summary.md').read_text()
+    assert f'Note on `{run}`: {note}.' in md
+    assert 'the rosbag2 bag alone when the run has a readable one' in md
+    assert note.replace("'", '&#x27;') in (tmp_path / 'rep' / 'report.html').read_text()
+    csv_row = (tmp_path / 'rep' / 'metrics.csv').read_text().splitlines()[1]
+    assert ',timeseries.csv,' in csv_row and ',bag,' not in csv_row
+    loaded = rundata.load_run(run, strategy='baseline')
+    assert loaded.source == 'timeseries.csv' and loaded.bag_unread == note and note in loaded.notes
+    assert loaded.recomputed['E_tot_J'] == results['baseline'].metrics['E_tot_J']  # repr-written CSV: exact
+
+
+@pytest.mark.parametrize('damage', sorted(DAMAGES))
+@pytest.mark.parametrize(
+    'removed', [('timeseries.csv',), ('timeseries.csv', 'metrics.json')], ids=['no-csv', 'no-csv-no-metrics-json']
+)
+def test_a_damaged_bag_with_nothing_else_holding_the_data_is_one_error_line(runs, tmp_path, capsys, damage, removed):
+    """Without timeseries.csv nothing else holds the run's time series: one line naming the damaged bag and why,
+    exit status 2 (metadata lost and nothing else: it said 'not a run directory')."""
+    import shutil
+
+    run = tmp_path / 'run'
+    shutil.copytree(runs / 'baseline', run)
+    why = DAMAGES[damage](run / 'bag')
+    for name in removed:
+        (run / name).unlink()
+    assert report.main([str(run), '--out', str(tmp_path / 'rep')]) == 2
+    assert one_error_line(capsys.readouterr().err) == (
+        f'ceco report: error: {run / "bag"}: cannot read the bag ({why}) and the run has no timeseries.csv to '
+        'report it from'
+    )
+
+
+@pytest.mark.parametrize('damage', sorted(DAMAGES))
+def test_a_damaged_bag_given_as_a_bag_is_one_error_line(runs, tmp_path, capsys, damage):
+    """The bag given itself (no run directory around it): the error names it, as ceco play does."""
+    import shutil
+
+    bag = tmp_path / 'bag'
+    shutil.copytree(runs / 'baseline' / 'bag', bag)
+    why = DAMAGES[damage](bag)
+    assert report.main([str(bag), '--out', str(tmp_path / 'rep')]) == 2
+    assert one_error_line(capsys.readouterr().err) == f'ceco report: error: {bag}: cannot read the bag: {why}'
+
+
+def test_a_bag_whose_metadata_is_not_rosbag2s_is_a_damaged_bag(runs, tmp_path, capsys):
+    """A metadata.yaml that is YAML but not a bag's: the same policy (timeseries.csv with a note, else the error)."""
+    import shutil
+
+    run = tmp_path / 'run'
+    shutil.copytree(runs / 'ceco-ioch', run)
+    (run / 'bag').mkdir()
+    why = _metadata_not_rosbag2(run / 'bag')
+    assert report.main([str(run), '--out', str(tmp_path / 'rep')]) == 0
+    assert f'ceco report: {run}: bag/ could not be read ({why}): metrics from timeseries.csv' in capsys.readouterr().err
+    (run / 'timeseries.csv').unlink()
+    assert report.main([str(run), '--out', str(tmp_path / 'rep2')]) == 2
+    assert one_error_line(capsys.readouterr().err) == (
+        f'ceco report: error: {run / "bag"}: cannot read the bag ({why}) and the run has no timeseries.csv to '
+        'report it from'
+    )
 
 
 def _ros2_bag_record_run(result, run_dir, namespaces):

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import yaml
 
-__all__ = ['BagRunInfo', 'bag_run_info', 'custom_data', 'is_bag', 'bag_dir_of']
+__all__ = ['BagRunInfo', 'bag_run_info', 'custom_data', 'is_bag', 'bag_dir_of', 'headless_bag_of']
 
 _FIELDS = ('scenario', 'strategy', 'control_period_s', 'horizon_steps', 'duration_s')
 
@@ -60,6 +60,26 @@ def bag_dir_of(run_dir: str | Path) -> Path | None:
         return p
     if is_bag(p / 'bag'):
         return p / 'bag'
+    return None
+
+
+STORAGE_SUFFIXES = ('.mcap', '.db3')
+"""File endings of a rosbag2 bag's storage files (MCAP, SQLite 3)."""
+
+
+def headless_bag_of(run_dir: str | Path) -> tuple[Path, list[str]] | None:
+    """A bag that lost its ``metadata.yaml``: (its directory, its storage files), else None.
+
+    ``DIR/bag``, else ``DIR``, holding storage files (``.mcap``, ``.db3``) but no ``metadata.yaml``: rosbag2 opens
+    a bag by its metadata, so it cannot be read. None for a whole bag (:func:`bag_dir_of`) and a directory without
+    storage files.
+    """
+    p = Path(run_dir)
+    for d in (p / 'bag', p):
+        if d.is_dir() and not is_bag(d):
+            files = sorted(f.name for f in d.iterdir() if f.is_file() and f.suffix in STORAGE_SUFFIXES)
+            if files:
+                return d, files
     return None
 
 

@@ -8,7 +8,9 @@ metadata, the recorded parameters, the messages or ``--scenario``/``--strategy``
 1. Load the time series (``ceco_bringup.rundata.load_run``): from the rosbag2
    bag alone when ``DIR/bag`` exists or DIR is a bag (any topic naming: relative, fully
    qualified, namespaced; ``--namespace`` for a bag holding several stacks),
-   else from ``DIR/timeseries.csv``.
+   else from ``DIR/timeseries.csv``. A bag that cannot be read (damaged, or an .mcap without
+   metadata.yaml) gives way to ``DIR/timeseries.csv`` with one line saying so (stderr, and a note in the
+   report); without a timeseries.csv it is the error (exit status 2, one line naming the bag).
 2. Recompute the metrics with ``ceco_core.metrics.run_metrics`` and
    check they equal ``DIR/metrics.json`` (relative tolerance ``--rtol``,
    NaN equals NaN). A mismatch is printed to stderr, shown as a red warning
@@ -233,7 +235,8 @@ def _intro(runs: Sequence[RunData], rtol: float, log, failed: Sequence[FailedRun
         Heading(1, 'ceco report: energy and comfort of predictive A/C control'),
         Paragraph(
             f'{len(runs)} run(s) from: ' + ', '.join(f'`{r.path}`' for r in runs) + '. Metrics were recomputed '
-            'from each run\'s time series (the rosbag2 bag alone when the run has one, else timeseries.csv) and '
+            'from each run\'s time series (the rosbag2 bag alone when the run has a readable one, else '
+            'timeseries.csv; a run whose bag could not be read says so below) and '
             f'compared with its metrics.json (relative tolerance {rtol:g}; for a timeseries.csv written with d '
             'significant digits, 10^(1-d), the precision the file holds).'
         ),
@@ -253,6 +256,8 @@ def _intro(runs: Sequence[RunData], rtol: float, log, failed: Sequence[FailedRun
             log(f'ceco report: PARTIAL: {msg}', file=sys.stderr)
         for note in r.notes:
             blocks.append(Paragraph(f'Note on `{r.path}`: {note}.'))
+        if r.bag_unread:  # a damaged bag beside intact data: reported from the data, said once on the console
+            log(f'ceco report: {r.path}: {r.bag_unread}', file=sys.stderr)
         if r.mismatches:
             detail = '; '.join(f'{k}: metrics.json {a!r} vs recomputed {b!r}' for k, a, b in r.mismatches)
             msg = f'metrics of {r.path} recomputed from {r.source} differ from metrics.json: {detail}'

@@ -13,6 +13,12 @@ recomputes its metrics with ``ceco_core.metrics.run_metrics`` and compares them
 with ``metrics.json`` when there is one; :func:`solver_stats` summarises its
 solver diagnostics.
 
+A run whose bag cannot be read (a damaged storage file, a corrupt ``metadata.yaml``, or a ``bag/`` holding an
+.mcap without ``metadata.yaml``) is reported from its ``timeseries.csv`` (and checked against its
+``metrics.json``) when it has one, with a note saying the bag could not be read and why
+(:attr:`RunData.bag_unread`); without a ``timeseries.csv`` nothing else holds its data: a ValueError naming the
+bag (:class:`DamagedBagError`).
+
 A failed run (its ``run.json`` says ``failed``, or its ``metrics.json`` has ``status: failed``: the controller
 did not control it, ``ceco_core.run_status``, or the run stopped: the plant left its model, a node exited, a
 stall) is a run too, with no number: :func:`load_runs` gives it as a :class:`FailedRun` (its reason, never its
@@ -30,7 +36,9 @@ Public API:
     failed_reason(run_dir)         why a run failed, None when it did not
     load_runs(paths, ...)          (loaded runs, failed runs) among paths
     load_run(run_dir, rtol, namespace, scenario=None, strategy=None) -> RunData
-    read_bag(bag_dir, read, *args) a bagio reader's result; a damaged bag as one ValueError, a wrong namespace apart
+    read_bag(bag_dir, read, *args) a bagio reader's result; a damaged bag as one DamagedBagError, a wrong namespace
+                                   apart
+    DamagedBagError                a bag that cannot be read (a ValueError): which bag, why
     recompute_metrics(columns, air_limits) / compare_metrics(stored, recomputed, rtol, atol)
     csv_precision_digits(path)     significant digits a CSV's writer used
     fallback_mask(column)          which control steps fell back
@@ -63,6 +71,7 @@ __all__ = [
     'compare_metrics',
     'load_run',
     'read_bag',
+    'DamagedBagError',
     'fallback_mask',
     'solver_stats',
 ]
@@ -109,6 +118,10 @@ class RunData:
     records them, flags aside ((None, '') where it does not); for a bag, ``identified_from``: where each came from."""
     air_limits: AirQualityLimits | None = None
     """The limits the run's air quality is scored against (metrics.json's, else its scenario's); None: unknown."""
+    bag_unread: str = ''
+    """Why the run's bag could not be read, its time series then from timeseries.csv, as one line ('' when the bag
+    was read or the run has none), e.g. 'bag/ could not be read (ReaderError: File end magic is invalid.): metrics
+    from timeseries.csv'; also among :attr:`notes`."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -159,12 +172,16 @@ def _failed_run(run_dir: Path, reason: str, namespace: str | None = None) -> Fai
 
 
 def is_run(path: str | Path) -> bool:
-    """True when ``path`` is a run: ``metrics.json``, a bag in ``bag/``, itself a rosbag2 bag, or a failed run."""
+    """True when ``path`` is a run: ``metrics.json``, a bag in ``bag/``, itself a rosbag2 bag, or a failed run.
+
+    A bag that lost its metadata.yaml (``ceco_bringup.bagrun.headless_bag_of``) counts: :func:`load_run` reports
+    the run from its timeseries.csv or says the bag cannot be read.
+    """
     from ceco_bringup import provenance
-    from ceco_bringup.bagrun import bag_dir_of
+    from ceco_bringup.bagrun import bag_dir_of, headless_bag_of
 
     p = Path(path)
-    if (p / 'metrics.json').is_file() or bag_dir_of(p) is not None:
+    if (p / 'metrics.json').is_file() or bag_dir_of(p) is not None or headless_bag_of(p) is not None:
         return True
     return (p / provenance.RUN_FILE).is_file() and failed_reason(p) is not None
 
@@ -290,13 +307,24 @@ def compare_metrics(stored: Mapping, recomputed: Mapping, rtol: float = 1e-9, at
     return mism, worst
 
 
+class DamagedBagError(ValueError):
+    """A bag that cannot be read: ``<bag>: cannot read the bag: <why>`` (one line)."""
+
+    def __init__(self, bag_dir: str | Path, why: str):
+        super().__init__(f'{bag_dir}: cannot read the bag: {why}')
+        self.bag_dir = Path(bag_dir)
+        """The bag's directory."""
+        self.why = why
+        """Why, one line: rosbags' error type and message (``ReaderError: File end magic is invalid.``)."""
+
+
 def read_bag(bag_dir: str | Path, read, *args):
     """``read(bag_dir, *args)`` (a ``ceco_bringup.bagio`` reader); any error as a ValueError naming the bag.
 
     rosbags raises its own types for a damaged bag (an .mcap cut short or empty, a corrupt
-    metadata.yaml): ``<bag>: cannot read the bag: ReaderError: ...`` (``ceco report``, ``ceco play``).
-    A namespace that does not pick the stack in the bag is no damage: ``<bag>: --namespace ...``, still a
-    :class:`ceco_bringup.bagio.NamespaceError`.
+    metadata.yaml): a :class:`DamagedBagError`, ``<bag>: cannot read the bag: ReaderError: ...``
+    (``ceco report``, ``ceco play``). A namespace that does not pick the stack in the bag is no damage:
+    ``<bag>: --namespace ...``, still a :class:`ceco_bringup.bagio.NamespaceError`.
     """
     from ceco_bringup.bagio import NamespaceError
 
@@ -306,7 +334,7 @@ def read_bag(bag_dir: str | Path, read, *args):
         raise NamespaceError(f'{bag_dir}: {exc}') from exc
     except Exception as exc:  # rosbags raises its own types; say which bag
         why = ' '.join(str(exc).split())  # one line (a YAML error spans several)
-        raise ValueError(f'{bag_dir}: cannot read the bag: {type(exc).__name__}: {why}') from exc
+        raise DamagedBagError(bag_dir, f'{type(exc).__name__}: {why}') from exc
 
 
 def _load_bag(bag_dir: Path, namespace: str | None) -> dict:
@@ -330,16 +358,41 @@ def _step_topics(bag_dir: Path, namespace: str | None) -> str:
     return 'a step needs one message of each of ' + ', '.join(f'{n} (the bag: {held.get(n, 0)})' for n in needed)
 
 
-def _time_series(run_dir: Path, namespace: str | None) -> tuple[dict, str]:
-    """(columns, source): the bag alone when the run has one, else timeseries.csv."""
-    from ceco_bringup.bagrun import bag_dir_of
+def _time_series(run_dir: Path, namespace: str | None) -> tuple[dict, str, str]:
+    """(columns, source, bag_unread): the bag alone when the run has a readable one, else timeseries.csv.
 
+    ``bag_unread`` (:attr:`RunData.bag_unread`) says why a bag the run has could not be read: a damaged one
+    (:class:`DamagedBagError`) or one without metadata.yaml. Without a timeseries.csv that is the error.
+    """
+    from ceco_bringup.bagrun import bag_dir_of, headless_bag_of
+
+    csv_path = run_dir / 'timeseries.csv'
     bag = bag_dir_of(run_dir)
+    headless = headless_bag_of(run_dir) if bag is None else None
     if bag is not None:
-        return _load_bag(bag, namespace), 'bag'
-    if (run_dir / 'timeseries.csv').is_file():
-        return read_csv_columns(run_dir / 'timeseries.csv'), 'timeseries.csv'
-    raise ValueError(f'{run_dir}: neither bag/ nor timeseries.csv')
+        try:
+            return _load_bag(bag, namespace), 'bag', ''
+        except DamagedBagError as exc:
+            damage = exc
+    elif headless is not None:
+        where, files = headless
+        damage = DamagedBagError(where, f'no metadata.yaml beside {", ".join(files)}')
+    elif csv_path.is_file():
+        return read_csv_columns(csv_path), 'timeseries.csv', ''
+    else:
+        raise ValueError(f'{run_dir}: neither bag/ nor timeseries.csv')
+    if not csv_path.is_file():  # nothing else holds the run's data
+        if damage.bag_dir == run_dir:  # a bag given as such: no run directory around it
+            raise damage
+        raise ValueError(
+            f'{damage.bag_dir}: cannot read the bag ({damage.why}) and the run has no timeseries.csv to report it from'
+        )
+    name = f'{damage.bag_dir.name}/' if damage.bag_dir != run_dir else 'the bag'
+    return (
+        read_csv_columns(csv_path),
+        'timeseries.csv',
+        f'{name} could not be read ({damage.why}): metrics from {csv_path.name}',
+    )
 
 
 def _diagnostics(run_dir: Path, source: str, namespace: str | None) -> dict | None:
@@ -475,8 +528,11 @@ def load_run(
     if why is not None:
         raise ValueError(f'{run_dir}: a failed run ({reason_line(why)}): no number to report')
     stored = _stored(run_dir) if has_json else {}
-    columns, source = _time_series(run_dir, namespace)
-    sc, st, info, length = _identity(run_dir, stored, namespace, scenario, strategy)
+    columns, source, bag_unread = _time_series(run_dir, namespace)
+    if bag_unread:
+        notes.append(bag_unread)
+    # an unreadable bag names nothing: the run is named without it
+    sc, st, info, length = _identity(run_dir, stored, namespace, scenario, strategy, use_bag=source == 'bag')
     if 'p_cond_fan_w' not in columns:
         notes.append('no condenser fan column (older run directory): E_tot counts compressor + blower only')
     air_limits, limits_from = _air_limits(run_dir, stored, sc)
@@ -508,7 +564,7 @@ def load_run(
             )
         mism, worst = compare_metrics(stored, against, rtol=check_rtol)
     else:
-        notes.append('no metrics.json: metrics computed from the bag alone (nothing to check them against)')
+        notes.append(f'no metrics.json: metrics computed from the {source} alone (nothing to check them against)')
     # metrics.json is written when a run is complete; without it the bag is what a stopped run left
     partial = ''
     status = info.get('status')
@@ -535,6 +591,7 @@ def load_run(
         scenario_path=provenance.scenario_path(run_dir),
         info=info,
         air_limits=air_limits,
+        bag_unread=bag_unread,
     )
 
 

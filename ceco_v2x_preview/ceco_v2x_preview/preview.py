@@ -72,6 +72,8 @@ __all__ = [
     "make_previews",
     "no_preview_warning",
     "parse_quality",
+    "FAULT_RANGES",
+    "SEED_RANGE",
     "usable_steps",
     "summarize",
 ]
@@ -92,6 +94,33 @@ _KEYS = {
     "rh": "noise_std_rh",
 }
 """Short names used by :func:`parse_quality` for the noise fields."""
+
+FAULT_RANGES: dict[str, tuple[float, float]] = {
+    "noise_std_t_amb_c": (0.0, 20.0),
+    "noise_std_solar_wm2": (0.0, 1000.0),
+    "noise_std_speed_mps": (0.0, 30.0),
+    "noise_std_rh": (0.0, 1.0),
+    "noise_ref_lead_s": (0.1, 86400.0),
+    "delay_s": (0.0, 86400.0),
+}
+"""Closed range of each numeric fault of :class:`PreviewQuality`, in the field's unit.
+
+preview_node declares its parameter ``faults.<field>`` with it (``preview_io.PREVIEW_PARAMETERS``) and
+:func:`parse_quality` refuses a value outside it, so that a preview string ``ceco run`` takes is one the node
+takes (the node would exit on a value outside its declared range)."""
+
+SEED_RANGE = (0, 2**31 - 1)
+"""Range of a noise seed [-]: preview_node's ``faults.seed`` is a 32-bit parameter (its -1 means "none")."""
+
+_PART_OF = {
+    "noise_std_t_amb_c": ("noisy t_amb", "K"),
+    "noise_std_solar_wm2": ("noisy solar", "W/m2"),
+    "noise_std_speed_mps": ("noisy speed", "m/s"),
+    "noise_std_rh": ("noisy rh", "-"),
+    "noise_ref_lead_s": ("noisy ref", "s"),
+    "delay_s": ("delayed", "s"),
+}
+"""Field -> (its part of the :func:`parse_quality` grammar, its unit), for the range errors."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -367,7 +396,8 @@ def parse_quality(text: str) -> PreviewQuality:
 
     Examples: ``"noisy:solar=50,speed=1.5,seed=3"``, ``"delayed:10"``,
     ``"missing:100-200"``, ``"noisy+delayed:10+missing:100-200,policy=drop"``.
-    Raises ValueError naming the bad part.
+    Raises ValueError naming the bad part, also for a value outside preview_node's range
+    (:data:`FAULT_RANGES`, :data:`SEED_RANGE`): ``ceco sim`` and ``ceco run`` take the same strings.
     """
     if not isinstance(text, str) or not text.strip():
         raise ValueError("preview quality: empty string")
@@ -434,8 +464,27 @@ def parse_quality(text: str) -> PreviewQuality:
                 "(use perfect, persistence, uncertain:LEVEL, noisy[:...], delayed:S, missing:A-B)"
             )
     quality = PreviewQuality(missing_spans_s=tuple(spans), **fields)
+    _check_node_ranges(quality)
     quality.validate()
     return quality
+
+
+def _check_node_ranges(quality: PreviewQuality) -> None:
+    """Raise ValueError (one line, the part, the value, the range) for a fault outside preview_node's range."""
+    for name, (lo, hi) in FAULT_RANGES.items():
+        x = getattr(quality, name)
+        if not lo <= x <= hi:
+            part, unit = _PART_OF[name]
+            raise ValueError(
+                f"preview quality: {part}: {x:g} {unit} is outside {lo:g}..{hi:g} {unit}, the range of "
+                f"preview_node's faults.{name}"
+            )
+    lo_seed, hi_seed = SEED_RANGE
+    if quality.seed is not None and not lo_seed <= quality.seed <= hi_seed:
+        raise ValueError(
+            f"preview quality: seed: {quality.seed} is outside {lo_seed}..{hi_seed}, the range of preview_node's "
+            "faults.seed"
+        )
 
 
 def _parse_float(text: str, what: str) -> float:

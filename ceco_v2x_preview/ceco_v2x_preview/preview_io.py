@@ -31,7 +31,7 @@ from ceco_ros.params import (
 from ceco_ros.topics import TOPIC_STATE
 
 from . import forecast_error
-from .preview import PreviewQuality
+from .preview import FAULT_RANGES, SEED_RANGE, PreviewQuality
 
 __all__ = ['PREVIEW_PARAMETERS', 'PreviewNodeConfig', 'PreviewInputs', 'preview_health', 'held_previews', 'DYNAMIC']
 
@@ -67,38 +67,38 @@ PREVIEW_PARAMETERS: tuple[ParamSpec, ...] = (
         [0.0],
         'spans of issue time without a new forecast, flattened [start, end, start, end, ...] [s]; [0.0] = none',
     ),
-    ParamSpec('faults.seed', -1, 'preview noise seed; -1 uses the scenario seed [-]', int_range=(-1, 2**31 - 1)),
+    ParamSpec('faults.seed', -1, 'preview noise seed; -1 uses the scenario seed [-]', int_range=(-1, SEED_RANGE[1])),
     ParamSpec(
         'faults.noise_std_t_amb_c',
         0.0,
         'std of the ambient-temperature forecast error at the reference lead [K]',
-        float_range=(0.0, 20.0),
+        float_range=FAULT_RANGES['noise_std_t_amb_c'],
     ),
     ParamSpec(
         'faults.noise_std_solar_wm2',
         0.0,
         'std of the solar forecast error at the reference lead [W/m^2]',
-        float_range=(0.0, 1000.0),
+        float_range=FAULT_RANGES['noise_std_solar_wm2'],
     ),
     ParamSpec(
         'faults.noise_std_speed_mps',
         0.0,
         'std of the speed forecast error at the reference lead [m/s]',
-        float_range=(0.0, 30.0),
+        float_range=FAULT_RANGES['noise_std_speed_mps'],
     ),
     ParamSpec(
         'faults.noise_std_rh',
         0.0,
         'std of the relative-humidity forecast error at the reference lead [-]',
-        float_range=(0.0, 1.0),
+        float_range=FAULT_RANGES['noise_std_rh'],
     ),
     ParamSpec(
         'faults.noise_ref_lead_s',
         30.0,
         'lead time at which the error std equals noise_std_* [s]',
-        float_range=(0.1, 86400.0),
+        float_range=FAULT_RANGES['noise_ref_lead_s'],
     ),
-    ParamSpec('faults.delay_s', 0.0, 'age of the forecast when received [s]', float_range=(0.0, 86400.0)),
+    ParamSpec('faults.delay_s', 0.0, 'age of the forecast when received [s]', float_range=FAULT_RANGES['delay_s']),
     ParamSpec(
         'faults.missing_policy',
         'hold_last',

@@ -7,7 +7,9 @@ import pytest
 
 from ceco_v2x_preview.preview import (
     DEFAULT_NOISE,
+    FAULT_RANGES,
     PERFECT,
+    SEED_RANGE,
     PreviewQuality,
     make_previews,
     no_preview_warning,
@@ -195,6 +197,60 @@ def test_parse_quality_errors(text, message):
     with pytest.raises(ValueError) as err:
         parse_quality(text)
     assert message in str(err.value)
+
+
+GRAMMAR = {
+    "noise_std_t_amb_c": ("noisy:t_amb={}", "noisy t_amb", "K"),
+    "noise_std_solar_wm2": ("noisy:solar={}", "noisy solar", "W/m2"),
+    "noise_std_speed_mps": ("noisy:speed={}", "noisy speed", "m/s"),
+    "noise_std_rh": ("noisy:rh={}", "noisy rh", "-"),
+    "noise_ref_lead_s": ("noisy:ref={}", "noisy ref", "s"),
+    "delay_s": ("delayed:{}", "delayed", "s"),
+}
+"""Field -> (its preview string, the part and unit its range error names)."""
+
+
+@pytest.mark.parametrize("field", sorted(GRAMMAR))
+def test_a_fault_beyond_the_nodes_range_is_refused_naming_the_range(field):
+    """Each end of preview_node's declared range is taken; just beyond either end is refused in one line naming the
+    range (delayed:1e12 passed, then preview_node exited on faults.delay_s out of range: a FAILED run)."""
+    lo, hi = FAULT_RANGES[field]
+    text, part, unit = GRAMMAR[field]
+    for end in (lo, hi):
+        assert getattr(parse_quality(text.format(end)), field) == end
+    for beyond in (lo - 0.01, hi + 0.5):
+        with pytest.raises(ValueError) as err:
+            parse_quality(text.format(beyond))
+        assert str(err.value) == (
+            f"preview quality: {part}: {beyond:g} {unit} is outside {lo:g}..{hi:g} {unit}, the range of "
+            f"preview_node's faults.{field}"
+        )
+    assert set(GRAMMAR) == set(FAULT_RANGES)  # every ranged fault is checked here
+
+
+def test_the_tester_s_delay_and_a_seed_beyond_32_bits_are_refused():
+    with pytest.raises(ValueError) as err:
+        parse_quality("delayed:1e12")
+    assert str(err.value) == (
+        "preview quality: delayed: 1e+12 s is outside 0..86400 s, the range of preview_node's faults.delay_s"
+    )
+    assert parse_quality("noisy:solar=5,seed=2147483647").seed == SEED_RANGE[1] == 2**31 - 1
+    with pytest.raises(ValueError) as err:
+        parse_quality("uncertain:low,seed=2147483648")
+    assert str(err.value) == (
+        "preview quality: seed: 2147483648 is outside 0..2147483647, the range of preview_node's faults.seed"
+    )
+
+
+def test_preview_node_declares_the_ranges_the_parser_checks():
+    """One table: the node's parameter ranges are the parser's (a range changed in one place only would let a
+    string pass the parser that the node refuses)."""
+    from ceco_v2x_preview.preview_io import PREVIEW_PARAMETERS
+
+    declared = {s.name: s.float_range or s.int_range for s in PREVIEW_PARAMETERS}
+    assert {f: declared[f"faults.{f}"] for f in FAULT_RANGES} == FAULT_RANGES
+    assert FAULT_RANGES["delay_s"] == (0.0, 86400.0)
+    assert declared["faults.seed"] == (-1, SEED_RANGE[1])
 
 
 def test_bad_arguments(sc03):
