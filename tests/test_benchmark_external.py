@@ -72,6 +72,30 @@ NOT_CONTROLLING = {
 }
 
 
+# ... and what its failed run's reason ends with (the plant's first rejection comes from its log).
+WHY = {
+    'silent': '; the controller sent no hvac/command (log: {ext}/logs/external_controller.log)',
+    'nan': '; plant_node rejected 4 of 4 commands, first: step 0: blower_flow_kgps=nan is not finite '
+    '(log: {ext}/logs/plant_node.log)',
+    'out-of-range': '; plant_node rejected 4 of 4 commands, first: step 0: blower_flow_kgps=0.5 is outside the '
+    'plausible range [0.05, 0.17] (log: {ext}/logs/plant_node.log)',
+}
+
+
+def _case(name: str, duration_s: float):
+    return case_from_dict(
+        {
+            'schema': 'ceco-benchmark-case/1',
+            'name': name,
+            'version': 1,
+            'scenario': 'sc03',
+            'duration_s': duration_s,
+            'forecast_uncertainty': 'none',
+            'seeds': [0],
+        }
+    )
+
+
 @pytest.mark.parametrize('what', sorted(NOT_CONTROLLING))
 def test_a_controller_that_never_commands_is_a_failed_run(tmp_path, what):
     """A node that never sends an acceptable command (issue 17 item 1): the plant rejects NaN and
@@ -100,6 +124,8 @@ def test_a_controller_that_never_commands_is_a_failed_run(tmp_path, what):
     )
     assert row['status'] == 'failed', (row['status'], row['error'])
     assert 'did not control the run: 4 of 4 control steps in fallback' in row['error']
+    # the reason says why: what the plant refused (counted from the bag) and its first reason, with the log
+    assert row['error'].endswith(WHY[what].format(ext=tmp_path / 'ext')), row['error']
     assert row['kpis']['fallback_steps'] == 4.0  # 20 s / Ts 5 s, all from the plant's law
     assert row['kpis']['energy_kwh'] > 0.0  # kept
     log = (tmp_path / 'ext' / 'logs' / 'plant_node.log').read_text()
@@ -111,6 +137,131 @@ def test_a_controller_that_never_commands_is_a_failed_run(tmp_path, what):
     assert row['kpis']['energy_kwh'] == ref['kpis']['energy_kwh']
     entry = runner.assemble_case(case, [row, ref])
     assert entry['matched'] == {} and [r['status'] for r in entry['runs']] == ['ok', 'failed']
+
+
+def test_a_controller_that_raises_is_one_error_line(tmp_path):
+    """A node whose callback raises at step 1 exits: the run's error is one line, the exception and the
+    log's path (the console and the report print it as is); the traceback is in the controller's log."""
+    node = tmp_path / 'raises.py'
+    node.write_text(
+        NODE.read_text().replace(
+            '        self.pub.publish(cmd)\n',
+            '        if k == 1:\n            raise RuntimeError(f"boom at step {k}")\n        self.pub.publish(cmd)\n',
+        )
+    )
+    spec = runner.ControllerSpec('external:raises', 'external', 'external')
+    (cell,) = runner.case_cells(_case('sc03-20s', 20), [spec], code_fingerprint())
+    row = external.run_external_cell(
+        {'id': cell.id, 'axes': cell.axes, 'spec': cell.spec}, [sys.executable, str(node)], tmp_path / 'ext'
+    )
+    log = tmp_path / 'ext' / 'logs' / 'external_controller.log'
+    assert row['status'] == 'error'
+    assert row['error'] == f'RuntimeError: controller exited with status 1: RuntimeError: boom at step 1; log: {log}'
+    assert 'Traceback (most recent call last)' in log.read_text()
+
+
+def test_plant_rejections_counts_from_the_bag_and_quotes_the_first_logged_reason(tmp_path):
+    """The count is the commands recorded minus the control steps they drove (the plant's law drove the
+    others); the reason the first rejection line of plant_node's log, whatever the throttle left out."""
+    logs = tmp_path / 'logs'
+    logs.mkdir()
+    (logs / 'plant_node.log').write_text(
+        '[INFO] [1.0] [plant_node]: started step 0\n'
+        '[WARN] [2.0] [plant_node]: rejected hvac/command step 1: future: waiting for step 0\n'
+        '[WARN] [3.0] [plant_node]: rejected hvac/command step 1: blower_flow_kgps=5.0 is outside the plausible '
+        'range [0.05, 0.17] (3 similar rejections since the last line)\n'
+    )
+    fallback = [False] * 20
+    fallback[5:15] = [True] * 10  # 4 control steps of 5 plant steps, the 2nd and 3rd on the plant's law
+    why = external.plant_rejections(tmp_path, fallback, 7, 5)
+    assert why == (
+        f'plant_node rejected 5 of 7 commands, first: step 1: future: waiting for step 0 (log: {logs}/plant_node.log)'
+    )
+    assert external.plant_rejections(tmp_path, fallback, 2, 5) == ''  # every command drove its step
+    assert external.plant_rejections(tmp_path, fallback, 0, 5) == (
+        f'the controller sent no hvac/command (log: {logs}/external_controller.log)'
+    )
+
+
+def test_external_cell_id_is_the_controller_name_command_and_directory():
+    """Each of the name, the command and the directory makes another cell; the same three, the same cell."""
+    case, code = _case('sc03-20s', 20), code_fingerprint()
+
+    def cell_id(name='external:pi', command=('python', 'pi.py'), cwd='/w'):
+        spec = runner.ControllerSpec(name, 'external', 'external', command=command, cwd=cwd)
+        (cell,) = runner.case_cells(case, [spec], code)
+        return cell.id
+
+    ref = cell_id()
+    assert cell_id() == ref
+    others = [
+        cell_id(name='external:pi2'),
+        cell_id(command=('python', 'nan.py')),
+        cell_id(command=('python', 'pi.py', 'x')),
+        cell_id(cwd='/v'),
+    ]
+    assert len({ref, *others}) == 5
+
+
+def test_another_controller_in_the_same_out_runs_its_own_cells(tmp_path):
+    """Issue: every external controller had one cell id, so a second controller in the same --out was
+    "already done" with the first one's score. Now another command or name runs; the same command resumes."""
+    import json
+
+    from ceco_bringup.benchmark import cli
+
+    case = tmp_path / 'c20.yaml'
+    case.write_text(
+        'schema: ceco-benchmark-case/1\nname: c20\nversion: 1\nscenario: sc03\nduration_s: 20\n'
+        'forecast_uncertainty: none\nseeds: [0]\n'
+    )
+    lazy = tmp_path / 'lazy.py'  # the PI with the evaporator held at 10 degC: another controller, other KPIs
+    text = NODE.read_text()
+    assert '        cmd.evap_setpoint_c = 10.0 - ' in text
+    lazy.write_text(
+        text.replace('        cmd.evap_setpoint_c = 10.0 - ', '        cmd.evap_setpoint_c = 10.0 + 0.0 * ')
+    )
+    out = tmp_path / 'out'
+
+    def bench(path, name):
+        said = []
+        doc = cli.run_benchmark(
+            [str(case)],
+            out,
+            workers=2,
+            progress=False,
+            log=lambda *a, **k: said.append(' '.join(map(str, a))),
+            setpoints_c=(26.0,),
+            setpoints_pmv=(0.0,),
+            sensitivity=False,
+            strategies=(),
+            controller_cmd=f'{sys.executable} {path}',
+            controller_name=name,
+        )
+        (run,) = [r for r in doc['cases'][0]['runs'] if r['kind'] == 'external']
+        n = len(doc['cases'][0]['runs'])
+        return run, said[0], n
+
+    first, said, n = bench(NODE, 'pi')
+    assert f'{n} runs, 0 already done, {n} to run' in said and first['status'] == 'ok'
+    second, said, _ = bench(lazy, 'pi')  # another command, the same name
+    assert f'{n} runs, {n - 1} already done, 1 to run' in said
+    assert second['status'] == 'ok'
+    assert second['kpis']['energy_kwh'] < 0.9 * first['kpis']['energy_kwh']  # its own run: less cooling
+    again, said, _ = bench(NODE, 'pi')  # the first one again: resumed, its own score
+    assert f'{n} runs, {n} already done, 0 to run' in said
+    assert again['kpis'] == first['kpis']
+    renamed, said, _ = bench(NODE, 'pi-b')  # the same command under another name: another controller
+    assert f'{n} runs, {n - 1} already done, 1 to run' in said
+    assert renamed['controller'] == 'external:pi-b'
+    logged = [json.loads(line) for line in (out / 'cells.jsonl').read_text().splitlines()]
+    ext = [(r['controller'], r['kpis']['energy_kwh']) for r in logged if r['kind'] == 'external']
+    assert len({r['cell_id'] for r in logged if r['kind'] == 'external'}) == 3  # three controllers, each run once
+    assert ext == [
+        ('external:pi', first['kpis']['energy_kwh']),
+        ('external:pi', second['kpis']['energy_kwh']),
+        ('external:pi-b', renamed['kpis']['energy_kwh']),
+    ]
 
 
 def test_uncertainty_level_over_dds_equals_the_simulator(tmp_path):

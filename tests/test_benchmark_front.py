@@ -7,6 +7,7 @@ test beyond the front's ends) is where a wrong sign or index would show.
 
 import math
 
+import numpy as np
 import pytest
 
 from ceco_bringup.benchmark import front as fr
@@ -283,3 +284,133 @@ def test_by_phase_reads_the_strongest_family_and_the_bound_at_the_controllers_di
     assert fr.by_phase(env, {0: b0}, pts[:1], members, {}, keys)["bound"] == dict.fromkeys(keys)
     with pytest.raises(ValueError, match="no points"):
         fr.by_phase(env, {0: b0}, [], members, bound_kpis, keys)
+
+
+# Saturation: a family whose two warmest members sit at the ceiling C = 0.5 (PMV at the clip the whole run).
+# Without the rule: vertices (0.1, 0.4), (0.3, 0.2), (0.5, 0.05); (0.5, 0.1) is dominated by (0.5, 0.05).
+CEIL = 0.5
+SAT = {"s@1": (0.1, 0.4), "s@2": (0.3, 0.2), "s@3": (0.5, 0.1), "s@4": (0.5, 0.05)}
+
+
+def test_saturated_members_are_no_vertices_and_anchor_no_match():
+    plain = fr.build_front(SAT)
+    assert [p.name for p in plain.vertices] == ["s@1", "s@2", "s@4"]
+    # the defect: a controller at the ceiling that spends 0.02 kWh is credited 60 % against s@4's 0.05
+    assert fr.match(plain, CEIL, 0.02).energy_saving_pct == pytest.approx(60.0)
+    f = fr.build_front(SAT, ceiling=CEIL)
+    assert [p.name for p in f.vertices] == ["s@1", "s@2"] and f.d_range == (0.1, 0.3)
+    assert {p.name: (p.efficient, p.saturated) for p in f.points} == {
+        "s@1": (True, False),
+        "s@2": (True, False),
+        "s@3": (False, True),
+        "s@4": (False, True),
+    }
+    at = fr.match(f, CEIL, 0.02)
+    assert at.energy_saving_pct is None and at.discomfort_reduction_pct is None and at.note == fr.NOTE_SATURATED
+    assert at.dominated is False  # no vertex spends <= 0.02
+    # within rounding of the ceiling is at it; a vertex below it with less energy still dominates
+    assert fr.match(f, CEIL * (1.0 - 1e-12), 0.02).note == fr.NOTE_SATURATED
+    assert fr.match(f, CEIL, 0.3).dominated is True  # s@2: D 0.3 < 0.5, E 0.2 <= 0.3
+    # between s@2 and the ceiling: no longer interpolated toward s@4 (it was 0.125 kWh there: a -20 % "saving")
+    assert fr.match(plain, 0.4, 0.15).energy_saving_pct == pytest.approx(-20.0)
+    near = fr.match(f, 0.4, 0.15)
+    assert near.energy_saving_pct is None and near.note.startswith(fr.NOTE_LESS_COMFORTABLE)
+    # below the ceiling nothing changes: D 0.2 -> E 0.3 on both
+    assert fr.match(f, 0.2, 0.27).energy_saving_pct == pytest.approx(10.0)
+    assert fr.match(f, 0.2, 0.27) == fr.match(plain, 0.2, 0.27)
+    with pytest.raises(ValueError, match="ceiling"):
+        fr.build_front(SAT, ceiling=0.0)
+
+
+def test_saturation_in_the_envelope_the_seeds_and_the_headroom():
+    sat_only = fr.build_front({"z@1": (CEIL, 0.01), "z@2": (CEIL, 0.02)}, ceiling=CEIL)
+    assert sat_only.vertices == () and sat_only.energy_at(CEIL) is None and not sat_only.dominates(CEIL, 1.0)
+    assert fr.match(sat_only, 0.2, 0.1).note == fr.NOTE_NO_VERTEX
+    env = fr.Envelope.of({"S": fr.build_front(SAT, ceiling=CEIL), "Z": sat_only})
+    assert [n for n, _ in env.fronts] == ["S"] and env.ceiling == CEIL
+    m = fr.match(env, CEIL, 0.02)
+    assert m.energy_saving_pct is None and m.note == fr.NOTE_SATURATED and env.family_at(CEIL) is None
+    assert fr.match(env, 0.2, 0.27).energy_saving_pct == pytest.approx(10.0)  # S below the ceiling
+    empty = fr.Envelope.of({"Z": sat_only})
+    assert empty.fronts == () and fr.match(empty, 0.2, 0.1).note == fr.NOTE_NO_VERTEX
+    assert fr.strongest_by_level(empty, [0.2])["family"] is None
+    # two seeds, one saturated: the mean (0.35) would read 0.175 kWh on the plain front; it is not matched
+    r = fr.match_seeds(env, [(0.2, 0.27), (CEIL, 0.02)])
+    assert r["energy_saving_pct"] is None and r["note"] == fr.NOTE_SATURATED
+    assert r["seeds"]["energy_saving_pct"] == [pytest.approx(10.0), None]
+    bound = fr.build_front({"o1": (0.1, 0.3), "o2": (0.4, 0.15)})
+    h = fr.headroom(env, bound, CEIL, 0.02)
+    assert h.headroom_captured is None and h.saving_pct is None and h.note == fr.NOTE_SATURATED
+    hs = fr.headroom_seeds(env, {None: bound}, [(0, 0.2, 0.28), (1, CEIL, 0.02)])
+    assert hs["headroom_captured"] is None and hs["note"] == fr.NOTE_SATURATED
+    assert hs["seeds"]["headroom_captured"][0] == pytest.approx(0.02 / 0.05)  # bound 0.25 at D 0.2, envelope 0.3
+
+
+def test_the_ceiling_is_what_a_run_at_the_clip_scores():
+    from ceco_core.kpis import compute_kpis, discomfort_ceiling
+
+    # 60 samples 1 s apart at PMV +3.4 (clipped to +3): 60 s x 2.5 PMV = 150 PMV s = 1/24 PMV h; I_PMV 9 x 60
+    n = 60
+    cols = {
+        "t_s": np.arange(n, dtype=float),
+        "p_comp_w": np.full(n, 1000.0),
+        "p_blower_w": np.full(n, 50.0),
+        "pmv": np.full(n, 3.4),
+        "pmv_lb": np.r_[np.full(20, -1.0), np.full(n - 20, -0.5)],  # the band applies from 20 s
+        "pmv_ub": np.full(n, 0.5),
+        "mdot_bl_kgps": np.full(n, 0.05),
+        "t_evap_sp_c": np.full(n, 10.0),
+    }
+    k, _ = compute_kpis(cols)
+    assert discomfort_ceiling(k) == pytest.approx(1.0 / 24.0, rel=1e-12)
+    assert discomfort_ceiling(k, "i_pmv_clipped") == pytest.approx(540.0, rel=1e-12)
+    assert discomfort_ceiling(k, "discomfort_band_pmvh") == pytest.approx(40.0 * 2.5 / 3600.0, rel=1e-12)
+    assert discomfort_ceiling(k, "i_pmv") is None and discomfort_ceiling({"duration_s": None}) is None
+    for key in ("discomfort_pmvh", "i_pmv_clipped", "discomfort_band_pmvh"):
+        c = fr.saturation_ceiling([k], key)
+        assert fr.saturated(fr.build_front({"x": (0.0, 1.0)}, ceiling=c), k[key]), key
+    # one sample inside the band takes the run off the ceiling (2.5 PMV s less, 1/60 of it)
+    cols["pmv"] = np.r_[0.0, np.full(n - 1, 3.4)]
+    k2, _ = compute_kpis(cols)
+    assert k2["discomfort_pmvh"] == pytest.approx(59 * 2.5 / 3600.0)
+    assert not fr.saturated(fr.build_front({"x": (0.0, 1.0)}, ceiling=discomfort_ceiling(k2)), k2["discomfort_pmvh"])
+    # a case's runs: the least ceiling of those that have one
+    assert fr.saturation_ceiling([{"duration_s": 72.0}, {"duration_s": 60.0}, {}], "discomfort_pmvh") == pytest.approx(
+        1.0 / 24.0
+    )
+    assert fr.saturation_ceiling([{}], "discomfort_pmvh") is None
+
+
+# The exploratory tester's case (c60: SC03, 60 s, seed 0): the allowance family's members from 27.5 degC up sit at
+# the ceiling 60 x 2.5 / 3600 PMV h with less and less energy, as does a controller that does not cool ('const').
+C60_CEIL = 0.041666666666666664
+C60_ALLOWANCE = {
+    "baseline-allowance@25.0": (0.041093432378712685, 0.06525357064674053),
+    "baseline-allowance@25.5": (0.04118369110620491, 0.06497702999046019),
+    "baseline-allowance@26.0": (0.041531593213006195, 0.06312796350907543),
+    "baseline-allowance@26.5": (0.041553272552393, 0.06301823369583645),
+    "baseline-allowance@27.0": (0.04166508801149208, 0.06117656824567467),
+    "baseline-allowance@27.5": (C60_CEIL, 0.05852177526846963),
+    "baseline-allowance@28.0": (C60_CEIL, 0.05827411381659335),
+    "baseline-allowance@28.5": (C60_CEIL, 0.05404407779206099),
+    "baseline-allowance@29.0": (C60_CEIL, 0.0537435302912003),
+}
+C60_PLAIN = {"baseline@22.0": (0.041093432378712685, 0.06525357064674053)}
+C60_CONST = (C60_CEIL, 0.019833987284092622)
+
+
+def test_a_controller_that_does_not_cool_is_not_credited_on_the_c60_case():
+    ceiling = fr.saturation_ceiling([{"duration_s": 60.0}], "discomfort_pmvh")
+    assert ceiling == pytest.approx(C60_CEIL, rel=1e-12)
+    # before: 100 (0.053744 - 0.019834) / 0.053744 = 63.1 % against the allowance family's 29 degC member
+    assert fr.match(fr.build_front(C60_ALLOWANCE), *C60_CONST).energy_saving_pct == pytest.approx(63.0951164, abs=1e-6)
+    fronts = {"plain": fr.build_front(C60_PLAIN, ceiling), "allowance": fr.build_front(C60_ALLOWANCE, ceiling)}
+    assert fronts["allowance"].d_range[1] == C60_ALLOWANCE["baseline-allowance@27.0"][0]
+    for f in (*fronts.values(), fr.Envelope.of(fronts)):
+        m = fr.match_seeds(f, [C60_CONST])
+        assert m["energy_saving_pct"] is None and m["discomfort_reduction_pct"] is None, m
+        assert m["note"] == fr.NOTE_SATURATED and m["dominated"] is False
+    # a member of the family below the ceiling still matches itself: 0 %
+    assert fr.match(fronts["allowance"], *C60_ALLOWANCE["baseline-allowance@26.0"]).energy_saving_pct == pytest.approx(
+        0.0, abs=1e-9
+    )

@@ -899,3 +899,26 @@ def test_run_and_sim_warn_when_no_step_would_receive_a_preview(capsys):
             said = f'{prog}: warning: no control step of the run receives a usable preview with {preview}' in err
             assert said is warns, (prog, argv, preview, err)
             assert err.count('\n') == 1 + int(warns) and f'{prog}: error: ' in err
+
+
+def test_the_verdict_matches_no_run_whose_discomfort_is_saturated():
+    """ceco sim's verdict (verdict.matched) takes the benchmark's rule: a run with PMV at the +-3 clip for the
+    whole run (discomfort at its ceiling, 60 s x 2.5 PMV / 3600) is not matched, and a family member at the
+    ceiling anchors no match. The numbers are those of a controller that never cooled a 60-s SC03 run: it was
+    credited +63.1 % against the member at the ceiling."""
+    ceiling = 60.0 * 2.5 / 3600.0
+    family = {
+        'baseline@27.0': {
+            'discomfort_pmvh': 0.04166508801149208,
+            'energy_kwh': 0.06117656824567467,
+            'duration_s': 60.0,
+        },
+        'baseline@29.0': {'discomfort_pmvh': ceiling, 'energy_kwh': 0.0537435302912003, 'duration_s': 60.0},
+    }
+    never_cooled = {'discomfort_pmvh': ceiling, 'energy_kwh': 0.019833987284092622, 'duration_s': 60.0}
+    m = vd.matched(family, never_cooled)
+    assert m['energy_saving_pct'] is None and m['discomfort_reduction_pct'] is None, m
+    assert m['note'] == front.NOTE_SATURATED and m['dominated'] is False, m
+    # just below the ceiling the run is read against the one member off it: more comfortable than it, no number
+    below = vd.matched(family, dict(never_cooled, discomfort_pmvh=0.0416))
+    assert below['energy_saving_pct'] is None and below['note'].startswith('more comfortable than every'), below

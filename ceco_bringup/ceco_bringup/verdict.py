@@ -266,12 +266,13 @@ def matched(family: Mapping[str, Mapping], point: Mapping, *, law: str | None = 
     """
     from ceco_bringup.benchmark import front
 
+    ceiling = front.saturation_ceiling([point, *family.values()], DISCOMFORT_KEY)
     by_law: dict[str, dict] = {}
     for n, p in family.items():
         by_law.setdefault(family_law(n), {})[n] = (p[DISCOMFORT_KEY], p[ENERGY_KEY])
     if law is not None:
-        return front.match(front.build_front(by_law[law]), point[DISCOMFORT_KEY], point[ENERGY_KEY]).as_dict()
-    env = front.Envelope.of({k: front.build_front(v) for k, v in by_law.items()})
+        return front.match(front.build_front(by_law[law], ceiling), point[DISCOMFORT_KEY], point[ENERGY_KEY]).as_dict()
+    env = front.Envelope.of({k: front.build_front(v, ceiling) for k, v in by_law.items()})
     return front.match(env, point[DISCOMFORT_KEY], point[ENERGY_KEY]).as_dict()
 
 

@@ -36,6 +36,8 @@ __all__ = [
     "ACTUATOR_RANGES",
     "compute_kpis",
     "discomfort_pmvh",
+    "DISCOMFORT_CEILING_KEYS",
+    "discomfort_ceiling",
     "pmv_band_distance",
     "band_phase",
     "edge_arrival_index",
@@ -266,6 +268,37 @@ def discomfort_pmvh(band_distance, dt_s: float) -> float:
     (as BOPTEST integrates its K h).
     """
     return float(np.sum(band_distance) * dt_s / 3600.0)
+
+
+DISCOMFORT_CEILING_KEYS = ("discomfort_pmvh", "discomfort_band_pmvh", "i_pmv_clipped")
+"""The discomfort KPIs with a ceiling (:func:`discomfort_ceiling`): PMV enters them clipped to +-3."""
+
+
+def discomfort_ceiling(
+    kpis: Mapping, key: str = "discomfort_pmvh", band=COMFORT_BAND_PMV, limit: float = PMV_SCALE_LIMIT
+) -> float | None:
+    """The most the discomfort KPI ``key`` can be in a run: PMV at the +-``limit`` clip for the whole span.
+
+    ``discomfort_pmvh`` [PMV h]: ``duration_s * max(limit - hi, lo + limit) / 3600`` (2.5 PMV for the
+    category B band); ``discomfort_band_pmvh``: the same over the band phase (``duration_s - band_start_s``);
+    ``i_pmv_clipped`` [s]: ``limit^2 * duration_s``. A run at its ceiling has saturated the metric: every run
+    with PMV at or beyond the clip the whole time scores the same, so its value says nothing about its comfort
+    (docs/benchmark.md, "Matched comfort"). ``kpis``: the run's :func:`compute_kpis` dict (``duration_s`` [s],
+    ``band_start_s`` [s]). None when ``key`` has no ceiling (not in :data:`DISCOMFORT_CEILING_KEYS`) or a KPI
+    it needs is None.
+    """
+    duration = kpis.get("duration_s")
+    if key not in DISCOMFORT_CEILING_KEYS or duration is None:
+        return None
+    if key == "i_pmv_clipped":
+        return float(limit * limit * duration)
+    if key == "discomfort_band_pmvh":
+        start = kpis.get("band_start_s")
+        if start is None:
+            return None
+        duration = duration - start
+    most = max(limit - float(band[1]), float(band[0]) + limit)
+    return float(duration * most / 3600.0)
 
 
 def compute_kpis(

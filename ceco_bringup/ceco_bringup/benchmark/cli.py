@@ -179,7 +179,14 @@ def run_benchmark(
     if controller_cmd:
         from . import external as ext  # DDS: needs the built workspace
 
-        ext_spec = runner.ControllerSpec(f'external:{controller_name}', 'external', 'external')
+        # its name, exact command and directory make its cells' ids: another controller never resumes this one's
+        ext_spec = runner.ControllerSpec(
+            f'external:{controller_name}',
+            'external',
+            'external',
+            command=tuple(shlex.split(controller_cmd)),
+            cwd=os.getcwd(),
+        )
         for c in cases:
             ec = runner.case_cells(c, [ext_spec], code, seeds=seeds[c.name])
             by_case[c.name] = by_case[c.name] + ec
@@ -244,7 +251,7 @@ def run_benchmark(
         for c in todo_ext:
             on_done(
                 ext.run_external_cell(
-                    dict(id=c.id, axes=c.axes, spec=c.spec), shlex.split(controller_cmd), out / 'external' / c.id
+                    dict(id=c.id, axes=c.axes, spec=c.spec), list(ext_spec.command), out / 'external' / c.id
                 )
             )
     finally:

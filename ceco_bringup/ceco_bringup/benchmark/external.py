@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -24,12 +25,16 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ceco_core.contracts import PLANT_STEP_S
 from ceco_core.run_status import check_control
 from ceco_ros.topics import TOPIC_COMMAND, TOPIC_STATE
 
 from .runner import mark_failed, new_row
 
-__all__ = ['controller_env', 'step_times_from_bag', 'run_external_cell']
+__all__ = ['controller_env', 'step_times_from_bag', 'plant_rejections', 'one_line_error', 'run_external_cell']
+
+_REJECTED = re.compile(r'\]: rejected hvac/command (.*?)(?: \(\d+ similar rejections since the last line\))?\s*$')
+"""plant_node's log line of a rejected command (``ceco_plant_sim.plant_io.CommandPolicy.accept``)."""
 
 
 def controller_env(spec: Mapping, scenario_path: Path, ts: float, n_p: int) -> dict:
@@ -64,6 +69,50 @@ def step_times_from_bag(run_dir, control_period_s: float, plant_dt_s: float = 1.
         cmd.setdefault(k, t_ns)
     ks = sorted(set(state) & set(cmd))
     return np.array([(cmd[k] - state[k]) * 1e-9 for k in ks], dtype=float)
+
+
+def plant_rejections(run_dir: Path, plant_fallback, n_commands: int, steps_per_control: int) -> str:
+    """What the plant refused of an external controller, for a failed run's reason: ``''`` when nothing.
+
+    The counts come from the bag: ``n_commands`` hvac/command messages recorded, of which the plant
+    applied one per control step its law did not drive (``plant_fallback``: per plant step, True when
+    the ACC law drove it; in lockstep an applied command drives its whole step). The reason exists
+    only in plant_node's log (``DIR/logs/plant_node.log``): its first ``rejected hvac/command`` line,
+    which is the first rejection (the plant logs the first of each kind, then throttles).
+
+    Returns ``plant_node rejected R of N commands, first: step K: <reason> (log: PATH)``, or
+    ``the controller sent no hvac/command (log: PATH)`` (its own log) when none was recorded.
+    """
+    run_dir = Path(run_dir)
+    if n_commands == 0:
+        return f'the controller sent no hvac/command (log: {run_dir / "logs" / "external_controller.log"})'
+    fb = np.asarray(plant_fallback, dtype=bool)
+    m = int(steps_per_control)
+    n_ctrl = -(-fb.size // m)
+    rejected = n_commands - (n_ctrl - len({int(n) // m for n in np.flatnonzero(fb)}))
+    if rejected <= 0:
+        return ''
+    log = run_dir / 'logs' / 'plant_node.log'
+    try:
+        text = log.read_text(encoding='utf-8', errors='replace')
+    except OSError:
+        text = ''
+    first = next((m_.group(1) for m_ in map(_REJECTED.search, text.splitlines()) if m_), '')
+    return f'plant_node rejected {rejected} of {n_commands} commands{", first: " + first if first else ""} (log: {log})'
+
+
+def one_line_error(text: str) -> str:
+    """A run's error on one line: a child's exit with its log's tail keeps the tail's last line (the exception).
+
+    ``controller exited with status 1; log: PATH`` and the log's tail on the next lines becomes
+    ``controller exited with status 1: RuntimeError: boom; log: PATH``; the whole traceback stays in the log.
+    """
+    head, *tail = text.strip().splitlines() or ['']
+    last = next((line.strip() for line in reversed(tail) if line.strip()), '')
+    if not last:
+        return head
+    before, sep, path = head.partition('; log: ')
+    return f'{before}: {last}{sep}{path}' if sep else f'{head}: {last}'
 
 
 def run_external_cell(
@@ -146,8 +195,13 @@ def run_external_cell(
         )
         row['kpis'], row['kpi_notes'] = kpis, notes
         mark_failed(row, check)
+        if row['status'] != 'ok':  # why: what the plant refused, and its first reason
+            m = int(round(ts / PLANT_STEP_S))
+            n_cmd = int(bagio.load_commands(run_dir / 'bag')['k'].size)
+            refused = plant_rejections(run_dir, ts_data['fallback'], n_cmd, m)
+            row['error'] += f'; {refused}' if refused else ''
     except Exception as exc:  # a failed run is data
-        row.update(status='error', error=f'{type(exc).__name__}: {exc}')
+        row.update(status='error', error=one_line_error(f'{type(exc).__name__}: {exc}'))
     row['wall_time_s'] = time.perf_counter() - t0
     row['pid'] = os.getpid()
     return row

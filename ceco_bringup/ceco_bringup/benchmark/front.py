@@ -23,6 +23,18 @@ E: ``energy_kwh`` [kWh]). Method (docs/benchmark.md, "Matched comfort"):
    Outside the ranges nothing is extrapolated: the value is None and ``note``
    says why.
 
+4. Saturation (docs/benchmark.md, "Saturated discomfort"): PMV enters the
+   discomfort clipped to +-3, so a run at or beyond the clip the whole time scores
+   the ceiling (:func:`ceco_core.kpis.discomfort_ceiling`, e.g. duration x 2.5 PMV
+   for ``discomfort_pmvh``) whatever it does. A front built with that ``ceiling``
+   keeps its members at it (within :data:`REL_TOL`) off the vertices (``saturated``:
+   they carry no comfort information, so they anchor no match), and a controller at
+   it is not matched: both values None, ``note`` :data:`NOTE_SATURATED` (``dominated``
+   is still read: a vertex below the ceiling with no more energy beats it). A
+   controller with several seeds is not matched at its mean when any seed is
+   saturated. A family whose every member is saturated has no vertex: nothing is
+   matched against it (:data:`NOTE_NO_VERTEX`).
+
 The strongest of several families (docs/benchmark.md, "Strongest family"): an
 :class:`Envelope` of the families' fronts, E_env(D) = min over the families with
 D_min,f <= D of E_f(min(D, D_max,f)): the least energy any family spends at a
@@ -47,12 +59,16 @@ import numpy as np
 
 __all__ = [
     "REL_TOL",
+    "NOTE_SATURATED",
+    "NOTE_NO_VERTEX",
     "FrontPoint",
     "Front",
     "Envelope",
     "Matched",
     "Headroom",
     "build_front",
+    "saturation_ceiling",
+    "saturated",
     "match",
     "match_seeds",
     "strongest_by_level",
@@ -73,6 +89,8 @@ NOTE_LESS_ENERGY = "uses less energy than every efficient baseline (no extrapola
 NOTE_ZERO_DISCOMFORT = "the front has zero discomfort at this energy (a reduction in % is undefined)"
 NOTE_NO_BOUND = "the bound's front does not cover this discomfort (no extrapolation)"
 NOTE_NO_HEADROOM = "the bound saves nothing against the strongest family here (a share of it is undefined)"
+NOTE_SATURATED = "not matched: discomfort saturated (PMV at the +-3 clip for the whole run)"
+NOTE_NO_VERTEX = "not matched: every baseline's discomfort is saturated (the front has no vertex)"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,7 +104,9 @@ class FrontPoint:
     energy: float
     """Energy E [kWh]."""
     efficient: bool = True
-    """True when no other family point dominates it (it is a vertex of the front)."""
+    """True when it is a vertex of the front: not saturated, and no other family point dominates it."""
+    saturated: bool = False
+    """True when its discomfort is at the front's ``ceiling`` (it carries no comfort information)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -95,6 +115,8 @@ class Front:
 
     points: tuple
     """All family points (:class:`FrontPoint`), efficient or not, in the order given."""
+    ceiling: float | None = None
+    """The discomfort at which the metric saturates (module docstring, 4.); None: no saturation rule."""
 
     @property
     def vertices(self) -> tuple:
@@ -115,7 +137,7 @@ class Front:
         """E_f(D) by linear interpolation; None outside [D_min, D_max]."""
         d, e = self.d, self.e
         x = float(discomfort)
-        if not (_ge(x, d[0]) and _le(x, d[-1])):
+        if not d.size or not (_ge(x, d[0]) and _le(x, d[-1])):
             return None
         return float(np.interp(min(max(x, d[0]), d[-1]), d, e))
 
@@ -123,7 +145,7 @@ class Front:
         """D_f(E), the inverse; None outside [E_min, E_max]."""
         d, e = self.d, self.e
         x = float(energy)
-        if not (_ge(x, e[-1]) and _le(x, e[0])):
+        if not e.size or not (_ge(x, e[-1]) and _le(x, e[0])):
             return None
         # e decreases along the front: interpolate on the reversed arrays
         return float(np.interp(min(max(x, e[-1]), e[0]), e[::-1], d[::-1]))
@@ -144,7 +166,7 @@ class Front:
         """True when a point of the front has D <= ``discomfort`` and E <= ``energy``, one strictly."""
         dc, ec = float(discomfort), float(energy)
         d, e = self.d, self.e
-        if _lt(dc, d[0]):
+        if not d.size or _lt(dc, d[0]):
             return False
         if _le(dc, d[-1]):
             return _lt(float(self.energy_at(min(dc, d[-1]))), ec)
@@ -162,15 +184,24 @@ class Envelope:
     """
 
     fronts: tuple
-    """((family name, :class:`Front`), ...) in a fixed order (ties go to the first)."""
+    """((family name, :class:`Front`), ...) in a fixed order (ties go to the first); empty when every family's
+    members are saturated."""
+    ceiling: float | None = None
+    """The least ``ceiling`` of the families' fronts (module docstring, 4.); None: no saturation rule."""
 
     @classmethod
     def of(cls, fronts: Mapping[str, Front | None]) -> Envelope:
-        """The envelope of ``{family: Front or None}`` (None and empty fronts are left out)."""
-        items = tuple((str(k), f) for k, f in fronts.items() if f is not None and f.vertices)
-        if not items:
+        """The envelope of ``{family: Front or None}`` (None and vertex-less fronts are left out).
+
+        ValueError when every value is None; fronts whose every member is saturated give an envelope with no
+        family (nothing is matched against it, and its ``d_range`` and ``e_range`` raise).
+        """
+        given = [f for f in fronts.values() if f is not None]
+        if not given:
             raise ValueError("Envelope: no family has a front")
-        return cls(fronts=items)
+        items = tuple((str(k), f) for k, f in fronts.items() if f is not None and f.vertices)
+        ceilings = [f.ceiling for f in given if f.ceiling is not None]
+        return cls(fronts=items, ceiling=min(ceilings) if ceilings else None)
 
     def energy_at(self, discomfort: float) -> float | None:
         """E_env(D); None outside the envelope's discomfort range."""
@@ -184,7 +215,7 @@ class Envelope:
 
     def _best_energy(self, discomfort):
         x = float(discomfort)
-        if not _le(x, self.d_range[1]):
+        if not self.fronts or not _le(x, self.d_range[1]):
             return None
         best = None
         for name, f in self.fronts:
@@ -199,7 +230,7 @@ class Envelope:
     def discomfort_at(self, energy: float) -> float | None:
         """D_env(E); None outside the envelope's energy range."""
         x = float(energy)
-        if not _le(x, self.e_range[1]):
+        if not self.fronts or not _le(x, self.e_range[1]):
             return None
         vals = []
         for _, f in self.fronts:
@@ -212,13 +243,19 @@ class Envelope:
 
     @property
     def d_range(self) -> tuple[float, float]:
-        """(least, greatest) discomfort of any family's vertices."""
+        """(least, greatest) discomfort of any family's vertices (ValueError when it has no family)."""
+        self._some_family()
         return min(f.d_range[0] for _, f in self.fronts), max(f.d_range[1] for _, f in self.fronts)
 
     @property
     def e_range(self) -> tuple[float, float]:
-        """(least, greatest) energy of any family's vertices."""
+        """(least, greatest) energy of any family's vertices (ValueError when it has no family)."""
+        self._some_family()
         return min(f.e_range[0] for _, f in self.fronts), max(f.e_range[1] for _, f in self.fronts)
+
+    def _some_family(self) -> None:
+        if not self.fronts:
+            raise ValueError("Envelope: every family's members are saturated (no vertex)")
 
     def dominates(self, discomfort: float, energy: float) -> bool:
         """True when some family's front dominates the point."""
@@ -275,22 +312,31 @@ def _finite_point(name, d, e):
     return d, e
 
 
-def build_front(points: Mapping[str, tuple] | Iterable[tuple]) -> Front:
+def build_front(points: Mapping[str, tuple] | Iterable[tuple], ceiling: float | None = None) -> Front:
     """The front of a family.
 
     ``points`` is ``{name: (discomfort, energy)}`` or an iterable of ``(name,
     discomfort, energy)``: at least one point, every value finite and >= 0
     (ValueError naming the point). Points equal to an earlier one on both axes are
-    kept but only the first is a vertex.
+    kept but only the first is a vertex. ``ceiling``: the discomfort at which the
+    metric saturates (:func:`saturation_ceiling`; finite, > 0); the points at it are
+    ``saturated`` and never vertices (module docstring, 4.).
     """
     items = [(k, *v) for k, v in points.items()] if isinstance(points, Mapping) else list(points)
     if not items:
         raise ValueError("build_front: the family has no points")
+    if ceiling is not None:
+        ceiling = float(ceiling)
+        if not (math.isfinite(ceiling) and ceiling > 0.0):
+            raise ValueError(f"build_front: the ceiling must be finite and > 0, got {ceiling}")
     pts = [(str(n), *_finite_point(n, d, e)) for n, d, e in items]
+    sat = [ceiling is not None and _ge(d, ceiling) for _, d, _ in pts]
     out = []
     for i, (name, d, e) in enumerate(pts):
-        dominated = False
+        dominated = sat[i]
         for j, (_, d2, e2) in enumerate(pts):
+            if dominated:
+                break
             if j == i:
                 continue
             better_or_equal = _le(d2, d) and _le(e2, e)
@@ -299,8 +345,25 @@ def build_front(points: Mapping[str, tuple] | Iterable[tuple]) -> Front:
             if better_or_equal and (strictly or j < i):
                 dominated = True
                 break
-        out.append(FrontPoint(name=name, discomfort=d, energy=e, efficient=not dominated))
-    return Front(points=tuple(out))
+        out.append(FrontPoint(name=name, discomfort=d, energy=e, efficient=not dominated, saturated=sat[i]))
+    return Front(points=tuple(out), ceiling=ceiling)
+
+
+def saturation_ceiling(runs_kpis: Iterable[Mapping], axis: str) -> float | None:
+    """The ceiling of the discomfort KPI ``axis`` for a case's runs (``runs_kpis``: their kpis dicts).
+
+    The least :func:`ceco_core.kpis.discomfort_ceiling` over the runs that have one (a case's runs share a
+    length; a shorter run's ceiling is the stricter); None when none has (no saturation rule).
+    """
+    from ceco_core.kpis import discomfort_ceiling
+
+    got = [c for c in (discomfort_ceiling(k, axis) for k in runs_kpis) if c is not None and c > 0.0]
+    return min(got) if got else None
+
+
+def saturated(front: Front | Envelope, discomfort: float) -> bool:
+    """True when ``discomfort`` is at (or, within :data:`REL_TOL`, beyond) the ceiling of ``front``."""
+    return front.ceiling is not None and _ge(float(discomfort), front.ceiling)
 
 
 def _pct(front_value: float, value: float) -> float:
@@ -312,6 +375,10 @@ def match(front: Front | Envelope, discomfort: float, energy: float) -> Matched:
     dc, ec = float(discomfort), float(energy)
     if not (math.isfinite(dc) and math.isfinite(ec)):
         raise ValueError(f"match: the controller's point is not finite (discomfort {dc}, energy {ec})")
+    if saturated(front, dc):
+        return Matched(None, None, dominated=bool(front.dominates(dc, ec)), note=NOTE_SATURATED)
+    if not _has_vertex(front):
+        return Matched(None, None, dominated=False, note=NOTE_NO_VERTEX)
     d_lo, e_hi = front.d_range[0], front.e_range[1]
     notes = []
     e_f = front.energy_at(dc)
@@ -338,18 +405,35 @@ def match(front: Front | Envelope, discomfort: float, energy: float) -> Matched:
     )
 
 
+def _has_vertex(front: Front | Envelope) -> bool:
+    return bool(front.fronts if isinstance(front, Envelope) else front.vertices)
+
+
+def _saturated_mean(front: Front | Envelope, arr: np.ndarray) -> Matched | None:
+    """The mean point's match when a seed is saturated (its discomfort is only a lower bound), else None."""
+    if not any(saturated(front, d) for d in arr[:, 0]):
+        return None
+    return Matched(
+        None,
+        None,
+        dominated=bool(front.dominates(float(arr[:, 0].mean()), float(arr[:, 1].mean()))),
+        note=NOTE_SATURATED,
+    )
+
+
 def match_seeds(front: Front | Envelope, points: Sequence[tuple]) -> dict:
     """A controller with one point per seed against a front.
 
     The match of the mean point (means of discomfort and energy over ``points`` =
-    [(discomfort, energy), ...]) and, per seed, the same three quantities. Returns
+    [(discomfort, energy), ...]; not matched, :data:`NOTE_SATURATED`, when a seed is
+    saturated) and, per seed, the same three quantities. Returns
     ``Matched.as_dict()`` of the mean plus ``seeds``: {energy_saving_pct: [...],
     discomfort_reduction_pct: [...], dominated: [...]} in the order given, and ``n_seeds``.
     """
     if not points:
         raise ValueError("match_seeds: no points")
     arr = np.array([(float(a), float(b)) for a, b in points])
-    mean = match(front, float(arr[:, 0].mean()), float(arr[:, 1].mean())).as_dict()
+    mean = (_saturated_mean(front, arr) or match(front, float(arr[:, 0].mean()), float(arr[:, 1].mean()))).as_dict()
     return _with_seeds(
         mean, [match(front, a, b) for a, b in arr], ("energy_saving_pct", "discomfort_reduction_pct", "dominated")
     )
@@ -408,7 +492,7 @@ def headroom(envelope: Envelope, bound: Front | Sequence[Front], discomfort: flo
     ``bound`` is the optimum's front, or several (one per seed of an uncertain case): then
     E_bound(D) is their mean at D (None unless every one covers D). The ratio is undefined (None,
     with a note) outside the envelope's or the bound's range, and where the bound saves nothing
-    (E_bound(D_c) >= E_env(D_c)).
+    (E_bound(D_c) >= E_env(D_c)), and at the envelope's ceiling (:data:`NOTE_SATURATED`).
     """
     dc, ec = float(discomfort), float(energy)
     if not (math.isfinite(dc) and math.isfinite(ec)):
@@ -416,6 +500,10 @@ def headroom(envelope: Envelope, bound: Front | Sequence[Front], discomfort: flo
     bounds = [bound] if isinstance(bound, Front) else list(bound)
     if not bounds:
         raise ValueError("headroom: no bound front")
+    if saturated(envelope, dc):
+        return Headroom(None, None, None, None, NOTE_SATURATED)
+    if not envelope.fronts:
+        return Headroom(None, None, None, None, NOTE_NO_VERTEX)
     e_env = envelope.energy_at(dc)
     fam = envelope.family_at(dc)
     if e_env is None or e_env <= 0.0:
@@ -438,8 +526,8 @@ def headroom_seeds(envelope: Envelope, bounds: Mapping, points: Sequence[tuple])
     ``bounds`` maps a seed to the bound's front (key None: one bound for every seed); ``points`` =
     [(seed, discomfort, energy), ...], seed None for a seed-invariant controller, which is compared with
     the mean of every bound. The mean entry is the controller's seed-mean point against the mean of the
-    bounds of its seeds; ``seeds`` lists :func:`headroom` per point. A seed without a bound gives None
-    with a note.
+    bounds of its seeds (not matched, :data:`NOTE_SATURATED`, when a seed is saturated); ``seeds`` lists
+    :func:`headroom` per point. A seed without a bound gives None with a note.
     """
     if not points:
         raise ValueError("headroom_seeds: no points")
@@ -449,7 +537,9 @@ def headroom_seeds(envelope: Envelope, bounds: Mapping, points: Sequence[tuple])
         for (seed, d, e), b in zip(points, used)
     ]
     arr = np.array([(float(d), float(e)) for _, d, e in points])
-    if all(used):
+    if any(saturated(envelope, d) for _, d, _ in points):
+        mean = Headroom(None, None, None, None, NOTE_SATURATED).as_dict()
+    elif all(used):
         every = [f for b in used for f in b]
         mean = headroom(envelope, every, float(arr[:, 0].mean()), float(arr[:, 1].mean())).as_dict()
     else:

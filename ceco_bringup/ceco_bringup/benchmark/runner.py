@@ -58,6 +58,7 @@ __all__ = [
     'BaselineConstants',
     'load_baselines',
     'new_row',
+    'external_identity',
     'mark_failed',
     'Sensitivity',
     'load_sensitivity',
@@ -379,6 +380,10 @@ class ControllerSpec:
     """What the controller reads (``SimSettings.measurements``)."""
     preview: str | None = None
     """Preview quality of its runs (None: the case's forecast uncertainty; ``persistence`` for a twin)."""
+    command: tuple[str, ...] = ()
+    """external: the controller's command line (argv, ``--controller-cmd`` split as a shell would)."""
+    cwd: str = ''
+    """external: the directory the command runs in (a relative path in the command is relative to it)."""
 
     @property
     def seeded(self) -> bool:
@@ -547,6 +552,8 @@ def case_cells(
             }
             if c.measurements != 'full':
                 spec['measurements'] = c.measurements
+            if c.kind == 'external':
+                spec['external'] = external_identity(c)
             axes = {
                 'case': case.name,
                 'controller': c.name,
@@ -558,6 +565,15 @@ def case_cells(
             }
             out.append(Cell(id=cell_id(spec), axes=axes, spec=spec))
     return out
+
+
+def external_identity(c: ControllerSpec) -> dict:
+    """What defines an external controller in its cells' spec, hence in their ids: its name, command and directory.
+
+    Another name, command or directory is another controller: its cells run, never resumed from the rows
+    of the one before in the same ``--out`` (docs/benchmark.md, "The command").
+    """
+    return {'name': c.name, 'command': list(c.command), 'cwd': c.cwd}
 
 
 def new_row(cell: Mapping, source: str) -> dict:
@@ -736,6 +752,7 @@ def fronts_of(runs: Sequence[Mapping], fx: str, ex: str) -> dict:
     Only runs that meet the air-quality limits (:func:`breaks_air_quality`) make a front.
     """
     out = {}
+    ceiling = fr.saturation_ceiling((r['kpis'] for r in runs if r['status'] == 'ok'), fx)
     for family, kind in FAMILIES.items():
         pts = [
             (r['controller'], r['kpis'][fx], r['kpis'][ex])
@@ -746,13 +763,16 @@ def fronts_of(runs: Sequence[Mapping], fx: str, ex: str) -> dict:
             and r['kpis'].get(fx) is not None
             and r['kpis'].get(ex) is not None
         ]
-        out[family] = fr.build_front(pts) if pts else None
+        out[family] = fr.build_front(pts, ceiling=ceiling) if pts else None
     return out
 
 
 def envelope_of(fronts: Mapping) -> fr.Envelope | None:
-    """The strongest of the families (:class:`front.Envelope`), None when no family has a front."""
-    if not any(f is not None for f in fronts.values()):
+    """The strongest of the families (:class:`front.Envelope`), None when no family has a front with a vertex.
+
+    (No vertex: every member of every family at the discomfort ceiling, :func:`front.saturated`.)
+    """
+    if not any(f is not None and f.vertices for f in fronts.values()):
         return None
     return fr.Envelope.of(fronts)
 

@@ -245,6 +245,7 @@ def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
     out += _check_seed_coverage(tag, case)
     fx, ex = settings["front_axis"], settings["energy_axis"]
     fronts = {}
+    ceiling = fr.saturation_ceiling((r["kpis"] for rs in ok_runs.values() for r in rs), fx)
     for family, kind in FAMILIES.items():
         members = case["fronts"].get(family, [])
         pts = []
@@ -261,7 +262,7 @@ def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
         if not pts:
             fronts[family] = None
             continue
-        front = fr.build_front(pts)
+        front = fr.build_front(pts, ceiling=ceiling)
         fronts[family] = front
         eff = {p.name: p.efficient for p in front.points}
         for j, p in enumerate(members):
