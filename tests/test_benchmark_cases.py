@@ -78,6 +78,7 @@ def test_a_user_case_file_with_a_relative_scenario(tmp_path):
         ({"scenario": "no_such_scenario"}, "scenario"),
         ({"colour": "red"}, "colour"),
         ({"seeds": ...}, "seeds"),
+        ({"seeds": [0, 1, 2, 3, 2**31]}, r"seeds: must be a non-empty list of integers in 0\.\.2147483647"),
     ],
 )
 def test_bad_case_files_name_the_field(tmp_path, over, field):

@@ -273,3 +273,20 @@ def test_a_preview_delay_beyond_the_preview_nodes_range_is_refused_before_any_ru
         f'faults.delay_s (ceco {verb} --help lists the options)'
     )
     assert not (tmp_path / 'o').exists()
+
+
+@pytest.mark.parametrize('verb', ['sim', 'run'])
+def test_a_seed_beyond_the_preview_nodes_range_is_refused_before_any_run(tmp_path, capsys, verb):
+    """--seed 3000000000: refused when the command line is checked (preview_node's faults.seed is a 32-bit
+    parameter: ceco run started the stack and preview_node exited, a failed run)."""
+    from ceco_bringup import run, sim
+
+    main = {'sim': sim.main, 'run': run.main}[verb]
+    with pytest.raises(SystemExit) as exc:
+        main(['--scenario', 'sc03', '--strategy', 'baseline', '--seed', '3000000000', '--out', str(tmp_path / 'o')])
+    assert exc.value.code == 2
+    assert one_error_line(capsys.readouterr().err) == (
+        f"ceco {verb}: error: argument --seed: must be a whole number in 0..2147483647, got '3000000000' "
+        f'(ceco {verb} --help lists the options)'
+    )
+    assert not (tmp_path / 'o').exists()

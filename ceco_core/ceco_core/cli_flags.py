@@ -414,11 +414,18 @@ def add_duration(p, default_text: str = "the scenario's length") -> None:
     )
 
 
+def noise_seed(text: str) -> int:
+    """A preview-noise seed within :data:`~ceco_core.contracts.NOISE_SEED_RANGE`, preview_node's (argparse type)."""
+    from ceco_core.contracts import NOISE_SEED_RANGE
+
+    return _whole_number(text, *NOISE_SEED_RANGE)
+
+
 def add_seed(p) -> None:
-    """``--seed``: the seed of the preview noise."""
+    """``--seed``: the seed of the preview noise (:func:`noise_seed`)."""
     p.add_argument(
         '--seed',
-        type=nonnegative_int,
+        type=noise_seed,
         default=None,
         help="seed of the preview noise (default: the preview's seed=, else with --case the case's first, "
         "else the scenario's)",

@@ -72,6 +72,10 @@ RECIRC_NOT_COMMANDED_WIRE = -1.0
 CONTROL_PERIOD_RANGE_S = (0.1, 300.0)
 """Ts of every node and every ``ceco`` verb [s]: up to 5 min (the NMPC's transcription grows with Ts / its
 substep: configure took 15 s at Ts 600 s on the 2-core machine, 124 s at 3600 s)."""
+NOISE_SEED_RANGE = (0, 2**31 - 1)
+"""A preview-noise seed [-], in every verb, case file and preview_node (``faults.seed``, a 32-bit parameter whose
+-1 means "none")."""
+
 HORIZON_RANGE = (1, 60)
 """Np of the controller and of the preview grid, in every node and every ``ceco`` verb [steps]: configure
 took 4 s at Np 60, 31 s at Np 200."""

@@ -59,7 +59,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ceco_core.contracts import PREVIEW_QUANTITIES, Previews
+from ceco_core.contracts import NOISE_SEED_RANGE, PREVIEW_QUANTITIES, Previews
 from ceco_core.control_grid import control_step_count
 from ceco_v2x_preview import forecast_error
 from ceco_v2x_preview.scenario import Scenario
@@ -109,8 +109,8 @@ preview_node declares its parameter ``faults.<field>`` with it (``preview_io.PRE
 :func:`parse_quality` refuses a value outside it, so that a preview string ``ceco run`` takes is one the node
 takes (the node would exit on a value outside its declared range)."""
 
-SEED_RANGE = (0, 2**31 - 1)
-"""Range of a noise seed [-]: preview_node's ``faults.seed`` is a 32-bit parameter (its -1 means "none")."""
+SEED_RANGE = NOISE_SEED_RANGE
+"""Range of a noise seed [-] (:data:`ceco_core.contracts.NOISE_SEED_RANGE`: preview_node's ``faults.seed``)."""
 
 _PART_OF = {
     "noise_std_t_amb_c": ("noisy t_amb", "K"),

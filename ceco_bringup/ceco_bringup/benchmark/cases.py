@@ -37,6 +37,7 @@ from pathlib import Path
 import yaml
 
 from ceco_core import yamlio
+from ceco_core.contracts import NOISE_SEED_RANGE
 
 __all__ = [
     "CASE_SCHEMA",
@@ -254,12 +255,13 @@ def case_from_dict(
     if level not in LEVELS:
         raise CaseError(f"forecast_uncertainty: must be one of {list(LEVELS)}, got {level!r}")
     seeds = data["seeds"]
+    lo, hi = NOISE_SEED_RANGE  # preview_node's: a run over DDS takes the seed as its parameter
     if (
         not isinstance(seeds, (list, tuple))
         or not seeds
-        or not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds)
+        or not all(isinstance(s, int) and not isinstance(s, bool) and lo <= s <= hi for s in seeds)
     ):
-        raise CaseError(f"seeds: must be a non-empty list of non-negative integers, got {seeds!r}")
+        raise CaseError(f"seeds: must be a non-empty list of integers in {lo}..{hi}, got {seeds!r}")
     if len(set(seeds)) != len(seeds):
         raise CaseError(f"seeds: must be distinct, got {list(seeds)}")
     if level == "none" and list(seeds) != [0]:
