@@ -10,7 +10,9 @@ Contract used (docs/benchmark.md, "Your own controller over ROS 2"): subscribe
 `cabin/state` (reliable, keep-last, volatile); for each state at a control step
 t_k = k * Ts publish one `hvac/command` with step_index k; Ts from the environment
 variable CECO_CONTROL_PERIOD_S; AcCommand.strategy = "external"; AcCommand.epoch random and
-non-zero, drawn at start, and AcCommand.sequence = 1, 2, ... (the plant refuses epoch 0).
+non-zero, drawn at start, and AcCommand.sequence = 1, 2, ... (the plant refuses epoch 0). The command
+publisher offers automatic liveliness with a 1-s lease, so the plant's liveliness probe matches it (and tells
+a dead controller at once; without a lease rmw logs an "incompatible QoS ... LIVELINESS" warning).
 """
 
 import os
@@ -18,9 +20,10 @@ import secrets
 import sys
 
 import rclpy
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
 
 from ceco_msgs.msg import AcCommand, CabinState
 
@@ -41,6 +44,8 @@ class ExternalBaseline(Node):
                 depth=100,
                 reliability=ReliabilityPolicy.RELIABLE,
                 durability=DurabilityPolicy.VOLATILE,
+                liveliness=LivelinessPolicy.AUTOMATIC,
+                liveliness_lease_duration=Duration(seconds=1),
             ),
         )
         self.create_subscription(

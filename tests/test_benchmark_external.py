@@ -62,6 +62,9 @@ def test_external_controller_over_dds_scores_as_the_builtin_baseline(tmp_path):
     assert row['kpis']['time_ratio_mean'] == pytest.approx(float(np.mean(steps)) / 5.0, rel=1e-9)
     assert row['kpis']['time_ratio_max'] == pytest.approx(float(np.max(steps)) / 5.0, rel=1e-9)
     assert row['kpis']['fallback_steps'] == 0.0 and ref['kpis']['energy_kwh'] > 0.0
+    # the documented QoS matches every reader of hvac/command: rmw warns of no incompatible one
+    log = (tmp_path / 'ext' / 'logs' / 'external_controller.log').read_text()
+    assert 'incompatible QoS' not in log, log[-2000:]
 
 
 # What the node publishes instead of a command: nothing, NaN, a blower flow above its range.
