@@ -26,7 +26,7 @@ import numpy as np
 import yaml
 
 from ceco_core.contracts import PLANT_STEP_S
-from ceco_core.run_status import check_control
+from ceco_core.run_status import check_control, fallback_control_steps
 from ceco_ros.topics import TOPIC_COMMAND, TOPIC_STATE
 
 from .runner import mark_failed, new_row
@@ -86,10 +86,8 @@ def plant_rejections(run_dir: Path, plant_fallback, n_commands: int, steps_per_c
     run_dir = Path(run_dir)
     if n_commands == 0:
         return f'the controller sent no hvac/command (log: {run_dir / "logs" / "external_controller.log"})'
-    fb = np.asarray(plant_fallback, dtype=bool)
-    m = int(steps_per_control)
-    n_ctrl = -(-fb.size // m)
-    rejected = n_commands - (n_ctrl - len({int(n) // m for n in np.flatnonzero(fb)}))
+    n_ctrl, n_fallback = fallback_control_steps(plant_fallback, steps_per_control)
+    rejected = n_commands - (n_ctrl - n_fallback)
     if rejected <= 0:
         return ''
     log = run_dir / 'logs' / 'plant_node.log'
