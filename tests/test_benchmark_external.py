@@ -8,6 +8,7 @@ wall-clock time ratios equal (the DDS path reproduces the simulator bit for bit)
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -62,6 +63,8 @@ def test_external_controller_over_dds_scores_as_the_builtin_baseline(tmp_path):
     assert row['kpis']['time_ratio_mean'] == pytest.approx(float(np.mean(steps)) / 5.0, rel=1e-9)
     assert row['kpis']['time_ratio_max'] == pytest.approx(float(np.max(steps)) / 5.0, rel=1e-9)
     assert row['kpis']['fallback_steps'] == 0.0 and ref['kpis']['energy_kwh'] > 0.0
+    run_json = json.loads((tmp_path / 'ext' / 'run.json').read_text())
+    assert (run_json['status'], run_json['error'], run_json['strategy']) == ('complete', '', 'external')
     # the documented QoS matches every reader of hvac/command: rmw warns of no incompatible one
     log = (tmp_path / 'ext' / 'logs' / 'external_controller.log').read_text()
     assert 'incompatible QoS' not in log, log[-2000:]
@@ -133,6 +136,12 @@ def test_a_controller_that_never_commands_is_a_failed_run(tmp_path, what):
     assert row['kpis']['energy_kwh'] > 0.0  # kept
     log = (tmp_path / 'ext' / 'logs' / 'plant_node.log').read_text()
     assert ('rejected hvac/command' in log) is (what != 'silent')
+    # its run directory says failed, with the same reason: ceco report names it and shows no number
+    from ceco_bringup import rundata
+
+    assert rundata.failed_reason(tmp_path / 'ext') == row['error']
+    loaded, failed = rundata.load_runs([tmp_path / 'ext'])
+    assert loaded == [] and [(f.strategy, f.scenario) for f in failed] == [('external', 'sc03')]
     # the same runs as the plant's law at 26 degC: matched, that would have read "+0.0 % saved"
     base = runner.ControllerSpec('baseline@26.0', 'baseline', 'baseline', (('setpoint_c', 26.0),), 26.0)
     (ref_cell,) = runner.case_cells(case, [base], code_fingerprint())

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ceco_bringup import provenance
 from ceco_core.contracts import PLANT_STEP_S
 from ceco_core.run_status import check_control, fallback_control_steps
 from ceco_ros.topics import TOPIC_COMMAND, TOPIC_STATE
@@ -122,7 +123,11 @@ def run_external_cell(
     startup_timeout_s: float = 120.0,
     run_timeout_s: float = 1800.0,
 ) -> dict:
-    """Run one external-controller cell over DDS into ``run_dir``; return its log row (never raises)."""
+    """Run one external-controller cell over DDS into ``run_dir``; return its log row (never raises).
+
+    ``run_dir`` is a run directory as ``ceco run`` leaves one, with its ``run.json``: ``failed`` and the row's
+    error when the run is not ``ok`` (``ceco report`` names it, never shows its numbers).
+    """
     from ceco_bringup.sweep import cells as sweep_cells
 
     t0 = time.perf_counter()
@@ -136,6 +141,7 @@ def run_external_cell(
     try:
         from ceco_bringup import bagio, run, supervisor
         from ceco_core.kpis import compute_kpis
+        from ceco_plant_sim.scenario_plant import steps_per_control
         from ceco_v2x_preview.preview import parse_quality
         from ceco_v2x_preview.scenario import load_scenario
 
@@ -150,11 +156,11 @@ def run_external_cell(
         scenario_path = run_dir / 'scenario.yaml'
         scenario_path.write_text(yaml.safe_dump(spec['scenario'], sort_keys=False), encoding='utf-8')
         scenario = load_scenario(str(scenario_path))
+        provenance.start_run(run_dir, 'benchmark', list(command), str(scenario_path), 'external')  # (as run_one)
         quality = parse_quality(spec['preview'])
         if spec['seed'] is not None:
             quality = dataclasses.replace(quality, seed=int(spec['seed']))
-        ts = float(spec['control_period_s'] or scenario.control.control_period_s)
-        n_p = int(spec['horizon_steps'] or scenario.control.horizon_steps)
+        ts, n_p = scenario.control.timing(spec['control_period_s'], spec['horizon_steps'])
         # `ceco run`'s own defaults (bag storage, ...), then what this run sets
         args = run.build_parser().parse_args(['--out', str(run_dir), '--no-progress'])
         for key, value in dict(
@@ -194,12 +200,14 @@ def run_external_cell(
         row['kpis'], row['kpi_notes'] = kpis, notes
         mark_failed(row, check)
         if row['status'] != 'ok':  # why: what the plant refused, and its first reason
-            m = int(round(ts / PLANT_STEP_S))
+            m = steps_per_control(ts, PLANT_STEP_S)
             n_cmd = int(bagio.load_commands(run_dir / 'bag')['k'].size)
             refused = plant_rejections(run_dir, ts_data['fallback'], n_cmd, m)
             row['error'] += f'; {refused}' if refused else ''
     except Exception as exc:  # a failed run is data
         row.update(status='error', error=one_line_error(f'{type(exc).__name__}: {exc}'))
+    # (nothing happens without a run.json: a failure before the run began)
+    provenance.finish_run(run_dir, 'complete' if row['status'] == 'ok' else 'failed', row['error'])
     row['wall_time_s'] = time.perf_counter() - t0
     row['pid'] = os.getpid()
     return row
