@@ -63,6 +63,10 @@ def test_one_formatter_for_the_tables_and_the_verdict(value, spec, text):
     row = {'strategy': 'x', 'otc_violation_pct': value}
     if not isinstance(value, (bool, str)):
         assert outputs.full_table([row]).splitlines()[2].split()[13] == fmt_value(value, '.1f')
+        assert outputs.console_table([row]).splitlines()[2].split()[5] == fmt_value(value, '.1f')  # viol. [%]
+        # the verdict's words: a run that broke the limits, with this value as its CO2 maximum
+        words = vd._broke_words(_point(0.1, 0.3, co2_max_ppm=value), {'co2_limit_ppm': 450.0})
+        assert words.startswith(f"BROKE the air-quality limits: CO2 max {fmt_value(value, '.0f')} ppm, above 450 ppm")
 
 
 def test_the_broken_limits_words_say_n_a_for_what_was_not_recorded():

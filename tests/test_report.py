@@ -694,7 +694,7 @@ def test_each_run_is_shown_under_the_strategy_it_records(runs, tmp_path, capsys)
     nameless = _copy_with_metrics(runs / 'ceco-ioch', tmp_path / 'ceco-e', strategy=None)
     assert report.main([str(nameless), '--out', str(tmp_path / 'r3')]) == 2
     assert one_error_line(capsys.readouterr().err) == (
-        f'ceco report: error: {nameless} records no strategy (neither metrics.json nor a bag names one): '
+        f'ceco report: error: {nameless} records no strategy (neither metrics.json, run.json nor a bag names one): '
         'name it with --strategy'
     )
     assert report.main([str(nameless), '--strategy', 'my-mpc', '--out', str(tmp_path / 'r4')]) == 0

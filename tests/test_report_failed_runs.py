@@ -207,3 +207,34 @@ def test_a_failed_member_is_on_no_front_and_named(hot, tmp_path):
     assert f'1 of the 3 family runs failed (baseline@26.0: {STOPPED}, t = 2 s)): on no front.' in text
     data = vd.read_verdict(vd.write_verdict(tmp_path / 'verdict.json', v))
     assert data['family_failed'] == {'baseline@26.0': f'{STOPPED}, t = 2 s)'} and set(data['family']) == set(good)
+
+
+def test_ceco_report_names_the_failed_family_members_its_job_kept(results, tmp_path, capsys):
+    """A job's verdict.json keeps its failed family members (``family_failed``); ceco report reads the family
+    from it and names them as the job's verdict did (they were dropped: the report's verdict said nothing)."""
+    job = tmp_path / 'job'
+    assert (
+        sim.main(
+            [
+                '--scenario',
+                'sc03',
+                '--strategy',
+                'baseline',
+                '--duration-s',
+                f'{DURATION_S:g}',
+                '--baseline-setpoints-c',
+                '25,26',
+                '--out',
+                str(job),
+                '--no-progress',
+            ]
+        )
+        == 0
+    )
+    kept = json.loads((job / 'verdict.json').read_text())
+    kept['family_failed'] = {'baseline@27.0': 'the simulation stopped: refrigerant cycle did not converge (test)'}
+    (job / 'verdict.json').write_text(json.dumps(kept))
+    capsys.readouterr()
+    assert report.main([str(job), '--out', str(tmp_path / 'r')]) == 0
+    out = capsys.readouterr().out
+    assert '1 of the 5 family runs failed (baseline@27.0: the simulation stopped: refrigerant cycle' in out, out

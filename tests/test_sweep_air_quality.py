@@ -126,7 +126,8 @@ def test_the_console_names_the_points_that_broke_the_limits(swept, capsys):
     assert sweep.main([str(grid), '--out', str(out), '--no-progress']) == 0
     text = capsys.readouterr().out
     assert (
-        'air quality: 2 point(s) broke the limits, no saving claimed: stale/scenario/scenario/perfect/scenario '
+        'air quality: no saving claimed for 2 point(s) (it or its baseline broke the limits): '
+        'stale/scenario/scenario/perfect/scenario '
         'baseline, stale/scenario/scenario/perfect/scenario ceco'
     ) in text
 

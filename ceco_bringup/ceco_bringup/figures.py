@@ -395,8 +395,9 @@ def fig_plane(points: Mapping[str, Mapping], family: Mapping[str, Mapping], path
 
     with plt.rc_context(RC_PARAMS):
         fig, ax = plt.subplots(figsize=(6.0, 4.2))
-        from ceco_bringup.verdict import family_law
+        from ceco_bringup.verdict import FAILED_KEY, family_law
 
+        family = {n: p for n, p in family.items() if FAILED_KEY not in p}  # a failed member has no point
         laws: dict[str, dict] = {}
         for n, p in family.items():
             laws.setdefault(family_law(n), {})[n] = (p['discomfort_pmvh'], p['energy_kwh'])
@@ -406,9 +407,11 @@ def fig_plane(points: Mapping[str, Mapping], family: Mapping[str, Mapping], path
             'baseline-doorco2': ('#a6761d', '-', 'production PI, CO2-holding door, at set-point S'),
             'baseline-tuned-doorco2': ('#6b4c11', '--', 'tuned PI, CO2-holding door, at set-point S'),
         }
+        # the verdict's rule (verdict.matched): members at the discomfort ceiling are no vertices
+        ceiling = fr.saturation_ceiling([*points.values(), *family.values()], 'discomfort_pmvh')
         for law, members in laws.items():
             color, ls, label = law_style.get(law, ('#7f7f7f', ':', f'{law} at set-point S'))
-            f = fr.build_front(members)
+            f = fr.build_front(members, ceiling)
             ax.plot(f.d, f.e, ls, color=color, lw=1.2, label=label)
             for fp in f.points:
                 ax.plot([fp.discomfort], [fp.energy], 'o', ms=4, color=color, mfc=color if fp.efficient else 'none')

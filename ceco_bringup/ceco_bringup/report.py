@@ -154,7 +154,8 @@ def _check_identity(runs: Sequence[RunData], flags: Mapping[str, str | None]) ->
                 )
         if flags['strategy'] is None and rec['strategy'][0] is None:
             raise ValueError(
-                f'{r.path} records no strategy (neither metrics.json nor a bag names one): name it with --strategy'
+                f'{r.path} records no strategy (neither metrics.json, run.json nor a bag names one): name it with '
+                '--strategy'
             )
 
 
@@ -509,8 +510,10 @@ def _family_for(scenario: str, group: Mapping[str, RunData]) -> tuple[dict, str,
             except (ValueError, OSError):
                 continue
             if data.get('scenario') == scenario and _same_length(float(data.get('duration_s', -1)), duration):
-                if data.get('family'):
-                    return dict(data['family']), str(data.get('family_source', '')), str(f)
+                if data.get('family') or data.get('family_failed'):
+                    # the members that failed come back as build_verdict takes them: named, on no front
+                    failed = {k: {vd.FAILED_KEY: str(why)} for k, why in dict(data.get('family_failed') or {}).items()}
+                    return {**dict(data.get('family') or {}), **failed}, str(data.get('family_source', '')), str(f)
     return {}, '', ''
 
 
