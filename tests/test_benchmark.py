@@ -234,6 +234,17 @@ def test_summary_lines_carry_the_signed_matched_values(bench):
     doc2['cases'][0]['matched']['ceco'].update(energy_saving_pct=-3.04, dominated=True)
     (line,) = [x for x in cli.summary_lines(doc2) if x.split()[1] == 'ceco']
     assert 'energy saved at matched comfort   -3.0 % (' in line and line.endswith(', dominated')
+    # a case whose every family member is at the discomfort ceiling has no front: each scored controller is
+    # named with why (it vanished from the summary without a word)
+    doc3 = json.loads(json.dumps(doc))
+    doc3['cases'][0]['matched'] = {}
+    for pts in doc3['cases'][0]['fronts'].values():
+        for pt in pts:
+            pt['efficient'] = False
+    lines = cli.summary_lines(doc3)
+    for name in case['matched']:
+        why = "not matched: every baseline's discomfort is saturated (no family front has a vertex)"
+        assert f'{name:<32} {why}' in '\n'.join(lines), lines
 
 
 def test_baseline_constants_and_controllers():

@@ -586,6 +586,18 @@ def summary_lines(doc: dict) -> list[str]:
     ]
     for case in doc['cases']:
         aq = case.get('air_quality') or {}
+        if not case['matched']:  # no front to read them against: said, never left out without a word
+            unread = {r['controller'] for r in case['runs'] if r['status'] == 'ok' and r['kind'] in runner.SCORED_KINDS}
+            pts = [p for ps in case['fronts'].values() for p in ps or []]
+            why = (
+                "every baseline's discomfort is saturated (no family front has a vertex)"
+                if pts and not any(p['efficient'] for p in pts)
+                else 'the production-gains family has no front'
+            )
+            lines += [
+                f"  {case['case']:<18} {name:<32} not matched: {why}"
+                for name in sorted(unread - set(aq.get('broken', [])))
+            ]
         for name in aq.get('broken', []):
             lines.append(
                 f"  {case['case']:<18} {name:<32} BROKE the air-quality limits (CO2 {aq['co2_limit_ppm']:g} ppm, fog "
