@@ -63,9 +63,13 @@ __all__ = [
 SCHEMA = "ceco-benchmark/2"
 """Value of results.json's ``schema`` key."""
 
-BENCHMARK_VERSION = 2
+BENCHMARK_VERSION = 3
 """Version of the benchmark's definition (KPIs, baseline families, levels, matched-comfort method).
-2: the tuned and comfort-feedback families, the strongest family, the oracle's slots."""
+2: the tuned and comfort-feedback families, the strongest family, the oracle's slots. 3: a run or family
+member at the discomfort ceiling (PMV at the +-3 clip for the whole run) is not matched and anchors no match;
+a run's fallback steps are the plant's AcPower.fallback alone (one rejected command counted two before);
+an external controller's cells are its name, command and directory. Results of another version do not
+compare."""
 
 REQUIRED_KPIS = (
     "energy_kwh",
