@@ -10,6 +10,7 @@ import math
 import os
 
 import pytest
+from sweep_helpers import sweep_row
 
 from ceco_bringup import sweep
 from ceco_controller.closed_loop import SimSettings, simulate
@@ -444,23 +445,17 @@ def test_settings_override_changes_ceco_c_and_equals_direct_run(tmp_path):
 
 def test_dominance_pairs_every_point_with_its_groups_one_baseline(tmp_path):
     def row(scenario, strategy, settings, e, i, ez, iz):
-        return {
-            'status': 'ok',
-            'scenario': scenario,
-            'drive_cycle': 'scenario',
-            'climate': 'scenario',
-            'preview': 'perfect',
-            'occupant': 'scenario',
-            'seed': 0,
-            'strategy': strategy,
-            'settings': settings,
-            'E_tot_kWh': e,
-            'I_pmv': i,
-            'E_zone_J': ez,
-            'I_pmv_zone': iz,
-            'otc_violation_pct': 1.0,
-            'otc_violation_zone_pct': 0.0,
-        }
+        return sweep_row(
+            scenario,
+            strategy,
+            settings=settings,
+            E_tot_kWh=e,
+            I_pmv=i,
+            E_zone_J=ez,
+            I_pmv_zone=iz,
+            otc_violation_pct=1.0,
+            otc_violation_zone_pct=0.0,
+        )
 
     rows = [
         row('a', 'baseline', 'default', 1.0, 100.0, 10.0, 10.0),

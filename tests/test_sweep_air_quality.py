@@ -12,6 +12,7 @@ import math
 
 import pytest
 from scenario_cases import write_stale_sc03
+from sweep_helpers import sweep_row
 
 from ceco_bringup import sweep
 from ceco_controller.closed_loop import SimSettings, simulate
@@ -133,22 +134,9 @@ def test_the_console_names_the_points_that_broke_the_limits(swept, capsys):
 
 
 def _row(scenario, strategy, seed, e, i, met):
-    r = {
-        'status': 'ok',
-        'scenario': scenario,
-        'drive_cycle': 'scenario',
-        'climate': 'scenario',
-        'preview': 'perfect',
-        'occupant': 'scenario',
-        'seed': seed,
-        'strategy': strategy,
-        'settings': 'default',
-        'E_tot_kWh': e,
-        'I_pmv': i,
-        'E_zone_J': 1000.0 * e,
-        'I_pmv_zone': i,
-        'otc_violation_pct': 0.0,
-    }
+    r = sweep_row(
+        scenario, strategy, seed=seed, E_tot_kWh=e, I_pmv=i, E_zone_J=1000.0 * e, I_pmv_zone=i, otc_violation_pct=0.0
+    )
     if met is not None:  # None: a row of a log written before the sweep recorded air quality
         r.update(co2_limit_ppm=1500.0, fog_margin_bound_k=3.0, co2_max_ppm=1600.0 - 800.0 * met, air_quality_met=met)
     return r
