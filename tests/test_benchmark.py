@@ -221,6 +221,8 @@ def test_summary_lines_carry_the_signed_matched_values(bench):
     (case,) = doc['cases']
     assert len(lines) == len(case['matched'])
     for line, (name, m) in zip(lines, case['matched'].items(), strict=True):
+        line, _, why = line.partition('; n/a: ')  # a saving that is n/a says why, at the end
+        assert why == ('' if m['energy_saving_pct'] is not None else m['note'])
         assert line.split()[:2] == ['short', name]
         saved = line.split('energy saved at matched comfort')[1].split('(allowance')[0].strip()
         cut = line.split('discomfort cut at matched energy')[1].split(',')[0].strip()
@@ -234,6 +236,11 @@ def test_summary_lines_carry_the_signed_matched_values(bench):
     doc2['cases'][0]['matched']['ceco'].update(energy_saving_pct=-3.04, dominated=True)
     (line,) = [x for x in cli.summary_lines(doc2) if x.split()[1] == 'ceco']
     assert 'energy saved at matched comfort   -3.0 % (' in line and line.endswith(', dominated')
+    # ... and an n/a saving says why (it said only "n/a")
+    why = 'more comfortable than every efficient baseline (no extrapolation)'
+    doc2['cases'][0]['matched']['ceco'].update(energy_saving_pct=None, note=why)
+    (line,) = [x for x in cli.summary_lines(doc2) if x.split()[1] == 'ceco']
+    assert 'energy saved at matched comfort      n/a (' in line and line.endswith(f', dominated; n/a: {why}')
     # a case whose every family member is at the discomfort ceiling has no front: each scored controller is
     # named with why (it vanished from the summary without a word)
     doc3 = json.loads(json.dumps(doc))

@@ -560,8 +560,9 @@ def summary_lines(doc: dict) -> list[str]:
 
     The matched savings are signed as in results.json: positive = less energy / less discomfort than
     the production-gains front (and, in the parentheses, its allowance front, the strongest family and
-    headroom_captured when the case has an oracle front). A run with status failed or error gets a
-    line with its reason and no number.
+    headroom_captured when the case has an oracle front); where the saving is n/a, why (``note``: no
+    extrapolation, a saturated discomfort). A run with status failed or error gets a line with its reason
+    and no number.
     """
 
     def f(x):
@@ -581,6 +582,7 @@ def summary_lines(doc: dict) -> list[str]:
         f"  {case['case']:<18} {name:<32} energy saved at matched comfort {f(m['energy_saving_pct']):>8} "
         f"(allowance {f((m['allowance'] or {}).get('energy_saving_pct')):>8}{strongest(m)}), discomfort cut at "
         f"matched energy {f(m['discomfort_reduction_pct']):>8}{', dominated' if m['dominated'] else ''}"
+        + (f"; n/a: {m['note']}" if m['energy_saving_pct'] is None and m.get('note') else '')
         for case in doc['cases']
         for name, m in case['matched'].items()
     ]
