@@ -255,38 +255,29 @@ def test_a_bad_model_file_is_named_as_such_not_as_a_control_period_error(tmp_pat
     assert err.startswith(f'ceco sim: error: {bad}: ') and 'control_period_s' not in err, err
 
 
-@pytest.mark.parametrize('verb', ['sim', 'run'])
-def test_a_preview_delay_beyond_the_preview_nodes_range_is_refused_before_any_run(tmp_path, capsys, verb):
-    """--preview delayed:1e12: refused when the command line is checked, naming preview_node's range (ceco run
-    started the stack, preview_node exited on faults.delay_s out of range, and the run was reported FAILED, exit
-    status 1, in several lines)."""
-    from ceco_bringup import run, sim
-
-    main = {'sim': sim.main, 'run': run.main}[verb]
-    with pytest.raises(SystemExit) as exc:
-        main(
-            ['--scenario', 'sc03', '--strategy', 'baseline', '--preview', 'delayed:1e12', '--out', str(tmp_path / 'o')]
-        )
-    assert exc.value.code == 2
-    assert one_error_line(capsys.readouterr().err) == (
-        f"ceco {verb}: error: preview quality: delayed: 1e+12 s is outside 0..86400 s, the range of preview_node's "
-        f'faults.delay_s (ceco {verb} --help lists the options)'
-    )
-    assert not (tmp_path / 'o').exists()
+BEYOND_THE_PREVIEW_NODE = {  # a flag value the parser took and preview_node then refused (a failed run, exit 1)
+    'delay': (
+        ['--preview', 'delayed:1e12'],
+        "preview quality: delayed: 1e+12 s is outside 0..86400 s, the range of preview_node's faults.delay_s",
+    ),
+    'seed': (['--seed', '3000000000'], "argument --seed: must be a whole number in 0..2147483647, got '3000000000'"),
+}
 
 
 @pytest.mark.parametrize('verb', ['sim', 'run'])
-def test_a_seed_beyond_the_preview_nodes_range_is_refused_before_any_run(tmp_path, capsys, verb):
-    """--seed 3000000000: refused when the command line is checked (preview_node's faults.seed is a 32-bit
-    parameter: ceco run started the stack and preview_node exited, a failed run)."""
+@pytest.mark.parametrize('what', sorted(BEYOND_THE_PREVIEW_NODE))
+def test_a_value_beyond_the_preview_nodes_range_is_refused_before_any_run(tmp_path, capsys, verb, what):
+    """--preview delayed:1e12 and --seed 3000000000: refused when the command line is checked, naming preview_node's
+    range (ceco run started the stack, preview_node exited on faults.delay_s or faults.seed out of range, and the
+    run was reported FAILED, exit status 1, in several lines)."""
     from ceco_bringup import run, sim
 
+    flags, says = BEYOND_THE_PREVIEW_NODE[what]
     main = {'sim': sim.main, 'run': run.main}[verb]
     with pytest.raises(SystemExit) as exc:
-        main(['--scenario', 'sc03', '--strategy', 'baseline', '--seed', '3000000000', '--out', str(tmp_path / 'o')])
+        main(['--scenario', 'sc03', '--strategy', 'baseline', *flags, '--out', str(tmp_path / 'o')])
     assert exc.value.code == 2
-    assert one_error_line(capsys.readouterr().err) == (
-        f"ceco {verb}: error: argument --seed: must be a whole number in 0..2147483647, got '3000000000' "
-        f'(ceco {verb} --help lists the options)'
+    assert (
+        one_error_line(capsys.readouterr().err) == f'ceco {verb}: error: {says} (ceco {verb} --help lists the options)'
     )
     assert not (tmp_path / 'o').exists()
