@@ -38,6 +38,11 @@ from pathlib import Path
 from ceco_core.cli_flags import normalize_namespace
 from ceco_core.contracts import DOMAIN_ID_MAX
 
+LOG_KEEP_BYTES = 4 * 1024 * 1024
+"""Largest log a stopped child leaves [bytes]: a longer one keeps its first and last half of this, whole lines,
+with one line between them saying how much was left out (:func:`trim_log`). A controller printing 1 MB per
+control step wrote 12 MB per minute of drive, in every cell of a benchmark."""
+
 # Fast DDS participant profile: a UDPv4 transport, a short lease announcement so late
 # joiners (a restarted controller) are discovered in ~0.3 s instead of ~3 s, and Fast
 # DDS's default 20-s lease. A participant that misses its announcements for longer than the
@@ -280,16 +285,21 @@ class NodeProcess:
                 pass
 
     def stop(self, timeout_s: float = 5.0) -> int | None:
-        """SIGINT (and SIGCONT, so a stopped process handles it), wait, then SIGKILL. Returns the exit code."""
+        """SIGINT (and SIGCONT, so a stopped process handles it), wait, then SIGKILL. Returns the exit code.
+
+        The log is then trimmed to :data:`LOG_KEEP_BYTES` (:func:`trim_log`).
+        """
         if self.proc is None:
             return None
         self.signal(signal.SIGINT)
         self.signal(signal.SIGCONT)
         try:
-            return self.proc.wait(timeout=timeout_s)
+            code = self.proc.wait(timeout=timeout_s)
         except subprocess.TimeoutExpired:
             self.signal(signal.SIGKILL)
-            return self.proc.wait()
+            code = self.proc.wait()
+        trim_log(self.log_path)
+        return code
 
     def kill(self) -> None:
         """SIGKILL (fault injection)."""
@@ -548,6 +558,37 @@ def exited_message(name: str, proc: NodeProcess, when: str = '') -> str:
         if stopped:
             return f'{stopped} ({name}; log: {proc.log_path})'
     return f'{name} exited with status {proc.returncode()}{when}; log: {proc.log_path}\n' + log_tail(proc.log_text())
+
+
+def trim_log(path: Path, keep_bytes: int = LOG_KEEP_BYTES) -> int:
+    """Cut the middle out of a log longer than ``keep_bytes``; returns the bytes left out (0: unchanged).
+
+    The first and the last ``keep_bytes // 2`` bytes are kept, each cut back to whole lines, with the line
+    ``[ceco: N bytes of this log left out (longer than K bytes); its start and its end are kept]`` between
+    them: the start holds the command line and the first errors, the end the exit's reason. Written to a
+    temporary file, then renamed over the log (a reader sees the whole log or the trimmed one).
+    """
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+    except FileNotFoundError:
+        return 0
+    if size <= keep_bytes:
+        return 0
+    half = keep_bytes // 2
+    with open(path, 'rb') as f:
+        head = f.read(half)
+        f.seek(size - half - 1)  # with the byte before the last half: a newline there starts a whole line
+        tail = f.read()
+    head = head[: head.rfind(b'\n') + 1]  # '' when the first half has no newline: nothing of it is kept
+    tail = tail[tail.find(b'\n') + 1 :]  # all of it when that byte is no newline and the half holds none
+    left_out = size - len(head) - len(tail)
+    marker = f'[ceco: {left_out} bytes of this log left out (longer than {keep_bytes} bytes); '
+    marker += 'its start and its end are kept]'
+    tmp = path.with_name(path.name + '.trim')
+    tmp.write_bytes(head + marker.encode() + b'\n' + tail)
+    os.replace(tmp, path)
+    return left_out
 
 
 def log_tail(text: str, n: int = 15) -> str:

@@ -91,3 +91,36 @@ def test_children_get_a_parent_death_signal_without_preexec_fn(tmp_path, monkeyp
     proc = supervisor.NodeProcess('p', 'ceco_v2x_preview', 'preview_node', env={}, log_dir=tmp_path)
     proc.start()
     assert started == [prefix + proc.cmd] and proc.proc.wait(timeout=30) == 0 and proc.starts == 1
+
+
+def test_a_long_log_keeps_its_start_and_end_whole_lines_and_says_how_much_was_left_out(tmp_path):
+    log = tmp_path / 'c.log'
+    lines = [f'line {i:05d} ' + 'x' * 40 + '\n' for i in range(1000)]  # 52 bytes each
+    log.write_text(''.join(lines))
+    size = log.stat().st_size
+    assert supervisor.trim_log(log, keep_bytes=size) == 0 and log.stat().st_size == size  # not longer: untouched
+    left_out = supervisor.trim_log(log, keep_bytes=1040)  # 520 bytes each side: 10 whole lines of 52
+    out = log.read_text().splitlines(keepends=True)
+    assert out[:10] == lines[:10] and out[-10:] == lines[-10:] and len(out) == 21
+    assert left_out == size - 20 * 52 == 50960
+    said = '[ceco: 50960 bytes of this log left out (longer than 1040 bytes); its start and its end are kept]\n'
+    assert out[10] == said
+    assert supervisor.trim_log(tmp_path / 'missing.log') == 0
+
+
+def test_a_stopped_child_that_wrote_more_than_the_cap_leaves_a_bounded_log(tmp_path):
+    """A controller that prints 10 MB: its log after stop() is LOG_KEEP_BYTES plus one line, start and end kept."""
+    import sys
+
+    script = "import sys\nfor i in range(100000): sys.stdout.write(f'{i:07d} ' + 'y' * 92 + '\\n')\nprint('the end')\n"
+    command = [sys.executable, '-c', script]
+    proc = supervisor.NodeProcess('chatty', None, None, env={}, log_dir=tmp_path, command=command)
+    proc.start()
+    assert proc.proc.wait(timeout=60) == 0
+    assert proc.log_path.stat().st_size > 10_000_000  # written whole while it runs
+    assert proc.stop() == 0
+    text = proc.log_text()
+    assert supervisor.LOG_KEEP_BYTES - 200 <= len(text.encode()) <= supervisor.LOG_KEEP_BYTES + 200
+    assert text.startswith('--- start 1: ') and '\n0000000 ' in text
+    assert text.endswith('0099999 ' + 'y' * 92 + '\nthe end\n')
+    assert text.count('bytes of this log left out') == 1
