@@ -143,7 +143,7 @@ def _cli(*args, **kw):
 
 
 # ----------------------------------------------------------------------------
-def test_short_closed_loop_over_dds_matches_simulator(tmp_path):
+def test_short_closed_loop_over_dds_matches_simulator(tmp_path, capsys):
     """`ceco run` on 60 s of SC03 with ceco-ioch: the cabin cools, every command
     is inside the actuator bounds, one command per control step and one state
     per plant step in the bag, and the metrics equal the in-process simulator's."""
@@ -218,6 +218,16 @@ def test_short_closed_loop_over_dds_matches_simulator(tmp_path):
     run = json.loads((out / 'run.json').read_text())
     assert run['status'] == 'complete' and run['command'].startswith('ceco run --scenario sc03 --strategy ceco-ioch')
     assert (out / 'scenario.yaml').is_file() and 'Verdict on sc03' in (out / 'summary.txt').read_text()
+
+    # compare_sim (README) on the job's directory finds the run in it and equals the simulator; a file is refused
+    from ceco_bringup import compare_sim
+
+    capsys.readouterr()
+    assert compare_sim.main([str(tmp_path)]) == 0
+    said = capsys.readouterr().out
+    assert said.startswith(f'{out} (ceco-ioch, sc03, 60 s):') and 'OK: every DDS run equals the simulator' in said
+    assert compare_sim.main([str(out), str(out / 'comparison.csv')]) == 2
+    assert capsys.readouterr().err == f'compare_sim: {out / "comparison.csv"}: not a directory\n'
 
     # the recorded drive fed to a fresh mpc_node (ceco play --compare) gives the same commands
     p = _cli('play', str(bag), '--compare', '--domain-id', str(_domain()), '--no-progress')

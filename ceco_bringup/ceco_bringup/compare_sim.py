@@ -2,12 +2,15 @@
 
     python -m ceco_bringup.compare_sim DIR [DIR ...] [--rtol 1e-6]
 
-For each run directory written by `ceco run` (metrics.json + bag/), re-runs
+DIR is a run directory or a job directory of `ceco run` (its runs are its subdirectories:
+``ceco_bringup.rundata.discover_runs``). For each run written by `ceco run` (metrics.json + bag/), re-runs
 `ceco_controller.closed_loop.simulate` with the same scenario, strategy,
 Ts, Np, preview quality and duration, recomputes the metrics from the bag
 alone, and prints the relative difference of every numeric metric and
 the bag's message counts per step. Exit status 1 if any metric differs by
-more than --rtol or a step has not exactly one state / one command.
+more than --rtol, a step has not exactly one state / one command, or a run
+failed (it is named with its reason: a run whose controller did not control
+has nothing to compare); 2 for a DIR that holds no run.
 """
 
 from __future__ import annotations
@@ -116,8 +119,24 @@ def main(argv=None) -> int:
     p.add_argument('run_dirs', nargs='+', type=Path)
     p.add_argument('--rtol', type=float, default=1e-6)
     args = p.parse_args(argv)
+    from ceco_bringup import bagrun, rundata
+
+    try:
+        runs = rundata.discover_runs(args.run_dirs)
+    except ValueError as err:
+        print(f'compare_sim: {err}', file=sys.stderr)
+        return 2
     all_ok = True
-    for d in args.run_dirs:
+    for d in runs:
+        why = rundata.failed_reason(d)
+        if why is not None:
+            print(f'{d}: FAILED run, not compared: {why}')
+            all_ok = False
+            continue
+        if not (d / 'metrics.json').is_file() or bagrun.bag_dir_of(d) is None:
+            print(f'{d}: not compared: a `ceco run` directory holds metrics.json and its bag in bag/')
+            all_ok = False
+            continue
         ok, text = check(d, args.rtol)
         print(text)
         all_ok &= ok
