@@ -1,12 +1,14 @@
 #!/usr/bin/env python3
-"""Markdown tables for docs/results.md from a ``ceco benchmark`` results file (``ceco-benchmark/1``).
+"""Markdown tables for docs/results.md from a ``ceco benchmark`` results file (``ceco-benchmark/1`` or ``/2``).
 
 Usage (repository root)::
 
     ceco benchmark --out runs/bench --workers 2
     python tools/benchmark_summary.py runs/bench/results.json > /tmp/summary.md
 
-Everything printed is read from results.json or computed from its numbers here:
+Everything printed is read from results.json or computed from its numbers here, for every scored
+controller the file holds (every name in a case's ``matched`` that is not a baseline: the paper's four
+strategies first, then ceco-pmv, its twins and any external controller, in the file's order):
 
 * the matched-comfort table of every case (plain and allowance fronts; seed mean, [min, max] over seeds);
 * the KPIs of the strategies and of the baselines nearest to them (seed mean, [min, max]);
@@ -30,10 +32,29 @@ import json
 import math
 import sys
 
-STRATEGIES = ('ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
+PAPER_STRATEGIES = ('ceco', 'ceco-e', 'ceco-c', 'ceco-ioch')
+"""The paper's four strategies: listed first, in this order, when the file has them."""
 COMPENSATED = ('baseline-compensated', 'baseline-compensated-allowance')
 PAPER = {'ceco-e': -15.9, 'ceco-c': -4.1, 'ceco-ioch': -7.6}
 """The paper's energy changes against its baseline [%] (Wang et al., DSCC 2019: CECO-E, CECO-C, CECO-IOCH)."""
+
+
+def scored_controllers(doc) -> tuple:
+    """The scored controllers of ``doc``: every non-baseline name in a case's ``matched``.
+
+    The paper's four strategies first (those present), then the others in the order of the file's
+    ``settings.strategies`` and of their first appearance in the cases' ``matched``.
+    """
+    seen = list(doc.get('settings', {}).get('strategies') or [])
+    for case in doc['cases']:
+        seen += list(case.get('matched', {}))
+    found = []
+    for name in seen:
+        if name in found or name.startswith('baseline'):
+            continue
+        if any(name in case.get('matched', {}) for case in doc['cases']):
+            found.append(name)
+    return tuple(n for n in PAPER_STRATEGIES if n in found) + tuple(n for n in found if n not in PAPER_STRATEGIES)
 
 
 def fmt(v, spec='+.1f', na='n/a'):
@@ -87,7 +108,7 @@ def mean_kpi(runs, key):
 
 
 def matched_table(doc):
-    """The headline: every case, the four strategies and the two compensated laws."""
+    """The headline: every case, the scored controllers and the two compensated laws."""
     lines = [
         '| case | controller | ΔE at matched comfort, plain [%] | ΔD at matched energy, plain [%] | '
         'dominated, plain | ΔE at matched comfort, allowance [%] | ΔD at matched energy, allowance [%] | '
@@ -95,7 +116,7 @@ def matched_table(doc):
         '|---|---|---|---|---|---|---|---|---|',
     ]
     for case in doc['cases']:
-        for name in STRATEGIES + COMPENSATED:
+        for name in scored_controllers(doc) + COMPENSATED:
             m = case['matched'].get(name)
             if m is None:
                 continue
@@ -130,7 +151,7 @@ def headline_table(doc):
     """Strategies x cases: ΔE at matched comfort against the stronger front (mean over seeds)."""
     cases = [c['case'] for c in doc['cases']]
     lines = ['| strategy | ' + ' | '.join(cases) + ' |', '|---|' + '---|' * len(cases)]
-    for name in STRATEGIES + COMPENSATED:
+    for name in scored_controllers(doc) + COMPENSATED:
         cells = []
         for case in doc['cases']:
             m = case['matched'].get(name)
@@ -149,8 +170,8 @@ def front_text(case, family):
     return ', '.join(f"{p['controller'].split('@')[1]} ({p['discomfort']:.4f} / {p['energy']:.4f})" for p in pts)
 
 
-def kpi_table(case):
-    """KPIs of the strategies, the compensated laws and a few family members."""
+def kpi_table(case, names=PAPER_STRATEGIES):
+    """KPIs of the scored controllers ``names``, the compensated laws and a few family members."""
     by = runs_by(case)
     keys = [
         ('energy_kwh', '.4f'),
@@ -172,7 +193,7 @@ def kpi_table(case):
     lines = [head, '|' + '---|' * 13]
     fam = sorted((n for n in by if n.startswith('baseline@')), key=lambda n: float(n.split('@')[1]))
     show = [n for n in fam if float(n.split('@')[1]) in (22.0, 23.0, 24.0, 25.0, 26.0, 27.0)]
-    for name in show + list(COMPENSATED) + list(STRATEGIES):
+    for name in show + list(COMPENSATED) + list(names):
         if name not in by:
             continue
         rs = by[name]
@@ -212,7 +233,7 @@ def band_pmv_table(doc):
     ]
     for case in doc['cases']:
         by = runs_by(case)
-        for name in STRATEGIES + COMPENSATED:
+        for name in scored_controllers(doc) + COMPENSATED:
             if name not in by:
                 continue
             p, _ = mean_kpi(by[name], 'pmv_mean_band')
@@ -235,7 +256,9 @@ def axis_table(doc):
         '|---|---|' + '---|' * len(axes),
     ]
     for case in doc['cases']:
-        for name in STRATEGIES:
+        for name in scored_controllers(doc):
+            if name not in case['matched']:
+                continue
             cells = []
             for a in axes:
                 m = case.get('matched_by_axis', {}).get(a, {}).get(name)
@@ -265,7 +288,9 @@ def paper_table(doc):
         'ΔE at matched comfort, plain | ΔE at matched comfort, allowance |',
         '|---|---|---|---|---|---|',
     ]
-    for name in STRATEGIES:
+    for name in scored_controllers(doc):
+        if name not in by or name not in case['matched']:
+            continue
         e = by[name][0]['kpis']['energy_paper_kwh']
         i = by[name][0]['kpis']['i_pmv']
         m = case['matched'][name]
@@ -302,7 +327,7 @@ def sensitivity_tables(doc):
         sens = case.get('sensitivity')
         if not sens:
             continue
-        names = [n for n in STRATEGIES + COMPENSATED if n in case['matched']]
+        names = [n for n in scored_controllers(doc) + COMPENSATED if n in case['matched']]
         lines = [
             f"Sensitivity on {case['case']} (energy saving at matched comfort, plain front, low / high end "
             '[%]; nominal: ' + ', '.join(f"{n} {fmt(case['matched'][n]['energy_saving_pct'])}" for n in names) + ')',
@@ -343,7 +368,7 @@ def timing_table(doc, log_lines=()):
         '| controller | runs | t_c/Ts mean (mean over runs) | t_c/Ts max (max over runs) | step time mean / max [ms] |',
         '|---|---|---|---|---|',
     ]
-    for name in STRATEGIES:
+    for name in scored_controllers(doc):
         means, maxes, ts = [], [], []
         for case in doc['cases']:
             for r in runs_by(case).get(name, []):
@@ -395,7 +420,7 @@ def main(argv=None) -> int:
     print(timing_table(doc, log.read_text(encoding='utf-8').splitlines() if log.exists() else ()))
     for case in doc['cases']:
         print(f"\n## KPIs {case['case']} ({case['forecast_uncertainty']}, seeds {case['seeds']})\n")
-        print(kpi_table(case))
+        print(kpi_table(case, scored_controllers(doc)))
     return 0
 
 
