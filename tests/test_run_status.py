@@ -34,6 +34,10 @@ STARVED_SOLVER = {'step_budget_s': 0.00001, 'step_reserve_s': 0.000005}
         (6, 2, True),  # a 30-s real-time run: its key-on
         (20, 3, False),
         (4, 4, False),  # a 20-s run that never controlled
+        (1, 1, False),  # a 5-s run whose one step was the fallback's: within the key-on allowance, never its own
+        (2, 2, False),
+        (2, 1, True),
+        (1, 0, True),
         (0, 0, False),
     ],
 )

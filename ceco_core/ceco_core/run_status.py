@@ -8,7 +8,9 @@ applied for it came from the controller's own fallback chain (``AcCommand.fallba
 benchmark KPI ``fallback_steps`` counts the same steps.
 
 A run with more fallback steps than :data:`MAX_FALLBACK_SHARE` of its control steps (and more than
-:data:`KEY_ON_FALLBACK_STEPS`) is **failed**:
+:data:`KEY_ON_FALLBACK_STEPS`), or with no control step of the controller's own (every step a fallback
+step, however short the run: the key-on allowance never makes a run whose controller never acted a
+result), is **failed**:
 ``ceco run`` and ``ceco sim`` mark it in metrics.json (``status``, ``status_reason``) and exit 1,
 ``ceco benchmark`` keeps its KPIs with ``status: failed`` and never matches it against the baselines
 (docs/benchmark.md, "Failed runs"). A controller that only publishes NaN, out-of-range or late
@@ -81,8 +83,8 @@ class ControlCheck:
 
     @property
     def ok(self) -> bool:
-        """True when the controller controlled the run (at least one control step, fallbacks within :attr:`allowed`)."""
-        return self.n_control_steps > 0 and self.n_fallback_steps <= self.allowed
+        """True when the controller controlled the run: fallbacks within :attr:`allowed`, at least one step its own."""
+        return self.n_fallback_steps <= self.allowed and self.n_fallback_steps < self.n_control_steps
 
     @property
     def status(self) -> str:
@@ -96,6 +98,12 @@ class ControlCheck:
             return ''
         if not self.n_control_steps:
             return 'the run has no control step'
+        if self.n_fallback_steps == self.n_control_steps:
+            return (
+                f'the controller did not control the run: {self.n_fallback_steps} of {self.n_control_steps} '
+                'control steps in fallback (none was its own; the production ACC law or the controller\'s '
+                'fallback drove them all)'
+            )
         return (
             f'the controller did not control the run: {self.n_fallback_steps} of {self.n_control_steps} '
             f'control steps in fallback ({100.0 * self.share:.1f} %; at most {self.allowed} allowed: '
