@@ -332,3 +332,35 @@ def test_uncertainty_level_over_dds_equals_the_simulator(tmp_path):
     )  # the level does change the previews
     for key in ('E_tot_J', 'I_pmv', 'otc_violation_pct'):
         assert metrics[key] == sim[key], key
+
+
+def test_two_workers_run_their_external_cells_on_two_private_domains_whatever_the_users_domain(tmp_path, monkeypatch):
+    """The docs promise each external cell a private ROS_DOMAIN_ID: with the user's ROS_DOMAIN_ID set, every worker
+    used it, so two cells run at once shared one domain. Now each takes a private id no other ceco process holds."""
+    import json
+
+    from ceco_bringup.benchmark import cli
+
+    case = tmp_path / 'c20.yaml'
+    case.write_text(
+        'schema: ceco-benchmark-case/1\nname: c20\nversion: 1\nscenario: sc03\nduration_s: 20\n'
+        'forecast_uncertainty: low\nseeds: [0, 1, 2, 3, 4]\n'
+    )
+    monkeypatch.setenv('ROS_DOMAIN_ID', '0')
+    doc = cli.run_benchmark(
+        [str(case)],
+        tmp_path / 'out',
+        workers=2,
+        progress=False,
+        log=lambda *a, **k: None,
+        setpoints_c=(26.0,),
+        setpoints_pmv=(0.0,),
+        sensitivity=False,
+        strategies=(),
+        controller_cmd=f'{sys.executable} {NODE}',
+        controller_name='pi',
+    )
+    runs = [r for r in doc['cases'][0]['runs'] if r['kind'] == 'external']
+    assert sorted(r['seed'] for r in runs) == [0, 1, 2, 3, 4] and all(r['status'] == 'ok' for r in runs), runs
+    domains = [json.loads(m.read_text())['ros_domain_id'] for m in (tmp_path / 'out').rglob('metrics.json')]
+    assert len(domains) == 5 and 0 not in domains and len(set(domains)) >= 2, domains  # (the two workers' own)

@@ -89,13 +89,49 @@ def pick_domain_id() -> int:
     return 1 + (os.getpid() * 7919 + int(time.time())) % 100
 
 
+_RESERVED: list = []
+"""The open lock file of the private domain this process holds (:func:`reserve_domain_id`), or nothing."""
+
+
+def reserve_domain_id(first: int) -> int:
+    """A private ROS_DOMAIN_ID in 1..101 that no other ceco process holds, from ``first`` on, held until the next call.
+
+    Two `ceco run`s, or two workers of `ceco benchmark --controller-cmd`, started at once picked their private
+    domain from their pids and the time, so two stacks could share one (1 in 100 per pair) and hear each
+    other. Each private domain now has a lock file (``<tmp>/ceco_domain_<id>.lock``, ``flock``): the first
+    id from ``first`` (wrapping over 1..101) whose lock this process gets is returned and held; the lock
+    goes when this process calls again (its runs are sequential) or exits, however it ends. When every id
+    is held, ``first`` is returned as it is (the pid spread then decides, as before).
+    """
+    import fcntl
+
+    for f in _RESERVED:
+        f.close()
+    _RESERVED.clear()
+    for k in range(101):
+        d = 1 + (first - 1 + k) % 101
+        try:
+            f = open(Path(tempfile.gettempdir()) / f'ceco_domain_{d}.lock', 'a')
+        except OSError:  # another user's lock file: taken
+            continue
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            f.close()
+            continue
+        _RESERVED.append(f)
+        return d
+    return first
+
+
 def resolve_domain_id(explicit: int | None = None, index: int = 0, environ=None) -> tuple[int, bool]:
     """The ROS_DOMAIN_ID of run number `index` of one `ceco run`, and whether the user chose it.
 
     `explicit` (the --domain-id flag) first, then the user's ROS_DOMAIN_ID
     (non-empty), used as is for every run (the runs are sequential; each
     stops its nodes before the next starts); otherwise a private id per run,
-    `pick_domain_id() + index` folded into 1..101. Raises ValueError for an
+    `pick_domain_id() + index` folded into 1..101, or the next one no other
+    ceco process holds (:func:`reserve_domain_id`). Raises ValueError for an
     id that is not an integer in 0..DOMAIN_ID_MAX.
     """
     environ = os.environ if environ is None else environ
@@ -107,7 +143,7 @@ def resolve_domain_id(explicit: int | None = None, index: int = 0, environ=None)
             raise ValueError(f'ROS_DOMAIN_ID={text!r}: must be an integer in 0..{DOMAIN_ID_MAX}')
         chosen, source = int(text), 'ROS_DOMAIN_ID'
     else:
-        return 1 + (pick_domain_id() + index - 1) % 101, False
+        return reserve_domain_id(1 + (pick_domain_id() + index - 1) % 101), False
     if not 0 <= chosen <= DOMAIN_ID_MAX:
         raise ValueError(f'{source}={chosen}: must be an integer in 0..{DOMAIN_ID_MAX}')
     return chosen, True

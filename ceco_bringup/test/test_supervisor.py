@@ -124,3 +124,23 @@ def test_a_stopped_child_that_wrote_more_than_the_cap_leaves_a_bounded_log(tmp_p
     assert text.startswith('--- start 1: ') and '\n0000000 ' in text
     assert text.endswith('0099999 ' + 'y' * 92 + '\nthe end\n')
     assert text.count('bytes of this log left out') == 1
+
+
+def test_a_private_domain_held_by_another_ceco_process_is_never_given_twice(monkeypatch):
+    """Two `ceco run`s (or two benchmark workers) started at once: the second gets the next free id, from the first
+    one's lock; when the first process is gone (killed: the kernel drops its lock) its id is free again."""
+    import subprocess
+    import sys
+
+    code = 'from ceco_bringup import supervisor; print(supervisor.reserve_domain_id(77), flush=True); input()'
+    other = subprocess.Popen([sys.executable, '-c', code], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert other.stdout.readline().strip() == '77'
+        assert supervisor.reserve_domain_id(77) == 78  # held by the other process: the next one
+        monkeypatch.setenv('CECO_DOMAIN_ID', '77')
+        assert supervisor.resolve_domain_id(None, 0, {}) == (78, False)  # a private run of `ceco run` too
+        assert supervisor.reserve_domain_id(78) == 78  # this process's own earlier id was let go at its next call
+    finally:
+        other.kill()
+        other.wait(timeout=30)
+    assert supervisor.reserve_domain_id(77) == 77  # the killed process's lock is gone with it

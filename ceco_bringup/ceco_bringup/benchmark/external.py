@@ -161,9 +161,11 @@ def run_external_cell(
         if spec['seed'] is not None:
             quality = dataclasses.replace(quality, seed=int(spec['seed']))
         ts, n_p = scenario.control.timing(spec['control_period_s'], spec['horizon_steps'])
-        # `ceco run`'s own defaults (bag storage, ...), then what this run sets
+        # `ceco run`'s own defaults (bag storage, ...), then what this run sets: a private domain always (never the
+        # user's ROS_DOMAIN_ID, which every worker would share), one no other ceco process holds
         args = run.build_parser().parse_args(['--out', str(run_dir), '--no-progress'])
         for key, value in dict(
+            domain_id=supervisor.reserve_domain_id(supervisor.pick_domain_id()),
             scenario=str(scenario_path),
             timing='lockstep',
             control_period_s=ts,
