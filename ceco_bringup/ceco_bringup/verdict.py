@@ -47,7 +47,7 @@ from ceco_bringup.benchmark.schema import DOOR_CO2_HOLD, door_family
 from ceco_bringup.report_html import fmt_value
 from ceco_core.air_quality import AirQualityLimits
 from ceco_core.kpis import AIR_QUALITY_KEYS, air_limit_entries, breaks_air_quality
-from ceco_core.metrics import ENERGY_PARTS, relative_change_pct
+from ceco_core.metrics import COMFORT_HOLD_S, ENERGY_PARTS, relative_change_pct
 
 __all__ = [
     'FAMILY_SETPOINTS_C',
@@ -133,11 +133,25 @@ POINT_KEYS = (
 )
 
 
+AFTER_COMFORT_KEYS = ('pmv_out_after_comfort_s', 'pmv_left_band_s')
+"""Keys of :func:`run_point` on the PMV after ``time_to_comfort_s`` [s]: the time outside -0.5..+0.5 from then to the
+end, and the start (since the run's start) of the stretch outside it the run ends in (None when the run ends inside).
+Both None when the PMV never stayed in the band for 60 s. Absent from an older ``verdict.json``."""
+
+ISO_INVALID_SAY_PCT = 10.0
+"""A run whose PMV is outside ISO 7730's validity (``iso7730_invalid_pct``: a PMV input or the PMV outside the
+standard's Clause 4 ranges) for more than this share of its samples is said to be so in the verdict lines [%]. One
+sample in ten: below it the samples outside (the first seconds of a pull-down, a short excursion) weigh little in the
+numbers the verdict quotes; above it the discomfort, the time in the band or the end PMV rest on PMV values the
+standard does not cover (SC03's hot start: 27 %; a met of 0.01: every sample)."""
+
+
 def run_point(columns: Mapping, air_limits: AirQualityLimits | None = None) -> dict:
     """A run's point in the plane and what the verdict says about it.
 
     :data:`POINT_KEYS` of ``compute_kpis`` plus ``pmv_end`` (mean PMV over the last
-    :data:`END_WINDOW_S`), ``pmv_max_clipped`` (max PMV on the +-3 scale) and ``duration_s``.
+    :data:`END_WINDOW_S`; the whole run when it is shorter), ``pmv_max_clipped`` (max PMV on the +-3 scale),
+    ``duration_s`` and :data:`AFTER_COMFORT_KEYS`.
     The air-quality KPIs are scored against ``air_limits`` (the scenario's); None: not scored (limits unknown).
     """
     from ceco_core.kpis import compute_kpis
@@ -153,7 +167,27 @@ def run_point(columns: Mapping, air_limits: AirQualityLimits | None = None) -> d
     out['pmv_end'] = float(np.mean(y[end]))
     out['pmv_max_clipped'] = float(min(np.max(y), PMV_SCALE_LIMIT))
     out['duration_s'] = float(k['duration_s'])
+    out.update(_after_comfort(t, y, k['time_to_comfort_s']))
     return out
+
+
+def _after_comfort(t: np.ndarray, y: np.ndarray, ttc: float | None) -> dict:
+    """Where the PMV ``y`` went after ``time_to_comfort_s`` ``ttc``: :data:`AFTER_COMFORT_KEYS` (None when ``ttc`` is).
+
+    Outside the band = the discomfort KPI's test (``ceco_core.kpis.pmv_band_distance`` > 0, the band
+    ``COMFORT_BAND_PMV``, -0.5..+0.5, that ``time_to_comfort_s`` and ``discomfort_pmvh`` use).
+    """
+    from ceco_core.kpis import COMFORT_BAND_PMV, pmv_band_distance
+
+    if ttc is None or not math.isfinite(float(ttc)):
+        return dict.fromkeys(AFTER_COMFORT_KEYS)
+    dt = float(t[1] - t[0])
+    i0 = int(np.argmin(np.abs(t - t[0] - float(ttc))))  # the sample time_to_comfort_s names
+    outside = pmv_band_distance(y[i0:], COMFORT_BAND_PMV) > 0.0
+    left = None
+    if outside[-1]:  # the run ends outside: from the sample after its last one inside
+        left = float(t[i0 + int(np.flatnonzero(~outside)[-1]) + 1] - t[0])
+    return {'pmv_out_after_comfort_s': float(np.count_nonzero(outside) * dt), 'pmv_left_band_s': left}
 
 
 def family_law(member: str) -> str:
@@ -403,7 +437,7 @@ def _pct(x) -> str:
 def _matched_words(m: Mapping, is_baseline: bool = False) -> str:
     s = m.get('energy_saving_pct')
     if is_baseline and s is not None:
-        return f'on the front ({s:+.2f} % against it: the family holds this same law)'
+        return f"on the front ({_signed(s, '+.2f')} % against it: the family holds this same law)"
     if s is None:
         note = m.get('note', '')
         if 'more comfortable' in note:
@@ -412,7 +446,7 @@ def _matched_words(m: Mapping, is_baseline: bool = False) -> str:
             return 'less comfortable than every set-point: no matched value'
         return f'no matched value ({note or "the front is degenerate"})'
     if abs(s) < RESOLUTION_PCT:
-        words = f'same energy as the set-point family at matched comfort ({s:+.1f} %, under {RESOLUTION_PCT:g} %)'
+        words = f'same energy as the set-point family at matched comfort ({_signed(s)} %, under {RESOLUTION_PCT:g} %)'
     elif s >= 0:
         words = f'saves {_pct(s)} energy at matched comfort'
     else:
@@ -420,10 +454,30 @@ def _matched_words(m: Mapping, is_baseline: bool = False) -> str:
     return words + (' (dominated by a set-point)' if m.get('dominated') and abs(s) >= RESOLUTION_PCT else '')
 
 
+def _signed(x: float, spec: str = '+.1f') -> str:
+    """``x`` formatted with ``spec`` (a signed format); a value that rounds to zero as ``+0.0`` (never ``-0.0``)."""
+    text = format(x, spec)
+    return format(0.0, spec) if float(text) == 0.0 else text
+
+
 def _band_words(p: Mapping) -> str:
-    if p.get('time_to_comfort_s') is None or not math.isfinite(float(p['time_to_comfort_s'])):
-        return f"never stayed in -0.5..+0.5 (PMV {p['pmv_end']:+.2f} over the last minute)"
-    return f"in -0.5..+0.5 from {p['time_to_comfort_s']:.0f} s on (PMV {p['pmv_end']:+.2f} at the end)"
+    """Whether and when the PMV came to -0.5..+0.5 and whether it stayed there (:data:`AFTER_COMFORT_KEYS`)."""
+    ttc = p.get('time_to_comfort_s')
+    if ttc is None or not math.isfinite(float(ttc)):
+        dur = p.get('duration_s')
+        span = 'over the run' if dur is not None and float(dur) <= END_WINDOW_S else 'over the last minute'
+        return f"never stayed in -0.5..+0.5 (PMV {p['pmv_end']:+.2f} {span})"
+    end = f"(PMV {p['pmv_end']:+.2f} at the end)"
+    out_s, left = p.get('pmv_out_after_comfort_s'), p.get('pmv_left_band_s')
+    if 'pmv_out_after_comfort_s' not in p:  # an older verdict.json: whether it stayed was not recorded
+        return f'in -0.5..+0.5 for {COMFORT_HOLD_S:g} s from {ttc:.0f} s {end}'
+    if not out_s:  # never out again
+        return f'in -0.5..+0.5 from {ttc:.0f} s on {end}'
+    if left is not None and math.isclose(out_s, p['duration_s'] - left, abs_tol=1e-6):  # in until it left for good
+        return f'in -0.5..+0.5 from {ttc:.0f} s to {left:.0f} s {end}'
+    last = f', from {left:.0f} s to the end' if left is not None else ''
+    after = f"out of it {out_s:.0f} of the {p['duration_s'] - ttc:.0f} s after{last}"
+    return f'in -0.5..+0.5 from {ttc:.0f} s, {after} {end}'
 
 
 def _broke_words(p: Mapping, limits: Mapping) -> str:
@@ -435,6 +489,31 @@ def _broke_words(p: Mapping, limits: Mapping) -> str:
         f"{fmt_value(p.get('co2_above_limit_pct'), '.1f')} % of the time; fog margin below {fog_lim} K {fog_s} s:"
         ' not matched, no saving'
     )
+
+
+def _iso_line(v: Verdict) -> str:
+    """The runs whose PMV is outside ISO 7730's validity too often (:func:`_iso_out`) and how often; '' when none."""
+    done = {n: p for n, p in v.points.items() if n not in v.partial}
+    out = {n: float(p['iso7730_invalid_pct']) for n, p in done.items() if _iso_out(p)}
+    if not out:
+        return ''
+    if len(out) == len(done) and len(done) > 1:
+        lo, hi = f'{min(out.values()):.1f}', f'{max(out.values()):.1f}'
+        where = f"{lo if lo == hi else f'{lo}-{hi}'} % of the samples of every run"
+    else:
+        where = ', '.join(f'{x:.1f} % of the samples of {n}' for n, x in out.items())
+    every = all(x >= 100.0 for x in out.values())  # then no PMV number of theirs is inside it
+    what = 'every PMV number of theirs above is' if every else 'their PMV numbers above drawn from those samples are'
+    return (
+        "ISO 7730: the PMV is outside the standard's validity (a PMV input or the PMV outside its Clause 4"
+        f' ranges) in {where}, more than {ISO_INVALID_SAY_PCT:g} %: {what} outside it.'
+    )
+
+
+def _iso_out(p: Mapping) -> bool:
+    """Whether the PMV of the run ``p`` is outside ISO 7730's validity for more than :data:`ISO_INVALID_SAY_PCT`."""
+    x = p.get('iso7730_invalid_pct')
+    return x is not None and math.isfinite(float(x)) and float(x) > ISO_INVALID_SAY_PCT
 
 
 def _air_line(v: Verdict) -> str:
@@ -497,7 +576,7 @@ def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
             door = moves_door(name)
             prod = v.matched_by_law.get('baseline' + (_DOOR_SUFFIX if door else ''), {}).get(name, {})
             if prod.get('energy_saving_pct') is not None and not single:
-                words += f"; {prod['energy_saving_pct']:+.1f} % against the production law alone"
+                words += f"; {_signed(prod['energy_saving_pct'])} % against the production law alone"
             if door:
                 words += ' (the laws with the CO2-holding door)'
             lines.append(f"  {'':<{width}} {words}")
@@ -505,6 +584,9 @@ def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
             lines.append(f"  {'':<{width}} no matched value: the family has no law with the door it moves")
     for name, why in v.failed.items():
         lines.append(f'  {name:<{width}} FAILED ({reason_line(why)}), not compared')
+    iso = _iso_line(v)
+    if iso:
+        lines.append(iso)
     lines.append(_air_line(v))
     if v.family:
         sps = sorted({float(n.split('@')[1]) for n in v.family})
@@ -537,7 +619,7 @@ def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
             else:
                 lines.append(
                     f'Headline: no strategy saves {RESOLUTION_PCT:g} % or more at matched comfort '
-                    f'(best: {best}, {s:+.1f} %).'
+                    f'(best: {best}, {_signed(s)} %).'
                 )
     elif v.family_failed:
         lines.append(f'Matched comfort: not computed: {_family_failed_words(v)}.')
@@ -549,11 +631,30 @@ def verdict_lines(v: Verdict, *, pointer: str = '') -> list[str]:
         if de and dd:
 
             def span(xs):
-                return f'{xs[0]:+.1f} %' if len(xs) == 1 else f'{min(xs):+.1f}..{max(xs):+.1f} %'
+                lo, hi = _signed(min(xs)), _signed(max(xs))
+                return f'{lo} %' if lo == hi else f'{lo}..{hi} %'
 
+            # the same discomfort (every change rounds to +0.0 %, none undefined): then no different comfort, unless
+            # it is the same because the PMV sat at the +-3 clip the whole run (the discomfort's ceiling)
+            same = all(abs(c['discomfort_change_pct']) < 0.05 for c in v.changes.values())
+            clipped = same and _at_ceiling(v.points[v.baseline])
             lines.append(f'Against the {v.baseline} run alone the energy changes by {span(de)} and the discomfort')
-            lines.append(f'  by {span(dd)} (+ = more): a comparison at different comfort, not a saving.')
+            if clipped:
+                close = "the same discomfort only because every run's PMV sat at the +-3 clip: not a saving."
+            elif same:
+                close = 'the same discomfort, so a comparison at the same comfort.'
+            else:
+                close = 'a comparison at different comfort, not a saving.'
+            lines.append(f'  by {span(dd)} (+ = more): {close}')
     return _wrapped(lines)
+
+
+def _at_ceiling(p: Mapping) -> bool:
+    """Whether the run ``p``'s discomfort is at its ceiling (PMV at the +-3 clip throughout), as the fronts test it."""
+    from ceco_bringup.benchmark import front
+
+    ceiling = front.saturation_ceiling([p], DISCOMFORT_KEY)
+    return ceiling is not None and float(p[DISCOMFORT_KEY]) >= ceiling * (1.0 - front.REL_TOL)
 
 
 def reason_line(text: str) -> str:
@@ -581,7 +682,9 @@ def _wrapped(lines: Sequence[str], width: int = 100) -> list[str]:
             out.append(line)
             continue
         lead = line[: len(line) - len(line.lstrip())]
-        out += textwrap.wrap(line, width, subsequent_indent=lead + '    ', break_long_words=False)
+        out += textwrap.wrap(
+            line, width, subsequent_indent=lead + '    ', break_long_words=False, break_on_hyphens=False
+        )
     return out
 
 
