@@ -172,6 +172,43 @@ def test_a_controller_file_np_or_ts_the_run_would_ignore_is_refused(tmp_path):
     assert load_strategy_settings("ceco", horizon_steps=9).horizon_steps == 9
 
 
+@pytest.mark.parametrize(
+    ("edit", "says"),
+    [
+        (lambda t: t.replace("\nstrategies:\n", "\nstrategy:\n", 1), "unknown top-level key(s) 'strategy': "),
+        (lambda t: t.replace("\ncommon:\n", "\ncommons:\n", 1), "unknown top-level key(s) 'commons': "),
+        (lambda t: t.replace("\n  ceco-pmv:", "\n  ceco-pmw:", 1), "strategies: unknown strategy 'ceco-pmw': "),
+        (lambda t: t.replace("gamma_w: 0.0", "gamma_ww: 0.0", 1), "strategies.ceco-e: unknown setting(s) 'gamma_ww'"),
+        (lambda t: t.replace("du_weight_kj:", "du_weight_kJ:", 1), "common: unknown setting(s) 'du_weight_kJ'"),
+        (lambda t: t.replace("ipopt_fallback:", "ipopt_fallbak:", 1), "common.solver: unknown setting(s) 'ipopt_fa"),
+        (lambda t: t.replace("\ncommon:\n", "\nname: ceco\ncommon:\n", 1), "unknown top-level key(s) 'name'"),
+    ],
+)
+def test_a_controller_file_key_nothing_reads_is_refused(edit, says, tmp_path):
+    """A copy of controller.yaml with `strategies:` misspelt `strategy:` ran every strategy on its defaults without
+    a word (ceco and ceco-pmv gave identical results), and a scenario file passed as a controller file was accepted.
+    Now a top-level key other than common and strategies, an unknown strategy under strategies (ceco-pmv then ran
+    on its defaults) and an unknown setting in any block (not only the loaded strategy's) are refused, one line
+    naming the file, the key and what is allowed."""
+    from ceco_bringup import provenance
+    from ceco_controller.model import package_config_path
+    from ceco_controller.strategies import load_strategy_settings
+
+    path = tmp_path / "controller.yaml"
+    path.write_text(edit(package_config_path("controller.yaml").read_text()))
+    with pytest.raises(ValueError) as err:
+        load_strategy_settings("ceco-pmv", path)
+    msg = str(err.value)
+    assert msg.startswith(f"{path}: ") and says in msg and "\n" not in msg, msg
+    if "top-level" in says:
+        assert msg.endswith("a controller file has common and strategies only"), msg
+    if "unknown strategy" in says:
+        assert msg.endswith("choose from ceco, ceco-e, ceco-c, ceco-ioch, ceco-pmv"), msg
+    scenario = provenance.copy_scenario("sc03", tmp_path / "sc")  # a scenario file is no controller file
+    with pytest.raises(ValueError, match=r"unknown top-level key\(s\) 'name', 'description', "):
+        load_strategy_settings("ceco", scenario)
+
+
 def test_codegen_falls_back_without_compiler(monkeypatch, tmp_path, caplog):
     monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
     ss = SolverSettings(codegen=True, codegen_cache_dir=str(tmp_path / "cache"))

@@ -497,6 +497,21 @@ def test_controller_config_validation_and_runtime_changes():
         cfg.replaced({'preview_timeout_s': -1.0})
 
 
+def test_a_controller_config_with_a_key_nothing_reads_fails_configure(tmp_path):
+    """mpc_node's `controller_config` goes through the same loader: a file with `strategies:` misspelt ran on the
+    defaults; now configure raises a ValueError naming the file and the key, which mpc_node logs as `configure
+    failed: ...` and answers FAILURE (the node stays unconfigured, docs/ros.md), no crash loop."""
+    from ceco_controller.controller_session import ControllerSession
+    from ceco_controller.model import package_config_path
+
+    typo = tmp_path / 'typo.yaml'
+    typo.write_text(package_config_path('controller.yaml').read_text().replace('\nstrategies:\n', '\nstrategy:\n'))
+    cfg = _ctrl_cfg(strategy='ceco-pmv', controller_config=str(typo))
+    session = ControllerSession(cfg, lambda *_: None, lambda *_: None)
+    with pytest.raises(ValueError, match=rf"^{re.escape(str(typo))}: unknown top-level key\(s\) 'strategy': "):
+        session.configure(cfg)
+
+
 def test_node_configs_share_names_timing_and_positive_rules():
     """Every node's config maps its dotted parameter names to fields, refuses an unknown timing and a
     non-positive period (ceco_ros.params.NodeConfig), and replaced() validates and keeps the rest."""
@@ -744,6 +759,8 @@ def test_plant_loop_realtime_input_choice():
     loop.liveliness_changed(0, 1, 7.6)  # the controller's process died: even a young command is stale
     u_fb, fb, line = tick(8.0)  # back to the law at the next tick
     assert fb and "the controller's liveliness was lost" in line
+    # a liveliness loss is also a deactivated or shut-down node of a living process: the line claims no one cause
+    assert 'its process is gone or frozen, or its node was deactivated or shut down' in line
     assert tick(9.0)[1:] == (True, None)  # the law drives until a command is accepted
     assert loop.accept_command(u, 2, 'ceco', 9.5) is not None  # a new command (a restarted controller)
     assert loop.n == 10 and tick(10.0) == (u, False, None)  # taken at the boundary

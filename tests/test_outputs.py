@@ -87,7 +87,8 @@ def test_verdict_states_the_saving_at_matched_comfort_in_words():
         'baseline': _point(0.13, 0.37),  # on the front: the family's 26 degC member
         'ceco': _point(0.11, 0.38),  # front at D = 0.11: 0.40 -> saves 5.0 %
         'ceco-e': _point(0.12, 0.40),  # front at 0.12: 0.385 -> uses 3.9 % more, dominated
-        'ceco-c': _point(0.09, 0.45, time_to_comfort_s=300.0, pmv_end=0.1),  # left of the front
+        # left of the front, in the band from 300 s on
+        'ceco-c': _point(0.09, 0.45, time_to_comfort_s=300.0, pmv_end=0.1, pmv_out_after_comfort_s=0.0),
         'ceco-ioch': _point(0.12, 0.36),
     }
     v = vd.build_verdict('sc03', points, FAMILY, partial={'ceco-ioch': 'interrupted: 28 of 600 s'})
@@ -739,6 +740,8 @@ def test_an_out_that_is_a_file_or_cannot_be_made_is_one_line(verb, tmp_path, cap
         (['--strategy', 'baseline', '--controller-config', 'TRUNC'], 'not valid YAML at line'),
         (['--strategy', 'ceco-ioch', '--controller-config', 'BINARY'], 'not a UTF-8 text file'),
         (['--strategy', 'ceco-ioch', '--controller-config', 'NP9'], 'horizon_steps: 9 is not what this run uses (6)'),
+        (['--strategy', 'ceco,ceco-pmv', '--controller-config', 'TYPO'], "unknown top-level key(s) 'strategy': a"),
+        (['--strategy', 'ceco-pmv', '--controller-config', 'SCENARIO'], "unknown top-level key(s) 'name', "),
     ],
 )
 def test_bad_settings_and_config_files_are_one_line(argv, says, tmp_path, capsys):
@@ -755,6 +758,9 @@ def test_bad_settings_and_config_files_are_one_line(argv, says, tmp_path, capsys
     files['BINARY'].write_bytes(b'\xff\xfe')
     files['NP9'] = tmp_path / 'np9.yaml'  # (a horizon the run would not use: sc03's is 6)
     files['NP9'].write_text(text.replace('common:\n', 'common:\n  horizon_steps: 9\n', 1))
+    files['TYPO'] = tmp_path / 'typo.yaml'  # `strategies:` misspelt: every strategy ran on its defaults
+    files['TYPO'].write_text(text.replace('\nstrategies:\n', '\nstrategy:\n', 1))
+    files['SCENARIO'] = provenance.copy_scenario('sc03', tmp_path / 'sc')  # a scenario file, not a controller file
     argv = [str(files.get(a, a)) for a in argv]
     rest = ['--duration-s', '30', '--baseline-setpoints-c', 'none', '--no-progress', '--out', str(tmp_path / 'out')]
     try:  # a flag's error exits through argparse; a file's is said when its strategy's run starts
@@ -926,3 +932,71 @@ def test_the_verdict_matches_no_run_whose_discomfort_is_saturated():
     # just below the ceiling the run is read against the one member off it: more comfortable than it, no number
     below = vd.matched(family, dict(never_cooled, discomfort_pmvh=0.0416))
     assert below['energy_saving_pct'] is None and below['note'].startswith('more comfortable than every'), below
+
+
+def test_matched_comfort_not_computed_names_the_flag_and_a_command_that_works(tmp_path, capsys, monkeypatch):
+    """`ceco sim --scenario tropical.yaml ... --baseline-setpoints-c none` printed "run `ceco benchmark` or
+    `ceco run --scenario tropical --strategy all` for it": `tropical` is the file's name, which --scenario does
+    not take, and the cause (the flag) went unsaid. Now the verdict names the flag and gives the same command
+    without it, whole on a line of its own; that command runs and computes the matched comfort. `ceco report`
+    of the runs says the same (one hint for both)."""
+    import shlex
+    from pathlib import Path
+
+    from ceco_bringup import report
+
+    monkeypatch.chdir(tmp_path)
+    data = yaml.safe_load(provenance.copy_scenario('sc03', tmp_path / 'orig').read_text())
+    data['name'] = 'tropical'
+    Path('tropical.yaml').write_text(yaml.safe_dump(data))
+    argv = ['--scenario', 'tropical.yaml', '--strategy', 'baseline', '--duration-s', '20', '--no-progress']
+    assert sim.main([*argv, '--baseline-setpoints-c', 'none', '--out', 'A']) == 0
+    lines = capsys.readouterr().out.splitlines()
+    i = next(i for i, line in enumerate(lines) if line.startswith('Matched comfort: not computed'))
+    said = ' '.join(line.strip() for line in lines[i : i + 2])
+    assert said == (
+        'Matched comfort: not computed for these runs; `--baseline-setpoints-c none` skipped the baseline '
+        'family; the same command without it computes it:'
+    ), said
+    command = lines[i + 2]
+    assert command == '  ceco sim --scenario tropical.yaml --strategy baseline --duration-s 20 --no-progress --out A'
+    assert '--scenario tropical ' not in '\n'.join(lines)
+    words = shlex.split(command)
+    assert words[:2] == ['ceco', 'sim'] and sim.main(words[2:]) == 0  # the command works: matched comfort now
+    assert 'Matched comfort: against the production law' in capsys.readouterr().out
+    assert sim.main([*argv, '--baseline-setpoints-c', 'none', '--out', 'B']) == 0
+    capsys.readouterr()
+    res = report.build_report([Path('B')], tmp_path / 'rep', log=lambda *a, **k: None)
+    assert (
+        '  ceco sim --scenario tropical.yaml --strategy baseline --duration-s 20 --no-progress --out B'
+        in res['verdict']
+    )
+    md = res['markdown'].read_text()
+    assert '`--baseline-setpoints-c none` skipped the baseline family' in md
+    assert '`ceco sim --scenario tropical.yaml --strategy baseline --duration-s 20 --no-progress --out B`' in md
+
+
+def test_matched_comfort_hint_without_the_jobs_command():
+    """The hint written once (ceco sim, ceco run, ceco report): the flag in either spelling is the cause; without
+    the job's arguments the scenario as given and the verb make the command; a case is named as a case."""
+    flag = outputs.FAMILY_FLAG
+    pointer, command = outputs.matched_comfort_hint('run', 'my dir/hot.yaml', argv=['--out', 'x', f'{flag}=none'])
+    assert pointer.startswith(f'`{flag} none` skipped the baseline family') and command == 'ceco run --out x'
+    assert outputs.matched_comfort_hint('sim', 's.yaml', argv=[flag, '25,26', '--out', 'x'])[1] == (
+        "ceco sim --scenario s.yaml --strategy all --out DIR"
+    )
+    pointer, command = outputs.matched_comfort_hint('run', 'my dir/hot.yaml', skipped=True)
+    assert (
+        pointer.startswith(f'`{flag} none` skipped')
+        and command == "ceco run --scenario 'my dir/hot.yaml' --strategy all --out DIR"
+    )
+    pointer, command = outputs.matched_comfort_hint('sim', 'ignored', case='hotsoak-pulldown')
+    assert (
+        command == 'ceco sim --case hotsoak-pulldown --strategy all --out DIR'
+        and 'ceco benchmark hotsoak-pulldown' in pointer
+    )
+    assert (
+        outputs.family_skipped([flag, 'None'])
+        and not outputs.family_skipped([flag, '24,25'])
+        and not outputs.family_skipped(None)
+    )

@@ -643,6 +643,40 @@ def test_runs_of_different_lengths_are_not_compared(runs, tmp_path, capsys):
     assert not out.exists()
 
 
+def test_runs_of_different_scenario_files_sharing_a_name_are_not_compared(tmp_path, capsys):
+    """Two files named `tropical`, the second with hotter air: `ceco report` built one "Verdict on tropical"
+    from runs of both (exit 0). Their run.json record different scenario_sha256: refused now, one line naming
+    the runs and the hashes, exit status 2, nothing written. A run that records no hash (an older run) is
+    compared as before."""
+    from ceco_bringup import sim
+
+    data = yaml.safe_load(provenance.copy_scenario('sc03', tmp_path / 'orig').read_text())
+    data['name'] = 'tropical'
+    first, hotter = tmp_path / 'tropical.yaml', tmp_path / 'resume' / 'scen.yaml'
+    first.write_text(yaml.safe_dump(data))
+    data['weather']['t_amb_c'] = [t + 5.0 for t in data['weather']['t_amb_c']]
+    hotter.parent.mkdir()
+    hotter.write_text(yaml.safe_dump(data))
+    rest = ['--strategy', 'baseline', '--duration-s', '20', '--no-progress', '--baseline-setpoints-c', 'none']
+    assert sim.main(['--scenario', str(first), *rest, '--out', str(tmp_path / 'A')]) == 0
+    assert sim.main(['--scenario', str(hotter), *rest, '--out', str(tmp_path / 'B')]) == 0
+    capsys.readouterr()
+    a, b = tmp_path / 'A' / 'baseline', tmp_path / 'B' / 'baseline'
+    ha, hb = (provenance.read_run(d)['scenario_sha256'] for d in (a, b))
+    assert ha != hb
+    out = tmp_path / 'rep'
+    assert report.main([str(a), str(b), '--out', str(out)]) == 2
+    err = one_error_line(capsys.readouterr().err)
+    assert err.startswith('ceco report: error: the runs of tropical drove different scenario files (')
+    assert f'{a} {ha}' in err and f'{b} {hb}' in err
+    assert not out.exists()
+    record = provenance.read_run(b)
+    del record['scenario_sha256']  # as an older run directory: no hash, compared as before
+    (b / provenance.RUN_FILE).write_text(json.dumps(record))
+    assert report.main([str(a), str(b), '--out', str(out)]) == 0
+    assert 'Verdict on tropical' in capsys.readouterr().out
+
+
 def test_a_partial_run_is_shown_but_not_compared(runs, results, tmp_path, capsys):
     """A complete 40-s baseline and a stopped ceco-ioch run (28 of 40 s): reported (a partial run is shorter by
     nature, not refused), and its energy change against the baseline is n/a (it was computed against 40 s)."""

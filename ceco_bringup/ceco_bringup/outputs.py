@@ -22,11 +22,13 @@ from __future__ import annotations
 
 import csv
 import math
+import shlex
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from ceco_bringup import verdict as vd
+from ceco_bringup.provenance import command_line, read_run
 from ceco_bringup.report_html import fmt_value
 from ceco_core.metrics import ENERGY_PARTS, J_PER_KWH, PMV_SCALE_LIMIT, relative_change_pct
 
@@ -43,6 +45,10 @@ __all__ = [
     'full_table',
     'write_comparison_csv',
     'finish_job',
+    'FAMILY_FLAG',
+    'family_skipped',
+    'matched_comfort_hint',
+    'hinted_verdict_lines',
 ]
 
 CONSOLE_WIDTH = 100
@@ -291,6 +297,102 @@ def write_comparison_csv(path: str | Path, rows: Sequence[Mapping]) -> None:
             w.writerow(cells)
 
 
+FAMILY_FLAG = '--baseline-setpoints-c'
+"""The flag of ``ceco sim`` and ``ceco run`` whose value ``none`` skips the baseline family (no matched comfort)."""
+
+
+def _without_family_off(argv: Sequence[str] | None) -> list[str] | None:
+    """``argv`` without :data:`FAMILY_FLAG` when its (last) value is ``none``; None otherwise (or without ``argv``)."""
+    if not argv:
+        return None
+    rest: list[str] = []
+    value = None
+    args = list(argv)
+    i = 0
+    while i < len(args):
+        a = str(args[i])
+        if a == FAMILY_FLAG and i + 1 < len(args):
+            value, i = str(args[i + 1]), i + 2
+            continue
+        if a.startswith(FAMILY_FLAG + '='):
+            value, i = a.split('=', 1)[1], i + 1
+            continue
+        rest.append(a)
+        i += 1
+    return rest if value is not None and value.strip().lower() == 'none' else None
+
+
+def family_skipped(argv: Sequence[str] | None) -> bool:
+    """Whether the arguments ``argv`` (``run.json``'s) skipped the baseline family: ``--baseline-setpoints-c none``."""
+    return _without_family_off(argv) is not None
+
+
+def matched_comfort_hint(
+    verb: str,
+    scenario: str,
+    *,
+    argv: Sequence[str] | None = None,
+    skipped: bool = False,
+    case: str | None = None,
+    cwd: str | None = None,
+) -> tuple[str, str]:
+    """``(pointer, command)``: what a verdict without a baseline family says, and the command that computes it.
+
+    The pointer follows "Matched comfort: not computed for these runs; " (:func:`hinted_verdict_lines` puts the
+    command on a line of its own after it, whole, so that it can be copied). ``verb``: ``sim`` or ``run``, the verb
+    the runs were made with; ``scenario``: the scenario as that verb is given it (a bundled name or a YAML path;
+    never a file's ``name:``, which ``--scenario`` does not take); ``case``: the benchmark case (``--case``)
+    instead. ``argv``: the job's arguments (``run.json``) when known; ``skipped``: the family was skipped by
+    ``--baseline-setpoints-c none`` (also when ``argv`` holds it). Then that is named as the cause, and the command
+    is the same one without the flag (``cwd``: the directory it was typed in, said when it is not this one); else
+    the command that runs the strategies with the family.
+    """
+    rest = _without_family_off(argv)
+    target = f'--case {shlex.quote(case)}' if case else f'--scenario {shlex.quote(scenario)}'
+    command = f'ceco {verb} {target} --strategy all --out DIR'
+    if rest is not None:
+        where = f' (in {cwd})' if cwd and Path(cwd).resolve() != Path.cwd().resolve() else ''
+        return f'`{FAMILY_FLAG} none` skipped the baseline family; the same command without it computes it{where}:', (
+            command_line(verb, rest)
+        )
+    if skipped:
+        return (
+            f'`{FAMILY_FLAG} none` skipped the baseline family; the command without it computes it, as does:',
+            command,
+        )
+    bench = f'ceco benchmark {shlex.quote(case)}' if case else 'ceco benchmark'
+    return f'this runs the strategies with the baseline family (`{bench}`: its test cases):', command
+
+
+def hinted_verdict_lines(v: vd.Verdict, hint: tuple[str, str]) -> list[str]:
+    """``verdict.verdict_lines`` with the pointer of ``hint`` (:func:`matched_comfort_hint`) and its command.
+
+    The command goes on a line of its own, indented two spaces, after the "Matched comfort: not computed" line
+    (when there is one), whole: the verdict's lines are wrapped at 100 characters.
+    """
+    pointer, command = hint
+    lines = vd.verdict_lines(v, pointer=pointer)
+    for i, line in enumerate(lines):
+        if line.startswith('Matched comfort: not computed for these runs;'):
+            j = i + 1
+            while j < len(lines) and lines[j].startswith('    '):  # its continuation lines
+                j += 1
+            return [*lines[:j], f'  {command}', *lines[j:]]
+    return lines
+
+
+def _job_record(out: Path, names: Sequence[str]) -> dict:
+    """``run.json`` of one of the job's runs (``out/<strategy>``, or ``out`` for one ``ceco run``); {} without one."""
+    for d in (*(out / n for n in names), out):
+        try:
+            rec = read_run(d)
+        except (ValueError, OSError):
+            continue
+        if rec:
+            return rec
+    return {}
+
+
 def finish_job(
     out: Path,
     scenario,
@@ -311,8 +413,9 @@ def finish_job(
     """The end of a job: the baseline family, the table, the verdict; printed and written to ``out``.
 
     ``metrics``/``columns``: {strategy: metrics.json dict / timeseries columns} of the job's runs.
-    With an empty ``family_setpoints_c`` the family is not run and the verdict points at
-    ``ceco benchmark``. ``family_overrides``: ``((field, value), ...)`` every member also gets (a benchmark
+    With an empty ``family_setpoints_c`` (``--baseline-setpoints-c none``) the family is not run and the verdict
+    says so, with the job's command without that flag (from its runs' ``run.json``; :func:`matched_comfort_hint`).
+    ``family_overrides``: ``((field, value), ...)`` every member also gets (a benchmark
     case's baseline door, ``ceco sim --case``); ``case``: the benchmark case the runs are of (``--case``),
     named in that pointer. ``failed``: {strategy: why} of the job's runs that failed, named in the verdict (no
     number). Writes ``out/comparison.txt``, ``comparison.csv``, ``verdict.json`` and
@@ -341,12 +444,16 @@ def finish_job(
         )
     v = vd.build_verdict(scenario.name, points, family, partial=partial, air_limits=limits, failed=failed)
     rows = table_rows(metrics, kpis, v)
-    if case:
-        pointer = f'run `ceco benchmark {case}` for it (or this command with --baseline-setpoints-c)'
-    else:
-        pointer = f'run `ceco benchmark` or `ceco run --scenario {scenario.name} --strategy all` for it'
+    rec = _job_record(out, list(metrics))  # the verb and arguments as typed (provenance.start_run wrote it)
+    hint = matched_comfort_hint(
+        str(rec.get('verb') or 'sim'),
+        str(rec.get('scenario_source') or scenario.name),
+        argv=rec.get('argv'),
+        skipped=not family_setpoints_c,
+        case=case,
+    )
     text = '\n'.join(
-        [header, console_table(rows), '', *vd.verdict_lines(v, pointer=pointer), f'Full table: {out}/comparison.txt']
+        [header, console_table(rows), '', *hinted_verdict_lines(v, hint), f'Full table: {out}/comparison.txt']
     )
     echo('')
     echo(text)

@@ -33,7 +33,9 @@ reason in the words of ``ceco sim`` (``N of M runs failed (not compared):``, ``c
 on the console, in a red box of the report and in its scenario's verdict, and the command exits with status 1;
 a directory of failed runs only is reported as such (the same words, no table, exit status 1).
 
-Refused (exit status 2, one line): complete runs of one scenario that differ in length (their energies
+Refused (exit status 2, one line): runs of one scenario name whose ``run.json`` record different
+``scenario_sha256`` (they drove different scenario files; a run that records none, an older run or a bare bag,
+is compared as before), complete runs of one scenario that differ in length (their energies
 are not comparable; a partial run is shown, never compared), a ``--scenario``/``--strategy`` that
 contradicts what a run records (the flags name what a bag does not say), a run that records no
 strategy (without ``--strategy``) and the same run given twice.
@@ -56,7 +58,13 @@ from pathlib import Path
 
 from ceco_bringup import cli_args, figures
 from ceco_bringup import verdict as vd
-from ceco_bringup.outputs import failed_lines, pmv_scale_cell
+from ceco_bringup.outputs import (
+    failed_lines,
+    family_skipped,
+    hinted_verdict_lines,
+    matched_comfort_hint,
+    pmv_scale_cell,
+)
 from ceco_bringup.report_html import (
     Figure,
     Heading,
@@ -156,6 +164,35 @@ def _check_identity(runs: Sequence[RunData], flags: Mapping[str, str | None]) ->
             raise ValueError(
                 f'{r.path} records no strategy (neither metrics.json, run.json nor a bag names one): name it with '
                 '--strategy'
+            )
+
+
+def _scenario_hash(run: RunData) -> str | None:
+    """The content hash of the scenario file ``run`` drove (``run.json``'s ``scenario_sha256``, ``provenance``).
+
+    None when the run records none (an older run directory, a bare bag).
+    """
+    value = run.info.get('scenario_sha256')
+    return str(value) if value else None
+
+
+def _check_content(groups: Mapping[str, Mapping[str, RunData]]) -> None:
+    """Raise ValueError when runs of one scenario name drove different scenario files (their ``scenario_sha256``).
+
+    Two files may share a name (a copy of ``tropical.yaml`` with hotter air): their runs are not comparable.
+    Runs that record no hash are left out of this check (older runs, bare bags): they are compared as before.
+    """
+    for sc, g in groups.items():
+        by_hash: dict[str, list[RunData]] = {}
+        for r in g.values():
+            h = _scenario_hash(r)
+            if h is not None:
+                by_hash.setdefault(h, []).append(r)
+        if len(by_hash) > 1:
+            runs = '; '.join(f"{', '.join(str(r.path) for r in rs)} {h}" for h, rs in by_hash.items())
+            raise ValueError(
+                f'the runs of {sc} drove different scenario files (scenario_sha256 in run.json: {runs}): runs are '
+                'compared only on the same scenario; report each scenario file on its own'
             )
 
 
@@ -528,6 +565,42 @@ def _verdict_paragraphs(lines: Sequence[str]) -> list:
     return [Paragraph(p) for p in paras]
 
 
+def _scenario_as_given(scenario: str, runs: Sequence[RunData]) -> str:
+    """The scenario as ``--scenario`` takes it, never a file's ``name:`` (which it does not take).
+
+    What the runs were given (``run.json``'s ``scenario_source``) when it is a bundled name or a file here, else a
+    run's copy of its scenario file, else the name (a bag's).
+    """
+    from ceco_core.cli_flags import BUNDLED_SCENARIOS
+
+    for r in runs:
+        src = str(r.info.get('scenario_source') or '')
+        if src and (src in BUNDLED_SCENARIOS or Path(src).is_file()):
+            return src
+    copies = [r.scenario_path for r in runs if r.scenario_path is not None]
+    return str(copies[0]) if copies else scenario
+
+
+def _matched_comfort_hint(scenario: str, runs: Sequence[RunData]) -> tuple[str, str]:
+    """``outputs.matched_comfort_hint`` for runs shown without a baseline family.
+
+    The cause when their ``run.json`` say ``--baseline-setpoints-c none`` (the command without it when they are
+    one job's), the verb they were made with (``ceco run`` when unknown) and the scenario as given.
+    """
+    known = [r.info for r in runs if r.info.get('verb')]
+    every = bool(known) and len(known) == len(runs)
+    verbs = sorted({str(i['verb']) for i in known})
+    jobs = sorted({(str(i['verb']), str(i.get('cwd') or ''), *(str(a) for a in i.get('argv') or ())) for i in known})
+    one_job = every and len(jobs) == 1  # one job's runs: its command, where it was typed
+    return matched_comfort_hint(
+        verbs[0] if len(verbs) == 1 else 'run',
+        _scenario_as_given(scenario, runs),
+        argv=list(jobs[0][2:]) if one_job else None,
+        skipped=every and all(family_skipped(i.get('argv')) for i in known),
+        cwd=jobs[0][1] if one_job else None,
+    )
+
+
 def _verdict_section(
     scenario: str, group: Mapping[str, RunData], fig_dir: Path, failed: Mapping[str, str] | None = None
 ) -> tuple[list, Path, list]:
@@ -549,11 +622,8 @@ def _verdict_section(
         air_limits=limits,
         failed=failed,
     )
-    pointer = (
-        f'`ceco run --scenario {scenario} --strategy all --out DIR` runs the baseline family with the '
-        f'strategies, `ceco benchmark` the full families'
-    )
-    lines = vd.verdict_lines(v, pointer=pointer)
+    hint = _matched_comfort_hint(scenario, [group[lab] for lab in labels])
+    lines = hinted_verdict_lines(v, hint)
     fig = figures.fig_plane(
         {lab: p for lab, p in points.items() if lab not in v.partial},
         family,
@@ -567,7 +637,8 @@ def _verdict_section(
         if family
         else '; no baseline family was kept for these runs, so no front is drawn.'
     )
-    blocks = [Heading(2, f'Verdict: {scenario}'), *_verdict_paragraphs(lines), Figure(fig, caption)]
+    paras = [Paragraph(f'`{hint[1]}`') if p.text == hint[1] else p for p in _verdict_paragraphs(lines)]
+    blocks = [Heading(2, f'Verdict: {scenario}'), *paras, Figure(fig, caption)]
     return blocks, fig, lines
 
 
@@ -636,6 +707,7 @@ def build_report(
     runs, failed = load_runs(found, rtol=rtol, namespace=namespace, scenario=scenario, strategy=strategy)
     _check_identity(runs, {'scenario': scenario, 'strategy': strategy})
     groups = _group(runs)
+    _check_content(groups)
     _check_lengths(groups)
     fig_dir.mkdir(parents=True, exist_ok=True)
     blocks, any_mismatch = _intro(runs, rtol, log, failed)

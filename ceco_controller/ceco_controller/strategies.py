@@ -51,6 +51,8 @@ __all__ = [
     "auto_solver_name",
     "QPSOL_NAMES",
     "COMFORT_GAMMA_W",
+    "CONTROLLER_FILE_KEYS",
+    "check_controller_file",
 ]
 
 COMFORT_GAMMA_W = 20000.0
@@ -521,6 +523,56 @@ RUN_SETTINGS = {
 file may leave them out; one that gives a value different from the run's is refused, since it would be ignored."""
 
 
+CONTROLLER_FILE_KEYS = ("common", "strategies")
+"""The top-level keys of a controller file: the settings every strategy shares, and ``{strategy: its settings}``."""
+
+
+def check_controller_file(doc: dict, path) -> None:
+    """ValueError, one line naming ``path``, for a key of a controller file that nothing would read.
+
+    A top-level key other than :data:`CONTROLLER_FILE_KEYS` (``strategy:`` for ``strategies:`` ran every strategy
+    on its defaults without a word; a scenario file was taken for a controller file), a strategy under
+    ``strategies:`` that is none of :data:`~ceco_core.contracts.CECO_STRATEGIES` (a named variant reads its
+    strategy's block), a block that is not a mapping, and a setting in any block that is no StrategySettings field
+    (or, under ``solver``, no SolverSettings field).
+    """
+    unknown = [k for k in doc if k not in CONTROLLER_FILE_KEYS]
+    if unknown:
+        raise ValueError(
+            f"{path}: unknown top-level key(s) {', '.join(repr(k) for k in unknown)}: a controller file has "
+            f"{' and '.join(CONTROLLER_FILE_KEYS)} only"
+        )
+    strategies = doc.get("strategies") or {}
+    if not isinstance(strategies, dict):
+        raise ValueError(f"{path}: strategies: expected a mapping of strategy names, got {strategies!r}")
+    unknown = [k for k in strategies if k not in CECO_STRATEGIES]
+    if unknown:
+        raise ValueError(
+            f"{path}: strategies: unknown strategy {', '.join(repr(k) for k in unknown)}: choose from "
+            f"{', '.join(CECO_STRATEGIES)}"
+        )
+    fields = {f.name for f in dataclasses.fields(StrategySettings)} - {"name"}
+    blocks = {"common": doc.get("common") or {}, **{f"strategies.{k}": v or {} for k, v in strategies.items()}}
+    for where, block in blocks.items():
+        if not isinstance(block, dict):
+            raise ValueError(f"{path}: {where}: expected a mapping of StrategySettings fields, got {block!r}")
+        unknown = [k for k in block if k not in fields]
+        if unknown:
+            raise ValueError(
+                f"{path}: {where}: unknown setting(s) {', '.join(repr(k) for k in unknown)}: not StrategySettings "
+                "fields (docs/controller.md)"
+            )
+        solver = block.get("solver") or {}
+        if not isinstance(solver, dict):
+            raise ValueError(f"{path}: {where}.solver: expected a mapping of SolverSettings fields, got {solver!r}")
+        unknown = [k for k in solver if k not in {f.name for f in dataclasses.fields(SolverSettings)}]
+        if unknown:
+            raise ValueError(
+                f"{path}: {where}.solver: unknown setting(s) {', '.join(repr(k) for k in unknown)}: not "
+                "SolverSettings fields (docs/controller.md)"
+            )
+
+
 def load_strategy_settings(name: str, path=None, **overrides) -> StrategySettings:
     """Settings of strategy ``name`` from a controller file (common + per-strategy keys), then overrides.
 
@@ -529,7 +581,8 @@ def load_strategy_settings(name: str, path=None, **overrides) -> StrategySetting
     ``mpc_node`` (parameter ``controller_config``) build their controllers from it. A named variant
     (``ceco-pmv-aq``, :data:`ceco_core.contracts.STRATEGY_VARIANTS`) reads its strategy's keys, then sets its fields.
     A file's ``horizon_steps`` or ``control_period_s`` that differs from an override of it is refused
-    (:data:`RUN_SETTINGS`).
+    (:data:`RUN_SETTINGS`), and so is a key nothing would read (:func:`check_controller_file`: a top-level key
+    other than ``common`` and ``strategies``, an unknown strategy or setting in any block).
     """
     import pathlib
 
@@ -541,6 +594,7 @@ def load_strategy_settings(name: str, path=None, **overrides) -> StrategySetting
     doc = yamlio.load_file(path)
     if not isinstance(doc, dict):
         raise ValueError(f"{path}: expected a mapping")
+    check_controller_file(doc, path)
     name, variant = _resolved_name(name)
     kw = dict(doc.get("common") or {})
     kw.update((doc.get("strategies") or {}).get(name) or {})
