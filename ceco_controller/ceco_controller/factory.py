@@ -81,7 +81,7 @@ def load_acc_settings(path: str | None) -> dict:
 
     Format: YAML with one key ``acc_law:`` mapping AccSettings field names to values, e.g.
     ``ceco_controller/config/baseline_pmv.yaml`` (the comfort-feedback law). ValueError naming an
-    unknown field or a value AccSettings.validate() rejects.
+    unknown top-level key, an unknown field or a value AccSettings.validate() rejects.
     """
     if not path:
         return {}
@@ -91,6 +91,9 @@ def load_acc_settings(path: str | None) -> dict:
     doc = yamlio.load_file(path)
     if not isinstance(doc, dict) or not isinstance(doc.get("acc_law"), dict):
         raise ValueError(f"{path}: a baseline law file needs a mapping 'acc_law:' of AccSettings fields")
+    other = sorted(str(k) for k in doc if k != "acc_law")
+    if other:  # (a misspelt or misplaced key was ignored without a word)
+        raise ValueError(f"{path}: unknown top-level key(s) {other}: a baseline law file has acc_law only")
     fields = dict(doc["acc_law"])
     _check_acc_fields(fields, f"{path}: ")
     return fields
