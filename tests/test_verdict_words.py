@@ -33,7 +33,7 @@ comfort_bounds:
   pmv_ub: [3.0, 3.0, 0.5]
 initial: {t_cab_c: 40.0, t_int_c: 42.0, t_shell_c: 43.0}
 """
-"""/work/exp/h_scen/evening.yaml of the exploratory test: the air cools after a storm, the PMV falls below the band."""
+"""An evening drive of an exploratory test (5 Dec 2026): the air cools after a storm, the PMV falls below the band."""
 
 LIGHTMET = """\
 name: lightmet
@@ -44,7 +44,7 @@ occupant: {met: 0.01, clo: 0}
 comfort_bounds: {time_s: [0], pmv_lb: -0.5, pmv_ub: 0.5}
 initial: {t_cab_c: 43.0}
 """
-"""/work/exp/h_scen/ext/lightmet.yaml: met 0.01 (ISO 7730 covers 0.8-4 met; the scenario loader allows 0 < met <= 4)."""
+"""An exploratory test's scenario, met 0.01 (ISO 7730 covers 0.8-4 met; the scenario loader allows 0 < met <= 4)."""
 
 
 def _baseline(tmp_path, text: str, name: str) -> dict:
