@@ -1,5 +1,7 @@
 """Benchmark test-case files (ceco_bringup.benchmark.cases)."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import yaml
@@ -158,7 +160,10 @@ def test_ceco_sim_case_runs_the_benchmarks_cell(tmp_path, case_name, strategy, s
     cmd += [] if duration_s is None else ['--duration-s', str(duration_s)]
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stdout + p.stderr
-    assert f'run `ceco benchmark {case_name}` for it' in ' '.join(p.stdout.split())  # the pointer names the case
+    # the pointer names the flag that skipped the family and gives the same command, the case's, without it
+    assert '`--baseline-setpoints-c none` skipped the baseline family' in ' '.join(p.stdout.split())
+    again = f'  ceco sim --case {case_name} --strategy {strategy} --out {out} --no-progress'
+    assert any(line.startswith(again) and '--baseline-setpoints' not in line for line in p.stdout.splitlines())
     m = json.loads((out / strategy / 'metrics.json').read_text())
     assert m['E_tot_J'] == row['E_tot_J'] and m['I_pmv'] == row['I_pmv'], (m['E_tot_J'], row['E_tot_J'])
     assert m['duration_s'] == (duration_s or 900.0)
@@ -242,3 +247,68 @@ def test_family_overrides_reach_every_member():
     direct = vd.run_point(simulate(sc, 'baseline', settings).timeseries, sc.air_quality.limits)
     assert list(with_door) == ['baseline@25.0'] and with_door['baseline@25.0'] == direct
     assert with_door['baseline@25.0'] != without['baseline@25.0']
+
+
+STOPGO_YAML = """\
+name: stopgo
+drive_cycle: stopgo.csv
+weather:
+  time_s: [0, 100, 102, 200]
+  t_amb_c: 36.0
+  solar_wm2: [900, 900, 0, 0]
+  rh: 0.35
+occupant: {met: 1.2, clo: 0.5}
+comfort_bounds: {time_s: [0], pmv_lb: -0.5, pmv_ub: 0.5}
+initial: {t_cab_c: 42.0, t_int_c: 45.0, t_shell_c: 47.0}
+"""
+"""A scenario whose drive cycle is a CSV beside it, by a relative path (found by testing unseen scenarios)."""
+
+STOPGO_CASE = """\
+schema: ceco-benchmark-case/1
+name: stopgo-case
+version: 1
+description: a relative CSV drive cycle
+scenario: stopgo.yaml
+duration_s: 20
+forecast_uncertainty: none
+seeds: [0]
+"""
+
+
+def test_sim_case_with_a_relative_csv_drive_cycle(tmp_path, monkeypatch, capsys):
+    """``ceco sim --case`` (and ``ceco run --case``: the same ``apply_case``) on a case given by a relative path
+    whose scenario names its CSV drive cycle relative to itself: OUT/case_scenario.yaml points at a copy of the CSV
+    beside it (provenance.copy_drive_cycle), the cycle is the CSV's, and the run completes. Before, the relative
+    path was written as it was and resolved against OUT: 'unknown drive cycle' and exit 2."""
+    import argparse
+
+    from ceco_bringup import cli_args, sim
+    from ceco_v2x_preview.scenario import load_scenario
+
+    src = tmp_path / 'cases'
+    src.mkdir()
+    csv = 'time_s,speed_mps\n' + ''.join(f'{t},{(t % 20) * 0.5:.1f}\n' for t in range(0, 201))
+    (src / 'stopgo.csv').write_text(csv, encoding='utf-8')
+    (src / 'stopgo.yaml').write_text(STOPGO_YAML, encoding='utf-8')
+    (src / 'case_stopgo.yaml').write_text(STOPGO_CASE, encoding='utf-8')
+    monkeypatch.chdir(src)
+    a = argparse.Namespace(
+        case='case_stopgo.yaml', scenario=None, preview=None, seed=None, control_period_s=None, horizon_steps=None
+    )
+    cli_args.apply_case(a, tmp_path / 'out')
+    sc = load_scenario(a.scenario)
+    assert (tmp_path / 'out' / 'drive_cycle_stopgo.csv').read_text(encoding='utf-8') == csv
+    assert sc.drive_cycle.speed_mps[:3].tolist() == [0.0, 0.5, 1.0] and sc.duration_s == 20.0
+    assert 'drive_cycle stopgo.csv copied to drive_cycle_stopgo.csv' in Path(a.scenario).read_text(encoding='utf-8')
+    out = tmp_path / 'sim'
+    rc = sim.main(['--case', 'case_stopgo.yaml', '--strategy', 'baseline', '--no-progress', '--out', str(out)])
+    assert rc == 0, capsys.readouterr().err
+    assert (out / 'drive_cycle_stopgo.csv').is_file() and (out / 'baseline' / 'run.json').is_file()
+
+
+def test_a_case_number_yaml_reads_as_text_says_how_to_write_it():
+    """A case's ``duration_s: 6e1`` is text to PyYAML (YAML 1.1): refused with the form it reads as a number."""
+    text = STOPGO_CASE.replace('duration_s: 20', 'duration_s: 6e1')
+    why = r"^duration_s: must be a number, got '6e1' \(YAML reads 6e1 as text: write 6.0e\+1\)$"
+    with pytest.raises(bc.CaseError, match=why):
+        bc.case_from_dict(yaml.safe_load(text), base_dir='.')

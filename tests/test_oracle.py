@@ -639,3 +639,69 @@ def test_the_oracle_that_holds_the_edge(tmp_path, capsys):
     # no edge to hold where the drive never comes to it (the first 120 s: still pulling down)
     ((free_s, held_s),) = orc.solve_levels_holding_edge(_short('mild-day', 120.0), [0.036])
     assert free_s.success and orc.edge_arrival_s(free_s) is None and held_s is None
+
+
+INFERNO_YAML = """\
+name: inferno
+drive_cycle: us06
+duration_s: 120
+weather: {time_s: [0], t_amb_c: 60, solar_wm2: 1400, rh: 0.4}
+occupant: {met: 1.2, clo: 0.5}
+comfort_bounds: {time_s: [0], pmv_lb: -0.5, pmv_ub: 0.5}
+initial: {t_cab_c: 75, t_int_c: 90, t_shell_c: 85}
+"""
+"""A case the plant cannot simulate: 60 degC air, 1400 W/m2, the cabin soaked at 75 degC (docs/scenarios.md, "What
+the plant can simulate"); its refrigerant cycle leaves the model's tables at t = 5 s under the production law."""
+
+INFERNO_CASE = """\
+schema: ceco-benchmark-case/1
+name: inferno-case
+version: 1
+description: the plant cannot simulate it
+scenario: ext/inferno.yaml
+duration_s: 60
+forecast_uncertainty: none
+seeds: [0]
+"""
+
+STOPPED = 'the simulation stopped: refrigerant cycle did not converge in 30 iterations'
+
+
+@pytest.mark.parametrize(
+    'levels, where',
+    [
+        ([], "the production law's run at 24 degC (choosing the levels)"),
+        (['--levels', '0.05'], "the production law's run (the oracle's start commands)"),
+    ],
+)
+def test_ceco_oracle_says_in_one_line_where_the_plant_stopped(tmp_path, capsys, levels, where):
+    """A case the plant cannot simulate: ``ceco oracle`` (default levels: the family's run; given levels: the
+    oracle's start) prints one line, what stopped and the run's reason in every verb's words, and exits 1 (a
+    PlantStepError traceback before)."""
+    from ceco_bringup import oracle_cli
+
+    (tmp_path / 'ext').mkdir()
+    (tmp_path / 'ext' / 'inferno.yaml').write_text(INFERNO_YAML, encoding='utf-8')
+    (tmp_path / 'case_inferno.yaml').write_text(INFERNO_CASE, encoding='utf-8')
+    argv = [str(tmp_path / 'case_inferno.yaml'), *levels, '--no-progress', '--out', str(tmp_path / 'o')]
+    assert oracle_cli.main(argv) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith(f'ceco oracle: inferno-case: {where}: {STOPPED} (compiled plant, step '), err
+
+
+def test_a_level_whose_replay_stops_has_no_point(mild_problem, monkeypatch):
+    """The NLP's point of a level that the numeric plant cannot replay (PlantStepError) is no point: success False,
+    no run, no KPIs, the status says why in the run's words; the level's line says so (a traceback before)."""
+    from ceco_plant_sim.plant_ops import PlantStepError
+
+    def stops(*_args, **_kwargs):
+        raise PlantStepError('refrigerant cycle did not converge in 30 iterations (numeric plant, step 7, t = 7 s)')
+
+    monkeypatch.setattr(mild_problem, 'solve', lambda level, w, lam: ('Solve_Succeeded', True, 3, 0.1, w, lam))
+    monkeypatch.setattr(orc, 'replay', stops)
+    lines: list[str] = []
+    (r,) = orc.solve_levels(mild_problem.scenario, [LEVELS[1]], problem=mild_problem, progress=lines.append)
+    assert not r.success and r.certified and r.run is None and r.kpis is None
+    assert r.status == f'Solve_Succeeded; replay: {STOPPED} (numeric plant, step 7, t = 7 s)'
+    assert lines[-1].endswith('not solved'), lines

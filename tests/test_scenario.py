@@ -396,3 +396,37 @@ def test_a_number_yaml_reads_as_text_says_how_to_write_it(tmp_path, text, fix):
     with pytest.raises(ScenarioError, match=f'YAML reads {text} as text: write {fix}'.replace('+', r'\+')):
         load_scenario(str(path))
     assert yaml.safe_load(f'x: {fix}')['x'] == float(text)
+
+
+def test_one_number_yaml_reads_as_text_says_how_to_write_it(tmp_path):
+    """A series written as one number, ``solar_wm2: 1e3``, is text to PyYAML (YAML 1.1): refused with the form it
+    reads as a number, as a list's entry is (it said only 'must be a list of numbers (or one number)' before)."""
+    doc = _sc03_dict()
+    doc['weather'] = {**doc['weather'], 'solar_wm2': 1000.0}
+    path = tmp_path / 'mine.yaml'
+    path.write_text(yaml.safe_dump(doc).replace('solar_wm2: 1000.0', 'solar_wm2: 1e3'), encoding='utf-8')
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(str(path))
+    assert str(err.value) == (
+        "weather.solar_wm2: must be a list of numbers (or one number), got '1e3' (YAML reads 1e3 as text: write 1.0e+3)"
+    )
+
+
+def test_a_csv_drive_cycle_not_found_names_the_path_looked_for(tmp_path):
+    """A drive cycle given as a CSV path where no file is: 'not found' with the path it looked at (relative to the
+    scenario file), not 'unknown drive cycle ... or a CSV path'; a name that is no CSV path keeps that message."""
+    doc = _sc03_dict()
+    doc['drive_cycle'] = 'cycles/mine.csv'
+    path = tmp_path / 'mine.yaml'
+    path.write_text(yaml.safe_dump(doc), encoding='utf-8')
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(str(path))
+    looked = tmp_path / 'cycles' / 'mine.csv'
+    assert str(err.value) == f"drive_cycle: CSV file 'cycles/mine.csv' not found (looked for {looked})"
+    (tmp_path / 'cycles' / 'mine.csv').mkdir(parents=True)
+    with pytest.raises(ScenarioError, match=r"^drive_cycle: CSV file 'cycles/mine.csv' is a directory, not a file"):
+        load_scenario(str(path))
+    doc['drive_cycle'] = 'wltp'
+    path.write_text(yaml.safe_dump(doc), encoding='utf-8')
+    with pytest.raises(ScenarioError, match=r"^drive_cycle: unknown drive cycle 'wltp': use one of \["):
+        load_scenario(str(path))

@@ -89,18 +89,25 @@ def default_levels(case, scenario, control_period_s: float | None, n: int = 4) -
     """``n`` levels by the benchmark's rule (``runner.oracle_levels``) on the production law's set-point family.
 
     The family (``verdict.FAMILY_SETPOINTS_C``, with the case's door logic where its baselines drive the
-    door) is run here in-process and scored like benchmark runs.
+    door) is run here in-process and scored like benchmark runs. ``oracle.OracleStopped`` when the plant cannot
+    simulate a member's run.
     """
     from ceco_bringup.benchmark import runner
     from ceco_bringup.verdict import FAMILY_SETPOINTS_C
     from ceco_controller.closed_loop import SimSettings, simulate
+    from ceco_controller.oracle import OracleStopped
     from ceco_core.kpis import compute_kpis
+    from ceco_plant_sim.plant_ops import PlantStepError
 
     runs = []
     for sp in FAMILY_SETPOINTS_C:
         ovr = (('setpoint_c', sp), *case.baseline_door)
         st = SimSettings(control_period_s=control_period_s, progress=False, strategy_overrides=ovr)
-        res = simulate(scenario, 'baseline', st)
+        try:
+            res = simulate(scenario, 'baseline', st)
+        except PlantStepError as exc:
+            where = f'the production law\'s run at {sp:g} degC (choosing the levels)'
+            raise OracleStopped(f'{where}: {exc.run_error}') from None
         kpis, _ = compute_kpis(res.timeseries, control_period_s=res.metrics['control_period_s'], fallback_steps=0)
         row = {'controller': f'baseline@{sp:g}', 'kind': 'baseline', 'seed': None, 'setpoint_c': sp}
         runs.append(runner._run_entry({**row, 'status': 'ok', 'kpis': kpis}))
@@ -108,7 +115,10 @@ def default_levels(case, scenario, control_period_s: float | None, n: int = 4) -
 
 
 def main(argv=None) -> int:
-    """``ceco oracle``: 0 when every level was solved and replayed, 1 when some were not, 2 for a user error."""
+    """``ceco oracle``: 0 when every level was solved and replayed, 1 when some were not, 2 for a user error.
+
+    1 also, with one line, when the plant cannot simulate the production law's run the levels or the start come from.
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -146,6 +156,9 @@ def main(argv=None) -> int:
         say(f'ceco oracle: {case.name}, levels {", ".join(f"{x:.4f}" for x in levels)} PMV h')
     except (CaseError, ValueError, OSError) as exc:
         parser.error(str(exc))
+    except orc.OracleStopped as exc:  # the plant cannot simulate the case: no levels
+        print(f'ceco oracle: {case.name}: {exc}', file=sys.stderr)
+        return 1
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     try:
@@ -169,6 +182,9 @@ def main(argv=None) -> int:
     except CompileError as exc:  # --compiled yes where no compiled plant step can be built
         print(f'ceco oracle: {exc}', file=sys.stderr)
         return 2
+    except orc.OracleStopped as exc:  # the plant cannot simulate the oracle's start
+        print(f'ceco oracle: {case.name}: {exc}', file=sys.stderr)
+        return 1
     rows = []
     for name, bound, r, hold_s in results:
         run_dir = out / name

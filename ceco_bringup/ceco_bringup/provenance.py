@@ -36,6 +36,7 @@ from ceco_core import yamlio
 __all__ = [
     'RUN_SCHEMA',
     'RUN_STATUSES',
+    'copy_drive_cycle',
     'copy_scenario',
     'scenario_path',
     'start_run',
@@ -67,7 +68,7 @@ def copy_scenario(name_or_path: str | os.PathLike, dest_dir: str | os.PathLike) 
     the copy's ``drive_cycle`` points at it (the file is then rewritten by the YAML dumper, with a
     header saying so).
     """
-    from ceco_v2x_preview.scenario import list_drive_cycles, list_scenarios
+    from ceco_v2x_preview.scenario import list_scenarios
 
     dest = Path(dest_dir)
     dest.mkdir(parents=True, exist_ok=True)
@@ -80,19 +81,34 @@ def copy_scenario(name_or_path: str | os.PathLike, dest_dir: str | os.PathLike) 
     src = Path(name).expanduser()
     text = src.read_text(encoding='utf-8')
     data = yamlio.safe_load(text)
-    cycle = data.get('drive_cycle') if isinstance(data, Mapping) else None
-    if not isinstance(cycle, str) or cycle in list_drive_cycles():
+    copied, note = copy_drive_cycle(data, src.parent, dest)
+    if not note:
         out.write_text(text, encoding='utf-8')
         return out
+    out.write_text(f'# copy of {src} ({note})\n' + yaml.safe_dump(copied, sort_keys=False), encoding='utf-8')
+    return out
+
+
+def copy_drive_cycle(data, src_dir: str | os.PathLike, dest_dir: str | os.PathLike) -> tuple:
+    """A scenario mapping that can be written to ``dest_dir``: ``(data, note)``.
+
+    Its drive cycle a bundled name (or no mapping): ``(data, '')`` unchanged. A CSV path (a relative one
+    resolved against ``src_dir``, the directory the scenario was read from): the CSV copied to
+    ``dest_dir/drive_cycle_<file name>``, a copy of ``data`` pointing at it, and the note ``drive_cycle X copied
+    to Y beside it`` for the written file's header.
+    """
+    from ceco_v2x_preview.scenario import list_drive_cycles
+
+    cycle = data.get('drive_cycle') if isinstance(data, Mapping) else None
+    if not isinstance(cycle, str) or cycle in list_drive_cycles():
+        return data, ''
     csv = Path(cycle).expanduser()
     if not csv.is_absolute():
-        csv = src.parent / csv
-    copied = dest / f'drive_cycle_{csv.name}'
-    shutil.copyfile(csv, copied)
-    data = dict(data, drive_cycle=copied.name)
-    header = f'# copy of {src} (drive_cycle {cycle} copied to {copied.name} beside it)\n'
-    out.write_text(header + yaml.safe_dump(data, sort_keys=False), encoding='utf-8')
-    return out
+        csv = Path(src_dir) / csv
+    copied = Path(dest_dir) / f'drive_cycle_{csv.name}'
+    if csv.resolve() != copied.resolve():
+        shutil.copyfile(csv, copied)
+    return dict(data, drive_cycle=copied.name), f'drive_cycle {cycle} copied to {copied.name} beside it'
 
 
 def scenario_path(run_dir: str | os.PathLike) -> Path | None:

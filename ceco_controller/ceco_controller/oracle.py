@@ -61,6 +61,7 @@ __all__ = [
     "LevelResult",
     "OracleProblem",
     "OracleSettings",
+    "OracleStopped",
     "STALLED",
     "STALL_LEVEL_RTOL",
     "ScheduleController",
@@ -321,7 +322,8 @@ class LevelResult:
     level_pmvh: float
     """The discomfort bound [PMV h]."""
     status: str
-    """IPOPT's return status (or the reason the level was not attempted)."""
+    """IPOPT's return status (or the reason the level was not attempted); ``<status>; replay: the simulation
+    stopped: ...`` when the plant could not replay the NLP's point (then no point)."""
     success: bool
     """The level has a point: IPOPT reported success (or an acceptable point), or a stalled attempt's point met the
     level (:attr:`certified` False); the replay ran."""
@@ -838,22 +840,35 @@ def replay(
     return res, kpis
 
 
+class OracleStopped(RuntimeError):
+    """A simulation the oracle cannot do without stopped: the plant left its model (a ``PlantStepError``).
+
+    The message is one line: which simulation, then the run's reason (``the simulation stopped: ...``).
+    """
+
+
 def baseline_commands(
     scenario, control_period_s: float, setpoint_c: float | None = None, door_logic: tuple = ()
 ) -> np.ndarray:
     """The production law's commands per control step on the scenario (the oracle's initial guess).
 
     Columns :data:`INPUT_NAMES`; with ``door_logic`` (``RecircSettings`` items) the law runs with that door
-    logic and the columns are :data:`DOOR_INPUT_NAMES` (the door's command).
+    logic and the columns are :data:`DOOR_INPUT_NAMES` (the door's command). :class:`OracleStopped` when the
+    plant cannot simulate the law's run.
     """
+    from ceco_plant_sim.plant_ops import PlantStepError
+
     from .closed_loop import SimSettings, simulate
 
     ovr = (() if setpoint_c is None else (("setpoint_c", float(setpoint_c)),)) + tuple(door_logic)
-    res = simulate(
-        scenario,
-        "baseline",
-        SimSettings(control_period_s=control_period_s, progress=False, strategy_overrides=ovr),
-    )
+    try:
+        res = simulate(
+            scenario,
+            "baseline",
+            SimSettings(control_period_s=control_period_s, progress=False, strategy_overrides=ovr),
+        )
+    except PlantStepError as exc:
+        raise OracleStopped(f"the production law's run (the oracle's start commands): {exc.run_error}") from None
     ts = res.timeseries
     m = int(round(control_period_s / (ts["t_s"][1] - ts["t_s"][0])))
     cols = [ts[nm][::m] for nm in INPUT_NAMES]
@@ -905,16 +920,21 @@ def solve_levels(
         stalled = None  # a stalled attempt's point, replayed: (commands, run, kpis)
         if status == STALLED:
             cmd = pb.commands_of(w_new)
-            run, kpis = replay(scenario, cmd, pb.control_period_s, pb.settings.plant_dt_s, pb.input_names)
-            meets = kpis["discomfort_pmvh"] <= lv[i] * (1.0 + STALL_LEVEL_RTOL)
-            say(
+            head = (
                 f"oracle {scenario.name}: level {lv[i]:.4f} PMV h: {status} after {it} iterations, {wall:.1f} s "
                 f"(energy lifted; the objective within {pb.stall.rtol:g} of itself for {pb.stall.window} iterations); "
-                f"its least violating iterate replays at {kpis['discomfort_pmvh']:.4f} "
-                f"PMV h, {kpis['energy_kwh']:.4f} kWh: "
-                + ("within the level, kept (no certificate)" if meets else "above the level")
             )
-            stalled = (cmd, run, kpis) if meets else None
+            run, kpis, stopped = _replay_or_stop(scenario, cmd, pb)
+            if stopped:
+                say(head + f"its least violating iterate's replay: {stopped}")
+            else:
+                meets = kpis["discomfort_pmvh"] <= lv[i] * (1.0 + STALL_LEVEL_RTOL)
+                say(
+                    head + f"its least violating iterate replays at {kpis['discomfort_pmvh']:.4f} "
+                    f"PMV h, {kpis['energy_kwh']:.4f} kWh: "
+                    + ("within the level, kept (no certificate)" if meets else "above the level")
+                )
+                stalled = (cmd, run, kpis) if meets else None
         if not ok and stalled is None and pb.settings.lift_energy:
             # the lifted form's IPOPT path can stall where the summed form's converges (udds-hot's least level:
             # 1200 iterations against 127, docs/oracle.md "Lifted energy"): the level again, summed
@@ -948,9 +968,9 @@ def solve_levels(
             if stalled is not None:
                 r.commands, r.run, r.kpis = stalled
             else:
-                r.run, r.kpis = replay(
-                    scenario, r.commands, pb.control_period_s, pb.settings.plant_dt_s, pb.input_names
-                )
+                r.run, r.kpis, stopped = _replay_or_stop(scenario, r.commands, pb)
+                if stopped:  # the NLP's point cannot be replayed: no point
+                    r.success, r.status = False, f"{status}; replay: {stopped}"
         out[i] = r
         tail = (
             f"replay {r.kpis['energy_kwh']:.4f} kWh / {r.kpis['discomfort_pmvh']:.4f} PMV h "
@@ -963,6 +983,20 @@ def solve_levels(
             f"{' (' + form + ')' if form == 'lifted, then summed' else ''}; {tail}"
         )
     return [out[i] for i in range(len(lv))]
+
+
+def _replay_or_stop(scenario, commands: np.ndarray, pb: OracleProblem) -> tuple:
+    """:func:`replay` of ``commands`` on ``pb``'s grid: (run, KPIs, '').
+
+    (None, None, why) when the plant cannot simulate it (a ``PlantStepError``: ``the simulation stopped: ...``).
+    """
+    from ceco_plant_sim.plant_ops import PlantStepError
+
+    try:
+        run, kpis = replay(scenario, commands, pb.control_period_s, pb.settings.plant_dt_s, pb.input_names)
+    except PlantStepError as exc:
+        return None, None, exc.run_error
+    return run, kpis, ""
 
 
 def edge_arrival_s(result: LevelResult) -> float | None:

@@ -53,6 +53,7 @@ from ceco_core.scenario_types import (
     SunGeometry,
     WeatherPreview,
     check_number,
+    yaml_number_hint,
 )
 
 __all__ = [
@@ -139,7 +140,7 @@ def load_drive_cycle(name_or_path: str | os.PathLike, base_dir: str | os.PathLik
 
     A path that is relative is resolved against ``base_dir`` (the scenario
     file's directory) when given. Raises ScenarioError for an unknown name or
-    a malformed file.
+    a malformed file, and for a CSV path (a name ending in ``.csv``) where no file is (naming the path looked at).
     """
     text_name = str(name_or_path)
     if text_name in list_drive_cycles():
@@ -147,10 +148,13 @@ def load_drive_cycle(name_or_path: str | os.PathLike, base_dir: str | os.PathLik
     path = Path(text_name).expanduser()
     if not path.is_absolute() and base_dir is not None:
         path = Path(base_dir) / path
-    if not (text_name.endswith(".csv") and path.is_file()):
+    if not text_name.endswith(".csv"):
         raise ScenarioError(
             f"drive_cycle: unknown drive cycle {text_name!r}: use one of {list_drive_cycles()} or a CSV path"
         )
+    if not path.is_file():
+        why = "is a directory, not a file" if path.is_dir() else "not found"
+        raise ScenarioError(f"drive_cycle: CSV file {text_name!r} {why} (looked for {path.absolute()})")
     return _parse_cycle_csv(path.read_text(encoding="utf-8"), str(path))
 
 
@@ -163,7 +167,7 @@ def _series(section: str, block: Mapping, key: str, n: int | None, bounds, low_o
         raw = [raw] * n  # a constant written as one number
     if not isinstance(raw, (list, tuple)):
         what = "a list of numbers" if n is None else "a list of numbers (or one number)"  # a time grid: a list
-        raise ScenarioError(f"{field}: must be {what}, got {raw!r}")
+        raise ScenarioError(f"{field}: must be {what}, got {raw!r}{yaml_number_hint(raw)}")
     vals = [check_number(f"{field}[{i}]", v, bounds, low_open) for i, v in enumerate(raw)]
     if n is not None and len(vals) != n:
         raise ScenarioError(f"{field}: length {len(vals)} differs from {section}.time_s length {n}")

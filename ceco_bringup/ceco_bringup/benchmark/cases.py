@@ -38,6 +38,7 @@ import yaml
 
 from ceco_core import yamlio
 from ceco_core.contracts import NOISE_SEED_RANGE
+from ceco_core.scenario_types import yaml_number_hint
 
 __all__ = [
     "CASE_SCHEMA",
@@ -174,11 +175,18 @@ class Case:
         return d
 
     def write_scenario(self, path: str | os.PathLike) -> Path:
-        """Write :meth:`scenario_dict` as a scenario YAML file (what the benchmark simulates); return its path."""
+        """Write :meth:`scenario_dict` as a scenario YAML file (what the benchmark simulates); return its path.
+
+        A CSV drive cycle is copied beside the file, which points at the copy (``provenance.copy_drive_cycle``).
+        """
+        from ceco_bringup.provenance import copy_drive_cycle
+
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        header = f"# the scenario of benchmark case {self.name} v{self.version} (sha {self.sha()}), overrides applied\n"
-        path.write_text(header + yaml.safe_dump(self.scenario_dict(), sort_keys=False), encoding="utf-8")
+        data, note = copy_drive_cycle(self.scenario_dict(), Path.cwd(), path.parent)  # (its path: as loaded)
+        header = f"# the scenario of benchmark case {self.name} v{self.version} (sha {self.sha()}), overrides applied"
+        header += f"; {note}\n" if note else "\n"
+        path.write_text(header + yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
         return path
 
     def resolved(self) -> dict:
@@ -217,7 +225,8 @@ def _number(field: str, value, *, integer: bool = False, low_open: float | None 
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, (int, float)) or (integer and not isinstance(value, int)):
-        raise CaseError(f"{field}: must be {'an integer' if integer else 'a number'}, got {value!r}")
+        what = "an integer" if integer else "a number"
+        raise CaseError(f"{field}: must be {what}, got {value!r}{yaml_number_hint(value)}")
     if not math.isfinite(value) or (low_open is not None and not value > low_open):
         raise CaseError(f"{field}: must be finite and > {low_open}, got {value!r}")
     return int(value) if integer else float(value)
