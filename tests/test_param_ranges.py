@@ -145,3 +145,43 @@ def test_extreme_accepted_values_keep_the_node_working_and_beyond_is_refused(nod
     assert why == f'invalid parameter {name}={beyond!r}: must lie in [{lo}, {hi}]'
     if spec.float_range:
         assert 'must be a finite number' in check_value(spec, math.nan)[1]
+
+
+@pytest.mark.parametrize(
+    ('node', 'measurements', 'ts', 'refused'),
+    [
+        ('mpc_node', 'full', 7.5, True),
+        ('mpc_node', 'full', 12.0, True),
+        ('mpc_node', 'full', 10.0, False),
+        ('mpc_node', 'full', 0.1 * 3 * 50, False),  # 15.000000000000002: a whole multiple within the float tolerance
+        ('baseline_node', 'full', 7.5, False),  # the ACC law runs at any Ts
+        ('baseline_node', 'vehicle', 7.5, True),  # its estimator steps the control model
+        ('baseline_node', 'vehicle', 10.0, False),
+    ],
+)
+def test_control_period_not_a_whole_multiple_of_the_model_step_is_refused_at_start_and_on_set(
+    node, measurements, ts, refused
+):
+    """A Ts the control model cannot step (mpc_node; baseline_node with measurements vehicle) is refused by the
+    configuration (start, ``ros2 param set``) with the words of the NMPC's own check at configure
+    (``model.substeps``, the one rule), instead of failing at configure after a clean start."""
+    from ceco_controller import model as cm
+
+    specs, make = TABLES[node]
+    values = _with_period(node, {s.name: s.default for s in specs}, ts) | {'measurements': measurements}
+    try:
+        cm.substeps(cm.load_params(), ts)
+        configure_says = None
+    except ValueError as err:
+        configure_says = str(err)
+    assert (configure_says is not None and (node == 'mpc_node' or measurements == 'vehicle')) == refused
+    if not refused:
+        make(values)
+        return
+    with pytest.raises(ValueError) as start:
+        make(values)
+    assert str(start.value) == f'invalid parameter control_period_s={ts!r}: {configure_says}'
+    cfg = make(_with_period(node, values, 5.0))  # a running node's ros2 param set: the same check, the same words
+    with pytest.raises(ValueError) as on_set:
+        cfg.replaced(values)
+    assert str(on_set.value) == str(start.value)

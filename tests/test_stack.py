@@ -905,6 +905,7 @@ def test_realtime_kill_controller_fallback_within_one_control_period(tmp_path):
                 'lockstep.min_state_subscribers': 3,
                 'lockstep.min_output_subscribers': 1,
                 'lockstep.min_command_subscribers': 2,
+                'realtime.start_gate': True,  # step 0 waits for the recorder, as under ceco run
             },
         ),
     )
@@ -1369,6 +1370,7 @@ def test_diagnostics_under_forced_fallback(tmp_path):
                 'lockstep.min_state_subscribers': 3,
                 'lockstep.min_output_subscribers': 1,
                 'lockstep.min_command_subscribers': 2,
+                'realtime.start_gate': True,  # step 0 waits for the recorder, as under ceco run
             },
         ),
     )
@@ -1682,7 +1684,11 @@ def test_realtime_stack_survives_fuzzing_and_recovers(tmp_path):
             common,
             plant_dt_s=1.0,
             duration_s=600.0,
-            **{'lockstep.min_state_subscribers': 2, 'lockstep.min_command_subscribers': 2},
+            **{
+                'lockstep.min_state_subscribers': 2,
+                'lockstep.min_command_subscribers': 2,
+                'realtime.start_gate': True,
+            },
             **deep,
         ),
     )

@@ -102,6 +102,36 @@ def test_fatal_line_names_the_renamed_node_and_integers_are_taken_for_doubles(tm
     assert 'Traceback' not in bad.log_text() and 'Traceback' not in ok.log_text()
 
 
+@pytest.mark.parametrize('enclave_dir', [False, True], ids=['no-keystore', 'enclave-without-keys'])
+def test_a_node_rcl_cannot_create_says_so_in_one_error_line_and_exits_1(tmp_path, enclave_dir):
+    """ROS security on (Enforce) where the node cannot get its security: a keystore that does not exist (rcl's init
+    fails) or an enclave directory without keys (node creation fails: this Fast DDS has no security libraries, or
+    the keys are missing). plant_node from the built workspace says `could not start: ...` once as an ERROR with the
+    keystore hint, no traceback, no `stopped ... exit 0` line, and exits 1 (before: `stopped (shutdown) while
+    starting: exit 0`, then a traceback)."""
+    import subprocess
+
+    keystore = tmp_path / 'keystore'
+    if enclave_dir:
+        (keystore / 'enclaves' / 'ceco' / 'plant_node').mkdir(parents=True)
+    env = dict(
+        supervisor.dds_env(_domain()),
+        ROS_SECURITY_ENABLE='true',
+        ROS_SECURITY_STRATEGY='Enforce',
+        ROS_SECURITY_KEYSTORE=str(keystore),
+    )
+    cmd = [supervisor.find_executable('ceco_plant_sim', 'plant_node'), '--ros-args', '--enclave', '/ceco/plant_node']
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
+    out = done.stdout + done.stderr
+    print(out)
+    assert done.returncode == 1, out
+    errors = [line for line in out.splitlines() if line.startswith('[ERROR]')]
+    assert len(errors) == 1 and '[plant_node]: could not start: ' in errors[0], out
+    assert 'security' in errors[0].lower() and 'ROS_SECURITY_KEYSTORE' in errors[0], errors
+    assert ('error creating node' if enclave_dir else 'failed to initialize rcl') in errors[0], errors
+    assert 'Traceback' not in out and 'exit 0' not in out, out
+
+
 def test_unconfigured_controller_and_lone_plant_say_what_they_wait_for(tmp_path):
     """An mpc_node without autostart says how to start it (`ros2 lifecycle set ... configure`); a
     lockstep plant without peers says in its log (not only on /diagnostics) what step 0 waits for."""
@@ -121,6 +151,32 @@ def test_unconfigured_controller_and_lone_plant_say_what_they_wait_for(tmp_path)
     assert 'cabin/state subscribers' in plant.log_text()
 
 
+def test_lone_realtime_plant_drives_on_its_acc_law_until_a_controller_commands(tmp_path):
+    """A real-time plant_node with no controller (and the lockstep gate's defaults, 2 state
+    subscribers and a command publisher, unmet): it stands for the vehicle, so it steps on its own
+    clock from step 0 and its ACC law drives (AcPower.fallback). Before: it logged 'waiting for
+    subscribers before step 0' and published nothing until a controller existed."""
+    from test_stack import _wait_for
+
+    from ceco_msgs.msg import AcPower, CabinState
+    from ceco_ros import interfaces
+
+    tn = DdsPeer(_domain(), 'vehicle_watch')
+    states = tn.collect(CabinState, interfaces.TOPIC_STATE, interfaces.state_qos('realtime'))
+    powers = tn.collect(AcPower, interfaces.TOPIC_POWER, interfaces.state_qos('realtime'))
+    params = {'scenario': 'sc03', 'timing': 'realtime', 'control_period_s': 2.0, 'plant_dt_s': 0.5}
+    plant = _proc('plant_node', 'plant_node', tn.env, tmp_path / 'logs', params)
+    try:
+        plant.start()
+        _wait_for(lambda: len(powers) >= 6 and len(states) >= 6, 120, 'six plant steps without a controller', [plant])
+    finally:
+        plant.stop()
+        tn.close()
+    assert all(p.fallback for p in powers) and all(s.fallback for s in states[1:])  # the ACC law drove
+    log = plant.log_text()
+    assert 'waiting for subscribers' not in log and 'subscribers matched: starting at step 0' in log
+
+
 def _realtime_stack(tn, log_dir, ts=2.0, dt=0.5, controller='baseline_node', **plant_extra):
     common = {'scenario': 'sc03', 'timing': 'realtime', 'control_period_s': ts}
     preview = _proc('preview_node', 'preview_node', tn.env, log_dir, dict(common, horizon_steps=6, publish_period_s=ts))
@@ -130,7 +186,13 @@ def _realtime_stack(tn, log_dir, ts=2.0, dt=0.5, controller='baseline_node', **p
         'plant_node',
         tn.env,
         log_dir,
-        dict(common, plant_dt_s=dt, duration_s=600.0, **{'lockstep.min_state_subscribers': 2}, **plant_extra),
+        dict(
+            common,
+            plant_dt_s=dt,
+            duration_s=600.0,
+            **{'lockstep.min_state_subscribers': 2, 'realtime.start_gate': True},
+            **plant_extra,
+        ),
     )
     return preview, ctrl, plant
 
@@ -257,3 +319,98 @@ def test_valid_commands_of_a_foreign_participant_are_not_applied(tmp_path):
     # each injected command is one rejection (a foreign one may race the first binding)
     assert int(v['rejected_total']) >= injected['foreign'] + injected['replay'] - 1, (v, injected)
     print(f'\nforeign participant: injected {injected}; plant applied none of {len(during)} steps; {v}')
+
+
+_SIM_TIME_IN_REALTIME = (
+    'use_sim_time is true but timing is realtime: nothing publishes /clock in real time; '
+    'use timing lockstep or use_sim_time false'
+)
+_NOT_A_MODEL_STEP = 'control period 7.5 s must be a whole multiple of the model step 5.0 s'
+
+
+def _set_param(tn, node: str, name: str, value):
+    """``ros2 param set /<node> <name> <value>`` (bool, float or str): the node's SetParametersResult."""
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+
+    kind, field = {
+        bool: (ParameterType.PARAMETER_BOOL, 'bool_value'),
+        float: (ParameterType.PARAMETER_DOUBLE, 'double_value'),
+        str: (ParameterType.PARAMETER_STRING, 'string_value'),
+    }[type(value)]
+    client = tn.node.create_client(SetParameters, f'/{node}/set_parameters')
+    req = SetParameters.Request(parameters=[Parameter(name=name, value=ParameterValue(type=kind, **{field: value}))])
+    res = supervisor.call_service(client, req, 30.0, attempt_s=5.0)
+    tn.node.destroy_client(client)
+    assert res is not None, f'no answer from /{node}/set_parameters in 30 s'
+    return res.results[0]
+
+
+@pytest.mark.parametrize(
+    ('node', 'params', 'line'),
+    [
+        ('plant_node', {'timing': 'realtime', 'lockstep.min_state_subscribers': 0, 'use_sim_time': True}, 'sim'),
+        ('preview_node', {'timing': 'realtime', 'use_sim_time': True}, 'sim'),
+        ('mpc_node', {'timing': 'realtime', 'use_sim_time': True, 'autostart': True}, 'sim'),
+        ('mpc_node', {'timing': 'realtime', 'control_period_s': 7.5, 'autostart': True}, 'step'),
+        ('baseline_node', {'control_period_s': 7.5, 'measurements': 'vehicle'}, 'step'),
+    ],
+    ids=['plant-sim-time', 'preview-sim-time', 'mpc-sim-time', 'mpc-ts-7.5', 'baseline-vehicle-ts-7.5'],
+)
+def test_a_start_that_cannot_work_is_one_fatal_line_and_exit_2(tmp_path, node, params, line):
+    """use_sim_time true in real time (nothing publishes /clock: the plant published nothing, the controller
+    refused every state as ahead of its clock) and a Ts the control model cannot step (mpc_node: configure failed
+    after a clean start; baseline_node with the estimator of measurements vehicle the same) stop the node at start
+    with one FATAL line and status 2, as any bad parameter."""
+    env = supervisor.dds_env(_domain())
+    proc = _proc(node, node, env, tmp_path / 'logs', params)
+    try:
+        proc.start()
+        rc = proc.proc.wait(timeout=120)
+    finally:
+        proc.stop()
+    log = proc.log_text()
+    fatal = [x for x in log.splitlines() if '[FATAL]' in x]
+    want = _SIM_TIME_IN_REALTIME if line == 'sim' else f'invalid parameter control_period_s=7.5: {_NOT_A_MODEL_STEP}'
+    assert rc == 2, log[-3000:]
+    assert len(fatal) == 1 and fatal[0].endswith(f'[{node}]: {want}'), log[-3000:]
+    assert 'Traceback' not in log
+
+
+def test_use_sim_time_and_the_model_step_are_refused_at_run_time_with_the_reason(tmp_path):
+    """`ros2 param set` of use_sim_time true on a real-time node (controller, preview node, plant), of a real-time
+    timing on an unconfigured use_sim_time controller, and of a Ts the model cannot step on an unconfigured
+    mpc_node: each refused with the reason, the value kept; lockstep with use_sim_time true still starts and a
+    whole multiple of the model step is taken."""
+    tn = DdsPeer(_domain(), 'operator')
+    log_dir = tmp_path / 'logs'
+    mpc = _proc('mpc_node', 'mpc_node', tn.env, log_dir, {'strategy': 'ceco', 'use_sim_time': True})
+    preview = _proc('preview_node', 'preview_node', tn.env, log_dir, {'timing': 'realtime'})
+    plant = _proc(
+        'plant_node', 'plant_node', tn.env, log_dir, {'timing': 'realtime', 'lockstep.min_state_subscribers': 0}
+    )
+    procs = (mpc, preview, plant)
+    try:
+        for p in procs:
+            p.start()
+        _log_has(mpc, 'ros2 lifecycle set /mpc_node configure', 120)
+        r = _set_param(tn, 'mpc_node', 'timing', 'realtime')  # lockstep + use_sim_time true: started, unconfigured
+        assert not r.successful and r.reason == _SIM_TIME_IN_REALTIME, r
+        r = _set_param(tn, 'mpc_node', 'control_period_s', 7.5)
+        assert not r.successful and r.reason == f'invalid parameter control_period_s=7.5: {_NOT_A_MODEL_STEP}', r
+        assert _set_param(tn, 'mpc_node', 'control_period_s', 10.0).successful
+        assert _set_param(tn, 'mpc_node', 'use_sim_time', False).successful
+        assert _set_param(tn, 'mpc_node', 'timing', 'realtime').successful
+        r = _set_param(tn, 'mpc_node', 'use_sim_time', True)
+        assert not r.successful and r.reason == _SIM_TIME_IN_REALTIME, r
+        for node in ('preview_node', 'plant_node'):
+            r = _set_param(tn, node, 'use_sim_time', True)
+            assert not r.successful and r.reason == _SIM_TIME_IN_REALTIME, (node, r)
+            assert _set_param(tn, node, 'use_sim_time', False).successful
+        assert all(p.running() for p in procs)
+    finally:
+        for p in procs:
+            p.stop()
+        tn.close()
+    for p in procs:
+        assert 'Traceback' not in p.log_text(), p.log_text()[-3000:]

@@ -282,6 +282,8 @@ def _params(args, scenario, quality, strategy, duration_s):
             'lockstep.min_state_subscribers': 3,
             'lockstep.min_output_subscribers': 1,
             'lockstep.min_command_subscribers': 2,
+            # realtime too: step 0 waits for the recorder (and the controller's publisher), so the bag has it
+            'realtime.start_gate': True,
         },
     )
     return ts, np_, preview, controller, plant

@@ -12,13 +12,17 @@ strategy:=baseline; a managed node, a launch_ros LifecycleNode) and plant_node.
 In lockstep the plant drives /clock and the other two follow it (use_sim_time).
 record:=true adds `ros2 bag record` (mcap) of the stack's topics, fully
 qualified, and makes the plant wait for the recorder's subscriptions as under
-`ceco run` (share/ceco_bringup/config/recorder_gate_true.yaml), so the bag
-starts at step 0 (if the recorder exits, everything stops). security:=true
-runs every node in its SROS2 enclave of keystore:=DIR (`ceco security
-create-keystore DIR`). Every choice is a substitution or a condition, so
-`--print-description` shows every process. Unlike `ceco run` it computes no
-metrics and keeps running after the drive (the plant idles); Ctrl-C stops every
-process. ceco.launch.xml is the same stack in the XML front-end. Arguments:
+`ceco run` (share/ceco_bringup/config/recorder_gate_true.yaml; in real time
+also the plant's realtime.start_gate), so the bag starts at step 0 (if the
+recorder exits, everything stops). security:=true runs every node in its SROS2
+enclave of keystore:=DIR (`ceco security create-keystore DIR`): the
+ROS_SECURITY_* variables go into each node's environment only, never into
+launch's own (launch_ros's internal node, which drives the lifecycle, would be
+secured too and fail without the keystore's enclave or, on a Fast DDS built
+without security, stop the launch before any node starts). Every choice is a
+substitution or a condition, so `--print-description` shows every process.
+Unlike `ceco run` it computes no metrics and keeps running after the drive (the
+plant idles); Ctrl-C stops every process. ceco.launch.xml is the same stack in the XML front-end. Arguments:
 docs/ros.md, "Launch".
 """
 
@@ -28,13 +32,13 @@ from launch.actions import (
     ExecuteProcess,
     LogInfo,
     RegisterEventHandler,
-    SetEnvironmentVariable,
     SetLaunchConfiguration,
     Shutdown,
 )
 from launch.conditions import IfCondition, UnlessCondition
 from launch.substitutions import (
     AndSubstitution,
+    EnvironmentVariable,
     EqualsSubstitution,
     IfElseSubstitution,
     LaunchConfiguration,
@@ -103,6 +107,8 @@ ARGUMENTS = (
 """name, default, choices (None: free), description; declared in this order."""
 ENCLAVE_ROOT = '/ceco'
 """Each node runs in the SROS2 enclave ENCLAVE_ROOT/<node> (ceco_bringup.security)."""
+SECURITY_ENV = (('ROS_SECURITY_ENABLE', 'true'), ('ROS_SECURITY_STRATEGY', 'Enforce'), ('ROS_SECURITY_KEYSTORE', None))
+"""With security:=true, each node process's environment (None: the keystore argument); false: launch's own values."""
 
 
 def generate_launch_description() -> LaunchDescription:
@@ -116,6 +122,11 @@ def generate_launch_description() -> LaunchDescription:
         [PathJoinSubstitution([share['ceco_bringup'], 'config', 'recorder_gate_']), cfg['record'], '.yaml']
     )
     common = {'scenario': cfg['scenario'], 'timing': cfg['timing']}
+    # a node's own environment, not launch's: SetEnvironmentVariable would secure launch_ros's internal node too
+    secure_env = {
+        var: IfElseSubstitution(cfg['security'], value or cfg['keystore'], EnvironmentVariable(var, default_value=''))
+        for var, value in SECURITY_ENV
+    }
     follower = dict(common, use_sim_time=ParameterValue(LaunchConfiguration('sim_time'), value_type=bool))
     managed = dict(follower, autostart=ParameterValue(cfg['autostart'], value_type=bool))
 
@@ -129,6 +140,7 @@ def generate_launch_description() -> LaunchDescription:
             namespace=cfg['namespace'],
             parameters=[*files, params],
             ros_arguments=['--enclave', f'{ENCLAVE_ROOT}/{name}'],
+            additional_env=secure_env,
             output='screen',
             **kwargs,
         )
@@ -173,18 +185,15 @@ def generate_launch_description() -> LaunchDescription:
                 'topic_prefix',
                 PythonExpression(["'/' + ''.join(p + '/' for p in ['", cfg['namespace'], "'.strip('/')] if p)"]),
             ),
-            *(
-                SetEnvironmentVariable(var, value, condition=IfCondition(cfg['security']))
-                for var, value in (
-                    ('ROS_SECURITY_ENABLE', 'true'),
-                    ('ROS_SECURITY_STRATEGY', 'Enforce'),
-                    ('ROS_SECURITY_KEYSTORE', cfg['keystore']),
-                )
-            ),
             node('preview_node', follower, [gate]),
             mpc,
             baseline,
-            node('plant_node', common, [gate]),
+            # real time: the plant starts at once (a vehicle), unless a recorder must get step 0
+            node(
+                'plant_node',
+                dict(common, **{'realtime.start_gate': ParameterValue(cfg['record'], value_type=bool)}),
+                [gate],
+            ),
             *active,
             _recorder(True, AndSubstitution(cfg['record'], LaunchConfiguration('sim_time'))),
             _recorder(False, AndSubstitution(cfg['record'], NotSubstitution(LaunchConfiguration('sim_time')))),

@@ -38,6 +38,9 @@ ARGUMENTS = {
 }
 RUN_NODE = {'preview_node': 'preview', 'mpc_node': 'controller', 'baseline_node': 'controller', 'plant_node': 'plant'}
 SHARE = '/opt/share'
+LAUNCH_ENVIRON: dict[str, str] = {}
+"""The environment of the launch process, as `$(env ...)` / EnvironmentVariable see it (a test sets it)."""
+SECURITY_VARS = ('ROS_SECURITY_ENABLE', 'ROS_SECURITY_STRATEGY', 'ROS_SECURITY_KEYSTORE')
 
 
 def _constants() -> dict:
@@ -117,6 +120,9 @@ def _stub_modules() -> dict:
     mods['launch.conditions'].UnlessCondition = sub('UnlessCondition', lambda c, x: not _truth(perform(x, c)))
     s = mods['launch.substitutions']
     s.LaunchConfiguration = sub('LaunchConfiguration', lambda c, name: c[name])
+    s.EnvironmentVariable = sub(
+        'EnvironmentVariable', lambda c, name, default_value=None: LAUNCH_ENVIRON.get(name, default_value)
+    )
     s.EqualsSubstitution = sub('EqualsSubstitution', lambda c, a, b: _bool(perform(a, c) == perform(b, c)))
     s.IfElseSubstitution = sub(
         'IfElseSubstitution', lambda c, x, a, b: perform(a, c) if _truth(perform(x, c)) else perform(b, c)
@@ -182,6 +188,7 @@ def _run_python(description, **arguments) -> dict:
                     for k, v in params.items()
                 },
                 'ros_args': [perform(a, ctx) for a in kw['ros_arguments']],
+                'env': {perform(k, ctx): perform(v, ctx) for k, v in kw.get('additional_env', {}).items()},
             }
             out['kinds'][kw['name']] = kind
         elif kind == 'ExecuteProcess':
@@ -205,7 +212,7 @@ def _xml_sub(text: str, ctx) -> str:
     """Evaluate launch's `$(name args)` substitutions in ``text`` (innermost first)."""
     inner = re.compile(r'\$\((\w[\w-]*)((?:\s+(?:"[^"]*"|[^\s()$"]+))*)\s*\)')
     while (m := inner.match(text, text.rfind('$('))) is not None:  # the last `$(` is an innermost one
-        name, args = m[1], [a.strip('"') for a in re.findall(r'"[^"]*"|[^\s"]+', m[2])]
+        name, args = m[1], [_unquote(a) for a in re.findall(r'"[^"]*"|[^\s"]+', m[2])]
         if name == 'var':
             value = ctx[args[0]]
         elif name == 'equals':
@@ -218,12 +225,22 @@ def _xml_sub(text: str, ctx) -> str:
             value = _bool(not _truth(args[0]))
         elif name == 'eval':
             value = str(eval(args[0]))
+        elif name == 'env':
+            value = LAUNCH_ENVIRON.get(args[0], args[1] if len(args) > 1 else None)
+            assert value is not None, f'$(env {args[0]}) without a default and not set'
         elif name == 'find-pkg-share':
             value = f'{SHARE}/{args[0]}'
         else:
             raise AssertionError(f'substitution $({name}) not evaluated by this test')
+        outer = re.match(r'\$\((\w[\w-]*)', text[text.rfind('$(', 0, m.start()) :])
+        if not value and outer and outer[1] != 'eval':  # an empty argument of the enclosing substitution
+            value = "''"
         text = text[: m.start()] + value + text[m.end() :]
     return text
+
+
+def _unquote(arg: str) -> str:
+    return arg[1:-1] if len(arg) >= 2 and arg[0] == arg[-1] and arg[0] in '\'"' else arg
 
 
 def _run_xml(**arguments) -> dict:
@@ -255,6 +272,7 @@ def _run_xml(**arguments) -> dict:
                 'files': [_xml_sub(p.get('from'), ctx) for p in e.findall('param') if p.get('from')],
                 'params': params,
                 'ros_args': _xml_sub(e.get('ros_args'), ctx).split(),
+                'env': {v.get('name'): _xml_sub(v.get('value'), ctx) for v in e.findall('env')},
             }
             out['kinds'][e.get('name')] = 'Node'
         elif e.tag == 'executable':
@@ -374,10 +392,12 @@ def test_default_launch_starts_preview_mpc_and_plant_on_sim_time(launch):
             'strategy': 'ceco-ioch',
         },
         'ros_args': ['--enclave', '/ceco/mpc_node'],
+        'env': dict.fromkeys(SECURITY_VARS, ''),  # launch's own (unset here): no DDS security unless asked
     }
     assert nodes['preview_node']['params'] == {'scenario': 'sc03', 'timing': 'lockstep', 'use_sim_time': True}
-    assert nodes['plant_node']['params'] == {'scenario': 'sc03', 'timing': 'lockstep'}  # drives /clock
-    assert started['env'] == {}  # no DDS security unless asked
+    # drives /clock; realtime.start_gate: only a recorder makes a real-time plant wait before step 0
+    assert nodes['plant_node']['params'] == {'scenario': 'sc03', 'timing': 'lockstep', 'realtime.start_gate': False}
+    assert started['env'] == {}
 
 
 def test_launch_arguments_select_controller_clock_namespace_and_autostart(launch):
@@ -417,6 +437,9 @@ def test_record_adds_ros2_bag_record_of_fully_qualified_topics_and_the_gate(laun
     ]
     gate_on = f'{SHARE}/ceco_bringup/config/recorder_gate_true.yaml'
     assert all(started['nodes'][n]['files'][-1] == gate_on for n in ('mpc_node', 'plant_node'))
+    # the plant waits for the recorder in real time too (realtime.start_gate), so the bag has step 0
+    assert started['nodes']['plant_node']['params']['realtime.start_gate'] is True
+    assert launch(timing='realtime')['nodes']['plant_node']['params']['realtime.start_gate'] is False
     realtime = launch(record='true', timing='realtime', namespace='/a/b/')['recorder']
     assert '--use-sim-time' not in realtime and realtime[realtime.index('--topics') + 1] == '/a/b/cabin/state'
     assert launch(record='true')['recorder'][7] == '/cabin/state'
@@ -424,17 +447,35 @@ def test_record_adds_ros2_bag_record_of_fully_qualified_topics_and_the_gate(laun
 
 def test_security_runs_every_node_in_its_enclave_of_the_keystore(launch):
     started = launch(security='true', keystore='/keys/ceco')
-    assert started['env'] == {
-        'ROS_SECURITY_ENABLE': 'true',
-        'ROS_SECURITY_STRATEGY': 'Enforce',
-        'ROS_SECURITY_KEYSTORE': '/keys/ceco',
-    }
+    secured = {'ROS_SECURITY_ENABLE': 'true', 'ROS_SECURITY_STRATEGY': 'Enforce', 'ROS_SECURITY_KEYSTORE': '/keys/ceco'}
+    assert {n: v['env'] for n, v in started['nodes'].items()} == dict.fromkeys(started['nodes'], secured)
     assert {n: v['ros_args'] for n, v in started['nodes'].items()} == {
         n: ['--enclave', f'/ceco/{n}'] for n in ('preview_node', 'mpc_node', 'plant_node')
     }
     from ceco_bringup.security import ENCLAVES
 
     assert set(ENCLAVES) >= {f'/ceco/{n}' for n in _constants()['NODES']}  # the keystore has each enclave
+
+
+def test_security_is_in_the_nodes_environment_never_in_launchs_own(monkeypatch, launch):
+    """A ROS_SECURITY_* SetEnvironmentVariable (<set_env>) at the launch-description level changes
+    launch's own environment: launch_ros's internal node (the lifecycle handling of LifecycleNode)
+    was then created under DDS security and `ros2 launch ... security:=true` stopped before any
+    node started ("error creating node: This Fast DDS version doesn't have the security
+    libraries"). Each node process gets the variables (additional_env / <env>) instead."""
+    for arguments in ({}, {'security': 'true', 'keystore': '/k'}, {'security': 'true', 'timing': 'realtime'}):
+        assert launch(**arguments)['env'] == {} and _run_xml(**arguments)['env'] == {}
+    tree = ast.parse(LAUNCH_FILE.read_text())
+    called = {n.func.id for n in ast.walk(tree) if isinstance(n, ast.Call) and isinstance(n.func, ast.Name)}
+    assert 'SetEnvironmentVariable' not in called
+    description = _python_description(monkeypatch)
+    assert not [e for e in description if type(e).__name__ == 'SetEnvironmentVariable' and e.args[0] in SECURITY_VARS]
+    assert not [e for e in ET.parse(XML_FILE).getroot().iter('set_env') if e.get('name') in SECURITY_VARS]
+    # security:=false passes launch's own values on unchanged (as before: nothing was set then)
+    monkeypatch.setitem(LAUNCH_ENVIRON, 'ROS_SECURITY_ENABLE', 'true')
+    for started in (launch(), _run_xml()):
+        env = started['nodes']['plant_node']['env']
+        assert env == {'ROS_SECURITY_ENABLE': 'true', 'ROS_SECURITY_STRATEGY': '', 'ROS_SECURITY_KEYSTORE': ''}
 
 
 COMBINATIONS = [

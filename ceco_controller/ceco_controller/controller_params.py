@@ -70,7 +70,8 @@ def controller_parameters(fixed_strategy: str | None = None) -> tuple[ParamSpec,
         ParamSpec(
             'control_period_s',
             5.0,
-            'control period Ts [s]' + ('' if fixed_strategy else '; a whole multiple of the control model step (5 s)'),
+            'control period Ts [s]; a whole multiple of the control model step (5 s)'
+            + (' with measurements vehicle (its estimator steps the model)' if fixed_strategy else ''),
             float_range=CONTROL_PERIOD_RANGE_S if fixed_strategy else NMPC_CONTROL_PERIOD_RANGE_S,
             at_configure=True,
         ),
@@ -244,6 +245,27 @@ class ControllerNodeConfig(NodeConfig):
                 f'invalid parameter qos.liveliness_lease_s={self.liveliness_lease_s!r}: must be at most '
                 f'control_period_s={ts!r} (a dead controller is to be noticed within a control period)'
             )
+        self._check_model_step()
+
+    def _check_model_step(self) -> None:
+        """Ts a whole multiple of the control model's step where the model is stepped.
+
+        The NMPC and the estimator of ``measurements: vehicle`` apply this rule at configure (``model.substeps``);
+        here it is checked at start and on ``ros2 param set``. A model file that cannot be read is left to configure
+        to report.
+        """
+        if self.strategy == 'baseline' and self.measurements != 'vehicle':
+            return  # the ACC law runs at any Ts the plant step divides
+        from . import model as cm  # here: casadi only for the nodes that step the model
+
+        try:
+            params = cm.load_params()
+        except (OSError, ValueError):
+            return
+        try:
+            cm.substeps(params, self.control_period_s)
+        except ValueError as err:
+            raise ValueError(f'invalid parameter control_period_s={self.control_period_s!r}: {err}') from None
 
     @property
     def window_steps(self) -> int:

@@ -77,21 +77,30 @@ PLANT_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec(
         'lockstep.min_state_subscribers',
         2,
-        'lockstep: cabin/state subscribers to wait for before step 0 [-]',
+        'lockstep (realtime only with realtime.start_gate): cabin/state subscribers to wait for before step 0; '
+        'above 0 step 0 also waits for a hvac/command publisher [-]',
         int_range=(0, 100),
     ),
     ParamSpec(
         'lockstep.min_output_subscribers',
         0,
-        'lockstep: subscribers of every other output to wait for before step 0 [-]',
+        'lockstep (realtime only with realtime.start_gate): subscribers of every other output to wait for '
+        'before step 0 [-]',
         int_range=(0, 100),
     ),
     ParamSpec(
         'lockstep.min_command_subscribers',
         1,
-        'lockstep: hvac/command data readers (this node included, liveliness probes not) to see in the graph '
-        'before step 0 [-]',
+        'lockstep (realtime only with realtime.start_gate): hvac/command data readers (this node included, '
+        'liveliness probes not) to see in the graph before step 0 [-]',
         int_range=(0, 100),
+    ),
+    ParamSpec(
+        'realtime.start_gate',
+        False,
+        'realtime: false (a vehicle): step 0 at once, the ACC law drives until a controller commands; true: '
+        'step 0 waits, unbounded, for the lockstep.min_*_subscribers and a hvac/command publisher, as in '
+        'lockstep (ceco run, record:=true: so the recorder gets step 0); ignored in lockstep',
     ),
     ParamSpec(
         'fallback.command_timeout_periods',
@@ -127,6 +136,7 @@ _FIELDS = {
     'lockstep.min_state_subscribers': 'min_state_subscribers',
     'lockstep.min_output_subscribers': 'min_output_subscribers',
     'lockstep.min_command_subscribers': 'min_command_subscribers',
+    'realtime.start_gate': 'realtime_start_gate',
     'fallback.command_timeout_periods': 'command_timeout_periods',
     'commands.require_sequence': 'require_sequence',
     **SHARED_FIELDS,
@@ -157,6 +167,8 @@ class PlantNodeConfig(NodeConfig):
     """lockstep: ... and every other output this many (a recorder)."""
     min_command_subscribers: int = 1
     """lockstep: ... and hvac/command this many subscriptions in the graph (plant + recorder)."""
+    realtime_start_gate: bool = False
+    """realtime: step 0 waits for the min_*_subscribers and a command publisher too (else it starts at once)."""
     command_timeout_periods: float = 1.0
     """realtime: command age (in control periods, plus one plant step) after which the fallback law applies."""
     liveliness_lease_s: float = 1.0
@@ -357,8 +369,12 @@ def start_gate(
 
     The matched subscribers of cabin/state and of every other output, the hvac/command
     data readers in the graph (the plant's own liveliness probe not counted) and a matched
-    command publisher (unless no state subscriber is required).
+    command publisher (unless no state subscriber is required). In real time only with
+    ``realtime_start_gate``: a real-time plant stands for the vehicle and starts at once (its
+    ACC law drives until a controller commands).
     """
+    if cfg.timing == 'realtime' and not cfg.realtime_start_gate:
+        return ''
     missing = []
     if state_subs < cfg.min_state_subscribers:
         missing.append(f'cabin/state subscribers {state_subs}/{cfg.min_state_subscribers}')
@@ -374,7 +390,9 @@ def start_gate(
 STARTED = 'subscribers matched: starting at step 0'
 """The log line of a plant whose start gate opened: it publishes the state of step 0 (``ceco run`` watches for it)."""
 
-CONTROLLER_LOST = "the controller's liveliness was lost (its process is gone or frozen)"
+CONTROLLER_LOST = (
+    "the controller's liveliness was lost (its process is gone or frozen, or its node was deactivated or shut down)"
+)
 """Why the ACC law drives after a liveliness loss of the command publisher."""
 
 

@@ -78,19 +78,32 @@ class NodeTools:
 
         A change is validated as a whole configuration, then ``self.config`` is replaced,
         :meth:`config_changed` called and the change logged. ``unconfigured()`` (managed nodes)
-        says when configuration parameters may change. Returns the configuration.
+        says when configuration parameters may change. rclpy's ``use_sim_time`` is checked against
+        ``timing`` (:func:`ceco_ros.params.sim_time_conflict`) at start (ValueError: the node's FATAL
+        line, exit 2) and on a set of either. Returns the configuration.
         """
         self.config = config_from(params.declare_all(self, specs))
+        why = params.sim_time_conflict(self.config.timing, self.get_parameter('use_sim_time').value)
+        if why:
+            raise ValueError(why)
         params.on_set(self, specs, self._set_params, unconfigured)
         self.setup_tools(self.config.log_throttle_s)
         self.qos_events = {'incompatible_qos': 0}
         return self.config
 
     def _set_params(self, changes: dict) -> str | None:
+        ours = {k: v for k, v in changes.items() if k != 'use_sim_time'}
         try:
-            self.config = self.config.replaced(changes)
+            config = self.config.replaced(ours) if ours else self.config
         except ValueError as err:
             return str(err)
+        sim_time = changes.get('use_sim_time', self.get_parameter('use_sim_time').value)
+        why = params.sim_time_conflict(config.timing, sim_time)
+        if why:
+            return why
+        if not ours:
+            return None  # use_sim_time alone: rclpy's time source applies it
+        self.config = config
         self.notices.throttle_s = self.config.log_throttle_s
         self.config_changed()
         self.get_logger().info(f'parameters set: {changes}')

@@ -4,7 +4,17 @@ from __future__ import annotations
 
 import signal
 
-__all__ = ['run_node']
+__all__ = ['START_FAILED_EXIT', 'run_node']
+
+START_FAILED_EXIT = 1
+"""Exit status of a node that could not start for another reason than a bad parameter (2)."""
+
+SECURITY_HINT = (
+    'ROS_SECURITY_ENABLE is true: the node needs its enclave (--enclave) with its keys in '
+    'ROS_SECURITY_KEYSTORE (ceco security create-keystore DIR) and a Fast DDS built with security '
+    '(docs/ros.md, "Who may command the plant")'
+)
+"""Added to a start failure whose message is about security while ROS security is on."""
 
 
 def run_node(node_factory, argv=None, name: str = 'node') -> int:
@@ -13,6 +23,11 @@ def run_node(node_factory, argv=None, name: str = 'node') -> int:
     * A ValueError while constructing (an invalid parameter, scenario or file) is logged as one
       ``[FATAL]`` line by a logger of the node's actual name (``name`` with the command line's
       ``__node`` / ``__ns`` remaps applied by rcl) and exits with status 2.
+    * Any other exception from ``rclpy.init`` or while constructing (rcl could not create the node:
+      ``ROS_SECURITY_ENABLE=true`` without the enclave's keys, or a Fast DDS without security) is
+      logged as one ``[ERROR]`` line ``could not start: <the exception's message>`` (with a hint
+      when ROS security is on and the message is about security), no traceback, and exits with
+      status 1 (:data:`START_FAILED_EXIT`).
     * SIGINT (Ctrl-C, ``ros2 launch`` stopping, ``ceco run``), SIGTERM (rclpy's handler: an
       external shutdown) or a shutdown of the context: the node logs ``stopped (<why>): exit 0``,
       is destroyed and the process exits 0. Signals that arrive during that cleanup (a
@@ -32,7 +47,11 @@ def run_node(node_factory, argv=None, name: str = 'node') -> int:
     # SIGINT / SIGTERM stops spinning, and from then on every stop signal is ignored.
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _stop)
-    rclpy.init(args=argv)
+    try:
+        rclpy.init(args=argv)
+    except Exception as err:  # rcl could not initialise (a security enclave that is not in the keystore)
+        _console(name, start_failure(err), 'ERROR')
+        return START_FAILED_EXIT
     node, executor, status, why = None, None, 0, 'shutdown'
     try:
         try:
@@ -40,6 +59,9 @@ def run_node(node_factory, argv=None, name: str = 'node') -> int:
         except ValueError as err:  # only the construction: a ValueError later is a bug, with its traceback
             _fatal(name, str(err))
             status = 2
+        except Exception as err:  # rcl could not create the node, or the constructor failed otherwise
+            _console(name, start_failure(err), 'ERROR')  # no probe node: creating one may fail the same way
+            status = START_FAILED_EXIT
         else:
             executor = _executor()
             rclpy.spin(node, executor)
@@ -73,12 +95,28 @@ def _executor():
     return executor
 
 
-def _console(logger_name: str, text: str) -> None:
-    """An INFO line in rcutils' console format, without /rosout (rclpy's SIGINT handler has shut the context down)."""
+def start_failure(err: BaseException) -> str:
+    """The one line of a node that could not start: ``could not start: <message>``.
+
+    With a hint when ROS security is on (``ROS_SECURITY_ENABLE=true``, rcl's own test) and the message speaks of
+    security. rcutils' ``, at <file>:<line>`` locations are left out and the message's lines joined.
+    """
+    import os
+    import re
+
+    text = ' '.join(re.sub(r', at /\S+:\d+', '', str(err)).split()) or type(err).__name__
+    line = f'could not start: {text}'
+    if os.environ.get('ROS_SECURITY_ENABLE') == 'true' and 'secur' in text.lower():
+        line += f' ({SECURITY_HINT})'
+    return line
+
+
+def _console(logger_name: str, text: str, level: str = 'INFO') -> None:
+    """A line in rcutils' console format, without /rosout (rclpy's SIGINT handler has shut the context down)."""
     import sys
     import time
 
-    print(f'[INFO] [{time.time():.9f}] [{logger_name}]: {text}', file=sys.stderr, flush=True)
+    print(f'[{level}] [{time.time():.9f}] [{logger_name}]: {text}', file=sys.stderr, flush=True)
 
 
 def _stop(signum, _frame) -> None:

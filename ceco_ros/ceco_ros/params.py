@@ -29,6 +29,7 @@ __all__ = [
     'declare',
     'declare_all',
     'on_set',
+    'sim_time_conflict',
 ]
 
 
@@ -176,6 +177,23 @@ class NodeConfig:
                 raise ValueError(f'invalid parameter {name}={v!r}: must be finite and > 0')
 
 
+SIM_TIME_IN_REALTIME = (
+    'use_sim_time is true but timing is realtime: nothing publishes /clock in real time; '
+    'use timing lockstep or use_sim_time false'
+)
+"""Why a ``timing: realtime`` node refuses rclpy's ``use_sim_time: true`` (only a lockstep plant publishes /clock)."""
+
+
+def sim_time_conflict(timing: str, use_sim_time: Any) -> str | None:
+    """Why ``timing`` and rclpy's ``use_sim_time`` cannot go together, or None.
+
+    In real time nothing publishes /clock, so a node on simulation time would never see its clock move
+    (a timer on it never fires, every stamp lies ahead of it). Checked at start and on ``ros2 param set``
+    of either parameter, in every node that has ``timing``.
+    """
+    return SIM_TIME_IN_REALTIME if use_sim_time is True and timing == 'realtime' else None
+
+
 def check_value(spec: ParamSpec, value: Any) -> tuple[Any, str | None]:
     """``(value, None)`` with ints widened for float parameters, or ``(value, reason)``."""
     if isinstance(spec.default, float):
@@ -281,9 +299,12 @@ def on_set(
 
     An integer for a float parameter is taken as that float (rclpy's pre-set callback). Each
     value is checked against its spec, then ``apply({name: value})`` (returns a reason to refuse, or None)
-    makes the change take effect. Read-only parameters are refused by rclpy itself.
+    makes the change take effect. Read-only parameters are refused by rclpy itself. rclpy's own boolean
+    ``use_sim_time`` is passed to ``apply`` too (to be checked against the timing, :func:`sim_time_conflict`);
+    this callback runs before rclpy's time source takes it.
     """
     from rcl_interfaces.msg import SetParametersResult
+    from rclpy.parameter import Parameter
 
     by_name = {s.name: s for s in specs if not s.read_only or s.at_configure}
     floats = {s.name for s in specs if isinstance(s.default, float)}
@@ -303,9 +324,12 @@ def on_set(
     def callback(parameters) -> SetParametersResult:
         changes = {}
         for p in parameters:
+            if p.name == 'use_sim_time' and p.type_ == Parameter.Type.BOOL:
+                changes[p.name] = p.value  # (another type: rclpy's time source refuses it)
+                continue
             spec = by_name.get(p.name)
             if spec is None:
-                continue  # another parameter (use_sim_time, qos_overrides.*): rclpy's own rules
+                continue  # another parameter (qos_overrides.*): rclpy's own rules
             if spec.read_only and not (unconfigured is not None and unconfigured()):
                 name = node.get_fully_qualified_name()
                 return SetParametersResult(

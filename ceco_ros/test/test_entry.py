@@ -87,3 +87,46 @@ def test_a_stop_while_rclpy_builds_its_executor_exits_0_without_a_traceback(tmp_
     assert 'building the executor' in done.stderr, done.stderr
     assert f'[probe_node]: stopped ({sig}): exit 0' in done.stderr, done.stderr
     assert 'Traceback' not in done.stderr and 'Exception ignored' not in done.stderr, done.stderr
+
+
+def test_a_constructor_that_raises_is_one_error_line_and_exit_1():
+    """run_node: an exception other than ValueError from the node factory (rcl could not create the node) is
+    one ERROR line naming it, no traceback, no "stopped ... exit 0" line, and status 1 (START_FAILED_EXIT)."""
+    pytest.importorskip('rclpy', reason='needs the sourced ROS 2 workspace')
+    code = textwrap.dedent("""
+        import sys
+        from ceco_ros.node_main import run_node
+
+        def factory():
+            raise RuntimeError('error creating node: the middleware said no,\\nat all, at /project/src/x.cpp:364')
+
+        sys.exit(run_node(factory, None, 'broken_node'))
+    """)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROS), os.environ.get('PYTHONPATH', '')]))
+    env.pop('ROS_SECURITY_ENABLE', None)
+    done = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 1, done.stderr
+    lines = [line for line in done.stderr.splitlines() if '[broken_node]' in line]
+    assert len(lines) == 1, done.stderr
+    assert lines[0].startswith('[ERROR] '), done.stderr
+    assert lines[0].endswith('[broken_node]: could not start: error creating node: the middleware said no, at all')
+    assert 'Traceback' not in done.stderr and 'exit 0' not in done.stderr, done.stderr
+
+
+def test_start_failure_hints_at_the_keystore_only_when_security_is_on(monkeypatch):
+    from ceco_ros.node_main import SECURITY_HINT, start_failure
+
+    err = RuntimeError(
+        "error creating node: This Fast DDS version doesn't have the security libraries\n"
+        'Please compile Fast DDS using the -DSECURITY=ON CMake option, at /project/src/participant.cpp:364, '
+        'at /project/src/rcl/node.c:252'
+    )
+    monkeypatch.delenv('ROS_SECURITY_ENABLE', raising=False)
+    assert start_failure(err) == (
+        "could not start: error creating node: This Fast DDS version doesn't have the security libraries "
+        'Please compile Fast DDS using the -DSECURITY=ON CMake option'
+    )
+    monkeypatch.setenv('ROS_SECURITY_ENABLE', 'true')
+    assert start_failure(err).endswith(f'option ({SECURITY_HINT})')
+    assert SECURITY_HINT not in start_failure(RuntimeError('error creating node: no memory'))
+    assert start_failure(RuntimeError()) == 'could not start: RuntimeError'
