@@ -454,6 +454,8 @@ def test_a_baseline_law_file_carries_the_door_settings(tmp_path):
     law.write_text("acc_law:\n  setpoint_c: 25.0\ndoor_mode: fixed\n")  # a door key outside acc_law was ignored
     with pytest.raises(ValueError, match=r"unknown top-level key\(s\) \['door_mode'\]: a baseline law file"):
         load_acc_settings(str(law))
+    law.write_text("acc_law:\n  setpoint_c: 25.0\ncommon: {}\n")  # a file the NMPC strategies read too: its keys
+    assert load_acc_settings(str(law)) == {"setpoint_c": 25.0}
     # the writer (ceco run --case's door file) writes what the reader reads, and refuses what it refuses, before writing
     fields = {"setpoint_c": 24.5, "door_mode": "fixed", "door_fixed_share": 0.25}
     written = write_acc_settings(tmp_path / "sub" / "w.yaml", fields, "a comment")

@@ -201,7 +201,8 @@ def test_a_controller_file_key_nothing_reads_is_refused(edit, says, tmp_path):
     msg = str(err.value)
     assert msg.startswith(f"{path}: ") and says in msg and "\n" not in msg, msg
     if "top-level" in says:
-        assert msg.endswith("a controller file has common and strategies only"), msg
+        shared = " (and acc_law, the baseline's, in a file both read)"
+        assert msg.endswith("a controller file has common and strategies only" + shared), msg
     if "unknown strategy" in says:
         assert msg.endswith("choose from ceco, ceco-e, ceco-c, ceco-ioch, ceco-pmv"), msg
     scenario = provenance.copy_scenario("sc03", tmp_path / "sc")  # a scenario file is no controller file

@@ -526,6 +526,11 @@ file may leave them out; one that gives a value different from the run's is refu
 CONTROLLER_FILE_KEYS = ("common", "strategies")
 """The top-level keys of a controller file: the settings every strategy shares, and ``{strategy: its settings}``."""
 
+SHARED_FILE_KEYS = ("acc_law",)
+"""Keys of the baseline's law file (``factory.load_acc_settings``) a controller file may hold too: ``ceco sim
+--controller-config F --strategy baseline,ceco-ioch`` gives both the one file F (the NMPC reads ``common`` and
+``strategies``, the baseline ``acc_law``)."""
+
 
 def check_controller_file(doc: dict, path) -> None:
     """ValueError, one line naming ``path``, for a key of a controller file that nothing would read.
@@ -536,11 +541,11 @@ def check_controller_file(doc: dict, path) -> None:
     strategy's block), a block that is not a mapping, and a setting in any block that is no StrategySettings field
     (or, under ``solver``, no SolverSettings field).
     """
-    unknown = [k for k in doc if k not in CONTROLLER_FILE_KEYS]
+    unknown = [k for k in doc if k not in CONTROLLER_FILE_KEYS + SHARED_FILE_KEYS]
     if unknown:
         raise ValueError(
             f"{path}: unknown top-level key(s) {', '.join(repr(k) for k in unknown)}: a controller file has "
-            f"{' and '.join(CONTROLLER_FILE_KEYS)} only"
+            f"{' and '.join(CONTROLLER_FILE_KEYS)} only (and acc_law, the baseline's, in a file both read)"
         )
     strategies = doc.get("strategies") or {}
     if not isinstance(strategies, dict):
