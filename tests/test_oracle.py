@@ -702,6 +702,6 @@ def test_a_level_whose_replay_stops_has_no_point(mild_problem, monkeypatch):
     monkeypatch.setattr(orc, 'replay', stops)
     lines: list[str] = []
     (r,) = orc.solve_levels(mild_problem.scenario, [LEVELS[1]], problem=mild_problem, progress=lines.append)
-    assert not r.success and r.certified and r.run is None and r.kpis is None
+    assert not r.success and not r.certified and r.run is None and r.kpis is None
     assert r.status == f'Solve_Succeeded; replay: {STOPPED} (numeric plant, step 7, t = 7 s)'
-    assert lines[-1].endswith('not solved'), lines
+    assert lines[-1].endswith('not solved') and f'replay: {STOPPED}' in lines[-1], lines

@@ -990,6 +990,10 @@ def test_matched_comfort_hint_without_the_jobs_command():
         pointer.startswith(f'`{flag} none` skipped')
         and command == "ceco run --scenario 'my dir/hot.yaml' --strategy all --out DIR"
     )
+    for verb in ('benchmark', 'oracle'):  # runs these verbs made: the command is `ceco run`'s, which takes --scenario
+        assert outputs.matched_comfort_hint(verb, 's.yaml', argv=['x.yaml'])[1] == (
+            'ceco run --scenario s.yaml --strategy all --out DIR'
+        )
     pointer, command = outputs.matched_comfort_hint('sim', 'ignored', case='hotsoak-pulldown')
     assert (
         command == 'ceco sim --case hotsoak-pulldown --strategy all --out DIR'

@@ -301,7 +301,7 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     from ceco_bringup import supervisor
 
-    domain = args.domain_id if args.domain_id is not None else supervisor.pick_domain_id()
+    domain = args.domain_id if args.domain_id is not None else supervisor.private_domain_id()
     refs = [run_reference(domain, args.timeout_s) for _ in range(args.repeat)]
     ref = [t for t, _ in refs if t is not None]
     ref_med = statistics.median(ref) if ref else float('nan')

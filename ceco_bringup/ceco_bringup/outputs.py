@@ -347,6 +347,8 @@ def matched_comfort_hint(
     is the same one without the flag (``cwd``: the directory it was typed in, said when it is not this one); else
     the command that runs the strategies with the family.
     """
+    if verb not in ('sim', 'run'):  # a run of `ceco benchmark` (an external cell) or `ceco oracle`: no --scenario
+        verb, argv = 'run', None
     rest = _without_family_off(argv)
     target = f'--case {shlex.quote(case)}' if case else f'--scenario {shlex.quote(scenario)}'
     command = f'ceco {verb} {target} --strategy all --out DIR'

@@ -296,7 +296,7 @@ def compare(args) -> int:
             recorded['k'], recorded['mdot_bl_kgps'], recorded['t_evap_sp_c'], recorded['recirc_share']
         )
     }
-    domain = args.domain_id if args.domain_id is not None else supervisor.reserve_domain_id(supervisor.pick_domain_id())
+    domain = args.domain_id if args.domain_id is not None else supervisor.private_domain_id()
     env = supervisor.dds_env(domain)
     import os
 

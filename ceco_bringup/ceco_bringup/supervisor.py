@@ -110,10 +110,15 @@ def reserve_domain_id(first: int) -> int:
     _RESERVED.clear()
     for k in range(101):
         d = 1 + (first - 1 + k) % 101
-        try:
-            f = open(Path(tempfile.gettempdir()) / f'ceco_domain_{d}.lock', 'a')
-        except OSError:  # another user's lock file: taken
+        try:  # mode 0666: a lock file another user made can be locked by everyone
+            fd = os.open(Path(tempfile.gettempdir()) / f'ceco_domain_{d}.lock', os.O_WRONLY | os.O_CREAT, 0o666)
+        except OSError:  # (an older lock file of another user, not writable: taken)
             continue
+        try:
+            os.fchmod(fd, 0o666)  # (the umask took write from the others)
+        except OSError:  # not ours
+            pass
+        f = os.fdopen(fd, 'w')
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -124,14 +129,25 @@ def reserve_domain_id(first: int) -> int:
     return first
 
 
+def private_domain_id(index: int = 0) -> int:
+    """The private ROS_DOMAIN_ID of run number ``index`` of this process.
+
+    ``CECO_DOMAIN_ID + index`` as given, folded into 1..101 (an id asked for is used, held or not); else
+    ``pick_domain_id() + index`` folded into 1..101, or the next one no other ceco process holds
+    (:func:`reserve_domain_id`).
+    """
+    if os.environ.get('CECO_DOMAIN_ID'):
+        return 1 + (pick_domain_id() + index - 1) % 101
+    return reserve_domain_id(1 + (pick_domain_id() + index - 1) % 101)
+
+
 def resolve_domain_id(explicit: int | None = None, index: int = 0, environ=None) -> tuple[int, bool]:
     """The ROS_DOMAIN_ID of run number `index` of one `ceco run`, and whether the user chose it.
 
     `explicit` (the --domain-id flag) first, then the user's ROS_DOMAIN_ID
     (non-empty), used as is for every run (the runs are sequential; each
-    stops its nodes before the next starts); otherwise a private id per run,
-    `pick_domain_id() + index` folded into 1..101, or the next one no other
-    ceco process holds (:func:`reserve_domain_id`). Raises ValueError for an
+    stops its nodes before the next starts); otherwise a private id per run
+    (:func:`private_domain_id`). Raises ValueError for an
     id that is not an integer in 0..DOMAIN_ID_MAX.
     """
     environ = os.environ if environ is None else environ
@@ -143,7 +159,7 @@ def resolve_domain_id(explicit: int | None = None, index: int = 0, environ=None)
             raise ValueError(f'ROS_DOMAIN_ID={text!r}: must be an integer in 0..{DOMAIN_ID_MAX}')
         chosen, source = int(text), 'ROS_DOMAIN_ID'
     else:
-        return reserve_domain_id(1 + (pick_domain_id() + index - 1) % 101), False
+        return private_domain_id(index), False
     if not 0 <= chosen <= DOMAIN_ID_MAX:
         raise ValueError(f'{source}={chosen}: must be an integer in 0..{DOMAIN_ID_MAX}')
     return chosen, True
@@ -602,28 +618,33 @@ def trim_log(path: Path, keep_bytes: int = LOG_KEEP_BYTES) -> int:
     The first and the last ``keep_bytes // 2`` bytes are kept, each cut back to whole lines, with the line
     ``[ceco: N bytes of this log left out (longer than K bytes); its start and its end are kept]`` between
     them: the start holds the command line and the first errors, the end the exit's reason. Written to a
-    temporary file, then renamed over the log (a reader sees the whole log or the trimmed one).
+    temporary file, then renamed over the log (a reader sees the whole log or the trimmed one). Best effort: a
+    log that cannot be read or rewritten (a full disk, a read-only directory) is left whole, and 0 returned.
     """
     path = Path(path)
+    half = keep_bytes // 2
     try:
         size = path.stat().st_size
-    except FileNotFoundError:
+        if size <= keep_bytes:
+            return 0
+        with open(path, 'rb') as f:
+            head = f.read(half)
+            f.seek(size - half - 1)  # with the byte before the last half: a newline there starts a whole line
+            tail = f.read()
+    except OSError:  # no log (never started), or one that cannot be read: left as it is
         return 0
-    if size <= keep_bytes:
-        return 0
-    half = keep_bytes // 2
-    with open(path, 'rb') as f:
-        head = f.read(half)
-        f.seek(size - half - 1)  # with the byte before the last half: a newline there starts a whole line
-        tail = f.read()
     head = head[: head.rfind(b'\n') + 1]  # '' when the first half has no newline: nothing of it is kept
     tail = tail[tail.find(b'\n') + 1 :]  # all of it when that byte is no newline and the half holds none
     left_out = size - len(head) - len(tail)
     marker = f'[ceco: {left_out} bytes of this log left out (longer than {keep_bytes} bytes); '
     marker += 'its start and its end are kept]'
     tmp = path.with_name(path.name + '.trim')
-    tmp.write_bytes(head + marker.encode() + b'\n' + tail)
-    os.replace(tmp, path)
+    try:  # best effort: a full disk or a read-only directory leaves the log whole (the run's stop goes on)
+        tmp.write_bytes(head + marker.encode() + b'\n' + tail)
+        os.replace(tmp, path)
+    except OSError:
+        tmp.unlink(missing_ok=True)
+        return 0
     return left_out
 
 

@@ -3,6 +3,8 @@ uses, namespace names, and how children are started."""
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
 from ceco_bringup import supervisor
@@ -93,7 +95,7 @@ def test_children_get_a_parent_death_signal_without_preexec_fn(tmp_path, monkeyp
     assert started == [prefix + proc.cmd] and proc.proc.wait(timeout=30) == 0 and proc.starts == 1
 
 
-def test_a_long_log_keeps_its_start_and_end_whole_lines_and_says_how_much_was_left_out(tmp_path):
+def test_a_long_log_keeps_its_start_and_end_whole_lines_and_says_how_much_was_left_out(tmp_path, monkeypatch):
     log = tmp_path / 'c.log'
     lines = [f'line {i:05d} ' + 'x' * 40 + '\n' for i in range(1000)]  # 52 bytes each
     log.write_text(''.join(lines))
@@ -106,6 +108,22 @@ def test_a_long_log_keeps_its_start_and_end_whole_lines_and_says_how_much_was_le
     said = '[ceco: 50960 bytes of this log left out (longer than 1040 bytes); its start and its end are kept]\n'
     assert out[10] == said
     assert supervisor.trim_log(tmp_path / 'missing.log') == 0
+    # a disk that is full when the trimmed copy is written: the log stays whole, no temporary file, no exception
+    import errno
+    import pathlib
+
+    big = tmp_path / 'full' / 'c.log'
+    big.parent.mkdir()
+    big.write_text(''.join(lines))
+    real_write = pathlib.Path.write_bytes
+
+    def full_disk(self, data):
+        real_write(self, data[: len(data) // 2])  # part of it written, then the disk is full
+        raise OSError(errno.ENOSPC, 'No space left on device')
+
+    monkeypatch.setattr(pathlib.Path, 'write_bytes', full_disk)
+    assert supervisor.trim_log(big, keep_bytes=1040) == 0 and big.read_text() == ''.join(lines)
+    assert sorted(p.name for p in big.parent.iterdir()) == ['c.log']
 
 
 def test_a_stopped_child_that_wrote_more_than_the_cap_leaves_a_bounded_log(tmp_path):
@@ -126,20 +144,31 @@ def test_a_stopped_child_that_wrote_more_than_the_cap_leaves_a_bounded_log(tmp_p
     assert text.count('bytes of this log left out') == 1
 
 
-def test_a_private_domain_held_by_another_ceco_process_is_never_given_twice(monkeypatch):
+def test_a_private_domain_held_by_another_ceco_process_is_never_given_twice(monkeypatch, tmp_path):
     """Two `ceco run`s (or two benchmark workers) started at once: the second gets the next free id, from the first
     one's lock; when the first process is gone (killed: the kernel drops its lock) its id is free again."""
     import subprocess
     import sys
 
     code = 'from ceco_bringup import supervisor; print(supervisor.reserve_domain_id(77), flush=True); input()'
-    other = subprocess.Popen([sys.executable, '-c', code], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    import tempfile
+
+    # the lock files of this test in its own directory (TMPDIR): no other ceco process of the machine counts
+    monkeypatch.setattr(tempfile, 'tempdir', str(tmp_path))
+    env = dict(os.environ, TMPDIR=str(tmp_path))
+    other = subprocess.Popen(
+        [sys.executable, '-c', code], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env
+    )
     try:
         assert other.stdout.readline().strip() == '77'
         assert supervisor.reserve_domain_id(77) == 78  # held by the other process: the next one
-        monkeypatch.setenv('CECO_DOMAIN_ID', '77')
+        monkeypatch.setattr(supervisor, 'pick_domain_id', lambda: 77)
+        monkeypatch.delenv('CECO_DOMAIN_ID', raising=False)
         assert supervisor.resolve_domain_id(None, 0, {}) == (78, False)  # a private run of `ceco run` too
+        monkeypatch.setenv('CECO_DOMAIN_ID', '77')  # an id asked for is used as it is, held or not
+        assert supervisor.resolve_domain_id(None, 0, {}) == (77, False)
         assert supervisor.reserve_domain_id(78) == 78  # this process's own earlier id was let go at its next call
+        assert oct((tmp_path / 'ceco_domain_77.lock').stat().st_mode & 0o777) == oct(0o666)  # any user may lock it
     finally:
         other.kill()
         other.wait(timeout=30)

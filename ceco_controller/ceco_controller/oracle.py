@@ -969,8 +969,8 @@ def solve_levels(
                 r.commands, r.run, r.kpis = stalled
             else:
                 r.run, r.kpis, stopped = _replay_or_stop(scenario, r.commands, pb)
-                if stopped:  # the NLP's point cannot be replayed: no point
-                    r.success, r.status = False, f"{status}; replay: {stopped}"
+                if stopped:  # the NLP's point cannot be replayed: no point, and none certified
+                    r.success, r.certified, r.status = False, False, f"{status}; replay: {stopped}"
         out[i] = r
         tail = (
             f"replay {r.kpis['energy_kwh']:.4f} kWh / {r.kpis['discomfort_pmvh']:.4f} PMV h "
@@ -979,7 +979,7 @@ def solve_levels(
             else "not solved"
         )
         say(
-            f"oracle {scenario.name}: level {lv[i]:.4f} PMV h: {status}, {it} iterations, {wall:.1f} s"
+            f"oracle {scenario.name}: level {lv[i]:.4f} PMV h: {r.status}, {it} iterations, {wall:.1f} s"
             f"{' (' + form + ')' if form == 'lifted, then summed' else ''}; {tail}"
         )
     return [out[i] for i in range(len(lv))]

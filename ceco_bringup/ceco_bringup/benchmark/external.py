@@ -165,7 +165,7 @@ def run_external_cell(
         # user's ROS_DOMAIN_ID, which every worker would share), one no other ceco process holds
         args = run.build_parser().parse_args(['--out', str(run_dir), '--no-progress'])
         for key, value in dict(
-            domain_id=supervisor.reserve_domain_id(supervisor.pick_domain_id()),
+            domain_id=supervisor.private_domain_id(),
             scenario=str(scenario_path),
             timing='lockstep',
             control_period_s=ts,
