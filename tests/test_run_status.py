@@ -48,6 +48,7 @@ def test_failed_above_the_documented_share(n, f, ok):
     assert (c.reason == '') is ok
     if n and not ok:
         assert f'{f} of {n} control steps in fallback' in c.reason
+        assert ('none was its own' in c.reason) is (f == n)  # a run that never controlled says so, not a share
     m = c.as_metrics()
     assert m['status'] == c.status and m['fallback_control_steps'] == f
     assert m['fallback_share'] == pytest.approx(f / n if n else 1.0)

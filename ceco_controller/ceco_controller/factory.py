@@ -18,7 +18,7 @@ from . import model as cm
 from .baseline import BaselineController
 from .estimating_controller import with_measurements
 from .nmpc import NmpcController
-from .strategies import CONTROLLER_FILE_KEYS, StrategySettings, load_strategy_settings
+from .strategies import CONFIG_FILE_KEYS, StrategySettings, load_strategy_settings
 
 __all__ = [
     "make_controller",
@@ -91,7 +91,7 @@ def load_acc_settings(path: str | None) -> dict:
     doc = yamlio.load_file(path)
     if not isinstance(doc, dict) or not isinstance(doc.get("acc_law"), dict):
         raise ValueError(f"{path}: a baseline law file needs a mapping 'acc_law:' of AccSettings fields")
-    other = sorted(str(k) for k in doc if k != "acc_law" and k not in CONTROLLER_FILE_KEYS)
+    other = sorted(str(k) for k in doc if k not in CONFIG_FILE_KEYS)
     if other:  # (a misspelt or misplaced key was ignored without a word; common/strategies: a file the NMPC reads too)
         raise ValueError(
             f"{path}: unknown top-level key(s) {other}: a baseline law file has acc_law only "

@@ -51,6 +51,7 @@ __all__ = [
     "auto_solver_name",
     "QPSOL_NAMES",
     "COMFORT_GAMMA_W",
+    "CONFIG_FILE_KEYS",
     "CONTROLLER_FILE_KEYS",
     "check_controller_file",
 ]
@@ -531,6 +532,9 @@ SHARED_FILE_KEYS = ("acc_law",)
 --controller-config F --strategy baseline,ceco-ioch`` gives both the one file F (the NMPC reads ``common`` and
 ``strategies``, the baseline ``acc_law``)."""
 
+CONFIG_FILE_KEYS = CONTROLLER_FILE_KEYS + SHARED_FILE_KEYS
+"""Every top-level key either loader reads: a key outside it is refused by both (nothing would read it)."""
+
 
 def check_controller_file(doc: dict, path) -> None:
     """ValueError, one line naming ``path``, for a key of a controller file that nothing would read.
@@ -541,7 +545,7 @@ def check_controller_file(doc: dict, path) -> None:
     strategy's block), a block that is not a mapping, and a setting in any block that is no StrategySettings field
     (or, under ``solver``, no SolverSettings field).
     """
-    unknown = [k for k in doc if k not in CONTROLLER_FILE_KEYS + SHARED_FILE_KEYS]
+    unknown = [k for k in doc if k not in CONFIG_FILE_KEYS]
     if unknown:
         raise ValueError(
             f"{path}: unknown top-level key(s) {', '.join(repr(k) for k in unknown)}: a controller file has "

@@ -98,14 +98,13 @@ class ControlCheck:
             return ''
         if not self.n_control_steps:
             return 'the run has no control step'
+        counted = f'the controller did not control the run: {self.n_fallback_steps} of {self.n_control_steps} '
         if self.n_fallback_steps == self.n_control_steps:
-            return (
-                f'the controller did not control the run: {self.n_fallback_steps} of {self.n_control_steps} '
+            return counted + (
                 'control steps in fallback (none was its own; the production ACC law or the controller\'s '
                 'fallback drove them all)'
             )
-        return (
-            f'the controller did not control the run: {self.n_fallback_steps} of {self.n_control_steps} '
+        return counted + (
             f'control steps in fallback ({100.0 * self.share:.1f} %; at most {self.allowed} allowed: '
             f'{100.0 * self.max_share:g} % of the steps, at least the {KEY_ON_FALLBACK_STEPS} of a real-time '
             'key-on; the production ACC law or the controller\'s fallback drove them)'
