@@ -1120,7 +1120,27 @@ def test_held_sample_waits_for_subscribers_and_sends_each_step_once():
     hold.clear()  # a new activation forgets it
     assert hold.release(may_send=True) == [] and hold.since_s is None
     hold.offer('k5', short_of_subscribers=True, now_s=20.0)
-    assert hold.offer('k6', short_of_subscribers=False, now_s=21.0) == ['k6'] and hold.since_s is None
+    assert hold.offer('k6', short_of_subscribers=False, now_s=21.0) == ['k6'] and hold.since_s is None  # k5 replaced
+
+
+def test_held_previews_of_every_step_wait_in_order_up_to_the_history_depth():
+    """preview_node's hold keeps each step's previews: an external controller that does not wait for them lets
+    the plant run on before the recorder matched, and a CI run recorded the previews of steps 2 and 3 of 4 (the
+    newer replaced the older). Past ``keep`` the oldest goes; ``keep`` below 1 is refused."""
+    from ceco_core.sequencing import HeldSample
+
+    hold = HeldSample(keep=3)
+    assert [hold.offer(k, short_of_subscribers=True, now_s=float(k)) for k in range(2)] == [[], []]
+    assert hold.msg == 0 and hold.since_s == 0.0  # the held-previews line names the oldest step and its wait
+    assert hold.release(may_send=False) == [] and hold.waiting == [0, 1]
+    assert hold.offer(2, short_of_subscribers=False) == [0, 1, 2] and hold.msg is None  # matched: all, in order
+    for k in range(3, 8):
+        hold.offer(k, short_of_subscribers=True, now_s=float(k))
+    assert hold.release(may_send=True) == [5, 6, 7] and hold.release(may_send=True) == []  # the newest 3
+    hold.offer(8, short_of_subscribers=True)
+    assert hold.offer(9, short_of_subscribers=False) == [8, 9]  # matched with one waiting: both, in order
+    with pytest.raises(ValueError, match='keep: 0 samples; at least 1'):
+        HeldSample(keep=0)
 
 
 def test_held_previews_line_names_the_step_the_wait_and_each_topics_readers():
@@ -1129,6 +1149,8 @@ def test_held_previews_line_names_the_step_the_wait_and_each_topics_readers():
     line = held_previews(0, 5.04, {'v2x/weather_preview': 1, 'v2x/traffic_preview': 0}, 2)
     assert line.startswith('previews of step 0 held for 5.0 s: matched readers v2x/weather_preview 1/2, ')
     assert 'v2x/traffic_preview 0/2' in line and 'lockstep.min_preview_subscribers' in line
+    assert held_previews(3, 6.0, {}, 1, last_k=3).startswith('previews of step 3 held for 6.0 s')
+    assert held_previews(0, 6.0, {}, 1, last_k=2).startswith('previews of steps 0-2 held for 6.0 s')
 
 
 def test_publisher_qos_matches_the_liveliness_probes():

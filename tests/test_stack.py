@@ -1022,10 +1022,12 @@ def test_lockstep_previews_wait_for_their_readers(tmp_path):
     """preview_node in lockstep on sim time (as ceco run starts it; no /clock here, as while the plant waits
     for step 0) with ``lockstep.min_preview_subscribers: 2`` (ceco run's controller and recorder): the
     previews of step 0 are held while one reader per topic has matched (the first reader gets nothing), the
-    hold is reported after 5 s of wall clock (log and /diagnostics), and once a second, volatile reader
-    matches they go out, once, to both (a volatile reader gets them only because they were sent after its
-    match); step 1 then goes out at once. The gate is the start's: with the second readers gone (a controller
-    killed mid-run), step 2 still reaches the first readers at once."""
+    hold is reported after 5 s of wall clock (log and /diagnostics); the state of step 1 comes while they are
+    held (a controller that does not wait for the previews, as an external one: the plant runs on), and once a
+    second, volatile reader matches the previews of steps 0 and 1 go out, once each and in order, to both (a
+    volatile reader gets them only because they were sent after its match; before, step 1's replaced step 0's
+    and the bag missed it); step 2 then goes out at once. The gate is the start's: with the second readers gone
+    (a controller killed mid-run), step 3 still reaches the first readers at once."""
     from diagnostic_msgs.msg import DiagnosticArray
 
     from ceco_msgs.msg import CabinState, TrafficPreview, WeatherPreview
@@ -1065,24 +1067,30 @@ def test_lockstep_previews_wait_for_their_readers(tmp_path):
             30,
             'the hold in /diagnostics',
         )
+        pub_state.publish(_state_msg(5, 5.0))  # the plant runs on: step 1's previews are made while held
+        _wait_for(
+            lambda: any('previews of steps 0-1 held' in st.message for st in _diag_statuses(diags, 'preview_node')),
+            30,
+            'steps 0 and 1 held in /diagnostics',
+        )
         assert first == {'w': [], 's': []}  # held: not one preview to the first readers
         seconds = [
             tn.node.create_subscription(t, topic, second[k].append, interfaces.QOS_RECORD)
             for k, (t, topic) in kinds.items()
         ]
-        _wait_for(lambda: all(first.values()) and all(second.values()), 30, 'the held previews on both readers')
-        pub_state.publish(_state_msg(5, 5.0))
-        _wait_for(lambda: all(len(v) == 2 for v in (*first.values(), *second.values())), 30, 'the previews of step 1')
+        _wait_for(lambda: all(len(v) >= 2 for v in (*first.values(), *second.values())), 30, 'both held steps')
+        pub_state.publish(_state_msg(10, 10.0))
+        _wait_for(lambda: all(len(v) == 3 for v in (*first.values(), *second.values())), 30, 'the previews of step 2')
         time.sleep(0.5)
         for box in (*first.values(), *second.values()):
-            assert steps(box) == [0, 1]
+            assert steps(box) == [0, 1, 2]
         for sub in seconds:
             tn.node.destroy_subscription(sub)
         _wait_for(lambda: all(s.get_publisher_count() >= 1 for s in subs), 30, 'the first readers still matched')
         time.sleep(1.0)  # the second readers' leaving is known to the preview node
-        pub_state.publish(_state_msg(10, 10.0))
-        _wait_for(lambda: all(len(v) == 3 for v in first.values()), 30, 'step 2 with one reader per topic left')
-        assert [steps(v) for v in first.values()] == [[0, 1, 2], [0, 1, 2]]
+        pub_state.publish(_state_msg(15, 15.0))
+        _wait_for(lambda: all(len(v) == 4 for v in first.values()), 30, 'step 3 with one reader per topic left')
+        assert [steps(v) for v in first.values()] == [[0, 1, 2, 3], [0, 1, 2, 3]]
     finally:
         preview.stop()
         tn.close()

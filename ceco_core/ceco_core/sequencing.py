@@ -219,35 +219,53 @@ class LockstepBuffer:
 
 
 class HeldSample:
-    """lockstep: a sample waits here until its publisher has its subscribers.
+    """lockstep: samples wait here until their publisher has its subscribers.
 
     A volatile sample never reaches a reader that has not matched yet, so a sample made before
     the node's ``lockstep.min_*_subscribers`` matched (mpc_node's command, preview_node's pair of
-    previews) is sent once they have; a newer one replaces it: each step's sample is sent once.
+    previews) is sent once they have. ``keep`` samples wait at most, in order; beyond that a newer one
+    pushes the oldest out. ``keep=1`` (mpc_node's command): a newer command replaces the waiting one, each
+    step's command is sent once. preview_node keeps every step's previews (``keep`` its lockstep
+    history): a controller that does not wait for the previews (an external one) lets the plant run on
+    while the recorder is still matching, and each step's previews must still reach the bag (a CI run
+    once recorded the previews of steps 2 and 3 of 4 when the newer replaced the older).
     """
 
-    def __init__(self):
-        self.msg: Any = None
-        """The sample waiting for its subscribers (None: none)."""
+    def __init__(self, keep: int = 1):
+        if keep < 1:
+            raise ValueError(f'keep: {keep} samples; at least 1')
+        self.keep = int(keep)
+        self.waiting: list[Any] = []
+        """The samples waiting for their subscribers, oldest first."""
         self.since_s: float | None = None
         """When the oldest unsent sample began waiting [s, the caller's clock] (None: none waits)."""
 
+    @property
+    def msg(self) -> Any:
+        """The oldest sample waiting for its subscribers (None: none)."""
+        return self.waiting[0] if self.waiting else None
+
     def offer(self, msg, short_of_subscribers: bool, now_s: float = 0.0) -> list:
-        """A new sample: ``[msg]`` to send now, or ``[]`` when it has to wait (it replaces a waiting one)."""
-        if short_of_subscribers and self.since_s is None:
+        """A new sample: the samples to send now, in order (the waiting ones, then ``msg``), or ``[]``.
+
+        ``[]`` while short of subscribers (``msg`` then waits). Either way past ``keep`` samples the oldest go.
+        """
+        kept = (self.waiting + [msg])[-self.keep :]
+        if not short_of_subscribers:
+            self.waiting, self.since_s = [], None
+            return kept
+        if self.since_s is None:
             self.since_s = now_s
-        elif not short_of_subscribers:
-            self.since_s = None
-        self.msg = msg if short_of_subscribers else None
-        return [] if short_of_subscribers else [msg]
+        self.waiting = kept
+        return []
 
     def release(self, may_send: bool) -> list:
-        """``[the waiting sample]`` once it ``may_send`` (active, subscribers matched), else ``[]``."""
-        if self.msg is None or not may_send:
+        """The waiting samples, oldest first, once they ``may_send`` (active, subscribers matched), else ``[]``."""
+        if not self.waiting or not may_send:
             return []
-        msg, self.msg, self.since_s = self.msg, None, None
-        return [msg]
+        out, self.waiting, self.since_s = self.waiting, [], None
+        return out
 
     def clear(self) -> None:
-        """Forget a waiting sample (a new activation)."""
-        self.msg, self.since_s = None, None
+        """Forget the waiting samples (a new activation)."""
+        self.waiting, self.since_s = [], None

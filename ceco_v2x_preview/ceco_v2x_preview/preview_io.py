@@ -299,13 +299,15 @@ def preview_health(
     return h
 
 
-def held_previews(k: int, waited_s: float, readers: dict[str, int], needed: int) -> str:
+def held_previews(k: int, waited_s: float, readers: dict[str, int], needed: int, last_k: int | None = None) -> str:
     """The line that says a step's previews wait for their readers, e.g. for the log and diagnostics.
 
-    ``readers``: matched data readers per preview topic; ``needed``: ``lockstep.min_preview_subscribers``.
+    ``k``: the oldest held step, ``last_k`` the newest (None: ``k``); ``readers``: matched data readers per
+    preview topic; ``needed``: ``lockstep.min_preview_subscribers``.
     """
     counts = ', '.join(f'{topic} {n}/{needed}' for topic, n in readers.items())
+    steps = f'step {k}' if last_k is None or last_k == k else f'steps {k}-{last_k}'
     return (
-        f'previews of step {k} held for {waited_s:.1f} s: matched readers {counts} '
+        f'previews of {steps} held for {waited_s:.1f} s: matched readers {counts} '
         '(lockstep.min_preview_subscribers; a controller or recorder that never comes keeps them back)'
     )

@@ -10,7 +10,8 @@ Timing (parameter ``timing``):
   i = 0..Np, stamped t_k and tagged with k; the controller waits for state k *and* previews k.
   Until the first previews go out, a step's previews wait until each preview publisher has
   matched ``lockstep.min_preview_subscribers`` data readers (the start of a run: a recorder or
-  controller discovered late would miss step 0). After that they go out at once: a reader that
+  controller discovered late would miss step 0); every step's previews made meanwhile wait, in order,
+  and go out together. After that they go out at once: a reader that
   leaves mid-run (a controller killed and restarted) holds back nobody else.
 * ``realtime`` (vehicle): a timer on the node's clock every ``publish_period_s`` publishes the
   previews for the latest scenario time received on ``cabin/state``.
@@ -63,7 +64,7 @@ class PreviewNode(NodeTools, Node):
             interfaces.state_qos(cfg.timing),
             qos_overriding_options=interfaces.qos_overrides(),
         )
-        self._hold = HeldSample()
+        self._hold = HeldSample(keep=interfaces.LOCKSTEP_DEPTH)  # every step's previews reach the bag
         self._gate_open = False  # lockstep: the readers had matched once (the start gate is passed for good)
         if cfg.timing == 'realtime':
             self.create_timer(cfg.publish_period_s, self._on_timer)
@@ -131,7 +132,8 @@ class PreviewNode(NodeTools, Node):
         waited_s = 0.0 if since is None else self.wall_s() - since
         if self._hold.msg is None or waited_s < self.config.hold_warning_s:
             return ''
-        return held_previews(self._hold.msg[0], waited_s, self._readers(), self.config.min_preview_subscribers)
+        first, last = self._hold.waiting[0][0], self._hold.waiting[-1][0]
+        return held_previews(first, waited_s, self._readers(), self.config.min_preview_subscribers, last)
 
     def _release_held(self) -> None:
         """lockstep: send held previews once their readers matched (said once they waited long)."""
