@@ -287,6 +287,12 @@ def test_user_files_and_csv_cycles(tmp_path):
     d.update(name="odd", drive_cycle="cycles/odd.csv")
     (tmp_path / "odd.yaml").write_text(yaml.safe_dump(d))
     assert load_scenario(tmp_path / "odd.yaml").duration_s == 20.0
+    # a spreadsheet's CSV with a byte-order mark is read as without it; bytes that are not UTF-8 are one line
+    (tmp_path / "bom.csv").write_bytes(b"\xef\xbb\xbftime_s,speed_mps\r\n0,0\r\n10,10\r\n")
+    assert load_drive_cycle(str(tmp_path / "bom.csv")).distance_m == pytest.approx(50.0)
+    (tmp_path / "latin1.csv").write_bytes(b"time_s,speed_mps\n0,0\n1,1 \xb0\n")
+    with pytest.raises(ScenarioError, match=r"latin1\.csv: not a UTF-8 text file \(invalid start byte at byte 25\)"):
+        load_drive_cycle(str(tmp_path / "latin1.csv"))
     (tmp_path / "back.csv").write_text("time_s,speed_mph\n0,0\n2,1\n1,1\n")
     with pytest.raises(ScenarioError, match="strictly increasing"):
         load_drive_cycle(str(tmp_path / "back.csv"))

@@ -155,7 +155,11 @@ def load_drive_cycle(name_or_path: str | os.PathLike, base_dir: str | os.PathLik
     if not path.is_file():
         why = "is a directory, not a file" if path.is_dir() else "not found"
         raise ScenarioError(f"drive_cycle: CSV file {text_name!r} {why} (looked for {path.absolute()})")
-    return _parse_cycle_csv(path.read_text(encoding="utf-8"), str(path))
+    try:  # utf-8-sig: a spreadsheet's CSV often starts with a byte-order mark (it was refused as a bad header)
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"drive_cycle: {path}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
+    return _parse_cycle_csv(text, str(path))
 
 
 def _series(section: str, block: Mapping, key: str, n: int | None, bounds, low_open: bool = False) -> np.ndarray:
