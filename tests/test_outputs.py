@@ -605,6 +605,32 @@ def test_scenario_copy_is_loadable_with_its_drive_cycle(tmp_path):
     assert np.array_equal(after.drive_cycle.speed_mps, before.drive_cycle.speed_mps)
 
 
+def test_scenario_hash_is_of_what_the_scenario_says_with_its_drive_cycle(tmp_path):
+    """run.json's scenario_sha256 (``ceco report`` refuses runs of one name with different hashes): one CSV-cycle
+    scenario started from two directories has one hash (the copies' headers name their sources, and the bytes'
+    hash differed); a comment or a reordered key changes nothing; an edited CSV under the same YAML, or an edited
+    YAML, is another scenario (the YAML's bytes alone missed the CSV)."""
+    data = yaml.safe_load(provenance.copy_scenario('sc03', tmp_path / 'a').read_text())
+    data.update(name='mine', drive_cycle='cyc.csv')
+    sources = []
+    for where in ('one', 'two'):
+        src = tmp_path / where
+        src.mkdir()
+        (src / 'cyc.csv').write_text('time_s,speed_mps\n0,0\n30,10\n60,10\n')
+        (src / 'mine.yaml').write_text(yaml.safe_dump(data, sort_keys=where == 'one'))
+        sources.append(src / 'mine.yaml')
+    (tmp_path / 'two' / 'mine.yaml').write_text('# my copy\n' + (tmp_path / 'two' / 'mine.yaml').read_text())
+    start = lambda src, run: provenance.start_run(tmp_path / run, 'sim', [], str(src))['scenario_sha256']  # noqa: E731
+    h1, h2 = start(sources[0], 'r1'), start(sources[1], 'r2')
+    assert (tmp_path / 'r1' / 'scenario.yaml').read_bytes() != (tmp_path / 'r2' / 'scenario.yaml').read_bytes()
+    assert h1 == h2 and len(h1) == 16
+    (tmp_path / 'two' / 'cyc.csv').write_text('time_s,speed_mps\n0,0\n30,12\n60,10\n')
+    assert start(sources[1], 'r3') != h1  # the CSV edited
+    (tmp_path / 'one' / 'mine.yaml').write_text(yaml.safe_dump(dict(data, duration_s=50)))
+    assert start(sources[0], 'r4') != h1  # the YAML edited
+    assert start('sc03', 'r5') == provenance.scenario_sha256(tmp_path / 'a' / 'scenario.yaml')  # a bundled name
+
+
 def test_identify_writes_a_new_run_directory_never_over_a_tracked_file(tmp_path, monkeypatch, capsys):
     """`ceco identify` writes into --out (default a new runs/identify-<time>), and refuses a directory
     that already holds its files (it wrote over the tracked config/model_params.yaml by default)."""

@@ -111,6 +111,26 @@ def copy_drive_cycle(data, src_dir: str | os.PathLike, dest_dir: str | os.PathLi
     return dict(data, drive_cycle=copied.name), f'drive_cycle {cycle} copied to {copied.name} beside it'
 
 
+def scenario_sha256(copy: str | os.PathLike) -> str:
+    """The content hash of a run's scenario copy (``run.json``'s ``scenario_sha256``, 16 hex digits).
+
+    Over what the scenario says, not the file's bytes: its YAML data (comments, key order and layout do not
+    count) and, for a drive cycle named by path, the bytes of the CSV copied beside it in place of that
+    path. The same CSV-cycle scenario run from two directories has one hash (its copy's header names the
+    source and differed); an edited CSV under the same YAML has another (the YAML's bytes alone missed it).
+    """
+    from ceco_v2x_preview.scenario import list_drive_cycles
+
+    copy = Path(copy)
+    data = yamlio.load_file(copy)
+    cycle = data.get('drive_cycle') if isinstance(data, Mapping) else None
+    if isinstance(cycle, str) and cycle not in list_drive_cycles():
+        csv = Path(cycle) if Path(cycle).is_absolute() else copy.parent / cycle
+        data = dict(data, drive_cycle={'csv_sha256': hashlib.sha256(csv.read_bytes()).hexdigest()})
+    text = json.dumps(data, sort_keys=True, separators=(',', ':'), default=str)
+    return hashlib.sha256(text.encode('utf-8')).hexdigest()[:16]
+
+
 def scenario_path(run_dir: str | os.PathLike) -> Path | None:
     """The run's copy of its scenario file, or None for a run directory written before it was kept."""
     p = Path(run_dir) / SCENARIO_FILE
@@ -149,7 +169,7 @@ def start_run(
         'code_fingerprint': code,
         'scenario': load_scenario(copy).name,
         'scenario_source': str(scenario_source),
-        'scenario_sha256': hashlib.sha256(copy.read_bytes()).hexdigest()[:16],
+        'scenario_sha256': scenario_sha256(copy),
         **({'strategy': strategy} if strategy else {}),
         'status': 'started',
         'error': '',
