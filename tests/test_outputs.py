@@ -1030,3 +1030,15 @@ def test_matched_comfort_hint_without_the_jobs_command():
         and not outputs.family_skipped([flag, '24,25'])
         and not outputs.family_skipped(None)
     )
+    # argparse's abbreviations of the flag (as typed, in run.json's argv) are the flag: the only flag of sim and run
+    # that starts with --b, so argparse takes every prefix down to --b as it
+    from ceco_bringup import run, sim
+
+    for verb in (sim, run):
+        options = verb.build_parser()._option_string_actions  # noqa: SLF001 (argparse has no public list)
+        assert [o for o in options if o.startswith('--b')] == [flag]
+        assert verb.build_parser().allow_abbrev  # (without it, a typed abbreviation is refused: no hint needed)
+    for typed in (['--baseline-setpoints', 'none'], ['--baseline=none'], ['--b', 'NONE']):
+        assert outputs.family_skipped(['--out', 'x', *typed]), typed
+        assert outputs.matched_comfort_hint('run', 's.yaml', argv=['--out', 'x', *typed])[1] == 'ceco run --out x'
+    assert not outputs.family_skipped(['--baselines', 'none']) and not outputs.family_skipped(['-b', 'none'])

@@ -301,8 +301,20 @@ FAMILY_FLAG = '--baseline-setpoints-c'
 """The flag of ``ceco sim`` and ``ceco run`` whose value ``none`` skips the baseline family (no matched comfort)."""
 
 
+def _is_family_flag(option: str) -> bool:
+    """Whether ``option`` (``--x``, before any ``=``) is :data:`FAMILY_FLAG` as argparse took it.
+
+    Whole, or abbreviated (``--baseline-setpoints``). No other flag of ``ceco sim`` or ``ceco run`` starts with ``--b``
+    (``tests/test_outputs.py`` checks their parsers), so every prefix of it down to ``--b`` is that flag.
+    """
+    return len(option) >= 3 and FAMILY_FLAG.startswith(option)
+
+
 def _without_family_off(argv: Sequence[str] | None) -> list[str] | None:
-    """``argv`` without :data:`FAMILY_FLAG` when its (last) value is ``none``; None otherwise (or without ``argv``)."""
+    """``argv`` without :data:`FAMILY_FLAG` (or its abbreviation) when its (last) value is ``none``.
+
+    None otherwise (or without ``argv``).
+    """
     if not argv:
         return None
     rest: list[str] = []
@@ -311,10 +323,10 @@ def _without_family_off(argv: Sequence[str] | None) -> list[str] | None:
     i = 0
     while i < len(args):
         a = str(args[i])
-        if a == FAMILY_FLAG and i + 1 < len(args):
+        if _is_family_flag(a) and i + 1 < len(args):
             value, i = str(args[i + 1]), i + 2
             continue
-        if a.startswith(FAMILY_FLAG + '='):
+        if '=' in a and _is_family_flag(a.split('=', 1)[0]):
             value, i = a.split('=', 1)[1], i + 1
             continue
         rest.append(a)
