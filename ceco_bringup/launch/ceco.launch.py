@@ -109,6 +109,9 @@ ENCLAVE_ROOT = '/ceco'
 """Each node runs in the SROS2 enclave ENCLAVE_ROOT/<node> (ceco_bringup.security)."""
 SECURITY_ENV = (('ROS_SECURITY_ENABLE', 'true'), ('ROS_SECURITY_STRATEGY', 'Enforce'), ('ROS_SECURITY_KEYSTORE', None))
 """With security:=true, each node process's environment (None: the keystore argument); false: launch's own values."""
+RECORDER_ENCLAVE = f'{ENCLAVE_ROOT}/ceco'
+"""The recorder's enclave under security:=true (ROS_SECURITY_ENCLAVE_OVERRIDE: `ros2 bag record` takes no
+--enclave): the ceco tools' enclave of `ceco security create-keystore`."""
 
 
 def generate_launch_description() -> LaunchDescription:
@@ -127,6 +130,16 @@ def generate_launch_description() -> LaunchDescription:
         var: IfElseSubstitution(cfg['security'], value or cfg['keystore'], EnvironmentVariable(var, default_value=''))
         for var, value in SECURITY_ENV
     }
+    # the recorder: the nodes' security variables and its enclave (with security on the plant waits for it)
+    override = 'ROS_SECURITY_ENCLAVE_OVERRIDE'
+    recorder_env = dict(
+        secure_env,
+        **{
+            override: IfElseSubstitution(
+                cfg['security'], RECORDER_ENCLAVE, EnvironmentVariable(override, default_value='')
+            )
+        },
+    )
     follower = dict(common, use_sim_time=ParameterValue(LaunchConfiguration('sim_time'), value_type=bool))
     managed = dict(follower, autostart=ParameterValue(cfg['autostart'], value_type=bool))
 
@@ -195,20 +208,23 @@ def generate_launch_description() -> LaunchDescription:
                 [gate],
             ),
             *active,
-            _recorder(True, AndSubstitution(cfg['record'], LaunchConfiguration('sim_time'))),
-            _recorder(False, AndSubstitution(cfg['record'], NotSubstitution(LaunchConfiguration('sim_time')))),
+            _recorder(True, AndSubstitution(cfg['record'], LaunchConfiguration('sim_time')), recorder_env),
+            _recorder(
+                False, AndSubstitution(cfg['record'], NotSubstitution(LaunchConfiguration('sim_time'))), recorder_env
+            ),
         ]
     )
 
 
-def _recorder(sim_time: bool, when) -> ExecuteProcess:
-    """`ros2 bag record` of the stack's topics, fully qualified (with ``--use-sim-time`` if ``sim_time``)."""
+def _recorder(sim_time: bool, when, env) -> ExecuteProcess:
+    """`ros2 bag record` of the stack's topics, fully qualified (``--use-sim-time`` if ``sim_time``), in ``env``."""
     prefix = LaunchConfiguration('topic_prefix')
     topics = [t if t.startswith('/') else [prefix, t] for t in TOPICS]
     return ExecuteProcess(
         cmd=['ros2', 'bag', 'record', '-s', 'mcap', *(['--use-sim-time'] if sim_time else []), '--topics', *topics],
         name='recorder',
         output='screen',
+        additional_env=env,
         condition=IfCondition(when),
         # the plant waits for the recorder: without it the stack would stall, so stop
         on_exit=[Shutdown(reason='the recorder (ros2 bag record) exited')],

@@ -159,7 +159,7 @@ def _python_description(monkeypatch):
 
 def _run_python(description, **arguments) -> dict:
     """What the launch starts for ``arguments``: {'env': ..., 'nodes': {name: ...}, 'recorder': cmd, 'kinds': ...}."""
-    ctx, out = {}, {'env': {}, 'nodes': {}, 'recorder': None, 'kinds': {}}
+    ctx, out = {}, {'env': {}, 'nodes': {}, 'recorder': None, 'recorder_env': None, 'kinds': {}}
     for e in description:
         kind = type(e).__name__
         if kind == 'DeclareLaunchArgument':
@@ -195,6 +195,7 @@ def _run_python(description, **arguments) -> dict:
             assert out['recorder'] is None, 'two recorders enabled at once'
             assert [type(a).__name__ for a in e.kwargs['on_exit']] == ['Shutdown'] and e.kwargs['name'] == 'recorder'
             out['recorder'] = [perform(c, ctx) for c in e.kwargs['cmd']]
+            out['recorder_env'] = {perform(k, ctx): perform(v, ctx) for k, v in e.kwargs['additional_env'].items()}
     assert not arguments, f'unknown arguments {arguments}'
     return out
 
@@ -244,7 +245,7 @@ def _unquote(arg: str) -> str:
 
 
 def _run_xml(**arguments) -> dict:
-    ctx, out = {}, {'env': {}, 'nodes': {}, 'recorder': None, 'kinds': {}}
+    ctx, out = {}, {'env': {}, 'nodes': {}, 'recorder': None, 'recorder_env': None, 'kinds': {}}
     for e in ET.parse(XML_FILE).getroot():
         if e.tag == 'arg':
             choices = [c.get('value') for c in e.findall('choice')]
@@ -278,6 +279,7 @@ def _run_xml(**arguments) -> dict:
         elif e.tag == 'executable':
             assert out['recorder'] is None and e.get('on_exit') == 'shutdown' and e.get('name') == 'recorder'
             out['recorder'] = _xml_sub(e.get('cmd'), ctx).split()
+            out['recorder_env'] = {v.get('name'): _xml_sub(v.get('value'), ctx) for v in e.findall('env')}
         else:
             raise AssertionError(f'<{e.tag}> not evaluated by this test')
     assert not arguments, f'unknown arguments {arguments}'
@@ -476,6 +478,29 @@ def test_security_is_in_the_nodes_environment_never_in_launchs_own(monkeypatch, 
     for started in (launch(), _run_xml()):
         env = started['nodes']['plant_node']['env']
         assert env == {'ROS_SECURITY_ENABLE': 'true', 'ROS_SECURITY_STRATEGY': '', 'ROS_SECURITY_KEYSTORE': ''}
+
+
+@pytest.mark.parametrize('timing', ['lockstep', 'realtime'])
+def test_the_recorder_runs_secured_in_the_tools_enclave_with_security_on(monkeypatch, launch, timing):
+    """security:=true record:=true: the plant waits for the recorder's subscriptions, and the recorder (`ros2 bag
+    record`, which takes no --enclave) had none of the nodes' ROS_SECURITY_* variables, so it could never match a
+    secured node and the plant waited for it without end. It now gets them and ROS_SECURITY_ENCLAVE_OVERRIDE, the
+    ceco tools' enclave of `ceco security create-keystore`; with security off, launch's own values pass on."""
+    from ceco_bringup.security import ENCLAVES
+
+    secure = {'security': 'true', 'keystore': '/k', 'record': 'true', 'timing': timing}
+    for started in (launch(**secure), _run_xml(**secure)):
+        assert started['recorder'][:3] == ['ros2', 'bag', 'record']
+        assert started['recorder_env'] == dict(
+            started['nodes']['plant_node']['env'], ROS_SECURITY_ENCLAVE_OVERRIDE='/ceco/ceco'
+        )
+        assert started['nodes']['plant_node']['env']['ROS_SECURITY_KEYSTORE'] == '/k'
+    assert '/ceco/ceco' in ENCLAVES  # the keystore has that enclave
+    monkeypatch.setitem(LAUNCH_ENVIRON, 'ROS_SECURITY_ENCLAVE_OVERRIDE', '/mine')
+    for started in (launch(record='true', timing=timing), _run_xml(record='true', timing=timing)):
+        assert started['recorder_env'] == dict(
+            started['nodes']['plant_node']['env'], ROS_SECURITY_ENCLAVE_OVERRIDE='/mine'
+        )
 
 
 COMBINATIONS = [
