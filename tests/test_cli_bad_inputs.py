@@ -281,3 +281,34 @@ def test_a_value_beyond_the_preview_nodes_range_is_refused_before_any_run(tmp_pa
         one_error_line(capsys.readouterr().err) == f'ceco {verb}: error: {says} (ceco {verb} --help lists the options)'
     )
     assert not (tmp_path / 'o').exists()
+
+
+# --------------------------------------------------------------------------- a reader that leaves early
+@pytest.mark.parametrize('verb', ['help', 'sim'])
+def test_a_reader_that_closes_the_pipe_stops_the_printing_not_the_job(tmp_path, verb):
+    """`ceco sim ... | head -1`: the first table line after head left raised BrokenPipeError, a traceback and exit
+    status 1, and the job's files (written after the table) were never written. Now the rest of the output goes
+    to /dev/null: no traceback, the verb's own exit status, every file written."""
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / 'job'
+    args = (
+        ['--help']
+        if verb == 'help'
+        else ['sim', '--strategy', 'baseline', '--duration-s', '20', '--no-progress', '--baseline-setpoints-c', 'none']
+        + ['--out', str(out)]
+    )
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # the reader is gone before the first line
+    try:
+        p = subprocess.run(
+            [sys.executable, '-m', 'ceco_bringup.cli', *args], stdout=write_end, stderr=subprocess.PIPE, text=True
+        )
+    finally:
+        os.close(write_end)
+    assert p.returncode == 0 and 'Traceback' not in p.stderr and 'BrokenPipe' not in p.stderr, p.stderr
+    if verb == 'sim':
+        files = {'comparison.csv', 'comparison.txt', 'summary.txt', 'verdict.json'}
+        assert files <= {f.name for f in out.iterdir()} and (out / 'baseline' / 'metrics.json').is_file()

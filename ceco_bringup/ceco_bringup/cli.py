@@ -42,6 +42,48 @@ SINGLE_THREAD_ENV = {'OMP_NUM_THREADS': '1', 'OPENBLAS_NUM_THREADS': '1', 'MKL_N
 """The thread environment of :data:`SINGLE_THREAD_VERBS` (the same values as the pool workers')."""
 
 
+class PipeSafeStdout:
+    """Standard output that goes on to /dev/null once its reader has closed the pipe (``ceco sim ... | head -1``).
+
+    Python ignores SIGPIPE, so a write to a closed pipe raised BrokenPipeError from the first table line: a
+    traceback, and ``ceco sim`` never wrote its job's files (comparison.csv, verdict.json, ...), which come after
+    the table. Now the first such write points file descriptor 1 at /dev/null and the verb goes on: what was
+    left to print is dropped, every file is written, the exit status is the verb's.
+    """
+
+    def __init__(self, inner):
+        self._inner = inner
+        self.reader_gone = False
+        """Whether a write found the reader gone (the rest went to /dev/null)."""
+
+    def _to_devnull(self) -> None:
+        self.reader_gone = True
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(devnull, self._inner.fileno())
+        finally:
+            os.close(devnull)
+
+    def write(self, text: str) -> int:
+        """Write ``text``; to /dev/null from the first write that finds the reader gone."""
+        try:
+            return self._inner.write(text)
+        except BrokenPipeError:
+            self._to_devnull()
+            return len(text)
+
+    def flush(self) -> None:
+        """Flush; a reader gone sends the buffered text to /dev/null."""
+        try:
+            self._inner.flush()
+        except BrokenPipeError:
+            self._to_devnull()
+            self._inner.flush()  # what was buffered goes to /dev/null
+
+    def __getattr__(self, name):
+        return getattr(self._inner, name)
+
+
 def _usage() -> str:
     lines = ['usage: ceco VERB [options]   (ceco VERB --help for a verb\'s options)', '']
     lines += [f'  {verb:<9} {help_}' for verb, (_, help_) in VERBS.items()]
@@ -59,6 +101,8 @@ def main(argv=None) -> int:
         (the usage is printed in those cases).
     """
     argv = list(sys.argv[1:] if argv is None else argv)
+    if not isinstance(sys.stdout, PipeSafeStdout) and sys.stdout is not None:
+        sys.stdout = PipeSafeStdout(sys.stdout)
     if not argv or argv[0] in ('-h', '--help'):
         print(_usage())
         return 0 if argv else 2
