@@ -669,6 +669,13 @@ def test_bench_and_identify_take_the_shared_flags_and_their_old_names_say_so(cap
         bench.parse_args(['nmpc', '--strategy', 'baseline,ceco'])  # named, the baseline is refused, not dropped
     assert exc.value.code == 2
     assert 'argument --strategy: baseline has no solver to time' in capsys.readouterr().err
+    # --horizons: each in --horizon-steps' 1..60 (1000 ended in a traceback after the run began; 61 ran)
+    assert bench.parse_args(['nmpc', '--horizons', '1,60'])[1] == [1, 60]
+    for bad in ('61', '6,1000', '0'):
+        with pytest.raises(SystemExit) as exc:
+            bench.parse_args(['nmpc', '--horizons', bad])
+        assert exc.value.code == 2
+        assert 'argument --horizons: must be a whole number in 1..60, got' in capsys.readouterr().err
 
     ident = identification.build_parser()
     a = ident.parse_args(['--ts', '4', '--horizon', '8'])

@@ -427,9 +427,10 @@ def build_parser() -> cli_flags.Parser:
     )
     ap.add_argument(
         "--horizons",
-        type=cli_flags.comma_list(cli_flags.positive_int),
+        type=cli_flags.comma_list(cli_flags.horizon_steps),
         default=None,
-        help="comma-separated horizons Np [steps] to compare (default 6,12,24,60; with --quick 6,12)",
+        help="comma-separated horizons Np [steps], each in 1..60 as --horizon-steps (default 6,12,24,60; "
+        "with --quick 6,12)",
     )
     cli_flags.add_strategy(
         ap,
