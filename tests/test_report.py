@@ -813,3 +813,24 @@ def test_bar_labels_keep_a_second_runs_path():
     names = figures.ordered(['ceco', 'ceco-e', 'ceco-c', 'ceco-c (runs/b/ceco-c)', 'my-mpc'])
     colours = [figures.strategy_style(n, i)['color'] for i, n in enumerate(names)]
     assert len(set(colours)) == len(names), dict(zip(names, colours))
+
+
+def test_a_run_directory_whose_data_went_missing_is_named_not_skipped(runs, tmp_path, capsys):
+    """`ceco report PARENT` with a run directory whose metrics.json was deleted (its run.json and timeseries.csv
+    left): it reported the other run alone, without a word ('loading 1 run(s)', exit 0). Now it refuses in one line
+    naming that directory, exit status 2, nothing written; given on its own the directory was already refused."""
+    import shutil
+
+    parent = tmp_path / 'nometa'
+    shutil.copytree(runs / 'baseline', parent / 'baseline')
+    shutil.copytree(runs / 'ceco-ioch', parent / 'ceco-ioch')
+    provenance.start_run(parent / 'ceco-ioch', 'sim', ['--scenario', 'sc03'], 'sc03', 'ceco-ioch')
+    provenance.finish_run(parent / 'ceco-ioch', 'complete')
+    out = tmp_path / 'rep'
+    assert report.main([str(parent), '--out', str(out)]) == 0  # both runs: reported
+    capsys.readouterr()
+    (parent / 'ceco-ioch' / 'metrics.json').unlink()
+    assert report.main([str(parent), '--out', str(tmp_path / 'rep2')]) == 2
+    err = one_error_line(capsys.readouterr().err)
+    assert err.startswith(f"ceco report: error: {parent / 'ceco-ioch'}: a run directory (run.json, status 'complete')")
+    assert 'its data is missing' in err and not (tmp_path / 'rep2').exists()

@@ -190,9 +190,13 @@ def discover_runs(paths: Sequence[str | Path]) -> list[Path]:
     """Run directories among ``paths``.
 
     A directory that :func:`is_run` is a run; otherwise its immediate subdirectories that are
-    runs are (a parent of several strategies). Raises ValueError for a path that is neither.
-    Failed runs are among them (:func:`load_runs` tells them apart).
+    runs are (a parent of several strategies). Raises ValueError for a path that is neither, and for a
+    parent with a subdirectory that holds a ``run.json`` but is no run (no metrics.json, no bag, not failed:
+    its data went missing; it was left out without a word). Failed runs are among them (:func:`load_runs`
+    tells them apart).
     """
+    from ceco_bringup import provenance
+
     runs: list[Path] = []
     for p in map(Path, paths):
         if not p.is_dir():
@@ -200,6 +204,13 @@ def discover_runs(paths: Sequence[str | Path]) -> list[Path]:
         if is_run(p):
             runs.append(p)
             continue
+        for d in sorted(d for d in p.iterdir() if d.is_dir() and (d / provenance.RUN_FILE).is_file()):
+            if not is_run(d):
+                status = (provenance.read_run(d) or {}).get('status')
+                raise ValueError(
+                    f'{d}: a run directory (run.json, status {status!r}) with no metrics.json, bag/ or rosbag2 '
+                    'metadata.yaml: its data is missing; name the other run directories to report them'
+                )
         subs = sorted(d for d in p.iterdir() if d.is_dir() and is_run(d))
         if not subs:
             raise ValueError(
