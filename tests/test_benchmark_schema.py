@@ -461,3 +461,23 @@ def test_ceco_benchmark_validate_refuses_an_out_of_range_kpi_and_no_cases(tmp_pa
         assert bench_cli.main(["--validate", str(bad)]) == 1, name
         out = capsys.readouterr()
         assert message in out.err and out.out.strip() == f"{bad}: 1 problem(s)", (name, out)
+
+
+def test_a_runs_energy_is_the_sum_of_its_parts_and_never_negative():
+    """`ceco benchmark --validate` called a file valid whose run had energy_comp_kwh 1.0 under energy_kwh 0.39, and
+    named a negative energy_kwh only as savings that do not recompute. Energy is compressor + blower + condenser fan:
+    each part and the total are >= 0 and the total is their sum (to the recompute tolerance)."""
+    doc = make_doc()
+    kpis = _case(doc)["runs"][10]["kpis"]
+    e = kpis["energy_kwh"]
+    kpis.update(energy_comp_kwh=0.8 * e, energy_blower_kwh=0.15 * e, energy_fan_kwh=0.05 * e)
+    assert bs.check_results(doc) == []  # the parts add up
+    run = _case(doc)["runs"][10]
+    where = f"cases/0 ({_case(doc)['case']})/runs/10 ({run['controller']}, seed {run['seed']})"
+    kpis["energy_comp_kwh"] = 1.0
+    errors = bs.check_results(doc)
+    assert len(errors) == 1 and errors[0].startswith(f"{where}: KPI energy_kwh {e!r} is not energy_comp_kwh + ")
+    kpis["energy_comp_kwh"] = 0.8 * e
+    kpis["energy_fan_kwh"] = -0.05 * e
+    assert f"{where}: KPI energy_fan_kwh is {-0.05 * e!r}: an energy is never negative" in bs.check_results(doc)
+    assert where == "cases/0 (sc03-medium)/runs/10 (ceco, seed 0)"

@@ -49,6 +49,16 @@ def test_validate_refuses_a_binary_file_and_an_empty_path(tmp_path, capsys):
     assert bench_cli.main(['--validate', '']) == 2
     err = one_error_line(capsys.readouterr().err)
     assert '--validate: the path is empty' in err and '--out' not in err
+    # a CSV, a directory, no file: named in words, not Python's ('Expecting value: line 1 column 1', '[Errno 21]')
+    csv = tmp_path / 'kpis.csv'
+    csv.write_text('controller,energy_kwh\nceco,0.3\n')
+    for path, said in (
+        (csv, f'{csv}: not a JSON file (Expecting value at line 1, column 1): give a results.json ceco benchmark'),
+        (tmp_path, f'{tmp_path}: a directory: give the results.json in it'),
+        (tmp_path / 'none.json', f"{tmp_path / 'none.json'}: not found"),
+    ):
+        assert bench_cli.main(['--validate', str(path)]) == 2
+        assert one_error_line(capsys.readouterr().err).startswith(f'ceco benchmark: {said}')
 
 
 # --------------------------------------------------------------------------- ceco play

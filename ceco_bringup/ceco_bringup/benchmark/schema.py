@@ -10,7 +10,8 @@ Two layers:
 2. :func:`validate_results` adds what a schema cannot express: runs are unique per
    (controller, seed); ``seed`` is null exactly for the seed-invariant baselines and
    one of the case's seeds otherwise; every null KPI of a finished run is explained
-   in ``kpi_notes``; a ``failed`` or ``error`` run says why in ``error``; each front member is
+   in ``kpi_notes``; no energy is negative and ``energy_kwh`` is the sum of its parts (compressor + blower +
+   condenser fan); a ``failed`` or ``error`` run says why in ``error``; each front member is
    a run of its family with status ``ok`` and the front's values, and the ``efficient`` flags
    recompute; every ``matched`` value recomputes from the fronts and the ``ok`` runs (:mod:`.front`,
    tolerance 1e-9): a failed run (its controller did not control it, ``ceco_core.run_status``) is
@@ -185,8 +186,17 @@ def read_results(path: str) -> Any:
             f"{path}: not a UTF-8 text file ({exc.reason} at byte {exc.start}): "
             "give a results.json ceco benchmark wrote"
         ) from None
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path}: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(
+            f"{path}: not a JSON file ({exc.msg} at line {exc.lineno}, column {exc.colno}): "
+            "give a results.json ceco benchmark wrote"
+        ) from None
+    except IsADirectoryError:
+        raise ValueError(f"{path}: a directory: give the results.json in it") from None
+    except FileNotFoundError:
+        raise ValueError(f"{path}: not found") from None
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot be read ({exc.strerror})") from None
 
 
 def _same(a, b) -> bool:
@@ -220,6 +230,26 @@ def _check_match(where: str, stored: Mapping, expect: Mapping) -> list[str]:
     return out
 
 
+ENERGY_PARTS = ("energy_comp_kwh", "energy_blower_kwh", "energy_fan_kwh")
+"""The parts of a run's ``energy_kwh``: compressor + blower + condenser fan [kWh] (``ceco_core.kpis``)."""
+
+
+def _check_energy(where: str, kpis: Mapping) -> list[str]:
+    """A run's energies: none negative, and ``energy_kwh`` the sum of :data:`ENERGY_PARTS` (where all are given)."""
+    out = [
+        f"{where}: KPI {k} is {v!r}: an energy is never negative"
+        for k, v in kpis.items()
+        if k.startswith("energy_") and k.endswith("_kwh") and isinstance(v, (int, float)) and v < 0
+    ]
+    total, parts = kpis.get("energy_kwh"), [kpis.get(k) for k in ENERGY_PARTS]
+    if total is not None and all(v is not None for v in parts) and not _same(total, sum(parts)):
+        out.append(
+            f"{where}: KPI energy_kwh {total!r} is not {' + '.join(ENERGY_PARTS)} ({sum(parts)!r}): "
+            "energy is compressor + blower + condenser fan"
+        )
+    return out
+
+
 def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
     out: list[str] = []
     tag = f"cases/{i} ({case.get('case')})"
@@ -244,6 +274,7 @@ def _check_case(i: int, case: Mapping, settings: Mapping) -> list[str]:
         for k, v in run["kpis"].items():  # (their ranges, KPI_RANGES: the JSON Schema's)
             if v is None and k not in run["kpi_notes"]:
                 out.append(f"{where}: KPI {k} is null without a note in kpi_notes")
+        out += _check_energy(where, run["kpis"])
         if run["status"] == "ok":  # a failed run keeps its KPIs but is never on a front nor matched
             ok_runs.setdefault(run["controller"], []).append(run)
     out += _check_seed_coverage(tag, case)
