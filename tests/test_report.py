@@ -834,3 +834,39 @@ def test_a_run_directory_whose_data_went_missing_is_named_not_skipped(runs, tmp_
     err = one_error_line(capsys.readouterr().err)
     assert err.startswith(f"ceco report: error: {parent / 'ceco-ioch'}: a run directory (run.json, status 'complete')")
     assert 'its data is missing' in err and not (tmp_path / 'rep2').exists()
+
+
+def test_a_run_whose_metrics_do_not_recompute_is_left_out_of_the_verdict(runs, tmp_path, capsys):
+    """A timeseries.csv edited after the run (its compressor power halved): the report said MISMATCH and exited 1,
+    yet its verdict and summary.md still credited that run with the energy the edited data gives, with no caveat
+    beside it. Now such a run is named in the verdict as not compared, with why; with every run so, no verdict."""
+    import csv
+    import shutil
+
+    parent = tmp_path / 'tampered'
+    shutil.copytree(runs, parent)
+    res = report.build_report([str(parent)], tmp_path / 'before', log=lambda *a, **k: None)
+    assert not res['mismatch'] and any('ceco-ioch' in line for line in res['verdict'])
+    path = parent / 'ceco-ioch' / 'timeseries.csv'
+    with path.open() as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        r['p_comp_w'] = repr(0.5 * float(r['p_comp_w']))
+    with path.open('w', newline='') as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    res = report.build_report([str(parent)], tmp_path / 'after', log=lambda *a, **k: None)
+    assert res['mismatch']
+    text = ' '.join(' '.join(res['verdict']).split())  # (the lines are wrapped)
+    why = 'its metrics.json does not recompute from its data, 4 MISMATCH above'
+    assert f'ceco-ioch FAILED ({why}), not compared' in text
+    assert text.count('ceco-ioch') == 1 and 'Headline' not in text  # named once, credited with nothing
+    md = (tmp_path / 'after' / 'summary.md').read_text()
+    assert 'its metrics.json does not recompute from its data' in md
+    path = parent / 'baseline' / 'metrics.json'  # every run so: no verdict at all
+    stored = json.loads(path.read_text())
+    stored['E_comp_J'] *= 2.0
+    path.write_text(json.dumps(stored))
+    res = report.build_report([str(parent)], tmp_path / 'none', log=lambda *a, **k: None)
+    assert res['verdict'] == ["No verdict on sc03: every run's metrics.json disagrees with its data (MISMATCH)"]

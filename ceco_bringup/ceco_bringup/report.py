@@ -245,6 +245,10 @@ def _scenario_text(name: str, path: Path | None = None) -> str:
     )
 
 
+MISMATCH_REASON = 'its metrics.json does not recompute from its data, {n} MISMATCH above'
+"""Why a run whose stored metrics disagree with its time series is left out of the verdict (``{n}``: how many)."""
+
+
 def _failed_names(failed: Sequence[FailedRun], *, with_path: bool = False) -> dict[str, str]:
     """{name: reason} of the failed runs for ``outputs.failed_lines``.
 
@@ -721,7 +725,14 @@ def build_report(
     verdict_lines: list[str] = []
     for sc, group in groups.items():  # the verdicts first: the top of the report
         here = _failed_names([f for f in failed if f.scenario == sc])
-        vblocks, vfig, lines = _verdict_section(sc, group, fig_dir, here)
+        # a run whose metrics.json does not recompute from its data is no result: named, never in the verdict
+        here.update({lab: MISMATCH_REASON.format(n=len(r.mismatches)) for lab, r in group.items() if r.mismatches})
+        kept = {lab: r for lab, r in group.items() if not r.mismatches}
+        if not kept:
+            blocks.append(Paragraph(f'No verdict on {sc}: ' + '; '.join(f'{k}: {w}' for k, w in here.items())))
+            verdict_lines += [f'No verdict on {sc}: every run\'s metrics.json disagrees with its data (MISMATCH)']
+            continue
+        vblocks, vfig, lines = _verdict_section(sc, kept, fig_dir, here)
         blocks += vblocks
         all_figs.append(vfig)
         verdict_lines += lines
