@@ -80,6 +80,10 @@ def test_out_of_range_gives_none_with_a_reason_and_no_extrapolation():
     assert more.energy_saving_pct is None and more.discomfort_reduction_pct is None
     assert fr.NOTE_MORE_COMFORTABLE in more.note and fr.NOTE_MORE_ENERGY in more.note
     assert more.dominated is False  # nothing on the front is more comfortable
+    assert not fr.dominates_front(more.as_dict())  # more comfortable, but at more energy
+    best = fr.match(f, 0.05, 0.1)  # more comfortable and cheaper than every vertex: it dominates the front
+    assert best.energy_saving_pct is None and best.dominated is False and fr.dominates_front(best.as_dict())
+    assert not fr.dominates_front(None) and not fr.dominates_front(fr.match(f, 0.4, 0.1).as_dict())
     less = fr.match(f, 0.4, 0.1)  # less comfortable and cheaper than 26 degC
     assert less.energy_saving_pct is None and less.discomfort_reduction_pct is None
     assert fr.NOTE_LESS_COMFORTABLE in less.note and fr.NOTE_LESS_ENERGY in less.note
@@ -414,3 +418,15 @@ def test_a_controller_that_does_not_cool_is_not_credited_on_the_c60_case():
     assert fr.match(fronts["allowance"], *C60_ALLOWANCE["baseline-allowance@26.0"]).energy_saving_pct == pytest.approx(
         0.0, abs=1e-9
     )
+
+
+def test_the_benchmark_report_says_a_controller_dominates_every_baseline():
+    """The quick benchmark's mild day: ceco-pmv more comfortable and cheaper than every baseline read `n/a`,
+    `dominated: no`, `n/a` like no result at all. Its dominated cells now say it dominates every baseline."""
+    from ceco_bringup.benchmark import report as brep
+
+    f = fr.build_front(LINE)
+    best, worse = fr.match(f, 0.05, 0.1).as_dict(), fr.match(f, 0.05, 0.45).as_dict()
+    assert brep._match_cells(best)[2] == brep.DOMINATES_WORDS and brep._match_cells(worse)[2] == 'no'
+    assert brep._strongest_cells({'strongest': {**best, 'family': 'plain'}})[1:] == [brep.DOMINATES_WORDS, 'plain']
+    assert brep._match_cells(fr.match(f, 0.4, 0.25).as_dict())[2] == '**yes**'

@@ -103,6 +103,10 @@ def test_verdict_states_the_saving_at_matched_comfort_in_words():
     assert 'saves 5.0 % energy at matched comfort' in text
     assert 'uses 3.9 % more energy at matched comfort (dominated by a set-point)' in text
     assert 'more comfortable than every set-point: no matched value' in text
+    # better on both axes than every set-point: said, not a bare 'no matched value' (the best outcome read as none)
+    best = vd.build_verdict('sc03', {'ceco': _point(0.09, 0.30)}, FAMILY)
+    said = ' '.join(' '.join(vd.verdict_lines(best)).split())
+    assert 'more comfortable than every set-point and less energy than each: it dominates the family' in said
     assert 'never stayed in -0.5..+0.5 (PMV +0.60 over the last minute)' in text
     assert 'in -0.5..+0.5 from 300 s on' in text
     assert 'partial run (interrupted: 28 of 600 s): not compared' in text

@@ -1037,8 +1037,7 @@ def test_lockstep_previews_wait_for_their_readers(tmp_path):
     second = {'w': [], 's': []}
     kinds = {'w': (WeatherPreview, interfaces.TOPIC_WEATHER), 's': (TrafficPreview, interfaces.TOPIC_TRAFFIC)}
     subs = [  # keep-all: two previews released at once both stay in the reader (a depth-1 one keeps the newer)
-        tn.node.create_subscription(t, topic, first[k].append, interfaces.QOS_RECORD)
-        for k, (t, topic) in kinds.items()
+        tn.node.create_subscription(t, topic, first[k].append, interfaces.QOS_RECORD) for k, (t, topic) in kinds.items()
     ]
     diags = tn.collect(DiagnosticArray, '/diagnostics', 10)
     pub_state = tn.node.create_publisher(CabinState, interfaces.TOPIC_STATE, interfaces.QOS_STATE)

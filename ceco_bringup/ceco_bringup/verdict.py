@@ -435,11 +435,18 @@ def _pct(x) -> str:
 
 
 def _matched_words(m: Mapping, is_baseline: bool = False) -> str:
+    from ceco_bringup.benchmark import front
+
     s = m.get('energy_saving_pct')
     if is_baseline and s is not None:
         return f"on the front ({_signed(s, '+.2f')} % against it: the family holds this same law)"
     if s is None:
         note = m.get('note', '')
+        if front.dominates_front(m):
+            return (
+                'more comfortable than every set-point and less energy than each: it dominates the family '
+                '(no matched value without extrapolation; ceco benchmark has colder ones)'
+            )
         if 'more comfortable' in note:
             return 'more comfortable than every set-point: no matched value (ceco benchmark has colder ones)'
         if 'less comfortable' in note:

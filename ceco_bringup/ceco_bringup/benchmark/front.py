@@ -405,6 +405,16 @@ def match(front: Front | Envelope, discomfort: float, energy: float) -> Matched:
     )
 
 
+def dominates_front(m: Mapping | None) -> bool:
+    """Whether a match (:meth:`Matched.as_dict`) is of a point better on both axes than every efficient point.
+
+    More comfortable *and* using less energy than each: the best outcome, yet with no matched value (no
+    extrapolation); the words of the verdict and the benchmark report say so instead of a bare n/a.
+    """
+    note = str((m or {}).get("note") or "")
+    return NOTE_MORE_COMFORTABLE in note and NOTE_LESS_ENERGY in note
+
+
 def _has_vertex(front: Front | Envelope) -> bool:
     return bool(front.fronts if isinstance(front, Envelope) else front.vertices)
 

@@ -25,6 +25,7 @@ import numpy as np
 from ceco_bringup.report_html import Figure, Heading, Paragraph, Table, Warning, render_html, render_markdown
 
 from . import figures as bfig
+from . import front as fr
 
 __all__ = ['write_report', 'report_blocks', 'KPI_COLUMNS']
 
@@ -68,13 +69,18 @@ def _spread(values: Sequence, spec: str = '+.1f') -> str:
     return f' [{format(min(vals), spec)} … {format(max(vals), spec)}{missing}]'
 
 
+DOMINATES_WORDS = 'no: **dominates** every baseline (more comfortable, less energy; no matched saving)'
+"""The dominated cell of a controller better on both axes than every efficient baseline (``front.dominates_front``):
+its saving has no matched value (no extrapolation), which read as a bare n/a like no result at all."""
+
+
 def _match_cells(m: Mapping | None) -> list[str]:
     if m is None:
         return ['n/a', 'n/a', 'n/a']
     seeds = m.get('seeds', {})
     dom = m.get('dominated')
     dom_seeds = seeds.get('dominated', [])
-    dom_txt = ('**yes**' if dom else 'no') + (
+    dom_txt = ('**yes**' if dom else DOMINATES_WORDS if fr.dominates_front(m) else 'no') + (
         f' ({sum(dom_seeds)}/{len(dom_seeds)} seeds)' if len(dom_seeds) > 1 else ''
     )
     return [
@@ -130,7 +136,7 @@ def _strongest_cells(m: Mapping) -> list[str]:
     seeds = st.get('seeds', {})
     return [
         _fmt(st.get('energy_saving_pct'), '+.1f') + _spread(seeds.get('energy_saving_pct', [])),
-        '**yes**' if st.get('dominated') else 'no',
+        '**yes**' if st.get('dominated') else DOMINATES_WORDS if fr.dominates_front(st) else 'no',
         str(st.get('family') or 'n/a'),
     ]
 
