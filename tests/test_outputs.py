@@ -900,6 +900,8 @@ def test_a_key_given_twice_is_refused_in_every_file_the_user_writes(tmp_path, ca
     ) as e:
         load_grid(grid)
     assert '\n' not in str(e.value)
+    with pytest.raises(GridError, match=r': cannot read grid: a directory: give the grid YAML file$'):
+        load_grid(tmp_path)  # (it was Python's '[Errno 21] Is a directory')
     config = tmp_path / 'controller.yaml'
     config.write_text(twice(package_config_path('controller.yaml').read_text(), 'common'))
     rest = ['--duration-s', '30', '--baseline-setpoints-c', 'none', '--no-progress', '--out', str(tmp_path / 'out')]

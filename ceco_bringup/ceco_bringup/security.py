@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import datetime
 import os
+import sys
 from pathlib import Path
 from xml.sax.saxutils import escape
 
@@ -185,8 +186,12 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     try:
         made = create_keystore(args.dir)
-    except (FileExistsError, OSError) as err:
-        print(f'ceco security: {err}', flush=True)
+    except FileExistsError as err:  # (ours: the directory is not empty)
+        print(f'ceco security: {err}', file=sys.stderr, flush=True)
+        return 2
+    except OSError as err:  # a path under a file, no permission, a full disk: in words, on stderr
+        where = f' ({err.filename})' if err.filename else ''
+        print(f'ceco security: cannot write the keystore {args.dir}: {err.strerror}{where}', file=sys.stderr)
         return 2
     print(f'keystore {args.dir}: enclaves {", ".join(ENCLAVES)}; only {", ".join(CONTROLLER_ENCLAVES)} may publish')
     print(f'hvac/command. Use: ros2 launch ceco_bringup ceco.launch.py security:=true keystore:={args.dir.resolve()}')

@@ -104,4 +104,17 @@ def test_only_the_controller_enclaves_may_publish_the_command(keystore, topic):
 
 def test_a_keystore_is_never_written_over(keystore, capsys):
     assert security.main(['create-keystore', str(keystore)]) == 2
-    assert 'exists and is not empty' in capsys.readouterr().out
+    said = capsys.readouterr()
+    assert 'exists and is not empty' in said.err and not said.out  # an error goes to stderr
+
+
+def test_a_keystore_that_cannot_be_written_is_one_line_in_words(tmp_path, capsys):
+    """A path under a file: `ceco security: [Errno 20] Not a directory: ...` on stdout before; now one line on
+    stderr naming the keystore, what went wrong and where, exit status 2."""
+    (tmp_path / 'file').write_text('')
+    assert security.main(['create-keystore', str(tmp_path / 'file' / 'keys')]) == 2
+    said = capsys.readouterr()
+    assert not said.out and said.err.count('\n') == 1 and 'Errno' not in said.err
+    assert said.err.startswith(
+        f"ceco security: cannot write the keystore {tmp_path / 'file' / 'keys'}: Not a directory"
+    )
