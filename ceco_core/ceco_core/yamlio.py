@@ -83,6 +83,18 @@ def load_file(path) -> object:
         raise ValueError(f"{p}: not valid YAML{error_text(exc)}") from None
 
 
+def os_error_words(exc: OSError, wanted: str) -> str:
+    """Why a file could not be read, in words (not Python's ``[Errno 21] Is a directory: ...``).
+
+    ``wanted``: what the user should give instead of a directory (e.g. ``the grid YAML file``).
+    """
+    if isinstance(exc, IsADirectoryError):
+        return f"a directory: give {wanted}"
+    if isinstance(exc, FileNotFoundError):
+        return "not found"
+    return f"cannot be read ({exc.strerror})"
+
+
 def error_text(exc: yaml.YAMLError) -> str:
     """A YAML error in one line: ``" at line L, column C: problem"`` (PyYAML's own text spans several lines)."""
     mark = getattr(exc, "problem_mark", None)

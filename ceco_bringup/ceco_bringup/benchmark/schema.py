@@ -34,6 +34,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from ceco_core import yamlio
+
 from . import front as fr
 
 __all__ = [
@@ -191,12 +193,8 @@ def read_results(path: str) -> Any:
             f"{path}: not a JSON file ({exc.msg} at line {exc.lineno}, column {exc.colno}): "
             "give a results.json ceco benchmark wrote"
         ) from None
-    except IsADirectoryError:
-        raise ValueError(f"{path}: a directory: give the results.json in it") from None
-    except FileNotFoundError:
-        raise ValueError(f"{path}: not found") from None
     except OSError as exc:
-        raise ValueError(f"{path}: cannot be read ({exc.strerror})") from None
+        raise ValueError(f"{path}: {yamlio.os_error_words(exc, 'the results.json in it')}") from None
 
 
 def _same(a, b) -> bool:

@@ -83,12 +83,8 @@ def load_grid(path: str | os.PathLike) -> dict:
     path = Path(path)
     try:
         data = yamlio.safe_load(path.read_text(encoding='utf-8'))
-    except IsADirectoryError:
-        raise GridError(f'{path}: cannot read grid: a directory: give the grid YAML file') from None
-    except FileNotFoundError:
-        raise GridError(f'{path}: cannot read grid: not found') from None
     except OSError as exc:
-        raise GridError(f'{path}: cannot read grid: {exc.strerror}') from None
+        raise GridError(f'{path}: cannot read grid: {yamlio.os_error_words(exc, "the grid YAML file")}') from None
     except yaml.YAMLError as exc:
         raise GridError(f'{path}: cannot read grid: not valid YAML{yamlio.error_text(exc)}') from None
     if not isinstance(data, Mapping):
