@@ -671,8 +671,13 @@ def test_runs_of_different_scenario_files_sharing_a_name_are_not_compared(tmp_pa
     assert f'{a} {ha}' in err and f'{b} {hb}' in err
     assert not out.exists()
     record = provenance.read_run(b)
-    del record['scenario_sha256']  # as an older run directory: no hash, compared as before
+    record['scenario_sha256'] = ha  # a stored hash is not what counts: the copy's content is
     (b / provenance.RUN_FILE).write_text(json.dumps(record))
+    assert report.main([str(a), str(b), '--out', str(out)]) == 2
+    capsys.readouterr()
+    del record['scenario_sha256']  # as an older run directory: no hash, no copy, compared as before
+    (b / provenance.RUN_FILE).write_text(json.dumps(record))
+    (b / provenance.SCENARIO_FILE).unlink()
     assert report.main([str(a), str(b), '--out', str(out)]) == 0
     assert 'Verdict on tropical' in capsys.readouterr().out
 

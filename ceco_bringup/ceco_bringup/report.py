@@ -168,16 +168,25 @@ def _check_identity(runs: Sequence[RunData], flags: Mapping[str, str | None]) ->
 
 
 def _scenario_hash(run: RunData) -> str | None:
-    """The content hash of the scenario file ``run`` drove (``run.json``'s ``scenario_sha256``, ``provenance``).
+    """The content hash of the scenario ``run`` drove (``provenance.scenario_sha256``).
 
-    None when the run records none (an older run directory, a bare bag).
+    Of the run's scenario copy when it has one (so runs written before the hash was of the content, which
+    ``run.json`` holds as a hash of the copy's bytes, compare too), else ``run.json``'s ``scenario_sha256``;
+    None when the run records neither (an older run directory, a bare bag).
     """
+    from ceco_bringup import provenance
+
+    if run.scenario_path is not None:
+        try:
+            return provenance.scenario_sha256(run.scenario_path)
+        except (OSError, ValueError):  # (a copy that cannot be read: the stored hash, if any)
+            pass
     value = run.info.get('scenario_sha256')
     return str(value) if value else None
 
 
 def _check_content(groups: Mapping[str, Mapping[str, RunData]]) -> None:
-    """Raise ValueError when runs of one scenario name drove different scenario files (their ``scenario_sha256``).
+    """Raise ValueError when runs of one scenario name drove different scenario files (:func:`_scenario_hash`).
 
     Two files may share a name (a copy of ``tropical.yaml`` with hotter air): their runs are not comparable.
     Runs that record no hash are left out of this check (older runs, bare bags): they are compared as before.
@@ -191,8 +200,8 @@ def _check_content(groups: Mapping[str, Mapping[str, RunData]]) -> None:
         if len(by_hash) > 1:
             runs = '; '.join(f"{', '.join(str(r.path) for r in rs)} {h}" for h, rs in by_hash.items())
             raise ValueError(
-                f'the runs of {sc} drove different scenario files (scenario_sha256 in run.json: {runs}): runs are '
-                'compared only on the same scenario; report each scenario file on its own'
+                f'the runs of {sc} drove different scenario files (content hash of each scenario copy: {runs}): '
+                'runs are compared only on the same scenario; report each scenario file on its own'
             )
 
 
