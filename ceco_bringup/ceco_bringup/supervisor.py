@@ -32,7 +32,7 @@ import subprocess
 import tempfile
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from ceco_core.cli_flags import normalize_namespace
@@ -339,19 +339,38 @@ class NodeProcess:
     def stop(self, timeout_s: float = 5.0) -> int | None:
         """SIGINT (and SIGCONT, so a stopped process handles it), wait, then SIGKILL. Returns the exit code.
 
-        The log is then trimmed to :data:`LOG_KEEP_BYTES` (:func:`trim_log`).
+        The signals go to the process's whole group (its own session: :meth:`start`), so what it started goes
+        with it (a third-party controller's helper process, or the node a launcher script runs without ``exec``:
+        both outlived the benchmark before, the node still on the run's private domain). Whatever of its
+        group, or of the processes it started in a session of their own, is left once it has exited is killed,
+        and its log says which (:func:`left_behind`). The log is then trimmed to :data:`LOG_KEEP_BYTES`
+        (:func:`trim_log`).
         """
         if self.proc is None:
             return None
-        self.signal(signal.SIGINT)
-        self.signal(signal.SIGCONT)
+        started = descendants(self.proc.pid) if self.running() else {}
+        self.signal_group(signal.SIGINT)
+        self.signal_group(signal.SIGCONT)
         try:
             code = self.proc.wait(timeout=timeout_s)
         except subprocess.TimeoutExpired:
-            self.signal(signal.SIGKILL)
+            self.signal_group(signal.SIGKILL)
             code = self.proc.wait()
+        left = left_behind(self.proc.pid, started)
+        if left:
+            with open(self.log_path, 'a', encoding='utf-8') as f:
+                f.write(f'--- stopped: killed {len(left)} process(es) it left behind: pids {left}\n')
         trim_log(self.log_path)
         return code
+
+    def signal_group(self, sig) -> None:
+        """Send ``sig`` to the process's group (its session's), or to it alone where there is no such group."""
+        if self.proc is None:
+            return
+        try:
+            os.killpg(self.proc.pid, sig)
+        except (ProcessLookupError, PermissionError):
+            self.signal(sig)
 
     def kill(self) -> None:
         """SIGKILL (fault injection)."""
@@ -365,6 +384,68 @@ class NodeProcess:
             return self.log_path.read_text(errors='replace')
         except FileNotFoundError:
             return ''
+
+
+ORPHAN_GRACE_S = 1.0
+"""How long what a stopped process left behind may take to end on its SIGINT before SIGKILL [s]."""
+
+
+def _proc_table() -> dict[int, tuple[int, int, int]]:
+    """{pid: (parent pid, process group id, start time)} of every live process (Linux ``/proc/<pid>/stat``).
+
+    The start time (clock ticks since boot) tells a process from a later one with its pid.
+    """
+    table = {}
+    for d in Path('/proc').iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            text = (d / 'stat').read_text()
+            fields = text[text.rindex(')') + 2 :].split()  # state(3) ppid(4) pgrp(5) ... starttime(22)
+            if fields[0] != 'Z':  # a zombie is already gone
+                table[int(d.name)] = (int(fields[1]), int(fields[2]), int(fields[19]))
+        except (OSError, ValueError, IndexError):
+            continue
+    return table
+
+
+def descendants(pid: int) -> dict[int, int]:
+    """{pid: start time} of the processes ``pid`` started, and of theirs, as they are now (Linux ``/proc``)."""
+    table = _proc_table()
+    children: dict[int, list[int]] = {}
+    for p, (ppid, _, _) in table.items():
+        children.setdefault(ppid, []).append(p)
+    out, todo = {}, list(children.get(pid, []))
+    while todo:
+        p = todo.pop()
+        out[p] = table[p][2]
+        todo += children.get(p, [])
+    return out
+
+
+def left_behind(pgid: int, started: Mapping[int, int] | None = None, grace_s: float = ORPHAN_GRACE_S) -> list[int]:
+    """Kill (SIGKILL) what is left of process group ``pgid`` and of the processes ``started``; their pids.
+
+    Called once the group's leader has exited: its members, and the processes it had started in sessions
+    of their own (``setsid``; ``started``: :func:`descendants` before the stop), are orphans. They had the
+    group's SIGINT; those still there after ``grace_s`` are killed.
+    """
+    started = dict(started or {})
+
+    def left() -> list[int]:
+        return sorted(p for p, (_, g, t) in _proc_table().items() if g == pgid or started.get(p) == t)
+
+    deadline = time.monotonic() + grace_s
+    pids = left()
+    while pids and time.monotonic() < deadline:
+        time.sleep(0.05)
+        pids = left()
+    for p in pids:
+        try:
+            os.kill(p, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+    return pids
 
 
 def _die_with_parent_prefix() -> list[str]:

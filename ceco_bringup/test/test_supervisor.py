@@ -144,6 +144,51 @@ def test_a_stopped_child_that_wrote_more_than_the_cap_leaves_a_bounded_log(tmp_p
     assert text.count('bytes of this log left out') == 1
 
 
+def test_what_a_stopped_child_started_goes_with_it(tmp_path):
+    """A third-party controller that starts a helper (same process group), a helper in a session of its own
+    (setsid), and a launcher script that runs its node without exec: stop() signalled the child's pid only, and
+    all three outlived the benchmark (the node still on the run's private domain). Now the child's group gets the
+    signals, what it left is killed after a grace, and its log names the pids; a child alone leaves nothing."""
+    import shlex
+    import sys
+    import time
+
+    pids = tmp_path / 'pids'
+    script = (
+        'import subprocess, sys, time\n'
+        'sleeper = [sys.executable, "-c", "import signal, time; signal.signal(signal.SIGINT, signal.SIG_IGN); '
+        'time.sleep(300)"]\n'
+        'a = subprocess.Popen(sleeper)\n'
+        'b = subprocess.Popen(sleeper, start_new_session=True)\n'
+        f'open({str(pids)!r}, "w").write(f"{{a.pid}} {{b.pid}}")\n'
+        'time.sleep(300)\n'
+    )
+    wrapper = tmp_path / 'wrap.sh'  # a launcher without exec: bash waits for its child
+    wrapper.write_text(f'#!/bin/bash\n{sys.executable} -c {shlex.quote(script)}\n')
+    wrapper.chmod(0o755)
+    proc = supervisor.NodeProcess('external_controller', None, None, env={}, log_dir=tmp_path, command=[str(wrapper)])
+    proc.start()
+    deadline = time.monotonic() + 30
+    while not (pids.is_file() and pids.read_text()) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    helper, own_session = map(int, pids.read_text().split())
+    alive = lambda pid: pid in supervisor._proc_table()  # noqa: E731 (a zombie is gone)
+    assert alive(helper) and alive(own_session)
+    proc.stop(timeout_s=5.0)
+    deadline = time.monotonic() + 10
+    while (alive(helper) or alive(own_session)) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not alive(helper) and not alive(own_session)
+    assert 'process(es) it left behind: pids' in proc.log_text()
+    alone = supervisor.NodeProcess(
+        'alone', None, None, env={}, log_dir=tmp_path, command=[sys.executable, '-c', 'import time; time.sleep(300)']
+    )
+    alone.start()
+    time.sleep(0.5)
+    alone.stop()
+    assert 'left behind' not in alone.log_text()
+
+
 def test_a_private_domain_held_by_another_ceco_process_is_never_given_twice(monkeypatch, tmp_path):
     """Two `ceco run`s (or two benchmark workers) started at once: the second gets the next free id, from the first
     one's lock; when the first process is gone (killed: the kernel drops its lock) its id is free again."""
