@@ -70,6 +70,20 @@ def test_external_controller_over_dds_scores_as_the_builtin_baseline(tmp_path):
     assert 'incompatible QoS' not in log, log[-2000:]
 
 
+def test_a_command_sent_before_its_state_does_not_time_the_step(tmp_path):
+    """The step time is the first command of step k sent after state k (rmw send times): a controller that published
+    commands ahead of the states got a negative time ratio (-0.068, tester's) that --validate accepted. Step 0: an
+    early command, then one 40 ms after the state; step 1: only early ones (no time); step 2: 10 ms after."""
+    s = 1_000_000_000
+    sent = {
+        'cabin/state': [[0, 10 * s], [1, 11 * s], [5, 15 * s], [10, 20 * s]],  # plant steps; Ts 5 s of 1-s steps
+        'hvac/command': [[0, 9 * s], [0, 10 * s + 40_000_000], [1, 14 * s], [2, 20 * s + 10_000_000]],
+    }
+    (tmp_path / 'send_times.json').write_text(json.dumps(sent))
+    steps = external.step_times_from_bag(tmp_path, 5.0)
+    assert steps.tolist() == pytest.approx([0.04, 0.01])
+
+
 # What the node publishes instead of a command: nothing, NaN, a blower flow above its range.
 NOT_CONTROLLING = {
     'silent': '        pass\n',

@@ -56,7 +56,9 @@ def step_times_from_bag(run_dir, control_period_s: float, plant_dt_s: float = 1.
     The publisher-side send time of ``hvac/command`` k minus that of the ``cabin/state``
     at t_k, DDS transport included: the rmw source timestamps the recorder kept with each
     message's step index (``send_times.json`` next to the bag). The first command of each
-    step counts.
+    step sent after its state counts: one sent before could not have used it (a controller that
+    published ahead of the state made the time negative, -0.07 of the period on average); a step
+    whose every command came before its state has no time.
     """
     import json
 
@@ -67,8 +69,9 @@ def step_times_from_bag(run_dir, control_period_s: float, plant_dt_s: float = 1.
         if n % per == 0:
             state.setdefault(n // per, t_ns)
     for k, t_ns in sent[TOPIC_COMMAND]:
-        cmd.setdefault(k, t_ns)
-    ks = sorted(set(state) & set(cmd))
+        if k in state and t_ns >= state[k]:
+            cmd.setdefault(k, t_ns)
+    ks = sorted(cmd)
     return np.array([(cmd[k] - state[k]) * 1e-9 for k in ks], dtype=float)
 
 
