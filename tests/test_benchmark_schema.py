@@ -481,3 +481,6 @@ def test_a_runs_energy_is_the_sum_of_its_parts_and_never_negative():
     kpis["energy_fan_kwh"] = -0.05 * e
     assert f"{where}: KPI energy_fan_kwh is {-0.05 * e!r}: an energy is never negative" in bs.check_results(doc)
     assert where == "cases/0 (sc03-medium)/runs/10 (ceco, seed 0)"
+    kpis["energy_fan_kwh"] = 0.05 * e
+    kpis["time_ratio_mean"] = -0.068  # (an external controller that published ahead of the states)
+    assert bs.check_results(doc) == [f"{where}: KPI time_ratio_mean is -0.068: a time ratio is never negative"]

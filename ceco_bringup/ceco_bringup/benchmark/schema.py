@@ -233,11 +233,16 @@ ENERGY_PARTS = ("energy_comp_kwh", "energy_blower_kwh", "energy_fan_kwh")
 
 
 def _check_energy(where: str, kpis: Mapping) -> list[str]:
-    """A run's energies: none negative, and ``energy_kwh`` the sum of :data:`ENERGY_PARTS` (where all are given)."""
+    """A run's energies and time ratios: none negative, and ``energy_kwh`` the sum of :data:`ENERGY_PARTS`."""
     out = [
         f"{where}: KPI {k} is {v!r}: an energy is never negative"
         for k, v in kpis.items()
         if k.startswith("energy_") and k.endswith("_kwh") and isinstance(v, (int, float)) and v < 0
+    ]
+    out += [  # (a command is timed from its state on: external.step_times_from_bag)
+        f"{where}: KPI {k} is {kpis[k]!r}: a time ratio is never negative"
+        for k in ("time_ratio_mean", "time_ratio_max")
+        if isinstance(kpis.get(k), (int, float)) and kpis[k] < 0
     ]
     total, parts = kpis.get("energy_kwh"), [kpis.get(k) for k in ENERGY_PARTS]
     if total is not None and all(v is not None for v in parts) and not _same(total, sum(parts)):
