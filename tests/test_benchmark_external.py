@@ -84,6 +84,20 @@ def test_a_command_sent_before_its_state_does_not_time_the_step(tmp_path):
     assert steps.tolist() == pytest.approx([0.04, 0.01])
 
 
+def test_a_child_that_printed_nothing_is_said_so_not_quoted_with_the_supervisors_header():
+    """A controller that exits 0 at once: its reason quoted ceco's own log header (`--- start 1: python x.py`) as
+    if it were the controller's last words. A traceback's last line is still what is quoted."""
+    head = 'controller exited with status 0 while waiting for the nodes; log: /o/logs/external_controller.log'
+    said = external.one_line_error(f'{head}\n--- start 1: python /x/bad.py exit0')
+    assert said == (
+        'controller exited with status 0 while waiting for the nodes: it printed nothing; '
+        'log: /o/logs/external_controller.log'
+    )
+    boom = external.one_line_error(f'{head}\n--- start 1: python x.py\nTraceback ...\nRuntimeError: boom\n')
+    assert boom.startswith('controller exited with status 0 while waiting for the nodes: RuntimeError: boom; log: ')
+    assert external.one_line_error('no log here') == 'no log here'
+
+
 # What the node publishes instead of a command: nothing, NaN, a blower flow above its range.
 NOT_CONTROLLING = {
     'silent': '        pass\n',

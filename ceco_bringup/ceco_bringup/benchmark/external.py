@@ -110,9 +110,11 @@ def one_line_error(text: str) -> str:
     ``controller exited with status 1: RuntimeError: boom; log: PATH``; the whole traceback stays in the log.
     """
     head, *tail = text.strip().splitlines() or ['']
-    last = next((line.strip() for line in reversed(tail) if line.strip()), '')
-    if not last:
+    # the supervisor's own lines (``--- start 1: CMD``, ``--- stopped: ...``) are not the child's words
+    last = next((line.strip() for line in reversed(tail) if line.strip() and not line.startswith('--- ')), '')
+    if not last and not tail:
         return head
+    last = last or 'it printed nothing'
     before, sep, path = head.partition('; log: ')
     return f'{before}: {last}{sep}{path}' if sep else f'{head}: {last}'
 
