@@ -732,6 +732,9 @@ def test_bench_plant_refuses_bad_input_in_one_line(args, says, capsys):
         ('sim', ['--duration-s', '3'], '--duration-s: 3 s is shorter than one control period (5 s): give at least 5'),
         ('run', ['--duration-s', '1'], '--duration-s: 1 s is less than two plant steps'),  # was a traceback after start
         ('benchmark', ['--controller-cmd', ''], 'argument --controller-cmd: must not be empty'),
+        # found only after every baseline run before; an unclosed quote did not name the flag
+        ('benchmark', ['--controller-cmd', 'no_such_ctrl_xyz --x'], "'no_such_ctrl_xyz': not found (on PATH or"),
+        ('benchmark', ['--controller-cmd', "python '/x.py"], 'argument --controller-cmd: No closing quotation in'),
         ('benchmark', ['--controller-name', 'mine'], 'argument --controller-name: needs --controller-cmd'),
     ],
 )

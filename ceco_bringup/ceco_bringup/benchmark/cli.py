@@ -491,6 +491,23 @@ def _case_names(text: str) -> list[str]:
     return names
 
 
+def controller_cmd_problem(text: str) -> str:
+    """What is wrong with ``--controller-cmd TEXT`` before any run, or ''.
+
+    Checked before the baseline runs: a missing program was found only after them, minutes later.
+    """
+    if not text.strip():
+        return 'must not be empty (the command that starts your controller node)'
+    try:
+        program = shlex.split(text)[0]
+    except ValueError as exc:  # an unclosed quote
+        return f'{exc} in {text!r}'
+    if shutil.which(program) is None:
+        where = 'not an executable file' if os.path.exists(program) else 'not found'
+        return f'{program!r}: {where} (on PATH or as a path)'
+    return ''
+
+
 def main(argv=None) -> int:
     """CLI of ``ceco benchmark``."""
     p = build_parser()
@@ -509,8 +526,10 @@ def main(argv=None) -> int:
     if not args.out:
         p.error('--out is required (unless --validate)')
     cli_args.check_out(p, args.out)
-    if args.controller_cmd is not None and not args.controller_cmd.strip():
-        p.error('argument --controller-cmd: must not be empty (the command that starts your controller node)')
+    if args.controller_cmd is not None:
+        why = controller_cmd_problem(args.controller_cmd)
+        if why:
+            p.error(f'argument --controller-cmd: {why}')
     if args.controller_name is not None and args.controller_cmd is None:
         p.error('argument --controller-name: needs --controller-cmd (it names the controller that command starts)')
     if args.address and args.backend != 'ray':
