@@ -53,11 +53,8 @@ class PipeSafeStdout:
 
     def __init__(self, inner):
         self._inner = inner
-        self.reader_gone = False
-        """Whether a write found the reader gone (the rest went to /dev/null)."""
 
     def _to_devnull(self) -> None:
-        self.reader_gone = True
         devnull = os.open(os.devnull, os.O_WRONLY)
         try:
             os.dup2(devnull, self._inner.fileno())

@@ -89,6 +89,14 @@ def copy_scenario(name_or_path: str | os.PathLike, dest_dir: str | os.PathLike) 
     return out
 
 
+def csv_drive_cycle(data) -> str | None:
+    """The drive cycle of the scenario mapping ``data`` when it is a CSV path (not a bundled name), else None."""
+    from ceco_v2x_preview.scenario import list_drive_cycles
+
+    cycle = data.get('drive_cycle') if isinstance(data, Mapping) else None
+    return cycle if isinstance(cycle, str) and cycle not in list_drive_cycles() else None
+
+
 def copy_drive_cycle(data, src_dir: str | os.PathLike, dest_dir: str | os.PathLike) -> tuple:
     """A scenario mapping that can be written to ``dest_dir``: ``(data, note)``.
 
@@ -97,10 +105,8 @@ def copy_drive_cycle(data, src_dir: str | os.PathLike, dest_dir: str | os.PathLi
     ``dest_dir/drive_cycle_<file name>``, a copy of ``data`` pointing at it, and the note ``drive_cycle X copied
     to Y beside it`` for the written file's header.
     """
-    from ceco_v2x_preview.scenario import list_drive_cycles
-
-    cycle = data.get('drive_cycle') if isinstance(data, Mapping) else None
-    if not isinstance(cycle, str) or cycle in list_drive_cycles():
+    cycle = csv_drive_cycle(data)
+    if cycle is None:
         return data, ''
     csv = Path(cycle).expanduser()
     if not csv.is_absolute():
@@ -119,12 +125,10 @@ def scenario_sha256(copy: str | os.PathLike) -> str:
     path. The same CSV-cycle scenario run from two directories has one hash (its copy's header names the
     source and differed); an edited CSV under the same YAML has another (the YAML's bytes alone missed it).
     """
-    from ceco_v2x_preview.scenario import list_drive_cycles
-
     copy = Path(copy)
     data = yamlio.load_file(copy)
-    cycle = data.get('drive_cycle') if isinstance(data, Mapping) else None
-    if isinstance(cycle, str) and cycle not in list_drive_cycles():
+    cycle = csv_drive_cycle(data)
+    if cycle is not None:
         csv = Path(cycle) if Path(cycle).is_absolute() else copy.parent / cycle
         data = dict(data, drive_cycle={'csv_sha256': hashlib.sha256(csv.read_bytes()).hexdigest()})
     text = json.dumps(data, sort_keys=True, separators=(',', ':'), default=str)

@@ -322,8 +322,7 @@ class NodeProcess:
         if self.proc is None:
             return None
         try:
-            text = Path(f'/proc/{self.proc.pid}/stat').read_text()
-            fields = text[text.rindex(')') + 2 :].split()  # after "pid (comm) ": state is field 3
+            fields = proc_stat_fields(self.proc.pid)
             return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')  # utime, stime: fields 14, 15
         except (OSError, ValueError, IndexError):
             return None
@@ -386,6 +385,15 @@ class NodeProcess:
             return ''
 
 
+def proc_stat_fields(pid: int) -> list[str]:
+    """The fields of ``/proc/<pid>/stat`` from the state on (field 3, ``proc(5)``); OSError without the process.
+
+    They follow ``pid (comm) ``, whose command name may hold spaces and parentheses.
+    """
+    text = Path(f'/proc/{pid}/stat').read_text()
+    return text[text.rindex(')') + 2 :].split()
+
+
 ORPHAN_GRACE_S = 1.0
 """How long what a stopped process left behind may take to end on its SIGINT before SIGKILL [s]."""
 
@@ -400,8 +408,7 @@ def _proc_table() -> dict[int, tuple[int, int, int]]:
         if not d.name.isdigit():
             continue
         try:
-            text = (d / 'stat').read_text()
-            fields = text[text.rindex(')') + 2 :].split()  # state(3) ppid(4) pgrp(5) ... starttime(22)
+            fields = proc_stat_fields(int(d.name))  # state(3) ppid(4) pgrp(5) ... starttime(22)
             if fields[0] != 'Z':  # a zombie is already gone
                 table[int(d.name)] = (int(fields[1]), int(fields[2]), int(fields[19]))
         except (OSError, ValueError, IndexError):
