@@ -1125,8 +1125,8 @@ def test_held_sample_waits_for_subscribers_and_sends_each_step_once():
 
 def test_held_previews_of_every_step_wait_in_order_up_to_the_history_depth():
     """preview_node's hold keeps each step's previews: an external controller that does not wait for them lets
-    the plant run on before the recorder matched, and a CI run recorded the previews of steps 2 and 3 of 4 (the
-    newer replaced the older). Past ``keep`` the oldest goes; ``keep`` below 1 is refused."""
+    the plant run on before the recorder matched, and a run of the external test recorded the previews of steps 2
+    and 3 of 4 (the newer replaced the older). Past ``keep`` the oldest goes; ``keep`` below 1 is refused."""
     from ceco_core.sequencing import HeldSample
 
     hold = HeldSample(keep=3)

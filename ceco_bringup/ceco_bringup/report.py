@@ -33,9 +33,10 @@ reason in the words of ``ceco sim`` (``N of M runs failed (not compared):``, ``c
 on the console, in a red box of the report and in its scenario's verdict, and the command exits with status 1;
 a directory of failed runs only is reported as such (the same words, no table, exit status 1).
 
-Refused (exit status 2, one line): runs of one scenario name whose ``run.json`` record different
-``scenario_sha256`` (they drove different scenario files; a run that records none, an older run or a bare bag,
-is compared as before), complete runs of one scenario that differ in length (their energies
+Refused (exit status 2, one line): runs of one scenario name whose scenario copies hash differently
+(``provenance.scenario_sha256``: they drove different scenarios; a run without a copy uses ``run.json``'s
+stored hash, and one with neither, an older run or a bare bag, is compared as before), complete runs of one
+scenario that differ in length (their energies
 are not comparable; a partial run is shown, never compared), a ``--scenario``/``--strategy`` that
 contradicts what a run records (the flags name what a bag does not say), a run that records no
 strategy (without ``--strategy``) and the same run given twice.

@@ -227,8 +227,8 @@ class HeldSample:
     pushes the oldest out. ``keep=1`` (mpc_node's command): a newer command replaces the waiting one, each
     step's command is sent once. preview_node keeps every step's previews (``keep`` its lockstep
     history): a controller that does not wait for the previews (an external one) lets the plant run on
-    while the recorder is still matching, and each step's previews must still reach the bag (a CI run
-    once recorded the previews of steps 2 and 3 of 4 when the newer replaced the older).
+    while the recorder is still matching, and each step's previews must still reach the bag (a run of
+    tests/test_benchmark_external.py recorded the previews of steps 2 and 3 of 4 when the newer replaced the older).
     """
 
     def __init__(self, keep: int = 1):

@@ -161,7 +161,8 @@ class PlantNode(NodeTools, Node):
 
         Every matched reader first acknowledges what the plant published, the last states and the ERROR status
         (a wait of at most :data:`STOP_FLUSH_S` in all): a process that exits drops the reliable samples not yet
-        delivered, and a CI run's bag once held 1 of the 3 states the plant had sent before it stopped.
+        delivered, and a CI run's bag once held 1 cabin/state of the 3 steps (3 /clock) the plant had published
+        before it stopped.
         """
         self.get_logger().error(stopped_line(self.loop.stopped or ''))
         self.exit_status, self.exit_reason = PLANT_STOPPED_EXIT, 'the plant cannot go on'  # run_node's
